@@ -1,0 +1,74 @@
+"""Command line: ``arshadow <command> ...``.
+
+Each command lives in its own module of this package with ``register(subparsers)``; heavy imports
+(OpenGL above all) happen inside the command that needs them, never at start-up.
+
+Exit status (CONVENTIONS.md): 0 all inputs done, 1 some inputs failed (the rest were still processed and
+reported), 2 bad usage or unreadable configuration. Errors are one line on stderr, no traceback unless
+``--debug``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import sys
+
+from .. import __version__
+from ..errors import ArshadowError, ImageError, MarkerNotFoundError
+
+#: command modules, in the order ``--help`` lists them
+COMMAND_MODULES = ("render", "demo", "pose", "calibrate", "marker", "silhouette", "sun", "info")
+
+EXIT_OK, EXIT_SOME_FAILED, EXIT_USAGE = 0, 1, 2
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="arshadow",
+        description="Composite a virtual object and its exact hard shadow into photos of an ArUco marker.",
+    )
+    parser.add_argument("--version", action="version", version=f"arshadow {__version__}")
+    parser.add_argument("--debug", action="store_true", help="show tracebacks and debug logging")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in COMMAND_MODULES:
+        try:
+            mod = importlib.import_module(f"{__name__}.{name}")
+        except ModuleNotFoundError as exc:  # a command not built yet must not break the others
+            if exc.name != f"{__name__}.{name}":
+                raise
+            continue
+        mod.register(sub)
+    return parser
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(
+        level=logging.DEBUG if args.debug else logging.WARNING,
+        format="arshadow: %(levelname)s: %(message)s",
+    )
+    if not getattr(args, "func", None):
+        parser.print_help(sys.stderr)
+        return EXIT_USAGE
+    try:
+        return int(args.func(args) or 0)
+    except ArshadowError as exc:
+        if args.debug:
+            raise
+        print(f"arshadow {args.command}: error: {exc}", file=sys.stderr)
+        return EXIT_SOME_FAILED if isinstance(exc, (ImageError, MarkerNotFoundError)) else EXIT_USAGE
+    except KeyboardInterrupt:
+        print("arshadow: interrupted", file=sys.stderr)
+        return 130
+
+
+def error_line(command: str, what: str, exc: BaseException) -> str:
+    """The one-line message for a failed input: ``arshadow CMD: error: WHAT: MESSAGE``."""
+    return f"arshadow {command}: error: {what}: {exc}"
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

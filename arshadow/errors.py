@@ -1,0 +1,53 @@
+"""Typed errors. Every error a user can cause is an :class:`ArshadowError` with a one-line message
+that names the file or value and the problem; the command line prints that line and no traceback."""
+
+
+class ArshadowError(Exception):
+    """Base class of every error arshadow raises on purpose."""
+
+
+class UsageError(ArshadowError, ValueError):
+    """A bad option or argument (exit status 2)."""
+
+
+class ShapeError(ArshadowError, ValueError):
+    """An array has the wrong shape or dtype.
+
+    Parameters
+    ----------
+    msg : str
+        What is wrong.
+    actual_shape, expected_shape : tuple or str, optional
+        Shown in the message when given.
+    """
+
+    def __init__(self, msg, actual_shape=None, expected_shape=None):
+        if actual_shape is not None or expected_shape is not None:
+            msg = f"{msg} (expected shape {expected_shape}, got {actual_shape})"
+        super().__init__(msg)
+        self.actual_shape = actual_shape
+        self.expected_shape = expected_shape
+
+
+class CalibrationError(ArshadowError, ValueError):
+    """A calibration file is missing, unreadable, incomplete or invalid, or does not fit the image."""
+
+
+class ImageError(ArshadowError, ValueError):
+    """An image or video cannot be read, or has an unusable size or format."""
+
+
+class MarkerNotFoundError(ArshadowError):
+    """No marker (or not the requested id / board) was found in an image."""
+
+
+class MeshError(ArshadowError, ValueError):
+    """A mesh cannot be loaded or is unusable (empty, NaN, all faces degenerate)."""
+
+
+class LightError(ArshadowError, ValueError):
+    """A light specification is malformed or physically impossible for the scene."""
+
+
+class GLContextError(ArshadowError, RuntimeError):
+    """No OpenGL context could be created (the message names the missing library or backend)."""

@@ -1,0 +1,58 @@
+"""The JSON report of CONVENTIONS.md: ``{"arshadow": VERSION, "images": [ITEM, ...]}``."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from . import __version__
+
+
+@dataclass
+class ReportItem:
+    """One input's entry; field names are the report's keys (CONVENTIONS.md)."""
+
+    input: str
+    output: str | None = None
+    mask: str | None = None
+    status: str = "ok"  # ok | no_marker | error
+    error: str | None = None
+    marker_ids: list[int] = field(default_factory=list)
+    rvec: list[float] | None = None
+    tvec: list[float] | None = None
+    reprojection_error_px: float | None = None
+    pose_ambiguity: float | None = None
+    mode: str | None = None  # zpass | zfail | planar
+    silhouette_edges: int | None = None
+    timings_ms: dict[str, float] = field(default_factory=dict)
+    extra: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        extra = d.pop("extra")
+        d.update(extra)
+        return _jsonable(d)
+
+
+def make_report(items) -> dict:
+    """Wrap report items (``ReportItem`` or dicts) into the top-level report dict."""
+    return {
+        "arshadow": __version__,
+        "images": [i.to_dict() if isinstance(i, ReportItem) else _jsonable(i) for i in items],
+    }
+
+
+def _jsonable(x):
+    """numpy scalars/arrays -> Python; non-finite floats -> None (JSON has no NaN)."""
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _jsonable(x.tolist())
+    if isinstance(x, np.generic):
+        x = x.item()
+    if isinstance(x, float) and not np.isfinite(x):
+        return None
+    return x

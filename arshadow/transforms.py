@@ -1,0 +1,78 @@
+"""Rigid transforms and the one place where OpenCV and OpenGL axes meet.
+
+Frames (see CONVENTIONS.md): world = marker frame (z up, out of the printed face); camera = OpenCV's
+(x right, y down, z forward); ``X_cam = R @ X_world + t`` with ``(rvec, tvec)`` from ``cv2.solvePnP``
+(that transform is called ``cam_from_world``). OpenGL eye space is ``CV_TO_GL @ X_cam``.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from ._check import check_finite, check_shape
+
+#: (4, 4) float64: OpenCV camera frame -> OpenGL eye frame (flip y and z).
+CV_TO_GL = np.diag([1.0, -1.0, -1.0, 1.0])
+
+
+def matrix_from_rvec_tvec(rvec, tvec) -> np.ndarray:
+    """Build ``cam_from_world`` from a Rodrigues vector and a translation.
+
+    Parameters
+    ----------
+    rvec : (3,) float64
+        Rodrigues rotation vector (world -> camera), as ``cv2.solvePnP`` returns it.
+    tvec : (3,) float64
+        Translation (world -> camera), metres.
+
+    Returns
+    -------
+    (4, 4) float64
+        ``cam_from_world``.
+
+    Examples
+    --------
+    >>> matrix_from_rvec_tvec([0, 0, 0], [0, 0, 1])[:3, 3].tolist()
+    [0.0, 0.0, 1.0]
+    """
+    rvec = check_finite(check_shape(np.ravel(rvec), "3", "rvec"), "rvec")
+    tvec = check_finite(check_shape(np.ravel(tvec), "3", "tvec"), "tvec")
+    m = np.eye(4)
+    m[:3, :3] = cv2.Rodrigues(rvec.reshape(3, 1))[0]
+    m[:3, 3] = tvec
+    return m
+
+
+def rvec_tvec_from_matrix(m) -> tuple[np.ndarray, np.ndarray]:
+    """Inverse of :func:`matrix_from_rvec_tvec`: ``(4, 4)`` -> ``((3,) rvec, (3,) tvec)`` float64."""
+    m = check_shape(m, "4,4", "transform").astype(np.float64)
+    rvec = cv2.Rodrigues(m[:3, :3])[0].ravel()
+    return rvec, m[:3, 3].copy()
+
+
+def invert_rigid(m) -> np.ndarray:
+    """Invert a rigid ``(4, 4)`` transform exactly (``R.T``, ``-R.T @ t``)."""
+    m = check_shape(m, "4,4", "transform").astype(np.float64)
+    out = np.eye(4)
+    out[:3, :3] = m[:3, :3].T
+    out[:3, 3] = -m[:3, :3].T @ m[:3, 3]
+    return out
+
+
+def transform_points(m, points) -> np.ndarray:
+    """Apply a ``(4, 4)`` transform to ``(n, 3)`` points; returns ``(n, 3)`` float64."""
+    p = check_shape(points, "N,3", "points").astype(np.float64)
+    m = np.asarray(m, dtype=np.float64)
+    return p @ m[:3, :3].T + m[:3, 3]
+
+
+def rotation_error_deg(r_a, r_b) -> float:
+    """Angle in degrees of ``R_a @ R_b.T`` for two ``(3, 3)`` rotations or ``(3,)`` Rodrigues vectors."""
+    def as_mat(r):
+        r = np.asarray(r, dtype=np.float64)
+        return cv2.Rodrigues(r.reshape(3, 1))[0] if r.size == 3 else r.reshape(3, 3)
+
+    d = as_mat(r_a) @ as_mat(r_b).T
+    c = np.clip((np.trace(d) - 1.0) / 2.0, -1.0, 1.0)
+    return float(np.degrees(np.arccos(c)))
