@@ -1,0 +1,199 @@
+"""Shadow-catcher compositing: darken the photo by the shadow in linear light, put the occluder over it.
+
+Pure numpy / OpenCV, no GL. The renderer's arrays cover a region of interest (ROI) of the photo; only that
+region is touched, everything else is copied unchanged.
+
+For every ROI pixel (all colours linear RGB, the photo converted from sRGB by a 256-entry table)::
+
+    factor  = 1 - opacity * mask * (1 - shadow_color)        # shadow_color black -> 1 - opacity * mask
+    shaded  = photo_linear * factor
+    out     = color + (1 - alpha) * shaded                    # premultiplied occluder colour (default)
+            = alpha * color + (1 - alpha) * shaded            # straight (premultiplied=False)
+
+and ``out`` goes back to 8-bit sRGB through a 65 536-entry table indexed by ``round(out * 65535)``
+(the table's step is at most 0.05 of an 8-bit level, so the result differs from exact rounding by one
+level only for values within that distance of a rounding tie; an unchanged 8-bit value round-trips
+exactly).
+
+Examples
+--------
+>>> import numpy as np
+>>> photo = np.full((2, 2, 3), 128, np.uint8)
+>>> mask = np.array([[1.0, 0.0], [0.0, 0.0]], np.float32)
+>>> out = composite(photo, mask, roi=(0, 0, 2, 2), opacity=0.5)
+>>> out[0, 0].tolist(), out[1, 1].tolist()
+([92, 92, 92], [128, 128, 128])
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._check import check_finite, check_shape
+from .errors import ShapeError, UsageError
+
+__all__ = [
+    "SRGB_TO_LINEAR",
+    "LINEAR_TO_SRGB16",
+    "srgb_to_linear",
+    "linear_to_srgb",
+    "linear_to_srgb8",
+    "srgb8_to_linear",
+    "parse_rgb",
+    "composite",
+    "clip_roi",
+]
+
+
+def srgb_to_linear(c):
+    """The sRGB decoding curve (IEC 61966-2-1) on values in [0, 1]; float64 in, float64 out."""
+    c = np.asarray(c, dtype=np.float64)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+def linear_to_srgb(x):
+    """The sRGB encoding curve on linear values in [0, 1] (clipped); float64 in, float64 out."""
+    x = np.clip(np.asarray(x, dtype=np.float64), 0.0, 1.0)
+    return np.where(x <= 0.0031308, x * 12.92, 1.055 * x ** (1.0 / 2.4) - 0.055)
+
+
+#: (256,) float32: 8-bit sRGB code -> linear value in [0, 1]
+SRGB_TO_LINEAR = srgb_to_linear(np.arange(256) / 255.0).astype(np.float32)
+SRGB_TO_LINEAR.flags.writeable = False
+
+#: (65536,) uint8: round(x * 65535) -> 8-bit sRGB code of linear value x
+LINEAR_TO_SRGB16 = np.clip(np.rint(linear_to_srgb(np.arange(65536) / 65535.0) * 255.0), 0, 255).astype(np.uint8)
+LINEAR_TO_SRGB16.flags.writeable = False
+
+
+def srgb8_to_linear(img: np.ndarray) -> np.ndarray:
+    """``(..., C) uint8`` sRGB -> same-shape float32 linear in [0, 1] (table lookup)."""
+    import cv2
+
+    img = np.asarray(img)
+    if img.dtype != np.uint8:
+        raise ShapeError(f"srgb8_to_linear needs uint8, got {img.dtype}")
+    if img.ndim <= 3 and img.size and (img.ndim < 3 or img.shape[2] <= 4):
+        return cv2.LUT(img, SRGB_TO_LINEAR)
+    return SRGB_TO_LINEAR[img]
+
+
+def linear_to_srgb8(lin: np.ndarray) -> np.ndarray:
+    """float linear values (any shape, clipped to [0, 1]) -> uint8 sRGB codes (table lookup)."""
+    lin = np.asarray(lin, dtype=np.float32)
+    idx = np.multiply(lin.reshape(lin.shape or (1,)), np.float32(65535.0))
+    np.add(idx, np.float32(0.5), out=idx)
+    np.clip(idx, 0.0, 65535.0, out=idx)
+    return LINEAR_TO_SRGB16[idx.astype(np.uint16)].reshape(lin.shape)
+
+
+def parse_rgb(spec, name: str = "colour") -> tuple[float, float, float]:
+    """Parse ``"R,G,B"`` (8-bit sRGB values 0..255) into linear RGB floats in [0, 1].
+
+    Examples
+    --------
+    >>> parse_rgb("255,0,0")
+    (1.0, 0.0, 0.0)
+    """
+    if isinstance(spec, str):
+        parts = [p.strip() for p in spec.split(",")]
+        try:
+            vals = [float(p) for p in parts]
+        except ValueError:
+            raise UsageError(f"{name} {spec!r}: expected R,G,B with numbers 0..255") from None
+    else:
+        vals = [float(v) for v in spec]
+    if len(vals) != 3 or not all(np.isfinite(vals)) or not all(0.0 <= v <= 255.0 for v in vals):
+        raise UsageError(f"{name} {spec!r}: expected R,G,B with three numbers 0..255")
+    return tuple(float(v) for v in srgb_to_linear(np.array(vals) / 255.0))
+
+
+def clip_roi(roi, width: int, height: int) -> tuple[int, int, int, int]:
+    """Intersect ``roi = (x0, y0, w, h)`` with a ``width`` x ``height`` image (may return w or h = 0)."""
+    x0, y0, w, h = (int(v) for v in roi)
+    x1, y1 = min(x0 + w, width), min(y0 + h, height)
+    x0, y0 = max(x0, 0), max(y0, 0)
+    return x0, y0, max(x1 - x0, 0), max(y1 - y0, 0)
+
+
+def composite(
+    photo: np.ndarray,
+    mask: np.ndarray | None,
+    roi=None,
+    *,
+    color: np.ndarray | None = None,
+    alpha: np.ndarray | None = None,
+    opacity: float = 1.0,
+    shadow_color=(0.0, 0.0, 0.0),
+    premultiplied: bool = True,
+    out: np.ndarray | None = None,
+) -> np.ndarray:
+    """Composite a shadow mask and a shaded occluder into a photo.
+
+    Parameters
+    ----------
+    photo : (H, W, 3) uint8
+        BGR sRGB photo. Never modified (unless passed as ``out`` too).
+    mask : (h, w) float32 in [0, 1] or None
+        Blocked light fraction over the ROI (rows top to bottom).
+    roi : (x0, y0, w, h) ints, optional
+        Where the ``(h, w)`` arrays sit in the photo; default the whole photo. Must lie inside the photo.
+    color : (h, w, 3) float32, optional
+        Occluder colour, **linear RGB** (not BGR), premultiplied by ``alpha`` unless
+        ``premultiplied=False``.
+    alpha : (h, w) float32 in [0, 1], optional
+        Occluder coverage. Required with ``color``.
+    opacity : float in [0, 1]
+        How dark a fully blocked pixel gets: it is multiplied by ``1 - opacity * (1 - shadow_color)``.
+    shadow_color : (3,) linear RGB in [0, 1]
+        Tint of a full shadow (black = plain darkening); see :func:`parse_rgb`.
+    premultiplied : bool
+        Whether ``color`` is premultiplied by ``alpha``.
+    out : (H, W, 3) uint8, optional
+        Output buffer (may be ``photo`` itself to composite in place); a copy of ``photo`` otherwise.
+
+    Returns
+    -------
+    (H, W, 3) uint8
+        The composited BGR photo.
+    """
+    photo = check_shape(photo, "H,W,3", "photo")
+    if photo.dtype != np.uint8:
+        raise ShapeError(f"photo must be uint8, got {photo.dtype}")
+    H, W = photo.shape[:2]
+    if roi is None:
+        roi = (0, 0, W, H)
+    x0, y0, w, h = (int(v) for v in roi)
+    if x0 < 0 or y0 < 0 or w < 0 or h < 0 or x0 + w > W or y0 + h > H:
+        raise ShapeError(f"roi {tuple(roi)} is not inside the {W}x{H} photo")
+    if not (0.0 <= float(opacity) <= 1.0):
+        raise UsageError(f"opacity {opacity} is not in [0, 1]")
+    sc = check_finite(check_shape(np.ravel(shadow_color), "3", "shadow_color"), "shadow_color")
+    if out is None:
+        out = photo.copy()
+    elif out is not photo:
+        np.copyto(out, photo)
+    if w == 0 or h == 0:
+        return out
+    for name, arr, spec in (("mask", mask, "H,W"), ("alpha", alpha, "H,W"), ("color", color, "H,W,3")):
+        if arr is not None and check_shape(arr, spec, name).shape[:2] != (h, w):
+            raise ShapeError(f"{name} does not match the roi", actual_shape=arr.shape[:2], expected_shape=(h, w))
+    if (color is None) != (alpha is None):
+        raise UsageError("color and alpha go together")
+
+    region = out[y0 : y0 + h, x0 : x0 + w]
+    lin = srgb8_to_linear(photo[y0 : y0 + h, x0 : x0 + w])  # (h, w, 3) float32 BGR
+    if mask is not None and opacity > 0.0:
+        dark = (np.float32(opacity) * (1.0 - sc[::-1])).astype(np.float32)  # BGR
+        m = np.asarray(mask, dtype=np.float32)
+        # lin *= 1 - m * dark   (per channel)
+        factor = m[:, :, None] * (-dark)
+        factor += np.float32(1.0)
+        lin *= factor
+    if alpha is not None:
+        a = np.asarray(alpha, dtype=np.float32)[:, :, None]
+        c = np.asarray(color, dtype=np.float32)[:, :, ::-1]  # RGB -> BGR
+        lin *= np.float32(1.0) - a
+        lin += c if premultiplied else c * a
+    region[...] = linear_to_srgb8(lin)
+    return out
