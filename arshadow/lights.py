@@ -33,6 +33,7 @@ from datetime import datetime
 import numpy as np
 
 from .errors import LightError
+from .sun import sun_light_direction, sun_position
 
 __all__ = [
     "Light",
@@ -335,8 +336,6 @@ _SUN_KEYS = ("elevation", "pressure", "temperature", "delta_t", "model", "refrac
 
 
 def _parse_sun(spec, pos, kw, weight, default_time) -> Light:
-    from .sun import sun_light_direction, sun_position  # noqa: PLC0415  (sun.py is pure numpy)
-
     _check_keys(kw, _SUN_KEYS, spec)
     if not 2 <= len(pos) <= 4:
         raise LightError(f"light {spec!r}: sun needs LAT,LON,TIME[,NORTH], got {len(pos)} value(s)")

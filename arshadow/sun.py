@@ -1,0 +1,666 @@
+"""The sun's position for an instant and a place, and its direction in the world frame.
+
+Models
+------
+``"spa"`` (default)
+    NREL's Solar Position Algorithm: I. Reda and A. Andreas, "Solar Position Algorithm for Solar
+    Radiation Applications", NREL/TP-560-34302 (2003, revised 2008); stated uncertainty +-0.0003 deg for
+    the years -2000..6000. Written here in numpy from the report, vectorised over times; the periodic-term
+    tables (:mod:`arshadow._spa_tables`) are transcribed from pvlib-python's ``pvlib/spa.py`` (BSD 3-Clause,
+    Copyright (c) 2023 pvlib python Contributors). The zenith is topocentric (parallax and observer
+    elevation included). ``zenith_deg`` is geometric (no refraction); ``apparent_zenith_deg`` applies the
+    SPA's refraction correction (Bennett-type, scaled by pressure / 1010 mbar and 283 K / temperature,
+    applied while the geometric elevation is above -(0.26667 + 0.5667) deg, the sun's radius plus the
+    refraction at the horizon).
+``"paper"``
+    Paper 004 (Kolivand et al. 2011), taken from Preetham et al. 1999 / Iqbal 1983: equations (2)-(5),
+    with the azimuth CORRECTED: ``phi = atan2(-cos d sin(pi t/12), cos l sin d + sin l cos d cos(pi t/12))``
+    (the paper prints ``-`` before the second term of the denominator and uses ``atan``, which loses the
+    quadrant). ``phi`` is measured from north towards the WEST, so the compass azimuth is ``-phi``. The
+    longitude term ``12 (SM - L) / pi`` needs west-positive longitudes (our longitudes are east-positive:
+    ``L = -lon``); we evaluate it in UTC (standard meridian SM = 0, standard time = UTC hours, J = UTC
+    day of the year). No refraction model: apparent = geometric.
+``"paper-printed"``
+    Paper 004's azimuth exactly as printed (``atan``, ``-`` sign), same convention; for comparison only.
+
+Frames
+------
+ENU: x east, y north, z up (unit vector TOWARDS the sun). World: the marker frame (z up); the world +y
+axis has compass bearing ``north_deg`` (degrees clockwise from true north; 0: +y = north, +x = east), see
+:func:`enu_to_world`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from datetime import datetime, timedelta, timezone
+
+import numpy as np
+
+from . import _spa_tables as T
+from .errors import LightError
+
+__all__ = [
+    "SunPosition",
+    "SunTrack",
+    "TrackFrame",
+    "MODELS",
+    "sun_position",
+    "sun_positions",
+    "enu_to_world",
+    "world_to_enu",
+    "sun_light_direction",
+    "pole_shadow",
+    "delta_t_estimate",
+    "standard_pressure_mbar",
+    "angle_between_deg",
+    "frame_times",
+]
+
+MODELS = ("spa", "paper", "paper-printed")
+
+#: the SPA's default atmospheric refraction at sunrise/sunset, degrees
+ATMOS_REFRACT_DEG = 0.5667
+#: the sun's radius used by the SPA's refraction switch, degrees
+_SPA_SUN_RADIUS_DEG = 0.26667
+_UNIX_EPOCH = datetime(1970, 1, 1, tzinfo=timezone.utc)
+
+
+# ----------------------------------------------------------------------------------------------- helpers
+
+
+def standard_pressure_mbar(elevation_m: float) -> float:
+    """Mean air pressure (mbar) at ``elevation_m`` metres, ICAO standard atmosphere (troposphere).
+
+    Examples
+    --------
+    >>> round(standard_pressure_mbar(0.0), 2), round(standard_pressure_mbar(1830.14), 1)
+    (1013.25, 811.9)
+    """
+    return 1013.25 * (1.0 - 2.25577e-5 * float(elevation_m)) ** 5.25588
+
+
+def delta_t_estimate(year: float) -> float:
+    """TT - UT in seconds for a (decimal) year: Espenak & Meeus (NASA, 2006) polynomials, 1900..2150,
+    and their long-term parabola outside. Its effect on the sun's direction is tiny (1 s of Delta T moves
+    the sun by 4e-5 deg along the ecliptic).
+
+    Examples
+    --------
+    >>> 60 < delta_t_estimate(2003.8) < 70
+    True
+    """
+    y = float(year)
+    if 1900 <= y < 1920:
+        t = y - 1900
+        return -2.79 + 1.494119 * t - 0.0598939 * t**2 + 0.0061966 * t**3 - 0.000197 * t**4
+    if 1920 <= y < 1941:
+        t = y - 1920
+        return 21.20 + 0.84493 * t - 0.076100 * t**2 + 0.0020936 * t**3
+    if 1941 <= y < 1961:
+        t = y - 1950
+        return 29.07 + 0.407 * t - t**2 / 233 + t**3 / 2547
+    if 1961 <= y < 1986:
+        t = y - 1975
+        return 45.45 + 1.067 * t - t**2 / 260 - t**3 / 718
+    if 1986 <= y < 2005:
+        t = y - 2000
+        return 63.86 + 0.3345 * t - 0.060374 * t**2 + 0.0017275 * t**3 + 0.000651814 * t**4 + 0.00002373599 * t**5
+    if 2005 <= y < 2050:
+        t = y - 2000
+        return 62.92 + 0.32217 * t + 0.005589 * t**2
+    if 2050 <= y < 2150:
+        return -20 + 32 * ((y - 1820) / 100) ** 2 - 0.5628 * (2150 - y)
+    u = (y - 1820) / 100
+    return -20 + 32 * u * u
+
+
+def _as_utc(when) -> datetime:
+    if not isinstance(when, datetime):
+        raise LightError(f"time must be a datetime with a UTC offset, got {type(when).__name__}")
+    if when.tzinfo is None or when.utcoffset() is None:
+        raise LightError(
+            f"time {when.isoformat()} has no UTC offset: pass an aware datetime "
+            "(e.g. datetime(..., tzinfo=timezone.utc)) or add +HH:MM / Z to the ISO string"
+        )
+    return when.astimezone(timezone.utc)
+
+
+def _check_place(lat, lon, elevation):
+    lat, lon, elevation = float(lat), float(lon), float(elevation)
+    if not math.isfinite(lat) or not -90.0 <= lat <= 90.0:
+        raise LightError(f"latitude {lat:g} is outside [-90, 90]")
+    if not math.isfinite(lon) or not -180.0 <= lon <= 180.0:
+        raise LightError(f"longitude {lon:g} is outside [-180, 180] (east positive)")
+    if not math.isfinite(elevation) or not -500.0 <= elevation <= 50000.0:
+        raise LightError(f"elevation {elevation:g} m is outside [-500, 50000]")
+    return lat, lon, elevation
+
+
+def _enu(zenith_deg, azimuth_deg) -> np.ndarray:
+    z, a = np.radians(zenith_deg), np.radians(azimuth_deg)
+    s = np.sin(z)
+    return np.stack([s * np.sin(a), s * np.cos(a), np.cos(z)], axis=-1)
+
+
+def angle_between_deg(a, b) -> np.ndarray:
+    """Angle in degrees between unit vectors ``a`` and ``b`` (``(..., 3)``), accurate for tiny angles."""
+    a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    return np.degrees(2.0 * np.arctan2(np.linalg.norm(a - b, axis=-1), np.linalg.norm(a + b, axis=-1)))
+
+
+# ------------------------------------------------------------------------------------------------- SPA
+
+
+def _periodic(table: np.ndarray, jme: np.ndarray) -> np.ndarray:
+    # sum_i A_i cos(B_i + C_i * JME)  (SPA eq. 9)
+    return np.sum(table[:, 0] * np.cos(table[:, 1] + table[:, 2] * jme[..., None]), axis=-1)
+
+
+def _series(tables, jme):
+    # (L0 + L1 JME + L2 JME^2 + ...) / 1e8  (SPA eq. 10-11)
+    return sum(_periodic(t, jme) * jme**i for i, t in enumerate(tables)) / 1e8
+
+
+def _spa(jd, delta_t, lat, lon, elev, pressure, temp):
+    """NREL SPA (report section 3) for Julian days ``jd`` (UT). Returns a dict of arrays (degrees)."""
+    jd = np.asarray(jd, dtype=np.float64)
+    jde = jd + delta_t / 86400.0  # 3.1.2
+    jc = (jd - 2451545.0) / 36525.0  # 3.1.3
+    jce = (jde - 2451545.0) / 36525.0  # 3.1.4
+    jme = jce / 10.0  # 3.1.5
+
+    # 3.2 heliocentric longitude, latitude, radius vector
+    L = np.degrees(_series((T.L0, T.L1, T.L2, T.L3, T.L4, T.L5), jme)) % 360.0
+    B = np.degrees(_series((T.B0, T.B1), jme))
+    R = _series((T.R0, T.R1, T.R2, T.R3, T.R4), jme)
+
+    # 3.3 geocentric longitude and latitude
+    theta = (L + 180.0) % 360.0
+    beta = -B
+
+    # 3.4 nutation in longitude and obliquity
+    x = np.stack(
+        [
+            297.85036 + 445267.111480 * jce - 0.0019142 * jce**2 + jce**3 / 189474.0,  # mean elongation moon-sun
+            357.52772 + 35999.050340 * jce - 0.0001603 * jce**2 - jce**3 / 300000.0,  # mean anomaly sun
+            134.96298 + 477198.867398 * jce + 0.0086972 * jce**2 + jce**3 / 56250.0,  # mean anomaly moon
+            93.27191 + 483202.017538 * jce - 0.0036825 * jce**2 + jce**3 / 327270.0,  # moon arg. of latitude
+            125.04452 - 1934.136261 * jce + 0.0020708 * jce**2 + jce**3 / 450000.0,  # moon ascending node
+        ],
+        axis=-1,
+    )
+    arg = np.radians(x @ T.NUTATION_YTERM_ARRAY.T.astype(np.float64))  # (..., 63)
+    abcd = T.NUTATION_ABCD_ARRAY
+    d_psi = np.sum((abcd[:, 0] + abcd[:, 1] * jce[..., None]) * np.sin(arg), axis=-1) / 36e6
+    d_eps = np.sum((abcd[:, 2] + abcd[:, 3] * jce[..., None]) * np.cos(arg), axis=-1) / 36e6
+
+    # 3.5 true obliquity of the ecliptic
+    u = jme / 10.0
+    eps0 = np.polyval([2.45, 5.79, 27.87, 7.12, -39.05, -249.67, -51.38, 1999.25, -1.55, -4680.93, 84381.448], u)
+    eps = eps0 / 3600.0 + d_eps
+
+    # 3.6-3.7 aberration, apparent sun longitude
+    d_tau = -20.4898 / (3600.0 * R)
+    lam = theta + d_psi + d_tau
+
+    # 3.8 apparent sidereal time at Greenwich
+    nu0 = (280.46061837 + 360.98564736629 * (jd - 2451545.0) + 0.000387933 * jc**2 - jc**3 / 38710000.0) % 360.0
+    nu = nu0 + d_psi * np.cos(np.radians(eps))
+
+    # 3.9-3.10 geocentric right ascension and declination
+    lam_r, eps_r, beta_r = np.radians(lam), np.radians(eps), np.radians(beta)
+    alpha = np.degrees(np.arctan2(np.sin(lam_r) * np.cos(eps_r) - np.tan(beta_r) * np.sin(eps_r), np.cos(lam_r))) % 360.0
+    delta = np.degrees(np.arcsin(np.sin(beta_r) * np.cos(eps_r) + np.cos(beta_r) * np.sin(eps_r) * np.sin(lam_r)))
+
+    # 3.11 observer local hour angle (westward from south)
+    H = (nu + lon - alpha) % 360.0
+
+    # 3.12 topocentric right ascension and declination (parallax)
+    xi = np.radians(8.794 / (3600.0 * R))
+    lat_r = math.radians(lat)
+    uu = math.atan(0.99664719 * math.tan(lat_r))
+    xx = math.cos(uu) + elev / 6378140.0 * math.cos(lat_r)
+    yy = 0.99664719 * math.sin(uu) + elev / 6378140.0 * math.sin(lat_r)
+    H_r, delta_r = np.radians(H), np.radians(delta)
+    d_alpha = np.arctan2(-xx * np.sin(xi) * np.sin(H_r), np.cos(delta_r) - xx * np.sin(xi) * np.cos(H_r))
+    delta_p = np.arctan2((np.sin(delta_r) - yy * np.sin(xi)) * np.cos(d_alpha), np.cos(delta_r) - xx * np.sin(xi) * np.cos(H_r))
+
+    # 3.13 topocentric local hour angle
+    H_p = H_r - d_alpha
+
+    # 3.14 topocentric zenith angle
+    e0 = np.degrees(np.arcsin(np.sin(lat_r) * np.sin(delta_p) + np.cos(lat_r) * np.cos(delta_p) * np.cos(H_p)))
+    refr = np.where(
+        e0 >= -(_SPA_SUN_RADIUS_DEG + ATMOS_REFRACT_DEG),
+        (pressure / 1010.0) * (283.0 / (273.0 + temp)) * 1.02 / (60.0 * np.tan(np.radians(e0 + 10.3 / (e0 + 5.11)))),
+        0.0,
+    )
+    e = e0 + refr
+
+    # 3.15 topocentric azimuth (astronomers' from south, westward) -> navigators' (from north, eastward)
+    gamma = np.degrees(np.arctan2(np.sin(H_p), np.cos(H_p) * np.sin(lat_r) - np.tan(delta_p) * np.cos(lat_r)))
+    azimuth = (gamma + 180.0) % 360.0
+    return {
+        "zenith": 90.0 - e0,
+        "apparent_zenith": 90.0 - e,
+        "azimuth": azimuth,
+        "declination": np.degrees(delta_p),
+        "hour_angle": np.degrees(H_p),
+    }
+
+
+# ------------------------------------------------------------------------------------------ paper 004
+
+
+def _paper(when_utc: list[datetime], lat, lon, printed: bool):
+    """Paper 004 eq. (2)-(5) in UTC (SM = 0), west-positive longitude ``L = -lon``."""
+    j = np.array([w.timetuple().tm_yday for w in when_utc], dtype=np.float64)  # day of the year, 1..366
+    ts = np.array([w.hour + w.minute / 60 + (w.second + w.microsecond / 1e6) / 3600 for w in when_utc])
+    sm, L = 0.0, math.radians(-lon)
+    t = ts + 0.170 * np.sin(4 * np.pi * (j - 80) / 373) - 0.129 * np.sin(2 * np.pi * (j - 8) / 355) + 12 * (sm - L) / np.pi
+    d = 0.4093 * np.sin(2 * np.pi * (j - 81) / 368)
+    la = math.radians(lat)
+    w = np.pi * t / 12
+    zen = np.pi / 2 - np.arcsin(np.clip(np.sin(la) * np.sin(d) - np.cos(la) * np.cos(d) * np.cos(w), -1, 1))
+    num = -np.cos(d) * np.sin(w)
+    if printed:
+        den = np.cos(la) * np.sin(d) - np.sin(la) * np.cos(d) * np.cos(w)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            phi = np.arctan(num / den)
+        phi = np.where(np.isfinite(phi), phi, np.sign(num) * np.pi / 2)
+    else:
+        den = np.cos(la) * np.sin(d) + np.sin(la) * np.cos(d) * np.cos(w)
+        phi = np.arctan2(num, den)
+    azimuth = np.degrees(-phi) % 360.0  # phi is counted from north towards west
+    zen = np.degrees(zen)
+    return {
+        "zenith": zen,
+        "apparent_zenith": zen,
+        "azimuth": azimuth,
+        "declination": np.degrees(d),
+        "hour_angle": np.degrees(w - np.pi),
+    }
+
+
+# --------------------------------------------------------------------------------------------- public
+
+
+@dataclass(frozen=True, eq=False)
+class SunPosition:
+    """The sun seen from one place at one instant.
+
+    Attributes
+    ----------
+    zenith_deg : float
+        Topocentric zenith angle without refraction (geometric), degrees.
+    apparent_zenith_deg : float
+        With the model's refraction correction (``== zenith_deg`` for the paper models).
+    azimuth_deg : float
+        Compass azimuth, degrees clockwise from true north, in [0, 360).
+    enu : (3,) float64
+        Unit vector towards the (geometric) sun in east-north-up coordinates.
+    above_horizon : bool
+        ``zenith_deg < 90`` (geometric).
+    when : datetime
+        The instant (aware; as given).
+    latitude, longitude, elevation : float
+        Degrees (north +, east +) and metres.
+    model : str
+    declination_deg, hour_angle_deg : float
+        Topocentric declination and local hour angle (0 at solar noon, + westward).
+    """
+
+    zenith_deg: float
+    apparent_zenith_deg: float
+    azimuth_deg: float
+    enu: np.ndarray
+    above_horizon: bool
+    when: datetime | None = None
+    latitude: float = 0.0
+    longitude: float = 0.0
+    elevation: float = 0.0
+    model: str = "spa"
+    declination_deg: float = float("nan")
+    hour_angle_deg: float = float("nan")
+    extra: dict = field(default_factory=dict, repr=False)
+
+    def __eq__(self, other):
+        if not isinstance(other, SunPosition):
+            return NotImplemented
+        return (
+            (self.zenith_deg, self.apparent_zenith_deg, self.azimuth_deg, self.when, self.latitude,
+             self.longitude, self.elevation, self.model)
+            == (other.zenith_deg, other.apparent_zenith_deg, other.azimuth_deg, other.when, other.latitude,
+                other.longitude, other.elevation, other.model)
+        )
+
+    def __hash__(self):
+        return hash((self.zenith_deg, self.azimuth_deg, self.when, self.model))
+
+    @property
+    def elevation_deg(self) -> float:
+        """Geometric elevation angle above the horizon, degrees."""
+        return 90.0 - self.zenith_deg
+
+    @property
+    def apparent_enu(self) -> np.ndarray:
+        """``(3,)`` unit vector towards the apparent (refracted) sun, ENU."""
+        return _enu(self.apparent_zenith_deg, self.azimuth_deg)
+
+    @property
+    def apparent_above_horizon(self) -> bool:
+        """``apparent_zenith_deg < 90``: the refracted sun centre is above the horizon."""
+        return bool(self.apparent_zenith_deg < 90.0)
+
+
+def sun_positions(
+    times,
+    lat: float,
+    lon: float,
+    elevation: float = 0.0,
+    model: str = "spa",
+    pressure_mbar: float | None = None,
+    temperature_c: float = 12.0,
+    delta_t: float | None = None,
+) -> list[SunPosition]:
+    """Vectorised :func:`sun_position` for a sequence of aware datetimes (one place)."""
+    times = list(times)
+    model = str(model).lower()
+    if model not in MODELS:
+        raise LightError(f"unknown sun model {model!r} (choose from {', '.join(MODELS)})")
+    lat, lon, elevation = _check_place(lat, lon, elevation)
+    pressure = standard_pressure_mbar(elevation) if pressure_mbar is None else float(pressure_mbar)
+    temp = float(temperature_c)
+    if not (math.isfinite(pressure) and 0.0 <= pressure <= 2000.0):
+        raise LightError(f"pressure {pressure:g} mbar is outside [0, 2000]")
+    if not (math.isfinite(temp) and -100.0 < temp < 100.0):
+        raise LightError(f"temperature {temp:g} deg C is outside (-100, 100)")
+    if not times:
+        return []
+    utc = [_as_utc(w) for w in times]
+    if model == "spa":
+        jd = np.array([(u - _UNIX_EPOCH) / timedelta(days=1) + 2440587.5 for u in utc])
+        if delta_t is None:
+            dt = np.array([delta_t_estimate(u.year + (u.timetuple().tm_yday - 0.5) / 365.25) for u in utc])
+        else:
+            dt = float(delta_t)
+            if not (math.isfinite(dt) and abs(dt) < 1e5):
+                raise LightError(f"delta_t {delta_t!r} s is not a plausible TT - UT")
+            dt = np.full(len(utc), dt)
+        r = _spa(jd, dt, lat, lon, elevation, pressure, temp)
+    else:
+        dt = np.full(len(utc), np.nan)
+        r = _paper(utc, lat, lon, printed=(model == "paper-printed"))
+    enu = _enu(r["zenith"], r["azimuth"])
+    out = []
+    for i, w in enumerate(times):
+        v = enu[i].copy()
+        v.setflags(write=False)
+        out.append(
+            SunPosition(
+                zenith_deg=float(r["zenith"][i]),
+                apparent_zenith_deg=float(r["apparent_zenith"][i]),
+                azimuth_deg=float(r["azimuth"][i]),
+                enu=v,
+                above_horizon=bool(r["zenith"][i] < 90.0),
+                when=w,
+                latitude=lat,
+                longitude=lon,
+                elevation=elevation,
+                model=model,
+                declination_deg=float(r["declination"][i]),
+                hour_angle_deg=float(((r["hour_angle"][i] + 180.0) % 360.0) - 180.0),
+                extra={"pressure_mbar": pressure, "temperature_c": temp, "delta_t": float(dt[i])},
+            )
+        )
+    return out
+
+
+def sun_position(
+    when: datetime,
+    lat: float,
+    lon: float,
+    elevation: float = 0.0,
+    model: str = "spa",
+    pressure_mbar: float | None = None,
+    temperature_c: float = 12.0,
+    delta_t: float | None = None,
+) -> SunPosition:
+    """Zenith, azimuth and direction of the sun at an instant, seen from a place.
+
+    Parameters
+    ----------
+    when : datetime
+        Timezone-aware instant (a naive datetime is refused: LightError).
+    lat, lon : float
+        Degrees, north and EAST positive.
+    elevation : float
+        Observer height above sea level, metres (SPA parallax and default pressure).
+    model : {"spa", "paper", "paper-printed"}
+        See the module docstring.
+    pressure_mbar : float, optional
+        Annual mean local pressure for the refraction correction; default: standard atmosphere at
+        ``elevation``.
+    temperature_c : float
+        Annual mean local temperature for the refraction correction (default 12).
+    delta_t : float, optional
+        TT - UT in seconds; default :func:`delta_t_estimate` for the date.
+
+    Returns
+    -------
+    SunPosition
+
+    Raises
+    ------
+    LightError
+        Naive time, latitude outside [-90, 90], longitude outside [-180, 180], unknown model, absurd
+        pressure / temperature / elevation.
+
+    Examples
+    --------
+    SPA report worked example (Reda & Andreas, Table A5.1):
+
+    >>> from datetime import datetime, timedelta, timezone
+    >>> t = datetime(2003, 10, 17, 12, 30, 30, tzinfo=timezone(timedelta(hours=-7)))
+    >>> s = sun_position(t, 39.742476, -105.1786, 1830.14, pressure_mbar=820, temperature_c=11, delta_t=67)
+    >>> round(s.apparent_zenith_deg, 5), round(s.zenith_deg, 5), round(s.azimuth_deg, 5)
+    (50.11162, 50.12795, 194.34024)
+    """
+    return sun_positions([when], lat, lon, elevation, model, pressure_mbar, temperature_c, delta_t)[0]
+
+
+def enu_to_world(enu, north_deg: float = 0.0) -> np.ndarray:
+    """Rotate an east-north-up vector into the world frame whose +y axis has compass bearing ``north_deg``.
+
+    ``north_deg`` is the bearing of world +y in degrees clockwise from true north (CONVENTIONS.md); world
+    +x then has bearing ``north_deg + 90`` and world +z is up. A rotation about z by ``+north_deg``
+    (counter-clockwise seen from above)::
+
+        x =  e cos N - n sin N,   y = e sin N + n cos N,   z = u
+
+    Parameters
+    ----------
+    enu : (3,) or (n, 3) float64
+    north_deg : float
+
+    Returns
+    -------
+    (3,) or (n, 3) float64
+
+    Examples
+    --------
+    >>> enu_to_world([1.0, 0.0, 0.0], 90.0).round(12).tolist()   # east, world +y points east
+    [0.0, 1.0, 0.0]
+    """
+    v = np.array(enu, dtype=np.float64)
+    if v.shape[-1:] != (3,) or v.ndim > 2:
+        raise LightError(f"enu vector must have shape (3,) or (n, 3), got {v.shape}")
+    n = float(north_deg)
+    if not math.isfinite(n):
+        raise LightError(f"north bearing {north_deg!r} is not finite")
+    c, s = math.cos(math.radians(n)), math.sin(math.radians(n))
+    rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    return v @ rot.T
+
+
+def world_to_enu(world, north_deg: float = 0.0) -> np.ndarray:
+    """Inverse of :func:`enu_to_world`."""
+    return enu_to_world(world, -float(north_deg))
+
+
+def sun_light_direction(pos: SunPosition, north_deg: float = 0.0, refraction: bool = False):
+    """The world-frame unit direction towards the sun and whether it is above the horizon.
+
+    ``refraction=False`` (default): the geometric direction and ``pos.above_horizon``, matching
+    ``zenith_deg``; ``True``: the apparent (refracted) direction and ``pos.apparent_above_horizon``.
+
+    Returns
+    -------
+    ((3,) float64, bool)
+    """
+    enu = pos.apparent_enu if refraction else np.array(pos.enu)
+    above = pos.apparent_above_horizon if refraction else pos.above_horizon
+    return enu_to_world(enu, north_deg), bool(above)
+
+
+def pole_shadow(direction_world, height: float = 1.0, north_deg: float = 0.0):
+    """Shadow of a vertical pole of ``height`` standing at the world origin, cast on the ground z = 0.
+
+    Parameters
+    ----------
+    direction_world : (3,) float64
+        Unit direction towards the (directional) light, world frame.
+
+    Returns
+    -------
+    dict or None
+        ``None`` when the light is not above the horizon (``z <= 0``: no shadow). Otherwise
+        ``{"tip_world": [x, y], "length": L, "bearing_deg": B}``: the shadow tip on the ground, its length
+        in metres, and its compass bearing (clockwise from true north) from the foot of the pole.
+
+    Examples
+    --------
+    >>> s = pole_shadow([0.0, -0.6, 0.8])           # sun in the south, 36.87 deg high
+    >>> round(s["length"], 6), round(s["bearing_deg"], 6)
+    (0.75, 0.0)
+    """
+    d = np.asarray(direction_world, dtype=np.float64)
+    if d[2] <= 0.0:
+        return None
+    tip = -d[:2] * (float(height) / d[2])  # top (0,0,h) moved along -d until z = 0
+    e, n, _ = world_to_enu(np.array([tip[0], tip[1], 0.0]), north_deg)
+    return {
+        "tip_world": tip.tolist(),
+        "length": float(np.hypot(tip[0], tip[1])),
+        "bearing_deg": float(math.degrees(math.atan2(e, n)) % 360.0),
+    }
+
+
+# ---------------------------------------------------------------------------------------------- tracks
+
+
+@dataclass(frozen=True, eq=False)
+class TrackFrame:
+    """One frame of a :class:`SunTrack`.
+
+    Attributes
+    ----------
+    when : datetime
+    position : SunPosition
+    world : (3,) float64
+        The true sun direction at this frame (world frame).
+    world_used : (3,) float64
+        The direction the renderer should use: the one of the last recompute (its silhouette is valid for
+        it). Differs from ``world`` by ``stale_deg`` <= the track's ``recompute_deg``.
+    above_horizon : bool
+    recompute : bool
+        True when the silhouette must be recomputed at this frame (first frame, direction moved more than
+        ``recompute_deg`` since the last recompute, or the sun crossed the horizon).
+    stale_deg : float
+        Angle between ``world`` and ``world_used``.
+    """
+
+    when: datetime
+    position: SunPosition
+    world: np.ndarray
+    world_used: np.ndarray
+    above_horizon: bool
+    recompute: bool
+    stale_deg: float
+
+
+class SunTrack:
+    """The sun over a sequence of instants (a video or time-lapse), with lazy silhouette recomputation.
+
+    The silhouette of a static occluder depends only on the light direction. The sun moves at most
+    0.25 deg per minute (15 deg/h at the equator, less elsewhere), so for a video the silhouette is
+    recomputed only when the direction has moved more than ``recompute_deg`` since the last recompute; in
+    between, the renderer keeps the last recompute's direction (``world_used``), so the shadow is at most
+    ``recompute_deg`` off (the cost of the saving, reported per frame as ``stale_deg``).
+
+    Parameters
+    ----------
+    lat, lon, elevation : float
+    north_deg : float
+        Compass bearing of the world +y axis.
+    recompute_deg : float
+        Threshold angle, degrees (>= 0; 0 recomputes on every change).
+    model, refraction, **kwargs
+        As :func:`sun_position` / :func:`sun_light_direction`.
+
+    Examples
+    --------
+    >>> from datetime import datetime, timedelta, timezone
+    >>> t0 = datetime(2011, 4, 22, 10, 59, tzinfo=timezone(timedelta(hours=8)))
+    >>> frames = SunTrack(1.28, 103.45, recompute_deg=0.5).track([t0 + timedelta(seconds=10 * i) for i in range(30)])
+    >>> [f.recompute for f in frames].count(True)   # 5 minutes of sun: ~1.2 deg of motion
+    3
+    """
+
+    def __init__(self, lat, lon, elevation=0.0, north_deg=0.0, recompute_deg=0.1, model="spa",
+                 refraction=False, **kwargs):
+        self.lat, self.lon, self.elevation = _check_place(lat, lon, elevation)
+        self.north_deg = float(north_deg)
+        if not math.isfinite(self.north_deg):
+            raise LightError(f"north bearing {north_deg!r} is not finite")
+        self.recompute_deg = float(recompute_deg)
+        if not (math.isfinite(self.recompute_deg) and self.recompute_deg >= 0.0):
+            raise LightError(f"recompute angle must be >= 0 degrees, got {recompute_deg!r}")
+        self.model, self.refraction, self.kwargs = model, bool(refraction), kwargs
+        self._last = None  # (world_used, above_horizon)
+
+    def reset(self) -> None:
+        """Forget the last recompute (the next frame recomputes)."""
+        self._last = None
+
+    def track(self, times) -> list[TrackFrame]:
+        """Sun direction for each instant in ``times`` (aware datetimes, in frame order)."""
+        positions = sun_positions(times, self.lat, self.lon, self.elevation, self.model, **self.kwargs)
+        out = []
+        for w, p in zip(times, positions):
+            world, above = sun_light_direction(p, self.north_deg, self.refraction)
+            world.setflags(write=False)
+            if self._last is None or above != self._last[1]:
+                recompute = True
+            else:
+                recompute = float(angle_between_deg(world, self._last[0])) > self.recompute_deg
+            if recompute:
+                self._last = (world, above)
+            used = self._last[0]
+            out.append(TrackFrame(w, p, world, used, above, recompute, float(angle_between_deg(world, used))))
+        return out
+
+    def update(self, when) -> TrackFrame:
+        """One frame (streaming use)."""
+        return self.track([when])[0]
+
+
+def frame_times(start: datetime, fps: float, n: int, speed: float = 1.0) -> list[datetime]:
+    """Instants of ``n`` video frames from ``start`` at ``fps``, sped up ``speed`` times (time-lapse:
+    ``speed = 600`` makes one video second ten minutes of sun motion)."""
+    start = _as_utc(start).astimezone(start.tzinfo)
+    if not (fps > 0 and speed > 0):
+        raise LightError(f"fps and speed must be > 0 (got {fps!r}, {speed!r})")
+    return [start + timedelta(seconds=i * speed / fps) for i in range(int(n))]
