@@ -1,0 +1,475 @@
+"""Synthetic photos of a printed marker or board with known truth.
+
+The ground truth of every photo is the pose it is generated from (never a detector's output).
+
+Scene: a textured floor fills the plane z = 0 (world frame = marker frame, CONVENTIONS.md); the marker or
+board is printed on white paper (with a margin) lying on it. Rendering is exact per pixel:
+
+1. For every output (distorted) pixel the pinhole pixel it sees comes from
+   :meth:`Intrinsics.undistort_pixels` (exact inverse of the lens distortion; cached per camera).
+2. The inverse plane homography ``(K [r1 r2 t])^-1`` takes that pinhole pixel to the floor point (x, y).
+3. The floor is sampled from a periodic procedural texture; the paper is rendered only in its region of
+   interest, supersampled S x S per pixel (box filter = a real sensor's pixel integration), from a
+   pre-made, high-resolution texture of the print (cached per marker / board).
+
+Then exposure, optical blur (Gaussian), sensor noise (Gaussian, 8-bit units), and JPEG compression.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import cv2
+import numpy as np
+
+from ._check import check_finite, check_shape
+from .camera import Intrinsics
+from .errors import UsageError
+from .marker import Board, get_dictionary, marker_bits, marker_object_points
+
+__all__ = ["SynthPhoto", "render_marker_photo", "look_at_pose", "random_pose", "camera_path"]
+
+PAPER_WHITE = 235.0
+INK_BLACK = 22.0
+#: floor texture: texels per metre and size (periodic)
+FLOOR_PPM = 1000.0
+FLOOR_SIZE = 1024
+#: paper texture resolution: texels per marker side (single marker); boards cap the long side
+MARKER_TEXELS = 1024
+BOARD_MAX_TEXELS = 4096
+
+
+@dataclass
+class SynthPhoto:
+    """A synthetic photo and its truth.
+
+    Attributes
+    ----------
+    image : (H, W, 3) uint8
+        BGR photo.
+    cam_from_world : (4, 4) float64
+        The true pose (world -> OpenCV camera) it was rendered from.
+    intrinsics : Intrinsics
+        The camera (with its distortion) it was rendered with.
+    corners_px : dict[int, (4, 2) float64]
+        True (distorted) pixel positions of each marker's corners TL, TR, BR, BL.
+    charuco_corners_px : (n, 2) float64 or None
+        ChArUco boards: true pixel positions of the inner chessboard corners, OpenCV's id order.
+    """
+
+    image: np.ndarray
+    cam_from_world: np.ndarray
+    intrinsics: Intrinsics
+    dictionary: str = "DICT_6X6_250"
+    marker_id: int | None = None
+    marker_length: float | None = None
+    board: Board | None = None
+    corners_px: dict = field(default_factory=dict)
+    charuco_corners_px: np.ndarray | None = None
+    paper_world: np.ndarray | None = None
+    params: dict = field(default_factory=dict)
+
+    @property
+    def distance(self) -> float:
+        """Distance from the camera centre to the world origin, metres."""
+        return float(np.linalg.norm(self.cam_from_world[:3, 3]))
+
+
+# ---------------------------------------------------------------------------------------------------
+# poses
+# ---------------------------------------------------------------------------------------------------
+def look_at_pose(eye_world, target_world, up=(0.0, 0.0, 1.0)) -> np.ndarray:
+    """``cam_from_world`` of an OpenCV camera at ``eye`` looking at ``target``, ``up`` appearing upwards.
+
+    Parameters
+    ----------
+    eye_world, target_world : (3,) float64
+        Camera centre and the point it looks at (world frame, metres).
+    up : (3,) float64
+        World direction that should point up in the image. When the view direction is parallel to it
+        (looking straight down at the marker), world +y is used instead (the marker's top edge up).
+
+    Returns
+    -------
+    (4, 4) float64
+        ``cam_from_world`` (x right, y down, z forward).
+
+    Examples
+    --------
+    >>> m = look_at_pose([0, 0, 1], [0, 0, 0])
+    >>> m[:3, 3].tolist(), m[2, :3].tolist()
+    ([0.0, 0.0, 1.0], [0.0, 0.0, -1.0])
+    """
+    eye = check_finite(check_shape(np.ravel(eye_world), "3", "eye_world"), "eye_world")
+    target = check_finite(check_shape(np.ravel(target_world), "3", "target_world"), "target_world")
+    up = check_finite(check_shape(np.ravel(up), "3", "up"), "up")
+    z = target - eye
+    nz = np.linalg.norm(z)
+    if nz < 1e-12:
+        raise UsageError("look_at_pose: eye and target coincide")
+    z = z / nz
+    x = np.cross(z, up)
+    if np.linalg.norm(x) < 1e-9 * max(1.0, np.linalg.norm(up)):
+        x = np.cross(z, np.array([0.0, 1.0, 0.0]))
+        if np.linalg.norm(x) < 1e-9:
+            x = np.cross(z, np.array([1.0, 0.0, 0.0]))
+    x = x / np.linalg.norm(x)
+    y = np.cross(z, x)
+    m = np.eye(4)
+    m[:3, :3] = np.stack([x, y, z])
+    m[:3, 3] = -m[:3, :3] @ eye
+    return m
+
+
+def _rot_a_to_b(a, b) -> np.ndarray:
+    a = a / np.linalg.norm(a)
+    b = b / np.linalg.norm(b)
+    v = np.cross(a, b)
+    s, c = np.linalg.norm(v), float(a @ b)
+    if s < 1e-15:
+        return np.eye(3)
+    return cv2.Rodrigues((v / s * math.atan2(s, c)).reshape(3, 1))[0]
+
+
+def random_pose(rng, intrinsics: Intrinsics, *, distance=(0.3, 0.8), tilt_deg=(0.0, 70.0),
+                roll_deg=(-180.0, 180.0), keep_in_view=None, margin_px=10.0, max_tries=200) -> np.ndarray:
+    """A random ``cam_from_world`` looking at the world origin, the origin anywhere in the image.
+
+    Parameters
+    ----------
+    rng : np.random.Generator
+    intrinsics : Intrinsics
+    distance : (float, float)
+        Camera-to-origin distance range, metres (uniform).
+    tilt_deg : (float, float)
+        Angle between the line of sight and the marker normal (+z), degrees; sampled uniformly in
+        ``cos`` would favour small tilts, so it is uniform in the angle.
+    roll_deg : (float, float)
+        Rotation of the camera about its optical axis.
+    keep_in_view : (n, 3) float64, optional
+        World points that must project inside the (distorted) image with ``margin_px`` to spare
+        (e.g. the paper corners).
+
+    Returns
+    -------
+    (4, 4) float64
+    """
+    K = intrinsics.K
+    pts = None if keep_in_view is None else check_shape(keep_in_view, "N,3", "keep_in_view").astype(float)
+    for attempt in range(max_tries):
+        d = rng.uniform(*distance)
+        tilt = math.radians(rng.uniform(*tilt_deg))
+        az = rng.uniform(0.0, 2.0 * math.pi)
+        eye = d * np.array([math.sin(tilt) * math.cos(az), math.sin(tilt) * math.sin(az), math.cos(tilt)])
+        m = look_at_pose(eye, np.zeros(3))
+        roll = math.radians(rng.uniform(*roll_deg))
+        rz = np.array([[math.cos(roll), -math.sin(roll), 0], [math.sin(roll), math.cos(roll), 0], [0, 0, 1]])
+        # aim the optical axis so that the origin lands at a random pixel (shrinking towards the centre
+        # when the points to keep in view do not fit)
+        shrink = max(0.0, 1.0 - attempt / (0.7 * max_tries))
+        u = intrinsics.cx + shrink * rng.uniform(-0.42, 0.42) * intrinsics.width
+        v = intrinsics.cy + shrink * rng.uniform(-0.42, 0.42) * intrinsics.height
+        ray = np.linalg.solve(K, np.array([u, v, 1.0]))
+        rc = _rot_a_to_b(ray, np.array([0.0, 0.0, 1.0])).T  # camera turns so that +z_old -> ray
+        pose = np.eye(4)
+        pose[:3, :3] = rc @ rz @ m[:3, :3]
+        pose[:3, 3] = rc @ rz @ m[:3, 3]
+        if pts is None:
+            return pose
+        uv = intrinsics.project(pts, pose)
+        cam_z = pts @ pose[:3, :3].T[:, 2] + pose[2, 3]
+        pin = intrinsics.project(pts, pose, distort=False)
+        if (np.all(cam_z > 0) and np.all(np.isfinite(uv))
+                and np.all(uv >= margin_px) and np.all(uv[:, 0] <= intrinsics.width - 1 - margin_px)
+                and np.all(uv[:, 1] <= intrinsics.height - 1 - margin_px)
+                # guard against the distortion model's fold: the pinhole position must be sane too
+                and np.all(np.abs(pin[:, 0] - intrinsics.cx) < 2.0 * intrinsics.width)
+                and np.all(np.abs(pin[:, 1] - intrinsics.cy) < 2.0 * intrinsics.height)):
+            return pose
+    raise UsageError("random_pose: could not keep the points in view; widen the distance range")
+
+
+def camera_path(n: int, *, radius=0.55, height=(0.3, 0.5), sweep_deg=120.0, start_deg=-90.0,
+                target_wobble=0.02, phase=0.0) -> np.ndarray:
+    """A smooth camera path around the origin: ``(n, 4, 4)`` float64 ``cam_from_world`` per frame.
+
+    The eye moves on an arc of ``sweep_deg`` degrees at horizontal distance ``radius`` from the origin,
+    its height oscillating smoothly within ``height``; it looks at a target that wobbles by
+    ``target_wobble`` metres around the origin (hand-held feel). Consecutive frames differ by a small,
+    smooth motion, as in a video.
+    """
+    if n < 1:
+        raise UsageError("camera_path needs n >= 1 frames")
+    t = np.linspace(0.0, 1.0, n)
+    ang = np.radians(start_deg + sweep_deg * (3 * t ** 2 - 2 * t ** 3))  # ease in / out
+    h = height[0] + (height[1] - height[0]) * 0.5 * (1 - np.cos(2 * np.pi * (t + phase)))
+    out = np.empty((n, 4, 4))
+    for i in range(n):
+        eye = np.array([radius * math.cos(ang[i]), radius * math.sin(ang[i]), h[i]])
+        tgt = target_wobble * np.array([math.sin(5.1 * t[i] + phase), math.cos(3.7 * t[i] + 1.3 * phase), 0.0])
+        out[i] = look_at_pose(eye, tgt)
+    return out
+
+
+# ---------------------------------------------------------------------------------------------------
+# textures (cached)
+# ---------------------------------------------------------------------------------------------------
+@lru_cache(maxsize=2)
+def _floor_texture(seed: int = 7) -> np.ndarray:
+    """(FLOOR_SIZE, FLOOR_SIZE, 3) float32 BGR periodic floor texture (procedural stone/wood-ish)."""
+    rng = np.random.default_rng(seed)
+    n = FLOOR_SIZE
+    f = np.fft.fftfreq(n)
+    fr = np.sqrt(f[:, None] ** 2 + f[None, :] ** 2)
+    fr[0, 0] = 1.0
+    out = np.empty((n, n, 3), np.float32)
+    base = np.array([95.0, 125.0, 150.0])  # BGR: warm grey-brown
+    spectrum = 1.0 / fr ** 1.3  # pink-ish noise: structure at every scale, no sharp edges
+    spectrum[fr > 0.25] = 0.0
+    common = np.real(np.fft.ifft2(np.fft.fft2(rng.normal(size=(n, n))) * spectrum))
+    common = (common - common.mean()) / common.std()
+    for c in range(3):
+        own = np.real(np.fft.ifft2(np.fft.fft2(rng.normal(size=(n, n))) * spectrum))
+        own = (own - own.mean()) / own.std()
+        out[:, :, c] = base[c] + 28.0 * common + 6.0 * own
+    np.clip(out, 0, 255, out=out)
+    out.setflags(write=False)
+    return out
+
+
+def _layout_texture(markers, black_squares, paper, ppm):
+    """Rasterise a print (paper rectangle with black squares and markers), 2x2 supersampled.
+
+    markers: list of ((x_left, y_top), side, bits (c, c) bool); black_squares (k, 2, 2); paper
+    (xmin, ymin, xmax, ymax); ppm: texels per metre. Returns (h, w, 2) float32 premultiplied
+    (value, alpha=1) and the world -> texel mapping (x0, y1, ppm).
+    """
+    xmin, ymin, xmax, ymax = paper
+    w = int(math.ceil((xmax - xmin) * ppm))
+    h = int(math.ceil((ymax - ymin) * ppm))
+    ss = 2
+    W, H = w * ss, h * ss
+    xs = xmin + (np.arange(W) + 0.5) / (ppm * ss)
+    ys = ymax - (np.arange(H) + 0.5) / (ppm * ss)
+    img = np.full((H, W), PAPER_WHITE, np.float32)
+    for (x0, x1), (y0, y1) in ((sq[:, 0], sq[:, 1]) for sq in black_squares):
+        ci = slice(np.searchsorted(xs, x0), np.searchsorted(xs, x1))
+        ri = slice(np.searchsorted(-ys, -y1), np.searchsorted(-ys, -y0))
+        img[ri, ci] = INK_BLACK
+    for (xl, yt), side, bits in markers:
+        c = bits.shape[0]
+        i0, i1 = np.searchsorted(xs, xl), np.searchsorted(xs, xl + side)
+        j0, j1 = np.searchsorted(-ys, -yt), np.searchsorted(-ys, -(yt - side))
+        col = np.clip(((xs[i0:i1] - xl) / side * c).astype(int), 0, c - 1)
+        row = np.clip(((yt - ys[j0:j1]) / side * c).astype(int), 0, c - 1)
+        img[j0:j1, i0:i1] = np.where(bits[row[:, None], col[None, :]], PAPER_WHITE, INK_BLACK)
+    img = cv2.resize(img, (w, h), interpolation=cv2.INTER_AREA)
+    tex = np.dstack([img, np.ones_like(img)]).astype(np.float32)
+    # texel (i, j) centre is world (xmin + (i + 0.5)/ppm, ymax - (j + 0.5)/ppm)
+    return tex, (xmin, ymax, ppm)
+
+
+@lru_cache(maxsize=16)
+def _marker_texture(dictionary: str, marker_id: int, margin_rel: float):
+    """Texture of a single marker of side 1 (world units = marker lengths), centred on the origin."""
+    bits = marker_bits(get_dictionary(dictionary), marker_id)
+    h = 0.5 + margin_rel
+    tex, mapping = _layout_texture([((-0.5, 0.5), 1.0, bits)], np.zeros((0, 2, 2)), (-h, -h, h, h),
+                                   float(MARKER_TEXELS))
+    tex.setflags(write=False)
+    return tex, mapping
+
+
+@lru_cache(maxsize=8)
+def _board_texture(board: Board, margin: float):
+    d = board.cv_dictionary
+    markers = []
+    for mid, c in board.marker_corners_world.items():
+        markers.append(((c[0, 0], c[0, 1]), board.marker_length, marker_bits(d, mid)))
+    bw, bh = board.extent
+    paper = (-margin, -bh - margin, bw + margin, margin)
+    ppm = min(BOARD_MAX_TEXELS / max(paper[2] - paper[0], paper[3] - paper[1]), MARKER_TEXELS / board.marker_length)
+    tex, mapping = _layout_texture(markers, board.black_squares_world, paper, ppm)
+    tex.setflags(write=False)
+    return tex, mapping, paper
+
+
+@lru_cache(maxsize=4)
+def _pinhole_maps(intr: Intrinsics):
+    """(H, W) float64 maps: the pinhole pixel that each output (distorted) pixel centre sees."""
+    grid = intr.pixel_grid()
+    pin = intr.undistort_pixels(grid) if intr.has_distortion else grid
+    if not np.all(np.isfinite(pin)):
+        raise UsageError("the camera's distortion cannot be inverted over the whole image")
+    mx = pin[:, 0].reshape(intr.height, intr.width)
+    my = pin[:, 1].reshape(intr.height, intr.width)
+    mx.setflags(write=False)
+    my.setflags(write=False)
+    return mx, my
+
+
+# ---------------------------------------------------------------------------------------------------
+# rendering
+# ---------------------------------------------------------------------------------------------------
+def _plane_coords(hinv, mx, my):
+    """World (x, y) on z = 0 seen at pinhole pixels (mx, my); valid where the plane is in front."""
+    X = hinv[0, 0] * mx + hinv[0, 1] * my + hinv[0, 2]
+    Y = hinv[1, 0] * mx + hinv[1, 1] * my + hinv[1, 2]
+    Wh = hinv[2, 0] * mx + hinv[2, 1] * my + hinv[2, 2]
+    valid = Wh > 1e-12
+    Wh = np.where(valid, Wh, 1.0)
+    return X / Wh, Y / Wh, valid
+
+
+def render_marker_photo(intrinsics: Intrinsics, cam_from_world, *, dictionary="DICT_6X6_250", marker_id=0,
+                        marker_length=None, board=None, noise_sigma=0.0, blur_sigma=0.0, jpeg_quality=None,
+                        exposure=1.0, seed=None, floor="texture", paper_margin=None,
+                        supersample=None) -> SynthPhoto:
+    """Render a photo of a printed marker (or board) lying on a floor, seen from ``cam_from_world``.
+
+    Parameters
+    ----------
+    intrinsics : Intrinsics
+        The camera, including its lens distortion (applied exactly).
+    cam_from_world : (4, 4) float64
+        True pose, world (marker / board frame) -> OpenCV camera.
+    dictionary : str
+        Dictionary name or file (single marker; a board brings its own).
+    marker_id : int
+        The marker's id (single marker).
+    marker_length : float
+        Marker side in metres (single marker). Give this *or* ``board``.
+    board : Board, optional
+        A grid or ChArUco board (its world frame: see :mod:`arshadow.marker`).
+    noise_sigma : float
+        Gaussian sensor noise, standard deviation in 8-bit units.
+    blur_sigma : float
+        Gaussian optical blur, pixels.
+    jpeg_quality : int, optional
+        JPEG-compress the photo at this quality (1..100).
+    exposure : float
+        Brightness factor (1 = nominal; paper white = 235).
+    seed : int, optional
+        Seed of the noise.
+    floor : str
+        ``"texture"`` (procedural, default) or ``"plain"`` (uniform grey).
+    paper_margin : float, optional
+        White paper around the print, metres (default 0.3 x marker length, boards 0.5 x the larger of
+        square and marker length).
+    supersample : int, optional
+        Samples per pixel side in the paper's region (default: 4, fewer for very large prints).
+
+    Returns
+    -------
+    SynthPhoto
+    """
+    if not isinstance(intrinsics, Intrinsics):
+        raise UsageError("intrinsics must be an arshadow.camera.Intrinsics")
+    pose = check_finite(check_shape(np.asarray(cam_from_world, dtype=np.float64), "4,4", "cam_from_world"),
+                        "cam_from_world").copy()
+    if (board is None) == (marker_length is None):
+        raise UsageError("give exactly one of marker_length and board")
+    if jpeg_quality is not None and not 1 <= int(jpeg_quality) <= 100:
+        raise UsageError(f"jpeg_quality must be 1..100, got {jpeg_quality}")
+    if not (exposure > 0 and math.isfinite(exposure)):
+        raise UsageError(f"exposure must be positive, got {exposure}")
+    W, H = intrinsics.width, intrinsics.height
+    mx, my = _pinhole_maps(intrinsics)
+    K = intrinsics.K
+    hw = K @ np.column_stack([pose[:3, 0], pose[:3, 1], pose[:3, 3]])
+    hinv = np.linalg.inv(hw)
+
+    # -- the print and its texture --
+    if board is None:
+        L = float(marker_length)
+        if not (L > 0 and math.isfinite(L)):
+            raise UsageError(f"marker_length must be a positive length, got {marker_length}")
+        margin = 0.3 * L if paper_margin is None else float(paper_margin)
+        tex, (tx0, ty1, tppm) = _marker_texture(str(dictionary), int(marker_id), margin / L)
+        tppm = tppm / L  # texture world unit = marker length
+        tx0, ty1 = tx0 * L, ty1 * L
+        h = L / 2 + margin
+        paper = (-h, -h, h, h)
+        corners_world = {int(marker_id): marker_object_points(L)}
+        dict_name = str(dictionary)
+    else:
+        margin = 0.5 * max(board.marker_length, board.square_length) if paper_margin is None else float(paper_margin)
+        tex, (tx0, ty1, tppm), paper = _board_texture(board, margin)
+        corners_world = board.marker_corners_world
+        dict_name = str(board.dictionary)
+    paper_world = np.array([[paper[0], paper[3], 0], [paper[2], paper[3], 0], [paper[2], paper[1], 0],
+                            [paper[0], paper[1], 0]], dtype=np.float64)
+
+    # -- floor over the whole image --
+    x, y, valid = _plane_coords(hinv, mx, my)
+    if floor == "texture":
+        ftex = _floor_texture()
+        fu = np.mod(x * FLOOR_PPM, FLOOR_SIZE).astype(np.float32)
+        fv = np.mod(-y * FLOOR_PPM, FLOOR_SIZE).astype(np.float32)
+        img = cv2.remap(ftex, fu, fv, cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP)
+    elif floor == "plain":
+        img = np.full((H, W, 3), 128.0, np.float32)
+    else:
+        raise UsageError(f"floor must be 'texture' or 'plain', got '{floor}'")
+    img[~valid] = (200.0, 196.0, 190.0)  # wall / sky beyond the horizon
+
+    # -- the paper, supersampled in its region of interest --
+    cam_paper = paper_world @ pose[:3, :3].T + pose[:3, 3]
+    if np.all(cam_paper[:, 2] > 1e-6):
+        pin = cam_paper[:, :2] / cam_paper[:, 2:3] * [intrinsics.fx, intrinsics.fy] + [intrinsics.cx, intrinsics.cy]
+        lo, hi = pin.min(axis=0) - 2.0, pin.max(axis=0) + 2.0
+        inside = (mx >= lo[0]) & (mx <= hi[0]) & (my >= lo[1]) & (my <= hi[1])
+        rows = np.flatnonzero(inside.any(axis=1))
+        cols = np.flatnonzero(inside.any(axis=0))
+        roi = None if rows.size == 0 else (rows[0], rows[-1] + 1, cols[0], cols[-1] + 1)
+    else:
+        roi = (0, H, 0, W)
+    if roi is not None:
+        r0, r1, c0, c1 = roi
+        npx = (r1 - r0) * (c1 - c0)
+        S = int(supersample) if supersample else int(np.clip(math.floor(math.sqrt(3.0e6 / max(npx, 1))), 2, 4))
+        # sub-sample pinhole coordinates: bilinear in the exact per-pixel map (smooth; error << 1e-3 px)
+        sub = []
+        for m in (mx, my):
+            block = np.pad(m[r0:r1, c0:c1], 1, mode="reflect", reflect_type="odd")
+            up = cv2.resize(block, (block.shape[1] * S, block.shape[0] * S), interpolation=cv2.INTER_LINEAR)
+            sub.append(up[S:-S, S:-S])
+        sx, sy, svalid = _plane_coords(hinv, sub[0], sub[1])
+        tu = ((sx - tx0) * tppm - 0.5).astype(np.float32)
+        tv = ((ty1 - sy) * tppm - 0.5).astype(np.float32)
+        tu[~svalid] = -10.0
+        samp = cv2.remap(tex, tu, tv, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        samp = cv2.resize(samp, (c1 - c0, r1 - r0), interpolation=cv2.INTER_AREA)
+        val, alpha = samp[:, :, 0], samp[:, :, 1]
+        paper_bgr = val[:, :, None] * np.array([1.0, 1.0, 1.0], np.float32)
+        img[r0:r1, c0:c1] = paper_bgr + (1.0 - alpha[:, :, None]) * img[r0:r1, c0:c1]
+    else:
+        S = 0
+
+    # -- camera effects --
+    rng = np.random.default_rng(seed)
+    if exposure != 1.0:
+        img *= np.float32(exposure)
+    if blur_sigma and blur_sigma > 0:
+        img = cv2.GaussianBlur(img, (0, 0), float(blur_sigma))
+    if noise_sigma and noise_sigma > 0:
+        img += rng.standard_normal(img.shape, dtype=np.float32) * np.float32(noise_sigma)
+    out = np.clip(img + 0.5, 0, 255).astype(np.uint8)
+    if jpeg_quality is not None:
+        ok, buf = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, int(jpeg_quality)])
+        out = cv2.imdecode(buf, cv2.IMREAD_COLOR)
+
+    corners_px = {mid: intrinsics.project(c, pose) for mid, c in corners_world.items()}
+    ch = None
+    if board is not None and board.kind == "charuco":
+        ch = intrinsics.project(board.charuco_corners_world, pose)
+    return SynthPhoto(
+        image=out, cam_from_world=pose, intrinsics=intrinsics, dictionary=dict_name,
+        marker_id=None if board is not None else int(marker_id),
+        marker_length=None if board is not None else float(marker_length), board=board,
+        corners_px=corners_px, charuco_corners_px=ch, paper_world=paper_world,
+        params=dict(noise_sigma=noise_sigma, blur_sigma=blur_sigma, jpeg_quality=jpeg_quality,
+                    exposure=exposure, seed=seed, floor=floor, supersample=S),
+    )

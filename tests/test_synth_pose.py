@@ -1,0 +1,134 @@
+"""Synthetic photos with known truth, and pose accuracy measured on them.
+
+The truth is the pose the generator is given; OpenCV's detector (independent of the generator) is used
+to check the generator's geometry.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from arshadow.camera import Intrinsics
+from arshadow.errors import UsageError
+from arshadow.marker import Board, marker_object_points
+from arshadow.synth import camera_path, look_at_pose, random_pose, render_marker_photo
+from arshadow.transforms import invert_rigid, rotation_error_deg
+
+ROOT = Path(__file__).resolve().parents[1]
+CAM = Intrinsics.from_file(ROOT / "calib" / "synth_1280x720.yml")
+CAM_K1 = Intrinsics.from_file(ROOT / "calib" / "synth_1280x720_k1.yml")
+CHARUCO = Board("charuco", (5, 7), 0.02, square_length=0.04)
+
+
+def _detect(image, refine=cv2.aruco.CORNER_REFINE_SUBPIX):
+    params = cv2.aruco.DetectorParameters()
+    params.cornerRefinementMethod = refine
+    det = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_6X6_250), params)
+    corners, ids, _ = det.detectMarkers(image)
+    return {} if ids is None else {int(i): c.reshape(4, 2) for i, c in zip(ids.ravel(), corners)}
+
+
+# ---------------------------------------------------------------------------------------------------
+# poses
+# ---------------------------------------------------------------------------------------------------
+def test_look_at_pose():
+    eye, target = np.array([0.3, -0.4, 0.5]), np.array([0.05, 0.02, 0.0])
+    m = look_at_pose(eye, target)
+    assert np.allclose(m[:3, :3] @ m[:3, :3].T, np.eye(3), atol=1e-12) and np.linalg.det(m[:3, :3]) > 0
+    assert np.allclose(invert_rigid(m)[:3, 3], eye)  # camera centre
+    t_cam = m[:3, :3] @ target + m[:3, 3]
+    assert np.allclose(t_cam[:2], 0, atol=1e-12) and t_cam[2] > 0  # target straight ahead
+    up_cam = m[:3, :3] @ np.array([0, 0, 1.0])
+    assert up_cam[1] < 0 and abs(up_cam[0]) < 1e-12  # world up points up (-y) in the image
+    # straight down: the marker's top edge (+y) is up in the image
+    d = look_at_pose([0, 0, 1], [0, 0, 0])
+    assert (d[:3, :3] @ [0, 1.0, 0])[1] < -0.99
+    with pytest.raises(UsageError):
+        look_at_pose([1, 1, 1], [1, 1, 1])
+
+
+def test_random_pose_ranges(rng):
+    L = 0.05
+    for _ in range(50):
+        m = random_pose(rng, CAM, distance=(0.3, 0.8), tilt_deg=(10, 60), keep_in_view=marker_object_points(L))
+        eye = invert_rigid(m)[:3, 3]
+        d = np.linalg.norm(eye)
+        tilt = math.degrees(math.acos(eye[2] / d))
+        assert 0.3 <= d <= 0.8 and 10 - 1e-9 <= tilt <= 60 + 1e-9
+        uv = CAM.project(marker_object_points(L), m)
+        assert np.all(uv >= 10) and np.all(uv[:, 0] <= CAM.width - 11) and np.all(uv[:, 1] <= CAM.height - 11)
+
+
+def test_camera_path_is_smooth():
+    path = camera_path(60)
+    assert path.shape == (60, 4, 4)
+    steps = [rotation_error_deg(path[i][:3, :3], path[i + 1][:3, :3]) for i in range(59)]
+    moves = [np.linalg.norm(invert_rigid(path[i])[:3, 3] - invert_rigid(path[i + 1])[:3, 3]) for i in range(59)]
+    assert max(steps) < 5.0 and max(moves) < 0.05 and sum(moves) > 0.5
+
+
+# ---------------------------------------------------------------------------------------------------
+# the generator
+# ---------------------------------------------------------------------------------------------------
+def test_render_basic_and_deterministic():
+    pose = look_at_pose([0.2, -0.3, 0.4], [0, 0, 0])
+    a = render_marker_photo(CAM, pose, marker_id=7, marker_length=0.05, noise_sigma=2, seed=3, jpeg_quality=90)
+    b = render_marker_photo(CAM, pose, marker_id=7, marker_length=0.05, noise_sigma=2, seed=3, jpeg_quality=90)
+    assert a.image.shape == (720, 1280, 3) and a.image.dtype == np.uint8
+    assert np.array_equal(a.image, b.image) and np.array_equal(a.cam_from_world, pose)
+    assert list(a.corners_px) == [7]
+    c = render_marker_photo(CAM, pose, marker_id=7, marker_length=0.05, noise_sigma=2, seed=4)
+    assert not np.array_equal(a.image, c.image)
+
+
+def test_render_exposure_and_floor():
+    pose = look_at_pose([0.0, -0.3, 0.4], [0, 0, 0])
+    a = render_marker_photo(CAM, pose, marker_length=0.05)
+    dark = render_marker_photo(CAM, pose, marker_length=0.05, exposure=0.5)
+    assert abs(dark.image.mean() / a.image.mean() - 0.5) < 0.02
+    plain = render_marker_photo(CAM, pose, marker_length=0.05, floor="plain")
+    assert a.image[:100].std() > 5 and plain.image[:100].std() < 1  # textured vs plain floor
+
+
+@pytest.mark.parametrize("cam", [CAM, CAM_K1], ids=["small_dist", "k1"])
+def test_rendered_corners_match_truth(cam):
+    """OpenCV finds the rendered corners where the generator says they are (distortion included)."""
+    shift = []
+    for eye, tgt in [([0.0, -0.25, 0.45], [0, 0, 0]), ([0.25, 0.2, 0.35], [-0.12, -0.05, 0])]:
+        pose = look_at_pose(eye, tgt)
+        photo = render_marker_photo(cam, pose, marker_id=3, marker_length=0.06)
+        found = _detect(photo.image)
+        assert list(found) == [3]
+        err = np.linalg.norm(found[3] - photo.corners_px[3], axis=1)
+        assert err.max() < 0.35, err
+        pin = cam.project(marker_object_points(0.06), pose, distort=False)
+        shift.append(np.linalg.norm(pin - photo.corners_px[3], axis=1).max())
+    if cam is CAM_K1:  # the distortion really is in the image, not just in the truth
+        assert max(shift) > 3.0
+
+
+def test_rendered_charuco_matches_truth():
+    pose = look_at_pose([0.3, -0.4, 0.5], [0.1, -0.14, 0])
+    photo = render_marker_photo(CAM_K1, pose, board=CHARUCO)
+    det = cv2.aruco.CharucoDetector(CHARUCO.cv_board)
+    cc, cid, _, mid = det.detectBoard(photo.image)
+    assert cid is not None and len(cid) == 24 and sorted(mid.ravel().tolist()) == list(range(17))
+    err = np.linalg.norm(cc.reshape(-1, 2) - photo.charuco_corners_px[cid.ravel()], axis=1)
+    assert err.max() < 0.25, err
+
+
+def test_render_bad_args():
+    pose = look_at_pose([0.0, -0.3, 0.4], [0, 0, 0])
+    with pytest.raises(UsageError):
+        render_marker_photo(CAM, pose)  # neither marker_length nor board
+    with pytest.raises(UsageError):
+        render_marker_photo(CAM, pose, marker_length=0.05, jpeg_quality=0)
+    with pytest.raises(UsageError):
+        render_marker_photo(CAM, pose, marker_length=0.05, marker_id=250)
+    with pytest.raises(Exception):
+        render_marker_photo(CAM, np.full((4, 4), np.nan), marker_length=0.05)
