@@ -208,3 +208,79 @@ def test_sampling_does_not_modify_light_and_rejects_bad_n():
 
 def test_sun_angular_radius_constant():
     assert SUN_ANGULAR_RADIUS_DEG == pytest.approx(0.266, abs=0.005)
+
+
+# ------------------------------------------------------------- penumbra from the samples (pure ray casting)
+def _blocked_fraction(ground_pts, lights, box_lo, box_hi):
+    """Weighted fraction of ``lights`` hidden from each ground point by an axis-aligned box (slab test,
+    written here independently of arshadow)."""
+    out = np.zeros(len(ground_pts))
+    total = sum(li.weight for li in lights)
+    for li in lights:
+        p = ground_pts
+        if li.kind == "point":
+            d = li.vector - p
+            tmax_seg = np.ones(len(p))
+        else:
+            d = np.broadcast_to(li.vector, p.shape)
+            tmax_seg = np.full(len(p), np.inf)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t1 = (box_lo - p) / d
+            t2 = (box_hi - p) / d
+        tnear = np.nanmax(np.minimum(t1, t2), axis=1)
+        tfar = np.nanmin(np.maximum(t1, t2), axis=1)
+        hit = (tnear <= tfar) & (tfar > 0) & (tnear < tmax_seg)
+        out += li.weight * hit
+    return out / total
+
+
+def _crossing(x, f, level):
+    """First x where the (decreasing) profile f drops to ``level`` (linear interpolation)."""
+    i = int(np.argmax(f <= level))
+    return x[i - 1] + (f[i - 1] - level) * (x[i] - x[i - 1]) / (f[i - 1] - f[i])
+
+
+def _disc_fraction_below(u):
+    """Fraction of a unit disc with first coordinate < u."""
+    return 1.0 - _segment_fraction(u)
+
+
+def test_point_area_light_penumbra_matches_geometry():
+    """Box edge under a spherical light straight above: penumbra full width 2 r h / (H - h) and the exact
+    disc profile; the stratified samples reproduce it."""
+    r, H, h, a = 0.1, 1.0, 0.3, 0.1
+    li = parse_light(f"point:0,0,{H},radius={r}")
+    lights = sample_area_light(li, 256, seed=2, towards=(0, 0, 0))
+    x = np.linspace(a + 0.001, a + 0.2, 2000)
+    pts = np.stack([x, np.zeros_like(x), np.zeros_like(x)], axis=1)
+    f = _blocked_fraction(pts, lights, np.array([-a, -1.0, 0.0]), np.array([a, 1.0, h]))
+    # exact profile: sample blocked iff its x < c(x) = x - (x - a) H / h
+    c = x - (x - a) * H / h
+    exact = np.array([_disc_fraction_below(np.clip(ci / r, -1, 1)) for ci in c])
+    assert np.max(np.abs(f - exact)) < 0.025
+    full = 2 * r * h / (H - h)
+    w_full = x[np.nonzero(f < 1.0)[0][0]], x[np.nonzero(f > 0.0)[0][-1]]
+    assert abs((w_full[1] - w_full[0]) - full) / full < 0.15
+    w1090 = _crossing(x, f, 0.1) - _crossing(x, f, 0.9)
+    e1090 = _crossing(x, exact, 0.1) - _crossing(x, exact, 0.9)
+    assert abs(w1090 - e1090) / e1090 < 0.05
+    # N = 1: the hard shadow edge exactly at a + a h / (H - h)
+    f1 = _blocked_fraction(pts, sample_area_light(li, 1), np.array([-a, -1.0, 0.0]), np.array([a, 1.0, h]))
+    edge = a + a * h / (H - h)
+    np.testing.assert_array_equal(f1, (x < edge).astype(float))
+
+
+def test_directional_area_light_penumbra_matches_geometry():
+    """Wall of height h facing a directional light at elevation e with angular radius alpha: penumbra from
+    h / tan(e + alpha) to h / tan(e - alpha) behind the wall."""
+    e, alpha, h = math.radians(40.0), math.radians(2.0), 0.5
+    li = Light("directional", [-math.cos(e), 0.0, math.sin(e)], radius=alpha)  # sun towards -x
+    lights = sample_area_light(li, 128, seed=9)
+    x = np.linspace(0.01, 1.2, 4000)  # ground behind the wall (wall at x in [-0.01, 0])
+    pts = np.stack([x, np.zeros_like(x), np.zeros_like(x)], axis=1)
+    f = _blocked_fraction(pts, lights, np.array([-0.01, -5.0, 0.0]), np.array([0.0, 5.0, h]))
+    full = h / math.tan(e - alpha) - h / math.tan(e + alpha)
+    w_full = x[np.nonzero(f > 0.0)[0][-1]] - x[np.nonzero(f < 1.0)[0][0]]
+    assert abs(w_full - full) / full < 0.15
+    # the umbra/half/lit positions: 50 % at the centre direction's shadow h / tan(e)
+    assert _crossing(x, f, 0.5) == pytest.approx(h / math.tan(e), rel=0.02)
