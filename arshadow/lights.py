@@ -33,12 +33,13 @@ from datetime import datetime
 import numpy as np
 
 from .errors import LightError
-from .sun import sun_light_direction, sun_position
+from .sun import SunTrack, sun_light_direction, sun_position
 
 __all__ = [
     "Light",
     "SUN_ANGULAR_RADIUS_DEG",
     "parse_light",
+    "parse_sun_track",
     "parse_time",
     "sample_area_light",
     "lights_homogeneous",
@@ -47,6 +48,8 @@ __all__ = [
 
 #: mean apparent angular radius of the sun's disc, degrees (varies 0.262..0.271 over the year)
 SUN_ANGULAR_RADIUS_DEG = 0.266
+#: the sun's angular semi-diameter at 1 AU, degrees (959.63 arcsec)
+SUN_SEMI_DIAMETER_1AU_DEG = 959.63 / 3600.0
 
 _GOLDEN_ANGLE = math.pi * (3.0 - math.sqrt(5.0))
 
@@ -335,7 +338,8 @@ def parse_light(spec: str, default_time=None) -> Light:
 _SUN_KEYS = ("elevation", "pressure", "temperature", "delta_t", "model", "refraction", "radius")
 
 
-def _parse_sun(spec, pos, kw, weight, default_time) -> Light:
+def _sun_params(spec, pos, kw, default_time, need_time=True) -> dict:
+    """Validated parameters of a ``sun:`` spec (LightError naming the spec on bad input)."""
     _check_keys(kw, _SUN_KEYS, spec)
     if not 2 <= len(pos) <= 4:
         raise LightError(f"light {spec!r}: sun needs LAT,LON,TIME[,NORTH], got {len(pos)} value(s)")
@@ -346,13 +350,14 @@ def _parse_sun(spec, pos, kw, weight, default_time) -> Light:
     if not -180.0 <= lon <= 180.0:
         raise LightError(f"light {spec!r}: longitude {lon:g} is outside [-180, 180] (east positive)")
     time_text = pos[2].strip() if len(pos) >= 3 else ""
+    when = None
     if time_text:
         when = parse_time(time_text, what=f"light {spec!r}: time")
     elif default_time is not None:
         when = parse_time(default_time, "default time") if isinstance(default_time, str) else default_time
         if not isinstance(when, datetime) or when.utcoffset() is None:
             raise LightError(f"light {spec!r}: default time {default_time!r} must be an aware datetime (with a UTC offset)")
-    else:
+    elif need_time:
         raise LightError(f"light {spec!r}: no TIME given (sun:LAT,LON,TIME with e.g. 2011-04-22T10:59+08:00)")
     north = _float(pos[3], "north bearing", spec) if len(pos) == 4 and pos[3].strip() else 0.0
 
@@ -362,8 +367,8 @@ def _parse_sun(spec, pos, kw, weight, default_time) -> Light:
             opts[key] = _float(kw[key], key, spec)
     model = kw.get("model", "spa").strip().lower()
     refraction = _on_off(kw["refraction"], "refraction", spec) if "refraction" in kw else False
-    radius_deg = _float(kw["radius"], "radius", spec) if "radius" in kw else SUN_ANGULAR_RADIUS_DEG
-    if not 0.0 <= radius_deg < 90.0:
+    radius_deg = _float(kw["radius"], "radius", spec) if "radius" in kw else None
+    if radius_deg is not None and not 0.0 <= radius_deg < 90.0:
         raise LightError(f"light {spec!r}: angular radius must be in [0, 90) degrees, got {radius_deg:g}")
     kwargs = {"elevation": opts.get("elevation", 0.0), "model": model}
     if "pressure" in opts:
@@ -372,20 +377,68 @@ def _parse_sun(spec, pos, kw, weight, default_time) -> Light:
         kwargs["temperature_c"] = opts["temperature"]
     if "delta_t" in opts:
         kwargs["delta_t"] = opts["delta_t"]
+    return {"lat": lat, "lon": lon, "when": when, "north": north, "kwargs": kwargs, "refraction": refraction,
+            "radius_deg": radius_deg}
+
+
+def _sun_radius_deg(p: dict, pos_sun) -> float:
+    """The spec's radius, else the sun's true angular radius for the date (SPA: 0.26656 deg / R[AU]; it
+    varies 0.262..0.271 over the year), else the mean 0.266 deg."""
+    if p["radius_deg"] is not None:
+        return p["radius_deg"]
+    r_au = pos_sun.extra.get("earth_sun_distance_au") if pos_sun is not None else None
+    return SUN_SEMI_DIAMETER_1AU_DEG / r_au if r_au else SUN_ANGULAR_RADIUS_DEG
+
+
+def _parse_sun(spec, pos, kw, weight, default_time) -> Light:
+    p = _sun_params(spec, pos, kw, default_time)
     try:
-        pos_sun = sun_position(when, lat, lon, **kwargs)
+        pos_sun = sun_position(p["when"], p["lat"], p["lon"], **p["kwargs"])
     except LightError as exc:
         raise LightError(f"light {spec!r}: {exc}") from None
-    world, above = sun_light_direction(pos_sun, north, refraction=refraction)
+    world, above = sun_light_direction(pos_sun, p["north"], refraction=p["refraction"])
     return Light(
         "directional",
         world,
         weight=weight,
-        radius=math.radians(radius_deg),
+        radius=math.radians(_sun_radius_deg(p, pos_sun)),
         label=spec,
         above_horizon=above,
         sun=pos_sun,
     )
+
+
+def parse_sun_track(spec: str, recompute_deg: float = 0.1) -> SunTrack:
+    """A :class:`arshadow.sun.SunTrack` for a ``sun:LAT,LON[,TIME][,NORTH]...[@W]`` spec (video time-lapse).
+
+    The spec's place, NORTH, options and weight are used; TIME may be omitted (the frame times come from
+    the video; a given TIME is kept as ``track.start``). ``track.light(frame)`` gives the :class:`Light` to
+    render for a :class:`arshadow.sun.TrackFrame` (direction ``frame.world_used``: the silhouette is
+    recomputed only when ``frame.recompute``).
+
+    Examples
+    --------
+    >>> from datetime import timedelta
+    >>> tr = parse_sun_track("sun:48,11,2021-06-21T09:00+02:00,0@2", recompute_deg=0.5)
+    >>> frames = tr.track([tr.start + timedelta(minutes=m) for m in range(10)])
+    >>> li = tr.light(frames[-1]); li.weight, li.kind
+    (2.0, 'directional')
+    """
+    if not isinstance(spec, str) or not spec.strip().lower().startswith("sun:"):
+        raise LightError(f"a sun track needs a sun:LAT,LON[,TIME][,NORTH] spec, got {spec!r}")
+    spec = spec.strip()
+    body, weight = _split_weight(spec.partition(":")[2])
+    pos, kw = _split_fields(body, spec)
+    p = _sun_params(spec, pos, kw, None, need_time=False)
+    try:
+        track = SunTrack(p["lat"], p["lon"], north_deg=p["north"], recompute_deg=recompute_deg,
+                         refraction=p["refraction"], **p["kwargs"])
+    except LightError as exc:
+        raise LightError(f"light {spec!r}: {exc}") from None
+    track.start = p["when"]
+    track.weight, track.label, track.radius_deg = weight, spec, p["radius_deg"]
+    track._radius_of = lambda pos_sun: math.radians(_sun_radius_deg(p, pos_sun))
+    return track
 
 
 # ----------------------------------------------------------------------------------------------------------

@@ -248,6 +248,7 @@ def _spa(jd, delta_t, lat, lon, elev, pressure, temp):
         "azimuth": azimuth,
         "declination": np.degrees(delta_p),
         "hour_angle": np.degrees(H_p),
+        "earth_sun_distance_au": R,
     }
 
 
@@ -390,9 +391,11 @@ def sun_positions(
                 raise LightError(f"delta_t {delta_t!r} s is not a plausible TT - UT")
             dt = np.full(len(utc), dt)
         r = _spa(jd, dt, lat, lon, elevation, pressure, temp)
+        r_au = r["earth_sun_distance_au"]
     else:
         dt = np.full(len(utc), np.nan)
         r = _paper(utc, lat, lon, printed=(model == "paper-printed"))
+        r_au = np.full(len(utc), np.nan)
     enu = _enu(r["zenith"], r["azimuth"])
     out = []
     for i, w in enumerate(times):
@@ -412,7 +415,8 @@ def sun_positions(
                 model=model,
                 declination_deg=float(r["declination"][i]),
                 hour_angle_deg=float(((r["hour_angle"][i] + 180.0) % 360.0) - 180.0),
-                extra={"pressure_mbar": pressure, "temperature_c": temp, "delta_t": float(dt[i])},
+                extra={"pressure_mbar": pressure, "temperature_c": temp, "delta_t": float(dt[i]),
+                       "earth_sun_distance_au": None if np.isnan(r_au[i]) else float(r_au[i])},
             )
         )
     return out
@@ -630,6 +634,22 @@ class SunTrack:
             raise LightError(f"recompute angle must be >= 0 degrees, got {recompute_deg!r}")
         self.model, self.refraction, self.kwargs = model, bool(refraction), kwargs
         self._last = None  # (world_used, above_horizon)
+        # set by arshadow.lights.parse_sun_track: what light() builds
+        self.start = None
+        self.weight, self.label, self.radius_deg = 1.0, "sun", None
+        self._radius_of = None
+
+    def light(self, frame: TrackFrame):
+        """The :class:`arshadow.lights.Light` to render for ``frame``: direction ``frame.world_used`` (the
+        one the cached silhouette belongs to), this track's weight and label, the sun's angular radius."""
+        from .lights import SUN_ANGULAR_RADIUS_DEG, Light  # noqa: PLC0415  (lights imports this module)
+
+        if self._radius_of is not None:
+            radius = self._radius_of(frame.position)
+        else:
+            radius = math.radians(SUN_ANGULAR_RADIUS_DEG if self.radius_deg is None else self.radius_deg)
+        return Light("directional", frame.world_used, weight=self.weight, radius=radius, label=self.label,
+                     above_horizon=frame.above_horizon, sun=frame.position)
 
     def reset(self) -> None:
         """Forget the last recompute (the next frame recomputes)."""

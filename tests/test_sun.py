@@ -254,7 +254,13 @@ def test_sun_light_spec():
     assert li.kind == "directional" and li.weight == 2.0 and li.above_horizon
     assert li.sun.zenith_deg == s.zenith_deg
     np.testing.assert_allclose(li.vector, enu_to_world(s.enu, 30.0), atol=1e-15)
-    assert li.radius == pytest.approx(math.radians(SUN_ANGULAR_RADIUS_DEG))
+    # the sun's true angular radius for the date: 959.63 arcsec at 1 AU / Earth-sun distance
+    assert li.radius == pytest.approx(math.radians(959.63 / 3600 / li.sun.extra["earth_sun_distance_au"]), rel=1e-12)
+    assert abs(math.degrees(li.radius) - SUN_ANGULAR_RADIUS_DEG) < 0.005
+    jan = parse_light("sun:0,0,2021-01-03T12:00Z").radius  # perihelion: largest disc
+    jul = parse_light("sun:0,0,2021-07-05T12:00Z").radius  # aphelion: smallest
+    assert math.degrees(jan) == pytest.approx(0.2712, abs=2e-4) and math.degrees(jul) == pytest.approx(0.2622, abs=2e-4)
+    assert parse_light("sun:0,0,2021-07-05T12:00Z,model=paper").radius == pytest.approx(math.radians(SUN_ANGULAR_RADIUS_DEG))
     assert li.homogeneous[3] == 0.0
     # NORTH defaults to 0: world = ENU
     np.testing.assert_allclose(parse_light("sun:1.28,103.45,2011-04-22T10:59+08:00").vector, s.enu, atol=1e-15)
@@ -434,6 +440,27 @@ def test_sun_track_recomputes_when_the_sun_sets():
     assert frames[k].recompute and sum(f.recompute for f in frames) == 2
     with pytest.raises(LightError):
         SunTrack(51.5, 0.0, recompute_deg=-1)
+
+
+def test_parse_sun_track_gives_frame_lights():
+    from arshadow.lights import parse_sun_track
+
+    tr = parse_sun_track("sun:48,11,2021-06-21T09:00+02:00,30,refraction=on@2", recompute_deg=0.5)
+    assert tr.start == parse_time("2021-06-21T09:00+02:00") and tr.north_deg == 30.0 and tr.refraction
+    frames = tr.track([tr.start + timedelta(minutes=m) for m in range(0, 20, 2)])
+    for f in frames:
+        li = tr.light(f)
+        assert li.weight == 2.0 and li.kind == "directional" and li.above_horizon
+        np.testing.assert_allclose(li.vector, f.world_used, rtol=0, atol=1e-15)
+        assert math.degrees(li.radius) == pytest.approx(0.2622, abs=5e-4)
+    # the same spec as a still light with the frame's time gives the frame's true direction
+    still = parse_light("sun:48,11,,30,refraction=on@2", default_time=frames[-1].when)
+    np.testing.assert_allclose(still.vector, frames[-1].world, atol=1e-15)
+    assert parse_sun_track("sun:48,11").start is None
+    with pytest.raises(LightError):
+        parse_sun_track("point:0,0,1")
+    with pytest.raises(LightError, match="latitude"):
+        parse_sun_track("sun:100,11")
 
 
 def test_track_streaming_matches_batch():
