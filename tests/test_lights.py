@@ -17,6 +17,7 @@ from arshadow.lights import (
     stratified_disc,
     total_weight,
 )
+from conftest import TOL
 
 
 # ---------------------------------------------------------------------------------------------- parsing
@@ -144,7 +145,7 @@ def test_stratified_disc_integrates_half_planes():
             for x in np.linspace(-0.9, 0.9, 19):
                 worst = max(worst, abs(np.mean(p > x) - _segment_fraction(x)))
     # 256 i.i.d. samples would give a standard deviation of up to 0.031 per value; stratified does better
-    assert worst < 0.025
+    assert worst < TOL.area_light_segment
 
 
 def test_n1_is_the_centre_light_exactly():
@@ -257,7 +258,7 @@ def test_point_area_light_penumbra_matches_geometry():
     # exact profile: sample blocked iff its x < c(x) = x - (x - a) H / h
     c = x - (x - a) * H / h
     exact = np.array([_disc_fraction_below(np.clip(ci / r, -1, 1)) for ci in c])
-    assert np.max(np.abs(f - exact)) < 0.025
+    assert np.max(np.abs(f - exact)) < TOL.area_light_segment
     full = 2 * r * h / (H - h)
     w_full = x[np.nonzero(f < 1.0)[0][0]], x[np.nonzero(f > 0.0)[0][-1]]
     assert abs((w_full[1] - w_full[0]) - full) / full < 0.15

@@ -170,8 +170,8 @@ def test_naive_time_refused():
 
 
 # -------------------------------------------------------------------------------- paper 004's formula
-PAPER_MEDIAN = (0.15, 0.25)  # documented: median 0.20-0.21 deg (docs/lights.md)
-PAPER_MAX = (0.8, 1.2)  # documented: max 1.05-1.07 deg
+PAPER_MEDIAN = TOL.sun_paper_median_deg  # documented: median 0.20-0.21 deg (docs/lights.md)
+PAPER_MAX = TOL.sun_paper_max_deg  # documented: max 1.05-1.07 deg
 
 
 def test_paper_model_error_figures(reference):
