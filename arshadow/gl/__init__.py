@@ -1,0 +1,11 @@
+"""OpenGL side of arshadow: the only package that imports moderngl.
+
+- :mod:`arshadow.gl.context`: ``create_context(backend=None)``, ``gl_info(ctx)``.
+- :mod:`arshadow.gl.renderer`: ``ShadowRenderer`` (stencil shadow volumes offscreen), ``LightPass``,
+  ``RenderResult``.
+- :mod:`arshadow.gl.glraw`: ctypes bindings for the raw GL calls moderngl lacks (stencil, renderbuffers).
+
+Importing this package creates no context and loads no GL library; ``create_context`` does, when called.
+"""
+
+__all__ = ["context", "renderer", "glraw"]

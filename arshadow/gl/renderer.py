@@ -1,0 +1,753 @@
+"""Offscreen stencil shadow-volume renderer (moderngl + raw GL stencil through ctypes).
+
+The renderer is handed a moderngl context (see :mod:`arshadow.gl.context`); it never creates one.
+
+Frame layout (one framebuffer, all renderbuffers, optional MSAA)::
+
+    colour 0  RGBA16F   rgb = shaded occluder (linear), a = occluder coverage
+    colour 1  RG16F     r = blocked light weight (the shadow mask), g = ground coverage
+    depth/stencil       GL_DEPTH24_STENCIL8, made with glRenderbufferStorage(Multisample) through ctypes
+
+Stencil bits: bit 7 = "this sample sees the ground plane" (set by the ground depth pass), bits 0-6 = the
+shadow-volume count of the current light (modulo 128, two-sided INCR_WRAP/DECR_WRAP with write mask 0x7F).
+
+Passes per frame
+----------------
+1. base: clear; occluder (depth + ambient colour + coverage); ground plane z = 0 (depth, ground bit; an
+   unlimited plane drawn through homogeneous coordinates as four triangles with vertices at infinity, or a
+   ``ground_size`` square), with a small polygon offset (see ``ground_offset``).
+2. per light: clear the count bits; draw the light's shadow volume with depth test on (GL_LESS), depth
+   and colour writes off, depth clamp on, and two-sided stencil:
+   z-pass  front: depth-pass -> INCR_WRAP, back: depth-pass -> DECR_WRAP (sides only);
+   z-fail  back: depth-fail -> INCR_WRAP, front: depth-fail -> DECR_WRAP (sides + both caps);
+   planar  the caster flattened onto z = 0 by the projection-shadow matrix (paper 002) -> REPLACE 1.
+   Then a full-viewport triangle adds the light's weight to the mask where ``stencil > 0x80`` (ground bit
+   set and count != 0), and the occluder is redrawn with GL_EQUAL depth adding this light's Phong
+   diffuse + specular where the count is 0 (self-shadowing).
+3. MSAA resolve / supersampling downsample (glBlitFramebuffer), one readback per attachment of just the
+   canvas, rows flipped to top-down.
+
+moderngl keeps its own copy of some GL state (bound framebuffer, enable flags, depth function, colour and
+depth masks). Each pass sets moderngl's flags explicitly (``ctx.enable_only``, ``ctx.depth_func``) and the
+raw state (stencil, depth clamp, colour masks, polygon offset) is set per pass and reset at the end.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import functools
+import math
+import time
+import weakref
+from dataclasses import dataclass, field
+from importlib import resources
+
+import numpy as np
+
+from .._check import check_finite, check_shape
+from ..errors import GLContextError, ShapeError, UsageError
+from . import glraw as G
+
+__all__ = ["LightPass", "RenderResult", "ShadowRenderer", "load_shader", "srgb_to_linear"]
+
+MODES = ("zpass", "zfail", "planar")
+GROUND_BIT = 0x80
+COUNT_MASK = 0x7F
+#: default occluder colour (sRGB) when the mesh has none and none is given
+DEFAULT_COLOR = (0.8, 0.8, 0.8)
+
+
+@functools.lru_cache(maxsize=None)
+def load_shader(name: str) -> str:
+    """Source of a shader shipped in ``arshadow/gl/shaders`` (package data)."""
+    return resources.files("arshadow.gl").joinpath("shaders", name).read_text(encoding="utf-8")
+
+
+def srgb_to_linear(c) -> np.ndarray:
+    """sRGB-encoded values in [0, 1] -> linear light (IEC 61966-2-1), float64, same shape."""
+    c = np.asarray(c, dtype=np.float64)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+@dataclass
+class LightPass:
+    """One light of a frame.
+
+    Attributes
+    ----------
+    light_h : (4,) float64
+        Homogeneous world position ``(x, y, z, 1)`` or direction towards the light ``(dx, dy, dz, 0)``.
+    weight : float
+        Share of the total light weight (the mask accumulates ``weight`` where this light is blocked).
+    volume : ShadowVolume or None
+        From :func:`arshadow.volume.shadow_volume` (``vertices (p, 4)`` homogeneous world, w = 0 at
+        infinity; ``triangles (q, 3)`` outward-wound). None: the light casts no volume shadow (with mode
+        ``"planar"`` the caster itself is flattened onto the ground).
+    mode : str
+        ``"zpass"`` | ``"zfail"`` | ``"planar"``.
+    color : (3,) linear RGB
+        Light colour for the occluder's Phong shading.
+    """
+
+    light_h: np.ndarray
+    weight: float
+    volume: object = None
+    mode: str = "zfail"
+    color: tuple = (1.0, 1.0, 1.0)
+
+
+@dataclass
+class RenderResult:
+    """What one :meth:`ShadowRenderer.render` returns; rows are image rows top to bottom (row 0 = canvas
+    row ``v0``), already flipped from OpenGL's bottom-up order. Fresh arrays: they stay valid after later
+    renders.
+
+    Attributes
+    ----------
+    mask : (h, w) float32 in [0, 1]
+        Blocked light weight / total weight at pixels that see the ground plane and are not covered by the
+        occluder; 0 elsewhere. With anti-aliasing it is coverage-weighted: the mean over the pixel's
+        samples of (sample sees the ground) x (blocked weight of that sample).
+    color : (h, w, 3) float32
+        Linear RGB of the shaded occluder, **premultiplied by** ``alpha`` (equal to the straight colour
+        wherever alpha = 1, 0 where alpha = 0).
+    alpha : (h, w) float32
+        Occluder coverage in [0, 1].
+    ground : (h, w) bool
+        The pixel (more than half of its samples) sees the (possibly size-limited) ground plane.
+    ground_coverage : (h, w) float32
+        Fraction of the pixel's samples that see the ground.
+    timings_ms : dict
+        ``upload`` (CPU: volumes to GPU), ``draw`` (GL passes, to completion), ``readback``, ``total``.
+    """
+
+    mask: np.ndarray
+    color: np.ndarray
+    alpha: np.ndarray
+    ground: np.ndarray
+    ground_coverage: np.ndarray
+    timings_ms: dict = field(default_factory=dict)
+
+
+def _crease_normals(vertices: np.ndarray, faces: np.ndarray, crease_deg: float) -> np.ndarray:
+    """(m, 3, 3) float64 per-corner normals: the area-weighted vertex normal where it is within
+    ``crease_deg`` of the face normal, else the face normal (flat edges stay sharp, curved parts smooth)."""
+    tri = vertices[faces]
+    raw = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])  # |raw| = 2 area
+    fn = raw / np.maximum(np.linalg.norm(raw, axis=1, keepdims=True), 1e-300)
+    vn = np.zeros_like(vertices)
+    for k in range(3):
+        np.add.at(vn, faces[:, k], raw)
+    vn /= np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-300)
+    corner = vn[faces]  # (m, 3, 3)
+    cos = np.einsum("mkj,mj->mk", corner, fn)
+    flat = cos < math.cos(math.radians(crease_deg))
+    corner = np.where(flat[..., None], fn[:, None, :], corner)
+    return corner
+
+
+class _CasterBuffers:
+    """GPU copies of one caster: the occluder (unwelded corners: pos4, normal3, albedo3) and the welded
+    positions (for the planar shadow). Built once per caster."""
+
+    def __init__(self, ctx, prog_base, prog_occ, prog_pos, caster, color, crease_deg):
+        v = np.asarray(caster.vertices, dtype=np.float64)
+        f = np.asarray(caster.faces, dtype=np.int64)
+        m = len(f)
+        if color is not None:
+            alb = np.broadcast_to(srgb_to_linear(np.asarray(color, np.float64)[:3]), (m, 3, 3))
+        else:
+            cols = getattr(caster, "colors", None)
+            if cols is None:
+                alb = np.broadcast_to(srgb_to_linear(np.asarray(DEFAULT_COLOR)), (m, 3, 3))
+            else:
+                alb = srgb_to_linear(np.asarray(cols, np.float64)[:, :3])[f]
+        nrm = _crease_normals(v, f, crease_deg)
+        data = np.empty((m, 3, 10), dtype=np.float32)
+        data[..., :3] = v[f]
+        data[..., 3] = 1.0
+        data[..., 4:7] = nrm
+        data[..., 7:10] = alb
+        self.n_corners = 3 * m
+        self.vbo = ctx.buffer(data.tobytes())
+        self.vao = ctx.vertex_array(prog_occ, [(self.vbo, "4f 3f 3f", "in_pos", "in_normal", "in_albedo")])
+        # the base pass uses no normals (the attribute is optimised out of that program)
+        self.base_vao = ctx.vertex_array(prog_base, [(self.vbo, "4f 12x 3f", "in_pos", "in_albedo")])
+        # welded positions for the planar shadow (common.vert)
+        pos = np.empty((len(v), 4), dtype=np.float32)
+        pos[:, :3] = v
+        pos[:, 3] = 1.0
+        self.pos_vbo = ctx.buffer(pos.tobytes())
+        self.ibo = ctx.buffer(f.astype(np.uint32).tobytes())
+        self.planar_vao = ctx.vertex_array(prog_pos, [(self.pos_vbo, "4f", "in_pos")], index_buffer=self.ibo,
+                                           index_element_size=4)
+        self.n_indices = 3 * m
+
+    def release(self):
+        for o in (self.vao, self.base_vao, self.planar_vao, self.vbo, self.pos_vbo, self.ibo):
+            o.release()
+
+
+class _Target:
+    """A raw-GL framebuffer: colour renderbuffers (+ optional D24S8), wrapped by moderngl."""
+
+    def __init__(self, ctx, gl, width, height, samples, color_formats, depth_stencil):
+        self.gl = gl
+        self.width, self.height, self.samples = int(width), int(height), int(samples)
+        self.fbo = gl.gen_framebuffer()
+        self.rbs = []
+        gl.glBindFramebuffer(G.GL_FRAMEBUFFER, self.fbo)
+        formats = list(color_formats) + ([G.GL_DEPTH24_STENCIL8] if depth_stencil else [])
+        for i, fmt in enumerate(formats):
+            rb = gl.gen_renderbuffer()
+            gl.glBindRenderbuffer(G.GL_RENDERBUFFER, rb)
+            if self.samples:
+                gl.glRenderbufferStorageMultisample(G.GL_RENDERBUFFER, self.samples, fmt, self.width, self.height)
+            else:
+                gl.glRenderbufferStorage(G.GL_RENDERBUFFER, fmt, self.width, self.height)
+            att = G.GL_DEPTH_STENCIL_ATTACHMENT if fmt == G.GL_DEPTH24_STENCIL8 else G.GL_COLOR_ATTACHMENT0 + i
+            gl.glFramebufferRenderbuffer(G.GL_FRAMEBUFFER, att, G.GL_RENDERBUFFER, rb)
+            self.rbs.append(rb)
+        gl.glBindRenderbuffer(G.GL_RENDERBUFFER, 0)
+        status = gl.glCheckFramebufferStatus(G.GL_FRAMEBUFFER)
+        self.stencil_bits = (
+            gl.attachment_param(G.GL_STENCIL_ATTACHMENT, G.GL_FRAMEBUFFER_ATTACHMENT_STENCIL_SIZE)
+            if depth_stencil else 0
+        )
+        self.depth_bits = (
+            gl.attachment_param(G.GL_DEPTH_ATTACHMENT, G.GL_FRAMEBUFFER_ATTACHMENT_DEPTH_SIZE)
+            if depth_stencil else 0
+        )
+        gl.glBindFramebuffer(G.GL_FRAMEBUFFER, 0)
+        if status != G.GL_FRAMEBUFFER_COMPLETE:
+            self.release()
+            raise GLContextError(
+                f"offscreen framebuffer {self.width}x{self.height} (samples={self.samples}) is incomplete: "
+                f"{G.framebuffer_status_name(status)}"
+            )
+        self.n_color = len(color_formats)
+        self.mgl = ctx.detect_framebuffer(self.fbo)
+
+    def release(self):
+        gl = self.gl
+        if self.fbo:
+            gl.delete_framebuffer(self.fbo)
+            self.fbo = 0
+        for rb in self.rbs:
+            gl.delete_renderbuffer(rb)
+        self.rbs = []
+
+
+def _program_cache(ctx) -> dict:
+    """Programs are cached per context (in ``ctx.extra``), compiled once."""
+    extra = ctx.extra if isinstance(getattr(ctx, "extra", None), dict) else None
+    if extra is None:
+        extra = {}
+        ctx.extra = extra
+    return extra.setdefault("arshadow_programs", {})
+
+
+def _program(ctx, vert: str, frag: str):
+    cache = _program_cache(ctx)
+    key = (vert, frag)
+    if key not in cache:
+        cache[key] = ctx.program(vertex_shader=load_shader(vert), fragment_shader=load_shader(frag))
+    return cache[key]
+
+
+class ShadowRenderer:
+    """Render hard shadows of one caster onto the ground plane z = 0 with stencil shadow volumes.
+
+    Parameters
+    ----------
+    ctx : moderngl.Context
+        An OpenGL >= 3.3 context from :func:`arshadow.gl.context.create_context` (not created here).
+    max_width, max_height : int
+        Largest canvas accepted. Buffers are allocated lazily at the first canvas size and grown (never
+        shrunk) when a larger canvas comes.
+    samples : int
+        MSAA samples per pixel (0 = off; at most ``ctx.max_samples``).
+    supersample : int
+        1, 2 or 4: render at ``supersample`` x the canvas size and box-filter down (can be combined with
+        MSAA).
+    ground_offset : (float, float)
+        ``glPolygonOffset(factor, units)`` of the ground plane's depth (see docs/rendering.md: keeps the
+        volume/ground depth comparisons at z = 0 stable where the object stands on the ground).
+    crease_deg : float
+        Smoothing angle of the occluder's shading normals.
+
+    Examples
+    --------
+    >>> # ctx = create_context(); r = ShadowRenderer(ctx); res = r.render(projection=P, view=V, ...)
+    """
+
+    def __init__(self, ctx, *, max_width=4096, max_height=4096, samples=0, supersample=1,
+                 ground_offset=(0.0, 0.0), crease_deg=40.0, max_cached_casters=8):
+        self.ctx = ctx
+        self.gl = G.load()
+        self.max_width, self.max_height = int(max_width), int(max_height)
+        samples = int(samples)
+        if samples < 0 or samples > max(int(ctx.max_samples), 0):
+            raise UsageError(f"samples={samples} not supported (this GL allows 0..{ctx.max_samples})")
+        if samples == 1:
+            samples = 0
+        self.samples = samples
+        if int(supersample) not in (1, 2, 4):
+            raise UsageError(f"supersample must be 1, 2 or 4, got {supersample}")
+        self.supersample = int(supersample)
+        limit = int(ctx.info.get("GL_MAX_RENDERBUFFER_SIZE", 16384))
+        if self.max_width * self.supersample > limit or self.max_height * self.supersample > limit:
+            raise UsageError(f"max canvas {self.max_width}x{self.max_height} x supersample {self.supersample} "
+                             f"exceeds GL_MAX_RENDERBUFFER_SIZE {limit}")
+        self.ground_offset = (float(ground_offset[0]), float(ground_offset[1]))
+        self.crease_deg = float(crease_deg)
+        self.max_cached_casters = int(max_cached_casters)
+        # programs (compiled once per context)
+        self.prog_occ_base = _program(ctx, "occluder.vert", "occluder_base.frag")
+        self.prog_occ_light = _program(ctx, "occluder.vert", "occluder_light.frag")
+        self.prog_ground = _program(ctx, "common.vert", "ground.frag")
+        self.prog_volume = _program(ctx, "common.vert", "volume.frag")
+        self.prog_mask = _program(ctx, "fullscreen.vert", "mask.frag")
+        # static geometry: unlimited ground (4 triangles fanning out to points at infinity), full viewport
+        self._ground_vbo = ctx.buffer(reserve=12 * 4 * 4)
+        self._ground_vao = ctx.vertex_array(self.prog_ground, [(self._ground_vbo, "4f", "in_pos")])
+        self._ground_key = None
+        self._fs_vao = ctx.vertex_array(self.prog_mask, [])
+        # volume buffers, grown as needed
+        self._vol_vbo = None
+        self._vol_ibo = None
+        self._vol_vao = None
+        self._vol_cap = (0, 0)
+        self._casters: dict[int, tuple[weakref.ref, object, _CasterBuffers]] = {}
+        self._main = None       # _Target: render target (MSAA and/or supersampled)
+        self._resolve = None    # _Target: single-sample canvas-size target (when main is MSAA/supersampled)
+        self._half = None       # _Target: intermediate for supersample 4
+        self._released = False
+        #: when True, render() calls ctx.finish() after each pass and reports per-pass times (slower)
+        self.profile = False
+        self._marks = []
+
+    # ------------------------------------------------------------------ resources
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.release()
+
+    def release(self) -> None:
+        """Free every GL object this renderer made (programs stay cached on the context)."""
+        if self._released:
+            return
+        for t in (self._main, self._resolve, self._half):
+            if t is not None:
+                t.release()
+        self._main = self._resolve = self._half = None
+        for _, _, bufs in self._casters.values():
+            bufs.release()
+        self._casters.clear()
+        for o in (self._vol_vao, self._vol_vbo, self._vol_ibo, self._ground_vao, self._ground_vbo, self._fs_vao):
+            if o is not None:
+                o.release()
+        self._released = True
+
+    @property
+    def stencil_bits(self) -> int:
+        """Stencil bits of the render target actually obtained (8 for GL_DEPTH24_STENCIL8); 0 before the
+        first render."""
+        return self._main.stencil_bits if self._main is not None else 0
+
+    @property
+    def depth_bits(self) -> int:
+        return self._main.depth_bits if self._main is not None else 0
+
+    def _ensure_targets(self, width: int, height: int) -> None:
+        s = self.supersample
+        need_w, need_h = width * s, height * s
+        main = self._main
+        if main is None or main.width < need_w or main.height < need_h:
+            w = max(need_w, main.width if main else 0)
+            h = max(need_h, main.height if main else 0)
+            for t in (self._main, self._resolve, self._half):
+                if t is not None:
+                    t.release()
+            self._main = self._resolve = self._half = None
+            fmts = (G.GL_RGBA16F, G.GL_RG16F)
+            self._main = _Target(self.ctx, self.gl, w, h, self.samples, fmts, True)
+            if self.samples or s > 1:
+                self._resolve = _Target(self.ctx, self.gl, w // s, h // s, 0, fmts, False)
+            if s == 4:
+                self._half = _Target(self.ctx, self.gl, w // 2, h // 2, 0, fmts, False)
+
+    def _caster_buffers(self, caster, occluder_color) -> _CasterBuffers:
+        # purge dead casters
+        for key in [k for k, (ref, _, _) in self._casters.items() if ref() is None]:
+            self._casters.pop(key)[2].release()
+        ckey = None if occluder_color is None else tuple(float(c) for c in np.ravel(occluder_color)[:3])
+        entry = self._casters.get(id(caster))
+        if entry is not None and entry[0]() is caster and entry[1] == (ckey, self.crease_deg):
+            return entry[2]
+        if entry is not None:
+            self._casters.pop(id(caster))[2].release()
+        while len(self._casters) >= self.max_cached_casters:
+            self._casters.pop(next(iter(self._casters)))[2].release()
+        bufs = _CasterBuffers(self.ctx, self.prog_occ_base, self.prog_occ_light, self.prog_volume, caster, ckey, self.crease_deg)
+        try:
+            ref = weakref.ref(caster)
+        except TypeError:  # objects without weakref support: keep a strong reference
+            ref = (lambda obj: (lambda: obj))(caster)
+        self._casters[id(caster)] = (ref, (ckey, self.crease_deg), bufs)
+        return bufs
+
+    def _upload_volumes(self, passes) -> list:
+        """Concatenate every light's volume into the reused vertex/index buffers; returns per-pass
+        ``(first_index, n_indices)`` (None where a pass has no volume)."""
+        verts, tris, ranges = [], [], []
+        nv = ni = 0
+        for p in passes:
+            vol = p.volume
+            if vol is None or p.mode == "planar":
+                ranges.append(None)
+                continue
+            v = np.asarray(vol.vertices)
+            t = np.asarray(vol.triangles)
+            if v.ndim != 2 or v.shape[1] != 4 or t.ndim != 2 or t.shape[1] != 3:
+                raise ShapeError("shadow volume must have vertices (p, 4) and triangles (q, 3)",
+                                 actual_shape=(v.shape, t.shape), expected_shape="((p, 4), (q, 3))")
+            if len(t) == 0:
+                ranges.append(None)
+                continue
+            verts.append(v.astype(np.float32))
+            tris.append(t.astype(np.uint32) + np.uint32(nv))
+            ranges.append((ni, 3 * len(t)))
+            nv += len(v)
+            ni += 3 * len(t)
+        if ni == 0:
+            return ranges
+        vb = np.concatenate(verts) if len(verts) > 1 else verts[0]
+        ib = np.concatenate(tris) if len(tris) > 1 else tris[0]
+        vbytes, ibytes = vb.nbytes, ib.nbytes
+        if self._vol_vbo is None or vbytes > self._vol_cap[0] or ibytes > self._vol_cap[1]:
+            vcap = max(vbytes, 2 * self._vol_cap[0], 1 << 16)
+            icap = max(ibytes, 2 * self._vol_cap[1], 1 << 16)
+            for o in (self._vol_vao, self._vol_vbo, self._vol_ibo):
+                if o is not None:
+                    o.release()
+            self._vol_vbo = self.ctx.buffer(reserve=vcap, dynamic=True)
+            self._vol_ibo = self.ctx.buffer(reserve=icap, dynamic=True)
+            self._vol_vao = self.ctx.vertex_array(self.prog_volume, [(self._vol_vbo, "4f", "in_pos")],
+                                                  index_buffer=self._vol_ibo, index_element_size=4)
+            self._vol_cap = (vcap, icap)
+        self._vol_vbo.write(vb)
+        self._vol_ibo.write(ib)
+        return ranges
+
+    def _set_ground(self, ground_size) -> None:
+        key = None if ground_size is None else float(ground_size)
+        if key == self._ground_key and self._ground_key is not None or (key is None and self._ground_key == "inf"):
+            return
+        if key is None:
+            o, px, py, nx, ny = (0, 0, 0, 1), (1, 0, 0, 0), (0, 1, 0, 0), (-1, 0, 0, 0), (0, -1, 0, 0)
+            tris = [o, px, py, o, py, nx, o, nx, ny, o, ny, px]  # CCW seen from +z
+            self._ground_key = "inf"
+        else:
+            if not (math.isfinite(key) and key > 0):
+                raise UsageError(f"ground_size must be a positive length, got {ground_size}")
+            h = key / 2
+            a, b, c, d = (-h, -h, 0, 1), (h, -h, 0, 1), (h, h, 0, 1), (-h, h, 0, 1)
+            tris = [a, b, c, a, c, d] + [(0, 0, 0, 1)] * 6  # padded to the same 12 vertices (degenerate)
+            self._ground_key = key
+        self._ground_vbo.write(np.asarray(tris, dtype=np.float32).tobytes())
+
+    # ------------------------------------------------------------------ render
+    def render(self, *, projection, view, width, height, caster, passes, ground_size=None,
+               draw_occluder=True, ambient=0.25, diffuse=1.0, specular=0.25, shininess=32.0,
+               occluder_color=None) -> RenderResult:
+        """Render one frame (or one canvas sub-rectangle of it).
+
+        Parameters
+        ----------
+        projection : (4, 4) float64
+            ``clip_from_gl_eye`` for this canvas (``Intrinsics.gl_projection(znear, None, canvas=...)``;
+            an infinite far plane is needed when volumes reach infinity).
+        view : (4, 4) float64
+            ``gl_from_world = CV_TO_GL @ cam_from_world``.
+        width, height : int
+            Canvas size in pixels (<= max_width, max_height).
+        caster : ShadowCaster
+            The occluder (its GPU buffers are cached per caster object).
+        passes : sequence of LightPass
+            One per light; ``weight`` is the light's share of the total weight.
+        ground_size : float or None
+            Side of the square of ground (centred on the origin) that receives shadows; None = unlimited.
+        draw_occluder : bool
+            False: the occluder is neither drawn nor hides the ground (shadow only).
+        ambient, diffuse, specular, shininess : float
+            Phong coefficients (paper 002): ``I = K_a I_a + sum_l I_l (K_d (N.L) + K_s (N.H)^n)``.
+        occluder_color : (3,) sRGB in [0, 1], optional
+            Overrides the mesh's own colours (mesh colours and this are sRGB-encoded; output is linear).
+
+        Returns
+        -------
+        RenderResult
+        """
+        t0 = time.perf_counter()
+        if self._released:
+            raise UsageError("this ShadowRenderer has been released")
+        width, height = int(width), int(height)
+        if not (0 < width <= self.max_width and 0 < height <= self.max_height):
+            raise UsageError(f"canvas {width}x{height} outside 1..{self.max_width} x 1..{self.max_height}")
+        proj = check_finite(check_shape(projection, "4,4", "projection"), "projection")
+        view = check_finite(check_shape(view, "4,4", "view"), "view")
+        passes = list(passes)
+        for p in passes:
+            if p.mode not in MODES:
+                raise UsageError(f"unknown shadow mode {p.mode!r} (choose {', '.join(MODES)})")
+            if not (math.isfinite(float(p.weight)) and float(p.weight) >= 0):
+                raise UsageError(f"light weight must be finite and >= 0, got {p.weight}")
+        ctx, gl = self.ctx, self.gl
+        mvp = proj @ view
+        mvp_bytes = mvp.T.astype(np.float32).tobytes()  # GLSL is column-major
+        eye = -view[:3, :3].T @ view[:3, 3]
+        # mirrored projections flip the winding: keep "front" = outward side seen from outside
+        front = "cw" if np.linalg.det(mvp) > 0 else "ccw"
+
+        bufs = self._caster_buffers(caster, occluder_color) if (draw_occluder or any(
+            p.mode == "planar" for p in passes)) else None
+        ranges = self._upload_volumes(passes)
+        self._set_ground(ground_size)
+        self._ensure_targets(width, height)
+        t1 = time.perf_counter()
+        self._marks = [("start", t1)]
+
+        s = self.supersample
+        rw, rh = width * s, height * s
+        tgt = self._main
+        fbo = tgt.mgl
+        fbo.viewport = (0, 0, rw, rh)
+        fbo.scissor = (0, 0, rw, rh)  # clears touch only the canvas
+        fbo.use()  # binds, sets viewport/scissor, and moderngl's colour/depth masks (all on)
+        gl.draw_buffers(2)
+        ctx.front_face = front
+        # -- clear (scissored by moderngl's fbo.clear -> raw clear of depth+stencil too)
+        import moderngl
+
+        ctx.enable_only(moderngl.NOTHING)
+        gl.glEnable(G.GL_SCISSOR_TEST)
+        gl.glScissor(0, 0, rw, rh)
+        gl.glStencilMask(0xFF)
+        gl.glClearStencil(0)
+        gl.glClearDepth(1.0)
+        zero4 = (ctypes.c_float * 4)(0.0, 0.0, 0.0, 0.0)
+        gl.glClearBufferfv(0x1800, 0, zero4)  # GL_COLOR, draw buffer 0
+        gl.glClearBufferfv(0x1800, 1, zero4)
+        gl.glClearBufferfi(0x84F9, 0, 1.0, 0)  # GL_DEPTH_STENCIL
+        self._mark("clear")
+        # -- base pass: occluder then ground (depth LESS, writes on)
+        ctx.enable_only(moderngl.DEPTH_TEST)
+        ctx.depth_func = "<"
+        if draw_occluder:
+            self.prog_occ_base["u_mvp"].write(mvp_bytes)
+            self.prog_occ_base["u_ambient"].value = float(ambient)
+            bufs.base_vao.render(moderngl.TRIANGLES, vertices=bufs.n_corners)
+        self._mark("occluder")
+        ctx.enable_only(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
+        ctx.cull_face = "back"
+        gl.glEnable(G.GL_STENCIL_TEST)
+        gl.glStencilFunc(G.GL_ALWAYS, GROUND_BIT, 0xFF)
+        gl.glStencilOp(G.GL_KEEP, G.GL_KEEP, G.GL_REPLACE)
+        if self.ground_offset != (0.0, 0.0):
+            gl.glEnable(G.GL_POLYGON_OFFSET_FILL)
+            gl.glPolygonOffset(*self.ground_offset)
+        self.prog_ground["u_mvp"].write(mvp_bytes)
+        self._ground_vao.render(moderngl.TRIANGLES, vertices=12)
+        gl.glDisable(G.GL_POLYGON_OFFSET_FILL)
+
+        self._mark("ground")
+        # -- per light
+        for i, (p, rng) in enumerate(zip(passes, ranges)):
+            planar = p.mode == "planar"
+            if rng is None and not planar:
+                # casts nothing: the occluder gets this light unshadowed
+                if draw_occluder:
+                    self._light_occluder(bufs, p, mvp_bytes, eye, diffuse, specular, shininess, stencil=False)
+                continue
+            # clear the count bits, keep the ground bit
+            gl.glStencilMask(COUNT_MASK)
+            gl.glClear(G.GL_STENCIL_BUFFER_BIT)
+            # volume pass: depth test on, depth/colour writes off, depth clamp on, two-sided stencil
+            ctx.enable_only(moderngl.DEPTH_TEST)
+            ctx.depth_func = "<"
+            gl.glDepthMask(G.GL_FALSE)
+            gl.glColorMask(0, 0, 0, 0)
+            gl.glEnable(G.GL_DEPTH_CLAMP)
+            gl.glStencilFunc(G.GL_ALWAYS, 0, 0xFF)
+            if planar:
+                # projection shadow (paper 002): the caster flattened onto z = 0; depth test "always",
+                # the ground bit limits it to visible ground in the mask pass
+                ctx.depth_func = "1"
+                gl.glStencilFunc(G.GL_ALWAYS, 1, 0xFF)
+                gl.glStencilOp(G.GL_KEEP, G.GL_KEEP, G.GL_REPLACE)
+                smat = planar_shadow_matrix_z0(p.light_h)
+                self.prog_volume["u_mvp"].write((mvp @ smat).T.astype(np.float32).tobytes())
+                bufs.planar_vao.render(moderngl.TRIANGLES, vertices=bufs.n_indices)
+            else:
+                if p.mode == "zpass":
+                    gl.glStencilOpSeparate(G.GL_FRONT, G.GL_KEEP, G.GL_KEEP, G.GL_INCR_WRAP)
+                    gl.glStencilOpSeparate(G.GL_BACK, G.GL_KEEP, G.GL_KEEP, G.GL_DECR_WRAP)
+                else:  # zfail
+                    gl.glStencilOpSeparate(G.GL_BACK, G.GL_KEEP, G.GL_INCR_WRAP, G.GL_KEEP)
+                    gl.glStencilOpSeparate(G.GL_FRONT, G.GL_KEEP, G.GL_DECR_WRAP, G.GL_KEEP)
+                self.prog_volume["u_mvp"].write(mvp_bytes)
+                self._vol_vao.render(moderngl.TRIANGLES, vertices=rng[1], first=rng[0])
+            self._mark("volume")
+            gl.glDisable(G.GL_DEPTH_CLAMP)
+            gl.glStencilMask(0)
+            gl.glStencilOp(G.GL_KEEP, G.GL_KEEP, G.GL_KEEP)
+            # mask pass: add the weight where ground bit set and count != 0  (0x80 < stencil)
+            if p.weight > 0:
+                ctx.enable_only(moderngl.BLEND)
+                ctx.blend_func = moderngl.ONE, moderngl.ONE
+                gl.glColorMaski(0, 0, 0, 0, 0)
+                gl.glColorMaski(1, 1, 0, 0, 0)
+                gl.glStencilFunc(G.GL_LESS, GROUND_BIT, 0xFF)
+                self.prog_mask["u_weight"].value = float(p.weight)
+                self._fs_vao.render(moderngl.TRIANGLES, vertices=3)
+            self._mark("mask")
+            if draw_occluder:
+                self._light_occluder(bufs, p, mvp_bytes, eye, diffuse, specular, shininess, stencil=not planar)
+
+        self._mark("occluder_light")
+        # -- reset raw state, make moderngl's view consistent
+        gl.glDisable(G.GL_STENCIL_TEST)
+        gl.glStencilMask(0xFF)
+        gl.glStencilFunc(G.GL_ALWAYS, 0, 0xFF)
+        gl.glStencilOp(G.GL_KEEP, G.GL_KEEP, G.GL_KEEP)
+        gl.glDisable(G.GL_DEPTH_CLAMP)
+        gl.glDisable(G.GL_POLYGON_OFFSET_FILL)
+        gl.glDisable(G.GL_SCISSOR_TEST)
+        gl.glDepthMask(G.GL_TRUE)
+        gl.glColorMask(1, 1, 1, 1)
+        ctx.enable_only(moderngl.NOTHING)
+        ctx.depth_func = "<"
+        ctx.front_face = "ccw"
+
+        # -- resolve / downsample
+        src = tgt
+        if self.samples:
+            dst = self._resolve if s == 1 else self._main_resolve_ss()
+            self._blit(src, dst, rw, rh, rw, rh, G.GL_NEAREST)
+            src = dst
+        if s == 4:
+            self._blit(src, self._half, rw, rh, rw // 2, rh // 2, G.GL_LINEAR)
+            src = self._half
+            rw, rh = rw // 2, rh // 2
+        if s > 1:
+            self._blit(src, self._resolve, rw, rh, width, height, G.GL_LINEAR)
+            src = self._resolve
+        self._mark("resolve")
+        ctx.finish()
+        t2 = time.perf_counter()
+
+        # -- readback (one read per attachment, canvas only)
+        c0 = np.empty((height, width, 4), dtype=np.float32)
+        c1 = np.empty((height, width, 2), dtype=np.float32)
+        gl.glBindBuffer(G.GL_PIXEL_PACK_BUFFER, 0)
+        gl.glPixelStorei(G.GL_PACK_ALIGNMENT, 4)
+        gl.glPixelStorei(G.GL_PACK_ROW_LENGTH, 0)
+        gl.glBindFramebuffer(G.GL_READ_FRAMEBUFFER, src.fbo)
+        gl.glReadBuffer(G.GL_COLOR_ATTACHMENT0)
+        gl.glReadPixels(0, 0, width, height, G.GL_RGBA, G.GL_FLOAT, c0.ctypes.data)
+        gl.glReadBuffer(G.GL_COLOR_ATTACHMENT0 + 1)
+        gl.glReadPixels(0, 0, width, height, G.GL_RG, G.GL_FLOAT, c1.ctypes.data)
+        gl.glBindFramebuffer(G.GL_FRAMEBUFFER, 0)
+        ctx.screen.use() if ctx.screen is not None else None
+        c0 = c0[::-1]
+        c1 = c1[::-1]
+        mask = c1[..., 0]
+        np.clip(mask, 0.0, 1.0, out=mask)
+        gcov = c1[..., 1]
+        t3 = time.perf_counter()
+        return RenderResult(
+            mask=mask,
+            color=c0[..., :3],
+            alpha=c0[..., 3],
+            ground=gcov > 0.5,
+            ground_coverage=gcov,
+            timings_ms={
+                "upload": (t1 - t0) * 1e3,
+                "draw": (t2 - t1) * 1e3,
+                "readback": (t3 - t2) * 1e3,
+                "total": (t3 - t0) * 1e3,
+                **({f"pass_{b[0]}": (b[1] - a[1]) * 1e3 for a, b in zip(self._marks, self._marks[1:])}
+                   if self.profile else {}),
+            },
+        )
+
+    def _main_resolve_ss(self):
+        """Single-sample target of the supersampled size (MSAA + supersampling)."""
+        t = getattr(self, "_ss_resolve", None)
+        if t is None or t.width < self._main.width or t.height < self._main.height:
+            if t is not None:
+                t.release()
+            t = _Target(self.ctx, self.gl, self._main.width, self._main.height, 0, (G.GL_RGBA16F, G.GL_RG16F), False)
+            self._ss_resolve = t
+        return t
+
+    def _mark(self, name):
+        if self.profile:
+            self.ctx.finish()
+            self._marks.append((name, time.perf_counter()))
+
+    def _blit(self, src, dst, sw, sh, dw, dh, filt):
+        gl = self.gl
+        gl.glDisable(G.GL_SCISSOR_TEST)
+        gl.glBindFramebuffer(G.GL_READ_FRAMEBUFFER, src.fbo)
+        gl.glBindFramebuffer(G.GL_DRAW_FRAMEBUFFER, dst.fbo)
+        for i in range(2):
+            gl.glReadBuffer(G.GL_COLOR_ATTACHMENT0 + i)
+            bufs = (ctypes.c_uint * 2)(0, 0)  # GL_NONE
+            bufs[i] = G.GL_COLOR_ATTACHMENT0 + i
+            gl.glDrawBuffers(2, bufs)
+            gl.glBlitFramebuffer(0, 0, sw, sh, 0, 0, dw, dh, G.GL_COLOR_BUFFER_BIT, filt)
+        gl.draw_buffers(2)
+        gl.glBindFramebuffer(G.GL_FRAMEBUFFER, 0)
+
+    def _light_occluder(self, bufs, p, mvp_bytes, eye, kd, ks, shininess, stencil: bool):
+        """Add one light's Phong diffuse + specular to the occluder where its count is 0."""
+        import moderngl
+
+        ctx, gl = self.ctx, self.gl
+        ctx.enable_only(moderngl.DEPTH_TEST | moderngl.BLEND)
+        ctx.depth_func = "=="
+        ctx.blend_func = moderngl.ONE, moderngl.ONE
+        gl.glDepthMask(G.GL_FALSE)
+        gl.glColorMaski(0, 1, 1, 1, 0)
+        gl.glColorMaski(1, 0, 0, 0, 0)
+        if stencil:
+            gl.glEnable(G.GL_STENCIL_TEST)
+            gl.glStencilMask(0)
+            gl.glStencilFunc(G.GL_EQUAL, 0, COUNT_MASK)
+            gl.glStencilOp(G.GL_KEEP, G.GL_KEEP, G.GL_KEEP)
+        else:
+            gl.glDisable(G.GL_STENCIL_TEST)
+        prog = self.prog_occ_light
+        prog["u_mvp"].write(mvp_bytes)
+        lh = np.asarray(p.light_h, dtype=np.float64)
+        prog["u_light"].value = tuple(float(x) for x in lh)
+        col = np.asarray(p.color, dtype=np.float64)[:3] * float(p.weight)
+        prog["u_light_color"].value = tuple(float(x) for x in col)
+        prog["u_eye"].value = tuple(float(x) for x in eye)
+        prog["u_kd"].value = float(kd)
+        prog["u_ks"].value = float(ks)
+        prog["u_shininess"].value = float(shininess)
+        bufs.vao.render(moderngl.TRIANGLES, vertices=bufs.n_corners)
+        gl.glEnable(G.GL_STENCIL_TEST)
+        ctx.depth_func = "<"
+
+
+def planar_shadow_matrix_z0(light_h) -> np.ndarray:
+    """(4, 4) float64 projection-shadow matrix onto the ground z = 0 from ``light_h`` (paper 002):
+    ``M = (p . L) I - L p^T`` with ``p = (0, 0, 1, 0)``."""
+    L = np.asarray(light_h, dtype=np.float64).reshape(4)
+    p = np.array([0.0, 0.0, 1.0, 0.0])
+    return float(p @ L) * np.eye(4) - np.outer(L, p)

@@ -1,0 +1,12 @@
+#version 330 core
+// Base pass of the occluder: ambient term (paper 002: I_a K_a) and coverage.
+uniform float u_ambient;
+in vec3 v_world;
+in vec3 v_normal;
+in vec3 v_albedo;
+layout(location = 0) out vec4 o_color;   // rgb: linear colour (premultiplied after MSAA resolve), a: coverage
+layout(location = 1) out vec4 o_mask;    // r: blocked light weight, g: ground coverage
+void main() {
+    o_color = vec4(u_ambient * v_albedo, 1.0);
+    o_mask = vec4(0.0);
+}

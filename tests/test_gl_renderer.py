@@ -1,0 +1,335 @@
+"""Accuracy of the stencil shadow renderer against the independent per-pixel oracle (tests/image_oracle.py).
+
+Scenes at 1280x720 (pinhole; lens distortion is the compositor's, on top): a box under a point light, a
+non-convex mesh of > 8000 faces, a torus under a directional light, a camera INSIDE a wall's shadow volume
+under a low sun (z-fail needed; z-pass is shown to be wrong), two lights (fractional mask).
+
+Metrics (thresholds in conftest.TOL):
+- IoU of the renderer's mask >= t and the oracle's mask >= t at pixel centres, t = half of one light's
+  share of the total weight;
+- boundary error: for every mismatched pixel, the distance from its centre to the boundary of the oracle's
+  thresholded mask, measured on a 1/32 px grid of oracle samples around it (see
+  image_oracle.boundary_distance); the mean over mismatched pixels (0 when there are none).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+
+from image_oracle import ShadowOracle, boundary_distance, iou
+
+pytestmark = pytest.mark.gl
+
+W, H = 1280, 720
+ZNEAR = 0.01
+
+
+@dataclass
+class Scene:
+    name: str
+    caster: object
+    cam_from_world: np.ndarray
+    lights: list  # [(light_h, weight)]
+    fx: float = 1000.0
+    ground_size: float | None = None
+
+
+def _intrinsics(fx):
+    from arshadow.camera import Intrinsics
+
+    return Intrinsics(fx=fx, fy=fx, cx=(W - 1) / 2 + 3.3, cy=(H - 1) / 2 - 2.7, width=W, height=H,
+                      dist=np.zeros(0))
+
+
+def _nonconvex_blob():
+    """A star-shaped bumpy sphere, ~8.6k faces, standing on the ground (deep concavities self-shadow)."""
+    import trimesh
+
+    from arshadow.mesh import ShadowCaster
+
+    m = trimesh.creation.uv_sphere(radius=1.0, count=[48, 92])
+    v = np.asarray(m.vertices, np.float64)
+    r = np.linalg.norm(v, axis=1)
+    th = np.arctan2(v[:, 1], v[:, 0])
+    ph = np.arccos(np.clip(v[:, 2] / r, -1, 1))
+    rad = 0.06 * (1.0 + 0.35 * np.sin(5 * th) * np.sin(4 * ph) ** 2)
+    v = v / r[:, None] * rad[:, None]
+    v[:, 2] -= v[:, 2].min()
+    return ShadowCaster(v, np.asarray(m.faces), name="blob")
+
+
+def _scenes():
+    from arshadow.mesh import ShadowCaster, load_occluder
+    from arshadow.synth import look_at_pose
+
+    box = load_occluder("box:0.1,0.08,0.15")
+    t = load_occluder("torus:0.08,0.03", rotate=(60, 0, 0))
+    tv = np.array(t.vertices)
+    tv[:, 2] -= tv[:, 2].min()  # stand the tilted torus on the ground
+    torus = ShadowCaster(tv, t.faces, name="torus")
+    wall = load_occluder("box:1.0,0.05,0.6")
+    blob = _nonconvex_blob()
+    return [
+        Scene("box_point", box, look_at_pose([0.45, -0.55, 0.45], [0.05, 0.08, 0.02]),
+              [(np.array([-0.2, 0.1, 0.6, 1.0]), 1.0)]),
+        Scene("nonconvex_point", blob, look_at_pose([0.35, -0.4, 0.35], [0.02, 0.05, 0.03]),
+              [(np.array([-0.15, 0.2, 0.5, 1.0]), 1.0)]),
+        Scene("torus_directional", torus, look_at_pose([0.3, -0.45, 0.4], [0.03, 0.06, 0.0]),
+              [(np.array([0.45, 0.3, 1.0, 0.0]) / np.linalg.norm([0.45, 0.3, 1.0]), 1.0)]),
+        Scene("wall_camera_in_shadow", wall, look_at_pose([0.1, -0.6, 0.15], [0.6, -1.5, 0.0]),
+              [(np.array([0.0, 1.0, 0.25, 0.0]) / np.linalg.norm([0.0, 1.0, 0.25]), 1.0)], fx=800.0),
+        Scene("box_two_lights", box, look_at_pose([0.5, -0.45, 0.5], [0.03, 0.03, 0.02]),
+              [(np.array([-0.25, 0.05, 0.55, 1.0]), 0.5), (np.array([0.2, 0.25, 0.7, 1.0]), 0.5)]),
+    ]
+
+
+def _render(ctx_or_renderer, scene: Scene, mode: str | None = None, **kw):
+    """Render a scene; ``mode=None`` picks z-pass/z-fail with the conservative test."""
+    from arshadow.gl.renderer import LightPass
+    from arshadow.silhouette import silhouette
+    from arshadow.transforms import CV_TO_GL, invert_rigid
+    from arshadow.volume import camera_may_be_in_shadow, near_plane_radius, shadow_volume
+
+    K = _intrinsics(scene.fx)
+    eye = invert_rigid(scene.cam_from_world)[:3, 3]
+    near = near_plane_radius(ZNEAR, W, H, K.fx, K.fy, K.cx, K.cy)
+    passes, modes = [], []
+    total = sum(w for _, w in scene.lights)
+    for lh, w in scene.lights:
+        m = mode or ("zfail" if camera_may_be_in_shadow(scene.caster, lh, eye, near) else "zpass")
+        sil = silhouette(scene.caster, lh)
+        vol = shadow_volume(scene.caster, lh, sil, caps=(m == "zfail"))
+        passes.append(LightPass(lh, w / total, vol, m))
+        modes.append(m)
+    r = ctx_or_renderer
+    res = r.render(projection=K.gl_projection(ZNEAR, None), view=CV_TO_GL @ scene.cam_from_world, width=W,
+                   height=H, caster=scene.caster, passes=passes, ground_size=scene.ground_size, **kw)
+    return res, modes
+
+
+def _oracle(scene: Scene):
+    K = _intrinsics(scene.fx)
+    return ShadowOracle(K.K, scene.cam_from_world, scene.caster.vertices, scene.caster.faces, scene.lights,
+                        ground_size=scene.ground_size)
+
+
+def _threshold(scene):
+    total = sum(w for _, w in scene.lights)
+    return 0.5 * min(w for _, w in scene.lights) / total
+
+
+@pytest.fixture(scope="module")
+def renderer(gl_ctx):
+    from arshadow.gl.renderer import ShadowRenderer
+
+    r = ShadowRenderer(gl_ctx, max_width=W, max_height=H)
+    yield r
+    r.release()
+
+
+@pytest.fixture(scope="module")
+def scene_results(gl_ctx, renderer):
+    """Render every scene once with the automatically chosen mode; compare with the oracle."""
+    out = {}
+    for sc in _scenes():
+        res, modes = _render(renderer, sc)
+        orc = _oracle(sc)
+        om, og, oo = orc.image(W, H)
+        t = _threshold(sc)
+        rm, ob = res.mask >= t, om >= t
+        mism = np.argwhere(rm != ob)
+        dist = boundary_distance(orc, mism[:, ::-1].astype(np.float64), t) if len(mism) else np.zeros(0)
+        out[sc.name] = dict(
+            scene=sc, res=res, modes=modes, oracle=(om, og, oo), iou=iou(rm, ob), n_shadow=int(ob.sum()),
+            n_mismatch=len(mism), boundary_mean=float(dist.mean()) if len(dist) else 0.0,
+            boundary_max=float(dist.max()) if len(dist) else 0.0,
+        )
+    if os.environ.get("ARSHADOW_ACCURACY_JSON"):
+        with open(os.environ["ARSHADOW_ACCURACY_JSON"], "w") as fh:
+            json.dump({k: {kk: vv for kk, vv in v.items() if kk in (
+                "modes", "iou", "n_shadow", "n_mismatch", "boundary_mean", "boundary_max")}
+                for k, v in out.items()}, fh, indent=1)
+    return out
+
+
+def test_modes_chosen_by_conservative_test(scene_results):
+    for name, r in scene_results.items():
+        want = "zfail" if name.startswith("wall") else "zpass"
+        assert set(r["modes"]) == {want}, (name, r["modes"])
+
+
+@pytest.mark.parametrize("name", ["box_point", "nonconvex_point", "torus_directional", "wall_camera_in_shadow",
+                                  "box_two_lights"])
+def test_scene_accuracy(scene_results, tol, name):
+    r = scene_results[name]
+    assert r["n_shadow"] >= tol.shadow_min_pixels, f"{name}: scene too small to judge ({r['n_shadow']} px)"
+    assert r["iou"] >= tol.shadow_iou_worst, (name, r["iou"], r["n_mismatch"])
+    assert r["boundary_mean"] <= tol.shadow_boundary_px, (name, r["boundary_mean"], r["boundary_max"])
+
+
+def test_accuracy_over_scenes(scene_results, tol):
+    ious = [r["iou"] for r in scene_results.values() if r["n_shadow"] >= tol.shadow_min_pixels]
+    assert len(ious) == 5
+    assert np.median(ious) >= tol.shadow_iou_median
+    assert min(ious) >= tol.shadow_iou_worst
+
+
+def test_mask_semantics(scene_results):
+    """mask is 0 on the occluder and off the ground; alpha/ground agree with the oracle's coverage."""
+    for name, r in scene_results.items():
+        res = r["res"]
+        om, og, oo = r["oracle"]
+        assert res.mask.shape == (H, W) and res.mask.dtype == np.float32
+        assert res.color.shape == (H, W, 3) and res.alpha.shape == (H, W) and res.ground.dtype == bool
+        assert np.all(res.mask[~res.ground] == 0), name
+        assert np.all(res.mask[res.alpha > 0] == 0), name
+        assert np.all((res.mask >= 0) & (res.mask <= 1))
+        n = H * W
+        assert np.count_nonzero((res.alpha > 0.5) != oo) <= 2e-4 * n, name
+        assert np.count_nonzero(res.ground != og) <= 2e-4 * n, name
+
+
+def test_two_lights_fraction_levels(scene_results):
+    """Both levels of the fractional mask (one light blocked / both blocked) match the oracle."""
+    r = scene_results["box_two_lights"]
+    om = r["oracle"][0]
+    res = r["res"]
+    vals = np.unique(np.round(res.mask, 3))
+    assert set(vals.tolist()) <= {0.0, 0.5, 1.0}
+    both = iou(res.mask >= 0.75, om >= 0.75)
+    assert (om >= 0.75).sum() > 500 and both >= 0.97
+
+
+def test_zpass_equals_zfail_outside(gl_ctx, renderer, scene_results):
+    """Camera outside every volume: z-pass and z-fail masks are pixel-identical."""
+    for name, r in scene_results.items():
+        if "zfail" in r["modes"]:
+            continue
+        res_fail, _ = _render(renderer, r["scene"], mode="zfail")
+        assert np.array_equal(res_fail.mask, r["res"].mask), name
+        assert np.array_equal(res_fail.ground, r["res"].ground), name
+
+
+def test_zpass_wrong_inside_volume(renderer, scene_results, tol):
+    """The wall scene really needs z-fail: z-pass gives a visibly wrong mask there."""
+    r = scene_results["wall_camera_in_shadow"]
+    res_pass, _ = _render(renderer, r["scene"], mode="zpass")
+    om = r["oracle"][0]
+    assert iou(res_pass.mask >= 0.5, om >= 0.5) < 0.9
+    assert r["iou"] >= tol.shadow_iou_worst
+
+
+def test_ground_size_limits_mask(gl_ctx, renderer, tol):
+    sc = _scenes()[0]
+    sc.ground_size = 0.3
+    res, _ = _render(renderer, sc)
+    orc = _oracle(sc)
+    om, og, oo = orc.image(W, H)
+    assert np.count_nonzero(res.ground != og) <= 2e-4 * W * H
+    assert np.all(res.mask[~og] == 0) or np.count_nonzero(res.mask[~og]) <= 2e-4 * W * H
+    assert iou(res.mask >= 0.5, om >= 0.5) >= tol.shadow_iou_worst
+    assert np.any(og) and np.any(~og & ~oo)
+
+
+def test_stencil_bits_and_state(gl_ctx, renderer, scene_results):
+    from arshadow.gl import glraw as G
+
+    assert renderer.stencil_bits == 8
+    assert renderer.depth_bits == 24
+    gl = G.load()
+    # raw state restored: no stencil test / depth clamp left enabled behind moderngl's back
+    assert not gl.glIsEnabled(G.GL_STENCIL_TEST)
+    assert not gl.glIsEnabled(G.GL_DEPTH_CLAMP)
+    assert gl_ctx.error == "GL_NO_ERROR"
+
+
+def test_self_shadowing(ctx):
+    """A low box's top face (facing the light) inside a tall box's shadow gets only ambient light."""
+    from arshadow.gl.renderer import LightPass, ShadowRenderer, srgb_to_linear
+    from arshadow.mesh import ShadowCaster, load_occluder
+    from arshadow.silhouette import silhouette
+    from arshadow.synth import look_at_pose
+    from arshadow.transforms import CV_TO_GL
+    from arshadow.volume import shadow_volume
+
+    tall = load_occluder("box:0.04,0.2,0.3", place=(-0.06, 0, 0))
+    low = load_occluder("box:0.2,0.2,0.05", place=(0.08, 0, 0))
+    caster = ShadowCaster(np.concatenate([tall.vertices, low.vertices]),
+                          np.concatenate([tall.faces, low.faces + len(tall.vertices)]), name="two boxes")
+    L = np.array([-1.0, 0.0, 1.0, 0.0]) / np.sqrt(2)  # sun at 45 deg from -x: tall box shades x in [-0.02, 0.25]
+    T = look_at_pose([0.25, -0.35, 0.5], [0.08, 0.0, 0.05])
+    K = _intrinsics(1000.0)
+    sil = silhouette(caster, L)
+    vol = shadow_volume(caster, L, sil, caps=True)
+    with ShadowRenderer(ctx, max_width=W, max_height=H) as r:
+        res = r.render(projection=K.gl_projection(ZNEAR, None), view=CV_TO_GL @ T, width=W, height=H,
+                       caster=caster, passes=[LightPass(L, 1.0, vol, "zfail")], ambient=0.25, diffuse=1.0,
+                       specular=0.0, occluder_color=(0.8, 0.8, 0.8))
+    # classify pixels on the low box's top face (z = 0.05) by its analytic shadow line:
+    # a top-face point (x, y, 0.05) is shaded iff x <= -0.02 + (0.3 - 0.05) = 0.23 (light at 45 deg)
+    vv, uu = np.mgrid[0:H, 0:W]
+    Kinv = np.linalg.inv(K.K)
+    d = np.stack([uu, vv, np.ones_like(uu)], -1).reshape(-1, 3).astype(np.float64) @ Kinv.T
+    R, t = T[:3, :3], T[:3, 3]
+    C = -R.T @ t
+    dw = d @ R
+    s = (0.05 - C[2]) / dw[:, 2]
+    P = C + s[:, None] * dw
+    on_top = (s > 0) & (np.abs(P[:, 1]) < 0.095) & (P[:, 0] > -0.015) & (P[:, 0] < 0.175)
+    shaded = on_top & (P[:, 0] < 0.22)
+    lit = on_top & (P[:, 0] > 0.24)
+    assert shaded.sum() > 1000
+    col = res.color.reshape(-1, 3)
+    albedo = float(srgb_to_linear(0.8))
+    # in shadow: ambient only; lit: ambient + diffuse * cos(45 deg)
+    assert np.allclose(col[shaded], 0.25 * albedo, atol=2e-3)
+    lit_px = col[lit & (res.alpha.reshape(-1) > 0.5)]
+    assert lit_px.size == 0 or np.allclose(lit_px, (0.25 + np.sqrt(0.5)) * albedo, atol=5e-3)
+
+
+def test_render_sub_canvas_matches_full(renderer, scene_results):
+    """A canvas sub-rectangle (ROI) renders exactly the same pixels as the full image."""
+    r = scene_results["box_point"]
+    sc = r["scene"]
+    from arshadow.transforms import CV_TO_GL
+
+    K = _intrinsics(sc.fx)
+    u0, v0, w, h = 500, 200, 400, 300
+    res_full = r["res"]
+    from arshadow.gl.renderer import LightPass
+    from arshadow.silhouette import silhouette
+    from arshadow.volume import shadow_volume
+
+    lh = sc.lights[0][0]
+    vol = shadow_volume(sc.caster, lh, silhouette(sc.caster, lh), caps=False)
+    roi = renderer.render(projection=K.gl_projection(ZNEAR, None, canvas=(u0, v0, w, h)),
+                          view=CV_TO_GL @ sc.cam_from_world, width=w, height=h, caster=sc.caster,
+                          passes=[LightPass(lh, 1.0, vol, "zpass")])
+    sub = res_full.mask[v0:v0 + h, u0:u0 + w]
+    assert roi.mask.shape == (h, w)
+    assert np.count_nonzero((roi.mask >= 0.5) != (sub >= 0.5)) <= 10
+    assert np.count_nonzero((roi.alpha > 0.5) != (res_full.alpha[v0:v0 + h, u0:u0 + w] > 0.5)) <= 10
+
+
+def test_bad_input(renderer):
+    from arshadow.errors import ShapeError, UsageError
+    from arshadow.gl.renderer import LightPass
+
+    sc = _scenes()[0]
+    K = _intrinsics(1000.0)
+    P = K.gl_projection(ZNEAR, None)
+    V = np.eye(4)
+    with pytest.raises(UsageError):
+        renderer.render(projection=P, view=V, width=W + 1, height=H, caster=sc.caster, passes=[])
+    with pytest.raises(ShapeError):
+        renderer.render(projection=P[:3], view=V, width=W, height=H, caster=sc.caster, passes=[])
+    with pytest.raises(ShapeError):
+        renderer.render(projection=P * np.nan, view=V, width=W, height=H, caster=sc.caster, passes=[])
+    with pytest.raises(UsageError):
+        renderer.render(projection=P, view=V, width=W, height=H, caster=sc.caster,
+                        passes=[LightPass(np.array([0, 0, 1, 0.0]), 1.0, None, "bogus")])
