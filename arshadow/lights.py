@@ -317,6 +317,11 @@ def parse_light(spec: str, default_time=None) -> Light:
                 raise LightError(
                     f"light {spec!r}: a point light must be above the ground plane z = 0 (got z = {v[2]:g})"
                 )
+            if radius >= v[2]:
+                raise LightError(
+                    f"light {spec!r}: the light's sphere (radius {radius:g}) reaches the ground plane z = 0 "
+                    f"(centre at z = {v[2]:g})"
+                )
             return Light("point", v, weight=weight, radius=radius, label=spec)
         if not np.any(v):
             raise LightError(f"light {spec!r}: direction (0, 0, 0) has no direction")
@@ -510,7 +515,10 @@ def sample_area_light(light: Light, n: int, seed=0, towards=(0.0, 0.0, 0.0)) -> 
     Returns
     -------
     list of Light
-        Hard lights (``radius == 0``), labelled ``"<label>#k"``; weights ``light.weight / n`` each.
+        Hard lights (``radius == 0``), labelled ``"<label>#k"``; weights ``light.weight / n`` each. When
+        the light's centre is above the ground plane but part of its disc is not (a sun within its radius
+        of the horizon), the samples at or below z = 0 are dropped and the rest share the weight: fewer
+        than ``n`` lights, weights still summing to ``light.weight``.
 
     Examples
     --------
@@ -528,28 +536,32 @@ def sample_area_light(light: Light, n: int, seed=0, towards=(0.0, 0.0, 0.0)) -> 
     if n == 1 or light.radius == 0.0 or not light.above_horizon:
         return [dataclasses.replace(light, radius=0.0)]
     disc = stratified_disc(n, seed)
-    w = light.weight / n
-    out = []
     if light.kind == "point":
         axis = np.asarray(towards, dtype=np.float64) - light.vector
         if not np.linalg.norm(axis) > 0.0:
             axis = np.array([0.0, 0.0, -1.0])
         u, v = _orthonormal_frame(axis)
-        pts = light.vector + light.radius * (disc[:, :1] * u + disc[:, 1:] * v)
-        for k, p in enumerate(pts):
-            out.append(dataclasses.replace(light, vector=p, weight=w, radius=0.0, label=f"{light.label}#{k}"))
-        return out
-    # directional: map the equal-area disc to equal solid angle in the cone (cos theta uniform)
-    d = light.vector
-    u, v = _orthonormal_frame(d)
-    rho2 = np.sum(disc**2, axis=1)  # uniform in [0, 1) by construction (equal-area strata)
-    cos_t = 1.0 - rho2 * (1.0 - math.cos(light.radius))
-    sin_t = np.sqrt(np.maximum(0.0, 1.0 - cos_t**2))
-    phi = np.arctan2(disc[:, 1], disc[:, 0])
-    dirs = cos_t[:, None] * d + sin_t[:, None] * (np.cos(phi)[:, None] * u + np.sin(phi)[:, None] * v)
-    for k, dk in enumerate(dirs):
-        out.append(dataclasses.replace(light, vector=dk, weight=w, radius=0.0, label=f"{light.label}#{k}"))
-    return out
+        vecs = light.vector + light.radius * (disc[:, :1] * u + disc[:, 1:] * v)
+    else:
+        # directional: map the equal-area disc to equal solid angle in the cone (cos theta uniform)
+        d = light.vector
+        u, v = _orthonormal_frame(d)
+        rho2 = np.sum(disc**2, axis=1)  # uniform in [0, 1) by construction (equal-area strata)
+        cos_t = 1.0 - rho2 * (1.0 - math.cos(light.radius))
+        sin_t = np.sqrt(np.maximum(0.0, 1.0 - cos_t**2))
+        phi = np.arctan2(disc[:, 1], disc[:, 0])
+        vecs = cos_t[:, None] * d + sin_t[:, None] * (np.cos(phi)[:, None] * u + np.sin(phi)[:, None] * v)
+    # a sun on the horizon (or a sphere light touching the ground): the part of the disc at or below the
+    # ground plane gives no light and would cast unbounded shadows -> drop those samples; the visible part
+    # carries the light's weight (so the weights still sum to light.weight)
+    if light.vector[2] > 0.0:
+        keep = vecs[:, 2] > 1e-9
+        if not np.any(keep):
+            return [dataclasses.replace(light, radius=0.0)]
+        vecs = vecs[keep]
+    w = light.weight / len(vecs)
+    return [dataclasses.replace(light, vector=vk, weight=w, radius=0.0, label=f"{light.label}#{k}")
+            for k, vk in enumerate(vecs)]
 
 
 def lights_homogeneous(lights) -> np.ndarray:

@@ -65,6 +65,7 @@ def test_weights_and_radius_options():
         ("directional:0,0,1,radius=-1", "radius"),
         ("directional:0,0,1,radius=95", "90"),
         ("point:0,0,1,size=3", "unknown option"),
+        ("point:0,0,0.1,radius=0.1", "reaches the ground"),
         ("point:0,0,1,radius=1,radius=2", "twice"),
     ],
 )
@@ -194,6 +195,18 @@ def test_directional_samples_fill_cone_uniformly_in_solid_angle(n):
     # the mean direction is close to the centre (stratified spread)
     m = dirs.mean(axis=0)
     assert math.degrees(math.acos(min(1.0, m @ li.vector / np.linalg.norm(m)))) < math.degrees(alpha) * 0.5
+
+
+def test_setting_sun_keeps_only_the_visible_part_of_its_disc():
+    alpha = math.radians(0.266)
+    el = math.radians(0.1)  # centre 0.1 deg above the horizon: part of the disc is below
+    li = Light("directional", [0.0, math.cos(el), math.sin(el)], weight=3.0, radius=alpha, label="sun")
+    s = sample_area_light(li, 64, seed=0)
+    assert 32 < len(s) < 64
+    assert all(x.vector[2] > 0 for x in s)
+    assert sum(x.weight for x in s) == pytest.approx(3.0, abs=1e-12)
+    # visible fraction of the disc ~ the segment above the horizon (0.1 / 0.266 of the radius)
+    assert len(s) / 64 == pytest.approx(1 - _segment_fraction(0.1 / 0.266), abs=0.06)
 
 
 def test_sampling_does_not_modify_light_and_rejects_bad_n():
