@@ -1,0 +1,322 @@
+"""``arshadow render``: composite a virtual object and its shadow into photos of a marker or board."""
+
+from __future__ import annotations
+
+import argparse
+import glob
+import logging
+import os
+import sys
+import time
+from pathlib import Path
+
+from . import EXIT_OK, EXIT_SOME_FAILED, error_line
+
+log = logging.getLogger(__name__)
+
+IMAGE_EXTS = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".ppm", ".pgm", ".pnm", ".jp2",
+              ".exr", ".hdr", ".pbm", ".sr", ".ras", ".pxm", ".pfm", ".avif"}
+
+EPILOG = """\
+examples:
+  arshadow render photo.jpg --calib calib/cam.yml --marker-length 0.05 --model box:0.04,0.04,0.06 \\
+      --light point:0.1,0.1,0.4 -o out/
+  arshadow render 'shots/*.jpg' --calib cam.yml --board board.yml --model samples/meshes/bunny.ply \\
+      --scale 0.1 --light sun:52.2,0.1,2024-06-21T15:00+01:00 --light point:0,0,1@0.3 -o out --save-mask \\
+      --report out/report.json
+
+outputs: DIR/<stem>.png (or the input's format with --keep-format), DIR/<stem>.shadow.png with --save-mask
+(8-bit: round(255 x blocked light weight / total weight) where the ground is seen and the object is not).
+exit status: 0 all done, 1 some inputs failed (the others were processed), 2 bad usage / configuration.
+"""
+
+
+def _floats(n: int, what: str):
+    def parse(text: str):
+        try:
+            vals = tuple(float(v) for v in text.split(","))
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{what}: expected {n} comma-separated numbers, got {text!r}") from None
+        if len(vals) != n or not all(v == v and abs(v) != float("inf") for v in vals):
+            raise argparse.ArgumentTypeError(f"{what}: expected {n} finite comma-separated numbers, got {text!r}")
+        return vals
+
+    return parse
+
+
+def _positive(what: str, integer: bool = False):
+    def parse(text: str):
+        try:
+            v = int(text) if integer else float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{what}: not a number: {text!r}") from None
+        if not (v > 0 and v != float("inf")):
+            raise argparse.ArgumentTypeError(f"{what}: must be positive, got {text!r}")
+        return v
+
+    return parse
+
+
+def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> None:
+    """Options shared by ``render`` (and usable by the video command): calibration, marker, model, lights."""
+    g = p.add_argument_group("camera and marker")
+    g.add_argument("--calib", required=require, metavar="C",
+                   help="calibration file (OpenCV YAML/XML/JSON or ROS camera_info YAML)")
+    m = g.add_mutually_exclusive_group()
+    m.add_argument("--marker-length", type=_positive("--marker-length"), metavar="M",
+                   help="side of the printed marker in metres (single-marker mode)")
+    m.add_argument("--board", metavar="B", help="board file (GridBoard or ChArUco) instead of one marker")
+    g.add_argument("--dictionary", default="DICT_6X6_250", metavar="D",
+                   help="ArUco dictionary name or custom dictionary file (default DICT_6X6_250)")
+    g.add_argument("--marker-id", type=int, metavar="N", help="use only this marker id (default: the first found)")
+    o = p.add_argument_group("virtual object")
+    o.add_argument("--model", required=require, metavar="M",
+                   help="mesh file (OBJ/PLY/STL/GLB/OFF, metres) or primitive box:WX,WY,HZ | cylinder:R,H | "
+                        "sphere:R | torus:R,r")
+    o.add_argument("--scale", type=_positive("--scale"), default=1.0, metavar="S", help="uniform scale (first)")
+    o.add_argument("--rotate", type=_floats(3, "--rotate"), default=(0.0, 0.0, 0.0), metavar="RX,RY,RZ",
+                   help="rotation in degrees, XYZ order (after scale)")
+    o.add_argument("--place", type=_floats(3, "--place"), default=(0.0, 0.0, 0.0), metavar="X,Y,Z",
+                   help="translation in metres, world (marker) frame (last)")
+    o.add_argument("--color", metavar="R,G,B", help="object colour, 8-bit sRGB 0..255 (default: the mesh's own)")
+    s = p.add_argument_group("lights and shadows")
+    s.add_argument("--light", action="append", required=require, metavar="L",
+                   help="point:X,Y,Z | directional:X,Y,Z | sun:LAT,LON,TIME[,NORTH], optional @W weight; "
+                        "repeat for several lights")
+    s.add_argument("--soft-samples", type=_positive("--soft-samples", integer=True), default=1, metavar="N",
+                   help="samples per area light (lights with radius=...; sun: its 0.266 deg disc); 1 = hard")
+    s.add_argument("--silhouette", default="adjacency", metavar="NAME",
+                   help="silhouette detector: adjacency (default), triangular, vnv, hsd, delta_plus")
+    s.add_argument("--shadow-method", choices=("volume", "planar"), default="volume",
+                   help="stencil shadow volumes (default, exact) or planar projection shadows")
+    s.add_argument("--opacity", type=float, default=0.7, metavar="O",
+                   help="darkness of a full shadow, 0..1 (default 0.7)")
+    s.add_argument("--shadow-color", metavar="R,G,B", help="tint of a full shadow, 8-bit sRGB (default black)")
+    s.add_argument("--aa", type=int, default=4, metavar="N",
+                   help="multisample anti-aliasing samples (0 = off; default 4)")
+    s.add_argument("--ground-size", type=_positive("--ground-size"), metavar="S",
+                   help="side of the square shadow-catching ground plane in metres (default unlimited)")
+    s.add_argument("--no-object", action="store_true", help="composite only the shadow, not the object")
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "render", help="composite a virtual object and its shadow into photos",
+        description="Detect the marker or board in each photo, place the object in its frame, and composite "
+                    "the object and its exact shadow (stencil shadow volumes) into the photo.",
+        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("images", nargs="+", metavar="IMAGE", help="photos, folders of photos, or glob patterns")
+    add_scene_options(p)
+    out = p.add_argument_group("output")
+    out.add_argument("-o", "--output", required=True, metavar="DIR", help="output folder (created if missing)")
+    out.add_argument("--save-mask", action="store_true", help="also write <stem>.shadow.png")
+    out.add_argument("--report", metavar="R.json", help="write the JSON report of every input")
+    out.add_argument("--keep-format", action="store_true", help="write the input's format instead of PNG")
+    out.add_argument("--quiet", "-q", action="store_true", help="no per-image progress lines")
+    p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                   help="show tracebacks and debug logging")
+    p.set_defaults(func=run)
+
+
+# --------------------------------------------------------------------------------------------------
+def expand_inputs(items) -> list[str]:
+    """Files as given; folders -> their image files (sorted); glob patterns -> matches (sorted).
+
+    Anything that matches nothing is kept as given, so that reading it reports the problem.
+    """
+    out = []
+    for it in items:
+        p = Path(it)
+        if p.is_dir():
+            files = sorted(str(f) for f in p.iterdir() if f.is_file() and f.suffix.lower() in IMAGE_EXTS)
+            out.extend(files if files else [it])
+        elif not p.exists() and any(c in it for c in "*?["):
+            matches = sorted(m for m in glob.glob(it) if Path(m).is_file())
+            out.extend(matches if matches else [it])
+        else:
+            out.append(it)
+    return out
+
+
+def build_scene(args):
+    """Calibration, occluder, lights and options from the parsed options (ArshadowError -> exit 2)."""
+    from ..camera import Intrinsics
+    from ..composite import parse_rgb
+    from ..errors import UsageError
+    from ..lights import parse_light
+    from ..marker import load_board
+    from ..mesh import load_occluder
+    from ..pipeline import RenderOptions
+
+    intr = Intrinsics.from_file(args.calib)
+    if args.board is None and args.marker_length is None:
+        raise UsageError("give --marker-length M (metres) for a single marker, or --board B")
+    tracker = {"dictionary": args.dictionary, "marker_id": args.marker_id}
+    if args.board is not None:
+        tracker["board"] = load_board(args.board)
+    else:
+        tracker["marker_length"] = args.marker_length
+    color = None
+    if args.color:
+        parse_rgb(args.color, "--color")  # validates: three numbers 0..255
+        color = _srgb255(args.color)
+    caster = load_occluder(args.model, scale=args.scale, rotate=args.rotate, place=args.place, color=color)
+    lights = [parse_light(spec) for spec in args.light]
+    opts = RenderOptions(
+        opacity=args.opacity,
+        shadow_color=parse_rgb(args.shadow_color, "--shadow-color") if args.shadow_color else (0.0, 0.0, 0.0),
+        shadow_method=args.shadow_method,
+        silhouette=args.silhouette,
+        soft_samples=args.soft_samples,
+        aa=args.aa,
+        ground_size=args.ground_size,
+        draw_occluder=not args.no_object,
+    ).check()
+    _check_silhouette_name(args.silhouette)
+    return intr, caster, lights, opts, tracker
+
+
+def _srgb255(spec: str):
+    """``"R,G,B"`` 0..255 -> tuple of floats 0..1 (sRGB, as the mesh loader takes colours)."""
+    return tuple(float(v) / 255.0 for v in spec.split(","))
+
+
+def _check_silhouette_name(name: str) -> None:
+    from ..errors import UsageError
+
+    try:
+        from ..silhouette import METHODS  # type: ignore[attr-defined]
+    except ImportError:
+        METHODS = ("adjacency", "triangular", "vnv", "hsd", "delta_plus")  # noqa: N806
+    if name not in METHODS:
+        raise UsageError(f"--silhouette {name!r}: choose one of {', '.join(METHODS)}")
+
+
+def output_paths(inputs, outdir: Path, keep_format: bool):
+    """Map each input to ``(output, mask)`` paths; stems that collide get ``_2``, ``_3``... ."""
+    seen: dict[str, int] = {}
+    res = []
+    for inp in inputs:
+        p = Path(inp)
+        stem = p.stem or "image"
+        n = seen.get(stem.lower(), 0) + 1
+        seen[stem.lower()] = n
+        if n > 1:
+            stem = f"{stem}_{n}"
+        ext = p.suffix.lower() if keep_format and p.suffix.lower() in IMAGE_EXTS else ".png"
+        res.append((outdir / f"{stem}{ext}", outdir / f"{stem}.shadow.png"))
+    return res
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return a.exists() and b.exists() and os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def run(args) -> int:
+    from ..gl.context import create_context
+    from ..io import write_json
+    from ..report import make_report
+
+    debug = bool(getattr(args, "debug", False))
+    quiet_opencv(debug)
+    inputs = expand_inputs(args.images)
+    intr, caster, lights, opts, tracker = build_scene(args)
+    outdir = Path(args.output)
+    if outdir.exists() and not outdir.is_dir():
+        from ..errors import UsageError
+
+        raise UsageError(f"-o {outdir}: exists and is not a folder")
+    ctx = create_context()
+    try:
+        items, failed = _render_all(args, ctx, intr, caster, lights, opts, tracker, inputs, outdir, debug)
+    finally:
+        ctx.release()
+    if args.report:
+        write_json(args.report, make_report(items))
+    if not args.quiet and len(inputs) > 1:
+        print(f"{len(inputs) - failed} of {len(inputs)} photos rendered into {outdir}", file=sys.stdout)
+    return EXIT_SOME_FAILED if failed else EXIT_OK
+
+
+def _render_all(args, ctx, intr, caster, lights, opts, tracker, inputs, outdir, debug):
+    from ..errors import ArshadowError, CalibrationError, ImageError, MarkerNotFoundError
+    from ..io import read_image, write_image
+    from ..pipeline import Compositor
+    from ..report import ReportItem
+
+    items = []
+    failed = 0
+    paths = output_paths(inputs, outdir, args.keep_format)
+    input_set = [Path(i) for i in inputs]
+    with Compositor(ctx, intr, caster, lights, opts, tracker=tracker) as comp:
+        for inp, (out_path, mask_path) in zip(inputs, paths):
+            item = ReportItem(input=str(inp))
+            t0 = time.perf_counter()
+            try:
+                if any(_same_file(out_path, i) or _same_file(mask_path, i) for i in input_set):
+                    raise ImageError(f"{out_path}: output would overwrite an input; choose another -o folder")
+                image = read_image(inp)
+                out, mask, item = comp.process(image, name=str(inp), want_mask=args.save_mask)
+                params = [int(_imwrite_quality(out_path)), 95] if _imwrite_quality(out_path) else None
+                write_image(out_path, out, params)
+                item.output = str(out_path)
+                if args.save_mask:
+                    write_image(mask_path, mask)
+                    item.mask = str(mask_path)
+                if not args.quiet:
+                    t = item.timings_ms.get("total", 0.0)
+                    print(f"{inp} -> {out_path}  ({item.mode}, {t:.1f} ms)", file=sys.stdout)
+            except MarkerNotFoundError as exc:
+                failed += 1
+                item.status, item.error = "no_marker", str(exc)
+                print(_error_line(inp, exc), file=sys.stderr)
+            except (ImageError, CalibrationError, ArshadowError) as exc:
+                if debug:
+                    raise
+                failed += 1
+                item.status, item.error = "error", str(exc)
+                print(_error_line(inp, exc), file=sys.stderr)
+            except (OSError, MemoryError) as exc:
+                if debug:
+                    raise
+                failed += 1
+                item.status, item.error = "error", f"{type(exc).__name__}: {exc}"
+                print(_error_line(inp, exc), file=sys.stderr)
+            item.input = str(inp)
+            if item.status != "ok":
+                item.timings_ms = {"total": round((time.perf_counter() - t0) * 1e3, 3)}
+            items.append(item)
+    return items, failed
+
+
+def quiet_opencv(debug: bool = False) -> None:
+    """Silence OpenCV's own stderr logging (decoder warnings) so each failure is one line of ours."""
+    import cv2
+
+    try:
+        lg = cv2.utils.logging
+        lg.setLogLevel(lg.LOG_LEVEL_INFO if debug else lg.LOG_LEVEL_SILENT)
+    except AttributeError:  # pragma: no cover - builds without the logging utils
+        pass
+
+
+def _error_line(inp, exc) -> str:
+    """One line naming the input (once) and the problem."""
+    msg = str(exc) or type(exc).__name__
+    if str(inp) in msg:
+        return f"arshadow render: error: {msg}"
+    return error_line("render", str(inp), msg)
+
+
+def _imwrite_quality(path: Path):
+    import cv2
+
+    ext = path.suffix.lower()
+    if ext in (".jpg", ".jpeg"):
+        return cv2.IMWRITE_JPEG_QUALITY
+    if ext == ".webp":
+        return cv2.IMWRITE_WEBP_QUALITY
+    return None

@@ -1,0 +1,315 @@
+"""The compositor pipeline against the independent per-pixel oracle (tests/image_oracle.py).
+
+- lens distortion k1 = -0.25: the composited mask, per DISTORTED pixel centre, against the oracle evaluated
+  at that pixel's exact pinhole position (undistorted by OpenCV's iterative solver, not by arshadow);
+- the ROI render equals the full-image render (the skipped work is really not needed);
+- z-pass and z-fail give the same mask when the camera is outside the volumes;
+- end to end on synthetic photos: pose ESTIMATED from the photo, oracle at the TRUE pose;
+- the real ChArUco photo: the object and its shadow land on the board.
+
+Metrics as tests/test_gl_renderer.py: IoU of ``mask >= t`` vs the oracle's ``mask >= t`` (t = half of one
+light's share), mean boundary error over mismatched pixels (distance to the oracle's boundary measured on
+a 1/32 px grid).
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from image_oracle import ShadowOracle, boundary_distance, iou
+
+pytestmark = pytest.mark.gl
+
+W, H = 1280, 720
+
+
+class DistortedOracle:
+    """The pinhole oracle seen through the lens: classify DISTORTED image points.
+
+    Each point is undistorted with ``cv2.undistortPoints`` iterated to convergence (independent of
+    arshadow's own inverse), then classified by the pinhole oracle.
+    """
+
+    def __init__(self, oracle: ShadowOracle, K, dist):
+        self.oracle, self.K, self.dist = oracle, np.asarray(K, float), np.asarray(dist, float)
+
+    def undistort(self, u, v):
+        pts = np.stack([np.ravel(u), np.ravel(v)], 1).astype(np.float64).reshape(-1, 1, 2)
+        crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
+        p = cv2.undistortPoints(pts, self.K, self.dist, None, self.K, criteria=crit).reshape(-1, 2)
+        return p[:, 0], p[:, 1]
+
+    def classify(self, u, v):
+        return self.oracle.classify(*self.undistort(u, v))
+
+    def image(self, roi):
+        x0, y0, w, h = roi
+        vv, uu = np.mgrid[y0 : y0 + h, x0 : x0 + w]
+        m, g, o = self.classify(uu.ravel().astype(float), vv.ravel().astype(float))
+        return m.reshape(h, w), g.reshape(h, w), o.reshape(h, w)
+
+
+def _compare(mask_u8, oracle, roi, threshold, boundary=True):
+    """IoU and boundary error of the 8-bit mask (full image) against the oracle inside ``roi``."""
+    x0, y0, w, h = roi
+    om, _, _ = oracle.image(roi) if isinstance(oracle, DistortedOracle) else oracle.image(W, H, roi)
+    got = mask_u8[y0 : y0 + h, x0 : x0 + w].astype(np.float64) / 255.0 >= threshold
+    ref = om >= threshold
+    mism = np.argwhere(got != ref)
+    dist = np.zeros(0)
+    if boundary and len(mism):
+        dist = boundary_distance(oracle, (mism[:, ::-1] + [x0, y0]).astype(np.float64), threshold)
+    return dict(iou=iou(got, ref), n_shadow=int(ref.sum()), n_mismatch=len(mism),
+                boundary_mean=float(dist.mean()) if len(dist) else 0.0,
+                boundary_max=float(dist.max()) if len(dist) else 0.0)
+
+
+def _intrinsics(dist=()):
+    from arshadow.camera import Intrinsics
+
+    return Intrinsics(1000.0, 1000.0, 641.3, 358.2, W, H, np.asarray(dist, float))
+
+
+def _plain_photo(value=150):
+    img = np.full((H, W, 3), value, np.uint8)
+    img.setflags(write=False)  # the pipeline must never write into its input
+    return img
+
+
+def _compositor(ctx, caster, lights, **opts):
+    from arshadow.pipeline import Compositor, RenderOptions
+
+    return Compositor(ctx, _intrinsics(), caster, lights, RenderOptions(**opts), tracker={"marker_length": 0.05})
+
+
+def _lights(*specs):
+    from arshadow.lights import parse_light
+
+    return [parse_light(s) for s in specs]
+
+
+def _oracle_lights(lights):
+    return [(np.asarray(lt.homogeneous, float), float(lt.weight)) for lt in lights]
+
+
+# --------------------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def knot():
+    from arshadow.mesh import load_occluder
+
+    return load_occluder("samples/meshes/knot.ply" if _root_has("samples/meshes/knot.ply") else "torus:0.05,0.015")
+
+
+def _root_has(rel):
+    from pathlib import Path
+
+    return (Path(__file__).resolve().parents[1] / rel).is_file()
+
+
+@pytest.mark.parametrize("case", ["box_point_corner", "torus_directional_edge"])
+def test_lens_distortion_k1(ctx, tol, case):
+    """k1 = -0.25: what is composited lands where the distorted camera sees it."""
+    from arshadow.mesh import load_occluder
+    from arshadow.synth import look_at_pose
+
+    K1 = (-0.25, 0.0, 0.0, 0.0, 0.0)
+    intr = _intrinsics(K1)
+    if case == "box_point_corner":
+        caster = load_occluder("box:0.06,0.05,0.09")
+        lights = _lights("point:0.25,0.15,0.45")
+        # the object sits towards the top-left corner of the frame, where barrel distortion bends most
+        pose = look_at_pose([0.15, -0.55, 0.42], [0.17, -0.12, 0.02])
+    else:
+        caster = load_occluder("torus:0.06,0.02", rotate=(70, 0, 20), place=(0, 0, 0.09))
+        lights = _lights("directional:-0.3,0.5,1.0")
+        pose = look_at_pose([-0.5, -0.45, 0.35], [-0.08, 0.12, 0.0])
+    comp = _compositor(ctx, caster, lights)
+    with comp:
+        photo = _plain_photo()
+        out, mask, info = comp.render_pose(photo, intr, pose)
+    orc = DistortedOracle(ShadowOracle(intr.K, pose, caster.vertices, caster.faces, _oracle_lights(lights)),
+                          intr.K, intr.dist)
+    # evaluate on a region well beyond the compositor's ROI (catches anything cut off by the ROI)
+    x0, y0, w, h = info["roi"]
+    big = (max(0, x0 - 60), max(0, y0 - 60), min(W, x0 + w + 60) - max(0, x0 - 60),
+           min(H, y0 + h + 60) - max(0, y0 - 60))
+    r = _compare(mask, orc, big, 0.5)
+    assert r["n_shadow"] >= tol.shadow_min_pixels, r
+    assert r["iou"] >= tol.shadow_iou_median, r
+    assert r["boundary_mean"] <= tol.shadow_boundary_px, r
+    # outside the evaluated region nothing was composited
+    outside = np.ones((H, W), bool)
+    outside[big[1] : big[1] + big[3], big[0] : big[0] + big[2]] = False
+    assert not np.any(mask[outside]) and np.array_equal(out[outside], photo[outside])
+    # a pinhole render of the same pose lands elsewhere near the corner: distortion really matters here
+    pin = _intrinsics()
+    with _compositor(ctx, caster, lights) as c2:
+        _, mask_pin, _ = c2.render_pose(photo, pin, pose)
+    assert iou(mask_pin >= 128, mask >= 128) < 0.9
+
+
+def test_roi_render_equals_full_render(ctx, knot):
+    from arshadow.synth import look_at_pose
+
+    lights = _lights("point:0.2,0.1,0.5")
+    pose = look_at_pose([0.25, -0.45, 0.4], [0.0, 0.02, 0.03])
+    photo = _plain_photo(120)
+    for dist in ((), (-0.045, 0.021, 0.0004, -0.0003, -0.006)):
+        intr = _intrinsics(dist)
+        with _compositor(ctx, knot, lights) as c_roi, _compositor(ctx, knot, lights, roi=False) as c_full:
+            out_r, mask_r, info_r = c_roi.render_pose(photo, intr, pose)
+            out_f, mask_f, info_f = c_full.render_pose(photo, intr, pose)
+        x0, y0, w, h = info_r["roi"]
+        assert w * h < 0.25 * W * H  # the ROI really is small here
+        assert info_f["roi"] == [0, 0, W, H]
+        assert mask_f.sum() > 255 * 2000
+        # identical up to MSAA sample jitter at edges: compare thresholded masks and colours
+        assert iou(mask_r >= 128, mask_f >= 128) > 0.999
+        diff = np.abs(out_r.astype(int) - out_f.astype(int)).max(axis=2)
+        assert np.mean(diff > 8) < 1e-4
+        outside = np.ones((H, W), bool)
+        outside[y0 : y0 + h, x0 : x0 + w] = False
+        assert not np.any(mask_f[outside])
+
+
+def test_zpass_equals_zfail_when_camera_outside(ctx, knot):
+    from arshadow.synth import look_at_pose
+
+    lights = _lights("point:0.2,0.1,0.5", "directional:-0.4,0.3,1@0.5")
+    pose = look_at_pose([0.25, -0.45, 0.4], [0.0, 0.02, 0.03])
+    intr = _intrinsics((-0.045, 0.021, 0.0004, -0.0003, -0.006))
+    with _compositor(ctx, knot, lights) as comp:
+        photo = _plain_photo()
+        out_a, mask_a, info = comp.render_pose(photo, intr, pose)
+        assert info["modes"] == ["zpass", "zpass"]
+        out_b, mask_b, info_b = comp.render_pose(photo, intr, pose, modes=["zfail", "zfail"])
+        assert info_b["mode"] == "zfail"
+    assert np.array_equal(mask_a, mask_b)
+    assert np.array_equal(out_a, out_b)
+    # two lights: three levels (0, 1/3, 2/3 or 1 of the weight) present
+    vals = set(np.unique(mask_a).tolist())
+    assert {0, 255}.issubset(vals) and (85 in vals or 170 in vals)
+
+
+def test_camera_inside_shadow_volume_uses_zfail(ctx, tol):
+    """A tall wall between a low sun and the camera: the camera stands in the wall's shadow."""
+    from arshadow.mesh import load_occluder
+    from arshadow.synth import look_at_pose
+
+    wall = load_occluder("box:0.6,0.02,0.5", place=(0, 0.1, 0))
+    lights = _lights("directional:0,1,0.35")  # low light from +y: the shadow falls towards -y
+    pose = look_at_pose([0.05, -0.2, 0.15], [0.0, -0.6, 0.0])  # camera in the shadow, looking away
+    intr = _intrinsics()
+    with _compositor(ctx, wall, lights) as comp:
+        out, mask, info = comp.render_pose(_plain_photo(), intr, pose)
+    assert info["modes"] == ["zfail"]
+    orc = ShadowOracle(intr.K, pose, wall.vertices, wall.faces, _oracle_lights(lights))
+    r = _compare(mask, orc, (0, 0, W, H), 0.5, boundary=False)
+    assert r["n_shadow"] >= tol.shadow_min_pixels and r["iou"] >= tol.shadow_iou_worst, r
+
+
+def test_ground_size_clips_the_roi_and_the_mask(ctx):
+    from arshadow.mesh import load_occluder
+    from arshadow.synth import look_at_pose
+
+    caster = load_occluder("box:0.04,0.04,0.1")
+    lights = _lights("directional:1,0,0.08")  # near the horizon: a very long shadow
+    pose = look_at_pose([0.0, -0.5, 0.4], [0.0, 0.0, 0.0])
+    intr = _intrinsics()
+    with _compositor(ctx, caster, lights) as c_inf, _compositor(ctx, caster, lights, ground_size=0.3) as c_sq:
+        _, m_inf, i_inf = c_inf.render_pose(_plain_photo(), intr, pose)
+        _, m_sq, i_sq = c_sq.render_pose(_plain_photo(), intr, pose)
+    assert i_sq["roi"][2] * i_sq["roi"][3] < i_inf["roi"][2] * i_inf["roi"][3]
+    orc = ShadowOracle(intr.K, pose, caster.vertices, caster.faces, _oracle_lights(lights), ground_size=0.3)
+    r = _compare(m_sq, orc, (0, 0, W, H), 0.5, boundary=False)
+    assert r["iou"] >= 0.97, r
+    assert m_inf.astype(bool).sum() > m_sq.astype(bool).sum()
+
+
+# --------------------------------------------------------------------------------------------------
+# end to end: pose estimated from synthetic photos, oracle at the true pose
+# --------------------------------------------------------------------------------------------------
+E2E_POSES = [
+    # (eye, target): 5 cm marker at 0.3-0.6 m, various tilts and azimuths
+    ([0.20, -0.30, 0.30], [0.0, 0.0, 0.0]),
+    ([-0.25, -0.25, 0.35], [0.02, 0.01, 0.0]),
+    ([0.05, -0.45, 0.25], [0.0, 0.03, 0.0]),
+    ([0.35, 0.10, 0.30], [0.0, 0.0, 0.0]),
+    ([-0.10, -0.20, 0.45], [0.0, 0.02, 0.0]),
+    ([0.30, -0.35, 0.20], [0.03, 0.0, 0.0]),
+]
+
+
+def test_end_to_end_synthetic_photos(ctx, tol):
+    from arshadow.camera import Intrinsics
+    from arshadow.mesh import load_occluder
+    from arshadow.pipeline import Compositor, RenderOptions
+    from arshadow.synth import look_at_pose, render_marker_photo
+
+    intr = Intrinsics.from_file(_calib("synth_1280x720.yml"))
+    caster = load_occluder("box:0.04,0.03,0.06", place=(0.05, 0.0, 0.0))
+    lights = _lights("point:-0.1,0.15,0.4")
+    ious = []
+    with Compositor(ctx, intr, caster, lights, RenderOptions(), tracker={"marker_length": 0.05}) as comp:
+        for i, (eye, target) in enumerate(E2E_POSES):
+            true_pose = look_at_pose(eye, target)
+            ph = render_marker_photo(intr, true_pose, marker_length=0.05, noise_sigma=2.0, blur_sigma=0.6,
+                                     jpeg_quality=90, seed=i)
+            out, mask, item = comp.process(ph.image, name=f"pose{i}")
+            assert item.status == "ok" and item.marker_ids == [0]
+            orc = DistortedOracle(ShadowOracle(intr.K, true_pose, caster.vertices, caster.faces,
+                                               _oracle_lights(lights)), intr.K, intr.dist)
+            x0, y0, w, h = item.extra["roi"]
+            roi = (max(0, x0 - 30), max(0, y0 - 30), min(W, x0 + w + 30) - max(0, x0 - 30),
+                   min(H, y0 + h + 30) - max(0, y0 - 30))
+            r = _compare(mask, orc, roi, 0.5, boundary=False)
+            assert r["n_shadow"] > 1000, (i, r)
+            ious.append(r["iou"])
+    assert np.median(ious) >= tol.end_to_end_iou_median, ious
+
+
+def _calib(name):
+    from pathlib import Path
+
+    return Path(__file__).resolve().parents[1] / "calib" / name
+
+
+# --------------------------------------------------------------------------------------------------
+# a real photo: the ChArUco board of OpenCV's tutorial
+# --------------------------------------------------------------------------------------------------
+@pytest.mark.realdata
+def test_real_charuco_photo_object_and_shadow_on_the_board(ctx, realdata):
+    from arshadow.camera import Intrinsics
+    from arshadow.io import read_image
+    from arshadow.marker import Board
+    from arshadow.mesh import load_occluder
+    from arshadow.pipeline import Compositor, RenderOptions
+
+    folder = realdata / "aruco_tutorial"
+    photo = read_image(folder / "choriginal.jpg")
+    keep = photo.copy()
+    intr = Intrinsics.from_file(folder / "tutorial_camera_charuco.yml")
+    board = Board(kind="charuco", size=(5, 7), square_length=0.04, marker_length=0.02, dictionary="DICT_6X6_250")
+    # board frame: x in [0, 0.2], y in [-0.28, 0]; the object stands near the middle, lit from high up
+    caster = load_occluder("box:0.04,0.04,0.05", place=(0.1, -0.14, 0.0))
+    lights = _lights("point:-0.05,0.0,0.45")
+    with Compositor(ctx, intr, caster, lights, RenderOptions(), tracker={"board": board}) as comp:
+        out, mask, item = comp.process(photo, name="choriginal.jpg")
+    assert np.array_equal(photo, keep)
+    assert item.status == "ok" and len(item.marker_ids) >= 10
+    # the board's region from OpenCV's own detector (independent of arshadow): hull of all marker corners
+    det = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_6X6_250))
+    corners, ids, _ = det.detectMarkers(photo)
+    hull = cv2.convexHull(np.concatenate([c.reshape(-1, 2) for c in corners]).astype(np.float32))
+    region = np.zeros(mask.shape, np.uint8)
+    cv2.fillConvexPoly(region, hull.astype(np.int32), 1)
+    region = cv2.dilate(region, np.ones((7, 7), np.uint8)).astype(bool)
+    changed = np.any(out != photo, axis=2)
+    shadow = mask >= 128
+    obj = changed & (mask == 0)
+    assert shadow.sum() > 500 and obj.sum() > 500, (shadow.sum(), obj.sum())
+    assert not np.any(changed & ~region), int(np.sum(changed & ~region))
+    # the shadow is darker than the board it falls on
+    assert out[shadow].mean() < photo[shadow].mean() - 20
