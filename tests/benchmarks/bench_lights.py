@@ -1,0 +1,144 @@
+"""Frame time against the number of lights and against soft-shadow samples (paper 002, Figure 8 analogue).
+
+A plain script: prints one JSON object (median and IQR / min-max of repeated frames after warm-up, plus
+metadata: git commit, versions, GL_RENDERER). Not a test (timings on a shared 2-core machine are noisy).
+
+Scene: a 640x480 photo (flat grey; the tracker is bypassed: ``Compositor.render_pose`` with a known
+pose), the occluder ``torus:0.05,0.02`` (4096 faces) unless ``--mesh``, the default render options
+(MSAA 4, region of interest on, stencil shadow volumes, mode chosen per light).
+
+* ``lights``: k = 1, 2, 4, 8 hard point lights on a circle (radius 0.3 m, height 0.4 m), equal weights.
+* ``soft``: one area light rendered with N = 1, 4, 16, 64 samples (a point light of radius 0.05 m at
+  (0.2, -0.1, 0.4); and the sun's 0.266 deg disc, 50 deg high).
+
+``warm`` = a video frame once silhouettes and volumes are cached (static lights; what a video pays per
+frame); ``cold`` = the first frame of a run (silhouette + volume of every light/sample, then the frame).
+
+Run::
+
+    python tests/benchmarks/bench_lights.py [--repeats 15] [--mesh SPEC] [--out FILE]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import platform
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _stats(ms) -> dict:
+    a = np.asarray(ms, dtype=np.float64)
+    q1, med, q3 = np.percentile(a, [25, 50, 75])
+    return {"median_ms": round(float(med), 3), "iqr_ms": [round(float(q1), 3), round(float(q3), 3)],
+            "min_ms": round(float(a.min()), 3), "max_ms": round(float(a.max()), 3), "n": int(a.size),
+            "fps_median": round(1000.0 / float(med), 2)}
+
+
+def _meta(ctx) -> dict:
+    import cv2
+    import moderngl
+    import trimesh
+
+    from arshadow import __version__
+    from arshadow.gl.context import gl_info
+
+    try:
+        commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True,
+                                text=True, check=False).stdout.strip()
+        dirty = bool(subprocess.run(["git", "-C", str(ROOT), "status", "--porcelain", "--", "arshadow"],
+                                    capture_output=True, text=True, check=False).stdout.strip())
+    except OSError:
+        commit, dirty = None, None
+    info = gl_info(ctx)
+    return {"git_commit": commit, "arshadow_dirty": dirty, "arshadow": __version__, "python": platform.python_version(),
+            "numpy": np.__version__, "opencv": cv2.__version__, "moderngl": moderngl.__version__,
+            "trimesh": trimesh.__version__, "GL_RENDERER": info.get("GL_RENDERER"),
+            "GL_VERSION": info.get("GL_VERSION"), "machine": platform.machine(), "cpus": __import__("os").cpu_count()}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--repeats", type=int, default=15)
+    ap.add_argument("--warmup", type=int, default=2)
+    ap.add_argument("--mesh", default="torus:0.05,0.02")
+    ap.add_argument("--lights", default="1,2,4,8")
+    ap.add_argument("--samples", default="1,4,16,64")
+    ap.add_argument("--out", default=None, help="also write the JSON here")
+    args = ap.parse_args(argv)
+
+    from arshadow.camera import Intrinsics
+    from arshadow.gl.context import create_context
+    from arshadow.gl.renderer import ShadowRenderer
+    from arshadow.lights import Light, parse_light
+    from arshadow.mesh import load_occluder
+    from arshadow.pipeline import Compositor, RenderOptions
+    from arshadow.synth import look_at_pose
+
+    ctx = create_context()
+    W, H = 640, 480
+    intr = Intrinsics(fx=600.0, fy=600.0, cx=319.5, cy=239.5, width=W, height=H, dist=np.zeros(0))
+    cam_from_world = look_at_pose(np.array([0.35, -0.45, 0.4]), np.array([0.0, 0.0, 0.02]))
+    image = np.full((H, W, 3), 128, np.uint8)
+    caster = load_occluder(args.mesh)
+    opts = RenderOptions()
+    renderer = ShadowRenderer(ctx, max_width=W, max_height=H, samples=opts.aa)
+
+    def run(lights, soft_samples):
+        o = RenderOptions(soft_samples=soft_samples)
+        cold = []
+        for _ in range(max(3, args.repeats // 3)):
+            t = time.perf_counter()
+            with Compositor(ctx, intr, caster, lights, o, renderer=renderer) as comp:
+                comp.render_pose(image, intr, cam_from_world)
+            cold.append((time.perf_counter() - t) * 1e3)
+        with Compositor(ctx, intr, caster, lights, o, renderer=renderer) as comp:
+            for _ in range(args.warmup):
+                _, mask, info = comp.render_pose(image, intr, cam_from_world)
+            warm = []
+            for _ in range(args.repeats):
+                t = time.perf_counter()
+                _, mask, info = comp.render_pose(image, intr, cam_from_world)
+                warm.append((time.perf_counter() - t) * 1e3)
+            n_passes = len(comp._lights)
+        return {"warm": _stats(warm), "cold": _stats(cold), "passes": n_passes, "modes": sorted(set(info["modes"])),
+                "shadow_pixels": int(np.count_nonzero(mask))}
+
+    out = {"benchmark": "bench_lights", "scene": {"image": [W, H], "mesh": args.mesh, "faces": int(len(caster.faces)),
+                                                   "options": {"aa": opts.aa, "roi": opts.roi,
+                                                               "shadow_method": opts.shadow_method}},
+           "meta": _meta(ctx), "lights": {}, "soft_point": {}, "soft_sun": {}}
+    for k in (int(x) for x in args.lights.split(",")):
+        lights = [parse_light(f"point:{0.3 * math.cos(2 * math.pi * i / k + 0.3):.6f},"
+                              f"{0.3 * math.sin(2 * math.pi * i / k + 0.3):.6f},0.4") for i in range(k)]
+        out["lights"][str(k)] = run(lights, 1)
+        print(f"lights={k}: {out['lights'][str(k)]['warm']['median_ms']} ms", file=sys.stderr)
+    point = parse_light("point:0.2,-0.1,0.4,radius=0.05")
+    e = math.radians(50.0)
+    sun = Light("directional", [math.cos(e) * math.sin(math.radians(200)), math.cos(e) * math.cos(math.radians(200)),
+                                math.sin(e)], radius=math.radians(0.266), label="sun")
+    for n in (int(x) for x in args.samples.split(",")):
+        out["soft_point"][str(n)] = run([point], n)
+        out["soft_sun"][str(n)] = run([sun], n)
+        print(f"samples={n}: point {out['soft_point'][str(n)]['warm']['median_ms']} ms, "
+              f"sun {out['soft_sun'][str(n)]['warm']['median_ms']} ms", file=sys.stderr)
+    renderer.release()
+    text = json.dumps(out, indent=1)
+    print(text)
+    if args.out:
+        from arshadow.io import write_bytes
+
+        write_bytes(args.out, (text + "\n").encode())
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

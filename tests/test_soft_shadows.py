@@ -1,0 +1,150 @@
+"""Soft shadows through the real renderer: the penumbra of a box edge under an area light (sphere light
+and a sun-like cone) against the geometric prediction, and N = 1 reproducing the hard shadow exactly.
+
+Set-up: a pinhole camera straight above the origin looking down, so ground pixels map linearly to world
+(x, y) (u = cx + f x / D, v = cy - f y / D); the occluder is not drawn (``draw_occluder=False``) so the
+whole ground is seen; the mask row through the box centre is read along +x, across the box's edge.
+The prediction is pure geometry written out here (similar triangles, the circular-segment area of a disc):
+nothing is taken from the code under test.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from arshadow.lights import Light, parse_light, sample_area_light
+from conftest import TOL
+
+pytestmark = pytest.mark.gl
+
+F_PX, D = 2000.0, 1.0  # focal length (px) and camera height (m)
+W, H_IMG = 640, 240  # ground x in [-0.16, 0.16] m at 0.5 mm per pixel
+A, HB = 0.05, 0.1  # box half-width and height (m)
+
+
+def _segment_fraction(u):
+    """Fraction of a unit disc beyond the chord at signed distance u (-1 <= u <= 1)."""
+    u = np.clip(u, -1.0, 1.0)
+    return (np.arccos(u) - u * np.sqrt(1 - u * u)) / math.pi
+
+
+@pytest.fixture(scope="module")
+def scene():
+    for mod in ("arshadow.gl.renderer", "arshadow.mesh", "arshadow.silhouette", "arshadow.volume"):
+        pytest.importorskip(mod)
+    from arshadow.camera import Intrinsics
+    from arshadow.mesh import load_occluder
+    from arshadow.transforms import CV_TO_GL
+
+    intr = Intrinsics(fx=F_PX, fy=F_PX, cx=(W - 1) / 2, cy=(H_IMG - 1) / 2, width=W, height=H_IMG,
+                      dist=np.zeros(0))
+    cam_from_world = np.diag([1.0, -1.0, -1.0, 1.0])
+    cam_from_world[2, 3] = D  # z_cam = D - z
+    caster = load_occluder(f"box:{2 * A},{2 * A},{HB}")
+    return {
+        "intr": intr,
+        "proj": intr.gl_projection(1e-3, None),
+        "view": CV_TO_GL @ cam_from_world,
+        "caster": caster,
+        "x": (np.arange(W) - intr.cx) / F_PX * D,  # world x of each column on the ground
+    }
+
+
+@pytest.fixture(scope="module")
+def renderer(gl_ctx):
+    from arshadow.gl.renderer import ShadowRenderer
+
+    r = ShadowRenderer(gl_ctx, max_width=W, max_height=H_IMG, samples=0)
+    yield r
+    r.release()
+
+
+def _render(scene, renderer, lights, mode="zfail"):
+    from arshadow.gl.renderer import LightPass
+    from arshadow.silhouette import silhouette
+    from arshadow.volume import shadow_volume
+
+    total = sum(li.weight for li in lights)
+    passes = []
+    for li in lights:
+        h = li.homogeneous
+        sil = silhouette(scene["caster"], h)
+        vol = shadow_volume(scene["caster"], h, sil, caps=(mode == "zfail"))
+        passes.append(LightPass(light_h=h, weight=li.weight / total, volume=vol, mode=mode))
+    res = renderer.render(projection=scene["proj"], view=scene["view"], width=W, height=H_IMG,
+                          caster=scene["caster"], passes=passes, draw_occluder=False)
+    return res.mask
+
+
+def _profile(scene, mask):
+    """Mask along the row through the box centre, for x beyond the box edge (ground z = 0 at y = 0)."""
+    row = int(round(scene["intr"].cy))
+    x = scene["x"]
+    keep = x > A
+    return x[keep], mask[row, keep].astype(np.float64)
+
+
+def _widths(x, f, n):
+    """Full penumbra width (first departure from 1 to last departure from 0) and the 10-90 % width."""
+    eps = 0.5 / n
+    part = np.nonzero((f > eps) & (f < 1 - eps))[0]
+    lo, hi = np.nonzero(f < 1 - eps)[0][0], np.nonzero(f > eps)[0][-1]
+    assert part.size > 3
+    full = x[hi] - x[lo] + (x[1] - x[0])  # pixel extent: count the end pixels whole
+
+    def cross(level):
+        i = int(np.argmax(f <= level))
+        return x[i - 1] + (f[i - 1] - level) * (x[i] - x[i - 1]) / (f[i - 1] - f[i])
+
+    return full, cross(0.1) - cross(0.9)
+
+
+def test_point_light_penumbra_width(scene, renderer):
+    r, Hl, n = 0.05, 0.5, 64
+    li = parse_light(f"point:0,0,{Hl},radius={r}")
+    mask = _render(scene, renderer, sample_area_light(li, n, seed=0))
+    x, f = _profile(scene, mask)
+    # geometry: a disc sample at x-offset s is hidden from ground point x iff s < x - (x - A) Hl / HB
+    full_pred = 2 * r * HB / (Hl - HB)
+    c = x - (x - A) * Hl / HB
+    exact = 1.0 - _segment_fraction(c / r)
+    _, w1090_pred = _widths(x, np.where(exact > 1 - 1e-12, 1.0, exact), 1e6)
+    full, w1090 = _widths(x, f, n)
+    assert abs(full - full_pred) / full_pred <= TOL.penumbra_rel, (full, full_pred)
+    assert abs(w1090 - w1090_pred) / w1090_pred <= TOL.penumbra_rel, (w1090, w1090_pred)
+    # and the whole profile follows the disc's segment area (stratified: within a few samples)
+    assert np.max(np.abs(f - exact)) < TOL.penumbra_profile_64
+    # mask values are multiples of 1/n (each sample is a hard, equally weighted light)
+    np.testing.assert_allclose(f * n, np.round(f * n), atol=2e-2)
+
+
+def test_sun_cone_penumbra_width(scene, renderer):
+    """Directional light at elevation e with angular radius alpha (a large 'sun' so the penumbra spans
+    many pixels): penumbra from HB / tan(e + alpha) to HB / tan(e - alpha) beyond the edge."""
+    e, alpha, n = math.radians(55.0), math.radians(3.0), 64
+    li = Light("directional", [-math.cos(e), 0.0, math.sin(e)], radius=alpha, label="sun-like")
+    mask = _render(scene, renderer, sample_area_light(li, n, seed=1))
+    x, f = _profile(scene, mask)
+    full_pred = HB / math.tan(e - alpha) - HB / math.tan(e + alpha)
+    full, _ = _widths(x, f, n)
+    assert abs(full - full_pred) / full_pred <= TOL.penumbra_rel, (full, full_pred)
+    # 50 % where the centre direction puts the hard edge
+    i = int(np.argmax(f <= 0.5))
+    x50 = x[i - 1] + (f[i - 1] - 0.5) * (x[i] - x[i - 1]) / (f[i - 1] - f[i])
+    assert x50 == pytest.approx(A + HB / math.tan(e), abs=2 * D / F_PX)
+
+
+@pytest.mark.parametrize("spec", ["point:0.02,-0.01,0.5,radius=0.05@3", "directional:-1,0.2,1,radius=2"])
+def test_one_sample_is_the_hard_shadow_exactly(scene, renderer, spec):
+    li = parse_light(spec)
+    hard = Light(li.kind, li.vector, weight=li.weight, radius=0.0, label=li.label)
+    m1 = _render(scene, renderer, sample_area_light(li, 1))
+    mh = _render(scene, renderer, [hard])
+    np.testing.assert_array_equal(m1, mh)
+    assert set(np.unique(m1)) <= {0.0, 1.0} and m1.sum() > 1000
+    # and the soft shadow is not the hard one, yet has the same total darkness to within the penumbra
+    ms = _render(scene, renderer, sample_area_light(li, 16))
+    assert not np.array_equal(ms, mh)
