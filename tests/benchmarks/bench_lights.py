@@ -14,6 +14,9 @@ pose), the occluder ``torus:0.05,0.02`` (4096 faces) unless ``--mesh``, the defa
 ``warm`` = a video frame once silhouettes and volumes are cached (static lights; what a video pays per
 frame); ``cold`` = the first frame of a run (silhouette + volume of every light/sample, then the frame).
 
+``penumbra_quality``: the penumbra width error against N in tests/test_soft_shadows.py's scene (the
+quality side of the trade-off; deterministic, not a timing).
+
 Run::
 
     python tests/benchmarks/bench_lights.py [--repeats 15] [--mesh SPEC] [--out FILE]
@@ -63,6 +66,46 @@ def _meta(ctx) -> dict:
             "numpy": np.__version__, "opencv": cv2.__version__, "moderngl": moderngl.__version__,
             "trimesh": trimesh.__version__, "GL_RENDERER": info.get("GL_RENDERER"),
             "GL_VERSION": info.get("GL_VERSION"), "machine": platform.machine(), "cpus": __import__("os").cpu_count()}
+
+
+def penumbra_quality(ctx, ns) -> dict:
+    """The other side of the trade-off: penumbra width error vs samples, in tests/test_soft_shadows.py's
+    scene (box edge, sphere light r = 0.05 m at 0.5 m; sun-like cone alpha = 3 deg at 55 deg)."""
+    sys.path.insert(0, str(ROOT / "tests"))
+    import test_soft_shadows as T
+
+    from arshadow.camera import Intrinsics
+    from arshadow.gl.renderer import ShadowRenderer
+    from arshadow.lights import Light, parse_light, sample_area_light
+    from arshadow.mesh import load_occluder
+    from arshadow.transforms import CV_TO_GL
+
+    intr = Intrinsics(fx=T.F_PX, fy=T.F_PX, cx=(T.W - 1) / 2, cy=(T.H_IMG - 1) / 2, width=T.W, height=T.H_IMG,
+                      dist=np.zeros(0))
+    cfw = np.diag([1.0, -1.0, -1.0, 1.0])
+    cfw[2, 3] = T.D
+    sc = {"intr": intr, "proj": intr.gl_projection(1e-3, None), "view": CV_TO_GL @ cfw,
+          "caster": load_occluder(f"box:{2 * T.A},{2 * T.A},{T.HB}"), "x": (np.arange(T.W) - intr.cx) / T.F_PX * T.D}
+    out = {}
+    with ShadowRenderer(ctx, max_width=T.W, max_height=T.H_IMG) as r:
+        for n in ns:
+            rr, hl = 0.05, 0.5
+            x, f = T._profile(sc, T._render(sc, r, sample_area_light(parse_light(f"point:0,0,{hl},radius={rr}"), n)))
+            full_pred = 2 * rr * T.HB / (hl - T.HB)
+            exact = 1 - T._segment_fraction((x - (x - T.A) * hl / T.HB) / rr)
+            _, w_pred = T._widths(x, np.where(exact > 1 - 1e-12, 1.0, exact), 1e6)
+            full, w = T._widths(x, f, n)
+            e, al = math.radians(55), math.radians(3)
+            sun = Light("directional", [-math.cos(e), 0, math.sin(e)], radius=al)
+            x2, f2 = T._profile(sc, T._render(sc, r, sample_area_light(sun, n, seed=1)))
+            full2, _ = T._widths(x2, f2, n)
+            fp2 = T.HB / math.tan(e - al) - T.HB / math.tan(e + al)
+            out[str(n)] = {"point_full_width_err": round(full / full_pred - 1, 4),
+                           "point_10_90_width_err": round(w / w_pred - 1, 4),
+                           "point_profile_max_dev": round(float(np.max(np.abs(f - exact))), 4),
+                           "sun_full_width_err": round(full2 / fp2 - 1, 4)}
+            print(f"penumbra n={n}: {out[str(n)]}", file=sys.stderr)
+    return out
 
 
 def main(argv=None) -> int:
@@ -131,6 +174,7 @@ def main(argv=None) -> int:
         print(f"samples={n}: point {out['soft_point'][str(n)]['warm']['median_ms']} ms, "
               f"sun {out['soft_sun'][str(n)]['warm']['median_ms']} ms", file=sys.stderr)
     renderer.release()
+    out["penumbra_quality"] = penumbra_quality(ctx, [int(x) for x in args.samples.split(",")] + [256])
     text = json.dumps(out, indent=1)
     print(text)
     if args.out:
