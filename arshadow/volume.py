@@ -1,0 +1,289 @@
+"""Shadow volume geometry: side quads, z-fail caps, the receiver-plane truncated variant, and the
+conservative "is the camera possibly inside a shadow?" test that picks z-pass or z-fail.
+
+Winding: every triangle is wound counter-clockwise seen from *outside* the volume, so a two-sided stencil
+pass (front faces increment, back faces decrement on z-pass) works, and for a closed mesh each volume edge
+is used exactly twice with opposite orientation (watertight; tested for point and directional lights).
+
+Homogeneous vertices ``(x, y, z, w)``: ``w = 1`` finite points, ``w = 0`` points at infinity in direction
+``(x, y, z)`` away from the light (unit length). For a directional light every extruded vertex is the same
+point at infinity ``(-d, 0)``. Render with an infinite far plane (``Intrinsics.gl_projection(zfar=None)``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import LightError, UsageError
+from .mesh import ShadowCaster
+from .silhouette import Silhouette, as_light_h
+
+__all__ = ["ShadowVolume", "shadow_volume", "camera_may_be_in_shadow", "near_plane_radius", "MIN_DESCENT"]
+
+#: truncated volumes need every extruded ray to descend at least this much (z of the unit ray
+#: direction <= -MIN_DESCENT, i.e. at most 1e4 x the vertex height of extrusion); otherwise the whole
+#: volume is extruded to infinity instead (exact, just more fill).
+MIN_DESCENT = 1e-4
+
+
+@dataclass(frozen=True)
+class ShadowVolume:
+    """Vertex and index arrays of one light's shadow volume, ready to upload.
+
+    Attributes
+    ----------
+    vertices : (p, 4) float64
+        Homogeneous world coordinates (w = 0 at infinity).
+    triangles : (q, 3) intp
+        Outward-wound triangles: ``triangles[:n_side]`` the side quads (two triangles per silhouette
+        edge), then ``n_near_cap`` near-cap and ``n_far_cap`` far-cap triangles (z-fail only).
+    n_side, n_cap, n_near_cap, n_far_cap : int
+    truncated : bool
+        True when the sides and far cap end on the plane ``z = truncate_z`` (paper 002 variant); False for
+        volumes extruded to infinity (also when a truncation was asked for but a ray does not descend
+        enough to meet the plane, see :data:`MIN_DESCENT`).
+    truncate_z : float or None
+        The plane asked for.
+    light_h : (4,) float64
+    two_sided : bool
+        The mesh is open / non-manifold and every face casts (see :mod:`arshadow.mesh`).
+    """
+
+    vertices: np.ndarray
+    triangles: np.ndarray
+    n_side: int
+    n_cap: int
+    n_near_cap: int
+    n_far_cap: int
+    truncated: bool
+    truncate_z: float | None
+    light_h: np.ndarray
+    two_sided: bool = False
+
+    @property
+    def side_triangles(self) -> np.ndarray:
+        """(n_side, 3) intp: the triangles a z-pass render needs."""
+        return self.triangles[: self.n_side]
+
+
+def _extrude(v: np.ndarray, h: np.ndarray, truncate_z):
+    """Extrude points ``v (k, 3)`` away from the light: ``(k, 4)`` homogeneous, and whether truncated."""
+    k = v.shape[0]
+    out = np.empty((k, 4))
+    if h[3] == 0.0:
+        dirs = np.broadcast_to(-h[:3] / np.linalg.norm(h[:3]), (k, 3))
+    else:
+        dv = v - h[:3]
+        nrm = np.linalg.norm(dv, axis=1)
+        if np.any(nrm == 0.0):
+            raise LightError(f"point light at {h[:3].tolist()} lies exactly on a mesh vertex: no shadow direction")
+        dirs = dv / nrm[:, None]
+    if truncate_z is not None:
+        tz = float(truncate_z)
+        above = v[:, 2] > tz
+        if not np.any(above) or np.all(dirs[above, 2] <= -MIN_DESCENT):
+            out[:, :3] = v
+            out[:, 3] = 1.0
+            if np.any(above):
+                a = np.flatnonzero(above)
+                if h[3] == 0.0:
+                    s = (v[a, 2] - tz) / -dirs[a, 2]
+                    p = v[a] + s[:, None] * dirs[a]
+                else:
+                    # from the light: L + t (v - L), t = (Lz - tz) / (Lz - vz) (>= 1)
+                    t = (h[2] - tz) / (h[2] - v[a, 2])
+                    p = h[:3] + t[:, None] * (v[a] - h[:3])
+                p[:, 2] = tz
+                out[a, :3] = p
+            return out, True
+    out[:, :3] = dirs
+    out[:, 3] = 0.0
+    return out, False
+
+
+def shadow_volume(caster: ShadowCaster, light_h, sil: Silhouette, *, caps: bool = True, truncate_z=None) -> ShadowVolume:
+    """Build the shadow volume of ``caster`` for one light from its silhouette.
+
+    Parameters
+    ----------
+    caster : ShadowCaster
+    light_h : (4,) float64
+        The light the silhouette was computed for (homogeneous, world frame).
+    sil : Silhouette
+        From :func:`arshadow.silhouette.silhouette` with the same light.
+    caps : bool
+        Add the z-fail caps: light-facing triangles as the near cap and back-facing ones extruded as the
+        far cap (Everitt-Kilgard, Doom 3). Two-sided (open) meshes: every face turned towards the light
+        is the near cap and its extruded reverse the far cap.
+    truncate_z : float, optional
+        Extrude only down to the plane ``z = truncate_z`` (just below the ground, e.g. ``-1e-3 *
+        caster.scale``) instead of to infinity (paper 002). Vertices at or below the plane stay where they
+        are (zero-length extrusion). If any extruded ray does not descend by at least
+        :data:`MIN_DESCENT` (light at or below a vertex, a sun at the horizon) the volume is extruded to
+        infinity instead and ``truncated`` is False.
+
+    Returns
+    -------
+    ShadowVolume
+
+    Raises
+    ------
+    LightError
+        Point light exactly on a vertex of the volume.
+    UsageError
+        ``sil`` was computed for another light or another mesh.
+
+    Examples
+    --------
+    >>> from arshadow.mesh import load_occluder
+    >>> from arshadow.silhouette import silhouette
+    >>> box = load_occluder("box:1,1,1")
+    >>> L = [0.2, 0.3, 5.0, 1.0]
+    >>> vol = shadow_volume(box, L, silhouette(box, L))
+    >>> vol.n_side, vol.n_near_cap, vol.n_far_cap, vol.vertices.shape
+    (8, 2, 10, (12, 4))
+    """
+    h = as_light_h(light_h)
+    if sil.light_h is not None and not np.allclose(sil.light_h, h, rtol=1e-12, atol=0.0):
+        raise UsageError("the silhouette was computed for a different light")
+    if sil.facing.shape[0] != caster.n_faces:
+        raise UsageError("the silhouette was computed for a different mesh")
+    n = len(caster.vertices)
+    faces = caster.faces
+    facing = sil.facing
+    edges = sil.edges
+    if caps:
+        if caster.two_sided:
+            near = np.where(facing[:, None], faces, faces[:, ::-1])
+            far = near[:, ::-1]
+        else:
+            near = faces[facing]
+            far = faces[~facing]
+    else:
+        near = far = np.empty((0, 3), np.intp)
+    # vertices used at the light side (finite) and extruded
+    used_fin = np.zeros(n, bool)
+    used_ext = np.zeros(n, bool)
+    used_fin[edges.reshape(-1)] = True
+    used_ext[edges.reshape(-1)] = True
+    used_fin[near.reshape(-1)] = True
+    used_ext[far.reshape(-1)] = True
+    fin_idx = np.flatnonzero(used_fin)
+    ext_idx = np.flatnonzero(used_ext)
+    pos_fin = np.full(n, -1, np.intp)
+    pos_fin[fin_idx] = np.arange(fin_idx.size)
+    pos_ext = np.full(n, -1, np.intp)
+    pos_ext[ext_idx] = fin_idx.size + np.arange(ext_idx.size)
+    v = caster.vertices
+    if h[3] != 0.0 and np.any(np.all(v[fin_idx] == h[:3], axis=1)):
+        raise LightError(f"point light at {h[:3].tolist()} lies exactly on a mesh vertex")
+    ext, truncated = _extrude(v[ext_idx], h, truncate_z)
+    verts = np.empty((fin_idx.size + ext_idx.size, 4))
+    verts[: fin_idx.size, :3] = v[fin_idx]
+    verts[: fin_idx.size, 3] = 1.0
+    verts[fin_idx.size:] = ext
+    a, b = edges[:, 0], edges[:, 1]
+    fa, fb, xa, xb = pos_fin[a], pos_fin[b], pos_ext[a], pos_ext[b]
+    side = np.empty((2 * len(edges), 3), np.intp)
+    side[0::2] = np.stack([fb, fa, xa], axis=1)
+    side[1::2] = np.stack([fb, xa, xb], axis=1)
+    tris = np.concatenate([side, pos_fin[near], pos_ext[far]]).astype(np.intp)
+    verts.flags.writeable = False
+    tris.flags.writeable = False
+    return ShadowVolume(
+        vertices=verts,
+        triangles=tris,
+        n_side=int(side.shape[0]),
+        n_cap=int(near.shape[0] + far.shape[0]),
+        n_near_cap=int(near.shape[0]),
+        n_far_cap=int(far.shape[0]),
+        truncated=bool(truncated and truncate_z is not None),
+        truncate_z=None if truncate_z is None else float(truncate_z),
+        light_h=h,
+        two_sided=caster.two_sided,
+    )
+
+
+def near_plane_radius(znear: float, width: int, height: int, fx: float, fy: float, cx=None, cy=None) -> float:
+    """Distance from the eye to the farthest corner of the near-plane rectangle of a pinhole camera.
+
+    This is the ``near`` to pass to :func:`camera_may_be_in_shadow` (``znear`` alone is too small: the
+    near rectangle's corners lie farther out).
+
+    Examples
+    --------
+    >>> round(near_plane_radius(0.01, 640, 480, 500.0, 500.0), 6)
+    0.012806
+    """
+    cx = (width - 1) / 2.0 if cx is None else cx
+    cy = (height - 1) / 2.0 if cy is None else cy
+    du = max(abs(-0.5 - cx), abs(width - 0.5 - cx)) / fx
+    dv = max(abs(-0.5 - cy), abs(height - 0.5 - cy)) / fy
+    return float(znear * np.sqrt(1.0 + du * du + dv * dv))
+
+
+def camera_may_be_in_shadow(caster: ShadowCaster, light_h, eye_world, near: float) -> bool:
+    """Conservative test: could the camera's near-plane rectangle touch this caster's shadow volume?
+
+    ``False`` proves that every point within ``near`` of the eye is outside the (infinite) shadow
+    volume, so z-pass is safe; ``True`` means use z-fail. After Doom 3's
+    ``R_PotentiallyInsideInfiniteShadow``: a point X is in the volume only if the segment from X to the
+    light (the ray towards a directional light) meets the mesh, hence its bounding box; for any X within
+    ``near`` of the eye E, the segment from E to the light then meets the box grown by ``near`` (the two
+    segments stay within ``near`` of each other). So the test is: does the segment (ray) from the eye to
+    the light meet the bounding box grown by ``near`` (plus 1e-9 x mesh size)?
+
+    Parameters
+    ----------
+    caster : ShadowCaster
+    light_h : (4,) float64
+    eye_world : (3,) float64
+        Camera centre in the world frame.
+    near : float
+        Radius around the eye that contains the near-plane rectangle (:func:`near_plane_radius`).
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    >>> from arshadow.mesh import load_occluder
+    >>> box = load_occluder("box:1,1,1")
+    >>> camera_may_be_in_shadow(box, [0, 0, 10, 1], [0, 0, -5], 0.01)
+    True
+    >>> camera_may_be_in_shadow(box, [0, 0, 10, 1], [5, 0, 1], 0.01)
+    False
+    """
+    h = as_light_h(light_h)
+    e = np.asarray(eye_world, np.float64).reshape(3)
+    if not np.all(np.isfinite(e)) or not np.isfinite(near) or near < 0:
+        raise UsageError(f"camera_may_be_in_shadow: bad eye {e.tolist()} or near {near}")
+    grow = float(near) + 1e-9 * caster.scale + 1e-12 * float(np.max(np.abs(caster.bounds)))
+    lo = caster.bounds[0] - grow
+    hi = caster.bounds[1] + grow
+    if np.all(e >= lo) and np.all(e <= hi):
+        return True
+    if h[3] == 0.0:
+        d = h[:3]
+        t_max = np.inf
+    else:
+        d = h[:3] - e
+        t_max = 1.0
+    t_lo, t_hi = 0.0, t_max
+    for k in range(3):
+        if d[k] == 0.0:
+            if e[k] < lo[k] or e[k] > hi[k]:
+                return False
+            continue
+        t1 = (lo[k] - e[k]) / d[k]
+        t2 = (hi[k] - e[k]) / d[k]
+        if t1 > t2:
+            t1, t2 = t2, t1
+        t_lo = max(t_lo, t1)
+        t_hi = min(t_hi, t2)
+        if t_lo > t_hi:
+            return False
+    return True
