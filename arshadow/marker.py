@@ -37,6 +37,13 @@ __all__ = [
     "marker_object_points",
     "Board",
     "load_board",
+    "load_detector_params",
+    "make_detector_params",
+    "Detection",
+    "detect_markers",
+    "AltPose",
+    "MarkerPose",
+    "MarkerTracker",
 ]
 
 #: names accepted by :func:`get_dictionary` (case-insensitive, the ``DICT_`` prefix optional)
@@ -404,7 +411,7 @@ def load_board(path) -> Board:
         t = fs.getNode("type")
         if t.empty() or not t.isString():
             raise UsageError(f"{p}: board file needs 'type: gridboard' or 'type: charuco'")
-        kind = t.string().strip().lower()
+        kind = t.string().split(" #")[0].strip().lower()
         size_node = fs.getNode("size")
         if size_node.empty():
             raise UsageError(f"{p}: board file is missing 'size' ([columns, rows])")
@@ -416,6 +423,7 @@ def load_board(path) -> Board:
         sq = _fs_number(fs, "square_length", p, default=None if kind == "charuco" else 0.0)
         dnode = fs.getNode("dictionary")
         dictionary = dnode.string() if (not dnode.empty() and dnode.isString()) else "DICT_6X6_250"
+        dictionary = dictionary.split(" #")[0].strip()  # OpenCV keeps a same-line YAML comment in a string
         ids_node = fs.getNode("ids")
         ids = None if ids_node.empty() else tuple(_fs_int_list(ids_node, "ids", p))
         first_id = int(_fs_number(fs, "first_id", p, default=0))
@@ -427,3 +435,492 @@ def load_board(path) -> Board:
               source=str(p))
     b.cv_board  # noqa: B018 - build it now so that errors name the file
     return b
+
+
+# ---------------------------------------------------------------------------------------------------
+# detector parameters
+# ---------------------------------------------------------------------------------------------------
+def load_detector_params(path) -> cv2.aruco.DetectorParameters:
+    """Read ``cv2.aruco.DetectorParameters`` from a YAML/XML/JSON file (OpenCV's key names).
+
+    Raises
+    ------
+    UsageError
+        Missing or unreadable file.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise UsageError(f"{p}: no such detector parameter file")
+    try:
+        fs = cv2.FileStorage(str(p), cv2.FILE_STORAGE_READ)
+    except (cv2.error, SystemError):
+        raise UsageError(f"{p}: cannot parse detector parameter file") from None
+    try:
+        params = cv2.aruco.DetectorParameters()
+        try:
+            ok = params.readDetectorParameters(fs.root())
+        except cv2.error as exc:
+            raise UsageError(f"{p}: invalid detector parameters ({str(exc).strip().splitlines()[-1][:100]})") from None
+        if not ok:
+            raise UsageError(f"{p}: no detector parameters in this file")
+    finally:
+        fs.release()
+    return params
+
+
+def make_detector_params(refine=DEFAULT_REFINE, base=None) -> cv2.aruco.DetectorParameters:
+    """Detector parameters with the corner refinement ``refine`` (None keeps ``base``'s own).
+
+    ``base`` may be a ``DetectorParameters``, a parameter file path, or None (OpenCV's defaults).
+    Sub-pixel refinement stops at 0.01 px instead of OpenCV's 0.1 px (measured: see docs/tracking.md).
+    """
+    if base is None:
+        params = cv2.aruco.DetectorParameters()
+    elif isinstance(base, cv2.aruco.DetectorParameters):
+        params = _copy_params(base)
+    else:
+        params = load_detector_params(base)
+    if refine is not None:
+        key = str(refine).lower()
+        if key not in REFINE_METHODS:
+            raise UsageError(f"unknown corner refinement '{refine}' (use one of {', '.join(REFINE_METHODS)})")
+        params.cornerRefinementMethod = REFINE_METHODS[key]
+        if key == "subpix":
+            params.cornerRefinementMinAccuracy = 0.01
+            params.cornerRefinementMaxIterations = 50
+    return params
+
+
+def _copy_params(p: cv2.aruco.DetectorParameters) -> cv2.aruco.DetectorParameters:
+    q = cv2.aruco.DetectorParameters()
+    for name in dir(p):
+        if name.startswith("_"):
+            continue
+        try:
+            v = getattr(p, name)
+        except Exception:  # pragma: no cover
+            continue
+        if callable(v):
+            continue
+        try:
+            setattr(q, name, v)
+        except (AttributeError, TypeError):  # read-only
+            pass
+    return q
+
+
+# ---------------------------------------------------------------------------------------------------
+# detection
+# ---------------------------------------------------------------------------------------------------
+@dataclass
+class Detection:
+    """Markers found in one image.
+
+    Attributes
+    ----------
+    ids : (n,) int
+        Marker ids, in detection order (an id may repeat).
+    corners : (n, 4, 2) float64
+        Corner pixels TL, TR, BR, BL per marker.
+    n_rejected : int
+        Candidates that were not markers.
+    """
+
+    ids: np.ndarray
+    corners: np.ndarray
+    n_rejected: int = 0
+
+    def __len__(self):
+        return int(self.ids.size)
+
+    @property
+    def by_id(self) -> dict:
+        """id -> (4, 2) corners (the first detection of a repeated id)."""
+        out = {}
+        for i, c in zip(self.ids.tolist(), self.corners):
+            out.setdefault(int(i), c)
+        return out
+
+
+def _gray(image) -> np.ndarray:
+    img = np.asarray(image)
+    if img.ndim == 2 and img.dtype == np.uint8:
+        return img
+    if img.ndim == 3 and img.shape[2] == 3 and img.dtype == np.uint8:
+        return cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+    from .io import to_bgr8
+
+    return cv2.cvtColor(to_bgr8(img), cv2.COLOR_BGR2GRAY)
+
+
+def _detection(corners, ids, rejected) -> Detection:
+    if ids is None or len(ids) == 0:
+        return Detection(np.zeros(0, dtype=int), np.zeros((0, 4, 2)), len(rejected) if rejected is not None else 0)
+    c = np.asarray(corners, dtype=np.float64).reshape(-1, 4, 2)
+    return Detection(np.asarray(ids).ravel().astype(int), c, len(rejected) if rejected is not None else 0)
+
+
+def detect_markers(image, dictionary="DICT_6X6_250", params=None, refine=DEFAULT_REFINE) -> Detection:
+    """Detect every marker of ``dictionary`` in ``image``.
+
+    Parameters
+    ----------
+    image : (H, W, 3) uint8 BGR or (H, W) uint8
+    dictionary : str, Path or cv2.aruco.Dictionary
+    params : DetectorParameters or path, optional
+        Base detector parameters (OpenCV's defaults when None).
+    refine : str or None
+        Corner refinement (``none``, ``subpix``, ``contour``, ``apriltag``); None keeps ``params``'.
+
+    Returns
+    -------
+    Detection
+    """
+    det = cv2.aruco.ArucoDetector(get_dictionary(dictionary), make_detector_params(refine, params))
+    corners, ids, rejected = det.detectMarkers(_gray(image))
+    return _detection(corners, ids, rejected)
+
+
+# ---------------------------------------------------------------------------------------------------
+# pose
+# ---------------------------------------------------------------------------------------------------
+@dataclass
+class AltPose:
+    """The other IPPE solution (kept for sequences: the video layer may prefer it)."""
+
+    rvec: np.ndarray
+    tvec: np.ndarray
+    cam_from_world: np.ndarray
+    reprojection_error_px: float
+
+
+@dataclass
+class MarkerPose:
+    """Pose of the marker (or board) in one image.
+
+    Attributes
+    ----------
+    rvec, tvec : (3,) float64
+        World -> OpenCV camera (as ``cv2.solvePnP`` gives them).
+    cam_from_world : (4, 4) float64
+    marker_ids : list[int]
+        The reference marker first, then every other detected id (single marker), or the board's
+        detected ids.
+    reprojection_error_px : float
+        RMS distance between the detected and re-projected points, pixels.
+    pose_ambiguity : float or None
+        ``err_best / err_second`` of the two planar (IPPE) solutions, in (0, 1]; high = ambiguous
+        (flagged when >= :data:`AMBIGUITY_FLAG`). None when there is no second solution.
+    corners : (n, 2) float64
+        The detected image points used for the pose.
+    object_points : (n, 3) float64
+        Their world coordinates.
+    n_points : int
+    alternative : AltPose or None
+        The other IPPE solution.
+    chosen_by : str
+        ``"error"`` (lower reprojection error) or ``"previous"`` (closer to the previous frame's pose).
+    intrinsics : Intrinsics
+        The intrinsics used (scaled to the image when ``scaled``).
+    scaled : bool
+        The calibration was scaled to this image's size (same aspect ratio).
+    all_corners : dict[int, (4, 2)]
+        Every detected marker's corners.
+    """
+
+    rvec: np.ndarray
+    tvec: np.ndarray
+    cam_from_world: np.ndarray
+    marker_ids: list
+    reprojection_error_px: float
+    pose_ambiguity: float | None
+    corners: np.ndarray
+    object_points: np.ndarray
+    n_points: int
+    alternative: AltPose | None = None
+    chosen_by: str = "error"
+    intrinsics: Intrinsics | None = None
+    scaled: bool = False
+    all_corners: dict = field(default_factory=dict)
+    ambiguity_threshold: float = AMBIGUITY_FLAG
+    kind: str = "marker"
+
+    @property
+    def ambiguous(self) -> bool:
+        """True when the two IPPE solutions explain the corners almost equally well."""
+        return self.pose_ambiguity is not None and self.pose_ambiguity >= self.ambiguity_threshold
+
+    def swapped(self) -> MarkerPose:
+        """This pose with the alternative IPPE solution chosen instead (for sequences)."""
+        if self.alternative is None:
+            raise UsageError("this pose has no alternative solution")
+        a = self.alternative
+        alt = AltPose(self.rvec, self.tvec, self.cam_from_world, self.reprojection_error_px)
+        ratio = self.pose_ambiguity
+        return MarkerPose(a.rvec, a.tvec, a.cam_from_world, self.marker_ids, a.reprojection_error_px,
+                          ratio, self.corners, self.object_points, self.n_points, alt, "previous",
+                          self.intrinsics, self.scaled, self.all_corners, self.ambiguity_threshold, self.kind)
+
+    def report_fields(self) -> dict:
+        """The CONVENTIONS report keys this pose fills."""
+        return dict(marker_ids=[int(i) for i in self.marker_ids], rvec=self.rvec.tolist(), tvec=self.tvec.tolist(),
+                    reprojection_error_px=float(self.reprojection_error_px),
+                    pose_ambiguity=None if self.pose_ambiguity is None else float(self.pose_ambiguity))
+
+
+def _rms(intr: Intrinsics, obj, img, rvec, tvec) -> float:
+    proj = cv2.projectPoints(obj, rvec, tvec, intr.K, intr.dist_cv)[0].reshape(-1, 2)
+    return float(np.sqrt(np.mean(np.sum((proj - img) ** 2, axis=1))))
+
+
+def _solve_planar(intr: Intrinsics, obj, img, square: bool, lm: bool = True):
+    """Both planar (IPPE) solutions, sorted by RMS reprojection error, and their ambiguity ratio.
+
+    The ratio ``err_best / err_second`` is taken from the two IPPE solutions as IPPE returns them
+    (each is the exact pose of one of the two homography-consistent interpretations). Then each
+    solution is polished by Levenberg-Marquardt on the reprojection error (``lm``); a second solution
+    that LM drags onto the first is kept unrefined, so the alternative stays a distinct pose.
+
+    Returns
+    -------
+    sols : list of (rvec (3,), tvec (3,), rms_px)
+    ratio : float or None
+    """
+    flags = cv2.SOLVEPNP_IPPE_SQUARE if square else cv2.SOLVEPNP_IPPE
+    K, dist = intr.K, intr.dist_cv
+    obj = np.ascontiguousarray(obj, dtype=np.float64).reshape(-1, 3)
+    img = np.ascontiguousarray(img, dtype=np.float64).reshape(-1, 2)
+    try:
+        n, rvecs, tvecs, _ = cv2.solvePnPGeneric(obj, img, K, dist, flags=flags)
+    except cv2.error as exc:
+        raise MarkerNotFoundError(f"pose estimation failed ({str(exc).strip().splitlines()[-1][:80]})") from None
+    raw = []
+    for r, t in zip(rvecs[:n], tvecs[:n]):
+        r = np.asarray(r, np.float64).reshape(3, 1).copy()
+        t = np.asarray(t, np.float64).reshape(3, 1).copy()
+        raw.append((r, t, _rms(intr, obj, img, r, t)))
+    if not raw:
+        raise MarkerNotFoundError("pose estimation found no solution")
+    raw.sort(key=lambda s: s[2])
+    ratio = None
+    if len(raw) > 1:
+        e0, e1 = raw[0][2], raw[1][2]
+        ratio = 1.0 if e1 <= 0 else float(min(1.0, e0 / e1))
+    sols = []
+    crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 50, 1e-12)
+    for k, (r, t, e) in enumerate(raw[:2]):
+        if lm:
+            r2, t2 = cv2.solvePnPRefineLM(obj, img, K, dist, r.copy(), t.copy(), criteria=crit)
+            e2 = _rms(intr, obj, img, r2, t2)
+            collapsed = k > 0 and np.linalg.norm(r2.ravel() - sols[0][0]) < 1e-5
+            if e2 <= e and not collapsed:
+                r, t, e = r2, t2, e2
+        sols.append((r.ravel(), t.ravel(), e))
+    return sols, ratio
+
+
+class MarkerTracker:
+    """Detect a marker or board and estimate its pose.
+
+    Parameters
+    ----------
+    intrinsics : Intrinsics
+        The calibration (scaled automatically to a same-aspect image size).
+    dictionary : str, Path or cv2.aruco.Dictionary
+        Marker dictionary (single-marker mode; a board brings its own).
+    marker_length : float
+        Marker side in metres (single-marker mode).
+    marker_id : int, optional
+        The reference marker; default: the lowest id found.
+    board : Board or path, optional
+        A grid or ChArUco board (board file path accepted).
+    refine : str or None
+        Corner refinement (default :data:`DEFAULT_REFINE`, chosen by the benchmark); None keeps the
+        detector parameters' own setting.
+    detector_params : DetectorParameters or path, optional
+        Base detector parameters.
+    ambiguity_threshold : float
+        ``pose_ambiguity`` at or above which a pose is flagged.
+    pnp_refine : bool
+        Polish the IPPE pose with Levenberg-Marquardt (``cv2.solvePnPRefineLM``) on the reprojection
+        error (default; measured in docs/tracking.md).
+
+    Examples
+    --------
+    >>> from arshadow.synth import look_at_pose, render_marker_photo
+    >>> cam = Intrinsics(1000.0, 1000.0, 639.5, 359.5, 1280, 720)
+    >>> photo = render_marker_photo(cam, look_at_pose([0.1, -0.2, 0.4], [0, 0, 0]), marker_length=0.05)
+    >>> pose = MarkerTracker(cam, marker_length=0.05).estimate(photo.image)
+    >>> pose.marker_ids, bool(np.allclose(pose.tvec, photo.cam_from_world[:3, 3], atol=2e-3))
+    ([0], True)
+    """
+
+    def __init__(self, intrinsics: Intrinsics, dictionary="DICT_6X6_250", marker_length=None, marker_id=None,
+                 board=None, refine=DEFAULT_REFINE, detector_params=None, ambiguity_threshold=AMBIGUITY_FLAG,
+                 pnp_refine=True):
+        if not isinstance(intrinsics, Intrinsics):
+            raise UsageError("intrinsics must be an arshadow.camera.Intrinsics")
+        self.intrinsics = intrinsics
+        if board is not None and not isinstance(board, Board):
+            board = load_board(board)
+        self.board = board
+        if board is None:
+            if marker_length is None:
+                raise UsageError("give the marker side length (marker_length, metres) or a board")
+            ml = float(marker_length)
+            if not (math.isfinite(ml) and ml > 0):
+                raise UsageError(f"marker length must be a positive number of metres, got {marker_length}")
+            self.marker_length = ml
+            self.dictionary = get_dictionary(dictionary)
+            self.dictionary_name = dictionary_label(dictionary)
+        else:
+            if marker_length is not None and abs(float(marker_length) - board.marker_length) > 1e-9:
+                raise UsageError("marker_length conflicts with the board file's marker_length")
+            self.marker_length = board.marker_length
+            self.dictionary = board.cv_dictionary
+            self.dictionary_name = f"the board's dictionary ({dictionary_label(board.dictionary)})"
+        if marker_id is not None:
+            marker_id = int(marker_id)
+            if not 0 <= marker_id < len(self.dictionary.bytesList):
+                raise UsageError(f"marker id {marker_id} is not in {self.dictionary_name} "
+                                 f"(ids 0..{len(self.dictionary.bytesList) - 1})")
+        self.marker_id = marker_id
+        self.refine = refine
+        self.pnp_refine = bool(pnp_refine)
+        self.params = make_detector_params(refine, detector_params)
+        self.ambiguity_threshold = float(ambiguity_threshold)
+        self._detector = cv2.aruco.ArucoDetector(self.dictionary, self.params)
+        self._charuco = None
+        if board is not None and board.kind == "charuco":
+            cp = cv2.aruco.CharucoParameters()
+            cp.minMarkers = 1
+            self._charuco_params = cp
+        self._charuco_for = None
+
+    # -- helpers ---------------------------------------------------------------------------------------
+    def _intrinsics_for(self, image) -> tuple[Intrinsics, bool]:
+        h, w = np.asarray(image).shape[:2]
+        return self.intrinsics.for_image(w, h)
+
+    def _charuco_detector(self, intr: Intrinsics):
+        if self._charuco_for != intr:
+            cp = self._charuco_params
+            cp.cameraMatrix = intr.K
+            cp.distCoeffs = intr.dist_cv
+            self._charuco = cv2.aruco.CharucoDetector(self.board.cv_board, cp, self.params)
+            self._charuco_for = intr
+        return self._charuco
+
+    def detect(self, image) -> Detection:
+        """Detect the markers of this tracker's dictionary (no pose)."""
+        corners, ids, rejected = self._detector.detectMarkers(_gray(image))
+        return _detection(corners, ids, rejected)
+
+    # -- pose ------------------------------------------------------------------------------------------
+    def estimate(self, image_bgr, previous=None) -> MarkerPose:
+        """Detect and estimate the pose in one image.
+
+        Parameters
+        ----------
+        image_bgr : (H, W, 3) uint8
+            The photo (its size must match the calibration or have the same aspect ratio).
+        previous : MarkerPose or (4, 4) float64, optional
+            The previous frame's pose. When this frame's pose is ambiguous, the IPPE solution whose
+            rotation is closer to ``previous`` is chosen (``chosen_by = "previous"``).
+
+        Raises
+        ------
+        MarkerNotFoundError
+            No marker (or not the requested id, or too few board points).
+        CalibrationError
+            The image size does not fit the calibration.
+        """
+        img = np.asarray(image_bgr)
+        if img.ndim not in (2, 3) or img.size == 0:
+            from .errors import ImageError
+
+            raise ImageError(f"not an image (shape {img.shape})")
+        intr, scaled = self._intrinsics_for(img)
+        gray = _gray(img)
+        if self.board is None:
+            pose = self._estimate_marker(gray, intr)
+        elif self.board.kind == "charuco":
+            pose = self._estimate_charuco(gray, intr)
+        else:
+            pose = self._estimate_gridboard(gray, intr)
+        pose.intrinsics, pose.scaled = intr, scaled
+        pose.ambiguity_threshold = self.ambiguity_threshold
+        if previous is not None and pose.alternative is not None and pose.ambiguous:
+            prev = previous.cam_from_world if isinstance(previous, MarkerPose) else np.asarray(previous, float)
+            from .transforms import rotation_error_deg
+
+            if rotation_error_deg(pose.alternative.cam_from_world[:3, :3], prev[:3, :3]) < \
+                    rotation_error_deg(pose.cam_from_world[:3, :3], prev[:3, :3]):
+                pose = pose.swapped()
+        return pose
+
+    def _make_pose(self, solved, obj, img, ids, all_corners, kind):
+        sols, ratio = solved
+        r, t, e = sols[0]
+        alt = None
+        if len(sols) > 1:
+            r2, t2, e2 = sols[1]
+            alt = AltPose(r2, t2, matrix_from_rvec_tvec(r2, t2), e2)
+        return MarkerPose(r, t, matrix_from_rvec_tvec(r, t), [int(i) for i in ids], e, ratio,
+                          np.asarray(img, np.float64).reshape(-1, 2), np.asarray(obj, np.float64).reshape(-1, 3),
+                          int(len(obj)), alt, "error", None, False, all_corners, self.ambiguity_threshold, kind)
+
+    def _estimate_marker(self, gray, intr) -> MarkerPose:
+        corners, ids, rejected = self._detector.detectMarkers(gray)
+        det = _detection(corners, ids, rejected)
+        if len(det) == 0:
+            raise MarkerNotFoundError(f"no marker of {self.dictionary_name} found")
+        found = sorted(set(det.ids.tolist()))
+        if self.marker_id is not None:
+            if self.marker_id not in found:
+                raise MarkerNotFoundError(
+                    f"marker id {self.marker_id} not found (found {', '.join(map(str, found))})")
+            ref = self.marker_id
+        else:
+            ref = found[0]
+        by_id = det.by_id
+        img = by_id[ref]
+        obj = marker_object_points(self.marker_length)
+        sols = _solve_planar(intr, obj, img, square=True, lm=self.pnp_refine)
+        ids = [ref] + [i for i in found if i != ref]
+        return self._make_pose(sols, obj, img, ids, by_id, "marker")
+
+    def _estimate_gridboard(self, gray, intr) -> MarkerPose:
+        corners, ids, rejected = self._detector.detectMarkers(gray)
+        if ids is None or len(ids) == 0:
+            raise MarkerNotFoundError(f"no marker of {self.dictionary_name} found")
+        corners, ids, rejected, _ = self._detector.refineDetectedMarkers(
+            gray, self.board.cv_board, corners, ids, rejected, intr.K, intr.dist_cv)
+        det = _detection(corners, ids, rejected)
+        obj, img = self.board.cv_board.matchImagePoints(corners, ids)
+        if obj is None or len(obj) < 4:
+            raise MarkerNotFoundError(
+                f"none of the board's markers found (found ids {', '.join(map(str, sorted(set(det.ids.tolist()))))})")
+        obj = np.asarray(obj, np.float64).reshape(-1, 3) @ OPENCV_BOARD_TO_WORLD.T
+        img = np.asarray(img, np.float64).reshape(-1, 2)
+        sols = _solve_planar(intr, obj, img, square=False, lm=self.pnp_refine)
+        board_ids = set(self.board.marker_ids)
+        used = [i for i in sorted(set(det.ids.tolist())) if i in board_ids]
+        return self._make_pose(sols, obj, img, used, det.by_id, "gridboard")
+
+    def _estimate_charuco(self, gray, intr) -> MarkerPose:
+        det = self._charuco_detector(intr)
+        ch_corners, ch_ids, m_corners, m_ids = det.detectBoard(gray)
+        if m_ids is None or len(m_ids) == 0:
+            raise MarkerNotFoundError(f"no marker of {self.dictionary_name} found")
+        n = 0 if ch_ids is None else len(ch_ids)
+        if n < 4:
+            raise MarkerNotFoundError(f"ChArUco board: only {n} chessboard corners found (need at least 4)")
+        if self.board.cv_board.checkCharucoCornersCollinear(ch_ids):
+            raise MarkerNotFoundError("ChArUco board: the detected corners are collinear (no pose)")
+        obj, img = self.board.cv_board.matchImagePoints(ch_corners, ch_ids)
+        obj = np.asarray(obj, np.float64).reshape(-1, 3) @ OPENCV_BOARD_TO_WORLD.T
+        img = np.asarray(img, np.float64).reshape(-1, 2)
+        sols = _solve_planar(intr, obj, img, square=False, lm=self.pnp_refine)
+        mdet = _detection(m_corners, m_ids, None)
+        return self._make_pose(sols, obj, img, sorted(set(mdet.ids.tolist())), mdet.by_id, "charuco")

@@ -1,0 +1,155 @@
+"""Benchmark: detection + pose run time against pose error, per corner refinement method and resolution.
+
+Run (prints a JSON document and a markdown table; takes a few minutes):
+
+    python tests/benchmarks/bench_tracking.py [--poses 60] [--repeat 5] [--json out.json]
+
+or through pytest: ``pytest -m slow tests/benchmarks/bench_tracking.py -s``.
+
+Photos come from :func:`arshadow.synth.render_marker_photo` with the acceptance conditions of issue 2
+(marker 5-10 % of the image width, 0.3-0.8 m, tilt 0-70 deg, noise sigma 2, blur sigma 0.6, JPEG 90);
+the same poses are used for every method at a resolution. The error is against the generating pose.
+Times are the median (and IQR) over ``repeat`` timed runs per photo after one warm-up, summed per
+method as the per-photo median; the machine is shared, so compare methods within one run only.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from arshadow import __version__
+from arshadow.camera import Intrinsics
+from arshadow.errors import MarkerNotFoundError
+from arshadow.marker import REFINE_METHODS, MarkerTracker, marker_object_points
+from arshadow.synth import random_pose, render_marker_photo
+from arshadow.transforms import rotation_error_deg
+
+ROOT = Path(__file__).resolve().parents[2]
+RESOLUTIONS = ((640, 480), (1280, 720), (1920, 1080))
+DIST = np.array([-0.045, 0.021, 0.0004, -0.0003, -0.006])
+
+
+def camera(w, h) -> Intrinsics:
+    """A camera with the horizontal field of view of calib/synth_1280x720.yml (f = 0.78 W)."""
+    f = 1000.0 * w / 1280.0
+    return Intrinsics(f, f, w / 2.0 + 1.3 * w / 1280, h / 2.0 - 1.8 * w / 1280, w, h, DIST)
+
+
+def make_photos(cam: Intrinsics, n: int, seed: int):
+    rng = np.random.default_rng(seed)
+    photos = []
+    for i in range(n):
+        d = rng.uniform(0.3, 0.8)
+        frac = rng.uniform(0.05, 0.10)
+        L = frac * cam.width * d / cam.fx
+        pose = random_pose(rng, cam, distance=(d, d), tilt_deg=(0, 70), keep_in_view=marker_object_points(1.6 * L))
+        photos.append(render_marker_photo(cam, pose, marker_length=L, marker_id=int(rng.integers(250)),
+                                          noise_sigma=2.0, blur_sigma=0.6, jpeg_quality=90, seed=seed * 1000 + i))
+    return photos
+
+
+def run_method(photos, cam, refine, repeat, pnp_refine=True):
+    times, rot, trans, flagged, wrong_unflagged, found = [], [], [], 0, 0, 0
+    for ph in photos:
+        tracker = MarkerTracker(cam, marker_length=ph.marker_length, marker_id=ph.marker_id, refine=refine,
+                                pnp_refine=pnp_refine)
+        try:
+            pose = tracker.estimate(ph.image)  # warm-up, and the result
+        except MarkerNotFoundError:
+            continue
+        t = []
+        for _ in range(repeat):
+            t0 = time.perf_counter()
+            tracker.estimate(ph.image)
+            t.append(time.perf_counter() - t0)
+        times.append(np.median(t))
+        found += 1
+        r = rotation_error_deg(pose.cam_from_world[:3, :3], ph.cam_from_world[:3, :3])
+        rot.append(r)
+        trans.append(np.linalg.norm(pose.tvec - ph.cam_from_world[:3, 3]) / ph.distance)
+        flagged += pose.ambiguous
+        wrong_unflagged += (r > 5.0) and not pose.ambiguous
+    times, rot, trans = np.array(times) * 1e3, np.array(rot), np.array(trans) * 100
+    q = lambda a, p: float(np.percentile(a, p)) if a.size else None  # noqa: E731
+    return dict(
+        refine=refine, pnp_refine=pnp_refine, n=len(photos), detected=found,
+        time_ms_median=q(times, 50), time_ms_iqr=[q(times, 25), q(times, 75)],
+        rot_deg_median=q(rot, 50), rot_deg_p95=q(rot, 95), rot_deg_max=float(rot.max()) if rot.size else None,
+        trans_pct_median=q(trans, 50), trans_pct_p95=q(trans, 95),
+        n_rot_over_5deg=int((rot > 5).sum()), n_flagged=int(flagged), n_wrong_unflagged=int(wrong_unflagged),
+    )
+
+
+def metadata():
+    try:
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
+                                text=True).stdout.strip()
+    except OSError:  # pragma: no cover
+        commit = None
+    return dict(git_commit=commit, arshadow=__version__, opencv=cv2.__version__, numpy=np.__version__,
+                python=platform.python_version(), machine=platform.machine(), cpus=cv2.getNumberOfCPUs(),
+                threads=cv2.getNumThreads())
+
+
+def run(poses=60, repeat=5, resolutions=RESOLUTIONS, methods=tuple(REFINE_METHODS)):
+    rows = []
+    for w, h in resolutions:
+        cam = camera(w, h)
+        photos = make_photos(cam, poses, seed=w)
+        for m in methods:
+            rows.append(dict(resolution=f"{w}x{h}", **run_method(photos, cam, m, repeat)))
+            print(json.dumps(rows[-1]), file=sys.stderr, flush=True)
+        # the pose polish (LM) measured too, with the default refinement
+        rows.append(dict(resolution=f"{w}x{h}", **run_method(photos, cam, "subpix", repeat, pnp_refine=False)))
+        print(json.dumps(rows[-1]), file=sys.stderr, flush=True)
+    return dict(benchmark="tracking: detection + pose time vs pose error", metadata=metadata(),
+                conditions=dict(poses_per_resolution=poses, repeat=repeat, marker_width_frac=[0.05, 0.10],
+                                distance_m=[0.3, 0.8], tilt_deg=[0, 70], noise_sigma=2, blur_sigma=0.6,
+                                jpeg_quality=90), rows=rows)
+
+
+def table(result) -> str:
+    lines = ["| resolution | refinement | LM | detected | time ms median [IQR] | rot deg median / p95 / max "
+             "| trans % median | >5 deg (unflagged) |",
+             "|---|---|---|---|---|---|---|---|"]
+    for r in result["rows"]:
+        lines.append(
+            f"| {r['resolution']} | {r['refine']} | {'yes' if r['pnp_refine'] else 'no'} | {r['detected']}/{r['n']} "
+            f"| {r['time_ms_median']:.1f} [{r['time_ms_iqr'][0]:.1f}, {r['time_ms_iqr'][1]:.1f}] "
+            f"| {r['rot_deg_median']:.3f} / {r['rot_deg_p95']:.2f} / {r['rot_deg_max']:.2f} "
+            f"| {r['trans_pct_median']:.3f} | {r['n_rot_over_5deg']} ({r['n_wrong_unflagged']}) |")
+    return "\n".join(lines)
+
+
+@pytest.mark.slow
+def test_bench_tracking():
+    res = run(poses=30, repeat=3)
+    print(table(res))
+    assert all(r["detected"] > 0 for r in res["rows"])
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--poses", type=int, default=60)
+    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--json", type=Path, help="also write the JSON here")
+    args = ap.parse_args(argv)
+    res = run(args.poses, args.repeat)
+    print(json.dumps(res, indent=1))
+    print(table(res))
+    if args.json:
+        args.json.write_text(json.dumps(res, indent=1))
+
+
+if __name__ == "__main__":
+    main()
