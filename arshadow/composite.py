@@ -78,13 +78,20 @@ def srgb8_to_linear(img: np.ndarray) -> np.ndarray:
     return SRGB_TO_LINEAR[img]
 
 
-def linear_to_srgb8(lin: np.ndarray) -> np.ndarray:
-    """float linear values (any shape, clipped to [0, 1]) -> uint8 sRGB codes (table lookup)."""
+def linear_to_srgb8(lin: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """float linear values (any shape, clipped to [0, 1]) -> uint8 sRGB codes (table lookup).
+
+    ``lin`` is not modified; ``out`` (uint8, same shape) receives the result if given.
+    """
     lin = np.asarray(lin, dtype=np.float32)
     idx = np.multiply(lin.reshape(lin.shape or (1,)), np.float32(65535.0))
-    np.add(idx, np.float32(0.5), out=idx)
+    idx += np.float32(0.5)
     np.clip(idx, 0.0, 65535.0, out=idx)
-    return LINEAR_TO_SRGB16[idx.astype(np.uint16)].reshape(lin.shape)
+    res = np.take(LINEAR_TO_SRGB16, idx.astype(np.uint16))
+    if out is not None:
+        out[...] = res.reshape(out.shape)
+        return out
+    return res.reshape(lin.shape)
 
 
 def parse_rgb(spec, name: str = "colour") -> tuple[float, float, float]:
@@ -181,19 +188,34 @@ def composite(
     if (color is None) != (alpha is None):
         raise UsageError("color and alpha go together")
 
+    import cv2
+
     region = out[y0 : y0 + h, x0 : x0 + w]
-    lin = srgb8_to_linear(photo[y0 : y0 + h, x0 : x0 + w])  # (h, w, 3) float32 BGR
+    lin = srgb8_to_linear(photo[y0 : y0 + h, x0 : x0 + w])  # (h, w, 3) float32 BGR, a new array
+    # per-pixel multiplier of the photo's light: (1 - opacity * mask * (1 - tint)) * (1 - alpha)
+    gray = bool(sc[0] == sc[1] == sc[2])
+    g = None  # (h, w) float32, single-channel multiplier when the tint is grey
     if mask is not None and opacity > 0.0:
-        dark = (np.float32(opacity) * (1.0 - sc[::-1])).astype(np.float32)  # BGR
         m = np.asarray(mask, dtype=np.float32)
-        # lin *= 1 - m * dark   (per channel)
-        factor = m[:, :, None] * (-dark)
-        factor += np.float32(1.0)
-        lin *= factor
+        if gray:
+            g = m * np.float32(-opacity * (1.0 - sc[0]))
+            g += np.float32(1.0)
+        else:
+            dark = (np.float32(opacity) * (1.0 - sc[::-1])).astype(np.float32)  # BGR
+            factor = m[:, :, None] * (-dark)
+            factor += np.float32(1.0)
+            lin *= factor
     if alpha is not None:
-        a = np.asarray(alpha, dtype=np.float32)[:, :, None]
-        c = np.asarray(color, dtype=np.float32)[:, :, ::-1]  # RGB -> BGR
-        lin *= np.float32(1.0) - a
-        lin += c if premultiplied else c * a
-    region[...] = linear_to_srgb8(lin)
+        a = np.asarray(alpha, dtype=np.float32)
+        keep = np.float32(1.0) - a
+        g = keep if g is None else cv2.multiply(g, keep)
+    if g is not None:
+        lin *= g[:, :, None]
+    if alpha is not None:
+        c = np.ascontiguousarray(color, dtype=np.float32)
+        c = cv2.cvtColor(c, cv2.COLOR_RGB2BGR)  # a new array
+        if not premultiplied:
+            c *= a[:, :, None]
+        lin += c
+    linear_to_srgb8(lin, out=region)
     return out

@@ -33,34 +33,41 @@ __all__ = ["LensWarp", "undistort_map"]
 INVALID = -1.0e6
 
 
-def undistort_map(intrinsics) -> tuple[np.ndarray, np.ndarray]:
-    """Pinhole pixel coordinates of every distorted pixel centre of the image.
+def _undistort_grid(intrinsics, us, vs) -> tuple[np.ndarray, np.ndarray]:
+    """Pinhole coordinates of the distorted pixel centres ``us x vs`` (float64, INVALID where none)."""
+    uu, vv = np.meshgrid(np.asarray(us, np.float64), np.asarray(vs, np.float64))
+    uv = np.column_stack([uu.ravel(), vv.ravel()])
+    und = np.asarray(intrinsics.undistort_pixels(uv), dtype=np.float64).reshape(len(vs), len(us), 2)
+    bad = ~np.all(np.isfinite(und), axis=2)
+    und[bad] = INVALID
+    return und[:, :, 0], und[:, :, 1]
+
+
+def undistort_map(intrinsics, roi=None) -> tuple[np.ndarray, np.ndarray]:
+    """Pinhole pixel coordinates of every distorted pixel centre of the image (or of ``roi``).
 
     Parameters
     ----------
     intrinsics : arshadow.camera.Intrinsics
         Calibration with image size ``width`` x ``height`` and distortion.
+    roi : (x0, y0, w, h), optional
+        Only these pixels (default the whole image).
 
     Returns
     -------
-    map_x, map_y : (height, width) float32
-        ``(map_x[v, u], map_y[v, u])`` is the pinhole pixel that distorted pixel ``(u, v)`` sees;
-        :data:`INVALID` where the distortion cannot be inverted.
+    map_x, map_y : (h, w) float32
+        ``(map_x[v, u], map_y[v, u])`` is the pinhole pixel that distorted pixel ``(x0 + u, y0 + v)``
+        sees; :data:`INVALID` where the distortion cannot be inverted.
     """
-    W, H = int(intrinsics.width), int(intrinsics.height)
-    maps_x = np.empty((H, W), np.float32)
-    maps_y = np.empty((H, W), np.float32)
-    us = np.arange(W, dtype=np.float64)
-    rows = max(1, 262144 // max(W, 1))  # chunks of ~256k points keep memory small
-    for v0 in range(0, H, rows):
-        v1 = min(H, v0 + rows)
-        uu, vv = np.meshgrid(us, np.arange(v0, v1, dtype=np.float64))
-        uv = np.column_stack([uu.ravel(), vv.ravel()])
-        und = np.asarray(intrinsics.undistort_pixels(uv), dtype=np.float64).reshape(v1 - v0, W, 2)
-        bad = ~np.all(np.isfinite(und), axis=2)
-        und[bad] = INVALID
-        maps_x[v0:v1] = und[:, :, 0]
-        maps_y[v0:v1] = und[:, :, 1]
+    x0, y0, w, h = (0, 0, int(intrinsics.width), int(intrinsics.height)) if roi is None else roi
+    maps_x = np.empty((h, w), np.float32)
+    maps_y = np.empty((h, w), np.float32)
+    rows = max(1, 262144 // max(w, 1))  # chunks of ~256k points keep memory small
+    for r0 in range(0, h, rows):
+        r1 = min(h, r0 + rows)
+        mx, my = _undistort_grid(intrinsics, np.arange(x0, x0 + w), np.arange(y0 + r0, y0 + r1))
+        maps_x[r0:r1] = mx
+        maps_y[r0:r1] = my
     return maps_x, maps_y
 
 
@@ -76,25 +83,52 @@ class LensWarp:
 
     Notes
     -----
-    Building the map costs one :meth:`~Intrinsics.undistort_pixels` call over every pixel (once);
-    every later call is a slice of it.
+    The full-resolution map is filled lazily in 64 x 64 tiles: a frame pays for
+    :meth:`~Intrinsics.undistort_pixels` only on the tiles its ROI touches for the first time; later frames
+    slice the cached map. The ROI search uses a coarse grid (every ``stride`` pixels) computed once.
     """
+
+    #: side of the square tiles in which the full-resolution map is computed on first use
+    TILE = 64
 
     def __init__(self, intrinsics, stride: int = 8):
         self.intrinsics = intrinsics
         self.width, self.height = int(intrinsics.width), int(intrinsics.height)
         self.stride = int(stride)
+        T = self.TILE
+        self._mx = np.full((self.height, self.width), INVALID, np.float32)
+        self._my = np.full((self.height, self.width), INVALID, np.float32)
+        self._done = np.zeros(((self.height + T - 1) // T, (self.width + T - 1) // T), bool)
 
-    @cached_property
+    def _ensure(self, roi) -> None:
+        """Compute the map's tiles that ``roi`` touches (each tile once per calibration)."""
+        x0, y0, w, h = roi
+        if w <= 0 or h <= 0:
+            return
+        T = self.TILE
+        r0, r1 = y0 // T, (y0 + h - 1) // T + 1
+        c0, c1 = x0 // T, (x0 + w - 1) // T + 1
+        todo = ~self._done[r0:r1, c0:c1]
+        if not np.any(todo):
+            return
+        # compute whole rows of missing tiles at once (one vectorised call per tile row)
+        for r in range(r0, r1):
+            cols = np.flatnonzero(todo[r - r0]) + c0
+            if cols.size == 0:
+                continue
+            a, b = int(cols[0]), int(cols[-1]) + 1
+            ys = slice(r * T, min(self.height, (r + 1) * T))
+            xs = slice(a * T, min(self.width, b * T))
+            mx, my = undistort_map(self.intrinsics, (xs.start, ys.start, xs.stop - xs.start, ys.stop - ys.start))
+            self._mx[ys, xs] = mx
+            self._my[ys, xs] = my
+            self._done[r, a:b] = True
+
+    @property
     def maps(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(map_x, map_y)`` (H, W) float32, read-only: see :func:`undistort_map`."""
-        mx, my = undistort_map(self.intrinsics)
-        valid = mx > INVALID / 2
-        if not np.any(valid):
-            raise CalibrationError("the distortion coefficients cannot be inverted anywhere in the image")
-        mx.flags.writeable = False
-        my.flags.writeable = False
-        return mx, my
+        """``(map_x, map_y)`` (H, W) float32 for the whole image (computes every missing tile)."""
+        self._ensure((0, 0, self.width, self.height))
+        return self._mx, self._my
 
     @cached_property
     def _cells(self):
@@ -105,12 +139,13 @@ class LensWarp:
         the map's curvature bound; cells touching invalid nodes get the Lipschitz bound times the cell
         size).
         """
-        mx, my = self.maps
         s = self.stride
         cols = np.unique(np.r_[np.arange(0, self.width, s), self.width - 1])
         rows = np.unique(np.r_[np.arange(0, self.height, s), self.height - 1])
-        cx, cy = mx[np.ix_(rows, cols)].astype(np.float64), my[np.ix_(rows, cols)].astype(np.float64)
+        cx, cy = _undistort_grid(self.intrinsics, cols, rows)
         valid = cx > INVALID / 2
+        if not np.any(valid):
+            raise CalibrationError("the distortion coefficients cannot be inverted anywhere in the image")
         corners = lambda a: np.stack([a[:-1, :-1], a[:-1, 1:], a[1:, :-1], a[1:, 1:]])  # noqa: E731
         vc = corners(valid)
         big = np.inf
@@ -143,10 +178,11 @@ class LensWarp:
 
     @cached_property
     def pinhole_extent(self) -> tuple[float, float, float, float]:
-        """``(u0, v0, u1, v1)``: bounding box of the pinhole pixels the whole distorted image sees."""
-        mx, my = self.maps
-        valid = mx > INVALID / 2
-        return (float(mx[valid].min()), float(my[valid].min()), float(mx[valid].max()), float(my[valid].max()))
+        """``(u0, v0, u1, v1)``: bounding box of the pinhole pixels the whole distorted image sees (from the
+        coarse cells, grown by their slack: conservative)."""
+        _, _, lo_u, lo_v, hi_u, hi_v = self._cells
+        ok = np.isfinite(lo_u)
+        return (float(lo_u[ok].min()), float(lo_v[ok].min()), float(hi_u[ok].max()), float(hi_v[ok].max()))
 
     def distorted_roi(self, pinhole_rect, margin: int = 1) -> tuple[int, int, int, int]:
         """The photo ROI ``(x0, y0, w, h)`` holding every distorted pixel whose pinhole point is in the rect.
@@ -185,10 +221,12 @@ class LensWarp:
             Where content can be at all; the canvas is clipped to it (grown by 2 px).
         """
         x0, y0, w, h = roi
-        mx, my = self.maps
-        sx, sy = mx[y0 : y0 + h, x0 : x0 + w], my[y0 : y0 + h, x0 : x0 + w]
+        if w == 0 or h == 0:
+            return (0, 0, 0, 0)
+        self._ensure(roi)
+        sx, sy = self._mx[y0 : y0 + h, x0 : x0 + w], self._my[y0 : y0 + h, x0 : x0 + w]
         valid = sx > INVALID / 2
-        if w == 0 or h == 0 or not np.any(valid):
+        if not np.any(valid):
             return (0, 0, 0, 0)
         if np.all(valid):
             a0, a1, b0, b1 = float(sx.min()), float(sx.max()), float(sy.min()), float(sy.max())
@@ -227,7 +265,8 @@ class LensWarp:
 
         x0, y0, w, h = roi
         u0, v0 = canvas[0], canvas[1]
-        mx, my = self.maps
+        self._ensure(roi)
+        mx, my = self._mx, self._my
         map_x = mx[y0 : y0 + h, x0 : x0 + w] - np.float32(u0)
         map_y = my[y0 : y0 + h, x0 : x0 + w] - np.float32(v0)
         m1, m2 = cv2.convertMaps(map_x, map_y, cv2.CV_16SC2)

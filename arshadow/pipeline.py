@@ -512,7 +512,7 @@ class Compositor:
 
         # 6. composite
         t = time.perf_counter()
-        composite(image, mask, roi, color=color if opts.draw_occluder else None,
+        composite(out, mask, roi, color=color if opts.draw_occluder else None,
                   alpha=alpha if opts.draw_occluder else None, opacity=opts.opacity,
                   shadow_color=opts.shadow_color, premultiplied=getattr(res, "premultiplied", True), out=out)
         if want_mask:

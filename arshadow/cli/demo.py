@@ -1,0 +1,145 @@
+"""``arshadow demo``: render the bundled sample photos and write a contact sheet."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from . import EXIT_OK, EXIT_SOME_FAILED
+
+THUMB_W, THUMB_H, BAR = 640, 360, 30
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "demo", help="render the bundled sample photos and write a contact sheet",
+        description="Composite the sample meshes (including the 8 536-face knot) with their shadows into the "
+                    "synthetic sample photos of samples/ (point, directional, two lights, a soft sun, strong "
+                    "lens distortion), write the results, their shadow masks, a JSON report and "
+                    "contact_sheet.png into DIR.")
+    p.add_argument("-o", "--output", default="demo_out", metavar="DIR", help="output folder (default demo_out)")
+    p.add_argument("--samples", metavar="DIR",
+                   help="samples folder with scenes.json (default: the repository's samples/)")
+    p.add_argument("--aa", type=int, default=4, metavar="N", help="MSAA samples (default 4)")
+    p.add_argument("--quiet", "-q", action="store_true", help="no per-image lines")
+    p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show tracebacks")
+    p.set_defaults(func=run)
+
+
+def find_samples(explicit=None) -> Path:
+    """The samples folder: ``explicit``, else the repository's ``samples/`` (beside the package), else
+    ``./samples``."""
+    from ..errors import UsageError
+
+    cands = [Path(explicit)] if explicit else [Path(__file__).resolve().parents[2] / "samples", Path("samples")]
+    for c in cands:
+        if (c / "scenes.json").is_file():
+            return c
+    raise UsageError(f"no samples found ({', '.join(str(c / 'scenes.json') for c in cands)} missing); "
+                     "run from the repository root or pass --samples DIR")
+
+
+def run(args) -> int:
+    from ..camera import Intrinsics
+    from ..composite import parse_rgb
+    from ..errors import ArshadowError
+    from ..gl.context import create_context
+    from ..gl.renderer import ShadowRenderer
+    from ..io import read_image, write_image, write_json
+    from ..lights import parse_light
+    from ..mesh import load_occluder
+    from ..pipeline import Compositor, RenderOptions
+    from ..report import make_report
+    from .render import quiet_opencv
+
+    debug = bool(getattr(args, "debug", False))
+    quiet_opencv(debug)
+    samples = find_samples(args.samples)
+    root = samples.parent
+    scenes = json.loads((samples / "scenes.json").read_text())["scenes"]
+    outdir = Path(args.output)
+    ctx = create_context()
+    items, panels, failed = [], [], 0
+    try:
+        with ShadowRenderer(ctx, samples=int(args.aa)) as renderer:
+            for sc in scenes:
+                photo_path = samples / sc["photo"]
+                stem = Path(sc["photo"]).stem
+                try:
+                    intr = Intrinsics.from_file(_resolve(root, sc["calib"]))
+                    model = sc["model"] if ":" in sc["model"] else str(_resolve(root, sc["model"]))
+                    color = None
+                    if sc.get("color"):
+                        parse_rgb(sc["color"], "color")
+                        color = tuple(float(v) / 255.0 for v in sc["color"].split(","))
+                    caster = load_occluder(model, scale=sc.get("scale", 1.0), rotate=sc.get("rotate", (0, 0, 0)),
+                                           place=sc.get("place", (0, 0, 0)), color=color)
+                    lights = [parse_light(s) for s in sc["lights"]]
+                    opts = RenderOptions(soft_samples=int(sc.get("soft_samples", 1)), aa=int(args.aa))
+                    tracker = {"marker_length": sc["marker_length"], "dictionary": sc.get("dictionary", "DICT_6X6_250"),
+                               "marker_id": sc.get("marker_id")}
+                    image = read_image(photo_path)
+                    comp = Compositor(ctx, intr, caster, lights, opts, tracker=tracker, renderer=renderer)
+                    out, mask, item = comp.process(image, name=str(photo_path))
+                    item.output = str(write_image(outdir / f"{stem}.png", out))
+                    item.mask = str(write_image(outdir / f"{stem}.shadow.png", mask))
+                    item.extra["title"] = sc.get("title", stem)
+                    items.append(item)
+                    caption = f"{sc.get('title', stem)}  |  {item.mode}, {item.silhouette_edges} silhouette edges"
+                    panels.append(_panel(out, caption))
+                    if not args.quiet:
+                        print(f"{photo_path.name} -> {outdir / (stem + '.png')}  ({item.mode}, "
+                              f"{item.timings_ms['total']:.1f} ms)")
+                except ArshadowError as exc:
+                    if debug:
+                        raise
+                    failed += 1
+                    print(f"arshadow demo: error: {photo_path.name}: {exc}", file=sys.stderr)
+                    from ..report import ReportItem
+
+                    items.append(ReportItem(input=str(photo_path), status="error", error=str(exc)))
+            if panels and scenes:
+                first = samples / scenes[0]["photo"]
+                if first.is_file():
+                    panels.append(_panel(read_image(first), f"input photo: {first.name} (before)"))
+    finally:
+        ctx.release()
+    if panels:
+        sheet = contact_sheet(panels, columns=2)
+        write_image(outdir / "contact_sheet.png", sheet)
+        if not args.quiet:
+            print(f"contact sheet: {outdir / 'contact_sheet.png'}")
+    write_json(outdir / "report.json", make_report(items))
+    return EXIT_SOME_FAILED if failed else EXIT_OK
+
+
+def _resolve(root: Path, rel: str) -> Path:
+    p = Path(rel)
+    return p if p.is_absolute() else root / p
+
+
+def _panel(image, caption: str):
+    """A thumbnail (THUMB_W x THUMB_H) with a caption bar below it."""
+    import cv2
+    import numpy as np
+
+    th = cv2.resize(image, (THUMB_W, THUMB_H), interpolation=cv2.INTER_AREA)
+    bar = np.full((BAR, THUMB_W, 3), 32, np.uint8)
+    cv2.putText(bar, caption, (8, BAR - 10), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (235, 235, 235), 1, cv2.LINE_AA)
+    return np.vstack([th, bar])
+
+
+def contact_sheet(panels, columns: int = 2, gap: int = 6):
+    """Tile equally sized panels row by row on a dark background; ``(H, W, 3) uint8``."""
+    import numpy as np
+
+    ph, pw = panels[0].shape[:2]
+    rows = (len(panels) + columns - 1) // columns
+    sheet = np.full((rows * ph + (rows + 1) * gap, columns * pw + (columns + 1) * gap, 3), 16, np.uint8)
+    for i, p in enumerate(panels):
+        r, c = divmod(i, columns)
+        y, x = gap + r * (ph + gap), gap + c * (pw + gap)
+        sheet[y : y + ph, x : x + pw] = p
+    return sheet

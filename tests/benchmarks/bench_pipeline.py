@@ -1,0 +1,130 @@
+"""Benchmark: one 1280x720 photo, detection -> composite, with the 8 536-face knot and one light.
+
+    python tests/benchmarks/bench_pipeline.py [--runs 40] [--warmup 5] [--aa 4] [--photo P] [--variants]
+
+Times :meth:`arshadow.pipeline.Compositor.process` (marker detection, pose, per-light mode decision,
+silhouette + volume (cached after the first frame: the occluder and the light are fixed in the world
+frame), ROI rendering, readback, lens warp, composite), excluding file decode/encode, process start and
+context creation. Prints JSON: median, IQR and min/max of the total and of every stage over ``--runs``
+runs after ``--warmup`` runs, plus metadata (git commit, versions, GL_RENDERER, load average).
+
+``--variants`` adds rows for: no anti-aliasing, no ROI (full-frame render), and a "cold" frame
+(silhouette and volume rebuilt every frame, as for a moving light).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _stats(values) -> dict:
+    a = np.asarray(values, float)
+    q25, q50, q75 = np.percentile(a, [25, 50, 75])
+    return {"median": round(float(q50), 3), "iqr": round(float(q75 - q25), 3), "q25": round(float(q25), 3),
+            "q75": round(float(q75), 3), "min": round(float(a.min()), 3), "max": round(float(a.max()), 3),
+            "n": int(a.size)}
+
+
+def _meta(ctx) -> dict:
+    import cv2
+    import moderngl
+
+    from arshadow import __version__
+    from arshadow.gl.context import gl_info
+
+    try:
+        commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True,
+                                text=True, timeout=10).stdout.strip()
+    except OSError:
+        commit = None
+    info = gl_info(ctx)
+    return {"git_commit": commit, "arshadow": __version__, "python": platform.python_version(),
+            "numpy": np.__version__, "opencv": cv2.__version__, "moderngl": moderngl.__version__,
+            "GL_RENDERER": info.get("GL_RENDERER"), "GL_VERSION": info.get("GL_VERSION"),
+            "cpus": os.cpu_count(), "loadavg_start": list(os.getloadavg())}
+
+
+def run_case(ctx, image, intr, caster, lights, *, runs, warmup, aa, roi=True, cold=False, label=""):
+    from arshadow.pipeline import Compositor, RenderOptions
+
+    comp = Compositor(ctx, intr, caster, lights, RenderOptions(aa=aa, roi=roi), tracker={"marker_length": 0.05})
+    totals, stages = [], {}
+    with comp:
+        for i in range(warmup + runs):
+            if cold:
+                for ls in comp._lights:  # forget the per-run silhouette / volume cache
+                    ls.sil, ls.volumes = None, {}
+            t = time.perf_counter()
+            out, _, item = comp.process(image, want_mask=False)
+            dt = (time.perf_counter() - t) * 1e3
+            if i >= warmup:
+                totals.append(dt)
+                for k, v in item.timings_ms.items():
+                    stages.setdefault(k, []).append(v)
+    row = {"case": label, "aa": aa, "roi": roi, "cold": cold, "roi_px": item.extra["roi"],
+           "canvas": item.extra["canvas"], "mode": item.mode, "wall_ms": _stats(totals),
+           "stages_ms": {k: _stats(v)["median"] for k, v in stages.items()}}
+    return row
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--runs", type=int, default=40)
+    ap.add_argument("--warmup", type=int, default=5)
+    ap.add_argument("--aa", type=int, default=None, help="MSAA samples (default: the render default)")
+    ap.add_argument("--photo", default=str(ROOT / "samples" / "knot_point.jpg"))
+    ap.add_argument("--calib", default=str(ROOT / "calib" / "synth_1280x720.yml"))
+    ap.add_argument("--variants", action="store_true")
+    ap.add_argument("--json", help="also write the result to this file")
+    args = ap.parse_args(argv)
+    if args.runs < 30:
+        print("note: fewer than 30 runs", file=sys.stderr)
+
+    sys.path.insert(0, str(ROOT))
+    from arshadow.camera import Intrinsics
+    from arshadow.gl.context import create_context
+    from arshadow.io import read_image
+    from arshadow.lights import parse_light
+    from arshadow.mesh import load_occluder
+    from arshadow.pipeline import RenderOptions
+
+    scenes = json.loads((ROOT / "samples" / "scenes.json").read_text())["scenes"]
+    sc = next(s for s in scenes if Path(s["photo"]).name == Path(args.photo).name)
+    image = read_image(args.photo)
+    intr = Intrinsics.from_file(args.calib)
+    caster = load_occluder(ROOT / sc["model"], rotate=sc.get("rotate", (0, 0, 0)), place=sc.get("place", (0, 0, 0)))
+    lights = [parse_light(s) for s in sc["lights"][:1]]
+    aa = RenderOptions().aa if args.aa is None else args.aa
+    ctx = create_context()
+    res = {"benchmark": "pipeline detection -> composite, 1280x720, one marker, one light",
+           "photo": Path(args.photo).name, "faces": int(len(caster.faces)), "light": sc["lights"][0],
+           "meta": _meta(ctx), "rows": []}
+    kw = dict(runs=args.runs, warmup=args.warmup)
+    res["rows"].append(run_case(ctx, image, intr, caster, lights, aa=aa, label="default", **kw))
+    if args.variants:
+        res["rows"].append(run_case(ctx, image, intr, caster, lights, aa=0, label="no anti-aliasing", **kw))
+        res["rows"].append(run_case(ctx, image, intr, caster, lights, aa=aa, roi=False, label="full frame", **kw))
+        res["rows"].append(run_case(ctx, image, intr, caster, lights, aa=aa, cold=True,
+                                    label="cold silhouette+volume every frame", **kw))
+    res["meta"]["loadavg_end"] = list(os.getloadavg())
+    ctx.release()
+    text = json.dumps(res, indent=1)
+    print(text)
+    if args.json:
+        Path(args.json).write_text(text + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
