@@ -239,7 +239,7 @@ def _hsd(caster: ShadowCaster, h: np.ndarray, **_):
 
 
 def _delta_plus(caster: ShadowCaster, h: np.ndarray, eps: float = 1e-6, **_):
-    from ._bvh import any_hit
+    from ._bvh import _moller_trumbore, any_hit
 
     facing = caster.face_planes @ h > 0.0
     ef = caster.edge_faces
@@ -285,7 +285,19 @@ def _delta_plus(caster: ShadowCaster, h: np.ndarray, eps: float = 1e-6, **_):
         origins = np.broadcast_to(h[:3], pushed.shape).copy()
         dirs = pushed - h[:3]
         tmin = np.zeros(len(cand))
-    hit, bstats = any_hit(caster, origins, dirs, tmin, vis_faces)
+    # test the edge's other face first (a cheap local test that settles most interior edges), then
+    # the rays still unblocked go through the hierarchy; the order does not change the result
+    other = np.where(vf == ef[cand, 0], ef[cand, 1], ef[cand, 0])
+    ok_other = (other >= 0) & vis_faces[np.maximum(other, 0)]
+    hit = np.zeros(len(cand), bool)
+    if ok_other.any():
+        t = caster.triangles[other[ok_other]]
+        hit[ok_other] = _moller_trumbore(origins[ok_other], dirs[ok_other], tmin[ok_other],
+                                         t[:, 0], t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+    rest = np.flatnonzero(~hit)
+    hit_rest, bstats = any_hit(caster, origins[rest], dirs[rest], tmin[rest], vis_faces)
+    hit[rest] = hit_rest
+    bstats = {"local_tests": int(ok_other.sum()), "bvh_rays": int(rest.size), **bstats}
     sil = ~hit
     e = edges[cand[sil]].copy()
     fl = flip[sil]

@@ -237,3 +237,57 @@ def test_all_methods_listed():
         s = silhouette(box, [0.3, 0.2, 4, 1], m)
         assert s.method == m and s.edges.dtype == np.intp and s.facing.shape == (12,)
         assert {"faces_tested", "edge_ops", "n_edges", "time_ms"} <= set(s.stats)
+
+
+# ---------------------------------------------------------------------------- command line
+def _cli(capsys, *argv):
+    from arshadow.cli import main
+
+    code = main(["silhouette", *argv])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def test_cli_json_edges_are_oriented_endpoints(capsys):
+    import json
+
+    code, out, _ = _cli(capsys, "box:1,1,1", "--light", "point:0.2,0.3,5", "--json", "--repeat", "2")
+    assert code == 0
+    d = json.loads(out)
+    assert set(d) == {"method", "edges", "loops", "time_ms"}
+    assert d["method"] == "adjacency" and d["loops"] == 1 and d["time_ms"] >= 0
+    e = np.array(d["edges"])
+    assert e.shape == (4, 2, 3)
+    # the top square of the box, counter-clockwise seen from the light above (as the top face winds it)
+    assert np.allclose(e[:, :, 2], 1.0)
+    cross_z = sum(a[0] * b[1] - a[1] * b[0] for a, b in e[:, :, :2])
+    assert cross_z > 0
+    # end points chain into one loop
+    ends = {tuple(p) for p in e[:, 1].tolist()}
+    assert ends == {tuple(p) for p in e[:, 0].tolist()}
+
+
+def test_cli_text_and_methods(capsys, tmp_path):
+    from geometry_cases import SAMPLES
+
+    code, out, _ = _cli(capsys, str(SAMPLES / "house.obj"), "--light", "directional:1,0.5,2", "--method", "hsd")
+    assert code == 0 and "hsd:" in out and "loops" in out and "ms per light" in out
+    code, out, _ = _cli(capsys, "torus:1,0.3", "--light", "point:0.01,0.02,5", "--json", "--method", "vnv",
+                        "--place", "0,0,0.5")
+    import json
+
+    assert code == 0 and json.loads(out)["loops"] == 2
+
+
+@pytest.mark.parametrize(
+    "argv,needle",
+    [
+        (["missing.obj", "--light", "point:0,0,1"], "no such mesh file"),
+        (["box:1,1,1", "--light", "point:0,0,1", "--method", "nope"], "unknown --method"),
+        (["box:1,1,1", "--light", "bogus:1"], "light"),
+        (["box:1,1,1", "--light", "point:0,0,1", "--rotate", "1,2"], "--rotate"),
+    ],
+)
+def test_cli_errors_one_line_exit_2(capsys, argv, needle):
+    code, out, err = _cli(capsys, *argv)
+    assert code == 2 and needle in err and len(err.strip().splitlines()) == 1 and "Traceback" not in err
