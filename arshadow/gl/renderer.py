@@ -198,9 +198,44 @@ class _CasterBuffers:
         self.below_ground = bool(v[:, 2].min() < 0.0)
         # closed, consistently wound meshes: back faces are never visible -> cull them (half the work)
         self.cull = not bool(getattr(caster, "two_sided", True))
+        # closed meshes: a face turned away from a light always lies inside that light's own shadow
+        # volume, so its lighting pass only needs the light-facing faces (per light, per frame)
+        self.light_tris = inverse.reshape(m, 3).astype(np.uint32)
+        planes = getattr(caster, "face_planes", None)
+        if planes is None:
+            raw = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+            n = raw / np.maximum(np.linalg.norm(raw, axis=1, keepdims=True), 1e-300)
+            planes = np.c_[n, -np.einsum("ij,ij->i", n, v[f[:, 0]])]
+        self.face_planes = np.asarray(planes, np.float64)
+        self.sub_ibo = ctx.buffer(reserve=max(self.light_tris.nbytes, 64), dynamic=True)
+        self.sub_vao = ctx.vertex_array(prog_occ, [(self.vbo, "4f 3f 3f", "in_pos", "in_normal", "in_albedo")],
+                                        index_buffer=self.sub_ibo, index_element_size=4)
+        self.sub_ranges = {}
+
+    def upload_light_subsets(self, passes) -> None:
+        """Write, for each pass, the light-facing triangles (closed meshes) into ``sub_ibo``; records
+        ``sub_ranges[i] = (first, count)``."""
+        self.sub_ranges = {}
+        if not self.cull:
+            return
+        parts, first = [], 0
+        for i, p in enumerate(passes):
+            facing = self.face_planes @ np.asarray(p.light_h, np.float64) > 0.0
+            sub = self.light_tris[facing]
+            parts.append(sub)
+            self.sub_ranges[i] = (first, 3 * len(sub))
+            first += 3 * len(sub)
+        if first:
+            data = np.concatenate(parts) if len(parts) > 1 else parts[0]
+            if data.nbytes > self.sub_ibo.size:
+                self.sub_vao.release()
+                self.sub_ibo.release()
+                raise RuntimeError("unreachable: subset larger than the mesh")  # pragma: no cover
+            self.sub_ibo.write(data)
 
     def release(self):
-        for o in (self.vao, self.base_vao, self.planar_vao, self.vbo, self.light_ibo, self.pos_vbo, self.ibo):
+        for o in (self.vao, self.sub_vao, self.base_vao, self.planar_vao, self.vbo, self.light_ibo, self.sub_ibo,
+                  self.pos_vbo, self.ibo):
             o.release()
 
 
@@ -537,6 +572,8 @@ class ShadowRenderer:
         bufs = self._caster_buffers(caster, occluder_color) if (draw_occluder or any(
             p.mode == "planar" for p in passes)) else None
         ranges = self._upload_volumes(passes)
+        if draw_occluder:
+            bufs.upload_light_subsets(passes)
         self._set_ground(ground_size)
         self._ensure_targets(width, height)
         t1 = time.perf_counter()
@@ -597,7 +634,7 @@ class ShadowRenderer:
             if rng is None and not planar:
                 # casts nothing: the occluder gets this light unshadowed
                 if draw_occluder:
-                    self._light_occluder(bufs, p, mvp_bytes, eye, diffuse, specular, shininess, stencil=False)
+                    self._light_occluder(bufs, p, i, mvp_bytes, eye, diffuse, specular, shininess, stencil=False)
                 continue
             # clear the count bits, keep the ground bit
             gl.glStencilMask(COUNT_MASK)
@@ -642,7 +679,8 @@ class ShadowRenderer:
                 self._fs_vao.render(moderngl.TRIANGLES, vertices=3)
             self._mark("mask")
             if draw_occluder:
-                self._light_occluder(bufs, p, mvp_bytes, eye, diffuse, specular, shininess, stencil=not planar)
+                self._light_occluder(bufs, p, i, mvp_bytes, eye, diffuse, specular, shininess,
+                                     stencil=not planar)
 
         self._mark("occluder_light")
         # -- reset raw state, make moderngl's view consistent
@@ -740,7 +778,7 @@ class ShadowRenderer:
         gl.draw_buffers(2)
         gl.glBindFramebuffer(G.GL_FRAMEBUFFER, 0)
 
-    def _light_occluder(self, bufs, p, mvp_bytes, eye, kd, ks, shininess, stencil: bool):
+    def _light_occluder(self, bufs, p, i, mvp_bytes, eye, kd, ks, shininess, stencil: bool):
         """Add one light's Phong diffuse + specular to the occluder where its count is 0."""
         import moderngl
 
@@ -769,7 +807,12 @@ class ShadowRenderer:
         prog["u_kd"].value = float(kd)
         prog["u_ks"].value = float(ks)
         prog["u_shininess"].value = float(shininess)
-        bufs.vao.render(moderngl.TRIANGLES, vertices=bufs.n_indices)
+        if stencil and i in bufs.sub_ranges:
+            first, count = bufs.sub_ranges[i]
+            if count:
+                bufs.sub_vao.render(moderngl.TRIANGLES, vertices=count, first=first)
+        else:
+            bufs.vao.render(moderngl.TRIANGLES, vertices=bufs.n_indices)
         gl.glEnable(G.GL_STENCIL_TEST)
         ctx.depth_func = "<"
 

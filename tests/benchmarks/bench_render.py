@@ -6,7 +6,8 @@ Scene: 1280x720 pinhole camera ~0.45 m from the 8 536-face sample mesh (samples/
 generated 8.6k-face non-convex blob when absent), one point light, z-pass. Measured after warm-up:
 
 - ``geometry``: silhouette + shadow volume (CPU, arshadow.silhouette/volume) - for context only;
-- ``render`` at the full 1280x720 canvas and at the ROI the compositor renders (bounding box of the
+- ``render`` (volume to infinity, and truncated 1e-3 x mesh size below the ground) at the full 1280x720
+  canvas and at the ROI the compositor renders (bounding box of the
   occluder and of its ground shadow, + 2 px), split into upload / draw / readback as the renderer
   reports them (``draw`` ends with ctx.finish(), so it includes the GL work);
 - per-pass GL times with ``profile=True`` (ctx.finish() after each pass: slightly slower in total);
@@ -22,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 import time
@@ -108,7 +110,8 @@ def main(argv=None):
         "meta": {"commit": commit, "arshadow": arshadow.__version__, "numpy": np.__version__,
                  "moderngl": moderngl.__version__, "trimesh": trimesh.__version__, "cv2": cv2.__version__,
                  "gl": {k: v for k, v in gl_info(ctx).items() if k in ("GL_RENDERER", "GL_VERSION", "backend")},
-                 "faces": int(caster.n_faces), "image": [W, H], "repeat": args.repeat},
+                 "faces": int(caster.n_faces), "image": [W, H], "repeat": args.repeat,
+                 "loadavg_start": [round(x, 2) for x in os.getloadavg()]},
     }
     # geometry (context)
     tg = []
@@ -119,16 +122,18 @@ def main(argv=None):
         tg.append((time.perf_counter() - t0) * 1e3)
     out["geometry_ms"] = stats(tg[3:])
     out["volume"] = {"side_triangles": int(vol.n_side), "silhouette_edges": int(len(sil.edges))}
+    vol_trunc = shadow_volume(caster, L, sil, caps=False, truncate_z=-1e-3 * caster.scale)
     passes = [LightPass(L, 1.0, vol, "zpass")]
+    passes_trunc = [LightPass(L, 1.0, vol_trunc, "zpass")]
     roi = roi_of(caster, K, T, L)
     out["roi"] = list(roi)
 
-    def bench(r, canvas, n):
+    def bench(r, canvas, n, ps=None):
         u0, v0, w, h = canvas
         P = K.gl_projection(ZNEAR, None, canvas=canvas)
         recs = []
         for i in range(n + 3):
-            res = r.render(projection=P, view=view, width=w, height=h, caster=caster, passes=passes)
+            res = r.render(projection=P, view=view, width=w, height=h, caster=caster, passes=ps or passes)
             recs.append(res.timings_ms)
         recs = recs[3:]
         return {k: stats([t[k] for t in recs]) for k in recs[0]}, res
@@ -136,9 +141,12 @@ def main(argv=None):
     with ShadowRenderer(ctx, max_width=W, max_height=H) as r:
         out["render_full_ms"], _ = bench(r, (0, 0, W, H), args.repeat)
         out["render_roi_ms"], _ = bench(r, roi, args.repeat)
+        out["render_full_truncated_ms"], _ = bench(r, (0, 0, W, H), args.repeat, passes_trunc)
+        out["render_roi_truncated_ms"], _ = bench(r, roi, args.repeat, passes_trunc)
         r.profile = True
         out["passes_full_ms"], _ = bench(r, (0, 0, W, H), max(args.repeat // 3, 5))
         out["passes_roi_ms"], _ = bench(r, roi, max(args.repeat // 3, 5))
+        out["passes_roi_truncated_ms"], _ = bench(r, roi, max(args.repeat // 3, 5), passes_trunc)
 
     # anti-aliasing options at the ROI
     orc = cov = band = None
@@ -176,6 +184,7 @@ def main(argv=None):
             rec["distinct_mask_levels"] = int(len(np.unique(res.mask)))
         aa.append(rec)
     out["anti_aliasing"] = aa
+    out["meta"]["loadavg_end"] = [round(x, 2) for x in os.getloadavg()]
     print(json.dumps(out, indent=1))
     if args.out:
         Path(args.out).write_text(json.dumps(out, indent=1))
