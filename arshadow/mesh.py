@@ -27,7 +27,7 @@ import numpy as np
 from ._check import check_shape
 from .errors import MeshError, ShapeError
 
-__all__ = ["ShadowCaster", "load_occluder", "primitive", "rotation_xyz_deg", "PRIMITIVES"]
+__all__ = ["ShadowCaster", "load_occluder", "primitive", "rotation_xyz_deg", "plane_side", "PRIMITIVES"]
 
 #: primitive names and their parameter names (CONVENTIONS.md "Files / Meshes")
 PRIMITIVES = {"box": ("WX", "WY", "HZ"), "cylinder": ("R", "H"), "sphere": ("R",), "torus": ("R", "r")}
@@ -232,6 +232,58 @@ class ShadowCaster:
             np.add.at(wsum, self.faces[:, k], self.face_areas)
         return _readonly((acc / np.maximum(wsum, 1e-300)[:, None]).astype(np.float32))
 
+    # ------------------------------------------------------------------ facing test
+    @functools.cached_property
+    def _facing_prep(self) -> dict:
+        """float32 planes re-centred on the bounding-box centre, (4, m) contiguous, for the fast
+        pre-test of :meth:`facing`, and the bounds its error margin needs."""
+        planes = self.face_planes
+        c = self.bounds.mean(axis=0)
+        d_c = planes[:, 3] + planes[:, :3] @ c  # plane offsets relative to the centre
+        pt32 = np.ascontiguousarray(np.vstack([planes[:, :3].T, d_c[None, :]]).astype(np.float32))
+        return {
+            "centre": c,
+            "pt32": _readonly(pt32),
+            "dmax_c": float(np.abs(d_c).max()),
+            "dmax": float(np.abs(planes[:, 3]).max()),
+        }
+
+    def facing(self, light_h: np.ndarray) -> np.ndarray:
+        """(m,) bool: faces that face the light, ``n . L + d w > 0``, decided exactly as the float64
+        expression ``((n_x L_x + n_y L_y) + n_z L_z) + d w`` (:func:`plane_side`) decides it.
+
+        Fast path: one float32 matrix-vector product with the planes re-centred on the mesh, then every
+        face whose float32 value lies within a rigorous error bound of zero is re-evaluated with the
+        float64 expression; all other signs are provably the same. ``light_h`` must be a validated
+        ``(4,)`` float64 (see :func:`arshadow.silhouette.as_light_h`).
+        """
+        h = light_h
+        prep = self._facing_prep
+        lc = h[:3] - prep["centre"] * h[3]
+        nl = float(np.sqrt(lc @ lc))
+        w = abs(float(h[3]))
+        if not (nl < 1e30 and prep["dmax_c"] < 1e30):
+            return plane_side(self.face_planes, h) > 0.0
+        l32 = np.array([lc[0], lc[1], lc[2], h[3]], dtype=np.float32)
+        pt = prep["pt32"]
+        # element-wise, single-threaded (a BLAS sgemv is as fast when idle but stalls on a busy machine)
+        s32 = np.multiply(pt[0], l32[0])
+        tmp = np.empty_like(s32)
+        for k in (1, 2, 3):
+            np.multiply(pt[k], l32[k], out=tmp)
+            np.add(s32, tmp, out=s32)
+        u = 2.0**-24
+        # |s32 - exact| <= 8u (|L'| + |d'| |w|) (conversions + a length-4 dot product, any order);
+        # |float64 expression - exact| <= 1e-15 (|L| + |d| |w|); 1e-30 covers float32 underflow
+        margin = 8.0 * u * (nl * (1.0 + 1e-6) + prep["dmax_c"] * w) + 1e-15 * (
+            float(np.sqrt(h[:3] @ h[:3])) + prep["dmax"] * w
+        ) + 1e-30
+        fac = s32 > 0.0
+        unsure = np.flatnonzero(np.abs(s32) <= margin)
+        if unsure.size:
+            fac[unsure] = plane_side(self.face_planes[unsure], h) > 0.0
+        return fac
+
     # ------------------------------------------------------------------ adjacency
     @functools.cached_property
     def _adjacency(self) -> dict:
@@ -339,10 +391,18 @@ class ShadowCaster:
         return not self.is_closed
 
     @functools.cached_property
-    def _closed_edge_faces(self) -> tuple[np.ndarray, np.ndarray]:
-        """Contiguous intp copies of the two face columns (fast path of the adjacency detector)."""
+    def _closed_edge_faces(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Fast-path arrays of the adjacency detector on closed meshes: ``(f_lo (e,), f_hi (e,),
+        edges_lo (e, 2))``, contiguous intp, sorted by ``f_lo`` (the lower face index of each edge, so the
+        gather ``facing[f_lo]`` walks memory in order), each edge oriented as face ``f_lo`` winds it."""
         ef = self.edge_faces
-        return _readonly(ef[:, 0].copy()), _readonly(ef[:, 1].copy())
+        e = self.edges
+        swap = ef[:, 1] < ef[:, 0]
+        lo = np.where(swap, ef[:, 1], ef[:, 0])
+        hi = np.where(swap, ef[:, 0], ef[:, 1])
+        el = np.where(swap[:, None], e[:, ::-1], e)
+        order = np.argsort(lo, kind="stable")
+        return _readonly(lo[order]), _readonly(hi[order]), _readonly(el[order])
 
     # ------------------------------------------------------------------ flat polygons (HSD)
     def _polygon_labels_planes(self, planes: np.ndarray):
@@ -427,6 +487,14 @@ class ShadowCaster:
             + np.einsum("ij,ij->i", c, a) * lb
         )
         return float(np.sum(2.0 * np.arctan2(num, den)) / (4.0 * np.pi))
+
+
+def plane_side(planes: np.ndarray, light_h: np.ndarray) -> np.ndarray:
+    """The facing expression for planes ``(k, 4)`` and a homogeneous light ``(4,)``: ``(k,) float64``
+    ``((n_x L_x + n_y L_y) + n_z L_z) + d w``, element-wise in this order (no BLAS, so a face's value
+    does not depend on which other faces are evaluated with it)."""
+    h = light_h
+    return ((planes[:, 0] * h[0] + planes[:, 1] * h[1]) + planes[:, 2] * h[2]) + planes[:, 3] * h[3]
 
 
 def connected_labels(n: int, u: np.ndarray, v: np.ndarray) -> np.ndarray:

@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import LightError, UsageError
-from .mesh import ShadowCaster
+from .mesh import ShadowCaster, plane_side
 
 __all__ = ["Silhouette", "silhouette", "METHODS", "as_light_h", "facing_mask", "silhouette_loops"]
 
@@ -115,8 +115,9 @@ def as_light_h(light) -> np.ndarray:
 
 
 def facing_mask(caster: ShadowCaster, light_h) -> np.ndarray:
-    """(m,) bool: faces whose plane has the light strictly on its outer side (``n . L + d w > 0``)."""
-    return caster.face_planes @ as_light_h(light_h) > 0.0
+    """(m,) bool: faces whose plane has the light strictly on its outer side (``n . L + d w > 0``,
+    see :meth:`arshadow.mesh.ShadowCaster.facing`)."""
+    return caster.facing(as_light_h(light_h))
 
 
 def _check_light_outside(caster: ShadowCaster, h: np.ndarray) -> None:
@@ -156,16 +157,16 @@ def _net_two_sided(caster: ShadowCaster, facing: np.ndarray) -> np.ndarray:
 
 # ---------------------------------------------------------------------------- detectors
 def _adjacency(caster: ShadowCaster, h: np.ndarray, **_):
-    facing = caster.face_planes @ h > 0.0
+    facing = caster.facing(h)
     m = facing.shape[0]
     if caster.two_sided:
         e = _from_net(caster, _net_two_sided(caster, facing))
         return e, facing, {"faces_tested": m, "edge_ops": int(caster.edge_incidence[0].size)}
-    ef0, ef1 = caster._closed_edge_faces
+    ef0, ef1, edges0 = caster._closed_edge_faces
     f0 = facing[ef0]
     diff = f0 != facing[ef1]
     idx = np.flatnonzero(diff)
-    e = caster.edges[idx]
+    e = edges0[idx]
     rev = ~f0[idx]
     e[rev] = e[rev, ::-1]
     return e, facing, {"faces_tested": m, "edge_ops": int(ef0.size)}
@@ -194,7 +195,7 @@ def _toggle(faces_or_edges_a, b, n_vertices):
 
 
 def _triangular(caster: ShadowCaster, h: np.ndarray, **_):
-    facing = caster.face_planes @ h > 0.0
+    facing = caster.facing(h)
     f = caster.faces
     if caster.two_sided:
         tri = np.where(facing[:, None], f, f[:, ::-1])  # every face, turned towards the light
@@ -207,7 +208,7 @@ def _triangular(caster: ShadowCaster, h: np.ndarray, **_):
 
 
 def _vnv(caster: ShadowCaster, h: np.ndarray, **_):
-    facing = caster.face_planes @ h > 0.0
+    facing = caster.facing(h)
     inc_edge, inc_face, inc_sign = caster.edge_incidence
     ne = len(caster.edges)
     if caster.two_sided:
@@ -223,7 +224,7 @@ def _vnv(caster: ShadowCaster, h: np.ndarray, **_):
 
 def _hsd(caster: ShadowCaster, h: np.ndarray, **_):
     poly = caster.polygons
-    pvis = poly["planes"] @ h > 0.0
+    pvis = plane_side(poly["planes"], h) > 0.0
     facing = pvis[poly["face_polygon"]]
     pe = poly["edges"]
     if caster.two_sided:
@@ -241,7 +242,7 @@ def _hsd(caster: ShadowCaster, h: np.ndarray, **_):
 def _delta_plus(caster: ShadowCaster, h: np.ndarray, eps: float = 1e-6, **_):
     from ._bvh import _moller_trumbore, any_hit
 
-    facing = caster.face_planes @ h > 0.0
+    facing = caster.facing(h)
     ef = caster.edge_faces
     edges = caster.edges
     v = caster.vertices

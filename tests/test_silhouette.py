@@ -7,7 +7,7 @@ import pytest
 from geometry_cases import closed_meshes, degrees_balanced, edge_multiset, open_meshes, random_lights
 
 from arshadow.errors import LightError, UsageError
-from arshadow.mesh import ShadowCaster, load_occluder
+from arshadow.mesh import ShadowCaster, load_occluder, plane_side
 from arshadow.silhouette import METHODS, as_light_h, silhouette, silhouette_loops
 
 EXACT = ("triangular", "vnv", "hsd")
@@ -17,7 +17,7 @@ N_LIGHTS = 1000
 def _reference_ta(caster, light_h):
     """The paper's Triangular Algorithm, literally: a Python set, toggling the directed edges of every
     light-facing triangle (independent of arshadow's detectors; only the facing test is shared)."""
-    facing = caster.face_planes @ np.asarray(light_h, float) > 0
+    facing = plane_side(caster.face_planes, np.asarray(light_h, float)) > 0
     s = {}
     for f in caster.faces[facing]:
         for k in range(3):
@@ -291,3 +291,28 @@ def test_cli_text_and_methods(capsys, tmp_path):
 def test_cli_errors_one_line_exit_2(capsys, argv, needle):
     code, out, err = _cli(capsys, *argv)
     assert code == 2 and needle in err and len(err.strip().splitlines()) == 1 and "Traceback" not in err
+
+
+def test_fast_facing_equals_float64_expression(rng):
+    """The float32 pre-test with its error margin decides exactly like the float64 expression, also for
+    grazing lights and far / scaled / translated meshes (where float32 alone would get signs wrong)."""
+    base = closed_meshes()["knot"]
+    cases = [base, ShadowCaster(base.vertices * 1e3 + 1000.0, base.faces),
+             ShadowCaster(base.vertices * 1e-3 - 1000.0, base.faces)]
+    n_unsure_total = 0
+    for c in cases:
+        lights = list(random_lights(c, 100, rng))
+        for fi in rng.choice(c.n_faces, 50, replace=False):  # lights in and within 1e-12 of face planes
+            n, d = c.face_planes[fi, :3], c.face_planes[fi, 3]
+            t = c.triangles[fi]
+            u = (t[1] - t[0]) / np.linalg.norm(t[1] - t[0])
+            for off in (0.0, 1e-12, -1e-12, 1e-7):
+                lights.append(np.r_[t[0] + 5 * c.scale * u + off * n, 1.0])
+                lights.append(np.r_[u + off * n, 0.0])
+        lights.append(np.r_[c.bounds.mean(0) + 1e6 * np.array([0.6, 0.0, 0.8]), 1.0])
+        for L in lights:
+            h = as_light_h(L)
+            exact = plane_side(c.face_planes, h) > 0
+            np.testing.assert_array_equal(c.facing(h), exact)
+            n_unsure_total += int(np.count_nonzero(np.abs(plane_side(c.face_planes, h)) < 1e-9))
+    assert n_unsure_total > 0  # the grazing cases really do put faces at (or within 1e-9 of) zero
