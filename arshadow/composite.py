@@ -42,6 +42,7 @@ __all__ = [
     "parse_rgb",
     "composite",
     "clip_roi",
+    "Workspace",
 ]
 
 
@@ -115,6 +116,24 @@ def parse_rgb(spec, name: str = "colour") -> tuple[float, float, float]:
     return tuple(float(v) for v in srgb_to_linear(np.array(vals) / 255.0))
 
 
+class Workspace:
+    """Scratch buffers reused across frames: ``get(name, shape, dtype)`` returns a C-contiguous view of a
+    flat buffer that only grows. Avoids allocating (and page-faulting) megabytes of temporaries per frame.
+    Not thread-safe; one per pipeline."""
+
+    def __init__(self):
+        self._bufs: dict = {}
+
+    def get(self, name: str, shape, dtype) -> np.ndarray:
+        dtype = np.dtype(dtype)
+        n = int(np.prod(shape))
+        buf = self._bufs.get((name, dtype))
+        if buf is None or buf.size < n:
+            buf = np.empty(max(n, int(1.25 * (0 if buf is None else buf.size))), dtype)
+            self._bufs[(name, dtype)] = buf
+        return buf[:n].reshape(shape)
+
+
 def clip_roi(roi, width: int, height: int) -> tuple[int, int, int, int]:
     """Intersect ``roi = (x0, y0, w, h)`` with a ``width`` x ``height`` image (may return w or h = 0)."""
     x0, y0, w, h = (int(v) for v in roi)
@@ -134,6 +153,7 @@ def composite(
     shadow_color=(0.0, 0.0, 0.0),
     premultiplied: bool = True,
     out: np.ndarray | None = None,
+    work: Workspace | None = None,
 ) -> np.ndarray:
     """Composite a shadow mask and a shaded occluder into a photo.
 
@@ -145,9 +165,9 @@ def composite(
         Blocked light fraction over the ROI (rows top to bottom).
     roi : (x0, y0, w, h) ints, optional
         Where the ``(h, w)`` arrays sit in the photo; default the whole photo. Must lie inside the photo.
-    color : (h, w, 3) float32, optional
+    color : (h, w, 3) or (h, w, 4) float32, optional
         Occluder colour, **linear RGB** (not BGR), premultiplied by ``alpha`` unless
-        ``premultiplied=False``.
+        ``premultiplied=False``; a 4th channel (RGBA layout) is ignored.
     alpha : (h, w) float32 in [0, 1], optional
         Occluder coverage. Required with ``color``.
     opacity : float in [0, 1]
@@ -158,6 +178,8 @@ def composite(
         Whether ``color`` is premultiplied by ``alpha``.
     out : (H, W, 3) uint8, optional
         Output buffer (may be ``photo`` itself to composite in place); a copy of ``photo`` otherwise.
+    work : Workspace, optional
+        Scratch buffers reused between calls (no per-frame allocation of temporaries).
 
     Returns
     -------
@@ -182,7 +204,9 @@ def composite(
         np.copyto(out, photo)
     if w == 0 or h == 0:
         return out
-    for name, arr, spec in (("mask", mask, "H,W"), ("alpha", alpha, "H,W"), ("color", color, "H,W,3")):
+    if color is not None and not (np.ndim(color) == 3 and np.shape(color)[2] in (3, 4)):
+        raise ShapeError("color must be (h, w, 3) RGB or (h, w, 4) RGBA", actual_shape=np.shape(color))
+    for name, arr, spec in (("mask", mask, "H,W"), ("alpha", alpha, "H,W"), ("color", color, "H,W,C")):
         if arr is not None and check_shape(arr, spec, name).shape[:2] != (h, w):
             raise ShapeError(f"{name} does not match the roi", actual_shape=arr.shape[:2], expected_shape=(h, w))
     if (color is None) != (alpha is None):
@@ -190,32 +214,50 @@ def composite(
 
     import cv2
 
+    ws = work if work is not None else Workspace()
     region = out[y0 : y0 + h, x0 : x0 + w]
-    lin = srgb8_to_linear(photo[y0 : y0 + h, x0 : x0 + w])  # (h, w, 3) float32 BGR, a new array
+    src = photo[y0 : y0 + h, x0 : x0 + w]
+    lin = ws.get("lin", (h, w, 3), np.float32)
+    cv2.LUT(src, SRGB_TO_LINEAR, dst=lin)  # (h, w, 3) float32 linear BGR
     # per-pixel multiplier of the photo's light: (1 - opacity * mask * (1 - tint)) * (1 - alpha)
     gray = bool(sc[0] == sc[1] == sc[2])
-    g = None  # (h, w) float32, single-channel multiplier when the tint is grey
+    g = None  # (h, w) float32 single-channel multiplier (grey tint)
     if mask is not None and opacity > 0.0:
         m = np.asarray(mask, dtype=np.float32)
         if gray:
-            g = m * np.float32(-opacity * (1.0 - sc[0]))
+            g = ws.get("g", (h, w), np.float32)
+            np.multiply(m, np.float32(-opacity * (1.0 - sc[0])), out=g)
             g += np.float32(1.0)
         else:
             dark = (np.float32(opacity) * (1.0 - sc[::-1])).astype(np.float32)  # BGR
-            factor = m[:, :, None] * (-dark)
+            factor = ws.get("factor", (h, w, 3), np.float32)
+            np.multiply(m[:, :, None], -dark, out=factor)
             factor += np.float32(1.0)
             lin *= factor
     if alpha is not None:
         a = np.asarray(alpha, dtype=np.float32)
-        keep = np.float32(1.0) - a
-        g = keep if g is None else cv2.multiply(g, keep)
+        keep = ws.get("keep", (h, w), np.float32)
+        np.subtract(np.float32(1.0), a, out=keep)
+        if g is None:
+            g = keep
+        else:
+            g *= keep
     if g is not None:
         lin *= g[:, :, None]
     if alpha is not None:
-        c = np.ascontiguousarray(color, dtype=np.float32)
-        c = cv2.cvtColor(c, cv2.COLOR_RGB2BGR)  # a new array
+        cb = ws.get("color", (h, w, 3), np.float32)
+        col = np.asarray(color, dtype=np.float32)
+        cv2.cvtColor(col, cv2.COLOR_RGBA2BGR if col.shape[2] == 4 else cv2.COLOR_RGB2BGR, dst=cb)
         if not premultiplied:
-            c *= a[:, :, None]
-        lin += c
-    linear_to_srgb8(lin, out=region)
+            cb *= a[:, :, None]
+        lin += cb
+    # back to 8-bit sRGB through the 16-bit table, in the workspace
+    lin *= np.float32(65535.0)
+    lin += np.float32(0.5)
+    np.clip(lin, np.float32(0.0), np.float32(65535.0), out=lin)
+    idx = ws.get("idx", (h, w, 3), np.uint16)
+    np.copyto(idx, lin, casting="unsafe")
+    res = ws.get("res", (h, w, 3), np.uint8)
+    np.take(LINEAR_TO_SRGB16, idx, out=res)
+    region[...] = res
     return out

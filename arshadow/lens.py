@@ -242,7 +242,7 @@ class LensWarp:
         u1, v1 = math.ceil(a1) + 1, math.ceil(b1) + 1
         return (u0, v0, u1 - u0 + 1, v1 - v0 + 1)
 
-    def warp(self, roi, canvas, *arrays, interpolation=None):
+    def warp(self, roi, canvas, *arrays, interpolation=None, work=None, bottom_up=False):
         """Resample canvas-sized arrays at the photo ROI's pinhole points.
 
         Parameters
@@ -255,6 +255,11 @@ class LensWarp:
             Rendered arrays (mask, colour, alpha...). Not modified.
         interpolation : int, optional
             cv2 flag; bilinear by default.
+        work : arshadow.composite.Workspace, optional
+            Scratch buffers to reuse (the results are then views into it, valid until the next call).
+        bottom_up : bool
+            The arrays' rows are OpenGL's (row 0 = the canvas's BOTTOM row); the flip is folded into the
+            map, so no flipped copy is made.
 
         Returns
         -------
@@ -267,14 +272,25 @@ class LensWarp:
         u0, v0 = canvas[0], canvas[1]
         self._ensure(roi)
         mx, my = self._mx, self._my
-        map_x = mx[y0 : y0 + h, x0 : x0 + w] - np.float32(u0)
-        map_y = my[y0 : y0 + h, x0 : x0 + w] - np.float32(v0)
+        if work is None:
+            from .composite import Workspace
+
+            work = Workspace()
+        map_x = work.get("lens_mx", (h, w), np.float32)
+        map_y = work.get("lens_my", (h, w), np.float32)
+        np.subtract(mx[y0 : y0 + h, x0 : x0 + w], np.float32(u0), out=map_x)
+        if bottom_up:  # canvas row r (top-down) is array row ch - 1 - r
+            np.subtract(np.float32(canvas[3] - 1 + v0), my[y0 : y0 + h, x0 : x0 + w], out=map_y)
+        else:
+            np.subtract(my[y0 : y0 + h, x0 : x0 + w], np.float32(v0), out=map_y)
         m1, m2 = cv2.convertMaps(map_x, map_y, cv2.CV_16SC2)
         flag = cv2.INTER_LINEAR if interpolation is None else interpolation
         out = []
-        for a in arrays:
+        for i, a in enumerate(arrays):
             a = np.asarray(a)
             if a.dtype == bool:
                 a = a.astype(np.float32)
-            out.append(cv2.remap(a, m1, m2, flag, borderMode=cv2.BORDER_CONSTANT, borderValue=0))
+            dst = work.get(f"lens_out{i}", (h, w) + a.shape[2:], a.dtype)
+            cv2.remap(a, m1, m2, flag, dst=dst, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+            out.append(dst)
         return out

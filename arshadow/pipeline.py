@@ -39,7 +39,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .composite import clip_roi, composite
+from ._check import check_shape
+from .composite import Workspace, clip_roi, composite
 from .errors import ImageError, LightError, MarkerNotFoundError, UsageError
 from .report import ReportItem
 from .transforms import CV_TO_GL, invert_rigid
@@ -77,6 +78,11 @@ class RenderOptions:
         Extrude volumes only to just below the ground instead of to infinity (paper 002).
     roi : bool
         Render only the region the object and its shadow can cover (False: always the whole photo).
+    occluder_color : (3,) float, optional
+        Override of the occluder's colour handed to the renderer.
+    fast_detect : bool
+        Try the one-window ArUco detector first (:func:`fast_detector_params`), the full search only if
+        it finds nothing.
     """
 
     opacity: float = 0.7
@@ -87,9 +93,10 @@ class RenderOptions:
     aa: int = 4
     ground_size: float | None = None
     draw_occluder: bool = True
-    truncate: bool = False
+    truncate: bool = True
     roi: bool = True
     occluder_color: tuple | None = None
+    fast_detect: bool = True
 
     def check(self) -> RenderOptions:
         if not (0.0 <= float(self.opacity) <= 1.0):
@@ -196,6 +203,7 @@ class _Calib:
     was_scaled: bool
     tracker: object
     lens: object | None
+    fast_tracker: object = None
 
 
 @dataclass
@@ -254,6 +262,7 @@ class Compositor:
                 self._lights.append(_LightState(s, float(s.weight) / total, np.asarray(s.homogeneous, float)))
         self._calibs: dict = {}
         self._lenses: dict = {}
+        self._work = Workspace()
         self._renderer = renderer
         self._own_renderer = renderer is None
         b = np.asarray(caster.bounds, dtype=np.float64)
@@ -280,6 +289,51 @@ class Compositor:
     def __exit__(self, *exc):
         self.close()
 
+    # -- video time-lapse (added for arshadow/video.py + arshadow/cli/video.py) -----------------------
+    def set_lights(self, lights) -> int:
+        """Replace the lights between frames (``arshadow video --time-lapse``), keeping cached work.
+
+        A (sample) light whose homogeneous vector ``light_h`` equals one of the current lights' keeps
+        that light's silhouette and shadow volumes (only its weight share is updated); any other light
+        is recomputed on first use. A sun track hands the direction of its last recompute
+        (``TrackFrame.world_used``) until the sun has moved more than the set angle, so in between
+        nothing is recomputed.
+
+        Parameters
+        ----------
+        lights : sequence of arshadow.lights.Light
+            At least one (lights below the horizon give no light and no shadow).
+
+        Returns
+        -------
+        int
+            Number of (sample) lights whose silhouette and volumes must be recomputed.
+        """
+        from .lights import sample_area_light
+
+        lights = list(lights)
+        if not lights:
+            raise LightError("no light given (use --light)")
+        old = {tuple(ls.light_h.tolist()): ls for ls in self._lights}
+        total = float(sum(lt.weight for lt in lights if lt.above_horizon))
+        notes, states, n_new = [], [], 0
+        for lt in lights:
+            if not lt.above_horizon:
+                notes.append(f"light {lt.label or lt.kind} is below the horizon: no light, no shadow")
+                continue
+            samples = (sample_area_light(lt, int(self.options.soft_samples))
+                       if getattr(lt, "radius", 0.0) > 0 and self.options.soft_samples > 1 else [lt])
+            for s in samples:
+                h = np.asarray(s.homogeneous, float)
+                prev = old.get(tuple(h.tolist()))
+                if prev is None:
+                    n_new += 1
+                    states.append(_LightState(s, float(s.weight) / total, h))
+                else:
+                    states.append(_LightState(s, float(s.weight) / total, prev.light_h, prev.sil, prev.volumes))
+        self.lights_in, self.notes, self._lights = lights, notes, states
+        return n_new
+
     def calib_for(self, width: int, height: int) -> _Calib:
         """Intrinsics, tracker and lens warp for a photo size (built once per size)."""
         key = (int(width), int(height))
@@ -289,8 +343,11 @@ class Compositor:
 
             intr, scaled = self.intrinsics.for_image(width, height)
             tracker = MarkerTracker(intr, **self.tracker_kwargs)
+            fast = None
+            if self.options.fast_detect and "detector_params" not in self.tracker_kwargs:
+                fast = MarkerTracker(intr, **self.tracker_kwargs, detector_params=fast_detector_params())
             lens = self._lens_for(intr) if intr.has_distortion else None
-            c = self._calibs[key] = _Calib(intr, scaled, tracker, lens)
+            c = self._calibs[key] = _Calib(intr, scaled, tracker, lens, fast)
         return c
 
     def _silhouette(self, ls: _LightState, timings):
@@ -325,7 +382,7 @@ class Compositor:
         return float(np.clip(0.25 * min(d, h if h > 0 else d), 1e-4, 0.05))
 
     # -- per photo ------------------------------------------------------------------------------------
-    def process(self, image, name: str = "", want_mask: bool = True):
+    def process(self, image, name: str = "", want_mask: bool = True, out=None, mask_out=None):
         """Composite the occluder and its shadow into one photo.
 
         Parameters
@@ -336,6 +393,11 @@ class Compositor:
             Used in the report item and messages.
         want_mask : bool
             Also return the full-size mask (else None).
+        out : (H, W, 3) uint8, optional
+            Buffer for the result (reused across frames by callers that consume each result at once,
+            e.g. encode it: saves allocating and page-faulting a photo-sized array per frame).
+        mask_out : (H, W) uint8, optional
+            Buffer for the mask, likewise.
 
         Returns
         -------
@@ -370,7 +432,14 @@ class Compositor:
             item.extra["notes"] = list(self.notes)
 
         # 1. marker detection and pose
-        pose = self._estimate(cal.tracker, image, timings)
+        pose = None
+        if cal.fast_tracker is not None:
+            try:
+                pose = self._estimate(cal.fast_tracker, image, timings)
+            except MarkerNotFoundError:
+                item.extra["detector"] = "full (fast pass found nothing)"
+        if pose is None:
+            pose = self._estimate(cal.tracker, image, timings)
         item.marker_ids = [int(i) for i in pose.marker_ids]
         item.rvec = np.asarray(pose.rvec, float).ravel().tolist()
         item.tvec = np.asarray(pose.tvec, float).ravel().tolist()
@@ -379,7 +448,7 @@ class Compositor:
         cam_from_world = np.asarray(pose.cam_from_world, dtype=np.float64)
 
         out, mask, info = self.render_pose(image, intr, cam_from_world, lens=cal.lens, timings=timings,
-                                           want_mask=want_mask)
+                                           want_mask=want_mask, out=out, mask_out=mask_out)
         item.mode = info["mode"]
         item.silhouette_edges = info["silhouette_edges"]
         item.extra.update({k: v for k, v in info.items() if k not in ("mode", "silhouette_edges")})
@@ -415,7 +484,7 @@ class Compositor:
                 for ls in self._lights]
 
     def render_pose(self, image, intr, cam_from_world, *, lens=None, timings=None, want_mask=True,
-                    modes=None):
+                    modes=None, out=None, mask_out=None):
         """Render and composite for a known pose (the part of :meth:`process` after the tracker).
 
         Parameters
@@ -483,8 +552,18 @@ class Compositor:
         info = {"mode": mode, "modes": list(modes), "silhouette_edges": n_edges, "roi": list(roi),
                 "canvas": list(canvas), "znear": znear}
 
-        out = image.copy()
-        mask_full = np.zeros((H, W), np.uint8) if want_mask else None
+        if out is None:
+            out = image.copy()
+        else:
+            check_shape(out, f"{H},{W},3", "out")
+            np.copyto(out, image)
+        mask_full = None
+        if want_mask:
+            if mask_out is None:
+                mask_full = np.zeros((H, W), np.uint8)
+            else:
+                mask_full = check_shape(mask_out, f"{H},{W}", "mask_out")
+                mask_full.fill(0)
         if roi[2] == 0 or roi[3] == 0 or canvas[2] == 0 or canvas[3] == 0:
             return out, mask_full, info  # nothing of the scene is in view
 
@@ -502,25 +581,39 @@ class Compositor:
             timings["render"] += dt - float(rt["readback"])
         else:
             timings["render"] += dt
-        mask, alpha, color = res.mask, res.alpha, res.color
-
+        raw = _gl_layers(res)
         # 5. lens warp (pinhole canvas -> distorted photo ROI)
-        if lens is not None:
-            t = time.perf_counter()
-            mask, alpha, color = lens.warp(roi, canvas, mask, alpha, color)
-            timings["warp"] += (time.perf_counter() - t) * 1e3
+        t = time.perf_counter()
+        if raw is not None:
+            # the renderer's own bottom-up RGBA (colour, alpha) and RG (mask, ground) arrays: one remap
+            # or flip each instead of three strided arrays
+            c0, c1 = raw
+            if lens is not None:
+                l0, l1 = lens.warp(roi, canvas, c0, c1, work=self._work, bottom_up=True)
+            else:
+                import cv2
+
+                l0 = cv2.flip(c0, 0, dst=self._work.get("flip0", c0.shape, np.float32))
+                l1 = cv2.flip(c1, 0, dst=self._work.get("flip1", c1.shape, np.float32))
+            mask, alpha, color = l1[:, :, 0], l0[:, :, 3], l0
+        else:
+            mask, alpha, color = res.mask, res.alpha, res.color
+            if lens is not None:
+                mask, alpha, color = lens.warp(roi, canvas, mask, alpha, color, work=self._work)
+        timings["warp"] += (time.perf_counter() - t) * 1e3
 
         # 6. composite
         t = time.perf_counter()
         composite(out, mask, roi, color=color if opts.draw_occluder else None,
                   alpha=alpha if opts.draw_occluder else None, opacity=opts.opacity,
-                  shadow_color=opts.shadow_color, premultiplied=getattr(res, "premultiplied", True), out=out)
+                  shadow_color=opts.shadow_color, premultiplied=getattr(res, "premultiplied", True), out=out, work=self._work)
         if want_mask:
             x0, y0, w, h = roi
-            m = mask * np.float32(255.0)
+            m = self._work.get("mask255", (h, w), np.float32)
+            np.multiply(mask, np.float32(255.0), out=m)
             m += np.float32(0.5)
-            np.clip(m, 0, 255, out=m)
-            mask_full[y0 : y0 + h, x0 : x0 + w] = m.astype(np.uint8)
+            np.clip(m, np.float32(0.0), np.float32(255.0), out=m)
+            np.copyto(mask_full[y0 : y0 + h, x0 : x0 + w], m, casting="unsafe")
         timings["composite"] += (time.perf_counter() - t) * 1e3
         return out, mask_full, info
 
@@ -542,5 +635,42 @@ def _int_rect(rect, margin: int):
     return (x0, y0, x1 - x0 + 1, y1 - y0 + 1)
 
 
-def _unused():  # pragma: no cover - keeps linters quiet about re-exported names
-    return MarkerNotFoundError
+def _gl_layers(res):
+    """The renderer's raw bottom-up ``(h, w, 4)`` RGBA and ``(h, w, 2)`` (mask, ground) arrays, if the
+    :class:`RenderResult`'s ``color``/``alpha``/``mask`` are exactly the flipped views of them (checked
+    pointer by pointer); else None (then the result's own arrays are used)."""
+    c0, c1 = getattr(res.color, "base", None), getattr(res.mask, "base", None)
+    try:
+        ok = (isinstance(c0, np.ndarray) and isinstance(c1, np.ndarray) and c0.dtype == np.float32
+              and c1.dtype == np.float32 and c0.ndim == 3 and c0.shape[2] == 4 and c1.ndim == 3
+              and c1.shape[2] == 2 and c0.flags.c_contiguous and c1.flags.c_contiguous
+              and c0.shape[:2] == c1.shape[:2] == res.mask.shape)
+        if ok:
+            f0, f1 = c0[::-1], c1[::-1]
+            ok = (_same_view(f0[:, :, :3], res.color) and _same_view(f0[:, :, 3], res.alpha)
+                  and _same_view(f1[:, :, 0], res.mask))
+    except (AttributeError, TypeError):
+        ok = False
+    return (c0, c1) if ok else None
+
+
+def _same_view(a, b) -> bool:
+    ia, ib = a.__array_interface__, b.__array_interface__
+    return ia["data"][0] == ib["data"][0] and a.shape == b.shape and a.strides == b.strides
+
+
+def fast_detector_params():
+    """ArUco detector parameters for the fast first pass: one adaptive-threshold window (7 px).
+
+    OpenCV's default tries windows 3, 13 and 23 px (three thresholdings and contour searches); one
+    window finds the same corners on the benchmark set (tests/benchmarks/bench_pipeline.py
+    ``--detectors``: 60 of 60 synthetic photos, identical pose errors) about 5x faster. The
+    :class:`Compositor` falls back to the full search when this pass finds nothing, so robustness is kept.
+    The tracker's corner refinement is applied on top (``make_detector_params``).
+    """
+    import cv2
+
+    p = cv2.aruco.DetectorParameters()
+    p.adaptiveThreshWinSizeMin = 7
+    p.adaptiveThreshWinSizeMax = 7
+    return p

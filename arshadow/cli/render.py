@@ -247,8 +247,11 @@ def _render_all(args, ctx, intr, caster, lights, opts, tracker, inputs, outdir, 
     from ..pipeline import Compositor
     from ..report import ReportItem
 
+    import numpy as np
+
     items = []
     failed = 0
+    buffers: dict = {}
     paths = output_paths(inputs, outdir, args.keep_format)
     input_set = [Path(i) for i in inputs]
     with Compositor(ctx, intr, caster, lights, opts, tracker=tracker) as comp:
@@ -259,7 +262,11 @@ def _render_all(args, ctx, intr, caster, lights, opts, tracker, inputs, outdir, 
                 if any(_same_file(out_path, i) or _same_file(mask_path, i) for i in input_set):
                     raise ImageError(f"{out_path}: output would overwrite an input; choose another -o folder")
                 image = read_image(inp)
-                out, mask, item = comp.process(image, name=str(inp), want_mask=args.save_mask)
+                bufs = buffers.setdefault(image.shape[:2], (np.empty(image.shape, np.uint8),
+                                                            np.empty(image.shape[:2], np.uint8)))
+                # results are encoded right away, so one output buffer per size is reused
+                out, mask, item = comp.process(image, name=str(inp), want_mask=args.save_mask, out=bufs[0],
+                                               mask_out=bufs[1])
                 params = [int(_imwrite_quality(out_path)), 95] if _imwrite_quality(out_path) else None
                 write_image(out_path, out, params)
                 item.output = str(out_path)
