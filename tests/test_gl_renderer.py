@@ -412,3 +412,23 @@ def test_antialiased_mask(ctx, tol, samples, supersample):
     assert err_aa < 0.6 * err_hard, (err_aa, err_hard)
     # coverage-weighted colour / alpha: alpha fractional at the occluder outline too
     assert np.any((res.alpha > 0.05) & (res.alpha < 0.95))
+
+
+def test_planar_mode_and_empty_pass(renderer, tol):
+    """Paper 002's projection shadow (mode "planar") gives the same ground mask as the volumes; a pass with
+    no volume casts nothing but still lights the occluder."""
+    from arshadow.gl.renderer import LightPass
+    from arshadow.transforms import CV_TO_GL
+
+    sc = _scenes()[0]
+    K = _intrinsics(sc.fx)
+    lh = sc.lights[0][0]
+    kw = dict(projection=K.gl_projection(ZNEAR, None), view=CV_TO_GL @ sc.cam_from_world, width=W, height=H,
+              caster=sc.caster)
+    res = renderer.render(passes=[LightPass(lh, 1.0, None, "planar")], **kw)
+    om = _oracle(sc).image(W, H)[0]
+    assert iou(res.mask >= 0.5, om >= 0.5) >= tol.shadow_iou_median
+    none = renderer.render(passes=[LightPass(lh, 1.0, None, "zpass")], **kw)
+    assert not np.any(none.mask)
+    assert np.allclose(none.alpha, res.alpha)
+    assert none.color.max() > 0.3  # lit, not just ambient

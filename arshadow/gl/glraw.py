@@ -158,6 +158,7 @@ _SIGNATURES = {
     "glStencilMask": (None, [_u]),
     "glClearStencil": (None, [_i]),
     "glClearDepth": (None, [ctypes.c_double]),
+    "glClearColor": (None, [_f, _f, _f, _f]),
     "glClear": (None, [_u]),
     "glClearBufferfv": (None, [_u, _i, _pf]),
     "glClearBufferfi": (None, [_u, _i, _f, _i]),

@@ -378,6 +378,7 @@ class ShadowRenderer:
         self._released = False
         #: when True, render() calls ctx.finish() after each pass and reports per-pass times (slower)
         self.profile = False
+        self.clear_mode = "single"
         self._marks = []
 
     # ------------------------------------------------------------------ resources
@@ -597,10 +598,14 @@ class ShadowRenderer:
         gl.glStencilMask(0xFF)
         gl.glClearStencil(0)
         gl.glClearDepth(1.0)
-        zero4 = (ctypes.c_float * 4)(0.0, 0.0, 0.0, 0.0)
-        gl.glClearBufferfv(0x1800, 0, zero4)  # GL_COLOR, draw buffer 0
-        gl.glClearBufferfv(0x1800, 1, zero4)
-        gl.glClearBufferfi(0x84F9, 0, 1.0, 0)  # GL_DEPTH_STENCIL
+        if self.clear_mode == "buffers":
+            zero4 = (ctypes.c_float * 4)(0.0, 0.0, 0.0, 0.0)
+            gl.glClearBufferfv(0x1800, 0, zero4)  # GL_COLOR, draw buffer 0
+            gl.glClearBufferfv(0x1800, 1, zero4)
+            gl.glClearBufferfi(0x84F9, 0, 1.0, 0)  # GL_DEPTH_STENCIL
+        else:
+            gl.glClearColor(0.0, 0.0, 0.0, 0.0)
+            gl.glClear(G.GL_COLOR_BUFFER_BIT | G.GL_DEPTH_BUFFER_BIT | G.GL_STENCIL_BUFFER_BIT)
         self._mark("clear")
         # -- base pass: occluder then ground (depth LESS, writes on)
         ctx.enable_only(moderngl.DEPTH_TEST)
@@ -715,14 +720,20 @@ class ShadowRenderer:
         t2 = time.perf_counter()
 
         # -- readback (one read per attachment, canvas only)
-        c0 = np.empty((height, width, 4), dtype=np.float32)
+        # colour: only the occluder's conservative screen box is read (np.zeros pages elsewhere stay
+        # untouched); mask/ground: the whole canvas
+        c0 = np.zeros((height, width, 4), dtype=np.float32)
         c1 = np.empty((height, width, 2), dtype=np.float32)
         gl.glBindBuffer(G.GL_PIXEL_PACK_BUFFER, 0)
         gl.glPixelStorei(G.GL_PACK_ALIGNMENT, 4)
-        gl.glPixelStorei(G.GL_PACK_ROW_LENGTH, 0)
         gl.glBindFramebuffer(G.GL_READ_FRAMEBUFFER, src.fbo)
-        gl.glReadBuffer(G.GL_COLOR_ATTACHMENT0)
-        gl.glReadPixels(0, 0, width, height, G.GL_RGBA, G.GL_FLOAT, c0.ctypes.data)
+        box = _screen_box(mvp, caster, width, height) if draw_occluder else None
+        if box is not None and box[2] > box[0] and box[3] > box[1]:
+            x0, y0, x1, y1 = box
+            gl.glPixelStorei(G.GL_PACK_ROW_LENGTH, width)
+            gl.glReadBuffer(G.GL_COLOR_ATTACHMENT0)
+            gl.glReadPixels(x0, y0, x1 - x0, y1 - y0, G.GL_RGBA, G.GL_FLOAT, c0[y0:, x0:].ctypes.data)
+        gl.glPixelStorei(G.GL_PACK_ROW_LENGTH, 0)
         gl.glReadBuffer(G.GL_COLOR_ATTACHMENT0 + 1)
         gl.glReadPixels(0, 0, width, height, G.GL_RG, G.GL_FLOAT, c1.ctypes.data)
         gl.glBindFramebuffer(G.GL_FRAMEBUFFER, 0)
@@ -815,6 +826,26 @@ class ShadowRenderer:
             bufs.vao.render(moderngl.TRIANGLES, vertices=bufs.n_indices)
         gl.glEnable(G.GL_STENCIL_TEST)
         ctx.depth_func = "<"
+
+
+def _screen_box(mvp, caster, width, height):
+    """Conservative pixel box ``(x0, y0, x1, y1)`` (GL window coordinates, bottom-up, half-open) of the
+    caster's projection: its 8 bounding-box corners projected; the whole canvas if a corner is not
+    strictly in front of the camera."""
+    b = np.asarray(caster.bounds, np.float64) if hasattr(caster, "bounds") else np.array(
+        [np.min(caster.vertices, 0), np.max(caster.vertices, 0)])
+    corners = np.array([[b[i, 0], b[j, 1], b[k, 2], 1.0] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
+    clip = corners @ mvp.T
+    w = clip[:, 3]
+    if not np.all(w > 1e-9):
+        return 0, 0, width, height
+    x = (clip[:, 0] / w + 1.0) * 0.5 * width
+    y = (clip[:, 1] / w + 1.0) * 0.5 * height
+    x0 = int(min(max(math.floor(x.min()) - 1, 0), width))
+    y0 = int(min(max(math.floor(y.min()) - 1, 0), height))
+    x1 = int(max(min(math.ceil(x.max()) + 1, width), 0))
+    y1 = int(max(min(math.ceil(y.max()) + 1, height), 0))
+    return x0, y0, x1, y1
 
 
 def planar_shadow_matrix_z0(light_h) -> np.ndarray:
