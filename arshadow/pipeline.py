@@ -90,7 +90,7 @@ class RenderOptions:
     shadow_method: str = "volume"
     silhouette: str = "adjacency"
     soft_samples: int = 1
-    aa: int = 4
+    aa: int = 0
     ground_size: float | None = None
     draw_occluder: bool = True
     truncate: bool = True
