@@ -283,6 +283,7 @@ def test_end_to_end_synthetic_photos(ctx, tol):
             r = _compare(mask, orc, roi, 0.5, boundary=False)
             assert r["n_shadow"] > 1000, (i, r)
             ious.append(r["iou"])
+    print(f"\nend-to-end IoUs: {np.round(ious, 4).tolist()}")
     assert np.median(ious) >= tol.end_to_end_iou_median, ious
 
 
