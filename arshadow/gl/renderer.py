@@ -118,7 +118,10 @@ class RenderResult:
     ground_coverage : (h, w) float32
         Fraction of the pixel's samples that see the ground.
     timings_ms : dict
-        ``upload`` (CPU: volumes to GPU), ``draw`` (GL passes, to completion), ``readback``, ``total``.
+        ``upload`` (CPU: volumes to GPU), ``draw`` (GL passes, to completion), ``readback``, ``total``;
+        with ``ShadowRenderer.profile = True`` also ``pass_<name>`` per GL pass (ctx.finish() after each).
+    premultiplied : bool
+        Always True: ``color`` is premultiplied by ``alpha``.
     """
 
     mask: np.ndarray
@@ -127,6 +130,7 @@ class RenderResult:
     ground: np.ndarray
     ground_coverage: np.ndarray
     timings_ms: dict = field(default_factory=dict)
+    premultiplied: bool = True
 
 
 def _crease_normals(vertices: np.ndarray, faces: np.ndarray, crease_deg: float) -> np.ndarray:
@@ -392,10 +396,10 @@ class ShadowRenderer:
         """Free every GL object this renderer made (programs stay cached on the context)."""
         if self._released:
             return
-        for t in (self._main, self._resolve, self._half):
+        for t in (self._main, self._resolve, self._half, getattr(self, "_ss_resolve", None)):
             if t is not None:
                 t.release()
-        self._main = self._resolve = self._half = None
+        self._main = self._resolve = self._half = self._ss_resolve = None
         for _, _, bufs in self._casters.values():
             bufs.release()
         self._casters.clear()
@@ -589,7 +593,7 @@ class ShadowRenderer:
         fbo.use()  # binds, sets viewport/scissor, and moderngl's colour/depth masks (all on)
         gl.draw_buffers(2)
         ctx.front_face = front
-        # -- clear (scissored by moderngl's fbo.clear -> raw clear of depth+stencil too)
+        # -- clear colour, depth and stencil of the canvas (scissored: the buffers may be larger)
         import moderngl
 
         ctx.enable_only(moderngl.NOTHING)
