@@ -66,9 +66,14 @@ REFINE_METHODS = {
 #: the default refinement, chosen by tests/benchmarks/bench_tracking.py (see docs/tracking.md)
 DEFAULT_REFINE = "subpix"
 
+#: OpenCV's AprilTag corner refinement returns corners in AprilTag's pixel convention (pixel *corner* at
+#: 0, centre at 0.5): subtracted to get CONVENTIONS.md's pixel-centre coordinates (measured +0.42 px
+#: mean offset on synthetic photos before the correction; see docs/tracking.md)
+APRILTAG_OFFSET_PX = 0.5
+
 #: pose_ambiguity (err_best / err_second of the two IPPE solutions) at or above which a single-marker
 #: pose is flagged as ambiguous (see docs/tracking.md for how it was chosen)
-AMBIGUITY_FLAG = 0.6
+AMBIGUITY_FLAG = 0.3
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -553,10 +558,12 @@ def _gray(image) -> np.ndarray:
     return cv2.cvtColor(to_bgr8(img), cv2.COLOR_BGR2GRAY)
 
 
-def _detection(corners, ids, rejected) -> Detection:
+def _detection(corners, ids, rejected, params=None) -> Detection:
     if ids is None or len(ids) == 0:
         return Detection(np.zeros(0, dtype=int), np.zeros((0, 4, 2)), len(rejected) if rejected is not None else 0)
     c = np.asarray(corners, dtype=np.float64).reshape(-1, 4, 2)
+    if params is not None and params.cornerRefinementMethod == cv2.aruco.CORNER_REFINE_APRILTAG:
+        c = c - APRILTAG_OFFSET_PX
     return Detection(np.asarray(ids).ravel().astype(int), c, len(rejected) if rejected is not None else 0)
 
 
@@ -576,9 +583,10 @@ def detect_markers(image, dictionary="DICT_6X6_250", params=None, refine=DEFAULT
     -------
     Detection
     """
-    det = cv2.aruco.ArucoDetector(get_dictionary(dictionary), make_detector_params(refine, params))
+    p = make_detector_params(refine, params)
+    det = cv2.aruco.ArucoDetector(get_dictionary(dictionary), p)
     corners, ids, rejected = det.detectMarkers(_gray(image))
-    return _detection(corners, ids, rejected)
+    return _detection(corners, ids, rejected, p)
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -671,6 +679,22 @@ class MarkerPose:
 def _rms(intr: Intrinsics, obj, img, rvec, tvec) -> float:
     proj = cv2.projectPoints(obj, rvec, tvec, intr.K, intr.dist_cv)[0].reshape(-1, 2)
     return float(np.sqrt(np.mean(np.sum((proj - img) ** 2, axis=1))))
+
+
+def rotation_sigma_deg(intr: Intrinsics, obj, rvec, tvec, sigma_px: float = 1.0) -> float:
+    """First-order standard deviation (degrees, worst axis) of the pose's rotation for independent
+    corner noise of ``sigma_px`` per coordinate: ``sqrt(max eig((J^T J)^-1)_rot) * sigma_px``, with J the
+    (2n, 6) Jacobian of the projected points w.r.t. (rvec, tvec) at the solution."""
+    obj = np.ascontiguousarray(obj, dtype=np.float64).reshape(-1, 3)
+    _, jac = cv2.projectPoints(obj, np.asarray(rvec, np.float64).reshape(3, 1),
+                               np.asarray(tvec, np.float64).reshape(3, 1), intr.K, intr.dist_cv)
+    j = jac[:, :6]
+    try:
+        cov = np.linalg.inv(j.T @ j)
+    except np.linalg.LinAlgError:
+        return float("inf")
+    ev = np.linalg.eigvalsh(0.5 * (cov[:3, :3] + cov[:3, :3].T))
+    return float(np.degrees(np.sqrt(max(ev.max(), 0.0))) * sigma_px)
 
 
 def _solve_planar(intr: Intrinsics, obj, img, square: bool, lm: bool = True):
@@ -814,7 +838,7 @@ class MarkerTracker:
     def detect(self, image) -> Detection:
         """Detect the markers of this tracker's dictionary (no pose)."""
         corners, ids, rejected = self._detector.detectMarkers(_gray(image))
-        return _detection(corners, ids, rejected)
+        return _detection(corners, ids, rejected, self.params)
 
     # -- pose ------------------------------------------------------------------------------------------
     def estimate(self, image_bgr, previous=None) -> MarkerPose:
@@ -872,7 +896,7 @@ class MarkerTracker:
 
     def _estimate_marker(self, gray, intr) -> MarkerPose:
         corners, ids, rejected = self._detector.detectMarkers(gray)
-        det = _detection(corners, ids, rejected)
+        det = _detection(corners, ids, rejected, self.params)
         if len(det) == 0:
             raise MarkerNotFoundError(f"no marker of {self.dictionary_name} found")
         found = sorted(set(det.ids.tolist()))
@@ -896,8 +920,9 @@ class MarkerTracker:
             raise MarkerNotFoundError(f"no marker of {self.dictionary_name} found")
         corners, ids, rejected, _ = self._detector.refineDetectedMarkers(
             gray, self.board.cv_board, corners, ids, rejected, intr.K, intr.dist_cv)
-        det = _detection(corners, ids, rejected)
-        obj, img = self.board.cv_board.matchImagePoints(corners, ids)
+        det = _detection(corners, ids, rejected, self.params)
+        obj, img = self.board.cv_board.matchImagePoints(tuple(c.reshape(1, 4, 2).astype(np.float32) for c in det.corners),
+                                                        det.ids.reshape(-1, 1).astype(np.int32))
         if obj is None or len(obj) < 4:
             raise MarkerNotFoundError(
                 f"none of the board's markers found (found ids {', '.join(map(str, sorted(set(det.ids.tolist()))))})")
@@ -922,5 +947,5 @@ class MarkerTracker:
         obj = np.asarray(obj, np.float64).reshape(-1, 3) @ OPENCV_BOARD_TO_WORLD.T
         img = np.asarray(img, np.float64).reshape(-1, 2)
         sols = _solve_planar(intr, obj, img, square=False, lm=self.pnp_refine)
-        mdet = _detection(m_corners, m_ids, None)
+        mdet = _detection(m_corners, m_ids, None, self.params)
         return self._make_pose(sols, obj, img, sorted(set(mdet.ids.tolist())), mdet.by_id, "charuco")

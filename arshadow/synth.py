@@ -134,18 +134,20 @@ def _rot_a_to_b(a, b) -> np.ndarray:
 
 
 def random_pose(rng, intrinsics: Intrinsics, *, distance=(0.3, 0.8), tilt_deg=(0.0, 70.0),
-                roll_deg=(-180.0, 180.0), keep_in_view=None, margin_px=10.0, max_tries=200) -> np.ndarray:
-    """A random ``cam_from_world`` looking at the world origin, the origin anywhere in the image.
+                roll_deg=(-180.0, 180.0), keep_in_view=None, margin_px=10.0, max_tries=200,
+                target=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """A random ``cam_from_world`` looking at ``target`` (default the world origin), placed anywhere in
+    the image.
 
     Parameters
     ----------
     rng : np.random.Generator
     intrinsics : Intrinsics
     distance : (float, float)
-        Camera-to-origin distance range, metres (uniform).
+        Camera-to-target distance range, metres (uniform).
     tilt_deg : (float, float)
-        Angle between the line of sight and the marker normal (+z), degrees; sampled uniformly in
-        ``cos`` would favour small tilts, so it is uniform in the angle.
+        Angle between the line of sight (camera -> target) and the marker normal (+z), degrees,
+        uniform in the angle.
     roll_deg : (float, float)
         Rotation of the camera about its optical axis.
     keep_in_view : (n, 3) float64, optional
@@ -157,13 +159,14 @@ def random_pose(rng, intrinsics: Intrinsics, *, distance=(0.3, 0.8), tilt_deg=(0
     (4, 4) float64
     """
     K = intrinsics.K
+    target = check_finite(check_shape(np.ravel(target), "3", "target"), "target").astype(np.float64)
     pts = None if keep_in_view is None else check_shape(keep_in_view, "N,3", "keep_in_view").astype(float)
     for attempt in range(max_tries):
         d = rng.uniform(*distance)
         tilt = math.radians(rng.uniform(*tilt_deg))
         az = rng.uniform(0.0, 2.0 * math.pi)
-        eye = d * np.array([math.sin(tilt) * math.cos(az), math.sin(tilt) * math.sin(az), math.cos(tilt)])
-        m = look_at_pose(eye, np.zeros(3))
+        eye = target + d * np.array([math.sin(tilt) * math.cos(az), math.sin(tilt) * math.sin(az), math.cos(tilt)])
+        m = look_at_pose(eye, target)
         roll = math.radians(rng.uniform(*roll_deg))
         rz = np.array([[math.cos(roll), -math.sin(roll), 0], [math.sin(roll), math.cos(roll), 0], [0, 0, 1]])
         # aim the optical axis so that the origin lands at a random pixel (shrinking towards the centre
