@@ -232,9 +232,9 @@ class _CasterBuffers:
         if first:
             data = np.concatenate(parts) if len(parts) > 1 else parts[0]
             if data.nbytes > self.sub_ibo.size:
-                self.sub_vao.release()
-                self.sub_ibo.release()
-                raise RuntimeError("unreachable: subset larger than the mesh")  # pragma: no cover
+                # several lights (or soft-shadow samples) need several subsets: grow the buffer in place
+                # (same GL buffer name, so sub_vao stays valid), with headroom against repeated growth
+                self.sub_ibo.orphan(2 * data.nbytes)
             self.sub_ibo.write(data)
 
     def release(self):
