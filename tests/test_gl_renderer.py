@@ -432,3 +432,44 @@ def test_planar_mode_and_empty_pass(renderer, tol):
     assert not np.any(none.mask)
     assert np.allclose(none.alpha, res.alpha)
     assert none.color.max() > 0.3  # lit, not just ambient
+
+
+def test_buffers_grow_and_caster_cache(ctx):
+    """A canvas larger than any before reallocates (and still renders exactly); the caster cache is
+    bounded and keyed by the caster object; released casters' buffers are freed."""
+    import gc
+
+    from arshadow.gl.renderer import LightPass, ShadowRenderer
+    from arshadow.mesh import load_occluder
+    from arshadow.silhouette import silhouette
+    from arshadow.transforms import CV_TO_GL
+    from arshadow.volume import shadow_volume
+
+    sc = _scenes()[0]
+    K = _intrinsics(sc.fx)
+    lh = sc.lights[0][0]
+
+    def render(r, caster, canvas):
+        vol = shadow_volume(caster, lh, silhouette(caster, lh), caps=False)
+        return r.render(projection=K.gl_projection(ZNEAR, None, canvas=canvas), view=CV_TO_GL @ sc.cam_from_world,
+                        width=canvas[2], height=canvas[3], caster=caster, passes=[LightPass(lh, 1.0, vol, "zpass")])
+
+    small, big = (560, 300, 200, 150), (400, 200, 600, 400)
+    with ShadowRenderer(ctx, max_width=W, max_height=H, max_cached_casters=3) as r, \
+            ShadowRenderer(ctx, max_width=W, max_height=H) as fresh:
+        a = render(r, sc.caster, small)
+        b = render(r, sc.caster, big)  # grows
+        c = render(r, sc.caster, small)  # reuses the big buffers
+        assert r._main.width >= 600 and r._main.height >= 400
+        assert np.array_equal(a.mask, c.mask) and np.array_equal(a.color, c.color)
+        ref = render(fresh, sc.caster, big)
+        assert np.array_equal(b.mask, ref.mask) and np.array_equal(b.alpha, ref.alpha)
+        casters = [load_occluder(f"box:0.0{k + 2},0.05,0.1") for k in range(5)]
+        for cs in casters:
+            render(r, cs, small)
+        assert len(r._casters) <= 3
+        del casters, cs
+        gc.collect()
+        render(r, sc.caster, small)
+        assert len(r._casters) == 1  # dead casters purged, their buffers released
+    assert ctx.error == "GL_NO_ERROR"
