@@ -209,7 +209,7 @@ class ShadowCaster:
         c = self.triangles.mean(axis=1)
         d = -np.einsum("ij,ij->i", n, c)
         planes = np.concatenate([n, d[:, None]], axis=1)
-        labels, poly_planes = self._polygon_labels_planes(planes)
+        labels, poly_planes = self._polygon_grouping
         multi = np.bincount(labels)[labels] > 1
         planes[multi] = poly_planes[labels[multi]]
         return _readonly(planes)
@@ -405,6 +405,14 @@ class ShadowCaster:
         return _readonly(lo[order]), _readonly(hi[order]), _readonly(el[order])
 
     # ------------------------------------------------------------------ flat polygons (HSD)
+    @functools.cached_property
+    def _polygon_grouping(self):
+        """``(labels (m,), polygon planes (P, 4))`` from the faces' own planes (computed once)."""
+        n = self._raw_normals
+        n = n / np.linalg.norm(n, axis=1)[:, None]
+        d = -np.einsum("ij,ij->i", n, self.triangles.mean(axis=1))
+        return self._polygon_labels_planes(np.concatenate([n, d[:, None]], axis=1))
+
     def _polygon_labels_planes(self, planes: np.ndarray):
         """Group faces into connected coplanar polygons.
 
@@ -425,11 +433,10 @@ class ShadowCaster:
         labels = connected_labels(len(planes), f0[same], f1[same])
         p = labels.max() + 1
         area_n = self._raw_normals  # length = 2 x area
-        nsum = np.zeros((p, 3))
-        np.add.at(nsum, labels, area_n)
+        nsum = np.stack([np.bincount(labels, weights=area_n[:, k], minlength=p) for k in range(3)], axis=1)
         nrm = nsum / np.linalg.norm(nsum, axis=1)[:, None]
-        csum = np.zeros((p, 3))
-        np.add.at(csum, labels, t.mean(axis=1))
+        cen_f = t.mean(axis=1)
+        csum = np.stack([np.bincount(labels, weights=cen_f[:, k], minlength=p) for k in range(3)], axis=1)
         cnt = np.bincount(labels, minlength=p)
         cen = csum / cnt[:, None]
         d = -np.einsum("ij,ij->i", nrm, cen)
@@ -444,7 +451,7 @@ class ShadowCaster:
         as the polygon winds them, internal edges cancelled), ``edge_polygon (B,) intp``.
         """
         planes = self.face_planes
-        labels, _ = self._polygon_labels_planes(planes)
+        labels, _ = self._polygon_grouping
         p = labels.max() + 1
         # a polygon's plane = the (shared) plane of any of its faces
         first = np.full(p, -1, np.intp)

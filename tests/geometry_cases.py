@@ -62,7 +62,20 @@ def open_meshes() -> dict[str, ShadowCaster]:
         "umbrella": load_occluder(SAMPLES / "umbrella.ply"),
         "triangle": ShadowCaster([[0, 0, 0.1], [0.1, 0, 0.12], [0, 0.1, 0.15]], [[0, 1, 2]], name="triangle"),
         "sheet": _sheet(),
+        "nonmanifold": _two_boxes_sharing_an_edge(),
     }
+
+
+def _two_boxes_sharing_an_edge() -> ShadowCaster:
+    """Two closed boxes touching along one edge (that edge has four faces: non-manifold)."""
+    import trimesh
+
+    b = trimesh.creation.box(extents=[0.1, 0.1, 0.1])
+    v1 = np.asarray(b.vertices) + [0.05, 0.05, 0.15]
+    v2 = np.asarray(b.vertices) + [-0.05, -0.05, 0.15]
+    c = ShadowCaster(np.vstack([v1, v2]), np.vstack([b.faces, np.asarray(b.faces) + 8]), name="nonmanifold")
+    assert len(c.nonmanifold_edges) == 1
+    return c
 
 
 def _sheet() -> ShadowCaster:

@@ -90,7 +90,8 @@ def _footprint_iou(c, L, n=2048, tz=None):
     return iou(oracle, wind > 0), int(oracle.sum())
 
 
-FOOTPRINT_CASES = [("knot", 3), ("house", 3), ("torus", 2), ("box", 2), ("umbrella", 3), ("triangle", 2), ("sheet", 2)]
+FOOTPRINT_CASES = [("knot", 3), ("house", 3), ("torus", 2), ("box", 2), ("umbrella", 3), ("triangle", 2), ("sheet", 2),
+                   ("nonmanifold", 2)]
 
 
 @pytest.mark.parametrize("name,n_lights", FOOTPRINT_CASES)
