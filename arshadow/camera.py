@@ -444,7 +444,7 @@ class Intrinsics:
     def to_file(self, path, **extra) -> Path:
         """Write an OpenCV FileStorage calibration (format from the extension: .yml/.yaml/.xml/.json).
 
-        ``extra`` keys are written too: numbers, strings, or arrays (as matrices), e.g.
+        ``extra`` keys are written too: numbers, strings, lists of strings, or arrays (as matrices), e.g.
         ``rms=0.39, per_view_errors=np.array([...])``. The file is written atomically.
         """
         from .io import atomic_path
@@ -472,6 +472,11 @@ class Intrinsics:
                         fs.write(k, float(v))
                     elif isinstance(v, str):
                         fs.write(k, v)
+                    elif isinstance(v, (list, tuple)) and all(isinstance(x, str) for x in v):
+                        fs.startWriteStruct(k, cv2.FileNode_SEQ)
+                        for x in v:
+                            fs.write("", x)
+                        fs.endWriteStruct()
                     else:
                         arr = np.asarray(v, dtype=np.float64)
                         fs.write(k, arr.reshape(-1, 1) if arr.ndim == 1 else arr)

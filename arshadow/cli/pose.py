@@ -1,0 +1,128 @@
+"""``arshadow pose``: detect the marker (or board) in photos and print its pose per image."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+DESCRIPTION = """\
+Detect an ArUco marker (or a grid / ChArUco board) in each IMAGE and print the pose of the marker
+(world) frame in the camera: ids, rvec, tvec (world -> camera, metres, as cv2.solvePnP gives them),
+the RMS reprojection error and the IPPE ambiguity ratio err_best/err_second (in (0, 1]; at or above
+the flag threshold the pose may be the mirrored solution: it is marked AMBIGUOUS).
+Exit status: 0 all images done, 1 some image failed (no marker, unreadable, wrong size; the others
+are still processed), 2 bad usage or unreadable calibration / board / dictionary.
+"""
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("pose", help="marker / board pose per photo (ids, rvec, tvec, error, ambiguity)",
+                              description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("images", nargs="+", metavar="IMAGE", help="photos (anything OpenCV reads)")
+    p.add_argument("--calib", required=True, metavar="FILE",
+                   help="camera calibration (OpenCV YAML/XML/JSON or ROS camera_info YAML)")
+    p.add_argument("--dictionary", default="DICT_6X6_250", metavar="D",
+                   help="marker dictionary name or custom dictionary file (default DICT_6X6_250)")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--marker-length", type=float, metavar="M", help="printed marker side, metres")
+    g.add_argument("--board", metavar="FILE", help="board file (gridboard or charuco; see calib/README.md)")
+    p.add_argument("--marker-id", type=int, metavar="N", help="use this marker id (default: the lowest id found)")
+    p.add_argument("--refine", default=None, choices=("none", "subpix", "contour", "apriltag"),
+                   help="corner refinement (default: subpix, or the --detector-params file's own)")
+    p.add_argument("--detector-params", metavar="FILE", help="cv2.aruco.DetectorParameters YAML file")
+    p.add_argument("--json", action="store_true", help="print the JSON report (CONVENTIONS.md) on stdout")
+    p.add_argument("--report", metavar="PATH", help="also write the JSON report to PATH")
+    p.add_argument("--overlay", metavar="DIR", help="write <stem>.png with the markers and axes drawn into DIR")
+    p.set_defaults(func=run)
+
+
+def _overlay(image, pose, tracker, out_dir: Path, stem: str) -> str:
+    import cv2
+    import numpy as np
+
+    from ..io import write_image
+
+    img = image.copy()
+    ids = list(pose.all_corners)
+    if ids:
+        cv2.aruco.drawDetectedMarkers(img, [c.reshape(1, 4, 2).astype(np.float32) for c in pose.all_corners.values()],
+                                      np.asarray(ids, np.int32).reshape(-1, 1))
+    intr = pose.intrinsics
+    if tracker.board is not None:
+        length = 0.5 * min(tracker.board.extent)
+    else:
+        length = 0.75 * tracker.marker_length
+    level = cv2.utils.logging.getLogLevel()
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)  # "axes out of frame" is not an error
+    try:
+        cv2.drawFrameAxes(img, intr.K, intr.dist_cv, pose.rvec.reshape(3, 1), pose.tvec.reshape(3, 1), length, 2)
+    finally:
+        cv2.utils.logging.setLogLevel(level)
+    path = out_dir / f"{stem}.png"
+    write_image(path, img)
+    return str(path)
+
+
+def run(args) -> int:
+    from ..camera import Intrinsics
+    from ..errors import ArshadowError, MarkerNotFoundError, UsageError
+    from ..io import read_image, write_json
+    from ..marker import MarkerTracker
+    from ..report import ReportItem, make_report
+    from . import error_line
+
+    if args.marker_length is None and args.board is None:
+        raise UsageError("give --marker-length M (metres) or --board FILE")
+    if args.marker_length is not None and not (args.marker_length > 0 and args.marker_length < float("inf")):
+        raise UsageError(f"--marker-length must be a positive number of metres, got {args.marker_length}")
+    intr = Intrinsics.from_file(args.calib)
+    refine = args.refine if args.refine is not None else (None if args.detector_params else "subpix")
+    tracker = MarkerTracker(intr, dictionary=args.dictionary, marker_length=args.marker_length,
+                            marker_id=args.marker_id, board=args.board, refine=refine,
+                            detector_params=args.detector_params)
+    out_dir = Path(args.overlay) if args.overlay else None
+    items, failed = [], 0
+    for name in args.images:
+        item = ReportItem(input=str(name))
+        t0 = time.perf_counter()
+        try:
+            image = read_image(name)
+            t1 = time.perf_counter()
+            pose = tracker.estimate(image)
+            t2 = time.perf_counter()
+            item.marker_ids = [int(i) for i in pose.marker_ids]
+            item.rvec, item.tvec = pose.rvec.tolist(), pose.tvec.tolist()
+            item.reprojection_error_px = float(pose.reprojection_error_px)
+            item.pose_ambiguity = pose.pose_ambiguity
+            item.extra = {"pose_flagged": bool(pose.ambiguous), "n_points": int(pose.n_points),
+                          "kind": pose.kind, "calibration_scaled": bool(pose.scaled)}
+            if out_dir is not None:
+                item.output = _overlay(image, pose, tracker, out_dir, Path(name).stem)
+            item.timings_ms = {"read": 1e3 * (t1 - t0), "detect_pose": 1e3 * (t2 - t1),
+                               "total": 1e3 * (time.perf_counter() - t0)}
+            if not args.json:
+                amb = "n/a" if pose.pose_ambiguity is None else f"{pose.pose_ambiguity:.3f}"
+                print(f"{name}: ids {item.marker_ids} rvec [{', '.join(f'{v:.6f}' for v in pose.rvec)}] "
+                      f"tvec [{', '.join(f'{v:.6f}' for v in pose.tvec)}] m, reprojection "
+                      f"{pose.reprojection_error_px:.3f} px, ambiguity {amb}"
+                      + (" AMBIGUOUS" if pose.ambiguous else "")
+                      + (f" (calibration scaled to {image.shape[1]}x{image.shape[0]})" if pose.scaled else ""))
+        except ArshadowError as exc:
+            item.status = "no_marker" if isinstance(exc, MarkerNotFoundError) else "error"
+            item.error = str(exc)
+            failed += 1
+            msg = str(exc)
+            print(f"arshadow pose: error: {msg}" if msg.startswith(str(name)) else error_line("pose", str(name), exc),
+                  file=sys.stderr)
+        if item.status != "ok":
+            item.timings_ms = {"total": 1e3 * (time.perf_counter() - t0)}
+        items.append(item)
+    report = make_report(items)
+    if args.json:
+        print(json.dumps(report, indent=1))
+    if args.report:
+        write_json(args.report, report)
+    return 1 if failed else 0
