@@ -97,6 +97,8 @@ class ShadowCaster:
             f = check_shape(faces, "M,3", f"{label} faces")
         except ShapeError as exc:
             raise MeshError(str(exc)) from None
+        except (ValueError, TypeError) as exc:  # ragged lists, objects
+            raise MeshError(f"{label}: vertices / faces are not numeric arrays ({exc})") from None
         if v.shape[0] == 0 or f.shape[0] == 0:
             raise MeshError(f"{label} is empty ({v.shape[0]} vertices, {f.shape[0]} faces)")
         if v.dtype.kind not in "fiu":

@@ -62,6 +62,8 @@ def test_weld_and_drop_degenerate():
         ([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 3]], "out of range"),
         ([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0.5, 1, 2]], "integer"),
         ([[0, 0], [1, 0], [0, 1]], [[0, 1, 2]], "shape"),
+        ([[0, 0, 0], [1, 0], [0, 1, 0]], [[0, 1, 2]], "numeric"),
+        ([["a", "b", "c"], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]], "not numbers"),
     ],
 )
 def test_bad_meshes_raise(verts, faces, match):
