@@ -163,6 +163,38 @@ def test_lens_distortion_k1(ctx, tol, case, aa):
     assert iou(mask_pin >= 128, mask >= 128) < 0.9
 
 
+def test_nothing_in_view_renders_nothing(ctx):
+    """The camera looks away from the object: no canvas, the photo is returned unchanged."""
+    from arshadow.mesh import load_occluder
+    from arshadow.synth import look_at_pose
+
+    caster = load_occluder("box:0.04,0.04,0.06")
+    pose = look_at_pose([0.0, -0.3, 0.3], [0.0, -1.5, 0.0])  # looking away, down at the ground behind
+    photo = _plain_photo()
+    with _compositor(ctx, caster, _lights("point:0.1,0.1,0.5")) as comp:
+        out, mask, info = comp.render_pose(photo, _intrinsics(), pose)
+    assert np.array_equal(out, photo) and not mask.any()
+    assert info["roi"][2] * info["roi"][3] == 0 or info.get("content") is None
+
+
+def test_mask_is_zero_on_the_object_and_full_in_the_shadow(ctx):
+    from arshadow.mesh import load_occluder
+    from arshadow.synth import look_at_pose
+
+    caster = load_occluder("box:0.06,0.05,0.09")
+    lights = _lights("point:0.25,0.15,0.45")
+    pose = look_at_pose([0.15, -0.55, 0.42], [0.0, 0.0, 0.02])
+    intr = _intrinsics()
+    with _compositor(ctx, caster, lights) as comp:
+        out, mask, info = comp.render_pose(_plain_photo(), intr, pose)
+    orc = ShadowOracle(intr.K, pose, caster.vertices, caster.faces, _oracle_lights(lights))
+    om, og, oo = orc.image(W, H)
+    inner = lambda m: cv2.erode(m.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)  # noqa: E731
+    assert inner(oo).sum() > 2000 and not mask[inner(oo)].any()  # object pixels: 0
+    assert inner(om >= 0.5).sum() > 2000 and np.all(mask[inner(om >= 0.5)] == 255)  # full shadow: 255
+    assert not mask[inner(~og & ~oo)].any() if (~og & ~oo).any() else True
+
+
 def test_roi_render_equals_full_render(ctx, knot):
     from arshadow.synth import look_at_pose
 
