@@ -56,6 +56,8 @@ GL_FRAMEBUFFER = 0x8D40
 GL_READ_FRAMEBUFFER = 0x8CA8
 GL_DRAW_FRAMEBUFFER = 0x8CA9
 GL_RENDERBUFFER = 0x8D41
+GL_TEXTURE_2D = 0x0DE1
+GL_NONE = 0
 GL_FRAMEBUFFER_COMPLETE = 0x8CD5
 GL_COLOR_ATTACHMENT0 = 0x8CE0
 GL_DEPTH_ATTACHMENT = 0x8D00
@@ -146,6 +148,7 @@ _SIGNATURES = {
     "glDeleteFramebuffers": (None, [_i, _pu]),
     "glBindFramebuffer": (None, [_u, _u]),
     "glFramebufferRenderbuffer": (None, [_u, _u, _u, _u]),
+    "glFramebufferTexture2D": (None, [_u, _u, _u, _u, _i]),
     "glCheckFramebufferStatus": (_u, [_u]),
     "glGetFramebufferAttachmentParameteriv": (None, [_u, _u, _u, _pi]),
     "glDrawBuffers": (None, [_i, _pu]),
@@ -216,8 +219,16 @@ class GL:
         v = ctypes.c_uint(name)
         self.glDeleteFramebuffers(1, ctypes.byref(v))
 
-    def draw_buffers(self, n: int) -> None:
-        arr = (ctypes.c_uint * n)(*[GL_COLOR_ATTACHMENT0 + i for i in range(n)])
+    def draw_buffers(self, n: int, only=None) -> None:
+        """``glDrawBuffers`` for attachments 0..n-1 (or, with ``only``, that attachment and GL_NONE)."""
+        arr = (ctypes.c_uint * n)(*[
+            (GL_COLOR_ATTACHMENT0 + i) if (only is None or i == only) else GL_NONE for i in range(n)])
+        self.glDrawBuffers(n, arr)
+
+    def draw_buffer_list(self, attachments) -> None:
+        """``glDrawBuffers`` with fragment output i -> colour attachment ``attachments[i]`` (None: GL_NONE)."""
+        n = len(attachments)
+        arr = (ctypes.c_uint * n)(*[GL_NONE if a is None else GL_COLOR_ATTACHMENT0 + int(a) for a in attachments])
         self.glDrawBuffers(n, arr)
 
     def renderbuffer_param(self, rb: int, pname: int) -> int:

@@ -52,7 +52,8 @@ __all__ = ["LightPass", "RenderResult", "ShadowRenderer", "load_shader", "srgb_t
 
 MODES = ("zpass", "zfail", "planar")
 GROUND_BIT = 0x80
-COUNT_MASK = 0x7F
+OCCLUDER_BIT = 0x40
+COUNT_MASK = 0x3F
 #: default occluder colour (sRGB) when the mesh has none and none is given
 DEFAULT_COLOR = (0.8, 0.8, 0.8)
 
@@ -295,6 +296,7 @@ class _Target:
         self.rbs = []
 
 
+
 def _program_cache(ctx) -> dict:
     """Programs are cached per context (in ``ctx.extra``), compiled once."""
     extra = ctx.extra if isinstance(getattr(ctx, "extra", None), dict) else None
@@ -453,7 +455,8 @@ class ShadowRenderer:
             self._casters.pop(id(caster))[2].release()
         while len(self._casters) >= self.max_cached_casters:
             self._casters.pop(next(iter(self._casters)))[2].release()
-        bufs = _CasterBuffers(self.ctx, self.prog_occ_base, self.prog_occ_light, self.prog_volume, caster, ckey, self.crease_deg)
+        bufs = _CasterBuffers(self.ctx, self.prog_occ_base, self.prog_occ_light, self.prog_volume, caster, ckey,
+                              self.crease_deg)
         try:
             ref = weakref.ref(caster)
         except TypeError:  # objects without weakref support: keep a strong reference
@@ -617,9 +620,16 @@ class ShadowRenderer:
         if draw_occluder:
             ctx.enable_only(moderngl.DEPTH_TEST | (moderngl.CULL_FACE if bufs.cull else 0))
             ctx.cull_face = "back"
-            self.prog_occ_base["u_mvp"].write(mvp_bytes)
-            self.prog_occ_base["u_ambient"].value = float(ambient)
-            bufs.base_vao.render(moderngl.TRIANGLES, vertices=bufs.n_indices)
+            gl.glEnable(G.GL_STENCIL_TEST)
+            gl.glStencilFunc(G.GL_ALWAYS, OCCLUDER_BIT, 0xFF)
+            gl.glStencilOp(G.GL_KEEP, G.GL_KEEP, G.GL_REPLACE)
+            # colour 1 stays 0 on the occluder (cleared; the ground pass overwrites it where it is nearer)
+            gl.draw_buffer_list([0])
+            prog, vao = self.prog_occ_base, bufs.base_vao
+            prog["u_mvp"].write(mvp_bytes)
+            prog["u_ambient"].value = float(ambient)
+            vao.render(moderngl.TRIANGLES, vertices=bufs.n_indices)
+            gl.draw_buffers(2)
         self._mark("occluder")
         ctx.enable_only(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
         ctx.cull_face = "back"
@@ -630,10 +640,12 @@ class ShadowRenderer:
             gl.glEnable(G.GL_POLYGON_OFFSET_FILL)
             gl.glPolygonOffset(*self.ground_offset)
         if draw_occluder and not bufs.below_ground:
-            gl.glColorMaski(0, 0, 0, 0, 0)  # nothing of the occluder below z = 0 to erase: skip colour 0
+            gl.draw_buffer_list([None, 1])  # nothing of the occluder below z = 0 to erase: skip colour 0
+        else:
+            gl.draw_buffers(2)
         self.prog_ground["u_mvp"].write(mvp_bytes)
         self._ground_vao.render(moderngl.TRIANGLES, vertices=12)
-        gl.glColorMaski(0, 1, 1, 1, 1)
+        gl.draw_buffers(2)
         gl.glDisable(G.GL_POLYGON_OFFSET_FILL)
 
         self._mark("ground")
@@ -681,11 +693,12 @@ class ShadowRenderer:
             if p.weight > 0:
                 ctx.enable_only(moderngl.BLEND)
                 ctx.blend_func = moderngl.ONE, moderngl.ONE
-                gl.glColorMaski(0, 0, 0, 0, 0)
-                gl.glColorMaski(1, 1, 0, 0, 0)
+                gl.glColorMask(1, 1, 1, 1)
+                gl.draw_buffer_list([None, 1])  # adds (weight, 0): the ground channel is unchanged
                 gl.glStencilFunc(G.GL_LESS, GROUND_BIT, 0xFF)
                 self.prog_mask["u_weight"].value = float(p.weight)
                 self._fs_vao.render(moderngl.TRIANGLES, vertices=3)
+                gl.draw_buffers(2)
             self._mark("mask")
             if draw_occluder:
                 self._light_occluder(bufs, p, i, mvp_bytes, eye, diffuse, specular, shininess,
@@ -693,6 +706,7 @@ class ShadowRenderer:
 
         self._mark("occluder_light")
         # -- reset raw state, make moderngl's view consistent
+        gl.draw_buffers(2)
         gl.glDisable(G.GL_STENCIL_TEST)
         gl.glStencilMask(0xFF)
         gl.glStencilFunc(G.GL_ALWAYS, 0, 0xFF)
@@ -803,15 +817,13 @@ class ShadowRenderer:
         ctx.depth_func = "=="
         ctx.blend_func = moderngl.ONE, moderngl.ONE
         gl.glDepthMask(G.GL_FALSE)
-        gl.glColorMaski(0, 1, 1, 1, 0)
-        gl.glColorMaski(1, 0, 0, 0, 0)
-        if stencil:
-            gl.glEnable(G.GL_STENCIL_TEST)
-            gl.glStencilMask(0)
-            gl.glStencilFunc(G.GL_EQUAL, 0, COUNT_MASK)
-            gl.glStencilOp(G.GL_KEEP, G.GL_KEEP, G.GL_KEEP)
-        else:
-            gl.glDisable(G.GL_STENCIL_TEST)
+        gl.glColorMask(1, 1, 1, 1)  # additive with alpha 0: coverage unchanged
+        gl.glEnable(G.GL_STENCIL_TEST)
+        gl.glStencilMask(0)
+        gl.glStencilOp(G.GL_KEEP, G.GL_KEEP, G.GL_KEEP)
+        # occluder pixels (bit 6) whose count is 0; without a volume: every occluder pixel
+        gl.glStencilFunc(G.GL_EQUAL, OCCLUDER_BIT, 0xFF if stencil else 0xC0)
+        gl.draw_buffer_list([0])
         prog = self.prog_occ_light
         prog["u_mvp"].write(mvp_bytes)
         lh = np.asarray(p.light_h, dtype=np.float64)
@@ -828,7 +840,7 @@ class ShadowRenderer:
                 bufs.sub_vao.render(moderngl.TRIANGLES, vertices=count, first=first)
         else:
             bufs.vao.render(moderngl.TRIANGLES, vertices=bufs.n_indices)
-        gl.glEnable(G.GL_STENCIL_TEST)
+        gl.draw_buffers(2)
         ctx.depth_func = "<"
 
 

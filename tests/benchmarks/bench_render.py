@@ -47,7 +47,7 @@ def stats(xs):
 
 def load_scene():
     from arshadow.camera import Intrinsics
-    from arshadow.mesh import ShadowCaster, load_occluder
+    from arshadow.mesh import load_occluder
     from arshadow.synth import look_at_pose
 
     p = ROOT / "samples" / "meshes" / "knot.ply"
