@@ -8,14 +8,15 @@ Frame layout (one framebuffer, all renderbuffers, optional MSAA)::
     colour 1  RG16F     r = blocked light weight (the shadow mask), g = ground coverage
     depth/stencil       GL_DEPTH24_STENCIL8, made with glRenderbufferStorage(Multisample) through ctypes
 
-Stencil bits: bit 7 = "this sample sees the ground plane" (set by the ground depth pass), bits 0-6 = the
-shadow-volume count of the current light (modulo 128, two-sided INCR_WRAP/DECR_WRAP with write mask 0x7F).
+Stencil bits: bit 7 = "this sample sees the ground plane" (set by the ground depth pass), bit 6 = "this
+sample sees the occluder", bits 0-5 = the shadow-volume count of the current light (modulo 64, two-sided
+INCR_WRAP/DECR_WRAP with write mask 0x3F).
 
 Passes per frame
 ----------------
 1. base: clear; occluder (depth + ambient colour + coverage); ground plane z = 0 (depth, ground bit; an
    unlimited plane drawn through homogeneous coordinates as four triangles with vertices at infinity, or a
-   ``ground_size`` square), with a small polygon offset (see ``ground_offset``).
+   ``ground_size`` square); no polygon offset by default (measured: docs/rendering.md, ``ground_offset``).
 2. per light: clear the count bits; draw the light's shadow volume with depth test on (GL_LESS), depth
    and colour writes off, depth clamp on, and two-sided stencil:
    z-pass  front: depth-pass -> INCR_WRAP, back: depth-pass -> DECR_WRAP (sides only);
@@ -23,13 +24,14 @@ Passes per frame
    planar  the caster flattened onto z = 0 by the projection-shadow matrix (paper 002) -> REPLACE 1.
    Then a full-viewport triangle adds the light's weight to the mask where ``stencil > 0x80`` (ground bit
    set and count != 0), and the occluder is redrawn with GL_EQUAL depth adding this light's Phong
-   diffuse + specular where the count is 0 (self-shadowing).
+   diffuse + specular where the stencil is exactly 0x40 (occluder, count 0: self-shadowing).
 3. MSAA resolve / supersampling downsample (glBlitFramebuffer), one readback per attachment of just the
    canvas, rows flipped to top-down.
 
 moderngl keeps its own copy of some GL state (bound framebuffer, enable flags, depth function, colour and
 depth masks). Each pass sets moderngl's flags explicitly (``ctx.enable_only``, ``ctx.depth_func``) and the
-raw state (stencil, depth clamp, colour masks, polygon offset) is set per pass and reset at the end.
+raw state (stencil, depth clamp, draw buffers, colour masks, polygon offset) is set per pass and reset at
+the end.
 """
 
 from __future__ import annotations
