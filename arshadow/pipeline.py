@@ -539,7 +539,7 @@ class Compositor:
             if sil is not None:
                 n_edges += int(len(sil.edges))
             passes.append(LightPass(light_h=ls.light_h, weight=ls.weight, volume=vol, mode=mode))
-        mode = "planar" if "planar" in modes else ("zfail" if "zfail" in modes else "zpass")
+        mode = None if not modes else ("planar" if "planar" in modes else ("zfail" if "zfail" in modes else "zpass"))
 
         # 3. region of interest (photo) and pinhole canvas
         rect = None

@@ -177,6 +177,18 @@ def test_nothing_in_view_renders_nothing(ctx):
     assert info["roi"][2] * info["roi"][3] == 0 or info.get("content") is None
 
 
+def test_sun_below_the_horizon_casts_nothing(ctx):
+    from arshadow.mesh import load_occluder
+    from arshadow.synth import look_at_pose
+
+    night = _lights("sun:48.8566,2.3522,2024-06-21T23:30+02:00")
+    assert not night[0].above_horizon
+    with _compositor(ctx, load_occluder("box:0.04,0.04,0.06"), night) as comp:
+        out, mask, info = comp.render_pose(_plain_photo(), _intrinsics(), look_at_pose([0.1, -0.4, 0.3], [0, 0, 0]))
+        assert comp.notes and "below the horizon" in comp.notes[0]
+    assert info["mode"] is None and info["modes"] == [] and not mask.any()
+
+
 def test_mask_is_zero_on_the_object_and_full_in_the_shadow(ctx):
     from arshadow.mesh import load_occluder
     from arshadow.synth import look_at_pose
