@@ -115,6 +115,7 @@ def _near_object_box(shape, item):
         ("bad opacity", ["--opacity", "1.5"], "opacity"),
         ("bad silhouette", ["--silhouette", "magic"], "magic"),
         ("bad shadow colour", ["--shadow-color", "1,2,900"], "shadow-color"),
+        ("bad anti-aliasing", ["--aa", "64"], "--aa 64"),
     ],
 )
 def test_bad_configuration_exits_2_with_one_line(photos, tmp_path, capsys, problem, argv, needle):

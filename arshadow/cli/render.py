@@ -21,8 +21,8 @@ EPILOG = """\
 examples:
   arshadow render photo.jpg --calib calib/cam.yml --marker-length 0.05 --model box:0.04,0.04,0.06 \\
       --light point:0.1,0.1,0.4 -o out/
-  arshadow render 'shots/*.jpg' --calib cam.yml --board board.yml --model samples/meshes/bunny.ply \\
-      --scale 0.1 --light sun:52.2,0.1,2024-06-21T15:00+01:00 --light point:0,0,1@0.3 -o out --save-mask \\
+  arshadow render 'shots/*.jpg' --calib cam.yml --board board.yml --model samples/meshes/knot.ply \\
+      --place 0.1,0,0 --light sun:52.2,0.1,2024-06-21T15:00+01:00 --light point:0,0,1@0.3 -o out --save-mask \\
       --report out/report.json
 
 outputs: DIR/<stem>.png (or the input's format with --keep-format), DIR/<stem>.shadow.png with --save-mask
@@ -244,7 +244,7 @@ def run(args) -> int:
 
 
 def _render_all(args, ctx, intr, caster, lights, opts, tracker, inputs, outdir, debug):
-    from ..errors import ArshadowError, CalibrationError, ImageError, MarkerNotFoundError
+    from ..errors import ArshadowError, CalibrationError, ImageError, MarkerNotFoundError, UsageError
     from ..io import read_image, write_image
     from ..pipeline import Compositor
     from ..report import ReportItem
@@ -257,6 +257,10 @@ def _render_all(args, ctx, intr, caster, lights, opts, tracker, inputs, outdir, 
     paths = output_paths(inputs, outdir, args.keep_format)
     input_set = [Path(i) for i in inputs]
     with Compositor(ctx, intr, caster, lights, opts, tracker=tracker) as comp:
+        try:  # made now: a bad --aa is a usage error (exit 2), not a per-photo one
+            comp.renderer  # noqa: B018
+        except UsageError as exc:
+            raise UsageError(f"--aa {args.aa}: {exc}") from None
         for inp, (out_path, mask_path) in zip(inputs, paths):
             item = ReportItem(input=str(inp))
             t0 = time.perf_counter()
