@@ -66,6 +66,9 @@ REFINE_METHODS = {
 #: the default refinement, chosen by tests/benchmarks/bench_tracking.py (see docs/tracking.md)
 DEFAULT_REFINE = "subpix"
 
+#: ``DetectorParameters.minMarkerDistanceRate`` used unless a parameter file is given (OpenCV 4.x's value)
+MIN_MARKER_DISTANCE_RATE = 0.05
+
 #: OpenCV's AprilTag corner refinement returns corners in AprilTag's pixel convention (pixel *corner* at
 #: 0, centre at 0.5): subtracted to get CONVENTIONS.md's pixel-centre coordinates (measured +0.42 px
 #: mean offset on synthetic photos before the correction; see docs/tracking.md)
@@ -481,6 +484,11 @@ def make_detector_params(refine=DEFAULT_REFINE, base=None) -> cv2.aruco.Detector
     """
     if base is None:
         params = cv2.aruco.DetectorParameters()
+        # OpenCV 5 raised the default from 0.05 to 0.125 (x perimeter). A marker printed with a white margin
+        # under ~0.5 x its side then lies "too close" to the paper's own outline (also a quad) and is
+        # dropped: 4 of 60 synthetic photos at 1280x720 missed the marker; 0.05 finds all 60 and adds no
+        # false detection (tests/benchmarks, docs/tracking.md)
+        params.minMarkerDistanceRate = MIN_MARKER_DISTANCE_RATE
     elif isinstance(base, cv2.aruco.DetectorParameters):
         params = _copy_params(base)
     else:
