@@ -254,7 +254,7 @@ class ShadowCaster:
         """(m,) bool: faces that face the light, ``n . L + d w > 0``, decided exactly as the float64
         expression ``((n_x L_x + n_y L_y) + n_z L_z) + d w`` (:func:`plane_side`) decides it.
 
-        Fast path: one float32 matrix-vector product with the planes re-centred on the mesh, then every
+        Fast path: one float32 element-wise pass over the planes re-centred on the mesh, then every
         face whose float32 value lies within a rigorous error bound of zero is re-evaluated with the
         float64 expression; all other signs are provably the same. ``light_h`` must be a validated
         ``(4,)`` float64 (see :func:`arshadow.silhouette.as_light_h`).
@@ -267,23 +267,38 @@ class ShadowCaster:
         if not (nl < 1e30 and prep["dmax_c"] < 1e30):
             return plane_side(self.face_planes, h) > 0.0
         l32 = np.array([lc[0], lc[1], lc[2], h[3]], dtype=np.float32)
-        pt = prep["pt32"]
-        # element-wise, single-threaded (a BLAS sgemv is as fast when idle but stalls on a busy machine)
-        s32 = np.multiply(pt[0], l32[0])
-        tmp = np.empty_like(s32)
-        for k in (1, 2, 3):
-            np.multiply(pt[k], l32[k], out=tmp)
-            np.add(s32, tmp, out=s32)
         u = 2.0**-24
         # |s32 - exact| <= 8u (|L'| + |d'| |w|) (conversions + a length-4 dot product, any order);
         # |float64 expression - exact| <= 1e-15 (|L| + |d| |w|); 1e-30 covers float32 underflow
         margin = 8.0 * u * (nl * (1.0 + 1e-6) + prep["dmax_c"] * w) + 1e-15 * (
             float(np.sqrt(h[:3] @ h[:3])) + prep["dmax"] * w
         ) + 1e-30
-        fac = s32 > 0.0
-        unsure = np.flatnonzero(np.abs(s32) <= margin)
-        if unsure.size:
-            fac[unsure] = plane_side(self.face_planes[unsure], h) > 0.0
+        pt = prep["pt32"]
+        m = pt.shape[1]
+        fac = np.empty(m, bool)
+        # element-wise in cache-sized chunks, single-threaded (a BLAS sgemv is as fast when the machine
+        # is idle but stalls when it is busy; chunks keep the temporaries in cache)
+        ch = min(m, 1 << 16)
+        s32 = np.empty(ch, np.float32)
+        tmp = np.empty(ch, np.float32)
+        near0 = np.empty(ch, bool)
+        unsure = []
+        for a in range(0, m, ch):
+            b = min(m, a + ch)
+            n = b - a
+            s, t, z = s32[:n], tmp[:n], near0[:n]
+            np.multiply(pt[0, a:b], l32[0], out=s)
+            for k in (1, 2, 3):
+                np.multiply(pt[k, a:b], l32[k], out=t)
+                np.add(s, t, out=s)
+            np.greater(s, 0.0, out=fac[a:b])
+            np.abs(s, out=t)
+            np.less_equal(t, margin, out=z)
+            if z.any():
+                unsure.append(np.flatnonzero(z) + a)
+        if unsure:
+            idx = np.concatenate(unsure)
+            fac[idx] = plane_side(self.face_planes[idx], h) > 0.0
         return fac
 
     # ------------------------------------------------------------------ adjacency

@@ -103,6 +103,15 @@ def _extrude(v: np.ndarray, h: np.ndarray, truncate_z):
     return out, False
 
 
+def _same_light(a: np.ndarray, b: np.ndarray) -> bool:
+    """Same point, or same direction up to a positive scale (directional lights need not be unit)."""
+    if a[3] != b[3]:
+        return False
+    if a[3] == 0.0:
+        a, b = a[:3] / np.linalg.norm(a[:3]), b[:3] / np.linalg.norm(b[:3])
+    return bool(np.allclose(a, b, rtol=1e-12, atol=1e-15))
+
+
 def shadow_volume(caster: ShadowCaster, light_h, sil: Silhouette, *, caps: bool = True, truncate_z=None) -> ShadowVolume:
     """Build the shadow volume of ``caster`` for one light from its silhouette.
 
@@ -146,7 +155,7 @@ def shadow_volume(caster: ShadowCaster, light_h, sil: Silhouette, *, caps: bool 
     (8, 2, 10, (12, 4))
     """
     h = as_light_h(light_h)
-    if sil.light_h is not None and not np.allclose(sil.light_h, h, rtol=1e-12, atol=0.0):
+    if sil.light_h is not None and not _same_light(sil.light_h, h):
         raise UsageError("the silhouette was computed for a different light")
     if sil.facing.shape[0] != caster.n_faces:
         raise UsageError("the silhouette was computed for a different mesh")

@@ -153,6 +153,11 @@ def test_light_on_a_vertex_and_mismatched_silhouette():
         shadow_volume(box, L, silhouette(box, L))
     with pytest.raises(UsageError):
         shadow_volume(box, [0, 0, 5, 1], silhouette(box, [0, 0, 6, 1]))
+    with pytest.raises(UsageError):
+        shadow_volume(load_occluder("box:1,1,2"), [0, 0, 5, 1], silhouette(load_occluder("sphere:1"), [0, 0, 5, 1]))
+    # a directional light given with another length is the same light
+    vol = shadow_volume(box, [1, 0, 2, 0], silhouette(box, [0.5, 0, 1, 0]))
+    assert vol.n_side == 2 * silhouette(box, [1, 0, 2, 0]).n_edges == 12
 
 
 def test_camera_may_be_in_shadow_is_conservative(rng):
