@@ -74,6 +74,9 @@ def test_cli_info_json(gl_ctx):
         assert info[key]
     assert info["gl"]["stencil_bits"] == 8
     assert info["gl"]["GL_RENDERER"]
+    assert info["detected"]["libEGL"] and info["detected"]["libOpenGL"]
+    text = subprocess.run([sys.executable, "-m", "arshadow", "info"], capture_output=True, text=True, check=True)
+    assert "GL_RENDERER" in text.stdout and "stencil bits" in text.stdout and "libEGL" in text.stdout
 
 
 def test_cli_info_reports_failure(monkeypatch):

@@ -33,7 +33,7 @@ def collect(backend: str | None = None) -> dict:
     """Everything ``arshadow info`` reports, as a dict (``gl`` holds the error when no context)."""
     from .. import __version__
     from ..errors import GLContextError
-    from ..gl.context import create_context, diagnose, gl_info, resolve_backend
+    from ..gl.context import create_context, detect_libraries, diagnose, gl_info, resolve_backend
 
     out = {
         "arshadow": __version__,
@@ -43,6 +43,7 @@ def collect(backend: str | None = None) -> dict:
         "cv2": _version("cv2"),
         "trimesh": _version("trimesh"),
         "moderngl": _version("moderngl"),
+        "detected": detect_libraries(),
     }
     name = resolve_backend(backend)
     try:
@@ -65,6 +66,10 @@ def run(args) -> int:
     else:
         for k in ("arshadow", "python", "platform", "numpy", "cv2", "trimesh", "moderngl"):
             print(f"{k:<22}{info[k] if info[k] is not None else 'not installed'}")
+        det = info["detected"]
+        for k in ("libEGL", "libOpenGL", "libGL"):
+            print(f"{k:<22}{det[k] or 'not found'}")
+        print(f"{'EGL vendors':<22}{', '.join(det['egl_vendors']) or 'none registered'}")
         if "error" in gl:
             print(f"{'gl backend':<22}{gl['backend']}")
             print(f"{'gl':<22}NOT AVAILABLE: {gl['error']}")

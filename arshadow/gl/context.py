@@ -59,6 +59,19 @@ def _mesa_egl_driver_present() -> bool:
     return any(glob.glob(os.path.join(d, "*.json")) for d in dirs)
 
 
+def detect_libraries() -> dict:
+    """What the system offers, without creating a context: the GL/EGL libraries ``ctypes`` finds, the
+    registered EGL vendor files (GLVND ICDs) and ``$ARSHADOW_GL_BACKEND``."""
+    dirs = ["/usr/share/glvnd/egl_vendor.d", "/etc/glvnd/egl_vendor.d", "/usr/local/share/glvnd/egl_vendor.d"]
+    return {
+        "libEGL": ctypes.util.find_library("EGL"),
+        "libOpenGL": ctypes.util.find_library("OpenGL"),
+        "libGL": ctypes.util.find_library("GL"),
+        "egl_vendors": sorted(os.path.basename(f) for d in dirs for f in glob.glob(os.path.join(d, "*.json"))),
+        ENV_VAR: os.environ.get(ENV_VAR) or None,
+    }
+
+
 def diagnose(backend: str = "egl") -> list[str]:
     """Missing system libraries/drivers for ``backend``, as human-readable strings (empty if none found)."""
     problems = []
