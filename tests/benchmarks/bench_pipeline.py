@@ -95,9 +95,14 @@ def compare_detectors(image, intr, n, runs, seed=5) -> list:
         ph = render_marker_photo(intr, pose, marker_length=0.05, noise_sigma=2.0, blur_sigma=0.6,
                                  jpeg_quality=90, seed=i)
         photos.append((ph.image, pose))
+    from arshadow.pipeline import make_fast_tracker
+
     rows = []
-    for name, kw in detector_settings().items():
-        trk = MarkerTracker(intr, marker_length=0.05, **kw)
+    settings = dict(detector_settings())
+    settings["pipeline fast pass (half resolution + sub-pixel)"] = None
+    for name, kw in settings.items():
+        trk = (make_fast_tracker(intr, marker_length=0.05) if kw is None
+               else MarkerTracker(intr, marker_length=0.05, **kw))
         times = []
         for _ in range(runs):
             t = time.perf_counter()
