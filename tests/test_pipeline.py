@@ -374,3 +374,27 @@ def test_real_charuco_photo_object_and_shadow_on_the_board(ctx, realdata):
     assert not np.any(changed & ~region), int(np.sum(changed & ~region))
     # the shadow is darker than the board it falls on
     assert out[shadow].mean() < photo[shadow].mean() - 20
+
+
+def test_fast_detection_pass_falls_back_to_the_full_search(ctx):
+    """A marker too small for the half-resolution pass (5 cm at 2 m, ~25 px) is still found."""
+    from arshadow.camera import Intrinsics
+    from arshadow.mesh import load_occluder
+    from arshadow.pipeline import Compositor, RenderOptions, make_fast_tracker
+    from arshadow.synth import look_at_pose, render_marker_photo
+
+    intr = Intrinsics.from_file(_calib("synth_1280x720.yml"))
+    near = look_at_pose([0.0, -0.3, 0.4], [0.0, 0.0, 0.0])
+    far = look_at_pose([0.0, -1.2, 1.6], [0.0, 0.0, 0.0])
+    photos = {n: render_marker_photo(intr, p, marker_length=0.05, noise_sigma=2.0, seed=1).image
+              for n, p in (("near", near), ("far", far))}
+    fast = make_fast_tracker(intr, marker_length=0.05)
+    est = fast.estimate(photos["near"])  # the fast pass alone: close to the truth
+    assert np.linalg.norm(est.cam_from_world[:3, 3] - near[:3, 3]) < 0.005 * np.linalg.norm(near[:3, 3])
+    with Compositor(ctx, intr, load_occluder("box:0.04,0.04,0.04"), _lights("point:0.1,0.1,0.5"),
+                    RenderOptions(), tracker={"marker_length": 0.05}) as comp:
+        _, _, item_near = comp.process(photos["near"])
+        _, _, item_far = comp.process(photos["far"])
+    assert "detector" not in item_near.extra
+    assert item_far.status == "ok" and item_far.extra["detector"].startswith("full")
+    assert abs(np.linalg.norm(item_far.tvec) - np.linalg.norm(far[:3, 3])) < 0.02 * np.linalg.norm(far[:3, 3])
