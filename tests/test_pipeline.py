@@ -376,11 +376,13 @@ def test_real_charuco_photo_object_and_shadow_on_the_board(ctx, realdata):
     assert out[shadow].mean() < photo[shadow].mean() - 20
 
 
-def test_fast_detection_pass_falls_back_to_the_full_search(ctx):
-    """A marker too small for the half-resolution pass (5 cm at 2 m, ~25 px) is still found."""
+def test_fast_detection_pass_and_its_fallbacks(ctx, monkeypatch):
+    """Half resolution for big markers; full resolution for small ones (5 cm at 2 m, ~25 px); the
+    tracker's full search when the fast pass finds nothing."""
     from arshadow.camera import Intrinsics
+    from arshadow.errors import MarkerNotFoundError
     from arshadow.mesh import load_occluder
-    from arshadow.pipeline import Compositor, RenderOptions, make_fast_tracker
+    from arshadow.pipeline import Compositor, HalfResolutionDetector, RenderOptions, make_fast_tracker
     from arshadow.synth import look_at_pose, render_marker_photo
 
     intr = Intrinsics.from_file(_calib("synth_1280x720.yml"))
@@ -389,12 +391,31 @@ def test_fast_detection_pass_falls_back_to_the_full_search(ctx):
     photos = {n: render_marker_photo(intr, p, marker_length=0.05, noise_sigma=2.0, seed=1).image
               for n, p in (("near", near), ("far", far))}
     fast = make_fast_tracker(intr, marker_length=0.05)
-    est = fast.estimate(photos["near"])  # the fast pass alone: close to the truth
-    assert np.linalg.norm(est.cam_from_world[:3, 3] - near[:3, 3]) < 0.005 * np.linalg.norm(near[:3, 3])
+    det = fast._detector
+    assert isinstance(det, HalfResolutionDetector)
+    calls = {"full": 0}
+    base = det._base
+
+    class Spy:
+        def detectMarkers(self, gray):  # noqa: N802
+            calls["full"] += 1
+            return base.detectMarkers(gray)
+
+    det._base = Spy()
+    for name, pose, full_calls in (("near", near, 0), ("far", far, 1)):
+        est = fast.estimate(photos[name])
+        assert calls["full"] == full_calls, name
+        err = np.linalg.norm(est.cam_from_world[:3, 3] - pose[:3, 3]) / np.linalg.norm(pose[:3, 3])
+        assert err < 0.01, (name, err)
     with Compositor(ctx, intr, load_occluder("box:0.04,0.04,0.04"), _lights("point:0.1,0.1,0.5"),
                     RenderOptions(), tracker={"marker_length": 0.05}) as comp:
-        _, _, item_near = comp.process(photos["near"])
-        _, _, item_far = comp.process(photos["far"])
-    assert "detector" not in item_near.extra
-    assert item_far.status == "ok" and item_far.extra["detector"].startswith("full")
-    assert abs(np.linalg.norm(item_far.tvec) - np.linalg.norm(far[:3, 3])) < 0.02 * np.linalg.norm(far[:3, 3])
+        _, _, item = comp.process(photos["near"])
+        assert "detector" not in item.extra
+
+        def nothing(image, previous=None):
+            raise MarkerNotFoundError("no marker")
+
+        monkeypatch.setattr(comp.calib_for(1280, 720).fast_tracker, "estimate", nothing)
+        _, _, item = comp.process(photos["far"])
+    assert item.status == "ok" and item.extra["detector"].startswith("full")
+    assert abs(np.linalg.norm(item.tvec) - np.linalg.norm(far[:3, 3])) < 0.02 * np.linalg.norm(far[:3, 3])
