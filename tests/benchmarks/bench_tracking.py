@@ -9,8 +9,9 @@ or through pytest: ``pytest -m slow tests/benchmarks/bench_tracking.py -s``.
 Photos come from :func:`arshadow.synth.render_marker_photo` with the acceptance conditions of issue 2
 (marker 5-10 % of the image width, 0.3-0.8 m, tilt 0-70 deg, noise sigma 2, blur sigma 0.6, JPEG 90);
 the same poses are used for every method at a resolution. The error is against the generating pose.
-Times are the median (and IQR) over ``repeat`` timed runs per photo after one warm-up, summed per
-method as the per-photo median; the machine is shared, so compare methods within one run only.
+Per photo the time is the median of ``repeat`` runs after one warm-up, the configurations interleaved
+round-robin; the table gives the median and IQR of those per-photo times. The machine is shared and
+noisy: compare methods within one run only.
 """
 
 from __future__ import annotations
@@ -58,36 +59,52 @@ def make_photos(cam: Intrinsics, n: int, seed: int):
     return photos
 
 
-def run_method(photos, cam, refine, repeat, pnp_refine=True):
-    times, rot, trans, flagged, wrong_unflagged, found = [], [], [], 0, 0, 0
+CONFIGS = tuple((m, True) for m in REFINE_METHODS) + (("subpix", False),)  # (refinement, LM polish)
+
+
+def run_configs(photos, cam, configs, repeat):
+    """All configurations on the same photos; timings interleaved (photo by photo, round-robin over the
+    configurations, ``repeat`` rounds) so that the shared machine's load changes hit every configuration
+    alike. Returns one row per configuration."""
+    acc = {c: dict(times=[], rot=[], trans=[], flagged=0, wrong_unflagged=0, found=0) for c in configs}
     for ph in photos:
-        tracker = MarkerTracker(cam, marker_length=ph.marker_length, marker_id=ph.marker_id, refine=refine,
-                                pnp_refine=pnp_refine)
-        try:
-            pose = tracker.estimate(ph.image)  # warm-up, and the result
-        except MarkerNotFoundError:
-            continue
-        t = []
+        trackers, poses = {}, {}
+        for c in configs:
+            tr = MarkerTracker(cam, marker_length=ph.marker_length, marker_id=ph.marker_id, refine=c[0],
+                               pnp_refine=c[1])
+            try:
+                poses[c] = tr.estimate(ph.image)  # warm-up, and the result
+                trackers[c] = tr
+            except MarkerNotFoundError:
+                pass
+        t = {c: [] for c in trackers}
         for _ in range(repeat):
-            t0 = time.perf_counter()
-            tracker.estimate(ph.image)
-            t.append(time.perf_counter() - t0)
-        times.append(np.median(t))
-        found += 1
-        r = rotation_error_deg(pose.cam_from_world[:3, :3], ph.cam_from_world[:3, :3])
-        rot.append(r)
-        trans.append(np.linalg.norm(pose.tvec - ph.cam_from_world[:3, 3]) / ph.distance)
-        flagged += pose.ambiguous
-        wrong_unflagged += (r > 5.0) and not pose.ambiguous
-    times, rot, trans = np.array(times) * 1e3, np.array(rot), np.array(trans) * 100
+            for c, tr in trackers.items():
+                t0 = time.perf_counter()
+                tr.estimate(ph.image)
+                t[c].append(time.perf_counter() - t0)
+        for c, pose in poses.items():
+            a = acc[c]
+            a["times"].append(np.median(t[c]))
+            a["found"] += 1
+            r = rotation_error_deg(pose.cam_from_world[:3, :3], ph.cam_from_world[:3, :3])
+            a["rot"].append(r)
+            a["trans"].append(np.linalg.norm(pose.tvec - ph.cam_from_world[:3, 3]) / ph.distance)
+            a["flagged"] += pose.ambiguous
+            a["wrong_unflagged"] += (r > 5.0) and not pose.ambiguous
+    rows = []
     q = lambda a, p: float(np.percentile(a, p)) if a.size else None  # noqa: E731
-    return dict(
-        refine=refine, pnp_refine=pnp_refine, n=len(photos), detected=found,
-        time_ms_median=q(times, 50), time_ms_iqr=[q(times, 25), q(times, 75)],
-        rot_deg_median=q(rot, 50), rot_deg_p95=q(rot, 95), rot_deg_max=float(rot.max()) if rot.size else None,
-        trans_pct_median=q(trans, 50), trans_pct_p95=q(trans, 95),
-        n_rot_over_5deg=int((rot > 5).sum()), n_flagged=int(flagged), n_wrong_unflagged=int(wrong_unflagged),
-    )
+    for (refine, lm), a in acc.items():
+        times, rot, trans = np.array(a["times"]) * 1e3, np.array(a["rot"]), np.array(a["trans"]) * 100
+        rows.append(dict(
+            refine=refine, pnp_refine=lm, n=len(photos), detected=a["found"],
+            time_ms_median=q(times, 50), time_ms_iqr=[q(times, 25), q(times, 75)],
+            rot_deg_median=q(rot, 50), rot_deg_p95=q(rot, 95), rot_deg_max=float(rot.max()) if rot.size else None,
+            trans_pct_median=q(trans, 50), trans_pct_p95=q(trans, 95),
+            n_rot_over_5deg=int((rot > 5).sum()), n_flagged=int(a["flagged"]),
+            n_wrong_unflagged=int(a["wrong_unflagged"]),
+        ))
+    return rows
 
 
 def metadata():
@@ -101,17 +118,14 @@ def metadata():
                 threads=cv2.getNumThreads())
 
 
-def run(poses=60, repeat=5, resolutions=RESOLUTIONS, methods=tuple(REFINE_METHODS)):
+def run(poses=60, repeat=5, resolutions=RESOLUTIONS, configs=CONFIGS):
     rows = []
     for w, h in resolutions:
         cam = camera(w, h)
         photos = make_photos(cam, poses, seed=w)
-        for m in methods:
-            rows.append(dict(resolution=f"{w}x{h}", **run_method(photos, cam, m, repeat)))
+        for r in run_configs(photos, cam, configs, repeat):
+            rows.append(dict(resolution=f"{w}x{h}", **r))
             print(json.dumps(rows[-1]), file=sys.stderr, flush=True)
-        # the pose polish (LM) measured too, with the default refinement
-        rows.append(dict(resolution=f"{w}x{h}", **run_method(photos, cam, "subpix", repeat, pnp_refine=False)))
-        print(json.dumps(rows[-1]), file=sys.stderr, flush=True)
     return dict(benchmark="tracking: detection + pose time vs pose error", metadata=metadata(),
                 conditions=dict(poses_per_resolution=poses, repeat=repeat, marker_width_frac=[0.05, 0.10],
                                 distance_m=[0.3, 0.8], tilt_deg=[0, 70], noise_sigma=2, blur_sigma=0.6,
