@@ -170,3 +170,19 @@ def test_real_process_exit_status(photos, tmp_path):
     assert r.returncode == 1, r.stderr
     assert r.stderr.strip().count("\n") == 0 and "corrupt.png" in r.stderr and "Traceback" not in r.stderr
     assert (tmp_path / "o" / "good.png").is_file()
+
+
+def test_gray16_and_alpha_inputs(photos, tmp_path, capsys):
+    """Grayscale 16-bit and BGRA photos are accepted (converted to 8-bit colour), outputs keep the size."""
+    src = cv2.imread(str(photos / "good.jpg"))
+    d = tmp_path / "in"
+    d.mkdir()
+    gray16 = (cv2.cvtColor(src, cv2.COLOR_BGR2GRAY).astype(np.uint16) * 257)
+    cv2.imwrite(str(d / "g16.png"), gray16)
+    cv2.imwrite(str(d / "rgba.png"), cv2.cvtColor(src, cv2.COLOR_BGR2BGRA))
+    code, _, se = _run(capsys, "render", d, *SCENE, "-o", tmp_path / "o", "--save-mask")
+    assert code == 0, se
+    for stem in ("g16", "rgba"):
+        out = cv2.imread(str(tmp_path / "o" / f"{stem}.png"), cv2.IMREAD_UNCHANGED)
+        assert out.shape == (720, 1280, 3) and out.dtype == np.uint8
+        assert (cv2.imread(str(tmp_path / "o" / f"{stem}.shadow.png"), cv2.IMREAD_UNCHANGED) == 255).sum() > 1000
