@@ -28,6 +28,15 @@ class Tolerances:
     synth_rot_p95_deg: float = 1.5
     synth_rot_flag_deg: float = 5.0
     charuco_rot_median_deg: float = 0.1
+    undistort_px: float = 1e-6  # exact inverse of the distortion (round trip)
+    project_vs_opencv_px: float = 1e-7  # Intrinsics.project against cv2.projectPoints
+    gl_projection_px: float = 1e-8  # GL clip matrix -> pixel centre against project(distort=False)
+    synth_corner_px: float = 0.35  # generator's true corners vs OpenCV's sub-pixel detection (no noise)
+    synth_charuco_corner_px: float = 0.25  # same for ChArUco chessboard corners
+    synth_detect_rate: float = 0.95  # markers found among the 200 acceptance photos
+    board_vs_marker_rot_ratio: float = 0.5  # board median rotation error < this x single marker's
+    calib_extrinsic_rot_deg: float = 0.1  # per-view board pose vs OpenCV's reference calibration
+    calib_extrinsic_mm: float = 0.5
     # geometry (issue 3)
     footprint_iou: float = 0.9999
     # compositor (issue 4)

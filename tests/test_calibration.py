@@ -50,6 +50,23 @@ def test_reproduces_opencv_left_calibration(realdata, tol):
 
 
 @pytest.mark.realdata
+def test_per_view_poses_match_reference(realdata, tol):
+    """The board pose of every view agrees with OpenCV's reference calibration (expected.json)."""
+    import json
+
+    from arshadow.transforms import rotation_error_deg
+
+    exp = json.loads((realdata / "expected.json").read_text())
+    files = sorted(f for f in (realdata / "chessboard_left").glob("left*.jpg") if f.name != "left10.jpg")
+    p = parse_pattern("chessboard:9,6,0.025")
+    res = calibrate([find_view(f, p) for f in files], flags=cv2.CALIB_FIX_ASPECT_RATIO, pattern=p)
+    for v, r, t in zip(res.views, res.rvecs, res.tvecs):
+        truth = exp[f"chessboard_left/{v.path.rsplit('/', 1)[-1]}"]["pose_ground_truth"]
+        assert rotation_error_deg(r, np.array(truth["board_in_camera_rvec"])) < tol.calib_extrinsic_rot_deg
+        assert 1000 * np.linalg.norm(t - np.array(truth["board_in_camera_tvec_m"])) < tol.calib_extrinsic_mm
+
+
+@pytest.mark.realdata
 def test_calibration_file_written(realdata, tmp_path):
     files = sorted((realdata / "chessboard_left").glob("left*.jpg"))[:6]
     p = parse_pattern("chessboard:9,6,0.025")

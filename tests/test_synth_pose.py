@@ -96,7 +96,7 @@ def test_render_exposure_and_floor():
 
 
 @pytest.mark.parametrize("cam", [CAM, CAM_K1], ids=["small_dist", "k1"])
-def test_rendered_corners_match_truth(cam):
+def test_rendered_corners_match_truth(cam, tol):
     """OpenCV finds the rendered corners where the generator says they are (distortion included)."""
     shift = []
     for eye, tgt in [([0.0, -0.25, 0.45], [0, 0, 0]), ([0.25, 0.2, 0.35], [-0.12, -0.05, 0])]:
@@ -105,21 +105,21 @@ def test_rendered_corners_match_truth(cam):
         found = _detect(photo.image)
         assert list(found) == [3]
         err = np.linalg.norm(found[3] - photo.corners_px[3], axis=1)
-        assert err.max() < 0.35, err
+        assert err.max() < tol.synth_corner_px, err
         pin = cam.project(marker_object_points(0.06), pose, distort=False)
         shift.append(np.linalg.norm(pin - photo.corners_px[3], axis=1).max())
     if cam is CAM_K1:  # the distortion really is in the image, not just in the truth
         assert max(shift) > 3.0
 
 
-def test_rendered_charuco_matches_truth():
+def test_rendered_charuco_matches_truth(tol):
     pose = look_at_pose([0.3, -0.4, 0.5], [0.1, -0.14, 0])
     photo = render_marker_photo(CAM_K1, pose, board=CHARUCO)
     det = cv2.aruco.CharucoDetector(CHARUCO.cv_board)
     cc, cid, _, mid = det.detectBoard(photo.image)
     assert cid is not None and len(cid) == 24 and sorted(mid.ravel().tolist()) == list(range(17))
     err = np.linalg.norm(cc.reshape(-1, 2) - photo.charuco_corners_px[cid.ravel()], axis=1)
-    assert err.max() < 0.25, err
+    assert err.max() < tol.synth_charuco_corner_px, err
 
 
 def test_render_bad_args():
@@ -175,7 +175,7 @@ def test_single_marker_accuracy(tol):
 
     rot, trans, amb, flagged, reported, misses = _single_marker_run(N_POSES, seed=2)
     n_found = rot.size
-    assert n_found >= 0.95 * N_POSES, f"only {n_found}/{N_POSES} markers detected"
+    assert n_found >= tol.synth_detect_rate * N_POSES, f"only {n_found}/{N_POSES} markers detected"
     med_rot, p95_rot, med_trans = np.median(rot), np.percentile(rot, 95), np.median(trans)
     print(f"\nsingle marker, {n_found}/{N_POSES} found: rotation median {med_rot:.3f} deg, p95 {p95_rot:.3f}, "
           f"max {rot.max():.2f}; translation median {100 * med_trans:.3f} % of distance; "
@@ -252,5 +252,5 @@ def test_charuco_accuracy_and_board_beats_marker(tol):
           f"single marker {centre_id} on the same photos: median {np.median(single_rot):.3f} deg; "
           f"position of that marker: board {1000 * np.median(board_t):.2f} mm, single {1000 * np.median(single_t):.2f} mm")
     assert np.median(board_rot) <= tol.charuco_rot_median_deg
-    assert np.median(board_rot) < 0.5 * np.median(single_rot)
+    assert np.median(board_rot) < tol.board_vs_marker_rot_ratio * np.median(single_rot)
     assert np.median(board_t) < np.median(single_t)
