@@ -15,6 +15,7 @@ Pose: ``(rvec, tvec)`` world -> OpenCV camera, as ``cv2.solvePnP`` gives them.
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -642,6 +643,10 @@ class MarkerPose:
         The calibration was scaled to this image's size (same aspect ratio).
     all_corners : dict[int, (4, 2)]
         Every detected marker's corners.
+    kind : str
+        ``"marker"``, ``"gridboard"`` or ``"charuco"``.
+    timings_ms : dict
+        ``{"detect": ms, "pose": ms}`` spent in :meth:`MarkerTracker.estimate`.
     """
 
     rvec: np.ndarray
@@ -660,6 +665,7 @@ class MarkerPose:
     all_corners: dict = field(default_factory=dict)
     ambiguity_threshold: float = AMBIGUITY_FLAG
     kind: str = "marker"
+    timings_ms: dict = field(default_factory=dict)
 
     @property
     def ambiguous(self) -> bool:
@@ -675,7 +681,8 @@ class MarkerPose:
         ratio = self.pose_ambiguity
         return MarkerPose(a.rvec, a.tvec, a.cam_from_world, self.marker_ids, a.reprojection_error_px,
                           ratio, self.corners, self.object_points, self.n_points, alt, "previous",
-                          self.intrinsics, self.scaled, self.all_corners, self.ambiguity_threshold, self.kind)
+                          self.intrinsics, self.scaled, self.all_corners, self.ambiguity_threshold, self.kind,
+                          dict(self.timings_ms))
 
     def report_fields(self) -> dict:
         """The CONVENTIONS report keys this pose fills."""
@@ -874,12 +881,17 @@ class MarkerTracker:
             raise ImageError(f"not an image (shape {img.shape})")
         intr, scaled = self._intrinsics_for(img)
         gray = _gray(img)
+        self._t_detect = None
+        t0 = time.perf_counter()
         if self.board is None:
             pose = self._estimate_marker(gray, intr)
         elif self.board.kind == "charuco":
             pose = self._estimate_charuco(gray, intr)
         else:
             pose = self._estimate_gridboard(gray, intr)
+        total = 1e3 * (time.perf_counter() - t0)
+        det_ms = total if self._t_detect is None else 1e3 * (self._t_detect - t0)
+        pose.timings_ms = {"detect": det_ms, "pose": total - det_ms}
         pose.intrinsics, pose.scaled = intr, scaled
         pose.ambiguity_threshold = self.ambiguity_threshold
         if previous is not None and pose.alternative is not None and pose.ambiguous:
@@ -904,6 +916,7 @@ class MarkerTracker:
 
     def _estimate_marker(self, gray, intr) -> MarkerPose:
         corners, ids, rejected = self._detector.detectMarkers(gray)
+        self._t_detect = time.perf_counter()
         det = _detection(corners, ids, rejected, self.params)
         if len(det) == 0:
             raise MarkerNotFoundError(f"no marker of {self.dictionary_name} found")
@@ -929,6 +942,7 @@ class MarkerTracker:
         corners, ids, rejected, _ = self._detector.refineDetectedMarkers(
             gray, self.board.cv_board, corners, ids, rejected, intr.K, intr.dist_cv)
         det = _detection(corners, ids, rejected, self.params)
+        self._t_detect = time.perf_counter()
         obj, img = self.board.cv_board.matchImagePoints(tuple(c.reshape(1, 4, 2).astype(np.float32) for c in det.corners),
                                                         det.ids.reshape(-1, 1).astype(np.int32))
         if obj is None or len(obj) < 4:
@@ -944,6 +958,7 @@ class MarkerTracker:
     def _estimate_charuco(self, gray, intr) -> MarkerPose:
         det = self._charuco_detector(intr)
         ch_corners, ch_ids, m_corners, m_ids = det.detectBoard(gray)
+        self._t_detect = time.perf_counter()
         if m_ids is None or len(m_ids) == 0:
             raise MarkerNotFoundError(f"no marker of {self.dictionary_name} found")
         n = 0 if ch_ids is None else len(ch_ids)

@@ -101,8 +101,8 @@ def run(args) -> int:
                           "kind": pose.kind, "calibration_scaled": bool(pose.scaled)}
             if out_dir is not None:
                 item.output = _overlay(image, pose, tracker, out_dir, Path(name).stem)
-            item.timings_ms = {"read": 1e3 * (t1 - t0), "detect_pose": 1e3 * (t2 - t1),
-                               "total": 1e3 * (time.perf_counter() - t0)}
+            item.timings_ms = {"read": 1e3 * (t1 - t0), "detect": pose.timings_ms.get("detect", 1e3 * (t2 - t1)),
+                               "pose": pose.timings_ms.get("pose", 0.0), "total": 1e3 * (time.perf_counter() - t0)}
             if not args.json:
                 amb = "n/a" if pose.pose_ambiguity is None else f"{pose.pose_ambiguity:.3f}"
                 print(f"{name}: ids {item.marker_ids} rvec [{', '.join(f'{v:.6f}' for v in pose.rvec)}] "
