@@ -254,3 +254,32 @@ def test_charuco_accuracy_and_board_beats_marker(tol):
     assert np.median(board_rot) <= tol.charuco_rot_median_deg
     assert np.median(board_rot) < tol.board_vs_marker_rot_ratio * np.median(single_rot)
     assert np.median(board_t) < np.median(single_t)
+
+
+def test_gridboard_beats_single_marker(tol):
+    """A 5x7 grid board of 40 mm markers against one of its own markers, same photos: the board's pose
+    (140 points) is more accurate than the single marker's (4 points)."""
+    from arshadow.errors import MarkerNotFoundError
+    from arshadow.marker import load_board, MarkerTracker
+
+    board = load_board(ROOT / "calib" / "gridboard_5x7.yml")
+    rng = np.random.default_rng(8)
+    bw, bh = board.extent
+    centre = np.array([bw / 2, -bh / 2, 0.0])
+    paper = np.array([[0, 0, 0], [bw, 0, 0], [bw, -bh, 0], [0, -bh, 0.0]])
+    mid = 17  # the centre marker (row 3, column 2)
+    tb = MarkerTracker(CAM, board=board)
+    ts = MarkerTracker(CAM, marker_length=board.marker_length, marker_id=mid)
+    b_rot, s_rot = [], []
+    for i in range(24):
+        pose = random_pose(rng, CAM, distance=(0.5, 0.9), tilt_deg=(0, 60), keep_in_view=paper, target=centre)
+        photo = render_marker_photo(CAM, pose, board=board, noise_sigma=2.0, blur_sigma=0.6, jpeg_quality=90, seed=i)
+        try:
+            pb, ps = tb.estimate(photo.image), ts.estimate(photo.image)
+        except MarkerNotFoundError:
+            continue
+        b_rot.append(rotation_error_deg(pb.cam_from_world[:3, :3], pose[:3, :3]))
+        s_rot.append(rotation_error_deg(ps.cam_from_world[:3, :3], pose[:3, :3]))
+    assert len(b_rot) >= 22
+    print(f"\ngrid board: rotation median {np.median(b_rot):.4f} deg; its marker {mid} alone: {np.median(s_rot):.3f} deg")
+    assert np.median(b_rot) < tol.board_vs_marker_rot_ratio * np.median(s_rot)
