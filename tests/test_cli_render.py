@@ -80,6 +80,7 @@ def test_good_and_bad_inputs_in_one_run(photos, tmp_path, capsys):
     assert ok["marker_ids"] == [0] and ok["mode"] == "zpass" and ok["silhouette_edges"] >= 4
     assert set(ok["timings_ms"]) >= {"detect", "pose", "silhouette", "volume", "render", "readback", "warp",
                                      "composite", "total"}
+    assert ok["timings_ms"]["detect"] > 0 and ok["timings_ms"]["pose"] > 0  # the tracker's time, split
     assert st["half.png"]["calibration_scaled"] == {"from": [1280, 720], "to": [640, 360]}
     assert st["nomarker.png"]["error"] and st["nomarker.png"]["output"] is None
     # the mask: 8-bit, one channel, photo size; 255 in the shadow, 0 where the object covers the ground
