@@ -493,14 +493,24 @@ class Compositor:
                 timings["detect"] -= float(st["pose"])
         return pose
 
-    def modes_for(self, cam_from_world, znear):
-        """Per light: ``"zpass"`` if the camera is provably outside its volume, else ``"zfail"``."""
+    def modes_for(self, cam_from_world, znear, intr=None, canvas=None):
+        """Per light: ``"zpass"`` if the camera is provably outside its volume, else ``"zfail"``.
+
+        The test needs the radius of the near-plane rectangle of the canvas actually rendered
+        (``canvas = (u0, v0, w, h)`` pinhole pixels of ``intr``), not ``znear`` alone; without ``intr`` the
+        radius of a 90-degree-per-axis frustum is used (conservative for any narrower camera).
+        """
         if self.options.shadow_method == "planar":
             return ["planar"] * len(self._lights)
-        from .volume import camera_may_be_in_shadow
+        from .volume import camera_may_be_in_shadow, near_plane_radius
 
+        if intr is not None and canvas is not None and canvas[2] > 0 and canvas[3] > 0:
+            u0, v0, w, h = canvas
+            near = near_plane_radius(znear, int(w), int(h), intr.fx, intr.fy, intr.cx - u0, intr.cy - v0)
+        else:
+            near = znear * np.sqrt(3.0)
         eye = invert_rigid(cam_from_world)[:3, 3]
-        return ["zfail" if camera_may_be_in_shadow(self.caster, ls.light_h, eye, znear) else "zpass"
+        return ["zfail" if camera_may_be_in_shadow(self.caster, ls.light_h, eye, near) else "zpass"
                 for ls in self._lights]
 
     def render_pose(self, image, intr, cam_from_world, *, lens=None, timings=None, want_mask=True,
@@ -535,26 +545,10 @@ class Compositor:
         znear = self.znear_for(cam_from_world)
         opts = self.options
 
-        # 2. per light: mode, silhouette, volume (cached per run)
-        if modes is None:
-            modes = self.modes_for(cam_from_world, znear)
-        passes, n_edges = [], 0
-        for ls, mode in zip(self._lights, modes):
-            if mode == "planar":
-                vol = None
-                sil = None
-            else:
-                vol = self._volume(ls, caps=(mode == "zfail"), timings=timings)
-                sil = ls.sil
-            if sil is not None:
-                n_edges += int(len(sil.edges))
-            passes.append(LightPass(light_h=ls.light_h, weight=ls.weight, volume=vol, mode=mode))
-        mode = None if not modes else ("planar" if "planar" in modes else ("zfail" if "zfail" in modes else "zpass"))
-
-        # 3. region of interest (photo) and pinhole canvas
+        # 2. region of interest (photo) and pinhole canvas
         rect = None
         if opts.roi:
-            rect = pinhole_rect_for_scene(intr, cam_from_world, self._bounds, [p.light_h for p in passes],
+            rect = pinhole_rect_for_scene(intr, cam_from_world, self._bounds, [ls.light_h for ls in self._lights],
                                           opts.ground_size, znear, points=self._roi_points)
         if lens is None:
             if rect is None:
@@ -569,6 +563,22 @@ class Compositor:
             else:
                 roi = lens.distorted_roi(rect, margin=2)
                 canvas = lens.canvas_for(roi, rect) if roi[2] and roi[3] else (0, 0, 0, 0)
+        # 3. per light: mode, silhouette, volume (cached per run)
+        if modes is None:
+            modes = self.modes_for(cam_from_world, znear, intr, canvas)
+        passes, n_edges = [], 0
+        for ls, mode in zip(self._lights, modes):
+            if mode == "planar":
+                vol = None
+                sil = None
+            else:
+                vol = self._volume(ls, caps=(mode == "zfail"), timings=timings)
+                sil = ls.sil
+            if sil is not None:
+                n_edges += int(len(sil.edges))
+            passes.append(LightPass(light_h=ls.light_h, weight=ls.weight, volume=vol, mode=mode))
+        mode = None if not modes else ("planar" if "planar" in modes else ("zfail" if "zfail" in modes else "zpass"))
+
         info = {"mode": mode, "modes": list(modes), "silhouette_edges": n_edges, "roi": list(roi),
                 "canvas": list(canvas), "znear": znear}
 
@@ -827,7 +837,11 @@ def fast_detector_params():
     """
     import cv2
 
+    from .marker import MIN_MARKER_DISTANCE_RATE
+
     p = cv2.aruco.DetectorParameters()
     p.adaptiveThreshWinSizeMin = 7
     p.adaptiveThreshWinSizeMax = 7
+    # OpenCV 5's default (0.125) drops markers printed with a narrow paper margin (docs/tracking.md)
+    p.minMarkerDistanceRate = MIN_MARKER_DISTANCE_RATE
     return p

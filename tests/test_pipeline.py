@@ -419,3 +419,29 @@ def test_fast_detection_pass_and_its_fallbacks(ctx, monkeypatch):
         _, _, item = comp.process(photos["far"])
     assert item.status == "ok" and item.extra["detector"].startswith("full")
     assert abs(np.linalg.norm(item.tvec) - np.linalg.norm(far[:3, 3])) < 0.02 * np.linalg.norm(far[:3, 3])
+
+
+@pytest.mark.gl
+def test_mode_choice_uses_the_near_rectangle_not_znear(ctx):
+    """z-pass is safe only if the whole near-plane rectangle is outside the volume: a camera whose
+    eye->light ray passes the box closer than the near rectangle's corner radius (but farther than
+    znear) must get z-fail."""
+    from arshadow.camera import Intrinsics
+    from arshadow.lights import parse_light
+    from arshadow.mesh import load_occluder
+    from arshadow.pipeline import Compositor, RenderOptions
+    from arshadow.synth import look_at_pose
+
+    intr = Intrinsics(fx=500.0, fy=500.0, cx=639.5, cy=359.5, width=1280, height=720, dist=np.zeros(0))
+    box = load_occluder("box:0.1,0.1,0.1")  # x, y in [-0.05, 0.05], z in [0, 0.1]
+    light = parse_light("directional:1,0,0.2")
+    znear = 0.01  # near-rectangle corner radius here: 0.01 * sqrt(1 + 1.28^2 + 0.72^2) = 0.0178
+    gap = 0.014  # the eye->light ray misses the box by 0.014 in y: more than znear, less than 0.0178
+    eye = np.array([-0.3, 0.05 + gap, 0.05])
+    cam_from_world = look_at_pose(eye, eye + np.array([0.0, 1.0, -0.3]))
+    with Compositor(ctx, intr, box, [light], RenderOptions(), tracker={"marker_length": 0.05}) as comp:
+        assert comp.modes_for(cam_from_world, znear, intr, (0, 0, 1280, 720)) == ["zfail"]
+        # a camera well clear of the volume keeps the cheaper z-pass
+        far_eye = np.array([-0.3, 0.05 + 0.05, 0.05])
+        far = look_at_pose(far_eye, far_eye + np.array([0.0, 1.0, -0.3]))
+        assert comp.modes_for(far, znear, intr, (0, 0, 1280, 720)) == ["zpass"]

@@ -53,6 +53,7 @@ def main(argv=None) -> int:
     if not getattr(args, "func", None):
         parser.print_help(sys.stderr)
         return EXIT_USAGE
+    quiet_opencv(args.debug)
     try:
         return int(args.func(args) or 0)
     except ArshadowError as exc:
@@ -63,6 +64,17 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print("arshadow: interrupted", file=sys.stderr)
         return 130
+
+
+def quiet_opencv(debug: bool = False) -> None:
+    """Silence OpenCV's own stderr logging (decoder warnings) so each failure is one line of ours."""
+    import cv2
+
+    try:
+        lg = cv2.utils.logging
+        lg.setLogLevel(lg.LOG_LEVEL_INFO if debug else lg.LOG_LEVEL_SILENT)
+    except AttributeError:  # pragma: no cover - builds without the logging utils
+        pass
 
 
 def error_line(command: str, what: str, exc: BaseException) -> str:

@@ -52,7 +52,7 @@ def run(args) -> int:
     from ..mesh import load_occluder
     from ..pipeline import Compositor, RenderOptions
     from ..report import make_report
-    from .render import quiet_opencv
+    from . import quiet_opencv
 
     debug = bool(getattr(args, "debug", False))
     quiet_opencv(debug)

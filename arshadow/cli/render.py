@@ -10,7 +10,7 @@ import sys
 import time
 from pathlib import Path
 
-from . import EXIT_OK, EXIT_SOME_FAILED, error_line
+from . import EXIT_OK, EXIT_SOME_FAILED, error_line, quiet_opencv
 
 log = logging.getLogger(__name__)
 
@@ -303,17 +303,6 @@ def _render_all(args, ctx, intr, caster, lights, opts, tracker, inputs, outdir, 
                 item.timings_ms = {"total": round((time.perf_counter() - t0) * 1e3, 3)}
             items.append(item)
     return items, failed
-
-
-def quiet_opencv(debug: bool = False) -> None:
-    """Silence OpenCV's own stderr logging (decoder warnings) so each failure is one line of ours."""
-    import cv2
-
-    try:
-        lg = cv2.utils.logging
-        lg.setLogLevel(lg.LOG_LEVEL_INFO if debug else lg.LOG_LEVEL_SILENT)
-    except AttributeError:  # pragma: no cover - builds without the logging utils
-        pass
 
 
 def _error_line(inp, exc) -> str:

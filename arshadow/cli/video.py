@@ -142,7 +142,8 @@ def run(args) -> int:
     from ..gl.context import create_context
     from ..io import write_json
     from ..report import make_report
-    from .render import build_scene, quiet_opencv
+    from . import quiet_opencv
+    from .render import build_scene
 
     debug = bool(getattr(args, "debug", False))
     quiet_opencv(debug)
