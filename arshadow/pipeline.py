@@ -451,11 +451,7 @@ class Compositor:
                 item.extra["detector"] = "full (fast pass found nothing)"
         if pose is None:
             pose = self._estimate(cal.tracker, image, timings)
-        item.marker_ids = [int(i) for i in pose.marker_ids]
-        item.rvec = np.asarray(pose.rvec, float).ravel().tolist()
-        item.tvec = np.asarray(pose.tvec, float).ravel().tolist()
-        item.reprojection_error_px = float(pose.reprojection_error_px)
-        item.pose_ambiguity = None if pose.pose_ambiguity is None else float(pose.pose_ambiguity)
+        item.set_pose(pose)
         cam_from_world = np.asarray(pose.cam_from_world, dtype=np.float64)
 
         out, mask, info = self.render_pose(image, intr, cam_from_world, lens=cal.lens, timings=timings,

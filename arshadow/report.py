@@ -28,6 +28,26 @@ class ReportItem:
     timings_ms: dict[str, float] = field(default_factory=dict)
     extra: dict = field(default_factory=dict)
 
+    def set_pose(self, pose) -> None:
+        """Fill the pose keys from an :class:`arshadow.marker.MarkerPose`.
+
+        ``rvec``/``tvec`` are world -> camera in arshadow's world frame (z up). For a board that frame is
+        OpenCV's board frame turned 180 degrees about x (docs/tracking.md), so the item also carries
+        OpenCV's own board pose as ``opencv_board_rvec``/``opencv_board_tvec``
+        (``cam_from_opencv_board = cam_from_world @ diag(1, -1, -1, 1)``).
+        """
+        self.marker_ids = [int(i) for i in pose.marker_ids]
+        self.rvec = np.asarray(pose.rvec, float).ravel().tolist()
+        self.tvec = np.asarray(pose.tvec, float).ravel().tolist()
+        self.reprojection_error_px = float(pose.reprojection_error_px)
+        self.pose_ambiguity = None if pose.pose_ambiguity is None else float(pose.pose_ambiguity)
+        if getattr(pose, "kind", None) in ("gridboard", "charuco"):
+            from .transforms import rvec_tvec_from_matrix
+
+            m = np.asarray(pose.cam_from_world, float) @ np.diag([1.0, -1.0, -1.0, 1.0])
+            r, t = rvec_tvec_from_matrix(m)
+            self.extra["opencv_board_rvec"], self.extra["opencv_board_tvec"] = r.tolist(), t.tolist()
+
     def to_dict(self) -> dict:
         d = asdict(self)
         extra = d.pop("extra")

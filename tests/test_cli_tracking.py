@@ -143,6 +143,16 @@ def test_pose_board_and_detector_params(capsys, realdata):
                        a / "tutorial_camera_charuco.yml", "--board", ROOT / "calib" / "charuco_5x7.yml", "--json")
     items = json.loads(out)["images"]
     assert code == 0 and [len(i["marker_ids"]) for i in items] == [17, 13]
+    # the report also gives OpenCV's own board-frame pose: compare with OpenCV's ChArUco pipeline run here
+    intr = Intrinsics.from_file(a / "tutorial_camera_charuco.yml")
+    board = cv2.aruco.CharucoBoard((5, 7), 0.04, 0.02, cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_6X6_250))
+    ch_corners, ch_ids, _, _ = cv2.aruco.CharucoDetector(board).detectBoard(cv2.imread(str(a / "choriginal.jpg")))
+    obj, img = board.matchImagePoints(ch_corners, ch_ids)
+    ok, rvec, tvec = cv2.solvePnP(obj, img, intr.K, intr.dist)
+    assert ok
+    got_r, got_t = np.array(items[0]["opencv_board_rvec"]), np.array(items[0]["opencv_board_tvec"])
+    assert rotation_error_deg(got_r, rvec.ravel()) < 0.5
+    assert np.linalg.norm(got_t - tvec.ravel()) < 0.005 * np.linalg.norm(tvec)
     code, out, _ = run(capsys, "pose", a / "singlemarkersoriginal.jpg", "--calib", a / "tutorial_camera_charuco.yml",
                        "--marker-length", 0.05, "--detector-params", a / "detector_params.yml", "--json")
     assert code == 0 and json.loads(out)["images"][0]["marker_ids"] == [23, 40, 62, 98, 124, 203]

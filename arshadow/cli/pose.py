@@ -93,12 +93,9 @@ def run(args) -> int:
             t1 = time.perf_counter()
             pose = tracker.estimate(image)
             t2 = time.perf_counter()
-            item.marker_ids = [int(i) for i in pose.marker_ids]
-            item.rvec, item.tvec = pose.rvec.tolist(), pose.tvec.tolist()
-            item.reprojection_error_px = float(pose.reprojection_error_px)
-            item.pose_ambiguity = pose.pose_ambiguity
-            item.extra = {"pose_flagged": bool(pose.ambiguous), "n_points": int(pose.n_points),
-                          "kind": pose.kind, "calibration_scaled": bool(pose.scaled)}
+            item.set_pose(pose)
+            item.extra.update({"pose_flagged": bool(pose.ambiguous), "n_points": int(pose.n_points),
+                               "kind": pose.kind, "calibration_scaled": bool(pose.scaled)})
             if out_dir is not None:
                 item.output = _overlay(image, pose, tracker, out_dir, Path(name).stem)
             item.timings_ms = {"read": 1e3 * (t1 - t0), "detect": pose.timings_ms.get("detect", 1e3 * (t2 - t1)),

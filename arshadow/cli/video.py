@@ -340,11 +340,7 @@ def process_video(comp, path, out_path, mask_path=None, *, static=(), tracks=(),
                     item.status, item.error = "no_marker", str(err) if err else "no marker found"
                     stats["frames_no_marker"] += 1
                 else:
-                    item.marker_ids = [int(i) for i in pose.marker_ids]
-                    item.rvec = np.asarray(pose.rvec, float).ravel().tolist()
-                    item.tvec = np.asarray(pose.tvec, float).ravel().tolist()
-                    item.reprojection_error_px = float(pose.reprojection_error_px)
-                    item.pose_ambiguity = None if pose.pose_ambiguity is None else float(pose.pose_ambiguity)
+                    item.set_pose(pose)
                     item.extra["pose_choice"] = "temporal (alternative IPPE solution)" if swapped else "error"
                     stats["swapped"] += int(swapped)
                     out, mask, info = comp.render_pose(fr.image, cal.intrinsics, np.asarray(pose.cam_from_world),
