@@ -42,9 +42,12 @@ class ReportItem:
         self.reprojection_error_px = float(pose.reprojection_error_px)
         self.pose_ambiguity = None if pose.pose_ambiguity is None else float(pose.pose_ambiguity)
         if getattr(pose, "kind", None) in ("gridboard", "charuco"):
+            from .marker import OPENCV_BOARD_TO_WORLD
             from .transforms import rvec_tvec_from_matrix
 
-            m = np.asarray(pose.cam_from_world, float) @ np.diag([1.0, -1.0, -1.0, 1.0])
+            world_from_board = np.eye(4)
+            world_from_board[:3, :3] = OPENCV_BOARD_TO_WORLD
+            m = np.asarray(pose.cam_from_world, float) @ world_from_board
             r, t = rvec_tvec_from_matrix(m)
             self.extra["opencv_board_rvec"], self.extra["opencv_board_tvec"] = r.tolist(), t.tolist()
 

@@ -46,6 +46,7 @@ from importlib import resources
 
 import numpy as np
 
+from ..composite import srgb_to_linear
 from .._check import check_finite, check_shape
 from ..errors import GLContextError, ShapeError, UsageError
 from . import glraw as G
@@ -64,12 +65,6 @@ DEFAULT_COLOR = (0.8, 0.8, 0.8)
 def load_shader(name: str) -> str:
     """Source of a shader shipped in ``arshadow/gl/shaders`` (package data)."""
     return resources.files("arshadow.gl").joinpath("shaders", name).read_text(encoding="utf-8")
-
-
-def srgb_to_linear(c) -> np.ndarray:
-    """sRGB-encoded values in [0, 1] -> linear light (IEC 61966-2-1), float64, same shape."""
-    c = np.asarray(c, dtype=np.float64)
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
 
 
 @dataclass
