@@ -217,10 +217,12 @@ def parse_time(text: str, what: str = "time") -> datetime:
     return t
 
 
-def _split_weight(spec: str) -> tuple[str, float]:
-    body, sep, w = spec.rpartition("@")
+def _split_weight(rest: str, spec: str) -> tuple[str, float]:
+    """Split ``rest`` (the part after ``KIND:``) into its body and the ``@W`` weight; ``spec`` (the whole
+    light) names the light in errors."""
+    body, sep, w = rest.rpartition("@")
     if not sep:
-        return spec, 1.0
+        return rest, 1.0
     if not w.strip():
         raise LightError(f"light {spec!r}: empty weight after '@'")
     weight = _float(w, "weight", spec)
@@ -301,7 +303,7 @@ def parse_light(spec: str, default_time=None) -> Light:
     kind = kind.strip().lower()
     if not colon:
         raise LightError(f"light {spec!r}: expected KIND:VALUES with KIND point, directional or sun")
-    body, weight = _split_weight(rest)
+    body, weight = _split_weight(rest, spec)
     pos, kw = _split_fields(body, spec)
 
     if kind in ("point", "directional"):
@@ -432,7 +434,7 @@ def parse_sun_track(spec: str, recompute_deg: float = 0.1) -> SunTrack:
     if not isinstance(spec, str) or not spec.strip().lower().startswith("sun:"):
         raise LightError(f"a sun track needs a sun:LAT,LON[,TIME][,NORTH] spec, got {spec!r}")
     spec = spec.strip()
-    body, weight = _split_weight(spec.partition(":")[2])
+    body, weight = _split_weight(spec.partition(":")[2], spec)
     pos, kw = _split_fields(body, spec)
     p = _sun_params(spec, pos, kw, None, need_time=False)
     try:

@@ -281,7 +281,8 @@ def _render_all(args, ctx, intr, caster, lights, opts, tracker, inputs, outdir, 
                     item.mask = str(mask_path)
                 if not args.quiet:
                     t = item.timings_ms.get("total", 0.0)
-                    print(f"{inp} -> {out_path}  ({item.mode}, {t:.1f} ms)", file=sys.stdout)
+                    print(f"{inp} -> {out_path}  ({item.mode or 'no light casts a shadow'}, {t:.1f} ms)",
+                          file=sys.stdout)
             except MarkerNotFoundError as exc:
                 failed += 1
                 item.status, item.error = "no_marker", str(exc)
