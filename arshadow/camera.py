@@ -14,6 +14,8 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import re
+
 import cv2
 import numpy as np
 
@@ -403,8 +405,12 @@ class Intrinsics:
         try:
             fs = cv2.FileStorage(str(p), cv2.FILE_STORAGE_READ)
         except (cv2.error, SystemError) as exc:
-            first = str(exc).strip().splitlines()[-1] if str(exc).strip() else "parse error"
-            raise CalibrationError(f"{p}: cannot parse calibration file ({first[:120]})") from None
+            # the Python binding may wrap OpenCV's parser error in a SystemError: report the parser's own
+            inner = exc.__cause__ or exc.__context__ or exc
+            text = str(inner).strip()
+            where = re.search(r"in function '([^']*)'", text)  # OpenCV puts "file(line): what" there
+            first = where.group(1) if where else (text.splitlines()[-1].strip() if text else "parse error")
+            raise CalibrationError(f"{p}: cannot parse calibration file: {first[:160]}") from None
         if not fs.isOpened():
             raise CalibrationError(f"{p}: cannot open calibration file")
         try:

@@ -117,6 +117,7 @@ def _near_object_box(shape, item):
         ("bad silhouette", ["--silhouette", "magic"], "magic"),
         ("bad shadow colour", ["--shadow-color", "1,2,900"], "shadow-color"),
         ("bad anti-aliasing", ["--aa", "64"], "--aa 64"),
+        ("unknown dictionary", ["--dictionary", "DICT_FOO"], "DICT_FOO"),
     ],
 )
 def test_bad_configuration_exits_2_with_one_line(photos, tmp_path, capsys, problem, argv, needle):
@@ -137,6 +138,12 @@ def test_bad_calibration_and_mesh_files(photos, tmp_path, capsys):
     code, _, se = _run(capsys, "render", photos / "good.jpg", *SCENE[:0], "--calib", nan, "--marker-length",
                        "0.05", "--model", "box:0.04,0.03,0.05", "--light", "point:0,0,1", "-o", tmp_path / "o")
     assert code == 2 and "nan.yml" in se and len(se.strip().splitlines()) == 1
+    broken = tmp_path / "broken.yml"  # a YAML syntax error: OpenCV's parser message, not a Python wrapper's
+    broken.write_text(CALIB.read_text().replace("data: [", "data: [ [", 1))
+    code, _, se = _run(capsys, "render", photos / "good.jpg", "--calib", broken, "--marker-length", "0.05",
+                       "--model", "box:0.04,0.03,0.05", "--light", "point:0,0,1", "-o", tmp_path / "o")
+    assert code == 2 and "broken.yml" in se and "cannot parse" in se and "SystemError" not in se, se
+    assert len(se.strip().splitlines()) == 1
     bad_mesh = tmp_path / "bad.obj"
     bad_mesh.write_text("v 0 0 0\nv 1 0 nan\nv 0 1 0\nf 1 2 3\n")
     code, _, se = _run(capsys, "render", photos / "good.jpg", "--calib", CALIB, "--marker-length", "0.05",

@@ -146,7 +146,7 @@ def build_scene(args):
     from ..composite import parse_rgb
     from ..errors import UsageError
     from ..lights import parse_light
-    from ..marker import load_board
+    from ..marker import get_dictionary, load_board
     from ..mesh import load_occluder
     from ..pipeline import RenderOptions
 
@@ -154,10 +154,11 @@ def build_scene(args):
     if args.board is None and args.marker_length is None:
         raise UsageError("give --marker-length M (metres) for a single marker, or --board B")
     tracker = {"dictionary": args.dictionary, "marker_id": args.marker_id}
-    if args.board is not None:
-        tracker["board"] = load_board(args.board)
-    else:
+    if args.board is None:
+        get_dictionary(args.dictionary)  # an unknown dictionary is a usage error (exit 2), not a per-photo one
         tracker["marker_length"] = args.marker_length
+    else:
+        tracker["board"] = load_board(args.board)
     color = None
     if args.color:
         parse_rgb(args.color, "--color")  # validates: three numbers 0..255
