@@ -41,6 +41,8 @@ class ReportItem:
         self.tvec = np.asarray(pose.tvec, float).ravel().tolist()
         self.reprojection_error_px = float(pose.reprojection_error_px)
         self.pose_ambiguity = None if pose.pose_ambiguity is None else float(pose.pose_ambiguity)
+        # the ratio is at or above the tracker's threshold: the mirrored solution may be the true one
+        self.extra["pose_flagged"] = bool(getattr(pose, "ambiguous", False))
         if getattr(pose, "kind", None) in ("gridboard", "charuco"):
             from .marker import OPENCV_BOARD_TO_WORLD
             from .transforms import rvec_tvec_from_matrix

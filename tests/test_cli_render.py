@@ -78,6 +78,9 @@ def test_good_and_bad_inputs_in_one_run(photos, tmp_path, capsys):
                 "reprojection_error_px", "pose_ambiguity", "mode", "silhouette_edges", "timings_ms"):
         assert key in ok
     assert ok["marker_ids"] == [0] and ok["mode"] == "zpass" and ok["silhouette_edges"] >= 4
+    from arshadow.marker import AMBIGUITY_FLAG
+
+    assert ok["pose_flagged"] is (ok["pose_ambiguity"] >= AMBIGUITY_FLAG)  # the flag is in every report
     assert set(ok["timings_ms"]) >= {"detect", "pose", "silhouette", "volume", "render", "readback", "warp",
                                      "composite", "total"}
     assert ok["timings_ms"]["detect"] > 0 and ok["timings_ms"]["pose"] > 0  # the tracker's time, split
