@@ -10,11 +10,11 @@ Plain functions over numpy arrays come first (:func:`distort_normalized`,
 
 from __future__ import annotations
 
+import contextlib
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
-
-import re
 
 import cv2
 import numpy as np
@@ -247,6 +247,49 @@ def undistort_normalized(xy_d, dist, *, tol=1e-12, max_iter=50) -> np.ndarray:
 # ---------------------------------------------------------------------------------------------------
 # file helpers
 # ---------------------------------------------------------------------------------------------------
+@contextlib.contextmanager
+def open_storage(path, what: str, error=CalibrationError):
+    """Open an OpenCV FileStorage (YAML/XML/JSON) for reading; released when the block ends.
+
+    Every problem is one ``error`` naming the file and ``what`` it should be (``"calibration file"``,
+    ``"board file"`` ...): missing, unreadable, or unparsable (quoting OpenCV's parser: file, line, what).
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise error(f"{p}: no such {what}")
+    try:
+        fs = cv2.FileStorage(str(p), cv2.FILE_STORAGE_READ)
+    except (cv2.error, SystemError) as exc:
+        # the Python binding may wrap OpenCV's parser error in a SystemError: report the parser's own
+        inner = exc.__cause__ or exc.__context__ or exc
+        text = str(inner).strip()
+        where = re.search(r"in function '([^']*)'", text)  # OpenCV puts "file(line): what" there
+        first = where.group(1) if where else (text.splitlines()[-1].strip() if text else "parse error")
+        raise error(f"{p}: cannot parse {what}: {first[:160]}") from None
+    if not fs.isOpened():
+        raise error(f"{p}: cannot open {what}")
+    try:
+        yield fs
+    finally:
+        fs.release()
+
+
+@contextlib.contextmanager
+def write_storage(path, what: str, error=CalibrationError):
+    """Open an OpenCV FileStorage for writing ``path`` atomically (format from the extension)."""
+    from .io import atomic_path
+
+    p = Path(path)
+    with atomic_path(p) as tmp:
+        fs = cv2.FileStorage(str(tmp), cv2.FILE_STORAGE_WRITE)
+        if not fs.isOpened():
+            raise error(f"{p}: cannot write {what}")
+        try:
+            yield fs
+        finally:
+            fs.release()
+
+
 def _node_array(node, name: str, path) -> np.ndarray:
     """Read an OpenCV matrix node, a ROS-style {rows, cols, data} map, or a plain sequence."""
     if node.isMap():
@@ -400,20 +443,7 @@ class Intrinsics:
             Missing/unreadable file, missing key, non-finite or non-positive focal length, bad size.
         """
         p = Path(path)
-        if not p.is_file():
-            raise CalibrationError(f"{p}: no such calibration file")
-        try:
-            fs = cv2.FileStorage(str(p), cv2.FILE_STORAGE_READ)
-        except (cv2.error, SystemError) as exc:
-            # the Python binding may wrap OpenCV's parser error in a SystemError: report the parser's own
-            inner = exc.__cause__ or exc.__context__ or exc
-            text = str(inner).strip()
-            where = re.search(r"in function '([^']*)'", text)  # OpenCV puts "file(line): what" there
-            first = where.group(1) if where else (text.splitlines()[-1].strip() if text else "parse error")
-            raise CalibrationError(f"{p}: cannot parse calibration file: {first[:160]}") from None
-        if not fs.isOpened():
-            raise CalibrationError(f"{p}: cannot open calibration file")
-        try:
+        with open_storage(p, "calibration file") as fs:
             knode = fs.getNode(KEY_K)
             if knode.empty():
                 raise CalibrationError(f"{p}: missing key '{KEY_K}'")
@@ -430,8 +460,6 @@ class Intrinsics:
             dist = np.zeros(0) if dnode.empty() else _node_array(dnode, KEY_DIST, p).ravel()
             w = _read_int(fs, KEY_W, p)
             h = _read_int(fs, KEY_H, p)
-        finally:
-            fs.release()
         if not np.all(np.isfinite(K)):
             raise CalibrationError(f"{p}: '{KEY_K}' contains NaN or inf")
         if K[0, 0] <= 0 or K[1, 1] <= 0:
@@ -453,41 +481,33 @@ class Intrinsics:
         ``extra`` keys are written too: numbers, strings, lists of strings, or arrays (as matrices), e.g.
         ``rms=0.39, per_view_errors=np.array([...])``. The file is written atomically.
         """
-        from .io import atomic_path
-
         p = Path(path)
         if p.suffix.lower() not in (".yml", ".yaml", ".xml", ".json"):
             raise CalibrationError(f"{p}: calibration files must end in .yml, .yaml, .xml or .json")
-        with atomic_path(p) as tmp:
-            fs = cv2.FileStorage(str(tmp), cv2.FILE_STORAGE_WRITE)
-            if not fs.isOpened():
-                raise CalibrationError(f"{p}: cannot write calibration file")
-            try:
-                fs.write(KEY_W, int(self.width))
-                fs.write(KEY_H, int(self.height))
-                fs.write(KEY_K, self.K)
-                fs.write(KEY_DIST, self.dist.reshape(1, -1) if self.dist.size else np.zeros((1, 5)))
-                for k, v in extra.items():
-                    if v is None:
-                        continue
-                    if isinstance(v, (bool, np.bool_)):
-                        fs.write(k, int(v))
-                    elif isinstance(v, (int, np.integer)):
-                        fs.write(k, int(v))
-                    elif isinstance(v, (float, np.floating)):
-                        fs.write(k, float(v))
-                    elif isinstance(v, str):
-                        fs.write(k, v)
-                    elif isinstance(v, (list, tuple)) and all(isinstance(x, str) for x in v):
-                        fs.startWriteStruct(k, cv2.FileNode_SEQ)
-                        for x in v:
-                            fs.write("", x)
-                        fs.endWriteStruct()
-                    else:
-                        arr = np.asarray(v, dtype=np.float64)
-                        fs.write(k, arr.reshape(-1, 1) if arr.ndim == 1 else arr)
-            finally:
-                fs.release()
+        with write_storage(p, "calibration file") as fs:
+            fs.write(KEY_W, int(self.width))
+            fs.write(KEY_H, int(self.height))
+            fs.write(KEY_K, self.K)
+            fs.write(KEY_DIST, self.dist.reshape(1, -1) if self.dist.size else np.zeros((1, 5)))
+            for k, v in extra.items():
+                if v is None:
+                    continue
+                if isinstance(v, (bool, np.bool_)):
+                    fs.write(k, int(v))
+                elif isinstance(v, (int, np.integer)):
+                    fs.write(k, int(v))
+                elif isinstance(v, (float, np.floating)):
+                    fs.write(k, float(v))
+                elif isinstance(v, str):
+                    fs.write(k, v)
+                elif isinstance(v, (list, tuple)) and all(isinstance(x, str) for x in v):
+                    fs.startWriteStruct(k, cv2.FileNode_SEQ)
+                    for x in v:
+                        fs.write("", x)
+                    fs.endWriteStruct()
+                else:
+                    arr = np.asarray(v, dtype=np.float64)
+                    fs.write(k, arr.reshape(-1, 1) if arr.ndim == 1 else arr)
         return p
 
     # -- resolution ----------------------------------------------------------------------------------

@@ -23,7 +23,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .camera import Intrinsics
+from .camera import Intrinsics, open_storage, write_storage
 from .errors import CalibrationError, MarkerNotFoundError, UsageError
 from .transforms import matrix_from_rvec_tvec
 
@@ -126,13 +126,7 @@ def get_dictionary(spec, base_dir=None) -> cv2.aruco.Dictionary:
     p = Path(s)
     if base_dir is not None and not p.is_absolute():
         p = Path(base_dir) / p
-    if not p.is_file():
-        raise UsageError(f"{p}: no such dictionary file")
-    try:
-        fs = cv2.FileStorage(str(p), cv2.FILE_STORAGE_READ)
-    except (cv2.error, SystemError):
-        raise UsageError(f"{p}: cannot parse dictionary file") from None
-    try:
+    with open_storage(p, "dictionary file", UsageError) as fs:
         if fs.getNode("nmarkers").empty() or fs.getNode("markersize").empty():
             raise UsageError(f"{p}: not a dictionary file (needs 'nmarkers', 'markersize', 'marker_0'...)")
         d = cv2.aruco.Dictionary()
@@ -142,8 +136,6 @@ def get_dictionary(spec, base_dir=None) -> cv2.aruco.Dictionary:
             raise UsageError(f"{p}: invalid dictionary file ({str(exc).strip().splitlines()[-1][:100]})") from None
         if not ok or d.bytesList is None or len(d.bytesList) == 0:
             raise UsageError(f"{p}: invalid dictionary file")
-    finally:
-        fs.release()
     return d
 
 
@@ -348,34 +340,28 @@ class Board:
 
     def to_file(self, path) -> Path:
         """Write this board as a board file (YAML/JSON by extension), atomically."""
-        from .io import atomic_path
-
         p = Path(path)
-        with atomic_path(p) as tmp:
-            fs = cv2.FileStorage(str(tmp), cv2.FILE_STORAGE_WRITE)
-            try:
-                fs.write("type", self.kind)
-                fs.startWriteStruct("size", cv2.FileNode_SEQ | cv2.FileNode_FLOW)
-                for v in self.size:
+        with write_storage(p, "board file", UsageError) as fs:
+            fs.write("type", self.kind)
+            fs.startWriteStruct("size", cv2.FileNode_SEQ | cv2.FileNode_FLOW)
+            for v in self.size:
+                fs.write("", int(v))
+            fs.endWriteStruct()
+            if self.kind == "charuco":
+                fs.write("square_length", float(self.square_length))
+            fs.write("marker_length", float(self.marker_length))
+            if self.kind == "gridboard":
+                fs.write("marker_separation", float(self.marker_separation))
+            fs.write("dictionary", str(self.dictionary))
+            if self.ids is not None:
+                fs.startWriteStruct("ids", cv2.FileNode_SEQ | cv2.FileNode_FLOW)
+                for v in self.ids:
                     fs.write("", int(v))
                 fs.endWriteStruct()
-                if self.kind == "charuco":
-                    fs.write("square_length", float(self.square_length))
-                fs.write("marker_length", float(self.marker_length))
-                if self.kind == "gridboard":
-                    fs.write("marker_separation", float(self.marker_separation))
-                fs.write("dictionary", str(self.dictionary))
-                if self.ids is not None:
-                    fs.startWriteStruct("ids", cv2.FileNode_SEQ | cv2.FileNode_FLOW)
-                    for v in self.ids:
-                        fs.write("", int(v))
-                    fs.endWriteStruct()
-                else:
-                    fs.write("first_id", int(self.first_id))
-                if self.kind == "charuco":
-                    fs.write("legacy_pattern", int(bool(self.legacy_pattern)))
-            finally:
-                fs.release()
+            else:
+                fs.write("first_id", int(self.first_id))
+            if self.kind == "charuco":
+                fs.write("legacy_pattern", int(bool(self.legacy_pattern)))
         return p
 
 
@@ -408,15 +394,7 @@ def load_board(path) -> Board:
         Missing/unreadable file, missing or invalid key, unknown dictionary.
     """
     p = Path(path)
-    if not p.is_file():
-        raise UsageError(f"{p}: no such board file")
-    try:
-        fs = cv2.FileStorage(str(p), cv2.FILE_STORAGE_READ)
-    except (cv2.error, SystemError):
-        raise UsageError(f"{p}: cannot parse board file") from None
-    if not fs.isOpened():
-        raise UsageError(f"{p}: cannot open board file")
-    try:
+    with open_storage(p, "board file", UsageError) as fs:
         t = fs.getNode("type")
         if t.empty() or not t.isString():
             raise UsageError(f"{p}: board file needs 'type: gridboard' or 'type: charuco'")
@@ -437,8 +415,6 @@ def load_board(path) -> Board:
         ids = None if ids_node.empty() else tuple(_fs_int_list(ids_node, "ids", p))
         first_id = int(_fs_number(fs, "first_id", p, default=0))
         legacy = bool(_fs_number(fs, "legacy_pattern", p, default=0))
-    finally:
-        fs.release()
     b = Board(kind=kind, size=tuple(size), marker_length=ml, dictionary=dictionary, marker_separation=sep,
               square_length=sq, ids=ids, first_id=first_id, legacy_pattern=legacy, base_dir=p.parent,
               source=str(p))
@@ -458,13 +434,7 @@ def load_detector_params(path) -> cv2.aruco.DetectorParameters:
         Missing or unreadable file.
     """
     p = Path(path)
-    if not p.is_file():
-        raise UsageError(f"{p}: no such detector parameter file")
-    try:
-        fs = cv2.FileStorage(str(p), cv2.FILE_STORAGE_READ)
-    except (cv2.error, SystemError):
-        raise UsageError(f"{p}: cannot parse detector parameter file") from None
-    try:
+    with open_storage(p, "detector parameter file", UsageError) as fs:
         params = cv2.aruco.DetectorParameters()
         try:
             ok = params.readDetectorParameters(fs.root())
@@ -472,8 +442,6 @@ def load_detector_params(path) -> cv2.aruco.DetectorParameters:
             raise UsageError(f"{p}: invalid detector parameters ({str(exc).strip().splitlines()[-1][:100]})") from None
         if not ok:
             raise UsageError(f"{p}: no detector parameters in this file")
-    finally:
-        fs.release()
     return params
 
 

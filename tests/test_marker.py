@@ -119,6 +119,18 @@ def test_missing_board_file(tmp_path):
         load_board(tmp_path / "none.yml")
 
 
+@pytest.mark.parametrize("reader, what", [(load_board, "board file"), (get_dictionary, "dictionary file"),
+                                          (load_detector_params, "detector parameter file")])
+def test_unparsable_files_quote_the_parser(tmp_path, reader, what):
+    """Board, dictionary and detector parameter files fail like calibration files: one UsageError naming
+    the file, what it should be, and OpenCV's parser message (file and line), not the binding's SystemError."""
+    p = tmp_path / "broken.yml"
+    p.write_text("%YAML:1.0\n---\ntype: [gridboard\n")
+    with pytest.raises(UsageError, match=f"cannot parse {what}") as ei:
+        reader(str(p))
+    assert "broken.yml(3)" in str(ei.value) and "SystemError" not in str(ei.value)
+
+
 def test_detector_params_file(realdata, tmp_path):
     p = load_detector_params(realdata / "aruco_tutorial" / "detector_params.yml")
     assert p.minMarkerDistanceRate == pytest.approx(0.05) and p.adaptiveThreshWinSizeMax == 23
