@@ -353,7 +353,6 @@ class Compositor:
 
             intr, scaled = self.intrinsics.for_image(width, height)
             tracker = MarkerTracker(intr, **self.tracker_kwargs)
-            _time_detector(tracker)
             fast = None
             if self.options.fast_detect and "detector_params" not in self.tracker_kwargs:
                 fast = make_fast_tracker(intr, **self.tracker_kwargs)
@@ -465,28 +464,12 @@ class Compositor:
 
     def _estimate(self, tracker, image, timings):
         t = time.perf_counter()
-        if hasattr(tracker, "detect") and hasattr(tracker, "pose_from"):
-            det = tracker.detect(image)
-            t1 = time.perf_counter()
-            timings["detect"] += (t1 - t) * 1e3
-            pose = tracker.pose_from(det)
-            timings["pose"] += (time.perf_counter() - t1) * 1e3
-        else:
-            det = getattr(tracker, "_detector", None)
-            timed = isinstance(det, (_TimedDetector, HalfResolutionDetector))
-            if timed:
-                det.elapsed_ms = 0.0
-            pose = tracker.estimate(image)
-            total = (time.perf_counter() - t) * 1e3
-            if timed:  # our detector proxy timed the marker search: the rest is the pose
-                timings["detect"] += det.elapsed_ms
-                timings["pose"] += total - det.elapsed_ms
-                return pose
-            timings["detect"] += total
-            st = getattr(pose, "timings_ms", None)
-            if isinstance(st, dict) and "pose" in st:  # the tracker split detection / pose itself
-                timings["pose"] = float(st["pose"])
-                timings["detect"] -= float(st["pose"])
+        pose = tracker.estimate(image)
+        total = (time.perf_counter() - t) * 1e3
+        # the tracker splits its own time into marker search and pose (MarkerPose.timings_ms)
+        pose_ms = float((getattr(pose, "timings_ms", None) or {}).get("pose", 0.0))
+        timings["detect"] += total - pose_ms
+        timings["pose"] += pose_ms
         return pose
 
     def modes_for(self, cam_from_world, znear, intr=None, canvas=None):
@@ -712,33 +695,6 @@ def _same_view(a, b) -> bool:
     return ia["data"][0] == ib["data"][0] and a.shape == b.shape and a.strides == b.strides
 
 
-class _TimedDetector:
-    """Proxy of a ``cv2.aruco.ArucoDetector`` that adds the time spent in ``detectMarkers`` to
-    ``elapsed_ms`` (so the report can split a tracker's ``estimate`` into detection and pose)."""
-
-    def __init__(self, base):
-        self._base = base
-        self.elapsed_ms = 0.0
-
-    def detectMarkers(self, gray):  # noqa: N802 (OpenCV's name)
-        t = time.perf_counter()
-        try:
-            return self._base.detectMarkers(gray)
-        finally:
-            self.elapsed_ms += (time.perf_counter() - t) * 1e3
-
-    def __getattr__(self, name):
-        return getattr(self._base, name)
-
-
-def _time_detector(tracker) -> None:
-    import cv2
-
-    det = getattr(tracker, "_detector", None)
-    if isinstance(det, cv2.aruco.ArucoDetector) and getattr(tracker, "board", None) is None:
-        tracker._detector = _TimedDetector(det)
-
-
 class HalfResolutionDetector:
     """Drop-in for ``cv2.aruco.ArucoDetector`` in a :class:`~arshadow.marker.MarkerTracker`: detect on the
     image downscaled 2x (one 5-px threshold window, no refinement), then refine every corner at full
@@ -760,7 +716,6 @@ class HalfResolutionDetector:
         import cv2
 
         self._base = base
-        self.elapsed_ms = 0.0
         p = cv2.aruco.DetectorParameters()
         p.adaptiveThreshWinSizeMin = 5
         p.adaptiveThreshWinSizeMax = 5
@@ -769,13 +724,6 @@ class HalfResolutionDetector:
         self._criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 0.01)
 
     def detectMarkers(self, gray):  # noqa: N802 (OpenCV's name)
-        t = time.perf_counter()
-        try:
-            return self._detect(gray)
-        finally:
-            self.elapsed_ms += (time.perf_counter() - t) * 1e3
-
-    def _detect(self, gray):
         import cv2
 
         if gray.ndim == 3:
