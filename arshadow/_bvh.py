@@ -57,10 +57,16 @@ def build(triangles: np.ndarray, scale: float) -> dict:
         nmin[parents] = np.minimum(nmin[2 * parents + 1], nmin[2 * parents + 2])
         nmax[parents] = np.maximum(nmax[2 * parents + 1], nmax[2 * parents + 2])
         first = (first - 1) // 2
-    return {"nmin": nmin, "nmax": nmax, "leaf_faces": leaf_faces, "depth": depth, "n_leaves": n_l}
+    # the triangles' edge vectors for the Moller-Trumbore tests (per mesh, not per query)
+    e1 = triangles[:, 1] - triangles[:, 0]
+    e2 = triangles[:, 2] - triangles[:, 0]
+    return {"nmin": nmin, "nmax": nmax, "leaf_faces": leaf_faces, "depth": depth, "n_leaves": n_l,
+            "e1": e1, "e2": e2}
 
 
 def _tree(caster) -> dict:
+    """The caster's tree, built on first use and kept in its ``__dict__`` (per mesh, like its cached
+    properties)."""
     t = caster.__dict__.get("_bvh_cache")
     if t is None:
         t = build(caster.triangles, caster.scale)
@@ -81,8 +87,7 @@ def any_hit(caster, origins, dirs, tmin, face_mask) -> tuple[np.ndarray, dict]:
     if r == 0 or not face_mask.any():
         return hit, counts
     tri = caster.triangles
-    e1_all = tri[:, 1] - tri[:, 0]
-    e2_all = tri[:, 2] - tri[:, 0]
+    e1_all, e2_all = tree["e1"], tree["e2"]
     mask_pad = np.r_[face_mask, False]
     for s in range(0, r, _CHUNK):
         sl = slice(s, min(r, s + _CHUNK))
