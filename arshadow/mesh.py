@@ -121,6 +121,7 @@ class ShadowCaster:
         fc = _as_rgba(face_colors, f.shape[0], f"{label} face_colors")
 
         # weld exact duplicates (-0.0 == 0.0 first so they weld too)
+        n_in = v.shape[0]
         v = v + 0.0
         uniq, first, inverse = np.unique(v, axis=0, return_index=True, return_inverse=True)
         inverse = inverse.reshape(-1)
@@ -131,9 +132,7 @@ class ShadowCaster:
         f = rank[inverse][f]
         if vc is not None:
             vc = vc[first[order]]
-        self.n_welded_vertices = int(vertices.shape[0] - v.shape[0]) if hasattr(vertices, "shape") else int(
-            len(vertices) - v.shape[0]
-        )
+        self.n_welded_vertices = n_in - v.shape[0]
 
         # drop degenerate faces: repeated index or exactly zero area
         rep = (f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 2] == f[:, 0])
@@ -206,11 +205,7 @@ class ShadowCaster:
         the per-face facing test can never split a flat polygon (this is what makes HSD and the per-face
         detectors agree exactly, even for a light in the polygon's plane).
         """
-        n = self._raw_normals
-        n = n / np.linalg.norm(n, axis=1)[:, None]
-        c = self.triangles.mean(axis=1)
-        d = -np.einsum("ij,ij->i", n, c)
-        planes = np.concatenate([n, d[:, None]], axis=1)
+        planes = self._own_face_planes()
         labels, poly_planes = self._polygon_grouping
         multi = np.bincount(labels)[labels] > 1
         planes[multi] = poly_planes[labels[multi]]
@@ -422,13 +417,19 @@ class ShadowCaster:
         return _readonly(lo[order]), _readonly(hi[order]), _readonly(el[order])
 
     # ------------------------------------------------------------------ flat polygons (HSD)
-    @functools.cached_property
-    def _polygon_grouping(self):
-        """``(labels (m,), polygon planes (P, 4))`` from the faces' own planes (computed once)."""
+    def _own_face_planes(self) -> np.ndarray:
+        """(m, 4) float64: each face's own plane (unit normal, offset through its centroid), before
+        :attr:`face_planes` gives the faces of a flat polygon the polygon's shared plane. Not cached
+        (needed twice, at preparation only)."""
         n = self._raw_normals
         n = n / np.linalg.norm(n, axis=1)[:, None]
         d = -np.einsum("ij,ij->i", n, self.triangles.mean(axis=1))
-        return self._polygon_labels_planes(np.concatenate([n, d[:, None]], axis=1))
+        return np.concatenate([n, d[:, None]], axis=1)
+
+    @functools.cached_property
+    def _polygon_grouping(self):
+        """``(labels (m,), polygon planes (P, 4))`` from the faces' own planes (computed once)."""
+        return self._polygon_labels_planes(self._own_face_planes())
 
     def _polygon_labels_planes(self, planes: np.ndarray):
         """Group faces into connected coplanar polygons.
