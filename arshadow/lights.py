@@ -42,6 +42,7 @@ __all__ = [
     "parse_sun_track",
     "parse_time",
     "sample_area_light",
+    "sun_radius_deg",
     "lights_homogeneous",
     "total_weight",
 ]
@@ -388,11 +389,12 @@ def _sun_params(spec, pos, kw, default_time, need_time=True) -> dict:
             "radius_deg": radius_deg}
 
 
-def _sun_radius_deg(p: dict, pos_sun) -> float:
-    """The spec's radius, else the sun's true angular radius for the date (SPA: 0.26656 deg / R[AU]; it
-    varies 0.262..0.271 over the year), else the mean 0.266 deg."""
-    if p["radius_deg"] is not None:
-        return p["radius_deg"]
+def sun_radius_deg(pos_sun, radius_deg: float | None = None) -> float:
+    """Angular radius (degrees) to give a sun light: ``radius_deg`` when given (a spec's ``radius=``),
+    else the sun's true angular radius for the date of ``pos_sun`` (SPA: 0.26656 deg / R[AU]; it varies
+    0.262..0.271 over the year), else (paper models: no distance) the mean 0.266 deg."""
+    if radius_deg is not None:
+        return radius_deg
     r_au = pos_sun.extra.get("earth_sun_distance_au") if pos_sun is not None else None
     return SUN_SEMI_DIAMETER_1AU_DEG / r_au if r_au else SUN_ANGULAR_RADIUS_DEG
 
@@ -408,7 +410,7 @@ def _parse_sun(spec, pos, kw, weight, default_time) -> Light:
         "directional",
         world,
         weight=weight,
-        radius=math.radians(_sun_radius_deg(p, pos_sun)),
+        radius=math.radians(sun_radius_deg(pos_sun, p["radius_deg"])),
         label=spec,
         above_horizon=above,
         sun=pos_sun,
@@ -444,7 +446,6 @@ def parse_sun_track(spec: str, recompute_deg: float = 0.1) -> SunTrack:
         raise LightError(f"light {spec!r}: {exc}") from None
     track.start = p["when"]
     track.weight, track.label, track.radius_deg = weight, spec, p["radius_deg"]
-    track._radius_of = lambda pos_sun: math.radians(_sun_radius_deg(p, pos_sun))
     return track
 
 

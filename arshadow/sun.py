@@ -637,18 +637,15 @@ class SunTrack:
         # set by arshadow.lights.parse_sun_track: what light() builds
         self.start = None
         self.weight, self.label, self.radius_deg = 1.0, "sun", None
-        self._radius_of = None
 
     def light(self, frame: TrackFrame):
         """The :class:`arshadow.lights.Light` to render for ``frame``: direction ``frame.world_used`` (the
-        one the cached silhouette belongs to), this track's weight and label, the sun's angular radius."""
-        from .lights import SUN_ANGULAR_RADIUS_DEG, Light  # noqa: PLC0415  (lights imports this module)
+        one the cached silhouette belongs to), this track's weight and label, and angular radius
+        ``radius_deg`` or, when None, the sun's true radius for the frame's date."""
+        from .lights import Light, sun_radius_deg  # noqa: PLC0415  (lights imports this module)
 
-        if self._radius_of is not None:
-            radius = self._radius_of(frame.position)
-        else:
-            radius = math.radians(SUN_ANGULAR_RADIUS_DEG if self.radius_deg is None else self.radius_deg)
-        return Light("directional", frame.world_used, weight=self.weight, radius=radius, label=self.label,
+        return Light("directional", frame.world_used, weight=self.weight,
+                     radius=math.radians(sun_radius_deg(frame.position, self.radius_deg)), label=self.label,
                      above_horizon=frame.above_horizon, sun=frame.position)
 
     def reset(self) -> None:
