@@ -151,16 +151,6 @@ class Light:
         """True when the light has an area (``radius > 0``) and needs several samples for a penumbra."""
         return self.radius > 0.0
 
-    def direction_from(self, point) -> np.ndarray:
-        """Unit ``(3,)`` direction from a world ``point`` (3,) towards the light."""
-        if self.kind == "directional":
-            return self.vector.copy()
-        d = self.vector - np.asarray(point, dtype=np.float64)
-        n = float(np.linalg.norm(d))
-        if not n > 0.0:
-            raise LightError(f"light {self.label or 'point'}: the point coincides with the light position")
-        return d / n
-
 
 # ----------------------------------------------------------------------------------------------------------
 # parsing

@@ -42,7 +42,7 @@ import numpy as np
 from .errors import LightError, UsageError
 from .mesh import ShadowCaster, plane_side
 
-__all__ = ["Silhouette", "silhouette", "METHODS", "as_light_h", "facing_mask", "silhouette_loops"]
+__all__ = ["Silhouette", "silhouette", "METHODS", "as_light_h", "silhouette_loops"]
 
 METHODS = ("adjacency", "triangular", "vnv", "hsd", "delta_plus")
 
@@ -112,12 +112,6 @@ def as_light_h(light) -> np.ndarray:
     elif not np.any(h[:3] != 0.0):
         raise LightError("directional light has a zero direction")
     return h
-
-
-def facing_mask(caster: ShadowCaster, light_h) -> np.ndarray:
-    """(m,) bool: faces whose plane has the light strictly on its outer side (``n . L + d w > 0``,
-    see :meth:`arshadow.mesh.ShadowCaster.facing`)."""
-    return caster.facing(as_light_h(light_h))
 
 
 def _check_light_outside(caster: ShadowCaster, h: np.ndarray) -> None:
