@@ -50,7 +50,7 @@ def _light_h(spec: str):
     from ..lights import parse_light
 
     light = parse_light(spec)
-    if not getattr(light, "above_horizon", True):
+    if not light.above_horizon:
         raise LightError(f"light {spec!r} is below the horizon: it casts no shadow")
     return light.homogeneous
 

@@ -60,6 +60,8 @@ def _round(v, nd=9):
 
 def compute(args) -> dict:
     """The JSON object of ``arshadow sun`` for parsed ``args`` (LightError on bad input)."""
+    from datetime import timezone
+
     from ..lights import parse_time
     from ..sun import enu_to_world, pole_shadow, sun_light_direction, sun_position
 
@@ -73,7 +75,7 @@ def compute(args) -> dict:
     shadow = pole_shadow(world, 1.0, args.north) if above else None
     return {
         "time": when.isoformat(),
-        "time_utc": pos.when.astimezone(__import__("datetime").timezone.utc).isoformat(),
+        "time_utc": pos.when.astimezone(timezone.utc).isoformat(),
         "lat": pos.latitude,
         "lon": pos.longitude,
         "elevation_m": pos.elevation,
