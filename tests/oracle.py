@@ -250,3 +250,19 @@ def directed_edge_balance(triangles) -> tuple[int, int]:
     fwd = np.bincount(inv, weights=(a < b), minlength=uk.size)
     bwd = np.bincount(inv, weights=(a > b), minlength=uk.size)
     return int(np.count_nonzero(fwd != bwd)), int(np.count_nonzero((fwd != 1) | (bwd != 1)))
+
+
+# ------------------------------------------------------------------------------------ penumbra profiles
+def disc_segment_fraction(u):
+    """Exact fraction of a unit disc's area beyond the chord at signed distance ``u``: the part
+    ``{p : p . e > u}`` for a unit vector e (``u`` clipped to [-1, 1]; scalar or array). The blocked
+    fraction of a uniform disc light behind a straight edge: the exact penumbra profile."""
+    u = np.clip(np.asarray(u, np.float64), -1.0, 1.0)
+    return (np.arccos(u) - u * np.sqrt(1.0 - u * u)) / np.pi
+
+
+def profile_crossing(x, f, level: float) -> float:
+    """First ``x`` where the (decreasing) sampled profile ``f(x)`` drops to ``level`` (linear
+    interpolation between the two samples around it)."""
+    i = int(np.argmax(f <= level))
+    return x[i - 1] + (f[i - 1] - level) * (x[i] - x[i - 1]) / (f[i - 1] - f[i])

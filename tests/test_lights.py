@@ -18,6 +18,7 @@ from arshadow.lights import (
     total_weight,
 )
 from conftest import TOL
+from oracle import disc_segment_fraction, profile_crossing
 
 
 # ---------------------------------------------------------------------------------------------- parsing
@@ -118,11 +119,6 @@ def test_helpers():
 
 
 # ---------------------------------------------------------------------------------------------- sampling
-def _segment_fraction(x):
-    """Exact fraction of a unit disc's area on the side {p . e > x} of a chord, -1 <= x <= 1."""
-    return (math.acos(x) - x * math.sqrt(1 - x * x)) / math.pi
-
-
 def test_stratified_disc_is_in_disc_and_equal_area():
     d = stratified_disc(100, seed=3)
     r2 = np.sum(d**2, axis=1)
@@ -144,7 +140,7 @@ def test_stratified_disc_integrates_half_planes():
         for ang in np.linspace(0.0, math.pi, 7):
             p = d @ [math.cos(ang), math.sin(ang)]
             for x in np.linspace(-0.9, 0.9, 19):
-                worst = max(worst, abs(np.mean(p > x) - _segment_fraction(x)))
+                worst = max(worst, abs(np.mean(p > x) - disc_segment_fraction(x)))
     # 256 i.i.d. samples would give a standard deviation of up to 0.031 per value; stratified does better
     assert worst < TOL.area_light_segment
 
@@ -206,7 +202,7 @@ def test_setting_sun_keeps_only_the_visible_part_of_its_disc():
     assert all(x.vector[2] > 0 for x in s)
     assert sum(x.weight for x in s) == pytest.approx(3.0, abs=1e-12)
     # visible fraction of the disc ~ the segment above the horizon (0.1 / 0.266 of the radius)
-    assert len(s) / 64 == pytest.approx(1 - _segment_fraction(0.1 / 0.266), abs=0.06)
+    assert len(s) / 64 == pytest.approx(1 - disc_segment_fraction(0.1 / 0.266), abs=0.06)
 
 
 def test_sampling_does_not_modify_light_and_rejects_bad_n():
@@ -248,17 +244,6 @@ def _blocked_fraction(ground_pts, lights, box_lo, box_hi):
     return out / total
 
 
-def _crossing(x, f, level):
-    """First x where the (decreasing) profile f drops to ``level`` (linear interpolation)."""
-    i = int(np.argmax(f <= level))
-    return x[i - 1] + (f[i - 1] - level) * (x[i] - x[i - 1]) / (f[i - 1] - f[i])
-
-
-def _disc_fraction_below(u):
-    """Fraction of a unit disc with first coordinate < u."""
-    return 1.0 - _segment_fraction(u)
-
-
 def test_point_area_light_penumbra_matches_geometry():
     """Box edge under a spherical light straight above: penumbra full width 2 r h / (H - h) and the exact
     disc profile; the stratified samples reproduce it."""
@@ -270,13 +255,13 @@ def test_point_area_light_penumbra_matches_geometry():
     f = _blocked_fraction(pts, lights, np.array([-a, -1.0, 0.0]), np.array([a, 1.0, h]))
     # exact profile: sample blocked iff its x < c(x) = x - (x - a) H / h
     c = x - (x - a) * H / h
-    exact = np.array([_disc_fraction_below(np.clip(ci / r, -1, 1)) for ci in c])
+    exact = 1.0 - disc_segment_fraction(c / r)  # fraction of the disc with first coordinate < c / r
     assert np.max(np.abs(f - exact)) < TOL.area_light_segment
     full = 2 * r * h / (H - h)
     w_full = x[np.nonzero(f < 1.0)[0][0]], x[np.nonzero(f > 0.0)[0][-1]]
-    assert abs((w_full[1] - w_full[0]) - full) / full < 0.15
-    w1090 = _crossing(x, f, 0.1) - _crossing(x, f, 0.9)
-    e1090 = _crossing(x, exact, 0.1) - _crossing(x, exact, 0.9)
+    assert abs((w_full[1] - w_full[0]) - full) / full < TOL.penumbra_rel
+    w1090 = profile_crossing(x, f, 0.1) - profile_crossing(x, f, 0.9)
+    e1090 = profile_crossing(x, exact, 0.1) - profile_crossing(x, exact, 0.9)
     assert abs(w1090 - e1090) / e1090 < 0.05
     # N = 1: the hard shadow edge exactly at a + a h / (H - h)
     f1 = _blocked_fraction(pts, sample_area_light(li, 1), np.array([-a, -1.0, 0.0]), np.array([a, 1.0, h]))
@@ -295,6 +280,6 @@ def test_directional_area_light_penumbra_matches_geometry():
     f = _blocked_fraction(pts, lights, np.array([-0.01, -5.0, 0.0]), np.array([0.0, 5.0, h]))
     full = h / math.tan(e - alpha) - h / math.tan(e + alpha)
     w_full = x[np.nonzero(f > 0.0)[0][-1]] - x[np.nonzero(f < 1.0)[0][0]]
-    assert abs(w_full - full) / full < 0.15
+    assert abs(w_full - full) / full < TOL.penumbra_rel
     # the umbra/half/lit positions: 50 % at the centre direction's shadow h / tan(e)
-    assert _crossing(x, f, 0.5) == pytest.approx(h / math.tan(e), rel=0.02)
+    assert profile_crossing(x, f, 0.5) == pytest.approx(h / math.tan(e), rel=0.02)

@@ -17,18 +17,13 @@ import pytest
 
 from arshadow.lights import Light, parse_light, sample_area_light
 from conftest import TOL
+from oracle import disc_segment_fraction, profile_crossing
 
 pytestmark = pytest.mark.gl
 
 F_PX, D = 2000.0, 1.0  # focal length (px) and camera height (m)
 W, H_IMG = 640, 240  # ground x in [-0.16, 0.16] m at 0.5 mm per pixel
 A, HB = 0.05, 0.1  # box half-width and height (m)
-
-
-def _segment_fraction(u):
-    """Fraction of a unit disc beyond the chord at signed distance u (-1 <= u <= 1)."""
-    u = np.clip(u, -1.0, 1.0)
-    return (np.arccos(u) - u * np.sqrt(1 - u * u)) / math.pi
 
 
 @pytest.fixture(scope="module")
@@ -94,12 +89,7 @@ def _widths(x, f, n):
     lo, hi = np.nonzero(f < 1 - eps)[0][0], np.nonzero(f > eps)[0][-1]
     assert part.size > 3
     full = x[hi] - x[lo] + (x[1] - x[0])  # pixel extent: count the end pixels whole
-
-    def cross(level):
-        i = int(np.argmax(f <= level))
-        return x[i - 1] + (f[i - 1] - level) * (x[i] - x[i - 1]) / (f[i - 1] - f[i])
-
-    return full, cross(0.1) - cross(0.9)
+    return full, profile_crossing(x, f, 0.1) - profile_crossing(x, f, 0.9)
 
 
 def test_point_light_penumbra_width(scene, renderer):
@@ -110,7 +100,7 @@ def test_point_light_penumbra_width(scene, renderer):
     # geometry: a disc sample at x-offset s is hidden from ground point x iff s < x - (x - A) Hl / HB
     full_pred = 2 * r * HB / (Hl - HB)
     c = x - (x - A) * Hl / HB
-    exact = 1.0 - _segment_fraction(c / r)
+    exact = 1.0 - disc_segment_fraction(c / r)
     _, w1090_pred = _widths(x, np.where(exact > 1 - 1e-12, 1.0, exact), 1e6)
     full, w1090 = _widths(x, f, n)
     assert abs(full - full_pred) / full_pred <= TOL.penumbra_rel, (full, full_pred)
@@ -132,9 +122,7 @@ def test_sun_cone_penumbra_width(scene, renderer):
     full, _ = _widths(x, f, n)
     assert abs(full - full_pred) / full_pred <= TOL.penumbra_rel, (full, full_pred)
     # 50 % where the centre direction puts the hard edge
-    i = int(np.argmax(f <= 0.5))
-    x50 = x[i - 1] + (f[i - 1] - 0.5) * (x[i] - x[i - 1]) / (f[i - 1] - f[i])
-    assert x50 == pytest.approx(A + HB / math.tan(e), abs=2 * D / F_PX)
+    assert profile_crossing(x, f, 0.5) == pytest.approx(A + HB / math.tan(e), abs=2 * D / F_PX)
 
 
 @pytest.mark.parametrize("spec", ["point:0.02,-0.01,0.5,radius=0.05@3", "directional:-1,0.2,1,radius=2"])

@@ -73,6 +73,7 @@ def penumbra_quality(ctx, ns) -> dict:
     scene (box edge, sphere light r = 0.05 m at 0.5 m; sun-like cone alpha = 3 deg at 55 deg)."""
     sys.path.insert(0, str(ROOT / "tests"))
     import test_soft_shadows as T
+    from oracle import disc_segment_fraction
 
     from arshadow.camera import Intrinsics
     from arshadow.gl.renderer import ShadowRenderer
@@ -92,7 +93,7 @@ def penumbra_quality(ctx, ns) -> dict:
             rr, hl = 0.05, 0.5
             x, f = T._profile(sc, T._render(sc, r, sample_area_light(parse_light(f"point:0,0,{hl},radius={rr}"), n)))
             full_pred = 2 * rr * T.HB / (hl - T.HB)
-            exact = 1 - T._segment_fraction((x - (x - T.A) * hl / T.HB) / rr)
+            exact = 1 - disc_segment_fraction((x - (x - T.A) * hl / T.HB) / rr)
             _, w_pred = T._widths(x, np.where(exact > 1 - 1e-12, 1.0, exact), 1e6)
             full, w = T._widths(x, f, n)
             e, al = math.radians(55), math.radians(3)
