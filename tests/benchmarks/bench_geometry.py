@@ -15,10 +15,6 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
-import json
-import os
-import platform
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -28,6 +24,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
+import _common  # noqa: E402
 from arshadow.mesh import ShadowCaster, load_occluder  # noqa: E402
 from arshadow.silhouette import METHODS, as_light_h, silhouette  # noqa: E402
 from arshadow.volume import shadow_volume  # noqa: E402
@@ -41,13 +38,6 @@ def _make_meshes_module():
 
 
 KNOT_RES = {1000: (25, 20), 10000: (125, 40), 100000: (500, 100), 1000000: (2500, 200)}
-
-
-def _stats(ts_ms) -> dict:
-    a = np.asarray(ts_ms, float)
-    q1, med, q3 = np.percentile(a, [25, 50, 75])
-    return {"median": round(float(med), 4), "iqr": [round(float(q1), 4), round(float(q3), 4)],
-            "min": round(float(a.min()), 4), "max": round(float(a.max()), 4), "n": int(a.size)}
 
 
 def _lights(caster, n, seed=7):
@@ -104,7 +94,7 @@ def bench_size(n_faces: int, n_lights: int, repeat: int, methods=METHODS, volume
             nl, rp = min(n_lights, 4 if n_faces == 100000 else 2), 1
         for L in lights[:nl]:
             ts += _timed(lambda: silhouette(c, L, m), rp)
-        out["detectors_ms"][m] = _stats(ts)
+        out["detectors_ms"][m] = _common.summary(ts, 4)
     ne = [silhouette(c, L).n_edges for L in lights]
     out["silhouette_edges"] = {"median": float(np.median(ne)), "min": int(min(ne)), "max": int(max(ne))}
     tz = -1e-3 * c.scale
@@ -114,7 +104,7 @@ def bench_size(n_faces: int, n_lights: int, repeat: int, methods=METHODS, volume
         for L in lights:
             s = silhouette(c, L)
             ts += _timed(lambda: shadow_volume(c, L, s, **kw), repeat)
-        out["volume_ms"][label] = _stats(ts)
+        out["volume_ms"][label] = _common.summary(ts, 4)
     return out
 
 
@@ -218,19 +208,6 @@ def hsd_vs_ta_ops(c: ShadowCaster, n_lights: int = 50) -> dict:
             "hsd_edge_ops_mean": float(np.mean(hsd)), "ratio": round(float(np.mean(hsd) / np.mean(ta)), 4)}
 
 
-def metadata() -> dict:
-    try:
-        commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True,
-                                text=True, check=False).stdout.strip()
-    except OSError:
-        commit = None
-    import trimesh
-
-    return {"git_commit": commit, "python": platform.python_version(), "numpy": np.__version__,
-            "trimesh": trimesh.__version__, "cpu_count": os.cpu_count(), "machine": platform.machine(),
-            "loadavg_start": list(os.getloadavg()), "command": " ".join(sys.argv)}
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", default="1000,10000,100000,1000000")
@@ -242,7 +219,7 @@ def main(argv=None) -> int:
     ap.add_argument("--no-volumes", action="store_true", help="skip volume construction timings")
     ap.add_argument("--out")
     a = ap.parse_args(argv)
-    res = {"meta": metadata(), "sizes": {}}
+    res = {"meta": _common.metadata(), "sizes": {}}
     for n in [int(x) for x in a.sizes.split(",")]:
         res["sizes"][str(n)] = bench_size(n, a.lights, a.repeat, a.methods.split(","), not a.no_volumes)
         print(f"# {n} faces done", file=sys.stderr)
@@ -262,11 +239,7 @@ def main(argv=None) -> int:
         "cylinder": hsd_vs_ta_ops(load_occluder("cylinder:0.05,0.1")),
         "knot": hsd_vs_ta_ops(load_occluder(samples / "knot.ply"), 10),
     }
-    res["meta"]["loadavg_end"] = list(os.getloadavg())
-    text = json.dumps(res, indent=1)
-    print(text)
-    if a.out:
-        Path(a.out).write_text(text + "\n")
+    _common.emit(res, a.out)
     return 0
 
 

@@ -25,47 +25,22 @@ Run::
 from __future__ import annotations
 
 import argparse
-import json
 import math
-import platform
-import subprocess
 import sys
 import time
 from pathlib import Path
 
+import _common
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
 def _stats(ms) -> dict:
-    a = np.asarray(ms, dtype=np.float64)
-    q1, med, q3 = np.percentile(a, [25, 50, 75])
-    return {"median_ms": round(float(med), 3), "iqr_ms": [round(float(q1), 3), round(float(q3), 3)],
-            "min_ms": round(float(a.min()), 3), "max_ms": round(float(a.max()), 3), "n": int(a.size),
-            "fps_median": round(1000.0 / float(med), 2)}
-
-
-def _meta(ctx) -> dict:
-    import cv2
-    import moderngl
-    import trimesh
-
-    from arshadow import __version__
-    from arshadow.gl.context import gl_info
-
-    try:
-        commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True,
-                                text=True, check=False).stdout.strip()
-        dirty = bool(subprocess.run(["git", "-C", str(ROOT), "status", "--porcelain", "--", "arshadow"],
-                                    capture_output=True, text=True, check=False).stdout.strip())
-    except OSError:
-        commit, dirty = None, None
-    info = gl_info(ctx)
-    return {"git_commit": commit, "arshadow_dirty": dirty, "arshadow": __version__, "python": platform.python_version(),
-            "numpy": np.__version__, "opencv": cv2.__version__, "moderngl": moderngl.__version__,
-            "trimesh": trimesh.__version__, "GL_RENDERER": info.get("GL_RENDERER"),
-            "GL_VERSION": info.get("GL_VERSION"), "machine": platform.machine(), "cpus": __import__("os").cpu_count()}
+    """Frame times (ms): median, IQR, min, max, n (:func:`_common.summary`) and the median's frame rate."""
+    s = _common.summary(ms, 3)
+    s["fps_median"] = round(1000.0 / s["median"], 2)
+    return s
 
 
 def penumbra_quality(ctx, ns) -> dict:
@@ -159,12 +134,12 @@ def main(argv=None) -> int:
     out = {"benchmark": "bench_lights", "scene": {"image": [W, H], "mesh": args.mesh, "faces": int(len(caster.faces)),
                                                    "options": {"aa": opts.aa, "roi": opts.roi,
                                                                "shadow_method": opts.shadow_method}},
-           "meta": _meta(ctx), "lights": {}, "soft_point": {}, "soft_sun": {}}
+           "meta": _common.metadata(ctx), "lights": {}, "soft_point": {}, "soft_sun": {}}
     for k in (int(x) for x in args.lights.split(",")):
         lights = [parse_light(f"point:{0.3 * math.cos(2 * math.pi * i / k + 0.3):.6f},"
                               f"{0.3 * math.sin(2 * math.pi * i / k + 0.3):.6f},0.4") for i in range(k)]
         out["lights"][str(k)] = run(lights, 1)
-        print(f"lights={k}: {out['lights'][str(k)]['warm']['median_ms']} ms", file=sys.stderr)
+        print(f"lights={k}: {out['lights'][str(k)]['warm']['median']} ms", file=sys.stderr)
     point = parse_light("point:0.2,-0.1,0.4,radius=0.05")
     e = math.radians(50.0)
     sun = Light("directional", [math.cos(e) * math.sin(math.radians(200)), math.cos(e) * math.cos(math.radians(200)),
@@ -172,16 +147,11 @@ def main(argv=None) -> int:
     for n in (int(x) for x in args.samples.split(",")):
         out["soft_point"][str(n)] = run([point], n)
         out["soft_sun"][str(n)] = run([sun], n)
-        print(f"samples={n}: point {out['soft_point'][str(n)]['warm']['median_ms']} ms, "
-              f"sun {out['soft_sun'][str(n)]['warm']['median_ms']} ms", file=sys.stderr)
+        print(f"samples={n}: point {out['soft_point'][str(n)]['warm']['median']} ms, "
+              f"sun {out['soft_sun'][str(n)]['warm']['median']} ms", file=sys.stderr)
     renderer.release()
     out["penumbra_quality"] = penumbra_quality(ctx, [int(x) for x in args.samples.split(",")] + [256])
-    text = json.dumps(out, indent=1)
-    print(text)
-    if args.out:
-        from arshadow.io import write_bytes
-
-        write_bytes(args.out, (text + "\n").encode())
+    _common.emit(out, args.out)
     return 0
 
 
