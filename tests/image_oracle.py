@@ -9,8 +9,8 @@ For a pinhole camera ``K``, ``cam_from_world`` and an occluder given as raw ``ve
   computed by testing the pixel centre against every triangle's image (projected vertices, all in front
   of the camera) and checking the hit point's height;
 - shadow: the ground point lies inside the union of the occluder's triangles projected from the light
-  onto z = 0 (``M = (p.L) I - L p^T``, p = (0, 0, 1, 0)); tested in ground coordinates, so shadow
-  triangles reaching behind the camera need no clipping.
+  onto z = 0 (:func:`oracle.ground_shadow_triangles`, the tests' one analytic ground shadow); tested in
+  ground coordinates, so shadow triangles reaching behind the camera need no clipping.
 
 Everything is vectorised numpy with a per-triangle loop over bounding-box candidates. Points are arbitrary
 (sub-pixel) image positions, so the same code gives the pixel-centre oracle and the fine-resolution
@@ -20,6 +20,10 @@ boundary-distance measurement (:func:`boundary_distance`).
 from __future__ import annotations
 
 import numpy as np
+
+from oracle import ground_shadow_triangles, iou
+
+__all__ = ["ShadowOracle", "boundary_distance", "ground_points", "iou", "occluder_coverage"]
 
 
 def _cam(K, cam_from_world):
@@ -34,7 +38,7 @@ def ground_points(u, v, K, cam_from_world):
     K, R, t, C = _cam(K, cam_from_world)
     u = np.asarray(u, np.float64).ravel()
     v = np.asarray(v, np.float64).ravel()
-    d_cam = np.stack([(u - K[0, 2] - K[0, 1] * 0) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones_like(u)], 1)
+    d_cam = np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones_like(u)], 1)
     d = d_cam @ R  # = (R^T d_cam^T)^T
     with np.errstate(divide="ignore", invalid="ignore"):
         s = -C[2] / d[:, 2]
@@ -43,21 +47,7 @@ def ground_points(u, v, K, cam_from_world):
     return g, hit
 
 
-def shadow_triangles_2d(vertices, faces, light_h):
-    """(m, 3, 2) the occluder's triangles projected from the light onto z = 0 (x, y)."""
-    V = np.asarray(vertices, np.float64)
-    L = np.asarray(light_h, np.float64)
-    Vh = np.concatenate([V, np.ones((len(V), 1))], 1)
-    p = np.array([0.0, 0.0, 1.0, 0.0])
-    M = float(p @ L) * np.eye(4) - np.outer(L, p)
-    P = Vh @ M.T
-    if np.any(P[:, 3] <= 0):
-        raise ValueError("oracle: some vertex is not strictly below the light")
-    P2 = P[:, :2] / P[:, 3:4]
-    return P2[np.asarray(faces)]
-
-
-def _points_in_triangles(pts, tris, chunk_bbox=True):
+def _points_in_triangles(pts, tris):
     """bool (n,): point inside (or on) any 2-D triangle of ``tris (m, 3, 2)``."""
     pts = np.asarray(pts, np.float64)
     inside = np.zeros(len(pts), bool)
@@ -73,7 +63,7 @@ def _points_in_triangles(pts, tris, chunk_bbox=True):
         area = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
         if area == 0.0:
             continue
-        i0, i1 = np.searchsorted(xs, [lo[k, 0], hi[k, 0]], side="left")[0], np.searchsorted(xs, hi[k, 0], side="right")
+        i0, i1 = np.searchsorted(xs, lo[k, 0], side="left"), np.searchsorted(xs, hi[k, 0], side="right")
         if i1 <= i0:
             continue
         idx = order[i0:i1]
@@ -141,7 +131,7 @@ class ShadowOracle:
         self.lights = [(np.asarray(h, np.float64), float(w)) for h, w in lights]
         self.total = sum(w for _, w in self.lights)
         self.ground_size = ground_size
-        self.shadow_tris = [shadow_triangles_2d(self.V, self.F, h) for h, _ in self.lights]
+        self.shadow_tris = [ground_shadow_triangles(self.V, self.F, h) for h, _ in self.lights]
 
     def classify(self, u, v):
         """Returns ``(mask (n,) float64 blocked weight fraction, ground (n,) bool, occluder (n,) bool)``."""
@@ -193,10 +183,3 @@ def boundary_distance(oracle: ShadowOracle, pixels_uv, threshold, radius=1.0, st
                 out[i] = float(dist[opp].min())
     out[np.isnan(out)] = far_radius
     return out
-
-
-def iou(a, b) -> float:
-    a = np.asarray(a, bool)
-    b = np.asarray(b, bool)
-    union = np.count_nonzero(a | b)
-    return 1.0 if union == 0 else np.count_nonzero(a & b) / union

@@ -65,14 +65,12 @@ def load_scene():
 
 def roi_of(caster, K, T, L, margin=2):
     """Pixel bbox (u0, v0, w, h) of the occluder and its ground shadow (clipped to the image)."""
-    from image_oracle import shadow_triangles_2d
+    from oracle import ground_shadow_triangles
 
     V = np.asarray(caster.vertices)
-    S = shadow_triangles_2d(V, caster.faces, L).reshape(-1, 2)
+    S = ground_shadow_triangles(V, caster.faces, L).reshape(-1, 2)
     P = np.concatenate([V, np.c_[S, np.zeros(len(S))]])
-    Xc = P @ T[:3, :3].T + T[:3, 3]
-    u = K.fx * Xc[:, 0] / Xc[:, 2] + K.cx
-    v = K.fy * Xc[:, 1] / Xc[:, 2] + K.cy
+    u, v = K.project(P, T, distort=False).T
     u0 = max(int(np.floor(u.min())) - margin, 0)
     v0 = max(int(np.floor(v.min())) - margin, 0)
     u1 = min(int(np.ceil(u.max())) + margin + 1, W)
