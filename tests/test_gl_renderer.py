@@ -194,7 +194,7 @@ def test_mask_semantics(scene_results):
         assert np.count_nonzero(res.ground != og) <= 2e-4 * n, name
 
 
-def test_two_lights_fraction_levels(scene_results):
+def test_two_lights_fraction_levels(scene_results, tol):
     """Both levels of the fractional mask (one light blocked / both blocked) match the oracle."""
     r = scene_results["box_two_lights"]
     om = r["oracle"][0]
@@ -202,7 +202,7 @@ def test_two_lights_fraction_levels(scene_results):
     vals = np.unique(np.round(res.mask, 3))
     assert set(vals.tolist()) <= {0.0, 0.5, 1.0}
     both = iou(res.mask >= 0.75, om >= 0.75)
-    assert (om >= 0.75).sum() > 500 and both >= 0.97
+    assert (om >= 0.75).sum() > 500 and both >= tol.shadow_iou_worst
 
 
 def test_zpass_equals_zfail_outside(gl_ctx, renderer, scene_results):
