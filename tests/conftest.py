@@ -39,6 +39,11 @@ class Tolerances:
     calib_extrinsic_mm: float = 0.5
     # geometry (issue 3)
     footprint_iou: float = 0.9999
+    # faces whose facing may flip between a light at 1e6 m and the same direction at infinity: |cos| of the
+    # angle between face normal and light below mesh size / 1e6 (~1e-7), bounded here with margin
+    grazing_far_light_cos: float = 1e-6
+    # faces whose facing may flip when the mesh is scaled by 1e-3/1e3 or moved 1 km: rounding-level grazing
+    grazing_rescaled_cos: float = 1e-9
     # compositor (issue 4)
     shadow_iou_median: float = 0.99
     shadow_iou_worst: float = 0.97
@@ -53,6 +58,8 @@ class Tolerances:
     sun_paper_max_deg: tuple = (0.8, 1.2)  # measured 1.05-1.07 deg
     area_light_segment: float = 0.025  # stratified 256-sample disc vs exact segment area (iid: sd 0.031)
     penumbra_profile_64: float = 0.1  # rendered profile vs exact disc profile, 64 samples (measured 0.04)
+    penumbra_1090_rel: float = 0.05  # 10-90 % penumbra width of the sampled disc vs exact (256 samples)
+    penumbra_centre_rel: float = 0.02  # 50 % crossing of a sampled sun cone vs the centre direction's shadow
 
 
 TOL = Tolerances()
