@@ -9,9 +9,10 @@ an OpenGL context handed in) and then called once per photo::
 What is computed once, not per photo
     The occluder and the lights are both fixed in the world (marker) frame, so each light's silhouette
     and shadow volume do not depend on the camera pose: they are built on first use and reused (with and
-    without caps, as the z-pass / z-fail choice needs). Per photo remain the pose, the z-pass / z-fail
-    decision (:func:`arshadow.volume.camera_may_be_in_shadow`), the region of interest, the render, the
-    lens warp and the composite.
+    without caps, as the z-pass / z-fail choice needs); likewise the world points bounding the region of
+    interest (the object and its shadow footprints, :func:`scene_hull_points`). Per photo remain the
+    pose, the z-pass / z-fail decision (:func:`arshadow.volume.camera_may_be_in_shadow`), the region of
+    interest's projection, the render, the lens warp and the composite.
 
 Region of interest (ROI)
     Only the part of the photo the occluder and its ground shadow can cover is rendered: the occluder's
@@ -43,11 +44,11 @@ from ._check import check_shape
 from .composite import Workspace, clip_roi, composite
 from .errors import ImageError, LightError, MarkerNotFoundError, UsageError
 from .report import ReportItem
-from .transforms import CV_TO_GL, invert_rigid
+from .transforms import CV_TO_GL, invert_rigid, transform_points
 
 log = logging.getLogger(__name__)
 
-__all__ = ["RenderOptions", "Compositor", "shadow_footprint", "pinhole_rect_for_scene"]
+__all__ = ["RenderOptions", "Compositor", "shadow_footprint", "scene_hull_points", "pinhole_rect_for_scene"]
 
 #: meshes with at most this many vertices bound the ROI by their vertices (~0.2 ms per light at 20k)
 ROI_MAX_POINTS = 20000
@@ -164,12 +165,12 @@ def shadow_footprint(bounds, light_h, *, points=None, eps: float = 1e-9) -> np.n
     return corners - d * (corners[:, 2] / d[2])[:, None]
 
 
-def pinhole_rect_for_scene(intrinsics, cam_from_world, bounds, lights_h, ground_size=None, znear=1e-3,
-                           points=None):
-    """Pinhole pixel rectangle ``(u0, v0, u1, v1)`` covering the occluder and its shadows, or None (all).
+def scene_hull_points(bounds, lights_h, ground_size=None, points=None) -> np.ndarray | None:
+    """World points ``(n, 3) float64`` whose convex hull holds the occluder and its ground shadows, or None.
 
-    None means "the whole image": a footprint is unbounded and no ``ground_size`` limits it, or a point
-    of the hull is behind the camera. ``points`` (the mesh's vertices) replaces the box corners when given.
+    They depend on the mesh and the lights only (not on the camera), so the :class:`Compositor` computes
+    them once per set of lights. None means unbounded: a footprint is unbounded and no ``ground_size``
+    limits it. ``points`` (the mesh's vertices) replaces the box corners when given.
     """
     pts = [_box_corners(bounds) if points is None else np.asarray(points, dtype=np.float64)]
     half = None if ground_size is None else 0.5 * float(ground_size)
@@ -187,9 +188,23 @@ def pinhole_rect_for_scene(intrinsics, cam_from_world, bounds, lights_h, ground_
                 continue  # the shadow falls entirely off the plane
             fp = np.array([[lo[0], lo[1], 0], [hi[0], lo[1], 0], [hi[0], hi[1], 0], [lo[0], hi[1], 0]], float)
         pts.append(fp)
-    p = np.concatenate(pts)
-    m = np.asarray(cam_from_world, dtype=np.float64)
-    pc = p @ m[:3, :3].T + m[:3, 3]
+    return np.concatenate(pts)
+
+
+def pinhole_rect_for_scene(intrinsics, cam_from_world, bounds, lights_h, ground_size=None, znear=1e-3,
+                           points=None):
+    """Pinhole pixel rectangle ``(u0, v0, u1, v1)`` covering the occluder and its shadows, or None (all).
+
+    None means "the whole image": a footprint is unbounded and no ``ground_size`` limits it, or a point
+    of the hull is behind the camera. ``points`` (the mesh's vertices) replaces the box corners when given.
+    """
+    hull = scene_hull_points(bounds, lights_h, ground_size, points)
+    return None if hull is None else _pinhole_rect(intrinsics, cam_from_world, hull, znear)
+
+
+def _pinhole_rect(intrinsics, cam_from_world, hull, znear):
+    """Pinhole bounding rectangle of world points ``hull (n, 3)``; None if one is not beyond ``znear``."""
+    pc = transform_points(cam_from_world, hull)
     if not np.all(pc[:, 2] > znear):
         return None
     u = intrinsics.fx * pc[:, 0] / pc[:, 2] + intrinsics.cx
@@ -245,28 +260,13 @@ class Compositor:
 
     def __init__(self, ctx, intrinsics, caster, lights, options: RenderOptions | None = None, tracker=None,
                  renderer=None):
-        from .lights import sample_area_light
-
         self.ctx = ctx
         self.intrinsics = intrinsics
         self.caster = caster
         self.options = (options or RenderOptions()).check()
         self.tracker_kwargs = dict(tracker or {})
-        lights = list(lights)
-        if not lights:
-            raise LightError("no light given (use --light)")
-        self.lights_in = lights
-        total = float(sum(lt.weight for lt in lights if lt.above_horizon))
-        self.notes: list[str] = []
         self._lights: list[_LightState] = []
-        for lt in lights:
-            if not lt.above_horizon:
-                self.notes.append(f"light {lt.label or lt.kind} is below the horizon: no light, no shadow")
-                continue
-            samples = (sample_area_light(lt, int(self.options.soft_samples))
-                       if getattr(lt, "radius", 0.0) > 0 and self.options.soft_samples > 1 else [lt])
-            for s in samples:
-                self._lights.append(_LightState(s, float(s.weight) / total, np.asarray(s.homogeneous, float)))
+        self.set_lights(lights)
         self._calibs: dict = {}
         self._lenses: dict = {}
         self._work = Workspace()
@@ -274,10 +274,12 @@ class Compositor:
         self._own_renderer = renderer is None
         b = np.asarray(caster.bounds, dtype=np.float64)
         self._bounds = b
+        self._corners = _box_corners(b)
         # the ROI is bounded with the mesh's own vertices (tight) up to this many, else the box corners
         self._roi_points = (np.asarray(caster.vertices, dtype=np.float64)
                             if len(caster.vertices) <= ROI_MAX_POINTS else None)
         self._size = float(np.linalg.norm(b[1] - b[0]))
+        self._hull = (None, None)  # (lights' key, scene_hull_points) for the current lights
 
     # -- cached per run ------------------------------------------------------------------------------
     @property
@@ -384,9 +386,7 @@ class Compositor:
     def znear_for(self, cam_from_world) -> float:
         """A near plane that clips nothing visible: a fraction of the distance to the object and ground."""
         eye = invert_rigid(cam_from_world)[:3, 3]
-        corners = _box_corners(self._bounds)
-        m = cam_from_world
-        depth = (corners @ m[:3, :3].T + m[:3, 3])[:, 2]
+        depth = transform_points(cam_from_world, self._corners)[:, 2]
         d = float(depth.min()) if np.all(depth > 0) else self._size
         h = abs(float(eye[2]))
         return float(np.clip(0.25 * min(d, h if h > 0 else d), 1e-4, 0.05))
@@ -527,8 +527,8 @@ class Compositor:
         # 2. region of interest (photo) and pinhole canvas
         rect = None
         if opts.roi:
-            rect = pinhole_rect_for_scene(intr, cam_from_world, self._bounds, [ls.light_h for ls in self._lights],
-                                          opts.ground_size, znear, points=self._roi_points)
+            hull = self._scene_hull()
+            rect = None if hull is None else _pinhole_rect(intr, cam_from_world, hull, znear)
         if lens is None:
             if rect is None:
                 roi = (0, 0, W, H)
@@ -652,6 +652,15 @@ class Compositor:
             np.copyto(mask_full[y0 : y0 + h, x0 : x0 + w], m, casting="unsafe")
         timings["composite"] += (time.perf_counter() - t) * 1e3
         return out, mask_full, info
+
+    def _scene_hull(self):
+        """:func:`scene_hull_points` of the current lights (recomputed only when the lights change)."""
+        key = tuple(ls.light_h.tobytes() for ls in self._lights)
+        if self._hull[0] != key:
+            hull = scene_hull_points(self._bounds, [ls.light_h for ls in self._lights], self.options.ground_size,
+                                     points=self._roi_points)
+            self._hull = (key, hull)
+        return self._hull[1]
 
     def _lens_for(self, intr):
         """The cached :class:`LensWarp` of a calibration (one map per distinct calibration)."""
