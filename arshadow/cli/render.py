@@ -140,8 +140,12 @@ def expand_inputs(items) -> list[str]:
     return out
 
 
-def build_scene(args):
-    """Calibration, occluder, lights and options from the parsed options (ArshadowError -> exit 2)."""
+def build_scene(args, lights=None):
+    """Calibration, occluder, lights and options from the parsed options (ArshadowError -> exit 2).
+
+    ``lights``: lights the caller parsed itself (``arshadow video --time-lapse`` turns sun specs into
+    tracks); default: ``--light`` parsed with :func:`arshadow.lights.parse_light`.
+    """
     from ..camera import Intrinsics
     from ..composite import parse_rgb
     from ..errors import UsageError
@@ -164,7 +168,8 @@ def build_scene(args):
         parse_rgb(args.color, "--color")  # validates: three numbers 0..255
         color = _srgb255(args.color)
     caster = load_occluder(args.model, scale=args.scale, rotate=args.rotate, place=args.place, color=color)
-    lights = [parse_light(spec) for spec in args.light]
+    if lights is None:
+        lights = [parse_light(spec) for spec in args.light]
     opts = RenderOptions(
         opacity=args.opacity,
         shadow_color=parse_rgb(args.shadow_color, "--shadow-color") if args.shadow_color else (0.0, 0.0, 0.0),
@@ -186,11 +191,8 @@ def _srgb255(spec: str):
 
 def _check_silhouette_name(name: str) -> None:
     from ..errors import UsageError
+    from ..silhouette import METHODS
 
-    try:
-        from ..silhouette import METHODS  # type: ignore[attr-defined]
-    except ImportError:
-        METHODS = ("adjacency", "triangular", "vnv", "hsd", "delta_plus")  # noqa: N806
     if name not in METHODS:
         raise UsageError(f"--silhouette {name!r}: choose one of {', '.join(METHODS)}")
 

@@ -136,8 +136,6 @@ def output_paths(inputs, outdir: Path, fmt: str):
 
 
 def run(args) -> int:
-    import argparse as _ap
-
     from ..errors import UsageError
     from ..gl.context import create_context
     from ..io import write_json
@@ -152,13 +150,8 @@ def run(args) -> int:
     if args.pose_lag < 0:
         raise UsageError(f"--pose-lag {args.pose_lag}: must be >= 0")
     static, tracks, tl = build_lights(args)
-    # the render command's scene builder parses --light itself: give it the static lights only (a sun
-    # track's lights are set per frame; a placeholder keeps the builder's "at least one light" check)
-    scene_args = _ap.Namespace(**vars(args))
-    if tracks:
-        scene_args.light = [s for s in args.light if not s.strip().lower().startswith("sun:")] or \
-            ["directional:0,0,1"]
-    intr, caster, _lights, opts, tracker = build_scene(scene_args)
+    # a sun track's lights are set per frame: the scene builder gets the static lights only
+    intr, caster, _, opts, tracker = build_scene(args, lights=static)
     tracker["refine"] = args.corner_refine
     outdir = Path(args.output)
     if outdir.exists() and not outdir.is_dir():
@@ -178,19 +171,11 @@ def run(args) -> int:
     return EXIT_SOME_FAILED if failed else EXIT_OK
 
 
-def _same_file(a: Path, b: Path) -> bool:
-    import os
-
-    try:
-        return a.exists() and b.exists() and os.path.samefile(a, b)
-    except OSError:
-        return False
-
-
 def _process_all(args, ctx, intr, caster, static, tracks, tl, opts, tracker, outdir, debug):
     from ..errors import ArshadowError
     from ..pipeline import Compositor
     from ..report import ReportItem
+    from .render import _same_file
 
     first_lights = list(static)
     if tracks:
@@ -273,6 +258,7 @@ def process_video(comp, path, out_path, mask_path=None, *, static=(), tracks=(),
     ImageError, CalibrationError
         Unreadable video, a frame size the calibration does not fit, an unwritable output.
     """
+    import contextlib
     from datetime import timedelta
 
     import numpy as np
@@ -309,8 +295,12 @@ def process_video(comp, path, out_path, mask_path=None, *, static=(), tracks=(),
             timings["detect"] += (time.perf_counter() - t) * 1e3
             return pose, err
 
+        # each frame is encoded as soon as it is composited: one output (and mask) buffer per video
+        out_buf = np.empty((H, W, 3), np.uint8)
+        mask_buf = np.empty((H, W), np.uint8)
+        no_mask = np.zeros((H, W), np.uint8)
         mask_ctx = (AtomicVideoWriter(mask_path, reader.fps, (W, H), color=False) if mask_path is not None
-                    else _Null())
+                    else contextlib.nullcontext())
         with AtomicVideoWriter(out_path, reader.fps, (W, H)) as vw, mask_ctx as mw:
 
             def finish(payload, pose, swapped):
@@ -336,7 +326,7 @@ def process_video(comp, path, out_path, mask_path=None, *, static=(), tracks=(),
                         item.extra["notes"] = list(comp.notes)
                 if pose is None:
                     out = fr.image
-                    mask = np.zeros((H, W), np.uint8) if mask_path is not None else None
+                    mask = no_mask
                     item.status, item.error = "no_marker", str(err) if err else "no marker found"
                     stats["frames_no_marker"] += 1
                 else:
@@ -345,13 +335,13 @@ def process_video(comp, path, out_path, mask_path=None, *, static=(), tracks=(),
                     stats["swapped"] += int(swapped)
                     out, mask, info = comp.render_pose(fr.image, cal.intrinsics, np.asarray(pose.cam_from_world),
                                                        lens=cal.lens, timings=timings,
-                                                       want_mask=mask_path is not None)
+                                                       want_mask=mask_path is not None, out=out_buf,
+                                                       mask_out=mask_buf)
                     item.mode = info["mode"]
                     item.silhouette_edges = info["silhouette_edges"]
                     item.extra.update({k: v for k, v in info.items() if k not in ("mode", "silhouette_edges")})
                     stats["frames_ok"] += 1
-                timings["total"] += sum(v for k, v in timings.items() if k == "detect") + \
-                    (time.perf_counter() - t0) * 1e3
+                timings["total"] += timings["detect"] + (time.perf_counter() - t0) * 1e3
                 t1 = time.perf_counter()
                 vw.write(out)
                 if mask_path is not None:
@@ -386,11 +376,3 @@ def process_video(comp, path, out_path, mask_path=None, *, static=(), tracks=(),
         return items
     finally:
         reader.close()
-
-
-class _Null:
-    def __enter__(self):
-        return None
-
-    def __exit__(self, *exc):
-        return False
