@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
 
@@ -24,8 +24,8 @@ import cv2
 import numpy as np
 
 from .camera import Intrinsics, open_storage, write_storage
-from .errors import CalibrationError, MarkerNotFoundError, UsageError
-from .transforms import matrix_from_rvec_tvec
+from .errors import ImageError, MarkerNotFoundError, UsageError
+from .transforms import matrix_from_rvec_tvec, rotation_error_deg
 
 __all__ = [
     "PREDEFINED_DICTIONARIES",
@@ -646,17 +646,9 @@ class MarkerPose:
             raise UsageError("this pose has no alternative solution")
         a = self.alternative
         alt = AltPose(self.rvec, self.tvec, self.cam_from_world, self.reprojection_error_px)
-        ratio = self.pose_ambiguity
-        return MarkerPose(a.rvec, a.tvec, a.cam_from_world, self.marker_ids, a.reprojection_error_px,
-                          ratio, self.corners, self.object_points, self.n_points, alt, "previous",
-                          self.intrinsics, self.scaled, self.all_corners, self.ambiguity_threshold, self.kind,
-                          dict(self.timings_ms))
-
-    def report_fields(self) -> dict:
-        """The CONVENTIONS report keys this pose fills."""
-        return dict(marker_ids=[int(i) for i in self.marker_ids], rvec=self.rvec.tolist(), tvec=self.tvec.tolist(),
-                    reprojection_error_px=float(self.reprojection_error_px),
-                    pose_ambiguity=None if self.pose_ambiguity is None else float(self.pose_ambiguity))
+        return replace(self, rvec=a.rvec, tvec=a.tvec, cam_from_world=a.cam_from_world,
+                       reprojection_error_px=a.reprojection_error_px, alternative=alt, chosen_by="previous",
+                       timings_ms=dict(self.timings_ms))
 
 
 def _rms(intr: Intrinsics, obj, img, rvec, tvec) -> float:
@@ -844,8 +836,6 @@ class MarkerTracker:
         """
         img = np.asarray(image_bgr)
         if img.ndim not in (2, 3) or img.size == 0:
-            from .errors import ImageError
-
             raise ImageError(f"not an image (shape {img.shape})")
         intr, scaled = self._intrinsics_for(img)
         gray = _gray(img)
@@ -864,8 +854,6 @@ class MarkerTracker:
         pose.ambiguity_threshold = self.ambiguity_threshold
         if previous is not None and pose.alternative is not None and pose.ambiguous:
             prev = previous.cam_from_world if isinstance(previous, MarkerPose) else np.asarray(previous, float)
-            from .transforms import rotation_error_deg
-
             if rotation_error_deg(pose.alternative.cam_from_world[:3, :3], prev[:3, :3]) < \
                     rotation_error_deg(pose.cam_from_world[:3, :3], prev[:3, :3]):
                 pose = pose.swapped()

@@ -16,6 +16,7 @@ import pytest
 from arshadow.camera import Intrinsics
 from arshadow.errors import UsageError
 from arshadow.marker import Board, marker_object_points
+from arshadow.report import ReportItem
 from arshadow.synth import camera_path, look_at_pose, random_pose, render_marker_photo
 from arshadow.transforms import invert_rigid, rotation_error_deg
 
@@ -164,7 +165,9 @@ def _single_marker_run(n, seed):
         trans.append(np.linalg.norm(p.tvec - pose[:3, 3]) / np.linalg.norm(pose[:3, 3]))
         amb.append(p.pose_ambiguity)
         flagged.append(p.ambiguous)
-        reported.append(p.report_fields()["pose_ambiguity"])
+        item = ReportItem(input=str(i))
+        item.set_pose(p)
+        reported.append(item.to_dict()["pose_ambiguity"])
     return np.array(rot), np.array(trans), np.array(amb), np.array(flagged), np.array(reported), misses
 
 
