@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from arshadow.camera import Intrinsics
-from arshadow.errors import UsageError
+from arshadow.errors import ShapeError, UsageError
 from arshadow.marker import Board, marker_object_points
 from arshadow.report import ReportItem
 from arshadow.synth import camera_path, look_at_pose, random_pose, render_marker_photo
@@ -131,7 +131,7 @@ def test_render_bad_args():
         render_marker_photo(CAM, pose, marker_length=0.05, jpeg_quality=0)
     with pytest.raises(UsageError):
         render_marker_photo(CAM, pose, marker_length=0.05, marker_id=250)
-    with pytest.raises(Exception):
+    with pytest.raises(ShapeError, match="cam_from_world"):
         render_marker_photo(CAM, np.full((4, 4), np.nan), marker_length=0.05)
 
 
