@@ -28,6 +28,7 @@ from ._check import check_finite, check_shape
 from .camera import Intrinsics
 from .errors import UsageError
 from .marker import Board, get_dictionary, marker_bits, marker_object_points
+from .transforms import transform_points
 
 __all__ = ["SynthPhoto", "render_marker_photo", "look_at_pose", "random_pose", "camera_path"]
 
@@ -181,10 +182,9 @@ def random_pose(rng, intrinsics: Intrinsics, *, distance=(0.3, 0.8), tilt_deg=(0
         pose[:3, 3] = rc @ rz @ m[:3, 3]
         if pts is None:
             return pose
-        uv = intrinsics.project(pts, pose)
-        cam_z = pts @ pose[:3, :3].T[:, 2] + pose[2, 3]
+        uv = intrinsics.project(pts, pose)  # NaN for points behind the camera
         pin = intrinsics.project(pts, pose, distort=False)
-        if (np.all(cam_z > 0) and np.all(np.isfinite(uv))
+        if (np.all(np.isfinite(uv))
                 and np.all(uv >= margin_px) and np.all(uv[:, 0] <= intrinsics.width - 1 - margin_px)
                 and np.all(uv[:, 1] <= intrinsics.height - 1 - margin_px)
                 # guard against the distortion model's fold: the pinhole position must be sane too
@@ -285,16 +285,35 @@ def _marker_texture(dictionary: str, marker_id: int, margin_rel: float):
     return tex, mapping
 
 
+def _board_markers(board: Board) -> list:
+    """The board's markers as :func:`_layout_texture` takes them: ``((x_left, y_top), side, bits)``."""
+    d = board.cv_dictionary
+    return [((c[0, 0], c[0, 1]), board.marker_length, marker_bits(d, mid))
+            for mid, c in board.marker_corners_world.items()]
+
+
+def board_print(board: Board, margin: float, ppm: float):
+    """The printed board with a white ``margin`` (metres) at ``ppm`` texels per metre.
+
+    Returns ``(tex, mapping, paper)``: ``tex`` (h, w, 2) float32 (value, alpha) from :func:`_layout_texture`
+    (paper white = :data:`PAPER_WHITE`, ink = :data:`INK_BLACK`), ``mapping`` ``(x0, y1, ppm)`` and the
+    paper rectangle ``(xmin, ymin, xmax, ymax)`` in the board's world frame.
+    """
+    paper = _board_paper(board, margin)
+    tex, mapping = _layout_texture(_board_markers(board), board.black_squares_world, paper, ppm)
+    return tex, mapping, paper
+
+
+def _board_paper(board: Board, margin: float) -> tuple:
+    bw, bh = board.extent
+    return (-margin, -bh - margin, bw + margin, margin)
+
+
 @lru_cache(maxsize=8)
 def _board_texture(board: Board, margin: float):
-    d = board.cv_dictionary
-    markers = []
-    for mid, c in board.marker_corners_world.items():
-        markers.append(((c[0, 0], c[0, 1]), board.marker_length, marker_bits(d, mid)))
-    bw, bh = board.extent
-    paper = (-margin, -bh - margin, bw + margin, margin)
+    paper = _board_paper(board, margin)
     ppm = min(BOARD_MAX_TEXELS / max(paper[2] - paper[0], paper[3] - paper[1]), MARKER_TEXELS / board.marker_length)
-    tex, mapping = _layout_texture(markers, board.black_squares_world, paper, ppm)
+    tex, mapping, _ = board_print(board, margin, ppm)
     tex.setflags(write=False)
     return tex, mapping, paper
 
@@ -428,9 +447,9 @@ def render_marker_photo(intrinsics: Intrinsics, cam_from_world, *, dictionary="D
     img[~valid] = (200.0, 196.0, 190.0)  # wall / sky beyond the horizon
 
     # -- the paper, supersampled in its region of interest --
-    cam_paper = paper_world @ pose[:3, :3].T + pose[:3, 3]
+    cam_paper = transform_points(pose, paper_world)
     if np.all(cam_paper[:, 2] > 1e-6):
-        pin = cam_paper[:, :2] / cam_paper[:, 2:3] * [intrinsics.fx, intrinsics.fy] + [intrinsics.cx, intrinsics.cy]
+        pin = intrinsics.project(cam_paper, distort=False)
         # coarse search on every 8th pixel, then 9 px of slack (the map moves < 8 px per 8 px)
         lo, hi = pin.min(axis=0) - 2.0, pin.max(axis=0) + 2.0
         inside = (mx8 >= lo[0] - 9) & (mx8 <= hi[0] + 9) & (my8 >= lo[1] - 9) & (my8 <= hi[1] + 9)

@@ -10,7 +10,6 @@ from __future__ import annotations
 import argparse
 import math
 import struct
-import sys
 import zlib
 from pathlib import Path
 
@@ -216,8 +215,7 @@ def _board_from_args(args):
 
 def run_board(args) -> int:
     from ..io import write_bytes
-    from ..marker import marker_bits
-    from ..synth import INK_BLACK, PAPER_WHITE, _layout_texture
+    from ..synth import INK_BLACK, PAPER_WHITE, _board_markers, board_print
 
     _check_positive("--margin-mm", args.margin_mm, allow_zero=True)
     _check_positive("--dpi", args.dpi)
@@ -228,12 +226,9 @@ def run_board(args) -> int:
         print(f"wrote {args.save_board}")
     m = args.margin_mm / 1000.0
     bw, bh = board.extent
-    d = board.cv_dictionary
-    markers = [((c[0, 0], c[0, 1]), board.marker_length, marker_bits(d, mid))
-               for mid, c in board.marker_corners_world.items()]
     if png is not None:
         ppm = args.dpi / 0.0254
-        tex, _ = _layout_texture(markers, board.black_squares_world, (-m, -bh - m, bw + m, m), ppm)
+        tex, _, _ = board_print(board, m, ppm)
         v = tex[:, :, 0]
         img = np.clip((v - INK_BLACK) / (PAPER_WHITE - INK_BLACK) * 255.0 + 0.5, 0, 255).astype(np.uint8)
         write_bytes(png, png_with_dpi(img, ppm))
@@ -244,13 +239,10 @@ def run_board(args) -> int:
         for sq in board.black_squares_world:
             (x0, y0), (x1, y1) = sq
             rects.append((1000 * (x0 + m), 1000 * (m - y1), 1000 * (x1 - x0), 1000 * (y1 - y0)))
-        for (xl, yt), side, bits in markers:
+        for (xl, yt), side, bits in _board_markers(board):
             cell = 1000 * side / bits.shape[0]
             rects += _bits_rects(bits, 1000 * (xl + m), 1000 * (m - yt), cell)
         write_bytes(svg, _svg(1000 * (bw + 2 * m), 1000 * (bh + 2 * m), rects).encode())
         print(f"wrote {svg}: {1000 * (bw + 2 * m):g} x {1000 * (bh + 2 * m):g} mm")
     return 0
 
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(0)
