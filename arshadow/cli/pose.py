@@ -70,7 +70,7 @@ def run(args) -> int:
     from ..camera import Intrinsics
     from ..errors import ArshadowError, MarkerNotFoundError, UsageError
     from ..io import read_image, write_json
-    from ..marker import MarkerTracker
+    from ..marker import DEFAULT_REFINE, MarkerTracker
     from ..report import ReportItem, make_report
     from . import error_line
 
@@ -79,7 +79,7 @@ def run(args) -> int:
     if args.marker_length is not None and not (args.marker_length > 0 and args.marker_length < float("inf")):
         raise UsageError(f"--marker-length must be a positive number of metres, got {args.marker_length}")
     intr = Intrinsics.from_file(args.calib)
-    refine = args.refine if args.refine is not None else (None if args.detector_params else "subpix")
+    refine = args.refine if args.refine is not None else (None if args.detector_params else DEFAULT_REFINE)
     tracker = MarkerTracker(intr, dictionary=args.dictionary, marker_length=args.marker_length,
                             marker_id=args.marker_id, board=args.board, refine=refine,
                             detector_params=args.detector_params)
