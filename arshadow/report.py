@@ -57,25 +57,25 @@ class ReportItem:
         d = asdict(self)
         extra = d.pop("extra")
         d.update(extra)
-        return _jsonable(d)
+        return jsonable(d)
 
 
 def make_report(items) -> dict:
     """Wrap report items (``ReportItem`` or dicts) into the top-level report dict."""
     return {
         "arshadow": __version__,
-        "images": [i.to_dict() if isinstance(i, ReportItem) else _jsonable(i) for i in items],
+        "images": [i.to_dict() if isinstance(i, ReportItem) else jsonable(i) for i in items],
     }
 
 
-def _jsonable(x):
+def jsonable(x):
     """numpy scalars/arrays -> Python; non-finite floats -> None (JSON has no NaN)."""
     if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
+        return {str(k): jsonable(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
+        return [jsonable(v) for v in x]
     if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
+        return jsonable(x.tolist())
     if isinstance(x, np.generic):
         x = x.item()
     if isinstance(x, float) and not np.isfinite(x):

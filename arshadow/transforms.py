@@ -68,11 +68,25 @@ def transform_points(m, points) -> np.ndarray:
 
 
 def rotation_error_deg(r_a, r_b) -> float:
-    """Angle in degrees of ``R_a @ R_b.T`` for two ``(3, 3)`` rotations or ``(3,)`` Rodrigues vectors."""
+    """Angle in degrees of the rotation ``R_a @ R_b.T``.
+
+    Parameters
+    ----------
+    r_a, r_b : (3,) Rodrigues vectors, (3, 3) rotations or (4, 4) rigid transforms (rotation part used)
+
+    ``atan2`` of the skew and symmetric parts keeps full precision near 0 and 180 degrees, where
+    ``arccos((trace - 1) / 2)`` loses digits.
+
+    Examples
+    --------
+    >>> rotation_error_deg(np.eye(3), np.diag([1.0, -1.0, -1.0]))
+    180.0
+    """
     def as_mat(r):
         r = np.asarray(r, dtype=np.float64)
-        return cv2.Rodrigues(r.reshape(3, 1))[0] if r.size == 3 else r.reshape(3, 3)
+        return cv2.Rodrigues(r.reshape(3, 1))[0] if r.size == 3 else r[:3, :3]
 
     d = as_mat(r_a) @ as_mat(r_b).T
-    c = np.clip((np.trace(d) - 1.0) / 2.0, -1.0, 1.0)
-    return float(np.degrees(np.arccos(c)))
+    c = (np.trace(d) - 1.0) / 2.0
+    s = 0.5 * np.sqrt((d[2, 1] - d[1, 2]) ** 2 + (d[0, 2] - d[2, 0]) ** 2 + (d[1, 0] - d[0, 1]) ** 2)
+    return float(np.degrees(np.arctan2(s, c)))

@@ -45,6 +45,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ImageError, UsageError
+from .transforms import rotation_error_deg
 
 # FFmpeg prints its own decoder complaints ("moov atom not found") straight to stderr; arshadow reports
 # one line of its own instead. Must be set before OpenCV's FFmpeg backend is first used.
@@ -59,7 +60,6 @@ __all__ = [
     "AtomicVideoWriter",
     "TemporalPoseChooser",
     "Choice",
-    "rotation_angle_deg",
 ]
 
 #: output extension -> FourCC (all available in OpenCV's FFmpeg backend; ``.mkv`` FFV1 is lossless)
@@ -333,21 +333,6 @@ class AtomicVideoWriter:
 # --------------------------------------------------------------------------------------------------
 # temporal pose choice
 # --------------------------------------------------------------------------------------------------
-def rotation_angle_deg(r_a: np.ndarray, r_b: np.ndarray) -> float:
-    """Angle (degrees) of the rotation taking ``(3, 3)`` ``r_b`` to ``r_a``.
-
-    Examples
-    --------
-    >>> rotation_angle_deg(np.eye(3), np.diag([1.0, -1.0, -1.0]))
-    180.0
-    """
-    d = np.asarray(r_a, np.float64)[:3, :3] @ np.asarray(r_b, np.float64)[:3, :3].T
-    c = (np.trace(d) - 1.0) / 2.0
-    # acos is badly conditioned near 0: use the skew part too
-    s = 0.5 * math.sqrt((d[2, 1] - d[1, 2]) ** 2 + (d[0, 2] - d[2, 0]) ** 2 + (d[1, 0] - d[0, 1]) ** 2)
-    return math.degrees(math.atan2(s, c))
-
-
 @dataclass
 class Choice:
     """What :class:`TemporalPoseChooser` decided for one frame.
@@ -435,7 +420,7 @@ class TemporalPoseChooser:
         if dt > self.max_gap_s:
             return None
         gap = max(1.0, dt * self.fps)
-        th = rotation_angle_deg(r, r_prev)
+        th = rotation_error_deg(r, r_prev)
         return min(th * th / (2.0 * self.sigma_rot ** 2 * gap), self.max_motion_cost)
 
     # -- interface ---------------------------------------------------------------------------------

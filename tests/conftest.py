@@ -50,6 +50,8 @@ class Tolerances:
     shadow_boundary_px: float = 0.25
     shadow_min_pixels: int = 2000
     end_to_end_iou_median: float = 0.95
+    fast_detector_distance_rel: float = 0.01  # fast detection pass: camera position error / distance
+    fallback_detector_distance_rel: float = 0.02  # full-search fallback: distance error / distance
     # lights (issue 5)
     sun_median_deg: float = 0.01
     sun_max_deg: float = 0.05

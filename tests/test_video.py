@@ -152,7 +152,7 @@ def test_reader_bad_input(tmp_path):
 def _branch_flips(chosen, truth):
     """(wrong, flips): frames on the IPPE branch farther from the truth (branches > 5 deg apart), and
     changes of branch between consecutive frames."""
-    from arshadow.video import rotation_angle_deg
+    from arshadow.transforms import rotation_error_deg as rotation_angle_deg
 
     br = []
     for c, t in zip(chosen, truth):

@@ -164,9 +164,9 @@ def run(args) -> int:
         ctx.release()
     if args.report:
         rep = make_report(items)
-        from ..report import _jsonable
+        from ..report import jsonable
 
-        rep["videos"] = _jsonable(summaries)
+        rep["videos"] = jsonable(summaries)
         write_json(args.report, rep)
     return EXIT_SOME_FAILED if failed else EXIT_OK
 

@@ -87,7 +87,8 @@ def flips(n_frames=40, seeds=(0, 1, 2), marker_length=0.04):
     from arshadow.camera import Intrinsics
     from arshadow.marker import MarkerTracker
     from arshadow.synth import camera_path, render_marker_photo
-    from arshadow.video import TemporalPoseChooser, rotation_angle_deg
+    from arshadow.transforms import rotation_error_deg as rotation_angle_deg
+    from arshadow.video import TemporalPoseChooser
 
     intr = Intrinsics.from_file(ROOT / "calib/synth_640x360.yml")
 
