@@ -28,6 +28,15 @@ class Tolerances:
     synth_rot_p95_deg: float = 1.5
     synth_rot_flag_deg: float = 5.0
     charuco_rot_median_deg: float = 0.1
+    unrefined_corner_px: float = 2.5  # no corner refinement vs OpenCV's expected (integer contour) corners
+    synth_calib_rms_px: float = 0.3  # calibration from 10 synthetic ChArUco views (noise 1, blur 0.5)
+    synth_calib_focal_rel: float = 0.01
+    synth_calib_center_px: float = 5.0
+    cli_pose_rot_deg: float = 1.0  # `arshadow pose` on one synthetic photo vs its generating pose
+    cli_pose_trans_m: float = 0.005
+    opencv_board_rot_deg: float = 0.5  # reported OpenCV board pose vs OpenCV's own ChArUco solvePnP
+    opencv_board_trans_rel: float = 0.005
+    exposure_ratio_abs: float = 0.02  # mean brightness ratio of a half-exposure synthetic photo vs 0.5
     undistort_px: float = 1e-6  # exact inverse of the distortion (round trip)
     project_vs_opencv_px: float = 1e-7  # Intrinsics.project against cv2.projectPoints
     gl_projection_px: float = 1e-8  # GL clip matrix -> pixel centre against project(distort=False)

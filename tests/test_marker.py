@@ -10,6 +10,8 @@ import cv2
 import numpy as np
 import pytest
 
+from conftest import TOL
+
 from arshadow.camera import Intrinsics
 from arshadow.errors import CalibrationError, MarkerNotFoundError, UsageError
 from arshadow.marker import (
@@ -189,7 +191,7 @@ def test_realdata_ids_with_refinement(realdata, name, refine):
     assert sorted(det.ids.tolist()) == sorted(int(k) for k in e["corners"])
     by_id = det.by_id
     worst = max(np.abs(by_id[int(k)] - np.asarray(c, float)).max() for k, c in e["corners"].items())
-    assert worst < 2.5  # the unrefined expectation is integer contour points
+    assert worst < TOL.unrefined_corner_px  # the unrefined expectation is integer contour points
 
 
 @pytest.mark.realdata
