@@ -12,6 +12,7 @@ from __future__ import annotations
 import datetime as _dt
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 
 import cv2
@@ -19,6 +20,7 @@ import numpy as np
 
 from .camera import Intrinsics
 from .errors import ArshadowError, CalibrationError, UsageError
+from .marker import _gray
 
 __all__ = ["Pattern", "parse_pattern", "View", "find_view", "CalibrationResult", "calibrate", "MIN_VIEWS"]
 
@@ -64,11 +66,14 @@ class Pattern:
         obj[:, :2] = np.mgrid[0:self.cols, 0:self.rows].T.reshape(-1, 2) * self.square
         return obj
 
-    def charuco_board(self):
+    @cached_property
+    def charuco(self):
+        """ChArUco: ``(Board, cv2.aruco.CharucoDetector)``, built once per pattern, not per photo."""
         from .marker import Board
 
-        return Board("charuco", (self.cols, self.rows), self.marker, dictionary=self.dictionary,
-                     square_length=self.square)
+        board = Board("charuco", (self.cols, self.rows), self.marker, dictionary=self.dictionary,
+                      square_length=self.square)
+        return board, cv2.aruco.CharucoDetector(board.cv_board)
 
 
 def parse_pattern(spec: str) -> Pattern:
@@ -135,7 +140,7 @@ def find_view(path, pattern: Pattern, image=None) -> View:
         img = read_image(path) if image is None else image
     except ArshadowError as exc:
         return View(name, reason=str(exc))
-    gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY) if img.ndim == 3 else img
+    gray = _gray(img)  # any layout or depth a caller passes as image=, like the marker detector
     size = (gray.shape[1], gray.shape[0])
     if pattern.kind == "chessboard":
         flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
@@ -146,8 +151,7 @@ def find_view(path, pattern: Pattern, image=None) -> View:
         crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 30, 1e-4)
         corners = cv2.cornerSubPix(gray, corners, (11, 11), (-1, -1), crit)
         return View(name, size, pattern.object_points, corners.astype(np.float32))
-    board = pattern.charuco_board()
-    det = cv2.aruco.CharucoDetector(board.cv_board)
+    board, det = pattern.charuco
     ch_corners, ch_ids, _, m_ids = det.detectBoard(gray)
     n = 0 if ch_ids is None else len(ch_ids)
     if n < MIN_CHARUCO_CORNERS:

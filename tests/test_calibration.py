@@ -134,3 +134,17 @@ def test_charuco_calibration_synthetic():
     assert len(res.views) >= 8 and res.rms < TOL.synth_calib_rms_px
     assert abs(k.fx / cam.fx - 1) < TOL.synth_calib_focal_rel and abs(k.fy / cam.fy - 1) < TOL.synth_calib_focal_rel
     assert abs(k.cx - cam.cx) < TOL.synth_calib_center_px and abs(k.cy - cam.cy) < TOL.synth_calib_center_px
+
+
+@pytest.mark.realdata
+def test_find_view_takes_any_image_layout(realdata):
+    """``image=`` may be 16-bit or BGRA, like the photos `arshadow render` accepts."""
+    p = parse_pattern("chessboard:9,6,0.025")
+    bgr = cv2.imread(str(realdata / "chessboard_left" / "left01.jpg"))
+    ref = find_view("left01", p, image=bgr)
+    gray16 = cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY).astype(np.uint16) * 257
+    bgra = cv2.cvtColor(bgr, cv2.COLOR_BGR2BGRA)
+    for img in (gray16, bgra):
+        v = find_view("left01", p, image=img)
+        assert v.ok, v.reason
+        assert np.abs(v.image_points - ref.image_points).max() < TOL.corner_px
