@@ -656,22 +656,6 @@ def _rms(intr: Intrinsics, obj, img, rvec, tvec) -> float:
     return float(np.sqrt(np.mean(np.sum((proj - img) ** 2, axis=1))))
 
 
-def rotation_sigma_deg(intr: Intrinsics, obj, rvec, tvec, sigma_px: float = 1.0) -> float:
-    """First-order standard deviation (degrees, worst axis) of the pose's rotation for independent
-    corner noise of ``sigma_px`` per coordinate: ``sqrt(max eig((J^T J)^-1)_rot) * sigma_px``, with J the
-    (2n, 6) Jacobian of the projected points w.r.t. (rvec, tvec) at the solution."""
-    obj = np.ascontiguousarray(obj, dtype=np.float64).reshape(-1, 3)
-    _, jac = cv2.projectPoints(obj, np.asarray(rvec, np.float64).reshape(3, 1),
-                               np.asarray(tvec, np.float64).reshape(3, 1), intr.K, intr.dist_cv)
-    j = jac[:, :6]
-    try:
-        cov = np.linalg.inv(j.T @ j)
-    except np.linalg.LinAlgError:
-        return float("inf")
-    ev = np.linalg.eigvalsh(0.5 * (cov[:3, :3] + cov[:3, :3].T))
-    return float(np.degrees(np.sqrt(max(ev.max(), 0.0))) * sigma_px)
-
-
 def _solve_planar(intr: Intrinsics, obj, img, square: bool, lm: bool = True):
     """Both planar (IPPE) solutions, sorted by RMS reprojection error, and their ambiguity ratio.
 

@@ -74,7 +74,8 @@ def png_with_dpi(gray: np.ndarray, pixels_per_metre: float) -> bytes:
     payload = struct.pack(">IIB", ppm, ppm, 1)
     chunk = struct.pack(">I", len(payload)) + b"pHYs" + payload + struct.pack(">I", zlib.crc32(b"pHYs" + payload))
     ihdr_end = 8 + 8 + 13 + 4  # signature, IHDR length+type, IHDR data, CRC
-    assert data[12:16] == b"IHDR"
+    if data[12:16] != b"IHDR":  # pragma: no cover - OpenCV always writes IHDR first
+        raise RuntimeError("unexpected PNG layout from OpenCV: IHDR is not the first chunk")
     return data[:ihdr_end] + chunk + data[ihdr_end:]
 
 

@@ -162,7 +162,9 @@ def main(argv=None):
     print(json.dumps(res, indent=1))
     print(table(res))
     if args.json:
-        args.json.write_text(json.dumps(res, indent=1))
+        from arshadow.io import write_json
+
+        write_json(args.json, res)
 
 
 if __name__ == "__main__":
