@@ -36,7 +36,6 @@ the end.
 
 from __future__ import annotations
 
-import ctypes
 import functools
 import math
 import time
@@ -381,7 +380,6 @@ class ShadowRenderer:
         self._released = False
         #: when True, render() calls ctx.finish() after each pass and reports per-pass times (slower)
         self.profile = False
-        self.clear_mode = "single"
         self._marks = []
 
     # ------------------------------------------------------------------ resources
@@ -602,14 +600,8 @@ class ShadowRenderer:
         gl.glStencilMask(0xFF)
         gl.glClearStencil(0)
         gl.glClearDepth(1.0)
-        if self.clear_mode == "buffers":
-            zero4 = (ctypes.c_float * 4)(0.0, 0.0, 0.0, 0.0)
-            gl.glClearBufferfv(0x1800, 0, zero4)  # GL_COLOR, draw buffer 0
-            gl.glClearBufferfv(0x1800, 1, zero4)
-            gl.glClearBufferfi(0x84F9, 0, 1.0, 0)  # GL_DEPTH_STENCIL
-        else:
-            gl.glClearColor(0.0, 0.0, 0.0, 0.0)
-            gl.glClear(G.GL_COLOR_BUFFER_BIT | G.GL_DEPTH_BUFFER_BIT | G.GL_STENCIL_BUFFER_BIT)
+        gl.glClearColor(0.0, 0.0, 0.0, 0.0)
+        gl.glClear(G.GL_COLOR_BUFFER_BIT | G.GL_DEPTH_BUFFER_BIT | G.GL_STENCIL_BUFFER_BIT)
         self._mark("clear")
         # -- base pass: occluder then ground (depth LESS, writes on)
         ctx.enable_only(moderngl.DEPTH_TEST)
@@ -797,9 +789,7 @@ class ShadowRenderer:
         gl.glBindFramebuffer(G.GL_DRAW_FRAMEBUFFER, dst.fbo)
         for i in range(2):
             gl.glReadBuffer(G.GL_COLOR_ATTACHMENT0 + i)
-            bufs = (ctypes.c_uint * 2)(0, 0)  # GL_NONE
-            bufs[i] = G.GL_COLOR_ATTACHMENT0 + i
-            gl.glDrawBuffers(2, bufs)
+            gl.draw_buffers(2, only=i)
             gl.glBlitFramebuffer(0, 0, sw, sh, 0, 0, dw, dh, G.GL_COLOR_BUFFER_BIT, filt)
         gl.draw_buffers(2)
         gl.glBindFramebuffer(G.GL_FRAMEBUFFER, 0)
