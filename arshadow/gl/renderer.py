@@ -658,13 +658,18 @@ class ShadowRenderer:
             gl.glStencilFunc(G.GL_ALWAYS, 0, 0xFF)
             if planar:
                 # projection shadow (paper 002): the caster flattened onto z = 0; depth test "always",
-                # the ground bit limits it to visible ground in the mask pass
-                ctx.depth_func = "1"
-                gl.glStencilFunc(G.GL_ALWAYS, 1, 0xFF)
-                gl.glStencilOp(G.GL_KEEP, G.GL_KEEP, G.GL_REPLACE)
-                smat = planar_shadow_matrix_z0(p.light_h)
-                self.prog_volume["u_mvp"].write((mvp @ smat).T.astype(np.float32).tobytes())
-                bufs.planar_vao.render(moderngl.TRIANGLES, vertices=bufs.n_indices)
+                # the ground bit limits it to visible ground in the mask pass. A light at or below the
+                # ground lights none of it from above: nothing to draw.
+                from ..projection import GROUND_PLANE, planar_shadow_matrix
+                from ..silhouette import as_light_h
+
+                if as_light_h(p.light_h)[2] > 0.0:
+                    ctx.depth_func = "1"
+                    gl.glStencilFunc(G.GL_ALWAYS, 1, 0xFF)
+                    gl.glStencilOp(G.GL_KEEP, G.GL_KEEP, G.GL_REPLACE)
+                    smat = planar_shadow_matrix(GROUND_PLANE, p.light_h)
+                    self.prog_volume["u_mvp"].write((mvp @ smat).T.astype(np.float32).tobytes())
+                    bufs.planar_vao.render(moderngl.TRIANGLES, vertices=bufs.n_indices)
             else:
                 if p.mode == "zpass":
                     gl.glStencilOpSeparate(G.GL_FRONT, G.GL_KEEP, G.GL_KEEP, G.GL_INCR_WRAP)
@@ -850,10 +855,3 @@ def _screen_box(mvp, caster, width, height):
     y1 = int(max(min(math.ceil(y.max()) + 1, height), 0))
     return x0, y0, x1, y1
 
-
-def planar_shadow_matrix_z0(light_h) -> np.ndarray:
-    """(4, 4) float64 projection-shadow matrix onto the ground z = 0 from ``light_h`` (paper 002):
-    ``M = (p . L) I - L p^T`` with ``p = (0, 0, 1, 0)``."""
-    L = np.asarray(light_h, dtype=np.float64).reshape(4)
-    p = np.array([0.0, 0.0, 1.0, 0.0])
-    return float(p @ L) * np.eye(4) - np.outer(L, p)
