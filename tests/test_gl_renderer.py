@@ -473,3 +473,44 @@ def test_buffers_grow_and_caster_cache(ctx):
         render(r, sc.caster, small)
         assert len(r._casters) == 1  # dead casters purged, their buffers released
     assert ctx.error == "GL_NO_ERROR"
+
+
+def test_upload_reuse_follows_the_volumes(ctx):
+    """Volumes and light-facing subsets are re-uploaded only when the passes change: a renderer that saw
+    other volumes/lights in between renders exactly what a fresh renderer does; a volume with writeable
+    arrays edited in place is uploaded again."""
+    from dataclasses import replace
+
+    from arshadow.gl.renderer import LightPass, ShadowRenderer
+    from arshadow.silhouette import silhouette
+    from arshadow.transforms import CV_TO_GL
+    from arshadow.volume import shadow_volume
+
+    sc = _scenes()[0]
+    K = _intrinsics(sc.fx)
+    canvas = (400, 250, 480, 360)
+    kw = dict(projection=K.gl_projection(ZNEAR, None, canvas=canvas), view=CV_TO_GL @ sc.cam_from_world,
+              width=canvas[2], height=canvas[3], caster=sc.caster)
+    la, lb = sc.lights[0][0], np.array([0.25, 0.2, 0.6, 1.0])
+    va = shadow_volume(sc.caster, la, silhouette(sc.caster, la), caps=False)
+    vb = shadow_volume(sc.caster, lb, silhouette(sc.caster, lb), caps=False)
+    pa, pb = [LightPass(la, 1.0, va, "zpass")], [LightPass(lb, 1.0, vb, "zpass")]
+    with ShadowRenderer(ctx, max_width=640, max_height=480) as r, \
+            ShadowRenderer(ctx, max_width=640, max_height=480) as fresh:
+        a1 = r.render(passes=pa, **kw)
+        a2 = r.render(passes=pa, **kw)  # reused upload
+        b = r.render(passes=pb, **kw)
+        a3 = r.render(passes=pa, **kw)
+        b_ref = fresh.render(passes=pb, **kw)
+        assert np.any(a1.mask != b.mask)  # the two lights really differ
+        for x in (a2, a3):
+            assert np.array_equal(x.mask, a1.mask) and np.array_equal(x.color, a1.color)
+        assert np.array_equal(b.mask, b_ref.mask) and np.array_equal(b.color, b_ref.color)
+        # same object, writeable arrays changed in place: must not be served from the previous upload
+        vw = replace(va, vertices=np.array(va.vertices), triangles=np.array(va.triangles))
+        w1 = r.render(passes=[LightPass(la, 1.0, vw, "zpass")], **kw)
+        np.copyto(vw.triangles, np.zeros_like(vw.triangles))  # every triangle degenerate: no shadow
+        w2 = r.render(passes=[LightPass(la, 1.0, vw, "zpass")], **kw)
+        assert np.array_equal(w1.mask, a1.mask)
+        assert not np.any(w2.mask)
+    assert ctx.error == "GL_NO_ERROR"

@@ -197,10 +197,13 @@ class _CasterBuffers:
                                            index_element_size=4)
         self.n_indices = 3 * m
         self.below_ground = bool(v[:, 2].min() < 0.0)
+        # homogeneous corners (8, 4) of the bounding box: the per-frame screen box of the colour readback
+        b = np.array([v.min(axis=0), v.max(axis=0)])
+        self.box_corners = np.array([[b[i, 0], b[j, 1], b[k, 2], 1.0] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
         # closed, consistently wound meshes: back faces are never visible -> cull them (half the work)
         self.cull = not bool(getattr(caster, "two_sided", True))
         # closed meshes: a face turned away from a light always lies inside that light's own shadow
-        # volume, so its lighting pass only needs the light-facing faces (per light, per frame)
+        # volume, so its lighting pass only needs the light-facing faces (per light)
         self.light_tris = inverse.reshape(m, 3).astype(np.uint32)
         planes = getattr(caster, "face_planes", None)
         if planes is None:
@@ -212,16 +215,22 @@ class _CasterBuffers:
         self.sub_vao = ctx.vertex_array(prog_occ, [(self.vbo, "4f 3f 3f", "in_pos", "in_normal", "in_albedo")],
                                         index_buffer=self.sub_ibo, index_element_size=4)
         self.sub_ranges = {}
+        self.sub_key = None  # the lights sub_ibo holds subsets for
 
     def upload_light_subsets(self, passes) -> None:
         """Write, for each pass, the light-facing triangles (closed meshes) into ``sub_ibo``; records
-        ``sub_ranges[i] = (first, count)``."""
-        self.sub_ranges = {}
+        ``sub_ranges[i] = (first, count)``. Skipped when the lights are those of the previous call (lights
+        fixed in the world: the subsets are per mesh and light, not per frame)."""
         if not self.cull:
             return
+        lights = [np.asarray(p.light_h, np.float64) for p in passes]
+        key = tuple(h.tobytes() for h in lights)
+        if key == self.sub_key:
+            return
+        self.sub_ranges, self.sub_key = {}, key
         parts, first = [], 0
-        for i, p in enumerate(passes):
-            facing = self.face_planes @ np.asarray(p.light_h, np.float64) > 0.0
+        for i, h in enumerate(lights):
+            facing = self.face_planes @ h > 0.0
             sub = self.light_tris[facing]
             parts.append(sub)
             self.sub_ranges[i] = (first, 3 * len(sub))
@@ -373,6 +382,7 @@ class ShadowRenderer:
         self._vol_ibo = None
         self._vol_vao = None
         self._vol_cap = (0, 0)
+        self._vol_last = None  # (volumes, ranges) of the last upload, kept when their arrays are read-only
         self._casters: dict[int, tuple[weakref.ref, object, _CasterBuffers]] = {}
         self._main = None       # _Target: render target (MSAA and/or supersampled)
         self._resolve = None    # _Target: single-sample canvas-size target (when main is MSAA/supersampled)
@@ -460,13 +470,22 @@ class ShadowRenderer:
         return bufs
 
     def _upload_volumes(self, passes) -> list:
-        """Concatenate every light's volume into the reused vertex/index buffers; returns per-pass
-        ``(first_index, n_indices)`` (None where a pass has no volume)."""
-        verts, tris, ranges = [], [], []
+        """Write every light's volume into the reused vertex/index buffers; returns per-pass
+        ``(first_index, n_indices)`` (None where a pass has no volume).
+
+        The pipeline hands the same (frozen, read-only) volume objects every frame while the lights stay
+        put: when the passes' volumes are exactly those of the previous upload, the buffers already hold
+        them and nothing is converted or uploaded."""
+        vols = tuple(None if p.mode == "planar" else p.volume for p in passes)
+        last = self._vol_last
+        if last is not None and len(last[0]) == len(vols) and all(a is b for a, b in zip(last[0], vols)):
+            return list(last[1])
+        self._vol_last = None
+        ranges, parts = [], []
         nv = ni = 0
-        for p in passes:
-            vol = p.volume
-            if vol is None or p.mode == "planar":
+        frozen = True
+        for vol in vols:
+            if vol is None:
                 ranges.append(None)
                 continue
             v = np.asarray(vol.vertices)
@@ -474,32 +493,36 @@ class ShadowRenderer:
             if v.ndim != 2 or v.shape[1] != 4 or t.ndim != 2 or t.shape[1] != 3:
                 raise ShapeError("shadow volume must have vertices (p, 4) and triangles (q, 3)",
                                  actual_shape=(v.shape, t.shape), expected_shape="((p, 4), (q, 3))")
+            frozen = frozen and not (v.flags.writeable or t.flags.writeable)
             if len(t) == 0:
                 ranges.append(None)
                 continue
-            verts.append(v.astype(np.float32))
-            tris.append(t.astype(np.uint32) + np.uint32(nv))
+            parts.append((v, t, nv, ni))
             ranges.append((ni, 3 * len(t)))
             nv += len(v)
             ni += 3 * len(t)
-        if ni == 0:
-            return ranges
-        vb = np.concatenate(verts) if len(verts) > 1 else verts[0]
-        ib = np.concatenate(tris) if len(tris) > 1 else tris[0]
-        vbytes, ibytes = vb.nbytes, ib.nbytes
-        if self._vol_vbo is None or vbytes > self._vol_cap[0] or ibytes > self._vol_cap[1]:
-            vcap = max(vbytes, 2 * self._vol_cap[0], 1 << 16)
-            icap = max(ibytes, 2 * self._vol_cap[1], 1 << 16)
-            for o in (self._vol_vao, self._vol_vbo, self._vol_ibo):
-                if o is not None:
-                    o.release()
-            self._vol_vbo = self.ctx.buffer(reserve=vcap, dynamic=True)
-            self._vol_ibo = self.ctx.buffer(reserve=icap, dynamic=True)
-            self._vol_vao = self.ctx.vertex_array(self.prog_volume, [(self._vol_vbo, "4f", "in_pos")],
-                                                  index_buffer=self._vol_ibo, index_element_size=4)
-            self._vol_cap = (vcap, icap)
-        self._vol_vbo.write(vb)
-        self._vol_ibo.write(ib)
+        if ni:
+            vbytes, ibytes = 16 * nv, 4 * ni
+            if self._vol_vbo is None or vbytes > self._vol_cap[0] or ibytes > self._vol_cap[1]:
+                vcap = max(vbytes, 2 * self._vol_cap[0], 1 << 16)
+                icap = max(ibytes, 2 * self._vol_cap[1], 1 << 16)
+                for o in (self._vol_vao, self._vol_vbo, self._vol_ibo):
+                    if o is not None:
+                        o.release()
+                self._vol_vbo = self.ctx.buffer(reserve=vcap, dynamic=True)
+                self._vol_ibo = self.ctx.buffer(reserve=icap, dynamic=True)
+                self._vol_vao = self.ctx.vertex_array(self.prog_volume, [(self._vol_vbo, "4f", "in_pos")],
+                                                      index_buffer=self._vol_ibo, index_element_size=4)
+                self._vol_cap = (vcap, icap)
+            # each volume straight into its slice of the buffers (no concatenated copy)
+            for v, t, v_first, i_first in parts:
+                idx = t.astype(np.uint32)
+                if v_first:
+                    idx += np.uint32(v_first)
+                self._vol_vbo.write(v.astype(np.float32), offset=16 * v_first)
+                self._vol_ibo.write(idx, offset=4 * i_first)
+        if frozen:  # read-only arrays cannot change behind our back: safe to reuse next frame
+            self._vol_last = (vols, tuple(ranges))
         return ranges
 
     def _set_ground(self, ground_size) -> None:
@@ -739,7 +762,7 @@ class ShadowRenderer:
         gl.glBindBuffer(G.GL_PIXEL_PACK_BUFFER, 0)
         gl.glPixelStorei(G.GL_PACK_ALIGNMENT, 4)
         gl.glBindFramebuffer(G.GL_READ_FRAMEBUFFER, src.fbo)
-        box = _screen_box(mvp, caster, width, height) if draw_occluder else None
+        box = _screen_box(mvp, bufs.box_corners, width, height) if draw_occluder else None
         if box is not None and box[2] > box[0] and box[3] > box[1]:
             x0, y0, x1, y1 = box
             gl.glPixelStorei(G.GL_PACK_ROW_LENGTH, width)
@@ -836,13 +859,10 @@ class ShadowRenderer:
         ctx.depth_func = "<"
 
 
-def _screen_box(mvp, caster, width, height):
+def _screen_box(mvp, corners, width, height):
     """Conservative pixel box ``(x0, y0, x1, y1)`` (GL window coordinates, bottom-up, half-open) of the
-    caster's projection: its 8 bounding-box corners projected; the whole canvas if a corner is not
-    strictly in front of the camera."""
-    b = np.asarray(caster.bounds, np.float64) if hasattr(caster, "bounds") else np.array(
-        [np.min(caster.vertices, 0), np.max(caster.vertices, 0)])
-    corners = np.array([[b[i, 0], b[j, 1], b[k, 2], 1.0] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
+    caster's projection: its 8 bounding-box ``corners (8, 4)`` (homogeneous world) projected; the whole
+    canvas if a corner is not strictly in front of the camera."""
     clip = corners @ mvp.T
     w = clip[:, 3]
     if not np.all(w > 1e-9):
