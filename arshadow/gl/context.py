@@ -27,6 +27,8 @@ _PACKAGES = {
     "OpenGL": "libopengl0 (the GLVND OpenGL dispatch library)",
     "GL": "libgl1 and libglx-mesa0 (for the x11 backend)",
 }
+#: where GLVND looks for EGL vendor (ICD) files
+_EGL_VENDOR_DIRS = ("/usr/share/glvnd/egl_vendor.d", "/etc/glvnd/egl_vendor.d", "/usr/local/share/glvnd/egl_vendor.d")
 
 
 def resolve_backend(backend: str | None = None) -> str:
@@ -52,22 +54,21 @@ def resolve_backend(backend: str | None = None) -> str:
 
 def _mesa_egl_driver_present() -> bool:
     """True if a GLVND EGL vendor (ICD) JSON file is installed (e.g. Mesa's 50_mesa.json)."""
-    dirs = ["/usr/share/glvnd/egl_vendor.d", "/etc/glvnd/egl_vendor.d", "/usr/local/share/glvnd/egl_vendor.d"]
     extra = os.environ.get("__EGL_VENDOR_LIBRARY_DIRS") or os.environ.get("__EGL_VENDOR_LIBRARY_FILENAMES")
     if extra:
         return True
-    return any(glob.glob(os.path.join(d, "*.json")) for d in dirs)
+    return any(glob.glob(os.path.join(d, "*.json")) for d in _EGL_VENDOR_DIRS)
 
 
 def detect_libraries() -> dict:
     """What the system offers, without creating a context: the GL/EGL libraries ``ctypes`` finds, the
     registered EGL vendor files (GLVND ICDs) and ``$ARSHADOW_GL_BACKEND``."""
-    dirs = ["/usr/share/glvnd/egl_vendor.d", "/etc/glvnd/egl_vendor.d", "/usr/local/share/glvnd/egl_vendor.d"]
     return {
         "libEGL": ctypes.util.find_library("EGL"),
         "libOpenGL": ctypes.util.find_library("OpenGL"),
         "libGL": ctypes.util.find_library("GL"),
-        "egl_vendors": sorted(os.path.basename(f) for d in dirs for f in glob.glob(os.path.join(d, "*.json"))),
+        "egl_vendors": sorted(os.path.basename(f) for d in _EGL_VENDOR_DIRS
+                              for f in glob.glob(os.path.join(d, "*.json"))),
         ENV_VAR: os.environ.get(ENV_VAR) or None,
     }
 
