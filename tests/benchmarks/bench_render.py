@@ -16,33 +16,26 @@ generated 8.6k-face non-convex blob when absent), one point light, z-pass. Measu
   absolute error of the fractional mask against the true area coverage (8x8 oracle samples per pixel) on
   the boundary band (pixels within 2 px of an oracle boundary).
 
-Every time is the median (and IQR, min, max) of ``--repeat`` runs, in ms.
+Every time is the median (and IQR ``[q25, q75]``, min, max) of ``--repeat`` runs, in ms
+(``_common.summary``).
 """
 
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import subprocess
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[2]
+import _common
+
+ROOT = _common.ROOT
 sys.path.insert(0, str(ROOT / "tests"))
 
 W, H = 1280, 720
 ZNEAR = 0.01
-
-
-def stats(xs):
-    xs = np.asarray(xs, np.float64)
-    q1, med, q3 = np.percentile(xs, [25, 50, 75])
-    return {"median": round(float(med), 3), "iqr": round(float(q3 - q1), 3), "min": round(float(xs.min()), 3),
-            "max": round(float(xs.max()), 3), "n": int(xs.size)}
+stats = _common.summary
 
 
 def load_scene():
@@ -85,12 +78,7 @@ def main(argv=None):
     ap.add_argument("--no-accuracy", action="store_true")
     args = ap.parse_args(argv)
 
-    import moderngl
-    import trimesh
-    import cv2
-
-    import arshadow
-    from arshadow.gl.context import create_context, gl_info
+    from arshadow.gl.context import create_context
     from arshadow.gl.renderer import LightPass, ShadowRenderer
     from arshadow.silhouette import silhouette
     from arshadow.transforms import CV_TO_GL
@@ -99,18 +87,7 @@ def main(argv=None):
     ctx = create_context()
     caster, K, T, L = load_scene()
     view = CV_TO_GL @ T
-    try:
-        commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True,
-                                text=True).stdout.strip()
-    except OSError:
-        commit = None
-    out = {
-        "meta": {"commit": commit, "arshadow": arshadow.__version__, "numpy": np.__version__,
-                 "moderngl": moderngl.__version__, "trimesh": trimesh.__version__, "cv2": cv2.__version__,
-                 "gl": {k: v for k, v in gl_info(ctx).items() if k in ("GL_RENDERER", "GL_VERSION", "backend")},
-                 "faces": int(caster.n_faces), "image": [W, H], "repeat": args.repeat,
-                 "loadavg_start": [round(x, 2) for x in os.getloadavg()]},
-    }
+    out = {"meta": {**_common.metadata(ctx), "faces": int(caster.n_faces), "image": [W, H], "repeat": args.repeat}}
     # geometry (context)
     tg = []
     for i in range(args.repeat + 3):
@@ -182,10 +159,7 @@ def main(argv=None):
             rec["distinct_mask_levels"] = int(len(np.unique(res.mask)))
         aa.append(rec)
     out["anti_aliasing"] = aa
-    out["meta"]["loadavg_end"] = [round(x, 2) for x in os.getloadavg()]
-    print(json.dumps(out, indent=1))
-    if args.out:
-        Path(args.out).write_text(json.dumps(out, indent=1))
+    _common.emit(out, args.out)
     ctx.release()
 
 
