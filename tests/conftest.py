@@ -59,6 +59,15 @@ class Tolerances:
     shadow_boundary_px: float = 0.25
     shadow_min_pixels: int = 2000
     end_to_end_iou_median: float = 0.95
+    coverage_mismatch_frac: float = 2e-4  # occluder alpha / ground-visible masks vs the oracle, per pixel
+    phong_shadow_atol: float = 2e-3  # linear colour of a self-shadowed face vs ambient only
+    phong_lit_atol: float = 5e-3  # linear colour of a lit face vs ambient + diffuse
+    roi_vs_full_px: int = 10  # mismatched pixels between a sub-canvas render and the full render
+    aa_error_ratio: float = 0.6  # anti-aliased mask's coverage error must be below this share of no-AA's
+    lens_map_px: float = 2e-3  # cached undistortion map round trip (float32 map storage)
+    remap_step_px: float = 1 / 32  # cv2.remap's sub-pixel coordinate quantisation
+    lens_roi_slack_px: int = 40  # distorted ROI may exceed the content's box by two 8-px tiles and slack
+    lens_warp_disk_iou: float = 0.995  # warped pinhole disk vs the analytically distorted disk
     fast_detector_distance_rel: float = 0.01  # fast detection pass: camera position error / distance
     fallback_detector_distance_rel: float = 0.02  # full-search fallback: distance error / distance
     # lights (issue 5)

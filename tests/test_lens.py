@@ -6,6 +6,8 @@ import cv2
 import numpy as np
 import pytest
 
+from conftest import TOL
+
 from arshadow.camera import Intrinsics
 from arshadow.lens import LensWarp, undistort_map
 
@@ -40,7 +42,7 @@ def test_map_is_the_exact_inverse_of_opencv_distortion(dist, rng):
     u = rng.integers(0, 1280, 3000)
     back = _cv_distort(cam, np.column_stack([mx[v, u], my[v, u]]).astype(np.float64))
     # float32 storage of ~1500-px coordinates: 1e-4 px resolution
-    assert np.max(np.abs(back - np.column_stack([u, v]))) < 2e-3
+    assert np.max(np.abs(back - np.column_stack([u, v]))) < TOL.lens_map_px
 
 
 def test_distorted_roi_is_conservative(warp_k1, rng):
@@ -56,7 +58,7 @@ def test_distorted_roi_is_conservative(warp_k1, rng):
             continue
         assert xs.min() >= x0 and xs.max() < x0 + w and ys.min() >= y0 and ys.max() < y0 + h
         # and not grossly larger than needed (two 8-px cells and the slack on each side)
-        assert w <= xs.max() - xs.min() + 1 + 40 and h <= ys.max() - ys.min() + 1 + 40
+        assert w <= xs.max() - xs.min() + 1 + TOL.lens_roi_slack_px and h <= ys.max() - ys.min() + 1 + TOL.lens_roi_slack_px
 
 
 def test_canvas_covers_the_roi_and_warp_reproduces_linear_functions(warp_k1):
@@ -74,9 +76,9 @@ def test_canvas_covers_the_roi_and_warp_reproduces_linear_functions(warp_k1):
     assert wf.shape == (250, 300) and wg.shape == (250, 300, 3)
     ref = 0.01 * sx - 0.02 * sy + 3.0
     # cv2.remap quantises coordinates to 1/32 px
-    assert np.max(np.abs(wf - ref)) < 0.02 * 1 / 32 + 1e-3
-    assert np.max(np.abs(wg[..., 0] - sx)) <= 1 / 32 + 1e-3
-    assert np.max(np.abs(wg[..., 1] - sy)) <= 1 / 32 + 1e-3
+    assert np.max(np.abs(wf - ref)) < 0.02 * TOL.remap_step_px + 1e-3
+    assert np.max(np.abs(wg[..., 0] - sx)) <= TOL.remap_step_px + 1e-3
+    assert np.max(np.abs(wg[..., 1] - sy)) <= TOL.remap_step_px + 1e-3
 
 
 def test_warped_disk_lands_where_the_distorted_camera_sees_it(warp_k1):
@@ -102,7 +104,7 @@ def test_warped_disk_lands_where_the_distorted_camera_sees_it(warp_k1):
     got = warped >= 0.5
     iou = np.sum(got & inside) / np.sum(got | inside)
     assert inside.sum() > 5000
-    assert iou > 0.995
+    assert iou > TOL.lens_warp_disk_iou
     # and the whole disk is inside the ROI (nothing cut off)
     full_x, full_y = warp_k1.maps
     all_inside = ((full_x - centre[0]) ** 2 + (full_y - centre[1]) ** 2) <= radius**2
