@@ -163,8 +163,6 @@ _SIGNATURES = {
     "glClearDepth": (None, [ctypes.c_double]),
     "glClearColor": (None, [_f, _f, _f, _f]),
     "glClear": (None, [_u]),
-    "glClearBufferfv": (None, [_u, _i, _pf]),
-    "glClearBufferfi": (None, [_u, _i, _f, _i]),
     "glDepthMask": (None, [_ub]),
     "glDepthFunc": (None, [_u]),
     "glColorMask": (None, [_ub, _ub, _ub, _ub]),
@@ -196,11 +194,6 @@ class GL:
             setattr(self, name, fn)
 
     # small conveniences -----------------------------------------------------------------------------
-    def get_integer(self, pname: int) -> int:
-        v = ctypes.c_int(0)
-        self.glGetIntegerv(pname, ctypes.byref(v))
-        return int(v.value)
-
     def gen_renderbuffer(self) -> int:
         v = ctypes.c_uint(0)
         self.glGenRenderbuffers(1, ctypes.byref(v))
