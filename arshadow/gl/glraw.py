@@ -128,7 +128,6 @@ _ub = ctypes.c_ubyte
 _p = ctypes.c_void_p
 _pu = ctypes.POINTER(ctypes.c_uint)
 _pi = ctypes.POINTER(ctypes.c_int)
-_pf = ctypes.POINTER(ctypes.c_float)
 
 #: name -> (restype, argtypes)
 _SIGNATURES = {
