@@ -495,6 +495,10 @@ def plan_frame(geometry: SceneGeometry, intr, cam_from_world, width: int, height
     plan.roi = plan.decide("roi", roi, why if rect is not None else f"whole photo: {why}")
     plan.canvas = plan.decide("canvas", canvas, "the pinhole pixels the distorted ROI samples" if lens is not None
                               else "the ROI (no lens distortion)")
+    if opts.shadow_method != "planar":
+        plan.decide("truncate", bool(opts.truncate),
+                    "volumes end just below the ground (RenderOptions.truncate)" if opts.truncate
+                    else "volumes extruded to infinity (RenderOptions.truncate=False)")
     # per light: technique and mode
     forced = modes is not None
     if modes is None:
