@@ -343,3 +343,20 @@ def test_marker_tracker_detector_option():
         assert np.linalg.norm(p.cam_from_world[:3, 3] - truth[:3, 3]) < 0.01 * np.linalg.norm(truth[:3, 3])
     with pytest.raises(UsageError, match="detector"):
         MarkerTracker(cam, marker_length=0.05, detector="turbo")
+
+
+@pytest.mark.gl
+def test_render_photo_from_a_job_file_and_a_photo_file(tmp_path, gl_ctx):
+    """The one-call form reads the job file and the photo itself and equals a session's result."""
+    import cv2
+
+    import arshadow
+
+    photo, _ = _photo()
+    cv2.imwrite(str(tmp_path / "p.png"), photo)
+    (tmp_path / "job.json").write_text(json.dumps(SCENE))
+    res = arshadow.render_photo(tmp_path / "job.json", tmp_path / "p.png")
+    with arshadow.Session(SCENE, context=gl_ctx) as s:
+        ref = s.process(photo)
+    assert res.item.input == str(tmp_path / "p.png")
+    assert np.array_equal(res.mask, ref.mask) and np.array_equal(res.composite, ref.composite)
