@@ -20,7 +20,15 @@ from .errors import LightError, UsageError
 from .mesh import ShadowCaster
 from .silhouette import Silhouette, as_light_h
 
-__all__ = ["ShadowVolume", "shadow_volume", "camera_may_be_in_shadow", "near_plane_radius", "MIN_DESCENT"]
+__all__ = ["ShadowVolume", "shadow_volume", "camera_may_be_in_shadow", "near_plane_radius", "MIN_DESCENT",
+           "layer_bound", "STENCIL_COUNT_RANGE", "BATCH_LAYERS"]
+
+#: a single-pass stencil count is exact while no pixel is covered by more than this many volume layers
+#: (6 count bits: counts are kept modulo 64, so 1..63 are all non-zero)
+STENCIL_COUNT_RANGE = 63
+#: light-facing faces per closed sub-volume of a batched volume (5 count bits + 1 "shadowed" bit: a
+#: batch's count is in 0..31 and so exact modulo 32)
+BATCH_LAYERS = 31
 
 #: truncated volumes need every extruded ray to descend at least this much (z of the unit ray
 #: direction <= -MIN_DESCENT, i.e. at most 1e4 x the vertex height of extrusion); otherwise the whole
@@ -61,6 +69,13 @@ class ShadowVolume:
     truncate_z: float | None
     light_h: np.ndarray
     two_sided: bool = False
+    #: upper bound of the number of volume layers over any point (:func:`layer_bound`)
+    max_layers: int = 0
+    #: None: one volume (stencil count exact, ``max_layers <= STENCIL_COUNT_RANGE``). Otherwise
+    #: ``((first_triangle, n_triangles), ...)``: closed z-fail sub-volumes of at most
+    #: :data:`BATCH_LAYERS` light-facing faces each (sides + both caps) whose union is the shadow; the
+    #: renderer counts each one separately and ORs the results (exact whatever the depth complexity).
+    batches: tuple | None = None
 
     @property
     def side_triangles(self) -> np.ndarray:
@@ -159,17 +174,26 @@ def shadow_volume(caster: ShadowCaster, light_h, sil: Silhouette, *, caps: bool 
         raise UsageError("the silhouette was computed for a different light")
     if sil.facing.shape[0] != caster.n_faces:
         raise UsageError("the silhouette was computed for a different mesh")
-    n = len(caster.vertices)
     faces = caster.faces
     facing = sil.facing
-    edges = sil.edges
+    lit = np.where(facing[:, None], faces, faces[:, ::-1]) if caster.two_sided else faces[facing]
+    bound = layer_bound(caster.vertices, lit, h)
+    if bound > STENCIL_COUNT_RANGE:
+        return _batched_volume(caster, h, lit, bound, truncate_z)
+    return _volume(caster, h, sil.edges, lit, facing, caps, truncate_z, bound)
+
+
+def _volume(caster, h, edges, lit, facing, caps, truncate_z, bound, far_faces=None):
+    """One closed volume: sides on the directed ``edges (k, 2)``, near cap ``lit``, far cap."""
+    n = len(caster.vertices)
     if caps:
-        if caster.two_sided:
-            near = np.where(facing[:, None], faces, faces[:, ::-1])
-            far = near[:, ::-1]
+        near = lit
+        if far_faces is not None:
+            far = far_faces
+        elif caster.two_sided:
+            far = lit[:, ::-1]
         else:
-            near = faces[facing]
-            far = faces[~facing]
+            far = caster.faces[~facing]
     else:
         near = far = np.empty((0, 3), np.intp)
     # vertices used at the light side (finite) and extruded
@@ -212,7 +236,116 @@ def shadow_volume(caster: ShadowCaster, light_h, sil: Silhouette, *, caps: bool 
         truncate_z=None if truncate_z is None else float(truncate_z),
         light_h=h,
         two_sided=caster.two_sided,
+        max_layers=int(bound),
     )
+
+
+def _batched_volume(caster, h, lit, bound, truncate_z) -> ShadowVolume:
+    """The volume as closed z-fail sub-volumes of :data:`BATCH_LAYERS` light-facing faces each.
+
+    A batch S of light-facing faces bounds the closed volume S (near cap) + S reversed and extruded (far
+    cap) + sides on S's own boundary edges (directed edges of S whose reverse is not in S). Its winding
+    number at a point is the number of faces of S between the point and the light, so 0..|S|; the union of
+    the batches is the shadow of all light-facing faces, i.e. the shadow.
+    """
+    parts, batches, first = [], [], 0
+    n_side = n_near = n_far = 0
+    truncated = True
+    for k in range(0, len(lit), BATCH_LAYERS):
+        s = lit[k:k + BATCH_LAYERS]
+        e = np.concatenate([s[:, [0, 1]], s[:, [1, 2]], s[:, [2, 0]]])
+        key = e[:, 0].astype(np.int64) * (len(caster.vertices) + 1) + e[:, 1]
+        rkey = e[:, 1].astype(np.int64) * (len(caster.vertices) + 1) + e[:, 0]
+        e = e[~np.isin(key, rkey)]
+        vol = _volume(caster, h, e, s, None, True, truncate_z, bound, far_faces=s[:, ::-1])
+        parts.append(vol)
+        truncated = truncated and vol.truncated
+        batches.append((first, len(vol.triangles)))
+        n_side += vol.n_side
+        n_near += vol.n_near_cap
+        n_far += vol.n_far_cap
+        first += len(vol.triangles)
+    offs = np.cumsum([0] + [len(p.vertices) for p in parts[:-1]])
+    verts = np.concatenate([p.vertices for p in parts])
+    tris = np.concatenate([p.triangles + o for p, o in zip(parts, offs)]).astype(np.intp)
+    verts.flags.writeable = False
+    tris.flags.writeable = False
+    return ShadowVolume(vertices=verts, triangles=tris, n_side=n_side, n_cap=n_near + n_far, n_near_cap=n_near,
+                        n_far_cap=n_far, truncated=bool(truncated and truncate_z is not None),
+                        truncate_z=None if truncate_z is None else float(truncate_z), light_h=h,
+                        two_sided=caster.two_sided, max_layers=int(bound), batches=tuple(batches))
+
+
+def layer_bound(vertices, lit_faces, light_h, grid: int | None = None) -> int:
+    """Upper bound of the depth complexity of a shadow volume: the largest number of light-facing faces
+    any ray from the light crosses.
+
+    The faces are projected from the light (orthographically along a directional light's direction,
+    centrally from a point light onto the plane facing the mesh) and their projected bounding boxes
+    counted on a grid (a summed difference array): a cell's count is at least the number of faces any ray
+    through it crosses. A point light that is not strictly on one side of every vertex (inside or level
+    with the mesh) gives the trivial bound ``len(lit_faces)``.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float64
+    lit_faces : (m, 3) int
+        The light-facing faces (the near cap).
+    light_h : (4,) float64
+    grid : int, optional
+        Cells per side (default: about 4 per face along a side, 16..512).
+
+    Returns
+    -------
+    int
+    """
+    m = len(lit_faces)
+    if m <= STENCIL_COUNT_RANGE:
+        return int(m)
+    h = as_light_h(light_h)
+    v = np.asarray(vertices, np.float64)
+    used = np.unique(np.asarray(lit_faces).reshape(-1))
+    if h[3] == 0.0:
+        d = h[:3] / np.linalg.norm(h[:3])
+        rel = v
+    else:
+        rel = v - h[:3]
+        c = rel[used].mean(axis=0)
+        nc = np.linalg.norm(c)
+        if not nc > 0:
+            return int(m)
+        d = -c / nc
+    # orthonormal frame (e1, e2, -d): depth along -d (away from the light)
+    a = np.array([1.0, 0.0, 0.0]) if abs(d[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = np.cross(d, a)
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(d, e1)
+    x, y = rel @ e1, rel @ e2
+    if h[3] != 0.0:
+        depth = rel @ -d
+        if not np.all(depth[used] > 1e-9 * max(float(np.max(np.abs(rel[used]))), 1e-300)):
+            return int(m)
+        x, y = x / np.where(depth > 0, depth, 1.0), y / np.where(depth > 0, depth, 1.0)
+    f = np.asarray(lit_faces)
+    fx, fy = x[f], y[f]
+    lo_x, hi_x, lo_y, hi_y = fx.min(1), fx.max(1), fy.min(1), fy.max(1)
+    x0, x1, y0, y1 = lo_x.min(), hi_x.max(), lo_y.min(), hi_y.max()
+    span = max(x1 - x0, y1 - y0)
+    if not (np.isfinite(span) and span > 0):
+        return int(m)
+    g = int(grid) if grid else int(np.clip(4 * np.sqrt(m), 16, 512))
+    sx = g / max(x1 - x0, span * 1e-9)
+    sy = g / max(y1 - y0, span * 1e-9)
+    i0 = np.clip(np.floor((lo_x - x0) * sx).astype(np.int64), 0, g - 1)
+    i1 = np.clip(np.floor((hi_x - x0) * sx).astype(np.int64), 0, g - 1) + 1
+    j0 = np.clip(np.floor((lo_y - y0) * sy).astype(np.int64), 0, g - 1)
+    j1 = np.clip(np.floor((hi_y - y0) * sy).astype(np.int64), 0, g - 1) + 1
+    diff = np.zeros((g + 1, g + 1), np.int64)
+    np.add.at(diff, (i0, j0), 1)
+    np.add.at(diff, (i1, j0), -1)
+    np.add.at(diff, (i0, j1), -1)
+    np.add.at(diff, (i1, j1), 1)
+    return int(np.cumsum(np.cumsum(diff, 0), 1).max())
 
 
 def near_plane_radius(znear: float, width: int, height: int, fx: float, fy: float, cx=None, cy=None) -> float:
