@@ -177,7 +177,7 @@ def shadow_volume(caster: ShadowCaster, light_h, sil: Silhouette, *, caps: bool 
     faces = caster.faces
     facing = sil.facing
     lit = np.where(facing[:, None], faces, faces[:, ::-1]) if caster.two_sided else faces[facing]
-    bound = layer_bound(caster.vertices, lit, h)
+    bound = layer_bound(caster.vertices, sil.edges, h, lit)
     if bound > STENCIL_COUNT_RANGE:
         return _batched_volume(caster, h, lit, bound, truncate_z)
     return _volume(caster, h, sil.edges, lit, facing, caps, truncate_z, bound)
@@ -219,9 +219,13 @@ def _volume(caster, h, edges, lit, facing, caps, truncate_z, bound, far_faces=No
     verts[fin_idx.size:] = ext
     a, b = edges[:, 0], edges[:, 1]
     fa, fb, xa, xb = pos_fin[a], pos_fin[b], pos_ext[a], pos_ext[b]
+    # quad fb, fa, xa, xb split along the diagonal from the larger vertex index to the extrusion of the
+    # smaller one, so that the quad of b->a (a neighbouring batch, see _batched_volume) is exactly these
+    # triangles reversed: no rasterisation seam between batches
     side = np.empty((2 * len(edges), 3), np.intp)
-    side[0::2] = np.stack([fb, fa, xa], axis=1)
-    side[1::2] = np.stack([fb, xa, xb], axis=1)
+    up = (a < b)[:, None]
+    side[0::2] = np.where(up, np.stack([fb, fa, xa], axis=1), np.stack([fb, fa, xb], axis=1))
+    side[1::2] = np.where(up, np.stack([fb, xa, xb], axis=1), np.stack([fa, xa, xb], axis=1))
     tris = np.concatenate([side, pos_fin[near], pos_ext[far]]).astype(np.intp)
     verts.flags.writeable = False
     tris.flags.writeable = False
@@ -276,46 +280,56 @@ def _batched_volume(caster, h, lit, bound, truncate_z) -> ShadowVolume:
                         two_sided=caster.two_sided, max_layers=int(bound), batches=tuple(batches))
 
 
-def layer_bound(vertices, lit_faces, light_h, grid: int | None = None) -> int:
+def layer_bound(vertices, edges, light_h, lit_faces=None) -> int:
     """Upper bound of the depth complexity of a shadow volume: the largest number of light-facing faces
-    any ray from the light crosses.
+    any ray from the light crosses (so the largest stencil count of its volume).
 
-    The faces are projected from the light (orthographically along a directional light's direction,
-    centrally from a point light onto the plane facing the mesh) and their projected bounding boxes
-    counted on a grid (a summed difference array): a cell's count is at least the number of faces any ray
-    through it crosses. A point light that is not strictly on one side of every vertex (inside or level
-    with the mesh) gives the trivial bound ``len(lit_faces)``.
+    Seen from the light, the light-facing faces all project with the same orientation and their boundary
+    is the silhouette, so the number of them over a point equals the winding number of the projected
+    silhouette loops around it. A winding number is at most the number of loop edges a ray from the point
+    crosses on either side, hence at most half the edges a line through it stabs: the bound is the
+    largest such stab count, halved, over horizontal and vertical lines (a sweep over the edges' spans).
 
     Parameters
     ----------
     vertices : (n, 3) float64
-    lit_faces : (m, 3) int
-        The light-facing faces (the near cap).
+    edges : (k, 2) int
+        Silhouette edges (``Silhouette.edges``).
     light_h : (4,) float64
-    grid : int, optional
-        Cells per side (default: about 4 per face along a side, 16..512).
+    lit_faces : (m, 3) int, optional
+        The light-facing faces; the trivial bound ``len(lit_faces)`` is returned when it is smaller or
+        when the point light is not strictly on one side of the silhouette (no central projection).
 
     Returns
     -------
     int
+
+    Examples
+    --------
+    >>> from arshadow.mesh import load_occluder
+    >>> from arshadow.silhouette import silhouette
+    >>> box = load_occluder("box:1,1,1")
+    >>> L = [0.0, 0.0, 1.0, 0.0]
+    >>> layer_bound(box.vertices, silhouette(box, L).edges, L)
+    1
     """
-    m = len(lit_faces)
-    if m <= STENCIL_COUNT_RANGE:
-        return int(m)
     h = as_light_h(light_h)
+    e = np.asarray(edges, np.intp).reshape(-1, 2)
+    trivial = len(lit_faces) if lit_faces is not None else 2 ** 31 - 1
+    if len(e) == 0:
+        return 0
     v = np.asarray(vertices, np.float64)
-    used = np.unique(np.asarray(lit_faces).reshape(-1))
+    used = np.unique(e.reshape(-1))
     if h[3] == 0.0:
         d = h[:3] / np.linalg.norm(h[:3])
-        rel = v
+        rel = v[used]
     else:
-        rel = v - h[:3]
-        c = rel[used].mean(axis=0)
+        rel = v[used] - h[:3]
+        c = rel.mean(axis=0)
         nc = np.linalg.norm(c)
         if not nc > 0:
-            return int(m)
+            return int(trivial)
         d = -c / nc
-    # orthonormal frame (e1, e2, -d): depth along -d (away from the light)
     a = np.array([1.0, 0.0, 0.0]) if abs(d[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
     e1 = np.cross(d, a)
     e1 /= np.linalg.norm(e1)
@@ -323,29 +337,23 @@ def layer_bound(vertices, lit_faces, light_h, grid: int | None = None) -> int:
     x, y = rel @ e1, rel @ e2
     if h[3] != 0.0:
         depth = rel @ -d
-        if not np.all(depth[used] > 1e-9 * max(float(np.max(np.abs(rel[used]))), 1e-300)):
-            return int(m)
-        x, y = x / np.where(depth > 0, depth, 1.0), y / np.where(depth > 0, depth, 1.0)
-    f = np.asarray(lit_faces)
-    fx, fy = x[f], y[f]
-    lo_x, hi_x, lo_y, hi_y = fx.min(1), fx.max(1), fy.min(1), fy.max(1)
-    x0, x1, y0, y1 = lo_x.min(), hi_x.max(), lo_y.min(), hi_y.max()
-    span = max(x1 - x0, y1 - y0)
-    if not (np.isfinite(span) and span > 0):
-        return int(m)
-    g = int(grid) if grid else int(np.clip(4 * np.sqrt(m), 16, 512))
-    sx = g / max(x1 - x0, span * 1e-9)
-    sy = g / max(y1 - y0, span * 1e-9)
-    i0 = np.clip(np.floor((lo_x - x0) * sx).astype(np.int64), 0, g - 1)
-    i1 = np.clip(np.floor((hi_x - x0) * sx).astype(np.int64), 0, g - 1) + 1
-    j0 = np.clip(np.floor((lo_y - y0) * sy).astype(np.int64), 0, g - 1)
-    j1 = np.clip(np.floor((hi_y - y0) * sy).astype(np.int64), 0, g - 1) + 1
-    diff = np.zeros((g + 1, g + 1), np.int64)
-    np.add.at(diff, (i0, j0), 1)
-    np.add.at(diff, (i1, j0), -1)
-    np.add.at(diff, (i0, j1), -1)
-    np.add.at(diff, (i1, j1), 1)
-    return int(np.cumsum(np.cumsum(diff, 0), 1).max())
+        if not np.all(depth > 1e-9 * float(np.max(np.abs(rel)))):
+            return int(trivial)
+        x, y = x / depth, y / depth
+    pos = np.full(len(v), -1, np.intp)
+    pos[used] = np.arange(len(used))
+    ea, eb = pos[e[:, 0]], pos[e[:, 1]]
+    best = None
+    for c in (x, y):
+        lo, hi = np.minimum(c[ea], c[eb]), np.maximum(c[ea], c[eb])
+        # closed spans: at a tie the openings come first (conservative)
+        ev = np.concatenate([lo, hi])
+        kind = np.concatenate([np.zeros(len(lo)), np.ones(len(hi))])
+        order = np.lexsort((kind, ev))
+        step = np.where(kind[order] == 0, 1, -1)
+        stab = int(np.cumsum(step).max())
+        best = stab if best is None else min(best, stab)
+    return int(min(best // 2, trivial))
 
 
 def near_plane_radius(znear: float, width: int, height: int, fx: float, fy: float, cx=None, cy=None) -> float:
