@@ -56,6 +56,10 @@ ROI_MAX_POINTS = 20000
 STAGES = ("detect", "pose", "silhouette", "volume", "render", "readback", "warp", "composite", "total")
 
 
+#: MSAA sample counts :class:`RenderOptions` accepts (what ``--aa`` documents)
+AA_CHOICES = (0, 2, 4)
+
+
 @dataclass
 class RenderOptions:
     """What to render and how to composite it (the ``arshadow render`` options).
@@ -109,8 +113,9 @@ class RenderOptions:
             raise UsageError(f"--shadow-method {self.shadow_method!r}: choose volume or planar")
         if int(self.soft_samples) < 1:
             raise UsageError(f"--soft-samples {self.soft_samples}: must be >= 1")
-        if int(self.aa) < 0:
-            raise UsageError(f"--aa {self.aa}: must be >= 0")
+        if self.aa not in AA_CHOICES:
+            raise UsageError(f"--aa {self.aa}: choose {', '.join(map(str, AA_CHOICES))} (multisample anti-aliasing "
+                             "samples; 0 = off)")
         if self.ground_size is not None and not (math.isfinite(self.ground_size) and self.ground_size > 0):
             raise UsageError(f"--ground-size {self.ground_size}: must be a positive number of metres")
         return self
@@ -527,6 +532,12 @@ class Compositor:
             lens = self._lens_for(intr)
         znear = self.znear_for(cam_from_world)
         opts = self.options
+        if not getattr(self, "_warned_inside", False):
+            from .mesh import placement_warnings
+
+            for msg in placement_warnings(self.caster, eye_world=invert_rigid(cam_from_world)[:3, 3]):
+                log.warning(msg)
+                self._warned_inside = True  # once per run, not per frame
 
         # 2. region of interest (photo) and pinhole canvas
         rect = None
