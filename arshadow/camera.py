@@ -255,8 +255,12 @@ def open_storage(path, what: str, error=CalibrationError):
     ``"board file"`` ...): missing, unreadable, or unparsable (quoting OpenCV's parser: file, line, what).
     """
     p = Path(path)
+    if p.is_dir():
+        raise error(f"{p}: is a folder, not a {what} (give the file itself)")
     if not p.is_file():
         raise error(f"{p}: no such {what}")
+    if p.stat().st_size == 0:
+        raise error(f"{p}: empty file, not a {what}")
     try:
         fs = cv2.FileStorage(str(p), cv2.FILE_STORAGE_READ)
     except (cv2.error, SystemError) as exc:

@@ -5,10 +5,13 @@ region is touched, everything else is copied unchanged.
 
 For every ROI pixel (all colours linear RGB, the photo converted from sRGB by a 256-entry table)::
 
-    factor  = 1 - opacity * mask * (1 - shadow_color)        # shadow_color black -> 1 - opacity * mask
-    shaded  = photo_linear * factor
-    out     = color + (1 - alpha) * shaded                    # premultiplied occluder colour (default)
-            = alpha * color + (1 - alpha) * shaded            # straight (premultiplied=False)
+    factor  = (1 - alpha) - opacity * mask * (1 - shadow_color)   # black tint: 1 - alpha - opacity * mask
+    out     = color + photo_linear * factor                        # premultiplied occluder colour (default)
+            = alpha * color + photo_linear * factor                # straight (premultiplied=False)
+
+The mask is coverage-weighted like the colour (the renderer's mask: the mean over a pixel's samples of
+"sees the ground" x blocked weight, 0 on the object), so it is subtracted from the uncovered share
+``1 - alpha`` (not multiplied by it, which counted the coverage twice: a light seam along the contact).
 
 and ``out`` goes back to 8-bit sRGB through a 65 536-entry table indexed by ``round(out * 65535)``
 (the table's step is at most 0.05 of an 8-bit level, so the result differs from exact rounding by one
@@ -219,29 +222,33 @@ def composite(
     src = photo[y0 : y0 + h, x0 : x0 + w]
     lin = ws.get("lin", (h, w, 3), np.float32)
     cv2.LUT(src, SRGB_TO_LINEAR, dst=lin)  # (h, w, 3) float32 linear BGR
-    # per-pixel multiplier of the photo's light: (1 - opacity * mask * (1 - tint)) * (1 - alpha)
+    # per-pixel multiplier of the photo's light: (1 - alpha) - opacity * mask * (1 - tint). The mask is
+    # already weighted by the pixel's ground coverage (0 on the object; anti-aliased and warped edges:
+    # the covered share, like the premultiplied colour), so it is subtracted from the uncovered share
+    # rather than multiplied by it: (1 - alpha) * (1 - opacity * mask) counted the coverage twice and left
+    # a light seam where the object meets its shadow (alpha 0.5, mask 0.5 -> half the shadow)
     gray = bool(sc[0] == sc[1] == sc[2])
-    g = None  # (h, w) float32 single-channel multiplier (grey tint)
+    keep = None  # (h, w) float32: 1 - alpha
+    if alpha is not None:
+        a = np.asarray(alpha, dtype=np.float32)
+        keep = ws.get("keep", (h, w), np.float32)
+        np.subtract(np.float32(1.0), a, out=keep)
+    g = keep  # (h, w) float32 single-channel multiplier (grey tint)
     if mask is not None and opacity > 0.0:
         m = np.asarray(mask, dtype=np.float32)
         if gray:
             g = ws.get("g", (h, w), np.float32)
             np.multiply(m, np.float32(-opacity * (1.0 - sc[0])), out=g)
-            g += np.float32(1.0)
+            g += keep if keep is not None else np.float32(1.0)
+            np.maximum(g, np.float32(0.0), out=g)
         else:
             dark = (np.float32(opacity) * (1.0 - sc[::-1])).astype(np.float32)  # BGR
             factor = ws.get("factor", (h, w, 3), np.float32)
             np.multiply(m[:, :, None], -dark, out=factor)
-            factor += np.float32(1.0)
+            factor += keep[:, :, None] if keep is not None else np.float32(1.0)
+            np.maximum(factor, np.float32(0.0), out=factor)
             lin *= factor
-    if alpha is not None:
-        a = np.asarray(alpha, dtype=np.float32)
-        keep = ws.get("keep", (h, w), np.float32)
-        np.subtract(np.float32(1.0), a, out=keep)
-        if g is None:
-            g = keep
-        else:
-            g *= keep
+            g = None
     if g is not None:
         lin *= g[:, :, None]
     if alpha is not None:

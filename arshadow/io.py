@@ -40,13 +40,128 @@ def read_image(path) -> np.ndarray:
         Missing, unreadable or corrupt file, or an empty image.
     """
     p = Path(path)
+    if p.is_dir():
+        raise ImageError(f"{p}: folder contains no image files")
     if not p.is_file():
+        if any(c in str(p) for c in "*?["):
+            raise ImageError(f"{p}: no file matches this pattern")
         raise ImageError(f"{p}: no such image file")
-    data = np.fromfile(str(p), dtype=np.uint8)
-    img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
+    try:
+        data = np.fromfile(str(p), dtype=np.uint8)
+    except OSError as exc:
+        raise ImageError(f"{p}: cannot read ({exc.strerror or exc})") from None
+    if data.size == 0:
+        raise ImageError(f"{p}: empty file (0 bytes)")
+    try:
+        img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
+    except cv2.error as exc:  # e.g. a header announcing more pixels than OpenCV allows
+        raise ImageError(f"{p}: cannot decode image ({str(exc).strip().splitlines()[-1][:120]})") from None
     if img is None or img.size == 0:
-        raise ImageError(f"{p}: cannot decode image (corrupt or unsupported format)")
+        raise ImageError(f"{p}: cannot decode image (corrupt, truncated or unsupported format)")
     return to_bgr8(img, name=str(p))
+
+
+def exif_orientation(path) -> int:
+    """The EXIF orientation tag (1..8) of a JPEG or TIFF file; 1 (as stored) when there is none.
+
+    arshadow processes a photo in its stored (sensor) orientation, the one the calibration describes, and
+    turns the outputs upright with :func:`apply_orientation` (so portrait phone photos come out as a viewer
+    shows them; the outputs carry no EXIF).
+    """
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(1 << 17)
+    except OSError:
+        return 1
+    return _orientation_from_bytes(head)
+
+
+def _orientation_from_bytes(b: bytes) -> int:
+    import struct
+
+    tiff = None
+    if b[:2] == b"\xff\xd8":  # JPEG: walk the segments to APP1 "Exif\0\0"
+        i = 2
+        while i + 4 <= len(b) and b[i] == 0xFF:
+            marker = b[i + 1]
+            if marker in (0xD9, 0xDA):  # end of image / start of scan: no EXIF before the pixels
+                break
+            size = struct.unpack(">H", b[i + 2:i + 4])[0]
+            if marker == 0xE1 and b[i + 4:i + 10] == b"Exif\0\0":
+                tiff = b[i + 10:i + 2 + size]
+                break
+            i += 2 + size
+    elif b[:4] in (b"II*\0", b"MM\0*"):
+        tiff = b
+    if not tiff or len(tiff) < 8 or tiff[:2] not in (b"II", b"MM"):
+        return 1
+    e = "<" if tiff[:2] == b"II" else ">"
+    try:
+        ifd = struct.unpack(e + "I", tiff[4:8])[0]
+        n = struct.unpack(e + "H", tiff[ifd:ifd + 2])[0]
+        for k in range(n):
+            off = ifd + 2 + 12 * k
+            tag, typ = struct.unpack(e + "HH", tiff[off:off + 4])
+            if tag == 0x0112 and typ == 3:
+                val = struct.unpack(e + "H", tiff[off + 8:off + 10])[0]
+                return int(val) if 1 <= val <= 8 else 1
+    except struct.error:
+        return 1
+    return 1
+
+
+def apply_orientation(img: np.ndarray, orientation: int) -> np.ndarray:
+    """Turn a stored image ``(H, W, ...)`` upright for EXIF ``orientation`` 1..8 (what viewers do)."""
+    o = int(orientation)
+    if o == 2:
+        return img[:, ::-1]
+    if o == 3:
+        return img[::-1, ::-1]
+    if o == 4:
+        return img[::-1]
+    if o == 5:
+        return img.swapaxes(0, 1)
+    if o == 6:
+        return img.swapaxes(0, 1)[:, ::-1]
+    if o == 7:
+        return img.swapaxes(0, 1)[::-1, ::-1]
+    if o == 8:
+        return img.swapaxes(0, 1)[::-1]
+    return img
+
+
+def check_output_folder(path, what: str = "-o") -> Path:
+    """Make sure ``path`` is (or can be created as) a writable folder, before any work is done.
+
+    Raises
+    ------
+    UsageError
+        The path is a file, lies under a file, cannot be created or is not writable.
+    """
+    from .errors import UsageError
+
+    p = Path(path)
+    if p.exists() and not p.is_dir():
+        raise UsageError(f"{what} {p}: exists and is not a folder")
+    try:
+        p.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(prefix=".arshadow-probe.", dir=p)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise UsageError(f"{what} {p}: cannot write there ({exc.strerror or exc})") from None
+    return p
+
+
+def check_output_file(path, what: str) -> Path:
+    """Make sure a file can be written at ``path`` (not a folder, its folder writable), before any work."""
+    from .errors import UsageError
+
+    p = Path(path)
+    if p.is_dir():
+        raise UsageError(f"{what} {p}: is a folder, give a file name")
+    check_output_folder(p.parent if str(p.parent) else Path("."), f"{what} {p}: folder")
+    return p
 
 
 def to_bgr8(img: np.ndarray, name: str = "image") -> np.ndarray:
@@ -99,20 +214,26 @@ def _umask() -> int:
 def write_image(path, image: np.ndarray, params=None) -> Path:
     """Write ``image`` atomically; the format follows ``path``'s extension. Returns the path."""
     path = Path(path)
-    with atomic_path(path) as tmp:
-        ok, buf = cv2.imencode(path.suffix or ".png", image, params or [])
-        if not ok:
-            raise ImageError(f"{path}: cannot encode image as {path.suffix}")
-        buf.tofile(str(tmp))
-    return path
+    ok, buf = cv2.imencode(path.suffix or ".png", image, params or [])
+    if not ok:
+        raise ImageError(f"{path}: cannot encode image as {path.suffix}")
+    return write_bytes(path, buf)
 
 
 def write_bytes(path, data: bytes) -> Path:
     """Write ``data`` atomically to ``path``."""
     path = Path(path)
-    with atomic_path(path) as tmp:
-        tmp.write_bytes(data)
+    try:
+        with atomic_path(path) as tmp:
+            _write_file(tmp, data)
+    except OSError as exc:  # disk full, permissions, a file where a folder should be...
+        raise ImageError(f"{path}: cannot write ({exc.strerror or exc}); nothing written") from None
     return path
+
+
+def _write_file(path: Path, data) -> None:
+    with open(path, "wb") as fh:
+        fh.write(memoryview(data).cast("B") if not isinstance(data, bytes) else data)
 
 
 def write_json(path, obj) -> Path:

@@ -90,6 +90,10 @@ def _dict_constant(name: str):
     return n, getattr(cv2.aruco, n, None) if n in PREDEFINED_DICTIONARIES else None
 
 
+#: the dictionary of single-marker mode when none is given
+DEFAULT_DICTIONARY = "DICT_6X6_250"
+
+
 def get_dictionary(spec, base_dir=None) -> cv2.aruco.Dictionary:
     """An ArUco dictionary from a predefined name or a custom dictionary file.
 
@@ -709,8 +713,9 @@ class MarkerTracker:
     ----------
     intrinsics : Intrinsics
         The calibration (scaled automatically to a same-aspect image size).
-    dictionary : str, Path or cv2.aruco.Dictionary
-        Marker dictionary (single-marker mode; a board brings its own).
+    dictionary : str, Path or cv2.aruco.Dictionary, optional
+        Marker dictionary (single-marker mode, default :data:`DEFAULT_DICTIONARY`). A board brings its own:
+        a different one given here is a :class:`~arshadow.errors.UsageError`.
     marker_length : float
         Marker side in metres (single-marker mode).
     marker_id : int, optional
@@ -743,7 +748,7 @@ class MarkerTracker:
     ([0], True)
     """
 
-    def __init__(self, intrinsics: Intrinsics, dictionary="DICT_6X6_250", marker_length=None, marker_id=None,
+    def __init__(self, intrinsics: Intrinsics, dictionary=None, marker_length=None, marker_id=None,
                  board=None, refine=DEFAULT_REFINE, detector_params=None, ambiguity_threshold=AMBIGUITY_FLAG,
                  pnp_refine=True, detector="full"):
         if not isinstance(intrinsics, Intrinsics):
@@ -759,9 +764,14 @@ class MarkerTracker:
             if not (math.isfinite(ml) and ml > 0):
                 raise UsageError(f"marker length must be a positive number of metres, got {marker_length}")
             self.marker_length = ml
+            dictionary = DEFAULT_DICTIONARY if dictionary is None else dictionary
             self.dictionary = get_dictionary(dictionary)
             self.dictionary_name = dictionary_label(dictionary)
         else:
+            if dictionary is not None and dictionary_label(dictionary) != dictionary_label(board.dictionary):
+                raise UsageError(f"dictionary {dictionary_label(dictionary)} conflicts with the board file's "
+                                 f"dictionary {dictionary_label(board.dictionary)} (a board names its own: leave "
+                                 "the dictionary out or make them agree)")
             if marker_length is not None and abs(float(marker_length) - board.marker_length) > 1e-9:
                 raise UsageError("marker_length conflicts with the board file's marker_length")
             self.marker_length = board.marker_length

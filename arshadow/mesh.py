@@ -622,6 +622,66 @@ def _parse_color(color):
     return c
 
 
+#: text mesh formats that trimesh decodes itself (non-UTF-8 text needs its optional charset_normalizer)
+_TEXT_FORMATS = (".obj", ".off")
+#: largest coordinate accepted (metres): the GPU gets float32 vertices, and a mesh bigger than this is in
+#: the wrong units anyway
+MAX_COORDINATE = 1e6
+
+
+def _load_mesh_file(p: Path):
+    """``trimesh.load`` of a file; text formats that are not UTF-8 (a Latin-1 comment) are read as Latin-1
+    (every byte is a valid Latin-1 character) instead of failing on trimesh's optional encoding detector."""
+    import io
+
+    import trimesh
+
+    if p.suffix.lower() in _TEXT_FORMATS:
+        data = p.read_bytes()
+        try:
+            data.decode("utf-8")
+        except UnicodeDecodeError:
+            text = data.decode("latin-1")
+            resolver = trimesh.resolvers.FilePathResolver(str(p))
+            return trimesh.load(io.BytesIO(text.encode("utf-8")), file_type=p.suffix.lower()[1:], force="mesh",
+                                process=False, resolver=resolver)
+    return trimesh.load(str(p), force="mesh", process=False)
+
+
+def placement_warnings(caster, marker_length=None, eye_world=None) -> list[str]:
+    """Plausibility checks of an occluder's size and of the camera position; one message per problem.
+
+    Parameters
+    ----------
+    caster : ShadowCaster
+    marker_length : float, optional
+        The printed marker's side (metres): an object more than :data:`MAX_SIZE_RATIO` times larger is
+        probably in the wrong units (millimetres read as metres).
+    eye_world : (3,) float, optional
+        Camera centre (world frame): inside the object's bounding box the object hides the photo.
+
+    Returns
+    -------
+    list of str
+    """
+    out = []
+    size = float(np.max(caster.bounds[1] - caster.bounds[0]))
+    if marker_length is not None and size > MAX_SIZE_RATIO * float(marker_length):
+        out.append(f"{caster.name or 'the object'} is {size:.4g} m across, {size / float(marker_length):.0f} x the "
+                   f"{float(marker_length):.4g} m marker: wrong units? (mesh coordinates are metres; see --scale)")
+    if eye_world is not None:
+        e = np.asarray(eye_world, np.float64).reshape(3)
+        if np.all(e > caster.bounds[0]) and np.all(e < caster.bounds[1]):
+            out.append(f"the camera is inside the bounding box of {caster.name or 'the object'} "
+                       f"({caster.bounds[0].round(4).tolist()} .. {caster.bounds[1].round(4).tolist()} m): "
+                       "the object may cover the whole photo")
+    return out
+
+
+#: object size / marker side above which :func:`placement_warnings` suspects wrong units
+MAX_SIZE_RATIO = 100.0
+
+
 def load_occluder(spec_or_path, scale=1.0, rotate=(0.0, 0.0, 0.0), place=(0.0, 0.0, 0.0), color=None) -> ShadowCaster:
     """Load a mesh file (anything trimesh reads) or build a primitive, and place it in the world frame.
 
@@ -667,7 +727,7 @@ def load_occluder(spec_or_path, scale=1.0, rotate=(0.0, 0.0, 0.0), place=(0.0, 0
         import trimesh
 
         try:
-            mesh = trimesh.load(str(p), force="mesh", process=False)
+            mesh = _load_mesh_file(p)
         except Exception as exc:  # trimesh raises many types for corrupt files
             raise MeshError(f"{p}: cannot read mesh ({type(exc).__name__}: {exc})") from None
         if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
@@ -697,6 +757,10 @@ def load_occluder(spec_or_path, scale=1.0, rotate=(0.0, 0.0, 0.0), place=(0.0, 0
     if not (np.all(np.isfinite(s)) and np.all(s != 0) and np.all(np.isfinite(rot)) and np.all(np.isfinite(t))):
         raise MeshError(f"{name}: scale must be non-zero and finite, rotate and place finite")
     v = (np.asarray(v, np.float64) * s) @ rot.T + t
+    big = float(np.max(np.abs(v))) if v.size and np.all(np.isfinite(v)) else 0.0
+    if big > MAX_COORDINATE:
+        raise MeshError(f"{name}: coordinates up to {big:.3g} m (more than {MAX_COORDINATE:.0e} m): wrong units? "
+                        "(mesh coordinates are metres; see --scale)")
     if np.prod(np.sign(s)) < 0:  # a mirroring scale flips the winding: keep normals outward
         f = f[:, ::-1]
     c = _parse_color(color)

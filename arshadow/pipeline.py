@@ -39,6 +39,7 @@ from .plan import (
 )
 from .report import ReportItem
 from .scene import RenderOptions
+from .transforms import invert_rigid
 
 log = logging.getLogger(__name__)
 
@@ -111,6 +112,7 @@ class Compositor:
         self._calibs: dict = {}
         self._lenses: dict = {}
         self._work = Workspace()
+        self._warned_inside = False
         self._renderer = renderer
         self._own_renderer = renderer is None
         self._make_renderer = make_renderer
@@ -345,6 +347,12 @@ class Compositor:
         if intr.has_distortion and lens is None:
             lens = self._lens_for(intr)
         plan = plan_frame(self.geometry, intr, cam_from_world, W, H, lens=lens, modes=modes)
+        if not self._warned_inside:
+            from .mesh import placement_warnings
+
+            for msg in placement_warnings(self.caster, eye_world=invert_rigid(cam_from_world)[:3, 3]):
+                log.warning(msg)
+                self._warned_inside = True  # once per run, not per frame
         # the renderer is made only when there is something to draw
         renderer = None if plan.empty else self.renderer
         out, mask, info = execute(plan, image, intr, geometry=self.geometry, renderer=renderer, lens=lens,

@@ -36,14 +36,21 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import logging
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from .errors import UsageError
 
+log = logging.getLogger(__name__)
+
 __all__ = ["RenderOptions", "TrackerSpec", "ModelSpec", "SceneSpec", "Scene", "scene_from_dict",
            "scene_from_args", "load_scene", "SCENE_KEYS"]
+
+
+#: MSAA sample counts :class:`RenderOptions` accepts (what ``--aa`` documents)
+AA_CHOICES = (0, 2, 4)
 
 
 @dataclass(frozen=True)
@@ -100,8 +107,9 @@ class RenderOptions:
             raise UsageError(f"--shadow-method {self.shadow_method!r}: choose volume or planar")
         if int(self.soft_samples) < 1:
             raise UsageError(f"--soft-samples {self.soft_samples}: must be >= 1")
-        if int(self.aa) < 0:
-            raise UsageError(f"--aa {self.aa}: must be >= 0")
+        if self.aa not in AA_CHOICES:
+            raise UsageError(f"--aa {self.aa}: choose {', '.join(map(str, AA_CHOICES))} (multisample anti-aliasing "
+                             "samples; 0 = off)")
         if self.ground_size is not None and not (math.isfinite(self.ground_size) and self.ground_size > 0):
             raise UsageError(f"--ground-size {self.ground_size}: must be a positive number of metres")
         return self
@@ -113,8 +121,9 @@ class TrackerSpec:
 
     Attributes
     ----------
-    dictionary : str
-        ArUco dictionary name or custom dictionary file (single-marker mode).
+    dictionary : str or None
+        ArUco dictionary name or custom dictionary file (single-marker mode; None:
+        :data:`arshadow.marker.DEFAULT_DICTIONARY`). A board names its own: a different one is an error.
     marker_length : float or None
         Marker side, metres.
     marker_id : int or None
@@ -125,7 +134,7 @@ class TrackerSpec:
         Corner refinement; ``"default"``: the tracker's own default (:data:`arshadow.marker.DEFAULT_REFINE`).
     """
 
-    dictionary: str = "DICT_6X6_250"
+    dictionary: str | None = None
     marker_length: float | None = None
     marker_id: int | None = None
     board: str | None = None
@@ -139,13 +148,13 @@ class TrackerSpec:
         UsageError
             Neither a marker length nor a board; an unknown dictionary.
         """
-        from .marker import get_dictionary, load_board
+        from .marker import DEFAULT_DICTIONARY, get_dictionary, load_board
 
         if self.board is None and self.marker_length is None:
             raise UsageError("give --marker-length M (metres) for a single marker, or --board B")
         kw = {"dictionary": self.dictionary, "marker_id": self.marker_id}
         if self.board is None:
-            get_dictionary(self.dictionary)  # an unknown dictionary is a usage error, not a per-photo one
+            get_dictionary(self.dictionary or DEFAULT_DICTIONARY)  # unknown: a usage error, not per photo
             kw["marker_length"] = self.marker_length
         else:
             kw["board"] = load_board(self.board)
@@ -218,8 +227,14 @@ class SceneSpec:
         from .lights import parse_light
 
         intr = self.camera if isinstance(self.camera, Intrinsics) else Intrinsics.from_file(self.camera)
+        from .marker import MarkerTracker
+        from .mesh import placement_warnings
+
         tracker = self.tracker.kwargs()
+        MarkerTracker(intr, **tracker)  # a dictionary conflicting with the board, a bad id: a usage error
         caster = self.model.build()
+        for msg in placement_warnings(caster, marker_length=tracker.get("marker_length")):
+            log.warning(msg)
         if lights is None:
             lights = [parse_light(s) if isinstance(s, str) else s for s in self.lights]
         opts = self.options.check()
@@ -336,7 +351,7 @@ def scene_from_dict(d, base_dir=None) -> SceneSpec:
     model = d["model"]
     if isinstance(model, (str, Path)) and ":" not in str(model):
         model = _path(model, base_dir)
-    dictionary = d.get("dictionary", "DICT_6X6_250")
+    dictionary = d.get("dictionary")
     if base_dir is not None and isinstance(dictionary, str) and not dictionary.upper().startswith("DICT_") and \
             (Path(base_dir) / dictionary).exists():
         dictionary = _path(dictionary, base_dir)

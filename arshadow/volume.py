@@ -20,7 +20,15 @@ from .errors import LightError, UsageError
 from .mesh import ShadowCaster
 from .silhouette import Silhouette, as_light_h
 
-__all__ = ["ShadowVolume", "shadow_volume", "camera_may_be_in_shadow", "near_plane_radius", "MIN_DESCENT"]
+__all__ = ["ShadowVolume", "shadow_volume", "camera_may_be_in_shadow", "near_plane_radius", "MIN_DESCENT",
+           "layer_bound", "STENCIL_COUNT_RANGE", "BATCH_LAYERS"]
+
+#: a single-pass stencil count is exact while no pixel is covered by more than this many volume layers
+#: (6 count bits: counts are kept modulo 64, so 1..63 are all non-zero)
+STENCIL_COUNT_RANGE = 63
+#: light-facing faces per closed sub-volume of a batched volume (5 count bits + 1 "shadowed" bit: a
+#: batch's count is in 0..31 and so exact modulo 32)
+BATCH_LAYERS = 31
 
 #: truncated volumes need every extruded ray to descend at least this much (z of the unit ray
 #: direction <= -MIN_DESCENT, i.e. at most 1e4 x the vertex height of extrusion); otherwise the whole
@@ -61,6 +69,13 @@ class ShadowVolume:
     truncate_z: float | None
     light_h: np.ndarray
     two_sided: bool = False
+    #: upper bound of the number of volume layers over any point (:func:`layer_bound`)
+    max_layers: int = 0
+    #: None: one volume (stencil count exact, ``max_layers <= STENCIL_COUNT_RANGE``). Otherwise
+    #: ``((first_triangle, n_triangles), ...)``: closed z-fail sub-volumes of at most
+    #: :data:`BATCH_LAYERS` light-facing faces each (sides + both caps) whose union is the shadow; the
+    #: renderer counts each one separately and ORs the results (exact whatever the depth complexity).
+    batches: tuple | None = None
 
     @property
     def side_triangles(self) -> np.ndarray:
@@ -159,17 +174,26 @@ def shadow_volume(caster: ShadowCaster, light_h, sil: Silhouette, *, caps: bool 
         raise UsageError("the silhouette was computed for a different light")
     if sil.facing.shape[0] != caster.n_faces:
         raise UsageError("the silhouette was computed for a different mesh")
-    n = len(caster.vertices)
     faces = caster.faces
     facing = sil.facing
-    edges = sil.edges
+    lit = np.where(facing[:, None], faces, faces[:, ::-1]) if caster.two_sided else faces[facing]
+    bound = layer_bound(caster.vertices, sil.edges, h, lit)
+    if bound > STENCIL_COUNT_RANGE:
+        return _batched_volume(caster, h, lit, bound, truncate_z)
+    return _volume(caster, h, sil.edges, lit, facing, caps, truncate_z, bound)
+
+
+def _volume(caster, h, edges, lit, facing, caps, truncate_z, bound, far_faces=None):
+    """One closed volume: sides on the directed ``edges (k, 2)``, near cap ``lit``, far cap."""
+    n = len(caster.vertices)
     if caps:
-        if caster.two_sided:
-            near = np.where(facing[:, None], faces, faces[:, ::-1])
-            far = near[:, ::-1]
+        near = lit
+        if far_faces is not None:
+            far = far_faces
+        elif caster.two_sided:
+            far = lit[:, ::-1]
         else:
-            near = faces[facing]
-            far = faces[~facing]
+            far = caster.faces[~facing]
     else:
         near = far = np.empty((0, 3), np.intp)
     # vertices used at the light side (finite) and extruded
@@ -195,9 +219,13 @@ def shadow_volume(caster: ShadowCaster, light_h, sil: Silhouette, *, caps: bool 
     verts[fin_idx.size:] = ext
     a, b = edges[:, 0], edges[:, 1]
     fa, fb, xa, xb = pos_fin[a], pos_fin[b], pos_ext[a], pos_ext[b]
+    # quad fb, fa, xa, xb split along the diagonal from the larger vertex index to the extrusion of the
+    # smaller one, so that the quad of b->a (a neighbouring batch, see _batched_volume) is exactly these
+    # triangles reversed: no rasterisation seam between batches
     side = np.empty((2 * len(edges), 3), np.intp)
-    side[0::2] = np.stack([fb, fa, xa], axis=1)
-    side[1::2] = np.stack([fb, xa, xb], axis=1)
+    up = (a < b)[:, None]
+    side[0::2] = np.where(up, np.stack([fb, fa, xa], axis=1), np.stack([fb, fa, xb], axis=1))
+    side[1::2] = np.where(up, np.stack([fb, xa, xb], axis=1), np.stack([fa, xa, xb], axis=1))
     tris = np.concatenate([side, pos_fin[near], pos_ext[far]]).astype(np.intp)
     verts.flags.writeable = False
     tris.flags.writeable = False
@@ -212,7 +240,120 @@ def shadow_volume(caster: ShadowCaster, light_h, sil: Silhouette, *, caps: bool 
         truncate_z=None if truncate_z is None else float(truncate_z),
         light_h=h,
         two_sided=caster.two_sided,
+        max_layers=int(bound),
     )
+
+
+def _batched_volume(caster, h, lit, bound, truncate_z) -> ShadowVolume:
+    """The volume as closed z-fail sub-volumes of :data:`BATCH_LAYERS` light-facing faces each.
+
+    A batch S of light-facing faces bounds the closed volume S (near cap) + S reversed and extruded (far
+    cap) + sides on S's own boundary edges (directed edges of S whose reverse is not in S). Its winding
+    number at a point is the number of faces of S between the point and the light, so 0..|S|; the union of
+    the batches is the shadow of all light-facing faces, i.e. the shadow.
+    """
+    parts, batches, first = [], [], 0
+    n_side = n_near = n_far = 0
+    truncated = True
+    for k in range(0, len(lit), BATCH_LAYERS):
+        s = lit[k:k + BATCH_LAYERS]
+        e = np.concatenate([s[:, [0, 1]], s[:, [1, 2]], s[:, [2, 0]]])
+        key = e[:, 0].astype(np.int64) * (len(caster.vertices) + 1) + e[:, 1]
+        rkey = e[:, 1].astype(np.int64) * (len(caster.vertices) + 1) + e[:, 0]
+        e = e[~np.isin(key, rkey)]
+        vol = _volume(caster, h, e, s, None, True, truncate_z, bound, far_faces=s[:, ::-1])
+        parts.append(vol)
+        truncated = truncated and vol.truncated
+        batches.append((first, len(vol.triangles)))
+        n_side += vol.n_side
+        n_near += vol.n_near_cap
+        n_far += vol.n_far_cap
+        first += len(vol.triangles)
+    offs = np.cumsum([0] + [len(p.vertices) for p in parts[:-1]])
+    verts = np.concatenate([p.vertices for p in parts])
+    tris = np.concatenate([p.triangles + o for p, o in zip(parts, offs)]).astype(np.intp)
+    verts.flags.writeable = False
+    tris.flags.writeable = False
+    return ShadowVolume(vertices=verts, triangles=tris, n_side=n_side, n_cap=n_near + n_far, n_near_cap=n_near,
+                        n_far_cap=n_far, truncated=bool(truncated and truncate_z is not None),
+                        truncate_z=None if truncate_z is None else float(truncate_z), light_h=h,
+                        two_sided=caster.two_sided, max_layers=int(bound), batches=tuple(batches))
+
+
+def layer_bound(vertices, edges, light_h, lit_faces=None) -> int:
+    """Upper bound of the depth complexity of a shadow volume: the largest number of light-facing faces
+    any ray from the light crosses (so the largest stencil count of its volume).
+
+    Seen from the light, the light-facing faces all project with the same orientation and their boundary
+    is the silhouette, so the number of them over a point equals the winding number of the projected
+    silhouette loops around it. A winding number is at most the number of loop edges a ray from the point
+    crosses on either side, hence at most half the edges a line through it stabs: the bound is the
+    largest such stab count, halved, over horizontal and vertical lines (a sweep over the edges' spans).
+
+    Parameters
+    ----------
+    vertices : (n, 3) float64
+    edges : (k, 2) int
+        Silhouette edges (``Silhouette.edges``).
+    light_h : (4,) float64
+    lit_faces : (m, 3) int, optional
+        The light-facing faces; the trivial bound ``len(lit_faces)`` is returned when it is smaller or
+        when the point light is not strictly on one side of the silhouette (no central projection).
+
+    Returns
+    -------
+    int
+
+    Examples
+    --------
+    >>> from arshadow.mesh import load_occluder
+    >>> from arshadow.silhouette import silhouette
+    >>> box = load_occluder("box:1,1,1")
+    >>> L = [0.0, 0.0, 1.0, 0.0]
+    >>> layer_bound(box.vertices, silhouette(box, L).edges, L)
+    1
+    """
+    h = as_light_h(light_h)
+    e = np.asarray(edges, np.intp).reshape(-1, 2)
+    trivial = len(lit_faces) if lit_faces is not None else 2 ** 31 - 1
+    if len(e) == 0:
+        return 0
+    v = np.asarray(vertices, np.float64)
+    used = np.unique(e.reshape(-1))
+    if h[3] == 0.0:
+        d = h[:3] / np.linalg.norm(h[:3])
+        rel = v[used]
+    else:
+        rel = v[used] - h[:3]
+        c = rel.mean(axis=0)
+        nc = np.linalg.norm(c)
+        if not nc > 0:
+            return int(trivial)
+        d = -c / nc
+    a = np.array([1.0, 0.0, 0.0]) if abs(d[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = np.cross(d, a)
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(d, e1)
+    x, y = rel @ e1, rel @ e2
+    if h[3] != 0.0:
+        depth = rel @ -d
+        if not np.all(depth > 1e-9 * float(np.max(np.abs(rel)))):
+            return int(trivial)
+        x, y = x / depth, y / depth
+    pos = np.full(len(v), -1, np.intp)
+    pos[used] = np.arange(len(used))
+    ea, eb = pos[e[:, 0]], pos[e[:, 1]]
+    best = None
+    for c in (x, y):
+        lo, hi = np.minimum(c[ea], c[eb]), np.maximum(c[ea], c[eb])
+        # closed spans: at a tie the openings come first (conservative)
+        ev = np.concatenate([lo, hi])
+        kind = np.concatenate([np.zeros(len(lo)), np.ones(len(hi))])
+        order = np.lexsort((kind, ev))
+        step = np.where(kind[order] == 0, 1, -1)
+        stab = int(np.cumsum(step).max())
+        best = stab if best is None else min(best, stab)
+    return int(min(best // 2, trivial))
 
 
 def near_plane_radius(znear: float, width: int, height: int, fx: float, fy: float, cx=None, cy=None) -> float:

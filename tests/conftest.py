@@ -80,6 +80,12 @@ class Tolerances:
     penumbra_profile_64: float = 0.1  # rendered profile vs exact disc profile, 64 samples (measured 0.04)
     penumbra_1090_rel: float = 0.05  # 10-90 % penumbra width of the sampled disc vs exact (256 samples)
     penumbra_centre_rel: float = 0.02  # 50 % crossing of a sampled sun cone vs the centre direction's shadow
+    # stress suite (issue 12)
+    stress_stack_iou: float = 0.99  # stacked plates (10..300 layers) vs the oracle at 200x150
+    stress_f32_pixels: int = 3  # boundary pixels that may flip between float32-exact and float64 vertices
+    stress_far_iou: float = 0.99  # box 1 km away, infinite far plane, vs the oracle
+    stress_geometry_iou: float = 0.99  # random configurations: rendered ground mask vs exact union
+    contact_seam_mean: float = 0.03  # mean signed error (share of the photo's light) over contact pixels
 
 
 TOL = Tolerances()

@@ -24,8 +24,16 @@ COMMAND_MODULES = ("render", "demo", "video", "pose", "calibrate", "marker", "si
 EXIT_OK, EXIT_SOME_FAILED, EXIT_USAGE = 0, 1, 2
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line usage errors (``PROG: error: MESSAGE (see PROG --help)``, exit 2) instead of
+    the usage block; subcommand parsers inherit it."""
+
+    def error(self, message):
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="arshadow",
         description="Composite a virtual object and its exact hard shadow into photos of an ArUco marker.",
     )

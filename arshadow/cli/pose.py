@@ -24,12 +24,13 @@ def register(subparsers) -> None:
     p.add_argument("images", nargs="+", metavar="IMAGE", help="photos (anything OpenCV reads)")
     p.add_argument("--calib", required=True, metavar="FILE",
                    help="camera calibration (OpenCV YAML/XML/JSON or ROS camera_info YAML)")
-    p.add_argument("--dictionary", default="DICT_6X6_250", metavar="D",
-                   help="marker dictionary name or custom dictionary file (default DICT_6X6_250)")
+    p.add_argument("--dictionary", metavar="D",
+                   help="ArUco dictionary name or custom dictionary file (default DICT_6X6_250; a --board file "
+                        "names its own)")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--marker-length", type=float, metavar="M", help="printed marker side, metres")
     g.add_argument("--board", metavar="FILE", help="board file (gridboard or charuco; see calib/README.md)")
-    p.add_argument("--marker-id", type=int, metavar="N", help="use this marker id (default: the lowest id found)")
+    p.add_argument("--marker-id", type=int, metavar="N", help="use only this marker id as the reference (default: the lowest id found)")
     p.add_argument("--refine", default=None, choices=("none", "subpix", "contour", "apriltag"),
                    help="corner refinement (default: subpix, or the --detector-params file's own)")
     p.add_argument("--detector-params", metavar="FILE", help="cv2.aruco.DetectorParameters YAML file")

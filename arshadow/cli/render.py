@@ -36,9 +36,9 @@ def _floats(n: int, what: str):
         try:
             vals = tuple(float(v) for v in text.split(","))
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{what}: expected {n} comma-separated numbers, got {text!r}") from None
+            raise argparse.ArgumentTypeError(f"expected {n} comma-separated numbers, got {text!r}") from None
         if len(vals) != n or not all(v == v and abs(v) != float("inf") for v in vals):
-            raise argparse.ArgumentTypeError(f"{what}: expected {n} finite comma-separated numbers, got {text!r}")
+            raise argparse.ArgumentTypeError(f"expected {n} finite comma-separated numbers, got {text!r}")
         return vals
 
     return parse
@@ -49,9 +49,9 @@ def _positive(what: str, integer: bool = False):
         try:
             v = int(text) if integer else float(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{what}: not a number: {text!r}") from None
+            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
         if not (v > 0 and v != float("inf")):
-            raise argparse.ArgumentTypeError(f"{what}: must be positive, got {text!r}")
+            raise argparse.ArgumentTypeError(f"must be a positive number, got {text!r}")
         return v
 
     return parse
@@ -66,9 +66,10 @@ def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> No
     m.add_argument("--marker-length", type=_positive("--marker-length"), metavar="M",
                    help="side of the printed marker in metres (single-marker mode)")
     m.add_argument("--board", metavar="B", help="board file (GridBoard or ChArUco) instead of one marker")
-    g.add_argument("--dictionary", default="DICT_6X6_250", metavar="D",
-                   help="ArUco dictionary name or custom dictionary file (default DICT_6X6_250)")
-    g.add_argument("--marker-id", type=int, metavar="N", help="use only this marker id (default: the first found)")
+    g.add_argument("--dictionary", metavar="D",
+                   help="ArUco dictionary name or custom dictionary file (default DICT_6X6_250; a --board file "
+                        "names its own)")
+    g.add_argument("--marker-id", type=int, metavar="N", help="use only this marker id as the reference (default: the lowest id found)")
     o = p.add_argument_group("virtual object")
     o.add_argument("--model", required=require, metavar="M",
                    help="mesh file (OBJ/PLY/STL/GLB/OFF, metres) or primitive box:WX,WY,HZ | cylinder:R,H | "
@@ -189,13 +190,14 @@ def run(args) -> int:
 
     debug = bool(getattr(args, "debug", False))
     quiet_opencv(debug)
-    inputs = expand_inputs(args.images)
-    session = Session(scene_from_args(args))  # loads the scene: a bad one is exit 2
-    outdir = Path(args.output)
-    if outdir.exists() and not outdir.is_dir():
-        from ..errors import UsageError
+    from ..io import check_output_file, check_output_folder
 
-        raise UsageError(f"-o {outdir}: exists and is not a folder")
+    inputs = expand_inputs(args.images)
+    # output paths first: a bad -o / --report is one usage error before any work, not one per photo
+    outdir = check_output_folder(args.output, "-o")
+    if args.report:
+        check_output_file(args.report, "--report")
+    session = Session(scene_from_args(args))  # loads the scene: a bad one is exit 2
     with session:
         items, failed = _render_all(args, session, inputs, outdir, debug)
     if args.report:
@@ -207,7 +209,7 @@ def run(args) -> int:
 
 def _render_all(args, session, inputs, outdir, debug):
     from ..errors import ArshadowError, CalibrationError, ImageError, MarkerNotFoundError, UsageError
-    from ..io import read_image, write_image
+    from ..io import apply_orientation, exif_orientation, read_image, write_image
     from ..report import ReportItem
 
     import numpy as np
@@ -228,16 +230,18 @@ def _render_all(args, session, inputs, outdir, debug):
             if any(_same_file(out_path, i) or _same_file(mask_path, i) for i in input_set):
                 raise ImageError(f"{out_path}: output would overwrite an input; choose another -o folder")
             image = read_image(inp)
+            orientation = exif_orientation(inp)  # processed as stored (the calibration's frame)
             bufs = buffers.setdefault(image.shape[:2], (np.empty(image.shape, np.uint8),
                                                         np.empty(image.shape[:2], np.uint8)))
             # results are encoded right away, so one output buffer per size is reused
             res = session.process(image, name=str(inp), want_mask=args.save_mask, out=bufs[0], mask_out=bufs[1])
             out, mask, item = res.composite, res.mask, res.item
             params = [int(_imwrite_quality(out_path)), 95] if _imwrite_quality(out_path) else None
-            write_image(out_path, out, params)
+            # outputs upright as a viewer shows the input (EXIF orientation; they carry no EXIF)
+            write_image(out_path, apply_orientation(out, orientation), params)
             item.output = str(out_path)
             if args.save_mask:
-                write_image(mask_path, mask)
+                write_image(mask_path, apply_orientation(mask, orientation))
                 item.mask = str(mask_path)
             if not args.quiet:
                 t = item.timings_ms.get("total", 0.0)

@@ -10,7 +10,10 @@ Frame layout (one framebuffer, all renderbuffers, optional MSAA)::
 
 Stencil bits: bit 7 = "this sample sees the ground plane" (set by the ground depth pass), bit 6 = "this
 sample sees the occluder", bits 0-5 = the shadow-volume count of the current light (modulo 64, two-sided
-INCR_WRAP/DECR_WRAP with write mask 0x3F).
+INCR_WRAP/DECR_WRAP with write mask 0x3F). Modulo 64 is exact only while no sample lies in more than 63
+volume layers; :func:`arshadow.volume.shadow_volume` bounds the layers (:func:`~arshadow.volume.layer_bound`)
+and otherwise hands closed sub-volumes (``ShadowVolume.batches``) of <= 31 layers each: those are counted
+one at a time in bits 0-4 and OR-ed into bit 5 (``SHADOWED_BIT``), so any depth complexity is exact.
 
 Passes per frame
 ----------------
@@ -55,6 +58,9 @@ __all__ = ["LightPass", "RenderResult", "ShadowRenderer", "load_shader", "srgb_t
 GROUND_BIT = 0x80
 OCCLUDER_BIT = 0x40
 COUNT_MASK = 0x3F
+#: batched volumes (more layers than a 6-bit count holds): bits 0-4 count one batch, bit 5 ORs the batches
+BATCH_COUNT_MASK = 0x1F
+SHADOWED_BIT = 0x20
 #: default occluder colour (sRGB) when the mesh has none and none is given
 DEFAULT_COLOR = (0.8, 0.8, 0.8)
 
@@ -626,6 +632,8 @@ class ShadowRenderer:
                     smat = np.asarray(p.shadow_matrix, dtype=np.float64)
                     self.prog_volume["u_mvp"].write((mvp @ smat).T.astype(np.float32).tobytes())
                     bufs.planar_vao.render(moderngl.TRIANGLES, vertices=bufs.n_indices)
+            elif getattr(p.volume, "batches", None):
+                self._batched_volume(p.volume.batches, rng[0], mvp_bytes)
             else:
                 if p.mode == "zpass":
                     gl.glStencilOpSeparate(G.GL_FRONT, G.GL_KEEP, G.GL_KEEP, G.GL_INCR_WRAP)
@@ -756,6 +764,39 @@ class ShadowRenderer:
             gl.glBlitFramebuffer(0, 0, sw, sh, 0, 0, dw, dh, G.GL_COLOR_BUFFER_BIT, filt)
         gl.draw_buffers(2)
         gl.glBindFramebuffer(G.GL_FRAMEBUFFER, 0)
+
+    def _batched_volume(self, batches, first_index, mvp_bytes) -> None:
+        """Count a batched volume (:attr:`arshadow.volume.ShadowVolume.batches`) exactly: each closed
+        z-fail batch is counted in bits 0-4 (its count is 0..31, so exact modulo 32), then a full-viewport
+        pass sets :data:`SHADOWED_BIT` where that count is not 0 and the count bits are cleared for the
+        next batch. Leaves ``SHADOWED_BIT`` set where any batch (so the union: the shadow) covers the
+        sample and the count bits 0, as the mask and occluder-lighting passes expect."""
+        import moderngl
+
+        ctx, gl = self.ctx, self.gl
+        for first_tri, n_tri in batches:
+            ctx.enable_only(moderngl.DEPTH_TEST)
+            ctx.depth_func = "<"
+            gl.glColorMask(0, 0, 0, 0)
+            gl.glEnable(G.GL_DEPTH_CLAMP)
+            gl.glStencilMask(BATCH_COUNT_MASK)
+            gl.glStencilFunc(G.GL_ALWAYS, 0, 0xFF)
+            gl.glStencilOpSeparate(G.GL_BACK, G.GL_KEEP, G.GL_INCR_WRAP, G.GL_KEEP)
+            gl.glStencilOpSeparate(G.GL_FRONT, G.GL_KEEP, G.GL_DECR_WRAP, G.GL_KEEP)
+            self.prog_volume["u_mvp"].write(mvp_bytes)
+            self._vol_vao.render(moderngl.TRIANGLES, vertices=3 * n_tri, first=first_index + 3 * first_tri)
+            gl.glDisable(G.GL_DEPTH_CLAMP)
+            # count != 0 -> set the shadowed bit (ref & mask = 0: passes where the count is not 0; REPLACE
+            # writes ref = SHADOWED_BIT through the write mask SHADOWED_BIT)
+            ctx.enable_only(moderngl.NOTHING)
+            gl.glStencilMask(SHADOWED_BIT)
+            gl.glStencilFunc(G.GL_NOTEQUAL, SHADOWED_BIT, BATCH_COUNT_MASK)
+            gl.glStencilOp(G.GL_KEEP, G.GL_KEEP, G.GL_REPLACE)
+            self._fs_vao.render(moderngl.TRIANGLES, vertices=3)
+            gl.glStencilMask(BATCH_COUNT_MASK)
+            gl.glClear(G.GL_STENCIL_BUFFER_BIT)
+        # the mask pass tests "stencil > GROUND_BIT": with the count bits 0 that is "shadowed bit set"
+        ctx.enable_only(moderngl.DEPTH_TEST)
 
     def _light_occluder(self, bufs, p, i, mvp_bytes, eye, kd, ks, shininess, stencil: bool):
         """Add one light's Phong diffuse + specular to the occluder where its count is 0."""
