@@ -249,8 +249,12 @@ class ShadowMapRenderer:
         self.prog_occ["u_ambient"].value = float(ambient)
         self.prog_occ["u_is_ground"].value = 0
         self.prog_ground["u_is_ground"].value = 1
+        cull = moderngl.CULL_FACE if bufs.cull else 0  # closed meshes: back faces are never visible
+        ctx.cull_face = "back"
         if draw_occluder:
+            ctx.enable_only(moderngl.DEPTH_TEST | cull)
             bufs.vao.render(moderngl.TRIANGLES, vertices=bufs.n_indices)
+            ctx.enable_only(moderngl.DEPTH_TEST)
         self._ground_vao.render(moderngl.TRIANGLES, vertices=12)
 
         # -- per light: depth map, then the ground and the occluder again with the map
@@ -289,6 +293,7 @@ class ShadowMapRenderer:
             self.prog_ground["u_weight"].value = w
             self._ground_vao.render(moderngl.TRIANGLES, vertices=12)
             if draw_occluder:
+                ctx.enable_only(moderngl.DEPTH_TEST | moderngl.BLEND | cull)
                 po = self.prog_occ
                 po["u_light"].value = tuple(float(x) for x in lh)
                 po["u_light_color"].value = tuple(float(x) * w for x in np.asarray(p.color, np.float64)[:3])
