@@ -67,7 +67,10 @@ class RenderOptions:
     shadow_color : (3,) float
         Linear RGB tint of a full shadow (black: plain darkening).
     shadow_method : str
-        ``"volume"`` (stencil shadow volumes, exact) or ``"planar"`` (projection shadows, paper 002/004).
+        ``"volume"`` (stencil shadow volumes, exact), ``"planar"`` (projection shadows, paper 002/004) or
+        ``"shadowmap"`` (the shadow-map baseline, :class:`arshadow.gl.shadowmap.ShadowMapRenderer`).
+    shadowmap_size : int
+        Shadow map side in texels (``shadow_method="shadowmap"`` only).
     silhouette : str
         Silhouette detector name (``adjacency``, ``triangular``, ``vnv``, ``hsd``, ``delta_plus``).
     soft_samples : int
@@ -92,6 +95,7 @@ class RenderOptions:
     opacity: float = 0.7
     shadow_color: tuple = (0.0, 0.0, 0.0)
     shadow_method: str = "volume"
+    shadowmap_size: int = 2048
     silhouette: str = "adjacency"
     soft_samples: int = 1
     aa: int = 0
@@ -105,8 +109,8 @@ class RenderOptions:
     def check(self) -> RenderOptions:
         if not (0.0 <= float(self.opacity) <= 1.0):
             raise UsageError(f"--opacity {self.opacity}: must be in [0, 1]")
-        if self.shadow_method not in ("volume", "planar"):
-            raise UsageError(f"--shadow-method {self.shadow_method!r}: choose volume or planar")
+        if self.shadow_method not in ("volume", "planar", "shadowmap"):
+            raise UsageError(f"--shadow-method {self.shadow_method!r}: choose volume, planar or shadowmap")
         if int(self.soft_samples) < 1:
             raise UsageError(f"--soft-samples {self.soft_samples}: must be >= 1")
         if int(self.aa) < 0:
@@ -284,6 +288,11 @@ class Compositor:
     # -- cached per run ------------------------------------------------------------------------------
     @property
     def renderer(self):
+        if self._renderer is None and self.options.shadow_method == "shadowmap":
+            from .gl.shadowmap import ShadowMapRenderer
+
+            self._renderer = ShadowMapRenderer(self.ctx, map_size=int(self.options.shadowmap_size),
+                                               samples=int(self.options.aa))
         if self._renderer is None:
             from .gl.renderer import ShadowRenderer
 
@@ -479,8 +488,8 @@ class Compositor:
         (``canvas = (u0, v0, w, h)`` pinhole pixels of ``intr``), not ``znear`` alone; without ``intr`` the
         radius of a 90-degree-per-axis frustum is used (conservative for any narrower camera).
         """
-        if self.options.shadow_method == "planar":
-            return ["planar"] * len(self._lights)
+        if self.options.shadow_method in ("planar", "shadowmap"):
+            return [self.options.shadow_method] * len(self._lights)
         from .volume import camera_may_be_in_shadow, near_plane_radius
 
         if intr is not None and canvas is not None and canvas[2] > 0 and canvas[3] > 0:
@@ -547,7 +556,7 @@ class Compositor:
             modes = self.modes_for(cam_from_world, znear, intr, canvas)
         passes, n_edges = [], 0
         for ls, mode in zip(self._lights, modes):
-            if mode == "planar":
+            if mode in ("planar", "shadowmap"):  # no volume (the shadow map renderer ignores it)
                 vol = None
                 sil = None
             else:
@@ -556,7 +565,7 @@ class Compositor:
             if sil is not None:
                 n_edges += int(len(sil.edges))
             passes.append(LightPass(light_h=ls.light_h, weight=ls.weight, volume=vol, mode=mode))
-        mode = None if not modes else ("planar" if "planar" in modes else ("zfail" if "zfail" in modes else "zpass"))
+        mode = None if not modes else next((m for m in ("shadowmap", "planar", "zfail") if m in modes), "zpass")
 
         info = {"mode": mode, "modes": list(modes), "silhouette_edges": n_edges, "roi": list(roi),
                 "canvas": list(canvas), "znear": znear}
