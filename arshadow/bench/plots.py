@@ -47,35 +47,52 @@ _FAMILY_STYLE = {"stencil": ("tab:blue", "o"), "planar": ("tab:purple", "D"), "s
                  "stencil scaled": ("tab:orange", "v"), "shadow map": ("tab:red", "^")}
 
 
-def render_pareto(rows, out_dir, label, key="xor_px") -> list[Path]:
-    """Per scene: render time against error (pixels differing from the exact shadow), Pareto front."""
+def _short(config: str) -> str:
+    return (config.replace("shadow map ", "SM ").replace(", truncated", " trunc").replace("render at ", "")
+            .replace(" resolution, bilinear upscale", " res").replace("supersample", "SS")
+            .replace("planar projection (paper 002)", "planar").replace(" (caps)", ""))
+
+
+def render_pareto(rows, out_dir, label) -> list[Path]:
+    """Per scene: render time against (left) 1 + pixels differing from the exact shadow, with the Pareto
+    front, and (right) the edge coverage error that anti-aliasing reduces."""
     from .render import pareto
 
     paths = []
     for i, scene in enumerate(dict.fromkeys(r["scene"] for r in rows)):
         rs = [r for r in rows if r["scene"] == scene]
-        fig, ax = _fig(f"Shadow render time vs error - {scene} ({rs[0]['roi_w']}x{rs[0]['roi_h']} px ROI)", label)
-        for fam, (col, mk) in _FAMILY_STYLE.items():
-            pts = [r for r in rs if r["family"] == fam]
-            if not pts:
-                continue
-            x = [r["time_ms"] for r in pts]
-            y = [max(r[key], 0.5) for r in pts]
-            err = [[r["time_ms"] - r["time_q25"] for r in pts], [r["time_q75"] - r["time_ms"] for r in pts]]
-            ax.errorbar(x, y, xerr=err, fmt=mk, color=col, label=fam, ms=7, capsize=2, lw=1)
-            for r, xx, yy in zip(pts, x, y):
-                short = (r["config"].replace("shadow map ", "SM ").replace(", truncated", " trunc")
-                         .replace("render at ", "").replace(" resolution, bilinear upscale", " res")
-                         .replace(" (default)", " (default)").replace("supersample", "SS"))
-                ax.annotate(short, (xx, yy), textcoords="offset points", xytext=(5, 4), fontsize=7, color=col)
-        front = pareto(rs, key)
-        ax.plot([r["time_ms"] for r in front], [max(r[key], 0.5) for r in front], "k--", lw=1, alpha=0.6,
-                label="Pareto front")
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.set_xlabel("render time per frame, ms (median, bars = IQR; log)")
-        ax.set_ylabel("pixels differing from the exact shadow (log; 0 drawn at 0.5)")
-        ax.legend(fontsize=8, loc="upper right")
+        fig, ax = _fig(f"Shadow render time vs error - {scene} ({rs[0]['roi_w']}x{rs[0]['roi_h']} px ROI of 1280x720)",
+                       label, size=(13.5, 6.2))
+        fig.delaxes(ax)
+        axes = fig.subplots(1, 2)
+        for ax, key, ylab in ((axes[0], "xor_px", "1 + pixels differing from the exact shadow (mask >= 0.5; log)"),
+                              (axes[1], "coverage_mae", "edge coverage error: mean |mask - exact area coverage|\n"
+                                                        "within 2 px of the edge (lower = smoother, truer edge)")):
+            ax.grid(True, which="both", alpha=0.3)
+            for fam, (col, mk) in _FAMILY_STYLE.items():
+                pts = sorted((r for r in rs if r["family"] == fam), key=lambda r: r["time_ms"])
+                if not pts:
+                    continue
+                x = [r["time_ms"] for r in pts]
+                y = [r[key] + (1 if key == "xor_px" else 0) for r in pts]
+                err = [[r["time_ms"] - r["time_q25"] for r in pts], [r["time_q75"] - r["time_ms"] for r in pts]]
+                ax.errorbar(x, y, xerr=err, fmt=mk, color=col, label=fam, ms=7, capsize=2, lw=1)
+                for k, (r, xx, yy) in enumerate(zip(pts, x, y)):
+                    dy = (6, -11, 15, -20)[k % 4]
+                    ax.annotate(_short(r["config"]), (xx, yy), textcoords="offset points", xytext=(6, dy), fontsize=7,
+                                color=col)
+            front = pareto(rs, key)
+            ax.plot([r["time_ms"] for r in front], [r[key] + (1 if key == "xor_px" else 0) for r in front], "k--",
+                    lw=1, alpha=0.6, label="Pareto front")
+            ax.set_xscale("log")
+            if key == "xor_px":
+                ax.set_yscale("log")
+            ax.set_xlabel("render time per frame, ms (median, bars = IQR; log)")
+            ax.set_ylabel(ylab, fontsize=9)
+        axes[0].legend(fontsize=8, loc="upper right")
+        axes[0].set_title("hard-edge accuracy", fontsize=10)
+        axes[1].set_title("anti-aliased edge accuracy", fontsize=10)
+        fig.suptitle(f"Shadow render time vs error - {scene} ({rs[0]['roi_w']}x{rs[0]['roi_h']} px ROI of 1280x720)")
         paths.append(_save(fig, Path(out_dir) / f"render_pareto_{i}.png"))
     return paths
 

@@ -31,8 +31,9 @@ layout(location = 1) out vec4 o_mask;
 float visibility() {
     if (v_light.w <= 0.0) return 1.0;               // behind the light: not in the map
     vec3 p = v_light.xyz / v_light.w * 0.5 + 0.5;
-    if (p.z >= 1.0) return 1.0;                       // beyond the far plane (which encloses the caster)
-    float z = p.z - u_bias;
+    // receivers beyond the far plane (which encloses the caster) compare as the far plane: shadowed
+    // wherever the map holds any caster depth, lit where it is empty (cleared to 1)
+    float z = min(p.z, 1.0) - u_bias;
     int h = u_pcf / 2;
     float s = 0.0;
     for (int j = -h; j <= h; ++j)
