@@ -153,6 +153,9 @@ class ShadowMapRenderer:
         self.depth_fbo = ctx.framebuffer(depth_attachment=self.depth_tex)
         self._fbo = None
         self._size = (0, 0)
+        # moderngl rebinds "the last framebuffer used" after creating one: leave the default bound instead,
+        # so that a framebuffer released here is never rebound later (GL_INVALID_OPERATION)
+        self._default_fbo = ctx.screen if ctx.screen is not None else ctx.detect_framebuffer(0)
         self._caster = (None, None, None)  # (weakref, key, _CasterBuffers)
         self._released = False
 
@@ -166,6 +169,7 @@ class ShadowMapRenderer:
         """Free the GL objects this renderer made (programs stay cached on the context)."""
         if self._released:
             return
+        self._default_fbo.use()
         objs = [self._ground_vao, self._ground_vbo, self.depth_fbo, self.depth_tex]
         if self._fbo is not None:
             objs += [self._fbo, *self._rbs]
@@ -313,7 +317,7 @@ class ShadowMapRenderer:
                            np.float32).reshape(height, width, 4)[::-1]
         c1 = np.frombuffer(fbo.read(viewport=(0, 0, width, height), components=2, attachment=1, dtype="f4"),
                            np.float32).reshape(height, width, 2)[::-1]
-        ctx.screen.use() if ctx.screen is not None else None
+        self._default_fbo.use()
         mask = np.clip(c1[..., 0], 0.0, 1.0)
         gcov = np.ascontiguousarray(c1[..., 1])
         t3 = time.perf_counter()
