@@ -26,11 +26,13 @@ SECTIONS = ("silhouettes", "render", "tracking", "pipeline")
 #: settings of ``arshadow bench --quick`` (under 3 minutes on a loaded 2-core machine)
 QUICK = dict(quick=True, sizes=(1470, 10000), lights=4, repeat=3, ref_sizes=(200, 1470), vnv_max_faces=1470,
              warmup=2, render_repeat=7, track_resolutions=((1280, 720),), poses=4,
-             resolutions=((640, 480), (1280, 720), (1920, 1080)), frames=6, light_counts=(1, 2, 4))
+             resolutions=((640, 480), (1280, 720), (1920, 1080)), frames=6, light_counts=(1, 2, 4),
+             soft_samples=(1, 4, 16))
 #: settings of the full run
 FULL = dict(quick=False, sizes=(1470, 10000, 100000, 1000000), lights=8, repeat=5, ref_sizes=(200, 1470, 10000),
             vnv_max_faces=1470, warmup=3, render_repeat=20, track_resolutions=((640, 480), (1280, 720), (1920, 1080)),
-            poses=20, resolutions=((640, 480), (1280, 720), (1920, 1080)), frames=30, light_counts=(1, 2, 4, 8))
+            poses=20, resolutions=((640, 480), (1280, 720), (1920, 1080)), frames=30, light_counts=(1, 2, 4, 8),
+            soft_samples=(1, 2, 4, 8, 16, 32, 64))
 
 
 def _csv_rows(results: dict) -> dict:

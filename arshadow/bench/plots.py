@@ -44,7 +44,8 @@ def _save(fig, path) -> Path:
 
 
 _FAMILY_STYLE = {"stencil": ("tab:blue", "o"), "planar": ("tab:purple", "D"), "stencil AA": ("tab:green", "s"),
-                 "stencil scaled": ("tab:orange", "v"), "shadow map": ("tab:red", "^")}
+                 "stencil scaled": ("tab:orange", "v"), "shadow map": ("tab:red", "^"),
+                 "soft shadow": ("tab:brown", "P")}
 
 
 def _short(config: str) -> str:
@@ -188,12 +189,12 @@ def fps_vs_lights(rows, out_dir, label) -> Path:
 def tracking(rows, out_dir, label) -> Path:
     fig, ax = _fig("Tracking: detection + pose time vs rotation error (synthetic photos, true pose known)", label)
     markers = {"640x480": "o", "1280x720": "s", "1920x1080": "D"}
-    for r in rows:
+    for k, r in enumerate(sorted(rows, key=lambda r: (r["rot_deg_median"] or 0))):
         mk = markers.get(r["resolution"], "o")
         ax.errorbar(r["time_ms"], r["rot_deg_median"], xerr=[[r["time_ms"] - r["time_q25"]], [r["time_q75"] - r["time_ms"]]],
                     fmt=mk, capsize=2, ms=6)
         ax.annotate(f"{r['config']} ({r['resolution']})", (r["time_ms"], r["rot_deg_median"]), textcoords="offset points",
-                    xytext=(5, 3), fontsize=7)
+                    xytext=(6, (4, -10, 12)[k % 3]), fontsize=7)
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("time per photo, ms (median over photos, bars = IQR; log)")
