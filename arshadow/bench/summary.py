@@ -62,7 +62,7 @@ def silhouettes(res, plots) -> list[str]:
           "paper 000's sec. VI formula at n = faces, m = 3 (its main term) and paper 003's n log2 n.", ""]
     rows = []
     for r in ref:
-        formula = (f"{_f(r['formula_main_term'])} ({'compares' if r['algorithm'] == 'TA' else 'mults'}); total {_f(r['formula_total'])}"
+        formula = (f"{_f(r['formula_main_term'], 0)} ({'compares' if r['algorithm'] == 'TA' else 'mults'}); total {_f(r['formula_total'], 0)}"
                    if r["formula_main_term"] is not None else
                    f"n log2 n = {_f(r['paper_n_log2_n'], 0)}; n^2 = {_f(r['paper_n2'], 0)}; BVH version: {_f(r['fast_bvh_tests'])} tests")
         rows.append([r["mesh"], _f(r["faces"]), r["algorithm"], f"{_f(r['counted_ops'])} {r['counted_what']}", formula,
@@ -212,6 +212,47 @@ def pipeline(res, meta, plots) -> list[str]:
     return L
 
 
+def headline(results: dict) -> str:
+    """The key figures as one small Markdown table (the README quotes it)."""
+    rows = []
+    if "silhouettes" in results:
+        d = results["silhouettes"]["detectors"]
+        big = max(r["faces"] for r in d)
+        for m in ("adjacency", "delta_plus"):
+            r = next((r for r in d if r["faces"] == big and r["method"] == m), None)
+            if r:
+                rows.append([f"{m} silhouette, {_f(big)} faces", f"{_t(r)} ms per light",
+                             f"misses {100 * r['missed_edges_frac']:.0f} % of the silhouette edges" if r["missed_edges_frac"]
+                             else "exact"])
+        dp = [r for r in results["silhouettes"]["reference"] if r["algorithm"] == "Delta+"]
+        if dp:
+            r = dp[-1]
+            rows.append([f"Delta+ as written (paper 003), {_f(r['vertices'])} vertices",
+                         f"{_f(r['counted_ops'])} ray-face tests", f"paper: n log2 n = {_f(r['paper_n_log2_n'], 0)}"])
+    if "render" in results:
+        from .render import equal_time
+
+        for e in equal_time(results["render"]):
+            st, sm = e["stencil"], e["shadowmap_not_slower"] or e["shadowmap_nearest_time"]
+            rows.append([f"stencil volumes, {e['scene']}", f"{_t(st)} ms", f"IoU {st['iou']:.5f}, {_f(st['xor_px'])} px wrong"])
+            rows.append([f"{sm['config']}, {e['scene']}", f"{_t(sm)} ms", f"IoU {sm['iou']:.5f}, {_f(sm['xor_px'])} px wrong"])
+    if "tracking" in results:
+        for r in results["tracking"]:
+            if r["resolution"] == "1280x720" and ("subpix, full" in r["config"] or "ROI" in r["config"] or "board" in r["config"]):
+                rows.append([f"tracking 1280x720, {r['config']}", f"{_f(r['time_ms'], 1)} ms",
+                             f"rotation error median {_f(r['rot_deg_median'], 3)} deg"])
+    if "pipeline" in results:
+        p = results["pipeline"]
+        r = next((r for r in p["stages"] if r["resolution"] == "1280x720" and r["shadow_method"] == "volume"), None)
+        if r:
+            rows.append(["pipeline 1280x720, 8 536 faces, 1 light", f"{_t(r, 'wall')} ms", f"{_f(r['fps'], 1)} FPS "
+                         "(paper 003: 74.35 FPS on a GPU)"])
+        for r in p["lights"]:
+            if r["shadow_method"] == "volume" and r["lights"] == max(x["lights"] for x in p["lights"]):
+                rows.append([f"pipeline 1280x720, {r['lights']} lights", f"{_t(r, 'wall')} ms", f"{_f(r['fps'], 1)} FPS"])
+    return _table(["what", "time (median [IQR])", "error / note"], rows)
+
+
 def markdown(results: dict, meta: dict, plots: dict, duration_s: float, plots_hint=None) -> str:
     L = ["# arshadow benchmark: run time against error", "",
          f"Settings: **{meta.get('settings')}**, run in {duration_s:.0f} s "
@@ -223,6 +264,7 @@ def markdown(results: dict, meta: dict, plots: dict, duration_s: float, plots_hi
          "The raw numbers are in the CSV files beside this summary.", ""]
     if plots_hint:
         L += [f"_No plots: {plots_hint}._", ""]
+    L += ["## Key figures", "", headline(results), ""]
     if "silhouettes" in results:
         L += silhouettes(results["silhouettes"], plots)
     if "render" in results:
