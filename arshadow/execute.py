@@ -68,7 +68,7 @@ def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings=N
     passes, n_edges = [], 0
     for lp in plan.lights:
         ls = geometry.lights[lp.index]
-        if lp.mode == "planar":
+        if lp.mode in ("planar", "shadowmap"):  # no volume (the shadow-map renderer ignores it)
             vol = sil = None
         else:
             vol = geometry.volume(ls, caps=lp.caps, timings=timings)

@@ -125,9 +125,7 @@ class Compositor:
             if self._make_renderer is not None:
                 self._renderer = self._make_renderer(self.options)
             else:
-                from .gl.renderer import ShadowRenderer
-
-                self._renderer = ShadowRenderer(self.ctx, samples=int(self.options.aa))
+                self._renderer = default_renderer(self.ctx, self.options)
         return self._renderer
 
     def close(self):
@@ -367,3 +365,15 @@ class Compositor:
 
             lens = self._lenses[intr] = LensWarp(intr)
         return lens
+
+
+def default_renderer(ctx, options: RenderOptions):
+    """The renderer ``options`` ask for, on ``ctx``: the stencil :class:`arshadow.gl.renderer.ShadowRenderer`
+    (volumes and planar shadows), or the :class:`arshadow.gl.shadowmap.ShadowMapRenderer` baseline."""
+    if options.shadow_method == "shadowmap":
+        from .gl.shadowmap import ShadowMapRenderer
+
+        return ShadowMapRenderer(ctx, map_size=int(options.shadowmap_size), samples=int(options.aa))
+    from .gl.renderer import ShadowRenderer
+
+    return ShadowRenderer(ctx, samples=int(options.aa))

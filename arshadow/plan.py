@@ -333,8 +333,8 @@ class SceneGeometry:
         (``canvas = (u0, v0, w, h)`` pinhole pixels of ``intr``), not ``znear`` alone; without ``intr`` the
         radius of a 90-degree-per-axis frustum is used (conservative for any narrower camera).
         """
-        if self.options.shadow_method == "planar":
-            return ["planar"] * len(self.lights)
+        if self.options.shadow_method in ("planar", "shadowmap"):
+            return [self.options.shadow_method] * len(self.lights)
         from .volume import camera_may_be_in_shadow, near_plane_radius
 
         if intr is not None and canvas is not None and canvas[2] > 0 and canvas[3] > 0:
@@ -439,7 +439,7 @@ class FramePlan:
         modes = self.modes
         if not modes:
             return None
-        return "planar" if "planar" in modes else ("zfail" if "zfail" in modes else "zpass")
+        return next((m for m in ("shadowmap", "planar", "zfail") if m in modes), "zpass")
 
     @property
     def empty(self) -> bool:
@@ -499,7 +499,7 @@ def plan_frame(geometry: SceneGeometry, intr, cam_from_world, width: int, height
     plan.roi = plan.decide("roi", roi, why if rect is not None else f"whole photo: {why}")
     plan.canvas = plan.decide("canvas", canvas, "the pinhole pixels the distorted ROI samples" if lens is not None
                               else "the ROI (no lens distortion)")
-    if opts.shadow_method != "planar":
+    if opts.shadow_method == "volume":
         plan.decide("truncate", bool(opts.truncate),
                     "volumes end just below the ground (RenderOptions.truncate)" if opts.truncate
                     else "volumes extruded to infinity (RenderOptions.truncate=False)")
@@ -510,16 +510,16 @@ def plan_frame(geometry: SceneGeometry, intr, cam_from_world, width: int, height
     for i, (ls, mode) in enumerate(zip(geometry.lights, modes)):
         if forced:
             reason = "forced by the caller"
-        elif mode == "planar":
-            reason = "projection shadows asked for (shadow_method='planar')"
+        elif mode in ("planar", "shadowmap"):
+            reason = f"{mode} shadows asked for (shadow_method={mode!r})"
         elif mode == "zfail":
             reason = "the camera's near rectangle may be inside this light's shadow volume"
         else:
             reason = "the camera's near rectangle is provably outside this light's shadow volume"
-        planar = mode == "planar"
+        planar = mode in ("planar", "shadowmap")  # no volume
         caps = mode == "zfail"
         reuse = planar or caps in ls.volumes
-        lp = LightPlan(i, ls.light_h, ls.weight, "planar" if planar else "volume", mode, caps, reuse, reason)
+        lp = LightPlan(i, ls.light_h, ls.weight, mode if planar else "volume", mode, caps, reuse, reason)
         plan.lights.append(lp)
         plan.decide(f"light{i}.mode", mode, reason)
         if not planar:

@@ -49,6 +49,9 @@ __all__ = ["RenderOptions", "TrackerSpec", "ModelSpec", "SceneSpec", "Scene", "s
            "scene_from_args", "load_scene", "SCENE_KEYS"]
 
 
+#: shadow techniques: stencil volumes (exact), planar projection (exact on the ground for convex
+#: occluders), the shadow-map baseline (approximate)
+SHADOW_METHODS = ("volume", "planar", "shadowmap")
 #: MSAA sample counts :class:`RenderOptions` accepts (what ``--aa`` documents)
 AA_CHOICES = (0, 2, 4)
 
@@ -64,7 +67,10 @@ class RenderOptions:
     shadow_color : (3,) float
         Linear RGB tint of a full shadow (black: plain darkening).
     shadow_method : str
-        ``"volume"`` (stencil shadow volumes, exact) or ``"planar"`` (projection shadows, paper 002/004).
+        ``"volume"`` (stencil shadow volumes, exact), ``"planar"`` (projection shadows, paper 002/004) or
+        ``"shadowmap"`` (the shadow-map baseline, :class:`arshadow.gl.shadowmap.ShadowMapRenderer`).
+    shadowmap_size : int
+        Shadow map side in texels (``shadow_method="shadowmap"`` only).
     silhouette : str
         Silhouette detector name (``adjacency``, ``triangular``, ``vnv``, ``hsd``, ``delta_plus``).
     soft_samples : int
@@ -89,6 +95,7 @@ class RenderOptions:
     opacity: float = 0.7
     shadow_color: tuple = (0.0, 0.0, 0.0)
     shadow_method: str = "volume"
+    shadowmap_size: int = 2048
     silhouette: str = "adjacency"
     soft_samples: int = 1
     aa: int = 0
@@ -103,8 +110,10 @@ class RenderOptions:
         """Validate (UsageError naming the ``arshadow render`` option); returns self."""
         if not (0.0 <= float(self.opacity) <= 1.0):
             raise UsageError(f"--opacity {self.opacity}: must be in [0, 1]")
-        if self.shadow_method not in ("volume", "planar"):
-            raise UsageError(f"--shadow-method {self.shadow_method!r}: choose volume or planar")
+        if self.shadow_method not in SHADOW_METHODS:
+            raise UsageError(f"--shadow-method {self.shadow_method!r}: choose {', '.join(SHADOW_METHODS)}")
+        if self.shadow_method == "shadowmap" and not (16 <= int(self.shadowmap_size) <= 16384):
+            raise UsageError(f"--shadowmap-size {self.shadowmap_size}: must be 16..16384 texels")
         if int(self.soft_samples) < 1:
             raise UsageError(f"--soft-samples {self.soft_samples}: must be >= 1")
         if self.aa not in AA_CHOICES:
@@ -277,7 +286,8 @@ def _check_silhouette_name(name: str) -> None:
 #: the keys :func:`scene_from_dict` takes (``light`` is accepted for ``lights``)
 SCENE_KEYS = ("calib", "marker_length", "board", "dictionary", "marker_id", "refine", "model", "scale", "rotate",
               "place", "color", "lights", "soft_samples", "silhouette", "shadow_method", "opacity",
-              "shadow_color", "aa", "ground_size", "no_object", "roi", "truncate", "fast_detect")
+              "shadow_color", "aa", "ground_size", "no_object", "roi", "truncate", "fast_detect",
+              "shadowmap_size")
 
 
 def _triple(v, key):
@@ -371,7 +381,7 @@ def scene_from_dict(d, base_dir=None) -> SceneSpec:
         from .composite import parse_rgb
 
         opts["shadow_color"] = parse_rgb(d["shadow_color"], "--shadow-color")
-    for key, conv in (("opacity", float), ("shadow_method", str), ("silhouette", str), ("soft_samples", int),
+    for key, conv in (("opacity", float), ("shadow_method", str), ("shadowmap_size", int), ("silhouette", str), ("soft_samples", int),
                       ("aa", int), ("ground_size", float), ("roi", bool), ("truncate", bool),
                       ("fast_detect", bool)):
         if d.get(key) is not None:

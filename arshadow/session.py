@@ -124,9 +124,9 @@ class Session:
     def _make_renderer(self, options):
         if self._renderer_factory is not None:
             return self._renderer_factory(self.context, options)
-        from .gl.renderer import ShadowRenderer
+        from .pipeline import default_renderer
 
-        return ShadowRenderer(self.context, samples=int(options.aa))
+        return default_renderer(self.context, options)
 
     @property
     def renderer(self):

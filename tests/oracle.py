@@ -14,79 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-
-def ground_shadow_triangles(vertices, faces, light_h) -> np.ndarray:
-    """The shadow of a triangle mesh on the ground plane z = 0, as 2-D triangles.
-
-    Each triangle is clipped to the half-space z >= 0 (Sutherland-Hodgman; a triangle becomes 0, 1 or 2
-    triangles), then every vertex p is projected along the ray from the light: for a point light L,
-    ``L + (L_z / (L_z - p_z)) (p - L)``; for a directional light d (towards the light),
-    ``p - (p_z / d_z) d``. The union of the returned triangles is the exact shadow on the ground.
-
-    Parameters
-    ----------
-    vertices : (n, 3) float
-        World coordinates, metres (z up).
-    faces : (m, 3) int
-        Triangles (winding irrelevant: every triangle casts, whichever side faces the light).
-    light_h : (4,) float
-        ``(x, y, z, 1)`` point light or ``(dx, dy, dz, 0)`` direction towards the light.
-
-    Returns
-    -------
-    (m', 3, 2) float64
-        Ground-plane (x, y) triangles; m' == m when the mesh lies entirely at or above z = 0, fewer
-        when triangles are entirely below the ground, up to 2m when many straddle it. Orientation is
-        arbitrary (not normalised).
-
-    Raises
-    ------
-    ValueError
-        If the light is not strictly above every (clipped) vertex: a point light with ``L_z <= p_z``
-        or a directional light with ``d_z <= 0`` has no bounded shadow on the ground.
-    """
-    v = np.asarray(vertices, np.float64)
-    f = np.asarray(faces, np.intp)
-    h = np.asarray(light_h, np.float64).reshape(4)
-    tri = v[f]  # (m, 3, 3)
-    z = tri[:, :, 2]
-    inside = z >= 0.0
-    n_in = inside.sum(axis=1)
-    out = [tri[n_in == 3]]
-    # one vertex above: a single smaller triangle
-    for count, keep_in in ((1, True), (2, False)):
-        sel = np.flatnonzero(n_in == count)
-        if sel.size == 0:
-            continue
-        t = tri[sel]
-        ins = inside[sel]
-        # rotate each triangle so that the odd vertex (the single inside / single outside) is first
-        odd = np.argmax(ins if keep_in else ~ins, axis=1)
-        idx = (odd[:, None] + np.arange(3)[None, :]) % 3
-        t = np.take_along_axis(t, idx[:, :, None], axis=1)
-        a, b, c = t[:, 0], t[:, 1], t[:, 2]
-        ab = a + (a[:, 2] / (a[:, 2] - b[:, 2]))[:, None] * (b - a)
-        ac = a + (a[:, 2] / (a[:, 2] - c[:, 2]))[:, None] * (c - a)
-        ab[:, 2] = 0.0
-        ac[:, 2] = 0.0
-        if keep_in:  # a is above: triangle a, ab, ac
-            out.append(np.stack([a, ab, ac], axis=1))
-        else:  # a is below: quad ab, b, c, ac -> two triangles
-            out.append(np.stack([ab, b, c], axis=1))
-            out.append(np.stack([ab, c, ac], axis=1))
-    tri = np.concatenate(out) if out else np.empty((0, 3, 3))
-    p = tri.reshape(-1, 3)
-    if h[3] == 0.0:
-        if h[2] <= 0.0:
-            raise ValueError("directional light does not point down onto the ground")
-        q = p[:, :2] - (p[:, 2] / h[2])[:, None] * h[None, :2]
-    else:
-        L = h[:3] / h[3]
-        if np.any(L[2] <= p[:, 2]):
-            raise ValueError("point light is not above every vertex: unbounded shadow")
-        t = L[2] / (L[2] - p[:, 2])
-        q = L[None, :2] + t[:, None] * (p[:, :2] - L[None, :2])
-    return q.reshape(-1, 3, 2)
+from arshadow.exact import ground_shadow_triangles, iou  # noqa: F401 (re-exported: the tests import them from here)
 
 
 @dataclass(frozen=True)
@@ -198,12 +126,6 @@ def rasterize_segments_winding(segments, grid: Grid) -> np.ndarray:
     np.add.at(acc, (row, np.zeros_like(K)), sign)
     np.add.at(acc, (row, K), -sign)
     return np.cumsum(acc, axis=1)[:, :W]
-
-
-def iou(a: np.ndarray, b: np.ndarray) -> float:
-    """Intersection over union of two boolean masks (1.0 when both are empty)."""
-    u = np.count_nonzero(a | b)
-    return 1.0 if u == 0 else np.count_nonzero(a & b) / u
 
 
 def points_in_shadow(points, vertices, faces, light_h) -> np.ndarray:

@@ -88,8 +88,11 @@ def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> No
                    help="samples per area light (lights with radius=...; sun: its 0.266 deg disc); 1 = hard")
     s.add_argument("--silhouette", default="adjacency", metavar="NAME",
                    help="silhouette detector: adjacency (default), triangular, vnv, hsd, delta_plus")
-    s.add_argument("--shadow-method", choices=("volume", "planar"), default="volume",
-                   help="stencil shadow volumes (default, exact) or planar projection shadows")
+    s.add_argument("--shadow-method", choices=("volume", "planar", "shadowmap"), default="volume",
+                   help="stencil shadow volumes (default, exact), planar projection shadows, or a shadow map "
+                        "(the baseline of three.js / pyrender: approximate; see docs/benchmarks.md)")
+    s.add_argument("--shadowmap-size", type=_positive("--shadowmap-size", integer=True), default=2048,
+                   metavar="N", help="shadow map side in texels with --shadow-method shadowmap (default 2048)")
     s.add_argument("--opacity", type=float, default=0.7, metavar="O",
                    help="darkness of a full shadow, 0..1 (default 0.7)")
     s.add_argument("--shadow-color", metavar="R,G,B", help="tint of a full shadow, 8-bit sRGB (default black)")
@@ -222,7 +225,7 @@ def _render_all(args, session, inputs, outdir, debug):
     try:  # made now (with the GL context): a bad --aa is a usage error (exit 2), not a per-photo one
         session.renderer  # noqa: B018
     except UsageError as exc:
-        raise UsageError(f"--aa {args.aa}: {exc}") from None
+        raise UsageError(f"--aa {args.aa} / --shadowmap-size: {exc}") from None
     for inp, (out_path, mask_path) in zip(inputs, paths):
         item = ReportItem(input=str(inp))
         t0 = time.perf_counter()

@@ -243,6 +243,23 @@ class _Target:
 
 
 
+def ground_vertices(ground_size=None) -> np.ndarray:
+    """The ground plane z = 0 as 12 homogeneous vertices ``(12, 4) float32`` (4 triangles, CCW seen from
+    +z): unlimited (``None``: triangles fanning out to points at infinity, w = 0) or a square of side
+    ``ground_size`` centred on the origin (2 triangles padded with degenerate ones)."""
+    if ground_size is None:
+        o, px, py, nx, ny = (0, 0, 0, 1), (1, 0, 0, 0), (0, 1, 0, 0), (-1, 0, 0, 0), (0, -1, 0, 0)
+        tris = [o, px, py, o, py, nx, o, nx, ny, o, ny, px]
+    else:
+        key = float(ground_size)
+        if not (math.isfinite(key) and key > 0):
+            raise UsageError(f"ground_size must be a positive length, got {ground_size}")
+        h = key / 2
+        a, b, c, d = (-h, -h, 0, 1), (h, -h, 0, 1), (h, h, 0, 1), (-h, h, 0, 1)
+        tris = [a, b, c, a, c, d] + [(0, 0, 0, 1)] * 6
+    return np.asarray(tris, dtype=np.float32)
+
+
 def _program_cache(ctx) -> dict:
     """Programs are cached per context (in ``ctx.extra``), compiled once."""
     extra = ctx.extra if isinstance(getattr(ctx, "extra", None), dict) else None
@@ -470,18 +487,8 @@ class ShadowRenderer:
         key = None if ground_size is None else float(ground_size)
         if key == self._ground_key and self._ground_key is not None or (key is None and self._ground_key == "inf"):
             return
-        if key is None:
-            o, px, py, nx, ny = (0, 0, 0, 1), (1, 0, 0, 0), (0, 1, 0, 0), (-1, 0, 0, 0), (0, -1, 0, 0)
-            tris = [o, px, py, o, py, nx, o, nx, ny, o, ny, px]  # CCW seen from +z
-            self._ground_key = "inf"
-        else:
-            if not (math.isfinite(key) and key > 0):
-                raise UsageError(f"ground_size must be a positive length, got {ground_size}")
-            h = key / 2
-            a, b, c, d = (-h, -h, 0, 1), (h, -h, 0, 1), (h, h, 0, 1), (-h, h, 0, 1)
-            tris = [a, b, c, a, c, d] + [(0, 0, 0, 1)] * 6  # padded to the same 12 vertices (degenerate)
-            self._ground_key = key
-        self._ground_vbo.write(np.asarray(tris, dtype=np.float32).tobytes())
+        self._ground_vbo.write(ground_vertices(key).tobytes())
+        self._ground_key = "inf" if key is None else key
 
     # ------------------------------------------------------------------ render
     def render(self, *, projection, view, width, height, caster, passes, ground_size=None,

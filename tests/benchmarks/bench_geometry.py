@@ -41,29 +41,13 @@ KNOT_RES = {1000: (25, 20), 10000: (125, 40), 100000: (500, 100), 1000000: (2500
 
 
 def _lights(caster, n, seed=7):
-    rng = np.random.default_rng(seed)
-    c = caster.bounds.mean(axis=0)
-    r = 0.5 * caster.scale
-    out = []
-    for i in range(n):
-        d = rng.normal(size=3)
-        d[2] = abs(d[2]) + 0.3
-        d /= np.linalg.norm(d)
-        if i % 2 == 0:
-            out.append(np.r_[c + d * r * rng.uniform(2.0, 8.0), 1.0])
-        else:
-            out.append(np.r_[d, 0.0])
-    return [as_light_h(L) for L in out]
+    from arshadow.bench.silhouettes import lights
+
+    return lights(caster, n, seed)
 
 
 def _timed(fn, repeat):
-    fn()  # warm-up
-    ts = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        ts.append((time.perf_counter() - t0) * 1e3)
-    return ts
+    return _common.timed(fn, repeat)
 
 
 def bench_size(n_faces: int, n_lights: int, repeat: int, methods=METHODS, volumes: bool = True) -> dict:

@@ -58,17 +58,9 @@ def load_scene():
 
 def roi_of(caster, K, T, L, margin=2):
     """Pixel bbox (u0, v0, w, h) of the occluder and its ground shadow (clipped to the image)."""
-    from oracle import ground_shadow_triangles
+    from arshadow.bench.render import roi_of as _roi
 
-    V = np.asarray(caster.vertices)
-    S = ground_shadow_triangles(V, caster.faces, L).reshape(-1, 2)
-    P = np.concatenate([V, np.c_[S, np.zeros(len(S))]])
-    u, v = K.project(P, T, distort=False).T
-    u0 = max(int(np.floor(u.min())) - margin, 0)
-    v0 = max(int(np.floor(v.min())) - margin, 0)
-    u1 = min(int(np.ceil(u.max())) + margin + 1, W)
-    v1 = min(int(np.ceil(v.max())) + margin + 1, H)
-    return u0, v0, u1 - u0, v1 - v0
+    return _roi(caster, K, T, L, margin, W, H)
 
 
 def main(argv=None):

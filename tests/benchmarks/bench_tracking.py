@@ -37,26 +37,7 @@ from arshadow.transforms import rotation_error_deg
 
 ROOT = Path(__file__).resolve().parents[2]
 RESOLUTIONS = ((640, 480), (1280, 720), (1920, 1080))
-DIST = np.array([-0.045, 0.021, 0.0004, -0.0003, -0.006])
-
-
-def camera(w, h) -> Intrinsics:
-    """A camera with the horizontal field of view of calib/synth_1280x720.yml (f = 0.78 W)."""
-    f = 1000.0 * w / 1280.0
-    return Intrinsics(f, f, w / 2.0 + 1.3 * w / 1280, h / 2.0 - 1.8 * w / 1280, w, h, DIST)
-
-
-def make_photos(cam: Intrinsics, n: int, seed: int):
-    rng = np.random.default_rng(seed)
-    photos = []
-    for i in range(n):
-        d = rng.uniform(0.3, 0.8)
-        frac = rng.uniform(0.05, 0.10)
-        L = frac * cam.width * d / cam.fx
-        pose = random_pose(rng, cam, distance=(d, d), tilt_deg=(0, 70), keep_in_view=marker_object_points(1.6 * L))
-        photos.append(render_marker_photo(cam, pose, marker_length=L, marker_id=int(rng.integers(250)),
-                                          noise_sigma=2.0, blur_sigma=0.6, jpeg_quality=90, seed=seed * 1000 + i))
-    return photos
+from arshadow.bench.tracking import DIST, camera, make_photos  # noqa: E402,F401 (shared with `arshadow bench`)
 
 
 CONFIGS = tuple((m, True) for m in REFINE_METHODS) + (("subpix", False),)  # (refinement, LM polish)

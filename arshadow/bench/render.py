@@ -1,0 +1,276 @@
+"""Section 2: render quality against time.
+
+Every point is one renderer configuration on one scene: the render time (median and IQR of repeated
+renders of the scene's region of interest, after warm-up) and the error of its shadow mask against the
+exact shadow (:class:`arshadow.exact.ShadowOracle`: the mesh's triangles projected from the light onto
+z = 0, pixel centres tested exactly, pixels covered by the object excluded; no GL):
+
+- ``iou``: IoU of ``mask >= 0.5`` and the exact pixel-centre shadow;
+- ``xor_px``: pixels that differ; ``edge_offset_px`` = ``xor_px`` / length of the exact boundary (px): the
+  mean displacement of the shadow's edge;
+- ``boundary_p95_px``, ``boundary_max_px``: distances between the two boundaries (both directions);
+- ``coverage_mae``: mean absolute error of the fractional mask against the exact area coverage (4 x 4
+  sub-samples per pixel) on the pixels within 2 px of the exact boundary (what anti-aliasing buys).
+
+Configurations: stencil volumes (z-pass / z-fail, truncated / to infinity, planar projection), MSAA and
+supersampling, render resolution scale (render smaller, upscale bilinearly), and the shadow-map baseline
+(:class:`arshadow.gl.shadowmap.ShadowMapRenderer`, map 512-8192, PCF 1 and 3).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from .common import ROOT, summary
+
+W, H = 1280, 720
+ZNEAR = 0.01
+
+
+def scenes(quick: bool):
+    """``[(name, caster, Intrinsics, cam_from_world, light_h)]``: the 8 536-face knot at 1280x720 under a
+    point light (bench_render's scene) and, in the full run, under a low sun (a long shadow: the case that
+    stretches a shadow map's texels)."""
+    from ..camera import Intrinsics
+    from ..mesh import load_occluder
+    from ..synth import look_at_pose
+
+    caster = load_occluder(ROOT / "samples" / "meshes" / "knot.ply")
+    K = Intrinsics(fx=1000.0, fy=1000.0, cx=641.3, cy=357.8, width=W, height=H, dist=np.zeros(0))
+    T = look_at_pose([0.3, -0.32, 0.3], [0.0, 0.02, 0.02])
+    out = [("knot, point light", caster, K, T, np.array([-0.15, 0.2, 0.5, 1.0]))]
+    if not quick:
+        el = np.radians(25.0)
+        d = np.array([np.cos(el) * np.cos(np.radians(120)), np.cos(el) * np.sin(np.radians(120)), np.sin(el), 0.0])
+        T2 = look_at_pose([0.25, -0.45, 0.35], [-0.05, 0.05, 0.0])
+        out.append(("knot, low sun (25 deg)", caster, K, T2, d))
+    return out
+
+
+def roi_of(caster, K, T, L, margin=2, width=W, height=H):
+    """Pixel box ``(u0, v0, w, h)`` of the occluder and its exact ground shadow, clipped to the image."""
+    from ..exact import ground_shadow_triangles
+
+    V = np.asarray(caster.vertices)
+    S = ground_shadow_triangles(V, caster.faces, L).reshape(-1, 2)
+    P = np.concatenate([V, np.c_[S, np.zeros(len(S))]])
+    u, v = K.project(P, T, distort=False).T
+    u0 = max(int(np.floor(u.min())) - margin, 0)
+    v0 = max(int(np.floor(v.min())) - margin, 0)
+    u1 = min(int(np.ceil(u.max())) + margin + 1, width)
+    v1 = min(int(np.ceil(v.max())) + margin + 1, height)
+    return u0, v0, u1 - u0, v1 - v0
+
+
+class Reference:
+    """The exact shadow of one scene on its ROI: pixel-centre mask, boundary band and area coverage."""
+
+    def __init__(self, caster, K, T, L, roi):
+        import cv2
+
+        from ..exact import ShadowOracle
+
+        self.roi = roi
+        self.oracle = ShadowOracle(K.K, T, caster.vertices, caster.faces, [(L, 1.0)])
+        m, _, _ = self.oracle.image(W, H, canvas=roi)
+        self.mask = m >= 0.5
+        k = np.ones((5, 5), np.uint8)
+        m8 = self.mask.astype(np.uint8)
+        self.band = np.argwhere(cv2.dilate(m8, k) != cv2.erode(m8, k))
+        u0, v0 = roi[:2]
+        sub = (np.arange(4) + 0.5) / 4 - 0.5
+        su, sv = np.meshgrid(sub, sub)
+        uu = (self.band[:, 1][:, None] + u0 + su.ravel()[None, :]).ravel()
+        vv = (self.band[:, 0][:, None] + v0 + sv.ravel()[None, :]).ravel()
+        self.coverage = self.oracle.classify(uu, vv)[0].reshape(len(self.band), 16).mean(axis=1)
+        er = cv2.erode(m8, np.ones((3, 3), np.uint8), borderType=cv2.BORDER_REPLICATE)
+        self.perimeter = int(np.count_nonzero(m8 != er))
+
+    def errors(self, mask) -> dict:
+        from ..exact import boundary_error_px, iou
+
+        b = mask >= 0.5
+        xor = int(np.count_nonzero(b != self.mask))
+        be = boundary_error_px(b, self.mask)
+        return {"iou": iou(b, self.mask), "xor_px": xor, "edge_offset_px": xor / max(self.perimeter, 1),
+                "boundary_p95_px": be["p95"], "boundary_max_px": be["max"],
+                "coverage_mae": float(np.abs(mask[self.band[:, 0], self.band[:, 1]] - self.coverage).mean())}
+
+
+def _configs(ctx, quick: bool):
+    """``[(family, label, factory, pass options)]``; factory() -> renderer; pass options: mode, truncate,
+    scale (render resolution scale)."""
+    from ..gl.renderer import ShadowRenderer
+    from ..gl.shadowmap import MAP_SIZES, ShadowMapRenderer
+
+    st = lambda **kw: (lambda: ShadowRenderer(ctx, max_width=W, max_height=H, **kw))  # noqa: E731
+    out = [
+        ("stencil", "z-pass, truncated (default)", st(), dict(mode="zpass", truncate=True)),
+        ("stencil", "z-pass, to infinity", st(), dict(mode="zpass", truncate=False)),
+        ("stencil", "z-fail (caps), truncated", st(), dict(mode="zfail", truncate=True)),
+        ("stencil", "z-fail (caps), to infinity", st(), dict(mode="zfail", truncate=False)),
+        ("planar", "planar projection (paper 002)", st(), dict(mode="planar")),
+    ]
+    ms = [s for s in (2, 4, 8) if s <= ctx.max_samples]
+    aa = [("MSAA %d" % s, dict(samples=s)) for s in (ms if not quick else ms[-1:])]
+    aa += [("supersample 2x2", dict(supersample=2))]
+    if not quick:
+        aa += [("supersample 4x4", dict(supersample=4)), ("MSAA 4 + supersample 2x2", dict(samples=4, supersample=2))]
+    out += [("stencil AA", lab, st(**kw), dict(mode="zpass", truncate=True)) for lab, kw in aa]
+    for s in ((0.5,) if quick else (0.25, 0.5, 0.75)):
+        out.append(("stencil scaled", f"render at {s:g}x resolution, bilinear upscale", st(),
+                    dict(mode="zpass", truncate=True, scale=s)))
+    sizes = (512, 2048, 8192) if quick else MAP_SIZES
+    for size in sizes:
+        for pcf in ((1, 3) if not quick or size == 2048 else (3,)):
+            out.append(("shadow map", f"shadow map {size}, PCF {pcf}x{pcf}",
+                        (lambda size=size, pcf=pcf: ShadowMapRenderer(ctx, map_size=size, pcf=pcf, max_width=W,
+                                                                      max_height=H)), dict(mode="zpass")))
+    return out
+
+
+def run(cfg: dict, ctx, log) -> list[dict]:
+    import cv2
+
+    from ..gl.renderer import LightPass
+    from ..silhouette import silhouette
+    from ..transforms import CV_TO_GL
+    from ..volume import shadow_volume
+
+    rows = []
+    for name, caster, K, T, L in scenes(cfg["quick"]):
+        u0, v0, w, h = roi_of(caster, K, T, L)
+        # aligned to 4 px, so that the 0.25 / 0.5 / 0.75 x canvases cover exactly the same region
+        u1, v1 = min(-(-(u0 + w) // 4) * 4, W), min(-(-(v0 + h) // 4) * 4, H)
+        u0, v0 = u0 // 4 * 4, v0 // 4 * 4
+        roi = (u0, v0, u1 - u0, v1 - v0)
+        t0 = time.perf_counter()
+        ref = Reference(caster, K, T, L, roi)
+        log(f"  render: exact reference of '{name}' ({roi[2]}x{roi[3]} px) in {time.perf_counter() - t0:.1f} s")
+        view = CV_TO_GL @ T
+        sil = silhouette(caster, L)
+        tz = -1e-3 * caster.scale
+        vols = {(caps, tr): shadow_volume(caster, L, sil, caps=caps, truncate_z=tz if tr else None)
+                for caps in (False, True) for tr in (False, True)}
+        for family, label, factory, opt in _configs(ctx, cfg["quick"]):
+            mode = opt["mode"]
+            vol = None if mode == "planar" else vols[(mode == "zfail", opt.get("truncate", True))]
+            passes = [LightPass(L, 1.0, vol, mode)]
+            s = opt.get("scale", 1.0)
+            u0, v0, w, h = roi
+            if s != 1.0:
+                Ks = K.scaled(int(round(W * s)), int(round(H * s)))
+                canvas = (int(round(u0 * s)), int(round(v0 * s)), max(int(round(w * s)), 1), max(int(round(h * s)), 1))
+                P = Ks.gl_projection(ZNEAR, None, canvas=canvas)
+            else:
+                canvas, P = roi, K.gl_projection(ZNEAR, None, canvas=roi)
+            with factory() as r:
+                def once():
+                    res = r.render(projection=P, view=view, width=canvas[2], height=canvas[3], caster=caster,
+                                   passes=passes)
+                    m = res.mask
+                    if s != 1.0:
+                        # the scaled canvas covers [u0*s, (u0+w)*s) ~ the ROI: resample to the ROI's pixels
+                        m = cv2.resize(m, (w, h), interpolation=cv2.INTER_LINEAR)
+                    return m
+
+                for _ in range(cfg["warmup"]):
+                    once()
+                ts = []
+                for _ in range(cfg["render_repeat"]):
+                    t1 = time.perf_counter()
+                    m = once()
+                    ts.append((time.perf_counter() - t1) * 1e3)
+            st = summary(ts, 4)
+            rows.append({"scene": name, "family": family, "config": label, "roi_w": w, "roi_h": h,
+                         "time_ms": st["median"], "time_q25": st["iqr"][0], "time_q75": st["iqr"][1], "time_n": st["n"],
+                         **ref.errors(m)})
+        log(f"  render: '{name}' {len(rows)} points")
+    return rows + soft(cfg, ctx, log)
+
+
+def equal_time(rows: list[dict]) -> list[dict]:
+    """Per scene: the default stencil configuration against the most accurate shadow map that is not
+    slower than it, and against the shadow map closest to it in time."""
+    out = []
+    for scene in dict.fromkeys(r["scene"] for r in rows):
+        rs = [r for r in rows if r["scene"] == scene]
+        st = next((r for r in rs if r["config"].endswith("(default)")), None)
+        if st is None or not any(r["family"] == "shadow map" for r in rs):
+            continue
+        sm = [r for r in rs if r["family"] == "shadow map"]
+        faster = [r for r in sm if r["time_ms"] <= st["time_ms"]]
+        best_fast = max(faster, key=lambda r: r["iou"]) if faster else None
+        nearest = min(sm, key=lambda r: abs(np.log(r["time_ms"] / st["time_ms"])))
+        out.append({"scene": scene, "stencil": st, "shadowmap_not_slower": best_fast, "shadowmap_nearest_time": nearest,
+                    "best_shadowmap": max(sm, key=lambda r: r["iou"])})
+    return out
+
+
+def pareto(rows: list[dict], key="xor_px") -> list[dict]:
+    """The points no other point beats in both time and ``key`` (lower is better for both)."""
+    pts = sorted(rows, key=lambda r: (r["time_ms"], r[key]))
+    out, best = [], float("inf")
+    for r in pts:
+        if r[key] < best:
+            out.append(r)
+            best = r[key]
+    return out
+
+
+def soft(cfg: dict, ctx, log) -> list[dict]:
+    """Soft shadows: a spherical light of radius 4 cm split into N hard samples (stencil volumes, one pass
+    each) against a GL-independent reference: the exact hard shadows (:class:`arshadow.exact.ShadowOracle`)
+    of 256 stratified samples of the same disc, averaged. ``coverage_mae`` here is the mean |mask -
+    reference| over the pixels where either is non-zero (umbra + penumbra)."""
+    from ..camera import Intrinsics
+    from ..exact import ShadowOracle, boundary_error_px, iou
+    from ..gl.renderer import LightPass, ShadowRenderer
+    from ..lights import parse_light, sample_area_light
+    from ..mesh import load_occluder
+    from ..silhouette import silhouette
+    from ..synth import look_at_pose
+    from ..transforms import CV_TO_GL
+    from ..volume import shadow_volume
+
+    caster = load_occluder("box:0.08,0.06,0.12")
+    K = Intrinsics(fx=1000.0, fy=1000.0, cx=641.3, cy=357.8, width=W, height=H, dist=np.zeros(0))
+    T = look_at_pose([0.35, -0.45, 0.4], [0.0, 0.03, 0.02])
+    light = parse_light("point:-0.15,0.1,0.45,radius=0.04")
+    ref_lights = sample_area_light(light, 256, seed=99)
+    u0, v0, w, h = roi_of(caster, K, T, np.array([-0.15, 0.1, 0.45, 1.0]), margin=40)
+    orc = ShadowOracle(K.K, T, caster.vertices, caster.faces, [(s.homogeneous, s.weight) for s in ref_lights])
+    ref = orc.image(W, H, canvas=(u0, v0, w, h))[0]
+    P, view = K.gl_projection(ZNEAR, None, canvas=(u0, v0, w, h)), CV_TO_GL @ T
+    rows = []
+    with ShadowRenderer(ctx, max_width=W, max_height=H) as r:
+        for n in cfg.get("soft_samples", (1, 4, 16, 64)):
+            samples = sample_area_light(light, n, seed=1)
+            tot = sum(s.weight for s in samples)
+            passes = []
+            for s in samples:
+                hh = np.asarray(s.homogeneous, np.float64)
+                vol = shadow_volume(caster, hh, silhouette(caster, hh), caps=False, truncate_z=-1e-3 * caster.scale)
+                passes.append(LightPass(hh, s.weight / tot, vol, "zpass"))
+            once = lambda: r.render(projection=P, view=view, width=w, height=h, caster=caster, passes=passes)  # noqa: E731
+            for _ in range(cfg["warmup"]):
+                once()
+            ts = []
+            for _ in range(cfg["render_repeat"]):
+                t1 = time.perf_counter()
+                m = once().mask
+                ts.append((time.perf_counter() - t1) * 1e3)
+            st = summary(ts, 4)
+            region = (ref > 0) | (m > 0)
+            b, rb = m >= 0.5, ref >= 0.5
+            rows.append({"scene": "box, spherical light r = 4 cm (soft)", "family": "soft shadow",
+                         "config": f"{n} sample{'s' if n > 1 else ''} per light", "roi_w": w, "roi_h": h,
+                         "time_ms": st["median"], "time_q25": st["iqr"][0], "time_q75": st["iqr"][1], "time_n": st["n"],
+                         "iou": iou(b, rb), "xor_px": int(np.count_nonzero(b != rb)),
+                         "edge_offset_px": float("nan"), "boundary_p95_px": boundary_error_px(b, rb)["p95"],
+                         "boundary_max_px": boundary_error_px(b, rb)["max"],
+                         "coverage_mae": float(np.abs(m - ref)[region].mean())})
+    log(f"  render: soft shadows {len(rows)} points")
+    return rows

@@ -1,0 +1,163 @@
+"""Section 3: tracking time against pose error (synthetic photos with a known generating pose).
+
+- corner refinement methods (``arshadow.marker.REFINE_METHODS``, with / without the LM pose polish);
+- full frame against a region of interest (the crop around the marker a video tracker would search,
+  from the previous frame's pose: here the true corners + 50 % of the marker's size; the crop is a
+  camera with a shifted principal point, so the pose is in the same frame);
+- single marker against a grid board (5 x 7 markers, calib/gridboard_5x7.yml).
+
+Photos: :func:`arshadow.synth.render_marker_photo` with the acceptance conditions of issue 2 (marker
+5-10 % of the image width, 0.3-0.8 m, tilt 0-70 deg, noise sigma 2, blur sigma 0.6, JPEG 90).
+Per photo the time is the median of ``repeat`` runs after a warm-up, configurations interleaved.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from .common import ROOT
+
+DIST = np.array([-0.045, 0.021, 0.0004, -0.0003, -0.006])
+
+
+def camera(w, h):
+    """A camera with the horizontal field of view of calib/synth_1280x720.yml (f = 0.78 W)."""
+    from ..camera import Intrinsics
+
+    f = 1000.0 * w / 1280.0
+    return Intrinsics(f, f, w / 2.0 + 1.3 * w / 1280, h / 2.0 - 1.8 * w / 1280, w, h, DIST)
+
+
+def make_photos(cam, n: int, seed: int):
+    """``n`` single-marker photos under the issue-2 conditions."""
+    from ..marker import marker_object_points
+    from ..synth import random_pose, render_marker_photo
+
+    rng = np.random.default_rng(seed)
+    photos = []
+    for i in range(n):
+        d = rng.uniform(0.3, 0.8)
+        frac = rng.uniform(0.05, 0.10)
+        L = frac * cam.width * d / cam.fx
+        pose = random_pose(rng, cam, distance=(d, d), tilt_deg=(0, 70), keep_in_view=marker_object_points(1.6 * L))
+        photos.append(render_marker_photo(cam, pose, marker_length=L, marker_id=int(rng.integers(250)),
+                                          noise_sigma=2.0, blur_sigma=0.6, jpeg_quality=90, seed=seed * 1000 + i))
+    return photos
+
+
+def _errors(pose, truth, distance):
+    from ..transforms import rotation_error_deg
+
+    return (rotation_error_deg(pose.cam_from_world[:3, :3], truth[:3, :3]),
+            float(np.linalg.norm(pose.cam_from_world[:3, 3] - truth[:3, 3]) / distance))
+
+
+def run_configs(photos, configs: dict, repeat: int) -> list[dict]:
+    """Every configuration on the same photos, timings interleaved round-robin. ``configs``: label ->
+    ``make(photo) -> (tracker, image)``. One row per configuration: time median / IQR over photos,
+    rotation error (deg) median / p95, translation error (% of distance) median, detections."""
+    from ..errors import MarkerNotFoundError
+
+    acc = {c: dict(times=[], rot=[], trans=[], found=0) for c in configs}
+    for ph in photos:
+        jobs, poses = {}, {}
+        for c, make in configs.items():
+            tr, img = make(ph)
+            try:
+                poses[c] = tr.estimate(img)  # warm-up, and the result
+                jobs[c] = (tr, img)
+            except MarkerNotFoundError:
+                pass
+        t = {c: [] for c in jobs}
+        for _ in range(repeat):
+            for c, (tr, img) in jobs.items():
+                t0 = time.perf_counter()
+                tr.estimate(img)
+                t[c].append((time.perf_counter() - t0) * 1e3)
+        dist = float(np.linalg.norm(ph.cam_from_world[:3, 3]))
+        for c, pose in poses.items():
+            a = acc[c]
+            a["times"].append(np.median(t[c]))
+            a["found"] += 1
+            r, tr_ = _errors(pose, ph.cam_from_world, dist)
+            a["rot"].append(r)
+            a["trans"].append(100 * tr_)
+    rows = []
+    for c, a in acc.items():
+        tm, rot, trn = (np.asarray(a[k], float) for k in ("times", "rot", "trans"))
+        q = lambda x, p: float(np.percentile(x, p)) if x.size else None  # noqa: E731
+        rows.append({"config": c, "photos": len(photos), "detected": a["found"], "time_ms": q(tm, 50),
+                     "time_q25": q(tm, 25), "time_q75": q(tm, 75), "rot_deg_median": q(rot, 50),
+                     "rot_deg_p95": q(rot, 95), "trans_pct_median": q(trn, 50)})
+    return rows
+
+
+def _roi_tracker(ph, refine):
+    """Tracker + crop around the true marker corners (+50 % of the marker's size) as a shifted camera."""
+    from ..camera import Intrinsics
+    from ..marker import MarkerTracker
+
+    c = np.concatenate(list(ph.corners_px.values()))
+    size = float(np.max(c.max(axis=0) - c.min(axis=0)))
+    cam = ph.intrinsics
+    x0, y0 = np.maximum(np.floor(c.min(axis=0) - 0.5 * size), 0).astype(int)
+    x1 = int(min(np.ceil(c[:, 0].max() + 0.5 * size), cam.width))
+    y1 = int(min(np.ceil(c[:, 1].max() + 0.5 * size), cam.height))
+    crop_cam = Intrinsics(cam.fx, cam.fy, cam.cx - x0, cam.cy - y0, x1 - x0, y1 - y0, cam.dist)
+    tr = MarkerTracker(crop_cam, marker_length=ph.marker_length, marker_id=ph.marker_id, refine=refine)
+    return tr, np.ascontiguousarray(ph.image[y0:y1, x0:x1])
+
+
+def refinement_and_roi(cfg, log) -> list[dict]:
+    from ..marker import REFINE_METHODS, MarkerTracker
+
+    rows = []
+    for w, h in cfg["track_resolutions"]:
+        cam = camera(w, h)
+        photos = make_photos(cam, cfg["poses"], seed=w)
+        configs = {}
+        for m in REFINE_METHODS:
+            configs[f"refine {m}, full frame"] = (lambda ph, m=m: (MarkerTracker(
+                ph.intrinsics, marker_length=ph.marker_length, marker_id=ph.marker_id, refine=m), ph.image))
+        configs["refine subpix, no LM polish"] = lambda ph: (MarkerTracker(
+            ph.intrinsics, marker_length=ph.marker_length, marker_id=ph.marker_id, refine="subpix",
+            pnp_refine=False), ph.image)
+        configs["refine subpix, ROI crop"] = lambda ph: _roi_tracker(ph, "subpix")
+        for r in run_configs(photos, configs, cfg["repeat"]):
+            rows.append({"resolution": f"{w}x{h}", **r})
+        log(f"  tracking: {w}x{h} done")
+    return rows
+
+
+def marker_vs_board(cfg, log) -> list[dict]:
+    """A 5 cm single marker against the 5 x 7 grid board at the same camera poses (1280x720)."""
+    from ..marker import MarkerTracker, load_board
+    from ..synth import random_pose, render_marker_photo
+
+    board = load_board(ROOT / "calib" / "gridboard_5x7.yml")
+    cam = camera(1280, 720)
+    rng = np.random.default_rng(11)
+    corners = np.concatenate(list(board.marker_corners_world.values()))
+    centre = corners.mean(axis=0)
+    single, boards = [], []
+    for i in range(cfg["poses"]):
+        pose = random_pose(rng, cam, distance=(0.6, 1.0), tilt_deg=(0, 60), keep_in_view=corners, target=centre)
+        boards.append(render_marker_photo(cam, pose, board=board, noise_sigma=2.0, blur_sigma=0.6, jpeg_quality=90,
+                                          seed=500 + i))
+        # the single marker at the board's centre, same camera position
+        shift = np.eye(4)
+        shift[:3, 3] = centre
+        single.append(render_marker_photo(cam, pose @ shift, marker_length=0.05, noise_sigma=2.0, blur_sigma=0.6,
+                                          jpeg_quality=90, seed=500 + i))
+    rows = run_configs(single, {"single 5 cm marker": lambda ph: (MarkerTracker(
+        cam, marker_length=0.05, marker_id=ph.marker_id), ph.image)}, cfg["repeat"])
+    rows += run_configs(boards, {"grid board 5x7 (35 markers)": lambda ph: (MarkerTracker(cam, board=board), ph.image)},
+                        cfg["repeat"])
+    log("  tracking: marker vs board done")
+    return [{"resolution": "1280x720", **r} for r in rows]
+
+
+def run(cfg, log) -> list[dict]:
+    return refinement_and_roi(cfg, log) + marker_vs_board(cfg, log)
