@@ -153,7 +153,7 @@ class Session:
         self._compositor.close()
         if self._own_ctx and self._ctx is not None:
             self._ctx.release()
-        self._ctx = None
+            self._ctx = None
 
     def __enter__(self):
         return self
