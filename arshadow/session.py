@@ -153,7 +153,7 @@ class Session:
         self._compositor.close()
         if self._own_ctx and self._ctx is not None:
             self._ctx.release()
-        self._ctx = None
+            self._ctx = None
 
     def __enter__(self):
         return self
@@ -271,6 +271,17 @@ class Session:
         timings["total"] = timings.get("total", 0.0) + (time.perf_counter() - t0) * 1e3
         item.timings_ms = {k: round(v, 3) for k, v in timings.items()}
         return FrameResult(res, mask, marker_pose, cam_from_world, item, dict(item.timings_ms), plan)
+
+    def calibration(self, width: int, height: int):
+        """Intrinsics (scaled to the size), trackers and lens warp for a photo size
+        (:class:`arshadow.pipeline.CalibrationState`, built once per size).
+
+        Raises
+        ------
+        CalibrationError
+            A size whose aspect ratio differs from the calibration's.
+        """
+        return self._compositor.calib_for(width, height)
 
     def plan(self, pose, width: int, height: int):
         """The :class:`arshadow.plan.FramePlan` for a pose and photo size, without rendering (no GL)."""

@@ -360,3 +360,42 @@ def test_render_photo_from_a_job_file_and_a_photo_file(tmp_path, gl_ctx):
         ref = s.process(photo)
     assert res.item.input == str(tmp_path / "p.png")
     assert np.array_equal(res.mask, ref.mask) and np.array_equal(res.composite, ref.composite)
+
+
+def test_time_lapse_lights_and_their_state_without_gl():
+    """set_time moves the sun: the geometry is rebuilt only when the track recomputes; the state carries
+    the schedule and the cache to a new session (planning needs no GL context)."""
+    from datetime import timedelta
+
+    import arshadow
+    from arshadow.lights import parse_light, parse_sun_track
+
+    spec = arshadow.scene_from_dict(SCENE)
+    sun = "sun:48,11,2021-06-21T09:00+02:00,0@0.5"
+    static = [parse_light("point:0.1,0.1,0.4")]
+    t0 = parse_sun_track(sun).start
+    pose = _photo()[1]
+    s = arshadow.Session(spec, lights=static)
+    s.use_sun_tracks([parse_sun_track(sun, recompute_deg=0.2)], static)
+    assert s.set_time(t0)[0].recompute
+    plan = s.plan(pose, 1280, 720)
+    assert len(plan.lights) == 2 and not any(lp.reuse for lp in plan.lights)
+    geo = s.compositor.geometry
+    for lp in plan.lights:  # build what the frame needs, as the executor would
+        geo.volume(geo.lights[lp.index], caps=lp.caps)
+    f = s.set_time(t0 + timedelta(seconds=10))[0]  # the sun moved ~0.04 deg: no recompute
+    assert not f.recompute and f.stale_deg > 0
+    assert all(lp.reuse for lp in s.plan(pose, 1280, 720).lights)
+    state = pickle.loads(pickle.dumps(s.state()))
+    s2 = pickle.loads(pickle.dumps(s))  # a fresh session of the same spec
+    s2.use_sun_tracks([parse_sun_track(sun, recompute_deg=0.2)], static)
+    s2.restore(state)
+    assert all(lp.reuse for lp in s2.plan(pose, 1280, 720).lights)
+    f2 = s2.set_time(t0 + timedelta(seconds=20))[0]
+    assert not f2.recompute  # resumed schedule: still within 0.2 deg of the last recompute
+    assert all(lp.reuse for lp in s2.plan(pose, 1280, 720).lights)
+    fresh = arshadow.Session(spec, lights=static)
+    fresh.use_sun_tracks([parse_sun_track(sun, recompute_deg=0.2)], static)
+    assert fresh.set_time(t0 + timedelta(seconds=20))[0].recompute  # without the state it recomputes
+    for x in (s, s2, fresh):
+        x.close()
