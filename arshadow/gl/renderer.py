@@ -50,7 +50,7 @@ from .._check import check_finite, check_shape
 from ..errors import GLContextError, ShapeError, UsageError
 from . import glraw as G
 
-__all__ = ["LightPass", "RenderResult", "ShadowRenderer", "load_shader", "srgb_to_linear"]
+__all__ = ["GpuLayers", "LightPass", "RenderResult", "ShadowRenderer", "load_shader", "srgb_to_linear"]
 
 MODES = ("zpass", "zfail", "planar")
 GROUND_BIT = 0x80
@@ -302,6 +302,50 @@ class _Target:
 
 
 
+class _TextureTarget:
+    """Texture-backed single-sample framebuffer (colour 0 ``RGBA16F``, colour 1 ``RG16F``): the blit
+    destination of ``render(readback=False)``, sampled by :mod:`arshadow.gl.compose`."""
+
+    def __init__(self, ctx, width, height):
+        self.width, self.height = int(width), int(height)
+        self.color_tex = ctx.texture((self.width, self.height), 4, dtype="f2")
+        self.mask_tex = ctx.texture((self.width, self.height), 2, dtype="f2")
+        for t in (self.color_tex, self.mask_tex):
+            t.filter = (ctx.NEAREST, ctx.NEAREST)
+        self.mgl = ctx.framebuffer(color_attachments=[self.color_tex, self.mask_tex])
+        self.fbo = self.mgl.glo
+
+    def release(self):
+        for o in (self.mgl, self.color_tex, self.mask_tex):
+            o.release()
+
+
+@dataclass
+class GpuLayers:
+    """What ``ShadowRenderer.render(readback=False)`` returns: the frame's layers left on the GPU.
+
+    Attributes
+    ----------
+    color_tex : moderngl.Texture
+        ``RGBA16F``: rgb = premultiplied linear occluder colour, a = coverage (as :class:`RenderResult`).
+    mask_tex : moderngl.Texture
+        ``RG16F``: r = blocked weight (not yet clipped to [0, 1]), g = ground coverage.
+    width, height : int
+        The canvas occupies texels ``[0, width) x [0, height)``, OpenGL's bottom-up rows (texel row 0 is
+        the canvas's BOTTOM row); the textures may be larger (grown, never shrunk). Valid until the next
+        render.
+    timings_ms : dict
+        ``upload``, ``draw`` (commands issued; not waited for), ``readback`` (0), ``total``.
+    """
+
+    color_tex: object
+    mask_tex: object
+    width: int
+    height: int
+    timings_ms: dict = field(default_factory=dict)
+    premultiplied: bool = True
+
+
 def _program_cache(ctx) -> dict:
     """Programs are cached per context (in ``ctx.extra``), compiled once."""
     extra = ctx.extra if isinstance(getattr(ctx, "extra", None), dict) else None
@@ -387,6 +431,7 @@ class ShadowRenderer:
         self._main = None       # _Target: render target (MSAA and/or supersampled)
         self._resolve = None    # _Target: single-sample canvas-size target (when main is MSAA/supersampled)
         self._half = None       # _Target: intermediate for supersample 4
+        self._tex = None        # _TextureTarget: GPU-resident result (render(readback=False))
         self._released = False
         #: when True, render() calls ctx.finish() after each pass and reports per-pass times (slower)
         self.profile = False
@@ -403,10 +448,10 @@ class ShadowRenderer:
         """Free every GL object this renderer made (programs stay cached on the context)."""
         if self._released:
             return
-        for t in (self._main, self._resolve, self._half, getattr(self, "_ss_resolve", None)):
+        for t in (self._main, self._resolve, self._half, getattr(self, "_ss_resolve", None), self._tex):
             if t is not None:
                 t.release()
-        self._main = self._resolve = self._half = self._ss_resolve = None
+        self._main = self._resolve = self._half = self._ss_resolve = self._tex = None
         for _, _, bufs in self._casters.values():
             bufs.release()
         self._casters.clear()
@@ -545,7 +590,7 @@ class ShadowRenderer:
     # ------------------------------------------------------------------ render
     def render(self, *, projection, view, width, height, caster, passes, ground_size=None,
                draw_occluder=True, ambient=0.25, diffuse=1.0, specular=0.25, shininess=32.0,
-               occluder_color=None) -> RenderResult:
+               occluder_color=None, readback=True):
         """Render one frame (or one canvas sub-rectangle of it).
 
         Parameters
@@ -569,10 +614,14 @@ class ShadowRenderer:
             Phong coefficients (paper 002): ``I = K_a I_a + sum_l I_l (K_d (N.L) + K_s (N.H)^n)``.
         occluder_color : (3,) sRGB in [0, 1], optional
             Overrides the mesh's own colours (mesh colours and this are sRGB-encoded; output is linear).
+        readback : bool
+            True (default): read the layers back into numpy (:class:`RenderResult`). False: keep them on
+            the GPU: the (resolved) attachments are copied into two textures and a :class:`GpuLayers` is
+            returned (no ``ctx.finish()``, no readback; :mod:`arshadow.gl.compose` samples them).
 
         Returns
         -------
-        RenderResult
+        RenderResult, or GpuLayers when ``readback`` is False
         """
         t0 = time.perf_counter()
         if self._released:
@@ -739,6 +788,15 @@ class ShadowRenderer:
 
         # -- resolve / downsample
         src = tgt
+        if not readback and s == 1:
+            # GPU-resident result: resolve (MSAA) or copy straight into the texture target
+            tt = self._texture_target(width, height)
+            self._blit(src, tt, rw, rh, rw, rh, G.GL_NEAREST)
+            self._mark("resolve")
+            t2 = time.perf_counter()
+            return GpuLayers(tt.color_tex, tt.mask_tex, width, height,
+                             timings_ms={"upload": (t1 - t0) * 1e3, "draw": (t2 - t1) * 1e3, "readback": 0.0,
+                                         "total": (t2 - t0) * 1e3})
         if self.samples:
             dst = self._resolve if s == 1 else self._main_resolve_ss()
             self._blit(src, dst, rw, rh, rw, rh, G.GL_NEAREST)
@@ -751,6 +809,13 @@ class ShadowRenderer:
             self._blit(src, self._resolve, rw, rh, width, height, G.GL_LINEAR)
             src = self._resolve
         self._mark("resolve")
+        if not readback:
+            tt = self._texture_target(width, height)
+            self._blit(src, tt, width, height, width, height, G.GL_NEAREST)
+            t2 = time.perf_counter()
+            return GpuLayers(tt.color_tex, tt.mask_tex, width, height,
+                             timings_ms={"upload": (t1 - t0) * 1e3, "draw": (t2 - t1) * 1e3, "readback": 0.0,
+                                         "total": (t2 - t0) * 1e3})
         ctx.finish()
         t2 = time.perf_counter()
 
@@ -794,6 +859,16 @@ class ShadowRenderer:
                    if self.profile else {}),
             },
         )
+
+    def _texture_target(self, width: int, height: int):
+        """Single-sample ``RGBA16F`` + ``RG16F`` textures (grown, never shrunk) for ``readback=False``."""
+        t = self._tex
+        if t is None or t.width < width or t.height < height:
+            w, h = max(width, t.width if t else 0), max(height, t.height if t else 0)
+            if t is not None:
+                t.release()
+            t = self._tex = _TextureTarget(self.ctx, w, h)
+        return t
 
     def _main_resolve_ss(self):
         """Single-sample target of the supersampled size (MSAA + supersampling)."""
