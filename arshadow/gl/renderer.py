@@ -49,8 +49,9 @@ from ..composite import srgb_to_linear
 from .._check import check_finite, check_shape
 from ..errors import GLContextError, ShapeError, UsageError
 from . import glraw as G
+from .layers import GpuLayers, TextureTarget
 
-__all__ = ["GpuLayers", "LightPass", "RenderResult", "ShadowRenderer", "load_shader", "srgb_to_linear"]
+__all__ = ["LightPass", "RenderResult", "ShadowRenderer", "load_shader", "srgb_to_linear"]
 
 MODES = ("zpass", "zfail", "planar")
 GROUND_BIT = 0x80
@@ -302,50 +303,6 @@ class _Target:
 
 
 
-class _TextureTarget:
-    """Texture-backed single-sample framebuffer (colour 0 ``RGBA16F``, colour 1 ``RG16F``): the blit
-    destination of ``render(readback=False)``, sampled by :mod:`arshadow.gl.compose`."""
-
-    def __init__(self, ctx, width, height):
-        self.width, self.height = int(width), int(height)
-        self.color_tex = ctx.texture((self.width, self.height), 4, dtype="f2")
-        self.mask_tex = ctx.texture((self.width, self.height), 2, dtype="f2")
-        for t in (self.color_tex, self.mask_tex):
-            t.filter = (ctx.NEAREST, ctx.NEAREST)
-        self.mgl = ctx.framebuffer(color_attachments=[self.color_tex, self.mask_tex])
-        self.fbo = self.mgl.glo
-
-    def release(self):
-        for o in (self.mgl, self.color_tex, self.mask_tex):
-            o.release()
-
-
-@dataclass
-class GpuLayers:
-    """What ``ShadowRenderer.render(readback=False)`` returns: the frame's layers left on the GPU.
-
-    Attributes
-    ----------
-    color_tex : moderngl.Texture
-        ``RGBA16F``: rgb = premultiplied linear occluder colour, a = coverage (as :class:`RenderResult`).
-    mask_tex : moderngl.Texture
-        ``RG16F``: r = blocked weight (not yet clipped to [0, 1]), g = ground coverage.
-    width, height : int
-        The canvas occupies texels ``[0, width) x [0, height)``, OpenGL's bottom-up rows (texel row 0 is
-        the canvas's BOTTOM row); the textures may be larger (grown, never shrunk). Valid until the next
-        render.
-    timings_ms : dict
-        ``upload``, ``draw`` (commands issued; not waited for), ``readback`` (0), ``total``.
-    """
-
-    color_tex: object
-    mask_tex: object
-    width: int
-    height: int
-    timings_ms: dict = field(default_factory=dict)
-    premultiplied: bool = True
-
-
 def _program_cache(ctx) -> dict:
     """Programs are cached per context (in ``ctx.extra``), compiled once."""
     extra = ctx.extra if isinstance(getattr(ctx, "extra", None), dict) else None
@@ -431,7 +388,7 @@ class ShadowRenderer:
         self._main = None       # _Target: render target (MSAA and/or supersampled)
         self._resolve = None    # _Target: single-sample canvas-size target (when main is MSAA/supersampled)
         self._half = None       # _Target: intermediate for supersample 4
-        self._tex = None        # _TextureTarget: GPU-resident result (render(readback=False))
+        self._tex = None        # TextureTarget: GPU-resident result (render(readback=False))
         self._released = False
         #: when True, render() calls ctx.finish() after each pass and reports per-pass times (slower)
         self.profile = False
@@ -867,7 +824,7 @@ class ShadowRenderer:
             w, h = max(width, t.width if t else 0), max(height, t.height if t else 0)
             if t is not None:
                 t.release()
-            t = self._tex = _TextureTarget(self.ctx, w, h)
+            t = self._tex = TextureTarget(self.ctx, w, h)
         return t
 
     def _main_resolve_ss(self):
@@ -924,7 +881,9 @@ class ShadowRenderer:
         prog["u_kd"].value = float(kd)
         prog["u_ks"].value = float(ks)
         prog["u_shininess"].value = float(shininess)
-        if stencil and i in bufs.sub_ranges:
+        # closed meshes: only the light-facing faces (the others lie in this light's own shadow; with a
+        # planar or no volume pass this is also what keeps a convex occluder's terminator as the volume has it)
+        if i in bufs.sub_ranges:
             first, count = bufs.sub_ranges[i]
             if count:
                 bufs.sub_vao.render(moderngl.TRIANGLES, vertices=count, first=first)
