@@ -50,6 +50,7 @@ __all__ = [
     "zpass_safe",
     "light_shadow_in_view",
     "same_silhouette",
+    "reuse_light_geometry",
     "tracking_roi",
     "PLANS",
 ]
@@ -164,6 +165,50 @@ def same_silhouette(face_planes, facing, light_h) -> bool:
     per-face sign test the detectors use (``face_planes @ light_h > 0``).
     """
     return bool(np.array_equal(np.asarray(face_planes) @ as_light_h(light_h) > 0.0, facing))
+
+
+def reuse_light_geometry(caster, light_h, sil, volumes: dict, *, truncate_z=None):
+    """Carry a light's cached silhouette and volumes over to a moved light where that is exact.
+
+    Parameters
+    ----------
+    caster : ShadowCaster
+    light_h : (4,) float64
+        The new light (occluder/world frame).
+    sil : arshadow.silhouette.Silhouette
+        The cached silhouette (of the old light).
+    volumes : dict
+        ``caps (bool) -> ShadowVolume`` cached for the old light.
+    truncate_z : float or None
+        As the cached volumes were built.
+
+    Returns
+    -------
+    sil, volumes, reason
+        ``sil`` None when a face changes its facing (recompute from scratch). Otherwise the same edges
+        for the new light, and per cached volume: the cached object itself when the new volume's float32
+        vertices (what is uploaded) and triangles are identical (the uploaded buffers are reused: the same
+        GPU input cannot change a pixel), else the new volume (re-extruded from the kept edges, no
+        silhouette detection).
+    """
+    from dataclasses import replace
+
+    from .volume import shadow_volume
+
+    h = as_light_h(light_h)
+    if sil is None or not same_silhouette(caster.face_planes, sil.facing, h):
+        return None, {}, "a face changed its facing: silhouette recomputed"
+    sil2 = replace(sil, light_h=h)
+    out, kept = {}, 0
+    for caps, vol in volumes.items():
+        new = shadow_volume(caster, h, sil2, caps=caps, truncate_z=truncate_z)
+        same = (new.truncated == vol.truncated and np.array_equal(new.triangles, vol.triangles)
+                and np.array_equal(new.vertices.astype(np.float32), vol.vertices.astype(np.float32)))
+        out[caps] = vol if same else new
+        kept += same
+    if volumes and kept == len(volumes):
+        return sil2, out, "same facing and float32-identical volume: cached geometry and GPU buffers reused"
+    return sil2, out, "same facing: silhouette reused, volume re-extruded"
 
 
 def tracking_roi(corners, width: int, height: int, grow: float = 0.5, min_margin: int = 32):
