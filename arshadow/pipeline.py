@@ -87,6 +87,18 @@ class RenderOptions:
     fast_detect : bool
         Try the one-window ArUco detector first (:func:`fast_detector_params`), the full search only if
         it finds nothing.
+    plan : str
+        Frame planner (:mod:`arshadow.plan_rules`, docs/planner.md): ``auto`` (cheapest exact path per
+        frame and light), ``general`` (the reference: z-fail, volumes to infinity, full frame, every pass,
+        geometry rebuilt every frame), or force ``zpass`` / ``zfail`` / ``planar``.
+    plan_off : tuple of str
+        ``auto`` decisions to switch off (benchmarks, tests): ``planar``, ``zpass``, ``truncate``,
+        ``cull``, ``roi``, ``reuse``.
+    compose : str
+        ``auto`` (time the numpy and the shader compose path on first use per photo size, keep the
+        faster), ``cpu`` or ``gpu``.
+    track_roi : bool
+        Video: search the marker in a window around the last detection first (full-frame fallback).
     """
 
     opacity: float = 0.7
@@ -101,8 +113,21 @@ class RenderOptions:
     roi: bool = True
     occluder_color: tuple | None = None
     fast_detect: bool = True
+    plan: str = "auto"
+    plan_off: tuple = ()
+    compose: str = "auto"
+    track_roi: bool = False
 
     def check(self) -> RenderOptions:
+        from .plan_rules import PLANS
+
+        if self.plan not in PLANS:
+            raise UsageError(f"--plan {self.plan!r}: choose one of {', '.join(PLANS)}")
+        bad = set(self.plan_off) - {"planar", "zpass", "truncate", "cull", "roi", "reuse"}
+        if bad:
+            raise UsageError(f"plan_off: unknown decision(s) {', '.join(sorted(bad))}")
+        if self.compose not in ("auto", "cpu", "gpu"):
+            raise UsageError(f"--compose {self.compose!r}: choose auto, cpu or gpu")
         if not (0.0 <= float(self.opacity) <= 1.0):
             raise UsageError(f"--opacity {self.opacity}: must be in [0, 1]")
         if self.shadow_method not in ("volume", "planar"):
@@ -234,7 +259,9 @@ class _LightState:
     weight: float  # share of the total weight
     light_h: np.ndarray
     sil: object = None
-    volumes: dict = field(default_factory=dict)  # caps(bool) -> ShadowVolume
+    volumes: dict = field(default_factory=dict)  # (caps, truncated) -> ShadowVolume
+    footprint: object = False  # ground footprint points (n, 3) or None (unbounded); False: not computed
+    reuse: str | None = None  # how the geometry was carried over from a moved light (plan field)
 
 
 class Compositor:
@@ -280,6 +307,11 @@ class Compositor:
                             if len(caster.vertices) <= ROI_MAX_POINTS else None)
         self._size = float(np.linalg.norm(b[1] - b[0]))
         self._hull = (None, None)  # (lights' key, scene_hull_points) for the current lights
+        self._convex = None  # mesh_is_convex, computed on first use
+        self._gpu = None  # arshadow.gl.compose.GpuCompositor, made on first use
+        from .gl.compose import PathChooser
+
+        self.compose_chooser = PathChooser(force=None if self.options.compose == "auto" else self.options.compose)
 
     # -- cached per run ------------------------------------------------------------------------------
     @property
@@ -294,6 +326,9 @@ class Compositor:
         if self._own_renderer and self._renderer is not None:
             self._renderer.release()
         self._renderer = None
+        if self._gpu is not None:
+            self._gpu.release()
+            self._gpu = None
 
     def __enter__(self):
         return self
@@ -327,6 +362,8 @@ class Compositor:
         if not lights:
             raise LightError("no light given (use --light)")
         old = {tuple(ls.light_h.tolist()): ls for ls in self._lights}
+        old_list = list(self._lights)
+        reuse = self.options.plan != "general" and "reuse" not in self.options.plan_off
         total = float(sum(lt.weight for lt in lights if lt.above_horizon))
         notes, states, n_new = [], [], 0
         for lt in lights:
@@ -338,6 +375,19 @@ class Compositor:
             for s in samples:
                 h = np.asarray(s.homogeneous, float)
                 prev = old.get(tuple(h.tolist()))
+                if prev is None and reuse and len(states) < len(old_list) and old_list[len(states)].sil is not None:
+                    # a moved light (same slot): keep what provably gives the same pixels
+                    from .plan_rules import reuse_light_geometry
+
+                    o = old_list[len(states)]
+                    trunc = self._trunc_z()
+                    sil, vols, why = reuse_light_geometry(
+                        self.caster, h, o.sil, {c: v for (c, t), v in o.volumes.items() if t == (trunc is not None)},
+                        truncate_z=trunc)
+                    if sil is not None:
+                        states.append(_LightState(s, float(s.weight) / total, h, sil,
+                                                  {(c, trunc is not None): v for c, v in vols.items()}, reuse=why))
+                        continue
                 if prev is None:
                     n_new += 1
                     states.append(_LightState(s, float(s.weight) / total, h))
@@ -371,17 +421,74 @@ class Compositor:
             timings["silhouette"] += (time.perf_counter() - t) * 1e3
         return ls.sil
 
-    def _volume(self, ls: _LightState, caps: bool, timings):
-        vol = ls.volumes.get(caps)
+    def _trunc_z(self):
+        """The plane volumes are truncated at (just below the ground), or None (to infinity)."""
+        return -1e-3 * max(self._size, 1e-6) if self.options.truncate else None
+
+    def _volume(self, ls: _LightState, caps: bool, timings, truncate: bool | None = None):
+        truncate = self.options.truncate if truncate is None else bool(truncate)
+        vol = ls.volumes.get((caps, truncate))
         if vol is None:
             from .volume import shadow_volume
 
             sil = self._silhouette(ls, timings)
             t = time.perf_counter()
-            trunc = -1e-3 * max(self._size, 1e-6) if self.options.truncate else None
-            vol = ls.volumes[caps] = shadow_volume(self.caster, ls.light_h, sil, caps=caps, truncate_z=trunc)
+            trunc = -1e-3 * max(self._size, 1e-6) if truncate else None
+            vol = ls.volumes[(caps, truncate)] = shadow_volume(self.caster, ls.light_h, sil, caps=caps,
+                                                                truncate_z=trunc)
             timings["volume"] += (time.perf_counter() - t) * 1e3
         return vol
+
+    @property
+    def convex(self) -> bool:
+        """:func:`arshadow.plan_rules.mesh_is_convex` of the occluder (computed once)."""
+        if self._convex is None:
+            from .plan_rules import mesh_is_convex
+
+            self._convex = mesh_is_convex(self.caster)
+        return self._convex
+
+    def _footprint_rect(self, ls: _LightState, intr, cam_from_world, znear):
+        """Pinhole screen box of one light's ground footprint (clipped to ``ground_size``), or None."""
+        if ls.footprint is False:
+            fp = shadow_footprint(self._bounds, ls.light_h, points=self._roi_points)
+            gs = self.options.ground_size
+            if gs is not None:
+                half = 0.5 * float(gs)
+                if fp is None:
+                    fp = np.array([[-half, -half, 0], [half, -half, 0], [half, half, 0], [-half, half, 0]], float)
+                else:
+                    lo = np.maximum(fp[:, :2].min(axis=0), -half)
+                    hi = np.minimum(fp[:, :2].max(axis=0), half)
+                    fp = (np.zeros((0, 3)) if np.any(hi < lo) else
+                          np.array([[lo[0], lo[1], 0], [hi[0], lo[1], 0], [hi[0], hi[1], 0], [lo[0], hi[1], 0]], float))
+            ls.footprint = fp
+        fp = ls.footprint
+        if fp is None:
+            return None
+        if len(fp) == 0:
+            return (-1e9, -1e9, -1e9, -1e9)  # the shadow falls entirely off the ground square
+        return _pinhole_rect(intr, cam_from_world, fp, znear)
+
+    def plan_for(self, cam_from_world, znear, intr, canvas):
+        """The planner's per-light decisions for this frame (:func:`arshadow.plan_rules.decide_lights`)."""
+        from .plan_rules import decide_lights
+        from .volume import near_plane_radius
+
+        opts = self.options
+        plan = "planar" if opts.shadow_method == "planar" and opts.plan == "auto" else opts.plan
+        u0, v0, w, h = canvas
+        near = near_plane_radius(znear, max(int(w), 1), max(int(h), 1), intr.fx, intr.fy, intr.cx - u0, intr.cy - v0)
+        eye = invert_rigid(cam_from_world)[:3, 3]
+        off = set(opts.plan_off)
+        rects = None
+        if plan == "auto" and "cull" not in off:
+            rects = [self._footprint_rect(ls, intr, cam_from_world, znear) for ls in self._lights]
+        return decide_lights(plan, self.caster, [ls.light_h for ls in self._lights],
+                             convex=self.convex if plan == "auto" and "planar" not in off else False,
+                             eye_world=eye, near=near, draw_occluder=opts.draw_occluder,
+                             truncate=opts.truncate and "truncate" not in off, footprint_rects=rects, canvas=canvas,
+                             off=off)
 
     def znear_for(self, cam_from_world) -> float:
         """A near plane that clips nothing visible: a fraction of the distance to the object and ground."""
@@ -524,9 +631,14 @@ class Compositor:
         znear = self.znear_for(cam_from_world)
         opts = self.options
 
-        # 2. region of interest (photo) and pinhole canvas
+        general = opts.plan == "general"
+        off = set(opts.plan_off)
+        if general or "reuse" in off:  # the reference rebuilds every light's geometry every frame
+            for ls in self._lights:
+                ls.sil, ls.volumes, ls.reuse = None, {}, None
+        # 2. region of interest (photo) and pinhole canvas (the general plan: always the whole photo)
         rect = None
-        if opts.roi:
+        if opts.roi and not general and "roi" not in off:
             hull = self._scene_hull()
             rect = None if hull is None else _pinhole_rect(intr, cam_from_world, hull, znear)
         if lens is None:
@@ -542,24 +654,45 @@ class Compositor:
             else:
                 roi = lens.distorted_roi(rect, margin=2)
                 canvas = lens.canvas_for(roi, rect) if roi[2] and roi[3] else (0, 0, 0, 0)
-        # 3. per light: mode, silhouette, volume (cached per run)
+        # 3. per light: the planner's decisions (mode, truncation, culling), silhouette, volume (cached)
+        from .plan_rules import LightDecision
+
         if modes is None:
-            modes = self.modes_for(cam_from_world, znear, intr, canvas)
-        passes, n_edges = [], 0
-        for ls, mode in zip(self._lights, modes):
-            if mode == "planar":
-                vol = None
-                sil = None
+            if canvas[2] > 0 and canvas[3] > 0:
+                decisions = self.plan_for(cam_from_world, znear, intr, canvas)
             else:
-                vol = self._volume(ls, caps=(mode == "zfail"), timings=timings)
+                decisions = [LightDecision("none", False, {"cull": "scene off screen: nothing rendered"})
+                             for _ in self._lights]
+        else:
+            decisions = [LightDecision(m, bool(opts.truncate), {"mode": "forced by the caller"}) for m in modes]
+        passes, n_edges, plan_lights = [], 0, []
+        for ls, d in zip(self._lights, decisions):
+            vol = sil = None
+            if d.mode not in ("planar", "none") and canvas[2] > 0 and canvas[3] > 0:
+                vol = self._volume(ls, caps=(d.mode == "zfail"), timings=timings, truncate=d.truncate)
                 sil = ls.sil
             if sil is not None:
                 n_edges += int(len(sil.edges))
-            passes.append(LightPass(light_h=ls.light_h, weight=ls.weight, volume=vol, mode=mode))
-        mode = None if not modes else ("planar" if "planar" in modes else ("zfail" if "zfail" in modes else "zpass"))
+            # a culled light: no volume; the renderer lights the occluder with it, unshadowed
+            passes.append(LightPass(light_h=ls.light_h, weight=ls.weight, volume=vol,
+                                    mode="zpass" if d.mode == "none" else d.mode))
+            entry = {"mode": d.mode, "why": dict(d.reasons)}
+            if vol is not None:
+                entry["truncated"] = bool(vol.truncated)
+            if ls.reuse:
+                entry["why"]["reuse"] = ls.reuse
+            plan_lights.append(entry)
+        modes = [d.mode for d in decisions]
+        drawn = [m for m in modes if m != "none"]
+        mode = None if not drawn else ("planar" if "planar" in drawn else ("zfail" if "zfail" in drawn else "zpass"))
 
+        roi_why = ("general plan: whole photo" if general else "switched off: whole photo" if "roi" in off
+                   else "--no-roi: whole photo" if not opts.roi else "unbounded footprint: whole photo"
+                   if rect is None else "occluder + shadow footprints' screen box")
+        plan_name = "planar" if opts.shadow_method == "planar" and opts.plan == "auto" else opts.plan
         info = {"mode": mode, "modes": list(modes), "silhouette_edges": n_edges, "roi": list(roi),
-                "canvas": list(canvas), "znear": znear}
+                "canvas": list(canvas), "znear": znear,
+                "plan": {"plan": plan_name, "roi": roi_why, "lights": plan_lights}}
 
         if out is None:
             out = image.copy()
@@ -576,6 +709,69 @@ class Compositor:
         if roi[2] == 0 or roi[3] == 0 or canvas[2] == 0 or canvas[3] == 0:
             return out, mask_full, info  # nothing of the scene is in view
 
+        # 4-6. render, lens warp, composite: the numpy path or the shader path (arshadow/gl/compose.py),
+        # whichever measured faster on this backend for this photo size (timed on first use)
+        args = (image, intr, cam_from_world, znear, canvas, roi, lens, passes, out, mask_full, want_mask, info)
+
+        x0, y0, w, h = roi
+
+        def run(fn):
+            def go():
+                # each path composites into a clean ROI (the chooser may run both, one after the other)
+                np.copyto(out[y0 : y0 + h, x0 : x0 + w], image[y0 : y0 + h, x0 : x0 + w])
+                if mask_full is not None:
+                    mask_full[y0 : y0 + h, x0 : x0 + w] = 0
+                t = dict.fromkeys(STAGES, 0.0)
+                fn(*args, timings=t)
+                return t
+            return go
+
+        paths = {"cpu": run(self._compose_cpu)}
+        if out.flags.c_contiguous and (mask_full is None or mask_full.flags.c_contiguous):
+            paths["gpu"] = run(self._compose_gpu)
+        if len(paths) == 1 or self.compose_chooser.force == "cpu":
+            choice, used = "cpu", paths["cpu"]()
+        else:
+            choice, used = self.compose_chooser.run((W, H, int(opts.aa), lens is not None), paths)
+        for k, v in used.items():
+            timings[k] += v
+        info["compose"] = choice
+        d = self.compose_chooser.decisions.get((W, H, int(opts.aa), lens is not None))
+        info["plan"]["compose"] = ("numpy (no contiguous output buffer)" if len(paths) == 1 else
+                                   f"forced {choice}" if d is None or d.get("forced") else
+                                   f"measured on first use: {d['ms']} ms")
+        return out, mask_full, info
+
+    def _compose_gpu(self, image, intr, cam_from_world, znear, canvas, roi, lens, passes, out, mask_full, want_mask,
+                     info, timings):
+        """Render with the layers kept on the GPU, lens warp + composite in a shader, one 8-bit readback."""
+        opts = self.options
+        if self._gpu is None:
+            from .gl.compose import GpuCompositor
+
+            self._gpu = GpuCompositor(self.ctx)
+        proj = intr.gl_projection(znear, None, canvas=canvas)
+        t = time.perf_counter()
+        lay = self.renderer.render(projection=proj, view=CV_TO_GL @ cam_from_world, width=int(canvas[2]),
+                                   height=int(canvas[3]), caster=self.caster, passes=passes,
+                                   ground_size=opts.ground_size, draw_occluder=opts.draw_occluder,
+                                   occluder_color=opts.occluder_color, readback=False)
+        timings["render"] += (time.perf_counter() - t) * 1e3
+        ct = {}
+        t = time.perf_counter()
+        self._gpu.compose(image, lay, roi, canvas, lens=lens, opacity=opts.opacity, shadow_color=opts.shadow_color,
+                          draw_occluder=opts.draw_occluder, out=out, mask_out=mask_full if want_mask else None,
+                          timings=ct)
+        # the shader's draw waits for the render to finish: the readback holds both
+        timings["readback"] += ct.get("readback", 0.0)
+        timings["composite"] += (time.perf_counter() - t) * 1e3 - ct.get("readback", 0.0)
+        info["composited"] = list(roi)
+
+    def _compose_cpu(self, image, intr, cam_from_world, znear, canvas, roi, lens, passes, out, mask_full, want_mask,
+                     info, timings):
+        """Render, read the float layers back, lens warp (cv2.remap) and composite in numpy."""
+        H, W = image.shape[:2]
+        opts = self.options
         # 4. render the canvas
         proj = intr.gl_projection(znear, None, canvas=canvas)
         view = CV_TO_GL @ cam_from_world
@@ -604,7 +800,7 @@ class Compositor:
             if rows.size == 0:  # nothing drawn: the photo is unchanged
                 timings["warp"] += (time.perf_counter() - t) * 1e3
                 info["content"] = None
-                return out, mask_full, info
+                return
             cols = np.flatnonzero(act.any(axis=0))
             r0, r1 = ch - 1 - int(rows[-1]), ch - 1 - int(rows[0])  # top-down canvas rows
             k0, k1 = int(cols[0]), int(cols[-1])
@@ -619,7 +815,7 @@ class Compositor:
                 y1 = min(sub[1] + sub[3], roi[1] + roi[3])
                 if x1 <= x0 or y1 <= y0:
                     timings["warp"] += (time.perf_counter() - t) * 1e3
-                    return out, mask_full, info
+                    return
                 roi = (x0, y0, x1 - x0, y1 - y0)
                 l0, l1 = lens.warp(roi, canvas, c0, c1, work=self._work, bottom_up=True)
             else:
@@ -651,7 +847,7 @@ class Compositor:
             np.clip(m, np.float32(0.0), np.float32(255.0), out=m)
             np.copyto(mask_full[y0 : y0 + h, x0 : x0 + w], m, casting="unsafe")
         timings["composite"] += (time.perf_counter() - t) * 1e3
-        return out, mask_full, info
+        return
 
     def _scene_hull(self):
         """:func:`scene_hull_points` of the current lights (recomputed only when the lights change)."""

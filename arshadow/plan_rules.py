@@ -39,6 +39,7 @@ tracking ROI (:func:`tracking_roi`)
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -52,6 +53,8 @@ __all__ = [
     "same_silhouette",
     "reuse_light_geometry",
     "tracking_roi",
+    "decide_lights",
+    "LightDecision",
     "PLANS",
 ]
 
@@ -237,3 +240,91 @@ def tracking_roi(corners, width: int, height: int, grow: float = 0.5, min_margin
     if x1 <= x0 or y1 <= y0 or (x1 - x0) * (y1 - y0) > 0.6 * width * height:
         return None
     return (x0, y0, x1 - x0, y1 - y0)
+
+
+@dataclass
+class LightDecision:
+    """What the planner decided for one (sample) light of a frame.
+
+    Attributes
+    ----------
+    mode : str
+        ``"zpass"`` | ``"zfail"`` | ``"planar"``; ``"none"`` when the volume pass is culled (the renderer
+        then lights the occluder unshadowed by this light: exact for a convex or undrawn occluder).
+    truncate : bool
+        Build the volume truncated just below the ground (whether it could be is the volume's
+        ``truncated``).
+    reasons : dict
+        decision name -> reason (the report's ``plan`` field).
+    """
+
+    mode: str
+    truncate: bool
+    reasons: dict = field(default_factory=dict)
+
+    @property
+    def culled(self) -> bool:
+        return self.mode == "none"
+
+
+def decide_lights(plan: str, caster, lights_h, *, convex: bool, eye_world, near: float, draw_occluder: bool,
+                  truncate: bool, footprint_rects=None, canvas=None, off=()) -> list[LightDecision]:
+    """Per light: volume mode (or planar, or culled) and truncation, with the reasons.
+
+    Parameters
+    ----------
+    plan : str
+        One of :data:`PLANS`. ``general`` is the reference: z-fail, volumes to infinity, every pass.
+        ``zpass`` / ``zfail`` / ``planar`` force that mode for every light (``zpass`` is then the user's
+        responsibility: wrong counts where the camera is inside a volume).
+    caster : ShadowCaster
+    lights_h : sequence of (4,) float64
+    convex : bool
+        :func:`mesh_is_convex` (once per mesh).
+    eye_world : (3,) float64
+        Camera centre, world frame.
+    near : float
+        Radius of the near rectangle (:func:`arshadow.volume.near_plane_radius`).
+    draw_occluder : bool
+    truncate : bool
+        ``RenderOptions.truncate``.
+    footprint_rects : sequence of ((u0, v0, u1, v1) or None), optional
+        Per light, the pinhole screen box of its ground footprint (for culling); None: no culling.
+    canvas : (u0, v0, w, h), optional
+        The pinhole canvas rendered (for culling).
+    off : collection of str
+        ``auto`` decisions switched off (``planar``, ``zpass``, ``cull``): benchmarks and tests.
+    """
+    if plan not in PLANS:
+        from .errors import UsageError
+
+        raise UsageError(f"--plan {plan!r}: choose one of {', '.join(PLANS)}")
+    out = []
+    for i, h in enumerate(lights_h):
+        if plan == "general":
+            out.append(LightDecision("zfail", False, {"mode": "forced general (reference): z-fail",
+                                                      "truncate": "general: volumes to infinity"}))
+            continue
+        trunc_why = "truncated just below the ground" if truncate else "--no-truncate: volumes to infinity"
+        if plan in ("zpass", "zfail", "planar"):
+            out.append(LightDecision(plan, bool(truncate), {"mode": f"forced --plan {plan}", "truncate": trunc_why}))
+            continue
+        reasons = {}
+        if footprint_rects is not None and canvas is not None and "cull" not in off:
+            in_view, why = light_shadow_in_view(footprint_rects[i], canvas,
+                                                occluder_matters=draw_occluder and not convex)
+            reasons["cull"] = why
+            if not in_view:
+                out.append(LightDecision("none", bool(truncate), reasons))
+                continue
+        ok, why = (False, "switched off") if "planar" in off else planar_applies(
+            caster, h, convex=convex, draw_occluder=draw_occluder)
+        reasons["planar"] = why
+        if ok:
+            out.append(LightDecision("planar", False, reasons))
+            continue
+        safe, why = (False, "z-pass switched off") if "zpass" in off else zpass_safe(caster, h, eye_world, near)
+        reasons["mode"] = why
+        reasons["truncate"] = trunc_why
+        out.append(LightDecision("zpass" if safe else "zfail", bool(truncate), reasons))
+    return out
