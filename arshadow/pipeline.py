@@ -638,10 +638,20 @@ class Compositor:
                 ls.sil, ls.volumes, ls.reuse = None, {}, None
         # 2. region of interest (photo) and pinhole canvas (the general plan: always the whole photo)
         rect = None
+        off_screen = False
         if opts.roi and not general and "roi" not in off:
             hull = self._scene_hull()
             rect = None if hull is None else _pinhole_rect(intr, cam_from_world, hull, znear)
-        if lens is None:
+            if rect is None and hull is not None and "cull" not in off:
+                # part of the hull behind the camera: still nothing to draw if it is all outside the view
+                from .plan_rules import outside_view
+
+                ext = lens.pinhole_extent if lens is not None else (-0.5, -0.5, W - 0.5, H - 0.5)
+                off_screen = outside_view(transform_points(cam_from_world, hull), intr.fx, intr.fy, intr.cx,
+                                          intr.cy, ext, znear)
+        if off_screen:
+            roi = canvas = (0, 0, 0, 0)
+        elif lens is None:
             if rect is None:
                 roi = (0, 0, W, H)
             else:
@@ -686,7 +696,8 @@ class Compositor:
         drawn = [m for m in modes if m != "none"]
         mode = None if not drawn else ("planar" if "planar" in drawn else ("zfail" if "zfail" in drawn else "zpass"))
 
-        roi_why = ("general plan: whole photo" if general else "switched off: whole photo" if "roi" in off
+        roi_why = ("occluder and shadows outside the view: nothing rendered" if off_screen
+                   else "general plan: whole photo" if general else "switched off: whole photo" if "roi" in off
                    else "--no-roi: whole photo" if not opts.roi else "unbounded footprint: whole photo"
                    if rect is None else "occluder + shadow footprints' screen box")
         plan_name = "planar" if opts.shadow_method == "planar" and opts.plan == "auto" else opts.plan

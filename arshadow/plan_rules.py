@@ -53,6 +53,7 @@ __all__ = [
     "same_silhouette",
     "reuse_light_geometry",
     "tracking_roi",
+    "outside_view",
     "decide_lights",
     "LightDecision",
     "PLANS",
@@ -159,6 +160,39 @@ def light_shadow_in_view(footprint_rect, canvas, *, occluder_matters: bool):
     if u1 < cu0 - 1 or v1 < cv0 - 1 or u0 > cu0 + cw or v0 > cv0 + ch:
         return False, "ground footprint outside the canvas"
     return True, "ground footprint in view"
+
+
+def outside_view(points_cam, fx, fy, cx, cy, extent, znear: float) -> bool:
+    """Whether the convex hull of camera-frame points is entirely outside the view frustum.
+
+    True when every point lies outside the same one of the five half-spaces bounding the frustum (in
+    front of the near plane, and inside the four planes through the eye and the edges of the pinhole
+    rectangle ``extent``): then so does their convex hull, and nothing of it can be seen.
+
+    Parameters
+    ----------
+    points_cam : (n, 3) float64
+        Points in the OpenCV camera frame (e.g. the occluder's and its shadows' hull points).
+    fx, fy, cx, cy : float
+        Pinhole intrinsics.
+    extent : (u0, v0, u1, v1) float
+        Pinhole pixel rectangle the photo can see (the image's pixel edges; with lens distortion the
+        pinhole extent of the distorted image).
+    znear : float
+    """
+    p = np.asarray(points_cam, np.float64).reshape(-1, 3)
+    if p.size == 0:
+        return True
+    x, y, z = p[:, 0], p[:, 1], p[:, 2]
+    u0, v0, u1, v1 = extent
+    tests = (
+        z <= znear,
+        fx * x - (u0 - cx) * z < 0.0,  # planes through the eye: each half-space holds the whole frustum
+        fx * x - (u1 - cx) * z > 0.0,
+        fy * y - (v0 - cy) * z < 0.0,
+        fy * y - (v1 - cy) * z > 0.0,
+    )
+    return any(bool(np.all(t)) for t in tests)
 
 
 def same_silhouette(face_planes, facing, light_h) -> bool:

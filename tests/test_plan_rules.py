@@ -152,3 +152,19 @@ def test_tracking_detector_window_then_fallback(tol):
     with pytest.raises(MarkerNotFoundError):
         trk.estimate(blank)
     assert td.last == "full" and td.window is None
+
+
+def test_outside_view_only_when_one_plane_excludes_everything():
+    from arshadow.plan_rules import outside_view
+
+    ext = (-0.5, -0.5, 639.5, 479.5)
+    k = dict(fx=500.0, fy=500.0, cx=319.5, cy=239.5, extent=ext, znear=0.01)
+    behind = np.array([[0.0, 0.0, -1.0], [0.3, 0.2, -0.5]])
+    assert outside_view(behind, **k)
+    # straddling the eye (one point in front, in view): visible
+    assert not outside_view(np.r_[behind, [[0.0, 0.0, 1.0]]], **k)
+    # all far to the left of the view (u < -0.5), some of them behind the camera: outside
+    left = np.array([[-5.0, 0.0, 1.0], [-3.0, 0.0, 0.5], [-2.0, 0.0, -0.2]])
+    assert outside_view(left, **k)
+    # a segment crossing the view from far left to far right at z = 1: its hull is visible
+    assert not outside_view(np.array([[-5.0, 0.0, 1.0], [5.0, 0.0, 1.0]]), **k)
