@@ -409,6 +409,13 @@ class Compositor:
             if self.options.fast_detect and "detector_params" not in self.tracker_kwargs:
                 fast = make_fast_tracker(intr, **self.tracker_kwargs)
             lens = self._lens_for(intr) if intr.has_distortion else None
+            if self.options.track_roi and self.options.plan != "general" and "board" not in self.tracker_kwargs:
+                # video: each tracker searches a window around its last detection first (planner's tracking ROI)
+                from .roi_track import TrackingDetector
+
+                for trk in (tracker, fast):
+                    if trk is not None and hasattr(trk, "_detector"):
+                        trk._detector = TrackingDetector(trk._detector, self.tracker_kwargs.get("marker_id"))
             c = self._calibs[key] = _Calib(intr, scaled, tracker, lens, fast)
         return c
 
@@ -562,6 +569,10 @@ class Compositor:
 
         out, mask, info = self.render_pose(image, intr, cam_from_world, lens=cal.lens, timings=timings,
                                            want_mask=want_mask, out=out, mask_out=mask_out)
+        det = [getattr(getattr(t, "_detector", None), "last", None) for t in (cal.fast_tracker, cal.tracker)]
+        if any(det):
+            info["plan"]["detect"] = ("window around the last detection" if "window" in det
+                                      else "whole frame (no window, or nothing found in it)")
         item.mode = info["mode"]
         item.silhouette_edges = info["silhouette_edges"]
         item.extra.update({k: v for k, v in info.items() if k not in ("mode", "silhouette_edges")})

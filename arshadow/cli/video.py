@@ -153,6 +153,7 @@ def run(args) -> int:
     # a sun track's lights are set per frame: the scene builder gets the static lights only
     intr, caster, _, opts, tracker = build_scene(args, lights=static)
     tracker["refine"] = args.corner_refine
+    opts.track_roi = True  # video: search the marker near the last detection first (not with --plan general)
     outdir = Path(args.output)
     if outdir.exists() and not outdir.is_dir():
         raise UsageError(f"-o {outdir}: exists and is not a folder")
