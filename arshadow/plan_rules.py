@@ -57,10 +57,13 @@ __all__ = [
     "decide_lights",
     "LightDecision",
     "PLANS",
+    "PLAN_OFF",
 ]
 
 #: the ``--plan`` choices: ``auto`` decides per frame and light, the others force one path
 PLANS = ("auto", "general", "zpass", "zfail", "planar")
+#: the ``auto`` decisions that ``RenderOptions.plan_off`` can switch off one by one (benchmarks, tests)
+PLAN_OFF = ("planar", "zpass", "truncate", "cull", "roi", "reuse")
 
 
 def mesh_is_convex(caster, rel_tol: float = 1e-9) -> bool:
