@@ -90,7 +90,8 @@ def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings=N
             continue
         # a culled light ("none"): no shadow pass, the renderer still shades the occluder with it
         passes.append(LightPass(light_h=ls.light_h, weight=ls.weight, volume=vol,
-                                mode="zpass" if lp.mode == "none" else lp.mode))
+                                mode="zpass" if lp.mode == "none" else lp.mode,
+                                direct=lp.mode == "planar" and geometry.convex))
 
     opts_plan = geometry.options.plan
     which = "planar" if geometry.options.shadow_method == "planar" and opts_plan == "auto" else opts_plan

@@ -195,3 +195,31 @@ def test_moved_light_reuses_geometry_only_when_exact(ctx):
             with Compositor(ctx, intr, knot, [parse_light(spec)], opts) as fresh:
                 out_f, mask_f, _ = fresh.render_pose(photo, intr, pose)
             assert np.array_equal(mask, mask_f) and np.array_equal(out, out_f), spec
+
+
+@pytest.mark.parametrize("samples", [0, 4])
+def test_direct_planar_pass_equals_the_stencil_planar_pass(ctx, samples):
+    """Convex closed caster: the light-facing faces flattened straight into the mask (one draw per light,
+    no stencil count) give the same mask as the stencil projection pass, levels of two lights included."""
+    from arshadow.gl.renderer import ShadowRenderer
+    from arshadow.mesh import load_occluder
+    from arshadow.render_api import LightPass
+    from arshadow.synth import look_at_pose
+    from arshadow.transforms import CV_TO_GL
+
+    import test_gl_renderer as tg
+
+    box = load_occluder("box:0.1,0.08,0.15", rotate=(0, 0, 25))
+    intr = tg._intrinsics(1000.0)
+    pose = look_at_pose([0.5, -0.45, 0.5], [0.03, 0.03, 0.02])
+    lights = [(np.array([-0.25, 0.05, 0.55, 1.0]), 0.5), (np.array([0.3, 0.2, 1.0, 0.0]), 0.5)]
+    masks = {}
+    with ShadowRenderer(ctx, samples=samples) as r:
+        for direct in (False, True):
+            res = r.render(projection=intr.gl_projection(0.01, None), view=CV_TO_GL @ pose, width=W, height=H,
+                           caster=box, passes=[LightPass(lh, w, None, "planar", direct=direct) for lh, w in lights])
+            masks[direct] = res.mask
+    a, b = masks[False], masks[True]
+    assert (a > 0.4).sum() > 5000 and (np.abs(a - 0.5) < 0.01).sum() > 1000  # both levels present
+    assert np.count_nonzero(np.abs(a - b) > 1e-3) <= 20, np.count_nonzero(np.abs(a - b) > 1e-3)
+    assert float(b.max()) <= 1.0 + 1e-3  # never counted twice

@@ -267,7 +267,7 @@ class PathChooser:
         key -> ``{"choice": name, "ms": {name: median ms}}`` (or ``{"choice": name, "forced": True}``).
     """
 
-    def __init__(self, trials: int = 2, force: str | None = None):
+    def __init__(self, trials: int = 3, force: str | None = None):
         if int(trials) < 1:
             raise UsageError(f"trials must be >= 1, got {trials}")
         self.trials = int(trials)

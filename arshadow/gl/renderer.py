@@ -152,6 +152,14 @@ class _CasterBuffers:
                                         index_buffer=self.sub_ibo, index_element_size=4)
         self.sub_ranges = {}
         self.sub_key = None  # the lights sub_ibo holds subsets for
+        self._planar_sub_vao = None
+
+    def planar_sub_vao(self, ctx, prog):
+        """Positions of the light-facing subsets (``sub_ibo``) for the direct planar pass (made on first use)."""
+        if self._planar_sub_vao is None:
+            self._planar_sub_vao = ctx.vertex_array(prog, [(self.vbo, "4f 24x", "in_pos")], index_buffer=self.sub_ibo,
+                                                    index_element_size=4)
+        return self._planar_sub_vao
 
     def upload_light_subsets(self, passes) -> None:
         """Write, for each pass, the light-facing triangles (closed meshes) into ``sub_ibo``; records
@@ -180,9 +188,10 @@ class _CasterBuffers:
             self.sub_ibo.write(data)
 
     def release(self):
-        for o in (self.vao, self.sub_vao, self.base_vao, self.planar_vao, self.vbo, self.light_ibo, self.sub_ibo,
-                  self.pos_vbo, self.ibo):
-            o.release()
+        for o in (self.vao, self.sub_vao, self._planar_sub_vao, self.base_vao, self.planar_vao, self.vbo,
+                  self.light_ibo, self.sub_ibo, self.pos_vbo, self.ibo):
+            if o is not None:
+                o.release()
 
 
 class _Target:
@@ -308,6 +317,7 @@ class ShadowRenderer:
         self.prog_ground = _program(ctx, "common.vert", "ground.frag")
         self.prog_volume = _program(ctx, "common.vert", "volume.frag")
         self.prog_mask = _program(ctx, "fullscreen.vert", "mask.frag")
+        self.prog_planar_mask = _program(ctx, "common.vert", "mask.frag")  # direct planar shadows
         # static geometry: unlimited ground (4 triangles fanning out to points at infinity), full viewport
         self._ground_vbo = ctx.buffer(reserve=12 * 4 * 4)
         self._ground_vao = ctx.vertex_array(self.prog_ground, [(self._ground_vbo, "4f", "in_pos")])
@@ -541,7 +551,7 @@ class ShadowRenderer:
         bufs = self._caster_buffers(caster, occluder_color) if (draw_occluder or any(
             p.mode == "planar" for p in passes)) else None
         ranges = self._upload_volumes(passes)
-        if draw_occluder:
+        if draw_occluder or any(p.mode == "planar" and p.direct for p in passes):
             bufs.upload_light_subsets(passes)
         self._set_ground(ground_size)
         self._ensure_targets(width, height)
@@ -609,6 +619,32 @@ class ShadowRenderer:
             planar = p.mode == "planar"
             if rng is None and not planar:
                 # casts nothing: the occluder gets this light unshadowed
+                if draw_occluder:
+                    self._light_occluder(bufs, p, i, mvp_bytes, eye, diffuse, specular, shininess, stencil=False)
+                continue
+            if planar and p.direct and bufs.cull and i in bufs.sub_ranges:
+                # convex closed caster: its light-facing faces, flattened from the light, tile the shadow
+                # exactly once -> add the weight straight into the mask where the ground is visible and
+                # the occluder is not (stencil ground bit set, occluder bit clear); no count, no clear
+                first, count = bufs.sub_ranges[i]
+                if p.shadow_matrix is not None and p.weight > 0 and count:
+                    ctx.enable_only(moderngl.BLEND)  # no depth test, no culling (projection may mirror)
+                    ctx.blend_func = moderngl.ONE, moderngl.ONE
+                    gl.glDepthMask(G.GL_FALSE)
+                    gl.glColorMask(1, 1, 1, 1)
+                    gl.glEnable(G.GL_DEPTH_CLAMP)
+                    gl.glStencilMask(0)
+                    gl.glStencilOp(G.GL_KEEP, G.GL_KEEP, G.GL_KEEP)
+                    gl.glStencilFunc(G.GL_EQUAL, GROUND_BIT, GROUND_BIT | OCCLUDER_BIT)
+                    gl.draw_buffer_list([None, 1])
+                    smat = np.asarray(p.shadow_matrix, dtype=np.float64)
+                    prog = self.prog_planar_mask
+                    prog["u_mvp"].write((mvp @ smat).T.astype(np.float32).tobytes())
+                    prog["u_weight"].value = float(p.weight)
+                    bufs.planar_sub_vao(self.ctx, prog).render(moderngl.TRIANGLES, vertices=count, first=first)
+                    gl.draw_buffers(2)
+                    gl.glDisable(G.GL_DEPTH_CLAMP)
+                self._mark("mask")
                 if draw_occluder:
                     self._light_occluder(bufs, p, i, mvp_bytes, eye, diffuse, specular, shininess, stencil=False)
                 continue
