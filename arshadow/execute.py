@@ -135,7 +135,9 @@ def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings=N
     if (chooser is not None and gpu is not None and getattr(renderer, "gpu_layers", False)
             and out.flags.c_contiguous and (mask_full is None or mask_full.flags.c_contiguous)):
         paths["gpu"] = run(lambda *a, timings: _compose_gpu(*a, gpu=gpu(), timings=timings))
-    key = (W, H, int(geometry.options.aa), lens is not None)
+    ctx = getattr(renderer, "ctx", None)
+    backend = (getattr(ctx, "info", None) or {}).get("GL_RENDERER", "?") if ctx is not None else "?"
+    key = (backend, W, H, int(geometry.options.aa), lens is not None)
     if len(paths) == 1 or chooser.force == "cpu":
         choice, used = "cpu", paths["cpu"]()
         why = "numpy (the shader path is not available here)" if len(paths) == 1 else "forced cpu"

@@ -39,7 +39,11 @@ from ..errors import ShapeError, UsageError
 from . import glraw as G
 from .renderer import _program
 
-__all__ = ["GpuCompositor", "PathChooser"]
+__all__ = ["GpuCompositor", "PathChooser", "SHARED_DECISIONS"]
+
+#: the compose choices made in this process, shared by every :class:`PathChooser` made without its own
+#: ``decisions`` (keys name the GL renderer, so one backend's measurement never decides for another)
+SHARED_DECISIONS: dict = {}
 
 
 class _LensTexture:
@@ -260,6 +264,9 @@ class PathChooser:
         Timed runs per path after the warm-up round (>= 1).
     force : str, optional
         Always take this path (no timing).
+    decisions : dict, optional
+        Where the choices are kept; default :data:`SHARED_DECISIONS` (one measurement per key and process,
+        whatever the number of sessions).
 
     Attributes
     ----------
@@ -267,12 +274,14 @@ class PathChooser:
         key -> ``{"choice": name, "ms": {name: median ms}}`` (or ``{"choice": name, "forced": True}``).
     """
 
-    def __init__(self, trials: int = 3, force: str | None = None):
+    def __init__(self, trials: int = 3, force: str | None = None, decisions: dict | None = None):
         if int(trials) < 1:
             raise UsageError(f"trials must be >= 1, got {trials}")
         self.trials = int(trials)
         self.force = force
-        self.decisions: dict = {}
+        if decisions is None:
+            decisions = SHARED_DECISIONS if force is None else {}
+        self.decisions: dict = decisions
 
     def run(self, key, paths: dict):
         """Run the chosen path for ``key`` (timing all ``paths`` on first use); returns ``(name, result)``.
