@@ -28,7 +28,7 @@ STAGES = ("detect", "pose", "silhouette", "volume", "render", "readback", "warp"
 
 
 def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings=None, want_mask=True, out=None,
-            mask_out=None):
+            mask_out=None, chooser=None, gpu=None):
     """Render and composite one planned frame.
 
     Parameters
@@ -51,14 +51,21 @@ def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings=N
         Also return the full-size mask.
     out, mask_out : arrays, optional
         Buffers for the composite ``(H, W, 3) uint8`` and the mask ``(H, W) uint8``.
+    chooser : arshadow.gl.compose.PathChooser, optional
+        Picks the numpy (``"cpu"``) or the shader (``"gpu"``) lens warp + composite by measurement, per
+        photo size, anti-aliasing and lens; without it (or without ``gpu``) the numpy path runs.
+    gpu : callable, optional
+        ``gpu() -> arshadow.gl.compose.GpuCompositor`` (made on first use by the caller); needs a renderer
+        with ``render(..., readback=False)`` (``renderer.gpu_layers``).
 
     Returns
     -------
     out : (H, W, 3) uint8
     mask : (H, W) uint8 or None
     info : dict
-        ``mode``, ``modes``, ``silhouette_edges``, ``roi``, ``canvas``, ``znear`` and, when something was
-        drawn, ``content`` (canvas pixels with content) and ``composited`` (photo pixels composited).
+        ``mode``, ``modes``, ``silhouette_edges``, ``roi``, ``canvas``, ``znear``, ``plan`` (the planner's
+        decisions with their reasons, for the report) and, when something was drawn, ``compose`` (the
+        path taken), ``content`` (canvas pixels with content) and ``composited`` (photo pixels composited).
     """
     timings = timings if timings is not None else dict.fromkeys(STAGES, 0.0)
     H, W = image.shape[:2]
@@ -66,19 +73,32 @@ def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings=N
     roi, canvas = plan.roi, plan.canvas
     # CPU geometry: the volumes the plan needs (cached per light)
     passes, n_edges = [], 0
+    plan_lights = []
     for lp in plan.lights:
         ls = geometry.lights[lp.index]
-        if lp.mode in ("planar", "shadowmap"):  # no volume (the shadow-map renderer ignores it)
+        entry = {"mode": lp.mode, "why": dict(lp.why)}
+        if lp.mode in ("planar", "none", "shadowmap"):  # no volume (the shadow-map renderer ignores it)
             vol = sil = None
         else:
-            vol = geometry.volume(ls, caps=lp.caps, timings=timings)
+            vol = geometry.volume(ls, caps=lp.caps, timings=timings, truncate=lp.truncate)
             sil = ls.sil
+            entry["truncated"] = bool(vol.truncated)
         if sil is not None:
             n_edges += int(len(sil.edges))
-        passes.append(LightPass(light_h=ls.light_h, weight=ls.weight, volume=vol, mode=lp.mode))
+        plan_lights.append(entry)
+        if plan.empty:
+            continue
+        # a culled light ("none"): no shadow pass, the renderer still shades the occluder with it
+        passes.append(LightPass(light_h=ls.light_h, weight=ls.weight, volume=vol,
+                                mode="zpass" if lp.mode == "none" else lp.mode,
+                                direct=lp.mode == "planar" and geometry.convex))
 
+    opts_plan = geometry.options.plan
+    which = "planar" if geometry.options.shadow_method == "planar" and opts_plan == "auto" else opts_plan
+    roi_why = next((d.reason for d in plan.decisions if d.name == "roi"), "")
     info = {"mode": plan.mode, "modes": plan.modes, "silhouette_edges": n_edges, "roi": list(roi),
-            "canvas": list(canvas), "znear": plan.znear}
+            "canvas": list(canvas), "znear": plan.znear,
+            "plan": {"plan": which, "roi": roi_why, "lights": plan_lights}}
 
     if out is None:
         out = image.copy()
@@ -95,6 +115,70 @@ def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings=N
     if plan.empty:
         return out, mask_full, info  # nothing of the scene is in view
 
+    # render, lens warp, composite: the numpy path or the shader path (arshadow/gl/compose.py), whichever
+    # measured faster for this photo size on this backend (timed on first use)
+    args = (plan, image, intr, geometry, renderer, lens, work, passes, out, mask_full, want_mask, info)
+    x0, y0, w, h = roi
+
+    def run(fn):
+        def go():
+            # each path composites into a clean ROI (the chooser may run both, one after the other)
+            np.copyto(out[y0 : y0 + h, x0 : x0 + w], image[y0 : y0 + h, x0 : x0 + w])
+            if mask_full is not None:
+                mask_full[y0 : y0 + h, x0 : x0 + w] = 0
+            t = dict.fromkeys(STAGES, 0.0)
+            fn(*args, timings=t)
+            return t
+        return go
+
+    paths = {"cpu": run(_compose_cpu)}
+    if (chooser is not None and gpu is not None and getattr(renderer, "gpu_layers", False)
+            and out.flags.c_contiguous and (mask_full is None or mask_full.flags.c_contiguous)):
+        paths["gpu"] = run(lambda *a, timings: _compose_gpu(*a, gpu=gpu(), timings=timings))
+    ctx = getattr(renderer, "ctx", None)
+    backend = (getattr(ctx, "info", None) or {}).get("GL_RENDERER", "?") if ctx is not None else "?"
+    key = (backend, W, H, int(geometry.options.aa), lens is not None)
+    if len(paths) == 1 or chooser.force == "cpu":
+        choice, used = "cpu", paths["cpu"]()
+        why = "numpy (the shader path is not available here)" if len(paths) == 1 else "forced cpu"
+    else:
+        choice, used = chooser.run(key, paths)
+        d = chooser.decisions[key]
+        why = f"forced {choice}" if d.get("forced") else f"measured on first use: {d['ms']} ms (median)"
+    for k, v in used.items():
+        timings[k] += v
+    info["compose"] = choice
+    info["plan"]["compose"] = why
+    return out, mask_full, info
+
+
+def _compose_gpu(plan, image, intr, geometry, renderer, lens, work, passes, out, mask_full, want_mask, info, *,
+                 gpu, timings):
+    """Render with the layers kept on the GPU; lens warp + composite in a shader; one 8-bit readback."""
+    opts = geometry.options
+    roi, canvas = plan.roi, plan.canvas
+    proj = intr.gl_projection(plan.znear, None, canvas=canvas)
+    t = time.perf_counter()
+    lay = renderer.render(projection=proj, view=CV_TO_GL @ plan.cam_from_world, width=int(canvas[2]),
+                          height=int(canvas[3]), caster=geometry.caster, passes=passes, ground_size=opts.ground_size,
+                          draw_occluder=opts.draw_occluder, occluder_color=opts.occluder_color, readback=False)
+    timings["render"] += (time.perf_counter() - t) * 1e3
+    ct = {}
+    t = time.perf_counter()
+    gpu.compose(image, lay, roi, canvas, lens=lens, opacity=opts.opacity, shadow_color=opts.shadow_color,
+                draw_occluder=opts.draw_occluder, out=out, mask_out=mask_full if want_mask else None, timings=ct)
+    # the readback waits for the render and the shader to finish: it holds the GPU time of both
+    timings["readback"] += ct.get("readback", 0.0)
+    timings["composite"] += (time.perf_counter() - t) * 1e3 - ct.get("readback", 0.0)
+    info["composited"] = list(roi)
+
+
+def _compose_cpu(plan, image, intr, geometry, renderer, lens, work, passes, out, mask_full, want_mask, info, *,
+                 timings):
+    """Render, read the float layers back, lens warp (cv2.remap) or flip, composite in numpy."""
+    H, W = image.shape[:2]
+    opts = geometry.options
+    roi, canvas = plan.roi, plan.canvas
     # render the canvas
     proj = intr.gl_projection(plan.znear, None, canvas=canvas)
     view = CV_TO_GL @ plan.cam_from_world
@@ -123,7 +207,7 @@ def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings=N
         if rows.size == 0:  # nothing drawn: the photo is unchanged
             timings["warp"] += (time.perf_counter() - t) * 1e3
             info["content"] = None
-            return out, mask_full, info
+            return
         cols = np.flatnonzero(act.any(axis=0))
         r0, r1 = ch - 1 - int(rows[-1]), ch - 1 - int(rows[0])  # top-down canvas rows
         k0, k1 = int(cols[0]), int(cols[-1])
@@ -138,7 +222,7 @@ def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings=N
             y1 = min(sub[1] + sub[3], roi[1] + roi[3])
             if x1 <= x0 or y1 <= y0:
                 timings["warp"] += (time.perf_counter() - t) * 1e3
-                return out, mask_full, info
+                return
             roi = (x0, y0, x1 - x0, y1 - y0)
             l0, l1 = lens.warp(roi, canvas, c0, c1, work=work, bottom_up=True)
         else:
@@ -170,4 +254,3 @@ def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings=N
         np.clip(m, np.float32(0.0), np.float32(255.0), out=m)
         np.copyto(mask_full[y0 : y0 + h, x0 : x0 + w], m, casting="unsafe")
     timings["composite"] += (time.perf_counter() - t) * 1e3
-    return out, mask_full, info

@@ -116,6 +116,11 @@ class Compositor:
         self._renderer = renderer
         self._own_renderer = renderer is None
         self._make_renderer = make_renderer
+        from .gl.compose import PathChooser  # no GL at import: moderngl is imported when first used
+
+        #: numpy vs shader compose, chosen by measurement per photo size (``options.compose``)
+        self.compose_chooser = PathChooser(force=None if self.options.compose == "auto" else self.options.compose)
+        self._gpu = None
 
     # -- cached per run ------------------------------------------------------------------------------
     @property
@@ -133,6 +138,17 @@ class Compositor:
         if self._own_renderer and self._renderer is not None:
             self._renderer.release()
         self._renderer = None
+        if self._gpu is not None:
+            self._gpu.release()
+            self._gpu = None
+
+    def _gpu_compositor(self):
+        """The shader compose path on the renderer's context (made on first use)."""
+        if self._gpu is None:
+            from .gl.compose import GpuCompositor
+
+            self._gpu = GpuCompositor(self.renderer.ctx)
+        return self._gpu
 
     def __enter__(self):
         return self
@@ -182,6 +198,14 @@ class Compositor:
             if self.options.fast_detect and "detector_params" not in self.tracker_kwargs:
                 fast = MarkerTracker(intr, **self.tracker_kwargs, detector="fast")
             lens = self._lens_for(intr) if intr.has_distortion else None
+            if self.options.track_roi and self.options.plan != "general" and "board" not in self.tracker_kwargs:
+                # video: each tracker searches a window around its last detection first (the planner's
+                # tracking ROI, full-frame fallback: arshadow/roi_track.py)
+                from .roi_track import TrackingDetector
+
+                for trk in (tracker, fast):
+                    if trk is not None and hasattr(trk, "_detector"):
+                        trk._detector = TrackingDetector(trk._detector, self.tracker_kwargs.get("marker_id"))
             c = self._calibs[key] = CalibrationState(intr, scaled, tracker, lens, fast)
         return c
 
@@ -287,6 +311,10 @@ class Compositor:
 
         out, mask, info, plan = self.render_planned(image, intr, cam_from_world, lens=cal.lens, timings=timings,
                                                     want_mask=want_mask, out=out, mask_out=mask_out)
+        det = [getattr(getattr(t, "_detector", None), "last", None) for t in (cal.fast_tracker, cal.tracker)]
+        if any(isinstance(d, str) for d in det):
+            info["plan"]["detect"] = ("window around the last detection" if "window" in det
+                                      else "whole frame (no window yet, or nothing found in it)")
         item.mode = info["mode"]
         item.silhouette_edges = info["silhouette_edges"]
         item.extra.update({k: v for k, v in info.items() if k not in ("mode", "silhouette_edges")})
@@ -344,6 +372,8 @@ class Compositor:
         H, W = image.shape[:2]
         if intr.has_distortion and lens is None:
             lens = self._lens_for(intr)
+        if self.options.plan == "general" or "reuse" in self.options.plan_off:
+            self.geometry.forget()  # the reference rebuilds every light's geometry every frame
         plan = plan_frame(self.geometry, intr, cam_from_world, W, H, lens=lens, modes=modes)
         if not self._warned_inside:
             from .mesh import placement_warnings
@@ -354,7 +384,8 @@ class Compositor:
         # the renderer is made only when there is something to draw
         renderer = None if plan.empty else self.renderer
         out, mask, info = execute(plan, image, intr, geometry=self.geometry, renderer=renderer, lens=lens,
-                                  work=self._work, timings=timings, want_mask=want_mask, out=out, mask_out=mask_out)
+                                  work=self._work, timings=timings, want_mask=want_mask, out=out, mask_out=mask_out,
+                                  chooser=self.compose_chooser, gpu=self._gpu_compositor)
         return out, mask, info, plan
 
     def _lens_for(self, intr):

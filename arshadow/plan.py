@@ -177,7 +177,12 @@ class LightState:
     sil : Silhouette or None
         Built on first use.
     volumes : dict
-        ``caps (bool) -> ShadowVolume``, built on first use.
+        ``(caps, truncated) (bool, bool) -> ShadowVolume``, built on first use.
+    footprint : (n, 3) float64, None or False
+        Ground footprint points (clipped to ``ground_size``; empty: the shadow misses the ground square),
+        None when unbounded; False until computed.
+    reuse : str or None
+        How the geometry was carried over from a moved light (:func:`arshadow.plan_rules.reuse_light_geometry`).
     """
 
     light: object
@@ -185,6 +190,8 @@ class LightState:
     light_h: np.ndarray
     sil: object = None
     volumes: dict = field(default_factory=dict)
+    footprint: object = False
+    reuse: str | None = None
 
 
 class SceneGeometry:
@@ -240,6 +247,8 @@ class SceneGeometry:
         if not lights:
             raise LightError("no light given (use --light)")
         old = {tuple(ls.light_h.tolist()): ls for ls in self.lights}
+        old_list = list(self.lights)
+        reuse = self.options.plan != "general" and "reuse" not in self.options.plan_off
         total = float(sum(lt.weight for lt in lights if lt.above_horizon))
         notes, states, n_new = [], [], 0
         for lt in lights:
@@ -251,6 +260,18 @@ class SceneGeometry:
             for s in samples:
                 h = np.asarray(s.homogeneous, float)
                 prev = old.get(tuple(h.tolist()))
+                if prev is None and reuse and len(states) < len(old_list) and old_list[len(states)].sil is not None:
+                    # a moved light (same slot): keep what provably gives the same pixels
+                    from .plan_rules import reuse_light_geometry
+
+                    o = old_list[len(states)]
+                    tz = self.truncate_z(True)
+                    sil, vols, why = reuse_light_geometry(
+                        self.caster, h, o.sil, {c: v for (c, t), v in o.volumes.items() if t}, truncate_z=tz)
+                    if sil is not None:
+                        states.append(LightState(s, float(s.weight) / total, h, sil,
+                                                 {(c, True): v for c, v in vols.items()}, reuse=why))
+                        continue
                 if prev is None:
                     n_new += 1
                     states.append(LightState(s, float(s.weight) / total, h))
@@ -290,19 +311,64 @@ class SceneGeometry:
                 timings["silhouette"] += (time.perf_counter() - t) * 1e3
         return ls.sil
 
-    def volume(self, ls: LightState, caps: bool, timings=None):
-        """The light's shadow volume with or without caps (built once; ``timings["volume"]``)."""
-        vol = ls.volumes.get(caps)
+    def truncate_z(self, truncate: bool = True):
+        """The plane volumes are truncated at (just below the ground), or None (to infinity)."""
+        return -1e-3 * max(self.size, 1e-6) if truncate else None
+
+    def volume(self, ls: LightState, caps: bool, timings=None, truncate: bool | None = None):
+        """The light's shadow volume with or without caps, truncated below the ground or extruded to
+        infinity (default ``options.truncate``); built once per variant (``timings["volume"]``)."""
+        truncate = bool(self.options.truncate if truncate is None else truncate)
+        vol = ls.volumes.get((caps, truncate))
         if vol is None:
             from .volume import shadow_volume
 
             sil = self.silhouette(ls, timings)
             t = time.perf_counter()
-            trunc = -1e-3 * max(self.size, 1e-6) if self.options.truncate else None
-            vol = ls.volumes[caps] = shadow_volume(self.caster, ls.light_h, sil, caps=caps, truncate_z=trunc)
+            vol = ls.volumes[(caps, truncate)] = shadow_volume(self.caster, ls.light_h, sil, caps=caps,
+                                                               truncate_z=self.truncate_z(truncate))
             if timings is not None:
                 timings["volume"] += (time.perf_counter() - t) * 1e3
         return vol
+
+    def forget(self) -> None:
+        """Drop every light's cached silhouette and volumes (the ``general`` plan rebuilds them per frame)."""
+        for ls in self.lights:
+            ls.sil, ls.volumes, ls.reuse = None, {}, None
+
+    @property
+    def convex(self) -> bool:
+        """:func:`arshadow.plan_rules.mesh_is_convex` of the occluder (computed once per mesh)."""
+        c = getattr(self, "_convex", None)
+        if c is None:
+            from .plan_rules import mesh_is_convex
+
+            c = self._convex = mesh_is_convex(self.caster)
+        return c
+
+    def footprint_rect(self, ls: LightState, intr, cam_from_world, znear):
+        """Pinhole screen box of one light's ground footprint (clipped to ``ground_size``), or None
+        (unbounded, or a point behind the camera); an empty box far off screen when the shadow misses the
+        ground square."""
+        if ls.footprint is False:
+            fp = shadow_footprint(self.bounds, ls.light_h, points=self.roi_points)
+            gs = self.options.ground_size
+            if gs is not None:
+                half = 0.5 * float(gs)
+                if fp is None:
+                    fp = np.array([[-half, -half, 0], [half, -half, 0], [half, half, 0], [-half, half, 0]], float)
+                else:
+                    lo = np.maximum(fp[:, :2].min(axis=0), -half)
+                    hi = np.minimum(fp[:, :2].max(axis=0), half)
+                    fp = (np.zeros((0, 3)) if np.any(hi < lo) else
+                          np.array([[lo[0], lo[1], 0], [hi[0], lo[1], 0], [hi[0], hi[1], 0], [lo[0], hi[1], 0]], float))
+            ls.footprint = fp
+        fp = ls.footprint
+        if fp is None:
+            return None
+        if len(fp) == 0:
+            return (-1e9, -1e9, -1e9, -1e9)
+        return _pinhole_rect(intr, cam_from_world, fp, znear)
 
     def hull(self):
         """:func:`scene_hull_points` of the current lights (recomputed only when the lights change)."""
@@ -371,15 +437,20 @@ class LightPlan:
     weight : float
         Share of the total weight.
     technique : str
-        ``"volume"`` (stencil shadow volume) or ``"planar"`` (projection shadow).
+        ``"volume"`` (stencil shadow volume), ``"planar"`` (projection shadow) or ``"none"`` (culled: no
+        shadow pass; the occluder still gets this light's shading).
     mode : str
-        ``"zpass"`` | ``"zfail"`` | ``"planar"``.
+        ``"zpass"`` | ``"zfail"`` | ``"planar"`` | ``"none"``.
     caps : bool
         The volume needs caps (z-fail).
     reuse : bool
         The geometry it needs is cached already (no silhouette / volume to build).
     reason : str
         Why this mode.
+    truncate : bool
+        Build the volume truncated just below the ground (else extruded to infinity).
+    why : dict
+        Every decision for this light (``cull``, ``planar``, ``mode``, ``truncate``, ``reuse``) -> reason.
     """
 
     index: int
@@ -390,6 +461,8 @@ class LightPlan:
     caps: bool
     reuse: bool
     reason: str
+    truncate: bool = True
+    why: dict = field(default_factory=dict)
 
 
 @dataclass
@@ -436,7 +509,7 @@ class FramePlan:
     def mode(self) -> str | None:
         """The frame's summary mode for the report: ``planar`` if any light is, else ``zfail`` if any
         light is, else ``zpass``; None without lights."""
-        modes = self.modes
+        modes = [m for m in self.modes if m != "none"]
         if not modes:
             return None
         return next((m for m in ("shadowmap", "planar", "zfail") if m in modes), "zpass")
@@ -478,16 +551,30 @@ def plan_frame(geometry: SceneGeometry, intr, cam_from_world, width: int, height
     plan.decide("znear", znear, "a quarter of the distance to the nearest of the object's box and the ground, "
                                 "at least 1e-4 m")
     # region of interest (photo) and pinhole canvas
+    general = opts.plan == "general"
+    off = set(opts.plan_off)
     rect = None
-    if opts.roi:
+    off_screen = False
+    if opts.roi and not general and "roi" not in off:
         hull = geometry.hull()
         rect = None if hull is None else _pinhole_rect(intr, cam_from_world, hull, znear)
         why = ("a shadow footprint is unbounded (a light not above the object) and no ground size limits it"
                if hull is None else "a point of the object or its shadow is not in front of the camera"
                if rect is None else "the object and its shadows project into this rectangle")
+        if rect is None and hull is not None and "cull" not in off:
+            # part of the hull is behind the camera: nothing to draw still, if it is all outside the view
+            from .plan_rules import outside_view
+
+            ext = lens.pinhole_extent if lens is not None else (-0.5, -0.5, W - 0.5, H - 0.5)
+            off_screen = outside_view(transform_points(cam_from_world, hull), intr.fx, intr.fy, intr.cx, intr.cy,
+                                      ext, znear)
     else:
-        why = "ROI off (RenderOptions.roi=False)"
-    if lens is None:
+        why = ("general plan (reference): whole photo" if general else "ROI switched off (plan_off)"
+               if "roi" in off else "ROI off (RenderOptions.roi=False)")
+    if off_screen:
+        roi = canvas = (0, 0, 0, 0)
+        why = "the object and its shadows are outside the view (one frustum plane excludes them all)"
+    elif lens is None:
         roi = (0, 0, W, H) if rect is None else clip_roi(_int_rect(rect, 2), W, H)
         canvas = roi
     elif rect is None:
@@ -496,34 +583,56 @@ def plan_frame(geometry: SceneGeometry, intr, cam_from_world, width: int, height
     else:
         roi = lens.distorted_roi(rect, margin=2)
         canvas = lens.canvas_for(roi, rect) if roi[2] and roi[3] else (0, 0, 0, 0)
-    plan.roi = plan.decide("roi", roi, why if rect is not None else f"whole photo: {why}")
+    plan.roi = plan.decide("roi", roi, why if rect is not None or off_screen else f"whole photo: {why}")
     plan.canvas = plan.decide("canvas", canvas, "the pinhole pixels the distorted ROI samples" if lens is not None
                               else "the ROI (no lens distortion)")
-    if opts.shadow_method == "volume":
-        plan.decide("truncate", bool(opts.truncate),
-                    "volumes end just below the ground (RenderOptions.truncate)" if opts.truncate
-                    else "volumes extruded to infinity (RenderOptions.truncate=False)")
-    # per light: technique and mode
-    forced = modes is not None
-    if modes is None:
-        modes = geometry.modes_for(cam_from_world, znear, intr, canvas)
-    for i, (ls, mode) in enumerate(zip(geometry.lights, modes)):
-        if forced:
-            reason = "forced by the caller"
-        elif mode in ("planar", "shadowmap"):
-            reason = f"{mode} shadows asked for (shadow_method={mode!r})"
-        elif mode == "zfail":
-            reason = "the camera's near rectangle may be inside this light's shadow volume"
-        else:
-            reason = "the camera's near rectangle is provably outside this light's shadow volume"
-        planar = mode in ("planar", "shadowmap")  # no volume
+    # per light: culling, technique, mode, truncation (arshadow.plan_rules.decide_lights)
+    from .plan_rules import LightDecision, decide_lights
+
+    if modes is not None:
+        decisions = [LightDecision(m, bool(opts.truncate), {"mode": "forced by the caller"}) for m in modes]
+    elif opts.shadow_method == "shadowmap":
+        decisions = [LightDecision("shadowmap", False, {"mode": "shadow-map baseline asked for "
+                                                                "(shadow_method='shadowmap')"})
+                     for _ in geometry.lights]
+    elif plan.empty:
+        decisions = [LightDecision("none", False, {"cull": "nothing of the scene in view: no render at all"})
+                     for _ in geometry.lights]
+    else:
+        from .volume import near_plane_radius
+
+        which = "planar" if opts.shadow_method == "planar" and opts.plan == "auto" else opts.plan
+        u0, v0, cw, ch = canvas
+        near = near_plane_radius(znear, int(cw), int(ch), intr.fx, intr.fy, intr.cx - u0, intr.cy - v0)
+        eye = invert_rigid(cam_from_world)[:3, 3]
+        rects = None
+        if which == "auto" and "cull" not in off:
+            rects = [geometry.footprint_rect(ls, intr, cam_from_world, znear) for ls in geometry.lights]
+        decisions = decide_lights(which, geometry.caster, [ls.light_h for ls in geometry.lights],
+                                  convex=geometry.convex if which == "auto" and "planar" not in off else False,
+                                  eye_world=eye, near=near, draw_occluder=opts.draw_occluder,
+                                  truncate=opts.truncate and "truncate" not in off, footprint_rects=rects,
+                                  canvas=canvas, off=off)
+    for i, (ls, d) in enumerate(zip(geometry.lights, decisions)):
+        mode = d.mode
+        planar, culled = mode in ("planar", "shadowmap"), mode == "none"
         caps = mode == "zfail"
-        reuse = planar or caps in ls.volumes
-        lp = LightPlan(i, ls.light_h, ls.weight, mode if planar else "volume", mode, caps, reuse, reason)
+        reuse = planar or culled or (caps, d.truncate) in ls.volumes
+        why = dict(d.reasons)
+        if ls.reuse:
+            why["reuse"] = ls.reuse
+        reason = why.get("mode") or why.get("planar") or why.get("cull") or ""
+        if planar:
+            reason = why.get("planar", reason)
+        elif culled:
+            reason = why.get("cull", reason)
+        lp = LightPlan(i, ls.light_h, ls.weight, mode if planar else "none" if culled else "volume", mode, caps,
+                       reuse, reason, truncate=d.truncate, why=why)
         plan.lights.append(lp)
         plan.decide(f"light{i}.mode", mode, reason)
-        if not planar:
+        if not (planar or culled):
+            plan.decide(f"light{i}.truncate", d.truncate, why.get("truncate", ""))
             plan.decide(f"light{i}.volume", "reuse" if reuse else "build",
-                        "cached for this light" if reuse else "first use of this light "
+                        ls.reuse if ls.reuse else "cached for this light" if reuse else "first use of this light "
                         + ("with caps" if caps else "without caps"))
     return plan

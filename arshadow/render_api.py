@@ -47,6 +47,10 @@ class LightPass:
         Mode ``"planar"`` only: the projection-shadow matrix flattening the caster onto z = 0 from this
         light (:func:`arshadow.projection.planar_shadow_matrix`), filled in when not given; None when the
         light is not above the ground (it lights nothing from above: no planar shadow).
+    direct : bool
+        Mode ``"planar"`` of a convex closed caster only: its light-facing faces, flattened, cover the
+        shadow exactly once, so a renderer may add the weight straight into the mask (no stencil count, no
+        full-canvas mask pass).
     """
 
     light_h: np.ndarray
@@ -55,6 +59,7 @@ class LightPass:
     mode: str = "zfail"
     color: tuple = (1.0, 1.0, 1.0)
     shadow_matrix: np.ndarray | None = None
+    direct: bool = False
 
     def __post_init__(self):
         if self.mode == "planar" and self.shadow_matrix is None:

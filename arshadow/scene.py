@@ -90,6 +90,18 @@ class RenderOptions:
     fast_detect : bool
         Try the fast detection pass first (``MarkerTracker(detector="fast")``,
         :mod:`arshadow.fastdetect`), the full search only if it finds nothing.
+    plan : str
+        Frame planner (:mod:`arshadow.plan_rules`, docs/planner.md): ``auto`` (the cheapest exact path per
+        frame and light), ``general`` (the reference: z-fail, volumes to infinity, whole photo, every pass,
+        geometry rebuilt every frame, no culling), or force ``zpass`` / ``zfail`` / ``planar``.
+    plan_off : tuple of str
+        ``auto`` decisions to switch off (benchmarks, tests): ``planar``, ``zpass``, ``truncate``,
+        ``cull``, ``roi``, ``reuse``.
+    compose : str
+        ``auto`` (time the numpy and the shader lens-warp + composite on first use per photo size and
+        keep the faster: :class:`arshadow.gl.compose.PathChooser`), ``cpu`` or ``gpu``.
+    track_roi : bool
+        Video: search the marker in a window around the last detection first (full-frame fallback).
     """
 
     opacity: float = 0.7
@@ -105,9 +117,22 @@ class RenderOptions:
     roi: bool = True
     occluder_color: tuple | None = None
     fast_detect: bool = True
+    plan: str = "auto"
+    plan_off: tuple = ()
+    compose: str = "auto"
+    track_roi: bool = False
 
     def check(self) -> RenderOptions:
         """Validate (UsageError naming the ``arshadow render`` option); returns self."""
+        from .plan_rules import PLAN_OFF, PLANS
+
+        if self.plan not in PLANS:
+            raise UsageError(f"--plan {self.plan!r}: choose one of {', '.join(PLANS)}")
+        bad = set(self.plan_off) - set(PLAN_OFF)
+        if bad:
+            raise UsageError(f"plan_off: unknown decision(s) {', '.join(sorted(bad))} (known: {', '.join(PLAN_OFF)})")
+        if self.compose not in ("auto", "cpu", "gpu"):
+            raise UsageError(f"--compose {self.compose!r}: choose auto, cpu or gpu")
         if not (0.0 <= float(self.opacity) <= 1.0):
             raise UsageError(f"--opacity {self.opacity}: must be in [0, 1]")
         if self.shadow_method not in SHADOW_METHODS:
@@ -286,7 +311,7 @@ def _check_silhouette_name(name: str) -> None:
 #: the keys :func:`scene_from_dict` takes (``light`` is accepted for ``lights``)
 SCENE_KEYS = ("calib", "marker_length", "board", "dictionary", "marker_id", "refine", "model", "scale", "rotate",
               "place", "color", "lights", "soft_samples", "silhouette", "shadow_method", "opacity",
-              "shadow_color", "aa", "ground_size", "no_object", "roi", "truncate", "fast_detect",
+              "shadow_color", "aa", "ground_size", "no_object", "roi", "truncate", "fast_detect", "plan", "compose",
               "shadowmap_size")
 
 
@@ -383,7 +408,7 @@ def scene_from_dict(d, base_dir=None) -> SceneSpec:
         opts["shadow_color"] = parse_rgb(d["shadow_color"], "--shadow-color")
     for key, conv in (("opacity", float), ("shadow_method", str), ("shadowmap_size", int), ("silhouette", str), ("soft_samples", int),
                       ("aa", int), ("ground_size", float), ("roi", bool), ("truncate", bool),
-                      ("fast_detect", bool)):
+                      ("fast_detect", bool), ("plan", str), ("compose", str)):
         if d.get(key) is not None:
             try:
                 opts[key] = conv(d[key])

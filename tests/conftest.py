@@ -71,6 +71,11 @@ class Tolerances:
     remap_step_px: float = 1 / 32  # cv2.remap's sub-pixel coordinate quantisation
     lens_roi_slack_px: int = 40  # distorted ROI may exceed the content's box by two 8-px tiles and slack
     lens_warp_disk_iou: float = 0.995  # warped pinhole disk vs the analytically distorted disk
+    gpu_compose_levels: int = 1  # shader compose vs numpy compose, per channel / mask value (issue 10)
+    # window search vs full-frame search of the same photo: corner refinement sees a cropped image (measured
+    # 2e-7 in the pose matrix entries)
+    tracking_window_pose_atol: float = 1e-5
+    plan_mask_iou: float = 0.999  # planner's auto plan vs the general (reference) plan (issue 10)
     fast_detector_distance_rel: float = 0.01  # fast detection pass: camera position error / distance
     fallback_detector_distance_rel: float = 0.02  # full-search fallback: distance error / distance
     # lights (issue 5)

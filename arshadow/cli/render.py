@@ -103,6 +103,13 @@ def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> No
     s.add_argument("--ground-size", type=_positive("--ground-size"), metavar="S",
                    help="side of the square shadow-catching ground plane in metres (default unlimited)")
     s.add_argument("--no-object", action="store_true", help="composite only the shadow, not the object")
+    s.add_argument("--plan", choices=("auto", "general", "zpass", "zfail", "planar"), default="auto",
+                   help="frame planner: auto (default: the cheapest exact path per frame and light, decisions "
+                        "in the report's plan field), general (reference: z-fail, infinite volumes, whole "
+                        "photo, no reuse or culling), or force zpass / zfail / planar (docs/planner.md)")
+    s.add_argument("--compose", choices=("auto", "cpu", "gpu"), default="auto",
+                   help="lens warp + composite in numpy (cpu) or in a shader (gpu); auto (default) times both "
+                        "on the first photo of each size and keeps the faster")
 
 
 def register(subparsers) -> None:

@@ -136,6 +136,8 @@ def output_paths(inputs, outdir: Path, fmt: str):
 
 
 def run(args) -> int:
+    import dataclasses
+
     from ..errors import UsageError
     from ..gl.context import create_context
     from ..io import write_json
@@ -153,6 +155,8 @@ def run(args) -> int:
     # a sun track's lights are set per frame: the scene builder gets the static lights only
     intr, caster, _, opts, tracker = build_scene(args, lights=static)
     tracker["refine"] = args.corner_refine
+    # video: search the marker near the last detection first (not with --plan general)
+    opts = dataclasses.replace(opts, track_roi=True)
     outdir = Path(args.output)
     if outdir.exists() and not outdir.is_dir():
         raise UsageError(f"-o {outdir}: exists and is not a folder")

@@ -52,6 +52,7 @@ from .._check import check_finite, check_shape
 from ..errors import GLContextError, ShapeError, UsageError
 from ..render_api import MODES, LightPass, RenderLayers, RenderResult
 from . import glraw as G
+from .layers import GpuLayers, TextureTarget
 
 __all__ = ["LightPass", "RenderResult", "ShadowRenderer", "load_shader", "srgb_to_linear"]
 
@@ -157,6 +158,14 @@ class _CasterBuffers:
                                         index_buffer=self.sub_ibo, index_element_size=4)
         self.sub_ranges = {}
         self.sub_key = None  # the lights sub_ibo holds subsets for
+        self._planar_sub_vao = None
+
+    def planar_sub_vao(self, ctx, prog):
+        """Positions of the light-facing subsets (``sub_ibo``) for the direct planar pass (made on first use)."""
+        if self._planar_sub_vao is None:
+            self._planar_sub_vao = ctx.vertex_array(prog, [(self.vbo, "4f 24x", "in_pos")], index_buffer=self.sub_ibo,
+                                                    index_element_size=4)
+        return self._planar_sub_vao
 
     def upload_light_subsets(self, passes) -> None:
         """Write, for each pass, the light-facing triangles (closed meshes) into ``sub_ibo``; records
@@ -185,9 +194,10 @@ class _CasterBuffers:
             self.sub_ibo.write(data)
 
     def release(self):
-        for o in (self.vao, self.sub_vao, self.base_vao, self.planar_vao, self.vbo, self.light_ibo, self.sub_ibo,
-                  self.pos_vbo, self.ibo):
-            o.release()
+        for o in (self.vao, self.sub_vao, self._planar_sub_vao, self.base_vao, self.planar_vao, self.vbo,
+                  self.light_ibo, self.sub_ibo, self.pos_vbo, self.ibo):
+            if o is not None:
+                o.release()
 
 
 class _Target:
@@ -330,6 +340,7 @@ class ShadowRenderer:
         self.prog_ground = _program(ctx, "common.vert", "ground.frag")
         self.prog_volume = _program(ctx, "common.vert", "volume.frag")
         self.prog_mask = _program(ctx, "fullscreen.vert", "mask.frag")
+        self.prog_planar_mask = _program(ctx, "common.vert", "mask.frag")  # direct planar shadows
         # static geometry: unlimited ground (4 triangles fanning out to points at infinity), full viewport
         self._ground_vbo = ctx.buffer(reserve=12 * 4 * 4)
         self._ground_vao = ctx.vertex_array(self.prog_ground, [(self._ground_vbo, "4f", "in_pos")])
@@ -345,7 +356,10 @@ class ShadowRenderer:
         self._main = None       # _Target: render target (MSAA and/or supersampled)
         self._resolve = None    # _Target: single-sample canvas-size target (when main is MSAA/supersampled)
         self._half = None       # _Target: intermediate for supersample 4
+        self._tex = None        # TextureTarget: GPU-resident result (render(readback=False))
         self._released = False
+        #: render(readback=False) keeps the layers on the GPU (arshadow.gl.compose composites them there)
+        self.gpu_layers = True
         #: when True, render() calls ctx.finish() after each pass and reports per-pass times (slower)
         self.profile = False
         self._marks = []
@@ -361,10 +375,10 @@ class ShadowRenderer:
         """Free every GL object this renderer made (programs stay cached on the context)."""
         if self._released:
             return
-        for t in (self._main, self._resolve, self._half, getattr(self, "_ss_resolve", None)):
+        for t in (self._main, self._resolve, self._half, getattr(self, "_ss_resolve", None), self._tex):
             if t is not None:
                 t.release()
-        self._main = self._resolve = self._half = self._ss_resolve = None
+        self._main = self._resolve = self._half = self._ss_resolve = self._tex = None
         for _, _, bufs in self._casters.values():
             bufs.release()
         self._casters.clear()
@@ -493,7 +507,7 @@ class ShadowRenderer:
     # ------------------------------------------------------------------ render
     def render(self, *, projection, view, width, height, caster, passes, ground_size=None,
                draw_occluder=True, ambient=0.25, diffuse=1.0, specular=0.25, shininess=32.0,
-               occluder_color=None) -> RenderResult:
+               occluder_color=None, readback=True):
         """Render one frame (or one canvas sub-rectangle of it).
 
         Parameters
@@ -517,10 +531,14 @@ class ShadowRenderer:
             Phong coefficients (paper 002): ``I = K_a I_a + sum_l I_l (K_d (N.L) + K_s (N.H)^n)``.
         occluder_color : (3,) sRGB in [0, 1], optional
             Overrides the mesh's own colours (mesh colours and this are sRGB-encoded; output is linear).
+        readback : bool
+            True (default): read the layers back into numpy (:class:`RenderResult`). False: keep them on
+            the GPU: the (resolved) attachments are copied into two textures and a :class:`GpuLayers` is
+            returned (no ``ctx.finish()``, no readback; :mod:`arshadow.gl.compose` samples them).
 
         Returns
         -------
-        RenderResult
+        RenderResult, or GpuLayers when ``readback`` is False
         """
         t0 = time.perf_counter()
         if self._released:
@@ -546,7 +564,7 @@ class ShadowRenderer:
         bufs = self._caster_buffers(caster, occluder_color) if (draw_occluder or any(
             p.mode == "planar" for p in passes)) else None
         ranges = self._upload_volumes(passes)
-        if draw_occluder:
+        if draw_occluder or any(p.mode == "planar" and p.direct for p in passes):
             bufs.upload_light_subsets(passes)
         self._set_ground(ground_size)
         self._ensure_targets(width, height)
@@ -614,6 +632,32 @@ class ShadowRenderer:
             planar = p.mode == "planar"
             if rng is None and not planar:
                 # casts nothing: the occluder gets this light unshadowed
+                if draw_occluder:
+                    self._light_occluder(bufs, p, i, mvp_bytes, eye, diffuse, specular, shininess, stencil=False)
+                continue
+            if planar and p.direct and bufs.cull and i in bufs.sub_ranges:
+                # convex closed caster: its light-facing faces, flattened from the light, tile the shadow
+                # exactly once -> add the weight straight into the mask where the ground is visible and
+                # the occluder is not (stencil ground bit set, occluder bit clear); no count, no clear
+                first, count = bufs.sub_ranges[i]
+                if p.shadow_matrix is not None and p.weight > 0 and count:
+                    ctx.enable_only(moderngl.BLEND)  # no depth test, no culling (projection may mirror)
+                    ctx.blend_func = moderngl.ONE, moderngl.ONE
+                    gl.glDepthMask(G.GL_FALSE)
+                    gl.glColorMask(1, 1, 1, 1)
+                    gl.glEnable(G.GL_DEPTH_CLAMP)
+                    gl.glStencilMask(0)
+                    gl.glStencilOp(G.GL_KEEP, G.GL_KEEP, G.GL_KEEP)
+                    gl.glStencilFunc(G.GL_EQUAL, GROUND_BIT, GROUND_BIT | OCCLUDER_BIT)
+                    gl.draw_buffer_list([None, 1])
+                    smat = np.asarray(p.shadow_matrix, dtype=np.float64)
+                    prog = self.prog_planar_mask
+                    prog["u_mvp"].write((mvp @ smat).T.astype(np.float32).tobytes())
+                    prog["u_weight"].value = float(p.weight)
+                    bufs.planar_sub_vao(self.ctx, prog).render(moderngl.TRIANGLES, vertices=count, first=first)
+                    gl.draw_buffers(2)
+                    gl.glDisable(G.GL_DEPTH_CLAMP)
+                self._mark("mask")
                 if draw_occluder:
                     self._light_occluder(bufs, p, i, mvp_bytes, eye, diffuse, specular, shininess, stencil=False)
                 continue
@@ -687,6 +731,15 @@ class ShadowRenderer:
 
         # -- resolve / downsample
         src = tgt
+        if not readback and s == 1:
+            # GPU-resident result: resolve (MSAA) or copy straight into the texture target
+            tt = self._texture_target(width, height)
+            self._blit(src, tt, rw, rh, rw, rh, G.GL_NEAREST)
+            self._mark("resolve")
+            t2 = time.perf_counter()
+            return GpuLayers(tt.color_tex, tt.mask_tex, width, height,
+                             timings_ms={"upload": (t1 - t0) * 1e3, "draw": (t2 - t1) * 1e3, "readback": 0.0,
+                                         "total": (t2 - t0) * 1e3})
         if self.samples:
             dst = self._resolve if s == 1 else self._main_resolve_ss()
             self._blit(src, dst, rw, rh, rw, rh, G.GL_NEAREST)
@@ -699,6 +752,13 @@ class ShadowRenderer:
             self._blit(src, self._resolve, rw, rh, width, height, G.GL_LINEAR)
             src = self._resolve
         self._mark("resolve")
+        if not readback:
+            tt = self._texture_target(width, height)
+            self._blit(src, tt, width, height, width, height, G.GL_NEAREST)
+            t2 = time.perf_counter()
+            return GpuLayers(tt.color_tex, tt.mask_tex, width, height,
+                             timings_ms={"upload": (t1 - t0) * 1e3, "draw": (t2 - t1) * 1e3, "readback": 0.0,
+                                         "total": (t2 - t0) * 1e3})
         ctx.finish()
         t2 = time.perf_counter()
 
@@ -744,6 +804,16 @@ class ShadowRenderer:
                    if self.profile else {}),
             },
         )
+
+    def _texture_target(self, width: int, height: int):
+        """Single-sample ``RGBA16F`` + ``RG16F`` textures (grown, never shrunk) for ``readback=False``."""
+        t = self._tex
+        if t is None or t.width < width or t.height < height:
+            w, h = max(width, t.width if t else 0), max(height, t.height if t else 0)
+            if t is not None:
+                t.release()
+            t = self._tex = TextureTarget(self.ctx, w, h)
+        return t
 
     def _main_resolve_ss(self):
         """Single-sample target of the supersampled size (MSAA + supersampling)."""
@@ -832,7 +902,9 @@ class ShadowRenderer:
         prog["u_kd"].value = float(kd)
         prog["u_ks"].value = float(ks)
         prog["u_shininess"].value = float(shininess)
-        if stencil and i in bufs.sub_ranges:
+        # closed meshes: only the light-facing faces (the others lie in this light's own shadow; with a
+        # planar or no volume pass this is also what keeps a convex occluder's terminator as the volume has it)
+        if i in bufs.sub_ranges:
             first, count = bufs.sub_ranges[i]
             if count:
                 bufs.sub_vao.render(moderngl.TRIANGLES, vertices=count, first=first)

@@ -1,0 +1,312 @@
+"""GPU-resident compositing: lens warp + linear-light composite in a shader, one 8-bit readback.
+
+The numpy path reads the renderer's float layers back (``RGBA16F`` colour, ``RG16F`` mask), warps them
+to the distorted photo with :meth:`arshadow.lens.LensWarp.warp` (``cv2.remap``) and composites them with
+:func:`arshadow.composite.composite`. This module does the same work on the GPU:
+
+1. ``ShadowRenderer.render(..., readback=False)`` leaves the (MSAA-resolved, by ``glBlitFramebuffer``)
+   layers in two textures (:class:`arshadow.gl.renderer.GpuLayers`);
+2. the photo's region of interest is uploaded into an ``RGB8UI`` texture (allocated once per photo size);
+3. ``compose.frag`` runs once per ROI pixel: the undistortion map (``RG32F`` texture, uploaded once per
+   calibration, tile by tile as :class:`LensWarp` computes it) gives the pinhole point, the layers are
+   sampled bilinearly exactly as ``cv2.remap`` does (coordinates rounded to 1/32 px, border 0), and the
+   composite is the numpy path's arithmetic with its own tables (``SRGB_TO_LINEAR`` as a 256-texel float
+   texture, ``LINEAR_TO_SRGB16`` as a 256 x 256 ``R8UI`` texture);
+4. one ``glReadPixels`` of the 8-bit ROI straight into the output photo (``GL_PACK_ROW_LENGTH`` = photo
+   width, no intermediate copy), and one of the 8-bit mask when asked.
+
+Rows: the photo, the lens map and the output are stored with texel row = photo memory row (row 0 = top),
+so neither upload nor readback flips anything; only the renderer's layers are bottom-up (OpenGL).
+
+Parity with the numpy path: the same float32 operations in the same order on the same table values;
+left-over differences come from the order of the bilinear sum and fused multiply-adds, so a pixel may
+differ by one 8-bit level where a value lies within ~1e-7 of a rounding tie (tests/test_gpu_compose.py).
+
+Which path is faster depends on the backend (llvmpipe runs the shader on the same CPU cores; a GPU runs
+it in microseconds and saves the float readback): :class:`PathChooser` times both on first use per key
+(photo size, anti-aliasing, backend) and keeps the faster.
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+
+import numpy as np
+
+from ..composite import LINEAR_TO_SRGB16, SRGB_TO_LINEAR
+from ..errors import ShapeError, UsageError
+from . import glraw as G
+from .renderer import _program
+
+__all__ = ["GpuCompositor", "PathChooser", "SHARED_DECISIONS"]
+
+#: the compose choices made in this process, shared by every :class:`PathChooser` made without its own
+#: ``decisions`` (keys name the GL renderer, so one backend's measurement never decides for another)
+SHARED_DECISIONS: dict = {}
+
+
+class _LensTexture:
+    """The undistortion map of one :class:`LensWarp` as an ``RG32F`` texture, filled tile by tile as the
+    warp computes its map (never recomputed, each tile uploaded once)."""
+
+    def __init__(self, ctx, lens):
+        self.lens = lens
+        self.tex = ctx.texture((lens.width, lens.height), 2, dtype="f4", alignment=4)
+        self.tex.filter = (ctx.NEAREST, ctx.NEAREST)
+        self.uploaded = np.zeros_like(lens._done)
+
+    def update(self, roi) -> None:
+        lens = self.lens
+        lens._ensure(roi)
+        todo = lens._done & ~self.uploaded
+        if not todo.any():
+            return
+        T = lens.TILE
+        for r in np.flatnonzero(todo.any(axis=1)):
+            cols = np.flatnonzero(todo[r])
+            a, b = int(cols[0]), int(cols[-1]) + 1
+            y0, y1 = r * T, min(lens.height, (r + 1) * T)
+            x0, x1 = a * T, min(lens.width, b * T)
+            data = np.empty((y1 - y0, x1 - x0, 2), np.float32)
+            data[:, :, 0] = lens._mx[y0:y1, x0:x1]
+            data[:, :, 1] = lens._my[y0:y1, x0:x1]
+            self.tex.write(data.tobytes(), viewport=(x0, y0, x1 - x0, y1 - y0))
+            self.uploaded[r, a:b] |= lens._done[r, a:b]
+
+    def release(self):
+        self.tex.release()
+
+
+class GpuCompositor:
+    """Composites :class:`~arshadow.gl.renderer.GpuLayers` into a photo on the GPU (one per context).
+
+    Parameters
+    ----------
+    ctx : moderngl.Context
+        The renderer's context.
+    """
+
+    def __init__(self, ctx):
+        self.ctx = ctx
+        self.gl = G.load()
+        self.prog = _program(ctx, "fullscreen.vert", "compose.frag")
+        self.vao = ctx.vertex_array(self.prog, [])
+        dec = ctx.texture((256, 1), 1, data=np.ascontiguousarray(SRGB_TO_LINEAR, np.float32).tobytes(), dtype="f4")
+        enc = ctx.texture((256, 256), 1, data=np.ascontiguousarray(LINEAR_TO_SRGB16).tobytes(), dtype="u1",
+                          alignment=1)
+        for t in (dec, enc):
+            t.filter = (ctx.NEAREST, ctx.NEAREST)
+        self._dec, self._enc = dec, enc
+        self._size = None
+        self._photo = self._out = self._mask = self._fbo = None
+        self._lens: dict = {}
+        self._released = False
+
+    def release(self) -> None:
+        if self._released:
+            return
+        self._free_size()
+        for lt in self._lens.values():
+            lt.release()
+        self._lens.clear()
+        for o in (self.vao, self._dec, self._enc):
+            o.release()
+        self._released = True
+
+    def _free_size(self):
+        for o in (self._fbo, self._photo, self._out, self._mask):
+            if o is not None:
+                o.release()
+        self._photo = self._out = self._mask = self._fbo = None
+
+    def _ensure_size(self, width: int, height: int) -> None:
+        """Photo, output colour and output mask textures of the photo size (allocated once per size)."""
+        if self._size == (width, height):
+            return
+        self._free_size()
+        ctx = self.ctx
+        self._photo = ctx.texture((width, height), 3, dtype="u1", alignment=1)
+        self._out = ctx.texture((width, height), 4, dtype="f1")
+        self._mask = ctx.texture((width, height), 1, dtype="f1")
+        for t in (self._photo, self._out, self._mask):
+            t.filter = (ctx.NEAREST, ctx.NEAREST)
+        self._fbo = ctx.framebuffer(color_attachments=[self._out, self._mask])
+        self._size = (width, height)
+
+    def _lens_texture(self, lens) -> _LensTexture:
+        lt = self._lens.get(id(lens))
+        if lt is None or lt.lens is not lens:
+            if lt is not None:
+                lt.release()
+            lt = self._lens[id(lens)] = _LensTexture(self.ctx, lens)
+        return lt
+
+    def compose(self, image, layers, roi, canvas, *, lens=None, opacity=0.7, shadow_color=(0.0, 0.0, 0.0),
+                draw_occluder=True, out=None, mask_out=None, timings=None):
+        """Composite the layers into ``out`` over ``roi`` (the numpy path's result within one level).
+
+        Parameters
+        ----------
+        image : (H, W, 3) uint8
+            BGR photo (not modified).
+        layers : arshadow.gl.renderer.GpuLayers
+            From ``ShadowRenderer.render(..., readback=False)`` of ``canvas``.
+        roi : (x0, y0, w, h) int
+            Photo pixels to composite (inside the photo); the others are left as they are in ``out``.
+        canvas : (u0, v0, w, h) int
+            Pinhole canvas the layers hold (``w, h`` = ``layers.width, layers.height``).
+        lens : arshadow.lens.LensWarp, optional
+            With a distorted calibration: the photo pixel's pinhole point comes from its map.
+            Without: the canvas is the photo's own pixel grid.
+        opacity, shadow_color, draw_occluder
+            As :func:`arshadow.composite.composite` (shadow_color linear RGB).
+        out : (H, W, 3) uint8, optional
+            Receives the result over ``roi`` (C-contiguous); a copy of ``image`` if None.
+        mask_out : (H, W) uint8, optional
+            Receives ``round(255 * mask)`` over ``roi`` (C-contiguous); not read back if None.
+        timings : dict, optional
+            ``upload``, ``draw``, ``readback`` (ms) are added to it.
+
+        Returns
+        -------
+        out : (H, W, 3) uint8
+        """
+        if self._released:
+            raise UsageError("this GpuCompositor has been released")
+        H, W = image.shape[:2]
+        x0, y0, w, h = (int(v) for v in roi)
+        if x0 < 0 or y0 < 0 or w < 0 or h < 0 or x0 + w > W or y0 + h > H:
+            raise ShapeError(f"roi {tuple(roi)} is not inside the {W}x{H} photo")
+        if (int(canvas[2]), int(canvas[3])) != (int(layers.width), int(layers.height)):
+            raise ShapeError("the layers do not hold the canvas", actual_shape=(layers.width, layers.height),
+                             expected_shape=tuple(canvas[2:]))
+        if out is None:
+            out = image.copy()
+        for name, arr, shape in (("out", out, (H, W, 3)), ("mask_out", mask_out, (H, W))):
+            if arr is not None and (arr.shape != shape or arr.dtype != np.uint8 or not arr.flags.c_contiguous):
+                raise ShapeError(f"{name} must be a C-contiguous uint8 array", actual_shape=arr.shape,
+                                 expected_shape=shape)
+        if w == 0 or h == 0:
+            return out
+        t0 = time.perf_counter()
+        ctx, gl = self.ctx, self.gl
+        self._ensure_size(W, H)
+        self._photo.write(np.ascontiguousarray(image[y0 : y0 + h, x0 : x0 + w]).data, viewport=(x0, y0, w, h))
+        prog = self.prog
+        if lens is not None:
+            lt = self._lens_texture(lens)
+            lt.update((x0, y0, w, h))
+            lt.tex.use(5)
+        sc = np.asarray(shadow_color, np.float64).reshape(3)
+        gray = bool(sc[0] == sc[1] == sc[2])
+        prog["u_photo"].value = 0
+        prog["u_decode"].value = 1
+        prog["u_encode"].value = 2
+        prog["u_color"].value = 3
+        prog["u_mask"].value = 4
+        prog["u_lens"].value = 5
+        prog["u_use_lens"].value = lens is not None
+        prog["u_canvas"].value = tuple(int(v) for v in canvas)
+        prog["u_roi"].value = (x0, y0, w, h)
+        prog["u_occluder"].value = bool(draw_occluder)
+        prog["u_gray"].value = gray
+        prog["u_gray_k"].value = float(np.float32(-float(opacity) * (1.0 - sc[0])))
+        prog["u_dark"].value = tuple(float(v) for v in (np.float32(opacity) * (1.0 - sc[::-1])).astype(np.float32))
+        prog["u_darken"].value = float(opacity) > 0.0
+        self._photo.use(0)
+        self._dec.use(1)
+        self._enc.use(2)
+        layers.color_tex.use(3)
+        layers.mask_tex.use(4)
+        import moderngl
+
+        fbo = self._fbo
+        fbo.use()
+        fbo.viewport = (x0, y0, w, h)
+        ctx.enable_only(moderngl.NOTHING)
+        t1 = time.perf_counter()
+        self.vao.render(moderngl.TRIANGLES, vertices=3)
+        t2 = time.perf_counter()
+        # one readback of the 8-bit ROI straight into the output photo (and the mask)
+        gl.glBindBuffer(G.GL_PIXEL_PACK_BUFFER, 0)
+        gl.glBindFramebuffer(G.GL_READ_FRAMEBUFFER, fbo.glo)
+        gl.glPixelStorei(G.GL_PACK_ALIGNMENT, 1)
+        gl.glPixelStorei(G.GL_PACK_ROW_LENGTH, W)
+        gl.glReadBuffer(G.GL_COLOR_ATTACHMENT0)
+        gl.glReadPixels(x0, y0, w, h, G.GL_RGB, G.GL_UNSIGNED_BYTE, out[y0:, x0:].ctypes.data)
+        if mask_out is not None:
+            gl.glReadBuffer(G.GL_COLOR_ATTACHMENT0 + 1)
+            gl.glReadPixels(x0, y0, w, h, G.GL_RED, G.GL_UNSIGNED_BYTE, mask_out[y0:, x0:].ctypes.data)
+        gl.glPixelStorei(G.GL_PACK_ROW_LENGTH, 0)
+        gl.glPixelStorei(G.GL_PACK_ALIGNMENT, 4)
+        gl.glReadBuffer(G.GL_COLOR_ATTACHMENT0)
+        gl.glBindFramebuffer(G.GL_FRAMEBUFFER, 0)
+        if ctx.screen is not None:
+            ctx.screen.use()
+        t3 = time.perf_counter()
+        if timings is not None:
+            for k, v in (("upload", t1 - t0), ("draw", t2 - t1), ("readback", t3 - t2)):
+                timings[k] = timings.get(k, 0.0) + v * 1e3
+        return out
+
+
+class PathChooser:
+    """Picks the faster of several interchangeable code paths by timing them on first use, per key.
+
+    On the first call for a key every path runs ``trials`` times, interleaved (the first round is a warm-up
+    that allocates buffers and fills caches and is not counted); the path with the lowest median time is
+    kept for that key. Later calls run only the chosen path.
+
+    Parameters
+    ----------
+    trials : int
+        Timed runs per path after the warm-up round (>= 1).
+    force : str, optional
+        Always take this path (no timing).
+    decisions : dict, optional
+        Where the choices are kept; default :data:`SHARED_DECISIONS` (one measurement per key and process,
+        whatever the number of sessions).
+
+    Attributes
+    ----------
+    decisions : dict
+        key -> ``{"choice": name, "ms": {name: median ms}}`` (or ``{"choice": name, "forced": True}``).
+    """
+
+    def __init__(self, trials: int = 3, force: str | None = None, decisions: dict | None = None):
+        if int(trials) < 1:
+            raise UsageError(f"trials must be >= 1, got {trials}")
+        self.trials = int(trials)
+        self.force = force
+        if decisions is None:
+            decisions = SHARED_DECISIONS if force is None else {}
+        self.decisions: dict = decisions
+
+    def run(self, key, paths: dict):
+        """Run the chosen path for ``key`` (timing all ``paths`` on first use); returns ``(name, result)``.
+
+        ``paths`` maps a name to a no-argument callable; each must have the same effect (the caller's
+        output buffers are simply written again by each).
+        """
+        if self.force is not None:
+            if self.force not in paths:
+                raise UsageError(f"path {self.force!r} is not one of {', '.join(paths)}")
+            self.decisions.setdefault(key, {"choice": self.force, "forced": True})
+            return self.force, paths[self.force]()
+        d = self.decisions.get(key)
+        if d is not None:
+            return d["choice"], paths[d["choice"]]()
+        times = {name: [] for name in paths}
+        result = {}
+        for rnd in range(self.trials + 1):
+            for name, fn in paths.items():
+                t = time.perf_counter()
+                result[name] = fn()
+                if rnd:
+                    times[name].append((time.perf_counter() - t) * 1e3)
+        med = {name: statistics.median(v) for name, v in times.items()}
+        choice = min(med, key=med.get)
+        self.decisions[key] = {"choice": choice, "ms": {k: round(v, 3) for k, v in med.items()}}
+        # the chosen path runs last so that the caller's buffers hold its result
+        return choice, paths[choice]()

@@ -1,0 +1,55 @@
+"""GPU-resident render results: the renderer's layers kept in textures (``render(readback=False)``).
+
+Kept apart from :mod:`arshadow.gl.renderer` so that the compose path (:mod:`arshadow.gl.compose`) and the
+renderer share these two small types without importing each other.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+__all__ = ["GpuLayers", "TextureTarget"]
+
+
+class TextureTarget:
+    """Texture-backed single-sample framebuffer (colour 0 ``RGBA16F``, colour 1 ``RG16F``): the blit
+    destination of ``render(readback=False)``, sampled by :mod:`arshadow.gl.compose`."""
+
+    def __init__(self, ctx, width, height):
+        self.width, self.height = int(width), int(height)
+        self.color_tex = ctx.texture((self.width, self.height), 4, dtype="f2")
+        self.mask_tex = ctx.texture((self.width, self.height), 2, dtype="f2")
+        for t in (self.color_tex, self.mask_tex):
+            t.filter = (ctx.NEAREST, ctx.NEAREST)
+        self.mgl = ctx.framebuffer(color_attachments=[self.color_tex, self.mask_tex])
+        self.fbo = self.mgl.glo
+
+    def release(self):
+        for o in (self.mgl, self.color_tex, self.mask_tex):
+            o.release()
+
+
+@dataclass
+class GpuLayers:
+    """What ``ShadowRenderer.render(readback=False)`` returns: the frame's layers left on the GPU.
+
+    Attributes
+    ----------
+    color_tex : moderngl.Texture
+        ``RGBA16F``: rgb = premultiplied linear occluder colour, a = coverage (as :class:`RenderResult`).
+    mask_tex : moderngl.Texture
+        ``RG16F``: r = blocked weight (not yet clipped to [0, 1]), g = ground coverage.
+    width, height : int
+        The canvas occupies texels ``[0, width) x [0, height)``, OpenGL's bottom-up rows (texel row 0 is
+        the canvas's BOTTOM row); the textures may be larger (grown, never shrunk). Valid until the next
+        render.
+    timings_ms : dict
+        ``upload``, ``draw`` (commands issued; not waited for), ``readback`` (0), ``total``.
+    """
+
+    color_tex: object
+    mask_tex: object
+    width: int
+    height: int
+    timings_ms: dict = field(default_factory=dict)
+    premultiplied: bool = True

@@ -1,0 +1,94 @@
+#version 330 core
+// GPU-resident compositing (arshadow/gl/compose.py): the same arithmetic as arshadow/composite.py
+// composite() + arshadow/lens.py LensWarp.warp(), per photo pixel of the region drawn.
+// Rows: every texture here is indexed by the photo's memory row (row 0 = top row of the photo), except the
+// renderer's layers, whose texel row 0 is the canvas's BOTTOM row (OpenGL order).
+uniform usampler2D u_photo;      // RGB8UI, photo as stored (B, G, R bytes), full photo size
+uniform sampler2D u_decode;      // R32F 256 x 1: 8-bit sRGB code -> linear (SRGB_TO_LINEAR)
+uniform usampler2D u_encode;     // R8UI 256 x 256: round(x * 65535) -> 8-bit sRGB code (LINEAR_TO_SRGB16)
+uniform sampler2D u_color;       // RGBA16F renderer colour (premultiplied linear RGB, coverage)
+uniform sampler2D u_mask;        // RG16F renderer mask (blocked weight, ground coverage)
+uniform sampler2D u_lens;        // RG32F undistortion map (pinhole u, v per photo pixel); only if u_use_lens
+uniform bool u_use_lens;
+uniform ivec4 u_canvas;          // (u0, v0, w, h) pinhole canvas
+uniform ivec4 u_roi;             // (x0, y0, w, h) photo pixels composited (others: the photo unchanged)
+uniform bool u_occluder;         // draw the occluder colour over the shadow
+uniform bool u_gray;             // grey shadow colour: one multiplier for the three channels
+uniform float u_gray_k;          // float32(-opacity * (1 - shadow_color[0]))
+uniform vec3 u_dark;             // float32(opacity * (1 - shadow_color)) in B, G, R order
+uniform bool u_darken;           // mask present and opacity > 0
+layout(location = 0) out vec4 o_rgb;   // RGBA8: (B, G, R, 255) / 255 (read back as GL_RGB -> BGR bytes)
+layout(location = 1) out vec4 o_mask;  // R8: round(255 * mask) / 255
+
+vec4 fetch_c(ivec2 p) {   // canvas texel with BORDER_CONSTANT 0
+    if (p.x < 0 || p.y < 0 || p.x >= u_canvas.z || p.y >= u_canvas.w) return vec4(0.0);
+    return texelFetch(u_color, p, 0);
+}
+float fetch_m(ivec2 p) {
+    if (p.x < 0 || p.y < 0 || p.x >= u_canvas.z || p.y >= u_canvas.w) return 0.0;
+    return clamp(texelFetch(u_mask, p, 0).r, 0.0, 1.0);
+}
+
+void main() {
+    ivec2 px = ivec2(gl_FragCoord.xy);   // photo pixel (x, memory row y)
+    uvec3 bgr = texelFetch(u_photo, px, 0).rgb;
+    bool inside = px.x >= u_roi.x && px.y >= u_roi.y && px.x < u_roi.x + u_roi.z && px.y < u_roi.y + u_roi.w;
+    if (!inside) {
+        o_rgb = vec4(vec3(bgr) / 255.0, 1.0);
+        o_mask = vec4(0.0);
+        return;
+    }
+    vec4 c;
+    float m;
+    if (u_use_lens) {
+        // LensWarp.warp(bottom_up=True): map_x = mx - u0, map_y = (h - 1 + v0) - my (float32), then
+        // cv2.convertMaps(CV_16SC2) rounds to 1/32 px and cv2.remap interpolates bilinearly, border 0
+        vec2 mp = texelFetch(u_lens, px, 0).rg;
+        float mx = mp.x - float(u_canvas.x);
+        float my = float(u_canvas.w - 1 + u_canvas.y) - mp.y;
+        // cv2 saturates the fixed-point map; far-away (invalid) points give border 0 either way
+        mx = clamp(mx, -30000.0, 30000.0);
+        my = clamp(my, -30000.0, 30000.0);
+        ivec2 q = ivec2(round(vec2(mx, my) * 32.0));
+        ivec2 i0 = q >> 5;
+        vec2 f = vec2(q & 31) / 32.0;
+        float w00 = (1.0 - f.x) * (1.0 - f.y), w10 = f.x * (1.0 - f.y);
+        float w01 = (1.0 - f.x) * f.y, w11 = f.x * f.y;
+        c = fetch_c(i0) * w00 + fetch_c(i0 + ivec2(1, 0)) * w10 + fetch_c(i0 + ivec2(0, 1)) * w01
+            + fetch_c(i0 + ivec2(1, 1)) * w11;
+        m = fetch_m(i0) * w00 + fetch_m(i0 + ivec2(1, 0)) * w10 + fetch_m(i0 + ivec2(0, 1)) * w01
+            + fetch_m(i0 + ivec2(1, 1)) * w11;
+    } else {
+        // no lens: the canvas is the photo's pixel grid; canvas row r (top-down) is texel row h - 1 - r
+        ivec2 t = ivec2(px.x - u_canvas.x, u_canvas.w - 1 - (px.y - u_canvas.y));
+        c = fetch_c(t);
+        m = fetch_m(t);
+    }
+    // composite(): linear light, B, G, R order as the numpy path
+    vec3 lin = vec3(texelFetch(u_decode, ivec2(int(bgr.r), 0), 0).r,
+                    texelFetch(u_decode, ivec2(int(bgr.g), 0), 0).r,
+                    texelFetch(u_decode, ivec2(int(bgr.b), 0), 0).r);
+    float g = 1.0;
+    if (u_darken) {
+        if (u_gray) {
+            g = m * u_gray_k + 1.0;
+        } else {
+            lin *= (vec3(m) * -u_dark) + 1.0;
+        }
+    }
+    if (u_occluder) {
+        g *= 1.0 - c.a;
+    }
+    lin *= g;
+    if (u_occluder) {
+        lin += c.bgr;   // premultiplied colour, RGB -> BGR
+    }
+    vec3 idx = clamp(lin * 65535.0 + 0.5, 0.0, 65535.0);
+    uvec3 k = uvec3(idx);   // truncation, as numpy's unsafe cast to uint16
+    uvec3 o = uvec3(texelFetch(u_encode, ivec2(int(k.r & 255u), int(k.r >> 8)), 0).r,
+                    texelFetch(u_encode, ivec2(int(k.g & 255u), int(k.g >> 8)), 0).r,
+                    texelFetch(u_encode, ivec2(int(k.b & 255u), int(k.b >> 8)), 0).r);
+    o_rgb = vec4(vec3(o) / 255.0, 1.0);
+    float mm = clamp(m * 255.0 + 0.5, 0.0, 255.0);
+    o_mask = vec4(floor(mm) / 255.0, 0.0, 0.0, 0.0);
+}

@@ -1,0 +1,145 @@
+"""The GPU-resident compose path (arshadow/gl/compose.py) against the numpy path (lens warp + composite).
+
+Both paths are fed the same render of the same canvas; the numpy path's result is the reference (it is
+tested against hand values and analytic oracles in test_composite.py / test_lens.py / test_pipeline.py).
+The shader must give the same 8-bit photo and mask within TOL.gpu_compose_levels, with and without lens
+distortion, with MSAA 0 and 4, grey and tinted shadows, with and without the occluder.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+W, H = 1280, 720
+
+
+def _intrinsics(dist=()):
+    from arshadow.camera import Intrinsics
+
+    return Intrinsics(1000.0, 1000.0, 641.3, 358.2, W, H, np.asarray(dist, float))
+
+
+def _photo(seed=3):
+    # random texture: every 8-bit code of every channel is exercised (the sRGB tables both ways)
+    img = np.random.default_rng(seed).integers(0, 256, (H, W, 3), dtype=np.uint8)
+    img.setflags(write=False)
+    return img
+
+
+def _both_paths(ctx, compose, *, dist, aa, caster_spec, light, eye, target, **opts):
+    from arshadow.lights import parse_light
+    from arshadow.mesh import load_occluder
+    from arshadow.pipeline import Compositor, RenderOptions
+    from arshadow.synth import look_at_pose
+
+    intr = _intrinsics(dist)
+    caster = load_occluder(caster_spec)
+    pose = look_at_pose(eye, target)
+    photo = _photo()
+    results = {}
+    for path in ("cpu", "gpu"):
+        comp = Compositor(ctx, intr, caster, [parse_light(light)], RenderOptions(aa=aa, compose=path, **opts),
+                          tracker={"marker_length": 0.05})
+        with comp:
+            out, mask, info = comp.render_pose(photo, intr, pose)
+        assert info["compose"] == path
+        results[path] = (out, mask, info)
+    return photo, results
+
+
+CASES = {
+    "box_point": dict(caster_spec="box:0.06,0.05,0.09", light="point:0.25,0.15,0.45", eye=[0.15, -0.55, 0.42],
+                      target=[0.17, -0.12, 0.02]),
+    "torus_sun_tinted": dict(caster_spec="torus:0.06,0.02", light="directional:-0.3,0.5,1.0",
+                             eye=[-0.5, -0.45, 0.35], target=[-0.08, 0.12, 0.0], opacity=0.55,
+                             shadow_color=(0.05, 0.1, 0.3)),
+    "sphere_no_occluder": dict(caster_spec="sphere:0.04", light="point:0.1,-0.2,0.5", eye=[0.0, -0.5, 0.4],
+                               target=[0.0, 0.0, 0.0], draw_occluder=False, opacity=1.0),
+}
+
+
+@pytest.mark.parametrize("aa", [0, 4])
+@pytest.mark.parametrize("dist", [(), (-0.25, 0.05, 0.001, -0.002, 0.0)], ids=["pinhole", "distorted"])
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_shader_compose_equals_numpy_compose(ctx, tol, case, dist, aa):
+    photo, res = _both_paths(ctx, None, dist=dist, aa=aa, **CASES[case])
+    (o_cpu, m_cpu, i_cpu), (o_gpu, m_gpu, i_gpu) = res["cpu"], res["gpu"]
+    assert i_cpu["roi"] == i_gpu["roi"] and i_cpu["canvas"] == i_gpu["canvas"]
+    # the scene really puts a shadow (and the occluder, when drawn) into the photo
+    assert np.count_nonzero(m_cpu) > 2000
+    assert np.count_nonzero(np.any(o_cpu != photo, axis=2)) > 2000
+    d = np.abs(o_gpu.astype(np.int16) - o_cpu)
+    dm = np.abs(m_gpu.astype(np.int16) - m_cpu)
+    print(f"\n{case} {dist} aa={aa}: photo max {d.max()} ({np.count_nonzero(d)} values), "
+          f"mask max {dm.max()} ({np.count_nonzero(dm)})")
+    assert int(d.max()) <= tol.gpu_compose_levels
+    assert int(dm.max()) <= tol.gpu_compose_levels
+    # outside the ROI both leave the photo as it was
+    x0, y0, w, h = i_cpu["roi"]
+    outside = np.ones((H, W), bool)
+    outside[y0 : y0 + h, x0 : x0 + w] = False
+    assert np.array_equal(o_gpu[outside], photo[outside]) and not np.any(m_gpu[outside])
+
+
+def test_gpu_layers_hold_what_the_readback_holds(ctx):
+    """render(readback=False) keeps the same layers the default readback returns (MSAA resolved on the GPU)."""
+    from arshadow.gl.renderer import LightPass, ShadowRenderer
+    from arshadow.mesh import load_occluder
+    from arshadow.silhouette import silhouette
+    from arshadow.synth import look_at_pose
+    from arshadow.transforms import CV_TO_GL
+    from arshadow.volume import shadow_volume
+
+    intr = _intrinsics()
+    caster = load_occluder("box:0.06,0.05,0.09")
+    L = np.array([0.25, 0.15, 0.45, 1.0])
+    vol = shadow_volume(caster, L, silhouette(caster, L), caps=True)
+    pose = look_at_pose([0.15, -0.55, 0.42], [0.0, 0.0, 0.02])
+    canvas = (400, 200, 500, 300)
+    proj = intr.gl_projection(0.01, None, canvas=canvas)
+    for samples in (0, 4):
+        with ShadowRenderer(ctx, samples=samples) as r:
+            kw = dict(projection=proj, view=CV_TO_GL @ pose, width=canvas[2], height=canvas[3], caster=caster,
+                      passes=[LightPass(L, 1.0, vol, "zfail")])
+            ref = r.render(**kw)
+            lay = r.render(**kw, readback=False)
+            c = np.frombuffer(lay.color_tex.read(), np.float16).reshape(lay.color_tex.height, lay.color_tex.width, 4)
+            m = np.frombuffer(lay.mask_tex.read(), np.float16).reshape(lay.mask_tex.height, lay.mask_tex.width, 2)
+            c = c[: canvas[3], : canvas[2]][::-1].astype(np.float32)
+            m = m[: canvas[3], : canvas[2]][::-1].astype(np.float32)
+            assert ref.mask.sum() > 1000 and ref.alpha.sum() > 1000
+            np.testing.assert_array_equal(np.clip(m[..., 0], 0, 1), ref.mask)
+            np.testing.assert_array_equal(m[..., 1], ref.ground_coverage)
+            np.testing.assert_array_equal(c[..., 3], ref.alpha)
+            np.testing.assert_array_equal(c[..., :3], ref.color)
+
+
+def test_path_chooser_times_both_and_keeps_the_faster():
+    import time
+
+    from arshadow.gl.compose import PathChooser
+
+    calls = []
+
+    def slow():
+        calls.append("slow")
+        time.sleep(0.004)
+        return "s"
+
+    def fast():
+        calls.append("fast")
+        return "f"
+
+    ch = PathChooser(trials=2, decisions={})
+    assert ch.run("k", {"slow": slow, "fast": fast}) == ("fast", "f")
+    assert calls.count("slow") == 3 and calls.count("fast") == 4  # warm-up + 2 timed each, then the winner
+    assert ch.decisions["k"]["choice"] == "fast" and ch.decisions["k"]["ms"]["slow"] >= 4.0
+    calls.clear()
+    assert ch.run("k", {"slow": slow, "fast": fast}) == ("fast", "f") and calls == ["fast"]
+    # by default the choices are shared by every chooser of the process (one measurement per key)
+    from arshadow.gl.compose import SHARED_DECISIONS
+
+    assert PathChooser().decisions is SHARED_DECISIONS
+    forced = PathChooser(force="slow")
+    assert forced.run("k", {"slow": slow, "fast": fast}) == ("slow", "s")
