@@ -68,16 +68,17 @@ void main() {
     vec3 lin = vec3(texelFetch(u_decode, ivec2(int(bgr.r), 0), 0).r,
                     texelFetch(u_decode, ivec2(int(bgr.g), 0), 0).r,
                     texelFetch(u_decode, ivec2(int(bgr.b), 0), 0).r);
-    float g = 1.0;
+    // (1 - alpha) - opacity * mask * (1 - tint), clamped at 0: the mask is coverage-weighted like the
+    // colour, so it is subtracted from the uncovered share (composite.py: no seam along the contact)
+    float keep = u_occluder ? 1.0 - c.a : 1.0;
+    float g = keep;
     if (u_darken) {
         if (u_gray) {
-            g = m * u_gray_k + 1.0;
+            g = max(m * u_gray_k + keep, 0.0);
         } else {
-            lin *= (vec3(m) * -u_dark) + 1.0;
+            lin *= max((vec3(m) * -u_dark) + keep, vec3(0.0));
+            g = 1.0;
         }
-    }
-    if (u_occluder) {
-        g *= 1.0 - c.a;
     }
     lin *= g;
     if (u_occluder) {
