@@ -69,20 +69,22 @@ def _rmat(r):
     return cv2.Rodrigues(np.asarray(r, np.float64).reshape(3, 1))[0]
 
 
-def _local_linear(ts, w, t0, ys):
-    """Weighted least-squares line through ``(ts, ys)`` evaluated at ``t0``: ``(d,)``."""
-    dt = ts - t0
-    sw, st, stt = w.sum(), (w * dt).sum(), (w * dt * dt).sum()
-    den = sw * stt - st * st
-    sy = (w[:, None] * ys).sum(axis=0)
-    if abs(den) < 1e-12 * max(sw * stt, 1e-300):
-        return sy / sw  # one point (or all at one time): the weighted mean
-    sty = (w[:, None] * dt[:, None] * ys).sum(axis=0)
-    return (stt * sy - st * sty) / den  # intercept at t0
+def _local_poly(dt, w, ys, degree):
+    """Weighted least-squares polynomial in ``dt`` through ``ys``: ``(value at dt = 0 (d,), fitted (n, d))``."""
+    deg = int(min(degree, max(0, int((w > 0).sum()) - 1)))
+    X = np.vander(dt, deg + 1, increasing=True)
+    sw = np.sqrt(w)[:, None]
+    beta = np.linalg.lstsq(X * sw, ys * sw, rcond=None)[0]
+    return beta[0], X @ beta
 
 
-def smooth_poses(times, poses, i, *, window_s, outlier_deg=3.0):
+def smooth_poses(times, poses, i, *, window_s, degree=2, outlier_deg=3.0):
     """The smoothed pose of frame ``i`` from its neighbours (:class:`PoseStream` step 2).
+
+    A local polynomial (``degree`` 2: constant acceleration is followed exactly, so an arc of a camera
+    path is not cut short) fitted by weighted least squares with tricube weights
+    ``(1 - |dt / window_s|^3)^3``, to the rotation vectors relative to frame ``i``'s rotation and to the
+    camera centres ``-R^T t``, evaluated at frame ``i``'s time.
 
     Parameters
     ----------
@@ -94,8 +96,10 @@ def smooth_poses(times, poses, i, *, window_s, outlier_deg=3.0):
         The frame to smooth.
     window_s : float
         Half-width of the tricube weight, seconds.
+    degree : int
+        Degree of the local polynomial (0 mean, 1 line, 2 parabola).
     outlier_deg : float
-        Neighbours farther than this (rotation) from a first fit are left out.
+        Neighbours whose rotation is farther than this from a first fit are left out.
 
     Returns
     -------
@@ -107,40 +111,25 @@ def smooth_poses(times, poses, i, *, window_s, outlier_deg=3.0):
     Rc = R[i]
     centres = -np.einsum("nji,nj->ni", R, P[:, :3, 3])  # camera centre in the world: -R^T t
     rv = np.array([_rvec(Rj @ Rc.T) for Rj in R])  # rotation relative to frame i's
-    u = np.abs(times - times[i]) / (window_s * (1.0 + 1e-9))
-    w = np.where(u < 1.0, (1.0 - u ** 3) ** 3, 0.0)
-    keep = w > 0
+    dt = (times - times[i]) / window_s
+    u = np.abs(dt) / (1.0 + 1e-9)
+    w0 = np.where(u < 1.0, (1.0 - u ** 3) ** 3, 0.0)
+    w = w0.copy()
+    ys = np.concatenate([rv, centres], axis=1)
     for _ in range(2):
-        ys = np.concatenate([rv, centres], axis=1)
-        fit = _local_linear(times[keep], w[keep], times[i], ys[keep])
-        # residual of each neighbour against the line (rotation part, degrees)
-        dt = times - times[i]
-        if keep.sum() >= 3:
-            slope = _local_slope(times[keep], w[keep], times[i], rv[keep])
-            res = np.degrees(np.linalg.norm(rv - (fit[:3] + dt[:, None] * slope), axis=1))
-            new_keep = (w > 0) & (res <= outlier_deg)
-            new_keep[i] |= not new_keep.any()
-            if np.array_equal(new_keep, keep):
-                break
-            keep = new_keep
-        else:
+        fit, fitted = _local_poly(dt, w, ys, degree)
+        res = np.degrees(np.linalg.norm(rv - fitted[:, :3], axis=1))
+        keep = (w0 > 0) & (res <= outlier_deg)
+        keep[i] = True
+        new_w = np.where(keep, w0, 0.0)
+        if np.array_equal(new_w > 0, w > 0):
             break
+        w = new_w
     out = np.eye(4)
     Rs = _rmat(fit[:3]) @ Rc
     out[:3, :3] = Rs
     out[:3, 3] = -Rs @ fit[3:]
     return out
-
-
-def _local_slope(ts, w, t0, ys):
-    dt = ts - t0
-    sw, st, stt = w.sum(), (w * dt).sum(), (w * dt * dt).sum()
-    den = sw * stt - st * st
-    if abs(den) < 1e-12 * max(sw * stt, 1e-300):
-        return np.zeros(ys.shape[1])
-    sy = (w[:, None] * ys).sum(axis=0)
-    sty = (w[:, None] * dt[:, None] * ys).sum(axis=0)
-    return (sw * sty - st * sy) / den
 
 
 class PoseStream:
@@ -168,8 +157,8 @@ class PoseStream:
     ['no_marker']
     """
 
-    def __init__(self, fps: float = 25.0, lag: int | None = 16, window: int = 6, hold_frames: int = 12,
-                 outlier_deg: float = 3.0, max_gap_s: float = 1.0):
+    def __init__(self, fps: float = 25.0, lag: int | None = 16, window: int = 10, hold_frames: int = 12,
+                 outlier_deg: float = 3.0, max_gap_s: float = 1.0, degree: int = 2):
         if not (math.isfinite(fps) and fps > 0):
             raise UsageError(f"frame rate must be positive, got {fps}")
         if int(window) < 0 or int(hold_frames) < 0:
@@ -180,6 +169,7 @@ class PoseStream:
         self.window_s = (self.window + 1) / self.fps
         self.hold_frames = int(hold_frames)
         self.outlier_deg = float(outlier_deg)
+        self.degree = int(degree)
         self.max_gap_s = float(max_gap_s)
         self._buf: deque = deque()  # (payload, time_s, raw pose or None, swapped) awaiting the look-ahead
         self._hist: deque = deque()  # (time_s, (4, 4)) of decided frames with a pose, within the window
@@ -245,7 +235,8 @@ class PoseStream:
                     prev_t = tf
             if self._hist and t - self._hist[-1][0] > self.max_gap_s:
                 times, mats, i = times[i:], mats[i:], 0
-            sm = smooth_poses(times, mats, i, window_s=self.window_s, outlier_deg=self.outlier_deg)
+            sm = smooth_poses(times, mats, i, window_s=self.window_s, degree=self.degree,
+                                  outlier_deg=self.outlier_deg)
         self._hist.append((t, raw))
         self._last = (t, sm)
         self._since = 0

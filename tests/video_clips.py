@@ -65,3 +65,104 @@ def _add_tone(path, seconds):
         for p in aout.encode(None):
             dst.mux(p)
     tmp.replace(path)
+
+
+class ExactShadow:
+    """The exact shadow mask of a mesh at a known pose, independent of the renderer.
+
+    The mesh's shadow on z = 0 is the union of its triangles projected from the light
+    (:func:`tests.oracle.ground_shadow_triangles`); those ground triangles and the mesh's own triangles are
+    projected through the (distorted) camera (:meth:`Intrinsics.project`) and polygon-filled by OpenCV at
+    1/16-pixel precision (pixel centres at integer coordinates, CONVENTIONS.md). Mask = shadow and not
+    covered by the object. The triangles are millimetres wide, so a straight edge between two distorted
+    vertices is exact to far below a pixel.
+    """
+
+    SHIFT = 4
+    #: supersampling: OpenCV's polygon fill puts an edge within half a (fine) pixel; 8x makes that 1/16 px
+    SS = 8
+
+    def __init__(self, intr, vertices, faces, light_h):
+        import sys
+
+        sys.path.insert(0, str(Path(__file__).resolve().parent))
+        from oracle import ground_shadow_triangles
+
+        self.intr = intr
+        self.V = np.asarray(vertices, np.float64)
+        self.F = np.asarray(faces)
+        tris = ground_shadow_triangles(self.V, self.F, np.asarray(light_h, np.float64))
+        self.shadow = np.concatenate([tris, np.zeros(tris.shape[:2] + (1,))], axis=2)  # (m, 3, 3) on z = 0
+
+    def mask(self, pose) -> np.ndarray:
+        """``(H, W) bool`` shadow mask for ``cam_from_world`` ``pose`` (pixel-centre samples)."""
+        return self._raster(pose)[0]
+
+    def centroid(self, pose) -> np.ndarray:
+        """``(2,)`` centroid (u, v) of the shadow at 1/8-pixel resolution (no pixel-sampling noise)."""
+        return self._raster(pose)[1]
+
+    def _raster(self, pose):
+        import cv2
+
+        H, W = self.intr.height, self.intr.width
+        uv_s = self.intr.project(self.shadow.reshape(-1, 3), pose).reshape(-1, 3, 2)
+        uv_o = self.intr.project(self.V[self.F].reshape(-1, 3), pose).reshape(-1, 3, 2)
+        uv_s = uv_s[np.all(np.isfinite(uv_s), axis=(1, 2))]
+        uv_o = uv_o[np.all(np.isfinite(uv_o), axis=(1, 2))]
+        out = np.zeros((H, W), bool)
+        nan = np.array([np.nan, np.nan])
+        if not len(uv_s):
+            return out, nan
+        lo = np.floor(uv_s.reshape(-1, 2).min(axis=0)) - 2
+        hi = np.ceil(uv_s.reshape(-1, 2).max(axis=0)) + 2
+        x0, y0 = int(max(lo[0], 0)), int(max(lo[1], 0))
+        x1, y1 = int(min(hi[0], W - 1)), int(min(hi[1], H - 1))
+        if x1 < x0 or y1 < y0:
+            return out, nan
+        S = self.SS
+        fh, fw = (y1 - y0) * S + 1, (x1 - x0) * S + 1
+
+        def fill(uv):
+            img = np.zeros((fh, fw), np.uint8)
+            # fine pixel F <-> image coordinate x0 + F / S: pixel centre u is the fine pixel S (u - x0)
+            pts = np.round((uv - [x0, y0]) * S * (1 << self.SHIFT)).astype(np.int32)
+            for tri in pts:  # one by one: fillPoly on a list fills by parity (overlaps would cancel)
+                cv2.fillConvexPoly(img, tri, 1, lineType=cv2.LINE_8, shift=self.SHIFT)
+            return img > 0
+
+        fine = fill(uv_s) & ~fill(uv_o)
+        out[y0 : y1 + 1, x0 : x1 + 1] = fine[::S, ::S]
+        fv, fu = np.nonzero(fine)
+        c = np.array([x0 + fu.mean() / S, y0 + fv.mean() / S]) if fu.size else nan
+        return out, c
+
+
+def iou(a, b) -> float:
+    u = np.logical_or(a, b).sum()
+    return 1.0 if u == 0 else float(np.logical_and(a, b).sum() / u)
+
+
+def centroid(mask):
+    v, u = np.nonzero(mask)
+    return np.array([u.mean(), v.mean()]) if u.size else np.array([np.nan, np.nan])
+
+
+def jitter_and_lag(c_est, c_true):
+    """Frame-to-frame jitter (RMS of the motion error, px) and lag (frames, + = behind) of centroids.
+
+    ``jitter = sqrt(mean |(c_est[t] - c_est[t-1]) - (c_true[t] - c_true[t-1])|^2)``;
+    ``lag = median over t of -((c_est[t] - c_true[t]) . v[t]) / |v[t]|^2`` with the true velocity
+    ``v[t] = (c_true[t+1] - c_true[t-1]) / 2`` (frames where it is at least 0.5 px/frame).
+    """
+    c_est, c_true = np.asarray(c_est, float), np.asarray(c_true, float)
+    ok = np.all(np.isfinite(c_est), axis=1) & np.all(np.isfinite(c_true), axis=1)
+    d = np.diff(c_est, axis=0) - np.diff(c_true, axis=0)
+    dk = ok[1:] & ok[:-1]
+    jitter = float(np.sqrt(np.mean(np.sum(d[dk] ** 2, axis=1))))
+    v = (c_true[2:] - c_true[:-2]) / 2.0
+    e = (c_est - c_true)[1:-1]
+    sp = np.sum(v * v, axis=1)
+    k = ok[1:-1] & ok[2:] & ok[:-2] & (sp >= 0.25)
+    lag = float(np.median(-np.sum(e[k] * v[k], axis=1) / sp[k])) if k.any() else float("nan")
+    return jitter, lag
