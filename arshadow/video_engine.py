@@ -89,7 +89,7 @@ class EngineOptions:
     preset: str = "ultrafast"
     mask: str | None = None
     pose_lag: int | None = 16
-    smooth: int = 6
+    smooth: int = 10
     hold: int = 12
     max_frames: int | None = None
     contact_sheet: int = 12

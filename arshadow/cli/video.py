@@ -58,7 +58,7 @@ def engine_options(args, collect_items=False):
     return EngineOptions(
         fmt=args.format, codec=args.codec or FORMAT_CODEC[args.format], crf=args.crf, preset=args.preset,
         mask=args.save_mask, pose_lag=None if getattr(args, "no_temporal", False) else getattr(args, "pose_lag", 16),
-        smooth=getattr(args, "smooth", 6), hold=getattr(args, "hold", 12), max_frames=getattr(args, "max_frames", None),
+        smooth=getattr(args, "smooth", 10), hold=getattr(args, "hold", 12), max_frames=getattr(args, "max_frames", None),
         contact_sheet=args.contact_sheet, keep_audio=not args.no_audio, collect_items=collect_items).check()
 
 
@@ -110,8 +110,8 @@ def register(subparsers) -> None:
                    help="corner refinement (default edge: the four border edges fitted at full resolution and "
                         "intersected, unbiased and fast; subpix puts small markers 1-4 %% too far; apriltag is "
                         "unbiased but ~10x slower; see docs/video.md)")
-    v.add_argument("--smooth", type=int, default=6, metavar="K",
-                   help="pose smoothing: centred local-linear fit over 2K+1 frames (default 6; zero lag on "
+    v.add_argument("--smooth", type=int, default=10, metavar="K",
+                   help="pose smoothing: centred local-quadratic fit over 2K+1 frames (default 10; zero lag on "
                         "steady motion; 0 = raw poses)")
     v.add_argument("--hold", type=int, default=12, metavar="N",
                    help="frames a lost marker's last pose is held before frames pass through untouched "
