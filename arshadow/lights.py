@@ -40,6 +40,7 @@ __all__ = [
     "SUN_ANGULAR_RADIUS_DEG",
     "parse_light",
     "parse_sun_track",
+    "SunLightTrack",
     "parse_time",
     "sample_area_light",
     "sun_radius_deg",
@@ -407,8 +408,8 @@ def _parse_sun(spec, pos, kw, weight, default_time) -> Light:
     )
 
 
-def parse_sun_track(spec: str, recompute_deg: float = 0.1) -> SunTrack:
-    """A :class:`arshadow.sun.SunTrack` for a ``sun:LAT,LON[,TIME][,NORTH]...[@W]`` spec (video time-lapse).
+def parse_sun_track(spec: str, recompute_deg: float = 0.1) -> SunLightTrack:
+    """A :class:`SunLightTrack` for a ``sun:LAT,LON[,TIME][,NORTH]...[@W]`` spec (video time-lapse).
 
     The spec's place, NORTH, options and weight are used; TIME may be omitted (the frame times come from
     the video; a given TIME is kept as ``track.start``). ``track.light(frame)`` gives the :class:`Light` to
@@ -430,13 +431,41 @@ def parse_sun_track(spec: str, recompute_deg: float = 0.1) -> SunTrack:
     pos, kw = _split_fields(body, spec)
     p = _sun_params(spec, pos, kw, None, need_time=False)
     try:
-        track = SunTrack(p["lat"], p["lon"], north_deg=p["north"], recompute_deg=recompute_deg,
-                         refraction=p["refraction"], **p["kwargs"])
+        return SunLightTrack(p["lat"], p["lon"], north_deg=p["north"], recompute_deg=recompute_deg,
+                             refraction=p["refraction"], start=p["when"], weight=weight, label=spec,
+                             radius_deg=p["radius_deg"], **p["kwargs"])
     except LightError as exc:
         raise LightError(f"light {spec!r}: {exc}") from None
-    track.start = p["when"]
-    track.weight, track.label, track.radius_deg = weight, spec, p["radius_deg"]
-    return track
+
+
+class SunLightTrack(SunTrack):
+    """A :class:`arshadow.sun.SunTrack` that knows the light it stands for (:func:`parse_sun_track`).
+
+    Parameters
+    ----------
+    lat, lon, ..., **kwargs
+        As :class:`arshadow.sun.SunTrack`.
+    start : datetime or None
+        The spec's TIME, if it had one.
+    weight : float
+        The light's weight.
+    label : str
+        The light's label (its spec).
+    radius_deg : float or None
+        Angular radius of the sun disc (None: the sun's true radius for each frame's date).
+    """
+
+    def __init__(self, *args, start=None, weight=1.0, label="sun", radius_deg=None, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.start, self.weight, self.label, self.radius_deg = start, float(weight), label, radius_deg
+
+    def light(self, frame) -> Light:
+        """The :class:`Light` to render for a :class:`arshadow.sun.TrackFrame`: direction
+        ``frame.world_used`` (the one the cached silhouette belongs to), this track's weight and label, and
+        angular radius ``radius_deg`` or, when None, the sun's true radius for the frame's date."""
+        return Light("directional", frame.world_used, weight=self.weight,
+                     radius=math.radians(sun_radius_deg(frame.position, self.radius_deg)), label=self.label,
+                     above_horizon=frame.above_horizon, sun=frame.position)
 
 
 # ----------------------------------------------------------------------------------------------------------

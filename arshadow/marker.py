@@ -849,6 +849,11 @@ class MarkerTracker:
         detector parameters' own setting.
     detector_params : DetectorParameters or path, optional
         Base detector parameters.
+    detector : str or object
+        ``"full"`` (default): ``cv2.aruco.ArucoDetector`` with ``detector_params``; ``"fast"``: the fast
+        first pass of :mod:`arshadow.fastdetect` (one 7-px threshold window unless ``detector_params`` are
+        given, half-resolution detection for a single marker); or any object with OpenCV's
+        ``detectMarkers(gray)`` (and ``refineDetectedMarkers`` for grid boards).
     ambiguity_threshold : float
         ``pose_ambiguity`` at or above which a pose is flagged.
     pnp_refine : bool
@@ -867,7 +872,7 @@ class MarkerTracker:
 
     def __init__(self, intrinsics: Intrinsics, dictionary="DICT_6X6_250", marker_length=None, marker_id=None,
                  board=None, refine=DEFAULT_REFINE, detector_params=None, ambiguity_threshold=AMBIGUITY_FLAG,
-                 pnp_refine=True):
+                 pnp_refine=True, detector="full"):
         if not isinstance(intrinsics, Intrinsics):
             raise UsageError("intrinsics must be an arshadow.camera.Intrinsics")
         self.intrinsics = intrinsics
@@ -897,9 +902,23 @@ class MarkerTracker:
         self.marker_id = marker_id
         self.refine = refine
         self.pnp_refine = bool(pnp_refine)
+        fast = isinstance(detector, str) and detector == "fast"
+        if isinstance(detector, str) and detector not in ("full", "fast"):
+            raise UsageError(f"detector {detector!r}: choose 'full', 'fast' or a detector object")
+        if fast and detector_params is None:
+            from .fastdetect import fast_detector_params
+
+            detector_params = fast_detector_params()
         self.params = make_detector_params(refine, detector_params)
         self.ambiguity_threshold = float(ambiguity_threshold)
+        self.detector_kind = detector if isinstance(detector, str) else "custom"
         self._detector = cv2.aruco.ArucoDetector(self.dictionary, self.params)
+        if fast:
+            from .fastdetect import wrap_fast_detector
+
+            self._detector = wrap_fast_detector(self._detector, board)
+        elif not isinstance(detector, str):
+            self._detector = detector
         self._charuco = None
         if board is not None and board.kind == "charuco":
             cp = cv2.aruco.CharucoParameters()

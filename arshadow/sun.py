@@ -633,24 +633,28 @@ class SunTrack:
         if not (math.isfinite(self.recompute_deg) and self.recompute_deg >= 0.0):
             raise LightError(f"recompute angle must be >= 0 degrees, got {recompute_deg!r}")
         self.model, self.refraction, self.kwargs = model, bool(refraction), kwargs
-        self._last = None  # (world_used, above_horizon)
-        # set by arshadow.lights.parse_sun_track: what light() builds
-        self.start = None
-        self.weight, self.label, self.radius_deg = 1.0, "sun", None
-
-    def light(self, frame: TrackFrame):
-        """The :class:`arshadow.lights.Light` to render for ``frame``: direction ``frame.world_used`` (the
-        one the cached silhouette belongs to), this track's weight and label, and angular radius
-        ``radius_deg`` or, when None, the sun's true radius for the frame's date."""
-        from .lights import Light, sun_radius_deg  # noqa: PLC0415  (lights imports this module)
-
-        return Light("directional", frame.world_used, weight=self.weight,
-                     radius=math.radians(sun_radius_deg(frame.position, self.radius_deg)), label=self.label,
-                     above_horizon=frame.above_horizon, sun=frame.position)
+        self._last = None  # (world_used, above_horizon) of the last recompute
 
     def reset(self) -> None:
         """Forget the last recompute (the next frame recomputes)."""
         self._last = None
+
+    def state(self):
+        """The history the next frame depends on (the last recompute's direction and horizon side), as
+        plain picklable values: ``None`` or ``((3,) list of float, bool)``. :meth:`restore` it to resume a
+        video (or start a chunk of it) exactly where the recompute schedule was."""
+        if self._last is None:
+            return None
+        return ([float(v) for v in self._last[0]], bool(self._last[1]))
+
+    def restore(self, state) -> None:
+        """Set the history saved by :meth:`state` (None: as :meth:`reset`)."""
+        if state is None:
+            self._last = None
+            return
+        world = np.array(state[0], dtype=np.float64).reshape(3)
+        world.setflags(write=False)
+        self._last = (world, bool(state[1]))
 
     def track(self, times) -> list[TrackFrame]:
         """Sun direction for each instant in ``times`` (aware datetimes, in frame order)."""

@@ -41,17 +41,28 @@ def find_samples(explicit=None) -> Path:
                      "run from the repository root or pass --samples DIR")
 
 
+#: the keys of a samples/scenes.json entry that describe the scene (the rest: photo, title)
+SCENE_JSON_KEYS = ("calib", "model", "scale", "rotate", "place", "color", "lights", "soft_samples", "marker_length",
+                   "dictionary", "marker_id")
+
+
+def scene_spec(sc: dict, root: Path, aa: int):
+    """The :class:`arshadow.scene.SceneSpec` of one ``scenes.json`` entry (paths relative to ``root``)."""
+    from ..scene import scene_from_dict
+
+    d = {k: sc[k] for k in SCENE_JSON_KEYS if sc.get(k) is not None}
+    d["soft_samples"] = int(sc.get("soft_samples", 1))
+    d["aa"] = int(aa)
+    return scene_from_dict(d, base_dir=root)
+
+
 def run(args) -> int:
-    from ..camera import Intrinsics
-    from ..composite import parse_rgb
     from ..errors import ArshadowError
     from ..gl.context import create_context
     from ..gl.renderer import ShadowRenderer
     from ..io import read_image, write_image, write_json
-    from ..lights import parse_light
-    from ..mesh import load_occluder
-    from ..pipeline import Compositor, RenderOptions
     from ..report import make_report
+    from ..session import Session
     from . import quiet_opencv
 
     debug = bool(getattr(args, "debug", False))
@@ -68,21 +79,12 @@ def run(args) -> int:
                 photo_path = samples / sc["photo"]
                 stem = Path(sc["photo"]).stem
                 try:
-                    intr = Intrinsics.from_file(_resolve(root, sc["calib"]))
-                    model = sc["model"] if ":" in sc["model"] else str(_resolve(root, sc["model"]))
-                    color = None
-                    if sc.get("color"):
-                        parse_rgb(sc["color"], "color")
-                        color = tuple(float(v) / 255.0 for v in sc["color"].split(","))
-                    caster = load_occluder(model, scale=sc.get("scale", 1.0), rotate=sc.get("rotate", (0, 0, 0)),
-                                           place=sc.get("place", (0, 0, 0)), color=color)
-                    lights = [parse_light(s) for s in sc["lights"]]
-                    opts = RenderOptions(soft_samples=int(sc.get("soft_samples", 1)), aa=int(args.aa))
-                    tracker = {"marker_length": sc["marker_length"], "dictionary": sc.get("dictionary", "DICT_6X6_250"),
-                               "marker_id": sc.get("marker_id")}
+                    # one context and one renderer shared by the scenes' sessions
+                    session = Session(scene_spec(sc, root, args.aa), context=ctx, renderer=renderer)
                     image = read_image(photo_path)
-                    comp = Compositor(ctx, intr, caster, lights, opts, tracker=tracker, renderer=renderer)
-                    out, mask, item = comp.process(image, name=str(photo_path))
+                    with session:
+                        res = session.process(image, name=str(photo_path))
+                    out, mask, item = res.composite, res.mask, res.item
                     item.output = str(write_image(outdir / f"{stem}.png", out))
                     item.mask = str(write_image(outdir / f"{stem}.shadow.png", mask))
                     item.extra["title"] = sc.get("title", stem)
@@ -113,11 +115,6 @@ def run(args) -> int:
             print(f"contact sheet: {outdir / 'contact_sheet.png'}")
     write_json(outdir / "report.json", make_report(items))
     return EXIT_SOME_FAILED if failed else EXIT_OK
-
-
-def _resolve(root: Path, rel: str) -> Path:
-    p = Path(rel)
-    return p if p.is_absolute() else root / p
 
 
 def _panel(image, caption: str):

@@ -141,60 +141,21 @@ def expand_inputs(items) -> list[str]:
 
 
 def build_scene(args, lights=None):
-    """Calibration, occluder, lights and options from the parsed options (ArshadowError -> exit 2).
+    """Calibration, occluder, lights, options and tracker arguments from the parsed options
+    (:func:`arshadow.scene.scene_from_args`, then :meth:`~arshadow.scene.SceneSpec.build`; ArshadowError
+    -> exit 2).
 
     ``lights``: lights the caller parsed itself (``arshadow video --time-lapse`` turns sun specs into
     tracks); default: ``--light`` parsed with :func:`arshadow.lights.parse_light`.
+
+    Returns
+    -------
+    intrinsics, caster, lights, options, tracker (dict of MarkerTracker keyword arguments)
     """
-    from ..camera import Intrinsics
-    from ..composite import parse_rgb
-    from ..errors import UsageError
-    from ..lights import parse_light
-    from ..marker import get_dictionary, load_board
-    from ..mesh import load_occluder
-    from ..pipeline import RenderOptions
+    from ..scene import scene_from_args
 
-    intr = Intrinsics.from_file(args.calib)
-    if args.board is None and args.marker_length is None:
-        raise UsageError("give --marker-length M (metres) for a single marker, or --board B")
-    tracker = {"dictionary": args.dictionary, "marker_id": args.marker_id}
-    if args.board is None:
-        get_dictionary(args.dictionary)  # an unknown dictionary is a usage error (exit 2), not a per-photo one
-        tracker["marker_length"] = args.marker_length
-    else:
-        tracker["board"] = load_board(args.board)
-    color = None
-    if args.color:
-        parse_rgb(args.color, "--color")  # validates: three numbers 0..255
-        color = _srgb255(args.color)
-    caster = load_occluder(args.model, scale=args.scale, rotate=args.rotate, place=args.place, color=color)
-    if lights is None:
-        lights = [parse_light(spec) for spec in args.light]
-    opts = RenderOptions(
-        opacity=args.opacity,
-        shadow_color=parse_rgb(args.shadow_color, "--shadow-color") if args.shadow_color else (0.0, 0.0, 0.0),
-        shadow_method=args.shadow_method,
-        silhouette=args.silhouette,
-        soft_samples=args.soft_samples,
-        aa=args.aa,
-        ground_size=args.ground_size,
-        draw_occluder=not args.no_object,
-    ).check()
-    _check_silhouette_name(args.silhouette)
-    return intr, caster, lights, opts, tracker
-
-
-def _srgb255(spec: str):
-    """``"R,G,B"`` 0..255 -> tuple of floats 0..1 (sRGB, as the mesh loader takes colours)."""
-    return tuple(float(v) / 255.0 for v in spec.split(","))
-
-
-def _check_silhouette_name(name: str) -> None:
-    from ..errors import UsageError
-    from ..silhouette import METHODS
-
-    if name not in METHODS:
-        raise UsageError(f"--silhouette {name!r}: choose one of {', '.join(METHODS)}")
+    scene = scene_from_args(args).build(lights=lights)
+    return scene.intrinsics, scene.caster, scene.lights, scene.options, dict(scene.tracker)
 
 
 def output_paths(inputs, outdir: Path, keep_format: bool):
@@ -221,24 +182,22 @@ def _same_file(a: Path, b: Path) -> bool:
 
 
 def run(args) -> int:
-    from ..gl.context import create_context
     from ..io import write_json
     from ..report import make_report
+    from ..scene import scene_from_args
+    from ..session import Session
 
     debug = bool(getattr(args, "debug", False))
     quiet_opencv(debug)
     inputs = expand_inputs(args.images)
-    intr, caster, lights, opts, tracker = build_scene(args)
+    session = Session(scene_from_args(args))  # loads the scene: a bad one is exit 2
     outdir = Path(args.output)
     if outdir.exists() and not outdir.is_dir():
         from ..errors import UsageError
 
         raise UsageError(f"-o {outdir}: exists and is not a folder")
-    ctx = create_context()
-    try:
-        items, failed = _render_all(args, ctx, intr, caster, lights, opts, tracker, inputs, outdir, debug)
-    finally:
-        ctx.release()
+    with session:
+        items, failed = _render_all(args, session, inputs, outdir, debug)
     if args.report:
         write_json(args.report, make_report(items))
     if not args.quiet and len(inputs) > 1:
@@ -246,10 +205,9 @@ def run(args) -> int:
     return EXIT_SOME_FAILED if failed else EXIT_OK
 
 
-def _render_all(args, ctx, intr, caster, lights, opts, tracker, inputs, outdir, debug):
+def _render_all(args, session, inputs, outdir, debug):
     from ..errors import ArshadowError, CalibrationError, ImageError, MarkerNotFoundError, UsageError
     from ..io import read_image, write_image
-    from ..pipeline import Compositor
     from ..report import ReportItem
 
     import numpy as np
@@ -259,53 +217,52 @@ def _render_all(args, ctx, intr, caster, lights, opts, tracker, inputs, outdir, 
     buffers: dict = {}
     paths = output_paths(inputs, outdir, args.keep_format)
     input_set = [Path(i) for i in inputs]
-    with Compositor(ctx, intr, caster, lights, opts, tracker=tracker) as comp:
-        try:  # made now: a bad --aa is a usage error (exit 2), not a per-photo one
-            comp.renderer  # noqa: B018
-        except UsageError as exc:
-            raise UsageError(f"--aa {args.aa}: {exc}") from None
-        for inp, (out_path, mask_path) in zip(inputs, paths):
-            item = ReportItem(input=str(inp))
-            t0 = time.perf_counter()
-            try:
-                if any(_same_file(out_path, i) or _same_file(mask_path, i) for i in input_set):
-                    raise ImageError(f"{out_path}: output would overwrite an input; choose another -o folder")
-                image = read_image(inp)
-                bufs = buffers.setdefault(image.shape[:2], (np.empty(image.shape, np.uint8),
-                                                            np.empty(image.shape[:2], np.uint8)))
-                # results are encoded right away, so one output buffer per size is reused
-                out, mask, item = comp.process(image, name=str(inp), want_mask=args.save_mask, out=bufs[0],
-                                               mask_out=bufs[1])
-                params = [int(_imwrite_quality(out_path)), 95] if _imwrite_quality(out_path) else None
-                write_image(out_path, out, params)
-                item.output = str(out_path)
-                if args.save_mask:
-                    write_image(mask_path, mask)
-                    item.mask = str(mask_path)
-                if not args.quiet:
-                    t = item.timings_ms.get("total", 0.0)
-                    print(f"{inp} -> {out_path}  ({item.mode or 'no light casts a shadow'}, {t:.1f} ms)",
-                          file=sys.stdout)
-            except MarkerNotFoundError as exc:
-                failed += 1
-                item.status, item.error = "no_marker", str(exc)
-                print(_error_line(inp, exc), file=sys.stderr)
-            except (ImageError, CalibrationError, ArshadowError) as exc:
-                if debug:
-                    raise
-                failed += 1
-                item.status, item.error = "error", str(exc)
-                print(_error_line(inp, exc), file=sys.stderr)
-            except (OSError, MemoryError) as exc:
-                if debug:
-                    raise
-                failed += 1
-                item.status, item.error = "error", f"{type(exc).__name__}: {exc}"
-                print(_error_line(inp, exc), file=sys.stderr)
-            item.input = str(inp)
-            if item.status != "ok":
-                item.timings_ms = {"total": round((time.perf_counter() - t0) * 1e3, 3)}
-            items.append(item)
+    try:  # made now (with the GL context): a bad --aa is a usage error (exit 2), not a per-photo one
+        session.renderer  # noqa: B018
+    except UsageError as exc:
+        raise UsageError(f"--aa {args.aa}: {exc}") from None
+    for inp, (out_path, mask_path) in zip(inputs, paths):
+        item = ReportItem(input=str(inp))
+        t0 = time.perf_counter()
+        try:
+            if any(_same_file(out_path, i) or _same_file(mask_path, i) for i in input_set):
+                raise ImageError(f"{out_path}: output would overwrite an input; choose another -o folder")
+            image = read_image(inp)
+            bufs = buffers.setdefault(image.shape[:2], (np.empty(image.shape, np.uint8),
+                                                        np.empty(image.shape[:2], np.uint8)))
+            # results are encoded right away, so one output buffer per size is reused
+            res = session.process(image, name=str(inp), want_mask=args.save_mask, out=bufs[0], mask_out=bufs[1])
+            out, mask, item = res.composite, res.mask, res.item
+            params = [int(_imwrite_quality(out_path)), 95] if _imwrite_quality(out_path) else None
+            write_image(out_path, out, params)
+            item.output = str(out_path)
+            if args.save_mask:
+                write_image(mask_path, mask)
+                item.mask = str(mask_path)
+            if not args.quiet:
+                t = item.timings_ms.get("total", 0.0)
+                print(f"{inp} -> {out_path}  ({item.mode or 'no light casts a shadow'}, {t:.1f} ms)",
+                      file=sys.stdout)
+        except MarkerNotFoundError as exc:
+            failed += 1
+            item.status, item.error = "no_marker", str(exc)
+            print(_error_line(inp, exc), file=sys.stderr)
+        except (ImageError, CalibrationError, ArshadowError) as exc:
+            if debug:
+                raise
+            failed += 1
+            item.status, item.error = "error", str(exc)
+            print(_error_line(inp, exc), file=sys.stderr)
+        except (OSError, MemoryError) as exc:
+            if debug:
+                raise
+            failed += 1
+            item.status, item.error = "error", f"{type(exc).__name__}: {exc}"
+            print(_error_line(inp, exc), file=sys.stderr)
+        item.input = str(inp)
+        if item.status != "ok":
+            item.timings_ms = {"total": round((time.perf_counter() - t0) * 1e3, 3)}
+        items.append(item)
     return items, failed
 
 

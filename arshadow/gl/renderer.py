@@ -40,7 +40,6 @@ import functools
 import math
 import time
 import weakref
-from dataclasses import dataclass, field
 from importlib import resources
 
 import numpy as np
@@ -48,11 +47,11 @@ import numpy as np
 from ..composite import srgb_to_linear
 from .._check import check_finite, check_shape
 from ..errors import GLContextError, ShapeError, UsageError
+from ..render_api import MODES, LightPass, RenderLayers, RenderResult
 from . import glraw as G
 
 __all__ = ["LightPass", "RenderResult", "ShadowRenderer", "load_shader", "srgb_to_linear"]
 
-MODES = ("zpass", "zfail", "planar")
 GROUND_BIT = 0x80
 OCCLUDER_BIT = 0x40
 COUNT_MASK = 0x3F
@@ -64,70 +63,6 @@ DEFAULT_COLOR = (0.8, 0.8, 0.8)
 def load_shader(name: str) -> str:
     """Source of a shader shipped in ``arshadow/gl/shaders`` (package data)."""
     return resources.files("arshadow.gl").joinpath("shaders", name).read_text(encoding="utf-8")
-
-
-@dataclass
-class LightPass:
-    """One light of a frame.
-
-    Attributes
-    ----------
-    light_h : (4,) float64
-        Homogeneous world position ``(x, y, z, 1)`` or direction towards the light ``(dx, dy, dz, 0)``.
-    weight : float
-        Share of the total light weight (the mask accumulates ``weight`` where this light is blocked).
-    volume : ShadowVolume or None
-        From :func:`arshadow.volume.shadow_volume` (``vertices (p, 4)`` homogeneous world, w = 0 at
-        infinity; ``triangles (q, 3)`` outward-wound). None: the light casts no volume shadow (with mode
-        ``"planar"`` the caster itself is flattened onto the ground).
-    mode : str
-        ``"zpass"`` | ``"zfail"`` | ``"planar"``.
-    color : (3,) linear RGB
-        Light colour for the occluder's Phong shading.
-    """
-
-    light_h: np.ndarray
-    weight: float
-    volume: object = None
-    mode: str = "zfail"
-    color: tuple = (1.0, 1.0, 1.0)
-
-
-@dataclass
-class RenderResult:
-    """What one :meth:`ShadowRenderer.render` returns; rows are image rows top to bottom (row 0 = canvas
-    row ``v0``), already flipped from OpenGL's bottom-up order. Fresh arrays: they stay valid after later
-    renders.
-
-    Attributes
-    ----------
-    mask : (h, w) float32 in [0, 1]
-        Blocked light weight / total weight at pixels that see the ground plane and are not covered by the
-        occluder; 0 elsewhere. With anti-aliasing it is coverage-weighted: the mean over the pixel's
-        samples of (sample sees the ground) x (blocked weight of that sample).
-    color : (h, w, 3) float32
-        Linear RGB of the shaded occluder, **premultiplied by** ``alpha`` (equal to the straight colour
-        wherever alpha = 1, 0 where alpha = 0).
-    alpha : (h, w) float32
-        Occluder coverage in [0, 1].
-    ground : (h, w) bool
-        The pixel (more than half of its samples) sees the (possibly size-limited) ground plane.
-    ground_coverage : (h, w) float32
-        Fraction of the pixel's samples that see the ground.
-    timings_ms : dict
-        ``upload`` (CPU: volumes to GPU), ``draw`` (GL passes, to completion), ``readback``, ``total``;
-        with ``ShadowRenderer.profile = True`` also ``pass_<name>`` per GL pass (ctx.finish() after each).
-    premultiplied : bool
-        Always True: ``color`` is premultiplied by ``alpha``.
-    """
-
-    mask: np.ndarray
-    color: np.ndarray
-    alpha: np.ndarray
-    ground: np.ndarray
-    ground_coverage: np.ndarray
-    timings_ms: dict = field(default_factory=dict)
-    premultiplied: bool = True
 
 
 def _crease_normals(vertices: np.ndarray, faces: np.ndarray, crease_deg: float) -> np.ndarray:
@@ -683,14 +618,12 @@ class ShadowRenderer:
                 # projection shadow (paper 002): the caster flattened onto z = 0; depth test "always",
                 # the ground bit limits it to visible ground in the mask pass. A light at or below the
                 # ground lights none of it from above: nothing to draw.
-                from ..projection import GROUND_PLANE, planar_shadow_matrix
-                from ..silhouette import as_light_h
-
-                if as_light_h(p.light_h)[2] > 0.0:
+                # (LightPass.shadow_matrix: None when the light is not above the ground)
+                if p.shadow_matrix is not None:
                     ctx.depth_func = "1"
                     gl.glStencilFunc(G.GL_ALWAYS, 1, 0xFF)
                     gl.glStencilOp(G.GL_KEEP, G.GL_KEEP, G.GL_REPLACE)
-                    smat = planar_shadow_matrix(GROUND_PLANE, p.light_h)
+                    smat = np.asarray(p.shadow_matrix, dtype=np.float64)
                     self.prog_volume["u_mvp"].write((mvp @ smat).T.astype(np.float32).tobytes())
                     bufs.planar_vao.render(moderngl.TRIANGLES, vertices=bufs.n_indices)
             else:
@@ -773,6 +706,7 @@ class ShadowRenderer:
         gl.glReadPixels(0, 0, width, height, G.GL_RG, G.GL_FLOAT, c1.ctypes.data)
         gl.glBindFramebuffer(G.GL_FRAMEBUFFER, 0)
         ctx.screen.use() if ctx.screen is not None else None
+        layers = RenderLayers(rgba=c0, mask_ground=c1)  # the raw bottom-up arrays
         c0 = c0[::-1]
         c1 = c1[::-1]
         mask = c1[..., 0]
@@ -785,6 +719,7 @@ class ShadowRenderer:
             alpha=c0[..., 3],
             ground=gcov > 0.5,
             ground_coverage=gcov,
+            layers=layers,
             timings_ms={
                 "upload": (t1 - t0) * 1e3,
                 "draw": (t2 - t1) * 1e3,

@@ -1,0 +1,525 @@
+"""Planning a frame, without GL: (scene, pose, lights, frame size) -> :class:`FramePlan`.
+
+The planner decides everything about a frame before anything is drawn, and records why:
+
+- the region of interest (ROI) in the photo and the pinhole canvas the renderer draws (see below);
+- the near plane (:meth:`SceneGeometry.znear_for`);
+- per light, the technique and mode: ``"planar"`` when projection shadows are asked for, else z-pass
+  when :func:`arshadow.volume.camera_may_be_in_shadow` proves the camera outside the light's shadow
+  volume (no caps needed), z-fail otherwise (capped volume);
+- which silhouettes and volumes are reused from the cache (:class:`SceneGeometry`) and which are built.
+
+Each decision is a :class:`Decision` (name, value, reason) in ``FramePlan.decisions``; a new decision is
+one more ``plan.decide(...)`` call in :func:`plan_frame` (or a function it calls). The executor
+(:mod:`arshadow.execute`) carries the plan out: CPU geometry, the renderer, lens warp, composite.
+
+What is computed once, not per photo
+    The occluder and the lights are both fixed in the world (marker) frame, so each light's silhouette
+    and shadow volume do not depend on the camera pose: :class:`SceneGeometry` builds them on first use
+    and reuses them (with and without caps, as the z-pass / z-fail choice needs); likewise the world
+    points bounding the region of interest (the object and its shadow footprints,
+    :func:`scene_hull_points`). Per photo remain the pose, the z-pass / z-fail decision, the region of
+    interest's projection, the render, the lens warp and the composite.
+
+Region of interest (ROI)
+    Only the part of the photo the occluder and its ground shadow can cover is rendered: the occluder's
+    bounding box and its shadow footprint (the box's corners projected from each light onto z = 0,
+    clipped to ``ground_size``) are projected into the photo. A light at or below the top of the object
+    (or a directional light at the horizon) makes the footprint unbounded: then the whole photo (or the
+    ``ground_size`` square) is used. The occluder's image and its shadow's image lie inside the convex
+    hull of those projected points, so nothing is lost.
+
+Lens distortion
+    The renderer draws a pinhole image; with a distorted calibration the ROI is chosen in the distorted
+    photo and the pinhole canvas that it samples is rendered, then warped by :class:`arshadow.lens.LensWarp`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .composite import clip_roi
+from .errors import LightError
+from .transforms import invert_rigid, transform_points
+
+__all__ = ["Decision", "LightPlan", "FramePlan", "SceneGeometry", "LightState", "plan_frame",
+           "shadow_footprint", "scene_hull_points", "pinhole_rect_for_scene", "ROI_MAX_POINTS"]
+
+#: meshes with at most this many vertices bound the ROI by their vertices (~0.2 ms per light at 20k)
+ROI_MAX_POINTS = 20000
+
+# --------------------------------------------------------------------------------------------------
+# region of interest: pure geometry
+# --------------------------------------------------------------------------------------------------
+def _box_corners(bounds) -> np.ndarray:
+    lo, hi = np.asarray(bounds, dtype=np.float64)
+    return np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+
+
+def shadow_footprint(bounds, light_h, *, points=None, eps: float = 1e-9) -> np.ndarray | None:
+    """Ground points (z = 0) whose convex hull contains the shadow of anything inside ``bounds``.
+
+    Parameters
+    ----------
+    bounds : (2, 3) float64
+        Axis-aligned box (min, max) of the occluder, world frame.
+    light_h : (4,) float64
+        Homogeneous light (w = 1 point, w = 0 directional towards the light).
+    points : (n, 3) float64, optional
+        Use these points (e.g. the mesh's vertices: their convex hull contains the mesh) instead of the
+        box's corners: a tighter footprint.
+
+    Returns
+    -------
+    (n, 3) float64 or None
+        The corners (or points) projected from the light onto z = 0 (points below the ground are clamped
+        to it), or None when the footprint is unbounded (a point light not above all of them, a
+        directional light at or below the horizon).
+
+    Examples
+    --------
+    >>> float(shadow_footprint([[-1, -1, 0], [1, 1, 2]], [0, 0, 4, 1])[:, :2].max())
+    2.0
+    """
+    corners = _box_corners(bounds) if points is None else np.array(points, dtype=np.float64)
+    corners[:, 2] = np.maximum(corners[:, 2], 0.0)
+    lh = np.asarray(light_h, dtype=np.float64)
+    if lh[3] != 0.0:
+        L = lh[:3] / lh[3]
+        if not np.all(corners[:, 2] < L[2] * (1.0 - 1e-6)) or L[2] <= 0.0:
+            return None
+        t = L[2] / (L[2] - corners[:, 2])  # parameter along L -> corner where z reaches 0
+        return L + (corners - L) * t[:, None]
+    d = lh[:3]
+    n = np.linalg.norm(d)
+    if not (n > 0.0) or d[2] / n <= eps:
+        return None
+    return corners - d * (corners[:, 2] / d[2])[:, None]
+
+
+def scene_hull_points(bounds, lights_h, ground_size=None, points=None) -> np.ndarray | None:
+    """World points ``(n, 3) float64`` whose convex hull holds the occluder and its ground shadows, or None.
+
+    They depend on the mesh and the lights only (not on the camera), so the :class:`Compositor` computes
+    them once per set of lights. None means unbounded: a footprint is unbounded and no ``ground_size``
+    limits it. ``points`` (the mesh's vertices) replaces the box corners when given.
+    """
+    pts = [_box_corners(bounds) if points is None else np.asarray(points, dtype=np.float64)]
+    half = None if ground_size is None else 0.5 * float(ground_size)
+    for lh in lights_h:
+        fp = shadow_footprint(bounds, lh, points=points)
+        if fp is None:
+            if half is None:
+                return None
+            fp = np.array([[-half, -half, 0], [half, -half, 0], [half, half, 0], [-half, half, 0]], float)
+        elif half is not None:
+            # shadow on the plane only inside the square: clip the footprint's box to it
+            lo = np.maximum(fp[:, :2].min(axis=0), -half)
+            hi = np.minimum(fp[:, :2].max(axis=0), half)
+            if np.any(hi < lo):
+                continue  # the shadow falls entirely off the plane
+            fp = np.array([[lo[0], lo[1], 0], [hi[0], lo[1], 0], [hi[0], hi[1], 0], [lo[0], hi[1], 0]], float)
+        pts.append(fp)
+    return np.concatenate(pts)
+
+
+def pinhole_rect_for_scene(intrinsics, cam_from_world, bounds, lights_h, ground_size=None, znear=1e-3,
+                           points=None):
+    """Pinhole pixel rectangle ``(u0, v0, u1, v1)`` covering the occluder and its shadows, or None (all).
+
+    None means "the whole image": a footprint is unbounded and no ``ground_size`` limits it, or a point
+    of the hull is behind the camera. ``points`` (the mesh's vertices) replaces the box corners when given.
+    """
+    hull = scene_hull_points(bounds, lights_h, ground_size, points)
+    return None if hull is None else _pinhole_rect(intrinsics, cam_from_world, hull, znear)
+
+
+def _pinhole_rect(intrinsics, cam_from_world, hull, znear):
+    """Pinhole bounding rectangle of world points ``hull (n, 3)``; None if one is not beyond ``znear``."""
+    pc = transform_points(cam_from_world, hull)
+    if not np.all(pc[:, 2] > znear):
+        return None
+    u = intrinsics.fx * pc[:, 0] / pc[:, 2] + intrinsics.cx
+    v = intrinsics.fy * pc[:, 1] / pc[:, 2] + intrinsics.cy
+    if not (np.all(np.isfinite(u)) and np.all(np.isfinite(v))):
+        return None
+    return (float(u.min()), float(v.min()), float(u.max()), float(v.max()))
+
+
+
+
+def _int_rect(rect, margin: int):
+    """Float pinhole rect (u0, v0, u1, v1) -> integer (x0, y0, w, h) with ``margin`` pixels around it."""
+    u0, v0, u1, v1 = rect
+    x0, y0 = math.floor(u0) - margin, math.floor(v0) - margin
+    x1, y1 = math.ceil(u1) + margin, math.ceil(v1) + margin
+    return (x0, y0, x1 - x0 + 1, y1 - y0 + 1)
+
+
+# --------------------------------------------------------------------------------------------------
+# the per-run geometry cache (history: which silhouettes and volumes exist)
+# --------------------------------------------------------------------------------------------------
+@dataclass
+class LightState:
+    """One (sample) light of the scene and its cached CPU geometry.
+
+    Attributes
+    ----------
+    light : arshadow.lights.Light
+        The (hard) light.
+    weight : float
+        Its share of the total weight.
+    light_h : (4,) float64
+    sil : Silhouette or None
+        Built on first use.
+    volumes : dict
+        ``caps (bool) -> ShadowVolume``, built on first use.
+    """
+
+    light: object
+    weight: float
+    light_h: np.ndarray
+    sil: object = None
+    volumes: dict = field(default_factory=dict)
+
+
+class SceneGeometry:
+    """The CPU geometry of a scene that does not depend on the camera: lights split into hard samples,
+    their silhouettes and shadow volumes (built on first use, then reused), the ROI hull points.
+
+    Parameters
+    ----------
+    caster : arshadow.mesh.ShadowCaster
+        The occluder, world frame.
+    options : arshadow.scene.RenderOptions
+    lights : sequence of arshadow.lights.Light, optional
+        Initial lights (:meth:`set_lights`).
+    """
+
+    def __init__(self, caster, options, lights=None):
+        self.caster = caster
+        self.options = options
+        b = np.asarray(caster.bounds, dtype=np.float64)
+        self.bounds = b
+        self.corners = _box_corners(b)
+        # the ROI is bounded with the mesh's own vertices (tight) up to this many, else the box corners
+        self.roi_points = (np.asarray(caster.vertices, dtype=np.float64)
+                           if len(caster.vertices) <= ROI_MAX_POINTS else None)
+        self.size = float(np.linalg.norm(b[1] - b[0]))
+        self.lights: list[LightState] = []
+        self.lights_in: list = []
+        self.notes: list[str] = []
+        self._hull = (None, None)  # (lights' key, scene_hull_points) for the current lights
+        if lights is not None:
+            self.set_lights(lights)
+
+    def set_lights(self, lights) -> int:
+        """Replace the lights, keeping the cached geometry of every (sample) light that stays.
+
+        A (sample) light whose homogeneous vector ``light_h`` equals one of the current lights' keeps
+        that light's silhouette and shadow volumes (only its weight share is updated); any other light is
+        recomputed on first use. Lights below the horizon give no light and no shadow (a note says so).
+
+        Returns
+        -------
+        int
+            Number of (sample) lights whose silhouette and volumes must be recomputed.
+
+        Raises
+        ------
+        LightError
+            No light.
+        """
+        from .lights import sample_area_light
+
+        lights = list(lights)
+        if not lights:
+            raise LightError("no light given (use --light)")
+        old = {tuple(ls.light_h.tolist()): ls for ls in self.lights}
+        total = float(sum(lt.weight for lt in lights if lt.above_horizon))
+        notes, states, n_new = [], [], 0
+        for lt in lights:
+            if not lt.above_horizon:
+                notes.append(f"light {lt.label or lt.kind} is below the horizon: no light, no shadow")
+                continue
+            samples = (sample_area_light(lt, int(self.options.soft_samples))
+                       if getattr(lt, "radius", 0.0) > 0 and self.options.soft_samples > 1 else [lt])
+            for s in samples:
+                h = np.asarray(s.homogeneous, float)
+                prev = old.get(tuple(h.tolist()))
+                if prev is None:
+                    n_new += 1
+                    states.append(LightState(s, float(s.weight) / total, h))
+                else:
+                    states.append(LightState(s, float(s.weight) / total, prev.light_h, prev.sil, prev.volumes))
+        self.lights_in, self.notes, self.lights = lights, notes, states
+        return n_new
+
+    # -- history: picklable state ----------------------------------------------------------------------
+    def state(self) -> dict:
+        """The cached geometry, picklable: ``{"lights": [...], "geometry": [(light_h, sil, volumes)]}``.
+
+        :meth:`restore` of it (in this or another process, same caster and options) gives the same lights
+        and skips recomputing their silhouettes and volumes."""
+        return {"lights": list(self.lights_in),
+                "geometry": [(ls.light_h.copy(), ls.sil, dict(ls.volumes)) for ls in self.lights]}
+
+    def restore(self, state: dict) -> None:
+        """Set the lights and cached geometry saved by :meth:`state`."""
+        self.lights = []
+        self.set_lights(state["lights"])
+        cached = {tuple(np.asarray(h, float).tolist()): (sil, vols) for h, sil, vols in state["geometry"]}
+        for ls in self.lights:
+            hit = cached.get(tuple(ls.light_h.tolist()))
+            if hit is not None:
+                ls.sil, ls.volumes = hit[0], dict(hit[1])
+
+    # -- geometry on demand ------------------------------------------------------------------------------
+    def silhouette(self, ls: LightState, timings=None):
+        """The light's silhouette (built once; ``timings["silhouette"]`` gets the build time)."""
+        if ls.sil is None:
+            from .silhouette import silhouette
+
+            t = time.perf_counter()
+            ls.sil = silhouette(self.caster, ls.light_h, method=self.options.silhouette)
+            if timings is not None:
+                timings["silhouette"] += (time.perf_counter() - t) * 1e3
+        return ls.sil
+
+    def volume(self, ls: LightState, caps: bool, timings=None):
+        """The light's shadow volume with or without caps (built once; ``timings["volume"]``)."""
+        vol = ls.volumes.get(caps)
+        if vol is None:
+            from .volume import shadow_volume
+
+            sil = self.silhouette(ls, timings)
+            t = time.perf_counter()
+            trunc = -1e-3 * max(self.size, 1e-6) if self.options.truncate else None
+            vol = ls.volumes[caps] = shadow_volume(self.caster, ls.light_h, sil, caps=caps, truncate_z=trunc)
+            if timings is not None:
+                timings["volume"] += (time.perf_counter() - t) * 1e3
+        return vol
+
+    def hull(self):
+        """:func:`scene_hull_points` of the current lights (recomputed only when the lights change)."""
+        key = tuple(ls.light_h.tobytes() for ls in self.lights)
+        if self._hull[0] != key:
+            hull = scene_hull_points(self.bounds, [ls.light_h for ls in self.lights], self.options.ground_size,
+                                     points=self.roi_points)
+            self._hull = (key, hull)
+        return self._hull[1]
+
+    def znear_for(self, cam_from_world) -> float:
+        """A near plane that clips nothing visible: a fraction of the distance to the object and ground."""
+        eye = invert_rigid(cam_from_world)[:3, 3]
+        depth = transform_points(cam_from_world, self.corners)[:, 2]
+        d = float(depth.min()) if np.all(depth > 0) else self.size
+        h = abs(float(eye[2]))
+        return float(np.clip(0.25 * min(d, h if h > 0 else d), 1e-4, 0.05))
+
+    def modes_for(self, cam_from_world, znear, intr=None, canvas=None):
+        """Per light: ``"zpass"`` if the camera is provably outside its volume, else ``"zfail"``
+        (``"planar"`` for every light with ``shadow_method="planar"``).
+
+        The test needs the radius of the near-plane rectangle of the canvas actually rendered
+        (``canvas = (u0, v0, w, h)`` pinhole pixels of ``intr``), not ``znear`` alone; without ``intr`` the
+        radius of a 90-degree-per-axis frustum is used (conservative for any narrower camera).
+        """
+        if self.options.shadow_method == "planar":
+            return ["planar"] * len(self.lights)
+        from .volume import camera_may_be_in_shadow, near_plane_radius
+
+        if intr is not None and canvas is not None and canvas[2] > 0 and canvas[3] > 0:
+            u0, v0, w, h = canvas
+            near = near_plane_radius(znear, int(w), int(h), intr.fx, intr.fy, intr.cx - u0, intr.cy - v0)
+        else:
+            near = znear * np.sqrt(3.0)
+        eye = invert_rigid(cam_from_world)[:3, 3]
+        return ["zfail" if camera_may_be_in_shadow(self.caster, ls.light_h, eye, near) else "zpass"
+                for ls in self.lights]
+
+
+# --------------------------------------------------------------------------------------------------
+# the frame plan
+# --------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Decision:
+    """One planning decision: what was chosen and why (``name``, ``value``, ``reason``)."""
+
+    name: str
+    value: object
+    reason: str
+
+
+@dataclass
+class LightPlan:
+    """What to do for one (sample) light.
+
+    Attributes
+    ----------
+    index : int
+        Position in ``SceneGeometry.lights``.
+    light_h : (4,) float64
+    weight : float
+        Share of the total weight.
+    technique : str
+        ``"volume"`` (stencil shadow volume) or ``"planar"`` (projection shadow).
+    mode : str
+        ``"zpass"`` | ``"zfail"`` | ``"planar"``.
+    caps : bool
+        The volume needs caps (z-fail).
+    reuse : bool
+        The geometry it needs is cached already (no silhouette / volume to build).
+    reason : str
+        Why this mode.
+    """
+
+    index: int
+    light_h: np.ndarray
+    weight: float
+    technique: str
+    mode: str
+    caps: bool
+    reuse: bool
+    reason: str
+
+
+@dataclass
+class FramePlan:
+    """Everything decided about one frame before drawing (no GL objects; cheap to build and inspect).
+
+    Attributes
+    ----------
+    size : (int, int)
+        Photo (width, height).
+    cam_from_world : (4, 4) float64
+    znear : float
+    roi : (x0, y0, w, h)
+        Photo pixels that may change.
+    canvas : (u0, v0, w, h)
+        Pinhole pixels the renderer draws (equal to ``roi`` without lens distortion).
+    lights : list of LightPlan
+    distorted : bool
+        A lens warp maps the canvas into the photo.
+    decisions : list of Decision
+        Every choice with its reason, in the order made.
+    """
+
+    size: tuple
+    cam_from_world: np.ndarray
+    znear: float
+    roi: tuple = (0, 0, 0, 0)
+    canvas: tuple = (0, 0, 0, 0)
+    lights: list = field(default_factory=list)
+    distorted: bool = False
+    decisions: list = field(default_factory=list)
+
+    def decide(self, name: str, value, reason: str):
+        """Record a decision; returns ``value``."""
+        self.decisions.append(Decision(name, value, reason))
+        return value
+
+    @property
+    def modes(self) -> list[str]:
+        """The mode of each light, in order."""
+        return [lp.mode for lp in self.lights]
+
+    @property
+    def mode(self) -> str | None:
+        """The frame's summary mode for the report: ``planar`` if any light is, else ``zfail`` if any
+        light is, else ``zpass``; None without lights."""
+        modes = self.modes
+        if not modes:
+            return None
+        return "planar" if "planar" in modes else ("zfail" if "zfail" in modes else "zpass")
+
+    @property
+    def empty(self) -> bool:
+        """Nothing of the scene is in view: nothing to render."""
+        return self.roi[2] == 0 or self.roi[3] == 0 or self.canvas[2] == 0 or self.canvas[3] == 0
+
+
+def plan_frame(geometry: SceneGeometry, intr, cam_from_world, width: int, height: int, *, lens=None,
+               modes=None) -> FramePlan:
+    """Plan one frame.
+
+    Parameters
+    ----------
+    geometry : SceneGeometry
+        The scene's lights and cached geometry (read, not changed).
+    intr : arshadow.camera.Intrinsics
+        Calibration for this photo size.
+    cam_from_world : (4, 4) float64
+        The pose.
+    width, height : int
+        Photo size.
+    lens : arshadow.lens.LensWarp or None
+        The lens warp of ``intr`` when it has distortion.
+    modes : list of str, optional
+        Force the mode per light (tests compare z-pass and z-fail).
+
+    Returns
+    -------
+    FramePlan
+    """
+    W, H = int(width), int(height)
+    cam_from_world = np.asarray(cam_from_world, dtype=np.float64)
+    opts = geometry.options
+    znear = geometry.znear_for(cam_from_world)
+    plan = FramePlan(size=(W, H), cam_from_world=cam_from_world, znear=znear, distorted=lens is not None)
+    plan.decide("znear", znear, "a quarter of the distance to the nearest of the object's box and the ground, "
+                                "clipped to [1e-4, 0.05] m")
+    # region of interest (photo) and pinhole canvas
+    rect = None
+    if opts.roi:
+        hull = geometry.hull()
+        rect = None if hull is None else _pinhole_rect(intr, cam_from_world, hull, znear)
+        why = ("a shadow footprint is unbounded (a light not above the object) and no ground size limits it"
+               if hull is None else "a point of the object or its shadow is not in front of the camera"
+               if rect is None else "the object and its shadows project into this rectangle")
+    else:
+        why = "ROI off (RenderOptions.roi=False)"
+    if lens is None:
+        roi = (0, 0, W, H) if rect is None else clip_roi(_int_rect(rect, 2), W, H)
+        canvas = roi
+    elif rect is None:
+        roi = (0, 0, W, H)
+        canvas = lens.canvas_for(roi)
+    else:
+        roi = lens.distorted_roi(rect, margin=2)
+        canvas = lens.canvas_for(roi, rect) if roi[2] and roi[3] else (0, 0, 0, 0)
+    plan.roi = plan.decide("roi", roi, why if rect is not None else f"whole photo: {why}")
+    plan.canvas = plan.decide("canvas", canvas, "the pinhole pixels the distorted ROI samples" if lens is not None
+                              else "the ROI (no lens distortion)")
+    if opts.shadow_method != "planar":
+        plan.decide("truncate", bool(opts.truncate),
+                    "volumes end just below the ground (RenderOptions.truncate)" if opts.truncate
+                    else "volumes extruded to infinity (RenderOptions.truncate=False)")
+    # per light: technique and mode
+    forced = modes is not None
+    if modes is None:
+        modes = geometry.modes_for(cam_from_world, znear, intr, canvas)
+    for i, (ls, mode) in enumerate(zip(geometry.lights, modes)):
+        if forced:
+            reason = "forced by the caller"
+        elif mode == "planar":
+            reason = "projection shadows asked for (shadow_method='planar')"
+        elif mode == "zfail":
+            reason = "the camera's near rectangle may be inside this light's shadow volume"
+        else:
+            reason = "the camera's near rectangle is provably outside this light's shadow volume"
+        planar = mode == "planar"
+        caps = mode == "zfail"
+        reuse = planar or caps in ls.volumes
+        lp = LightPlan(i, ls.light_h, ls.weight, "planar" if planar else "volume", mode, caps, reuse, reason)
+        plan.lights.append(lp)
+        plan.decide(f"light{i}.mode", mode, reason)
+        if not planar:
+            plan.decide(f"light{i}.volume", "reuse" if reuse else "build",
+                        "cached for this light" if reuse else "first use of this light "
+                        + ("with caps" if caps else "without caps"))
+    return plan

@@ -1,0 +1,413 @@
+"""The declarative scene: what to put into the photos, as frozen, picklable data.
+
+A :class:`SceneSpec` says *what* (camera, marker or board, model and its placement, lights, render
+options) with paths and spec strings, not loaded objects, so it pickles to a worker process and compares
+equal when two sources describe the same scene. :meth:`SceneSpec.build` loads it into a :class:`Scene`
+(calibration, occluder, parsed lights, tracker arguments); a :class:`arshadow.session.Session` does that
+once and renders photos with it.
+
+One function builds specs from every source, :func:`scene_from_dict`; the command line
+(:func:`scene_from_args`), job files (:func:`load_scene`: YAML or JSON) and the demo's ``scenes.json``
+map onto its keys, which are the ``arshadow render`` option names with ``_`` for ``-``::
+
+    calib: calib/cam.yml             # or an Intrinsics (Python)
+    marker_length: 0.05              # or  board: boards/grid.yml
+    dictionary: DICT_6X6_250
+    marker_id: 3
+    model: box:0.04,0.04,0.06        # or a mesh file
+    scale: 1.0
+    rotate: [0, 0, 30]
+    place: [0.1, 0, 0]
+    color: 200,80,40                 # 8-bit sRGB
+    lights: [point:0.1,0.1,0.4, "sun:52.2,0.1,2024-06-21T15:00+01:00@0.5"]
+    soft_samples: 1
+    silhouette: adjacency
+    shadow_method: volume
+    opacity: 0.7
+    shadow_color: 0,0,0
+    aa: 0
+    ground_size: null
+    no_object: false
+
+Relative paths in a job file are relative to the file's folder (``base_dir``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .errors import UsageError
+
+__all__ = ["RenderOptions", "TrackerSpec", "ModelSpec", "SceneSpec", "Scene", "scene_from_dict",
+           "scene_from_args", "load_scene", "SCENE_KEYS"]
+
+
+@dataclass(frozen=True)
+class RenderOptions:
+    """What to render and how to composite it (the ``arshadow render`` options).
+
+    Attributes
+    ----------
+    opacity : float
+        How dark a fully blocked ground pixel gets (``1 - opacity`` of its light is kept).
+    shadow_color : (3,) float
+        Linear RGB tint of a full shadow (black: plain darkening).
+    shadow_method : str
+        ``"volume"`` (stencil shadow volumes, exact) or ``"planar"`` (projection shadows, paper 002/004).
+    silhouette : str
+        Silhouette detector name (``adjacency``, ``triangular``, ``vnv``, ``hsd``, ``delta_plus``).
+    soft_samples : int
+        Samples per area light (lights with a radius); 1 = hard shadows from the light's centre.
+    aa : int
+        MSAA samples of the renderer (0 = none).
+    ground_size : float or None
+        Side of the square proxy ground plane centred on the origin (None: unlimited).
+    draw_occluder : bool
+        Draw the shaded object over the shadow.
+    truncate : bool
+        Extrude volumes only to just below the ground instead of to infinity (paper 002).
+    roi : bool
+        Render only the region the object and its shadow can cover (False: always the whole photo).
+    occluder_color : (3,) float, optional
+        Override of the occluder's colour handed to the renderer.
+    fast_detect : bool
+        Try the fast detection pass first (``MarkerTracker(detector="fast")``,
+        :mod:`arshadow.fastdetect`), the full search only if it finds nothing.
+    """
+
+    opacity: float = 0.7
+    shadow_color: tuple = (0.0, 0.0, 0.0)
+    shadow_method: str = "volume"
+    silhouette: str = "adjacency"
+    soft_samples: int = 1
+    aa: int = 0
+    ground_size: float | None = None
+    draw_occluder: bool = True
+    truncate: bool = True
+    roi: bool = True
+    occluder_color: tuple | None = None
+    fast_detect: bool = True
+
+    def check(self) -> RenderOptions:
+        """Validate (UsageError naming the ``arshadow render`` option); returns self."""
+        if not (0.0 <= float(self.opacity) <= 1.0):
+            raise UsageError(f"--opacity {self.opacity}: must be in [0, 1]")
+        if self.shadow_method not in ("volume", "planar"):
+            raise UsageError(f"--shadow-method {self.shadow_method!r}: choose volume or planar")
+        if int(self.soft_samples) < 1:
+            raise UsageError(f"--soft-samples {self.soft_samples}: must be >= 1")
+        if int(self.aa) < 0:
+            raise UsageError(f"--aa {self.aa}: must be >= 0")
+        if self.ground_size is not None and not (math.isfinite(self.ground_size) and self.ground_size > 0):
+            raise UsageError(f"--ground-size {self.ground_size}: must be a positive number of metres")
+        return self
+
+
+@dataclass(frozen=True)
+class TrackerSpec:
+    """The printed target: one marker (``marker_length``) or a board file.
+
+    Attributes
+    ----------
+    dictionary : str
+        ArUco dictionary name or custom dictionary file (single-marker mode).
+    marker_length : float or None
+        Marker side, metres.
+    marker_id : int or None
+        The reference marker (default: the lowest id found).
+    board : str or None
+        Board file (GridBoard or ChArUco) instead of one marker.
+    refine : str or None
+        Corner refinement; ``"default"``: the tracker's own default (:data:`arshadow.marker.DEFAULT_REFINE`).
+    """
+
+    dictionary: str = "DICT_6X6_250"
+    marker_length: float | None = None
+    marker_id: int | None = None
+    board: str | None = None
+    refine: str | None = "default"
+
+    def kwargs(self) -> dict:
+        """Keyword arguments of :class:`arshadow.marker.MarkerTracker` (the board file loaded).
+
+        Raises
+        ------
+        UsageError
+            Neither a marker length nor a board; an unknown dictionary.
+        """
+        from .marker import get_dictionary, load_board
+
+        if self.board is None and self.marker_length is None:
+            raise UsageError("give --marker-length M (metres) for a single marker, or --board B")
+        kw = {"dictionary": self.dictionary, "marker_id": self.marker_id}
+        if self.board is None:
+            get_dictionary(self.dictionary)  # an unknown dictionary is a usage error, not a per-photo one
+            kw["marker_length"] = self.marker_length
+        else:
+            kw["board"] = load_board(self.board)
+        if self.refine != "default":
+            kw["refine"] = self.refine
+        return kw
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    """The virtual object: a mesh file or a primitive, then scale, rotate (degrees, XYZ), place (metres).
+
+    ``color`` is 8-bit sRGB ``"R,G,B"`` (None: the mesh's own colours).
+    """
+
+    source: str
+    scale: float = 1.0
+    rotate: tuple = (0.0, 0.0, 0.0)
+    place: tuple = (0.0, 0.0, 0.0)
+    color: str | None = None
+
+    def build(self):
+        """The :class:`arshadow.mesh.ShadowCaster` (MeshError / UsageError on a bad file or colour)."""
+        from .composite import parse_rgb
+        from .mesh import load_occluder
+
+        color = None
+        if self.color:
+            parse_rgb(self.color, "--color")  # validates: three numbers 0..255
+            color = tuple(float(v) / 255.0 for v in self.color.split(","))  # sRGB 0..1, as the loader takes
+        return load_occluder(self.source, scale=self.scale, rotate=self.rotate, place=self.place, color=color)
+
+
+@dataclass(frozen=True)
+class SceneSpec:
+    """Everything a session needs, as picklable data (paths and spec strings).
+
+    Attributes
+    ----------
+    camera : str or arshadow.camera.Intrinsics
+        Calibration file, or the intrinsics themselves.
+    tracker : TrackerSpec
+    model : ModelSpec
+    lights : tuple of str or arshadow.lights.Light
+        Light specs (CONVENTIONS.md: ``point:X,Y,Z``, ``directional:X,Y,Z``, ``sun:LAT,LON,TIME[,NORTH]``,
+        optional ``@W``) or parsed lights.
+    options : RenderOptions
+    """
+
+    camera: object
+    tracker: TrackerSpec
+    model: ModelSpec
+    lights: tuple
+    options: RenderOptions = field(default_factory=RenderOptions)
+
+    def build(self, lights=None) -> Scene:
+        """Load the files and parse the specs, in the order the command line reports problems.
+
+        Parameters
+        ----------
+        lights : sequence of Light, optional
+            Use these instead of ``self.lights`` (e.g. the static lights of a time-lapse).
+
+        Raises
+        ------
+        ArshadowError
+            CalibrationError, UsageError, MeshError, LightError: the first problem found.
+        """
+        from .camera import Intrinsics
+        from .lights import parse_light
+
+        intr = self.camera if isinstance(self.camera, Intrinsics) else Intrinsics.from_file(self.camera)
+        tracker = self.tracker.kwargs()
+        caster = self.model.build()
+        if lights is None:
+            lights = [parse_light(s) if isinstance(s, str) else s for s in self.lights]
+        opts = self.options.check()
+        _check_silhouette_name(opts.silhouette)
+        return Scene(intr, caster, list(lights), opts, tracker)
+
+    def replace(self, **changes) -> SceneSpec:
+        """A copy with some fields changed (``dataclasses.replace``)."""
+        return dataclasses.replace(self, **changes)
+
+
+@dataclass
+class Scene:
+    """A loaded :class:`SceneSpec` (not meant to be pickled: it holds the mesh and the parsed lights).
+
+    Attributes
+    ----------
+    intrinsics : arshadow.camera.Intrinsics
+    caster : arshadow.mesh.ShadowCaster
+    lights : list of arshadow.lights.Light
+    options : RenderOptions
+    tracker : dict
+        Keyword arguments of :class:`arshadow.marker.MarkerTracker`.
+    """
+
+    intrinsics: object
+    caster: object
+    lights: list
+    options: RenderOptions
+    tracker: dict
+
+
+def _check_silhouette_name(name: str) -> None:
+    from .silhouette import METHODS
+
+    if name not in METHODS:
+        raise UsageError(f"--silhouette {name!r}: choose one of {', '.join(METHODS)}")
+
+
+#: the keys :func:`scene_from_dict` takes (``light`` is accepted for ``lights``)
+SCENE_KEYS = ("calib", "marker_length", "board", "dictionary", "marker_id", "refine", "model", "scale", "rotate",
+              "place", "color", "lights", "soft_samples", "silhouette", "shadow_method", "opacity",
+              "shadow_color", "aa", "ground_size", "no_object", "roi", "truncate", "fast_detect")
+
+
+def _triple(v, key):
+    if isinstance(v, str):
+        v = v.split(",")
+    try:
+        t = tuple(float(x) for x in v)
+    except (TypeError, ValueError):
+        raise UsageError(f"{key} {v!r}: expected three numbers") from None
+    if len(t) != 3 or not all(math.isfinite(x) for x in t):
+        raise UsageError(f"{key} {v!r}: expected three finite numbers")
+    return t
+
+
+def _rgb_text(v):
+    if v is None or isinstance(v, str):
+        return v or None
+    return ",".join(f"{float(x):g}" for x in v)
+
+
+def _path(v, base_dir):
+    if v is None or not isinstance(v, (str, Path)):
+        return v
+    p = Path(v)
+    if base_dir is not None and not p.is_absolute():
+        p = Path(base_dir) / p
+    return str(p)
+
+
+def scene_from_dict(d, base_dir=None) -> SceneSpec:
+    """The one builder of :class:`SceneSpec`: from a mapping with the keys of :data:`SCENE_KEYS`.
+
+    Command-line options (:func:`scene_from_args`), job files (:func:`load_scene`) and the demo's
+    ``scenes.json`` all come through here. Values are normalised (numbers to floats, sequences to
+    tuples, colours to ``"R,G,B"`` text) so that equal scenes give equal specs; files are not read here
+    (:meth:`SceneSpec.build` does).
+
+    Parameters
+    ----------
+    d : mapping
+        At least ``calib``, ``model``, ``lights`` and ``marker_length`` or ``board``.
+    base_dir : path, optional
+        Folder that relative file paths (calibration, board, mesh, dictionary file) are relative to.
+
+    Raises
+    ------
+    UsageError
+        An unknown key, a missing required key, a malformed number.
+
+    Examples
+    --------
+    >>> spec = scene_from_dict({"calib": "cam.yml", "marker_length": 0.05, "model": "box:0.04,0.04,0.06",
+    ...                         "lights": ["point:0.1,0.1,0.4"]})
+    >>> spec.tracker.marker_length, spec.model.source, spec.lights
+    (0.05, 'box:0.04,0.04,0.06', ('point:0.1,0.1,0.4',))
+    """
+    d = dict(d)
+    if "light" in d:
+        if "lights" in d:
+            raise UsageError("give either 'light' or 'lights', not both")
+        d["lights"] = d.pop("light")
+    unknown = sorted(set(d) - set(SCENE_KEYS))
+    if unknown:
+        raise UsageError(f"unknown scene key(s) {', '.join(map(repr, unknown))} (known: {', '.join(SCENE_KEYS)})")
+    for key in ("calib", "model", "lights"):
+        if d.get(key) is None:
+            raise UsageError(f"the scene needs {key!r}")
+    lights = d["lights"]
+    if isinstance(lights, str) or not hasattr(lights, "__iter__"):
+        lights = [lights]
+    model = d["model"]
+    if isinstance(model, (str, Path)) and ":" not in str(model):
+        model = _path(model, base_dir)
+    dictionary = d.get("dictionary", "DICT_6X6_250")
+    if base_dir is not None and isinstance(dictionary, str) and not dictionary.upper().startswith("DICT_") and \
+            (Path(base_dir) / dictionary).exists():
+        dictionary = _path(dictionary, base_dir)
+    ml = d.get("marker_length")
+    mid = d.get("marker_id")
+    tracker = TrackerSpec(dictionary=dictionary, marker_length=None if ml is None else float(ml),
+                          marker_id=None if mid is None else int(mid), board=_path(d.get("board"), base_dir),
+                          refine=d.get("refine", "default"))
+    calib = d["calib"]
+    if isinstance(calib, (str, Path)):
+        calib = _path(calib, base_dir)
+    model_spec = ModelSpec(str(model), scale=float(d.get("scale", 1.0)),
+                           rotate=_triple(d.get("rotate", (0, 0, 0)), "rotate"),
+                           place=_triple(d.get("place", (0, 0, 0)), "place"), color=_rgb_text(d.get("color")))
+    opts = {}
+    if d.get("shadow_color") is not None:
+        from .composite import parse_rgb
+
+        opts["shadow_color"] = parse_rgb(d["shadow_color"], "--shadow-color")
+    for key, conv in (("opacity", float), ("shadow_method", str), ("silhouette", str), ("soft_samples", int),
+                      ("aa", int), ("ground_size", float), ("roi", bool), ("truncate", bool),
+                      ("fast_detect", bool)):
+        if d.get(key) is not None:
+            try:
+                opts[key] = conv(d[key])
+            except (TypeError, ValueError):
+                raise UsageError(f"{key} {d[key]!r}: expected a {conv.__name__}") from None
+    if d.get("no_object"):
+        opts["draw_occluder"] = False
+    return SceneSpec(camera=calib, tracker=tracker, model=model_spec,
+                     lights=tuple(s if not isinstance(s, str) else s.strip() for s in lights),
+                     options=RenderOptions(**opts))
+
+
+def scene_from_args(args, **overrides) -> SceneSpec:
+    """:func:`scene_from_dict` of parsed ``arshadow render`` options (``add_scene_options``)."""
+    d = {k: getattr(args, k, None) for k in SCENE_KEYS if k != "lights"}
+    d["lights"] = getattr(args, "light", None) or ()
+    d["no_object"] = bool(getattr(args, "no_object", False))
+    d.update(overrides)
+    return scene_from_dict({k: v for k, v in d.items() if v is not None})
+
+
+def load_scene(path) -> SceneSpec:
+    """A :class:`SceneSpec` from a job file: YAML (``.yml``/``.yaml``, needs PyYAML) or JSON; relative paths
+    resolve against the file's folder.
+
+    Raises
+    ------
+    UsageError
+        Unreadable or malformed file, or a bad scene (:func:`scene_from_dict`).
+    """
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise UsageError(f"{p}: cannot read the scene file ({exc.strerror or exc})") from None
+    try:
+        if p.suffix.lower() in (".yml", ".yaml"):
+            import yaml
+
+            data = yaml.safe_load(text)
+        else:
+            data = json.loads(text)
+    except Exception as exc:  # noqa: BLE001 (yaml and json raise their own error types)
+        raise UsageError(f"{p}: not a valid scene file ({type(exc).__name__}: {exc})") from None
+    if isinstance(data, dict) and isinstance(data.get("scene"), dict):
+        data = data["scene"]
+    if not isinstance(data, dict):
+        raise UsageError(f"{p}: a scene file holds a mapping of scene keys")
+    try:
+        return scene_from_dict(data, base_dir=p.parent)
+    except UsageError as exc:
+        raise UsageError(f"{p}: {exc}") from None
