@@ -19,7 +19,7 @@ Outputs of one video ``DIR/<stem>``: ``.mp4`` (or ``--format``), ``.frames.jsonl
 frame), ``.sheet.jpg`` (contact sheet), and with a mask ``.shadow.mkv`` (lossless FFV1) or ``.shadow/``
 (PNG per frame). Every one is written to a temporary name and renamed into place when complete.
 
-Rendering goes through :class:`CompositorBackend`, the only place that knows the rendering API.
+Rendering goes through :class:`SessionBackend`, the only place that knows the rendering API.
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ import numpy as np
 
 from .errors import ArshadowError, ImageError, MarkerNotFoundError, UsageError
 
-__all__ = ["EngineOptions", "CompositorBackend", "video_outputs", "process_video", "run_videos", "unique_stems",
+__all__ = ["EngineOptions", "SessionBackend", "video_outputs", "process_video", "run_videos", "unique_stems",
            "write_contact_sheet", "FRAME_STAGES"]
 
 #: per-frame ``timings_ms`` keys of the JSON Lines report
@@ -132,69 +132,61 @@ def video_outputs(outdir, stem: str, opts: EngineOptions) -> dict:
 # --------------------------------------------------------------------------------------------------
 # the rendering side, in one place
 # --------------------------------------------------------------------------------------------------
-class CompositorBackend:
-    """Tracking and rendering for the engine, over :class:`arshadow.pipeline.Compositor`.
+class SessionBackend:
+    """Tracking and rendering for the engine, over an :class:`arshadow.session.Session`.
+
+    The only place the engine touches the rendering API. Tracking reads a grey image (the decoder's
+    Y plane: no colour conversion for frames that are only tracked).
 
     Parameters
     ----------
-    comp : arshadow.pipeline.Compositor
-    static : list of Light
-        Lights fixed over the video (with ``tracks``).
+    session : arshadow.session.Session
     tracks : list of arshadow.sun.SunTrack
-        Sun lights following the frame times (``time_lapse = (start datetime, speed)``).
+        Sun lights following the frame times (``time_lapse = (start datetime, speed)``); the session
+        must have them (:meth:`Session.use_sun_tracks`).
     """
 
-    def __init__(self, comp, static=(), tracks=(), time_lapse=None):
-        self.comp, self.static, self.tracks, self.time_lapse = comp, list(static), list(tracks), time_lapse
+    def __init__(self, session, tracks=(), time_lapse=None):
+        self.session, self.tracks, self.time_lapse = session, list(tracks), time_lapse
         self.cal = None
         self.recomputes = 0
 
     def start(self, width: int, height: int) -> None:
         """A new video of this size (CalibrationError: the calibration does not fit it)."""
-        self.cal = self.comp.calib_for(width, height)
-        self.trackers = [t for t in (getattr(self.cal, "fast_tracker", None), self.cal.tracker) if t is not None]
+        self.cal = self.session.compositor.calib_for(width, height)
         for tr in self.tracks:
             tr.reset()
         self.recomputes = 0
 
     def track(self, gray, timings):
         """The marker pose in a grey ``(H, W) uint8`` frame, or ``(None, error)``."""
-        t = time.perf_counter()
-        err = None
-        pose = None
-        for trk in self.trackers:
-            try:
-                pose = trk.estimate(gray)
-                break
-            except MarkerNotFoundError as exc:
-                err = exc
-        total = (time.perf_counter() - t) * 1e3
-        pose_ms = float((getattr(pose, "timings_ms", None) or {}).get("pose", 0.0)) if pose is not None else 0.0
-        timings["detect"] += total - pose_ms
-        timings["pose"] += pose_ms
-        return pose, err
+        try:
+            return self.session.compositor.track(gray, self.cal, timings), None
+        except MarkerNotFoundError as exc:
+            return None, exc
 
     def lights_at(self, time_s: float):
         """Set the lights for a frame time (time-lapse); returns the report's ``sun`` list or None."""
         if not self.tracks:
             return None
         when = self.time_lapse[0] + timedelta(seconds=time_s * self.time_lapse[1])
-        frames = [tr.update(when) for tr in self.tracks]
-        self.comp.set_lights(self.static + [tr.light(f) for tr, f in zip(self.tracks, frames)])
+        frames = self.session.set_time(when)
         self.recomputes += sum(bool(f.recompute) for f in frames)
         return [{"time": f.when.isoformat(), "zenith_deg": round(f.position.zenith_deg, 5),
                  "azimuth_deg": round(f.position.azimuth_deg, 5), "above_horizon": bool(f.above_horizon),
                  "recompute": bool(f.recompute), "stale_deg": round(f.stale_deg, 5)} for f in frames]
 
     def render(self, bgr, cam_from_world, want_mask, timings):
-        """Composite into ``bgr`` (modified in place); returns ``(mask or None, info)``."""
-        out, mask, info = self.comp.render_pose(bgr, self.cal.intrinsics, cam_from_world, lens=self.cal.lens,
-                                                timings=timings, want_mask=want_mask, out=bgr)
-        return mask, info
+        """Composite into ``bgr`` (modified in place); returns ``(mask or None, item extras)``."""
+        res = self.session.render(bgr, cam_from_world, want_mask=want_mask, out=bgr, timings=timings)
+        it = res.item
+        info = {"mode": it.mode, "silhouette_edges": it.silhouette_edges,
+                **{k: it.extra[k] for k in ("roi", "canvas", "modes") if k in it.extra}}
+        return res.mask, info
 
     @property
     def notes(self):
-        return list(getattr(self.comp, "notes", []) or [])
+        return list(self.session.notes or [])
 
 
 # --------------------------------------------------------------------------------------------------
@@ -239,7 +231,7 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
 
     Parameters
     ----------
-    backend : CompositorBackend
+    backend : SessionBackend
         Tracking and rendering (its GL context is used on the calling thread only).
     path : str or Path
         The input video.
@@ -553,7 +545,7 @@ def run_videos(backend, inputs, outdir, opts: EngineOptions, *, progress_factory
 
     Parameters
     ----------
-    backend : CompositorBackend
+    backend : SessionBackend
     inputs : list of str
     outdir : Path
     opts : EngineOptions

@@ -179,21 +179,18 @@ def build_lights(args):
 
 def run(args) -> int:
     from ..errors import UsageError
-    from ..gl.context import create_context
     from ..io import write_json
-    from ..pipeline import Compositor
     from ..report import jsonable, make_report
-    from ..video_engine import CompositorBackend, run_videos
+    from ..scene import scene_from_args
+    from ..session import Session
+    from ..video_engine import SessionBackend, run_videos
     from . import quiet_opencv
-    from .render import build_scene
 
     debug = bool(getattr(args, "debug", False))
     quiet_opencv(debug)
     opts = engine_options(args, collect_items=bool(args.report))
     static, tracks, tl = build_lights(args)
-    # a sun track's lights are set per frame: the scene builder gets the static lights only
-    intr, caster, _, ropts, tracker = build_scene(args, lights=static)
-    tracker["refine"] = args.corner_refine
+    spec = scene_from_args(args, refine=args.corner_refine)
     outdir = Path(args.output)
     if outdir.exists() and not outdir.is_dir():
         raise UsageError(f"-o {outdir}: exists and is not a folder")
@@ -202,19 +199,17 @@ def run(args) -> int:
         tr.reset()
         first.append(tr.light(tr.update(tl[0])))
         tr.reset()
-    ctx = create_context()
-    try:
-        with Compositor(ctx, intr, caster, first, ropts, tracker=tracker) as comp:
-            backend = CompositorBackend(comp, static, tracks, tl)
+    with Session(spec, lights=first) as session:
+        if tracks:
+            session.use_sun_tracks(tracks, static)
+        backend = SessionBackend(session, tracks, tl)
 
-            def on_error(exc):
-                if debug:
-                    raise exc
+        def on_error(exc):
+            if debug:
+                raise exc
 
-            summaries, items = run_videos(backend, args.videos, outdir, opts,
-                                          progress_factory=progress_bar(args.quiet), on_error=on_error)
-    finally:
-        ctx.release()
+        summaries, items = run_videos(backend, args.videos, outdir, opts,
+                                      progress_factory=progress_bar(args.quiet), on_error=on_error)
     failed = 0
     for s in summaries:
         for w in s.get("warnings", []):
