@@ -147,6 +147,7 @@ class AvReader:
         self.frame_count = n if n > 0 else None
         self.width, self.height = int(vs.codec_context.width), int(vs.codec_context.height)
         self.has_audio = bool(self._c.streams.audio)
+        self.pix_fmt = vs.codec_context.pix_fmt
         self.n_read = 0
         self.n_decode_errors = 0
         self.ended_with_error = False
@@ -241,6 +242,9 @@ class AvWriter:
         Copy this file's first audio stream (packets unchanged) into the output.
     threads : int
         Encoder threads (0: the encoder's choice).
+    pix_fmt : str, optional
+        Encode in this pixel format instead of the codec's default (``ffv1`` of ``yuv420p`` input: keep
+        ``yuv420p``, so frames written with :meth:`write_yuv420p` stay bit-exact).
 
     Raises
     ------
@@ -249,7 +253,7 @@ class AvWriter:
     """
 
     def __init__(self, path, rate, size, *, codec: str = "h264", crf: float = 20, preset: str = "veryfast",
-                 color: bool = True, audio_from=None, threads: int = 0):
+                 color: bool = True, audio_from=None, threads: int = 0, pix_fmt: str | None = None):
         self.path = Path(path)
         if codec not in VIDEO_CODECS:
             raise UsageError(f"--codec {codec}: use one of {', '.join(VIDEO_CODECS)}")
@@ -260,7 +264,7 @@ class AvWriter:
             raise UsageError(f"{self.path}: frame rate must be positive, got {rate}")
         self.size = (int(size[0]), int(size[1]))
         self.codec, self.crf, self.preset, self.color = codec, float(crf), preset, bool(color)
-        self.audio_from, self.threads = audio_from, int(threads)
+        self.audio_from, self.threads, self.pix_fmt = audio_from, int(threads), pix_fmt
         self.n_written = 0
         self.audio_copied = False
         self._stack = self._c = self._vs = None
@@ -273,11 +277,15 @@ class AvWriter:
         try:
             self.tmp_path = stack.enter_context(atomic_path(self.path))
             try:
-                c = av.open(str(self.tmp_path), "w", format=_container_format(self.path))
+                fmt = _container_format(self.path)
+                c = av.open(str(self.tmp_path), "w", format=fmt,
+                            options={"movflags": "+faststart"} if fmt in ("mp4", "mov") else None)
             except (av.FFmpegError, OSError, ValueError) as exc:
                 raise ImageError(f"{self.path}: cannot write ({_short(exc)})") from None
             stack.callback(c.close)
             name, pix = VIDEO_CODECS[self.codec] if self.color else ("ffv1", "gray")
+            if self.pix_fmt is not None and self.color:
+                pix = self.pix_fmt
             try:
                 vs = c.add_stream(name, rate=self.rate)
             except (av.FFmpegError, ValueError) as exc:

@@ -306,7 +306,9 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
         from .io import atomic_path
 
         with ExitStack() as st:
+            keep_yuv = opts.codec == "ffv1" and getattr(reader, "pix_fmt", None) == "yuv420p"
             vw = st.enter_context(AvWriter(out_video, rate, (W, H), codec=opts.codec, crf=opts.crf,
+                                           pix_fmt="yuv420p" if keep_yuv else None,
                                            preset=opts.preset, audio_from=path if (opts.keep_audio and is_av
                                                                                    and reader.has_audio) else None))
             mw = None
