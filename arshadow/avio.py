@@ -144,6 +144,8 @@ class AvReader:
         n = int(vs.frames or 0)
         if n <= 0 and vs.duration and vs.time_base:
             n = int(round(float(vs.duration * vs.time_base) * self.fps))
+        if n <= 0 and self._c.duration:  # e.g. Matroska: the container's duration (microseconds)
+            n = int(round(self._c.duration / 1e6 * self.fps))
         self.frame_count = n if n > 0 else None
         self.width, self.height = int(vs.codec_context.width), int(vs.codec_context.height)
         self.has_audio = bool(self._c.streams.audio)
@@ -200,7 +202,8 @@ class AvReader:
         """The stream ended early: fewer frames than declared, or a read error ended it."""
         if self.max_frames is not None and self.n_read >= self.max_frames:
             return False
-        return self.ended_with_error or (self.frame_count is not None and self.n_read < self.frame_count - 1)
+        got = self.n_read + self.n_decode_errors  # a damaged packet is not a missing tail
+        return self.ended_with_error or (self.frame_count is not None and got < self.frame_count - 1)
 
     def close(self):
         c, self._c = getattr(self, "_c", None), None

@@ -282,10 +282,8 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
     items = []
     total = reader.frame_count if opts.max_frames is None else min(reader.frame_count or opts.max_frames,
                                                                    opts.max_frames)
-    sheet_at = set()
-    if opts.contact_sheet and total:
-        sheet_at = {int(round(i)) for i in np.linspace(0, total - 1, min(opts.contact_sheet, total))}
     sheet: dict = {}
+    sheet_step = [max(1, (total or 0) // max(opts.contact_sheet, 1))]  # thumbnails of every step-th frame
 
     # -- decode thread -----------------------------------------------------------------------------
     def decode():
@@ -346,10 +344,14 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
                 line["timings_ms"]["encode"] = round(enc, 3)
                 stage_ms["encode"].append(enc)
                 jf.write(json.dumps(line, separators=(",", ":")) + "\n")
-                if item.extra["frame"] in sheet_at:
+                fi = item.extra["frame"]
+                if opts.contact_sheet and fi % sheet_step[0] == 0:
                     bgr = img if fmt != "yuv420p" else cv2.cvtColor(img, cv2.COLOR_YUV2BGR_I420)
-                    sheet[item.extra["frame"]] = cv2.resize(bgr, (320, max(1, round(320 * H / W))),
-                                                            interpolation=cv2.INTER_AREA)
+                    sheet[fi] = cv2.resize(bgr, (320, max(1, round(320 * H / W))), interpolation=cv2.INTER_AREA)
+                    if len(sheet) > 2 * opts.contact_sheet:  # more frames than declared: keep every other one
+                        sheet_step[0] *= 2
+                        for k in [k for k in sheet if k % sheet_step[0]]:
+                            del sheet[k]
                 n += 1
                 if progress is not None:
                     progress(n, total)
@@ -469,7 +471,9 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
         raise
     dec_t.join()
     if outputs.get("sheet") is not None and sheet:
-        write_contact_sheet(outputs["sheet"], sheet)
+        keys = sorted(sheet)
+        pick = {keys[int(round(i))] for i in np.linspace(0, len(keys) - 1, min(opts.contact_sheet, len(keys)))}
+        write_contact_sheet(outputs["sheet"], {k: sheet[k] for k in pick})
     wall = time.perf_counter() - t_wall
     warnings = []
     truncated = bool(reader.truncated)
