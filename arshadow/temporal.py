@@ -78,7 +78,7 @@ def _local_poly(dt, w, ys, degree):
     return beta[0], X @ beta
 
 
-def smooth_poses(times, poses, i, *, window_s, degree=2, outlier_deg=3.0):
+def smooth_poses(times, poses, i, *, window_s, degree=2, outlier_deg=3.0, max_span_deg=6.0):
     """The smoothed pose of frame ``i`` from its neighbours (:class:`PoseStream` step 2).
 
     A local polynomial (``degree`` 2: constant acceleration is followed exactly, so an arc of a camera
@@ -100,6 +100,10 @@ def smooth_poses(times, poses, i, *, window_s, degree=2, outlier_deg=3.0):
         Degree of the local polynomial (0 mean, 1 line, 2 parabola).
     outlier_deg : float
         Neighbours whose rotation is farther than this from a first fit are left out.
+    max_span_deg : float
+        Fast motion narrows the window: to the time in which the camera turns by this angle (median
+        rotation speed of the neighbours), so that a quick swing is followed, not averaged away; at least
+        two frames either side.
 
     Returns
     -------
@@ -111,6 +115,16 @@ def smooth_poses(times, poses, i, *, window_s, degree=2, outlier_deg=3.0):
     Rc = R[i]
     centres = -np.einsum("nji,nj->ni", R, P[:, :3, 3])  # camera centre in the world: -R^T t
     rv = np.array([_rvec(Rj @ Rc.T) for Rj in R])  # rotation relative to frame i's
+    if max_span_deg and len(times) > 2:
+        order = np.argsort(times)
+        steps = np.diff(times[order])
+        ang = np.degrees(np.linalg.norm(np.diff(rv[order], axis=0), axis=1))
+        ok = steps > 0
+        if ok.any():
+            speed = float(np.median(ang[ok] / steps[ok]))  # degrees per second
+            frame_s = float(np.median(steps[ok]))
+            if speed > 0:
+                window_s = min(window_s, max(max_span_deg / speed, 2.5 * frame_s))
     dt = (times - times[i]) / window_s
     u = np.abs(dt) / (1.0 + 1e-9)
     w0 = np.where(u < 1.0, (1.0 - u ** 3) ** 3, 0.0)

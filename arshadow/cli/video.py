@@ -70,14 +70,22 @@ def progress_bar(quiet: bool):
     def factory(name):
         from tqdm import tqdm
 
-        bar = tqdm(desc=Path(name).name, unit="frame", dynamic_ncols=True, file=sys.stderr, leave=True)
+        bars = []  # made on the first frame: a video that cannot be opened prints only its error line
 
         def update(done, total):
+            if not bars:
+                bars.append(tqdm(desc=Path(name).name, unit="frame", total=total, dynamic_ncols=True,
+                                 file=sys.stderr, leave=True))
+            bar = bars[0]
             if total and bar.total != total:
                 bar.total = total
             bar.update(done - bar.n)
 
-        return update, bar.close
+        def close():
+            if bars:
+                bars[0].close()
+
+        return update, close
 
     return factory
 
