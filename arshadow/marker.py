@@ -570,7 +570,7 @@ def detect_markers(image, dictionary="DICT_6X6_250", params=None, refine=DEFAULT
     return _detection(corners, ids, rejected, p)
 
 
-def refine_corners_edges(gray, corners, intrinsics=None, *, bits: int = 8, iterations: int = 5,
+def refine_corners_edges(gray, corners, intrinsics=None, *, bits: int = 8, iterations: int = 3,
                          n_samples: int = 24, reach_in: float = 0.45, reach_out: float = 0.45,
                          tol_px: float = 0.01) -> np.ndarray:
     """Refine marker corners by fitting the four border edges and intersecting them.
