@@ -31,6 +31,7 @@ __all__ = [
     "PREDEFINED_DICTIONARIES",
     "OPENCV_BOARD_TO_WORLD",
     "REFINE_METHODS",
+    "refine_corners_edges",
     "DEFAULT_REFINE",
     "AMBIGUITY_FLAG",
     "get_dictionary",
@@ -62,6 +63,9 @@ REFINE_METHODS = {
     "subpix": cv2.aruco.CORNER_REFINE_SUBPIX,
     "contour": cv2.aruco.CORNER_REFINE_CONTOUR,
     "apriltag": cv2.aruco.CORNER_REFINE_APRILTAG,
+    # arshadow's own: OpenCV detects without refinement, then :func:`refine_corners_edges` fits the four
+    # border edges at full resolution and intersects them (unbiased at any marker size; docs/tracking.md)
+    "edge": cv2.aruco.CORNER_REFINE_NONE,
 }
 
 #: the default refinement, chosen by tests/benchmarks/bench_tracking.py (see docs/tracking.md)
@@ -570,6 +574,129 @@ def detect_markers(image, dictionary="DICT_6X6_250", params=None, refine=DEFAULT
     return _detection(corners, ids, rejected, p)
 
 
+def refine_corners_edges(gray, corners, intrinsics=None, *, bits: int = 8, iterations: int = 3,
+                         n_samples: int = 24, reach_in: float = 0.45, reach_out: float = 0.45,
+                         tol_px: float = 0.01) -> np.ndarray:
+    """Refine marker corners by fitting the four border edges and intersecting them.
+
+    Why: ``cv2.cornerSubPix`` (ArUco's ``subpix``) puts a corner where the image gradients around it are
+    orthogonal to the corner direction. At an *outer* corner of a dark square the blur of the optics
+    (and the demosaicing / JPEG) rounds the corner off, and the gradient-orthogonality point moves
+    *into* the square by a fraction of the blur radius. The shift is a fixed number of pixels, so the
+    smaller the marker, the larger the relative error: every corner moves inwards, the marker looks
+    smaller and the pose comes out too far (1-4 % at 640x360 with a 45-px marker, docs/video.md).
+    A straight edge blurred by a symmetric point-spread function keeps its 50 % level exactly at the
+    edge, so the lines through the edges' mid-level crossings, away from the corners, are unbiased;
+    their intersections are the corners.
+
+    Per edge: ``n_samples`` intensity profiles across the edge (bilinear, 0.25-px steps, from the
+    inner black border (``reach_in`` of a cell: the data cells beyond it may be white) to the paper
+    (``reach_out`` of a cell); the two reaches must be equal: with a blur comparable to the window the
+    profile's ends do not reach the plateaus, and only a window centred on the edge truncates them
+    equally (measured: 0.45 / 0.6 of a cell puts the corners 0.11 px outwards at blur 0.8, 0.45 / 0.45
+    0.002 px)) between 15 % and 85 % of
+    its length; the 50 % crossing between the profile's dark and light ends, linearly interpolated; the
+    crossings are undistorted to pinhole pixels (``intrinsics``), a total-least-squares line is fitted
+    (with one outlier rejection pass), adjacent lines are intersected and the corners distorted back.
+    Repeated around the new corners (the profiles re-centred) until no corner moves more than ``tol_px``
+    (at most ``iterations`` times).
+
+    Parameters
+    ----------
+    gray : (H, W) uint8
+    corners : (n, 4, 2) float64
+        Initial corners TL, TR, BR, BL (distorted pixels), within about a pixel.
+    intrinsics : Intrinsics, optional
+        The camera (its lens distortion makes the edges curved in the image; None: straight).
+    bits : int
+        Marker cells across, border included (ArUco 6x6: 8).
+
+    Returns
+    -------
+    (n, 4, 2) float64
+        Refined corners (a marker whose edges cannot be measured keeps its input corners).
+    """
+    img = np.asarray(gray)
+    c_all = np.asarray(corners, np.float64).reshape(-1, 4, 2).copy()
+    H, W = img.shape[:2]
+    dist = intrinsics is not None and intrinsics.has_distortion
+    t = np.linspace(0.15, 0.85, n_samples)
+    for m in range(len(c_all)):
+        c = c_all[m]
+        for _ in range(iterations):
+            side = float(np.mean(np.linalg.norm(c - np.roll(c, -1, axis=0), axis=1)))
+            bit = side / bits
+            offs = np.arange(-float(np.clip(reach_in * bit, 1.0, 6.0)), float(np.clip(reach_out * bit, 1.0, 8.0)) + 1e-9,
+                             0.25)
+            centre = c.mean(axis=0)
+            a, b = c, np.roll(c, -1, axis=0)  # edge k: corner k -> corner k + 1
+            d = b - a
+            d /= np.linalg.norm(d, axis=1, keepdims=True)
+            nrm = np.stack([d[:, 1], -d[:, 0]], axis=1)
+            mid = 0.5 * (a + b)
+            flip = np.sum((mid - centre) * nrm, axis=1) < 0
+            nrm[flip] *= -1.0  # outward: from the black border to the paper
+            base = a[:, None, :] + t[None, :, None] * (b - a)[:, None, :]  # (4, S, 2)
+            pts = base[:, :, None, :] + offs[None, None, :, None] * nrm[:, None, None, :]  # (4, S, P, 2)
+            if pts[..., 0].min() < 0 or pts[..., 1].min() < 0 or pts[..., 0].max() > W - 1 or pts[..., 1].max() > H - 1:
+                break  # too close to the image border to measure: keep the corners
+            mx = np.ascontiguousarray(pts[..., 0].reshape(-1, len(offs)), np.float32)
+            my = np.ascontiguousarray(pts[..., 1].reshape(-1, len(offs)), np.float32)
+            prof = cv2.remap(img, mx, my, cv2.INTER_LINEAR).astype(np.float64)  # (4S, P)
+            lo, hi = prof[:, :2].mean(axis=1), prof[:, -2:].mean(axis=1)
+            ok = hi - lo > 20.0  # a real dark-to-light edge
+            level = 0.5 * (lo + hi)
+            above = prof > level[:, None]
+            # the crossing: the last sample below the level before the profile stays above it
+            idx = len(offs) - 1 - np.argmin(above[:, ::-1], axis=1)  # last index that is below
+            idx = np.clip(idx, 0, len(offs) - 2)
+            ok &= ~above[np.arange(len(prof)), idx] & above[np.arange(len(prof)), idx + 1]
+            p0, p1 = prof[np.arange(len(prof)), idx], prof[np.arange(len(prof)), idx + 1]
+            frac = (level - p0) / np.where(p1 - p0 == 0, 1.0, p1 - p0)
+            o = offs[idx] + frac * (offs[1] - offs[0])
+            edge_pts = (base.reshape(-1, 2) + o[:, None] * np.repeat(nrm, n_samples, axis=0))
+            ok = ok.reshape(4, n_samples)
+            if np.any(ok.sum(axis=1) < 4):
+                break
+            if dist:
+                edge_pts = intrinsics.undistort_pixels(edge_pts)
+            q = edge_pts.reshape(4, n_samples, 2)
+            w = ok.astype(np.float64)
+            for _rej in range(2):  # total-least-squares line per edge (closed form), one rejection pass
+                sw = w.sum(axis=1)
+                mu = np.einsum("es,esk->ek", w, q) / sw[:, None]
+                dq = q - mu[:, None, :]
+                sxx = np.einsum("es,es->e", w, dq[..., 0] ** 2)
+                syy = np.einsum("es,es->e", w, dq[..., 1] ** 2)
+                sxy = np.einsum("es,es->e", w, dq[..., 0] * dq[..., 1])
+                th = 0.5 * np.arctan2(2.0 * sxy, sxx - syy)  # direction of the line
+                nl = np.stack([-np.sin(th), np.cos(th)], axis=1)  # its unit normal
+                r = np.einsum("esk,ek->es", dq, nl)
+                sd = np.sqrt(np.einsum("es,es->e", w, r * r) / sw)
+                keep = (np.abs(r) <= np.maximum(3.0 * sd, 0.05)[:, None]) & ok
+                if _rej or np.array_equal(keep, ok) or np.any(keep.sum(axis=1) < 4):
+                    break
+                w = keep.astype(np.float64)
+            lines = np.column_stack([nl, -np.einsum("ek,ek->e", nl, mu)])  # (4, 3): a x + b y + c = 0
+            prev = np.roll(lines, 1, axis=0)  # corner k = edge k-1 x edge k
+            x = np.stack([prev[:, 1] * lines[:, 2] - prev[:, 2] * lines[:, 1],
+                          prev[:, 2] * lines[:, 0] - prev[:, 0] * lines[:, 2],
+                          prev[:, 0] * lines[:, 1] - prev[:, 1] * lines[:, 0]], axis=1)
+            if np.any(np.abs(x[:, 2]) < 1e-12):
+                break
+            new = x[:, :2] / x[:, 2:3]
+            if dist:
+                new = intrinsics.distort_pixels(new)
+            move = np.max(np.linalg.norm(new - c, axis=1)) if np.all(np.isfinite(new)) else np.inf
+            if not move < 0.25 * side:
+                break
+            c = new
+            if move <= tol_px:
+                break
+        c_all[m] = c
+    return c_all
+
+
 # ---------------------------------------------------------------------------------------------------
 # pose
 # ---------------------------------------------------------------------------------------------------
@@ -737,6 +864,9 @@ class MarkerTracker:
     pnp_refine : bool
         Polish the IPPE pose with Levenberg-Marquardt (``cv2.solvePnPRefineLM``) on the reprojection
         error (default; measured in docs/tracking.md).
+    track_roi : bool
+        Video: search a window around the last detection first, the whole frame when it holds no marker
+        (:class:`arshadow.roi_track.TrackingDetector`; single markers and ChArUco, not grid boards).
 
     Examples
     --------
@@ -750,7 +880,7 @@ class MarkerTracker:
 
     def __init__(self, intrinsics: Intrinsics, dictionary=None, marker_length=None, marker_id=None,
                  board=None, refine=DEFAULT_REFINE, detector_params=None, ambiguity_threshold=AMBIGUITY_FLAG,
-                 pnp_refine=True, detector="full"):
+                 pnp_refine=True, detector="full", track_roi=False):
         if not isinstance(intrinsics, Intrinsics):
             raise UsageError("intrinsics must be an arshadow.camera.Intrinsics")
         self.intrinsics = intrinsics
@@ -802,6 +932,10 @@ class MarkerTracker:
             self._detector = wrap_fast_detector(self._detector, board)
         elif not isinstance(detector, str):
             self._detector = detector
+        if track_roi:
+            from .roi_track import TrackingDetector
+
+            self._detector = TrackingDetector(self._detector, marker_id)
         self._charuco = None
         if board is not None and board.kind == "charuco":
             cp = cv2.aruco.CharucoParameters()
@@ -825,8 +959,12 @@ class MarkerTracker:
 
     def detect(self, image) -> Detection:
         """Detect the markers of this tracker's dictionary (no pose)."""
-        corners, ids, rejected = self._detector.detectMarkers(_gray(image))
-        return _detection(corners, ids, rejected, self.params)
+        gray = _gray(image)
+        corners, ids, rejected = self._detector.detectMarkers(gray)
+        det = _detection(corners, ids, rejected, self.params)
+        if self.refine == "edge" and len(det):
+            det.corners = refine_corners_edges(gray, det.corners, self._intrinsics_for(gray)[0])
+        return det
 
     # -- pose ------------------------------------------------------------------------------------------
     def estimate(self, image_bgr, previous=None) -> MarkerPose:
@@ -889,6 +1027,8 @@ class MarkerTracker:
         det = _detection(corners, ids, rejected, self.params)
         if len(det) == 0:
             raise MarkerNotFoundError(f"no marker of {self.dictionary_name} found")
+        if self.refine == "edge":
+            det.corners = refine_corners_edges(gray, det.corners, intr)
         found = sorted(set(det.ids.tolist()))
         if self.marker_id is not None:
             if self.marker_id not in found:

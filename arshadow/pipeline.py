@@ -193,19 +193,15 @@ class Compositor:
             from .marker import MarkerTracker
 
             intr, scaled = self.intrinsics.for_image(width, height)
-            tracker = MarkerTracker(intr, **self.tracker_kwargs)
+            # video: each tracker searches a window around its last detection first (the planner's tracking
+            # ROI, full-frame fallback: arshadow/roi_track.py)
+            roi = bool(self.options.track_roi and self.options.plan != "general"
+                       and "board" not in self.tracker_kwargs)
+            tracker = MarkerTracker(intr, **self.tracker_kwargs, track_roi=roi)
             fast = None
             if self.options.fast_detect and "detector_params" not in self.tracker_kwargs:
-                fast = MarkerTracker(intr, **self.tracker_kwargs, detector="fast")
+                fast = MarkerTracker(intr, **self.tracker_kwargs, detector="fast", track_roi=roi)
             lens = self._lens_for(intr) if intr.has_distortion else None
-            if self.options.track_roi and self.options.plan != "general" and "board" not in self.tracker_kwargs:
-                # video: each tracker searches a window around its last detection first (the planner's
-                # tracking ROI, full-frame fallback: arshadow/roi_track.py)
-                from .roi_track import TrackingDetector
-
-                for trk in (tracker, fast):
-                    if trk is not None and hasattr(trk, "_detector"):
-                        trk._detector = TrackingDetector(trk._detector, self.tracker_kwargs.get("marker_id"))
             c = self._calibs[key] = CalibrationState(intr, scaled, tracker, lens, fast)
         return c
 

@@ -312,7 +312,7 @@ def _check_silhouette_name(name: str) -> None:
 SCENE_KEYS = ("calib", "marker_length", "board", "dictionary", "marker_id", "refine", "model", "scale", "rotate",
               "place", "color", "lights", "soft_samples", "silhouette", "shadow_method", "opacity",
               "shadow_color", "aa", "ground_size", "no_object", "roi", "truncate", "fast_detect", "plan", "compose",
-              "shadowmap_size")
+              "shadowmap_size", "track_roi")
 
 
 def _triple(v, key):
@@ -408,7 +408,7 @@ def scene_from_dict(d, base_dir=None) -> SceneSpec:
         opts["shadow_color"] = parse_rgb(d["shadow_color"], "--shadow-color")
     for key, conv in (("opacity", float), ("shadow_method", str), ("shadowmap_size", int), ("silhouette", str), ("soft_samples", int),
                       ("aa", int), ("ground_size", float), ("roi", bool), ("truncate", bool),
-                      ("fast_detect", bool), ("plan", str), ("compose", str)):
+                      ("fast_detect", bool), ("plan", str), ("compose", str), ("track_roi", bool)):
         if d.get(key) is not None:
             try:
                 opts[key] = conv(d[key])

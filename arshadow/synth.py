@@ -30,7 +30,7 @@ from .errors import UsageError
 from .marker import Board, get_dictionary, marker_bits, marker_object_points
 from .transforms import transform_points
 
-__all__ = ["SynthPhoto", "render_marker_photo", "look_at_pose", "random_pose", "camera_path"]
+__all__ = ["SynthPhoto", "render_marker_photo", "look_at_pose", "random_pose", "camera_path", "pan_path"]
 
 PAPER_WHITE = 235.0
 INK_BLACK = 22.0
@@ -213,6 +213,30 @@ def camera_path(n: int, *, radius=0.55, height=(0.3, 0.5), sweep_deg=120.0, star
         eye = np.array([radius * math.cos(ang[i]), radius * math.sin(ang[i]), h[i]])
         tgt = target_wobble * np.array([math.sin(5.1 * t[i] + phase), math.cos(3.7 * t[i] + 1.3 * phase), 0.0])
         out[i] = look_at_pose(eye, tgt)
+    return out
+
+
+def pan_path(n: int, *, eye=(0.05, -0.5, 0.4), target=(-0.06, 0.0, 0.0), deg_per_frame=0.25,
+             axis=(0.0, 0.0, 1.0)) -> np.ndarray:
+    """A steady pan: ``(n, 4, 4)`` float64 ``cam_from_world``, the camera fixed at ``eye`` turning about
+    ``axis`` (world, through the eye) at a constant ``deg_per_frame``, starting by looking at ``target``.
+
+    With a constant angular velocity and a fixed camera centre every pixel moves at a near-constant
+    speed: the test case for the lag of a pose filter.
+    """
+    if n < 1:
+        raise UsageError("pan_path needs n >= 1 frames")
+    p0 = look_at_pose(eye, target)
+    a = np.asarray(axis, np.float64) / np.linalg.norm(axis)
+    c = np.asarray(eye, np.float64)
+    out = np.empty((n, 4, 4))
+    for i in range(n):
+        th = math.radians(deg_per_frame * i)
+        R = cv2.Rodrigues(a * th)[0]  # world rotation of the camera about the axis through the eye
+        rot = p0[:3, :3] @ R.T
+        out[i] = np.eye(4)
+        out[i, :3, :3] = rot
+        out[i, :3, 3] = -rot @ c
     return out
 
 

@@ -210,7 +210,7 @@ def test_video_end_to_end_mask_iou_against_oracle(tmp_path, tol, gl_ctx):
     out = tmp_path / "out"
     rc = _run_cli("video", clip, "--calib", CALIB, "--marker-length", "0.05", "--model", "box:0.04,0.03,0.06",
                   "--place", "0.05,0,0", "--light", "point:-0.1,0.15,0.4", "-o", out, "--save-mask",
-                  "--format", "mkv", "--report", out / "r.json", "-q")
+                  "--format", "mkv", "--report", out / "r.json", "-q", "--hold", "0")
     assert rc == 0
     rep = json.loads((out / "r.json").read_text())
     items = rep["images"]
@@ -318,7 +318,8 @@ def test_cli_bad_videos_one_line_each_others_processed(tmp_path, capsys):
     junk = tmp_path / "junk.avi"
     junk.write_bytes(b"\x00garbage" * 200)
     out = tmp_path / "o"
-    rc = _run_cli("video", tmp_path / "missing.mp4", junk, good, *_scene(), "-o", out, "--report", out / "r.json")
+    rc = _run_cli("video", tmp_path / "missing.mp4", junk, good, *_scene(), "-o", out, "--report", out / "r.json",
+                  "-q")
     assert rc == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 2, err
@@ -328,7 +329,8 @@ def test_cli_bad_videos_one_line_each_others_processed(tmp_path, capsys):
     assert (out / "good.mp4").is_file() and not (out / "junk.mp4").exists()
     rep = json.loads((out / "r.json").read_text())
     assert [v["status"] for v in rep["videos"]] == ["error", "error", "ok"]
-    assert sorted(p.name for p in out.iterdir()) == ["good.mp4", "r.json"]  # no temporaries
+    assert sorted(p.name for p in out.iterdir()) == ["good.frames.jsonl", "good.mp4", "good.sheet.jpg",
+                                                     "r.json"]  # no temporaries
 
 
 def test_cli_bad_usage_exit_2(tmp_path, capsys):

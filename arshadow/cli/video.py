@@ -27,7 +27,67 @@ exit status: 0 all videos done, 1 some video failed (unreadable, unwritable, or 
 other videos were processed), 2 bad usage / configuration.
 """
 
-FORMATS = ("mp4", "avi", "mkv")
+FORMATS = ("mp4", "mkv", "mov", "avi")
+#: default codec per container
+FORMAT_CODEC = {"mp4": "h264", "mov": "h264", "mkv": "ffv1", "avi": "mjpeg"}
+
+
+def add_output_options(out) -> None:
+    """The video output options shared by ``arshadow video`` and ``arshadow batch``."""
+    out.add_argument("--format", choices=FORMATS, default="mp4",
+                     help="container of the output video: mp4 (H.264, default), mov, mkv (FFV1 lossless), "
+                          "avi (MJPEG)")
+    out.add_argument("--codec", choices=("h264", "mpeg4", "mjpeg", "ffv1"),
+                     help="video codec (default: the container's, see --format)")
+    out.add_argument("--crf", type=float, default=20.0, metavar="Q",
+                     help="H.264 quality, constant rate factor 0 (lossless) .. 51 (default 20)")
+    out.add_argument("--preset", default="ultrafast",
+                     help="x264 speed preset (default ultrafast; slower presets give smaller files)")
+    out.add_argument("--save-mask", nargs="?", const="mkv", choices=("mkv", "png"), metavar="mkv|png",
+                     help="also write the shadow mask: DIR/<stem>.shadow.mkv (lossless FFV1, default) or "
+                          "DIR/<stem>.shadow/NNNNNN.png")
+    out.add_argument("--contact-sheet", type=int, default=12, metavar="N",
+                     help="frames on DIR/<stem>.sheet.jpg (default 12; 0 = none)")
+    out.add_argument("--no-audio", action="store_true", help="do not copy the input's audio")
+
+
+def engine_options(args, collect_items=False):
+    """:class:`arshadow.video_engine.EngineOptions` from the parsed options."""
+    from ..video_engine import EngineOptions
+
+    return EngineOptions(
+        fmt=args.format, codec=args.codec or FORMAT_CODEC[args.format], crf=args.crf, preset=args.preset,
+        mask=args.save_mask, pose_lag=None if getattr(args, "no_temporal", False) else getattr(args, "pose_lag", 16),
+        smooth=getattr(args, "smooth", 10), hold=getattr(args, "hold", 12), max_frames=getattr(args, "max_frames", None),
+        contact_sheet=args.contact_sheet, keep_audio=not args.no_audio, collect_items=collect_items).check()
+
+
+def progress_bar(quiet: bool):
+    """A ``progress_factory`` for :func:`arshadow.video_engine.run_videos`: a tqdm bar per video."""
+    if quiet:
+        return None
+
+    def factory(name):
+        from tqdm import tqdm
+
+        bars = []  # made on the first frame: a video that cannot be opened prints only its error line
+
+        def update(done, total):
+            if not bars:
+                bars.append(tqdm(desc=Path(name).name, unit="frame", total=total, dynamic_ncols=True,
+                                 file=sys.stderr, leave=True))
+            bar = bars[0]
+            if total and bar.total != total:
+                bar.total = total
+            bar.update(done - bar.n)
+
+        def close():
+            if bars:
+                bars[0].close()
+
+        return update, close
+
+    return factory
 
 
 def register(subparsers) -> None:
@@ -54,19 +114,23 @@ def register(subparsers) -> None:
     v.add_argument("--pose-lag", type=int, default=16, metavar="K",
                    help="frames of look-ahead for the temporally consistent IPPE choice (default 16; 0 = the "
                         "solution consistent with the previous frame)")
-    v.add_argument("--corner-refine", choices=("apriltag", "subpix", "contour", "none"), default="apriltag",
-                   help="ArUco corner refinement (default apriltag: unbiased; subpix, the photo default, puts "
-                        "small markers 1-4 %% too far at 640x360, see docs/video.md)")
+    v.add_argument("--corner-refine", choices=("edge", "apriltag", "subpix", "contour", "none"), default="edge",
+                   help="corner refinement (default edge: the four border edges fitted at full resolution and "
+                        "intersected, unbiased and fast; subpix puts small markers 1-4 %% too far; apriltag is "
+                        "unbiased but ~10x slower; see docs/video.md)")
+    v.add_argument("--smooth", type=int, default=10, metavar="K",
+                   help="pose smoothing: centred local-quadratic fit over 2K+1 frames (default 10; zero lag on "
+                        "steady motion; 0 = raw poses)")
+    v.add_argument("--hold", type=int, default=12, metavar="N",
+                   help="frames a lost marker's last pose is held before frames pass through untouched "
+                        "(default 12)")
     v.add_argument("--no-temporal", action="store_true",
                    help="choose each frame's pose by reprojection error alone (as for photos)")
     out = p.add_argument_group("output")
     out.add_argument("-o", "--output", required=True, metavar="DIR", help="output folder (created if missing)")
-    out.add_argument("--format", choices=FORMATS, default="mp4",
-                     help="container of the output video: mp4 (MPEG-4 part 2, default), avi (MJPEG), "
-                          "mkv (FFV1, lossless)")
-    out.add_argument("--save-mask", action="store_true", help="also write DIR/<stem>.shadow.mkv (lossless)")
+    add_output_options(out)
     out.add_argument("--report", metavar="R.json", help="write the JSON report (one item per frame)")
-    out.add_argument("--quiet", "-q", action="store_true", help="no per-video progress lines")
+    out.add_argument("--quiet", "-q", action="store_true", help="no progress bar, no per-video lines")
     p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
                    help="show tracebacks and debug logging")
     p.set_defaults(func=run)
@@ -121,262 +185,54 @@ def build_lights(args):
     return static, tracks, tl
 
 
-def output_paths(inputs, outdir: Path, fmt: str):
-    """Map each video to ``(output, mask)``; stems that collide get ``_2``, ``_3``... ."""
-    seen: dict[str, int] = {}
-    res = []
-    for inp in inputs:
-        stem = Path(inp).stem.replace("%", "") or "video"
-        n = seen.get(stem.lower(), 0) + 1
-        seen[stem.lower()] = n
-        if n > 1:
-            stem = f"{stem}_{n}"
-        res.append((outdir / f"{stem}.{fmt}", outdir / f"{stem}.shadow.mkv"))
-    return res
-
-
 def run(args) -> int:
-    import dataclasses
-
     from ..errors import UsageError
-    from ..gl.context import create_context
     from ..io import write_json
-    from ..report import make_report
+    from ..report import jsonable, make_report
+    from ..scene import scene_from_args
+    from ..session import Session
+    from ..video_engine import SessionBackend, run_videos
     from . import quiet_opencv
-    from .render import build_scene
 
     debug = bool(getattr(args, "debug", False))
     quiet_opencv(debug)
-    if args.max_frames is not None and args.max_frames < 1:
-        raise UsageError(f"--max-frames {args.max_frames}: must be >= 1")
-    if args.pose_lag < 0:
-        raise UsageError(f"--pose-lag {args.pose_lag}: must be >= 0")
+    opts = engine_options(args, collect_items=bool(args.report))
     static, tracks, tl = build_lights(args)
-    # a sun track's lights are set per frame: the scene builder gets the static lights only
-    intr, caster, _, opts, tracker = build_scene(args, lights=static)
-    tracker["refine"] = args.corner_refine
     # video: search the marker near the last detection first (not with --plan general)
-    opts = dataclasses.replace(opts, track_roi=True)
+    spec = scene_from_args(args, refine=args.corner_refine, track_roi=True)
     outdir = Path(args.output)
     if outdir.exists() and not outdir.is_dir():
         raise UsageError(f"-o {outdir}: exists and is not a folder")
-    ctx = create_context()
-    try:
-        items, summaries, failed = _process_all(args, ctx, intr, caster, static, tracks, tl, opts, tracker,
-                                                outdir, debug)
-    finally:
-        ctx.release()
+    first = list(static)
+    for tr in tracks:
+        tr.reset()
+        first.append(tr.light(tr.update(tl[0])))
+        tr.reset()
+    with Session(spec, lights=first) as session:
+        if tracks:
+            session.use_sun_tracks(tracks, static)
+        backend = SessionBackend(session, tracks, tl)
+
+        def on_error(exc):
+            if debug:
+                raise exc
+
+        summaries, items = run_videos(backend, args.videos, outdir, opts,
+                                      progress_factory=progress_bar(args.quiet), on_error=on_error)
+    failed = 0
+    for s in summaries:
+        for w in s.get("warnings", []):
+            print(f"arshadow video: warning: {w}", file=sys.stderr)
+        if s["status"] == "error":
+            print(f"arshadow video: error: {s['error']}", file=sys.stderr)
+        if s["status"] != "ok":
+            failed += 1
+        elif not args.quiet:
+            print(f"{s['input']} -> {s['output']}  ({s['frames']} frames: {s['frames_ok']} tracked, "
+                  f"{s['frames_held']} held, {s['frames_no_marker']} without marker; "
+                  f"{s['fps_processed']:.1f} fps)", file=sys.stdout)
     if args.report:
         rep = make_report(items)
-        from ..report import jsonable
-
         rep["videos"] = jsonable(summaries)
         write_json(args.report, rep)
     return EXIT_SOME_FAILED if failed else EXIT_OK
-
-
-def _process_all(args, ctx, intr, caster, static, tracks, tl, opts, tracker, outdir, debug):
-    from ..errors import ArshadowError
-    from ..pipeline import Compositor
-    from ..report import ReportItem
-    from .render import _same_file
-
-    first_lights = list(static)
-    if tracks:
-        for tr in tracks:
-            tr.reset()
-            first_lights.append(tr.light(tr.update(tl[0])))
-            tr.reset()
-    items, summaries, failed = [], [], 0
-    paths = output_paths(args.videos, outdir, args.format)
-    inputs = [Path(v) for v in args.videos]
-    with Compositor(ctx, intr, caster, first_lights, opts, tracker=tracker) as comp:
-        for inp, (out_path, mask_path) in zip(args.videos, paths):
-            summary = {"input": str(inp), "output": None, "mask": None, "status": "ok", "error": None}
-            try:
-                if any(_same_file(out_path, i) or _same_file(mask_path, i) for i in inputs):
-                    from ..errors import ImageError
-
-                    raise ImageError(f"{out_path}: output would overwrite an input; choose another -o folder")
-                frame_items = process_video(comp, inp, out_path, mask_path if args.save_mask else None,
-                                            static=static, tracks=tracks, time_lapse=tl,
-                                            max_frames=args.max_frames,
-                                            pose_lag=None if args.no_temporal else args.pose_lag,
-                                            summary=summary)
-                items.extend(frame_items)
-                if summary["frames_ok"] == 0:
-                    failed += 1
-                    summary["status"] = "no_marker"
-                    summary["error"] = f"{inp}: the marker was found in none of the {summary['frames']} frames"
-                    print(error_line("video", str(inp), "the marker was found in no frame (video written "
-                                                        "unchanged)"), file=sys.stderr)
-                elif not args.quiet:
-                    print(f"{inp} -> {out_path}  ({summary['frames']} frames, {summary['frames_no_marker']} "
-                          f"without marker, {summary['frame_ms_median']:.1f} ms/frame median)", file=sys.stdout)
-            except (ArshadowError, OSError, MemoryError) as exc:
-                if debug:
-                    raise
-                failed += 1
-                msg = str(exc) if isinstance(exc, ArshadowError) else f"{type(exc).__name__}: {exc}"
-                summary.update(status="error", error=msg, output=None, mask=None)
-                print(_error_line(inp, msg), file=sys.stderr)
-                it = ReportItem(input=str(inp), status="error", error=msg)
-                it.extra["frame"] = None
-                items.append(it)
-            summaries.append(summary)
-    return items, summaries, failed
-
-
-def _error_line(inp, msg) -> str:
-    return f"arshadow video: error: {msg}" if str(inp) in msg else error_line("video", str(inp), msg)
-
-
-# --------------------------------------------------------------------------------------------------
-def process_video(comp, path, out_path, mask_path=None, *, static=(), tracks=(), time_lapse=None,
-                  max_frames=None, pose_lag=16, summary=None):
-    """Composite every frame of one video; write the output (and mask) video atomically.
-
-    Parameters
-    ----------
-    comp : arshadow.pipeline.Compositor
-    path : str
-        The input video.
-    out_path, mask_path : Path
-        Output video, and the lossless mask video (None: no mask).
-    static : list of Light
-        Lights fixed over the video (with ``tracks``; without tracks the compositor's own lights are used).
-    tracks : list of arshadow.sun.SunTrack
-        Sun lights following the frame times (``time_lapse = (start, speed)``).
-    pose_lag : int or None
-        Look-ahead of :class:`arshadow.video.TemporalPoseChooser`; None: pose by reprojection error only.
-    summary : dict, optional
-        Filled with the per-video summary.
-
-    Returns
-    -------
-    list of ReportItem
-        One per frame.
-
-    Raises
-    ------
-    ImageError, CalibrationError
-        Unreadable video, a frame size the calibration does not fit, an unwritable output.
-    """
-    import contextlib
-    from datetime import timedelta
-
-    import numpy as np
-
-    from ..errors import MarkerNotFoundError
-    from ..pipeline import STAGES
-    from ..report import ReportItem
-    from ..video import AtomicVideoWriter, TemporalPoseChooser, VideoReader
-
-    summary = {} if summary is None else summary
-    reader = VideoReader(path, max_frames=max_frames)
-    try:
-        W, H = reader.width, reader.height
-        cal = comp.calib_for(W, H)  # CalibrationError: the size does not fit the calibration
-        trackers = [t for t in (getattr(cal, "fast_tracker", None), cal.tracker) if t is not None]
-        chooser = None if pose_lag is None else TemporalPoseChooser(lag=pose_lag, fps=reader.fps)
-        for tr in tracks:
-            tr.reset()
-        items = []
-        frame_ms = []
-        stats = dict(frames=0, frames_ok=0, frames_no_marker=0, swapped=0, recomputes=0)
-
-        def estimate(image, timings):
-            t = time.perf_counter()
-            err = None
-            for k, trk in enumerate(trackers):
-                try:
-                    pose = trk.estimate(image)
-                    break
-                except MarkerNotFoundError as exc:
-                    err = exc
-            else:
-                pose = None
-            timings["detect"] += (time.perf_counter() - t) * 1e3
-            return pose, err
-
-        # each frame is encoded as soon as it is composited: one output (and mask) buffer per video
-        out_buf = np.empty((H, W, 3), np.uint8)
-        mask_buf = np.empty((H, W), np.uint8)
-        no_mask = np.zeros((H, W), np.uint8)
-        mask_ctx = (AtomicVideoWriter(mask_path, reader.fps, (W, H), color=False) if mask_path is not None
-                    else contextlib.nullcontext())
-        with AtomicVideoWriter(out_path, reader.fps, (W, H)) as vw, mask_ctx as mw:
-
-            def finish(payload, pose, swapped):
-                fr, timings, err = payload
-                t0 = time.perf_counter()
-                item = ReportItem(input=str(path), output=str(out_path),
-                                  mask=None if mask_path is None else str(mask_path))
-                item.extra.update(frame=fr.index, time_s=round(fr.time_s, 6))
-                if cal.was_scaled:
-                    item.extra["calibration_scaled"] = {"from": [comp.intrinsics.width, comp.intrinsics.height],
-                                                        "to": [W, H]}
-                if tracks:
-                    when = time_lapse[0] + timedelta(seconds=fr.time_s * time_lapse[1])
-                    sun_frames = [tr.update(when) for tr in tracks]
-                    comp.set_lights(list(static) + [tr.light(f) for tr, f in zip(tracks, sun_frames)])
-                    n_rec = sum(f.recompute for f in sun_frames)
-                    stats["recomputes"] += n_rec
-                    item.extra["sun"] = [
-                        {"time": f.when.isoformat(), "zenith_deg": round(f.position.zenith_deg, 5),
-                         "azimuth_deg": round(f.position.azimuth_deg, 5), "above_horizon": bool(f.above_horizon),
-                         "recompute": bool(f.recompute), "stale_deg": round(f.stale_deg, 5)} for f in sun_frames]
-                    if comp.notes:
-                        item.extra["notes"] = list(comp.notes)
-                if pose is None:
-                    out = fr.image
-                    mask = no_mask
-                    item.status, item.error = "no_marker", str(err) if err else "no marker found"
-                    stats["frames_no_marker"] += 1
-                else:
-                    item.set_pose(pose)
-                    item.extra["pose_choice"] = "temporal (alternative IPPE solution)" if swapped else "error"
-                    stats["swapped"] += int(swapped)
-                    out, mask, info = comp.render_pose(fr.image, cal.intrinsics, np.asarray(pose.cam_from_world),
-                                                       lens=cal.lens, timings=timings,
-                                                       want_mask=mask_path is not None, out=out_buf,
-                                                       mask_out=mask_buf)
-                    item.mode = info["mode"]
-                    item.silhouette_edges = info["silhouette_edges"]
-                    item.extra.update({k: v for k, v in info.items() if k not in ("mode", "silhouette_edges")})
-                    stats["frames_ok"] += 1
-                timings["total"] += timings["detect"] + (time.perf_counter() - t0) * 1e3
-                t1 = time.perf_counter()
-                vw.write(out)
-                if mask_path is not None:
-                    mw.write(mask)
-                item.extra["encode_ms"] = round((time.perf_counter() - t1) * 1e3, 3)
-                item.timings_ms = {k: round(v, 3) for k, v in timings.items()}
-                frame_ms.append(timings["total"])
-                stats["frames"] += 1
-                items.append(item)
-
-            t_dec = time.perf_counter()
-            for fr in reader:
-                timings = dict.fromkeys(STAGES, 0.0)
-                timings["decode"] = (time.perf_counter() - t_dec) * 1e3
-                pose, err = estimate(fr.image, timings)
-                if chooser is None:
-                    finish((fr, timings, err), pose, False)
-                else:
-                    for ch in chooser.push((fr, timings, err), pose, fr.time_s):
-                        finish(ch.payload, ch.pose, ch.swapped)
-                t_dec = time.perf_counter()
-            if chooser is not None:
-                for ch in chooser.flush():
-                    finish(ch.payload, ch.pose, ch.swapped)
-        fm = np.asarray(frame_ms) if frame_ms else np.zeros(1)
-        summary.update(stats, output=str(out_path), mask=None if mask_path is None else str(mask_path),
-                       fps=reader.fps, fps_assumed=reader.fps_assumed, size=[W, H],
-                       truncated=reader.truncated,
-                       frame_ms_median=float(np.median(fm)),
-                       frame_ms_iqr=[float(np.percentile(fm, 25)), float(np.percentile(fm, 75))],
-                       frame_ms_minmax=[float(fm.min()), float(fm.max())])
-        return items
-    finally:
-        reader.close()

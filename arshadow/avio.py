@@ -1,0 +1,401 @@
+"""Video input and output through PyAV (FFmpeg): decoding with timestamps, H.264 encoding, audio kept.
+
+:class:`AvReader`
+    The frames of a video file as :class:`arshadow.video.VideoFrame` (BGR, presentation time), with the
+    stream's declared frame count (a damaged tail is reported as ``truncated``), packets that fail to
+    decode counted (``n_decode_errors``) instead of ending the video, and the audio stream's presence.
+:class:`AvWriter`
+    Encodes frames into a temporary file beside the target and renames it into place when the ``with``
+    block ends without an error (CONVENTIONS.md: never half-written): H.264 (``libx264``, CRF) by default,
+    FFV1 (lossless) for single-channel masks; the input's audio packets are copied unchanged.
+
+Why PyAV rather than OpenCV's writer: OpenCV's wheel has no H.264 encoder (MPEG-4 part 2 only, ~2x the
+bits for the same quality), no audio, and no CRF; measured in docs/video.md. ``av`` is an optional
+dependency (``pip install arshadow[video]``); :func:`have_av` says whether it is there.
+
+Frames (CONVENTIONS.md): images are ``(H, W, 3) uint8`` BGR, row 0 at the top.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import sys
+from dataclasses import dataclass
+from fractions import Fraction
+from pathlib import Path
+
+import numpy as np
+
+from .errors import ImageError, UsageError
+from .video import VideoFrame
+
+__all__ = ["have_av", "AvReader", "AvWriter", "RawFrame", "VIDEO_CODECS"]
+
+#: ``--codec`` choices -> (FFmpeg encoder, pixel format, container extensions it suits)
+VIDEO_CODECS = {
+    "h264": ("libx264", "yuv420p"),
+    "mpeg4": ("mpeg4", "yuv420p"),
+    "mjpeg": ("mjpeg", "yuvj420p"),
+    "ffv1": ("ffv1", "bgr0"),
+}
+
+
+@dataclass(frozen=True)
+class RawFrame:
+    """A decoded frame as the decoder gave it (:class:`AvReader` with ``raw=True``).
+
+    Attributes
+    ----------
+    index : int
+    time_s : float
+    image : ndarray
+        ``(H * 3 // 2, W) uint8`` planar Y, U, V when ``format == "yuv420p"``; else ``(H, W, 3) uint8`` BGR.
+    format : str
+        ``"yuv420p"`` or ``"bgr24"``.
+    """
+
+    index: int
+    time_s: float
+    image: np.ndarray
+    format: str = "bgr24"
+
+
+def have_av() -> bool:
+    """True when PyAV (``av``) can be imported (``pip install arshadow[video]``)."""
+    try:
+        import av  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def _av():
+    try:
+        import av
+    except ImportError:
+        raise UsageError("video encoding needs PyAV: pip install 'arshadow[video]'") from None
+    av.logging.set_level(av.logging.PANIC)  # FFmpeg's own chatter: arshadow reports one line of its own
+    return av
+
+
+class AvReader:
+    """The frames of a video file, decoded by FFmpeg (PyAV), with timestamps.
+
+    Parameters
+    ----------
+    path : str or Path
+    max_frames : int, optional
+        Stop after this many frames.
+    threads : int
+        Decoder threads (0: FFmpeg's choice).
+    raw : bool
+        Yield :class:`RawFrame` (planar ``yuv420p`` kept when the stream has it) instead of BGR
+        :class:`arshadow.video.VideoFrame`.
+
+    Attributes
+    ----------
+    fps : Fraction-like float
+        The stream's average frame rate (25 assumed, ``fps_assumed``, when it declares none).
+    rate : Fraction
+        The same as an exact fraction (for the writer).
+    width, height : int
+    frame_count : int or None
+        Frames the container declares (None if it declares none).
+    has_audio : bool
+    n_read, n_decode_errors : int
+        Frames decoded so far; packets that failed to decode (skipped).
+
+    Raises
+    ------
+    ImageError
+        Missing, empty, or not a decodable video.
+    """
+
+    def __init__(self, path, max_frames: int | None = None, threads: int = 0, raw: bool = False):
+        av = _av()
+        self.raw = bool(raw)
+        self.path = str(path)
+        p = Path(self.path)
+        if not p.exists():
+            raise ImageError(f"{self.path}: no such video file")
+        if p.is_dir():
+            raise ImageError(f"{self.path}: is a folder, not a video")
+        if p.stat().st_size == 0:
+            raise ImageError(f"{self.path}: empty file, not a video")
+        if max_frames is not None and int(max_frames) < 1:
+            raise UsageError(f"--max-frames {max_frames}: must be >= 1")
+        self.max_frames = None if max_frames is None else int(max_frames)
+        try:
+            self._c = av.open(self.path, "r")
+        except (av.FFmpegError, OSError, ValueError) as exc:
+            raise ImageError(f"{self.path}: cannot open as a video ({_short(exc)})") from None
+        if not self._c.streams.video:
+            self._c.close()
+            raise ImageError(f"{self.path}: no video stream")
+        vs = self._vs = self._c.streams.video[0]
+        vs.thread_type = "AUTO"
+        if threads:
+            vs.codec_context.thread_count = int(threads)
+        rate = vs.average_rate or vs.guessed_rate
+        self.fps_assumed = not (rate and 0 < float(rate) < 1e4)
+        self.rate = Fraction(25, 1) if self.fps_assumed else Fraction(rate.numerator, rate.denominator)
+        self.fps = float(self.rate)
+        n = int(vs.frames or 0)
+        if n <= 0 and vs.duration and vs.time_base:
+            n = int(round(float(vs.duration * vs.time_base) * self.fps))
+        if n <= 0 and self._c.duration:  # e.g. Matroska: the container's duration (microseconds)
+            n = int(round(self._c.duration / 1e6 * self.fps))
+        self.frame_count = n if n > 0 else None
+        self.width, self.height = int(vs.codec_context.width), int(vs.codec_context.height)
+        self.has_audio = bool(self._c.streams.audio)
+        self.pix_fmt = vs.codec_context.pix_fmt
+        self.n_read = 0
+        self.n_decode_errors = 0
+        self.ended_with_error = False
+        self._started = False
+        if self.width <= 0 or self.height <= 0:
+            self.close()
+            raise ImageError(f"{self.path}: no decodable frame (unknown frame size)")
+
+    def __iter__(self):
+        if self._started:
+            raise UsageError(f"{self.path}: an AvReader can be iterated only once")
+        self._started = True
+        av = _av()
+        t0 = None
+        last_t = -math.inf
+        index = 0
+        try:
+            for packet in self._c.demux(self._vs):
+                try:
+                    frames = packet.decode()
+                except av.FFmpegError:
+                    self.n_decode_errors += 1
+                    continue
+                for f in frames:
+                    if self.max_frames is not None and index >= self.max_frames:
+                        return
+                    fmt = "yuv420p" if (self.raw and f.format.name == "yuv420p" and not (f.width % 2 or f.height % 2)) \
+                        else "bgr24"
+                    img = f.to_ndarray(format=fmt)
+                    t = f.time
+                    if t is None or not math.isfinite(t):
+                        t = index / self.fps
+                    else:
+                        t0 = t if t0 is None else t0
+                        t -= t0
+                    if not t > last_t:
+                        t = max(index / self.fps, last_t + 1e-6)
+                    last_t = t
+                    img.setflags(write=False)
+                    self.n_read += 1
+                    yield RawFrame(index, float(t), img, fmt) if self.raw else VideoFrame(index, float(t), img)
+                    index += 1
+        except av.FFmpegError:
+            self.ended_with_error = True
+        finally:
+            self.close()
+
+    @property
+    def truncated(self) -> bool:
+        """The stream ended early: fewer frames than declared, or a read error ended it."""
+        if self.max_frames is not None and self.n_read >= self.max_frames:
+            return False
+        got = self.n_read + self.n_decode_errors  # a damaged packet is not a missing tail
+        return self.ended_with_error or (self.frame_count is not None and got < self.frame_count - 1)
+
+    def close(self):
+        c, self._c = getattr(self, "_c", None), None
+        if c is not None:
+            with contextlib.suppress(Exception):
+                c.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def _short(exc) -> str:
+    return str(exc).strip().splitlines()[-1][:120] if str(exc).strip() else type(exc).__name__
+
+
+class AvWriter:
+    """Encode frames into ``path`` atomically (temporary file, renamed when the block succeeds).
+
+    Parameters
+    ----------
+    path : str or Path
+        Target; its extension chooses the container (``.mp4``, ``.mkv``, ``.mov``, ``.avi``).
+    rate : Fraction or float
+        Frame rate (frames get consecutive timestamps at this rate).
+    size : (int, int)
+        ``(width, height)``.
+    codec : str
+        A key of :data:`VIDEO_CODECS` (``h264`` default), ignored for ``color=False`` (FFV1 gray).
+    crf : float
+        Constant rate factor of ``h264`` (0 lossless .. 51; 18-23 visually transparent to good).
+    preset : str
+        x264 speed preset (``veryfast`` default: measured in docs/video.md).
+    color : bool
+        ``(H, W, 3)`` BGR frames (True) or ``(H, W)`` uint8 frames (False: lossless FFV1 gray).
+    audio_from : str or Path, optional
+        Copy this file's first audio stream (packets unchanged) into the output.
+    threads : int
+        Encoder threads (0: the encoder's choice).
+    pix_fmt : str, optional
+        Encode in this pixel format instead of the codec's default (``ffv1`` of ``yuv420p`` input: keep
+        ``yuv420p``, so frames written with :meth:`write_yuv420p` stay bit-exact).
+
+    Raises
+    ------
+    ImageError
+        Unwritable target, a codec the container refuses, a frame of the wrong size.
+    """
+
+    def __init__(self, path, rate, size, *, codec: str = "h264", crf: float = 20, preset: str = "veryfast",
+                 color: bool = True, audio_from=None, threads: int = 0, pix_fmt: str | None = None):
+        self.path = Path(path)
+        if codec not in VIDEO_CODECS:
+            raise UsageError(f"--codec {codec}: use one of {', '.join(VIDEO_CODECS)}")
+        if not (0 <= float(crf) <= 51):
+            raise UsageError(f"--crf {crf}: must be 0..51")
+        self.rate = Fraction(rate).limit_denominator(1_000_000) if not isinstance(rate, Fraction) else rate
+        if not self.rate > 0:
+            raise UsageError(f"{self.path}: frame rate must be positive, got {rate}")
+        self.size = (int(size[0]), int(size[1]))
+        self.codec, self.crf, self.preset, self.color = codec, float(crf), preset, bool(color)
+        self.audio_from, self.threads, self.pix_fmt = audio_from, int(threads), pix_fmt
+        self.n_written = 0
+        self.audio_copied = False
+        self._stack = self._c = self._vs = None
+
+    def __enter__(self):
+        from .io import atomic_path
+
+        av = _av()
+        stack = contextlib.ExitStack()
+        try:
+            self.tmp_path = stack.enter_context(atomic_path(self.path))
+            try:
+                fmt = _container_format(self.path)
+                c = av.open(str(self.tmp_path), "w", format=fmt,
+                            options={"movflags": "+faststart"} if fmt in ("mp4", "mov") else None)
+            except (av.FFmpegError, OSError, ValueError) as exc:
+                raise ImageError(f"{self.path}: cannot write ({_short(exc)})") from None
+            stack.callback(c.close)
+            name, pix = VIDEO_CODECS[self.codec] if self.color else ("ffv1", "gray")
+            if self.pix_fmt is not None and self.color:
+                pix = self.pix_fmt
+            try:
+                vs = c.add_stream(name, rate=self.rate)
+            except (av.FFmpegError, ValueError) as exc:
+                raise ImageError(f"{self.path}: cannot encode {name} ({_short(exc)})") from None
+            vs.width, vs.height = self.size
+            vs.pix_fmt = pix
+            if self.threads:
+                vs.codec_context.thread_count = self.threads
+            if name == "libx264":
+                vs.options = {"crf": f"{self.crf:g}", "preset": self.preset}
+                if self.size[0] % 2 or self.size[1] % 2:
+                    raise ImageError(f"{self.path}: H.264 (yuv420p) needs an even frame size, got {self.size}; "
+                                     f"use --codec ffv1 or mpeg4")
+            elif name == "mpeg4":
+                vs.options = {"qscale": "3"}
+                vs.codec_context.qmin = 2
+            self._audio = None
+            if self.audio_from is not None:
+                self._audio = self._open_audio(av, c)
+            self._c, self._vs, self._stack = c, vs, stack
+        except BaseException:
+            stack.__exit__(*sys.exc_info())
+            raise
+        return self
+
+    def _open_audio(self, av, c):
+        try:
+            src = av.open(str(self.audio_from), "r")
+        except (av.FFmpegError, OSError):
+            return None
+        if not src.streams.audio:
+            src.close()
+            return None
+        try:
+            out = c.add_stream_from_template(src.streams.audio[0])
+        except (av.FFmpegError, ValueError):
+            src.close()
+            return None  # the container cannot hold this audio codec: the video is written without it
+        return src, src.streams.audio[0], out
+
+    def write(self, frame: np.ndarray) -> None:
+        """Append one frame: ``(H, W, 3) uint8`` BGR (``color``) or ``(H, W) uint8``."""
+        av = _av()
+        if self._vs is None:
+            raise UsageError("AvWriter.write outside its with-block")
+        f = np.asarray(frame)
+        want = (self.size[1], self.size[0], 3) if self.color else (self.size[1], self.size[0])
+        if f.shape != want or f.dtype != np.uint8:
+            raise ImageError(f"{self.path}: frame {self.n_written} is {f.shape} {f.dtype}, expected {want} uint8")
+        vf = av.VideoFrame.from_ndarray(np.ascontiguousarray(f), format="bgr24" if self.color else "gray")
+        vf.pts = self.n_written
+        vf.time_base = 1 / self.rate
+        for pkt in self._vs.encode(vf):
+            self._c.mux(pkt)
+        self.n_written += 1
+
+    def write_yuv420p(self, planes: np.ndarray) -> None:
+        """Append one frame given as planar ``(H * 3 // 2, W) uint8`` Y, U, V (BT.601, as decoded)."""
+        av = _av()
+        if self._vs is None:
+            raise UsageError("AvWriter.write_yuv420p outside its with-block")
+        f = np.asarray(planes)
+        if f.shape != (self.size[1] * 3 // 2, self.size[0]) or f.dtype != np.uint8 or not self.color:
+            raise ImageError(f"{self.path}: frame {self.n_written} is {f.shape} {f.dtype}, expected planar yuv420p")
+        vf = av.VideoFrame.from_ndarray(np.ascontiguousarray(f), format="yuv420p")
+        vf.pts = self.n_written
+        vf.time_base = 1 / self.rate
+        for pkt in self._vs.encode(vf):
+            self._c.mux(pkt)
+        self.n_written += 1
+
+    def __exit__(self, exc_type, exc, tb):
+        c, vs, stack = self._c, self._vs, self._stack
+        self._c = self._vs = self._stack = None
+        if stack is None:
+            return False
+        try:
+            if exc_type is None:
+                if self.n_written == 0:
+                    raise ImageError(f"{self.path}: no frame to write")
+                for pkt in vs.encode(None):
+                    c.mux(pkt)
+                if self._audio is not None:
+                    self._copy_audio(c)
+        except BaseException:
+            if stack.__exit__(*sys.exc_info()):
+                return True
+            raise
+        finally:
+            if self._audio is not None:
+                with contextlib.suppress(Exception):
+                    self._audio[0].close()
+        return stack.__exit__(exc_type, exc, tb)
+
+    def _copy_audio(self, c):
+        """Copy the source's audio packets up to the video's duration."""
+        src, ins, out = self._audio
+        end = self.n_written / float(self.rate)
+        for pkt in src.demux(ins):
+            if pkt.dts is None:
+                continue
+            if pkt.pts is not None and pkt.time_base and float(pkt.pts * pkt.time_base) > end:
+                break
+            pkt.stream = out
+            c.mux(pkt)
+        self.audio_copied = True
+
+
+def _container_format(path: Path) -> str | None:
+    return {".mkv": "matroska", ".mp4": "mp4", ".m4v": "mp4", ".mov": "mov", ".avi": "avi"}.get(path.suffix.lower())

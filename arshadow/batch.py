@@ -1,0 +1,271 @@
+"""Batches of photos and videos under one scene, resumable, locally or on a Dask cluster.
+
+:func:`run_batch` processes every input of a batch with one :class:`arshadow.scene.SceneSpec` and writes,
+per input, its outputs into ``OUT_DIR`` (photos: ``<stem>.png`` and ``<stem>.shadow.png``; videos: the
+outputs of :func:`arshadow.video_engine.process_video`), then a **done record**
+``OUT_DIR/.arshadow-batch/<stem>.json`` (the item's summary and the fingerprint of its input and settings),
+and at the end the summary ``OUT_DIR/batch.json``.
+
+Resuming: every output is written to a temporary name and renamed into place when complete, and the done
+record is written last. A rerun after an interruption (``kill -9`` included) therefore skips every item
+whose done record matches (same input file size and modification time, same scene and options, outputs
+present) and redoes the others from scratch; temporary files an interrupted run left behind are removed
+first. No output is ever half-written.
+
+Dask (``pip install arshadow[dask]``): ``run_batch(..., client=distributed.Client(...))`` runs one task
+per item; each worker builds its own :class:`arshadow.session.Session` (and OpenGL context) from the
+picklable spec once and reuses it for its later items. Workers write into ``OUT_DIR`` directly, so it must
+be a folder every worker sees (a shared file system); the outputs and records are the same as a local run.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+import shutil
+import time
+from pathlib import Path
+
+from .errors import ArshadowError, MarkerNotFoundError, UsageError
+
+__all__ = ["VIDEO_EXTENSIONS", "BatchItem", "plan_batch", "run_batch", "process_item", "clean_temporaries"]
+
+VIDEO_EXTENSIONS = {".mp4", ".m4v", ".mov", ".mkv", ".avi", ".webm", ".mpg", ".mpeg", ".ts", ".mts", ".wmv", ".flv"}
+RECORDS = ".arshadow-batch"
+
+
+@dataclasses.dataclass(frozen=True)
+class BatchItem:
+    """One input of a batch: ``kind`` ``"photo"`` or ``"video"``, its output ``stem``."""
+
+    input: str
+    kind: str
+    stem: str
+
+
+def plan_batch(inputs) -> list[BatchItem]:
+    """Classify inputs by extension (videos: :data:`VIDEO_EXTENSIONS`) and give each a unique stem."""
+    from .video_engine import unique_stems
+
+    inputs = [str(i) for i in inputs]
+    if not inputs:
+        raise UsageError("no input given")
+    return [BatchItem(i, "video" if Path(i).suffix.lower() in VIDEO_EXTENSIONS else "photo", s)
+            for i, s in zip(inputs, unique_stems(inputs))]
+
+
+def _fingerprint(item: BatchItem, spec, opts, save_mask) -> str:
+    """Input file identity (size, mtime) + scene + options: a changed input or setting redoes the item."""
+    try:
+        st = os.stat(item.input)
+        ident = [st.st_size, st.st_mtime_ns]
+    except OSError:
+        ident = None
+    blob = json.dumps([str(Path(item.input).resolve()), ident, repr(spec), repr(opts), save_mask, item.kind],
+                      default=str)
+    return hashlib.sha256(blob.encode()).hexdigest()
+
+
+def _record_path(outdir: Path, item: BatchItem) -> Path:
+    return outdir / RECORDS / f"{item.stem}.json"
+
+
+def clean_temporaries(outdir) -> int:
+    """Remove the temporary files and folders an interrupted run left in ``outdir`` (``.NAME.*.tmp*``)."""
+    n = 0
+    d = Path(outdir)
+    for sub in (d, d / RECORDS):
+        if not sub.is_dir():
+            continue
+        for p in sub.iterdir():
+            if p.name.startswith(".") and ".tmp" in p.name and p.name != RECORDS:
+                if p.is_dir():
+                    shutil.rmtree(p, ignore_errors=True)
+                else:
+                    p.unlink(missing_ok=True)
+                n += 1
+    return n
+
+
+def _done(outdir: Path, item: BatchItem, fp: str):
+    """The item's done record when it matches and its outputs exist, else None."""
+    p = _record_path(outdir, item)
+    try:
+        rec = json.loads(p.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if rec.get("fingerprint") != fp:
+        return None
+    if not all(Path(o).exists() for o in rec.get("outputs", [])):
+        return None
+    return rec
+
+
+# --------------------------------------------------------------------------------------------------
+# one item (local or on a worker)
+# --------------------------------------------------------------------------------------------------
+_WORKER_SESSIONS: dict = {}
+
+
+def _session_for(spec):
+    """One Session per spec per process (a Dask worker keeps its GL context between items)."""
+    from .session import Session
+
+    key = repr(spec)
+    s = _WORKER_SESSIONS.get(key)
+    if s is None:
+        for old in _WORKER_SESSIONS.values():
+            old.close()
+        _WORKER_SESSIONS.clear()
+        s = _WORKER_SESSIONS[key] = Session(spec)
+    return s
+
+
+def process_item(spec, item: BatchItem, outdir, opts, save_mask: bool, fingerprint: str, session=None) -> dict:
+    """Process one input and write its outputs and done record; returns the item's summary.
+
+    Never raises for a bad input: the summary has ``status: "error"`` and ``error`` (nothing is recorded
+    as done, so a rerun tries it again).
+    """
+    from .io import write_image, write_json
+
+    outdir = Path(outdir)
+    t0 = time.perf_counter()
+    summary = {"input": item.input, "kind": item.kind, "stem": item.stem, "status": "error", "error": None,
+               "outputs": [], "warnings": []}
+    try:
+        session = session if session is not None else _session_for(spec)
+        if item.kind == "video":
+            from .video_engine import SessionBackend, process_video, video_outputs
+
+            outs = video_outputs(outdir, item.stem, opts)
+            vs, _ = process_video(SessionBackend(session), item.input, outs, opts, name=item.input)
+            summary.update({k: vs[k] for k in ("status", "warnings", "frames", "frames_ok", "frames_held",
+                                               "frames_no_marker", "truncated", "decode_errors", "fps_processed")})
+            summary["outputs"] = [str(p) for p in (outs["video"], outs["mask"], outs["frames"], outs["sheet"])
+                                  if p is not None and Path(p).exists()]
+        else:
+            from .io import read_image
+
+            img = read_image(item.input)
+            res = session.process(img, name=item.input, want_mask=save_mask)
+            out = write_image(outdir / f"{item.stem}.png", res.composite)
+            summary["outputs"] = [str(out)]
+            if save_mask:
+                summary["outputs"].append(str(write_image(outdir / f"{item.stem}.shadow.png", res.mask)))
+            summary["status"] = "ok"
+            summary["item"] = res.item.to_dict()
+    except MarkerNotFoundError as exc:  # a photo without the marker: done (a rerun would find none either)
+        summary["status"] = "no_marker"
+        summary["error"] = f"{item.input}: {exc}"
+    except (ArshadowError, OSError, MemoryError) as exc:
+        summary["status"] = "error"
+        summary["error"] = str(exc) if isinstance(exc, ArshadowError) else f"{type(exc).__name__}: {exc}"
+        if item.input not in summary["error"]:
+            summary["error"] = f"{item.input}: {summary['error']}"
+    summary["seconds"] = round(time.perf_counter() - t0, 3)
+    if summary["status"] in ("ok", "no_marker", "damaged"):
+        # written last: the item counts as done only once every output is in place
+        write_json(_record_path(outdir, item), {"fingerprint": fingerprint, **summary})
+    return summary
+
+
+def _dask_task(spec, item, outdir, opts, save_mask, fingerprint):
+    return process_item(spec, item, outdir, opts, save_mask, fingerprint)
+
+
+# --------------------------------------------------------------------------------------------------
+# the batch
+# --------------------------------------------------------------------------------------------------
+def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=None, progress=None,
+              session=None) -> dict:
+    """Process a batch (see the module); returns the summary also written to ``OUT_DIR/batch.json``.
+
+    Parameters
+    ----------
+    spec : arshadow.scene.SceneSpec
+    inputs : list of str
+        Photos and videos (by extension, :data:`VIDEO_EXTENSIONS`).
+    outdir : str or Path
+    opts : arshadow.video_engine.EngineOptions
+        How videos are written (``opts.mask`` also decides photo masks: ``save_mask``).
+    save_mask : bool
+        Write photo masks (``<stem>.shadow.png``).
+    client : distributed.Client, optional
+        Run the items on this Dask cluster (one task per item) instead of in this process.
+    progress : callable, optional
+        ``progress(done, total, summary)`` after each item.
+    session : arshadow.session.Session, optional
+        Local runs: use this session (else one is made).
+
+    Returns
+    -------
+    dict
+        ``{"arshadow": VERSION, "items": [...], "counts": {...}}``; each item has ``status`` (``ok``,
+        ``no_marker``, ``damaged``, ``error``) and ``skipped`` (done by an earlier run).
+    """
+    from . import __version__
+    from .io import write_json
+
+    outdir = Path(outdir)
+    if outdir.exists() and not outdir.is_dir():
+        raise UsageError(f"-o {outdir}: exists and is not a folder")
+    (outdir / RECORDS).mkdir(parents=True, exist_ok=True)
+    clean_temporaries(outdir)
+    items = plan_batch(inputs)
+    results: list = [None] * len(items)
+    todo = []
+    for k, it in enumerate(items):
+        fp = _fingerprint(it, spec, opts, save_mask)
+        rec = _done(outdir, it, fp)
+        if rec is not None:
+            rec.pop("fingerprint", None)
+            results[k] = {**rec, "skipped": True}
+        else:
+            todo.append((k, it, fp))
+    done = len(items) - len(todo)
+    if progress is not None and done:
+        progress(done, len(items), None)
+    if client is None:
+        own = session is None and todo
+        if own:
+            from .session import Session
+
+            session = Session(spec)
+        try:
+            for k, it, fp in todo:
+                results[k] = {**process_item(spec, it, outdir, opts, save_mask, fp, session=session),
+                              "skipped": False}
+                done += 1
+                if progress is not None:
+                    progress(done, len(items), results[k])
+        finally:
+            if own:
+                session.close()
+    else:
+        from distributed import as_completed
+
+        futs = {client.submit(_dask_task, spec, it, str(outdir), opts, save_mask, fp, pure=False,
+                              key=f"arshadow-{it.stem}-{fp[:12]}"): k for k, it, fp in todo}
+        for fut in as_completed(futs):
+            k = futs[fut]
+            try:
+                res = fut.result()
+            except Exception as exc:  # noqa: BLE001 (a worker died or the task failed outside process_item)
+                it = items[k]
+                res = {"input": it.input, "kind": it.kind, "stem": it.stem, "status": "error",
+                       "error": f"{it.input}: task failed on the cluster ({type(exc).__name__}: {exc})",
+                       "outputs": [], "warnings": []}
+            results[k] = {**res, "skipped": False}
+            done += 1
+            if progress is not None:
+                progress(done, len(items), results[k])
+    counts: dict = {}
+    for r in results:
+        counts[r["status"]] = counts.get(r["status"], 0) + 1
+    counts["skipped"] = sum(bool(r.get("skipped")) for r in results)
+    summary = {"arshadow": __version__, "items": results, "counts": counts}
+    write_json(outdir / "batch.json", summary)
+    return summary

@@ -1,0 +1,108 @@
+"""``arshadow batch``: photos and videos under one scene file, resumable, locally or on a Dask cluster."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from . import EXIT_OK, EXIT_SOME_FAILED
+
+EPILOG = """\
+examples:
+  arshadow batch shots/*.jpg clips/*.mp4 --config job.yml -o out/
+  arshadow batch clips/*.mp4 --config job.yml -o /shared/out --dask tcp://scheduler:8786
+  arshadow batch clips/*.mp4 --config job.yml -o out --dask local:2
+
+job.yml is a scene file (docs/architecture.md: the `arshadow render` option names, e.g. calib,
+marker_length, model, place, lights). Run the same command again after an interruption (even kill -9):
+finished items are skipped (OUT_DIR/.arshadow-batch/<stem>.json records them), unfinished ones are redone;
+outputs are never half-written. OUT_DIR/batch.json lists every item's status.
+exit status: 0 every item done, 1 some item failed or is damaged / without marker (the others were
+processed), 2 bad usage or an unreadable scene file.
+"""
+
+
+def register(subparsers) -> None:
+    from .video import add_output_options
+
+    p = subparsers.add_parser(
+        "batch", help="process photos and videos under one scene file (resumable; Dask optional)",
+        description="Composite the scene of a job file into every photo and video given, skipping the items "
+                    "an earlier run finished.",
+        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("inputs", nargs="+", metavar="INPUT", help="photos and videos (videos by extension)")
+    p.add_argument("--config", "-c", required=True, metavar="JOB.yml", help="scene file (YAML or JSON)")
+    p.add_argument("-o", "--output", required=True, metavar="DIR", help="output folder (created if missing)")
+    v = p.add_argument_group("video")
+    v.add_argument("--smooth", type=int, default=10, metavar="K", help="pose smoothing half-window (frames)")
+    v.add_argument("--hold", type=int, default=12, metavar="N", help="frames a lost marker's pose is held")
+    v.add_argument("--pose-lag", type=int, default=16, metavar="K", help="IPPE branch look-ahead (frames)")
+    v.add_argument("--max-frames", type=int, metavar="N", help="only the first N frames of each video")
+    add_output_options(p.add_argument_group("output"))
+    p.add_argument("--dask", metavar="ADDRESS",
+                   help="run on a Dask cluster: a scheduler address (tcp://host:8786) or local[:N] for a "
+                        "LocalCluster of N worker processes (needs arshadow[dask])")
+    p.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+    p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show tracebacks")
+    p.set_defaults(func=run)
+
+
+def _client(address: str):
+    from ..errors import UsageError
+
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise UsageError("--dask needs Dask: pip install 'arshadow[dask]'") from None
+    if address.startswith("local"):
+        _, _, n = address.partition(":")
+        try:
+            workers = int(n) if n else 2
+        except ValueError:
+            raise UsageError(f"--dask {address}: use local or local:N") from None
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
+        return Client(cluster), cluster
+    return Client(address), None
+
+
+def run(args) -> int:
+    from ..batch import run_batch
+    from ..scene import load_scene
+    from . import quiet_opencv
+    from .video import engine_options
+
+    quiet_opencv(bool(getattr(args, "debug", False)))
+    spec = load_scene(args.config)
+    opts = engine_options(args)
+    bar = None
+    if not args.quiet:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(args.inputs), unit="item", desc="batch", file=sys.stderr, dynamic_ncols=True)
+
+    def progress(done, total, res):
+        if bar is not None:
+            bar.update(done - bar.n)
+        if res is not None and res["status"] != "ok":
+            msg = res.get("error") or "; ".join(res.get("warnings") or []) or res["status"]
+            (bar.write if bar is not None else print)(f"arshadow batch: {res['status']}: {msg}", file=sys.stderr)
+
+    client = cluster = None
+    if args.dask:
+        client, cluster = _client(args.dask)
+    try:
+        summary = run_batch(spec, args.inputs, Path(args.output), opts, save_mask=bool(args.save_mask),
+                            client=client, progress=progress)
+    finally:
+        if bar is not None:
+            bar.close()
+        if client is not None:
+            client.close()
+        if cluster is not None:
+            cluster.close()
+    c = summary["counts"]
+    print(f"{len(summary['items'])} items: " + ", ".join(f"{k} {v}" for k, v in sorted(c.items())) +
+          f"  (summary: {Path(args.output) / 'batch.json'})")
+    failed = sum(1 for r in summary["items"] if r["status"] != "ok")
+    return EXIT_SOME_FAILED if failed else EXIT_OK

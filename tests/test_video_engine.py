@@ -1,0 +1,264 @@
+"""The video engine (arshadow/video_engine.py, avio.py, temporal.py) and ``arshadow batch`` (batch.py).
+
+Short 640x360 clips made by tests/video_clips.py (true poses from the generator); the long judged runs
+are in tests/benchmarks/bench_video_engine.py.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from video_clips import make_clip
+
+av = pytest.importorskip("av")
+
+ROOT = Path(__file__).resolve().parents[1]
+CALIB = ROOT / "calib" / "synth_640x360.yml"
+SCENE = ["--calib", str(CALIB), "--marker-length", "0.05", "--model", "box:0.04,0.03,0.06", "--place", "0.05,0,0",
+         "--light", "point:-0.1,0.15,0.4"]
+JOB = {"calib": str(CALIB), "marker_length": 0.05, "model": "box:0.04,0.03,0.06", "place": [0.05, 0, 0],
+       "lights": ["point:-0.1,0.15,0.4"], "refine": "edge"}
+
+
+def _intr():
+    from arshadow.camera import Intrinsics
+
+    return Intrinsics.from_file(CALIB)
+
+
+def _poses(n):
+    from arshadow.synth import camera_path
+
+    return camera_path(n, radius=0.5, height=(0.3, 0.42), sweep_deg=30.0, start_deg=-110.0)
+
+
+def _cli(*argv):
+    from arshadow.cli import main
+
+    return main([str(a) for a in argv])
+
+
+def _frames(path, raw=False):
+    from arshadow.avio import AvReader
+
+    return [f.image for f in AvReader(path, raw=raw)]
+
+
+def _lines(path):
+    return [json.loads(s) for s in Path(path).read_text().splitlines()]
+
+
+# --------------------------------------------------------------------------------------------------
+def test_pose_stream_smooths_without_lag_and_holds_then_releases():
+    """Unit test of PoseStream on synthetic poses: a steady pan with noise comes out less noisy and not
+    behind; a gap is held for ``hold_frames`` and then passed through."""
+    from arshadow.synth import pan_path
+    from arshadow.temporal import PoseStream
+    from arshadow.transforms import matrix_from_rvec_tvec, rotation_error_deg, rvec_tvec_from_matrix
+
+    rng = np.random.default_rng(3)
+    truth = pan_path(80, deg_per_frame=0.5)
+
+    class P:  # the two attributes PoseStream reads of a MarkerPose
+        def __init__(self, m):
+            self.cam_from_world, self.alternative, self.n_points, self.reprojection_error_px = m, None, 4, 0.1
+
+    noisy = []
+    for m in truth:
+        r, t = rvec_tvec_from_matrix(m)
+        noisy.append(matrix_from_rvec_tvec(r + rng.normal(0, 0.002, 3), t + rng.normal(0, 0.001, 3)))
+    gap = set(range(50, 70))
+    ps = PoseStream(fps=25.0, lag=4, window=10, hold_frames=5)
+    out = []
+    for i, m in enumerate(noisy):
+        out += ps.push(i, None if i in gap else P(m), i / 25.0)
+    out += ps.flush()
+    assert [d.payload for d in out] == list(range(80))
+    st = [d.status for d in out]
+    assert st[50:55] == ["held"] * 5 and st[55:70] == ["no_marker"] * 15 and st[70] == "ok"
+    assert np.allclose(out[52].cam_from_world, out[49].cam_from_world)
+    ok = [i for i in range(80) if i not in gap]
+    e_raw = [rotation_error_deg(noisy[i][:3, :3], truth[i][:3, :3]) for i in ok]
+    e_sm = [rotation_error_deg(out[i].cam_from_world[:3, :3], truth[i][:3, :3]) for i in ok]
+    assert np.median(e_sm) < 0.6 * np.median(e_raw)
+    # lag: a world point's image under the smoothed poses is not behind its true image (steady pan)
+    from video_clips import jitter_and_lag
+
+    intr = _intr()
+    pt = np.array([[0.1, 0.05, 0.0]])
+    c_true = [intr.project(pt, truth[i])[0] for i in ok]
+    c_sm = [intr.project(pt, out[i].cam_from_world)[0] for i in ok]
+    c_raw = [intr.project(pt, noisy[i])[0] for i in ok]
+    j_sm, lag = jitter_and_lag(c_sm[:45], c_true[:45])
+    j_raw, _ = jitter_and_lag(c_raw[:45], c_true[:45])
+    assert abs(lag) < 0.1 and j_raw > 3 * j_sm, (lag, j_raw, j_sm)
+
+
+@pytest.mark.gl
+def test_marker_absent_30_frames_held_then_passed_through_untouched(tmp_path, gl_ctx):
+    n, gap = 45, range(5, 35)
+    clip = make_clip(tmp_path / "gap.mkv", _intr(), _poses(n), blank=set(gap), codec="ffv1", noise=1.0)
+    out = tmp_path / "out"
+    rc = _cli("video", clip, *SCENE, "-o", out, "--format", "mkv", "--hold", "12", "-q", "--save-mask")
+    assert rc == 0
+    lines = _lines(out / "gap.frames.jsonl")
+    assert [ln["frame"] for ln in lines] == list(range(n))
+    st = [ln["status"] for ln in lines]
+    assert st[:5] == ["ok"] * 5 and st[5:17] == ["held"] * 12 and st[17:35] == ["no_marker"] * 18
+    assert st[35:] == ["ok"] * 10
+    for ln in lines:
+        assert {"frame", "time_s", "status", "marker_ids", "rvec", "tvec", "raw", "mode", "timings_ms"} <= set(ln)
+        assert (ln["raw"] is None) == (ln["status"] != "ok")
+    # held frames render the last pose; released frames are the input, bit for bit (lossless yuv420p)
+    assert lines[10]["rvec"] == lines[4]["rvec"]
+    ins, outs = _frames(clip, raw=True), _frames(out / "gap.mkv", raw=True)
+    masks = _frames(out / "gap.shadow.mkv")
+    assert len(outs) == n == len(masks)
+    for i in range(17, 35):
+        assert np.array_equal(ins[i], outs[i]) and not masks[i].any()
+    assert masks[10].any() and not np.array_equal(ins[10], outs[10])
+    assert (out / "gap.sheet.jpg").exists()
+
+
+@pytest.mark.gl
+def test_corrupt_frames_are_skipped_reported_and_exit_1(tmp_path, gl_ctx, capsys):
+    n = 12
+    clip = make_clip(tmp_path / "c.avi", _intr(), _poses(n), codec="mjpeg", noise=1.0)
+    # overwrite the middle of two frames' JPEG data with garbage
+    c = av.open(str(clip))
+    pos = [p.pos for p in c.demux(video=0) if p.pos is not None and p.size]
+    sizes = [p.size for p in av.open(str(clip)).demux(video=0) if p.pos is not None and p.size]
+    c.close()
+    data = bytearray(clip.read_bytes())
+    for k in (4, 8):  # two frames' JPEG data zeroed: undecodable packets
+        data[pos[k] : pos[k] + sizes[k]] = b"\x00" * sizes[k]
+    clip.write_bytes(bytes(data))
+    assert len(sizes) == n
+    out = tmp_path / "out"
+    rc = _cli("video", clip, *SCENE, "-o", out, "--report", out / "r.json", "-q")
+    err = capsys.readouterr().err
+    assert rc == 1
+    v = json.loads((out / "r.json").read_text())["videos"][0]
+    assert v["status"] == "damaged" and v["decode_errors"] == 2 and "damaged packet" in err
+    assert not v["truncated"] and v["frames"] == n - 2 and v["frames_ok"] == n - 2
+    assert len(_frames(out / "c.mp4")) == v["frames"]
+
+
+@pytest.mark.gl
+def test_truncated_video_warns_and_exits_1_but_writes_what_it_read(tmp_path, gl_ctx, capsys):
+    n = 20
+    clip = make_clip(tmp_path / "t.mp4", _intr(), _poses(n), noise=1.0)
+    data = clip.read_bytes()
+    clip.write_bytes(data[: int(len(data) * 0.6)])
+    out = tmp_path / "out"
+    rc = _cli("video", clip, *SCENE, "-o", out, "--report", out / "r.json", "-q")
+    err = capsys.readouterr().err
+    assert rc == 1 and "warning" in err and "ends early" in err
+    v = json.loads((out / "r.json").read_text())["videos"][0]
+    assert v["truncated"] and v["status"] == "damaged" and 0 < v["frames"] < n
+    assert len(_frames(out / "t.mp4")) == v["frames"]
+
+
+@pytest.mark.gl
+def test_h264_output_keeps_size_rate_and_audio(tmp_path, gl_ctx):
+    clip = make_clip(tmp_path / "a.mp4", _intr(), _poses(10), noise=1.0, fps=30, audio=True)
+    out = tmp_path / "out"
+    assert _cli("video", clip, *SCENE, "-o", out, "-q", "--crf", "23") == 0
+    with av.open(str(out / "a.mp4")) as c:
+        vs = c.streams.video[0]
+        assert vs.codec_context.name == "h264" and (vs.width, vs.height) == (640, 360)
+        assert float(vs.average_rate) == pytest.approx(30.0)
+        assert c.streams.audio and c.streams.audio[0].codec_context.name == "aac"
+    assert len(_frames(out / "a.mp4")) == 10
+
+
+def _write_job(tmp_path):
+    p = tmp_path / "job.json"
+    p.write_text(json.dumps(JOB))
+    return p
+
+
+def _batch_inputs(tmp_path, n_videos=3, frames=16):
+    from arshadow.io import write_image
+    from arshadow.synth import render_marker_photo
+
+    ins = [make_clip(tmp_path / f"v{k}.mp4", _intr(), _poses(frames), noise=1.0, seed=10 * k) for k in range(n_videos)]
+    ph = render_marker_photo(_intr(), _poses(3)[1], marker_length=0.05, noise_sigma=1.0, seed=5)
+    ins.append(write_image(tmp_path / "p0.png", ph.image))
+    return ins
+
+
+@pytest.mark.gl
+def test_batch_kill9_mid_run_then_rerun_completes_everything(tmp_path):
+    frames = 16
+    ins = _batch_inputs(tmp_path, frames=frames)
+    job = _write_job(tmp_path)
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "arshadow", "batch", *map(str, ins), "--config", str(job), "-o", str(out), "-q",
+           "--save-mask"]
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    rec = out / ".arshadow-batch"
+    t0 = time.time()
+    # kill while the second video is being written (its temporary file exists), after the first is done
+    while time.time() - t0 < 120:
+        done = list(rec.glob("*.json")) if rec.exists() else []
+        tmps = [p for p in out.glob(".v1.*")] if out.exists() else []
+        if done and tmps:
+            break
+        if proc.poll() is not None:
+            break
+        time.sleep(0.02)
+    assert proc.poll() is None, "the batch finished before it could be killed: make the inputs longer"
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert not (out / "v1.mp4").exists()  # never half-written
+    assert [p.name for p in rec.glob("*.json")] == ["v0.json"]
+    rc = subprocess.run(cmd, env=env, capture_output=True, text=True)
+    assert rc.returncode == 0, rc.stderr
+    summary = json.loads((out / "batch.json").read_text())
+    assert [it["status"] for it in summary["items"]] == ["ok"] * 4
+    assert [it["skipped"] for it in summary["items"]] == [True, False, False, False]
+    for k in range(3):
+        assert len(_frames(out / f"v{k}.mp4")) == frames
+        assert len(_lines(out / f"v{k}.frames.jsonl")) == frames
+        assert len(_frames(out / f"v{k}.shadow.mkv")) == frames
+    import cv2
+
+    assert cv2.imread(str(out / "p0.png")).shape == (360, 640, 3)
+    assert not [p for p in out.iterdir() if ".tmp" in p.name]
+
+
+@pytest.mark.gl
+def test_batch_on_dask_localcluster_equals_local(tmp_path):
+    distributed = pytest.importorskip("distributed")
+    from arshadow.batch import run_batch
+    from arshadow.scene import scene_from_dict
+    from arshadow.video_engine import EngineOptions
+
+    ins = _batch_inputs(tmp_path, n_videos=2, frames=8)
+    spec = scene_from_dict(JOB)
+    opts = EngineOptions(codec="ffv1", fmt="mkv", mask="mkv", contact_sheet=0)
+    local = run_batch(spec, ins, tmp_path / "local", opts, save_mask=True)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cl, \
+            distributed.Client(cl) as client:
+        remote = run_batch(spec, ins, tmp_path / "dask", opts, save_mask=True, client=client)
+    assert [it["status"] for it in local["items"]] == [it["status"] for it in remote["items"]] == ["ok"] * 3
+    for k in range(2):
+        a, b = _lines(tmp_path / "local" / f"v{k}.frames.jsonl"), _lines(tmp_path / "dask" / f"v{k}.frames.jsonl")
+        for la, lb in zip(a, b):
+            la.pop("timings_ms"), lb.pop("timings_ms")
+        assert a == b
+        for name in (f"v{k}.mkv", f"v{k}.shadow.mkv"):
+            fa, fb = _frames(tmp_path / "local" / name, raw=True), _frames(tmp_path / "dask" / name, raw=True)
+            assert len(fa) == len(fb) == 8 and all(np.array_equal(x, y) for x, y in zip(fa, fb))
+    assert (tmp_path / "local" / "p0.png").read_bytes() == (tmp_path / "dask" / "p0.png").read_bytes()
