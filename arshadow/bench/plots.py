@@ -187,19 +187,42 @@ def fps_vs_lights(rows, out_dir, label) -> Path:
 
 
 def tracking(rows, out_dir, label) -> Path:
-    fig, ax = _fig("Tracking: detection + pose time vs rotation error (synthetic photos, true pose known)", label)
-    markers = {"640x480": "o", "1280x720": "s", "1920x1080": "D"}
-    for k, r in enumerate(sorted(rows, key=lambda r: (r["rot_deg_median"] or 0))):
-        mk = markers.get(r["resolution"], "o")
-        ax.errorbar(r["time_ms"], r["rot_deg_median"], xerr=[[r["time_ms"] - r["time_q25"]], [r["time_q75"] - r["time_ms"]]],
-                    fmt=mk, capsize=2, ms=6)
-        ax.annotate(f"{r['config']} ({r['resolution']})", (r["time_ms"], r["rot_deg_median"]), textcoords="offset points",
-                    xytext=(6, (4, -10, 12)[k % 3]), fontsize=7)
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("time per photo, ms (median over photos, bars = IQR; log)")
-    ax.set_ylabel("rotation error, degrees (median; log)")
-    return _save(fig, Path(out_dir) / "tracking_time_vs_error.png")
+    """One panel per resolution: time against rotation error, one colour per configuration (legend)."""
+    res = list(dict.fromkeys(r["resolution"] for r in rows))
+    fig, ax0 = _fig("Tracking: detection + pose time vs rotation error (synthetic photos, true pose known)", label,
+                    size=(5.0 * len(res) + 1.5, 5.8))
+    fig.delaxes(ax0)
+    axes = fig.subplots(1, len(res), sharey=True, squeeze=False)[0]
+    configs = list(dict.fromkeys(r["config"] for r in rows))
+    cmap = __import__("matplotlib").colormaps["tab10"]
+    col = {c: cmap(k % 10) for k, c in enumerate(configs)}
+    for ax, rr in zip(axes, res):
+        ax.grid(True, which="both", alpha=0.3)
+        for r in (r for r in rows if r["resolution"] == rr):
+            ax.errorbar(r["time_ms"], r["rot_deg_median"], xerr=[[r["time_ms"] - r["time_q25"]], [r["time_q75"] - r["time_ms"]]],
+                        fmt="o", color=col[r["config"]], capsize=2, ms=7, label=r["config"])
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_title(rr, fontsize=10)
+        from matplotlib.ticker import NullFormatter
+
+        ax.xaxis.set_minor_formatter(NullFormatter())
+        ax.set_xlabel("time per photo, ms (median, bars = IQR; log)")
+    axes[0].set_ylabel("rotation error, degrees (median over photos; log)")
+    handles = {h.get_label(): h for ax in axes for h in ax.get_legend_handles_labels()[0]}
+    fig.legend([handles[c] for c in configs if c in handles], [c for c in configs if c in handles], fontsize=8,
+               loc="lower center", ncol=4, bbox_to_anchor=(0.5, 0.03))
+    fig.suptitle("Tracking: detection + pose time vs rotation error (synthetic photos, true pose known)")
+    from ..io import atomic_path
+
+    fig.tight_layout(rect=(0, 0.14, 1, 1))
+    path = Path(out_dir) / "tracking_time_vs_error.png"
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png")
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+    return path
 
 
 def all_plots(results: dict, out_dir, label, log) -> dict:

@@ -9,7 +9,7 @@ z = 0, pixel centres tested exactly, pixels covered by the object excluded; no G
 - ``xor_px``: pixels that differ; ``edge_offset_px`` = ``xor_px`` / length of the exact boundary (px): the
   mean displacement of the shadow's edge;
 - ``boundary_p95_px``, ``boundary_max_px``: distances between the two boundaries (both directions);
-- ``coverage_mae``: mean absolute error of the fractional mask against the exact area coverage (4 x 4
+- ``coverage_mae``: mean absolute error of the fractional mask against the exact area coverage (8 x 8
   sub-samples per pixel) on the pixels within 2 px of the exact boundary (what anti-aliasing buys).
 
 Configurations: stencil volumes (z-pass / z-fail, truncated / to infinity, planar projection), MSAA and
@@ -80,11 +80,13 @@ class Reference:
         m8 = self.mask.astype(np.uint8)
         self.band = np.argwhere(cv2.dilate(m8, k) != cv2.erode(m8, k))
         u0, v0 = roi[:2]
-        sub = (np.arange(4) + 0.5) / 4 - 0.5
+        # 8 x 8 sub-samples: a grid finer than any anti-aliasing pattern measured (4 x 4 supersampling
+        # would otherwise sample exactly the reference's points)
+        sub = (np.arange(8) + 0.5) / 8 - 0.5
         su, sv = np.meshgrid(sub, sub)
         uu = (self.band[:, 1][:, None] + u0 + su.ravel()[None, :]).ravel()
         vv = (self.band[:, 0][:, None] + v0 + sv.ravel()[None, :]).ravel()
-        self.coverage = self.oracle.classify(uu, vv)[0].reshape(len(self.band), 16).mean(axis=1)
+        self.coverage = self.oracle.classify(uu, vv)[0].reshape(len(self.band), 64).mean(axis=1)
         er = cv2.erode(m8, np.ones((3, 3), np.uint8), borderType=cv2.BORDER_REPLICATE)
         self.perimeter = int(np.count_nonzero(m8 != er))
 

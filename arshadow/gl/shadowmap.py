@@ -144,6 +144,11 @@ class ShadowMapRenderer:
         self._ground_vbo = ctx.buffer(reserve=12 * 4 * 4)
         self._ground_vao = ctx.vertex_array(self.prog_ground, [(self._ground_vbo, "4f", "in_pos")])
         self._ground_key = ()
+        # moderngl rebinds "the last framebuffer used" after creating one, and that may be a framebuffer
+        # another renderer has since deleted (GL_INVALID_OPERATION): bind the default one first, and leave
+        # it bound after every render and at release
+        self._default_fbo = ctx.screen if ctx.screen is not None else ctx.detect_framebuffer(0)
+        self._default_fbo.use()
         self.depth_tex = ctx.depth_texture((self.map_size, self.map_size))
         self.depth_tex.compare_func = "<="
         self.depth_tex.repeat_x = self.depth_tex.repeat_y = False
@@ -153,9 +158,6 @@ class ShadowMapRenderer:
         self.depth_fbo = ctx.framebuffer(depth_attachment=self.depth_tex)
         self._fbo = None
         self._size = (0, 0)
-        # moderngl rebinds "the last framebuffer used" after creating one: leave the default bound instead,
-        # so that a framebuffer released here is never rebound later (GL_INVALID_OPERATION)
-        self._default_fbo = ctx.screen if ctx.screen is not None else ctx.detect_framebuffer(0)
         self._caster = (None, None, None)  # (weakref, key, _CasterBuffers)
         self._released = False
 
@@ -198,6 +200,7 @@ class ShadowMapRenderer:
                     o.release()
             w, h = max(width, self._size[0]), max(height, self._size[1])
             ctx = self.ctx
+            self._default_fbo.use()
             self._rbs = [ctx.renderbuffer((w, h), 4, dtype="f4"), ctx.renderbuffer((w, h), 2, dtype="f4"),
                          ctx.depth_renderbuffer((w, h))]
             self._fbo = ctx.framebuffer(color_attachments=self._rbs[:2], depth_attachment=self._rbs[2])
