@@ -78,6 +78,8 @@ APRILTAG_OFFSET_PX = 0.5
 #: pose_ambiguity (err_best / err_second of the two IPPE solutions) at or above which a single-marker
 #: pose is flagged as ambiguous (see docs/tracking.md for how it was chosen)
 AMBIGUITY_FLAG = 0.3
+#: a single marker with a side shorter than this (pixels) is always flagged ambiguous (see MarkerPose)
+MIN_CONFIDENT_SIDE_PX = 32.0
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -641,8 +643,16 @@ class MarkerPose:
 
     @property
     def ambiguous(self) -> bool:
-        """True when the two IPPE solutions explain the corners almost equally well."""
-        return self.pose_ambiguity is not None and self.pose_ambiguity >= self.ambiguity_threshold
+        """True when the two IPPE solutions explain the corners almost equally well, or (single marker)
+        when the marker is under :data:`MIN_CONFIDENT_SIDE_PX` across: its corners cannot tell the two
+        solutions apart reliably (issue 12's stress suite: a 20-px marker gave a pose 69 deg off with
+        ratio 0.20)."""
+        if self.pose_ambiguity is not None and self.pose_ambiguity >= self.ambiguity_threshold:
+            return True
+        if self.kind == "marker" and self.pose_ambiguity is not None and len(self.corners) >= 4:
+            q = np.asarray(self.corners, np.float64)[:4]
+            return bool(np.linalg.norm(q - np.roll(q, 1, axis=0), axis=1).min() < MIN_CONFIDENT_SIDE_PX)
+        return False
 
     def swapped(self) -> MarkerPose:
         """This pose with the alternative IPPE solution chosen instead (for sequences)."""
