@@ -354,6 +354,14 @@ def _run(renderer, tol, n_examples, seed_mode):
     failures = []
     fixed = os.environ.get("ARSHADOW_STRESS_SEED")
 
+    progress = os.environ.get("ARSHADOW_STRESS_PROGRESS")  # a file the counts are written to as they go
+
+    def checkpoint():
+        if progress:
+            with open(progress + ".tmp", "w") as fh:
+                fh.write(stats.report() + f"\n  failures so far: {len(failures)}\n")
+            os.replace(progress + ".tmp", progress)
+
     @settings(max_examples=n_examples, deadline=None, database=None,
               derandomize=seed_mode == "fixed" and fixed is None, phases=[Phase.generate],
               suppress_health_check=list(HealthCheck))
@@ -363,10 +371,14 @@ def _run(renderer, tol, n_examples, seed_mode):
             check_configuration(cfg, renderer, stats, tol)
         except AssertionError as exc:
             failures.append((cfg, str(exc)[:300]))
+            print("FAILED", cfg, str(exc)[:300], flush=True)
+        if sum(stats.tried[k] for k in stats.tried if k.startswith("mesh:")) % 100 == 0:
+            checkpoint()
 
     if fixed is not None:
         prop = seed(int(fixed))(prop)
     prop()
+    checkpoint()
     print("\n" + stats.report())
     for cfg, msg in failures[:20]:
         print("FAILED", cfg, msg)
