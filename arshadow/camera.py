@@ -269,6 +269,8 @@ def open_storage(path, what: str, error=CalibrationError):
         text = str(inner).strip()
         where = re.search(r"in function '([^']*)'", text)  # OpenCV puts "file(line): what" there
         first = where.group(1) if where else (text.splitlines()[-1].strip() if text else "parse error")
+        if "(" not in first:  # no "file(line): what": OpenCV could not even recognise the format
+            raise error(f"{p}: cannot parse {what}: not OpenCV YAML, XML or JSON ({first[:80]})") from None
         raise error(f"{p}: cannot parse {what}: {first[:160]}") from None
     if not fs.isOpened():
         raise error(f"{p}: cannot open {what}")

@@ -46,6 +46,8 @@ class HalfResolutionDetector:
         if gray.ndim == 3:
             gray = cv2.cvtColor(gray, cv2.COLOR_BGR2GRAY)
         h, w = gray.shape[:2]
+        if min(h, w) < 2 * self.MIN_SIDE_PX:  # too small to halve (a 1-pixel image crashed cv2.resize)
+            return self._base.detectMarkers(gray)
         small = cv2.resize(gray, (w // 2, h // 2), interpolation=cv2.INTER_AREA)
         corners, ids, rejected = self._small.detectMarkers(small)
         if ids is None or len(ids) == 0:  # nothing at half resolution: try full resolution (same window)

@@ -52,6 +52,9 @@ def read_image(path) -> np.ndarray:
         raise ImageError(f"{p}: cannot read ({exc.strerror or exc})") from None
     if data.size == 0:
         raise ImageError(f"{p}: empty file (0 bytes)")
+    if data[:8].tobytes() == b"\x89PNG\r\n\x1a\n" and b"IEND" not in data[-16:].tobytes():
+        # libpng would print its own complaint straight to stderr: say it once, ourselves
+        raise ImageError(f"{p}: truncated or corrupt PNG (no IEND chunk at the end)")
     try:
         img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
     except cv2.error as exc:  # e.g. a header announcing more pixels than OpenCV allows

@@ -82,6 +82,28 @@ APRILTAG_OFFSET_PX = 0.5
 #: pose_ambiguity (err_best / err_second of the two IPPE solutions) at or above which a single-marker
 #: pose is flagged as ambiguous (see docs/tracking.md for how it was chosen)
 AMBIGUITY_FLAG = 0.3
+#: a single marker with a side shorter than this (pixels) is always flagged ambiguous (see MarkerPose)
+MIN_CONFIDENT_SIDE_PX = 32.0
+#: a single marker whose corners move by more than this share of its side between refinement windows is
+#: flagged ambiguous: blurred corners (issue 12: heavy blur gave confident poses 2-4 deg off; their
+#: corners moved by 0.010-0.068 of the side, sharp ones by < 0.006)
+MAX_CORNER_INSTABILITY = 0.008
+
+
+def corner_instability(gray, quad) -> float:
+    """How far the 4 corners ``quad (4, 2)`` of a marker move between ``cv2.cornerSubPix`` windows of 5 and
+    13 px, as a share of the quad's shortest side: ~0 for a sharp corner (any window finds the same
+    point), large for a blurred or disturbed one."""
+    q = np.ascontiguousarray(np.asarray(quad, np.float32).reshape(-1, 1, 2)[:4])
+    side = float(np.linalg.norm(q[:, 0] - np.roll(q[:, 0], 1, axis=0), axis=1).min())
+    h, w = gray.shape[:2]
+    inside = (q[:, 0, 0] >= 7) & (q[:, 0, 1] >= 7) & (q[:, 0, 0] < w - 7) & (q[:, 0, 1] < h - 7)
+    if side <= 0 or not np.all(inside):
+        return 0.0  # too close to the border for the large window
+    crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 0.001)
+    a = cv2.cornerSubPix(gray, q.copy(), (2, 2), (-1, -1), crit)
+    b = cv2.cornerSubPix(gray, q.copy(), (6, 6), (-1, -1), crit)
+    return float(np.linalg.norm((a - b)[:, 0], axis=1).max() / side)
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -765,11 +787,24 @@ class MarkerPose:
     ambiguity_threshold: float = AMBIGUITY_FLAG
     kind: str = "marker"
     timings_ms: dict = field(default_factory=dict)
+    #: single marker: how far its corners move between sub-pixel refinement windows of 5 and 13 px, as a
+    #: share of its shortest side (:func:`corner_instability`); None for boards
+    corner_instability: float | None = None
 
     @property
     def ambiguous(self) -> bool:
-        """True when the two IPPE solutions explain the corners almost equally well."""
-        return self.pose_ambiguity is not None and self.pose_ambiguity >= self.ambiguity_threshold
+        """True when the two IPPE solutions explain the corners almost equally well, or (single marker)
+        when the marker is under :data:`MIN_CONFIDENT_SIDE_PX` across: its corners cannot tell the two
+        solutions apart reliably (issue 12's stress suite: a 20-px marker gave a pose 69 deg off with
+        ratio 0.20)."""
+        if self.pose_ambiguity is not None and self.pose_ambiguity >= self.ambiguity_threshold:
+            return True
+        if self.corner_instability is not None and self.corner_instability > MAX_CORNER_INSTABILITY:
+            return True
+        if self.kind == "marker" and self.pose_ambiguity is not None and len(self.corners) >= 4:
+            q = np.asarray(self.corners, np.float64)[:4]
+            return bool(np.linalg.norm(q - np.roll(q, 1, axis=0), axis=1).min() < MIN_CONFIDENT_SIDE_PX)
+        return False
 
     def swapped(self) -> MarkerPose:
         """This pose with the alternative IPPE solution chosen instead (for sequences)."""
@@ -1003,6 +1038,8 @@ class MarkerTracker:
         pose.timings_ms = {"detect": det_ms, "pose": total - det_ms}
         pose.intrinsics, pose.scaled = intr, scaled
         pose.ambiguity_threshold = self.ambiguity_threshold
+        if pose.kind == "marker":
+            pose.corner_instability = corner_instability(gray, pose.corners[:4])
         if previous is not None and pose.alternative is not None and pose.ambiguous:
             prev = previous.cam_from_world if isinstance(previous, MarkerPose) else np.asarray(previous, float)
             if rotation_error_deg(pose.alternative.cam_from_world[:3, :3], prev[:3, :3]) < \

@@ -219,6 +219,8 @@ def run(args) -> int:
 
 def _render_all(args, session, inputs, outdir, debug):
     from ..errors import ArshadowError, CalibrationError, ImageError, MarkerNotFoundError, UsageError
+    import cv2
+
     from ..io import apply_orientation, exif_orientation, read_image, write_image
     from ..report import ReportItem
 
@@ -267,7 +269,7 @@ def _render_all(args, session, inputs, outdir, debug):
             failed += 1
             item.status, item.error = "error", str(exc)
             print(_error_line(inp, exc), file=sys.stderr)
-        except (OSError, MemoryError) as exc:
+        except (OSError, MemoryError, cv2.error) as exc:  # cv2.error: a decoder/detector the checks missed
             if debug:
                 raise
             failed += 1

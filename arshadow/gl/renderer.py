@@ -94,8 +94,12 @@ class _CasterBuffers:
     """GPU copies of one caster: the occluder (unwelded corners: pos4, normal3, albedo3) and the welded
     positions (for the planar shadow). Built once per caster."""
 
-    def __init__(self, ctx, prog_base, prog_occ, prog_pos, caster, color, crease_deg):
+    def __init__(self, ctx, prog_base, prog_occ, prog_pos, caster, color, crease_deg, local=True):
         v = np.asarray(caster.vertices, dtype=np.float64)
+        #: the caster's local origin (its box centre; world origin with ``local=False``): positions go to
+        #: float32 relative to it
+        self.origin = local_origin(v) if local else np.zeros(3)
+        v_local = v - self.origin
         f = np.asarray(caster.faces, dtype=np.int64)
         m = len(f)
         if color is not None:
@@ -113,7 +117,7 @@ class _CasterBuffers:
         _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
         corner_v = f.ravel()[first]
         data = np.empty((len(first), 10), dtype=np.float32)
-        data[:, :3] = v[corner_v]
+        data[:, :3] = v_local[corner_v]
         data[:, 3] = 1.0
         data[:, 4:7] = nrm.reshape(-1, 3)[first]
         data[:, 7:10] = alb.reshape(-1, 3)[first]
@@ -125,7 +129,7 @@ class _CasterBuffers:
         # base pass and planar shadow: welded, indexed vertices (positions + albedo; ~6x fewer vertex
         # shader runs). Same float32 positions as above -> bit-identical depth for the GL_EQUAL passes.
         welded = np.empty((len(v), 7), dtype=np.float32)
-        welded[:, :3] = v
+        welded[:, :3] = v_local
         welded[:, 3] = 1.0
         if color is None and getattr(caster, "colors", None) is not None:
             welded[:, 4:7] = srgb_to_linear(np.asarray(caster.colors, np.float64)[:, :3])
@@ -253,10 +257,14 @@ class _Target:
 
 
 
-def ground_vertices(ground_size=None) -> np.ndarray:
+def ground_vertices(ground_size=None, origin=None) -> np.ndarray:
     """The ground plane z = 0 as 12 homogeneous vertices ``(12, 4) float32`` (4 triangles, CCW seen from
     +z): unlimited (``None``: triangles fanning out to points at infinity, w = 0) or a square of side
-    ``ground_size`` centred on the origin (2 triangles padded with degenerate ones)."""
+    ``ground_size`` centred on the world origin (2 triangles padded with degenerate ones).
+
+    ``origin (3,)``: the vertices relative to this point (:func:`local_origin`; points at infinity
+    unchanged); the unlimited fan's centre is then the ground point under it (small local coordinates)."""
+    origin = np.zeros(3) if origin is None else np.asarray(origin, np.float64)
     if ground_size is None:
         o, px, py, nx, ny = (0, 0, 0, 1), (1, 0, 0, 0), (0, 1, 0, 0), (-1, 0, 0, 0), (0, -1, 0, 0)
         tris = [o, px, py, o, py, nx, o, nx, ny, o, ny, px]
@@ -267,7 +275,11 @@ def ground_vertices(ground_size=None) -> np.ndarray:
         h = key / 2
         a, b, c, d = (-h, -h, 0, 1), (h, -h, 0, 1), (h, h, 0, 1), (-h, h, 0, 1)
         tris = [a, b, c, a, c, d] + [(0, 0, 0, 1)] * 6
-    return np.asarray(tris, dtype=np.float32)
+    t = np.asarray(tris, dtype=np.float64)
+    if ground_size is None:
+        t[t[:, 3] == 1.0, :2] = origin[:2]  # fan centre under the origin (the plane itself stays z = 0)
+    t[:, :3] -= origin * t[:, 3:4]
+    return t.astype(np.float32)
 
 
 def _program_cache(ctx) -> dict:
@@ -441,7 +453,7 @@ class ShadowRenderer:
         self._casters[id(caster)] = (ref, (ckey, self.crease_deg), bufs)
         return bufs
 
-    def _upload_volumes(self, passes) -> list:
+    def _upload_volumes(self, passes, origin=None) -> list:
         """Write every light's volume into the reused vertex/index buffers; returns per-pass
         ``(first_index, n_indices)`` (None where a pass has no volume).
 
@@ -449,8 +461,10 @@ class ShadowRenderer:
         put: when the passes' volumes are exactly those of the previous upload, the buffers already hold
         them and nothing is converted or uploaded."""
         vols = tuple(None if p.mode == "planar" else p.volume for p in passes)
+        origin = np.zeros(3) if origin is None else np.asarray(origin, np.float64)
         last = self._vol_last
-        if last is not None and len(last[0]) == len(vols) and all(a is b for a, b in zip(last[0], vols)):
+        if (last is not None and len(last[0]) == len(vols) and all(a is b for a, b in zip(last[0], vols))
+                and np.array_equal(last[2], origin)):
             return list(last[1])
         self._vol_last = None
         ranges, parts = [], []
@@ -491,18 +505,22 @@ class ShadowRenderer:
                 idx = t.astype(np.uint32)
                 if v_first:
                     idx += np.uint32(v_first)
-                self._vol_vbo.write(v.astype(np.float32), offset=16 * v_first)
+                loc = v.astype(np.float64)  # relative to origin: X - origin * w (points at infinity unchanged)
+                loc[:, :3] -= origin * loc[:, 3:4]
+                self._vol_vbo.write(loc.astype(np.float32), offset=16 * v_first)
                 self._vol_ibo.write(idx, offset=4 * i_first)
         if frozen:  # read-only arrays cannot change behind our back: safe to reuse next frame
-            self._vol_last = (vols, tuple(ranges))
+            self._vol_last = (vols, tuple(ranges), origin)
         return ranges
 
-    def _set_ground(self, ground_size) -> None:
-        key = None if ground_size is None else float(ground_size)
-        if key == self._ground_key and self._ground_key is not None or (key is None and self._ground_key == "inf"):
+    def _set_ground(self, ground_size, origin=None) -> None:
+        """The ground z = 0 in the frame of ``origin`` (see :func:`local_origin`)."""
+        origin = np.zeros(3) if origin is None else np.asarray(origin, np.float64)
+        key = ("inf" if ground_size is None else float(ground_size), tuple(origin.tolist()))
+        if key == self._ground_key:
             return
-        self._ground_vbo.write(ground_vertices(key).tobytes())
-        self._ground_key = "inf" if key is None else key
+        self._ground_vbo.write(ground_vertices(ground_size, origin).tobytes())
+        self._ground_key = key
 
     # ------------------------------------------------------------------ render
     def render(self, *, projection, view, width, height, caster, passes, ground_size=None,
@@ -556,17 +574,19 @@ class ShadowRenderer:
                 raise UsageError(f"light weight must be finite and >= 0, got {p.weight}")
         ctx, gl = self.ctx, self.gl
         mvp = proj @ view
-        mvp_bytes = mvp.T.astype(np.float32).tobytes()  # GLSL is column-major
-        eye = -view[:3, :3].T @ view[:3, 3]
+        origin = local_origin(caster.vertices)  # every draw works relative to it (see local_origin)
+        mvp_local = mvp @ _translation(origin)
+        mvp_bytes = mvp_local.T.astype(np.float32).tobytes()  # GLSL is column-major
+        eye = -view[:3, :3].T @ view[:3, 3] - origin
         # mirrored projections flip the winding: keep "front" = outward side seen from outside
         front = "cw" if np.linalg.det(mvp) > 0 else "ccw"
 
         bufs = self._caster_buffers(caster, occluder_color) if (draw_occluder or any(
             p.mode == "planar" for p in passes)) else None
-        ranges = self._upload_volumes(passes)
+        ranges = self._upload_volumes(passes, origin)
         if draw_occluder or any(p.mode == "planar" and p.direct for p in passes):
             bufs.upload_light_subsets(passes)
-        self._set_ground(ground_size)
+        self._set_ground(ground_size, origin)
         self._ensure_targets(width, height)
         t1 = time.perf_counter()
         self._marks = [("start", t1)]
@@ -652,7 +672,7 @@ class ShadowRenderer:
                     gl.draw_buffer_list([None, 1])
                     smat = np.asarray(p.shadow_matrix, dtype=np.float64)
                     prog = self.prog_planar_mask
-                    prog["u_mvp"].write((mvp @ smat).T.astype(np.float32).tobytes())
+                    prog["u_mvp"].write((mvp @ smat @ _translation(origin)).T.astype(np.float32).tobytes())
                     prog["u_weight"].value = float(p.weight)
                     bufs.planar_sub_vao(self.ctx, prog).render(moderngl.TRIANGLES, vertices=count, first=first)
                     gl.draw_buffers(2)
@@ -681,7 +701,8 @@ class ShadowRenderer:
                     gl.glStencilFunc(G.GL_ALWAYS, 1, 0xFF)
                     gl.glStencilOp(G.GL_KEEP, G.GL_KEEP, G.GL_REPLACE)
                     smat = np.asarray(p.shadow_matrix, dtype=np.float64)
-                    self.prog_volume["u_mvp"].write((mvp @ smat).T.astype(np.float32).tobytes())
+                    self.prog_volume["u_mvp"].write((mvp @ smat @ _translation(origin)).T.astype(np.float32)
+                                                    .tobytes())
                     bufs.planar_vao.render(moderngl.TRIANGLES, vertices=bufs.n_indices)
             elif getattr(p.volume, "batches", None):
                 self._batched_volume(p.volume.batches, rng[0], mvp_bytes)
@@ -894,7 +915,8 @@ class ShadowRenderer:
         gl.draw_buffer_list([0])
         prog = self.prog_occ_light
         prog["u_mvp"].write(mvp_bytes)
-        lh = np.asarray(p.light_h, dtype=np.float64)
+        lh = np.asarray(p.light_h, dtype=np.float64).copy()
+        lh[:3] -= bufs.origin * lh[3]  # the caster's local frame, like v_world
         prog["u_light"].value = tuple(float(x) for x in lh)
         col = np.asarray(p.color, dtype=np.float64)[:3] * float(p.weight)
         prog["u_light_color"].value = tuple(float(x) for x in col)
@@ -912,6 +934,21 @@ class ShadowRenderer:
             bufs.vao.render(moderngl.TRIANGLES, vertices=bufs.n_indices)
         gl.draw_buffers(2)
         ctx.depth_func = "<"
+
+
+def local_origin(vertices) -> np.ndarray:
+    """(3,) float64: the centre of the bounding box of ``vertices (n, 3)``, the origin of the frame the GPU
+    works in. Every position is converted to float32 relative to it (and the matrices absorb the
+    translation in float64): a millimetre object 1 km from the marker keeps float32's relative precision
+    of its own size instead of losing ~0.06 mm (float32 at 1000) to the distance."""
+    v = np.asarray(vertices, np.float64)
+    return 0.5 * (v.min(axis=0) + v.max(axis=0)) if len(v) else np.zeros(3)
+
+
+def _translation(o) -> np.ndarray:
+    t = np.eye(4)
+    t[:3, 3] = o
+    return t
 
 
 def _screen_box(mvp, corners, width, height):

@@ -189,7 +189,9 @@ class ShadowMapRenderer:
             return bufs
         if bufs is not None:
             bufs.release()
-        bufs = _CasterBuffers(self.ctx, self.prog_occ, self.prog_occ, self.prog_depth, caster, ckey, self.crease_deg)
+        # world coordinates (local=False): the shadow map's matrices and shading work in the world frame
+        bufs = _CasterBuffers(self.ctx, self.prog_occ, self.prog_occ, self.prog_depth, caster, ckey, self.crease_deg,
+                              local=False)
         self._caster = (weakref.ref(caster), ckey, bufs)
         return bufs
 
