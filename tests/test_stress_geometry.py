@@ -39,7 +39,8 @@ import os
 import numpy as np
 import pytest
 
-from image_oracle import _points_in_triangles, ground_points, occluder_coverage
+from arshadow.exact import points_in_triangles as _points_in_triangles
+from image_oracle import ground_points, occluder_coverage
 from oracle import directed_edge_balance, ground_shadow_triangles, iou, points_in_shadow
 
 hypothesis = pytest.importorskip("hypothesis")
