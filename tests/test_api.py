@@ -414,3 +414,28 @@ def test_time_lapse_lights_and_their_state_without_gl():
     assert fresh.set_time(t0 + timedelta(seconds=20))[0].recompute  # without the state it recomputes
     for x in (s, s2, fresh):
         x.close()
+
+
+@pytest.mark.gl
+def test_two_contexts_in_one_process_interleave(gl_ctx):
+    """Each GL object makes its own context current: a second context created (and released) beside a
+    session does not take the session's GL calls (before the fix: deleted-name errors and blank masks)."""
+    import arshadow
+    from arshadow.gl.context import create_context
+
+    photo, _ = _photo()
+    with arshadow.Session(SCENE, context=gl_ctx) as a:
+        ref = a.process(photo).mask.copy()
+        assert ref.max() > 0
+        other = create_context()  # now the current context of this thread
+        try:
+            with arshadow.Session(SCENE, context=other) as b:
+                mb = b.process(photo).mask.copy()
+                ma = a.process(photo).mask.copy()
+                mb2 = b.process(photo).mask.copy()
+        finally:
+            other.release()
+        after = a.process(photo).mask
+    for m in (mb, ma, mb2, after):
+        assert np.array_equal(m, ref)
+    assert gl_ctx.error == "GL_NO_ERROR"

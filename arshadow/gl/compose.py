@@ -37,6 +37,7 @@ import numpy as np
 from ..composite import LINEAR_TO_SRGB16, SRGB_TO_LINEAR
 from ..errors import ShapeError, UsageError
 from . import glraw as G
+from .context import current
 from .renderer import _program
 
 __all__ = ["GpuCompositor", "PathChooser", "SHARED_DECISIONS"]
@@ -87,6 +88,7 @@ class GpuCompositor:
         The renderer's context.
     """
 
+    @current
     def __init__(self, ctx):
         self.ctx = ctx
         self.gl = G.load()
@@ -103,6 +105,7 @@ class GpuCompositor:
         self._lens: dict = {}
         self._released = False
 
+    @current
     def release(self) -> None:
         if self._released:
             return
@@ -142,6 +145,7 @@ class GpuCompositor:
             lt = self._lens[id(lens)] = _LensTexture(self.ctx, lens)
         return lt
 
+    @current
     def compose(self, image, layers, roi, canvas, *, lens=None, opacity=0.7, shadow_color=(0.0, 0.0, 0.0),
                 draw_occluder=True, out=None, mask_out=None, timings=None):
         """Composite the layers into ``out`` over ``roi`` (the numpy path's result within one level).

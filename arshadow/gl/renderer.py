@@ -52,6 +52,7 @@ from .._check import check_finite, check_shape
 from ..errors import GLContextError, ShapeError, UsageError
 from ..render_api import MODES, LightPass, RenderLayers, RenderResult
 from . import glraw as G
+from .context import current
 from .layers import GpuLayers, TextureTarget
 
 __all__ = ["LightPass", "RenderResult", "ShadowRenderer", "load_shader", "srgb_to_linear"]
@@ -325,6 +326,7 @@ class ShadowRenderer:
     >>> # ctx = create_context(); r = ShadowRenderer(ctx); res = r.render(projection=P, view=V, ...)
     """
 
+    @current
     def __init__(self, ctx, *, max_width=4096, max_height=4096, samples=0, supersample=1,
                  ground_offset=(0.0, 0.0), crease_deg=40.0, max_cached_casters=8):
         self.ctx = ctx
@@ -383,6 +385,7 @@ class ShadowRenderer:
     def __exit__(self, *exc):
         self.release()
 
+    @current
     def release(self) -> None:
         """Free every GL object this renderer made (programs stay cached on the context)."""
         if self._released:
@@ -523,6 +526,7 @@ class ShadowRenderer:
         self._ground_key = key
 
     # ------------------------------------------------------------------ render
+    @current
     def render(self, *, projection, view, width, height, caster, passes, ground_size=None,
                draw_occluder=True, ambient=0.25, diffuse=1.0, specular=0.25, shininess=32.0,
                occluder_color=None, readback=True):

@@ -33,6 +33,7 @@ import numpy as np
 from .._check import check_finite, check_shape
 from ..errors import UsageError
 from . import glraw as G
+from .context import current
 from .renderer import RenderResult, _CasterBuffers, _program, ground_vertices
 
 __all__ = ["ShadowMapRenderer", "light_view_projection", "MAP_SIZES"]
@@ -122,6 +123,7 @@ class ShadowMapRenderer:
         Smoothing angle of the occluder's shading normals.
     """
 
+    @current
     def __init__(self, ctx, *, map_size=2048, pcf=3, slope_bias=2.0, constant_bias=4.0, shader_bias=0.0,
                  max_width=4096, max_height=4096, crease_deg=40.0, samples=0):
         self.ctx = ctx
@@ -167,6 +169,7 @@ class ShadowMapRenderer:
     def __exit__(self, *exc):
         self.release()
 
+    @current
     def release(self) -> None:
         """Free the GL objects this renderer made (programs stay cached on the context)."""
         if self._released:
@@ -209,6 +212,7 @@ class ShadowMapRenderer:
             self._size = (w, h)
         return self._fbo
 
+    @current
     def render(self, *, projection, view, width, height, caster, passes, ground_size=None, draw_occluder=True,
                ambient=0.25, diffuse=1.0, specular=0.25, shininess=32.0, occluder_color=None) -> RenderResult:
         """Render one frame (or canvas); arguments as :meth:`arshadow.gl.renderer.ShadowRenderer.render`.
