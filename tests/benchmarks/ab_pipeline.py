@@ -1,0 +1,113 @@
+"""A/B benchmark: bench_pipeline.py's default case in two source trees, frame by frame, interleaved.
+
+    python tests/benchmarks/ab_pipeline.py --a /path/to/old/tree --b /path/to/new/tree [--frames 200]
+
+Each tree runs in its own worker process (``PYTHONPATH`` = the tree), set up once like
+``bench_pipeline.py``'s default row (samples/knot_point.jpg, 1280 x 720, the knot, its first light,
+``Compositor.process(image, want_mask=False, out=buf)``); then the driver asks A and B for one frame each
+in turn (order alternating every pair), so both see the same machine load at nearly the same time. Prints
+JSON: per tree the median, IQR and min of the frame times, and the median and IQR of the paired ratios
+B / A. On a shared machine the paired ratio is the figure to quote; absolute times move with the load.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+WORKER = r"""
+import sys, time, json
+from pathlib import Path
+import numpy as np
+root = Path(sys.argv[1])
+from arshadow.camera import Intrinsics
+from arshadow.gl.context import create_context
+from arshadow.io import read_image
+from arshadow.lights import parse_light
+from arshadow.mesh import load_occluder
+from arshadow.pipeline import Compositor, RenderOptions
+sc = next(s for s in json.loads((root / "samples" / "scenes.json").read_text())["scenes"]
+          if s["photo"] == "knot_point.jpg")
+image = read_image(root / "samples" / "knot_point.jpg")
+intr = Intrinsics.from_file(root / "calib" / "synth_1280x720.yml")
+caster = load_occluder(root / sc["model"], rotate=sc.get("rotate", (0, 0, 0)), place=sc.get("place", (0, 0, 0)))
+ctx = create_context()
+comp = Compositor(ctx, intr, caster, [parse_light(sc["lights"][0])], RenderOptions(), tracker={"marker_length": 0.05})
+buf = np.empty_like(image)
+for _ in range(int(sys.argv[2])):
+    comp.process(image, want_mask=False, out=buf)
+print("ready", flush=True)
+for line in sys.stdin:
+    if line.strip() != "go":
+        break
+    t = time.perf_counter()
+    comp.process(image, want_mask=False, out=buf)
+    print(f"{(time.perf_counter() - t) * 1e3:.4f}", flush=True)
+comp.close()
+ctx.release()
+"""
+
+
+def _stats(a) -> dict:
+    a = np.asarray(a, float)
+    q25, q50, q75 = np.percentile(a, [25, 50, 75])
+    return {"median": round(float(q50), 3), "q25": round(float(q25), 3), "q75": round(float(q75), 3),
+            "iqr": round(float(q75 - q25), 3), "min": round(float(a.min()), 3), "n": int(a.size)}
+
+
+def _commit(tree: Path):
+    r = subprocess.run(["git", "-C", str(tree), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
+    dirty = subprocess.run(["git", "-C", str(tree), "status", "--porcelain", "arshadow"], capture_output=True,
+                           text=True).stdout.strip()
+    return r.stdout.strip() + ("+dirty" if dirty else "")
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--a", required=True, help="source tree A (the baseline)")
+    ap.add_argument("--b", required=True, help="source tree B")
+    ap.add_argument("--frames", type=int, default=200, help="frames per tree (default 200)")
+    ap.add_argument("--warmup", type=int, default=10)
+    ap.add_argument("--json", help="also write the result here")
+    args = ap.parse_args(argv)
+    trees = [Path(args.a).resolve(), Path(args.b).resolve()]
+    procs = []
+    for t in trees:
+        env = dict(os.environ, PYTHONPATH=str(t))
+        p = subprocess.Popen([sys.executable, "-c", WORKER, str(t), str(args.warmup)], cwd=t, env=env,
+                             stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        procs.append(p)
+    for p in procs:
+        if p.stdout.readline().strip() != "ready":
+            raise SystemExit("a worker failed to start")
+    times = [[], []]
+    for i in range(args.frames):
+        order = (0, 1) if i % 2 == 0 else (1, 0)
+        for k in order:
+            procs[k].stdin.write("go\n")
+            procs[k].stdin.flush()
+            times[k].append(float(procs[k].stdout.readline()))
+    for p in procs:
+        p.stdin.write("stop\n")
+        p.stdin.close()
+        p.wait(timeout=60)
+    ratios = np.asarray(times[1]) / np.asarray(times[0])
+    res = {"benchmark": "ab_pipeline: bench_pipeline default case, interleaved frame by frame",
+           "a": {"tree": str(trees[0]), "commit": _commit(trees[0]), "frame_ms": _stats(times[0])},
+           "b": {"tree": str(trees[1]), "commit": _commit(trees[1]), "frame_ms": _stats(times[1])},
+           "ratio_b_over_a": _stats(ratios), "loadavg_end": list(os.getloadavg())}
+    text = json.dumps(res, indent=1)
+    print(text)
+    if args.json:
+        Path(args.json).write_text(text + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
