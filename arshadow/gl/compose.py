@@ -269,8 +269,8 @@ class PathChooser:
     force : str, optional
         Always take this path (no timing).
     decisions : dict, optional
-        Where the choices are kept; default :data:`SHARED_DECISIONS` (one measurement per key and process,
-        whatever the number of sessions).
+        Where the choices are kept (default: a new dict per chooser; :data:`SHARED_DECISIONS` shares them
+        across the process).
 
     Attributes
     ----------
@@ -284,7 +284,9 @@ class PathChooser:
         self.trials = int(trials)
         self.force = force
         if decisions is None:
-            decisions = SHARED_DECISIONS if force is None else {}
+            # per chooser by default: sharing SHARED_DECISIONS across sessions exposed a shader-path failure
+            # on a fresh session's first frame (docs/planner.md, known issues); pass it explicitly to share
+            decisions = {}
         self.decisions: dict = decisions
 
     def run(self, key, paths: dict):
