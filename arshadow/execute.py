@@ -119,11 +119,15 @@ def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings=N
     # measured faster for this photo size on this backend (timed on first use)
     args = (plan, image, intr, geometry, renderer, lens, work, passes, out, mask_full, want_mask, info)
     x0, y0, w, h = roi
+    # each path composites into a clean ROI (the chooser may run both, one after the other); when the caller
+    # composites in place (out is image: the video engine) the photo's ROI is kept aside to start each run
+    clean = image[y0 : y0 + h, x0 : x0 + w]
+    if np.shares_memory(out, image):
+        clean = clean.copy()
 
     def run(fn):
         def go():
-            # each path composites into a clean ROI (the chooser may run both, one after the other)
-            np.copyto(out[y0 : y0 + h, x0 : x0 + w], image[y0 : y0 + h, x0 : x0 + w])
+            np.copyto(out[y0 : y0 + h, x0 : x0 + w], clean)
             if mask_full is not None:
                 mask_full[y0 : y0 + h, x0 : x0 + w] = 0
             t = dict.fromkeys(STAGES, 0.0)

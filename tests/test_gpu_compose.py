@@ -142,3 +142,31 @@ def test_path_chooser_times_both_and_keeps_the_faster():
     assert PathChooser(decisions=SHARED_DECISIONS).decisions is SHARED_DECISIONS
     forced = PathChooser(force="slow")
     assert forced.run("k", {"slow": slow, "fast": fast}) == ("slow", "s")
+
+
+def test_in_place_composite_while_the_chooser_times_both_paths(ctx, tol):
+    """The video engine composites in place (out is the decoded frame). On a session's first frame the
+    chooser runs every path several times: each run must start from the untouched photo, not from the
+    previous run's composite (the shadow was applied once per run: 17 levels where 88 belong)."""
+    from arshadow.lights import parse_light
+    from arshadow.mesh import load_occluder
+    from arshadow.pipeline import Compositor, RenderOptions
+    from arshadow.synth import look_at_pose
+
+    c = CASES["box_point"]
+    intr, caster = _intrinsics(), load_occluder(c["caster_spec"])
+    pose = look_at_pose(c["eye"], c["target"])
+    results = {}
+    for where in ("copy", "in_place"):
+        photo = np.array(_photo())
+        with Compositor(ctx, intr, caster, [parse_light(c["light"])], RenderOptions(compose="auto"),
+                        tracker={"marker_length": 0.05}) as comp:
+            assert not comp.compose_chooser.decisions  # a fresh chooser: this first frame is timed
+            out, mask, info = comp.render_pose(photo, intr, pose, out=photo if where == "in_place" else None)
+            assert set(next(iter(comp.compose_chooser.decisions.values()))["ms"]) == {"cpu", "gpu"}
+        assert (out is photo) == (where == "in_place")
+        results[where] = (out.copy(), info["compose"])
+    (a, ca), (b, cb) = results["copy"], results["in_place"]
+    assert np.count_nonzero(np.any(a != _photo(), axis=2)) > 2000
+    lim = 0 if ca == cb else tol.gpu_compose_levels
+    assert int(np.abs(a.astype(np.int16) - b).max()) <= lim
