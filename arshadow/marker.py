@@ -88,6 +88,49 @@ MIN_CONFIDENT_SIDE_PX = 32.0
 #: flagged ambiguous: blurred corners (issue 12: heavy blur gave confident poses 2-4 deg off; their
 #: corners moved by 0.010-0.068 of the side, sharp ones by < 0.006)
 MAX_CORNER_INSTABILITY = 0.008
+#: a single marker whose black border ring has a cell lighter than this share of the way from the marker's
+#: black to its white (:func:`border_occlusion`) is flagged ambiguous: something covers the marker (issue
+#: 12: a grey patch over one corner gave a pose 3.7 deg off with ratio 0.25 and stable corners; its ring
+#: cells read 0.45, sharp unoccluded markers <= 0.15 in the stress suite)
+MAX_BORDER_OCCLUSION = 0.3
+
+
+def border_occlusion(gray, quad, bits) -> float:
+    """How light the lightest cell of a marker's black border ring is, as a share of the way from the
+    marker's black (0) to its white (1).
+
+    The marker ``quad (4, 2)`` (OpenCV's corner order: the marker's own top-left first) is rectified onto
+    its cell grid; each cell's central quarter is averaged; black and white are the medians of the cells
+    the dictionary says are black / white. Shadows and light gradients leave the ring near 0 (they darken
+    the white cells, not lighten the black ring); something lighter than black lying over the marker (a
+    hand, a sticker, glare) lifts its ring cells. Cells outside the image are ignored.
+
+    Parameters
+    ----------
+    gray : (H, W) uint8
+    quad : (4, 2) float
+    bits : (n, n) uint8
+        The marker's inner bits (1 = white), ``Dictionary.getBitsFromByteList``.
+    """
+    n, c = int(bits.shape[0]) + 2, 8
+    dst = np.array([[0, 0], [n * c, 0], [n * c, n * c], [0, n * c]], np.float32)
+    H = cv2.getPerspectiveTransform(np.asarray(quad, np.float32).reshape(4, 2), dst)
+    can = cv2.warpPerspective(gray, H, (n * c, n * c), flags=cv2.INTER_AREA, borderMode=cv2.BORDER_CONSTANT,
+                              borderValue=0).astype(np.float32)
+    seen = cv2.warpPerspective(np.full(gray.shape[:2], 255, np.uint8), H, (n * c, n * c), flags=cv2.INTER_NEAREST,
+                               borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    cells = can.reshape(n, c, n, c)[:, 2:6, :, 2:6].mean(axis=(1, 3))
+    inside = seen.reshape(n, c, n, c).min(axis=(1, 3)) > 0
+    white = np.zeros((n, n), bool)
+    white[1:-1, 1:-1] = np.asarray(bits) > 0
+    ring = np.ones((n, n), bool)
+    ring[1:-1, 1:-1] = False
+    if not (inside & white).any() or not (inside & ~white).any() or not (inside & ring).any():
+        return 0.0
+    black_level, white_level = np.median(cells[inside & ~white]), np.median(cells[inside & white])
+    if white_level - black_level < 1.0:
+        return 0.0
+    return float(((cells[inside & ring] - black_level) / (white_level - black_level)).max())
 
 
 def corner_instability(gray, quad) -> float:
@@ -790,16 +833,22 @@ class MarkerPose:
     #: single marker: how far its corners move between sub-pixel refinement windows of 5 and 13 px, as a
     #: share of its shortest side (:func:`corner_instability`); None for boards
     corner_instability: float | None = None
+    #: single marker: how light the lightest cell of its black border ring is, between its black (0) and
+    #: white (1) (:func:`border_occlusion`); None for boards
+    border_occlusion: float | None = None
 
     @property
     def ambiguous(self) -> bool:
         """True when the two IPPE solutions explain the corners almost equally well, or (single marker)
         when the marker is under :data:`MIN_CONFIDENT_SIDE_PX` across: its corners cannot tell the two
         solutions apart reliably (issue 12's stress suite: a 20-px marker gave a pose 69 deg off with
-        ratio 0.20)."""
+        ratio 0.20), its corners are blurred (:data:`MAX_CORNER_INSTABILITY`) or something lies over it
+        (:data:`MAX_BORDER_OCCLUSION`)."""
         if self.pose_ambiguity is not None and self.pose_ambiguity >= self.ambiguity_threshold:
             return True
         if self.corner_instability is not None and self.corner_instability > MAX_CORNER_INSTABILITY:
+            return True
+        if self.border_occlusion is not None and self.border_occlusion > MAX_BORDER_OCCLUSION:
             return True
         if self.kind == "marker" and self.pose_ambiguity is not None and len(self.corners) >= 4:
             q = np.asarray(self.corners, np.float64)[:4]
@@ -1040,6 +1089,10 @@ class MarkerTracker:
         pose.ambiguity_threshold = self.ambiguity_threshold
         if pose.kind == "marker":
             pose.corner_instability = corner_instability(gray, pose.corners[:4])
+            ref = pose.marker_ids[0]
+            bits = self.dictionary.getBitsFromByteList(self.dictionary.bytesList[ref : ref + 1],
+                                                       self.dictionary.markerSize)
+            pose.border_occlusion = border_occlusion(gray, pose.corners[:4], bits)
         if previous is not None and pose.alternative is not None and pose.ambiguous:
             prev = previous.cam_from_world if isinstance(previous, MarkerPose) else np.asarray(previous, float)
             if rotation_error_deg(pose.alternative.cam_from_world[:3, :3], prev[:3, :3]) < \
