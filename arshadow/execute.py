@@ -2,8 +2,8 @@
 
 :func:`execute` builds (or reuses) each light's shadow volume as the plan says, hands the renderer (any
 :class:`arshadow.render_api.Renderer`) the canvas's projection and one :class:`~arshadow.render_api.LightPass`
-per light, warps the result's layers into the photo's ROI (:class:`arshadow.lens.LensWarp`, or a flip
-without distortion) and composites them (:func:`arshadow.composite.composite`).
+per light, warps the result's layers into the photo's ROI (:class:`arshadow.compose.lens.LensWarp`, or a flip
+without distortion) and composites them (:func:`arshadow.compose.composite.composite`).
 
 Mask (CONVENTIONS.md)
     ``(H, W) uint8``: ``round(255 * blocked weight / total weight)`` at pixels that see the ground and are
@@ -17,7 +17,7 @@ import time
 import numpy as np
 
 from ._check import check_shape
-from .composite import clip_roi, composite
+from .compose.composite import clip_roi, composite
 from .render_api import LightPass
 from .transforms import CV_TO_GL
 
@@ -41,9 +41,9 @@ def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings=N
     geometry : arshadow.plan.SceneGeometry
         Lights and cached silhouettes / volumes (volumes the plan needs are built into it).
     renderer : arshadow.render_api.Renderer
-    lens : arshadow.lens.LensWarp or None
+    lens : arshadow.compose.lens.LensWarp or None
         The plan's lens warp (``plan.distorted``).
-    work : arshadow.composite.Workspace
+    work : arshadow.compose.composite.Workspace
         Scratch buffers reused across frames.
     timings : dict, optional
         Stage timings (:data:`STAGES`) to add to.

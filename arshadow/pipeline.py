@@ -3,8 +3,8 @@
 A :class:`Compositor` holds what stays fixed over a run (calibration per photo size, trackers, lens
 warps, the scene's CPU geometry, the renderer) and runs each photo through three steps:
 
-1. **track**: marker / board detection and pose (:mod:`arshadow.marker`; the fast first pass of
-   :mod:`arshadow.fastdetect`, the full search only if it finds nothing);
+1. **track**: marker / board detection and pose (:mod:`arshadow.tracking.marker`; the fast first pass of
+   :mod:`arshadow.tracking.fastdetect`, the full search only if it finds nothing);
 2. **plan**: :func:`arshadow.plan.plan_frame` (pure, no GL): ROI and canvas, near plane, z-pass / z-fail
    per light, which cached geometry is reused;
 3. **execute**: :func:`arshadow.execute.execute`: volumes, renderer, lens warp, composite.
@@ -25,10 +25,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .composite import Workspace
+from .compose.composite import Workspace
 from .errors import ImageError, MarkerNotFoundError
 from .execute import STAGES, execute
-from .fastdetect import HalfResolutionDetector, fast_detector_params, make_fast_tracker
+from .tracking.fastdetect import HalfResolutionDetector, fast_detector_params, make_fast_tracker
 from .plan import (
     ROI_MAX_POINTS,
     SceneGeometry,
@@ -57,11 +57,11 @@ class CalibrationState:
     intrinsics : arshadow.camera.Intrinsics
         Scaled to the size.
     was_scaled : bool
-    tracker : arshadow.marker.MarkerTracker
+    tracker : arshadow.tracking.marker.MarkerTracker
         The full search.
-    lens : arshadow.lens.LensWarp or None
+    lens : arshadow.compose.lens.LensWarp or None
         None without distortion.
-    fast_tracker : arshadow.marker.MarkerTracker or None
+    fast_tracker : arshadow.tracking.marker.MarkerTracker or None
         The fast first pass (``detector="fast"``), None when off.
     """
 
@@ -85,13 +85,13 @@ class Compositor:
         creates one). None with ``make_renderer`` or ``renderer``.
     intrinsics : arshadow.camera.Intrinsics
         The calibration; photos of another size with the same aspect ratio get a scaled copy.
-    caster : arshadow.mesh.ShadowCaster
+    caster : arshadow.geometry.mesh.ShadowCaster
         The occluder in the world (marker) frame.
-    lights : sequence of arshadow.lights.Light
+    lights : sequence of arshadow.lights.spec.Light
         At least one. Area lights are split into ``options.soft_samples`` hard samples.
     options : RenderOptions, optional
     tracker : dict, optional
-        Keyword arguments of :class:`arshadow.marker.MarkerTracker` (dictionary, marker_length,
+        Keyword arguments of :class:`arshadow.tracking.marker.MarkerTracker` (dictionary, marker_length,
         marker_id, board, ...).
     renderer : arshadow.render_api.Renderer, optional
         Share an existing renderer (not released by :meth:`close`).
@@ -190,11 +190,11 @@ class Compositor:
         key = (int(width), int(height))
         c = self._calibs.get(key)
         if c is None:
-            from .marker import MarkerTracker
+            from .tracking.marker import MarkerTracker
 
             intr, scaled = self.intrinsics.for_image(width, height)
             # video: each tracker searches a window around its last detection first (the planner's tracking
-            # ROI, full-frame fallback: arshadow/roi_track.py)
+            # ROI, full-frame fallback: arshadow/tracking/roi_track.py)
             roi = bool(self.options.track_roi and self.options.plan != "general"
                        and "board" not in self.tracker_kwargs)
             tracker = MarkerTracker(intr, **self.tracker_kwargs, track_roi=roi)
@@ -229,7 +229,7 @@ class Compositor:
 
         Returns
         -------
-        arshadow.marker.MarkerPose
+        arshadow.tracking.marker.MarkerPose
 
         Raises
         ------
@@ -346,11 +346,11 @@ class Compositor:
             Calibration for this photo size.
         cam_from_world : (4, 4) float64
             Pose.
-        lens : arshadow.lens.LensWarp or None
+        lens : arshadow.compose.lens.LensWarp or None
             Needed when ``intr`` has distortion (built from ``intr`` if missing).
         modes : list of str, optional
             Force the volume mode per light (tests compare z-pass and z-fail); default: decided per
-            light by :func:`arshadow.volume.camera_may_be_in_shadow`.
+            light by :func:`arshadow.geometry.volume.camera_may_be_in_shadow`.
 
         Returns
         -------
@@ -372,7 +372,7 @@ class Compositor:
             self.geometry.forget()  # the reference rebuilds every light's geometry every frame
         plan = plan_frame(self.geometry, intr, cam_from_world, W, H, lens=lens, modes=modes)
         if not self._warned_inside:
-            from .mesh import placement_warnings
+            from .geometry.mesh import placement_warnings
 
             for msg in placement_warnings(self.caster, eye_world=invert_rigid(cam_from_world)[:3, 3]):
                 log.warning(msg)
@@ -388,7 +388,7 @@ class Compositor:
         """The cached :class:`LensWarp` of a calibration (one map per distinct calibration)."""
         lens = self._lenses.get(intr)
         if lens is None:
-            from .lens import LensWarp
+            from .compose.lens import LensWarp
 
             lens = self._lenses[intr] = LensWarp(intr)
         return lens

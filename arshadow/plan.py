@@ -5,7 +5,7 @@ The planner decides everything about a frame before anything is drawn, and recor
 - the region of interest (ROI) in the photo and the pinhole canvas the renderer draws (see below);
 - the near plane (:meth:`SceneGeometry.znear_for`);
 - per light, the technique and mode: ``"planar"`` when projection shadows are asked for, else z-pass
-  when :func:`arshadow.volume.camera_may_be_in_shadow` proves the camera outside the light's shadow
+  when :func:`arshadow.geometry.volume.camera_may_be_in_shadow` proves the camera outside the light's shadow
   volume (no caps needed), z-fail otherwise (capped volume);
 - which silhouettes and volumes are reused from the cache (:class:`SceneGeometry`) and which are built.
 
@@ -31,7 +31,7 @@ Region of interest (ROI)
 
 Lens distortion
     The renderer draws a pinhole image; with a distorted calibration the ROI is chosen in the distorted
-    photo and the pinhole canvas that it samples is rendered, then warped by :class:`arshadow.lens.LensWarp`.
+    photo and the pinhole canvas that it samples is rendered, then warped by :class:`arshadow.compose.lens.LensWarp`.
 """
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .composite import clip_roi
+from .compose.composite import clip_roi
 from .errors import LightError
 from .transforms import invert_rigid, transform_points
 
@@ -169,7 +169,7 @@ class LightState:
 
     Attributes
     ----------
-    light : arshadow.lights.Light
+    light : arshadow.lights.spec.Light
         The (hard) light.
     weight : float
         Its share of the total weight.
@@ -200,10 +200,10 @@ class SceneGeometry:
 
     Parameters
     ----------
-    caster : arshadow.mesh.ShadowCaster
+    caster : arshadow.geometry.mesh.ShadowCaster
         The occluder, world frame.
     options : arshadow.scene.RenderOptions
-    lights : sequence of arshadow.lights.Light, optional
+    lights : sequence of arshadow.lights.spec.Light, optional
         Initial lights (:meth:`set_lights`).
     """
 
@@ -241,7 +241,7 @@ class SceneGeometry:
         LightError
             No light.
         """
-        from .lights import sample_area_light
+        from .lights.spec import sample_area_light
 
         lights = list(lights)
         if not lights:
@@ -303,7 +303,7 @@ class SceneGeometry:
     def silhouette(self, ls: LightState, timings=None):
         """The light's silhouette (built once; ``timings["silhouette"]`` gets the build time)."""
         if ls.sil is None:
-            from .silhouette import silhouette
+            from .geometry.silhouette import silhouette
 
             t = time.perf_counter()
             ls.sil = silhouette(self.caster, ls.light_h, method=self.options.silhouette)
@@ -321,7 +321,7 @@ class SceneGeometry:
         truncate = bool(self.options.truncate if truncate is None else truncate)
         vol = ls.volumes.get((caps, truncate))
         if vol is None:
-            from .volume import shadow_volume
+            from .geometry.volume import shadow_volume
 
             sil = self.silhouette(ls, timings)
             t = time.perf_counter()
@@ -401,7 +401,7 @@ class SceneGeometry:
         """
         if self.options.shadow_method in ("planar", "shadowmap"):
             return [self.options.shadow_method] * len(self.lights)
-        from .volume import camera_may_be_in_shadow, near_plane_radius
+        from .geometry.volume import camera_may_be_in_shadow, near_plane_radius
 
         if intr is not None and canvas is not None and canvas[2] > 0 and canvas[3] > 0:
             u0, v0, w, h = canvas
@@ -534,7 +534,7 @@ def plan_frame(geometry: SceneGeometry, intr, cam_from_world, width: int, height
         The pose.
     width, height : int
         Photo size.
-    lens : arshadow.lens.LensWarp or None
+    lens : arshadow.compose.lens.LensWarp or None
         The lens warp of ``intr`` when it has distortion.
     modes : list of str, optional
         Force the mode per light (tests compare z-pass and z-fail).
@@ -605,7 +605,7 @@ def plan_frame(geometry: SceneGeometry, intr, cam_from_world, width: int, height
         decisions = [LightDecision("none", False, {"cull": "nothing of the scene in view: no render at all"})
                      for _ in geometry.lights]
     else:
-        from .volume import near_plane_radius
+        from .geometry.volume import near_plane_radius
 
         which = "planar" if opts.shadow_method == "planar" and opts.plan == "auto" else opts.plan
         u0, v0, cw, ch = canvas

@@ -16,10 +16,10 @@ planar (:func:`planar_applies`)
     it is convex and closed: then the only parts of it in its own shadow are the faces turned away from
     the light, which the renderer leaves unlit anyway (it lights only light-facing faces of closed meshes).
 z-pass (:func:`zpass_safe`)
-    :func:`arshadow.volume.camera_may_be_in_shadow` with the near rectangle's radius: False proves the
+    :func:`arshadow.geometry.volume.camera_may_be_in_shadow` with the near rectangle's radius: False proves the
     near plane is outside the volume (z-pass counts right, no caps needed); otherwise z-fail.
 truncated volumes
-    :func:`arshadow.volume.shadow_volume` ends the volume just below the ground when every extruded ray
+    :func:`arshadow.geometry.volume.shadow_volume` ends the volume just below the ground when every extruded ray
     descends (``MIN_DESCENT``); nothing under the ground is visible, so the ground and the occluder get the
     same counts as with infinite volumes, with less fill.
 light culling (:func:`light_shadow_in_view`)
@@ -43,7 +43,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .silhouette import as_light_h
+from .geometry.silhouette import as_light_h
 
 __all__ = [
     "mesh_is_convex",
@@ -74,7 +74,7 @@ def mesh_is_convex(caster, rel_tol: float = 1e-9) -> bool:
 
     Parameters
     ----------
-    caster : arshadow.mesh.ShadowCaster
+    caster : arshadow.geometry.mesh.ShadowCaster
     rel_tol : float
         A vertex up to ``rel_tol * caster.scale`` in front of a plane counts as on it (rounding).
 
@@ -84,7 +84,7 @@ def mesh_is_convex(caster, rel_tol: float = 1e-9) -> bool:
 
     Examples
     --------
-    >>> from arshadow.mesh import load_occluder
+    >>> from arshadow.geometry.mesh import load_occluder
     >>> mesh_is_convex(load_occluder("box:1,1,1")), mesh_is_convex(load_occluder("torus:1,0.3"))
     (True, False)
     """
@@ -135,7 +135,7 @@ def planar_applies(caster, light_h, *, convex: bool, draw_occluder: bool, margin
 
 def zpass_safe(caster, light_h, eye_world, near: float):
     """``(bool, reason)``: z-pass is safe when the camera's near rectangle is provably outside the volume."""
-    from .volume import camera_may_be_in_shadow
+    from .geometry.volume import camera_may_be_in_shadow
 
     if camera_may_be_in_shadow(caster, light_h, eye_world, near):
         return False, "camera may be inside the volume (eye-to-light segment meets the grown box)"
@@ -215,7 +215,7 @@ def reuse_light_geometry(caster, light_h, sil, volumes: dict, *, truncate_z=None
     caster : ShadowCaster
     light_h : (4,) float64
         The new light (occluder/world frame).
-    sil : arshadow.silhouette.Silhouette
+    sil : arshadow.geometry.silhouette.Silhouette
         The cached silhouette (of the old light).
     volumes : dict
         ``caps (bool) -> ShadowVolume`` cached for the old light.
@@ -233,7 +233,7 @@ def reuse_light_geometry(caster, light_h, sil, volumes: dict, *, truncate_z=None
     """
     from dataclasses import replace
 
-    from .volume import shadow_volume
+    from .geometry.volume import shadow_volume
 
     h = as_light_h(light_h)
     if sil is None or not same_silhouette(caster.face_planes, sil.facing, h):
@@ -321,7 +321,7 @@ def decide_lights(plan: str, caster, lights_h, *, convex: bool, eye_world, near:
     eye_world : (3,) float64
         Camera centre, world frame.
     near : float
-        Radius of the near rectangle (:func:`arshadow.volume.near_plane_radius`).
+        Radius of the near rectangle (:func:`arshadow.geometry.volume.near_plane_radius`).
     draw_occluder : bool
     truncate : bool
         ``RenderOptions.truncate``.

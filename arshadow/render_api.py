@@ -35,7 +35,7 @@ class LightPass:
     weight : float
         Share of the total light weight (the mask accumulates ``weight`` where this light is blocked).
     volume : ShadowVolume or None
-        From :func:`arshadow.volume.shadow_volume` (``vertices (p, 4)`` homogeneous world, w = 0 at
+        From :func:`arshadow.geometry.volume.shadow_volume` (``vertices (p, 4)`` homogeneous world, w = 0 at
         infinity; ``triangles (q, 3)`` outward-wound). None: the light casts no volume shadow (with mode
         ``"planar"`` the caster itself is flattened onto the ground).
     mode : str
@@ -45,7 +45,7 @@ class LightPass:
         Light colour for the occluder's Phong shading.
     shadow_matrix : (4, 4) float64 or None
         Mode ``"planar"`` only: the projection-shadow matrix flattening the caster onto z = 0 from this
-        light (:func:`arshadow.projection.planar_shadow_matrix`), filled in when not given; None when the
+        light (:func:`arshadow.geometry.projection.planar_shadow_matrix`), filled in when not given; None when the
         light is not above the ground (it lights nothing from above: no planar shadow).
     direct : bool
         Mode ``"planar"`` of a convex closed caster only: its light-facing faces, flattened, cover the
@@ -63,8 +63,8 @@ class LightPass:
 
     def __post_init__(self):
         if self.mode == "planar" and self.shadow_matrix is None:
-            from .projection import GROUND_PLANE, planar_shadow_matrix
-            from .silhouette import as_light_h
+            from .geometry.projection import GROUND_PLANE, planar_shadow_matrix
+            from .geometry.silhouette import as_light_h
 
             if as_light_h(self.light_h)[2] > 0.0:
                 self.shadow_matrix = planar_shadow_matrix(GROUND_PLANE, self.light_h)
@@ -141,7 +141,7 @@ class Renderer(Protocol):
         ``gl_from_world = CV_TO_GL @ cam_from_world``.
     width, height : int
         Canvas size in pixels.
-    caster : arshadow.mesh.ShadowCaster
+    caster : arshadow.geometry.mesh.ShadowCaster
         The occluder, world frame.
     passes : sequence of LightPass
         One per (sample) light.

@@ -89,7 +89,7 @@ class RenderOptions:
         Override of the occluder's colour handed to the renderer.
     fast_detect : bool
         Try the fast detection pass first (``MarkerTracker(detector="fast")``,
-        :mod:`arshadow.fastdetect`), the full search only if it finds nothing.
+        :mod:`arshadow.tracking.fastdetect`), the full search only if it finds nothing.
     plan : str
         Frame planner (:mod:`arshadow.plan_rules`, docs/planner.md): ``auto`` (the cheapest exact path per
         frame and light), ``general`` (the reference: z-fail, volumes to infinity, whole photo, every pass,
@@ -157,7 +157,7 @@ class TrackerSpec:
     ----------
     dictionary : str or None
         ArUco dictionary name or custom dictionary file (single-marker mode; None:
-        :data:`arshadow.marker.DEFAULT_DICTIONARY`). A board names its own: a different one is an error.
+        :data:`arshadow.tracking.marker.DEFAULT_DICTIONARY`). A board names its own: a different one is an error.
     marker_length : float or None
         Marker side, metres.
     marker_id : int or None
@@ -165,7 +165,7 @@ class TrackerSpec:
     board : str or None
         Board file (GridBoard or ChArUco) instead of one marker.
     refine : str or None
-        Corner refinement; ``"default"``: the tracker's own default (:data:`arshadow.marker.DEFAULT_REFINE`).
+        Corner refinement; ``"default"``: the tracker's own default (:data:`arshadow.tracking.marker.DEFAULT_REFINE`).
     """
 
     dictionary: str | None = None
@@ -175,14 +175,14 @@ class TrackerSpec:
     refine: str | None = "default"
 
     def kwargs(self) -> dict:
-        """Keyword arguments of :class:`arshadow.marker.MarkerTracker` (the board file loaded).
+        """Keyword arguments of :class:`arshadow.tracking.marker.MarkerTracker` (the board file loaded).
 
         Raises
         ------
         UsageError
             Neither a marker length nor a board; an unknown dictionary.
         """
-        from .marker import DEFAULT_DICTIONARY, get_dictionary, load_board
+        from .tracking.marker import DEFAULT_DICTIONARY, get_dictionary, load_board
 
         if self.board is None and self.marker_length is None:
             raise UsageError("give --marker-length M (metres) for a single marker, or --board B")
@@ -211,9 +211,9 @@ class ModelSpec:
     color: str | None = None
 
     def build(self):
-        """The :class:`arshadow.mesh.ShadowCaster` (MeshError / UsageError on a bad file or colour)."""
-        from .composite import parse_rgb
-        from .mesh import load_occluder
+        """The :class:`arshadow.geometry.mesh.ShadowCaster` (MeshError / UsageError on a bad file or colour)."""
+        from .compose.composite import parse_rgb
+        from .geometry.mesh import load_occluder
 
         color = None
         if self.color:
@@ -232,7 +232,7 @@ class SceneSpec:
         Calibration file, or the intrinsics themselves.
     tracker : TrackerSpec
     model : ModelSpec
-    lights : tuple of str or arshadow.lights.Light
+    lights : tuple of str or arshadow.lights.spec.Light
         Light specs (CONVENTIONS.md: ``point:X,Y,Z``, ``directional:X,Y,Z``, ``sun:LAT,LON,TIME[,NORTH]``,
         optional ``@W``) or parsed lights.
     options : RenderOptions
@@ -258,11 +258,11 @@ class SceneSpec:
             CalibrationError, UsageError, MeshError, LightError: the first problem found.
         """
         from .camera import Intrinsics
-        from .lights import parse_light
+        from .lights.spec import parse_light
 
         intr = self.camera if isinstance(self.camera, Intrinsics) else Intrinsics.from_file(self.camera)
-        from .marker import MarkerTracker
-        from .mesh import placement_warnings
+        from .tracking.marker import MarkerTracker
+        from .geometry.mesh import placement_warnings
 
         tracker = self.tracker.kwargs()
         MarkerTracker(intr, **tracker)  # a dictionary conflicting with the board, a bad id: a usage error
@@ -287,11 +287,11 @@ class Scene:
     Attributes
     ----------
     intrinsics : arshadow.camera.Intrinsics
-    caster : arshadow.mesh.ShadowCaster
-    lights : list of arshadow.lights.Light
+    caster : arshadow.geometry.mesh.ShadowCaster
+    lights : list of arshadow.lights.spec.Light
     options : RenderOptions
     tracker : dict
-        Keyword arguments of :class:`arshadow.marker.MarkerTracker`.
+        Keyword arguments of :class:`arshadow.tracking.marker.MarkerTracker`.
     """
 
     intrinsics: object
@@ -302,7 +302,7 @@ class Scene:
 
 
 def _check_silhouette_name(name: str) -> None:
-    from .silhouette import METHODS
+    from .geometry.silhouette import METHODS
 
     if name not in METHODS:
         raise UsageError(f"--silhouette {name!r}: choose one of {', '.join(METHODS)}")
@@ -403,7 +403,7 @@ def scene_from_dict(d, base_dir=None) -> SceneSpec:
                            place=_triple(d.get("place", (0, 0, 0)), "place"), color=_rgb_text(d.get("color")))
     opts = {}
     if d.get("shadow_color") is not None:
-        from .composite import parse_rgb
+        from .compose.composite import parse_rgb
 
         opts["shadow_color"] = parse_rgb(d["shadow_color"], "--shadow-color")
     for key, conv in (("opacity", float), ("shadow_method", str), ("shadowmap_size", int), ("silhouette", str), ("soft_samples", int),

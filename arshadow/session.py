@@ -43,7 +43,7 @@ class FrameResult:
         The photo with the object and its shadow (BGR).
     mask : (H, W) uint8 or None
         The shadow mask of CONVENTIONS.md (None when not asked for).
-    pose : arshadow.marker.MarkerPose or None
+    pose : arshadow.tracking.marker.MarkerPose or None
         The tracked pose (None when rendering at a given ``cam_from_world``).
     cam_from_world : (4, 4) float64
         The pose rendered.
@@ -72,7 +72,7 @@ class Session:
     spec : arshadow.scene.SceneSpec
         The scene (or a mapping for :func:`arshadow.scene.scene_from_dict`, or a job file path for
         :func:`arshadow.scene.load_scene`).
-    lights : sequence of arshadow.lights.Light, optional
+    lights : sequence of arshadow.lights.spec.Light, optional
         Lights to start with instead of the spec's (a time-lapse's static lights plus its sun's first
         position).
     context : moderngl.Context, optional
@@ -208,7 +208,7 @@ class Session:
 
         Returns
         -------
-        arshadow.marker.MarkerPose
+        arshadow.tracking.marker.MarkerPose
 
         Raises
         ------
@@ -225,7 +225,7 @@ class Session:
         Parameters
         ----------
         image : (H, W, 3) uint8
-        pose : arshadow.marker.MarkerPose or (4, 4) float64
+        pose : arshadow.tracking.marker.MarkerPose or (4, 4) float64
             A tracked pose or ``cam_from_world``.
         name, want_mask, out, mask_out
             As :meth:`process`.
@@ -291,14 +291,14 @@ class Session:
 
     # -- lights and history ---------------------------------------------------------------------------
     def set_lights(self, lights) -> int:
-        """Replace the lights (spec strings or :class:`arshadow.lights.Light`), keeping the cached geometry
+        """Replace the lights (spec strings or :class:`arshadow.lights.spec.Light`), keeping the cached geometry
         of the lights that stay; returns the number of (sample) lights to recompute."""
-        from .lights import parse_light
+        from .lights.spec import parse_light
 
         return self._compositor.set_lights([parse_light(s) if isinstance(s, str) else s for s in lights])
 
     def use_sun_tracks(self, tracks, static=()) -> None:
-        """Let :meth:`set_time` move the sun: ``tracks`` (:func:`arshadow.lights.parse_sun_track`) plus fixed
+        """Let :meth:`set_time` move the sun: ``tracks`` (:func:`arshadow.lights.spec.parse_sun_track`) plus fixed
         ``static`` lights."""
         self._sun = (list(static), list(tracks))
 
@@ -307,7 +307,7 @@ class Session:
 
         Returns
         -------
-        list of arshadow.sun.TrackFrame
+        list of arshadow.lights.sun.TrackFrame
             One per track (``recompute``, ``stale_deg``... for the report).
         """
         if self._sun is None:

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from arshadow.mesh import ShadowCaster, load_occluder
+from arshadow.geometry.mesh import ShadowCaster, load_occluder
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLES = ROOT / "samples" / "meshes"

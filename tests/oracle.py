@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from arshadow.exact import ground_shadow_triangles, iou  # noqa: F401 (re-exported: the tests import them from here)
+from arshadow.geometry.exact import ground_shadow_triangles, iou  # noqa: F401 (re-exported: the tests import them from here)
 
 
 @dataclass(frozen=True)

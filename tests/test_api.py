@@ -63,7 +63,7 @@ def test_import_arshadow_loads_no_opengl():
 
 
 def test_sun_does_not_import_lights():
-    r = _run("import sys, arshadow.sun\nassert 'arshadow.lights' not in sys.modules\nprint('ok')")
+    r = _run("import sys, arshadow.lights.sun\nassert 'arshadow.lights.spec' not in sys.modules\nprint('ok')")
     assert r.returncode == 0 and r.stdout.strip() == "ok", r.stderr
 
 
@@ -74,7 +74,7 @@ def test_planner_is_pure_and_its_roi_holds_the_projected_object():
 import sys, numpy as np
 from arshadow.scene import scene_from_dict
 from arshadow.plan import SceneGeometry, plan_frame
-from arshadow.lens import LensWarp
+from arshadow.compose.lens import LensWarp
 from arshadow.synth import look_at_pose
 spec = scene_from_dict({{"calib": {CALIB!r}, "marker_length": 0.05, "model": "box:0.04,0.04,0.06",
                          "lights": ["point:0.1,0.1,0.4"]}})
@@ -98,8 +98,8 @@ assert [d.name for d in plan.decisions][:3] == ["znear", "roi", "canvas"]
 assert all(d.reason for d in plan.decisions)
 # a camera whose view towards a low light passes through a box (it stands in the shadow): z-fail; a
 # camera beside the shadow: z-pass (the geometry of test_pipeline's mode test)
-from arshadow.mesh import load_occluder
-from arshadow.lights import parse_light
+from arshadow.geometry.mesh import load_occluder
+from arshadow.lights.spec import parse_light
 from arshadow.scene import RenderOptions
 from arshadow.camera import Intrinsics
 geo2 = SceneGeometry(load_occluder("box:0.1,0.1,0.1"), RenderOptions(plan_off=("planar", "cull")),
@@ -119,7 +119,7 @@ print("ok")
 
 
 def test_light_pass_carries_the_planar_matrix():
-    from arshadow.projection import GROUND_PLANE, planar_shadow_matrix
+    from arshadow.geometry.projection import GROUND_PLANE, planar_shadow_matrix
     from arshadow.render_api import LightPass
 
     lh = np.array([0.1, 0.2, 0.5, 1.0])
@@ -313,7 +313,7 @@ def test_a_renderer_without_raw_layers_plugs_in_and_agrees(gl_ctx, tol):
 def test_sun_track_state_resumes_the_recompute_schedule():
     from datetime import timedelta
 
-    from arshadow.lights import parse_sun_track
+    from arshadow.lights.spec import parse_sun_track
 
     spec = "sun:48,11,2021-06-21T09:00+02:00,0@2"
     t0 = parse_sun_track(spec).start
@@ -335,8 +335,8 @@ def test_sun_track_state_resumes_the_recompute_schedule():
 def test_marker_tracker_detector_option():
     from arshadow.camera import Intrinsics
     from arshadow.errors import UsageError
-    from arshadow.fastdetect import HalfResolutionDetector
-    from arshadow.marker import MarkerTracker
+    from arshadow.tracking.fastdetect import HalfResolutionDetector
+    from arshadow.tracking.marker import MarkerTracker
 
     photo, truth = _photo()
     cam = Intrinsics.from_file(CALIB)
@@ -383,7 +383,7 @@ def test_time_lapse_lights_and_their_state_without_gl():
     from datetime import timedelta
 
     import arshadow
-    from arshadow.lights import parse_light, parse_sun_track
+    from arshadow.lights.spec import parse_light, parse_sun_track
 
     spec = _volume_spec()
     sun = "sun:48,11,2021-06-21T09:00+02:00,0@0.5"

@@ -10,10 +10,10 @@ import pytest
 
 from conftest import TOL
 
-from arshadow.calibration import MIN_VIEWS, calibrate, find_view, parse_pattern
+from arshadow.tracking.calibration import MIN_VIEWS, calibrate, find_view, parse_pattern
 from arshadow.camera import Intrinsics
 from arshadow.errors import CalibrationError, UsageError
-from arshadow.marker import Board
+from arshadow.tracking.marker import Board
 from arshadow.synth import random_pose, render_marker_photo
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from arshadow.composite import (
+from arshadow.compose.composite import (
     LINEAR_TO_SRGB16,
     SRGB_TO_LINEAR,
     clip_roi,

@@ -50,7 +50,7 @@ def _nonconvex_blob():
     """A star-shaped bumpy sphere, ~8.6k faces, standing on the ground (deep concavities self-shadow)."""
     import trimesh
 
-    from arshadow.mesh import ShadowCaster
+    from arshadow.geometry.mesh import ShadowCaster
 
     m = trimesh.creation.uv_sphere(radius=1.0, count=[48, 92])
     v = np.asarray(m.vertices, np.float64)
@@ -64,7 +64,7 @@ def _nonconvex_blob():
 
 
 def _scenes():
-    from arshadow.mesh import ShadowCaster, load_occluder
+    from arshadow.geometry.mesh import ShadowCaster, load_occluder
     from arshadow.synth import look_at_pose
 
     box = load_occluder("box:0.1,0.08,0.15")
@@ -91,9 +91,9 @@ def _scenes():
 def _render(ctx_or_renderer, scene: Scene, mode: str | None = None, **kw):
     """Render a scene; ``mode=None`` picks z-pass/z-fail with the conservative test."""
     from arshadow.gl.renderer import LightPass
-    from arshadow.silhouette import silhouette
+    from arshadow.geometry.silhouette import silhouette
     from arshadow.transforms import CV_TO_GL, invert_rigid
-    from arshadow.volume import camera_may_be_in_shadow, near_plane_radius, shadow_volume
+    from arshadow.geometry.volume import camera_may_be_in_shadow, near_plane_radius, shadow_volume
 
     K = _intrinsics(scene.fx)
     eye = invert_rigid(scene.cam_from_world)[:3, 3]
@@ -251,11 +251,11 @@ def test_stencil_bits_and_state(gl_ctx, renderer, scene_results):
 def test_self_shadowing(ctx, tol):
     """A low box's top face (facing the light) inside a tall box's shadow gets only ambient light."""
     from arshadow.gl.renderer import LightPass, ShadowRenderer, srgb_to_linear
-    from arshadow.mesh import ShadowCaster, load_occluder
-    from arshadow.silhouette import silhouette
+    from arshadow.geometry.mesh import ShadowCaster, load_occluder
+    from arshadow.geometry.silhouette import silhouette
     from arshadow.synth import look_at_pose
     from arshadow.transforms import CV_TO_GL
-    from arshadow.volume import shadow_volume
+    from arshadow.geometry.volume import shadow_volume
 
     tall = load_occluder("box:0.04,0.2,0.3", place=(-0.06, 0, 0))
     low = load_occluder("box:0.2,0.2,0.05", place=(0.08, 0, 0))
@@ -302,8 +302,8 @@ def test_render_sub_canvas_matches_full(renderer, scene_results, tol):
     u0, v0, w, h = 500, 200, 400, 300
     res_full = r["res"]
     from arshadow.gl.renderer import LightPass
-    from arshadow.silhouette import silhouette
-    from arshadow.volume import shadow_volume
+    from arshadow.geometry.silhouette import silhouette
+    from arshadow.geometry.volume import shadow_volume
 
     lh = sc.lights[0][0]
     vol = shadow_volume(sc.caster, lh, silhouette(sc.caster, lh), caps=False)
@@ -341,11 +341,11 @@ def test_contact_depth_stability(renderer, tol):
     and a z-fail volume truncated just below the ground: every render matches the oracle up to a few
     boundary pixels. (Measured in docs/rendering.md: a polygon offset on the ground makes this worse.)"""
     from arshadow.gl.renderer import LightPass
-    from arshadow.mesh import load_occluder
-    from arshadow.silhouette import silhouette
+    from arshadow.geometry.mesh import load_occluder
+    from arshadow.geometry.silhouette import silhouette
     from arshadow.synth import look_at_pose
     from arshadow.transforms import CV_TO_GL
-    from arshadow.volume import shadow_volume
+    from arshadow.geometry.volume import shadow_volume
 
     rng = np.random.default_rng(7)
     box = load_occluder("box:0.1,0.1,0.12")
@@ -374,9 +374,9 @@ def test_antialiased_mask(ctx, tol, samples, supersample):
     """MSAA / supersampling give fractional edge values; thresholded at 0.5 the mask still matches the
     pixel-centre oracle, and the fractional values approach the true area coverage."""
     from arshadow.gl.renderer import LightPass, ShadowRenderer
-    from arshadow.silhouette import silhouette
+    from arshadow.geometry.silhouette import silhouette
     from arshadow.transforms import CV_TO_GL
-    from arshadow.volume import shadow_volume
+    from arshadow.geometry.volume import shadow_volume
 
     if samples > ctx.max_samples:
         pytest.skip(f"GL has at most {ctx.max_samples} samples")
@@ -440,10 +440,10 @@ def test_buffers_grow_and_caster_cache(ctx):
     import gc
 
     from arshadow.gl.renderer import LightPass, ShadowRenderer
-    from arshadow.mesh import load_occluder
-    from arshadow.silhouette import silhouette
+    from arshadow.geometry.mesh import load_occluder
+    from arshadow.geometry.silhouette import silhouette
     from arshadow.transforms import CV_TO_GL
-    from arshadow.volume import shadow_volume
+    from arshadow.geometry.volume import shadow_volume
 
     sc = _scenes()[0]
     K = _intrinsics(sc.fx)
@@ -482,9 +482,9 @@ def test_upload_reuse_follows_the_volumes(ctx):
     from dataclasses import replace
 
     from arshadow.gl.renderer import LightPass, ShadowRenderer
-    from arshadow.silhouette import silhouette
+    from arshadow.geometry.silhouette import silhouette
     from arshadow.transforms import CV_TO_GL
-    from arshadow.volume import shadow_volume
+    from arshadow.geometry.volume import shadow_volume
 
     sc = _scenes()[0]
     K = _intrinsics(sc.fx)

@@ -28,8 +28,8 @@ def _photo(seed=3):
 
 
 def _both_paths(ctx, compose, *, dist, aa, caster_spec, light, eye, target, **opts):
-    from arshadow.lights import parse_light
-    from arshadow.mesh import load_occluder
+    from arshadow.lights.spec import parse_light
+    from arshadow.geometry.mesh import load_occluder
     from arshadow.pipeline import Compositor, RenderOptions
     from arshadow.synth import look_at_pose
 
@@ -85,11 +85,11 @@ def test_shader_compose_equals_numpy_compose(ctx, tol, case, dist, aa):
 def test_gpu_layers_hold_what_the_readback_holds(ctx):
     """render(readback=False) keeps the same layers the default readback returns (MSAA resolved on the GPU)."""
     from arshadow.gl.renderer import LightPass, ShadowRenderer
-    from arshadow.mesh import load_occluder
-    from arshadow.silhouette import silhouette
+    from arshadow.geometry.mesh import load_occluder
+    from arshadow.geometry.silhouette import silhouette
     from arshadow.synth import look_at_pose
     from arshadow.transforms import CV_TO_GL
-    from arshadow.volume import shadow_volume
+    from arshadow.geometry.volume import shadow_volume
 
     intr = _intrinsics()
     caster = load_occluder("box:0.06,0.05,0.09")
@@ -148,8 +148,8 @@ def test_in_place_composite_while_the_chooser_times_both_paths(ctx, tol):
     """The video engine composites in place (out is the decoded frame). On a session's first frame the
     chooser runs every path several times: each run must start from the untouched photo, not from the
     previous run's composite (the shadow was applied once per run: 17 levels where 88 belong)."""
-    from arshadow.lights import parse_light
-    from arshadow.mesh import load_occluder
+    from arshadow.lights.spec import parse_light
+    from arshadow.geometry.mesh import load_occluder
     from arshadow.pipeline import Compositor, RenderOptions
     from arshadow.synth import look_at_pose
 

@@ -9,7 +9,7 @@ import pytest
 from conftest import TOL
 
 from arshadow.camera import Intrinsics
-from arshadow.lens import LensWarp, undistort_map
+from arshadow.compose.lens import LensWarp, undistort_map
 
 
 def _cam(dist):

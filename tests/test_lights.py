@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from arshadow.errors import ArshadowError, LightError
-from arshadow.lights import (
+from arshadow.lights.spec import (
     SUN_ANGULAR_RADIUS_DEG,
     Light,
     lights_homogeneous,

@@ -14,7 +14,7 @@ from conftest import TOL
 
 from arshadow.camera import Intrinsics
 from arshadow.errors import CalibrationError, MarkerNotFoundError, UsageError
-from arshadow.marker import (
+from arshadow.tracking.marker import (
     AMBIGUITY_FLAG,
     DEFAULT_REFINE,
     REFINE_METHODS,

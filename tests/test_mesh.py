@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from arshadow.errors import MeshError
-from arshadow.mesh import ShadowCaster, connected_labels, load_occluder, primitive, rotation_xyz_deg
+from arshadow.geometry.mesh import ShadowCaster, connected_labels, load_occluder, primitive, rotation_xyz_deg
 
 
 def test_box_adjacency_and_planes():

@@ -85,7 +85,7 @@ def _compositor(ctx, caster, lights, **opts):
 
 
 def _lights(*specs):
-    from arshadow.lights import parse_light
+    from arshadow.lights.spec import parse_light
 
     return [parse_light(s) for s in specs]
 
@@ -97,7 +97,7 @@ def _oracle_lights(lights):
 # --------------------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def knot():
-    from arshadow.mesh import load_occluder
+    from arshadow.geometry.mesh import load_occluder
 
     return load_occluder("samples/meshes/knot.ply" if _root_has("samples/meshes/knot.ply") else "torus:0.05,0.015")
 
@@ -122,7 +122,7 @@ def test_lens_distortion_k1(ctx, tol, case, aa):
     place an edge up to half a pinhole pixel off (mean ~0.15 px): held to the worst-case IoU threshold
     and the same mean boundary error.
     """
-    from arshadow.mesh import load_occluder
+    from arshadow.geometry.mesh import load_occluder
     from arshadow.synth import look_at_pose
 
     K1 = (-0.25, 0.0, 0.0, 0.0, 0.0)
@@ -165,7 +165,7 @@ def test_lens_distortion_k1(ctx, tol, case, aa):
 
 def test_nothing_in_view_renders_nothing(ctx):
     """The camera looks away from the object: no canvas, the photo is returned unchanged."""
-    from arshadow.mesh import load_occluder
+    from arshadow.geometry.mesh import load_occluder
     from arshadow.synth import look_at_pose
 
     caster = load_occluder("box:0.04,0.04,0.06")
@@ -178,7 +178,7 @@ def test_nothing_in_view_renders_nothing(ctx):
 
 
 def test_sun_below_the_horizon_casts_nothing(ctx):
-    from arshadow.mesh import load_occluder
+    from arshadow.geometry.mesh import load_occluder
     from arshadow.synth import look_at_pose
 
     night = _lights("sun:48.8566,2.3522,2024-06-21T23:30+02:00")
@@ -190,7 +190,7 @@ def test_sun_below_the_horizon_casts_nothing(ctx):
 
 
 def test_mask_is_zero_on_the_object_and_full_in_the_shadow(ctx):
-    from arshadow.mesh import load_occluder
+    from arshadow.geometry.mesh import load_occluder
     from arshadow.synth import look_at_pose
 
     caster = load_occluder("box:0.06,0.05,0.09")
@@ -255,7 +255,7 @@ def test_zpass_equals_zfail_when_camera_outside(ctx, knot):
 
 def test_camera_inside_shadow_volume_uses_zfail(ctx, tol):
     """A tall wall between a low sun and the camera: the camera stands in the wall's shadow."""
-    from arshadow.mesh import load_occluder
+    from arshadow.geometry.mesh import load_occluder
     from arshadow.synth import look_at_pose
 
     wall = load_occluder("box:0.6,0.02,0.5", place=(0, 0.1, 0))
@@ -273,7 +273,7 @@ def test_camera_inside_shadow_volume_uses_zfail(ctx, tol):
 
 
 def test_ground_size_clips_the_roi_and_the_mask(ctx):
-    from arshadow.mesh import load_occluder
+    from arshadow.geometry.mesh import load_occluder
     from arshadow.synth import look_at_pose
 
     caster = load_occluder("box:0.04,0.04,0.1")
@@ -306,7 +306,7 @@ E2E_POSES = [
 
 def test_end_to_end_synthetic_photos(ctx, tol):
     from arshadow.camera import Intrinsics
-    from arshadow.mesh import load_occluder
+    from arshadow.geometry.mesh import load_occluder
     from arshadow.pipeline import Compositor, RenderOptions
     from arshadow.synth import look_at_pose, render_marker_photo
 
@@ -346,8 +346,8 @@ def _calib(name):
 def test_real_charuco_photo_object_and_shadow_on_the_board(ctx, realdata):
     from arshadow.camera import Intrinsics
     from arshadow.io import read_image
-    from arshadow.marker import Board
-    from arshadow.mesh import load_occluder
+    from arshadow.tracking.marker import Board
+    from arshadow.geometry.mesh import load_occluder
     from arshadow.pipeline import Compositor, RenderOptions
 
     folder = realdata / "aruco_tutorial"
@@ -383,7 +383,7 @@ def test_fast_detection_pass_and_its_fallbacks(ctx, monkeypatch, tol):
     tracker's full search when the fast pass finds nothing."""
     from arshadow.camera import Intrinsics
     from arshadow.errors import MarkerNotFoundError
-    from arshadow.mesh import load_occluder
+    from arshadow.geometry.mesh import load_occluder
     from arshadow.pipeline import Compositor, HalfResolutionDetector, RenderOptions, make_fast_tracker
     from arshadow.synth import look_at_pose, render_marker_photo
 
@@ -429,8 +429,8 @@ def test_mode_choice_uses_the_near_rectangle_not_znear(ctx):
     eye->light ray passes the box closer than the near rectangle's corner radius (but farther than
     znear) must get z-fail."""
     from arshadow.camera import Intrinsics
-    from arshadow.lights import parse_light
-    from arshadow.mesh import load_occluder
+    from arshadow.lights.spec import parse_light
+    from arshadow.geometry.mesh import load_occluder
     from arshadow.pipeline import Compositor, RenderOptions
     from arshadow.synth import look_at_pose
 

@@ -30,7 +30,7 @@ def _spec(lh, w):
 def _scenes():
     """(name, caster, light specs, cam_from_world, intrinsics, options) of the accuracy tests' scenes."""
     from arshadow.camera import Intrinsics
-    from arshadow.mesh import load_occluder
+    from arshadow.geometry.mesh import load_occluder
     from arshadow.synth import look_at_pose
 
     import test_gl_renderer as tg
@@ -74,7 +74,7 @@ def scenes():
 
 
 def _run(ctx, scene, plan, aa=0, **extra):
-    from arshadow.lights import parse_light
+    from arshadow.lights.spec import parse_light
     from arshadow.pipeline import Compositor, RenderOptions
 
     name, caster, specs, pose, intr, opts = scene
@@ -127,7 +127,7 @@ def test_planar_taken_for_convex_and_undrawn_never_for_self_shadowing(ctx, scene
     # the same non-convex knot, not drawn: only the ground receives -> planar
     assert _run(ctx, scenes["pipeline:knot_no_object"], "auto")[2]["modes"] == ["planar"]
     # a point light below the top of a convex box: volumes
-    from arshadow.mesh import load_occluder
+    from arshadow.geometry.mesh import load_occluder
 
     sc = scenes["renderer:box_point"]
     low = (sc[0], load_occluder("box:0.1,0.08,0.15"), ["point:-0.3,0.1,0.1"], sc[3], sc[4], {})
@@ -148,7 +148,7 @@ def test_light_with_shadow_off_screen_is_skipped(ctx, tol):
     """A box floating 10 cm above the ground in a tele view: light A's shadow falls right below it (in
     view), the low light B's far to the left, off the photo."""
     from arshadow.camera import Intrinsics
-    from arshadow.mesh import load_occluder
+    from arshadow.geometry.mesh import load_occluder
     from arshadow.synth import look_at_pose
 
     box = load_occluder("box:0.04,0.04,0.04", place=(0, 0, 0.1))
@@ -171,8 +171,8 @@ def test_light_with_shadow_off_screen_is_skipped(ctx, tol):
 
 
 def test_moved_light_reuses_geometry_only_when_exact(ctx):
-    from arshadow.lights import parse_light
-    from arshadow.mesh import load_occluder
+    from arshadow.lights.spec import parse_light
+    from arshadow.geometry.mesh import load_occluder
     from arshadow.pipeline import Compositor, RenderOptions
     from arshadow.synth import look_at_pose
 
@@ -202,7 +202,7 @@ def test_direct_planar_pass_equals_the_stencil_planar_pass(ctx, samples):
     """Convex closed caster: the light-facing faces flattened straight into the mask (one draw per light,
     no stencil count) give the same mask as the stencil projection pass, levels of two lights included."""
     from arshadow.gl.renderer import ShadowRenderer
-    from arshadow.mesh import load_occluder
+    from arshadow.geometry.mesh import load_occluder
     from arshadow.render_api import LightPass
     from arshadow.synth import look_at_pose
     from arshadow.transforms import CV_TO_GL

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from arshadow.errors import MarkerNotFoundError
-from arshadow.mesh import ShadowCaster, load_occluder
+from arshadow.geometry.mesh import ShadowCaster, load_occluder
 from arshadow.plan_rules import (
     light_shadow_in_view,
     mesh_is_convex,
@@ -93,8 +93,8 @@ def test_light_culling_only_when_footprint_off_canvas_and_no_self_shadow():
 
 
 def test_geometry_reuse_follows_the_facing_and_the_float32_volume():
-    from arshadow.silhouette import silhouette
-    from arshadow.volume import shadow_volume
+    from arshadow.geometry.silhouette import silhouette
+    from arshadow.geometry.volume import shadow_volume
 
     knot = load_occluder("torus:0.06,0.02", rotate=(30, 10, 0), place=(0, 0, 0.05))
     L = np.array([0.2, 0.1, 0.5, 1.0])
@@ -129,8 +129,8 @@ def test_tracking_roi_window():
 
 def test_tracking_detector_window_then_fallback(tol):
     from arshadow.camera import Intrinsics
-    from arshadow.marker import MarkerTracker
-    from arshadow.roi_track import TrackingDetector
+    from arshadow.tracking.marker import MarkerTracker
+    from arshadow.tracking.roi_track import TrackingDetector
     from arshadow.synth import look_at_pose, render_marker_photo
 
     intr = Intrinsics(900.0, 900.0, 639.5, 359.5, 1280, 720, np.zeros(5))

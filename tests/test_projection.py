@@ -8,8 +8,8 @@ from geometry_cases import closed_meshes, open_meshes, random_lights
 from oracle import ground_shadow_triangles
 
 from arshadow.errors import LightError, ShapeError
-from arshadow.mesh import load_occluder
-from arshadow.projection import GROUND_PLANE, paper_shadow_matrix, planar_shadow_matrix, project_to_ground
+from arshadow.geometry.mesh import load_occluder
+from arshadow.geometry.projection import GROUND_PLANE, paper_shadow_matrix, planar_shadow_matrix, project_to_ground
 
 
 def test_matrix_projects_onto_plane_along_light_rays(rng):

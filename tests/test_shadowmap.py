@@ -1,4 +1,4 @@
-"""The shadow-map baseline (arshadow.gl.shadowmap) against the exact shadow (arshadow.exact): close at a
+"""The shadow-map baseline (arshadow.gl.shadowmap) against the exact shadow (arshadow.geometry.exact): close at a
 high map resolution, worse at a low one; and its light frustum encloses the caster."""
 
 from __future__ import annotations

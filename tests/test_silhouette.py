@@ -8,8 +8,8 @@ from conftest import TOL
 from geometry_cases import closed_meshes, degrees_balanced, edge_multiset, open_meshes, random_lights
 
 from arshadow.errors import LightError, UsageError
-from arshadow.mesh import ShadowCaster, load_occluder, plane_side
-from arshadow.silhouette import METHODS, as_light_h, silhouette, silhouette_loops
+from arshadow.geometry.mesh import ShadowCaster, load_occluder, plane_side
+from arshadow.geometry.silhouette import METHODS, as_light_h, silhouette, silhouette_loops
 
 EXACT = ("triangular", "vnv", "hsd")
 N_LIGHTS = 1000

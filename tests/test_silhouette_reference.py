@@ -1,4 +1,4 @@
-"""The paper-faithful reference detectors (arshadow.silhouette_reference) give the same edges as the fast
+"""The paper-faithful reference detectors (arshadow.geometry.silhouette_reference) give the same edges as the fast
 detectors on small closed meshes, and their operation counts follow from their loops."""
 
 from __future__ import annotations
@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from arshadow.mesh import load_occluder
-from arshadow.silhouette import silhouette
-from arshadow.silhouette_reference import (delta_plus_reference, paper000_formulas, paper003_claim, ta_reference,
+from arshadow.geometry.mesh import load_occluder
+from arshadow.geometry.silhouette import silhouette
+from arshadow.geometry.silhouette_reference import (delta_plus_reference, paper000_formulas, paper003_claim, ta_reference,
                                            vnv_reference)
 from geometry_cases import SAMPLES, affine_icosphere, edge_multiset, random_lights
 

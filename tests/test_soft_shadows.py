@@ -15,7 +15,7 @@ import math
 import numpy as np
 import pytest
 
-from arshadow.lights import Light, parse_light, sample_area_light
+from arshadow.lights.spec import Light, parse_light, sample_area_light
 from conftest import TOL
 from oracle import disc_segment_fraction, profile_crossing
 
@@ -28,10 +28,10 @@ A, HB = 0.05, 0.1  # box half-width and height (m)
 
 @pytest.fixture(scope="module")
 def scene():
-    for mod in ("arshadow.gl.renderer", "arshadow.mesh", "arshadow.silhouette", "arshadow.volume"):
+    for mod in ("arshadow.gl.renderer", "arshadow.geometry.mesh", "arshadow.geometry.silhouette", "arshadow.geometry.volume"):
         pytest.importorskip(mod)
     from arshadow.camera import Intrinsics
-    from arshadow.mesh import load_occluder
+    from arshadow.geometry.mesh import load_occluder
     from arshadow.transforms import CV_TO_GL
 
     intr = Intrinsics(fx=F_PX, fy=F_PX, cx=(W - 1) / 2, cy=(H_IMG - 1) / 2, width=W, height=H_IMG,
@@ -59,8 +59,8 @@ def renderer(gl_ctx):
 
 def _render(scene, renderer, lights, mode="zfail"):
     from arshadow.gl.renderer import LightPass
-    from arshadow.silhouette import silhouette
-    from arshadow.volume import shadow_volume
+    from arshadow.geometry.silhouette import silhouette
+    from arshadow.geometry.volume import shadow_volume
 
     total = sum(li.weight for li in lights)
     passes = []

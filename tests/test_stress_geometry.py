@@ -39,7 +39,7 @@ import os
 import numpy as np
 import pytest
 
-from arshadow.exact import points_in_triangles as _points_in_triangles
+from arshadow.geometry.exact import points_in_triangles as _points_in_triangles
 from image_oracle import ground_points, occluder_coverage
 from oracle import directed_edge_balance, ground_shadow_triangles, iou, points_in_shadow
 
@@ -123,7 +123,7 @@ configs = st.composite(_config)
 
 def _scene(cfg):
     """Build the caster, light, camera for a configuration; None light = documented refusal."""
-    from arshadow.mesh import ShadowCaster
+    from arshadow.geometry.mesh import ShadowCaster
 
     r = np.random.default_rng(cfg["seed"] + 1)
     s = cfg["scale"]
@@ -243,9 +243,9 @@ def check_configuration(cfg, renderer, stats: Stats, tol):
     from arshadow.camera import Intrinsics
     from arshadow.errors import LightError
     from arshadow.gl.renderer import LightPass
-    from arshadow.silhouette import silhouette
+    from arshadow.geometry.silhouette import silhouette
     from arshadow.transforms import CV_TO_GL, invert_rigid
-    from arshadow.volume import camera_may_be_in_shadow, near_plane_radius, shadow_volume
+    from arshadow.geometry.volume import camera_may_be_in_shadow, near_plane_radius, shadow_volume
 
     from geometry_cases import degrees_balanced
 

@@ -22,7 +22,7 @@ def _stack(n: int, side: float = 0.1, gap: float = 0.002, thick: float = 0.001, 
     """``n`` thin square plates stacked above each other (a pixel under them lies in n volume layers)."""
     import trimesh
 
-    from arshadow.mesh import ShadowCaster
+    from arshadow.geometry.mesh import ShadowCaster
 
     vs, fs = [], []
     for k in range(n):
@@ -35,9 +35,9 @@ def _stack(n: int, side: float = 0.1, gap: float = 0.002, thick: float = 0.001, 
 def _render(renderer, caster, light_h, cam_from_world, *, fx=320.0, mode=None, draw_occluder=True, znear=ZNEAR):
     from arshadow.camera import Intrinsics
     from arshadow.gl.renderer import LightPass
-    from arshadow.silhouette import silhouette
+    from arshadow.geometry.silhouette import silhouette
     from arshadow.transforms import CV_TO_GL, invert_rigid
-    from arshadow.volume import camera_may_be_in_shadow, near_plane_radius, shadow_volume
+    from arshadow.geometry.volume import camera_may_be_in_shadow, near_plane_radius, shadow_volume
 
     K = Intrinsics(fx=fx, fy=fx, cx=(W - 1) / 2, cy=(H - 1) / 2, width=W, height=H, dist=np.zeros(0))
     eye = invert_rigid(cam_from_world)[:3, 3]
@@ -65,7 +65,7 @@ def test_stacked_layers_past_the_stencil_range(renderer, tol, n):
     """n stacked plates under a light from above: the ground under them lies in n volume layers. A 6-bit
     count (mod 64) read 64 and 128 layers as lit before the batched volumes; 300 layers exceed 8 bits too."""
     from arshadow.synth import look_at_pose
-    from arshadow.volume import STENCIL_COUNT_RANGE
+    from arshadow.geometry.volume import STENCIL_COUNT_RANGE
 
     caster = _stack(n)
     light = np.array([0.05, 0.03, 1.0, 0.0])
@@ -86,8 +86,8 @@ def test_stacked_layers_past_the_stencil_range(renderer, tol, n):
 
 def test_batched_volume_is_closed_and_union_exact():
     """Each batch of a batched volume is a closed, consistently wound surface."""
-    from arshadow.silhouette import silhouette
-    from arshadow.volume import BATCH_LAYERS, shadow_volume
+    from arshadow.geometry.silhouette import silhouette
+    from arshadow.geometry.volume import BATCH_LAYERS, shadow_volume
 
     from oracle import directed_edge_balance
 
@@ -104,7 +104,7 @@ def test_batched_volume_is_closed_and_union_exact():
 def test_float32_vs_float64_geometry(renderer, tol):
     """The GPU gets float32 vertices: a mesh whose coordinates are exactly float32 (cast first) and the
     float64 original render masks that agree pixel for pixel but for rounding-level boundary pixels."""
-    from arshadow.mesh import ShadowCaster, load_occluder
+    from arshadow.geometry.mesh import ShadowCaster, load_occluder
     from arshadow.synth import look_at_pose
 
     box = load_occluder("sphere:0.05", place=(0.013, -0.007, 0.0))
@@ -123,8 +123,8 @@ def test_depth_precision_at_one_km(gl_ctx, renderer, tol):
     distance to the object / ground, formerly capped at 5 cm: the contact then dissolved into metres of
     depth error, 82 wrong pixels here) the mask matches the oracle."""
     from arshadow.camera import Intrinsics
-    from arshadow.lights import parse_light
-    from arshadow.mesh import load_occluder
+    from arshadow.lights.spec import parse_light
+    from arshadow.geometry.mesh import load_occluder
     from arshadow.pipeline import Compositor
     from arshadow.synth import look_at_pose
 
@@ -169,9 +169,9 @@ def test_no_light_seam_where_object_meets_shadow(gl_ctx, tol, aa, k1):
     coverage-weighted mask, left these pixels lighter than both sides (the box demo's ~70 between ~62):
     the mean signed error over the contact pixels was MEASURED below (old vs new in the report)."""
     from arshadow.camera import Intrinsics
-    from arshadow.composite import SRGB_TO_LINEAR
-    from arshadow.lights import parse_light
-    from arshadow.mesh import load_occluder
+    from arshadow.compose.composite import SRGB_TO_LINEAR
+    from arshadow.lights.spec import parse_light
+    from arshadow.geometry.mesh import load_occluder
     from arshadow.pipeline import Compositor, RenderOptions
     from arshadow.synth import look_at_pose
 

@@ -14,8 +14,8 @@ import pytest
 
 from arshadow.cli import main
 from arshadow.errors import LightError
-from arshadow.lights import SUN_ANGULAR_RADIUS_DEG, parse_light, parse_time, sample_area_light
-from arshadow.sun import (
+from arshadow.lights.spec import SUN_ANGULAR_RADIUS_DEG, parse_light, parse_time, sample_area_light
+from arshadow.lights.sun import (
     SunTrack,
     angle_between_deg,
     enu_to_world,
@@ -443,7 +443,7 @@ def test_sun_track_recomputes_when_the_sun_sets():
 
 
 def test_parse_sun_track_gives_frame_lights():
-    from arshadow.lights import parse_sun_track
+    from arshadow.lights.spec import parse_sun_track
 
     tr = parse_sun_track("sun:48,11,2021-06-21T09:00+02:00,30,refraction=on@2", recompute_deg=0.5)
     assert tr.start == parse_time("2021-06-21T09:00+02:00") and tr.north_deg == 30.0 and tr.refraction

@@ -1,4 +1,4 @@
-"""Batch AR video (arshadow/video.py, arshadow/cli/video.py).
+"""Batch AR video (arshadow/video/cvio.py, arshadow/cli/video.py).
 
 - frames in / frames out: timestamps, the lossless mask container, atomic (never half-written) outputs;
 - end to end on a synthetic clip made by arshadow's generator along ``synth.camera_path``: the pose is
@@ -41,7 +41,7 @@ def _intr():
 def _write_clip(path, poses, *, marker_length=0.05, blank=(), noise=1.0, seed=0):
     """Synthetic clip: one render_marker_photo per pose (frames in ``blank``: plain grey, no marker)."""
     from arshadow.synth import render_marker_photo
-    from arshadow.video import AtomicVideoWriter
+    from arshadow.video.cvio import AtomicVideoWriter
 
     intr = _intr()
     with AtomicVideoWriter(path, FPS, (W, H)) as w:
@@ -92,7 +92,7 @@ def _run_cli(*argv):
 # reader / writer
 # --------------------------------------------------------------------------------------------------
 def test_reader_timestamps_and_lossless_mask_video(tmp_path):
-    from arshadow.video import AtomicVideoWriter, VideoReader
+    from arshadow.video.cvio import AtomicVideoWriter, VideoReader
 
     rng = np.random.default_rng(3)
     masks = [rng.integers(0, 256, (48, 64), dtype=np.uint8) for _ in range(6)]
@@ -111,7 +111,7 @@ def test_reader_timestamps_and_lossless_mask_video(tmp_path):
 
 def test_writer_never_leaves_a_half_written_file(tmp_path):
     from arshadow.errors import ImageError
-    from arshadow.video import AtomicVideoWriter
+    from arshadow.video.cvio import AtomicVideoWriter
 
     target = tmp_path / "out.mp4"
     target.write_bytes(b"old contents")
@@ -133,7 +133,7 @@ def test_writer_never_leaves_a_half_written_file(tmp_path):
 
 def test_reader_bad_input(tmp_path):
     from arshadow.errors import ImageError
-    from arshadow.video import VideoReader
+    from arshadow.video.cvio import VideoReader
 
     with pytest.raises(ImageError, match="no such video file"):
         VideoReader(tmp_path / "missing.mp4")
@@ -163,9 +163,9 @@ def _branch_flips(chosen, truth):
 
 
 def test_temporal_choice_removes_ippe_flips():
-    from arshadow.marker import MarkerTracker
+    from arshadow.tracking.marker import MarkerTracker
     from arshadow.synth import camera_path, render_marker_photo
-    from arshadow.video import TemporalPoseChooser
+    from arshadow.video.cvio import TemporalPoseChooser
 
     intr = _intr()
     # small marker (4 cm at ~0.55 m: ~35 px), seen nearly face-on, noisy: many ambiguous frames
@@ -187,7 +187,7 @@ def test_temporal_choice_removes_ippe_flips():
 
 
 def test_temporal_chooser_passes_frames_without_pose_and_breaks_long_gaps():
-    from arshadow.video import TemporalPoseChooser
+    from arshadow.video.cvio import TemporalPoseChooser
 
     ch = TemporalPoseChooser(lag=3, max_gap_s=0.2)
     got = []
@@ -202,7 +202,7 @@ def test_temporal_chooser_passes_frames_without_pose_and_breaks_long_gaps():
 # --------------------------------------------------------------------------------------------------
 @pytest.mark.gl
 def test_video_end_to_end_mask_iou_against_oracle(tmp_path, tol, gl_ctx):
-    from arshadow.mesh import load_occluder
+    from arshadow.geometry.mesh import load_occluder
     from arshadow.synth import camera_path
 
     poses = camera_path(10, radius=0.5, height=(0.3, 0.42), sweep_deg=40.0, start_deg=-110.0)
@@ -246,8 +246,8 @@ def test_video_end_to_end_mask_iou_against_oracle(tmp_path, tol, gl_ctx):
 def test_time_lapse_moves_the_sun_and_recomputes_only_past_the_angle(tmp_path, monkeypatch, gl_ctx):
     from datetime import datetime, timedelta, timezone
 
-    import arshadow.silhouette as sil_mod
-    from arshadow.sun import enu_to_world, sun_position
+    import arshadow.geometry.silhouette as sil_mod
+    from arshadow.lights.sun import enu_to_world, sun_position
     from arshadow.synth import camera_path
 
     poses = camera_path(8, radius=0.5, height=(0.35, 0.4), sweep_deg=10.0, start_deg=-100.0)

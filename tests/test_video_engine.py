@@ -1,4 +1,4 @@
-"""The video engine (arshadow/video_engine.py, avio.py, temporal.py) and ``arshadow batch`` (batch.py).
+"""The video engine (arshadow/video/engine.py, avio.py, temporal.py) and ``arshadow batch`` (batch.py).
 
 Short 640x360 clips made by tests/video_clips.py (true poses from the generator); the long judged runs
 are in tests/benchmarks/bench_video_engine.py.
@@ -48,7 +48,7 @@ def _cli(*argv):
 
 
 def _frames(path, raw=False):
-    from arshadow.avio import AvReader
+    from arshadow.video.avio import AvReader
 
     return [f.image for f in AvReader(path, raw=raw)]
 
@@ -62,7 +62,7 @@ def test_pose_stream_smooths_without_lag_and_holds_then_releases():
     """Unit test of PoseStream on synthetic poses: a steady pan with noise comes out less noisy and not
     behind; a gap is held for ``hold_frames`` and then passed through."""
     from arshadow.synth import pan_path
-    from arshadow.temporal import PoseStream
+    from arshadow.video.temporal import PoseStream
     from arshadow.transforms import matrix_from_rvec_tvec, rotation_error_deg, rvec_tvec_from_matrix
 
     rng = np.random.default_rng(3)
@@ -241,9 +241,9 @@ def test_batch_kill9_mid_run_then_rerun_completes_everything(tmp_path):
 @pytest.mark.gl
 def test_batch_on_dask_localcluster_equals_local(tmp_path):
     distributed = pytest.importorskip("distributed")
-    from arshadow.batch import run_batch
+    from arshadow.video.batch import run_batch
     from arshadow.scene import scene_from_dict
-    from arshadow.video_engine import EngineOptions
+    from arshadow.video.engine import EngineOptions
 
     ins = _batch_inputs(tmp_path, n_videos=2, frames=8)
     spec = scene_from_dict(JOB)

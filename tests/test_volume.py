@@ -18,9 +18,9 @@ from oracle import (
 )
 
 from arshadow.errors import LightError, UsageError
-from arshadow.mesh import ShadowCaster, load_occluder
-from arshadow.silhouette import silhouette
-from arshadow.volume import camera_may_be_in_shadow, near_plane_radius, shadow_volume
+from arshadow.geometry.mesh import ShadowCaster, load_occluder
+from arshadow.geometry.silhouette import silhouette
+from arshadow.geometry.volume import camera_may_be_in_shadow, near_plane_radius, shadow_volume
 
 N_LIGHTS = 1000
 

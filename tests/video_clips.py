@@ -21,7 +21,7 @@ KNOT_SCENE = ["--model", str(ROOT / "samples" / "meshes" / "knot.ply"), "--place
 def make_clip(path, intr, poses, *, marker_length=0.05, noise=2.0, blur=0.8, jpeg=85, blank=(), seed=0,
               crf=18, fps=25, codec="h264", audio=False):
     """Encode one synthetic frame per pose (frames in ``blank``: the floor only, no marker); returns path."""
-    from arshadow.avio import AvWriter
+    from arshadow.video.avio import AvWriter
     from arshadow.synth import render_marker_photo
 
     path = Path(path)

@@ -5,7 +5,7 @@ One module per section, each built on the Python API:
 - :mod:`.silhouettes` - detectors vs mesh size, error vs the exact silhouette, paper-faithful reference
   versions' operation counts vs the papers' formulas;
 - :mod:`.render` - render time vs shadow error (stencil variants, anti-aliasing, resolution scale, planar,
-  the shadow-map baseline) against the exact GL-independent shadow (:mod:`arshadow.exact`);
+  the shadow-map baseline) against the exact GL-independent shadow (:mod:`arshadow.geometry.exact`);
 - :mod:`.tracking` - detection + pose time vs pose error;
 - :mod:`.pipeline` - per-stage times, FPS vs lights, paper 003's AR scene (through :mod:`.driver`);
 - :mod:`.plots` (matplotlib, optional) and :mod:`.summary` (Markdown).

@@ -36,13 +36,13 @@ def photo(width, height, seed=1):
 
 
 def _knot():
-    from ..mesh import load_occluder
+    from ..geometry.mesh import load_occluder
 
     return load_occluder(ROOT / "samples" / "meshes" / "knot.ply")
 
 
 def _lights(n):
-    from ..lights import parse_light
+    from ..lights.spec import parse_light
 
     return [parse_light(f"point:{0.3 * np.cos(a):.4f},{0.3 * np.sin(a):.4f},0.5")
             for a in np.linspace(0, 2 * np.pi, n, endpoint=False) + 2.2]

@@ -2,7 +2,7 @@
 
 Every point is one renderer configuration on one scene: the render time (median and IQR of repeated
 renders of the scene's region of interest, after warm-up) and the error of its shadow mask against the
-exact shadow (:class:`arshadow.exact.ShadowOracle`: the mesh's triangles projected from the light onto
+exact shadow (:class:`arshadow.geometry.exact.ShadowOracle`: the mesh's triangles projected from the light onto
 z = 0, pixel centres tested exactly, pixels covered by the object excluded; no GL):
 
 - ``iou``: IoU of ``mask >= 0.5`` and the exact pixel-centre shadow;
@@ -34,7 +34,7 @@ def scenes(quick: bool):
     point light (bench_render's scene) and, in the full run, under a low sun (a long shadow: the case that
     stretches a shadow map's texels)."""
     from ..camera import Intrinsics
-    from ..mesh import load_occluder
+    from ..geometry.mesh import load_occluder
     from ..synth import look_at_pose
 
     caster = load_occluder(ROOT / "samples" / "meshes" / "knot.ply")
@@ -51,7 +51,7 @@ def scenes(quick: bool):
 
 def roi_of(caster, K, T, L, margin=2, width=W, height=H):
     """Pixel box ``(u0, v0, w, h)`` of the occluder and its exact ground shadow, clipped to the image."""
-    from ..exact import ground_shadow_triangles
+    from ..geometry.exact import ground_shadow_triangles
 
     V = np.asarray(caster.vertices)
     S = ground_shadow_triangles(V, caster.faces, L).reshape(-1, 2)
@@ -70,7 +70,7 @@ class Reference:
     def __init__(self, caster, K, T, L, roi):
         import cv2
 
-        from ..exact import ShadowOracle
+        from ..geometry.exact import ShadowOracle
 
         self.roi = roi
         self.oracle = ShadowOracle(K.K, T, caster.vertices, caster.faces, [(L, 1.0)])
@@ -91,7 +91,7 @@ class Reference:
         self.perimeter = int(np.count_nonzero(m8 != er))
 
     def errors(self, mask) -> dict:
-        from ..exact import boundary_error_px, iou
+        from ..geometry.exact import boundary_error_px, iou
 
         b = mask >= 0.5
         xor = int(np.count_nonzero(b != self.mask))
@@ -137,9 +137,9 @@ def run(cfg: dict, ctx, log) -> list[dict]:
     import cv2
 
     from ..gl.renderer import LightPass
-    from ..silhouette import silhouette
+    from ..geometry.silhouette import silhouette
     from ..transforms import CV_TO_GL
-    from ..volume import shadow_volume
+    from ..geometry.volume import shadow_volume
 
     rows = []
     for name, caster, K, T, L in scenes(cfg["quick"]):
@@ -224,18 +224,18 @@ def pareto(rows: list[dict], key="xor_px") -> list[dict]:
 
 def soft(cfg: dict, ctx, log) -> list[dict]:
     """Soft shadows: a spherical light of radius 4 cm split into N hard samples (stencil volumes, one pass
-    each) against a GL-independent reference: the exact hard shadows (:class:`arshadow.exact.ShadowOracle`)
+    each) against a GL-independent reference: the exact hard shadows (:class:`arshadow.geometry.exact.ShadowOracle`)
     of 256 stratified samples of the same disc, averaged. ``coverage_mae`` here is the mean |mask -
     reference| over the pixels where either is non-zero (umbra + penumbra)."""
     from ..camera import Intrinsics
-    from ..exact import ShadowOracle, boundary_error_px, iou
+    from ..geometry.exact import ShadowOracle, boundary_error_px, iou
     from ..gl.renderer import LightPass, ShadowRenderer
-    from ..lights import parse_light, sample_area_light
-    from ..mesh import load_occluder
-    from ..silhouette import silhouette
+    from ..lights.spec import parse_light, sample_area_light
+    from ..geometry.mesh import load_occluder
+    from ..geometry.silhouette import silhouette
     from ..synth import look_at_pose
     from ..transforms import CV_TO_GL
-    from ..volume import shadow_volume
+    from ..geometry.volume import shadow_volume
 
     caster = load_occluder("box:0.08,0.06,0.12")
     K = Intrinsics(fx=1000.0, fy=1000.0, cx=641.3, cy=357.8, width=W, height=H, dist=np.zeros(0))

@@ -57,7 +57,7 @@ def silhouettes(res, plots) -> list[str]:
                     [f"{_t(rs[k])}" + (f" (misses {100 * rs[k]['missed_edges_frac']:.0f} %)" if rs[k]["missed_edges_frac"] else "")
                      for k in methods])
     L += ["", _table(["mesh"] + methods, rows), _img(plots, "silhouette_time_vs_faces", "silhouette time vs faces")]
-    L += ["Reference versions (plain loops as the papers write them, `arshadow/silhouette_reference.py`) on one "
+    L += ["Reference versions (plain loops as the papers write them, `arshadow/geometry/silhouette_reference.py`) on one "
           "light: counted operations, time, and whether they give exactly the fast detector's edges; next to "
           "paper 000's sec. VI formula at n = faces, m = 3 (its main term) and paper 003's n log2 n.", ""]
     rows = []
@@ -124,7 +124,7 @@ def render(rows, plots) -> list[str]:
 
     L = ["## 2. Render quality vs time", "",
          "Each point: render time of the scene's ROI (median [IQR] ms) and the error of its mask against the "
-         "exact shadow (`arshadow.exact`: triangles projected from the light onto z = 0, pixel centres tested "
+         "exact shadow (`arshadow.geometry.exact`: triangles projected from the light onto z = 0, pixel centres tested "
          "exactly, object pixels excluded; no GL). IoU of mask >= 0.5; pixels that differ; edge offset = differing "
          "pixels / boundary length (mean displacement of the edge, px); coverage MAE = mean |mask - exact area "
          "coverage| within 2 px of the edge (what anti-aliasing improves).", ""]

@@ -1,6 +1,6 @@
 """Section 3: tracking time against pose error (synthetic photos with a known generating pose).
 
-- corner refinement methods (``arshadow.marker.REFINE_METHODS``, with / without the LM pose polish);
+- corner refinement methods (``arshadow.tracking.marker.REFINE_METHODS``, with / without the LM pose polish);
 - full frame against a region of interest (the crop around the marker a video tracker would search,
   from the previous frame's pose: here the true corners + 50 % of the marker's size; the crop is a
   camera with a shifted principal point, so the pose is in the same frame);
@@ -32,7 +32,7 @@ def camera(w, h):
 
 def make_photos(cam, n: int, seed: int):
     """``n`` single-marker photos under the issue-2 conditions."""
-    from ..marker import marker_object_points
+    from ..tracking.marker import marker_object_points
     from ..synth import random_pose, render_marker_photo
 
     rng = np.random.default_rng(seed)
@@ -97,7 +97,7 @@ def run_configs(photos, configs: dict, repeat: int) -> list[dict]:
 def _roi_tracker(ph, refine):
     """Tracker + crop around the true marker corners (+50 % of the marker's size) as a shifted camera."""
     from ..camera import Intrinsics
-    from ..marker import MarkerTracker
+    from ..tracking.marker import MarkerTracker
 
     c = np.concatenate(list(ph.corners_px.values()))
     size = float(np.max(c.max(axis=0) - c.min(axis=0)))
@@ -111,7 +111,7 @@ def _roi_tracker(ph, refine):
 
 
 def refinement_and_roi(cfg, log) -> list[dict]:
-    from ..marker import REFINE_METHODS, MarkerTracker
+    from ..tracking.marker import REFINE_METHODS, MarkerTracker
 
     rows = []
     for w, h in cfg["track_resolutions"]:
@@ -133,7 +133,7 @@ def refinement_and_roi(cfg, log) -> list[dict]:
 
 def marker_vs_board(cfg, log) -> list[dict]:
     """A 5 cm single marker against the 5 x 7 grid board at the same camera poses (1280x720)."""
-    from ..marker import MarkerTracker, load_board
+    from ..tracking.marker import MarkerTracker, load_board
     from ..synth import random_pose, render_marker_photo
 
     board = load_board(ROOT / "calib" / "gridboard_5x7.yml")

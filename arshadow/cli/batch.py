@@ -67,7 +67,7 @@ def _client(address: str):
 
 
 def run(args) -> int:
-    from ..batch import run_batch
+    from ..video.batch import run_batch
     from ..scene import load_scene
     from . import quiet_opencv
     from .video import engine_options

@@ -52,7 +52,7 @@ def _expand(paths):
 def run(args) -> int:
     import cv2
 
-    from ..calibration import MIN_VIEWS, calibrate, find_view, parse_pattern
+    from ..tracking.calibration import MIN_VIEWS, calibrate, find_view, parse_pattern
     from ..errors import UsageError
 
     pattern = parse_pattern(args.pattern)

@@ -71,7 +71,7 @@ def run(args) -> int:
     from ..camera import Intrinsics
     from ..errors import ArshadowError, MarkerNotFoundError, UsageError
     from ..io import read_image, write_json
-    from ..marker import DEFAULT_REFINE, MarkerTracker
+    from ..tracking.marker import DEFAULT_REFINE, MarkerTracker
     from ..report import ReportItem, make_report
     from . import error_line
 

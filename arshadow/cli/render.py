@@ -157,7 +157,7 @@ def build_scene(args, lights=None):
     -> exit 2).
 
     ``lights``: lights the caller parsed itself (``arshadow video --time-lapse`` turns sun specs into
-    tracks); default: ``--light`` parsed with :func:`arshadow.lights.parse_light`.
+    tracks); default: ``--light`` parsed with :func:`arshadow.lights.spec.parse_light`.
 
     Returns
     -------

@@ -47,7 +47,7 @@ def _triple(text: str, opt: str):
 
 def _light_h(spec: str):
     from ..errors import LightError
-    from ..lights import parse_light
+    from ..lights.spec import parse_light
 
     light = parse_light(spec)
     if not light.above_horizon:
@@ -61,8 +61,8 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from ..errors import UsageError
-    from ..mesh import load_occluder
-    from ..silhouette import METHODS, silhouette, silhouette_loops
+    from ..geometry.mesh import load_occluder
+    from ..geometry.silhouette import METHODS, silhouette, silhouette_loops
 
     if args.method not in METHODS:
         raise UsageError(f"unknown --method {args.method!r} (choose from {', '.join(METHODS)})")

@@ -62,8 +62,8 @@ def compute(args) -> dict:
     """The JSON object of ``arshadow sun`` for parsed ``args`` (LightError on bad input)."""
     from datetime import timezone
 
-    from ..lights import parse_time
-    from ..sun import enu_to_world, pole_shadow, sun_light_direction, sun_position
+    from ..lights.spec import parse_time
+    from ..lights.sun import enu_to_world, pole_shadow, sun_light_direction, sun_position
 
     when = parse_time(args.time, "--time")
     pos = sun_position(

@@ -52,8 +52,8 @@ def add_output_options(out) -> None:
 
 
 def engine_options(args, collect_items=False):
-    """:class:`arshadow.video_engine.EngineOptions` from the parsed options."""
-    from ..video_engine import EngineOptions
+    """:class:`arshadow.video.engine.EngineOptions` from the parsed options."""
+    from ..video.engine import EngineOptions
 
     return EngineOptions(
         fmt=args.format, codec=args.codec or FORMAT_CODEC[args.format], crf=args.crf, preset=args.preset,
@@ -63,7 +63,7 @@ def engine_options(args, collect_items=False):
 
 
 def progress_bar(quiet: bool):
-    """A ``progress_factory`` for :func:`arshadow.video_engine.run_videos`: a tqdm bar per video."""
+    """A ``progress_factory`` for :func:`arshadow.video.engine.run_videos`: a tqdm bar per video."""
     if quiet:
         return None
 
@@ -146,7 +146,7 @@ def parse_time_lapse(text: str):
     600.0
     """
     from ..errors import LightError, UsageError
-    from ..lights import parse_time
+    from ..lights.spec import parse_time
 
     start_text, sep, speed_text = str(text).rpartition(",")
     if not sep:
@@ -167,7 +167,7 @@ def parse_time_lapse(text: str):
 def build_lights(args):
     """``(static_lights, sun_tracks, time_lapse)`` from ``--light`` / ``--time-lapse`` / ``--recompute-deg``."""
     from ..errors import UsageError
-    from ..lights import parse_light, parse_sun_track
+    from ..lights.spec import parse_light, parse_sun_track
 
     if not (math.isfinite(args.recompute_deg) and args.recompute_deg >= 0):
         raise UsageError(f"--recompute-deg {args.recompute_deg}: must be >= 0 degrees")
@@ -191,7 +191,7 @@ def run(args) -> int:
     from ..report import jsonable, make_report
     from ..scene import scene_from_args
     from ..session import Session
-    from ..video_engine import SessionBackend, run_videos
+    from ..video.engine import SessionBackend, run_videos
     from . import quiet_opencv
 
     debug = bool(getattr(args, "debug", False))

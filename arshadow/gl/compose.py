@@ -1,8 +1,8 @@
 """GPU-resident compositing: lens warp + linear-light composite in a shader, one 8-bit readback.
 
 The numpy path reads the renderer's float layers back (``RGBA16F`` colour, ``RG16F`` mask), warps them
-to the distorted photo with :meth:`arshadow.lens.LensWarp.warp` (``cv2.remap``) and composites them with
-:func:`arshadow.composite.composite`. This module does the same work on the GPU:
+to the distorted photo with :meth:`arshadow.compose.lens.LensWarp.warp` (``cv2.remap``) and composites them with
+:func:`arshadow.compose.composite.composite`. This module does the same work on the GPU:
 
 1. ``ShadowRenderer.render(..., readback=False)`` leaves the (MSAA-resolved, by ``glBlitFramebuffer``)
    layers in two textures (:class:`arshadow.gl.renderer.GpuLayers`);
@@ -34,7 +34,7 @@ import time
 
 import numpy as np
 
-from ..composite import LINEAR_TO_SRGB16, SRGB_TO_LINEAR
+from ..compose.composite import LINEAR_TO_SRGB16, SRGB_TO_LINEAR
 from ..errors import ShapeError, UsageError
 from . import glraw as G
 from .context import current
@@ -160,11 +160,11 @@ class GpuCompositor:
             Photo pixels to composite (inside the photo); the others are left as they are in ``out``.
         canvas : (u0, v0, w, h) int
             Pinhole canvas the layers hold (``w, h`` = ``layers.width, layers.height``).
-        lens : arshadow.lens.LensWarp, optional
+        lens : arshadow.compose.lens.LensWarp, optional
             With a distorted calibration: the photo pixel's pinhole point comes from its map.
             Without: the canvas is the photo's own pixel grid.
         opacity, shadow_color, draw_occluder
-            As :func:`arshadow.composite.composite` (shadow_color linear RGB).
+            As :func:`arshadow.compose.composite.composite` (shadow_color linear RGB).
         out : (H, W, 3) uint8, optional
             Receives the result over ``roi`` (C-contiguous); a copy of ``image`` if None.
         mask_out : (H, W) uint8, optional

@@ -11,7 +11,7 @@ Frame layout (one framebuffer, all renderbuffers, optional MSAA)::
 Stencil bits: bit 7 = "this sample sees the ground plane" (set by the ground depth pass), bit 6 = "this
 sample sees the occluder", bits 0-5 = the shadow-volume count of the current light (modulo 64, two-sided
 INCR_WRAP/DECR_WRAP with write mask 0x3F). Modulo 64 is exact only while no sample lies in more than 63
-volume layers; :func:`arshadow.volume.shadow_volume` bounds the layers (:func:`~arshadow.volume.layer_bound`)
+volume layers; :func:`arshadow.geometry.volume.shadow_volume` bounds the layers (:func:`~arshadow.geometry.volume.layer_bound`)
 and otherwise hands closed sub-volumes (``ShadowVolume.batches``) of <= 31 layers each: those are counted
 one at a time in bits 0-4 and OR-ed into bit 5 (``SHADOWED_BIT``), so any depth complexity is exact.
 
@@ -47,7 +47,7 @@ from importlib import resources
 
 import numpy as np
 
-from ..composite import srgb_to_linear
+from ..compose.composite import srgb_to_linear
 from .._check import check_finite, check_shape
 from ..errors import GLContextError, ShapeError, UsageError
 from ..render_api import MODES, LightPass, RenderLayers, RenderResult
@@ -868,7 +868,7 @@ class ShadowRenderer:
         gl.glBindFramebuffer(G.GL_FRAMEBUFFER, 0)
 
     def _batched_volume(self, batches, first_index, mvp_bytes) -> None:
-        """Count a batched volume (:attr:`arshadow.volume.ShadowVolume.batches`) exactly: each closed
+        """Count a batched volume (:attr:`arshadow.geometry.volume.ShadowVolume.batches`) exactly: each closed
         z-fail batch is counted in bits 0-4 (its count is 0..31, so exact modulo 32), then a full-viewport
         pass sets :data:`SHADOWED_BIT` where that count is not 0 and the count bits are cleared for the
         next batch. Leaves ``SHADOWED_BIT`` set where any batch (so the union: the shadow) covers the

@@ -37,7 +37,7 @@ def main(out_dir=HERE) -> int:
     sys.path.insert(0, str(ROOT))
     from arshadow.camera import Intrinsics
     from arshadow.synth import camera_path, render_marker_photo
-    from arshadow.video import AtomicVideoWriter
+    from arshadow.video.cvio import AtomicVideoWriter
 
     intr = Intrinsics.from_file(ROOT / "calib" / "synth_640x360.yml")
     poses = camera_path(N_FRAMES, **PATH)

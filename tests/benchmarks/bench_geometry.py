@@ -25,9 +25,9 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
 import _common  # noqa: E402
-from arshadow.mesh import ShadowCaster, load_occluder  # noqa: E402
-from arshadow.silhouette import METHODS, as_light_h, silhouette  # noqa: E402
-from arshadow.volume import shadow_volume  # noqa: E402
+from arshadow.geometry.mesh import ShadowCaster, load_occluder  # noqa: E402
+from arshadow.geometry.silhouette import METHODS, as_light_h, silhouette  # noqa: E402
+from arshadow.geometry.volume import shadow_volume  # noqa: E402
 
 
 def _make_meshes_module():
@@ -60,7 +60,7 @@ def bench_size(n_faces: int, n_lights: int, repeat: int, methods=METHODS, volume
     t2 = time.perf_counter()
     c.polygons  # HSD
     t3 = time.perf_counter()
-    from arshadow._bvh import _tree
+    from arshadow.geometry._bvh import _tree
 
     _tree(c)  # Delta+
     t4 = time.perf_counter()
@@ -148,7 +148,7 @@ def outline_classes(c, L, edges, n_samples=5, rel_off=1e-5):
 
 
 def delta_plus_disagreement(c: ShadowCaster, n_lights: int, eps: float = 1e-6) -> dict:
-    from arshadow.silhouette import silhouette_loops
+    from arshadow.geometry.silhouette import silhouette_loops
 
     tot = {"transition_edges": 0, "delta_edges": 0, "delta_in_transition": 0, "missed_transitions": 0,
            "extra_edges": 0, "outline_full": 0, "outline_partial": 0, "delta_on_full_outline": 0,

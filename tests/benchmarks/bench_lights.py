@@ -52,8 +52,8 @@ def penumbra_quality(ctx, ns) -> dict:
 
     from arshadow.camera import Intrinsics
     from arshadow.gl.renderer import ShadowRenderer
-    from arshadow.lights import Light, parse_light, sample_area_light
-    from arshadow.mesh import load_occluder
+    from arshadow.lights.spec import Light, parse_light, sample_area_light
+    from arshadow.geometry.mesh import load_occluder
     from arshadow.transforms import CV_TO_GL
 
     intr = Intrinsics(fx=T.F_PX, fy=T.F_PX, cx=(T.W - 1) / 2, cy=(T.H_IMG - 1) / 2, width=T.W, height=T.H_IMG,
@@ -97,8 +97,8 @@ def main(argv=None) -> int:
     from arshadow.camera import Intrinsics
     from arshadow.gl.context import create_context
     from arshadow.gl.renderer import ShadowRenderer
-    from arshadow.lights import Light, parse_light
-    from arshadow.mesh import load_occluder
+    from arshadow.lights.spec import Light, parse_light
+    from arshadow.geometry.mesh import load_occluder
     from arshadow.pipeline import Compositor, RenderOptions
     from arshadow.synth import look_at_pose
 

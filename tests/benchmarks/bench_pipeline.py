@@ -82,7 +82,7 @@ def detector_settings() -> dict:
 
 def compare_detectors(image, intr, n, runs, seed=5) -> list:
     from arshadow.errors import MarkerNotFoundError
-    from arshadow.marker import MarkerTracker
+    from arshadow.tracking.marker import MarkerTracker
     from arshadow.synth import random_pose, render_marker_photo
     from arshadow.transforms import rotation_error_deg
 
@@ -171,8 +171,8 @@ def main(argv=None) -> int:
     from arshadow.camera import Intrinsics
     from arshadow.gl.context import create_context
     from arshadow.io import read_image
-    from arshadow.lights import parse_light
-    from arshadow.mesh import load_occluder
+    from arshadow.lights.spec import parse_light
+    from arshadow.geometry.mesh import load_occluder
     from arshadow.pipeline import RenderOptions
 
     scenes = json.loads((ROOT / "samples" / "scenes.json").read_text())["scenes"]

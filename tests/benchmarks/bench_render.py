@@ -5,7 +5,7 @@
 Scene: 1280x720 pinhole camera ~0.45 m from the 8 536-face sample mesh (samples/meshes/knot.ply, or a
 generated 8.6k-face non-convex blob when absent), one point light, z-pass. Measured after warm-up:
 
-- ``geometry``: silhouette + shadow volume (CPU, arshadow.silhouette/volume) - for context only;
+- ``geometry``: silhouette + shadow volume (CPU, arshadow.geometry.silhouette/volume) - for context only;
 - ``render`` (volume to infinity, and truncated 1e-3 x mesh size below the ground) at the full 1280x720
   canvas and at the ROI the compositor renders (bounding box of the
   occluder and of its ground shadow, + 2 px), split into upload / draw / readback as the renderer
@@ -40,7 +40,7 @@ stats = _common.summary
 
 def load_scene():
     from arshadow.camera import Intrinsics
-    from arshadow.mesh import load_occluder
+    from arshadow.geometry.mesh import load_occluder
     from arshadow.synth import look_at_pose
 
     p = ROOT / "samples" / "meshes" / "knot.ply"
@@ -72,9 +72,9 @@ def main(argv=None):
 
     from arshadow.gl.context import create_context
     from arshadow.gl.renderer import LightPass, ShadowRenderer
-    from arshadow.silhouette import silhouette
+    from arshadow.geometry.silhouette import silhouette
     from arshadow.transforms import CV_TO_GL
-    from arshadow.volume import shadow_volume
+    from arshadow.geometry.volume import shadow_volume
 
     ctx = create_context()
     caster, K, T, L = load_scene()

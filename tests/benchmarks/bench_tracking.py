@@ -31,7 +31,7 @@ import pytest
 from arshadow import __version__
 from arshadow.camera import Intrinsics
 from arshadow.errors import MarkerNotFoundError
-from arshadow.marker import REFINE_METHODS, MarkerTracker, marker_object_points
+from arshadow.tracking.marker import REFINE_METHODS, MarkerTracker, marker_object_points
 from arshadow.synth import random_pose, render_marker_photo
 from arshadow.transforms import rotation_error_deg
 

@@ -89,8 +89,8 @@ def _pose(rvec, tvec):
 
 def _exact():
     from arshadow.camera import Intrinsics
-    from arshadow.lights import parse_light
-    from arshadow.mesh import load_occluder
+    from arshadow.lights.spec import parse_light
+    from arshadow.geometry.mesh import load_occluder
 
     intr = Intrinsics.from_file(CALIB_720)
     args = dict(zip(KNOT_SCENE[::2], KNOT_SCENE[1::2]))
@@ -118,7 +118,7 @@ def throughput(clip, runs):
 
 
 def accuracy(clip, poses, refine):
-    from arshadow.avio import AvReader
+    from arshadow.video.avio import AvReader
     from arshadow.transforms import rotation_error_deg
 
     intr, ex = _exact()

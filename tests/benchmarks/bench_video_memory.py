@@ -33,7 +33,7 @@ def rss_mb() -> float:
 def main() -> int:
     import bench_video_engine as b
 
-    from arshadow.avio import AvReader, AvWriter
+    from arshadow.video.avio import AvReader, AvWriter
 
     ap = argparse.ArgumentParser()
     ap.add_argument("--frames", type=int, default=3000)
@@ -46,7 +46,7 @@ def main() -> int:
             for i in range(a.frames):
                 w.write(frames[i % len(frames)])
         del frames
-    import arshadow.video_engine as ve
+    import arshadow.video.engine as ve
 
     samples = []
     orig = ve.process_video

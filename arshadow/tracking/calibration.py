@@ -18,8 +18,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .camera import Intrinsics
-from .errors import ArshadowError, CalibrationError, UsageError
+from ..camera import Intrinsics
+from ..errors import ArshadowError, CalibrationError, UsageError
 from .marker import _gray
 
 __all__ = ["Pattern", "parse_pattern", "View", "find_view", "CalibrationResult", "calibrate", "MIN_VIEWS"]
@@ -133,7 +133,7 @@ class View:
 
 def find_view(path, pattern: Pattern, image=None) -> View:
     """Detect the pattern in one photo. Never raises for a bad photo: the View carries the reason."""
-    from .io import read_image
+    from ..io import read_image
 
     name = str(path)
     try:

@@ -23,9 +23,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .camera import Intrinsics, open_storage, write_storage
-from .errors import ImageError, MarkerNotFoundError, UsageError
-from .transforms import matrix_from_rvec_tvec, rotation_error_deg
+from ..camera import Intrinsics, open_storage, write_storage
+from ..errors import ImageError, MarkerNotFoundError, UsageError
+from ..transforms import matrix_from_rvec_tvec, rotation_error_deg
 
 __all__ = [
     "PREDEFINED_DICTIONARIES",
@@ -603,7 +603,7 @@ def _gray(image) -> np.ndarray:
         return img
     if img.ndim == 3 and img.shape[2] == 3 and img.dtype == np.uint8:
         return cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
-    from .io import to_bgr8
+    from ..io import to_bgr8
 
     return cv2.cvtColor(to_bgr8(img), cv2.COLOR_BGR2GRAY)
 
@@ -940,7 +940,7 @@ class MarkerTracker:
         Base detector parameters.
     detector : str or object
         ``"full"`` (default): ``cv2.aruco.ArucoDetector`` with ``detector_params``; ``"fast"``: the fast
-        first pass of :mod:`arshadow.fastdetect` (one 7-px threshold window unless ``detector_params`` are
+        first pass of :mod:`arshadow.tracking.fastdetect` (one 7-px threshold window unless ``detector_params`` are
         given, half-resolution detection for a single marker); or any object with OpenCV's
         ``detectMarkers(gray)`` (and ``refineDetectedMarkers`` for grid boards).
     ambiguity_threshold : float
@@ -950,7 +950,7 @@ class MarkerTracker:
         error (default; measured in docs/tracking.md).
     track_roi : bool
         Video: search a window around the last detection first, the whole frame when it holds no marker
-        (:class:`arshadow.roi_track.TrackingDetector`; single markers and ChArUco, not grid boards).
+        (:class:`arshadow.tracking.roi_track.TrackingDetector`; single markers and ChArUco, not grid boards).
 
     Examples
     --------

@@ -6,7 +6,7 @@ Models
     NREL's Solar Position Algorithm: I. Reda and A. Andreas, "Solar Position Algorithm for Solar
     Radiation Applications", NREL/TP-560-34302 (2003, revised 2008); stated uncertainty +-0.0003 deg for
     the years -2000..6000. Written here in numpy from the report, vectorised over times; the periodic-term
-    tables (:mod:`arshadow._spa_tables`) are transcribed from pvlib-python's ``pvlib/spa.py`` (BSD 3-Clause,
+    tables (:mod:`arshadow.lights._spa_tables`) are transcribed from pvlib-python's ``pvlib/spa.py`` (BSD 3-Clause,
     Copyright (c) 2023 pvlib python Contributors). The zenith is topocentric (parallax and observer
     elevation included). ``zenith_deg`` is geometric (no refraction); ``apparent_zenith_deg`` applies the
     SPA's refraction correction (Bennett-type, scaled by pressure / 1010 mbar and 283 K / temperature,
@@ -39,7 +39,7 @@ from datetime import datetime, timedelta, timezone
 import numpy as np
 
 from . import _spa_tables as T
-from .errors import LightError
+from ..errors import LightError
 
 __all__ = [
     "SunPosition",

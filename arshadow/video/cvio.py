@@ -44,8 +44,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ImageError, UsageError
-from .transforms import rotation_error_deg
+from ..errors import ImageError, UsageError
+from ..transforms import rotation_error_deg
 
 # FFmpeg prints its own decoder complaints ("moov atom not found") straight to stderr; arshadow reports
 # one line of its own instead. Must be set before OpenCV's FFmpeg backend is first used.
@@ -190,7 +190,7 @@ class VideoReader:
         if self._started:
             raise UsageError(f"{self.path}: a VideoReader can be iterated only once")
         self._started = True
-        from .io import to_bgr8
+        from ..io import to_bgr8
 
         index = 0
         img = self._first
@@ -286,7 +286,7 @@ class AtomicVideoWriter:
         self.tmp_path = None
 
     def __enter__(self):
-        from .io import atomic_path
+        from ..io import atomic_path
 
         stack = contextlib.ExitStack()
         try:
@@ -367,7 +367,7 @@ class _Entry:
 class TemporalPoseChooser:
     """Choose, per frame, the IPPE solution consistent with the neighbouring frames.
 
-    Push each frame's :class:`arshadow.marker.MarkerPose` (chosen by reprojection error, with its
+    Push each frame's :class:`arshadow.tracking.marker.MarkerPose` (chosen by reprojection error, with its
     ``alternative``) in order; get back, in the same order, each frame's chosen pose ``lag`` frames later
     (:meth:`push`), and the rest at the end (:meth:`flush`).
 

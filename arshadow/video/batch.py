@@ -2,7 +2,7 @@
 
 :func:`run_batch` processes every input of a batch with one :class:`arshadow.scene.SceneSpec` and writes,
 per input, its outputs into ``OUT_DIR`` (photos: ``<stem>.png`` and ``<stem>.shadow.png``; videos: the
-outputs of :func:`arshadow.video_engine.process_video`), then a **done record**
+outputs of :func:`arshadow.video.engine.process_video`), then a **done record**
 ``OUT_DIR/.arshadow-batch/<stem>.json`` (the item's summary and the fingerprint of its input and settings),
 and at the end the summary ``OUT_DIR/batch.json``.
 
@@ -28,7 +28,7 @@ import shutil
 import time
 from pathlib import Path
 
-from .errors import ArshadowError, MarkerNotFoundError, UsageError
+from ..errors import ArshadowError, MarkerNotFoundError, UsageError
 
 __all__ = ["VIDEO_EXTENSIONS", "BatchItem", "plan_batch", "run_batch", "process_item", "clean_temporaries"]
 
@@ -47,7 +47,7 @@ class BatchItem:
 
 def plan_batch(inputs) -> list[BatchItem]:
     """Classify inputs by extension (videos: :data:`VIDEO_EXTENSIONS`) and give each a unique stem."""
-    from .video_engine import unique_stems
+    from .engine import unique_stems
 
     inputs = [str(i) for i in inputs]
     if not inputs:
@@ -111,7 +111,7 @@ _WORKER_SESSIONS: dict = {}
 
 def _session_for(spec):
     """One Session per spec per process (a Dask worker keeps its GL context between items)."""
-    from .session import Session
+    from ..session import Session
 
     key = repr(spec)
     s = _WORKER_SESSIONS.get(key)
@@ -129,7 +129,7 @@ def process_item(spec, item: BatchItem, outdir, opts, save_mask: bool, fingerpri
     Never raises for a bad input: the summary has ``status: "error"`` and ``error`` (nothing is recorded
     as done, so a rerun tries it again).
     """
-    from .io import write_image, write_json
+    from ..io import write_image, write_json
 
     outdir = Path(outdir)
     t0 = time.perf_counter()
@@ -138,7 +138,7 @@ def process_item(spec, item: BatchItem, outdir, opts, save_mask: bool, fingerpri
     try:
         session = session if session is not None else _session_for(spec)
         if item.kind == "video":
-            from .video_engine import SessionBackend, process_video, video_outputs
+            from .engine import SessionBackend, process_video, video_outputs
 
             outs = video_outputs(outdir, item.stem, opts)
             vs, _ = process_video(SessionBackend(session), item.input, outs, opts, name=item.input)
@@ -147,7 +147,7 @@ def process_item(spec, item: BatchItem, outdir, opts, save_mask: bool, fingerpri
             summary["outputs"] = [str(p) for p in (outs["video"], outs["mask"], outs["frames"], outs["sheet"])
                                   if p is not None and Path(p).exists()]
         else:
-            from .io import read_image
+            from ..io import read_image
 
             img = read_image(item.input)
             res = session.process(img, name=item.input, want_mask=save_mask)
@@ -189,7 +189,7 @@ def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=Non
     inputs : list of str
         Photos and videos (by extension, :data:`VIDEO_EXTENSIONS`).
     outdir : str or Path
-    opts : arshadow.video_engine.EngineOptions
+    opts : arshadow.video.engine.EngineOptions
         How videos are written (``opts.mask`` also decides photo masks: ``save_mask``).
     save_mask : bool
         Write photo masks (``<stem>.shadow.png``).
@@ -206,8 +206,8 @@ def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=Non
         ``{"arshadow": VERSION, "items": [...], "counts": {...}}``; each item has ``status`` (``ok``,
         ``no_marker``, ``damaged``, ``error``) and ``skipped`` (done by an earlier run).
     """
-    from . import __version__
-    from .io import write_json
+    from .. import __version__
+    from ..io import write_json
 
     outdir = Path(outdir)
     if outdir.exists() and not outdir.is_dir():
@@ -231,7 +231,7 @@ def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=Non
     if client is None:
         own = session is None and todo
         if own:
-            from .session import Session
+            from ..session import Session
 
             session = Session(spec)
         try:

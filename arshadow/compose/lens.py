@@ -24,7 +24,7 @@ from functools import cached_property
 
 import numpy as np
 
-from .errors import CalibrationError
+from ..errors import CalibrationError
 
 __all__ = ["LensWarp", "undistort_map"]
 
@@ -255,7 +255,7 @@ class LensWarp:
             Rendered arrays (mask, colour, alpha...). Not modified.
         interpolation : int, optional
             cv2 flag; bilinear by default.
-        work : arshadow.composite.Workspace, optional
+        work : arshadow.compose.composite.Workspace, optional
             Scratch buffers to reuse (the results are then views into it, valid until the next call).
         bottom_up : bool
             The arrays' rows are OpenGL's (row 0 = the canvas's BOTTOM row); the flip is folded into the

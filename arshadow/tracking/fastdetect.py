@@ -1,6 +1,6 @@
 """The fast first detection pass: one adaptive-threshold window, half resolution for big markers.
 
-Used through ``MarkerTracker(..., detector="fast")`` (:mod:`arshadow.marker`); a session
+Used through ``MarkerTracker(..., detector="fast")`` (:mod:`arshadow.tracking.marker`); a session
 (:meth:`arshadow.session.Session.track`) runs it first and the tracker's full search only when it finds
 nothing. Measured in docs/tracking.md and ``tests/benchmarks/bench_pipeline.py --detectors``.
 """
@@ -13,7 +13,7 @@ __all__ = ["HalfResolutionDetector", "make_fast_tracker", "fast_detector_params"
 
 
 class HalfResolutionDetector:
-    """Drop-in for ``cv2.aruco.ArucoDetector`` in a :class:`~arshadow.marker.MarkerTracker`: detect on the
+    """Drop-in for ``cv2.aruco.ArucoDetector`` in a :class:`~arshadow.tracking.marker.MarkerTracker`: detect on the
     image downscaled 2x (one 5-px threshold window, no refinement), then refine every corner at full
     resolution with ``cv2.cornerSubPix`` (11 x 11 window, 0.01 px / 50 iterations, as the tracker's own
     sub-pixel refinement). Other methods (``refineDetectedMarkers``...) go to the full-resolution detector.
@@ -72,7 +72,7 @@ class HalfResolutionDetector:
 def make_fast_tracker(intrinsics, **tracker_kwargs):
     """The tracker of the pipeline's fast first pass: ``MarkerTracker(intrinsics, detector="fast", ...)``.
 
-    A :class:`~arshadow.marker.MarkerTracker` with one 7-px threshold window
+    A :class:`~arshadow.tracking.marker.MarkerTracker` with one 7-px threshold window
     (:func:`fast_detector_params`) and, for single markers, detection at half resolution
     (:class:`HalfResolutionDetector`). The session falls back to the tracker's full search when this
     finds nothing. With several markers in view and no ``marker_id``, the reference is the lowest id found,

@@ -1,6 +1,6 @@
 """A static bounding volume hierarchy over a mesh's triangles, for the Delta+ detector's ray tests.
 
-Built once per mesh (cached on the :class:`~arshadow.mesh.ShadowCaster`): faces sorted along a Morton
+Built once per mesh (cached on the :class:`~arshadow.geometry.mesh.ShadowCaster`): faces sorted along a Morton
 curve of their centroids, grouped into leaves of ``LEAF`` faces, and a complete binary tree (heap layout:
 node i has children 2i+1, 2i+2) of axis-aligned boxes above them. Queries traverse breadth-first for a
 whole batch of rays at once (vectorised), so a ray costs O(log n) box tests plus the triangles of the

@@ -4,7 +4,7 @@ Everything that does not depend on the light is computed here, once per mesh, an
 arrays (:class:`ShadowCaster`): welded vertices, face planes in float64, the edge -> face adjacency with
 boundary ("dangling") and non-manifold edges marked, the per-corner edge incidence used by the general
 (open / non-manifold) path, the coplanar polygons of the Hybrid Silhouette Detector and a bounding volume
-hierarchy for the Delta+ detector. Per light, :mod:`arshadow.silhouette` only does one sign test per face
+hierarchy for the Delta+ detector. Per light, :mod:`arshadow.geometry.silhouette` only does one sign test per face
 plus gathers.
 
 Closed and open meshes
@@ -24,8 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ._check import check_shape
-from .errors import MeshError, ShapeError
+from .._check import check_shape
+from ..errors import MeshError, ShapeError
 
 __all__ = ["ShadowCaster", "load_occluder", "primitive", "rotation_xyz_deg", "plane_side", "PRIMITIVES"]
 
@@ -252,7 +252,7 @@ class ShadowCaster:
         Fast path: one float32 element-wise pass over the planes re-centred on the mesh, then every
         face whose float32 value lies within a rigorous error bound of zero is re-evaluated with the
         float64 expression; all other signs are provably the same. ``light_h`` must be a validated
-        ``(4,)`` float64 (see :func:`arshadow.silhouette.as_light_h`).
+        ``(4,)`` float64 (see :func:`arshadow.geometry.silhouette.as_light_h`).
         """
         h = light_h
         prep = self._facing_prep

@@ -32,8 +32,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._check import check_finite, check_shape
-from .errors import ShapeError, UsageError
+from .._check import check_finite, check_shape
+from ..errors import ShapeError, UsageError
 
 __all__ = [
     "SRGB_TO_LINEAR",

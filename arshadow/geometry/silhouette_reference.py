@@ -1,7 +1,7 @@
 """Paper-faithful reference silhouette detectors, instrumented to count their operations.
 
 Slow on purpose (plain Python loops as the papers' pseudo code is written): they exist to check the fast,
-vectorised detectors of :mod:`arshadow.silhouette` (same edges on small meshes) and to put the papers'
+vectorised detectors of :mod:`arshadow.geometry.silhouette` (same edges on small meshes) and to put the papers'
 operation-count formulas next to counted operations and measured time (``arshadow bench``).
 
 ``ta_reference`` (paper 000, sec. IV.1)
@@ -22,7 +22,7 @@ operation-count formulas next to counted operations and measured time (``arshado
 Every function takes plain arrays (``vertices (n, 3) float64``, ``faces (m, 3) int`` of a closed,
 consistently wound mesh, ``light_h (4,)`` homogeneous world light) and returns ``(edges (k, 2) intp,
 counts dict)``: directed edges oriented as the light-facing face traverses them (the convention of
-:class:`arshadow.silhouette.Silhouette`) and the operations counted.
+:class:`arshadow.geometry.silhouette.Silhouette`) and the operations counted.
 """
 
 from __future__ import annotations

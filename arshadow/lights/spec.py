@@ -32,7 +32,7 @@ from datetime import datetime
 
 import numpy as np
 
-from .errors import LightError
+from ..errors import LightError
 from .sun import SunTrack, sun_light_direction, sun_position
 
 __all__ = [
@@ -419,7 +419,7 @@ def parse_sun_track(spec: str, recompute_deg: float = 0.1) -> SunLightTrack:
 
     The spec's place, NORTH, options and weight are used; TIME may be omitted (the frame times come from
     the video; a given TIME is kept as ``track.start``). ``track.light(frame)`` gives the :class:`Light` to
-    render for a :class:`arshadow.sun.TrackFrame` (direction ``frame.world_used``: the silhouette is
+    render for a :class:`arshadow.lights.sun.TrackFrame` (direction ``frame.world_used``: the silhouette is
     recomputed only when ``frame.recompute``).
 
     Examples
@@ -445,12 +445,12 @@ def parse_sun_track(spec: str, recompute_deg: float = 0.1) -> SunLightTrack:
 
 
 class SunLightTrack(SunTrack):
-    """A :class:`arshadow.sun.SunTrack` that knows the light it stands for (:func:`parse_sun_track`).
+    """A :class:`arshadow.lights.sun.SunTrack` that knows the light it stands for (:func:`parse_sun_track`).
 
     Parameters
     ----------
     lat, lon, ..., **kwargs
-        As :class:`arshadow.sun.SunTrack`.
+        As :class:`arshadow.lights.sun.SunTrack`.
     start : datetime or None
         The spec's TIME, if it had one.
     weight : float
@@ -466,7 +466,7 @@ class SunLightTrack(SunTrack):
         self.start, self.weight, self.label, self.radius_deg = start, float(weight), label, radius_deg
 
     def light(self, frame) -> Light:
-        """The :class:`Light` to render for a :class:`arshadow.sun.TrackFrame`: direction
+        """The :class:`Light` to render for a :class:`arshadow.lights.sun.TrackFrame`: direction
         ``frame.world_used`` (the one the cached silhouette belongs to), this track's weight and label, and
         angular radius ``radius_deg`` or, when None, the sun's true radius for the frame's date."""
         return Light("directional", frame.world_used, weight=self.weight,

@@ -5,7 +5,7 @@ NREL/TP-560-34302 (2003, revised 2008), Tables A4.2 (Earth periodic terms L0..L5
 A4.3 (nutation in longitude and obliquity). Transcribed from pvlib-python's ``pvlib/spa.py``
 (https://github.com/pvlib/pvlib-python, BSD 3-Clause License, Copyright (c) 2023 pvlib python
 Contributors; created by Tony Lorenzo, Univ. of Arizona, 2015). Only these numeric tables are taken; the
-algorithm in :mod:`arshadow.sun` is written here from the NREL report.
+algorithm in :mod:`arshadow.lights.sun` is written here from the NREL report.
 
 Each ``L*``, ``B*``, ``R*`` row is ``(A, B, C)`` of the term ``A cos(B + C * JME)``; the nutation rows are
 ``(a, b, c, d)`` and the multipliers ``(Y0..Y4)`` of the arguments ``X0..X4``.

@@ -1,7 +1,7 @@
 """Video input and output through PyAV (FFmpeg): decoding with timestamps, H.264 encoding, audio kept.
 
 :class:`AvReader`
-    The frames of a video file as :class:`arshadow.video.VideoFrame` (BGR, presentation time), with the
+    The frames of a video file as :class:`arshadow.video.cvio.VideoFrame` (BGR, presentation time), with the
     stream's declared frame count (a damaged tail is reported as ``truncated``), packets that fail to
     decode counted (``n_decode_errors``) instead of ending the video, and the audio stream's presence.
 :class:`AvWriter`
@@ -27,8 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ImageError, UsageError
-from .video import VideoFrame
+from ..errors import ImageError, UsageError
+from .cvio import VideoFrame
 
 __all__ = ["have_av", "AvReader", "AvWriter", "RawFrame", "VIDEO_CODECS"]
 
@@ -91,7 +91,7 @@ class AvReader:
         Decoder threads (0: FFmpeg's choice).
     raw : bool
         Yield :class:`RawFrame` (planar ``yuv420p`` kept when the stream has it) instead of BGR
-        :class:`arshadow.video.VideoFrame`.
+        :class:`arshadow.video.cvio.VideoFrame`.
 
     Attributes
     ----------
@@ -273,7 +273,7 @@ class AvWriter:
         self._stack = self._c = self._vs = None
 
     def __enter__(self):
-        from .io import atomic_path
+        from ..io import atomic_path
 
         av = _av()
         stack = contextlib.ExitStack()

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import LightError, ShapeError
+from ..errors import LightError, ShapeError
 from .mesh import ShadowCaster
 from .silhouette import as_light_h
 
@@ -103,7 +103,7 @@ def project_to_ground(caster: ShadowCaster, light_h) -> np.ndarray:
 
     Examples
     --------
-    >>> from arshadow.mesh import load_occluder
+    >>> from arshadow.geometry.mesh import load_occluder
     >>> t = project_to_ground(load_occluder("box:1,1,1"), [0.0, 0.0, 2.0, 1.0])
     >>> t.shape, float(t[..., :2].max()), float(abs(t[..., 2]).max())
     ((12, 3, 3), 1.0, 0.0)

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import LightError, UsageError
+from ..errors import LightError, UsageError
 from .mesh import ShadowCaster
 from .silhouette import Silhouette, as_light_h
 
@@ -56,7 +56,7 @@ class ShadowVolume:
         The plane asked for.
     light_h : (4,) float64
     two_sided : bool
-        The mesh is open / non-manifold and every face casts (see :mod:`arshadow.mesh`).
+        The mesh is open / non-manifold and every face casts (see :mod:`arshadow.geometry.mesh`).
     """
 
     vertices: np.ndarray
@@ -136,7 +136,7 @@ def shadow_volume(caster: ShadowCaster, light_h, sil: Silhouette, *, caps: bool 
     light_h : (4,) float64
         The light the silhouette was computed for (homogeneous, world frame).
     sil : Silhouette
-        From :func:`arshadow.silhouette.silhouette` with the same light.
+        From :func:`arshadow.geometry.silhouette.silhouette` with the same light.
     caps : bool
         Add the z-fail caps: light-facing triangles as the near cap and back-facing ones extruded as the
         far cap (Everitt-Kilgard, Doom 3). Two-sided (open) meshes: every face turned towards the light
@@ -161,8 +161,8 @@ def shadow_volume(caster: ShadowCaster, light_h, sil: Silhouette, *, caps: bool 
 
     Examples
     --------
-    >>> from arshadow.mesh import load_occluder
-    >>> from arshadow.silhouette import silhouette
+    >>> from arshadow.geometry.mesh import load_occluder
+    >>> from arshadow.geometry.silhouette import silhouette
     >>> box = load_occluder("box:1,1,1")
     >>> L = [0.2, 0.3, 5.0, 1.0]
     >>> vol = shadow_volume(box, L, silhouette(box, L))
@@ -306,8 +306,8 @@ def layer_bound(vertices, edges, light_h, lit_faces=None) -> int:
 
     Examples
     --------
-    >>> from arshadow.mesh import load_occluder
-    >>> from arshadow.silhouette import silhouette
+    >>> from arshadow.geometry.mesh import load_occluder
+    >>> from arshadow.geometry.silhouette import silhouette
     >>> box = load_occluder("box:1,1,1")
     >>> L = [0.0, 0.0, 1.0, 0.0]
     >>> layer_bound(box.vertices, silhouette(box, L).edges, L)
@@ -400,7 +400,7 @@ def camera_may_be_in_shadow(caster: ShadowCaster, light_h, eye_world, near: floa
 
     Examples
     --------
-    >>> from arshadow.mesh import load_occluder
+    >>> from arshadow.geometry.mesh import load_occluder
     >>> box = load_occluder("box:1,1,1")
     >>> camera_may_be_in_shadow(box, [0, 0, 10, 1], [0, 0, -5], 0.01)
     True

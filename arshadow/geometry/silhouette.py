@@ -28,7 +28,7 @@ Every detector returns a :class:`Silhouette`: directed vertex-index pairs ``(a, 
 light-facing face winds them, so that the side quad ``(b, a, a', b')`` (``'`` = extruded away from the
 light) faces outwards; and the per-face facing mask.
 
-Open meshes (see :mod:`arshadow.mesh`) are two-sided: every face contributes, back-facing ones reversed,
+Open meshes (see :mod:`arshadow.geometry.mesh`) are two-sided: every face contributes, back-facing ones reversed,
 and the silhouette is the net boundary of that chain (a fold edge of a sheet can appear twice).
 """
 
@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import LightError, UsageError
+from ..errors import LightError, UsageError
 from .mesh import ShadowCaster, plane_side
 
 __all__ = ["Silhouette", "silhouette", "METHODS", "as_light_h", "silhouette_loops"]
@@ -49,7 +49,7 @@ METHODS = ("adjacency", "triangular", "vnv", "hsd", "delta_plus")
 
 @dataclass(frozen=True)
 class Silhouette:
-    """The silhouette of a :class:`~arshadow.mesh.ShadowCaster` for one light.
+    """The silhouette of a :class:`~arshadow.geometry.mesh.ShadowCaster` for one light.
 
     Attributes
     ----------
@@ -63,7 +63,7 @@ class Silhouette:
         Operation counts: ``faces_tested``, ``edge_ops`` (edges visited / toggled), ``n_edges``, plus
         detector-specific counts.
     two_sided : bool
-        True when the mesh is open / non-manifold and every face casts (see :mod:`arshadow.mesh`).
+        True when the mesh is open / non-manifold and every face casts (see :mod:`arshadow.geometry.mesh`).
     light_h : (4,) float64
         The light used (normalised: w is 0 or 1).
     """
@@ -83,7 +83,7 @@ class Silhouette:
 def as_light_h(light) -> np.ndarray:
     """Validate a light as a homogeneous ``(4,) float64`` (w = 1 point, w = 0 direction towards it).
 
-    Accepts a ``(4,)`` array or any object with a ``.homogeneous`` attribute (``arshadow.lights.Light``).
+    Accepts a ``(4,)`` array or any object with a ``.homogeneous`` attribute (``arshadow.lights.spec.Light``).
     A point with w != 1 is divided by w.
 
     Raises
@@ -336,7 +336,7 @@ def silhouette(caster: ShadowCaster, light_h, method: str = "adjacency", **optio
 
     Examples
     --------
-    >>> from arshadow.mesh import load_occluder
+    >>> from arshadow.geometry.mesh import load_occluder
     >>> box = load_occluder("box:1,1,1")
     >>> s = silhouette(box, [0.2, 0.3, 5.0, 1.0])
     >>> s.n_edges, int(s.facing.sum())

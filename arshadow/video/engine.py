@@ -39,7 +39,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .errors import ArshadowError, ImageError, MarkerNotFoundError, UsageError
+from ..errors import ArshadowError, ImageError, MarkerNotFoundError, UsageError
 
 __all__ = ["EngineOptions", "SessionBackend", "video_outputs", "process_video", "run_videos", "unique_stems",
            "write_contact_sheet", "FRAME_STAGES"]
@@ -60,7 +60,7 @@ class EngineOptions:
     fmt : str
         Output container (``mp4``, ``mkv``, ``mov``, ``avi``).
     codec : str
-        :data:`arshadow.avio.VIDEO_CODECS` key (``h264`` default).
+        :data:`arshadow.video.avio.VIDEO_CODECS` key (``h264`` default).
     crf : float
         H.264 constant rate factor.
     preset : str
@@ -141,7 +141,7 @@ class SessionBackend:
     Parameters
     ----------
     session : arshadow.session.Session
-    tracks : list of arshadow.sun.SunTrack
+    tracks : list of arshadow.lights.sun.SunTrack
         Sun lights following the frame times (``time_lapse = (start datetime, speed)``); the session
         must have them (:meth:`Session.use_sun_tracks`).
     """
@@ -220,7 +220,7 @@ def _open_reader(path, max_frames):
 
     p = str(path)
     if "%" in p:  # an image-sequence pattern: OpenCV's reader
-        from .video import VideoReader
+        from .cvio import VideoReader
 
         return VideoReader(p, max_frames=max_frames), False
     return AvReader(p, max_frames=max_frames, raw=True), True
@@ -257,7 +257,7 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
         Unreadable or unwritable video, a size the calibration does not fit.
     """
     from .avio import AvWriter
-    from .report import ReportItem
+    from ..report import ReportItem
     from .temporal import PoseStream
 
     opts = opts.check()
@@ -301,7 +301,7 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
     def encode():
         from contextlib import ExitStack
 
-        from .io import atomic_path
+        from ..io import atomic_path
 
         with ExitStack() as st:
             keep_yuv = opts.codec == "ffv1" and getattr(reader, "pix_fmt", None) == "yuv420p"
@@ -390,7 +390,7 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
             else:
                 stats["frames_held"] += 1
             m = fp.cam_from_world
-            from .transforms import rvec_tvec_from_matrix
+            from ..transforms import rvec_tvec_from_matrix
 
             r, t = rvec_tvec_from_matrix(m)
             item.extra["raw"] = None if fp.raw is None else {
@@ -518,7 +518,7 @@ def _replace_dir(tmp: Path, target: Path) -> None:
 
 def write_contact_sheet(path, thumbs: dict, cols: int = 4) -> Path:
     """Tile ``{frame: (h, w, 3) uint8}`` thumbnails (frame order, labelled) into one image, atomically."""
-    from .io import write_image
+    from ..io import write_image
 
     keys = sorted(thumbs)
     h, w = thumbs[keys[0]].shape[:2]
@@ -567,7 +567,7 @@ def run_videos(backend, inputs, outdir, opts: EngineOptions, *, progress_factory
     items : list of ReportItem
         Per-frame items when ``opts.collect_items``; an unreadable video has one item with ``frame: None``.
     """
-    from .report import ReportItem
+    from ..report import ReportItem
 
     summaries, items = [], []
     in_paths = [Path(str(v)) for v in inputs]
