@@ -29,8 +29,12 @@ root = Path(sys.argv[1])
 from arshadow.camera import Intrinsics
 from arshadow.gl.context import create_context
 from arshadow.io import read_image
-from arshadow.lights.spec import parse_light
-from arshadow.geometry.mesh import load_occluder
+try:
+    from arshadow.geometry.mesh import load_occluder
+    from arshadow.lights.spec import parse_light
+except ImportError:  # a tree from before the move into subpackages
+    from arshadow.lights import parse_light
+    from arshadow.mesh import load_occluder
 from arshadow.pipeline import Compositor, RenderOptions
 sc = next(s for s in json.loads((root / "samples" / "scenes.json").read_text())["scenes"]
           if s["photo"] == "knot_point.jpg")
