@@ -147,8 +147,8 @@ def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings=N
         why = "numpy (the shader path is not available here)" if len(paths) == 1 else "forced cpu"
     else:
         choice, used = chooser.run(key, paths)
-        d = chooser.decisions[key]
-        why = f"forced {choice}" if d.get("forced") else f"measured on first use: {d['ms']} ms (median)"
+        why = f"forced {choice}" if chooser.force else \
+            f"measured on first use in this process: {chooser.decisions[key]['ms']} ms (median)"
     for k, v in used.items():
         timings[k] += v
     info["compose"] = choice

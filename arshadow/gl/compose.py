@@ -269,13 +269,13 @@ class PathChooser:
     force : str, optional
         Always take this path (no timing).
     decisions : dict, optional
-        Where the choices are kept (default: a new dict per chooser; :data:`SHARED_DECISIONS` shares them
-        across the process).
+        Where the measured choices are kept (default :data:`SHARED_DECISIONS`: shared by every chooser of the
+        process, so each key is timed once; a forced chooser records nothing).
 
     Attributes
     ----------
     decisions : dict
-        key -> ``{"choice": name, "ms": {name: median ms}}`` (or ``{"choice": name, "forced": True}``).
+        key -> ``{"choice": name, "ms": {name: median ms}}``.
     """
 
     def __init__(self, trials: int = 3, force: str | None = None, decisions: dict | None = None):
@@ -284,9 +284,7 @@ class PathChooser:
         self.trials = int(trials)
         self.force = force
         if decisions is None:
-            # per chooser by default: sharing SHARED_DECISIONS across sessions exposed a shader-path failure
-            # on a fresh session's first frame (docs/planner.md, known issues); pass it explicitly to share
-            decisions = {}
+            decisions = SHARED_DECISIONS  # one measurement per key and process, whichever session asks first
         self.decisions: dict = decisions
 
     def run(self, key, paths: dict):
@@ -298,7 +296,6 @@ class PathChooser:
         if self.force is not None:
             if self.force not in paths:
                 raise UsageError(f"path {self.force!r} is not one of {', '.join(paths)}")
-            self.decisions.setdefault(key, {"choice": self.force, "forced": True})
             return self.force, paths[self.force]()
         d = self.decisions.get(key)
         if d is not None:
