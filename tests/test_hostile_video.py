@@ -150,7 +150,7 @@ def test_bad_videos_in_one_run(clips, tmp_path, capsys):
     assert rep[str(clips / "corrupt_mid.mp4")]["frames"] == 11
     seq = rep[str(clips / "seq/f%03d.png")]
     assert seq["frames"] == 3 and "f003.png is missing" in seq["warnings"][0]
-    assert {"good.mp4", "good_2.mp4", "clip.mp4", "truncated.mp4", "corrupt_mid.mp4"} <= {p.name for p in out.iterdir()}
+    assert {"good.mp4", "good_2.mp4", "clip.mp4", "truncated.mp4", "corrupt_mid.mp4", "f.mp4"} <= {p.name for p in out.iterdir()}
     for stem in ("good", "good_2"):
         assert len(list((out / f"{stem}.shadow").iterdir())) == 6
     assert not [p for p in out.iterdir() if p.stem in ("zero", "text", "header_only", "junk", "folder", "missing")]

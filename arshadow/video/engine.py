@@ -29,6 +29,7 @@ import json
 import math
 import os
 import queue
+import re
 import shutil
 import tempfile
 import threading
@@ -554,11 +555,13 @@ def write_contact_sheet(path, thumbs: dict, cols: int = 4) -> Path:
 
 
 def unique_stems(inputs) -> list[str]:
-    """An output stem per input (``clip``, ``clip_2``, ... when names collide, case-insensitively)."""
+    """An output stem per input (``clip``, ``clip_2``, ... when names collide, case-insensitively; an
+    image-sequence pattern ``frames/img_%04d.png`` gives ``img``, ``frames/%04d.png`` gives ``frames``)."""
     seen: dict[str, int] = {}
     out = []
     for inp in inputs:
-        stem = Path(str(inp)).stem.replace("%", "") or "video"
+        p = Path(str(inp))  # an image-sequence pattern frames/img_%04d.png: "img" (or its folder's name)
+        stem = re.sub(r"%0?\d*d", "", p.stem).replace("%", "").strip("_.- ") or p.parent.name or "video"
         n = seen.get(stem.lower(), 0) + 1
         seen[stem.lower()] = n
         out.append(stem if n == 1 else f"{stem}_{n}")
