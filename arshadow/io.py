@@ -208,6 +208,34 @@ def atomic_path(target):
         raise
 
 
+def clean_temporaries(folder, stem: str | None = None) -> int:
+    """Remove the temporary files and folders an interrupted run (``kill -9``) left in ``folder``.
+
+    They are :func:`atomic_path`'s ``.NAME.XXXX.tmp.EXT`` (and folders ``.NAME.XXXX.tmp``); with ``stem``
+    only those of the outputs ``<stem>.*`` (another run's temporaries in the same folder are left alone).
+    Returns how many were removed.
+    """
+    import shutil
+
+    d = Path(folder)
+    if not d.is_dir():
+        return 0
+    n = 0
+    for p in d.iterdir():
+        name = p.name
+        if not (name.startswith(".") and ".tmp" in name):
+            continue
+        if stem is not None and not name.startswith(f".{stem}."):
+            continue
+        if p.is_dir() and not p.is_symlink():
+            shutil.rmtree(p, ignore_errors=True)
+        else:
+            with contextlib.suppress(OSError):
+                p.unlink()
+        n += 1
+    return n
+
+
 def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)

@@ -327,6 +327,27 @@ def _triple(v, key):
     return t
 
 
+def _value(d, key, conv, default=None):
+    """``conv(d[key])`` (``default`` when absent or None); a value of the wrong type is a UsageError naming
+    the key. ``bool`` takes only true/false (``bool("no")`` would be True), ``int`` only whole numbers."""
+    v = d.get(key)
+    if v is None:
+        return default
+    what = {bool: "true or false", int: "a whole number", float: "a number", str: "a text"}[conv]
+    ok = (isinstance(v, bool) if conv is bool else
+          isinstance(v, str) if conv is str else
+          not isinstance(v, bool) and isinstance(v, (int, float, str)))
+    try:
+        out = conv(v) if ok else None
+        if conv is int and (isinstance(v, float) and not float(v).is_integer()):
+            out = None
+    except (TypeError, ValueError, OverflowError):
+        out = None
+    if out is None:
+        raise UsageError(f"{key} {v!r}: expected {what}")
+    return out
+
+
 def _rgb_text(v):
     if v is None or isinstance(v, str):
         return v or None
@@ -390,15 +411,21 @@ def scene_from_dict(d, base_dir=None) -> SceneSpec:
     if base_dir is not None and isinstance(dictionary, str) and not dictionary.upper().startswith("DICT_") and \
             (Path(base_dir) / dictionary).exists():
         dictionary = _path(dictionary, base_dir)
-    ml = d.get("marker_length")
-    mid = d.get("marker_id")
-    tracker = TrackerSpec(dictionary=dictionary, marker_length=None if ml is None else float(ml),
-                          marker_id=None if mid is None else int(mid), board=_path(d.get("board"), base_dir),
-                          refine=d.get("refine", "default"))
+    from .lights.spec import Light
+
+    bad = [s for s in lights if not isinstance(s, (str, Light))]
+    if bad:
+        raise UsageError(f"lights {bad[0]!r}: a light is a text spec such as point:X,Y,Z (in YAML, quote it)")
+    if not isinstance(model, (str, Path)):
+        raise UsageError(f"model {model!r}: expected a mesh file or a primitive such as box:WX,WY,HZ")
+    ml = _value(d, "marker_length", float)
+    mid = _value(d, "marker_id", int)
+    tracker = TrackerSpec(dictionary=dictionary, marker_length=ml, marker_id=mid,
+                          board=_path(d.get("board"), base_dir), refine=d.get("refine", "default"))
     calib = d["calib"]
     if isinstance(calib, (str, Path)):
         calib = _path(calib, base_dir)
-    model_spec = ModelSpec(str(model), scale=float(d.get("scale", 1.0)),
+    model_spec = ModelSpec(str(model), scale=_value(d, "scale", float, 1.0),
                            rotate=_triple(d.get("rotate", (0, 0, 0)), "rotate"),
                            place=_triple(d.get("place", (0, 0, 0)), "place"), color=_rgb_text(d.get("color")))
     opts = {}
@@ -410,10 +437,7 @@ def scene_from_dict(d, base_dir=None) -> SceneSpec:
                       ("aa", int), ("ground_size", float), ("roi", bool), ("truncate", bool),
                       ("fast_detect", bool), ("plan", str), ("compose", str), ("track_roi", bool)):
         if d.get(key) is not None:
-            try:
-                opts[key] = conv(d[key])
-            except (TypeError, ValueError):
-                raise UsageError(f"{key} {d[key]!r}: expected a {conv.__name__}") from None
+            opts[key] = _value(d, key, conv)
     if d.get("no_object"):
         opts["draw_occluder"] = False
     return SceneSpec(camera=calib, tracker=tracker, model=model_spec,
@@ -444,6 +468,8 @@ def load_scene(path) -> SceneSpec:
         text = p.read_text(encoding="utf-8")
     except OSError as exc:
         raise UsageError(f"{p}: cannot read the scene file ({exc.strerror or exc})") from None
+    except UnicodeDecodeError:
+        raise UsageError(f"{p}: not a scene file (not UTF-8 text)") from None
     try:
         if p.suffix.lower() in (".yml", ".yaml"):
             import yaml
@@ -452,7 +478,10 @@ def load_scene(path) -> SceneSpec:
         else:
             data = json.loads(text)
     except Exception as exc:  # noqa: BLE001 (yaml and json raise their own error types)
-        raise UsageError(f"{p}: not a valid scene file ({type(exc).__name__}: {exc})") from None
+        mark = getattr(exc, "problem_mark", None)  # YAML: the message spans lines; say where, in one
+        why = f"line {mark.line + 1}, column {mark.column + 1}: {exc.problem}" if mark is not None and \
+            getattr(exc, "problem", None) else " ".join(str(exc).split())
+        raise UsageError(f"{p}: not a valid scene file ({type(exc).__name__}: {why})") from None
     if isinstance(data, dict) and isinstance(data.get("scene"), dict):
         data = data["scene"]
     if not isinstance(data, dict):

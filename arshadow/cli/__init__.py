@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import signal
 import sys
 
 from .. import __version__
@@ -63,6 +64,7 @@ def main(argv=None) -> int:
         parser.print_help(sys.stderr)
         return EXIT_USAGE
     quiet_opencv(args.debug)
+    previous = _terminate_as_interrupt()
     try:
         return int(args.func(args) or 0)
     except ArshadowError as exc:
@@ -70,9 +72,26 @@ def main(argv=None) -> int:
             raise
         print(f"arshadow {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_SOME_FAILED if isinstance(exc, (ImageError, MarkerNotFoundError)) else EXIT_USAGE
-    except KeyboardInterrupt:
-        print("arshadow: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        signum = exc.args[0] if exc.args and isinstance(exc.args[0], int) else signal.SIGINT
+        print(f"arshadow: interrupted ({signal.Signals(signum).name}); the outputs being written were removed",
+              file=sys.stderr)
+        return 128 + int(signum)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _terminate_as_interrupt():
+    """SIGTERM (``kill``, a job scheduler's stop) unwinds like Ctrl-C: the temporary files of the outputs
+    being written are removed, finished ones kept (only possible in the main thread; else left as is)."""
+    def handler(signum, frame):
+        raise KeyboardInterrupt(signum)
+
+    try:
+        return signal.signal(signal.SIGTERM, handler)  # the previous handler, restored when main() returns
+    except ValueError:  # not the main thread (main() called from a worker thread)
+        return None
 
 
 def quiet_opencv(debug: bool = False) -> None:

@@ -48,33 +48,62 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def _client(address: str):
+#: seconds to wait for a Dask scheduler before giving up (a wrong address must not hang the run)
+DASK_CONNECT_TIMEOUT_S = 10
+
+
+def _client(address: str, debug: bool = False):
+    """``(Client, LocalCluster or None)`` for ``--dask ADDRESS``; UsageError for a bad or unreachable one."""
+    import logging
+
     from ..errors import UsageError
 
     try:
         from distributed import Client, LocalCluster
     except ImportError:
         raise UsageError("--dask needs Dask: pip install 'arshadow[dask]'") from None
-    if address.startswith("local"):
-        _, _, n = address.partition(":")
+    if not debug:  # the scheduler's and workers' INFO chatter
+        logging.getLogger("distributed").setLevel(logging.WARNING)
+    head, sep, n = address.partition(":")
+    if head == "local":  # (not localhost:8786, a scheduler address)
         try:
-            workers = int(n) if n else 2
+            workers = int(n) if sep else 2
         except ValueError:
-            raise UsageError(f"--dask {address}: use local or local:N") from None
+            workers = 0
+        if not workers >= 1:
+            raise UsageError(f"--dask {address}: use local or local:N with N >= 1 worker processes")
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
         return Client(cluster), cluster
-    return Client(address), None
+    if "://" not in address and ":" not in address:
+        raise UsageError(f"--dask {address}: give a scheduler address (tcp://HOST:PORT) or local[:N]")
+    try:
+        return Client(address, timeout=DASK_CONNECT_TIMEOUT_S), None
+    except (OSError, TimeoutError, ValueError) as exc:
+        why = str(exc).strip().splitlines()[0][:160] if str(exc).strip() else type(exc).__name__
+        raise UsageError(f"--dask {address}: cannot reach the scheduler within {DASK_CONNECT_TIMEOUT_S} s "
+                         f"({why})") from None
 
 
 def run(args) -> int:
-    from ..video.batch import run_batch
+    from ..io import check_output_folder
     from ..scene import load_scene
+    from ..session import Session
+    from ..video.batch import run_batch
     from . import quiet_opencv
     from .video import engine_options
 
-    quiet_opencv(bool(getattr(args, "debug", False)))
+    debug = bool(getattr(args, "debug", False))
+    quiet_opencv(debug)
     spec = load_scene(args.config)
     opts = engine_options(args)
+    # before any work: a bad -o, scene file or cluster address is one usage error (exit 2)
+    outdir = check_output_folder(args.output, "-o")
+    client = cluster = session = None
+    if args.dask:
+        spec.build()  # the scene's files, read here once: a bad one fails before any task is sent
+        client, cluster = _client(args.dask, debug)
+    else:
+        session = Session(spec)
     bar = None
     if not args.quiet:
         from tqdm import tqdm
@@ -88,21 +117,20 @@ def run(args) -> int:
             msg = res.get("error") or "; ".join(res.get("warnings") or []) or res["status"]
             (bar.write if bar is not None else print)(f"arshadow batch: {res['status']}: {msg}", file=sys.stderr)
 
-    client = cluster = None
-    if args.dask:
-        client, cluster = _client(args.dask)
     try:
-        summary = run_batch(spec, args.inputs, Path(args.output), opts, save_mask=bool(args.save_mask),
-                            client=client, progress=progress)
+        summary = run_batch(spec, args.inputs, outdir, opts, save_mask=bool(args.save_mask),
+                            client=client, progress=progress, session=session)
     finally:
         if bar is not None:
             bar.close()
+        if session is not None:
+            session.close()
         if client is not None:
             client.close()
         if cluster is not None:
             cluster.close()
     c = summary["counts"]
     print(f"{len(summary['items'])} items: " + ", ".join(f"{k} {v}" for k, v in sorted(c.items())) +
-          f"  (summary: {Path(args.output) / 'batch.json'})")
+          f"  (summary: {outdir / 'batch.json'})")
     failed = sum(1 for r in summary["items"] if r["status"] != "ok")
     return EXIT_SOME_FAILED if failed else EXIT_OK

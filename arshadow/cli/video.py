@@ -186,8 +186,7 @@ def build_lights(args):
 
 
 def run(args) -> int:
-    from ..errors import UsageError
-    from ..io import write_json
+    from ..io import check_output_file, check_output_folder, write_json
     from ..report import jsonable, make_report
     from ..scene import scene_from_args
     from ..session import Session
@@ -200,9 +199,10 @@ def run(args) -> int:
     static, tracks, tl = build_lights(args)
     # video: search the marker near the last detection first (not with --plan general)
     spec = scene_from_args(args, refine=args.corner_refine, track_roi=True)
-    outdir = Path(args.output)
-    if outdir.exists() and not outdir.is_dir():
-        raise UsageError(f"-o {outdir}: exists and is not a folder")
+    # output paths before any work: a bad -o / --report is one usage error, not one per video
+    outdir = check_output_folder(args.output, "-o")
+    if args.report:
+        check_output_file(args.report, "--report")
     first = list(static)
     for tr in tracks:
         tr.reset()

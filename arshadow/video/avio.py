@@ -162,40 +162,74 @@ class AvReader:
         if self._started:
             raise UsageError(f"{self.path}: an AvReader can be iterated only once")
         self._started = True
-        av = _av()
         t0 = None
         last_t = -math.inf
         index = 0
         try:
+            for f in self._decoded():
+                if self.max_frames is not None and index >= self.max_frames:
+                    return
+                fmt = "yuv420p" if (self.raw and f.format.name == "yuv420p" and not (f.width % 2 or f.height % 2)) \
+                    else "bgr24"
+                img = f.to_ndarray(format=fmt)
+                t = f.time
+                if t is None or not math.isfinite(t):
+                    t = index / self.fps
+                else:
+                    t0 = t if t0 is None else t0
+                    t -= t0
+                if not t > last_t:
+                    t = max(index / self.fps, last_t + 1e-6)
+                last_t = t
+                img.setflags(write=False)
+                self.n_read += 1
+                yield RawFrame(index, float(t), img, fmt) if self.raw else VideoFrame(index, float(t), img)
+                index += 1
+        finally:
+            self.close()
+
+    def _decoded(self):
+        """The decoded ``av.VideoFrame`` s in order, damaged packets skipped and counted.
+
+        Frame threading (fast) drops the frames in flight when a packet fails to decode or the file ends
+        early; at the first sign of either, decoding starts again from the top without frame threads and
+        goes on after the frames already given (damaged files only pay for the second pass).
+        """
+        av = _av()
+        given = 0
+        trouble = False
+        try:
             for packet in self._c.demux(self._vs):
+                try:
+                    frames = packet.decode()
+                except av.FFmpegError:
+                    trouble = True
+                    break
+                for f in frames:
+                    given += 1
+                    yield f
+        except av.FFmpegError:
+            trouble = True
+        if not trouble and not (self.frame_count is not None and given < self.frame_count - 1):
+            return
+        self.close()
+        try:
+            self._c = av.open(self.path, "r")
+            vs = self._c.streams.video[0]
+            vs.thread_type = "SLICE"
+            k = 0
+            for packet in self._c.demux(vs):
                 try:
                     frames = packet.decode()
                 except av.FFmpegError:
                     self.n_decode_errors += 1
                     continue
                 for f in frames:
-                    if self.max_frames is not None and index >= self.max_frames:
-                        return
-                    fmt = "yuv420p" if (self.raw and f.format.name == "yuv420p" and not (f.width % 2 or f.height % 2)) \
-                        else "bgr24"
-                    img = f.to_ndarray(format=fmt)
-                    t = f.time
-                    if t is None or not math.isfinite(t):
-                        t = index / self.fps
-                    else:
-                        t0 = t if t0 is None else t0
-                        t -= t0
-                    if not t > last_t:
-                        t = max(index / self.fps, last_t + 1e-6)
-                    last_t = t
-                    img.setflags(write=False)
-                    self.n_read += 1
-                    yield RawFrame(index, float(t), img, fmt) if self.raw else VideoFrame(index, float(t), img)
-                    index += 1
-        except av.FFmpegError:
+                    k += 1
+                    if k > given:
+                        yield f
+        except (av.FFmpegError, OSError, IndexError):
             self.ended_with_error = True
-        finally:
-            self.close()
 
     @property
     def truncated(self) -> bool:
@@ -219,6 +253,10 @@ class AvReader:
 
 
 def _short(exc) -> str:
+    """FFmpeg's own reason (``Invalid data found when processing input``) without the file name and log."""
+    reason = getattr(exc, "strerror", None)
+    if reason:
+        return str(reason)
     return str(exc).strip().splitlines()[-1][:120] if str(exc).strip() else type(exc).__name__
 
 
@@ -285,7 +323,7 @@ class AvWriter:
                             options={"movflags": "+faststart"} if fmt in ("mp4", "mov") else None)
             except (av.FFmpegError, OSError, ValueError) as exc:
                 raise ImageError(f"{self.path}: cannot write ({_short(exc)})") from None
-            stack.callback(c.close)
+            stack.callback(self._close_container, av, c)
             name, pix = VIDEO_CODECS[self.codec] if self.color else ("ffv1", "gray")
             if self.pix_fmt is not None and self.color:
                 pix = self.pix_fmt
@@ -339,11 +377,7 @@ class AvWriter:
         if f.shape != want or f.dtype != np.uint8:
             raise ImageError(f"{self.path}: frame {self.n_written} is {f.shape} {f.dtype}, expected {want} uint8")
         vf = av.VideoFrame.from_ndarray(np.ascontiguousarray(f), format="bgr24" if self.color else "gray")
-        vf.pts = self.n_written
-        vf.time_base = 1 / self.rate
-        for pkt in self._vs.encode(vf):
-            self._c.mux(pkt)
-        self.n_written += 1
+        self._encode(av, vf, self._vs, self._c)
 
     def write_yuv420p(self, planes: np.ndarray) -> None:
         """Append one frame given as planar ``(H * 3 // 2, W) uint8`` Y, U, V (BT.601, as decoded)."""
@@ -354,25 +388,38 @@ class AvWriter:
         if f.shape != (self.size[1] * 3 // 2, self.size[0]) or f.dtype != np.uint8 or not self.color:
             raise ImageError(f"{self.path}: frame {self.n_written} is {f.shape} {f.dtype}, expected planar yuv420p")
         vf = av.VideoFrame.from_ndarray(np.ascontiguousarray(f), format="yuv420p")
-        vf.pts = self.n_written
-        vf.time_base = 1 / self.rate
-        for pkt in self._vs.encode(vf):
-            self._c.mux(pkt)
-        self.n_written += 1
+        self._encode(av, vf, self._vs, self._c)
+
+    def _encode(self, av, vf, vs, c) -> None:
+        """Encode and mux one frame (``None``: flush); a failing encoder or write (disk full) is an ImageError
+        naming the target (the temporary file is removed when the with-block ends)."""
+        if vf is not None:
+            vf.pts = self.n_written
+            vf.time_base = 1 / self.rate
+        try:
+            for pkt in vs.encode(vf):
+                c.mux(pkt)
+        except (av.FFmpegError, OSError) as exc:
+            raise ImageError(f"{self.path}: cannot write ({_short(exc)}); nothing written") from None
+        if vf is not None:
+            self.n_written += 1
 
     def __exit__(self, exc_type, exc, tb):
         c, vs, stack = self._c, self._vs, self._stack
         self._c = self._vs = self._stack = None
         if stack is None:
             return False
+        av = _av()
         try:
             if exc_type is None:
                 if self.n_written == 0:
                     raise ImageError(f"{self.path}: no frame to write")
-                for pkt in vs.encode(None):
-                    c.mux(pkt)
+                self._encode(av, None, vs, c)
                 if self._audio is not None:
-                    self._copy_audio(c)
+                    try:
+                        self._copy_audio(c)
+                    except (av.FFmpegError, OSError) as e:
+                        raise ImageError(f"{self.path}: cannot write ({_short(e)}); nothing written") from None
         except BaseException:
             if stack.__exit__(*sys.exc_info()):
                 return True
@@ -382,6 +429,12 @@ class AvWriter:
                 with contextlib.suppress(Exception):
                     self._audio[0].close()
         return stack.__exit__(exc_type, exc, tb)
+
+    def _close_container(self, av, c) -> None:
+        try:
+            c.close()  # writes the trailer
+        except (av.FFmpegError, OSError) as exc:
+            raise ImageError(f"{self.path}: cannot write ({_short(exc)}); nothing written") from None
 
     def _copy_audio(self, c):
         """Copy the source's audio packets up to the video's duration."""

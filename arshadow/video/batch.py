@@ -24,7 +24,6 @@ import dataclasses
 import hashlib
 import json
 import os
-import shutil
 import time
 from pathlib import Path
 
@@ -32,6 +31,8 @@ from ..errors import ArshadowError, MarkerNotFoundError, UsageError
 
 __all__ = ["VIDEO_EXTENSIONS", "BatchItem", "plan_batch", "run_batch", "process_item", "clean_temporaries"]
 
+PHOTO_EXTENSIONS = {".jpg", ".jpeg", ".jpe", ".png", ".bmp", ".dib", ".tif", ".tiff", ".webp", ".jp2", ".pbm", ".pgm",
+                    ".ppm", ".pnm", ".pxm", ".sr", ".ras", ".exr", ".hdr", ".pic", ".avif"}
 VIDEO_EXTENSIONS = {".mp4", ".m4v", ".mov", ".mkv", ".avi", ".webm", ".mpg", ".mpeg", ".ts", ".mts", ".wmv", ".flv"}
 RECORDS = ".arshadow-batch"
 
@@ -52,8 +53,35 @@ def plan_batch(inputs) -> list[BatchItem]:
     inputs = [str(i) for i in inputs]
     if not inputs:
         raise UsageError("no input given")
-    return [BatchItem(i, "video" if Path(i).suffix.lower() in VIDEO_EXTENSIONS else "photo", s)
-            for i, s in zip(inputs, unique_stems(inputs))]
+    return [BatchItem(i, _kind(i), s) for i, s in zip(inputs, unique_stems(inputs))]
+
+
+def _kind(path: str) -> str:
+    """``"video"`` for a video extension or an image-sequence pattern; ``"photo"`` for an image extension;
+    otherwise by content (what OpenCV's image readers recognise is a photo, anything else is tried as a
+    video)."""
+    import cv2
+
+    from .cvio import _looks_like_sequence
+
+    ext = Path(path).suffix.lower()
+    if ext in VIDEO_EXTENSIONS or _looks_like_sequence(path):
+        return "video"
+    if ext in PHOTO_EXTENSIONS or not Path(path).is_file():
+        return "photo"
+    try:
+        return "photo" if cv2.haveImageReader(path) else "video"
+    except cv2.error:
+        return "photo"
+
+
+def _outputs(item: BatchItem, outdir: Path, opts, save_mask: bool) -> list:
+    """The files an item writes (before its done record)."""
+    if item.kind == "video":
+        from .engine import video_outputs
+
+        return [p for p in video_outputs(outdir, item.stem, opts).values() if p is not None]
+    return [outdir / f"{item.stem}.png", *([outdir / f"{item.stem}.shadow.png"] if save_mask else [])]
 
 
 def _fingerprint(item: BatchItem, spec, opts, save_mask) -> str:
@@ -68,25 +96,23 @@ def _fingerprint(item: BatchItem, spec, opts, save_mask) -> str:
     return hashlib.sha256(blob.encode()).hexdigest()
 
 
+def _resolved(p) -> str:
+    try:
+        return str(Path(p).resolve())
+    except OSError:
+        return str(p)
+
+
 def _record_path(outdir: Path, item: BatchItem) -> Path:
     return outdir / RECORDS / f"{item.stem}.json"
 
 
 def clean_temporaries(outdir) -> int:
     """Remove the temporary files and folders an interrupted run left in ``outdir`` (``.NAME.*.tmp*``)."""
-    n = 0
+    from ..io import clean_temporaries as clean
+
     d = Path(outdir)
-    for sub in (d, d / RECORDS):
-        if not sub.is_dir():
-            continue
-        for p in sub.iterdir():
-            if p.name.startswith(".") and ".tmp" in p.name and p.name != RECORDS:
-                if p.is_dir():
-                    shutil.rmtree(p, ignore_errors=True)
-                else:
-                    p.unlink(missing_ok=True)
-                n += 1
-    return n
+    return clean(d) + clean(d / RECORDS)
 
 
 def _done(outdir: Path, item: BatchItem, fp: str):
@@ -209,15 +235,22 @@ def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=Non
     from .. import __version__
     from ..io import write_json
 
-    outdir = Path(outdir)
-    if outdir.exists() and not outdir.is_dir():
-        raise UsageError(f"-o {outdir}: exists and is not a folder")
+    from ..io import check_output_folder
+
+    outdir = check_output_folder(outdir, "-o")
     (outdir / RECORDS).mkdir(parents=True, exist_ok=True)
     clean_temporaries(outdir)
     items = plan_batch(inputs)
     results: list = [None] * len(items)
     todo = []
+    given = {_resolved(i) for i in inputs}
     for k, it in enumerate(items):
+        clash = [p for p in _outputs(it, outdir, opts, save_mask) if _resolved(p) in given]
+        if clash:  # inputs are never modified
+            results[k] = {"input": it.input, "kind": it.kind, "stem": it.stem, "status": "error", "skipped": False,
+                          "error": f"{clash[0]}: output would overwrite an input; choose another -o folder",
+                          "outputs": [], "warnings": []}
+            continue
         fp = _fingerprint(it, spec, opts, save_mask)
         rec = _done(outdir, it, fp)
         if rec is not None:
@@ -226,8 +259,12 @@ def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=Non
         else:
             todo.append((k, it, fp))
     done = len(items) - len(todo)
-    if progress is not None and done:
-        progress(done, len(items), None)
+    if progress is not None:
+        for r in results:
+            if r is not None and r["status"] == "error":
+                progress(done, len(items), r)
+        if done:
+            progress(done, len(items), None)
     if client is None:
         own = session is None and todo
         if own:

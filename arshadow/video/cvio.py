@@ -95,6 +95,21 @@ def _looks_like_sequence(path: str) -> bool:
     return re.search(r"%0?\d*d", path) is not None
 
 
+def sequence_indices(pattern: str) -> list[int]:
+    """The frame numbers of the files an image-sequence pattern (``frames/img_%04d.png``) matches, sorted."""
+    import re
+
+    p = Path(pattern)
+    m = re.search(r"%(0?)(\d*)d", p.name)
+    if m is None or not p.parent.is_dir() and str(p.parent) not in ("", "."):
+        return []
+    width = int(m.group(2) or 0)
+    digits = rf"\d{{{width}}}" if m.group(1) and width else r"\d+"
+    rx = re.compile(re.escape(p.name[: m.start()]) + f"({digits})" + re.escape(p.name[m.end():]) + "$")
+    return sorted({int(g.group(1)) for f in (p.parent if str(p.parent) else Path(".")).iterdir()
+                   if f.is_file() and (g := rx.match(f.name))})
+
+
 class VideoReader:
     """The frames of a video (anything OpenCV's video I/O decodes), with timestamps.
 
@@ -146,6 +161,10 @@ class VideoReader:
                 raise ImageError(f"{self.path}: is a folder, not a video (use a pattern such as DIR/%04d.png)")
             if p.stat().st_size == 0:
                 raise ImageError(f"{self.path}: empty file, not a video")
+        self.end_note = None  # why the frames stop before frame_count (engine warnings)
+        seq = sequence_indices(self.path) if _looks_like_sequence(self.path) else None
+        if seq is not None and not seq:
+            raise ImageError(f"{self.path}: no file matches this image-sequence pattern")
         cap = cv2.VideoCapture(self.path)
         if not cap.isOpened():
             cap.release()
@@ -162,6 +181,16 @@ class VideoReader:
         self.fps = 25.0 if self.fps_assumed else fps
         n = cap.get(cv2.CAP_PROP_FRAME_COUNT)
         self.frame_count = int(n) if (math.isfinite(n) and n > 0) else None
+        if seq:  # OpenCV stops at the first missing number: count every file, so a gap reads as truncated
+            gaps = [i + 1 for i, j in zip(seq, seq[1:]) if j != i + 1]
+            if gaps:
+                self.frame_count = len(seq)
+                try:
+                    missing = self.path % gaps[0]
+                except (TypeError, ValueError):
+                    missing = f"number {gaps[0]}"
+                self.end_note = (f"image {missing} is missing, the sequence stops there; "
+                                 f"{len([i for i in seq if i > gaps[0]])} later image(s) not read")
         self.height, self.width = first.shape[:2]
         self.n_read = 0
         self.n_decode_errors = 0

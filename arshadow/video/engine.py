@@ -24,10 +24,12 @@ Rendering goes through :class:`SessionBackend`, the only place that knows the re
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
 import queue
+import re
 import shutil
 import tempfile
 import threading
@@ -49,6 +51,9 @@ FRAME_STAGES = ("decode", "detect", "pose", "silhouette", "volume", "render", "r
                 "convert", "encode", "total")
 
 _END = object()
+#: libx264's speed presets (``--preset``)
+X264_PRESETS = ("ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow", "slower", "veryslow",
+                "placebo")
 
 
 @dataclass
@@ -112,8 +117,11 @@ class EngineOptions:
             raise UsageError(f"--max-frames {self.max_frames}: must be >= 1")
         if self.pose_lag is not None and self.pose_lag < 0:
             raise UsageError(f"--pose-lag {self.pose_lag}: must be >= 0")
-        if self.smooth < 0 or self.hold < 0 or self.contact_sheet < 0:
-            raise UsageError("--smooth, --hold and --contact-sheet must be >= 0")
+        for opt, v in (("--smooth", self.smooth), ("--hold", self.hold), ("--contact-sheet", self.contact_sheet)):
+            if v < 0:
+                raise UsageError(f"{opt} {v}: must be >= 0")
+        if self.codec == "h264" and self.preset not in X264_PRESETS:
+            raise UsageError(f"--preset {self.preset}: use one of {', '.join(X264_PRESETS)}")
         return self
 
 
@@ -303,22 +311,22 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
 
         from ..io import atomic_path
 
+        # entered in this order, committed in the reverse one: the video (the likeliest to fail at its end:
+        # the encoder's flush, the trailer) first, and a failure there removes the mask and frames report
         with ExitStack() as st:
-            keep_yuv = opts.codec == "ffv1" and getattr(reader, "pix_fmt", None) == "yuv420p"
-            vw = st.enter_context(AvWriter(out_video, rate, (W, H), codec=opts.codec, crf=opts.crf,
-                                           pix_fmt="yuv420p" if keep_yuv else None,
-                                           preset=opts.preset, audio_from=path if (opts.keep_audio and is_av
-                                                                                   and reader.has_audio) else None))
+            jpath = st.enter_context(atomic_path(outputs["frames"]))
+            jf = st.enter_context(open(jpath, "w", encoding="utf-8"))
             mw = None
             png_dir = None
             if out_mask is not None and opts.mask == "mkv":
                 mw = st.enter_context(AvWriter(out_mask, rate, (W, H), color=False))
             elif out_mask is not None:
-                png_dir = Path(tempfile.mkdtemp(prefix=f".{Path(out_mask).name}.", suffix=".tmp",
-                                                dir=Path(out_mask).parent))
-                st.callback(lambda: shutil.rmtree(png_dir, ignore_errors=True))
-            jpath = st.enter_context(atomic_path(outputs["frames"]))
-            jf = st.enter_context(open(jpath, "w", encoding="utf-8"))
+                png_dir = st.enter_context(_atomic_dir(Path(out_mask)))
+            keep_yuv = opts.codec == "ffv1" and getattr(reader, "pix_fmt", None) == "yuv420p"
+            vw = st.enter_context(AvWriter(out_video, rate, (W, H), codec=opts.codec, crf=opts.crf,
+                                           pix_fmt="yuv420p" if keep_yuv else None,
+                                           preset=opts.preset, audio_from=path if (opts.keep_audio and is_av
+                                                                                   and reader.has_audio) else None))
             n = 0
             while True:
                 try:
@@ -356,11 +364,10 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
                 if progress is not None:
                     progress(n, total)
             if n == 0:
-                raise ImageError(f"{name}: no decodable frame")
+                raise ImageError(f"{name}: no decodable frame" + (" (truncated or damaged file)"
+                                                                 if getattr(reader, "truncated", False) else ""))
             jf.flush()
             os.fsync(jf.fileno())
-            if png_dir is not None:
-                _replace_dir(png_dir, Path(out_mask))
             enc_state["writer"] = vw
 
     dec_t = _Worker(decode, "arshadow-decode")
@@ -479,8 +486,9 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
     truncated = bool(reader.truncated)
     dec_err = int(getattr(reader, "n_decode_errors", 0))
     if truncated:
+        why = getattr(reader, "end_note", None) or "truncated or damaged file"
         warnings.append(f"{name}: the video ends early ({stats['frames']} of {reader.frame_count} frames decoded: "
-                        f"truncated or damaged file)")
+                        f"{why})")
     if dec_err:
         warnings.append(f"{name}: {dec_err} damaged packet(s) could not be decoded and were skipped")
     status = "ok"
@@ -503,6 +511,18 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
                    frame_ms_iqr=[float(np.percentile(fm, 25)), float(np.percentile(fm, 75))],
                    frame_ms_minmax=[float(fm.min()), float(fm.max())])
     return summary, items
+
+
+@contextlib.contextmanager
+def _atomic_dir(target: Path):
+    """Yield a temporary folder beside ``target``; moved onto it only if the block succeeds."""
+    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent))
+    try:
+        yield tmp
+        _replace_dir(tmp, target)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
 
 
 def _replace_dir(tmp: Path, target: Path) -> None:
@@ -535,11 +555,13 @@ def write_contact_sheet(path, thumbs: dict, cols: int = 4) -> Path:
 
 
 def unique_stems(inputs) -> list[str]:
-    """An output stem per input (``clip``, ``clip_2``, ... when names collide, case-insensitively)."""
+    """An output stem per input (``clip``, ``clip_2``, ... when names collide, case-insensitively; an
+    image-sequence pattern ``frames/img_%04d.png`` gives ``img``, ``frames/%04d.png`` gives ``frames``)."""
     seen: dict[str, int] = {}
     out = []
     for inp in inputs:
-        stem = Path(str(inp)).stem.replace("%", "") or "video"
+        p = Path(str(inp))  # an image-sequence pattern frames/img_%04d.png: "img" (or its folder's name)
+        stem = re.sub(r"%0?\d*d", "", p.stem).replace("%", "").strip("_.- ") or p.parent.name or "video"
         n = seen.get(stem.lower(), 0) + 1
         seen[stem.lower()] = n
         out.append(stem if n == 1 else f"{stem}_{n}")
@@ -575,9 +597,12 @@ def run_videos(backend, inputs, outdir, opts: EngineOptions, *, progress_factory
         outs = video_outputs(outdir, stem, opts)
         close = None
         try:
-            for p in (outs["video"], outs["mask"]):
+            for p in outs.values():
                 if p is not None and any(_same_file(p, i) for i in in_paths):
                     raise ImageError(f"{p}: output would overwrite an input; choose another -o folder")
+            from ..io import clean_temporaries
+
+            clean_temporaries(outdir, stem)  # left by a run killed while writing this video
             update = None
             if progress_factory is not None:
                 update, close = progress_factory(str(inp))
