@@ -175,7 +175,7 @@ def thin_card(rows) -> list[str]:
     """Does the thin card's shadow-map shadow vanish at >= 4096 texels (issue 11, quoting pyrender)? The
     answer from this run's rows: per thin-card scene, the share of the exact shadow kept and the IoU by map
     size, and the map's texel against the card's 1 mm thickness."""
-    from .render import THIN_CARD
+    from .render import NO_BIAS, THIN_CARD
 
     scenes = [s for s in dict.fromkeys(r["scene"] for r in rows) if s.startswith("thin card")]
     if not scenes:
@@ -207,15 +207,22 @@ def thin_card(rows) -> list[str]:
         else:
             verdict = "no map of 4096 texels or more measured"
         ref = f"; stencil volumes: IoU {st['iou']:.4f}, {_f(st['xor_px'])} px differ" if st else ""
+        for nb in (r for r in rows if r["scene"] == scene and r["family"] == NO_BIAS):
+            same = next((r for r in sm if r["config"] == nb["config"].removesuffix(", bias off")), None)
+            if same is not None:
+                ref += (f"; bias off ({nb['config']}): {nb['area_ratio']:.3f} kept, IoU {nb['iou']:.4f}, "
+                        f"{_f(nb['xor_px'])} px differ (default bias: {same['area_ratio']:.3f}, {same['iou']:.4f}, "
+                        f"{_f(same['xor_px'])})")
         L.append(f"- {scene}: " + "; ".join(parts) + f" (texel um: {texels}). Verdict: {verdict}{ref}.")
     L += ["", "Why (this renderer): the depth map holds only the caster, in a frustum fitted to its bounding sphere "
           "(10 cm across for the card), and is compared against the ground. The slope-scaled bias moves the "
           "stored depth of a face at angle t to the light by 2 tan t texels plus 4 depth steps (2r / 2^24 = "
           "6 nm): for the card's broad faces that is at most a few texels (the texel is listed above: tens of "
           "micrometres at 4096), far less than the card's 1 mm thickness and than the distance from the card to "
-          "the ground behind it along a light ray, which is zero only on the card's foot line. So a larger map "
-          "only sharpens this card's shadow; a renderer whose bias is a fixed share of a scene-wide depth range "
-          "(the whole scene, ground included, in one map) can exceed the 1 mm - that is not measured here.", ""]
+          "the ground behind it along a light ray, which is zero only on the card's foot line. The rows with the bias "
+          "off measure its share of the error directly. So a larger map only sharpens this card's shadow; a "
+          "renderer whose bias is a fixed share of a scene-wide depth range (the whole scene, ground included, in "
+          "one map) can exceed the 1 mm - that is not measured here.", ""]
     return L
 
 
