@@ -48,9 +48,19 @@ def test_bench_quick(tmp_path, gl_ctx):
     for r in rnd:
         assert 0 < float(r["time_ms"]) and 0.0 <= float(r["iou"]) <= 1.0 and int(r["xor_px"]) >= 0
     assert any(r["config"].startswith("shadow map 8192") for r in rnd)
+    for r in rnd:
+        assert float(r["area_ratio"]) >= 0.0
+    # the thin card (issue 11: pyrender loses its shadow-map shadow at >= 4096 texels): stencil and shadow-map
+    # rows against its exact shadow, the map's texel recorded, the summary's verdict present
+    card = [r for r in rnd if r["scene"].startswith("thin card")]
+    assert {r["family"] for r in card} == {"stencil", "planar", "shadow map", "shadow map, bias off"}
+    assert not any(r["family"] == "shadow map, bias off" for r in rnd if not r["scene"].startswith("thin card"))
+    assert any(r["config"].startswith("shadow map 8192") for r in card)
+    assert all(float(r["map_texel_um"]) > 0 for r in card if r["family"] == "shadow map")
 
     trk = _rows(out / "tracking.csv")
     assert any("ROI" in r["config"] for r in trk) and any("board" in r["config"] for r in trk)
+    assert any("fast_detect off" in r["config"] for r in trk)
     assert all(int(r["detected"]) > 0 for r in trk)
 
     st = _rows(out / "pipeline_stages.csv")
@@ -60,7 +70,7 @@ def test_bench_quick(tmp_path, gl_ctx):
 
     md = (out / "summary.md").read_text()
     for heading in ("## 1. Silhouette detectors", "## 2. Render quality vs time", "## 3. Tracking vs time",
-                    "## 4. Pipeline", "74.35", "61 438", "llvmpipe" if "llvmpipe" in res["meta"]["GL_RENDERER"] else "GL"):
+                    "## 4. Pipeline", "74.35", "61 438", "**Thin card**", "Verdict:", "llvmpipe" if "llvmpipe" in res["meta"]["GL_RENDERER"] else "GL"):
         assert heading in md
     if available():
         pngs = sorted(p.name for p in out.glob("*.png"))

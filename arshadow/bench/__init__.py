@@ -7,7 +7,7 @@ One module per section, each built on the Python API:
 - :mod:`.render` - render time vs shadow error (stencil variants, anti-aliasing, resolution scale, planar,
   the shadow-map baseline) against the exact GL-independent shadow (:mod:`arshadow.geometry.exact`);
 - :mod:`.tracking` - detection + pose time vs pose error;
-- :mod:`.pipeline` - per-stage times, FPS vs lights, paper 003's AR scene (through :mod:`.driver`);
+- :mod:`.pipeline` - per-stage times, FPS vs lights, paper 003's AR scene (through :class:`arshadow.Session`);
 - :mod:`.plots` (matplotlib, optional) and :mod:`.summary` (Markdown).
 
 :func:`run` writes ``<section>.csv`` files, ``results.json``, PNG plots and ``summary.md`` into a folder.

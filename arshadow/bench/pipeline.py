@@ -7,14 +7,18 @@
   an ATI Radeon HD 7670M GPU; here it is the CPU and Mesa's software rasteriser (see the metadata).
 
 The photos come from :func:`arshadow.synth.render_marker_photo` (5 cm marker, lens distortion, noise,
-blur, JPEG), so the lens warp stage is exercised; their generation is not timed.
+blur, JPEG), so the lens warp stage is exercised; their generation is not timed. Every configuration is a
+scene (:func:`arshadow.scene.scene_from_dict`) run by :class:`arshadow.Session` (``process``: detection ->
+composite, as ``arshadow render`` and the Python API run it) on the benchmark's GL context.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import time
+
 import numpy as np
 
-from . import driver
 from .common import ROOT, summary, t_fields
 
 RESOLUTIONS = ((640, 480), (1280, 720), (1920, 1080))
@@ -35,27 +39,51 @@ def photo(width, height, seed=1):
     return ph.image, cam
 
 
-def _knot():
-    from ..geometry.mesh import load_occluder
-
-    return load_occluder(ROOT / "samples" / "meshes" / "knot.ply")
-
-
-def _lights(n):
-    from ..lights.spec import parse_light
-
-    return [parse_light(f"point:{0.3 * np.cos(a):.4f},{0.3 * np.sin(a):.4f},0.5")
+def _lights(n) -> list[str]:
+    """``n`` point lights 0.5 m up on a 0.3 m circle (spec strings)."""
+    return [f"point:{0.3 * np.cos(a):.4f},{0.3 * np.sin(a):.4f},0.5"
             for a in np.linspace(0, 2 * np.pi, n, endpoint=False) + 2.2]
+
+
+def scene(cam, n_lights: int, cold: bool = False, **options):
+    """The :class:`arshadow.scene.SceneSpec` of the section: the 8 536-face knot on a 5 cm marker, ``n_lights``
+    point lights, ``options`` (scene keys: ``shadow_method``, ``silhouette``...). ``cold``: rebuild every
+    light's silhouette and volume every frame (``RenderOptions.plan_off = ("reuse",)``: a moving light or
+    object)."""
+    from ..scene import scene_from_dict
+
+    spec = scene_from_dict({"calib": cam, "marker_length": 0.05, "model": str(ROOT / "samples" / "meshes" / "knot.ply"),
+                            "lights": _lights(n_lights), **options})
+    if cold:
+        spec = spec.replace(options=dataclasses.replace(spec.options, plan_off=("reuse",)))
+    return spec
+
+
+def run_frames(spec, ctx, image, runs: int, warmup: int) -> tuple[list[float], dict]:
+    """``runs`` timed :meth:`arshadow.Session.process` calls after ``warmup``, on a session of ``spec``
+    sharing ``ctx``: wall times (ms) and ``{stage: [ms, ...]}`` (``FrameResult.timings_ms``)."""
+    from ..session import Session
+
+    out = np.empty_like(image)
+    walls, stages = [], {}
+    with Session(spec, context=ctx) as s:
+        for i in range(warmup + runs):
+            t = time.perf_counter()
+            res = s.process(image, want_mask=False, out=out)
+            w = (time.perf_counter() - t) * 1e3
+            if i >= warmup:
+                walls.append(w)
+                for k, v in res.timings_ms.items():
+                    stages.setdefault(k, []).append(v)
+    return walls, stages
 
 
 def stages(cfg, ctx, log) -> list[dict]:
     rows = []
-    caster = _knot()
     for w, h in cfg["resolutions"]:
         image, cam = photo(w, h)
         for method in ("volume", "shadowmap"):
-            with driver.open_pipeline(ctx, cam, caster, _lights(1), shadow_method=method) as pipe:
-                walls, st = driver.run_frames(pipe, image, cfg["frames"], cfg["warmup"])
+            walls, st = run_frames(scene(cam, 1, shadow_method=method), ctx, image, cfg["frames"], cfg["warmup"])
             rows.append({"resolution": f"{w}x{h}", "pixels": w * h, "shadow_method": method, **t_fields("wall", walls),
                          "fps": 1000.0 / summary(walls)["median"],
                          **{f"{k}_ms": summary(v, 4)["median"] for k, v in st.items()}})
@@ -65,12 +93,10 @@ def stages(cfg, ctx, log) -> list[dict]:
 
 def lights_sweep(cfg, ctx, log) -> list[dict]:
     rows = []
-    caster = _knot()
     image, cam = photo(1280, 720)
     for n in cfg["light_counts"]:
         for method in ("volume", "shadowmap"):
-            with driver.open_pipeline(ctx, cam, caster, _lights(n), shadow_method=method) as pipe:
-                walls, st = driver.run_frames(pipe, image, cfg["frames"], cfg["warmup"])
+            walls, st = run_frames(scene(cam, n, shadow_method=method), ctx, image, cfg["frames"], cfg["warmup"])
             rows.append({"lights": n, "shadow_method": method, **t_fields("wall", walls),
                          "fps": 1000.0 / summary(walls)["median"],
                          "render_ms": summary(st["render"], 4)["median"]})
@@ -79,17 +105,18 @@ def lights_sweep(cfg, ctx, log) -> list[dict]:
 
 
 def paper003_scene(cfg, ctx, log) -> list[dict]:
+    from ..geometry.mesh import load_occluder
+
     rows = []
-    caster = _knot()
+    faces = load_occluder(ROOT / "samples" / "meshes" / "knot.ply").n_faces
     image, cam = photo(1280, 720)
     for label, kw, cold in (("default (adjacency, volumes cached: fixed light)", {}, False),
                             ("adjacency silhouette + volume every frame", {}, True),
                             ("Delta+ silhouette + volume every frame (the paper's detector)",
                              {"silhouette": "delta_plus"}, True)):
-        with driver.open_pipeline(ctx, cam, caster, _lights(1), **kw) as pipe:
-            walls, st = driver.run_frames(pipe, image, cfg["frames"] if not kw else max(cfg["frames"] // 3, 3),
-                                          cfg["warmup"] if not kw else 1, cold=cold)
-        rows.append({"case": label, "faces": caster.n_faces, **t_fields("wall", walls),
+        walls, st = run_frames(scene(cam, 1, cold=cold, **kw), ctx, image,
+                               cfg["frames"] if not kw else max(cfg["frames"] // 3, 3), cfg["warmup"] if not kw else 1)
+        rows.append({"case": label, "faces": faces, **t_fields("wall", walls),
                      "fps": 1000.0 / summary(walls)["median"], "paper_fps": PAPER003_FPS,
                      "paper_hardware": PAPER003_HARDWARE,
                      "silhouette_ms": summary(st["silhouette"], 4)["median"], "render_ms": summary(st["render"], 4)["median"]})

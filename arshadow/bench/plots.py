@@ -45,7 +45,7 @@ def _save(fig, path) -> Path:
 
 _FAMILY_STYLE = {"stencil": ("tab:blue", "o"), "planar": ("tab:purple", "D"), "stencil AA": ("tab:green", "s"),
                  "stencil scaled": ("tab:orange", "v"), "shadow map": ("tab:red", "^"),
-                 "soft shadow": ("tab:brown", "P")}
+                 "shadow map, bias off": ("tab:pink", "x"), "soft shadow": ("tab:brown", "P")}
 
 
 def _short(config: str) -> str:

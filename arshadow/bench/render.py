@@ -5,7 +5,8 @@ renders of the scene's region of interest, after warm-up) and the error of its s
 exact shadow (:class:`arshadow.geometry.exact.ShadowOracle`: the mesh's triangles projected from the light onto
 z = 0, pixel centres tested exactly, pixels covered by the object excluded; no GL):
 
-- ``iou``: IoU of ``mask >= 0.5`` and the exact pixel-centre shadow;
+- ``iou``: IoU of ``mask >= 0.5`` and the exact pixel-centre shadow; ``area_ratio``: pixels of ``mask >= 0.5``
+  / pixels of the exact shadow (a vanishing shadow: near 0);
 - ``xor_px``: pixels that differ; ``edge_offset_px`` = ``xor_px`` / length of the exact boundary (px): the
   mean displacement of the shadow's edge;
 - ``boundary_p95_px``, ``boundary_max_px``: distances between the two boundaries (both directions);
@@ -29,10 +30,32 @@ W, H = 1280, 720
 ZNEAR = 0.01
 
 
+#: configuration family measured only in the scenes that name it (the thin cards)
+NO_BIAS = "shadow map, bias off"
+
+#: the thin card: 6 cm x 8 cm, 1 mm thick, standing on the ground (issue 11 quotes pyrender's shadow map
+#: losing a thin card's shadow at 4096 texels and above)
+THIN_CARD = "box:0.06,0.001,0.08"
+
+
+def sun_direction(elevation_deg, azimuth_deg) -> np.ndarray:
+    """``(4,) float64`` homogeneous direction towards a light at that elevation above the ground and azimuth
+    (degrees from +x towards +y)."""
+    el, az = np.radians(elevation_deg), np.radians(azimuth_deg)
+    return np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el), 0.0])
+
+
 def scenes(quick: bool):
-    """``[(name, caster, Intrinsics, cam_from_world, light_h)]``: the 8 536-face knot at 1280x720 under a
-    point light (bench_render's scene) and, in the full run, under a low sun (a long shadow: the case that
-    stretches a shadow map's texels)."""
+    """``[(name, caster, Intrinsics, cam_from_world, light_h, families)]`` (``families``: the configuration
+    families measured, None = all).
+
+    The 8 536-face knot at 1280x720 under a point light (bench_render's scene) and, in the full run, under a
+    low sun (a long shadow: the case that stretches a shadow map's texels); a 1 mm thin card
+    (:data:`THIN_CARD`) under a 20 deg sun in the card's plane (the card seen edge-on by the light: a 1 mm
+    wide sliver in the shadow map, a ~2 px wide shadow in the photo) and, in the full run, facing the same
+    sun (a long, wide shadow cast by a 1 mm slab). The thin cards are measured with the stencil and
+    shadow-map configurations only, plus shadow maps with the bias off (:data:`NO_BIAS`).
+    """
     from ..camera import Intrinsics
     from ..geometry.mesh import load_occluder
     from ..synth import look_at_pose
@@ -40,13 +63,31 @@ def scenes(quick: bool):
     caster = load_occluder(ROOT / "samples" / "meshes" / "knot.ply")
     K = Intrinsics(fx=1000.0, fy=1000.0, cx=641.3, cy=357.8, width=W, height=H, dist=np.zeros(0))
     T = look_at_pose([0.3, -0.32, 0.3], [0.0, 0.02, 0.02])
-    out = [("knot, point light", caster, K, T, np.array([-0.15, 0.2, 0.5, 1.0]))]
+    out = [("knot, point light", caster, K, T, np.array([-0.15, 0.2, 0.5, 1.0]), None)]
     if not quick:
-        el = np.radians(25.0)
-        d = np.array([np.cos(el) * np.cos(np.radians(120)), np.cos(el) * np.sin(np.radians(120)), np.sin(el), 0.0])
         T2 = look_at_pose([0.25, -0.45, 0.35], [-0.05, 0.05, 0.0])
-        out.append(("knot, low sun (25 deg)", caster, K, T2, d))
+        out.append(("knot, low sun (25 deg)", caster, K, T2, sun_direction(25.0, 120.0), None))
+    card = load_occluder(THIN_CARD)  # the card's plane is x-z; 1 mm along y
+    thin = ("stencil", "planar", "shadow map", NO_BIAS)
+    out.append(("thin card (1 mm), sun 20 deg in the card's plane (edge-on)", card, K,
+                look_at_pose([0.3, 0.35, 0.3], [0.08, 0.0, 0.02]), sun_direction(20.0, 180.0), thin))
+    if not quick:
+        out.append(("thin card (1 mm), sun 20 deg facing the card", card, K,
+                    look_at_pose([0.3, 0.35, 0.3], [0.0, -0.08, 0.02]), sun_direction(20.0, -90.0), thin))
     return out
+
+
+def map_texel_m(caster, light_h, map_size: int) -> float:
+    """Side (metres) of one shadow-map texel at the caster's centre: the map spans the caster's bounding
+    sphere (:func:`arshadow.gl.shadowmap.light_view_projection`: 2 r for a directional light, the tangent cone's
+    width at the centre for a point light)."""
+    b = np.asarray(caster.bounds, np.float64)
+    c, r = 0.5 * (b[0] + b[1]), 0.5 * float(np.linalg.norm(b[1] - b[0]))
+    h = np.asarray(light_h, np.float64)
+    if h[3] == 0:
+        return 2.0 * r / map_size
+    d = float(np.linalg.norm(c - h[:3] / h[3]))
+    return 2.0 * d * np.tan(np.arcsin(min(r / d, 1.0))) / map_size
 
 
 def roi_of(caster, K, T, L, margin=2, width=W, height=H):
@@ -97,6 +138,7 @@ class Reference:
         xor = int(np.count_nonzero(b != self.mask))
         be = boundary_error_px(b, self.mask)
         return {"iou": iou(b, self.mask), "xor_px": xor, "edge_offset_px": xor / max(self.perimeter, 1),
+                "area_ratio": int(np.count_nonzero(b)) / max(int(np.count_nonzero(self.mask)), 1),
                 "boundary_p95_px": be["p95"], "boundary_max_px": be["max"],
                 "coverage_mae": float(np.abs(mask[self.band[:, 0], self.band[:, 1]] - self.coverage).mean())}
 
@@ -129,7 +171,13 @@ def _configs(ctx, quick: bool):
         for pcf in ((1, 3) if not quick or size == 2048 else (3,)):
             out.append(("shadow map", f"shadow map {size}, PCF {pcf}x{pcf}",
                         (lambda size=size, pcf=pcf: ShadowMapRenderer(ctx, map_size=size, pcf=pcf, max_width=W,
-                                                                      max_height=H)), dict(mode="zpass")))
+                                                                      max_height=H)), dict(mode="zpass", map_size=size)))
+    # the bias's share in the thin card's error: the same map with glPolygonOffset(0, 0) (scenes that ask for
+    # the family only)
+    for size in ((2048,) if quick else (1024, 4096)):
+        out.append((NO_BIAS, f"shadow map {size}, PCF 1x1, bias off",
+                    (lambda size=size: ShadowMapRenderer(ctx, map_size=size, pcf=1, slope_bias=0.0, constant_bias=0.0,
+                                                         max_width=W, max_height=H)), dict(mode="zpass", map_size=size)))
     return out
 
 
@@ -142,7 +190,7 @@ def run(cfg: dict, ctx, log) -> list[dict]:
     from ..geometry.volume import shadow_volume
 
     rows = []
-    for name, caster, K, T, L in scenes(cfg["quick"]):
+    for name, caster, K, T, L, families in scenes(cfg["quick"]):
         u0, v0, w, h = roi_of(caster, K, T, L)
         # aligned to 4 px, so that the 0.25 / 0.5 / 0.75 x canvases cover exactly the same region
         u1, v1 = min(-(-(u0 + w) // 4) * 4, W), min(-(-(v0 + h) // 4) * 4, H)
@@ -157,6 +205,8 @@ def run(cfg: dict, ctx, log) -> list[dict]:
         vols = {(caps, tr): shadow_volume(caster, L, sil, caps=caps, truncate_z=tz if tr else None)
                 for caps in (False, True) for tr in (False, True)}
         for family, label, factory, opt in _configs(ctx, cfg["quick"]):
+            if (families is None and family == NO_BIAS) or (families is not None and family not in families):
+                continue
             mode = opt["mode"]
             vol = None if mode == "planar" else vols[(mode == "zfail", opt.get("truncate", True))]
             passes = [LightPass(L, 1.0, vol, mode)]
@@ -188,7 +238,8 @@ def run(cfg: dict, ctx, log) -> list[dict]:
             st = summary(ts, 4)
             rows.append({"scene": name, "family": family, "config": label, "roi_w": w, "roi_h": h,
                          "time_ms": st["median"], "time_q25": st["iqr"][0], "time_q75": st["iqr"][1], "time_n": st["n"],
-                         **ref.errors(m)})
+                         **ref.errors(m), "map_texel_um": (map_texel_m(caster, L, opt["map_size"]) * 1e6
+                                                           if "map_size" in opt else None)})
         log(f"  render: '{name}' {len(rows)} points")
     return rows + soft(cfg, ctx, log)
 
@@ -271,6 +322,7 @@ def soft(cfg: dict, ctx, log) -> list[dict]:
                          "config": f"{n} sample{'s' if n > 1 else ''} per light", "roi_w": w, "roi_h": h,
                          "time_ms": st["median"], "time_q25": st["iqr"][0], "time_q75": st["iqr"][1], "time_n": st["n"],
                          "iou": iou(b, rb), "xor_px": int(np.count_nonzero(b != rb)),
+                         "area_ratio": int(np.count_nonzero(b)) / max(int(np.count_nonzero(rb)), 1),
                          "edge_offset_px": float("nan"), "boundary_p95_px": boundary_error_px(b, rb)["p95"],
                          "boundary_max_px": boundary_error_px(b, rb)["max"],
                          "coverage_mae": float(np.abs(m - ref)[region].mean())})

@@ -1,9 +1,15 @@
 """Section 3: tracking time against pose error (synthetic photos with a known generating pose).
 
-- corner refinement methods (``arshadow.tracking.marker.REFINE_METHODS``, with / without the LM pose polish);
-- full frame against a region of interest (the crop around the marker a video tracker would search,
-  from the previous frame's pose: here the true corners + 50 % of the marker's size; the crop is a
-  camera with a shifted principal point, so the pose is in the same frame);
+Every configuration but one is a scene (:func:`arshadow.scene.scene_from_dict`) tracked by
+:meth:`arshadow.Session.track`, as ``arshadow render`` / ``video`` and the Python API track: the fast
+half-resolution pass first (:mod:`arshadow.tracking.fastdetect`), the full search if it finds nothing.
+
+- corner refinement methods (``arshadow.tracking.marker.REFINE_METHODS``, scene key ``refine``);
+- the fast pass against the full search only (``fast_detect`` off), and the full search without the LM
+  pose polish (``MarkerTracker(pnp_refine=False)``: a tracker keyword, not a scene option);
+- full frame against the video tracker's region of interest (``track_roi``: the marker is searched in a
+  window around its last detection, :mod:`arshadow.tracking.roi_track`; here the warm-up call's detection
+  on the same photo);
 - single marker against a grid board (5 x 7 markers, calib/gridboard_5x7.yml).
 
 Photos: :func:`arshadow.synth.render_marker_photo` with the acceptance conditions of issue 2 (marker
@@ -54,28 +60,45 @@ def _errors(pose, truth, distance):
             float(np.linalg.norm(pose.cam_from_world[:3, 3] - truth[:3, 3]) / distance))
 
 
+def session(cam, *, marker_length=None, marker_id=None, board=None, **options):
+    """An :class:`arshadow.Session` that tracks ``cam``'s photos (scene keys ``options``: ``refine``,
+    ``fast_detect``, ``track_roi``...; the model and light are placeholders: tracking draws nothing)."""
+    from ..scene import scene_from_dict
+    from ..session import Session
+
+    d = {"calib": cam, "model": "box:0.02,0.02,0.02", "lights": ["point:0,0,1"], **options}
+    d.update({"board": str(board)} if board is not None else {"marker_length": marker_length, "marker_id": marker_id})
+    return Session(scene_from_dict(d))
+
+
 def run_configs(photos, configs: dict, repeat: int) -> list[dict]:
     """Every configuration on the same photos, timings interleaved round-robin. ``configs``: label ->
-    ``make(photo) -> (tracker, image)``. One row per configuration: time median / IQR over photos,
-    rotation error (deg) median / p95, translation error (% of distance) median, detections."""
+    ``make(photo) -> (tracker, image)``, the tracker an :class:`arshadow.Session` (``track``) or a
+    :class:`arshadow.tracking.marker.MarkerTracker` (``estimate``). One row per configuration: time median /
+    IQR over photos, rotation error (deg) median / p95, translation error (% of distance) median, detections."""
     from ..errors import MarkerNotFoundError
 
     acc = {c: dict(times=[], rot=[], trans=[], found=0) for c in configs}
     for ph in photos:
-        jobs, poses = {}, {}
+        jobs, poses, opened = {}, {}, []
         for c, make in configs.items():
             tr, img = make(ph)
+            opened.append(tr)
+            est = getattr(tr, "track", None) or tr.estimate
             try:
-                poses[c] = tr.estimate(img)  # warm-up, and the result
-                jobs[c] = (tr, img)
+                poses[c] = est(img)  # warm-up, and the result
+                jobs[c] = (est, img)
             except MarkerNotFoundError:
                 pass
         t = {c: [] for c in jobs}
         for _ in range(repeat):
-            for c, (tr, img) in jobs.items():
+            for c, (est, img) in jobs.items():
                 t0 = time.perf_counter()
-                tr.estimate(img)
+                est(img)
                 t[c].append((time.perf_counter() - t0) * 1e3)
+        for tr in opened:
+            if hasattr(tr, "close"):
+                tr.close()
         dist = float(np.linalg.norm(ph.cam_from_world[:3, 3]))
         for c, pose in poses.items():
             a = acc[c]
@@ -94,22 +117,6 @@ def run_configs(photos, configs: dict, repeat: int) -> list[dict]:
     return rows
 
 
-def _roi_tracker(ph, refine):
-    """Tracker + crop around the true marker corners (+50 % of the marker's size) as a shifted camera."""
-    from ..camera import Intrinsics
-    from ..tracking.marker import MarkerTracker
-
-    c = np.concatenate(list(ph.corners_px.values()))
-    size = float(np.max(c.max(axis=0) - c.min(axis=0)))
-    cam = ph.intrinsics
-    x0, y0 = np.maximum(np.floor(c.min(axis=0) - 0.5 * size), 0).astype(int)
-    x1 = int(min(np.ceil(c[:, 0].max() + 0.5 * size), cam.width))
-    y1 = int(min(np.ceil(c[:, 1].max() + 0.5 * size), cam.height))
-    crop_cam = Intrinsics(cam.fx, cam.fy, cam.cx - x0, cam.cy - y0, x1 - x0, y1 - y0, cam.dist)
-    tr = MarkerTracker(crop_cam, marker_length=ph.marker_length, marker_id=ph.marker_id, refine=refine)
-    return tr, np.ascontiguousarray(ph.image[y0:y1, x0:x1])
-
-
 def refinement_and_roi(cfg, log) -> list[dict]:
     from ..tracking.marker import REFINE_METHODS, MarkerTracker
 
@@ -117,14 +124,14 @@ def refinement_and_roi(cfg, log) -> list[dict]:
     for w, h in cfg["track_resolutions"]:
         cam = camera(w, h)
         photos = make_photos(cam, cfg["poses"], seed=w)
-        configs = {}
-        for m in REFINE_METHODS:
-            configs[f"refine {m}, full frame"] = (lambda ph, m=m: (MarkerTracker(
-                ph.intrinsics, marker_length=ph.marker_length, marker_id=ph.marker_id, refine=m), ph.image))
-        configs["refine subpix, no LM polish"] = lambda ph: (MarkerTracker(
+        mk = lambda **kw: (lambda ph: (session(ph.intrinsics, marker_length=ph.marker_length,  # noqa: E731
+                                               marker_id=ph.marker_id, **kw), ph.image))
+        configs = {f"refine {m}, full frame": mk(refine=m) for m in REFINE_METHODS}
+        configs["refine subpix, full search only (fast_detect off)"] = mk(refine="subpix", fast_detect=False)
+        configs["refine subpix, full search only, no LM polish"] = lambda ph: (MarkerTracker(
             ph.intrinsics, marker_length=ph.marker_length, marker_id=ph.marker_id, refine="subpix",
             pnp_refine=False), ph.image)
-        configs["refine subpix, ROI crop"] = lambda ph: _roi_tracker(ph, "subpix")
+        configs["refine subpix, ROI window (track_roi)"] = mk(refine="subpix", track_roi=True)
         for r in run_configs(photos, configs, cfg["repeat"]):
             rows.append({"resolution": f"{w}x{h}", **r})
         log(f"  tracking: {w}x{h} done")
@@ -133,10 +140,11 @@ def refinement_and_roi(cfg, log) -> list[dict]:
 
 def marker_vs_board(cfg, log) -> list[dict]:
     """A 5 cm single marker against the 5 x 7 grid board at the same camera poses (1280x720)."""
-    from ..tracking.marker import MarkerTracker, load_board
+    from ..tracking.marker import load_board
     from ..synth import random_pose, render_marker_photo
 
-    board = load_board(ROOT / "calib" / "gridboard_5x7.yml")
+    board_file = ROOT / "calib" / "gridboard_5x7.yml"
+    board = load_board(board_file)
     cam = camera(1280, 720)
     rng = np.random.default_rng(11)
     corners = np.concatenate(list(board.marker_corners_world.values()))
@@ -151,9 +159,10 @@ def marker_vs_board(cfg, log) -> list[dict]:
         shift[:3, 3] = centre
         single.append(render_marker_photo(cam, pose @ shift, marker_length=0.05, noise_sigma=2.0, blur_sigma=0.6,
                                           jpeg_quality=90, seed=500 + i))
-    rows = run_configs(single, {"single 5 cm marker": lambda ph: (MarkerTracker(
-        cam, marker_length=0.05, marker_id=ph.marker_id), ph.image)}, cfg["repeat"])
-    rows += run_configs(boards, {"grid board 5x7 (35 markers)": lambda ph: (MarkerTracker(cam, board=board), ph.image)},
+    rows = run_configs(single, {"single 5 cm marker": lambda ph: (session(cam, marker_length=0.05,
+                                                                          marker_id=ph.marker_id), ph.image)},
+                       cfg["repeat"])
+    rows += run_configs(boards, {"grid board 5x7 (35 markers)": lambda ph: (session(cam, board=board_file), ph.image)},
                         cfg["repeat"])
     log("  tracking: marker vs board done")
     return [{"resolution": "1280x720", **r} for r in rows]
