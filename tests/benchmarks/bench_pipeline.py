@@ -129,15 +129,14 @@ def run_case(ctx, image, intr, caster, lights, *, runs, warmup, aa, roi=True, co
     from arshadow.pipeline import Compositor, RenderOptions
 
     tracker = {"marker_length": 0.05, **(tracker_extra or {})}
-    opts = RenderOptions(aa=aa, roi=roi, fast_detect=fast_detect, truncate=truncate)
+    # cold: the planner's reuse switched off, so every frame rebuilds the silhouettes and volumes
+    opts = RenderOptions(aa=aa, roi=roi, fast_detect=fast_detect, truncate=truncate,
+                         plan_off=("reuse",) if cold else ())
     comp = Compositor(ctx, intr, caster, lights, opts, tracker=tracker)
     totals, stages = [], {}
     out_buf = np.empty_like(image)  # as `arshadow render` does: one output buffer reused per photo size
     with comp:
         for i in range(warmup + runs):
-            if cold:
-                for ls in comp._lights:  # forget the per-run silhouette / volume cache
-                    ls.sil, ls.volumes = None, {}
             t = time.perf_counter()
             out, _, item = comp.process(image, want_mask=False, out=out_buf)
             dt = (time.perf_counter() - t) * 1e3
