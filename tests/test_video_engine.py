@@ -103,6 +103,36 @@ def test_pose_stream_smooths_without_lag_and_holds_then_releases():
     assert abs(lag) < 0.1 and j_raw > 3 * j_sm, (lag, j_raw, j_sm)
 
 
+def test_i420_roi_conversion_changes_only_the_even_aligned_roi():
+    """The encoder's frame: inside the ROI (widened to even pixels) exactly OpenCV's whole-frame BGR -> I420,
+    outside it the decoded planes untouched."""
+    import cv2
+
+    from arshadow.video.engine import _i420_with_roi
+
+    rng = np.random.default_rng(3)
+    H, W = 72, 128
+    yuv = rng.integers(0, 256, (H * 3 // 2, W), np.uint8)
+    for roi in [(11, 7, 31, 19), (0, 0, W, H), (W - 1, H - 1, 5, 5), (-10, -10, 30, 31), (50, 30, 0, 10)]:
+        bgr = rng.integers(0, 256, (H, W, 3), np.uint8)  # differs from yuv everywhere
+        got = _i420_with_roi(yuv, bgr, roi)
+        full = cv2.cvtColor(bgr, cv2.COLOR_BGR2YUV_I420)
+        x0, y0, w, h = roi
+        x1, y1 = min(W, x0 + w), min(H, y0 + h)
+        x0, y0 = max(0, x0), max(0, y0)
+        inside = np.zeros((H, W), bool)
+        if w > 0 and h > 0:
+            inside[y0 - y0 % 2 : y1 + y1 % 2, x0 - x0 % 2 : x1 + x1 % 2] = True
+        chroma = inside[::2, ::2].ravel()
+        for a, b, m in ((got[:H], full[:H], inside), (got[H:].ravel()[: H * W // 4], full[H:].ravel()[: H * W // 4],
+                                                      chroma), (got[H:].ravel()[H * W // 4 :],
+                                                                full[H:].ravel()[H * W // 4 :], chroma)):
+            assert np.array_equal(a[m], b[m])
+        assert np.array_equal(got[:H][~inside], yuv[:H][~inside])
+        assert np.array_equal(got[H:].ravel()[: H * W // 4][~chroma], yuv[H:].ravel()[: H * W // 4][~chroma])
+        assert np.array_equal(got[H:].ravel()[H * W // 4 :][~chroma], yuv[H:].ravel()[H * W // 4 :][~chroma])
+
+
 @pytest.mark.gl
 def test_marker_absent_30_frames_held_then_passed_through_untouched(tmp_path, gl_ctx):
     n, gap = 45, range(5, 35)

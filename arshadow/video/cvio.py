@@ -391,6 +391,10 @@ class _Entry:
     cands: list | None  # [best-by-error pose, alternative pose] (MarkerPose), or None: no pose
     data: np.ndarray | None = None  # (k,) data cost
     rots: list = field(default_factory=list)  # (3, 3) rotations of the candidates
+    #: motion costs ``[k_prev][k]`` from the previous frame with a pose (computed once, when pushed;
+    #: None: no previous one, or too far apart in time to be linked)
+    link: list | None = None
+    data_list: list = field(default_factory=list)  # ``data`` as floats
 
 
 class TemporalPoseChooser:
@@ -435,6 +439,7 @@ class TemporalPoseChooser:
         self.max_motion_cost = float(max_motion_cost)
         self._buf: deque[_Entry] = deque()
         self._anchor = None  # (rotation (3,3), time_s) of the last decided frame with a pose
+        self._last_posed = None  # the last pushed _Entry with a pose (its link to the next one)
         self.n_swapped = 0
         self.n_decided = 0
 
@@ -463,6 +468,13 @@ class TemporalPoseChooser:
                 cands.append(pose.swapped())
             e = _Entry(payload, float(time_s), cands, self._data_cost(cands),
                        [np.asarray(c.cam_from_world, np.float64)[:3, :3] for c in cands])
+            e.data_list = e.data.tolist()
+            prev = self._last_posed
+            if prev is not None and e.time_s - prev.time_s <= self.max_gap_s:
+                # the motion costs of this link, once (the Viterbi pass of every later decision reuses them)
+                e.link = [[self._motion_cost(rp, prev.time_s, r, e.time_s) or 0.0 for r in e.rots]
+                          for rp in prev.rots]
+            self._last_posed = e
         self._buf.append(e)
         out = []
         while len(self._buf) > self.lag:
@@ -480,6 +492,7 @@ class TemporalPoseChooser:
         """Forget the past (a new video). Frames still waiting are dropped: :meth:`flush` first."""
         self._buf.clear()
         self._anchor = None
+        self._last_posed = None
 
     # -- Viterbi over the buffer, starting from the decided anchor ---------------------------------
     def _decide_oldest(self) -> Choice:
@@ -503,21 +516,21 @@ class TemporalPoseChooser:
                 if m is not None:
                     cum[j] += m
         backs = []
-        prev = first
+        cum = cum.tolist()  # plain floats: the same float64 arithmetic, without numpy's per-call cost
         for e in chain[1:]:
-            new = np.empty(len(e.cands))
-            back = np.empty(len(e.cands), dtype=int)
-            for j, r in enumerate(e.rots):
-                costs = [cum[i] + (self._motion_cost(rp, prev.time_s, r, e.time_s) or 0.0)
-                         for i, rp in enumerate(prev.rots)]
-                back[j] = int(np.argmin(costs))
-                new[j] = costs[back[j]] + e.data[j]
-            cum = new - new.min()
+            link = e.link  # from the chain's previous frame: the frame with a pose pushed just before e
+            back, new = [], []
+            for j, dj in enumerate(e.data_list):
+                costs = [c + row[j] for c, row in zip(cum, link)]
+                b = min(range(len(costs)), key=costs.__getitem__)  # the first minimum, as np.argmin
+                back.append(b)
+                new.append(costs[b] + dj)
+            lo = min(new)
+            cum = [v - lo for v in new]
             backs.append(back)
-            prev = e
-        s = int(np.argmin(cum))
+        s = min(range(len(cum)), key=cum.__getitem__)
         for back in reversed(backs):
-            s = int(back[s])
+            s = back[s]
         self._buf.popleft()
         chosen = first.cands[s]
         self._anchor = (first.rots[s], first.time_s)

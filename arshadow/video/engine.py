@@ -11,9 +11,9 @@ FFmpeg decodes and encodes without holding Python's GIL, so the decode and encod
 other core while the main thread tracks and renders. The GL context never leaves the main thread.
 
 Colour: frames stay in the decoder's ``yuv420p`` when it gives that (the tracker reads the Y plane as
-its grey image; OpenCV converts to BGR for the compositor and back for the encoder, a round trip that is
-exact to 1e-5 levels on average, so pixels away from the object keep their values); other pixel formats
-are converted to BGR by FFmpeg and encoded from BGR.
+its grey image; OpenCV converts to BGR for the compositor, and back for the encoder only inside the
+frame's ROI, the only pixels the compositor changes: every other pixel keeps its decoded value exactly);
+other pixel formats are converted to BGR by FFmpeg and encoded from BGR.
 
 Outputs of one video ``DIR/<stem>``: ``.mp4`` (or ``--format``), ``.frames.jsonl`` (one JSON object per
 frame), ``.sheet.jpg`` (contact sheet), and with a mask ``.shadow.mkv`` (lossless FFV1) or ``.shadow/``
@@ -414,7 +414,7 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
             item.silhouette_edges = info["silhouette_edges"]
             item.extra.update({k: v for k, v in info.items() if k in ("roi", "canvas", "modes")})
             tc = time.perf_counter()
-            img = cv2.cvtColor(bgr, cv2.COLOR_BGR2YUV_I420) if gray_fmt == "yuv420p" else bgr
+            img = _i420_with_roi(img, bgr, info.get("roi")) if gray_fmt == "yuv420p" else bgr
             timings["convert"] += (time.perf_counter() - tc) * 1e3
         timings["decode"] = dec_ms
         timings["total"] = sum(v for k, v in timings.items() if k not in ("total", "decode", "encode"))
@@ -523,6 +523,51 @@ def _atomic_dir(target: Path):
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+
+
+def _i420_planes(a: np.ndarray, H: int, W: int):
+    """Views ``(Y (H, W), U (H/2, W/2), V (H/2, W/2))`` of a planar ``(H * 3 // 2, W)`` yuv420p frame."""
+    c = a[H:].reshape(-1)
+    q = (H // 2) * (W // 2)
+    return a[:H], c[:q].reshape(H // 2, W // 2), c[q:].reshape(H // 2, W // 2)
+
+
+def _i420_with_roi(yuv: np.ndarray, bgr: np.ndarray, roi) -> np.ndarray:
+    """The planar yuv420p frame ``yuv`` with the rectangle ``roi = (x0, y0, w, h)`` taken from ``bgr``.
+
+    The compositor changes pixels inside the frame's ROI only, so only that rectangle (widened to even
+    coordinates: a chroma sample covers 2x2 pixels) is converted back; every other pixel keeps the decoded
+    value exactly. Inside it the result equals a whole-frame ``cv2.COLOR_BGR2YUV_I420`` (each chroma
+    sample is computed from its own 2x2 block). ``roi`` None: the whole frame.
+
+    Parameters
+    ----------
+    yuv : (H * 3 // 2, W) uint8
+        The decoded frame (not modified), H and W even.
+    bgr : (H, W, 3) uint8
+        The composited frame.
+    roi : sequence of 4 int or None
+
+    Returns
+    -------
+    (H * 3 // 2, W) uint8
+        A new array.
+    """
+    from ..compose.composite import clip_roi
+
+    H, W = bgr.shape[:2]
+    if roi is None:
+        return cv2.cvtColor(bgr, cv2.COLOR_BGR2YUV_I420)
+    x0, y0, w, h = clip_roi(roi, W, H)
+    out = np.array(yuv)
+    if w == 0 or h == 0:
+        return out
+    x1, y1 = min(W, x0 + w + 1) & ~1, min(H, y0 + h + 1) & ~1
+    x0, y0 = x0 & ~1, y0 & ~1
+    sub = cv2.cvtColor(np.ascontiguousarray(bgr[y0:y1, x0:x1]), cv2.COLOR_BGR2YUV_I420)
+    for dst, src, k in zip(_i420_planes(out, H, W), _i420_planes(sub, y1 - y0, x1 - x0), (1, 2, 2)):
+        dst[y0 // k : y1 // k, x0 // k : x1 // k] = src
+    return out
 
 
 def _replace_dir(tmp: Path, target: Path) -> None:
