@@ -131,7 +131,7 @@ def test_path_chooser_times_both_and_keeps_the_faster():
         calls.append("fast")
         return "f"
 
-    ch = PathChooser(trials=2, decisions={})
+    ch = PathChooser(trials=2, decisions={}, margin=0.0)
     assert ch.run("k", {"slow": slow, "fast": fast}) == ("fast", "f")
     assert calls.count("slow") == 3 and calls.count("fast") == 4  # warm-up + 2 timed each, then the winner
     assert ch.decisions["k"]["choice"] == "fast" and ch.decisions["k"]["ms"]["slow"] >= 4.0
@@ -171,3 +171,27 @@ def test_in_place_composite_while_the_chooser_times_both_paths(ctx, tol):
     assert np.count_nonzero(np.any(a != _photo(), axis=2)) > 2000
     lim = 0 if ca == cb else tol.gpu_compose_levels
     assert int(np.abs(a.astype(np.int16) - b).max()) <= lim
+
+
+def test_path_chooser_keeps_the_default_unless_another_is_clearly_faster():
+    """The first path is the default: a path within the margin does not displace it (no swapping from run
+    to run on noise); one faster by more than the margin does."""
+    import time
+
+    from arshadow.gl.compose import PathChooser
+
+    def wait(ms):
+        def go():
+            t = time.perf_counter()
+            while (time.perf_counter() - t) * 1e3 < ms:
+                pass
+            return ms
+        return go
+
+    close = PathChooser(trials=3, decisions={}, margin=0.5)
+    assert close.run("k", {"default": wait(4.0), "other": wait(3.0)})[0] == "default"  # 25 % faster only
+    assert close.decisions["k"]["ms"]["other"] < close.decisions["k"]["ms"]["default"]
+    clear = PathChooser(trials=3, decisions={}, margin=0.5)
+    assert clear.run("k", {"default": wait(8.0), "other": wait(1.0)})[0] == "other"  # 8x faster
+    with pytest.raises(Exception, match="margin"):
+        PathChooser(margin=1.0)

@@ -24,7 +24,7 @@ differ by one 8-bit level where a value lies within ~1e-7 of a rounding tie (tes
 
 Which path is faster depends on the backend (llvmpipe runs the shader on the same CPU cores; a GPU runs
 it in microseconds and saves the float readback): :class:`PathChooser` times both on first use per key
-(photo size, anti-aliasing, backend) and keeps the faster.
+(photo size, anti-aliasing, backend) and keeps numpy unless the shader is clearly (> 15 %) faster.
 """
 
 from __future__ import annotations
@@ -259,8 +259,10 @@ class PathChooser:
     """Picks the faster of several interchangeable code paths by timing them on first use, per key.
 
     On the first call for a key every path runs ``trials`` times, interleaved (the first round is a warm-up
-    that allocates buffers and fills caches and is not counted); the path with the lowest median time is
-    kept for that key. Later calls run only the chosen path.
+    that allocates buffers and fills caches and is not counted). The first path given is the default: another
+    is kept for that key only when its median time beats the default's by more than ``margin`` (a share), so
+    that two paths within the timing noise do not swap from run to run. Later calls run only the chosen
+    path.
 
     Parameters
     ----------
@@ -268,6 +270,10 @@ class PathChooser:
         Timed runs per path after the warm-up round (>= 1).
     force : str, optional
         Always take this path (no timing).
+    margin : float
+        How much faster (a share of the default's median time) another path must be to be chosen (default
+        0.15: on llvmpipe the numpy and shader paths measure within about 15 % of each other, with the
+        load; on a GPU the shader path is several times faster).
     decisions : dict, optional
         Where the measured choices are kept (default :data:`SHARED_DECISIONS`: shared by every chooser of the
         process, so each key is timed once; a forced chooser records nothing).
@@ -278,10 +284,14 @@ class PathChooser:
         key -> ``{"choice": name, "ms": {name: median ms}}``.
     """
 
-    def __init__(self, trials: int = 3, force: str | None = None, decisions: dict | None = None):
+    def __init__(self, trials: int = 3, force: str | None = None, decisions: dict | None = None,
+                 margin: float = 0.15):
         if int(trials) < 1:
             raise UsageError(f"trials must be >= 1, got {trials}")
+        if not 0.0 <= float(margin) < 1.0:
+            raise UsageError(f"margin must be in [0, 1), got {margin}")
         self.trials = int(trials)
+        self.margin = float(margin)
         self.force = force
         if decisions is None:
             decisions = SHARED_DECISIONS  # one measurement per key and process, whichever session asks first
@@ -309,7 +319,9 @@ class PathChooser:
                 if rnd:
                     times[name].append((time.perf_counter() - t) * 1e3)
         med = {name: statistics.median(v) for name, v in times.items()}
-        choice = min(med, key=med.get)
+        default = next(iter(paths))
+        fastest = min(med, key=med.get)
+        choice = fastest if med[fastest] < (1.0 - self.margin) * med[default] else default
         self.decisions[key] = {"choice": choice, "ms": {k: round(v, 3) for k, v in med.items()}}
         # the chosen path runs last so that the caller's buffers hold its result
         return choice, paths[choice]()
