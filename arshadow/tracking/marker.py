@@ -115,12 +115,19 @@ def border_occlusion(gray, quad, bits) -> float:
     n, c = int(bits.shape[0]) + 2, 8
     dst = np.array([[0, 0], [n * c, 0], [n * c, n * c], [0, n * c]], np.float32)
     H = cv2.getPerspectiveTransform(np.asarray(quad, np.float32).reshape(4, 2), dst)
-    can = cv2.warpPerspective(gray, H, (n * c, n * c), flags=cv2.INTER_AREA, borderMode=cv2.BORDER_CONSTANT,
+    can = cv2.warpPerspective(gray, H, (n * c, n * c), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
                               borderValue=0).astype(np.float32)
-    seen = cv2.warpPerspective(np.full(gray.shape[:2], 255, np.uint8), H, (n * c, n * c), flags=cv2.INTER_NEAREST,
-                               borderMode=cv2.BORDER_CONSTANT, borderValue=0)
     cells = can.reshape(n, c, n, c)[:, 2:6, :, 2:6].mean(axis=(1, 3))
-    inside = seen.reshape(n, c, n, c).min(axis=(1, 3)) > 0
+    h, w = gray.shape[:2]
+    q = np.asarray(quad, np.float64).reshape(4, 2)
+    inside = np.ones((n, n), bool)
+    if q.min() < 0 or q[:, 0].max() > w - 1 or q[:, 1].max() > h - 1:
+        # part of the marker is off the image: a cell counts when the corners of its sampled centre are in it
+        g = np.arange(n, dtype=np.float32) * c
+        corners = np.stack(np.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 1, 2)[:, :, ::-1]  # (x, y)
+        for dx, dy in ((2, 2), (6, 2), (2, 6), (6, 6)):
+            p = cv2.perspectiveTransform(corners + np.float32([dx, dy]), np.linalg.inv(H)).reshape(n, n, 2)
+            inside &= (p[..., 0] >= 0) & (p[..., 1] >= 0) & (p[..., 0] <= w - 1) & (p[..., 1] <= h - 1)
     white = np.zeros((n, n), bool)
     white[1:-1, 1:-1] = np.asarray(bits) > 0
     ring = np.ones((n, n), bool)
