@@ -40,6 +40,7 @@ import math
 import time
 from dataclasses import dataclass, field
 
+import cv2
 import numpy as np
 
 from .compose.composite import clip_roi
@@ -93,12 +94,22 @@ def shadow_footprint(bounds, light_h, *, points=None, eps: float = 1e-9) -> np.n
         if not np.all(corners[:, 2] < L[2] * (1.0 - 1e-6)) or L[2] <= 0.0:
             return None
         t = L[2] / (L[2] - corners[:, 2])  # parameter along L -> corner where z reaches 0
-        return L + (corners - L) * t[:, None]
+        return _ground_hull(L + (corners - L) * t[:, None])
     d = lh[:3]
     n = np.linalg.norm(d)
     if not (n > 0.0) or d[2] / n <= eps:
         return None
-    return corners - d * (corners[:, 2] / d[2])[:, None]
+    return _ground_hull(corners - d * (corners[:, 2] / d[2])[:, None])
+
+
+def _ground_hull(fp: np.ndarray) -> np.ndarray:
+    """The vertices of the 2D convex hull of ground points ``fp (n, 3)`` (z = 0): the same convex hull, so
+    the same screen bounds (a central projection's extremes over a convex set lie at its vertices), with
+    a few dozen points instead of one per mesh vertex (projected every frame by the planner)."""
+    if len(fp) <= 8 or not np.all(np.isfinite(fp)):
+        return fp
+    idx = cv2.convexHull(np.ascontiguousarray(fp[:, :2], dtype=np.float32), returnPoints=False)
+    return fp[np.sort(idx.ravel())]
 
 
 def scene_hull_points(bounds, lights_h, ground_size=None, points=None) -> np.ndarray | None:
