@@ -6,7 +6,8 @@ Each tree runs in its own worker process (``PYTHONPATH`` = the tree), set up onc
 ``bench_pipeline.py``'s default row (samples/knot_point.jpg, 1280 x 720, the knot, its first light,
 ``Compositor.process(image, want_mask=False, out=buf)``); then the driver asks A and B for one frame each
 in turn (order alternating every pair), so both see the same machine load at nearly the same time. Prints
-JSON: per tree the median, IQR and min of the frame times, and the median and IQR of the paired ratios
+JSON: per tree the median, IQR and min of the frame times and the median of each stage the report times,
+and the median and IQR of the paired ratios
 B / A. On a shared machine the paired ratio is the figure to quote; absolute times move with the load.
 """
 
@@ -51,8 +52,8 @@ for line in sys.stdin:
     if line.strip() != "go":
         break
     t = time.perf_counter()
-    comp.process(image, want_mask=False, out=buf)
-    print(f"{(time.perf_counter() - t) * 1e3:.4f}", flush=True)
+    item = comp.process(image, want_mask=False, out=buf)[2]
+    print(f"{(time.perf_counter() - t) * 1e3:.4f} " + json.dumps(item.timings_ms), flush=True)
 comp.close()
 ctx.release()
 """
@@ -90,21 +91,25 @@ def main(argv=None) -> int:
     for p in procs:
         if p.stdout.readline().strip() != "ready":
             raise SystemExit("a worker failed to start")
-    times = [[], []]
+    times, stages = [[], []], [{}, {}]
     for i in range(args.frames):
         order = (0, 1) if i % 2 == 0 else (1, 0)
         for k in order:
             procs[k].stdin.write("go\n")
             procs[k].stdin.flush()
-            times[k].append(float(procs[k].stdout.readline()))
+            total, _, st = procs[k].stdout.readline().partition(" ")
+            times[k].append(float(total))
+            for name, ms in json.loads(st).items():
+                stages[k].setdefault(name, []).append(ms)
     for p in procs:
         p.stdin.write("stop\n")
         p.stdin.close()
         p.wait(timeout=60)
     ratios = np.asarray(times[1]) / np.asarray(times[0])
     res = {"benchmark": "ab_pipeline: bench_pipeline default case, interleaved frame by frame",
-           "a": {"tree": str(trees[0]), "commit": _commit(trees[0]), "frame_ms": _stats(times[0])},
-           "b": {"tree": str(trees[1]), "commit": _commit(trees[1]), "frame_ms": _stats(times[1])},
+           **{ab: {"tree": str(trees[k]), "commit": _commit(trees[k]), "frame_ms": _stats(times[k]),
+                   "stage_ms_median": {n: round(float(np.median(v)), 3) for n, v in stages[k].items()}}
+              for k, ab in enumerate("ab")},
            "ratio_b_over_a": _stats(ratios), "loadavg_end": list(os.getloadavg())}
     text = json.dumps(res, indent=1)
     print(text)
