@@ -273,7 +273,8 @@ class PathChooser:
     margin : float
         How much faster (a share of the default's median time) another path must be to be chosen (default
         0.15: on llvmpipe the numpy and shader paths measure within about 15 % of each other, with the
-        load; on a GPU the shader path is several times faster).
+        load; on a GPU the shader path should win by far more, as it saves the float readback and the CPU
+        warp -- not measured: no GPU was available, docs/planner.md).
     decisions : dict, optional
         Where the measured choices are kept (default :data:`SHARED_DECISIONS`: shared by every chooser of the
         process, so each key is timed once; a forced chooser records nothing).
