@@ -223,3 +223,33 @@ def test_direct_planar_pass_equals_the_stencil_planar_pass(ctx, samples):
     assert (a > 0.4).sum() > 5000 and (np.abs(a - 0.5) < 0.01).sum() > 1000  # both levels present
     assert np.count_nonzero(np.abs(a - b) > 1e-3) <= 20, np.count_nonzero(np.abs(a - b) > 1e-3)
     assert float(b.max()) <= 1.0 + 1e-3  # never counted twice
+
+
+@pytest.mark.parametrize("light", [[0.1, -0.2, 0.5, 1.0], [-0.3, 0.4, 1.0, 0.0]], ids=["point", "directional"])
+def test_footprint_hull_keeps_the_screen_bounds(light):
+    """shadow_footprint returns only the vertices of the footprint's 2D convex hull: the screen rectangle of
+    the footprint, from a random camera, is that of every vertex's own ground shadow (computed here
+    directly: each vertex moved along the light ray to z = 0)."""
+    from arshadow.camera import Intrinsics
+    from arshadow.geometry.mesh import load_occluder
+    from arshadow.plan import _pinhole_rect, shadow_footprint
+    from arshadow.synth import look_at_pose
+
+    v = np.asarray(load_occluder("torus:0.05,0.02", place=(0.0, 0.0, 0.03)).vertices, np.float64)
+    L = np.asarray(light, np.float64)
+    fp = shadow_footprint(np.array([v.min(0), v.max(0)]), L, points=v)
+    if L[3]:
+        t = L[2] / (L[2] - v[:, 2])
+        every = L[:3] + (v - L[:3]) * t[:, None]
+    else:
+        every = v - L[:3] * (v[:, 2] / L[2])[:, None]
+    assert len(fp) < len(v) / 4 and np.allclose(fp[:, 2], 0.0)
+    intr = Intrinsics(900.0, 900.0, 640.0, 360.0, 1280, 720, np.zeros(5))
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        eye = rng.uniform([-0.6, -0.6, 0.2], [0.6, 0.6, 0.8])
+        pose = look_at_pose(eye, rng.uniform(-0.05, 0.05, 3) * [1, 1, 0])
+        a, b = _pinhole_rect(intr, pose, fp, 1e-3), _pinhole_rect(intr, pose, every, 1e-3)
+        assert (a is None) == (b is None)
+        if a is not None:
+            np.testing.assert_allclose(a, b, rtol=0, atol=1e-6)
