@@ -320,8 +320,10 @@ def check_configuration(cfg, renderer, stats: Stats, tol):
     truth = np.zeros(W * H, bool)
     idx = np.flatnonzero(vis)
     gp = np.c_[g[idx], np.zeros(len(idx))]
+    tris = None
     try:  # the light above every vertex: the union of the triangles' ground shadows (fast)
-        truth[idx] = _points_in_triangles(g[idx], ground_shadow_triangles(caster.vertices, caster.faces, L))
+        tris = ground_shadow_triangles(caster.vertices, caster.faces, L)
+        truth[idx] = _points_in_triangles(g[idx], tris)
     except ValueError:  # otherwise: every pixel's ground point ray-cast to the light (slow, general)
         truth[idx] = points_in_shadow(gp, caster.vertices, caster.faces, L)
     truth = truth.reshape(H, W)
@@ -340,13 +342,42 @@ def check_configuration(cfg, renderer, stats: Stats, tol):
     band = cv2.dilate(t8, np.ones((3, 3), np.uint8)) != cv2.erode(t8, np.ones((3, 3), np.uint8))
     stats.iou.append(iou(rm, truth) if truth.any() or rm.any() else 1.0)
     if truth.sum() < 50:
-        assert not np.any((rm != truth) & ~band), ("mismatch off the boundary (small shadow)", cfg)
-        stats.degenerate["fewer than 50 shadow pixels: every mismatch within 1 px of the edge"] += 1
+        off = (rm != truth) & ~band
+        if np.any(off) and tris is not None:
+            # a sliver thinner than a pixel is sampled with gaps, so its raster band has holes: a mismatch
+            # there is still a boundary case if the pixel centre lies within rounding of the exact edge,
+            # measured on the ground against the triangles themselves
+            ys, xs = np.nonzero(off)
+            near = [_edge_distance_px(x, y, K.K, T, tris) <= tol.stress_sliver_edge_px for x, y in zip(xs, ys)]
+            assert all(near), ("mismatch off the boundary (small shadow)", cfg)
+            stats.degenerate["sub-pixel sliver: every mismatch within "
+                             f"{tol.stress_sliver_edge_px} px of the exact edge"] += 1
+        else:
+            assert not np.any(off), ("mismatch off the boundary (small shadow)", cfg)
+            stats.degenerate["fewer than 50 shadow pixels: every mismatch within 1 px of the edge"] += 1
     else:
         score = iou(rm & ~band, truth & ~band)
         assert score >= tol.stress_geometry_iou, (f"IoU {score:.4f} off the 1-px boundary band", cfg)
     stats.passed[vkey] += 1
     passed(f"mode:{mode}")
+
+
+def _edge_distance_px(x, y, K, cam_from_world, tris) -> float:
+    """Distance, in pixels, from pixel centre ``(x, y)``'s ground point to the boundary of the union of
+    the ground triangles ``tris (m, 3, 2)`` (an upper bound: to the nearest triangle edge when the point is
+    outside them all, to the nearest of 16 points at that distance found outside them when it is inside)."""
+    g, _ = ground_points(np.array([x, x + 1, x]), np.array([y, y, y + 1]), K, cam_from_world)
+    p = g[0, :2]
+    px = min(np.linalg.norm(g[1, :2] - p), np.linalg.norm(g[2, :2] - p))  # ground metres per pixel
+    a, b = tris, np.roll(tris, -1, axis=1)
+    ab = b - a
+    t = np.clip(((p - a) * ab).sum(-1) / np.maximum((ab * ab).sum(-1), 1e-300), 0.0, 1.0)
+    d = float(np.linalg.norm(a + t[..., None] * ab - p, axis=-1).min())  # to the nearest triangle edge
+    if not _points_in_triangles(p[None], tris)[0]:
+        return d / px
+    ang = np.linspace(0, 2 * np.pi, 16, endpoint=False)
+    ring = p + d * 1.0001 * np.c_[np.cos(ang), np.sin(ang)]
+    return d / px if not np.all(_points_in_triangles(ring, tris)) else np.inf
 
 
 def _run(renderer, tol, n_examples, seed_mode):
