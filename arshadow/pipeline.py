@@ -39,7 +39,7 @@ from .plan import (
 )
 from .report import ReportItem
 from .scene import RenderOptions
-from .transforms import invert_rigid
+from .transforms import invert_rigid, rvec_tvec_from_matrix
 
 log = logging.getLogger(__name__)
 
@@ -72,8 +72,16 @@ class CalibrationState:
     fast_tracker: object = None
 
 
-_Calib = CalibrationState  # the former name
 
+
+
+def check_bgr_image(image, name: str = "") -> np.ndarray:
+    """``image`` as an ``(H, W, 3) uint8`` BGR array, or an :class:`ImageError` naming ``name``."""
+    image = np.asarray(image)
+    if image.ndim != 3 or image.shape[2] != 3 or image.dtype != np.uint8:
+        raise ImageError(f"{name or 'image'}: expected an (H, W, 3) uint8 BGR image, got {image.shape} "
+                         f"{image.dtype}")
+    return image
 
 class Compositor:
     """Everything that stays fixed over a run, and :meth:`process` for each photo.
@@ -287,36 +295,60 @@ class Compositor:
         """:meth:`process`, also returning the pose and the frame plan: ``(out, mask, item, pose, plan)``."""
         t_start = time.perf_counter()
         timings = dict.fromkeys(STAGES, 0.0)
-        image = np.asarray(image)
-        if image.ndim != 3 or image.shape[2] != 3 or image.dtype != np.uint8:
-            raise ImageError(f"{name or 'image'}: expected an (H, W, 3) uint8 BGR image, got {image.shape} "
-                             f"{image.dtype}")
-        H, W = image.shape[:2]
-        item = ReportItem(input=name)
-        cal = self.calib_for(W, H)
-        intr = cal.intrinsics
-        if cal.was_scaled:
-            item.extra["calibration_scaled"] = {"from": [self.intrinsics.width, self.intrinsics.height],
-                                                "to": [W, H]}
-        if self.notes:
-            item.extra["notes"] = list(self.notes)
-
-        pose = self.track(image, cal, timings, item.extra)
-        item.set_pose(pose)
-        cam_from_world = np.asarray(pose.cam_from_world, dtype=np.float64)
-
-        out, mask, info, plan = self.render_planned(image, intr, cam_from_world, lens=cal.lens, timings=timings,
-                                                    want_mask=want_mask, out=out, mask_out=mask_out)
-        det = [getattr(getattr(t, "_detector", None), "last", None) for t in (cal.fast_tracker, cal.tracker)]
+        image = check_bgr_image(image, name)
+        cal = self.calib_for(image.shape[1], image.shape[0])
+        extra = {}
+        pose = self.track(image, cal, timings, extra)
+        out, mask, item, plan = self.render_item(image, pose, cal, name=name, timings=timings, want_mask=want_mask,
+                                                 out=out, mask_out=mask_out, extra=extra)
+        det = [t.last_search for t in (cal.fast_tracker, cal.tracker) if t is not None]
         if any(isinstance(d, str) for d in det):
-            info["plan"]["detect"] = ("window around the last detection" if "window" in det
-                                      else "whole frame (no window yet, or nothing found in it)")
-        item.mode = info["mode"]
-        item.silhouette_edges = info["silhouette_edges"]
-        item.extra.update({k: v for k, v in info.items() if k not in ("mode", "silhouette_edges")})
+            item.extra["plan"]["detect"] = ("window around the last detection" if "window" in det
+                                            else "whole frame (no window yet, or nothing found in it)")
         timings["total"] = (time.perf_counter() - t_start) * 1e3
         item.timings_ms = {k: round(v, 3) for k, v in timings.items()}
         return out, mask, item, pose, plan
+
+    def render_item(self, image, pose, cal: CalibrationState, *, name: str = "", timings=None, want_mask=True,
+                    out=None, mask_out=None, extra=None):
+        """Render and composite at a pose and fill the photo's report item (everything but ``timings_ms``).
+
+        Parameters
+        ----------
+        image : (H, W, 3) uint8
+        pose : arshadow.tracking.marker.MarkerPose or (4, 4) float64
+            A tracked pose or ``cam_from_world``.
+        cal : CalibrationState
+            :meth:`calib_for` of the photo's size.
+        name, timings, want_mask, out, mask_out
+            As :meth:`process` (``timings``: stage times are added to it).
+        extra : dict, optional
+            Entries for the item's ``extra`` before the render's (e.g. :meth:`track`'s ``detector``).
+
+        Returns
+        -------
+        out, mask, item (arshadow.report.ReportItem), plan (arshadow.plan.FramePlan)
+        """
+        item = ReportItem(input=name)
+        if cal.was_scaled:
+            item.extra["calibration_scaled"] = {"from": [self.intrinsics.width, self.intrinsics.height],
+                                                "to": [int(image.shape[1]), int(image.shape[0])]}
+        if self.notes:
+            item.extra["notes"] = list(self.notes)
+        item.extra.update(extra or {})
+        if hasattr(pose, "cam_from_world"):
+            item.set_pose(pose)
+            cam_from_world = np.asarray(pose.cam_from_world, np.float64)
+        else:
+            cam_from_world = np.asarray(pose, np.float64).reshape(4, 4)
+            rvec, tvec = rvec_tvec_from_matrix(cam_from_world)
+            item.rvec, item.tvec = rvec.tolist(), tvec.tolist()
+        out, mask, info, plan = self.render_planned(image, cal.intrinsics, cam_from_world, lens=cal.lens,
+                                                    timings=timings, want_mask=want_mask, out=out, mask_out=mask_out)
+        item.mode = info["mode"]
+        item.silhouette_edges = info["silhouette_edges"]
+        item.extra.update({k: v for k, v in info.items() if k not in ("mode", "silhouette_edges")})
+        return out, mask, item, plan
 
     def _estimate(self, tracker, image, timings):
         t = time.perf_counter()

@@ -26,7 +26,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import ImageError
 from .execute import STAGES
 from .report import ReportItem
 
@@ -214,7 +213,9 @@ class Session:
         ------
         MarkerNotFoundError
         """
-        image = _check_image(image, "image")
+        from .pipeline import check_bgr_image
+
+        image = check_bgr_image(image, "image")
         cal = self._compositor.calib_for(image.shape[1], image.shape[0])
         return self._compositor.track(image, cal, timings, extra)
 
@@ -237,39 +238,21 @@ class Session:
         -------
         FrameResult
         """
+        from .pipeline import check_bgr_image
+
         t0 = time.perf_counter()
-        image = _check_image(image, name)
-        H, W = image.shape[:2]
+        image = check_bgr_image(image, name)
         timings = timings if timings is not None else dict.fromkeys(STAGES, 0.0)
         for k in STAGES:
             timings.setdefault(k, 0.0)
         comp = self._compositor
-        cal = comp.calib_for(W, H)
-        item = ReportItem(input=name)
-        if cal.was_scaled:
-            item.extra["calibration_scaled"] = {"from": [self.intrinsics.width, self.intrinsics.height],
-                                                "to": [W, H]}
-        if comp.notes:
-            item.extra["notes"] = list(comp.notes)
-        if hasattr(pose, "cam_from_world"):
-            item.set_pose(pose)
-            cam_from_world = np.asarray(pose.cam_from_world, np.float64)
-            marker_pose = pose
-        else:
-            import cv2
-
-            cam_from_world = np.asarray(pose, np.float64).reshape(4, 4)
-            item.rvec = cv2.Rodrigues(cam_from_world[:3, :3])[0].ravel().tolist()
-            item.tvec = cam_from_world[:3, 3].tolist()
-            marker_pose = None
-        res, mask, info, plan = comp.render_planned(image, cal.intrinsics, cam_from_world, lens=cal.lens,
-                                                    timings=timings, want_mask=want_mask, out=out,
-                                                    mask_out=mask_out)
-        item.mode = info["mode"]
-        item.silhouette_edges = info["silhouette_edges"]
-        item.extra.update({k: v for k, v in info.items() if k not in ("mode", "silhouette_edges")})
+        cal = comp.calib_for(image.shape[1], image.shape[0])
+        res, mask, item, plan = comp.render_item(image, pose, cal, name=name, timings=timings, want_mask=want_mask,
+                                                 out=out, mask_out=mask_out)
         timings["total"] = timings.get("total", 0.0) + (time.perf_counter() - t0) * 1e3
         item.timings_ms = {k: round(v, 3) for k, v in timings.items()}
+        marker_pose = pose if hasattr(pose, "cam_from_world") else None
+        cam_from_world = np.asarray(getattr(pose, "cam_from_world", pose), np.float64).reshape(4, 4)
         return FrameResult(res, mask, marker_pose, cam_from_world, item, dict(item.timings_ms), plan)
 
     def calibration(self, width: int, height: int):
@@ -332,14 +315,6 @@ class Session:
         if state.get("sun_tracks") is not None and self._sun is not None:
             for tr, st in zip(self._sun[1], state["sun_tracks"]):
                 tr.restore(st)
-
-
-def _check_image(image, name):
-    image = np.asarray(image)
-    if image.ndim != 3 or image.shape[2] != 3 or image.dtype != np.uint8:
-        raise ImageError(f"{name or 'image'}: expected an (H, W, 3) uint8 BGR image, got {image.shape} "
-                         f"{image.dtype}")
-    return image
 
 
 def render_photo(spec, image, name: str = "", want_mask: bool = True) -> FrameResult:

@@ -1039,6 +1039,12 @@ class MarkerTracker:
         h, w = np.asarray(image).shape[:2]
         return self.intrinsics.for_image(w, h)
 
+    @property
+    def last_search(self) -> str | None:
+        """With ``track_roi``: where the last detection searched, ``"window"`` (around the previous marker)
+        or ``"full"`` (the whole frame); None without ``track_roi``."""
+        return getattr(self._detector, "last", None)
+
     def _charuco_detector(self, intr: Intrinsics):
         if self._charuco_for != intr:
             cp = self._charuco_params
