@@ -72,9 +72,6 @@ class CalibrationState:
     fast_tracker: object = None
 
 
-
-
-
 def check_bgr_image(image, name: str = "") -> np.ndarray:
     """``image`` as an ``(H, W, 3) uint8`` BGR array, or an :class:`ImageError` naming ``name``."""
     image = np.asarray(image)
