@@ -99,7 +99,8 @@ class RenderOptions:
         ``cull``, ``roi``, ``reuse``.
     compose : str
         ``auto`` (time the numpy and the shader lens-warp + composite on first use per photo size and
-        keep the faster: :class:`arshadow.gl.compose.PathChooser`), ``cpu`` or ``gpu``.
+        keep numpy unless the shader is > 15 % faster: :class:`arshadow.gl.compose.PathChooser`), ``cpu`` or
+        ``gpu``.
     track_roi : bool
         Video: search the marker in a window around the last detection first (full-frame fallback).
     """

@@ -59,12 +59,12 @@ def metadata(ctx=None) -> dict:
             "trimesh": trimesh.__version__, "machine": platform.machine(), "cpu": _cpu_model(),
             "cpus": os.cpu_count(), "loadavg_start": list(os.getloadavg()), "command": " ".join(sys.argv)}
     if ctx is not None:
-        import moderngl
+        from importlib.metadata import version
 
         from arshadow.gl.context import gl_info
 
         info = gl_info(ctx)
-        meta.update(moderngl=moderngl.__version__, GL_RENDERER=info.get("GL_RENDERER"),
+        meta.update(moderngl=version("moderngl"), GL_RENDERER=info.get("GL_RENDERER"),
                     GL_VERSION=info.get("GL_VERSION"))
     return meta
 
