@@ -578,7 +578,7 @@ class ShadowRenderer:
                 raise UsageError(f"light weight must be finite and >= 0, got {p.weight}")
         ctx, gl = self.ctx, self.gl
         mvp = proj @ view
-        origin = local_origin(caster.vertices)  # every draw works relative to it (see local_origin)
+        origin = caster.bounds.mean(axis=0)  # = local_origin(caster.vertices), from the cached bounds
         mvp_local = mvp @ _translation(origin)
         mvp_bytes = mvp_local.T.astype(np.float32).tobytes()  # GLSL is column-major
         eye = -view[:3, :3].T @ view[:3, 3] - origin
