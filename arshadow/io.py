@@ -133,6 +133,15 @@ def apply_orientation(img: np.ndarray, orientation: int) -> np.ndarray:
     return img
 
 
+def resolved_path(p) -> str:
+    """``p`` with links and ``..`` resolved (as given when that fails): compare outputs with the user's
+    inputs, which must never be replaced (``{resolved_path(i) for i in inputs}``, built once per run)."""
+    try:
+        return str(Path(p).resolve())
+    except OSError:
+        return str(p)
+
+
 def check_output_folder(path, what: str = "-o") -> Path:
     """Make sure ``path`` is (or can be created as) a writable folder, before any work is done.
 

@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import glob
 import logging
-import os
 import sys
 import time
 from pathlib import Path
@@ -185,13 +184,6 @@ def output_paths(inputs, outdir: Path, keep_format: bool):
     return res
 
 
-def _same_file(a: Path, b: Path) -> bool:
-    try:
-        return a.exists() and b.exists() and os.path.samefile(a, b)
-    except OSError:
-        return False
-
-
 def run(args) -> int:
     from ..io import write_json
     from ..report import make_report
@@ -221,7 +213,7 @@ def _render_all(args, session, inputs, outdir, debug):
     from ..errors import ArshadowError, CalibrationError, ImageError, MarkerNotFoundError, UsageError
     import cv2
 
-    from ..io import apply_orientation, exif_orientation, read_image, write_image
+    from ..io import apply_orientation, exif_orientation, read_image, resolved_path, write_image
     from ..report import ReportItem
 
     import numpy as np
@@ -230,7 +222,7 @@ def _render_all(args, session, inputs, outdir, debug):
     failed = 0
     buffers: dict = {}
     paths = output_paths(inputs, outdir, args.keep_format)
-    input_set = [Path(i) for i in inputs]
+    given = {resolved_path(i) for i in inputs}  # outputs never replace an input
     try:  # made now (with the GL context): a bad --aa is a usage error (exit 2), not a per-photo one
         session.renderer  # noqa: B018
     except UsageError as exc:
@@ -239,7 +231,7 @@ def _render_all(args, session, inputs, outdir, debug):
         item = ReportItem(input=str(inp))
         t0 = time.perf_counter()
         try:
-            if any(_same_file(out_path, i) or _same_file(mask_path, i) for i in input_set):
+            if resolved_path(out_path) in given or resolved_path(mask_path) in given:
                 raise ImageError(f"{out_path}: output would overwrite an input; choose another -o folder")
             image = read_image(inp)
             orientation = exif_orientation(inp)  # processed as stored (the calibration's frame)

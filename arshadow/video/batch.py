@@ -96,13 +96,6 @@ def _fingerprint(item: BatchItem, spec, opts, save_mask) -> str:
     return hashlib.sha256(blob.encode()).hexdigest()
 
 
-def _resolved(p) -> str:
-    try:
-        return str(Path(p).resolve())
-    except OSError:
-        return str(p)
-
-
 def _record_path(outdir: Path, item: BatchItem) -> Path:
     return outdir / RECORDS / f"{item.stem}.json"
 
@@ -235,7 +228,7 @@ def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=Non
     from .. import __version__
     from ..io import write_json
 
-    from ..io import check_output_folder
+    from ..io import check_output_folder, resolved_path
 
     outdir = check_output_folder(outdir, "-o")
     (outdir / RECORDS).mkdir(parents=True, exist_ok=True)
@@ -243,9 +236,9 @@ def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=Non
     items = plan_batch(inputs)
     results: list = [None] * len(items)
     todo = []
-    given = {_resolved(i) for i in inputs}
+    given = {resolved_path(i) for i in inputs}
     for k, it in enumerate(items):
-        clash = [p for p in _outputs(it, outdir, opts, save_mask) if _resolved(p) in given]
+        clash = [p for p in _outputs(it, outdir, opts, save_mask) if resolved_path(p) in given]
         if clash:  # inputs are never modified
             results[k] = {"input": it.input, "kind": it.kind, "stem": it.stem, "status": "error", "skipped": False,
                           "error": f"{clash[0]}: output would overwrite an input; choose another -o folder",

@@ -42,6 +42,7 @@ import cv2
 import numpy as np
 
 from ..errors import ArshadowError, ImageError, MarkerNotFoundError, UsageError
+from ..io import resolved_path
 
 __all__ = ["EngineOptions", "SessionBackend", "video_outputs", "process_video", "run_videos", "unique_stems",
            "write_contact_sheet", "FRAME_STAGES"]
@@ -637,13 +638,13 @@ def run_videos(backend, inputs, outdir, opts: EngineOptions, *, progress_factory
     from ..report import ReportItem
 
     summaries, items = [], []
-    in_paths = [Path(str(v)) for v in inputs]
+    given = {resolved_path(str(v)) for v in inputs}  # outputs never replace an input
     for inp, stem in zip(inputs, unique_stems(inputs)):
         outs = video_outputs(outdir, stem, opts)
         close = None
         try:
             for p in outs.values():
-                if p is not None and any(_same_file(p, i) for i in in_paths):
+                if p is not None and resolved_path(p) in given:
                     raise ImageError(f"{p}: output would overwrite an input; choose another -o folder")
             from ..io import clean_temporaries
 
@@ -671,8 +672,3 @@ def run_videos(backend, inputs, outdir, opts: EngineOptions, *, progress_factory
     return summaries, items
 
 
-def _same_file(a, b) -> bool:
-    try:
-        return Path(a).resolve() == Path(b).resolve()
-    except OSError:
-        return False
