@@ -10,8 +10,7 @@
     FFV1 (lossless) for single-channel masks; the input's audio packets are copied unchanged.
 
 Why PyAV rather than OpenCV's writer: OpenCV's wheel has no H.264 encoder (MPEG-4 part 2 only, ~2x the
-bits for the same quality), no audio, and no CRF; measured in docs/video.md. ``av`` is an optional
-dependency (``pip install arshadow[video]``); :func:`have_av` says whether it is there.
+bits for the same quality), no audio, and no CRF; measured in docs/video.md.
 
 Frames (CONVENTIONS.md): images are ``(H, W, 3) uint8`` BGR, row 0 at the top.
 """
@@ -30,7 +29,7 @@ import numpy as np
 from ..errors import ImageError, UsageError
 from .cvio import VideoFrame
 
-__all__ = ["have_av", "AvReader", "AvWriter", "RawFrame", "VIDEO_CODECS"]
+__all__ = ["AvReader", "AvWriter", "RawFrame", "VIDEO_CODECS"]
 
 #: ``--codec`` choices -> (FFmpeg encoder, pixel format, container extensions it suits)
 VIDEO_CODECS = {
@@ -61,20 +60,11 @@ class RawFrame:
     format: str = "bgr24"
 
 
-def have_av() -> bool:
-    """True when PyAV (``av``) can be imported (``pip install arshadow[video]``)."""
-    try:
-        import av  # noqa: F401
-    except ImportError:
-        return False
-    return True
-
-
 def _av():
     try:
         import av
     except ImportError:
-        raise UsageError("video encoding needs PyAV: pip install 'arshadow[video]'") from None
+        raise UsageError("video needs PyAV, a dependency of arshadow: pip install av") from None
     av.logging.set_level(av.logging.PANIC)  # FFmpeg's own chatter: arshadow reports one line of its own
     return av
 
