@@ -6,7 +6,7 @@ Each tree runs in its own worker process (``PYTHONPATH`` = the tree), set up onc
 ``bench_pipeline.py``'s default row (samples/knot_point.jpg, 1280 x 720, the knot, its first light,
 ``Compositor.process(image, want_mask=False, out=buf)``); then the driver asks A and B for one frame each
 in turn (order alternating every pair), so both see the same machine load at nearly the same time. Prints
-JSON: per tree the median, IQR and min of the frame times and the median of each stage the report times,
+JSON: per tree the median, IQR ``[q25, q75]`` and min of the frame times and the median of each stage the report times,
 and the median and IQR of the paired ratios
 B / A. On a shared machine the paired ratio is the figure to quote; absolute times move with the load.
 """
@@ -20,6 +20,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import _common
 import numpy as np
 
 WORKER = r"""
@@ -57,13 +58,6 @@ for line in sys.stdin:
 comp.close()
 ctx.release()
 """
-
-
-def _stats(a) -> dict:
-    a = np.asarray(a, float)
-    q25, q50, q75 = np.percentile(a, [25, 50, 75])
-    return {"median": round(float(q50), 3), "q25": round(float(q25), 3), "q75": round(float(q75), 3),
-            "iqr": round(float(q75 - q25), 3), "min": round(float(a.min()), 3), "n": int(a.size)}
 
 
 def _commit(tree: Path):
@@ -107,14 +101,11 @@ def main(argv=None) -> int:
         p.wait(timeout=60)
     ratios = np.asarray(times[1]) / np.asarray(times[0])
     res = {"benchmark": "ab_pipeline: bench_pipeline default case, interleaved frame by frame",
-           **{ab: {"tree": str(trees[k]), "commit": _commit(trees[k]), "frame_ms": _stats(times[k]),
+           **{ab: {"tree": str(trees[k]), "commit": _commit(trees[k]), "frame_ms": _common.summary(times[k]),
                    "stage_ms_median": {n: round(float(np.median(v)), 3) for n, v in stages[k].items()}}
               for k, ab in enumerate("ab")},
-           "ratio_b_over_a": _stats(ratios), "loadavg_end": list(os.getloadavg())}
-    text = json.dumps(res, indent=1)
-    print(text)
-    if args.json:
-        Path(args.json).write_text(text + "\n")
+           "ratio_b_over_a": _common.summary(ratios), "meta": _common.metadata()}
+    _common.emit(res, args.json)
     return 0
 
 

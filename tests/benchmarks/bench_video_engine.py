@@ -40,6 +40,7 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests"))
 
+import _common  # noqa: E402
 from video_clips import CALIB_720, KNOT_SCENE, ExactShadow, iou, jitter_and_lag, make_clip  # noqa: E402
 
 CACHE = Path(os.environ.get("ARSHADOW_BENCH_CACHE", "/tmp/arshadow-bench"))
@@ -72,13 +73,6 @@ def _run(clip, out, *extra):
     rep = json.loads((Path(out) / "r.json").read_text())
     lines = [json.loads(s) for s in (Path(out) / f"{Path(clip).stem}.frames.jsonl").read_text().splitlines()]
     return rc, rep["videos"][0], lines
-
-
-def _stats(a):
-    a = np.asarray(a, float)
-    return {"median": round(float(np.median(a)), 3), "iqr": [round(float(np.percentile(a, 25)), 3),
-            round(float(np.percentile(a, 75)), 3)], "min": round(float(a.min()), 3), "max": round(float(a.max()), 3),
-            "n": int(a.size)}
 
 
 def _pose(rvec, tvec):
@@ -151,7 +145,7 @@ def accuracy(clip, poses, refine):
     j_sm, _ = jitter_and_lag(c_sm, c_true)
     return {"refine": refine, "frames": summ["frames"], "statuses": {s: sum(ln["status"] == s for ln in lines)
                                                                       for s in ("ok", "held", "no_marker")},
-            "iou": _stats(ious), "rotation_error_deg_raw": _stats(rot_raw), "distance_error_pct_raw": _stats(dist_raw),
+            "iou": _common.summary(ious), "rotation_error_deg_raw": _common.summary(rot_raw), "distance_error_pct_raw": _common.summary(dist_raw),
             "flipped_frames": flips, "jitter_px_raw": round(j_raw, 4), "jitter_px_smoothed": round(j_sm, 4),
             "jitter_ratio": round(j_raw / j_sm, 3) if j_sm > 0 else None,
             "detect_pose_ms_median": round(float(np.median([ln["timings_ms"]["detect"] + ln["timings_ms"]["pose"]
@@ -197,13 +191,8 @@ def main() -> int:
         out["accuracy"] = [accuracy(clip, poses, r) for r in a.refine.split(",") if r]
     if "pan" not in skip and a.pan:
         out["pan"] = pan(a.pan)
-    out["loadavg_end"] = [round(x, 2) for x in os.getloadavg()]
-    text = json.dumps(out, indent=1)
-    print(text)
-    if a.out:
-        from arshadow.io import write_bytes
-
-        write_bytes(a.out, text.encode())
+    out["meta"] = _common.metadata()
+    _common.emit(out, a.out)
     return 0
 
 
