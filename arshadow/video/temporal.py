@@ -4,10 +4,10 @@
 frames later and in the same order, a :class:`FramePose`:
 
 1. the IPPE branch chosen by continuity (:class:`arshadow.video.cvio.TemporalPoseChooser`, fixed lag);
-2. the pose smoothed by a **centred local-linear fit** over ``2 * window + 1`` frames (tricube weights in
-   time), of the rotation (as rotation vectors relative to the frame's own rotation) and of the camera
-   centre in the world frame. A centred fit reproduces any motion that is linear over the window
-   exactly — a steady pan (constant angular velocity about the camera centre: the centre does not move,
+2. the pose smoothed by a **centred local-quadratic fit** (``degree=2``) over ``2 * window + 1`` frames
+   (tricube weights in time), of the rotation (as rotation vectors relative to the frame's own rotation)
+   and of the camera centre in the world frame. A centred fit reproduces any motion that is polynomial
+   of its degree over the window exactly — a steady pan (constant angular velocity about the camera centre: the centre does not move,
    the rotation vector grows linearly) comes out with **zero lag** — while it averages the detector's
    frame-to-frame noise over the window. Video is processed offline, so looking ``window`` frames ahead
    costs latency (frames are buffered), never lag in the picture. Frames whose pose disagrees with the
