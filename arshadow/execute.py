@@ -119,17 +119,14 @@ def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings=N
     # measured faster for this photo size on this backend (timed on first use)
     args = (plan, image, intr, geometry, renderer, lens, work, passes, out, mask_full, want_mask, info)
     x0, y0, w, h = roi
-    # each path composites into a clean ROI (the chooser may run both, one after the other); when the caller
-    # composites in place (out is image: the video engine) the photo's ROI is kept aside to start each run
-    clean = image[y0 : y0 + h, x0 : x0 + w]
-    if np.shares_memory(out, image):
-        clean = clean.copy()
+    clean = None  # the photo's ROI each run starts from, when the chooser runs several (below)
 
     def run(fn):
         def go():
-            np.copyto(out[y0 : y0 + h, x0 : x0 + w], clean)
-            if mask_full is not None:
-                mask_full[y0 : y0 + h, x0 : x0 + w] = 0
+            if clean is not None:
+                np.copyto(out[y0 : y0 + h, x0 : x0 + w], clean)
+                if mask_full is not None:
+                    mask_full[y0 : y0 + h, x0 : x0 + w] = 0
             t = dict.fromkeys(STAGES, 0.0)
             fn(*args, timings=t)
             return t
@@ -142,6 +139,12 @@ def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings=N
     ctx = getattr(renderer, "ctx", None)
     backend = (getattr(ctx, "info", None) or {}).get("GL_RENDERER", "?") if ctx is not None else "?"
     key = (backend, W, H, int(geometry.options.aa), lens is not None)
+    if len(paths) > 1 and chooser.force is None and key not in chooser.decisions:
+        # the chooser times every path, one run after the other: each must start from the untouched photo
+        # ROI (a copy of it when the caller composites in place, out is image: the video engine)
+        clean = image[y0 : y0 + h, x0 : x0 + w]
+        if np.shares_memory(out, image):
+            clean = clean.copy()
     if len(paths) == 1 or chooser.force == "cpu":
         choice, used = "cpu", paths["cpu"]()
         why = "numpy (the shader path is not available here)" if len(paths) == 1 else "forced cpu"
