@@ -100,8 +100,8 @@ class LensWarp:
         self._my = np.full((self.height, self.width), INVALID, np.float32)
         self._done = np.zeros(((self.height + T - 1) // T, (self.width + T - 1) // T), bool)
 
-    def _ensure(self, roi) -> None:
-        """Compute the map's tiles that ``roi`` touches (each tile once per calibration)."""
+    def ensure(self, roi) -> None:
+        """Compute the map's tiles that ``roi = (x0, y0, w, h)`` touches (each tile once per calibration)."""
         x0, y0, w, h = roi
         if w <= 0 or h <= 0:
             return
@@ -125,9 +125,22 @@ class LensWarp:
             self._done[r, a:b] = True
 
     @property
+    def tiles_done(self) -> np.ndarray:
+        """(rows, cols) bool, read-only: which ``TILE`` x ``TILE`` tiles of the map are computed."""
+        v = self._done.view()
+        v.flags.writeable = False
+        return v
+
+    def maps_partial(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(map_x, map_y)`` (H, W) float32 as computed so far (read-only; valid in :attr:`tiles_done`)."""
+        mx, my = self._mx.view(), self._my.view()
+        mx.flags.writeable = my.flags.writeable = False
+        return mx, my
+
+    @property
     def maps(self) -> tuple[np.ndarray, np.ndarray]:
         """``(map_x, map_y)`` (H, W) float32 for the whole image (computes every missing tile)."""
-        self._ensure((0, 0, self.width, self.height))
+        self.ensure((0, 0, self.width, self.height))
         return self._mx, self._my
 
     @cached_property
@@ -223,7 +236,7 @@ class LensWarp:
         x0, y0, w, h = roi
         if w == 0 or h == 0:
             return (0, 0, 0, 0)
-        self._ensure(roi)
+        self.ensure(roi)
         sx, sy = self._mx[y0 : y0 + h, x0 : x0 + w], self._my[y0 : y0 + h, x0 : x0 + w]
         valid = sx > INVALID / 2
         if not np.any(valid):
@@ -270,7 +283,7 @@ class LensWarp:
 
         x0, y0, w, h = roi
         u0, v0 = canvas[0], canvas[1]
-        self._ensure(roi)
+        self.ensure(roi)
         mx, my = self._mx, self._my
         if work is None:
             from .composite import Workspace

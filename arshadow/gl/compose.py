@@ -55,25 +55,27 @@ class _LensTexture:
         self.lens = lens
         self.tex = ctx.texture((lens.width, lens.height), 2, dtype="f4", alignment=4)
         self.tex.filter = (ctx.NEAREST, ctx.NEAREST)
-        self.uploaded = np.zeros_like(lens._done)
+        self.uploaded = np.zeros_like(lens.tiles_done)
 
     def update(self, roi) -> None:
         lens = self.lens
-        lens._ensure(roi)
-        todo = lens._done & ~self.uploaded
+        lens.ensure(roi)
+        done = lens.tiles_done
+        todo = done & ~self.uploaded
         if not todo.any():
             return
         T = lens.TILE
+        mx, my = lens.maps_partial()
         for r in np.flatnonzero(todo.any(axis=1)):
             cols = np.flatnonzero(todo[r])
             a, b = int(cols[0]), int(cols[-1]) + 1
             y0, y1 = r * T, min(lens.height, (r + 1) * T)
             x0, x1 = a * T, min(lens.width, b * T)
             data = np.empty((y1 - y0, x1 - x0, 2), np.float32)
-            data[:, :, 0] = lens._mx[y0:y1, x0:x1]
-            data[:, :, 1] = lens._my[y0:y1, x0:x1]
+            data[:, :, 0] = mx[y0:y1, x0:x1]
+            data[:, :, 1] = my[y0:y1, x0:x1]
             self.tex.write(data.tobytes(), viewport=(x0, y0, x1 - x0, y1 - y0))
-            self.uploaded[r, a:b] |= lens._done[r, a:b]
+            self.uploaded[r, a:b] |= done[r, a:b]
 
     def release(self):
         self.tex.release()
