@@ -42,7 +42,9 @@ import cv2
 import numpy as np
 
 from ..errors import ArshadowError, ImageError, MarkerNotFoundError, UsageError
+from ..compose.composite import clip_roi
 from ..io import resolved_path
+from ..transforms import rvec_tvec_from_matrix
 
 __all__ = ["EngineOptions", "SessionBackend", "video_outputs", "process_video", "run_videos", "unique_stems",
            "write_contact_sheet", "FRAME_STAGES"]
@@ -398,8 +400,6 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
             else:
                 stats["frames_held"] += 1
             m = fp.cam_from_world
-            from ..transforms import rvec_tvec_from_matrix
-
             r, t = rvec_tvec_from_matrix(m)
             item.extra["raw"] = None if fp.raw is None else {
                 "rvec": np.asarray(fp.raw.rvec, float).ravel().tolist(),
@@ -554,8 +554,6 @@ def _i420_with_roi(yuv: np.ndarray, bgr: np.ndarray, roi) -> np.ndarray:
     (H * 3 // 2, W) uint8
         A new array.
     """
-    from ..compose.composite import clip_roi
-
     H, W = bgr.shape[:2]
     if roi is None:
         return cv2.cvtColor(bgr, cv2.COLOR_BGR2YUV_I420)
