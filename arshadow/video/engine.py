@@ -44,6 +44,7 @@ import numpy as np
 from ..errors import ArshadowError, ImageError, MarkerNotFoundError, UsageError
 from ..compose.composite import clip_roi
 from ..io import resolved_path
+from ..report import ReportItem, StageTimings
 from ..transforms import rvec_tvec_from_matrix
 
 __all__ = ["EngineOptions", "SessionBackend", "video_outputs", "process_video", "run_videos", "unique_stems",
@@ -164,7 +165,7 @@ class SessionBackend:
 
     def start(self, width: int, height: int) -> None:
         """A new video of this size (CalibrationError: the calibration does not fit it)."""
-        self.cal = self.session.compositor.calib_for(width, height)
+        self.cal = self.session.calibration(width, height)
         for tr in self.tracks:
             tr.reset()
         self.recomputes = 0
@@ -172,7 +173,12 @@ class SessionBackend:
     def track(self, gray, timings):
         """The marker pose in a grey ``(H, W) uint8`` frame, or ``(None, error)``."""
         try:
-            return self.session.compositor.track(gray, self.cal, timings), None
+            st = StageTimings()
+            try:
+                return self.session.track(gray, timings=st), None
+            finally:
+                timings["detect"] += st.detect
+                timings["pose"] += st.pose
         except MarkerNotFoundError as exc:
             return None, exc
 
@@ -188,12 +194,12 @@ class SessionBackend:
                  "recompute": bool(f.recompute), "stale_deg": round(f.stale_deg, 5)} for f in frames]
 
     def render(self, bgr, cam_from_world, want_mask, timings):
-        """Composite into ``bgr`` (modified in place); returns ``(mask or None, item extras)``."""
-        res = self.session.render(bgr, cam_from_world, want_mask=want_mask, out=bgr, timings=timings)
-        it = res.item
-        info = {"mode": it.mode, "silhouette_edges": it.silhouette_edges,
-                **{k: it.extra[k] for k in ("roi", "canvas", "modes") if k in it.extra}}
-        return res.mask, info
+        """Composite into ``bgr`` (modified in place); returns ``(mask or None, the frame's report item)``."""
+        res = self.session.render(bgr, cam_from_world, want_mask=want_mask, out=bgr)
+        for k, v in res.timings.as_dict().items():
+            if k != "total":
+                timings[k] += v
+        return res.mask, res.item
 
     @property
     def notes(self):
@@ -268,7 +274,6 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
         Unreadable or unwritable video, a size the calibration does not fit.
     """
     from .avio import AvWriter
-    from ..report import ReportItem
     from .temporal import PoseStream
 
     opts = opts.check()
@@ -349,13 +354,13 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
                 if mw is not None:
                     mw.write(mask if mask is not None else np.zeros((H, W), np.uint8))
                 elif png_dir is not None:
-                    cv2.imwrite(str(png_dir / f"{item.extra['frame']:06d}.png"),
+                    cv2.imwrite(str(png_dir / f"{item.frame:06d}.png"),
                                 mask if mask is not None else np.zeros((H, W), np.uint8))
                 enc = (time.perf_counter() - t) * 1e3
                 line["timings_ms"]["encode"] = round(enc, 3)
                 stage_ms["encode"].append(enc)
                 jf.write(json.dumps(line, separators=(",", ":")) + "\n")
-                fi = item.extra["frame"]
+                fi = item.frame
                 if opts.contact_sheet and fi % sheet_step[0] == 0:
                     bgr = img if fmt != "yuv420p" else cv2.cvtColor(img, cv2.COLOR_YUV2BGR_I420)
                     sheet[fi] = cv2.resize(bgr, (320, max(1, round(320 * H / W))), interpolation=cv2.INTER_AREA)
@@ -381,55 +386,49 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
     def emit(fp):
         fr, dec_ms, timings, gray_fmt = fp.payload
         img = fr.image
-        item = ReportItem(input=name, output=str(out_video), mask=None if out_mask is None else str(out_mask))
-        item.extra.update(frame=fr.index, time_s=round(fr.time_s, 6))
         sun = backend.lights_at(fr.time_s)
-        if sun is not None:
-            item.extra["sun"] = sun
         mask = None
-        item.status = fp.status
         if fp.status == "no_marker":
-            item.error = "no marker found"
+            item = ReportItem(input=name, status=fp.status, error="no marker found")
             stats["frames_no_marker"] += 1
             if want_mask:
                 mask = np.zeros((H, W), np.uint8)
         else:
+            m = fp.cam_from_world
+            tc = time.perf_counter()
+            bgr = cv2.cvtColor(img, cv2.COLOR_YUV2BGR_I420) if gray_fmt == "yuv420p" else np.array(img)
+            timings["convert"] += (time.perf_counter() - tc) * 1e3
+            mask, item = backend.render(bgr, m, want_mask, timings)  # the frame's one report item
+            item.input, item.status = name, fp.status
             if fp.raw is not None:
                 item.set_pose(fp.raw)
                 stats["frames_ok"] += 1
             else:
                 stats["frames_held"] += 1
-            m = fp.cam_from_world
             r, t = rvec_tvec_from_matrix(m)
-            item.extra["raw"] = None if fp.raw is None else {
+            item.raw = None if fp.raw is None else {
                 "rvec": np.asarray(fp.raw.rvec, float).ravel().tolist(),
                 "tvec": np.asarray(fp.raw.tvec, float).ravel().tolist()}
             item.rvec, item.tvec = r.tolist(), t.tolist()  # the pose rendered with (smoothed / held)
-            item.extra["pose_choice"] = "temporal (alternative IPPE solution)" if fp.swapped else "error"
+            item.pose_choice = "temporal (alternative IPPE solution)" if fp.swapped else "error"
             stats["swapped"] += int(fp.swapped)
             tc = time.perf_counter()
-            bgr = cv2.cvtColor(img, cv2.COLOR_YUV2BGR_I420) if gray_fmt == "yuv420p" else np.array(img)
+            img = _i420_with_roi(img, bgr, item.roi) if gray_fmt == "yuv420p" else bgr
             timings["convert"] += (time.perf_counter() - tc) * 1e3
-            mask, info = backend.render(bgr, m, want_mask, timings)
-            item.mode = info["mode"]
-            item.silhouette_edges = info["silhouette_edges"]
-            item.extra.update({k: v for k, v in info.items() if k in ("roi", "canvas", "modes")})
-            tc = time.perf_counter()
-            img = _i420_with_roi(img, bgr, info.get("roi")) if gray_fmt == "yuv420p" else bgr
-            timings["convert"] += (time.perf_counter() - tc) * 1e3
+        item.output, item.mask = str(out_video), None if out_mask is None else str(out_mask)
+        item.frame, item.time_s, item.sun = fr.index, round(fr.time_s, 6), sun
         timings["decode"] = dec_ms
         timings["total"] = sum(v for k, v in timings.items() if k not in ("total", "decode", "encode"))
         item.timings_ms = {k: round(v, 3) for k, v in timings.items()}
         for k in FRAME_STAGES:
             if k in timings and k != "encode":
                 stage_ms[k].append(timings[k])
-        if backend.notes:
-            item.extra["notes"] = backend.notes
+        item.notes = backend.notes or None
         stats["frames"] += 1
         line = {"frame": fr.index, "time_s": round(fr.time_s, 6), "status": item.status,
-                "marker_ids": item.marker_ids, "rvec": item.rvec, "tvec": item.tvec, "raw": item.extra.get("raw"),
+                "marker_ids": item.marker_ids, "rvec": item.rvec, "tvec": item.tvec, "raw": item.raw,
                 "reprojection_error_px": item.reprojection_error_px, "pose_ambiguity": item.pose_ambiguity,
-                "pose_choice": item.extra.get("pose_choice"), "mode": item.mode, "timings_ms": item.timings_ms}
+                "pose_choice": item.pose_choice, "mode": item.mode, "timings_ms": item.timings_ms}
         if sun is not None:
             line["sun"] = sun
         if opts.collect_items:
@@ -633,8 +632,6 @@ def run_videos(backend, inputs, outdir, opts: EngineOptions, *, progress_factory
     items : list of ReportItem
         Per-frame items when ``opts.collect_items``; an unreadable video has one item with ``frame: None``.
     """
-    from ..report import ReportItem
-
     summaries, items = [], []
     given = {resolved_path(str(v)) for v in inputs}  # outputs never replace an input
     for inp, stem in zip(inputs, unique_stems(inputs)):
@@ -660,9 +657,7 @@ def run_videos(backend, inputs, outdir, opts: EngineOptions, *, progress_factory
                 msg = f"{inp}: {msg}"
             summary = {"input": str(inp), "output": None, "mask": None, "status": "error", "error": msg,
                        "warnings": []}
-            it = ReportItem(input=str(inp), status="error", error=msg)
-            it.extra["frame"] = None
-            items.append(it)
+            items.append(ReportItem(input=str(inp), status="error", error=msg))
         finally:
             if close is not None:
                 close()
