@@ -336,7 +336,7 @@ def test_marker_tracker_detector_option():
     from arshadow.camera import Intrinsics
     from arshadow.errors import UsageError
     from arshadow.tracking.fastdetect import HalfResolutionDetector
-    from arshadow.tracking.marker import MarkerTracker
+    from arshadow.tracking.tracker import MarkerTracker
 
     photo, truth = _photo()
     cam = Intrinsics.from_file(CALIB)
