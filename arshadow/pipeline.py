@@ -103,7 +103,7 @@ class Compositor:
         Share an existing renderer (not released by :meth:`close`).
     make_renderer : callable, optional
         ``make_renderer(options) -> Renderer``, called on first use (default: a
-        :class:`arshadow.gl.renderer.ShadowRenderer` on ``ctx`` with ``options.aa`` samples); the
+        :class:`arshadow.gl.stencil.ShadowRenderer` on ``ctx`` with ``options.aa`` samples); the
         renderer made is released by :meth:`close`.
     """
 
@@ -423,12 +423,12 @@ class Compositor:
 
 
 def default_renderer(ctx, options: RenderOptions):
-    """The renderer ``options`` ask for, on ``ctx``: the stencil :class:`arshadow.gl.renderer.ShadowRenderer`
+    """The renderer ``options`` ask for, on ``ctx``: the stencil :class:`arshadow.gl.stencil.ShadowRenderer`
     (volumes and planar shadows), or the :class:`arshadow.gl.shadowmap.ShadowMapRenderer` baseline."""
     if options.shadow_method == "shadowmap":
         from .gl.shadowmap import ShadowMapRenderer
 
         return ShadowMapRenderer(ctx, map_size=int(options.shadowmap_size), samples=int(options.aa))
-    from .gl.renderer import ShadowRenderer
+    from .gl.stencil import ShadowRenderer
 
     return ShadowRenderer(ctx, samples=int(options.aa))

@@ -79,7 +79,7 @@ class Session:
     renderer : Renderer or callable, optional
         A renderer to share (:class:`arshadow.render_api.Renderer`, not released by :meth:`close`), or
         ``renderer(ctx, options) -> Renderer`` making this session's own: another shadow technique
-        (default: the stencil :class:`arshadow.gl.renderer.ShadowRenderer` with ``options.aa`` samples).
+        (default: the stencil :class:`arshadow.gl.stencil.ShadowRenderer` with ``options.aa`` samples).
 
     Raises
     ------

@@ -275,7 +275,7 @@ def test_a_renderer_without_raw_layers_plugs_in_and_agrees(gl_ctx, tol):
     import dataclasses
 
     import arshadow
-    from arshadow.gl.renderer import ShadowRenderer
+    from arshadow.gl.stencil import ShadowRenderer
     from arshadow.render_api import Renderer
 
     class NoLayers:
