@@ -18,7 +18,7 @@ import numpy as np
 from .errors import ImageError, MarkerNotFoundError
 from .report import StageTimings
 from .scene import RenderOptions
-from .tracking.marker import MarkerTracker
+from .tracking.tracker import MarkerTracker
 
 __all__ = ["CalibrationState", "estimate_pose", "check_image", "default_renderer", "DETECT_NOTES"]
 
@@ -39,7 +39,7 @@ class CalibrationState:
     lens : arshadow.compose.lens.LensWarp or None
         None without distortion.
     tracker_kwargs : dict
-        Keyword arguments of :class:`arshadow.tracking.marker.MarkerTracker` (the scene's).
+        Keyword arguments of :class:`arshadow.tracking.tracker.MarkerTracker` (the scene's).
     track_roi : bool
         Trackers search a window around their last detection first (video).
     fast_detect : bool
@@ -55,7 +55,7 @@ class CalibrationState:
     _trackers: tuple | None = None
 
     def trackers(self) -> tuple:
-        """``(fast or None, full)`` :class:`~arshadow.tracking.marker.MarkerTracker` (made on first use)."""
+        """``(fast or None, full)`` :class:`~arshadow.tracking.tracker.MarkerTracker` (made on first use)."""
         if self._trackers is None:
             kw, roi = self.tracker_kwargs, self.track_roi
             full = MarkerTracker(self.intrinsics, **kw, track_roi=roi)
@@ -87,7 +87,7 @@ def estimate_pose(cal: CalibrationState, image, timings: StageTimings):
 
     Returns
     -------
-    pose : arshadow.tracking.marker.MarkerPose
+    pose : arshadow.tracking.pose.MarkerPose
     detector : str or None
         ``"full (fast pass found nothing)"`` when the fallback ran (the report's ``detector``).
 
@@ -132,13 +132,13 @@ def check_image(image, name: str = "", grey_ok: bool = False) -> np.ndarray:
 
 
 def default_renderer(ctx, options: RenderOptions):
-    """The renderer ``options`` ask for, on ``ctx``: the stencil :class:`arshadow.gl.renderer.ShadowRenderer`
+    """The renderer ``options`` ask for, on ``ctx``: the stencil :class:`arshadow.gl.stencil.ShadowRenderer`
     (volumes and planar shadows), or the :class:`arshadow.gl.shadowmap.ShadowMapRenderer` baseline."""
     # deferred: moderngl loads only when a session first renders (``import arshadow`` stays light)
     if options.shadow_method == "shadowmap":
         from .gl.shadowmap import ShadowMapRenderer
 
         return ShadowMapRenderer(ctx, map_size=int(options.shadowmap_size), samples=int(options.aa))
-    from .gl.renderer import ShadowRenderer
+    from .gl.stencil import ShadowRenderer
 
     return ShadowRenderer(ctx, samples=int(options.aa))

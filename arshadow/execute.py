@@ -62,7 +62,7 @@ def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings: 
         ``compose`` decision is ``"measure"``, and records the faster under ``compose_key``.
     gpu : callable, optional
         ``gpu() -> arshadow.gl.compose.GpuCompositor`` (made on first use by the caller); the shader path
-        needs a renderer with ``render(..., readback=False)`` (``renderer.gpu_layers``).
+        needs a renderer with ``render_gpu(...)`` (``renderer.gpu_layers``).
     compose_key : hashable, optional
         The chooser's key of this frame (:meth:`arshadow.session.Session.compose_key`).
 
@@ -172,9 +172,10 @@ def _compose_gpu(plan, image, intr, geometry, renderer, lens, work, passes, out,
     roi, canvas = plan.roi, plan.canvas
     proj = intr.gl_projection(plan.znear, None, canvas=canvas)
     t = time.perf_counter()
-    lay = renderer.render(projection=proj, view=CV_TO_GL @ plan.cam_from_world, width=int(canvas[2]),
-                          height=int(canvas[3]), caster=geometry.caster, passes=passes, ground_size=opts.ground_size,
-                          draw_occluder=opts.draw_occluder, occluder_color=opts.occluder_color, readback=False)
+    lay = renderer.render_gpu(projection=proj, view=CV_TO_GL @ plan.cam_from_world, width=int(canvas[2]),
+                              height=int(canvas[3]), caster=geometry.caster, passes=passes,
+                              ground_size=opts.ground_size, draw_occluder=opts.draw_occluder,
+                              occluder_color=opts.occluder_color)
     timings.render += (time.perf_counter() - t) * 1e3
     ct: dict = {}
     t = time.perf_counter()

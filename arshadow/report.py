@@ -120,7 +120,7 @@ class ReportItem:
     title: str | None = None
 
     def set_pose(self, pose) -> None:
-        """Fill the pose keys from an :class:`arshadow.tracking.marker.MarkerPose`.
+        """Fill the pose keys from an :class:`arshadow.tracking.pose.MarkerPose`.
 
         ``rvec``/``tvec`` are world -> camera in arshadow's world frame (z up). For a board that frame is
         OpenCV's board frame turned 180 degrees about x (docs/tracking.md), so the item also carries
@@ -136,7 +136,7 @@ class ReportItem:
         self.pose_flagged = bool(getattr(pose, "ambiguous", False))
         if getattr(pose, "kind", None) in ("gridboard", "charuco"):
             # deferred: the report module loads without OpenCV (arshadow pose / render only ever get here)
-            from .tracking.marker import OPENCV_BOARD_TO_WORLD
+            from .tracking.board import OPENCV_BOARD_TO_WORLD
 
             world_from_board = np.eye(4)
             world_from_board[:3, :3] = OPENCV_BOARD_TO_WORLD

@@ -67,7 +67,7 @@ class FrameResult:
         The photo with the object and its shadow (BGR).
     mask : (H, W) uint8 or None
         The shadow mask of CONVENTIONS.md (None when not asked for).
-    pose : arshadow.tracking.marker.MarkerPose or None
+    pose : arshadow.tracking.pose.MarkerPose or None
         The tracked pose (None when rendering at a given ``cam_from_world``).
     cam_from_world : (4, 4) float64
         The pose rendered.
@@ -109,7 +109,7 @@ class Session:
     renderer : Renderer or callable, optional
         A renderer to share (:class:`arshadow.render_api.Renderer`, not released by :meth:`close`), or
         ``renderer(ctx, options) -> Renderer`` making this session's own: another shadow technique
-        (default: the stencil :class:`arshadow.gl.renderer.ShadowRenderer` with ``options.aa`` samples).
+        (default: the stencil :class:`arshadow.gl.stencil.ShadowRenderer` with ``options.aa`` samples).
 
     Attributes
     ----------
@@ -258,7 +258,7 @@ class Session:
 
         Returns
         -------
-        arshadow.tracking.marker.MarkerPose
+        arshadow.tracking.pose.MarkerPose
 
         Raises
         ------
@@ -273,7 +273,7 @@ class Session:
 
         Parameters
         ----------
-        pose : arshadow.tracking.marker.MarkerPose or (4, 4) float64
+        pose : arshadow.tracking.pose.MarkerPose or (4, 4) float64
             A tracked pose or ``cam_from_world``.
         width, height : int
         modes : list of str, optional
@@ -295,7 +295,7 @@ class Session:
         ----------
         image : (H, W, 3) uint8
             BGR photo (not modified unless it is ``out``).
-        pose : arshadow.tracking.marker.MarkerPose or (4, 4) float64
+        pose : arshadow.tracking.pose.MarkerPose or (4, 4) float64
             A tracked pose or ``cam_from_world`` (not with ``plan``).
         plan : arshadow.plan.FramePlan, optional
             A plan of :meth:`plan` for this image's size.
@@ -376,7 +376,7 @@ class Session:
 
     def _render(self, image, plan: FramePlan, pose, item: ReportItem, timings, want_mask, out, mask_out):
         """Execute ``plan`` on ``image`` and fill ``item`` (all but ``timings_ms``); ``pose``: the tracked
-        :class:`~arshadow.tracking.marker.MarkerPose` or None."""
+        :class:`~arshadow.tracking.pose.MarkerPose` or None."""
         H, W = image.shape[:2]
         cal = self.calibration(W, H)
         cfw = plan.cam_from_world

@@ -364,7 +364,7 @@ def _calib(name):
 def test_real_charuco_photo_object_and_shadow_on_the_board(ctx, realdata):
     from arshadow.camera import Intrinsics
     from arshadow.io import read_image
-    from arshadow.tracking.marker import Board
+    from arshadow.tracking.board import Board
     from arshadow.geometry.mesh import load_occluder
     from arshadow.scene import RenderOptions, Scene
     from arshadow.session import Session
@@ -405,7 +405,8 @@ def test_fast_detection_pass_and_its_fallbacks(ctx, monkeypatch, tol):
     from arshadow.geometry.mesh import load_occluder
     from arshadow.scene import RenderOptions, Scene
     from arshadow.session import Session
-    from arshadow.tracking.fastdetect import HalfResolutionDetector, make_fast_tracker
+    from arshadow.tracking.fastdetect import HalfResolutionDetector
+    from arshadow.tracking.tracker import make_fast_tracker
     from arshadow.synth import look_at_pose, render_marker_photo
 
     intr = Intrinsics.from_file(_calib("synth_1280x720.yml"))
