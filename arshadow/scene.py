@@ -28,6 +28,8 @@ map onto its keys, which are the ``arshadow render`` option names with ``_`` for
     aa: 0
     ground_size: null
     no_object: false
+    time_lapse: 2026-06-21T08:00+02:00,600   # video: the suns follow the frame times (START[,SPEED])
+    recompute_deg: 0.1
 
 Relative paths in a job file are relative to the file's folder (``base_dir``).
 """
@@ -45,8 +47,9 @@ from .errors import UsageError
 
 log = logging.getLogger(__name__)
 
-__all__ = ["RenderOptions", "TrackerSpec", "ModelSpec", "SceneSpec", "Scene", "scene_from_dict",
-           "scene_from_args", "load_scene", "SCENE_KEYS"]
+__all__ = ["RenderOptions", "TrackerSpec", "ModelSpec", "TimeLapse", "SceneSpec", "Scene", "scene_from_dict",
+           "parse_time_lapse",
+           "scene_from_args", "load_scene", "parse_triple", "SCENE_KEYS"]
 
 
 #: shadow techniques: stencil volumes (exact), planar projection (exact on the ground for convex
@@ -225,6 +228,92 @@ class ModelSpec:
 
 
 @dataclass(frozen=True)
+class TimeLapse:
+    """Sun lights that follow a video's frame times (``arshadow video --time-lapse START[,SPEED]``).
+
+    Attributes
+    ----------
+    start : str
+        ISO time with a UTC offset: the scene's time at the video's first frame.
+    speed : float
+        Scene seconds per video second (> 0).
+    recompute_deg : float
+        A sun's silhouette is recomputed only when it moved more than this since the last recompute.
+    """
+
+    start: str
+    speed: float = 1.0
+    recompute_deg: float = 0.1
+
+    def lights(self, specs):
+        """``(static lights, sun tracks, first lights)`` of light specs: each ``sun:`` spec becomes a
+        :class:`arshadow.lights.spec.SunLightTrack`; the first lights are the static ones plus the suns at
+        ``start``. UsageError without a sun."""
+        from .lights.spec import parse_light, parse_sun_track  # deferred: the spec module stays light
+
+        static, tracks = [], []
+        for s in specs:
+            if isinstance(s, str) and s.strip().lower().startswith("sun:"):
+                tracks.append(parse_sun_track(s, recompute_deg=self.recompute_deg))
+            else:
+                static.append(parse_light(s) if isinstance(s, str) else s)
+        if not tracks:
+            raise UsageError("--time-lapse needs a sun light (--light sun:LAT,LON[,TIME][,NORTH])")
+        start = self.when()[0]
+        first = list(static)
+        for tr in tracks:
+            tr.reset()
+            first.append(tr.light(tr.update(start)))
+            tr.reset()
+        return static, tracks, first
+
+    def when(self):
+        """``(start datetime, speed)``."""
+        return parse_time_lapse(f"{self.start},{self.speed!r}")
+
+
+def parse_time_lapse(text: str):
+    """``START[,SPEED]`` -> (aware datetime, speed > 0). UsageError on bad input.
+
+    Examples
+    --------
+    >>> parse_time_lapse("2024-06-21T06:00+02:00,600")[1]
+    600.0
+    """
+    from .errors import LightError
+    from .lights.spec import parse_time  # deferred: the spec module stays light
+
+    start_text, sep, speed_text = str(text).rpartition(",")
+    if not sep:
+        start_text, speed_text = text, "1"
+    try:
+        speed = float(speed_text)
+    except ValueError:
+        raise UsageError(f"--time-lapse {text!r}: SPEED {speed_text!r} is not a number") from None
+    if not (math.isfinite(speed) and speed > 0):
+        raise UsageError(f"--time-lapse {text!r}: SPEED must be a positive number")
+    try:
+        start = parse_time(start_text.strip(), what="--time-lapse START")
+    except LightError as exc:
+        raise UsageError(str(exc)) from None
+    return start, speed
+
+
+def _time_lapse(d, lights):
+    """The :class:`TimeLapse` of the ``time_lapse`` / ``recompute_deg`` keys (None without ``time_lapse``)."""
+    deg = _value(d, "recompute_deg", float, 0.1)
+    if not (math.isfinite(deg) and deg >= 0):
+        raise UsageError(f"--recompute-deg {deg}: must be >= 0 degrees")
+    text = d.get("time_lapse")
+    if text is None:
+        return None
+    start, speed = parse_time_lapse(str(text))
+    if not any(isinstance(s, str) and s.strip().lower().startswith("sun:") for s in lights):
+        raise UsageError("--time-lapse needs a sun light (--light sun:LAT,LON[,TIME][,NORTH])")
+    return TimeLapse(start.isoformat(), speed, deg)
+
+
+@dataclass(frozen=True)
 class SceneSpec:
     """Everything a session needs, as picklable data (paths and spec strings).
 
@@ -238,6 +327,8 @@ class SceneSpec:
         Light specs (CONVENTIONS.md: ``point:X,Y,Z``, ``directional:X,Y,Z``, ``sun:LAT,LON,TIME[,NORTH]``,
         optional ``@W``) or parsed lights.
     options : RenderOptions
+    time_lapse : TimeLapse or None
+        Sun lights follow the frame times (video).
     """
 
     camera: object
@@ -245,6 +336,7 @@ class SceneSpec:
     model: ModelSpec
     lights: tuple
     options: RenderOptions = field(default_factory=RenderOptions)
+    time_lapse: TimeLapse | None = None
 
     def build(self, lights=None) -> Scene:
         """Load the files and parse the specs, in the order the command line reports problems.
@@ -271,11 +363,15 @@ class SceneSpec:
         caster = self.model.build()
         for msg in placement_warnings(caster, marker_length=tracker.get("marker_length")):
             log.warning(msg)
-        if lights is None:
+        static, tracks, time_lapse = None, [], None
+        if lights is None and self.time_lapse is not None:
+            static, tracks, lights = self.time_lapse.lights(self.lights)
+            time_lapse = self.time_lapse.when()
+        elif lights is None:
             lights = [parse_light(s) if isinstance(s, str) else s for s in self.lights]
         opts = self.options.check()
         _check_silhouette_name(opts.silhouette)
-        return Scene(intr, caster, list(lights), opts, tracker)
+        return Scene(intr, caster, list(lights), opts, tracker, static, tracks, time_lapse)
 
     def replace(self, **changes) -> SceneSpec:
         """A copy with some fields changed (``dataclasses.replace``)."""
@@ -294,6 +390,12 @@ class Scene:
     options : RenderOptions
     tracker : dict
         Keyword arguments of :class:`arshadow.tracking.tracker.MarkerTracker`.
+    static_lights : list of Light or None
+        With a time-lapse: the lights that do not move.
+    sun_tracks : list of arshadow.lights.spec.SunLightTrack
+        With a time-lapse: the suns following the frame times (``lights`` has them at the start).
+    time_lapse : (datetime, float) or None
+        ``(start, speed)`` of the time-lapse.
     """
 
     intrinsics: object
@@ -301,6 +403,9 @@ class Scene:
     lights: list
     options: RenderOptions
     tracker: dict
+    static_lights: list | None = None
+    sun_tracks: list = field(default_factory=list)
+    time_lapse: tuple | None = None
 
 
 def _check_silhouette_name(name: str) -> None:
@@ -314,10 +419,21 @@ def _check_silhouette_name(name: str) -> None:
 SCENE_KEYS = ("calib", "marker_length", "board", "dictionary", "marker_id", "refine", "model", "scale", "rotate",
               "place", "color", "lights", "soft_samples", "silhouette", "shadow_method", "opacity",
               "shadow_color", "aa", "ground_size", "no_object", "roi", "truncate", "fast_detect", "plan", "compose",
-              "shadowmap_size", "track_roi")
+              "shadowmap_size", "track_roi", "time_lapse", "recompute_deg")
 
 
-def _triple(v, key):
+def parse_triple(v, key: str) -> tuple[float, float, float]:
+    """Three finite numbers from ``"X,Y,Z"`` or a sequence: the one X,Y,Z parser (``--place``, ``--rotate``,
+    job files).
+
+    >>> parse_triple("0.1, 0, -2", "place")
+    (0.1, 0.0, -2.0)
+
+    Raises
+    ------
+    UsageError
+        Naming ``key``: not three numbers, or one not finite.
+    """
     if isinstance(v, str):
         v = v.split(",")
     try:
@@ -326,7 +442,7 @@ def _triple(v, key):
         raise UsageError(f"{key} {v!r}: expected three numbers") from None
     if len(t) != 3 or not all(math.isfinite(x) for x in t):
         raise UsageError(f"{key} {v!r}: expected three finite numbers")
-    return t
+    return t  # type: ignore[return-value]
 
 
 def _value(d, key, conv, default=None):
@@ -428,8 +544,8 @@ def scene_from_dict(d, base_dir=None) -> SceneSpec:
     if isinstance(calib, (str, Path)):
         calib = _path(calib, base_dir)
     model_spec = ModelSpec(str(model), scale=_value(d, "scale", float, 1.0),
-                           rotate=_triple(d.get("rotate", (0, 0, 0)), "rotate"),
-                           place=_triple(d.get("place", (0, 0, 0)), "place"), color=_rgb_text(d.get("color")))
+                           rotate=parse_triple(d.get("rotate", (0, 0, 0)), "rotate"),
+                           place=parse_triple(d.get("place", (0, 0, 0)), "place"), color=_rgb_text(d.get("color")))
     opts = {}
     if d.get("shadow_color") is not None:
         from .compose.composite import parse_rgb
@@ -444,7 +560,7 @@ def scene_from_dict(d, base_dir=None) -> SceneSpec:
         opts["draw_occluder"] = False
     return SceneSpec(camera=calib, tracker=tracker, model=model_spec,
                      lights=tuple(s if not isinstance(s, str) else s.strip() for s in lights),
-                     options=RenderOptions(**opts))
+                     options=RenderOptions(**opts), time_lapse=_time_lapse(d, lights))
 
 
 def scene_from_args(args, **overrides) -> SceneSpec:

@@ -140,6 +140,8 @@ class Session:
         self._renderer_factory = None if shared is not None else renderer
         self._gpu = None
         self._sun = None  # (static lights, sun tracks) of set_time
+        if self.scene.sun_tracks:  # a time-lapse of the spec (SceneSpec.time_lapse)
+            self.use_sun_tracks(self.scene.sun_tracks, self.scene.static_lights or ())
         self._calibs: dict = {}
         self._lenses: dict = {}
         self._work = Workspace()
@@ -420,6 +422,16 @@ class Session:
         of the lights that stay (:meth:`arshadow.plan.SceneGeometry.set_lights`); returns the number of
         (sample) lights to recompute."""
         return self.geometry.set_lights([parse_light(s) if isinstance(s, str) else s for s in lights])
+
+    @property
+    def sun_tracks(self) -> list:
+        """The sun tracks :meth:`set_time` moves (the spec's time-lapse, or :meth:`use_sun_tracks`)."""
+        return [] if self._sun is None else list(self._sun[1])
+
+    @property
+    def time_lapse(self):
+        """``(start datetime, speed)`` of the spec's time-lapse, or None."""
+        return self.scene.time_lapse
 
     def use_sun_tracks(self, tracks, static=()) -> None:
         """Let :meth:`set_time` move the sun: ``tracks`` (:func:`arshadow.lights.spec.parse_sun_track`) plus fixed

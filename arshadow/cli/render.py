@@ -3,18 +3,15 @@
 from __future__ import annotations
 
 import argparse
-import glob
 import logging
 import sys
-import time
 from pathlib import Path
 
+from ..errors import UsageError
+from ..scene import parse_triple, scene_from_args
 from . import EXIT_OK, EXIT_SOME_FAILED, error_line, quiet_opencv
 
 log = logging.getLogger(__name__)
-
-IMAGE_EXTS = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".ppm", ".pgm", ".pnm", ".jp2",
-              ".exr", ".hdr", ".pbm", ".sr", ".ras", ".pxm", ".pfm", ".avif"}
 
 EPILOG = """\
 examples:
@@ -30,15 +27,13 @@ exit status: 0 all done, 1 some inputs failed (the others were processed), 2 bad
 """
 
 
-def _floats(n: int, what: str):
+def _triple(what: str):
+    """An argparse type over :func:`arshadow.scene.parse_triple` (a bad value: a usage error, exit 2)."""
     def parse(text: str):
         try:
-            vals = tuple(float(v) for v in text.split(","))
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected {n} comma-separated numbers, got {text!r}") from None
-        if len(vals) != n or not all(v == v and abs(v) != float("inf") for v in vals):
-            raise argparse.ArgumentTypeError(f"expected {n} finite comma-separated numbers, got {text!r}")
-        return vals
+            return parse_triple(text, what)
+        except UsageError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
 
     return parse
 
@@ -74,9 +69,9 @@ def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> No
                    help="mesh file (OBJ/PLY/STL/GLB/OFF, metres) or primitive box:WX,WY,HZ | cylinder:R,H | "
                         "sphere:R | torus:R,r")
     o.add_argument("--scale", type=_positive("--scale"), default=1.0, metavar="S", help="uniform scale (first)")
-    o.add_argument("--rotate", type=_floats(3, "--rotate"), default=(0.0, 0.0, 0.0), metavar="RX,RY,RZ",
+    o.add_argument("--rotate", type=_triple("--rotate"), default=(0.0, 0.0, 0.0), metavar="RX,RY,RZ",
                    help="rotation in degrees, XYZ order (after scale)")
-    o.add_argument("--place", type=_floats(3, "--place"), default=(0.0, 0.0, 0.0), metavar="X,Y,Z",
+    o.add_argument("--place", type=_triple("--place"), default=(0.0, 0.0, 0.0), metavar="X,Y,Z",
                    help="translation in metres, world (marker) frame (last)")
     o.add_argument("--color", metavar="R,G,B", help="object colour, 8-bit sRGB 0..255 (default: the mesh's own)")
     s = p.add_argument_group("lights and shadows")
@@ -131,147 +126,43 @@ def register(subparsers) -> None:
 
 
 # --------------------------------------------------------------------------------------------------
-def expand_inputs(items) -> list[str]:
-    """Files as given; folders -> their image files (sorted); glob patterns -> matches (sorted).
-
-    Anything that matches nothing is kept as given, so that reading it reports the problem.
-    """
-    out = []
-    for it in items:
-        p = Path(it)
-        if p.is_dir():
-            files = sorted(str(f) for f in p.iterdir() if f.is_file() and f.suffix.lower() in IMAGE_EXTS)
-            out.extend(files if files else [it])
-        elif not p.exists() and any(c in it for c in "*?["):
-            matches = sorted(m for m in glob.glob(it) if Path(m).is_file())
-            out.extend(matches if matches else [it])
-        else:
-            out.append(it)
-    return out
-
-
-def build_scene(args, lights=None):
-    """Calibration, occluder, lights, options and tracker arguments from the parsed options
-    (:func:`arshadow.scene.scene_from_args`, then :meth:`~arshadow.scene.SceneSpec.build`; ArshadowError
-    -> exit 2).
-
-    ``lights``: lights the caller parsed itself (``arshadow video --time-lapse`` turns sun specs into
-    tracks); default: ``--light`` parsed with :func:`arshadow.lights.spec.parse_light`.
-
-    Returns
-    -------
-    intrinsics, caster, lights, options, tracker (dict of MarkerTracker keyword arguments)
-    """
-    from ..scene import scene_from_args
-
-    scene = scene_from_args(args).build(lights=lights)
-    return scene.intrinsics, scene.caster, scene.lights, scene.options, dict(scene.tracker)
-
-
-def output_paths(inputs, outdir: Path, keep_format: bool):
-    """Map each input to ``(output, mask)`` paths; stems that collide get ``_2``, ``_3``... ."""
-    seen: dict[str, int] = {}
-    res = []
-    for inp in inputs:
-        p = Path(inp)
-        stem = p.stem or "image"
-        n = seen.get(stem.lower(), 0) + 1
-        seen[stem.lower()] = n
-        if n > 1:
-            stem = f"{stem}_{n}"
-        ext = p.suffix.lower() if keep_format and p.suffix.lower() in IMAGE_EXTS else ".png"
-        res.append((outdir / f"{stem}{ext}", outdir / f"{stem}.shadow.png"))
-    return res
-
-
 def run(args) -> int:
-    from ..io import write_json
+    # deferred: the engine (OpenCV, meshes) loads when a command runs, not at start-up (cli/__init__.py)
+    from ..io import check_output_file, check_output_folder, write_json
+    from ..photos import expand_inputs, photo_jobs, render_photos
     from ..report import make_report
-    from ..scene import scene_from_args
     from ..session import Session
 
     debug = bool(getattr(args, "debug", False))
     quiet_opencv(debug)
-    from ..io import check_output_file, check_output_folder
-
-    inputs = expand_inputs(args.images)
+    jobs = photo_jobs(expand_inputs(args.images), Path(args.output), save_mask=args.save_mask,
+                      keep_format=args.keep_format)
     # output paths first: a bad -o / --report is one usage error before any work, not one per photo
     outdir = check_output_folder(args.output, "-o")
     if args.report:
         check_output_file(args.report, "--report")
-    session = Session(scene_from_args(args))  # loads the scene: a bad one is exit 2
-    with session:
-        items, failed = _render_all(args, session, inputs, outdir, debug)
+    with Session(scene_from_args(args)) as session:  # loads the scene: a bad one is exit 2
+        try:  # made now (with the GL context): a bad --aa is a usage error (exit 2), not a per-photo one
+            session.renderer  # noqa: B018
+        except UsageError as exc:
+            raise UsageError(f"--aa {args.aa} / --shadowmap-size: {exc}") from None
+        items = render_photos(session, jobs, debug=debug, on_done=lambda *a: _print_done(args, *a))
     if args.report:
         write_json(args.report, make_report(items))
-    if not args.quiet and len(inputs) > 1:
-        print(f"{len(inputs) - failed} of {len(inputs)} photos rendered into {outdir}", file=sys.stdout)
+    failed = sum(i.status != "ok" for i in items)
+    if not args.quiet and len(jobs) > 1:
+        print(f"{len(jobs) - failed} of {len(jobs)} photos rendered into {outdir}", file=sys.stdout)
     return EXIT_SOME_FAILED if failed else EXIT_OK
 
 
-def _render_all(args, session, inputs, outdir, debug):
-    from ..errors import ArshadowError, CalibrationError, ImageError, MarkerNotFoundError, UsageError
-    import cv2
-
-    from ..io import apply_orientation, exif_orientation, read_image, resolved_path, write_image
-    from ..report import ReportItem
-
-    import numpy as np
-
-    items = []
-    failed = 0
-    buffers: dict = {}
-    paths = output_paths(inputs, outdir, args.keep_format)
-    given = {resolved_path(i) for i in inputs}  # outputs never replace an input
-    try:  # made now (with the GL context): a bad --aa is a usage error (exit 2), not a per-photo one
-        session.renderer  # noqa: B018
-    except UsageError as exc:
-        raise UsageError(f"--aa {args.aa} / --shadowmap-size: {exc}") from None
-    for inp, (out_path, mask_path) in zip(inputs, paths):
-        item = ReportItem(input=str(inp))
-        t0 = time.perf_counter()
-        try:
-            if resolved_path(out_path) in given or resolved_path(mask_path) in given:
-                raise ImageError(f"{out_path}: output would overwrite an input; choose another -o folder")
-            image = read_image(inp)
-            orientation = exif_orientation(inp)  # processed as stored (the calibration's frame)
-            bufs = buffers.setdefault(image.shape[:2], (np.empty(image.shape, np.uint8),
-                                                        np.empty(image.shape[:2], np.uint8)))
-            # results are encoded right away, so one output buffer per size is reused
-            res = session.process(image, name=str(inp), want_mask=args.save_mask, out=bufs[0], mask_out=bufs[1])
-            out, mask, item = res.composite, res.mask, res.item
-            params = [int(_imwrite_quality(out_path)), 95] if _imwrite_quality(out_path) else None
-            # outputs upright as a viewer shows the input (EXIF orientation; they carry no EXIF)
-            write_image(out_path, apply_orientation(out, orientation), params)
-            item.output = str(out_path)
-            if args.save_mask:
-                write_image(mask_path, apply_orientation(mask, orientation))
-                item.mask = str(mask_path)
-            if not args.quiet:
-                t = item.timings_ms.get("total", 0.0)
-                print(f"{inp} -> {out_path}  ({item.mode or 'no light casts a shadow'}, {t:.1f} ms)",
-                      file=sys.stdout)
-        except MarkerNotFoundError as exc:
-            failed += 1
-            item.status, item.error = "no_marker", str(exc)
-            print(_error_line(inp, exc), file=sys.stderr)
-        except (ImageError, CalibrationError, ArshadowError) as exc:
-            if debug:
-                raise
-            failed += 1
-            item.status, item.error = "error", str(exc)
-            print(_error_line(inp, exc), file=sys.stderr)
-        except (OSError, MemoryError, cv2.error) as exc:  # cv2.error: a decoder/detector the checks missed
-            if debug:
-                raise
-            failed += 1
-            item.status, item.error = "error", f"{type(exc).__name__}: {exc}"
-            print(_error_line(inp, exc), file=sys.stderr)
-        item.input = str(inp)
-        if item.status != "ok":
-            item.timings_ms = {"total": round((time.perf_counter() - t0) * 1e3, 3)}
-        items.append(item)
-    return items, failed
+def _print_done(args, job, item, res, err) -> None:
+    """One line per photo: the output (stdout, unless ``--quiet``) or the problem (stderr)."""
+    if err is not None:
+        print(_error_line(job.input, err), file=sys.stderr)
+    elif not args.quiet:
+        t = item.timings_ms.get("total", 0.0)
+        print(f"{job.input} -> {job.output}  ({item.mode or 'no light casts a shadow'}, {t:.1f} ms)",
+              file=sys.stdout)
 
 
 def _error_line(inp, exc) -> str:
@@ -280,14 +171,3 @@ def _error_line(inp, exc) -> str:
     if str(inp) in msg:
         return f"arshadow render: error: {msg}"
     return error_line("render", str(inp), msg)
-
-
-def _imwrite_quality(path: Path):
-    import cv2
-
-    ext = path.suffix.lower()
-    if ext in (".jpg", ".jpeg"):
-        return cv2.IMWRITE_JPEG_QUALITY
-    if ext == ".webp":
-        return cv2.IMWRITE_WEBP_QUALITY
-    return None

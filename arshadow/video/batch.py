@@ -31,16 +31,15 @@ import cv2
 
 from .. import __version__
 from ..errors import ArshadowError, MarkerNotFoundError, UsageError
-from ..io import check_output_folder, read_image, resolved_path, write_image, write_json
+from ..io import IMAGE_EXTENSIONS, InputGuard, check_output_folder, unique_stems, write_json
 from ..io import clean_temporaries as clean_io_temporaries
 from ..session import Session
 from .decode import looks_like_sequence
-from .engine import SessionBackend, process_video, unique_stems, video_outputs
+from ..photos import PhotoJob, render_photo_file
+from .engine import SessionBackend, process_video, video_outputs
 
 __all__ = ["VIDEO_EXTENSIONS", "BatchItem", "clean_temporaries", "plan_batch", "process_item", "run_batch"]
 
-PHOTO_EXTENSIONS = {".jpg", ".jpeg", ".jpe", ".png", ".bmp", ".dib", ".tif", ".tiff", ".webp", ".jp2", ".pbm", ".pgm",
-                    ".ppm", ".pnm", ".pxm", ".sr", ".ras", ".exr", ".hdr", ".pic", ".avif"}
 VIDEO_EXTENSIONS = {".mp4", ".m4v", ".mov", ".mkv", ".avi", ".webm", ".mpg", ".mpeg", ".ts", ".mts", ".wmv", ".flv"}
 RECORDS = ".arshadow-batch"
 
@@ -69,7 +68,7 @@ def _kind(path: str) -> str:
     ext = Path(path).suffix.lower()
     if ext in VIDEO_EXTENSIONS or looks_like_sequence(path):
         return "video"
-    if ext in PHOTO_EXTENSIONS or not Path(path).is_file():
+    if ext in IMAGE_EXTENSIONS or not Path(path).is_file():
         return "photo"
     try:
         return "photo" if cv2.haveImageReader(path) else "video"
@@ -152,18 +151,18 @@ def process_item(spec, item: BatchItem, outdir, opts, save_mask: bool, fingerpri
         session = session if session is not None else _session_for(spec)
         if item.kind == "video":
             outs = video_outputs(outdir, item.stem, opts)
-            vs, _ = process_video(SessionBackend(session), item.input, outs, opts, name=item.input)
+            vs, _ = process_video(SessionBackend(session, session.sun_tracks, session.time_lapse), item.input, outs,
+                                  opts, name=item.input)
             summary.update({k: vs[k] for k in ("status", "warnings", "frames", "frames_ok", "frames_held",
                                                "frames_no_marker", "truncated", "decode_errors", "fps_processed")})
             summary["outputs"] = [str(p) for p in (outs["video"], outs["mask"], outs["frames"], outs["sheet"])
                                   if p is not None and Path(p).exists()]
         else:
-            img = read_image(item.input)
-            res = session.process(img, name=item.input, want_mask=save_mask)
-            out = write_image(outdir / f"{item.stem}.png", res.composite)
-            summary["outputs"] = [str(out)]
-            if save_mask:
-                summary["outputs"].append(str(write_image(outdir / f"{item.stem}.shadow.png", res.mask)))
+            # the photo loop's one photo (EXIF orientation, upright outputs), as arshadow render
+            job = PhotoJob(item.input, outdir / f"{item.stem}.png",
+                           outdir / f"{item.stem}.shadow.png" if save_mask else None)
+            res = render_photo_file(session, job)
+            summary["outputs"] = [res.item.output] + ([res.item.mask] if save_mask else [])
             summary["status"] = "ok"
             summary["item"] = res.item.to_dict()
     except MarkerNotFoundError as exc:  # a photo without the marker: done (a rerun would find none either)
@@ -221,13 +220,13 @@ def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=Non
     items = plan_batch(inputs)
     results: list = [None] * len(items)
     todo = []
-    given = {resolved_path(i) for i in inputs}
+    guard = InputGuard(inputs)
     for k, it in enumerate(items):
-        clash = [p for p in _outputs(it, outdir, opts, save_mask) if resolved_path(p) in given]
-        if clash:  # inputs are never modified
+        try:  # inputs are never modified
+            guard.check(_outputs(it, outdir, opts, save_mask))
+        except ArshadowError as exc:
             results[k] = {"input": it.input, "kind": it.kind, "stem": it.stem, "status": "error", "skipped": False,
-                          "error": f"{clash[0]}: output would overwrite an input; choose another -o folder",
-                          "outputs": [], "warnings": []}
+                          "error": str(exc), "outputs": [], "warnings": []}
             continue
         fp = _fingerprint(it, spec, opts, save_mask)
         rec = _done(outdir, it, fp)

@@ -22,7 +22,6 @@ frame), ``.sheet.jpg`` (contact sheet), and with a mask ``.shadow.mkv`` (lossles
 from __future__ import annotations
 
 import queue
-import re
 import threading
 import time
 from dataclasses import dataclass
@@ -30,8 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ArshadowError, ImageError, UsageError
-from ..io import clean_temporaries, resolved_path
+from ..errors import ArshadowError, UsageError
+from ..io import InputGuard, clean_temporaries, unique_stems
 from ..report import ReportItem
 from .avio import VIDEO_CODECS
 from .decode import decode_into, open_reader
@@ -275,20 +274,6 @@ def _summary(name, outputs, reader, composer: FrameComposer, sink: EncodeSink, o
     return summary
 
 
-def unique_stems(inputs) -> list[str]:
-    """An output stem per input (``clip``, ``clip_2``, ... when names collide, case-insensitively; an
-    image-sequence pattern ``frames/img_%04d.png`` gives ``img``, ``frames/%04d.png`` gives ``frames``)."""
-    seen: dict[str, int] = {}
-    out = []
-    for inp in inputs:
-        p = Path(str(inp))  # an image-sequence pattern frames/img_%04d.png: "img" (or its folder's name)
-        stem = re.sub(r"%0?\d*d", "", p.stem).replace("%", "").strip("_.- ") or p.parent.name or "video"
-        n = seen.get(stem.lower(), 0) + 1
-        seen[stem.lower()] = n
-        out.append(stem if n == 1 else f"{stem}_{n}")
-    return out
-
-
 def run_videos(backend, inputs, outdir, opts: EngineOptions, *, progress_factory=None, on_error=None):
     """Process several videos one after another; a failed video is recorded and the others go on.
 
@@ -311,14 +296,12 @@ def run_videos(backend, inputs, outdir, opts: EngineOptions, *, progress_factory
         Per-frame items when ``opts.collect_items``; an unreadable video has one item with ``frame: None``.
     """
     summaries, items = [], []
-    given = {resolved_path(str(v)) for v in inputs}  # outputs never replace an input
+    guard = InputGuard(inputs)  # outputs never replace an input
     for inp, stem in zip(inputs, unique_stems(inputs)):
         outs = video_outputs(outdir, stem, opts)
         close = None
         try:
-            for p in outs.values():
-                if p is not None and resolved_path(p) in given:
-                    raise ImageError(f"{p}: output would overwrite an input; choose another -o folder")
+            guard.check(outs.values())
             clean_temporaries(outdir, stem)  # left by a run killed while writing this video
             update = None
             if progress_factory is not None:

@@ -1,0 +1,202 @@
+"""The photo loop: inputs -> a session -> upright outputs and report items, one photo's failure not stopping
+the others. ``arshadow render``, ``arshadow batch`` (its photos) and ``arshadow demo`` all go through it.
+
+::
+
+    from arshadow.photos import expand_inputs, photo_jobs, render_photos
+
+    jobs = photo_jobs(expand_inputs(["shots/"]), Path("out"), save_mask=True)
+    with Session(spec) as session:
+        items = render_photos(session, jobs)          # ReportItem per photo (status ok / no_marker / error)
+
+Per photo (:func:`render_photo_file`): the overwrite guard (an output never replaces an input), the photo
+read as stored with its EXIF orientation noted (it is processed in the calibration's frame), one output
+buffer per photo size reused (the result is encoded at once), the composite and mask turned upright as a
+viewer shows the input (the outputs carry no EXIF), JPEG / WebP written at quality 95.
+"""
+
+from __future__ import annotations
+
+import glob
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from .errors import ArshadowError, MarkerNotFoundError
+from .io import (
+    IMAGE_EXTENSIONS,
+    InputGuard,
+    apply_orientation,
+    exif_orientation,
+    read_image,
+    unique_stems,
+    write_image,
+)
+from .report import ReportItem
+
+__all__ = ["PhotoJob", "expand_inputs", "photo_jobs", "render_photo_file", "render_photos", "write_params",
+           "contact_sheet", "caption_panel"]
+
+
+@dataclass(frozen=True)
+class PhotoJob:
+    """One photo and where its outputs go (``mask`` None: no mask written)."""
+
+    input: str
+    output: Path
+    mask: Path | None = None
+
+
+def expand_inputs(items) -> list[str]:
+    """Files as given; folders -> their image files (sorted, :data:`arshadow.io.IMAGE_EXTENSIONS`); glob
+    patterns -> matches (sorted). Anything that matches nothing is kept as given, so that reading it
+    reports the problem."""
+    out = []
+    for it in items:
+        p = Path(it)
+        if p.is_dir():
+            files = sorted(str(f) for f in p.iterdir() if f.is_file() and f.suffix.lower() in IMAGE_EXTENSIONS)
+            out.extend(files if files else [it])
+        elif not p.exists() and any(c in it for c in "*?["):
+            matches = sorted(m for m in glob.glob(it) if Path(m).is_file())
+            out.extend(matches if matches else [it])
+        else:
+            out.append(it)
+    return out
+
+
+def photo_jobs(inputs, outdir, *, save_mask: bool = False, keep_format: bool = False) -> list[PhotoJob]:
+    """A :class:`PhotoJob` per input: ``DIR/<stem>.png`` (the input's format with ``keep_format``) and
+    ``DIR/<stem>.shadow.png``; stems that collide get ``_2``, ``_3``... (:func:`arshadow.io.unique_stems`)."""
+    outdir = Path(outdir)
+    jobs = []
+    for inp, stem in zip(inputs, unique_stems(inputs)):
+        suffix = Path(inp).suffix.lower()
+        ext = suffix if keep_format and suffix in IMAGE_EXTENSIONS else ".png"
+        jobs.append(PhotoJob(str(inp), outdir / f"{stem}{ext}", outdir / f"{stem}.shadow.png" if save_mask else None))
+    return jobs
+
+
+def write_params(path) -> list[int] | None:
+    """``cv2.imwrite`` parameters for an output: quality 95 for JPEG and WebP, else None."""
+    ext = Path(path).suffix.lower()
+    if ext in (".jpg", ".jpeg", ".jpe"):
+        return [int(cv2.IMWRITE_JPEG_QUALITY), 95]
+    if ext == ".webp":
+        return [int(cv2.IMWRITE_WEBP_QUALITY), 95]
+    return None
+
+
+def render_photo_file(session, job: PhotoJob, *, buffers: dict | None = None):
+    """Render one photo file and write its outputs (atomically, upright).
+
+    Parameters
+    ----------
+    session : arshadow.session.Session
+    job : PhotoJob
+    buffers : dict, optional
+        ``{(H, W): (composite, mask)}`` output buffers reused per photo size (filled as needed).
+
+    Returns
+    -------
+    arshadow.session.FrameResult
+        Its ``item`` has ``output`` (and ``mask``) set; ``composite`` / ``mask`` are in the stored
+        orientation (and are the reused buffers).
+
+    Raises
+    ------
+    MarkerNotFoundError, ArshadowError, OSError, cv2.error
+        As :meth:`arshadow.session.Session.process` and the reading / writing.
+    """
+    image = read_image(job.input)
+    orientation = exif_orientation(job.input)  # processed as stored (the calibration's frame)
+    out = mask_out = None
+    if buffers is not None:
+        out, mask_out = buffers.setdefault(image.shape[:2], (np.empty(image.shape, np.uint8),
+                                                             np.empty(image.shape[:2], np.uint8)))
+    res = session.process(image, name=job.input, want_mask=job.mask is not None, out=out, mask_out=mask_out)
+    # outputs upright as a viewer shows the input (EXIF orientation; they carry no EXIF)
+    res.item.output = str(write_image(job.output, apply_orientation(res.composite, orientation),
+                                      write_params(job.output)))
+    if job.mask is not None:
+        res.item.mask = str(write_image(job.mask, apply_orientation(res.mask, orientation)))
+    return res
+
+
+#: ``on_done(job, item, result or None, error or None)`` after each photo (printing, thumbnails)
+OnDone = Callable[[PhotoJob, ReportItem, object, BaseException | None], None]
+
+
+def render_photos(session, jobs, *, debug: bool = False, on_done: OnDone | None = None,
+                  guard: InputGuard | None = None) -> list[ReportItem]:
+    """Render every photo; a photo that fails is recorded (``status`` ``no_marker`` or ``error``, with
+    ``error``) and the others go on.
+
+    Parameters
+    ----------
+    session : arshadow.session.Session
+    jobs : list of PhotoJob
+    debug : bool
+        Re-raise errors other than a missing marker (tracebacks).
+    on_done : callable, optional
+        Called after each photo (:data:`OnDone`).
+    guard : arshadow.io.InputGuard, optional
+        Default: the jobs' inputs (an output that would replace one is an error of that photo).
+
+    Returns
+    -------
+    list of ReportItem
+        One per job, in order.
+    """
+    guard = guard if guard is not None else InputGuard([j.input for j in jobs])
+    buffers: dict = {}
+    items = []
+    for job in jobs:
+        t0 = time.perf_counter()
+        res, err = None, None
+        try:
+            guard.check([job.output, job.mask])
+            res = render_photo_file(session, job, buffers=buffers)
+            item = res.item
+        except MarkerNotFoundError as exc:
+            err, item = exc, ReportItem(input=job.input, status="no_marker", error=str(exc))
+        except (ArshadowError, OSError, MemoryError, cv2.error) as exc:  # cv2.error: a decoder the checks missed
+            if debug:
+                raise
+            msg = str(exc) if isinstance(exc, ArshadowError) else f"{type(exc).__name__}: {exc}"
+            err, item = exc, ReportItem(input=job.input, status="error", error=msg)
+        if err is not None:
+            item.timings_ms = {"total": round((time.perf_counter() - t0) * 1e3, 3)}
+        items.append(item)
+        if on_done is not None:
+            on_done(job, item, res, err)
+    return items
+
+
+def contact_sheet(tiles, columns: int, gap: int, background: int) -> np.ndarray:
+    """Tile equally sized ``(h, w, 3) uint8`` images row by row, ``gap`` pixels apart and around, on a
+    grey ``background``; the one contact sheet of the package (the demo's, a video's).
+
+    >>> contact_sheet([np.zeros((2, 3, 3), np.uint8)] * 3, columns=2, gap=1, background=9).shape
+    (7, 9, 3)
+    """
+    th, tw = tiles[0].shape[:2]
+    rows = (len(tiles) + columns - 1) // columns
+    sheet = np.full((rows * th + (rows + 1) * gap, columns * tw + (columns + 1) * gap, 3), background, np.uint8)
+    for i, t in enumerate(tiles):
+        r, c = divmod(i, columns)
+        y, x = gap + r * (th + gap), gap + c * (tw + gap)
+        sheet[y : y + th, x : x + tw] = t
+    return sheet
+
+
+def caption_panel(image, caption: str, width: int = 640, height: int = 360, bar: int = 30) -> np.ndarray:
+    """A ``width x height`` thumbnail of ``image`` with a dark caption bar of ``bar`` pixels below it."""
+    th = cv2.resize(image, (width, height), interpolation=cv2.INTER_AREA)
+    strip = np.full((bar, width, 3), 32, np.uint8)
+    cv2.putText(strip, caption, (8, bar - 10), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (235, 235, 235), 1, cv2.LINE_AA)
+    return np.vstack([th, strip])
