@@ -272,3 +272,85 @@ def render_lit_photo(intrinsics: Intrinsics, cam_from_world, *, marker_length=0.
         light_kind=light_kind, light=light, ambient=ambient, direct=direct, shadow_ratio=ratio,
         paper_linear=paper_lin, probe_mask=probe_mask,
     )
+
+
+#: (lat, lon, time) of the sun cases: elevations between 25 and 60 degrees
+SUN_CASES = (("48.85", "2.35", "2026-06-21T18:00+02:00"), ("52.2", "0.12", "2026-04-10T10:30+01:00"),
+             ("40.4", "-3.7", "2026-09-22T16:00+02:00"), ("35.7", "139.7", "2026-03-20T09:30+09:00"))
+
+
+def random_lit_case(rng, intrinsics: Intrinsics, kind: str = "directional", *, marker_length=0.05,
+                    effects: bool = True) -> dict:
+    """A random case of the light estimate's test distribution (docs/light.md), with its truth.
+
+    A 5 x 5 x (8..12) cm box probe beside the marker (6..12 cm from its centre, turned at random), a light
+    at elevation 25..60 degrees (directional, a sun at one of :data:`SUN_CASES` with the world turned by
+    a random NORTH, or a point light 0.35..0.8 m from the probe), ambient 0.2..0.6 of the direct light with
+    a random tint, exposure 0.45..0.9, white balance gains 0.85..1.15, blur 0..1.2 px, noise 0.5..3 codes,
+    JPEG 75..95; the camera 0.4..0.6 m away, looking at the marker, the probe and the shadow.
+
+    Returns ``{"photo": LitPhoto, "probe": spec, "probe_place": (3,), "probe_rotate": (3,), "kind": spec
+    for estimate_light, "north_deg": float or None}``.
+    """
+    from .lights.spec import parse_light  # noqa: PLC0415  (keeps the synth modules light to import)
+    from .synth import look_at_pose  # noqa: PLC0415
+
+    h = float(rng.uniform(0.08, 0.12))
+    probe = f"box:0.05,0.05,{h:.4f}"
+    ang = rng.uniform(0, 2 * np.pi)
+    dist = rng.uniform(0.06, 0.12)
+    place = (float(dist * np.cos(ang)), float(dist * np.sin(ang)), 0.0)
+    rot = (0.0, 0.0, float(rng.uniform(0, 90)))
+    north = None
+    kind_spec = kind
+    if kind == "sun":
+        lat, lon, when = SUN_CASES[int(rng.integers(len(SUN_CASES)))]
+        north = float(rng.uniform(0, 360))
+        light = np.asarray(parse_light(f"sun:{lat},{lon},{when},{north}").vector, np.float64)
+        light_kind, kind_spec = "directional", f"sun:{lat},{lon},{when}"
+    else:
+        light = light_vector(rng.uniform(0, 360), rng.uniform(25, 60))
+        light_kind = "directional"
+        if kind == "point":
+            light = np.array([place[0], place[1], h]) + rng.uniform(0.35, 0.8) * light
+            light_kind = "point"
+    amb = rng.uniform(0.2, 0.6) * rng.uniform(0.85, 1.15, 3)
+    direct = rng.uniform(0.85, 1.15, 3)
+    scale = 1.0 / (amb + direct * 0.7).max()
+    # the camera on the shadow's side (the shadow in front of the probe), the marker, the probe and the
+    # shadow in view, the probe not hiding the marker
+    foot = np.array(place)
+    tip = foot[:2] - (h / light[2]) * light[:2] if light_kind == "directional" else \
+        light[:2] + light[2] / (light[2] - h) * (foot[:2] - light[:2])
+    pts = np.array([[-0.04, -0.04, 0], [0.04, 0.04, 0], [-0.04, 0.04, 0], [0.04, -0.04, 0], [*foot[:2], h],
+                    [*tip, 0]])
+    target = np.r_[pts[:, :2].mean(axis=0), 0.0]
+    away = math.atan2(tip[1] - foot[1], tip[0] - foot[0])
+    box = load_occluder(probe, rotate=rot, place=place).vertices
+    for attempt in range(300):
+        az = away + math.radians(rng.uniform(-70, 70))
+        tilt = math.radians(rng.uniform(20, 50))
+        d = rng.uniform(0.4, 0.6) * (1.0 + attempt / 150.0)  # farther when it does not fit
+        eye = target + d * np.array([math.sin(tilt) * math.cos(az), math.sin(tilt) * math.sin(az), math.cos(tilt)])
+        pose = look_at_pose(eye, target)
+        uv = intrinsics.project(pts, pose)
+        if not (np.all(np.isfinite(uv)) and np.all(uv >= 40) and np.all(uv[:, 0] <= intrinsics.width - 41)
+                and np.all(uv[:, 1] <= intrinsics.height - 41)):
+            continue
+        quad = intrinsics.project(pts[[0, 3, 1, 2]], pose).astype(np.float32)
+        hull = cv2.convexHull(intrinsics.project(np.asarray(box), pose).astype(np.float32))
+        if cv2.intersectConvexConvex(quad, hull)[0] <= 0.0:
+            break
+    else:
+        raise UsageError("random_lit_case: no camera sees the marker, the probe and its shadow")
+    kw = {}
+    if effects:
+        kw = {"blur_sigma": float(rng.uniform(0, 1.2)), "noise_sigma": float(rng.uniform(0.5, 3.0)),
+              "jpeg_quality": int(rng.integers(75, 96)), "exposure": float(rng.uniform(0.45, 0.9)),
+              "white_balance": tuple(float(v) for v in rng.uniform(0.85, 1.15, 3)),
+              "seed": int(rng.integers(1 << 30))}
+    photo = render_lit_photo(intrinsics, pose, marker_length=marker_length, probe=probe, probe_place=place,
+                             probe_rotate=rot, light_kind=light_kind, light=light, ambient=amb * scale,
+                             direct=direct * scale, supersample=2, **kw)
+    return {"photo": photo, "probe": probe, "probe_place": place, "probe_rotate": rot, "kind": kind_spec,
+            "north_deg": north}

@@ -100,13 +100,14 @@ def _grids(img, intr, pose, caster, verts, faces, L, paper, convex):
 
 
 def _ratio(evs, h) -> tuple:
-    """Per-channel shadow / lit of the ground: the log-linear fit per channel within 3 cm of the shadow."""
+    """Per-channel shadow / lit of the ground: the high-passed log-linear fit per channel within 3 cm of the
+    shadow, pooled over the frames."""
     num = np.zeros(3)
     den = 0.0
     for ev in evs:
         S = shadow_coverage(ev, h)
         band = cv2.dilate((S > 0).astype(np.uint8), np.ones((3, 3), np.uint8),
-                          iterations=max(1, int(round(0.03 / ev.step)))) > 0
+                          iterations=max(1, round(0.03 / ev.step))) > 0
         n = int(np.count_nonzero(ev.used & band))
         for c in range(3):
             _, d, _, _ = fit_levels(ev, S, values=np.log(np.maximum(ev.rgb[:, :, c], 1e-6)), weight=band)

@@ -2,7 +2,7 @@
 
 The photo is resampled on a regular grid of the ground plane z = 0 around the probe (every grid point
 projected through the camera, lens distortion included; bilinear in linear light). A sample is *used* when
-it is inside the image, unsaturated, not seen through the probe (the probe's own faces, dilated by 2 px)
+it is inside the image, unsaturated, not seen through the probe (the probe's own faces, dilated by :data:`PROBE_SEAM_PX`)
 and not on the marker's pattern. Samples that look like the marker's paper (its chromaticity, bright) form
 a second albedo class. The shadow model of a candidate light is the probe's exact ground shadow (the
 projection of its vertices from the light: their convex hull for a convex probe, the union of its projected
@@ -36,6 +36,8 @@ __all__ = ["Evidence", "build_evidence", "shadow_coverage", "fit_levels", "LUMA"
 LUMA = np.array([0.2126, 0.7152, 0.0722])
 #: supersampling of the shadow raster (per grid cell side)
 SS = 4
+#: the probe's image is left out with this seam, pixels (its faces bleed into the ground through blur)
+PROBE_SEAM_PX = 4.0
 
 
 @dataclass
@@ -173,7 +175,7 @@ def build_evidence(image_bgr: np.ndarray, intr: Intrinsics, cam_from_world, vert
     pin[front] = intr.project(pts[front], pose, distort=False)
     vuse = np.flatnonzero(used)
     uvp = intr.project(np.asarray(verts, np.float64), pose, distort=False)
-    on_probe = _probe_footprint(pin[vuse], uvp, np.asarray(faces), 2.0)
+    on_probe = _probe_footprint(pin[vuse], uvp, np.asarray(faces), PROBE_SEAM_PX)
     used[vuse[on_probe]] = False
     m = 0.5 * marker_length * 1.08
     used &= ~((np.abs(pts[:, 0]) <= m) & (np.abs(pts[:, 1]) <= m))
