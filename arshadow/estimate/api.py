@@ -14,7 +14,8 @@ from ..errors import EstimateError, ImageError, MarkerNotFoundError, UsageError
 from ..geometry.mesh import load_occluder
 from ..io import read_image, to_bgr8
 from ..lights.spec import parse_light
-from ..tracking.marker import DEFAULT_DICTIONARY, MarkerTracker
+from ..tracking.dictionary import DEFAULT_DICTIONARY
+from ..tracking.tracker import MarkerTracker
 from .exposure import Exposure, measure_exposure
 from .light import fit_directional, fit_point, fit_sun
 from .result import LightEstimate

@@ -21,7 +21,7 @@ import numpy as np
 from ..camera import Intrinsics
 from ..compose.composite import SRGB_TO_LINEAR
 from ..errors import ArshadowError
-from ..tracking.marker import get_dictionary, marker_bits
+from ..tracking.dictionary import get_dictionary, marker_bits
 
 __all__ = ["Exposure", "ExposureError", "measure_exposure", "smooth_exposures", "sample_linear"]
 
