@@ -328,7 +328,7 @@ def random_lit_case(rng, intrinsics: Intrinsics, kind: str = "directional", *, m
     away = math.atan2(tip[1] - foot[1], tip[0] - foot[0])
     box = load_occluder(probe, rotate=rot, place=place).vertices
     for attempt in range(300):
-        az = away + math.radians(rng.uniform(-70, 70))
+        az = away + math.radians(rng.uniform(-1, 1) * min(180.0, 70.0 + attempt))
         tilt = math.radians(rng.uniform(20, 50))
         d = rng.uniform(0.4, 0.6) * (1.0 + attempt / 150.0)  # farther when it does not fit
         eye = target + d * np.array([math.sin(tilt) * math.cos(az), math.sin(tilt) * math.sin(az), math.cos(tilt)])

@@ -19,7 +19,7 @@ from ..tracking.tracker import MarkerTracker
 from .exposure import Exposure, measure_exposure
 from .light import fit_directional, fit_point, fit_sun
 from .result import LightEstimate
-from .shadow import build_evidence, fit_levels, shadow_coverage
+from .shadow import build_evidence, edge_pairs, fit_levels, shadow_coverage
 
 __all__ = ["estimate_light", "VIDEO_EXTENSIONS", "MAX_FRAMES"]
 
@@ -70,7 +70,8 @@ def _probe_in_view(intr, pose, verts, name):
 
 
 def _grids(img, intr, pose, caster, verts, faces, L, paper, convex):
-    """The coarse evidence (the whole reach of the shadow) and a builder of fine evidence."""
+    """The coarse evidence (the whole reach of the shadow), a builder of fine evidence and the size of a
+    pixel on the ground at the probe (metres)."""
     lo, hi = verts.min(axis=0), verts.max(axis=0)
     centre = 0.5 * (lo[:2] + hi[:2])
     radius = 0.5 * float(np.linalg.norm(hi[:2] - lo[:2]))
@@ -97,12 +98,29 @@ def _grids(img, intr, pose, caster, verts, faces, L, paper, convex):
         return build_evidence(img, intr, pose, verts, faces, marker_length=L, paper_rgb=paper, center=c,
                               half=half, step=step, convex=convex, sigma=sigma)
 
-    return coarse, fine
+    return coarse, fine, px
 
 
-def _ratio(evs, h) -> tuple:
-    """Per-channel shadow / lit of the ground: the high-passed log-linear fit per channel within 3 cm of the
-    shadow, pooled over the frames."""
+#: distances from a shadow's edge at which its two sides are compared (metres, at least 3 pixels)
+EDGE_DISTANCES = (0.003, 0.005, 0.008)
+
+
+def _ratio(evs, h, px) -> tuple:
+    """Per-channel shadow / lit of the ground: the median, over pairs of points straddling the shadow's edge
+    (:func:`arshadow.estimate.shadow.edge_pairs`, a few millimetres each side, where the floor's texture is
+    nearly the same), of the ratio inside / outside; the high-passed fit within 3 cm of the shadow when
+    fewer than 30 pairs are visible."""
+    ins, outs = [], []
+    for ev, p in zip(evs, px):
+        S = shadow_coverage(ev, h)
+        for d in EDGE_DISTANCES:
+            a, b = edge_pairs(ev, S, max(d, 3.0 * p))
+            ins.append(a)
+            outs.append(b)
+    a, b = np.concatenate(ins), np.concatenate(outs)
+    if len(a) >= 30:
+        lr = np.log(np.maximum(a, 1e-6)) - np.log(np.maximum(b, 1e-6))
+        return tuple(float(math.exp(v)) for v in np.median(lr, axis=0))
     num = np.zeros(3)
     den = 0.0
     for ev in evs:
@@ -177,7 +195,7 @@ def estimate_light(inputs, *, calib, marker_length: float, probe: str, probe_pla
     convex = str(probe).lower().startswith(CONVEX_PRIMITIVES)
     dictionary = dictionary or DEFAULT_DICTIONARY
     tracker = MarkerTracker(base, dictionary=dictionary, marker_length=marker_length, marker_id=marker_id)
-    coarse, fines, exposures, names = [], [], [], []
+    coarse, fines, pxs, exposures, names = [], [], [], [], []
     for item in items:
         for name, img in _frames(item, max_frames):
             intr, _ = base.for_image(img.shape[1], img.shape[0])
@@ -188,15 +206,16 @@ def estimate_light(inputs, *, calib, marker_length: float, probe: str, probe_pla
             T = pose.cam_from_world
             _probe_in_view(intr, T, verts, name)
             exp = measure_exposure(img, intr, T, marker_length, dictionary, pose.marker_ids[0])
-            c, f = _grids(img, intr, T, caster, verts, faces, marker_length, exp.paper_rgb, convex)
+            c, f, px = _grids(img, intr, T, caster, verts, faces, marker_length, exp.paper_rgb, convex)
             coarse.append(c)
+            pxs.append(px)
             fines.append(f)
             exposures.append(exp)
             names.append(name)
-    return _fit(kind_name, kind, enu, coarse, fines, exposures, verts, t0)
+    return _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, verts, t0)
 
 
-def _fit(kind_name, kind, enu, coarse, fines, exposures, verts, t0) -> LightEstimate:
+def _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, verts, t0) -> LightEstimate:
     def make_fine(lights_h):
         return [f(lights_h) for f in fines]
 
@@ -208,7 +227,7 @@ def _fit(kind_name, kind, enu, coarse, fines, exposures, verts, t0) -> LightEsti
         res = fit_sun(coarse, make_fine, enu)
     else:
         res = fit_point(coarse, make_fine, anchor)
-    ratio = _ratio(res.fine, res.light_h)
+    ratio = _ratio(res.fine, res.light_h, pxs)
     paper = np.median(np.array([e.paper_rgb for e in exposures]), axis=0)
     ink = np.median(np.array([e.ink_rgb for e in exposures]), axis=0)
     exp = Exposure(tuple(map(float, paper)), tuple(map(float, ink)), int(np.median([e.white_cells for e in exposures])),

@@ -181,7 +181,7 @@ def smooth_exposures(measurements, time_constant: float = 5.0, jump: float = 0.1
     --------
     >>> e = [Exposure((0.5, 0.5, 0.5), (0.02,) * 3, 20)] * 3 + [Exposure((0.8, 0.8, 0.8), (0.03,) * 3, 20)] * 4
     >>> [round(x.paper_rgb[0], 3) for x in smooth_exposures(e)]
-    [0.5, 0.5, 0.5, 0.55, 0.8, 0.8, 0.8]
+    [0.5, 0.5, 0.5, 0.544, 0.8, 0.8, 0.8]
     """
     a = 1.0 - math.exp(-1.0 / max(float(time_constant), 1e-6))
     out: list = []

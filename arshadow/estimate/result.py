@@ -13,7 +13,7 @@ import numpy as np
 from ..errors import UsageError
 from .exposure import Exposure
 
-__all__ = ["LightEstimate", "load_estimate", "shading_gain"]
+__all__ = ["DEFAULT_OBJECT_COLOR", "LightEstimate", "load_estimate", "scene_overrides", "shading_gain"]
 
 
 def _r(v, nd=6):
@@ -142,3 +142,51 @@ def shading_gain(est: LightEstimate, ambient: float = 0.25) -> tuple | None:
         sin_e = 1.0
     shade = ambient + max(sin_e, 0.0)
     return tuple(float(c) / shade for c in est.exposure.paper_rgb)
+
+
+def _encode_unclipped(x: np.ndarray) -> np.ndarray:
+    """The sRGB curve without clipping above 1 (the renderer decodes it back exactly; a gain may push a
+    colour past the 8-bit range in linear light)."""
+    x = np.maximum(np.asarray(x, np.float64), 0.0)
+    return np.where(x <= 0.0031308, x * 12.92, 1.055 * x ** (1.0 / 2.4) - 0.055)
+
+
+#: the renderer's colour of a mesh without one (sRGB 0..1), :data:`arshadow.gl.resources.DEFAULT_COLOR`
+DEFAULT_OBJECT_COLOR = (0.8, 0.8, 0.8)
+
+
+def scene_overrides(est: LightEstimate, color=None, exposure: bool = True) -> dict:
+    """What an estimate changes in a scene (``--light-from``).
+
+    Parameters
+    ----------
+    est : LightEstimate
+    color : str or None
+        The model's ``--color`` (8-bit sRGB ``"R,G,B"``), None for the default grey.
+    exposure : bool
+        Apply the marker's exposure / white balance to the object's colour.
+
+    Returns
+    -------
+    dict
+        ``lights`` (tuple of one spec), ``opacity`` 1.0 and ``shadow_color`` (the measured ratio, linear
+        RGB): a full shadow keeps exactly the measured share of each channel; ``occluder_color`` (sRGB
+        0..1, unclipped) when ``exposure``: the colour times :func:`shading_gain` in linear light.
+
+    Examples
+    --------
+    >>> e = LightEstimate("directional", "directional:0,0,1", direction=(0.0, 0.0, 1.0), shadow_ratio=(0.4, 0.5, 0.6),
+    ...                   exposure=Exposure((0.625, 0.625, 0.625), (0.02, 0.02, 0.02), 20))
+    >>> o = scene_overrides(e, "255,255,255")
+    >>> o["lights"], o["opacity"], o["shadow_color"], [round(c, 4) for c in o["occluder_color"]]
+    (('directional:0,0,1',), 1.0, (0.4, 0.5, 0.6), [0.7354, 0.7354, 0.7354])
+    """
+    out = {"lights": (est.light,), "opacity": 1.0,
+           "shadow_color": tuple(float(np.clip(v, 0.0, 1.0)) for v in est.shadow_ratio)}
+    gain = shading_gain(est) if exposure else None
+    if gain is not None:
+        base = DEFAULT_OBJECT_COLOR if color is None else tuple(float(v) / 255.0 for v in str(color).split(","))
+        lin = np.where(np.asarray(base) <= 0.04045, np.asarray(base) / 12.92,
+                       ((np.asarray(base) + 0.055) / 1.055) ** 2.4) * np.asarray(gain)
+        out["occluder_color"] = tuple(float(v) for v in _encode_unclipped(lin))
+    return out

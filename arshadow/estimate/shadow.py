@@ -297,3 +297,43 @@ def fit_levels(ev: Evidence, S: np.ndarray, values: np.ndarray | None = None, we
         return rr, 0.0, rr, n
     delta = rs / ss
     return max(rr - rs * rs / ss, 0.0), delta, rr, n
+
+
+def edge_pairs(ev: Evidence, S: np.ndarray, distance: float):
+    """Pairs of ground cells straddling the modelled shadow's edge: for every edge cell, the points
+    ``distance`` (metres) inside and outside along the edge's normal, kept when both are used, of the same
+    albedo class, clearly in and out of the shadow. Returns ``(inside rgb (k, 3), outside rgb (k, 3))``
+    float64 (linear, bilinear samples)."""
+    sb = cv2.GaussianBlur(S.astype(np.float32), (0, 0), 1.0)
+    gy, gx = np.gradient(sb)
+    edge = (S > 0.2) & (S < 0.8)
+    rr, cc = np.nonzero(edge)
+    g = np.stack([gx[rr, cc], gy[rr, cc]], 1)
+    norm = np.linalg.norm(g, axis=1)
+    ok = norm > 1e-6
+    rr, cc, g = rr[ok], cc[ok], g[ok] / norm[ok, None]  # g points into the shadow (S increases)
+    k = distance / ev.step
+    pin = np.stack([cc + k * g[:, 0], rr + k * g[:, 1]], 1)
+    pout = np.stack([cc - k * g[:, 0], rr - k * g[:, 1]], 1)
+    ny, nx = ev.shape
+
+    def nearest(p):
+        q = np.rint(p).astype(int)
+        good = (q[:, 0] >= 0) & (q[:, 0] < nx) & (q[:, 1] >= 0) & (q[:, 1] < ny)
+        q[~good] = 0
+        return q, good
+
+    qi, gi = nearest(pin)
+    qo, go = nearest(pout)
+    keep = gi & go & ev.used[qi[:, 1], qi[:, 0]] & ev.used[qo[:, 1], qo[:, 0]] \
+        & (ev.paper[qi[:, 1], qi[:, 0]] == ev.paper[qo[:, 1], qo[:, 0]]) \
+        & (S[qi[:, 1], qi[:, 0]] > 0.99) & (S[qo[:, 1], qo[:, 0]] < 0.01)
+    if not keep.any():
+        return np.zeros((0, 3)), np.zeros((0, 3))
+    rgb = ev.rgb.astype(np.float32)
+
+    def sample(p):
+        m = p[keep].astype(np.float32).reshape(-1, 1, 2)
+        return cv2.remap(rgb, m[:, :, 0], m[:, :, 1], cv2.INTER_LINEAR).reshape(-1, 3).astype(np.float64)
+
+    return sample(pin), sample(pout)
