@@ -67,7 +67,8 @@ def run_demo(samples: Path, outdir, *, aa: int = 4, debug: bool = False, on_done
 
     root, outdir = samples.parent, Path(outdir)
     scenes = json.loads((samples / "scenes.json").read_text())["scenes"]
-    items, panels = [], []
+    items: list[ReportItem] = []
+    panels: list = []
     ctx = create_context()
     try:
         with ShadowRenderer(ctx, samples=int(aa)) as renderer:

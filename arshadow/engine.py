@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .camera import Intrinsics
 from .errors import ImageError, MarkerNotFoundError
 from .report import StageTimings
 from .scene import RenderOptions
@@ -46,7 +47,7 @@ class CalibrationState:
         A fast first pass (``detector="fast"``) before the full search.
     """
 
-    intrinsics: object
+    intrinsics: Intrinsics
     was_scaled: bool
     lens: object | None
     tracker_kwargs: dict

@@ -55,7 +55,7 @@ def expand_inputs(items) -> list[str]:
     """Files as given; folders -> their image files (sorted, :data:`arshadow.io.IMAGE_EXTENSIONS`); glob
     patterns -> matches (sorted). Anything that matches nothing is kept as given, so that reading it
     reports the problem."""
-    out = []
+    out: list[str] = []
     for it in items:
         p = Path(it)
         if p.is_dir():
@@ -157,7 +157,8 @@ def render_photos(session, jobs, *, debug: bool = False, on_done: OnDone | None 
     items = []
     for job in jobs:
         t0 = time.perf_counter()
-        res, err = None, None
+        res = None
+        err: BaseException | None = None
         try:
             guard.check([job.output, job.mask])
             res = render_photo_file(session, job, buffers=buffers)
