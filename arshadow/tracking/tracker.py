@@ -18,6 +18,8 @@ from ..transforms import matrix_from_rvec_tvec, rotation_error_deg
 from .board import OPENCV_BOARD_TO_WORLD, Board, load_board
 from .detect import (
     DEFAULT_REFINE,
+    AprilTagDetector,
+    RescueDetector,
     Detection,
     detection_from_opencv,
     make_detector_params,
@@ -128,7 +130,18 @@ class MarkerTracker:
         self.params = make_detector_params(refine, detector_params)
         self.ambiguity_threshold = float(ambiguity_threshold)
         self.detector_kind = detector if isinstance(detector, str) else "custom"
-        self._detector = cv2.aruco.ArucoDetector(self.dictionary, self.params)
+        apriltag = self.params.cornerRefinementMethod == cv2.aruco.CORNER_REFINE_APRILTAG
+        custom = not isinstance(detector, str)
+        # the built-in detectors give pixel-centre corners; a custom one, OpenCV's raw output (AprilTag's
+        # corners shifted by APRILTAG_OFFSET_PX when the parameters ask for it)
+        self._shift_params = self.params if custom else None
+        if apriltag and not custom:
+            self._detector = AprilTagDetector(self.dictionary, self.params)
+        else:
+            self._detector = cv2.aruco.ArucoDetector(self.dictionary, self.params)
+        if not custom and not fast and (board is None or board.kind == "markers"):
+            # a second search with a lower threshold constant when the first misses (issue 21)
+            self._detector = RescueDetector(self._detector, self.dictionary, self.params, marker_id)
         if fast:
             self._detector = wrap_fast_detector(self._detector, board)
         elif not isinstance(detector, str):
@@ -166,7 +179,7 @@ class MarkerTracker:
         """Detect the markers of this tracker's dictionary (no pose)."""
         gray = to_gray(image)
         corners, ids, rejected = self._detector.detectMarkers(gray)
-        det = detection_from_opencv(corners, ids, rejected, self.params)
+        det = detection_from_opencv(corners, ids, rejected, self._shift_params)
         if self.refine == "edge" and len(det):
             det.corners = refine_corners_edges(gray, det.corners, self._intrinsics_for(gray)[0])
         return det
@@ -235,7 +248,7 @@ class MarkerTracker:
     def _estimate_marker(self, gray, intr) -> MarkerPose:
         corners, ids, rejected = self._detector.detectMarkers(gray)
         self._t_detect = time.perf_counter()
-        det = detection_from_opencv(corners, ids, rejected, self.params)
+        det = detection_from_opencv(corners, ids, rejected, self._shift_params)
         if len(det) == 0:
             raise MarkerNotFoundError(f"no marker of {self.dictionary_name} found")
         if self.refine == "edge":
@@ -261,7 +274,7 @@ class MarkerTracker:
             raise MarkerNotFoundError(f"no marker of {self.dictionary_name} found")
         corners, ids, rejected, _ = self._detector.refineDetectedMarkers(
             gray, self.board.cv_board, corners, ids, rejected, intr.K, intr.dist_cv)
-        det = detection_from_opencv(corners, ids, rejected, self.params)
+        det = detection_from_opencv(corners, ids, rejected, self._shift_params)
         self._t_detect = time.perf_counter()
         obj, img = self.board.cv_board.matchImagePoints(tuple(c.reshape(1, 4, 2).astype(np.float32) for c in det.corners),
                                                         det.ids.reshape(-1, 1).astype(np.int32))

@@ -45,6 +45,7 @@ from ..errors import ArshadowError, ImageError, MarkerNotFoundError, UsageError
 from ..compose.composite import clip_roi
 from ..io import resolved_path
 from ..transforms import rvec_tvec_from_matrix
+from ..tracking.detect import luma_to_gray
 
 __all__ = ["EngineOptions", "SessionBackend", "video_outputs", "process_video", "run_videos", "unique_stems",
            "write_contact_sheet", "FRAME_STAGES"]
@@ -454,10 +455,15 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
             img = fr.image
             fmt = getattr(fr, "format", "bgr24")
             if fmt == "yuv420p":
-                gray = img[:H]
+                gray = luma_to_gray(img[:H])  # limited-range Y -> the gray of the photo path (issue 21)
             else:
                 gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
             pose, _err = backend.track(gray, timings)
+            if pose is None and fmt == "yuv420p":
+                # the luma plane is not the gray of the decoded colour frame (chroma): on a miss, the photo
+                # path's gray (issue 21: 7 of 108 frames of the real chessboard clip)
+                pose, _err = backend.track(cv2.cvtColor(cv2.cvtColor(img, cv2.COLOR_YUV2BGR_I420),
+                                                        cv2.COLOR_BGR2GRAY), timings)
             for fp in stream.push((fr, dec_ms, timings, fmt), pose, fr.time_s):
                 emit(fp)
         if dec_t.error is not None:
