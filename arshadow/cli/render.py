@@ -69,6 +69,8 @@ def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> No
                    help="ArUco dictionary name or custom dictionary file (default DICT_6X6_250; a --board file "
                         "names its own)")
     g.add_argument("--marker-id", type=int, metavar="N", help="use only this marker id as the reference (default: the lowest id found)")
+    g.add_argument("--inverted", action="store_true", default=None,
+                   help="the markers are printed white on black (a board file may say 'inverted: 1')")
     o = p.add_argument_group("virtual object")
     o.add_argument("--model", required=require, metavar="M",
                    help="mesh file (OBJ/PLY/STL/GLB/OFF, metres) or primitive box:WX,WY,HZ | cylinder:R,H | "

@@ -25,6 +25,7 @@ from ..compose.composite import clip_roi
 from ..errors import MarkerNotFoundError
 from ..report import ReportItem, StageTimings
 from ..transforms import rvec_tvec_from_matrix
+from ..tracking.detect import luma_to_gray
 
 __all__ = ["FRAME_STAGES", "FrameComposer", "SessionBackend", "gray_of", "i420_planes", "i420_with_roi"]
 
@@ -96,11 +97,15 @@ class SessionBackend:
         return list(self.session.notes or [])
 
 
-def gray_of(frame, height: int) -> np.ndarray:
-    """The grey ``(H, W) uint8`` image the tracker reads: the Y plane of a planar ``yuv420p`` frame (a
-    view, no conversion), else OpenCV's BGR -> grey."""
+def gray_of(frame, height: int, colour: bool = False) -> np.ndarray:
+    """The grey ``(H, W) uint8`` image the tracker reads: the Y plane of a planar ``yuv420p`` frame
+    expanded from limited to full range (:func:`arshadow.tracking.detect.luma_to_gray`: the Y plane itself
+    lost real markers, issue 21), else OpenCV's BGR -> grey. ``colour``: a ``yuv420p`` frame's BGR -> grey
+    instead (the photo path's grey; the engine's retry when the Y plane shows no marker)."""
     if getattr(frame, "format", "bgr24") == "yuv420p":
-        return frame.image[:height]
+        if colour:
+            return cv2.cvtColor(cv2.cvtColor(frame.image, cv2.COLOR_YUV2BGR_I420), cv2.COLOR_BGR2GRAY)
+        return luma_to_gray(frame.image[:height])
     return cv2.cvtColor(frame.image, cv2.COLOR_BGR2GRAY)
 
 
