@@ -18,6 +18,7 @@ import numpy as np
 
 from ._check import check_shape
 from .compose.composite import clip_roi, composite
+from .compose.layers import layers_from_warped
 from .render_api import LightPass
 from .transforms import CV_TO_GL
 
@@ -28,7 +29,7 @@ STAGES = ("detect", "pose", "silhouette", "volume", "render", "readback", "warp"
 
 
 def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings=None, want_mask=True, out=None,
-            mask_out=None, chooser=None, gpu=None):
+            mask_out=None, chooser=None, gpu=None, want_layers=False):
     """Render and composite one planned frame.
 
     Parameters
@@ -57,6 +58,10 @@ def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings=N
     gpu : callable, optional
         ``gpu() -> arshadow.gl.compose.GpuCompositor`` (made on first use by the caller); needs a renderer
         with ``render(..., readback=False)`` (``renderer.gpu_layers``).
+    want_layers : bool
+        Also return the frame's compositing layers (``info["layers"]``, :class:`arshadow.compose.layers.Layers`).
+        They come from the numpy path only: with layers asked for, the numpy path makes the composite too
+        (the shader path is not run), so the composite and its layers are one computation.
 
     Returns
     -------
@@ -65,7 +70,8 @@ def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings=N
     info : dict
         ``mode``, ``modes``, ``silhouette_edges``, ``roi``, ``canvas``, ``znear``, ``plan`` (the planner's
         decisions with their reasons, for the report) and, when something was drawn, ``compose`` (the
-        path taken), ``content`` (canvas pixels with content) and ``composited`` (photo pixels composited).
+        path taken), ``content`` (canvas pixels with content) and ``composited`` (photo pixels composited);
+        ``layers`` with ``want_layers``.
     """
     timings = timings if timings is not None else dict.fromkeys(STAGES, 0.0)
     H, W = image.shape[:2]
@@ -112,12 +118,16 @@ def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings=N
         else:
             mask_full = check_shape(mask_out, f"{H},{W}", "mask_out")
             mask_full.fill(0)
+    if want_layers:  # nothing drawn until the numpy path says otherwise
+        info["layers"] = layers_from_warped(None, None, (0, 0, 0, 0), (H, W), opacity=opts.opacity)
     if plan.empty:
         return out, mask_full, info  # nothing of the scene is in view
 
     # render, lens warp, composite: the numpy path or the shader path (arshadow/gl/compose.py), whichever
     # measured faster for this photo size on this backend (timed on first use)
     args = (plan, image, intr, geometry, renderer, lens, work, passes, out, mask_full, want_mask, info)
+    if want_layers:
+        info["want_layers"] = True  # read (and removed) by _compose_cpu
     x0, y0, w, h = roi
     clean = None  # the photo's ROI each run starts from, when the chooser runs several (below)
 
@@ -133,7 +143,7 @@ def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings=N
         return go
 
     paths = {"cpu": run(_compose_cpu)}
-    if (chooser is not None and gpu is not None and getattr(renderer, "gpu_layers", False)
+    if (not want_layers and chooser is not None and gpu is not None and getattr(renderer, "gpu_layers", False)
             and out.flags.c_contiguous and (mask_full is None or mask_full.flags.c_contiguous)):
         paths["gpu"] = run(lambda *a, timings: _compose_gpu(*a, gpu=gpu(), timings=timings))
     ctx = getattr(renderer, "ctx", None)
@@ -147,11 +157,13 @@ def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings=N
             clean = clean.copy()
     if len(paths) == 1 or chooser.force == "cpu":
         choice, used = "cpu", paths["cpu"]()
-        why = "numpy (the shader path is not available here)" if len(paths) == 1 else "forced cpu"
+        why = "forced cpu" if len(paths) > 1 else ("numpy (layers asked for: they come from the numpy path)"
+                                                   if want_layers else "numpy (the shader path is not available here)")
     else:
         choice, used = chooser.run(key, paths)
         why = f"forced {choice}" if chooser.force else \
             f"measured on first use in this process: {chooser.decisions[key]['ms']} ms (median)"
+    info.pop("want_layers", None)
     for k, v in used.items():
         timings[k] += v
     info["compose"] = choice
@@ -250,6 +262,13 @@ def _compose_cpu(plan, image, intr, geometry, renderer, lens, work, passes, out,
 
     # composite
     t = time.perf_counter()
+    if info.pop("want_layers", False):
+        rgba = None
+        if opts.draw_occluder:
+            rgba = color if np.shape(color)[2] == 4 else np.dstack([color, alpha])
+        info["layers"] = layers_from_warped(mask, rgba, roi, (H, W), opacity=opts.opacity,
+                                            shadow_color=opts.shadow_color,
+                                            premultiplied=getattr(res, "premultiplied", True))
     composite(out, mask, roi, color=color if opts.draw_occluder else None,
               alpha=alpha if opts.draw_occluder else None, opacity=opts.opacity,
               shadow_color=opts.shadow_color, premultiplied=getattr(res, "premultiplied", True), out=out, work=work)

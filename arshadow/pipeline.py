@@ -126,6 +126,9 @@ class Compositor:
         #: numpy vs shader compose, chosen by measurement per photo size (``options.compose``)
         self.compose_chooser = PathChooser(force=None if self.options.compose == "auto" else self.options.compose)
         self._gpu = None
+        #: make the frame's compositing layers too (the numpy path); the last frame's are ``last_layers``
+        self.want_layers = False
+        self.last_layers = None
 
     # -- cached per run ------------------------------------------------------------------------------
     @property
@@ -410,7 +413,9 @@ class Compositor:
         renderer = None if plan.empty else self.renderer
         out, mask, info = execute(plan, image, intr, geometry=self.geometry, renderer=renderer, lens=lens,
                                   work=self._work, timings=timings, want_mask=want_mask, out=out, mask_out=mask_out,
-                                  chooser=self.compose_chooser, gpu=self._gpu_compositor)
+                                  chooser=self.compose_chooser, gpu=self._gpu_compositor,
+                                  want_layers=self.want_layers)
+        self.last_layers = info.pop("layers", None)
         return out, mask, info, plan
 
     def _lens_for(self, intr):

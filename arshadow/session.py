@@ -52,6 +52,9 @@ class FrameResult:
         Per stage (:data:`arshadow.execute.STAGES`), milliseconds.
     plan : arshadow.plan.FramePlan
         What was decided for the frame, with reasons (``plan.decisions``).
+    layers : arshadow.compose.layers.Layers or None
+        The object (premultiplied linear RGBA) and shadow (multiply pass) layers, when asked for
+        (``layers=True``): ``plate x shadow + object`` in linear light is the composite (docs/export.md).
     """
 
     composite: np.ndarray
@@ -61,6 +64,14 @@ class FrameResult:
     item: ReportItem
     timings_ms: dict = field(default_factory=dict)
     plan: object = None
+    layers: object = None
+
+    def _repr_png_(self) -> bytes:
+        """The composite as PNG bytes: a result shows itself as an image in Jupyter."""
+        import cv2
+
+        ok, buf = cv2.imencode(".png", self.composite)
+        return buf.tobytes() if ok else b""
 
 
 class Session:
@@ -165,7 +176,8 @@ class Session:
         return (Session, (self.spec,))
 
     # -- per photo ------------------------------------------------------------------------------------
-    def process(self, image, name: str = "", want_mask: bool = True, out=None, mask_out=None) -> FrameResult:
+    def process(self, image, name: str = "", want_mask: bool = True, out=None, mask_out=None,
+                layers: bool = False) -> FrameResult:
         """Track the marker and composite the object and its shadow into one photo.
 
         Parameters
@@ -178,6 +190,8 @@ class Session:
             Also compute the full-size mask.
         out, mask_out : arrays, optional
             Buffers for the composite and the mask (reused across photos of one size).
+        layers : bool
+            Also make the compositing layers (``FrameResult.layers``; the numpy compose path).
 
         Returns
         -------
@@ -190,9 +204,13 @@ class Session:
         ImageError, CalibrationError
             Unusable image, or a size the calibration cannot be scaled to.
         """
-        comp, mask, item, pose, plan = self._compositor.process_full(image, name, want_mask, out, mask_out)
+        self._compositor.want_layers, self._compositor.last_layers = bool(layers), None
+        try:
+            comp, mask, item, pose, plan = self._compositor.process_full(image, name, want_mask, out, mask_out)
+        finally:
+            self._compositor.want_layers = False
         return FrameResult(comp, mask, pose, np.asarray(pose.cam_from_world, np.float64), item,
-                           dict(item.timings_ms), plan)
+                           dict(item.timings_ms), plan, self._compositor.last_layers)
 
     def track(self, image, timings=None, extra=None):
         """Marker / board pose only (no rendering, no GL): the fast pass, the full search if it finds nothing.
@@ -220,7 +238,7 @@ class Session:
         return self._compositor.track(image, cal, timings, extra)
 
     def render(self, image, pose, name: str = "", want_mask: bool = True, out=None, mask_out=None,
-               timings=None) -> FrameResult:
+               timings=None, layers: bool = False) -> FrameResult:
         """Composite at a given pose (a video engine's second half; tests with a known pose).
 
         Parameters
@@ -233,6 +251,8 @@ class Session:
         timings : dict, optional
             Stage timings to add to (e.g. the ``detect``/``pose`` of :meth:`track`); ``total`` is set to
             their sum.
+        layers : bool
+            As :meth:`process`.
 
         Returns
         -------
@@ -247,13 +267,18 @@ class Session:
             timings.setdefault(k, 0.0)
         comp = self._compositor
         cal = comp.calib_for(image.shape[1], image.shape[0])
-        res, mask, item, plan = comp.render_item(image, pose, cal, name=name, timings=timings, want_mask=want_mask,
-                                                 out=out, mask_out=mask_out)
+        comp.want_layers, comp.last_layers = bool(layers), None
+        try:
+            res, mask, item, plan = comp.render_item(image, pose, cal, name=name, timings=timings,
+                                                     want_mask=want_mask, out=out, mask_out=mask_out)
+        finally:
+            comp.want_layers = False
         timings["total"] = timings.get("total", 0.0) + (time.perf_counter() - t0) * 1e3
         item.timings_ms = {k: round(v, 3) for k, v in timings.items()}
         marker_pose = pose if hasattr(pose, "cam_from_world") else None
         cam_from_world = np.asarray(getattr(pose, "cam_from_world", pose), np.float64).reshape(4, 4)
-        return FrameResult(res, mask, marker_pose, cam_from_world, item, dict(item.timings_ms), plan)
+        return FrameResult(res, mask, marker_pose, cam_from_world, item, dict(item.timings_ms), plan,
+                           comp.last_layers)
 
     def calibration(self, width: int, height: int):
         """Intrinsics (scaled to the size), trackers and lens warp for a photo size
