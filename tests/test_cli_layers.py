@@ -1,0 +1,89 @@
+"""``arshadow render --layers`` (issue 19): the files, their recombination, bad input, progress and summary.
+
+Ground truth: the composite ``arshadow render`` wrote; the recombination is float64 from the sRGB formula
+(tests/test_layers.py's helpers), not the module's tables.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from test_layers import _lin, _maxdiff, _recombine
+
+from arshadow.cli import main
+
+pytestmark = pytest.mark.gl
+
+ROOT = Path(__file__).resolve().parents[1]
+CALIB = ROOT / "calib" / "synth_1280x720_k1.yml"
+SCENE = ["--calib", CALIB, "--marker-length", "0.05", "--model", "box:0.04,0.03,0.05", "--place", "0.03,0,0",
+         "--rotate", "0,0,25", "--light", "point:-0.1,0.1,0.4"]
+
+
+@pytest.fixture(scope="module")
+def photos(tmp_path_factory, gl_ctx):
+    from arshadow.camera import Intrinsics
+    from arshadow.synth import look_at_pose, render_marker_photo
+
+    d = tmp_path_factory.mktemp("inputs")
+    intr = Intrinsics.from_file(CALIB)
+    for k, eye in enumerate(([0.15, -0.3, 0.3], [-0.1, -0.25, 0.35])):
+        img = render_marker_photo(intr, look_at_pose(eye, [0.0, 0.0, 0.0]), marker_length=0.05, seed=5 + k).image
+        cv2.imwrite(str(d / f"p{k}.png"), img)
+    return d
+
+
+def _run(capsys, *argv):
+    code = main([str(a) for a in argv])
+    cap = capsys.readouterr()
+    return code, cap.out, cap.err
+
+
+def test_render_layers_png_recombine_and_summary(photos, tmp_path, capsys):
+    out = tmp_path / "out"
+    code, so, se = _run(capsys, "render", photos / "p0.png", photos / "p1.png", *SCENE, "-o", out, "--layers")
+    assert code == 0, se
+    assert "render:" not in se  # no progress bar: stderr is not a terminal here
+    assert "2 done, 0 failed, 0 flagged" in so
+    for k in range(2):
+        plate = cv2.imread(str(photos / f"p{k}.png"))
+        comp = cv2.imread(str(out / f"p{k}.png"))
+        o = cv2.imread(str(out / f"p{k}.object.png"), cv2.IMREAD_UNCHANGED)
+        m = cv2.imread(str(out / f"p{k}.shadow.mult.png"), cv2.IMREAD_UNCHANGED)
+        only = cv2.imread(str(out / f"p{k}.shadow.only.png"), cv2.IMREAD_UNCHANGED)
+        a = o[..., 3] / 65535.0
+        obj = np.dstack([_lin(o[..., 2::-1] / 257.0) * a[..., None], a])
+        assert np.count_nonzero(a > 0.5) > 300 and np.count_nonzero(m < 50000) > 300
+        assert _maxdiff(_recombine(plate, obj, m / 65535.0), comp) <= 1
+        assert _maxdiff(_recombine(plate, obj, only[..., 3] / 65535.0, over=True), comp) <= 1
+
+
+def test_missing_exr_writer_is_exit_2_before_any_work(photos, tmp_path, capsys, monkeypatch):
+    monkeypatch.setitem(sys.modules, "OpenEXR", None)  # import OpenEXR -> ImportError
+    out = tmp_path / "out"
+    code, so, se = _run(capsys, "render", photos / "p0.png", *SCENE, "-o", out, "--layers", "--layers-format", "exr")
+    assert code == 2
+    lines = se.strip().splitlines()
+    assert len(lines) == 1 and "OpenEXR" in lines[0] and "arshadow[exr]" in lines[0]
+    assert not any(out.glob("*.png")) and not any(out.glob("*.exr"))
+
+
+def test_layer_file_that_would_overwrite_an_input_is_exit_2(photos, tmp_path, capsys):
+    d = tmp_path / "in"
+    d.mkdir()
+    (d / "a.png").write_bytes((photos / "p0.png").read_bytes())
+    (d / "a.object.png").write_bytes((photos / "p1.png").read_bytes())
+    before = {p.name: p.read_bytes() for p in d.iterdir()}
+    code, so, se = _run(capsys, "render", d / "a.png", d / "a.object.png", *SCENE, "-o", tmp_path / "o2",
+                        "--layers")
+    assert code == 0, se  # another folder: fine
+    # -o the inputs' folder: the layer file a.object.png of a.png would replace the input a.object.png
+    code, so, se = _run(capsys, "render", d / "a.png", d / "a.object.png", *SCENE, "-o", d, "--layers")
+    assert code == 2
+    lines = se.strip().splitlines()
+    assert len(lines) == 1 and "would overwrite an input" in lines[0] and "a.object.png" in lines[0]
+    assert {p.name: p.read_bytes() for p in d.iterdir()} == before
