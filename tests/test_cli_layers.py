@@ -65,7 +65,7 @@ def test_render_layers_png_recombine_and_summary(photos, tmp_path, capsys):
 def test_missing_exr_writer_is_exit_2_before_any_work(photos, tmp_path, capsys, monkeypatch):
     monkeypatch.setitem(sys.modules, "OpenEXR", None)  # import OpenEXR -> ImportError
     out = tmp_path / "out"
-    code, so, se = _run(capsys, "render", photos / "p0.png", *SCENE, "-o", out, "--layers", "--layers-format", "exr")
+    code, _so, se = _run(capsys, "render", photos / "p0.png", *SCENE, "-o", out, "--layers", "--layers-format", "exr")
     assert code == 2
     lines = se.strip().splitlines()
     assert len(lines) == 1 and "OpenEXR" in lines[0] and "arshadow[exr]" in lines[0]
@@ -78,12 +78,36 @@ def test_layer_file_that_would_overwrite_an_input_is_exit_2(photos, tmp_path, ca
     (d / "a.png").write_bytes((photos / "p0.png").read_bytes())
     (d / "a.object.png").write_bytes((photos / "p1.png").read_bytes())
     before = {p.name: p.read_bytes() for p in d.iterdir()}
-    code, so, se = _run(capsys, "render", d / "a.png", d / "a.object.png", *SCENE, "-o", tmp_path / "o2",
+    code, _so, se = _run(capsys, "render", d / "a.png", d / "a.object.png", *SCENE, "-o", tmp_path / "o2",
                         "--layers")
     assert code == 0, se  # another folder: fine
     # -o the inputs' folder: the layer file a.object.png of a.png would replace the input a.object.png
-    code, so, se = _run(capsys, "render", d / "a.png", d / "a.object.png", *SCENE, "-o", d, "--layers")
+    code, _so, se = _run(capsys, "render", d / "a.png", d / "a.object.png", *SCENE, "-o", d, "--layers")
     assert code == 2
     lines = se.strip().splitlines()
     assert len(lines) == 1 and "would overwrite an input" in lines[0] and "a.object.png" in lines[0]
     assert {p.name: p.read_bytes() for p in d.iterdir()} == before
+
+
+def test_export_track_of_a_photo_set_from_the_render_report(photos, tmp_path, capsys):
+    import json
+
+    pygltflib = pytest.importorskip("pygltflib")
+    out = tmp_path / "out"
+    rep = tmp_path / "report.json"
+    code, _so, se = _run(capsys, "render", photos / "p0.png", photos / "p1.png", *SCENE, "-o", out, "--report", rep,
+                         "-q")
+    assert code == 0, se
+    code, so, se = _run(capsys, "export-track", rep, "--calib", CALIB, "--model", "box:0.04,0.03,0.05",
+                        "--place", "0.03,0,0", "--rotate", "0,0,25", "-o", tmp_path / "t.glb", "-o",
+                        tmp_path / "t.json", "-o", tmp_path / "t.csv", "--fps", "4")
+    assert code == 0, se
+    g = pygltflib.GLTF2().load(str(tmp_path / "t.glb"))
+    assert g.cameras[0].type == "perspective" and len(g.meshes) == 2 and len(g.animations) == 1
+    doc = json.loads((tmp_path / "t.json").read_text())
+    assert [f["time_s"] for f in doc["frames"]] == [0.0, 0.25]
+    items = json.loads(rep.read_text())["images"]
+    assert doc["frames"][1]["opencv"]["tvec"] == pytest.approx(items[1]["tvec"])
+    # bad input: one line, exit 2, nothing written
+    code, _so, se = _run(capsys, "export-track", rep, "--calib", CALIB, "-o", tmp_path / "t.obj")
+    assert code == 2 and len(se.strip().splitlines()) == 1 and "unknown track format" in se

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import functools
 import glob
 import logging
 import sys
@@ -286,7 +287,7 @@ def _render_all(args, session, inputs, outdir, debug, layer_sets=None, bar=None)
                 item.mask = str(mask_path)
             if layer_sets is not None:
                 write_layers(layer_sets[k], res.layers, args.layers_format,
-                             orient=lambda a: apply_orientation(a, orientation))
+                             orient=functools.partial(apply_orientation, orientation=orientation))
                 item.extra["layers"] = {n: str(p) for n, p in layer_sets[k].items()}
             if not args.quiet:
                 t = item.timings_ms.get("total", 0.0)
