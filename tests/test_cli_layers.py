@@ -98,7 +98,7 @@ def test_export_track_of_a_photo_set_from_the_render_report(photos, tmp_path, ca
     code, _so, se = _run(capsys, "render", photos / "p0.png", photos / "p1.png", *SCENE, "-o", out, "--report", rep,
                          "-q")
     assert code == 0, se
-    code, so, se = _run(capsys, "export-track", rep, "--calib", CALIB, "--model", "box:0.04,0.03,0.05",
+    code, _so, se = _run(capsys, "export-track", rep, "--calib", CALIB, "--model", "box:0.04,0.03,0.05",
                         "--place", "0.03,0,0", "--rotate", "0,0,25", "-o", tmp_path / "t.glb", "-o",
                         tmp_path / "t.json", "-o", tmp_path / "t.csv", "--fps", "4")
     assert code == 0, se

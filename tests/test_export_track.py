@@ -164,9 +164,10 @@ def test_frames_jsonl_of_a_video(tmp_path):
     rv = [0.1, 0.2, 0.3]
     lines = [{"frame": 0, "time_s": 0.0, "status": "no_marker", "rvec": None, "tvec": None, "raw": None},
              {"frame": 1, "time_s": 0.04, "status": "ok", "rvec": rv, "tvec": [0, 0, 0.4], "raw": {"rvec": rv}},
-             {"frame": 2, "time_s": 0.08, "status": "ok", "rvec": rv, "tvec": [0, 0, 0.41], "raw": None}]
+             {"frame": 2, "time_s": 0.08, "status": "ok", "rvec": rv, "tvec": [0, 0, 0.41], "raw": None},
+             {"frame": 3, "time_s": 0.12, "status": "held", "rvec": rv, "tvec": [0, 0, 0.41], "raw": None}]
     p = tmp_path / "clip.frames.jsonl"
     p.write_text("".join(json.dumps(d) + "\n" for d in lines))
     tr = track_from_frames_jsonl(p, intr)
-    assert [f.status for f in tr.frames] == ["lost", "tracked", "held"] and tr.name == "clip"
+    assert [f.status for f in tr.frames] == ["lost", "tracked", "held", "held"] and tr.name == "clip"
     assert tr.frames[2].cam_from_world[2, 3] == pytest.approx(0.41)

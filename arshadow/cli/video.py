@@ -49,6 +49,13 @@ def add_output_options(out) -> None:
     out.add_argument("--contact-sheet", type=int, default=12, metavar="N",
                      help="frames on DIR/<stem>.sheet.jpg (default 12; 0 = none)")
     out.add_argument("--no-audio", action="store_true", help="do not copy the input's audio")
+    out.add_argument("--layers", action="store_true",
+                     help="also write the compositing layers (object with alpha, shadow multiply pass, shadow-only "
+                          "with alpha), lens distortion applied: plate x shadow.mult + object = the composite in "
+                          "linear light (docs/export.md)")
+    out.add_argument("--layers-format", choices=("prores", "ffv1", "png", "exr"), default="prores",
+                     help="videos' layers: prores (ProRes 4444 .mov, default), ffv1 (lossless 16-bit .mkv), or "
+                          "png / exr sequences in DIR/<stem>.layers/; photos of a batch: 16-bit PNG, or EXR with exr")
 
 
 def engine_options(args, collect_items=False):
@@ -59,7 +66,8 @@ def engine_options(args, collect_items=False):
         fmt=args.format, codec=args.codec or FORMAT_CODEC[args.format], crf=args.crf, preset=args.preset,
         mask=args.save_mask, pose_lag=None if getattr(args, "no_temporal", False) else getattr(args, "pose_lag", 16),
         smooth=getattr(args, "smooth", 10), hold=getattr(args, "hold", 12), max_frames=getattr(args, "max_frames", None),
-        contact_sheet=args.contact_sheet, keep_audio=not args.no_audio, collect_items=collect_items).check()
+        contact_sheet=args.contact_sheet, keep_audio=not args.no_audio, collect_items=collect_items,
+        layers=args.layers_format if getattr(args, "layers", False) else None).check()
 
 
 def progress_bar(quiet: bool):

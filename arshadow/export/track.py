@@ -37,8 +37,17 @@ import numpy as np
 from ..errors import UsageError
 from ..io import write_bytes
 
-__all__ = ["CSV_COLUMNS", "CameraTrack", "TrackFrame", "GLTF_FROM_MARKER", "gl_world_from_camera",
-           "quat_from_matrix", "track_from_frames_jsonl", "track_from_items", "write_track"]
+__all__ = [
+    "CSV_COLUMNS",
+    "GLTF_FROM_MARKER",
+    "CameraTrack",
+    "TrackFrame",
+    "gl_world_from_camera",
+    "quat_from_matrix",
+    "track_from_frames_jsonl",
+    "track_from_items",
+    "write_track",
+]
 
 #: 4x4: glTF's y-up frame from arshadow's z-up marker frame (the root node's rotation)
 GLTF_FROM_MARKER = np.array([[1, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0], [0, 0, 0, 1]], np.float64)
@@ -133,7 +142,7 @@ def _matrix(rvec, tvec) -> np.ndarray:
 
 def track_from_frames_jsonl(path, intr, name: str = "") -> CameraTrack:
     """The track of a video from ``arshadow video``'s ``<stem>.frames.jsonl`` (the pose each frame was
-    rendered with; ``raw`` null = held by the engine; status ``no_marker`` = lost)."""
+    rendered with; status ``held`` (or ``raw`` null) = held by the engine; ``no_marker`` = lost)."""
     frames = []
     p = Path(path)
     try:
@@ -145,9 +154,9 @@ def track_from_frames_jsonl(path, intr, name: str = "") -> CameraTrack:
             continue
         try:
             d = json.loads(line)
-            ok = d.get("status") == "ok" and d.get("rvec") is not None
+            ok = d.get("status") in ("ok", "held") and d.get("rvec") is not None
             m = _matrix(d["rvec"], d["tvec"]) if ok else None
-            status = "lost" if not ok else ("tracked" if d.get("raw") is not None else "held")
+            status = "lost" if not ok else ("tracked" if d.get("raw") is not None and d["status"] == "ok" else "held")
             frames.append(TrackFrame(int(d["frame"]), float(d["time_s"]), status, m))
         except (ValueError, KeyError, TypeError) as exc:
             raise UsageError(f"{p}:{n}: not a frames report line ({exc})") from None

@@ -89,6 +89,9 @@ class EngineOptions:
         Also return every frame's report item (memory grows with the video; the JSON Lines file does not).
     queue_frames : int
         Frames in flight between the threads.
+    layers : str or None
+        Also write the compositing layers (:mod:`arshadow.export.layervideo`): ``prores``, ``ffv1``, ``png``
+        or ``exr`` (photos of a batch: ``exr`` for ``exr``, else 16-bit PNG).
     """
 
     fmt: str = "mp4"
@@ -104,6 +107,7 @@ class EngineOptions:
     keep_audio: bool = True
     collect_items: bool = False
     queue_frames: int = 6
+    layers: str | None = None
 
     def check(self) -> EngineOptions:
         from .avio import VIDEO_CODECS
@@ -125,6 +129,10 @@ class EngineOptions:
                 raise UsageError(f"{opt} {v}: must be >= 0")
         if self.codec == "h264" and self.preset not in X264_PRESETS:
             raise UsageError(f"--preset {self.preset}: use one of {', '.join(X264_PRESETS)}")
+        if self.layers is not None:
+            from ..export.layervideo import check_video_layer_format
+
+            check_video_layer_format(self.layers)
         return self
 
 
@@ -136,8 +144,13 @@ def video_outputs(outdir, stem: str, opts: EngineOptions) -> dict:
         mask = d / f"{stem}.shadow.mkv"
     elif opts.mask == "png":
         mask = d / f"{stem}.shadow"
-    return {"video": d / f"{stem}.{opts.fmt}", "mask": mask, "frames": d / f"{stem}.frames.jsonl",
-            "sheet": d / f"{stem}.sheet.jpg" if opts.contact_sheet else None}
+    out = {"video": d / f"{stem}.{opts.fmt}", "mask": mask, "frames": d / f"{stem}.frames.jsonl",
+           "sheet": d / f"{stem}.sheet.jpg" if opts.contact_sheet else None}
+    if opts.layers is not None:  # "layers:object", ... (or "layers:folder"): arshadow.export.layervideo
+        from ..export.layervideo import video_layer_paths
+
+        out.update({f"layers:{k}": p for k, p in video_layer_paths(d, stem, opts.layers).items()})
+    return out
 
 
 # --------------------------------------------------------------------------------------------------
@@ -161,6 +174,7 @@ class SessionBackend:
         self.session, self.tracks, self.time_lapse = session, list(tracks), time_lapse
         self.cal = None
         self.recomputes = 0
+        self.want_layers = False  # set by process_video when the layers are written
 
     def start(self, width: int, height: int) -> None:
         """A new video of this size (CalibrationError: the calibration does not fit it)."""
@@ -189,9 +203,10 @@ class SessionBackend:
 
     def render(self, bgr, cam_from_world, want_mask, timings):
         """Composite into ``bgr`` (modified in place); returns ``(mask or None, item extras)``."""
-        res = self.session.render(bgr, cam_from_world, want_mask=want_mask, out=bgr, timings=timings)
+        res = self.session.render(bgr, cam_from_world, want_mask=want_mask, out=bgr, timings=timings,
+                                  layers=self.want_layers)
         it = res.item
-        info = {"mode": it.mode, "silhouette_edges": it.silhouette_edges,
+        info = {"mode": it.mode, "silhouette_edges": it.silhouette_edges, "layers": res.layers,
                 **{k: it.extra[k] for k in ("roi", "canvas", "modes") if k in it.extra}}
         return res.mask, info
 
@@ -295,6 +310,12 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
                                                                    opts.max_frames)
     sheet: dict = {}
     sheet_step = [max(1, (total or 0) // max(opts.contact_sheet, 1))]  # thumbnails of every step-th frame
+    sink = None  # the layers, written on this thread (arshadow.export.layervideo)
+    if opts.layers is not None:
+        from ..export.layervideo import LayerSink
+
+        sink = LayerSink({k[7:]: p for k, p in outputs.items() if k.startswith("layers:")}, opts.layers, rate, (W, H))
+    backend.want_layers = sink is not None
 
     # -- decode thread -----------------------------------------------------------------------------
     def decode():
@@ -393,6 +414,8 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
             stats["frames_no_marker"] += 1
             if want_mask:
                 mask = np.zeros((H, W), np.uint8)
+            if sink is not None:
+                sink.write(None)
         else:
             if fp.raw is not None:
                 item.set_pose(fp.raw)
@@ -411,6 +434,8 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
             bgr = cv2.cvtColor(img, cv2.COLOR_YUV2BGR_I420) if gray_fmt == "yuv420p" else np.array(img)
             timings["convert"] += (time.perf_counter() - tc) * 1e3
             mask, info = backend.render(bgr, m, want_mask, timings)
+            if sink is not None:
+                sink.write(info.get("layers"))
             item.mode = info["mode"]
             item.silhouette_edges = info["silhouette_edges"]
             item.extra.update({k: v for k, v in info.items() if k in ("roi", "canvas", "modes")})
@@ -469,7 +494,11 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
         enc_t.join()
         if enc_t.error is not None:
             raise enc_t.error
+        if sink is not None:
+            sink.close()
     except BaseException:
+        if sink is not None:
+            sink.abort()
         stop.set()
         dec_t.join()
         enc_t.join()
