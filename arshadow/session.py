@@ -42,7 +42,7 @@ class FrameResult:
         The photo with the object and its shadow (BGR).
     mask : (H, W) uint8 or None
         The shadow mask of CONVENTIONS.md (None when not asked for).
-    pose : arshadow.tracking.marker.MarkerPose or None
+    pose : arshadow.tracking.pose.MarkerPose or None
         The tracked pose (None when rendering at a given ``cam_from_world``).
     cam_from_world : (4, 4) float64
         The pose rendered.
@@ -90,7 +90,7 @@ class Session:
     renderer : Renderer or callable, optional
         A renderer to share (:class:`arshadow.render_api.Renderer`, not released by :meth:`close`), or
         ``renderer(ctx, options) -> Renderer`` making this session's own: another shadow technique
-        (default: the stencil :class:`arshadow.gl.renderer.ShadowRenderer` with ``options.aa`` samples).
+        (default: the stencil :class:`arshadow.gl.stencil.ShadowRenderer` with ``options.aa`` samples).
 
     Raises
     ------
@@ -225,7 +225,7 @@ class Session:
 
         Returns
         -------
-        arshadow.tracking.marker.MarkerPose
+        arshadow.tracking.pose.MarkerPose
 
         Raises
         ------
@@ -244,7 +244,7 @@ class Session:
         Parameters
         ----------
         image : (H, W, 3) uint8
-        pose : arshadow.tracking.marker.MarkerPose or (4, 4) float64
+        pose : arshadow.tracking.pose.MarkerPose or (4, 4) float64
             A tracked pose or ``cam_from_world``.
         name, want_mask, out, mask_out
             As :meth:`process`.
