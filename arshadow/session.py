@@ -217,7 +217,7 @@ class Session:
 
         Parameters
         ----------
-        image : (H, W, 3) uint8
+        image : (H, W, 3) uint8 BGR or (H, W) uint8 grey
         timings : dict, optional
             ``detect`` and ``pose`` (milliseconds) are added to.
         extra : dict, optional
@@ -233,7 +233,9 @@ class Session:
         """
         from .pipeline import check_bgr_image
 
-        image = check_bgr_image(image, "image")
+        image = np.asarray(image)
+        if not (image.ndim == 2 and image.dtype == np.uint8):  # a grey image (a video's Y plane) is tracked as is
+            image = check_bgr_image(image, "image")
         cal = self._compositor.calib_for(image.shape[1], image.shape[0])
         return self._compositor.track(image, cal, timings, extra)
 
