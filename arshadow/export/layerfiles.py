@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from ..compose.composite import linear_to_srgb
@@ -114,5 +115,6 @@ def write_layers(paths: dict, layers: Layers, fmt: str, orient=None) -> dict:
         img = _png16(arr)
         if img.ndim == 3:  # OpenCV writes BGR(A)
             img = img[..., [2, 1, 0, 3]] if img.shape[2] == 4 else img[..., ::-1]
-        write_image(paths[name], np.ascontiguousarray(img))
+        # fast zlib level: 16-bit layers are large and mostly flat; level 1 writes them ~4x faster than the default
+        write_image(paths[name], np.ascontiguousarray(img), [cv2.IMWRITE_PNG_COMPRESSION, 1])
     return paths
