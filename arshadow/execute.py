@@ -18,7 +18,7 @@ import numpy as np
 
 from ._check import check_shape
 from .compose.composite import clip_roi, composite
-from .compose.layers import layers_from_warped
+from .compose.layers import layers_from_warped, pinhole_layers
 from .render_api import LightPass
 from .transforms import CV_TO_GL
 
@@ -58,8 +58,9 @@ def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings=N
     gpu : callable, optional
         ``gpu() -> arshadow.gl.compose.GpuCompositor`` (made on first use by the caller); needs a renderer
         with ``render_gpu(...)`` (``renderer.gpu_layers``).
-    want_layers : bool
-        Also return the frame's compositing layers (``info["layers"]``, :class:`arshadow.compose.layers.Layers`).
+    want_layers : bool or "undistorted"
+        Also return the frame's compositing layers (``info["layers"]``, :class:`arshadow.compose.layers.Layers`;
+        with ``"undistorted"`` also their pinhole (undistorted) version, ``layers.undistorted``).
         They come from the numpy path only: with layers asked for, the numpy path makes the composite too
         (the shader path is not run), so the composite and its layers are one computation.
 
@@ -120,6 +121,8 @@ def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings=N
             mask_full.fill(0)
     if want_layers:  # nothing drawn until the numpy path says otherwise
         info["layers"] = layers_from_warped(None, None, (0, 0, 0, 0), (H, W), opacity=opts.opacity)
+        if want_layers == "undistorted":
+            info["layers"].undistorted = layers_from_warped(None, None, (0, 0, 0, 0), (H, W), opacity=opts.opacity)
     if plan.empty:
         return out, mask_full, info  # nothing of the scene is in view
 
@@ -127,7 +130,7 @@ def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings=N
     # measured faster for this photo size on this backend (timed on first use)
     args = (plan, image, intr, geometry, renderer, lens, work, passes, out, mask_full, want_mask, info)
     if want_layers:
-        info["want_layers"] = True  # read (and removed) by _compose_cpu
+        info["want_layers"] = want_layers  # read (and removed) by _compose_cpu
     x0, y0, w, h = roi
     clean = None  # the photo's ROI each run starts from, when the chooser runs several (below)
 
@@ -255,21 +258,27 @@ def _compose_cpu(plan, image, intr, geometry, renderer, lens, work, passes, out,
             l1 = cv2.flip(s1, 0, dst=work.get("flip1", s1.shape, np.float32))
         info["composited"] = list(roi)
         mask, alpha, color = l1[:, :, 0], l0[:, :, 3], l0
+        pinhole = (c1[::-1, :, 0], c0[::-1])  # the canvas top-down (views), for undistorted layers
     else:
         mask, alpha, color = res.mask, res.alpha, res.color
+        pinhole = (mask, np.dstack([color, alpha]))
         if lens is not None:
             mask, alpha, color = lens.warp(roi, canvas, mask, alpha, color, work=work)
     timings["warp"] += (time.perf_counter() - t) * 1e3
 
     # composite
     t = time.perf_counter()
-    if info.pop("want_layers", False):
+    want_layers = info.pop("want_layers", False)
+    if want_layers:
         rgba = None
         if opts.draw_occluder:
             rgba = color if np.shape(color)[2] == 4 else np.dstack([color, alpha])
-        info["layers"] = layers_from_warped(mask, rgba, roi, (H, W), opacity=opts.opacity,
-                                            shadow_color=opts.shadow_color,
-                                            premultiplied=getattr(res, "premultiplied", True))
+        kw = {"opacity": opts.opacity, "shadow_color": opts.shadow_color,
+              "premultiplied": getattr(res, "premultiplied", True)}
+        lay = info["layers"] = layers_from_warped(mask, rgba, roi, (H, W), **kw)
+        if want_layers == "undistorted":
+            lay.undistorted = lay if lens is None else pinhole_layers(
+                pinhole[0], pinhole[1] if opts.draw_occluder else None, canvas, (H, W), **kw)
     composite(out, mask, roi, color=color if opts.draw_occluder else None,
               alpha=alpha if opts.draw_occluder else None, opacity=opts.opacity,
               shadow_color=opts.shadow_color, premultiplied=getattr(res, "premultiplied", True), out=out, work=work)

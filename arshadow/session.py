@@ -177,7 +177,7 @@ class Session:
 
     # -- per photo ------------------------------------------------------------------------------------
     def process(self, image, name: str = "", want_mask: bool = True, out=None, mask_out=None,
-                layers: bool = False) -> FrameResult:
+                layers: bool | str = False) -> FrameResult:
         """Track the marker and composite the object and its shadow into one photo.
 
         Parameters
@@ -190,8 +190,9 @@ class Session:
             Also compute the full-size mask.
         out, mask_out : arrays, optional
             Buffers for the composite and the mask (reused across photos of one size).
-        layers : bool
-            Also make the compositing layers (``FrameResult.layers``; the numpy compose path).
+        layers : bool or "undistorted"
+            Also make the compositing layers (``FrameResult.layers``; the numpy compose path); with
+            ``"undistorted"`` also their pinhole version (``FrameResult.layers.undistorted``).
 
         Returns
         -------
@@ -204,7 +205,7 @@ class Session:
         ImageError, CalibrationError
             Unusable image, or a size the calibration cannot be scaled to.
         """
-        self._compositor.want_layers, self._compositor.last_layers = bool(layers), None
+        self._compositor.want_layers, self._compositor.last_layers = layers, None
         try:
             comp, mask, item, pose, plan = self._compositor.process_full(image, name, want_mask, out, mask_out)
         finally:
@@ -240,7 +241,7 @@ class Session:
         return self._compositor.track(image, cal, timings, extra)
 
     def render(self, image, pose, name: str = "", want_mask: bool = True, out=None, mask_out=None,
-               timings=None, layers: bool = False) -> FrameResult:
+               timings=None, layers: bool | str = False) -> FrameResult:
         """Composite at a given pose (a video engine's second half; tests with a known pose).
 
         Parameters
@@ -253,7 +254,7 @@ class Session:
         timings : dict, optional
             Stage timings to add to (e.g. the ``detect``/``pose`` of :meth:`track`); ``total`` is set to
             their sum.
-        layers : bool
+        layers : bool or "undistorted"
             As :meth:`process`.
 
         Returns
@@ -269,7 +270,7 @@ class Session:
             timings.setdefault(k, 0.0)
         comp = self._compositor
         cal = comp.calib_for(image.shape[1], image.shape[0])
-        comp.want_layers, comp.last_layers = bool(layers), None
+        comp.want_layers, comp.last_layers = layers, None
         try:
             res, mask, item, plan = comp.render_item(image, pose, cal, name=name, timings=timings,
                                                      want_mask=want_mask, out=out, mask_out=mask_out)

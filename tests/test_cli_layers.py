@@ -111,3 +111,21 @@ def test_export_track_of_a_photo_set_from_the_render_report(photos, tmp_path, ca
     # bad input: one line, exit 2, nothing written
     code, _so, se = _run(capsys, "export-track", rep, "--calib", CALIB, "-o", tmp_path / "t.obj")
     assert code == 2 and len(se.strip().splitlines()) == 1 and "unknown track format" in se
+
+
+def test_render_layers_undistorted_writes_the_pinhole_layers_and_the_stmap(photos, tmp_path, capsys):
+    out = tmp_path / "out"
+    code, _so, se = _run(capsys, "render", photos / "p0.png", *SCENE, "-o", out, "--layers-undistorted", "-q")
+    assert code == 0, se
+    names = sorted(p.name for p in out.iterdir())
+    assert names == sorted(["p0.png", "p0.object.png", "p0.shadow.mult.png", "p0.shadow.only.png", "p0.stmap.png",
+                            "p0.undistorted.object.png", "p0.undistorted.shadow.mult.png",
+                            "p0.undistorted.shadow.only.png"])
+    st = cv2.imread(str(out / "p0.stmap.png"), cv2.IMREAD_UNCHANGED)
+    assert st.dtype == np.uint16 and st.shape == (720, 1280, 3) and np.all(st[..., 0] == 0)  # B = 0
+    # the principal point maps to itself (no distortion there): s = (cx + 0.5) / W
+    from arshadow.camera import Intrinsics
+
+    intr = Intrinsics.from_file(CALIB)
+    u, v = round(intr.K[0, 2]), round(intr.K[1, 2])
+    assert st[v, u, 2] / 65535 == pytest.approx((u + 0.5) / 1280, abs=5e-5)

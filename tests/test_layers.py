@@ -161,3 +161,39 @@ def test_layer_files_recombine_to_the_composite(gl_ctx, tmp_path, fmt):
         obj, sh, only = read(paths["object"]), read(paths["shadow.mult"]), read(paths["shadow.only"])[..., 3]
     assert _maxdiff(_recombine(photo, obj, sh), res.composite) <= 1
     assert _maxdiff(_recombine(photo, obj, only, over=True), res.composite) <= 1
+
+
+@pytest.mark.gl
+def test_undistorted_layers_and_the_stmap_give_the_distorted_layers(gl_ctx):
+    """The pinhole layers resampled through the ST-map (decoded here from its s, t definition) are the
+    distorted layers: the pipeline's warp is the same bilinear lookup of the same pinhole points."""
+    import arshadow
+    from arshadow.camera import Intrinsics
+    from arshadow.export.stmap import stmap, stmap_to_pixels
+
+    calib, eye = "synth_1280x720_k1.yml", (0.15, -0.2, 0.3)
+    photo = _photo(calib, eye)
+    intr = Intrinsics.from_file(str(ROOT / "calib" / calib))
+    with arshadow.Session(arshadow.scene_from_dict(_scene(calib)), context=gl_ctx) as s:
+        res = s.process(photo, name="p", layers="undistorted")
+    assert res.layers.undistorted is not None
+    obj, sh = res.layers.full()
+    uobj, ush = res.layers.undistorted.full()
+    st = stmap(intr)
+    # independent check of the ST-map at one pixel: OpenCV's undistortPoints of the pixel centre
+    u, v = 100.0, 80.0
+    ref = cv2.undistortPoints(np.array([[[u, v]]]), intr.K, intr.dist, P=intr.K,
+                              criteria=(cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)).ravel()
+    assert st[80, 100, 0] == pytest.approx((ref[0] + 0.5) / 1280, abs=2e-6)
+    assert st[80, 100, 1] == pytest.approx(1 - (ref[1] + 0.5) / 720, abs=2e-6)
+    mx, my = stmap_to_pixels(st, 1280, 720)
+    warped_a = cv2.remap(uobj[..., 3], mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    warped_s = cv2.remap(ush, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=1)
+    assert np.count_nonzero(obj[..., 3] > 0.5) > 500
+    # cv2.remap rounds coordinates to 1/32 px: float32 s, t (~1e-4 px) may flip that rounding, which moves a
+    # sharp edge's value by at most 1/32 of its step; the mean stays at the noise floor
+    for warped, ref in ((warped_a, obj[..., 3]), (warped_s, sh)):
+        d = np.abs(warped - ref)
+        assert d.max() <= 1 / 32 + 1e-3 and d.mean() < 1e-4
+    # the pinhole layers are not the distorted ones (k1 = -0.25 moves the object)
+    assert np.abs(uobj[..., 3] - obj[..., 3]).max() > 0.5

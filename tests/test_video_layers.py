@@ -97,3 +97,13 @@ def test_missing_layer_codec_is_exit_2_before_any_work(clip, tmp_path, monkeypat
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no_such_encoder" in err[0]
     assert not out.exists() or not any(out.iterdir())
+
+
+def test_png_sequence_layers_undistorted(clip, tmp_path):
+    out = tmp_path / "out"
+    assert _cli("video", clip, *SCENE, "-o", out, "-q", "--layers-undistorted", "--layers-format", "png",
+                "--max-frames", "2") == 0
+    seq = sorted(p.name for p in (out / "clip.layers").iterdir())
+    assert len(seq) == 12 and "undistorted.object.000001.png" in seq and "shadow.mult.000000.png" in seq
+    assert (out / "clip.stmap.png").is_file()
+    assert not [p for p in out.iterdir() if p.name.startswith(".")]  # no temporaries left

@@ -131,6 +131,9 @@ def register(subparsers) -> None:
                           "in linear light (docs/export.md)")
     out.add_argument("--layers-format", choices=("png", "exr"), default="png",
                      help="16-bit PNG (default) or half-float linear OpenEXR (needs arshadow[exr])")
+    out.add_argument("--layers-undistorted", action="store_true",
+                     help="with --layers: also the layers in the undistorted (pinhole) camera, "
+                          "<stem>.undistorted.*, and the ST-map that distorts them onto the photo, <stem>.stmap.*"),
     out.add_argument("--quiet", "-q", action="store_true", help="no per-image progress lines or progress bar")
     p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
                    help="show tracebacks and debug logging")
@@ -204,6 +207,8 @@ def run(args) -> int:
     outdir = check_output_folder(args.output, "-o")
     if args.report:
         check_output_file(args.report, "--report")
+    if getattr(args, "layers_undistorted", False):
+        args.layers = True
     layer_sets = _layer_paths(args, inputs, outdir) if getattr(args, "layers", False) else None
     session = Session(scene_from_args(args))  # loads the scene: a bad one is exit 2
     bar = None
@@ -235,7 +240,7 @@ def _layer_paths(args, inputs, outdir):
 
     fmt = check_layer_format(args.layers_format)
     given = {resolved_path(i) for i in inputs}
-    sets = [layer_paths(outdir, Path(out).stem, fmt)
+    sets = [layer_paths(outdir, Path(out).stem, fmt, undistorted=bool(args.layers_undistorted))
             for out, _mask in output_paths(inputs, outdir, args.keep_format)]
     for paths in sets:
         for p in paths.values():
@@ -249,6 +254,7 @@ def _render_all(args, session, inputs, outdir, debug, layer_sets=None, bar=None)
     import cv2
 
     from ..export.layerfiles import write_layers
+    from ..export.stmap import stmap, write_stmap
     from ..io import apply_orientation, exif_orientation, read_image, resolved_path, write_image
     from ..report import ReportItem
 
@@ -276,7 +282,7 @@ def _render_all(args, session, inputs, outdir, debug, layer_sets=None, bar=None)
                                                         np.empty(image.shape[:2], np.uint8)))
             # results are encoded right away, so one output buffer per size is reused
             res = session.process(image, name=str(inp), want_mask=args.save_mask, out=bufs[0], mask_out=bufs[1],
-                                  layers=layer_sets is not None)
+                                  layers=("undistorted" if args.layers_undistorted else True) if layer_sets else False)
             out, mask, item = res.composite, res.mask, res.item
             params = [int(_imwrite_quality(out_path)), 95] if _imwrite_quality(out_path) else None
             # outputs upright as a viewer shows the input (EXIF orientation; they carry no EXIF)
@@ -288,6 +294,9 @@ def _render_all(args, session, inputs, outdir, debug, layer_sets=None, bar=None)
             if layer_sets is not None:
                 write_layers(layer_sets[k], res.layers, args.layers_format,
                              orient=functools.partial(apply_orientation, orientation=orientation))
+                if "stmap" in layer_sets[k]:
+                    cal = session.calibration(image.shape[1], image.shape[0])
+                    write_stmap(layer_sets[k]["stmap"], stmap(cal.intrinsics, None if cal.lens is None else cal.lens.maps))
                 item.extra["layers"] = {n: str(p) for n, p in layer_sets[k].items()}
             if not args.quiet:
                 t = item.timings_ms.get("total", 0.0)

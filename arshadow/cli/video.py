@@ -56,6 +56,9 @@ def add_output_options(out) -> None:
     out.add_argument("--layers-format", choices=("prores", "ffv1", "png", "exr"), default="prores",
                      help="videos' layers: prores (ProRes 4444 .mov, default), ffv1 (lossless 16-bit .mkv), or "
                           "png / exr sequences in DIR/<stem>.layers/; photos of a batch: 16-bit PNG, or EXR with exr")
+    out.add_argument("--layers-undistorted", action="store_true",
+                     help="with --layers: also the layers in the undistorted (pinhole) camera and the ST-map "
+                          "DIR/<stem>.stmap.* that distorts them onto the frames")
 
 
 def engine_options(args, collect_items=False):
@@ -67,7 +70,8 @@ def engine_options(args, collect_items=False):
         mask=args.save_mask, pose_lag=None if getattr(args, "no_temporal", False) else getattr(args, "pose_lag", 16),
         smooth=getattr(args, "smooth", 10), hold=getattr(args, "hold", 12), max_frames=getattr(args, "max_frames", None),
         contact_sheet=args.contact_sheet, keep_audio=not args.no_audio, collect_items=collect_items,
-        layers=args.layers_format if getattr(args, "layers", False) else None).check()
+        layers=args.layers_format if (getattr(args, "layers", False) or getattr(args, "layers_undistorted", False))
+        else None, layers_undistorted=bool(getattr(args, "layers_undistorted", False))).check()
 
 
 def progress_bar(quiet: bool):

@@ -45,7 +45,7 @@ import numpy as np
 from ..errors import ShapeError
 from .composite import SRGB_TO_LINEAR, linear_to_srgb8
 
-__all__ = ["Layers", "layers_from_warped", "recombine", "shadow_factor", "shadow_only_alpha"]
+__all__ = ["Layers", "layers_from_warped", "pinhole_layers", "recombine", "shadow_factor", "shadow_only_alpha"]
 
 
 def shadow_factor(mask, alpha, opacity: float, shadow_color=(0.0, 0.0, 0.0)) -> np.ndarray:
@@ -116,12 +116,16 @@ class Layers:
         space, decoded).
     shadow : (h, w) float32 or (h, w, 3) float32 RGB
         The multiply pass (1 = untouched); three channels only with a coloured shadow tint.
+    undistorted : Layers or None
+        The same layers in the ideal pinhole camera of the same K and size (no lens distortion), when
+        asked for; :func:`arshadow.export.stmap.stmap` maps them onto the photo.
     """
 
     size: tuple
     roi: tuple
     object: np.ndarray
     shadow: np.ndarray
+    undistorted: Layers | None = None
 
     def full(self):
         """Photo-sized ``(object (H, W, 4) float32, shadow (H, W) or (H, W, 3) float32)``."""
@@ -171,6 +175,23 @@ def layers_from_warped(mask, rgba, roi, shape, *, opacity: float, shadow_color=(
     else:
         sh = shadow_factor(mask, alpha, opacity, shadow_color)
     return Layers(size=(int(shape[1]), int(shape[0])), roi=(x0, y0, w, h), object=obj, shadow=sh)
+
+
+def pinhole_layers(mask, rgba, canvas, shape, **kw) -> Layers:
+    """The layers of the rendered pinhole canvas (before the lens warp), clipped to the photo's size.
+
+    ``mask`` (h, w), ``rgba`` (h, w, 4) or None: the canvas, rows top-down; ``canvas`` its
+    ``(u0, v0, w, h)`` in the pinhole image; ``shape`` (H, W); ``kw`` as :func:`layers_from_warped`.
+    """
+    H, W = int(shape[0]), int(shape[1])
+    u0, v0, w, h = (int(v) for v in canvas)
+    x0, y0 = max(u0, 0), max(v0, 0)
+    x1, y1 = min(u0 + w, W), min(v0 + h, H)
+    if x1 <= x0 or y1 <= y0:
+        return layers_from_warped(None, None, (0, 0, 0, 0), (H, W), opacity=0.0)
+    sl = (slice(y0 - v0, y1 - v0), slice(x0 - u0, x1 - u0))
+    return layers_from_warped(np.asarray(mask)[sl], None if rgba is None else np.asarray(rgba)[sl],
+                              (x0, y0, x1 - x0, y1 - y0), (H, W), **kw)
 
 
 def recombine(plate_bgr8, obj_rgba, shadow, *, over: bool = False) -> np.ndarray:

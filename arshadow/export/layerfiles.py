@@ -25,7 +25,7 @@ import cv2
 import numpy as np
 
 from ..compose.composite import linear_to_srgb
-from ..compose.layers import Layers
+from ..compose.layers import Layers, shadow_only_alpha
 from ..errors import UsageError
 from ..io import atomic_path, write_image
 
@@ -64,27 +64,35 @@ def check_layer_format(fmt: str, what: str = "--layers-format") -> str:
     return fmt
 
 
-def layer_paths(outdir, stem: str, fmt: str) -> dict:
-    """``{name: Path}`` of one photo's layer files (:data:`LAYER_NAMES`) in ``outdir``."""
-    return {n: Path(outdir) / f"{stem}.{n}.{fmt}" for n in LAYER_NAMES}
+def layer_paths(outdir, stem: str, fmt: str, undistorted: bool = False) -> dict:
+    """``{name: Path}`` of one photo's layer files (:data:`LAYER_NAMES`; with ``undistorted`` also
+    ``undistorted.<name>`` and the ``stmap``) in ``outdir``."""
+    names = list(LAYER_NAMES) + ([f"undistorted.{n}" for n in LAYER_NAMES] if undistorted else [])
+    out = {n: Path(outdir) / f"{stem}.{n}.{fmt}" for n in names}
+    if undistorted:
+        out["stmap"] = Path(outdir) / f"{stem}.stmap.{fmt}"
+    return out
 
 
 def layer_arrays(layers: Layers) -> dict:
     """Photo-sized float32 arrays, RGB(A) order: ``object`` (H, W, 4) premultiplied linear, ``shadow.mult``
-    (H, W) or (H, W, 3), ``shadow.only`` (H, W, 4) black with alpha."""
+    (H, W) or (H, W, 3), ``shadow.only`` (H, W, 4) black with alpha; and ``undistorted.<name>`` of
+    ``layers.undistorted`` when there is one."""
     obj, sh = layers.full()
     only = np.zeros_like(obj)
-    from ..compose.layers import shadow_only_alpha
-
     only[..., 3] = shadow_only_alpha(sh, obj[..., 3])
-    return {"object": obj, "shadow.mult": sh, "shadow.only": only}
+    out = {"object": obj, "shadow.mult": sh, "shadow.only": only}
+    if layers.undistorted is not None:
+        out.update({f"undistorted.{k}": v for k, v in layer_arrays(layers.undistorted).items()})
+    return out
 
 
-def write_exr(path, arr: np.ndarray) -> Path:
-    """Write ``(H, W)`` (channel Y), ``(H, W, 3)`` (RGB) or ``(H, W, 4)`` (RGBA) as half-float EXR, atomically."""
+def write_exr(path, arr: np.ndarray, dtype=np.float16) -> Path:
+    """Write ``(H, W)`` (channel Y), ``(H, W, 3)`` (RGB) or ``(H, W, 4)`` (RGBA) as EXR (half float by default;
+    ``dtype=np.float32`` for full float), atomically."""
     import OpenEXR  # optional extra (checked by check_layer_format before any work)
 
-    a = np.ascontiguousarray(arr, np.float16)
+    a = np.ascontiguousarray(arr, dtype)
     name = "Y" if a.ndim == 2 else ("RGB" if a.shape[2] == 3 else "RGBA")
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
     with atomic_path(path) as tmp:
@@ -103,12 +111,14 @@ def write_layers(paths: dict, layers: Layers, fmt: str, orient=None) -> dict:
     """
     arrays = layer_arrays(layers)
     for name, arr in arrays.items():
-        if orient is not None:
+        if name not in paths:
+            continue
+        if orient is not None and not name.startswith("undistorted."):  # the pinhole ones: the stored frame
             arr = orient(arr)
         if fmt == "exr":
             write_exr(paths[name], arr)
             continue
-        if name == "object":  # PNG: straight alpha, sRGB-encoded colour
+        if name.endswith("object"):  # PNG: straight alpha, sRGB-encoded colour
             a = arr[..., 3:4]
             straight = np.divide(arr[..., :3], a, out=np.zeros_like(arr[..., :3]), where=a > 0)
             arr = np.concatenate([linear_to_srgb(straight), a], axis=2)

@@ -63,12 +63,20 @@ def check_video_layer_format(fmt: str, what: str = "--layers-format") -> str:
     return fmt
 
 
-def video_layer_paths(outdir, stem: str, fmt: str) -> dict:
-    """``{name: Path}``: one video per layer, or the sequence folder ``<stem>.layers`` (key ``folder``)."""
+def video_layer_paths(outdir, stem: str, fmt: str, undistorted: bool = False) -> dict:
+    """``{name: Path}``: one video per layer, or the sequence folder ``<stem>.layers`` (key ``folder``); with
+    ``undistorted`` also the ``undistorted.<name>`` videos and the ``stmap`` (``<stem>.stmap.exr`` with
+    ``exr``, else 16-bit PNG)."""
     spec = VIDEO_LAYER_FORMATS[fmt]
+    d = Path(outdir)
     if spec is None:
-        return {"folder": Path(outdir) / f"{stem}.layers"}
-    return {n: Path(outdir) / f"{stem}.{n}.{spec[1]}" for n in LAYER_NAMES}
+        out = {"folder": d / f"{stem}.layers"}
+    else:
+        names = list(LAYER_NAMES) + ([f"undistorted.{n}" for n in LAYER_NAMES] if undistorted else [])
+        out = {n: d / f"{stem}.{n}.{spec[1]}" for n in names}
+    if undistorted:
+        out["stmap"] = d / f"{stem}.stmap.{'exr' if fmt == 'exr' else 'png'}"
+    return out
 
 
 def _u16(arr) -> np.ndarray:
@@ -87,12 +95,15 @@ class LayerSink:
     rate : fractions.Fraction or float
         Frame rate.
     size : (W, H)
+    stmap : (H, W, 2) float32, optional
+        The ST-map of the undistorted layers (:func:`arshadow.export.stmap.stmap`), written by :meth:`close`.
     """
 
-    def __init__(self, paths: dict, fmt: str, rate, size):
+    def __init__(self, paths: dict, fmt: str, rate, size, stmap=None):
         self.paths, self.fmt, self.rate = dict(paths), fmt, rate
         self.W, self.H = int(size[0]), int(size[1])
         self.n = 0
+        self.stmap = stmap
         self._tmp: dict = {}
         self._streams: dict = {}
         spec = VIDEO_LAYER_FORMATS[fmt]
@@ -105,7 +116,7 @@ class LayerSink:
         import av  # the video engine's own dependency
 
         codec, ext, rgba_fmt, grey_fmt = spec
-        for name in LAYER_NAMES:
+        for name in [n for n in self.paths if n not in ("folder", "stmap")]:
             target = Path(self.paths[name])
             target.parent.mkdir(parents=True, exist_ok=True)
             fd, tmp = tempfile.mkstemp(prefix=f".{target.stem}.", suffix=f".tmp.{ext}", dir=target.parent)
@@ -114,7 +125,7 @@ class LayerSink:
             c = av.open(tmp, "w")
             s = c.add_stream(codec, rate=rate)
             s.width, s.height = self.W, self.H
-            s.pix_fmt = grey_fmt if name == "shadow.mult" else rgba_fmt
+            s.pix_fmt = grey_fmt if name.endswith("shadow.mult") else rgba_fmt
             if codec == "prores_ks":
                 s.options = {"profile": "4444"}
             self._streams[name] = (c, s)
@@ -128,8 +139,8 @@ class LayerSink:
         if "folder" in self._tmp:
             fmt = self.fmt
             d = self._tmp["folder"]
-            paths = {n: d / f"{n}.{self.n:06d}.{fmt}" for n in LAYER_NAMES}
-            write_layers(paths, layers, fmt)
+            names = list(LAYER_NAMES) + ([f"undistorted.{n}" for n in LAYER_NAMES] if self.stmap is not None else [])
+            write_layers({n: d / f"{n}.{self.n:06d}.{fmt}" for n in names}, layers, fmt)
             self.n += 1
             return
         import av  # the video engine's own dependency
@@ -137,14 +148,14 @@ class LayerSink:
         from ..compose.composite import linear_to_srgb
 
         arrays = layer_arrays(layers)
-        for name, arr in arrays.items():
-            c, s = self._streams[name]
-            if name == "shadow.mult":
+        for name, (c, s) in self._streams.items():
+            arr = arrays[name]
+            if name.endswith("shadow.mult"):
                 if arr.ndim == 3:  # a coloured tint: the grey video holds the mean (docs/export.md)
                     arr = arr.mean(axis=2)
                 frame = av.VideoFrame.from_ndarray(_u16(arr), format="gray16le")
             else:
-                if name == "object":  # straight alpha, sRGB-encoded colour
+                if name.endswith("object"):  # straight alpha, sRGB-encoded colour
                     a = arr[..., 3:4]
                     straight = np.divide(arr[..., :3], a, out=np.zeros_like(arr[..., :3]), where=a > 0)
                     arr = np.concatenate([linear_to_srgb(straight), a], axis=2)
@@ -160,6 +171,10 @@ class LayerSink:
                 c.mux(pkt)
             c.close()
         self._streams.clear()
+        if self.stmap is not None:
+            from .stmap import write_stmap
+
+            write_stmap(self.paths["stmap"], self.stmap)
         for name, tmp in self._tmp.items():
             target = Path(self.paths[name])
             if tmp.is_dir():

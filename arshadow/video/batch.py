@@ -85,7 +85,7 @@ def _outputs(item: BatchItem, outdir: Path, opts, save_mask: bool) -> list:
     if opts.layers is not None:
         from ..export.layerfiles import layer_paths
 
-        outs += list(layer_paths(outdir, item.stem, _photo_layers(opts)).values())
+        outs += list(layer_paths(outdir, item.stem, _photo_layers(opts), opts.layers_undistorted).values())
     return outs
 
 
@@ -168,15 +168,20 @@ def process_item(spec, item: BatchItem, outdir, opts, save_mask: bool, fingerpri
             summary["outputs"] = [str(p) for p in outs.values() if p is not None and Path(p).exists()]
         else:
             img = read_image(item.input)
-            res = session.process(img, name=item.input, want_mask=save_mask, layers=opts.layers is not None)
+            want = ("undistorted" if opts.layers_undistorted else True) if opts.layers is not None else False
+            res = session.process(img, name=item.input, want_mask=save_mask, layers=want)
             out = write_image(outdir / f"{item.stem}.png", res.composite)
             summary["outputs"] = [str(out)]
             if opts.layers is not None:
                 from ..export.layerfiles import layer_paths, write_layers
+                from ..export.stmap import stmap, write_stmap
 
                 fmt = _photo_layers(opts)
-                summary["outputs"] += [str(p) for p in write_layers(layer_paths(outdir, item.stem, fmt), res.layers,
-                                                                    fmt).values()]
+                paths = write_layers(layer_paths(outdir, item.stem, fmt, opts.layers_undistorted), res.layers, fmt)
+                if "stmap" in paths:
+                    cal = session.calibration(img.shape[1], img.shape[0])
+                    write_stmap(paths["stmap"], stmap(cal.intrinsics, None if cal.lens is None else cal.lens.maps))
+                summary["outputs"] += [str(p) for p in paths.values()]
             if save_mask:
                 summary["outputs"].append(str(write_image(outdir / f"{item.stem}.shadow.png", res.mask)))
             summary["status"] = "ok"

@@ -32,6 +32,7 @@ import numpy as np
 
 from ..errors import ArshadowError, ImageError, UsageError
 from ..export.layervideo import LayerSink, check_video_layer_format, video_layer_paths
+from ..export.stmap import stmap
 from ..io import clean_temporaries, resolved_path
 from ..report import ReportItem
 from .avio import VIDEO_CODECS
@@ -82,6 +83,8 @@ class EngineOptions:
     layers : str or None
         Also write the compositing layers (:mod:`arshadow.export.layervideo`): ``prores``, ``ffv1``, ``png``
         or ``exr`` (photos of a batch: ``exr`` for ``exr``, else 16-bit PNG).
+    layers_undistorted : bool
+        With ``layers``: also the pinhole (undistorted) layers and their ST-map.
     """
 
     fmt: str = "mp4"
@@ -98,6 +101,7 @@ class EngineOptions:
     collect_items: bool = False
     queue_frames: int = 6
     layers: str | None = None
+    layers_undistorted: bool = False
 
     def check(self) -> EngineOptions:
         if self.fmt not in ("mp4", "mkv", "mov", "avi"):
@@ -133,7 +137,8 @@ def video_outputs(outdir, stem: str, opts: EngineOptions) -> dict:
     out = {"video": d / f"{stem}.{opts.fmt}", "mask": mask, "frames": d / f"{stem}.frames.jsonl",
            "sheet": d / f"{stem}.sheet.jpg" if opts.contact_sheet else None}
     if opts.layers is not None:  # "layers:object", ... (or "layers:folder"): arshadow.export.layervideo
-        out.update({f"layers:{k}": p for k, p in video_layer_paths(d, stem, opts.layers).items()})
+        out.update({f"layers:{k}": p for k, p in video_layer_paths(d, stem, opts.layers,
+                                                                   opts.layers_undistorted).items()})
     return out
 
 
@@ -184,9 +189,11 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
     sheet = SheetThumbs(opts.contact_sheet, total, (W, H))
     sink = EncodeSink(outputs, opts, reader, path, is_av, composer.stage_ms, sheet, progress, name, total)
     if opts.layers is not None:  # the layers, written on the main thread with the frames
+        cal = backend.cal if opts.layers_undistorted else None
+        st = None if cal is None else stmap(cal.intrinsics, None if cal.lens is None else cal.lens.maps)
         composer.layer_sink = LayerSink({k[7:]: p for k, p in outputs.items() if k.startswith("layers:")},
-                                        opts.layers, getattr(reader, "rate", reader.fps), (W, H))
-        backend.want_layers = True
+                                        opts.layers, getattr(reader, "rate", reader.fps), (W, H), stmap=st)
+        backend.want_layers = "undistorted" if opts.layers_undistorted else True
     try:
         items = _run_threads(reader, composer, sink, opts)
     except BaseException:
