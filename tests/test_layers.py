@@ -197,3 +197,16 @@ def test_undistorted_layers_and_the_stmap_give_the_distorted_layers(gl_ctx):
         assert d.max() <= 1 / 32 + 1e-3 and d.mean() < 1e-4
     # the pinhole layers are not the distorted ones (k1 = -0.25 moves the object)
     assert np.abs(uobj[..., 3] - obj[..., 3]).max() > 0.5
+
+
+@pytest.mark.gl
+def test_frame_result_shows_itself_as_a_png(gl_ctx):
+    import arshadow
+
+    calib, eye = "synth_1280x720.yml", (0.1, -0.3, 0.4)
+    photo = _photo(calib, eye)
+    with arshadow.Session(arshadow.scene_from_dict(_scene(calib)), context=gl_ctx) as s:
+        res = s.process(photo, name="p")
+    png = res._repr_png_()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n"
+    assert np.array_equal(cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR), res.composite)
