@@ -129,3 +129,37 @@ def test_render_layers_undistorted_writes_the_pinhole_layers_and_the_stmap(photo
     intr = Intrinsics.from_file(CALIB)
     u, v = round(intr.K[0, 2]), round(intr.K[1, 2])
     assert st[v, u, 2] / 65535 == pytest.approx((u + 0.5) / 1280, abs=5e-5)
+
+
+def test_progress_bar_on_a_terminal_only_and_not_with_q(photos, tmp_path):
+    """stderr a pseudo-terminal: the tqdm bar is drawn; with -q, or stderr a pipe (the tests above), it is not."""
+    import fcntl
+    import os
+    import pty
+    import struct
+    import subprocess
+    import termios
+
+    def run(*extra):
+        master, slave = pty.openpty()
+        fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 120, 0, 0))  # a 120-column terminal
+        p = subprocess.run([sys.executable, "-m", "arshadow", "render", str(photos / "p0.png"),
+                            str(photos / "p1.png"), *map(str, SCENE), "-o", str(tmp_path / "o"), *extra],
+                           cwd=ROOT, stdout=subprocess.PIPE, stderr=slave, timeout=300)
+        os.close(slave)
+        chunks = []
+        while True:
+            try:
+                data = os.read(master, 65536)
+            except OSError:
+                break
+            if not data:
+                break
+            chunks.append(data)
+        os.close(master)
+        return p.returncode, p.stdout.decode(), b"".join(chunks).decode(errors="replace")
+
+    code, out, err = run()
+    assert code == 0 and "render:" in err and "2/2" in err and "2 done, 0 failed" in out
+    code, out, err = run("-q")
+    assert code == 0 and "render:" not in err and out == ""

@@ -75,8 +75,9 @@ def engine_options(args, collect_items=False):
 
 
 def progress_bar(quiet: bool):
-    """A ``progress_factory`` for :func:`arshadow.video.engine.run_videos`: a tqdm bar per video."""
-    if quiet:
+    """A ``progress_factory`` for :func:`arshadow.video.engine.run_videos`: a tqdm bar per video (none with
+    ``-q`` or when stderr is not a terminal: a log file gets the closing lines only)."""
+    if quiet or not sys.stderr.isatty():
         return None
 
     def factory(name):
@@ -243,6 +244,10 @@ def run(args) -> int:
             print(f"{s['input']} -> {s['output']}  ({s['frames']} frames: {s['frames_ok']} tracked, "
                   f"{s['frames_held']} held, {s['frames_no_marker']} without marker; "
                   f"{s['fps_processed']:.1f} fps)", file=sys.stdout)
+    if not args.quiet and len(summaries) > 1:
+        flagged = sum(1 for s in summaries if s["status"] == "ok" and s.get("frames_no_marker"))
+        print(f"{len(summaries) - failed} of {len(summaries)} videos rendered into {outdir}: "
+              f"{len(summaries) - failed} done, {failed} failed, {flagged} flagged (frames without the marker)")
     if args.report:
         rep = make_report(items)
         rep["videos"] = jsonable(summaries)
