@@ -270,15 +270,8 @@ def _compose_cpu(plan, image, intr, geometry, renderer, lens, work, passes, out,
     t = time.perf_counter()
     want_layers = info.pop("want_layers", False)
     if want_layers:
-        rgba = None
-        if opts.draw_occluder:
-            rgba = color if np.shape(color)[2] == 4 else np.dstack([color, alpha])
-        kw = {"opacity": opts.opacity, "shadow_color": opts.shadow_color,
-              "premultiplied": getattr(res, "premultiplied", True)}
-        lay = info["layers"] = layers_from_warped(mask, rgba, roi, (H, W), **kw)
-        if want_layers == "undistorted":
-            lay.undistorted = lay if lens is None else pinhole_layers(
-                pinhole[0], pinhole[1] if opts.draw_occluder else None, canvas, (H, W), **kw)
+        info["layers"] = _frame_layers(want_layers, mask, color, alpha, roi, (H, W), opts, lens is not None,
+                                       pinhole, canvas, getattr(res, "premultiplied", True))
     composite(out, mask, roi, color=color if opts.draw_occluder else None,
               alpha=alpha if opts.draw_occluder else None, opacity=opts.opacity,
               shadow_color=opts.shadow_color, premultiplied=getattr(res, "premultiplied", True), out=out, work=work)
@@ -290,3 +283,17 @@ def _compose_cpu(plan, image, intr, geometry, renderer, lens, work, passes, out,
         np.clip(m, np.float32(0.0), np.float32(255.0), out=m)
         np.copyto(mask_full[y0 : y0 + h, x0 : x0 + w], m, casting="unsafe")
     timings["composite"] += (time.perf_counter() - t) * 1e3
+
+
+def _frame_layers(want, mask, color, alpha, roi, shape, opts, distorted, pinhole, canvas, premultiplied):
+    """The frame's :class:`arshadow.compose.layers.Layers` from the warped arrays the composite uses (and,
+    with ``want == "undistorted"``, from the pinhole canvas ``pinhole = (mask, rgba)`` too)."""
+    rgba = None
+    if opts.draw_occluder:
+        rgba = color if np.shape(color)[2] == 4 else np.dstack([color, alpha])
+    kw = {"opacity": opts.opacity, "shadow_color": opts.shadow_color, "premultiplied": premultiplied}
+    lay = layers_from_warped(mask, rgba, roi, shape, **kw)
+    if want == "undistorted":
+        lay.undistorted = pinhole_layers(pinhole[0], pinhole[1] if opts.draw_occluder else None, canvas, shape,
+                                         **kw) if distorted else lay
+    return lay

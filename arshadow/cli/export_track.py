@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+from typing import Any
 
 from . import EXIT_OK
 
@@ -62,6 +63,7 @@ def run(args) -> int:
         if resolved_path(o) == resolved_path(args.source):
             raise UsageError(f"-o {o}: would overwrite the input")
     caster, ground = None, args.ground_size
+    intr: Any
     if args.config:
         scene = load_scene(args.config).build()
         intr, caster = scene.intrinsics, scene.caster

@@ -27,6 +27,7 @@ import os
 import shutil
 import tempfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -123,7 +124,7 @@ class LayerSink:
             os.close(fd)
             self._tmp[name] = Path(tmp)
             c = av.open(tmp, "w")
-            s = c.add_stream(codec, rate=rate)
+            s: Any = c.add_stream(codec, rate=rate)
             s.width, s.height = self.W, self.H
             s.pix_fmt = grey_fmt if name.endswith("shadow.mult") else rgba_fmt
             if codec == "prores_ks":

@@ -30,6 +30,7 @@ import math
 import struct
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -128,9 +129,9 @@ def quat_from_matrix(R) -> np.ndarray:
         q[i] = 0.25 * s
         q[j] = (R[j, i] + R[i, j]) / s
         q[k] = (R[k, i] + R[i, k]) / s
-    q = np.asarray(q)
-    q /= np.linalg.norm(q)
-    return -q if q[3] < 0 else q
+    qa = np.asarray(q, np.float64)
+    qa /= np.linalg.norm(qa)
+    return -qa if qa[3] < 0 else qa
 
 
 def _matrix(rvec, tvec) -> np.ndarray:
@@ -291,8 +292,9 @@ def track_gltf(track: CameraTrack, *, caster=None, ground_size: float = 1.0, los
     if keys:
         g0 = gl_world_from_camera(keys[0][1])
         cam_node.update(translation=g0[:3, 3].tolist(), rotation=quat_from_matrix(g0[:3, :3]).tolist())
-    nodes = [{"name": "marker_frame", "rotation": [-math.sqrt(0.5), 0.0, 0.0, math.sqrt(0.5)],
-              "children": [1], "extras": {"arshadow": "marker frame (z up) -> glTF (y up)"}}, cam_node]
+    root = {"name": "marker_frame", "rotation": [-math.sqrt(0.5), 0.0, 0.0, math.sqrt(0.5)], "children": [1],
+            "extras": {"arshadow": "marker frame (z up) -> glTF (y up)"}}
+    nodes: list[dict[str, Any]] = [root, cam_node]
     meshes = []
     s = float(ground_size) / 2.0
     ground = np.array([[-s, -s, 0], [s, -s, 0], [s, s, 0], [-s, s, 0]], np.float64)
@@ -303,7 +305,8 @@ def track_gltf(track: CameraTrack, *, caster=None, ground_size: float = 1.0, los
         meshes.append(_mesh(b, caster.vertices, caster.faces, "occluder", 0))
         nodes.append({"name": "occluder", "mesh": 1})
         nodes[0]["children"].append(3)
-    doc = {"asset": {"version": "2.0", "generator": f"arshadow {__version__}"},
+    doc: dict[str, Any] = {
+           "asset": {"version": "2.0", "generator": f"arshadow {__version__}"},
            "extras": {"arshadow": {"name": track.name, "lost_frames": lost,
                                    "frames_keyed": len(keys), "frames": len(track.frames)}},
            "scene": 0, "scenes": [{"name": track.name or "arshadow", "nodes": [0]}], "nodes": nodes,
