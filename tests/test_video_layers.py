@@ -107,3 +107,15 @@ def test_png_sequence_layers_undistorted(clip, tmp_path):
     assert len(seq) == 12 and "undistorted.object.000001.png" in seq and "shadow.mult.000000.png" in seq
     assert (out / "clip.stmap.png").is_file()
     assert not [p for p in out.iterdir() if p.name.startswith(".")]  # no temporaries left
+
+
+def test_layer_file_over_an_input_video_is_exit_2(clip, tmp_path, capsys):
+    d = tmp_path / "in"
+    d.mkdir()
+    (d / "c.mp4").write_bytes(Path(clip).read_bytes())
+    (d / "c.object.mov").write_bytes(b"not really a video, but an input")
+    before = {p.name: p.read_bytes() for p in d.iterdir()}
+    assert _cli("video", d / "c.mp4", d / "c.object.mov", *SCENE, "-o", d, "--layers") == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "would overwrite an input" in err[0] and "c.object.mov" in err[0]
+    assert {p.name: p.read_bytes() for p in d.iterdir()} == before

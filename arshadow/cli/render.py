@@ -234,18 +234,12 @@ def run(args) -> int:
 def _layer_paths(args, inputs, outdir):
     """Each input's layer files (:func:`arshadow.export.layerfiles.layer_paths`); a missing writer or a layer
     file that would replace an input is a usage error here, before any work."""
-    from ..errors import UsageError
-    from ..export.layerfiles import check_layer_format, layer_paths
-    from ..io import resolved_path
+    from ..export.layerfiles import check_layer_format, layer_paths, refuse_overwrite
 
     fmt = check_layer_format(args.layers_format)
-    given = {resolved_path(i) for i in inputs}
     sets = [layer_paths(outdir, Path(out).stem, fmt, undistorted=bool(args.layers_undistorted))
             for out, _mask in output_paths(inputs, outdir, args.keep_format)]
-    for paths in sets:
-        for p in paths.values():
-            if resolved_path(p) in given:
-                raise UsageError(f"--layers: {p} would overwrite an input; choose another -o folder")
+    refuse_overwrite([p for paths in sets for p in paths.values()], inputs)
     return sets
 
 

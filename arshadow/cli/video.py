@@ -216,6 +216,12 @@ def run(args) -> int:
     outdir = check_output_folder(args.output, "-o")
     if args.report:
         check_output_file(args.report, "--report")
+    if opts.layers is not None:  # a layer file over an input: a usage error before any work
+        from ..export.layerfiles import refuse_overwrite
+        from ..video.engine import unique_stems, video_outputs
+
+        refuse_overwrite([p for stem in unique_stems(args.videos)
+                          for k, p in video_outputs(outdir, stem, opts).items() if k.startswith("layers:")], args.videos)
     first = list(static)
     for tr in tracks:
         tr.reset()
