@@ -129,7 +129,8 @@ def test_session_layers_recombine_to_the_composite(gl_ctx, calib, eye, extra):
     assert _maxdiff(_recombine(photo, obj, sh), res.composite) <= 1
     if "shadow_color" not in extra:
         assert _maxdiff(_recombine(photo, obj, shadow_only_alpha(sh, obj[..., 3]), over=True), res.composite) <= 1
-    assert "layers" not in res.item.extra and "want_layers" not in res.item.extra
+    assert "layers" not in res.item.to_dict() and "want_layers" not in res.item.to_dict()
+    assert res.item.compose == "cpu" and "layers asked for" in res.item.plan["compose"]
 
 
 @pytest.mark.gl

@@ -115,7 +115,7 @@ def test_board_with_conflicting_dictionary_is_refused():
 
 def test_aa_only_documented_values():
     from arshadow.errors import UsageError
-    from arshadow.pipeline import RenderOptions
+    from arshadow.scene import RenderOptions
 
     for ok in (0, 2, 4):
         RenderOptions(aa=ok).check()

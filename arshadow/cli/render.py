@@ -81,7 +81,10 @@ def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> No
                    help="translation in metres, world (marker) frame (last)")
     o.add_argument("--color", metavar="R,G,B", help="object colour, 8-bit sRGB 0..255 (default: the mesh's own)")
     s = p.add_argument_group("lights and shadows")
-    s.add_argument("--light", action="append", required=require, metavar="L",
+    s.add_argument("--light-from", metavar="FILE",
+                   help="a measured light (arshadow light ... -o FILE, docs/light.md): its light (unless --light "
+                        "is given), its shadow colour (instead of --opacity/--shadow-color) and the marker's exposure")
+    s.add_argument("--light", action="append", metavar="L",
                    help="point:X,Y,Z | directional:X,Y,Z | sun:LAT,LON,TIME[,NORTH], optional @W weight; "
                         "repeat for several lights")
     s.add_argument("--soft-samples", type=_positive("--soft-samples", integer=True), default=1, metavar="N",
@@ -225,7 +228,7 @@ def run(args) -> int:
     if args.report:
         write_json(args.report, make_report(items))
     if not args.quiet and len(inputs) > 1:
-        flagged = sum(1 for it in items if it.extra.get("pose_flagged"))
+        flagged = sum(1 for it in items if it.pose_flagged)
         print(f"{len(inputs) - failed} of {len(inputs)} photos rendered into {outdir}: "
               f"{len(inputs) - failed} done, {failed} failed, {flagged} flagged (ambiguous pose)", file=sys.stdout)
     return EXIT_SOME_FAILED if failed else EXIT_OK
@@ -291,7 +294,7 @@ def _render_all(args, session, inputs, outdir, debug, layer_sets=None, bar=None)
                 if "stmap" in layer_sets[k]:
                     cal = session.calibration(image.shape[1], image.shape[0])
                     write_stmap(layer_sets[k]["stmap"], stmap(cal.intrinsics, None if cal.lens is None else cal.lens.maps))
-                item.extra["layers"] = {n: str(p) for n, p in layer_sets[k].items()}
+                item.layers = {n: str(p) for n, p in layer_sets[k].items()}
             if not args.quiet:
                 t = item.timings_ms.get("total", 0.0)
                 say(f"{inp} -> {out_path}  ({item.mode or 'no light casts a shadow'}, {t:.1f} ms)",

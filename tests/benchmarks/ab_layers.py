@@ -63,7 +63,7 @@ def main(argv=None) -> int:
                 t = time.perf_counter()
                 res = s.process(image, want_mask=False, out=buf, layers=variant == "on")
                 times[variant].append((time.perf_counter() - t) * 1e3)
-                compose[variant].add(res.item.extra.get("compose"))
+                compose[variant].add(res.item.compose)
                 if variant == "on" and args.write and i < 20:
                     t = time.perf_counter()
                     write_layers(layer_paths(tmp, "frame", args.write), res.layers, args.write)
