@@ -119,3 +119,26 @@ def test_layer_file_over_an_input_video_is_exit_2(clip, tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "would overwrite an input" in err[0] and "c.object.mov" in err[0]
     assert {p.name: p.read_bytes() for p in d.iterdir()} == before
+
+
+def test_batch_layers_for_photos_and_videos(clip, tmp_path, gl_ctx):
+    import cv2 as _cv2
+
+    from arshadow.camera import Intrinsics
+    from arshadow.synth import look_at_pose, render_marker_photo
+
+    job = tmp_path / "job.json"
+    job.write_text(json.dumps(JOB))
+    photo = tmp_path / "shot.png"
+    intr = Intrinsics.from_file(CALIB)
+    _cv2.imwrite(str(photo), render_marker_photo(intr, look_at_pose([0.1, -0.3, 0.35], [0, 0, 0]),
+                                                 marker_length=0.05, seed=9).image)
+    out = tmp_path / "out"
+    assert _cli("batch", photo, clip, "--config", job, "-o", out, "-q", "--layers", "--layers-format", "ffv1",
+                "--max-frames", "2") == 0
+    names = {p.name for p in out.iterdir()}
+    assert {"shot.object.png", "shot.shadow.mult.png", "shot.shadow.only.png"} <= names  # photos: 16-bit PNG
+    assert {"clip.object.mkv", "clip.shadow.mult.mkv", "clip.shadow.only.mkv"} <= names
+    rec = json.loads((out / "batch.json").read_text())
+    outs = [o for it in rec["items"] for o in it["outputs"]]
+    assert any(o.endswith("shot.object.png") for o in outs) and any(o.endswith("clip.object.mkv") for o in outs)
