@@ -38,8 +38,9 @@ from .plan import (
     shadow_footprint,
 )
 from .report import ReportItem
+from .sanity import FrameChecks, calibration_scaled_note
 from .scene import RenderOptions
-from .transforms import invert_rigid, rvec_tvec_from_matrix
+from .transforms import rvec_tvec_from_matrix
 
 log = logging.getLogger(__name__)
 
@@ -117,7 +118,7 @@ class Compositor:
         self._calibs: dict = {}
         self._lenses: dict = {}
         self._work = Workspace()
-        self._warned_inside = False
+        self._checks = FrameChecks(caster, self.tracker_kwargs.get("marker_length"))  # O(1) per frame
         self._renderer = renderer
         self._own_renderer = renderer is None
         self._make_renderer = make_renderer
@@ -198,6 +199,8 @@ class Compositor:
             from .tracking.marker import MarkerTracker
 
             intr, scaled = self.intrinsics.for_image(width, height)
+            if scaled:
+                log.warning(calibration_scaled_note(self.intrinsics, width, height))
             # video: each tracker searches a window around its last detection first (the planner's tracking
             # ROI, full-frame fallback: arshadow/tracking/roi_track.py)
             roi = bool(self.options.track_roi and self.options.plan != "general"
@@ -400,12 +403,8 @@ class Compositor:
         if self.options.plan == "general" or "reuse" in self.options.plan_off:
             self.geometry.forget()  # the reference rebuilds every light's geometry every frame
         plan = plan_frame(self.geometry, intr, cam_from_world, W, H, lens=lens, modes=modes)
-        if not self._warned_inside:
-            from .geometry.mesh import placement_warnings
-
-            for msg in placement_warnings(self.caster, eye_world=invert_rigid(cam_from_world)[:3, 3]):
-                log.warning(msg)
-                self._warned_inside = True  # once per run, not per frame
+        for msg in self._checks.check(cam_from_world):  # a far camera, the camera inside: once per run
+            log.warning(msg)
         # the renderer is made only when there is something to draw
         renderer = None if plan.empty else self.renderer
         out, mask, info = execute(plan, image, intr, geometry=self.geometry, renderer=renderer, lens=lens,

@@ -7,6 +7,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from . import __version__
+from .sanity import pose_flag_reasons
 
 
 @dataclass
@@ -43,6 +44,7 @@ class ReportItem:
         self.pose_ambiguity = None if pose.pose_ambiguity is None else float(pose.pose_ambiguity)
         # the ratio is at or above the tracker's threshold: the mirrored solution may be the true one
         self.extra["pose_flagged"] = bool(getattr(pose, "ambiguous", False))
+        self.extra["flag_reasons"] = pose_flag_reasons(pose)  # why it is flagged ([] when it is not)
         if getattr(pose, "kind", None) in ("gridboard", "charuco"):
             from .tracking.marker import OPENCV_BOARD_TO_WORLD
             from .transforms import rvec_tvec_from_matrix

@@ -75,10 +75,20 @@ def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> No
                         "sphere:R | torus:R,r")
     o.add_argument("--scale", type=_positive("--scale"), default=1.0, metavar="S", help="uniform scale (first)")
     o.add_argument("--rotate", type=_floats(3, "--rotate"), default=(0.0, 0.0, 0.0), metavar="RX,RY,RZ",
-                   help="rotation in degrees, XYZ order (after scale)")
+                   help="rotation in degrees, XYZ order (after scale); a negative first number is fine: "
+                        "--rotate -90,0,0")
     o.add_argument("--place", type=_floats(3, "--place"), default=(0.0, 0.0, 0.0), metavar="X,Y,Z",
-                   help="translation in metres, world (marker) frame (last)")
-    o.add_argument("--color", metavar="R,G,B", help="object colour, 8-bit sRGB 0..255 (default: the mesh's own)")
+                   help="translation in metres, world (marker) frame (last); a negative first number is fine: "
+                        "--place -0.05,0,0")
+    o.add_argument("--up", choices=("y", "z"), metavar="y|z",
+                   help="the mesh file's up axis, turned to the world's +z first (default: y for glTF "
+                        ".glb/.gltf, which is Y-up by specification; z for OBJ/PLY/STL/OFF). Blender's OBJ "
+                        "export is Y-up: --up y")
+    o.add_argument("--drop-to-ground", action="store_true",
+                   help="stand the model on the ground: after scale and rotate, move it along z so that its "
+                        "lowest point is at z = 0 (for meshes centred on their origin); --place then adds")
+    o.add_argument("--color", metavar="R,G,B",
+                   help="object colour, 8-bit sRGB 0..255 or #rrggbb (default: the mesh's own)")
     s = p.add_argument_group("lights and shadows")
     s.add_argument("--light", action="append", required=require, metavar="L",
                    help="point:X,Y,Z | directional:X,Y,Z | sun:LAT,LON,TIME[,NORTH], optional @W weight; "
@@ -94,7 +104,8 @@ def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> No
                    metavar="N", help="shadow map side in texels with --shadow-method shadowmap (default 2048)")
     s.add_argument("--opacity", type=float, default=0.7, metavar="O",
                    help="darkness of a full shadow, 0..1 (default 0.7)")
-    s.add_argument("--shadow-color", metavar="R,G,B", help="tint of a full shadow, 8-bit sRGB (default black)")
+    s.add_argument("--shadow-color", metavar="R,G,B",
+                   help="tint of a full shadow, 8-bit sRGB R,G,B or #rrggbb (default black)")
     s.add_argument("--aa", type=int, default=0, metavar="N",
                    help="multisample anti-aliasing samples, 0 (default: pixel-centre sampling, the fastest), "
                         "2 or 4 (smoother edges; ~5x the render time on a CPU renderer, see "
