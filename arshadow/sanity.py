@@ -34,7 +34,7 @@ log = logging.getLogger(__name__)
 __all__ = ["MAX_MARKER_LENGTH_M", "MIN_MARKER_LENGTH_M", "MAX_CAMERA_DISTANCE_M", "MIN_OBJECT_RATIO",
            "SLOW_LIGHT_RATIO", "unit_guess", "scale_warnings", "ground_warnings", "light_warnings",
            "check_lights_inside", "check_scene", "sun_set_warning", "pose_flag_reasons", "FrameChecks",
-           "calibration_scaled_note"]
+           "calibration_scaled_note", "time_lapse_warnings", "FlagTally"]
 
 #: a printed marker (or board square) longer than this (metres) is taken for a unit mistake
 MAX_MARKER_LENGTH_M = 1.0
@@ -347,3 +347,96 @@ class FrameChecks:
                        f"({self._lo.round(4).tolist()} .. {self._hi.round(4).tolist()} m): the object may cover "
                        "the whole photo")
         return out
+
+
+def time_lapse_warnings(videos, tracks, time_lapse, max_frames=None) -> dict:
+    """:func:`sun_set_warning` for each video of a time-lapse, read before any frame is decoded (the
+    container's frame count and rate).
+
+    Parameters
+    ----------
+    videos : list of str
+    tracks : list of SunTrack
+    time_lapse : (datetime, float) or None
+        ``(start, speed)`` of ``arshadow video --time-lapse``.
+    max_frames : int, optional
+
+    Returns
+    -------
+    dict
+        ``{video: message}`` for the videos in which a sun sets (a video that cannot be opened is left to
+        the engine, which reports it).
+    """
+    # deferred: PyAV is loaded only when a time-lapse is asked for (sanity is imported by every path)
+    from .errors import ArshadowError
+    from .video.avio import AvReader
+
+    out = {}
+    if not tracks or time_lapse is None:
+        return out
+    for v in videos:
+        try:
+            reader = AvReader(v, max_frames=max_frames)
+        except (ArshadowError, OSError):
+            continue
+        try:
+            n, fps = reader.frame_count, reader.fps
+        finally:
+            reader.close()
+        if n is None:
+            continue
+        n = min(n, int(max_frames)) if max_frames else n
+        msg = sun_set_warning(tracks, time_lapse[0], time_lapse[1], fps, n, label=str(v))
+        if msg:
+            out[str(v)] = msg
+    return out
+
+
+def _ranges(keys) -> str:
+    """``[1, 2, 3, 7]`` -> ``"1-3, 7"`` (ints), names joined as they are."""
+    keys = list(keys)
+    if not all(isinstance(k, int) for k in keys):
+        return ", ".join(map(str, keys))
+    out, start, prev = [], None, None
+    for k in sorted(keys):
+        if start is None:
+            start = prev = k
+        elif k == prev + 1:
+            prev = k
+        else:
+            out.append(f"{start}-{prev}" if prev > start else f"{start}")
+            start = prev = k
+    if start is not None:
+        out.append(f"{start}-{prev}" if prev > start else f"{start}")
+    return ", ".join(out)
+
+
+class FlagTally:
+    """Flagged poses of a run, for one summary line on stderr (``render``: per photo, ``video``: per frame).
+
+    >>> t = FlagTally()
+    >>> t.add(3, ["small marker: 20.1 px across"]); t.add(4, ["small marker: 19.8 px across"]); t.add(5, [])
+    >>> print(t.summary(6, "frames"))
+    2 of 6 frames have a flagged pose (3-4): small marker (2); the report's flag_reasons say why for each
+    """
+
+    def __init__(self):
+        self.keys: list = []
+        self.kinds: dict = {}
+
+    def add(self, key, reasons) -> None:
+        """Record the reasons (:func:`pose_flag_reasons`) of the pose of ``key`` (a frame index or a name)."""
+        if not reasons:
+            return
+        self.keys.append(key)
+        for r in reasons:
+            kind = str(r).split(":", 1)[0]
+            self.kinds[kind] = self.kinds.get(kind, 0) + 1
+
+    def summary(self, total: int, what: str = "photos") -> str | None:
+        """One line, or None when nothing was flagged."""
+        if not self.keys:
+            return None
+        kinds = ", ".join(f"{k} ({n})" for k, n in sorted(self.kinds.items(), key=lambda kv: -kv[1]))
+        return (f"{len(self.keys)} of {total} {what} have a flagged pose ({_ranges(self.keys)}): {kinds}; the "
+                "report's flag_reasons say why for each")

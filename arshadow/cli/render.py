@@ -198,6 +198,7 @@ def output_paths(inputs, outdir: Path, keep_format: bool):
 def run(args) -> int:
     from ..io import write_json
     from ..report import make_report
+    from ..sanity import FlagTally
     from ..scene import scene_from_args
     from ..session import Session
 
@@ -215,6 +216,11 @@ def run(args) -> int:
         items, failed = _render_all(args, session, inputs, outdir, debug)
     if args.report:
         write_json(args.report, make_report(items))
+    flags = FlagTally()
+    for it in items:
+        flags.add(it.input, it.extra.get("flag_reasons"))
+    if flags.summary(len(items)):
+        print(f"arshadow render: warning: {flags.summary(len(items))}", file=sys.stderr)
     if not args.quiet and len(inputs) > 1:
         print(f"{len(inputs) - failed} of {len(inputs)} photos rendered into {outdir}", file=sys.stdout)
     return EXIT_SOME_FAILED if failed else EXIT_OK

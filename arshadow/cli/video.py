@@ -188,6 +188,7 @@ def build_lights(args):
 def run(args) -> int:
     from ..io import check_output_file, check_output_folder, write_json
     from ..report import jsonable, make_report
+    from ..sanity import time_lapse_warnings
     from ..scene import scene_from_args
     from ..session import Session
     from ..video.engine import SessionBackend, run_videos
@@ -203,6 +204,9 @@ def run(args) -> int:
     outdir = check_output_folder(args.output, "-o")
     if args.report:
         check_output_file(args.report, "--report")
+    sun_set = time_lapse_warnings(args.videos, tracks, tl, getattr(args, "max_frames", None))  # before any work
+    for msg in sun_set.values():
+        print(f"arshadow video: warning: {msg}", file=sys.stderr)
     first = list(static)
     for tr in tracks:
         tr.reset()
@@ -231,6 +235,9 @@ def run(args) -> int:
             print(f"{s['input']} -> {s['output']}  ({s['frames']} frames: {s['frames_ok']} tracked, "
                   f"{s['frames_held']} held, {s['frames_no_marker']} without marker; "
                   f"{s['fps_processed']:.1f} fps)", file=sys.stdout)
+    for s in summaries:  # the report says it too
+        if s.get("input") in sun_set:
+            s.setdefault("warnings", []).insert(0, sun_set[s["input"]])
     if args.report:
         rep = make_report(items)
         rep["videos"] = jsonable(summaries)

@@ -44,6 +44,7 @@ import numpy as np
 from ..errors import ArshadowError, ImageError, MarkerNotFoundError, UsageError
 from ..compose.composite import clip_roi
 from ..io import resolved_path
+from ..sanity import FlagTally
 from ..transforms import rvec_tvec_from_matrix
 
 __all__ = ["EngineOptions", "SessionBackend", "video_outputs", "process_video", "run_videos", "unique_stems",
@@ -289,6 +290,7 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
     q_out: queue.Queue = queue.Queue(maxsize=opts.queue_frames)
     stop = threading.Event()
     stats = dict(frames=0, frames_ok=0, frames_held=0, frames_no_marker=0, swapped=0)
+    flags = FlagTally()  # flagged poses: one warning line for the video
     stage_ms: dict = {k: [] for k in FRAME_STAGES}
     items = []
     total = reader.frame_count if opts.max_frames is None else min(reader.frame_count or opts.max_frames,
@@ -396,6 +398,7 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
         else:
             if fp.raw is not None:
                 item.set_pose(fp.raw)
+                flags.add(fr.index, item.extra.get("flag_reasons"))
                 stats["frames_ok"] += 1
             else:
                 stats["frames_held"] += 1
@@ -492,6 +495,8 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
                         f"{why})")
     if dec_err:
         warnings.append(f"{name}: {dec_err} damaged packet(s) could not be decoded and were skipped")
+    if flags.summary(stats["frames"], "frames"):
+        warnings.append(f"{name}: {flags.summary(stats['frames'], 'frames')}")
     status = "ok"
     if truncated or dec_err:
         status = "damaged"
