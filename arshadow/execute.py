@@ -56,7 +56,7 @@ def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings=N
         photo size, anti-aliasing and lens; without it (or without ``gpu``) the numpy path runs.
     gpu : callable, optional
         ``gpu() -> arshadow.gl.compose.GpuCompositor`` (made on first use by the caller); needs a renderer
-        with ``render(..., readback=False)`` (``renderer.gpu_layers``).
+        with ``render_gpu(...)`` (``renderer.gpu_layers``).
 
     Returns
     -------
@@ -166,9 +166,10 @@ def _compose_gpu(plan, image, intr, geometry, renderer, lens, work, passes, out,
     roi, canvas = plan.roi, plan.canvas
     proj = intr.gl_projection(plan.znear, None, canvas=canvas)
     t = time.perf_counter()
-    lay = renderer.render(projection=proj, view=CV_TO_GL @ plan.cam_from_world, width=int(canvas[2]),
-                          height=int(canvas[3]), caster=geometry.caster, passes=passes, ground_size=opts.ground_size,
-                          draw_occluder=opts.draw_occluder, occluder_color=opts.occluder_color, readback=False)
+    lay = renderer.render_gpu(projection=proj, view=CV_TO_GL @ plan.cam_from_world, width=int(canvas[2]),
+                              height=int(canvas[3]), caster=geometry.caster, passes=passes,
+                              ground_size=opts.ground_size, draw_occluder=opts.draw_occluder,
+                              occluder_color=opts.occluder_color)
     timings["render"] += (time.perf_counter() - t) * 1e3
     ct = {}
     t = time.perf_counter()

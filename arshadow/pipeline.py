@@ -3,7 +3,7 @@
 A :class:`Compositor` holds what stays fixed over a run (calibration per photo size, trackers, lens
 warps, the scene's CPU geometry, the renderer) and runs each photo through three steps:
 
-1. **track**: marker / board detection and pose (:mod:`arshadow.tracking.marker`; the fast first pass of
+1. **track**: marker / board detection and pose (:mod:`arshadow.tracking.tracker`; the fast first pass of
    :mod:`arshadow.tracking.fastdetect`, the full search only if it finds nothing);
 2. **plan**: :func:`arshadow.plan.plan_frame` (pure, no GL): ROI and canvas, near plane, z-pass / z-fail
    per light, which cached geometry is reused;
@@ -28,7 +28,8 @@ import numpy as np
 from .compose.composite import Workspace
 from .errors import ImageError, MarkerNotFoundError
 from .execute import STAGES, execute
-from .tracking.fastdetect import HalfResolutionDetector, fast_detector_params, make_fast_tracker
+from .tracking.fastdetect import HalfResolutionDetector, fast_detector_params
+from .tracking.tracker import MarkerTracker, make_fast_tracker
 from .plan import (
     ROI_MAX_POINTS,
     SceneGeometry,
@@ -58,11 +59,11 @@ class CalibrationState:
     intrinsics : arshadow.camera.Intrinsics
         Scaled to the size.
     was_scaled : bool
-    tracker : arshadow.tracking.marker.MarkerTracker
+    tracker : arshadow.tracking.tracker.MarkerTracker
         The full search.
     lens : arshadow.compose.lens.LensWarp or None
         None without distortion.
-    fast_tracker : arshadow.tracking.marker.MarkerTracker or None
+    fast_tracker : arshadow.tracking.tracker.MarkerTracker or None
         The fast first pass (``detector="fast"``), None when off.
     """
 
@@ -97,13 +98,13 @@ class Compositor:
         At least one. Area lights are split into ``options.soft_samples`` hard samples.
     options : RenderOptions, optional
     tracker : dict, optional
-        Keyword arguments of :class:`arshadow.tracking.marker.MarkerTracker` (dictionary, marker_length,
+        Keyword arguments of :class:`arshadow.tracking.tracker.MarkerTracker` (dictionary, marker_length,
         marker_id, board, ...).
     renderer : arshadow.render_api.Renderer, optional
         Share an existing renderer (not released by :meth:`close`).
     make_renderer : callable, optional
         ``make_renderer(options) -> Renderer``, called on first use (default: a
-        :class:`arshadow.gl.renderer.ShadowRenderer` on ``ctx`` with ``options.aa`` samples); the
+        :class:`arshadow.gl.stencil.ShadowRenderer` on ``ctx`` with ``options.aa`` samples); the
         renderer made is released by :meth:`close`.
     """
 
@@ -196,8 +197,6 @@ class Compositor:
         key = (int(width), int(height))
         c = self._calibs.get(key)
         if c is None:
-            from .tracking.marker import MarkerTracker
-
             intr, scaled = self.intrinsics.for_image(width, height)
             if scaled:
                 log.warning(calibration_scaled_note(self.intrinsics, width, height))
@@ -237,7 +236,7 @@ class Compositor:
 
         Returns
         -------
-        arshadow.tracking.marker.MarkerPose
+        arshadow.tracking.pose.MarkerPose
 
         Raises
         ------
@@ -316,7 +315,7 @@ class Compositor:
         Parameters
         ----------
         image : (H, W, 3) uint8
-        pose : arshadow.tracking.marker.MarkerPose or (4, 4) float64
+        pose : arshadow.tracking.pose.MarkerPose or (4, 4) float64
             A tracked pose or ``cam_from_world``.
         cal : CalibrationState
             :meth:`calib_for` of the photo's size.
@@ -423,12 +422,12 @@ class Compositor:
 
 
 def default_renderer(ctx, options: RenderOptions):
-    """The renderer ``options`` ask for, on ``ctx``: the stencil :class:`arshadow.gl.renderer.ShadowRenderer`
+    """The renderer ``options`` ask for, on ``ctx``: the stencil :class:`arshadow.gl.stencil.ShadowRenderer`
     (volumes and planar shadows), or the :class:`arshadow.gl.shadowmap.ShadowMapRenderer` baseline."""
     if options.shadow_method == "shadowmap":
         from .gl.shadowmap import ShadowMapRenderer
 
         return ShadowMapRenderer(ctx, map_size=int(options.shadowmap_size), samples=int(options.aa))
-    from .gl.renderer import ShadowRenderer
+    from .gl.stencil import ShadowRenderer
 
     return ShadowRenderer(ctx, samples=int(options.aa))

@@ -30,7 +30,7 @@ class ReportItem:
     extra: dict = field(default_factory=dict)
 
     def set_pose(self, pose) -> None:
-        """Fill the pose keys from an :class:`arshadow.tracking.marker.MarkerPose`.
+        """Fill the pose keys from an :class:`arshadow.tracking.pose.MarkerPose`.
 
         ``rvec``/``tvec`` are world -> camera in arshadow's world frame (z up). For a board that frame is
         OpenCV's board frame turned 180 degrees about x (docs/tracking.md), so the item also carries
@@ -46,7 +46,7 @@ class ReportItem:
         self.extra["pose_flagged"] = bool(getattr(pose, "ambiguous", False))
         self.extra["flag_reasons"] = pose_flag_reasons(pose)  # why it is flagged ([] when it is not)
         if getattr(pose, "kind", None) in ("gridboard", "charuco"):
-            from .tracking.marker import OPENCV_BOARD_TO_WORLD
+            from .tracking.board import OPENCV_BOARD_TO_WORLD
             from .transforms import rvec_tvec_from_matrix
 
             world_from_board = np.eye(4)

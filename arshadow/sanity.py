@@ -286,7 +286,8 @@ def pose_flag_reasons(pose) -> list[str]:
         return [str(r) for r in own]
     if not getattr(pose, "ambiguous", False):
         return []
-    from .tracking.marker import MAX_BORDER_OCCLUSION, MAX_CORNER_INSTABILITY, MIN_CONFIDENT_SIDE_PX
+    # deferred: the thresholds live with the tracker (OpenCV); sanity itself stays light
+    from .tracking.quality import MAX_BORDER_OCCLUSION, MAX_CORNER_INSTABILITY, MIN_CONFIDENT_SIDE_PX
 
     out = []
     ratio, thr = pose.pose_ambiguity, getattr(pose, "ambiguity_threshold", None)

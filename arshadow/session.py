@@ -42,7 +42,7 @@ class FrameResult:
         The photo with the object and its shadow (BGR).
     mask : (H, W) uint8 or None
         The shadow mask of CONVENTIONS.md (None when not asked for).
-    pose : arshadow.tracking.marker.MarkerPose or None
+    pose : arshadow.tracking.pose.MarkerPose or None
         The tracked pose (None when rendering at a given ``cam_from_world``).
     cam_from_world : (4, 4) float64
         The pose rendered.
@@ -79,7 +79,7 @@ class Session:
     renderer : Renderer or callable, optional
         A renderer to share (:class:`arshadow.render_api.Renderer`, not released by :meth:`close`), or
         ``renderer(ctx, options) -> Renderer`` making this session's own: another shadow technique
-        (default: the stencil :class:`arshadow.gl.renderer.ShadowRenderer` with ``options.aa`` samples).
+        (default: the stencil :class:`arshadow.gl.stencil.ShadowRenderer` with ``options.aa`` samples).
 
     Raises
     ------
@@ -199,7 +199,7 @@ class Session:
 
         Parameters
         ----------
-        image : (H, W, 3) uint8
+        image : (H, W, 3) uint8 BGR or (H, W) uint8 grey
         timings : dict, optional
             ``detect`` and ``pose`` (milliseconds) are added to.
         extra : dict, optional
@@ -207,7 +207,7 @@ class Session:
 
         Returns
         -------
-        arshadow.tracking.marker.MarkerPose
+        arshadow.tracking.pose.MarkerPose
 
         Raises
         ------
@@ -215,7 +215,9 @@ class Session:
         """
         from .pipeline import check_bgr_image
 
-        image = check_bgr_image(image, "image")
+        image = np.asarray(image)
+        if not (image.ndim == 2 and image.dtype == np.uint8):  # a grey image (a video's Y plane) is tracked as is
+            image = check_bgr_image(image, "image")
         cal = self._compositor.calib_for(image.shape[1], image.shape[0])
         return self._compositor.track(image, cal, timings, extra)
 
@@ -226,7 +228,7 @@ class Session:
         Parameters
         ----------
         image : (H, W, 3) uint8
-        pose : arshadow.tracking.marker.MarkerPose or (4, 4) float64
+        pose : arshadow.tracking.pose.MarkerPose or (4, 4) float64
             A tracked pose or ``cam_from_world``.
         name, want_mask, out, mask_out
             As :meth:`process`.

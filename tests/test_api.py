@@ -275,7 +275,7 @@ def test_a_renderer_without_raw_layers_plugs_in_and_agrees(gl_ctx, tol):
     import dataclasses
 
     import arshadow
-    from arshadow.gl.renderer import ShadowRenderer
+    from arshadow.gl.stencil import ShadowRenderer
     from arshadow.render_api import Renderer
 
     class NoLayers:
@@ -336,7 +336,7 @@ def test_marker_tracker_detector_option():
     from arshadow.camera import Intrinsics
     from arshadow.errors import UsageError
     from arshadow.tracking.fastdetect import HalfResolutionDetector
-    from arshadow.tracking.marker import MarkerTracker
+    from arshadow.tracking.tracker import MarkerTracker
 
     photo, truth = _photo()
     cam = Intrinsics.from_file(CALIB)

@@ -83,8 +83,8 @@ def test_shader_compose_equals_numpy_compose(ctx, tol, case, dist, aa):
 
 
 def test_gpu_layers_hold_what_the_readback_holds(ctx):
-    """render(readback=False) keeps the same layers the default readback returns (MSAA resolved on the GPU)."""
-    from arshadow.gl.renderer import LightPass, ShadowRenderer
+    """render_gpu() keeps the same layers the default readback returns (MSAA resolved on the GPU)."""
+    from arshadow.gl.stencil import LightPass, ShadowRenderer
     from arshadow.geometry.mesh import load_occluder
     from arshadow.geometry.silhouette import silhouette
     from arshadow.synth import look_at_pose
@@ -103,7 +103,7 @@ def test_gpu_layers_hold_what_the_readback_holds(ctx):
             kw = dict(projection=proj, view=CV_TO_GL @ pose, width=canvas[2], height=canvas[3], caster=caster,
                       passes=[LightPass(L, 1.0, vol, "zfail")])
             ref = r.render(**kw)
-            lay = r.render(**kw, readback=False)
+            lay = r.render_gpu(**kw)
             c = np.frombuffer(lay.color_tex.read(), np.float16).reshape(lay.color_tex.height, lay.color_tex.width, 4)
             m = np.frombuffer(lay.mask_tex.read(), np.float16).reshape(lay.mask_tex.height, lay.mask_tex.width, 2)
             c = c[: canvas[3], : canvas[2]][::-1].astype(np.float32)

@@ -346,7 +346,7 @@ def _calib(name):
 def test_real_charuco_photo_object_and_shadow_on_the_board(ctx, realdata):
     from arshadow.camera import Intrinsics
     from arshadow.io import read_image
-    from arshadow.tracking.marker import Board
+    from arshadow.tracking.board import Board
     from arshadow.geometry.mesh import load_occluder
     from arshadow.pipeline import Compositor, RenderOptions
 

@@ -201,7 +201,7 @@ def test_moved_light_reuses_geometry_only_when_exact(ctx):
 def test_direct_planar_pass_equals_the_stencil_planar_pass(ctx, samples):
     """Convex closed caster: the light-facing faces flattened straight into the mask (one draw per light,
     no stencil count) give the same mask as the stencil projection pass, levels of two lights included."""
-    from arshadow.gl.renderer import ShadowRenderer
+    from arshadow.gl.stencil import ShadowRenderer
     from arshadow.geometry.mesh import load_occluder
     from arshadow.render_api import LightPass
     from arshadow.synth import look_at_pose

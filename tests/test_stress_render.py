@@ -34,7 +34,7 @@ def _stack(n: int, side: float = 0.1, gap: float = 0.002, thick: float = 0.001, 
 
 def _render(renderer, caster, light_h, cam_from_world, *, fx=320.0, mode=None, draw_occluder=True, znear=ZNEAR):
     from arshadow.camera import Intrinsics
-    from arshadow.gl.renderer import LightPass
+    from arshadow.gl.stencil import LightPass
     from arshadow.geometry.silhouette import silhouette
     from arshadow.transforms import CV_TO_GL, invert_rigid
     from arshadow.geometry.volume import camera_may_be_in_shadow, near_plane_radius, shadow_volume
@@ -53,7 +53,7 @@ def _render(renderer, caster, light_h, cam_from_world, *, fx=320.0, mode=None, d
 
 @pytest.fixture(scope="module")
 def renderer(gl_ctx):
-    from arshadow.gl.renderer import ShadowRenderer
+    from arshadow.gl.stencil import ShadowRenderer
 
     r = ShadowRenderer(gl_ctx, max_width=W, max_height=H)
     yield r

@@ -103,7 +103,7 @@ def test_marker_id_help_is_the_same_in_render_and_pose():
 def test_board_with_conflicting_dictionary_is_refused():
     from arshadow.camera import Intrinsics
     from arshadow.errors import UsageError
-    from arshadow.tracking.marker import MarkerTracker
+    from arshadow.tracking.tracker import MarkerTracker
 
     intr = Intrinsics.from_file(CALIB)
     board = ROOT / "calib" / "gridboard_5x7.yml"

@@ -59,7 +59,7 @@ def scene_spec(sc: dict, root: Path, aa: int):
 def run(args) -> int:
     from ..errors import ArshadowError
     from ..gl.context import create_context
-    from ..gl.renderer import ShadowRenderer
+    from ..gl.stencil import ShadowRenderer
     from ..io import read_image, write_image, write_json
     from ..report import make_report
     from ..session import Session

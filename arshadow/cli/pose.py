@@ -71,8 +71,9 @@ def run(args) -> int:
     from ..camera import Intrinsics
     from ..errors import ArshadowError, MarkerNotFoundError, UsageError
     from ..io import read_image, write_json
-    from ..tracking.marker import DEFAULT_REFINE, MarkerTracker
     from ..report import ReportItem, make_report
+    from ..tracking.detect import DEFAULT_REFINE
+    from ..tracking.tracker import MarkerTracker
     from . import error_line
 
     if args.marker_length is None and args.board is None:

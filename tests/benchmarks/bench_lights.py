@@ -51,7 +51,7 @@ def penumbra_quality(ctx, ns) -> dict:
     from oracle import disc_segment_fraction
 
     from arshadow.camera import Intrinsics
-    from arshadow.gl.renderer import ShadowRenderer
+    from arshadow.gl.stencil import ShadowRenderer
     from arshadow.lights.spec import Light, parse_light, sample_area_light
     from arshadow.geometry.mesh import load_occluder
     from arshadow.transforms import CV_TO_GL
@@ -96,7 +96,7 @@ def main(argv=None) -> int:
 
     from arshadow.camera import Intrinsics
     from arshadow.gl.context import create_context
-    from arshadow.gl.renderer import ShadowRenderer
+    from arshadow.gl.stencil import ShadowRenderer
     from arshadow.lights.spec import Light, parse_light
     from arshadow.geometry.mesh import load_occluder
     from arshadow.pipeline import Compositor, RenderOptions

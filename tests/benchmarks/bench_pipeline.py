@@ -82,8 +82,8 @@ def detector_settings() -> dict:
 
 def compare_detectors(image, intr, n, runs, seed=5) -> list:
     from arshadow.errors import MarkerNotFoundError
-    from arshadow.tracking.marker import MarkerTracker
     from arshadow.synth import random_pose, render_marker_photo
+    from arshadow.tracking.tracker import MarkerTracker
     from arshadow.transforms import rotation_error_deg
 
     rng = np.random.default_rng(seed)
@@ -168,10 +168,10 @@ def main(argv=None) -> int:
 
     sys.path.insert(0, str(ROOT))
     from arshadow.camera import Intrinsics
+    from arshadow.geometry.mesh import load_occluder
     from arshadow.gl.context import create_context
     from arshadow.io import read_image
     from arshadow.lights.spec import parse_light
-    from arshadow.geometry.mesh import load_occluder
     from arshadow.pipeline import RenderOptions
 
     scenes = json.loads((ROOT / "samples" / "scenes.json").read_text())["scenes"]
