@@ -56,6 +56,9 @@ __all__ = ["RenderOptions", "TrackerSpec", "ModelSpec", "SceneSpec", "Scene", "s
 SHADOW_METHODS = ("volume", "planar", "shadowmap")
 #: MSAA sample counts :class:`RenderOptions` accepts (what ``--aa`` documents)
 AA_CHOICES = (0, 2, 4)
+#: the MSAA default of every command and of the API (``render``, ``video``, ``batch`` and ``demo`` agree): pixel-centre
+#: sampling, the exact and fastest path (docs/compositing.md); ``--aa 4`` for smoother edges
+DEFAULT_AA = 0
 
 
 @dataclass(frozen=True)
@@ -113,7 +116,7 @@ class RenderOptions:
     shadowmap_size: int = 2048
     silhouette: str = "adjacency"
     soft_samples: int = 1
-    aa: int = 0
+    aa: int = DEFAULT_AA
     ground_size: float | None = None
     draw_occluder: bool = True
     truncate: bool = True

@@ -9,6 +9,7 @@ import sys
 import time
 from pathlib import Path
 
+from ..scene import DEFAULT_AA
 from . import EXIT_OK, EXIT_SOME_FAILED, error_line, quiet_opencv
 
 log = logging.getLogger(__name__)
@@ -106,8 +107,9 @@ def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> No
                    help="darkness of a full shadow, 0..1 (default 0.7)")
     s.add_argument("--shadow-color", metavar="R,G,B",
                    help="tint of a full shadow, 8-bit sRGB R,G,B or #rrggbb (default black)")
-    s.add_argument("--aa", type=int, default=0, metavar="N",
-                   help="multisample anti-aliasing samples, 0 (default: pixel-centre sampling, the fastest), "
+    s.add_argument("--aa", type=int, default=DEFAULT_AA, metavar="N",
+                   help=f"multisample anti-aliasing samples, {DEFAULT_AA} (default, as arshadow demo: pixel-centre "
+                        "sampling, the fastest), "
                         "2 or 4 (smoother edges; ~5x the render time on a CPU renderer, see "
                         "docs/compositing.md)")
     s.add_argument("--ground-size", type=_positive("--ground-size"), metavar="S",
