@@ -77,7 +77,9 @@ def join_negative_values(argv) -> list[str]:
 
 def main(argv=None) -> int:
     try:
-        return _main(argv)
+        code = _main(argv)
+        sys.stdout.flush()  # here, not at exit: a closed pipe is caught below
+        return code
     except BrokenPipeError:  # `arshadow info | head -1`: the reader left; not an error of ours, no traceback
         _stdout_to_devnull()
         return 128 + int(getattr(signal, "SIGPIPE", 13))
