@@ -31,7 +31,7 @@ from .errors import LightError
 
 log = logging.getLogger(__name__)
 
-__all__ = ["MAX_MARKER_LENGTH_M", "MIN_MARKER_LENGTH_M", "MAX_CAMERA_DISTANCE_M", "MIN_OBJECT_RATIO",
+__all__ = ["MAX_SIZE_RATIO", "MAX_MARKER_LENGTH_M", "MIN_MARKER_LENGTH_M", "MAX_CAMERA_DISTANCE_M", "MIN_OBJECT_RATIO",
            "SLOW_LIGHT_RATIO", "unit_guess", "scale_warnings", "ground_warnings", "light_warnings",
            "check_lights_inside", "check_scene", "sun_set_warning", "pose_flag_reasons", "FrameChecks",
            "calibration_scaled_note", "time_lapse_warnings", "FlagTally"]
@@ -42,6 +42,8 @@ MAX_MARKER_LENGTH_M = 1.0
 MIN_MARKER_LENGTH_M = 0.003
 #: a camera further than this from the marker (metres) cannot see a printed marker: wrong units
 MAX_CAMERA_DISTANCE_M = 20.0
+#: an object more than this many times the marker's side is taken for a unit mistake (a mesh in millimetres)
+MAX_SIZE_RATIO = 100.0
 #: an object smaller than this share of the marker's side is taken for a unit mistake
 MIN_OBJECT_RATIO = 1.0 / 50.0
 #: a point light nearer to the object's bounding box than this share of the object's size fans its shadow
@@ -107,6 +109,9 @@ def scale_warnings(caster, marker_length=None, square_length=None) -> list[str]:
                    f"(a 5 cm marker is 0.05)")
     if caster is not None:
         size = float(np.max(caster.bounds[1] - caster.bounds[0]))
+        if marker_length is not None and size > MAX_SIZE_RATIO * length:
+            out.append(f"{caster.name or 'the object'} is {size:.4g} m across, {size / length:.0f} x the "
+                       f"{length:.4g} m marker: wrong units? (mesh coordinates are metres; see --scale)")
         if 0 < size < MIN_OBJECT_RATIO * length:
             out.append(f"{caster.name or 'the object'} is {size:.4g} m across, 1/{length / size:.0f} of the "
                        f"{length:.4g} m marker: it will be a few pixels or vanish. Wrong units? (the marker "

@@ -273,15 +273,12 @@ class SceneSpec:
         from .lights.spec import parse_light
 
         intr = self.camera if isinstance(self.camera, Intrinsics) else Intrinsics.from_file(self.camera)
-        from .geometry.mesh import placement_warnings
         from .sanity import check_scene
         from .tracking.tracker import MarkerTracker
 
         tracker = self.tracker.kwargs()
         MarkerTracker(intr, **tracker)  # a dictionary conflicting with the board, a bad id: a usage error
         caster = self.model.build()
-        for msg in placement_warnings(caster, marker_length=tracker.get("marker_length")):
-            log.warning(msg)
         if lights is None:
             lights = [parse_light(s) if isinstance(s, str) else s for s in self.lights]
         opts = self.options.check()

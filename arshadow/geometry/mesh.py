@@ -127,40 +127,6 @@ def _load_mesh_file(p: Path):
     return trimesh.load(str(p), force="mesh", process=False)
 
 
-def placement_warnings(caster, marker_length=None, eye_world=None) -> list[str]:
-    """Plausibility checks of an occluder's size and of the camera position; one message per problem.
-
-    Parameters
-    ----------
-    caster : ShadowCaster
-    marker_length : float, optional
-        The printed marker's side (metres): an object more than :data:`MAX_SIZE_RATIO` times larger is
-        probably in the wrong units (millimetres read as metres).
-    eye_world : (3,) float, optional
-        Camera centre (world frame): inside the object's bounding box the object hides the photo.
-
-    Returns
-    -------
-    list of str
-    """
-    out = []
-    size = float(np.max(caster.bounds[1] - caster.bounds[0]))
-    if marker_length is not None and size > MAX_SIZE_RATIO * float(marker_length):
-        out.append(f"{caster.name or 'the object'} is {size:.4g} m across, {size / float(marker_length):.0f} x the "
-                   f"{float(marker_length):.4g} m marker: wrong units? (mesh coordinates are metres; see --scale)")
-    if eye_world is not None:
-        e = np.asarray(eye_world, np.float64).reshape(3)
-        if np.all(e > caster.bounds[0]) and np.all(e < caster.bounds[1]):
-            out.append(f"the camera is inside the bounding box of {caster.name or 'the object'} "
-                       f"({caster.bounds[0].round(4).tolist()} .. {caster.bounds[1].round(4).tolist()} m): "
-                       "the object may cover the whole photo")
-    return out
-
-
-#: object size / marker side above which :func:`placement_warnings` suspects wrong units
-MAX_SIZE_RATIO = 100.0
-
-
 #: up axes :func:`load_occluder` takes: the file's axis that points up (away from the ground)
 UP_AXES = ("z", "y")
 #: mesh formats whose specification says +Y is up (glTF 2.0, section 3.4: "+Y is up")
