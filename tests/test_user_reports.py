@@ -115,7 +115,7 @@ def test_board_with_conflicting_dictionary_is_refused():
 
 def test_aa_only_documented_values():
     from arshadow.errors import UsageError
-    from arshadow.pipeline import RenderOptions
+    from arshadow.scene import RenderOptions
 
     for ok in (0, 2, 4):
         RenderOptions(aa=ok).check()
@@ -381,8 +381,8 @@ def test_flagged_pose_carries_its_reason():
         pose = s.track(img)
     item = ReportItem(input="far.png")
     item.set_pose(pose)
-    assert item.extra["pose_flagged"] is True
-    reasons = item.extra["flag_reasons"]
+    assert item.pose_flagged is True and item.to_dict()["flag_reasons"] == item.flag_reasons
+    reasons = item.flag_reasons
     assert any(r.startswith("small marker: ") and "px across, under the 32 px" in r for r in reasons), reasons
     _tally("flagged pose without its reason", "warned")
 

@@ -336,9 +336,7 @@ def run_videos(backend, inputs, outdir, opts: EngineOptions, *, progress_factory
                 msg = f"{inp}: {msg}"
             summary = {"input": str(inp), "output": None, "mask": None, "status": "error", "error": msg,
                        "warnings": []}
-            it = ReportItem(input=str(inp), status="error", error=msg)
-            it.extra["frame"] = None
-            items.append(it)
+            items.append(ReportItem(input=str(inp), status="error", error=msg))
         finally:
             if close is not None:
                 close()
