@@ -279,7 +279,7 @@ def sun_set_warning(tracks, start, speed: float, fps: float, n_frames: int, labe
             f"{start.isoformat()} .. {t_end.isoformat()}): those frames get no sun shadow")
 
 
-def pose_flag_reasons(pose) -> list[str]:
+def pose_flag_reasons(pose, flagged: bool | None = None) -> list[str]:
     """Why a pose is flagged (empty when it is not): the tracker's own reasons when it gives them
     (``pose.flag_reasons``), else read from the pose's measurements (:class:`MarkerPose.ambiguous`'s tests).
 
@@ -289,7 +289,7 @@ def pose_flag_reasons(pose) -> list[str]:
     own = getattr(pose, "flag_reasons", None)
     if own is not None:
         return [str(r) for r in own]
-    if not getattr(pose, "ambiguous", False):
+    if not (getattr(pose, "ambiguous", False) if flagged is None else flagged):  # ``flagged``: already known
         return []
     # deferred: the thresholds live with the tracker (OpenCV); sanity itself stays light
     from .tracking.quality import MAX_BORDER_OCCLUSION, MAX_CORNER_INSTABILITY, MIN_CONFIDENT_SIDE_PX
