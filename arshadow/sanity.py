@@ -27,13 +27,13 @@ import math
 
 import numpy as np
 
-from .errors import LightError
+from .errors import LightError, UsageError
 
 log = logging.getLogger(__name__)
 
 __all__ = ["MAX_SIZE_RATIO", "MAX_MARKER_LENGTH_M", "MIN_MARKER_LENGTH_M", "MAX_CAMERA_DISTANCE_M", "MIN_OBJECT_RATIO",
            "SLOW_LIGHT_RATIO", "unit_guess", "scale_warnings", "ground_warnings", "light_warnings",
-           "check_lights_inside", "check_scene", "sun_set_warning", "pose_flag_reasons", "FrameChecks",
+           "check_lights_inside", "check_shadowmap_lights", "check_scene", "sun_set_warning", "pose_flag_reasons", "FrameChecks",
            "calibration_scaled_note", "time_lapse_warnings", "FlagTally"]
 
 #: a printed marker (or board square) longer than this (metres) is taken for a unit mistake
@@ -199,10 +199,27 @@ def light_warnings(caster, lights, soft_samples: int = 1) -> list[str]:
     return out
 
 
-def check_scene(caster, lights, *, soft_samples: int = 1, marker_length=None, square_length=None) -> list[str]:
+def check_shadowmap_lights(caster, lights) -> None:
+    """UsageError when ``--shadow-method shadowmap`` meets a point light inside the model's bounding sphere
+    (one shadow map cannot see the whole model: every photo would fail the same way)."""
+    lo, hi = (np.asarray(b, np.float64) for b in caster.bounds)
+    c, r = 0.5 * (lo + hi), max(0.5 * float(np.linalg.norm(hi - lo)), 1e-9)
+    for light in lights:
+        if getattr(light, "kind", None) == "point" and \
+                float(np.linalg.norm(np.asarray(light.vector, np.float64)[:3] - c)) <= r * 1.0001:
+            raise UsageError(f"--shadow-method shadowmap: the point light {light.label or ''} is inside the bounding "
+                             f"sphere of {caster.name or 'the model'} (radius {r:.3g} m): one shadow map cannot see "
+                             "the whole model; move the light away or use --shadow-method volume")
+
+
+def check_scene(caster, lights, *, soft_samples: int = 1, marker_length=None, square_length=None,
+                shadow_method: str = "volume") -> list[str]:
     """Every scene-level check, once per scene: raises for a scene that cannot render (LightError: a light
-    inside the model), returns the warnings (also logged by the caller)."""
+    inside the model; UsageError: a shadow map around a point light), returns the warnings (also logged by
+    the caller)."""
     check_lights_inside(caster, lights)
+    if shadow_method == "shadowmap":
+        check_shadowmap_lights(caster, lights)
     return (scale_warnings(caster, marker_length, square_length) + ground_warnings(caster)
             + light_warnings(caster, lights, soft_samples))
 

@@ -283,7 +283,7 @@ class SceneSpec:
             lights = [parse_light(s) if isinstance(s, str) else s for s in self.lights]
         opts = self.options.check()
         for msg in check_scene(caster, lights, soft_samples=opts.soft_samples,  # LightError: exit 2, once
-                               marker_length=tracker.get("marker_length")):
+                               marker_length=tracker.get("marker_length"), shadow_method=opts.shadow_method):
             log.warning(msg)
         _check_silhouette_name(opts.silhouette)
         return Scene(intr, caster, list(lights), opts, tracker)

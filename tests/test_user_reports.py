@@ -256,6 +256,19 @@ def test_light_inside_the_object_is_one_error_before_any_work(tmp_path):
     _tally("light inside the object", "refused")
 
 
+def test_shadow_map_around_a_point_light_is_one_usage_error():
+    """``--shadow-method shadowmap`` with a point light inside the model's bounding sphere failed on every
+    photo; now one UsageError when the scene is built (the renderer's own condition, checked independently
+    here: the light 1 cm above a 6 cm box's top is inside its bounding sphere of radius ~4.1 cm)."""
+    from arshadow.errors import UsageError
+
+    with pytest.raises(UsageError, match="--shadow-method shadowmap: the point light .* inside the bounding sphere"):
+        _scene(shadow_method="shadowmap", lights=["point:0,0,0.07"]).build()
+    _scene(shadow_method="shadowmap", lights=["point:0.1,0.1,0.4"]).build()  # outside: fine
+    _scene(lights=["point:0,0,0.07"]).build()  # stencil volumes: fine
+    _tally("shadow map around a point light (one error per photo)", "refused")
+
+
 def test_sun_setting_during_a_time_lapse_names_the_frames():
     """The frame range of a sun below the horizon, against an independent per-frame evaluation (every frame's
     own sun_position, no sampling or bisection)."""
