@@ -10,7 +10,7 @@ from .errors import ArshadowError, UsageError
 from .io import read_image, write_image, write_json
 from .photos import PhotoJob, caption_panel, contact_sheet, render_photos
 from .report import ReportItem, make_report
-from .scene import scene_from_dict
+from .scene import DEFAULT_AA, scene_from_dict
 from .session import Session
 
 __all__ = ["find_samples", "scene_spec", "run_demo", "SCENE_JSON_KEYS"]
@@ -39,7 +39,7 @@ def scene_spec(sc: dict, root: Path, aa: int):
     return scene_from_dict(d, base_dir=root)
 
 
-def run_demo(samples: Path, outdir, *, aa: int = 4, debug: bool = False, on_done=None):
+def run_demo(samples: Path, outdir, *, aa: int = DEFAULT_AA, debug: bool = False, on_done=None):
     """Render every sample scene into ``outdir``: ``<stem>.png``, ``<stem>.shadow.png``, ``report.json`` and
     ``contact_sheet.png`` (the composites, then the first input photo).
 
@@ -49,7 +49,7 @@ def run_demo(samples: Path, outdir, *, aa: int = 4, debug: bool = False, on_done
         A folder with ``scenes.json`` (:func:`find_samples`).
     outdir : str or Path
     aa : int
-        MSAA samples.
+        MSAA samples (default :data:`arshadow.scene.DEFAULT_AA`, as ``arshadow render``).
     debug : bool
         Re-raise errors (tracebacks).
     on_done : callable, optional

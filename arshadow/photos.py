@@ -17,6 +17,7 @@ viewer shows the input (the outputs carry no EXIF), JPEG / WebP written at quali
 
 from __future__ import annotations
 
+import functools
 import glob
 import time
 from collections.abc import Callable
@@ -27,6 +28,8 @@ import cv2
 import numpy as np
 
 from .errors import ArshadowError, MarkerNotFoundError
+from .export.layerfiles import check_layer_format, layer_paths, write_layers
+from .export.stmap import stmap, write_stmap
 from .io import (
     IMAGE_EXTENSIONS,
     InputGuard,
@@ -44,11 +47,22 @@ __all__ = ["PhotoJob", "expand_inputs", "photo_jobs", "render_photo_file", "rend
 
 @dataclass(frozen=True)
 class PhotoJob:
-    """One photo and where its outputs go (``mask`` None: no mask written)."""
+    """One photo and where its outputs go (``mask`` None: no mask written).
+
+    ``layers``: ``{name: Path}`` of the compositing layer files (:func:`arshadow.export.layerfiles.layer_paths`,
+    in ``layers_format``; with ``undistorted.*`` names and ``stmap`` also the pinhole versions), or None.
+    """
 
     input: str
     output: Path
     mask: Path | None = None
+    layers: dict | None = None
+    layers_format: str = "png"
+
+    @property
+    def outputs(self) -> list[Path]:
+        """Every file the job writes."""
+        return [self.output, *([self.mask] if self.mask is not None else []), *(self.layers or {}).values()]
 
 
 def expand_inputs(items) -> list[str]:
@@ -69,15 +83,27 @@ def expand_inputs(items) -> list[str]:
     return out
 
 
-def photo_jobs(inputs, outdir, *, save_mask: bool = False, keep_format: bool = False) -> list[PhotoJob]:
-    """A :class:`PhotoJob` per input: ``DIR/<stem>.png`` (the input's format with ``keep_format``) and
-    ``DIR/<stem>.shadow.png``; stems that collide get ``_2``, ``_3``... (:func:`arshadow.io.unique_stems`)."""
+def photo_jobs(inputs, outdir, *, save_mask: bool = False, keep_format: bool = False,
+               layers_format: str | None = None, layers_undistorted: bool = False) -> list[PhotoJob]:
+    """A :class:`PhotoJob` per input: ``DIR/<stem>.png`` (the input's format with ``keep_format``),
+    ``DIR/<stem>.shadow.png`` and with ``layers_format`` (``png`` / ``exr``) the layer files; stems that
+    collide get ``_2``, ``_3``... (:func:`arshadow.io.unique_stems`).
+
+    Raises
+    ------
+    UsageError
+        ``layers_format`` exr without an OpenEXR writer.
+    """
     outdir = Path(outdir)
+    if layers_format is not None:
+        check_layer_format(layers_format)
     jobs = []
     for inp, stem in zip(inputs, unique_stems(inputs)):
         suffix = Path(inp).suffix.lower()
         ext = suffix if keep_format and suffix in IMAGE_EXTENSIONS else ".png"
-        jobs.append(PhotoJob(str(inp), outdir / f"{stem}{ext}", outdir / f"{stem}.shadow.png" if save_mask else None))
+        lay = None if layers_format is None else layer_paths(outdir, stem, layers_format, layers_undistorted)
+        jobs.append(PhotoJob(str(inp), outdir / f"{stem}{ext}", outdir / f"{stem}.shadow.png" if save_mask else None,
+                             lay, layers_format or "png"))
     return jobs
 
 
@@ -118,12 +144,21 @@ def render_photo_file(session, job: PhotoJob, *, buffers: dict | None = None):
     if buffers is not None:
         out, mask_out = buffers.setdefault(image.shape[:2], (np.empty(image.shape, np.uint8),
                                                              np.empty(image.shape[:2], np.uint8)))
-    res = session.process(image, name=job.input, want_mask=job.mask is not None, out=out, mask_out=mask_out)
+    want_layers = False if job.layers is None else "undistorted" if "stmap" in job.layers else True
+    res = session.process(image, name=job.input, want_mask=job.mask is not None, out=out, mask_out=mask_out,
+                          layers=want_layers)
     # outputs upright as a viewer shows the input (EXIF orientation; they carry no EXIF)
     res.item.output = str(write_image(job.output, apply_orientation(res.composite, orientation),
                                       write_params(job.output)))
     if job.mask is not None:
         res.item.mask = str(write_image(job.mask, apply_orientation(res.mask, orientation)))
+    if job.layers is not None:
+        write_layers(job.layers, res.layers, job.layers_format,
+                     orient=functools.partial(apply_orientation, orientation=orientation))
+        if "stmap" in job.layers:  # the pinhole layers' distortion map (stored frame, as they are)
+            cal = session.calibration(image.shape[1], image.shape[0])
+            write_stmap(job.layers["stmap"], stmap(cal.intrinsics, None if cal.lens is None else cal.lens.maps))
+        res.item.layers = {n: str(p) for n, p in job.layers.items()}
     return res
 
 
@@ -160,7 +195,7 @@ def render_photos(session, jobs, *, debug: bool = False, on_done: OnDone | None 
         res = None
         err: BaseException | None = None
         try:
-            guard.check([job.output, job.mask])
+            guard.check(job.outputs)
             res = render_photo_file(session, job, buffers=buffers)
             item = res.item
         except MarkerNotFoundError as exc:

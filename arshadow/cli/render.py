@@ -5,10 +5,9 @@ from __future__ import annotations
 import argparse
 import logging
 import sys
-from pathlib import Path
 
 from ..errors import UsageError
-from ..scene import parse_triple, scene_from_args
+from ..scene import DEFAULT_AA, parse_triple, scene_from_args
 from . import EXIT_OK, EXIT_SOME_FAILED, error_line, quiet_opencv
 
 log = logging.getLogger(__name__)
@@ -64,16 +63,28 @@ def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> No
                    help="ArUco dictionary name or custom dictionary file (default DICT_6X6_250; a --board file "
                         "names its own)")
     g.add_argument("--marker-id", type=int, metavar="N", help="use only this marker id as the reference (default: the lowest id found)")
+    g.add_argument("--inverted", action="store_true", default=None,
+                   help="the markers are printed white on black (a board file may say 'inverted: 1')")
     o = p.add_argument_group("virtual object")
     o.add_argument("--model", required=require, metavar="M",
                    help="mesh file (OBJ/PLY/STL/GLB/OFF, metres) or primitive box:WX,WY,HZ | cylinder:R,H | "
                         "sphere:R | torus:R,r")
     o.add_argument("--scale", type=_positive("--scale"), default=1.0, metavar="S", help="uniform scale (first)")
     o.add_argument("--rotate", type=_triple("--rotate"), default=(0.0, 0.0, 0.0), metavar="RX,RY,RZ",
-                   help="rotation in degrees, XYZ order (after scale)")
+                   help="rotation in degrees, XYZ order (after scale); a negative first number is fine: "
+                        "--rotate -90,0,0")
     o.add_argument("--place", type=_triple("--place"), default=(0.0, 0.0, 0.0), metavar="X,Y,Z",
-                   help="translation in metres, world (marker) frame (last)")
-    o.add_argument("--color", metavar="R,G,B", help="object colour, 8-bit sRGB 0..255 (default: the mesh's own)")
+                   help="translation in metres, world (marker) frame (last); a negative first number is fine: "
+                        "--place -0.05,0,0")
+    o.add_argument("--up", choices=("y", "z"), metavar="y|z",
+                   help="the mesh file's up axis, turned to the world's +z first (default: y for glTF "
+                        ".glb/.gltf, which is Y-up by specification; z for OBJ/PLY/STL/OFF). Blender's OBJ "
+                        "export is Y-up: --up y")
+    o.add_argument("--drop-to-ground", action="store_true",
+                   help="stand the model on the ground: after scale and rotate, move it along z so that its "
+                        "lowest point is at z = 0 (for meshes centred on their origin); --place then adds")
+    o.add_argument("--color", metavar="R,G,B",
+                   help="object colour, 8-bit sRGB 0..255 or #rrggbb (default: the mesh's own)")
     s = p.add_argument_group("lights and shadows")
     s.add_argument("--light-from", metavar="FILE",
                    help="a measured light (arshadow light ... -o FILE, docs/light.md): its light (unless --light "
@@ -92,9 +103,11 @@ def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> No
                    metavar="N", help="shadow map side in texels with --shadow-method shadowmap (default 2048)")
     s.add_argument("--opacity", type=float, default=0.7, metavar="O",
                    help="darkness of a full shadow, 0..1 (default 0.7)")
-    s.add_argument("--shadow-color", metavar="R,G,B", help="tint of a full shadow, 8-bit sRGB (default black)")
-    s.add_argument("--aa", type=int, default=0, metavar="N",
-                   help="multisample anti-aliasing samples, 0 (default: pixel-centre sampling, the fastest), "
+    s.add_argument("--shadow-color", metavar="R,G,B",
+                   help="tint of a full shadow, 8-bit sRGB R,G,B or #rrggbb (default black)")
+    s.add_argument("--aa", type=int, default=DEFAULT_AA, metavar="N",
+                   help=f"multisample anti-aliasing samples, {DEFAULT_AA} (default, as arshadow demo: pixel-centre "
+                        "sampling, the fastest), "
                         "2 or 4 (smoother edges; ~5x the render time on a CPU renderer, see "
                         "docs/compositing.md)")
     s.add_argument("--ground-size", type=_positive("--ground-size"), metavar="S",
@@ -122,7 +135,16 @@ def register(subparsers) -> None:
     out.add_argument("--save-mask", action="store_true", help="also write <stem>.shadow.png")
     out.add_argument("--report", metavar="R.json", help="write the JSON report of every input")
     out.add_argument("--keep-format", action="store_true", help="write the input's format instead of PNG")
-    out.add_argument("--quiet", "-q", action="store_true", help="no per-image progress lines")
+    out.add_argument("--layers", action="store_true",
+                     help="also write the compositing layers: <stem>.object, <stem>.shadow.mult (multiply pass), "
+                          "<stem>.shadow.only (black with alpha); plate x shadow.mult + object = the composite "
+                          "in linear light (docs/export.md)")
+    out.add_argument("--layers-format", choices=("png", "exr"), default="png",
+                     help="16-bit PNG (default) or half-float linear OpenEXR (needs arshadow[exr])")
+    out.add_argument("--layers-undistorted", action="store_true",
+                     help="with --layers: also the layers in the undistorted (pinhole) camera, "
+                          "<stem>.undistorted.*, and the ST-map that distorts them onto the photo, <stem>.stmap.*"),
+    out.add_argument("--quiet", "-q", action="store_true", help="no per-image progress lines or progress bar")
     p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
                    help="show tracebacks and debug logging")
     p.set_defaults(func=run)
@@ -131,41 +153,67 @@ def register(subparsers) -> None:
 # --------------------------------------------------------------------------------------------------
 def run(args) -> int:
     # deferred: the engine (OpenCV, meshes) loads when a command runs, not at start-up (cli/__init__.py)
+    from ..export.layerfiles import refuse_overwrite
     from ..io import check_output_file, check_output_folder, write_json
     from ..photos import expand_inputs, photo_jobs, render_photos
     from ..report import make_report
+    from ..sanity import FlagTally
     from ..session import Session
 
     debug = bool(getattr(args, "debug", False))
     quiet_opencv(debug)
-    jobs = photo_jobs(expand_inputs(args.images), Path(args.output), save_mask=args.save_mask,
-                      keep_format=args.keep_format)
-    # output paths first: a bad -o / --report is one usage error before any work, not one per photo
+    inputs = expand_inputs(args.images)
+    # output paths first: a bad -o / --report / layer writer is one usage error before any work
     outdir = check_output_folder(args.output, "-o")
     if args.report:
         check_output_file(args.report, "--report")
+    undistorted = bool(getattr(args, "layers_undistorted", False))
+    layers = args.layers_format if getattr(args, "layers", False) or undistorted else None
+    jobs = photo_jobs(inputs, outdir, save_mask=args.save_mask, keep_format=args.keep_format,
+                      layers_format=layers, layers_undistorted=undistorted)
+    if layers is not None:  # a layer file that would replace an input: a usage error, before any work
+        refuse_overwrite([p for j in jobs for p in j.layers.values()], inputs)
+    bar = None
     with Session(scene_from_args(args)) as session:  # loads the scene: a bad one is exit 2
         try:  # made now (with the GL context): a bad --aa is a usage error (exit 2), not a per-photo one
             session.renderer  # noqa: B018
         except UsageError as exc:
             raise UsageError(f"--aa {args.aa} / --shadowmap-size: {exc}") from None
-        items = render_photos(session, jobs, debug=debug, on_done=lambda *a: _print_done(args, *a))
+        if not args.quiet and len(jobs) > 1 and sys.stderr.isatty():
+            from tqdm import tqdm  # deferred: only for a terminal
+
+            bar = tqdm(total=len(jobs), unit="photo", desc="render", file=sys.stderr, dynamic_ncols=True)
+        try:
+            items = render_photos(session, jobs, debug=debug, on_done=lambda *a: _print_done(args, bar, *a))
+        finally:
+            if bar is not None:
+                bar.close()
     if args.report:
         write_json(args.report, make_report(items))
+    flags = FlagTally()
+    for it in items:
+        flags.add(it.input, it.flag_reasons)
+    if flags.summary(len(items)):
+        print(f"arshadow render: warning: {flags.summary(len(items))}", file=sys.stderr)
     failed = sum(i.status != "ok" for i in items)
     if not args.quiet and len(jobs) > 1:
-        print(f"{len(jobs) - failed} of {len(jobs)} photos rendered into {outdir}", file=sys.stdout)
+        flagged = sum(1 for it in items if it.pose_flagged)
+        print(f"{len(jobs) - failed} of {len(jobs)} photos rendered into {outdir}: "
+              f"{len(jobs) - failed} done, {failed} failed, {flagged} flagged (ambiguous pose)", file=sys.stdout)
     return EXIT_SOME_FAILED if failed else EXIT_OK
 
 
-def _print_done(args, job, item, res, err) -> None:
-    """One line per photo: the output (stdout, unless ``--quiet``) or the problem (stderr)."""
+def _print_done(args, bar, job, item, res, err) -> None:
+    """One line per photo: the output (stdout, unless ``--quiet``) or the problem (stderr), above the
+    progress bar when there is one."""
+    say = bar.write if bar is not None else print
     if err is not None:
-        print(_error_line(job.input, err), file=sys.stderr)
+        say(_error_line(job.input, err), file=sys.stderr)
     elif not args.quiet:
         t = item.timings_ms.get("total", 0.0)
-        print(f"{job.input} -> {job.output}  ({item.mode or 'no light casts a shadow'}, {t:.1f} ms)",
-              file=sys.stdout)
+        say(f"{job.input} -> {job.output}  ({item.mode or 'no light casts a shadow'}, {t:.1f} ms)", file=sys.stdout)
+    if bar is not None:
+        bar.update(1)
 
 
 def _error_line(inp, exc) -> str:

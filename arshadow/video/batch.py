@@ -33,9 +33,10 @@ from .. import __version__
 from ..errors import ArshadowError, MarkerNotFoundError, UsageError
 from ..io import IMAGE_EXTENSIONS, InputGuard, check_output_folder, unique_stems, write_json
 from ..io import clean_temporaries as clean_io_temporaries
+from ..export.layerfiles import layer_paths
+from ..photos import PhotoJob, render_photo_file
 from ..session import Session
 from .decode import looks_like_sequence
-from ..photos import PhotoJob, render_photo_file
 from .engine import SessionBackend, process_video, video_outputs
 
 __all__ = ["VIDEO_EXTENSIONS", "BatchItem", "clean_temporaries", "plan_batch", "process_item", "run_batch"]
@@ -80,7 +81,15 @@ def _outputs(item: BatchItem, outdir: Path, opts, save_mask: bool) -> list:
     """The files an item writes (before its done record)."""
     if item.kind == "video":
         return [p for p in video_outputs(outdir, item.stem, opts).values() if p is not None]
-    return [outdir / f"{item.stem}.png", *([outdir / f"{item.stem}.shadow.png"] if save_mask else [])]
+    outs = [outdir / f"{item.stem}.png", *([outdir / f"{item.stem}.shadow.png"] if save_mask else [])]
+    if opts.layers is not None:
+        outs += list(layer_paths(outdir, item.stem, _photo_layers(opts), opts.layers_undistorted).values())
+    return outs
+
+
+def _photo_layers(opts) -> str:
+    """The layer format of a batch's photos: EXR with ``--layers-format exr``, else 16-bit PNG."""
+    return "exr" if opts.layers == "exr" else "png"
 
 
 def _fingerprint(item: BatchItem, spec, opts, save_mask) -> str:
@@ -155,14 +164,15 @@ def process_item(spec, item: BatchItem, outdir, opts, save_mask: bool, fingerpri
                                   opts, name=item.input)
             summary.update({k: vs[k] for k in ("status", "warnings", "frames", "frames_ok", "frames_held",
                                                "frames_no_marker", "truncated", "decode_errors", "fps_processed")})
-            summary["outputs"] = [str(p) for p in (outs["video"], outs["mask"], outs["frames"], outs["sheet"])
-                                  if p is not None and Path(p).exists()]
+            summary["outputs"] = [str(p) for p in outs.values() if p is not None and Path(p).exists()]
         else:
-            # the photo loop's one photo (EXIF orientation, upright outputs), as arshadow render
+            # the photo loop's one photo (EXIF orientation, upright outputs and layers), as arshadow render
+            fmt = _photo_layers(opts)
+            lay = None if opts.layers is None else layer_paths(outdir, item.stem, fmt, opts.layers_undistorted)
             job = PhotoJob(item.input, outdir / f"{item.stem}.png",
-                           outdir / f"{item.stem}.shadow.png" if save_mask else None)
+                           outdir / f"{item.stem}.shadow.png" if save_mask else None, lay, fmt)
             res = render_photo_file(session, job)
-            summary["outputs"] = [res.item.output] + ([res.item.mask] if save_mask else [])
+            summary["outputs"] = [str(p) for p in job.outputs]
             summary["status"] = "ok"
             summary["item"] = res.item.to_dict()
     except MarkerNotFoundError as exc:  # a photo without the marker: done (a rerun would find none either)
@@ -215,6 +225,8 @@ def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=Non
         ``no_marker``, ``damaged``, ``error``) and ``skipped`` (done by an earlier run).
     """
     outdir = check_output_folder(outdir, "-o")
+    if client is not None:  # scene errors (a light inside the model) and warnings once, here, not per worker
+        spec.build()
     (outdir / RECORDS).mkdir(parents=True, exist_ok=True)
     clean_temporaries(outdir)
     items = plan_batch(inputs)
@@ -242,6 +254,32 @@ def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=Non
                 progress(done, len(items), r)
         if done:
             progress(done, len(items), None)
+    try:
+        _run_todo(spec, items, todo, results, done, outdir, opts, save_mask, client, progress, session)
+    except KeyboardInterrupt:  # Ctrl-C / SIGTERM: batch.json still says what is done and what is not
+        _write_summary(outdir, items, results, interrupted=True)
+        raise
+    return _write_summary(outdir, items, results)
+
+
+def _write_summary(outdir: Path, items, results, interrupted: bool = False) -> dict:
+    """``OUT_DIR/batch.json``; after an interruption the items not finished are ``status: "pending"``."""
+    results = [r if r is not None else {"input": it.input, "kind": it.kind, "stem": it.stem, "status": "pending",
+                                        "skipped": False, "error": None, "outputs": [], "warnings": []}
+               for it, r in zip(items, results)]
+    counts: dict = {}
+    for r in results:
+        counts[r["status"]] = counts.get(r["status"], 0) + 1
+    counts["skipped"] = sum(bool(r.get("skipped")) for r in results)
+    summary = {"arshadow": __version__, "items": results, "counts": counts}
+    if interrupted:
+        summary["interrupted"] = True  # rerun the same command to finish the pending items
+    write_json(outdir / "batch.json", summary)
+    return summary
+
+
+def _run_todo(spec, items, todo, results, done, outdir, opts, save_mask, client, progress, session) -> None:
+    """Process the items not done yet, filling ``results`` in place (locally or on a Dask cluster)."""
     if client is None:
         own = session is None and todo
         if own:
@@ -276,10 +314,3 @@ def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=Non
             done += 1
             if progress is not None:
                 progress(done, len(items), results[k])
-    counts: dict = {}
-    for r in results:
-        counts[r["status"]] = counts.get(r["status"], 0) + 1
-    counts["skipped"] = sum(bool(r.get("skipped")) for r in results)
-    summary = {"arshadow": __version__, "items": results, "counts": counts}
-    write_json(outdir / "batch.json", summary)
-    return summary
