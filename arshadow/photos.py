@@ -42,7 +42,7 @@ from .io import (
 from .report import ReportItem
 
 __all__ = ["PhotoJob", "expand_inputs", "photo_jobs", "render_photo_file", "render_photos", "write_params",
-           "contact_sheet", "caption_panel"]
+           "track_photos", "pose_overlay", "contact_sheet", "caption_panel"]
 
 
 @dataclass(frozen=True)
@@ -211,6 +211,69 @@ def render_photos(session, jobs, *, debug: bool = False, on_done: OnDone | None 
         if on_done is not None:
             on_done(job, item, res, err)
     return items
+
+
+def track_photos(tracker, inputs, *, overlay_dir=None, on_done=None) -> list[ReportItem]:
+    """The pose of the marker / board in each photo (``arshadow pose``): a report item per photo with the
+    pose keys, ``n_points``, ``kind``, ``calibration_scaled`` and ``timings_ms`` (``read``, ``detect``,
+    ``pose``, ``total``); a photo that fails is recorded (``no_marker`` / ``error``) and the others go on.
+
+    Parameters
+    ----------
+    tracker : arshadow.tracking.tracker.MarkerTracker
+    inputs : list of str
+    overlay_dir : str or Path, optional
+        Write ``<stem>.png`` (:func:`pose_overlay`) there; the item's ``output`` names it.
+    on_done : callable, optional
+        ``on_done(input, item, pose or None, image or None, error or None)`` after each photo.
+    """
+    items = []
+    stems = unique_stems(inputs)
+    for name, stem in zip(inputs, stems):
+        item = ReportItem(input=str(name))
+        t0 = time.perf_counter()
+        pose = image = err = None
+        try:
+            image = read_image(name)
+            t1 = time.perf_counter()
+            pose = tracker.estimate(image)
+            t2 = time.perf_counter()
+            item.set_pose(pose)
+            item.n_points, item.kind, item.calibration_scaled = int(pose.n_points), pose.kind, bool(pose.scaled)
+            if overlay_dir is not None:
+                item.output = str(write_image(Path(overlay_dir) / f"{stem}.png", pose_overlay(image, pose, tracker)))
+            item.timings_ms = {"read": 1e3 * (t1 - t0), "detect": pose.timings_ms.get("detect", 1e3 * (t2 - t1)),
+                               "pose": pose.timings_ms.get("pose", 0.0), "total": 1e3 * (time.perf_counter() - t0)}
+        except ArshadowError as exc:
+            err = exc
+            item.status = "no_marker" if isinstance(exc, MarkerNotFoundError) else "error"
+            item.error = str(exc)
+            item.timings_ms = {"total": 1e3 * (time.perf_counter() - t0)}
+        items.append(item)
+        if on_done is not None:
+            on_done(str(name), item, pose, image, err)
+    return items
+
+
+def pose_overlay(image, pose, tracker) -> np.ndarray:
+    """A copy of ``image`` with the detected markers and the world axes drawn (``arshadow pose --overlay``)."""
+    img = image.copy()
+    ids = list(pose.all_corners)
+    if ids:
+        cv2.aruco.drawDetectedMarkers(img, [c.reshape(1, 4, 2).astype(np.float32) for c in pose.all_corners.values()],
+                                      np.asarray(ids, np.int32).reshape(-1, 1))
+    intr = pose.intrinsics
+    if tracker.board is not None:
+        length = 0.5 * min(tracker.board.extent)
+    else:
+        length = 0.75 * tracker.marker_length
+    level = cv2.utils.logging.getLogLevel()
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)  # "axes out of frame" is not an error
+    try:
+        cv2.drawFrameAxes(img, intr.K, intr.dist_cv, pose.rvec.reshape(3, 1), pose.tvec.reshape(3, 1), length, 2)
+    finally:
+        cv2.utils.logging.setLogLevel(level)
+    return img
 
 
 def contact_sheet(tiles, columns: int, gap: int, background: int) -> np.ndarray:
