@@ -46,6 +46,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .errors import UsageError
+from .timelapse import TimeLapse, parse_time_lapse, time_lapse_spec
 
 log = logging.getLogger(__name__)
 
@@ -239,92 +240,6 @@ class ModelSpec:
             color = tuple(float(v) / 255.0 for v in self.color.split(","))  # sRGB 0..1, as the loader takes
         return load_occluder(self.source, scale=self.scale, rotate=self.rotate, place=self.place, color=color,
                              up=self.up, drop_to_ground=self.drop_to_ground)
-
-
-@dataclass(frozen=True)
-class TimeLapse:
-    """Sun lights that follow a video's frame times (``arshadow video --time-lapse START[,SPEED]``).
-
-    Attributes
-    ----------
-    start : str
-        ISO time with a UTC offset: the scene's time at the video's first frame.
-    speed : float
-        Scene seconds per video second (> 0).
-    recompute_deg : float
-        A sun's silhouette is recomputed only when it moved more than this since the last recompute.
-    """
-
-    start: str
-    speed: float = 1.0
-    recompute_deg: float = 0.1
-
-    def lights(self, specs):
-        """``(static lights, sun tracks, first lights)`` of light specs: each ``sun:`` spec becomes a
-        :class:`arshadow.lights.spec.SunLightTrack`; the first lights are the static ones plus the suns at
-        ``start``. UsageError without a sun."""
-        from .lights.spec import parse_light, parse_sun_track  # deferred: the spec module stays light
-
-        static, tracks = [], []
-        for s in specs:
-            if isinstance(s, str) and s.strip().lower().startswith("sun:"):
-                tracks.append(parse_sun_track(s, recompute_deg=self.recompute_deg))
-            else:
-                static.append(parse_light(s) if isinstance(s, str) else s)
-        if not tracks:
-            raise UsageError("--time-lapse needs a sun light (--light sun:LAT,LON[,TIME][,NORTH])")
-        start = self.when()[0]
-        first = list(static)
-        for tr in tracks:
-            tr.reset()
-            first.append(tr.light(tr.update(start)))
-            tr.reset()
-        return static, tracks, first
-
-    def when(self):
-        """``(start datetime, speed)``."""
-        return parse_time_lapse(f"{self.start},{self.speed!r}")
-
-
-def parse_time_lapse(text: str):
-    """``START[,SPEED]`` -> (aware datetime, speed > 0). UsageError on bad input.
-
-    Examples
-    --------
-    >>> parse_time_lapse("2024-06-21T06:00+02:00,600")[1]
-    600.0
-    """
-    from .errors import LightError
-    from .lights.spec import parse_time  # deferred: the spec module stays light
-
-    start_text, sep, speed_text = str(text).rpartition(",")
-    if not sep:
-        start_text, speed_text = text, "1"
-    try:
-        speed = float(speed_text)
-    except ValueError:
-        raise UsageError(f"--time-lapse {text!r}: SPEED {speed_text!r} is not a number") from None
-    if not (math.isfinite(speed) and speed > 0):
-        raise UsageError(f"--time-lapse {text!r}: SPEED must be a positive number")
-    try:
-        start = parse_time(start_text.strip(), what="--time-lapse START")
-    except LightError as exc:
-        raise UsageError(str(exc)) from None
-    return start, speed
-
-
-def _time_lapse(d, lights):
-    """The :class:`TimeLapse` of the ``time_lapse`` / ``recompute_deg`` keys (None without ``time_lapse``)."""
-    deg = _value(d, "recompute_deg", float, 0.1)
-    if not (math.isfinite(deg) and deg >= 0):
-        raise UsageError(f"--recompute-deg {deg}: must be >= 0 degrees")
-    text = d.get("time_lapse")
-    if text is None:
-        return None
-    start, speed = parse_time_lapse(str(text))
-    if not any(isinstance(s, str) and s.strip().lower().startswith("sun:") for s in lights):
-        raise UsageError("--time-lapse needs a sun light (--light sun:LAT,LON[,TIME][,NORTH])")
-    return TimeLapse(start.isoformat(), speed, deg)
 
 
 @dataclass(frozen=True)
@@ -605,7 +520,7 @@ def scene_from_dict(d, base_dir=None) -> SceneSpec:
         opts["occluder_color"] = d["_occluder_color"]
     return SceneSpec(camera=calib, tracker=tracker, model=model_spec,
                      lights=tuple(s if not isinstance(s, str) else s.strip() for s in lights),
-                     options=RenderOptions(**opts), time_lapse=_time_lapse(d, lights))
+                     options=RenderOptions(**opts), time_lapse=time_lapse_spec(d.get("time_lapse"), _value(d, "recompute_deg", float, 0.1), lights))
 
 
 def scene_from_args(args, **overrides) -> SceneSpec:
