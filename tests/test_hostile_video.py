@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import re
 import os
 import resource
 import signal
@@ -47,7 +48,9 @@ def _run(capsys, *argv):
 
 
 def _lines(text):
-    return [ln for ln in text.splitlines() if ln.strip()]
+    """The non-empty stderr lines, without issue 20's flagged-pose summary (these small, soft synthetic clips
+    have every pose flagged; that line is tested in tests/test_user_reports.py)."""
+    return [ln for ln in text.splitlines() if ln.strip() and not re.match(r"arshadow video: warning: .*: \d+ of \d+ frames have a flagged pose \(", ln)]
 
 
 def _md5(p):

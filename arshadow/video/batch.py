@@ -218,8 +218,6 @@ def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=Non
         ``no_marker``, ``damaged``, ``error``) and ``skipped`` (done by an earlier run).
     """
     outdir = check_output_folder(outdir, "-o")
-    if client is not None:  # scene errors (a light inside the model) and warnings once, here, not per worker
-        spec.build()
     (outdir / RECORDS).mkdir(parents=True, exist_ok=True)
     clean_temporaries(outdir)
     items = plan_batch(inputs)
