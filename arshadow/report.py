@@ -64,7 +64,7 @@ class StageTimings:
 OPTIONAL_KEYS = ("calibration_scaled", "notes", "detector", "frame", "time_s", "sun", "pose_flagged",
                  "flag_reasons",
                  "opencv_board_rvec", "opencv_board_tvec", "n_points", "kind", "raw", "pose_choice", "modes", "roi",
-                 "canvas", "znear", "plan", "content", "composited", "compose", "title")
+                 "canvas", "znear", "plan", "content", "composited", "compose", "title", "layers")
 
 
 @dataclass
@@ -82,7 +82,8 @@ class ReportItem:
       ``composited`` (photo pixels composited), ``compose`` (``cpu`` | ``gpu``), ``notes``;
     - video frames: ``frame``, ``time_s``, ``sun``, ``raw`` (the tracked pose before smoothing),
       ``pose_choice``;
-    - ``title`` (the demo's caption).
+    - ``title`` (the demo's caption);
+    - ``layers`` (``{layer name: file}``: the compositing layers written, docs/export.md).
     """
 
     input: str
@@ -122,6 +123,7 @@ class ReportItem:
     composited: list[int] | None = None
     compose: str | None = None
     title: str | None = None
+    layers: dict | None = None
 
     def set_pose(self, pose) -> None:
         """Fill the pose keys from an :class:`arshadow.tracking.pose.MarkerPose`.

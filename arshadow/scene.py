@@ -179,6 +179,8 @@ class TrackerSpec:
     marker_id: int | None = None
     board: str | None = None
     refine: str | None = "default"
+    #: detect markers printed white on black (None: the board file's ``inverted``, else no)
+    inverted: bool | None = None
 
     def kwargs(self) -> dict:
         """Keyword arguments of :class:`arshadow.tracking.tracker.MarkerTracker` (the board file loaded).
@@ -201,6 +203,8 @@ class TrackerSpec:
             kw["board"] = load_board(self.board)
         if self.refine != "default":
             kw["refine"] = self.refine
+        if self.inverted is not None:
+            kw["inverted"] = bool(self.inverted)
         return kw
 
 
@@ -322,7 +326,7 @@ def _check_silhouette_name(name: str) -> None:
 
 
 #: the keys :func:`scene_from_dict` takes (``light`` is accepted for ``lights``)
-SCENE_KEYS = ("calib", "marker_length", "board", "dictionary", "marker_id", "refine", "model", "scale", "rotate",
+SCENE_KEYS = ("calib", "marker_length", "board", "dictionary", "marker_id", "refine", "inverted", "model", "scale", "rotate",
               "place", "color", "up", "drop_to_ground", "lights", "soft_samples", "silhouette", "shadow_method", "opacity",
               "shadow_color", "aa", "ground_size", "no_object", "roi", "truncate", "fast_detect", "plan", "compose",
               "shadowmap_size", "track_roi", "light_from")
@@ -458,7 +462,8 @@ def scene_from_dict(d, base_dir=None) -> SceneSpec:
     ml = _value(d, "marker_length", float)
     mid = _value(d, "marker_id", int)
     tracker = TrackerSpec(dictionary=dictionary, marker_length=ml, marker_id=mid,
-                          board=_path(d.get("board"), base_dir), refine=d.get("refine", "default"))
+                          board=_path(d.get("board"), base_dir), refine=d.get("refine", "default"),
+                          inverted=None if d.get("inverted") is None else bool(d.get("inverted")))
     calib = d["calib"]
     if isinstance(calib, (str, Path)):
         calib = _path(calib, base_dir)

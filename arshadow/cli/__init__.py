@@ -22,8 +22,8 @@ from .. import __version__
 from ..errors import ArshadowError, EstimateError, ImageError, MarkerNotFoundError
 
 #: command modules, in the order ``--help`` lists them
-COMMAND_MODULES = ("render", "demo", "video", "batch", "pose", "calibrate", "marker", "silhouette", "sun", "bench",
-                   "info", "light")
+COMMAND_MODULES = ("render", "demo", "video", "batch", "export_track", "pose", "calibrate", "marker", "silhouette",
+                   "sun", "bench", "info", "light")
 
 EXIT_OK, EXIT_SOME_FAILED, EXIT_USAGE = 0, 1, 2
 
