@@ -453,6 +453,15 @@ def test_batch_json_item_output_is_not_null(tmp_path):
     it = json.loads((out / "batch.json").read_text())["items"][0]
     assert it["status"] == "ok" and it["item"]["output"] == it["outputs"][0] == str(out / "p.png")
     assert it["item"]["mask"] == it["outputs"][1] == str(out / "p.shadow.png")
+    assert it["warnings"] == [] and it["item"]["flag_reasons"] == []
+    # a photo whose pose is flagged (a small marker): done, with a warning naming the reason
+    far = render_marker_photo(Intrinsics.from_file(CALIB), look_at_pose([0.2, -0.9, 1.2], [0, 0, 0]),
+                              marker_length=0.05, seed=2).image
+    cv2.imwrite(str(tmp_path / "far.png"), far)
+    run_batch(_scene(), [str(tmp_path / "far.png")], tmp_path / "o2", EngineOptions())
+    it = json.loads((tmp_path / "o2" / "batch.json").read_text())["items"][0]
+    assert it["status"] == "ok" and len(it["warnings"]) == 1
+    assert it["warnings"][0].startswith(f"{tmp_path / 'far.png'}: flagged pose: ") and "small marker: " in it["warnings"][0]
     _tally("batch.json output: null beside outputs", "fixed")
 
 

@@ -187,6 +187,8 @@ def process_item(spec, item: BatchItem, outdir, opts, save_mask: bool, fingerpri
             summary["status"] = "ok"
             res.item.output = str(out)  # the report item names the files too (it said output: null)
             res.item.mask = summary["outputs"][1] if save_mask else None
+            if res.item.flag_reasons:  # issue 20: a flagged pose is said (its reasons also in the item)
+                summary["warnings"].append(f"{item.input}: flagged pose: {'; '.join(res.item.flag_reasons)}")
             summary["item"] = res.item.to_dict()
     except MarkerNotFoundError as exc:  # a photo without the marker: done (a rerun would find none either)
         summary["status"] = "no_marker"
