@@ -16,7 +16,7 @@ from ..io import read_image, to_bgr8
 from ..lights.spec import parse_light
 from ..tracking.dictionary import DEFAULT_DICTIONARY
 from ..tracking.tracker import MarkerTracker
-from .exposure import Exposure, measure_exposure
+from .exposure import Exposure, ExposureError, measure_exposure
 from .light import fit_directional, fit_point, fit_sun
 from .result import LightEstimate
 from .shadow import build_evidence, edge_pairs, fit_levels, shadow_coverage
@@ -195,7 +195,7 @@ def estimate_light(inputs, *, calib, marker_length: float, probe: str, probe_pla
     convex = str(probe).lower().startswith(CONVEX_PRIMITIVES)
     dictionary = dictionary or DEFAULT_DICTIONARY
     tracker = MarkerTracker(base, dictionary=dictionary, marker_length=marker_length, marker_id=marker_id)
-    coarse, fines, pxs, exposures, names = [], [], [], [], []
+    coarse, fines, pxs, exposures, names, notes = [], [], [], [], [], []
     for item in items:
         for name, img in _frames(item, max_frames):
             intr, _ = base.for_image(img.shape[1], img.shape[0])
@@ -205,17 +205,21 @@ def estimate_light(inputs, *, calib, marker_length: float, probe: str, probe_pla
                 raise MarkerNotFoundError(f"{name}: {exc}") from None
             T = pose.cam_from_world
             _probe_in_view(intr, T, verts, name)
-            exp = measure_exposure(img, intr, T, marker_length, dictionary, pose.marker_ids[0])
+            try:
+                exp = measure_exposure(img, intr, T, marker_length, dictionary, pose.marker_ids[0])
+            except ExposureError as exc:  # a shadow over the marker: its brightest cell, flagged
+                exp = measure_exposure(img, intr, T, marker_length, dictionary, pose.marker_ids[0], min_cells=1)
+                notes.append(f"{name}: {exc}; the exposure is from its brightest white cell")
             c, f, px = _grids(img, intr, T, caster, verts, faces, marker_length, exp.paper_rgb, convex)
             coarse.append(c)
             pxs.append(px)
             fines.append(f)
             exposures.append(exp)
             names.append(name)
-    return _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, verts, t0)
+    return _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, verts, t0, notes)
 
 
-def _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, verts, t0) -> LightEstimate:
+def _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, verts, t0, notes) -> LightEstimate:
     def make_fine(lights_h):
         return [f(lights_h) for f in fines]
 
@@ -232,7 +236,7 @@ def _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, verts, t0) -> Ligh
     ink = np.median(np.array([e.ink_rgb for e in exposures]), axis=0)
     exp = Exposure(tuple(map(float, paper)), tuple(map(float, ink)), int(np.median([e.white_cells for e in exposures])),
                    any(e.saturated for e in exposures))
-    warnings = []
+    warnings = list(notes)
     if exp.saturated:
         warnings.append("the marker's paper is over-exposed (clipped): the exposure match is a lower bound")
     if res.uncertainty_deg > 3.0:

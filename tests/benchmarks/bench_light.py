@@ -26,7 +26,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import _common  # noqa: E402
 
 from arshadow.camera import Intrinsics  # noqa: E402
-from arshadow.errors import EstimateError, MarkerNotFoundError  # noqa: E402
+from arshadow.errors import ArshadowError  # noqa: E402
 from arshadow.estimate import estimate_light  # noqa: E402
 from arshadow.synth_lit import random_lit_case  # noqa: E402
 
@@ -55,7 +55,7 @@ def run_kind(kind: str, n: int, seed: int, calib: str) -> dict:
         try:
             est = estimate_light(p.image, calib=cam, marker_length=0.05, probe=case["probe"],
                                  probe_place=case["probe_place"], probe_rotate=case["probe_rotate"], kind=case["kind"])
-        except (EstimateError, MarkerNotFoundError) as exc:
+        except ArshadowError as exc:
             refused.append({"case": i, "error": str(exc)})
             continue
         times.append((time.perf_counter() - t) * 1e3)
