@@ -148,3 +148,22 @@ def test_bad_kind_is_a_usage_error(directional_cases):
     with pytest.raises(UsageError, match="--kind"):
         estimate_light(directional_cases[0]["photo"].image, calib=CALIB, marker_length=0.05, probe=PROBE,
                        kind="spot")
+
+
+def test_frames_of_a_video_add_up(cam, tmp_path):
+    """One light fixed in the world, three viewpoints written as a video: one estimate from its frames."""
+    import cv2
+
+    light = light_vector(200, 35)
+    eyes = ([0.25, -0.3, 0.4], [0.3, 0.05, 0.42], [0.2, -0.4, 0.35])
+    frames = [render_lit_photo(cam, look_at_pose(e, [0.08, 0.0, 0.0]), light=light, probe=PROBE, probe_place=PLACE,
+                               noise_sigma=1.5, seed=i, supersample=1) for i, e in enumerate(eyes)]
+    path = tmp_path / "clip.avi"
+    vw = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 10, (cam.width, cam.height))
+    for f in frames:
+        vw.write(f.image)
+    vw.release()
+    est = estimate_light(path, calib=CALIB, marker_length=0.05, probe=PROBE, probe_place=PLACE)
+    assert est.frames == 3
+    assert _angle(est.direction, light) <= 1.0
+    assert np.all(np.abs(np.array(est.shadow_ratio) - frames[0].shadow_ratio) <= 0.05)

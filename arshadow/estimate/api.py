@@ -21,7 +21,7 @@ from .light import fit_directional, fit_point, fit_sun
 from .result import LightEstimate
 from .shadow import build_evidence, edge_pairs, fit_levels, shadow_coverage
 
-__all__ = ["estimate_light", "VIDEO_EXTENSIONS", "MAX_FRAMES"]
+__all__ = ["MAX_FRAMES", "VIDEO_EXTENSIONS", "estimate_light"]
 
 VIDEO_EXTENSIONS = (".mp4", ".mov", ".avi", ".mkv", ".m4v", ".webm")
 #: frames of a video used at most (evenly spaced)

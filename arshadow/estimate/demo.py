@@ -12,6 +12,8 @@ import json
 from pathlib import Path
 
 from ..io import read_image, write_image, write_json
+from ..scene import scene_from_dict
+from ..session import Session
 from .api import estimate_light
 
 __all__ = ["SAMPLE_FILE", "light_demo"]
@@ -25,8 +27,6 @@ def light_demo(samples: Path, outdir: Path, *, context=None, renderer=None, aa: 
     Writes ``outdir/<stem>.light.json`` (the estimate, as ``arshadow light --json``) and ``outdir/<stem>.png``
     (the sample's object composited with the measured light, shadow colour and exposure).
     """
-    from ..scene import scene_from_dict  # noqa: PLC0415  (the scene imports this package's result module)
-    from ..session import Session  # noqa: PLC0415  (GL is loaded only for the demo)
 
     path = Path(samples) / SAMPLE_FILE
     if not path.is_file():
@@ -47,5 +47,6 @@ def light_demo(samples: Path, outdir: Path, *, context=None, renderer=None, aa: 
         res = session.process(read_image(photo), name=str(photo))
     out = write_image(Path(outdir) / f"{stem}.png", res.composite)
     ratio = " ".join(f"{v:.2f}" for v in est.shadow_ratio)
-    return [f"{photo.name} -> {out}  (measured light {est.light}, +/- {est.uncertainty_deg:.1f} deg, shadow ratio "
-            f"{ratio}; estimate in {est_path})"]
+    line = (f"{photo.name} -> {out}  (measured light {est.light}, +/- {est.uncertainty_deg:.1f} deg, shadow ratio "
+            f"{ratio}; estimate in {est_path})")
+    return [line]

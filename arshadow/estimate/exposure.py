@@ -23,7 +23,7 @@ from ..compose.composite import SRGB_TO_LINEAR
 from ..errors import ArshadowError
 from ..tracking.dictionary import get_dictionary, marker_bits
 
-__all__ = ["Exposure", "ExposureError", "measure_exposure", "smooth_exposures", "sample_linear"]
+__all__ = ["Exposure", "ExposureError", "measure_exposure", "sample_linear", "smooth_exposures"]
 
 
 class ExposureError(ArshadowError, ValueError):
@@ -200,9 +200,10 @@ def smooth_exposures(measurements, time_constant: float = 5.0, jump: float = 0.1
         else:
             far = abs(np.mean(x[:3] - state[:3])) > math.log1p(jump)
             pending = pending + 1 if far else 0
-            state = x if pending >= 2 else state + a * (x - state) if not far else state + a * (x - state)
-            if pending >= 2:
-                pending = 0
+            if pending >= 2:  # a new exposure: followed at once
+                state, pending = x, 0
+            else:
+                state = state + a * (x - state)
         v = np.exp(state)
         out.append(Exposure(tuple(float(t) for t in v[:3]), tuple(float(t) for t in v[3:]), m.white_cells,
                             m.saturated))

@@ -30,7 +30,7 @@ from ..compose.composite import SRGB_TO_LINEAR
 from ..geometry.exact import ground_shadow_triangles, points_in_triangles
 from ..transforms import transform_points
 
-__all__ = ["Evidence", "build_evidence", "shadow_coverage", "fit_levels", "LUMA"]
+__all__ = ["LUMA", "Evidence", "build_evidence", "fit_levels", "shadow_coverage"]
 
 #: Rec. 709 luminance weights of linear RGB
 LUMA = np.array([0.2126, 0.7152, 0.0722])
@@ -153,7 +153,7 @@ def build_evidence(image_bgr: np.ndarray, intr: Intrinsics, cam_from_world, vert
     sigma : float
         Scale of the high-pass (metres): slower variations of the ground are left out of the fit.
     """
-    n = int(round(2 * half / step)) + 1
+    n = round(2 * half / step) + 1
     x0, y0 = float(center[0]) - half, float(center[1]) - half
     gx, gy = np.meshgrid(x0 + step * np.arange(n), y0 + step * np.arange(n))
     pts = np.column_stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)])
@@ -238,7 +238,7 @@ def shadow_coverage(ev: Evidence, light_h) -> np.ndarray | None:
 
 def smooth(ev: Evidence, img: np.ndarray) -> np.ndarray:
     """The local-mean kernel: two box filters (a tent, standard deviation ``ev.sigma``), O(1) per cell."""
-    w = max(3, int(round(math.sqrt(6.0 * (ev.sigma / ev.step) ** 2 + 1.0))) | 1)
+    w = max(3, round(math.sqrt(6.0 * (ev.sigma / ev.step) ** 2 + 1.0)) | 1)
     out = cv2.blur(img, (w, w), borderType=cv2.BORDER_CONSTANT)
     return cv2.blur(out, (w, w), borderType=cv2.BORDER_CONSTANT)
 
