@@ -29,6 +29,8 @@ MAX_FRAMES = 30
 #: lowest light elevation searched, degrees (sets the ground grid's extent)
 MIN_ELEVATION = 12.0
 CONVEX_PRIMITIVES = ("box:", "cylinder:", "sphere:")
+#: a point light whose 1-sigma position uncertainty exceeds this share of its distance is flagged
+POINT_REL_SIGMA = 0.2
 
 
 def _frames(item, max_frames):
@@ -81,7 +83,7 @@ def _grids(img, intr, pose, caster, verts, faces, L, paper, convex):
     coarse_step = float(np.clip(max(6 * px, reach / 60.0), 0.003, 0.02))
     sigma = 0.6 * float(min(hi[0] - lo[0], hi[1] - lo[1]))
     coarse = build_evidence(img, intr, pose, verts, faces, marker_length=L, paper_rgb=paper, center=centre,
-                            half=reach, step=coarse_step, convex=convex, sigma=sigma)
+                            half=reach, step=coarse_step, convex=convex, sigma=sigma, supersample=2)
     fine_step = float(np.clip(1.5 * px, 0.0006, 0.006))
 
     def fine(lights_h):
@@ -241,6 +243,11 @@ def _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, verts, t0, notes) 
         warnings.append("the marker's paper is over-exposed (clipped): the exposure match is a lower bound")
     if res.uncertainty_deg > 3.0:
         warnings.append(f"low confidence: uncertainty {res.uncertainty_deg:.1f} degrees")
+    if res.position_sigma is not None:
+        rel = res.position_sigma / max(float(np.linalg.norm(res.light_h[:3] - anchor)), 1e-9)
+        if rel > POINT_REL_SIGMA:
+            warnings.append(f"low confidence: the point light's distance is uncertain (+/- {100 * rel:.0f} % of it); "
+                            "add views from other sides, or fit --kind directional")
     if res.runner_up is not None and res.runner_up > 0.6:
         warnings.append(f"a second light explains {100 * res.runner_up:.0f} % as much: check the result")
     fit = {"explained": round(res.explained, 4), "visible": round(res.visible, 3),

@@ -73,8 +73,12 @@ def run_kind(kind: str, n: int, seed: int, calib: str) -> dict:
         if kind == "sun":
             d = (est.north_deg - case["north_deg"] + 180.0) % 360.0 - 180.0
             row["north_err"] = abs(d)
+        bad = row.get("pos_rel", 0.0) > 0.15 if kind == "point" else row["dir_err"] > 3.0
+        row["confident_wrong"] = bool(est.confident and bad)
+        row["flagged"] = not est.confident
         rows.append(row)
-    out = {"cases": n, "refused": refused, "time_ms": _common.summary(times) if times else None}
+    out = {"cases": n, "refused": refused, "flagged": sum(r["flagged"] for r in rows),
+           "confident_wrong": sum(r["confident_wrong"] for r in rows), "time_ms": _common.summary(times) if times else None}
     for key in ("dir_err", "north_err", "pos_rel", "ratio_err", "ratio_err_r", "ratio_err_g", "ratio_err_b", "paper_err",
                 "uncertainty_deg"):
         if any(key in r for r in rows):
