@@ -272,8 +272,9 @@ def fit_sun(coarse: list, make_fine, enu) -> FitResult:
 
 def fit_point(coarse: list, make_fine, anchor) -> FitResult:
     """Fit a point light's position (3 DOF) as (azimuth, elevation, log distance) from the probe's top
-    ``anchor`` (3,): the directional fit, a coarse grid of +-12 degrees x 14 distances (0.15..3 m) around it,
-    then Nelder-Mead on the fine grids from the two best distances."""
+    ``anchor`` (3,): the directional fit, the objective's profile over 12 distances (0.15..3 m; azimuth and
+    elevation re-fitted at each) and a coarse 3-D grid around it, then Nelder-Mead in 3-D on the fine grids
+    from the two best distances of the profile and the grid's best; the lowest objective wins."""
     d = fit_directional(coarse, make_fine)
     fine = d.fine
     anchor = np.asarray(anchor, np.float64)
@@ -287,17 +288,26 @@ def fit_point(coarse: list, make_fine, anchor) -> FitResult:
         pos = position(q)
         return None if pos[2] <= top + 0.01 or q[1] >= 89.5 else np.append(pos, 1.0)
 
+    # the profile of the objective over the distance: (azimuth, elevation) re-fitted on the fine grids at
+    # each distance (the shadow's outline moves with both), from the directional fit
+    count = _Counter(fine, to_light)
+    profile = []
+    for t in np.geomspace(0.15, 3.0, 12):
+        q0 = np.array([az0, el0, math.log(t)])
+        if to_light(q0) is None:
+            continue
+        init = np.vstack([q0[:2], q0[:2] + [2.0, 0.0], q0[:2] + [0.0, 2.0]])
+        r = minimize(lambda a, lt=q0[2]: count(np.r_[a, lt]), q0[:2], method="Nelder-Mead",
+                     options={"initial_simplex": init, "xatol": 0.1, "fatol": 1e-6, "maxiter": 60})
+        profile.append((r.fun, np.r_[r.x, q0[2]]))
+    profile.sort(key=lambda x: x[0])
+    starts = [q for f, q in profile[:2] if np.isfinite(f)]
+    # and the best of a coarse 3-D grid around the directional fit (another basin, when the profile misses it)
     grid = np.array([(a, e, math.log(t)) for t in np.geomspace(0.15, 3.0, 14)
                      for a in az0 + np.arange(-12.0, 12.1, 4.0) for e in el0 + np.arange(-12.0, 12.1, 4.0)])
     scores = np.array([objective(coarse, h)[0] if (h := to_light(q)) is not None else math.inf for q in grid])
-    starts = []
-    for i in np.argsort(scores):
-        if not np.isfinite(scores[i]):
-            break
-        if all(abs(grid[i][2] - s[2]) > 0.3 for s in starts):
-            starts.append(grid[i])
-        if len(starts) == 2:
-            break
+    if np.isfinite(scores.min()):
+        starts.append(grid[int(np.argmin(scores))])
     if not starts:
         raise EstimateError("no point light above the probe explains its shadow")
     res, n = _refine(fine, to_light, starts, (2.0, 2.0, 0.15), 1e-3)
@@ -313,4 +323,4 @@ def fit_point(coarse: list, make_fine, anchor) -> FitResult:
     # position: the direction's spread across, the log distance's along
     sig = dist * math.sqrt(max(math.radians(unc) ** 2 + cov[2, 2], 0.0))
     return FitResult(h, position(q), score, deltas, unc, sig, explained, visible, None,
-                     d.evaluations + len(grid) + n, fine)
+                     d.evaluations + count.n + len(grid) + n, fine)
