@@ -92,6 +92,9 @@ class RenderOptions:
         Render only the region the object and its shadow can cover (False: always the whole photo).
     occluder_color : (3,) float, optional
         Override of the occluder's colour handed to the renderer.
+    ambient, specular : float
+        The object's ambient term and specular weight (the renderer's shading; ``light_from`` sets them from
+        the measured light: the measured ambient share, a matte object like the paper).
     fast_detect : bool
         Try the fast detection pass first (``MarkerTracker(detector="fast")``,
         :mod:`arshadow.tracking.fastdetect`), the full search only if it finds nothing.
@@ -122,6 +125,8 @@ class RenderOptions:
     truncate: bool = True
     roi: bool = True
     occluder_color: tuple | None = None
+    ambient: float = 0.25
+    specular: float = 0.25
     fast_detect: bool = True
     plan: str = "auto"
     plan_off: tuple = ()
@@ -399,6 +404,7 @@ def _apply_estimate(d: dict, base_dir) -> dict:
         d["_shadow_color_linear"] = o["shadow_color"]
     if "occluder_color" in o:
         d["_occluder_color"] = o["occluder_color"]
+    d["_shading"] = (o["ambient"], o["specular"])
     return d
 
 
@@ -434,7 +440,7 @@ def scene_from_dict(d, base_dir=None) -> SceneSpec:
         if "lights" in d:
             raise UsageError("give either 'light' or 'lights', not both")
         d["lights"] = d.pop("light")
-    unknown = sorted(set(d) - set(SCENE_KEYS) - {"_shadow_color_linear", "_occluder_color"})
+    unknown = sorted(set(d) - set(SCENE_KEYS) - {"_shadow_color_linear", "_occluder_color", "_shading"})
     if unknown:
         raise UsageError(f"unknown scene key(s) {', '.join(map(repr, unknown))} (known: {', '.join(SCENE_KEYS)})")
     if d.get("light_from") is not None:  # a measured light (arshadow light -o FILE): docs/light.md
@@ -487,6 +493,8 @@ def scene_from_dict(d, base_dir=None) -> SceneSpec:
         opts["shadow_color"] = d["_shadow_color_linear"]
     if d.get("_occluder_color") is not None:
         opts["occluder_color"] = d["_occluder_color"]
+    if d.get("_shading") is not None:
+        opts["ambient"], opts["specular"] = d["_shading"]
     return SceneSpec(camera=calib, tracker=tracker, model=model_spec,
                      lights=tuple(s if not isinstance(s, str) else s.strip() for s in lights),
                      options=RenderOptions(**opts))
