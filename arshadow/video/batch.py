@@ -81,7 +81,17 @@ def _outputs(item: BatchItem, outdir: Path, opts, save_mask: bool) -> list:
     """The files an item writes (before its done record)."""
     if item.kind == "video":
         return [p for p in video_outputs(outdir, item.stem, opts).values() if p is not None]
-    return [outdir / f"{item.stem}.png", *([outdir / f"{item.stem}.shadow.png"] if save_mask else [])]
+    outs = [outdir / f"{item.stem}.png", *([outdir / f"{item.stem}.shadow.png"] if save_mask else [])]
+    if opts.layers is not None:
+        from ..export.layerfiles import layer_paths
+
+        outs += list(layer_paths(outdir, item.stem, _photo_layers(opts), opts.layers_undistorted).values())
+    return outs
+
+
+def _photo_layers(opts) -> str:
+    """The layer format of a batch's photos: EXR with ``--layers-format exr``, else 16-bit PNG."""
+    return "exr" if opts.layers == "exr" else "png"
 
 
 def _fingerprint(item: BatchItem, spec, opts, save_mask) -> str:
@@ -155,16 +165,28 @@ def process_item(spec, item: BatchItem, outdir, opts, save_mask: bool, fingerpri
             vs, _ = process_video(SessionBackend(session), item.input, outs, opts, name=item.input)
             summary.update({k: vs[k] for k in ("status", "warnings", "frames", "frames_ok", "frames_held",
                                                "frames_no_marker", "truncated", "decode_errors", "fps_processed")})
-            summary["outputs"] = [str(p) for p in (outs["video"], outs["mask"], outs["frames"], outs["sheet"])
-                                  if p is not None and Path(p).exists()]
+            summary["outputs"] = [str(p) for p in outs.values() if p is not None and Path(p).exists()]
         else:
             img = read_image(item.input)
-            res = session.process(img, name=item.input, want_mask=save_mask)
+            want = ("undistorted" if opts.layers_undistorted else True) if opts.layers is not None else False
+            res = session.process(img, name=item.input, want_mask=save_mask, layers=want)
             out = write_image(outdir / f"{item.stem}.png", res.composite)
             summary["outputs"] = [str(out)]
+            if opts.layers is not None:
+                from ..export.layerfiles import layer_paths, write_layers
+                from ..export.stmap import stmap, write_stmap
+
+                fmt = _photo_layers(opts)
+                paths = write_layers(layer_paths(outdir, item.stem, fmt, opts.layers_undistorted), res.layers, fmt)
+                if "stmap" in paths:
+                    cal = session.calibration(img.shape[1], img.shape[0])
+                    write_stmap(paths["stmap"], stmap(cal.intrinsics, None if cal.lens is None else cal.lens.maps))
+                summary["outputs"] += [str(p) for p in paths.values()]
             if save_mask:
                 summary["outputs"].append(str(write_image(outdir / f"{item.stem}.shadow.png", res.mask)))
             summary["status"] = "ok"
+            res.item.output = str(out)  # the report item names the files too (it said output: null)
+            res.item.mask = summary["outputs"][1] if save_mask else None
             summary["item"] = res.item.to_dict()
     except MarkerNotFoundError as exc:  # a photo without the marker: done (a rerun would find none either)
         summary["status"] = "no_marker"
@@ -216,6 +238,8 @@ def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=Non
         ``no_marker``, ``damaged``, ``error``) and ``skipped`` (done by an earlier run).
     """
     outdir = check_output_folder(outdir, "-o")
+    if client is not None:  # scene errors (a light inside the model) and warnings once, here, not per worker
+        spec.build()
     (outdir / RECORDS).mkdir(parents=True, exist_ok=True)
     clean_temporaries(outdir)
     items = plan_batch(inputs)
@@ -243,6 +267,32 @@ def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=Non
                 progress(done, len(items), r)
         if done:
             progress(done, len(items), None)
+    try:
+        _run_todo(spec, items, todo, results, done, outdir, opts, save_mask, client, progress, session)
+    except KeyboardInterrupt:  # Ctrl-C / SIGTERM: batch.json still says what is done and what is not
+        _write_summary(outdir, items, results, interrupted=True)
+        raise
+    return _write_summary(outdir, items, results)
+
+
+def _write_summary(outdir: Path, items, results, interrupted: bool = False) -> dict:
+    """``OUT_DIR/batch.json``; after an interruption the items not finished are ``status: "pending"``."""
+    results = [r if r is not None else {"input": it.input, "kind": it.kind, "stem": it.stem, "status": "pending",
+                                        "skipped": False, "error": None, "outputs": [], "warnings": []}
+               for it, r in zip(items, results)]
+    counts: dict = {}
+    for r in results:
+        counts[r["status"]] = counts.get(r["status"], 0) + 1
+    counts["skipped"] = sum(bool(r.get("skipped")) for r in results)
+    summary = {"arshadow": __version__, "items": results, "counts": counts}
+    if interrupted:
+        summary["interrupted"] = True  # rerun the same command to finish the pending items
+    write_json(outdir / "batch.json", summary)
+    return summary
+
+
+def _run_todo(spec, items, todo, results, done, outdir, opts, save_mask, client, progress, session) -> None:
+    """Process the items not done yet, filling ``results`` in place (locally or on a Dask cluster)."""
     if client is None:
         own = session is None and todo
         if own:
@@ -277,10 +327,3 @@ def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=Non
             done += 1
             if progress is not None:
                 progress(done, len(items), results[k])
-    counts: dict = {}
-    for r in results:
-        counts[r["status"]] = counts.get(r["status"], 0) + 1
-    counts["skipped"] = sum(bool(r.get("skipped")) for r in results)
-    summary = {"arshadow": __version__, "items": results, "counts": counts}
-    write_json(outdir / "batch.json", summary)
-    return summary

@@ -24,6 +24,7 @@ import numpy as np
 from ..compose.composite import clip_roi
 from ..errors import MarkerNotFoundError
 from ..report import ReportItem, StageTimings
+from ..sanity import FlagTally
 from ..transforms import rvec_tvec_from_matrix
 from ..tracking.detect import luma_to_gray
 
@@ -52,6 +53,8 @@ class SessionBackend:
         self.session, self.tracks, self.time_lapse = session, list(tracks), time_lapse
         self.cal = None
         self.recomputes = 0
+        self.want_layers = False  # set by process_video when the layers are written
+        self.last_layers = None  # the last render's layers (with want_layers)
 
     def start(self, width: int, height: int) -> None:
         """A new video of this size (CalibrationError: the calibration does not fit it)."""
@@ -86,7 +89,8 @@ class SessionBackend:
     def render(self, bgr, cam_from_world, want_mask, timings):
         """Composite into ``bgr`` (modified in place); returns ``(mask or None, the frame's report item)``;
         ``timings`` gets the render stages."""
-        res = self.session.render(bgr, cam_from_world, want_mask=want_mask, out=bgr)
+        res = self.session.render(bgr, cam_from_world, want_mask=want_mask, out=bgr, layers=self.want_layers)
+        self.last_layers = res.layers
         for k, v in res.timings.as_dict().items():
             if k != "total":
                 timings[k] += v
@@ -140,7 +144,10 @@ class FrameComposer:
         self.stats = {"frames": 0, "frames_ok": 0, "frames_held": 0, "frames_no_marker": 0, "swapped": 0,
                       "longest_gap": 0, "longest_gap_start": None}
         self._gap = (0, None)  # (length, first frame) of the current run of frames not tracked
+        self.flags = FlagTally()  # flagged poses: one warning line for the video
         self.stage_ms: dict = {k: [] for k in FRAME_STAGES}
+        #: an :class:`arshadow.export.layervideo.LayerSink` getting every frame's layers, or None
+        self.layer_sink = None
 
     def compose(self, fp):
         """One decided frame -> ``(image, format, mask or None, ReportItem, JSON Lines record)``.
@@ -158,12 +165,15 @@ class FrameComposer:
             self.stats["frames_no_marker"] += 1
             if self.want_mask:
                 mask = np.zeros((self.H, self.W), np.uint8)
+            if self.layer_sink is not None:
+                self.layer_sink.write(None)
         else:
             img, mask, item = self._render(fp.cam_from_world, img, fmt, timings)  # the frame's one item
             item.input, item.status = self.name, fp.status
             self._pose_fields(item, fp)
         item.output, item.mask = self.out_video, self.out_mask
         item.frame, item.time_s, item.sun = fr.index, round(fr.time_s, 6), sun
+        self.flags.add(fr.index, item.flag_reasons)  # reasons of the tracked pose (None when held / missing)
         self._finish_timings(item, timings, dec_ms)
         item.notes = self.backend.notes or None
         self.stats["frames"] += 1
@@ -200,6 +210,8 @@ class FrameComposer:
         bgr = cv2.cvtColor(img, cv2.COLOR_YUV2BGR_I420) if fmt == "yuv420p" else np.array(img)
         timings["convert"] += (time.perf_counter() - tc) * 1e3
         mask, item = self.backend.render(bgr, cam_from_world, self.want_mask, timings)
+        if self.layer_sink is not None:
+            self.layer_sink.write(self.backend.last_layers)
         tc = time.perf_counter()
         img = i420_with_roi(img, bgr, item.roi) if fmt == "yuv420p" else bgr
         timings["convert"] += (time.perf_counter() - tc) * 1e3
