@@ -152,3 +152,48 @@ def test_rescue_detector_runs_a_second_search_only_on_a_miss():
     r2 = RescueDetector(cv2.aruco.ArucoDetector(GRID.cv_dictionary, p), GRID.cv_dictionary, p, marker_id=3)
     r2.detectMarkers(gray)
     assert not r2.rescued
+
+
+# ---------------------------------------------------------------------------------------------------
+# issue 20's tracking messages: other dictionaries named, flag reasons with numbers, board units
+# ---------------------------------------------------------------------------------------------------
+def test_no_marker_names_the_dictionaries_in_the_photo():
+    photo = render_marker_photo(CAM, look_at_pose([0.05, -0.1, 0.3], [0, 0, 0]), marker_length=0.05,
+                                dictionary="DICT_5X5_1000", marker_id=403)
+    with pytest.raises(MarkerNotFoundError, match="DICT_5X5_1000 ids 403"):
+        MarkerTracker(CAM, marker_length=0.05, dictionary="DICT_6X6_250").estimate(photo.image)
+    # a video tracker (track_roi) does not spend the scan on every missed frame
+    with pytest.raises(MarkerNotFoundError) as exc:
+        MarkerTracker(CAM, marker_length=0.05, track_roi=True).estimate(photo.image)
+    assert "DICT_5X5" not in str(exc.value)
+
+
+def test_small_marker_flag_reason_names_its_size():
+    """A marker 24 px across (true pose: 0.05 m at ~1.9 m with f = 900): flagged, the reason says so."""
+    pose = look_at_pose([0.0, -0.3, 1.85], [0, 0, 0])
+    photo = render_marker_photo(CAM, pose, marker_length=0.05)
+    p = MarkerTracker(CAM, marker_length=0.05).estimate(photo.image)
+    q = photo.corners_px[0]
+    side = float(np.linalg.norm(q - np.roll(q, 1, axis=0), axis=1).min())
+    assert side < 32 and p.ambiguous and p.flagged
+    (small,) = [r for r in p.flag_reasons if r.startswith("small marker: ")]
+    assert abs(float(small.split()[2]) - side) < 0.5  # the detected size, against the true corners
+
+
+def test_mismatched_board_flagged_by_reprojection():
+    """A board file whose spacing does not match the print: the pose reprojects tens of pixels off and
+    is flagged with the number; the true board is not flagged."""
+    photo = render_marker_photo(CAM, POSE, board=GRID, seed=7)
+    good = MarkerTracker(CAM, board=GRID).estimate(photo.image)
+    assert not good.flagged and good.flag_reasons == []
+    wrong = Board("gridboard", (3, 2), 0.04, marker_separation=0.03, dictionary="DICT_4X4_50")
+    bad = MarkerTracker(CAM, board=wrong).estimate(photo.image)
+    assert bad.reprojection_error_px > 10 and bad.flagged
+    assert any(f"{bad.reprojection_error_px:.1f} px" in r for r in bad.flag_reasons)
+
+
+def test_board_in_millimetres_warns():
+    assert GRID.unit_warnings() == []
+    mm = Board("gridboard", (3, 2), 40.0, marker_separation=10.0, dictionary="DICT_4X4_50")
+    (w,) = mm.unit_warnings()
+    assert "millimetres" in w and "0.04" in w
