@@ -139,7 +139,7 @@ class ReportItem:
         self.reprojection_error_px = float(pose.reprojection_error_px)
         self.pose_ambiguity = None if pose.pose_ambiguity is None else float(pose.pose_ambiguity)
         # the ratio is at or above the tracker's threshold: the mirrored solution may be the true one
-        self.pose_flagged = bool(getattr(pose, "ambiguous", False))
+        self.pose_flagged = bool(getattr(pose, "flagged", getattr(pose, "ambiguous", False)))
         self.flag_reasons = pose_flag_reasons(pose, self.pose_flagged)  # why it is flagged ([] when it is not; arshadow.sanity)
         if getattr(pose, "kind", None) in ("gridboard", "charuco"):
             # deferred: the report module loads without OpenCV (arshadow pose / render only ever get here)
