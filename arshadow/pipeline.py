@@ -28,6 +28,7 @@ import numpy as np
 from .compose.composite import Workspace
 from .errors import ImageError, MarkerNotFoundError
 from .execute import STAGES, execute
+from .geometry.ground import check_camera_above, parse_ground
 from .tracking.fastdetect import HalfResolutionDetector, fast_detector_params, make_fast_tracker
 from .plan import (
     ROI_MAX_POINTS,
@@ -114,6 +115,9 @@ class Compositor:
         self.options = (options or RenderOptions()).check()
         self.tracker_kwargs = dict(tracker or {})
         self.geometry = SceneGeometry(caster, self.options, lights)
+        #: the proxy ground (``options.ground``): the model, lights and shadows live in its frame
+        self.ground = parse_ground(self.options.ground)
+        self._marker_from_ground = None if self.ground.is_marker else self.ground.marker_from_ground
         self._calibs: dict = {}
         self._lenses: dict = {}
         self._work = Workspace()
@@ -314,7 +318,8 @@ class Compositor:
         ----------
         image : (H, W, 3) uint8
         pose : arshadow.tracking.marker.MarkerPose or (4, 4) float64
-            A tracked pose or ``cam_from_world``.
+            A tracked pose or ``cam_from_marker`` (turned into the ground frame's camera by
+            :meth:`ground_camera`).
         cal : CalibrationState
             :meth:`calib_for` of the photo's size.
         name, timings, want_mask, out, mask_out
@@ -340,12 +345,27 @@ class Compositor:
             cam_from_world = np.asarray(pose, np.float64).reshape(4, 4)
             rvec, tvec = rvec_tvec_from_matrix(cam_from_world)
             item.rvec, item.tvec = rvec.tolist(), tvec.tolist()
+        if not self.ground.is_marker:  # the report keeps the marker's pose; the scene is in the ground frame
+            item.extra["ground"] = self.ground.text
+        cam_from_world = self.ground_camera(cam_from_world)
         out, mask, info, plan = self.render_planned(image, cal.intrinsics, cam_from_world, lens=cal.lens,
                                                     timings=timings, want_mask=want_mask, out=out, mask_out=mask_out)
         item.mode = info["mode"]
         item.silhouette_edges = info["silhouette_edges"]
         item.extra.update({k: v for k, v in info.items() if k not in ("mode", "silhouette_edges")})
         return out, mask, item, plan
+
+    def ground_camera(self, cam_from_marker) -> np.ndarray:
+        """``cam_from_world`` (4, 4) float64 of the world the scene lives in, the ground frame
+        (:mod:`arshadow.geometry.ground`): ``cam_from_marker @ marker_from_ground``, the marker pose itself when
+        the ground is the marker plane. Raises UsageError when the camera sees the ground from below or
+        edge-on."""
+        m = np.asarray(cam_from_marker, np.float64).reshape(4, 4)
+        if self._marker_from_ground is None:
+            return m
+        cam_from_ground = m @ self._marker_from_ground
+        check_camera_above(cam_from_ground, self.ground.text)
+        return cam_from_ground
 
     def _estimate(self, tracker, image, timings):
         t = time.perf_counter()

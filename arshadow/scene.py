@@ -42,6 +42,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .errors import UsageError
+from .geometry.ground import parse_ground
 
 log = logging.getLogger(__name__)
 
@@ -79,6 +80,10 @@ class RenderOptions:
         MSAA samples of the renderer (0 = none).
     ground_size : float or None
         Side of the square proxy ground plane centred on the origin (None: unlimited).
+    ground : str
+        Where the ground plane is, relative to the marker (:func:`arshadow.geometry.ground.parse_ground`):
+        ``marker`` (the marker plane, the default), ``wall:H`` or ``plane:PX,PY,PZ,NX,NY,NZ``. The model
+        and the lights are placed in its frame.
     draw_occluder : bool
         Draw the shaded object over the shadow.
     truncate : bool
@@ -113,6 +118,7 @@ class RenderOptions:
     soft_samples: int = 1
     aa: int = 0
     ground_size: float | None = None
+    ground: str = "marker"
     draw_occluder: bool = True
     truncate: bool = True
     roi: bool = True
@@ -147,6 +153,7 @@ class RenderOptions:
                              "samples; 0 = off)")
         if self.ground_size is not None and not (math.isfinite(self.ground_size) and self.ground_size > 0):
             raise UsageError(f"--ground-size {self.ground_size}: must be a positive number of metres")
+        parse_ground(self.ground)
         return self
 
 
@@ -313,7 +320,7 @@ def _check_silhouette_name(name: str) -> None:
 SCENE_KEYS = ("calib", "marker_length", "board", "dictionary", "marker_id", "refine", "model", "scale", "rotate",
               "place", "color", "lights", "soft_samples", "silhouette", "shadow_method", "opacity",
               "shadow_color", "aa", "ground_size", "no_object", "roi", "truncate", "fast_detect", "plan", "compose",
-              "shadowmap_size", "track_roi")
+              "shadowmap_size", "track_roi", "ground")
 
 
 def _triple(v, key):
@@ -439,6 +446,8 @@ def scene_from_dict(d, base_dir=None) -> SceneSpec:
                       ("fast_detect", bool), ("plan", str), ("compose", str), ("track_roi", bool)):
         if d.get(key) is not None:
             opts[key] = _value(d, key, conv)
+    if d.get("ground") is not None:
+        opts["ground"] = parse_ground(d["ground"]).text
     if d.get("no_object"):
         opts["draw_occluder"] = False
     return SceneSpec(camera=calib, tracker=tracker, model=model_spec,

@@ -270,7 +270,7 @@ class Session:
         """The :class:`arshadow.plan.FramePlan` for a pose and photo size, without rendering (no GL)."""
         cal = self._compositor.calib_for(width, height)
         cfw = np.asarray(getattr(pose, "cam_from_world", pose), np.float64)
-        return self._compositor.plan(cal.intrinsics, cfw, width, height, lens=cal.lens)
+        return self._compositor.plan(cal.intrinsics, self._compositor.ground_camera(cfw), width, height, lens=cal.lens)
 
     # -- lights and history ---------------------------------------------------------------------------
     def set_lights(self, lights) -> int:
