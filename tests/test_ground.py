@@ -92,6 +92,21 @@ def test_scene_spec_and_options_carry_the_ground():
         RenderOptions(ground="plane:1,2,3").check()
 
 
+def test_command_line_option():
+    import argparse
+
+    from arshadow.cli.render import add_scene_options
+    from arshadow.scene import scene_from_args
+
+    p = argparse.ArgumentParser()
+    add_scene_options(p)
+    base = ["--calib", "c.yml", "--marker-length", "0.05", "--model", "box:0.1,0.1,0.1", "--light", "point:0,0,1"]
+    assert scene_from_args(p.parse_args(base)).options.ground == "marker"
+    assert scene_from_args(p.parse_args(base + ["--ground", "wall:0.4"])).options.ground == "wall:0.4"
+    with pytest.raises(UsageError, match="--ground 'wall:x'"):
+        scene_from_args(p.parse_args(base + ["--ground", "wall:x"]))
+
+
 def test_camera_below_or_edge_on_is_refused():
     from arshadow.synth import look_at_pose
 
