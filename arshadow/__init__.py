@@ -1,6 +1,6 @@
 """arshadow: put a virtual object and its exact hard shadow into photos of a printed ArUco marker.
 
-Pipeline: marker detection and pose (:mod:`arshadow.tracking.marker`) -> occluder in the marker's world frame
+Pipeline: marker detection and pose (:mod:`arshadow.tracking`) -> occluder in the marker's world frame
 (:mod:`arshadow.geometry.mesh`) -> silhouette (:mod:`arshadow.geometry.silhouette`) -> shadow volume
 (:mod:`arshadow.geometry.volume`) -> stencil rendering (:mod:`arshadow.gl`) -> compositing
 (:mod:`arshadow.compose.composite`).

@@ -165,7 +165,7 @@ class TrackerSpec:
     ----------
     dictionary : str or None
         ArUco dictionary name or custom dictionary file (single-marker mode; None:
-        :data:`arshadow.tracking.marker.DEFAULT_DICTIONARY`). A board names its own: a different one is an error.
+        :data:`arshadow.tracking.dictionary.DEFAULT_DICTIONARY`). A board names its own: a different one is an error.
     marker_length : float or None
         Marker side, metres.
     marker_id : int or None
@@ -173,7 +173,7 @@ class TrackerSpec:
     board : str or None
         Board file (GridBoard or ChArUco) instead of one marker.
     refine : str or None
-        Corner refinement; ``"default"``: the tracker's own default (:data:`arshadow.tracking.marker.DEFAULT_REFINE`).
+        Corner refinement; ``"default"``: the tracker's own default (:data:`arshadow.tracking.detect.DEFAULT_REFINE`).
     """
 
     dictionary: str | None = None
@@ -183,14 +183,15 @@ class TrackerSpec:
     refine: str | None = "default"
 
     def kwargs(self) -> dict:
-        """Keyword arguments of :class:`arshadow.tracking.marker.MarkerTracker` (the board file loaded).
+        """Keyword arguments of :class:`arshadow.tracking.tracker.MarkerTracker` (the board file loaded).
 
         Raises
         ------
         UsageError
             Neither a marker length nor a board; an unknown dictionary.
         """
-        from .tracking.marker import DEFAULT_DICTIONARY, get_dictionary, load_board
+        from .tracking.board import load_board
+        from .tracking.dictionary import DEFAULT_DICTIONARY, get_dictionary
 
         if self.board is None and self.marker_length is None:
             raise UsageError("give --marker-length M (metres) for a single marker, or --board B")
@@ -269,8 +270,8 @@ class SceneSpec:
         from .lights.spec import parse_light
 
         intr = self.camera if isinstance(self.camera, Intrinsics) else Intrinsics.from_file(self.camera)
-        from .tracking.marker import MarkerTracker
         from .geometry.mesh import placement_warnings
+        from .tracking.tracker import MarkerTracker
 
         tracker = self.tracker.kwargs()
         MarkerTracker(intr, **tracker)  # a dictionary conflicting with the board, a bad id: a usage error
@@ -299,7 +300,7 @@ class Scene:
     lights : list of arshadow.lights.spec.Light
     options : RenderOptions
     tracker : dict
-        Keyword arguments of :class:`arshadow.tracking.marker.MarkerTracker`.
+        Keyword arguments of :class:`arshadow.tracking.tracker.MarkerTracker`.
     """
 
     intrinsics: object

@@ -27,7 +27,8 @@ import numpy as np
 from ._check import check_finite, check_shape
 from .camera import Intrinsics
 from .errors import UsageError
-from .tracking.marker import Board, get_dictionary, marker_bits, marker_object_points
+from .tracking.board import Board
+from .tracking.dictionary import get_dictionary, marker_bits, marker_object_points
 from .transforms import transform_points
 
 __all__ = ["SynthPhoto", "render_marker_photo", "look_at_pose", "random_pose", "camera_path", "pan_path"]
@@ -394,7 +395,7 @@ def render_marker_photo(intrinsics: Intrinsics, cam_from_world, *, dictionary="D
     marker_length : float
         Marker side in metres (single marker). Give this *or* ``board``.
     board : Board, optional
-        A grid or ChArUco board (its world frame: see :mod:`arshadow.tracking.marker`).
+        A grid or ChArUco board (its world frame: see :mod:`arshadow.tracking.board`).
     noise_sigma : float
         Gaussian sensor noise, standard deviation in 8-bit units.
     blur_sigma : float

@@ -145,11 +145,12 @@ def _scene():
     return intr, caster, lights
 
 
-def _compositor(ctx, intr, caster, lights, ground, **opts):
-    from arshadow.pipeline import Compositor, RenderOptions
+def _session(ctx, intr, caster, lights, ground, tracker=None, **opts):
+    from arshadow.scene import RenderOptions, Scene
+    from arshadow.session import Session
 
-    return Compositor(ctx, intr, caster, lights, RenderOptions(ground=ground, **opts),
-                      tracker={"marker_length": MARKER})
+    scene = Scene(intr, caster, lights, RenderOptions(ground=ground, **opts), tracker or {"marker_length": MARKER})
+    return Session(scene, context=ctx)
 
 
 @pytest.mark.gl
@@ -159,9 +160,8 @@ def test_wall_marker_shadow_on_the_floor(ctx, tol):
     intr, caster, lights = _scene()
     mfg = _wall_frame(WALL_H)  # the truth, built independently of arshadow.geometry.ground
     known, tracked, control = [], [], []
-    with _compositor(ctx, intr, caster, lights, f"wall:{WALL_H}") as comp, \
-            _compositor(ctx, intr, caster, lights, "marker") as plain:
-        cal = comp.calib_for(W, H)
+    with _session(ctx, intr, caster, lights, f"wall:{WALL_H}") as comp, \
+            _session(ctx, intr, caster, lights, "marker") as plain:
         for i, (eye, target) in enumerate(POSES):
             cam_from_ground = look_at_pose(eye, target)  # the true camera, in the ground frame
             cam_from_marker = cam_from_ground @ invert_rigid(mfg)
@@ -171,17 +171,20 @@ def test_wall_marker_shadow_on_the_floor(ctx, tol):
                                   [(lt.homogeneous, lt.weight) for lt in lights])
             ref = oracle.image(W, H)[0] >= 0.5
             assert ref.sum() > 5000, ref.sum()
-            _, mask, item, _ = comp.render_item(ph.image, cam_from_marker, cal)
-            assert item.extra["ground"] == f"wall:{WALL_H:g}"
-            known.append(iou(mask >= 128, ref))
-            _, mask, item = comp.process(ph.image, f"wall{i}")
+            res = comp.render(ph.image, cam_from_marker)
+            assert res.item.ground == f"wall:{WALL_H:g}"
+            # the report keeps the marker's pose, the result the ground frame's camera
+            np.testing.assert_allclose(res.item.tvec, cam_from_marker[:3, 3], atol=1e-9)
+            np.testing.assert_allclose(res.cam_from_world, cam_from_ground, atol=1e-9)
+            known.append(iou(res.mask >= 128, ref))
+            res = comp.process(ph.image, f"wall{i}")
+            mask, item = res.mask, res.item
             assert item.status == "ok" and item.marker_ids == [0]
             # the report keeps the MARKER's pose (rvec/tvec world=marker -> camera)
             t_marker = np.asarray(item.tvec)
             np.testing.assert_allclose(t_marker, cam_from_marker[:3, 3], atol=0.01)
             tracked.append(iou(mask >= 128, ref))
-            _, mask, _ = plain.process(ph.image, f"plain{i}")
-            control.append(iou(mask >= 128, ref))
+            control.append(iou(plain.process(ph.image, f"plain{i}").mask >= 128, ref))
     print(f"\nwall marker IoUs: known pose {np.round(known, 4).tolist()}, tracked {np.round(tracked, 4).tolist()}, "
           f"marker plane as ground {np.round(control, 4).tolist()}")
     assert min(known) >= 0.99, known
@@ -202,22 +205,23 @@ def test_planner_culls_in_the_ground_frame(ctx):
     cam_from_ground = look_at_pose([0.0, -0.5, WALL_H], [0.0, 0.0, WALL_H])
     cam_from_marker = cam_from_ground @ invert_rigid(_wall_frame(WALL_H))
     ph = render_marker_photo(intr, cam_from_marker, marker_length=MARKER, seed=4)
-    with _compositor(ctx, intr, caster, lights, f"wall:{WALL_H}") as comp, \
-            _compositor(ctx, intr, caster, lights, "marker") as plain:
-        out, mask, item, plan = comp.render_item(ph.image, cam_from_marker, comp.calib_for(W, H))
+    with _session(ctx, intr, caster, lights, f"wall:{WALL_H}") as comp, \
+            _session(ctx, intr, caster, lights, "marker") as plain:
+        res = comp.render(ph.image, cam_from_marker)
+        mask, plan = res.mask, res.plan
         assert [lp.mode for lp in plan.lights] == ["none"], plan.decisions
         assert "footprint outside the canvas" in str(plan.decisions)
         oracle = ShadowOracle(intr.K, cam_from_ground, caster.vertices, caster.faces,
                               [(lt.homogeneous, lt.weight) for lt in lights])
         assert not (oracle.image(W, H)[0] > 0).any()
         assert not mask.any()
-        _, mask2, _, plan2 = plain.render_item(ph.image, cam_from_marker, plain.calib_for(W, H))
+        res2 = plain.render(ph.image, cam_from_marker)
+        mask2, plan2 = res2.mask, res2.plan
         assert [lp.mode for lp in plan2.lights] != ["none"] and (mask2 >= 128).sum() > 1000
         # the camera below the ground: refused, naming the option
-        with pytest.raises(UsageError, match="--ground plane"):
-            bad = _compositor(ctx, intr, caster, lights, "plane:0,0.5,0,0,1,0")
-            with bad:
-                bad.render_item(ph.image, cam_from_marker, bad.calib_for(W, H))
+        with pytest.raises(UsageError, match="--ground plane"), \
+                _session(ctx, intr, caster, lights, "plane:0,0.5,0,0,1,0") as bad:
+            bad.render(ph.image, cam_from_marker)
 
 
 @pytest.mark.gl
@@ -230,8 +234,7 @@ def test_real_charuco_photo_as_a_wall_board(ctx, realdata):
     from arshadow.geometry.mesh import load_occluder
     from arshadow.io import read_image
     from arshadow.lights.spec import parse_light
-    from arshadow.pipeline import Compositor, RenderOptions
-    from arshadow.tracking.marker import Board
+    from arshadow.tracking.board import Board
     from arshadow.transforms import matrix_from_rvec_tvec
 
     folder = realdata / "aruco_tutorial"
@@ -245,9 +248,9 @@ def test_real_charuco_photo_as_a_wall_board(ctx, realdata):
     # in front of the wall (x < 0 here: the floor's x is minus the board's z), lit from high on the right
     caster = load_occluder("box:0.04,0.04,0.05", place=(-0.07, -0.14, 0.0))
     lights = [parse_light("point:-0.12,-0.02,0.22")]
-    with Compositor(ctx, intr, caster, lights, RenderOptions(ground="plane:-0.02,0,0,1,0,0", aa=4),
-                    tracker={"board": board}) as comp:
-        _, mask, item = comp.process(photo, name="choriginal.jpg")
+    with _session(ctx, intr, caster, lights, "plane:-0.02,0,0,1,0,0", tracker={"board": board}, aa=4) as comp:
+        res = comp.process(photo, name="choriginal.jpg")
+    mask, item = res.mask, res.item
     assert item.status == "ok"
     cam_from_ground = matrix_from_rvec_tvec(item.rvec, item.tvec) @ mfg
     oracle = ShadowOracle(intr.K, cam_from_ground, caster.vertices, caster.faces,

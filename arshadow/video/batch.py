@@ -27,9 +27,17 @@ import os
 import time
 from pathlib import Path
 
-from ..errors import ArshadowError, MarkerNotFoundError, UsageError
+import cv2
 
-__all__ = ["VIDEO_EXTENSIONS", "BatchItem", "plan_batch", "run_batch", "process_item", "clean_temporaries"]
+from .. import __version__
+from ..errors import ArshadowError, MarkerNotFoundError, UsageError
+from ..io import check_output_folder, read_image, resolved_path, write_image, write_json
+from ..io import clean_temporaries as clean_io_temporaries
+from ..session import Session
+from .decode import looks_like_sequence
+from .engine import SessionBackend, process_video, unique_stems, video_outputs
+
+__all__ = ["VIDEO_EXTENSIONS", "BatchItem", "clean_temporaries", "plan_batch", "process_item", "run_batch"]
 
 PHOTO_EXTENSIONS = {".jpg", ".jpeg", ".jpe", ".png", ".bmp", ".dib", ".tif", ".tiff", ".webp", ".jp2", ".pbm", ".pgm",
                     ".ppm", ".pnm", ".pxm", ".sr", ".ras", ".exr", ".hdr", ".pic", ".avif"}
@@ -48,8 +56,6 @@ class BatchItem:
 
 def plan_batch(inputs) -> list[BatchItem]:
     """Classify inputs by extension (videos: :data:`VIDEO_EXTENSIONS`) and give each a unique stem."""
-    from .engine import unique_stems
-
     inputs = [str(i) for i in inputs]
     if not inputs:
         raise UsageError("no input given")
@@ -60,12 +66,8 @@ def _kind(path: str) -> str:
     """``"video"`` for a video extension or an image-sequence pattern; ``"photo"`` for an image extension;
     otherwise by content (what OpenCV's image readers recognise is a photo, anything else is tried as a
     video)."""
-    import cv2
-
-    from .cvio import _looks_like_sequence
-
     ext = Path(path).suffix.lower()
-    if ext in VIDEO_EXTENSIONS or _looks_like_sequence(path):
+    if ext in VIDEO_EXTENSIONS or looks_like_sequence(path):
         return "video"
     if ext in PHOTO_EXTENSIONS or not Path(path).is_file():
         return "photo"
@@ -78,8 +80,6 @@ def _kind(path: str) -> str:
 def _outputs(item: BatchItem, outdir: Path, opts, save_mask: bool) -> list:
     """The files an item writes (before its done record)."""
     if item.kind == "video":
-        from .engine import video_outputs
-
         return [p for p in video_outputs(outdir, item.stem, opts).values() if p is not None]
     return [outdir / f"{item.stem}.png", *([outdir / f"{item.stem}.shadow.png"] if save_mask else [])]
 
@@ -102,10 +102,8 @@ def _record_path(outdir: Path, item: BatchItem) -> Path:
 
 def clean_temporaries(outdir) -> int:
     """Remove the temporary files and folders an interrupted run left in ``outdir`` (``.NAME.*.tmp*``)."""
-    from ..io import clean_temporaries as clean
-
     d = Path(outdir)
-    return clean(d) + clean(d / RECORDS)
+    return clean_io_temporaries(d) + clean_io_temporaries(d / RECORDS)
 
 
 def _done(outdir: Path, item: BatchItem, fp: str):
@@ -130,8 +128,6 @@ _WORKER_SESSIONS: dict = {}
 
 def _session_for(spec):
     """One Session per spec per process (a Dask worker keeps its GL context between items)."""
-    from ..session import Session
-
     key = repr(spec)
     s = _WORKER_SESSIONS.get(key)
     if s is None:
@@ -148,8 +144,6 @@ def process_item(spec, item: BatchItem, outdir, opts, save_mask: bool, fingerpri
     Never raises for a bad input: the summary has ``status: "error"`` and ``error`` (nothing is recorded
     as done, so a rerun tries it again).
     """
-    from ..io import write_image, write_json
-
     outdir = Path(outdir)
     t0 = time.perf_counter()
     summary = {"input": item.input, "kind": item.kind, "stem": item.stem, "status": "error", "error": None,
@@ -157,8 +151,6 @@ def process_item(spec, item: BatchItem, outdir, opts, save_mask: bool, fingerpri
     try:
         session = session if session is not None else _session_for(spec)
         if item.kind == "video":
-            from .engine import SessionBackend, process_video, video_outputs
-
             outs = video_outputs(outdir, item.stem, opts)
             vs, _ = process_video(SessionBackend(session), item.input, outs, opts, name=item.input)
             summary.update({k: vs[k] for k in ("status", "warnings", "frames", "frames_ok", "frames_held",
@@ -166,8 +158,6 @@ def process_item(spec, item: BatchItem, outdir, opts, save_mask: bool, fingerpri
             summary["outputs"] = [str(p) for p in (outs["video"], outs["mask"], outs["frames"], outs["sheet"])
                                   if p is not None and Path(p).exists()]
         else:
-            from ..io import read_image
-
             img = read_image(item.input)
             res = session.process(img, name=item.input, want_mask=save_mask)
             out = write_image(outdir / f"{item.stem}.png", res.composite)
@@ -225,11 +215,6 @@ def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=Non
         ``{"arshadow": VERSION, "items": [...], "counts": {...}}``; each item has ``status`` (``ok``,
         ``no_marker``, ``damaged``, ``error``) and ``skipped`` (done by an earlier run).
     """
-    from .. import __version__
-    from ..io import write_json
-
-    from ..io import check_output_folder, resolved_path
-
     outdir = check_output_folder(outdir, "-o")
     (outdir / RECORDS).mkdir(parents=True, exist_ok=True)
     clean_temporaries(outdir)
@@ -261,8 +246,6 @@ def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=Non
     if client is None:
         own = session is None and todo
         if own:
-            from ..session import Session
-
             session = Session(spec)
         try:
             for k, it, fp in todo:
@@ -275,7 +258,9 @@ def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=Non
             if own:
                 session.close()
     else:
-        from distributed import as_completed
+        from distributed import (
+            as_completed,  # deferred: Dask is an optional extra (arshadow[dask])
+        )
 
         futs = {client.submit(_dask_task, spec, it, str(outdir), opts, save_mask, fp, pure=False,
                               key=f"arshadow-{it.stem}-{fp[:12]}"): k for k, it, fp in todo}
