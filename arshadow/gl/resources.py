@@ -11,7 +11,9 @@ another. Nothing here creates a context or imports moderngl (the objects come fr
 - :class:`VolumeBuffers`: every light's shadow volume of a frame in one reused vertex/index buffer;
 - :class:`RenderTarget`: a framebuffer of renderbuffers (colour + optional ``GL_DEPTH24_STENCIL8``, MSAA);
 - :class:`FrameTargets`: a renderer's targets (main, resolve/downsample, GPU-resident textures);
-- :func:`ground_vertices`: the ground plane z = 0 as homogeneous triangles (unlimited or a square).
+- :func:`ground_vertices`: the ground plane z = 0 as homogeneous triangles (unlimited or a square), kept
+  in a :class:`GroundBuffer`;
+- :func:`screen_box`: the conservative pixel box of a caster's bounding box (the colour readback's).
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ from .layers import TextureTarget
 
 __all__ = [
     "DEFAULT_COLOR",
+    "GroundBuffer",
     "CasterBuffers",
     "CasterCache",
     "FrameTargets",
@@ -39,6 +42,7 @@ __all__ = [
     "load_shader",
     "local_origin",
     "program",
+    "screen_box",
     "translation",
 ]
 
@@ -537,3 +541,54 @@ class FrameTargets:
             if t is not None:
                 t.release()
         self.main = self.resolve = self.half = self.ss_resolve = self.tex = None
+
+
+class GroundBuffer:
+    """The ground plane's vertex buffer and array (:func:`ground_vertices`: 12 homogeneous vertices),
+    rewritten only when the ground size or the local origin changes.
+
+    Parameters
+    ----------
+    ctx : moderngl.Context
+    prog : moderngl.Program
+        The program the vertex array is made for (``in_pos``: vec4).
+    """
+
+    def __init__(self, ctx, prog):
+        self.vbo = ctx.buffer(reserve=12 * 4 * 4)
+        self.vao = ctx.vertex_array(prog, [(self.vbo, "4f", "in_pos")])
+        self._key = None
+
+    def set(self, ground_size, origin=None) -> None:
+        """The ground z = 0 (unlimited, or a ``ground_size`` square) relative to ``origin (3,)``."""
+        origin = np.zeros(3) if origin is None else np.asarray(origin, np.float64)
+        key = ("inf" if ground_size is None else float(ground_size), tuple(origin.tolist()))
+        if key == self._key:
+            return
+        self.vbo.write(ground_vertices(ground_size, origin).tobytes())
+        self._key = key
+
+    def render(self, ctx) -> None:
+        self.vao.render(ctx.TRIANGLES, vertices=12)
+
+    def release(self) -> None:
+        self.vao.release()
+        self.vbo.release()
+
+
+def screen_box(mvp, corners, width, height):
+    """Conservative pixel box ``(x0, y0, x1, y1)`` (GL window coordinates, bottom-up, half-open) of the
+    caster's projection: its 8 bounding-box ``corners (8, 4)`` (homogeneous world) projected; the whole
+    canvas if a corner is not strictly in front of the camera."""
+    clip = corners @ mvp.T
+    w = clip[:, 3]
+    if not np.all(w > 1e-9):
+        return 0, 0, width, height
+    x = (clip[:, 0] / w + 1.0) * 0.5 * width
+    y = (clip[:, 1] / w + 1.0) * 0.5 * height
+    x0 = int(min(max(math.floor(x.min()) - 1, 0), width))
+    y0 = int(min(max(math.floor(y.min()) - 1, 0), height))
+    x1 = int(max(min(math.ceil(x.max()) + 1, width), 0))
+    y1 = int(max(min(math.ceil(y.max()) + 1, height), 0))
+    return x0, y0, x1, y1
+

@@ -35,7 +35,7 @@ from ..errors import UsageError
 from ..render_api import RenderResult
 from . import glraw as G
 from .context import current
-from .resources import CasterBuffers, ground_vertices, program
+from .resources import CasterBuffers, GroundBuffer, program
 
 __all__ = ["ShadowMapRenderer", "light_view_projection", "MAP_SIZES"]
 
@@ -149,9 +149,7 @@ class ShadowMapRenderer:
         self.prog_depth = program(ctx, "common.vert", "volume.frag")
         self.prog_occ = program(ctx, "shadowmap_occluder.vert", "shadowmap.frag")
         self.prog_ground = program(ctx, "shadowmap_ground.vert", "shadowmap.frag")
-        self._ground_vbo = ctx.buffer(reserve=12 * 4 * 4)
-        self._ground_vao = ctx.vertex_array(self.prog_ground, [(self._ground_vbo, "4f", "in_pos")])
-        self._ground_key = ()
+        self._ground = GroundBuffer(ctx, self.prog_ground)
         # moderngl rebinds "the last framebuffer used" after creating one, and that may be a framebuffer
         # another renderer has since deleted (GL_INVALID_OPERATION): bind the default one first, and leave
         # it bound after every render and at release
@@ -179,7 +177,8 @@ class ShadowMapRenderer:
         if self._released:
             return
         self._default_fbo.use()
-        objs = [self._ground_vao, self._ground_vbo, self.depth_fbo, self.depth_tex]
+        self._ground.release()
+        objs = [self.depth_fbo, self.depth_tex]
         if self._fbo is not None:
             objs += [self._fbo, *self._rbs]
         for o in objs:
@@ -240,10 +239,7 @@ class ShadowMapRenderer:
         mvp = proj @ view
         eye = -view[:3, :3].T @ view[:3, 3]
         bufs = self._buffers(caster, occluder_color)
-        key = None if ground_size is None else float(ground_size)
-        if key != self._ground_key:
-            self._ground_vbo.write(ground_vertices(key).tobytes())
-            self._ground_key = key
+        self._ground.set(ground_size)
         fbo = self._targets(width, height)
         bounds = np.asarray(caster.bounds, np.float64)
         t1 = time.perf_counter()
@@ -292,7 +288,7 @@ class ShadowMapRenderer:
             ctx.enable_only(ctx.DEPTH_TEST | self._cull(bufs))
             bufs.vao.render(ctx.TRIANGLES, vertices=bufs.n_indices)
             ctx.enable_only(ctx.DEPTH_TEST)
-        self._ground_vao.render(ctx.TRIANGLES, vertices=12)
+        self._ground.render(ctx)
 
     def _cull(self, bufs) -> int:
         """Closed meshes: back faces are never visible (the CULL_FACE flag, or 0)."""
@@ -334,7 +330,7 @@ class ShadowMapRenderer:
             prog["u_texel"].value = 1.0 / self.map_size
             prog["u_bias"].value = self.shader_bias
         self.prog_ground["u_weight"].value = w
-        self._ground_vao.render(ctx.TRIANGLES, vertices=12)
+        self._ground.render(ctx)
         if draw_occluder:
             diffuse, specular, shininess = phong
             ctx.enable_only(ctx.DEPTH_TEST | ctx.BLEND | self._cull(bufs))
