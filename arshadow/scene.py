@@ -42,7 +42,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .errors import UsageError
-from .geometry.ground import parse_ground
+from .geometry.ground import ground_warnings, parse_ground
 
 log = logging.getLogger(__name__)
 
@@ -277,6 +277,8 @@ class SceneSpec:
         MarkerTracker(intr, **tracker)  # a dictionary conflicting with the board, a bad id: a usage error
         caster = self.model.build()
         for msg in placement_warnings(caster, marker_length=tracker.get("marker_length")):
+            log.warning(msg)
+        for msg in ground_warnings(self.options.ground):
             log.warning(msg)
         if lights is None:
             lights = [parse_light(s) if isinstance(s, str) else s for s in self.lights]

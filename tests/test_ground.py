@@ -92,6 +92,32 @@ def test_scene_spec_and_options_carry_the_ground():
         RenderOptions(ground="plane:1,2,3").check()
 
 
+def test_a_ground_in_millimetres_warns():
+    from arshadow.geometry.ground import ground_warnings
+
+    assert ground_warnings("marker") == [] and ground_warnings("wall:1.2") == []
+    assert ground_warnings("plane:0,0,-2,0,0,1") == []
+    (msg,) = ground_warnings("wall:300")
+    assert "300 m from the marker" in msg and "wall:0.3" in msg
+    (msg,) = ground_warnings("plane:0,0,-45,0,0,1")
+    assert "45 m from the marker; lengths are metres" in msg
+
+
+def test_loading_a_scene_warns_once(caplog):
+    from pathlib import Path
+
+    from arshadow.scene import scene_from_dict
+
+    calib = Path(__file__).resolve().parents[1] / "calib" / "synth_1280x720.yml"
+    d = {"calib": calib, "marker_length": 0.05, "model": "box:0.1,0.1,0.1", "lights": ["point:0,0,1"]}
+    with caplog.at_level("WARNING"):
+        scene_from_dict({**d, "ground": "wall:0.3"}).build()
+    assert "--ground" not in caplog.text
+    with caplog.at_level("WARNING"):
+        scene_from_dict({**d, "ground": "wall:300"}).build()
+    assert caplog.text.count("--ground wall:300: the ground is 300 m") == 1
+
+
 def test_command_line_option():
     import argparse
 

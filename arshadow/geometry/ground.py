@@ -38,12 +38,15 @@ import numpy as np
 
 from ..errors import UsageError
 
-__all__ = ["GROUND_KINDS", "MIN_ELEVATION_DEG", "GroundSpec", "check_camera_above", "ground_frame", "parse_ground"]
+__all__ = ["GROUND_KINDS", "MIN_ELEVATION_DEG", "GroundSpec", "check_camera_above", "ground_frame", "ground_warnings",
+           "parse_ground"]
 
 #: the kinds of ground spec :func:`parse_ground` accepts
 GROUND_KINDS = ("marker", "wall", "plane")
 #: a camera that sees the ground's origin under a smaller elevation than this sees the plane edge-on
 MIN_ELEVATION_DEG = 1.0
+#: a ground farther than this from the marker (metres) is probably given in millimetres or centimetres
+FAR_GROUND_M = 10.0
 #: below this angle (sine) between the marker's x and the plane, the marker's y gives the frame's axes
 _AXIS_MIN_SIN = 0.1
 
@@ -132,6 +135,26 @@ def parse_ground(text) -> GroundSpec:
                           tuple(float(x) for x in n))
     raise UsageError(f"--ground {t!r}: choose marker, wall:H or plane:PX,PY,PZ,NX,NY,NZ "
                      "(metres, in the marker frame)")
+
+
+def ground_warnings(spec) -> list[str]:
+    """Plausible mistakes in a ground spec (each a message naming the probable cause); [] if none.
+
+    Examples
+    --------
+    >>> ground_warnings("wall:0.45")
+    []
+    >>> ground_warnings("wall:450")[0]
+    '--ground wall:450: the ground is 450 m from the marker; lengths are metres (450 mm would be wall:0.45)'
+    """
+    g = parse_ground(spec)
+    p, n = np.asarray(g.point), np.asarray(g.normal)
+    dist = abs(float(p @ n))  # the marker's centre to the plane
+    if dist <= FAR_GROUND_M:
+        return []
+    kind = g.text.partition(":")[0]
+    hint = f" ({dist:g} mm would be wall:{dist / 1000:g})" if kind == "wall" else ""
+    return [f"--ground {g.text}: the ground is {dist:g} m from the marker; lengths are metres{hint}"]
 
 
 def ground_frame(point, normal) -> np.ndarray:
