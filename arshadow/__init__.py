@@ -24,6 +24,7 @@ __version__ = "0.1.0"
 from .errors import (  # noqa: E402
     ArshadowError,
     CalibrationError,
+    EstimateError,
     GLContextError,
     ImageError,
     LightError,
@@ -45,6 +46,8 @@ _LAZY = {
     "load_scene": "scene",
     "FramePlan": "plan",
     "plan_frame": "plan",
+    "estimate_light": "estimate",
+    "LightEstimate": "estimate",
 }
 
 
@@ -66,6 +69,7 @@ __all__ = [
     "synth",
     "ArshadowError",
     "CalibrationError",
+    "EstimateError",
     "GLContextError",
     "ImageError",
     "LightError",

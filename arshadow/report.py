@@ -62,7 +62,7 @@ class StageTimings:
 #: the optional keys of an item, in the order the report writes them (only those set)
 OPTIONAL_KEYS = ("calibration_scaled", "notes", "detector", "frame", "time_s", "sun", "pose_flagged",
                  "opencv_board_rvec", "opencv_board_tvec", "n_points", "kind", "raw", "pose_choice", "modes", "roi",
-                 "canvas", "znear", "plan", "content", "composited", "compose", "title", "ground")
+                 "canvas", "znear", "plan", "content", "composited", "compose", "title", "layers", "ground")
 
 
 @dataclass
@@ -80,6 +80,7 @@ class ReportItem:
     - video frames: ``frame``, ``time_s``, ``sun``, ``raw`` (the tracked pose before smoothing),
       ``pose_choice``;
     - ``title`` (the demo's caption);
+    - ``layers`` (``{layer name: file}``: the compositing layers written, docs/export.md);
     - ``ground``: the ground spec (``--ground``) when it is not the marker plane; ``rvec``/``tvec`` stay
       the marker's pose.
     """
@@ -120,6 +121,7 @@ class ReportItem:
     composited: list[int] | None = None
     compose: str | None = None
     title: str | None = None
+    layers: dict | None = None
     ground: str | None = None
 
     def set_pose(self, pose) -> None:

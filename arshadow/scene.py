@@ -181,6 +181,8 @@ class TrackerSpec:
     marker_id: int | None = None
     board: str | None = None
     refine: str | None = "default"
+    #: detect markers printed white on black (None: the board file's ``inverted``, else no)
+    inverted: bool | None = None
 
     def kwargs(self) -> dict:
         """Keyword arguments of :class:`arshadow.tracking.tracker.MarkerTracker` (the board file loaded).
@@ -203,6 +205,8 @@ class TrackerSpec:
             kw["board"] = load_board(self.board)
         if self.refine != "default":
             kw["refine"] = self.refine
+        if self.inverted is not None:
+            kw["inverted"] = bool(self.inverted)
         return kw
 
 
@@ -320,10 +324,10 @@ def _check_silhouette_name(name: str) -> None:
 
 
 #: the keys :func:`scene_from_dict` takes (``light`` is accepted for ``lights``)
-SCENE_KEYS = ("calib", "marker_length", "board", "dictionary", "marker_id", "refine", "model", "scale", "rotate",
+SCENE_KEYS = ("calib", "marker_length", "board", "dictionary", "marker_id", "refine", "inverted", "model", "scale", "rotate",
               "place", "color", "lights", "soft_samples", "silhouette", "shadow_method", "opacity",
               "shadow_color", "aa", "ground_size", "no_object", "roi", "truncate", "fast_detect", "plan", "compose",
-              "shadowmap_size", "track_roi", "ground")
+              "shadowmap_size", "track_roi", "light_from", "ground")
 
 
 def _triple(v, key):
@@ -374,6 +378,23 @@ def _path(v, base_dir):
     return str(p)
 
 
+def _apply_estimate(d: dict, base_dir) -> dict:
+    """``light_from``: the estimate's light (unless ``lights`` are given), its shadow colour (opacity 1) and
+    the marker paper's exposure on the object's colour (``occluder_color``)."""
+    from .estimate.result import load_estimate, scene_overrides
+
+    d = dict(d)
+    o = scene_overrides(load_estimate(_path(d.pop("light_from"), base_dir)), _rgb_text(d.get("color")))
+    if not d.get("lights"):
+        d["lights"] = list(o["lights"])
+    d["opacity"] = o["opacity"]
+    if d.get("shadow_color") is None:
+        d["_shadow_color_linear"] = o["shadow_color"]
+    if "occluder_color" in o:
+        d["_occluder_color"] = o["occluder_color"]
+    return d
+
+
 def scene_from_dict(d, base_dir=None) -> SceneSpec:
     """The one builder of :class:`SceneSpec`: from a mapping with the keys of :data:`SCENE_KEYS`.
 
@@ -406,12 +427,14 @@ def scene_from_dict(d, base_dir=None) -> SceneSpec:
         if "lights" in d:
             raise UsageError("give either 'light' or 'lights', not both")
         d["lights"] = d.pop("light")
-    unknown = sorted(set(d) - set(SCENE_KEYS))
+    unknown = sorted(set(d) - set(SCENE_KEYS) - {"_shadow_color_linear", "_occluder_color"})
     if unknown:
         raise UsageError(f"unknown scene key(s) {', '.join(map(repr, unknown))} (known: {', '.join(SCENE_KEYS)})")
+    if d.get("light_from") is not None:  # a measured light (arshadow light -o FILE): docs/light.md
+        d = _apply_estimate(d, base_dir)
     for key in ("calib", "model", "lights"):
-        if d.get(key) is None:
-            raise UsageError(f"the scene needs {key!r}")
+        if d.get(key) is None or (key == "lights" and d[key] in ((), [])):
+            raise UsageError(f"the scene needs {key!r}" + (" (--light L or --light-from FILE)" if key == "lights" else ""))
     lights = d["lights"]
     if isinstance(lights, str) or not hasattr(lights, "__iter__"):
         lights = [lights]
@@ -432,7 +455,8 @@ def scene_from_dict(d, base_dir=None) -> SceneSpec:
     ml = _value(d, "marker_length", float)
     mid = _value(d, "marker_id", int)
     tracker = TrackerSpec(dictionary=dictionary, marker_length=ml, marker_id=mid,
-                          board=_path(d.get("board"), base_dir), refine=d.get("refine", "default"))
+                          board=_path(d.get("board"), base_dir), refine=d.get("refine", "default"),
+                          inverted=None if d.get("inverted") is None else bool(d.get("inverted")))
     calib = d["calib"]
     if isinstance(calib, (str, Path)):
         calib = _path(calib, base_dir)
@@ -453,6 +477,10 @@ def scene_from_dict(d, base_dir=None) -> SceneSpec:
         opts["ground"] = parse_ground(d["ground"]).text
     if d.get("no_object"):
         opts["draw_occluder"] = False
+    if d.get("_shadow_color_linear") is not None:
+        opts["shadow_color"] = d["_shadow_color_linear"]
+    if d.get("_occluder_color") is not None:
+        opts["occluder_color"] = d["_occluder_color"]
     return SceneSpec(camera=calib, tracker=tracker, model=model_spec,
                      lights=tuple(s if not isinstance(s, str) else s.strip() for s in lights),
                      options=RenderOptions(**opts))

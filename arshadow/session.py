@@ -36,13 +36,15 @@ import logging
 import time
 from dataclasses import dataclass, field
 
+import cv2
 import numpy as np
 
 from .compose.composite import Workspace
+from .compose.layers import Layers
 from .compose.lens import LensWarp
 from .engine import CalibrationState, check_image, default_renderer, estimate_pose
 from .errors import UsageError
-from .execute import execute
+from .execute import LAYERS_WHY, execute
 from .geometry.ground import check_camera_above, parse_ground
 from .geometry.mesh import placement_warnings
 from .io import read_image
@@ -79,6 +81,9 @@ class FrameResult:
         Milliseconds per stage.
     plan : arshadow.plan.FramePlan
         What was decided for the frame, with reasons (``plan.decisions``).
+    layers : arshadow.compose.layers.Layers or None
+        The object (premultiplied linear RGBA) and shadow (multiply pass) layers, when asked for
+        (``layers=True``): ``plate x shadow + object`` in linear light is the composite (docs/export.md).
     """
 
     composite: np.ndarray
@@ -88,6 +93,12 @@ class FrameResult:
     item: ReportItem
     timings: StageTimings = field(default_factory=StageTimings)
     plan: FramePlan | None = None
+    layers: Layers | None = None
+
+    def _repr_png_(self) -> bytes:
+        """The composite as PNG bytes: a result shows itself as an image in Jupyter."""
+        ok, buf = cv2.imencode(".png", self.composite)
+        return buf.tobytes() if ok else b""
 
     @property
     def timings_ms(self) -> dict[str, float]:
@@ -311,7 +322,8 @@ class Session:
         return cam_from_ground
 
     def render(self, image, pose=None, *, plan: FramePlan | None = None, name: str = "", want_mask: bool = True,
-               out=None, mask_out=None, timings: StageTimings | None = None, modes=None) -> FrameResult:
+               out=None, mask_out=None, timings: StageTimings | None = None, modes=None,
+               layers: bool | str = False) -> FrameResult:
         """Composite at a given pose, or carry out a plan of :meth:`plan`.
 
         Parameters
@@ -334,6 +346,9 @@ class Session:
             call's time.
         modes : list of str, optional
             Force the volume mode per light (as :meth:`plan`).
+        layers : bool or "undistorted"
+            Also make the compositing layers (``FrameResult.layers``; the numpy compose path); with
+            ``"undistorted"`` also their pinhole version (``FrameResult.layers.undistorted``).
 
         Returns
         -------
@@ -356,19 +371,20 @@ class Session:
             raise UsageError(f"{name or 'image'}: the plan is for {plan.size[0]}x{plan.size[1]}, the image is "
                              f"{image.shape[1]}x{image.shape[0]}")
         tracked = pose if hasattr(pose, "cam_from_world") else None
-        res = self._render(image, plan, tracked, item, timings, want_mask, out, mask_out)
+        res = self._render(image, plan, tracked, item, timings, want_mask, out, mask_out, layers)
         timings.total += (time.perf_counter() - t0) * 1e3
         item.timings_ms = timings.as_dict(3)
         return res
 
-    def process(self, image, name: str = "", want_mask: bool = True, out=None, mask_out=None) -> FrameResult:
+    def process(self, image, name: str = "", want_mask: bool = True, out=None, mask_out=None,
+                layers: bool | str = False) -> FrameResult:
         """:meth:`track` then :meth:`render`: composite the object and its shadow into one photo.
 
         Parameters
         ----------
         image : (H, W, 3) uint8
             BGR photo (not modified unless it is ``out``).
-        name, want_mask, out, mask_out
+        name, want_mask, out, mask_out, layers
             As :meth:`render`.
 
         Returns
@@ -389,7 +405,7 @@ class Session:
         pose, detector = estimate_pose(cal, image, timings)
         item = ReportItem(input=name, detector=detector)
         plan = self.plan(pose, image.shape[1], image.shape[0])
-        res = self._render(image, plan, pose, item, timings, want_mask, out, mask_out)
+        res = self._render(image, plan, pose, item, timings, want_mask, out, mask_out, layers)
         note = cal.detect_note()
         if note is not None:
             item.plan["detect"] = note
@@ -397,9 +413,11 @@ class Session:
         item.timings_ms = timings.as_dict(3)
         return res
 
-    def _render(self, image, plan: FramePlan, pose, item: ReportItem, timings, want_mask, out, mask_out):
+    def _render(self, image, plan: FramePlan, pose, item: ReportItem, timings, want_mask, out, mask_out,
+                layers=False):
         """Execute ``plan`` on ``image`` and fill ``item`` (all but ``timings_ms``); ``pose``: the tracked
-        :class:`~arshadow.tracking.pose.MarkerPose` or None."""
+        :class:`~arshadow.tracking.pose.MarkerPose` or None; ``layers``: as :meth:`render`."""
+        lay = {"undistorted": layers == "undistorted"} if layers else None
         H, W = image.shape[:2]
         cal = self.calibration(W, H)
         cfw = plan.cam_from_world
@@ -423,12 +441,15 @@ class Session:
         if not plan.empty:  # the renderer (and the context) is made only when there is something to draw
             renderer = self.renderer
             key = self.compose_key(W, H, cal.lens is not None)
+            if lay is not None and plan.compose != "cpu":  # the layers come from the numpy path
+                plan.decide("compose", "cpu", LAYERS_WHY)
             self._decide_compose(plan, renderer, key, want_mask, out, mask_out)
         out, mask = execute(plan, image, cal.intrinsics, geometry=self.geometry, renderer=renderer, lens=cal.lens,
                             work=self._work, timings=timings, item=item, want_mask=want_mask, out=out,
                             mask_out=mask_out, chooser=self.compose_chooser, gpu=self._gpu_compositor,
-                            compose_key=key)
-        return FrameResult(out, mask, pose, np.asarray(cfw, np.float64), item, timings, plan)
+                            compose_key=key, layers=lay)
+        return FrameResult(out, mask, pose, np.asarray(cfw, np.float64), item, timings, plan,
+                           None if lay is None else lay["layers"])
 
     def _decide_compose(self, plan, renderer, key, want_mask, out, mask_out) -> None:
         """Record the plan's compose decision (unless it has one these buffers allow)."""

@@ -81,7 +81,17 @@ def _outputs(item: BatchItem, outdir: Path, opts, save_mask: bool) -> list:
     """The files an item writes (before its done record)."""
     if item.kind == "video":
         return [p for p in video_outputs(outdir, item.stem, opts).values() if p is not None]
-    return [outdir / f"{item.stem}.png", *([outdir / f"{item.stem}.shadow.png"] if save_mask else [])]
+    outs = [outdir / f"{item.stem}.png", *([outdir / f"{item.stem}.shadow.png"] if save_mask else [])]
+    if opts.layers is not None:
+        from ..export.layerfiles import layer_paths
+
+        outs += list(layer_paths(outdir, item.stem, _photo_layers(opts), opts.layers_undistorted).values())
+    return outs
+
+
+def _photo_layers(opts) -> str:
+    """The layer format of a batch's photos: EXR with ``--layers-format exr``, else 16-bit PNG."""
+    return "exr" if opts.layers == "exr" else "png"
 
 
 def _fingerprint(item: BatchItem, spec, opts, save_mask) -> str:
@@ -155,13 +165,23 @@ def process_item(spec, item: BatchItem, outdir, opts, save_mask: bool, fingerpri
             vs, _ = process_video(SessionBackend(session), item.input, outs, opts, name=item.input)
             summary.update({k: vs[k] for k in ("status", "warnings", "frames", "frames_ok", "frames_held",
                                                "frames_no_marker", "truncated", "decode_errors", "fps_processed")})
-            summary["outputs"] = [str(p) for p in (outs["video"], outs["mask"], outs["frames"], outs["sheet"])
-                                  if p is not None and Path(p).exists()]
+            summary["outputs"] = [str(p) for p in outs.values() if p is not None and Path(p).exists()]
         else:
             img = read_image(item.input)
-            res = session.process(img, name=item.input, want_mask=save_mask)
+            want = ("undistorted" if opts.layers_undistorted else True) if opts.layers is not None else False
+            res = session.process(img, name=item.input, want_mask=save_mask, layers=want)
             out = write_image(outdir / f"{item.stem}.png", res.composite)
             summary["outputs"] = [str(out)]
+            if opts.layers is not None:
+                from ..export.layerfiles import layer_paths, write_layers
+                from ..export.stmap import stmap, write_stmap
+
+                fmt = _photo_layers(opts)
+                paths = write_layers(layer_paths(outdir, item.stem, fmt, opts.layers_undistorted), res.layers, fmt)
+                if "stmap" in paths:
+                    cal = session.calibration(img.shape[1], img.shape[0])
+                    write_stmap(paths["stmap"], stmap(cal.intrinsics, None if cal.lens is None else cal.lens.maps))
+                summary["outputs"] += [str(p) for p in paths.values()]
             if save_mask:
                 summary["outputs"].append(str(write_image(outdir / f"{item.stem}.shadow.png", res.mask)))
             summary["status"] = "ok"

@@ -31,6 +31,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ArshadowError, ImageError, UsageError
+from ..export.layervideo import LayerSink, check_video_layer_format, video_layer_paths
+from ..export.stmap import stmap
 from ..io import clean_temporaries, resolved_path
 from ..report import ReportItem
 from .avio import VIDEO_CODECS
@@ -78,6 +80,11 @@ class EngineOptions:
         Also return every frame's report item (memory grows with the video; the JSON Lines file does not).
     queue_frames : int
         Frames in flight between the threads.
+    layers : str or None
+        Also write the compositing layers (:mod:`arshadow.export.layervideo`): ``prores``, ``ffv1``, ``png``
+        or ``exr`` (photos of a batch: ``exr`` for ``exr``, else 16-bit PNG).
+    layers_undistorted : bool
+        With ``layers``: also the pinhole (undistorted) layers and their ST-map.
     """
 
     fmt: str = "mp4"
@@ -93,6 +100,8 @@ class EngineOptions:
     keep_audio: bool = True
     collect_items: bool = False
     queue_frames: int = 6
+    layers: str | None = None
+    layers_undistorted: bool = False
 
     def check(self) -> EngineOptions:
         if self.fmt not in ("mp4", "mkv", "mov", "avi"):
@@ -112,6 +121,8 @@ class EngineOptions:
                 raise UsageError(f"{opt} {v}: must be >= 0")
         if self.codec == "h264" and self.preset not in X264_PRESETS:
             raise UsageError(f"--preset {self.preset}: use one of {', '.join(X264_PRESETS)}")
+        if self.layers is not None:
+            check_video_layer_format(self.layers)
         return self
 
 
@@ -123,8 +134,12 @@ def video_outputs(outdir, stem: str, opts: EngineOptions) -> dict:
         mask = d / f"{stem}.shadow.mkv"
     elif opts.mask == "png":
         mask = d / f"{stem}.shadow"
-    return {"video": d / f"{stem}.{opts.fmt}", "mask": mask, "frames": d / f"{stem}.frames.jsonl",
-            "sheet": d / f"{stem}.sheet.jpg" if opts.contact_sheet else None}
+    out = {"video": d / f"{stem}.{opts.fmt}", "mask": mask, "frames": d / f"{stem}.frames.jsonl",
+           "sheet": d / f"{stem}.sheet.jpg" if opts.contact_sheet else None}
+    if opts.layers is not None:  # "layers:object", ... (or "layers:folder"): arshadow.export.layervideo
+        out.update({f"layers:{k}": p for k, p in video_layer_paths(d, stem, opts.layers,
+                                                                   opts.layers_undistorted).items()})
+    return out
 
 
 def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress=None, name: str | None = None):
@@ -173,7 +188,20 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
                                                                    opts.max_frames)
     sheet = SheetThumbs(opts.contact_sheet, total, (W, H))
     sink = EncodeSink(outputs, opts, reader, path, is_av, composer.stage_ms, sheet, progress, name, total)
-    items = _run_threads(reader, composer, sink, opts)
+    if opts.layers is not None:  # the layers, written on the main thread with the frames
+        cal = backend.cal if opts.layers_undistorted else None
+        st = None if cal is None else stmap(cal.intrinsics, None if cal.lens is None else cal.lens.maps)
+        composer.layer_sink = LayerSink({k[7:]: p for k, p in outputs.items() if k.startswith("layers:")},
+                                        opts.layers, getattr(reader, "rate", reader.fps), (W, H), stmap=st)
+        backend.want_layers = "undistorted" if opts.layers_undistorted else True
+    try:
+        items = _run_threads(reader, composer, sink, opts)
+    except BaseException:
+        if composer.layer_sink is not None:
+            composer.layer_sink.abort()
+        raise
+    if composer.layer_sink is not None:
+        composer.layer_sink.close()
     if outputs.get("sheet") is not None and sheet.thumbs:
         write_contact_sheet(outputs["sheet"], sheet.picked())
     summary = _summary(name, outputs, reader, composer, sink, opts, time.perf_counter() - t_wall)
@@ -205,6 +233,9 @@ def _run_threads(reader, composer: FrameComposer, sink: EncodeSink, opts: Engine
             fr, dec_ms = job
             timings = dict.fromkeys(FRAME_STAGES, 0.0)
             pose, _err = composer.backend.track(gray_of(fr, reader.height), timings)
+            if pose is None and getattr(fr, "format", "bgr24") == "yuv420p":
+                # the luma is not the colour frame's grey (chroma): on a miss, the photo path's (issue 21)
+                pose, _err = composer.backend.track(gray_of(fr, reader.height, colour=True), timings)
             for fp in stream.push((fr, dec_ms, timings, getattr(fr, "format", "bgr24")), pose, fr.time_s):
                 emit(fp)
         if dec_t.error is not None:

@@ -25,6 +25,7 @@ from ..compose.composite import clip_roi
 from ..errors import MarkerNotFoundError
 from ..report import ReportItem, StageTimings
 from ..transforms import rvec_tvec_from_matrix
+from ..tracking.detect import luma_to_gray
 
 __all__ = ["FRAME_STAGES", "FrameComposer", "SessionBackend", "gray_of", "i420_planes", "i420_with_roi"]
 
@@ -51,6 +52,8 @@ class SessionBackend:
         self.session, self.tracks, self.time_lapse = session, list(tracks), time_lapse
         self.cal = None
         self.recomputes = 0
+        self.want_layers = False  # set by process_video when the layers are written
+        self.last_layers = None  # the last render's layers (with want_layers)
 
     def start(self, width: int, height: int) -> None:
         """A new video of this size (CalibrationError: the calibration does not fit it)."""
@@ -85,7 +88,8 @@ class SessionBackend:
     def render(self, bgr, cam_from_world, want_mask, timings):
         """Composite into ``bgr`` (modified in place); returns ``(mask or None, the frame's report item)``;
         ``timings`` gets the render stages."""
-        res = self.session.render(bgr, cam_from_world, want_mask=want_mask, out=bgr)
+        res = self.session.render(bgr, cam_from_world, want_mask=want_mask, out=bgr, layers=self.want_layers)
+        self.last_layers = res.layers
         for k, v in res.timings.as_dict().items():
             if k != "total":
                 timings[k] += v
@@ -96,11 +100,15 @@ class SessionBackend:
         return list(self.session.notes or [])
 
 
-def gray_of(frame, height: int) -> np.ndarray:
-    """The grey ``(H, W) uint8`` image the tracker reads: the Y plane of a planar ``yuv420p`` frame (a
-    view, no conversion), else OpenCV's BGR -> grey."""
+def gray_of(frame, height: int, colour: bool = False) -> np.ndarray:
+    """The grey ``(H, W) uint8`` image the tracker reads: the Y plane of a planar ``yuv420p`` frame
+    expanded from limited to full range (:func:`arshadow.tracking.detect.luma_to_gray`: the Y plane itself
+    lost real markers, issue 21), else OpenCV's BGR -> grey. ``colour``: a ``yuv420p`` frame's BGR -> grey
+    instead (the photo path's grey; the engine's retry when the Y plane shows no marker)."""
     if getattr(frame, "format", "bgr24") == "yuv420p":
-        return frame.image[:height]
+        if colour:
+            return cv2.cvtColor(cv2.cvtColor(frame.image, cv2.COLOR_YUV2BGR_I420), cv2.COLOR_BGR2GRAY)
+        return luma_to_gray(frame.image[:height])
     return cv2.cvtColor(frame.image, cv2.COLOR_BGR2GRAY)
 
 
@@ -133,6 +141,8 @@ class FrameComposer:
         self.want_mask = want_mask
         self.stats = {"frames": 0, "frames_ok": 0, "frames_held": 0, "frames_no_marker": 0, "swapped": 0}
         self.stage_ms: dict = {k: [] for k in FRAME_STAGES}
+        #: an :class:`arshadow.export.layervideo.LayerSink` getting every frame's layers, or None
+        self.layer_sink = None
 
     def compose(self, fp):
         """One decided frame -> ``(image, format, mask or None, ReportItem, JSON Lines record)``.
@@ -148,6 +158,8 @@ class FrameComposer:
             self.stats["frames_no_marker"] += 1
             if self.want_mask:
                 mask = np.zeros((self.H, self.W), np.uint8)
+            if self.layer_sink is not None:
+                self.layer_sink.write(None)
         else:
             img, mask, item = self._render(fp.cam_from_world, img, fmt, timings)  # the frame's one item
             item.input, item.status = self.name, fp.status
@@ -181,6 +193,8 @@ class FrameComposer:
         bgr = cv2.cvtColor(img, cv2.COLOR_YUV2BGR_I420) if fmt == "yuv420p" else np.array(img)
         timings["convert"] += (time.perf_counter() - tc) * 1e3
         mask, item = self.backend.render(bgr, cam_from_world, self.want_mask, timings)
+        if self.layer_sink is not None:
+            self.layer_sink.write(self.backend.last_layers)
         tc = time.perf_counter()
         img = i420_with_roi(img, bgr, item.roi) if fmt == "yuv420p" else bgr
         timings["convert"] += (time.perf_counter() - tc) * 1e3
