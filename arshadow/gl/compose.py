@@ -329,7 +329,7 @@ class PathChooser:
         d = self.decisions.get(key)
         if d is not None:
             return d["choice"], paths[d["choice"]]()
-        times = {name: [] for name in paths}
+        times: dict[str, list[float]] = {name: [] for name in paths}
         result = {}
         for rnd in range(self.trials + 1):
             for name, fn in paths.items():
@@ -339,7 +339,7 @@ class PathChooser:
                     times[name].append((self.clock() - t) * 1e3)
         med = {name: statistics.median(v) for name, v in times.items()}
         default = next(iter(paths))
-        fastest = min(med, key=med.get)
+        fastest = min(med, key=med.__getitem__)
         choice = fastest if med[fastest] < (1.0 - self.margin) * med[default] else default
         self.decisions[key] = {"choice": choice, "ms": {k: round(v, 3) for k, v in med.items()}}
         # the chosen path runs last so that the caller's buffers hold its result

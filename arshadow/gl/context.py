@@ -13,6 +13,7 @@ import ctypes.util
 import functools
 import glob
 import os
+from typing import Any
 
 from ..errors import GLContextError
 from . import glraw
@@ -119,7 +120,7 @@ def create_context(backend: str | None = None):
         import moderngl
     except ImportError as exc:  # pragma: no cover - moderngl is a runtime dependency
         raise GLContextError(f"moderngl is not installed ({exc}); pip install moderngl") from exc
-    kwargs = {"standalone": True, "require": REQUIRE}
+    kwargs: dict[str, Any] = {"standalone": True, "require": REQUIRE}
     if name != "default":
         kwargs["backend"] = name
     try:

@@ -48,6 +48,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -58,7 +59,6 @@ from . import glraw as G
 from .context import current
 from .layers import GpuLayers
 from .resources import (
-    CasterBuffers,
     CasterCache,
     FrameTargets,
     GroundBuffer,
@@ -89,7 +89,7 @@ class _Frame:
     origin: np.ndarray  # (3,) the caster's local origin
     eye: np.ndarray  # (3,) the camera centre in the local frame
     front: str
-    bufs: CasterBuffers | None
+    bufs: Any  # CasterBuffers; None when neither the occluder nor a planar pass needs the caster's buffers
     passes: list
     ranges: list
     draw_occluder: bool
@@ -321,7 +321,7 @@ class ShadowRenderer:
         bufs = self._casters.get(caster, occluder_color, self.crease_deg) if (draw_occluder or any(
             p.mode == "planar" for p in passes)) else None
         ranges = self._volumes.upload(passes, origin)
-        if draw_occluder or any(p.mode == "planar" and p.direct for p in passes):
+        if bufs is not None and (draw_occluder or any(p.mode == "planar" and p.direct for p in passes)):
             bufs.upload_light_subsets(passes)
         self._ground.set(ground_size, origin)
         self._targets.ensure(width, height)
