@@ -46,12 +46,12 @@ from .engine import CalibrationState, check_image, default_renderer, estimate_po
 from .errors import UsageError
 from .execute import LAYERS_WHY, execute
 from .geometry.ground import check_camera_above, parse_ground
-from .geometry.mesh import placement_warnings
 from .io import read_image
 from .lights.spec import parse_light
 from .plan import FramePlan, SceneGeometry, decide_compose, plan_frame
 from .render_api import Renderer
 from .report import ReportItem, StageTimings
+from .sanity import FrameChecks, calibration_scaled_note
 from .scene import Scene, SceneSpec, load_scene, scene_from_dict
 from .transforms import invert_rigid, rvec_tvec_from_matrix
 
@@ -159,7 +159,7 @@ class Session:
         self._calibs: dict = {}
         self._lenses: dict = {}
         self._work = Workspace()
-        self._warned_inside = False
+        self._checks = FrameChecks(self.scene.caster, self.scene.tracker.get("marker_length"))  # O(1) per frame
         from .gl.compose import PathChooser  # deferred: no GL at import (moderngl loads on first render)
 
         self.compose_chooser = PathChooser(force=None if self.options.compose == "auto" else self.options.compose)
@@ -240,6 +240,8 @@ class Session:
         c = self._calibs.get(key)
         if c is None:
             intr, scaled = self.intrinsics.for_image(width, height)
+            if scaled:  # once per size, on stderr (the report says it per photo)
+                log.warning(calibration_scaled_note(self.intrinsics, width, height))
             tracker = self.scene.tracker
             # video: each tracker searches a window around its last detection first (the planner's tracking
             # ROI, full-frame fallback: arshadow/tracking/roi_track.py)
@@ -433,10 +435,8 @@ class Session:
             item.rvec, item.tvec = rvec.tolist(), tvec.tolist()
         if self._marker_from_ground is not None:
             item.ground = self.ground.text
-        if not self._warned_inside:
-            for msg in placement_warnings(self.scene.caster, eye_world=invert_rigid(cfw)[:3, 3]):
-                log.warning(msg)
-                self._warned_inside = True  # once per run, not per frame
+        for msg in self._checks.check(cfw):  # a far camera (wrong units), the camera inside: once per run
+            log.warning(msg)
         renderer = key = None
         if not plan.empty:  # the renderer (and the context) is made only when there is something to draw
             renderer = self.renderer

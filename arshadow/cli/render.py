@@ -10,6 +10,7 @@ import sys
 import time
 from pathlib import Path
 
+from ..scene import DEFAULT_AA
 from . import EXIT_OK, EXIT_SOME_FAILED, error_line, quiet_opencv
 
 log = logging.getLogger(__name__)
@@ -78,10 +79,20 @@ def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> No
                         "sphere:R | torus:R,r")
     o.add_argument("--scale", type=_positive("--scale"), default=1.0, metavar="S", help="uniform scale (first)")
     o.add_argument("--rotate", type=_floats(3, "--rotate"), default=(0.0, 0.0, 0.0), metavar="RX,RY,RZ",
-                   help="rotation in degrees, XYZ order (after scale)")
+                   help="rotation in degrees, XYZ order (after scale); a negative first number is fine: "
+                        "--rotate -90,0,0")
     o.add_argument("--place", type=_floats(3, "--place"), default=(0.0, 0.0, 0.0), metavar="X,Y,Z",
-                   help="translation in metres, world (marker) frame (last)")
-    o.add_argument("--color", metavar="R,G,B", help="object colour, 8-bit sRGB 0..255 (default: the mesh's own)")
+                   help="translation in metres, world (marker) frame (last); a negative first number is fine: "
+                        "--place -0.05,0,0")
+    o.add_argument("--up", choices=("y", "z"), metavar="y|z",
+                   help="the mesh file's up axis, turned to the world's +z first (default: y for glTF "
+                        ".glb/.gltf, which is Y-up by specification; z for OBJ/PLY/STL/OFF). Blender's OBJ "
+                        "export is Y-up: --up y")
+    o.add_argument("--drop-to-ground", action="store_true",
+                   help="stand the model on the ground: after scale and rotate, move it along z so that its "
+                        "lowest point is at z = 0 (for meshes centred on their origin); --place then adds")
+    o.add_argument("--color", metavar="R,G,B",
+                   help="object colour, 8-bit sRGB 0..255 or #rrggbb (default: the mesh's own)")
     s = p.add_argument_group("lights and shadows")
     s.add_argument("--light-from", metavar="FILE",
                    help="a measured light (arshadow light ... -o FILE, docs/light.md): its light (unless --light "
@@ -100,9 +111,11 @@ def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> No
                    metavar="N", help="shadow map side in texels with --shadow-method shadowmap (default 2048)")
     s.add_argument("--opacity", type=float, default=0.7, metavar="O",
                    help="darkness of a full shadow, 0..1 (default 0.7)")
-    s.add_argument("--shadow-color", metavar="R,G,B", help="tint of a full shadow, 8-bit sRGB (default black)")
-    s.add_argument("--aa", type=int, default=0, metavar="N",
-                   help="multisample anti-aliasing samples, 0 (default: pixel-centre sampling, the fastest), "
+    s.add_argument("--shadow-color", metavar="R,G,B",
+                   help="tint of a full shadow, 8-bit sRGB R,G,B or #rrggbb (default black)")
+    s.add_argument("--aa", type=int, default=DEFAULT_AA, metavar="N",
+                   help=f"multisample anti-aliasing samples, {DEFAULT_AA} (default, as arshadow demo: pixel-centre "
+                        "sampling, the fastest), "
                         "2 or 4 (smoother edges; ~5x the render time on a CPU renderer, see "
                         "docs/compositing.md)")
     s.add_argument("--ground-size", type=_positive("--ground-size"), metavar="S",
@@ -207,6 +220,7 @@ def output_paths(inputs, outdir: Path, keep_format: bool):
 def run(args) -> int:
     from ..io import check_output_file, check_output_folder, write_json
     from ..report import make_report
+    from ..sanity import FlagTally
     from ..scene import scene_from_args
     from ..session import Session
 
@@ -234,6 +248,11 @@ def run(args) -> int:
             bar.close()
     if args.report:
         write_json(args.report, make_report(items))
+    flags = FlagTally()
+    for it in items:
+        flags.add(it.input, it.flag_reasons)
+    if flags.summary(len(items)):
+        print(f"arshadow render: warning: {flags.summary(len(items))}", file=sys.stderr)
     if not args.quiet and len(inputs) > 1:
         flagged = sum(1 for it in items if it.pose_flagged)
         print(f"{len(inputs) - failed} of {len(inputs)} photos rendered into {outdir}: "

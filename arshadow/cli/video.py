@@ -201,6 +201,7 @@ def build_lights(args):
 def run(args) -> int:
     from ..io import check_output_file, check_output_folder, write_json
     from ..report import jsonable, make_report
+    from ..sanity import time_lapse_warnings
     from ..scene import scene_from_args
     from ..session import Session
     from ..video.engine import SessionBackend, run_videos
@@ -222,6 +223,9 @@ def run(args) -> int:
 
         refuse_overwrite([p for stem in unique_stems(args.videos)
                           for k, p in video_outputs(outdir, stem, opts).items() if k.startswith("layers:")], args.videos)
+    sun_set = time_lapse_warnings(args.videos, tracks, tl, getattr(args, "max_frames", None))  # before any work
+    for msg in sun_set.values():
+        print(f"arshadow video: warning: {msg}", file=sys.stderr)
     first = list(static)
     for tr in tracks:
         tr.reset()
@@ -254,6 +258,9 @@ def run(args) -> int:
         flagged = sum(1 for s in summaries if s["status"] == "ok" and s.get("frames_no_marker"))
         print(f"{len(summaries) - failed} of {len(summaries)} videos rendered into {outdir}: "
               f"{len(summaries) - failed} done, {failed} failed, {flagged} flagged (frames without the marker)")
+    for s in summaries:  # the report says it too
+        if s.get("input") in sun_set:
+            s.setdefault("warnings", []).insert(0, sun_set[s["input"]])
     if args.report:
         rep = make_report(items)
         rep["videos"] = jsonable(summaries)

@@ -185,6 +185,8 @@ def process_item(spec, item: BatchItem, outdir, opts, save_mask: bool, fingerpri
             if save_mask:
                 summary["outputs"].append(str(write_image(outdir / f"{item.stem}.shadow.png", res.mask)))
             summary["status"] = "ok"
+            res.item.output = str(out)  # the report item names the files too (it said output: null)
+            res.item.mask = summary["outputs"][1] if save_mask else None
             summary["item"] = res.item.to_dict()
     except MarkerNotFoundError as exc:  # a photo without the marker: done (a rerun would find none either)
         summary["status"] = "no_marker"
@@ -236,6 +238,8 @@ def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=Non
         ``no_marker``, ``damaged``, ``error``) and ``skipped`` (done by an earlier run).
     """
     outdir = check_output_folder(outdir, "-o")
+    if client is not None:  # scene errors (a light inside the model) and warnings once, here, not per worker
+        spec.build()
     (outdir / RECORDS).mkdir(parents=True, exist_ok=True)
     clean_temporaries(outdir)
     items = plan_batch(inputs)
@@ -263,6 +267,32 @@ def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=Non
                 progress(done, len(items), r)
         if done:
             progress(done, len(items), None)
+    try:
+        _run_todo(spec, items, todo, results, done, outdir, opts, save_mask, client, progress, session)
+    except KeyboardInterrupt:  # Ctrl-C / SIGTERM: batch.json still says what is done and what is not
+        _write_summary(outdir, items, results, interrupted=True)
+        raise
+    return _write_summary(outdir, items, results)
+
+
+def _write_summary(outdir: Path, items, results, interrupted: bool = False) -> dict:
+    """``OUT_DIR/batch.json``; after an interruption the items not finished are ``status: "pending"``."""
+    results = [r if r is not None else {"input": it.input, "kind": it.kind, "stem": it.stem, "status": "pending",
+                                        "skipped": False, "error": None, "outputs": [], "warnings": []}
+               for it, r in zip(items, results)]
+    counts: dict = {}
+    for r in results:
+        counts[r["status"]] = counts.get(r["status"], 0) + 1
+    counts["skipped"] = sum(bool(r.get("skipped")) for r in results)
+    summary = {"arshadow": __version__, "items": results, "counts": counts}
+    if interrupted:
+        summary["interrupted"] = True  # rerun the same command to finish the pending items
+    write_json(outdir / "batch.json", summary)
+    return summary
+
+
+def _run_todo(spec, items, todo, results, done, outdir, opts, save_mask, client, progress, session) -> None:
+    """Process the items not done yet, filling ``results`` in place (locally or on a Dask cluster)."""
     if client is None:
         own = session is None and todo
         if own:
@@ -297,10 +327,3 @@ def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=Non
             done += 1
             if progress is not None:
                 progress(done, len(items), results[k])
-    counts: dict = {}
-    for r in results:
-        counts[r["status"]] = counts.get(r["status"], 0) + 1
-    counts["skipped"] = sum(bool(r.get("skipped")) for r in results)
-    summary = {"arshadow": __version__, "items": results, "counts": counts}
-    write_json(outdir / "batch.json", summary)
-    return summary

@@ -283,6 +283,9 @@ def _summary(name, outputs, reader, composer: FrameComposer, sink: EncodeSink, o
                         f"{why})")
     if dec_err:
         warnings.append(f"{name}: {dec_err} damaged packet(s) could not be decoded and were skipped")
+    flagged = composer.flags.summary(stats["frames"], "frames")
+    if flagged:
+        warnings.append(f"{name}: {flagged}")
     status = "ok"
     if truncated or dec_err:
         status = "damaged"

@@ -24,6 +24,7 @@ import numpy as np
 from ..compose.composite import clip_roi
 from ..errors import MarkerNotFoundError
 from ..report import ReportItem, StageTimings
+from ..sanity import FlagTally
 from ..transforms import rvec_tvec_from_matrix
 from ..tracking.detect import luma_to_gray
 
@@ -140,6 +141,7 @@ class FrameComposer:
         self.W, self.H = size
         self.want_mask = want_mask
         self.stats = {"frames": 0, "frames_ok": 0, "frames_held": 0, "frames_no_marker": 0, "swapped": 0}
+        self.flags = FlagTally()  # flagged poses: one warning line for the video
         self.stage_ms: dict = {k: [] for k in FRAME_STAGES}
         #: an :class:`arshadow.export.layervideo.LayerSink` getting every frame's layers, or None
         self.layer_sink = None
@@ -166,6 +168,7 @@ class FrameComposer:
             self._pose_fields(item, fp)
         item.output, item.mask = self.out_video, self.out_mask
         item.frame, item.time_s, item.sun = fr.index, round(fr.time_s, 6), sun
+        self.flags.add(fr.index, item.flag_reasons)  # reasons of the tracked pose (None when held / missing)
         self._finish_timings(item, timings, dec_ms)
         item.notes = self.backend.notes or None
         self.stats["frames"] += 1
