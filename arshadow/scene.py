@@ -44,6 +44,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .errors import UsageError
+from .geometry.ground import ground_warnings, parse_ground
 
 log = logging.getLogger(__name__)
 
@@ -84,6 +85,10 @@ class RenderOptions:
         MSAA samples of the renderer (0 = none).
     ground_size : float or None
         Side of the square proxy ground plane centred on the origin (None: unlimited).
+    ground : str
+        Where the ground plane is, relative to the marker (:func:`arshadow.geometry.ground.parse_ground`):
+        ``marker`` (the marker plane, the default), ``wall:H`` or ``plane:PX,PY,PZ,NX,NY,NZ``. The model
+        and the lights are placed in its frame.
     draw_occluder : bool
         Draw the shaded object over the shadow.
     truncate : bool
@@ -121,6 +126,7 @@ class RenderOptions:
     soft_samples: int = 1
     aa: int = DEFAULT_AA
     ground_size: float | None = None
+    ground: str = "marker"
     draw_occluder: bool = True
     truncate: bool = True
     roi: bool = True
@@ -157,6 +163,7 @@ class RenderOptions:
                              "samples; 0 = off)")
         if self.ground_size is not None and not (math.isfinite(self.ground_size) and self.ground_size > 0):
             raise UsageError(f"--ground-size {self.ground_size}: must be a positive number of metres")
+        parse_ground(self.ground)
         return self
 
 
@@ -288,6 +295,8 @@ class SceneSpec:
         tracker = self.tracker.kwargs()
         MarkerTracker(intr, **tracker)  # a dictionary conflicting with the board, a bad id: a usage error
         caster = self.model.build()
+        for msg in ground_warnings(self.options.ground):
+            log.warning(msg)
         if lights is None:
             lights = [parse_light(s) if isinstance(s, str) else s for s in self.lights]
         opts = self.options.check()
@@ -334,7 +343,7 @@ def _check_silhouette_name(name: str) -> None:
 SCENE_KEYS = ("calib", "marker_length", "board", "dictionary", "marker_id", "refine", "inverted", "model", "scale", "rotate",
               "place", "color", "up", "drop_to_ground", "lights", "soft_samples", "silhouette", "shadow_method", "opacity",
               "shadow_color", "aa", "ground_size", "no_object", "roi", "truncate", "fast_detect", "plan", "compose",
-              "shadowmap_size", "track_roi", "light_from")
+              "shadowmap_size", "track_roi", "light_from", "ground")
 
 
 def _triple(v, key):
@@ -487,6 +496,8 @@ def scene_from_dict(d, base_dir=None) -> SceneSpec:
                       ("fast_detect", bool), ("plan", str), ("compose", str), ("track_roi", bool)):
         if d.get(key) is not None:
             opts[key] = _value(d, key, conv)
+    if d.get("ground") is not None:
+        opts["ground"] = parse_ground(d["ground"]).text
     if d.get("no_object"):
         opts["draw_occluder"] = False
     if d.get("_shadow_color_linear") is not None:
