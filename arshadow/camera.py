@@ -189,7 +189,7 @@ def undistort_normalized(xy_d, dist, *, tol=1e-12, max_iter=50) -> np.ndarray:
     px, py = x.copy(), y.copy()  # last accepted iterate
     prev = np.full(n, np.inf)
     it = 0
-    for it in range(min(max_iter, 12)):
+    for it in range(min(max_iter, 12)):  # noqa: B007 - `it` counts the iterations spent, used below
         xd, yd, j00, j01, j10, j11 = _distort_core_jac(x, y, d)
         ex, ey = xd - tx, yd - ty
         res = np.hypot(ex, ey)

@@ -69,7 +69,6 @@ def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings=N
     """
     timings = timings if timings is not None else dict.fromkeys(STAGES, 0.0)
     H, W = image.shape[:2]
-    opts = geometry.options
     roi, canvas = plan.roi, plan.canvas
     # CPU geometry: the volumes the plan needs (cached per light)
     passes, n_edges = [], 0

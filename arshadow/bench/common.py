@@ -16,19 +16,25 @@ from pathlib import Path
 
 import numpy as np
 
-#: the repository root when arshadow runs from a checkout (samples/, calib/ live there)
-ROOT = Path(__file__).resolve().parents[2]
+from ..resources import data_root
+
+#: the folder holding samples/ and calib/: the repository root in a checkout, the installed copy otherwise
+ROOT = data_root()
+#: the checkout's root (for git); not a checkout when arshadow is installed
+REPO = Path(__file__).resolve().parents[2]
 
 __all__ = ["ROOT", "git_commit", "metadata", "summary", "timed", "write_csv", "machine_label"]
 
 
 def git_commit() -> tuple[str | None, bool | None]:
     """``(short commit hash, arshadow/ has uncommitted changes)`` of the work tree; ``(None, None)``
-    without git."""
+    without git or outside a checkout (an installed wheel)."""
+    if not (REPO / ".git").exists():
+        return None, None
     try:
-        commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True,
+        commit = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--short", "HEAD"], capture_output=True,
                                 text=True, check=False, timeout=10).stdout.strip() or None
-        dirty = bool(subprocess.run(["git", "-C", str(ROOT), "status", "--porcelain", "--", "arshadow"],
+        dirty = bool(subprocess.run(["git", "-C", str(REPO), "status", "--porcelain", "--", "arshadow"],
                                     capture_output=True, text=True, check=False, timeout=10).stdout.strip())
     except (OSError, subprocess.TimeoutExpired):
         return None, None

@@ -158,7 +158,7 @@ def _configs(ctx, quick: bool):
         ("planar", "planar projection (paper 002)", st(), dict(mode="planar")),
     ]
     ms = [s for s in (2, 4, 8) if s <= ctx.max_samples]
-    aa = [("MSAA %d" % s, dict(samples=s)) for s in (ms if not quick else ms[-1:])]
+    aa = [(f"MSAA {s}", dict(samples=s)) for s in (ms if not quick else ms[-1:])]
     aa += [("supersample 2x2", dict(supersample=2))]
     if not quick:
         aa += [("supersample 4x4", dict(supersample=4)), ("MSAA 4 + supersample 2x2", dict(samples=4, supersample=2))]

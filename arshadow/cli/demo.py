@@ -21,7 +21,7 @@ def register(subparsers) -> None:
                     "contact_sheet.png into DIR.")
     p.add_argument("-o", "--output", default="demo_out", metavar="DIR", help="output folder (default demo_out)")
     p.add_argument("--samples", metavar="DIR",
-                   help="samples folder with scenes.json (default: the repository's samples/)")
+                   help="samples folder with scenes.json (default: the bundled samples)")
     p.add_argument("--aa", type=int, default=4, metavar="N", help="MSAA samples (default 4)")
     p.add_argument("--quiet", "-q", action="store_true", help="no per-image lines")
     p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show tracebacks")
@@ -29,11 +29,12 @@ def register(subparsers) -> None:
 
 
 def find_samples(explicit=None) -> Path:
-    """The samples folder: ``explicit``, else the repository's ``samples/`` (beside the package), else
-    ``./samples``."""
+    """The samples folder: ``explicit``, else the bundled ``samples/`` (the repository's in a checkout, the
+    installed copy otherwise: :func:`arshadow.resources.samples_dir`), else ``./samples``."""
     from ..errors import UsageError
+    from ..resources import samples_dir
 
-    cands = [Path(explicit)] if explicit else [Path(__file__).resolve().parents[2] / "samples", Path("samples")]
+    cands = [Path(explicit)] if explicit else [samples_dir(), Path("samples")]
     for c in cands:
         if (c / "scenes.json").is_file():
             return c

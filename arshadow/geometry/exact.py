@@ -210,7 +210,7 @@ class ShadowOracle:
         ground = hit & ~occ & in_ground_square(g, self.ground_size)
         mask = np.zeros(len(g))
         idx = np.flatnonzero(ground)
-        for (h, w), tris in zip(self.lights, self.shadow_tris):
+        for (_h, w), tris in zip(self.lights, self.shadow_tris):
             inside = points_in_triangles(g[idx], tris)
             mask[idx[inside]] += w / self.total
         return mask, ground, occ

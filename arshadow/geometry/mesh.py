@@ -416,6 +416,12 @@ class ShadowCaster:
         order = np.argsort(lo, kind="stable")
         return _readonly(lo[order]), _readonly(hi[order]), _readonly(el[order])
 
+    @property
+    def closed_edge_faces(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The adjacency detector's fast-path arrays ``(f_lo (e,), f_hi (e,), edges_lo (e, 2))`` (cached; see
+        :attr:`_closed_edge_faces`), public for :mod:`arshadow.geometry.silhouette` and the benchmarks."""
+        return self._closed_edge_faces
+
     # ------------------------------------------------------------------ flat polygons (HSD)
     def _own_face_planes(self) -> np.ndarray:
         """(m, 4) float64: each face's own plane (unit normal, offset through its centroid), before

@@ -67,7 +67,7 @@ SHADOWED_BIT = 0x20
 DEFAULT_COLOR = (0.8, 0.8, 0.8)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def load_shader(name: str) -> str:
     """Source of a shader shipped in ``arshadow/gl/shaders`` (package data)."""
     return resources.files("arshadow.gl").joinpath("shaders", name).read_text(encoding="utf-8")

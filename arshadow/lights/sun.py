@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from datetime import datetime, timedelta, timezone
+from datetime import datetime, timedelta, UTC
 
 import numpy as np
 
@@ -64,7 +64,7 @@ MODELS = ("spa", "paper", "paper-printed")
 ATMOS_REFRACT_DEG = 0.5667
 #: the sun's radius used by the SPA's refraction switch, degrees
 _SPA_SUN_RADIUS_DEG = 0.26667
-_UNIX_EPOCH = datetime(1970, 1, 1, tzinfo=timezone.utc)
+_UNIX_EPOCH = datetime(1970, 1, 1, tzinfo=UTC)
 
 
 # ----------------------------------------------------------------------------------------------- helpers
@@ -124,7 +124,7 @@ def _as_utc(when) -> datetime:
             f"time {when.isoformat()} has no UTC offset: pass an aware datetime "
             "(e.g. datetime(..., tzinfo=timezone.utc)) or add +HH:MM / Z to the ISO string"
         )
-    return when.astimezone(timezone.utc)
+    return when.astimezone(UTC)
 
 
 def _check_place(lat, lon, elevation):

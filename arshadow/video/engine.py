@@ -34,7 +34,7 @@ import shutil
 import tempfile
 import threading
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from datetime import timedelta
 from pathlib import Path
 
@@ -336,7 +336,7 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
                     job = q_out.get(timeout=0.1)
                 except queue.Empty:
                     if stop.is_set():
-                        raise RuntimeError("stopped")
+                        raise RuntimeError("stopped") from None
                     continue
                 if job is _END:
                     break
@@ -443,9 +443,9 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
                 job = q_in.get(timeout=0.1)
             except queue.Empty:
                 if dec_t.error is not None:
-                    raise dec_t.error
+                    raise dec_t.error from None
                 if enc_t.error is not None:
-                    raise enc_t.error
+                    raise enc_t.error from None
                 continue
             if job is _END:
                 break

@@ -29,10 +29,8 @@ import numpy as np
 import pytest
 
 from arshadow import __version__
-from arshadow.camera import Intrinsics
 from arshadow.errors import MarkerNotFoundError
-from arshadow.tracking.marker import REFINE_METHODS, MarkerTracker, marker_object_points
-from arshadow.synth import random_pose, render_marker_photo
+from arshadow.tracking.marker import REFINE_METHODS, MarkerTracker
 from arshadow.transforms import rotation_error_deg
 
 ROOT = Path(__file__).resolve().parents[2]
