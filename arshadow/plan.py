@@ -38,14 +38,27 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .compose.composite import clip_roi
 from .errors import LightError
 from .transforms import invert_rigid, transform_points
+
+if TYPE_CHECKING:  # annotations only (scene imports this module)
+    from .camera import Intrinsics
+    from .compose.lens import LensWarp
+    from .geometry.mesh import ShadowCaster
+    from .lights.spec import Light
+    from .scene import RenderOptions
+
+#: a float pinhole rectangle ``(u0, v0, u1, v1)``
+Rect = tuple[float, float, float, float]
 
 __all__ = ["Decision", "LightPlan", "FramePlan", "SceneGeometry", "LightState", "plan_frame",
            "shadow_footprint", "scene_hull_points", "pinhole_rect_for_scene", "ROI_MAX_POINTS"]
@@ -56,12 +69,13 @@ ROI_MAX_POINTS = 20000
 # --------------------------------------------------------------------------------------------------
 # region of interest: pure geometry
 # --------------------------------------------------------------------------------------------------
-def _box_corners(bounds) -> np.ndarray:
+def _box_corners(bounds: ArrayLike) -> np.ndarray:
     lo, hi = np.asarray(bounds, dtype=np.float64)
     return np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
 
 
-def shadow_footprint(bounds, light_h, *, points=None, eps: float = 1e-9) -> np.ndarray | None:
+def shadow_footprint(bounds: ArrayLike, light_h: ArrayLike, *, points: ArrayLike | None = None,
+                     eps: float = 1e-9) -> np.ndarray | None:
     """Ground points (z = 0) whose convex hull contains the shadow of anything inside ``bounds``.
 
     Parameters
@@ -112,7 +126,8 @@ def _ground_hull(fp: np.ndarray) -> np.ndarray:
     return fp[np.sort(idx.ravel())]
 
 
-def scene_hull_points(bounds, lights_h, ground_size=None, points=None) -> np.ndarray | None:
+def scene_hull_points(bounds: ArrayLike, lights_h: Iterable[ArrayLike], ground_size: float | None = None,
+                      points: ArrayLike | None = None) -> np.ndarray | None:
     """World points ``(n, 3) float64`` whose convex hull holds the occluder and its ground shadows, or None.
 
     They depend on the mesh and the lights only (not on the camera), so the :class:`Compositor` computes
@@ -138,8 +153,9 @@ def scene_hull_points(bounds, lights_h, ground_size=None, points=None) -> np.nda
     return np.concatenate(pts)
 
 
-def pinhole_rect_for_scene(intrinsics, cam_from_world, bounds, lights_h, ground_size=None, znear=1e-3,
-                           points=None):
+def pinhole_rect_for_scene(intrinsics: Intrinsics, cam_from_world: np.ndarray, bounds: ArrayLike,
+                           lights_h: Iterable[ArrayLike], ground_size: float | None = None, znear: float = 1e-3,
+                           points: ArrayLike | None = None) -> Rect | None:
     """Pinhole pixel rectangle ``(u0, v0, u1, v1)`` covering the occluder and its shadows, or None (all).
 
     None means "the whole image": a footprint is unbounded and no ``ground_size`` limits it, or a point
@@ -149,7 +165,7 @@ def pinhole_rect_for_scene(intrinsics, cam_from_world, bounds, lights_h, ground_
     return None if hull is None else _pinhole_rect(intrinsics, cam_from_world, hull, znear)
 
 
-def _pinhole_rect(intrinsics, cam_from_world, hull, znear):
+def _pinhole_rect(intrinsics: Intrinsics, cam_from_world: np.ndarray, hull: np.ndarray, znear: float) -> Rect | None:
     """Pinhole bounding rectangle of world points ``hull (n, 3)``; None if one is not beyond ``znear``."""
     pc = transform_points(cam_from_world, hull)
     if not np.all(pc[:, 2] > znear):
@@ -163,7 +179,7 @@ def _pinhole_rect(intrinsics, cam_from_world, hull, znear):
 
 
 
-def _int_rect(rect, margin: int):
+def _int_rect(rect: Rect, margin: int) -> tuple[int, int, int, int]:
     """Float pinhole rect (u0, v0, u1, v1) -> integer (x0, y0, w, h) with ``margin`` pixels around it."""
     u0, v0, u1, v1 = rect
     x0, y0 = math.floor(u0) - margin, math.floor(v0) - margin
@@ -201,7 +217,7 @@ class LightState:
     light_h: np.ndarray
     sil: object = None
     volumes: dict = field(default_factory=dict)
-    footprint: object = False
+    footprint: Any = False  # (n, 3) float64, None or False (see above)
     reuse: str | None = None
 
 
@@ -218,7 +234,7 @@ class SceneGeometry:
         Initial lights (:meth:`set_lights`).
     """
 
-    def __init__(self, caster, options, lights=None):
+    def __init__(self, caster: ShadowCaster, options: RenderOptions, lights: Iterable[Light] | None = None) -> None:
         self.caster = caster
         self.options = options
         b = np.asarray(caster.bounds, dtype=np.float64)
@@ -229,13 +245,14 @@ class SceneGeometry:
                            if len(caster.vertices) <= ROI_MAX_POINTS else None)
         self.size = float(np.linalg.norm(b[1] - b[0]))
         self.lights: list[LightState] = []
-        self.lights_in: list = []
+        self.lights_in: list[Light] = []
         self.notes: list[str] = []
-        self._hull = (None, None)  # (lights' key, scene_hull_points) for the current lights
+        # (lights' key, scene_hull_points) for the current lights
+        self._hull: tuple[tuple[bytes, ...] | None, np.ndarray | None] = (None, None)
         if lights is not None:
             self.set_lights(lights)
 
-    def set_lights(self, lights) -> int:
+    def set_lights(self, lights: Iterable[Light]) -> int:
         """Replace the lights, keeping the cached geometry of every (sample) light that stays.
 
         A (sample) light whose homogeneous vector ``light_h`` equals one of the current lights' keeps
@@ -261,7 +278,9 @@ class SceneGeometry:
         old_list = list(self.lights)
         reuse = self.options.plan != "general" and "reuse" not in self.options.plan_off
         total = float(sum(lt.weight for lt in lights if lt.above_horizon))
-        notes, states, n_new = [], [], 0
+        notes: list[str] = []
+        states: list[LightState] = []
+        n_new = 0
         for lt in lights:
             if not lt.above_horizon:
                 notes.append(f"light {lt.label or lt.kind} is below the horizon: no light, no shadow")
@@ -311,7 +330,7 @@ class SceneGeometry:
                 ls.sil, ls.volumes = hit[0], dict(hit[1])
 
     # -- geometry on demand ------------------------------------------------------------------------------
-    def silhouette(self, ls: LightState, timings=None):
+    def silhouette(self, ls: LightState, timings: dict[str, float] | None = None) -> Any:
         """The light's silhouette (built once; ``timings["silhouette"]`` gets the build time)."""
         if ls.sil is None:
             from .geometry.silhouette import silhouette
@@ -322,11 +341,12 @@ class SceneGeometry:
                 timings["silhouette"] += (time.perf_counter() - t) * 1e3
         return ls.sil
 
-    def truncate_z(self, truncate: bool = True):
+    def truncate_z(self, truncate: bool = True) -> float | None:
         """The plane volumes are truncated at (just below the ground), or None (to infinity)."""
         return -1e-3 * max(self.size, 1e-6) if truncate else None
 
-    def volume(self, ls: LightState, caps: bool, timings=None, truncate: bool | None = None):
+    def volume(self, ls: LightState, caps: bool, timings: dict[str, float] | None = None,
+               truncate: bool | None = None) -> Any:
         """The light's shadow volume with or without caps, truncated below the ground or extruded to
         infinity (default ``options.truncate``); built once per variant (``timings["volume"]``)."""
         truncate = bool(self.options.truncate if truncate is None else truncate)
@@ -357,7 +377,7 @@ class SceneGeometry:
             c = self._convex = mesh_is_convex(self.caster)
         return c
 
-    def footprint_rect(self, ls: LightState, intr, cam_from_world, znear):
+    def footprint_rect(self, ls: LightState, intr: Intrinsics, cam_from_world: np.ndarray, znear: float) -> Rect | None:
         """Pinhole screen box of one light's ground footprint (clipped to ``ground_size``), or None
         (unbounded, or a point behind the camera); an empty box far off screen when the shadow misses the
         ground square."""
@@ -381,7 +401,7 @@ class SceneGeometry:
             return (-1e9, -1e9, -1e9, -1e9)
         return _pinhole_rect(intr, cam_from_world, fp, znear)
 
-    def hull(self):
+    def hull(self) -> np.ndarray | None:
         """:func:`scene_hull_points` of the current lights (recomputed only when the lights change)."""
         key = tuple(ls.light_h.tobytes() for ls in self.lights)
         if self._hull[0] != key:
@@ -390,7 +410,7 @@ class SceneGeometry:
             self._hull = (key, hull)
         return self._hull[1]
 
-    def znear_for(self, cam_from_world) -> float:
+    def znear_for(self, cam_from_world: np.ndarray) -> float:
         """A near plane that clips nothing visible: a fraction of the distance to the object and ground.
 
         No upper bound: the depth resolution of a 24-bit buffer with an infinite far plane is about
@@ -402,7 +422,8 @@ class SceneGeometry:
         h = abs(float(eye[2]))
         return float(max(0.25 * min(d, h if h > 0 else d), 1e-4))
 
-    def modes_for(self, cam_from_world, znear, intr=None, canvas=None):
+    def modes_for(self, cam_from_world: np.ndarray, znear: float, intr: Intrinsics | None = None,
+                  canvas: Sequence[int] | None = None) -> list[str]:
         """Per light: ``"zpass"`` if the camera is provably outside its volume, else ``"zfail"``
         (``"planar"`` for every light with ``shadow_method="planar"``).
 
@@ -506,7 +527,7 @@ class FramePlan:
     distorted: bool = False
     decisions: list = field(default_factory=list)
 
-    def decide(self, name: str, value, reason: str):
+    def decide(self, name: str, value: Any, reason: str) -> Any:
         """Record a decision; returns ``value``."""
         self.decisions.append(Decision(name, value, reason))
         return value
@@ -528,11 +549,11 @@ class FramePlan:
     @property
     def empty(self) -> bool:
         """Nothing of the scene is in view: nothing to render."""
-        return self.roi[2] == 0 or self.roi[3] == 0 or self.canvas[2] == 0 or self.canvas[3] == 0
+        return bool(self.roi[2] == 0 or self.roi[3] == 0 or self.canvas[2] == 0 or self.canvas[3] == 0)
 
 
-def plan_frame(geometry: SceneGeometry, intr, cam_from_world, width: int, height: int, *, lens=None,
-               modes=None) -> FramePlan:
+def plan_frame(geometry: SceneGeometry, intr: Intrinsics, cam_from_world: ArrayLike, width: int, height: int, *,
+               lens: LensWarp | None = None, modes: Sequence[str] | None = None) -> FramePlan:
     """Plan one frame.
 
     Parameters
@@ -635,20 +656,20 @@ def plan_frame(geometry: SceneGeometry, intr, cam_from_world, width: int, height
         planar, culled = mode in ("planar", "shadowmap"), mode == "none"
         caps = mode == "zfail"
         reuse = planar or culled or (caps, d.truncate) in ls.volumes
-        why = dict(d.reasons)
+        light_why = dict(d.reasons)
         if ls.reuse:
-            why["reuse"] = ls.reuse
-        reason = why.get("mode") or why.get("planar") or why.get("cull") or ""
+            light_why["reuse"] = ls.reuse
+        reason = light_why.get("mode") or light_why.get("planar") or light_why.get("cull") or ""
         if planar:
-            reason = why.get("planar", reason)
+            reason = light_why.get("planar", reason)
         elif culled:
-            reason = why.get("cull", reason)
+            reason = light_why.get("cull", reason)
         lp = LightPlan(i, ls.light_h, ls.weight, mode if planar else "none" if culled else "volume", mode, caps,
-                       reuse, reason, truncate=d.truncate, why=why)
+                       reuse, reason, truncate=d.truncate, why=light_why)
         plan.lights.append(lp)
         plan.decide(f"light{i}.mode", mode, reason)
         if not (planar or culled):
-            plan.decide(f"light{i}.truncate", d.truncate, why.get("truncate", ""))
+            plan.decide(f"light{i}.truncate", d.truncate, light_why.get("truncate", ""))
             plan.decide(f"light{i}.volume", "reuse" if reuse else "build",
                         ls.reuse if ls.reuse else "cached for this light" if reuse else "first use of this light "
                         + ("with caps" if caps else "without caps"))

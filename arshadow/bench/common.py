@@ -12,9 +12,16 @@ import platform
 import subprocess
 import sys
 import time
+from importlib.metadata import version
 from pathlib import Path
 
+import cv2
 import numpy as np
+import trimesh
+
+from arshadow import __version__
+from arshadow.gl.context import gl_info
+from arshadow.io import write_bytes
 
 from ..resources import data_root
 
@@ -54,10 +61,6 @@ def _cpu_model() -> str:
 def metadata(ctx=None) -> dict:
     """Commit, versions, machine (CPU model, count) and load at the start; ``GL_RENDERER`` / ``GL_VERSION``
     of ``ctx`` (a moderngl context) when given."""
-    import cv2
-    import trimesh
-
-    from arshadow import __version__
 
     commit, dirty = git_commit()
     meta = {"git_commit": commit, "arshadow_dirty": dirty, "arshadow": __version__,
@@ -65,9 +68,6 @@ def metadata(ctx=None) -> dict:
             "trimesh": trimesh.__version__, "machine": platform.machine(), "cpu": _cpu_model(),
             "cpus": os.cpu_count(), "loadavg_start": list(os.getloadavg()), "command": " ".join(sys.argv)}
     if ctx is not None:
-        from importlib.metadata import version
-
-        from arshadow.gl.context import gl_info
 
         info = gl_info(ctx)
         meta.update(moderngl=version("moderngl"), GL_RENDERER=info.get("GL_RENDERER"),
@@ -105,8 +105,6 @@ def timed(fn, repeat: int, warmup: int = 1) -> list[float]:
 
 def write_csv(path, rows: list[dict]) -> Path:
     """Write ``rows`` (dicts; the union of their keys as columns, in first-seen order) atomically."""
-    from arshadow.io import write_bytes
-
     cols: list[str] = []
     for r in rows:
         cols += [k for k in r if k not in cols]

@@ -25,6 +25,7 @@ weight, then shows a true penumbra.
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
 import re
 from dataclasses import dataclass, field
@@ -398,8 +399,6 @@ def _parse_sun(spec, pos, kw, weight, default_time) -> Light:
         raise LightError(f"light {spec!r}: {exc}") from None
     world, above = sun_light_direction(pos_sun, p["north"], refraction=p["refraction"])
     if not above:
-        import logging
-
         logging.getLogger(__name__).warning(
             f"light {spec!r}: the sun is below the horizon then (elevation "
             f"{90.0 - float(pos_sun.zenith_deg):.2f} deg): it casts no shadow and gives no light")
