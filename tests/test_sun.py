@@ -14,7 +14,8 @@ import pytest
 
 from arshadow.cli import main
 from arshadow.errors import LightError
-from arshadow.lights.spec import SUN_ANGULAR_RADIUS_DEG, parse_light, parse_time, sample_area_light
+from arshadow.lights.area import sample_area_light
+from arshadow.lights.spec import SUN_ANGULAR_RADIUS_DEG, parse_light, parse_time
 from arshadow.lights.sun import (
     SunTrack,
     angle_between_deg,

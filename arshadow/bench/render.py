@@ -32,7 +32,8 @@ from ..geometry.silhouette import silhouette
 from ..geometry.volume import shadow_volume
 from ..gl.renderer import LightPass, ShadowRenderer
 from ..gl.shadowmap import MAP_SIZES, ShadowMapRenderer
-from ..lights.spec import parse_light, sample_area_light
+from ..lights.area import sample_area_light
+from ..lights.spec import parse_light
 from ..synth import look_at_pose
 from ..transforms import CV_TO_GL
 from .common import ROOT, summary
