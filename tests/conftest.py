@@ -30,7 +30,15 @@ VIDEO_MODULES = {"test_video", "test_video_engine", "test_hostile_video"}
 def pytest_collection_modifyitems(config, items):
     """Mark GL and video tests (``pytest -m "not gl and not video"`` is the fast unit loop, CONTRIBUTING.md):
     ``gl`` for a test that uses :func:`ctx` / :func:`gl_ctx` or lives in :data:`GL_MODULES`, ``video`` for one in
-    :data:`VIDEO_MODULES`. An unmarked test that creates an OpenGL context fails (:func:`_gl_guard`)."""
+    :data:`VIDEO_MODULES`. An unmarked test that creates an OpenGL context fails (:func:`_gl_guard`).
+
+    ``slow`` tests are deselected unless the ``-m`` expression names ``slow`` (so that ``-m "not gl"`` does
+    not bring them back, as an ``-m`` given on the command line replaces the one in ``addopts`` would)."""
+    if "slow" not in (config.getoption("markexpr") or ""):
+        slow = [it for it in items if it.get_closest_marker("slow") is not None]
+        if slow:
+            config.hook.pytest_deselected(items=slow)
+            items[:] = [it for it in items if it.get_closest_marker("slow") is None]
     for item in items:
         module = item.module.__name__.rsplit(".", 1)[-1] if getattr(item, "module", None) else ""
         if GL_FIXTURES & set(getattr(item, "fixturenames", ())) or module in GL_MODULES:
