@@ -22,15 +22,15 @@ collect_ignore = ["data"]
 GL_FIXTURES = {"ctx", "gl_ctx"}
 #: test modules whose tests render through Session / render_photo / the CLI (they create their own context)
 GL_MODULES: set[str] = set()
-#: test modules that encode or decode video files
-VIDEO_MODULES = {"test_video", "test_video_engine", "test_hostile_video"}
+#: test modules that encode or decode video files (besides every module with "video" in its name)
+VIDEO_MODULES: set[str] = set()
 
 
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
     """Mark GL and video tests (``pytest -m "not gl and not video"`` is the fast unit loop, CONTRIBUTING.md):
     ``gl`` for a test that uses :func:`ctx` / :func:`gl_ctx` or lives in :data:`GL_MODULES`, ``video`` for one in
-    :data:`VIDEO_MODULES`. An unmarked test that creates an OpenGL context fails (:func:`_gl_guard`).
+    a module named ``*video*`` or listed in :data:`VIDEO_MODULES`. An unmarked test that creates an OpenGL context fails (:func:`_gl_guard`).
 
     ``slow`` tests are deselected unless the ``-m`` expression names ``slow`` (so that ``-m "not gl"`` does
     not bring them back, as an ``-m`` given on the command line replaces the one in ``addopts`` would)."""
@@ -43,7 +43,7 @@ def pytest_collection_modifyitems(config, items):
         module = item.module.__name__.rsplit(".", 1)[-1] if getattr(item, "module", None) else ""
         if GL_FIXTURES & set(getattr(item, "fixturenames", ())) or module in GL_MODULES:
             item.add_marker(pytest.mark.gl)
-        if module in VIDEO_MODULES:
+        if "video" in module or module in VIDEO_MODULES:
             item.add_marker(pytest.mark.video)
 
 

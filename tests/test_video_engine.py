@@ -108,7 +108,7 @@ def test_i420_roi_conversion_changes_only_the_even_aligned_roi():
     outside it the decoded planes untouched."""
     import cv2
 
-    from arshadow.video.engine import _i420_with_roi
+    from arshadow.video.framejob import i420_with_roi as _i420_with_roi
 
     rng = np.random.default_rng(3)
     H, W = 72, 128

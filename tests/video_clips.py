@@ -166,3 +166,26 @@ def jitter_and_lag(c_est, c_true):
     k = ok[1:-1] & ok[2:] & ok[:-2] & (sp >= 0.25)
     lag = float(np.median(-np.sum(e[k] * v[k], axis=1) / sp[k])) if k.any() else float("nan")
     return jitter, lag
+
+
+class CvClipWriter:
+    """A plain OpenCV ``cv2.VideoWriter`` (MPEG-4 part 2 for .mp4/.mov/.m4v, MJPG for .avi, FFV1 for .mkv):
+    the clips tests/test_video.py was written with (arshadow itself encodes with PyAV)."""
+
+    FOURCC = {".mp4": "mp4v", ".m4v": "mp4v", ".mov": "mp4v", ".avi": "MJPG", ".mkv": "FFV1"}
+
+    def __init__(self, path, fps, size, color=True):
+        import cv2
+
+        fourcc = cv2.VideoWriter_fourcc(*self.FOURCC[Path(path).suffix.lower()])
+        self.w = cv2.VideoWriter(str(path), cv2.CAP_FFMPEG, fourcc, float(fps), tuple(size), bool(color))
+        assert self.w.isOpened(), path
+
+    def write(self, frame):
+        self.w.write(np.ascontiguousarray(frame))
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.w.release()

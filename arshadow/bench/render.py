@@ -30,7 +30,7 @@ from ..geometry.exact import ShadowOracle, boundary_error_px, ground_shadow_tria
 from ..geometry.mesh import load_occluder
 from ..geometry.silhouette import silhouette
 from ..geometry.volume import shadow_volume
-from ..gl.renderer import LightPass, ShadowRenderer
+from ..gl.stencil import LightPass, ShadowRenderer
 from ..gl.shadowmap import MAP_SIZES, ShadowMapRenderer
 from ..lights.area import sample_area_light
 from ..lights.spec import parse_light

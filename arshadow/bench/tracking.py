@@ -4,7 +4,7 @@ Every configuration but one is a scene (:func:`arshadow.scene.scene_from_dict`) 
 :meth:`arshadow.Session.track`, as ``arshadow render`` / ``video`` and the Python API track: the fast
 half-resolution pass first (:mod:`arshadow.tracking.fastdetect`), the full search if it finds nothing.
 
-- corner refinement methods (``arshadow.tracking.marker.REFINE_METHODS``, scene key ``refine``);
+- corner refinement methods (``arshadow.tracking.detect.REFINE_METHODS``, scene key ``refine``);
 - the fast pass against the full search only (``fast_detect`` off), and the full search without the LM
   pose polish (``MarkerTracker(pnp_refine=False)``: a tracker keyword, not a scene option);
 - full frame against the video tracker's region of interest (``track_roi``: the marker is searched in a
@@ -28,7 +28,10 @@ from ..errors import MarkerNotFoundError
 from ..scene import scene_from_dict
 from ..session import Session
 from ..synth import random_pose, render_marker_photo
-from ..tracking.marker import REFINE_METHODS, MarkerTracker, load_board, marker_object_points
+from ..tracking.board import load_board
+from ..tracking.detect import REFINE_METHODS
+from ..tracking.dictionary import marker_object_points
+from ..tracking.tracker import MarkerTracker
 from ..transforms import rotation_error_deg
 from .common import ROOT
 
@@ -71,7 +74,7 @@ def session(cam, *, marker_length=None, marker_id=None, board=None, **options):
 def run_configs(photos, configs: dict, repeat: int) -> list[dict]:
     """Every configuration on the same photos, timings interleaved round-robin. ``configs``: label ->
     ``make(photo) -> (tracker, image)``, the tracker an :class:`arshadow.Session` (``track``) or a
-    :class:`arshadow.tracking.marker.MarkerTracker` (``estimate``). One row per configuration: time median /
+    :class:`arshadow.tracking.tracker.MarkerTracker` (``estimate``). One row per configuration: time median /
     IQR over photos, rotation error (deg) median / p95, translation error (% of distance) median, detections."""
     acc = {c: dict(times=[], rot=[], trans=[], found=0) for c in configs}
     for ph in photos:

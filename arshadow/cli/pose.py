@@ -31,6 +31,8 @@ def register(subparsers) -> None:
     g.add_argument("--marker-length", type=float, metavar="M", help="printed marker side, metres")
     g.add_argument("--board", metavar="FILE", help="board file (gridboard or charuco; see calib/README.md)")
     p.add_argument("--marker-id", type=int, metavar="N", help="use only this marker id as the reference (default: the lowest id found)")
+    p.add_argument("--inverted", action="store_true", default=None,
+                   help="the markers are printed white on black (a board file may say 'inverted: 1')")
     p.add_argument("--refine", default=None, choices=("none", "subpix", "contour", "apriltag"),
                    help="corner refinement (default: subpix, or the --detector-params file's own)")
     p.add_argument("--detector-params", metavar="FILE", help="cv2.aruco.DetectorParameters YAML file")
@@ -71,8 +73,9 @@ def run(args) -> int:
     from ..camera import Intrinsics
     from ..errors import ArshadowError, MarkerNotFoundError, UsageError
     from ..io import read_image, write_json
-    from ..tracking.marker import DEFAULT_REFINE, MarkerTracker
     from ..report import ReportItem, make_report
+    from ..tracking.detect import DEFAULT_REFINE
+    from ..tracking.tracker import MarkerTracker
     from . import error_line
 
     if args.marker_length is None and args.board is None:
@@ -82,7 +85,7 @@ def run(args) -> int:
     intr = Intrinsics.from_file(args.calib)
     refine = args.refine if args.refine is not None else (None if args.detector_params else DEFAULT_REFINE)
     tracker = MarkerTracker(intr, dictionary=args.dictionary, marker_length=args.marker_length,
-                            marker_id=args.marker_id, board=args.board, refine=refine,
+                            marker_id=args.marker_id, board=args.board, refine=refine, inverted=args.inverted,
                             detector_params=args.detector_params)
     out_dir = Path(args.overlay) if args.overlay else None
     items, failed = [], 0
@@ -95,8 +98,7 @@ def run(args) -> int:
             pose = tracker.estimate(image)
             t2 = time.perf_counter()
             item.set_pose(pose)
-            item.extra.update({"n_points": int(pose.n_points), "kind": pose.kind,
-                               "calibration_scaled": bool(pose.scaled)})
+            item.n_points, item.kind, item.calibration_scaled = int(pose.n_points), pose.kind, bool(pose.scaled)
             if out_dir is not None:
                 item.output = _overlay(image, pose, tracker, out_dir, Path(name).stem)
             item.timings_ms = {"read": 1e3 * (t1 - t0), "detect": pose.timings_ms.get("detect", 1e3 * (t2 - t1)),

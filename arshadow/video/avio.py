@@ -1,7 +1,7 @@
 """Video input and output through PyAV (FFmpeg): decoding with timestamps, H.264 encoding, audio kept.
 
 :class:`AvReader`
-    The frames of a video file as :class:`arshadow.video.cvio.VideoFrame` (BGR, presentation time), with the
+    The frames of a video file as :class:`VideoFrame` (BGR, presentation time), with the
     stream's declared frame count (a damaged tail is reported as ``truncated``), packets that fail to
     decode counted (``n_decode_errors``) instead of ending the video, and the audio stream's presence.
 :class:`AvWriter`
@@ -27,9 +27,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ImageError, UsageError
-from .cvio import VideoFrame
 
-__all__ = ["AvReader", "AvWriter", "RawFrame", "VIDEO_CODECS"]
+__all__ = ["VIDEO_CODECS", "AvReader", "AvWriter", "RawFrame", "VideoFrame"]
 
 #: ``--codec`` choices -> (FFmpeg encoder, pixel format, container extensions it suits)
 VIDEO_CODECS = {
@@ -38,6 +37,25 @@ VIDEO_CODECS = {
     "mjpeg": ("mjpeg", "yuvj420p"),
     "ffv1": ("ffv1", "bgr0"),
 }
+
+
+@dataclass(frozen=True)
+class VideoFrame:
+    """One decoded frame.
+
+    Attributes
+    ----------
+    index : int
+        0-based frame number in decoding order.
+    time_s : float
+        Presentation time, seconds from the start of the stream.
+    image : (H, W, 3) uint8
+        BGR, read-only.
+    """
+
+    index: int
+    time_s: float
+    image: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -81,7 +99,7 @@ class AvReader:
         Decoder threads (0: FFmpeg's choice).
     raw : bool
         Yield :class:`RawFrame` (planar ``yuv420p`` kept when the stream has it) instead of BGR
-        :class:`arshadow.video.cvio.VideoFrame`.
+        :class:`VideoFrame`.
 
     Attributes
     ----------

@@ -27,9 +27,17 @@ import os
 import time
 from pathlib import Path
 
-from ..errors import ArshadowError, MarkerNotFoundError, UsageError
+import cv2
 
-__all__ = ["VIDEO_EXTENSIONS", "BatchItem", "plan_batch", "run_batch", "process_item", "clean_temporaries"]
+from .. import __version__
+from ..errors import ArshadowError, MarkerNotFoundError, UsageError
+from ..io import check_output_folder, read_image, resolved_path, write_image, write_json
+from ..io import clean_temporaries as clean_io_temporaries
+from ..session import Session
+from .decode import looks_like_sequence
+from .engine import SessionBackend, process_video, unique_stems, video_outputs
+
+__all__ = ["VIDEO_EXTENSIONS", "BatchItem", "clean_temporaries", "plan_batch", "process_item", "run_batch"]
 
 PHOTO_EXTENSIONS = {".jpg", ".jpeg", ".jpe", ".png", ".bmp", ".dib", ".tif", ".tiff", ".webp", ".jp2", ".pbm", ".pgm",
                     ".ppm", ".pnm", ".pxm", ".sr", ".ras", ".exr", ".hdr", ".pic", ".avif"}
@@ -48,8 +56,6 @@ class BatchItem:
 
 def plan_batch(inputs) -> list[BatchItem]:
     """Classify inputs by extension (videos: :data:`VIDEO_EXTENSIONS`) and give each a unique stem."""
-    from .engine import unique_stems
-
     inputs = [str(i) for i in inputs]
     if not inputs:
         raise UsageError("no input given")
@@ -60,12 +66,8 @@ def _kind(path: str) -> str:
     """``"video"`` for a video extension or an image-sequence pattern; ``"photo"`` for an image extension;
     otherwise by content (what OpenCV's image readers recognise is a photo, anything else is tried as a
     video)."""
-    import cv2
-
-    from .cvio import _looks_like_sequence
-
     ext = Path(path).suffix.lower()
-    if ext in VIDEO_EXTENSIONS or _looks_like_sequence(path):
+    if ext in VIDEO_EXTENSIONS or looks_like_sequence(path):
         return "video"
     if ext in PHOTO_EXTENSIONS or not Path(path).is_file():
         return "photo"
@@ -78,10 +80,18 @@ def _kind(path: str) -> str:
 def _outputs(item: BatchItem, outdir: Path, opts, save_mask: bool) -> list:
     """The files an item writes (before its done record)."""
     if item.kind == "video":
-        from .engine import video_outputs
-
         return [p for p in video_outputs(outdir, item.stem, opts).values() if p is not None]
-    return [outdir / f"{item.stem}.png", *([outdir / f"{item.stem}.shadow.png"] if save_mask else [])]
+    outs = [outdir / f"{item.stem}.png", *([outdir / f"{item.stem}.shadow.png"] if save_mask else [])]
+    if opts.layers is not None:
+        from ..export.layerfiles import layer_paths
+
+        outs += list(layer_paths(outdir, item.stem, _photo_layers(opts), opts.layers_undistorted).values())
+    return outs
+
+
+def _photo_layers(opts) -> str:
+    """The layer format of a batch's photos: EXR with ``--layers-format exr``, else 16-bit PNG."""
+    return "exr" if opts.layers == "exr" else "png"
 
 
 def _fingerprint(item: BatchItem, spec, opts, save_mask) -> str:
@@ -102,10 +112,8 @@ def _record_path(outdir: Path, item: BatchItem) -> Path:
 
 def clean_temporaries(outdir) -> int:
     """Remove the temporary files and folders an interrupted run left in ``outdir`` (``.NAME.*.tmp*``)."""
-    from ..io import clean_temporaries as clean
-
     d = Path(outdir)
-    return clean(d) + clean(d / RECORDS)
+    return clean_io_temporaries(d) + clean_io_temporaries(d / RECORDS)
 
 
 def _done(outdir: Path, item: BatchItem, fp: str):
@@ -130,8 +138,6 @@ _WORKER_SESSIONS: dict = {}
 
 def _session_for(spec):
     """One Session per spec per process (a Dask worker keeps its GL context between items)."""
-    from ..session import Session
-
     key = repr(spec)
     s = _WORKER_SESSIONS.get(key)
     if s is None:
@@ -148,8 +154,6 @@ def process_item(spec, item: BatchItem, outdir, opts, save_mask: bool, fingerpri
     Never raises for a bad input: the summary has ``status: "error"`` and ``error`` (nothing is recorded
     as done, so a rerun tries it again).
     """
-    from ..io import write_image, write_json
-
     outdir = Path(outdir)
     t0 = time.perf_counter()
     summary = {"input": item.input, "kind": item.kind, "stem": item.stem, "status": "error", "error": None,
@@ -157,24 +161,32 @@ def process_item(spec, item: BatchItem, outdir, opts, save_mask: bool, fingerpri
     try:
         session = session if session is not None else _session_for(spec)
         if item.kind == "video":
-            from .engine import SessionBackend, process_video, video_outputs
-
             outs = video_outputs(outdir, item.stem, opts)
             vs, _ = process_video(SessionBackend(session), item.input, outs, opts, name=item.input)
             summary.update({k: vs[k] for k in ("status", "warnings", "frames", "frames_ok", "frames_held",
                                                "frames_no_marker", "truncated", "decode_errors", "fps_processed")})
-            summary["outputs"] = [str(p) for p in (outs["video"], outs["mask"], outs["frames"], outs["sheet"])
-                                  if p is not None and Path(p).exists()]
+            summary["outputs"] = [str(p) for p in outs.values() if p is not None and Path(p).exists()]
         else:
-            from ..io import read_image
-
             img = read_image(item.input)
-            res = session.process(img, name=item.input, want_mask=save_mask)
+            want = ("undistorted" if opts.layers_undistorted else True) if opts.layers is not None else False
+            res = session.process(img, name=item.input, want_mask=save_mask, layers=want)
             out = write_image(outdir / f"{item.stem}.png", res.composite)
             summary["outputs"] = [str(out)]
+            if opts.layers is not None:
+                from ..export.layerfiles import layer_paths, write_layers
+                from ..export.stmap import stmap, write_stmap
+
+                fmt = _photo_layers(opts)
+                paths = write_layers(layer_paths(outdir, item.stem, fmt, opts.layers_undistorted), res.layers, fmt)
+                if "stmap" in paths:
+                    cal = session.calibration(img.shape[1], img.shape[0])
+                    write_stmap(paths["stmap"], stmap(cal.intrinsics, None if cal.lens is None else cal.lens.maps))
+                summary["outputs"] += [str(p) for p in paths.values()]
             if save_mask:
                 summary["outputs"].append(str(write_image(outdir / f"{item.stem}.shadow.png", res.mask)))
             summary["status"] = "ok"
+            res.item.output = str(out)  # the report item names the files too (it said output: null)
+            res.item.mask = summary["outputs"][1] if save_mask else None
             summary["item"] = res.item.to_dict()
     except MarkerNotFoundError as exc:  # a photo without the marker: done (a rerun would find none either)
         summary["status"] = "no_marker"
@@ -225,12 +237,9 @@ def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=Non
         ``{"arshadow": VERSION, "items": [...], "counts": {...}}``; each item has ``status`` (``ok``,
         ``no_marker``, ``damaged``, ``error``) and ``skipped`` (done by an earlier run).
     """
-    from .. import __version__
-    from ..io import write_json
-
-    from ..io import check_output_folder, resolved_path
-
     outdir = check_output_folder(outdir, "-o")
+    if client is not None:  # scene errors (a light inside the model) and warnings once, here, not per worker
+        spec.build()
     (outdir / RECORDS).mkdir(parents=True, exist_ok=True)
     clean_temporaries(outdir)
     items = plan_batch(inputs)
@@ -258,11 +267,35 @@ def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=Non
                 progress(done, len(items), r)
         if done:
             progress(done, len(items), None)
+    try:
+        _run_todo(spec, items, todo, results, done, outdir, opts, save_mask, client, progress, session)
+    except KeyboardInterrupt:  # Ctrl-C / SIGTERM: batch.json still says what is done and what is not
+        _write_summary(outdir, items, results, interrupted=True)
+        raise
+    return _write_summary(outdir, items, results)
+
+
+def _write_summary(outdir: Path, items, results, interrupted: bool = False) -> dict:
+    """``OUT_DIR/batch.json``; after an interruption the items not finished are ``status: "pending"``."""
+    results = [r if r is not None else {"input": it.input, "kind": it.kind, "stem": it.stem, "status": "pending",
+                                        "skipped": False, "error": None, "outputs": [], "warnings": []}
+               for it, r in zip(items, results)]
+    counts: dict = {}
+    for r in results:
+        counts[r["status"]] = counts.get(r["status"], 0) + 1
+    counts["skipped"] = sum(bool(r.get("skipped")) for r in results)
+    summary = {"arshadow": __version__, "items": results, "counts": counts}
+    if interrupted:
+        summary["interrupted"] = True  # rerun the same command to finish the pending items
+    write_json(outdir / "batch.json", summary)
+    return summary
+
+
+def _run_todo(spec, items, todo, results, done, outdir, opts, save_mask, client, progress, session) -> None:
+    """Process the items not done yet, filling ``results`` in place (locally or on a Dask cluster)."""
     if client is None:
         own = session is None and todo
         if own:
-            from ..session import Session
-
             session = Session(spec)
         try:
             for k, it, fp in todo:
@@ -275,7 +308,9 @@ def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=Non
             if own:
                 session.close()
     else:
-        from distributed import as_completed
+        from distributed import (
+            as_completed,  # deferred: Dask is an optional extra (arshadow[dask])
+        )
 
         futs = {client.submit(_dask_task, spec, it, str(outdir), opts, save_mask, fp, pure=False,
                               key=f"arshadow-{it.stem}-{fp[:12]}"): k for k, it, fp in todo}
@@ -292,10 +327,3 @@ def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=Non
             done += 1
             if progress is not None:
                 progress(done, len(items), results[k])
-    counts: dict = {}
-    for r in results:
-        counts[r["status"]] = counts.get(r["status"], 0) + 1
-    counts["skipped"] = sum(bool(r.get("skipped")) for r in results)
-    summary = {"arshadow": __version__, "items": results, "counts": counts}
-    write_json(outdir / "batch.json", summary)
-    return summary

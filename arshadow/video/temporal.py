@@ -3,7 +3,7 @@
 :class:`PoseStream` takes each frame's tracked pose (or None) in order and gives back, a fixed number of
 frames later and in the same order, a :class:`FramePose`:
 
-1. the IPPE branch chosen by continuity (:class:`arshadow.video.cvio.TemporalPoseChooser`, fixed lag);
+1. the IPPE branch chosen by continuity (:class:`arshadow.video.chooser.TemporalPoseChooser`, fixed lag);
 2. the pose smoothed by a **centred local-quadratic fit** (``degree=2``) over ``2 * window + 1`` frames
    (tricube weights in time), of the rotation (as rotation vectors relative to the frame's own rotation)
    and of the camera centre in the world frame. A centred fit reproduces any motion that is polynomial
@@ -29,7 +29,7 @@ import cv2
 import numpy as np
 
 from ..errors import UsageError
-from .cvio import TemporalPoseChooser
+from .chooser import TemporalPoseChooser
 
 __all__ = ["FramePose", "PoseStream", "smooth_poses"]
 

@@ -36,12 +36,12 @@ def main(out_dir=HERE) -> int:
     sys.path.insert(0, str(ROOT))
     from arshadow.camera import Intrinsics
     from arshadow.synth import camera_path, render_marker_photo
-    from arshadow.video.cvio import AtomicVideoWriter
+    from arshadow.video.avio import AvWriter
 
     intr = Intrinsics.from_file(ROOT / "calib" / "synth_640x360.yml")
     poses = camera_path(N_FRAMES, **PATH)
     out_dir = Path(out_dir)
-    with AtomicVideoWriter(out_dir / "orbit.mp4", FPS, (intr.width, intr.height)) as w:
+    with AvWriter(out_dir / "orbit.mp4", FPS, (intr.width, intr.height)) as w:
         for i, pose in enumerate(poses):
             ph = render_marker_photo(intr, pose, marker_length=MARKER_LENGTH, noise_sigma=1.0, blur_sigma=0.6,
                                      seed=100 + i)

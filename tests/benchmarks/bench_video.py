@@ -13,7 +13,7 @@ Prints JSON:
 - ``flips``: ambiguous synthetic sequences (small marker seen nearly face-on, noise sigma 2, blur 0.6,
   640x360): frames on the wrong IPPE branch and branch changes between consecutive frames, for the
   choice by reprojection error, the tracker's own previous-frame hook (ratio >= 0.6), and
-  :class:`arshadow.video.cvio.TemporalPoseChooser` with lag 0 and 16.
+  :class:`arshadow.video.chooser.TemporalPoseChooser` with lag 0 and 16.
 """
 
 from __future__ import annotations
@@ -85,10 +85,10 @@ def frame_times(refine: str):
 
 def flips(n_frames=40, seeds=(0, 1, 2), marker_length=0.04):
     from arshadow.camera import Intrinsics
-    from arshadow.tracking.marker import MarkerTracker
     from arshadow.synth import camera_path, render_marker_photo
+    from arshadow.tracking.tracker import MarkerTracker
     from arshadow.transforms import rotation_error_deg as rotation_angle_deg
-    from arshadow.video.cvio import TemporalPoseChooser
+    from arshadow.video.chooser import TemporalPoseChooser
 
     intr = Intrinsics.from_file(ROOT / "calib/synth_640x360.yml")
 

@@ -1,0 +1,214 @@
+"""Encoding: the encode thread's body (video, mask, JSON Lines report, contact-sheet thumbnails), and the
+atomic folder and contact sheet it writes.
+
+Every output is written to a temporary name and renamed into place when complete (CONVENTIONS.md): the
+video (``.mp4`` or ``--format``), the per-frame ``.frames.jsonl``, the mask (``.shadow.mkv`` lossless FFV1
+or a ``.shadow/`` folder of PNGs) and the ``.sheet.jpg`` contact sheet.
+
+Frames (CONVENTIONS.md): images BGR or planar ``yuv420p`` (BT.601, as decoded), row 0 at the top.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+import queue
+import shutil
+import tempfile
+import time
+from contextlib import ExitStack
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from ..errors import ImageError
+from ..io import atomic_path, write_image
+from .avio import AvWriter
+from .threads import END
+
+__all__ = ["EncodeSink", "SheetThumbs", "atomic_dir", "replace_dir", "write_contact_sheet"]
+
+
+class SheetThumbs:
+    """Contact-sheet thumbnails of every ``step``-th frame, 320 px wide; the step doubles (every other
+    thumbnail dropped) when the video has more frames than declared.
+
+    Parameters
+    ----------
+    count : int
+        Thumbnails on the sheet (0: none).
+    total : int or None
+        Frames expected.
+    size : (int, int)
+        ``(width, height)`` of the frames.
+    """
+
+    def __init__(self, count: int, total, size):
+        self.count = int(count)
+        self.step = max(1, (total or 0) // max(self.count, 1))
+        self.W, self.H = size
+        self.thumbs: dict = {}
+
+    def add(self, index: int, img: np.ndarray, fmt: str) -> None:
+        """Offer frame ``index`` (``(H, W, 3)`` BGR, or planar ``yuv420p`` when ``fmt`` says so)."""
+        if not self.count or index % self.step:
+            return
+        bgr = img if fmt != "yuv420p" else cv2.cvtColor(img, cv2.COLOR_YUV2BGR_I420)
+        self.thumbs[index] = cv2.resize(bgr, (320, max(1, round(320 * self.H / self.W))),
+                                        interpolation=cv2.INTER_AREA)
+        if len(self.thumbs) > 2 * self.count:  # more frames than declared: keep every other one
+            self.step *= 2
+            for k in [k for k in self.thumbs if k % self.step]:
+                del self.thumbs[k]
+
+    def picked(self) -> dict:
+        """``count`` thumbnails evenly spread over those kept, ``{frame: (h, 320, 3) uint8}``."""
+        keys = sorted(self.thumbs)
+        if not keys:
+            return {}
+        pick = {keys[round(i)] for i in np.linspace(0, len(keys) - 1, min(self.count, len(keys)))}
+        return {k: self.thumbs[k] for k in pick}
+
+
+class EncodeSink:
+    """The encode thread: writes the jobs of :meth:`arshadow.video.framejob.FrameComposer.compose` from a
+    queue until :data:`arshadow.video.threads.END`.
+
+    Parameters
+    ----------
+    outputs : dict
+        From :func:`arshadow.video.engine.video_outputs`.
+    opts : arshadow.video.engine.EngineOptions
+    reader
+        The open reader (frame rate, size, pixel format, audio).
+    source : str or Path
+        The input (its audio is copied when ``opts.keep_audio``).
+    is_av : bool
+        The reader is PyAV's (an image sequence has no audio).
+    stage_ms : dict
+        ``stage_ms["encode"]`` gets each frame's encode milliseconds.
+    sheet : SheetThumbs
+    progress : callable, optional
+        ``progress(frames_done, frames_total_or_None)``.
+    name : str
+    total : int or None
+    """
+
+    def __init__(self, outputs, opts, reader, source, is_av, stage_ms, sheet, progress=None, name="", total=None):
+        self.outputs, self.opts, self.reader = outputs, opts, reader
+        self.source, self.is_av = source, is_av
+        self.stage_ms, self.sheet, self.progress = stage_ms, sheet, progress
+        self.name, self.total = name, total
+        self.W, self.H = reader.width, reader.height
+        self.audio_copied = False
+
+    def run(self, q: queue.Queue, stop) -> None:
+        """Write every job from ``q``; raises ``RuntimeError("stopped")`` when ``stop`` is set first.
+
+        The outputs are entered in this order and committed in the reverse one: the video (the likeliest
+        to fail at its end: the encoder's flush, the trailer) first, and a failure there removes the mask
+        and the frames report.
+        """
+        with ExitStack() as st:
+            jf = st.enter_context(open(st.enter_context(atomic_path(self.outputs["frames"])), "w",
+                                       encoding="utf-8"))
+            mw, png_dir = self._open_mask(st)
+            vw = st.enter_context(self._video_writer())
+            n = 0
+            while (job := self._next(q, stop)) is not END:
+                self._write(job, vw, mw, png_dir, jf)
+                n += 1
+                if self.progress is not None:
+                    self.progress(n, self.total)
+            if n == 0:
+                raise ImageError(f"{self.name}: no decodable frame" + (
+                    " (truncated or damaged file)" if getattr(self.reader, "truncated", False) else ""))
+            jf.flush()
+            os.fsync(jf.fileno())
+        self.audio_copied = bool(vw.audio_copied)
+
+    @staticmethod
+    def _next(q, stop):
+        while True:
+            try:
+                return q.get(timeout=0.1)
+            except queue.Empty:
+                if stop.is_set():
+                    raise RuntimeError("stopped") from None
+
+    def _open_mask(self, st):
+        out_mask, opts = self.outputs.get("mask"), self.opts
+        if out_mask is not None and opts.mask == "mkv":
+            rate = getattr(self.reader, "rate", self.reader.fps)
+            return st.enter_context(AvWriter(out_mask, rate, (self.W, self.H), color=False)), None
+        if out_mask is not None:
+            return None, st.enter_context(atomic_dir(Path(out_mask)))
+        return None, None
+
+    def _video_writer(self) -> AvWriter:
+        opts, reader = self.opts, self.reader
+        keep_yuv = opts.codec == "ffv1" and getattr(reader, "pix_fmt", None) == "yuv420p"
+        audio = self.source if (opts.keep_audio and self.is_av and reader.has_audio) else None
+        return AvWriter(self.outputs["video"], getattr(reader, "rate", reader.fps), (self.W, self.H),
+                        codec=opts.codec, crf=opts.crf, pix_fmt="yuv420p" if keep_yuv else None,
+                        preset=opts.preset, audio_from=audio)
+
+    def _write(self, job, vw, mw, png_dir, jf) -> None:
+        img, fmt, mask, item, line = job
+        t = time.perf_counter()
+        if fmt == "yuv420p":
+            vw.write_yuv420p(img)
+        else:
+            vw.write(img)
+        if mw is not None:
+            mw.write(mask if mask is not None else np.zeros((self.H, self.W), np.uint8))
+        elif png_dir is not None:
+            cv2.imwrite(str(png_dir / f"{item.frame:06d}.png"),
+                        mask if mask is not None else np.zeros((self.H, self.W), np.uint8))
+        enc = (time.perf_counter() - t) * 1e3
+        line["timings_ms"]["encode"] = round(enc, 3)
+        self.stage_ms["encode"].append(enc)
+        jf.write(json.dumps(line, separators=(",", ":")) + "\n")
+        self.sheet.add(item.frame, img, fmt)
+
+
+@contextlib.contextmanager
+def atomic_dir(target: Path):
+    """Yield a temporary folder beside ``target``; moved onto it only if the block succeeds."""
+    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent))
+    try:
+        yield tmp
+        replace_dir(tmp, target)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+
+
+def replace_dir(tmp: Path, target: Path) -> None:
+    """Move a completed folder onto ``target`` (an old one is moved aside first, then removed)."""
+    old = None
+    if target.exists():
+        old = target.with_name(f".{target.name}.old.{os.getpid()}")
+        os.replace(target, old)
+    os.replace(tmp, target)
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
+
+
+def write_contact_sheet(path, thumbs: dict, cols: int = 4) -> Path:
+    """Tile ``{frame: (h, w, 3) uint8}`` thumbnails (frame order, labelled) into one image, atomically."""
+    keys = sorted(thumbs)
+    h, w = thumbs[keys[0]].shape[:2]
+    rows = math.ceil(len(keys) / cols)
+    sheet = np.full((rows * (h + 4) + 4, cols * (w + 4) + 4, 3), 32, np.uint8)
+    for k, f in enumerate(keys):
+        r, c = divmod(k, cols)
+        y, x = 4 + r * (h + 4), 4 + c * (w + 4)
+        tile = thumbs[f].copy()
+        cv2.putText(tile, f"#{f}", (6, 20), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (0, 0, 0), 3, cv2.LINE_AA)
+        cv2.putText(tile, f"#{f}", (6, 20), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (255, 255, 255), 1, cv2.LINE_AA)
+        sheet[y : y + h, x : x + w] = tile
+    return write_image(path, sheet)

@@ -1,0 +1,266 @@
+"""The frame job: one decoded frame tracked, decided (smoothing, marker loss), composited and reported.
+
+The main thread (the GL context's) runs, per frame, :func:`gray_of` -> :meth:`SessionBackend.track` ->
+:class:`arshadow.video.temporal.PoseStream` -> :meth:`FrameComposer.compose`, which renders into the
+frame and returns what the encode thread writes: the frame (planar ``yuv420p`` or BGR), the mask, the
+report item and the frame's JSON Lines record.
+
+Colour: frames stay in the decoder's ``yuv420p`` when it gives that (the tracker reads the Y plane as its
+grey image; OpenCV converts to BGR for the compositor, and back for the encoder only inside the frame's
+ROI, the only pixels the compositor changes: every other pixel keeps its decoded value exactly).
+
+Rendering goes through :class:`SessionBackend`, the only place that knows the rendering API (the public
+methods of :class:`arshadow.session.Session`).
+"""
+
+from __future__ import annotations
+
+import time
+from datetime import timedelta
+
+import cv2
+import numpy as np
+
+from ..compose.composite import clip_roi
+from ..errors import MarkerNotFoundError
+from ..report import ReportItem, StageTimings
+from ..sanity import FlagTally
+from ..transforms import rvec_tvec_from_matrix
+from ..tracking.detect import luma_to_gray
+
+__all__ = ["FRAME_STAGES", "FrameComposer", "SessionBackend", "gray_of", "i420_planes", "i420_with_roi"]
+
+#: per-frame ``timings_ms`` keys of the JSON Lines report
+FRAME_STAGES = ("decode", "detect", "pose", "silhouette", "volume", "render", "readback", "warp", "composite",
+                "convert", "encode", "total")
+
+
+class SessionBackend:
+    """Tracking and rendering for the engine, over an :class:`arshadow.session.Session`.
+
+    The only place the engine touches the rendering API. Tracking reads a grey image (the decoder's
+    Y plane: no colour conversion for frames that are only tracked).
+
+    Parameters
+    ----------
+    session : arshadow.session.Session
+    tracks : list of arshadow.lights.sun.SunTrack
+        Sun lights following the frame times (``time_lapse = (start datetime, speed)``); the session
+        must have them (:meth:`Session.use_sun_tracks`).
+    """
+
+    def __init__(self, session, tracks=(), time_lapse=None):
+        self.session, self.tracks, self.time_lapse = session, list(tracks), time_lapse
+        self.cal = None
+        self.recomputes = 0
+        self.want_layers = False  # set by process_video when the layers are written
+        self.last_layers = None  # the last render's layers (with want_layers)
+
+    def start(self, width: int, height: int) -> None:
+        """A new video of this size (CalibrationError: the calibration does not fit it)."""
+        self.cal = self.session.calibration(width, height)
+        for tr in self.tracks:
+            tr.reset()
+        self.recomputes = 0
+
+    def track(self, gray, timings):
+        """The marker pose in a grey ``(H, W) uint8`` frame, or ``(None, error)``; ``timings`` (the
+        frame's dict of :data:`FRAME_STAGES`) gets ``detect`` and ``pose``."""
+        st = StageTimings()
+        try:
+            return self.session.track(gray, timings=st), None
+        except MarkerNotFoundError as exc:
+            return None, exc
+        finally:
+            timings["detect"] += st.detect
+            timings["pose"] += st.pose
+
+    def lights_at(self, time_s: float):
+        """Set the lights for a frame time (time-lapse); returns the report's ``sun`` list or None."""
+        if not self.tracks:
+            return None
+        when = self.time_lapse[0] + timedelta(seconds=time_s * self.time_lapse[1])
+        frames = self.session.set_time(when)
+        self.recomputes += sum(bool(f.recompute) for f in frames)
+        return [{"time": f.when.isoformat(), "zenith_deg": round(f.position.zenith_deg, 5),
+                 "azimuth_deg": round(f.position.azimuth_deg, 5), "above_horizon": bool(f.above_horizon),
+                 "recompute": bool(f.recompute), "stale_deg": round(f.stale_deg, 5)} for f in frames]
+
+    def render(self, bgr, cam_from_world, want_mask, timings):
+        """Composite into ``bgr`` (modified in place); returns ``(mask or None, the frame's report item)``;
+        ``timings`` gets the render stages."""
+        res = self.session.render(bgr, cam_from_world, want_mask=want_mask, out=bgr, layers=self.want_layers)
+        self.last_layers = res.layers
+        for k, v in res.timings.as_dict().items():
+            if k != "total":
+                timings[k] += v
+        return res.mask, res.item
+
+    @property
+    def notes(self):
+        return list(self.session.notes or [])
+
+
+def gray_of(frame, height: int, colour: bool = False) -> np.ndarray:
+    """The grey ``(H, W) uint8`` image the tracker reads: the Y plane of a planar ``yuv420p`` frame
+    expanded from limited to full range (:func:`arshadow.tracking.detect.luma_to_gray`: the Y plane itself
+    lost real markers, issue 21), else OpenCV's BGR -> grey. ``colour``: a ``yuv420p`` frame's BGR -> grey
+    instead (the photo path's grey; the engine's retry when the Y plane shows no marker)."""
+    if getattr(frame, "format", "bgr24") == "yuv420p":
+        if colour:
+            return cv2.cvtColor(cv2.cvtColor(frame.image, cv2.COLOR_YUV2BGR_I420), cv2.COLOR_BGR2GRAY)
+        return luma_to_gray(frame.image[:height])
+    return cv2.cvtColor(frame.image, cv2.COLOR_BGR2GRAY)
+
+
+class FrameComposer:
+    """Turns each decided frame (:class:`arshadow.video.temporal.FramePose`) into the encode thread's job.
+
+    Parameters
+    ----------
+    backend : SessionBackend
+    name : str
+        The input, as the report names it.
+    out_video, out_mask : str or Path, and str or Path or None
+        The outputs the report items name.
+    size : (int, int)
+        ``(width, height)``.
+    want_mask : bool
+
+    Attributes
+    ----------
+    stats : dict
+        ``frames``, ``frames_ok``, ``frames_held``, ``frames_no_marker``, ``swapped``.
+    stage_ms : dict
+        Per stage of :data:`FRAME_STAGES`, every frame's milliseconds (``encode`` filled by the encoder).
+    """
+
+    def __init__(self, backend, name: str, out_video, out_mask, size, want_mask: bool):
+        self.backend, self.name = backend, name
+        self.out_video, self.out_mask = str(out_video), None if out_mask is None else str(out_mask)
+        self.W, self.H = size
+        self.want_mask = want_mask
+        self.stats = {"frames": 0, "frames_ok": 0, "frames_held": 0, "frames_no_marker": 0, "swapped": 0}
+        self.flags = FlagTally()  # flagged poses: one warning line for the video
+        self.stage_ms: dict = {k: [] for k in FRAME_STAGES}
+        #: an :class:`arshadow.export.layervideo.LayerSink` getting every frame's layers, or None
+        self.layer_sink = None
+
+    def compose(self, fp):
+        """One decided frame -> ``(image, format, mask or None, ReportItem, JSON Lines record)``.
+
+        ``fp.payload`` is ``(frame, decode_ms, timings, format)`` as pushed by the engine.
+        """
+        fr, dec_ms, timings, fmt = fp.payload
+        img = fr.image
+        sun = self.backend.lights_at(fr.time_s)
+        mask = None
+        if fp.status == "no_marker":
+            item = ReportItem(input=self.name, status=fp.status, error="no marker found")
+            self.stats["frames_no_marker"] += 1
+            if self.want_mask:
+                mask = np.zeros((self.H, self.W), np.uint8)
+            if self.layer_sink is not None:
+                self.layer_sink.write(None)
+        else:
+            img, mask, item = self._render(fp.cam_from_world, img, fmt, timings)  # the frame's one item
+            item.input, item.status = self.name, fp.status
+            self._pose_fields(item, fp)
+        item.output, item.mask = self.out_video, self.out_mask
+        item.frame, item.time_s, item.sun = fr.index, round(fr.time_s, 6), sun
+        self.flags.add(fr.index, item.flag_reasons)  # reasons of the tracked pose (None when held / missing)
+        self._finish_timings(item, timings, dec_ms)
+        item.notes = self.backend.notes or None
+        self.stats["frames"] += 1
+        return img, fmt, mask, item, frame_record(fr, item, sun)
+
+    def _pose_fields(self, item, fp) -> None:
+        """The report's pose keys: the tracked (raw) pose and the one rendered with (smoothed / held)."""
+        if fp.raw is not None:
+            item.set_pose(fp.raw)
+            self.stats["frames_ok"] += 1
+        else:
+            self.stats["frames_held"] += 1
+        r, t = rvec_tvec_from_matrix(fp.cam_from_world)
+        item.raw = None if fp.raw is None else {
+            "rvec": np.asarray(fp.raw.rvec, float).ravel().tolist(),
+            "tvec": np.asarray(fp.raw.tvec, float).ravel().tolist()}
+        item.rvec, item.tvec = r.tolist(), t.tolist()
+        item.pose_choice = "temporal (alternative IPPE solution)" if fp.swapped else "error"
+        self.stats["swapped"] += int(fp.swapped)
+
+    def _render(self, cam_from_world, img, fmt, timings):
+        """Composite at ``cam_from_world``; returns the frame in its own format, the mask and the report
+        item of :meth:`arshadow.session.Session.render`."""
+        tc = time.perf_counter()
+        bgr = cv2.cvtColor(img, cv2.COLOR_YUV2BGR_I420) if fmt == "yuv420p" else np.array(img)
+        timings["convert"] += (time.perf_counter() - tc) * 1e3
+        mask, item = self.backend.render(bgr, cam_from_world, self.want_mask, timings)
+        if self.layer_sink is not None:
+            self.layer_sink.write(self.backend.last_layers)
+        tc = time.perf_counter()
+        img = i420_with_roi(img, bgr, item.roi) if fmt == "yuv420p" else bgr
+        timings["convert"] += (time.perf_counter() - tc) * 1e3
+        return img, mask, item
+
+    def _finish_timings(self, item, timings, dec_ms) -> None:
+        timings["decode"] = dec_ms
+        timings["total"] = sum(v for k, v in timings.items() if k not in ("total", "decode", "encode"))
+        item.timings_ms = {k: round(v, 3) for k, v in timings.items()}
+        for k in FRAME_STAGES:
+            if k in timings and k != "encode":
+                self.stage_ms[k].append(timings[k])
+
+
+def frame_record(fr, item, sun) -> dict:
+    """One frame's JSON Lines record (``timings_ms["encode"]`` is filled in by the encoder)."""
+    line = {"frame": fr.index, "time_s": round(fr.time_s, 6), "status": item.status,
+            "marker_ids": item.marker_ids, "rvec": item.rvec, "tvec": item.tvec, "raw": item.raw,
+            "reprojection_error_px": item.reprojection_error_px, "pose_ambiguity": item.pose_ambiguity,
+            "pose_choice": item.pose_choice, "mode": item.mode, "timings_ms": item.timings_ms}
+    if sun is not None:
+        line["sun"] = sun
+    return line
+
+
+def i420_planes(a: np.ndarray, H: int, W: int):
+    """Views ``(Y (H, W), U (H/2, W/2), V (H/2, W/2))`` of a planar ``(H * 3 // 2, W)`` yuv420p frame."""
+    c = a[H:].reshape(-1)
+    q = (H // 2) * (W // 2)
+    return a[:H], c[:q].reshape(H // 2, W // 2), c[q:].reshape(H // 2, W // 2)
+
+
+def i420_with_roi(yuv: np.ndarray, bgr: np.ndarray, roi) -> np.ndarray:
+    """The planar yuv420p frame ``yuv`` with the rectangle ``roi = (x0, y0, w, h)`` taken from ``bgr``.
+
+    The compositor changes pixels inside the frame's ROI only, so only that rectangle (widened to even
+    coordinates: a chroma sample covers 2x2 pixels) is converted back; every other pixel keeps the decoded
+    value exactly. Inside it the result equals a whole-frame ``cv2.COLOR_BGR2YUV_I420`` (each chroma
+    sample is computed from its own 2x2 block). ``roi`` None: the whole frame.
+
+    Parameters
+    ----------
+    yuv : (H * 3 // 2, W) uint8
+        The decoded frame (not modified), H and W even.
+    bgr : (H, W, 3) uint8
+        The composited frame.
+    roi : sequence of 4 int or None
+
+    Returns
+    -------
+    (H * 3 // 2, W) uint8
+        A new array.
+    """
+    H, W = bgr.shape[:2]
+    if roi is None:
+        return cv2.cvtColor(bgr, cv2.COLOR_BGR2YUV_I420)
+    x0, y0, w, h = clip_roi(roi, W, H)
+    out = np.array(yuv)
+    if w == 0 or h == 0:
+        return out
+    x1, y1 = min(W, x0 + w + 1) & ~1, min(H, y0 + h + 1) & ~1
+    x0, y0 = x0 & ~1, y0 & ~1
+    sub = cv2.cvtColor(np.ascontiguousarray(bgr[y0:y1, x0:x1]), cv2.COLOR_BGR2YUV_I420)
+    for dst, src, k in zip(i420_planes(out, H, W), i420_planes(sub, y1 - y0, x1 - x0), (1, 2, 2)):
+        dst[y0 // k : y1 // k, x0 // k : x1 // k] = src
+    return out
