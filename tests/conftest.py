@@ -29,8 +29,9 @@ VIDEO_MODULES: set[str] = set()
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
     """Mark GL and video tests (``pytest -m "not gl and not video"`` is the fast unit loop, CONTRIBUTING.md):
-    ``gl`` for a test that uses :func:`ctx` / :func:`gl_ctx` or lives in :data:`GL_MODULES`, ``video`` for one in
-    a module named ``*video*`` or listed in :data:`VIDEO_MODULES`. An unmarked test that creates an OpenGL context fails (:func:`_gl_guard`).
+    ``gl`` for a test that uses :func:`ctx` / :func:`gl_ctx` or lives in :data:`GL_MODULES`, ``video`` for one
+    in a module named ``*video*`` or listed in :data:`VIDEO_MODULES`. An unmarked test that creates an OpenGL
+    context fails (:func:`_gl_guard`).
 
     ``slow`` tests are deselected unless the ``-m`` expression names ``slow`` (so that ``-m "not gl"`` does
     not bring them back, as an ``-m`` given on the command line replaces the one in ``addopts`` would)."""
