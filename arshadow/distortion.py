@@ -178,7 +178,7 @@ def _newton_whole(x, y, tx, ty, d, tol, iters):
     px, py = x.copy(), y.copy()  # last accepted iterate
     prev = np.full(n, np.inf)
     it = 0
-    for it in range(iters):
+    for it in range(iters):  # noqa: B007 - `it` counts the iterations spent, used below
         xd, yd, j00, j01, j10, j11 = _distort_core_jac(x, y, d)
         ex, ey = xd - tx, yd - ty
         res = np.hypot(ex, ey)

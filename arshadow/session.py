@@ -409,7 +409,7 @@ class Session:
         plan = self.plan(pose, image.shape[1], image.shape[0])
         res = self._render(image, plan, pose, item, timings, want_mask, out, mask_out, layers)
         note = cal.detect_note()
-        if note is not None:
+        if note is not None and item.plan is not None:
             item.plan["detect"] = note
         timings.total = (time.perf_counter() - t0) * 1e3
         item.timings_ms = timings.as_dict(3)

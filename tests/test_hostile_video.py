@@ -268,8 +268,8 @@ SCENE_FILES = {  # name -> (content, needle)
     "unknown_key.json": ({**JOB, "colour": "200,0,0"}, "unknown scene key(s) 'colour'"),
     "missing_model.json": ({k: v for k, v in JOB.items() if k != "model"}, "needs 'model'"),
     "calib_missing.json": ({**JOB, "calib": "nope.yml"}, "no such calibration file"),
-    "light_unquoted.yml": ("calib: %s\nmarker_length: 0.05\nmodel: box:0.04,0.03,0.06\n"
-                           "lights: [point:-0.1,0.15,0.4]\n" % CALIB, "(in YAML, quote it)"),
+    "light_unquoted.yml": (f"calib: {CALIB}\nmarker_length: 0.05\nmodel: box:0.04,0.03,0.06\n"
+                           "lights: [point:-0.1,0.15,0.4]\n", "(in YAML, quote it)"),
 }
 
 BATCH_CONFIG = [  # (kind, config file (name in SCENE_FILES or a path), extra args, needle)

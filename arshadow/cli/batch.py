@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
 from . import EXIT_OK, EXIT_SOME_FAILED
 
