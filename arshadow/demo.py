@@ -10,6 +10,7 @@ from .errors import ArshadowError, UsageError
 from .io import read_image, write_image, write_json
 from .photos import PhotoJob, caption_panel, contact_sheet, render_photos
 from .report import ReportItem, make_report
+from .resources import samples_dir
 from .scene import DEFAULT_AA, scene_from_dict
 from .session import Session
 
@@ -21,9 +22,9 @@ SCENE_JSON_KEYS = ("calib", "model", "scale", "rotate", "place", "color", "light
 
 
 def find_samples(explicit=None) -> Path:
-    """The samples folder: ``explicit``, else the repository's ``samples/`` (beside the package), else
-    ``./samples``."""
-    cands = [Path(explicit)] if explicit else [Path(__file__).resolve().parents[1] / "samples", Path("samples")]
+    """The samples folder: ``explicit``, else the bundled ``samples/`` (the repository's in a checkout, the
+    installed copy otherwise: :func:`arshadow.resources.samples_dir`), else ``./samples``."""
+    cands = [Path(explicit)] if explicit else [samples_dir(), Path("samples")]
     for c in cands:
         if (c / "scenes.json").is_file():
             return c
@@ -60,8 +61,12 @@ def run_demo(samples: Path, outdir, *, aa: int = DEFAULT_AA, debug: bool = False
     items : list of arshadow.report.ReportItem
     sheet : Path or None
         The contact sheet (None when nothing was rendered).
+    light : list of str or ArshadowError
+        The measured-light item's lines (:func:`arshadow.estimate.demo.light_demo`: extra outputs), or its
+        error.
     """
     # deferred: the GL context and renderer load only when the demo runs (the CLI imports this module)
+    from .estimate.demo import light_demo
     from .gl.context import create_context
     from .gl.stencil import ShadowRenderer
 
@@ -77,13 +82,19 @@ def run_demo(samples: Path, outdir, *, aa: int = DEFAULT_AA, debug: bool = False
             first = samples / scenes[0]["photo"] if scenes else None
             if panels and first is not None and first.is_file():
                 panels.append(caption_panel(read_image(first), f"input photo: {first.name} (before)"))
+            try:  # the measured-look item (issue 17): extra outputs, the rest is unchanged
+                light = light_demo(samples, outdir, context=ctx, renderer=renderer, aa=aa)
+            except ArshadowError as exc:
+                if debug:
+                    raise
+                light = exc
     finally:
         ctx.release()
     sheet = None
     if panels:
         sheet = write_image(outdir / "contact_sheet.png", contact_sheet(panels, columns=2, gap=6, background=16))
     write_json(outdir / "report.json", make_report(items))
-    return items, sheet
+    return items, sheet, light
 
 
 def _demo_scene(sc, samples, root, outdir, aa, ctx, renderer, panels, debug, on_done) -> ReportItem:

@@ -12,14 +12,18 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .camera import Intrinsics
 from .errors import ImageError, MarkerNotFoundError
 from .report import StageTimings
 from .scene import RenderOptions
 from .tracking.tracker import MarkerTracker
+
+if TYPE_CHECKING:  # annotations only
+    from .camera import Intrinsics
+    from .compose.lens import LensWarp
 
 __all__ = ["CalibrationState", "estimate_pose", "check_image", "default_renderer", "DETECT_NOTES"]
 
@@ -49,7 +53,7 @@ class CalibrationState:
 
     intrinsics: Intrinsics
     was_scaled: bool
-    lens: object | None
+    lens: LensWarp | None
     tracker_kwargs: dict
     track_roi: bool = False
     fast_detect: bool = False

@@ -19,7 +19,7 @@ def register(subparsers) -> None:
                     "contact_sheet.png into DIR.")
     p.add_argument("-o", "--output", default="demo_out", metavar="DIR", help="output folder (default demo_out)")
     p.add_argument("--samples", metavar="DIR",
-                   help="samples folder with scenes.json (default: the repository's samples/)")
+                   help="samples folder with scenes.json (default: the bundled samples)")
     p.add_argument("--aa", type=int, default=DEFAULT_AA, metavar="N",
                    help=f"multisample anti-aliasing samples, 0, 2 or 4 (default {DEFAULT_AA}, as arshadow render: "
                         "pixel-centre sampling; --aa 4 for smoother edges, ~5x the render time on a CPU)")
@@ -41,7 +41,14 @@ def run(args) -> int:
         elif not args.quiet:
             print(f"{name} -> {job.output}  ({item.mode}, {item.timings_ms['total']:.1f} ms)")
 
-    items, sheet = run_demo(find_samples(args.samples), Path(args.output), aa=args.aa, debug=debug, on_done=done)
+    items, sheet, light = run_demo(find_samples(args.samples), Path(args.output), aa=args.aa, debug=debug,
+                                   on_done=done)
+    if isinstance(light, Exception):
+        print(f"arshadow demo: error: measured light: {light}", file=sys.stderr)
+    elif not args.quiet:
+        for line in light:
+            print(line)
     if sheet is not None and not args.quiet:
         print(f"contact sheet: {sheet}")
-    return EXIT_SOME_FAILED if any(i.status != "ok" for i in items) else EXIT_OK
+    failed = any(i.status != "ok" for i in items) or isinstance(light, Exception)
+    return EXIT_SOME_FAILED if failed else EXIT_OK
