@@ -84,6 +84,8 @@ __all__ = [
     "load_scene",
     "FramePlan",
     "plan_frame",
+    "estimate_light",
+    "LightEstimate",
     "synth",
     "ArshadowError",
     "CalibrationError",
