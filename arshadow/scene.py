@@ -52,6 +52,7 @@ from .geometry.ground import ground_warnings, parse_ground
 from .timelapse import TimeLapse, parse_time_lapse, time_lapse_spec
 
 if TYPE_CHECKING:  # annotations only (the session imports this module; these load on build)
+    from .camera import Intrinsics
     from .geometry.mesh import ShadowCaster
     from .lights.spec import Light
 
@@ -348,7 +349,7 @@ class Scene:
         ``(start, speed)`` of the time-lapse.
     """
 
-    intrinsics: object
+    intrinsics: Intrinsics
     caster: object
     lights: list
     options: RenderOptions
