@@ -31,6 +31,8 @@ MIN_ELEVATION = 12.0
 CONVEX_PRIMITIVES = ("box:", "cylinder:", "sphere:")
 #: a point light whose 1-sigma position uncertainty exceeds this share of its distance is flagged
 POINT_REL_SIGMA = 0.2
+#: a point light fitted farther than this from the probe (metres) is flagged (the search goes to 3 m)
+POINT_FAR = 2.0
 
 
 def _frames(item, max_frames):
@@ -244,8 +246,12 @@ def _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, verts, t0, notes) 
     if res.uncertainty_deg > 3.0:
         warnings.append(f"low confidence: uncertainty {res.uncertainty_deg:.1f} degrees")
     if res.position_sigma is not None:
-        rel = res.position_sigma / max(float(np.linalg.norm(res.light_h[:3] - anchor)), 1e-9)
-        if rel > POINT_REL_SIGMA:
+        dist = float(np.linalg.norm(res.light_h[:3] - anchor))
+        rel = res.position_sigma / max(dist, 1e-9)
+        if dist > POINT_FAR:
+            warnings.append(f"low confidence: the point light fit went {dist:.1f} m away (a far light looks "
+                            "directional from one probe); fit --kind directional")
+        elif rel > POINT_REL_SIGMA:
             warnings.append(f"low confidence: the point light's distance is uncertain (+/- {100 * rel:.0f} % of it); "
                             "add views from other sides, or fit --kind directional")
     if res.runner_up is not None and res.runner_up > 0.6:
