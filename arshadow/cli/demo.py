@@ -22,7 +22,7 @@ def register(subparsers) -> None:
                     "contact_sheet.png into DIR.")
     p.add_argument("-o", "--output", default="demo_out", metavar="DIR", help="output folder (default demo_out)")
     p.add_argument("--samples", metavar="DIR",
-                   help="samples folder with scenes.json (default: the repository's samples/)")
+                   help="samples folder with scenes.json (default: the bundled samples)")
     p.add_argument("--aa", type=int, default=DEFAULT_AA, metavar="N",
                    help=f"multisample anti-aliasing samples, 0, 2 or 4 (default {DEFAULT_AA}, as arshadow render: "
                         "pixel-centre sampling; --aa 4 for smoother edges, ~5x the render time on a CPU)")
@@ -32,11 +32,12 @@ def register(subparsers) -> None:
 
 
 def find_samples(explicit=None) -> Path:
-    """The samples folder: ``explicit``, else the repository's ``samples/`` (beside the package), else
-    ``./samples``."""
+    """The samples folder: ``explicit``, else the bundled ``samples/`` (the repository's in a checkout, the
+    installed copy otherwise: :func:`arshadow.resources.samples_dir`), else ``./samples``."""
     from ..errors import UsageError
+    from ..resources import samples_dir
 
-    cands = [Path(explicit)] if explicit else [Path(__file__).resolve().parents[2] / "samples", Path("samples")]
+    cands = [Path(explicit)] if explicit else [samples_dir(), Path("samples")]
     for c in cands:
         if (c / "scenes.json").is_file():
             return c
