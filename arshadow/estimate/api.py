@@ -73,7 +73,7 @@ def _probe_in_view(intr, pose, verts, name):
                             "image): check --probe-place, or frame the probe and its shadow")
 
 
-def _grids(img, intr, pose, caster, verts, faces, L, paper, convex):
+def _grids(img, intr, pose, verts, faces, L, paper, convex):
     """The coarse evidence (the whole reach of the shadow), a builder of fine evidence and the size of a
     pixel on the ground at the probe (metres)."""
     lo, hi = verts.min(axis=0), verts.max(axis=0)
@@ -199,7 +199,7 @@ def estimate_light(inputs, *, calib, marker_length: float, probe: str, probe_pla
     convex = str(probe).lower().startswith(CONVEX_PRIMITIVES)
     dictionary = dictionary or DEFAULT_DICTIONARY
     tracker = MarkerTracker(base, dictionary=dictionary, marker_length=marker_length, marker_id=marker_id)
-    coarse, fines, pxs, exposures, names, notes = [], [], [], [], [], []
+    coarse, fines, pxs, exposures, notes = [], [], [], [], []
     for item in items:
         for name, img in _frames(item, max_frames):
             intr, _ = base.for_image(img.shape[1], img.shape[0])
@@ -214,12 +214,11 @@ def estimate_light(inputs, *, calib, marker_length: float, probe: str, probe_pla
             except ExposureError as exc:  # a shadow over the marker: its brightest cell, flagged
                 exp = measure_exposure(img, intr, T, marker_length, dictionary, pose.marker_ids[0], min_cells=1)
                 notes.append(f"{name}: {exc}; the exposure is from its brightest white cell")
-            c, f, px = _grids(img, intr, T, caster, verts, faces, marker_length, exp.paper_rgb, convex)
+            c, f, px = _grids(img, intr, T, verts, faces, marker_length, exp.paper_rgb, convex)
             coarse.append(c)
             pxs.append(px)
             fines.append(f)
             exposures.append(exp)
-            names.append(name)
     return _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, verts, t0, notes)
 
 
