@@ -49,6 +49,9 @@ def add_output_options(out) -> None:
     out.add_argument("--contact-sheet", type=int, default=12, metavar="N",
                      help="frames on DIR/<stem>.sheet.jpg (default 12; 0 = none)")
     out.add_argument("--no-audio", action="store_true", help="do not copy the input's audio")
+    out.add_argument("--jobs", "-j", type=int, default=1, metavar="N",
+                     help="worker processes per video: it is cut at keyframes into N chunks processed in parallel "
+                          "and joined (same output as one process; docs/video.md)")
 
 
 def engine_options(args, collect_items=False):
@@ -63,7 +66,7 @@ def engine_options(args, collect_items=False):
 
 
 def progress_bar(quiet: bool):
-    """A ``progress_factory`` for :func:`arshadow.video.engine.run_videos`: a tqdm bar per video."""
+    """A ``progress_factory`` for :func:`arshadow.video.runner.run_videos`: a tqdm bar per video."""
     if quiet:
         return None
 
@@ -190,7 +193,10 @@ def run(args) -> int:
     from ..report import jsonable, make_report
     from ..scene import scene_from_args
     from ..session import Session
-    from ..video.engine import SessionBackend, run_videos
+    from ..video.engine import SessionBackend
+    from ..errors import UsageError
+    from ..video.parallel import BackendRecipe
+    from ..video.runner import run_videos
     from . import quiet_opencv
 
     debug = bool(getattr(args, "debug", False))
@@ -208,17 +214,21 @@ def run(args) -> int:
         tr.reset()
         first.append(tr.light(tr.update(tl[0])))
         tr.reset()
+    if args.jobs < 1:
+        raise UsageError(f"--jobs {args.jobs}: must be >= 1")
     with Session(spec, lights=first) as session:
         if tracks:
             session.use_sun_tracks(tracks, static)
         backend = SessionBackend(session, tracks, tl)
+        recipe = BackendRecipe(spec, first, list(static), list(tracks), tl) if args.jobs > 1 else None
 
         def on_error(exc):
             if debug:
                 raise exc
 
         summaries, items = run_videos(backend, args.videos, outdir, opts,
-                                      progress_factory=progress_bar(args.quiet), on_error=on_error)
+                                      progress_factory=progress_bar(args.quiet), on_error=on_error,
+                                      jobs=args.jobs, recipe=recipe)
     failed = 0
     for s in summaries:
         for w in s.get("warnings", []):

@@ -66,6 +66,15 @@ class SessionBackend:
         except MarkerNotFoundError as exc:
             return None, exc
 
+    def replay_sun(self, times) -> None:
+        """Advance the sun tracks' recompute schedule over the frame times ``times`` (seconds) without
+        setting lights or counting recomputes: a chunk starts where a run over the frames before it would
+        be. Frame by frame, as :meth:`lights_at` does (the same floats)."""
+        for time_s in times if self.tracks else ():
+            when = self.time_lapse[0] + timedelta(seconds=time_s * self.time_lapse[1])
+            for tr in self.tracks:
+                tr.update(when)
+
     def lights_at(self, time_s: float):
         """Set the lights for a frame time (time-lapse); returns the report's ``sun`` list or None."""
         if not self.tracks:
@@ -149,6 +158,8 @@ class FrameComposer:
                 mask = np.zeros((self.H, self.W), np.uint8)
         else:
             self._pose_fields(item, fp)
+            self.stats["frames_ok" if fp.raw is not None else "frames_held"] += 1
+            self.stats["swapped"] += int(fp.swapped)
             img, mask = self._render(item, fp.cam_from_world, img, fmt, timings)
         self._finish_timings(item, timings, dec_ms)
         if self.backend.notes:
@@ -156,20 +167,27 @@ class FrameComposer:
         self.stats["frames"] += 1
         return img, fmt, mask, item, frame_record(fr, item, sun)
 
-    def _pose_fields(self, item, fp) -> None:
+    @staticmethod
+    def _pose_fields(item, fp) -> None:
         """The report's pose keys: the tracked (raw) pose and the one rendered with (smoothed / held)."""
         if fp.raw is not None:
             item.set_pose(fp.raw)
-            self.stats["frames_ok"] += 1
-        else:
-            self.stats["frames_held"] += 1
         r, t = rvec_tvec_from_matrix(fp.cam_from_world)
         item.extra["raw"] = None if fp.raw is None else {
             "rvec": np.asarray(fp.raw.rvec, float).ravel().tolist(),
             "tvec": np.asarray(fp.raw.tvec, float).ravel().tolist()}
         item.rvec, item.tvec = r.tolist(), t.tolist()
         item.extra["pose_choice"] = "temporal (alternative IPPE solution)" if fp.swapped else "error"
-        self.stats["swapped"] += int(fp.swapped)
+
+    def decision(self, fp) -> dict:
+        """The pose decision of a frame that is not composited (a chunk's look-ahead past its end):
+        ``frame``, ``status``, ``raw``, ``rvec``, ``tvec``, ``pose_choice`` as its JSON Lines record has them."""
+        fr = fp.payload[0]
+        item = ReportItem(input=self.name, status=fp.status)
+        if fp.status != "no_marker":
+            self._pose_fields(item, fp)
+        return {"frame": fr.index, "status": item.status, "raw": item.extra.get("raw"), "rvec": item.rvec,
+                "tvec": item.tvec, "pose_choice": item.extra.get("pose_choice")}
 
     def _render(self, item, cam_from_world, img, fmt, timings):
         """Composite at ``cam_from_world``; returns the frame in its own format and the mask."""
