@@ -159,7 +159,7 @@ class EncodeSink:
         audio = self.source if (opts.keep_audio and self.is_av and reader.has_audio) else None
         return AvWriter(self.outputs["video"], getattr(reader, "rate", reader.fps), (self.W, self.H),
                         codec=opts.codec, crf=opts.crf, pix_fmt="yuv420p" if keep_yuv else None,
-                        preset=opts.preset, audio_from=audio)
+                        preset=opts.preset, audio_from=audio, threads=opts.encoder_threads)
 
     def _write(self, job, vw, mw, png_dir, jf) -> None:
         img, fmt, mask, item, line = job

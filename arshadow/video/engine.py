@@ -85,6 +85,9 @@ class EngineOptions:
         Also return every frame's report item (memory grows with the video; the JSON Lines file does not).
     queue_frames : int
         Frames in flight between the threads.
+    encoder_threads : int
+        Threads of the video encoder (0: the encoder's choice, one per core; chunk workers that fill the
+        cores between them use 1 each).
     """
 
     fmt: str = "mp4"
@@ -100,6 +103,7 @@ class EngineOptions:
     keep_audio: bool = True
     collect_items: bool = False
     queue_frames: int = 6
+    encoder_threads: int = 0
 
     def check(self) -> EngineOptions:
         if self.fmt not in ("mp4", "mkv", "mov", "avi"):

@@ -10,8 +10,10 @@ the video fails with one line naming the chunk; never a silently missing range.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import multiprocessing
+import os
 import time
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
@@ -131,13 +133,27 @@ def prepare_chunked(path, outputs: dict, opts: EngineOptions, count: int, outdir
                     note), None
 
 
+def encoder_threads(jobs: int) -> int:
+    """x264 threads per chunk worker: the cores left to each when ``jobs`` workers share them (at least 1).
+
+    >>> encoder_threads(os.cpu_count() or 1)
+    1
+    """
+    return max(1, (os.cpu_count() or 1) // max(1, int(jobs)))
+
+
 def chunk_task(recipe: BackendRecipe, prep: Prepared, chunk) -> dict:
     """Run one chunk in this process (a pool worker or a Dask task); returns its record. (The store was
     opened, and an interrupted run's temporaries removed, before any chunk started: never here, where
     other chunks are writing.)"""
     prep.store.dir.mkdir(parents=True, exist_ok=True)
-    return run_chunk(backend_for(recipe), prep.path, prep.index, chunk, prep.opts, prep.store, name=prep.name,
+    t = time.perf_counter()
+    backend = backend_for(recipe)
+    setup = time.perf_counter() - t
+    rec = run_chunk(backend, prep.path, prep.index, chunk, prep.opts, prep.store, name=prep.name,
                      final=prep.outputs, total=prep.total)
+    rec["setup_s"] = round(setup, 3)  # the worker's session and GL context (0 once made)
+    return rec
 
 
 class ChunkPool:
@@ -199,6 +215,7 @@ def finish_chunked(prep: Prepared, records: dict, rerun) -> dict:
         chunks[bad] = wider
         records[bad] = rerun(wider)
         redone += 1
+    t_join = time.perf_counter()
     joined = join_chunks(prep.store, chunks, prep.outputs, prep.opts, prep.rate,
                          audio_from=prep.path if (prep.opts.keep_audio and prep.has_audio) else None)
     sheet = SheetThumbs(prep.opts.contact_sheet, prep.total, prep.size)
@@ -207,6 +224,7 @@ def finish_chunked(prep: Prepared, records: dict, rerun) -> dict:
     if prep.outputs.get("sheet") is not None and sheet.thumbs:
         write_contact_sheet(prep.outputs["sheet"], sheet.picked())
     summary = _summary(prep, chunks, records, sheet, joined["audio"], redone)
+    summary["join_s"] = round(time.perf_counter() - t_join, 3)
     prep.store.remove()
     return summary
 
@@ -234,7 +252,8 @@ def _summary(prep: Prepared, chunks, records: dict, sheet, audio: bool, redone: 
             "frame_count_declared": prep.frame_count, "fps": float(prep.rate), "fps_assumed": prep.fps_assumed,
             "size": list(prep.size), "audio": audio, "codec": prep.opts.codec, "crf": prep.opts.crf,
             "chunks": [{"k": c.k, "frames": [c.start, c.stop], "decoded_from": c.decode_from,
-                        "wall_s": records[c.k]["wall_s"], "cpu_s": records[c.k]["cpu_s"]} for c in chunks],
+                        "wall_s": records[c.k]["wall_s"], "cpu_s": records[c.k]["cpu_s"],
+                        "setup_s": records[c.k].get("setup_s", 0.0), "pid": records[c.k]["pid"]} for c in chunks],
             "chunks_redone": redone, "chunk_cpu_s": round(cpu, 3),
             "stage_ms_median": {k: round(float(np.median(v)), 3) for k, v in stage_ms.items() if v},
             "frame_ms_median": float(np.median(fm)),
@@ -253,6 +272,8 @@ def process_video_chunked(recipe: BackendRecipe, pool: ChunkPool, path, outputs:
     t0 = time.perf_counter()
     opts = opts.check()
     prep, note = prepare_chunked(path, outputs, opts, pool.jobs, outdir, stem, recipe.key(), name)
+    if prep is not None and not opts.encoder_threads:
+        prep.opts = dataclasses.replace(opts, encoder_threads=encoder_threads(pool.jobs))
     if prep is None:
         return None, note
     prep.store.open()
