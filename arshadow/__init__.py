@@ -1,6 +1,6 @@
 """arshadow: put a virtual object and its exact hard shadow into photos of a printed ArUco marker.
 
-Pipeline: marker detection and pose (:mod:`arshadow.tracking.marker`) -> occluder in the marker's world frame
+Pipeline: marker detection and pose (:mod:`arshadow.tracking`) -> occluder in the marker's world frame
 (:mod:`arshadow.geometry.mesh`) -> silhouette (:mod:`arshadow.geometry.silhouette`) -> shadow volume
 (:mod:`arshadow.geometry.volume`) -> stencil rendering (:mod:`arshadow.gl`) -> compositing
 (:mod:`arshadow.compose.composite`).
@@ -24,6 +24,7 @@ __version__ = "0.1.0"
 from .errors import (  # noqa: E402
     ArshadowError,
     CalibrationError,
+    EstimateError,
     GLContextError,
     ImageError,
     LightError,
@@ -45,6 +46,8 @@ _LAZY = {
     "load_scene": "scene",
     "FramePlan": "plan",
     "plan_frame": "plan",
+    "estimate_light": "estimate",
+    "LightEstimate": "estimate",
 }
 
 
@@ -66,6 +69,7 @@ __all__ = [
     "synth",
     "ArshadowError",
     "CalibrationError",
+    "EstimateError",
     "GLContextError",
     "ImageError",
     "LightError",

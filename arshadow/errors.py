@@ -51,3 +51,8 @@ class LightError(ArshadowError, ValueError):
 
 class GLContextError(ArshadowError, RuntimeError):
     """No OpenGL context could be created (the message names the missing library or backend)."""
+
+
+class EstimateError(ArshadowError, ValueError):
+    """The light (or the exposure) cannot be measured from the photos: no usable shadow of the probe, the
+    probe or its shadow out of view, an ambiguous fit. The message names the reason."""

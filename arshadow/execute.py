@@ -18,22 +18,23 @@ import numpy as np
 
 from ._check import check_shape
 from .compose.composite import clip_roi, composite
+from .plan import MEASURED
 from .render_api import LightPass
+from .report import STAGES, ReportItem, StageTimings
 from .transforms import CV_TO_GL
 
 __all__ = ["execute", "STAGES"]
 
-#: the per-stage timings of a frame (report ``timings_ms``)
-STAGES = ("detect", "pose", "silhouette", "volume", "render", "readback", "warp", "composite", "total")
 
-
-def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings=None, want_mask=True, out=None,
-            mask_out=None, chooser=None, gpu=None):
+def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings: StageTimings | None = None,
+            item: ReportItem | None = None, want_mask=True, out=None, mask_out=None, chooser=None, gpu=None,
+            compose_key=None):
     """Render and composite one planned frame.
 
     Parameters
     ----------
     plan : arshadow.plan.FramePlan
+        With its ``compose`` decision (:func:`arshadow.plan.decide_compose`) unless empty.
     image : (H, W, 3) uint8
         BGR photo (not modified).
     intr : arshadow.camera.Intrinsics
@@ -45,35 +46,64 @@ def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings=N
         The plan's lens warp (``plan.distorted``).
     work : arshadow.compose.composite.Workspace
         Scratch buffers reused across frames.
-    timings : dict, optional
-        Stage timings (:data:`STAGES`) to add to.
+    timings : arshadow.report.StageTimings, optional
+        Stage times are added to it.
+    item : arshadow.report.ReportItem, optional
+        Gets the frame's keys: ``mode``, ``modes``, ``silhouette_edges``, ``roi``, ``canvas``, ``znear``,
+        ``plan`` (the planner's decisions with their reasons) and, when something was drawn, ``compose``
+        (the path taken), ``content`` (canvas pixels with content) and ``composited`` (photo pixels
+        composited).
     want_mask : bool
         Also return the full-size mask.
     out, mask_out : arrays, optional
         Buffers for the composite ``(H, W, 3) uint8`` and the mask ``(H, W) uint8``.
     chooser : arshadow.gl.compose.PathChooser, optional
-        Picks the numpy (``"cpu"``) or the shader (``"gpu"``) lens warp + composite by measurement, per
-        photo size, anti-aliasing and lens; without it (or without ``gpu``) the numpy path runs.
+        Times the numpy (``"cpu"``) and the shader (``"gpu"``) lens warp + composite when the plan's
+        ``compose`` decision is ``"measure"``, and records the faster under ``compose_key``.
     gpu : callable, optional
-        ``gpu() -> arshadow.gl.compose.GpuCompositor`` (made on first use by the caller); needs a renderer
-        with ``render(..., readback=False)`` (``renderer.gpu_layers``).
+        ``gpu() -> arshadow.gl.compose.GpuCompositor`` (made on first use by the caller); the shader path
+        needs a renderer with ``render_gpu(...)`` (``renderer.gpu_layers``).
+    compose_key : hashable, optional
+        The chooser's key of this frame (:meth:`arshadow.session.Session.compose_key`).
 
     Returns
     -------
     out : (H, W, 3) uint8
     mask : (H, W) uint8 or None
-    info : dict
-        ``mode``, ``modes``, ``silhouette_edges``, ``roi``, ``canvas``, ``znear``, ``plan`` (the planner's
-        decisions with their reasons, for the report) and, when something was drawn, ``compose`` (the
-        path taken), ``content`` (canvas pixels with content) and ``composited`` (photo pixels composited).
     """
-    timings = timings if timings is not None else dict.fromkeys(STAGES, 0.0)
+    timings = timings if timings is not None else StageTimings()
+    item = item if item is not None else ReportItem(input="")
     H, W = image.shape[:2]
-    opts = geometry.options
-    roi, canvas = plan.roi, plan.canvas
-    # CPU geometry: the volumes the plan needs (cached per light)
-    passes, n_edges = [], 0
-    plan_lights = []
+    passes = _light_passes(plan, geometry, timings, item)
+    which = "planar" if geometry.options.shadow_method == "planar" and geometry.options.plan == "auto" \
+        else geometry.options.plan
+    roi_why = next((d.reason for d in plan.decisions if d.name == "roi"), "")
+    item.mode, item.modes, item.roi, item.canvas, item.znear = (plan.mode, plan.modes, list(plan.roi),
+                                                                list(plan.canvas), plan.znear)
+    item.plan = {"plan": which, "roi": roi_why, "lights": item.plan}
+    if out is None:
+        out = image.copy()
+    else:
+        check_shape(out, f"{H},{W},3", "out")
+        np.copyto(out, image)
+    mask_full = None
+    if want_mask:
+        if mask_out is None:
+            mask_full = np.zeros((H, W), np.uint8)
+        else:
+            mask_full = check_shape(mask_out, f"{H},{W}", "mask_out")
+            mask_full.fill(0)
+    if plan.empty:
+        return out, mask_full  # nothing of the scene is in view
+    args = (plan, image, intr, geometry, renderer, lens, work, passes, out, mask_full, want_mask, item)
+    _run_compose(args, plan, timings, item, chooser, gpu, compose_key)
+    return out, mask_full
+
+
+def _light_passes(plan, geometry, timings, item) -> list:
+    """The renderer's passes, building the volumes the plan needs; ``item.silhouette_edges`` and the
+    per-light part of the report's ``plan`` are set (``item.plan``: the list, wrapped by the caller)."""
+    passes, n_edges, plan_lights = [], 0, []
     for lp in plan.lights:
         ls = geometry.lights[lp.index]
         entry = {"mode": lp.mode, "why": dict(lp.why)}
@@ -92,34 +122,19 @@ def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings=N
         passes.append(LightPass(light_h=ls.light_h, weight=ls.weight, volume=vol,
                                 mode="zpass" if lp.mode == "none" else lp.mode,
                                 direct=lp.mode == "planar" and geometry.convex))
+    item.silhouette_edges = n_edges
+    item.plan = plan_lights
+    return passes
 
-    opts_plan = geometry.options.plan
-    which = "planar" if geometry.options.shadow_method == "planar" and opts_plan == "auto" else opts_plan
-    roi_why = next((d.reason for d in plan.decisions if d.name == "roi"), "")
-    info = {"mode": plan.mode, "modes": plan.modes, "silhouette_edges": n_edges, "roi": list(roi),
-            "canvas": list(canvas), "znear": plan.znear,
-            "plan": {"plan": which, "roi": roi_why, "lights": plan_lights}}
 
-    if out is None:
-        out = image.copy()
-    else:
-        check_shape(out, f"{H},{W},3", "out")
-        np.copyto(out, image)
-    mask_full = None
-    if want_mask:
-        if mask_out is None:
-            mask_full = np.zeros((H, W), np.uint8)
-        else:
-            mask_full = check_shape(mask_out, f"{H},{W}", "mask_out")
-            mask_full.fill(0)
-    if plan.empty:
-        return out, mask_full, info  # nothing of the scene is in view
-
-    # render, lens warp, composite: the numpy path or the shader path (arshadow/gl/compose.py), whichever
-    # measured faster for this photo size on this backend (timed on first use)
-    args = (plan, image, intr, geometry, renderer, lens, work, passes, out, mask_full, want_mask, info)
-    x0, y0, w, h = roi
-    clean = None  # the photo's ROI each run starts from, when the chooser runs several (below)
+def _run_compose(args, plan, timings, item, chooser, gpu, key) -> None:
+    """Render, lens warp, composite by the path the plan's ``compose`` decision names (``"measure"``: the
+    chooser times both on this frame and keeps the faster for its key)."""
+    image, out, mask_full = args[1], args[8], args[9]
+    x0, y0, w, h = plan.roi
+    choice = plan.compose or "cpu"
+    why = next((d.reason for d in plan.decisions if d.name == "compose"), "")
+    clean = None  # the photo's ROI each timed run starts from (below)
 
     def run(fn):
         def go():
@@ -127,60 +142,52 @@ def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings=N
                 np.copyto(out[y0 : y0 + h, x0 : x0 + w], clean)
                 if mask_full is not None:
                     mask_full[y0 : y0 + h, x0 : x0 + w] = 0
-            t = dict.fromkeys(STAGES, 0.0)
+            t = StageTimings()
             fn(*args, timings=t)
             return t
         return go
 
     paths = {"cpu": run(_compose_cpu)}
-    if (chooser is not None and gpu is not None and getattr(renderer, "gpu_layers", False)
-            and out.flags.c_contiguous and (mask_full is None or mask_full.flags.c_contiguous)):
+    if choice != "cpu":
         paths["gpu"] = run(lambda *a, timings: _compose_gpu(*a, gpu=gpu(), timings=timings))
-    ctx = getattr(renderer, "ctx", None)
-    backend = (getattr(ctx, "info", None) or {}).get("GL_RENDERER", "?") if ctx is not None else "?"
-    key = (backend, W, H, int(geometry.options.aa), lens is not None)
-    if len(paths) > 1 and chooser.force is None and key not in chooser.decisions:
+    if choice == "measure":
         # the chooser times every path, one run after the other: each must start from the untouched photo
         # ROI (a copy of it when the caller composites in place, out is image: the video engine)
         clean = image[y0 : y0 + h, x0 : x0 + w]
         if np.shares_memory(out, image):
             clean = clean.copy()
-    if len(paths) == 1 or chooser.force == "cpu":
-        choice, used = "cpu", paths["cpu"]()
-        why = "numpy (the shader path is not available here)" if len(paths) == 1 else "forced cpu"
-    else:
         choice, used = chooser.run(key, paths)
-        why = f"forced {choice}" if chooser.force else \
-            f"measured on first use in this process: {chooser.decisions[key]['ms']} ms (median)"
-    for k, v in used.items():
-        timings[k] += v
-    info["compose"] = choice
-    info["plan"]["compose"] = why
-    return out, mask_full, info
+        why = MEASURED.format(ms=chooser.decisions[key]["ms"])
+    else:
+        used = paths[choice]()
+    timings.add(used)
+    item.compose = choice
+    item.plan["compose"] = why
 
 
-def _compose_gpu(plan, image, intr, geometry, renderer, lens, work, passes, out, mask_full, want_mask, info, *,
+def _compose_gpu(plan, image, intr, geometry, renderer, lens, work, passes, out, mask_full, want_mask, item, *,
                  gpu, timings):
     """Render with the layers kept on the GPU; lens warp + composite in a shader; one 8-bit readback."""
     opts = geometry.options
     roi, canvas = plan.roi, plan.canvas
     proj = intr.gl_projection(plan.znear, None, canvas=canvas)
     t = time.perf_counter()
-    lay = renderer.render(projection=proj, view=CV_TO_GL @ plan.cam_from_world, width=int(canvas[2]),
-                          height=int(canvas[3]), caster=geometry.caster, passes=passes, ground_size=opts.ground_size,
-                          draw_occluder=opts.draw_occluder, occluder_color=opts.occluder_color, readback=False)
-    timings["render"] += (time.perf_counter() - t) * 1e3
-    ct = {}
+    lay = renderer.render_gpu(projection=proj, view=CV_TO_GL @ plan.cam_from_world, width=int(canvas[2]),
+                              height=int(canvas[3]), caster=geometry.caster, passes=passes,
+                              ground_size=opts.ground_size, draw_occluder=opts.draw_occluder,
+                              occluder_color=opts.occluder_color)
+    timings.render += (time.perf_counter() - t) * 1e3
+    ct: dict = {}
     t = time.perf_counter()
     gpu.compose(image, lay, roi, canvas, lens=lens, opacity=opts.opacity, shadow_color=opts.shadow_color,
                 draw_occluder=opts.draw_occluder, out=out, mask_out=mask_full if want_mask else None, timings=ct)
     # the readback waits for the render and the shader to finish: it holds the GPU time of both
-    timings["readback"] += ct.get("readback", 0.0)
-    timings["composite"] += (time.perf_counter() - t) * 1e3 - ct.get("readback", 0.0)
-    info["composited"] = list(roi)
+    timings.readback += ct.get("readback", 0.0)
+    timings.composite += (time.perf_counter() - t) * 1e3 - ct.get("readback", 0.0)
+    item.composited = list(roi)
 
 
-def _compose_cpu(plan, image, intr, geometry, renderer, lens, work, passes, out, mask_full, want_mask, info, *,
+def _compose_cpu(plan, image, intr, geometry, renderer, lens, work, passes, out, mask_full, want_mask, item, *,
                  timings):
     """Render, read the float layers back, lens warp (cv2.remap) or flip, composite in numpy."""
     H, W = image.shape[:2]
@@ -196,10 +203,10 @@ def _compose_cpu(plan, image, intr, geometry, renderer, lens, work, passes, out,
     dt = (time.perf_counter() - t) * 1e3
     rt = getattr(res, "timings_ms", None) or {}
     if "readback" in rt:
-        timings["readback"] += float(rt["readback"])
-        timings["render"] += dt - float(rt["readback"])
+        timings.readback += float(rt["readback"])
+        timings.render += dt - float(rt["readback"])
     else:
-        timings["render"] += dt
+        timings.render += dt
     layers = getattr(res, "layers", None)
     # lens warp (pinhole canvas -> distorted photo ROI)
     t = time.perf_counter()
@@ -212,13 +219,13 @@ def _compose_cpu(plan, image, intr, geometry, renderer, lens, work, passes, out,
         act |= c0[:, :, 3] > 0
         rows = np.flatnonzero(act.any(axis=1))
         if rows.size == 0:  # nothing drawn: the photo is unchanged
-            timings["warp"] += (time.perf_counter() - t) * 1e3
-            info["content"] = None
+            timings.warp += (time.perf_counter() - t) * 1e3
+            item.content = None
             return
         cols = np.flatnonzero(act.any(axis=0))
         r0, r1 = ch - 1 - int(rows[-1]), ch - 1 - int(rows[0])  # top-down canvas rows
         k0, k1 = int(cols[0]), int(cols[-1])
-        info["content"] = [int(canvas[0]) + k0, int(canvas[1]) + r0, k1 - k0 + 1, r1 - r0 + 1]
+        item.content = [int(canvas[0]) + k0, int(canvas[1]) + r0, k1 - k0 + 1, r1 - r0 + 1]
         if lens is not None:
             # photo pixels whose pinhole point can see the content (+1 px: bilinear support)
             rect = (canvas[0] + k0 - 1.0, canvas[1] + r0 - 1.0, canvas[0] + k1 + 1.0, canvas[1] + r1 + 1.0)
@@ -228,7 +235,7 @@ def _compose_cpu(plan, image, intr, geometry, renderer, lens, work, passes, out,
             x1 = min(sub[0] + sub[2], roi[0] + roi[2])
             y1 = min(sub[1] + sub[3], roi[1] + roi[3])
             if x1 <= x0 or y1 <= y0:
-                timings["warp"] += (time.perf_counter() - t) * 1e3
+                timings.warp += (time.perf_counter() - t) * 1e3
                 return
             roi = (x0, y0, x1 - x0, y1 - y0)
             l0, l1 = lens.warp(roi, canvas, c0, c1, work=work, bottom_up=True)
@@ -240,13 +247,13 @@ def _compose_cpu(plan, image, intr, geometry, renderer, lens, work, passes, out,
             s0, s1 = c0[b0:b1, k0 : k1 + 1], c1[b0:b1, k0 : k1 + 1]
             l0 = cv2.flip(s0, 0, dst=work.get("flip0", s0.shape, np.float32))
             l1 = cv2.flip(s1, 0, dst=work.get("flip1", s1.shape, np.float32))
-        info["composited"] = list(roi)
+        item.composited = list(roi)
         mask, alpha, color = l1[:, :, 0], l0[:, :, 3], l0
     else:
         mask, alpha, color = res.mask, res.alpha, res.color
         if lens is not None:
             mask, alpha, color = lens.warp(roi, canvas, mask, alpha, color, work=work)
-    timings["warp"] += (time.perf_counter() - t) * 1e3
+    timings.warp += (time.perf_counter() - t) * 1e3
 
     # composite
     t = time.perf_counter()
@@ -260,4 +267,4 @@ def _compose_cpu(plan, image, intr, geometry, renderer, lens, work, passes, out,
         m += np.float32(0.5)
         np.clip(m, np.float32(0.0), np.float32(255.0), out=m)
         np.copyto(mask_full[y0 : y0 + h, x0 : x0 + w], m, casting="unsafe")
-    timings["composite"] += (time.perf_counter() - t) * 1e3
+    timings.composite += (time.perf_counter() - t) * 1e3

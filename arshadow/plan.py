@@ -36,393 +36,25 @@ Lens distortion
 
 from __future__ import annotations
 
-import math
-import time
 from dataclasses import dataclass, field
 
-import cv2
 import numpy as np
 
 from .compose.composite import clip_roi
-from .errors import LightError
+from .plan_geometry import (
+    ROI_MAX_POINTS,
+    LightState,
+    SceneGeometry,
+    int_rect,
+    pinhole_rect,
+    pinhole_rect_for_scene,
+    scene_hull_points,
+    shadow_footprint,
+)
 from .transforms import invert_rigid, transform_points
 
-__all__ = ["Decision", "LightPlan", "FramePlan", "SceneGeometry", "LightState", "plan_frame",
+__all__ = ["Decision", "LightPlan", "FramePlan", "SceneGeometry", "LightState", "plan_frame", "decide_compose",
            "shadow_footprint", "scene_hull_points", "pinhole_rect_for_scene", "ROI_MAX_POINTS"]
-
-#: meshes with at most this many vertices bound the ROI by their vertices (~0.2 ms per light at 20k)
-ROI_MAX_POINTS = 20000
-
-# --------------------------------------------------------------------------------------------------
-# region of interest: pure geometry
-# --------------------------------------------------------------------------------------------------
-def _box_corners(bounds) -> np.ndarray:
-    lo, hi = np.asarray(bounds, dtype=np.float64)
-    return np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-
-
-def shadow_footprint(bounds, light_h, *, points=None, eps: float = 1e-9) -> np.ndarray | None:
-    """Ground points (z = 0) whose convex hull contains the shadow of anything inside ``bounds``.
-
-    Parameters
-    ----------
-    bounds : (2, 3) float64
-        Axis-aligned box (min, max) of the occluder, world frame.
-    light_h : (4,) float64
-        Homogeneous light (w = 1 point, w = 0 directional towards the light).
-    points : (n, 3) float64, optional
-        Use these points (e.g. the mesh's vertices: their convex hull contains the mesh) instead of the
-        box's corners: a tighter footprint.
-
-    Returns
-    -------
-    (n, 3) float64 or None
-        The corners (or points) projected from the light onto z = 0 (points below the ground are clamped
-        to it), or None when the footprint is unbounded (a point light not above all of them, a
-        directional light at or below the horizon).
-
-    Examples
-    --------
-    >>> float(shadow_footprint([[-1, -1, 0], [1, 1, 2]], [0, 0, 4, 1])[:, :2].max())
-    2.0
-    """
-    corners = _box_corners(bounds) if points is None else np.array(points, dtype=np.float64)
-    corners[:, 2] = np.maximum(corners[:, 2], 0.0)
-    lh = np.asarray(light_h, dtype=np.float64)
-    if lh[3] != 0.0:
-        L = lh[:3] / lh[3]
-        if not np.all(corners[:, 2] < L[2] * (1.0 - 1e-6)) or L[2] <= 0.0:
-            return None
-        t = L[2] / (L[2] - corners[:, 2])  # parameter along L -> corner where z reaches 0
-        return _ground_hull(L + (corners - L) * t[:, None])
-    d = lh[:3]
-    n = np.linalg.norm(d)
-    if not (n > 0.0) or d[2] / n <= eps:
-        return None
-    return _ground_hull(corners - d * (corners[:, 2] / d[2])[:, None])
-
-
-def _ground_hull(fp: np.ndarray) -> np.ndarray:
-    """The vertices of the 2D convex hull of ground points ``fp (n, 3)`` (z = 0): the same convex hull, so
-    the same screen bounds (a central projection's extremes over a convex set lie at its vertices), with
-    a few dozen points instead of one per mesh vertex (projected every frame by the planner)."""
-    if len(fp) <= 8 or not np.all(np.isfinite(fp)):
-        return fp
-    idx = cv2.convexHull(np.ascontiguousarray(fp[:, :2], dtype=np.float32), returnPoints=False)
-    return fp[np.sort(idx.ravel())]
-
-
-def scene_hull_points(bounds, lights_h, ground_size=None, points=None) -> np.ndarray | None:
-    """World points ``(n, 3) float64`` whose convex hull holds the occluder and its ground shadows, or None.
-
-    They depend on the mesh and the lights only (not on the camera), so the :class:`Compositor` computes
-    them once per set of lights. None means unbounded: a footprint is unbounded and no ``ground_size``
-    limits it. ``points`` (the mesh's vertices) replaces the box corners when given.
-    """
-    pts = [_box_corners(bounds) if points is None else np.asarray(points, dtype=np.float64)]
-    half = None if ground_size is None else 0.5 * float(ground_size)
-    for lh in lights_h:
-        fp = shadow_footprint(bounds, lh, points=points)
-        if fp is None:
-            if half is None:
-                return None
-            fp = np.array([[-half, -half, 0], [half, -half, 0], [half, half, 0], [-half, half, 0]], float)
-        elif half is not None:
-            # shadow on the plane only inside the square: clip the footprint's box to it
-            lo = np.maximum(fp[:, :2].min(axis=0), -half)
-            hi = np.minimum(fp[:, :2].max(axis=0), half)
-            if np.any(hi < lo):
-                continue  # the shadow falls entirely off the plane
-            fp = np.array([[lo[0], lo[1], 0], [hi[0], lo[1], 0], [hi[0], hi[1], 0], [lo[0], hi[1], 0]], float)
-        pts.append(fp)
-    return np.concatenate(pts)
-
-
-def pinhole_rect_for_scene(intrinsics, cam_from_world, bounds, lights_h, ground_size=None, znear=1e-3,
-                           points=None):
-    """Pinhole pixel rectangle ``(u0, v0, u1, v1)`` covering the occluder and its shadows, or None (all).
-
-    None means "the whole image": a footprint is unbounded and no ``ground_size`` limits it, or a point
-    of the hull is behind the camera. ``points`` (the mesh's vertices) replaces the box corners when given.
-    """
-    hull = scene_hull_points(bounds, lights_h, ground_size, points)
-    return None if hull is None else _pinhole_rect(intrinsics, cam_from_world, hull, znear)
-
-
-def _pinhole_rect(intrinsics, cam_from_world, hull, znear):
-    """Pinhole bounding rectangle of world points ``hull (n, 3)``; None if one is not beyond ``znear``."""
-    pc = transform_points(cam_from_world, hull)
-    if not np.all(pc[:, 2] > znear):
-        return None
-    u = intrinsics.fx * pc[:, 0] / pc[:, 2] + intrinsics.cx
-    v = intrinsics.fy * pc[:, 1] / pc[:, 2] + intrinsics.cy
-    if not (np.all(np.isfinite(u)) and np.all(np.isfinite(v))):
-        return None
-    return (float(u.min()), float(v.min()), float(u.max()), float(v.max()))
-
-
-
-
-def _int_rect(rect, margin: int):
-    """Float pinhole rect (u0, v0, u1, v1) -> integer (x0, y0, w, h) with ``margin`` pixels around it."""
-    u0, v0, u1, v1 = rect
-    x0, y0 = math.floor(u0) - margin, math.floor(v0) - margin
-    x1, y1 = math.ceil(u1) + margin, math.ceil(v1) + margin
-    return (x0, y0, x1 - x0 + 1, y1 - y0 + 1)
-
-
-# --------------------------------------------------------------------------------------------------
-# the per-run geometry cache (history: which silhouettes and volumes exist)
-# --------------------------------------------------------------------------------------------------
-@dataclass
-class LightState:
-    """One (sample) light of the scene and its cached CPU geometry.
-
-    Attributes
-    ----------
-    light : arshadow.lights.spec.Light
-        The (hard) light.
-    weight : float
-        Its share of the total weight.
-    light_h : (4,) float64
-    sil : Silhouette or None
-        Built on first use.
-    volumes : dict
-        ``(caps, truncated) (bool, bool) -> ShadowVolume``, built on first use.
-    footprint : (n, 3) float64, None or False
-        Ground footprint points (clipped to ``ground_size``; empty: the shadow misses the ground square),
-        None when unbounded; False until computed.
-    reuse : str or None
-        How the geometry was carried over from a moved light (:func:`arshadow.plan_rules.reuse_light_geometry`).
-    """
-
-    light: object
-    weight: float
-    light_h: np.ndarray
-    sil: object = None
-    volumes: dict = field(default_factory=dict)
-    footprint: object = False
-    reuse: str | None = None
-
-
-class SceneGeometry:
-    """The CPU geometry of a scene that does not depend on the camera: lights split into hard samples,
-    their silhouettes and shadow volumes (built on first use, then reused), the ROI hull points.
-
-    Parameters
-    ----------
-    caster : arshadow.geometry.mesh.ShadowCaster
-        The occluder, world frame.
-    options : arshadow.scene.RenderOptions
-    lights : sequence of arshadow.lights.spec.Light, optional
-        Initial lights (:meth:`set_lights`).
-    """
-
-    def __init__(self, caster, options, lights=None):
-        self.caster = caster
-        self.options = options
-        b = np.asarray(caster.bounds, dtype=np.float64)
-        self.bounds = b
-        self.corners = _box_corners(b)
-        # the ROI is bounded with the mesh's own vertices (tight) up to this many, else the box corners
-        self.roi_points = (np.asarray(caster.vertices, dtype=np.float64)
-                           if len(caster.vertices) <= ROI_MAX_POINTS else None)
-        self.size = float(np.linalg.norm(b[1] - b[0]))
-        self.lights: list[LightState] = []
-        self.lights_in: list = []
-        self.notes: list[str] = []
-        self._hull = (None, None)  # (lights' key, scene_hull_points) for the current lights
-        if lights is not None:
-            self.set_lights(lights)
-
-    def set_lights(self, lights) -> int:
-        """Replace the lights, keeping the cached geometry of every (sample) light that stays.
-
-        A (sample) light whose homogeneous vector ``light_h`` equals one of the current lights' keeps
-        that light's silhouette and shadow volumes (only its weight share is updated); any other light is
-        recomputed on first use. Lights below the horizon give no light and no shadow (a note says so).
-
-        Returns
-        -------
-        int
-            Number of (sample) lights whose silhouette and volumes must be recomputed.
-
-        Raises
-        ------
-        LightError
-            No light.
-        """
-        from .lights.spec import sample_area_light
-
-        lights = list(lights)
-        if not lights:
-            raise LightError("no light given (use --light)")
-        old = {tuple(ls.light_h.tolist()): ls for ls in self.lights}
-        old_list = list(self.lights)
-        reuse = self.options.plan != "general" and "reuse" not in self.options.plan_off
-        total = float(sum(lt.weight for lt in lights if lt.above_horizon))
-        notes, states, n_new = [], [], 0
-        for lt in lights:
-            if not lt.above_horizon:
-                notes.append(f"light {lt.label or lt.kind} is below the horizon: no light, no shadow")
-                continue
-            samples = (sample_area_light(lt, int(self.options.soft_samples))
-                       if getattr(lt, "radius", 0.0) > 0 and self.options.soft_samples > 1 else [lt])
-            for s in samples:
-                h = np.asarray(s.homogeneous, float)
-                prev = old.get(tuple(h.tolist()))
-                if prev is None and reuse and len(states) < len(old_list) and old_list[len(states)].sil is not None:
-                    # a moved light (same slot): keep what provably gives the same pixels
-                    from .plan_rules import reuse_light_geometry
-
-                    o = old_list[len(states)]
-                    tz = self.truncate_z(True)
-                    sil, vols, why = reuse_light_geometry(
-                        self.caster, h, o.sil, {c: v for (c, t), v in o.volumes.items() if t}, truncate_z=tz)
-                    if sil is not None:
-                        states.append(LightState(s, float(s.weight) / total, h, sil,
-                                                 {(c, True): v for c, v in vols.items()}, reuse=why))
-                        continue
-                if prev is None:
-                    n_new += 1
-                    states.append(LightState(s, float(s.weight) / total, h))
-                else:
-                    states.append(LightState(s, float(s.weight) / total, prev.light_h, prev.sil, prev.volumes))
-        self.lights_in, self.notes, self.lights = lights, notes, states
-        return n_new
-
-    # -- history: picklable state ----------------------------------------------------------------------
-    def state(self) -> dict:
-        """The cached geometry, picklable: ``{"lights": [...], "geometry": [(light_h, sil, volumes)]}``.
-
-        :meth:`restore` of it (in this or another process, same caster and options) gives the same lights
-        and skips recomputing their silhouettes and volumes."""
-        return {"lights": list(self.lights_in),
-                "geometry": [(ls.light_h.copy(), ls.sil, dict(ls.volumes)) for ls in self.lights]}
-
-    def restore(self, state: dict) -> None:
-        """Set the lights and cached geometry saved by :meth:`state`."""
-        self.lights = []
-        self.set_lights(state["lights"])
-        cached = {tuple(np.asarray(h, float).tolist()): (sil, vols) for h, sil, vols in state["geometry"]}
-        for ls in self.lights:
-            hit = cached.get(tuple(ls.light_h.tolist()))
-            if hit is not None:
-                ls.sil, ls.volumes = hit[0], dict(hit[1])
-
-    # -- geometry on demand ------------------------------------------------------------------------------
-    def silhouette(self, ls: LightState, timings=None):
-        """The light's silhouette (built once; ``timings["silhouette"]`` gets the build time)."""
-        if ls.sil is None:
-            from .geometry.silhouette import silhouette
-
-            t = time.perf_counter()
-            ls.sil = silhouette(self.caster, ls.light_h, method=self.options.silhouette)
-            if timings is not None:
-                timings["silhouette"] += (time.perf_counter() - t) * 1e3
-        return ls.sil
-
-    def truncate_z(self, truncate: bool = True):
-        """The plane volumes are truncated at (just below the ground), or None (to infinity)."""
-        return -1e-3 * max(self.size, 1e-6) if truncate else None
-
-    def volume(self, ls: LightState, caps: bool, timings=None, truncate: bool | None = None):
-        """The light's shadow volume with or without caps, truncated below the ground or extruded to
-        infinity (default ``options.truncate``); built once per variant (``timings["volume"]``)."""
-        truncate = bool(self.options.truncate if truncate is None else truncate)
-        vol = ls.volumes.get((caps, truncate))
-        if vol is None:
-            from .geometry.volume import shadow_volume
-
-            sil = self.silhouette(ls, timings)
-            t = time.perf_counter()
-            vol = ls.volumes[(caps, truncate)] = shadow_volume(self.caster, ls.light_h, sil, caps=caps,
-                                                               truncate_z=self.truncate_z(truncate))
-            if timings is not None:
-                timings["volume"] += (time.perf_counter() - t) * 1e3
-        return vol
-
-    def forget(self) -> None:
-        """Drop every light's cached silhouette and volumes (the ``general`` plan rebuilds them per frame)."""
-        for ls in self.lights:
-            ls.sil, ls.volumes, ls.reuse = None, {}, None
-
-    @property
-    def convex(self) -> bool:
-        """:func:`arshadow.plan_rules.mesh_is_convex` of the occluder (computed once per mesh)."""
-        c = getattr(self, "_convex", None)
-        if c is None:
-            from .plan_rules import mesh_is_convex
-
-            c = self._convex = mesh_is_convex(self.caster)
-        return c
-
-    def footprint_rect(self, ls: LightState, intr, cam_from_world, znear):
-        """Pinhole screen box of one light's ground footprint (clipped to ``ground_size``), or None
-        (unbounded, or a point behind the camera); an empty box far off screen when the shadow misses the
-        ground square."""
-        if ls.footprint is False:
-            fp = shadow_footprint(self.bounds, ls.light_h, points=self.roi_points)
-            gs = self.options.ground_size
-            if gs is not None:
-                half = 0.5 * float(gs)
-                if fp is None:
-                    fp = np.array([[-half, -half, 0], [half, -half, 0], [half, half, 0], [-half, half, 0]], float)
-                else:
-                    lo = np.maximum(fp[:, :2].min(axis=0), -half)
-                    hi = np.minimum(fp[:, :2].max(axis=0), half)
-                    fp = (np.zeros((0, 3)) if np.any(hi < lo) else
-                          np.array([[lo[0], lo[1], 0], [hi[0], lo[1], 0], [hi[0], hi[1], 0], [lo[0], hi[1], 0]], float))
-            ls.footprint = fp
-        fp = ls.footprint
-        if fp is None:
-            return None
-        if len(fp) == 0:
-            return (-1e9, -1e9, -1e9, -1e9)
-        return _pinhole_rect(intr, cam_from_world, fp, znear)
-
-    def hull(self):
-        """:func:`scene_hull_points` of the current lights (recomputed only when the lights change)."""
-        key = tuple(ls.light_h.tobytes() for ls in self.lights)
-        if self._hull[0] != key:
-            hull = scene_hull_points(self.bounds, [ls.light_h for ls in self.lights], self.options.ground_size,
-                                     points=self.roi_points)
-            self._hull = (key, hull)
-        return self._hull[1]
-
-    def znear_for(self, cam_from_world) -> float:
-        """A near plane that clips nothing visible: a fraction of the distance to the object and ground.
-
-        No upper bound: the depth resolution of a 24-bit buffer with an infinite far plane is about
-        ``z**2 / znear * 6e-8``, so a fixed 5 cm near plane lost the contact of an object 1 km away (metres
-        of depth error); a quarter of the distance keeps it at ~1e-7 of the distance."""
-        eye = invert_rigid(cam_from_world)[:3, 3]
-        depth = transform_points(cam_from_world, self.corners)[:, 2]
-        d = float(depth.min()) if np.all(depth > 0) else self.size
-        h = abs(float(eye[2]))
-        return float(max(0.25 * min(d, h if h > 0 else d), 1e-4))
-
-    def modes_for(self, cam_from_world, znear, intr=None, canvas=None):
-        """Per light: ``"zpass"`` if the camera is provably outside its volume, else ``"zfail"``
-        (``"planar"`` for every light with ``shadow_method="planar"``).
-
-        The test needs the radius of the near-plane rectangle of the canvas actually rendered
-        (``canvas = (u0, v0, w, h)`` pinhole pixels of ``intr``), not ``znear`` alone; without ``intr`` the
-        radius of a 90-degree-per-axis frustum is used (conservative for any narrower camera).
-        """
-        if self.options.shadow_method in ("planar", "shadowmap"):
-            return [self.options.shadow_method] * len(self.lights)
-        from .geometry.volume import camera_may_be_in_shadow, near_plane_radius
-
-        if intr is not None and canvas is not None and canvas[2] > 0 and canvas[3] > 0:
-            u0, v0, w, h = canvas
-            near = near_plane_radius(znear, int(w), int(h), intr.fx, intr.fy, intr.cx - u0, intr.cy - v0)
-        else:
-            near = znear * np.sqrt(3.0)
-        eye = invert_rigid(cam_from_world)[:3, 3]
-        return ["zfail" if camera_may_be_in_shadow(self.caster, ls.light_h, eye, near) else "zpass"
-                for ls in self.lights]
-
 
 # --------------------------------------------------------------------------------------------------
 # the frame plan
@@ -526,6 +158,12 @@ class FramePlan:
         return next((m for m in ("shadowmap", "planar", "zfail") if m in modes), "zpass")
 
     @property
+    def compose(self) -> str | None:
+        """The ``compose`` decision (:func:`decide_compose`): ``"cpu"``, ``"gpu"``, ``"measure"``, or None
+        when not decided (an empty frame composites nothing)."""
+        return next((d.value for d in reversed(self.decisions) if d.name == "compose"), None)
+
+    @property
     def empty(self) -> bool:
         """Nothing of the scene is in view: nothing to render."""
         return self.roi[2] == 0 or self.roi[3] == 0 or self.canvas[2] == 0 or self.canvas[3] == 0
@@ -568,7 +206,7 @@ def plan_frame(geometry: SceneGeometry, intr, cam_from_world, width: int, height
     off_screen = False
     if opts.roi and not general and "roi" not in off:
         hull = geometry.hull()
-        rect = None if hull is None else _pinhole_rect(intr, cam_from_world, hull, znear)
+        rect = None if hull is None else pinhole_rect(intr, cam_from_world, hull, znear)
         why = ("a shadow footprint is unbounded (a light not above the object) and no ground size limits it"
                if hull is None else "a point of the object or its shadow is not in front of the camera"
                if rect is None else "the object and its shadows project into this rectangle")
@@ -586,7 +224,7 @@ def plan_frame(geometry: SceneGeometry, intr, cam_from_world, width: int, height
         roi = canvas = (0, 0, 0, 0)
         why = "the object and its shadows are outside the view (one frustum plane excludes them all)"
     elif lens is None:
-        roi = (0, 0, W, H) if rect is None else clip_roi(_int_rect(rect, 2), W, H)
+        roi = (0, 0, W, H) if rect is None else clip_roi(int_rect(rect, 2), W, H)
         canvas = roi
     elif rect is None:
         roi = (0, 0, W, H)
@@ -653,3 +291,42 @@ def plan_frame(geometry: SceneGeometry, intr, cam_from_world, width: int, height
                         ls.reuse if ls.reuse else "cached for this light" if reuse else "first use of this light "
                         + ("with caps" if caps else "without caps"))
     return plan
+
+
+#: the reason of a ``compose`` decision taken from an earlier measurement (the report's ``plan.compose``)
+MEASURED = "measured on first use in this process: {ms} ms (median)"
+
+
+def decide_compose(plan: FramePlan, *, force: str | None, shader_available: bool, measured=None):
+    """Decide how the frame's lens warp + composite runs, and record it in ``plan`` (``"compose"``).
+
+    Parameters
+    ----------
+    plan : FramePlan
+    force : str or None
+        ``RenderOptions.compose`` when not ``"auto"``: ``"cpu"`` (numpy) or ``"gpu"`` (shader).
+    shader_available : bool
+        The renderer can keep its layers on the GPU and the output buffers are contiguous.
+    measured : dict, optional
+        An earlier measurement for this photo size, anti-aliasing, lens and backend
+        (:class:`arshadow.gl.compose.PathChooser` ``decisions[key]``: ``{"choice", "ms"}``).
+
+    Returns
+    -------
+    str
+        ``"cpu"``, ``"gpu"`` or ``"measure"`` (time both on this frame, keep the faster: the executor).
+
+    >>> p = FramePlan(size=(4, 4), cam_from_world=np.eye(4), znear=0.1)
+    >>> decide_compose(p, force=None, shader_available=False), p.decisions[-1].reason
+    ('cpu', 'numpy (the shader path is not available here)')
+    >>> decide_compose(p, force=None, shader_available=True, measured={"choice": "gpu", "ms": {"gpu": 1.0}})
+    'gpu'
+    """
+    if not shader_available:
+        return plan.decide("compose", "cpu", "numpy (the shader path is not available here)")
+    if force is not None:
+        return plan.decide("compose", force, f"forced {force}")
+    if measured is not None:
+        return plan.decide("compose", measured["choice"], MEASURED.format(ms=measured["ms"]))
+    return plan.decide("compose", "measure", "not measured yet for this photo size, anti-aliasing, lens and "
+                                             "backend: both paths are timed on this frame, the faster is kept")

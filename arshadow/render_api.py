@@ -1,7 +1,7 @@
 """The renderer interface: what the executor hands a shadow renderer and what it gets back (no GL here).
 
 A renderer is any object with the :class:`Renderer` protocol's ``render(**kwargs) -> RenderResult`` and
-``release()``: the stencil shadow-volume renderer (:class:`arshadow.gl.renderer.ShadowRenderer`) and the
+``release()``: the stencil shadow-volume renderer (:class:`arshadow.gl.stencil.ShadowRenderer`) and the
 shadow-map baseline (``arshadow.gl.shadowmap``) both are. The planner (:mod:`arshadow.plan`) decides
 per light what to draw (:class:`LightPass`: light, weight, technique and its geometry); the executor
 (:mod:`arshadow.execute`) calls the renderer, then warps and composites the layers of its

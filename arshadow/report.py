@@ -1,17 +1,86 @@
-"""The JSON report of CONVENTIONS.md: ``{"arshadow": VERSION, "images": [ITEM, ...]}``."""
+"""The JSON report of CONVENTIONS.md: ``{"arshadow": VERSION, "images": [ITEM, ...]}``.
+
+A :class:`ReportItem` is one input's (or one video frame's) entry, typed: every key the report can carry
+is a field, filled once by whoever knows it (the tracker's pose, the planner and executor's frame, the
+photo loop's paths, the video engine's frame time). :meth:`ReportItem.to_dict` writes the always-present
+keys, then the optional ones that are set (not None), in the order of :data:`OPTIONAL_KEYS`.
+
+:class:`StageTimings` are the per-stage milliseconds of a frame (:data:`STAGES`).
+"""
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
 from . import __version__
+from .transforms import rvec_tvec_from_matrix
+
+__all__ = ["ReportItem", "StageTimings", "STAGES", "OPTIONAL_KEYS", "make_report", "jsonable"]
+
+#: the per-stage timings of a frame (report ``timings_ms``)
+STAGES = ("detect", "pose", "silhouette", "volume", "render", "readback", "warp", "composite", "total")
+
+
+@dataclass
+class StageTimings:
+    """Milliseconds spent per stage of one frame (:data:`STAGES`); stages add to their field.
+
+    >>> t = StageTimings(detect=1.25, render=2.0)
+    >>> t.render += 0.5
+    >>> t.as_dict()["render"], t.sum()
+    (2.5, 3.75)
+    """
+
+    detect: float = 0.0
+    pose: float = 0.0
+    silhouette: float = 0.0
+    volume: float = 0.0
+    render: float = 0.0
+    readback: float = 0.0
+    warp: float = 0.0
+    composite: float = 0.0
+    total: float = 0.0
+
+    def add(self, other: StageTimings) -> None:
+        """Add another frame's stage times (not ``total``) to these."""
+        for k in STAGES[:-1]:
+            setattr(self, k, getattr(self, k) + getattr(other, k))
+
+    def sum(self) -> float:
+        """The sum of the stages (without ``total``)."""
+        return float(sum(getattr(self, k) for k in STAGES[:-1]))
+
+    def as_dict(self, digits: int | None = None) -> dict[str, float]:
+        """``{stage: ms}`` in :data:`STAGES` order (rounded to ``digits`` when given: the report's 3)."""
+        if digits is None:
+            return {k: float(getattr(self, k)) for k in STAGES}
+        return {k: round(float(getattr(self, k)), digits) for k in STAGES}
+
+
+#: the optional keys of an item, in the order the report writes them (only those set)
+OPTIONAL_KEYS = ("calibration_scaled", "notes", "detector", "frame", "time_s", "sun", "pose_flagged",
+                 "opencv_board_rvec", "opencv_board_tvec", "n_points", "kind", "raw", "pose_choice", "modes", "roi",
+                 "canvas", "znear", "plan", "content", "composited", "compose", "title")
 
 
 @dataclass
 class ReportItem:
-    """One input's entry; field names are the report's keys (CONVENTIONS.md)."""
+    """One input's entry; field names are the report's keys (CONVENTIONS.md).
+
+    Always written: ``input`` ... ``timings_ms``. Optional (written when not None, :data:`OPTIONAL_KEYS`):
+
+    - tracking: ``calibration_scaled`` (``{"from": [w, h], "to": [w, h]}``; ``arshadow pose``: a bool),
+      ``detector`` (set when the fast pass found nothing and the full search ran), ``pose_flagged``,
+      ``opencv_board_rvec``/``opencv_board_tvec`` (boards), ``n_points``, ``kind`` (``arshadow pose``);
+    - the frame: ``modes`` (per light), ``roi``, ``canvas`` (``[x0, y0, w, h]``), ``znear``, ``plan`` (the
+      planner's decisions with their reasons, docs/planner.md), ``content`` (canvas pixels with content),
+      ``composited`` (photo pixels composited), ``compose`` (``cpu`` | ``gpu``), ``notes``;
+    - video frames: ``frame``, ``time_s``, ``sun``, ``raw`` (the tracked pose before smoothing),
+      ``pose_choice``;
+    - ``title`` (the demo's caption).
+    """
 
     input: str
     output: str | None = None
@@ -26,10 +95,32 @@ class ReportItem:
     mode: str | None = None  # zpass | zfail | planar
     silhouette_edges: int | None = None
     timings_ms: dict[str, float] = field(default_factory=dict)
-    extra: dict = field(default_factory=dict)
+    # -- optional keys (OPTIONAL_KEYS)
+    calibration_scaled: dict | bool | None = None
+    notes: list[str] | None = None
+    detector: str | None = None
+    frame: int | None = None
+    time_s: float | None = None
+    sun: list | None = None
+    pose_flagged: bool | None = None
+    opencv_board_rvec: list[float] | None = None
+    opencv_board_tvec: list[float] | None = None
+    n_points: int | None = None
+    kind: str | None = None
+    raw: dict | None = None
+    pose_choice: str | None = None
+    modes: list[str] | None = None
+    roi: list[int] | None = None
+    canvas: list[int] | None = None
+    znear: float | None = None
+    plan: dict | None = None
+    content: list[int] | None = None
+    composited: list[int] | None = None
+    compose: str | None = None
+    title: str | None = None
 
     def set_pose(self, pose) -> None:
-        """Fill the pose keys from an :class:`arshadow.tracking.marker.MarkerPose`.
+        """Fill the pose keys from an :class:`arshadow.tracking.pose.MarkerPose`.
 
         ``rvec``/``tvec`` are world -> camera in arshadow's world frame (z up). For a board that frame is
         OpenCV's board frame turned 180 degrees about x (docs/tracking.md), so the item also carries
@@ -42,22 +133,29 @@ class ReportItem:
         self.reprojection_error_px = float(pose.reprojection_error_px)
         self.pose_ambiguity = None if pose.pose_ambiguity is None else float(pose.pose_ambiguity)
         # the ratio is at or above the tracker's threshold: the mirrored solution may be the true one
-        self.extra["pose_flagged"] = bool(getattr(pose, "ambiguous", False))
+        self.pose_flagged = bool(getattr(pose, "ambiguous", False))
         if getattr(pose, "kind", None) in ("gridboard", "charuco"):
-            from .tracking.marker import OPENCV_BOARD_TO_WORLD
-            from .transforms import rvec_tvec_from_matrix
+            # deferred: the report module loads without OpenCV (arshadow pose / render only ever get here)
+            from .tracking.board import OPENCV_BOARD_TO_WORLD
 
             world_from_board = np.eye(4)
             world_from_board[:3, :3] = OPENCV_BOARD_TO_WORLD
             m = np.asarray(pose.cam_from_world, float) @ world_from_board
             r, t = rvec_tvec_from_matrix(m)
-            self.extra["opencv_board_rvec"], self.extra["opencv_board_tvec"] = r.tolist(), t.tolist()
+            self.opencv_board_rvec, self.opencv_board_tvec = r.tolist(), t.tolist()
 
     def to_dict(self) -> dict:
-        d = asdict(self)
-        extra = d.pop("extra")
-        d.update(extra)
+        """The report's JSON object: the fixed keys, then the optional keys that are set."""
+        d = {}
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if f.name in _OPTIONAL and v is None:
+                continue
+            d[f.name] = v
         return jsonable(d)
+
+
+_OPTIONAL = frozenset(OPTIONAL_KEYS)
 
 
 def make_report(items) -> dict:

@@ -158,7 +158,7 @@ class TrackerSpec:
     ----------
     dictionary : str or None
         ArUco dictionary name or custom dictionary file (single-marker mode; None:
-        :data:`arshadow.tracking.marker.DEFAULT_DICTIONARY`). A board names its own: a different one is an error.
+        :data:`arshadow.tracking.dictionary.DEFAULT_DICTIONARY`). A board names its own: a different one is an error.
     marker_length : float or None
         Marker side, metres.
     marker_id : int or None
@@ -166,7 +166,7 @@ class TrackerSpec:
     board : str or None
         Board file (GridBoard or ChArUco) instead of one marker.
     refine : str or None
-        Corner refinement; ``"default"``: the tracker's own default (:data:`arshadow.tracking.marker.DEFAULT_REFINE`).
+        Corner refinement; ``"default"``: the tracker's own default (:data:`arshadow.tracking.detect.DEFAULT_REFINE`).
     """
 
     dictionary: str | None = None
@@ -176,14 +176,15 @@ class TrackerSpec:
     refine: str | None = "default"
 
     def kwargs(self) -> dict:
-        """Keyword arguments of :class:`arshadow.tracking.marker.MarkerTracker` (the board file loaded).
+        """Keyword arguments of :class:`arshadow.tracking.tracker.MarkerTracker` (the board file loaded).
 
         Raises
         ------
         UsageError
             Neither a marker length nor a board; an unknown dictionary.
         """
-        from .tracking.marker import DEFAULT_DICTIONARY, get_dictionary, load_board
+        from .tracking.board import load_board
+        from .tracking.dictionary import DEFAULT_DICTIONARY, get_dictionary
 
         if self.board is None and self.marker_length is None:
             raise UsageError("give --marker-length M (metres) for a single marker, or --board B")
@@ -262,8 +263,8 @@ class SceneSpec:
         from .lights.spec import parse_light
 
         intr = self.camera if isinstance(self.camera, Intrinsics) else Intrinsics.from_file(self.camera)
-        from .tracking.marker import MarkerTracker
         from .geometry.mesh import placement_warnings
+        from .tracking.tracker import MarkerTracker
 
         tracker = self.tracker.kwargs()
         MarkerTracker(intr, **tracker)  # a dictionary conflicting with the board, a bad id: a usage error
@@ -292,7 +293,7 @@ class Scene:
     lights : list of arshadow.lights.spec.Light
     options : RenderOptions
     tracker : dict
-        Keyword arguments of :class:`arshadow.tracking.marker.MarkerTracker`.
+        Keyword arguments of :class:`arshadow.tracking.tracker.MarkerTracker`.
     """
 
     intrinsics: object
@@ -313,7 +314,7 @@ def _check_silhouette_name(name: str) -> None:
 SCENE_KEYS = ("calib", "marker_length", "board", "dictionary", "marker_id", "refine", "model", "scale", "rotate",
               "place", "color", "lights", "soft_samples", "silhouette", "shadow_method", "opacity",
               "shadow_color", "aa", "ground_size", "no_object", "roi", "truncate", "fast_detect", "plan", "compose",
-              "shadowmap_size", "track_roi")
+              "shadowmap_size", "track_roi", "light_from")
 
 
 def _triple(v, key):
@@ -364,6 +365,23 @@ def _path(v, base_dir):
     return str(p)
 
 
+def _apply_estimate(d: dict, base_dir) -> dict:
+    """``light_from``: the estimate's light (unless ``lights`` are given), its shadow colour (opacity 1) and
+    the marker paper's exposure on the object's colour (``occluder_color``)."""
+    from .estimate.result import load_estimate, scene_overrides
+
+    d = dict(d)
+    o = scene_overrides(load_estimate(_path(d.pop("light_from"), base_dir)), _rgb_text(d.get("color")))
+    if not d.get("lights"):
+        d["lights"] = list(o["lights"])
+    d["opacity"] = o["opacity"]
+    if d.get("shadow_color") is None:
+        d["_shadow_color_linear"] = o["shadow_color"]
+    if "occluder_color" in o:
+        d["_occluder_color"] = o["occluder_color"]
+    return d
+
+
 def scene_from_dict(d, base_dir=None) -> SceneSpec:
     """The one builder of :class:`SceneSpec`: from a mapping with the keys of :data:`SCENE_KEYS`.
 
@@ -396,12 +414,14 @@ def scene_from_dict(d, base_dir=None) -> SceneSpec:
         if "lights" in d:
             raise UsageError("give either 'light' or 'lights', not both")
         d["lights"] = d.pop("light")
-    unknown = sorted(set(d) - set(SCENE_KEYS))
+    unknown = sorted(set(d) - set(SCENE_KEYS) - {"_shadow_color_linear", "_occluder_color"})
     if unknown:
         raise UsageError(f"unknown scene key(s) {', '.join(map(repr, unknown))} (known: {', '.join(SCENE_KEYS)})")
+    if d.get("light_from") is not None:  # a measured light (arshadow light -o FILE): docs/light.md
+        d = _apply_estimate(d, base_dir)
     for key in ("calib", "model", "lights"):
-        if d.get(key) is None:
-            raise UsageError(f"the scene needs {key!r}")
+        if d.get(key) is None or (key == "lights" and d[key] in ((), [])):
+            raise UsageError(f"the scene needs {key!r}" + (" (--light L or --light-from FILE)" if key == "lights" else ""))
     lights = d["lights"]
     if isinstance(lights, str) or not hasattr(lights, "__iter__"):
         lights = [lights]
@@ -441,6 +461,10 @@ def scene_from_dict(d, base_dir=None) -> SceneSpec:
             opts[key] = _value(d, key, conv)
     if d.get("no_object"):
         opts["draw_occluder"] = False
+    if d.get("_shadow_color_linear") is not None:
+        opts["shadow_color"] = d["_shadow_color_linear"]
+    if d.get("_occluder_color") is not None:
+        opts["occluder_color"] = d["_occluder_color"]
     return SceneSpec(camera=calib, tracker=tracker, model=model_spec,
                      lights=tuple(s if not isinstance(s, str) else s.strip() for s in lights),
                      options=RenderOptions(**opts))

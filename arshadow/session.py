@@ -1,4 +1,4 @@
-"""The Python entry point: a :class:`Session` renders photos of one scene.
+"""The Python entry point and the engine: a :class:`Session` tracks, plans and renders photos of one scene.
 
 ::
 
@@ -9,32 +9,57 @@
     with arshadow.Session(spec) as s:
         result = s.process(image_bgr)          # FrameResult: composite, mask, pose, item, timings, plan
 
-A session loads the scene once (:meth:`arshadow.scene.SceneSpec.build`: errors surface at construction),
-creates its OpenGL context on first use (once: ``track`` alone never creates one) and keeps the caches of
-a run (trackers per photo size, silhouettes and volumes per light, lens maps, the renderer). It pickles
-as its spec: a worker process unpickles it into a fresh session of the same scene.
+A frame goes through three steps, each a public method:
 
-For a video engine: :meth:`Session.track` (pose only), :meth:`Session.render` (at a given pose),
-:meth:`Session.set_lights` / :meth:`Session.set_time` (time-lapse), :meth:`Session.state` /
+1. :meth:`Session.track`: marker / board detection and pose (the fast first pass of
+   :mod:`arshadow.tracking.fastdetect`, the full search only if it finds nothing) -> ``MarkerPose``;
+2. :meth:`Session.plan`: :func:`arshadow.plan.plan_frame` (pure, no GL): ROI and canvas, near plane,
+   z-pass / z-fail per light, which cached geometry is reused; at render time also the compose path
+   (:func:`arshadow.plan.decide_compose`) -> :class:`arshadow.plan.FramePlan`;
+3. :meth:`Session.render` (at a pose or a plan): :func:`arshadow.execute.execute`: volumes, renderer, lens
+   warp, composite -> :class:`FrameResult`.
+
+:meth:`Session.process` is ``track`` then ``render``. A session loads the scene once
+(:meth:`arshadow.scene.SceneSpec.build`: errors surface at construction), creates its OpenGL context on first
+use (once: ``track`` and ``plan`` alone never create one) and keeps the caches of a run (trackers and lens
+maps per photo size, silhouettes and volumes per light, the renderer). It pickles as its spec: a worker
+process unpickles it into a fresh session of the same scene.
+
+For a video engine: :meth:`Session.track` (pose only, grey images too), :meth:`Session.render` (at a given
+pose), :meth:`Session.set_lights` / :meth:`Session.set_time` (time-lapse), :meth:`Session.state` /
 :meth:`Session.restore` (resume a run or start a chunk of it with the same history).
 """
 
 from __future__ import annotations
 
+import logging
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .execute import STAGES
-from .report import ReportItem
+from .compose.composite import Workspace
+from .compose.lens import LensWarp
+from .engine import CalibrationState, check_image, default_renderer, estimate_pose
+from .errors import UsageError
+from .execute import execute
+from .geometry.mesh import placement_warnings
+from .io import read_image
+from .lights.spec import parse_light
+from .plan import FramePlan, SceneGeometry, decide_compose, plan_frame
+from .render_api import Renderer
+from .report import ReportItem, StageTimings
+from .scene import Scene, SceneSpec, load_scene, scene_from_dict
+from .transforms import invert_rigid, rvec_tvec_from_matrix
 
 __all__ = ["Session", "FrameResult", "render_photo"]
+
+log = logging.getLogger(__name__)
 
 
 @dataclass
 class FrameResult:
-    """One photo's result.
+    """One frame's result (fields are added at the end, with defaults).
 
     Attributes
     ----------
@@ -42,14 +67,14 @@ class FrameResult:
         The photo with the object and its shadow (BGR).
     mask : (H, W) uint8 or None
         The shadow mask of CONVENTIONS.md (None when not asked for).
-    pose : arshadow.tracking.marker.MarkerPose or None
+    pose : arshadow.tracking.pose.MarkerPose or None
         The tracked pose (None when rendering at a given ``cam_from_world``).
     cam_from_world : (4, 4) float64
         The pose rendered.
     item : arshadow.report.ReportItem
         The report entry (``output``/``mask`` paths left for the caller).
-    timings_ms : dict
-        Per stage (:data:`arshadow.execute.STAGES`), milliseconds.
+    timings : arshadow.report.StageTimings
+        Milliseconds per stage.
     plan : arshadow.plan.FramePlan
         What was decided for the frame, with reasons (``plan.decisions``).
     """
@@ -59,27 +84,37 @@ class FrameResult:
     pose: object
     cam_from_world: np.ndarray
     item: ReportItem
-    timings_ms: dict = field(default_factory=dict)
-    plan: object = None
+    timings: StageTimings = field(default_factory=StageTimings)
+    plan: FramePlan | None = None
+
+    @property
+    def timings_ms(self) -> dict[str, float]:
+        """``timings`` as the report's ``{stage: ms}`` (rounded to microseconds)."""
+        return self.timings.as_dict(3)
 
 
 class Session:
-    """Render photos of one :class:`arshadow.scene.SceneSpec`.
+    """Track, plan and render photos of one :class:`arshadow.scene.SceneSpec`.
 
     Parameters
     ----------
     spec : arshadow.scene.SceneSpec
-        The scene (or a mapping for :func:`arshadow.scene.scene_from_dict`, or a job file path for
-        :func:`arshadow.scene.load_scene`).
+        The scene (or a mapping for :func:`arshadow.scene.scene_from_dict`, a job file path for
+        :func:`arshadow.scene.load_scene`, or an already loaded :class:`arshadow.scene.Scene`: objects
+        instead of files; such a session does not pickle).
     lights : sequence of arshadow.lights.spec.Light, optional
-        Lights to start with instead of the spec's (a time-lapse's static lights plus its sun's first
-        position).
+        Lights to start with instead of the spec's.
     context : moderngl.Context, optional
         Use this OpenGL context (not released by :meth:`close`) instead of creating one on first use.
     renderer : Renderer or callable, optional
         A renderer to share (:class:`arshadow.render_api.Renderer`, not released by :meth:`close`), or
         ``renderer(ctx, options) -> Renderer`` making this session's own: another shadow technique
-        (default: the stencil :class:`arshadow.gl.renderer.ShadowRenderer` with ``options.aa`` samples).
+        (default: the stencil :class:`arshadow.gl.stencil.ShadowRenderer` with ``options.aa`` samples).
+
+    Attributes
+    ----------
+    compose_chooser : arshadow.gl.compose.PathChooser
+        Measures the numpy and shader compose paths when the plan says ``"measure"``.
 
     Raises
     ------
@@ -88,54 +123,58 @@ class Session:
     """
 
     def __init__(self, spec, *, lights=None, context=None, renderer=None):
-        from .pipeline import Compositor
-        from .scene import SceneSpec, load_scene, scene_from_dict
-
-        if isinstance(spec, dict):
-            spec = scene_from_dict(spec)
-        elif not isinstance(spec, SceneSpec):
-            spec = load_scene(spec)
-        self.spec = spec
-        self.scene = spec.build(lights=lights)
-        self._ctx = context
-        self._own_ctx = context is None
-        self._renderer_factory = renderer
-        self._sun = None  # (static lights, sun tracks) of set_time
-        from .render_api import Renderer
-
+        if isinstance(spec, Scene):
+            self.spec, self.scene = None, spec
+        else:
+            if isinstance(spec, dict):
+                spec = scene_from_dict(spec)
+            elif not isinstance(spec, SceneSpec):
+                spec = load_scene(spec)
+            self.spec = spec
+            self.scene = spec.build(lights=lights)
+        self.options = self.scene.options
+        self.geometry = SceneGeometry(self.scene.caster, self.options, self.scene.lights)
+        self._ctx, self._own_ctx = context, context is None
         shared = renderer if isinstance(renderer, Renderer) else None
-        if shared is not None:
-            self._renderer_factory = None
-        self._compositor = Compositor(None, self.scene.intrinsics, self.scene.caster, self.scene.lights,
-                                      self.scene.options, tracker=self.scene.tracker, renderer=shared,
-                                      make_renderer=self._make_renderer)
+        self._renderer, self._own_renderer = shared, shared is None
+        self._renderer_factory = None if shared is not None else renderer
+        self._gpu = None
+        self._sun = None  # (static lights, sun tracks) of set_time
+        self._calibs: dict = {}
+        self._lenses: dict = {}
+        self._work = Workspace()
+        self._warned_inside = False
+        from .gl.compose import PathChooser  # deferred: no GL at import (moderngl loads on first render)
+
+        self.compose_chooser = PathChooser(force=None if self.options.compose == "auto" else self.options.compose)
 
     # -- resources ------------------------------------------------------------------------------------
     @property
     def context(self):
         """The OpenGL context (created on first use, once per session)."""
         if self._ctx is None:
-            from .gl.context import create_context
+            from .gl.context import create_context  # deferred: moderngl loads on first render only
 
             self._ctx = create_context()
         return self._ctx
 
-    def _make_renderer(self, options):
-        if self._renderer_factory is not None:
-            return self._renderer_factory(self.context, options)
-        from .pipeline import default_renderer
-
-        return default_renderer(self.context, options)
-
     @property
     def renderer(self):
         """The renderer (made, with the context, on first use)."""
-        return self._compositor.renderer
+        if self._renderer is None:
+            if self._renderer_factory is not None:
+                self._renderer = self._renderer_factory(self.context, self.options)
+            else:
+                self._renderer = default_renderer(self.context, self.options)
+        return self._renderer
 
-    @property
-    def compositor(self):
-        """The :class:`arshadow.pipeline.Compositor` doing the work (caches per photo size)."""
-        return self._compositor
+    def _gpu_compositor(self):
+        """The shader compose path on the renderer's context (made on first use)."""
+        if self._gpu is None:
+            from .gl.compose import GpuCompositor  # deferred: GL, only when the shader path runs
+
+            self._gpu = GpuCompositor(self.renderer.ctx)
+        return self._gpu
 
     @property
     def intrinsics(self):
@@ -145,11 +184,16 @@ class Session:
     @property
     def notes(self) -> list[str]:
         """Notes on the current lights (e.g. a sun below the horizon)."""
-        return self._compositor.notes
+        return self.geometry.notes
 
     def close(self) -> None:
-        """Release the renderer and (if this session created it) the OpenGL context."""
-        self._compositor.close()
+        """Release the renderer (if made here) and the OpenGL context (if this session created it)."""
+        if self._own_renderer and self._renderer is not None:
+            self._renderer.release()
+        self._renderer = None
+        if self._gpu is not None:
+            self._gpu.release()
+            self._gpu = None
         if self._own_ctx and self._ctx is not None:
             self._ctx.release()
             self._ctx = None
@@ -162,22 +206,147 @@ class Session:
 
     def __reduce__(self):
         # a session pickles as its spec: the receiver loads the scene and makes its own context
+        if self.spec is None:
+            raise UsageError("a Session made from a loaded Scene does not pickle; make it from a SceneSpec")
         return (Session, (self.spec,))
 
-    # -- per photo ------------------------------------------------------------------------------------
-    def process(self, image, name: str = "", want_mask: bool = True, out=None, mask_out=None) -> FrameResult:
-        """Track the marker and composite the object and its shadow into one photo.
+    # -- per photo size -------------------------------------------------------------------------------
+    def calibration(self, width: int, height: int) -> CalibrationState:
+        """Intrinsics (scaled to the size), lens warp and trackers for a photo size
+        (:class:`arshadow.engine.CalibrationState`, built once per size).
+
+        Raises
+        ------
+        CalibrationError
+            A size whose aspect ratio differs from the calibration's.
+        """
+        key = (int(width), int(height))
+        c = self._calibs.get(key)
+        if c is None:
+            intr, scaled = self.intrinsics.for_image(width, height)
+            tracker = self.scene.tracker
+            # video: each tracker searches a window around its last detection first (the planner's tracking
+            # ROI, full-frame fallback: arshadow/tracking/roi_track.py)
+            roi = bool(self.options.track_roi and self.options.plan != "general" and "board" not in tracker)
+            lens = self._lens_for(intr) if intr.has_distortion else None
+            c = self._calibs[key] = CalibrationState(intr, scaled, lens, dict(tracker), roi,
+                                                     bool(self.options.fast_detect))
+        return c
+
+    def _lens_for(self, intr):
+        """The cached :class:`LensWarp` of a calibration (one map per distinct calibration)."""
+        lens = self._lenses.get(intr)
+        if lens is None:
+            lens = self._lenses[intr] = LensWarp(intr)
+        return lens
+
+    def compose_key(self, width: int, height: int, distorted: bool) -> tuple:
+        """The key under which the compose path is measured: (GL renderer, size, anti-aliasing, lens)."""
+        ctx = getattr(self.renderer, "ctx", None)
+        backend = (getattr(ctx, "info", None) or {}).get("GL_RENDERER", "?") if ctx is not None else "?"
+        return (backend, int(width), int(height), int(self.options.aa), bool(distorted))
+
+    # -- the three steps --------------------------------------------------------------------------------
+    def track(self, image, timings: StageTimings | None = None):
+        """Marker / board pose only (no rendering, no GL): the fast pass, the full search if it finds nothing.
+
+        Parameters
+        ----------
+        image : (H, W, 3) uint8 BGR or (H, W) uint8 grey
+        timings : arshadow.report.StageTimings, optional
+            ``detect`` and ``pose`` are added to.
+
+        Returns
+        -------
+        arshadow.tracking.pose.MarkerPose
+
+        Raises
+        ------
+        MarkerNotFoundError
+        """
+        image = check_image(image, "image", grey_ok=True)
+        cal = self.calibration(image.shape[1], image.shape[0])
+        return estimate_pose(cal, image, timings if timings is not None else StageTimings())[0]
+
+    def plan(self, pose, width: int, height: int, *, modes=None) -> FramePlan:
+        """The :class:`arshadow.plan.FramePlan` for a pose and photo size, without rendering (no GL).
+
+        Parameters
+        ----------
+        pose : arshadow.tracking.pose.MarkerPose or (4, 4) float64
+            A tracked pose or ``cam_from_world``.
+        width, height : int
+        modes : list of str, optional
+            Force the volume mode per light (tests compare z-pass and z-fail).
+
+        The compose path is decided when the plan is rendered (it depends on the output buffers).
+        """
+        cal = self.calibration(width, height)
+        cfw = np.asarray(getattr(pose, "cam_from_world", pose), np.float64).reshape(4, 4)
+        if self.options.plan == "general" or "reuse" in self.options.plan_off:
+            self.geometry.forget()  # the reference rebuilds every light's geometry every frame
+        return plan_frame(self.geometry, cal.intrinsics, cfw, int(width), int(height), lens=cal.lens, modes=modes)
+
+    def render(self, image, pose=None, *, plan: FramePlan | None = None, name: str = "", want_mask: bool = True,
+               out=None, mask_out=None, timings: StageTimings | None = None, modes=None) -> FrameResult:
+        """Composite at a given pose, or carry out a plan of :meth:`plan`.
 
         Parameters
         ----------
         image : (H, W, 3) uint8
-            BGR photo (not modified).
+            BGR photo (not modified unless it is ``out``).
+        pose : arshadow.tracking.pose.MarkerPose or (4, 4) float64
+            A tracked pose or ``cam_from_world`` (not with ``plan``).
+        plan : arshadow.plan.FramePlan, optional
+            A plan of :meth:`plan` for this image's size.
         name : str
             Used in the report item and messages.
         want_mask : bool
             Also compute the full-size mask.
         out, mask_out : arrays, optional
-            Buffers for the composite and the mask (reused across photos of one size).
+            Buffers for the composite ``(H, W, 3) uint8`` and the mask ``(H, W) uint8`` (reused across
+            frames of one size by callers that consume each result at once; ``out`` may be ``image``).
+        timings : arshadow.report.StageTimings, optional
+            Stage times to add to (e.g. the ``detect``/``pose`` of :meth:`track`); ``total`` grows by this
+            call's time.
+        modes : list of str, optional
+            Force the volume mode per light (as :meth:`plan`).
+
+        Returns
+        -------
+        FrameResult
+
+        Raises
+        ------
+        ImageError, CalibrationError
+            Unusable image, or a size the calibration cannot be scaled to.
+        """
+        if (pose is None) == (plan is None):
+            raise UsageError("Session.render needs a pose or a plan (one of them)")
+        t0 = time.perf_counter()
+        image = check_image(image, name)
+        timings = timings if timings is not None else StageTimings()
+        item = ReportItem(input=name)
+        if plan is None:
+            plan = self.plan(pose, image.shape[1], image.shape[0], modes=modes)
+        elif tuple(plan.size) != (image.shape[1], image.shape[0]):
+            raise UsageError(f"{name or 'image'}: the plan is for {plan.size[0]}x{plan.size[1]}, the image is "
+                             f"{image.shape[1]}x{image.shape[0]}")
+        tracked = pose if hasattr(pose, "cam_from_world") else None
+        res = self._render(image, plan, tracked, item, timings, want_mask, out, mask_out)
+        timings.total += (time.perf_counter() - t0) * 1e3
+        item.timings_ms = timings.as_dict(3)
+        return res
+
+    def process(self, image, name: str = "", want_mask: bool = True, out=None, mask_out=None) -> FrameResult:
+        """:meth:`track` then :meth:`render`: composite the object and its shadow into one photo.
+
+        Parameters
+        ----------
+        image : (H, W, 3) uint8
+            BGR photo (not modified unless it is ``out``).
+        name, want_mask, out, mask_out
+            As :meth:`render`.
 
         Returns
         -------
@@ -190,97 +359,67 @@ class Session:
         ImageError, CalibrationError
             Unusable image, or a size the calibration cannot be scaled to.
         """
-        comp, mask, item, pose, plan = self._compositor.process_full(image, name, want_mask, out, mask_out)
-        return FrameResult(comp, mask, pose, np.asarray(pose.cam_from_world, np.float64), item,
-                           dict(item.timings_ms), plan)
-
-    def track(self, image, timings=None, extra=None):
-        """Marker / board pose only (no rendering, no GL): the fast pass, the full search if it finds nothing.
-
-        Parameters
-        ----------
-        image : (H, W, 3) uint8 BGR or (H, W) uint8 grey
-        timings : dict, optional
-            ``detect`` and ``pose`` (milliseconds) are added to.
-        extra : dict, optional
-            Gets ``"detector"`` when the full search had to run.
-
-        Returns
-        -------
-        arshadow.tracking.marker.MarkerPose
-
-        Raises
-        ------
-        MarkerNotFoundError
-        """
-        from .pipeline import check_bgr_image
-
-        image = np.asarray(image)
-        if not (image.ndim == 2 and image.dtype == np.uint8):  # a grey image (a video's Y plane) is tracked as is
-            image = check_bgr_image(image, "image")
-        cal = self._compositor.calib_for(image.shape[1], image.shape[0])
-        return self._compositor.track(image, cal, timings, extra)
-
-    def render(self, image, pose, name: str = "", want_mask: bool = True, out=None, mask_out=None,
-               timings=None) -> FrameResult:
-        """Composite at a given pose (a video engine's second half; tests with a known pose).
-
-        Parameters
-        ----------
-        image : (H, W, 3) uint8
-        pose : arshadow.tracking.marker.MarkerPose or (4, 4) float64
-            A tracked pose or ``cam_from_world``.
-        name, want_mask, out, mask_out
-            As :meth:`process`.
-        timings : dict, optional
-            Stage timings to add to (e.g. the ``detect``/``pose`` of :meth:`track`); ``total`` is set to
-            their sum.
-
-        Returns
-        -------
-        FrameResult
-        """
-        from .pipeline import check_bgr_image
-
         t0 = time.perf_counter()
-        image = check_bgr_image(image, name)
-        timings = timings if timings is not None else dict.fromkeys(STAGES, 0.0)
-        for k in STAGES:
-            timings.setdefault(k, 0.0)
-        comp = self._compositor
-        cal = comp.calib_for(image.shape[1], image.shape[0])
-        res, mask, item, plan = comp.render_item(image, pose, cal, name=name, timings=timings, want_mask=want_mask,
-                                                 out=out, mask_out=mask_out)
-        timings["total"] = timings.get("total", 0.0) + (time.perf_counter() - t0) * 1e3
-        item.timings_ms = {k: round(v, 3) for k, v in timings.items()}
-        marker_pose = pose if hasattr(pose, "cam_from_world") else None
-        cam_from_world = np.asarray(getattr(pose, "cam_from_world", pose), np.float64).reshape(4, 4)
-        return FrameResult(res, mask, marker_pose, cam_from_world, item, dict(item.timings_ms), plan)
+        timings = StageTimings()
+        image = check_image(image, name)
+        cal = self.calibration(image.shape[1], image.shape[0])
+        pose, detector = estimate_pose(cal, image, timings)
+        item = ReportItem(input=name, detector=detector)
+        plan = self.plan(pose, image.shape[1], image.shape[0])
+        res = self._render(image, plan, pose, item, timings, want_mask, out, mask_out)
+        note = cal.detect_note()
+        if note is not None:
+            item.plan["detect"] = note
+        timings.total = (time.perf_counter() - t0) * 1e3
+        item.timings_ms = timings.as_dict(3)
+        return res
 
-    def calibration(self, width: int, height: int):
-        """Intrinsics (scaled to the size), trackers and lens warp for a photo size
-        (:class:`arshadow.pipeline.CalibrationState`, built once per size).
+    def _render(self, image, plan: FramePlan, pose, item: ReportItem, timings, want_mask, out, mask_out):
+        """Execute ``plan`` on ``image`` and fill ``item`` (all but ``timings_ms``); ``pose``: the tracked
+        :class:`~arshadow.tracking.pose.MarkerPose` or None."""
+        H, W = image.shape[:2]
+        cal = self.calibration(W, H)
+        cfw = plan.cam_from_world
+        if cal.was_scaled:
+            item.calibration_scaled = {"from": [self.intrinsics.width, self.intrinsics.height], "to": [W, H]}
+        if self.notes:
+            item.notes = list(self.notes)
+        if pose is not None:
+            item.set_pose(pose)
+        else:
+            rvec, tvec = rvec_tvec_from_matrix(cfw)
+            item.rvec, item.tvec = rvec.tolist(), tvec.tolist()
+        if not self._warned_inside:
+            for msg in placement_warnings(self.scene.caster, eye_world=invert_rigid(cfw)[:3, 3]):
+                log.warning(msg)
+                self._warned_inside = True  # once per run, not per frame
+        renderer = key = None
+        if not plan.empty:  # the renderer (and the context) is made only when there is something to draw
+            renderer = self.renderer
+            key = self.compose_key(W, H, cal.lens is not None)
+            self._decide_compose(plan, renderer, key, want_mask, out, mask_out)
+        out, mask = execute(plan, image, cal.intrinsics, geometry=self.geometry, renderer=renderer, lens=cal.lens,
+                            work=self._work, timings=timings, item=item, want_mask=want_mask, out=out,
+                            mask_out=mask_out, chooser=self.compose_chooser, gpu=self._gpu_compositor,
+                            compose_key=key)
+        return FrameResult(out, mask, pose, np.asarray(cfw, np.float64), item, timings, plan)
 
-        Raises
-        ------
-        CalibrationError
-            A size whose aspect ratio differs from the calibration's.
-        """
-        return self._compositor.calib_for(width, height)
-
-    def plan(self, pose, width: int, height: int):
-        """The :class:`arshadow.plan.FramePlan` for a pose and photo size, without rendering (no GL)."""
-        cal = self._compositor.calib_for(width, height)
-        cfw = np.asarray(getattr(pose, "cam_from_world", pose), np.float64)
-        return self._compositor.plan(cal.intrinsics, cfw, width, height, lens=cal.lens)
+    def _decide_compose(self, plan, renderer, key, want_mask, out, mask_out) -> None:
+        """Record the plan's compose decision (unless it has one these buffers allow)."""
+        available = bool(getattr(renderer, "gpu_layers", False)) and (out is None or out.flags.c_contiguous) and \
+            (not want_mask or mask_out is None or mask_out.flags.c_contiguous)
+        if plan.compose == "cpu" or (plan.compose is not None and available):
+            return
+        chooser = self.compose_chooser
+        decide_compose(plan, force=chooser.force, shader_available=available,
+                       measured=None if chooser.force else chooser.decisions.get(key))
 
     # -- lights and history ---------------------------------------------------------------------------
     def set_lights(self, lights) -> int:
         """Replace the lights (spec strings or :class:`arshadow.lights.spec.Light`), keeping the cached geometry
-        of the lights that stay; returns the number of (sample) lights to recompute."""
-        from .lights.spec import parse_light
-
-        return self._compositor.set_lights([parse_light(s) if isinstance(s, str) else s for s in lights])
+        of the lights that stay (:meth:`arshadow.plan.SceneGeometry.set_lights`); returns the number of
+        (sample) lights to recompute."""
+        return self.geometry.set_lights([parse_light(s) if isinstance(s, str) else s for s in lights])
 
     def use_sun_tracks(self, tracks, static=()) -> None:
         """Let :meth:`set_time` move the sun: ``tracks`` (:func:`arshadow.lights.spec.parse_sun_track`) plus fixed
@@ -296,24 +435,22 @@ class Session:
             One per track (``recompute``, ``stale_deg``... for the report).
         """
         if self._sun is None:
-            from .errors import UsageError
-
             raise UsageError("set_time needs sun tracks (Session.use_sun_tracks)")
         static, tracks = self._sun
         frames = [tr.update(when) for tr in tracks]
-        self._compositor.set_lights(list(static) + [tr.light(f) for tr, f in zip(tracks, frames)])
+        self.geometry.set_lights(list(static) + [tr.light(f) for tr, f in zip(tracks, frames)])
         return frames
 
     def state(self) -> dict:
         """The history later frames depend on, picklable: the current lights with their cached silhouettes
         and volumes, and the sun tracks' recompute schedule. :meth:`restore` it (here or in another
         process's session of the same spec) to go on exactly as this session would."""
-        return {"geometry": self._compositor.geometry.state(),
+        return {"geometry": self.geometry.state(),
                 "sun_tracks": None if self._sun is None else [tr.state() for tr in self._sun[1]]}
 
     def restore(self, state: dict) -> None:
         """Set the history saved by :meth:`state`."""
-        self._compositor.geometry.restore(state["geometry"])
+        self.geometry.restore(state["geometry"])
         if state.get("sun_tracks") is not None and self._sun is not None:
             for tr, st in zip(self._sun[1], state["sun_tracks"]):
                 tr.restore(st)
@@ -328,8 +465,6 @@ def render_photo(spec, image, name: str = "", want_mask: bool = True) -> FrameRe
     image : (H, W, 3) uint8 BGR, or a path of a photo
     """
     if not isinstance(image, np.ndarray):
-        from .io import read_image
-
         name = name or str(image)
         image = read_image(image)
     with Session(spec) as s:

@@ -27,10 +27,11 @@ import numpy as np
 from ._check import check_finite, check_shape
 from .camera import Intrinsics
 from .errors import UsageError
-from .tracking.marker import Board, get_dictionary, marker_bits, marker_object_points
+from .tracking.board import Board
+from .tracking.dictionary import get_dictionary, marker_bits, marker_object_points
 from .transforms import transform_points
 
-__all__ = ["SynthPhoto", "render_marker_photo", "look_at_pose", "random_pose", "camera_path", "pan_path"]
+__all__ = ["SynthPhoto", "camera_effects", "camera_path", "look_at_pose", "pan_path", "random_pose", "render_marker_photo", "render_print_scene"]
 
 PAPER_WHITE = 235.0
 INK_BLACK = 22.0
@@ -375,47 +376,15 @@ def _plane_coords(hinv, mx, my):
     return X / Wh, Y / Wh, valid
 
 
-def render_marker_photo(intrinsics: Intrinsics, cam_from_world, *, dictionary="DICT_6X6_250", marker_id=0,
-                        marker_length=None, board=None, noise_sigma=0.0, blur_sigma=0.0, jpeg_quality=None,
-                        exposure=1.0, seed=None, floor="texture", paper_margin=None,
-                        supersample=None) -> SynthPhoto:
-    """Render a photo of a printed marker (or board) lying on a floor, seen from ``cam_from_world``.
+def render_print_scene(intrinsics: Intrinsics, cam_from_world, *, dictionary="DICT_6X6_250", marker_id=0,
+                       marker_length=None, board=None, floor="texture", paper_margin=None, supersample=None) -> dict:
+    """The floor and the print seen from ``cam_from_world``, before any camera effect.
 
-    Parameters
-    ----------
-    intrinsics : Intrinsics
-        The camera, including its lens distortion (applied exactly).
-    cam_from_world : (4, 4) float64
-        True pose, world (marker / board frame) -> OpenCV camera.
-    dictionary : str
-        Dictionary name or file (single marker; a board brings its own).
-    marker_id : int
-        The marker's id (single marker).
-    marker_length : float
-        Marker side in metres (single marker). Give this *or* ``board``.
-    board : Board, optional
-        A grid or ChArUco board (its world frame: see :mod:`arshadow.tracking.marker`).
-    noise_sigma : float
-        Gaussian sensor noise, standard deviation in 8-bit units.
-    blur_sigma : float
-        Gaussian optical blur, pixels.
-    jpeg_quality : int, optional
-        JPEG-compress the photo at this quality (1..100).
-    exposure : float
-        Brightness factor (1 = nominal; paper white = 235).
-    seed : int, optional
-        Seed of the noise.
-    floor : str
-        ``"texture"`` (procedural, default) or ``"plain"`` (uniform grey).
-    paper_margin : float, optional
-        White paper around the print, metres (default 0.3 x marker length, boards 0.5 x the larger of
-        square and marker length).
-    supersample : int, optional
-        Samples per pixel side in the paper's region (default: 4, fewer for very large prints).
-
-    Returns
-    -------
-    SynthPhoto
+    The same scene as :func:`render_marker_photo` (parameters alike), as reflectance: the returned
+    ``"image"`` is (H, W, 3) float32 BGR in 8-bit sRGB code units (paper white = :data:`PAPER_WHITE`, ink =
+    :data:`INK_BLACK`, the floor's texture), not clipped nor rounded. Also returned: ``"cam_from_world"``
+    (4, 4), ``"corners_world"`` {id: (4, 3)}, ``"paper_world"`` (4, 3), ``"dictionary"`` and
+    ``"supersample"`` (samples per pixel side used in the paper's region).
     """
     if not isinstance(intrinsics, Intrinsics):
         raise UsageError("intrinsics must be an arshadow.camera.Intrinsics")
@@ -423,10 +392,6 @@ def render_marker_photo(intrinsics: Intrinsics, cam_from_world, *, dictionary="D
                         "cam_from_world").copy()
     if (board is None) == (marker_length is None):
         raise UsageError("give exactly one of marker_length and board")
-    if jpeg_quality is not None and not 1 <= int(jpeg_quality) <= 100:
-        raise UsageError(f"jpeg_quality must be 1..100, got {jpeg_quality}")
-    if not (exposure > 0 and math.isfinite(exposure)):
-        raise UsageError(f"exposure must be positive, got {exposure}")
     W, H = intrinsics.width, intrinsics.height
     mx, my, pts32, (mx8, my8) = _pinhole_maps(intrinsics)
     K = intrinsics.K
@@ -512,7 +477,13 @@ def render_marker_photo(intrinsics: Intrinsics, cam_from_world, *, dictionary="D
     else:
         S = 0
 
-    # -- camera effects --
+    return {"image": img, "cam_from_world": pose, "corners_world": corners_world, "paper_world": paper_world,
+            "dictionary": dict_name, "supersample": S}
+
+
+def camera_effects(img, *, exposure=1.0, blur_sigma=0.0, noise_sigma=0.0, seed=None, jpeg_quality=None) -> np.ndarray:
+    """Exposure, Gaussian blur, Gaussian noise (8-bit units), rounding and JPEG on a float32 image in 8-bit
+    code units: (H, W, 3) float32 (modified in place) -> (H, W, 3) uint8."""
     if exposure != 1.0:
         img *= np.float32(exposure)
     if blur_sigma and blur_sigma > 0:
@@ -529,6 +500,63 @@ def render_marker_photo(intrinsics: Intrinsics, cam_from_world, *, dictionary="D
     if jpeg_quality is not None:
         ok, buf = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, int(jpeg_quality)])
         out = cv2.imdecode(buf, cv2.IMREAD_COLOR)
+
+    return out
+
+
+def render_marker_photo(intrinsics: Intrinsics, cam_from_world, *, dictionary="DICT_6X6_250", marker_id=0,
+                        marker_length=None, board=None, noise_sigma=0.0, blur_sigma=0.0, jpeg_quality=None,
+                        exposure=1.0, seed=None, floor="texture", paper_margin=None,
+                        supersample=None) -> SynthPhoto:
+    """Render a photo of a printed marker (or board) lying on a floor, seen from ``cam_from_world``.
+
+    Parameters
+    ----------
+    intrinsics : Intrinsics
+        The camera, including its lens distortion (applied exactly).
+    cam_from_world : (4, 4) float64
+        True pose, world (marker / board frame) -> OpenCV camera.
+    dictionary : str
+        Dictionary name or file (single marker; a board brings its own).
+    marker_id : int
+        The marker's id (single marker).
+    marker_length : float
+        Marker side in metres (single marker). Give this *or* ``board``.
+    board : Board, optional
+        A grid or ChArUco board (its world frame: see :mod:`arshadow.tracking.board`).
+    noise_sigma : float
+        Gaussian sensor noise, standard deviation in 8-bit units.
+    blur_sigma : float
+        Gaussian optical blur, pixels.
+    jpeg_quality : int, optional
+        JPEG-compress the photo at this quality (1..100).
+    exposure : float
+        Brightness factor (1 = nominal; paper white = 235).
+    seed : int, optional
+        Seed of the noise.
+    floor : str
+        ``"texture"`` (procedural, default) or ``"plain"`` (uniform grey).
+    paper_margin : float, optional
+        White paper around the print, metres (default 0.3 x marker length, boards 0.5 x the larger of
+        square and marker length).
+    supersample : int, optional
+        Samples per pixel side in the paper's region (default: 4, fewer for very large prints).
+
+    Returns
+    -------
+    SynthPhoto
+    """
+    if jpeg_quality is not None and not 1 <= int(jpeg_quality) <= 100:
+        raise UsageError(f"jpeg_quality must be 1..100, got {jpeg_quality}")
+    if not (exposure > 0 and math.isfinite(exposure)):
+        raise UsageError(f"exposure must be positive, got {exposure}")
+    scene = render_print_scene(intrinsics, cam_from_world, dictionary=dictionary, marker_id=marker_id,
+                               marker_length=marker_length, board=board, floor=floor, paper_margin=paper_margin,
+                               supersample=supersample)
+    pose, img, S = scene["cam_from_world"], scene["image"], scene["supersample"]
+    corners_world, dict_name, paper_world = scene["corners_world"], scene["dictionary"], scene["paper_world"]
+    out = camera_effects(img, exposure=exposure, blur_sigma=blur_sigma, noise_sigma=noise_sigma, seed=seed,
+                         jpeg_quality=jpeg_quality)
 
     corners_px = {mid: intrinsics.project(c, pose) for mid, c in corners_world.items()}
     ch = None

@@ -56,7 +56,7 @@ def _run(code: str) -> subprocess.CompletedProcess:
 def test_import_arshadow_loads_no_opengl():
     r = _run("import sys, arshadow\n"
              "arshadow.Session, arshadow.SceneSpec, arshadow.scene_from_dict, arshadow.render_photo, arshadow.synth\n"
-             "import arshadow.plan, arshadow.execute, arshadow.render_api, arshadow.pipeline\n"
+             "import arshadow.plan, arshadow.execute, arshadow.render_api, arshadow.session, arshadow.engine\n"
              "bad = [m for m in sys.modules if m.startswith('moderngl') or m.startswith('arshadow.gl')]\n"
              "assert not bad, bad\nprint('ok')")
     assert r.returncode == 0 and r.stdout.strip() == "ok", r.stderr
@@ -223,7 +223,7 @@ def test_session_routes_agree_and_the_pose_is_the_true_one(gl_ctx, tol):
     union = np.count_nonzero((res.mask > 127) | (res3.mask > 127))
     assert inter / union > tol.end_to_end_iou_median
     assert set(res.timings_ms) >= {"detect", "pose", "render", "composite", "total"}
-    assert res.plan.roi == tuple(res.item.extra["roi"])
+    assert res.plan.roi == tuple(res.item.roi)
 
 
 def _worker_mask(session, image):
@@ -275,7 +275,7 @@ def test_a_renderer_without_raw_layers_plugs_in_and_agrees(gl_ctx, tol):
     import dataclasses
 
     import arshadow
-    from arshadow.gl.renderer import ShadowRenderer
+    from arshadow.gl.stencil import ShadowRenderer
     from arshadow.render_api import Renderer
 
     class NoLayers:
@@ -336,7 +336,7 @@ def test_marker_tracker_detector_option():
     from arshadow.camera import Intrinsics
     from arshadow.errors import UsageError
     from arshadow.tracking.fastdetect import HalfResolutionDetector
-    from arshadow.tracking.marker import MarkerTracker
+    from arshadow.tracking.tracker import MarkerTracker
 
     photo, truth = _photo()
     cam = Intrinsics.from_file(CALIB)
@@ -395,7 +395,7 @@ def test_time_lapse_lights_and_their_state_without_gl():
     assert s.set_time(t0)[0].recompute
     plan = s.plan(pose, 1280, 720)
     assert len(plan.lights) == 2 and not any(lp.reuse for lp in plan.lights)
-    geo = s.compositor.geometry
+    geo = s.geometry
     for lp in plan.lights:  # build what the frame needs, as the executor would
         geo.volume(geo.lights[lp.index], caps=lp.caps)
     f = s.set_time(t0 + timedelta(seconds=10))[0]  # the sun moved ~0.04 deg: no recompute

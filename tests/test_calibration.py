@@ -7,14 +7,13 @@ import shutil
 import cv2
 import numpy as np
 import pytest
-
 from conftest import TOL
 
-from arshadow.tracking.calibration import MIN_VIEWS, calibrate, find_view, parse_pattern
 from arshadow.camera import Intrinsics
 from arshadow.errors import CalibrationError, UsageError
-from arshadow.tracking.marker import Board
 from arshadow.synth import random_pose, render_marker_photo
+from arshadow.tracking.board import Board
+from arshadow.tracking.calibration import MIN_VIEWS, calibrate, find_view, parse_pattern
 
 
 @pytest.mark.parametrize(

@@ -80,7 +80,7 @@ def test_good_and_bad_inputs_in_one_run(photos, tmp_path, capsys):
     # the scene's box is convex: the planner draws its shadow as a projection (no silhouette needed)
     assert ok["marker_ids"] == [0] and ok["mode"] == "planar" and ok["silhouette_edges"] == 0
     assert ok["plan"]["plan"] == "auto" and "convex" in ok["plan"]["lights"][0]["why"]["planar"]
-    from arshadow.tracking.marker import AMBIGUITY_FLAG
+    from arshadow.tracking.quality import AMBIGUITY_FLAG
 
     assert ok["pose_flagged"] is (ok["pose_ambiguity"] >= AMBIGUITY_FLAG)  # the flag is in every report
     assert set(ok["timings_ms"]) >= {"detect", "pose", "silhouette", "volume", "render", "readback", "warp",

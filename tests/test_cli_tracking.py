@@ -3,13 +3,11 @@
 from __future__ import annotations
 
 import json
-import shutil
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
-
 from conftest import TOL
 
 from arshadow.camera import Intrinsics
@@ -227,7 +225,7 @@ def test_board_png_and_board_file(capsys, tmp_path):
     code, _, _ = run(capsys, "board", "--type", "charuco", "--size", "5,7", "--square-mm", 30, "--marker-mm", 22,
                      "-o", tmp_path / "b.png", "--save-board", tmp_path / "b.yml", "--svg")
     assert code == 0 and (tmp_path / "b.svg").is_file()
-    from arshadow.tracking.marker import load_board
+    from arshadow.tracking.board import load_board
 
     board = load_board(tmp_path / "b.yml")
     img = cv2.imread(str(tmp_path / "b.png"))

@@ -90,7 +90,7 @@ def _scenes():
 
 def _render(ctx_or_renderer, scene: Scene, mode: str | None = None, **kw):
     """Render a scene; ``mode=None`` picks z-pass/z-fail with the conservative test."""
-    from arshadow.gl.renderer import LightPass
+    from arshadow.gl.stencil import LightPass
     from arshadow.geometry.silhouette import silhouette
     from arshadow.transforms import CV_TO_GL, invert_rigid
     from arshadow.geometry.volume import camera_may_be_in_shadow, near_plane_radius, shadow_volume
@@ -125,7 +125,7 @@ def _threshold(scene):
 
 @pytest.fixture(scope="module")
 def renderer(gl_ctx):
-    from arshadow.gl.renderer import ShadowRenderer
+    from arshadow.gl.stencil import ShadowRenderer
 
     r = ShadowRenderer(gl_ctx, max_width=W, max_height=H)
     yield r
@@ -250,7 +250,8 @@ def test_stencil_bits_and_state(gl_ctx, renderer, scene_results):
 
 def test_self_shadowing(ctx, tol):
     """A low box's top face (facing the light) inside a tall box's shadow gets only ambient light."""
-    from arshadow.gl.renderer import LightPass, ShadowRenderer, srgb_to_linear
+    from arshadow.compose.composite import srgb_to_linear
+    from arshadow.gl.stencil import LightPass, ShadowRenderer
     from arshadow.geometry.mesh import ShadowCaster, load_occluder
     from arshadow.geometry.silhouette import silhouette
     from arshadow.synth import look_at_pose
@@ -301,7 +302,7 @@ def test_render_sub_canvas_matches_full(renderer, scene_results, tol):
     K = _intrinsics(sc.fx)
     u0, v0, w, h = 500, 200, 400, 300
     res_full = r["res"]
-    from arshadow.gl.renderer import LightPass
+    from arshadow.gl.stencil import LightPass
     from arshadow.geometry.silhouette import silhouette
     from arshadow.geometry.volume import shadow_volume
 
@@ -318,7 +319,7 @@ def test_render_sub_canvas_matches_full(renderer, scene_results, tol):
 
 def test_bad_input(renderer):
     from arshadow.errors import ShapeError, UsageError
-    from arshadow.gl.renderer import LightPass
+    from arshadow.gl.stencil import LightPass
 
     sc = _scenes()[0]
     K = _intrinsics(1000.0)
@@ -340,7 +341,7 @@ def test_contact_depth_stability(renderer, tol):
     not flicker there. Jittered poses (two of them grazing, camera 6-8 cm above the ground), z-pass, z-fail
     and a z-fail volume truncated just below the ground: every render matches the oracle up to a few
     boundary pixels. (Measured in docs/rendering.md: a polygon offset on the ground makes this worse.)"""
-    from arshadow.gl.renderer import LightPass
+    from arshadow.gl.stencil import LightPass
     from arshadow.geometry.mesh import load_occluder
     from arshadow.geometry.silhouette import silhouette
     from arshadow.synth import look_at_pose
@@ -373,7 +374,7 @@ def test_contact_depth_stability(renderer, tol):
 def test_antialiased_mask(ctx, tol, samples, supersample):
     """MSAA / supersampling give fractional edge values; thresholded at 0.5 the mask still matches the
     pixel-centre oracle, and the fractional values approach the true area coverage."""
-    from arshadow.gl.renderer import LightPass, ShadowRenderer
+    from arshadow.gl.stencil import LightPass, ShadowRenderer
     from arshadow.geometry.silhouette import silhouette
     from arshadow.transforms import CV_TO_GL
     from arshadow.geometry.volume import shadow_volume
@@ -417,7 +418,7 @@ def test_antialiased_mask(ctx, tol, samples, supersample):
 def test_planar_mode_and_empty_pass(renderer, tol):
     """Paper 002's projection shadow (mode "planar") gives the same ground mask as the volumes; a pass with
     no volume casts nothing but still lights the occluder."""
-    from arshadow.gl.renderer import LightPass
+    from arshadow.gl.stencil import LightPass
     from arshadow.transforms import CV_TO_GL
 
     sc = _scenes()[0]
@@ -439,7 +440,7 @@ def test_buffers_grow_and_caster_cache(ctx):
     bounded and keyed by the caster object; released casters' buffers are freed."""
     import gc
 
-    from arshadow.gl.renderer import LightPass, ShadowRenderer
+    from arshadow.gl.stencil import LightPass, ShadowRenderer
     from arshadow.geometry.mesh import load_occluder
     from arshadow.geometry.silhouette import silhouette
     from arshadow.transforms import CV_TO_GL
@@ -481,7 +482,7 @@ def test_upload_reuse_follows_the_volumes(ctx):
     arrays edited in place is uploaded again."""
     from dataclasses import replace
 
-    from arshadow.gl.renderer import LightPass, ShadowRenderer
+    from arshadow.gl.stencil import LightPass, ShadowRenderer
     from arshadow.geometry.silhouette import silhouette
     from arshadow.transforms import CV_TO_GL
     from arshadow.geometry.volume import shadow_volume

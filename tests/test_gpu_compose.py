@@ -14,6 +14,11 @@ import pytest
 W, H = 1280, 720
 
 
+
+def _rendered(res):
+    """A :class:`arshadow.session.FrameResult` as ``(composite, mask, report item)``."""
+    return res.composite, res.mask, res.item
+
 def _intrinsics(dist=()):
     from arshadow.camera import Intrinsics
 
@@ -30,7 +35,8 @@ def _photo(seed=3):
 def _both_paths(ctx, compose, *, dist, aa, caster_spec, light, eye, target, **opts):
     from arshadow.lights.spec import parse_light
     from arshadow.geometry.mesh import load_occluder
-    from arshadow.pipeline import Compositor, RenderOptions
+    from arshadow.scene import RenderOptions, Scene
+    from arshadow.session import Session
     from arshadow.synth import look_at_pose
 
     intr = _intrinsics(dist)
@@ -39,11 +45,12 @@ def _both_paths(ctx, compose, *, dist, aa, caster_spec, light, eye, target, **op
     photo = _photo()
     results = {}
     for path in ("cpu", "gpu"):
-        comp = Compositor(ctx, intr, caster, [parse_light(light)], RenderOptions(aa=aa, compose=path, **opts),
-                          tracker={"marker_length": 0.05})
+        scene = Scene(intr, caster, [parse_light(light)], RenderOptions(aa=aa, compose=path, **opts),
+                      {"marker_length": 0.05})
+        comp = Session(scene, context=ctx)
         with comp:
-            out, mask, info = comp.render_pose(photo, intr, pose)
-        assert info["compose"] == path
+            out, mask, info = _rendered(comp.render(photo, pose))
+        assert info.compose == path
         results[path] = (out, mask, info)
     return photo, results
 
@@ -65,7 +72,7 @@ CASES = {
 def test_shader_compose_equals_numpy_compose(ctx, tol, case, dist, aa):
     photo, res = _both_paths(ctx, None, dist=dist, aa=aa, **CASES[case])
     (o_cpu, m_cpu, i_cpu), (o_gpu, m_gpu, i_gpu) = res["cpu"], res["gpu"]
-    assert i_cpu["roi"] == i_gpu["roi"] and i_cpu["canvas"] == i_gpu["canvas"]
+    assert i_cpu.roi == i_gpu.roi and i_cpu.canvas == i_gpu.canvas
     # the scene really puts a shadow (and the occluder, when drawn) into the photo
     assert np.count_nonzero(m_cpu) > 2000
     assert np.count_nonzero(np.any(o_cpu != photo, axis=2)) > 2000
@@ -76,15 +83,15 @@ def test_shader_compose_equals_numpy_compose(ctx, tol, case, dist, aa):
     assert int(d.max()) <= tol.gpu_compose_levels
     assert int(dm.max()) <= tol.gpu_compose_levels
     # outside the ROI both leave the photo as it was
-    x0, y0, w, h = i_cpu["roi"]
+    x0, y0, w, h = i_cpu.roi
     outside = np.ones((H, W), bool)
     outside[y0 : y0 + h, x0 : x0 + w] = False
     assert np.array_equal(o_gpu[outside], photo[outside]) and not np.any(m_gpu[outside])
 
 
 def test_gpu_layers_hold_what_the_readback_holds(ctx):
-    """render(readback=False) keeps the same layers the default readback returns (MSAA resolved on the GPU)."""
-    from arshadow.gl.renderer import LightPass, ShadowRenderer
+    """render_gpu() keeps the same layers the default readback returns (MSAA resolved on the GPU)."""
+    from arshadow.gl.stencil import LightPass, ShadowRenderer
     from arshadow.geometry.mesh import load_occluder
     from arshadow.geometry.silhouette import silhouette
     from arshadow.synth import look_at_pose
@@ -103,7 +110,7 @@ def test_gpu_layers_hold_what_the_readback_holds(ctx):
             kw = dict(projection=proj, view=CV_TO_GL @ pose, width=canvas[2], height=canvas[3], caster=caster,
                       passes=[LightPass(L, 1.0, vol, "zfail")])
             ref = r.render(**kw)
-            lay = r.render(**kw, readback=False)
+            lay = r.render_gpu(**kw)
             c = np.frombuffer(lay.color_tex.read(), np.float16).reshape(lay.color_tex.height, lay.color_tex.width, 4)
             m = np.frombuffer(lay.mask_tex.read(), np.float16).reshape(lay.mask_tex.height, lay.mask_tex.width, 2)
             c = c[: canvas[3], : canvas[2]][::-1].astype(np.float32)
@@ -151,7 +158,8 @@ def test_in_place_composite_while_the_chooser_times_both_paths(ctx, tol):
     from arshadow.geometry.mesh import load_occluder
     from arshadow.gl.compose import PathChooser
     from arshadow.lights.spec import parse_light
-    from arshadow.pipeline import Compositor, RenderOptions
+    from arshadow.scene import RenderOptions, Scene
+    from arshadow.session import Session
     from arshadow.synth import look_at_pose
 
     c = CASES["box_point"]
@@ -160,13 +168,13 @@ def test_in_place_composite_while_the_chooser_times_both_paths(ctx, tol):
     results = {}
     for where in ("copy", "in_place"):
         photo = np.array(_photo())
-        with Compositor(ctx, intr, caster, [parse_light(c["light"])], RenderOptions(compose="auto"),
-                        tracker={"marker_length": 0.05}) as comp:
+        scene = Scene(intr, caster, [parse_light(c["light"])], RenderOptions(compose="auto"), {"marker_length": 0.05})
+        with Session(scene, context=ctx) as comp:
             comp.compose_chooser = PathChooser(decisions={})  # nothing decided yet: this first frame is timed
-            out, mask, info = comp.render_pose(photo, intr, pose, out=photo if where == "in_place" else None)
+            out, mask, info = _rendered(comp.render(photo, pose, out=photo if where == "in_place" else None))
             assert set(next(iter(comp.compose_chooser.decisions.values()))["ms"]) == {"cpu", "gpu"}
         assert (out is photo) == (where == "in_place")
-        results[where] = (out.copy(), info["compose"])
+        results[where] = (out.copy(), info.compose)
     (a, ca), (b, cb) = results["copy"], results["in_place"]
     assert np.count_nonzero(np.any(a != _photo(), axis=2)) > 2000
     lim = 0 if ca == cb else tol.gpu_compose_levels

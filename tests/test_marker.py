@@ -14,19 +14,17 @@ from conftest import TOL
 
 from arshadow.camera import Intrinsics
 from arshadow.errors import CalibrationError, MarkerNotFoundError, UsageError
-from arshadow.tracking.marker import (
-    AMBIGUITY_FLAG,
+from arshadow.tracking.board import Board, load_board
+from arshadow.tracking.detect import (
     DEFAULT_REFINE,
     REFINE_METHODS,
-    Board,
-    MarkerTracker,
     detect_markers,
-    get_dictionary,
-    load_board,
     load_detector_params,
     make_detector_params,
-    marker_object_points,
 )
+from arshadow.tracking.dictionary import get_dictionary, marker_object_points
+from arshadow.tracking.quality import AMBIGUITY_FLAG
+from arshadow.tracking.tracker import MarkerTracker
 from arshadow.report import ReportItem
 from arshadow.synth import look_at_pose, random_pose, render_marker_photo
 from arshadow.transforms import rotation_error_deg

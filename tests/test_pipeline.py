@@ -1,4 +1,4 @@
-"""The compositor pipeline against the independent per-pixel oracle (tests/image_oracle.py).
+"""The session (track, plan, render) against the independent per-pixel oracle (tests/image_oracle.py).
 
 - lens distortion k1 = -0.25: the composited mask, per DISTORTED pixel centre, against the oracle evaluated
   at that pixel's exact pinhole position (undistorted by OpenCV's iterative solver, not by arshadow);
@@ -78,10 +78,26 @@ def _plain_photo(value=150):
     return img
 
 
-def _compositor(ctx, caster, lights, **opts):
-    from arshadow.pipeline import Compositor, RenderOptions
+def _session(ctx, caster, lights, intr=None, **opts):
+    """A session of loaded objects on the shared context (intrinsics default: :func:`_intrinsics`)."""
+    from arshadow.scene import RenderOptions, Scene
+    from arshadow.session import Session
 
-    return Compositor(ctx, _intrinsics(), caster, lights, RenderOptions(**opts), tracker={"marker_length": 0.05})
+    scene = Scene(intr if intr is not None else _intrinsics(), caster, lights, RenderOptions(**opts),
+                  {"marker_length": 0.05})
+    return Session(scene, context=ctx)
+
+
+def _render(session, photo, pose, **kw):
+    """``Session.render`` at a known pose: ``(composite, mask, report item)``."""
+    res = session.render(photo, pose, **kw)
+    return res.composite, res.mask, res.item
+
+
+def _process(session, photo, **kw):
+    """``Session.process``: ``(composite, mask, report item)``."""
+    res = session.process(photo, **kw)
+    return res.composite, res.mask, res.item
 
 
 def _lights(*specs):
@@ -136,14 +152,14 @@ def test_lens_distortion_k1(ctx, tol, case, aa):
         caster = load_occluder("torus:0.06,0.02", rotate=(70, 0, 20), place=(0, 0, 0.09))
         lights = _lights("directional:-0.3,0.5,1.0")
         pose = look_at_pose([-0.5, -0.45, 0.35], [-0.08, 0.12, 0.0])
-    comp = _compositor(ctx, caster, lights, aa=aa)
+    comp = _session(ctx, caster, lights, intr=intr, aa=aa)
     with comp:
         photo = _plain_photo()
-        out, mask, info = comp.render_pose(photo, intr, pose)
+        out, mask, info = _render(comp, photo, pose)
     orc = DistortedOracle(ShadowOracle(intr.K, pose, caster.vertices, caster.faces, _oracle_lights(lights)),
                           intr.K, intr.dist)
     # evaluate on a region well beyond the compositor's ROI (catches anything cut off by the ROI)
-    x0, y0, w, h = info["roi"]
+    x0, y0, w, h = info.roi
     big = (max(0, x0 - 60), max(0, y0 - 60), min(W, x0 + w + 60) - max(0, x0 - 60),
            min(H, y0 + h + 60) - max(0, y0 - 60))
     r = _compare(mask, orc, big, 0.5)
@@ -158,8 +174,8 @@ def test_lens_distortion_k1(ctx, tol, case, aa):
     assert not np.any(mask[outside]) and np.array_equal(out[outside], photo[outside])
     # a pinhole render of the same pose lands elsewhere near the corner: distortion really matters here
     pin = _intrinsics()
-    with _compositor(ctx, caster, lights) as c2:
-        _, mask_pin, _ = c2.render_pose(photo, pin, pose)
+    with _session(ctx, caster, lights, intr=pin) as c2:
+        _, mask_pin, _ = _render(c2, photo, pose)
     assert iou(mask_pin >= 128, mask >= 128) < 0.9
 
 
@@ -171,10 +187,10 @@ def test_nothing_in_view_renders_nothing(ctx):
     caster = load_occluder("box:0.04,0.04,0.06")
     pose = look_at_pose([0.0, -0.3, 0.3], [0.0, -1.5, 0.0])  # looking away, down at the ground behind
     photo = _plain_photo()
-    with _compositor(ctx, caster, _lights("point:0.1,0.1,0.5")) as comp:
-        out, mask, info = comp.render_pose(photo, _intrinsics(), pose)
+    with _session(ctx, caster, _lights("point:0.1,0.1,0.5")) as comp:
+        out, mask, info = _render(comp, photo, pose)
     assert np.array_equal(out, photo) and not mask.any()
-    assert info["roi"][2] * info["roi"][3] == 0 or info.get("content") is None
+    assert info.roi[2] * info.roi[3] == 0 or info.content is None
 
 
 def test_sun_below_the_horizon_casts_nothing(ctx):
@@ -183,10 +199,10 @@ def test_sun_below_the_horizon_casts_nothing(ctx):
 
     night = _lights("sun:48.8566,2.3522,2024-06-21T23:30+02:00")
     assert not night[0].above_horizon
-    with _compositor(ctx, load_occluder("box:0.04,0.04,0.06"), night) as comp:
-        out, mask, info = comp.render_pose(_plain_photo(), _intrinsics(), look_at_pose([0.1, -0.4, 0.3], [0, 0, 0]))
+    with _session(ctx, load_occluder("box:0.04,0.04,0.06"), night) as comp:
+        out, mask, info = _render(comp, _plain_photo(), look_at_pose([0.1, -0.4, 0.3], [0, 0, 0]))
         assert comp.notes and "below the horizon" in comp.notes[0]
-    assert info["mode"] is None and info["modes"] == [] and not mask.any()
+    assert info.mode is None and info.modes == [] and not mask.any()
 
 
 def test_mask_is_zero_on_the_object_and_full_in_the_shadow(ctx):
@@ -197,8 +213,8 @@ def test_mask_is_zero_on_the_object_and_full_in_the_shadow(ctx):
     lights = _lights("point:0.25,0.15,0.45")
     pose = look_at_pose([0.15, -0.55, 0.42], [0.0, 0.0, 0.02])
     intr = _intrinsics()
-    with _compositor(ctx, caster, lights) as comp:
-        out, mask, info = comp.render_pose(_plain_photo(), intr, pose)
+    with _session(ctx, caster, lights) as comp:
+        out, mask, info = _render(comp, _plain_photo(), pose)
     orc = ShadowOracle(intr.K, pose, caster.vertices, caster.faces, _oracle_lights(lights))
     om, og, oo = orc.image(W, H)
     inner = lambda m: cv2.erode(m.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)  # noqa: E731
@@ -215,12 +231,13 @@ def test_roi_render_equals_full_render(ctx, knot):
     photo = _plain_photo(120)
     for dist in ((), (-0.045, 0.021, 0.0004, -0.0003, -0.006)):
         intr = _intrinsics(dist)
-        with _compositor(ctx, knot, lights) as c_roi, _compositor(ctx, knot, lights, roi=False) as c_full:
-            out_r, mask_r, info_r = c_roi.render_pose(photo, intr, pose)
-            out_f, mask_f, info_f = c_full.render_pose(photo, intr, pose)
-        x0, y0, w, h = info_r["roi"]
+        with (_session(ctx, knot, lights, intr=intr) as c_roi,
+              _session(ctx, knot, lights, intr=intr, roi=False) as c_full):
+            out_r, mask_r, info_r = _render(c_roi, photo, pose)
+            out_f, mask_f, info_f = _render(c_full, photo, pose)
+        x0, y0, w, h = info_r.roi
         assert w * h < 0.25 * W * H  # the ROI really is small here
-        assert info_f["roi"] == [0, 0, W, H]
+        assert info_f.roi == [0, 0, W, H]
         assert mask_f.sum() > 255 * 2000
         # identical up to MSAA sample jitter at edges: compare thresholded masks and colours
         assert iou(mask_r >= 128, mask_f >= 128) > 0.999
@@ -237,12 +254,12 @@ def test_zpass_equals_zfail_when_camera_outside(ctx, knot):
     lights = _lights("point:0.2,0.1,0.5", "directional:-0.4,0.3,1@0.5")
     pose = look_at_pose([0.25, -0.45, 0.4], [0.0, 0.02, 0.03])
     intr = _intrinsics((-0.045, 0.021, 0.0004, -0.0003, -0.006))
-    with _compositor(ctx, knot, lights) as comp:
+    with _session(ctx, knot, lights, intr=intr) as comp:
         photo = _plain_photo()
-        out_a, mask_a, info = comp.render_pose(photo, intr, pose)
-        assert info["modes"] == ["zpass", "zpass"]
-        out_b, mask_b, info_b = comp.render_pose(photo, intr, pose, modes=["zfail", "zfail"])
-        assert info_b["mode"] == "zfail"
+        out_a, mask_a, info = _render(comp, photo, pose)
+        assert info.modes == ["zpass", "zpass"]
+        out_b, mask_b, info_b = _render(comp, photo, pose, modes=["zfail", "zfail"])
+        assert info_b.mode == "zfail"
     assert np.array_equal(mask_a, mask_b)
     # the occluder's self-shadowing may differ on a handful of pixels: z-fail's near cap lies on the
     # occluder's own light-facing faces (depth ties on the surface); the ground mask above is exact
@@ -264,9 +281,9 @@ def test_camera_inside_shadow_volume_uses_zfail(ctx, tol):
     intr = _intrinsics()
     # the wall is a convex box, which the planner would draw with projection shadows (exact): switch that
     # off to test the volume mode choice
-    with _compositor(ctx, wall, lights, plan_off=("planar",)) as comp:
-        out, mask, info = comp.render_pose(_plain_photo(), intr, pose)
-    assert info["modes"] == ["zfail"]
+    with _session(ctx, wall, lights, plan_off=("planar",)) as comp:
+        out, mask, info = _render(comp, _plain_photo(), pose)
+    assert info.modes == ["zfail"]
     orc = ShadowOracle(intr.K, pose, wall.vertices, wall.faces, _oracle_lights(lights))
     r = _compare(mask, orc, (0, 0, W, H), 0.5, boundary=False)
     assert r["n_shadow"] >= tol.shadow_min_pixels and r["iou"] >= tol.shadow_iou_worst, r
@@ -280,10 +297,10 @@ def test_ground_size_clips_the_roi_and_the_mask(ctx):
     lights = _lights("directional:1,0,0.08")  # near the horizon: a very long shadow
     pose = look_at_pose([0.0, -0.5, 0.4], [0.0, 0.0, 0.0])
     intr = _intrinsics()
-    with _compositor(ctx, caster, lights) as c_inf, _compositor(ctx, caster, lights, ground_size=0.3) as c_sq:
-        _, m_inf, i_inf = c_inf.render_pose(_plain_photo(), intr, pose)
-        _, m_sq, i_sq = c_sq.render_pose(_plain_photo(), intr, pose)
-    assert i_sq["roi"][2] * i_sq["roi"][3] < i_inf["roi"][2] * i_inf["roi"][3]
+    with _session(ctx, caster, lights) as c_inf, _session(ctx, caster, lights, ground_size=0.3) as c_sq:
+        _, m_inf, i_inf = _render(c_inf, _plain_photo(), pose)
+        _, m_sq, i_sq = _render(c_sq, _plain_photo(), pose)
+    assert i_sq.roi[2] * i_sq.roi[3] < i_inf.roi[2] * i_inf.roi[3]
     orc = ShadowOracle(intr.K, pose, caster.vertices, caster.faces, _oracle_lights(lights), ground_size=0.3)
     r = _compare(m_sq, orc, (0, 0, W, H), 0.5, boundary=False)
     assert r["iou"] >= 0.97, r
@@ -307,23 +324,24 @@ E2E_POSES = [
 def test_end_to_end_synthetic_photos(ctx, tol):
     from arshadow.camera import Intrinsics
     from arshadow.geometry.mesh import load_occluder
-    from arshadow.pipeline import Compositor, RenderOptions
+    from arshadow.scene import RenderOptions, Scene
+    from arshadow.session import Session
     from arshadow.synth import look_at_pose, render_marker_photo
 
     intr = Intrinsics.from_file(_calib("synth_1280x720.yml"))
     caster = load_occluder("box:0.04,0.03,0.06", place=(0.05, 0.0, 0.0))
     lights = _lights("point:-0.1,0.15,0.4")
     ious = []
-    with Compositor(ctx, intr, caster, lights, RenderOptions(), tracker={"marker_length": 0.05}) as comp:
+    with Session(Scene(intr, caster, lights, RenderOptions(), {"marker_length": 0.05}), context=ctx) as comp:
         for i, (eye, target) in enumerate(E2E_POSES):
             true_pose = look_at_pose(eye, target)
             ph = render_marker_photo(intr, true_pose, marker_length=0.05, noise_sigma=2.0, blur_sigma=0.6,
                                      jpeg_quality=90, seed=i)
-            out, mask, item = comp.process(ph.image, name=f"pose{i}")
+            out, mask, item = _process(comp, ph.image, name=f"pose{i}")
             assert item.status == "ok" and item.marker_ids == [0]
             orc = DistortedOracle(ShadowOracle(intr.K, true_pose, caster.vertices, caster.faces,
                                                _oracle_lights(lights)), intr.K, intr.dist)
-            x0, y0, w, h = item.extra["roi"]
+            x0, y0, w, h = item.roi
             roi = (max(0, x0 - 30), max(0, y0 - 30), min(W, x0 + w + 30) - max(0, x0 - 30),
                    min(H, y0 + h + 30) - max(0, y0 - 30))
             r = _compare(mask, orc, roi, 0.5, boundary=False)
@@ -346,9 +364,10 @@ def _calib(name):
 def test_real_charuco_photo_object_and_shadow_on_the_board(ctx, realdata):
     from arshadow.camera import Intrinsics
     from arshadow.io import read_image
-    from arshadow.tracking.marker import Board
+    from arshadow.tracking.board import Board
     from arshadow.geometry.mesh import load_occluder
-    from arshadow.pipeline import Compositor, RenderOptions
+    from arshadow.scene import RenderOptions, Scene
+    from arshadow.session import Session
 
     folder = realdata / "aruco_tutorial"
     photo = read_image(folder / "choriginal.jpg")
@@ -358,8 +377,8 @@ def test_real_charuco_photo_object_and_shadow_on_the_board(ctx, realdata):
     # board frame: x in [0, 0.2], y in [-0.28, 0]; the object stands near the middle, lit from high up
     caster = load_occluder("box:0.04,0.04,0.05", place=(0.1, -0.14, 0.0))
     lights = _lights("point:-0.05,0.0,0.45")
-    with Compositor(ctx, intr, caster, lights, RenderOptions(), tracker={"board": board}) as comp:
-        out, mask, item = comp.process(photo, name="choriginal.jpg")
+    with Session(Scene(intr, caster, lights, RenderOptions(), {"board": board}), context=ctx) as comp:
+        out, mask, item = _process(comp, photo, name="choriginal.jpg")
     assert np.array_equal(photo, keep)
     assert item.status == "ok" and len(item.marker_ids) >= 10
     # the board's region from OpenCV's own detector (independent of arshadow): hull of all marker corners
@@ -384,7 +403,10 @@ def test_fast_detection_pass_and_its_fallbacks(ctx, monkeypatch, tol):
     from arshadow.camera import Intrinsics
     from arshadow.errors import MarkerNotFoundError
     from arshadow.geometry.mesh import load_occluder
-    from arshadow.pipeline import Compositor, HalfResolutionDetector, RenderOptions, make_fast_tracker
+    from arshadow.scene import RenderOptions, Scene
+    from arshadow.session import Session
+    from arshadow.tracking.fastdetect import HalfResolutionDetector
+    from arshadow.tracking.tracker import make_fast_tracker
     from arshadow.synth import look_at_pose, render_marker_photo
 
     intr = Intrinsics.from_file(_calib("synth_1280x720.yml"))
@@ -409,17 +431,17 @@ def test_fast_detection_pass_and_its_fallbacks(ctx, monkeypatch, tol):
         assert calls["full"] == full_calls, name
         err = np.linalg.norm(est.cam_from_world[:3, 3] - pose[:3, 3]) / np.linalg.norm(pose[:3, 3])
         assert err < tol.fast_detector_distance_rel, (name, err)
-    with Compositor(ctx, intr, load_occluder("box:0.04,0.04,0.04"), _lights("point:0.1,0.1,0.5"),
-                    RenderOptions(), tracker={"marker_length": 0.05}) as comp:
-        _, _, item = comp.process(photos["near"])
-        assert "detector" not in item.extra
+    with Session(Scene(intr, load_occluder("box:0.04,0.04,0.04"), _lights("point:0.1,0.1,0.5"),
+                       RenderOptions(), {"marker_length": 0.05}), context=ctx) as comp:
+        _, _, item = _process(comp, photos["near"])
+        assert item.detector is None
 
         def nothing(image, previous=None):
             raise MarkerNotFoundError("no marker")
 
-        monkeypatch.setattr(comp.calib_for(1280, 720).fast_tracker, "estimate", nothing)
-        _, _, item = comp.process(photos["far"])
-    assert item.status == "ok" and item.extra["detector"].startswith("full")
+        monkeypatch.setattr(comp.calibration(1280, 720).trackers()[0], "estimate", nothing)
+        _, _, item = _process(comp, photos["far"])
+    assert item.status == "ok" and item.detector.startswith("full")
     assert abs(np.linalg.norm(item.tvec) - np.linalg.norm(far[:3, 3])) < tol.fallback_detector_distance_rel * np.linalg.norm(far[:3, 3])
 
 
@@ -431,7 +453,8 @@ def test_mode_choice_uses_the_near_rectangle_not_znear(ctx):
     from arshadow.camera import Intrinsics
     from arshadow.lights.spec import parse_light
     from arshadow.geometry.mesh import load_occluder
-    from arshadow.pipeline import Compositor, RenderOptions
+    from arshadow.scene import RenderOptions, Scene
+    from arshadow.session import Session
     from arshadow.synth import look_at_pose
 
     intr = Intrinsics(fx=500.0, fy=500.0, cx=639.5, cy=359.5, width=1280, height=720, dist=np.zeros(0))
@@ -441,9 +464,9 @@ def test_mode_choice_uses_the_near_rectangle_not_znear(ctx):
     gap = 0.014  # the eye->light ray misses the box by 0.014 in y: more than znear, less than 0.0178
     eye = np.array([-0.3, 0.05 + gap, 0.05])
     cam_from_world = look_at_pose(eye, eye + np.array([0.0, 1.0, -0.3]))
-    with Compositor(ctx, intr, box, [light], RenderOptions(), tracker={"marker_length": 0.05}) as comp:
-        assert comp.modes_for(cam_from_world, znear, intr, (0, 0, 1280, 720)) == ["zfail"]
+    with Session(Scene(intr, box, [light], RenderOptions(), {"marker_length": 0.05}), context=ctx) as comp:
+        assert comp.geometry.modes_for(cam_from_world, znear, intr, (0, 0, 1280, 720)) == ["zfail"]
         # a camera well clear of the volume keeps the cheaper z-pass
         far_eye = np.array([-0.3, 0.05 + 0.05, 0.05])
         far = look_at_pose(far_eye, far_eye + np.array([0.0, 1.0, -0.3]))
-        assert comp.modes_for(far, znear, intr, (0, 0, 1280, 720)) == ["zpass"]
+        assert comp.geometry.modes_for(far, znear, intr, (0, 0, 1280, 720)) == ["zpass"]

@@ -20,6 +20,11 @@ pytestmark = pytest.mark.gl
 W, H = 1280, 720
 
 
+
+def _rendered(res):
+    """A :class:`arshadow.session.FrameResult` as ``(composite, mask, report item)``."""
+    return res.composite, res.mask, res.item
+
 def _spec(lh, w):
     lh = np.asarray(lh, float)
     kind = "point" if lh[3] else "directional"
@@ -75,16 +80,17 @@ def scenes():
 
 def _run(ctx, scene, plan, aa=0, **extra):
     from arshadow.lights.spec import parse_light
-    from arshadow.pipeline import Compositor, RenderOptions
+    from arshadow.scene import RenderOptions, Scene
+    from arshadow.session import Session
 
     name, caster, specs, pose, intr, opts = scene
     lights = [parse_light(s) for s in specs]
     o = {k: v for k, v in opts.items() if v is not None}
     o.update(extra)
     photo = np.full((H, W, 3), 140, np.uint8)
-    with Compositor(ctx, intr, caster, lights, RenderOptions(plan=plan, aa=aa, compose="cpu", **o),
-                    tracker={"marker_length": 0.05}) as comp:
-        out, mask, info = comp.render_pose(photo, intr, pose)
+    scene = Scene(intr, caster, lights, RenderOptions(plan=plan, aa=aa, compose="cpu", **o), {"marker_length": 0.05})
+    with Session(scene, context=ctx) as comp:
+        out, mask, info = _rendered(comp.render(photo, pose))
     weights = np.array([lt.weight for lt in lights], float)
     return out, mask, info, 0.5 * weights.min() / weights.sum() * 255.0
 
@@ -103,45 +109,45 @@ def test_auto_equals_general_on_every_accuracy_scene(ctx, tol, scenes, name):
     sc = scenes[name]
     _, m_gen, i_gen, t = _run(ctx, sc, "general")
     _, m_auto, i_auto, _ = _run(ctx, sc, "auto")
-    assert i_gen["modes"] == ["zfail"] * len(sc[2]) and i_gen["roi"] == [0, 0, W, H]
+    assert i_gen.modes == ["zfail"] * len(sc[2]) and i_gen.roi == [0, 0, W, H]
     a, g = m_auto >= t, m_gen >= t
     assert g.sum() > 1000, "the scene has a shadow in view"
     score = iou(a, g)
-    PLAN_RESULTS[name] = (i_auto["modes"], score)
-    print(f"\n{name}: auto modes {i_auto['modes']}, IoU vs general {score:.6f}")
+    PLAN_RESULTS[name] = (i_auto.modes, score)
+    print(f"\n{name}: auto modes {i_auto.modes}, IoU vs general {score:.6f}")
     assert score >= tol.plan_mask_iou
     # every decision of the auto plan is recorded with its reason
-    assert len(i_auto["plan"]["lights"]) == len(sc[2])
-    assert all(e["why"] for e in i_auto["plan"]["lights"]) and i_auto["plan"]["roi"]
+    assert len(i_auto.plan["lights"]) == len(sc[2])
+    assert all(e["why"] for e in i_auto.plan["lights"]) and i_auto.plan["roi"]
 
 
 def test_planar_taken_for_convex_and_undrawn_never_for_self_shadowing(ctx, scenes):
     # convex boxes (drawn) -> planar
     for name in ("renderer:box_point", "pipeline:mask_zero_on_object", "renderer:box_two_lights"):
-        assert set(_run(ctx, scenes[name], "auto")[2]["modes"]) == {"planar"}, name
+        assert set(_run(ctx, scenes[name], "auto")[2].modes) == {"planar"}, name
     # non-convex occluders drawn (they shadow themselves) -> never planar, whatever the light
     for name in ("renderer:nonconvex_point", "renderer:torus_directional", "pipeline:knot_two_lights_mild_distortion"):
         info = _run(ctx, scenes[name], "auto")[2]
-        assert "planar" not in info["modes"], name
-        assert all("not convex" in e["why"]["planar"] for e in info["plan"]["lights"])
+        assert "planar" not in info.modes, name
+        assert all("not convex" in e["why"]["planar"] for e in info.plan["lights"])
     # the same non-convex knot, not drawn: only the ground receives -> planar
-    assert _run(ctx, scenes["pipeline:knot_no_object"], "auto")[2]["modes"] == ["planar"]
+    assert _run(ctx, scenes["pipeline:knot_no_object"], "auto")[2].modes == ["planar"]
     # a point light below the top of a convex box: volumes
     from arshadow.geometry.mesh import load_occluder
 
     sc = scenes["renderer:box_point"]
     low = (sc[0], load_occluder("box:0.1,0.08,0.15"), ["point:-0.3,0.1,0.1"], sc[3], sc[4], {})
-    assert "planar" not in _run(ctx, low, "auto")[2]["modes"]
+    assert "planar" not in _run(ctx, low, "auto")[2].modes
 
 
 def test_camera_inside_a_volume_never_zpass(ctx, scenes):
     for name in ("renderer:wall_camera_in_shadow", "pipeline:wall_camera_in_shadow"):
         info = _run(ctx, scenes[name], "auto", plan_off=("planar",))[2]
-        assert info["modes"] == ["zfail"], name
-        assert "inside" in info["plan"]["lights"][0]["why"]["mode"]
+        assert info.modes == ["zfail"], name
+        assert "inside" in info.plan["lights"][0]["why"]["mode"]
     # outside every volume: z-pass
     info = _run(ctx, scenes["pipeline:knot_two_lights_mild_distortion"], "auto")[2]
-    assert info["modes"] == ["zpass", "zpass"]
+    assert info.modes == ["zpass", "zpass"]
 
 
 def test_light_with_shadow_off_screen_is_skipped(ctx, tol):
@@ -157,23 +163,24 @@ def test_light_with_shadow_off_screen_is_skipped(ctx, tol):
     sc = ("cull", box, ["point:0.0,0.02,0.6", "directional:1,0,0.15@0.5"], pose, intr, {})
     _, m_auto, i_auto, t = _run(ctx, sc, "auto")
     _, m_gen, i_gen, _ = _run(ctx, sc, "general")
-    assert i_auto["modes"] == ["planar", "none"], i_auto["plan"]
-    assert i_auto["plan"]["lights"][1]["why"]["cull"] == "ground footprint outside the canvas"
+    assert i_auto.modes == ["planar", "none"], i_auto.plan
+    assert i_auto.plan["lights"][1]["why"]["cull"] == "ground footprint outside the canvas"
     assert iou(m_auto >= t, m_gen >= t) >= tol.plan_mask_iou and (m_gen >= t).sum() > 1000
     # with a non-convex occluder the same light is never skipped (its volume may shadow the occluder)
     knot = load_occluder("torus:0.02,0.008", place=(0, 0, 0.1))
     info = _run(ctx, ("cull_knot", knot, sc[2], pose, intr, {}), "auto")[2]
-    assert "none" not in info["modes"]
+    assert "none" not in info.modes
     # the whole scene off screen: no render at all
     away = ("away", box, sc[2], look_at_pose([0.0, -0.3, 0.3], [0.0, -1.5, 0.0]), intr, {})
     _, m, info, _ = _run(ctx, away, "auto")
-    assert not m.any() and set(info["modes"]) == {"none"} and info.get("compose") is None
+    assert not m.any() and set(info.modes) == {"none"} and info.compose is None
 
 
 def test_moved_light_reuses_geometry_only_when_exact(ctx):
     from arshadow.lights.spec import parse_light
     from arshadow.geometry.mesh import load_occluder
-    from arshadow.pipeline import Compositor, RenderOptions
+    from arshadow.scene import RenderOptions, Scene
+    from arshadow.session import Session
     from arshadow.synth import look_at_pose
 
     knot = load_occluder("samples/meshes/knot.ply")
@@ -181,19 +188,20 @@ def test_moved_light_reuses_geometry_only_when_exact(ctx):
     pose = look_at_pose([0.25, -0.45, 0.4], [0.0, 0.02, 0.03])
     photo = np.full((H, W, 3), 140, np.uint8)
     opts = RenderOptions(compose="cpu")
-    with Compositor(ctx, intr, knot, [parse_light("point:0.2,0.1,0.5")], opts) as comp:
-        comp.render_pose(photo, intr, pose)
-        vol0 = comp._lights[0].volumes
+    scene = Scene(intr, knot, [parse_light("point:0.2,0.1,0.5")], opts, {})
+    with Session(scene, context=ctx) as comp:
+        _rendered(comp.render(photo, pose))
+        vol0 = comp.geometry.lights[0].volumes
         for spec, expect in (("point:0.2,0.1,0.5000000000000001", "reused"), ("point:0.200002,0.1,0.5", "re-extruded"),
                              ("point:-0.3,0.3,0.4", None)):
             comp.set_lights([parse_light(spec)])
-            out, mask, info = comp.render_pose(photo, intr, pose)
-            why = info["plan"]["lights"][0]["why"].get("reuse")
+            out, mask, info = _rendered(comp.render(photo, pose))
+            why = info.plan["lights"][0]["why"].get("reuse")
             assert (why is None) if expect is None else (expect in why), (spec, why)
             if expect == "reused":
-                assert all(comp._lights[0].volumes[k] is v for k, v in vol0.items())
-            with Compositor(ctx, intr, knot, [parse_light(spec)], opts) as fresh:
-                out_f, mask_f, _ = fresh.render_pose(photo, intr, pose)
+                assert all(comp.geometry.lights[0].volumes[k] is v for k, v in vol0.items())
+            with Session(Scene(intr, knot, [parse_light(spec)], opts, {}), context=ctx) as fresh:
+                out_f, mask_f, _ = _rendered(fresh.render(photo, pose))
             assert np.array_equal(mask, mask_f) and np.array_equal(out, out_f), spec
 
 
@@ -201,7 +209,7 @@ def test_moved_light_reuses_geometry_only_when_exact(ctx):
 def test_direct_planar_pass_equals_the_stencil_planar_pass(ctx, samples):
     """Convex closed caster: the light-facing faces flattened straight into the mask (one draw per light,
     no stencil count) give the same mask as the stencil projection pass, levels of two lights included."""
-    from arshadow.gl.renderer import ShadowRenderer
+    from arshadow.gl.stencil import ShadowRenderer
     from arshadow.geometry.mesh import load_occluder
     from arshadow.render_api import LightPass
     from arshadow.synth import look_at_pose
@@ -232,7 +240,7 @@ def test_footprint_hull_keeps_the_screen_bounds(light):
     directly: each vertex moved along the light ray to z = 0)."""
     from arshadow.camera import Intrinsics
     from arshadow.geometry.mesh import load_occluder
-    from arshadow.plan import _pinhole_rect, shadow_footprint
+    from arshadow.plan import pinhole_rect, shadow_footprint
     from arshadow.synth import look_at_pose
 
     v = np.asarray(load_occluder("torus:0.05,0.02", place=(0.0, 0.0, 0.03)).vertices, np.float64)
@@ -249,7 +257,7 @@ def test_footprint_hull_keeps_the_screen_bounds(light):
     for _ in range(20):
         eye = rng.uniform([-0.6, -0.6, 0.2], [0.6, 0.6, 0.8])
         pose = look_at_pose(eye, rng.uniform(-0.05, 0.05, 3) * [1, 1, 0])
-        a, b = _pinhole_rect(intr, pose, fp, 1e-3), _pinhole_rect(intr, pose, every, 1e-3)
+        a, b = pinhole_rect(intr, pose, fp, 1e-3), pinhole_rect(intr, pose, every, 1e-3)
         assert (a is None) == (b is None)
         if a is not None:
             np.testing.assert_allclose(a, b, rtol=0, atol=1e-6)

@@ -129,9 +129,9 @@ def test_tracking_roi_window():
 
 def test_tracking_detector_window_then_fallback(tol):
     from arshadow.camera import Intrinsics
-    from arshadow.tracking.marker import MarkerTracker
-    from arshadow.tracking.roi_track import TrackingDetector
     from arshadow.synth import look_at_pose, render_marker_photo
+    from arshadow.tracking.roi_track import TrackingDetector
+    from arshadow.tracking.tracker import MarkerTracker
 
     intr = Intrinsics(900.0, 900.0, 639.5, 359.5, 1280, 720, np.zeros(5))
     trk = MarkerTracker(intr, marker_length=0.05)

@@ -36,7 +36,7 @@ def test_light_inside_bounding_sphere_is_refused():
 @pytest.mark.gl
 @pytest.mark.parametrize("name", ["box_point", "wall_camera_in_shadow"])
 def test_shadowmap_close_to_exact_at_high_resolution(ctx, tol, name):
-    from arshadow.gl.renderer import LightPass
+    from arshadow.gl.stencil import LightPass
     from arshadow.gl.shadowmap import ShadowMapRenderer
     from arshadow.transforms import CV_TO_GL
     from test_gl_renderer import ZNEAR, _intrinsics, _scenes

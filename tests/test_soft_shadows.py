@@ -28,7 +28,7 @@ A, HB = 0.05, 0.1  # box half-width and height (m)
 
 @pytest.fixture(scope="module")
 def scene():
-    for mod in ("arshadow.gl.renderer", "arshadow.geometry.mesh", "arshadow.geometry.silhouette", "arshadow.geometry.volume"):
+    for mod in ("arshadow.gl.stencil", "arshadow.geometry.mesh", "arshadow.geometry.silhouette", "arshadow.geometry.volume"):
         pytest.importorskip(mod)
     from arshadow.camera import Intrinsics
     from arshadow.geometry.mesh import load_occluder
@@ -50,7 +50,7 @@ def scene():
 
 @pytest.fixture(scope="module")
 def renderer(gl_ctx):
-    from arshadow.gl.renderer import ShadowRenderer
+    from arshadow.gl.stencil import ShadowRenderer
 
     r = ShadowRenderer(gl_ctx, max_width=W, max_height=H_IMG, samples=0)
     yield r
@@ -58,7 +58,7 @@ def renderer(gl_ctx):
 
 
 def _render(scene, renderer, lights, mode="zfail"):
-    from arshadow.gl.renderer import LightPass
+    from arshadow.gl.stencil import LightPass
     from arshadow.geometry.silhouette import silhouette
     from arshadow.geometry.volume import shadow_volume
 

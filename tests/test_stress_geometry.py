@@ -245,7 +245,7 @@ class Stats:
 def check_configuration(cfg, renderer, stats: Stats, tol):
     from arshadow.camera import Intrinsics
     from arshadow.errors import LightError
-    from arshadow.gl.renderer import LightPass
+    from arshadow.gl.stencil import LightPass
     from arshadow.geometry.silhouette import silhouette
     from arshadow.transforms import CV_TO_GL, invert_rigid
     from arshadow.geometry.volume import camera_may_be_in_shadow, near_plane_radius, shadow_volume
@@ -423,7 +423,7 @@ def _run(renderer, tol, n_examples, seed_mode):
 
 @pytest.fixture(scope="module")
 def renderer(gl_ctx):
-    from arshadow.gl.renderer import ShadowRenderer
+    from arshadow.gl.stencil import ShadowRenderer
 
     r = ShadowRenderer(gl_ctx, max_width=W, max_height=H)
     yield r

@@ -18,6 +18,11 @@ W, H = 200, 150
 ZNEAR = 0.01
 
 
+
+def _rendered(res):
+    """A :class:`arshadow.session.FrameResult` as ``(composite, mask, report item)``."""
+    return res.composite, res.mask, res.item
+
 def _stack(n: int, side: float = 0.1, gap: float = 0.002, thick: float = 0.001, z0: float = 0.02):
     """``n`` thin square plates stacked above each other (a pixel under them lies in n volume layers)."""
     import trimesh
@@ -34,7 +39,7 @@ def _stack(n: int, side: float = 0.1, gap: float = 0.002, thick: float = 0.001, 
 
 def _render(renderer, caster, light_h, cam_from_world, *, fx=320.0, mode=None, draw_occluder=True, znear=ZNEAR):
     from arshadow.camera import Intrinsics
-    from arshadow.gl.renderer import LightPass
+    from arshadow.gl.stencil import LightPass
     from arshadow.geometry.silhouette import silhouette
     from arshadow.transforms import CV_TO_GL, invert_rigid
     from arshadow.geometry.volume import camera_may_be_in_shadow, near_plane_radius, shadow_volume
@@ -53,7 +58,7 @@ def _render(renderer, caster, light_h, cam_from_world, *, fx=320.0, mode=None, d
 
 @pytest.fixture(scope="module")
 def renderer(gl_ctx):
-    from arshadow.gl.renderer import ShadowRenderer
+    from arshadow.gl.stencil import ShadowRenderer
 
     r = ShadowRenderer(gl_ctx, max_width=W, max_height=H)
     yield r
@@ -125,14 +130,16 @@ def test_depth_precision_at_one_km(gl_ctx, renderer, tol):
     from arshadow.camera import Intrinsics
     from arshadow.lights.spec import parse_light
     from arshadow.geometry.mesh import load_occluder
-    from arshadow.pipeline import Compositor
+    from arshadow.scene import RenderOptions, Scene
+    from arshadow.session import Session
     from arshadow.synth import look_at_pose
 
     box = load_occluder("box:20,20,30")
     light = np.array([-0.3, 0.2, 1.0, 0.0])
     pose = look_at_pose([600.0, -800.0, 150.0], [0.0, 0.0, 10.0])
     K = Intrinsics(fx=2500.0, fy=2500.0, cx=(W - 1) / 2, cy=(H - 1) / 2, width=W, height=H, dist=np.zeros(0))
-    znear = Compositor(gl_ctx, K, box, [parse_light("directional:-0.3,0.2,1")]).znear_for(pose)
+    scene = Scene(K, box, [parse_light("directional:-0.3,0.2,1")], RenderOptions(), {})
+    znear = Session(scene, context=gl_ctx).geometry.znear_for(pose)
     assert znear > 1.0
     res, _, (om, og, oo) = _render(renderer, box, light, pose, fx=2500.0, znear=znear)
     ob = om >= 0.5
@@ -172,7 +179,8 @@ def test_no_light_seam_where_object_meets_shadow(gl_ctx, tol, aa, k1):
     from arshadow.compose.composite import SRGB_TO_LINEAR
     from arshadow.lights.spec import parse_light
     from arshadow.geometry.mesh import load_occluder
-    from arshadow.pipeline import Compositor, RenderOptions
+    from arshadow.scene import RenderOptions, Scene
+    from arshadow.session import Session
     from arshadow.synth import look_at_pose
 
     Wc, Hc = 640, 480
@@ -184,9 +192,10 @@ def test_no_light_seam_where_object_meets_shadow(gl_ctx, tol, aa, k1):
     pose = look_at_pose([0.08, -0.3, 0.05], [0.0, 0.0, 0.0])
     opacity = 0.7
     photo = np.full((Hc, Wc, 3), 150, np.uint8)
-    with Compositor(gl_ctx, intr, box, [parse_light(light_spec)],
-                    RenderOptions(opacity=opacity, aa=aa, occluder_color=(0.0, 0.0, 0.0))) as comp:
-        out, mask, info = comp.render_pose(photo, intr, pose)
+    scene = Scene(intr, box, [parse_light(light_spec)],
+                  RenderOptions(opacity=opacity, aa=aa, occluder_color=(0.0, 0.0, 0.0)), {})
+    with Session(scene, context=gl_ctx) as comp:
+        out, mask, info = _rendered(comp.render(photo, pose))
     # truth over the object's neighbourhood
     uv = intr.project(box.vertices, pose)
     x0, y0 = (np.floor(uv.min(0)) - 4).astype(int)

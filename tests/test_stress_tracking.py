@@ -100,7 +100,7 @@ def _case(kind: str, r, intr):
 
 def _run(kinds, n_per_kind: int, tol, seed=20261123):
     from arshadow.errors import MarkerNotFoundError
-    from arshadow.tracking.marker import MarkerTracker
+    from arshadow.tracking.tracker import MarkerTracker
     from arshadow.transforms import rotation_error_deg
 
     intr = _intr()
@@ -147,7 +147,8 @@ def test_border_occlusion_sees_a_patch_not_a_shadow():
     and the same marker half in a deep shadow (white cells darkened to 35 %) stay near 0 (not flagged)."""
     import cv2
 
-    from arshadow.tracking.marker import MAX_BORDER_OCCLUSION, MarkerTracker, border_occlusion
+    from arshadow.tracking.quality import MAX_BORDER_OCCLUSION, border_occlusion
+    from arshadow.tracking.tracker import MarkerTracker
 
     intr = _intr()
     r = np.random.default_rng(5)

@@ -12,14 +12,14 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-
 from conftest import TOL
 
 from arshadow.camera import Intrinsics
 from arshadow.errors import ShapeError, UsageError
-from arshadow.tracking.marker import Board, marker_object_points
 from arshadow.report import ReportItem
 from arshadow.synth import camera_path, look_at_pose, random_pose, render_marker_photo
+from arshadow.tracking.board import Board
+from arshadow.tracking.dictionary import marker_object_points
 from arshadow.transforms import invert_rigid, rotation_error_deg
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -146,7 +146,7 @@ N_POSES = 200
 def _single_marker_run(n, seed):
     """n photos under the acceptance conditions; returns arrays of errors, ambiguity, flags, misses."""
     from arshadow.errors import MarkerNotFoundError
-    from arshadow.tracking.marker import MarkerTracker
+    from arshadow.tracking.tracker import MarkerTracker
 
     rng = np.random.default_rng(seed)
     rot, trans, amb, flagged, reported, misses = [], [], [], [], [], 0
@@ -176,7 +176,7 @@ def _single_marker_run(n, seed):
 def test_single_marker_accuracy(tol):
     """>= 200 poses at 1280x720: marker 5-10 % of the width, 0.3-0.8 m, tilt 0-70 deg, noise 2, blur 0.6,
     JPEG 90. Errors against the pose the photo was generated from."""
-    from arshadow.tracking.marker import AMBIGUITY_FLAG
+    from arshadow.tracking.quality import AMBIGUITY_FLAG
 
     rot, trans, amb, flagged, reported, misses = _single_marker_run(N_POSES, seed=2)
     n_found = rot.size
@@ -200,7 +200,7 @@ def test_ambiguity_flag_catches_flips():
     whose chosen IPPE solution is the *wrong* one of the pair by more than 5 deg is flagged.
     (Non-flip failures in that regime are not all caught: see docs/tracking.md.)"""
     from arshadow.errors import MarkerNotFoundError
-    from arshadow.tracking.marker import MarkerTracker
+    from arshadow.tracking.tracker import MarkerTracker
 
     rng = np.random.default_rng(21)
     flips = 0
@@ -226,7 +226,7 @@ def test_charuco_accuracy_and_board_beats_marker(tol):
     """ChArUco board: median rotation error <= 0.1 deg; and on the same photos a single marker of the
     board (the one nearest its centre) is clearly worse: several markers of a known layout win."""
     from arshadow.errors import MarkerNotFoundError
-    from arshadow.tracking.marker import MarkerTracker
+    from arshadow.tracking.tracker import MarkerTracker
 
     rng = np.random.default_rng(7)
     bw, bh = CHARUCO.extent
@@ -265,7 +265,8 @@ def test_gridboard_beats_single_marker(tol):
     """A 5x7 grid board of 40 mm markers against one of its own markers, same photos: the board's pose
     (140 points) is more accurate than the single marker's (4 points)."""
     from arshadow.errors import MarkerNotFoundError
-    from arshadow.tracking.marker import load_board, MarkerTracker
+    from arshadow.tracking.board import load_board
+    from arshadow.tracking.tracker import MarkerTracker
 
     board = load_board(ROOT / "calib" / "gridboard_5x7.yml")
     rng = np.random.default_rng(8)

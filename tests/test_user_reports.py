@@ -103,7 +103,7 @@ def test_marker_id_help_is_the_same_in_render_and_pose():
 def test_board_with_conflicting_dictionary_is_refused():
     from arshadow.camera import Intrinsics
     from arshadow.errors import UsageError
-    from arshadow.tracking.marker import MarkerTracker
+    from arshadow.tracking.tracker import MarkerTracker
 
     intr = Intrinsics.from_file(CALIB)
     board = ROOT / "calib" / "gridboard_5x7.yml"
@@ -115,7 +115,7 @@ def test_board_with_conflicting_dictionary_is_refused():
 
 def test_aa_only_documented_values():
     from arshadow.errors import UsageError
-    from arshadow.pipeline import RenderOptions
+    from arshadow.scene import RenderOptions
 
     for ok in (0, 2, 4):
         RenderOptions(aa=ok).check()

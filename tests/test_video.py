@@ -20,7 +20,6 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-
 from image_oracle import ShadowOracle, iou
 from video_clips import CvClipWriter
 
@@ -163,8 +162,8 @@ def _branch_flips(chosen, truth):
 
 
 def test_temporal_choice_removes_ippe_flips():
-    from arshadow.tracking.marker import MarkerTracker
     from arshadow.synth import camera_path, render_marker_photo
+    from arshadow.tracking.tracker import MarkerTracker
     from arshadow.video.chooser import TemporalPoseChooser
 
     intr = _intr()

@@ -146,7 +146,7 @@ class Reference:
 def _configs(ctx, quick: bool):
     """``[(family, label, factory, pass options)]``; factory() -> renderer; pass options: mode, truncate,
     scale (render resolution scale)."""
-    from ..gl.renderer import ShadowRenderer
+    from ..gl.stencil import ShadowRenderer
     from ..gl.shadowmap import MAP_SIZES, ShadowMapRenderer
 
     st = lambda **kw: (lambda: ShadowRenderer(ctx, max_width=W, max_height=H, **kw))  # noqa: E731
@@ -184,7 +184,7 @@ def _configs(ctx, quick: bool):
 def run(cfg: dict, ctx, log) -> list[dict]:
     import cv2
 
-    from ..gl.renderer import LightPass
+    from ..gl.stencil import LightPass
     from ..geometry.silhouette import silhouette
     from ..transforms import CV_TO_GL
     from ..geometry.volume import shadow_volume
@@ -280,7 +280,7 @@ def soft(cfg: dict, ctx, log) -> list[dict]:
     reference| over the pixels where either is non-zero (umbra + penumbra)."""
     from ..camera import Intrinsics
     from ..geometry.exact import ShadowOracle, boundary_error_px, iou
-    from ..gl.renderer import LightPass, ShadowRenderer
+    from ..gl.stencil import LightPass, ShadowRenderer
     from ..lights.spec import parse_light, sample_area_light
     from ..geometry.mesh import load_occluder
     from ..geometry.silhouette import silhouette

@@ -66,7 +66,7 @@ def detectors(cfg: dict, log) -> list[dict]:
     rows = []
     for label, c in meshes(cfg["sizes"]):
         t0 = time.perf_counter()
-        c.face_planes, c.edges, c._closed_edge_faces, c.polygons  # one-time preparation (cached)
+        c.face_planes, c.edges, c.closed_edge_faces, c.polygons  # one-time preparation (cached)
         prep = (time.perf_counter() - t0) * 1e3
         Ls = lights(c, cfg["lights"])
         exact = [_edge_set(silhouette(c, L).edges) for L in Ls]

@@ -4,7 +4,7 @@ Every configuration but one is a scene (:func:`arshadow.scene.scene_from_dict`) 
 :meth:`arshadow.Session.track`, as ``arshadow render`` / ``video`` and the Python API track: the fast
 half-resolution pass first (:mod:`arshadow.tracking.fastdetect`), the full search if it finds nothing.
 
-- corner refinement methods (``arshadow.tracking.marker.REFINE_METHODS``, scene key ``refine``);
+- corner refinement methods (``arshadow.tracking.detect.REFINE_METHODS``, scene key ``refine``);
 - the fast pass against the full search only (``fast_detect`` off), and the full search without the LM
   pose polish (``MarkerTracker(pnp_refine=False)``: a tracker keyword, not a scene option);
 - full frame against the video tracker's region of interest (``track_roi``: the marker is searched in a
@@ -38,8 +38,8 @@ def camera(w, h):
 
 def make_photos(cam, n: int, seed: int):
     """``n`` single-marker photos under the issue-2 conditions."""
-    from ..tracking.marker import marker_object_points
     from ..synth import random_pose, render_marker_photo
+    from ..tracking.dictionary import marker_object_points
 
     rng = np.random.default_rng(seed)
     photos = []
@@ -74,7 +74,7 @@ def session(cam, *, marker_length=None, marker_id=None, board=None, **options):
 def run_configs(photos, configs: dict, repeat: int) -> list[dict]:
     """Every configuration on the same photos, timings interleaved round-robin. ``configs``: label ->
     ``make(photo) -> (tracker, image)``, the tracker an :class:`arshadow.Session` (``track``) or a
-    :class:`arshadow.tracking.marker.MarkerTracker` (``estimate``). One row per configuration: time median /
+    :class:`arshadow.tracking.tracker.MarkerTracker` (``estimate``). One row per configuration: time median /
     IQR over photos, rotation error (deg) median / p95, translation error (% of distance) median, detections."""
     from ..errors import MarkerNotFoundError
 
@@ -118,7 +118,8 @@ def run_configs(photos, configs: dict, repeat: int) -> list[dict]:
 
 
 def refinement_and_roi(cfg, log) -> list[dict]:
-    from ..tracking.marker import REFINE_METHODS, MarkerTracker
+    from ..tracking.detect import REFINE_METHODS
+    from ..tracking.tracker import MarkerTracker
 
     rows = []
     for w, h in cfg["track_resolutions"]:
@@ -140,8 +141,8 @@ def refinement_and_roi(cfg, log) -> list[dict]:
 
 def marker_vs_board(cfg, log) -> list[dict]:
     """A 5 cm single marker against the 5 x 7 grid board at the same camera poses (1280x720)."""
-    from ..tracking.marker import load_board
     from ..synth import random_pose, render_marker_photo
+    from ..tracking.board import load_board
 
     board_file = ROOT / "calib" / "gridboard_5x7.yml"
     board = load_board(board_file)

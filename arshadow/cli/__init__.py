@@ -17,11 +17,11 @@ import signal
 import sys
 
 from .. import __version__
-from ..errors import ArshadowError, ImageError, MarkerNotFoundError
+from ..errors import ArshadowError, EstimateError, ImageError, MarkerNotFoundError
 
 #: command modules, in the order ``--help`` lists them
 COMMAND_MODULES = ("render", "demo", "video", "batch", "pose", "calibrate", "marker", "silhouette", "sun", "bench",
-                   "info")
+                   "info", "light")
 
 EXIT_OK, EXIT_SOME_FAILED, EXIT_USAGE = 0, 1, 2
 
@@ -71,7 +71,7 @@ def main(argv=None) -> int:
         if args.debug:
             raise
         print(f"arshadow {args.command}: error: {exc}", file=sys.stderr)
-        return EXIT_SOME_FAILED if isinstance(exc, (ImageError, MarkerNotFoundError)) else EXIT_USAGE
+        return EXIT_SOME_FAILED if isinstance(exc, (ImageError, MarkerNotFoundError, EstimateError)) else EXIT_USAGE
     except KeyboardInterrupt as exc:
         signum = exc.args[0] if exc.args and isinstance(exc.args[0], int) else signal.SIGINT
         print(f"arshadow: interrupted ({signal.Signals(signum).name}); the outputs being written were removed",

@@ -59,7 +59,7 @@ def scene_spec(sc: dict, root: Path, aa: int):
 def run(args) -> int:
     from ..errors import ArshadowError
     from ..gl.context import create_context
-    from ..gl.renderer import ShadowRenderer
+    from ..gl.stencil import ShadowRenderer
     from ..io import read_image, write_image, write_json
     from ..report import make_report
     from ..session import Session
@@ -87,7 +87,7 @@ def run(args) -> int:
                     out, mask, item = res.composite, res.mask, res.item
                     item.output = str(write_image(outdir / f"{stem}.png", out))
                     item.mask = str(write_image(outdir / f"{stem}.shadow.png", mask))
-                    item.extra["title"] = sc.get("title", stem)
+                    item.title = sc.get("title", stem)
                     items.append(item)
                     caption = f"{sc.get('title', stem)}  |  {item.mode}, {item.silhouette_edges} silhouette edges"
                     panels.append(_panel(out, caption))

@@ -151,7 +151,7 @@ def run_marker(args) -> int:
     import cv2
 
     from ..io import write_bytes
-    from ..tracking.marker import dictionary_label, get_dictionary, marker_bits
+    from ..tracking.dictionary import dictionary_label, get_dictionary, marker_bits
 
     _check_positive("--length-mm", args.length_mm)
     _check_positive("--margin-mm", args.margin_mm, allow_zero=True)
@@ -192,7 +192,7 @@ def run_marker(args) -> int:
 
 def _board_from_args(args):
     from ..errors import UsageError
-    from ..tracking.marker import Board, load_board
+    from ..tracking.board import Board, load_board
 
     if args.board:
         return load_board(args.board)

@@ -71,8 +71,9 @@ def run(args) -> int:
     from ..camera import Intrinsics
     from ..errors import ArshadowError, MarkerNotFoundError, UsageError
     from ..io import read_image, write_json
-    from ..tracking.marker import DEFAULT_REFINE, MarkerTracker
     from ..report import ReportItem, make_report
+    from ..tracking.detect import DEFAULT_REFINE
+    from ..tracking.tracker import MarkerTracker
     from . import error_line
 
     if args.marker_length is None and args.board is None:
@@ -95,8 +96,7 @@ def run(args) -> int:
             pose = tracker.estimate(image)
             t2 = time.perf_counter()
             item.set_pose(pose)
-            item.extra.update({"n_points": int(pose.n_points), "kind": pose.kind,
-                               "calibration_scaled": bool(pose.scaled)})
+            item.n_points, item.kind, item.calibration_scaled = int(pose.n_points), pose.kind, bool(pose.scaled)
             if out_dir is not None:
                 item.output = _overlay(image, pose, tracker, out_dir, Path(name).stem)
             item.timings_ms = {"read": 1e3 * (t1 - t0), "detect": pose.timings_ms.get("detect", 1e3 * (t2 - t1)),

@@ -80,7 +80,10 @@ def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> No
                    help="translation in metres, world (marker) frame (last)")
     o.add_argument("--color", metavar="R,G,B", help="object colour, 8-bit sRGB 0..255 (default: the mesh's own)")
     s = p.add_argument_group("lights and shadows")
-    s.add_argument("--light", action="append", required=require, metavar="L",
+    s.add_argument("--light-from", metavar="FILE",
+                   help="a measured light (arshadow light ... -o FILE, docs/light.md): its light (unless --light "
+                        "is given), its shadow colour (instead of --opacity/--shadow-color) and the marker's exposure")
+    s.add_argument("--light", action="append", metavar="L",
                    help="point:X,Y,Z | directional:X,Y,Z | sun:LAT,LON,TIME[,NORTH], optional @W weight; "
                         "repeat for several lights")
     s.add_argument("--soft-samples", type=_positive("--soft-samples", integer=True), default=1, metavar="N",

@@ -189,12 +189,12 @@ def build_lights(args):
 
 
 def run(args) -> int:
+    from ..errors import UsageError
     from ..io import check_output_file, check_output_folder, write_json
     from ..report import jsonable, make_report
     from ..scene import scene_from_args
     from ..session import Session
     from ..video.engine import SessionBackend
-    from ..errors import UsageError
     from ..video.parallel import BackendRecipe
     from ..video.runner import run_videos
     from . import quiet_opencv

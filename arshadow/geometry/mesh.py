@@ -403,7 +403,7 @@ class ShadowCaster:
         return not self.is_closed
 
     @functools.cached_property
-    def _closed_edge_faces(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def closed_edge_faces(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Fast-path arrays of the adjacency detector on closed meshes: ``(f_lo (e,), f_hi (e,),
         edges_lo (e, 2))``, contiguous intp, sorted by ``f_lo`` (the lower face index of each edge, so the
         gather ``facing[f_lo]`` walks memory in order), each edge oriented as face ``f_lo`` winds it."""

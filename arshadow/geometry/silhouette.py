@@ -156,7 +156,7 @@ def _adjacency(caster: ShadowCaster, h: np.ndarray, **_):
     if caster.two_sided:
         e = _from_net(caster, _net_two_sided(caster, facing))
         return e, facing, {"faces_tested": m, "edge_ops": int(caster.edge_incidence[0].size)}
-    ef0, ef1, edges0 = caster._closed_edge_faces
+    ef0, ef1, edges0 = caster.closed_edge_faces
     f0 = facing[ef0]
     diff = f0 != facing[ef1]
     idx = np.flatnonzero(diff)

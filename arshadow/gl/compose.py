@@ -4,8 +4,8 @@ The numpy path reads the renderer's float layers back (``RGBA16F`` colour, ``RG1
 to the distorted photo with :meth:`arshadow.compose.lens.LensWarp.warp` (``cv2.remap``) and composites them with
 :func:`arshadow.compose.composite.composite`. This module does the same work on the GPU:
 
-1. ``ShadowRenderer.render(..., readback=False)`` leaves the (MSAA-resolved, by ``glBlitFramebuffer``)
-   layers in two textures (:class:`arshadow.gl.renderer.GpuLayers`);
+1. ``ShadowRenderer.render_gpu(...)`` leaves the (MSAA-resolved, by ``glBlitFramebuffer``)
+   layers in two textures (:class:`arshadow.gl.layers.GpuLayers`);
 2. the photo's region of interest is uploaded into an ``RGB8UI`` texture (allocated once per photo size);
 3. ``compose.frag`` runs once per ROI pixel: the undistortion map (``RG32F`` texture, uploaded once per
    calibration, tile by tile as :class:`LensWarp` computes it) gives the pinhole point, the layers are
@@ -38,7 +38,7 @@ from ..compose.composite import LINEAR_TO_SRGB16, SRGB_TO_LINEAR
 from ..errors import ShapeError, UsageError
 from . import glraw as G
 from .context import current
-from .renderer import _program
+from .resources import program
 
 __all__ = ["GpuCompositor", "PathChooser", "SHARED_DECISIONS"]
 
@@ -82,7 +82,7 @@ class _LensTexture:
 
 
 class GpuCompositor:
-    """Composites :class:`~arshadow.gl.renderer.GpuLayers` into a photo on the GPU (one per context).
+    """Composites :class:`~arshadow.gl.layers.GpuLayers` into a photo on the GPU (one per context).
 
     Parameters
     ----------
@@ -94,7 +94,7 @@ class GpuCompositor:
     def __init__(self, ctx):
         self.ctx = ctx
         self.gl = G.load()
-        self.prog = _program(ctx, "fullscreen.vert", "compose.frag")
+        self.prog = program(ctx, "fullscreen.vert", "compose.frag")
         self.vao = ctx.vertex_array(self.prog, [])
         dec = ctx.texture((256, 1), 1, data=np.ascontiguousarray(SRGB_TO_LINEAR, np.float32).tobytes(), dtype="f4")
         enc = ctx.texture((256, 256), 1, data=np.ascontiguousarray(LINEAR_TO_SRGB16).tobytes(), dtype="u1",
@@ -156,8 +156,8 @@ class GpuCompositor:
         ----------
         image : (H, W, 3) uint8
             BGR photo (not modified).
-        layers : arshadow.gl.renderer.GpuLayers
-            From ``ShadowRenderer.render(..., readback=False)`` of ``canvas``.
+        layers : arshadow.gl.layers.GpuLayers
+            From ``ShadowRenderer.render_gpu(...)`` of ``canvas``.
         roi : (x0, y0, w, h) int
             Photo pixels to composite (inside the photo); the others are left as they are in ``out``.
         canvas : (u0, v0, w, h) int
@@ -225,14 +225,12 @@ class GpuCompositor:
         self._enc.use(2)
         layers.color_tex.use(3)
         layers.mask_tex.use(4)
-        import moderngl
-
         fbo = self._fbo
         fbo.use()
         fbo.viewport = (x0, y0, w, h)
-        ctx.enable_only(moderngl.NOTHING)
+        ctx.enable_only(ctx.NOTHING)
         t1 = time.perf_counter()
-        self.vao.render(moderngl.TRIANGLES, vertices=3)
+        self.vao.render(ctx.TRIANGLES, vertices=3)
         t2 = time.perf_counter()
         # one readback of the 8-bit ROI straight into the output photo (and the mask)
         gl.glBindBuffer(G.GL_PIXEL_PACK_BUFFER, 0)

@@ -2,7 +2,7 @@
 
 ``create_context`` makes a headless moderngl context (EGL by default: Mesa llvmpipe on a CPU-only
 machine, the GPU driver elsewhere). It is called once by the application and the context is handed to
-:class:`arshadow.gl.renderer.ShadowRenderer`, which never creates one. Importing this module does not
+:class:`arshadow.gl.stencil.ShadowRenderer`, which never creates one. Importing this module does not
 create a context.
 """
 

@@ -1,6 +1,6 @@
-"""GPU-resident render results: the renderer's layers kept in textures (``render(readback=False)``).
+"""GPU-resident render results: the renderer's layers kept in textures (``ShadowRenderer.render_gpu``).
 
-Kept apart from :mod:`arshadow.gl.renderer` so that the compose path (:mod:`arshadow.gl.compose`) and the
+Kept apart from :mod:`arshadow.gl.stencil` so that the compose path (:mod:`arshadow.gl.compose`) and the
 renderer share these two small types without importing each other.
 """
 
@@ -13,7 +13,7 @@ __all__ = ["GpuLayers", "TextureTarget"]
 
 class TextureTarget:
     """Texture-backed single-sample framebuffer (colour 0 ``RGBA16F``, colour 1 ``RG16F``): the blit
-    destination of ``render(readback=False)``, sampled by :mod:`arshadow.gl.compose`."""
+    destination of ``render_gpu()``, sampled by :mod:`arshadow.gl.compose`."""
 
     def __init__(self, ctx, width, height):
         self.width, self.height = int(width), int(height)
@@ -31,7 +31,7 @@ class TextureTarget:
 
 @dataclass
 class GpuLayers:
-    """What ``ShadowRenderer.render(readback=False)`` returns: the frame's layers left on the GPU.
+    """What ``ShadowRenderer.render_gpu()`` returns: the frame's layers left on the GPU.
 
     Attributes
     ----------

@@ -1,9 +1,9 @@
 """Shadow-map baseline renderer: the technique of three.js, model-viewer and pyrender, for comparison.
 
-Same keyword interface and :class:`~arshadow.gl.renderer.RenderResult` as
-:meth:`arshadow.gl.renderer.ShadowRenderer.render`, so the compositor and the benchmarks can swap it in
+Same keyword interface and :class:`~arshadow.render_api.RenderResult` as
+:meth:`arshadow.gl.stencil.ShadowRenderer.render`, so the compositor and the benchmarks can swap it in
 (``--shadow-method shadowmap``). The shadow volumes in ``passes`` are ignored: only ``light_h``,
-``weight`` and ``color`` of each :class:`~arshadow.gl.renderer.LightPass` are used.
+``weight`` and ``color`` of each :class:`~arshadow.render_api.LightPass` are used.
 
 Per light:
 
@@ -32,9 +32,10 @@ import numpy as np
 
 from .._check import check_finite, check_shape
 from ..errors import UsageError
+from ..render_api import RenderResult
 from . import glraw as G
 from .context import current
-from .renderer import RenderResult, _CasterBuffers, _program, ground_vertices
+from .resources import CasterBuffers, ground_vertices, program
 
 __all__ = ["ShadowMapRenderer", "light_view_projection", "MAP_SIZES"]
 
@@ -140,9 +141,9 @@ class ShadowMapRenderer:
         self.max_width, self.max_height = int(max_width), int(max_height)
         self.crease_deg = float(crease_deg)
         self.samples = 0
-        self.prog_depth = _program(ctx, "common.vert", "volume.frag")
-        self.prog_occ = _program(ctx, "shadowmap_occluder.vert", "shadowmap.frag")
-        self.prog_ground = _program(ctx, "shadowmap_ground.vert", "shadowmap.frag")
+        self.prog_depth = program(ctx, "common.vert", "volume.frag")
+        self.prog_occ = program(ctx, "shadowmap_occluder.vert", "shadowmap.frag")
+        self.prog_ground = program(ctx, "shadowmap_ground.vert", "shadowmap.frag")
         self._ground_vbo = ctx.buffer(reserve=12 * 4 * 4)
         self._ground_vao = ctx.vertex_array(self.prog_ground, [(self._ground_vbo, "4f", "in_pos")])
         self._ground_key = ()
@@ -154,13 +155,11 @@ class ShadowMapRenderer:
         self.depth_tex = ctx.depth_texture((self.map_size, self.map_size))
         self.depth_tex.compare_func = "<="
         self.depth_tex.repeat_x = self.depth_tex.repeat_y = False
-        import moderngl
-
-        self.depth_tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        self.depth_tex.filter = (ctx.LINEAR, ctx.LINEAR)
         self.depth_fbo = ctx.framebuffer(depth_attachment=self.depth_tex)
         self._fbo = None
         self._size = (0, 0)
-        self._caster = (None, None, None)  # (weakref, key, _CasterBuffers)
+        self._caster = (None, None, None)  # (weakref, key, CasterBuffers)
         self._released = False
 
     def __enter__(self):
@@ -193,7 +192,7 @@ class ShadowMapRenderer:
         if bufs is not None:
             bufs.release()
         # world coordinates (local=False): the shadow map's matrices and shading work in the world frame
-        bufs = _CasterBuffers(self.ctx, self.prog_occ, self.prog_occ, self.prog_depth, caster, ckey, self.crease_deg,
+        bufs = CasterBuffers(self.ctx, self.prog_occ, self.prog_occ, self.prog_depth, caster, ckey, self.crease_deg,
                               local=False)
         self._caster = (weakref.ref(caster), ckey, bufs)
         return bufs
@@ -215,7 +214,7 @@ class ShadowMapRenderer:
     @current
     def render(self, *, projection, view, width, height, caster, passes, ground_size=None, draw_occluder=True,
                ambient=0.25, diffuse=1.0, specular=0.25, shininess=32.0, occluder_color=None) -> RenderResult:
-        """Render one frame (or canvas); arguments as :meth:`arshadow.gl.renderer.ShadowRenderer.render`.
+        """Render one frame (or canvas); arguments as :meth:`arshadow.gl.stencil.ShadowRenderer.render`.
 
         Returns
         -------
@@ -223,8 +222,6 @@ class ShadowMapRenderer:
             ``mask`` is the PCF-filtered blocked weight at ground pixels not covered by the occluder;
             ``timings_ms`` has ``upload``, ``draw`` (depth maps + camera passes), ``readback``, ``total``.
         """
-        import moderngl
-
         t0 = time.perf_counter()
         if self._released:
             raise UsageError("this ShadowMapRenderer has been released")
@@ -253,7 +250,7 @@ class ShadowMapRenderer:
         ctx.scissor = (0, 0, width, height)
         ctx.front_face = "cw" if np.linalg.det(mvp) > 0 else "ccw"
         fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0, viewport=(0, 0, width, height))
-        ctx.enable_only(moderngl.DEPTH_TEST)
+        ctx.enable_only(ctx.DEPTH_TEST)
         ctx.depth_func = "<"
         for prog in (self.prog_occ, self.prog_ground):
             prog["u_mvp"].write(f32(mvp))
@@ -262,13 +259,13 @@ class ShadowMapRenderer:
         self.prog_occ["u_ambient"].value = float(ambient)
         self.prog_occ["u_is_ground"].value = 0
         self.prog_ground["u_is_ground"].value = 1
-        cull = moderngl.CULL_FACE if bufs.cull else 0  # closed meshes: back faces are never visible
+        cull = ctx.CULL_FACE if bufs.cull else 0  # closed meshes: back faces are never visible
         ctx.cull_face = "back"
         if draw_occluder:
-            ctx.enable_only(moderngl.DEPTH_TEST | cull)
-            bufs.vao.render(moderngl.TRIANGLES, vertices=bufs.n_indices)
-            ctx.enable_only(moderngl.DEPTH_TEST)
-        self._ground_vao.render(moderngl.TRIANGLES, vertices=12)
+            ctx.enable_only(ctx.DEPTH_TEST | cull)
+            bufs.vao.render(ctx.TRIANGLES, vertices=bufs.n_indices)
+            ctx.enable_only(ctx.DEPTH_TEST)
+        self._ground_vao.render(ctx.TRIANGLES, vertices=12)
 
         # -- per light: depth map, then the ground and the occluder again with the map
         for p in passes:
@@ -281,18 +278,18 @@ class ShadowMapRenderer:
             lvp = light_view_projection(lh, bounds)
             self.depth_fbo.use()
             self.depth_fbo.clear(depth=1.0)
-            ctx.enable_only(moderngl.DEPTH_TEST)
+            ctx.enable_only(ctx.DEPTH_TEST)
             ctx.depth_func = "<"
             gl.glEnable(G.GL_POLYGON_OFFSET_FILL)
             gl.glPolygonOffset(self.slope_bias, self.constant_bias)
             self.prog_depth["u_mvp"].write(f32(lvp))
-            bufs.planar_vao.render(moderngl.TRIANGLES, vertices=bufs.n_indices)
+            bufs.planar_vao.render(ctx.TRIANGLES, vertices=bufs.n_indices)
             gl.glDisable(G.GL_POLYGON_OFFSET_FILL)
 
             fbo.use()
             fbo.viewport = (0, 0, width, height)
-            ctx.enable_only(moderngl.DEPTH_TEST | moderngl.BLEND)
-            ctx.blend_func = moderngl.ONE, moderngl.ONE
+            ctx.enable_only(ctx.DEPTH_TEST | ctx.BLEND)
+            ctx.blend_func = ctx.ONE, ctx.ONE
             ctx.depth_func = "<="
             gl.glDepthMask(G.GL_FALSE)
             self.depth_tex.use(location=0)
@@ -304,9 +301,9 @@ class ShadowMapRenderer:
                 prog["u_texel"].value = 1.0 / self.map_size
                 prog["u_bias"].value = self.shader_bias
             self.prog_ground["u_weight"].value = w
-            self._ground_vao.render(moderngl.TRIANGLES, vertices=12)
+            self._ground_vao.render(ctx.TRIANGLES, vertices=12)
             if draw_occluder:
-                ctx.enable_only(moderngl.DEPTH_TEST | moderngl.BLEND | cull)
+                ctx.enable_only(ctx.DEPTH_TEST | ctx.BLEND | cull)
                 po = self.prog_occ
                 po["u_light"].value = tuple(float(x) for x in lh)
                 po["u_light_color"].value = tuple(float(x) * w for x in np.asarray(p.color, np.float64)[:3])
@@ -314,9 +311,9 @@ class ShadowMapRenderer:
                 po["u_kd"].value = float(diffuse)
                 po["u_ks"].value = float(specular)
                 po["u_shininess"].value = float(shininess)
-                bufs.vao.render(moderngl.TRIANGLES, vertices=bufs.n_indices)
+                bufs.vao.render(ctx.TRIANGLES, vertices=bufs.n_indices)
             gl.glDepthMask(G.GL_TRUE)
-        ctx.enable_only(moderngl.NOTHING)
+        ctx.enable_only(ctx.NOTHING)
         ctx.depth_func = "<"
         ctx.front_face = "ccw"
         ctx.finish()

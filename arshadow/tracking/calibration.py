@@ -20,7 +20,10 @@ import numpy as np
 
 from ..camera import Intrinsics
 from ..errors import ArshadowError, CalibrationError, UsageError
-from .marker import _gray
+from ..io import read_image
+from .board import Board
+from .detect import to_gray
+from .dictionary import get_dictionary
 
 __all__ = ["Pattern", "parse_pattern", "View", "find_view", "CalibrationResult", "calibrate", "MIN_VIEWS"]
 
@@ -69,8 +72,6 @@ class Pattern:
     @cached_property
     def charuco(self):
         """ChArUco: ``(Board, cv2.aruco.CharucoDetector)``, built once per pattern, not per photo."""
-        from .marker import Board
-
         board = Board("charuco", (self.cols, self.rows), self.marker, dictionary=self.dictionary,
                       square_length=self.square)
         return board, cv2.aruco.CharucoDetector(board.cv_board)
@@ -103,8 +104,6 @@ def parse_pattern(spec: str) -> Pattern:
     if p.kind == "chessboard" and (p.cols < 2 or p.rows < 2):
         raise UsageError(f"pattern '{s}': a chessboard needs at least 2x2 inner corners")
     if p.kind == "charuco":
-        from .marker import get_dictionary
-
         get_dictionary(p.dictionary)
         if p.cols < 3 or p.rows < 3:
             raise UsageError(f"pattern '{s}': a ChArUco board needs at least 3x3 squares")
@@ -133,14 +132,12 @@ class View:
 
 def find_view(path, pattern: Pattern, image=None) -> View:
     """Detect the pattern in one photo. Never raises for a bad photo: the View carries the reason."""
-    from ..io import read_image
-
     name = str(path)
     try:
         img = read_image(path) if image is None else image
     except ArshadowError as exc:
         return View(name, reason=str(exc))
-    gray = _gray(img)  # any layout or depth a caller passes as image=, like the marker detector
+    gray = to_gray(img)  # any layout or depth a caller passes as image=, like the marker detector
     size = (gray.shape[1], gray.shape[0])
     if pattern.kind == "chessboard":
         flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE

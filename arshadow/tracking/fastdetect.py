@@ -1,19 +1,22 @@
 """The fast first detection pass: one adaptive-threshold window, half resolution for big markers.
 
-Used through ``MarkerTracker(..., detector="fast")`` (:mod:`arshadow.tracking.marker`); a session
+Used through ``MarkerTracker(..., detector="fast")`` (:mod:`arshadow.tracking.tracker`); a session
 (:meth:`arshadow.session.Session.track`) runs it first and the tracker's full search only when it finds
 nothing. Measured in docs/tracking.md and ``tests/benchmarks/bench_pipeline.py --detectors``.
 """
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
-__all__ = ["HalfResolutionDetector", "make_fast_tracker", "fast_detector_params", "wrap_fast_detector"]
+from .detect import MIN_MARKER_DISTANCE_RATE
+
+__all__ = ["HalfResolutionDetector", "fast_detector_params", "wrap_fast_detector"]
 
 
 class HalfResolutionDetector:
-    """Drop-in for ``cv2.aruco.ArucoDetector`` in a :class:`~arshadow.tracking.marker.MarkerTracker`: detect on the
+    """Drop-in for ``cv2.aruco.ArucoDetector`` in a :class:`~arshadow.tracking.tracker.MarkerTracker`: detect on the
     image downscaled 2x (one 5-px threshold window, no refinement), then refine every corner at full
     resolution with ``cv2.cornerSubPix`` (11 x 11 window, 0.01 px / 50 iterations, as the tracker's own
     sub-pixel refinement). Other methods (``refineDetectedMarkers``...) go to the full-resolution detector.
@@ -30,8 +33,6 @@ class HalfResolutionDetector:
     MIN_SIDE_PX = 64.0
 
     def __init__(self, base, dictionary):
-        import cv2
-
         self._base = base
         p = cv2.aruco.DetectorParameters()
         p.adaptiveThreshWinSizeMin = 5
@@ -41,8 +42,6 @@ class HalfResolutionDetector:
         self._criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 0.01)
 
     def detectMarkers(self, gray):  # noqa: N802 (OpenCV's name)
-        import cv2
-
         if gray.ndim == 3:
             gray = cv2.cvtColor(gray, cv2.COLOR_BGR2GRAY)
         h, w = gray.shape[:2]
@@ -69,25 +68,9 @@ class HalfResolutionDetector:
         return getattr(self._base, name)
 
 
-def make_fast_tracker(intrinsics, **tracker_kwargs):
-    """The tracker of the pipeline's fast first pass: ``MarkerTracker(intrinsics, detector="fast", ...)``.
-
-    A :class:`~arshadow.tracking.marker.MarkerTracker` with one 7-px threshold window
-    (:func:`fast_detector_params`) and, for single markers, detection at half resolution
-    (:class:`HalfResolutionDetector`). The session falls back to the tracker's full search when this
-    finds nothing. With several markers in view and no ``marker_id``, the reference is the lowest id found,
-    so give ``marker_id`` for a frame that cannot change between passes.
-    """
-    from .marker import MarkerTracker
-
-    return MarkerTracker(intrinsics, **tracker_kwargs, detector="fast")
-
-
 def wrap_fast_detector(detector, board=None):
     """The fast pass's detector around a tracker's full-resolution ``cv2.aruco.ArucoDetector``:
     :class:`HalfResolutionDetector` in single-marker mode (``board`` None), else ``detector`` itself."""
-    import cv2
-
     if isinstance(detector, cv2.aruco.ArucoDetector) and board is None:
         return HalfResolutionDetector(detector, detector.getDictionary())
     return detector
@@ -102,10 +85,6 @@ def fast_detector_params():
     session (:meth:`arshadow.session.Session.track`) falls back to the full search when this pass finds nothing, so robustness is kept.
     The tracker's corner refinement is applied on top (``make_detector_params``).
     """
-    import cv2
-
-    from .marker import MIN_MARKER_DISTANCE_RATE
-
     p = cv2.aruco.DetectorParameters()
     p.adaptiveThreshWinSizeMin = 7
     p.adaptiveThreshWinSizeMax = 7

@@ -1,6 +1,6 @@
 """Tracking ROI for video: search the marker near where the last frame found it, the whole frame otherwise.
 
-:class:`TrackingDetector` wraps the detector of a single-marker :class:`~arshadow.tracking.marker.MarkerTracker`
+:class:`TrackingDetector` wraps the detector of a single-marker :class:`~arshadow.tracking.tracker.MarkerTracker`
 (``cv2.aruco.ArucoDetector`` or the pipeline's half-resolution detector) the way that detector wraps
 OpenCV's: ``detectMarkers(gray)`` first searches a window around the last detection's corners
 (:func:`arshadow.plan_rules.tracking_roi`: the corners' box grown by half its size, at least 32 px) and

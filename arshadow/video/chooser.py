@@ -71,7 +71,7 @@ class _Entry:
 class TemporalPoseChooser:
     """Choose, per frame, the IPPE solution consistent with the neighbouring frames.
 
-    Push each frame's :class:`arshadow.tracking.marker.MarkerPose` (chosen by reprojection error, with its
+    Push each frame's :class:`arshadow.tracking.pose.MarkerPose` (chosen by reprojection error, with its
     ``alternative``) in order; get back, in the same order, each frame's chosen pose ``lag`` frames later
     (:meth:`push`), and the rest at the end (:meth:`flush`).
 

@@ -171,13 +171,13 @@ class EncodeSink:
         if mw is not None:
             mw.write(mask if mask is not None else np.zeros((self.H, self.W), np.uint8))
         elif png_dir is not None:
-            cv2.imwrite(str(png_dir / f"{item.extra['frame']:06d}.png"),
+            cv2.imwrite(str(png_dir / f"{item.frame:06d}.png"),
                         mask if mask is not None else np.zeros((self.H, self.W), np.uint8))
         enc = (time.perf_counter() - t) * 1e3
         line["timings_ms"]["encode"] = round(enc, 3)
         self.stage_ms["encode"].append(enc)
         jf.write(json.dumps(line, separators=(",", ":")) + "\n")
-        self.sheet.add(item.extra["frame"], img, fmt)
+        self.sheet.add(item.frame, img, fmt)
 
 
 @contextlib.contextmanager

@@ -23,7 +23,7 @@ import numpy as np
 
 from ..compose.composite import clip_roi
 from ..errors import MarkerNotFoundError
-from ..report import ReportItem
+from ..report import ReportItem, StageTimings
 from ..transforms import rvec_tvec_from_matrix
 
 __all__ = ["FRAME_STAGES", "FrameComposer", "SessionBackend", "gray_of", "i420_planes", "i420_with_roi"]
@@ -60,11 +60,16 @@ class SessionBackend:
         self.recomputes = 0
 
     def track(self, gray, timings):
-        """The marker pose in a grey ``(H, W) uint8`` frame, or ``(None, error)``."""
+        """The marker pose in a grey ``(H, W) uint8`` frame, or ``(None, error)``; ``timings`` (the
+        frame's dict of :data:`FRAME_STAGES`) gets ``detect`` and ``pose``."""
+        st = StageTimings()
         try:
-            return self.session.track(gray, timings), None
+            return self.session.track(gray, timings=st), None
         except MarkerNotFoundError as exc:
             return None, exc
+        finally:
+            timings["detect"] += st.detect
+            timings["pose"] += st.pose
 
     def replay_sun(self, times) -> None:
         """Advance the sun tracks' recompute schedule over the frame times ``times`` (seconds) without
@@ -87,12 +92,13 @@ class SessionBackend:
                  "recompute": bool(f.recompute), "stale_deg": round(f.stale_deg, 5)} for f in frames]
 
     def render(self, bgr, cam_from_world, want_mask, timings):
-        """Composite into ``bgr`` (modified in place); returns ``(mask or None, item extras)``."""
-        res = self.session.render(bgr, cam_from_world, want_mask=want_mask, out=bgr, timings=timings)
-        it = res.item
-        info = {"mode": it.mode, "silhouette_edges": it.silhouette_edges,
-                **{k: it.extra[k] for k in ("roi", "canvas", "modes") if k in it.extra}}
-        return res.mask, info
+        """Composite into ``bgr`` (modified in place); returns ``(mask or None, the frame's report item)``;
+        ``timings`` gets the render stages."""
+        res = self.session.render(bgr, cam_from_world, want_mask=want_mask, out=bgr)
+        for k, v in res.timings.as_dict().items():
+            if k != "total":
+                timings[k] += v
+        return res.mask, res.item
 
     @property
     def notes(self):
@@ -144,26 +150,23 @@ class FrameComposer:
         """
         fr, dec_ms, timings, fmt = fp.payload
         img = fr.image
-        item = ReportItem(input=self.name, output=self.out_video, mask=self.out_mask)
-        item.extra.update(frame=fr.index, time_s=round(fr.time_s, 6))
         sun = self.backend.lights_at(fr.time_s)
-        if sun is not None:
-            item.extra["sun"] = sun
         mask = None
-        item.status = fp.status
         if fp.status == "no_marker":
-            item.error = "no marker found"
+            item = ReportItem(input=self.name, status=fp.status, error="no marker found")
             self.stats["frames_no_marker"] += 1
             if self.want_mask:
                 mask = np.zeros((self.H, self.W), np.uint8)
         else:
+            img, mask, item = self._render(fp.cam_from_world, img, fmt, timings)  # the frame's one item
+            item.input, item.status = self.name, fp.status
             self._pose_fields(item, fp)
             self.stats["frames_ok" if fp.raw is not None else "frames_held"] += 1
             self.stats["swapped"] += int(fp.swapped)
-            img, mask = self._render(item, fp.cam_from_world, img, fmt, timings)
+        item.output, item.mask = self.out_video, self.out_mask
+        item.frame, item.time_s, item.sun = fr.index, round(fr.time_s, 6), sun
         self._finish_timings(item, timings, dec_ms)
-        if self.backend.notes:
-            item.extra["notes"] = self.backend.notes
+        item.notes = self.backend.notes or None
         self.stats["frames"] += 1
         return img, fmt, mask, item, frame_record(fr, item, sun)
 
@@ -173,35 +176,32 @@ class FrameComposer:
         if fp.raw is not None:
             item.set_pose(fp.raw)
         r, t = rvec_tvec_from_matrix(fp.cam_from_world)
-        item.extra["raw"] = None if fp.raw is None else {
+        item.raw = None if fp.raw is None else {
             "rvec": np.asarray(fp.raw.rvec, float).ravel().tolist(),
             "tvec": np.asarray(fp.raw.tvec, float).ravel().tolist()}
         item.rvec, item.tvec = r.tolist(), t.tolist()
-        item.extra["pose_choice"] = "temporal (alternative IPPE solution)" if fp.swapped else "error"
+        item.pose_choice = "temporal (alternative IPPE solution)" if fp.swapped else "error"
 
     def decision(self, fp) -> dict:
         """The pose decision of a frame that is not composited (a chunk's look-ahead past its end):
         ``frame``, ``status``, ``raw``, ``rvec``, ``tvec``, ``pose_choice`` as its JSON Lines record has them."""
-        fr = fp.payload[0]
         item = ReportItem(input=self.name, status=fp.status)
         if fp.status != "no_marker":
             self._pose_fields(item, fp)
-        return {"frame": fr.index, "status": item.status, "raw": item.extra.get("raw"), "rvec": item.rvec,
-                "tvec": item.tvec, "pose_choice": item.extra.get("pose_choice")}
+        return {"frame": fp.payload[0].index, "status": item.status, "raw": item.raw, "rvec": item.rvec,
+                "tvec": item.tvec, "pose_choice": item.pose_choice}
 
-    def _render(self, item, cam_from_world, img, fmt, timings):
-        """Composite at ``cam_from_world``; returns the frame in its own format and the mask."""
+    def _render(self, cam_from_world, img, fmt, timings):
+        """Composite at ``cam_from_world``; returns the frame in its own format, the mask and the report
+        item of :meth:`arshadow.session.Session.render`."""
         tc = time.perf_counter()
         bgr = cv2.cvtColor(img, cv2.COLOR_YUV2BGR_I420) if fmt == "yuv420p" else np.array(img)
         timings["convert"] += (time.perf_counter() - tc) * 1e3
-        mask, info = self.backend.render(bgr, cam_from_world, self.want_mask, timings)
-        item.mode = info["mode"]
-        item.silhouette_edges = info["silhouette_edges"]
-        item.extra.update({k: v for k, v in info.items() if k in ("roi", "canvas", "modes")})
+        mask, item = self.backend.render(bgr, cam_from_world, self.want_mask, timings)
         tc = time.perf_counter()
-        img = i420_with_roi(img, bgr, info.get("roi")) if fmt == "yuv420p" else bgr
+        img = i420_with_roi(img, bgr, item.roi) if fmt == "yuv420p" else bgr
         timings["convert"] += (time.perf_counter() - tc) * 1e3
-        return img, mask
+        return img, mask, item
 
     def _finish_timings(self, item, timings, dec_ms) -> None:
         timings["decode"] = dec_ms
@@ -215,9 +215,9 @@ class FrameComposer:
 def frame_record(fr, item, sun) -> dict:
     """One frame's JSON Lines record (``timings_ms["encode"]`` is filled in by the encoder)."""
     line = {"frame": fr.index, "time_s": round(fr.time_s, 6), "status": item.status,
-            "marker_ids": item.marker_ids, "rvec": item.rvec, "tvec": item.tvec, "raw": item.extra.get("raw"),
+            "marker_ids": item.marker_ids, "rvec": item.rvec, "tvec": item.tvec, "raw": item.raw,
             "reprojection_error_px": item.reprojection_error_px, "pose_ambiguity": item.pose_ambiguity,
-            "pose_choice": item.extra.get("pose_choice"), "mode": item.mode, "timings_ms": item.timings_ms}
+            "pose_choice": item.pose_choice, "mode": item.mode, "timings_ms": item.timings_ms}
     if sun is not None:
         line["sun"] = sun
     return line

@@ -86,9 +86,7 @@ def _one_video(backend, pool, recipe, inp, stem, outdir, opts, given, progress_f
             msg = f"{inp}: {msg}"
         summary = {"input": str(inp), "output": None, "mask": None, "status": "error", "error": msg,
                    "warnings": []}
-        it = ReportItem(input=str(inp), status="error", error=msg)
-        it.extra["frame"] = None
-        return summary, [it]
+        return summary, [ReportItem(input=str(inp), status="error", error=msg)]
     finally:
         if close is not None:
             close()
@@ -105,8 +103,7 @@ def items_from_frames(summary: dict) -> list:
                             reprojection_error_px=d["reprojection_error_px"], pose_ambiguity=d["pose_ambiguity"],
                             mode=d["mode"], timings_ms=d["timings_ms"])
             it.error = "no marker found" if d["status"] == "no_marker" else None
-            it.extra.update(frame=d["frame"], time_s=d["time_s"], raw=d["raw"], pose_choice=d["pose_choice"])
-            if "sun" in d:
-                it.extra["sun"] = d["sun"]
+            it.frame, it.time_s, it.raw, it.pose_choice, it.sun = (d["frame"], d["time_s"], d["raw"],
+                                                                   d["pose_choice"], d.get("sun"))
             out.append(it)
     return out

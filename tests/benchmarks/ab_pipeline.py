@@ -4,7 +4,8 @@
 
 Each tree runs in its own worker process (``PYTHONPATH`` = the tree), set up once like
 ``bench_pipeline.py``'s default row (samples/knot_point.jpg, 1280 x 720, the knot, its first light,
-``Compositor.process(image, want_mask=False, out=buf)``); then the driver asks A and B for one frame each
+``Session.process(image, want_mask=False, out=buf)``, or
+``Compositor.process`` in a tree from before issue 16); then the driver asks A and B for one frame each
 in turn (order alternating every pair), so both see the same machine load at nearly the same time. Prints
 JSON: per tree the median, IQR ``[q25, q75]`` and min of the frame times and the median of each stage the report times,
 and the median and IQR of the paired ratios
@@ -37,23 +38,32 @@ try:
 except ImportError:  # a tree from before the move into subpackages
     from arshadow.lights import parse_light
     from arshadow.mesh import load_occluder
-from arshadow.pipeline import Compositor, RenderOptions
 sc = next(s for s in json.loads((root / "samples" / "scenes.json").read_text())["scenes"]
           if s["photo"] == "knot_point.jpg")
 image = read_image(root / "samples" / "knot_point.jpg")
 intr = Intrinsics.from_file(root / "calib" / "synth_1280x720.yml")
 caster = load_occluder(root / sc["model"], rotate=sc.get("rotate", (0, 0, 0)), place=sc.get("place", (0, 0, 0)))
 ctx = create_context()
-comp = Compositor(ctx, intr, caster, [parse_light(sc["lights"][0])], RenderOptions(), tracker={"marker_length": 0.05})
+lights = [parse_light(sc["lights"][0])]
 buf = np.empty_like(image)
+try:  # a tree from before Session became the engine (issue 16): the Compositor
+    from arshadow.pipeline import Compositor, RenderOptions
+except ImportError:
+    from arshadow.scene import RenderOptions, Scene
+    from arshadow.session import Session
+    comp = Session(Scene(intr, caster, lights, RenderOptions(), {"marker_length": 0.05}), context=ctx)
+    frame = lambda: comp.process(image, want_mask=False, out=buf).item
+else:
+    comp = Compositor(ctx, intr, caster, lights, RenderOptions(), tracker={"marker_length": 0.05})
+    frame = lambda: comp.process(image, want_mask=False, out=buf)[2]
 for _ in range(int(sys.argv[2])):
-    comp.process(image, want_mask=False, out=buf)
+    frame()
 print("ready", flush=True)
 for line in sys.stdin:
     if line.strip() != "go":
         break
     t = time.perf_counter()
-    item = comp.process(image, want_mask=False, out=buf)[2]
+    item = frame()
     print(f"{(time.perf_counter() - t) * 1e3:.4f} " + json.dumps(item.timings_ms), flush=True)
 comp.close()
 ctx.release()

@@ -56,7 +56,7 @@ def bench_size(n_faces: int, n_lights: int, repeat: int, methods=METHODS, volume
     t0 = time.perf_counter()
     c = ShadowCaster(v, f)
     t1 = time.perf_counter()
-    c.face_planes, c.edges, c._closed_edge_faces, c._facing_prep  # adjacency detector's preparation
+    c.face_planes, c.edges, c.closed_edge_faces, c._facing_prep  # adjacency detector's preparation
     t2 = time.perf_counter()
     c.polygons  # HSD
     t3 = time.perf_counter()

@@ -36,6 +36,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 
 
+
+def _rendered(res):
+    """A :class:`arshadow.session.FrameResult` as ``(composite, mask, report item)``."""
+    return res.composite, res.mask, res.item
+
 def _stats(ms) -> dict:
     """Frame times (ms): median, IQR, min, max, n (:func:`_common.summary`) and the median's frame rate."""
     s = _common.summary(ms, 3)
@@ -51,7 +56,7 @@ def penumbra_quality(ctx, ns) -> dict:
     from oracle import disc_segment_fraction
 
     from arshadow.camera import Intrinsics
-    from arshadow.gl.renderer import ShadowRenderer
+    from arshadow.gl.stencil import ShadowRenderer
     from arshadow.lights.spec import Light, parse_light, sample_area_light
     from arshadow.geometry.mesh import load_occluder
     from arshadow.transforms import CV_TO_GL
@@ -96,10 +101,11 @@ def main(argv=None) -> int:
 
     from arshadow.camera import Intrinsics
     from arshadow.gl.context import create_context
-    from arshadow.gl.renderer import ShadowRenderer
+    from arshadow.gl.stencil import ShadowRenderer
     from arshadow.lights.spec import Light, parse_light
     from arshadow.geometry.mesh import load_occluder
-    from arshadow.pipeline import Compositor, RenderOptions
+    from arshadow.scene import RenderOptions, Scene
+    from arshadow.session import Session
     from arshadow.synth import look_at_pose
 
     ctx = create_context()
@@ -116,19 +122,21 @@ def main(argv=None) -> int:
         cold = []
         for _ in range(max(3, args.repeats // 3)):
             t = time.perf_counter()
-            with Compositor(ctx, intr, caster, lights, o, renderer=renderer) as comp:
-                comp.render_pose(image, intr, cam_from_world)
+            scene = Scene(intr, caster, lights, o, {})
+            with Session(scene, context=ctx, renderer=renderer) as comp:
+                _rendered(comp.render(image, cam_from_world))
             cold.append((time.perf_counter() - t) * 1e3)
-        with Compositor(ctx, intr, caster, lights, o, renderer=renderer) as comp:
+        scene = Scene(intr, caster, lights, o, {})
+        with Session(scene, context=ctx, renderer=renderer) as comp:
             for _ in range(args.warmup):
-                _, mask, info = comp.render_pose(image, intr, cam_from_world)
+                _, mask, info = _rendered(comp.render(image, cam_from_world))
             warm = []
             for _ in range(args.repeats):
                 t = time.perf_counter()
-                _, mask, info = comp.render_pose(image, intr, cam_from_world)
+                _, mask, info = _rendered(comp.render(image, cam_from_world))
                 warm.append((time.perf_counter() - t) * 1e3)
-            n_passes = len(comp._lights)
-        return {"warm": _stats(warm), "cold": _stats(cold), "passes": n_passes, "modes": sorted(set(info["modes"])),
+            n_passes = len(comp.geometry.lights)
+        return {"warm": _stats(warm), "cold": _stats(cold), "passes": n_passes, "modes": sorted(set(info.modes)),
                 "shadow_pixels": int(np.count_nonzero(mask))}
 
     out = {"benchmark": "bench_lights", "scene": {"image": [W, H], "mesh": args.mesh, "faces": int(len(caster.faces)),

@@ -2,7 +2,7 @@
 
     python tests/benchmarks/bench_pipeline.py [--runs 40] [--warmup 5] [--aa 4] [--photo P] [--variants]
 
-Times :meth:`arshadow.pipeline.Compositor.process` (marker detection, pose, per-light mode decision,
+Times :meth:`arshadow.session.Session.process` (marker detection, pose, per-light mode decision,
 silhouette + volume (cached after the first frame: the occluder and the light are fixed in the world
 frame), ROI rendering, readback, lens warp, composite), excluding file decode/encode, process start and
 context creation. Prints JSON: median, IQR and min/max of the total and of every stage over ``--runs``
@@ -82,8 +82,8 @@ def detector_settings() -> dict:
 
 def compare_detectors(image, intr, n, runs, seed=5) -> list:
     from arshadow.errors import MarkerNotFoundError
-    from arshadow.tracking.marker import MarkerTracker
     from arshadow.synth import random_pose, render_marker_photo
+    from arshadow.tracking.tracker import MarkerTracker
     from arshadow.transforms import rotation_error_deg
 
     rng = np.random.default_rng(seed)
@@ -95,7 +95,7 @@ def compare_detectors(image, intr, n, runs, seed=5) -> list:
         ph = render_marker_photo(intr, pose, marker_length=0.05, noise_sigma=2.0, blur_sigma=0.6,
                                  jpeg_quality=90, seed=i)
         photos.append((ph.image, pose))
-    from arshadow.pipeline import make_fast_tracker
+    from arshadow.tracking.tracker import make_fast_tracker
 
     rows = []
     settings = dict(detector_settings())
@@ -126,27 +126,28 @@ def compare_detectors(image, intr, n, runs, seed=5) -> list:
 
 def run_case(ctx, image, intr, caster, lights, *, runs, warmup, aa, roi=True, cold=False, label="",
              tracker_extra=None, fast_detect=True, truncate=True):
-    from arshadow.pipeline import Compositor, RenderOptions
+    from arshadow.scene import RenderOptions, Scene
+    from arshadow.session import Session
 
     tracker = {"marker_length": 0.05, **(tracker_extra or {})}
     # cold: the planner's reuse switched off, so every frame rebuilds the silhouettes and volumes
     opts = RenderOptions(aa=aa, roi=roi, fast_detect=fast_detect, truncate=truncate,
                          plan_off=("reuse",) if cold else ())
-    comp = Compositor(ctx, intr, caster, lights, opts, tracker=tracker)
+    comp = Session(Scene(intr, caster, lights, opts, tracker), context=ctx)
     totals, stages = [], {}
     out_buf = np.empty_like(image)  # as `arshadow render` does: one output buffer reused per photo size
     with comp:
         for i in range(warmup + runs):
             t = time.perf_counter()
-            out, _, item = comp.process(image, want_mask=False, out=out_buf)
+            item = comp.process(image, want_mask=False, out=out_buf).item
             dt = (time.perf_counter() - t) * 1e3
             if i >= warmup:
                 totals.append(dt)
                 for k, v in item.timings_ms.items():
                     stages.setdefault(k, []).append(v)
     row = {"case": label, "aa": aa, "roi": roi, "cold": cold, "fast_detect": fast_detect, "truncate": truncate,
-           "loadavg_1min": os.getloadavg()[0], "roi_px": item.extra["roi"],
-           "canvas": item.extra["canvas"], "mode": item.mode, "wall_ms": _stats(totals),
+           "loadavg_1min": os.getloadavg()[0], "roi_px": item.roi,
+           "canvas": item.canvas, "mode": item.mode, "wall_ms": _stats(totals),
            "stages_ms": {k: _stats(v)["median"] for k, v in stages.items()}}
     return row
 
@@ -168,11 +169,11 @@ def main(argv=None) -> int:
 
     sys.path.insert(0, str(ROOT))
     from arshadow.camera import Intrinsics
+    from arshadow.geometry.mesh import load_occluder
     from arshadow.gl.context import create_context
     from arshadow.io import read_image
     from arshadow.lights.spec import parse_light
-    from arshadow.geometry.mesh import load_occluder
-    from arshadow.pipeline import RenderOptions
+    from arshadow.scene import RenderOptions
 
     scenes = json.loads((ROOT / "samples" / "scenes.json").read_text())["scenes"]
     sc = next(s for s in scenes if Path(s["photo"]).name == Path(args.photo).name)

@@ -93,7 +93,7 @@ def bench_decisions(ctx, specs, runs):
                 r = s.render(image, pose, want_mask=True, out=out)
                 t = dict(r.timings_ms)
                 t["call"] = (time.perf_counter() - t0) * 1e3
-                plans[name] = r.item.extra.get("plan")
+                plans[name] = r.item.plan
                 return t
             return go
 
@@ -136,7 +136,7 @@ def bench_photo(ctx, specs, runs):
             def runner(name, s):
                 def go():
                     r = s.process(image, want_mask=True, out=out, mask_out=mask)
-                    chosen[name] = r.item.extra.get("compose")
+                    chosen[name] = r.item.compose
                     return dict(r.timings_ms)
                 return go
 
@@ -168,7 +168,7 @@ def bench_compose(ctx, specs, runs):
                 def go():
                     t0 = time.perf_counter()
                     r = s.render(image, pose, want_mask=True, out=out, mask_out=mask)
-                    picked[name] = (r.item.extra.get("compose"), r.item.extra.get("plan", {}).get("compose"))
+                    picked[name] = (r.item.compose, (r.item.plan or {}).get("compose"))
                     t = dict(r.timings_ms)
                     t["call"] = (time.perf_counter() - t0) * 1e3
                     return t

@@ -71,7 +71,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
 
     from arshadow.gl.context import create_context
-    from arshadow.gl.renderer import LightPass, ShadowRenderer
+    from arshadow.gl.stencil import LightPass, ShadowRenderer
     from arshadow.geometry.silhouette import silhouette
     from arshadow.transforms import CV_TO_GL
     from arshadow.geometry.volume import shadow_volume

@@ -29,16 +29,14 @@ import numpy as np
 import pytest
 
 from arshadow import __version__
-from arshadow.camera import Intrinsics
 from arshadow.errors import MarkerNotFoundError
-from arshadow.tracking.marker import REFINE_METHODS, MarkerTracker, marker_object_points
-from arshadow.synth import random_pose, render_marker_photo
+from arshadow.tracking.detect import REFINE_METHODS
+from arshadow.tracking.tracker import MarkerTracker
 from arshadow.transforms import rotation_error_deg
 
 ROOT = Path(__file__).resolve().parents[2]
 RESOLUTIONS = ((640, 480), (1280, 720), (1920, 1080))
 from arshadow.bench.tracking import DIST, camera, make_photos  # noqa: E402,F401 (shared with `arshadow bench`)
-
 
 CONFIGS = tuple((m, True) for m in REFINE_METHODS) + (("subpix", False),)  # (refinement, LM polish)
 

@@ -1,0 +1,263 @@
+"""``estimate_light``: photos (or video frames) of the marker and a probe -> a :class:`LightEstimate`."""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from ..camera import Intrinsics
+from ..errors import EstimateError, ImageError, MarkerNotFoundError, UsageError
+from ..geometry.mesh import load_occluder
+from ..io import read_image, to_bgr8
+from ..lights.spec import parse_light
+from ..tracking.dictionary import DEFAULT_DICTIONARY
+from ..tracking.tracker import MarkerTracker
+from .exposure import Exposure, measure_exposure
+from .light import fit_directional, fit_point, fit_sun
+from .result import LightEstimate
+from .shadow import build_evidence, edge_pairs, fit_levels, shadow_coverage
+
+__all__ = ["estimate_light", "VIDEO_EXTENSIONS", "MAX_FRAMES"]
+
+VIDEO_EXTENSIONS = (".mp4", ".mov", ".avi", ".mkv", ".m4v", ".webm")
+#: frames of a video used at most (evenly spaced)
+MAX_FRAMES = 30
+#: lowest light elevation searched, degrees (sets the ground grid's extent)
+MIN_ELEVATION = 12.0
+CONVEX_PRIMITIVES = ("box:", "cylinder:", "sphere:")
+
+
+def _frames(item, max_frames):
+    """Yield (name, BGR uint8 image) for a photo path, an array or a video path."""
+    if isinstance(item, np.ndarray):
+        yield "array", to_bgr8(item)
+        return
+    p = Path(item)
+    if p.suffix.lower() not in VIDEO_EXTENSIONS:
+        yield str(p), read_image(p)
+        return
+    cap = cv2.VideoCapture(str(p))
+    if not cap.isOpened():
+        raise ImageError(f"{p}: cannot open the video")
+    try:
+        n = int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) or max_frames
+        want = set(np.unique(np.linspace(0, max(n - 1, 0), min(n, max_frames)).round().astype(int)).tolist())
+        i = 0
+        while want:
+            ok, img = cap.read()
+            if not ok:
+                break
+            if i in want:
+                want.discard(i)
+                yield f"{p}#{i}", img
+            i += 1
+    finally:
+        cap.release()
+
+
+def _probe_in_view(intr, pose, verts, name):
+    cam = verts @ pose[:3, :3].T + pose[:3, 3]
+    uv = intr.project(verts, pose)
+    inside = (cam[:, 2] > 0) & np.all(np.isfinite(uv), axis=1) & (uv[:, 0] >= 0) & (uv[:, 0] <= intr.width - 1) \
+        & (uv[:, 1] >= 0) & (uv[:, 1] <= intr.height - 1)
+    if inside.mean() < 0.5:
+        raise EstimateError(f"{name}: the probe is not in view ({100 * inside.mean():.0f} % of its corners in the "
+                            "image): check --probe-place, or frame the probe and its shadow")
+
+
+def _grids(img, intr, pose, caster, verts, faces, L, paper, convex):
+    """The coarse evidence (the whole reach of the shadow), a builder of fine evidence and the size of a
+    pixel on the ground at the probe (metres)."""
+    lo, hi = verts.min(axis=0), verts.max(axis=0)
+    centre = 0.5 * (lo[:2] + hi[:2])
+    radius = 0.5 * float(np.linalg.norm(hi[:2] - lo[:2]))
+    reach = min(0.8, radius + hi[2] / math.tan(math.radians(MIN_ELEVATION)))
+    depth = float((pose[:3, :3] @ np.r_[centre, 0.5 * hi[2]] + pose[:3, 3])[2])
+    px = depth / float(intr.K[0, 0])  # metres per pixel at the probe
+    coarse_step = float(np.clip(max(6 * px, reach / 60.0), 0.003, 0.02))
+    sigma = 0.6 * float(min(hi[0] - lo[0], hi[1] - lo[1]))
+    coarse = build_evidence(img, intr, pose, verts, faces, marker_length=L, paper_rgb=paper, center=centre,
+                            half=reach, step=coarse_step, convex=convex, sigma=sigma)
+    fine_step = float(np.clip(1.5 * px, 0.0006, 0.006))
+
+    def fine(lights_h):
+        pts = [verts[:, :2]]
+        for h in lights_h:
+            S = shadow_coverage(coarse, h)
+            if S is not None:
+                rr, cc = np.nonzero(S > 0)
+                pts.append(np.column_stack([coarse.x0 + cc * coarse.step, coarse.y0 + rr * coarse.step]))
+        allp = np.concatenate(pts)
+        c = 0.5 * (allp.min(axis=0) + allp.max(axis=0))
+        half = 0.5 * float((allp.max(axis=0) - allp.min(axis=0)).max()) + 0.03 + 2 * sigma
+        step = max(fine_step, half / 110.0)  # at most ~220 x 220 cells
+        return build_evidence(img, intr, pose, verts, faces, marker_length=L, paper_rgb=paper, center=c,
+                              half=half, step=step, convex=convex, sigma=sigma)
+
+    return coarse, fine, px
+
+
+#: distances from a shadow's edge at which its two sides are compared (metres, at least 3 pixels)
+EDGE_DISTANCES = (0.003, 0.005, 0.008)
+
+
+def _ratio(evs, h, px) -> tuple:
+    """Per-channel shadow / lit of the ground: the median, over pairs of points straddling the shadow's edge
+    (:func:`arshadow.estimate.shadow.edge_pairs`, a few millimetres each side, where the floor's texture is
+    nearly the same), of the ratio inside / outside; the high-passed fit within 3 cm of the shadow when
+    fewer than 30 pairs are visible."""
+    ins, outs = [], []
+    for ev, p in zip(evs, px):
+        S = shadow_coverage(ev, h)
+        for d in EDGE_DISTANCES:
+            a, b = edge_pairs(ev, S, max(d, 3.0 * p))
+            ins.append(a)
+            outs.append(b)
+    a, b = np.concatenate(ins), np.concatenate(outs)
+    if len(a) >= 30:
+        lr = np.log(np.maximum(a, 1e-6)) - np.log(np.maximum(b, 1e-6))
+        return tuple(float(math.exp(v)) for v in np.median(lr, axis=0))
+    num = np.zeros(3)
+    den = 0.0
+    for ev in evs:
+        S = shadow_coverage(ev, h)
+        band = cv2.dilate((S > 0).astype(np.uint8), np.ones((3, 3), np.uint8),
+                          iterations=max(1, round(0.03 / ev.step))) > 0
+        n = int(np.count_nonzero(ev.used & band))
+        for c in range(3):
+            _, d, _, _ = fit_levels(ev, S, values=np.log(np.maximum(ev.rgb[:, :, c], 1e-6)), weight=band)
+            num[c] += n * d
+        den += n
+    return tuple(float(math.exp(v / max(den, 1))) for v in num)
+
+
+def _sun_enu(spec: str):
+    light = parse_light(spec)  # NORTH 0: world = east-north-up
+    if light.sun is None:
+        raise UsageError(f"--kind {spec!r}: expected sun:LAT,LON,TIME")
+    return np.asarray(light.vector, np.float64)
+
+
+def estimate_light(inputs, *, calib, marker_length: float, probe: str, probe_place=(0.0, 0.0, 0.0),
+                   probe_rotate=(0.0, 0.0, 0.0), probe_scale=1.0, dictionary=None, marker_id=None,
+                   kind: str = "directional", max_frames: int = MAX_FRAMES) -> LightEstimate:
+    """Measure the light from photos (or a video) of the marker and a probe's real shadow.
+
+    Parameters
+    ----------
+    inputs : path, (H, W, 3) uint8 array, or a list of them
+        Photos or videos (their frames evenly spaced, at most ``max_frames`` each). All frames see the
+        same light fixed in the world (the marker's frame).
+    calib : path or Intrinsics
+        The camera's calibration.
+    marker_length : float
+        The marker's side, metres.
+    probe : str
+        The reference object: a mesh file or ``box:WX,WY,HZ`` / ``cylinder:R,H`` / ``sphere:R``, placed like
+        ``--model`` with ``probe_place`` (metres), ``probe_rotate`` (degrees) and ``probe_scale``.
+    dictionary, marker_id
+        The marker (default dictionary; the lowest id found).
+    kind : str
+        ``"directional"`` (2 DOF), ``"point"`` (3 DOF) or ``"sun:LAT,LON,TIME"`` (the world's bearing,
+        1 DOF).
+
+    Returns
+    -------
+    LightEstimate
+
+    Raises
+    ------
+    MarkerNotFoundError
+        No marker in a photo (named).
+    EstimateError
+        The probe is not in view; no shadow found (flat light, hidden, off-image); an ambiguous fit.
+    UsageError
+        Bad options (kind, probe, calibration).
+    """
+    t0 = time.perf_counter()
+    items = inputs if isinstance(inputs, (list, tuple)) else [inputs]
+    if not items:
+        raise UsageError("give at least one photo or video")
+    kind_name = "sun" if str(kind).startswith("sun:") else str(kind)
+    if kind_name not in ("directional", "point", "sun"):
+        raise UsageError(f"--kind {kind!r}: choose directional, point or sun:LAT,LON,TIME")
+    enu = _sun_enu(kind) if kind_name == "sun" else None
+    base = calib if isinstance(calib, Intrinsics) else Intrinsics.from_file(calib)
+    caster = load_occluder(probe, scale=probe_scale, rotate=probe_rotate, place=probe_place)
+    verts, faces = np.asarray(caster.vertices, np.float64), np.asarray(caster.faces)
+    if verts[:, 2].min() < -1e-6:
+        raise UsageError(f"--probe {probe}: the probe must stand on the ground (z >= 0), it reaches "
+                         f"z = {verts[:, 2].min():.3f}")
+    convex = str(probe).lower().startswith(CONVEX_PRIMITIVES)
+    dictionary = dictionary or DEFAULT_DICTIONARY
+    tracker = MarkerTracker(base, dictionary=dictionary, marker_length=marker_length, marker_id=marker_id)
+    coarse, fines, pxs, exposures, names = [], [], [], [], []
+    for item in items:
+        for name, img in _frames(item, max_frames):
+            intr, _ = base.for_image(img.shape[1], img.shape[0])
+            try:
+                pose = tracker.estimate(img)
+            except MarkerNotFoundError as exc:
+                raise MarkerNotFoundError(f"{name}: {exc}") from None
+            T = pose.cam_from_world
+            _probe_in_view(intr, T, verts, name)
+            exp = measure_exposure(img, intr, T, marker_length, dictionary, pose.marker_ids[0])
+            c, f, px = _grids(img, intr, T, caster, verts, faces, marker_length, exp.paper_rgb, convex)
+            coarse.append(c)
+            pxs.append(px)
+            fines.append(f)
+            exposures.append(exp)
+            names.append(name)
+    return _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, verts, t0)
+
+
+def _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, verts, t0) -> LightEstimate:
+    def make_fine(lights_h):
+        return [f(lights_h) for f in fines]
+
+    top = verts[:, 2].max()
+    anchor = np.r_[0.5 * (verts[:, :2].min(axis=0) + verts[:, :2].max(axis=0)), top]
+    if kind_name == "directional":
+        res = fit_directional(coarse, make_fine)
+    elif kind_name == "sun":
+        res = fit_sun(coarse, make_fine, enu)
+    else:
+        res = fit_point(coarse, make_fine, anchor)
+    ratio = _ratio(res.fine, res.light_h, pxs)
+    paper = np.median(np.array([e.paper_rgb for e in exposures]), axis=0)
+    ink = np.median(np.array([e.ink_rgb for e in exposures]), axis=0)
+    exp = Exposure(tuple(map(float, paper)), tuple(map(float, ink)), int(np.median([e.white_cells for e in exposures])),
+                   any(e.saturated for e in exposures))
+    warnings = []
+    if exp.saturated:
+        warnings.append("the marker's paper is over-exposed (clipped): the exposure match is a lower bound")
+    if res.uncertainty_deg > 3.0:
+        warnings.append(f"low confidence: uncertainty {res.uncertainty_deg:.1f} degrees")
+    if res.runner_up is not None and res.runner_up > 0.6:
+        warnings.append(f"a second light explains {100 * res.runner_up:.0f} % as much: check the result")
+    fit = {"explained": round(res.explained, 4), "visible": round(res.visible, 3),
+           "runner_up": None if res.runner_up is None else round(res.runner_up, 3),
+           "evaluations": int(res.evaluations), "darkening": round(1 - float(np.exp(np.median(res.deltas))), 4),
+           "time_ms": round((time.perf_counter() - t0) * 1e3, 1)}
+    h = res.light_h
+    if kind_name == "directional":
+        d = tuple(float(v) for v in h[:3])
+        return LightEstimate("directional", "directional:{:.6f},{:.6f},{:.6f}".format(*d), direction=d,
+                             shadow_ratio=ratio, uncertainty_deg=res.uncertainty_deg, exposure=exp,
+                             frames=len(coarse), fit=fit, warnings=warnings)
+    if kind_name == "sun":
+        north = float(res.params[0]) % 360.0
+        body = kind.split(":", 1)[1].split("@")[0]
+        lat, lon, when = body.split(",")[:3]
+        return LightEstimate("sun", f"sun:{lat},{lon},{when},{north:.4f}", direction=tuple(float(v) for v in h[:3]),
+                             north_deg=north, shadow_ratio=ratio, uncertainty_deg=res.uncertainty_deg, exposure=exp,
+                             frames=len(coarse), fit=fit, warnings=warnings)
+    p = tuple(float(v) for v in h[:3])
+    return LightEstimate("point", "point:{:.6f},{:.6f},{:.6f}".format(*p), position=p, shadow_ratio=ratio,
+                         uncertainty_deg=res.uncertainty_deg, position_uncertainty=res.position_sigma,
+                         exposure=exp, frames=len(coarse), fit=fit, warnings=warnings)
+

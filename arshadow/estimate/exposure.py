@@ -1,0 +1,206 @@
+"""Exposure and white balance from the printed marker: its white paper and black ink as a grey card.
+
+The marker's cells are known (its dictionary bits): every white cell is paper, every black cell ink. The
+photo is decoded from sRGB to linear light; each cell is sampled at 3 x 3 points inside its central half
+(bilinear, distortion honoured), away from the blurred cell edges. The lit paper is the median of the white
+cells whose luminance is within 15 % of the brightest white cells (cells in a shadow are dropped); the ink
+the median of the black cells. Pure numpy / OpenCV.
+
+The result is the linear RGB that the camera recorded for lit paper: a virtual object of the paper's
+colour (``--color 255,255,255``) lit like the paper must come out with exactly that value.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from ..camera import Intrinsics
+from ..compose.composite import SRGB_TO_LINEAR
+from ..errors import ArshadowError
+from ..tracking.dictionary import get_dictionary, marker_bits
+
+__all__ = ["Exposure", "ExposureError", "measure_exposure", "smooth_exposures", "sample_linear"]
+
+
+class ExposureError(ArshadowError, ValueError):
+    """The marker's paper cannot be measured (too few lit, unsaturated white cells)."""
+
+
+@dataclass(frozen=True)
+class Exposure:
+    """The marker's paper and ink as the camera recorded them.
+
+    Attributes
+    ----------
+    paper_rgb : (3,) float
+        Linear RGB of the lit white paper (0..1 of the camera's range).
+    ink_rgb : (3,) float
+        Linear RGB of the black ink.
+    white_cells : int
+        Lit white cells used.
+    saturated : bool
+        Some paper samples are clipped (over-exposed): ``paper_rgb`` is then a lower bound.
+    """
+
+    paper_rgb: tuple
+    ink_rgb: tuple
+    white_cells: int
+    saturated: bool = False
+
+    @property
+    def white_balance(self) -> tuple:
+        """Per-channel gains (R, G, B) that make the paper grey, green = 1."""
+        p = np.asarray(self.paper_rgb)
+        return tuple(float(p[1] / max(c, 1e-9)) for c in p)
+
+    @property
+    def contrast(self) -> float:
+        """Paper / ink luminance (Rec. 709 weights)."""
+        w = np.array([0.2126, 0.7152, 0.0722])
+        return float(w @ np.asarray(self.paper_rgb) / max(w @ np.asarray(self.ink_rgb), 1e-9))
+
+    def to_dict(self) -> dict:
+        return {"paper_rgb": [round(float(v), 6) for v in self.paper_rgb],
+                "ink_rgb": [round(float(v), 6) for v in self.ink_rgb],
+                "white_balance": [round(v, 6) for v in self.white_balance],
+                "contrast": round(self.contrast, 3), "white_cells": int(self.white_cells),
+                "saturated": bool(self.saturated)}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> Exposure:
+        return cls(tuple(float(v) for v in d["paper_rgb"]), tuple(float(v) for v in d["ink_rgb"]),
+                   int(d.get("white_cells", 0)), bool(d.get("saturated", False)))
+
+
+def sample_linear(image_bgr: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Bilinear samples of a BGR uint8 photo in linear RGB: uv (n, 2) float pixels -> (n, 3) float32 RGB
+    (NaN outside the image)."""
+    lin = cv2.LUT(image_bgr, SRGB_TO_LINEAR)
+    return _remap_points(lin, uv)[:, ::-1]
+
+
+def _remap_points(img: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    uv = np.asarray(uv, np.float32).reshape(-1, 1, 2)
+    out = cv2.remap(img, uv[:, :, 0], uv[:, :, 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                    borderValue=(np.nan,) * 4).reshape(len(uv), -1)
+    H, W = img.shape[:2]
+    bad = ~((uv[:, 0, 0] >= 0) & (uv[:, 0, 0] <= W - 1) & (uv[:, 0, 1] >= 0) & (uv[:, 0, 1] <= H - 1))
+    out[bad] = np.nan
+    return out
+
+
+def _cell_points(bits: np.ndarray, length: float):
+    """World points (3 x 3 per cell, central half) of every cell: ((c*c*9, 3) float64, (c*c,) bool white)."""
+    c = bits.shape[0]
+    cell = length / c
+    off = (np.array([-1.0, 0.0, 1.0]) * 0.25) * cell
+    pts = []
+    for r in range(c):
+        for k in range(c):
+            cx = -length / 2 + (k + 0.5) * cell
+            cy = length / 2 - (r + 0.5) * cell
+            for dy in off:
+                for dx in off:
+                    pts.append((cx + dx, cy + dy, 0.0))
+    return np.array(pts), bits.ravel().astype(bool)
+
+
+def measure_exposure(image_bgr: np.ndarray, intrinsics: Intrinsics, cam_from_world, marker_length: float,
+                     dictionary="DICT_6X6_250", marker_id: int = 0) -> Exposure:
+    """Measure the lit paper and the ink of the detected marker in a photo.
+
+    Parameters
+    ----------
+    image_bgr : (H, W, 3) uint8
+        The photo (sRGB).
+    intrinsics : Intrinsics
+        The photo's camera (its size).
+    cam_from_world : (4, 4) float64
+        The marker's pose (world = marker frame, the marker centred on the origin).
+    marker_length : float
+        The marker's side, metres.
+    dictionary, marker_id
+        Which marker (its bits tell white cells from black ones).
+
+    Returns
+    -------
+    Exposure
+
+    Raises
+    ------
+    ExposureError
+        Fewer than 3 white cells are in the image and lit.
+    """
+    bits = marker_bits(get_dictionary(dictionary), int(marker_id))
+    pts, white = _cell_points(bits, float(marker_length))
+    uv = intrinsics.project(pts, cam_from_world)
+    rgb = sample_linear(image_bgr, uv).reshape(len(white), 9, 3)
+    raw = _remap_points(image_bgr.astype(np.float32), uv).reshape(len(white), 9, 3)
+    cell = np.nanmedian(rgb, axis=1) if np.isfinite(rgb).any() else np.full((len(white), 3), np.nan)
+    ok = np.all(np.isfinite(cell), axis=1)
+    lum = cell @ np.array([0.2126, 0.7152, 0.0722])
+    w_ok = white & ok
+    if np.count_nonzero(w_ok) < 3:
+        raise ExposureError("the marker's white cells are not in the image: cannot measure its paper")
+    top = np.percentile(lum[w_ok], 90)
+    lit = w_ok & (lum >= 0.85 * top)
+    if np.count_nonzero(lit) < 3:
+        raise ExposureError("fewer than 3 lit white cells on the marker: cannot measure its paper")
+    paper = np.median(cell[lit], axis=0)
+    b_ok = ~white & ok
+    ink = np.median(cell[b_ok], axis=0) if b_ok.any() else np.zeros(3)
+    saturated = bool(np.nanmax(raw[lit]) >= 254.5)
+    return Exposure(tuple(float(v) for v in paper), tuple(float(v) for v in ink), int(np.count_nonzero(lit)),
+                    saturated)
+
+
+def smooth_exposures(measurements, time_constant: float = 5.0, jump: float = 0.15) -> list:
+    """Smooth a video's per-frame measurements, following auto-exposure changes.
+
+    A one-pole filter in log space with ``time_constant`` frames; a change of the paper's luminance by more
+    than ``jump`` (relative) that persists for 3 frames resets the filter (a new exposure, followed at once).
+    ``None`` entries (marker not found) repeat the last smoothed value.
+
+    Parameters
+    ----------
+    measurements : list of Exposure or None
+    time_constant : float
+        Frames.
+    jump : float
+
+    Returns
+    -------
+    list of Exposure or None
+        Same length.
+
+    Examples
+    --------
+    >>> e = [Exposure((0.5, 0.5, 0.5), (0.02,) * 3, 20)] * 3 + [Exposure((0.8, 0.8, 0.8), (0.03,) * 3, 20)] * 4
+    >>> [round(x.paper_rgb[0], 3) for x in smooth_exposures(e)]
+    [0.5, 0.5, 0.5, 0.544, 0.8, 0.8, 0.8]
+    """
+    a = 1.0 - math.exp(-1.0 / max(float(time_constant), 1e-6))
+    out: list = []
+    state = None
+    pending = 0
+    for m in measurements:
+        if m is None:
+            out.append(out[-1] if out else None)
+            continue
+        x = np.log(np.maximum(np.r_[m.paper_rgb, m.ink_rgb], 1e-6))
+        if state is None:
+            state = x
+        else:
+            far = abs(np.mean(x[:3] - state[:3])) > math.log1p(jump)
+            pending = pending + 1 if far else 0
+            state = x if pending >= 2 else state + a * (x - state) if not far else state + a * (x - state)
+            if pending >= 2:
+                pending = 0
+        v = np.exp(state)
+        out.append(Exposure(tuple(float(t) for t in v[:3]), tuple(float(t) for t in v[3:]), m.white_cells,
+                            m.saturated))
+    return out

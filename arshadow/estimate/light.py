@@ -1,0 +1,294 @@
+"""Fit the light to the probe's real shadow by analysis by synthesis.
+
+For a candidate light the probe's exact ground shadow is rasterised on each frame's ground grid
+(:func:`arshadow.estimate.shadow.shadow_coverage`) and the photo explained by it
+(:func:`arshadow.estimate.shadow.fit_levels`); the objective is the sum over frames of ``RSS / RSS0`` (the
+residual left by the shadow model, relative to no shadow at all). The light is fixed in the world, so
+frames of a video add up.
+
+Search, coarse to fine: an exhaustive grid on a coarse ground grid (directional: azimuth x elevation every
+5 x 4 degrees; sun: NORTH every 3 degrees), then Nelder-Mead on the fine grid from the three best distinct
+coarse minima; a point light starts from the directional fit and a line search of its distance, then
+Nelder-Mead in 3-D. The uncertainty is the Laplace approximation of the least-squares fit (numerical
+Hessian of the RSS, the noise variance from the residual, inflated by the residual's spatial correlation).
+
+Refusals (:class:`arshadow.errors.EstimateError`): no shadow darker than 5 % or explaining < 2 % of the
+variance (flat light), the best shadow mostly out of view or hidden behind the probe, a second distinct
+minimum nearly as good (ambiguous).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import minimize
+
+from ..errors import EstimateError
+from ..lights.sun import enu_to_world
+from .shadow import Evidence, fit_levels, shadow_coverage
+
+__all__ = ["FitResult", "direction_of", "fit_directional", "fit_sun", "fit_point", "objective"]
+
+#: minimum darkening (1 - shadow ratio) of a shadow worth fitting
+MIN_DARKENING = 0.05
+#: minimum share of the ground's variance that the shadow must explain
+MIN_EXPLAINED = 0.02
+#: minimum visible (used) share of the fitted shadow's area, over the frames
+MIN_VISIBLE = 0.4
+#: a second minimum this close (relative explained variance) and > 15 degrees away is ambiguous
+AMBIGUOUS = 0.85
+
+
+@dataclass
+class FitResult:
+    """A fitted light: ``light_h`` (4,), its parameters, the objective, the shadow's log darkness per frame,
+    a 1-sigma uncertainty (degrees of direction; metres of position for a point light), diagnostics and the
+    fine evidence it was refined on."""
+
+    light_h: np.ndarray
+    params: np.ndarray
+    score: float
+    deltas: list
+    uncertainty_deg: float
+    position_sigma: float | None
+    explained: float
+    visible: float
+    runner_up: float | None
+    evaluations: int
+    fine: list
+
+
+def direction_of(az_deg: float, el_deg: float) -> np.ndarray:
+    """Unit vector towards a light at azimuth ``az_deg`` (from +x towards +y) and elevation ``el_deg``."""
+    a, e = math.radians(az_deg), math.radians(el_deg)
+    return np.array([math.cos(e) * math.cos(a), math.cos(e) * math.sin(a), math.sin(e)])
+
+
+def objective(evs: list, light_h) -> tuple:
+    """``(score, deltas, rss list)``: sum over frames of RSS / RSS0, and each frame's log darkness."""
+    score, deltas, parts = 0.0, [], []
+    for ev in evs:
+        S = shadow_coverage(ev, light_h)
+        if S is None:
+            return math.inf, [], []
+        rss, delta, rss0, n = fit_levels(ev, S)
+        if not math.isfinite(rss0) or rss0 <= 0:
+            score += 1.0
+            deltas.append(0.0)
+            parts.append((rss0, rss0, n))
+            continue
+        if delta >= 0.0:  # a "shadow" brighter than the ground: no shadow
+            rss = rss0
+        score += rss / rss0
+        deltas.append(delta)
+        parts.append((rss, rss0, n))
+    return score, deltas, parts
+
+
+class _Counter:
+    def __init__(self, evs, to_light):
+        self.evs, self.to_light, self.n = evs, to_light, 0
+
+    def __call__(self, p):
+        self.n += 1
+        h = self.to_light(np.asarray(p, np.float64))
+        return math.inf if h is None else objective(self.evs, h)[0]
+
+
+def _visible_share(evs, light_h) -> float:
+    """Used share of the fitted shadow's area (the rest is off-image, behind the probe or saturated)."""
+    tot = vis = 0.0
+    for ev in evs:
+        S = shadow_coverage(ev, light_h)
+        if S is None:
+            return 0.0
+        tot += float(S.sum())
+        vis += float(S[ev.used].sum())
+    return vis / tot if tot > 0 else 0.0
+
+
+def _correlation_factor(evs, light_h) -> float:
+    """How many cells one independent residual spans: ((1 + rho) / (1 - rho))^2, rho the lag-1 correlation
+    of the fit's residual along the grid's rows and columns (capped to [1, 400])."""
+    f = []
+    for ev in evs:
+        S = shadow_coverage(ev, light_h)
+        rss, delta, rss0, n = fit_levels(ev, S)
+        r = np.where(ev.used, ev.log_y - delta * S, np.nan)
+        r = r - np.nanmean(r)
+        pairs = [(r[:, 1:], r[:, :-1]), (r[1:, :], r[:-1, :])]
+        num = sum(np.nansum(a * b) for a, b in pairs)
+        den = sum(np.nansum(np.where(np.isfinite(a * b), a * a, 0.0)) for a, b in pairs)
+        rho = float(np.clip(num / den if den > 0 else 0.0, 0.0, 0.95))
+        f.append(((1 + rho) / (1 - rho)) ** 2)
+    return float(np.clip(np.mean(f), 1.0, 400.0))
+
+
+def _laplace(evs, to_light, p, steps) -> np.ndarray:
+    """Covariance of the parameters ``p`` from the numerical Hessian of the summed RSS."""
+    def rss(q):
+        h = to_light(np.asarray(q, np.float64))
+        if h is None:
+            return math.inf
+        return sum(a for a, _, _ in objective(evs, h)[2])
+
+    k = len(p)
+    f0 = rss(p)
+    Hm = np.zeros((k, k))
+    for i in range(k):
+        for j in range(i, k):
+            ei, ej = np.eye(k)[i] * steps[i], np.eye(k)[j] * steps[j]
+            if i == j:
+                Hm[i, i] = (rss(p + ei) - 2 * f0 + rss(p - ei)) / steps[i] ** 2
+            else:
+                Hm[i, j] = Hm[j, i] = (rss(p + ei + ej) - rss(p + ei - ej) - rss(p - ei + ej)
+                                       + rss(p - ei - ej)) / (4 * steps[i] * steps[j])
+    n = sum(c for _, _, c in objective(evs, to_light(p))[2])
+    sigma2 = f0 / max(n - k - 2, 1) * _correlation_factor(evs, to_light(p))
+    try:
+        cov = 2.0 * sigma2 * np.linalg.inv(Hm)
+    except np.linalg.LinAlgError:
+        return np.full((k, k), np.inf)
+    if not np.all(np.isfinite(cov)) or np.any(np.diag(cov) < 0):
+        return np.full((k, k), np.inf)
+    return cov
+
+
+def _distinct_minima(cands: np.ndarray, scores: np.ndarray, sep_deg: float, k: int, to_dir) -> list:
+    order = np.argsort(scores)
+    keep: list = []
+    for i in order:
+        if not np.isfinite(scores[i]):
+            break
+        d = to_dir(cands[i])
+        if all(math.degrees(math.acos(np.clip(d @ to_dir(cands[j]), -1, 1))) > sep_deg for j in keep):
+            keep.append(i)
+        if len(keep) >= k:
+            break
+    return keep
+
+
+def _check(evs, h, score, deltas, runner_up_score):
+    """Refuse a fit that is not a shadow, not in view, or ambiguous. Returns (explained, visible, runner)."""
+    nf = len(evs)
+    explained = 1.0 - score / nf
+    dark = 1.0 - math.exp(float(np.median(deltas))) if deltas else 0.0
+    if dark < MIN_DARKENING or explained < MIN_EXPLAINED:
+        raise EstimateError(f"no shadow of the probe found (best fit darkens the ground by {100 * dark:.0f} %, "
+                            f"explains {100 * max(explained, 0):.1f} % of its variation): flat light, or the "
+                            "shadow is hidden or out of view")
+    visible = _visible_share(evs, h)
+    if visible < MIN_VISIBLE:
+        raise EstimateError(f"the probe's shadow is mostly out of view ({100 * visible:.0f} % of it visible): "
+                            "frame the whole shadow, or it is hidden behind the probe")
+    runner = None
+    if runner_up_score is not None and math.isfinite(runner_up_score):
+        runner = (1.0 - runner_up_score / nf) / explained
+        if runner > AMBIGUOUS:
+            raise EstimateError(f"ambiguous fit: a light more than 15 degrees away explains the shadow almost as "
+                                f"well ({100 * runner:.0f} %); add frames from other viewpoints or a taller probe")
+    return explained, visible, runner
+
+
+def _refine(fine, to_light, starts, simplex_step, xatol):
+    best = None
+    count = _Counter(fine, to_light)
+    for p0 in starts:
+        init = np.vstack([p0] + [p0 + np.eye(len(p0))[i] * simplex_step[i] for i in range(len(p0))])
+        res = minimize(count, p0, method="Nelder-Mead",
+                       options={"initial_simplex": init, "xatol": xatol, "fatol": 1e-7, "maxiter": 400})
+        if best is None or res.fun < best.fun:
+            best = res
+    return best, count.n
+
+
+def fit_directional(coarse: list, make_fine, el_range=(12.0, 84.0)) -> FitResult:
+    """Fit a directional light (azimuth, elevation) to the evidence: ``coarse`` (one grid per frame) and
+    ``make_fine(lights_h) -> list`` (per frame, a fine grid covering those lights' shadows)."""
+    az = np.arange(0.0, 360.0, 8.0)
+    el = np.arange(el_range[0], el_range[1] + 1e-9, 6.0)
+    cands = np.array([(a, e) for e in el for a in az])
+    to_light = lambda p: np.append(direction_of(p[0], p[1]), 0.0) if el_range[0] - 6 < p[1] < 89.5 else None  # noqa: E731
+    to_dir = lambda p: direction_of(p[0], p[1])  # noqa: E731
+    scores = np.array([objective(coarse, to_light(c))[0] for c in cands])
+    keep = _distinct_minima(cands, scores, 15.0, 3, to_dir)
+    if not keep:
+        raise EstimateError("no light direction casts a shadow of the probe in view")
+    fine = make_fine([to_light(cands[i]) for i in keep])
+    res, n = _refine(fine, to_light, [cands[i] for i in keep], (2.5, 2.0), 0.02)
+    p = res.x.copy()
+    p[0] %= 360.0
+    h = to_light(p)
+    score, deltas, _ = objective(fine, h)
+    runner = _runner_up(fine, to_light, cands, keep, p, to_dir)
+    explained, visible, rr = _check(fine, h, score, deltas, runner)
+    cov = _laplace(fine, to_light, p, np.array([0.3, 0.3]))
+    unc = math.sqrt(max(cov[1, 1] + cov[0, 0] * math.cos(math.radians(p[1])) ** 2, 0.0))
+    return FitResult(h, p, score, deltas, unc, None, explained, visible, rr, len(cands) + n, fine)
+
+
+def _runner_up(fine, to_light, cands, keep, p, to_dir):
+    """The best fine score among the coarse minima more than 15 degrees from the optimum ``p``."""
+    d = to_dir(p)
+    others = [cands[i] for i in keep if math.degrees(math.acos(np.clip(d @ to_dir(cands[i]), -1, 1))) > 15.0]
+    if not others:
+        return None
+    return min(objective(fine, to_light(q))[0] for q in others)
+
+
+def fit_sun(coarse: list, make_fine, enu) -> FitResult:
+    """Fit the world's bearing NORTH (1 DOF) for a known sun direction ``enu`` (east, north, up)."""
+    enu = np.asarray(enu, np.float64)
+    if enu[2] <= 0.0:
+        raise EstimateError("the sun is below the horizon at that time and place: no shadow to fit")
+    to_light = lambda p: np.append(enu_to_world(enu, float(p[0])), 0.0)  # noqa: E731
+    to_dir = lambda p: enu_to_world(enu, float(p[0]))  # noqa: E731
+    cands = np.arange(0.0, 360.0, 3.0)[:, None]
+    scores = np.array([objective(coarse, to_light(c))[0] for c in cands])
+    keep = _distinct_minima(cands, scores, 15.0, 3, to_dir)
+    if not keep:
+        raise EstimateError("no bearing of the world casts the sun's shadow of the probe in view")
+    fine = make_fine([to_light(cands[i]) for i in keep])
+    res, n = _refine(fine, to_light, [cands[i] for i in keep], (1.5,), 0.01)
+    p = np.array([res.x[0] % 360.0])
+    h = to_light(p)
+    score, deltas, _ = objective(fine, h)
+    runner = _runner_up(fine, to_light, cands, keep, p, to_dir)
+    explained, visible, rr = _check(fine, h, score, deltas, runner)
+    cov = _laplace(fine, to_light, p, np.array([0.3]))
+    unc = math.sqrt(max(cov[0, 0], 0.0)) * math.cos(math.asin(min(1.0, enu[2] / np.linalg.norm(enu))))
+    return FitResult(h, p, score, deltas, unc, None, explained, visible, rr, len(cands) + n, fine)
+
+
+def fit_point(coarse: list, make_fine, anchor) -> FitResult:
+    """Fit a point light's position (3 DOF): the directional fit from the probe's top ``anchor`` (3,), a line
+    search of the distance along it, then Nelder-Mead in 3-D."""
+    d = fit_directional(coarse, make_fine)
+    fine = d.fine
+    u = d.light_h[:3]
+    anchor = np.asarray(anchor, np.float64)
+    top = float(max(ev.verts[:, 2].max() for ev in fine))
+
+    def to_light(p):
+        return None if p[2] <= top + 0.01 else np.append(p, 1.0)
+
+    dists = np.geomspace(0.12, 4.0, 24)
+    cands = [anchor + t * u for t in dists]
+    scores = [objective(fine, to_light(c))[0] if to_light(c) is not None else math.inf for c in cands]
+    order = np.argsort(scores)[:2]
+    starts = [cands[i] for i in order]
+    scale = max(0.02, 0.1 * float(np.linalg.norm(starts[0] - anchor)))
+    res, n = _refine(fine, to_light, starts, (scale,) * 3, 1e-4)
+    p = res.x.copy()
+    h = to_light(p)
+    if h is None:
+        raise EstimateError("the point light fit ended below the probe's top: no point light explains the shadow")
+    score, deltas, _ = objective(fine, h)
+    explained, visible, _ = _check(fine, h, score, deltas, None)
+    dist = float(np.linalg.norm(p - anchor))
+    cov = _laplace(fine, to_light, p, np.full(3, max(1e-3, 0.005 * dist)))
+    sig = math.sqrt(max(float(np.trace(cov)), 0.0))
+    unc = math.degrees(sig / dist) if dist > 0 else math.inf
+    return FitResult(h, p, score, deltas, unc, sig, explained, visible, None, d.evaluations + len(cands) + n, fine)

@@ -1,0 +1,192 @@
+"""The typed result of a light estimate, and its JSON form (what ``arshadow light --json`` prints and
+``--light-from`` reads)."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import UsageError
+from .exposure import Exposure
+
+__all__ = ["DEFAULT_OBJECT_COLOR", "LightEstimate", "load_estimate", "scene_overrides", "shading_gain"]
+
+
+def _r(v, nd=6):
+    if v is None:
+        return None
+    if isinstance(v, (list, tuple, np.ndarray)):
+        return [_r(x, nd) for x in v]
+    return round(float(v), nd)
+
+
+@dataclass
+class LightEstimate:
+    """A light measured from photos of a probe's shadow.
+
+    Attributes
+    ----------
+    kind : str
+        ``"directional"``, ``"point"`` or ``"sun"``.
+    light : str
+        A spec that ``--light`` accepts (:func:`arshadow.lights.spec.parse_light`).
+    direction : (3,) float or None
+        Unit vector towards the light, world frame (directional and sun).
+    position : (3,) float or None
+        The point light's position, world frame, metres.
+    north_deg : float or None
+        Sun: the fitted compass bearing of world +y (degrees clockwise from north).
+    shadow_ratio : (3,) float
+        Linear RGB of the ground in the probe's shadow over the same ground lit.
+    uncertainty_deg : float
+        1-sigma uncertainty of the light's direction, degrees (point light: of its direction seen from
+        the probe).
+    position_uncertainty : float or None
+        Point light: 1-sigma uncertainty of its position, metres.
+    exposure : Exposure or None
+        The marker paper's measurement (the median over the frames).
+    frames : int
+        Frames used.
+    fit : dict
+        Diagnostics: explained variance, visible share of the shadow, runner-up, evaluations, time.
+    warnings : list of str
+        Plausible problems (a low-confidence result says so here).
+    """
+
+    kind: str
+    light: str
+    direction: tuple | None = None
+    position: tuple | None = None
+    north_deg: float | None = None
+    shadow_ratio: tuple = (1.0, 1.0, 1.0)
+    uncertainty_deg: float = math.inf
+    position_uncertainty: float | None = None
+    exposure: Exposure | None = None
+    frames: int = 1
+    fit: dict = field(default_factory=dict)
+    warnings: list = field(default_factory=list)
+
+    @property
+    def confident(self) -> bool:
+        """No warning was raised and the uncertainty is below 3 degrees."""
+        return not self.warnings and self.uncertainty_deg <= 3.0
+
+    def to_dict(self) -> dict:
+        return {"light": self.light, "kind": self.kind, "direction": _r(self.direction),
+                "position": _r(self.position), "north_deg": _r(self.north_deg, 4),
+                "shadow_ratio": _r(self.shadow_ratio, 4), "uncertainty_deg": _r(self.uncertainty_deg, 4),
+                "position_uncertainty": _r(self.position_uncertainty),
+                "exposure": None if self.exposure is None else self.exposure.to_dict(),
+                "frames": int(self.frames), "confident": self.confident, "fit": self.fit,
+                "warnings": list(self.warnings)}
+
+    def to_json(self, indent=1) -> str:
+        return json.dumps(self.to_dict(), indent=indent)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> LightEstimate:
+        try:
+            return cls(kind=str(d["kind"]), light=str(d["light"]),
+                       direction=None if d.get("direction") is None else tuple(d["direction"]),
+                       position=None if d.get("position") is None else tuple(d["position"]),
+                       north_deg=d.get("north_deg"), shadow_ratio=tuple(float(v) for v in d["shadow_ratio"]),
+                       uncertainty_deg=float(d.get("uncertainty_deg", math.inf)),
+                       position_uncertainty=d.get("position_uncertainty"),
+                       exposure=None if d.get("exposure") is None else Exposure.from_dict(d["exposure"]),
+                       frames=int(d.get("frames", 1)), fit=dict(d.get("fit", {})),
+                       warnings=list(d.get("warnings", [])))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise UsageError(f"not a light estimate ({type(exc).__name__}: {exc}); make one with arshadow light "
+                             "--json") from None
+
+    @classmethod
+    def from_json(cls, text: str) -> LightEstimate:
+        try:
+            d = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise UsageError(f"light estimate: not JSON ({exc})") from None
+        if not isinstance(d, dict):
+            raise UsageError("light estimate: expected a JSON object")
+        return cls.from_dict(d)
+
+
+def load_estimate(path) -> LightEstimate:
+    """Read a light estimate written by ``arshadow light --json`` (UsageError naming the file otherwise)."""
+    p = Path(path)
+    try:
+        text = p.read_text()
+    except OSError as exc:
+        raise UsageError(f"--light-from {p}: cannot read ({exc.strerror or exc})") from None
+    try:
+        return LightEstimate.from_json(text)
+    except UsageError as exc:
+        raise UsageError(f"--light-from {p}: {exc}") from None
+
+
+def shading_gain(est: LightEstimate, ambient: float = 0.25) -> tuple | None:
+    """Per-channel (R, G, B) gain on the virtual object's linear colour so that a white (255) horizontal
+    face under the estimated light, shaded as the renderer shades it (``ambient + weight * n.l``, weight 1),
+    records the marker paper's measured linear RGB. None without an exposure measurement."""
+    if est.exposure is None:
+        return None
+    if est.direction is not None:
+        sin_e = float(est.direction[2])
+    elif est.position is not None:
+        p = np.asarray(est.position, np.float64)
+        sin_e = float(p[2] / np.linalg.norm(p))
+    else:
+        sin_e = 1.0
+    shade = ambient + max(sin_e, 0.0)
+    return tuple(float(c) / shade for c in est.exposure.paper_rgb)
+
+
+def _encode_unclipped(x: np.ndarray) -> np.ndarray:
+    """The sRGB curve without clipping above 1 (the renderer decodes it back exactly; a gain may push a
+    colour past the 8-bit range in linear light)."""
+    x = np.maximum(np.asarray(x, np.float64), 0.0)
+    return np.where(x <= 0.0031308, x * 12.92, 1.055 * x ** (1.0 / 2.4) - 0.055)
+
+
+#: the renderer's colour of a mesh without one (sRGB 0..1), :data:`arshadow.gl.resources.DEFAULT_COLOR`
+DEFAULT_OBJECT_COLOR = (0.8, 0.8, 0.8)
+
+
+def scene_overrides(est: LightEstimate, color=None, exposure: bool = True) -> dict:
+    """What an estimate changes in a scene (``--light-from``).
+
+    Parameters
+    ----------
+    est : LightEstimate
+    color : str or None
+        The model's ``--color`` (8-bit sRGB ``"R,G,B"``), None for the default grey.
+    exposure : bool
+        Apply the marker's exposure / white balance to the object's colour.
+
+    Returns
+    -------
+    dict
+        ``lights`` (tuple of one spec), ``opacity`` 1.0 and ``shadow_color`` (the measured ratio, linear
+        RGB): a full shadow keeps exactly the measured share of each channel; ``occluder_color`` (sRGB
+        0..1, unclipped) when ``exposure``: the colour times :func:`shading_gain` in linear light.
+
+    Examples
+    --------
+    >>> e = LightEstimate("directional", "directional:0,0,1", direction=(0.0, 0.0, 1.0), shadow_ratio=(0.4, 0.5, 0.6),
+    ...                   exposure=Exposure((0.625, 0.625, 0.625), (0.02, 0.02, 0.02), 20))
+    >>> o = scene_overrides(e, "255,255,255")
+    >>> o["lights"], o["opacity"], o["shadow_color"], [round(c, 4) for c in o["occluder_color"]]
+    (('directional:0,0,1',), 1.0, (0.4, 0.5, 0.6), [0.7354, 0.7354, 0.7354])
+    """
+    out = {"lights": (est.light,), "opacity": 1.0,
+           "shadow_color": tuple(float(np.clip(v, 0.0, 1.0)) for v in est.shadow_ratio)}
+    gain = shading_gain(est) if exposure else None
+    if gain is not None:
+        base = DEFAULT_OBJECT_COLOR if color is None else tuple(float(v) / 255.0 for v in str(color).split(","))
+        lin = np.where(np.asarray(base) <= 0.04045, np.asarray(base) / 12.92,
+                       ((np.asarray(base) + 0.055) / 1.055) ** 2.4) * np.asarray(gain)
+        out["occluder_color"] = tuple(float(v) for v in _encode_unclipped(lin))
+    return out

@@ -1,0 +1,539 @@
+"""GPU resources of the renderers: shader programs, caster buffers, raw-GL framebuffers, the ground plane.
+
+Shared by the stencil renderer (:mod:`arshadow.gl.stencil`), the shadow-map baseline
+(:mod:`arshadow.gl.shadowmap`) and the GPU compositor (:mod:`arshadow.gl.compose`); none of them imports
+another. Nothing here creates a context or imports moderngl (the objects come from the context handed in).
+
+- :func:`program`: a shader program compiled once per context (cached in ``ctx.extra``);
+- :class:`CasterBuffers`: one caster's vertex/index buffers (lit occluder, welded positions, light-facing
+  subsets), relative to its :func:`local_origin`;
+- :class:`CasterCache`: those buffers for the last few casters;
+- :class:`VolumeBuffers`: every light's shadow volume of a frame in one reused vertex/index buffer;
+- :class:`RenderTarget`: a framebuffer of renderbuffers (colour + optional ``GL_DEPTH24_STENCIL8``, MSAA);
+- :class:`FrameTargets`: a renderer's targets (main, resolve/downsample, GPU-resident textures);
+- :func:`ground_vertices`: the ground plane z = 0 as homogeneous triangles (unlimited or a square).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import weakref
+from importlib import resources
+
+import numpy as np
+
+from ..compose.composite import srgb_to_linear
+from ..errors import GLContextError, ShapeError, UsageError
+from . import glraw as G
+from .layers import TextureTarget
+
+__all__ = [
+    "DEFAULT_COLOR",
+    "CasterBuffers",
+    "CasterCache",
+    "FrameTargets",
+    "RenderTarget",
+    "VolumeBuffers",
+    "ground_vertices",
+    "load_shader",
+    "local_origin",
+    "program",
+    "translation",
+]
+
+#: default occluder colour (sRGB) when the mesh has none and none is given
+DEFAULT_COLOR = (0.8, 0.8, 0.8)
+
+
+@functools.cache
+def load_shader(name: str) -> str:
+    """Source of a shader shipped in ``arshadow/gl/shaders`` (package data)."""
+    return resources.files("arshadow.gl").joinpath("shaders", name).read_text(encoding="utf-8")
+
+
+def _program_cache(ctx) -> dict:
+    """Programs are cached per context (in ``ctx.extra``), compiled once."""
+    extra = ctx.extra if isinstance(getattr(ctx, "extra", None), dict) else None
+    if extra is None:
+        extra = {}
+        ctx.extra = extra
+    return extra.setdefault("arshadow_programs", {})
+
+
+def program(ctx, vert: str, frag: str):
+    """The program of shaders ``vert`` + ``frag`` (names in ``arshadow/gl/shaders``) on ``ctx``, compiled on
+    first use and cached on the context."""
+    cache = _program_cache(ctx)
+    key = (vert, frag)
+    if key not in cache:
+        cache[key] = ctx.program(vertex_shader=load_shader(vert), fragment_shader=load_shader(frag))
+    return cache[key]
+
+
+def _crease_normals(vertices: np.ndarray, faces: np.ndarray, crease_deg: float) -> np.ndarray:
+    """Per-corner normals ``(m, 3, 3)`` float64 and ``(m, 3)`` bool "flat": the area-weighted vertex normal
+    where it is within ``crease_deg`` of the face normal, else the face normal (flat edges stay sharp,
+    curved parts smooth)."""
+    tri = vertices[faces]
+    raw = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])  # |raw| = 2 area
+    fn = raw / np.maximum(np.linalg.norm(raw, axis=1, keepdims=True), 1e-300)
+    vn = np.zeros_like(vertices)
+    for k in range(3):
+        np.add.at(vn, faces[:, k], raw)
+    vn /= np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-300)
+    corner = vn[faces]  # (m, 3, 3)
+    cos = np.einsum("mkj,mj->mk", corner, fn)
+    flat = cos < math.cos(math.radians(crease_deg))
+    corner = np.where(flat[..., None], fn[:, None, :], corner)
+    return corner, flat
+
+
+class CasterBuffers:
+    """GPU copies of one caster: the occluder (unwelded corners: pos4, normal3, albedo3) and the welded
+    positions (for the planar shadow). Built once per caster."""
+
+    def __init__(self, ctx, prog_base, prog_occ, prog_pos, caster, color, crease_deg, local=True):
+        v = np.asarray(caster.vertices, dtype=np.float64)
+        #: the caster's local origin (its box centre; world origin with ``local=False``): positions go to
+        #: float32 relative to it
+        self.origin = local_origin(v) if local else np.zeros(3)
+        v_local = v - self.origin
+        f = np.asarray(caster.faces, dtype=np.int64)
+        m = len(f)
+        if color is not None:
+            alb = np.broadcast_to(srgb_to_linear(np.asarray(color, np.float64)[:3]), (m, 3, 3))
+        else:
+            cols = getattr(caster, "colors", None)
+            if cols is None:
+                alb = np.broadcast_to(srgb_to_linear(np.asarray(DEFAULT_COLOR)), (m, 3, 3))
+            else:
+                alb = srgb_to_linear(np.asarray(cols, np.float64)[:, :3])[f]
+        nrm, flat = _crease_normals(v, f, crease_deg)
+        # lighting pass: one vertex per distinct (vertex, normal) -- smooth corners share the vertex
+        # normal, flat (crease) corners are per face -- drawn indexed so the vertex cache works
+        key = np.stack([f.ravel(), np.where(flat, np.repeat(np.arange(m), 3).reshape(m, 3), -1).ravel()], 1)
+        _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+        corner_v = f.ravel()[first]
+        data = np.empty((len(first), 10), dtype=np.float32)
+        data[:, :3] = v_local[corner_v]
+        data[:, 3] = 1.0
+        data[:, 4:7] = nrm.reshape(-1, 3)[first]
+        data[:, 7:10] = alb.reshape(-1, 3)[first]
+        self.n_light_vertices = len(first)
+        self.vbo = ctx.buffer(data.tobytes())
+        self.light_ibo = ctx.buffer(inverse.reshape(-1).astype(np.uint32).tobytes())
+        self.vao = ctx.vertex_array(prog_occ, [(self.vbo, "4f 3f 3f", "in_pos", "in_normal", "in_albedo")],
+                                    index_buffer=self.light_ibo, index_element_size=4)
+        # base pass and planar shadow: welded, indexed vertices (positions + albedo; ~6x fewer vertex
+        # shader runs). Same float32 positions as above -> bit-identical depth for the GL_EQUAL passes.
+        welded = np.empty((len(v), 7), dtype=np.float32)
+        welded[:, :3] = v_local
+        welded[:, 3] = 1.0
+        if color is None and getattr(caster, "colors", None) is not None:
+            welded[:, 4:7] = srgb_to_linear(np.asarray(caster.colors, np.float64)[:, :3])
+        else:
+            welded[:, 4:7] = alb[0, 0]
+        self.pos_vbo = ctx.buffer(welded.tobytes())
+        self.ibo = ctx.buffer(f.astype(np.uint32).tobytes())
+        self.base_vao = ctx.vertex_array(prog_base, [(self.pos_vbo, "4f 3f", "in_pos", "in_albedo")],
+                                         index_buffer=self.ibo, index_element_size=4)
+        self.planar_vao = ctx.vertex_array(prog_pos, [(self.pos_vbo, "4f 12x", "in_pos")], index_buffer=self.ibo,
+                                           index_element_size=4)
+        self.n_indices = 3 * m
+        self.below_ground = bool(v[:, 2].min() < 0.0)
+        # homogeneous corners (8, 4) of the bounding box: the per-frame screen box of the colour readback
+        b = np.array([v.min(axis=0), v.max(axis=0)])
+        self.box_corners = np.array([[b[i, 0], b[j, 1], b[k, 2], 1.0] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
+        # closed, consistently wound meshes: back faces are never visible -> cull them (half the work)
+        self.cull = not bool(getattr(caster, "two_sided", True))
+        # closed meshes: a face turned away from a light always lies inside that light's own shadow
+        # volume, so its lighting pass only needs the light-facing faces (per light)
+        self.light_tris = inverse.reshape(m, 3).astype(np.uint32)
+        planes = getattr(caster, "face_planes", None)
+        if planes is None:
+            raw = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+            n = raw / np.maximum(np.linalg.norm(raw, axis=1, keepdims=True), 1e-300)
+            planes = np.c_[n, -np.einsum("ij,ij->i", n, v[f[:, 0]])]
+        self.face_planes = np.asarray(planes, np.float64)
+        self.sub_ibo = ctx.buffer(reserve=max(self.light_tris.nbytes, 64), dynamic=True)
+        self.sub_vao = ctx.vertex_array(prog_occ, [(self.vbo, "4f 3f 3f", "in_pos", "in_normal", "in_albedo")],
+                                        index_buffer=self.sub_ibo, index_element_size=4)
+        self.sub_ranges = {}
+        self.sub_key = None  # the lights sub_ibo holds subsets for
+        self._planar_sub_vao = None
+
+    def planar_sub_vao(self, ctx, prog):
+        """Positions of the light-facing subsets (``sub_ibo``) for the direct planar pass (made on first use)."""
+        if self._planar_sub_vao is None:
+            self._planar_sub_vao = ctx.vertex_array(prog, [(self.vbo, "4f 24x", "in_pos")], index_buffer=self.sub_ibo,
+                                                    index_element_size=4)
+        return self._planar_sub_vao
+
+    def upload_light_subsets(self, passes) -> None:
+        """Write, for each pass, the light-facing triangles (closed meshes) into ``sub_ibo``; records
+        ``sub_ranges[i] = (first, count)``. Skipped when the lights are those of the previous call (lights
+        fixed in the world: the subsets are per mesh and light, not per frame)."""
+        if not self.cull:
+            return
+        lights = [np.asarray(p.light_h, np.float64) for p in passes]
+        key = tuple(h.tobytes() for h in lights)
+        if key == self.sub_key:
+            return
+        self.sub_ranges, self.sub_key = {}, key
+        parts, first = [], 0
+        for i, h in enumerate(lights):
+            facing = self.face_planes @ h > 0.0
+            sub = self.light_tris[facing]
+            parts.append(sub)
+            self.sub_ranges[i] = (first, 3 * len(sub))
+            first += 3 * len(sub)
+        if first:
+            data = np.concatenate(parts) if len(parts) > 1 else parts[0]
+            if data.nbytes > self.sub_ibo.size:
+                # several lights (or soft-shadow samples) need several subsets: grow the buffer in place
+                # (same GL buffer name, so sub_vao stays valid), with headroom against repeated growth
+                self.sub_ibo.orphan(2 * data.nbytes)
+            self.sub_ibo.write(data)
+
+    def release(self):
+        for o in (self.vao, self.sub_vao, self._planar_sub_vao, self.base_vao, self.planar_vao, self.vbo,
+                  self.light_ibo, self.sub_ibo, self.pos_vbo, self.ibo):
+            if o is not None:
+                o.release()
+
+
+class RenderTarget:
+    """A raw-GL framebuffer: colour renderbuffers (+ optional D24S8), wrapped by moderngl."""
+
+    def __init__(self, ctx, gl, width, height, samples, color_formats, depth_stencil):
+        self.gl = gl
+        self.width, self.height, self.samples = int(width), int(height), int(samples)
+        self.fbo = gl.gen_framebuffer()
+        self.rbs = []
+        gl.glBindFramebuffer(G.GL_FRAMEBUFFER, self.fbo)
+        formats = list(color_formats) + ([G.GL_DEPTH24_STENCIL8] if depth_stencil else [])
+        for i, fmt in enumerate(formats):
+            rb = gl.gen_renderbuffer()
+            gl.glBindRenderbuffer(G.GL_RENDERBUFFER, rb)
+            if self.samples:
+                gl.glRenderbufferStorageMultisample(G.GL_RENDERBUFFER, self.samples, fmt, self.width, self.height)
+            else:
+                gl.glRenderbufferStorage(G.GL_RENDERBUFFER, fmt, self.width, self.height)
+            att = G.GL_DEPTH_STENCIL_ATTACHMENT if fmt == G.GL_DEPTH24_STENCIL8 else G.GL_COLOR_ATTACHMENT0 + i
+            gl.glFramebufferRenderbuffer(G.GL_FRAMEBUFFER, att, G.GL_RENDERBUFFER, rb)
+            self.rbs.append(rb)
+        gl.glBindRenderbuffer(G.GL_RENDERBUFFER, 0)
+        #: samples the driver actually allocated (llvmpipe rounds 2 up to 4)
+        self.actual_samples = gl.renderbuffer_param(self.rbs[0], G.GL_RENDERBUFFER_SAMPLES) if self.samples else 0
+        status = gl.glCheckFramebufferStatus(G.GL_FRAMEBUFFER)
+        self.stencil_bits = (
+            gl.attachment_param(G.GL_STENCIL_ATTACHMENT, G.GL_FRAMEBUFFER_ATTACHMENT_STENCIL_SIZE)
+            if depth_stencil else 0
+        )
+        self.depth_bits = (
+            gl.attachment_param(G.GL_DEPTH_ATTACHMENT, G.GL_FRAMEBUFFER_ATTACHMENT_DEPTH_SIZE)
+            if depth_stencil else 0
+        )
+        gl.glBindFramebuffer(G.GL_FRAMEBUFFER, 0)
+        if status != G.GL_FRAMEBUFFER_COMPLETE:
+            self.release()
+            raise GLContextError(
+                f"offscreen framebuffer {self.width}x{self.height} (samples={self.samples}) is incomplete: "
+                f"{G.framebuffer_status_name(status)}"
+            )
+        self.n_color = len(color_formats)
+        self.mgl = ctx.detect_framebuffer(self.fbo)
+
+    def release(self):
+        gl = self.gl
+        if self.fbo:
+            gl.delete_framebuffer(self.fbo)
+            self.fbo = 0
+        for rb in self.rbs:
+            gl.delete_renderbuffer(rb)
+        self.rbs = []
+
+
+def ground_vertices(ground_size=None, origin=None) -> np.ndarray:
+    """The ground plane z = 0 as 12 homogeneous vertices ``(12, 4) float32`` (4 triangles, CCW seen from
+    +z): unlimited (``None``: triangles fanning out to points at infinity, w = 0) or a square of side
+    ``ground_size`` centred on the world origin (2 triangles padded with degenerate ones).
+
+    ``origin (3,)``: the vertices relative to this point (:func:`local_origin`; points at infinity
+    unchanged); the unlimited fan's centre is then the ground point under it (small local coordinates)."""
+    origin = np.zeros(3) if origin is None else np.asarray(origin, np.float64)
+    if ground_size is None:
+        o, px, py, nx, ny = (0, 0, 0, 1), (1, 0, 0, 0), (0, 1, 0, 0), (-1, 0, 0, 0), (0, -1, 0, 0)
+        tris = [o, px, py, o, py, nx, o, nx, ny, o, ny, px]
+    else:
+        key = float(ground_size)
+        if not (math.isfinite(key) and key > 0):
+            raise UsageError(f"ground_size must be a positive length, got {ground_size}")
+        h = key / 2
+        a, b, c, d = (-h, -h, 0, 1), (h, -h, 0, 1), (h, h, 0, 1), (-h, h, 0, 1)
+        tris = [a, b, c, a, c, d] + [(0, 0, 0, 1)] * 6
+    t = np.asarray(tris, dtype=np.float64)
+    if ground_size is None:
+        t[t[:, 3] == 1.0, :2] = origin[:2]  # fan centre under the origin (the plane itself stays z = 0)
+    t[:, :3] -= origin * t[:, 3:4]
+    return t.astype(np.float32)
+
+
+def local_origin(vertices) -> np.ndarray:
+    """(3,) float64: the centre of the bounding box of ``vertices (n, 3)``, the origin of the frame the GPU
+    works in. Every position is converted to float32 relative to it (and the matrices absorb the
+    translation in float64): a millimetre object 1 km from the marker keeps float32's relative precision
+    of its own size instead of losing ~0.06 mm (float32 at 1000) to the distance."""
+    v = np.asarray(vertices, np.float64)
+    return 0.5 * (v.min(axis=0) + v.max(axis=0)) if len(v) else np.zeros(3)
+
+
+def translation(o) -> np.ndarray:
+    """(4, 4) float64: the translation by ``o (3,)``."""
+    t = np.eye(4)
+    t[:3, 3] = o
+    return t
+
+
+class CasterCache:
+    """:class:`CasterBuffers` of the last few casters, keyed by the caster object (held by weak reference:
+    a caster that is garbage collected loses its buffers) and its colour override.
+
+    Parameters
+    ----------
+    ctx : moderngl.Context
+    programs : (prog_base, prog_occ, prog_pos)
+        As :class:`CasterBuffers`.
+    max_cached : int
+        Least recently *made* entries are released beyond this many.
+    """
+
+    def __init__(self, ctx, programs, max_cached: int):
+        self.ctx = ctx
+        self.programs = tuple(programs)
+        self.max_cached = int(max_cached)
+        self._entries: dict[int, tuple[object, object, CasterBuffers]] = {}
+
+    def get(self, caster, occluder_color, crease_deg: float) -> CasterBuffers:
+        """The buffers of ``caster`` with ``occluder_color`` ((3,) sRGB or None), made on first use."""
+        entries = self._entries
+        # purge dead casters
+        for key in [k for k, (ref, _, _) in entries.items() if ref() is None]:
+            entries.pop(key)[2].release()
+        ckey = None if occluder_color is None else tuple(float(c) for c in np.ravel(occluder_color)[:3])
+        entry = entries.get(id(caster))
+        if entry is not None and entry[0]() is caster and entry[1] == (ckey, crease_deg):
+            return entry[2]
+        if entry is not None:
+            entries.pop(id(caster))[2].release()
+        while len(entries) >= self.max_cached:
+            entries.pop(next(iter(entries)))[2].release()
+        bufs = CasterBuffers(self.ctx, *self.programs, caster, ckey, crease_deg)
+        try:
+            ref = weakref.ref(caster)
+        except TypeError:  # objects without weakref support: keep a strong reference
+
+            def ref(obj=caster):
+                return obj
+
+        entries[id(caster)] = (ref, (ckey, crease_deg), bufs)
+        return bufs
+
+    def __len__(self) -> int:
+        return len(self._entries)
+
+    def release(self) -> None:
+        for _, _, bufs in self._entries.values():
+            bufs.release()
+        self._entries.clear()
+
+
+class VolumeBuffers:
+    """One vertex + index buffer holding every light's shadow volume of a frame (grown, never shrunk).
+
+    Parameters
+    ----------
+    ctx : moderngl.Context
+    prog_volume : moderngl.Program
+        The program the vertex array is made for (``in_pos``: vec4).
+    """
+
+    def __init__(self, ctx, prog_volume):
+        self.ctx = ctx
+        self.prog = prog_volume
+        self.vbo = self.ibo = self.vao = None
+        self._cap = (0, 0)
+        self._last = None  # (volumes, ranges, origin) of the last upload, kept when their arrays are read-only
+
+    def upload(self, passes, origin=None) -> list:
+        """Write every light's volume into the reused vertex/index buffers; returns per-pass
+        ``(first_index, n_indices)`` (None where a pass has no volume).
+
+        The pipeline hands the same (frozen, read-only) volume objects every frame while the lights stay
+        put: when the passes' volumes are exactly those of the previous upload, the buffers already hold
+        them and nothing is converted or uploaded. ``origin (3,)``: vertices are written relative to it
+        (:func:`local_origin`; points at infinity unchanged)."""
+        vols = tuple(None if p.mode == "planar" else p.volume for p in passes)
+        origin = np.zeros(3) if origin is None else np.asarray(origin, np.float64)
+        last = self._last
+        if (last is not None and len(last[0]) == len(vols) and all(a is b for a, b in zip(last[0], vols))
+                and np.array_equal(last[2], origin)):
+            return list(last[1])
+        self._last = None
+        ranges, parts = [], []
+        nv = ni = 0
+        frozen = True
+        for vol in vols:
+            if vol is None:
+                ranges.append(None)
+                continue
+            v = np.asarray(vol.vertices)
+            t = np.asarray(vol.triangles)
+            if v.ndim != 2 or v.shape[1] != 4 or t.ndim != 2 or t.shape[1] != 3:
+                raise ShapeError("shadow volume must have vertices (p, 4) and triangles (q, 3)",
+                                 actual_shape=(v.shape, t.shape), expected_shape="((p, 4), (q, 3))")
+            frozen = frozen and not (v.flags.writeable or t.flags.writeable)
+            if len(t) == 0:
+                ranges.append(None)
+                continue
+            parts.append((v, t, nv, ni))
+            ranges.append((ni, 3 * len(t)))
+            nv += len(v)
+            ni += 3 * len(t)
+        if ni:
+            self._reserve(16 * nv, 4 * ni)
+            # each volume straight into its slice of the buffers (no concatenated copy)
+            for v, t, v_first, i_first in parts:
+                idx = t.astype(np.uint32)
+                if v_first:
+                    idx += np.uint32(v_first)
+                loc = v.astype(np.float64)  # relative to origin: X - origin * w (points at infinity unchanged)
+                loc[:, :3] -= origin * loc[:, 3:4]
+                self.vbo.write(loc.astype(np.float32), offset=16 * v_first)
+                self.ibo.write(idx, offset=4 * i_first)
+        if frozen:  # read-only arrays cannot change behind our back: safe to reuse next frame
+            self._last = (vols, tuple(ranges), origin)
+        return ranges
+
+    def _reserve(self, vbytes: int, ibytes: int) -> None:
+        if self.vbo is not None and vbytes <= self._cap[0] and ibytes <= self._cap[1]:
+            return
+        vcap = max(vbytes, 2 * self._cap[0], 1 << 16)
+        icap = max(ibytes, 2 * self._cap[1], 1 << 16)
+        self.release()
+        self.vbo = self.ctx.buffer(reserve=vcap, dynamic=True)
+        self.ibo = self.ctx.buffer(reserve=icap, dynamic=True)
+        self.vao = self.ctx.vertex_array(self.prog, [(self.vbo, "4f", "in_pos")], index_buffer=self.ibo,
+                                         index_element_size=4)
+        self._cap = (vcap, icap)
+
+    def release(self) -> None:
+        for o in (self.vao, self.vbo, self.ibo):
+            if o is not None:
+                o.release()
+        self.vbo = self.ibo = self.vao = None
+
+
+class FrameTargets:
+    """The framebuffers of a renderer: the main target (MSAA and/or supersampled, with depth/stencil), the
+    single-sample targets it is resolved/downsampled into, and the texture target of GPU-resident
+    results. All are grown (never shrunk) to the largest canvas asked for.
+
+    Parameters
+    ----------
+    ctx : moderngl.Context
+    gl : arshadow.gl.glraw.GL
+        The raw GL functions (:func:`arshadow.gl.glraw.load`).
+    samples : int
+        MSAA samples of the main target (0 = none).
+    supersample : int
+        1, 2 or 4: the main target is this many times the canvas size.
+    """
+
+    FORMATS = (G.GL_RGBA16F, G.GL_RG16F)
+
+    def __init__(self, ctx, gl, samples: int, supersample: int):
+        self.ctx, self.gl = ctx, gl
+        self.samples, self.supersample = int(samples), int(supersample)
+        self.main = None        # RenderTarget: render target (MSAA and/or supersampled)
+        self.resolve = None     # RenderTarget: single-sample canvas-size target (when main is MSAA/supersampled)
+        self.half = None        # RenderTarget: intermediate for supersample 4
+        self.ss_resolve = None  # RenderTarget: single-sample supersampled size (MSAA + supersampling)
+        self.tex = None         # TextureTarget: GPU-resident result
+
+    def ensure(self, width: int, height: int) -> None:
+        """Grow the targets to hold a ``width`` x ``height`` canvas."""
+        s = self.supersample
+        need_w, need_h = width * s, height * s
+        main = self.main
+        if main is None or main.width < need_w or main.height < need_h:
+            w = max(need_w, main.width if main else 0)
+            h = max(need_h, main.height if main else 0)
+            for t in (self.main, self.resolve, self.half):
+                if t is not None:
+                    t.release()
+            self.main = self.resolve = self.half = None
+            self.main = RenderTarget(self.ctx, self.gl, w, h, self.samples, self.FORMATS, True)
+            if self.samples or s > 1:
+                self.resolve = RenderTarget(self.ctx, self.gl, w // s, h // s, 0, self.FORMATS, False)
+            if s == 4:
+                self.half = RenderTarget(self.ctx, self.gl, w // 2, h // 2, 0, self.FORMATS, False)
+
+    def resolve_canvas(self, width: int, height: int):
+        """MSAA resolve / supersampling downsample (glBlitFramebuffer) of the canvas into a single-sample
+        canvas-size target; returns it (the main target itself when there is nothing to resolve)."""
+        s = self.supersample
+        rw, rh = width * s, height * s
+        src = self.main
+        if self.samples:
+            dst = self.resolve if s == 1 else self._main_resolve_ss()
+            self.blit(src, dst, rw, rh, rw, rh, G.GL_NEAREST)
+            src = dst
+        if s == 4:
+            self.blit(src, self.half, rw, rh, rw // 2, rh // 2, G.GL_LINEAR)
+            src = self.half
+            rw, rh = rw // 2, rh // 2
+        if s > 1:
+            self.blit(src, self.resolve, rw, rh, width, height, G.GL_LINEAR)
+            src = self.resolve
+        return src
+
+    def texture(self, width: int, height: int) -> TextureTarget:
+        """Single-sample ``RGBA16F`` + ``RG16F`` textures (grown, never shrunk) for GPU-resident results."""
+        t = self.tex
+        if t is None or t.width < width or t.height < height:
+            w, h = max(width, t.width if t else 0), max(height, t.height if t else 0)
+            if t is not None:
+                t.release()
+            t = self.tex = TextureTarget(self.ctx, w, h)
+        return t
+
+    def _main_resolve_ss(self) -> RenderTarget:
+        """Single-sample target of the supersampled size (MSAA + supersampling)."""
+        t = self.ss_resolve
+        if t is None or t.width < self.main.width or t.height < self.main.height:
+            if t is not None:
+                t.release()
+            t = RenderTarget(self.ctx, self.gl, self.main.width, self.main.height, 0, self.FORMATS, False)
+            self.ss_resolve = t
+        return t
+
+    def blit(self, src, dst, sw, sh, dw, dh, filt) -> None:
+        """Copy both colour attachments of ``src`` (``sw`` x ``sh``) into ``dst`` (``dw`` x ``dh``)."""
+        gl = self.gl
+        gl.glDisable(G.GL_SCISSOR_TEST)
+        gl.glBindFramebuffer(G.GL_READ_FRAMEBUFFER, src.fbo)
+        gl.glBindFramebuffer(G.GL_DRAW_FRAMEBUFFER, dst.fbo)
+        for i in range(2):
+            gl.glReadBuffer(G.GL_COLOR_ATTACHMENT0 + i)
+            gl.draw_buffers(2, only=i)
+            gl.glBlitFramebuffer(0, 0, sw, sh, 0, 0, dw, dh, G.GL_COLOR_BUFFER_BIT, filt)
+        gl.draw_buffers(2)
+        gl.glBindFramebuffer(G.GL_FRAMEBUFFER, 0)
+
+    def release(self) -> None:
+        for t in (self.main, self.resolve, self.half, self.ss_resolve, self.tex):
+            if t is not None:
+                t.release()
+        self.main = self.resolve = self.half = self.ss_resolve = self.tex = None

@@ -1,0 +1,278 @@
+"""Board model and board files: grid and ChArUco boards, their world frame and their marker corners.
+
+The board's world frame has OpenCV's board origin (the top-left corner of the board's outer edge) but,
+like the marker frame, y points towards the board's printed top edge and z out of the printed face, so
+the ground is z = 0 with +z up everywhere in arshadow. That is OpenCV's board frame (x right, y *down*,
+z *into* the board) turned 180 degrees about its x axis: ``X_world = diag(1, -1, -1) @ X_opencv_board``
+(:data:`OPENCV_BOARD_TO_WORLD`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from ..camera import open_storage, write_storage
+from ..errors import UsageError
+from .dictionary import get_dictionary
+
+__all__ = ["OPENCV_BOARD_TO_WORLD", "Board", "load_board"]
+
+#: OpenCV board frame (y down, z into the board) -> arshadow world frame (y up, z out of the board)
+OPENCV_BOARD_TO_WORLD = np.diag([1.0, -1.0, -1.0])
+OPENCV_BOARD_TO_WORLD.setflags(write=False)
+
+
+@dataclass(frozen=True, eq=False)
+class Board:
+    """A GridBoard or ChArUco board described by a board file.
+
+    Parameters
+    ----------
+    kind : str
+        ``"gridboard"`` or ``"charuco"``.
+    size : (int, int)
+        (columns, rows): markers for a grid board, chessboard squares for ChArUco.
+    marker_length : float
+        Marker side, metres.
+    marker_separation : float
+        Grid board: gap between markers, metres.
+    square_length : float
+        ChArUco: chessboard square side, metres.
+    dictionary : str
+        Predefined name or custom dictionary file (relative paths resolve against ``base_dir``).
+    ids : tuple of int, optional
+        Marker ids in OpenCV's order; default ``first_id, first_id + 1, ...``.
+    legacy_pattern : bool
+        ChArUco boards made by OpenCV < 4.6 with an even number of rows.
+    base_dir : Path, optional
+        Folder of the board file.
+    """
+
+    kind: str
+    size: tuple
+    marker_length: float
+    dictionary: str = "DICT_6X6_250"
+    marker_separation: float = 0.0
+    square_length: float = 0.0
+    ids: tuple | None = None
+    first_id: int = 0
+    legacy_pattern: bool = False
+    base_dir: Path | None = None
+    source: str = ""
+
+    def __post_init__(self):
+        kind = str(self.kind).lower()
+        if kind not in ("gridboard", "charuco"):
+            raise UsageError(f"{self._where()}board type must be 'gridboard' or 'charuco', got '{self.kind}'")
+        object.__setattr__(self, "kind", kind)
+        try:
+            cols, rows = (int(v) for v in self.size)
+        except (TypeError, ValueError):
+            raise UsageError(f"{self._where()}board size must be two integers [columns, rows]") from None
+        if cols < 1 or rows < 1 or (kind == "charuco" and (cols < 2 or rows < 2)):
+            raise UsageError(f"{self._where()}board size {cols}x{rows} is too small")
+        object.__setattr__(self, "size", (cols, rows))
+        ml = float(self.marker_length)
+        if not (math.isfinite(ml) and ml > 0):
+            raise UsageError(f"{self._where()}marker_length must be a positive length in metres, got {ml}")
+        object.__setattr__(self, "marker_length", ml)
+        if kind == "gridboard":
+            sep = float(self.marker_separation)
+            if not (math.isfinite(sep) and sep >= 0):
+                raise UsageError(f"{self._where()}marker_separation must be >= 0, got {sep}")
+            object.__setattr__(self, "marker_separation", sep)
+        else:
+            sq = float(self.square_length)
+            if not (math.isfinite(sq) and sq > ml):
+                raise UsageError(
+                    f"{self._where()}square_length ({sq}) must be larger than marker_length ({ml})")
+            object.__setattr__(self, "square_length", sq)
+        if self.ids is not None:
+            object.__setattr__(self, "ids", tuple(int(i) for i in self.ids))
+        n = self.n_markers
+        ids = self.marker_ids
+        if len(ids) != n:
+            raise UsageError(f"{self._where()}board needs {n} ids, got {len(ids)}")
+        nd = len(self.cv_dictionary.bytesList)
+        if min(ids) < 0 or max(ids) >= nd:
+            raise UsageError(f"{self._where()}marker ids {min(ids)}..{max(ids)} exceed the dictionary "
+                             f"({nd} markers)")
+
+    def _where(self):
+        return f"{self.source}: " if self.source else ""
+
+    @property
+    def n_markers(self) -> int:
+        cols, rows = self.size
+        return cols * rows if self.kind == "gridboard" else (cols * rows) // 2
+
+    @property
+    def marker_ids(self) -> tuple:
+        return self.ids if self.ids is not None else tuple(range(self.first_id, self.first_id + self.n_markers))
+
+    @property
+    def extent(self) -> tuple[float, float]:
+        """(width, height) of the board's outer edge, metres."""
+        cols, rows = self.size
+        if self.kind == "charuco":
+            return cols * self.square_length, rows * self.square_length
+        s, ml = self.marker_separation, self.marker_length
+        return cols * ml + (cols - 1) * s, rows * ml + (rows - 1) * s
+
+    @cached_property
+    def cv_dictionary(self) -> cv2.aruco.Dictionary:
+        return get_dictionary(self.dictionary, self.base_dir)
+
+    @cached_property
+    def cv_board(self):
+        """The ``cv2.aruco.GridBoard`` / ``CharucoBoard``."""
+        ids = np.asarray(self.marker_ids, dtype=np.int32)
+        if self.kind == "gridboard":
+            return cv2.aruco.GridBoard(self.size, self.marker_length, self.marker_separation,
+                                       self.cv_dictionary, ids)
+        b = cv2.aruco.CharucoBoard(self.size, self.square_length, self.marker_length, self.cv_dictionary, ids)
+        if self.legacy_pattern:
+            b.setLegacyPattern(True)
+        return b
+
+    @cached_property
+    def marker_corners_world(self) -> dict:
+        """marker id -> (4, 3) float64 corners TL, TR, BR, BL in the arshadow world frame (exact, float64).
+
+        Recomputed from the float64 lengths (OpenCV stores float32), with OpenCV's layout.
+        """
+        cv_obj = [np.asarray(o, dtype=np.float64).reshape(4, 3) for o in self.cv_board.getObjPoints()]
+        out = {}
+        ml = self.marker_length
+        for mid, o in zip(self.marker_ids, cv_obj):
+            if self.kind == "gridboard":
+                step = ml + self.marker_separation
+                col, row = round(o[0, 0] / step), round(o[0, 1] / step)
+                x0, y0 = col * step, row * step
+            else:
+                sq = self.square_length
+                col, row = math.floor(o[0, 0] / sq), math.floor(o[0, 1] / sq)
+                x0, y0 = col * sq + (sq - ml) / 2.0, row * sq + (sq - ml) / 2.0
+            cv = np.array([[x0, y0, 0.0], [x0 + ml, y0, 0.0], [x0 + ml, y0 + ml, 0.0], [x0, y0 + ml, 0.0]])
+            if np.max(np.abs(cv - o)) > 1e-5:  # pragma: no cover - OpenCV layout changed
+                raise RuntimeError("board layout differs from OpenCV's object points")
+            out[int(mid)] = cv @ OPENCV_BOARD_TO_WORLD.T
+        return out
+
+    @cached_property
+    def charuco_corners_world(self) -> np.ndarray:
+        """ChArUco: (n, 3) float64 inner chessboard corners in the world frame, OpenCV's id order."""
+        if self.kind != "charuco":
+            return np.zeros((0, 3))
+        cols, rows = self.size
+        sq = self.square_length
+        j, i = np.mgrid[1:rows, 1:cols]
+        cv = np.stack([i.ravel() * sq, j.ravel() * sq, np.zeros(i.size)], axis=1)
+        return cv @ OPENCV_BOARD_TO_WORLD.T
+
+    @cached_property
+    def black_squares_world(self) -> np.ndarray:
+        """ChArUco: (k, 2, 2) float64 [[xmin, ymin], [xmax, ymax]] of the black squares, world frame."""
+        if self.kind != "charuco":
+            return np.zeros((0, 2, 2))
+        cols, rows = self.size
+        sq = self.square_length
+        with_marker = set()
+        for c in self.marker_corners_world.values():
+            cx, cy = c[:, 0].mean(), -c[:, 1].mean()  # OpenCV frame centre
+            with_marker.add((math.floor(cx / sq), math.floor(cy / sq)))
+        out = []
+        for r in range(rows):
+            for c in range(cols):
+                if (c, r) not in with_marker:
+                    out.append([[c * sq, -(r + 1) * sq], [(c + 1) * sq, -r * sq]])
+        return np.asarray(out, dtype=np.float64).reshape(-1, 2, 2)
+
+    def to_file(self, path) -> Path:
+        """Write this board as a board file (YAML/JSON by extension), atomically."""
+        p = Path(path)
+        with write_storage(p, "board file", UsageError) as fs:
+            fs.write("type", self.kind)
+            fs.startWriteStruct("size", cv2.FileNode_SEQ | cv2.FileNode_FLOW)
+            for v in self.size:
+                fs.write("", int(v))
+            fs.endWriteStruct()
+            if self.kind == "charuco":
+                fs.write("square_length", float(self.square_length))
+            fs.write("marker_length", float(self.marker_length))
+            if self.kind == "gridboard":
+                fs.write("marker_separation", float(self.marker_separation))
+            fs.write("dictionary", str(self.dictionary))
+            if self.ids is not None:
+                fs.startWriteStruct("ids", cv2.FileNode_SEQ | cv2.FileNode_FLOW)
+                for v in self.ids:
+                    fs.write("", int(v))
+                fs.endWriteStruct()
+            else:
+                fs.write("first_id", int(self.first_id))
+            if self.kind == "charuco":
+                fs.write("legacy_pattern", int(bool(self.legacy_pattern)))
+        return p
+
+
+def _fs_number(fs, key, path, default=None):
+    node = fs.getNode(key)
+    if node.empty():
+        if default is None:
+            raise UsageError(f"{path}: board file is missing '{key}'")
+        return default
+    if not (node.isReal() or node.isInt()):
+        raise UsageError(f"{path}: '{key}' must be a number")
+    return node.real()
+
+
+def _fs_int_list(node, key, path):
+    if not node.isSeq():
+        raise UsageError(f"{path}: '{key}' must be a list of integers")
+    vals = [node.at(i).real() for i in range(node.size())]
+    if any(v != int(v) for v in vals):
+        raise UsageError(f"{path}: '{key}' must be a list of integers")
+    return [int(v) for v in vals]
+
+
+def load_board(path) -> Board:
+    """Read a board file (YAML or JSON; schema in calib/README.md).
+
+    Raises
+    ------
+    UsageError
+        Missing/unreadable file, missing or invalid key, unknown dictionary.
+    """
+    p = Path(path)
+    with open_storage(p, "board file", UsageError) as fs:
+        t = fs.getNode("type")
+        if t.empty() or not t.isString():
+            raise UsageError(f"{p}: board file needs 'type: gridboard' or 'type: charuco'")
+        kind = t.string().split(" #")[0].strip().lower()
+        size_node = fs.getNode("size")
+        if size_node.empty():
+            raise UsageError(f"{p}: board file is missing 'size' ([columns, rows])")
+        size = _fs_int_list(size_node, "size", p)
+        if len(size) != 2:
+            raise UsageError(f"{p}: 'size' must be [columns, rows]")
+        ml = _fs_number(fs, "marker_length", p)
+        sep = _fs_number(fs, "marker_separation", p, default=None if kind == "gridboard" else 0.0)
+        sq = _fs_number(fs, "square_length", p, default=None if kind == "charuco" else 0.0)
+        dnode = fs.getNode("dictionary")
+        dictionary = dnode.string() if (not dnode.empty() and dnode.isString()) else "DICT_6X6_250"
+        dictionary = dictionary.split(" #")[0].strip()  # OpenCV keeps a same-line YAML comment in a string
+        ids_node = fs.getNode("ids")
+        ids = None if ids_node.empty() else tuple(_fs_int_list(ids_node, "ids", p))
+        first_id = int(_fs_number(fs, "first_id", p, default=0))
+        legacy = bool(_fs_number(fs, "legacy_pattern", p, default=0))
+    b = Board(kind=kind, size=tuple(size), marker_length=ml, dictionary=dictionary, marker_separation=sep,
+              square_length=sq, ids=ids, first_id=first_id, legacy_pattern=legacy, base_dir=p.parent,
+              source=str(p))
+    b.cv_board  # noqa: B018 - build it now so that errors name the file
+    return b

@@ -1,0 +1,94 @@
+"""Quality gates of a single-marker pose: the thresholds of :attr:`MarkerPose.ambiguous
+<arshadow.tracking.pose.MarkerPose.ambiguous>` and the image measurements behind them (corner stability
+across refinement windows, occlusion of the black border ring)."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+__all__ = [
+    "AMBIGUITY_FLAG",
+    "MIN_CONFIDENT_SIDE_PX",
+    "MAX_CORNER_INSTABILITY",
+    "MAX_BORDER_OCCLUSION",
+    "border_occlusion",
+    "corner_instability",
+]
+
+#: pose_ambiguity (err_best / err_second of the two IPPE solutions) at or above which a single-marker
+#: pose is flagged as ambiguous (see docs/tracking.md for how it was chosen)
+AMBIGUITY_FLAG = 0.3
+#: a single marker with a side shorter than this (pixels) is always flagged ambiguous (see MarkerPose)
+MIN_CONFIDENT_SIDE_PX = 32.0
+#: a single marker whose corners move by more than this share of its side between refinement windows is
+#: flagged ambiguous: blurred corners (issue 12: heavy blur gave confident poses 2-4 deg off; their
+#: corners moved by 0.010-0.068 of the side, sharp ones by < 0.006)
+MAX_CORNER_INSTABILITY = 0.008
+#: a single marker whose black border ring has a cell lighter than this share of the way from the marker's
+#: black to its white (:func:`border_occlusion`) is flagged ambiguous: something covers the marker (issue
+#: 12: a grey patch over one corner gave a pose 3.7 deg off with ratio 0.25 and stable corners; its ring
+#: cells read 0.45, sharp unoccluded markers <= 0.15 in the stress suite)
+MAX_BORDER_OCCLUSION = 0.3
+
+
+def border_occlusion(gray, quad, bits) -> float:
+    """How light the lightest cell of a marker's black border ring is, as a share of the way from the
+    marker's black (0) to its white (1).
+
+    The marker ``quad (4, 2)`` (OpenCV's corner order: the marker's own top-left first) is rectified onto
+    its cell grid; each cell's central quarter is averaged; black and white are the medians of the cells
+    the dictionary says are black / white. Shadows and light gradients leave the ring near 0 (they darken
+    the white cells, not lighten the black ring); something lighter than black lying over the marker (a
+    hand, a sticker, glare) lifts its ring cells. Cells outside the image are ignored.
+
+    Parameters
+    ----------
+    gray : (H, W) uint8
+    quad : (4, 2) float
+    bits : (n, n) uint8
+        The marker's inner bits (1 = white), ``Dictionary.getBitsFromByteList``.
+    """
+    n, c = int(bits.shape[0]) + 2, 8
+    dst = np.array([[0, 0], [n * c, 0], [n * c, n * c], [0, n * c]], np.float32)
+    H = cv2.getPerspectiveTransform(np.asarray(quad, np.float32).reshape(4, 2), dst)
+    can = cv2.warpPerspective(gray, H, (n * c, n * c), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                              borderValue=0).astype(np.float32)
+    cells = can.reshape(n, c, n, c)[:, 2:6, :, 2:6].mean(axis=(1, 3))
+    h, w = gray.shape[:2]
+    q = np.asarray(quad, np.float64).reshape(4, 2)
+    inside = np.ones((n, n), bool)
+    if q.min() < 0 or q[:, 0].max() > w - 1 or q[:, 1].max() > h - 1:
+        # part of the marker is off the image: a cell counts when the corners of its sampled centre are in it
+        g = np.arange(n, dtype=np.float32) * c
+        corners = np.stack(np.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 1, 2)[:, :, ::-1]  # (x, y)
+        for dx, dy in ((2, 2), (6, 2), (2, 6), (6, 6)):
+            p = cv2.perspectiveTransform(corners + np.float32([dx, dy]), np.linalg.inv(H)).reshape(n, n, 2)
+            inside &= (p[..., 0] >= 0) & (p[..., 1] >= 0) & (p[..., 0] <= w - 1) & (p[..., 1] <= h - 1)
+    white = np.zeros((n, n), bool)
+    white[1:-1, 1:-1] = np.asarray(bits) > 0
+    ring = np.ones((n, n), bool)
+    ring[1:-1, 1:-1] = False
+    if not (inside & white).any() or not (inside & ~white).any() or not (inside & ring).any():
+        return 0.0
+    black_level, white_level = np.median(cells[inside & ~white]), np.median(cells[inside & white])
+    if white_level - black_level < 1.0:
+        return 0.0
+    return float(((cells[inside & ring] - black_level) / (white_level - black_level)).max())
+
+
+def corner_instability(gray, quad) -> float:
+    """How far the 4 corners ``quad (4, 2)`` of a marker move between ``cv2.cornerSubPix`` windows of 5 and
+    13 px, as a share of the quad's shortest side: ~0 for a sharp corner (any window finds the same
+    point), large for a blurred or disturbed one."""
+    q = np.ascontiguousarray(np.asarray(quad, np.float32).reshape(-1, 1, 2)[:4])
+    side = float(np.linalg.norm(q[:, 0] - np.roll(q[:, 0], 1, axis=0), axis=1).min())
+    h, w = gray.shape[:2]
+    inside = (q[:, 0, 0] >= 7) & (q[:, 0, 1] >= 7) & (q[:, 0, 0] < w - 7) & (q[:, 0, 1] < h - 7)
+    if side <= 0 or not np.all(inside):
+        return 0.0  # too close to the border for the large window
+    crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 0.001)
+    a = cv2.cornerSubPix(gray, q.copy(), (2, 2), (-1, -1), crit)
+    b = cv2.cornerSubPix(gray, q.copy(), (6, 6), (-1, -1), crit)
+    return float(np.linalg.norm((a - b)[:, 0], axis=1).max() / side)
+

@@ -1,0 +1,307 @@
+"""The tracker: detect a marker or board in an image and estimate its pose (:class:`MarkerTracker`).
+
+Frames: :mod:`arshadow.tracking.dictionary` (single marker), :mod:`arshadow.tracking.board` (boards).
+Pose: ``(rvec, tvec)`` world -> OpenCV camera, as ``cv2.solvePnP`` gives them.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import cv2
+import numpy as np
+
+from ..camera import Intrinsics
+from ..errors import ImageError, MarkerNotFoundError, UsageError
+from ..transforms import matrix_from_rvec_tvec, rotation_error_deg
+from .board import OPENCV_BOARD_TO_WORLD, Board, load_board
+from .detect import (
+    DEFAULT_REFINE,
+    Detection,
+    detection_from_opencv,
+    make_detector_params,
+    to_gray,
+)
+from .dictionary import (
+    DEFAULT_DICTIONARY,
+    dictionary_label,
+    get_dictionary,
+    marker_object_points,
+)
+from .fastdetect import fast_detector_params, wrap_fast_detector
+from .pose import AltPose, MarkerPose, solve_planar
+from .quality import AMBIGUITY_FLAG, border_occlusion, corner_instability
+from .refine import refine_corners_edges
+from .roi_track import TrackingDetector
+
+__all__ = ["MarkerTracker", "make_fast_tracker"]
+
+
+class MarkerTracker:
+    """Detect a marker or board and estimate its pose.
+
+    Parameters
+    ----------
+    intrinsics : Intrinsics
+        The calibration (scaled automatically to a same-aspect image size).
+    dictionary : str, Path or cv2.aruco.Dictionary, optional
+        Marker dictionary (single-marker mode, default :data:`DEFAULT_DICTIONARY`). A board brings its own:
+        a different one given here is a :class:`~arshadow.errors.UsageError`.
+    marker_length : float
+        Marker side in metres (single-marker mode).
+    marker_id : int, optional
+        The reference marker; default: the lowest id found.
+    board : Board or path, optional
+        A grid or ChArUco board (board file path accepted).
+    refine : str or None
+        Corner refinement (default :data:`DEFAULT_REFINE`, chosen by the benchmark); None keeps the
+        detector parameters' own setting.
+    detector_params : DetectorParameters or path, optional
+        Base detector parameters.
+    detector : str or object
+        ``"full"`` (default): ``cv2.aruco.ArucoDetector`` with ``detector_params``; ``"fast"``: the fast
+        first pass of :mod:`arshadow.tracking.fastdetect` (one 7-px threshold window unless ``detector_params`` are
+        given, half-resolution detection for a single marker); or any object with OpenCV's
+        ``detectMarkers(gray)`` (and ``refineDetectedMarkers`` for grid boards).
+    ambiguity_threshold : float
+        ``pose_ambiguity`` at or above which a pose is flagged.
+    pnp_refine : bool
+        Polish the IPPE pose with Levenberg-Marquardt (``cv2.solvePnPRefineLM``) on the reprojection
+        error (default; measured in docs/tracking.md).
+    track_roi : bool
+        Video: search a window around the last detection first, the whole frame when it holds no marker
+        (:class:`arshadow.tracking.roi_track.TrackingDetector`; single markers and ChArUco, not grid boards).
+
+    Examples
+    --------
+    >>> from arshadow.synth import look_at_pose, render_marker_photo
+    >>> cam = Intrinsics(1000.0, 1000.0, 639.5, 359.5, 1280, 720)
+    >>> photo = render_marker_photo(cam, look_at_pose([0.1, -0.2, 0.4], [0, 0, 0]), marker_length=0.05)
+    >>> pose = MarkerTracker(cam, marker_length=0.05).estimate(photo.image)
+    >>> pose.marker_ids, bool(np.allclose(pose.tvec, photo.cam_from_world[:3, 3], atol=2e-3))
+    ([0], True)
+    """
+
+    def __init__(self, intrinsics: Intrinsics, dictionary=None, marker_length=None, marker_id=None,
+                 board=None, refine=DEFAULT_REFINE, detector_params=None, ambiguity_threshold=AMBIGUITY_FLAG,
+                 pnp_refine=True, detector="full", track_roi=False):
+        if not isinstance(intrinsics, Intrinsics):
+            raise UsageError("intrinsics must be an arshadow.camera.Intrinsics")
+        self.intrinsics = intrinsics
+        if board is not None and not isinstance(board, Board):
+            board = load_board(board)
+        self.board = board
+        if board is None:
+            if marker_length is None:
+                raise UsageError("give the marker side length (marker_length, metres) or a board")
+            ml = float(marker_length)
+            if not (math.isfinite(ml) and ml > 0):
+                raise UsageError(f"marker length must be a positive number of metres, got {marker_length}")
+            self.marker_length = ml
+            dictionary = DEFAULT_DICTIONARY if dictionary is None else dictionary
+            self.dictionary = get_dictionary(dictionary)
+            self.dictionary_name = dictionary_label(dictionary)
+        else:
+            if dictionary is not None and dictionary_label(dictionary) != dictionary_label(board.dictionary):
+                raise UsageError(f"dictionary {dictionary_label(dictionary)} conflicts with the board file's "
+                                 f"dictionary {dictionary_label(board.dictionary)} (a board names its own: leave "
+                                 "the dictionary out or make them agree)")
+            if marker_length is not None and abs(float(marker_length) - board.marker_length) > 1e-9:
+                raise UsageError("marker_length conflicts with the board file's marker_length")
+            self.marker_length = board.marker_length
+            self.dictionary = board.cv_dictionary
+            self.dictionary_name = f"the board's dictionary ({dictionary_label(board.dictionary)})"
+        if marker_id is not None:
+            marker_id = int(marker_id)
+            if not 0 <= marker_id < len(self.dictionary.bytesList):
+                raise UsageError(f"marker id {marker_id} is not in {self.dictionary_name} "
+                                 f"(ids 0..{len(self.dictionary.bytesList) - 1})")
+        self.marker_id = marker_id
+        self.refine = refine
+        self.pnp_refine = bool(pnp_refine)
+        fast = isinstance(detector, str) and detector == "fast"
+        if isinstance(detector, str) and detector not in ("full", "fast"):
+            raise UsageError(f"detector {detector!r}: choose 'full', 'fast' or a detector object")
+        if fast and detector_params is None:
+            detector_params = fast_detector_params()
+        self.params = make_detector_params(refine, detector_params)
+        self.ambiguity_threshold = float(ambiguity_threshold)
+        self.detector_kind = detector if isinstance(detector, str) else "custom"
+        self._detector = cv2.aruco.ArucoDetector(self.dictionary, self.params)
+        if fast:
+            self._detector = wrap_fast_detector(self._detector, board)
+        elif not isinstance(detector, str):
+            self._detector = detector
+        if track_roi:
+            self._detector = TrackingDetector(self._detector, marker_id)
+        self._charuco = None
+        if board is not None and board.kind == "charuco":
+            cp = cv2.aruco.CharucoParameters()
+            cp.minMarkers = 1
+            self._charuco_params = cp
+        self._charuco_for = None
+
+    # -- helpers ---------------------------------------------------------------------------------------
+    def _intrinsics_for(self, image) -> tuple[Intrinsics, bool]:
+        h, w = np.asarray(image).shape[:2]
+        return self.intrinsics.for_image(w, h)
+
+    @property
+    def last_search(self) -> str | None:
+        """With ``track_roi``: where the last detection searched, ``"window"`` (around the previous marker)
+        or ``"full"`` (the whole frame); None without ``track_roi``."""
+        return getattr(self._detector, "last", None)
+
+    def _charuco_detector(self, intr: Intrinsics):
+        if self._charuco_for != intr:
+            cp = self._charuco_params
+            cp.cameraMatrix = intr.K
+            cp.distCoeffs = intr.dist_cv
+            self._charuco = cv2.aruco.CharucoDetector(self.board.cv_board, cp, self.params)
+            self._charuco_for = intr
+        return self._charuco
+
+    def detect(self, image) -> Detection:
+        """Detect the markers of this tracker's dictionary (no pose)."""
+        gray = to_gray(image)
+        corners, ids, rejected = self._detector.detectMarkers(gray)
+        det = detection_from_opencv(corners, ids, rejected, self.params)
+        if self.refine == "edge" and len(det):
+            det.corners = refine_corners_edges(gray, det.corners, self._intrinsics_for(gray)[0])
+        return det
+
+    # -- pose ------------------------------------------------------------------------------------------
+    def estimate(self, image_bgr, previous=None) -> MarkerPose:
+        """Detect and estimate the pose in one image.
+
+        Parameters
+        ----------
+        image_bgr : (H, W, 3) uint8
+            The photo (its size must match the calibration or have the same aspect ratio).
+        previous : MarkerPose or (4, 4) float64, optional
+            The previous frame's pose. When this frame's pose is ambiguous, the IPPE solution whose
+            rotation is closer to ``previous`` is chosen (``chosen_by = "previous"``).
+
+        Raises
+        ------
+        MarkerNotFoundError
+            No marker (or not the requested id, or too few board points).
+        CalibrationError
+            The image size does not fit the calibration.
+        """
+        img = np.asarray(image_bgr)
+        if img.ndim not in (2, 3) or img.size == 0:
+            raise ImageError(f"not an image (shape {img.shape})")
+        intr, scaled = self._intrinsics_for(img)
+        gray = to_gray(img)
+        self._t_detect = None
+        t0 = time.perf_counter()
+        if self.board is None:
+            pose = self._estimate_marker(gray, intr)
+        elif self.board.kind == "charuco":
+            pose = self._estimate_charuco(gray, intr)
+        else:
+            pose = self._estimate_gridboard(gray, intr)
+        total = 1e3 * (time.perf_counter() - t0)
+        det_ms = total if self._t_detect is None else 1e3 * (self._t_detect - t0)
+        pose.timings_ms = {"detect": det_ms, "pose": total - det_ms}
+        pose.intrinsics, pose.scaled = intr, scaled
+        pose.ambiguity_threshold = self.ambiguity_threshold
+        if pose.kind == "marker":
+            pose.corner_instability = corner_instability(gray, pose.corners[:4])
+            ref = pose.marker_ids[0]
+            bits = self.dictionary.getBitsFromByteList(self.dictionary.bytesList[ref : ref + 1],
+                                                       self.dictionary.markerSize)
+            pose.border_occlusion = border_occlusion(gray, pose.corners[:4], bits)
+        if previous is not None and pose.alternative is not None and pose.ambiguous:
+            prev = previous.cam_from_world if isinstance(previous, MarkerPose) else np.asarray(previous, float)
+            if rotation_error_deg(pose.alternative.cam_from_world[:3, :3], prev[:3, :3]) < \
+                    rotation_error_deg(pose.cam_from_world[:3, :3], prev[:3, :3]):
+                pose = pose.swapped()
+        return pose
+
+    def _make_pose(self, solved, obj, img, ids, all_corners, kind):
+        sols, ratio = solved
+        r, t, e = sols[0]
+        alt = None
+        if len(sols) > 1:
+            r2, t2, e2 = sols[1]
+            alt = AltPose(r2, t2, matrix_from_rvec_tvec(r2, t2), e2)
+        return MarkerPose(r, t, matrix_from_rvec_tvec(r, t), [int(i) for i in ids], e, ratio,
+                          np.asarray(img, np.float64).reshape(-1, 2), np.asarray(obj, np.float64).reshape(-1, 3),
+                          int(len(obj)), alt, "error", None, False, all_corners, self.ambiguity_threshold, kind)
+
+    def _estimate_marker(self, gray, intr) -> MarkerPose:
+        corners, ids, rejected = self._detector.detectMarkers(gray)
+        self._t_detect = time.perf_counter()
+        det = detection_from_opencv(corners, ids, rejected, self.params)
+        if len(det) == 0:
+            raise MarkerNotFoundError(f"no marker of {self.dictionary_name} found")
+        if self.refine == "edge":
+            det.corners = refine_corners_edges(gray, det.corners, intr)
+        found = sorted(set(det.ids.tolist()))
+        if self.marker_id is not None:
+            if self.marker_id not in found:
+                raise MarkerNotFoundError(
+                    f"marker id {self.marker_id} not found (found {', '.join(map(str, found))})")
+            ref = self.marker_id
+        else:
+            ref = found[0]
+        by_id = det.by_id
+        img = by_id[ref]
+        obj = marker_object_points(self.marker_length)
+        sols = solve_planar(intr, obj, img, square=True, lm=self.pnp_refine)
+        ids = [ref] + [i for i in found if i != ref]
+        return self._make_pose(sols, obj, img, ids, by_id, "marker")
+
+    def _estimate_gridboard(self, gray, intr) -> MarkerPose:
+        corners, ids, rejected = self._detector.detectMarkers(gray)
+        if ids is None or len(ids) == 0:
+            raise MarkerNotFoundError(f"no marker of {self.dictionary_name} found")
+        corners, ids, rejected, _ = self._detector.refineDetectedMarkers(
+            gray, self.board.cv_board, corners, ids, rejected, intr.K, intr.dist_cv)
+        det = detection_from_opencv(corners, ids, rejected, self.params)
+        self._t_detect = time.perf_counter()
+        obj, img = self.board.cv_board.matchImagePoints(tuple(c.reshape(1, 4, 2).astype(np.float32) for c in det.corners),
+                                                        det.ids.reshape(-1, 1).astype(np.int32))
+        if obj is None or len(obj) < 4:
+            raise MarkerNotFoundError(
+                f"none of the board's markers found (found ids {', '.join(map(str, sorted(set(det.ids.tolist()))))})")
+        obj = np.asarray(obj, np.float64).reshape(-1, 3) @ OPENCV_BOARD_TO_WORLD.T
+        img = np.asarray(img, np.float64).reshape(-1, 2)
+        sols = solve_planar(intr, obj, img, square=False, lm=self.pnp_refine)
+        board_ids = set(self.board.marker_ids)
+        used = [i for i in sorted(set(det.ids.tolist())) if i in board_ids]
+        return self._make_pose(sols, obj, img, used, det.by_id, "gridboard")
+
+    def _estimate_charuco(self, gray, intr) -> MarkerPose:
+        det = self._charuco_detector(intr)
+        ch_corners, ch_ids, m_corners, m_ids = det.detectBoard(gray)
+        self._t_detect = time.perf_counter()
+        if m_ids is None or len(m_ids) == 0:
+            raise MarkerNotFoundError(f"no marker of {self.dictionary_name} found")
+        n = 0 if ch_ids is None else len(ch_ids)
+        if n < 4:
+            raise MarkerNotFoundError(f"ChArUco board: only {n} chessboard corners found (need at least 4)")
+        if self.board.cv_board.checkCharucoCornersCollinear(ch_ids):
+            raise MarkerNotFoundError("ChArUco board: the detected corners are collinear (no pose)")
+        obj, img = self.board.cv_board.matchImagePoints(ch_corners, ch_ids)
+        obj = np.asarray(obj, np.float64).reshape(-1, 3) @ OPENCV_BOARD_TO_WORLD.T
+        img = np.asarray(img, np.float64).reshape(-1, 2)
+        sols = solve_planar(intr, obj, img, square=False, lm=self.pnp_refine)
+        mdet = detection_from_opencv(m_corners, m_ids, None, self.params)
+        return self._make_pose(sols, obj, img, sorted(set(mdet.ids.tolist())), mdet.by_id, "charuco")
+
+
+def make_fast_tracker(intrinsics, **tracker_kwargs) -> MarkerTracker:
+    """The tracker of the pipeline's fast first pass: ``MarkerTracker(intrinsics, detector="fast", ...)``.
+
+    A :class:`MarkerTracker` with one 7-px threshold window
+    (:func:`~arshadow.tracking.fastdetect.fast_detector_params`) and, for single markers, detection at half
+    resolution (:class:`~arshadow.tracking.fastdetect.HalfResolutionDetector`). The session falls back to
+    the tracker's full search when this finds nothing. With several markers in view and no ``marker_id``,
+    the reference is the lowest id found, so give ``marker_id`` for a frame that cannot change between
+    passes.
+    """
+    return MarkerTracker(intrinsics, **tracker_kwargs, detector="fast")
