@@ -13,6 +13,7 @@ Frames (CONVENTIONS.md): images planar ``yuv420p`` (H, W even) or BGR, row 0 at 
 
 from __future__ import annotations
 
+import itertools
 import math
 from bisect import bisect_right
 from dataclasses import dataclass, field
@@ -115,7 +116,7 @@ def _index(pts, keys, tb, fps, problem) -> StreamIndex:
     kf = sorted(pos[p] for p in keys if p in pos)
     if not kf or kf[0] != 0:
         problem = problem or "the first frame is not a keyframe"
-    d = [b - a for a, b in zip(times, times[1:])]
+    d = [b - a for a, b in itertools.pairwise(times)]
     vfr = bool(d) and (max(d) - min(d)) > 0.01 * (sum(d) / len(d))
     return StreamIndex(pts, times, kf or [0], fps, vfr, problem)
 
