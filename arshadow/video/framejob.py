@@ -26,7 +26,8 @@ from ..errors import MarkerNotFoundError
 from ..report import ReportItem, StageTimings
 from ..transforms import rvec_tvec_from_matrix
 
-__all__ = ["FRAME_STAGES", "FrameComposer", "SessionBackend", "gray_of", "i420_planes", "i420_with_roi"]
+__all__ = ["FRAME_STAGES", "FrameComposer", "SessionBackend", "even_box", "gray_of", "i420_planes", "i420_roi_to_bgr",
+           "i420_with_roi"]
 
 #: per-frame ``timings_ms`` keys of the JSON Lines report
 FRAME_STAGES = ("decode", "detect", "pose", "silhouette", "volume", "render", "readback", "warp", "composite",
@@ -91,10 +92,18 @@ class SessionBackend:
                  "azimuth_deg": round(f.position.azimuth_deg, 5), "above_horizon": bool(f.above_horizon),
                  "recompute": bool(f.recompute), "stale_deg": round(f.stale_deg, 5)} for f in frames]
 
-    def render(self, bgr, cam_from_world, want_mask, timings):
-        """Composite into ``bgr`` (modified in place); returns ``(mask or None, the frame's report item)``;
-        ``timings`` gets the render stages."""
-        res = self.session.render(bgr, cam_from_world, want_mask=want_mask, out=bgr)
+    def plan(self, cam_from_world, width: int, height: int):
+        """The frame's :class:`arshadow.plan.FramePlan` (its ``roi``: the only pixels the compositor reads
+        and changes)."""
+        return self.session.plan(cam_from_world, width, height)
+
+    def render(self, bgr, cam_from_world, want_mask, timings, plan=None):
+        """Composite into ``bgr`` (modified in place), at ``cam_from_world`` or carrying out ``plan``;
+        returns ``(mask or None, the frame's report item)``; ``timings`` gets the render stages."""
+        if plan is not None:
+            res = self.session.render(bgr, plan=plan, want_mask=want_mask, out=bgr)
+        else:
+            res = self.session.render(bgr, cam_from_world, want_mask=want_mask, out=bgr)
         for k, v in res.timings.as_dict().items():
             if k != "total":
                 timings[k] += v
@@ -142,6 +151,7 @@ class FrameComposer:
         self.want_mask = want_mask
         self.stats = {"frames": 0, "frames_ok": 0, "frames_held": 0, "frames_no_marker": 0, "swapped": 0}
         self.stage_ms: dict = {k: [] for k in FRAME_STAGES}
+        self._bgr = None  # (H, W, 3) uint8: BGR of the current frame inside its ROI (yuv420p input)
 
     def compose(self, fp):
         """One decided frame -> ``(image, format, mask or None, ReportItem, JSON Lines record)``.
@@ -193,13 +203,27 @@ class FrameComposer:
 
     def _render(self, cam_from_world, img, fmt, timings):
         """Composite at ``cam_from_world``; returns the frame in its own format, the mask and the report
-        item of :meth:`arshadow.session.Session.render`."""
+        item of :meth:`arshadow.session.Session.render`.
+
+        A ``yuv420p`` frame is converted to BGR only inside the plan's ROI (even-aligned; into a buffer kept
+        for the video): the compositor reads and writes no pixel outside it, and the result goes back into
+        the planes inside it only (:func:`i420_with_roi`)."""
+        if fmt != "yuv420p":
+            tc = time.perf_counter()
+            bgr = np.array(img)
+            timings["convert"] += (time.perf_counter() - tc) * 1e3
+            mask, item = self.backend.render(bgr, cam_from_world, self.want_mask, timings)
+            return bgr, mask, item
+        plan = self.backend.plan(cam_from_world, self.W, self.H)
         tc = time.perf_counter()
-        bgr = cv2.cvtColor(img, cv2.COLOR_YUV2BGR_I420) if fmt == "yuv420p" else np.array(img)
+        if self._bgr is None:
+            self._bgr = np.zeros((self.H, self.W, 3), np.uint8)
+        bgr = self._bgr
+        i420_roi_to_bgr(img, bgr, plan.roi)
         timings["convert"] += (time.perf_counter() - tc) * 1e3
-        mask, item = self.backend.render(bgr, cam_from_world, self.want_mask, timings)
+        mask, item = self.backend.render(bgr, cam_from_world, self.want_mask, timings, plan=plan)
         tc = time.perf_counter()
-        img = i420_with_roi(img, bgr, item.roi) if fmt == "yuv420p" else bgr
+        img = i420_with_roi(img, bgr, item.roi)
         timings["convert"] += (time.perf_counter() - tc) * 1e3
         return img, mask, item
 
@@ -228,6 +252,49 @@ def i420_planes(a: np.ndarray, H: int, W: int):
     c = a[H:].reshape(-1)
     q = (H // 2) * (W // 2)
     return a[:H], c[:q].reshape(H // 2, W // 2), c[q:].reshape(H // 2, W // 2)
+
+
+def even_box(roi, W: int, H: int):
+    """``(x0, y0, x1, y1)`` of ``roi = (x0, y0, w, h)`` clipped to the frame and widened to even
+    coordinates (a chroma sample of yuv420p covers 2x2 pixels); None for an empty ROI.
+
+    >>> even_box((3, 5, 10, 4), 64, 48)
+    (2, 4, 14, 10)
+    """
+    x0, y0, w, h = clip_roi(roi, W, H)
+    if w == 0 or h == 0:
+        return None
+    return x0 & ~1, y0 & ~1, min(W, x0 + w + 1) & ~1, min(H, y0 + h + 1) & ~1
+
+
+def i420_roi_to_bgr(yuv: np.ndarray, bgr: np.ndarray, roi) -> None:
+    """Convert the planar yuv420p frame to BGR into ``bgr`` inside ``roi`` only (even-aligned); equal there
+    to a whole-frame ``cv2.COLOR_YUV2BGR_I420`` (each 2x2 block has its own chroma sample). ``roi`` None:
+    the whole frame.
+
+    Parameters
+    ----------
+    yuv : (H * 3 // 2, W) uint8
+    bgr : (H, W, 3) uint8
+        Written inside the ROI; other pixels are left as they are.
+    roi : sequence of 4 int or None
+    """
+    H, W = bgr.shape[:2]
+    if roi is None:
+        cv2.cvtColor(yuv, cv2.COLOR_YUV2BGR_I420, dst=bgr)
+        return
+    box = even_box(roi, W, H)
+    if box is None:
+        return
+    x0, y0, x1, y1 = box
+    y, u, v = i420_planes(yuv, H, W)
+    hh, ww = y1 - y0, x1 - x0
+    sub = np.empty((hh * 3 // 2, ww), np.uint8)
+    sy, su, sv = i420_planes(sub, hh, ww)
+    sy[:] = y[y0:y1, x0:x1]
+    su[:] = u[y0 // 2 : y1 // 2, x0 // 2 : x1 // 2]
+    sv[:] = v[y0 // 2 : y1 // 2, x0 // 2 : x1 // 2]
+    bgr[y0:y1, x0:x1] = cv2.cvtColor(sub, cv2.COLOR_YUV2BGR_I420)
 
 
 def i420_with_roi(yuv: np.ndarray, bgr: np.ndarray, roi) -> np.ndarray:
