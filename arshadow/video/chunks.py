@@ -31,6 +31,7 @@ import dataclasses
 import hashlib
 import json
 import os
+import resource
 import shutil
 import time
 from contextlib import ExitStack
@@ -196,7 +197,8 @@ def run_chunk(backend, path, index: StreamIndex, chunk: Chunk, opts: EngineOptio
     rec = {"chunk": dataclasses.asdict(chunk), "stats": composer.stats, "recomputes": backend.recomputes,
            "tail": [{k: d[k] for k in CHECK_KEYS} for d in span.tail[:check]],
            "wall_s": round(time.perf_counter() - t0, 3), "cpu_s": round(time.process_time() - c0, 3),
-           "frames_decoded": reader.n_read, "pid": os.getpid()}
+           "frames_decoded": reader.n_read, "pid": os.getpid(),
+           "max_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, 1)}
     write_json(store.record_path(chunk.k), rec)
     return rec
 

@@ -6,8 +6,8 @@ frame and returns what the encode thread writes: the frame (planar ``yuv420p`` o
 report item and the frame's JSON Lines record.
 
 Colour: frames stay in the decoder's ``yuv420p`` when it gives that (the tracker reads the Y plane as its
-grey image; OpenCV converts to BGR for the compositor, and back for the encoder only inside the frame's
-ROI, the only pixels the compositor changes: every other pixel keeps its decoded value exactly).
+grey image; OpenCV converts to BGR for the compositor, and back for the encoder, only inside the frame's
+ROI, the only pixels the compositor reads and changes: every other pixel keeps its decoded value exactly).
 
 Rendering goes through :class:`SessionBackend`, the only place that knows the rendering API (the public
 methods of :class:`arshadow.session.Session`).
