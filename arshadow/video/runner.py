@@ -69,8 +69,11 @@ def _one_video(backend, pool, recipe, inp, stem, outdir, opts, given, progress_f
             update, close = progress_factory(str(inp))
         summary = note = None
         if pool is not None:
-            summary, note = process_video_chunked(recipe, pool, inp, outs, opts, outdir=outdir, stem=stem,
-                                                  name=str(inp), progress=update)
+            try:
+                summary, note = process_video_chunked(recipe, pool, inp, outs, opts, outdir=outdir, stem=stem,
+                                                      name=str(inp), progress=update)
+            except ImageError as exc:  # e.g. a damaged packet: the one-piece run reports and skips it
+                summary, note = None, f"not cut into chunks ({exc})"
         if summary is None:
             summary, its = process_video(backend, inp, outs, opts, progress=update, name=str(inp))
             if note:
