@@ -18,17 +18,21 @@ import numpy as np
 
 from ._check import check_shape
 from .compose.composite import clip_roi, composite
+from .compose.layers import layers_from_warped, pinhole_layers
 from .plan import MEASURED
 from .render_api import LightPass
 from .report import STAGES, ReportItem, StageTimings
 from .transforms import CV_TO_GL
 
-__all__ = ["execute", "STAGES"]
+__all__ = ["LAYERS_WHY", "STAGES", "execute"]
+
+#: the compose decision's reason when the layers are asked for
+LAYERS_WHY = "numpy (layers asked for: the composite and its layers come from the numpy path)"
 
 
 def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings: StageTimings | None = None,
             item: ReportItem | None = None, want_mask=True, out=None, mask_out=None, chooser=None, gpu=None,
-            compose_key=None):
+            compose_key=None, layers: dict | None = None):
     """Render and composite one planned frame.
 
     Parameters
@@ -65,6 +69,12 @@ def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings: 
         needs a renderer with ``render_gpu(...)`` (``renderer.gpu_layers``).
     compose_key : hashable, optional
         The chooser's key of this frame (:meth:`arshadow.session.Session.compose_key`).
+    layers : dict, optional
+        Asks for the frame's compositing layers: ``layers["layers"]`` receives them
+        (:class:`arshadow.compose.layers.Layers`; with ``layers["undistorted"]`` true also their pinhole
+        version, ``.undistorted``). They come from the numpy path only: with layers asked for, the numpy path
+        makes the composite too (the plan's compose decision becomes ``"cpu"``), so the composite and its
+        layers are one computation.
 
     Returns
     -------
@@ -93,9 +103,16 @@ def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings: 
         else:
             mask_full = check_shape(mask_out, f"{H},{W}", "mask_out")
             mask_full.fill(0)
+    if layers is not None:  # nothing drawn until the numpy path says otherwise
+        empty = layers_from_warped(None, None, (0, 0, 0, 0), (H, W), opacity=0.0)
+        layers["layers"] = empty
+        if layers.get("undistorted"):
+            empty.undistorted = layers_from_warped(None, None, (0, 0, 0, 0), (H, W), opacity=0.0)
+        if not plan.empty and plan.compose != "cpu":
+            plan.decide("compose", "cpu", LAYERS_WHY)
     if plan.empty:
         return out, mask_full  # nothing of the scene is in view
-    args = (plan, image, intr, geometry, renderer, lens, work, passes, out, mask_full, want_mask, item)
+    args = (plan, image, intr, geometry, renderer, lens, work, passes, out, mask_full, want_mask, item, layers)
     _run_compose(args, plan, timings, item, chooser, gpu, compose_key)
     return out, mask_full
 
@@ -133,7 +150,7 @@ def _run_compose(args, plan, timings, item, chooser, gpu, key) -> None:
     image, out, mask_full = args[1], args[8], args[9]
     x0, y0, w, h = plan.roi
     choice = plan.compose or "cpu"
-    why = next((d.reason for d in plan.decisions if d.name == "compose"), "")
+    why = next((d.reason for d in reversed(plan.decisions) if d.name == "compose"), "")  # as plan.compose
     clean = None  # the photo's ROI each timed run starts from (below)
 
     def run(fn):
@@ -165,8 +182,8 @@ def _run_compose(args, plan, timings, item, chooser, gpu, key) -> None:
     item.plan["compose"] = why
 
 
-def _compose_gpu(plan, image, intr, geometry, renderer, lens, work, passes, out, mask_full, want_mask, item, *,
-                 gpu, timings):
+def _compose_gpu(plan, image, intr, geometry, renderer, lens, work, passes, out, mask_full, want_mask, item,
+                 layer_request, *, gpu, timings):
     """Render with the layers kept on the GPU; lens warp + composite in a shader; one 8-bit readback."""
     opts = geometry.options
     roi, canvas = plan.roi, plan.canvas
@@ -187,8 +204,8 @@ def _compose_gpu(plan, image, intr, geometry, renderer, lens, work, passes, out,
     item.composited = list(roi)
 
 
-def _compose_cpu(plan, image, intr, geometry, renderer, lens, work, passes, out, mask_full, want_mask, item, *,
-                 timings):
+def _compose_cpu(plan, image, intr, geometry, renderer, lens, work, passes, out, mask_full, want_mask, item,
+                 layer_request, *, timings):
     """Render, read the float layers back, lens warp (cv2.remap) or flip, composite in numpy."""
     H, W = image.shape[:2]
     opts = geometry.options
@@ -249,14 +266,20 @@ def _compose_cpu(plan, image, intr, geometry, renderer, lens, work, passes, out,
             l1 = cv2.flip(s1, 0, dst=work.get("flip1", s1.shape, np.float32))
         item.composited = list(roi)
         mask, alpha, color = l1[:, :, 0], l0[:, :, 3], l0
+        pinhole = (c1[::-1, :, 0], c0[::-1])  # the canvas top-down (views), for undistorted layers
     else:
         mask, alpha, color = res.mask, res.alpha, res.color
+        pinhole = (mask, np.dstack([color, alpha]))
         if lens is not None:
             mask, alpha, color = lens.warp(roi, canvas, mask, alpha, color, work=work)
     timings.warp += (time.perf_counter() - t) * 1e3
 
     # composite
     t = time.perf_counter()
+    if layer_request is not None:  # execute's ``layers``: gets the frame's layers
+        layer_request["layers"] = _frame_layers(layer_request.get("undistorted"), mask, color, alpha, roi, (H, W),
+                                                opts, lens is not None, pinhole, canvas,
+                                                getattr(res, "premultiplied", True))
     composite(out, mask, roi, color=color if opts.draw_occluder else None,
               alpha=alpha if opts.draw_occluder else None, opacity=opts.opacity,
               shadow_color=opts.shadow_color, premultiplied=getattr(res, "premultiplied", True), out=out, work=work)
@@ -268,3 +291,17 @@ def _compose_cpu(plan, image, intr, geometry, renderer, lens, work, passes, out,
         np.clip(m, np.float32(0.0), np.float32(255.0), out=m)
         np.copyto(mask_full[y0 : y0 + h, x0 : x0 + w], m, casting="unsafe")
     timings.composite += (time.perf_counter() - t) * 1e3
+
+
+def _frame_layers(undistorted, mask, color, alpha, roi, shape, opts, distorted, pinhole, canvas, premultiplied):
+    """The frame's :class:`arshadow.compose.layers.Layers` from the warped arrays the composite uses (and,
+    with ``undistorted``, from the pinhole canvas ``pinhole = (mask, rgba)`` too)."""
+    rgba = None
+    if opts.draw_occluder:
+        rgba = color if np.shape(color)[2] == 4 else np.dstack([color, alpha])
+    kw = {"opacity": opts.opacity, "shadow_color": opts.shadow_color, "premultiplied": premultiplied}
+    lay = layers_from_warped(mask, rgba, roi, shape, **kw)
+    if undistorted:
+        lay.undistorted = pinhole_layers(pinhole[0], pinhole[1] if opts.draw_occluder else None, canvas, shape,
+                                         **kw) if distorted else lay
+    return lay

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 
 from . import __version__
+from .sanity import pose_flag_reasons
 from .transforms import rvec_tvec_from_matrix
 
 __all__ = ["ReportItem", "StageTimings", "STAGES", "OPTIONAL_KEYS", "make_report", "jsonable"]
@@ -61,8 +62,9 @@ class StageTimings:
 
 #: the optional keys of an item, in the order the report writes them (only those set)
 OPTIONAL_KEYS = ("calibration_scaled", "notes", "detector", "frame", "time_s", "sun", "pose_flagged",
+                 "flag_reasons",
                  "opencv_board_rvec", "opencv_board_tvec", "n_points", "kind", "raw", "pose_choice", "modes", "roi",
-                 "canvas", "znear", "plan", "content", "composited", "compose", "title")
+                 "canvas", "znear", "plan", "content", "composited", "compose", "title", "layers")
 
 
 @dataclass
@@ -72,14 +74,16 @@ class ReportItem:
     Always written: ``input`` ... ``timings_ms``. Optional (written when not None, :data:`OPTIONAL_KEYS`):
 
     - tracking: ``calibration_scaled`` (``{"from": [w, h], "to": [w, h]}``; ``arshadow pose``: a bool),
-      ``detector`` (set when the fast pass found nothing and the full search ran), ``pose_flagged``,
+      ``detector`` (set when the fast pass found nothing and the full search ran), ``pose_flagged`` and
+      ``flag_reasons`` (why, one text per reason),
       ``opencv_board_rvec``/``opencv_board_tvec`` (boards), ``n_points``, ``kind`` (``arshadow pose``);
     - the frame: ``modes`` (per light), ``roi``, ``canvas`` (``[x0, y0, w, h]``), ``znear``, ``plan`` (the
       planner's decisions with their reasons, docs/planner.md), ``content`` (canvas pixels with content),
       ``composited`` (photo pixels composited), ``compose`` (``cpu`` | ``gpu``), ``notes``;
     - video frames: ``frame``, ``time_s``, ``sun``, ``raw`` (the tracked pose before smoothing),
       ``pose_choice``;
-    - ``title`` (the demo's caption).
+    - ``title`` (the demo's caption);
+    - ``layers`` (``{layer name: file}``: the compositing layers written, docs/export.md).
     """
 
     input: str
@@ -103,6 +107,7 @@ class ReportItem:
     time_s: float | None = None
     sun: list | None = None
     pose_flagged: bool | None = None
+    flag_reasons: list[str] | None = None
     opencv_board_rvec: list[float] | None = None
     opencv_board_tvec: list[float] | None = None
     n_points: int | None = None
@@ -118,6 +123,7 @@ class ReportItem:
     composited: list[int] | None = None
     compose: str | None = None
     title: str | None = None
+    layers: dict | None = None
 
     def set_pose(self, pose) -> None:
         """Fill the pose keys from an :class:`arshadow.tracking.pose.MarkerPose`.
@@ -134,6 +140,7 @@ class ReportItem:
         self.pose_ambiguity = None if pose.pose_ambiguity is None else float(pose.pose_ambiguity)
         # the ratio is at or above the tracker's threshold: the mirrored solution may be the true one
         self.pose_flagged = bool(getattr(pose, "ambiguous", False))
+        self.flag_reasons = pose_flag_reasons(pose, self.pose_flagged)  # why it is flagged ([] when it is not; arshadow.sanity)
         if getattr(pose, "kind", None) in ("gridboard", "charuco"):
             # deferred: the report module loads without OpenCV (arshadow pose / render only ever get here)
             from .tracking.board import OPENCV_BOARD_TO_WORLD

@@ -18,7 +18,9 @@ map onto its keys, which are the ``arshadow render`` option names with ``_`` for
     scale: 1.0
     rotate: [0, 0, 30]
     place: [0.1, 0, 0]
-    color: 200,80,40                 # 8-bit sRGB
+    up: z                            # the mesh file's up axis (default: y for glTF, z otherwise)
+    drop_to_ground: false            # stand the model on the ground (after scale and rotate)
+    color: 200,80,40                 # 8-bit sRGB or "#c85028"
     lights: [point:0.1,0.1,0.4, "sun:52.2,0.1,2024-06-21T15:00+01:00@0.5"]
     soft_samples: 1
     silhouette: adjacency
@@ -54,6 +56,9 @@ __all__ = ["RenderOptions", "TrackerSpec", "ModelSpec", "SceneSpec", "Scene", "s
 SHADOW_METHODS = ("volume", "planar", "shadowmap")
 #: MSAA sample counts :class:`RenderOptions` accepts (what ``--aa`` documents)
 AA_CHOICES = (0, 2, 4)
+#: the MSAA default of every command and of the API (``render``, ``video``, ``batch`` and ``demo`` agree): pixel-centre
+#: sampling, the exact and fastest path (docs/compositing.md); ``--aa 4`` for smoother edges
+DEFAULT_AA = 0
 
 
 @dataclass(frozen=True)
@@ -111,7 +116,7 @@ class RenderOptions:
     shadowmap_size: int = 2048
     silhouette: str = "adjacency"
     soft_samples: int = 1
-    aa: int = 0
+    aa: int = DEFAULT_AA
     ground_size: float | None = None
     draw_occluder: bool = True
     truncate: bool = True
@@ -174,6 +179,8 @@ class TrackerSpec:
     marker_id: int | None = None
     board: str | None = None
     refine: str | None = "default"
+    #: detect markers printed white on black (None: the board file's ``inverted``, else no)
+    inverted: bool | None = None
 
     def kwargs(self) -> dict:
         """Keyword arguments of :class:`arshadow.tracking.tracker.MarkerTracker` (the board file loaded).
@@ -196,6 +203,8 @@ class TrackerSpec:
             kw["board"] = load_board(self.board)
         if self.refine != "default":
             kw["refine"] = self.refine
+        if self.inverted is not None:
+            kw["inverted"] = bool(self.inverted)
         return kw
 
 
@@ -203,7 +212,9 @@ class TrackerSpec:
 class ModelSpec:
     """The virtual object: a mesh file or a primitive, then scale, rotate (degrees, XYZ), place (metres).
 
-    ``color`` is 8-bit sRGB ``"R,G,B"`` (None: the mesh's own colours).
+    ``color`` is 8-bit sRGB ``"R,G,B"`` (None: the mesh's own colours). ``up``: the mesh file's up axis
+    (None: :func:`arshadow.geometry.mesh.default_up`, Y for glTF); ``drop_to_ground``: stand the model on
+    the ground after scale and rotate.
     """
 
     source: str
@@ -211,6 +222,8 @@ class ModelSpec:
     rotate: tuple = (0.0, 0.0, 0.0)
     place: tuple = (0.0, 0.0, 0.0)
     color: str | None = None
+    up: str | None = None
+    drop_to_ground: bool = False
 
     def build(self):
         """The :class:`arshadow.geometry.mesh.ShadowCaster` (MeshError / UsageError on a bad file or colour)."""
@@ -221,7 +234,8 @@ class ModelSpec:
         if self.color:
             parse_rgb(self.color, "--color")  # validates: three numbers 0..255
             color = tuple(float(v) / 255.0 for v in self.color.split(","))  # sRGB 0..1, as the loader takes
-        return load_occluder(self.source, scale=self.scale, rotate=self.rotate, place=self.place, color=color)
+        return load_occluder(self.source, scale=self.scale, rotate=self.rotate, place=self.place, color=color,
+                             up=self.up, drop_to_ground=self.drop_to_ground)
 
 
 @dataclass(frozen=True)
@@ -263,17 +277,18 @@ class SceneSpec:
         from .lights.spec import parse_light
 
         intr = self.camera if isinstance(self.camera, Intrinsics) else Intrinsics.from_file(self.camera)
-        from .geometry.mesh import placement_warnings
+        from .sanity import check_scene
         from .tracking.tracker import MarkerTracker
 
         tracker = self.tracker.kwargs()
         MarkerTracker(intr, **tracker)  # a dictionary conflicting with the board, a bad id: a usage error
         caster = self.model.build()
-        for msg in placement_warnings(caster, marker_length=tracker.get("marker_length")):
-            log.warning(msg)
         if lights is None:
             lights = [parse_light(s) if isinstance(s, str) else s for s in self.lights]
         opts = self.options.check()
+        for msg in check_scene(caster, lights, soft_samples=opts.soft_samples,  # LightError: exit 2, once
+                               marker_length=tracker.get("marker_length"), shadow_method=opts.shadow_method):
+            log.warning(msg)
         _check_silhouette_name(opts.silhouette)
         return Scene(intr, caster, list(lights), opts, tracker)
 
@@ -311,8 +326,8 @@ def _check_silhouette_name(name: str) -> None:
 
 
 #: the keys :func:`scene_from_dict` takes (``light`` is accepted for ``lights``)
-SCENE_KEYS = ("calib", "marker_length", "board", "dictionary", "marker_id", "refine", "model", "scale", "rotate",
-              "place", "color", "lights", "soft_samples", "silhouette", "shadow_method", "opacity",
+SCENE_KEYS = ("calib", "marker_length", "board", "dictionary", "marker_id", "refine", "inverted", "model", "scale", "rotate",
+              "place", "color", "up", "drop_to_ground", "lights", "soft_samples", "silhouette", "shadow_method", "opacity",
               "shadow_color", "aa", "ground_size", "no_object", "roi", "truncate", "fast_detect", "plan", "compose",
               "shadowmap_size", "track_roi", "light_from")
 
@@ -350,10 +365,15 @@ def _value(d, key, conv, default=None):
     return out
 
 
-def _rgb_text(v):
-    if v is None or isinstance(v, str):
-        return v or None
-    return ",".join(f"{float(x):g}" for x in v)
+def _rgb_text(v, key="color"):
+    """A colour as ``"R,G,B"`` text (0..255); ``"#rrggbb"`` converted, so equal colours give equal specs."""
+    if v is None or (isinstance(v, str) and not v.strip()):
+        return None
+    if isinstance(v, str) and not v.strip().startswith("#"):
+        return v  # checked when the scene is built
+    from .compose.composite import rgb8
+
+    return ",".join(f"{x:g}" for x in rgb8(v, f"--{key}"))
 
 
 def _path(v, base_dir):
@@ -442,13 +462,15 @@ def scene_from_dict(d, base_dir=None) -> SceneSpec:
     ml = _value(d, "marker_length", float)
     mid = _value(d, "marker_id", int)
     tracker = TrackerSpec(dictionary=dictionary, marker_length=ml, marker_id=mid,
-                          board=_path(d.get("board"), base_dir), refine=d.get("refine", "default"))
+                          board=_path(d.get("board"), base_dir), refine=d.get("refine", "default"),
+                          inverted=None if d.get("inverted") is None else bool(d.get("inverted")))
     calib = d["calib"]
     if isinstance(calib, (str, Path)):
         calib = _path(calib, base_dir)
     model_spec = ModelSpec(str(model), scale=_value(d, "scale", float, 1.0),
                            rotate=_triple(d.get("rotate", (0, 0, 0)), "rotate"),
-                           place=_triple(d.get("place", (0, 0, 0)), "place"), color=_rgb_text(d.get("color")))
+                           place=_triple(d.get("place", (0, 0, 0)), "place"), color=_rgb_text(d.get("color")),
+                           up=_value(d, "up", str), drop_to_ground=_value(d, "drop_to_ground", bool, False))
     opts = {}
     if d.get("shadow_color") is not None:
         from .compose.composite import parse_rgb

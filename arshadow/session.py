@@ -36,21 +36,23 @@ import logging
 import time
 from dataclasses import dataclass, field
 
+import cv2
 import numpy as np
 
 from .compose.composite import Workspace
+from .compose.layers import Layers
 from .compose.lens import LensWarp
 from .engine import CalibrationState, check_image, default_renderer, estimate_pose
 from .errors import UsageError
-from .execute import execute
-from .geometry.mesh import placement_warnings
+from .execute import LAYERS_WHY, execute
 from .io import read_image
 from .lights.spec import parse_light
 from .plan import FramePlan, SceneGeometry, decide_compose, plan_frame
 from .render_api import Renderer
 from .report import ReportItem, StageTimings
+from .sanity import FrameChecks, calibration_scaled_note
 from .scene import Scene, SceneSpec, load_scene, scene_from_dict
-from .transforms import invert_rigid, rvec_tvec_from_matrix
+from .transforms import rvec_tvec_from_matrix
 
 __all__ = ["Session", "FrameResult", "render_photo"]
 
@@ -77,6 +79,9 @@ class FrameResult:
         Milliseconds per stage.
     plan : arshadow.plan.FramePlan
         What was decided for the frame, with reasons (``plan.decisions``).
+    layers : arshadow.compose.layers.Layers or None
+        The object (premultiplied linear RGBA) and shadow (multiply pass) layers, when asked for
+        (``layers=True``): ``plate x shadow + object`` in linear light is the composite (docs/export.md).
     """
 
     composite: np.ndarray
@@ -86,6 +91,12 @@ class FrameResult:
     item: ReportItem
     timings: StageTimings = field(default_factory=StageTimings)
     plan: FramePlan | None = None
+    layers: Layers | None = None
+
+    def _repr_png_(self) -> bytes:
+        """The composite as PNG bytes: a result shows itself as an image in Jupyter."""
+        ok, buf = cv2.imencode(".png", self.composite)
+        return buf.tobytes() if ok else b""
 
     @property
     def timings_ms(self) -> dict[str, float]:
@@ -143,7 +154,7 @@ class Session:
         self._calibs: dict = {}
         self._lenses: dict = {}
         self._work = Workspace()
-        self._warned_inside = False
+        self._checks = FrameChecks(self.scene.caster, self.scene.tracker.get("marker_length"))  # O(1) per frame
         from .gl.compose import PathChooser  # deferred: no GL at import (moderngl loads on first render)
 
         self.compose_chooser = PathChooser(force=None if self.options.compose == "auto" else self.options.compose)
@@ -224,6 +235,8 @@ class Session:
         c = self._calibs.get(key)
         if c is None:
             intr, scaled = self.intrinsics.for_image(width, height)
+            if scaled:  # once per size, on stderr (the report says it per photo)
+                log.warning(calibration_scaled_note(self.intrinsics, width, height))
             tracker = self.scene.tracker
             # video: each tracker searches a window around its last detection first (the planner's tracking
             # ROI, full-frame fallback: arshadow/tracking/roi_track.py)
@@ -288,7 +301,8 @@ class Session:
         return plan_frame(self.geometry, cal.intrinsics, cfw, int(width), int(height), lens=cal.lens, modes=modes)
 
     def render(self, image, pose=None, *, plan: FramePlan | None = None, name: str = "", want_mask: bool = True,
-               out=None, mask_out=None, timings: StageTimings | None = None, modes=None) -> FrameResult:
+               out=None, mask_out=None, timings: StageTimings | None = None, modes=None,
+               layers: bool | str = False) -> FrameResult:
         """Composite at a given pose, or carry out a plan of :meth:`plan`.
 
         Parameters
@@ -311,6 +325,9 @@ class Session:
             call's time.
         modes : list of str, optional
             Force the volume mode per light (as :meth:`plan`).
+        layers : bool or "undistorted"
+            Also make the compositing layers (``FrameResult.layers``; the numpy compose path); with
+            ``"undistorted"`` also their pinhole version (``FrameResult.layers.undistorted``).
 
         Returns
         -------
@@ -333,19 +350,20 @@ class Session:
             raise UsageError(f"{name or 'image'}: the plan is for {plan.size[0]}x{plan.size[1]}, the image is "
                              f"{image.shape[1]}x{image.shape[0]}")
         tracked = pose if hasattr(pose, "cam_from_world") else None
-        res = self._render(image, plan, tracked, item, timings, want_mask, out, mask_out)
+        res = self._render(image, plan, tracked, item, timings, want_mask, out, mask_out, layers)
         timings.total += (time.perf_counter() - t0) * 1e3
         item.timings_ms = timings.as_dict(3)
         return res
 
-    def process(self, image, name: str = "", want_mask: bool = True, out=None, mask_out=None) -> FrameResult:
+    def process(self, image, name: str = "", want_mask: bool = True, out=None, mask_out=None,
+                layers: bool | str = False) -> FrameResult:
         """:meth:`track` then :meth:`render`: composite the object and its shadow into one photo.
 
         Parameters
         ----------
         image : (H, W, 3) uint8
             BGR photo (not modified unless it is ``out``).
-        name, want_mask, out, mask_out
+        name, want_mask, out, mask_out, layers
             As :meth:`render`.
 
         Returns
@@ -366,7 +384,7 @@ class Session:
         pose, detector = estimate_pose(cal, image, timings)
         item = ReportItem(input=name, detector=detector)
         plan = self.plan(pose, image.shape[1], image.shape[0])
-        res = self._render(image, plan, pose, item, timings, want_mask, out, mask_out)
+        res = self._render(image, plan, pose, item, timings, want_mask, out, mask_out, layers)
         note = cal.detect_note()
         if note is not None:
             item.plan["detect"] = note
@@ -374,9 +392,11 @@ class Session:
         item.timings_ms = timings.as_dict(3)
         return res
 
-    def _render(self, image, plan: FramePlan, pose, item: ReportItem, timings, want_mask, out, mask_out):
+    def _render(self, image, plan: FramePlan, pose, item: ReportItem, timings, want_mask, out, mask_out,
+                layers=False):
         """Execute ``plan`` on ``image`` and fill ``item`` (all but ``timings_ms``); ``pose``: the tracked
-        :class:`~arshadow.tracking.pose.MarkerPose` or None."""
+        :class:`~arshadow.tracking.pose.MarkerPose` or None; ``layers``: as :meth:`render`."""
+        lay = {"undistorted": layers == "undistorted"} if layers else None
         H, W = image.shape[:2]
         cal = self.calibration(W, H)
         cfw = plan.cam_from_world
@@ -389,20 +409,21 @@ class Session:
         else:
             rvec, tvec = rvec_tvec_from_matrix(cfw)
             item.rvec, item.tvec = rvec.tolist(), tvec.tolist()
-        if not self._warned_inside:
-            for msg in placement_warnings(self.scene.caster, eye_world=invert_rigid(cfw)[:3, 3]):
-                log.warning(msg)
-                self._warned_inside = True  # once per run, not per frame
+        for msg in self._checks.check(cfw):  # a far camera (wrong units), the camera inside: once per run
+            log.warning(msg)
         renderer = key = None
         if not plan.empty:  # the renderer (and the context) is made only when there is something to draw
             renderer = self.renderer
             key = self.compose_key(W, H, cal.lens is not None)
+            if lay is not None and plan.compose != "cpu":  # the layers come from the numpy path
+                plan.decide("compose", "cpu", LAYERS_WHY)
             self._decide_compose(plan, renderer, key, want_mask, out, mask_out)
         out, mask = execute(plan, image, cal.intrinsics, geometry=self.geometry, renderer=renderer, lens=cal.lens,
                             work=self._work, timings=timings, item=item, want_mask=want_mask, out=out,
                             mask_out=mask_out, chooser=self.compose_chooser, gpu=self._gpu_compositor,
-                            compose_key=key)
-        return FrameResult(out, mask, pose, np.asarray(cfw, np.float64), item, timings, plan)
+                            compose_key=key, layers=lay)
+        return FrameResult(out, mask, pose, np.asarray(cfw, np.float64), item, timings, plan,
+                           None if lay is None else lay["layers"])
 
     def _decide_compose(self, plan, renderer, key, want_mask, out, mask_out) -> None:
         """Record the plan's compose decision (unless it has one these buffers allow)."""

@@ -184,22 +184,23 @@ def test_in_place_composite_while_the_chooser_times_both_paths(ctx, tol):
 def test_path_chooser_keeps_the_default_unless_another_is_clearly_faster():
     """The first path is the default: a path within the margin does not displace it (no swapping from run
     to run on noise); one faster by more than the margin does."""
-    import time
-
     from arshadow.gl.compose import PathChooser
+
+    now = [0.0]  # a deterministic clock (s): each path advances it by its cost, whatever the machine's load
 
     def wait(ms):
         def go():
-            t = time.perf_counter()
-            while (time.perf_counter() - t) * 1e3 < ms:
-                pass
+            now[0] += ms / 1e3
             return ms
         return go
 
-    close = PathChooser(trials=3, decisions={}, margin=0.5)
+    def clock():
+        return now[0]
+
+    close = PathChooser(trials=3, decisions={}, margin=0.5, clock=clock)
     assert close.run("k", {"default": wait(4.0), "other": wait(3.0)})[0] == "default"  # 25 % faster only
     assert close.decisions["k"]["ms"]["other"] < close.decisions["k"]["ms"]["default"]
-    clear = PathChooser(trials=3, decisions={}, margin=0.5)
+    clear = PathChooser(trials=3, decisions={}, margin=0.5, clock=clock)
     assert clear.run("k", {"default": wait(8.0), "other": wait(1.0)})[0] == "other"  # 8x faster
     with pytest.raises(Exception, match="margin"):
         PathChooser(margin=1.0)

@@ -13,6 +13,8 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import os
+import re
 import signal
 import sys
 
@@ -20,8 +22,8 @@ from .. import __version__
 from ..errors import ArshadowError, EstimateError, ImageError, MarkerNotFoundError
 
 #: command modules, in the order ``--help`` lists them
-COMMAND_MODULES = ("render", "demo", "video", "batch", "pose", "calibrate", "marker", "silhouette", "sun", "bench",
-                   "info", "light")
+COMMAND_MODULES = ("render", "demo", "video", "batch", "export_track", "pose", "calibrate", "marker", "silhouette",
+                   "sun", "bench", "info", "light")
 
 EXIT_OK, EXIT_SOME_FAILED, EXIT_USAGE = 0, 1, 2
 
@@ -53,9 +55,48 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+#: a comma-separated list of numbers whose first is negative (``-0.05,0,0``): argparse takes it for an option
+_NEGATIVE_LIST = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?(,[-+]?[\d.eE+-]*)+$")
+
+
+def join_negative_values(argv) -> list[str]:
+    """``--place -0.05,0,0`` -> ``--place=-0.05,0,0``: a long option followed by a number list that starts
+    with a minus (argparse would read the list as an unknown option and say "expected one argument").
+
+    >>> join_negative_values(["render", "--place", "-0.05,0,0", "--rotate", "-90,0,0", "-o", "out"])
+    ['render', '--place=-0.05,0,0', '--rotate=-90,0,0', '-o', 'out']
+    """
+    out = []
+    for tok in argv:
+        if out and _NEGATIVE_LIST.match(tok) and out[-1].startswith("--") and "=" not in out[-1]:
+            out[-1] = f"{out[-1]}={tok}"
+        else:
+            out.append(tok)
+    return out
+
+
 def main(argv=None) -> int:
+    try:
+        code = _main(argv)
+        sys.stdout.flush()  # here, not at exit: a closed pipe is caught below
+        return code
+    except BrokenPipeError:  # `arshadow info | head -1`: the reader left; not an error of ours, no traceback
+        _stdout_to_devnull()
+        return 128 + int(getattr(signal, "SIGPIPE", 13))
+
+
+def _stdout_to_devnull() -> None:
+    """Point stdout at /dev/null so that the interpreter's final flush does not fail again on the closed pipe."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):  # no real stdout (captured in tests)
+        pass
+
+
+def _main(argv=None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parser.parse_args(join_negative_values(sys.argv[1:] if argv is None else list(argv)))
     logging.basicConfig(
         level=logging.DEBUG if args.debug else logging.WARNING,
         format="arshadow: %(levelname)s: %(message)s",

@@ -105,7 +105,7 @@ def run(args) -> int:
     else:
         session = Session(spec)
     bar = None
-    if not args.quiet:
+    if not args.quiet and sys.stderr.isatty():  # no bar in a log file: the closing summary line only
         from tqdm import tqdm
 
         bar = tqdm(total=len(args.inputs), unit="item", desc="batch", file=sys.stderr, dynamic_ncols=True)

@@ -31,6 +31,8 @@ def register(subparsers) -> None:
     g.add_argument("--marker-length", type=float, metavar="M", help="printed marker side, metres")
     g.add_argument("--board", metavar="FILE", help="board file (gridboard or charuco; see calib/README.md)")
     p.add_argument("--marker-id", type=int, metavar="N", help="use only this marker id as the reference (default: the lowest id found)")
+    p.add_argument("--inverted", action="store_true", default=None,
+                   help="the markers are printed white on black (a board file may say 'inverted: 1')")
     p.add_argument("--refine", default=None, choices=("none", "subpix", "contour", "apriltag"),
                    help="corner refinement (default: subpix, or the --detector-params file's own)")
     p.add_argument("--detector-params", metavar="FILE", help="cv2.aruco.DetectorParameters YAML file")
@@ -83,7 +85,7 @@ def run(args) -> int:
     intr = Intrinsics.from_file(args.calib)
     refine = args.refine if args.refine is not None else (None if args.detector_params else DEFAULT_REFINE)
     tracker = MarkerTracker(intr, dictionary=args.dictionary, marker_length=args.marker_length,
-                            marker_id=args.marker_id, board=args.board, refine=refine,
+                            marker_id=args.marker_id, board=args.board, refine=refine, inverted=args.inverted,
                             detector_params=args.detector_params)
     out_dir = Path(args.overlay) if args.overlay else None
     items, failed = [], 0

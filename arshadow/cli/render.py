@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import functools
 import glob
 import logging
 import sys
 import time
 from pathlib import Path
 
+from ..scene import DEFAULT_AA
 from . import EXIT_OK, EXIT_SOME_FAILED, error_line, quiet_opencv
 
 log = logging.getLogger(__name__)
@@ -69,16 +71,28 @@ def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> No
                    help="ArUco dictionary name or custom dictionary file (default DICT_6X6_250; a --board file "
                         "names its own)")
     g.add_argument("--marker-id", type=int, metavar="N", help="use only this marker id as the reference (default: the lowest id found)")
+    g.add_argument("--inverted", action="store_true", default=None,
+                   help="the markers are printed white on black (a board file may say 'inverted: 1')")
     o = p.add_argument_group("virtual object")
     o.add_argument("--model", required=require, metavar="M",
                    help="mesh file (OBJ/PLY/STL/GLB/OFF, metres) or primitive box:WX,WY,HZ | cylinder:R,H | "
                         "sphere:R | torus:R,r")
     o.add_argument("--scale", type=_positive("--scale"), default=1.0, metavar="S", help="uniform scale (first)")
     o.add_argument("--rotate", type=_floats(3, "--rotate"), default=(0.0, 0.0, 0.0), metavar="RX,RY,RZ",
-                   help="rotation in degrees, XYZ order (after scale)")
+                   help="rotation in degrees, XYZ order (after scale); a negative first number is fine: "
+                        "--rotate -90,0,0")
     o.add_argument("--place", type=_floats(3, "--place"), default=(0.0, 0.0, 0.0), metavar="X,Y,Z",
-                   help="translation in metres, world (marker) frame (last)")
-    o.add_argument("--color", metavar="R,G,B", help="object colour, 8-bit sRGB 0..255 (default: the mesh's own)")
+                   help="translation in metres, world (marker) frame (last); a negative first number is fine: "
+                        "--place -0.05,0,0")
+    o.add_argument("--up", choices=("y", "z"), metavar="y|z",
+                   help="the mesh file's up axis, turned to the world's +z first (default: y for glTF "
+                        ".glb/.gltf, which is Y-up by specification; z for OBJ/PLY/STL/OFF). Blender's OBJ "
+                        "export is Y-up: --up y")
+    o.add_argument("--drop-to-ground", action="store_true",
+                   help="stand the model on the ground: after scale and rotate, move it along z so that its "
+                        "lowest point is at z = 0 (for meshes centred on their origin); --place then adds")
+    o.add_argument("--color", metavar="R,G,B",
+                   help="object colour, 8-bit sRGB 0..255 or #rrggbb (default: the mesh's own)")
     s = p.add_argument_group("lights and shadows")
     s.add_argument("--light-from", metavar="FILE",
                    help="a measured light (arshadow light ... -o FILE, docs/light.md): its light (unless --light "
@@ -97,9 +111,11 @@ def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> No
                    metavar="N", help="shadow map side in texels with --shadow-method shadowmap (default 2048)")
     s.add_argument("--opacity", type=float, default=0.7, metavar="O",
                    help="darkness of a full shadow, 0..1 (default 0.7)")
-    s.add_argument("--shadow-color", metavar="R,G,B", help="tint of a full shadow, 8-bit sRGB (default black)")
-    s.add_argument("--aa", type=int, default=0, metavar="N",
-                   help="multisample anti-aliasing samples, 0 (default: pixel-centre sampling, the fastest), "
+    s.add_argument("--shadow-color", metavar="R,G,B",
+                   help="tint of a full shadow, 8-bit sRGB R,G,B or #rrggbb (default black)")
+    s.add_argument("--aa", type=int, default=DEFAULT_AA, metavar="N",
+                   help=f"multisample anti-aliasing samples, {DEFAULT_AA} (default, as arshadow demo: pixel-centre "
+                        "sampling, the fastest), "
                         "2 or 4 (smoother edges; ~5x the render time on a CPU renderer, see "
                         "docs/compositing.md)")
     s.add_argument("--ground-size", type=_positive("--ground-size"), metavar="S",
@@ -127,7 +143,16 @@ def register(subparsers) -> None:
     out.add_argument("--save-mask", action="store_true", help="also write <stem>.shadow.png")
     out.add_argument("--report", metavar="R.json", help="write the JSON report of every input")
     out.add_argument("--keep-format", action="store_true", help="write the input's format instead of PNG")
-    out.add_argument("--quiet", "-q", action="store_true", help="no per-image progress lines")
+    out.add_argument("--layers", action="store_true",
+                     help="also write the compositing layers: <stem>.object, <stem>.shadow.mult (multiply pass), "
+                          "<stem>.shadow.only (black with alpha); plate x shadow.mult + object = the composite "
+                          "in linear light (docs/export.md)")
+    out.add_argument("--layers-format", choices=("png", "exr"), default="png",
+                     help="16-bit PNG (default) or half-float linear OpenEXR (needs arshadow[exr])")
+    out.add_argument("--layers-undistorted", action="store_true",
+                     help="with --layers: also the layers in the undistorted (pinhole) camera, "
+                          "<stem>.undistorted.*, and the ST-map that distorts them onto the photo, <stem>.stmap.*"),
+    out.add_argument("--quiet", "-q", action="store_true", help="no per-image progress lines or progress bar")
     p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
                    help="show tracebacks and debug logging")
     p.set_defaults(func=run)
@@ -188,34 +213,66 @@ def output_paths(inputs, outdir: Path, keep_format: bool):
 
 
 def run(args) -> int:
-    from ..io import write_json
+    from ..io import check_output_file, check_output_folder, write_json
     from ..report import make_report
+    from ..sanity import FlagTally
     from ..scene import scene_from_args
     from ..session import Session
 
     debug = bool(getattr(args, "debug", False))
     quiet_opencv(debug)
-    from ..io import check_output_file, check_output_folder
-
     inputs = expand_inputs(args.images)
-    # output paths first: a bad -o / --report is one usage error before any work, not one per photo
+    # output paths first: a bad -o / --report / layer writer is one usage error before any work
     outdir = check_output_folder(args.output, "-o")
     if args.report:
         check_output_file(args.report, "--report")
+    if getattr(args, "layers_undistorted", False):
+        args.layers = True
+    layer_sets = _layer_paths(args, inputs, outdir) if getattr(args, "layers", False) else None
     session = Session(scene_from_args(args))  # loads the scene: a bad one is exit 2
-    with session:
-        items, failed = _render_all(args, session, inputs, outdir, debug)
+    bar = None
+    if not args.quiet and len(inputs) > 1 and sys.stderr.isatty():
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(inputs), unit="photo", desc="render", file=sys.stderr, dynamic_ncols=True)
+    try:
+        with session:
+            items, failed = _render_all(args, session, inputs, outdir, debug, layer_sets=layer_sets, bar=bar)
+    finally:
+        if bar is not None:
+            bar.close()
     if args.report:
         write_json(args.report, make_report(items))
+    flags = FlagTally()
+    for it in items:
+        flags.add(it.input, it.flag_reasons)
+    if flags.summary(len(items)):
+        print(f"arshadow render: warning: {flags.summary(len(items))}", file=sys.stderr)
     if not args.quiet and len(inputs) > 1:
-        print(f"{len(inputs) - failed} of {len(inputs)} photos rendered into {outdir}", file=sys.stdout)
+        flagged = sum(1 for it in items if it.pose_flagged)
+        print(f"{len(inputs) - failed} of {len(inputs)} photos rendered into {outdir}: "
+              f"{len(inputs) - failed} done, {failed} failed, {flagged} flagged (ambiguous pose)", file=sys.stdout)
     return EXIT_SOME_FAILED if failed else EXIT_OK
 
 
-def _render_all(args, session, inputs, outdir, debug):
+def _layer_paths(args, inputs, outdir):
+    """Each input's layer files (:func:`arshadow.export.layerfiles.layer_paths`); a missing writer or a layer
+    file that would replace an input is a usage error here, before any work."""
+    from ..export.layerfiles import check_layer_format, layer_paths, refuse_overwrite
+
+    fmt = check_layer_format(args.layers_format)
+    sets = [layer_paths(outdir, Path(out).stem, fmt, undistorted=bool(args.layers_undistorted))
+            for out, _mask in output_paths(inputs, outdir, args.keep_format)]
+    refuse_overwrite([p for paths in sets for p in paths.values()], inputs)
+    return sets
+
+
+def _render_all(args, session, inputs, outdir, debug, layer_sets=None, bar=None):
     from ..errors import ArshadowError, CalibrationError, ImageError, MarkerNotFoundError, UsageError
     import cv2
 
+    from ..export.layerfiles import write_layers
+    from ..export.stmap import stmap, write_stmap
     from ..io import apply_orientation, exif_orientation, read_image, resolved_path, write_image
     from ..report import ReportItem
 
@@ -230,7 +287,8 @@ def _render_all(args, session, inputs, outdir, debug):
         session.renderer  # noqa: B018
     except UsageError as exc:
         raise UsageError(f"--aa {args.aa} / --shadowmap-size: {exc}") from None
-    for inp, (out_path, mask_path) in zip(inputs, paths):
+    say = bar.write if bar is not None else print
+    for k, (inp, (out_path, mask_path)) in enumerate(zip(inputs, paths)):
         item = ReportItem(input=str(inp))
         t0 = time.perf_counter()
         try:
@@ -241,7 +299,8 @@ def _render_all(args, session, inputs, outdir, debug):
             bufs = buffers.setdefault(image.shape[:2], (np.empty(image.shape, np.uint8),
                                                         np.empty(image.shape[:2], np.uint8)))
             # results are encoded right away, so one output buffer per size is reused
-            res = session.process(image, name=str(inp), want_mask=args.save_mask, out=bufs[0], mask_out=bufs[1])
+            res = session.process(image, name=str(inp), want_mask=args.save_mask, out=bufs[0], mask_out=bufs[1],
+                                  layers=("undistorted" if args.layers_undistorted else True) if layer_sets else False)
             out, mask, item = res.composite, res.mask, res.item
             params = [int(_imwrite_quality(out_path)), 95] if _imwrite_quality(out_path) else None
             # outputs upright as a viewer shows the input (EXIF orientation; they carry no EXIF)
@@ -250,27 +309,36 @@ def _render_all(args, session, inputs, outdir, debug):
             if args.save_mask:
                 write_image(mask_path, apply_orientation(mask, orientation))
                 item.mask = str(mask_path)
+            if layer_sets is not None:
+                write_layers(layer_sets[k], res.layers, args.layers_format,
+                             orient=functools.partial(apply_orientation, orientation=orientation))
+                if "stmap" in layer_sets[k]:
+                    cal = session.calibration(image.shape[1], image.shape[0])
+                    write_stmap(layer_sets[k]["stmap"], stmap(cal.intrinsics, None if cal.lens is None else cal.lens.maps))
+                item.layers = {n: str(p) for n, p in layer_sets[k].items()}
             if not args.quiet:
                 t = item.timings_ms.get("total", 0.0)
-                print(f"{inp} -> {out_path}  ({item.mode or 'no light casts a shadow'}, {t:.1f} ms)",
-                      file=sys.stdout)
+                say(f"{inp} -> {out_path}  ({item.mode or 'no light casts a shadow'}, {t:.1f} ms)",
+                    file=sys.stdout)
         except MarkerNotFoundError as exc:
             failed += 1
             item.status, item.error = "no_marker", str(exc)
-            print(_error_line(inp, exc), file=sys.stderr)
+            say(_error_line(inp, exc), file=sys.stderr)
         except (ImageError, CalibrationError, ArshadowError) as exc:
             if debug:
                 raise
             failed += 1
             item.status, item.error = "error", str(exc)
-            print(_error_line(inp, exc), file=sys.stderr)
+            say(_error_line(inp, exc), file=sys.stderr)
         except (OSError, MemoryError, cv2.error) as exc:  # cv2.error: a decoder/detector the checks missed
             if debug:
                 raise
             failed += 1
             item.status, item.error = "error", f"{type(exc).__name__}: {exc}"
-            print(_error_line(inp, exc), file=sys.stderr)
+            say(_error_line(inp, exc), file=sys.stderr)
         item.input = str(inp)
+        if bar is not None:
+            bar.update(1)
         if item.status != "ok":
             item.timings_ms = {"total": round((time.perf_counter() - t0) * 1e3, 3)}
         items.append(item)

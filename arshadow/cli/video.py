@@ -52,6 +52,16 @@ def add_output_options(out) -> None:
     out.add_argument("--jobs", "-j", type=int, default=1, metavar="N",
                      help="worker processes per video: it is cut at keyframes into N chunks processed in parallel "
                           "and joined (same output as one process; docs/video.md)")
+    out.add_argument("--layers", action="store_true",
+                     help="also write the compositing layers (object with alpha, shadow multiply pass, shadow-only "
+                          "with alpha), lens distortion applied: plate x shadow.mult + object = the composite in "
+                          "linear light (docs/export.md)")
+    out.add_argument("--layers-format", choices=("prores", "ffv1", "png", "exr"), default="prores",
+                     help="videos' layers: prores (ProRes 4444 .mov, default), ffv1 (lossless 16-bit .mkv), or "
+                          "png / exr sequences in DIR/<stem>.layers/; photos of a batch: 16-bit PNG, or EXR with exr")
+    out.add_argument("--layers-undistorted", action="store_true",
+                     help="with --layers: also the layers in the undistorted (pinhole) camera and the ST-map "
+                          "DIR/<stem>.stmap.* that distorts them onto the frames")
 
 
 def engine_options(args, collect_items=False):
@@ -62,12 +72,15 @@ def engine_options(args, collect_items=False):
         fmt=args.format, codec=args.codec or FORMAT_CODEC[args.format], crf=args.crf, preset=args.preset,
         mask=args.save_mask, pose_lag=None if getattr(args, "no_temporal", False) else getattr(args, "pose_lag", 16),
         smooth=getattr(args, "smooth", 10), hold=getattr(args, "hold", 12), max_frames=getattr(args, "max_frames", None),
-        contact_sheet=args.contact_sheet, keep_audio=not args.no_audio, collect_items=collect_items).check()
+        contact_sheet=args.contact_sheet, keep_audio=not args.no_audio, collect_items=collect_items,
+        layers=args.layers_format if (getattr(args, "layers", False) or getattr(args, "layers_undistorted", False))
+        else None, layers_undistorted=bool(getattr(args, "layers_undistorted", False))).check()
 
 
 def progress_bar(quiet: bool):
-    """A ``progress_factory`` for :func:`arshadow.video.runner.run_videos`: a tqdm bar per video."""
-    if quiet:
+    """A ``progress_factory`` for :func:`arshadow.video.runner.run_videos`: a tqdm bar per video (none with
+    ``-q`` or when stderr is not a terminal: a log file gets the closing lines only)."""
+    if quiet or not sys.stderr.isatty():
         return None
 
     def factory(name):
@@ -192,6 +205,7 @@ def run(args) -> int:
     from ..errors import UsageError
     from ..io import check_output_file, check_output_folder, write_json
     from ..report import jsonable, make_report
+    from ..sanity import time_lapse_warnings
     from ..scene import scene_from_args
     from ..session import Session
     from ..video.engine import SessionBackend
@@ -209,6 +223,15 @@ def run(args) -> int:
     outdir = check_output_folder(args.output, "-o")
     if args.report:
         check_output_file(args.report, "--report")
+    if opts.layers is not None:  # a layer file over an input: a usage error before any work
+        from ..export.layerfiles import refuse_overwrite
+        from ..video.engine import unique_stems, video_outputs
+
+        refuse_overwrite([p for stem in unique_stems(args.videos)
+                          for k, p in video_outputs(outdir, stem, opts).items() if k.startswith("layers:")], args.videos)
+    sun_set = time_lapse_warnings(args.videos, tracks, tl, getattr(args, "max_frames", None))  # before any work
+    for msg in sun_set.values():
+        print(f"arshadow video: warning: {msg}", file=sys.stderr)
     first = list(static)
     for tr in tracks:
         tr.reset()
@@ -241,6 +264,13 @@ def run(args) -> int:
             print(f"{s['input']} -> {s['output']}  ({s['frames']} frames: {s['frames_ok']} tracked, "
                   f"{s['frames_held']} held, {s['frames_no_marker']} without marker; "
                   f"{s['fps_processed']:.1f} fps)", file=sys.stdout)
+    if not args.quiet and len(summaries) > 1:
+        flagged = sum(1 for s in summaries if s["status"] == "ok" and s.get("frames_no_marker"))
+        print(f"{len(summaries) - failed} of {len(summaries)} videos rendered into {outdir}: "
+              f"{len(summaries) - failed} done, {failed} failed, {flagged} flagged (frames without the marker)")
+    for s in summaries:  # the report says it too
+        if s.get("input") in sun_set:
+            s.setdefault("warnings", []).insert(0, sun_set[s["input"]])
     if args.report:
         rep = make_report(items)
         rep["videos"] = jsonable(summaries)

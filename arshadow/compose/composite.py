@@ -30,6 +30,8 @@ Examples
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 
 from .._check import check_finite, check_shape
@@ -98,24 +100,42 @@ def linear_to_srgb8(lin: np.ndarray, out: np.ndarray | None = None) -> np.ndarra
     return res.reshape(lin.shape)
 
 
-def parse_rgb(spec, name: str = "colour") -> tuple[float, float, float]:
-    """Parse ``"R,G,B"`` (8-bit sRGB values 0..255) into linear RGB floats in [0, 1].
+def rgb8(spec, name: str = "colour") -> tuple[float, float, float]:
+    """Parse ``"R,G,B"`` (numbers 0..255), ``"#rrggbb"`` (hex, as a colour picker gives it) or three numbers
+    into 8-bit sRGB values 0..255 (floats).
 
     Examples
     --------
-    >>> parse_rgb("255,0,0")
-    (1.0, 0.0, 0.0)
+    >>> rgb8("#ff8000"), rgb8("255, 128, 0"), rgb8([255, 128, 0])
+    ((255.0, 128.0, 0.0), (255.0, 128.0, 0.0), (255.0, 128.0, 0.0))
     """
     if isinstance(spec, str):
-        parts = [p.strip() for p in spec.split(",")]
+        text = spec.strip()
+        if text.startswith("#"):
+            if re.fullmatch(r"#[0-9a-fA-F]{6}", text) is None:
+                raise UsageError(f"{name} {spec!r}: expected #rrggbb (six hex digits) or R,G,B with numbers 0..255")
+            return tuple(float(int(text[i:i + 2], 16)) for i in (1, 3, 5))
+        parts = [p.strip() for p in text.split(",")]
         try:
             vals = [float(p) for p in parts]
         except ValueError:
-            raise UsageError(f"{name} {spec!r}: expected R,G,B with numbers 0..255") from None
+            raise UsageError(f"{name} {spec!r}: expected R,G,B with numbers 0..255 (or #rrggbb)") from None
     else:
         vals = [float(v) for v in spec]
     if len(vals) != 3 or not all(np.isfinite(vals)) or not all(0.0 <= v <= 255.0 for v in vals):
-        raise UsageError(f"{name} {spec!r}: expected R,G,B with three numbers 0..255")
+        raise UsageError(f"{name} {spec!r}: expected R,G,B with three numbers 0..255 (or #rrggbb)")
+    return tuple(float(v) for v in vals)
+
+
+def parse_rgb(spec, name: str = "colour") -> tuple[float, float, float]:
+    """Parse ``"R,G,B"`` (8-bit sRGB values 0..255) or ``"#rrggbb"`` into linear RGB floats in [0, 1].
+
+    Examples
+    --------
+    >>> parse_rgb("255,0,0"), parse_rgb("#ff0000")
+    ((1.0, 0.0, 0.0), (1.0, 0.0, 0.0))
+    """
+    vals = rgb8(spec, name)
     return tuple(float(v) for v in srgb_to_linear(np.array(vals) / 255.0))
 
 

@@ -286,7 +286,7 @@ class PathChooser:
     """
 
     def __init__(self, trials: int = 3, force: str | None = None, decisions: dict | None = None,
-                 margin: float = 0.15):
+                 margin: float = 0.15, clock=time.perf_counter):
         if int(trials) < 1:
             raise UsageError(f"trials must be >= 1, got {trials}")
         if not 0.0 <= float(margin) < 1.0:
@@ -294,6 +294,7 @@ class PathChooser:
         self.trials = int(trials)
         self.margin = float(margin)
         self.force = force
+        self.clock = clock  # seconds; a test hands in a deterministic clock
         if decisions is None:
             decisions = SHARED_DECISIONS  # one measurement per key and process, whichever session asks first
         self.decisions: dict = decisions
@@ -315,10 +316,10 @@ class PathChooser:
         result = {}
         for rnd in range(self.trials + 1):
             for name, fn in paths.items():
-                t = time.perf_counter()
+                t = self.clock()
                 result[name] = fn()
                 if rnd:
-                    times[name].append((time.perf_counter() - t) * 1e3)
+                    times[name].append((self.clock() - t) * 1e3)
         med = {name: statistics.median(v) for name, v in times.items()}
         default = next(iter(paths))
         fastest = min(med, key=med.get)

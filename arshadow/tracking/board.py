@@ -5,6 +5,13 @@ like the marker frame, y points towards the board's printed top edge and z out o
 the ground is z = 0 with +z up everywhere in arshadow. That is OpenCV's board frame (x right, y *down*,
 z *into* the board) turned 180 degrees about its x axis: ``X_world = diag(1, -1, -1) @ X_opencv_board``
 (:data:`OPENCV_BOARD_TO_WORLD`).
+
+A **generic board** (``type: markers``) is any set of markers at known 3D corners (OpenCV's
+``cv2.aruco.Board(objPoints, dictionary, ids)``): its corners are given directly in the arshadow world
+frame (z out of the printed face, y towards its top; TL, TR, BR, BL of each marker as printed), so its
+world frame is whatever frame the file's corners are in. The ArUco library's own layout files
+(``aruco_bc_markers``, e.g. ``chessboardinfo_meters.yml``) are in OpenCV's board convention (y down,
+z into the board) and are turned into the world frame with :data:`OPENCV_BOARD_TO_WORLD` when read.
 """
 
 from __future__ import annotations
@@ -21,7 +28,10 @@ from ..camera import open_storage, write_storage
 from ..errors import UsageError
 from .dictionary import get_dictionary
 
-__all__ = ["OPENCV_BOARD_TO_WORLD", "Board", "load_board"]
+__all__ = ["OPENCV_BOARD_TO_WORLD", "BOARD_KINDS", "Board", "load_board", "read_aruco_layout"]
+
+#: board types of a board file's ``type``
+BOARD_KINDS = ("gridboard", "charuco", "markers")
 
 #: OpenCV board frame (y down, z into the board) -> arshadow world frame (y up, z out of the board)
 OPENCV_BOARD_TO_WORLD = np.diag([1.0, -1.0, -1.0])
@@ -30,12 +40,12 @@ OPENCV_BOARD_TO_WORLD.setflags(write=False)
 
 @dataclass(frozen=True, eq=False)
 class Board:
-    """A GridBoard or ChArUco board described by a board file.
+    """A GridBoard, ChArUco board or generic board (markers at known corners) described by a board file.
 
     Parameters
     ----------
     kind : str
-        ``"gridboard"`` or ``"charuco"``.
+        ``"gridboard"``, ``"charuco"`` or ``"markers"``.
     size : (int, int)
         (columns, rows): markers for a grid board, chessboard squares for ChArUco.
     marker_length : float
@@ -52,6 +62,11 @@ class Board:
         ChArUco boards made by OpenCV < 4.6 with an even number of rows.
     base_dir : Path, optional
         Folder of the board file.
+    markers : dict, optional
+        ``kind == "markers"``: id -> (4, 3) float64 corners TL, TR, BR, BL in the world frame, metres
+        (``size`` and ``marker_length`` are then derived: ``(n, 1)`` and the mean marker side).
+    inverted : bool
+        The markers are printed white on black (detected as such; ``inverted: 1`` in a board file).
     """
 
     kind: str
@@ -65,12 +80,18 @@ class Board:
     legacy_pattern: bool = False
     base_dir: Path | None = None
     source: str = ""
+    markers: dict | None = None
+    inverted: bool = False
 
     def __post_init__(self):
         kind = str(self.kind).lower()
-        if kind not in ("gridboard", "charuco"):
-            raise UsageError(f"{self._where()}board type must be 'gridboard' or 'charuco', got '{self.kind}'")
+        if kind not in BOARD_KINDS:
+            raise UsageError(f"{self._where()}board type must be one of {', '.join(BOARD_KINDS)}, got '{self.kind}'")
         object.__setattr__(self, "kind", kind)
+        object.__setattr__(self, "inverted", bool(self.inverted))
+        if kind == "markers":
+            self._init_markers()
+            return
         try:
             cols, rows = (int(v) for v in self.size)
         except (TypeError, ValueError):
@@ -95,6 +116,32 @@ class Board:
             object.__setattr__(self, "square_length", sq)
         if self.ids is not None:
             object.__setattr__(self, "ids", tuple(int(i) for i in self.ids))
+        self._check_ids()
+
+    def _init_markers(self):
+        """Validate a generic board's ``markers`` and derive ``size``, ``marker_length`` and ``ids``."""
+        if not self.markers:
+            raise UsageError(f"{self._where()}a 'markers' board needs a non-empty 'markers' list")
+        out = {}
+        for mid, c in dict(self.markers).items():
+            c = np.asarray(c, np.float64)
+            if c.shape != (4, 3) or not np.all(np.isfinite(c)):
+                raise UsageError(f"{self._where()}marker {mid}: corners must be 4 finite [x, y, z] points")
+            side = np.linalg.norm(c - np.roll(c, 1, axis=0), axis=1)
+            if side.min() <= 0:
+                raise UsageError(f"{self._where()}marker {mid}: two of its corners coincide")
+            if int(mid) in out:
+                raise UsageError(f"{self._where()}marker id {mid} is listed twice")
+            c.setflags(write=False)
+            out[int(mid)] = c
+        sides = [np.linalg.norm(c - np.roll(c, 1, axis=0), axis=1).mean() for c in out.values()]
+        object.__setattr__(self, "markers", out)
+        object.__setattr__(self, "size", (len(out), 1))
+        object.__setattr__(self, "marker_length", float(np.mean(sides)))
+        object.__setattr__(self, "ids", tuple(out))
+        self._check_ids()
+
+    def _check_ids(self):
         n = self.n_markers
         ids = self.marker_ids
         if len(ids) != n:
@@ -110,7 +157,12 @@ class Board:
     @property
     def n_markers(self) -> int:
         cols, rows = self.size
-        return cols * rows if self.kind == "gridboard" else (cols * rows) // 2
+        return cols * rows if self.kind in ("gridboard", "markers") else (cols * rows) // 2
+
+    @property
+    def planar(self) -> bool:
+        """All markers on the plane z = 0 of the world frame (grid and ChArUco boards always are)."""
+        return self.kind != "markers" or all(abs(c[:, 2]).max() < 1e-9 for c in self.markers.values())
 
     @property
     def marker_ids(self) -> tuple:
@@ -120,6 +172,9 @@ class Board:
     def extent(self) -> tuple[float, float]:
         """(width, height) of the board's outer edge, metres."""
         cols, rows = self.size
+        if self.kind == "markers":
+            pts = np.concatenate(list(self.markers.values()))
+            return tuple(float(v) for v in pts[:, :2].max(axis=0) - pts[:, :2].min(axis=0))
         if self.kind == "charuco":
             return cols * self.square_length, rows * self.square_length
         s, ml = self.marker_separation, self.marker_length
@@ -133,6 +188,10 @@ class Board:
     def cv_board(self):
         """The ``cv2.aruco.GridBoard`` / ``CharucoBoard``."""
         ids = np.asarray(self.marker_ids, dtype=np.int32)
+        if self.kind == "markers":
+            # OpenCV's object points in its board convention: the inverse of OPENCV_BOARD_TO_WORLD is itself
+            obj = [np.ascontiguousarray(self.markers[i] @ OPENCV_BOARD_TO_WORLD.T, np.float32) for i in ids]
+            return cv2.aruco.Board(obj, self.cv_dictionary, ids)
         if self.kind == "gridboard":
             return cv2.aruco.GridBoard(self.size, self.marker_length, self.marker_separation,
                                        self.cv_dictionary, ids)
@@ -147,6 +206,8 @@ class Board:
 
         Recomputed from the float64 lengths (OpenCV stores float32), with OpenCV's layout.
         """
+        if self.kind == "markers":
+            return dict(self.markers)
         cv_obj = [np.asarray(o, dtype=np.float64).reshape(4, 3) for o in self.cv_board.getObjPoints()]
         out = {}
         ml = self.marker_length
@@ -197,6 +258,8 @@ class Board:
     def to_file(self, path) -> Path:
         """Write this board as a board file (YAML/JSON by extension), atomically."""
         p = Path(path)
+        if self.kind == "markers":
+            return self._markers_to_file(p)
         with write_storage(p, "board file", UsageError) as fs:
             fs.write("type", self.kind)
             fs.startWriteStruct("size", cv2.FileNode_SEQ | cv2.FileNode_FLOW)
@@ -218,6 +281,29 @@ class Board:
                 fs.write("first_id", int(self.first_id))
             if self.kind == "charuco":
                 fs.write("legacy_pattern", int(bool(self.legacy_pattern)))
+            if self.inverted:
+                fs.write("inverted", 1)
+        return p
+
+    def _markers_to_file(self, p: Path) -> Path:
+        with write_storage(p, "board file", UsageError) as fs:
+            fs.write("type", "markers")
+            fs.write("dictionary", str(self.dictionary))
+            if self.inverted:
+                fs.write("inverted", 1)
+            fs.startWriteStruct("markers", cv2.FileNode_SEQ)
+            for mid, c in self.markers.items():
+                fs.startWriteStruct("", cv2.FileNode_MAP)
+                fs.write("id", int(mid))
+                fs.startWriteStruct("corners", cv2.FileNode_SEQ)
+                for q in c:
+                    fs.startWriteStruct("", cv2.FileNode_SEQ | cv2.FileNode_FLOW)
+                    for v in q:
+                        fs.write("", float(v))
+                    fs.endWriteStruct()
+                fs.endWriteStruct()
+                fs.endWriteStruct()
+            fs.endWriteStruct()
         return p
 
 
@@ -241,8 +327,85 @@ def _fs_int_list(node, key, path):
     return [int(v) for v in vals]
 
 
+def _fs_string(fs, key, default):
+    node = fs.getNode(key)
+    s = node.string() if (not node.empty() and node.isString()) else default
+    return s.split(" #")[0].strip()  # OpenCV keeps a same-line YAML comment in a string
+
+
+def _fs_corners(node, where):
+    """(4, 3) float64 from a FileNode list of 4 [x, y, z] lists."""
+    if not node.isSeq() or node.size() != 4:
+        raise UsageError(f"{where}: 'corners' must be a list of 4 [x, y, z] points")
+    out = []
+    for k in range(4):
+        q = node.at(k)
+        if not q.isSeq() or q.size() != 3:
+            raise UsageError(f"{where}: 'corners' must be a list of 4 [x, y, z] points")
+        out.append([q.at(j).real() for j in range(3)])
+    return np.asarray(out, np.float64)
+
+
+def _fs_markers(node, p, to_world=None) -> dict:
+    """id -> (4, 3) corners from a board file's ``markers`` (or the ArUco library's ``aruco_bc_markers``)."""
+    if not node.isSeq() or node.size() == 0:
+        raise UsageError(f"{p}: 'markers' must be a non-empty list of {{id, corners}}")
+    out = {}
+    for k in range(node.size()):
+        m = node.at(k)
+        idn = m.getNode("id") if m.isMap() else None
+        if idn is None or idn.empty() or not (idn.isInt() or idn.isReal()):
+            raise UsageError(f"{p}: markers[{k}] needs an integer 'id'")
+        mid = int(idn.real())
+        if mid in out:
+            raise UsageError(f"{p}: marker id {mid} is listed twice")
+        c = _fs_corners(m.getNode("corners"), f"{p}: marker {mid}")
+        out[mid] = c if to_world is None else c @ to_world.T
+    return out
+
+
+def read_aruco_layout(path, dictionary=None) -> Board:
+    """A generic board from the ArUco library's layout file (``aruco_bc_nmarkers``, ``aruco_bc_markers``:
+    each marker's ``id`` and four 3D ``corners`` in metres, OpenCV's board convention; e.g. the library's
+    ``chessboardinfo_meters.yml``).
+
+    Parameters
+    ----------
+    path : str or Path
+    dictionary : str, optional
+        The markers' dictionary: the file's ``aruco_bc_dict`` when it has one, else this, else
+        ``DICT_ARUCO_ORIGINAL`` (the library's own).
+
+    Raises
+    ------
+    UsageError
+        Unreadable file, a marker without id or four corners, info type other than metres
+        (``aruco_bc_mInfoType: 1``).
+    """
+    p = Path(path)
+    with open_storage(p, "ArUco layout file", UsageError) as fs:
+        info = _fs_number(fs, "aruco_bc_mInfoType", p, default=1.0)
+        if int(info) != 1:
+            raise UsageError(f"{p}: the layout is in pixels (aruco_bc_mInfoType {int(info)}); arshadow needs "
+                             "the metre layout (aruco_bc_mInfoType: 1, e.g. chessboardinfo_meters.yml)")
+        name = _fs_string(fs, "aruco_bc_dict", "") or dictionary or "DICT_ARUCO_ORIGINAL"
+        markers = _fs_markers(fs.getNode("aruco_bc_markers"), p, OPENCV_BOARD_TO_WORLD)
+    b = Board(kind="markers", size=(len(markers), 1), marker_length=1.0, dictionary=_aruco_dict_name(name),
+              markers=markers, base_dir=p.parent, source=str(p))
+    b.cv_board  # noqa: B018 - build it now so that errors name the file
+    return b
+
+
+def _aruco_dict_name(name: str) -> str:
+    """The ArUco library's dictionary names (``ARUCO``, ``ARUCO_MIP_36h12``...) as OpenCV's."""
+    n = name.strip().upper()
+    return {"ARUCO": "DICT_ARUCO_ORIGINAL", "ARUCO_MIP_36H12": "DICT_ARUCO_MIP_36h12",
+            "TAG36H11": "DICT_APRILTAG_36h11"}.get(n, name)
+
+
 def load_board(path) -> Board:
-    """Read a board file (YAML or JSON; schema in calib/README.md).
+    """Read a board file (YAML or JSON; schema in calib/README.md), or an ArUco library layout file
+    (:func:`read_aruco_layout`).
 
     Raises
     ------
@@ -251,28 +414,43 @@ def load_board(path) -> Board:
     """
     p = Path(path)
     with open_storage(p, "board file", UsageError) as fs:
-        t = fs.getNode("type")
-        if t.empty() or not t.isString():
-            raise UsageError(f"{p}: board file needs 'type: gridboard' or 'type: charuco'")
-        kind = t.string().split(" #")[0].strip().lower()
-        size_node = fs.getNode("size")
-        if size_node.empty():
-            raise UsageError(f"{p}: board file is missing 'size' ([columns, rows])")
-        size = _fs_int_list(size_node, "size", p)
-        if len(size) != 2:
-            raise UsageError(f"{p}: 'size' must be [columns, rows]")
-        ml = _fs_number(fs, "marker_length", p)
-        sep = _fs_number(fs, "marker_separation", p, default=None if kind == "gridboard" else 0.0)
-        sq = _fs_number(fs, "square_length", p, default=None if kind == "charuco" else 0.0)
-        dnode = fs.getNode("dictionary")
-        dictionary = dnode.string() if (not dnode.empty() and dnode.isString()) else "DICT_6X6_250"
-        dictionary = dictionary.split(" #")[0].strip()  # OpenCV keeps a same-line YAML comment in a string
-        ids_node = fs.getNode("ids")
-        ids = None if ids_node.empty() else tuple(_fs_int_list(ids_node, "ids", p))
-        first_id = int(_fs_number(fs, "first_id", p, default=0))
-        legacy = bool(_fs_number(fs, "legacy_pattern", p, default=0))
-    b = Board(kind=kind, size=tuple(size), marker_length=ml, dictionary=dictionary, marker_separation=sep,
-              square_length=sq, ids=ids, first_id=first_id, legacy_pattern=legacy, base_dir=p.parent,
-              source=str(p))
+        if not fs.getNode("aruco_bc_markers").empty():
+            kind = "aruco_layout"
+        else:
+            t = fs.getNode("type")
+            if t.empty() or not t.isString():
+                raise UsageError(f"{p}: board file needs 'type: gridboard', 'type: charuco' or 'type: markers'")
+            kind = t.string().split(" #")[0].strip().lower()
+            b = _load_markers_board(fs, p) if kind == "markers" else _load_grid_board(fs, p, kind)
+    if kind == "aruco_layout":
+        return read_aruco_layout(p)
     b.cv_board  # noqa: B018 - build it now so that errors name the file
+    return b
+
+
+def _load_grid_board(fs, p: Path, kind: str) -> Board:
+    """A ``type: gridboard`` / ``charuco`` board file."""
+    size_node = fs.getNode("size")
+    if size_node.empty():
+        raise UsageError(f"{p}: board file is missing 'size' ([columns, rows])")
+    size = _fs_int_list(size_node, "size", p)
+    if len(size) != 2:
+        raise UsageError(f"{p}: 'size' must be [columns, rows]")
+    ml = _fs_number(fs, "marker_length", p)
+    sep = _fs_number(fs, "marker_separation", p, default=None if kind == "gridboard" else 0.0)
+    sq = _fs_number(fs, "square_length", p, default=None if kind == "charuco" else 0.0)
+    ids_node = fs.getNode("ids")
+    ids = None if ids_node.empty() else tuple(_fs_int_list(ids_node, "ids", p))
+    return Board(kind=kind, size=tuple(size), marker_length=ml, dictionary=_fs_string(fs, "dictionary", "DICT_6X6_250"),
+                 marker_separation=sep, square_length=sq, ids=ids, first_id=int(_fs_number(fs, "first_id", p, default=0)),
+                 legacy_pattern=bool(_fs_number(fs, "legacy_pattern", p, default=0)), base_dir=p.parent, source=str(p),
+                 inverted=bool(_fs_number(fs, "inverted", p, default=0)))
+
+
+def _load_markers_board(fs, p: Path) -> Board:
+    """A ``type: markers`` board file (its ``markers`` list of ``{id, corners}``, world frame)."""
+    markers = _fs_markers(fs.getNode("markers"), p)
+    b = Board(kind="markers", size=(len(markers), 1), marker_length=1.0,
+              dictionary=_fs_string(fs, "dictionary", "DICT_6X6_250"), markers=markers,
+              inverted=bool(_fs_number(fs, "inverted", p, default=0)), base_dir=p.parent, source=str(p))
     return b

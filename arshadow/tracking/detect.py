@@ -28,7 +28,13 @@ __all__ = [
     "to_gray",
     "detection_from_opencv",
     "detect_markers",
+    "AprilTagDetector",
+    "RescueDetector",
+    "luma_to_gray",
 ]
+
+#: :class:`RescueDetector`: the adaptive-threshold constant of the second search, relative to the first
+RESCUE_THRESHOLD_STEP = -1.0
 
 #: corner refinement methods (``cv2.aruco.CORNER_REFINE_*``)
 REFINE_METHODS = {
@@ -151,6 +157,28 @@ class Detection:
         return out
 
 
+#: limited-range ("TV", BT.601/709) luma 16..235 -> full-range gray 0..255 (:func:`luma_to_gray`)
+_LUMA_LUT = np.clip(np.round((np.arange(256) - 16.0) * 255.0 / 219.0), 0, 255).astype(np.uint8)
+
+
+def luma_to_gray(y: np.ndarray) -> np.ndarray:
+    """(H, W) uint8 full-range gray from the limited-range luma plane ``y (H, W) uint8`` of a ``yuv420p``
+    video frame (16 = black, 235 = white), as ``cv2.cvtColor(BGR -> GRAY)`` of the decoded frame gives it
+    (within rounding).
+
+    Why: the detector's adaptive threshold subtracts a constant (7 grey levels) from the local mean; on the
+    Y plane, whose contrast is 219/255 of the gray image's, markers whose corners touch (a chessboard of
+    markers) fall apart into one blob: stock OpenCV found marker 32 of the shared real chessboard clip in
+    59 frames of the Y plane against 108 of the gray frames, 112 after this conversion (issue 21).
+
+    Examples
+    --------
+    >>> luma_to_gray(np.array([[16, 235, 0, 255]], np.uint8)).tolist()
+    [[0, 255, 0, 255]]
+    """
+    return cv2.LUT(np.ascontiguousarray(y), _LUMA_LUT)
+
+
 def to_gray(image) -> np.ndarray:
     """(H, W) uint8 gray of an image of any layout or depth (BGR uint8, gray, BGRA, 16-bit, float).
 
@@ -198,3 +226,118 @@ def detect_markers(image, dictionary="DICT_6X6_250", params=None, refine=DEFAULT
     det = cv2.aruco.ArucoDetector(get_dictionary(dictionary), p)
     corners, ids, rejected = det.detectMarkers(to_gray(image))
     return detection_from_opencv(corners, ids, rejected, p)
+
+
+class AprilTagDetector:
+    """``cv2.aruco.ArucoDetector`` with ``CORNER_REFINE_APRILTAG``, without its losses.
+
+    OpenCV's AprilTag "refinement" is a second candidate search (AprilTag's quad detector on the decimated
+    image), and a marker whose quad it does not find is dropped: on the shared real chessboard clip, whose
+    markers touch at their corners, it kept 3 of the 17 markers stock detection finds (marker 32 in none
+    of the 149 frames, issue 21). This detector runs it, moves its corners to pixel centres
+    (:data:`APRILTAG_OFFSET_PX`), and adds every marker the ordinary search (``fallback``: the same
+    parameters with sub-pixel refinement) finds and AprilTag does not, with sub-pixel corners.
+
+    ``detectMarkers(gray)`` returns corners in CONVENTIONS.md's pixel-centre coordinates (no
+    :data:`APRILTAG_OFFSET_PX` to subtract afterwards). Other methods go to the AprilTag detector.
+
+    Parameters
+    ----------
+    dictionary : cv2.aruco.Dictionary
+    params : cv2.aruco.DetectorParameters
+        With ``cornerRefinementMethod == CORNER_REFINE_APRILTAG``.
+    """
+
+    def __init__(self, dictionary, params):
+        self._base = cv2.aruco.ArucoDetector(dictionary, params)
+        sub = copy_detector_params(params)
+        sub.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
+        sub.cornerRefinementMinAccuracy = 0.01
+        sub.cornerRefinementMaxIterations = 50
+        self._fallback = cv2.aruco.ArucoDetector(dictionary, sub)
+        #: markers of the last call that came from the fallback search
+        self.n_fallback = 0
+
+    def detectMarkers(self, gray):  # noqa: N802 (OpenCV's name)
+        corners, ids, rejected = self._base.detectMarkers(gray)
+        out_c = [np.asarray(c, np.float32).reshape(1, 4, 2) - np.float32(APRILTAG_OFFSET_PX) for c in corners]
+        out_i = [] if ids is None else [int(i) for i in np.asarray(ids).ravel()]
+        f_corners, f_ids, _ = self._fallback.detectMarkers(gray)
+        have = set(out_i)
+        self.n_fallback = 0
+        if f_ids is not None:
+            for c, i in zip(f_corners, np.asarray(f_ids).ravel().tolist()):
+                if int(i) not in have:
+                    out_c.append(np.asarray(c, np.float32).reshape(1, 4, 2))
+                    out_i.append(int(i))
+                    self.n_fallback += 1
+        if not out_i:
+            return (), None, rejected
+        return tuple(out_c), np.asarray(out_i, np.int32).reshape(-1, 1), rejected
+
+    def __getattr__(self, name):
+        return getattr(self._base, name)
+
+
+class RescueDetector:
+    """A detector that searches a second time, with the adaptive-threshold constant lowered by one grey
+    level (:data:`RESCUE_THRESHOLD_STEP`), when the first search misses the wanted marker.
+
+    Why: markers whose corners touch (a chessboard of markers) fall apart into separate quads only in a
+    narrow band of threshold constants; which constant works changes from frame to frame. On the shared
+    real chessboard clip (issue 21), OpenCV's default constant (7) found marker 32 in 112 frames of the
+    video's luma, 6 in 123, and the two together in 105 of the 108 frames where stock OpenCV finds it on
+    the decoded colour frames (7 alone: 101). The second search costs time only on frames that miss.
+
+    Parameters
+    ----------
+    base : object with ``detectMarkers(gray)``
+        The first search (its output is returned unchanged when it holds the wanted marker).
+    dictionary : cv2.aruco.Dictionary
+    params : cv2.aruco.DetectorParameters
+        ``base``'s parameters (the second search copies them with the lowered constant).
+    marker_id : int, optional
+        The wanted marker (None: any marker).
+
+    Attributes
+    ----------
+    rescued : bool
+        The last call's result came from the second search.
+    """
+
+    def __init__(self, base, dictionary, params, marker_id=None):
+        self._base = base
+        p = copy_detector_params(params)
+        p.adaptiveThreshConstant = float(params.adaptiveThreshConstant) + RESCUE_THRESHOLD_STEP
+        if params.cornerRefinementMethod == cv2.aruco.CORNER_REFINE_APRILTAG:
+            self._second = AprilTagDetector(dictionary, p)
+        else:
+            self._second = cv2.aruco.ArucoDetector(dictionary, p)
+        self.marker_id = marker_id
+        self.rescued = False
+
+    def _has(self, ids) -> bool:
+        if ids is None or len(ids) == 0:
+            return False
+        return self.marker_id is None or self.marker_id in np.asarray(ids).ravel().tolist()
+
+    def detectMarkers(self, gray):  # noqa: N802 (OpenCV's name)
+        corners, ids, rejected = self._base.detectMarkers(gray)
+        self.rescued = False
+        if self._has(ids):
+            return corners, ids, rejected
+        c2, i2, r2 = self._second.detectMarkers(gray)
+        if not self._has(i2):
+            return corners, ids, rejected
+        self.rescued = True
+        # the second search's markers, then the first's that it lacks
+        seen = set(np.asarray(i2).ravel().tolist())
+        extra = [(c, i) for c, i in zip(corners, [] if ids is None else np.asarray(ids).ravel().tolist())
+                 if i not in seen]
+        c_out = tuple(c2) + tuple(c for c, _ in extra)
+        i_out = np.concatenate([np.asarray(i2).reshape(-1, 1), np.asarray([[i] for _, i in extra], np.int32)
+                                .reshape(-1, 1)]).astype(np.int32)
+        return c_out, i_out, r2
+
+    def __getattr__(self, name):
+        return getattr(self._base, name)

@@ -10,7 +10,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from .detect import MIN_MARKER_DISTANCE_RATE
+from .detect import MIN_MARKER_DISTANCE_RATE, AprilTagDetector
 
 __all__ = ["HalfResolutionDetector", "fast_detector_params", "wrap_fast_detector"]
 
@@ -71,7 +71,7 @@ class HalfResolutionDetector:
 def wrap_fast_detector(detector, board=None):
     """The fast pass's detector around a tracker's full-resolution ``cv2.aruco.ArucoDetector``:
     :class:`HalfResolutionDetector` in single-marker mode (``board`` None), else ``detector`` itself."""
-    if isinstance(detector, cv2.aruco.ArucoDetector) and board is None:
+    if isinstance(detector, (cv2.aruco.ArucoDetector, AprilTagDetector)) and board is None:
         return HalfResolutionDetector(detector, detector.getDictionary())
     return detector
 

@@ -20,7 +20,7 @@ from .quality import (
     MIN_CONFIDENT_SIDE_PX,
 )
 
-__all__ = ["AltPose", "MarkerPose", "rms_reprojection_px", "solve_planar"]
+__all__ = ["AltPose", "MarkerPose", "rms_reprojection_px", "solve_general", "solve_planar"]
 
 
 @dataclass
@@ -174,3 +174,24 @@ def solve_planar(intr: Intrinsics, obj, img, square: bool, lm: bool = True):
                 r, t, e = r2, t2, e2
         sols.append((r.ravel(), t.ravel(), e))
     return sols, ratio
+
+
+def solve_general(intr: Intrinsics, obj, img, lm: bool = True):
+    """The pose of non-coplanar points ``obj (n, 3)`` seen at ``img (n, 2)`` (a generic board whose markers
+    are not on one plane): ``cv2.SOLVEPNP_SQPNP`` (globally optimal), polished by Levenberg-Marquardt
+    (``lm``). Returns ``([(rvec (3,), tvec (3,), rms_px)], None)`` like :func:`solve_planar` (one
+    solution: no planar ambiguity).
+    """
+    K, dist = intr.K, intr.dist_cv
+    obj = np.ascontiguousarray(obj, dtype=np.float64).reshape(-1, 3)
+    img = np.ascontiguousarray(img, dtype=np.float64).reshape(-1, 2)
+    try:
+        ok, r, t = cv2.solvePnP(obj, img, K, dist, flags=cv2.SOLVEPNP_SQPNP)
+    except cv2.error as exc:
+        raise MarkerNotFoundError(f"pose estimation failed ({str(exc).strip().splitlines()[-1][:80]})") from None
+    if not ok:
+        raise MarkerNotFoundError("pose estimation found no solution")
+    if lm:
+        crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 50, 1e-12)
+        r, t = cv2.solvePnPRefineLM(obj, img, K, dist, r.copy(), t.copy(), criteria=crit)
+    return [(r.ravel(), t.ravel(), rms_reprojection_px(intr, obj, img, r, t))], None

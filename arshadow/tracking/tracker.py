@@ -18,6 +18,8 @@ from ..transforms import matrix_from_rvec_tvec, rotation_error_deg
 from .board import OPENCV_BOARD_TO_WORLD, Board, load_board
 from .detect import (
     DEFAULT_REFINE,
+    AprilTagDetector,
+    RescueDetector,
     Detection,
     detection_from_opencv,
     make_detector_params,
@@ -30,7 +32,7 @@ from .dictionary import (
     marker_object_points,
 )
 from .fastdetect import fast_detector_params, wrap_fast_detector
-from .pose import AltPose, MarkerPose, solve_planar
+from .pose import AltPose, MarkerPose, solve_general, solve_planar
 from .quality import AMBIGUITY_FLAG, border_occlusion, corner_instability
 from .refine import refine_corners_edges
 from .roi_track import TrackingDetector
@@ -66,6 +68,10 @@ class MarkerTracker:
         ``detectMarkers(gray)`` (and ``refineDetectedMarkers`` for grid boards).
     ambiguity_threshold : float
         ``pose_ambiguity`` at or above which a pose is flagged.
+    inverted : bool, optional
+        Also detect markers printed white on black (``DetectorParameters.detectInvertedMarker``); None:
+        the board's ``inverted`` (False for a single marker). Without it, a photo with only inverted
+        markers gets a :class:`~arshadow.errors.MarkerNotFoundError` that says so.
     pnp_refine : bool
         Polish the IPPE pose with Levenberg-Marquardt (``cv2.solvePnPRefineLM``) on the reprojection
         error (default; measured in docs/tracking.md).
@@ -85,7 +91,7 @@ class MarkerTracker:
 
     def __init__(self, intrinsics: Intrinsics, dictionary=None, marker_length=None, marker_id=None,
                  board=None, refine=DEFAULT_REFINE, detector_params=None, ambiguity_threshold=AMBIGUITY_FLAG,
-                 pnp_refine=True, detector="full", track_roi=False):
+                 pnp_refine=True, detector="full", track_roi=False, inverted=None):
         if not isinstance(intrinsics, Intrinsics):
             raise UsageError("intrinsics must be an arshadow.camera.Intrinsics")
         self.intrinsics = intrinsics
@@ -126,9 +132,23 @@ class MarkerTracker:
         if fast and detector_params is None:
             detector_params = fast_detector_params()
         self.params = make_detector_params(refine, detector_params)
+        self.inverted = bool(board.inverted if (inverted is None and board is not None) else inverted)
+        if self.inverted:
+            self.params.detectInvertedMarker = True
         self.ambiguity_threshold = float(ambiguity_threshold)
         self.detector_kind = detector if isinstance(detector, str) else "custom"
-        self._detector = cv2.aruco.ArucoDetector(self.dictionary, self.params)
+        apriltag = self.params.cornerRefinementMethod == cv2.aruco.CORNER_REFINE_APRILTAG
+        custom = not isinstance(detector, str)
+        # the built-in detectors give pixel-centre corners; a custom one, OpenCV's raw output (AprilTag's
+        # corners shifted by APRILTAG_OFFSET_PX when the parameters ask for it)
+        self._shift_params = self.params if custom else None
+        if apriltag and not custom:
+            self._detector = AprilTagDetector(self.dictionary, self.params)
+        else:
+            self._detector = cv2.aruco.ArucoDetector(self.dictionary, self.params)
+        if not custom and not fast and (board is None or board.kind == "markers"):
+            # a second search with a lower threshold constant when the first misses (issue 21)
+            self._detector = RescueDetector(self._detector, self.dictionary, self.params, marker_id)
         if fast:
             self._detector = wrap_fast_detector(self._detector, board)
         elif not isinstance(detector, str):
@@ -166,7 +186,7 @@ class MarkerTracker:
         """Detect the markers of this tracker's dictionary (no pose)."""
         gray = to_gray(image)
         corners, ids, rejected = self._detector.detectMarkers(gray)
-        det = detection_from_opencv(corners, ids, rejected, self.params)
+        det = detection_from_opencv(corners, ids, rejected, self._shift_params)
         if self.refine == "edge" and len(det):
             det.corners = refine_corners_edges(gray, det.corners, self._intrinsics_for(gray)[0])
         return det
@@ -214,12 +234,29 @@ class MarkerTracker:
             bits = self.dictionary.getBitsFromByteList(self.dictionary.bytesList[ref : ref + 1],
                                                        self.dictionary.markerSize)
             pose.border_occlusion = border_occlusion(gray, pose.corners[:4], bits)
+            if self.inverted:  # a white-on-black marker's ring is white: measure it on the negative too
+                pose.border_occlusion = min(pose.border_occlusion,
+                                            border_occlusion(255 - gray, pose.corners[:4], bits))
         if previous is not None and pose.alternative is not None and pose.ambiguous:
             prev = previous.cam_from_world if isinstance(previous, MarkerPose) else np.asarray(previous, float)
             if rotation_error_deg(pose.alternative.cam_from_world[:3, :3], prev[:3, :3]) < \
                     rotation_error_deg(pose.cam_from_world[:3, :3], prev[:3, :3]):
                 pose = pose.swapped()
         return pose
+
+    def inverted_hint(self, gray) -> str:
+        """``""``, or (no marker found, not in inverted mode) a sentence saying that the image holds markers
+        of this dictionary printed white on black, for the error message (one extra detection)."""
+        if self.inverted:
+            return ""
+        p = make_detector_params("none", self.params)
+        p.detectInvertedMarker = False
+        _, ids, _ = cv2.aruco.ArucoDetector(self.dictionary, p).detectMarkers(255 - np.asarray(gray))
+        if ids is None or len(ids) == 0:
+            return ""
+        found = ", ".join(map(str, sorted(set(np.asarray(ids).ravel().tolist()))))
+        return (f"; the image has inverted (white-on-black) markers, ids {found}: use --inverted (or "
+                "'inverted: 1' in the board file)")
 
     def _make_pose(self, solved, obj, img, ids, all_corners, kind):
         sols, ratio = solved
@@ -235,9 +272,9 @@ class MarkerTracker:
     def _estimate_marker(self, gray, intr) -> MarkerPose:
         corners, ids, rejected = self._detector.detectMarkers(gray)
         self._t_detect = time.perf_counter()
-        det = detection_from_opencv(corners, ids, rejected, self.params)
+        det = detection_from_opencv(corners, ids, rejected, self._shift_params)
         if len(det) == 0:
-            raise MarkerNotFoundError(f"no marker of {self.dictionary_name} found")
+            raise MarkerNotFoundError(f"no marker of {self.dictionary_name} found{self.inverted_hint(gray)}")
         if self.refine == "edge":
             det.corners = refine_corners_edges(gray, det.corners, intr)
         found = sorted(set(det.ids.tolist()))
@@ -258,10 +295,11 @@ class MarkerTracker:
     def _estimate_gridboard(self, gray, intr) -> MarkerPose:
         corners, ids, rejected = self._detector.detectMarkers(gray)
         if ids is None or len(ids) == 0:
-            raise MarkerNotFoundError(f"no marker of {self.dictionary_name} found")
-        corners, ids, rejected, _ = self._detector.refineDetectedMarkers(
-            gray, self.board.cv_board, corners, ids, rejected, intr.K, intr.dist_cv)
-        det = detection_from_opencv(corners, ids, rejected, self.params)
+            raise MarkerNotFoundError(f"no marker of {self.dictionary_name} found{self.inverted_hint(gray)}")
+        if self.board.kind == "gridboard":
+            corners, ids, rejected, _ = self._detector.refineDetectedMarkers(
+                gray, self.board.cv_board, corners, ids, rejected, intr.K, intr.dist_cv)
+        det = detection_from_opencv(corners, ids, rejected, self._shift_params)
         self._t_detect = time.perf_counter()
         obj, img = self.board.cv_board.matchImagePoints(tuple(c.reshape(1, 4, 2).astype(np.float32) for c in det.corners),
                                                         det.ids.reshape(-1, 1).astype(np.int32))
@@ -270,17 +308,20 @@ class MarkerTracker:
                 f"none of the board's markers found (found ids {', '.join(map(str, sorted(set(det.ids.tolist()))))})")
         obj = np.asarray(obj, np.float64).reshape(-1, 3) @ OPENCV_BOARD_TO_WORLD.T
         img = np.asarray(img, np.float64).reshape(-1, 2)
-        sols = solve_planar(intr, obj, img, square=False, lm=self.pnp_refine)
+        if self.board.planar:
+            sols = solve_planar(intr, obj, img, square=False, lm=self.pnp_refine)
+        else:
+            sols = solve_general(intr, obj, img, lm=self.pnp_refine)
         board_ids = set(self.board.marker_ids)
         used = [i for i in sorted(set(det.ids.tolist())) if i in board_ids]
-        return self._make_pose(sols, obj, img, used, det.by_id, "gridboard")
+        return self._make_pose(sols, obj, img, used, det.by_id, self.board.kind)
 
     def _estimate_charuco(self, gray, intr) -> MarkerPose:
         det = self._charuco_detector(intr)
         ch_corners, ch_ids, m_corners, m_ids = det.detectBoard(gray)
         self._t_detect = time.perf_counter()
         if m_ids is None or len(m_ids) == 0:
-            raise MarkerNotFoundError(f"no marker of {self.dictionary_name} found")
+            raise MarkerNotFoundError(f"no marker of {self.dictionary_name} found{self.inverted_hint(gray)}")
         n = 0 if ch_ids is None else len(ch_ids)
         if n < 4:
             raise MarkerNotFoundError(f"ChArUco board: only {n} chessboard corners found (need at least 4)")

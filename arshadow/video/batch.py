@@ -31,6 +31,8 @@ import cv2
 
 from .. import __version__
 from ..errors import ArshadowError, MarkerNotFoundError, UsageError
+from ..export.layerfiles import layer_paths, write_layers
+from ..export.stmap import stmap, write_stmap
 from ..io import check_output_folder, read_image, resolved_path, write_image, write_json
 from ..io import clean_temporaries as clean_io_temporaries
 from ..session import Session
@@ -89,7 +91,15 @@ def _outputs(item: BatchItem, outdir: Path, opts, save_mask: bool) -> list:
     """The files an item writes (before its done record)."""
     if item.kind == "video":
         return [p for p in video_outputs(outdir, item.stem, opts).values() if p is not None]
-    return [outdir / f"{item.stem}.png", *([outdir / f"{item.stem}.shadow.png"] if save_mask else [])]
+    outs = [outdir / f"{item.stem}.png", *([outdir / f"{item.stem}.shadow.png"] if save_mask else [])]
+    if opts.layers is not None:
+        outs += list(layer_paths(outdir, item.stem, _photo_layers(opts), opts.layers_undistorted).values())
+    return outs
+
+
+def _photo_layers(opts) -> str:
+    """The layer format of a batch's photos: EXR with ``--layers-format exr``, else 16-bit PNG."""
+    return "exr" if opts.layers == "exr" else "png"
 
 
 def _fingerprint(item: BatchItem, spec, opts, save_mask) -> str:
@@ -170,15 +180,31 @@ def process_item(spec, item: BatchItem, outdir, opts, save_mask: bool, fingerpri
             vs["warnings"] = summary["warnings"] + vs["warnings"]
             return _video_fields(summary, vs, outs)
         img = read_image(item.input)
-        res = sess.process(img, name=item.input, want_mask=save_mask)
-        summary["outputs"] = [str(write_image(outdir / f"{item.stem}.png", res.composite))]
+        want = ("undistorted" if opts.layers_undistorted else True) if opts.layers is not None else False
+        res = sess.process(img, name=item.input, want_mask=save_mask, layers=want)
+        out = write_image(outdir / f"{item.stem}.png", res.composite)
+        summary["outputs"] = [str(out)]
+        if opts.layers is not None:
+            summary["outputs"] += _photo_layer_files(sess, img, res, outdir, item, opts)
         if save_mask:
             summary["outputs"].append(str(write_image(outdir / f"{item.stem}.shadow.png", res.mask)))
         summary["status"] = "ok"
+        res.item.output = str(out)  # the report item names the files too (it said output: null)
+        res.item.mask = summary["outputs"][-1] if save_mask else None
         summary["item"] = res.item.to_dict()
         return None
 
     return _guarded(item, outdir, fingerprint, work)
+
+
+def _photo_layer_files(sess, img, res, outdir: Path, item: BatchItem, opts) -> list:
+    """Write a photo's layers (and ST-map); returns their paths."""
+    fmt = _photo_layers(opts)
+    paths = write_layers(layer_paths(outdir, item.stem, fmt, opts.layers_undistorted), res.layers, fmt)
+    if "stmap" in paths:
+        cal = sess.calibration(img.shape[1], img.shape[0])
+        write_stmap(paths["stmap"], stmap(cal.intrinsics, None if cal.lens is None else cal.lens.maps))
+    return [str(p) for p in paths.values()]
 
 
 def _video_fields(summary: dict, vs: dict, outs: dict) -> None:
@@ -186,8 +212,7 @@ def _video_fields(summary: dict, vs: dict, outs: dict) -> None:
                                            "frames_no_marker", "truncated", "decode_errors", "fps_processed")})
     if "chunks" in vs:
         summary.update(chunks=len(vs["chunks"]), chunks_resumed=vs.get("chunks_resumed", 0))
-    summary["outputs"] = [str(p) for p in (outs["video"], outs["mask"], outs["frames"], outs["sheet"])
-                          if p is not None and Path(p).exists()]
+    summary["outputs"] = [str(p) for p in outs.values() if p is not None and Path(p).exists()]
 
 
 def _guarded(item: BatchItem, outdir: Path, fingerprint: str, work) -> dict:
@@ -287,6 +312,8 @@ def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=Non
     if int(jobs) < 1:
         raise UsageError(f"--jobs {jobs}: must be >= 1")
     outdir = check_output_folder(outdir, "-o")
+    if client is not None:  # scene errors (a light inside the model) and warnings once, here, not per worker
+        spec.build()
     (outdir / RECORDS).mkdir(parents=True, exist_ok=True)
     clean_temporaries(outdir)
     items = plan_batch(inputs)
@@ -306,15 +333,29 @@ def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=Non
         if progress is not None:
             progress(done, len(items), results[k])
 
-    if client is None:
-        _run_local(spec, todo, outdir, opts, save_mask, session, int(jobs), finished)
-    else:
-        _run_dask(client, spec, items, todo, outdir, opts, save_mask, int(jobs), finished)
+    try:
+        if client is None:
+            _run_local(spec, todo, outdir, opts, save_mask, session, int(jobs), finished)
+        else:
+            _run_dask(client, spec, items, todo, outdir, opts, save_mask, int(jobs), finished)
+    except KeyboardInterrupt:  # Ctrl-C / SIGTERM: batch.json still says what is done and what is not
+        _write_summary(outdir, items, results, interrupted=True)
+        raise
+    return _write_summary(outdir, items, results)
+
+
+def _write_summary(outdir: Path, items, results, interrupted: bool = False) -> dict:
+    """``OUT_DIR/batch.json``; after an interruption the items not finished are ``status: "pending"``."""
+    results = [r if r is not None else {"input": it.input, "kind": it.kind, "stem": it.stem, "status": "pending",
+                                        "skipped": False, "error": None, "outputs": [], "warnings": []}
+               for it, r in zip(items, results)]
     counts: dict = {}
     for r in results:
         counts[r["status"]] = counts.get(r["status"], 0) + 1
     counts["skipped"] = sum(bool(r.get("skipped")) for r in results)
     summary = {"arshadow": __version__, "items": results, "counts": counts}
+    if interrupted:
+        summary["interrupted"] = True  # rerun the same command to finish the pending items
     write_json(outdir / "batch.json", summary)
     return summary
 

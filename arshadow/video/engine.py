@@ -31,6 +31,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ArshadowError, UsageError
+from ..export.layervideo import LayerSink, check_video_layer_format, video_layer_paths
+from ..export.stmap import stmap
 from .avio import VIDEO_CODECS
 from .decode import decode_into, open_reader
 from .encode import EncodeSink, SheetThumbs, write_contact_sheet
@@ -88,6 +90,11 @@ class EngineOptions:
     encoder_threads : int
         Threads of the video encoder (0: the encoder's choice, one per core; chunk workers that fill the
         cores between them use 1 each).
+    layers : str or None
+        Also write the compositing layers (:mod:`arshadow.export.layervideo`): ``prores``, ``ffv1``, ``png``
+        or ``exr`` (photos of a batch: ``exr`` for ``exr``, else 16-bit PNG).
+    layers_undistorted : bool
+        With ``layers``: also the pinhole (undistorted) layers and their ST-map.
     """
 
     fmt: str = "mp4"
@@ -104,6 +111,8 @@ class EngineOptions:
     collect_items: bool = False
     queue_frames: int = 6
     encoder_threads: int = 0
+    layers: str | None = None
+    layers_undistorted: bool = False
 
     def check(self) -> EngineOptions:
         if self.fmt not in ("mp4", "mkv", "mov", "avi"):
@@ -123,6 +132,8 @@ class EngineOptions:
                 raise UsageError(f"{opt} {v}: must be >= 0")
         if self.codec == "h264" and self.preset not in X264_PRESETS:
             raise UsageError(f"--preset {self.preset}: use one of {', '.join(X264_PRESETS)}")
+        if self.layers is not None:
+            check_video_layer_format(self.layers)
         return self
 
 
@@ -134,8 +145,12 @@ def video_outputs(outdir, stem: str, opts: EngineOptions) -> dict:
         mask = d / f"{stem}.shadow.mkv"
     elif opts.mask == "png":
         mask = d / f"{stem}.shadow"
-    return {"video": d / f"{stem}.{opts.fmt}", "mask": mask, "frames": d / f"{stem}.frames.jsonl",
-            "sheet": d / f"{stem}.sheet.jpg" if opts.contact_sheet else None}
+    out = {"video": d / f"{stem}.{opts.fmt}", "mask": mask, "frames": d / f"{stem}.frames.jsonl",
+           "sheet": d / f"{stem}.sheet.jpg" if opts.contact_sheet else None}
+    if opts.layers is not None:  # "layers:object", ... (or "layers:folder"): arshadow.export.layervideo
+        out.update({f"layers:{k}": p for k, p in video_layer_paths(d, stem, opts.layers,
+                                                                   opts.layers_undistorted).items()})
+    return out
 
 
 def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress=None, name: str | None = None):
@@ -184,7 +199,20 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
                                                                    opts.max_frames)
     sheet = SheetThumbs(opts.contact_sheet, total, (W, H))
     sink = EncodeSink(outputs, opts, reader, path, is_av, composer.stage_ms, sheet, progress, name, total)
-    items = run_frames(reader, composer, sink, opts)
+    if opts.layers is not None:  # the layers, written on the main thread with the frames
+        cal = backend.cal if opts.layers_undistorted else None
+        st = None if cal is None else stmap(cal.intrinsics, None if cal.lens is None else cal.lens.maps)
+        composer.layer_sink = LayerSink({k[7:]: p for k, p in outputs.items() if k.startswith("layers:")},
+                                        opts.layers, getattr(reader, "rate", reader.fps), (W, H), stmap=st)
+        backend.want_layers = "undistorted" if opts.layers_undistorted else True
+    try:
+        items = run_frames(reader, composer, sink, opts)
+    except BaseException:
+        if composer.layer_sink is not None:
+            composer.layer_sink.abort()
+        raise
+    if composer.layer_sink is not None:
+        composer.layer_sink.close()
     if outputs.get("sheet") is not None and sheet.thumbs:
         write_contact_sheet(outputs["sheet"], sheet.picked())
     summary = _summary(name, outputs, reader, composer, sink, opts, time.perf_counter() - t_wall)
@@ -235,6 +263,9 @@ def run_frames(reader, composer: FrameComposer, sink: EncodeSink, opts: EngineOp
             fr, dec_ms = job
             timings = dict.fromkeys(FRAME_STAGES, 0.0)
             pose, _err = composer.backend.track(gray_of(fr, reader.height), timings)
+            if pose is None and getattr(fr, "format", "bgr24") == "yuv420p":
+                # the luma is not the colour frame's grey (chroma): on a miss, the photo path's (issue 21)
+                pose, _err = composer.backend.track(gray_of(fr, reader.height, colour=True), timings)
             for fp in stream.push((fr, dec_ms, timings, getattr(fr, "format", "bgr24")), pose, fr.time_s):
                 emit(fp)
         if dec_t.error is not None:
@@ -282,6 +313,9 @@ def _summary(name, outputs, reader, composer: FrameComposer, sink: EncodeSink, o
                         f"{why})")
     if dec_err:
         warnings.append(f"{name}: {dec_err} damaged packet(s) could not be decoded and were skipped")
+    flagged = composer.flags.summary(stats["frames"], "frames")
+    if flagged:
+        warnings.append(f"{name}: {flagged}")
     status = "ok"
     if truncated or dec_err:
         status = "damaged"

@@ -24,7 +24,9 @@ import numpy as np
 from ..compose.composite import clip_roi
 from ..errors import MarkerNotFoundError
 from ..report import ReportItem, StageTimings
+from ..sanity import FlagTally
 from ..transforms import rvec_tvec_from_matrix
+from ..tracking.detect import luma_to_gray
 
 __all__ = ["FRAME_STAGES", "FrameComposer", "SessionBackend", "even_box", "gray_of", "i420_planes", "i420_roi_to_bgr",
            "i420_with_roi"]
@@ -52,6 +54,8 @@ class SessionBackend:
         self.session, self.tracks, self.time_lapse = session, list(tracks), time_lapse
         self.cal = None
         self.recomputes = 0
+        self.want_layers = False  # set by process_video when the layers are written
+        self.last_layers = None  # the last render's layers (with want_layers)
 
     def start(self, width: int, height: int) -> None:
         """A new video of this size (CalibrationError: the calibration does not fit it)."""
@@ -101,9 +105,11 @@ class SessionBackend:
         """Composite into ``bgr`` (modified in place), at ``cam_from_world`` or carrying out ``plan``;
         returns ``(mask or None, the frame's report item)``; ``timings`` gets the render stages."""
         if plan is not None:
-            res = self.session.render(bgr, plan=plan, want_mask=want_mask, out=bgr)
+            res = self.session.render(bgr, plan=plan, want_mask=want_mask, out=bgr, layers=self.want_layers)
         else:
-            res = self.session.render(bgr, cam_from_world, want_mask=want_mask, out=bgr)
+            res = self.session.render(bgr, cam_from_world, want_mask=want_mask, out=bgr,
+                                      layers=self.want_layers)
+        self.last_layers = res.layers
         for k, v in res.timings.as_dict().items():
             if k != "total":
                 timings[k] += v
@@ -114,11 +120,15 @@ class SessionBackend:
         return list(self.session.notes or [])
 
 
-def gray_of(frame, height: int) -> np.ndarray:
-    """The grey ``(H, W) uint8`` image the tracker reads: the Y plane of a planar ``yuv420p`` frame (a
-    view, no conversion), else OpenCV's BGR -> grey."""
+def gray_of(frame, height: int, colour: bool = False) -> np.ndarray:
+    """The grey ``(H, W) uint8`` image the tracker reads: the Y plane of a planar ``yuv420p`` frame
+    expanded from limited to full range (:func:`arshadow.tracking.detect.luma_to_gray`: the Y plane itself
+    lost real markers, issue 21), else OpenCV's BGR -> grey. ``colour``: a ``yuv420p`` frame's BGR -> grey
+    instead (the photo path's grey; the engine's retry when the Y plane shows no marker)."""
     if getattr(frame, "format", "bgr24") == "yuv420p":
-        return frame.image[:height]
+        if colour:
+            return cv2.cvtColor(cv2.cvtColor(frame.image, cv2.COLOR_YUV2BGR_I420), cv2.COLOR_BGR2GRAY)
+        return luma_to_gray(frame.image[:height])
     return cv2.cvtColor(frame.image, cv2.COLOR_BGR2GRAY)
 
 
@@ -150,8 +160,11 @@ class FrameComposer:
         self.W, self.H = size
         self.want_mask = want_mask
         self.stats = {"frames": 0, "frames_ok": 0, "frames_held": 0, "frames_no_marker": 0, "swapped": 0}
+        self.flags = FlagTally()  # flagged poses: one warning line for the video
         self.stage_ms: dict = {k: [] for k in FRAME_STAGES}
         self._bgr = None  # (H, W, 3) uint8: BGR of the current frame inside its ROI (yuv420p input)
+        #: an :class:`arshadow.export.layervideo.LayerSink` getting every frame's layers, or None
+        self.layer_sink = None
 
     def compose(self, fp):
         """One decided frame -> ``(image, format, mask or None, ReportItem, JSON Lines record)``.
@@ -167,6 +180,8 @@ class FrameComposer:
             self.stats["frames_no_marker"] += 1
             if self.want_mask:
                 mask = np.zeros((self.H, self.W), np.uint8)
+            if self.layer_sink is not None:
+                self.layer_sink.write(None)
         else:
             img, mask, item = self._render(fp.cam_from_world, img, fmt, timings)  # the frame's one item
             item.input, item.status = self.name, fp.status
@@ -175,6 +190,7 @@ class FrameComposer:
             self.stats["swapped"] += int(fp.swapped)
         item.output, item.mask = self.out_video, self.out_mask
         item.frame, item.time_s, item.sun = fr.index, round(fr.time_s, 6), sun
+        self.flags.add(fr.index, item.flag_reasons)  # reasons of the tracked pose (None when held / missing)
         self._finish_timings(item, timings, dec_ms)
         item.notes = self.backend.notes or None
         self.stats["frames"] += 1
@@ -213,6 +229,8 @@ class FrameComposer:
             bgr = np.array(img)
             timings["convert"] += (time.perf_counter() - tc) * 1e3
             mask, item = self.backend.render(bgr, cam_from_world, self.want_mask, timings)
+            if self.layer_sink is not None:
+                self.layer_sink.write(self.backend.last_layers)
             return bgr, mask, item
         plan = self.backend.plan(cam_from_world, self.W, self.H)
         tc = time.perf_counter()
@@ -222,6 +240,8 @@ class FrameComposer:
         i420_roi_to_bgr(img, bgr, plan.roi)
         timings["convert"] += (time.perf_counter() - tc) * 1e3
         mask, item = self.backend.render(bgr, cam_from_world, self.want_mask, timings, plan=plan)
+        if self.layer_sink is not None:
+            self.layer_sink.write(self.backend.last_layers)
         tc = time.perf_counter()
         img = i420_with_roi(img, bgr, item.roi)
         timings["convert"] += (time.perf_counter() - tc) * 1e3

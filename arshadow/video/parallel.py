@@ -114,6 +114,8 @@ def prepare_chunked(path, outputs: dict, opts: EngineOptions, count: int, outdir
     p = str(path)
     if "%" in p:
         return None, None
+    if opts.layers is not None:
+        return None, f"{name or p}: not cut into chunks (--layers are written in one piece)"
     index = scan_stream(p)
     if index.problem:
         return None, f"{name or p}: not cut into chunks ({index.problem})"
