@@ -198,7 +198,8 @@ def run_chunk(backend, path, index: StreamIndex, chunk: Chunk, opts: EngineOptio
            "tail": [{k: d[k] for k in CHECK_KEYS} for d in span.tail[:check]],
            "wall_s": round(time.perf_counter() - t0, 3), "cpu_s": round(time.process_time() - c0, 3),
            "frames_decoded": reader.n_read, "pid": os.getpid(),
-           "max_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, 1)}
+           "max_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, 1),
+           "flags": {"keys": composer.flags.keys, "kinds": composer.flags.kinds}}
     write_json(store.record_path(chunk.k), rec)
     return rec
 

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ImageError
+from ..sanity import FlagTally
 from ..session import Session
 from .avio import AvReader
 from .chunks import (
@@ -239,6 +240,14 @@ def _summary(prep: Prepared, chunks, records: dict, sheet, audio: bool, redone: 
             for k, v in json.loads(line)["timings_ms"].items():
                 stage_ms.setdefault(k, []).append(v)
     warnings = [prep.note] if prep.note else []
+    flags = FlagTally()  # the flagged poses of every chunk, in frame order: the sequential run's line
+    for c in chunks:
+        fl = records[c.k].get("flags") or {"keys": [], "kinds": {}}
+        flags.keys += fl["keys"]
+        for kind, n in fl["kinds"].items():
+            flags.kinds[kind] = flags.kinds.get(kind, 0) + n
+    if (flagged := flags.summary(stats["frames"], "frames")) is not None:
+        warnings.append(f"{prep.name}: {flagged}")
     status = "ok"
     if stats["frames_ok"] == 0:
         status = "no_marker"
