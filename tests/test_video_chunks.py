@@ -128,7 +128,8 @@ def test_jobs2_equals_sequential(tmp_path):
     lines = assert_same_run(tmp_path / "seq", tmp_path / "par", "c", 72)
     # the clip exercises what crosses a boundary: held frames and frames without the marker
     assert {d["status"] for d in lines} == {"ok", "held", "no_marker"}
-    for k in ("frames", "frames_ok", "frames_held", "frames_no_marker", "swapped", "status", "audio", "warnings"):
+    for k in ("frames", "frames_ok", "frames_held", "frames_no_marker", "swapped", "status", "audio", "warnings",
+              "longest_gap", "longest_gap_start"):
         assert s1[k] == s2[k], k
     assert s2["audio"] is True
     assert not (tmp_path / "par" / ".arshadow-chunks").exists() or not any((tmp_path / "par" / ".arshadow-chunks").iterdir())

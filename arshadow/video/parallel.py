@@ -233,12 +233,19 @@ def finish_chunked(prep: Prepared, records: dict, rerun) -> dict:
 
 
 def _summary(prep: Prepared, chunks, records: dict, sheet, audio: bool, redone: int) -> dict:
-    stats = {k: sum(records[c.k]["stats"][k] for c in chunks) for k in records[chunks[0].k]["stats"]}
+    counts = ("frames", "frames_ok", "frames_held", "frames_no_marker", "swapped")
+    stats = {k: sum(records[c.k]["stats"][k] for c in chunks) for k in counts}
     stage_ms: dict = {k: [] for k in FRAME_STAGES}
+    gap, longest = (0, None), (0, None)  # runs of frames not tracked, across the chunks' boundaries
     with open(prep.outputs["frames"], encoding="utf-8") as f:
         for line in f:
-            for k, v in json.loads(line)["timings_ms"].items():
+            d = json.loads(line)
+            for k, v in d["timings_ms"].items():
                 stage_ms.setdefault(k, []).append(v)
+            gap = (0, None) if d["status"] == "ok" else (gap[0] + 1, d["frame"] if gap[1] is None else gap[1])
+            longest = gap if gap[0] > longest[0] else longest
+    if "longest_gap" in records[chunks[0].k]["stats"]:
+        stats["longest_gap"], stats["longest_gap_start"] = longest
     warnings = [prep.note] if prep.note else []
     flags = FlagTally()  # the flagged poses of every chunk, in frame order: the sequential run's line
     for c in chunks:
