@@ -41,6 +41,7 @@ if TYPE_CHECKING:  # the lazily loaded names, for type checkers (py.typed)
     from . import synth
     from .plan import FramePlan, plan_frame
     from .scene import ModelSpec, RenderOptions, SceneSpec, TrackerSpec, load_scene, scene_from_dict
+    from .estimate import LightEstimate, estimate_light
     from .session import FrameResult, Session, render_photo
 
 _LAZY = {
@@ -84,6 +85,8 @@ __all__ = [
     "load_scene",
     "FramePlan",
     "plan_frame",
+    "estimate_light",
+    "LightEstimate",
     "synth",
     "ArshadowError",
     "CalibrationError",
