@@ -370,7 +370,7 @@ def _check_silhouette_name(name: str) -> None:
 SCENE_KEYS = ("calib", "marker_length", "board", "dictionary", "marker_id", "refine", "inverted", "model", "scale", "rotate",
               "place", "color", "up", "drop_to_ground", "lights", "soft_samples", "silhouette", "shadow_method", "opacity",
               "shadow_color", "aa", "ground_size", "no_object", "roi", "truncate", "fast_detect", "plan", "compose",
-              "shadowmap_size", "track_roi", "light_from", "ground", "time_lapse", "recompute_deg")
+              "shadowmap_size", "track_roi", "light_from", "no_exposure", "ground", "time_lapse", "recompute_deg")
 
 
 def parse_triple(v: Any, key: str) -> tuple[float, float, float]:
@@ -443,7 +443,8 @@ def _apply_estimate(d: dict, base_dir: str | Path | None) -> dict:
     from .estimate.result import load_estimate, scene_overrides
 
     d = dict(d)
-    o = scene_overrides(load_estimate(_path(d.pop("light_from"), base_dir)), _rgb_text(d.get("color")))
+    o = scene_overrides(load_estimate(_path(d.pop("light_from"), base_dir)), _rgb_text(d.get("color")),
+                        exposure=not d.get("no_exposure"))
     if not d.get("lights"):
         d["lights"] = list(o["lights"])
     d["opacity"] = o["opacity"]

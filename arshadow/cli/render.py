@@ -89,6 +89,8 @@ def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> No
     s.add_argument("--light-from", metavar="FILE",
                    help="a measured light (arshadow light ... -o FILE, docs/light.md): its light (unless --light "
                         "is given), its shadow colour (instead of --opacity/--shadow-color) and the marker's exposure")
+    s.add_argument("--no-exposure", action="store_true",
+                   help="with --light-from: keep the object's colour as given (no exposure / white balance match)")
     s.add_argument("--light", action="append", metavar="L",
                    help="point:X,Y,Z | directional:X,Y,Z | sun:LAT,LON,TIME[,NORTH], optional @W weight; "
                         "repeat for several lights")

@@ -47,6 +47,9 @@ def add_output_options(out) -> None:
     out.add_argument("--contact-sheet", type=int, default=12, metavar="N",
                      help="frames on DIR/<stem>.sheet.jpg (default 12; 0 = none)")
     out.add_argument("--no-audio", action="store_true", help="do not copy the input's audio")
+    out.add_argument("--jobs", "-j", type=int, default=1, metavar="N",
+                     help="worker processes per video: it is cut at keyframes into N chunks processed in parallel "
+                          "and joined (same output as one process; docs/video.md)")
     out.add_argument("--layers", action="store_true",
                      help="also write the compositing layers (object with alpha, shadow multiply pass, shadow-only "
                           "with alpha), lens distortion applied: plate x shadow.mult + object = the composite in "
@@ -73,7 +76,7 @@ def engine_options(args, collect_items=False):
 
 
 def progress_bar(quiet: bool):
-    """A ``progress_factory`` for :func:`arshadow.video.engine.run_videos`: a tqdm bar per video (none with
+    """A ``progress_factory`` for :func:`arshadow.video.runner.run_videos`: a tqdm bar per video (none with
     ``-q`` or when stderr is not a terminal: a log file gets the closing lines only)."""
     if quiet or not sys.stderr.isatty():
         return None
@@ -149,12 +152,15 @@ def register(subparsers) -> None:
 
 # --------------------------------------------------------------------------------------------------
 def run(args) -> int:
+    from ..errors import UsageError
     from ..io import check_output_file, check_output_folder, write_json
     from ..report import jsonable, make_report
     from ..sanity import time_lapse_warnings
     from ..scene import scene_from_args
     from ..session import Session
-    from ..video.engine import SessionBackend, run_videos
+    from ..video.engine import SessionBackend
+    from ..video.parallel import BackendRecipe
+    from ..video.runner import run_videos
     from . import quiet_opencv
 
     debug = bool(getattr(args, "debug", False))
@@ -174,6 +180,8 @@ def run(args) -> int:
 
         refuse_overwrite([p for stem in unique_stems(args.videos)
                           for k, p in video_outputs(outdir, stem, opts).items() if k.startswith("layers:")], args.videos)
+    if args.jobs < 1:
+        raise UsageError(f"--jobs {args.jobs}: must be >= 1")
     with Session(spec) as session:
         # before any frame is processed: a sun that sets during a time-lapse (the tracks are reset per video)
         sun_set = time_lapse_warnings(args.videos, session.sun_tracks, session.time_lapse,
@@ -181,13 +189,16 @@ def run(args) -> int:
         for msg in sun_set.values():
             print(f"arshadow video: warning: {msg}", file=sys.stderr)
         backend = SessionBackend(session, session.sun_tracks, session.time_lapse)
+        # workers rebuild the session from the spec (its time-lapse included)
+        recipe = BackendRecipe(spec) if args.jobs > 1 else None
 
         def on_error(exc):
             if debug:
                 raise exc
 
         summaries, items = run_videos(backend, args.videos, outdir, opts,
-                                      progress_factory=progress_bar(args.quiet), on_error=on_error)
+                                      progress_factory=progress_bar(args.quiet), on_error=on_error,
+                                      jobs=args.jobs, recipe=recipe)
     failed = 0
     for s in summaries:
         for w in s.get("warnings", []):

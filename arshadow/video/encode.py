@@ -57,8 +57,13 @@ class SheetThumbs:
         if not self.count or index % self.step:
             return
         bgr = img if fmt != "yuv420p" else cv2.cvtColor(img, cv2.COLOR_YUV2BGR_I420)
-        self.thumbs[index] = cv2.resize(bgr, (320, max(1, round(320 * self.H / self.W))),
-                                        interpolation=cv2.INTER_AREA)
+        self.offer(index, cv2.resize(bgr, (320, max(1, round(320 * self.H / self.W))), interpolation=cv2.INTER_AREA))
+
+    def offer(self, index: int, thumb: np.ndarray) -> None:
+        """Keep an already made thumbnail of frame ``index`` if it falls on the step (frames in order)."""
+        if not self.count or index % self.step:
+            return
+        self.thumbs[index] = thumb
         if len(self.thumbs) > 2 * self.count:  # more frames than declared: keep every other one
             self.step *= 2
             for k in [k for k in self.thumbs if k % self.step]:
@@ -154,7 +159,7 @@ class EncodeSink:
         audio = self.source if (opts.keep_audio and self.is_av and reader.has_audio) else None
         return AvWriter(self.outputs["video"], getattr(reader, "rate", reader.fps), (self.W, self.H),
                         codec=opts.codec, crf=opts.crf, pix_fmt="yuv420p" if keep_yuv else None,
-                        preset=opts.preset, audio_from=audio)
+                        preset=opts.preset, audio_from=audio, threads=opts.encoder_threads)
 
     def _write(self, job, vw, mw, png_dir, jf) -> None:
         img, fmt, mask, item, line = job
