@@ -419,7 +419,7 @@ def test_batch_json_names_outputs_and_survives_an_interruption(tmp_path, monkeyp
         cv2.imwrite(str(tmp_path / f"p{k}.png"), np.zeros((8, 8, 3), np.uint8))
     calls = []
 
-    def fake(spec, item, outdir, opts, save_mask, fp, session=None):
+    def fake(spec, item, outdir, opts, save_mask, fp, session=None, pool=None):
         calls.append(item.input)
         if len(calls) == 2:
             raise KeyboardInterrupt
