@@ -19,7 +19,10 @@ Python API (docs/architecture.md, README "Python")::
 Nothing here imports OpenGL; only :mod:`arshadow.gl` does, and only when it is used.
 """
 
-__version__ = "0.1.0"
+__version__ = "0.1.0"  # the one version string (pyproject.toml reads it: [tool.setuptools.dynamic])
+
+import importlib  # noqa: E402
+from typing import TYPE_CHECKING, Any  # noqa: E402
 
 from .errors import (  # noqa: E402
     ArshadowError,
@@ -33,6 +36,12 @@ from .errors import (  # noqa: E402
     ShapeError,
     UsageError,
 )
+
+if TYPE_CHECKING:  # the lazily loaded names, for type checkers (py.typed)
+    from . import synth
+    from .plan import FramePlan, plan_frame
+    from .scene import ModelSpec, RenderOptions, SceneSpec, TrackerSpec, load_scene, scene_from_dict
+    from .session import FrameResult, Session, render_photo
 
 _LAZY = {
     "Session": "session",
@@ -51,10 +60,8 @@ _LAZY = {
 }
 
 
-def __getattr__(name):
+def __getattr__(name: str) -> Any:
     """The API names and ``synth``, imported on first use (``import arshadow`` stays light)."""
-    import importlib
-
     if name == "synth":
         return importlib.import_module(".synth", __name__)
     mod = _LAZY.get(name)
@@ -63,9 +70,20 @@ def __getattr__(name):
     return getattr(importlib.import_module(f".{mod}", __name__), name)
 
 
+# written out (not *_LAZY) so that linters and type checkers see the lazy names as exported
 __all__ = [
     "__version__",
-    *_LAZY,
+    "Session",
+    "FrameResult",
+    "render_photo",
+    "SceneSpec",
+    "TrackerSpec",
+    "ModelSpec",
+    "RenderOptions",
+    "scene_from_dict",
+    "load_scene",
+    "FramePlan",
+    "plan_frame",
     "synth",
     "ArshadowError",
     "CalibrationError",

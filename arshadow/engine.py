@@ -15,10 +15,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from typing import TYPE_CHECKING
+
 from .errors import ImageError, MarkerNotFoundError
 from .report import StageTimings
 from .scene import RenderOptions
 from .tracking.tracker import MarkerTracker
+
+if TYPE_CHECKING:  # annotations only
+    from .camera import Intrinsics
+    from .compose.lens import LensWarp
 
 __all__ = ["CalibrationState", "estimate_pose", "check_image", "default_renderer", "DETECT_NOTES"]
 
@@ -46,9 +52,9 @@ class CalibrationState:
         A fast first pass (``detector="fast"``) before the full search.
     """
 
-    intrinsics: object
+    intrinsics: Intrinsics
     was_scaled: bool
-    lens: object | None
+    lens: LensWarp | None
     tracker_kwargs: dict
     track_roi: bool = False
     fast_detect: bool = False

@@ -21,7 +21,7 @@ class ShapeError(ArshadowError, ValueError):
         Shown in the message when given.
     """
 
-    def __init__(self, msg, actual_shape=None, expected_shape=None):
+    def __init__(self, msg: str, actual_shape: object = None, expected_shape: object = None) -> None:
         if actual_shape is not None or expected_shape is not None:
             msg = f"{msg} (expected shape {expected_shape}, got {actual_shape})"
         super().__init__(msg)

@@ -36,9 +36,12 @@ Lens distortion
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .compose.composite import clip_roi
 from .plan_geometry import (
@@ -52,6 +55,12 @@ from .plan_geometry import (
     shadow_footprint,
 )
 from .transforms import invert_rigid, transform_points
+
+if TYPE_CHECKING:  # annotations only
+    from .camera import Intrinsics
+    from .compose.lens import LensWarp
+
+_T = TypeVar("_T")
 
 __all__ = ["Decision", "LightPlan", "FramePlan", "SceneGeometry", "LightState", "plan_frame", "decide_compose",
            "shadow_footprint", "scene_hull_points", "pinhole_rect_for_scene", "ROI_MAX_POINTS"]
@@ -138,7 +147,7 @@ class FramePlan:
     distorted: bool = False
     decisions: list = field(default_factory=list)
 
-    def decide(self, name: str, value, reason: str):
+    def decide(self, name: str, value: _T, reason: str) -> _T:
         """Record a decision; returns ``value``."""
         self.decisions.append(Decision(name, value, reason))
         return value
@@ -166,11 +175,11 @@ class FramePlan:
     @property
     def empty(self) -> bool:
         """Nothing of the scene is in view: nothing to render."""
-        return self.roi[2] == 0 or self.roi[3] == 0 or self.canvas[2] == 0 or self.canvas[3] == 0
+        return bool(self.roi[2] == 0 or self.roi[3] == 0 or self.canvas[2] == 0 or self.canvas[3] == 0)
 
 
-def plan_frame(geometry: SceneGeometry, intr, cam_from_world, width: int, height: int, *, lens=None,
-               modes=None) -> FramePlan:
+def plan_frame(geometry: SceneGeometry, intr: Intrinsics, cam_from_world: ArrayLike, width: int, height: int, *,
+               lens: LensWarp | None = None, modes: Sequence[str] | None = None) -> FramePlan:
     """Plan one frame.
 
     Parameters
@@ -273,20 +282,20 @@ def plan_frame(geometry: SceneGeometry, intr, cam_from_world, width: int, height
         planar, culled = mode in ("planar", "shadowmap"), mode == "none"
         caps = mode == "zfail"
         reuse = planar or culled or (caps, d.truncate) in ls.volumes
-        why = dict(d.reasons)
+        light_why = dict(d.reasons)
         if ls.reuse:
-            why["reuse"] = ls.reuse
-        reason = why.get("mode") or why.get("planar") or why.get("cull") or ""
+            light_why["reuse"] = ls.reuse
+        reason = light_why.get("mode") or light_why.get("planar") or light_why.get("cull") or ""
         if planar:
-            reason = why.get("planar", reason)
+            reason = light_why.get("planar", reason)
         elif culled:
-            reason = why.get("cull", reason)
+            reason = light_why.get("cull", reason)
         lp = LightPlan(i, ls.light_h, ls.weight, mode if planar else "none" if culled else "volume", mode, caps,
-                       reuse, reason, truncate=d.truncate, why=why)
+                       reuse, reason, truncate=d.truncate, why=light_why)
         plan.lights.append(lp)
         plan.decide(f"light{i}.mode", mode, reason)
         if not (planar or culled):
-            plan.decide(f"light{i}.truncate", d.truncate, why.get("truncate", ""))
+            plan.decide(f"light{i}.truncate", d.truncate, light_why.get("truncate", ""))
             plan.decide(f"light{i}.volume", "reuse" if reuse else "build",
                         ls.reuse if ls.reuse else "cached for this light" if reuse else "first use of this light "
                         + ("with caps" if caps else "without caps"))
@@ -297,7 +306,8 @@ def plan_frame(geometry: SceneGeometry, intr, cam_from_world, width: int, height
 MEASURED = "measured on first use in this process: {ms} ms (median)"
 
 
-def decide_compose(plan: FramePlan, *, force: str | None, shader_available: bool, measured=None):
+def decide_compose(plan: FramePlan, *, force: str | None, shader_available: bool,
+                   measured: dict[str, Any] | None = None) -> str:
     """Decide how the frame's lens warp + composite runs, and record it in ``plan`` (``"compose"``).
 
     Parameters
@@ -327,6 +337,6 @@ def decide_compose(plan: FramePlan, *, force: str | None, shader_available: bool
     if force is not None:
         return plan.decide("compose", force, f"forced {force}")
     if measured is not None:
-        return plan.decide("compose", measured["choice"], MEASURED.format(ms=measured["ms"]))
+        return plan.decide("compose", str(measured["choice"]), MEASURED.format(ms=measured["ms"]))
     return plan.decide("compose", "measure", "not measured yet for this photo size, anti-aliasing, lens and "
                                              "backend: both paths are timed on this frame, the faster is kept")

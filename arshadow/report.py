@@ -64,7 +64,7 @@ class StageTimings:
 OPTIONAL_KEYS = ("calibration_scaled", "notes", "detector", "frame", "time_s", "sun", "pose_flagged",
                  "flag_reasons",
                  "opencv_board_rvec", "opencv_board_tvec", "n_points", "kind", "raw", "pose_choice", "modes", "roi",
-                 "canvas", "znear", "plan", "content", "composited", "compose", "title", "layers")
+                 "canvas", "znear", "plan", "content", "composited", "compose", "title", "layers", "ground")
 
 
 @dataclass
@@ -83,7 +83,9 @@ class ReportItem:
     - video frames: ``frame``, ``time_s``, ``sun``, ``raw`` (the tracked pose before smoothing),
       ``pose_choice``;
     - ``title`` (the demo's caption);
-    - ``layers`` (``{layer name: file}``: the compositing layers written, docs/export.md).
+    - ``layers`` (``{layer name: file}``: the compositing layers written, docs/export.md);
+    - ``ground``: the ground spec (``--ground``) when it is not the marker plane; ``rvec``/``tvec`` stay
+      the marker's pose.
     """
 
     input: str
@@ -124,6 +126,7 @@ class ReportItem:
     compose: str | None = None
     title: str | None = None
     layers: dict | None = None
+    ground: str | None = None
 
     def set_pose(self, pose) -> None:
         """Fill the pose keys from an :class:`arshadow.tracking.pose.MarkerPose`.

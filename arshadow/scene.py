@@ -40,10 +40,17 @@ import dataclasses
 import json
 import logging
 import math
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from .errors import UsageError
+from .geometry.ground import ground_warnings, parse_ground
+
+if TYPE_CHECKING:  # annotations only (the session imports this module; these load on build)
+    from .geometry.mesh import ShadowCaster
+    from .lights.spec import Light
 
 log = logging.getLogger(__name__)
 
@@ -84,6 +91,10 @@ class RenderOptions:
         MSAA samples of the renderer (0 = none).
     ground_size : float or None
         Side of the square proxy ground plane centred on the origin (None: unlimited).
+    ground : str
+        Where the ground plane is, relative to the marker (:func:`arshadow.geometry.ground.parse_ground`):
+        ``marker`` (the marker plane, the default), ``wall:H`` or ``plane:PX,PY,PZ,NX,NY,NZ``. The model
+        and the lights are placed in its frame.
     draw_occluder : bool
         Draw the shaded object over the shadow.
     truncate : bool
@@ -92,6 +103,9 @@ class RenderOptions:
         Render only the region the object and its shadow can cover (False: always the whole photo).
     occluder_color : (3,) float, optional
         Override of the occluder's colour handed to the renderer.
+    ambient, specular : float
+        The object's ambient term and specular weight (the renderer's shading; ``light_from`` sets them from
+        the measured light: the measured ambient share, a matte object like the paper).
     fast_detect : bool
         Try the fast detection pass first (``MarkerTracker(detector="fast")``,
         :mod:`arshadow.tracking.fastdetect`), the full search only if it finds nothing.
@@ -118,10 +132,13 @@ class RenderOptions:
     soft_samples: int = 1
     aa: int = DEFAULT_AA
     ground_size: float | None = None
+    ground: str = "marker"
     draw_occluder: bool = True
     truncate: bool = True
     roi: bool = True
     occluder_color: tuple | None = None
+    ambient: float = 0.25
+    specular: float = 0.25
     fast_detect: bool = True
     plan: str = "auto"
     plan_off: tuple = ()
@@ -152,6 +169,7 @@ class RenderOptions:
                              "samples; 0 = off)")
         if self.ground_size is not None and not (math.isfinite(self.ground_size) and self.ground_size > 0):
             raise UsageError(f"--ground-size {self.ground_size}: must be a positive number of metres")
+        parse_ground(self.ground)
         return self
 
 
@@ -195,7 +213,7 @@ class TrackerSpec:
 
         if self.board is None and self.marker_length is None:
             raise UsageError("give --marker-length M (metres) for a single marker, or --board B")
-        kw = {"dictionary": self.dictionary, "marker_id": self.marker_id}
+        kw: dict[str, Any] = {"dictionary": self.dictionary, "marker_id": self.marker_id}
         if self.board is None:
             get_dictionary(self.dictionary or DEFAULT_DICTIONARY)  # unknown: a usage error, not per photo
             kw["marker_length"] = self.marker_length
@@ -225,7 +243,7 @@ class ModelSpec:
     up: str | None = None
     drop_to_ground: bool = False
 
-    def build(self):
+    def build(self) -> ShadowCaster:
         """The :class:`arshadow.geometry.mesh.ShadowCaster` (MeshError / UsageError on a bad file or colour)."""
         from .compose.composite import parse_rgb
         from .geometry.mesh import load_occluder
@@ -260,7 +278,7 @@ class SceneSpec:
     lights: tuple
     options: RenderOptions = field(default_factory=RenderOptions)
 
-    def build(self, lights=None) -> Scene:
+    def build(self, lights: Iterable[Light] | None = None) -> Scene:
         """Load the files and parse the specs, in the order the command line reports problems.
 
         Parameters
@@ -283,6 +301,8 @@ class SceneSpec:
         tracker = self.tracker.kwargs()
         MarkerTracker(intr, **tracker)  # a dictionary conflicting with the board, a bad id: a usage error
         caster = self.model.build()
+        for msg in ground_warnings(self.options.ground):
+            log.warning(msg)
         if lights is None:
             lights = [parse_light(s) if isinstance(s, str) else s for s in self.lights]
         opts = self.options.check()
@@ -292,7 +312,7 @@ class SceneSpec:
         _check_silhouette_name(opts.silhouette)
         return Scene(intr, caster, list(lights), opts, tracker)
 
-    def replace(self, **changes) -> SceneSpec:
+    def replace(self, **changes: Any) -> SceneSpec:
         """A copy with some fields changed (``dataclasses.replace``)."""
         return dataclasses.replace(self, **changes)
 
@@ -329,10 +349,10 @@ def _check_silhouette_name(name: str) -> None:
 SCENE_KEYS = ("calib", "marker_length", "board", "dictionary", "marker_id", "refine", "inverted", "model", "scale", "rotate",
               "place", "color", "up", "drop_to_ground", "lights", "soft_samples", "silhouette", "shadow_method", "opacity",
               "shadow_color", "aa", "ground_size", "no_object", "roi", "truncate", "fast_detect", "plan", "compose",
-              "shadowmap_size", "track_roi", "light_from")
+              "shadowmap_size", "track_roi", "light_from", "ground")
 
 
-def _triple(v, key):
+def _triple(v: Any, key: str) -> tuple[float, ...]:
     if isinstance(v, str):
         v = v.split(",")
     try:
@@ -344,7 +364,7 @@ def _triple(v, key):
     return t
 
 
-def _value(d, key, conv, default=None):
+def _value(d: Mapping[str, Any], key: str, conv: type, default: Any = None) -> Any:
     """``conv(d[key])`` (``default`` when absent or None); a value of the wrong type is a UsageError naming
     the key. ``bool`` takes only true/false (``bool("no")`` would be True), ``int`` only whole numbers."""
     v = d.get(key)
@@ -365,7 +385,7 @@ def _value(d, key, conv, default=None):
     return out
 
 
-def _rgb_text(v, key="color"):
+def _rgb_text(v: Any, key: str = "color") -> str | None:
     """A colour as ``"R,G,B"`` text (0..255); ``"#rrggbb"`` converted, so equal colours give equal specs."""
     if v is None or (isinstance(v, str) and not v.strip()):
         return None
@@ -376,7 +396,7 @@ def _rgb_text(v, key="color"):
     return ",".join(f"{x:g}" for x in rgb8(v, f"--{key}"))
 
 
-def _path(v, base_dir):
+def _path(v: Any, base_dir: str | Path | None) -> Any:
     if v is None or not isinstance(v, (str, Path)):
         return v
     p = Path(v)
@@ -385,7 +405,7 @@ def _path(v, base_dir):
     return str(p)
 
 
-def _apply_estimate(d: dict, base_dir) -> dict:
+def _apply_estimate(d: dict, base_dir: str | Path | None) -> dict:
     """``light_from``: the estimate's light (unless ``lights`` are given), its shadow colour (opacity 1) and
     the marker paper's exposure on the object's colour (``occluder_color``)."""
     from .estimate.result import load_estimate, scene_overrides
@@ -399,10 +419,11 @@ def _apply_estimate(d: dict, base_dir) -> dict:
         d["_shadow_color_linear"] = o["shadow_color"]
     if "occluder_color" in o:
         d["_occluder_color"] = o["occluder_color"]
+    d["_shading"] = (o["ambient"], o["specular"])
     return d
 
 
-def scene_from_dict(d, base_dir=None) -> SceneSpec:
+def scene_from_dict(d: Mapping[str, Any], base_dir: str | Path | None = None) -> SceneSpec:
     """The one builder of :class:`SceneSpec`: from a mapping with the keys of :data:`SCENE_KEYS`.
 
     Command-line options (:func:`scene_from_args`), job files (:func:`load_scene`) and the demo's
@@ -434,7 +455,7 @@ def scene_from_dict(d, base_dir=None) -> SceneSpec:
         if "lights" in d:
             raise UsageError("give either 'light' or 'lights', not both")
         d["lights"] = d.pop("light")
-    unknown = sorted(set(d) - set(SCENE_KEYS) - {"_shadow_color_linear", "_occluder_color"})
+    unknown = sorted(set(d) - set(SCENE_KEYS) - {"_shadow_color_linear", "_occluder_color", "_shading"})
     if unknown:
         raise UsageError(f"unknown scene key(s) {', '.join(map(repr, unknown))} (known: {', '.join(SCENE_KEYS)})")
     if d.get("light_from") is not None:  # a measured light (arshadow light -o FILE): docs/light.md
@@ -471,7 +492,7 @@ def scene_from_dict(d, base_dir=None) -> SceneSpec:
                            rotate=_triple(d.get("rotate", (0, 0, 0)), "rotate"),
                            place=_triple(d.get("place", (0, 0, 0)), "place"), color=_rgb_text(d.get("color")),
                            up=_value(d, "up", str), drop_to_ground=_value(d, "drop_to_ground", bool, False))
-    opts = {}
+    opts: dict[str, Any] = {}
     if d.get("shadow_color") is not None:
         from .compose.composite import parse_rgb
 
@@ -481,18 +502,22 @@ def scene_from_dict(d, base_dir=None) -> SceneSpec:
                       ("fast_detect", bool), ("plan", str), ("compose", str), ("track_roi", bool)):
         if d.get(key) is not None:
             opts[key] = _value(d, key, conv)
+    if d.get("ground") is not None:
+        opts["ground"] = parse_ground(d["ground"]).text
     if d.get("no_object"):
         opts["draw_occluder"] = False
     if d.get("_shadow_color_linear") is not None:
         opts["shadow_color"] = d["_shadow_color_linear"]
     if d.get("_occluder_color") is not None:
         opts["occluder_color"] = d["_occluder_color"]
+    if d.get("_shading") is not None:
+        opts["ambient"], opts["specular"] = d["_shading"]
     return SceneSpec(camera=calib, tracker=tracker, model=model_spec,
                      lights=tuple(s if not isinstance(s, str) else s.strip() for s in lights),
                      options=RenderOptions(**opts))
 
 
-def scene_from_args(args, **overrides) -> SceneSpec:
+def scene_from_args(args: Any, **overrides: Any) -> SceneSpec:
     """:func:`scene_from_dict` of parsed ``arshadow render`` options (``add_scene_options``)."""
     d = {k: getattr(args, k, None) for k in SCENE_KEYS if k != "lights"}
     d["lights"] = getattr(args, "light", None) or ()
@@ -501,7 +526,7 @@ def scene_from_args(args, **overrides) -> SceneSpec:
     return scene_from_dict({k: v for k, v in d.items() if v is not None})
 
 
-def load_scene(path) -> SceneSpec:
+def load_scene(path: str | Path) -> SceneSpec:
     """A :class:`SceneSpec` from a job file: YAML (``.yml``/``.yaml``, needs PyYAML) or JSON; relative paths
     resolve against the file's folder.
 
@@ -526,8 +551,9 @@ def load_scene(path) -> SceneSpec:
             data = json.loads(text)
     except Exception as exc:  # noqa: BLE001 (yaml and json raise their own error types)
         mark = getattr(exc, "problem_mark", None)  # YAML: the message spans lines; say where, in one
-        why = f"line {mark.line + 1}, column {mark.column + 1}: {exc.problem}" if mark is not None and \
-            getattr(exc, "problem", None) else " ".join(str(exc).split())
+        problem = getattr(exc, "problem", None)
+        why = (f"line {mark.line + 1}, column {mark.column + 1}: {problem}" if mark is not None and problem
+               else " ".join(str(exc).split()))
         raise UsageError(f"{p}: not a valid scene file ({type(exc).__name__}: {why})") from None
     if isinstance(data, dict) and isinstance(data.get("scene"), dict):
         data = data["scene"]

@@ -23,6 +23,7 @@ from functools import lru_cache
 
 import cv2
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ._check import check_finite, check_shape
 from .camera import Intrinsics
@@ -82,7 +83,7 @@ class SynthPhoto:
 # ---------------------------------------------------------------------------------------------------
 # poses
 # ---------------------------------------------------------------------------------------------------
-def look_at_pose(eye_world, target_world, up=(0.0, 0.0, 1.0)) -> np.ndarray:
+def look_at_pose(eye_world: ArrayLike, target_world: ArrayLike, up: ArrayLike = (0.0, 0.0, 1.0)) -> np.ndarray:
     """``cam_from_world`` of an OpenCV camera at ``eye`` looking at ``target``, ``up`` appearing upwards.
 
     Parameters
@@ -113,7 +114,7 @@ def look_at_pose(eye_world, target_world, up=(0.0, 0.0, 1.0)) -> np.ndarray:
         raise UsageError("look_at_pose: eye and target coincide")
     z = z / nz
     x = np.cross(z, up)
-    if np.linalg.norm(x) < 1e-9 * max(1.0, np.linalg.norm(up)):
+    if np.linalg.norm(x) < 1e-9 * max(1.0, float(np.linalg.norm(up))):
         x = np.cross(z, np.array([0.0, 1.0, 0.0]))
         if np.linalg.norm(x) < 1e-9:
             x = np.cross(z, np.array([1.0, 0.0, 0.0]))
@@ -125,19 +126,20 @@ def look_at_pose(eye_world, target_world, up=(0.0, 0.0, 1.0)) -> np.ndarray:
     return m
 
 
-def _rot_a_to_b(a, b) -> np.ndarray:
+def _rot_a_to_b(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     a = a / np.linalg.norm(a)
     b = b / np.linalg.norm(b)
     v = np.cross(a, b)
     s, c = np.linalg.norm(v), float(a @ b)
     if s < 1e-15:
         return np.eye(3)
-    return cv2.Rodrigues((v / s * math.atan2(s, c)).reshape(3, 1))[0]
+    return np.asarray(cv2.Rodrigues((v / s * math.atan2(s, c)).reshape(3, 1))[0])
 
 
-def random_pose(rng, intrinsics: Intrinsics, *, distance=(0.3, 0.8), tilt_deg=(0.0, 70.0),
-                roll_deg=(-180.0, 180.0), keep_in_view=None, margin_px=10.0, max_tries=200,
-                target=(0.0, 0.0, 0.0)) -> np.ndarray:
+def random_pose(rng: np.random.Generator, intrinsics: Intrinsics, *,
+                distance: tuple[float, float] = (0.3, 0.8), tilt_deg: tuple[float, float] = (0.0, 70.0),
+                roll_deg: tuple[float, float] = (-180.0, 180.0), keep_in_view: ArrayLike | None = None,
+                margin_px: float = 10.0, max_tries: int = 200, target: ArrayLike = (0.0, 0.0, 0.0)) -> np.ndarray:
     """A random ``cam_from_world`` looking at ``target`` (default the world origin), placed anywhere in
     the image.
 
@@ -195,8 +197,8 @@ def random_pose(rng, intrinsics: Intrinsics, *, distance=(0.3, 0.8), tilt_deg=(0
     raise UsageError("random_pose: could not keep the points in view; widen the distance range")
 
 
-def camera_path(n: int, *, radius=0.55, height=(0.3, 0.5), sweep_deg=120.0, start_deg=-90.0,
-                target_wobble=0.02, phase=0.0) -> np.ndarray:
+def camera_path(n: int, *, radius: float = 0.55, height: tuple[float, float] = (0.3, 0.5), sweep_deg: float = 120.0,
+                start_deg: float = -90.0, target_wobble: float = 0.02, phase: float = 0.0) -> np.ndarray:
     """A smooth camera path around the origin: ``(n, 4, 4)`` float64 ``cam_from_world`` per frame.
 
     The eye moves on an arc of ``sweep_deg`` degrees at horizontal distance ``radius`` from the origin,
@@ -217,8 +219,8 @@ def camera_path(n: int, *, radius=0.55, height=(0.3, 0.5), sweep_deg=120.0, star
     return out
 
 
-def pan_path(n: int, *, eye=(0.05, -0.5, 0.4), target=(-0.06, 0.0, 0.0), deg_per_frame=0.25,
-             axis=(0.0, 0.0, 1.0)) -> np.ndarray:
+def pan_path(n: int, *, eye: ArrayLike = (0.05, -0.5, 0.4), target: ArrayLike = (-0.06, 0.0, 0.0),
+             deg_per_frame: float = 0.25, axis: ArrayLike = (0.0, 0.0, 1.0)) -> np.ndarray:
     """A steady pan: ``(n, 4, 4)`` float64 ``cam_from_world``, the camera fixed at ``eye`` turning about
     ``axis`` (world, through the eye) at a constant ``deg_per_frame``, starting by looking at ``target``.
 
@@ -267,7 +269,7 @@ def _floor_texture(seed: int = 7) -> np.ndarray:
     return out
 
 
-def _layout_texture(markers, black_squares, paper, ppm):
+def _layout_texture(markers: list, black_squares: np.ndarray, paper: tuple, ppm: float) -> tuple[np.ndarray, tuple]:
     """Rasterise a print (paper rectangle with black squares and markers), 2x2 supersampled.
 
     markers: list of ((x_left, y_top), side, bits (c, c) bool); black_squares (k, 2, 2); paper
@@ -293,14 +295,14 @@ def _layout_texture(markers, black_squares, paper, ppm):
         col = np.clip(((xs[i0:i1] - xl) / side * c).astype(int), 0, c - 1)
         row = np.clip(((yt - ys[j0:j1]) / side * c).astype(int), 0, c - 1)
         img[j0:j1, i0:i1] = np.where(bits[row[:, None], col[None, :]], PAPER_WHITE, INK_BLACK)
-    img = cv2.resize(img, (w, h), interpolation=cv2.INTER_AREA)
+    img = np.asarray(cv2.resize(img, (w, h), interpolation=cv2.INTER_AREA), dtype=np.float32)
     tex = np.dstack([img, np.ones_like(img)]).astype(np.float32)
     # texel (i, j) centre is world (xmin + (i + 0.5)/ppm, ymax - (j + 0.5)/ppm)
     return tex, (xmin, ymax, ppm)
 
 
 @lru_cache(maxsize=16)
-def _marker_texture(dictionary: str, marker_id: int, margin_rel: float):
+def _marker_texture(dictionary: str, marker_id: int, margin_rel: float) -> tuple[np.ndarray, tuple]:
     """Texture of a single marker of side 1 (world units = marker lengths), centred on the origin."""
     bits = marker_bits(get_dictionary(dictionary), marker_id)
     h = 0.5 + margin_rel
@@ -317,7 +319,7 @@ def _board_markers(board: Board) -> list:
             for mid, c in board.marker_corners_world.items()]
 
 
-def board_print(board: Board, margin: float, ppm: float):
+def board_print(board: Board, margin: float, ppm: float) -> tuple[np.ndarray, tuple, tuple]:
     """The printed board with a white ``margin`` (metres) at ``ppm`` texels per metre.
 
     Returns ``(tex, mapping, paper)``: ``tex`` (h, w, 2) float32 (value, alpha) from :func:`_layout_texture`
@@ -335,7 +337,7 @@ def _board_paper(board: Board, margin: float) -> tuple:
 
 
 @lru_cache(maxsize=8)
-def _board_texture(board: Board, margin: float):
+def _board_texture(board: Board, margin: float) -> tuple[np.ndarray, tuple, tuple]:
     paper = _board_paper(board, margin)
     ppm = min(BOARD_MAX_TEXELS / max(paper[2] - paper[0], paper[3] - paper[1]), MARKER_TEXELS / board.marker_length)
     tex, mapping, _ = board_print(board, margin, ppm)
@@ -344,7 +346,7 @@ def _board_texture(board: Board, margin: float):
 
 
 @lru_cache(maxsize=4)
-def _pinhole_maps(intr: Intrinsics):
+def _pinhole_maps(intr: Intrinsics) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]]:
     """Per-camera maps: the pinhole pixel that each output (distorted) pixel centre sees.
 
     Returns ``(mx, my)`` (H, W) float64 (exact, for the paper), ``pts32`` (H*W, 1, 2) float32 (for the
@@ -366,7 +368,7 @@ def _pinhole_maps(intr: Intrinsics):
 # ---------------------------------------------------------------------------------------------------
 # rendering
 # ---------------------------------------------------------------------------------------------------
-def _plane_coords(hinv, mx, my):
+def _plane_coords(hinv: np.ndarray, mx: np.ndarray, my: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """World (x, y) on z = 0 seen at pinhole pixels (mx, my); valid where the plane is in front."""
     X = hinv[0, 0] * mx + hinv[0, 1] * my + hinv[0, 2]
     Y = hinv[1, 0] * mx + hinv[1, 1] * my + hinv[1, 2]
@@ -376,8 +378,10 @@ def _plane_coords(hinv, mx, my):
     return X / Wh, Y / Wh, valid
 
 
-def render_print_scene(intrinsics: Intrinsics, cam_from_world, *, dictionary="DICT_6X6_250", marker_id=0,
-                       marker_length=None, board=None, floor="texture", paper_margin=None, supersample=None) -> dict:
+def render_print_scene(intrinsics: Intrinsics, cam_from_world: ArrayLike, *, dictionary: str = "DICT_6X6_250",
+                       marker_id: int = 0, marker_length: float | None = None, board: Board | None = None,
+                       floor: str = "texture", paper_margin: float | None = None,
+                       supersample: int | None = None) -> dict:
     """The floor and the print seen from ``cam_from_world``, before any camera effect.
 
     The same scene as :func:`render_marker_photo` (parameters alike), as reflectance: the returned
@@ -400,6 +404,7 @@ def render_print_scene(intrinsics: Intrinsics, cam_from_world, *, dictionary="DI
 
     # -- the print and its texture --
     if board is None:
+        assert marker_length is not None  # exactly one of marker_length and board (checked above)
         L = float(marker_length)
         if not (L > 0 and math.isfinite(L)):
             raise UsageError(f"marker_length must be a positive length, got {marker_length}")
@@ -430,7 +435,8 @@ def render_print_scene(intrinsics: Intrinsics, cam_from_world, *, dictionary="DI
         to_tex = np.array([[FLOOR_PPM, 0, 0], [0, -FLOOR_PPM, 0], [0, 0, 1.0]]) @ hinv
         ft = cv2.perspectiveTransform(pts32, to_tex).reshape(H, W, 2)
         # (BORDER_WRAP folds any coordinate into the periodic texture: no np.mod needed)
-        img = cv2.remap(ftex, ft, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP)
+        # (OpenCV's stubs do not allow map2=None, which cv2.remap takes with a 2-channel map1)
+        img = cv2.remap(ftex, ft, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP)  # type: ignore[call-overload]
     else:
         img = np.full((H, W, 3), 128.0, np.float32)
     img[~valid] = (200.0, 196.0, 190.0)  # wall / sky beyond the horizon
@@ -481,7 +487,8 @@ def render_print_scene(intrinsics: Intrinsics, cam_from_world, *, dictionary="DI
             "dictionary": dict_name, "supersample": S}
 
 
-def camera_effects(img, *, exposure=1.0, blur_sigma=0.0, noise_sigma=0.0, seed=None, jpeg_quality=None) -> np.ndarray:
+def camera_effects(img: np.ndarray, *, exposure: float = 1.0, blur_sigma: float = 0.0, noise_sigma: float = 0.0,
+                   seed: int | None = None, jpeg_quality: int | None = None) -> np.ndarray:
     """Exposure, Gaussian blur, Gaussian noise (8-bit units), rounding and JPEG on a float32 image in 8-bit
     code units: (H, W, 3) float32 (modified in place) -> (H, W, 3) uint8."""
     if exposure != 1.0:
@@ -492,22 +499,23 @@ def camera_effects(img, *, exposure=1.0, blur_sigma=0.0, noise_sigma=0.0, seed=N
         # OpenCV's RNG is 3x faster than numpy's here; seeded per call, so photos are reproducible
         cv2.setRNGSeed(int(np.random.default_rng(seed).integers(2**31 - 1)))
         noise = np.empty((img.shape[0], img.shape[1] * img.shape[2]), np.float32)  # 1 channel: every
-        cv2.randn(noise, 0.0, float(noise_sigma))  # value gets noise (a scalar sigma on 3 channels would not)
+        # value gets noise (a scalar sigma on 3 channels would not); OpenCV's stubs lack scalar mean / sigma
+        cv2.randn(noise, 0.0, float(noise_sigma))  # type: ignore[call-overload]
         img += noise.reshape(img.shape)
     img += np.float32(0.5)
     np.clip(img, 0, 255, out=img)
     out = img.astype(np.uint8)
     if jpeg_quality is not None:
         ok, buf = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, int(jpeg_quality)])
-        out = cv2.imdecode(buf, cv2.IMREAD_COLOR)
-
+        out = np.asarray(cv2.imdecode(buf, cv2.IMREAD_COLOR), dtype=np.uint8)
     return out
 
 
-def render_marker_photo(intrinsics: Intrinsics, cam_from_world, *, dictionary="DICT_6X6_250", marker_id=0,
-                        marker_length=None, board=None, noise_sigma=0.0, blur_sigma=0.0, jpeg_quality=None,
-                        exposure=1.0, seed=None, floor="texture", paper_margin=None,
-                        supersample=None) -> SynthPhoto:
+def render_marker_photo(intrinsics: Intrinsics, cam_from_world: ArrayLike, *, dictionary: str = "DICT_6X6_250",
+                        marker_id: int = 0, marker_length: float | None = None, board: Board | None = None,
+                        noise_sigma: float = 0.0, blur_sigma: float = 0.0, jpeg_quality: int | None = None,
+                        exposure: float = 1.0, seed: int | None = None, floor: str = "texture",
+                        paper_margin: float | None = None, supersample: int | None = None) -> SynthPhoto:
     """Render a photo of a printed marker (or board) lying on a floor, seen from ``cam_from_world``.
 
     Parameters
@@ -565,7 +573,7 @@ def render_marker_photo(intrinsics: Intrinsics, cam_from_world, *, dictionary="D
     return SynthPhoto(
         image=out, cam_from_world=pose, intrinsics=intrinsics, dictionary=dict_name,
         marker_id=None if board is not None else int(marker_id),
-        marker_length=None if board is not None else float(marker_length), board=board,
+        marker_length=None if marker_length is None else float(marker_length), board=board,
         corners_px=corners_px, charuco_corners_px=ch, paper_world=paper_world,
         params=dict(noise_sigma=noise_sigma, blur_sigma=blur_sigma, jpeg_quality=jpeg_quality,
                     exposure=exposure, seed=seed, floor=floor, supersample=S),

@@ -15,6 +15,55 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 
+#: scripts that regenerate test data (they need pvlib/pandas), not tests: not imported by --doctest-modules
+collect_ignore = ["data"]
+
+#: the fixtures that give a test an OpenGL context
+GL_FIXTURES = {"ctx", "gl_ctx"}
+#: test modules whose tests render through Session / render_photo / the CLI (they create their own context)
+GL_MODULES: set[str] = set()
+#: test modules that encode or decode video files (besides every module with "video" in its name)
+VIDEO_MODULES: set[str] = set()
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config, items):
+    """Mark GL and video tests (``pytest -m "not gl and not video"`` is the fast unit loop, CONTRIBUTING.md):
+    ``gl`` for a test that uses :func:`ctx` / :func:`gl_ctx` or lives in :data:`GL_MODULES`, ``video`` for one
+    in a module named ``*video*`` or listed in :data:`VIDEO_MODULES`. An unmarked test that creates an OpenGL
+    context fails (:func:`_gl_guard`).
+
+    ``slow`` tests are deselected unless the ``-m`` expression names ``slow`` (so that ``-m "not gl"`` does
+    not bring them back, as an ``-m`` given on the command line replaces the one in ``addopts`` would)."""
+    if "slow" not in (config.getoption("markexpr") or ""):
+        slow = [it for it in items if it.get_closest_marker("slow") is not None]
+        if slow:
+            config.hook.pytest_deselected(items=slow)
+            items[:] = [it for it in items if it.get_closest_marker("slow") is None]
+    for item in items:
+        module = item.module.__name__.rsplit(".", 1)[-1] if getattr(item, "module", None) else ""
+        if GL_FIXTURES & set(getattr(item, "fixturenames", ())) or module in GL_MODULES:
+            item.add_marker(pytest.mark.gl)
+        if "video" in module or module in VIDEO_MODULES:
+            item.add_marker(pytest.mark.video)
+
+
+@pytest.fixture(autouse=True)
+def _gl_guard(request, monkeypatch):
+    """A test not marked ``gl`` must not create an OpenGL context (it would slow the fast loop down and run
+    where no GL is): creating one fails the test, naming the marker to add."""
+    if request.node.get_closest_marker("gl") is not None:
+        yield
+        return
+    import moderngl
+
+    def refuse(*args, **kwargs):
+        pytest.fail(f"{request.node.nodeid} creates an OpenGL context but is not marked gl: use the ctx fixture, "
+                    "@pytest.mark.gl, or add its module to GL_MODULES in tests/conftest.py", pytrace=False)
+
+    monkeypatch.setattr(moderngl, "create_context", refuse)
+    yield
+
 
 @dataclass(frozen=True)
 class Tolerances:

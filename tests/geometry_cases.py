@@ -39,7 +39,7 @@ def affine_icosphere(seed: int) -> ShadowCaster:
     return ShadowCaster(np.asarray(s.vertices) @ a.T + [0, 0, 2], s.faces, name=f"affine{seed}")
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def closed_meshes() -> dict[str, ShadowCaster]:
     m = {
         "box": load_occluder("box:0.3,0.2,0.1", rotate=(10, 20, 30), place=(0, 0, 0.2)),
@@ -56,7 +56,7 @@ def closed_meshes() -> dict[str, ShadowCaster]:
     return m
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def open_meshes() -> dict[str, ShadowCaster]:
     return {
         "umbrella": load_occluder(SAMPLES / "umbrella.ply"),

@@ -28,7 +28,7 @@ class Grid:
     height: int
 
     @staticmethod
-    def around(points_2d, n: int = 2048, margin: float = 0.02) -> "Grid":
+    def around(points_2d, n: int = 2048, margin: float = 0.02) -> Grid:
         p = np.asarray(points_2d, np.float64).reshape(-1, 2)
         lo, hi = p.min(axis=0), p.max(axis=0)
         size = float(np.max(hi - lo)) * (1 + 2 * margin) or 1.0

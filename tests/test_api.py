@@ -439,3 +439,13 @@ def test_two_contexts_in_one_process_interleave(gl_ctx):
     for m in (mb, ma, mb2, after):
         assert np.array_equal(m, ref)
     assert gl_ctx.error == "GL_NO_ERROR"
+
+
+def test_lazy_names_are_all_exported():
+    """``__all__`` lists every lazily loaded name (written out for type checkers), and each one loads."""
+    import arshadow
+
+    lazy = set(arshadow._LAZY) | {"synth"}
+    assert lazy <= set(arshadow.__all__)
+    for name in arshadow.__all__:
+        assert getattr(arshadow, name) is not None, name

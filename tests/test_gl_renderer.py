@@ -398,7 +398,7 @@ def test_antialiased_mask(ctx, tol, samples, supersample):
     orc = _oracle(sc)
     om = orc.image(W, H, canvas=canvas)[0]
     assert len(np.unique(res.mask)) > 3  # fractional edge values
-    assert np.count_nonzero((om >= 0.5)) >= tol.shadow_min_pixels
+    assert np.count_nonzero(om >= 0.5) >= tol.shadow_min_pixels
     assert iou(res.mask >= 0.5, om >= 0.5) >= tol.shadow_iou_worst
     # against the true area coverage on the edge band (8x8 oracle samples per pixel)
     edge = np.argwhere((res.mask > 0) & (res.mask < 1) | ((hard.mask > 0) != (res.mask > 0)))

@@ -8,13 +8,12 @@ import numpy as np
 import pytest
 
 from arshadow.errors import ArshadowError, LightError
+from arshadow.lights.area import sample_area_light, stratified_disc
 from arshadow.lights.spec import (
     SUN_ANGULAR_RADIUS_DEG,
     Light,
     lights_homogeneous,
     parse_light,
-    sample_area_light,
-    stratified_disc,
     total_weight,
 )
 from conftest import TOL

@@ -105,7 +105,7 @@ def test_grazing_lights_exactly_in_and_near_face_planes(rng):
         c = closed_meshes()[name]
         picks = rng.choice(c.n_faces, size=min(30, c.n_faces), replace=False)
         for fi in picks:
-            n, d = c.face_planes[fi, :3], c.face_planes[fi, 3]
+            n, _d = c.face_planes[fi, :3], c.face_planes[fi, 3]
             t = c.triangles[fi]
             # a point in the face's plane, outside the mesh: a far point along an in-plane direction
             u = t[1] - t[0]
@@ -304,7 +304,7 @@ def test_fast_facing_equals_float64_expression(rng):
     for c in cases:
         lights = list(random_lights(c, 100, rng))
         for fi in rng.choice(c.n_faces, 50, replace=False):  # lights in and within 1e-12 of face planes
-            n, d = c.face_planes[fi, :3], c.face_planes[fi, 3]
+            n, _d = c.face_planes[fi, :3], c.face_planes[fi, 3]
             t = c.triangles[fi]
             u = (t[1] - t[0]) / np.linalg.norm(t[1] - t[0])
             for off in (0.0, 1e-12, -1e-12, 1e-7):

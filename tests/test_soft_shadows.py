@@ -15,7 +15,8 @@ import math
 import numpy as np
 import pytest
 
-from arshadow.lights.spec import Light, parse_light, sample_area_light
+from arshadow.lights.area import sample_area_light
+from arshadow.lights.spec import Light, parse_light
 from conftest import TOL
 from oracle import disc_segment_fraction, profile_crossing
 

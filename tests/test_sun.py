@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import json
 import math
-from datetime import datetime, timedelta, timezone
+from datetime import datetime, timedelta, timezone, UTC
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +14,8 @@ import pytest
 
 from arshadow.cli import main
 from arshadow.errors import LightError
-from arshadow.lights.spec import SUN_ANGULAR_RADIUS_DEG, parse_light, parse_time, sample_area_light
+from arshadow.lights.area import sample_area_light
+from arshadow.lights.spec import SUN_ANGULAR_RADIUS_DEG, parse_light, parse_time
 from arshadow.lights.sun import (
     SunTrack,
     angle_between_deg,
@@ -94,7 +95,7 @@ def test_spa_reference_subsets(reference, tag):
 def test_reference_covers_the_required_cases(reference):
     lats = np.array([r["lat"] for r in reference])
     assert lats.min() <= -70 and lats.max() >= 70
-    months = {parse_time(r["time"]).astimezone(timezone.utc).month for r in reference}
+    months = {parse_time(r["time"]).astimezone(UTC).month for r in reference}
     assert months >= {3, 6, 9, 12}
     zen = {r["tag"]: [] for r in reference}
     for r in reference:
@@ -105,14 +106,14 @@ def test_reference_covers_the_required_cases(reference):
 
 def test_physical_facts_independent_of_any_implementation():
     # June solstice: declination = obliquity of the ecliptic, 23.44 deg
-    s = sun_position(datetime(2021, 6, 21, 3, 32, tzinfo=timezone.utc), 0.0, 0.0)
+    s = sun_position(datetime(2021, 6, 21, 3, 32, tzinfo=UTC), 0.0, 0.0)
     assert s.declination_deg == pytest.approx(23.44, abs=0.01)
     # polar day at 70 N on the June solstice: above the horizon every hour; polar night in December
-    day = sun_positions([datetime(2021, 6, 21, h, tzinfo=timezone.utc) for h in range(24)], 70.0, 20.0)
-    night = sun_positions([datetime(2021, 12, 21, h, tzinfo=timezone.utc) for h in range(24)], 70.0, 20.0)
+    day = sun_positions([datetime(2021, 6, 21, h, tzinfo=UTC) for h in range(24)], 70.0, 20.0)
+    night = sun_positions([datetime(2021, 12, 21, h, tzinfo=UTC) for h in range(24)], 70.0, 20.0)
     assert all(p.above_horizon for p in day) and not any(p.above_horizon for p in night)
     # the midday sun: due south north of the tropics, due north south of them, overhead near the subsolar point
-    noon = [sun_position(datetime(2021, 3, 20, 12, 7, tzinfo=timezone.utc), lat, 0.0) for lat in (45.0, -45.0, 0.0)]
+    noon = [sun_position(datetime(2021, 3, 20, 12, 7, tzinfo=UTC), lat, 0.0) for lat in (45.0, -45.0, 0.0)]
     assert abs(noon[0].azimuth_deg - 180) < 1.0 and min(noon[1].azimuth_deg, 360 - noon[1].azimuth_deg) < 1.0
     assert noon[2].zenith_deg < 0.5
     # morning sun in the east, evening sun in the west
@@ -201,7 +202,7 @@ def test_paper_printed_azimuth_is_wrong_and_how(reference):
     # day 81 of 2021 (22 March): the paper's declination 0.4093 sin(2 pi (J - 81) / 368) is exactly 0
     for lat in (-60.0, -20.0, 35.0, 70.0):
         for hour in (6.5, 9.0, 11.0, 14.0, 17.5):
-            t = datetime(2021, 3, 22, tzinfo=timezone.utc) + timedelta(hours=hour)
+            t = datetime(2021, 3, 22, tzinfo=UTC) + timedelta(hours=hour)
             pr = sun_position(t, lat, 0.0, model="paper-printed")
             co = sun_position(t, lat, 0.0, model="paper")
             assert co.declination_deg == 0.0
@@ -278,7 +279,7 @@ def test_sun_light_options():
 
 
 def test_sun_light_default_time():
-    t = datetime(2021, 6, 21, 12, tzinfo=timezone.utc)
+    t = datetime(2021, 6, 21, 12, tzinfo=UTC)
     a = parse_light("sun:48,11", default_time=t)
     b = parse_light("sun:48,11,2021-06-21T12:00Z")
     np.testing.assert_array_equal(a.vector, b.vector)

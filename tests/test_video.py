@@ -273,7 +273,8 @@ def test_time_lapse_moves_the_sun_and_recomputes_only_past_the_angle(tmp_path, m
         when = start + timedelta(seconds=it["time_s"] * speed)
         p = sun_position(when, lat, lon)
         dirs.append(enu_to_world(p.enu, 0.0))
-    ang = lambda a, b: np.degrees(np.arccos(np.clip(np.dot(a, b) / np.linalg.norm(a) / np.linalg.norm(b), -1, 1)))
+    def ang(a, b):
+        return np.degrees(np.arccos(np.clip(np.dot(a, b) / np.linalg.norm(a) / np.linalg.norm(b), -1, 1)))
     expect, last = [], None
     for d in dirs:
         rec = last is None or ang(d, last) > thr

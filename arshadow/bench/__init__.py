@@ -16,8 +16,17 @@ One module per section, each built on the Python API:
 from __future__ import annotations
 
 import json
+import os
 import time
 from pathlib import Path
+
+from ..errors import UsageError
+from ..gl.context import create_context
+from ..io import write_bytes
+from . import pipeline, render, silhouettes, tracking
+from . import plots as P
+from .common import machine_label, metadata, write_csv
+from .summary import markdown
 
 __all__ = ["QUICK", "FULL", "SECTIONS", "run"]
 
@@ -72,12 +81,6 @@ def run(out_dir, *, quick: bool = False, sections=SECTIONS, log=print, plots: bo
     dict
         ``{"meta", "results", "files", "duration_s"}``.
     """
-    from ..errors import UsageError
-    from ..io import write_bytes
-    from . import plots as P
-    from .common import machine_label, metadata, write_csv
-    from .summary import markdown
-
     bad = [s for s in sections if s not in SECTIONS]
     if bad:
         raise UsageError(f"unknown bench section(s) {', '.join(bad)} (choose from {', '.join(SECTIONS)})")
@@ -87,8 +90,6 @@ def run(out_dir, *, quick: bool = False, sections=SECTIONS, log=print, plots: bo
     t0 = time.perf_counter()
     ctx = None
     if any(s in sections for s in ("render", "pipeline")):
-        from ..gl.context import create_context
-
         ctx = create_context()
     try:
         meta = metadata(ctx)
@@ -101,26 +102,17 @@ def run(out_dir, *, quick: bool = False, sections=SECTIONS, log=print, plots: bo
             ts = time.perf_counter()
             log(f"[{name}]")
             if name == "silhouettes":
-                from . import silhouettes
-
                 results[name] = silhouettes.run(cfg, log)
             elif name == "render":
-                from . import render
-
                 results[name] = render.run(cfg, ctx, log)
             elif name == "tracking":
-                from . import tracking
-
                 results[name] = tracking.run(cfg, log)
             else:
-                from . import pipeline
-
                 results[name] = pipeline.run(cfg, ctx, log)
             timings[name] = round(time.perf_counter() - ts, 1)
     finally:
         if ctx is not None:
             ctx.release()
-    import os
 
     meta["loadavg_end"] = list(os.getloadavg())
     meta["section_seconds"] = timings

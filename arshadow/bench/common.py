@@ -12,23 +12,36 @@ import platform
 import subprocess
 import sys
 import time
+from importlib.metadata import version
 from pathlib import Path
 
+import cv2
 import numpy as np
+import trimesh
 
-#: the repository root when arshadow runs from a checkout (samples/, calib/ live there)
-ROOT = Path(__file__).resolve().parents[2]
+from arshadow import __version__
+from arshadow.gl.context import gl_info
+from arshadow.io import write_bytes
+
+from ..resources import data_root
+
+#: the folder holding samples/ and calib/: the repository root in a checkout, the installed copy otherwise
+ROOT = data_root()
+#: the checkout's root (for git); not a checkout when arshadow is installed
+REPO = Path(__file__).resolve().parents[2]
 
 __all__ = ["ROOT", "git_commit", "metadata", "summary", "timed", "write_csv", "machine_label"]
 
 
 def git_commit() -> tuple[str | None, bool | None]:
     """``(short commit hash, arshadow/ has uncommitted changes)`` of the work tree; ``(None, None)``
-    without git."""
+    without git or outside a checkout (an installed wheel)."""
+    if not (REPO / ".git").exists():
+        return None, None
     try:
-        commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True,
+        commit = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--short", "HEAD"], capture_output=True,
                                 text=True, check=False, timeout=10).stdout.strip() or None
-        dirty = bool(subprocess.run(["git", "-C", str(ROOT), "status", "--porcelain", "--", "arshadow"],
+        dirty = bool(subprocess.run(["git", "-C", str(REPO), "status", "--porcelain", "--", "arshadow"],
                                     capture_output=True, text=True, check=False, timeout=10).stdout.strip())
     except (OSError, subprocess.TimeoutExpired):
         return None, None
@@ -48,10 +61,6 @@ def _cpu_model() -> str:
 def metadata(ctx=None) -> dict:
     """Commit, versions, machine (CPU model, count) and load at the start; ``GL_RENDERER`` / ``GL_VERSION``
     of ``ctx`` (a moderngl context) when given."""
-    import cv2
-    import trimesh
-
-    from arshadow import __version__
 
     commit, dirty = git_commit()
     meta = {"git_commit": commit, "arshadow_dirty": dirty, "arshadow": __version__,
@@ -59,9 +68,6 @@ def metadata(ctx=None) -> dict:
             "trimesh": trimesh.__version__, "machine": platform.machine(), "cpu": _cpu_model(),
             "cpus": os.cpu_count(), "loadavg_start": list(os.getloadavg()), "command": " ".join(sys.argv)}
     if ctx is not None:
-        from importlib.metadata import version
-
-        from arshadow.gl.context import gl_info
 
         info = gl_info(ctx)
         meta.update(moderngl=version("moderngl"), GL_RENDERER=info.get("GL_RENDERER"),
@@ -99,8 +105,6 @@ def timed(fn, repeat: int, warmup: int = 1) -> list[float]:
 
 def write_csv(path, rows: list[dict]) -> Path:
     """Write ``rows`` (dicts; the union of their keys as columns, in first-seen order) atomically."""
-    from arshadow.io import write_bytes
-
     cols: list[str] = []
     for r in rows:
         cols += [k for k in r if k not in cols]

@@ -19,7 +19,12 @@ import time
 
 import numpy as np
 
+from ..geometry.mesh import load_occluder
+from ..scene import scene_from_dict
+from ..session import Session
+from ..synth import look_at_pose, render_marker_photo
 from .common import ROOT, summary, t_fields
+from .tracking import camera
 
 RESOLUTIONS = ((640, 480), (1280, 720), (1920, 1080))
 #: paper 003 sec. V: "The AR system including shadow volumes using Delta+ Algorithm is performed in 74.35 FPS.
@@ -30,9 +35,6 @@ PAPER003_HARDWARE = "2.5 GHz Intel Core i5-3210 CPU + ATI Radeon HD 7670M GPU (p
 
 def photo(width, height, seed=1):
     """A synthetic photo of a 5 cm marker seen from ~0.5 m, with its camera."""
-    from ..synth import look_at_pose, render_marker_photo
-    from .tracking import camera
-
     cam = camera(width, height)
     T = look_at_pose([0.3, -0.32, 0.3], [0.0, 0.02, 0.02])
     ph = render_marker_photo(cam, T, marker_length=0.05, noise_sigma=2.0, blur_sigma=0.6, jpeg_quality=90, seed=seed)
@@ -50,8 +52,6 @@ def scene(cam, n_lights: int, cold: bool = False, **options):
     point lights, ``options`` (scene keys: ``shadow_method``, ``silhouette``...). ``cold``: rebuild every
     light's silhouette and volume every frame (``RenderOptions.plan_off = ("reuse",)``: a moving light or
     object)."""
-    from ..scene import scene_from_dict
-
     spec = scene_from_dict({"calib": cam, "marker_length": 0.05, "model": str(ROOT / "samples" / "meshes" / "knot.ply"),
                             "lights": _lights(n_lights), **options})
     if cold:
@@ -62,8 +62,6 @@ def scene(cam, n_lights: int, cold: bool = False, **options):
 def run_frames(spec, ctx, image, runs: int, warmup: int) -> tuple[list[float], dict]:
     """``runs`` timed :meth:`arshadow.Session.process` calls after ``warmup``, on a session of ``spec``
     sharing ``ctx``: wall times (ms) and ``{stage: [ms, ...]}`` (``FrameResult.timings_ms``)."""
-    from ..session import Session
-
     out = np.empty_like(image)
     walls, stages = [], {}
     with Session(spec, context=ctx) as s:
@@ -105,8 +103,6 @@ def lights_sweep(cfg, ctx, log) -> list[dict]:
 
 
 def paper003_scene(cfg, ctx, log) -> list[dict]:
-    from ..geometry.mesh import load_occluder
-
     rows = []
     faces = load_occluder(ROOT / "samples" / "meshes" / "knot.ply").n_faces
     image, cam = photo(1280, 720)

@@ -7,6 +7,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
+from ..io import atomic_path
+from .render import pareto
+
+# matplotlib is an optional dependency (the bench extra): it is imported where a plot is drawn, deliberately
 HINT = "plots need matplotlib: pip install arshadow[bench]"
 
 
@@ -32,8 +38,6 @@ def _fig(title, label, size=(9.5, 6.0)):
 
 
 def _save(fig, path) -> Path:
-    from ..io import atomic_path
-
     fig.tight_layout(rect=(0, 0.04, 1, 1))
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png")
@@ -57,8 +61,6 @@ def _short(config: str) -> str:
 def render_pareto(rows, out_dir, label) -> list[Path]:
     """Per scene: render time against (left) 1 + pixels differing from the exact shadow, with the Pareto
     front, and (right) the edge coverage error that anti-aliasing reduces."""
-    from .render import pareto
-
     paths = []
     for i, scene in enumerate(dict.fromkeys(r["scene"] for r in rows)):
         rs = [r for r in rows if r["scene"] == scene]
@@ -146,7 +148,6 @@ def pipeline_time_vs_resolution(rows, out_dir, label) -> Path:
     stages = ("detect", "pose", "silhouette", "volume", "render", "readback", "warp", "composite")
     res = list(dict.fromkeys(r["resolution"] for r in rows))
     methods = list(dict.fromkeys(r["shadow_method"] for r in rows))
-    import numpy as np
 
     width = 0.8 / len(methods)
     cmap = __import__("matplotlib").colormaps["tab10"]
@@ -214,7 +215,6 @@ def tracking(rows, out_dir, label) -> Path:
     fig.legend([handles[c] for c in configs if c in handles], [c for c in configs if c in handles], fontsize=8,
                loc="lower center", ncol=4, bbox_to_anchor=(0.5, 0.03))
     fig.suptitle("Tracking: detection + pose time vs rotation error (synthetic photos, true pose known)")
-    from ..io import atomic_path
 
     fig.tight_layout(rect=(0, 0.14, 1, 1))
     path = Path(out_dir) / "tracking_time_vs_error.png"

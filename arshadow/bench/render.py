@@ -22,8 +22,20 @@ from __future__ import annotations
 
 import time
 
+import cv2
 import numpy as np
 
+from ..camera import Intrinsics
+from ..geometry.exact import ShadowOracle, boundary_error_px, ground_shadow_triangles, iou
+from ..geometry.mesh import load_occluder
+from ..geometry.silhouette import silhouette
+from ..geometry.volume import shadow_volume
+from ..gl.stencil import LightPass, ShadowRenderer
+from ..gl.shadowmap import MAP_SIZES, ShadowMapRenderer
+from ..lights.area import sample_area_light
+from ..lights.spec import parse_light
+from ..synth import look_at_pose
+from ..transforms import CV_TO_GL
 from .common import ROOT, summary
 
 W, H = 1280, 720
@@ -56,10 +68,6 @@ def scenes(quick: bool):
     sun (a long, wide shadow cast by a 1 mm slab). The thin cards are measured with the stencil and
     shadow-map configurations only, plus shadow maps with the bias off (:data:`NO_BIAS`).
     """
-    from ..camera import Intrinsics
-    from ..geometry.mesh import load_occluder
-    from ..synth import look_at_pose
-
     caster = load_occluder(ROOT / "samples" / "meshes" / "knot.ply")
     K = Intrinsics(fx=1000.0, fy=1000.0, cx=641.3, cy=357.8, width=W, height=H, dist=np.zeros(0))
     T = look_at_pose([0.3, -0.32, 0.3], [0.0, 0.02, 0.02])
@@ -92,8 +100,6 @@ def map_texel_m(caster, light_h, map_size: int) -> float:
 
 def roi_of(caster, K, T, L, margin=2, width=W, height=H):
     """Pixel box ``(u0, v0, w, h)`` of the occluder and its exact ground shadow, clipped to the image."""
-    from ..geometry.exact import ground_shadow_triangles
-
     V = np.asarray(caster.vertices)
     S = ground_shadow_triangles(V, caster.faces, L).reshape(-1, 2)
     P = np.concatenate([V, np.c_[S, np.zeros(len(S))]])
@@ -109,9 +115,6 @@ class Reference:
     """The exact shadow of one scene on its ROI: pixel-centre mask, boundary band and area coverage."""
 
     def __init__(self, caster, K, T, L, roi):
-        import cv2
-
-        from ..geometry.exact import ShadowOracle
 
         self.roi = roi
         self.oracle = ShadowOracle(K.K, T, caster.vertices, caster.faces, [(L, 1.0)])
@@ -132,8 +135,6 @@ class Reference:
         self.perimeter = int(np.count_nonzero(m8 != er))
 
     def errors(self, mask) -> dict:
-        from ..geometry.exact import boundary_error_px, iou
-
         b = mask >= 0.5
         xor = int(np.count_nonzero(b != self.mask))
         be = boundary_error_px(b, self.mask)
@@ -146,9 +147,6 @@ class Reference:
 def _configs(ctx, quick: bool):
     """``[(family, label, factory, pass options)]``; factory() -> renderer; pass options: mode, truncate,
     scale (render resolution scale)."""
-    from ..gl.stencil import ShadowRenderer
-    from ..gl.shadowmap import MAP_SIZES, ShadowMapRenderer
-
     st = lambda **kw: (lambda: ShadowRenderer(ctx, max_width=W, max_height=H, **kw))  # noqa: E731
     out = [
         ("stencil", "z-pass, truncated (default)", st(), dict(mode="zpass", truncate=True)),
@@ -158,7 +156,7 @@ def _configs(ctx, quick: bool):
         ("planar", "planar projection (paper 002)", st(), dict(mode="planar")),
     ]
     ms = [s for s in (2, 4, 8) if s <= ctx.max_samples]
-    aa = [("MSAA %d" % s, dict(samples=s)) for s in (ms if not quick else ms[-1:])]
+    aa = [(f"MSAA {s}", dict(samples=s)) for s in (ms if not quick else ms[-1:])]
     aa += [("supersample 2x2", dict(supersample=2))]
     if not quick:
         aa += [("supersample 4x4", dict(supersample=4)), ("MSAA 4 + supersample 2x2", dict(samples=4, supersample=2))]
@@ -182,12 +180,6 @@ def _configs(ctx, quick: bool):
 
 
 def run(cfg: dict, ctx, log) -> list[dict]:
-    import cv2
-
-    from ..gl.stencil import LightPass
-    from ..geometry.silhouette import silhouette
-    from ..transforms import CV_TO_GL
-    from ..geometry.volume import shadow_volume
 
     rows = []
     for name, caster, K, T, L, families in scenes(cfg["quick"]):
@@ -278,16 +270,6 @@ def soft(cfg: dict, ctx, log) -> list[dict]:
     each) against a GL-independent reference: the exact hard shadows (:class:`arshadow.geometry.exact.ShadowOracle`)
     of 256 stratified samples of the same disc, averaged. ``coverage_mae`` here is the mean |mask -
     reference| over the pixels where either is non-zero (umbra + penumbra)."""
-    from ..camera import Intrinsics
-    from ..geometry.exact import ShadowOracle, boundary_error_px, iou
-    from ..gl.stencil import LightPass, ShadowRenderer
-    from ..lights.spec import parse_light, sample_area_light
-    from ..geometry.mesh import load_occluder
-    from ..geometry.silhouette import silhouette
-    from ..synth import look_at_pose
-    from ..transforms import CV_TO_GL
-    from ..geometry.volume import shadow_volume
-
     caster = load_occluder("box:0.08,0.06,0.12")
     K = Intrinsics(fx=1000.0, fy=1000.0, cx=641.3, cy=357.8, width=W, height=H, dist=np.zeros(0))
     T = look_at_pose([0.35, -0.45, 0.4], [0.0, 0.03, 0.02])

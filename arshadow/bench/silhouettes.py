@@ -14,6 +14,15 @@ import time
 
 import numpy as np
 
+from ..geometry.mesh import ShadowCaster, load_occluder
+from ..geometry.silhouette import METHODS, as_light_h, silhouette
+from ..geometry.silhouette_reference import (
+    delta_plus_reference,
+    paper000_formulas,
+    paper003_claim,
+    ta_reference,
+    vnv_reference,
+)
 from .common import ROOT, summary, t_fields, timed
 
 #: (n_seg, n_side) of the torus-knot tube for ~n faces (2 n_seg n_side triangles)
@@ -22,8 +31,6 @@ KNOT_RES = {200: (10, 10), 1470: (49, 15), 10000: (100, 50), 100000: (500, 100),
 
 def torus_knot(n_faces: int):
     """A closed, non-convex (2, 3) torus-knot tube with ``n_faces`` triangles (samples/make_meshes.py)."""
-    from ..geometry.mesh import ShadowCaster
-
     spec = importlib.util.spec_from_file_location("make_meshes", ROOT / "samples" / "make_meshes.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
@@ -33,16 +40,12 @@ def torus_knot(n_faces: int):
 
 def meshes(sizes):
     """``[(label, caster)]``: the cube (12 triangles, 18 edges) and torus knots of the given sizes."""
-    from ..geometry.mesh import load_occluder
-
     out = [("cube", load_occluder("box:0.1,0.1,0.1"))]
     return out + [(f"knot {n}", torus_knot(n)) for n in sizes]
 
 
 def lights(caster, n, seed=7):
     """``n`` lights around the caster: alternately point lights at 2-8 x its half-size and directions."""
-    from ..geometry.silhouette import as_light_h
-
     rng = np.random.default_rng(seed)
     c = caster.bounds.mean(axis=0)
     r = 0.5 * caster.scale
@@ -61,12 +64,10 @@ def _edge_set(e):
 
 def detectors(cfg: dict, log) -> list[dict]:
     """Time per light and error of every detector at every mesh size."""
-    from ..geometry.silhouette import METHODS, silhouette
-
     rows = []
     for label, c in meshes(cfg["sizes"]):
         t0 = time.perf_counter()
-        c.face_planes, c.edges, c.closed_edge_faces, c.polygons  # one-time preparation (cached)
+        _ = c.face_planes, c.edges, c.closed_edge_faces, c.polygons  # one-time preparation (cached)
         prep = (time.perf_counter() - t0) * 1e3
         Ls = lights(c, cfg["lights"])
         exact = [_edge_set(silhouette(c, L).edges) for L in Ls]
@@ -92,9 +93,6 @@ def detectors(cfg: dict, log) -> list[dict]:
 def reference_ops(cfg: dict, log) -> list[dict]:
     """Reference versions on small meshes: counted operations, time, same edges as the fast detectors,
     next to the paper's formula at the same n (faces) and m (3 sides, triangles)."""
-    from ..geometry.silhouette import silhouette
-    from ..geometry.silhouette_reference import (delta_plus_reference, paper000_formulas, ta_reference, vnv_reference)
-
     rows = []
     for label, c in meshes(cfg["ref_sizes"]):
         L = lights(c, 1, seed=3)[0]
@@ -130,8 +128,6 @@ def reference_ops(cfg: dict, log) -> list[dict]:
 def paper_tables() -> list[dict]:
     """Paper 000 Figs. 5-6 (formulas of sec. VI at n = 10, m = 5 and n = 100, m = 10), the 2 M-face ratio
     claim, and paper 003 Table II - all computed from the papers' own formulas (labelled as such)."""
-    from ..geometry.silhouette_reference import paper000_formulas, paper003_claim
-
     rows = []
     for n, m in ((10, 5), (100, 10), (2_000_000, 3)):
         f = paper000_formulas(n, m)
@@ -148,9 +144,6 @@ def paper_tables() -> list[dict]:
 def hsd_vs_ta(cfg: dict) -> list[dict]:
     """HSD's edge operations and time against TA on flat-faced and curved meshes (paper 000's claim that
     HSD does fewer operations and is faster)."""
-    from ..geometry.mesh import load_occluder
-    from ..geometry.silhouette import silhouette
-
     rows = []
     for label, c in (("box", load_occluder("box:0.1,0.1,0.1")),
                      ("house", load_occluder(ROOT / "samples" / "meshes" / "house.obj")),

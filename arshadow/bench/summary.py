@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 
 from .common import machine_label
+from .render import NO_BIAS, THIN_CARD, equal_time, pareto
 
 
 def _f(x, nd=2):
@@ -120,8 +121,6 @@ def silhouettes(res, plots) -> list[str]:
 
 
 def render(rows, plots) -> list[str]:
-    from .render import equal_time, pareto
-
     L = ["## 2. Render quality vs time", "",
          "Each point: render time of the scene's ROI (median [IQR] ms) and the error of its mask against the "
          "exact shadow (`arshadow.geometry.exact`: triangles projected from the light onto z = 0, pixel centres tested "
@@ -175,8 +174,6 @@ def thin_card(rows) -> list[str]:
     """Does the thin card's shadow-map shadow vanish at >= 4096 texels (issue 11, quoting pyrender)? The
     answer from this run's rows: per thin-card scene, the share of the exact shadow kept and the IoU by map
     size, and the map's texel against the card's 1 mm thickness."""
-    from .render import NO_BIAS, THIN_CARD
-
     scenes = [s for s in dict.fromkeys(r["scene"] for r in rows) if s.startswith("thin card")]
     if not scenes:
         return []
@@ -291,8 +288,6 @@ def headline(results: dict) -> str:
             rows.append([f"Delta+ as written (paper 003), {_f(r['vertices'])} vertices",
                          f"{_f(r['counted_ops'])} ray-face tests", f"paper: n log2 n = {_f(r['paper_n_log2_n'], 0)}"])
     if "render" in results:
-        from .render import equal_time
-
         for e in equal_time(results["render"]):
             if e["scene"].startswith("thin card"):
                 continue

@@ -31,6 +31,16 @@ from pathlib import Path
 
 import numpy as np
 
+from ..camera import Intrinsics
+from ..errors import MarkerNotFoundError
+from ..scene import scene_from_dict
+from ..session import Session
+from ..synth import random_pose, render_marker_photo
+from ..tracking.board import load_board
+from ..tracking.detect import REFINE_METHODS
+from ..tracking.dictionary import marker_object_points
+from ..tracking.tracker import MarkerTracker
+from ..transforms import rotation_error_deg
 from .common import ROOT
 
 DIST = np.array([-0.045, 0.021, 0.0004, -0.0003, -0.006])
@@ -38,17 +48,12 @@ DIST = np.array([-0.045, 0.021, 0.0004, -0.0003, -0.006])
 
 def camera(w, h):
     """A camera with the horizontal field of view of calib/synth_1280x720.yml (f = 0.78 W)."""
-    from ..camera import Intrinsics
-
     f = 1000.0 * w / 1280.0
     return Intrinsics(f, f, w / 2.0 + 1.3 * w / 1280, h / 2.0 - 1.8 * w / 1280, w, h, DIST)
 
 
 def make_photos(cam, n: int, seed: int):
     """``n`` single-marker photos under the issue-2 conditions."""
-    from ..synth import random_pose, render_marker_photo
-    from ..tracking.dictionary import marker_object_points
-
     rng = np.random.default_rng(seed)
     photos = []
     for i in range(n):
@@ -62,8 +67,6 @@ def make_photos(cam, n: int, seed: int):
 
 
 def _errors(pose, truth, distance):
-    from ..transforms import rotation_error_deg
-
     return (rotation_error_deg(pose.cam_from_world[:3, :3], truth[:3, :3]),
             float(np.linalg.norm(pose.cam_from_world[:3, 3] - truth[:3, 3]) / distance))
 
@@ -71,9 +74,6 @@ def _errors(pose, truth, distance):
 def session(cam, *, marker_length=None, marker_id=None, board=None, **options):
     """An :class:`arshadow.Session` that tracks ``cam``'s photos (scene keys ``options``: ``refine``,
     ``fast_detect``, ``track_roi``...; the model and light are placeholders: tracking draws nothing)."""
-    from ..scene import scene_from_dict
-    from ..session import Session
-
     d = {"calib": cam, "model": "box:0.02,0.02,0.02", "lights": ["point:0,0,1"], **options}
     d.update({"board": str(board)} if board is not None else {"marker_length": marker_length, "marker_id": marker_id})
     return Session(scene_from_dict(d))
@@ -84,8 +84,6 @@ def run_configs(photos, configs: dict, repeat: int) -> list[dict]:
     ``make(photo) -> (tracker, image)``, the tracker an :class:`arshadow.Session` (``track``) or a
     :class:`arshadow.tracking.tracker.MarkerTracker` (``estimate``). One row per configuration: time median /
     IQR over photos, rotation error (deg) median / p95, translation error (% of distance) median, detections."""
-    from ..errors import MarkerNotFoundError
-
     acc = {c: dict(times=[], rot=[], trans=[], found=0) for c in configs}
     for ph in photos:
         jobs, poses, opened = {}, {}, []
@@ -126,9 +124,6 @@ def run_configs(photos, configs: dict, repeat: int) -> list[dict]:
 
 
 def refinement_and_roi(cfg, log) -> list[dict]:
-    from ..tracking.detect import REFINE_METHODS
-    from ..tracking.tracker import MarkerTracker
-
     rows = []
     for w, h in cfg["track_resolutions"]:
         cam = camera(w, h)
@@ -149,9 +144,6 @@ def refinement_and_roi(cfg, log) -> list[dict]:
 
 def marker_vs_board(cfg, log) -> list[dict]:
     """A 5 cm single marker against the 5 x 7 grid board at the same camera poses (1280x720)."""
-    from ..synth import random_pose, render_marker_photo
-    from ..tracking.board import load_board
-
     board_file = ROOT / "calib" / "gridboard_5x7.yml"
     board = load_board(board_file)
     cam = camera(1280, 720)

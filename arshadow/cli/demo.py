@@ -22,7 +22,7 @@ def register(subparsers) -> None:
                     "contact_sheet.png into DIR.")
     p.add_argument("-o", "--output", default="demo_out", metavar="DIR", help="output folder (default demo_out)")
     p.add_argument("--samples", metavar="DIR",
-                   help="samples folder with scenes.json (default: the repository's samples/)")
+                   help="samples folder with scenes.json (default: the bundled samples)")
     p.add_argument("--aa", type=int, default=DEFAULT_AA, metavar="N",
                    help=f"multisample anti-aliasing samples, 0, 2 or 4 (default {DEFAULT_AA}, as arshadow render: "
                         "pixel-centre sampling; --aa 4 for smoother edges, ~5x the render time on a CPU)")
@@ -32,11 +32,12 @@ def register(subparsers) -> None:
 
 
 def find_samples(explicit=None) -> Path:
-    """The samples folder: ``explicit``, else the repository's ``samples/`` (beside the package), else
-    ``./samples``."""
+    """The samples folder: ``explicit``, else the bundled ``samples/`` (the repository's in a checkout, the
+    installed copy otherwise: :func:`arshadow.resources.samples_dir`), else ``./samples``."""
     from ..errors import UsageError
+    from ..resources import samples_dir
 
-    cands = [Path(explicit)] if explicit else [Path(__file__).resolve().parents[2] / "samples", Path("samples")]
+    cands = [Path(explicit)] if explicit else [samples_dir(), Path("samples")]
     for c in cands:
         if (c / "scenes.json").is_file():
             return c
@@ -61,6 +62,7 @@ def scene_spec(sc: dict, root: Path, aa: int):
 
 def run(args) -> int:
     from ..errors import ArshadowError
+    from ..estimate.demo import light_demo
     from ..gl.context import create_context
     from ..gl.stencil import ShadowRenderer
     from ..io import read_image, write_image, write_json
@@ -109,6 +111,14 @@ def run(args) -> int:
                 first = samples / scenes[0]["photo"]
                 if first.is_file():
                     panels.append(_panel(read_image(first), f"input photo: {first.name} (before)"))
+            try:  # the measured-look item (issue 17): extra outputs, the rest is unchanged
+                lines = light_demo(samples, outdir, context=ctx, renderer=renderer, aa=args.aa)
+            except ArshadowError as exc:
+                failed += 1
+                lines = []
+                print(f"arshadow demo: error: measured light: {exc}", file=sys.stderr)
+            for line in [] if args.quiet else lines:
+                print(line)
     finally:
         ctx.release()
     if panels:

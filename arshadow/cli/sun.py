@@ -11,6 +11,7 @@ import argparse
 import json
 import math
 import sys
+from datetime import UTC
 
 DESCRIPTION = """\
 Sun position for an instant and a place (NREL SPA by default; paper 004's formula with --sun-model paper).
@@ -60,7 +61,6 @@ def _round(v, nd=9):
 
 def compute(args) -> dict:
     """The JSON object of ``arshadow sun`` for parsed ``args`` (LightError on bad input)."""
-    from datetime import timezone
 
     from ..lights.spec import parse_time
     from ..lights.sun import enu_to_world, pole_shadow, sun_light_direction, sun_position
@@ -75,7 +75,7 @@ def compute(args) -> dict:
     shadow = pole_shadow(world, 1.0, args.north) if above else None
     return {
         "time": when.isoformat(),
-        "time_utc": pos.when.astimezone(timezone.utc).isoformat(),
+        "time_utc": pos.when.astimezone(UTC).isoformat(),
         "lat": pos.latitude,
         "lon": pos.longitude,
         "elevation_m": pos.elevation,

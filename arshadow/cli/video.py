@@ -5,10 +5,9 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-import time
 from pathlib import Path
 
-from . import EXIT_OK, EXIT_SOME_FAILED, error_line
+from . import EXIT_OK, EXIT_SOME_FAILED
 
 EPILOG = """\
 examples:

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import re
 
+import cv2
 import numpy as np
 
 from .._check import check_finite, check_shape
@@ -74,8 +75,6 @@ LINEAR_TO_SRGB16.flags.writeable = False
 
 def srgb8_to_linear(img: np.ndarray) -> np.ndarray:
     """``(..., C) uint8`` sRGB -> same-shape float32 linear in [0, 1] (table lookup)."""
-    import cv2
-
     img = np.asarray(img)
     if img.dtype != np.uint8:
         raise ShapeError(f"srgb8_to_linear needs uint8, got {img.dtype}")
@@ -234,8 +233,6 @@ def composite(
             raise ShapeError(f"{name} does not match the roi", actual_shape=arr.shape[:2], expected_shape=(h, w))
     if (color is None) != (alpha is None):
         raise UsageError("color and alpha go together")
-
-    import cv2
 
     ws = work if work is not None else Workspace()
     region = out[y0 : y0 + h, x0 : x0 + w]

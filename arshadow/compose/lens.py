@@ -22,9 +22,11 @@ from __future__ import annotations
 import math
 from functools import cached_property
 
+import cv2
 import numpy as np
 
 from ..errors import CalibrationError
+from .composite import Workspace
 
 __all__ = ["LensWarp", "undistort_map"]
 
@@ -279,15 +281,11 @@ class LensWarp:
         list of (h, w[, c]) float32
             One per input; 0 where the ROI looks outside the canvas.
         """
-        import cv2
-
         x0, y0, w, h = roi
         u0, v0 = canvas[0], canvas[1]
         self.ensure(roi)
         mx, my = self._mx, self._my
         if work is None:
-            from .composite import Workspace
-
             work = Workspace()
         map_x = work.get("lens_mx", (h, w), np.float32)
         map_y = work.get("lens_my", (h, w), np.float32)

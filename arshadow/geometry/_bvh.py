@@ -118,14 +118,14 @@ def any_hit(caster, origins, dirs, tmin, face_mask) -> tuple[np.ndarray, dict]:
         f = faces[pr, slot]
         rr = ray[pr]
         counts["triangle_tests"] += int(f.size)
-        hh = _moller_trumbore(o[rr], d[rr], t0[rr], tri[f, 0], e1_all[f], e2_all[f])
+        hh = moller_trumbore(o[rr], d[rr], t0[rr], tri[f, 0], e1_all[f], e2_all[f])
         hit_local = np.zeros(o.shape[0], bool)
         hit_local[rr[hh]] = True
         hit[sl] = hit_local
     return hit, counts
 
 
-def _moller_trumbore(o, d, t0, v0, e1, e2) -> np.ndarray:
+def moller_trumbore(o, d, t0, v0, e1, e2) -> np.ndarray:
     p = np.cross(d, e2)
     det = np.einsum("ij,ij->i", e1, p)
     ok = det != 0.0

@@ -10,6 +10,7 @@ at pixel centres; nothing here uses silhouettes, volumes or GL.
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
 __all__ = ["ShadowOracle", "boundary_error_px", "ground_points", "ground_shadow_triangles", "iou",
@@ -210,7 +211,7 @@ class ShadowOracle:
         ground = hit & ~occ & in_ground_square(g, self.ground_size)
         mask = np.zeros(len(g))
         idx = np.flatnonzero(ground)
-        for (h, w), tris in zip(self.lights, self.shadow_tris):
+        for (_h, w), tris in zip(self.lights, self.shadow_tris):
             inside = points_in_triangles(g[idx], tris)
             mask[idx[inside]] += w / self.total
         return mask, ground, occ
@@ -231,8 +232,6 @@ def boundary_error_px(mask, exact) -> dict:
     Returns ``{"mean": ..., "p95": ..., "max": ...}`` over both directions (0.0 when both are empty,
     ``inf`` when only one has a boundary).
     """
-    import cv2
-
     def boundary(m):
         m = np.asarray(m, np.uint8)
         k = np.ones((3, 3), np.uint8)

@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import LightError, UsageError
+from ._bvh import any_hit, moller_trumbore
 from .mesh import ShadowCaster, plane_side
 
 __all__ = ["Silhouette", "silhouette", "METHODS", "as_light_h", "silhouette_loops"]
@@ -234,8 +235,6 @@ def _hsd(caster: ShadowCaster, h: np.ndarray, **_):
 
 
 def _delta_plus(caster: ShadowCaster, h: np.ndarray, eps: float = 1e-6, **_):
-    from ._bvh import _moller_trumbore, any_hit
-
     facing = caster.facing(h)
     ef = caster.edge_faces
     edges = caster.edges
@@ -287,7 +286,7 @@ def _delta_plus(caster: ShadowCaster, h: np.ndarray, eps: float = 1e-6, **_):
     hit = np.zeros(len(cand), bool)
     if ok_other.any():
         t = caster.triangles[other[ok_other]]
-        hit[ok_other] = _moller_trumbore(origins[ok_other], dirs[ok_other], tmin[ok_other],
+        hit[ok_other] = moller_trumbore(origins[ok_other], dirs[ok_other], tmin[ok_other],
                                          t[:, 0], t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
     rest = np.flatnonzero(~hit)
     hit_rest, bstats = any_hit(caster, origins[rest], dirs[rest], tmin[rest], vis_faces)

@@ -31,7 +31,7 @@ import math
 
 import numpy as np
 
-from ._bvh import _moller_trumbore
+from ._bvh import moller_trumbore
 from .mesh import plane_side
 
 __all__ = ["ta_reference", "vnv_reference", "delta_plus_reference", "paper000_formulas", "paper003_claim",
@@ -173,7 +173,7 @@ def delta_plus_reference(vertices, faces, light_h, eps: float = 1e-6, planes=Non
         else:
             o, d, t0 = pushed, direction, -np.inf
         n = len(vis)
-        hits = _moller_trumbore(np.broadcast_to(o, (n, 3)), np.broadcast_to(d, (n, 3)), np.full(n, t0), v0, e1, e2)
+        hits = moller_trumbore(np.broadcast_to(o, (n, 3)), np.broadcast_to(d, (n, 3)), np.full(n, t0), v0, e1, e2)
         first = int(np.argmax(hits)) if hits.any() else -1
         tests += (first + 1) if first >= 0 else n
         if first < 0:

@@ -179,7 +179,7 @@ class CalibrationResult:
         """Write the calibration (OpenCV keys) with RMS, per-view errors, views, extrinsics."""
         return self.intrinsics.to_file(
             path,
-            calibration_time=_dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+            calibration_time=_dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
             nframes=len(self.views),
             pattern=self.pattern.spec,
             flags=int(self.flags),

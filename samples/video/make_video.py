@@ -18,7 +18,6 @@ Try it::
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 

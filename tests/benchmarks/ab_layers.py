@@ -26,7 +26,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))  # run from a checkout: this tree's arshadow
 
-import _common
+import _common  # noqa: E402 (after the sys.path line: this tree's arshadow)
 
 
 def main(argv=None) -> int:

@@ -26,7 +26,7 @@ sys.path.insert(0, str(ROOT))
 
 import _common  # noqa: E402
 from arshadow.geometry.mesh import ShadowCaster, load_occluder  # noqa: E402
-from arshadow.geometry.silhouette import METHODS, as_light_h, silhouette  # noqa: E402
+from arshadow.geometry.silhouette import METHODS, silhouette  # noqa: E402
 from arshadow.geometry.volume import shadow_volume  # noqa: E402
 
 
@@ -56,9 +56,9 @@ def bench_size(n_faces: int, n_lights: int, repeat: int, methods=METHODS, volume
     t0 = time.perf_counter()
     c = ShadowCaster(v, f)
     t1 = time.perf_counter()
-    c.face_planes, c.edges, c.closed_edge_faces, c._facing_prep  # adjacency detector's preparation
+    _ = c.face_planes, c.edges, c.closed_edge_faces, c._facing_prep  # adjacency detector's preparation
     t2 = time.perf_counter()
-    c.polygons  # HSD
+    _ = c.polygons  # HSD
     t3 = time.perf_counter()
     from arshadow.geometry._bvh import _tree
 

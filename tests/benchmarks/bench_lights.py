@@ -57,7 +57,8 @@ def penumbra_quality(ctx, ns) -> dict:
 
     from arshadow.camera import Intrinsics
     from arshadow.gl.stencil import ShadowRenderer
-    from arshadow.lights.spec import Light, parse_light, sample_area_light
+    from arshadow.lights.area import sample_area_light
+    from arshadow.lights.spec import Light, parse_light
     from arshadow.geometry.mesh import load_occluder
     from arshadow.transforms import CV_TO_GL
 

@@ -82,7 +82,7 @@ def main(argv=None):
     out = {"meta": {**_common.metadata(ctx), "faces": int(caster.n_faces), "image": [W, H], "repeat": args.repeat}}
     # geometry (context)
     tg = []
-    for i in range(args.repeat + 3):
+    for _ in range(args.repeat + 3):
         t0 = time.perf_counter()
         sil = silhouette(caster, L)
         vol = shadow_volume(caster, L, sil, caps=False)
@@ -99,7 +99,7 @@ def main(argv=None):
         u0, v0, w, h = canvas
         P = K.gl_projection(ZNEAR, None, canvas=canvas)
         recs = []
-        for i in range(n + 3):
+        for _ in range(n + 3):
             res = r.render(projection=P, view=view, width=w, height=h, caster=caster, passes=ps or passes)
             recs.append(res.timings_ms)
         recs = recs[3:]

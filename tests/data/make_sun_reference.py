@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import json
 import sys
-from datetime import datetime, timedelta, timezone
+from datetime import datetime, timedelta, timezone, UTC
 from pathlib import Path
 
 import numpy as np
@@ -36,7 +36,7 @@ OUT = Path(__file__).with_name("sun_reference.json")
 def _row(t_local: datetime, lat, lon, elev, tag, rng):
     pressure = float(np.round(1013.25 * (1 - 2.25577e-5 * elev) ** 5.25588 + rng.normal(0, 5), 2))
     temp = float(np.round(rng.uniform(-20, 35), 1))
-    t_utc = pd.Timestamp(t_local.astimezone(timezone.utc))
+    t_utc = pd.Timestamp(t_local.astimezone(UTC))
     delta_t = float(np.round(pvlib.spa.calculate_deltat(t_utc.year, t_utc.month), 3))
     df = pvlib.solarposition.spa_python(
         pd.DatetimeIndex([t_utc]), lat, lon, altitude=elev, pressure=pressure * 100.0, temperature=temp,
@@ -87,7 +87,7 @@ def main() -> int:
                                  (78.2, 12, 1, "polar night"), (-78.2, 6, 1, "polar night")):
         lon = float(np.round(rng.uniform(-180, 180), 4))
         for hour in range(0, 24, 2):
-            t = datetime(2022, month, day, hour, 0, 0, tzinfo=timezone.utc)
+            t = datetime(2022, month, day, hour, 0, 0, tzinfo=UTC)
             rows.append(_row(t, lat, lon, 0.0, tag, rng))
     # random instants, places, elevations and offsets
     for _ in range(150):
@@ -95,7 +95,7 @@ def main() -> int:
         lon = float(np.round(rng.uniform(-180, 180), 5))
         elev = float(np.round(rng.choice([0.0, rng.uniform(0, 4000)]), 2))
         off = timezone(timedelta(minutes=int(rng.integers(-12 * 4, 14 * 4)) * 15))
-        t = datetime(1950, 1, 1, tzinfo=timezone.utc) + timedelta(seconds=float(rng.uniform(0, 100 * 365.25 * 86400)))
+        t = datetime(1950, 1, 1, tzinfo=UTC) + timedelta(seconds=float(rng.uniform(0, 100 * 365.25 * 86400)))
         t = t.replace(microsecond=0).astimezone(off)
         rows.append(_row(t, lat, lon, elev, "random", rng))
 
