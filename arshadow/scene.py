@@ -307,7 +307,9 @@ class SceneSpec:
         from .tracking.tracker import MarkerTracker
 
         tracker = self.tracker.kwargs()
-        MarkerTracker(intr, **tracker)  # a dictionary conflicting with the board, a bad id: a usage error
+        board = MarkerTracker(intr, **tracker).board  # a dictionary conflicting with the board: a usage error
+        for msg in board.unit_warnings() if board is not None else []:  # a board file in millimetres
+            log.warning(msg)
         caster = self.model.build()
         for msg in ground_warnings(self.options.ground):
             log.warning(msg)
