@@ -39,6 +39,7 @@ from .errors import (  # noqa: E402
 
 if TYPE_CHECKING:  # the lazily loaded names, for type checkers (py.typed)
     from . import synth
+    from .estimate import LightEstimate, estimate_light
     from .plan import FramePlan, plan_frame
     from .scene import ModelSpec, RenderOptions, SceneSpec, TrackerSpec, load_scene, scene_from_dict
     from .session import FrameResult, Session, render_photo
@@ -84,6 +85,8 @@ __all__ = [
     "load_scene",
     "FramePlan",
     "plan_frame",
+    "estimate_light",
+    "LightEstimate",
     "synth",
     "ArshadowError",
     "CalibrationError",

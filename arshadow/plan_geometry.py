@@ -223,7 +223,7 @@ class SceneGeometry:
         LightError
             No light.
         """
-        from .lights.spec import sample_area_light
+        from .lights.area import sample_area_light
 
         lights = list(lights)
         if not lights:

@@ -7,6 +7,7 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -16,7 +17,7 @@ from .exposure import Exposure
 __all__ = ["DEFAULT_OBJECT_COLOR", "LightEstimate", "load_estimate", "scene_overrides", "shading_gain"]
 
 
-def _r(v, nd=6):
+def _r(v: Any, nd: int = 6) -> Any:
     if v is None:
         return None
     if isinstance(v, (list, tuple, np.ndarray)):
@@ -84,7 +85,7 @@ class LightEstimate:
                 "frames": int(self.frames), "confident": self.confident, "fit": self.fit,
                 "warnings": list(self.warnings)}
 
-    def to_json(self, indent=1) -> str:
+    def to_json(self, indent: int | None = 1) -> str:
         return json.dumps(self.to_dict(), indent=indent)
 
     @classmethod
@@ -114,7 +115,7 @@ class LightEstimate:
         return cls.from_dict(d)
 
 
-def load_estimate(path) -> LightEstimate:
+def load_estimate(path: str | Path) -> LightEstimate:
     """Read a light estimate written by ``arshadow light --json`` (UsageError naming the file otherwise)."""
     p = Path(path)
     try:
@@ -155,7 +156,7 @@ def _encode_unclipped(x: np.ndarray) -> np.ndarray:
 DEFAULT_OBJECT_COLOR = (0.8, 0.8, 0.8)
 
 
-def scene_overrides(est: LightEstimate, color=None, exposure: bool = True) -> dict:
+def scene_overrides(est: LightEstimate, color: Any = None, exposure: bool = True) -> dict:
     """What an estimate changes in a scene (``--light-from``).
 
     Parameters
