@@ -163,14 +163,22 @@ def undistort_normalized(xy_d, dist, *, tol=1e-12, max_iter=50) -> np.ndarray:
         tx, ty = (m[0, 0] * tx + m[0, 1] * ty + m[0, 2]) / w, (m[1, 0] * tx + m[1, 1] * ty + m[1, 2]) / w
     if not np.any(d[:12]):
         return np.stack([tx, ty], axis=1)
-    x, y = tx.copy(), ty.copy()
+    x, y, done, it = _newton_whole(tx.copy(), ty.copy(), tx, ty, d, tol, min(max_iter, 12))
+    _newton_stragglers(x, y, tx, ty, d, done, tol, max_iter - it)
+    out = np.stack([x, y], axis=1)
+    out[~done] = np.nan
+    return out
+
+
+def _newton_whole(x, y, tx, ty, d, tol, iters):
+    """Phase 1 of :func:`undistort_normalized`: whole-array Newton with per-point backtracking (no fancy
+    indexing: fast for image maps). Returns ``(x, y, done, it)``, ``it`` the index of the last iteration."""
     n = x.size
     done = np.zeros(n, dtype=bool)
-    # phase 1: whole-array Newton with per-point backtracking (no fancy indexing: fast for image maps)
     px, py = x.copy(), y.copy()  # last accepted iterate
     prev = np.full(n, np.inf)
     it = 0
-    for it in range(min(max_iter, 12)):  # noqa: B007 - `it` counts the iterations spent, used below
+    for it in range(iters):  # noqa: B007 - `it` counts the iterations spent, used below
         xd, yd, j00, j01, j10, j11 = _distort_core_jac(x, y, d)
         ex, ey = xd - tx, yd - ty
         res = np.hypot(ex, ey)
@@ -190,9 +198,14 @@ def undistort_normalized(xy_d, dist, *, tol=1e-12, max_iter=50) -> np.ndarray:
             y = np.where(worse, py, y)
         px, py, prev = x, y, res
         x, y = np.where(done, x, nx), np.where(done, y, ny)
-    # phase 2: the few stragglers, by index (points beyond the model's fold end as NaN)
+    return x, y, done, it
+
+
+def _newton_stragglers(x, y, tx, ty, d, done, tol, iters) -> None:
+    """Phase 2 of :func:`undistort_normalized`: the few points not ``done``, by index, with a damped step;
+    updates ``x``, ``y`` and ``done`` in place (points beyond the model's fold stay not done)."""
     active = np.flatnonzero(~done)
-    for _ in range(max_iter - it):
+    for _ in range(iters):
         if active.size == 0:
             break
         xa, ya = x[active], y[active]
@@ -220,6 +233,3 @@ def undistort_normalized(xy_d, dist, *, tol=1e-12, max_iter=50) -> np.ndarray:
             step = np.where(worse, step * 0.5, step)
             nx, ny = xa - step * sx, ya - step * sy
         x[active], y[active] = nx, ny
-    out = np.stack([x, y], axis=1)
-    out[~done] = np.nan
-    return out

@@ -192,7 +192,7 @@ def _compose_gpu(plan, image, intr, geometry, renderer, lens, work, passes, out,
     lay = renderer.render_gpu(projection=proj, view=CV_TO_GL @ plan.cam_from_world, width=int(canvas[2]),
                               height=int(canvas[3]), caster=geometry.caster, passes=passes,
                               ground_size=opts.ground_size, draw_occluder=opts.draw_occluder,
-                              occluder_color=opts.occluder_color)
+                              occluder_color=opts.occluder_color, ambient=opts.ambient, specular=opts.specular)
     timings.render += (time.perf_counter() - t) * 1e3
     ct: dict = {}
     t = time.perf_counter()
@@ -216,7 +216,8 @@ def _compose_cpu(plan, image, intr, geometry, renderer, lens, work, passes, out,
     t = time.perf_counter()
     res = renderer.render(projection=proj, view=view, width=int(canvas[2]), height=int(canvas[3]),
                           caster=geometry.caster, passes=passes, ground_size=opts.ground_size,
-                          draw_occluder=opts.draw_occluder, occluder_color=opts.occluder_color)
+                          draw_occluder=opts.draw_occluder, occluder_color=opts.occluder_color,
+                          ambient=opts.ambient, specular=opts.specular)
     dt = (time.perf_counter() - t) * 1e3
     rt = getattr(res, "timings_ms", None) or {}
     if "readback" in rt:

@@ -64,7 +64,7 @@ class StageTimings:
 OPTIONAL_KEYS = ("calibration_scaled", "notes", "detector", "frame", "time_s", "sun", "pose_flagged",
                  "flag_reasons",
                  "opencv_board_rvec", "opencv_board_tvec", "n_points", "kind", "raw", "pose_choice", "modes", "roi",
-                 "canvas", "znear", "plan", "content", "composited", "compose", "title", "layers")
+                 "canvas", "znear", "plan", "content", "composited", "compose", "title", "layers", "ground")
 
 
 @dataclass
@@ -83,7 +83,9 @@ class ReportItem:
     - video frames: ``frame``, ``time_s``, ``sun``, ``raw`` (the tracked pose before smoothing),
       ``pose_choice``;
     - ``title`` (the demo's caption);
-    - ``layers`` (``{layer name: file}``: the compositing layers written, docs/export.md).
+    - ``layers`` (``{layer name: file}``: the compositing layers written, docs/export.md);
+    - ``ground``: the ground spec (``--ground``) when it is not the marker plane; ``rvec``/``tvec`` stay
+      the marker's pose.
     """
 
     input: str
@@ -124,6 +126,7 @@ class ReportItem:
     compose: str | None = None
     title: str | None = None
     layers: dict | None = None
+    ground: str | None = None
 
     def set_pose(self, pose) -> None:
         """Fill the pose keys from an :class:`arshadow.tracking.pose.MarkerPose`.
@@ -139,7 +142,7 @@ class ReportItem:
         self.reprojection_error_px = float(pose.reprojection_error_px)
         self.pose_ambiguity = None if pose.pose_ambiguity is None else float(pose.pose_ambiguity)
         # the ratio is at or above the tracker's threshold: the mirrored solution may be the true one
-        self.pose_flagged = bool(getattr(pose, "ambiguous", False))
+        self.pose_flagged = bool(getattr(pose, "flagged", getattr(pose, "ambiguous", False)))
         self.flag_reasons = pose_flag_reasons(pose, self.pose_flagged)  # why it is flagged ([] when it is not; arshadow.sanity)
         if getattr(pose, "kind", None) in ("gridboard", "charuco"):
             # deferred: the report module loads without OpenCV (arshadow pose / render only ever get here)

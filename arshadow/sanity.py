@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import logging
 import math
+from datetime import timedelta
 
 import numpy as np
 
@@ -31,10 +32,27 @@ from .errors import LightError, UsageError
 
 log = logging.getLogger(__name__)
 
-__all__ = ["MAX_SIZE_RATIO", "MAX_MARKER_LENGTH_M", "MIN_MARKER_LENGTH_M", "MAX_CAMERA_DISTANCE_M", "MIN_OBJECT_RATIO",
-           "SLOW_LIGHT_RATIO", "unit_guess", "scale_warnings", "ground_warnings", "light_warnings",
-           "check_lights_inside", "check_shadowmap_lights", "check_scene", "sun_set_warning", "pose_flag_reasons", "FrameChecks",
-           "calibration_scaled_note", "time_lapse_warnings", "FlagTally"]
+__all__ = [
+    "MAX_CAMERA_DISTANCE_M",
+    "MAX_MARKER_LENGTH_M",
+    "MAX_SIZE_RATIO",
+    "MIN_MARKER_LENGTH_M",
+    "MIN_OBJECT_RATIO",
+    "SLOW_LIGHT_RATIO",
+    "FlagTally",
+    "FrameChecks",
+    "calibration_scaled_note",
+    "check_lights_inside",
+    "check_scene",
+    "check_shadowmap_lights",
+    "ground_warnings",
+    "light_warnings",
+    "pose_flag_reasons",
+    "scale_warnings",
+    "sun_set_warning",
+    "time_lapse_warnings",
+    "unit_guess",
+]
 
 #: a printed marker (or board square) longer than this (metres) is taken for a unit mistake
 MAX_MARKER_LENGTH_M = 1.0
@@ -95,7 +113,7 @@ def scale_warnings(caster, marker_length=None, square_length=None) -> list[str]:
     >>> scale_warnings(None, marker_length=0.05)
     []
     """
-    out = []
+    out: list[str] = []
     what, length = ("--marker-length", marker_length) if marker_length is not None else \
         ("the board's marker length", square_length)
     if length is None:
@@ -249,8 +267,7 @@ def sun_set_warning(tracks, start, speed: float, fps: float, n_frames: int, labe
     The sun's elevation is sampled at most 2000 times over the video and each horizon crossing refined to
     its frame by bisection (positions are vectorised SPA; a few milliseconds in all).
     """
-    from datetime import timedelta
-
+    # deferred: the SPA tables load only for a time-lapse (sanity is imported on every path)
     from .lights.sun import sun_positions
 
     n = int(n_frames)
@@ -265,10 +282,12 @@ def sun_set_warning(tracks, start, speed: float, fps: float, n_frames: int, labe
                                                            **tr.kwargs)]
 
     ranges = []
+    samples = frames
     for tr in tracks:
-        flags = below(tr, frames)
+        flags = below(tr, samples)
         if not any(flags):
             continue
+        frames = list(samples)  # refined in place below, per track
         for k in range(len(frames)):  # refine each change of state between samples to its first frame
             if k and flags[k] != flags[k - 1]:
                 a, b = frames[k - 1], frames[k]
@@ -309,7 +328,11 @@ def pose_flag_reasons(pose, flagged: bool | None = None) -> list[str]:
     if not (getattr(pose, "ambiguous", False) if flagged is None else flagged):  # ``flagged``: already known
         return []
     # deferred: the thresholds live with the tracker (OpenCV); sanity itself stays light
-    from .tracking.quality import MAX_BORDER_OCCLUSION, MAX_CORNER_INSTABILITY, MIN_CONFIDENT_SIDE_PX
+    from .tracking.quality import (
+        MAX_BORDER_OCCLUSION,
+        MAX_CORNER_INSTABILITY,
+        MIN_CONFIDENT_SIDE_PX,
+    )
 
     out = []
     ratio, thr = pose.pose_ambiguity, getattr(pose, "ambiguity_threshold", None)
@@ -394,7 +417,7 @@ def time_lapse_warnings(videos, tracks, time_lapse, max_frames=None) -> dict:
     from .errors import ArshadowError
     from .video.avio import AvReader
 
-    out = {}
+    out: dict[str, str] = {}
     if not tracks or time_lapse is None:
         return out
     for v in videos:
@@ -418,20 +441,16 @@ def time_lapse_warnings(videos, tracks, time_lapse, max_frames=None) -> dict:
 def _ranges(keys) -> str:
     """``[1, 2, 3, 7]`` -> ``"1-3, 7"`` (ints), names joined as they are."""
     keys = list(keys)
-    if not all(isinstance(k, int) for k in keys):
+    if not keys or not all(isinstance(k, int) for k in keys):
         return ", ".join(map(str, keys))
-    out, start, prev = [], None, None
-    for k in sorted(keys):
-        if start is None:
-            start = prev = k
-        elif k == prev + 1:
-            prev = k
+    ks = sorted(keys)
+    runs = [[ks[0], ks[0]]]
+    for k in ks[1:]:
+        if k == runs[-1][1] + 1:
+            runs[-1][1] = k
         else:
-            out.append(f"{start}-{prev}" if prev > start else f"{start}")
-            start = prev = k
-    if start is not None:
-        out.append(f"{start}-{prev}" if prev > start else f"{start}")
-    return ", ".join(out)
+            runs.append([k, k])
+    return ", ".join(f"{a}-{b}" if b > a else f"{a}" for a, b in runs)
 
 
 class FlagTally:

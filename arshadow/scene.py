@@ -46,6 +46,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from .errors import UsageError
+from .geometry.ground import ground_warnings, parse_ground
 
 if TYPE_CHECKING:  # annotations only (the session imports this module; these load on build)
     from .geometry.mesh import ShadowCaster
@@ -90,6 +91,10 @@ class RenderOptions:
         MSAA samples of the renderer (0 = none).
     ground_size : float or None
         Side of the square proxy ground plane centred on the origin (None: unlimited).
+    ground : str
+        Where the ground plane is, relative to the marker (:func:`arshadow.geometry.ground.parse_ground`):
+        ``marker`` (the marker plane, the default), ``wall:H`` or ``plane:PX,PY,PZ,NX,NY,NZ``. The model
+        and the lights are placed in its frame.
     draw_occluder : bool
         Draw the shaded object over the shadow.
     truncate : bool
@@ -98,6 +103,9 @@ class RenderOptions:
         Render only the region the object and its shadow can cover (False: always the whole photo).
     occluder_color : (3,) float, optional
         Override of the occluder's colour handed to the renderer.
+    ambient, specular : float
+        The object's ambient term and specular weight (the renderer's shading; ``light_from`` sets them from
+        the measured light: the measured ambient share, a matte object like the paper).
     fast_detect : bool
         Try the fast detection pass first (``MarkerTracker(detector="fast")``,
         :mod:`arshadow.tracking.fastdetect`), the full search only if it finds nothing.
@@ -124,10 +132,13 @@ class RenderOptions:
     soft_samples: int = 1
     aa: int = DEFAULT_AA
     ground_size: float | None = None
+    ground: str = "marker"
     draw_occluder: bool = True
     truncate: bool = True
     roi: bool = True
     occluder_color: tuple | None = None
+    ambient: float = 0.25
+    specular: float = 0.25
     fast_detect: bool = True
     plan: str = "auto"
     plan_off: tuple = ()
@@ -158,6 +169,7 @@ class RenderOptions:
                              "samples; 0 = off)")
         if self.ground_size is not None and not (math.isfinite(self.ground_size) and self.ground_size > 0):
             raise UsageError(f"--ground-size {self.ground_size}: must be a positive number of metres")
+        parse_ground(self.ground)
         return self
 
 
@@ -289,6 +301,8 @@ class SceneSpec:
         tracker = self.tracker.kwargs()
         MarkerTracker(intr, **tracker)  # a dictionary conflicting with the board, a bad id: a usage error
         caster = self.model.build()
+        for msg in ground_warnings(self.options.ground):
+            log.warning(msg)
         if lights is None:
             lights = [parse_light(s) if isinstance(s, str) else s for s in self.lights]
         opts = self.options.check()
@@ -335,7 +349,7 @@ def _check_silhouette_name(name: str) -> None:
 SCENE_KEYS = ("calib", "marker_length", "board", "dictionary", "marker_id", "refine", "inverted", "model", "scale", "rotate",
               "place", "color", "up", "drop_to_ground", "lights", "soft_samples", "silhouette", "shadow_method", "opacity",
               "shadow_color", "aa", "ground_size", "no_object", "roi", "truncate", "fast_detect", "plan", "compose",
-              "shadowmap_size", "track_roi", "light_from")
+              "shadowmap_size", "track_roi", "light_from", "ground")
 
 
 def _triple(v: Any, key: str) -> tuple[float, ...]:
@@ -405,6 +419,7 @@ def _apply_estimate(d: dict, base_dir: str | Path | None) -> dict:
         d["_shadow_color_linear"] = o["shadow_color"]
     if "occluder_color" in o:
         d["_occluder_color"] = o["occluder_color"]
+    d["_shading"] = (o["ambient"], o["specular"])
     return d
 
 
@@ -440,7 +455,7 @@ def scene_from_dict(d: Mapping[str, Any], base_dir: str | Path | None = None) ->
         if "lights" in d:
             raise UsageError("give either 'light' or 'lights', not both")
         d["lights"] = d.pop("light")
-    unknown = sorted(set(d) - set(SCENE_KEYS) - {"_shadow_color_linear", "_occluder_color"})
+    unknown = sorted(set(d) - set(SCENE_KEYS) - {"_shadow_color_linear", "_occluder_color", "_shading"})
     if unknown:
         raise UsageError(f"unknown scene key(s) {', '.join(map(repr, unknown))} (known: {', '.join(SCENE_KEYS)})")
     if d.get("light_from") is not None:  # a measured light (arshadow light -o FILE): docs/light.md
@@ -487,12 +502,16 @@ def scene_from_dict(d: Mapping[str, Any], base_dir: str | Path | None = None) ->
                       ("fast_detect", bool), ("plan", str), ("compose", str), ("track_roi", bool)):
         if d.get(key) is not None:
             opts[key] = _value(d, key, conv)
+    if d.get("ground") is not None:
+        opts["ground"] = parse_ground(d["ground"]).text
     if d.get("no_object"):
         opts["draw_occluder"] = False
     if d.get("_shadow_color_linear") is not None:
         opts["shadow_color"] = d["_shadow_color_linear"]
     if d.get("_occluder_color") is not None:
         opts["occluder_color"] = d["_occluder_color"]
+    if d.get("_shading") is not None:
+        opts["ambient"], opts["specular"] = d["_shading"]
     return SceneSpec(camera=calib, tracker=tracker, model=model_spec,
                      lights=tuple(s if not isinstance(s, str) else s.strip() for s in lights),
                      options=RenderOptions(**opts))

@@ -45,6 +45,7 @@ from .compose.lens import LensWarp
 from .engine import CalibrationState, check_image, default_renderer, estimate_pose
 from .errors import UsageError
 from .execute import LAYERS_WHY, execute
+from .geometry.ground import check_camera_above, parse_ground
 from .io import read_image
 from .lights.spec import parse_light
 from .plan import FramePlan, SceneGeometry, decide_compose, plan_frame
@@ -52,7 +53,7 @@ from .render_api import Renderer
 from .report import ReportItem, StageTimings
 from .sanity import FrameChecks, calibration_scaled_note
 from .scene import Scene, SceneSpec, load_scene, scene_from_dict
-from .transforms import rvec_tvec_from_matrix
+from .transforms import invert_rigid, rvec_tvec_from_matrix
 
 __all__ = ["Session", "FrameResult", "render_photo"]
 
@@ -72,7 +73,8 @@ class FrameResult:
     pose : arshadow.tracking.pose.MarkerPose or None
         The tracked pose (None when rendering at a given ``cam_from_world``).
     cam_from_world : (4, 4) float64
-        The pose rendered.
+        The camera rendered with, in the scene's frame: the ground frame (:meth:`Session.ground_camera`;
+        the marker's pose itself unless ``--ground`` moves the ground).
     item : arshadow.report.ReportItem
         The report entry (``output``/``mask`` paths left for the caller).
     timings : arshadow.report.StageTimings
@@ -145,6 +147,9 @@ class Session:
             self.scene = spec.build(lights=lights)
         self.options = self.scene.options
         self.geometry = SceneGeometry(self.scene.caster, self.options, self.scene.lights)
+        #: the proxy ground (``options.ground``, :mod:`arshadow.geometry.ground`): the scene's world frame
+        self.ground = parse_ground(self.options.ground)
+        self._marker_from_ground = None if self.ground.is_marker else self.ground.marker_from_ground
         self._ctx, self._own_ctx = context, context is None
         shared = renderer if isinstance(renderer, Renderer) else None
         self._renderer, self._own_renderer = shared, shared is None
@@ -287,7 +292,8 @@ class Session:
         Parameters
         ----------
         pose : arshadow.tracking.pose.MarkerPose or (4, 4) float64
-            A tracked pose or ``cam_from_world``.
+            A tracked pose or ``cam_from_marker``; the plan's ``cam_from_world`` is the ground frame's
+            camera (:meth:`ground_camera`).
         width, height : int
         modes : list of str, optional
             Force the volume mode per light (tests compare z-pass and z-fail).
@@ -295,10 +301,27 @@ class Session:
         The compose path is decided when the plan is rendered (it depends on the output buffers).
         """
         cal = self.calibration(width, height)
-        cfw = np.asarray(getattr(pose, "cam_from_world", pose), np.float64).reshape(4, 4)
+        cfw = self.ground_camera(getattr(pose, "cam_from_world", pose))
         if self.options.plan == "general" or "reuse" in self.options.plan_off:
             self.geometry.forget()  # the reference rebuilds every light's geometry every frame
         return plan_frame(self.geometry, cal.intrinsics, cfw, int(width), int(height), lens=cal.lens, modes=modes)
+
+    def ground_camera(self, cam_from_marker) -> np.ndarray:
+        """``cam_from_world`` (4, 4) float64 of the frame the scene lives in, the ground frame
+        (:mod:`arshadow.geometry.ground`): ``cam_from_marker @ marker_from_ground``, the marker pose itself
+        when the ground is the marker plane.
+
+        Raises
+        ------
+        UsageError
+            The camera sees the ground plane from below or edge-on.
+        """
+        m = np.asarray(cam_from_marker, np.float64).reshape(4, 4)
+        if self._marker_from_ground is None:
+            return m
+        cam_from_ground = m @ self._marker_from_ground
+        check_camera_above(cam_from_ground, self.ground.text)
+        return cam_from_ground
 
     def render(self, image, pose=None, *, plan: FramePlan | None = None, name: str = "", want_mask: bool = True,
                out=None, mask_out=None, timings: StageTimings | None = None, modes=None,
@@ -406,9 +429,12 @@ class Session:
             item.notes = list(self.notes)
         if pose is not None:
             item.set_pose(pose)
-        else:
-            rvec, tvec = rvec_tvec_from_matrix(cfw)
+        else:  # the report carries the marker's pose: back from the ground frame
+            cfm = cfw if self._marker_from_ground is None else cfw @ invert_rigid(self._marker_from_ground)
+            rvec, tvec = rvec_tvec_from_matrix(cfm)
             item.rvec, item.tvec = rvec.tolist(), tvec.tolist()
+        if self._marker_from_ground is not None:
+            item.ground = self.ground.text
         for msg in self._checks.check(cfw):  # a far camera (wrong units), the camera inside: once per run
             log.warning(msg)
         renderer = key = None

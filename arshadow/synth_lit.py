@@ -34,10 +34,11 @@ from .compose.composite import SRGB_TO_LINEAR, linear_to_srgb
 from .errors import UsageError
 from .geometry.exact import ground_points, ground_shadow_triangles, points_in_triangles
 from .geometry.mesh import load_occluder
-from .synth import SynthPhoto, camera_effects, render_print_scene
+from .lights.spec import parse_light
+from .synth import SynthPhoto, camera_effects, look_at_pose, render_print_scene
 from .transforms import transform_points
 
-__all__ = ["LitPhoto", "render_lit_photo", "light_vector"]
+__all__ = ["LitPhoto", "light_vector", "render_lit_photo"]
 
 
 @dataclass
@@ -283,7 +284,7 @@ def random_lit_case(rng, intrinsics: Intrinsics, kind: str = "directional", *, m
                     effects: bool = True) -> dict:
     """A random case of the light estimate's test distribution (docs/light.md), with its truth.
 
-    A 5 x 5 x (8..12) cm box probe beside the marker (6..12 cm from its centre, turned at random), a light
+    A 5 x 5 x (8..12) cm box probe beside the marker's paper (8..13 cm from its centre, turned at random), a light
     at elevation 25..60 degrees (directional, a sun at one of :data:`SUN_CASES` with the world turned by
     a random NORTH, or a point light 0.35..0.8 m from the probe), ambient 0.2..0.6 of the direct light with
     a random tint, exposure 0.45..0.9, white balance gains 0.85..1.15, blur 0..1.2 px, noise 0.5..3 codes,
@@ -292,13 +293,11 @@ def random_lit_case(rng, intrinsics: Intrinsics, kind: str = "directional", *, m
     Returns ``{"photo": LitPhoto, "probe": spec, "probe_place": (3,), "probe_rotate": (3,), "kind": spec
     for estimate_light, "north_deg": float or None}``.
     """
-    from .lights.spec import parse_light  # noqa: PLC0415  (keeps the synth modules light to import)
-    from .synth import look_at_pose  # noqa: PLC0415
 
     h = float(rng.uniform(0.08, 0.12))
     probe = f"box:0.05,0.05,{h:.4f}"
     ang = rng.uniform(0, 2 * np.pi)
-    dist = rng.uniform(0.06, 0.12)
+    dist = rng.uniform(0.08, 0.13)  # beside the printed paper (half side 0.04), not on it
     place = (float(dist * np.cos(ang)), float(dist * np.sin(ang)), 0.0)
     rot = (0.0, 0.0, float(rng.uniform(0, 90)))
     north = None
@@ -337,7 +336,7 @@ def random_lit_case(rng, intrinsics: Intrinsics, kind: str = "directional", *, m
         if not (np.all(np.isfinite(uv)) and np.all(uv >= 40) and np.all(uv[:, 0] <= intrinsics.width - 41)
                 and np.all(uv[:, 1] <= intrinsics.height - 41)):
             continue
-        quad = intrinsics.project(pts[[0, 3, 1, 2]], pose).astype(np.float32)
+        quad = intrinsics.project(0.8 * pts[[0, 3, 1, 2]], pose).astype(np.float32)  # the marker, 3 mm slack
         hull = cv2.convexHull(intrinsics.project(np.asarray(box), pose).astype(np.float32))
         if cv2.intersectConvexConvex(quad, hull)[0] <= 0.0:
             break

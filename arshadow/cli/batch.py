@@ -115,6 +115,9 @@ def run(args) -> int:
         if res is not None and res["status"] != "ok":
             msg = res.get("error") or "; ".join(res.get("warnings") or []) or res["status"]
             (bar.write if bar is not None else print)(f"arshadow batch: {res['status']}: {msg}", file=sys.stderr)
+        elif res is not None and res.get("warnings"):  # done, with something to say (a flagged pose)
+            for w in res["warnings"]:
+                (bar.write if bar is not None else print)(f"arshadow batch: warning: {w}", file=sys.stderr)
 
     try:
         summary = run_batch(spec, args.inputs, outdir, opts, save_mask=bool(args.save_mask),

@@ -62,6 +62,7 @@ def scene_spec(sc: dict, root: Path, aa: int):
 
 def run(args) -> int:
     from ..errors import ArshadowError
+    from ..estimate.demo import light_demo
     from ..gl.context import create_context
     from ..gl.stencil import ShadowRenderer
     from ..io import read_image, write_image, write_json
@@ -110,6 +111,14 @@ def run(args) -> int:
                 first = samples / scenes[0]["photo"]
                 if first.is_file():
                     panels.append(_panel(read_image(first), f"input photo: {first.name} (before)"))
+            try:  # the measured-look item (issue 17): extra outputs, the rest is unchanged
+                lines = light_demo(samples, outdir, context=ctx, renderer=renderer, aa=args.aa)
+            except ArshadowError as exc:
+                failed += 1
+                lines = []
+                print(f"arshadow demo: error: measured light: {exc}", file=sys.stderr)
+            for line in [] if args.quiet else lines:
+                print(line)
     finally:
         ctx.release()
     if panels:

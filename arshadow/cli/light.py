@@ -4,6 +4,7 @@ shadow's colour and the exposure from photos of the marker and a reference objec
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 
 DESCRIPTION = """\
@@ -27,7 +28,7 @@ def _floats(n: int):
             vals = tuple(float(v) for v in text.split(","))
         except ValueError:
             raise argparse.ArgumentTypeError(f"expected {n} comma-separated numbers, got {text!r}") from None
-        if len(vals) != n or not all(v == v and abs(v) != float("inf") for v in vals):
+        if len(vals) != n or not all(math.isfinite(v) for v in vals):
             raise argparse.ArgumentTypeError(f"expected {n} finite comma-separated numbers, got {text!r}")
         return vals
 
@@ -39,7 +40,7 @@ def _positive(text: str) -> float:
         v = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (v > 0 and v != float("inf")):
+    if not (v > 0 and math.isfinite(v)):
         raise argparse.ArgumentTypeError(f"must be a positive number, got {text!r}")
     return v
 

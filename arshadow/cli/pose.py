@@ -12,7 +12,10 @@ DESCRIPTION = """\
 Detect an ArUco marker (or a grid / ChArUco board) in each IMAGE and print the pose of the marker
 (world) frame in the camera: ids, rvec, tvec (world -> camera, metres, as cv2.solvePnP gives them),
 the RMS reprojection error and the IPPE ambiguity ratio err_best/err_second (in (0, 1]; at or above
-the flag threshold the pose may be the mirrored solution: it is marked AMBIGUOUS).
+the flag threshold the pose may be the mirrored solution: it is marked AMBIGUOUS). A pose is also
+marked AMBIGUOUS when its marker is under 32 px across, its corners are blurred or its border covered, and
+FLAGGED when its reprojection error is far above what the detected corners allow; the reasons follow,
+with their numbers.
 Exit status: 0 all images done, 1 some image failed (no marker, unreadable, wrong size; the others
 are still processed), 2 bad usage or unreadable calibration / board / dictionary.
 """
@@ -108,7 +111,8 @@ def run(args) -> int:
                 print(f"{name}: ids {item.marker_ids} rvec [{', '.join(f'{v:.6f}' for v in pose.rvec)}] "
                       f"tvec [{', '.join(f'{v:.6f}' for v in pose.tvec)}] m, reprojection "
                       f"{pose.reprojection_error_px:.3f} px, ambiguity {amb}"
-                      + (" AMBIGUOUS" if pose.ambiguous else "")
+                      + (" AMBIGUOUS" if pose.ambiguous else (" FLAGGED" if pose.flagged else ""))
+                      + (f" ({'; '.join(pose.flag_reasons)})" if pose.flagged else "")
                       + (f" (calibration scaled to {image.shape[1]}x{image.shape[0]})" if pose.scaled else ""))
         except ArshadowError as exc:
             item.status = "no_marker" if isinstance(exc, MarkerNotFoundError) else "error"

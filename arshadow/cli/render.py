@@ -120,6 +120,11 @@ def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> No
                         "docs/compositing.md)")
     s.add_argument("--ground-size", type=_positive("--ground-size"), metavar="S",
                    help="side of the square shadow-catching ground plane in metres (default unlimited)")
+    s.add_argument("--ground", metavar="SPEC",
+                   help="where the ground is, relative to the marker: marker (default: the marker plane), wall:H "
+                        "(marker upright on a wall, floor H m below its centre) or plane:PX,PY,PZ,NX,NY,NZ "
+                        "(point and up normal in the marker frame); the model and lights are placed in the "
+                        "ground's frame (docs/geometry.md)")
     s.add_argument("--no-object", action="store_true", help="composite only the shadow, not the object")
     s.add_argument("--plan", choices=("auto", "general", "zpass", "zfail", "planar"), default="auto",
                    help="frame planner: auto (default: the cheapest exact path per frame and light, decisions "

@@ -249,7 +249,9 @@ def run(args) -> int:
             print(f"arshadow video: error: {s['error']}", file=sys.stderr)
         if s["status"] != "ok":
             failed += 1
-        elif not args.quiet:
+        if s["status"] != "error" and not args.quiet:
+            print(tracking_summary(s), file=sys.stderr)
+        if s["status"] == "ok" and not args.quiet:
             print(f"{s['input']} -> {s['output']}  ({s['frames']} frames: {s['frames_ok']} tracked, "
                   f"{s['frames_held']} held, {s['frames_no_marker']} without marker; "
                   f"{s['fps_processed']:.1f} fps)", file=sys.stdout)
@@ -265,3 +267,11 @@ def run(args) -> int:
         rep["videos"] = jsonable(summaries)
         write_json(args.report, rep)
     return EXIT_SOME_FAILED if failed else EXIT_OK
+
+
+def tracking_summary(s: dict) -> str:
+    """The stderr line of one video's tracking: frames tracked / held / lost and the longest gap."""
+    gap = s.get("longest_gap") or 0
+    where = f" (frames {s['longest_gap_start']}-{s['longest_gap_start'] + gap - 1})" if gap else ""
+    return (f"arshadow video: {s['input']}: tracked {s['frames_ok']}, held {s['frames_held']}, lost "
+            f"{s['frames_no_marker']} of {s['frames']} frames; longest gap {gap} frames{where}")

@@ -16,12 +16,12 @@ from ..io import read_image, to_bgr8
 from ..lights.spec import parse_light
 from ..tracking.dictionary import DEFAULT_DICTIONARY
 from ..tracking.tracker import MarkerTracker
-from .exposure import Exposure, measure_exposure
+from .exposure import Exposure, ExposureError, measure_exposure
 from .light import fit_directional, fit_point, fit_sun
 from .result import LightEstimate
 from .shadow import build_evidence, edge_pairs, fit_levels, shadow_coverage
 
-__all__ = ["estimate_light", "VIDEO_EXTENSIONS", "MAX_FRAMES"]
+__all__ = ["MAX_FRAMES", "VIDEO_EXTENSIONS", "estimate_light"]
 
 VIDEO_EXTENSIONS = (".mp4", ".mov", ".avi", ".mkv", ".m4v", ".webm")
 #: frames of a video used at most (evenly spaced)
@@ -29,6 +29,8 @@ MAX_FRAMES = 30
 #: lowest light elevation searched, degrees (sets the ground grid's extent)
 MIN_ELEVATION = 12.0
 CONVEX_PRIMITIVES = ("box:", "cylinder:", "sphere:")
+#: a point light whose 1-sigma position uncertainty exceeds this share of its distance is flagged
+POINT_REL_SIGMA = 0.2
 
 
 def _frames(item, max_frames):
@@ -81,7 +83,7 @@ def _grids(img, intr, pose, caster, verts, faces, L, paper, convex):
     coarse_step = float(np.clip(max(6 * px, reach / 60.0), 0.003, 0.02))
     sigma = 0.6 * float(min(hi[0] - lo[0], hi[1] - lo[1]))
     coarse = build_evidence(img, intr, pose, verts, faces, marker_length=L, paper_rgb=paper, center=centre,
-                            half=reach, step=coarse_step, convex=convex, sigma=sigma)
+                            half=reach, step=coarse_step, convex=convex, sigma=sigma, supersample=2)
     fine_step = float(np.clip(1.5 * px, 0.0006, 0.006))
 
     def fine(lights_h):
@@ -195,7 +197,7 @@ def estimate_light(inputs, *, calib, marker_length: float, probe: str, probe_pla
     convex = str(probe).lower().startswith(CONVEX_PRIMITIVES)
     dictionary = dictionary or DEFAULT_DICTIONARY
     tracker = MarkerTracker(base, dictionary=dictionary, marker_length=marker_length, marker_id=marker_id)
-    coarse, fines, pxs, exposures, names = [], [], [], [], []
+    coarse, fines, pxs, exposures, names, notes = [], [], [], [], [], []
     for item in items:
         for name, img in _frames(item, max_frames):
             intr, _ = base.for_image(img.shape[1], img.shape[0])
@@ -205,17 +207,21 @@ def estimate_light(inputs, *, calib, marker_length: float, probe: str, probe_pla
                 raise MarkerNotFoundError(f"{name}: {exc}") from None
             T = pose.cam_from_world
             _probe_in_view(intr, T, verts, name)
-            exp = measure_exposure(img, intr, T, marker_length, dictionary, pose.marker_ids[0])
+            try:
+                exp = measure_exposure(img, intr, T, marker_length, dictionary, pose.marker_ids[0])
+            except ExposureError as exc:  # a shadow over the marker: its brightest cell, flagged
+                exp = measure_exposure(img, intr, T, marker_length, dictionary, pose.marker_ids[0], min_cells=1)
+                notes.append(f"{name}: {exc}; the exposure is from its brightest white cell")
             c, f, px = _grids(img, intr, T, caster, verts, faces, marker_length, exp.paper_rgb, convex)
             coarse.append(c)
             pxs.append(px)
             fines.append(f)
             exposures.append(exp)
             names.append(name)
-    return _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, verts, t0)
+    return _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, verts, t0, notes)
 
 
-def _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, verts, t0) -> LightEstimate:
+def _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, verts, t0, notes) -> LightEstimate:
     def make_fine(lights_h):
         return [f(lights_h) for f in fines]
 
@@ -232,11 +238,16 @@ def _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, verts, t0) -> Ligh
     ink = np.median(np.array([e.ink_rgb for e in exposures]), axis=0)
     exp = Exposure(tuple(map(float, paper)), tuple(map(float, ink)), int(np.median([e.white_cells for e in exposures])),
                    any(e.saturated for e in exposures))
-    warnings = []
+    warnings = list(notes)
     if exp.saturated:
         warnings.append("the marker's paper is over-exposed (clipped): the exposure match is a lower bound")
     if res.uncertainty_deg > 3.0:
         warnings.append(f"low confidence: uncertainty {res.uncertainty_deg:.1f} degrees")
+    if res.position_sigma is not None:
+        rel = res.position_sigma / max(float(np.linalg.norm(res.light_h[:3] - anchor)), 1e-9)
+        if rel > POINT_REL_SIGMA:
+            warnings.append(f"low confidence: the point light's distance is uncertain (+/- {100 * rel:.0f} % of it); "
+                            "add views from other sides, or fit --kind directional")
     if res.runner_up is not None and res.runner_up > 0.6:
         warnings.append(f"a second light explains {100 * res.runner_up:.0f} % as much: check the result")
     fit = {"explained": round(res.explained, 4), "visible": round(res.visible, 3),

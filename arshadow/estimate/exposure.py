@@ -23,7 +23,7 @@ from ..compose.composite import SRGB_TO_LINEAR
 from ..errors import ArshadowError
 from ..tracking.dictionary import get_dictionary, marker_bits
 
-__all__ = ["Exposure", "ExposureError", "measure_exposure", "smooth_exposures", "sample_linear"]
+__all__ = ["Exposure", "ExposureError", "measure_exposure", "sample_linear", "smooth_exposures"]
 
 
 class ExposureError(ArshadowError, ValueError):
@@ -110,7 +110,7 @@ def _cell_points(bits: np.ndarray, length: float):
 
 
 def measure_exposure(image_bgr: np.ndarray, intrinsics: Intrinsics, cam_from_world, marker_length: float,
-                     dictionary="DICT_6X6_250", marker_id: int = 0) -> Exposure:
+                     dictionary="DICT_6X6_250", marker_id: int = 0, min_cells: int = 3) -> Exposure:
     """Measure the lit paper and the ink of the detected marker in a photo.
 
     Parameters
@@ -125,6 +125,8 @@ def measure_exposure(image_bgr: np.ndarray, intrinsics: Intrinsics, cam_from_wor
         The marker's side, metres.
     dictionary, marker_id
         Which marker (its bits tell white cells from black ones).
+    min_cells : int
+        Fewest lit white cells accepted.
 
     Returns
     -------
@@ -133,7 +135,7 @@ def measure_exposure(image_bgr: np.ndarray, intrinsics: Intrinsics, cam_from_wor
     Raises
     ------
     ExposureError
-        Fewer than 3 white cells are in the image and lit.
+        Fewer than ``min_cells`` white cells are in the image and lit.
     """
     bits = marker_bits(get_dictionary(dictionary), int(marker_id))
     pts, white = _cell_points(bits, float(marker_length))
@@ -148,8 +150,9 @@ def measure_exposure(image_bgr: np.ndarray, intrinsics: Intrinsics, cam_from_wor
         raise ExposureError("the marker's white cells are not in the image: cannot measure its paper")
     top = np.percentile(lum[w_ok], 90)
     lit = w_ok & (lum >= 0.85 * top)
-    if np.count_nonzero(lit) < 3:
-        raise ExposureError("fewer than 3 lit white cells on the marker: cannot measure its paper")
+    if np.count_nonzero(lit) < min_cells:
+        raise ExposureError(f"fewer than {min_cells} lit white cells on the marker (a shadow on it?): cannot "
+                            "measure its paper")
     paper = np.median(cell[lit], axis=0)
     b_ok = ~white & ok
     ink = np.median(cell[b_ok], axis=0) if b_ok.any() else np.zeros(3)
@@ -197,9 +200,10 @@ def smooth_exposures(measurements, time_constant: float = 5.0, jump: float = 0.1
         else:
             far = abs(np.mean(x[:3] - state[:3])) > math.log1p(jump)
             pending = pending + 1 if far else 0
-            state = x if pending >= 2 else state + a * (x - state) if not far else state + a * (x - state)
-            if pending >= 2:
-                pending = 0
+            if pending >= 2:  # a new exposure: followed at once
+                state, pending = x, 0
+            else:
+                state = state + a * (x - state)
         v = np.exp(state)
         out.append(Exposure(tuple(float(t) for t in v[:3]), tuple(float(t) for t in v[3:]), m.white_cells,
                             m.saturated))

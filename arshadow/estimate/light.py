@@ -29,7 +29,7 @@ from ..errors import EstimateError
 from ..lights.sun import enu_to_world
 from .shadow import fit_levels, shadow_coverage
 
-__all__ = ["FitResult", "direction_of", "fit_directional", "fit_sun", "fit_point", "objective"]
+__all__ = ["FitResult", "direction_of", "fit_directional", "fit_point", "fit_sun", "objective"]
 
 #: minimum darkening (1 - shadow ratio) of a shadow worth fitting
 MIN_DARKENING = 0.05
@@ -115,7 +115,7 @@ def _correlation_factor(evs, light_h) -> float:
     f = []
     for ev in evs:
         S = shadow_coverage(ev, light_h)
-        rss, delta, rss0, n = fit_levels(ev, S)
+        _, delta, _, _ = fit_levels(ev, S)
         r = np.where(ev.used, ev.log_y - delta * S, np.nan)
         r = r - np.nanmean(r)
         pairs = [(r[:, 1:], r[:, :-1]), (r[1:, :], r[:-1, :])]
@@ -210,8 +210,12 @@ def fit_directional(coarse: list, make_fine, el_range=(12.0, 84.0)) -> FitResult
     az = np.arange(0.0, 360.0, 8.0)
     el = np.arange(el_range[0], el_range[1] + 1e-9, 6.0)
     cands = np.array([(a, e) for e in el for a in az])
-    to_light = lambda p: np.append(direction_of(p[0], p[1]), 0.0) if el_range[0] - 6 < p[1] < 89.5 else None  # noqa: E731
-    to_dir = lambda p: direction_of(p[0], p[1])  # noqa: E731
+    def to_light(p):
+        return np.append(direction_of(p[0], p[1]), 0.0) if el_range[0] - 6 < p[1] < 89.5 else None
+
+    def to_dir(p):
+        return direction_of(p[0], p[1])
+
     scores = np.array([objective(coarse, to_light(c))[0] for c in cands])
     keep = _distinct_minima(cands, scores, 15.0, 3, to_dir)
     if not keep:
@@ -243,8 +247,12 @@ def fit_sun(coarse: list, make_fine, enu) -> FitResult:
     enu = np.asarray(enu, np.float64)
     if enu[2] <= 0.0:
         raise EstimateError("the sun is below the horizon at that time and place: no shadow to fit")
-    to_light = lambda p: np.append(enu_to_world(enu, float(p[0])), 0.0)  # noqa: E731
-    to_dir = lambda p: enu_to_world(enu, float(p[0]))  # noqa: E731
+    def to_light(p):
+        return np.append(enu_to_world(enu, float(p[0])), 0.0)
+
+    def to_dir(p):
+        return enu_to_world(enu, float(p[0]))
+
     cands = np.arange(0.0, 360.0, 3.0)[:, None]
     scores = np.array([objective(coarse, to_light(c))[0] for c in cands])
     keep = _distinct_minima(cands, scores, 15.0, 3, to_dir)
@@ -263,32 +271,56 @@ def fit_sun(coarse: list, make_fine, enu) -> FitResult:
 
 
 def fit_point(coarse: list, make_fine, anchor) -> FitResult:
-    """Fit a point light's position (3 DOF): the directional fit from the probe's top ``anchor`` (3,), a line
-    search of the distance along it, then Nelder-Mead in 3-D."""
+    """Fit a point light's position (3 DOF) as (azimuth, elevation, log distance) from the probe's top
+    ``anchor`` (3,): the directional fit, the objective's profile over 12 distances (0.15..3 m; azimuth and
+    elevation re-fitted at each) and a coarse 3-D grid around it, then Nelder-Mead in 3-D on the fine grids
+    from the two best distances of the profile and the grid's best; the lowest objective wins."""
     d = fit_directional(coarse, make_fine)
     fine = d.fine
-    u = d.light_h[:3]
     anchor = np.asarray(anchor, np.float64)
     top = float(max(ev.verts[:, 2].max() for ev in fine))
+    az0, el0 = float(d.params[0]), float(d.params[1])
 
-    def to_light(p):
-        return None if p[2] <= top + 0.01 else np.append(p, 1.0)
+    def position(q):
+        return anchor + math.exp(q[2]) * direction_of(q[0], q[1])
 
-    dists = np.geomspace(0.12, 4.0, 24)
-    cands = [anchor + t * u for t in dists]
-    scores = [objective(fine, to_light(c))[0] if to_light(c) is not None else math.inf for c in cands]
-    order = np.argsort(scores)[:2]
-    starts = [cands[i] for i in order]
-    scale = max(0.02, 0.1 * float(np.linalg.norm(starts[0] - anchor)))
-    res, n = _refine(fine, to_light, starts, (scale,) * 3, 1e-4)
-    p = res.x.copy()
-    h = to_light(p)
+    def to_light(q):
+        pos = position(q)
+        return None if pos[2] <= top + 0.01 or q[1] >= 89.5 else np.append(pos, 1.0)
+
+    # the profile of the objective over the distance: (azimuth, elevation) re-fitted on the fine grids at
+    # each distance (the shadow's outline moves with both), from the directional fit
+    count = _Counter(fine, to_light)
+    profile = []
+    for t in np.geomspace(0.15, 3.0, 12):
+        q0 = np.array([az0, el0, math.log(t)])
+        if to_light(q0) is None:
+            continue
+        init = np.vstack([q0[:2], q0[:2] + [2.0, 0.0], q0[:2] + [0.0, 2.0]])
+        r = minimize(lambda a, lt=q0[2]: count(np.r_[a, lt]), q0[:2], method="Nelder-Mead",
+                     options={"initial_simplex": init, "xatol": 0.1, "fatol": 1e-6, "maxiter": 60})
+        profile.append((r.fun, np.r_[r.x, q0[2]]))
+    profile.sort(key=lambda x: x[0])
+    starts = [q for f, q in profile[:2] if np.isfinite(f)]
+    # and the best of a coarse 3-D grid around the directional fit (another basin, when the profile misses it)
+    grid = np.array([(a, e, math.log(t)) for t in np.geomspace(0.15, 3.0, 14)
+                     for a in az0 + np.arange(-12.0, 12.1, 4.0) for e in el0 + np.arange(-12.0, 12.1, 4.0)])
+    scores = np.array([objective(coarse, h)[0] if (h := to_light(q)) is not None else math.inf for q in grid])
+    if np.isfinite(scores.min()):
+        starts.append(grid[int(np.argmin(scores))])
+    if not starts:
+        raise EstimateError("no point light above the probe explains its shadow")
+    res, n = _refine(fine, to_light, starts, (2.0, 2.0, 0.15), 1e-3)
+    q = res.x.copy()
+    h = to_light(q)
     if h is None:
         raise EstimateError("the point light fit ended below the probe's top: no point light explains the shadow")
     score, deltas, _ = objective(fine, h)
     explained, visible, _ = _check(fine, h, score, deltas, None)
-    dist = float(np.linalg.norm(p - anchor))
-    cov = _laplace(fine, to_light, p, np.full(3, max(1e-3, 0.005 * dist)))
-    sig = math.sqrt(max(float(np.trace(cov)), 0.0))
-    unc = math.degrees(sig / dist) if dist > 0 else math.inf
-    return FitResult(h, p, score, deltas, unc, sig, explained, visible, None, d.evaluations + len(cands) + n, fine)
+    cov = _laplace(fine, to_light, q, np.array([0.3, 0.3, 0.02]))
+    dist = math.exp(q[2])
+    unc = math.sqrt(max(cov[1, 1] + cov[0, 0] * math.cos(math.radians(q[1])) ** 2, 0.0))
+    # position: the direction's spread across, the log distance's along
+    sig = dist * math.sqrt(max(math.radians(unc) ** 2 + cov[2, 2], 0.0))
+    return FitResult(h, position(q), score, deltas, unc, sig, explained, visible, None,
+                     d.evaluations + count.n + len(grid) + n, fine)

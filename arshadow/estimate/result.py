@@ -14,7 +14,7 @@ import numpy as np
 from ..errors import UsageError
 from .exposure import Exposure
 
-__all__ = ["DEFAULT_OBJECT_COLOR", "LightEstimate", "load_estimate", "scene_overrides", "shading_gain"]
+__all__ = ["DEFAULT_OBJECT_COLOR", "LightEstimate", "load_estimate", "measured_ambient", "scene_overrides", "shading_gain"]
 
 
 def _r(v: Any, nd: int = 6) -> Any:
@@ -115,6 +115,23 @@ class LightEstimate:
         return cls.from_dict(d)
 
 
+def _sin_elevation(est: LightEstimate) -> float:
+    if est.direction is not None:
+        return max(float(est.direction[2]), 0.0)
+    if est.position is not None:
+        p = np.asarray(est.position, np.float64)
+        return max(float(p[2] / np.linalg.norm(p)), 0.0)
+    return 1.0
+
+
+def measured_ambient(est: LightEstimate) -> float:
+    """The renderer's ambient term (light weight 1) that gives a horizontal surface the measured shadow
+    ratio: ``a / (a + sin(elevation)) = r`` -> ``a = r sin(e) / (1 - r)``, ``r`` the mean of the channels
+    (clipped to 0..4)."""
+    r = float(np.clip(np.mean(est.shadow_ratio), 0.0, 0.95))
+    return float(np.clip(r * _sin_elevation(est) / (1.0 - r), 0.0, 4.0))
+
+
 def load_estimate(path: str | Path) -> LightEstimate:
     """Read a light estimate written by ``arshadow light --json`` (UsageError naming the file otherwise)."""
     p = Path(path)
@@ -134,14 +151,7 @@ def shading_gain(est: LightEstimate, ambient: float = 0.25) -> tuple | None:
     records the marker paper's measured linear RGB. None without an exposure measurement."""
     if est.exposure is None:
         return None
-    if est.direction is not None:
-        sin_e = float(est.direction[2])
-    elif est.position is not None:
-        p = np.asarray(est.position, np.float64)
-        sin_e = float(p[2] / np.linalg.norm(p))
-    else:
-        sin_e = 1.0
-    shade = ambient + max(sin_e, 0.0)
+    shade = ambient + _sin_elevation(est)
     return tuple(float(c) / shade for c in est.exposure.paper_rgb)
 
 
@@ -171,20 +181,26 @@ def scene_overrides(est: LightEstimate, color: Any = None, exposure: bool = True
     -------
     dict
         ``lights`` (tuple of one spec), ``opacity`` 1.0 and ``shadow_color`` (the measured ratio, linear
-        RGB): a full shadow keeps exactly the measured share of each channel; ``occluder_color`` (sRGB
-        0..1, unclipped) when ``exposure``: the colour times :func:`shading_gain` in linear light.
+        RGB): a full shadow keeps exactly the measured share of each channel; ``ambient``
+        (:func:`measured_ambient`) and ``specular`` 0 (matte, like the paper) for the object's shading;
+        ``occluder_color`` (sRGB 0..1, unclipped) when ``exposure``: the colour times :func:`shading_gain`
+        in linear light.
 
     Examples
     --------
     >>> e = LightEstimate("directional", "directional:0,0,1", direction=(0.0, 0.0, 1.0), shadow_ratio=(0.4, 0.5, 0.6),
     ...                   exposure=Exposure((0.625, 0.625, 0.625), (0.02, 0.02, 0.02), 20))
     >>> o = scene_overrides(e, "255,255,255")
-    >>> o["lights"], o["opacity"], o["shadow_color"], [round(c, 4) for c in o["occluder_color"]]
-    (('directional:0,0,1',), 1.0, (0.4, 0.5, 0.6), [0.7354, 0.7354, 0.7354])
+    >>> o["lights"], o["opacity"], o["shadow_color"], round(o["ambient"], 4), o["specular"]
+    (('directional:0,0,1',), 1.0, (0.4, 0.5, 0.6), 1.0, 0.0)
+    >>> [round(c, 4) for c in o["occluder_color"]]  # 0.625 / (1.0 + 1) = 0.3125 in linear light
+    [0.5948, 0.5948, 0.5948]
     """
-    out = {"lights": (est.light,), "opacity": 1.0,
-           "shadow_color": tuple(float(np.clip(v, 0.0, 1.0)) for v in est.shadow_ratio)}
-    gain = shading_gain(est) if exposure else None
+    ambient = measured_ambient(est)
+    out: dict[str, Any] = {"lights": (est.light,), "opacity": 1.0,
+                           "shadow_color": tuple(float(np.clip(v, 0.0, 1.0)) for v in est.shadow_ratio),
+                           "ambient": ambient, "specular": 0.0}
+    gain = shading_gain(est, ambient) if exposure else None
     if gain is not None:
         base = DEFAULT_OBJECT_COLOR if color is None else tuple(float(v) / 255.0 for v in str(color).split(","))
         lin = np.where(np.asarray(base) <= 0.04045, np.asarray(base) / 12.92,

@@ -30,7 +30,7 @@ from ..compose.composite import SRGB_TO_LINEAR
 from ..geometry.exact import ground_shadow_triangles, points_in_triangles
 from ..transforms import transform_points
 
-__all__ = ["Evidence", "build_evidence", "shadow_coverage", "fit_levels", "LUMA"]
+__all__ = ["LUMA", "Evidence", "build_evidence", "fit_levels", "shadow_coverage"]
 
 #: Rec. 709 luminance weights of linear RGB
 LUMA = np.array([0.2126, 0.7152, 0.0722])
@@ -74,6 +74,7 @@ class Evidence:
     faces: np.ndarray
     convex: bool
     sigma: float = 0.03
+    supersample: int = SS
 
     def __post_init__(self):
         self._norms = None
@@ -129,7 +130,8 @@ def _probe_footprint(uv_grid, uvp, faces, dilate_px):
 
 
 def build_evidence(image_bgr: np.ndarray, intr: Intrinsics, cam_from_world, verts, faces, *, marker_length: float,
-                   paper_rgb, center, half: float, step: float, convex: bool = True, sigma: float = 0.03) -> Evidence:
+                   paper_rgb, center, half: float, step: float, convex: bool = True, sigma: float = 0.03,
+                   supersample: int = SS) -> Evidence:
     """Sample one photo on a ground grid around the probe.
 
     Parameters
@@ -152,8 +154,10 @@ def build_evidence(image_bgr: np.ndarray, intr: Intrinsics, cam_from_world, vert
         Whether the probe is convex.
     sigma : float
         Scale of the high-pass (metres): slower variations of the ground are left out of the fit.
+    supersample : int
+        Samples per cell side of the shadow's raster.
     """
-    n = int(round(2 * half / step)) + 1
+    n = round(2 * half / step) + 1
     x0, y0 = float(center[0]) - half, float(center[1]) - half
     gx, gy = np.meshgrid(x0 + step * np.arange(n), y0 + step * np.arange(n))
     pts = np.column_stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)])
@@ -189,7 +193,7 @@ def build_evidence(image_bgr: np.ndarray, intr: Intrinsics, cam_from_world, vert
     log_y = np.log(np.maximum(y, 1e-6))
     return Evidence(x0, y0, float(step), log_y.reshape(n, n), rgb.reshape(n, n, 3), used.reshape(n, n),
                     paper.reshape(n, n), np.asarray(verts, np.float64), np.asarray(faces), bool(convex),
-                    float(sigma))
+                    float(sigma), int(supersample))
 
 
 def shadow_coverage(ev: Evidence, light_h) -> np.ndarray | None:
@@ -219,9 +223,10 @@ def shadow_coverage(ev: Evidence, light_h) -> np.ndarray | None:
         t = L[2] / (L[2] - v[:, 2])
         q = L[None, :2] + t[:, None] * (v[:, :2] - L[None, :2])
     ny, nx = ev.shape
-    scale = SS * 16.0 / ev.step  # 4 fractional bits of cv2's fixed point
-    img = np.zeros((ny * SS, nx * SS), np.uint8)
-    off = np.array([ev.x0, ev.y0]) - 0.5 * ev.step + 0.5 * ev.step / SS
+    ss = ev.supersample
+    scale = ss * 16.0 / ev.step  # 4 fractional bits of cv2's fixed point
+    img = np.zeros((ny * ss, nx * ss), np.uint8)
+    off = np.array([ev.x0, ev.y0]) - 0.5 * ev.step + 0.5 * ev.step / ss
     if ev.convex:
         pq = np.round((q - off) * scale).astype(np.int32)
         if np.abs(pq).max() > 2**30 / 16:
@@ -238,7 +243,7 @@ def shadow_coverage(ev: Evidence, light_h) -> np.ndarray | None:
 
 def smooth(ev: Evidence, img: np.ndarray) -> np.ndarray:
     """The local-mean kernel: two box filters (a tent, standard deviation ``ev.sigma``), O(1) per cell."""
-    w = max(3, int(round(math.sqrt(6.0 * (ev.sigma / ev.step) ** 2 + 1.0))) | 1)
+    w = max(3, round(math.sqrt(6.0 * (ev.sigma / ev.step) ** 2 + 1.0)) | 1)
     out = cv2.blur(img, (w, w), borderType=cv2.BORDER_CONSTANT)
     return cv2.blur(out, (w, w), borderType=cv2.BORDER_CONSTANT)
 

@@ -7,4 +7,5 @@
 - :mod:`arshadow.geometry.volume`: shadow volumes (caps, truncation, stencil layer bounds).
 - :mod:`arshadow.geometry.projection`: planar projection shadows (papers 002 / 004).
 - :mod:`arshadow.geometry.exact`: the exact projected shadow (the tests' and benchmarks' reference).
+- :mod:`arshadow.geometry.ground`: a ground plane that is not the marker plane (``--ground``, ``marker_from_ground``).
 """

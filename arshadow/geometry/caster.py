@@ -25,7 +25,7 @@ import numpy as np
 from .._check import check_shape
 from ..errors import MeshError, ShapeError
 
-__all__ = ["ShadowCaster", "plane_side", "connected_labels"]
+__all__ = ["ShadowCaster", "connected_labels", "plane_side"]
 
 
 def _readonly(a: np.ndarray) -> np.ndarray:

@@ -17,8 +17,18 @@ import numpy as np
 from ..errors import MeshError
 from .caster import ShadowCaster, connected_labels, plane_side
 
-__all__ = ["ShadowCaster", "load_occluder", "primitive", "rotation_xyz_deg", "plane_side", "connected_labels",
-           "PRIMITIVES", "UP_AXES", "default_up", "up_rotation"]
+__all__ = [
+    "PRIMITIVES",
+    "UP_AXES",
+    "ShadowCaster",
+    "connected_labels",
+    "default_up",
+    "load_occluder",
+    "plane_side",
+    "primitive",
+    "rotation_xyz_deg",
+    "up_rotation",
+]
 
 #: primitive names and their parameter names (CONVENTIONS.md "Files / Meshes")
 PRIMITIVES = {"box": ("WX", "WY", "HZ"), "cylinder": ("R", "H"), "sphere": ("R",), "torus": ("R", "r")}

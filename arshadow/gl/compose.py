@@ -182,44 +182,18 @@ class GpuCompositor:
             raise UsageError("this GpuCompositor has been released")
         H, W = image.shape[:2]
         x0, y0, w, h = (int(v) for v in roi)
-        if x0 < 0 or y0 < 0 or w < 0 or h < 0 or x0 + w > W or y0 + h > H:
-            raise ShapeError(f"roi {tuple(roi)} is not inside the {W}x{H} photo")
-        if (int(canvas[2]), int(canvas[3])) != (int(layers.width), int(layers.height)):
-            raise ShapeError("the layers do not hold the canvas", actual_shape=(layers.width, layers.height),
-                             expected_shape=tuple(canvas[2:]))
-        if out is None:
-            out = image.copy()
-        for name, arr, shape in (("out", out, (H, W, 3)), ("mask_out", mask_out, (H, W))):
-            if arr is not None and (arr.shape != shape or arr.dtype != np.uint8 or not arr.flags.c_contiguous):
-                raise ShapeError(f"{name} must be a C-contiguous uint8 array", actual_shape=arr.shape,
-                                 expected_shape=shape)
+        out = self._checked_out(image, layers, roi, canvas, out, mask_out)
         if w == 0 or h == 0:
             return out
         t0 = time.perf_counter()
-        ctx, gl = self.ctx, self.gl
+        ctx = self.ctx
         self._ensure_size(W, H)
         self._photo.write(np.ascontiguousarray(image[y0 : y0 + h, x0 : x0 + w]).data, viewport=(x0, y0, w, h))
-        prog = self.prog
         if lens is not None:
             lt = self._lens_texture(lens)
             lt.update((x0, y0, w, h))
             lt.tex.use(5)
-        sc = np.asarray(shadow_color, np.float64).reshape(3)
-        gray = bool(sc[0] == sc[1] == sc[2])
-        prog["u_photo"].value = 0
-        prog["u_decode"].value = 1
-        prog["u_encode"].value = 2
-        prog["u_color"].value = 3
-        prog["u_mask"].value = 4
-        prog["u_lens"].value = 5
-        prog["u_use_lens"].value = lens is not None
-        prog["u_canvas"].value = tuple(int(v) for v in canvas)
-        prog["u_roi"].value = (x0, y0, w, h)
-        prog["u_occluder"].value = bool(draw_occluder)
-        prog["u_gray"].value = gray
-        prog["u_gray_k"].value = float(np.float32(-float(opacity) * (1.0 - sc[0])))
-        prog["u_dark"].value = tuple(float(v) for v in (np.float32(opacity) * (1.0 - sc[::-1])).astype(np.float32))
-        prog["u_darken"].value = float(opacity) > 0.0
+        self._set_uniforms(canvas, (x0, y0, w, h), lens is not None, opacity, shadow_color, draw_occluder)
         self._photo.use(0)
         self._dec.use(1)
         self._enc.use(2)
@@ -232,9 +206,57 @@ class GpuCompositor:
         t1 = time.perf_counter()
         self.vao.render(ctx.TRIANGLES, vertices=3)
         t2 = time.perf_counter()
-        # one readback of the 8-bit ROI straight into the output photo (and the mask)
+        self._readback((x0, y0, w, h), W, out, mask_out)
+        t3 = time.perf_counter()
+        if timings is not None:
+            for k, v in (("upload", t1 - t0), ("draw", t2 - t1), ("readback", t3 - t2)):
+                timings[k] = timings.get(k, 0.0) + v * 1e3
+        return out
+
+    @staticmethod
+    def _checked_out(image, layers, roi, canvas, out, mask_out):
+        """Check the arguments of :meth:`compose`; returns ``out`` (a copy of ``image`` if None)."""
+        H, W = image.shape[:2]
+        x0, y0, w, h = (int(v) for v in roi)
+        if x0 < 0 or y0 < 0 or w < 0 or h < 0 or x0 + w > W or y0 + h > H:
+            raise ShapeError(f"roi {tuple(roi)} is not inside the {W}x{H} photo")
+        if (int(canvas[2]), int(canvas[3])) != (int(layers.width), int(layers.height)):
+            raise ShapeError("the layers do not hold the canvas", actual_shape=(layers.width, layers.height),
+                             expected_shape=tuple(canvas[2:]))
+        if out is None:
+            out = image.copy()
+        for name, arr, shape in (("out", out, (H, W, 3)), ("mask_out", mask_out, (H, W))):
+            if arr is not None and (arr.shape != shape or arr.dtype != np.uint8 or not arr.flags.c_contiguous):
+                raise ShapeError(f"{name} must be a C-contiguous uint8 array", actual_shape=arr.shape,
+                                 expected_shape=shape)
+        return out
+
+    def _set_uniforms(self, canvas, roi, use_lens, opacity, shadow_color, draw_occluder) -> None:
+        """The compose shader's texture units, geometry and darkening constants."""
+        prog = self.prog
+        sc = np.asarray(shadow_color, np.float64).reshape(3)
+        gray = bool(sc[0] == sc[1] == sc[2])
+        prog["u_photo"].value = 0
+        prog["u_decode"].value = 1
+        prog["u_encode"].value = 2
+        prog["u_color"].value = 3
+        prog["u_mask"].value = 4
+        prog["u_lens"].value = 5
+        prog["u_use_lens"].value = use_lens
+        prog["u_canvas"].value = tuple(int(v) for v in canvas)
+        prog["u_roi"].value = tuple(roi)
+        prog["u_occluder"].value = bool(draw_occluder)
+        prog["u_gray"].value = gray
+        prog["u_gray_k"].value = float(np.float32(-float(opacity) * (1.0 - sc[0])))
+        prog["u_dark"].value = tuple(float(v) for v in (np.float32(opacity) * (1.0 - sc[::-1])).astype(np.float32))
+        prog["u_darken"].value = float(opacity) > 0.0
+
+    def _readback(self, roi, W, out, mask_out) -> None:
+        """One readback of the 8-bit ROI straight into the output photo (and the mask)."""
+        ctx, gl = self.ctx, self.gl
+        x0, y0, w, h = roi
         gl.glBindBuffer(G.GL_PIXEL_PACK_BUFFER, 0)
-        gl.glBindFramebuffer(G.GL_READ_FRAMEBUFFER, fbo.glo)
+        gl.glBindFramebuffer(G.GL_READ_FRAMEBUFFER, self._fbo.glo)
         gl.glPixelStorei(G.GL_PACK_ALIGNMENT, 1)
         gl.glPixelStorei(G.GL_PACK_ROW_LENGTH, W)
         gl.glReadBuffer(G.GL_COLOR_ATTACHMENT0)
@@ -248,11 +270,6 @@ class GpuCompositor:
         gl.glBindFramebuffer(G.GL_FRAMEBUFFER, 0)
         if ctx.screen is not None:
             ctx.screen.use()
-        t3 = time.perf_counter()
-        if timings is not None:
-            for k, v in (("upload", t1 - t0), ("draw", t2 - t1), ("readback", t3 - t2)):
-                timings[k] = timings.get(k, 0.0) + v * 1e3
-        return out
 
 
 class PathChooser:
@@ -312,7 +329,7 @@ class PathChooser:
         d = self.decisions.get(key)
         if d is not None:
             return d["choice"], paths[d["choice"]]()
-        times = {name: [] for name in paths}
+        times: dict[str, list[float]] = {name: [] for name in paths}
         result = {}
         for rnd in range(self.trials + 1):
             for name, fn in paths.items():
@@ -322,7 +339,7 @@ class PathChooser:
                     times[name].append((self.clock() - t) * 1e3)
         med = {name: statistics.median(v) for name, v in times.items()}
         default = next(iter(paths))
-        fastest = min(med, key=med.get)
+        fastest = min(med, key=med.__getitem__)
         choice = fastest if med[fastest] < (1.0 - self.margin) * med[default] else default
         self.decisions[key] = {"choice": choice, "ms": {k: round(v, 3) for k, v in med.items()}}
         # the chosen path runs last so that the caller's buffers hold its result

@@ -10,10 +10,13 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import functools
 import glob
 import os
+from typing import Any
 
 from ..errors import GLContextError
+from . import glraw
 
 #: backends accepted by :func:`create_context` (``$ARSHADOW_GL_BACKEND`` takes the same names)
 BACKENDS = ("egl", "x11", "default")
@@ -112,10 +115,12 @@ def create_context(backend: str | None = None):
     """
     name = resolve_backend(backend)
     try:
+        # deferred: importing arshadow.gl must not import moderngl (tests/test_gl_context.py); the context
+        # is the first thing that needs it
         import moderngl
     except ImportError as exc:  # pragma: no cover - moderngl is a runtime dependency
         raise GLContextError(f"moderngl is not installed ({exc}); pip install moderngl") from exc
-    kwargs = {"standalone": True, "require": REQUIRE}
+    kwargs: dict[str, Any] = {"standalone": True, "require": REQUIRE}
     if name != "default":
         kwargs["backend"] = name
     try:
@@ -145,8 +150,6 @@ def gl_info(ctx) -> dict:
         ``GL_RENDERER``, ``GL_VERSION``, ``GL_VENDOR``, ``GLSL``, ``backend``, ``version_code``,
         ``stencil_bits``, ``depth_bits``, ``max_samples``, ``max_renderbuffer_size``, ``gl_library``.
     """
-    from . import glraw
-
     gl = glraw.load()
     info = ctx.info
     rb = gl.gen_renderbuffer()
@@ -185,8 +188,6 @@ def current(method):
     that what the caller does next with the results (reading a returned texture) happens on that
     context too. The context is ``self.ctx``, or the first argument of ``__init__``.
     """
-    import functools
-
     @functools.wraps(method)
     def wrapper(self, *args, **kwargs):
         ctx = getattr(self, "ctx", None)

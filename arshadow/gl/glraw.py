@@ -19,6 +19,7 @@ from __future__ import annotations
 import ctypes
 import ctypes.util
 import threading
+from typing import TYPE_CHECKING, Any
 
 from ..errors import GLContextError
 
@@ -180,6 +181,10 @@ _SIGNATURES = {
 
 class GL:
     """Namespace of loaded GL functions (attributes named like the C functions)."""
+
+    if TYPE_CHECKING:  # the functions of _SIGNATURES are set per instance, by name
+
+        def __getattr__(self, name: str) -> Any: ...
 
     def __init__(self, lib: ctypes.CDLL, path: str):
         self.library = path

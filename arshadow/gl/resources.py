@@ -11,7 +11,9 @@ another. Nothing here creates a context or imports moderngl (the objects come fr
 - :class:`VolumeBuffers`: every light's shadow volume of a frame in one reused vertex/index buffer;
 - :class:`RenderTarget`: a framebuffer of renderbuffers (colour + optional ``GL_DEPTH24_STENCIL8``, MSAA);
 - :class:`FrameTargets`: a renderer's targets (main, resolve/downsample, GPU-resident textures);
-- :func:`ground_vertices`: the ground plane z = 0 as homogeneous triangles (unlimited or a square).
+- :func:`ground_vertices`: the ground plane z = 0 as homogeneous triangles (unlimited or a square), kept
+  in a :class:`GroundBuffer`;
+- :func:`screen_box`: the conservative pixel box of a caster's bounding box (the colour readback's).
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from __future__ import annotations
 import functools
 import math
 import weakref
+from collections.abc import Callable
 from importlib import resources
 
 import numpy as np
@@ -30,6 +33,7 @@ from .layers import TextureTarget
 
 __all__ = [
     "DEFAULT_COLOR",
+    "GroundBuffer",
     "CasterBuffers",
     "CasterCache",
     "FrameTargets",
@@ -39,6 +43,7 @@ __all__ = [
     "load_shader",
     "local_origin",
     "program",
+    "screen_box",
     "translation",
 ]
 
@@ -71,7 +76,7 @@ def program(ctx, vert: str, frag: str):
     return cache[key]
 
 
-def _crease_normals(vertices: np.ndarray, faces: np.ndarray, crease_deg: float) -> np.ndarray:
+def _crease_normals(vertices: np.ndarray, faces: np.ndarray, crease_deg: float) -> tuple[np.ndarray, np.ndarray]:
     """Per-corner normals ``(m, 3, 3)`` float64 and ``(m, 3)`` bool "flat": the area-weighted vertex normal
     where it is within ``crease_deg`` of the face normal, else the face normal (flat edges stay sharp,
     curved parts smooth)."""
@@ -263,6 +268,7 @@ def ground_vertices(ground_size=None, origin=None) -> np.ndarray:
     ``origin (3,)``: the vertices relative to this point (:func:`local_origin`; points at infinity
     unchanged); the unlimited fan's centre is then the ground point under it (small local coordinates)."""
     origin = np.zeros(3) if origin is None else np.asarray(origin, np.float64)
+    tris: list[tuple[float, float, float, float]]
     if ground_size is None:
         o, px, py, nx, ny = (0, 0, 0, 1), (1, 0, 0, 0), (0, 1, 0, 0), (-1, 0, 0, 0), (0, -1, 0, 0)
         tris = [o, px, py, o, py, nx, o, nx, ny, o, ny, px]
@@ -272,7 +278,7 @@ def ground_vertices(ground_size=None, origin=None) -> np.ndarray:
             raise UsageError(f"ground_size must be a positive length, got {ground_size}")
         h = key / 2
         a, b, c, d = (-h, -h, 0, 1), (h, -h, 0, 1), (h, h, 0, 1), (-h, h, 0, 1)
-        tris = [a, b, c, a, c, d] + [(0, 0, 0, 1)] * 6
+        tris = [a, b, c, a, c, d] + [(0.0, 0.0, 0.0, 1.0)] * 6
     t = np.asarray(tris, dtype=np.float64)
     if ground_size is None:
         t[t[:, 3] == 1.0, :2] = origin[:2]  # fan centre under the origin (the plane itself stays z = 0)
@@ -313,7 +319,7 @@ class CasterCache:
         self.ctx = ctx
         self.programs = tuple(programs)
         self.max_cached = int(max_cached)
-        self._entries: dict[int, tuple[object, object, CasterBuffers]] = {}
+        self._entries: dict[int, tuple[Callable[[], object], tuple, CasterBuffers]] = {}
 
     def get(self, caster, occluder_color, crease_deg: float) -> CasterBuffers:
         """The buffers of ``caster`` with ``occluder_color`` ((3,) sRGB or None), made on first use."""
@@ -329,13 +335,17 @@ class CasterCache:
             entries.pop(id(caster))[2].release()
         while len(entries) >= self.max_cached:
             entries.pop(next(iter(entries)))[2].release()
-        bufs = CasterBuffers(self.ctx, *self.programs, caster, ckey, crease_deg)
+        prog_base, prog_occ, prog_pos = self.programs
+        bufs = CasterBuffers(self.ctx, prog_base, prog_occ, prog_pos, caster, ckey, crease_deg)
+        ref: Callable[[], object]
         try:
             ref = weakref.ref(caster)
         except TypeError:  # objects without weakref support: keep a strong reference
 
-            def ref(obj=caster):
+            def strong(obj=caster):
                 return obj
+
+            ref = strong
 
         entries[id(caster)] = (ref, (ckey, crease_deg), bufs)
         return bufs
@@ -381,7 +391,8 @@ class VolumeBuffers:
                 and np.array_equal(last[2], origin)):
             return list(last[1])
         self._last = None
-        ranges, parts = [], []
+        ranges: list[tuple[int, int] | None] = []
+        parts = []
         nv = ni = 0
         frozen = True
         for vol in vols:
@@ -456,11 +467,16 @@ class FrameTargets:
     def __init__(self, ctx, gl, samples: int, supersample: int):
         self.ctx, self.gl = ctx, gl
         self.samples, self.supersample = int(samples), int(supersample)
-        self.main = None        # RenderTarget: render target (MSAA and/or supersampled)
-        self.resolve = None     # RenderTarget: single-sample canvas-size target (when main is MSAA/supersampled)
-        self.half = None        # RenderTarget: intermediate for supersample 4
-        self.ss_resolve = None  # RenderTarget: single-sample supersampled size (MSAA + supersampling)
-        self.tex = None         # TextureTarget: GPU-resident result
+        #: render target (MSAA and/or supersampled)
+        self.main: RenderTarget | None = None
+        #: single-sample canvas-size target (when main is MSAA/supersampled)
+        self.resolve: RenderTarget | None = None
+        #: intermediate for supersample 4
+        self.half: RenderTarget | None = None
+        #: single-sample supersampled size (MSAA + supersampling)
+        self.ss_resolve: RenderTarget | None = None
+        #: GPU-resident result
+        self.tex: TextureTarget | None = None
 
     def ensure(self, width: int, height: int) -> None:
         """Grow the targets to hold a ``width`` x ``height`` canvas."""
@@ -511,11 +527,12 @@ class FrameTargets:
 
     def _main_resolve_ss(self) -> RenderTarget:
         """Single-sample target of the supersampled size (MSAA + supersampling)."""
-        t = self.ss_resolve
-        if t is None or t.width < self.main.width or t.height < self.main.height:
+        t, main = self.ss_resolve, self.main
+        assert main is not None, "ensure() first"
+        if t is None or t.width < main.width or t.height < main.height:
             if t is not None:
                 t.release()
-            t = RenderTarget(self.ctx, self.gl, self.main.width, self.main.height, 0, self.FORMATS, False)
+            t = RenderTarget(self.ctx, self.gl, main.width, main.height, 0, self.FORMATS, False)
             self.ss_resolve = t
         return t
 
@@ -537,3 +554,54 @@ class FrameTargets:
             if t is not None:
                 t.release()
         self.main = self.resolve = self.half = self.ss_resolve = self.tex = None
+
+
+class GroundBuffer:
+    """The ground plane's vertex buffer and array (:func:`ground_vertices`: 12 homogeneous vertices),
+    rewritten only when the ground size or the local origin changes.
+
+    Parameters
+    ----------
+    ctx : moderngl.Context
+    prog : moderngl.Program
+        The program the vertex array is made for (``in_pos``: vec4).
+    """
+
+    def __init__(self, ctx, prog):
+        self.vbo = ctx.buffer(reserve=12 * 4 * 4)
+        self.vao = ctx.vertex_array(prog, [(self.vbo, "4f", "in_pos")])
+        self._key = None
+
+    def set(self, ground_size, origin=None) -> None:
+        """The ground z = 0 (unlimited, or a ``ground_size`` square) relative to ``origin (3,)``."""
+        origin = np.zeros(3) if origin is None else np.asarray(origin, np.float64)
+        key = ("inf" if ground_size is None else float(ground_size), tuple(origin.tolist()))
+        if key == self._key:
+            return
+        self.vbo.write(ground_vertices(ground_size, origin).tobytes())
+        self._key = key
+
+    def render(self, ctx) -> None:
+        self.vao.render(ctx.TRIANGLES, vertices=12)
+
+    def release(self) -> None:
+        self.vao.release()
+        self.vbo.release()
+
+
+def screen_box(mvp, corners, width, height):
+    """Conservative pixel box ``(x0, y0, x1, y1)`` (GL window coordinates, bottom-up, half-open) of the
+    caster's projection: its 8 bounding-box ``corners (8, 4)`` (homogeneous world) projected; the whole
+    canvas if a corner is not strictly in front of the camera."""
+    clip = corners @ mvp.T
+    w = clip[:, 3]
+    if not np.all(w > 1e-9):
+        return 0, 0, width, height
+    x = (clip[:, 0] / w + 1.0) * 0.5 * width
+    y = (clip[:, 1] / w + 1.0) * 0.5 * height
+    x0 = int(min(max(math.floor(x.min()) - 1, 0), width))
+    y0 = int(min(max(math.floor(y.min()) - 1, 0), height))
+    x1 = int(max(min(math.ceil(x.max()) + 1, width), 0))
+    y1 = int(max(min(math.ceil(y.max()) + 1, height), 0))
+    return x0, y0, x1, y1
+

@@ -35,12 +35,17 @@ from ..errors import UsageError
 from ..render_api import RenderResult
 from . import glraw as G
 from .context import current
-from .resources import CasterBuffers, ground_vertices, program
+from .resources import CasterBuffers, GroundBuffer, program
 
 __all__ = ["ShadowMapRenderer", "light_view_projection", "MAP_SIZES"]
 
 #: map sizes the benchmark sweeps (the renderer accepts any size up to GL_MAX_TEXTURE_SIZE)
 MAP_SIZES = (512, 1024, 2048, 4096, 8192)
+
+
+def _f32(m) -> bytes:
+    """A (4, 4) matrix as float32 bytes, column-major (GLSL)."""
+    return np.asarray(m, np.float64).T.astype(np.float32).tobytes()
 
 
 def _look_at(eye, target, up_hint=(0.0, 0.0, 1.0)) -> np.ndarray:
@@ -144,9 +149,7 @@ class ShadowMapRenderer:
         self.prog_depth = program(ctx, "common.vert", "volume.frag")
         self.prog_occ = program(ctx, "shadowmap_occluder.vert", "shadowmap.frag")
         self.prog_ground = program(ctx, "shadowmap_ground.vert", "shadowmap.frag")
-        self._ground_vbo = ctx.buffer(reserve=12 * 4 * 4)
-        self._ground_vao = ctx.vertex_array(self.prog_ground, [(self._ground_vbo, "4f", "in_pos")])
-        self._ground_key = ()
+        self._ground = GroundBuffer(ctx, self.prog_ground)
         # moderngl rebinds "the last framebuffer used" after creating one, and that may be a framebuffer
         # another renderer has since deleted (GL_INVALID_OPERATION): bind the default one first, and leave
         # it bound after every render and at release
@@ -174,7 +177,8 @@ class ShadowMapRenderer:
         if self._released:
             return
         self._default_fbo.use()
-        objs = [self._ground_vao, self._ground_vbo, self.depth_fbo, self.depth_tex]
+        self._ground.release()
+        objs = [self.depth_fbo, self.depth_tex]
         if self._fbo is not None:
             objs += [self._fbo, *self._rbs]
         for o in objs:
@@ -231,94 +235,24 @@ class ShadowMapRenderer:
         proj = check_finite(check_shape(projection, "4,4", "projection"), "projection")
         view = check_finite(check_shape(view, "4,4", "view"), "view")
         passes = list(passes)
-        ctx, gl = self.ctx, self.gl
+        ctx = self.ctx
         mvp = proj @ view
-        f32 = lambda m: np.asarray(m, np.float64).T.astype(np.float32).tobytes()  # noqa: E731 (column-major)
         eye = -view[:3, :3].T @ view[:3, 3]
         bufs = self._buffers(caster, occluder_color)
-        key = None if ground_size is None else float(ground_size)
-        if key != self._ground_key:
-            self._ground_vbo.write(ground_vertices(key).tobytes())
-            self._ground_key = key
+        self._ground.set(ground_size)
         fbo = self._targets(width, height)
         bounds = np.asarray(caster.bounds, np.float64)
         t1 = time.perf_counter()
-
-        # -- base pass: clear, occluder (ambient, coverage), ground (coverage)
-        fbo.use()
-        fbo.viewport = (0, 0, width, height)
-        ctx.scissor = (0, 0, width, height)
-        ctx.front_face = "cw" if np.linalg.det(mvp) > 0 else "ccw"
-        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0, viewport=(0, 0, width, height))
-        ctx.enable_only(ctx.DEPTH_TEST)
-        ctx.depth_func = "<"
-        for prog in (self.prog_occ, self.prog_ground):
-            prog["u_mvp"].write(f32(mvp))
-            prog["u_light_vp"].write(f32(np.eye(4)))
-            prog["u_pass"].value = 0
-        self.prog_occ["u_ambient"].value = float(ambient)
-        self.prog_occ["u_is_ground"].value = 0
-        self.prog_ground["u_is_ground"].value = 1
-        cull = ctx.CULL_FACE if bufs.cull else 0  # closed meshes: back faces are never visible
-        ctx.cull_face = "back"
-        if draw_occluder:
-            ctx.enable_only(ctx.DEPTH_TEST | cull)
-            bufs.vao.render(ctx.TRIANGLES, vertices=bufs.n_indices)
-            ctx.enable_only(ctx.DEPTH_TEST)
-        self._ground_vao.render(ctx.TRIANGLES, vertices=12)
-
+        self._base_pass(fbo, mvp, width, height, bufs, draw_occluder, ambient)
         # -- per light: depth map, then the ground and the occluder again with the map
         for p in passes:
-            w = float(p.weight)
-            if not (math.isfinite(w) and w >= 0):
-                raise UsageError(f"light weight must be finite and >= 0, got {p.weight}")
-            lh = np.asarray(p.light_h, np.float64)
-            if lh[3] != 0:
-                lh = lh / lh[3]
-            lvp = light_view_projection(lh, bounds)
-            self.depth_fbo.use()
-            self.depth_fbo.clear(depth=1.0)
-            ctx.enable_only(ctx.DEPTH_TEST)
-            ctx.depth_func = "<"
-            gl.glEnable(G.GL_POLYGON_OFFSET_FILL)
-            gl.glPolygonOffset(self.slope_bias, self.constant_bias)
-            self.prog_depth["u_mvp"].write(f32(lvp))
-            bufs.planar_vao.render(ctx.TRIANGLES, vertices=bufs.n_indices)
-            gl.glDisable(G.GL_POLYGON_OFFSET_FILL)
-
-            fbo.use()
-            fbo.viewport = (0, 0, width, height)
-            ctx.enable_only(ctx.DEPTH_TEST | ctx.BLEND)
-            ctx.blend_func = ctx.ONE, ctx.ONE
-            ctx.depth_func = "<="
-            gl.glDepthMask(G.GL_FALSE)
-            self.depth_tex.use(location=0)
-            for prog in (self.prog_ground, self.prog_occ):
-                prog["u_light_vp"].write(f32(lvp))
-                prog["u_pass"].value = 1
-                prog["u_map"].value = 0
-                prog["u_pcf"].value = self.pcf
-                prog["u_texel"].value = 1.0 / self.map_size
-                prog["u_bias"].value = self.shader_bias
-            self.prog_ground["u_weight"].value = w
-            self._ground_vao.render(ctx.TRIANGLES, vertices=12)
-            if draw_occluder:
-                ctx.enable_only(ctx.DEPTH_TEST | ctx.BLEND | cull)
-                po = self.prog_occ
-                po["u_light"].value = tuple(float(x) for x in lh)
-                po["u_light_color"].value = tuple(float(x) * w for x in np.asarray(p.color, np.float64)[:3])
-                po["u_eye"].value = tuple(float(x) for x in eye)
-                po["u_kd"].value = float(diffuse)
-                po["u_ks"].value = float(specular)
-                po["u_shininess"].value = float(shininess)
-                bufs.vao.render(ctx.TRIANGLES, vertices=bufs.n_indices)
-            gl.glDepthMask(G.GL_TRUE)
+            self._light_pass(fbo, width, height, bufs, p, bounds, eye, draw_occluder,
+                             (diffuse, specular, shininess))
         ctx.enable_only(ctx.NOTHING)
         ctx.depth_func = "<"
         ctx.front_face = "ccw"
         ctx.finish()
         t2 = time.perf_counter()
-
         c0 = np.frombuffer(fbo.read(viewport=(0, 0, width, height), components=4, attachment=0, dtype="f4"),
                            np.float32).reshape(height, width, 4)[::-1]
         c1 = np.frombuffer(fbo.read(viewport=(0, 0, width, height), components=2, attachment=1, dtype="f4"),
@@ -331,3 +265,81 @@ class ShadowMapRenderer:
                             ground=gcov > 0.5, ground_coverage=gcov,
                             timings_ms={"upload": (t1 - t0) * 1e3, "draw": (t2 - t1) * 1e3,
                                         "readback": (t3 - t2) * 1e3, "total": (t3 - t0) * 1e3})
+
+    def _base_pass(self, fbo, mvp, width, height, bufs, draw_occluder, ambient) -> None:
+        """Clear; the occluder (ambient, coverage) and the ground (coverage)."""
+        ctx = self.ctx
+        fbo.use()
+        fbo.viewport = (0, 0, width, height)
+        ctx.scissor = (0, 0, width, height)
+        ctx.front_face = "cw" if np.linalg.det(mvp) > 0 else "ccw"
+        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0, viewport=(0, 0, width, height))
+        ctx.enable_only(ctx.DEPTH_TEST)
+        ctx.depth_func = "<"
+        for prog in (self.prog_occ, self.prog_ground):
+            prog["u_mvp"].write(_f32(mvp))
+            prog["u_light_vp"].write(_f32(np.eye(4)))
+            prog["u_pass"].value = 0
+        self.prog_occ["u_ambient"].value = float(ambient)
+        self.prog_occ["u_is_ground"].value = 0
+        self.prog_ground["u_is_ground"].value = 1
+        ctx.cull_face = "back"
+        if draw_occluder:
+            ctx.enable_only(ctx.DEPTH_TEST | self._cull(bufs))
+            bufs.vao.render(ctx.TRIANGLES, vertices=bufs.n_indices)
+            ctx.enable_only(ctx.DEPTH_TEST)
+        self._ground.render(ctx)
+
+    def _cull(self, bufs) -> int:
+        """Closed meshes: back faces are never visible (the CULL_FACE flag, or 0)."""
+        return self.ctx.CULL_FACE if bufs.cull else 0
+
+    def _light_pass(self, fbo, width, height, bufs, p, bounds, eye, draw_occluder, phong) -> None:
+        """One light: the caster's depth from the light into the map, then the ground (its blocked weight)
+        and the occluder (its lit Phong term) again, compared against the map."""
+        ctx, gl = self.ctx, self.gl
+        w = float(p.weight)
+        if not (math.isfinite(w) and w >= 0):
+            raise UsageError(f"light weight must be finite and >= 0, got {p.weight}")
+        lh = np.asarray(p.light_h, np.float64)
+        if lh[3] != 0:
+            lh = lh / lh[3]
+        lvp = light_view_projection(lh, bounds)
+        self.depth_fbo.use()
+        self.depth_fbo.clear(depth=1.0)
+        ctx.enable_only(ctx.DEPTH_TEST)
+        ctx.depth_func = "<"
+        gl.glEnable(G.GL_POLYGON_OFFSET_FILL)
+        gl.glPolygonOffset(self.slope_bias, self.constant_bias)
+        self.prog_depth["u_mvp"].write(_f32(lvp))
+        bufs.planar_vao.render(ctx.TRIANGLES, vertices=bufs.n_indices)
+        gl.glDisable(G.GL_POLYGON_OFFSET_FILL)
+
+        fbo.use()
+        fbo.viewport = (0, 0, width, height)
+        ctx.enable_only(ctx.DEPTH_TEST | ctx.BLEND)
+        ctx.blend_func = ctx.ONE, ctx.ONE
+        ctx.depth_func = "<="
+        gl.glDepthMask(G.GL_FALSE)
+        self.depth_tex.use(location=0)
+        for prog in (self.prog_ground, self.prog_occ):
+            prog["u_light_vp"].write(_f32(lvp))
+            prog["u_pass"].value = 1
+            prog["u_map"].value = 0
+            prog["u_pcf"].value = self.pcf
+            prog["u_texel"].value = 1.0 / self.map_size
+            prog["u_bias"].value = self.shader_bias
+        self.prog_ground["u_weight"].value = w
+        self._ground.render(ctx)
+        if draw_occluder:
+            diffuse, specular, shininess = phong
+            ctx.enable_only(ctx.DEPTH_TEST | ctx.BLEND | self._cull(bufs))
+            po = self.prog_occ
+            po["u_light"].value = tuple(float(x) for x in lh)
+            po["u_light_color"].value = tuple(float(x) * w for x in np.asarray(p.color, np.float64)[:3])
+            po["u_eye"].value = tuple(float(x) for x in eye)
+            po["u_kd"].value = float(diffuse)
+            po["u_ks"].value = float(specular)
+            po["u_shininess"].value = float(shininess)
+            bufs.vao.render(ctx.TRIANGLES, vertices=bufs.n_indices)
+        gl.glDepthMask(G.GL_TRUE)

@@ -1,5 +1,8 @@
 """Offscreen stencil shadow-volume renderer (moderngl + raw GL stencil through ctypes): :class:`ShadowRenderer`.
 
+(A little over 600 lines: one class whose methods are the passes below; they share the frame's raw GL
+state, which each pass sets and the last resets, so they stay together.)
+
 The renderer is handed a moderngl context (see :mod:`arshadow.gl.context`); it never creates one. Its GPU
 resources (programs, caster buffers, framebuffers, the ground) are in :mod:`arshadow.gl.resources`; each
 pass below is one method. :meth:`ShadowRenderer.render` reads the layers back (:class:`RenderResult`),
@@ -45,6 +48,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -55,12 +59,12 @@ from . import glraw as G
 from .context import current
 from .layers import GpuLayers
 from .resources import (
-    CasterBuffers,
     CasterCache,
     FrameTargets,
+    GroundBuffer,
     VolumeBuffers,
-    ground_vertices,
     program,
+    screen_box,
     translation,
 )
 
@@ -85,7 +89,7 @@ class _Frame:
     origin: np.ndarray  # (3,) the caster's local origin
     eye: np.ndarray  # (3,) the camera centre in the local frame
     front: str
-    bufs: CasterBuffers | None
+    bufs: Any  # CasterBuffers; None when neither the occluder nor a planar pass needs the caster's buffers
     passes: list
     ranges: list
     draw_occluder: bool
@@ -160,9 +164,7 @@ class ShadowRenderer:
         self.prog_mask = program(ctx, "fullscreen.vert", "mask.frag")
         self.prog_planar_mask = program(ctx, "common.vert", "mask.frag")  # direct planar shadows
         # static geometry: unlimited ground (4 triangles fanning out to points at infinity), full viewport
-        self._ground_vbo = ctx.buffer(reserve=12 * 4 * 4)
-        self._ground_vao = ctx.vertex_array(self.prog_ground, [(self._ground_vbo, "4f", "in_pos")])
-        self._ground_key = None
+        self._ground = GroundBuffer(ctx, self.prog_ground)
         self._fs_vao = ctx.vertex_array(self.prog_mask, [])
         self._volumes = VolumeBuffers(ctx, self.prog_volume)
         self._casters = CasterCache(ctx, (self.prog_occ_base, self.prog_occ_light, self.prog_volume),
@@ -190,8 +192,8 @@ class ShadowRenderer:
         self._targets.release()
         self._casters.release()
         self._volumes.release()
-        for o in (self._ground_vao, self._ground_vbo, self._fs_vao):
-            o.release()
+        self._ground.release()
+        self._fs_vao.release()
         self._released = True
 
     @property
@@ -213,15 +215,6 @@ class ShadowRenderer:
     def _main(self):
         """The main render target (None before the first render)."""
         return self._targets.main
-
-    def _set_ground(self, ground_size, origin=None) -> None:
-        """The ground z = 0 in the frame of ``origin`` (see :func:`local_origin`)."""
-        origin = np.zeros(3) if origin is None else np.asarray(origin, np.float64)
-        key = ("inf" if ground_size is None else float(ground_size), tuple(origin.tolist()))
-        if key == self._ground_key:
-            return
-        self._ground_vbo.write(ground_vertices(ground_size, origin).tobytes())
-        self._ground_key = key
 
     # ------------------------------------------------------------------ entry points
     @current
@@ -328,9 +321,9 @@ class ShadowRenderer:
         bufs = self._casters.get(caster, occluder_color, self.crease_deg) if (draw_occluder or any(
             p.mode == "planar" for p in passes)) else None
         ranges = self._volumes.upload(passes, origin)
-        if draw_occluder or any(p.mode == "planar" and p.direct for p in passes):
+        if bufs is not None and (draw_occluder or any(p.mode == "planar" and p.direct for p in passes)):
             bufs.upload_light_subsets(passes)
-        self._set_ground(ground_size, origin)
+        self._ground.set(ground_size, origin)
         self._targets.ensure(width, height)
         f = _Frame(width=width, height=height, mvp=mvp,
                    mvp_bytes=mvp_local.T.astype(np.float32).tobytes(),  # GLSL is column-major
@@ -402,7 +395,7 @@ class ShadowRenderer:
         else:
             gl.draw_buffers(2)
         self.prog_ground["u_mvp"].write(f.mvp_bytes)
-        self._ground_vao.render(ctx.TRIANGLES, vertices=12)
+        self._ground.render(ctx)
         gl.draw_buffers(2)
         gl.glDisable(G.GL_POLYGON_OFFSET_FILL)
         self._mark("ground")
@@ -543,7 +536,7 @@ class ShadowRenderer:
         gl.glBindBuffer(G.GL_PIXEL_PACK_BUFFER, 0)
         gl.glPixelStorei(G.GL_PACK_ALIGNMENT, 4)
         gl.glBindFramebuffer(G.GL_READ_FRAMEBUFFER, src.fbo)
-        box = _screen_box(f.mvp, f.bufs.box_corners, width, height) if f.draw_occluder else None
+        box = screen_box(f.mvp, f.bufs.box_corners, width, height) if f.draw_occluder else None
         if box is not None and box[2] > box[0] and box[3] > box[1]:
             x0, y0, x1, y1 = box
             gl.glPixelStorei(G.GL_PACK_ROW_LENGTH, width)
@@ -641,21 +634,3 @@ class ShadowRenderer:
             bufs.vao.render(ctx.TRIANGLES, vertices=bufs.n_indices)
         gl.draw_buffers(2)
         ctx.depth_func = "<"
-
-
-def _screen_box(mvp, corners, width, height):
-    """Conservative pixel box ``(x0, y0, x1, y1)`` (GL window coordinates, bottom-up, half-open) of the
-    caster's projection: its 8 bounding-box ``corners (8, 4)`` (homogeneous world) projected; the whole
-    canvas if a corner is not strictly in front of the camera."""
-    clip = corners @ mvp.T
-    w = clip[:, 3]
-    if not np.all(w > 1e-9):
-        return 0, 0, width, height
-    x = (clip[:, 0] / w + 1.0) * 0.5 * width
-    y = (clip[:, 1] / w + 1.0) * 0.5 * height
-    x0 = int(min(max(math.floor(x.min()) - 1, 0), width))
-    y0 = int(min(max(math.floor(y.min()) - 1, 0), height))
-    x1 = int(max(min(math.ceil(x.max()) + 1, width), 0))
-    y1 = int(max(min(math.ceil(y.max()) + 1, height), 0))
-    return x0, y0, x1, y1
-

@@ -30,6 +30,9 @@ from .dictionary import get_dictionary
 
 __all__ = ["OPENCV_BOARD_TO_WORLD", "BOARD_KINDS", "Board", "load_board", "read_aruco_layout"]
 
+#: a board whose marker side is longer than this (metres) is taken for a file in millimetres / centimetres
+MAX_PLAUSIBLE_MARKER_M = 1.0
+
 #: board types of a board file's ``type``
 BOARD_KINDS = ("gridboard", "charuco", "markers")
 
@@ -158,6 +161,16 @@ class Board:
     def n_markers(self) -> int:
         cols, rows = self.size
         return cols * rows if self.kind in ("gridboard", "markers") else (cols * rows) // 2
+
+    def unit_warnings(self) -> list[str]:
+        """Warnings for lengths that are plausible only in another unit (board files are in metres): a
+        marker side over :data:`MAX_PLAUSIBLE_MARKER_M` is probably millimetres (or centimetres)."""
+        ml = self.marker_length
+        if ml <= MAX_PLAUSIBLE_MARKER_M:
+            return []
+        unit, f = ("millimetres", 1000.0) if ml >= 10.0 else ("centimetres", 100.0)
+        return [f"{self._where()}marker side {ml:g} m: the board file is probably in {unit} (its lengths are "
+                f"metres: a {ml / f:g} m marker would be written {ml / f:g})"]
 
     @property
     def planar(self) -> bool:

@@ -31,6 +31,7 @@ __all__ = [
     "AprilTagDetector",
     "RescueDetector",
     "luma_to_gray",
+    "markers_in_image",
 ]
 
 #: :class:`RescueDetector`: the adaptive-threshold constant of the second search, relative to the first
@@ -341,3 +342,40 @@ class RescueDetector:
 
     def __getattr__(self, name):
         return getattr(self._base, name)
+
+
+#: dictionary families (the smaller ones are prefixes of the largest): scanned by :func:`markers_in_image`
+DICTIONARY_FAMILIES = (
+    ("DICT_4X4_50", "DICT_4X4_100", "DICT_4X4_250", "DICT_4X4_1000"),
+    ("DICT_5X5_50", "DICT_5X5_100", "DICT_5X5_250", "DICT_5X5_1000"),
+    ("DICT_6X6_50", "DICT_6X6_100", "DICT_6X6_250", "DICT_6X6_1000"),
+    ("DICT_7X7_50", "DICT_7X7_100", "DICT_7X7_250", "DICT_7X7_1000"),
+    ("DICT_ARUCO_ORIGINAL",), ("DICT_ARUCO_MIP_36h12",),
+    ("DICT_APRILTAG_16h5",), ("DICT_APRILTAG_25h9",), ("DICT_APRILTAG_36h10",), ("DICT_APRILTAG_36h11",),
+)
+
+
+def markers_in_image(image, skip=None) -> dict:
+    """Which predefined dictionaries have markers in ``image``, and their ids: ``{name: [ids]}`` with, per
+    family, the smallest dictionary holding every id found (e.g. ``{"DICT_5X5_1000": [403]}``).
+
+    One detection per family (10 in all: for the message of a photo where the asked dictionary found
+    nothing, issue 20). ``skip``: a dictionary (name or ``cv2.aruco.Dictionary``) left out with its family.
+    """
+    gray = to_gray(image)
+    skip_bytes = None
+    if skip is not None:
+        skip_bytes = get_dictionary(skip).bytesList[:1].tobytes()
+    p = make_detector_params("none")
+    out = {}
+    for fam in DICTIONARY_FAMILIES:
+        big = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, fam[-1]))
+        if skip_bytes is not None and big.bytesList[:1].tobytes() == skip_bytes:
+            continue
+        _, ids, _ = cv2.aruco.ArucoDetector(big, p).detectMarkers(gray)
+        if ids is None or len(ids) == 0:
+            continue
+        found = sorted(set(np.asarray(ids).ravel().tolist()))
+        name = next(n for n in fam if int(n.rsplit("_", 1)[-1]) > found[-1]) if len(fam) > 1 else fam[0]
+        out[name] = found
+    return out

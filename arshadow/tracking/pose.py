@@ -19,6 +19,7 @@ from .quality import (
     MAX_CORNER_INSTABILITY,
     MIN_CONFIDENT_SIDE_PX,
 )
+from .quality import flag_reasons as quality_flag_reasons  # MarkerPose.flag_reasons shadows the name
 
 __all__ = ["AltPose", "MarkerPose", "rms_reprojection_px", "solve_general", "solve_planar"]
 
@@ -112,6 +113,18 @@ class MarkerPose:
             q = np.asarray(self.corners, np.float64)[:4]
             return bool(np.linalg.norm(q - np.roll(q, 1, axis=0), axis=1).min() < MIN_CONFIDENT_SIDE_PX)
         return False
+
+    @property
+    def flag_reasons(self) -> list[str]:
+        """Why this pose is flagged, one sentence per reason with its number ([] when it is not):
+        :func:`arshadow.tracking.quality.flag_reasons` (the ambiguity tests of :attr:`ambiguous`, and a
+        reprojection error far above what the detected corners allow)."""
+        return quality_flag_reasons(self)
+
+    @property
+    def flagged(self) -> bool:
+        """:attr:`ambiguous`, or a reprojection error far above what the detected corners allow."""
+        return self.ambiguous or bool(self.flag_reasons)
 
     def swapped(self) -> MarkerPose:
         """This pose with the alternative IPPE solution chosen instead (for sequences)."""

@@ -12,8 +12,12 @@ __all__ = [
     "MIN_CONFIDENT_SIDE_PX",
     "MAX_CORNER_INSTABILITY",
     "MAX_BORDER_OCCLUSION",
+    "MAX_REPROJECTION_PX",
+    "MAX_REPROJECTION_SIDE_SHARE",
     "border_occlusion",
     "corner_instability",
+    "reprojection_limit_px",
+    "flag_reasons",
 ]
 
 #: pose_ambiguity (err_best / err_second of the two IPPE solutions) at or above which a single-marker
@@ -30,6 +34,12 @@ MAX_CORNER_INSTABILITY = 0.008
 #: 12: a grey patch over one corner gave a pose 3.7 deg off with ratio 0.25 and stable corners; its ring
 #: cells read 0.45, sharp unoccluded markers <= 0.15 in the stress suite)
 MAX_BORDER_OCCLUSION = 0.3
+#: a pose whose RMS reprojection error exceeds ``max(MAX_REPROJECTION_PX, MAX_REPROJECTION_SIDE_SHARE x
+#: the shortest marker side in pixels)`` is flagged: the detector's corners are good to a fraction of a
+#: pixel (real 640x480 webcam clips with strong distortion: 0.1-0.4 px for one marker, 1.1 px median for
+#: a whole 18-marker board), a board file that does not match the photo gives tens of pixels (issue 20: 74)
+MAX_REPROJECTION_PX = 4.0
+MAX_REPROJECTION_SIDE_SHARE = 0.05
 
 
 def border_occlusion(gray, quad, bits) -> float:
@@ -92,3 +102,41 @@ def corner_instability(gray, quad) -> float:
     b = cv2.cornerSubPix(gray, q.copy(), (6, 6), (-1, -1), crit)
     return float(np.linalg.norm((a - b)[:, 0], axis=1).max() / side)
 
+
+
+def reprojection_limit_px(corners) -> float:
+    """The RMS reprojection error (pixels) above which a pose is flagged, for image points ``corners
+    (n, 2)`` (the first 4 = the reference marker's quad): see :data:`MAX_REPROJECTION_PX`."""
+    q = np.asarray(corners, np.float64).reshape(-1, 2)[:4]
+    side = float(np.linalg.norm(q - np.roll(q, 1, axis=0), axis=1).min()) if len(q) == 4 else 0.0
+    return max(MAX_REPROJECTION_PX, MAX_REPROJECTION_SIDE_SHARE * side)
+
+
+def flag_reasons(pose) -> list[str]:
+    """Why a pose (:class:`arshadow.tracking.pose.MarkerPose`) is flagged, one sentence per reason with
+    its number (empty when it is not): the two planar solutions nearly equal, blurred corners, a covered
+    border, a marker under :data:`MIN_CONFIDENT_SIDE_PX`, a reprojection error far above what the
+    detector's corners allow."""
+    out = []
+    ratio, thr = pose.pose_ambiguity, pose.ambiguity_threshold
+    if ratio is not None and ratio >= thr:
+        out.append(f"ambiguous: the two planar solutions explain the corners almost equally (ratio {ratio:.3g} "
+                   f">= {thr:g})")
+    ci = pose.corner_instability
+    if ci is not None and ci > MAX_CORNER_INSTABILITY:
+        out.append(f"blurred corners: they move by {ci:.3g} of the marker's side between refinement windows "
+                   f"(> {MAX_CORNER_INSTABILITY:g})")
+    bo = pose.border_occlusion
+    if bo is not None and bo > MAX_BORDER_OCCLUSION:
+        out.append(f"marker partly covered: a border cell reads {bo:.2f} of the way to white (> {MAX_BORDER_OCCLUSION:g})")
+    if pose.kind == "marker" and pose.pose_ambiguity is not None and len(pose.corners) >= 4:
+        q = np.asarray(pose.corners, np.float64)[:4]
+        side = float(np.linalg.norm(q - np.roll(q, 1, axis=0), axis=1).min())
+        if side < MIN_CONFIDENT_SIDE_PX:
+            out.append(f"small marker: {side:.1f} px across, under the {MIN_CONFIDENT_SIDE_PX:g} px a pose can be "
+                       "trusted at")
+    lim = reprojection_limit_px(pose.corners)
+    if pose.reprojection_error_px > lim:
+        out.append(f"reprojection error {pose.reprojection_error_px:.1f} px, far above the {lim:.1f} px the "
+                   "detected corners allow (a board file or marker length that does not match the print?)")
+    return out

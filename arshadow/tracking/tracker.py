@@ -20,6 +20,7 @@ from .detect import (
     DEFAULT_REFINE,
     AprilTagDetector,
     RescueDetector,
+    markers_in_image,
     Detection,
     detection_from_opencv,
     make_detector_params,
@@ -133,6 +134,8 @@ class MarkerTracker:
             detector_params = fast_detector_params()
         self.params = make_detector_params(refine, detector_params)
         self.inverted = bool(board.inverted if (inverted is None and board is not None) else inverted)
+        #: a miss names the other dictionaries found in the image (photos; not per video frame: ``track_roi``)
+        self.explain_misses = not track_roi and not fast  # (the fast pass falls back to the full one)
         if self.inverted:
             self.params.detectInvertedMarker = True
         self.ambiguity_threshold = float(ambiguity_threshold)
@@ -244,6 +247,21 @@ class MarkerTracker:
                 pose = pose.swapped()
         return pose
 
+    def miss_hint(self, gray) -> str:
+        """The end of a "no marker found" message: markers printed inverted (:meth:`inverted_hint`), or
+        (``explain_misses``) the other dictionaries' markers in the image (:func:`markers_in_image`)."""
+        if not self.explain_misses:
+            return ""
+        hint = self.inverted_hint(gray)
+        if hint:
+            return hint
+        other = markers_in_image(gray, skip=self.dictionary)
+        if not other:
+            return ""
+        listed = "; ".join(f"{n} ids {', '.join(map(str, ids[:8]))}{' ...' if len(ids) > 8 else ''}"
+                           for n, ids in other.items())
+        return f"; the image has markers of other dictionaries: {listed} (give --dictionary)"
+
     def inverted_hint(self, gray) -> str:
         """``""``, or (no marker found, not in inverted mode) a sentence saying that the image holds markers
         of this dictionary printed white on black, for the error message (one extra detection)."""
@@ -274,7 +292,7 @@ class MarkerTracker:
         self._t_detect = time.perf_counter()
         det = detection_from_opencv(corners, ids, rejected, self._shift_params)
         if len(det) == 0:
-            raise MarkerNotFoundError(f"no marker of {self.dictionary_name} found{self.inverted_hint(gray)}")
+            raise MarkerNotFoundError(f"no marker of {self.dictionary_name} found{self.miss_hint(gray)}")
         if self.refine == "edge":
             det.corners = refine_corners_edges(gray, det.corners, intr)
         found = sorted(set(det.ids.tolist()))
@@ -295,7 +313,7 @@ class MarkerTracker:
     def _estimate_gridboard(self, gray, intr) -> MarkerPose:
         corners, ids, rejected = self._detector.detectMarkers(gray)
         if ids is None or len(ids) == 0:
-            raise MarkerNotFoundError(f"no marker of {self.dictionary_name} found{self.inverted_hint(gray)}")
+            raise MarkerNotFoundError(f"no marker of {self.dictionary_name} found{self.miss_hint(gray)}")
         if self.board.kind == "gridboard":
             corners, ids, rejected, _ = self._detector.refineDetectedMarkers(
                 gray, self.board.cv_board, corners, ids, rejected, intr.K, intr.dist_cv)
@@ -321,7 +339,7 @@ class MarkerTracker:
         ch_corners, ch_ids, m_corners, m_ids = det.detectBoard(gray)
         self._t_detect = time.perf_counter()
         if m_ids is None or len(m_ids) == 0:
-            raise MarkerNotFoundError(f"no marker of {self.dictionary_name} found{self.inverted_hint(gray)}")
+            raise MarkerNotFoundError(f"no marker of {self.dictionary_name} found{self.miss_hint(gray)}")
         n = 0 if ch_ids is None else len(ch_ids)
         if n < 4:
             raise MarkerNotFoundError(f"ChArUco board: only {n} chessboard corners found (need at least 4)")

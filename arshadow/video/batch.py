@@ -187,6 +187,8 @@ def process_item(spec, item: BatchItem, outdir, opts, save_mask: bool, fingerpri
             summary["status"] = "ok"
             res.item.output = str(out)  # the report item names the files too (it said output: null)
             res.item.mask = summary["outputs"][1] if save_mask else None
+            if res.item.flag_reasons:  # issue 20: a flagged pose is said (its reasons also in the item)
+                summary["warnings"].append(f"{item.input}: flagged pose: {'; '.join(res.item.flag_reasons)}")
             summary["item"] = res.item.to_dict()
     except MarkerNotFoundError as exc:  # a photo without the marker: done (a rerun would find none either)
         summary["status"] = "no_marker"
@@ -238,8 +240,6 @@ def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=Non
         ``no_marker``, ``damaged``, ``error``) and ``skipped`` (done by an earlier run).
     """
     outdir = check_output_folder(outdir, "-o")
-    if client is not None:  # scene errors (a light inside the model) and warnings once, here, not per worker
-        spec.build()
     (outdir / RECORDS).mkdir(parents=True, exist_ok=True)
     clean_temporaries(outdir)
     items = plan_batch(inputs)

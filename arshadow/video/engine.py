@@ -236,7 +236,8 @@ def _run_threads(reader, composer: FrameComposer, sink: EncodeSink, opts: Engine
             if pose is None and getattr(fr, "format", "bgr24") == "yuv420p":
                 # the luma is not the colour frame's grey (chroma): on a miss, the photo path's (issue 21)
                 pose, _err = composer.backend.track(gray_of(fr, reader.height, colour=True), timings)
-            for fp in stream.push((fr, dec_ms, timings, getattr(fr, "format", "bgr24")), pose, fr.time_s):
+            reason = None if _err is None else str(_err)
+            for fp in stream.push((fr, dec_ms, timings, getattr(fr, "format", "bgr24"), reason), pose, fr.time_s):
                 emit(fp)
         if dec_t.error is not None:
             raise dec_t.error

@@ -130,7 +130,8 @@ class FrameComposer:
     Attributes
     ----------
     stats : dict
-        ``frames``, ``frames_ok``, ``frames_held``, ``frames_no_marker``, ``swapped``.
+        ``frames``, ``frames_ok``, ``frames_held``, ``frames_no_marker``, ``swapped``, ``longest_gap``
+        (most frames in a row not tracked) and ``longest_gap_start`` (its first frame, None without a gap).
     stage_ms : dict
         Per stage of :data:`FRAME_STAGES`, every frame's milliseconds (``encode`` filled by the encoder).
     """
@@ -140,7 +141,9 @@ class FrameComposer:
         self.out_video, self.out_mask = str(out_video), None if out_mask is None else str(out_mask)
         self.W, self.H = size
         self.want_mask = want_mask
-        self.stats = {"frames": 0, "frames_ok": 0, "frames_held": 0, "frames_no_marker": 0, "swapped": 0}
+        self.stats = {"frames": 0, "frames_ok": 0, "frames_held": 0, "frames_no_marker": 0, "swapped": 0,
+                      "longest_gap": 0, "longest_gap_start": None}
+        self._gap = (0, None)  # (length, first frame) of the current run of frames not tracked
         self.flags = FlagTally()  # flagged poses: one warning line for the video
         self.stage_ms: dict = {k: [] for k in FRAME_STAGES}
         #: an :class:`arshadow.export.layervideo.LayerSink` getting every frame's layers, or None
@@ -149,9 +152,11 @@ class FrameComposer:
     def compose(self, fp):
         """One decided frame -> ``(image, format, mask or None, ReportItem, JSON Lines record)``.
 
-        ``fp.payload`` is ``(frame, decode_ms, timings, format)`` as pushed by the engine.
+        ``fp.payload`` is ``(frame, decode_ms, timings, format[, reason])`` as pushed by the engine
+        (``reason``: why the tracker found no pose, the record's ``not_tracked``).
         """
-        fr, dec_ms, timings, fmt = fp.payload
+        fr, dec_ms, timings, fmt, *rest = fp.payload
+        self._count_gap(fr.index, fp.status == "ok")
         img = fr.image
         sun = self.backend.lights_at(fr.time_s)
         mask = None
@@ -172,7 +177,16 @@ class FrameComposer:
         self._finish_timings(item, timings, dec_ms)
         item.notes = self.backend.notes or None
         self.stats["frames"] += 1
-        return img, fmt, mask, item, frame_record(fr, item, sun)
+        rec = frame_record(fr, item, sun)
+        if fp.status != "ok" and rest and rest[0]:
+            rec["not_tracked"] = str(rest[0])
+        return img, fmt, mask, item, rec
+
+    def _count_gap(self, index: int, tracked: bool) -> None:
+        n, start = self._gap
+        self._gap = (0, None) if tracked else (n + 1, index if start is None else start)
+        if self._gap[0] > self.stats["longest_gap"]:
+            self.stats["longest_gap"], self.stats["longest_gap_start"] = self._gap
 
     def _pose_fields(self, item, fp) -> None:
         """The report's pose keys: the tracked (raw) pose and the one rendered with (smoothed / held)."""

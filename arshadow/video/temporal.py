@@ -78,7 +78,7 @@ def _local_poly(dt, w, ys, degree):
     return beta[0], X @ beta
 
 
-def smooth_poses(times, poses, i, *, window_s, degree=2, outlier_deg=3.0, max_span_deg=6.0):
+def smooth_poses(times, poses, i, *, window_s, degree=2, outlier_deg=3.0, max_span_deg=6.0, trust_i=True):
     """The smoothed pose of frame ``i`` from its neighbours (:class:`PoseStream` step 2).
 
     A local polynomial (``degree`` 2: constant acceleration is followed exactly, so an arc of a camera
@@ -104,6 +104,10 @@ def smooth_poses(times, poses, i, *, window_s, degree=2, outlier_deg=3.0, max_sp
         Fast motion narrows the window: to the time in which the camera turns by this angle (median
         rotation speed of the neighbours), so that a quick swing is followed, not averaged away; at least
         two frames either side.
+    trust_i : bool
+        Frame ``i`` always takes part in its own fit. False (its pose is flagged, e.g. blurred corners):
+        it is left out like any neighbour when it disagrees with the fit, provided frames on both sides
+        take part (issue 21: a blurred frame of the real 5-fps clip sat 8 deg off its neighbours' path).
 
     Returns
     -------
@@ -134,7 +138,8 @@ def smooth_poses(times, poses, i, *, window_s, degree=2, outlier_deg=3.0, max_sp
         fit, fitted = _local_poly(dt, w, ys, degree)
         res = np.degrees(np.linalg.norm(rv - fitted[:, :3], axis=1))
         keep = (w0 > 0) & (res <= outlier_deg)
-        keep[i] = True
+        both_sides = bool(np.any(keep & (dt < 0))) and bool(np.any(keep & (dt > 0)))
+        keep[i] = keep[i] or trust_i or not both_sides
         new_w = np.where(keep, w0, 0.0)
         if np.array_equal(new_w > 0, w > 0):
             break
@@ -250,7 +255,7 @@ class PoseStream:
             if self._hist and t - self._hist[-1][0] > self.max_gap_s:
                 times, mats, i = times[i:], mats[i:], 0
             sm = smooth_poses(times, mats, i, window_s=self.window_s, degree=self.degree,
-                                  outlier_deg=self.outlier_deg)
+                              outlier_deg=self.outlier_deg, trust_i=not getattr(pose, "ambiguous", False))
         self._hist.append((t, raw))
         self._last = (t, sm)
         self._since = 0

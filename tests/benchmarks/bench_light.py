@@ -9,7 +9,7 @@ blur, noise, JPEG); the truth is the generating light and reflectances, never th
 
 Prints one JSON object: per kind, the median / 90th percentile of the direction error (degrees), the sun's
 NORTH error, the point light's position error relative to its distance from the probe, the shadow ratio's
-per-channel error, the paper's (exposure) relative error, refusals, and the estimate's time per photo.
+error (worst channel, and per channel), the paper's (exposure) relative error, refusals, and the estimate's time per photo.
 """
 
 from __future__ import annotations
@@ -23,12 +23,12 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import _common  # noqa: E402
+import _common
 
-from arshadow.camera import Intrinsics  # noqa: E402
-from arshadow.errors import EstimateError, MarkerNotFoundError  # noqa: E402
-from arshadow.estimate import estimate_light  # noqa: E402
-from arshadow.synth_lit import random_lit_case  # noqa: E402
+from arshadow.camera import Intrinsics
+from arshadow.errors import ArshadowError
+from arshadow.estimate import estimate_light
+from arshadow.synth_lit import random_lit_case
 
 
 def _angle(a, b) -> float:
@@ -55,11 +55,13 @@ def run_kind(kind: str, n: int, seed: int, calib: str) -> dict:
         try:
             est = estimate_light(p.image, calib=cam, marker_length=0.05, probe=case["probe"],
                                  probe_place=case["probe_place"], probe_rotate=case["probe_rotate"], kind=case["kind"])
-        except (EstimateError, MarkerNotFoundError) as exc:
+        except ArshadowError as exc:
             refused.append({"case": i, "error": str(exc)})
             continue
         times.append((time.perf_counter() - t) * 1e3)
-        row = {"ratio_err": float(np.abs(np.array(est.shadow_ratio) - p.shadow_ratio).max()),
+        rerr = np.abs(np.array(est.shadow_ratio) - p.shadow_ratio)
+        row = {"ratio_err": float(rerr.max()), "ratio_err_r": float(rerr[0]), "ratio_err_g": float(rerr[1]),
+               "ratio_err_b": float(rerr[2]),
                "paper_err": float(np.abs(np.array(est.exposure.paper_rgb) / p.paper_linear - 1).max()),
                "uncertainty_deg": est.uncertainty_deg}
         if kind == "point":
@@ -71,9 +73,14 @@ def run_kind(kind: str, n: int, seed: int, calib: str) -> dict:
         if kind == "sun":
             d = (est.north_deg - case["north_deg"] + 180.0) % 360.0 - 180.0
             row["north_err"] = abs(d)
+        bad = row.get("pos_rel", 0.0) > 0.15 if kind == "point" else row["dir_err"] > 3.0
+        row["confident_wrong"] = bool(est.confident and bad)
+        row["flagged"] = not est.confident
         rows.append(row)
-    out = {"cases": n, "refused": refused, "time_ms": _common.summary(times) if times else None}
-    for key in ("dir_err", "north_err", "pos_rel", "ratio_err", "paper_err", "uncertainty_deg"):
+    out = {"cases": n, "refused": refused, "flagged": sum(r["flagged"] for r in rows),
+           "confident_wrong": sum(r["confident_wrong"] for r in rows), "time_ms": _common.summary(times) if times else None}
+    for key in ("dir_err", "north_err", "pos_rel", "ratio_err", "ratio_err_r", "ratio_err_g", "ratio_err_b", "paper_err",
+                "uncertainty_deg"):
         if any(key in r for r in rows):
             out[key] = _stats([r.get(key) for r in rows])
     return out
