@@ -16,6 +16,7 @@ import cv2
 import numpy as np
 
 from .errors import LightError
+from .lights.area import sample_area_light
 from .transforms import invert_rigid, transform_points
 
 __all__ = ["SceneGeometry", "LightState", "shadow_footprint", "scene_hull_points", "pinhole_rect_for_scene",
@@ -223,8 +224,6 @@ class SceneGeometry:
         LightError
             No light.
         """
-        from .lights.area import sample_area_light
-
         lights = list(lights)
         if not lights:
             raise LightError("no light given (use --light)")

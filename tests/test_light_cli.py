@@ -79,3 +79,35 @@ def test_white_box_matches_the_paper(lit, gl_ctx, tmp_path, capsys):
     # and the shadow: its darkness is the measured ratio, not the default 0.7
     data = json.loads(est.read_text())
     assert all(0.2 < r < 0.8 for r in data["shadow_ratio"])
+
+
+def test_light_from_in_a_scene(tmp_path):
+    """``light_from`` in a scene (job file key / --light-from): the estimate's light, its shadow colour at
+    opacity 1, a matte object with the measured ambient, and the exposure on the colour unless no_exposure."""
+    from arshadow.errors import UsageError
+    from arshadow.estimate import Exposure, LightEstimate
+    from arshadow.scene import scene_from_dict
+
+    est = LightEstimate("directional", "directional:0,0.6,0.8", direction=(0.0, 0.6, 0.8), shadow_ratio=(0.3, 0.4, 0.5),
+                        exposure=Exposure((0.5, 0.45, 0.4), (0.02, 0.02, 0.02), 20))
+    (tmp_path / "est.json").write_text(est.to_json())
+    base = {"calib": "cam.yml", "marker_length": 0.05, "model": "box:0.04,0.04,0.06", "color": "255,255,255"}
+    spec = scene_from_dict({**base, "light_from": "est.json"}, base_dir=tmp_path)
+    o = spec.options
+    assert spec.lights == ("directional:0,0.6,0.8",) and o.opacity == 1.0 and o.specular == 0.0
+    assert np.allclose(o.shadow_color, (0.3, 0.4, 0.5))
+    a = 0.4 * 0.8 / 0.6  # ambient giving a horizontal surface the mean ratio 0.4 under sin(e) = 0.8
+    assert o.ambient == pytest.approx(a)
+    # a white horizontal face shaded ambient + sin(e) records the paper: colour = paper / (a + 0.8), linear
+    lin = np.where(np.array(o.occluder_color) <= 0.04045, np.array(o.occluder_color) / 12.92,
+                   ((np.array(o.occluder_color) + 0.055) / 1.055) ** 2.4)
+    assert np.allclose(lin * (a + 0.8), (0.5, 0.45, 0.4), rtol=1e-6)
+    off = scene_from_dict({**base, "light_from": "est.json", "no_exposure": True}, base_dir=tmp_path).options
+    assert off.occluder_color is None
+    mine = scene_from_dict({**base, "light_from": "est.json", "lights": ["point:0,0,1"]}, base_dir=tmp_path)
+    assert mine.lights == ("point:0,0,1",)
+    with pytest.raises(UsageError, match="light-from"):
+        scene_from_dict({**base, "light_from": "missing.json"}, base_dir=tmp_path)
+    (tmp_path / "bad.json").write_text("{}")
+    with pytest.raises(UsageError, match="not a light estimate"):
+        scene_from_dict({**base, "light_from": "bad.json"}, base_dir=tmp_path)

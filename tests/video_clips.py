@@ -19,13 +19,13 @@ KNOT_SCENE = ["--model", str(ROOT / "samples" / "meshes" / "knot.ply"), "--place
 
 
 def make_clip(path, intr, poses, *, marker_length=0.05, noise=2.0, blur=0.8, jpeg=85, blank=(), seed=0,
-              crf=18, fps=25, codec="h264", audio=False):
+              crf=18, fps=25, codec="h264", audio=False, gop=None):
     """Encode one synthetic frame per pose (frames in ``blank``: the floor only, no marker); returns path."""
     from arshadow.video.avio import AvWriter
     from arshadow.synth import render_marker_photo
 
     path = Path(path)
-    with AvWriter(path, fps, (intr.width, intr.height), codec=codec, crf=crf, preset="medium") as w:
+    with AvWriter(path, fps, (intr.width, intr.height), codec=codec, crf=crf, preset="medium", gop=gop) as w:
         for i, pose in enumerate(poses):
             ph = render_marker_photo(intr, pose, marker_length=marker_length, noise_sigma=noise, blur_sigma=blur,
                                      jpeg_quality=jpeg, seed=seed + i)

@@ -121,7 +121,7 @@ def run(args) -> int:
 
     try:
         summary = run_batch(spec, args.inputs, outdir, opts, save_mask=bool(args.save_mask),
-                            client=client, progress=progress, session=session)
+                            client=client, progress=progress, session=session, jobs=args.jobs)
     finally:
         if bar is not None:
             bar.close()

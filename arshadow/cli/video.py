@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 from pathlib import Path
 
@@ -21,7 +20,7 @@ outputs: DIR/<stem>.mp4 (or .avi / .mkv with --format), and with --save-mask DIR
 lossless (FFV1) 8-bit single-channel video of the shadow mask (CONVENTIONS.md mask values). Frames without
 the marker are written unchanged (mask 0) and reported with status no_marker.
 report: one ITEM per FRAME in "images" (input = the video, plus "frame" and "time_s"); a video that cannot be
-read gets one ITEM with status error and frame null; "videos" summarises each video.
+read gets one ITEM with status error (no "frame"); "videos" summarises each video.
 exit status: 0 all videos done, 1 some video failed (unreadable, unwritable, or the marker in no frame; the
 other videos were processed), 2 bad usage / configuration.
 """
@@ -48,6 +47,9 @@ def add_output_options(out) -> None:
     out.add_argument("--contact-sheet", type=int, default=12, metavar="N",
                      help="frames on DIR/<stem>.sheet.jpg (default 12; 0 = none)")
     out.add_argument("--no-audio", action="store_true", help="do not copy the input's audio")
+    out.add_argument("--jobs", "-j", type=int, default=1, metavar="N",
+                     help="worker processes per video: it is cut at keyframes into N chunks processed in parallel "
+                          "and joined (same output as one process; docs/video.md)")
     out.add_argument("--layers", action="store_true",
                      help="also write the compositing layers (object with alpha, shadow multiply pass, shadow-only "
                           "with alpha), lens distortion applied: plate x shadow.mult + object = the composite in "
@@ -74,7 +76,7 @@ def engine_options(args, collect_items=False):
 
 
 def progress_bar(quiet: bool):
-    """A ``progress_factory`` for :func:`arshadow.video.engine.run_videos`: a tqdm bar per video (none with
+    """A ``progress_factory`` for :func:`arshadow.video.runner.run_videos`: a tqdm bar per video (none with
     ``-q`` or when stderr is not a terminal: a log file gets the closing lines only)."""
     if quiet or not sys.stderr.isatty():
         return None
@@ -149,68 +151,23 @@ def register(subparsers) -> None:
 
 
 # --------------------------------------------------------------------------------------------------
-def parse_time_lapse(text: str):
-    """``START[,SPEED]`` -> (aware datetime, speed > 0). UsageError on bad input.
-
-    Examples
-    --------
-    >>> parse_time_lapse("2024-06-21T06:00+02:00,600")[1]
-    600.0
-    """
-    from ..errors import LightError, UsageError
-    from ..lights.spec import parse_time
-
-    start_text, sep, speed_text = str(text).rpartition(",")
-    if not sep:
-        start_text, speed_text = text, "1"
-    try:
-        speed = float(speed_text)
-    except ValueError:
-        raise UsageError(f"--time-lapse {text!r}: SPEED {speed_text!r} is not a number") from None
-    if not (math.isfinite(speed) and speed > 0):
-        raise UsageError(f"--time-lapse {text!r}: SPEED must be a positive number")
-    try:
-        start = parse_time(start_text.strip(), what="--time-lapse START")
-    except LightError as exc:
-        raise UsageError(str(exc)) from None
-    return start, speed
-
-
-def build_lights(args):
-    """``(static_lights, sun_tracks, time_lapse)`` from ``--light`` / ``--time-lapse`` / ``--recompute-deg``."""
-    from ..errors import UsageError
-    from ..lights.spec import parse_light, parse_sun_track
-
-    if not (math.isfinite(args.recompute_deg) and args.recompute_deg >= 0):
-        raise UsageError(f"--recompute-deg {args.recompute_deg}: must be >= 0 degrees")
-    if args.time_lapse is None:
-        return [parse_light(s) for s in args.light], [], None
-    tl = parse_time_lapse(args.time_lapse)
-    static, tracks = [], []
-    for spec in args.light:
-        if spec.strip().lower().startswith("sun:"):
-            tracks.append(parse_sun_track(spec, recompute_deg=args.recompute_deg))
-        else:
-            static.append(parse_light(spec))
-    if not tracks:
-        raise UsageError("--time-lapse needs a sun light (--light sun:LAT,LON[,TIME][,NORTH])")
-    return static, tracks, tl
-
-
 def run(args) -> int:
+    from ..errors import UsageError
     from ..io import check_output_file, check_output_folder, write_json
     from ..report import jsonable, make_report
     from ..sanity import time_lapse_warnings
     from ..scene import scene_from_args
     from ..session import Session
-    from ..video.engine import SessionBackend, run_videos
+    from ..video.engine import SessionBackend
+    from ..video.parallel import BackendRecipe
+    from ..video.runner import run_videos
     from . import quiet_opencv
 
     debug = bool(getattr(args, "debug", False))
     quiet_opencv(debug)
     opts = engine_options(args, collect_items=bool(args.report))
-    static, tracks, tl = build_lights(args)
-    # video: search the marker near the last detection first (not with --plan general)
+    # video: search the marker near the last detection first (not with --plan general); --time-lapse and
+    # --recompute-deg are scene keys (SceneSpec.time_lapse)
     spec = scene_from_args(args, refine=args.corner_refine, track_roi=True)
     # output paths before any work: a bad -o / --report is one usage error, not one per video
     outdir = check_output_folder(args.output, "-o")
@@ -218,29 +175,30 @@ def run(args) -> int:
         check_output_file(args.report, "--report")
     if opts.layers is not None:  # a layer file over an input: a usage error before any work
         from ..export.layerfiles import refuse_overwrite
-        from ..video.engine import unique_stems, video_outputs
+        from ..io import unique_stems
+        from ..video.engine import video_outputs
 
         refuse_overwrite([p for stem in unique_stems(args.videos)
                           for k, p in video_outputs(outdir, stem, opts).items() if k.startswith("layers:")], args.videos)
-    sun_set = time_lapse_warnings(args.videos, tracks, tl, getattr(args, "max_frames", None))  # before any work
-    for msg in sun_set.values():
-        print(f"arshadow video: warning: {msg}", file=sys.stderr)
-    first = list(static)
-    for tr in tracks:
-        tr.reset()
-        first.append(tr.light(tr.update(tl[0])))
-        tr.reset()
-    with Session(spec, lights=first) as session:
-        if tracks:
-            session.use_sun_tracks(tracks, static)
-        backend = SessionBackend(session, tracks, tl)
+    if args.jobs < 1:
+        raise UsageError(f"--jobs {args.jobs}: must be >= 1")
+    with Session(spec) as session:
+        # before any frame is processed: a sun that sets during a time-lapse (the tracks are reset per video)
+        sun_set = time_lapse_warnings(args.videos, session.sun_tracks, session.time_lapse,
+                                      getattr(args, "max_frames", None))
+        for msg in sun_set.values():
+            print(f"arshadow video: warning: {msg}", file=sys.stderr)
+        backend = SessionBackend(session, session.sun_tracks, session.time_lapse)
+        # workers rebuild the session from the spec (its time-lapse included)
+        recipe = BackendRecipe(spec) if args.jobs > 1 else None
 
         def on_error(exc):
             if debug:
                 raise exc
 
         summaries, items = run_videos(backend, args.videos, outdir, opts,
-                                      progress_factory=progress_bar(args.quiet), on_error=on_error)
+                                      progress_factory=progress_bar(args.quiet), on_error=on_error,
+                                      jobs=args.jobs, recipe=recipe)
     failed = 0
     for s in summaries:
         for w in s.get("warnings", []):

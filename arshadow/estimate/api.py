@@ -31,6 +31,8 @@ MIN_ELEVATION = 12.0
 CONVEX_PRIMITIVES = ("box:", "cylinder:", "sphere:")
 #: a point light whose 1-sigma position uncertainty exceeds this share of its distance is flagged
 POINT_REL_SIGMA = 0.2
+#: a point light fitted farther than this from the probe (metres) is flagged (the search goes to 3 m)
+POINT_FAR = 2.0
 
 
 def _frames(item, max_frames):
@@ -71,7 +73,7 @@ def _probe_in_view(intr, pose, verts, name):
                             "image): check --probe-place, or frame the probe and its shadow")
 
 
-def _grids(img, intr, pose, caster, verts, faces, L, paper, convex):
+def _grids(img, intr, pose, verts, faces, L, paper, convex):
     """The coarse evidence (the whole reach of the shadow), a builder of fine evidence and the size of a
     pixel on the ground at the probe (metres)."""
     lo, hi = verts.min(axis=0), verts.max(axis=0)
@@ -197,7 +199,7 @@ def estimate_light(inputs, *, calib, marker_length: float, probe: str, probe_pla
     convex = str(probe).lower().startswith(CONVEX_PRIMITIVES)
     dictionary = dictionary or DEFAULT_DICTIONARY
     tracker = MarkerTracker(base, dictionary=dictionary, marker_length=marker_length, marker_id=marker_id)
-    coarse, fines, pxs, exposures, names, notes = [], [], [], [], [], []
+    coarse, fines, pxs, exposures, notes = [], [], [], [], []
     for item in items:
         for name, img in _frames(item, max_frames):
             intr, _ = base.for_image(img.shape[1], img.shape[0])
@@ -212,12 +214,11 @@ def estimate_light(inputs, *, calib, marker_length: float, probe: str, probe_pla
             except ExposureError as exc:  # a shadow over the marker: its brightest cell, flagged
                 exp = measure_exposure(img, intr, T, marker_length, dictionary, pose.marker_ids[0], min_cells=1)
                 notes.append(f"{name}: {exc}; the exposure is from its brightest white cell")
-            c, f, px = _grids(img, intr, T, caster, verts, faces, marker_length, exp.paper_rgb, convex)
+            c, f, px = _grids(img, intr, T, verts, faces, marker_length, exp.paper_rgb, convex)
             coarse.append(c)
             pxs.append(px)
             fines.append(f)
             exposures.append(exp)
-            names.append(name)
     return _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, verts, t0, notes)
 
 
@@ -244,8 +245,12 @@ def _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, verts, t0, notes) 
     if res.uncertainty_deg > 3.0:
         warnings.append(f"low confidence: uncertainty {res.uncertainty_deg:.1f} degrees")
     if res.position_sigma is not None:
-        rel = res.position_sigma / max(float(np.linalg.norm(res.light_h[:3] - anchor)), 1e-9)
-        if rel > POINT_REL_SIGMA:
+        dist = float(np.linalg.norm(res.light_h[:3] - anchor))
+        rel = res.position_sigma / max(dist, 1e-9)
+        if dist > POINT_FAR:
+            warnings.append(f"low confidence: the point light fit went {dist:.1f} m away (a far light looks "
+                            "directional from one probe); fit --kind directional")
+        elif rel > POINT_REL_SIGMA:
             warnings.append(f"low confidence: the point light's distance is uncertain (+/- {100 * rel:.0f} % of it); "
                             "add views from other sides, or fit --kind directional")
     if res.runner_up is not None and res.runner_up > 0.6:

@@ -7,10 +7,11 @@ residual left by the shadow model, relative to no shadow at all). The light is f
 frames of a video add up.
 
 Search, coarse to fine: an exhaustive grid on a coarse ground grid (directional: azimuth x elevation every
-5 x 4 degrees; sun: NORTH every 3 degrees), then Nelder-Mead on the fine grid from the three best distinct
-coarse minima; a point light starts from the directional fit and a line search of its distance, then
-Nelder-Mead in 3-D. The uncertainty is the Laplace approximation of the least-squares fit (numerical
-Hessian of the RSS, the noise variance from the residual, inflated by the residual's spatial correlation).
+8 x 6 degrees; sun: NORTH every 3 degrees), then Nelder-Mead on the fine grid from the three best distinct
+coarse minima; a point light is fitted as (azimuth, elevation, log distance) from the probe's top (the
+directional fit, the objective's profile over the distance, a coarse 3-D grid, then Nelder-Mead in 3-D).
+The uncertainty is the Laplace approximation of the least-squares fit (numerical Hessian of the RSS, the
+noise variance from the residual, inflated by the residual's spatial correlation).
 
 Refusals (:class:`arshadow.errors.EstimateError`): no shadow darker than 5 % or explaining < 2 % of the
 variance (flat light), the best shadow mostly out of view or hidden behind the probe, a second distinct

@@ -28,7 +28,7 @@ import numpy as np
 
 from ..errors import ImageError, UsageError
 
-__all__ = ["VIDEO_CODECS", "AvReader", "AvWriter", "RawFrame", "VideoFrame"]
+__all__ = ["VIDEO_CODECS", "AvReader", "AvWriter", "RawFrame", "VideoFrame", "load_av", "pts_time"]
 
 #: ``--codec`` choices -> (FFmpeg encoder, pixel format, container extensions it suits)
 VIDEO_CODECS = {
@@ -78,13 +78,24 @@ class RawFrame:
     format: str = "bgr24"
 
 
-def _av():
+def load_av():
+    """PyAV, with FFmpeg's own log silenced (a UsageError naming the package when it is missing)."""
     try:
-        import av
+        import av  # deferred: importing arshadow does not load FFmpeg; the error names the package
     except ImportError:
         raise UsageError("video needs PyAV, a dependency of arshadow: pip install av") from None
     av.logging.set_level(av.logging.PANIC)  # FFmpeg's own chatter: arshadow reports one line of its own
     return av
+
+
+def pts_time(pts: int, time_base) -> float:
+    """Seconds of a timestamp, ``pts * time_base`` rounded once (the same float in every reader).
+
+    >>> from fractions import Fraction
+    >>> pts_time(512, Fraction(1, 12800))
+    0.04
+    """
+    return float(int(pts) * Fraction(time_base))
 
 
 class AvReader:
@@ -121,7 +132,7 @@ class AvReader:
     """
 
     def __init__(self, path, max_frames: int | None = None, threads: int = 0, raw: bool = False):
-        av = _av()
+        av = load_av()
         self.raw = bool(raw)
         self.path = str(path)
         p = Path(self.path)
@@ -180,7 +191,7 @@ class AvReader:
                 fmt = "yuv420p" if (self.raw and f.format.name == "yuv420p" and not (f.width % 2 or f.height % 2)) \
                     else "bgr24"
                 img = f.to_ndarray(format=fmt)
-                t = f.time
+                t = pts_time(f.pts, f.time_base) if f.pts is not None and f.time_base else f.time
                 if t is None or not math.isfinite(t):
                     t = index / self.fps
                 else:
@@ -203,7 +214,7 @@ class AvReader:
         early; at the first sign of either, decoding starts again from the top without frame threads and
         goes on after the frames already given (damaged files only pay for the second pass).
         """
-        av = _av()
+        av = load_av()
         given = 0
         trouble = False
         try:
@@ -291,6 +302,8 @@ class AvWriter:
         Copy this file's first audio stream (packets unchanged) into the output.
     threads : int
         Encoder threads (0: the encoder's choice).
+    gop : int, optional
+        H.264: a keyframe every ``gop`` frames exactly (no scene-cut keyframes); None: x264's choice.
     pix_fmt : str, optional
         Encode in this pixel format instead of the codec's default (``ffv1`` of ``yuv420p`` input: keep
         ``yuv420p``, so frames written with :meth:`write_yuv420p` stay bit-exact).
@@ -302,7 +315,8 @@ class AvWriter:
     """
 
     def __init__(self, path, rate, size, *, codec: str = "h264", crf: float = 20, preset: str = "veryfast",
-                 color: bool = True, audio_from=None, threads: int = 0, pix_fmt: str | None = None):
+                 color: bool = True, audio_from=None, threads: int = 0, pix_fmt: str | None = None,
+                 gop: int | None = None):
         self.path = Path(path)
         if codec not in VIDEO_CODECS:
             raise UsageError(f"--codec {codec}: use one of {', '.join(VIDEO_CODECS)}")
@@ -314,6 +328,7 @@ class AvWriter:
         self.size = (int(size[0]), int(size[1]))
         self.codec, self.crf, self.preset, self.color = codec, float(crf), preset, bool(color)
         self.audio_from, self.threads, self.pix_fmt = audio_from, int(threads), pix_fmt
+        self.gop = None if gop is None else int(gop)
         self.n_written = 0
         self.audio_copied = False
         self._stack = self._c = self._vs = None
@@ -321,7 +336,7 @@ class AvWriter:
     def __enter__(self):
         from ..io import atomic_path
 
-        av = _av()
+        av = load_av()
         stack = contextlib.ExitStack()
         try:
             self.tmp_path = stack.enter_context(atomic_path(self.path))
@@ -345,6 +360,8 @@ class AvWriter:
                 vs.codec_context.thread_count = self.threads
             if name == "libx264":
                 vs.options = {"crf": f"{self.crf:g}", "preset": self.preset}
+                if self.gop:  # a keyframe every gop frames, and only there (chunk boundaries)
+                    vs.options["x264-params"] = f"keyint={self.gop}:min-keyint={self.gop}:scenecut=0"
                 if self.size[0] % 2 or self.size[1] % 2:
                     raise ImageError(f"{self.path}: H.264 (yuv420p) needs an even frame size, got {self.size}; "
                                      f"use --codec ffv1 or mpeg4")
@@ -377,7 +394,7 @@ class AvWriter:
 
     def write(self, frame: np.ndarray) -> None:
         """Append one frame: ``(H, W, 3) uint8`` BGR (``color``) or ``(H, W) uint8``."""
-        av = _av()
+        av = load_av()
         if self._vs is None:
             raise UsageError("AvWriter.write outside its with-block")
         f = np.asarray(frame)
@@ -389,7 +406,7 @@ class AvWriter:
 
     def write_yuv420p(self, planes: np.ndarray) -> None:
         """Append one frame given as planar ``(H * 3 // 2, W) uint8`` Y, U, V (BT.601, as decoded)."""
-        av = _av()
+        av = load_av()
         if self._vs is None:
             raise UsageError("AvWriter.write_yuv420p outside its with-block")
         f = np.asarray(planes)
@@ -417,7 +434,7 @@ class AvWriter:
         self._c = self._vs = self._stack = None
         if stack is None:
             return False
-        av = _av()
+        av = load_av()
         try:
             if exc_type is None:
                 if self.n_written == 0:

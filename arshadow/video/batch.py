@@ -31,16 +31,24 @@ import cv2
 
 from .. import __version__
 from ..errors import ArshadowError, MarkerNotFoundError, UsageError
-from ..io import check_output_folder, read_image, resolved_path, write_image, write_json
+from ..export.layerfiles import layer_paths
+from ..io import IMAGE_EXTENSIONS, InputGuard, check_output_folder, unique_stems, write_json
 from ..io import clean_temporaries as clean_io_temporaries
+from ..photos import PhotoJob, render_photo_file
 from ..session import Session
 from .decode import looks_like_sequence
-from .engine import SessionBackend, process_video, unique_stems, video_outputs
+from .engine import SessionBackend, process_video, video_outputs
+from .parallel import (
+    BackendRecipe,
+    ChunkPool,
+    chunk_task,
+    finish_chunked,
+    prepare_chunked,
+    process_video_chunked,
+)
 
 __all__ = ["VIDEO_EXTENSIONS", "BatchItem", "clean_temporaries", "plan_batch", "process_item", "run_batch"]
 
-PHOTO_EXTENSIONS = {".jpg", ".jpeg", ".jpe", ".png", ".bmp", ".dib", ".tif", ".tiff", ".webp", ".jp2", ".pbm", ".pgm",
-                    ".ppm", ".pnm", ".pxm", ".sr", ".ras", ".exr", ".hdr", ".pic", ".avif"}
 VIDEO_EXTENSIONS = {".mp4", ".m4v", ".mov", ".mkv", ".avi", ".webm", ".mpg", ".mpeg", ".ts", ".mts", ".wmv", ".flv"}
 RECORDS = ".arshadow-batch"
 
@@ -69,7 +77,7 @@ def _kind(path: str) -> str:
     ext = Path(path).suffix.lower()
     if ext in VIDEO_EXTENSIONS or looks_like_sequence(path):
         return "video"
-    if ext in PHOTO_EXTENSIONS or not Path(path).is_file():
+    if ext in IMAGE_EXTENSIONS or not Path(path).is_file():
         return "photo"
     try:
         return "photo" if cv2.haveImageReader(path) else "video"
@@ -83,8 +91,6 @@ def _outputs(item: BatchItem, outdir: Path, opts, save_mask: bool) -> list:
         return [p for p in video_outputs(outdir, item.stem, opts).values() if p is not None]
     outs = [outdir / f"{item.stem}.png", *([outdir / f"{item.stem}.shadow.png"] if save_mask else [])]
     if opts.layers is not None:
-        from ..export.layerfiles import layer_paths
-
         outs += list(layer_paths(outdir, item.stem, _photo_layers(opts), opts.layers_undistorted).values())
     return outs
 
@@ -148,48 +154,62 @@ def _session_for(spec):
     return s
 
 
-def process_item(spec, item: BatchItem, outdir, opts, save_mask: bool, fingerprint: str, session=None) -> dict:
+def process_item(spec, item: BatchItem, outdir, opts, save_mask: bool, fingerprint: str, session=None,
+                 pool=None) -> dict:
     """Process one input and write its outputs and done record; returns the item's summary.
 
+    ``pool`` (:class:`arshadow.video.parallel.ChunkPool`): a video is cut into chunks run on its workers.
     Never raises for a bad input: the summary has ``status: "error"`` and ``error`` (nothing is recorded
     as done, so a rerun tries it again).
     """
     outdir = Path(outdir)
+
+    def work(summary):
+        outs = video_outputs(outdir, item.stem, opts) if item.kind == "video" else None
+        if item.kind == "video" and pool is not None:
+            vs, note = process_video_chunked(BackendRecipe(spec), pool, item.input, outs, opts, outdir=outdir,
+                                             stem=item.stem, name=item.input)
+            if vs is not None:
+                return _video_fields(summary, vs, outs)
+            summary["warnings"] = [note] if note else []
+        sess = session if session is not None else _session_for(spec)
+        if item.kind == "video":
+            vs, _ = process_video(SessionBackend(sess, sess.sun_tracks, sess.time_lapse), item.input, outs, opts,
+                                  name=item.input)
+            vs["warnings"] = summary["warnings"] + vs["warnings"]
+            return _video_fields(summary, vs, outs)
+        # the photo loop's one photo (EXIF orientation, upright outputs and layers), as arshadow render
+        fmt = _photo_layers(opts)
+        lay = None if opts.layers is None else layer_paths(outdir, item.stem, fmt, opts.layers_undistorted)
+        job = PhotoJob(item.input, outdir / f"{item.stem}.png",
+                       outdir / f"{item.stem}.shadow.png" if save_mask else None, lay, fmt)
+        res = render_photo_file(sess, job)
+        summary["outputs"] = [str(p) for p in job.outputs]
+        summary["status"] = "ok"
+        if res.item.flag_reasons:  # issue 20: a flagged pose is said (its reasons also in the item)
+            summary["warnings"].append(f"{item.input}: flagged pose: {'; '.join(res.item.flag_reasons)}")
+        summary["item"] = res.item.to_dict()
+        return None
+
+    return _guarded(item, outdir, fingerprint, work)
+
+
+def _video_fields(summary: dict, vs: dict, outs: dict) -> None:
+    summary.update({k: vs.get(k) for k in ("status", "warnings", "frames", "frames_ok", "frames_held",
+                                           "frames_no_marker", "truncated", "decode_errors", "fps_processed")})
+    if "chunks" in vs:
+        summary.update(chunks=len(vs["chunks"]), chunks_resumed=vs.get("chunks_resumed", 0))
+    summary["outputs"] = [str(p) for p in outs.values() if p is not None and Path(p).exists()]
+
+
+def _guarded(item: BatchItem, outdir: Path, fingerprint: str, work) -> dict:
+    """``work(summary)`` fills the item's summary; a bad input becomes ``status: "error"``; the done record
+    is written last, once every output is in place."""
     t0 = time.perf_counter()
     summary = {"input": item.input, "kind": item.kind, "stem": item.stem, "status": "error", "error": None,
                "outputs": [], "warnings": []}
     try:
-        session = session if session is not None else _session_for(spec)
-        if item.kind == "video":
-            outs = video_outputs(outdir, item.stem, opts)
-            vs, _ = process_video(SessionBackend(session), item.input, outs, opts, name=item.input)
-            summary.update({k: vs[k] for k in ("status", "warnings", "frames", "frames_ok", "frames_held",
-                                               "frames_no_marker", "truncated", "decode_errors", "fps_processed")})
-            summary["outputs"] = [str(p) for p in outs.values() if p is not None and Path(p).exists()]
-        else:
-            img = read_image(item.input)
-            want = ("undistorted" if opts.layers_undistorted else True) if opts.layers is not None else False
-            res = session.process(img, name=item.input, want_mask=save_mask, layers=want)
-            out = write_image(outdir / f"{item.stem}.png", res.composite)
-            summary["outputs"] = [str(out)]
-            if opts.layers is not None:
-                from ..export.layerfiles import layer_paths, write_layers
-                from ..export.stmap import stmap, write_stmap
-
-                fmt = _photo_layers(opts)
-                paths = write_layers(layer_paths(outdir, item.stem, fmt, opts.layers_undistorted), res.layers, fmt)
-                if "stmap" in paths:
-                    cal = session.calibration(img.shape[1], img.shape[0])
-                    write_stmap(paths["stmap"], stmap(cal.intrinsics, None if cal.lens is None else cal.lens.maps))
-                summary["outputs"] += [str(p) for p in paths.values()]
-            if save_mask:
-                summary["outputs"].append(str(write_image(outdir / f"{item.stem}.shadow.png", res.mask)))
-            summary["status"] = "ok"
-            res.item.output = str(out)  # the report item names the files too (it said output: null)
-            res.item.mask = summary["outputs"][1] if save_mask else None
-            if res.item.flag_reasons:  # issue 20: a flagged pose is said (its reasons also in the item)
-                summary["warnings"].append(f"{item.input}: flagged pose: {'; '.join(res.item.flag_reasons)}")
-            summary["item"] = res.item.to_dict()
+        work(summary)
     except MarkerNotFoundError as exc:  # a photo without the marker: done (a rerun would find none either)
         summary["status"] = "no_marker"
         summary["error"] = f"{item.input}: {exc}"
@@ -200,7 +220,6 @@ def process_item(spec, item: BatchItem, outdir, opts, save_mask: bool, fingerpri
             summary["error"] = f"{item.input}: {summary['error']}"
     summary["seconds"] = round(time.perf_counter() - t0, 3)
     if summary["status"] in ("ok", "no_marker", "damaged"):
-        # written last: the item counts as done only once every output is in place
         write_json(_record_path(outdir, item), {"fingerprint": fingerprint, **summary})
     return summary
 
@@ -209,11 +228,45 @@ def _dask_task(spec, item, outdir, opts, save_mask, fingerprint):
     return process_item(spec, item, outdir, opts, save_mask, fingerprint)
 
 
+def _dask_join(spec, item, outdir, opts, fingerprint, prep, done: dict, *records):
+    """The join task of a chunked video on Dask: its chunk tasks' records are the arguments."""
+    recs = {**{int(k): r for k, r in done.items()}, **{r["chunk"]["k"]: r for r in records}}
+    recipe = BackendRecipe(spec)
+
+    def work(summary):
+        vs = finish_chunked(prep, recs, lambda c: chunk_task(recipe, prep, c))
+        vs["chunks_resumed"] = len(done)
+        _video_fields(summary, vs, prep.outputs)
+
+    return _guarded(item, Path(outdir), fingerprint, work)
+
+
+def _submit_dask(client, spec, it: BatchItem, outdir: Path, opts, save_mask, fp: str, chunks: int):
+    """One item's tasks: a chunked video is one task per unfinished chunk and a join task depending on
+    them; anything else is one task. Returns the future of the item's summary."""
+    if it.kind == "video" and chunks > 1:
+        try:
+            prep, _note = prepare_chunked(it.input, video_outputs(outdir, it.stem, opts), opts.check(), chunks,
+                                          outdir, it.stem, BackendRecipe(spec).key(), it.input)
+        except ArshadowError:
+            prep = None  # the item's own task reports the problem
+        if prep is not None:
+            prep.store.open()
+            done = {c.k: r for c in prep.chunks if (r := prep.store.done(c)) is not None}
+            recipe = BackendRecipe(spec)
+            futs = [client.submit(chunk_task, recipe, prep, c, pure=False, retries=1,
+                                  key=f"arshadow-{it.stem}-{fp[:12]}-c{c.k}") for c in prep.chunks if c.k not in done]
+            return client.submit(_dask_join, spec, it, str(outdir), opts, fp, prep, done, *futs, pure=False,
+                                 key=f"arshadow-{it.stem}-{fp[:12]}-join")
+    return client.submit(_dask_task, spec, it, str(outdir), opts, save_mask, fp, pure=False,
+                         key=f"arshadow-{it.stem}-{fp[:12]}")
+
+
 # --------------------------------------------------------------------------------------------------
 # the batch
 # --------------------------------------------------------------------------------------------------
 def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=None, progress=None,
-              session=None) -> dict:
+              session=None, jobs: int = 1) -> dict:
     """Process a batch (see the module); returns the summary also written to ``OUT_DIR/batch.json``.
 
     Parameters
@@ -227,11 +280,15 @@ def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=Non
     save_mask : bool
         Write photo masks (``<stem>.shadow.png``).
     client : distributed.Client, optional
-        Run the items on this Dask cluster (one task per item) instead of in this process.
+        Run the items on this Dask cluster instead of in this process: one task per photo, one per chunk
+        of a video (chunks per video: ``jobs``, or the cluster's worker count when ``jobs`` is 1) and a join
+        task per video, all scheduled together.
     progress : callable, optional
         ``progress(done, total, summary)`` after each item.
     session : arshadow.session.Session, optional
         Local runs: use this session (else one is made).
+    jobs : int
+        Local runs: worker processes per video (chunks, :mod:`arshadow.video.chunks`); 1: in this process.
 
     Returns
     -------
@@ -239,27 +296,13 @@ def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=Non
         ``{"arshadow": VERSION, "items": [...], "counts": {...}}``; each item has ``status`` (``ok``,
         ``no_marker``, ``damaged``, ``error``) and ``skipped`` (done by an earlier run).
     """
+    if int(jobs) < 1:
+        raise UsageError(f"--jobs {jobs}: must be >= 1")
     outdir = check_output_folder(outdir, "-o")
     (outdir / RECORDS).mkdir(parents=True, exist_ok=True)
     clean_temporaries(outdir)
     items = plan_batch(inputs)
-    results: list = [None] * len(items)
-    todo = []
-    given = {resolved_path(i) for i in inputs}
-    for k, it in enumerate(items):
-        clash = [p for p in _outputs(it, outdir, opts, save_mask) if resolved_path(p) in given]
-        if clash:  # inputs are never modified
-            results[k] = {"input": it.input, "kind": it.kind, "stem": it.stem, "status": "error", "skipped": False,
-                          "error": f"{clash[0]}: output would overwrite an input; choose another -o folder",
-                          "outputs": [], "warnings": []}
-            continue
-        fp = _fingerprint(it, spec, opts, save_mask)
-        rec = _done(outdir, it, fp)
-        if rec is not None:
-            rec.pop("fingerprint", None)
-            results[k] = {**rec, "skipped": True}
-        else:
-            todo.append((k, it, fp))
+    results, todo = _plan_todo(items, inputs, spec, outdir, opts, save_mask)
     done = len(items) - len(todo)
     if progress is not None:
         for r in results:
@@ -267,8 +310,19 @@ def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=Non
                 progress(done, len(items), r)
         if done:
             progress(done, len(items), None)
+
+    def finished(k, res):
+        nonlocal done
+        results[k] = {**res, "skipped": False}
+        done += 1
+        if progress is not None:
+            progress(done, len(items), results[k])
+
     try:
-        _run_todo(spec, items, todo, results, done, outdir, opts, save_mask, client, progress, session)
+        if client is None:
+            _run_local(spec, todo, outdir, opts, save_mask, session, int(jobs), finished)
+        else:
+            _run_dask(client, spec, items, todo, outdir, opts, save_mask, int(jobs), finished)
     except KeyboardInterrupt:  # Ctrl-C / SIGTERM: batch.json still says what is done and what is not
         _write_summary(outdir, items, results, interrupted=True)
         raise
@@ -291,39 +345,58 @@ def _write_summary(outdir: Path, items, results, interrupted: bool = False) -> d
     return summary
 
 
-def _run_todo(spec, items, todo, results, done, outdir, opts, save_mask, client, progress, session) -> None:
-    """Process the items not done yet, filling ``results`` in place (locally or on a Dask cluster)."""
-    if client is None:
-        own = session is None and todo
-        if own:
-            session = Session(spec)
-        try:
-            for k, it, fp in todo:
-                results[k] = {**process_item(spec, it, outdir, opts, save_mask, fp, session=session),
-                              "skipped": False}
-                done += 1
-                if progress is not None:
-                    progress(done, len(items), results[k])
-        finally:
-            if own:
-                session.close()
-    else:
-        from distributed import (
-            as_completed,  # deferred: Dask is an optional extra (arshadow[dask])
-        )
+def _plan_todo(items, inputs, spec, outdir: Path, opts, save_mask):
+    """``(results, todo)``: results of items refused (an output onto an input) or done by an earlier run,
+    and ``(index, item, fingerprint)`` of the others."""
+    results: list = [None] * len(items)
+    todo = []
+    guard = InputGuard(inputs)
+    for k, it in enumerate(items):
+        try:  # inputs are never modified
+            guard.check(_outputs(it, outdir, opts, save_mask))
+        except ArshadowError as exc:
+            results[k] = {"input": it.input, "kind": it.kind, "stem": it.stem, "status": "error", "skipped": False,
+                          "error": str(exc), "outputs": [], "warnings": []}
+            continue
+        fp = _fingerprint(it, spec, opts, save_mask)
+        rec = _done(outdir, it, fp)
+        if rec is not None:
+            rec.pop("fingerprint", None)
+            results[k] = {**rec, "skipped": True}
+        else:
+            todo.append((k, it, fp))
+    return results, todo
 
-        futs = {client.submit(_dask_task, spec, it, str(outdir), opts, save_mask, fp, pure=False,
-                              key=f"arshadow-{it.stem}-{fp[:12]}"): k for k, it, fp in todo}
-        for fut in as_completed(futs):
-            k = futs[fut]
-            try:
-                res = fut.result()
-            except Exception as exc:  # noqa: BLE001 (a worker died or the task failed outside process_item)
-                it = items[k]
-                res = {"input": it.input, "kind": it.kind, "stem": it.stem, "status": "error",
-                       "error": f"{it.input}: task failed on the cluster ({type(exc).__name__}: {exc})",
-                       "outputs": [], "warnings": []}
-            results[k] = {**res, "skipped": False}
-            done += 1
-            if progress is not None:
-                progress(done, len(items), results[k])
+
+def _run_local(spec, todo, outdir, opts, save_mask, session, jobs: int, finished) -> None:
+    own = session is None and todo
+    if own:
+        session = Session(spec)
+    pool = ChunkPool(jobs) if jobs > 1 and any(it.kind == "video" for _, it, _ in todo) else None
+    try:
+        for k, it, fp in todo:
+            finished(k, process_item(spec, it, outdir, opts, save_mask, fp, session=session, pool=pool))
+    finally:
+        if pool is not None:
+            pool.close()
+        if own:
+            session.close()
+
+
+def _run_dask(client, spec, items, todo, outdir, opts, save_mask, jobs: int, finished) -> None:
+    from distributed import (
+        as_completed,  # deferred: Dask is an optional extra (arshadow[dask])
+    )
+
+    chunks = jobs if jobs > 1 else max(1, len(client.scheduler_info().get("workers", {})))
+    futs = {_submit_dask(client, spec, it, outdir, opts, save_mask, fp, chunks): k for k, it, fp in todo}
+    for fut in as_completed(futs):
+        k = futs[fut]
+        try:
+            res = fut.result()
+        except Exception as exc:  # noqa: BLE001 (a worker died or the task failed outside process_item)
+            it = items[k]
+            res = {"input": it.input, "kind": it.kind, "stem": it.stem, "status": "error",
+                   "error": f"{it.input}: task failed on the cluster ({type(exc).__name__}: {exc})",
+                   "outputs": [], "warnings": []}
+        finished(k, res)

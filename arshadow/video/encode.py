@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import math
 import os
 import queue
 import shutil
@@ -26,6 +25,7 @@ import numpy as np
 
 from ..errors import ImageError
 from ..io import atomic_path, write_image
+from ..photos import contact_sheet
 from .avio import AvWriter
 from .threads import END
 
@@ -57,8 +57,13 @@ class SheetThumbs:
         if not self.count or index % self.step:
             return
         bgr = img if fmt != "yuv420p" else cv2.cvtColor(img, cv2.COLOR_YUV2BGR_I420)
-        self.thumbs[index] = cv2.resize(bgr, (320, max(1, round(320 * self.H / self.W))),
-                                        interpolation=cv2.INTER_AREA)
+        self.offer(index, cv2.resize(bgr, (320, max(1, round(320 * self.H / self.W))), interpolation=cv2.INTER_AREA))
+
+    def offer(self, index: int, thumb: np.ndarray) -> None:
+        """Keep an already made thumbnail of frame ``index`` if it falls on the step (frames in order)."""
+        if not self.count or index % self.step:
+            return
+        self.thumbs[index] = thumb
         if len(self.thumbs) > 2 * self.count:  # more frames than declared: keep every other one
             self.step *= 2
             for k in [k for k in self.thumbs if k % self.step]:
@@ -154,7 +159,7 @@ class EncodeSink:
         audio = self.source if (opts.keep_audio and self.is_av and reader.has_audio) else None
         return AvWriter(self.outputs["video"], getattr(reader, "rate", reader.fps), (self.W, self.H),
                         codec=opts.codec, crf=opts.crf, pix_fmt="yuv420p" if keep_yuv else None,
-                        preset=opts.preset, audio_from=audio)
+                        preset=opts.preset, audio_from=audio, threads=opts.encoder_threads)
 
     def _write(self, job, vw, mw, png_dir, jf) -> None:
         img, fmt, mask, item, line = job
@@ -200,15 +205,10 @@ def replace_dir(tmp: Path, target: Path) -> None:
 
 def write_contact_sheet(path, thumbs: dict, cols: int = 4) -> Path:
     """Tile ``{frame: (h, w, 3) uint8}`` thumbnails (frame order, labelled) into one image, atomically."""
-    keys = sorted(thumbs)
-    h, w = thumbs[keys[0]].shape[:2]
-    rows = math.ceil(len(keys) / cols)
-    sheet = np.full((rows * (h + 4) + 4, cols * (w + 4) + 4, 3), 32, np.uint8)
-    for k, f in enumerate(keys):
-        r, c = divmod(k, cols)
-        y, x = 4 + r * (h + 4), 4 + c * (w + 4)
+    tiles = []
+    for f in sorted(thumbs):
         tile = thumbs[f].copy()
         cv2.putText(tile, f"#{f}", (6, 20), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (0, 0, 0), 3, cv2.LINE_AA)
         cv2.putText(tile, f"#{f}", (6, 20), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (255, 255, 255), 1, cv2.LINE_AA)
-        sheet[y : y + h, x : x + w] = tile
-    return write_image(path, sheet)
+        tiles.append(tile)
+    return write_image(path, contact_sheet(tiles, columns=cols, gap=4, background=32))

@@ -22,19 +22,17 @@ frame), ``.sheet.jpg`` (contact sheet), and with a mask ``.shadow.mkv`` (lossles
 from __future__ import annotations
 
 import queue
-import re
 import threading
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import ArshadowError, ImageError, UsageError
+from ..errors import ArshadowError, UsageError
 from ..export.layervideo import LayerSink, check_video_layer_format, video_layer_paths
 from ..export.stmap import stmap
-from ..io import clean_temporaries, resolved_path
-from ..report import ReportItem
+from ..io import unique_stems
 from .avio import VIDEO_CODECS
 from .decode import decode_into, open_reader
 from .encode import EncodeSink, SheetThumbs, write_contact_sheet
@@ -42,8 +40,17 @@ from .framejob import FRAME_STAGES, FrameComposer, SessionBackend, gray_of
 from .temporal import PoseStream
 from .threads import END, Worker, put_or_stop
 
-__all__ = ["FRAME_STAGES", "EngineOptions", "SessionBackend", "process_video", "run_videos", "unique_stems",
-           "video_outputs", "write_contact_sheet"]
+__all__ = [
+    "FRAME_STAGES",
+    "EngineOptions",
+    "SessionBackend",
+    "Span",
+    "process_video",
+    "run_frames",
+    "unique_stems",
+    "video_outputs",
+    "write_contact_sheet",
+]
 
 #: libx264's speed presets (``--preset``)
 X264_PRESETS = ("ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow", "slower", "veryslow",
@@ -80,6 +87,9 @@ class EngineOptions:
         Also return every frame's report item (memory grows with the video; the JSON Lines file does not).
     queue_frames : int
         Frames in flight between the threads.
+    encoder_threads : int
+        Threads of the video encoder (0: the encoder's choice, one per core; chunk workers that fill the
+        cores between them use 1 each).
     layers : str or None
         Also write the compositing layers (:mod:`arshadow.export.layervideo`): ``prores``, ``ffv1``, ``png``
         or ``exr`` (photos of a batch: ``exr`` for ``exr``, else 16-bit PNG).
@@ -100,6 +110,7 @@ class EngineOptions:
     keep_audio: bool = True
     collect_items: bool = False
     queue_frames: int = 6
+    encoder_threads: int = 0
     layers: str | None = None
     layers_undistorted: bool = False
 
@@ -195,7 +206,7 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
                                         opts.layers, getattr(reader, "rate", reader.fps), (W, H), stmap=st)
         backend.want_layers = "undistorted" if opts.layers_undistorted else True
     try:
-        items = _run_threads(reader, composer, sink, opts)
+        items = run_frames(reader, composer, sink, opts)
     except BaseException:
         if composer.layer_sink is not None:
             composer.layer_sink.abort()
@@ -209,8 +220,23 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
     return summary, items
 
 
-def _run_threads(reader, composer: FrameComposer, sink: EncodeSink, opts: EngineOptions) -> list:
-    """Decode and encode threads around the main thread's frame jobs; returns the collected items."""
+@dataclass
+class Span:
+    """The frames a chunk writes, ``[start, stop)``; the frames before ``start`` only prime the pose
+    stream (tracked, not composited), and the decisions of those from ``stop`` on go to :attr:`tail` (the
+    look-ahead its last frames need; compared with the next chunk's first frames)."""
+
+    start: int
+    stop: int
+    tail: list = field(default_factory=list)
+
+
+def run_frames(reader, composer: FrameComposer, sink: EncodeSink, opts: EngineOptions,
+               span: Span | None = None) -> list:
+    """Decode and encode threads around the main thread's frame jobs; returns the collected items.
+
+    ``span``: composite and write only its frames (a chunk, :mod:`arshadow.video.chunks`).
+    """
     q_in: queue.Queue = queue.Queue(maxsize=opts.queue_frames)
     q_out: queue.Queue = queue.Queue(maxsize=opts.queue_frames)
     stop = threading.Event()
@@ -222,6 +248,10 @@ def _run_threads(reader, composer: FrameComposer, sink: EncodeSink, opts: Engine
     items: list = []
 
     def emit(fp):
+        if span is not None and not span.start <= fp.payload[0].index < span.stop:
+            if fp.payload[0].index >= span.stop:
+                span.tail.append(composer.decision(fp))
+            return
         job = composer.compose(fp)
         if opts.collect_items:
             items.append(job[3])
@@ -308,71 +338,5 @@ def _summary(name, outputs, reader, composer: FrameComposer, sink: EncodeSink, o
                    frame_ms_iqr=[float(np.percentile(fm, 25)), float(np.percentile(fm, 75))],
                    frame_ms_minmax=[float(fm.min()), float(fm.max())])
     return summary
-
-
-def unique_stems(inputs) -> list[str]:
-    """An output stem per input (``clip``, ``clip_2``, ... when names collide, case-insensitively; an
-    image-sequence pattern ``frames/img_%04d.png`` gives ``img``, ``frames/%04d.png`` gives ``frames``)."""
-    seen: dict[str, int] = {}
-    out = []
-    for inp in inputs:
-        p = Path(str(inp))  # an image-sequence pattern frames/img_%04d.png: "img" (or its folder's name)
-        stem = re.sub(r"%0?\d*d", "", p.stem).replace("%", "").strip("_.- ") or p.parent.name or "video"
-        n = seen.get(stem.lower(), 0) + 1
-        seen[stem.lower()] = n
-        out.append(stem if n == 1 else f"{stem}_{n}")
-    return out
-
-
-def run_videos(backend, inputs, outdir, opts: EngineOptions, *, progress_factory=None, on_error=None):
-    """Process several videos one after another; a failed video is recorded and the others go on.
-
-    Parameters
-    ----------
-    backend : SessionBackend
-    inputs : list of str
-    outdir : Path
-    opts : EngineOptions
-    progress_factory : callable, optional
-        ``progress_factory(input, total) -> (update(done, total), close())`` for each video.
-    on_error : callable, optional
-        ``on_error(exc)``: re-raise to stop (``--debug``).
-
-    Returns
-    -------
-    summaries : list of dict
-        One per input (:func:`process_video`'s, or ``status: "error"`` with ``error``).
-    items : list of ReportItem
-        Per-frame items when ``opts.collect_items``; an unreadable video has one item with ``frame: None``.
-    """
-    summaries, items = [], []
-    given = {resolved_path(str(v)) for v in inputs}  # outputs never replace an input
-    for inp, stem in zip(inputs, unique_stems(inputs)):
-        outs = video_outputs(outdir, stem, opts)
-        close = None
-        try:
-            for p in outs.values():
-                if p is not None and resolved_path(p) in given:
-                    raise ImageError(f"{p}: output would overwrite an input; choose another -o folder")
-            clean_temporaries(outdir, stem)  # left by a run killed while writing this video
-            update = None
-            if progress_factory is not None:
-                update, close = progress_factory(str(inp))
-            summary, its = process_video(backend, inp, outs, opts, progress=update, name=str(inp))
-            items.extend(its)
-        except (ArshadowError, OSError, MemoryError) as exc:
-            if on_error is not None:
-                on_error(exc)
-            msg = str(exc) if isinstance(exc, ArshadowError) else f"{type(exc).__name__}: {exc}"
-            if str(inp) not in msg:
-                msg = f"{inp}: {msg}"
-            summary = {"input": str(inp), "output": None, "mask": None, "status": "error", "error": msg,
-                       "warnings": []}
-            items.append(ReportItem(input=str(inp), status="error", error=msg))
-        finally:
-            if close is not None:
-                close()
-        summaries.append(summary)
-    return summaries, items
 
 

@@ -6,8 +6,8 @@ frame and returns what the encode thread writes: the frame (planar ``yuv420p`` o
 report item and the frame's JSON Lines record.
 
 Colour: frames stay in the decoder's ``yuv420p`` when it gives that (the tracker reads the Y plane as its
-grey image; OpenCV converts to BGR for the compositor, and back for the encoder only inside the frame's
-ROI, the only pixels the compositor changes: every other pixel keeps its decoded value exactly).
+grey image; OpenCV converts to BGR for the compositor, and back for the encoder, only inside the frame's
+ROI, the only pixels the compositor reads and changes: every other pixel keeps its decoded value exactly).
 
 Rendering goes through :class:`SessionBackend`, the only place that knows the rendering API (the public
 methods of :class:`arshadow.session.Session`).
@@ -28,7 +28,8 @@ from ..sanity import FlagTally
 from ..transforms import rvec_tvec_from_matrix
 from ..tracking.detect import luma_to_gray
 
-__all__ = ["FRAME_STAGES", "FrameComposer", "SessionBackend", "gray_of", "i420_planes", "i420_with_roi"]
+__all__ = ["FRAME_STAGES", "FrameComposer", "SessionBackend", "even_box", "gray_of", "i420_planes", "i420_roi_to_bgr",
+           "i420_with_roi"]
 
 #: per-frame ``timings_ms`` keys of the JSON Lines report
 FRAME_STAGES = ("decode", "detect", "pose", "silhouette", "volume", "render", "readback", "warp", "composite",
@@ -75,6 +76,15 @@ class SessionBackend:
             timings["detect"] += st.detect
             timings["pose"] += st.pose
 
+    def replay_sun(self, times) -> None:
+        """Advance the sun tracks' recompute schedule over the frame times ``times`` (seconds) without
+        setting lights or counting recomputes: a chunk starts where a run over the frames before it would
+        be. Frame by frame, as :meth:`lights_at` does (the same floats)."""
+        for time_s in times if self.tracks else ():
+            when = self.time_lapse[0] + timedelta(seconds=time_s * self.time_lapse[1])
+            for tr in self.tracks:
+                tr.update(when)
+
     def lights_at(self, time_s: float):
         """Set the lights for a frame time (time-lapse); returns the report's ``sun`` list or None."""
         if not self.tracks:
@@ -86,10 +96,19 @@ class SessionBackend:
                  "azimuth_deg": round(f.position.azimuth_deg, 5), "above_horizon": bool(f.above_horizon),
                  "recompute": bool(f.recompute), "stale_deg": round(f.stale_deg, 5)} for f in frames]
 
-    def render(self, bgr, cam_from_world, want_mask, timings):
-        """Composite into ``bgr`` (modified in place); returns ``(mask or None, the frame's report item)``;
-        ``timings`` gets the render stages."""
-        res = self.session.render(bgr, cam_from_world, want_mask=want_mask, out=bgr, layers=self.want_layers)
+    def plan(self, cam_from_world, width: int, height: int):
+        """The frame's :class:`arshadow.plan.FramePlan` (its ``roi``: the only pixels the compositor reads
+        and changes)."""
+        return self.session.plan(cam_from_world, width, height)
+
+    def render(self, bgr, cam_from_world, want_mask, timings, plan=None):
+        """Composite into ``bgr`` (modified in place), at ``cam_from_world`` or carrying out ``plan``;
+        returns ``(mask or None, the frame's report item)``; ``timings`` gets the render stages."""
+        if plan is not None:
+            res = self.session.render(bgr, plan=plan, want_mask=want_mask, out=bgr, layers=self.want_layers)
+        else:
+            res = self.session.render(bgr, cam_from_world, want_mask=want_mask, out=bgr,
+                                      layers=self.want_layers)
         self.last_layers = res.layers
         for k, v in res.timings.as_dict().items():
             if k != "total":
@@ -146,6 +165,7 @@ class FrameComposer:
         self._gap = (0, None)  # (length, first frame) of the current run of frames not tracked
         self.flags = FlagTally()  # flagged poses: one warning line for the video
         self.stage_ms: dict = {k: [] for k in FRAME_STAGES}
+        self._bgr = None  # (H, W, 3) uint8: BGR of the current frame inside its ROI (yuv420p input)
         #: an :class:`arshadow.export.layervideo.LayerSink` getting every frame's layers, or None
         self.layer_sink = None
 
@@ -171,6 +191,8 @@ class FrameComposer:
             img, mask, item = self._render(fp.cam_from_world, img, fmt, timings)  # the frame's one item
             item.input, item.status = self.name, fp.status
             self._pose_fields(item, fp)
+            self.stats["frames_ok" if fp.raw is not None else "frames_held"] += 1
+            self.stats["swapped"] += int(fp.swapped)
         item.output, item.mask = self.out_video, self.out_mask
         item.frame, item.time_s, item.sun = fr.index, round(fr.time_s, 6), sun
         self.flags.add(fr.index, item.flag_reasons)  # reasons of the tracked pose (None when held / missing)
@@ -188,32 +210,54 @@ class FrameComposer:
         if self._gap[0] > self.stats["longest_gap"]:
             self.stats["longest_gap"], self.stats["longest_gap_start"] = self._gap
 
-    def _pose_fields(self, item, fp) -> None:
+    @staticmethod
+    def _pose_fields(item, fp) -> None:
         """The report's pose keys: the tracked (raw) pose and the one rendered with (smoothed / held)."""
         if fp.raw is not None:
             item.set_pose(fp.raw)
-            self.stats["frames_ok"] += 1
-        else:
-            self.stats["frames_held"] += 1
         r, t = rvec_tvec_from_matrix(fp.cam_from_world)
         item.raw = None if fp.raw is None else {
             "rvec": np.asarray(fp.raw.rvec, float).ravel().tolist(),
             "tvec": np.asarray(fp.raw.tvec, float).ravel().tolist()}
         item.rvec, item.tvec = r.tolist(), t.tolist()
         item.pose_choice = "temporal (alternative IPPE solution)" if fp.swapped else "error"
-        self.stats["swapped"] += int(fp.swapped)
+
+    def decision(self, fp) -> dict:
+        """The pose decision of a frame that is not composited (a chunk's look-ahead past its end):
+        ``frame``, ``status``, ``raw``, ``rvec``, ``tvec``, ``pose_choice`` as its JSON Lines record has them."""
+        item = ReportItem(input=self.name, status=fp.status)
+        if fp.status != "no_marker":
+            self._pose_fields(item, fp)
+        return {"frame": fp.payload[0].index, "status": item.status, "raw": item.raw, "rvec": item.rvec,
+                "tvec": item.tvec, "pose_choice": item.pose_choice}
 
     def _render(self, cam_from_world, img, fmt, timings):
         """Composite at ``cam_from_world``; returns the frame in its own format, the mask and the report
-        item of :meth:`arshadow.session.Session.render`."""
+        item of :meth:`arshadow.session.Session.render`.
+
+        A ``yuv420p`` frame is converted to BGR only inside the plan's ROI (even-aligned; into a buffer kept
+        for the video): the compositor reads and writes no pixel outside it, and the result goes back into
+        the planes inside it only (:func:`i420_with_roi`)."""
+        if fmt != "yuv420p":
+            tc = time.perf_counter()
+            bgr = np.array(img)
+            timings["convert"] += (time.perf_counter() - tc) * 1e3
+            mask, item = self.backend.render(bgr, cam_from_world, self.want_mask, timings)
+            if self.layer_sink is not None:
+                self.layer_sink.write(self.backend.last_layers)
+            return bgr, mask, item
+        plan = self.backend.plan(cam_from_world, self.W, self.H)
         tc = time.perf_counter()
-        bgr = cv2.cvtColor(img, cv2.COLOR_YUV2BGR_I420) if fmt == "yuv420p" else np.array(img)
+        if self._bgr is None:
+            self._bgr = np.zeros((self.H, self.W, 3), np.uint8)
+        bgr = self._bgr
+        i420_roi_to_bgr(img, bgr, plan.roi)
         timings["convert"] += (time.perf_counter() - tc) * 1e3
-        mask, item = self.backend.render(bgr, cam_from_world, self.want_mask, timings)
+        mask, item = self.backend.render(bgr, cam_from_world, self.want_mask, timings, plan=plan)
         if self.layer_sink is not None:
             self.layer_sink.write(self.backend.last_layers)
         tc = time.perf_counter()
-        img = i420_with_roi(img, bgr, item.roi) if fmt == "yuv420p" else bgr
+        img = i420_with_roi(img, bgr, item.roi)
         timings["convert"] += (time.perf_counter() - tc) * 1e3
         return img, mask, item
 
@@ -242,6 +286,49 @@ def i420_planes(a: np.ndarray, H: int, W: int):
     c = a[H:].reshape(-1)
     q = (H // 2) * (W // 2)
     return a[:H], c[:q].reshape(H // 2, W // 2), c[q:].reshape(H // 2, W // 2)
+
+
+def even_box(roi, W: int, H: int):
+    """``(x0, y0, x1, y1)`` of ``roi = (x0, y0, w, h)`` clipped to the frame and widened to even
+    coordinates (a chroma sample of yuv420p covers 2x2 pixels); None for an empty ROI.
+
+    >>> even_box((3, 5, 10, 4), 64, 48)
+    (2, 4, 14, 10)
+    """
+    x0, y0, w, h = clip_roi(roi, W, H)
+    if w == 0 or h == 0:
+        return None
+    return x0 & ~1, y0 & ~1, min(W, x0 + w + 1) & ~1, min(H, y0 + h + 1) & ~1
+
+
+def i420_roi_to_bgr(yuv: np.ndarray, bgr: np.ndarray, roi) -> None:
+    """Convert the planar yuv420p frame to BGR into ``bgr`` inside ``roi`` only (even-aligned); equal there
+    to a whole-frame ``cv2.COLOR_YUV2BGR_I420`` (each 2x2 block has its own chroma sample). ``roi`` None:
+    the whole frame.
+
+    Parameters
+    ----------
+    yuv : (H * 3 // 2, W) uint8
+    bgr : (H, W, 3) uint8
+        Written inside the ROI; other pixels are left as they are.
+    roi : sequence of 4 int or None
+    """
+    H, W = bgr.shape[:2]
+    if roi is None:
+        cv2.cvtColor(yuv, cv2.COLOR_YUV2BGR_I420, dst=bgr)
+        return
+    box = even_box(roi, W, H)
+    if box is None:
+        return
+    x0, y0, x1, y1 = box
+    y, u, v = i420_planes(yuv, H, W)
+    hh, ww = y1 - y0, x1 - x0
+    sub = np.empty((hh * 3 // 2, ww), np.uint8)
+    sy, su, sv = i420_planes(sub, hh, ww)
+    sy[:] = y[y0:y1, x0:x1]
+    su[:] = u[y0 // 2 : y1 // 2, x0 // 2 : x1 // 2]
+    sv[:] = v[y0 // 2 : y1 // 2, x0 // 2 : x1 // 2]
+    bgr[y0:y1, x0:x1] = cv2.cvtColor(sub, cv2.COLOR_YUV2BGR_I420)
 
 
 def i420_with_roi(yuv: np.ndarray, bgr: np.ndarray, roi) -> np.ndarray:

@@ -1,0 +1,314 @@
+"""One video across processes: its chunks (:mod:`arshadow.video.chunks`) on local worker processes
+(``arshadow video --jobs N``) or as Dask tasks (``arshadow batch --dask``), then joined.
+
+Each worker process builds its own :class:`arshadow.session.Session` (and OpenGL context) from a picklable
+:class:`BackendRecipe` once and keeps it for its later chunks. Local workers are started with ``spawn``
+(a fresh interpreter: an OpenGL context and threads do not survive ``fork``). A worker that dies (killed,
+out of memory) takes its chunk with it: the chunk is run again once in a fresh pool, and if it dies again
+the video fails with one line naming the chunk; never a silently missing range.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import multiprocessing
+import os
+import time
+from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import ImageError
+from ..sanity import FlagTally
+from ..session import Session
+from .avio import AvReader
+from .chunks import (
+    ChunkStore,
+    fingerprint,
+    first_mismatch,
+    join_chunks,
+    plan_chunks,
+    run_chunk,
+    widened,
+)
+from .encode import SheetThumbs, write_contact_sheet
+from .engine import EngineOptions
+from .framejob import FRAME_STAGES, SessionBackend
+from .scan import StreamIndex, scan_stream
+
+__all__ = ["BackendRecipe", "ChunkPool", "Prepared", "chunk_task", "finish_chunked", "prepare_chunked",
+           "process_video_chunked"]
+
+
+@dataclass
+class BackendRecipe:
+    """How a worker builds its :class:`arshadow.video.framejob.SessionBackend` (picklable).
+
+    Attributes
+    ----------
+    spec : arshadow.scene.SceneSpec
+    lights : list of Light or None
+        The session's first lights (None: the spec's).
+    static, tracks : lists
+        Fixed lights and sun tracks of a time-lapse (:meth:`Session.use_sun_tracks`).
+    time_lapse : (datetime, float) or None
+    """
+
+    spec: object
+    lights: list | None = None
+    static: list = field(default_factory=list)
+    tracks: list = field(default_factory=list)
+    time_lapse: tuple | None = None
+
+    def key(self) -> str:
+        return repr((self.spec, self.lights, self.static, self.tracks, self.time_lapse))
+
+    def build(self) -> SessionBackend:
+        session = Session(self.spec, lights=self.lights)
+        if self.tracks:
+            session.use_sun_tracks(self.tracks, self.static)
+        # a spec with a time-lapse (SceneSpec.time_lapse) gives the session its own sun tracks
+        return SessionBackend(session, self.tracks or session.sun_tracks, self.time_lapse or session.time_lapse)
+
+
+_BACKENDS: dict = {}
+
+
+def backend_for(recipe: BackendRecipe) -> SessionBackend:
+    """One backend per recipe per process (a worker keeps its GL context between chunks)."""
+    key = recipe.key()
+    b = _BACKENDS.get(key)
+    if b is None:
+        for old in _BACKENDS.values():
+            old.session.close()
+        _BACKENDS.clear()
+        b = _BACKENDS[key] = recipe.build()
+    return b
+
+
+@dataclass
+class Prepared:
+    """A video planned into chunks (picklable: sent with every chunk task)."""
+
+    path: str
+    name: str
+    index: StreamIndex
+    chunks: list
+    store: ChunkStore
+    outputs: dict
+    opts: EngineOptions
+    total: int | None
+    rate: object
+    size: tuple
+    has_audio: bool
+    fps_assumed: bool
+    frame_count: int | None
+    note: str | None = None
+
+
+def prepare_chunked(path, outputs: dict, opts: EngineOptions, count: int, outdir, stem: str, recipe_key: str,
+                    name: str | None = None):
+    """Plan one video into up to ``count`` chunks: a :class:`Prepared`, or ``(None, note)`` when it is
+    processed in one piece (``note``: why, or None for an image sequence)."""
+    p = str(path)
+    if "%" in p:
+        return None, None
+    if opts.layers is not None:
+        return None, f"{name or p}: not cut into chunks (--layers are written in one piece)"
+    index = scan_stream(p)
+    if index.problem:
+        return None, f"{name or p}: not cut into chunks ({index.problem})"
+    probe = AvReader(p, max_frames=opts.max_frames, raw=True)
+    probe.close()
+    n = index.n if opts.max_frames is None else min(index.n, opts.max_frames)
+    chunks, note = plan_chunks(index, n, opts, count)
+    if note is not None:
+        note = f"{name or p}: {note}"
+    if len(chunks) < 2:
+        return None, note
+    total = probe.frame_count if opts.max_frames is None else min(probe.frame_count or opts.max_frames,
+                                                                  opts.max_frames)
+    store = ChunkStore(outdir, stem, fingerprint(p, recipe_key, opts, n), opts)
+    return Prepared(p, name or p, index, chunks, store, outputs, opts, total, probe.rate,
+                    (probe.width, probe.height), probe.has_audio, bool(probe.fps_assumed), probe.frame_count,
+                    note), None
+
+
+def encoder_threads(jobs: int) -> int:
+    """x264 threads per chunk worker: the cores left to each when ``jobs`` workers share them (at least 1).
+
+    >>> encoder_threads(os.cpu_count() or 1)
+    1
+    """
+    return max(1, (os.cpu_count() or 1) // max(1, int(jobs)))
+
+
+def chunk_task(recipe: BackendRecipe, prep: Prepared, chunk) -> dict:
+    """Run one chunk in this process (a pool worker or a Dask task); returns its record. (The store was
+    opened, and an interrupted run's temporaries removed, before any chunk started: never here, where
+    other chunks are writing.)"""
+    prep.store.dir.mkdir(parents=True, exist_ok=True)
+    t = time.perf_counter()
+    backend = backend_for(recipe)
+    setup = time.perf_counter() - t
+    rec = run_chunk(backend, prep.path, prep.index, chunk, prep.opts, prep.store, name=prep.name,
+                     final=prep.outputs, total=prep.total)
+    rec["setup_s"] = round(setup, 3)  # the worker's session and GL context (0 once made)
+    return rec
+
+
+class ChunkPool:
+    """Local worker processes for chunks (``spawn``), recreated after a worker dies."""
+
+    def __init__(self, jobs: int):
+        self.jobs = int(jobs)
+        self._ex = None
+
+    def _executor(self):
+        if self._ex is None:
+            self._ex = ProcessPoolExecutor(self.jobs, mp_context=multiprocessing.get_context("spawn"))
+        return self._ex
+
+    def run(self, fn, recipe, prep: Prepared, chunks, on_done=None) -> dict:
+        """``fn(recipe, prep, chunk)`` for every chunk; ``{k: record}``. When a worker dies every chunk in
+        flight is lost with it: those are run again one at a time in a fresh pool (so that a death names
+        its chunk), and a chunk whose worker dies again fails the video (ImageError naming it)."""
+        records: dict = {}
+        died = self._round(fn, recipe, prep, chunks, records, on_done)
+        for c in died:
+            self.close()
+            if self._round(fn, recipe, prep, [c], records, on_done):
+                self.close()
+                raise ImageError(f"{prep.name}: chunk {c.k} (frames {c.start}-{c.stop - 1}): its worker process "
+                                 f"died twice; the video is not written")
+        return records
+
+    def _round(self, fn, recipe, prep, chunks, records, on_done) -> list:
+        """Run the chunks in parallel; returns those lost to a dead worker."""
+        ex = self._executor()
+        futs = {ex.submit(fn, recipe, prep, c): c for c in chunks}
+        died = []
+        for fut, c in futs.items():
+            try:
+                records[c.k] = fut.result()
+            except BrokenProcessPool:
+                died.append(c)
+                continue
+            if on_done is not None:
+                on_done(records[c.k])
+        return died
+
+    def close(self) -> None:
+        if self._ex is not None:
+            self._ex.shutdown(wait=False, cancel_futures=True)
+            self._ex = None
+
+
+def finish_chunked(prep: Prepared, records: dict, rerun) -> dict:
+    """Check the chunks against each other (redoing a chunk with a longer primer via ``rerun(chunk)``
+    until they agree), join them into the video's outputs, remove the store; returns the summary."""
+    chunks = list(prep.chunks)
+    redone = 0
+    while (bad := first_mismatch(prep.store, chunks, records, prep.opts)) is not None:
+        wider = widened(chunks[bad], prep.index, prep.opts)
+        if wider is None:
+            raise ImageError(f"{prep.name}: chunk {bad} differs from the run before it even from frame 0")
+        chunks[bad] = wider
+        records[bad] = rerun(wider)
+        redone += 1
+    t_join = time.perf_counter()
+    joined = join_chunks(prep.store, chunks, prep.outputs, prep.opts, prep.rate,
+                         audio_from=prep.path if (prep.opts.keep_audio and prep.has_audio) else None)
+    sheet = SheetThumbs(prep.opts.contact_sheet, prep.total, prep.size)
+    for k in sorted(joined["thumbs"]):
+        sheet.offer(k, joined["thumbs"][k])
+    if prep.outputs.get("sheet") is not None and sheet.thumbs:
+        write_contact_sheet(prep.outputs["sheet"], sheet.picked())
+    summary = _summary(prep, chunks, records, sheet, joined["audio"], redone)
+    summary["join_s"] = round(time.perf_counter() - t_join, 3)
+    prep.store.remove()
+    return summary
+
+
+def _summary(prep: Prepared, chunks, records: dict, sheet, audio: bool, redone: int) -> dict:
+    counts = ("frames", "frames_ok", "frames_held", "frames_no_marker", "swapped")
+    stats = {k: sum(records[c.k]["stats"][k] for c in chunks) for k in counts}
+    stage_ms: dict = {k: [] for k in FRAME_STAGES}
+    gap, longest = (0, None), (0, None)  # runs of frames not tracked, across the chunks' boundaries
+    with open(prep.outputs["frames"], encoding="utf-8") as f:
+        for line in f:
+            d = json.loads(line)
+            for k, v in d["timings_ms"].items():
+                stage_ms.setdefault(k, []).append(v)
+            gap = (0, None) if d["status"] == "ok" else (gap[0] + 1, d["frame"] if gap[1] is None else gap[1])
+            longest = gap if gap[0] > longest[0] else longest
+    if "longest_gap" in records[chunks[0].k]["stats"]:
+        stats["longest_gap"], stats["longest_gap_start"] = longest
+    warnings = [prep.note] if prep.note else []
+    flags = FlagTally()  # the flagged poses of every chunk, in frame order: the sequential run's line
+    for c in chunks:
+        fl = records[c.k].get("flags") or {"keys": [], "kinds": {}}
+        flags.keys += fl["keys"]
+        for kind, n in fl["kinds"].items():
+            flags.kinds[kind] = flags.kinds.get(kind, 0) + n
+    if (flagged := flags.summary(stats["frames"], "frames")) is not None:
+        warnings.append(f"{prep.name}: {flagged}")
+    status = "ok"
+    if stats["frames_ok"] == 0:
+        status = "no_marker"
+        warnings.append(f"{prep.name}: the marker was found in none of the {stats['frames']} frames")
+    out_mask = prep.outputs.get("mask")
+    fm = np.asarray(stage_ms["total"] or [0.0])
+    cpu = sum(records[c.k]["cpu_s"] for c in chunks)
+    return {"input": prep.name, "output": str(prep.outputs["video"]),
+            "mask": None if out_mask is None else str(out_mask), "frames_report": str(prep.outputs["frames"]),
+            "sheet": str(prep.outputs["sheet"]) if prep.outputs.get("sheet") is not None and sheet.thumbs else None,
+            "status": status, "error": None, "warnings": warnings, **stats,
+            "recomputes": sum(records[c.k]["recomputes"] for c in chunks), "decode_errors": 0, "truncated": False,
+            "frame_count_declared": prep.frame_count, "fps": float(prep.rate), "fps_assumed": prep.fps_assumed,
+            "size": list(prep.size), "audio": audio, "codec": prep.opts.codec, "crf": prep.opts.crf,
+            "chunks": [{"k": c.k, "frames": [c.start, c.stop], "decoded_from": c.decode_from,
+                        "wall_s": records[c.k]["wall_s"], "cpu_s": records[c.k]["cpu_s"],
+                        "setup_s": records[c.k].get("setup_s", 0.0), "pid": records[c.k]["pid"],
+                        "max_rss_mb": records[c.k].get("max_rss_mb")} for c in chunks],
+            "chunks_redone": redone, "chunk_cpu_s": round(cpu, 3),
+            "stage_ms_median": {k: round(float(np.median(v)), 3) for k, v in stage_ms.items() if v},
+            "frame_ms_median": float(np.median(fm)),
+            "frame_ms_iqr": [float(np.percentile(fm, 25)), float(np.percentile(fm, 75))],
+            "frame_ms_minmax": [float(fm.min()), float(fm.max())]}
+
+
+def process_video_chunked(recipe: BackendRecipe, pool: ChunkPool, path, outputs: dict, opts: EngineOptions, *,
+                          outdir, stem: str, name: str | None = None, progress=None, task=chunk_task):
+    """One video on ``pool``'s workers in chunks; ``(summary, note)``, or ``(None, note)`` when it is to be
+    processed in one piece (``note``: why, or None).
+
+    Finished chunks found in the store (an interrupted earlier run) are kept; the others are run with
+    ``task(recipe, prep, chunk)`` (:func:`chunk_task`; a picklable stand-in in tests).
+    """
+    t0 = time.perf_counter()
+    opts = opts.check()
+    prep, note = prepare_chunked(path, outputs, opts, pool.jobs, outdir, stem, recipe.key(), name)
+    if prep is not None and not opts.encoder_threads:
+        prep.opts = dataclasses.replace(opts, encoder_threads=encoder_threads(pool.jobs))
+    if prep is None:
+        return None, note
+    prep.store.open()
+    records = {c.k: r for c in prep.chunks if (r := prep.store.done(c)) is not None}
+    done = [0]
+
+    def on_done(rec):
+        done[0] += rec["chunk"]["stop"] - rec["chunk"]["start"]
+        if progress is not None:
+            progress(done[0], prep.total)
+
+    todo = [c for c in prep.chunks if c.k not in records]
+    records.update(pool.run(task, recipe, prep, todo, on_done))
+    summary = finish_chunked(prep, records, lambda c: pool.run(task, recipe, prep, [c])[c.k])
+    summary["chunks_resumed"] = len(prep.chunks) - len(todo)
+    wall = time.perf_counter() - t0
+    summary.update(wall_s=round(wall, 3), fps_processed=round(summary["frames"] / wall, 2) if wall > 0 else None)
+    return summary, None

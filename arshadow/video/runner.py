@@ -1,0 +1,110 @@
+"""Several videos, one after another, each in one piece (:func:`arshadow.video.engine.process_video`) or, with
+``jobs > 1``, in chunks on local worker processes (:mod:`arshadow.video.parallel`)."""
+
+from __future__ import annotations
+
+import json
+
+from ..errors import ArshadowError, ImageError
+from ..io import InputGuard, clean_temporaries
+from ..report import ReportItem
+from .engine import EngineOptions, process_video, unique_stems, video_outputs
+from .parallel import ChunkPool, process_video_chunked
+
+__all__ = ["items_from_frames", "run_videos"]
+
+
+def run_videos(backend, inputs, outdir, opts: EngineOptions, *, progress_factory=None, on_error=None, jobs: int = 1,
+               recipe=None):
+    """Process several videos one after another; a failed video is recorded and the others go on.
+
+    Parameters
+    ----------
+    backend : SessionBackend
+    inputs : list of str
+    outdir : Path
+    opts : EngineOptions
+    progress_factory : callable, optional
+        ``progress_factory(input, total) -> (update(done, total), close())`` for each video.
+    on_error : callable, optional
+        ``on_error(exc)``: re-raise to stop (``--debug``).
+    jobs : int
+        Worker processes per video (``--jobs``): a video is cut at keyframes into ``jobs`` chunks
+        (:mod:`arshadow.video.chunks`); 1: in this process, in one piece.
+    recipe : arshadow.video.parallel.BackendRecipe, optional
+        How a worker builds ``backend`` (needed with ``jobs > 1``).
+
+    Returns
+    -------
+    summaries : list of dict
+        One per input (:func:`process_video`'s, or ``status: "error"`` with ``error``).
+    items : list of ReportItem
+        Per-frame items when ``opts.collect_items``; an unreadable video has one item with ``frame: None``.
+    """
+    summaries, items = [], []
+    given = InputGuard(inputs)  # outputs never replace an input
+    pool = ChunkPool(jobs) if jobs > 1 and recipe is not None else None
+    try:
+        for inp, stem in zip(inputs, unique_stems(inputs)):
+            summary, its = _one_video(backend, pool, recipe, inp, stem, outdir, opts, given, progress_factory,
+                                      on_error)
+            summaries.append(summary)
+            items.extend(its)
+    finally:
+        if pool is not None:
+            pool.close()
+    return summaries, items
+
+
+def _one_video(backend, pool, recipe, inp, stem, outdir, opts, given, progress_factory, on_error):
+    outs = video_outputs(outdir, stem, opts)
+    close = None
+    try:
+        given.check(outs.values())
+        clean_temporaries(outdir, stem)  # left by a run killed while writing this video
+        update = None
+        if progress_factory is not None:
+            update, close = progress_factory(str(inp))
+        summary = note = None
+        if pool is not None:
+            try:
+                summary, note = process_video_chunked(recipe, pool, inp, outs, opts, outdir=outdir, stem=stem,
+                                                      name=str(inp), progress=update)
+            except ImageError as exc:  # e.g. a damaged packet: the one-piece run reports and skips it
+                summary, note = None, f"not cut into chunks ({exc})"
+        if summary is None:
+            summary, its = process_video(backend, inp, outs, opts, progress=update, name=str(inp))
+            if note:
+                summary["warnings"].insert(0, note)
+        else:
+            its = items_from_frames(summary) if opts.collect_items else []
+        return summary, its
+    except (ArshadowError, OSError, MemoryError) as exc:
+        if on_error is not None:
+            on_error(exc)
+        msg = str(exc) if isinstance(exc, ArshadowError) else f"{type(exc).__name__}: {exc}"
+        if str(inp) not in msg:
+            msg = f"{inp}: {msg}"
+        summary = {"input": str(inp), "output": None, "mask": None, "status": "error", "error": msg,
+                   "warnings": []}
+        return summary, [ReportItem(input=str(inp), status="error", error=msg)]
+    finally:
+        if close is not None:
+            close()
+
+
+def items_from_frames(summary: dict) -> list:
+    """The per-frame report items of a chunked video, read back from its JSON Lines report."""
+    out = []
+    with open(summary["frames_report"], encoding="utf-8") as f:
+        for line in f:
+            d = json.loads(line)
+            it = ReportItem(input=summary["input"], output=summary["output"], mask=summary["mask"],
+                            status=d["status"], marker_ids=d["marker_ids"], rvec=d["rvec"], tvec=d["tvec"],
+                            reprojection_error_px=d["reprojection_error_px"], pose_ambiguity=d["pose_ambiguity"],
+                            mode=d["mode"], timings_ms=d["timings_ms"])
+            it.error = "no marker found" if d["status"] == "no_marker" else None
+            it.frame, it.time_s, it.raw, it.pose_choice, it.sun = (d["frame"], d["time_s"], d["raw"],
+                                                                   d["pose_choice"], d.get("sun"))
+            out.append(it)
+    return out

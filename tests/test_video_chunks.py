@@ -1,0 +1,292 @@
+"""One video cut at keyframes into chunks (arshadow/video/scan.py, chunks.py, parallel.py): the chunked run
+equals the sequential one.
+
+Ground truth is the sequential run of the same code (``--jobs 1``: one process, one piece), which the
+other tests check against the generating poses; here the claim is equality: the same per-frame status and
+pose (the JSON Lines records, exact), the same lossless mask frames (FFV1, decoded and compared), the same
+frame count and audio. Clips: tests/video_clips.py (synthetic frames, H.264 with a fixed GOP so that
+keyframes fall where the test needs them; a marker-free stretch so that hold and marker loss cross a
+chunk boundary).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from fractions import Fraction
+from pathlib import Path
+
+import numpy as np
+import pytest
+from video_clips import make_clip
+
+av = pytest.importorskip("av")
+
+ROOT = Path(__file__).resolve().parents[1]
+CALIB = ROOT / "calib" / "synth_640x360.yml"
+SCENE = ["--calib", str(CALIB), "--marker-length", "0.05", "--model", "box:0.04,0.03,0.06", "--place", "0.05,0,0",
+         "--light", "point:-0.1,0.15,0.4"]
+JOB = {"calib": str(CALIB), "marker_length": 0.05, "model": "box:0.04,0.03,0.06", "place": [0.05, 0, 0],
+       "lights": ["point:-0.1,0.15,0.4"], "refine": "edge", "compose": "cpu"}
+#: keys of a frame record that must be equal between the runs
+KEYS = ("frame", "time_s", "status", "marker_ids", "rvec", "tvec", "raw", "reprojection_error_px", "pose_choice",
+        "mode")
+
+
+def _intr():
+    from arshadow.camera import Intrinsics
+
+    return Intrinsics.from_file(CALIB)
+
+
+def _poses(n):
+    from arshadow.synth import camera_path
+
+    return camera_path(n, radius=0.5, height=(0.3, 0.42), sweep_deg=40.0, start_deg=-110.0)
+
+
+def _clip(path, n=72, gop=24, blank=range(16, 34), audio=True):
+    return make_clip(path, _intr(), _poses(n), noise=1.0, seed=7, blank=set(blank), gop=gop, audio=audio)
+
+
+def _cli(*argv):
+    from arshadow.cli import main
+
+    return main([str(a) for a in argv])
+
+
+def _lines(path):
+    return [json.loads(s) for s in Path(path).read_text().splitlines()]
+
+
+def _masks(path):
+    with av.open(str(path)) as c:
+        return [f.to_ndarray(format="gray") for f in c.decode(video=0)]
+
+
+def _video(path):
+    with av.open(str(path)) as c:
+        return sum(1 for _ in c.decode(video=0)), bool(c.streams.audio)
+
+
+def _report(path):
+    return json.loads(Path(path).read_text())["videos"][0]
+
+
+def assert_same_run(a_dir, b_dir, stem, n):
+    """Equal per-frame records (status, poses: exact), equal mask frames, same frame count and audio."""
+    la, lb = _lines(a_dir / f"{stem}.frames.jsonl"), _lines(b_dir / f"{stem}.frames.jsonl")
+    assert [d["frame"] for d in la] == [d["frame"] for d in lb] == list(range(n))
+    for x, y in zip(la, lb):
+        assert {k: x.get(k) for k in KEYS} == {k: y.get(k) for k in KEYS}, f"frame {x['frame']}"
+    ma, mb = _masks(a_dir / f"{stem}.shadow.mkv"), _masks(b_dir / f"{stem}.shadow.mkv")
+    assert len(ma) == len(mb) == n
+    assert all(np.array_equal(x, y) for x, y in zip(ma, mb))
+    assert _video(a_dir / f"{stem}.mp4") == _video(b_dir / f"{stem}.mp4")
+    return la
+
+
+def _run(clip, out, *extra):
+    rc = _cli("video", clip, *SCENE, "--compose", "cpu", "--save-mask", "-q", "-o", out, "--report",
+              out / "r.json", *extra)
+    return rc, _report(out / "r.json")
+
+
+# --------------------------------------------------------------------------------------------------
+def test_plan_cuts_at_keyframes_and_primes_from_before():
+    from arshadow.video.chunks import margins, plan_chunks
+    from arshadow.video.engine import EngineOptions
+    from arshadow.video.scan import StreamIndex
+
+    opts = EngineOptions()
+    prime, check, tail = margins(opts)
+    idx = StreamIndex(pts=list(range(600)), times=[i / 25 for i in range(600)], keyframes=list(range(0, 600, 50)))
+    chunks, note = plan_chunks(idx, 600, opts, 4)
+    assert note is None
+    assert [c.start for c in chunks] == [0, 150, 300, 450]
+    assert [c.stop for c in chunks] == [150, 300, 450, 600]
+    for c in chunks[1:]:  # decoding starts at a keyframe at least `prime` frames before the chunk
+        assert c.decode_from in idx.keyframes and c.start - c.decode_from >= prime
+    for c in chunks[:-1]:  # and goes on `tail` frames past its end
+        assert c.decode_stop == c.stop + tail
+    one, note = plan_chunks(StreamIndex(pts=list(range(90)), times=[0.0] * 90, keyframes=[0]), 90, opts, 3)
+    assert len(one) == 1 and "no keyframe after the first frame" in note
+    assert check < tail
+
+
+@pytest.mark.gl
+def test_jobs2_equals_sequential(tmp_path):
+    clip = _clip(tmp_path / "c.mp4")
+    rc1, s1 = _run(clip, tmp_path / "seq")
+    rc2, s2 = _run(clip, tmp_path / "par", "--jobs", "2")
+    assert rc1 == rc2 == 0
+    assert "chunks" not in s1 and len(s2["chunks"]) == 2
+    lines = assert_same_run(tmp_path / "seq", tmp_path / "par", "c", 72)
+    # the clip exercises what crosses a boundary: held frames and frames without the marker
+    assert {d["status"] for d in lines} == {"ok", "held", "no_marker"}
+    for k in ("frames", "frames_ok", "frames_held", "frames_no_marker", "swapped", "status", "audio", "warnings",
+              "longest_gap", "longest_gap_start"):
+        assert s1[k] == s2[k], k
+    assert s2["audio"] is True
+    assert not (tmp_path / "par" / ".arshadow-chunks").exists() or not any((tmp_path / "par" / ".arshadow-chunks").iterdir())
+
+
+@pytest.mark.gl
+@pytest.mark.slow
+def test_jobs2_equals_sequential_300_frames(tmp_path):
+    clip = make_clip(tmp_path / "c.mp4", _intr(), _poses(300), noise=1.0, seed=7, blank=set(range(100, 130)), gop=50)
+    _run(clip, tmp_path / "seq")
+    _, s2 = _run(clip, tmp_path / "par", "--jobs", "2")
+    assert len(s2["chunks"]) == 2
+    assert_same_run(tmp_path / "seq", tmp_path / "par", "c", 300)
+
+
+@pytest.mark.gl
+def test_no_keyframe_after_the_first_is_one_chunk_and_said(tmp_path, capsys):
+    clip = _clip(tmp_path / "c.mp4", n=30, gop=1000, blank=(), audio=False)
+    from arshadow.video.scan import scan_stream
+
+    assert scan_stream(clip).keyframes == [0]
+    rc, s = _run(clip, tmp_path / "par", "--jobs", "2")
+    assert rc == 0 and "chunks" not in s
+    err = capsys.readouterr().err
+    assert "no keyframe after the first frame: processed as one chunk" in err
+    assert len(_lines(tmp_path / "par" / "c.frames.jsonl")) == 30
+
+
+def _vfr_clip(path, n=60):
+    """H.264 with frame intervals alternating 30 and 50 ms (variable frame rate), keyframe every 15."""
+    from arshadow.synth import render_marker_photo
+
+    intr = _intr()
+    with av.open(str(path), "w") as c:
+        s = c.add_stream("libx264", rate=25)
+        s.width, s.height, s.pix_fmt = intr.width, intr.height, "yuv420p"
+        s.codec_context.time_base = s.time_base = Fraction(1, 1000)
+        s.options = {"crf": "18", "x264-params": "keyint=15:min-keyint=15:scenecut=0:bframes=0"}
+        t = 0
+        for i, pose in enumerate(_poses(n)):
+            img = render_marker_photo(intr, pose, marker_length=0.05, noise_sigma=1.0, seed=i).image
+            f = av.VideoFrame.from_ndarray(img, format="bgr24")
+            f.pts, f.time_base = t, Fraction(1, 1000)
+            t += 30 if i % 2 else 50
+            for p in s.encode(f):
+                c.mux(p)
+        for p in s.encode(None):
+            c.mux(p)
+    return path
+
+
+@pytest.mark.gl
+def test_variable_frame_rate_chunks_keep_the_frame_times(tmp_path):
+    from arshadow.video.scan import scan_stream
+
+    clip = _vfr_clip(tmp_path / "v.mp4")
+    idx = scan_stream(clip)
+    assert idx.vfr and idx.problem is None and len(idx.keyframes) == 4
+    assert np.allclose(np.diff(idx.times)[:4], [0.05, 0.03, 0.05, 0.03])
+    _run(clip, tmp_path / "seq")
+    _, s = _run(clip, tmp_path / "par", "--jobs", "3")
+    assert len(s["chunks"]) == 3
+    lines = assert_same_run(tmp_path / "seq", tmp_path / "par", "v", 60)
+    assert [d["time_s"] for d in lines[:3]] == [0.0, 0.05, 0.08]
+
+
+@pytest.mark.gl
+def test_kill9_mid_video_then_rerun_redoes_only_unfinished_chunks(tmp_path):
+    clip = _clip(tmp_path / "c.mp4", n=96, gop=24)
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "arshadow", "video", str(clip), *SCENE, "--compose", "cpu", "--save-mask", "-q",
+           "-o", str(out), "--jobs", "3", "--report", str(out / "r.json")]
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            start_new_session=True)
+    t0 = time.time()
+    store = out / ".arshadow-chunks"
+    while time.time() - t0 < 180:  # kill once a chunk is recorded and before the video is joined
+        recs = list(store.glob("*/c*.json")) if store.exists() else []
+        if recs or proc.poll() is not None:
+            break
+        time.sleep(0.01)
+    assert proc.poll() is None, "the run finished before it could be killed"
+    os.killpg(proc.pid, signal.SIGKILL)  # the whole process group: the parent and its chunk workers
+    proc.wait()
+    kept = {p.name: json.loads(p.read_text())["pid"] for p in store.glob("*/c*.json")}
+    assert kept and not (out / "c.mp4").exists() and not (out / "c.frames.jsonl").exists()  # nothing half-written
+    rc = subprocess.run(cmd, env=env, capture_output=True, text=True, check=False)
+    assert rc.returncode == 0, rc.stderr
+    s = _report(out / "r.json")
+    assert s["chunks_resumed"] == len(kept) and len(s["chunks"]) == 3
+    _run(clip, tmp_path / "seq")
+    assert_same_run(tmp_path / "seq", out, "c", 96)
+    assert not [p for p in out.rglob("*") if ".tmp" in p.name]
+
+
+def dying_chunk_task(recipe, prep, chunk):
+    """A chunk task whose worker dies (hard, as when killed) on chunk 1: once when $ARSHADOW_TEST_DIE_ONCE
+    names a file that does not exist yet (then created), every time when $ARSHADOW_TEST_DIE is set."""
+    from arshadow.video.parallel import chunk_task
+
+    once = os.environ.get("ARSHADOW_TEST_DIE_ONCE")
+    if chunk.k == 1 and (os.environ.get("ARSHADOW_TEST_DIE") or (once and not os.path.exists(once))):
+        if once:
+            Path(once).touch()
+        os._exit(9)
+    return chunk_task(recipe, prep, chunk)
+
+
+@pytest.mark.gl
+def test_a_dying_worker_is_retried_or_fails_the_video_in_one_line(tmp_path, monkeypatch):
+    from arshadow.errors import ImageError
+    from arshadow.scene import scene_from_dict
+    from arshadow.video.engine import EngineOptions, video_outputs
+    from arshadow.video.parallel import BackendRecipe, ChunkPool, process_video_chunked
+
+    clip = _clip(tmp_path / "c.mp4", n=48, gop=24, blank=(), audio=False)
+    recipe = BackendRecipe(scene_from_dict(JOB))
+    opts = EngineOptions(mask="mkv", contact_sheet=0)
+    monkeypatch.setenv("ARSHADOW_TEST_DIE_ONCE", str(tmp_path / "died"))
+    pool = ChunkPool(2)
+    try:
+        s, _ = process_video_chunked(recipe, pool, clip, video_outputs(tmp_path / "a", "c", opts), opts,
+                                     outdir=tmp_path / "a", stem="c", task=dying_chunk_task)
+    finally:
+        pool.close()
+    assert (tmp_path / "died").exists() and s["frames"] == 48 and len(s["chunks"]) == 2
+    assert len(_masks(tmp_path / "a" / "c.shadow.mkv")) == 48
+    monkeypatch.setenv("ARSHADOW_TEST_DIE", "1")
+    pool = ChunkPool(2)
+    try:
+        with pytest.raises(ImageError, match=r"chunk 1 \(frames 24-47\): its worker process died twice") as e:
+            process_video_chunked(recipe, pool, clip, video_outputs(tmp_path / "b", "c", opts), opts,
+                                  outdir=tmp_path / "b", stem="c", task=dying_chunk_task)
+    finally:
+        pool.close()
+    assert "\n" not in str(e.value)
+    assert not (tmp_path / "b" / "c.mp4").exists()
+
+
+@pytest.mark.gl
+def test_batch_jobs2_and_dask_localcluster_chunks_equal_local(tmp_path):
+    distributed = pytest.importorskip("distributed")
+    from arshadow.scene import scene_from_dict
+    from arshadow.video.batch import run_batch
+    from arshadow.video.engine import EngineOptions
+
+    clip = _clip(tmp_path / "c.mp4", n=72, gop=24, audio=False)
+    spec = scene_from_dict(JOB)
+    opts = EngineOptions(mask="mkv", contact_sheet=0)
+    local = run_batch(spec, [clip], tmp_path / "local", opts, save_mask=True)
+    jobs2 = run_batch(spec, [clip], tmp_path / "jobs2", opts, save_mask=True, jobs=2)  # batch --jobs 2
+    assert jobs2["items"][0]["chunks"] == 2
+    assert_same_run(tmp_path / "local", tmp_path / "jobs2", "c", 72)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cl, \
+            distributed.Client(cl) as client:
+        remote = run_batch(spec, [clip], tmp_path / "dask", opts, save_mask=True, client=client, jobs=3)
+    assert [it["status"] for it in local["items"]] == [it["status"] for it in remote["items"]] == ["ok"]
+    assert remote["items"][0]["chunks"] == 3 and "chunks" not in local["items"][0]
+    assert_same_run(tmp_path / "local", tmp_path / "dask", "c", 72)
