@@ -2,6 +2,7 @@
 
     python tests/benchmarks/bench_video_scale.py [--frames 300] [--runs 3] [--sizes 720,1080,2160]
                                                  [--model-size 2160] [--out results.json] [--quick]
+                                                 [--no-scale]
 
 ``--quick`` (a proof that it runs: 40 frames, 1 run) is what a shared machine should run; the judged
 figures come from the defaults on a quiet machine.
@@ -11,12 +12,15 @@ frames 100-129), upscaled (bicubic) to 1920x1080 and 3840x2160 and encoded H.264
 every 50 frames (every frames / 4 for short clips); the calibration is calib/synth_1280x720.yml (scaled by the session). Cached in
 $ARSHADOW_BENCH_CACHE (default /tmp/arshadow-bench).
 
-Prints JSON with
+Prints the resolution table side by side on stderr (fps median (min-max), frames per CPU-second, and the
+codec alone: PyAV decode + x264 ``ultrafast`` of the same clip, no processing), then JSON with
 
 - ``resolution``: per size, ``arshadow video`` decode to encode in a fresh process, ``--runs`` runs
   interleaved across sizes: fps (frames / the run's own wall time, process start and GL context excluded)
   median, min and max; frames per CPU-second (frames / user + system time of the process and its
-  children, start-up included) median; per-stage medians (ms per frame) of the median run.
+  children, start-up included) median; per-stage medians (ms per frame) of the median run; the codec-only
+  ceiling (``codec_only_fps_median``, ``codec_only_frames_per_cpu_s``), run right after each size's run.
+  ``table``: the side-by-side table's lines.
 - ``scale``: at ``--model-size``, the same clip with ``--jobs 1`` and ``--jobs 2``, and the model
 
       T(N) = start + F / N * t_frame * (1 + rho) + F * t_join          (N workers, one per machine)
@@ -96,19 +100,59 @@ def run(path: Path, *extra) -> dict:
     return s
 
 
+def codec(path: Path) -> dict:
+    """The codec alone, the ceiling of any pipeline: PyAV decode to BGR and x264 ``ultrafast`` CRF 20 encode
+    (the ``arshadow video`` defaults) of the same clip, no processing, in a fresh process; fps and frames
+    per CPU-second."""
+    code = (
+        "import sys, time, resource\n"
+        "from arshadow.video.avio import AvReader, AvWriter\n"
+        "src, dst = sys.argv[1], sys.argv[2]\n"
+        "r = AvReader(src); n = 0; t = time.perf_counter(); w = None\n"
+        "for f in r:\n"
+        "    if w is None:\n"
+        "        h, wd = f.image.shape[:2]; w = AvWriter(dst, 25, (wd, h), crf=20, preset='ultrafast').__enter__()\n"
+        "    w.write(f.image); n += 1\n"
+        "w.__exit__(None, None, None); wall = time.perf_counter() - t\n"
+        "print(n, wall)\n")
+    with tempfile.TemporaryDirectory() as d:
+        proc = subprocess.Popen([sys.executable, "-c", code, str(path), str(Path(d) / "c.mp4")],
+                                env=dict(os.environ, PYTHONPATH=str(ROOT)), stdout=subprocess.PIPE, text=True)
+        out = proc.stdout.read() if proc.stdout else ""
+        _, status, ru = os.wait4(proc.pid, 0)
+    if os.waitstatus_to_exitcode(status) != 0:
+        raise SystemExit(f"codec run failed on {path}")
+    n, wall = out.split()
+    return {"fps": int(n) / float(wall), "frames_per_cpu_s": int(n) / (ru.ru_utime + ru.ru_stime)}
+
+
 def resolution(frames: int, runs: int, sizes) -> dict:
     res: dict = {h: [] for h in sizes}
+    ceil: dict = {h: [] for h in sizes}
     for _ in range(runs):  # interleaved: a slow moment of the machine hits every size alike
         for h in sizes:
             res[h].append(run(clip(h, frames)))
+            ceil[h].append(codec(clip(h, frames)))
     out = {}
     for h, rs in res.items():
         fps = [r["fps_processed"] for r in rs]
         k = int(np.argsort(fps)[len(fps) // 2])
         out[f"{h}p"] = {"fps_median": float(np.median(fps)), "fps_min": min(fps), "fps_max": max(fps),
                         "frames_per_cpu_s": float(np.median([r["frames"] / r["cpu_s"] for r in rs])),
+                        "codec_only_fps_median": float(np.median([c["fps"] for c in ceil[h]])),
+                        "codec_only_frames_per_cpu_s": float(np.median([c["frames_per_cpu_s"] for c in ceil[h]])),
                         "stage_ms_median": rs[k]["stage_ms"], "frames": rs[k]["frames"]}
     return out
+
+
+def side_by_side(res: dict) -> str:
+    """The resolution table, one row per size (printed to stderr before the JSON)."""
+    rows = ["size    fps med (min-max)     frames/CPU-s   codec-only fps   codec frames/CPU-s"]
+    for k, v in res.items():
+        rows.append(f"{k:>6}  {v['fps_median']:7.1f} ({v['fps_min']:.1f}-{v['fps_max']:.1f})"
+                    f"  {v['frames_per_cpu_s']:12.1f}   {v['codec_only_fps_median']:14.1f}"
+                    f"   {v['codec_only_frames_per_cpu_s']:18.1f}")
+    return "\n".join(rows)
 
 
 def scale(frames: int, height: int) -> dict:
@@ -147,14 +191,17 @@ def main() -> int:
     ap.add_argument("--sizes", default="720,1080,2160")
     ap.add_argument("--model-size", type=int, default=2160)
     ap.add_argument("--quick", action="store_true", help="40 frames, 1 run (proves the script works)")
+    ap.add_argument("--no-scale", action="store_true", help="only the resolution table (no --jobs runs)")
     ap.add_argument("--out")
     a = ap.parse_args()
     if a.quick:
         a.frames, a.runs = 40, 1
     CACHE.mkdir(parents=True, exist_ok=True)
     sizes = [int(s) for s in a.sizes.split(",")]
+    res = resolution(a.frames, a.runs, sizes)
+    print(side_by_side(res), file=sys.stderr, flush=True)
     result = {"bench": "video_scale", "meta": _common.metadata(), "frames": a.frames, "runs": a.runs,
-              "resolution": resolution(a.frames, a.runs, sizes), "scale": scale(a.frames, a.model_size)}
+              "resolution": res, "table": side_by_side(res).splitlines(), "scale": None if a.no_scale else scale(a.frames, a.model_size)}
     _common.emit(result, a.out)
     return 0
 
