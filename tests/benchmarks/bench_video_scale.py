@@ -100,23 +100,24 @@ def run(path: Path, *extra) -> dict:
     return s
 
 
-def codec(path: Path) -> dict:
-    """The codec alone, the ceiling of any pipeline: PyAV decode to BGR and x264 ``ultrafast`` CRF 20 encode
-    (the ``arshadow video`` defaults) of the same clip, no processing, in a fresh process; fps and frames
-    per CPU-second."""
+def codec(path: Path, bgr: bool = False) -> dict:
+    """The codec alone, the ceiling of any pipeline: PyAV decode and x264 ``ultrafast`` CRF 20 encode (the
+    ``arshadow video`` defaults) of the same clip, no processing, in a fresh process; fps and frames per
+    CPU-second. Planar ``yuv420p`` in and out as the engine does (``bgr``: through BGR both ways instead)."""
     code = (
-        "import sys, time, resource\n"
+        "import sys, time\n"
         "from arshadow.video.avio import AvReader, AvWriter\n"
-        "src, dst = sys.argv[1], sys.argv[2]\n"
-        "r = AvReader(src); n = 0; t = time.perf_counter(); w = None\n"
+        "src, dst, bgr = sys.argv[1], sys.argv[2], sys.argv[3] == '1'\n"
+        "r = AvReader(src, raw=not bgr); n = 0; t = time.perf_counter(); w = None\n"
         "for f in r:\n"
         "    if w is None:\n"
-        "        h, wd = f.image.shape[:2]; w = AvWriter(dst, 25, (wd, h), crf=20, preset='ultrafast').__enter__()\n"
-        "    w.write(f.image); n += 1\n"
+        "        h = f.image.shape[0] if bgr else f.image.shape[0] * 2 // 3; wd = f.image.shape[1]\n"
+        "        w = AvWriter(dst, 25, (wd, h), crf=20, preset='ultrafast').__enter__()\n"
+        "    w.write(f.image) if bgr else w.write_yuv420p(f.image); n += 1\n"
         "w.__exit__(None, None, None); wall = time.perf_counter() - t\n"
         "print(n, wall)\n")
     with tempfile.TemporaryDirectory() as d:
-        proc = subprocess.Popen([sys.executable, "-c", code, str(path), str(Path(d) / "c.mp4")],
+        proc = subprocess.Popen([sys.executable, "-c", code, str(path), str(Path(d) / "c.mp4"), "1" if bgr else "0"],
                                 env=dict(os.environ, PYTHONPATH=str(ROOT)), stdout=subprocess.PIPE, text=True)
         out = proc.stdout.read() if proc.stdout else ""
         _, status, ru = os.wait4(proc.pid, 0)
