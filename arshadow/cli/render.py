@@ -98,7 +98,8 @@ def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> No
                    help="a measured light (arshadow light ... -o FILE, docs/light.md): its light (unless --light "
                         "is given), its shadow colour (instead of --opacity/--shadow-color) and the marker's exposure")
     s.add_argument("--no-exposure", action="store_true",
-                   help="with --light-from: keep the object's colour as given (no exposure / white balance match)")
+                   help="keep the object's colour as given: no exposure / white balance match to the marker paper "
+                        "(on by default, every photo and video frame; docs/light.md)")
     s.add_argument("--light", action="append", metavar="L",
                    help="point:X,Y,Z | directional:X,Y,Z | sun:LAT,LON,TIME[,NORTH], optional @W weight; "
                         "repeat for several lights")

@@ -23,7 +23,7 @@ from ..compose.composite import SRGB_TO_LINEAR
 from ..errors import ArshadowError
 from ..tracking.dictionary import get_dictionary, marker_bits
 
-__all__ = ["Exposure", "ExposureError", "measure_exposure", "sample_linear", "smooth_exposures"]
+__all__ = ["Exposure", "ExposureError", "ExposureSmoother", "measure_exposure", "sample_linear", "smooth_exposures"]
 
 
 class ExposureError(ArshadowError, ValueError):
@@ -186,25 +186,51 @@ def smooth_exposures(measurements, time_constant: float = 5.0, jump: float = 0.1
     >>> [round(x.paper_rgb[0], 3) for x in smooth_exposures(e)]
     [0.5, 0.5, 0.5, 0.544, 0.8, 0.8, 0.8]
     """
-    a = 1.0 - math.exp(-1.0 / max(float(time_constant), 1e-6))
-    out: list = []
-    state = None
-    pending = 0
-    for m in measurements:
+    sm = ExposureSmoother(time_constant, jump)
+    return [sm.update(m) for m in measurements]
+
+
+class ExposureSmoother:
+    """:func:`smooth_exposures` one frame at a time (a video's render loop): :meth:`update` with each
+    frame's measurement (or None) returns the smoothed one; :meth:`state` / :meth:`restore` carry the filter
+    between processes (parallel video chunks).
+
+    >>> sm = ExposureSmoother()
+    >>> [round(sm.update(Exposure((v,) * 3, (0.02,) * 3, 20)).paper_rgb[0], 3) for v in (0.5, 0.5, 0.8, 0.8)]
+    [0.5, 0.5, 0.544, 0.8]
+    """
+
+    def __init__(self, time_constant: float = 5.0, jump: float = 0.15):
+        self.a = 1.0 - math.exp(-1.0 / max(float(time_constant), 1e-6))
+        self.jump = float(jump)
+        self._state: np.ndarray | None = None
+        self._pending = 0
+        self._last: Exposure | None = None
+
+    def update(self, m: Exposure | None) -> Exposure | None:
+        """The smoothed measurement after frame measurement ``m`` (None: the last smoothed one)."""
         if m is None:
-            out.append(out[-1] if out else None)
-            continue
+            return self._last
         x = np.log(np.maximum(np.r_[m.paper_rgb, m.ink_rgb], 1e-6))
-        if state is None:
-            state = x
+        if self._state is None:
+            self._state = x
         else:
-            far = abs(np.mean(x[:3] - state[:3])) > math.log1p(jump)
-            pending = pending + 1 if far else 0
-            if pending >= 2:  # a new exposure: followed at once
-                state, pending = x, 0
+            far = abs(np.mean(x[:3] - self._state[:3])) > math.log1p(self.jump)
+            self._pending = self._pending + 1 if far else 0
+            if self._pending >= 2:  # a new exposure: followed at once
+                self._state, self._pending = x, 0
             else:
-                state = state + a * (x - state)
-        v = np.exp(state)
-        out.append(Exposure(tuple(float(t) for t in v[:3]), tuple(float(t) for t in v[3:]), m.white_cells,
-                            m.saturated))
-    return out
+                self._state = self._state + self.a * (x - self._state)
+        v = np.exp(self._state)
+        self._last = Exposure(tuple(float(t) for t in v[:3]), tuple(float(t) for t in v[3:]), m.white_cells,
+                              m.saturated)
+        return self._last
+
+    def state(self) -> dict:
+        return {"state": None if self._state is None else self._state.tolist(), "pending": self._pending,
+                "last": None if self._last is None else self._last.to_dict()}
+
+    def restore(self, st: dict) -> None:
+        self._state = None if st.get("state") is None else np.asarray(st["state"], np.float64)
+        self._pending = int(st.get("pending", 0))
+        self._last = None if st.get("last") is None else Exposure.from_dict(st["last"])
