@@ -415,10 +415,11 @@ def _path(v: Any, base_dir: str | Path | None) -> Any:
 def _apply_estimate(d: dict, base_dir: str | Path | None) -> dict:
     """``light_from``: the estimate's light (unless ``lights`` are given), its shadow colour (opacity 1) and
     the marker paper's exposure on the object's colour (``occluder_color``)."""
-    from .estimate.result import load_estimate, scene_overrides, shading_gain
+    from .estimate.result import LightEstimate, load_estimate, scene_overrides, shading_gain
 
     d = dict(d)
-    est = load_estimate(_path(d.pop("light_from"), base_dir))
+    est = d.pop("light_from")  # a file, or the estimate itself (render/video/batch --probe)
+    est = est if isinstance(est, LightEstimate) else load_estimate(_path(est, base_dir))
     o = scene_overrides(est, _rgb_text(d.get("color")), exposure=not d.get("no_exposure"))
     if not d.get("lights"):
         d["lights"] = list(o["lights"])
@@ -539,9 +540,10 @@ def scene_from_args(args: Any, **overrides: Any) -> SceneSpec:
     return scene_from_dict({k: v for k, v in d.items() if v is not None})
 
 
-def load_scene(path: str | Path) -> SceneSpec:
+def load_scene(path: str | Path, **overrides: Any) -> SceneSpec:
     """A :class:`SceneSpec` from a job file: YAML (``.yml``/``.yaml``, needs PyYAML) or JSON; relative paths
-    resolve against the file's folder.
+    resolve against the file's folder. ``overrides``: scene keys replacing the file's (``arshadow batch
+    --probe``: ``light_from`` and ``lights``).
 
     Raises
     ------
@@ -572,6 +574,7 @@ def load_scene(path: str | Path) -> SceneSpec:
         data = data["scene"]
     if not isinstance(data, dict):
         raise UsageError(f"{p}: a scene file holds a mapping of scene keys")
+    data = {**{k: v for k, v in data.items() if not (k == "light" and "lights" in overrides)}, **overrides}
     try:
         return scene_from_dict(data, base_dir=p.parent)
     except UsageError as exc:

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from ..scene import DEFAULT_AA
 from . import EXIT_OK, EXIT_SOME_FAILED, error_line, quiet_opencv
+from .light import add_probe_options, probe_estimate
 
 log = logging.getLogger(__name__)
 
@@ -129,6 +130,7 @@ def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> No
                         "(point and up normal in the marker frame); the model and lights are placed in the "
                         "ground's frame (docs/geometry.md)")
     s.add_argument("--no-object", action="store_true", help="composite only the shadow, not the object")
+    add_probe_options(p, run=True)
     s.add_argument("--plan", choices=("auto", "general", "zpass", "zfail", "planar"), default="auto",
                    help="frame planner: auto (default: the cheapest exact path per frame and light, decisions "
                         "in the report's plan field), general (reference: z-fail, infinite volumes, whole "
@@ -237,7 +239,9 @@ def run(args) -> int:
     if getattr(args, "layers_undistorted", False):
         args.layers = True
     layer_sets = _layer_paths(args, inputs, outdir) if getattr(args, "layers", False) else None
-    session = Session(scene_from_args(args))  # loads the scene: a bad one is exit 2
+    est = probe_estimate(args, inputs, calib=args.calib, marker_length=args.marker_length,
+                         dictionary=args.dictionary, marker_id=args.marker_id)  # --probe: docs/light.md
+    session = Session(scene_from_args(args) if est is None else scene_from_args(args, light_from=est))
     bar = None
     if not args.quiet and len(inputs) > 1 and sys.stderr.isatty():
         from tqdm import tqdm

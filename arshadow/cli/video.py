@@ -187,10 +187,10 @@ def build_lights(args):
     if not (math.isfinite(args.recompute_deg) and args.recompute_deg >= 0):
         raise UsageError(f"--recompute-deg {args.recompute_deg}: must be >= 0 degrees")
     if args.time_lapse is None:
-        return [parse_light(s) for s in args.light], [], None
+        return [parse_light(s) for s in args.light or ()], [], None
     tl = parse_time_lapse(args.time_lapse)
     static, tracks = [], []
-    for spec in args.light:
+    for spec in args.light or ():
         if spec.strip().lower().startswith("sun:"):
             tracks.append(parse_sun_track(spec, recompute_deg=args.recompute_deg))
         else:
@@ -211,13 +211,17 @@ def run(args) -> int:
     from ..video.parallel import BackendRecipe
     from ..video.runner import run_videos
     from . import quiet_opencv
+    from .light import probe_estimate
 
     debug = bool(getattr(args, "debug", False))
     quiet_opencv(debug)
     opts = engine_options(args, collect_items=bool(args.report))
     static, tracks, tl = build_lights(args)
     # video: search the marker near the last detection first (not with --plan general)
-    spec = scene_from_args(args, refine=args.corner_refine, track_roi=True)
+    est = probe_estimate(args, args.videos, calib=args.calib, marker_length=args.marker_length,
+                         dictionary=args.dictionary, marker_id=args.marker_id)  # --probe: docs/light.md
+    extra = {} if est is None else {"light_from": est}
+    spec = scene_from_args(args, refine=args.corner_refine, track_roi=True, **extra)
     # output paths before any work: a bad -o / --report is one usage error, not one per video
     outdir = check_output_folder(args.output, "-o")
     if args.report:
@@ -238,7 +242,7 @@ def run(args) -> int:
         tr.reset()
     if args.jobs < 1:
         raise UsageError(f"--jobs {args.jobs}: must be >= 1")
-    with Session(spec, lights=first) as session:
+    with Session(spec, lights=first or None) as session:  # none given: the scene's (--light-from, --probe)
         if tracks:
             session.use_sun_tracks(tracks, static)
         backend = SessionBackend(session, tracks, tl)
