@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import time
 
+import cv2
 import numpy as np
 
 from ._check import check_shape
@@ -234,45 +235,14 @@ def _compose_cpu(plan, image, intr, geometry, renderer, lens, work, passes, out,
     # lens warp (pinhole canvas -> distorted photo ROI)
     t = time.perf_counter()
     if layers is not None:
-        # the renderer's own bottom-up RGBA (colour, alpha) and RG (mask, ground) arrays: one remap or
-        # flip each instead of three strided arrays; and only over the part that has content
-        c0, c1 = layers.rgba, layers.mask_ground
-        ch, cw = c0.shape[:2]
-        act = c1[:, :, 0] > 0
-        act |= c0[:, :, 3] > 0
-        rows = np.flatnonzero(act.any(axis=1))
-        if rows.size == 0:  # nothing drawn: the photo is unchanged
+        warped = _warp_layers(layers, plan, lens, work, item, W, H)
+        if warped is None:  # nothing drawn, or nothing of it in the photo: the photo is unchanged
             timings.warp += (time.perf_counter() - t) * 1e3
-            item.content = None
             return
-        cols = np.flatnonzero(act.any(axis=0))
-        r0, r1 = ch - 1 - int(rows[-1]), ch - 1 - int(rows[0])  # top-down canvas rows
-        k0, k1 = int(cols[0]), int(cols[-1])
-        item.content = [int(canvas[0]) + k0, int(canvas[1]) + r0, k1 - k0 + 1, r1 - r0 + 1]
-        if lens is not None:
-            # photo pixels whose pinhole point can see the content (+1 px: bilinear support)
-            rect = (canvas[0] + k0 - 1.0, canvas[1] + r0 - 1.0, canvas[0] + k1 + 1.0, canvas[1] + r1 + 1.0)
-            sub = clip_roi(lens.distorted_roi(rect, margin=1), W, H)
-            x0 = max(sub[0], roi[0])
-            y0 = max(sub[1], roi[1])
-            x1 = min(sub[0] + sub[2], roi[0] + roi[2])
-            y1 = min(sub[1] + sub[3], roi[1] + roi[3])
-            if x1 <= x0 or y1 <= y0:
-                timings.warp += (time.perf_counter() - t) * 1e3
-                return
-            roi = (x0, y0, x1 - x0, y1 - y0)
-            l0, l1 = lens.warp(roi, canvas, c0, c1, work=work, bottom_up=True)
-        else:
-            import cv2
-
-            roi = (int(canvas[0]) + k0, int(canvas[1]) + r0, k1 - k0 + 1, r1 - r0 + 1)
-            b0, b1 = ch - 1 - r1, ch - r0  # the same rows, bottom-up
-            s0, s1 = c0[b0:b1, k0 : k1 + 1], c1[b0:b1, k0 : k1 + 1]
-            l0 = cv2.flip(s0, 0, dst=work.get("flip0", s0.shape, np.float32))
-            l1 = cv2.flip(s1, 0, dst=work.get("flip1", s1.shape, np.float32))
-        item.composited = list(roi)
+        roi, (l0, l1) = warped
         mask, alpha, color = l1[:, :, 0], l0[:, :, 3], l0
-        pinhole = (c1[::-1, :, 0], c0[::-1])  # the canvas top-down (views), for undistorted layers
+        # the canvas top-down (views), for undistorted layers
+        pinhole = (layers.mask_ground[::-1, :, 0], layers.rgba[::-1])
     else:
         mask, alpha, color = res.mask, res.alpha, res.color
         pinhole = (mask, np.dstack([color, alpha]))
@@ -302,6 +272,49 @@ def _compose_cpu(plan, image, intr, geometry, renderer, lens, work, passes, out,
         np.clip(m, np.float32(0.0), np.float32(255.0), out=m)
         np.copyto(mask_full[y0 : y0 + h, x0 : x0 + w], m, casting="unsafe")
     timings.composite += (time.perf_counter() - t) * 1e3
+
+
+def _warp_layers(layers, plan, lens, work, item, W: int, H: int):
+    """The renderer's own bottom-up RGBA (colour, alpha) and RG (mask, ground) arrays into the photo: one
+    remap (lens) or flip each instead of three strided arrays, and only over the part that has content.
+
+    Returns ``(roi, (rgba, mask_ground))`` top-down over the photo rectangle ``roi``, or None when nothing
+    was drawn (``item.content`` None) or nothing of it lands in the plan's ROI. Sets ``item.content`` and
+    ``item.composited``.
+    """
+    roi, canvas = plan.roi, plan.canvas
+    c0, c1 = layers.rgba, layers.mask_ground
+    ch, cw = c0.shape[:2]
+    act = c1[:, :, 0] > 0
+    act |= c0[:, :, 3] > 0
+    rows = np.flatnonzero(act.any(axis=1))
+    if rows.size == 0:
+        item.content = None
+        return None
+    cols = np.flatnonzero(act.any(axis=0))
+    r0, r1 = ch - 1 - int(rows[-1]), ch - 1 - int(rows[0])  # top-down canvas rows
+    k0, k1 = int(cols[0]), int(cols[-1])
+    item.content = [int(canvas[0]) + k0, int(canvas[1]) + r0, k1 - k0 + 1, r1 - r0 + 1]
+    if lens is not None:
+        # photo pixels whose pinhole point can see the content (+1 px: bilinear support)
+        rect = (canvas[0] + k0 - 1.0, canvas[1] + r0 - 1.0, canvas[0] + k1 + 1.0, canvas[1] + r1 + 1.0)
+        sub = clip_roi(lens.distorted_roi(rect, margin=1), W, H)
+        x0 = max(sub[0], roi[0])
+        y0 = max(sub[1], roi[1])
+        x1 = min(sub[0] + sub[2], roi[0] + roi[2])
+        y1 = min(sub[1] + sub[3], roi[1] + roi[3])
+        if x1 <= x0 or y1 <= y0:
+            return None
+        roi = (x0, y0, x1 - x0, y1 - y0)
+        warped = lens.warp(roi, canvas, c0, c1, work=work, bottom_up=True)
+    else:
+        roi = (int(canvas[0]) + k0, int(canvas[1]) + r0, k1 - k0 + 1, r1 - r0 + 1)
+        b0, b1 = ch - 1 - r1, ch - r0  # the same rows, bottom-up
+        s0, s1 = c0[b0:b1, k0 : k1 + 1], c1[b0:b1, k0 : k1 + 1]
+        warped = (cv2.flip(s0, 0, dst=work.get("flip0", s0.shape, np.float32)),
+                  cv2.flip(s1, 0, dst=work.get("flip1", s1.shape, np.float32)))
+    item.composited = list(roi)
+    return roi, warped
 
 
 def _frame_layers(undistorted, mask, color, alpha, roi, shape, opts, distorted, pinhole, canvas, premultiplied):

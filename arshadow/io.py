@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import re
 import tempfile
 from pathlib import Path
 
@@ -17,6 +18,12 @@ import cv2
 import numpy as np
 
 from .errors import ImageError
+
+#: the photo extensions arshadow recognises (OpenCV's image readers): folders are listed by them, ``batch``
+#: tells photos from videos by them, ``--keep-format`` keeps them
+IMAGE_EXTENSIONS = frozenset({".png", ".jpg", ".jpeg", ".jpe", ".bmp", ".dib", ".tif", ".tiff", ".webp", ".ppm",
+                              ".pgm", ".pnm", ".pbm", ".pxm", ".pfm", ".jp2", ".exr", ".hdr", ".pic", ".sr", ".ras",
+                              ".avif"})
 
 
 def read_image(path) -> np.ndarray:
@@ -140,6 +147,46 @@ def resolved_path(p) -> str:
         return str(Path(p).resolve())
     except OSError:
         return str(p)
+
+
+def unique_stems(inputs, default: str = "image") -> list[str]:
+    """An output stem per input: ``photo``, ``photo_2``, ... when names collide (case-insensitively); an
+    image-sequence pattern ``frames/img_%04d.png`` gives ``img``, ``frames/%04d.png`` gives ``frames``.
+
+    >>> unique_stems(["a/x.jpg", "b/X.png", "seq/img_%04d.png", "frames/%04d.png"])
+    ['x', 'X_2', 'img', 'frames']
+    """
+    seen: dict[str, int] = {}
+    out = []
+    for inp in inputs:
+        p = Path(str(inp))
+        stem = re.sub(r"%0?\d*d", "", p.stem).replace("%", "").strip("_.- ") or p.parent.name or default
+        n = seen.get(stem.lower(), 0) + 1
+        seen[stem.lower()] = n
+        out.append(stem if n == 1 else f"{stem}_{n}")
+    return out
+
+
+class InputGuard:
+    """The overwrite guard: outputs never replace one of the user's inputs.
+
+    >>> g = InputGuard(["in/a.png"])
+    >>> g.clash(["out/a.png", "in/a.png"])
+    'in/a.png'
+    """
+
+    def __init__(self, inputs):
+        self._given = {resolved_path(str(i)) for i in inputs}
+
+    def clash(self, outputs) -> str | None:
+        """The first of ``outputs`` (paths or None) that is an input, else None."""
+        return next((str(p) for p in outputs if p is not None and resolved_path(p) in self._given), None)
+
+    def check(self, outputs) -> None:
+        """Raise :class:`ImageError` naming the first output that would replace an input."""
+        p = self.clash(outputs)
+        if p is not None:
+            raise ImageError(f"{p}: output would overwrite an input; choose another -o folder")
 
 
 def check_output_folder(path, what: str = "-o") -> Path:

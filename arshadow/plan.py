@@ -44,6 +44,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .compose.composite import clip_roi
+from .geometry.volume import near_plane_radius
 from .plan_geometry import (
     ROI_MAX_POINTS,
     LightState,
@@ -54,6 +55,7 @@ from .plan_geometry import (
     scene_hull_points,
     shadow_footprint,
 )
+from .plan_rules import LightDecision, decide_lights, outside_view
 from .transforms import invert_rigid, transform_points
 
 if TYPE_CHECKING:  # annotations only
@@ -208,7 +210,22 @@ def plan_frame(geometry: SceneGeometry, intr: Intrinsics, cam_from_world: ArrayL
     plan = FramePlan(size=(W, H), cam_from_world=cam_from_world, znear=znear, distorted=lens is not None)
     plan.decide("znear", znear, "a quarter of the distance to the nearest of the object's box and the ground, "
                                 "at least 1e-4 m")
-    # region of interest (photo) and pinhole canvas
+    _plan_view(plan, geometry, intr, lens)
+    general, off = opts.plan == "general", set(opts.plan_off)
+    if opts.shadow_method == "volume":
+        trunc = bool(opts.truncate) and not general and "truncate" not in off
+        plan.decide("truncate", trunc,
+                    "volumes end just below the ground (RenderOptions.truncate)" if trunc else
+                    "volumes extruded to infinity (" + ("the general plan" if general else "switched off (plan_off)"
+                                                         if "truncate" in off else "RenderOptions.truncate=False") + ")")
+    _plan_lights(plan, geometry, _light_decisions(plan, geometry, intr, modes))
+    return plan
+
+
+def _plan_view(plan: FramePlan, geometry: SceneGeometry, intr: Any, lens: Any) -> None:
+    """The region of interest (photo pixels) and the pinhole canvas the renderer draws."""
+    (W, H), cam_from_world, znear = plan.size, plan.cam_from_world, plan.znear
+    opts = geometry.options
     general = opts.plan == "general"
     off = set(opts.plan_off)
     rect = None
@@ -221,8 +238,6 @@ def plan_frame(geometry: SceneGeometry, intr: Intrinsics, cam_from_world: ArrayL
                if rect is None else "the object and its shadows project into this rectangle")
         if rect is None and hull is not None and "cull" not in off:
             # part of the hull is behind the camera: nothing to draw still, if it is all outside the view
-            from .plan_rules import outside_view
-
             ext = lens.pinhole_extent if lens is not None else (-0.5, -0.5, W - 0.5, H - 0.5)
             off_screen = outside_view(transform_points(cam_from_world, hull), intr.fx, intr.fy, intr.cx, intr.cy,
                                       ext, znear)
@@ -244,39 +259,37 @@ def plan_frame(geometry: SceneGeometry, intr: Intrinsics, cam_from_world: ArrayL
     plan.roi = plan.decide("roi", roi, why if rect is not None or off_screen else f"whole photo: {why}")
     plan.canvas = plan.decide("canvas", canvas, "the pinhole pixels the distorted ROI samples" if lens is not None
                               else "the ROI (no lens distortion)")
-    if opts.shadow_method == "volume":
-        trunc = bool(opts.truncate) and not general and "truncate" not in off
-        plan.decide("truncate", trunc,
-                    "volumes end just below the ground (RenderOptions.truncate)" if trunc else
-                    "volumes extruded to infinity (" + ("the general plan" if general else "switched off (plan_off)"
-                                                         if "truncate" in off else "RenderOptions.truncate=False") + ")")
-    # per light: culling, technique, mode, truncation (arshadow.plan_rules.decide_lights)
-    from .plan_rules import LightDecision, decide_lights
 
+
+def _light_decisions(plan: FramePlan, geometry: SceneGeometry, intr: Any, modes: Sequence[str] | None) -> list[Any]:
+    """Per light: culling, technique, mode, truncation (:func:`arshadow.plan_rules.decide_lights`)."""
+    opts = geometry.options
+    off = set(opts.plan_off)
     if modes is not None:
-        decisions = [LightDecision(m, bool(opts.truncate), {"mode": "forced by the caller"}) for m in modes]
-    elif opts.shadow_method == "shadowmap":
-        decisions = [LightDecision("shadowmap", False, {"mode": "shadow-map baseline asked for "
-                                                                "(shadow_method='shadowmap')"})
-                     for _ in geometry.lights]
-    elif plan.empty:
-        decisions = [LightDecision("none", False, {"cull": "nothing of the scene in view: no render at all"})
-                     for _ in geometry.lights]
-    else:
-        from .geometry.volume import near_plane_radius
+        return [LightDecision(m, bool(opts.truncate), {"mode": "forced by the caller"}) for m in modes]
+    if opts.shadow_method == "shadowmap":
+        return [LightDecision("shadowmap", False, {"mode": "shadow-map baseline asked for (shadow_method='shadowmap')"})
+                for _ in geometry.lights]
+    if plan.empty:
+        return [LightDecision("none", False, {"cull": "nothing of the scene in view: no render at all"})
+                for _ in geometry.lights]
+    cam_from_world, znear, canvas = plan.cam_from_world, plan.znear, plan.canvas
+    which = "planar" if opts.shadow_method == "planar" and opts.plan == "auto" else opts.plan
+    u0, v0, cw, ch = canvas
+    near = near_plane_radius(znear, int(cw), int(ch), intr.fx, intr.fy, intr.cx - u0, intr.cy - v0)
+    eye = invert_rigid(cam_from_world)[:3, 3]
+    rects = None
+    if which == "auto" and "cull" not in off:
+        rects = [geometry.footprint_rect(ls, intr, cam_from_world, znear) for ls in geometry.lights]
+    return decide_lights(which, geometry.caster, [ls.light_h for ls in geometry.lights],
+                         convex=geometry.convex if which == "auto" and "planar" not in off else False,
+                         eye_world=eye, near=near, draw_occluder=opts.draw_occluder,
+                         truncate=opts.truncate and "truncate" not in off, footprint_rects=rects,
+                         canvas=canvas, off=off)
 
-        which = "planar" if opts.shadow_method == "planar" and opts.plan == "auto" else opts.plan
-        u0, v0, cw, ch = canvas
-        near = near_plane_radius(znear, int(cw), int(ch), intr.fx, intr.fy, intr.cx - u0, intr.cy - v0)
-        eye = invert_rigid(cam_from_world)[:3, 3]
-        rects = None
-        if which == "auto" and "cull" not in off:
-            rects = [geometry.footprint_rect(ls, intr, cam_from_world, znear) for ls in geometry.lights]
-        decisions = decide_lights(which, geometry.caster, [ls.light_h for ls in geometry.lights],
-                                  convex=geometry.convex if which == "auto" and "planar" not in off else False,
-                                  eye_world=eye, near=near, draw_occluder=opts.draw_occluder,
-                                  truncate=opts.truncate and "truncate" not in off, footprint_rects=rects,
-                                  canvas=canvas, off=off)
+
+def _plan_lights(plan: FramePlan, geometry: SceneGeometry, decisions: list[Any]) -> None:
+    """A :class:`LightPlan` per light from its decision, and the decisions recorded with their reasons."""
     for i, (ls, d) in enumerate(zip(geometry.lights, decisions)):
         mode = d.mode
         planar, culled = mode in ("planar", "shadowmap"), mode == "none"
@@ -299,7 +312,6 @@ def plan_frame(geometry: SceneGeometry, intr: Intrinsics, cam_from_world: ArrayL
             plan.decide(f"light{i}.volume", "reuse" if reuse else "build",
                         ls.reuse if ls.reuse else "cached for this light" if reuse else "first use of this light "
                         + ("with caps" if caps else "without caps"))
-    return plan
 
 
 #: the reason of a ``compose`` decision taken from an earlier measurement (the report's ``plan.compose``)

@@ -1,6 +1,6 @@
 """Where the bundled sample data is: the repository root in a checkout, the package's copy when installed.
 
-The demo's inputs (``samples/``: photos, meshes, ``scenes.json``; ``calib/``: the calibrations they name)
+The demo's inputs (``samples/``: photos, meshes, ``scenes.json``, ``light_probe.json``; ``calib/``: the calibrations they name)
 live at the repository root; the wheel ships them as ``arshadow/demo_data/samples`` and
 ``arshadow/demo_data/calib`` (``setup.py``), so that ``arshadow demo`` and ``arshadow bench`` run the same
 from an installed wheel as from a checkout. Paths in ``scenes.json`` are relative to :func:`data_root`.

@@ -30,6 +30,8 @@ map onto its keys, which are the ``arshadow render`` option names with ``_`` for
     aa: 0
     ground_size: null
     no_object: false
+    time_lapse: 2026-06-21T08:00+02:00,600   # video: the suns follow the frame times (START[,SPEED])
+    recompute_deg: 0.1
 
 Relative paths in a job file are relative to the file's folder (``base_dir``).
 """
@@ -47,15 +49,18 @@ from typing import TYPE_CHECKING, Any
 
 from .errors import UsageError
 from .geometry.ground import ground_warnings, parse_ground
+from .timelapse import TimeLapse, parse_time_lapse, time_lapse_spec
 
 if TYPE_CHECKING:  # annotations only (the session imports this module; these load on build)
+    from .camera import Intrinsics
     from .geometry.mesh import ShadowCaster
     from .lights.spec import Light
 
 log = logging.getLogger(__name__)
 
-__all__ = ["RenderOptions", "TrackerSpec", "ModelSpec", "SceneSpec", "Scene", "scene_from_dict",
-           "scene_from_args", "load_scene", "SCENE_KEYS"]
+__all__ = ["RenderOptions", "TrackerSpec", "ModelSpec", "TimeLapse", "SceneSpec", "Scene", "scene_from_dict",
+           "parse_time_lapse",
+           "scene_from_args", "load_scene", "parse_triple", "SCENE_KEYS"]
 
 
 #: shadow techniques: stencil volumes (exact), planar projection (exact on the ground for convex
@@ -277,6 +282,8 @@ class SceneSpec:
         Light specs (CONVENTIONS.md: ``point:X,Y,Z``, ``directional:X,Y,Z``, ``sun:LAT,LON,TIME[,NORTH]``,
         optional ``@W``) or parsed lights.
     options : RenderOptions
+    time_lapse : TimeLapse or None
+        Sun lights follow the frame times (video).
     """
 
     camera: object
@@ -284,6 +291,7 @@ class SceneSpec:
     model: ModelSpec
     lights: tuple
     options: RenderOptions = field(default_factory=RenderOptions)
+    time_lapse: TimeLapse | None = None
 
     def build(self, lights: Iterable[Light] | None = None) -> Scene:
         """Load the files and parse the specs, in the order the command line reports problems.
@@ -306,18 +314,24 @@ class SceneSpec:
         from .tracking.tracker import MarkerTracker
 
         tracker = self.tracker.kwargs()
-        MarkerTracker(intr, **tracker)  # a dictionary conflicting with the board, a bad id: a usage error
+        board = MarkerTracker(intr, **tracker).board  # a dictionary conflicting with the board: a usage error
+        for msg in board.unit_warnings() if board is not None else []:  # a board file in millimetres
+            log.warning(msg)
         caster = self.model.build()
         for msg in ground_warnings(self.options.ground):
             log.warning(msg)
-        if lights is None:
+        static, tracks, time_lapse = None, [], None
+        if lights is None and self.time_lapse is not None:
+            static, tracks, lights = self.time_lapse.lights(self.lights)
+            time_lapse = self.time_lapse.when()
+        elif lights is None:
             lights = [parse_light(s) if isinstance(s, str) else s for s in self.lights]
         opts = self.options.check()
         for msg in check_scene(caster, lights, soft_samples=opts.soft_samples,  # LightError: exit 2, once
                                marker_length=tracker.get("marker_length"), shadow_method=opts.shadow_method):
             log.warning(msg)
         _check_silhouette_name(opts.silhouette)
-        return Scene(intr, caster, list(lights), opts, tracker)
+        return Scene(intr, caster, list(lights), opts, tracker, static, tracks, time_lapse)
 
     def replace(self, **changes: Any) -> SceneSpec:
         """A copy with some fields changed (``dataclasses.replace``)."""
@@ -336,13 +350,22 @@ class Scene:
     options : RenderOptions
     tracker : dict
         Keyword arguments of :class:`arshadow.tracking.tracker.MarkerTracker`.
+    static_lights : list of Light or None
+        With a time-lapse: the lights that do not move.
+    sun_tracks : list of arshadow.lights.spec.SunLightTrack
+        With a time-lapse: the suns following the frame times (``lights`` has them at the start).
+    time_lapse : (datetime, float) or None
+        ``(start, speed)`` of the time-lapse.
     """
 
-    intrinsics: object
+    intrinsics: Intrinsics
     caster: object
     lights: list
     options: RenderOptions
     tracker: dict
+    static_lights: list | None = None
+    sun_tracks: list = field(default_factory=list)
+    time_lapse: tuple | None = None
 
 
 def _check_silhouette_name(name: str) -> None:
@@ -356,10 +379,21 @@ def _check_silhouette_name(name: str) -> None:
 SCENE_KEYS = ("calib", "marker_length", "board", "dictionary", "marker_id", "refine", "inverted", "model", "scale", "rotate",
               "place", "color", "up", "drop_to_ground", "lights", "soft_samples", "silhouette", "shadow_method", "opacity",
               "shadow_color", "aa", "ground_size", "no_object", "roi", "truncate", "fast_detect", "plan", "compose",
-              "shadowmap_size", "track_roi", "light_from", "no_exposure", "ground")
+              "shadowmap_size", "track_roi", "light_from", "no_exposure", "ground", "time_lapse", "recompute_deg")
 
 
-def _triple(v: Any, key: str) -> tuple[float, ...]:
+def parse_triple(v: Any, key: str) -> tuple[float, float, float]:
+    """Three finite numbers from ``"X,Y,Z"`` or a sequence: the one X,Y,Z parser (``--place``, ``--rotate``,
+    job files).
+
+    >>> parse_triple("0.1, 0, -2", "place")
+    (0.1, 0.0, -2.0)
+
+    Raises
+    ------
+    UsageError
+        Naming ``key``: not three numbers, or one not finite.
+    """
     if isinstance(v, str):
         v = v.split(",")
     try:
@@ -499,8 +533,8 @@ def scene_from_dict(d: Mapping[str, Any], base_dir: str | Path | None = None) ->
     if isinstance(calib, (str, Path)):
         calib = _path(calib, base_dir)
     model_spec = ModelSpec(str(model), scale=_value(d, "scale", float, 1.0),
-                           rotate=_triple(d.get("rotate", (0, 0, 0)), "rotate"),
-                           place=_triple(d.get("place", (0, 0, 0)), "place"), color=_rgb_text(d.get("color")),
+                           rotate=parse_triple(d.get("rotate", (0, 0, 0)), "rotate"),
+                           place=parse_triple(d.get("place", (0, 0, 0)), "place"), color=_rgb_text(d.get("color")),
                            up=_value(d, "up", str), drop_to_ground=_value(d, "drop_to_ground", bool, False))
     opts: dict[str, Any] = {}
     if d.get("shadow_color") is not None:
@@ -528,7 +562,7 @@ def scene_from_dict(d: Mapping[str, Any], base_dir: str | Path | None = None) ->
         opts["exposure_gain"] = tuple(float(v) for v in d["_exposure_gain"])
     return SceneSpec(camera=calib, tracker=tracker, model=model_spec,
                      lights=tuple(s if not isinstance(s, str) else s.strip() for s in lights),
-                     options=RenderOptions(**opts))
+                     options=RenderOptions(**opts), time_lapse=time_lapse_spec(d.get("time_lapse"), _value(d, "recompute_deg", float, 0.1), lights))
 
 
 def scene_from_args(args: Any, **overrides: Any) -> SceneSpec:

@@ -33,14 +33,19 @@ pose), :meth:`Session.set_lights` / :meth:`Session.set_time` (time-lapse), :meth
 from __future__ import annotations
 
 import logging
+import os
 import time
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from datetime import datetime
+from typing import Any
 
 import cv2
 import numpy as np
 
 from .compose.composite import Workspace
 from .compose.layers import Layers
+from .camera import Intrinsics
 from .compose.lens import LensWarp
 from .engine import CalibrationState, check_image, default_renderer, estimate_pose
 from .estimate.match import ExposureMatch
@@ -136,14 +141,15 @@ class Session:
         The scene does not load (calibration, board, mesh, lights, options): the first problem found.
     """
 
-    def __init__(self, spec, *, lights=None, context=None, renderer=None):
+    def __init__(self, spec: SceneSpec | Scene | Mapping[str, Any] | str | os.PathLike[str], *,
+                 lights: Sequence[Any] | None = None, context: Any = None, renderer: Any = None) -> None:
         if isinstance(spec, Scene):
             self.spec, self.scene = None, spec
         else:
-            if isinstance(spec, dict):
+            if isinstance(spec, Mapping):
                 spec = scene_from_dict(spec)
             elif not isinstance(spec, SceneSpec):
-                spec = load_scene(spec)
+                spec = load_scene(os.fspath(spec))
             self.spec = spec
             self.scene = spec.build(lights=lights)
         self.options = self.scene.options
@@ -156,7 +162,9 @@ class Session:
         self._renderer, self._own_renderer = shared, shared is None
         self._renderer_factory = None if shared is not None else renderer
         self._gpu = None
-        self._sun = None  # (static lights, sun tracks) of set_time
+        self._sun: tuple[list[Any], list[Any]] | None = None  # (static lights, sun tracks) of set_time
+        if self.scene.sun_tracks:  # a time-lapse of the spec (SceneSpec.time_lapse)
+            self.use_sun_tracks(self.scene.sun_tracks, self.scene.static_lights or ())
         self._calibs: dict = {}
         self._lenses: dict = {}
         self._work = Workspace()
@@ -174,7 +182,7 @@ class Session:
 
     # -- resources ------------------------------------------------------------------------------------
     @property
-    def context(self):
+    def context(self) -> Any:
         """The OpenGL context (created on first use, once per session)."""
         if self._ctx is None:
             from .gl.context import create_context  # deferred: moderngl loads on first render only
@@ -183,7 +191,7 @@ class Session:
         return self._ctx
 
     @property
-    def renderer(self):
+    def renderer(self) -> Any:
         """The renderer (made, with the context, on first use)."""
         if self._renderer is None:
             if self._renderer_factory is not None:
@@ -192,7 +200,7 @@ class Session:
                 self._renderer = default_renderer(self.context, self.options)
         return self._renderer
 
-    def _gpu_compositor(self):
+    def _gpu_compositor(self) -> Any:
         """The shader compose path on the renderer's context (made on first use)."""
         if self._gpu is None:
             from .gl.compose import GpuCompositor  # deferred: GL, only when the shader path runs
@@ -201,7 +209,7 @@ class Session:
         return self._gpu
 
     @property
-    def intrinsics(self):
+    def intrinsics(self) -> Intrinsics:
         """The calibration (:class:`arshadow.camera.Intrinsics`)."""
         return self.scene.intrinsics
 
@@ -222,13 +230,13 @@ class Session:
             self._ctx.release()
             self._ctx = None
 
-    def __enter__(self):
+    def __enter__(self) -> Session:
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def __reduce__(self):
+    def __reduce__(self) -> tuple[Any, ...]:
         # a session pickles as its spec: the receiver loads the scene and makes its own context
         if self.spec is None:
             raise UsageError("a Session made from a loaded Scene does not pickle; make it from a SceneSpec")
@@ -259,21 +267,21 @@ class Session:
                                                      bool(self.options.fast_detect))
         return c
 
-    def _lens_for(self, intr):
+    def _lens_for(self, intr: Intrinsics) -> LensWarp:
         """The cached :class:`LensWarp` of a calibration (one map per distinct calibration)."""
         lens = self._lenses.get(intr)
         if lens is None:
             lens = self._lenses[intr] = LensWarp(intr)
         return lens
 
-    def compose_key(self, width: int, height: int, distorted: bool) -> tuple:
+    def compose_key(self, width: int, height: int, distorted: bool) -> tuple[Any, ...]:
         """The key under which the compose path is measured: (GL renderer, size, anti-aliasing, lens)."""
         ctx = getattr(self.renderer, "ctx", None)
         backend = (getattr(ctx, "info", None) or {}).get("GL_RENDERER", "?") if ctx is not None else "?"
         return (backend, int(width), int(height), int(self.options.aa), bool(distorted))
 
     # -- the three steps --------------------------------------------------------------------------------
-    def track(self, image, timings: StageTimings | None = None):
+    def track(self, image: np.ndarray, timings: StageTimings | None = None) -> Any:
         """Marker / board pose only (no rendering, no GL): the fast pass, the full search if it finds nothing.
 
         Parameters
@@ -294,7 +302,7 @@ class Session:
         cal = self.calibration(image.shape[1], image.shape[0])
         return estimate_pose(cal, image, timings if timings is not None else StageTimings())[0]
 
-    def plan(self, pose, width: int, height: int, *, modes=None) -> FramePlan:
+    def plan(self, pose: Any, width: int, height: int, *, modes: Sequence[str] | None = None) -> FramePlan:
         """The :class:`arshadow.plan.FramePlan` for a pose and photo size, without rendering (no GL).
 
         Parameters
@@ -314,7 +322,7 @@ class Session:
             self.geometry.forget()  # the reference rebuilds every light's geometry every frame
         return plan_frame(self.geometry, cal.intrinsics, cfw, int(width), int(height), lens=cal.lens, modes=modes)
 
-    def ground_camera(self, cam_from_marker) -> np.ndarray:
+    def ground_camera(self, cam_from_marker: Any) -> np.ndarray:
         """``cam_from_world`` (4, 4) float64 of the frame the scene lives in, the ground frame
         (:mod:`arshadow.geometry.ground`): ``cam_from_marker @ marker_from_ground``, the marker pose itself
         when the ground is the marker plane.
@@ -327,12 +335,13 @@ class Session:
         m = np.asarray(cam_from_marker, np.float64).reshape(4, 4)
         if self._marker_from_ground is None:
             return m
-        cam_from_ground = m @ self._marker_from_ground
+        cam_from_ground: np.ndarray = m @ self._marker_from_ground
         check_camera_above(cam_from_ground, self.ground.text)
         return cam_from_ground
 
-    def render(self, image, pose=None, *, plan: FramePlan | None = None, name: str = "", want_mask: bool = True,
-               out=None, mask_out=None, timings: StageTimings | None = None, modes=None,
+    def render(self, image: np.ndarray, pose: Any = None, *, plan: FramePlan | None = None, name: str = "",
+               want_mask: bool = True, out: np.ndarray | None = None, mask_out: np.ndarray | None = None,
+               timings: StageTimings | None = None, modes: Sequence[str] | None = None,
                layers: bool | str = False) -> FrameResult:
         """Composite at a given pose, or carry out a plan of :meth:`plan`.
 
@@ -386,7 +395,8 @@ class Session:
         item.timings_ms = timings.as_dict(3)
         return res
 
-    def process(self, image, name: str = "", want_mask: bool = True, out=None, mask_out=None,
+    def process(self, image: np.ndarray, name: str = "", want_mask: bool = True, out: np.ndarray | None = None,
+                mask_out: np.ndarray | None = None,
                 layers: bool | str = False) -> FrameResult:
         """:meth:`track` then :meth:`render`: composite the object and its shadow into one photo.
 
@@ -423,11 +433,12 @@ class Session:
         item.timings_ms = timings.as_dict(3)
         return res
 
-    def _render(self, image, plan: FramePlan, pose, item: ReportItem, timings, want_mask, out, mask_out,
-                layers=False):
+    def _render(self, image: np.ndarray, plan: FramePlan, pose: Any, item: ReportItem, timings: StageTimings,
+                want_mask: bool, out: np.ndarray | None, mask_out: np.ndarray | None,
+                layers: bool | str = False) -> FrameResult:
         """Execute ``plan`` on ``image`` and fill ``item`` (all but ``timings_ms``); ``pose``: the tracked
         :class:`~arshadow.tracking.pose.MarkerPose` or None; ``layers``: as :meth:`render`."""
-        lay = {"undistorted": layers == "undistorted"} if layers else None
+        lay: dict[str, Any] | None = {"undistorted": layers == "undistorted"} if layers else None
         H, W = image.shape[:2]
         cal = self.calibration(W, H)
         cfw = plan.cam_from_world
@@ -473,7 +484,8 @@ class Session:
             gain = gain / np.asarray(self.options.exposure_gain, np.float64)
         return gain
 
-    def _decide_compose(self, plan, renderer, key, want_mask, out, mask_out) -> None:
+    def _decide_compose(self, plan: FramePlan, renderer: Any, key: tuple[Any, ...], want_mask: bool,
+                        out: np.ndarray | None, mask_out: np.ndarray | None) -> None:
         """Record the plan's compose decision (unless it has one these buffers allow)."""
         available = bool(getattr(renderer, "gpu_layers", False)) and (out is None or out.flags.c_contiguous) and \
             (not want_mask or mask_out is None or mask_out.flags.c_contiguous)
@@ -484,18 +496,28 @@ class Session:
                        measured=None if chooser.force else chooser.decisions.get(key))
 
     # -- lights and history ---------------------------------------------------------------------------
-    def set_lights(self, lights) -> int:
+    def set_lights(self, lights: Sequence[Any]) -> int:
         """Replace the lights (spec strings or :class:`arshadow.lights.spec.Light`), keeping the cached geometry
         of the lights that stay (:meth:`arshadow.plan.SceneGeometry.set_lights`); returns the number of
         (sample) lights to recompute."""
         return self.geometry.set_lights([parse_light(s) if isinstance(s, str) else s for s in lights])
 
-    def use_sun_tracks(self, tracks, static=()) -> None:
+    @property
+    def sun_tracks(self) -> list[Any]:
+        """The sun tracks :meth:`set_time` moves (the spec's time-lapse, or :meth:`use_sun_tracks`)."""
+        return [] if self._sun is None else list(self._sun[1])
+
+    @property
+    def time_lapse(self) -> tuple[Any, float] | None:
+        """``(start datetime, speed)`` of the spec's time-lapse, or None."""
+        return self.scene.time_lapse
+
+    def use_sun_tracks(self, tracks: Sequence[Any], static: Sequence[Any] = ()) -> None:
         """Let :meth:`set_time` move the sun: ``tracks`` (:func:`arshadow.lights.spec.parse_sun_track`) plus fixed
         ``static`` lights."""
         self._sun = (list(static), list(tracks))
 
-    def set_time(self, when):
+    def set_time(self, when: datetime) -> list[Any]:
         """Move the sun tracks of :meth:`use_sun_tracks` to ``when`` (aware datetime) and set the lights.
 
         Returns
@@ -510,7 +532,7 @@ class Session:
         self.geometry.set_lights(list(static) + [tr.light(f) for tr, f in zip(tracks, frames)])
         return frames
 
-    def state(self) -> dict:
+    def state(self) -> dict[str, Any]:
         """The history later frames depend on, picklable: the current lights with their cached silhouettes
         and volumes, and the sun tracks' recompute schedule. :meth:`restore` it (here or in another
         process's session of the same spec) to go on exactly as this session would."""
@@ -518,7 +540,7 @@ class Session:
                 "sun_tracks": None if self._sun is None else [tr.state() for tr in self._sun[1]],
                 "exposure": None if self.exposure is None else self.exposure.state()}
 
-    def restore(self, state: dict) -> None:
+    def restore(self, state: dict[str, Any]) -> None:
         """Set the history saved by :meth:`state`."""
         self.geometry.restore(state["geometry"])
         if self.exposure is not None:
@@ -528,7 +550,8 @@ class Session:
                 tr.restore(st)
 
 
-def render_photo(spec, image, name: str = "", want_mask: bool = True) -> FrameResult:
+def render_photo(spec: Any, image: np.ndarray | str | os.PathLike[str], name: str = "",
+                 want_mask: bool = True) -> FrameResult:
     """One photo, one call: ``Session(spec).process(image)`` (context created and released).
 
     Parameters

@@ -31,8 +31,8 @@ def cam():
 
 
 def _spec(**kw):
-    d = {"calib": CALIB, "marker_length": 0.05, "model": "box:%g,%g,%g" % BOX, "place": ",".join(map(str, PLACE)),
-         "color": "255,255,255", "lights": ["directional:%.6f,%.6f,%.6f" % tuple(LIGHT)]}
+    d = {"calib": CALIB, "marker_length": 0.05, "model": "box:{:g},{:g},{:g}".format(*BOX), "place": ",".join(map(str, PLACE)),
+         "color": "255,255,255", "lights": ["directional:{:.6f},{:.6f},{:.6f}".format(*LIGHT)]}
     d.update(kw)
     return scene_from_dict(d)
 

@@ -171,6 +171,20 @@ def test_marker_length_in_wrong_units_names_the_unit(caplog, length, unit, fix):
     _tally("object much smaller than the marker", "warned")
 
 
+def test_board_file_in_millimetres_warns_when_the_scene_loads(caplog, tmp_path):
+    """A grid board written in millimetres (marker_length 40, separation 10): the scene build warns that the
+    board file is probably in millimetres, naming the metre value; the same board in metres is silent."""
+    text = (ROOT / "calib" / "gridboard_5x7.yml").read_text()
+    mm = tmp_path / "board_mm.yml"
+    mm.write_text(text.replace("marker_length: 0.04", "marker_length: 40").replace("marker_separation: 0.01",
+                                                                                   "marker_separation: 10"))
+    msgs = _warnings_of_build(caplog, marker_length=None, board=str(mm))
+    assert any("probably in millimetres" in m and "0.04" in m for m in msgs), msgs
+    assert not any("millimetres" in m for m in _warnings_of_build(caplog, marker_length=None,
+                                                                  board=str(ROOT / "calib" / "gridboard_5x7.yml")))
+    _tally("board file in millimetres", "warned")
+
+
 def test_camera_tens_of_metres_away_is_a_unit_warning_once():
     """The per-frame check (O(1)): a camera 574 m from the marker (what a 50 m marker gives) is said once per
     run, naming the unit mistake; a camera 0.5 m away is silent."""
@@ -419,7 +433,7 @@ def test_batch_json_names_outputs_and_survives_an_interruption(tmp_path, monkeyp
         cv2.imwrite(str(tmp_path / f"p{k}.png"), np.zeros((8, 8, 3), np.uint8))
     calls = []
 
-    def fake(spec, item, outdir, opts, save_mask, fp, session=None):
+    def fake(spec, item, outdir, opts, save_mask, fp, session=None, pool=None):
         calls.append(item.input)
         if len(calls) == 2:
             raise KeyboardInterrupt

@@ -189,6 +189,7 @@ def fps_vs_lights(rows, out_dir, label) -> Path:
 
 def tracking(rows, out_dir, label) -> Path:
     """One panel per resolution: time against rotation error, one colour per configuration (legend)."""
+    rows = [r for r in rows if r["rot_deg_median"] is not None]  # real footage: no true pose to plot against
     res = list(dict.fromkeys(r["resolution"] for r in rows))
     fig, ax0 = _fig("Tracking: detection + pose time vs rotation error (synthetic photos, true pose known)", label,
                     size=(5.0 * len(res) + 1.5, 5.8))
@@ -199,7 +200,7 @@ def tracking(rows, out_dir, label) -> Path:
     col = {c: cmap(k % 10) for k, c in enumerate(configs)}
     for ax, rr in zip(axes, res):
         ax.grid(True, which="both", alpha=0.3)
-        for r in (r for r in rows if r["resolution"] == rr):
+        for r in (r for r in rows if r["resolution"] == rr and r["rot_deg_median"] is not None):
             ax.errorbar(r["time_ms"], r["rot_deg_median"], xerr=[[r["time_ms"] - r["time_q25"]], [r["time_q75"] - r["time_ms"]]],
                         fmt="o", color=col[r["config"]], capsize=2, ms=7, label=r["config"])
         ax.set_xscale("log")

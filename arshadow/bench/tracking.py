@@ -10,7 +10,12 @@ half-resolution pass first (:mod:`arshadow.tracking.fastdetect`), the full searc
 - full frame against the video tracker's region of interest (``track_roi``: the marker is searched in a
   window around its last detection, :mod:`arshadow.tracking.roi_track`; here the warm-up call's detection
   on the same photo);
-- single marker against a grid board (5 x 7 markers, calib/gridboard_5x7.yml).
+- single marker against a grid board (5 x 7 markers, calib/gridboard_5x7.yml);
+- real footage (issue 21): the shared webcam clips of the ArUco library (``../shared/realvideo`` or
+  ``$ARSHADOW_REALVIDEO``; skipped when absent), tracked as ``arshadow video`` tracks (the Y plane, the
+  colour frame's grey on a miss, the window around the last marker): frames with the target marker
+  ``detected`` against the frames where stock OpenCV detects it (their ``detections.csv``), time per frame;
+  no true pose, so no pose error (the reprojection error instead).
 
 Photos: :func:`arshadow.synth.render_marker_photo` with the acceptance conditions of issue 2 (marker
 5-10 % of the image width, 0.3-0.8 m, tilt 0-70 deg, noise sigma 2, blur sigma 0.6, JPEG 90).
@@ -19,7 +24,10 @@ Per photo the time is the median of ``repeat`` runs after a warm-up, configurati
 
 from __future__ import annotations
 
+import csv
+import os
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -161,5 +169,71 @@ def marker_vs_board(cfg, log) -> list[dict]:
     return [{"resolution": "1280x720", **r} for r in rows]
 
 
+#: real clips (issue 21): folder, video, target id, marker side (m)
+REAL_CLIPS = (("aruco_chessboard_paroj", "chessboard.avi", 32, 0.034), ("aruco_single_paroj", "video.avi", 101, 0.05))
+
+
+def realvideo_dir() -> Path:
+    """``$ARSHADOW_REALVIDEO`` or ``../shared/realvideo`` next to the checkout."""
+    return Path(os.environ.get("ARSHADOW_REALVIDEO", ROOT.parent / "shared" / "realvideo"))
+
+
+def track_clip(session, path, max_frames=None):
+    """Per frame of a video: ``(pose or None, ms)``, tracked as the video engine tracks (the Y plane; on a
+    miss the colour frame's grey; the session's ``track_roi`` window)."""
+    from ..errors import MarkerNotFoundError
+    from ..video.avio import AvReader
+    from ..video.framejob import gray_of
+
+    out = []
+    with AvReader(path, max_frames=max_frames, raw=True) as reader:
+        for fr in reader:
+            t0 = time.perf_counter()
+            pose = None
+            for colour in (False, True):
+                if colour and getattr(fr, "format", "") != "yuv420p":
+                    break
+                try:
+                    pose = session.track(gray_of(fr, reader.height, colour=colour))
+                    break
+                except MarkerNotFoundError:
+                    pass
+            out.append((pose, (time.perf_counter() - t0) * 1e3))
+    return out
+
+
+def real_footage(cfg, log) -> list[dict]:
+    """One row per shared real clip and refinement (the video default edge, apriltag): target marker found in the frames
+    where stock OpenCV finds it; time per frame; reprojection error (no true pose)."""
+    from ..camera import Intrinsics
+
+    base = realvideo_dir()
+    if not (base / REAL_CLIPS[0][0] / "detections.csv").is_file():
+        log(f"  tracking: real footage skipped (no clips at {base}; set ARSHADOW_REALVIDEO)")
+        return []
+    rows = []
+    for folder, video, mid, length in REAL_CLIPS:
+        d = base / folder
+        with open(d / "detections.csv") as fh:
+            stock = {int(r["frame"]): mid in set(map(int, r["ids"].split())) for r in csv.DictReader(fh)}
+        cam = Intrinsics.from_file(d / "intrinsics.yml")
+        n = 30 if cfg.get("quick") else None
+        for refine in ("edge", "apriltag"):  # the video command's default, and AprilTag
+            s = session(cam, marker_length=length, marker_id=mid, dictionary="DICT_ARUCO_ORIGINAL", refine=refine,
+                        track_roi=True)
+            res = track_clip(s, d / video, n)
+            s.close()
+            seen = [k for k in range(len(res)) if stock.get(k)]
+            ms = np.asarray([t for _, t in res])
+            err = [p.reprojection_error_px for p, _ in res if p is not None]
+            rows.append({"resolution": "real 640x480", "config": f"real {folder} id {mid}, refine {refine}",
+                         "photos": len(seen), "detected": sum(res[k][0] is not None for k in seen),
+                         "time_ms": float(np.median(ms)), "time_q25": float(np.percentile(ms, 25)),
+                         "time_q75": float(np.percentile(ms, 75)), "rot_deg_median": None, "rot_deg_p95": None,
+                         "trans_pct_median": None, "reprojection_px_median": float(np.median(err)) if err else None})
+        log(f"  tracking: real footage {folder} done")
+    return rows
+
+
 def run(cfg, log) -> list[dict]:
-    return refinement_and_roi(cfg, log) + marker_vs_board(cfg, log)
+    return refinement_and_roi(cfg, log) + marker_vs_board(cfg, log) + real_footage(cfg, log)

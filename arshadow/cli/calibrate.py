@@ -18,9 +18,6 @@ Exit status: 0 every view used, 1 calibration written but some views rejected, 2
 usable views (nothing written).
 """
 
-IMAGE_EXT = {".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm"}
-
-
 def register(subparsers) -> None:
     p = subparsers.add_parser("calibrate", help="calibrate a camera from chessboard / ChArUco photos",
                               description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -38,19 +35,10 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def _expand(paths):
-    out = []
-    for s in paths:
-        p = Path(s)
-        if p.is_dir():
-            out += sorted(str(f) for f in p.iterdir() if f.suffix.lower() in IMAGE_EXT)
-        else:
-            out.append(str(p))
-    return out
-
-
 def run(args) -> int:
     import cv2
+
+    from ..photos import expand_inputs  # folders by arshadow.io.IMAGE_EXTENSIONS, globs
 
     from ..tracking.calibration import MIN_VIEWS, calibrate, find_view, parse_pattern
     from ..errors import UsageError
@@ -71,7 +59,7 @@ def run(args) -> int:
         flags |= cv2.CALIB_FIX_K3
     if args.rational:
         flags |= cv2.CALIB_RATIONAL_MODEL
-    files = _expand(args.images)
+    files = expand_inputs(args.images)
     if not files:
         raise UsageError("no images given (the folders hold no image files)")
     views = []

@@ -53,14 +53,14 @@ def run(args) -> int:
     from ..errors import UsageError
     from ..export.track import track_from_frames_jsonl, track_from_items, write_track
     from ..geometry.mesh import load_occluder
-    from ..io import check_output_file, resolved_path
-    from ..scene import load_scene
+    from ..io import InputGuard, check_output_file
+    from ..scene import load_scene, parse_triple
 
     outs = [check_output_file(o, "-o") for o in args.output]
     for o in outs:
         if o.suffix.lower() not in (".glb", ".gltf", ".json", ".csv"):
             raise UsageError(f"-o {o}: unknown track format (expected .glb, .gltf, .json or .csv)")
-        if resolved_path(o) == resolved_path(args.source):
+        if InputGuard([args.source]).clash([o]):
             raise UsageError(f"-o {o}: would overwrite the input")
     caster, ground = None, args.ground_size
     intr: Any
@@ -71,10 +71,10 @@ def run(args) -> int:
     else:
         intr = Intrinsics.from_file(args.calib)
         if args.model:
-            caster = load_occluder(args.model, args.scale, _triple(args.rotate, "--rotate"),
-                                   _triple(args.place, "--place"))
+            caster = load_occluder(args.model, args.scale, parse_triple(args.rotate, "--rotate"),
+                                   parse_triple(args.place, "--place"))
     if args.size:
-        w, h = _triple(args.size + ",0", "--size")[:2]
+        w, h = parse_triple(args.size + ",0", "--size")[:2]
         intr = intr.scaled(int(w), int(h))
     src = Path(args.source)
     if src.name.endswith(".jsonl"):
@@ -93,14 +93,3 @@ def run(args) -> int:
         print(f"{src} -> {o}  ({sum(1 for _ in track.keyed(args.lost))} of {len(track.frames)} frames keyed)")
     return EXIT_OK
 
-
-def _triple(text: str, what: str):
-    from ..errors import UsageError
-
-    try:
-        v = tuple(float(x) for x in text.split(","))
-    except ValueError:
-        v = ()
-    if len(v) != 3:
-        raise UsageError(f"{what} {text!r}: expected three comma-separated numbers")
-    return v

@@ -5,8 +5,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import time
-from pathlib import Path
 
 DESCRIPTION = """\
 Detect an ArUco marker (or a grid / ChArUco board) in each IMAGE and print the pose of the marker
@@ -45,38 +43,12 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def _overlay(image, pose, tracker, out_dir: Path, stem: str) -> str:
-    import cv2
-    import numpy as np
-
-    from ..io import write_image
-
-    img = image.copy()
-    ids = list(pose.all_corners)
-    if ids:
-        cv2.aruco.drawDetectedMarkers(img, [c.reshape(1, 4, 2).astype(np.float32) for c in pose.all_corners.values()],
-                                      np.asarray(ids, np.int32).reshape(-1, 1))
-    intr = pose.intrinsics
-    if tracker.board is not None:
-        length = 0.5 * min(tracker.board.extent)
-    else:
-        length = 0.75 * tracker.marker_length
-    level = cv2.utils.logging.getLogLevel()
-    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)  # "axes out of frame" is not an error
-    try:
-        cv2.drawFrameAxes(img, intr.K, intr.dist_cv, pose.rvec.reshape(3, 1), pose.tvec.reshape(3, 1), length, 2)
-    finally:
-        cv2.utils.logging.setLogLevel(level)
-    path = out_dir / f"{stem}.png"
-    write_image(path, img)
-    return str(path)
-
-
 def run(args) -> int:
     from ..camera import Intrinsics
-    from ..errors import ArshadowError, MarkerNotFoundError, UsageError
-    from ..io import read_image, write_json
-    from ..report import ReportItem, make_report
+    from ..errors import UsageError
+    from ..io import write_json
+    from ..photos import track_photos
+    from ..report import make_report
     from ..tracking.detect import DEFAULT_REFINE
     from ..tracking.tracker import MarkerTracker
     from . import error_line
@@ -90,40 +62,23 @@ def run(args) -> int:
     tracker = MarkerTracker(intr, dictionary=args.dictionary, marker_length=args.marker_length,
                             marker_id=args.marker_id, board=args.board, refine=refine, inverted=args.inverted,
                             detector_params=args.detector_params)
-    out_dir = Path(args.overlay) if args.overlay else None
-    items, failed = [], 0
-    for name in args.images:
-        item = ReportItem(input=str(name))
-        t0 = time.perf_counter()
-        try:
-            image = read_image(name)
-            t1 = time.perf_counter()
-            pose = tracker.estimate(image)
-            t2 = time.perf_counter()
-            item.set_pose(pose)
-            item.n_points, item.kind, item.calibration_scaled = int(pose.n_points), pose.kind, bool(pose.scaled)
-            if out_dir is not None:
-                item.output = _overlay(image, pose, tracker, out_dir, Path(name).stem)
-            item.timings_ms = {"read": 1e3 * (t1 - t0), "detect": pose.timings_ms.get("detect", 1e3 * (t2 - t1)),
-                               "pose": pose.timings_ms.get("pose", 0.0), "total": 1e3 * (time.perf_counter() - t0)}
-            if not args.json:
-                amb = "n/a" if pose.pose_ambiguity is None else f"{pose.pose_ambiguity:.3f}"
-                print(f"{name}: ids {item.marker_ids} rvec [{', '.join(f'{v:.6f}' for v in pose.rvec)}] "
-                      f"tvec [{', '.join(f'{v:.6f}' for v in pose.tvec)}] m, reprojection "
-                      f"{pose.reprojection_error_px:.3f} px, ambiguity {amb}"
-                      + (" AMBIGUOUS" if pose.ambiguous else (" FLAGGED" if pose.flagged else ""))
-                      + (f" ({'; '.join(pose.flag_reasons)})" if pose.flagged else "")
-                      + (f" (calibration scaled to {image.shape[1]}x{image.shape[0]})" if pose.scaled else ""))
-        except ArshadowError as exc:
-            item.status = "no_marker" if isinstance(exc, MarkerNotFoundError) else "error"
-            item.error = str(exc)
-            failed += 1
-            msg = str(exc)
-            print(f"arshadow pose: error: {msg}" if msg.startswith(str(name)) else error_line("pose", str(name), exc),
+
+    def done(name, item, pose, image, err):
+        if err is not None:
+            msg = str(err)
+            print(f"arshadow pose: error: {msg}" if msg.startswith(str(name)) else error_line("pose", str(name), err),
                   file=sys.stderr)
-        if item.status != "ok":
-            item.timings_ms = {"total": 1e3 * (time.perf_counter() - t0)}
-        items.append(item)
+        elif not args.json:
+            amb = "n/a" if pose.pose_ambiguity is None else f"{pose.pose_ambiguity:.3f}"
+            print(f"{name}: ids {item.marker_ids} rvec [{', '.join(f'{v:.6f}' for v in pose.rvec)}] "
+                  f"tvec [{', '.join(f'{v:.6f}' for v in pose.tvec)}] m, reprojection "
+                  f"{pose.reprojection_error_px:.3f} px, ambiguity {amb}"
+                  + (" AMBIGUOUS" if pose.ambiguous else (" FLAGGED" if pose.flagged else ""))
+                  + (f" ({'; '.join(pose.flag_reasons)})" if pose.flagged else "")
+                  + (f" (calibration scaled to {image.shape[1]}x{image.shape[0]})" if pose.scaled else ""))
+
+    items = track_photos(tracker, args.images, overlay_dir=args.overlay, on_done=done)
+    failed = sum(i.status != "ok" for i in items)
     report = make_report(items)
     if args.json:
         print(json.dumps(report, indent=1))

@@ -3,21 +3,15 @@
 from __future__ import annotations
 
 import argparse
-import functools
-import glob
 import logging
 import sys
-import time
-from pathlib import Path
 
-from ..scene import DEFAULT_AA
+from ..errors import UsageError
+from ..scene import DEFAULT_AA, parse_triple, scene_from_args
 from . import EXIT_OK, EXIT_SOME_FAILED, error_line, quiet_opencv
 from .light import add_probe_options, probe_estimate
 
 log = logging.getLogger(__name__)
-
-IMAGE_EXTS = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".ppm", ".pgm", ".pnm", ".jp2",
-              ".exr", ".hdr", ".pbm", ".sr", ".ras", ".pxm", ".pfm", ".avif"}
 
 EPILOG = """\
 examples:
@@ -33,15 +27,13 @@ exit status: 0 all done, 1 some inputs failed (the others were processed), 2 bad
 """
 
 
-def _floats(n: int, what: str):
+def _triple(what: str):
+    """An argparse type over :func:`arshadow.scene.parse_triple` (a bad value: a usage error, exit 2)."""
     def parse(text: str):
         try:
-            vals = tuple(float(v) for v in text.split(","))
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected {n} comma-separated numbers, got {text!r}") from None
-        if len(vals) != n or not all(v == v and abs(v) != float("inf") for v in vals):
-            raise argparse.ArgumentTypeError(f"expected {n} finite comma-separated numbers, got {text!r}")
-        return vals
+            return parse_triple(text, what)
+        except UsageError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
 
     return parse
 
@@ -79,10 +71,10 @@ def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> No
                    help="mesh file (OBJ/PLY/STL/GLB/OFF, metres) or primitive box:WX,WY,HZ | cylinder:R,H | "
                         "sphere:R | torus:R,r")
     o.add_argument("--scale", type=_positive("--scale"), default=1.0, metavar="S", help="uniform scale (first)")
-    o.add_argument("--rotate", type=_floats(3, "--rotate"), default=(0.0, 0.0, 0.0), metavar="RX,RY,RZ",
+    o.add_argument("--rotate", type=_triple("--rotate"), default=(0.0, 0.0, 0.0), metavar="RX,RY,RZ",
                    help="rotation in degrees, XYZ order (after scale); a negative first number is fine: "
                         "--rotate -90,0,0")
-    o.add_argument("--place", type=_floats(3, "--place"), default=(0.0, 0.0, 0.0), metavar="X,Y,Z",
+    o.add_argument("--place", type=_triple("--place"), default=(0.0, 0.0, 0.0), metavar="X,Y,Z",
                    help="translation in metres, world (marker) frame (last); a negative first number is fine: "
                         "--place -0.05,0,0")
     o.add_argument("--up", choices=("y", "z"), metavar="y|z",
@@ -169,64 +161,13 @@ def register(subparsers) -> None:
 
 
 # --------------------------------------------------------------------------------------------------
-def expand_inputs(items) -> list[str]:
-    """Files as given; folders -> their image files (sorted); glob patterns -> matches (sorted).
-
-    Anything that matches nothing is kept as given, so that reading it reports the problem.
-    """
-    out = []
-    for it in items:
-        p = Path(it)
-        if p.is_dir():
-            files = sorted(str(f) for f in p.iterdir() if f.is_file() and f.suffix.lower() in IMAGE_EXTS)
-            out.extend(files if files else [it])
-        elif not p.exists() and any(c in it for c in "*?["):
-            matches = sorted(m for m in glob.glob(it) if Path(m).is_file())
-            out.extend(matches if matches else [it])
-        else:
-            out.append(it)
-    return out
-
-
-def build_scene(args, lights=None):
-    """Calibration, occluder, lights, options and tracker arguments from the parsed options
-    (:func:`arshadow.scene.scene_from_args`, then :meth:`~arshadow.scene.SceneSpec.build`; ArshadowError
-    -> exit 2).
-
-    ``lights``: lights the caller parsed itself (``arshadow video --time-lapse`` turns sun specs into
-    tracks); default: ``--light`` parsed with :func:`arshadow.lights.spec.parse_light`.
-
-    Returns
-    -------
-    intrinsics, caster, lights, options, tracker (dict of MarkerTracker keyword arguments)
-    """
-    from ..scene import scene_from_args
-
-    scene = scene_from_args(args).build(lights=lights)
-    return scene.intrinsics, scene.caster, scene.lights, scene.options, dict(scene.tracker)
-
-
-def output_paths(inputs, outdir: Path, keep_format: bool):
-    """Map each input to ``(output, mask)`` paths; stems that collide get ``_2``, ``_3``... ."""
-    seen: dict[str, int] = {}
-    res = []
-    for inp in inputs:
-        p = Path(inp)
-        stem = p.stem or "image"
-        n = seen.get(stem.lower(), 0) + 1
-        seen[stem.lower()] = n
-        if n > 1:
-            stem = f"{stem}_{n}"
-        ext = p.suffix.lower() if keep_format and p.suffix.lower() in IMAGE_EXTS else ".png"
-        res.append((outdir / f"{stem}{ext}", outdir / f"{stem}.shadow.png"))
-    return res
-
-
 def run(args) -> int:
+    # deferred: the engine (OpenCV, meshes) loads when a command runs, not at start-up (cli/__init__.py)
+    from ..export.layerfiles import refuse_overwrite
     from ..io import check_output_file, check_output_folder, write_json
+    from ..photos import expand_inputs, photo_jobs, render_photos
     from ..report import make_report
     from ..sanity import FlagTally
-    from ..scene import scene_from_args
     from ..session import Session
 
     debug = bool(getattr(args, "debug", False))
@@ -236,23 +177,30 @@ def run(args) -> int:
     outdir = check_output_folder(args.output, "-o")
     if args.report:
         check_output_file(args.report, "--report")
-    if getattr(args, "layers_undistorted", False):
-        args.layers = True
-    layer_sets = _layer_paths(args, inputs, outdir) if getattr(args, "layers", False) else None
+    undistorted = bool(getattr(args, "layers_undistorted", False))
+    layers = args.layers_format if getattr(args, "layers", False) or undistorted else None
+    jobs = photo_jobs(inputs, outdir, save_mask=args.save_mask, keep_format=args.keep_format,
+                      layers_format=layers, layers_undistorted=undistorted)
+    if layers is not None:  # a layer file that would replace an input: a usage error, before any work
+        refuse_overwrite([p for j in jobs for p in j.layers.values()], inputs)
     est = probe_estimate(args, inputs, calib=args.calib, marker_length=args.marker_length,
                          dictionary=args.dictionary, marker_id=args.marker_id)  # --probe: docs/light.md
-    session = Session(scene_from_args(args) if est is None else scene_from_args(args, light_from=est))
     bar = None
-    if not args.quiet and len(inputs) > 1 and sys.stderr.isatty():
-        from tqdm import tqdm
+    spec = scene_from_args(args) if est is None else scene_from_args(args, light_from=est)
+    with Session(spec) as session:  # loads the scene: a bad one is exit 2
+        try:  # made now (with the GL context): a bad --aa is a usage error (exit 2), not a per-photo one
+            session.renderer  # noqa: B018
+        except UsageError as exc:
+            raise UsageError(f"--aa {args.aa} / --shadowmap-size: {exc}") from None
+        if not args.quiet and len(jobs) > 1 and sys.stderr.isatty():
+            from tqdm import tqdm  # deferred: only for a terminal
 
-        bar = tqdm(total=len(inputs), unit="photo", desc="render", file=sys.stderr, dynamic_ncols=True)
-    try:
-        with session:
-            items, failed = _render_all(args, session, inputs, outdir, debug, layer_sets=layer_sets, bar=bar)
-    finally:
-        if bar is not None:
-            bar.close()
+            bar = tqdm(total=len(jobs), unit="photo", desc="render", file=sys.stderr, dynamic_ncols=True)
+        try:
+            items = render_photos(session, jobs, debug=debug, on_done=lambda *a: _print_done(args, bar, *a))
+        finally:
+            if bar is not None:
+                bar.close()
     if args.report:
         write_json(args.report, make_report(items))
     flags = FlagTally()
@@ -260,101 +208,25 @@ def run(args) -> int:
         flags.add(it.input, it.flag_reasons)
     if flags.summary(len(items)):
         print(f"arshadow render: warning: {flags.summary(len(items))}", file=sys.stderr)
-    if not args.quiet and len(inputs) > 1:
+    failed = sum(i.status != "ok" for i in items)
+    if not args.quiet and len(jobs) > 1:
         flagged = sum(1 for it in items if it.pose_flagged)
-        print(f"{len(inputs) - failed} of {len(inputs)} photos rendered into {outdir}: "
-              f"{len(inputs) - failed} done, {failed} failed, {flagged} flagged (ambiguous pose)", file=sys.stdout)
+        print(f"{len(jobs) - failed} of {len(jobs)} photos rendered into {outdir}: "
+              f"{len(jobs) - failed} done, {failed} failed, {flagged} flagged (ambiguous pose)", file=sys.stdout)
     return EXIT_SOME_FAILED if failed else EXIT_OK
 
 
-def _layer_paths(args, inputs, outdir):
-    """Each input's layer files (:func:`arshadow.export.layerfiles.layer_paths`); a missing writer or a layer
-    file that would replace an input is a usage error here, before any work."""
-    from ..export.layerfiles import check_layer_format, layer_paths, refuse_overwrite
-
-    fmt = check_layer_format(args.layers_format)
-    sets = [layer_paths(outdir, Path(out).stem, fmt, undistorted=bool(args.layers_undistorted))
-            for out, _mask in output_paths(inputs, outdir, args.keep_format)]
-    refuse_overwrite([p for paths in sets for p in paths.values()], inputs)
-    return sets
-
-
-def _render_all(args, session, inputs, outdir, debug, layer_sets=None, bar=None):
-    from ..errors import ArshadowError, CalibrationError, ImageError, MarkerNotFoundError, UsageError
-    import cv2
-
-    from ..export.layerfiles import write_layers
-    from ..export.stmap import stmap, write_stmap
-    from ..io import apply_orientation, exif_orientation, read_image, resolved_path, write_image
-    from ..report import ReportItem
-
-    import numpy as np
-
-    items = []
-    failed = 0
-    buffers: dict = {}
-    paths = output_paths(inputs, outdir, args.keep_format)
-    given = {resolved_path(i) for i in inputs}  # outputs never replace an input
-    try:  # made now (with the GL context): a bad --aa is a usage error (exit 2), not a per-photo one
-        session.renderer  # noqa: B018
-    except UsageError as exc:
-        raise UsageError(f"--aa {args.aa} / --shadowmap-size: {exc}") from None
+def _print_done(args, bar, job, item, res, err) -> None:
+    """One line per photo: the output (stdout, unless ``--quiet``) or the problem (stderr), above the
+    progress bar when there is one."""
     say = bar.write if bar is not None else print
-    for k, (inp, (out_path, mask_path)) in enumerate(zip(inputs, paths)):
-        item = ReportItem(input=str(inp))
-        t0 = time.perf_counter()
-        try:
-            if resolved_path(out_path) in given or resolved_path(mask_path) in given:
-                raise ImageError(f"{out_path}: output would overwrite an input; choose another -o folder")
-            image = read_image(inp)
-            orientation = exif_orientation(inp)  # processed as stored (the calibration's frame)
-            bufs = buffers.setdefault(image.shape[:2], (np.empty(image.shape, np.uint8),
-                                                        np.empty(image.shape[:2], np.uint8)))
-            # results are encoded right away, so one output buffer per size is reused
-            res = session.process(image, name=str(inp), want_mask=args.save_mask, out=bufs[0], mask_out=bufs[1],
-                                  layers=("undistorted" if args.layers_undistorted else True) if layer_sets else False)
-            out, mask, item = res.composite, res.mask, res.item
-            params = [int(_imwrite_quality(out_path)), 95] if _imwrite_quality(out_path) else None
-            # outputs upright as a viewer shows the input (EXIF orientation; they carry no EXIF)
-            write_image(out_path, apply_orientation(out, orientation), params)
-            item.output = str(out_path)
-            if args.save_mask:
-                write_image(mask_path, apply_orientation(mask, orientation))
-                item.mask = str(mask_path)
-            if layer_sets is not None:
-                write_layers(layer_sets[k], res.layers, args.layers_format,
-                             orient=functools.partial(apply_orientation, orientation=orientation))
-                if "stmap" in layer_sets[k]:
-                    cal = session.calibration(image.shape[1], image.shape[0])
-                    write_stmap(layer_sets[k]["stmap"], stmap(cal.intrinsics, None if cal.lens is None else cal.lens.maps))
-                item.layers = {n: str(p) for n, p in layer_sets[k].items()}
-            if not args.quiet:
-                t = item.timings_ms.get("total", 0.0)
-                say(f"{inp} -> {out_path}  ({item.mode or 'no light casts a shadow'}, {t:.1f} ms)",
-                    file=sys.stdout)
-        except MarkerNotFoundError as exc:
-            failed += 1
-            item.status, item.error = "no_marker", str(exc)
-            say(_error_line(inp, exc), file=sys.stderr)
-        except (ImageError, CalibrationError, ArshadowError) as exc:
-            if debug:
-                raise
-            failed += 1
-            item.status, item.error = "error", str(exc)
-            say(_error_line(inp, exc), file=sys.stderr)
-        except (OSError, MemoryError, cv2.error) as exc:  # cv2.error: a decoder/detector the checks missed
-            if debug:
-                raise
-            failed += 1
-            item.status, item.error = "error", f"{type(exc).__name__}: {exc}"
-            say(_error_line(inp, exc), file=sys.stderr)
-        item.input = str(inp)
-        if bar is not None:
-            bar.update(1)
-        if item.status != "ok":
-            item.timings_ms = {"total": round((time.perf_counter() - t0) * 1e3, 3)}
-        items.append(item)
-    return items, failed
+    if err is not None:
+        say(_error_line(job.input, err), file=sys.stderr)
+    elif not args.quiet:
+        t = item.timings_ms.get("total", 0.0)
+        say(f"{job.input} -> {job.output}  ({item.mode or 'no light casts a shadow'}, {t:.1f} ms)", file=sys.stdout)
+    if bar is not None:
+        bar.update(1)
 
 
 def _error_line(inp, exc) -> str:
@@ -363,14 +235,3 @@ def _error_line(inp, exc) -> str:
     if str(inp) in msg:
         return f"arshadow render: error: {msg}"
     return error_line("render", str(inp), msg)
-
-
-def _imwrite_quality(path: Path):
-    import cv2
-
-    ext = path.suffix.lower()
-    if ext in (".jpg", ".jpeg"):
-        return cv2.IMWRITE_JPEG_QUALITY
-    if ext == ".webp":
-        return cv2.IMWRITE_WEBP_QUALITY
-    return None

@@ -33,18 +33,6 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def _triple(text: str, opt: str):
-    from ..errors import UsageError
-
-    try:
-        vals = [float(x) for x in text.split(",")]
-    except ValueError:
-        vals = []
-    if len(vals) != 3:
-        raise UsageError(f"{opt} takes three comma-separated numbers, got {text!r}")
-    return vals
-
-
 def _light_h(spec: str):
     from ..errors import LightError
     from ..lights.spec import parse_light
@@ -63,6 +51,7 @@ def run(args: argparse.Namespace) -> int:
     from ..errors import UsageError
     from ..geometry.mesh import load_occluder
     from ..geometry.silhouette import METHODS, silhouette, silhouette_loops
+    from ..scene import parse_triple
 
     if args.method not in METHODS:
         raise UsageError(f"unknown --method {args.method!r} (choose from {', '.join(METHODS)})")
@@ -70,8 +59,8 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError("--repeat must be at least 1")
     light_h = _light_h(args.light)
     t0 = time.perf_counter()
-    caster = load_occluder(args.mesh, scale=args.scale, rotate=_triple(args.rotate, "--rotate"),
-                           place=_triple(args.place, "--place"))
+    caster = load_occluder(args.mesh, scale=args.scale, rotate=parse_triple(args.rotate, "--rotate"),
+                           place=parse_triple(args.place, "--place"))
     t1 = time.perf_counter()
     sil = silhouette(caster, light_h, args.method)  # warm-up: builds the per-mesh caches
     t2 = time.perf_counter()

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 from pathlib import Path
 
@@ -21,7 +20,7 @@ outputs: DIR/<stem>.mp4 (or .avi / .mkv with --format), and with --save-mask DIR
 lossless (FFV1) 8-bit single-channel video of the shadow mask (CONVENTIONS.md mask values). Frames without
 the marker are written unchanged (mask 0) and reported with status no_marker.
 report: one ITEM per FRAME in "images" (input = the video, plus "frame" and "time_s"); a video that cannot be
-read gets one ITEM with status error and frame null; "videos" summarises each video.
+read gets one ITEM with status error (no "frame"); "videos" summarises each video.
 exit status: 0 all videos done, 1 some video failed (unreadable, unwritable, or the marker in no frame; the
 other videos were processed), 2 bad usage / configuration.
 """
@@ -152,54 +151,6 @@ def register(subparsers) -> None:
 
 
 # --------------------------------------------------------------------------------------------------
-def parse_time_lapse(text: str):
-    """``START[,SPEED]`` -> (aware datetime, speed > 0). UsageError on bad input.
-
-    Examples
-    --------
-    >>> parse_time_lapse("2024-06-21T06:00+02:00,600")[1]
-    600.0
-    """
-    from ..errors import LightError, UsageError
-    from ..lights.spec import parse_time
-
-    start_text, sep, speed_text = str(text).rpartition(",")
-    if not sep:
-        start_text, speed_text = text, "1"
-    try:
-        speed = float(speed_text)
-    except ValueError:
-        raise UsageError(f"--time-lapse {text!r}: SPEED {speed_text!r} is not a number") from None
-    if not (math.isfinite(speed) and speed > 0):
-        raise UsageError(f"--time-lapse {text!r}: SPEED must be a positive number")
-    try:
-        start = parse_time(start_text.strip(), what="--time-lapse START")
-    except LightError as exc:
-        raise UsageError(str(exc)) from None
-    return start, speed
-
-
-def build_lights(args):
-    """``(static_lights, sun_tracks, time_lapse)`` from ``--light`` / ``--time-lapse`` / ``--recompute-deg``."""
-    from ..errors import UsageError
-    from ..lights.spec import parse_light, parse_sun_track
-
-    if not (math.isfinite(args.recompute_deg) and args.recompute_deg >= 0):
-        raise UsageError(f"--recompute-deg {args.recompute_deg}: must be >= 0 degrees")
-    if args.time_lapse is None:
-        return [parse_light(s) for s in args.light or ()], [], None
-    tl = parse_time_lapse(args.time_lapse)
-    static, tracks = [], []
-    for spec in args.light or ():
-        if spec.strip().lower().startswith("sun:"):
-            tracks.append(parse_sun_track(spec, recompute_deg=args.recompute_deg))
-        else:
-            static.append(parse_light(spec))
-    if not tracks:
-        raise UsageError("--time-lapse needs a sun light (--light sun:LAT,LON[,TIME][,NORTH])")
-    return static, tracks, tl
-
-
 def run(args) -> int:
     from ..errors import UsageError
     from ..io import check_output_file, check_output_folder, write_json
@@ -216,8 +167,8 @@ def run(args) -> int:
     debug = bool(getattr(args, "debug", False))
     quiet_opencv(debug)
     opts = engine_options(args, collect_items=bool(args.report))
-    static, tracks, tl = build_lights(args)
-    # video: search the marker near the last detection first (not with --plan general)
+    # video: search the marker near the last detection first (not with --plan general); --time-lapse and
+    # --recompute-deg are scene keys (SceneSpec.time_lapse)
     est = probe_estimate(args, args.videos, calib=args.calib, marker_length=args.marker_length,
                          dictionary=args.dictionary, marker_id=args.marker_id)  # --probe: docs/light.md
     extra = {} if est is None else {"light_from": est}
@@ -228,25 +179,22 @@ def run(args) -> int:
         check_output_file(args.report, "--report")
     if opts.layers is not None:  # a layer file over an input: a usage error before any work
         from ..export.layerfiles import refuse_overwrite
-        from ..video.engine import unique_stems, video_outputs
+        from ..io import unique_stems
+        from ..video.engine import video_outputs
 
         refuse_overwrite([p for stem in unique_stems(args.videos)
                           for k, p in video_outputs(outdir, stem, opts).items() if k.startswith("layers:")], args.videos)
-    sun_set = time_lapse_warnings(args.videos, tracks, tl, getattr(args, "max_frames", None))  # before any work
-    for msg in sun_set.values():
-        print(f"arshadow video: warning: {msg}", file=sys.stderr)
-    first = list(static)
-    for tr in tracks:
-        tr.reset()
-        first.append(tr.light(tr.update(tl[0])))
-        tr.reset()
     if args.jobs < 1:
         raise UsageError(f"--jobs {args.jobs}: must be >= 1")
-    with Session(spec, lights=first or None) as session:  # none given: the scene's (--light-from, --probe)
-        if tracks:
-            session.use_sun_tracks(tracks, static)
-        backend = SessionBackend(session, tracks, tl)
-        recipe = BackendRecipe(spec, first, list(static), list(tracks), tl) if args.jobs > 1 else None
+    with Session(spec) as session:
+        # before any frame is processed: a sun that sets during a time-lapse (the tracks are reset per video)
+        sun_set = time_lapse_warnings(args.videos, session.sun_tracks, session.time_lapse,
+                                      getattr(args, "max_frames", None))
+        for msg in sun_set.values():
+            print(f"arshadow video: warning: {msg}", file=sys.stderr)
+        backend = SessionBackend(session, session.sun_tracks, session.time_lapse)
+        # workers rebuild the session from the spec (its time-lapse included)
+        recipe = BackendRecipe(spec) if args.jobs > 1 else None
 
         def on_error(exc):
             if debug:

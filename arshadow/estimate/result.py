@@ -7,6 +7,7 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -16,7 +17,7 @@ from .exposure import Exposure
 __all__ = ["DEFAULT_OBJECT_COLOR", "LightEstimate", "load_estimate", "measured_ambient", "scene_overrides", "shading_gain"]
 
 
-def _r(v, nd=6):
+def _r(v: Any, nd: int = 6) -> Any:
     if v is None:
         return None
     if isinstance(v, (list, tuple, np.ndarray)):
@@ -84,7 +85,7 @@ class LightEstimate:
                 "frames": int(self.frames), "confident": self.confident, "fit": self.fit,
                 "warnings": list(self.warnings)}
 
-    def to_json(self, indent=1) -> str:
+    def to_json(self, indent: int | None = 1) -> str:
         return json.dumps(self.to_dict(), indent=indent)
 
     @classmethod
@@ -131,7 +132,7 @@ def measured_ambient(est: LightEstimate) -> float:
     return float(np.clip(r * _sin_elevation(est) / (1.0 - r), 0.0, 4.0))
 
 
-def load_estimate(path) -> LightEstimate:
+def load_estimate(path: str | Path) -> LightEstimate:
     """Read a light estimate written by ``arshadow light --json`` (UsageError naming the file otherwise)."""
     p = Path(path)
     try:
@@ -165,7 +166,7 @@ def _encode_unclipped(x: np.ndarray) -> np.ndarray:
 DEFAULT_OBJECT_COLOR = (0.8, 0.8, 0.8)
 
 
-def scene_overrides(est: LightEstimate, color=None, exposure: bool = True) -> dict:
+def scene_overrides(est: LightEstimate, color: Any = None, exposure: bool = True) -> dict:
     """What an estimate changes in a scene (``--light-from``).
 
     Parameters
@@ -195,10 +196,11 @@ def scene_overrides(est: LightEstimate, color=None, exposure: bool = True) -> di
     >>> [round(c, 4) for c in o["occluder_color"]]  # 0.625 / (1.0 + 1) = 0.3125 in linear light
     [0.5948, 0.5948, 0.5948]
     """
-    out = {"lights": (est.light,), "opacity": 1.0,
-           "shadow_color": tuple(float(np.clip(v, 0.0, 1.0)) for v in est.shadow_ratio),
-           "ambient": measured_ambient(est), "specular": 0.0}
-    gain = shading_gain(est, out["ambient"]) if exposure else None
+    ambient = measured_ambient(est)
+    out: dict[str, Any] = {"lights": (est.light,), "opacity": 1.0,
+                           "shadow_color": tuple(float(np.clip(v, 0.0, 1.0)) for v in est.shadow_ratio),
+                           "ambient": ambient, "specular": 0.0}
+    gain = shading_gain(est, ambient) if exposure else None
     if gain is not None:
         base = DEFAULT_OBJECT_COLOR if color is None else tuple(float(v) / 255.0 for v in str(color).split(","))
         lin = np.where(np.asarray(base) <= 0.04045, np.asarray(base) / 12.92,

@@ -27,7 +27,7 @@ import numpy as np
 from ..compose.composite import linear_to_srgb
 from ..compose.layers import Layers, shadow_only_alpha
 from ..errors import UsageError
-from ..io import atomic_path, resolved_path, write_image
+from ..io import InputGuard, atomic_path, write_image
 
 __all__ = [
     "IMAGE_FORMATS",
@@ -77,10 +77,9 @@ def layer_paths(outdir, stem: str, fmt: str, undistorted: bool = False) -> dict:
 
 def refuse_overwrite(paths, inputs, what: str = "--layers") -> None:
     """A usage error (before any work) when one of the layer files ``paths`` would replace one of ``inputs``."""
-    given = {resolved_path(i) for i in inputs}
-    for p in paths:
-        if p is not None and resolved_path(p) in given:
-            raise UsageError(f"{what}: {p} would overwrite an input; choose another -o folder")
+    p = InputGuard(inputs).clash(paths)  # the one overwrite guard (arshadow.io)
+    if p is not None:
+        raise UsageError(f"{what}: {p} would overwrite an input; choose another -o folder")
 
 
 def layer_arrays(layers: Layers) -> dict:

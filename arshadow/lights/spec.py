@@ -477,3 +477,13 @@ def lights_homogeneous(lights) -> np.ndarray:
 def total_weight(lights) -> float:
     """Sum of the weights of the lights that give light (a sun below the horizon gives none)."""
     return float(sum(li.weight for li in lights if li.above_horizon))
+
+
+def __getattr__(name: str) -> object:
+    """``sample_area_light`` and ``stratified_disc`` moved to :mod:`arshadow.lights.area` (issue 16); they stay
+    importable from here for code written against this module."""
+    if name in ("sample_area_light", "stratified_disc"):
+        from . import area  # deferred: arshadow.lights.area imports this module (Light)
+
+        return getattr(area, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -31,13 +31,13 @@ import cv2
 
 from .. import __version__
 from ..errors import ArshadowError, MarkerNotFoundError, UsageError
-from ..export.layerfiles import layer_paths, write_layers
-from ..export.stmap import stmap, write_stmap
-from ..io import check_output_folder, read_image, resolved_path, write_image, write_json
+from ..export.layerfiles import layer_paths
+from ..io import IMAGE_EXTENSIONS, InputGuard, check_output_folder, unique_stems, write_json
 from ..io import clean_temporaries as clean_io_temporaries
+from ..photos import PhotoJob, render_photo_file
 from ..session import Session
 from .decode import looks_like_sequence
-from .engine import SessionBackend, process_video, unique_stems, video_outputs
+from .engine import SessionBackend, process_video, video_outputs
 from .parallel import (
     BackendRecipe,
     ChunkPool,
@@ -49,8 +49,6 @@ from .parallel import (
 
 __all__ = ["VIDEO_EXTENSIONS", "BatchItem", "clean_temporaries", "plan_batch", "process_item", "run_batch"]
 
-PHOTO_EXTENSIONS = {".jpg", ".jpeg", ".jpe", ".png", ".bmp", ".dib", ".tif", ".tiff", ".webp", ".jp2", ".pbm", ".pgm",
-                    ".ppm", ".pnm", ".pxm", ".sr", ".ras", ".exr", ".hdr", ".pic", ".avif"}
 VIDEO_EXTENSIONS = {".mp4", ".m4v", ".mov", ".mkv", ".avi", ".webm", ".mpg", ".mpeg", ".ts", ".mts", ".wmv", ".flv"}
 RECORDS = ".arshadow-batch"
 
@@ -79,7 +77,7 @@ def _kind(path: str) -> str:
     ext = Path(path).suffix.lower()
     if ext in VIDEO_EXTENSIONS or looks_like_sequence(path):
         return "video"
-    if ext in PHOTO_EXTENSIONS or not Path(path).is_file():
+    if ext in IMAGE_EXTENSIONS or not Path(path).is_file():
         return "photo"
     try:
         return "photo" if cv2.haveImageReader(path) else "video"
@@ -176,37 +174,24 @@ def process_item(spec, item: BatchItem, outdir, opts, save_mask: bool, fingerpri
             summary["warnings"] = [note] if note else []
         sess = session if session is not None else _session_for(spec)
         if item.kind == "video":
-            vs, _ = process_video(SessionBackend(sess), item.input, outs, opts, name=item.input)
+            vs, _ = process_video(SessionBackend(sess, sess.sun_tracks, sess.time_lapse), item.input, outs, opts,
+                                  name=item.input)
             vs["warnings"] = summary["warnings"] + vs["warnings"]
             return _video_fields(summary, vs, outs)
-        img = read_image(item.input)
-        want = ("undistorted" if opts.layers_undistorted else True) if opts.layers is not None else False
-        res = sess.process(img, name=item.input, want_mask=save_mask, layers=want)
-        out = write_image(outdir / f"{item.stem}.png", res.composite)
-        summary["outputs"] = [str(out)]
-        if opts.layers is not None:
-            summary["outputs"] += _photo_layer_files(sess, img, res, outdir, item, opts)
-        if save_mask:
-            summary["outputs"].append(str(write_image(outdir / f"{item.stem}.shadow.png", res.mask)))
+        # the photo loop's one photo (EXIF orientation, upright outputs and layers), as arshadow render
+        fmt = _photo_layers(opts)
+        lay = None if opts.layers is None else layer_paths(outdir, item.stem, fmt, opts.layers_undistorted)
+        job = PhotoJob(item.input, outdir / f"{item.stem}.png",
+                       outdir / f"{item.stem}.shadow.png" if save_mask else None, lay, fmt)
+        res = render_photo_file(sess, job)
+        summary["outputs"] = [str(p) for p in job.outputs]
         summary["status"] = "ok"
-        res.item.output = str(out)  # the report item names the files too (it said output: null)
-        res.item.mask = summary["outputs"][-1] if save_mask else None
         if res.item.flag_reasons:  # issue 20: a flagged pose is said (its reasons also in the item)
             summary["warnings"].append(f"{item.input}: flagged pose: {'; '.join(res.item.flag_reasons)}")
         summary["item"] = res.item.to_dict()
         return None
 
     return _guarded(item, outdir, fingerprint, work)
-
-
-def _photo_layer_files(sess, img, res, outdir: Path, item: BatchItem, opts) -> list:
-    """Write a photo's layers (and ST-map); returns their paths."""
-    fmt = _photo_layers(opts)
-    paths = write_layers(layer_paths(outdir, item.stem, fmt, opts.layers_undistorted), res.layers, fmt)
-    if "stmap" in paths:
-        cal = sess.calibration(img.shape[1], img.shape[0])
-        write_stmap(paths["stmap"], stmap(cal.intrinsics, None if cal.lens is None else cal.lens.maps))
-    return [str(p) for p in paths.values()]
 
 
 def _video_fields(summary: dict, vs: dict, outs: dict) -> None:
@@ -365,13 +350,13 @@ def _plan_todo(items, inputs, spec, outdir: Path, opts, save_mask):
     and ``(index, item, fingerprint)`` of the others."""
     results: list = [None] * len(items)
     todo = []
-    given = {resolved_path(i) for i in inputs}
+    guard = InputGuard(inputs)
     for k, it in enumerate(items):
-        clash = [p for p in _outputs(it, outdir, opts, save_mask) if resolved_path(p) in given]
-        if clash:  # inputs are never modified
+        try:  # inputs are never modified
+            guard.check(_outputs(it, outdir, opts, save_mask))
+        except ArshadowError as exc:
             results[k] = {"input": it.input, "kind": it.kind, "stem": it.stem, "status": "error", "skipped": False,
-                          "error": f"{clash[0]}: output would overwrite an input; choose another -o folder",
-                          "outputs": [], "warnings": []}
+                          "error": str(exc), "outputs": [], "warnings": []}
             continue
         fp = _fingerprint(it, spec, opts, save_mask)
         rec = _done(outdir, it, fp)

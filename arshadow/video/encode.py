@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import math
 import os
 import queue
 import shutil
@@ -26,6 +25,7 @@ import numpy as np
 
 from ..errors import ImageError
 from ..io import atomic_path, write_image
+from ..photos import contact_sheet
 from .avio import AvWriter
 from .threads import END
 
@@ -205,15 +205,10 @@ def replace_dir(tmp: Path, target: Path) -> None:
 
 def write_contact_sheet(path, thumbs: dict, cols: int = 4) -> Path:
     """Tile ``{frame: (h, w, 3) uint8}`` thumbnails (frame order, labelled) into one image, atomically."""
-    keys = sorted(thumbs)
-    h, w = thumbs[keys[0]].shape[:2]
-    rows = math.ceil(len(keys) / cols)
-    sheet = np.full((rows * (h + 4) + 4, cols * (w + 4) + 4, 3), 32, np.uint8)
-    for k, f in enumerate(keys):
-        r, c = divmod(k, cols)
-        y, x = 4 + r * (h + 4), 4 + c * (w + 4)
+    tiles = []
+    for f in sorted(thumbs):
         tile = thumbs[f].copy()
         cv2.putText(tile, f"#{f}", (6, 20), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (0, 0, 0), 3, cv2.LINE_AA)
         cv2.putText(tile, f"#{f}", (6, 20), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (255, 255, 255), 1, cv2.LINE_AA)
-        sheet[y : y + h, x : x + w] = tile
-    return write_image(path, sheet)
+        tiles.append(tile)
+    return write_image(path, contact_sheet(tiles, columns=cols, gap=4, background=32))

@@ -22,7 +22,6 @@ frame), ``.sheet.jpg`` (contact sheet), and with a mask ``.shadow.mkv`` (lossles
 from __future__ import annotations
 
 import queue
-import re
 import threading
 import time
 from dataclasses import dataclass, field
@@ -33,6 +32,7 @@ import numpy as np
 from ..errors import ArshadowError, UsageError
 from ..export.layervideo import LayerSink, check_video_layer_format, video_layer_paths
 from ..export.stmap import stmap
+from ..io import unique_stems
 from .avio import VIDEO_CODECS
 from .decode import decode_into, open_reader
 from .encode import EncodeSink, SheetThumbs, write_contact_sheet
@@ -340,15 +340,3 @@ def _summary(name, outputs, reader, composer: FrameComposer, sink: EncodeSink, o
     return summary
 
 
-def unique_stems(inputs) -> list[str]:
-    """An output stem per input (``clip``, ``clip_2``, ... when names collide, case-insensitively; an
-    image-sequence pattern ``frames/img_%04d.png`` gives ``img``, ``frames/%04d.png`` gives ``frames``)."""
-    seen: dict[str, int] = {}
-    out = []
-    for inp in inputs:
-        p = Path(str(inp))  # an image-sequence pattern frames/img_%04d.png: "img" (or its folder's name)
-        stem = re.sub(r"%0?\d*d", "", p.stem).replace("%", "").strip("_.- ") or p.parent.name or "video"
-        n = seen.get(stem.lower(), 0) + 1
-        seen[stem.lower()] = n
-        out.append(stem if n == 1 else f"{stem}_{n}")
-    return out

@@ -70,7 +70,8 @@ class BackendRecipe:
         session = Session(self.spec, lights=self.lights)
         if self.tracks:
             session.use_sun_tracks(self.tracks, self.static)
-        return SessionBackend(session, self.tracks, self.time_lapse)
+        # a spec with a time-lapse (SceneSpec.time_lapse) gives the session its own sun tracks
+        return SessionBackend(session, self.tracks or session.sun_tracks, self.time_lapse or session.time_lapse)
 
 
 _BACKENDS: dict = {}

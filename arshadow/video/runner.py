@@ -6,7 +6,7 @@ from __future__ import annotations
 import json
 
 from ..errors import ArshadowError, ImageError
-from ..io import clean_temporaries, resolved_path
+from ..io import InputGuard, clean_temporaries
 from ..report import ReportItem
 from .engine import EngineOptions, process_video, unique_stems, video_outputs
 from .parallel import ChunkPool, process_video_chunked
@@ -42,7 +42,7 @@ def run_videos(backend, inputs, outdir, opts: EngineOptions, *, progress_factory
         Per-frame items when ``opts.collect_items``; an unreadable video has one item with ``frame: None``.
     """
     summaries, items = [], []
-    given = {resolved_path(str(v)) for v in inputs}  # outputs never replace an input
+    given = InputGuard(inputs)  # outputs never replace an input
     pool = ChunkPool(jobs) if jobs > 1 and recipe is not None else None
     try:
         for inp, stem in zip(inputs, unique_stems(inputs)):
@@ -60,9 +60,7 @@ def _one_video(backend, pool, recipe, inp, stem, outdir, opts, given, progress_f
     outs = video_outputs(outdir, stem, opts)
     close = None
     try:
-        for p in outs.values():
-            if p is not None and resolved_path(p) in given:
-                raise ImageError(f"{p}: output would overwrite an input; choose another -o folder")
+        given.check(outs.values())
         clean_temporaries(outdir, stem)  # left by a run killed while writing this video
         update = None
         if progress_factory is not None:
