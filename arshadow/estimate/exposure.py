@@ -93,6 +93,22 @@ def _remap_points(img: np.ndarray, uv: np.ndarray) -> np.ndarray:
     return out
 
 
+def _crop_to(image: np.ndarray, uv: np.ndarray):
+    """The part of ``image`` around the finite points ``uv`` (n, 2) (+ 3 px, inside the image) and the points
+    in its pixels: a point is inside the crop exactly when it is inside the image."""
+    H, W = image.shape[:2]
+    fin = np.all(np.isfinite(uv), axis=1)
+    if not fin.any():
+        return image, uv
+    lo = np.floor(uv[fin].min(axis=0)).astype(int) - 3
+    hi = np.ceil(uv[fin].max(axis=0)).astype(int) + 4
+    x0, y0 = max(int(lo[0]), 0), max(int(lo[1]), 0)
+    x1, y1 = min(int(hi[0]), W), min(int(hi[1]), H)
+    if x1 - x0 < 2 or y1 - y0 < 2:
+        return image, uv
+    return image[y0:y1, x0:x1], uv - np.array([x0, y0], np.float64)
+
+
 def _cell_points(bits: np.ndarray, length: float):
     """World points (3 x 3 per cell, central half) of every cell: ((c*c*9, 3) float64, (c*c,) bool white)."""
     c = bits.shape[0]
@@ -140,6 +156,7 @@ def measure_exposure(image_bgr: np.ndarray, intrinsics: Intrinsics, cam_from_wor
     bits = marker_bits(get_dictionary(dictionary), int(marker_id))
     pts, white = _cell_points(bits, float(marker_length))
     uv = intrinsics.project(pts, cam_from_world)
+    image_bgr, uv = _crop_to(image_bgr, uv)  # only the marker's pixels are decoded (once per video frame)
     rgb = sample_linear(image_bgr, uv).reshape(len(white), 9, 3)
     raw = _remap_points(image_bgr.astype(np.float32), uv).reshape(len(white), 9, 3)
     cell = np.nanmedian(rgb, axis=1) if np.isfinite(rgb).any() else np.full((len(white), 3), np.nan)
