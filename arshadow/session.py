@@ -471,7 +471,8 @@ class Session:
         return FrameResult(out, mask, pose, np.asarray(cfw, np.float64), item, timings, plan,
                            None if lay is None else lay["layers"])
 
-    def _exposure_gain(self, image, intr, cfw, pose, item):
+    def _exposure_gain(self, image: np.ndarray, intr: Intrinsics, cfw: np.ndarray, pose: Any,
+                       item: ReportItem) -> np.ndarray | None:
         """The per-channel gain on the object's linear colour matching the marker paper (``item.exposure``
         gets the measurement), or None (off, or the paper not measurable)."""
         if self.exposure is None:

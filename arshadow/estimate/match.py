@@ -11,15 +11,18 @@ whatever the camera's exposure and white balance. ``--no-exposure`` switches thi
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
+from ..camera import Intrinsics
 from ..tracking.dictionary import DEFAULT_DICTIONARY
 from .exposure import Exposure, ExposureError, ExposureSmoother, measure_exposure
 
 __all__ = ["ExposureMatch", "paper_shading"]
 
 
-def paper_shading(lights_h, weights, ambient: float, paper_from_world=None) -> float:
+def paper_shading(lights_h: Any, weights: Any, ambient: float, paper_from_world: Any = None) -> float:
     """The renderer's shading ``S`` of the marker paper (albedo 1, no specular).
 
     Parameters
@@ -58,13 +61,14 @@ class ExposureMatch:
         Video: smooth over frames, following auto-exposure changes (:class:`ExposureSmoother`).
     """
 
-    def __init__(self, marker_length: float, dictionary, marker_id=None, smooth: bool = False):
+    def __init__(self, marker_length: float, dictionary: Any, marker_id: int | None = None, smooth: bool = False):
         self.marker_length = float(marker_length)
         self.dictionary = DEFAULT_DICTIONARY if dictionary is None else dictionary
         self.marker_id = marker_id
         self.smoother = ExposureSmoother() if smooth else None
 
-    def gain(self, image, intr, cam_from_marker, marker_id, geometry, paper_from_world=None):
+    def gain(self, image: np.ndarray, intr: Intrinsics, cam_from_marker: np.ndarray, marker_id: int | None,
+             geometry: Any, paper_from_world: Any = None) -> tuple[np.ndarray | None, dict]:
         """``(gain (3,) float or None, report dict)`` for one frame.
 
         The report dict (the report item's ``exposure``): ``paper_rgb``, ``ink_rgb``, ``white_cells``,
@@ -74,12 +78,11 @@ class ExposureMatch:
         """
         mid = marker_id if marker_id is not None else (self.marker_id if self.marker_id is not None else 0)
         rep: dict = {}
+        m: Exposure | None = None
         try:
-            m: Exposure | None = measure_exposure(image, intr, cam_from_marker, self.marker_length, self.dictionary,
-                                                  int(mid))
+            m = measure_exposure(image, intr, cam_from_marker, self.marker_length, self.dictionary, int(mid))
             rep.update(m.to_dict())
         except ExposureError as exc:
-            m = None
             rep["error"] = str(exc)
         use = m if self.smoother is None else self.smoother.update(m)
         if self.smoother is not None and use is not None:
@@ -97,6 +100,6 @@ class ExposureMatch:
     def state(self) -> dict | None:
         return None if self.smoother is None else self.smoother.state()
 
-    def restore(self, st) -> None:
+    def restore(self, st: dict | None) -> None:
         if self.smoother is not None and st is not None:
             self.smoother.restore(st)
