@@ -97,6 +97,11 @@ class ExposureMatch:
         rep["gain"] = [round(float(v), 6) for v in g]
         return g, rep
 
+    def reset(self) -> None:
+        """A new video: the smoothing forgets the previous frames."""
+        if self.smoother is not None:
+            self.smoother = ExposureSmoother()
+
     def state(self) -> dict | None:
         return None if self.smoother is None else self.smoother.state()
 
