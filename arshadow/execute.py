@@ -33,7 +33,7 @@ LAYERS_WHY = "numpy (layers asked for: the composite and its layers come from th
 
 def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings: StageTimings | None = None,
             item: ReportItem | None = None, want_mask=True, out=None, mask_out=None, chooser=None, gpu=None,
-            compose_key=None, layers: dict | None = None):
+            compose_key=None, layers: dict | None = None, color_gain=None):
     """Render and composite one planned frame.
 
     Parameters
@@ -76,6 +76,9 @@ def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings: 
         version, ``.undistorted``). They come from the numpy path only: with layers asked for, the numpy path
         makes the composite too (the plan's compose decision becomes ``"cpu"``), so the composite and its
         layers are one computation.
+    color_gain : (3,) float, optional
+        Per-channel gain on the object's rendered linear colour (the marker paper's exposure match,
+        :mod:`arshadow.estimate.match`).
 
     Returns
     -------
@@ -113,7 +116,8 @@ def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings: 
             plan.decide("compose", "cpu", LAYERS_WHY)
     if plan.empty:
         return out, mask_full  # nothing of the scene is in view
-    args = (plan, image, intr, geometry, renderer, lens, work, passes, out, mask_full, want_mask, item, layers)
+    gain = None if color_gain is None else np.asarray(color_gain, np.float32).reshape(3)
+    args = (plan, image, intr, geometry, renderer, lens, work, passes, out, mask_full, want_mask, item, layers, gain)
     _run_compose(args, plan, timings, item, chooser, gpu, compose_key)
     return out, mask_full
 
@@ -184,7 +188,7 @@ def _run_compose(args, plan, timings, item, chooser, gpu, key) -> None:
 
 
 def _compose_gpu(plan, image, intr, geometry, renderer, lens, work, passes, out, mask_full, want_mask, item,
-                 layer_request, *, gpu, timings):
+                 layer_request, gain, *, gpu, timings):
     """Render with the layers kept on the GPU; lens warp + composite in a shader; one 8-bit readback."""
     opts = geometry.options
     roi, canvas = plan.roi, plan.canvas
@@ -198,7 +202,8 @@ def _compose_gpu(plan, image, intr, geometry, renderer, lens, work, passes, out,
     ct: dict = {}
     t = time.perf_counter()
     gpu.compose(image, lay, roi, canvas, lens=lens, opacity=opts.opacity, shadow_color=opts.shadow_color,
-                draw_occluder=opts.draw_occluder, out=out, mask_out=mask_full if want_mask else None, timings=ct)
+                draw_occluder=opts.draw_occluder, out=out, mask_out=mask_full if want_mask else None, timings=ct,
+                color_gain=(1.0, 1.0, 1.0) if gain is None else tuple(float(v) for v in gain))
     # the readback waits for the render and the shader to finish: it holds the GPU time of both
     timings.readback += ct.get("readback", 0.0)
     timings.composite += (time.perf_counter() - t) * 1e3 - ct.get("readback", 0.0)
@@ -206,7 +211,7 @@ def _compose_gpu(plan, image, intr, geometry, renderer, lens, work, passes, out,
 
 
 def _compose_cpu(plan, image, intr, geometry, renderer, lens, work, passes, out, mask_full, want_mask, item,
-                 layer_request, *, timings):
+                 layer_request, gain, *, timings):
     """Render, read the float layers back, lens warp (cv2.remap) or flip, composite in numpy."""
     H, W = image.shape[:2]
     opts = geometry.options
@@ -247,6 +252,11 @@ def _compose_cpu(plan, image, intr, geometry, renderer, lens, work, passes, out,
 
     # composite
     t = time.perf_counter()
+    if gain is not None and opts.draw_occluder:  # the exposure match, linear light (premultiplied colour)
+        color = np.array(color, np.float32)  # a copy: the renderer's arrays stay as rendered
+        color[:, :, :3] *= gain
+        pinhole = (pinhole[0], np.array(pinhole[1], np.float32))
+        pinhole[1][:, :, :3] *= gain
     if layer_request is not None:  # execute's ``layers``: gets the frame's layers
         layer_request["layers"] = _frame_layers(layer_request.get("undistorted"), mask, color, alpha, roi, (H, W),
                                                 opts, lens is not None, pinhole, canvas,

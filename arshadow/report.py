@@ -64,7 +64,8 @@ class StageTimings:
 OPTIONAL_KEYS = ("calibration_scaled", "notes", "detector", "frame", "time_s", "sun", "pose_flagged",
                  "flag_reasons",
                  "opencv_board_rvec", "opencv_board_tvec", "n_points", "kind", "raw", "pose_choice", "modes", "roi",
-                 "canvas", "znear", "plan", "content", "composited", "compose", "title", "layers", "ground")
+                 "canvas", "znear", "plan", "content", "composited", "compose", "title", "layers", "ground",
+                 "exposure")
 
 
 @dataclass
@@ -86,6 +87,8 @@ class ReportItem:
     - ``layers`` (``{layer name: file}``: the compositing layers written, docs/export.md);
     - ``ground``: the ground spec (``--ground``) when it is not the marker plane; ``rvec``/``tvec`` stay
       the marker's pose.
+    - ``exposure``: the marker paper's measurement and the gain on the object's colour
+      (:meth:`arshadow.estimate.match.ExposureMatch.gain`; absent with ``--no-exposure``).
     """
 
     input: str
@@ -127,6 +130,7 @@ class ReportItem:
     title: str | None = None
     layers: dict | None = None
     ground: str | None = None
+    exposure: dict | None = None
 
     def set_pose(self, pose) -> None:
         """Fill the pose keys from an :class:`arshadow.tracking.pose.MarkerPose`.

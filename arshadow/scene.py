@@ -127,6 +127,11 @@ class RenderOptions:
         ``gpu``.
     track_roi : bool
         Video: search the marker in a window around the last detection first (full-frame fallback).
+    exposure : bool
+        Match the marker paper's exposure / white balance on every photo and video frame
+        (:mod:`arshadow.estimate.match`; ``--no-exposure`` turns it off).
+    exposure_gain : (3,) float, optional
+        The gain already in ``occluder_color`` (``light_from``): the per-photo gain is applied relative to it.
     """
 
     opacity: float = 0.7
@@ -149,6 +154,8 @@ class RenderOptions:
     plan_off: tuple = ()
     compose: str = "auto"
     track_roi: bool = False
+    exposure: bool = True
+    exposure_gain: tuple | None = None
 
     def check(self) -> RenderOptions:
         """Validate (UsageError naming the ``arshadow render`` option); returns self."""
@@ -442,11 +449,12 @@ def _path(v: Any, base_dir: str | Path | None) -> Any:
 def _apply_estimate(d: dict, base_dir: str | Path | None) -> dict:
     """``light_from``: the estimate's light (unless ``lights`` are given), its shadow colour (opacity 1) and
     the marker paper's exposure on the object's colour (``occluder_color``)."""
-    from .estimate.result import load_estimate, scene_overrides
+    from .estimate.result import LightEstimate, load_estimate, scene_overrides, shading_gain
 
     d = dict(d)
-    o = scene_overrides(load_estimate(_path(d.pop("light_from"), base_dir)), _rgb_text(d.get("color")),
-                        exposure=not d.get("no_exposure"))
+    est = d.pop("light_from")  # a file, or the estimate itself (render/video/batch --probe)
+    est = est if isinstance(est, LightEstimate) else load_estimate(_path(est, base_dir))
+    o = scene_overrides(est, _rgb_text(d.get("color")), exposure=not d.get("no_exposure"))
     if not d.get("lights"):
         d["lights"] = list(o["lights"])
     d["opacity"] = o["opacity"]
@@ -454,6 +462,7 @@ def _apply_estimate(d: dict, base_dir: str | Path | None) -> dict:
         d["_shadow_color_linear"] = o["shadow_color"]
     if "occluder_color" in o:
         d["_occluder_color"] = o["occluder_color"]
+        d["_exposure_gain"] = shading_gain(est, o["ambient"])  # the per-photo match is relative to it
     d["_shading"] = (o["ambient"], o["specular"])
     return d
 
@@ -490,7 +499,7 @@ def scene_from_dict(d: Mapping[str, Any], base_dir: str | Path | None = None) ->
         if "lights" in d:
             raise UsageError("give either 'light' or 'lights', not both")
         d["lights"] = d.pop("light")
-    unknown = sorted(set(d) - set(SCENE_KEYS) - {"_shadow_color_linear", "_occluder_color", "_shading"})
+    unknown = sorted(set(d) - set(SCENE_KEYS) - {"_shadow_color_linear", "_occluder_color", "_shading", "_exposure_gain"})
     if unknown:
         raise UsageError(f"unknown scene key(s) {', '.join(map(repr, unknown))} (known: {', '.join(SCENE_KEYS)})")
     if d.get("light_from") is not None:  # a measured light (arshadow light -o FILE): docs/light.md
@@ -547,6 +556,10 @@ def scene_from_dict(d: Mapping[str, Any], base_dir: str | Path | None = None) ->
         opts["occluder_color"] = d["_occluder_color"]
     if d.get("_shading") is not None:
         opts["ambient"], opts["specular"] = d["_shading"]
+    if d.get("no_exposure"):
+        opts["exposure"] = False
+    if d.get("_exposure_gain") is not None:
+        opts["exposure_gain"] = tuple(float(v) for v in d["_exposure_gain"])
     return SceneSpec(camera=calib, tracker=tracker, model=model_spec,
                      lights=tuple(s if not isinstance(s, str) else s.strip() for s in lights),
                      options=RenderOptions(**opts), time_lapse=time_lapse_spec(d.get("time_lapse"), _value(d, "recompute_deg", float, 0.1), lights))
@@ -561,9 +574,10 @@ def scene_from_args(args: Any, **overrides: Any) -> SceneSpec:
     return scene_from_dict({k: v for k, v in d.items() if v is not None})
 
 
-def load_scene(path: str | Path) -> SceneSpec:
+def load_scene(path: str | Path, **overrides: Any) -> SceneSpec:
     """A :class:`SceneSpec` from a job file: YAML (``.yml``/``.yaml``, needs PyYAML) or JSON; relative paths
-    resolve against the file's folder.
+    resolve against the file's folder. ``overrides``: scene keys replacing the file's (``arshadow batch
+    --probe``: ``light_from`` and ``lights``).
 
     Raises
     ------
@@ -594,6 +608,7 @@ def load_scene(path: str | Path) -> SceneSpec:
         data = data["scene"]
     if not isinstance(data, dict):
         raise UsageError(f"{p}: a scene file holds a mapping of scene keys")
+    data = {**{k: v for k, v in data.items() if not (k == "light" and "lights" in overrides)}, **overrides}
     try:
         return scene_from_dict(data, base_dir=p.parent)
     except UsageError as exc:

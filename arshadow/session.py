@@ -48,6 +48,7 @@ from .compose.layers import Layers
 from .camera import Intrinsics
 from .compose.lens import LensWarp
 from .engine import CalibrationState, check_image, default_renderer, estimate_pose
+from .estimate.match import ExposureMatch
 from .errors import UsageError
 from .execute import LAYERS_WHY, execute
 from .geometry.ground import check_camera_above, parse_ground
@@ -170,6 +171,13 @@ class Session:
         self._checks = FrameChecks(self.scene.caster, self.scene.tracker.get("marker_length"))  # O(1) per frame
         from .gl.compose import PathChooser  # deferred: no GL at import (moderngl loads on first render)
 
+        tk = self.scene.tracker
+        #: per-photo exposure / white balance match (arshadow.estimate.match); None when off, on a board or an
+        #: inverted marker (its white cells are ink)
+        self.exposure = ExposureMatch(tk["marker_length"], tk.get("dictionary"), tk.get("marker_id"),
+                                      smooth=self.options.track_roi) \
+            if self.options.exposure and tk.get("board") is None and tk.get("marker_length") \
+            and not tk.get("inverted") else None
         self.compose_chooser = PathChooser(force=None if self.options.compose == "auto" else self.options.compose)
 
     # -- resources ------------------------------------------------------------------------------------
@@ -448,6 +456,7 @@ class Session:
             item.ground = self.ground.text
         for msg in self._checks.check(cfw):  # a far camera (wrong units), the camera inside: once per run
             log.warning(msg)
+        gain = self._exposure_gain(image, cal.intrinsics, cfw, pose, item) if not plan.empty else None
         renderer = key = None
         if not plan.empty:  # the renderer (and the context) is made only when there is something to draw
             renderer = self.renderer
@@ -458,9 +467,23 @@ class Session:
         out, mask = execute(plan, image, cal.intrinsics, geometry=self.geometry, renderer=renderer, lens=cal.lens,
                             work=self._work, timings=timings, item=item, want_mask=want_mask, out=out,
                             mask_out=mask_out, chooser=self.compose_chooser, gpu=self._gpu_compositor,
-                            compose_key=key, layers=lay)
+                            compose_key=key, layers=lay, color_gain=gain)
         return FrameResult(out, mask, pose, np.asarray(cfw, np.float64), item, timings, plan,
                            None if lay is None else lay["layers"])
+
+    def _exposure_gain(self, image: np.ndarray, intr: Intrinsics, cfw: np.ndarray, pose: Any,
+                       item: ReportItem) -> np.ndarray | None:
+        """The per-channel gain on the object's linear colour matching the marker paper (``item.exposure``
+        gets the measurement), or None (off, or the paper not measurable)."""
+        if self.exposure is None:
+            return None
+        mfg = self._marker_from_ground
+        cfm = cfw if mfg is None else cfw @ invert_rigid(mfg)
+        mid = pose.marker_ids[0] if pose is not None and len(getattr(pose, "marker_ids", ())) else None
+        gain, item.exposure = self.exposure.gain(image, intr, cfm, mid, self.geometry, mfg)
+        if gain is not None and self.options.exposure_gain is not None:  # already in the colour (light_from)
+            gain = gain / np.asarray(self.options.exposure_gain, np.float64)
+        return gain
 
     def _decide_compose(self, plan: FramePlan, renderer: Any, key: tuple[Any, ...], want_mask: bool,
                         out: np.ndarray | None, mask_out: np.ndarray | None) -> None:
@@ -515,11 +538,14 @@ class Session:
         and volumes, and the sun tracks' recompute schedule. :meth:`restore` it (here or in another
         process's session of the same spec) to go on exactly as this session would."""
         return {"geometry": self.geometry.state(),
-                "sun_tracks": None if self._sun is None else [tr.state() for tr in self._sun[1]]}
+                "sun_tracks": None if self._sun is None else [tr.state() for tr in self._sun[1]],
+                "exposure": None if self.exposure is None else self.exposure.state()}
 
     def restore(self, state: dict[str, Any]) -> None:
         """Set the history saved by :meth:`state`."""
         self.geometry.restore(state["geometry"])
+        if self.exposure is not None:
+            self.exposure.restore(state.get("exposure"))
         if state.get("sun_tracks") is not None and self._sun is not None:
             for tr, st in zip(self._sun[1], state["sun_tracks"]):
                 tr.restore(st)

@@ -104,9 +104,29 @@ def _ray_hits(origin, dirs, tris):
     return best, face
 
 
-def _lighting_samples(intr, pose, verts, faces, normals, kind, light, roi, S):
+def _cone_directions(light, radius_deg: float, seed) -> np.ndarray:
+    """Unit directions uniform in solid angle within the cone of half-angle ``radius_deg`` around ``light``:
+    (64, 3) float64, stratified (8 x 8 in cos(theta) and azimuth, jittered); ``light[None]`` for 0."""
+    if radius_deg <= 0.0:
+        return np.asarray(light, np.float64)[None]
+    rng = np.random.default_rng(None if seed is None else int(seed) + 7919)
+    k = 8
+    u = (np.arange(k)[:, None] + rng.random((k, k))) / k
+    v = (np.arange(k)[None, :] + rng.random((k, k))) / k
+    cos_t = 1.0 - u.ravel() * (1.0 - math.cos(math.radians(radius_deg)))
+    phi = 2.0 * math.pi * v.ravel()
+    sin_t = np.sqrt(np.maximum(0.0, 1.0 - cos_t**2))
+    z = np.asarray(light, np.float64)
+    a = np.cross(z, [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0])
+    a /= np.linalg.norm(a)
+    b = np.cross(z, a)
+    return (cos_t[:, None] * z + sin_t[:, None] * (np.cos(phi)[:, None] * a + np.sin(phi)[:, None] * b))
+
+
+def _lighting_samples(intr, pose, verts, faces, normals, kind, light, roi, S, cone=None):
     """Per pixel of ``roi = (x0, y0, w, h)``: (probe coverage, probe n.l (mean over covered samples),
-    ground visibility (mean over ground samples), ground n.l): four (h, w) float64 arrays."""
+    ground visibility (mean over ground samples and, for an extended directional light, over the ``cone``'s
+    directions), ground n.l): four (h, w) float64 arrays."""
     x0, y0, w, h = roi
     off = (np.arange(S) + 0.5) / S - 0.5
     vv, uu = np.mgrid[y0:y0 + h, x0:x0 + w].astype(np.float64)
@@ -137,10 +157,14 @@ def _lighting_samples(intr, pose, verts, faces, normals, kind, light, roi, S):
         lh = np.append(light, 1.0)
         to_l = light[None, :] - np.column_stack([g, np.zeros(len(g))])
         ndl_ground = np.maximum(0.0, to_l[:, 2] / np.linalg.norm(to_l, axis=1))
-    shadow = np.zeros(len(g), bool)
     idx = np.flatnonzero(ground)
-    shadow[idx] = points_in_triangles(g[idx], ground_shadow_triangles(verts, faces, lh))
-    vis = np.where(ground, (~shadow).astype(np.float64), 0.0)
+    dirs_l = [light] if cone is None or kind != "directional" else list(cone)
+    shadow = np.zeros(len(g))
+    for d in dirs_l:  # the exact hard shadow of each direction of the light's disc, averaged
+        lk = np.append(d, lh[3])
+        shadow[idx] += points_in_triangles(g[idx], ground_shadow_triangles(verts, faces, lk))
+    shadow /= len(dirs_l)
+    vis = np.where(ground, 1.0 - shadow, 0.0)
     ndl_probe = np.zeros(len(g))
     if on_probe.any():
         pts = C[None, :] + t_hit[on_probe, None] * dirs[on_probe]
@@ -170,7 +194,7 @@ def render_lit_photo(intrinsics: Intrinsics, cam_from_world, *, marker_length=0.
                      probe_albedo=(0.55, 0.5, 0.45), light_kind="directional", light=(0.5, 0.0, 0.866),
                      ambient=(0.35, 0.38, 0.45), direct=(1.0, 0.95, 0.85), exposure=0.8,
                      white_balance=(1.0, 1.0, 1.0), blur_sigma=0.0, noise_sigma=0.0, jpeg_quality=None, seed=None,
-                     supersample=3, floor="texture") -> LitPhoto:
+                     supersample=3, floor="texture", light_radius_deg=0.0) -> LitPhoto:
     """Render a photo of the marker and a probe lit by ambient + one direct light, with its truth.
 
     Parameters
@@ -194,6 +218,10 @@ def render_lit_photo(intrinsics: Intrinsics, cam_from_world, *, marker_length=0.
         As :func:`arshadow.synth.render_marker_photo` (blur applied in linear light).
     supersample : int
         Samples per pixel side around the probe and its shadow.
+    light_radius_deg : float
+        Directional light only: the angular radius of a uniformly bright disc (a lamp's or the sun's size):
+        the ground's visibility is the mean over 64 directions uniform in solid angle within that cone
+        (soft shadows, penumbra); the probe's own shading uses the centre direction.
 
     Returns
     -------
@@ -217,7 +245,9 @@ def render_lit_photo(intrinsics: Intrinsics, cam_from_world, *, marker_length=0.
     verts, faces = np.asarray(caster.vertices, np.float64), np.asarray(caster.faces)
     normals = _outward_normals(verts, faces)
     lh = np.append(light, 0.0 if light_kind == "directional" else 1.0)
-    shadow2d = ground_shadow_triangles(verts, faces, lh).reshape(-1, 2)
+    cone = _cone_directions(light, float(light_radius_deg), seed) if light_kind == "directional" else light[None]
+    shadow2d = np.concatenate([ground_shadow_triangles(verts, faces, np.append(d, lh[3])).reshape(-1, 2)
+                               for d in cone])
     # the region of the probe and its shadow (+ margin), in the image
     pts = np.concatenate([verts, np.column_stack([shadow2d, np.zeros(len(shadow2d))])])
     cam_pts = transform_points(pose, pts)
@@ -244,7 +274,7 @@ def render_lit_photo(intrinsics: Intrinsics, cam_from_world, *, marker_length=0.
     if x1 > x0 and y1 > y0:
         roi = (x0, y0, x1 - x0, y1 - y0)
         cov, pndl, gvis, gfrac = _lighting_samples(intrinsics, pose, verts, faces, normals, light_kind, light, roi,
-                                                   int(supersample))
+                                                   int(supersample), cone)
         sl = (slice(y0, y1), slice(x0, x1))
         ground_rad = rho[sl] * (ambient * gfrac[:, :, None] + direct * gvis[:, :, None])
         probe_rad = np.asarray(probe_albedo, np.float64) * (ambient + direct * pndl[:, :, None]) * cov[:, :, None]

@@ -171,3 +171,26 @@ def test_frames_jsonl_of_a_video(tmp_path):
     tr = track_from_frames_jsonl(p, intr)
     assert [f.status for f in tr.frames] == ["lost", "tracked", "held", "held"] and tr.name == "clip"
     assert tr.frames[2].cam_from_world[2, 3] == pytest.approx(0.41)
+
+
+def test_ground_scene_exports_the_camera_in_the_ground_frame():
+    """With ``--ground wall:0.3`` the occluder stands in the ground frame, so the exported camera must be
+    ``cam_from_marker @ marker_from_ground``: the ground's origin and up axis land where the marker pose puts
+    the plane's point and normal (given in the marker frame by the spec), not at the marker's own origin."""
+    from arshadow.geometry.ground import parse_ground
+    from arshadow.synth import look_at_pose
+    from arshadow.transforms import rvec_tvec_from_matrix
+
+    intr = Intrinsics.from_file(str(ROOT / "calib" / "synth_1280x720.yml"))
+    cam_from_marker = look_at_pose([0.1, -0.6, 0.2], [0.0, -0.3, 0.0])
+    rvec, tvec = rvec_tvec_from_matrix(cam_from_marker)
+    item = {"status": "ok", "rvec": list(rvec), "tvec": list(tvec), "ground": "wall:0.3"}
+    g = parse_ground("wall:0.3")
+    (frame,) = track_from_items([item], intr).frames
+    cam_from_ground = frame.cam_from_world
+    origin = cam_from_marker @ np.r_[np.asarray(g.point, float), 1.0]
+    np.testing.assert_allclose(cam_from_ground @ [0, 0, 0, 1.0], origin, atol=1e-12)
+    np.testing.assert_allclose(cam_from_ground[:3, :3] @ [0, 0, 1.0],
+                               cam_from_marker[:3, :3] @ np.asarray(g.normal, float), atol=1e-12)
+    (plain,) = track_from_items([dict(item, ground=None)], intr).frames  # no ground: the marker frame
+    np.testing.assert_allclose(plain.cam_from_world, cam_from_marker, atol=1e-9)

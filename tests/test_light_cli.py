@@ -4,6 +4,7 @@ reflectances and camera are known (truth from :mod:`arshadow.synth_lit`, never f
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -111,3 +112,74 @@ def test_light_from_in_a_scene(tmp_path):
     (tmp_path / "bad.json").write_text("{}")
     with pytest.raises(UsageError, match="not a light estimate"):
         scene_from_dict({**base, "light_from": "bad.json"}, base_dir=tmp_path)
+
+
+def test_render_with_probe_options(lit, gl_ctx, tmp_path, capsys):
+    """``render --probe ...``: the light measured first from the inputs; the white box's top face records the
+    photographed paper (truth: the generating exposure / white balance) within 5 % per channel."""
+    p, path, d = lit
+    out = tmp_path / "out"
+    code = main(["render", str(path), "--calib", CALIB, "--marker-length", "0.05", *PROBE, "--model",
+                 "box:0.03,0.03,0.03", "--place=-0.02,0.08,0", "--color", "255,255,255", "-o", str(out),
+                 "--report", str(tmp_path / "r.json")])
+    err = capsys.readouterr().err
+    assert code == 0 and "light: directional:" in err
+    img = cv2.imread(str(out / "lit.png"))
+    uv = p.intrinsics.project(np.array([[-0.02, 0.08, 0.03]]), p.cam_from_world)[0]
+    u, v = np.rint(uv).astype(int)
+    top = SRGB_TO_LINEAR[img[v - 2:v + 3, u - 2:u + 3]].reshape(-1, 3).mean(axis=0)[::-1]  # RGB
+    assert np.allclose(top, p.paper_linear, rtol=0.05), (top, p.paper_linear)
+    item = json.loads((tmp_path / "r.json").read_text())["images"][0]
+    assert np.allclose(item["exposure"]["paper_rgb"], p.paper_linear, rtol=0.03)
+
+
+def test_probe_equals_light_then_light_from_on_the_sample(gl_ctx, tmp_path, capsys):
+    """On the sample photo: ``render --probe`` gives the same picture as ``light -o est.json`` then
+    ``render --light-from est.json``; --probe with --light-from is a usage error."""
+    s = json.loads(open("samples/light_probe.json").read())
+    photo = "samples/" + s["photo"]
+    cam = ["--calib", s["calib"], "--marker-length", str(s["marker_length"])]
+    probe = ["--probe", s["probe"], "--probe-place", ",".join(map(str, s["probe_place"]))]
+    model = ["--model", "box:0.03,0.03,0.03", "--place=-0.02,0.1,0"]
+    est = tmp_path / "est.json"
+    assert main(["light", photo, *cam, *probe, "-o", str(est)]) == 0
+    assert main(["render", photo, *cam, *model, "--light-from", str(est), "-o", str(tmp_path / "a")]) == 0
+    assert main(["render", photo, *cam, *model, *probe, "-o", str(tmp_path / "b")]) == 0
+    a = cv2.imread(str(tmp_path / "a" / "probe_shadow.png"))
+    b = cv2.imread(str(tmp_path / "b" / "probe_shadow.png"))
+    assert a is not None and np.array_equal(a, b)
+    capsys.readouterr()
+    assert main(["render", photo, *cam, *model, *probe, "--light-from", str(est), "-o", str(tmp_path / "c")]) == 2
+    assert "--probe" in capsys.readouterr().err
+
+
+def test_video_with_probe_options(lit, gl_ctx, tmp_path, capsys):
+    """``video --probe ...``: measured once from the video's frames; every frame record carries its exposure."""
+    p, path, d = lit
+    clip = tmp_path / "clip.avi"
+    vw = cv2.VideoWriter(str(clip), cv2.VideoWriter_fourcc(*"MJPG"), 10, (p.image.shape[1], p.image.shape[0]))
+    for _ in range(3):
+        vw.write(p.image)
+    vw.release()
+    code = main(["video", str(clip), "--calib", CALIB, "--marker-length", "0.05", *PROBE, "--model",
+                 "box:0.03,0.03,0.03", "--place=-0.02,0.08,0", "--color", "255,255,255", "-o", str(tmp_path / "out"),
+                 "--report", str(tmp_path / "r.json"), "-q"])
+    err = capsys.readouterr().err
+    assert code == 0 and "light: directional:" in err and "3 frame(s)" in err
+    frames = [i for i in json.loads((tmp_path / "r.json").read_text())["images"] if i.get("frame") is not None]
+    assert len(frames) == 3
+    for f in frames:
+        assert np.allclose(f["exposure"]["smoothed_paper_rgb"], p.paper_linear, rtol=0.05)
+
+
+def test_batch_with_probe_options(lit, gl_ctx, tmp_path, capsys):
+    """``batch --probe ...``: the measured light replaces the job file's; the same picture as ``render --probe``."""
+    p, path, d = lit
+    job = tmp_path / "job.json"
+    job.write_text(json.dumps({"calib": str(Path(CALIB).resolve()), "marker_length": 0.05, "model": "box:0.03,0.03,0.03",
+                               "place": [-0.02, 0.08, 0], "color": "255,255,255", "light": "point:0,0,1"}))
+    assert main(["batch", str(path), "-c", str(job), "-o", str(tmp_path / "b"), *PROBE, "-q"]) == 0
+    assert "light: directional:" in capsys.readouterr().err
+    assert main(["render", str(path), "--calib", CALIB, "--marker-length", "0.05", *PROBE, "--model",
+                 "box:0.03,0.03,0.03", "--place=-0.02,0.08,0", "--color", "255,255,255", "-o", str(tmp_path / "r")]) == 0
+    assert np.array_equal(cv2.imread(str(tmp_path / "b" / "lit.png")), cv2.imread(str(tmp_path / "r" / "lit.png")))

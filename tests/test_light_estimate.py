@@ -173,3 +173,20 @@ def test_frames_of_a_video_add_up(cam, tmp_path):
     assert est.frames == 3
     assert _angle(est.direction, light) <= 1.0
     assert np.all(np.abs(np.array(est.shadow_ratio) - frames[0].shadow_ratio) <= 0.05)
+
+
+@pytest.mark.parametrize("radius", [0.0, 2.0, 4.0])
+def test_penumbra_gives_the_light_size(cam, radius):
+    """A disc light of angular radius 0 / 2 / 4 degrees (synth_lit: the mean of 64 exact hard shadows over
+    its cone): the fitted angular diameter within 25 % of the truth (0: below 0.5 degrees, a hard spec)."""
+    pose = look_at_pose([0.15, -0.35, 0.45], [0.1, 0.0, 0.0])
+    p = render_lit_photo(cam, pose, light=light_vector(160, 40), probe=PROBE, probe_place=PLACE, noise_sigma=1.0,
+                         seed=4, supersample=1, light_radius_deg=radius)
+    est = estimate_light(p.image, calib=CALIB, marker_length=0.05, probe=PROBE, probe_place=PLACE)
+    assert _angle(est.direction, p.light) <= 1.5
+    if radius == 0.0:
+        assert est.angular_diameter_deg < 0.5 and "radius" not in est.light
+    else:
+        assert est.angular_diameter_deg == pytest.approx(2 * radius, rel=0.25)
+        assert f"radius={est.angular_diameter_deg / 2:.3f}" in est.light
+    assert LightEstimate.from_json(est.to_json()).angular_diameter_deg == pytest.approx(est.angular_diameter_deg, abs=1e-4)

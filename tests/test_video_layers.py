@@ -22,9 +22,11 @@ pytestmark = pytest.mark.gl
 ROOT = Path(__file__).resolve().parents[1]
 CALIB = ROOT / "calib" / "synth_640x360.yml"
 SCENE = ["--calib", str(CALIB), "--marker-length", "0.05", "--model", "box:0.04,0.03,0.06", "--place", "0.03,0,0",
-         "--rotate", "0,0,20", "--light", "point:-0.1,0.15,0.4"]
+         "--rotate", "0,0,20", "--light", "point:-0.1,0.15,0.4", "--no-exposure"]
+# no exposure match: the video's is smoothed over frames (and held on a blank frame), which a re-render of
+# one frame by a fresh session cannot reproduce (tests/test_exposure_match.py tests the match itself)
 JOB = {"calib": str(CALIB), "marker_length": 0.05, "model": "box:0.04,0.03,0.06", "place": [0.03, 0, 0],
-       "rotate": [0, 0, 20], "lights": ["point:-0.1,0.15,0.4"]}
+       "rotate": [0, 0, 20], "lights": ["point:-0.1,0.15,0.4"], "no_exposure": True}
 
 
 def _cli(*argv):

@@ -6,6 +6,7 @@ import argparse
 import sys
 
 from . import EXIT_OK, EXIT_SOME_FAILED
+from .light import add_probe_options
 
 EPILOG = """\
 examples:
@@ -39,6 +40,7 @@ def register(subparsers) -> None:
     v.add_argument("--pose-lag", type=int, default=16, metavar="K", help="IPPE branch look-ahead (frames)")
     v.add_argument("--max-frames", type=int, metavar="N", help="only the first N frames of each video")
     add_output_options(p.add_argument_group("output"))
+    add_probe_options(p, run=True)
     p.add_argument("--dask", metavar="ADDRESS",
                    help="run on a Dask cluster: a scheduler address (tcp://host:8786) or local[:N] for a "
                         "LocalCluster of N worker processes (needs arshadow[dask])")
@@ -89,11 +91,16 @@ def run(args) -> int:
     from ..session import Session
     from ..video.batch import run_batch
     from . import quiet_opencv
+    from .light import probe_estimate
     from .video import engine_options
 
     debug = bool(getattr(args, "debug", False))
     quiet_opencv(debug)
     spec = load_scene(args.config)
+    est = probe_estimate(args, args.inputs, calib=spec.camera, marker_length=spec.tracker.marker_length,
+                         dictionary=spec.tracker.dictionary, marker_id=spec.tracker.marker_id)
+    if est is not None:  # --probe: the measured light replaces the file's (docs/light.md)
+        spec = load_scene(args.config, light_from=est, lights=[est.light])
     opts = engine_options(args)
     # before any work: a bad -o, scene file or cluster address is one usage error (exit 2)
     outdir = check_output_folder(args.output, "-o")

@@ -45,9 +45,12 @@ def _positive(text: str) -> float:
     return v
 
 
-def add_probe_options(p: argparse.ArgumentParser) -> None:
-    """The probe's options (``--probe``, ``--probe-place``, ``--probe-rotate``, ``--probe-scale``)."""
-    g = p.add_argument_group("the probe (reference object casting the real shadow)")
+def add_probe_options(p: argparse.ArgumentParser, run: bool = False) -> None:
+    """The probe's options (``--probe``, ``--probe-place``, ``--probe-rotate``, ``--probe-scale``, ``--kind``);
+    ``run``: of render / video / batch (the light measured first, from the run's inputs)."""
+    g = p.add_argument_group("the probe (reference object casting the real shadow)" + (
+        ": measure the light first, from the inputs (at most 30 frames), and use its light, shadow colour and "
+        "exposure as --light-from does (docs/light.md)" if run else ""))
     g.add_argument("--probe", metavar="MODEL", help="mesh file (metres) or box:WX,WY,HZ / cylinder:R,H / sphere:R")
     g.add_argument("--probe-place", type=_floats(3), default=(0.0, 0.0, 0.0), metavar="X,Y,Z",
                    help="translation, metres, marker frame (applied last)")
@@ -56,6 +59,45 @@ def add_probe_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--probe-scale", type=_positive, default=1.0, metavar="S", help="uniform scale (first)")
     g.add_argument("--kind", default="directional", metavar="K",
                    help="directional (default), point, or sun:LAT,LON,TIME (fits the world's bearing NORTH)")
+
+
+#: frames a render / video / batch run's --probe estimate uses at most (photos evenly spaced; video frames)
+PROBE_FRAMES = 30
+
+
+def probe_estimate(args, inputs, *, calib, marker_length, dictionary=None, marker_id=None):
+    """``render`` / ``video`` / ``batch`` with ``--probe``: the light estimated once from the run's inputs (at
+    most :data:`PROBE_FRAMES` frames in all), one line on stderr; None without ``--probe``.
+
+    Raises
+    ------
+    UsageError
+        ``--probe`` with ``--light-from`` (one measured light at a time).
+    """
+    from ..errors import UsageError
+    from ..estimate import estimate_light
+    from ..estimate.api import VIDEO_EXTENSIONS
+
+    if not getattr(args, "probe", None):
+        return None
+    if getattr(args, "light_from", None):
+        raise UsageError("give either --probe (measure the light now) or --light-from FILE, not both")
+    items = [str(x) for x in inputs]
+    videos = [x for x in items if x.lower().endswith(tuple(VIDEO_EXTENSIONS))]
+    photos = [x for x in items if x not in videos]
+    if videos:  # the first videos, their frames shared out
+        use, per = videos[:PROBE_FRAMES], max(1, PROBE_FRAMES // min(len(videos), PROBE_FRAMES))
+    else:
+        k = min(len(photos), PROBE_FRAMES)
+        use, per = [photos[round(i * (len(photos) - 1) / max(k - 1, 1))] for i in range(k)], 1
+    est = estimate_light(use, calib=calib, marker_length=marker_length, probe=args.probe,
+                         probe_place=args.probe_place, probe_rotate=args.probe_rotate, probe_scale=args.probe_scale,
+                         dictionary=dictionary, marker_id=marker_id, kind=args.kind, max_frames=per)
+    print(f"light: {est.light} (+-{est.uncertainty_deg:.2f} deg, {est.frames} frame(s)), shadow ratio "
+          + " ".join(f"{v:.3f}" for v in est.shadow_ratio), file=sys.stderr)
+    for w in est.warnings:
+        print(f"warning: {w}", file=sys.stderr)
+    return type(est).from_dict(est.to_dict())  # the numbers its JSON holds: the same run as --light-from
 
 
 def register(subparsers) -> None:

@@ -9,6 +9,7 @@ import sys
 from ..errors import UsageError
 from ..scene import DEFAULT_AA, parse_triple, scene_from_args
 from . import EXIT_OK, EXIT_SOME_FAILED, error_line, quiet_opencv
+from .light import add_probe_options, probe_estimate
 
 log = logging.getLogger(__name__)
 
@@ -90,7 +91,8 @@ def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> No
                    help="a measured light (arshadow light ... -o FILE, docs/light.md): its light (unless --light "
                         "is given), its shadow colour (instead of --opacity/--shadow-color) and the marker's exposure")
     s.add_argument("--no-exposure", action="store_true",
-                   help="with --light-from: keep the object's colour as given (no exposure / white balance match)")
+                   help="keep the object's colour as given: no exposure / white balance match to the marker paper "
+                        "(on by default, every photo and video frame; docs/light.md)")
     s.add_argument("--light", action="append", metavar="L",
                    help="point:X,Y,Z | directional:X,Y,Z | sun:LAT,LON,TIME[,NORTH], optional @W weight; "
                         "repeat for several lights")
@@ -120,6 +122,7 @@ def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> No
                         "(point and up normal in the marker frame); the model and lights are placed in the "
                         "ground's frame (docs/geometry.md)")
     s.add_argument("--no-object", action="store_true", help="composite only the shadow, not the object")
+    add_probe_options(p, run=True)
     s.add_argument("--plan", choices=("auto", "general", "zpass", "zfail", "planar"), default="auto",
                    help="frame planner: auto (default: the cheapest exact path per frame and light, decisions "
                         "in the report's plan field), general (reference: z-fail, infinite volumes, whole "
@@ -180,8 +183,11 @@ def run(args) -> int:
                       layers_format=layers, layers_undistorted=undistorted)
     if layers is not None:  # a layer file that would replace an input: a usage error, before any work
         refuse_overwrite([p for j in jobs for p in j.layers.values()], inputs)
+    est = probe_estimate(args, inputs, calib=args.calib, marker_length=args.marker_length,
+                         dictionary=args.dictionary, marker_id=args.marker_id)  # --probe: docs/light.md
     bar = None
-    with Session(scene_from_args(args)) as session:  # loads the scene: a bad one is exit 2
+    spec = scene_from_args(args) if est is None else scene_from_args(args, light_from=est)
+    with Session(spec) as session:  # loads the scene: a bad one is exit 2
         try:  # made now (with the GL context): a bad --aa is a usage error (exit 2), not a per-photo one
             session.renderer  # noqa: B018
         except UsageError as exc:

@@ -162,13 +162,17 @@ def run(args) -> int:
     from ..video.parallel import BackendRecipe
     from ..video.runner import run_videos
     from . import quiet_opencv
+    from .light import probe_estimate
 
     debug = bool(getattr(args, "debug", False))
     quiet_opencv(debug)
     opts = engine_options(args, collect_items=bool(args.report))
     # video: search the marker near the last detection first (not with --plan general); --time-lapse and
     # --recompute-deg are scene keys (SceneSpec.time_lapse)
-    spec = scene_from_args(args, refine=args.corner_refine, track_roi=True)
+    est = probe_estimate(args, args.videos, calib=args.calib, marker_length=args.marker_length,
+                         dictionary=args.dictionary, marker_id=args.marker_id)  # --probe: docs/light.md
+    extra = {} if est is None else {"light_from": est}
+    spec = scene_from_args(args, refine=args.corner_refine, track_roi=True, **extra)
     # output paths before any work: a bad -o / --report is one usage error, not one per video
     outdir = check_output_folder(args.output, "-o")
     if args.report:

@@ -18,10 +18,14 @@ from ..tracking.dictionary import DEFAULT_DICTIONARY
 from ..tracking.tracker import MarkerTracker
 from .exposure import Exposure, ExposureError, measure_exposure
 from .light import fit_directional, fit_point, fit_sun
+from .penumbra import fit_angular_radius
 from .result import LightEstimate
 from .shadow import build_evidence, edge_pairs, fit_levels, shadow_coverage
 
 __all__ = ["MAX_FRAMES", "VIDEO_EXTENSIONS", "estimate_light"]
+
+#: smallest fitted angular radius (degrees) written into the light spec (below: a hard light)
+MIN_RADIUS_DEG = 0.25
 
 VIDEO_EXTENSIONS = (".mp4", ".mov", ".avi", ".mkv", ".m4v", ".webm")
 #: frames of a video used at most (evenly spaced)
@@ -262,9 +266,11 @@ def _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, verts, t0, notes) 
     h = res.light_h
     if kind_name == "directional":
         d = tuple(float(v) for v in h[:3])
-        return LightEstimate("directional", "directional:{:.6f},{:.6f},{:.6f}".format(*d), direction=d,
-                             shadow_ratio=ratio, uncertainty_deg=res.uncertainty_deg, exposure=exp,
-                             frames=len(coarse), fit=fit, warnings=warnings)
+        radius, _ = fit_angular_radius(res.fine, np.asarray(d))  # the penumbra: the light's angular size
+        spec = "directional:{:.6f},{:.6f},{:.6f}".format(*d) + (f",radius={radius:.3f}" if radius >= MIN_RADIUS_DEG else "")
+        return LightEstimate("directional", spec, direction=d, shadow_ratio=ratio, uncertainty_deg=res.uncertainty_deg,
+                             exposure=exp, frames=len(coarse), fit=fit, warnings=warnings,
+                             angular_diameter_deg=2.0 * radius)
     if kind_name == "sun":
         north = float(res.params[0]) % 360.0
         body = kind.split(":", 1)[1].split("@")[0]

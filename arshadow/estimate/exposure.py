@@ -23,7 +23,7 @@ from ..compose.composite import SRGB_TO_LINEAR
 from ..errors import ArshadowError
 from ..tracking.dictionary import get_dictionary, marker_bits
 
-__all__ = ["Exposure", "ExposureError", "measure_exposure", "sample_linear", "smooth_exposures"]
+__all__ = ["Exposure", "ExposureError", "ExposureSmoother", "measure_exposure", "sample_linear", "smooth_exposures"]
 
 
 class ExposureError(ArshadowError, ValueError):
@@ -93,6 +93,22 @@ def _remap_points(img: np.ndarray, uv: np.ndarray) -> np.ndarray:
     return out
 
 
+def _crop_to(image: np.ndarray, uv: np.ndarray):
+    """The part of ``image`` around the finite points ``uv`` (n, 2) (+ 3 px, inside the image) and the points
+    in its pixels: a point is inside the crop exactly when it is inside the image."""
+    H, W = image.shape[:2]
+    fin = np.all(np.isfinite(uv), axis=1)
+    if not fin.any():
+        return image, uv
+    lo = np.floor(uv[fin].min(axis=0)).astype(int) - 3
+    hi = np.ceil(uv[fin].max(axis=0)).astype(int) + 4
+    x0, y0 = max(int(lo[0]), 0), max(int(lo[1]), 0)
+    x1, y1 = min(int(hi[0]), W), min(int(hi[1]), H)
+    if x1 - x0 < 2 or y1 - y0 < 2:
+        return image, uv
+    return image[y0:y1, x0:x1], uv - np.array([x0, y0], np.float64)
+
+
 def _cell_points(bits: np.ndarray, length: float):
     """World points (3 x 3 per cell, central half) of every cell: ((c*c*9, 3) float64, (c*c,) bool white)."""
     c = bits.shape[0]
@@ -140,6 +156,7 @@ def measure_exposure(image_bgr: np.ndarray, intrinsics: Intrinsics, cam_from_wor
     bits = marker_bits(get_dictionary(dictionary), int(marker_id))
     pts, white = _cell_points(bits, float(marker_length))
     uv = intrinsics.project(pts, cam_from_world)
+    image_bgr, uv = _crop_to(image_bgr, uv)  # only the marker's pixels are decoded (once per video frame)
     rgb = sample_linear(image_bgr, uv).reshape(len(white), 9, 3)
     raw = _remap_points(image_bgr.astype(np.float32), uv).reshape(len(white), 9, 3)
     cell = np.nanmedian(rgb, axis=1) if np.isfinite(rgb).any() else np.full((len(white), 3), np.nan)
@@ -186,25 +203,51 @@ def smooth_exposures(measurements, time_constant: float = 5.0, jump: float = 0.1
     >>> [round(x.paper_rgb[0], 3) for x in smooth_exposures(e)]
     [0.5, 0.5, 0.5, 0.544, 0.8, 0.8, 0.8]
     """
-    a = 1.0 - math.exp(-1.0 / max(float(time_constant), 1e-6))
-    out: list = []
-    state = None
-    pending = 0
-    for m in measurements:
+    sm = ExposureSmoother(time_constant, jump)
+    return [sm.update(m) for m in measurements]
+
+
+class ExposureSmoother:
+    """:func:`smooth_exposures` one frame at a time (a video's render loop): :meth:`update` with each
+    frame's measurement (or None) returns the smoothed one; :meth:`state` / :meth:`restore` carry the filter
+    between processes (parallel video chunks).
+
+    >>> sm = ExposureSmoother()
+    >>> [round(sm.update(Exposure((v,) * 3, (0.02,) * 3, 20)).paper_rgb[0], 3) for v in (0.5, 0.5, 0.8, 0.8)]
+    [0.5, 0.5, 0.544, 0.8]
+    """
+
+    def __init__(self, time_constant: float = 5.0, jump: float = 0.15):
+        self.a = 1.0 - math.exp(-1.0 / max(float(time_constant), 1e-6))
+        self.jump = float(jump)
+        self._state: np.ndarray | None = None
+        self._pending = 0
+        self._last: Exposure | None = None
+
+    def update(self, m: Exposure | None) -> Exposure | None:
+        """The smoothed measurement after frame measurement ``m`` (None: the last smoothed one)."""
         if m is None:
-            out.append(out[-1] if out else None)
-            continue
+            return self._last
         x = np.log(np.maximum(np.r_[m.paper_rgb, m.ink_rgb], 1e-6))
-        if state is None:
-            state = x
+        if self._state is None:
+            self._state = x
         else:
-            far = abs(np.mean(x[:3] - state[:3])) > math.log1p(jump)
-            pending = pending + 1 if far else 0
-            if pending >= 2:  # a new exposure: followed at once
-                state, pending = x, 0
+            far = abs(np.mean(x[:3] - self._state[:3])) > math.log1p(self.jump)
+            self._pending = self._pending + 1 if far else 0
+            if self._pending >= 2:  # a new exposure: followed at once
+                self._state, self._pending = x, 0
             else:
-                state = state + a * (x - state)
-        v = np.exp(state)
-        out.append(Exposure(tuple(float(t) for t in v[:3]), tuple(float(t) for t in v[3:]), m.white_cells,
-                            m.saturated))
-    return out
+                self._state = self._state + self.a * (x - self._state)
+        v = np.exp(self._state)
+        self._last = Exposure(tuple(float(t) for t in v[:3]), tuple(float(t) for t in v[3:]), m.white_cells,
+                              m.saturated)
+        return self._last
+
+    def state(self) -> dict:
+        return {"state": None if self._state is None else self._state.tolist(), "pending": self._pending,
+                "last": None if self._last is None else self._last.to_dict()}
+
+    def restore(self, st: dict) -> None:
+        self._state = None if st.get("state") is None else np.asarray(st["state"], np.float64)
+        self._pending = int(st.get("pending", 0))
+        self._last = None if st.get("last") is None else Exposure.from_dict(st["last"])

@@ -273,7 +273,7 @@ def fit_sun(coarse: list, make_fine, enu) -> FitResult:
 
 def fit_point(coarse: list, make_fine, anchor) -> FitResult:
     """Fit a point light's position (3 DOF) as (azimuth, elevation, log distance) from the probe's top
-    ``anchor`` (3,): the directional fit, the objective's profile over 12 distances (0.15..3 m; azimuth and
+    ``anchor`` (3,): the directional fit, the objective's profile over 9 distances (3..0.15 m, warm-started; azimuth and
     elevation re-fitted at each) and a coarse 3-D grid around it, then Nelder-Mead in 3-D on the fine grids
     from the two best distances of the profile and the grid's best; the lowest objective wins."""
     d = fit_directional(coarse, make_fine)
@@ -293,14 +293,17 @@ def fit_point(coarse: list, make_fine, anchor) -> FitResult:
     # each distance (the shadow's outline moves with both), from the directional fit
     count = _Counter(fine, to_light)
     profile = []
-    for t in np.geomspace(0.15, 3.0, 12):
-        q0 = np.array([az0, el0, math.log(t)])
+    ae = np.array([az0, el0])
+    for t in np.geomspace(3.0, 0.15, 9):  # far to near, each distance warm-started from the previous one
+        q0 = np.r_[ae, math.log(t)]
         if to_light(q0) is None:
             continue
         init = np.vstack([q0[:2], q0[:2] + [2.0, 0.0], q0[:2] + [0.0, 2.0]])
         r = minimize(lambda a, lt=q0[2]: count(np.r_[a, lt]), q0[:2], method="Nelder-Mead",
-                     options={"initial_simplex": init, "xatol": 0.1, "fatol": 1e-6, "maxiter": 60})
+                     options={"initial_simplex": init, "xatol": 0.1, "fatol": 1e-6, "maxiter": 45})
         profile.append((r.fun, np.r_[r.x, q0[2]]))
+        if np.isfinite(r.fun):
+            ae = r.x
     profile.sort(key=lambda x: x[0])
     starts = [q for f, q in profile[:2] if np.isfinite(f)]
     # and the best of a coarse 3-D grid around the directional fit (another basin, when the profile misses it)
@@ -311,6 +314,8 @@ def fit_point(coarse: list, make_fine, anchor) -> FitResult:
         starts.append(grid[int(np.argmin(scores))])
     if not starts:
         raise EstimateError("no point light above the probe explains its shadow")
+    # the 3-D refinement from the two starts that explain the fine grids best (each costs up to 400 evaluations)
+    starts = sorted(starts, key=lambda q: count(q))[:2]
     res, n = _refine(fine, to_light, starts, (2.0, 2.0, 0.15), 1e-3)
     q = res.x.copy()
     h = to_light(q)

@@ -56,6 +56,10 @@ class LightEstimate:
         Diagnostics: explained variance, visible share of the shadow, runner-up, evaluations, time.
     warnings : list of str
         Plausible problems (a low-confidence result says so here).
+    angular_diameter_deg : float or None
+        Directional: the light's angular diameter fitted to the shadow's penumbra (an upper bound: the
+        camera's blur softens the edge too); the light spec then carries ``radius=`` (half of it) when it is
+        at least 0.25 degrees (radius), for ``--soft-samples``.
     """
 
     kind: str
@@ -70,6 +74,7 @@ class LightEstimate:
     frames: int = 1
     fit: dict = field(default_factory=dict)
     warnings: list = field(default_factory=list)
+    angular_diameter_deg: float | None = None
 
     @property
     def confident(self) -> bool:
@@ -83,7 +88,7 @@ class LightEstimate:
                 "position_uncertainty": _r(self.position_uncertainty),
                 "exposure": None if self.exposure is None else self.exposure.to_dict(),
                 "frames": int(self.frames), "confident": self.confident, "fit": self.fit,
-                "warnings": list(self.warnings)}
+                "warnings": list(self.warnings), "angular_diameter_deg": _r(self.angular_diameter_deg, 4)}
 
     def to_json(self, indent: int | None = 1) -> str:
         return json.dumps(self.to_dict(), indent=indent)
@@ -99,7 +104,7 @@ class LightEstimate:
                        position_uncertainty=d.get("position_uncertainty"),
                        exposure=None if d.get("exposure") is None else Exposure.from_dict(d["exposure"]),
                        frames=int(d.get("frames", 1)), fit=dict(d.get("fit", {})),
-                       warnings=list(d.get("warnings", [])))
+                       warnings=list(d.get("warnings", [])), angular_diameter_deg=d.get("angular_diameter_deg"))
         except (KeyError, TypeError, ValueError) as exc:
             raise UsageError(f"not a light estimate ({type(exc).__name__}: {exc}); make one with arshadow light "
                              "--json") from None

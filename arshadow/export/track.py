@@ -36,6 +36,7 @@ import cv2
 import numpy as np
 
 from ..errors import UsageError
+from ..geometry.ground import parse_ground
 from ..io import write_bytes
 
 __all__ = [
@@ -134,11 +135,13 @@ def quat_from_matrix(R) -> np.ndarray:
     return -qa if qa[3] < 0 else qa
 
 
-def _matrix(rvec, tvec) -> np.ndarray:
+def _matrix(rvec, tvec, ground=None) -> np.ndarray:
+    """(4, 4) float64 ``cam_from_world`` of a report's marker pose; with a ``ground`` spec (``--ground``) the
+    world is the ground frame (``cam_from_marker @ marker_from_ground``), where the occluder was placed."""
     m = np.eye(4)
     m[:3, :3] = cv2.Rodrigues(np.asarray(rvec, np.float64).reshape(3))[0]
     m[:3, 3] = np.asarray(tvec, np.float64).reshape(3)
-    return m
+    return m if not ground else m @ parse_ground(ground).marker_from_ground
 
 
 def track_from_frames_jsonl(path, intr, name: str = "") -> CameraTrack:
@@ -156,7 +159,7 @@ def track_from_frames_jsonl(path, intr, name: str = "") -> CameraTrack:
         try:
             d = json.loads(line)
             ok = d.get("status") in ("ok", "held") and d.get("rvec") is not None
-            m = _matrix(d["rvec"], d["tvec"]) if ok else None
+            m = _matrix(d["rvec"], d["tvec"], d.get("ground")) if ok else None
             status = "lost" if not ok else ("tracked" if d.get("raw") is not None and d["status"] == "ok" else "held")
             frames.append(TrackFrame(int(d["frame"]), float(d["time_s"]), status, m))
         except (ValueError, KeyError, TypeError) as exc:
@@ -172,7 +175,7 @@ def track_from_items(items, intr, name: str = "photos", fps: float = 1.0) -> Cam
         d = it if isinstance(it, dict) else it.to_dict()
         ok = d.get("status") == "ok" and d.get("rvec") is not None
         frames.append(TrackFrame(i, i / float(fps), "tracked" if ok else "lost",
-                                 _matrix(d["rvec"], d["tvec"]) if ok else None))
+                                 _matrix(d["rvec"], d["tvec"], d.get("ground")) if ok else None))
     return CameraTrack.from_intrinsics(intr, frames, name)
 
 

@@ -149,7 +149,7 @@ class GpuCompositor:
 
     @current
     def compose(self, image, layers, roi, canvas, *, lens=None, opacity=0.7, shadow_color=(0.0, 0.0, 0.0),
-                draw_occluder=True, out=None, mask_out=None, timings=None):
+                draw_occluder=True, out=None, mask_out=None, timings=None, color_gain=(1.0, 1.0, 1.0)):
         """Composite the layers into ``out`` over ``roi`` (the numpy path's result within one level).
 
         Parameters
@@ -173,6 +173,8 @@ class GpuCompositor:
             Receives ``round(255 * mask)`` over ``roi`` (C-contiguous); not read back if None.
         timings : dict, optional
             ``upload``, ``draw``, ``readback`` (ms) are added to it.
+        color_gain : (3,) float
+            Per-channel (R, G, B) gain on the occluder's linear colour (the exposure match).
 
         Returns
         -------
@@ -194,6 +196,7 @@ class GpuCompositor:
             lt.update((x0, y0, w, h))
             lt.tex.use(5)
         self._set_uniforms(canvas, (x0, y0, w, h), lens is not None, opacity, shadow_color, draw_occluder)
+        self.prog["u_gain"].value = tuple(float(v) for v in np.asarray(color_gain, np.float32).reshape(3)[::-1])
         self._photo.use(0)
         self._dec.use(1)
         self._enc.use(2)

@@ -62,6 +62,8 @@ class SessionBackend:
         self.cal = self.session.calibration(width, height)
         for tr in self.tracks:
             tr.reset()
+        if getattr(self.session, "exposure", None) is not None:  # the exposure match's smoothing starts afresh
+            self.session.exposure.reset()
         self.recomputes = 0
 
     def track(self, gray, timings):

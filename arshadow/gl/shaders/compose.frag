@@ -17,6 +17,7 @@ uniform bool u_gray;             // grey shadow colour: one multiplier for the t
 uniform float u_gray_k;          // float32(-opacity * (1 - shadow_color[0]))
 uniform vec3 u_dark;             // float32(opacity * (1 - shadow_color)) in B, G, R order
 uniform bool u_darken;           // mask present and opacity > 0
+uniform vec3 u_gain;             // gain on the occluder's colour in B, G, R order (exposure match)
 layout(location = 0) out vec4 o_rgb;   // RGBA8: (B, G, R, 255) / 255 (read back as GL_RGB -> BGR bytes)
 layout(location = 1) out vec4 o_mask;  // R8: round(255 * mask) / 255
 
@@ -82,7 +83,7 @@ void main() {
     }
     lin *= g;
     if (u_occluder) {
-        lin += c.bgr;   // premultiplied colour, RGB -> BGR
+        lin += c.bgr * u_gain;   // premultiplied colour, RGB -> BGR
     }
     vec3 idx = clamp(lin * 65535.0 + 0.5, 0.0, 65535.0);
     uvec3 k = uvec3(idx);   // truncation, as numpy's unsafe cast to uint16
