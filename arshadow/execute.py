@@ -252,18 +252,21 @@ def _compose_cpu(plan, image, intr, geometry, renderer, lens, work, passes, out,
 
     # composite
     t = time.perf_counter()
-    if gain is not None and opts.draw_occluder:  # the exposure match, linear light (premultiplied colour)
-        color = np.array(color, np.float32)  # a copy: the renderer's arrays stay as rendered
+    gained = gain is not None and opts.draw_occluder  # the exposure match, linear light (premultiplied colour)
+    if gained and layer_request is not None:  # layers hold the gained colour (copies: the renderer's stay)
+        color = np.array(color, np.float32)
         color[:, :, :3] *= gain
         pinhole = (pinhole[0], np.array(pinhole[1], np.float32))
         pinhole[1][:, :, :3] *= gain
+        gained = False  # applied
     if layer_request is not None:  # execute's ``layers``: gets the frame's layers
         layer_request["layers"] = _frame_layers(layer_request.get("undistorted"), mask, color, alpha, roi, (H, W),
                                                 opts, lens is not None, pinhole, canvas,
                                                 getattr(res, "premultiplied", True))
     composite(out, mask, roi, color=color if opts.draw_occluder else None,
               alpha=alpha if opts.draw_occluder else None, opacity=opts.opacity,
-              shadow_color=opts.shadow_color, premultiplied=getattr(res, "premultiplied", True), out=out, work=work)
+              shadow_color=opts.shadow_color, premultiplied=getattr(res, "premultiplied", True),
+              color_gain=gain if gained else None, out=out, work=work)
     if want_mask:
         x0, y0, w, h = roi
         m = work.get("mask255", (h, w), np.float32)

@@ -174,6 +174,7 @@ def composite(
     opacity: float = 1.0,
     shadow_color=(0.0, 0.0, 0.0),
     premultiplied: bool = True,
+    color_gain=None,
     out: np.ndarray | None = None,
     work: Workspace | None = None,
 ) -> np.ndarray:
@@ -198,6 +199,8 @@ def composite(
         Tint of a full shadow (black = plain darkening); see :func:`parse_rgb`.
     premultiplied : bool
         Whether ``color`` is premultiplied by ``alpha``.
+    color_gain : (3,) float linear RGB, optional
+        Per-channel gain on ``color`` (the exposure / white-balance match); ``color`` itself is not modified.
     out : (H, W, 3) uint8, optional
         Output buffer (may be ``photo`` itself to composite in place); a copy of ``photo`` otherwise.
     work : Workspace, optional
@@ -274,6 +277,8 @@ def composite(
         cv2.cvtColor(col, cv2.COLOR_RGBA2BGR if col.shape[2] == 4 else cv2.COLOR_RGB2BGR, dst=cb)
         if not premultiplied:
             cb *= a[:, :, None]
+        if color_gain is not None:
+            cb *= np.asarray(color_gain, np.float32).reshape(3)[::-1]  # RGB gain on the BGR buffer
         lin += cb
     # back to 8-bit sRGB through the 16-bit table, in the workspace
     lin *= np.float32(65535.0)
