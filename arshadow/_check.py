@@ -31,9 +31,7 @@ def check_shape(a, spec: str, name: str = "array") -> np.ndarray:
     """
     arr = np.asarray(a)
     dims = [d.strip() for d in spec.split(",") if d.strip()]
-    ok = arr.ndim == len(dims) and all(
-        (not d.isdigit()) or arr.shape[i] == int(d) for i, d in enumerate(dims)
-    )
+    ok = arr.ndim == len(dims) and all((not d.isdigit()) or arr.shape[i] == int(d) for i, d in enumerate(dims))
     if not ok:
         raise ShapeError(f"{name} has the wrong shape", actual_shape=arr.shape, expected_shape=f"({spec})")
     return arr

@@ -107,8 +107,10 @@ class Intrinsics:
         return hash(self._key())
 
     def __repr__(self):
-        return (f"Intrinsics(fx={self.fx:.6g}, fy={self.fy:.6g}, cx={self.cx:.6g}, cy={self.cy:.6g}, "
-                f"width={self.width}, height={self.height}, dist={np.round(self.dist, 6).tolist()})")
+        return (
+            f"Intrinsics(fx={self.fx:.6g}, fy={self.fy:.6g}, cx={self.cx:.6g}, cy={self.cy:.6g}, "
+            f"width={self.width}, height={self.height}, dist={np.round(self.dist, 6).tolist()})"
+        )
 
     # -- basic properties --------------------------------------------------------------------------
     @property
@@ -234,8 +236,9 @@ class Intrinsics:
         319.5
         """
         sx, sy = width / self.width, height / self.height
-        return Intrinsics(self.fx * sx, self.fy * sy, (self.cx + 0.5) * sx - 0.5, (self.cy + 0.5) * sy - 0.5,
-                          width, height, self.dist)
+        return Intrinsics(
+            self.fx * sx, self.fy * sy, (self.cx + 0.5) * sx - 0.5, (self.cy + 0.5) * sy - 0.5, width, height, self.dist
+        )
 
     def for_image(self, width: int, height: int) -> tuple[Intrinsics, bool]:
         """Intrinsics for an image of ``width x height``: ``(intrinsics, was_scaled)``.
@@ -251,7 +254,8 @@ class Intrinsics:
         if width <= 0 or height <= 0 or abs(width * self.height / self.width - height) > 1.0:
             raise CalibrationError(
                 f"image size {width}x{height} does not match the calibration's {self.width}x{self.height} "
-                f"(and is not the same aspect ratio)")
+                f"(and is not the same aspect ratio)"
+            )
         return self.scaled(width, height), True
 
     # -- projection ----------------------------------------------------------------------------------

@@ -17,8 +17,19 @@ from .session import Session
 __all__ = ["find_samples", "scene_spec", "run_demo", "SCENE_JSON_KEYS"]
 
 #: the keys of a samples/scenes.json entry that describe the scene (the rest: photo, title)
-SCENE_JSON_KEYS = ("calib", "model", "scale", "rotate", "place", "color", "lights", "soft_samples", "marker_length",
-                   "dictionary", "marker_id")
+SCENE_JSON_KEYS = (
+    "calib",
+    "model",
+    "scale",
+    "rotate",
+    "place",
+    "color",
+    "lights",
+    "soft_samples",
+    "marker_length",
+    "dictionary",
+    "marker_id",
+)
 
 
 def find_samples(explicit=None) -> Path:
@@ -28,8 +39,10 @@ def find_samples(explicit=None) -> Path:
     for c in cands:
         if (c / "scenes.json").is_file():
             return c
-    raise UsageError(f"no samples found ({', '.join(str(c / 'scenes.json') for c in cands)} missing); "
-                     "run from the repository root or pass --samples DIR")
+    raise UsageError(
+        f"no samples found ({', '.join(str(c / 'scenes.json') for c in cands)} missing); "
+        "run from the repository root or pass --samples DIR"
+    )
 
 
 def scene_spec(sc: dict, root: Path, aa: int):
@@ -106,8 +119,9 @@ def _demo_scene(sc, samples, root, outdir, aa, ctx, renderer, panels, debug, on_
     def done(job, item, res, err):
         if res is not None:
             item.title = title
-            panels.append(caption_panel(res.composite, f"{title}  |  {item.mode}, {item.silhouette_edges} "
-                                                       "silhouette edges"))
+            panels.append(
+                caption_panel(res.composite, f"{title}  |  {item.mode}, {item.silhouette_edges} silhouette edges")
+            )
         if on_done is not None:
             on_done(job, item, res, err)
 

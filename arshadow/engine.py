@@ -28,8 +28,10 @@ if TYPE_CHECKING:  # annotations only
 __all__ = ["CalibrationState", "estimate_pose", "check_image", "default_renderer", "DETECT_NOTES"]
 
 #: the report's ``plan.detect``: where the tracker searched (``MarkerTracker.last_search``)
-DETECT_NOTES = {"window": "window around the last detection",
-                "full": "whole frame (no window yet, or nothing found in it)"}
+DETECT_NOTES = {
+    "window": "window around the last detection",
+    "full": "whole frame (no window yet, or nothing found in it)",
+}
 
 
 @dataclass

@@ -31,9 +31,26 @@ __all__ = ["LAYERS_WHY", "STAGES", "execute"]
 LAYERS_WHY = "numpy (layers asked for: the composite and its layers come from the numpy path)"
 
 
-def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings: StageTimings | None = None,
-            item: ReportItem | None = None, want_mask=True, out=None, mask_out=None, chooser=None, gpu=None,
-            compose_key=None, layers: dict | None = None, color_gain=None):
+def execute(
+    plan,
+    image,
+    intr,
+    *,
+    geometry,
+    renderer,
+    lens=None,
+    work,
+    timings: StageTimings | None = None,
+    item: ReportItem | None = None,
+    want_mask=True,
+    out=None,
+    mask_out=None,
+    chooser=None,
+    gpu=None,
+    compose_key=None,
+    layers: dict | None = None,
+    color_gain=None,
+):
     """Render and composite one planned frame.
 
     Parameters
@@ -89,11 +106,19 @@ def execute(plan, image, intr, *, geometry, renderer, lens=None, work, timings: 
     item = item if item is not None else ReportItem(input="")
     H, W = image.shape[:2]
     passes = _light_passes(plan, geometry, timings, item)
-    which = "planar" if geometry.options.shadow_method == "planar" and geometry.options.plan == "auto" \
+    which = (
+        "planar"
+        if geometry.options.shadow_method == "planar" and geometry.options.plan == "auto"
         else geometry.options.plan
+    )
     roi_why = next((d.reason for d in plan.decisions if d.name == "roi"), "")
-    item.mode, item.modes, item.roi, item.canvas, item.znear = (plan.mode, plan.modes, list(plan.roi),
-                                                                list(plan.canvas), plan.znear)
+    item.mode, item.modes, item.roi, item.canvas, item.znear = (
+        plan.mode,
+        plan.modes,
+        list(plan.roi),
+        list(plan.canvas),
+        plan.znear,
+    )
     item.plan = {"plan": which, "roi": roi_why, "lights": item.plan}
     if out is None:
         out = image.copy()
@@ -141,9 +166,15 @@ def _light_passes(plan, geometry, timings, item) -> list:
         if plan.empty:
             continue
         # a culled light ("none"): no shadow pass, the renderer still shades the occluder with it
-        passes.append(LightPass(light_h=ls.light_h, weight=ls.weight, volume=vol,
-                                mode="zpass" if lp.mode == "none" else lp.mode,
-                                direct=lp.mode == "planar" and geometry.convex))
+        passes.append(
+            LightPass(
+                light_h=ls.light_h,
+                weight=ls.weight,
+                volume=vol,
+                mode="zpass" if lp.mode == "none" else lp.mode,
+                direct=lp.mode == "planar" and geometry.convex,
+            )
+        )
     item.silhouette_edges = n_edges
     item.plan = plan_lights
     return passes
@@ -167,6 +198,7 @@ def _run_compose(args, plan, timings, item, chooser, gpu, key) -> None:
             t = StageTimings()
             fn(*args, timings=t)
             return t
+
         return go
 
     paths = {"cpu": run(_compose_cpu)}
@@ -187,31 +219,84 @@ def _run_compose(args, plan, timings, item, chooser, gpu, key) -> None:
     item.plan["compose"] = why
 
 
-def _compose_gpu(plan, image, intr, geometry, renderer, lens, work, passes, out, mask_full, want_mask, item,
-                 layer_request, gain, *, gpu, timings):
+def _compose_gpu(
+    plan,
+    image,
+    intr,
+    geometry,
+    renderer,
+    lens,
+    work,
+    passes,
+    out,
+    mask_full,
+    want_mask,
+    item,
+    layer_request,
+    gain,
+    *,
+    gpu,
+    timings,
+):
     """Render with the layers kept on the GPU; lens warp + composite in a shader; one 8-bit readback."""
     opts = geometry.options
     roi, canvas = plan.roi, plan.canvas
     proj = intr.gl_projection(plan.znear, None, canvas=canvas)
     t = time.perf_counter()
-    lay = renderer.render_gpu(projection=proj, view=CV_TO_GL @ plan.cam_from_world, width=int(canvas[2]),
-                              height=int(canvas[3]), caster=geometry.caster, passes=passes,
-                              ground_size=opts.ground_size, draw_occluder=opts.draw_occluder,
-                              occluder_color=opts.occluder_color, ambient=opts.ambient, specular=opts.specular)
+    lay = renderer.render_gpu(
+        projection=proj,
+        view=CV_TO_GL @ plan.cam_from_world,
+        width=int(canvas[2]),
+        height=int(canvas[3]),
+        caster=geometry.caster,
+        passes=passes,
+        ground_size=opts.ground_size,
+        draw_occluder=opts.draw_occluder,
+        occluder_color=opts.occluder_color,
+        ambient=opts.ambient,
+        specular=opts.specular,
+    )
     timings.render += (time.perf_counter() - t) * 1e3
     ct: dict = {}
     t = time.perf_counter()
-    gpu.compose(image, lay, roi, canvas, lens=lens, opacity=opts.opacity, shadow_color=opts.shadow_color,
-                draw_occluder=opts.draw_occluder, out=out, mask_out=mask_full if want_mask else None, timings=ct,
-                color_gain=(1.0, 1.0, 1.0) if gain is None else tuple(float(v) for v in gain))
+    gpu.compose(
+        image,
+        lay,
+        roi,
+        canvas,
+        lens=lens,
+        opacity=opts.opacity,
+        shadow_color=opts.shadow_color,
+        draw_occluder=opts.draw_occluder,
+        out=out,
+        mask_out=mask_full if want_mask else None,
+        timings=ct,
+        color_gain=(1.0, 1.0, 1.0) if gain is None else tuple(float(v) for v in gain),
+    )
     # the readback waits for the render and the shader to finish: it holds the GPU time of both
     timings.readback += ct.get("readback", 0.0)
     timings.composite += (time.perf_counter() - t) * 1e3 - ct.get("readback", 0.0)
     item.composited = list(roi)
 
 
-def _compose_cpu(plan, image, intr, geometry, renderer, lens, work, passes, out, mask_full, want_mask, item,
-                 layer_request, gain, *, timings):
+def _compose_cpu(
+    plan,
+    image,
+    intr,
+    geometry,
+    renderer,
+    lens,
+    work,
+    passes,
+    out,
+    mask_full,
+    want_mask,
+    item,
+    layer_request,
+    gain,
+    *,
+    timings,
+):
     """Render, read the float layers back, lens warp (cv2.remap) or flip, composite in numpy."""
     H, W = image.shape[:2]
     opts = geometry.options
@@ -220,10 +305,19 @@ def _compose_cpu(plan, image, intr, geometry, renderer, lens, work, passes, out,
     proj = intr.gl_projection(plan.znear, None, canvas=canvas)
     view = CV_TO_GL @ plan.cam_from_world
     t = time.perf_counter()
-    res = renderer.render(projection=proj, view=view, width=int(canvas[2]), height=int(canvas[3]),
-                          caster=geometry.caster, passes=passes, ground_size=opts.ground_size,
-                          draw_occluder=opts.draw_occluder, occluder_color=opts.occluder_color,
-                          ambient=opts.ambient, specular=opts.specular)
+    res = renderer.render(
+        projection=proj,
+        view=view,
+        width=int(canvas[2]),
+        height=int(canvas[3]),
+        caster=geometry.caster,
+        passes=passes,
+        ground_size=opts.ground_size,
+        draw_occluder=opts.draw_occluder,
+        occluder_color=opts.occluder_color,
+        ambient=opts.ambient,
+        specular=opts.specular,
+    )
     dt = (time.perf_counter() - t) * 1e3
     rt = getattr(res, "timings_ms", None) or {}
     if "readback" in rt:
@@ -260,13 +354,32 @@ def _compose_cpu(plan, image, intr, geometry, renderer, lens, work, passes, out,
         pinhole[1][:, :, :3] *= gain
         gained = False  # applied
     if layer_request is not None:  # execute's ``layers``: gets the frame's layers
-        layer_request["layers"] = _frame_layers(layer_request.get("undistorted"), mask, color, alpha, roi, (H, W),
-                                                opts, lens is not None, pinhole, canvas,
-                                                getattr(res, "premultiplied", True))
-    composite(out, mask, roi, color=color if opts.draw_occluder else None,
-              alpha=alpha if opts.draw_occluder else None, opacity=opts.opacity,
-              shadow_color=opts.shadow_color, premultiplied=getattr(res, "premultiplied", True),
-              color_gain=gain if gained else None, out=out, work=work)
+        layer_request["layers"] = _frame_layers(
+            layer_request.get("undistorted"),
+            mask,
+            color,
+            alpha,
+            roi,
+            (H, W),
+            opts,
+            lens is not None,
+            pinhole,
+            canvas,
+            getattr(res, "premultiplied", True),
+        )
+    composite(
+        out,
+        mask,
+        roi,
+        color=color if opts.draw_occluder else None,
+        alpha=alpha if opts.draw_occluder else None,
+        opacity=opts.opacity,
+        shadow_color=opts.shadow_color,
+        premultiplied=getattr(res, "premultiplied", True),
+        color_gain=gain if gained else None,
+        out=out,
+        work=work,
+    )
     if want_mask:
         x0, y0, w, h = roi
         m = work.get("mask255", (h, w), np.float32)
@@ -314,8 +427,10 @@ def _warp_layers(layers, plan, lens, work, item, W: int, H: int):
         roi = (int(canvas[0]) + k0, int(canvas[1]) + r0, k1 - k0 + 1, r1 - r0 + 1)
         b0, b1 = ch - 1 - r1, ch - r0  # the same rows, bottom-up
         s0, s1 = c0[b0:b1, k0 : k1 + 1], c1[b0:b1, k0 : k1 + 1]
-        warped = (cv2.flip(s0, 0, dst=work.get("flip0", s0.shape, np.float32)),
-                  cv2.flip(s1, 0, dst=work.get("flip1", s1.shape, np.float32)))
+        warped = (
+            cv2.flip(s0, 0, dst=work.get("flip0", s0.shape, np.float32)),
+            cv2.flip(s1, 0, dst=work.get("flip1", s1.shape, np.float32)),
+        )
     item.composited = list(roi)
     return roi, warped
 
@@ -329,6 +444,9 @@ def _frame_layers(undistorted, mask, color, alpha, roi, shape, opts, distorted, 
     kw = {"opacity": opts.opacity, "shadow_color": opts.shadow_color, "premultiplied": premultiplied}
     lay = layers_from_warped(mask, rgba, roi, shape, **kw)
     if undistorted:
-        lay.undistorted = pinhole_layers(pinhole[0], pinhole[1] if opts.draw_occluder else None, canvas, shape,
-                                         **kw) if distorted else lay
+        lay.undistorted = (
+            pinhole_layers(pinhole[0], pinhole[1] if opts.draw_occluder else None, canvas, shape, **kw)
+            if distorted
+            else lay
+        )
     return lay

@@ -21,9 +21,32 @@ from .errors import ImageError
 
 #: the photo extensions arshadow recognises (OpenCV's image readers): folders are listed by them, ``batch``
 #: tells photos from videos by them, ``--keep-format`` keeps them
-IMAGE_EXTENSIONS = frozenset({".png", ".jpg", ".jpeg", ".jpe", ".bmp", ".dib", ".tif", ".tiff", ".webp", ".ppm",
-                              ".pgm", ".pnm", ".pbm", ".pxm", ".pfm", ".jp2", ".exr", ".hdr", ".pic", ".sr", ".ras",
-                              ".avif"})
+IMAGE_EXTENSIONS = frozenset(
+    {
+        ".png",
+        ".jpg",
+        ".jpeg",
+        ".jpe",
+        ".bmp",
+        ".dib",
+        ".tif",
+        ".tiff",
+        ".webp",
+        ".ppm",
+        ".pgm",
+        ".pnm",
+        ".pbm",
+        ".pxm",
+        ".pfm",
+        ".jp2",
+        ".exr",
+        ".hdr",
+        ".pic",
+        ".sr",
+        ".ras",
+        ".avif",
+    }
+)
 
 
 def read_image(path) -> np.ndarray:
@@ -96,9 +119,9 @@ def _orientation_from_bytes(b: bytes) -> int:
             marker = b[i + 1]
             if marker in (0xD9, 0xDA):  # end of image / start of scan: no EXIF before the pixels
                 break
-            size = struct.unpack(">H", b[i + 2:i + 4])[0]
-            if marker == 0xE1 and b[i + 4:i + 10] == b"Exif\0\0":
-                tiff = b[i + 10:i + 2 + size]
+            size = struct.unpack(">H", b[i + 2 : i + 4])[0]
+            if marker == 0xE1 and b[i + 4 : i + 10] == b"Exif\0\0":
+                tiff = b[i + 10 : i + 2 + size]
                 break
             i += 2 + size
     elif b[:4] in (b"II*\0", b"MM\0*"):
@@ -108,12 +131,12 @@ def _orientation_from_bytes(b: bytes) -> int:
     e = "<" if tiff[:2] == b"II" else ">"
     try:
         ifd = struct.unpack(e + "I", tiff[4:8])[0]
-        n = struct.unpack(e + "H", tiff[ifd:ifd + 2])[0]
+        n = struct.unpack(e + "H", tiff[ifd : ifd + 2])[0]
         for k in range(n):
             off = ifd + 2 + 12 * k
-            tag, typ = struct.unpack(e + "HH", tiff[off:off + 4])
+            tag, typ = struct.unpack(e + "HH", tiff[off : off + 4])
             if tag == 0x0112 and typ == 3:
-                val = struct.unpack(e + "H", tiff[off + 8:off + 10])[0]
+                val = struct.unpack(e + "H", tiff[off + 8 : off + 10])[0]
                 return int(val) if 1 <= val <= 8 else 1
     except struct.error:
         return 1

@@ -41,8 +41,18 @@ from .io import (
 )
 from .report import ReportItem
 
-__all__ = ["PhotoJob", "expand_inputs", "photo_jobs", "render_photo_file", "render_photos", "write_params",
-           "track_photos", "pose_overlay", "contact_sheet", "caption_panel"]
+__all__ = [
+    "PhotoJob",
+    "expand_inputs",
+    "photo_jobs",
+    "render_photo_file",
+    "render_photos",
+    "write_params",
+    "track_photos",
+    "pose_overlay",
+    "contact_sheet",
+    "caption_panel",
+]
 
 
 @dataclass(frozen=True)
@@ -83,8 +93,15 @@ def expand_inputs(items) -> list[str]:
     return out
 
 
-def photo_jobs(inputs, outdir, *, save_mask: bool = False, keep_format: bool = False,
-               layers_format: str | None = None, layers_undistorted: bool = False) -> list[PhotoJob]:
+def photo_jobs(
+    inputs,
+    outdir,
+    *,
+    save_mask: bool = False,
+    keep_format: bool = False,
+    layers_format: str | None = None,
+    layers_undistorted: bool = False,
+) -> list[PhotoJob]:
     """A :class:`PhotoJob` per input: ``DIR/<stem>.png`` (the input's format with ``keep_format``),
     ``DIR/<stem>.shadow.png`` and with ``layers_format`` (``png`` / ``exr``) the layer files; stems that
     collide get ``_2``, ``_3``... (:func:`arshadow.io.unique_stems`).
@@ -102,8 +119,15 @@ def photo_jobs(inputs, outdir, *, save_mask: bool = False, keep_format: bool = F
         suffix = Path(inp).suffix.lower()
         ext = suffix if keep_format and suffix in IMAGE_EXTENSIONS else ".png"
         lay = None if layers_format is None else layer_paths(outdir, stem, layers_format, layers_undistorted)
-        jobs.append(PhotoJob(str(inp), outdir / f"{stem}{ext}", outdir / f"{stem}.shadow.png" if save_mask else None,
-                             lay, layers_format or "png"))
+        jobs.append(
+            PhotoJob(
+                str(inp),
+                outdir / f"{stem}{ext}",
+                outdir / f"{stem}.shadow.png" if save_mask else None,
+                lay,
+                layers_format or "png",
+            )
+        )
     return jobs
 
 
@@ -142,19 +166,26 @@ def render_photo_file(session, job: PhotoJob, *, buffers: dict | None = None):
     orientation = exif_orientation(job.input)  # processed as stored (the calibration's frame)
     out = mask_out = None
     if buffers is not None:
-        out, mask_out = buffers.setdefault(image.shape[:2], (np.empty(image.shape, np.uint8),
-                                                             np.empty(image.shape[:2], np.uint8)))
+        out, mask_out = buffers.setdefault(
+            image.shape[:2], (np.empty(image.shape, np.uint8), np.empty(image.shape[:2], np.uint8))
+        )
     want_layers = False if job.layers is None else "undistorted" if "stmap" in job.layers else True
-    res = session.process(image, name=job.input, want_mask=job.mask is not None, out=out, mask_out=mask_out,
-                          layers=want_layers)
+    res = session.process(
+        image, name=job.input, want_mask=job.mask is not None, out=out, mask_out=mask_out, layers=want_layers
+    )
     # outputs upright as a viewer shows the input (EXIF orientation; they carry no EXIF)
-    res.item.output = str(write_image(job.output, apply_orientation(res.composite, orientation),
-                                      write_params(job.output)))
+    res.item.output = str(
+        write_image(job.output, apply_orientation(res.composite, orientation), write_params(job.output))
+    )
     if job.mask is not None:
         res.item.mask = str(write_image(job.mask, apply_orientation(res.mask, orientation)))
     if job.layers is not None:
-        write_layers(job.layers, res.layers, job.layers_format,
-                     orient=functools.partial(apply_orientation, orientation=orientation))
+        write_layers(
+            job.layers,
+            res.layers,
+            job.layers_format,
+            orient=functools.partial(apply_orientation, orientation=orientation),
+        )
         if "stmap" in job.layers:  # the pinhole layers' distortion map (stored frame, as they are)
             cal = session.calibration(image.shape[1], image.shape[0])
             write_stmap(job.layers["stmap"], stmap(cal.intrinsics, None if cal.lens is None else cal.lens.maps))
@@ -166,8 +197,9 @@ def render_photo_file(session, job: PhotoJob, *, buffers: dict | None = None):
 OnDone = Callable[[PhotoJob, ReportItem, object, BaseException | None], None]
 
 
-def render_photos(session, jobs, *, debug: bool = False, on_done: OnDone | None = None,
-                  guard: InputGuard | None = None) -> list[ReportItem]:
+def render_photos(
+    session, jobs, *, debug: bool = False, on_done: OnDone | None = None, guard: InputGuard | None = None
+) -> list[ReportItem]:
     """Render every photo; a photo that fails is recorded (``status`` ``no_marker`` or ``error``, with
     ``error``) and the others go on.
 
@@ -242,8 +274,12 @@ def track_photos(tracker, inputs, *, overlay_dir=None, on_done=None) -> list[Rep
             item.n_points, item.kind, item.calibration_scaled = int(pose.n_points), pose.kind, bool(pose.scaled)
             if overlay_dir is not None:
                 item.output = str(write_image(Path(overlay_dir) / f"{stem}.png", pose_overlay(image, pose, tracker)))
-            item.timings_ms = {"read": 1e3 * (t1 - t0), "detect": pose.timings_ms.get("detect", 1e3 * (t2 - t1)),
-                               "pose": pose.timings_ms.get("pose", 0.0), "total": 1e3 * (time.perf_counter() - t0)}
+            item.timings_ms = {
+                "read": 1e3 * (t1 - t0),
+                "detect": pose.timings_ms.get("detect", 1e3 * (t2 - t1)),
+                "pose": pose.timings_ms.get("pose", 0.0),
+                "total": 1e3 * (time.perf_counter() - t0),
+            }
         except ArshadowError as exc:
             err = exc
             item.status = "no_marker" if isinstance(exc, MarkerNotFoundError) else "error"
@@ -260,8 +296,11 @@ def pose_overlay(image, pose, tracker) -> np.ndarray:
     img = image.copy()
     ids = list(pose.all_corners)
     if ids:
-        cv2.aruco.drawDetectedMarkers(img, [c.reshape(1, 4, 2).astype(np.float32) for c in pose.all_corners.values()],
-                                      np.asarray(ids, np.int32).reshape(-1, 1))
+        cv2.aruco.drawDetectedMarkers(
+            img,
+            [c.reshape(1, 4, 2).astype(np.float32) for c in pose.all_corners.values()],
+            np.asarray(ids, np.int32).reshape(-1, 1),
+        )
     intr = pose.intrinsics
     if tracker.board is not None:
         length = 0.5 * min(tracker.board.extent)

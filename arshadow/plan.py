@@ -64,8 +64,20 @@ if TYPE_CHECKING:  # annotations only
 
 _T = TypeVar("_T")
 
-__all__ = ["Decision", "LightPlan", "FramePlan", "SceneGeometry", "LightState", "plan_frame", "decide_compose",
-           "shadow_footprint", "scene_hull_points", "pinhole_rect_for_scene", "ROI_MAX_POINTS"]
+__all__ = [
+    "Decision",
+    "LightPlan",
+    "FramePlan",
+    "SceneGeometry",
+    "LightState",
+    "plan_frame",
+    "decide_compose",
+    "shadow_footprint",
+    "scene_hull_points",
+    "pinhole_rect_for_scene",
+    "ROI_MAX_POINTS",
+]
+
 
 # --------------------------------------------------------------------------------------------------
 # the frame plan
@@ -180,8 +192,16 @@ class FramePlan:
         return bool(self.roi[2] == 0 or self.roi[3] == 0 or self.canvas[2] == 0 or self.canvas[3] == 0)
 
 
-def plan_frame(geometry: SceneGeometry, intr: Intrinsics, cam_from_world: ArrayLike, width: int, height: int, *,
-               lens: LensWarp | None = None, modes: Sequence[str] | None = None) -> FramePlan:
+def plan_frame(
+    geometry: SceneGeometry,
+    intr: Intrinsics,
+    cam_from_world: ArrayLike,
+    width: int,
+    height: int,
+    *,
+    lens: LensWarp | None = None,
+    modes: Sequence[str] | None = None,
+) -> FramePlan:
     """Plan one frame.
 
     Parameters
@@ -208,16 +228,28 @@ def plan_frame(geometry: SceneGeometry, intr: Intrinsics, cam_from_world: ArrayL
     opts = geometry.options
     znear = geometry.znear_for(cam_from_world)
     plan = FramePlan(size=(W, H), cam_from_world=cam_from_world, znear=znear, distorted=lens is not None)
-    plan.decide("znear", znear, "a quarter of the distance to the nearest of the object's box and the ground, "
-                                "at least 1e-4 m")
+    plan.decide(
+        "znear", znear, "a quarter of the distance to the nearest of the object's box and the ground, at least 1e-4 m"
+    )
     _plan_view(plan, geometry, intr, lens)
     general, off = opts.plan == "general", set(opts.plan_off)
     if opts.shadow_method == "volume":
         trunc = bool(opts.truncate) and not general and "truncate" not in off
-        plan.decide("truncate", trunc,
-                    "volumes end just below the ground (RenderOptions.truncate)" if trunc else
-                    "volumes extruded to infinity (" + ("the general plan" if general else "switched off (plan_off)"
-                                                         if "truncate" in off else "RenderOptions.truncate=False") + ")")
+        plan.decide(
+            "truncate",
+            trunc,
+            "volumes end just below the ground (RenderOptions.truncate)"
+            if trunc
+            else "volumes extruded to infinity ("
+            + (
+                "the general plan"
+                if general
+                else "switched off (plan_off)"
+                if "truncate" in off
+                else "RenderOptions.truncate=False"
+            )
+            + ")",
+        )
     _plan_lights(plan, geometry, _light_decisions(plan, geometry, intr, modes))
     return plan
 
@@ -233,17 +265,27 @@ def _plan_view(plan: FramePlan, geometry: SceneGeometry, intr: Any, lens: Any) -
     if opts.roi and not general and "roi" not in off:
         hull = geometry.hull()
         rect = None if hull is None else pinhole_rect(intr, cam_from_world, hull, znear)
-        why = ("a shadow footprint is unbounded (a light not above the object) and no ground size limits it"
-               if hull is None else "a point of the object or its shadow is not in front of the camera"
-               if rect is None else "the object and its shadows project into this rectangle")
+        why = (
+            "a shadow footprint is unbounded (a light not above the object) and no ground size limits it"
+            if hull is None
+            else "a point of the object or its shadow is not in front of the camera"
+            if rect is None
+            else "the object and its shadows project into this rectangle"
+        )
         if rect is None and hull is not None and "cull" not in off:
             # part of the hull is behind the camera: nothing to draw still, if it is all outside the view
             ext = lens.pinhole_extent if lens is not None else (-0.5, -0.5, W - 0.5, H - 0.5)
-            off_screen = outside_view(transform_points(cam_from_world, hull), intr.fx, intr.fy, intr.cx, intr.cy,
-                                      ext, znear)
+            off_screen = outside_view(
+                transform_points(cam_from_world, hull), intr.fx, intr.fy, intr.cx, intr.cy, ext, znear
+            )
     else:
-        why = ("general plan (reference): whole photo" if general else "ROI switched off (plan_off)"
-               if "roi" in off else "ROI off (RenderOptions.roi=False)")
+        why = (
+            "general plan (reference): whole photo"
+            if general
+            else "ROI switched off (plan_off)"
+            if "roi" in off
+            else "ROI off (RenderOptions.roi=False)"
+        )
     if off_screen:
         roi = canvas = (0, 0, 0, 0)
         why = "the object and its shadows are outside the view (one frustum plane excludes them all)"
@@ -257,8 +299,11 @@ def _plan_view(plan: FramePlan, geometry: SceneGeometry, intr: Any, lens: Any) -
         roi = lens.distorted_roi(rect, margin=2)
         canvas = lens.canvas_for(roi, rect) if roi[2] and roi[3] else (0, 0, 0, 0)
     plan.roi = plan.decide("roi", roi, why if rect is not None or off_screen else f"whole photo: {why}")
-    plan.canvas = plan.decide("canvas", canvas, "the pinhole pixels the distorted ROI samples" if lens is not None
-                              else "the ROI (no lens distortion)")
+    plan.canvas = plan.decide(
+        "canvas",
+        canvas,
+        "the pinhole pixels the distorted ROI samples" if lens is not None else "the ROI (no lens distortion)",
+    )
 
 
 def _light_decisions(plan: FramePlan, geometry: SceneGeometry, intr: Any, modes: Sequence[str] | None) -> list[Any]:
@@ -268,11 +313,15 @@ def _light_decisions(plan: FramePlan, geometry: SceneGeometry, intr: Any, modes:
     if modes is not None:
         return [LightDecision(m, bool(opts.truncate), {"mode": "forced by the caller"}) for m in modes]
     if opts.shadow_method == "shadowmap":
-        return [LightDecision("shadowmap", False, {"mode": "shadow-map baseline asked for (shadow_method='shadowmap')"})
-                for _ in geometry.lights]
+        return [
+            LightDecision("shadowmap", False, {"mode": "shadow-map baseline asked for (shadow_method='shadowmap')"})
+            for _ in geometry.lights
+        ]
     if plan.empty:
-        return [LightDecision("none", False, {"cull": "nothing of the scene in view: no render at all"})
-                for _ in geometry.lights]
+        return [
+            LightDecision("none", False, {"cull": "nothing of the scene in view: no render at all"})
+            for _ in geometry.lights
+        ]
     cam_from_world, znear, canvas = plan.cam_from_world, plan.znear, plan.canvas
     which = "planar" if opts.shadow_method == "planar" and opts.plan == "auto" else opts.plan
     u0, v0, cw, ch = canvas
@@ -281,11 +330,19 @@ def _light_decisions(plan: FramePlan, geometry: SceneGeometry, intr: Any, modes:
     rects = None
     if which == "auto" and "cull" not in off:
         rects = [geometry.footprint_rect(ls, intr, cam_from_world, znear) for ls in geometry.lights]
-    return decide_lights(which, geometry.caster, [ls.light_h for ls in geometry.lights],
-                         convex=geometry.convex if which == "auto" and "planar" not in off else False,
-                         eye_world=eye, near=near, draw_occluder=opts.draw_occluder,
-                         truncate=opts.truncate and "truncate" not in off, footprint_rects=rects,
-                         canvas=canvas, off=off)
+    return decide_lights(
+        which,
+        geometry.caster,
+        [ls.light_h for ls in geometry.lights],
+        convex=geometry.convex if which == "auto" and "planar" not in off else False,
+        eye_world=eye,
+        near=near,
+        draw_occluder=opts.draw_occluder,
+        truncate=opts.truncate and "truncate" not in off,
+        footprint_rects=rects,
+        canvas=canvas,
+        off=off,
+    )
 
 
 def _plan_lights(plan: FramePlan, geometry: SceneGeometry, decisions: list[Any]) -> None:
@@ -303,23 +360,40 @@ def _plan_lights(plan: FramePlan, geometry: SceneGeometry, decisions: list[Any])
             reason = light_why.get("planar", reason)
         elif culled:
             reason = light_why.get("cull", reason)
-        lp = LightPlan(i, ls.light_h, ls.weight, mode if planar else "none" if culled else "volume", mode, caps,
-                       reuse, reason, truncate=d.truncate, why=light_why)
+        lp = LightPlan(
+            i,
+            ls.light_h,
+            ls.weight,
+            mode if planar else "none" if culled else "volume",
+            mode,
+            caps,
+            reuse,
+            reason,
+            truncate=d.truncate,
+            why=light_why,
+        )
         plan.lights.append(lp)
         plan.decide(f"light{i}.mode", mode, reason)
         if not (planar or culled):
             plan.decide(f"light{i}.truncate", d.truncate, light_why.get("truncate", ""))
-            plan.decide(f"light{i}.volume", "reuse" if reuse else "build",
-                        ls.reuse if ls.reuse else "cached for this light" if reuse else "first use of this light "
-                        + ("with caps" if caps else "without caps"))
+            plan.decide(
+                f"light{i}.volume",
+                "reuse" if reuse else "build",
+                ls.reuse
+                if ls.reuse
+                else "cached for this light"
+                if reuse
+                else "first use of this light " + ("with caps" if caps else "without caps"),
+            )
 
 
 #: the reason of a ``compose`` decision taken from an earlier measurement (the report's ``plan.compose``)
 MEASURED = "measured on first use in this process: {ms} ms (median)"
 
 
-def decide_compose(plan: FramePlan, *, force: str | None, shader_available: bool,
-                   measured: dict[str, Any] | None = None) -> str:
+def decide_compose(
+    plan: FramePlan, *, force: str | None, shader_available: bool, measured: dict[str, Any] | None = None
+) -> str:
     """Decide how the frame's lens warp + composite runs, and record it in ``plan`` (``"compose"``).
 
     Parameters
@@ -350,5 +424,9 @@ def decide_compose(plan: FramePlan, *, force: str | None, shader_available: bool
         return plan.decide("compose", force, f"forced {force}")
     if measured is not None:
         return plan.decide("compose", str(measured["choice"]), MEASURED.format(ms=measured["ms"]))
-    return plan.decide("compose", "measure", "not measured yet for this photo size, anti-aliasing, lens and "
-                                             "backend: both paths are timed on this frame, the faster is kept")
+    return plan.decide(
+        "compose",
+        "measure",
+        "not measured yet for this photo size, anti-aliasing, lens and "
+        "backend: both paths are timed on this frame, the faster is kept",
+    )

@@ -19,11 +19,20 @@ from .errors import LightError
 from .lights.area import sample_area_light
 from .transforms import invert_rigid, transform_points
 
-__all__ = ["SceneGeometry", "LightState", "shadow_footprint", "scene_hull_points", "pinhole_rect_for_scene",
-           "pinhole_rect", "int_rect", "ROI_MAX_POINTS"]
+__all__ = [
+    "SceneGeometry",
+    "LightState",
+    "shadow_footprint",
+    "scene_hull_points",
+    "pinhole_rect_for_scene",
+    "pinhole_rect",
+    "int_rect",
+    "ROI_MAX_POINTS",
+]
 
 #: meshes with at most this many vertices bound the ROI by their vertices (~0.2 ms per light at 20k)
 ROI_MAX_POINTS = 20000
+
 
 # --------------------------------------------------------------------------------------------------
 # region of interest: pure geometry
@@ -110,8 +119,7 @@ def scene_hull_points(bounds, lights_h, ground_size=None, points=None) -> np.nda
     return np.concatenate(pts)
 
 
-def pinhole_rect_for_scene(intrinsics, cam_from_world, bounds, lights_h, ground_size=None, znear=1e-3,
-                           points=None):
+def pinhole_rect_for_scene(intrinsics, cam_from_world, bounds, lights_h, ground_size=None, znear=1e-3, points=None):
     """Pinhole pixel rectangle ``(u0, v0, u1, v1)`` covering the occluder and its shadows, or None (all).
 
     None means "the whole image": a footprint is unbounded and no ``ground_size`` limits it, or a point
@@ -131,8 +139,6 @@ def pinhole_rect(intrinsics, cam_from_world, hull, znear):
     if not (np.all(np.isfinite(u)) and np.all(np.isfinite(v))):
         return None
     return (float(u.min()), float(v.min()), float(u.max()), float(v.max()))
-
-
 
 
 def int_rect(rect, margin: int):
@@ -197,8 +203,9 @@ class SceneGeometry:
         self.bounds = b
         self.corners = _box_corners(b)
         # the ROI is bounded with the mesh's own vertices (tight) up to this many, else the box corners
-        self.roi_points = (np.asarray(caster.vertices, dtype=np.float64)
-                           if len(caster.vertices) <= ROI_MAX_POINTS else None)
+        self.roi_points = (
+            np.asarray(caster.vertices, dtype=np.float64) if len(caster.vertices) <= ROI_MAX_POINTS else None
+        )
         self.size = float(np.linalg.norm(b[1] - b[0]))
         self.lights: list[LightState] = []
         self.lights_in: list = []
@@ -236,8 +243,11 @@ class SceneGeometry:
             if not lt.above_horizon:
                 notes.append(f"light {lt.label or lt.kind} is below the horizon: no light, no shadow")
                 continue
-            samples = (sample_area_light(lt, int(self.options.soft_samples))
-                       if getattr(lt, "radius", 0.0) > 0 and self.options.soft_samples > 1 else [lt])
+            samples = (
+                sample_area_light(lt, int(self.options.soft_samples))
+                if getattr(lt, "radius", 0.0) > 0 and self.options.soft_samples > 1
+                else [lt]
+            )
             for s in samples:
                 h = np.asarray(s.homogeneous, float)
                 prev = old.get(tuple(h.tolist()))
@@ -248,10 +258,14 @@ class SceneGeometry:
                     o = old_list[len(states)]
                     tz = self.truncate_z(True)
                     sil, vols, why = reuse_light_geometry(
-                        self.caster, h, o.sil, {c: v for (c, t), v in o.volumes.items() if t}, truncate_z=tz)
+                        self.caster, h, o.sil, {c: v for (c, t), v in o.volumes.items() if t}, truncate_z=tz
+                    )
                     if sil is not None:
-                        states.append(LightState(s, float(s.weight) / total, h, sil,
-                                                 {(c, True): v for c, v in vols.items()}, reuse=why))
+                        states.append(
+                            LightState(
+                                s, float(s.weight) / total, h, sil, {(c, True): v for c, v in vols.items()}, reuse=why
+                            )
+                        )
                         continue
                 if prev is None:
                     n_new += 1
@@ -267,8 +281,10 @@ class SceneGeometry:
 
         :meth:`restore` of it (in this or another process, same caster and options) gives the same lights
         and skips recomputing their silhouettes and volumes."""
-        return {"lights": list(self.lights_in),
-                "geometry": [(ls.light_h.copy(), ls.sil, dict(ls.volumes)) for ls in self.lights]}
+        return {
+            "lights": list(self.lights_in),
+            "geometry": [(ls.light_h.copy(), ls.sil, dict(ls.volumes)) for ls in self.lights],
+        }
 
     def restore(self, state: dict) -> None:
         """Set the lights and cached geometry saved by :meth:`state`."""
@@ -306,8 +322,9 @@ class SceneGeometry:
 
             sil = self.silhouette(ls, timings)
             t = time.perf_counter()
-            vol = ls.volumes[(caps, truncate)] = shadow_volume(self.caster, ls.light_h, sil, caps=caps,
-                                                               truncate_z=self.truncate_z(truncate))
+            vol = ls.volumes[(caps, truncate)] = shadow_volume(
+                self.caster, ls.light_h, sil, caps=caps, truncate_z=self.truncate_z(truncate)
+            )
             if timings is not None:
                 timings.volume += (time.perf_counter() - t) * 1e3
         return vol
@@ -341,8 +358,13 @@ class SceneGeometry:
                 else:
                     lo = np.maximum(fp[:, :2].min(axis=0), -half)
                     hi = np.minimum(fp[:, :2].max(axis=0), half)
-                    fp = (np.zeros((0, 3)) if np.any(hi < lo) else
-                          np.array([[lo[0], lo[1], 0], [hi[0], lo[1], 0], [hi[0], hi[1], 0], [lo[0], hi[1], 0]], float))
+                    fp = (
+                        np.zeros((0, 3))
+                        if np.any(hi < lo)
+                        else np.array(
+                            [[lo[0], lo[1], 0], [hi[0], lo[1], 0], [hi[0], hi[1], 0], [lo[0], hi[1], 0]], float
+                        )
+                    )
             ls.footprint = fp
         fp = ls.footprint
         if fp is None:
@@ -355,8 +377,9 @@ class SceneGeometry:
         """:func:`scene_hull_points` of the current lights (recomputed only when the lights change)."""
         key = tuple(ls.light_h.tobytes() for ls in self.lights)
         if self._hull[0] != key:
-            hull = scene_hull_points(self.bounds, [ls.light_h for ls in self.lights], self.options.ground_size,
-                                     points=self.roi_points)
+            hull = scene_hull_points(
+                self.bounds, [ls.light_h for ls in self.lights], self.options.ground_size, points=self.roi_points
+            )
             self._hull = (key, hull)
         return self._hull[1]
 
@@ -390,7 +413,6 @@ class SceneGeometry:
         else:
             near = znear * np.sqrt(3.0)
         eye = invert_rigid(cam_from_world)[:3, 3]
-        return ["zfail" if camera_may_be_in_shadow(self.caster, ls.light_h, eye, near) else "zpass"
-                for ls in self.lights]
-
-
+        return [
+            "zfail" if camera_may_be_in_shadow(self.caster, ls.light_h, eye, near) else "zpass" for ls in self.lights
+        ]

@@ -242,8 +242,11 @@ def reuse_light_geometry(caster, light_h, sil, volumes: dict, *, truncate_z=None
     out, kept = {}, 0
     for caps, vol in volumes.items():
         new = shadow_volume(caster, h, sil2, caps=caps, truncate_z=truncate_z)
-        same = (new.truncated == vol.truncated and np.array_equal(new.triangles, vol.triangles)
-                and np.array_equal(new.vertices.astype(np.float32), vol.vertices.astype(np.float32)))
+        same = (
+            new.truncated == vol.truncated
+            and np.array_equal(new.triangles, vol.triangles)
+            and np.array_equal(new.vertices.astype(np.float32), vol.vertices.astype(np.float32))
+        )
         out[caps] = vol if same else new
         kept += same
     if volumes and kept == len(volumes):
@@ -304,8 +307,20 @@ class LightDecision:
         return self.mode == "none"
 
 
-def decide_lights(plan: str, caster, lights_h, *, convex: bool, eye_world, near: float, draw_occluder: bool,
-                  truncate: bool, footprint_rects=None, canvas=None, off=()) -> list[LightDecision]:
+def decide_lights(
+    plan: str,
+    caster,
+    lights_h,
+    *,
+    convex: bool,
+    eye_world,
+    near: float,
+    draw_occluder: bool,
+    truncate: bool,
+    footprint_rects=None,
+    canvas=None,
+    off=(),
+) -> list[LightDecision]:
     """Per light: volume mode (or planar, or culled) and truncation, with the reasons.
 
     Parameters
@@ -339,8 +354,13 @@ def decide_lights(plan: str, caster, lights_h, *, convex: bool, eye_world, near:
     out = []
     for i, h in enumerate(lights_h):
         if plan == "general":
-            out.append(LightDecision("zfail", False, {"mode": "forced general (reference): z-fail",
-                                                      "truncate": "general: volumes to infinity"}))
+            out.append(
+                LightDecision(
+                    "zfail",
+                    False,
+                    {"mode": "forced general (reference): z-fail", "truncate": "general: volumes to infinity"},
+                )
+            )
             continue
         trunc_why = "truncated just below the ground" if truncate else "--no-truncate: volumes to infinity"
         if plan in ("zpass", "zfail", "planar"):
@@ -348,14 +368,18 @@ def decide_lights(plan: str, caster, lights_h, *, convex: bool, eye_world, near:
             continue
         reasons = {}
         if footprint_rects is not None and canvas is not None and "cull" not in off:
-            in_view, why = light_shadow_in_view(footprint_rects[i], canvas,
-                                                occluder_matters=draw_occluder and not convex)
+            in_view, why = light_shadow_in_view(
+                footprint_rects[i], canvas, occluder_matters=draw_occluder and not convex
+            )
             reasons["cull"] = why
             if not in_view:
                 out.append(LightDecision("none", bool(truncate), reasons))
                 continue
-        ok, why = (False, "switched off") if "planar" in off else planar_applies(
-            caster, h, convex=convex, draw_occluder=draw_occluder)
+        ok, why = (
+            (False, "switched off")
+            if "planar" in off
+            else planar_applies(caster, h, convex=convex, draw_occluder=draw_occluder)
+        )
         reasons["planar"] = why
         if ok:
             out.append(LightDecision("planar", False, reasons))

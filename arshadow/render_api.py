@@ -152,7 +152,19 @@ class Renderer(Protocol):
     and returns a :class:`RenderResult` of the canvas. ``release()`` frees its GPU resources.
     """
 
-    def render(self, *, projection, view, width, height, caster, passes, ground_size=None, draw_occluder=True,
-               occluder_color=None, **kwargs) -> RenderResult: ...
+    def render(
+        self,
+        *,
+        projection,
+        view,
+        width,
+        height,
+        caster,
+        passes,
+        ground_size=None,
+        draw_occluder=True,
+        occluder_color=None,
+        **kwargs,
+    ) -> RenderResult: ...
 
     def release(self) -> None: ...

@@ -61,11 +61,34 @@ class StageTimings:
 
 
 #: the optional keys of an item, in the order the report writes them (only those set)
-OPTIONAL_KEYS = ("calibration_scaled", "notes", "detector", "frame", "time_s", "sun", "pose_flagged",
-                 "flag_reasons",
-                 "opencv_board_rvec", "opencv_board_tvec", "n_points", "kind", "raw", "pose_choice", "modes", "roi",
-                 "canvas", "znear", "plan", "content", "composited", "compose", "title", "layers", "ground",
-                 "exposure")
+OPTIONAL_KEYS = (
+    "calibration_scaled",
+    "notes",
+    "detector",
+    "frame",
+    "time_s",
+    "sun",
+    "pose_flagged",
+    "flag_reasons",
+    "opencv_board_rvec",
+    "opencv_board_tvec",
+    "n_points",
+    "kind",
+    "raw",
+    "pose_choice",
+    "modes",
+    "roi",
+    "canvas",
+    "znear",
+    "plan",
+    "content",
+    "composited",
+    "compose",
+    "title",
+    "layers",
+    "ground",
+    "exposure",
+)
 
 
 @dataclass
@@ -147,7 +170,9 @@ class ReportItem:
         self.pose_ambiguity = None if pose.pose_ambiguity is None else float(pose.pose_ambiguity)
         # the ratio is at or above the tracker's threshold: the mirrored solution may be the true one
         self.pose_flagged = bool(getattr(pose, "flagged", getattr(pose, "ambiguous", False)))
-        self.flag_reasons = pose_flag_reasons(pose, self.pose_flagged)  # why it is flagged ([] when it is not; arshadow.sanity)
+        self.flag_reasons = pose_flag_reasons(
+            pose, self.pose_flagged
+        )  # why it is flagged ([] when it is not; arshadow.sanity)
         if getattr(pose, "kind", None) in ("gridboard", "charuco"):
             # deferred: the report module loads without OpenCV (arshadow pose / render only ever get here)
             from .tracking.board import OPENCV_BOARD_TO_WORLD

@@ -84,8 +84,10 @@ def unit_guess(value: float, what: str = "--marker-length") -> str:
     >>> unit_guess(14.5)
     'centimetres (then give --marker-length 0.145; if millimetres, 0.0145)'
     """
-    cands = sorted((abs(math.log(value / f / TYPICAL_MARKER_M)), unit, value / f)
-                   for unit, f in (("millimetres", 1000.0), ("centimetres", 100.0)))
+    cands = sorted(
+        (abs(math.log(value / f / TYPICAL_MARKER_M)), unit, value / f)
+        for unit, f in (("millimetres", 1000.0), ("centimetres", 100.0))
+    )
     (_, u1, m1), (_, u2, m2) = cands
     return f"{u1} (then give {what} {m1:.4g}; if {u2}, {m2:.4g})"
 
@@ -114,26 +116,37 @@ def scale_warnings(caster, marker_length=None, square_length=None) -> list[str]:
     []
     """
     out: list[str] = []
-    what, length = ("--marker-length", marker_length) if marker_length is not None else \
-        ("the board's marker length", square_length)
+    what, length = (
+        ("--marker-length", marker_length)
+        if marker_length is not None
+        else ("the board's marker length", square_length)
+    )
     if length is None:
         return out
     length = float(length)
     if length > MAX_MARKER_LENGTH_M:
-        out.append(f"{what} {length:g}: a printed marker {length:g} m across? The length is metres: "
-                   f"probably {unit_guess(length, what)}")
+        out.append(
+            f"{what} {length:g}: a printed marker {length:g} m across? The length is metres: "
+            f"probably {unit_guess(length, what)}"
+        )
     elif length < MIN_MARKER_LENGTH_M:
-        out.append(f"{what} {length:g}: a printed marker {length * 1000:.3g} mm across? The length is metres "
-                   f"(a 5 cm marker is 0.05)")
+        out.append(
+            f"{what} {length:g}: a printed marker {length * 1000:.3g} mm across? The length is metres "
+            f"(a 5 cm marker is 0.05)"
+        )
     if caster is not None:
         size = float(np.max(caster.bounds[1] - caster.bounds[0]))
         if marker_length is not None and size > MAX_SIZE_RATIO * length:
-            out.append(f"{caster.name or 'the object'} is {size:.4g} m across, {size / length:.0f} x the "
-                       f"{length:.4g} m marker: wrong units? (mesh coordinates are metres; see --scale)")
+            out.append(
+                f"{caster.name or 'the object'} is {size:.4g} m across, {size / length:.0f} x the "
+                f"{length:.4g} m marker: wrong units? (mesh coordinates are metres; see --scale)"
+            )
         if 0 < size < MIN_OBJECT_RATIO * length:
-            out.append(f"{caster.name or 'the object'} is {size:.4g} m across, 1/{length / size:.0f} of the "
-                       f"{length:.4g} m marker: it will be a few pixels or vanish. Wrong units? (the marker "
-                       "length and the mesh are metres; see --scale)")
+            out.append(
+                f"{caster.name or 'the object'} is {size:.4g} m across, 1/{length / size:.0f} of the "
+                f"{length:.4g} m marker: it will be a few pixels or vanish. Wrong units? (the marker "
+                "length and the mesh are metres; see --scale)"
+            )
     return out
 
 
@@ -152,9 +165,11 @@ def ground_warnings(caster) -> list[str]:
         return []
     name = caster.name or "the model"
     share = min(1.0, -low / (high - low)) if high > low else 1.0
-    msg = (f"{name} reaches {-low:.4g} m below the ground (lowest z = {low:.4g} m; {share:.0%} of its height): "
-           "that part is hidden under the ground and casts no shadow (a mesh centred on its origin? use "
-           "--drop-to-ground to stand it on the ground, or raise --place's Z)")
+    msg = (
+        f"{name} reaches {-low:.4g} m below the ground (lowest z = {low:.4g} m; {share:.0%} of its height): "
+        "that part is hidden under the ground and casts no shadow (a mesh centred on its origin? use "
+        "--drop-to-ground to stand it on the ground, or raise --place's Z)"
+    )
     return [msg]
 
 
@@ -171,9 +186,11 @@ def check_lights_inside(caster, lights) -> None:
         if np.any(p < lo) or np.any(p > hi):
             continue
         if abs(caster.winding_number(p)) > 0.5:
-            raise LightError(f"light {light.label or 'point'}: the point light at {p.round(4).tolist()} is inside "
-                             f"the closed mesh {caster.name!r}: it lights nothing outside the mesh (move the "
-                             "light outside)")
+            raise LightError(
+                f"light {light.label or 'point'}: the point light at {p.round(4).tolist()} is inside "
+                f"the closed mesh {caster.name!r}: it lights nothing outside the mesh (move the "
+                "light outside)"
+            )
 
 
 def _box_distance(p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> float:
@@ -194,13 +211,16 @@ def light_warnings(caster, lights, soft_samples: int = 1) -> list[str]:
     '--soft-samples 16: no light has a size, so the shadows stay '
     """
     out = []
-    if int(soft_samples) > 1 and not any(float(getattr(L, "radius", 0.0)) > 0 or getattr(L, "kind", "") == "sun"
-                                         for L in lights):
+    if int(soft_samples) > 1 and not any(
+        float(getattr(L, "radius", 0.0)) > 0 or getattr(L, "kind", "") == "sun" for L in lights
+    ):
         points = [L.label or L.kind for L in lights if getattr(L, "kind", "") == "point"]
         hint = f" (e.g. {points[0]},radius=0.02)" if points else ""
-        out.append(f"--soft-samples {int(soft_samples)}: no light has a size, so the shadows stay hard; give a "
-                   f"point light a sphere radius in metres{hint} or a directional one an angular radius in "
-                   "degrees")
+        out.append(
+            f"--soft-samples {int(soft_samples)}: no light has a size, so the shadows stay hard; give a "
+            f"point light a sphere radius in metres{hint} or a directional one an angular radius in "
+            "degrees"
+        )
     if caster is None:
         return out
     lo, hi = (np.asarray(b, np.float64) for b in caster.bounds)
@@ -211,9 +231,11 @@ def light_warnings(caster, lights, soft_samples: int = 1) -> list[str]:
         p = np.asarray(L.vector, np.float64)[:3]
         d = _box_distance(p, lo, hi)
         if d < SLOW_LIGHT_RATIO * size:
-            out.append(f"light {L.label or 'point'} is {d:.3g} m from {caster.name or 'the object'} "
-                       f"({size:.3g} m across): its shadow volumes fan out over most of the photo, so each "
-                       "photo may take seconds; move the light further away for speed")
+            out.append(
+                f"light {L.label or 'point'} is {d:.3g} m from {caster.name or 'the object'} "
+                f"({size:.3g} m across): its shadow volumes fan out over most of the photo, so each "
+                "photo may take seconds; move the light further away for speed"
+            )
     return out
 
 
@@ -223,30 +245,40 @@ def check_shadowmap_lights(caster, lights) -> None:
     lo, hi = (np.asarray(b, np.float64) for b in caster.bounds)
     c, r = 0.5 * (lo + hi), max(0.5 * float(np.linalg.norm(hi - lo)), 1e-9)
     for light in lights:
-        if getattr(light, "kind", None) == "point" and \
-                float(np.linalg.norm(np.asarray(light.vector, np.float64)[:3] - c)) <= r * 1.0001:
-            raise UsageError(f"--shadow-method shadowmap: the point light {light.label or ''} is inside the bounding "
-                             f"sphere of {caster.name or 'the model'} (radius {r:.3g} m): one shadow map cannot see "
-                             "the whole model; move the light away or use --shadow-method volume")
+        if (
+            getattr(light, "kind", None) == "point"
+            and float(np.linalg.norm(np.asarray(light.vector, np.float64)[:3] - c)) <= r * 1.0001
+        ):
+            raise UsageError(
+                f"--shadow-method shadowmap: the point light {light.label or ''} is inside the bounding "
+                f"sphere of {caster.name or 'the model'} (radius {r:.3g} m): one shadow map cannot see "
+                "the whole model; move the light away or use --shadow-method volume"
+            )
 
 
-def check_scene(caster, lights, *, soft_samples: int = 1, marker_length=None, square_length=None,
-                shadow_method: str = "volume") -> list[str]:
+def check_scene(
+    caster, lights, *, soft_samples: int = 1, marker_length=None, square_length=None, shadow_method: str = "volume"
+) -> list[str]:
     """Every scene-level check, once per scene: raises for a scene that cannot render (LightError: a light
     inside the model; UsageError: a shadow map around a point light), returns the warnings (also logged by
     the caller)."""
     check_lights_inside(caster, lights)
     if shadow_method == "shadowmap":
         check_shadowmap_lights(caster, lights)
-    return (scale_warnings(caster, marker_length, square_length) + ground_warnings(caster)
-            + light_warnings(caster, lights, soft_samples))
+    return (
+        scale_warnings(caster, marker_length, square_length)
+        + ground_warnings(caster)
+        + light_warnings(caster, lights, soft_samples)
+    )
 
 
 def calibration_scaled_note(intrinsics, width: int, height: int) -> str:
     """The stderr line for a photo of another size than the calibration's (same aspect ratio: K scaled)."""
-    return (f"the calibration is for {intrinsics.width}x{intrinsics.height}, the photo is {width}x{height}: "
-            f"focal lengths and centre scaled by {width / intrinsics.width:.4g} (same aspect ratio); calibrate "
-            "at this size for the best accuracy")
+    return (
+        f"the calibration is for {intrinsics.width}x{intrinsics.height}, the photo is {width}x{height}: "
+        f"focal lengths and centre scaled by {width / intrinsics.width:.4g} (same aspect ratio); calibrate "
+        "at this size for the best accuracy"
+    )
 
 
 def sun_set_warning(tracks, start, speed: float, fps: float, n_frames: int, label: str = "") -> str | None:
@@ -278,8 +310,7 @@ def sun_set_warning(tracks, start, speed: float, fps: float, n_frames: int, labe
 
     def below(tr, idx):
         times = [start + timedelta(seconds=i * speed / fps) for i in idx]
-        return [not p.above_horizon for p in sun_positions(times, tr.lat, tr.lon, tr.elevation, tr.model,
-                                                           **tr.kwargs)]
+        return [not p.above_horizon for p in sun_positions(times, tr.lat, tr.lon, tr.elevation, tr.model, **tr.kwargs)]
 
     ranges = []
     samples = frames
@@ -311,8 +342,10 @@ def sun_set_warning(tracks, start, speed: float, fps: float, n_frames: int, labe
         return None
     where = ", ".join(f"{a}-{b}" if b > a else f"{a}" for a, b in sorted(set(ranges)))
     t_end = start + timedelta(seconds=(n - 1) * speed / fps)
-    return (f"{label + ': ' if label else ''}the sun is below the horizon in frames {where} of {n} (time-lapse "
-            f"{start.isoformat()} .. {t_end.isoformat()}): those frames get no sun shadow")
+    return (
+        f"{label + ': ' if label else ''}the sun is below the horizon in frames {where} of {n} (time-lapse "
+        f"{start.isoformat()} .. {t_end.isoformat()}): those frames get no sun shadow"
+    )
 
 
 def pose_flag_reasons(pose, flagged: bool | None = None) -> list[str]:
@@ -337,22 +370,27 @@ def pose_flag_reasons(pose, flagged: bool | None = None) -> list[str]:
     out = []
     ratio, thr = pose.pose_ambiguity, getattr(pose, "ambiguity_threshold", None)
     if ratio is not None and thr is not None and ratio >= thr:
-        out.append(f"ambiguous: the two planar solutions explain the corners almost equally (ratio {ratio:.3g} "
-                   f">= {thr:g})")
+        out.append(
+            f"ambiguous: the two planar solutions explain the corners almost equally (ratio {ratio:.3g} >= {thr:g})"
+        )
     ci = getattr(pose, "corner_instability", None)
     if ci is not None and ci > MAX_CORNER_INSTABILITY:
-        out.append(f"blurred corners: they move by {ci:.3g} of the marker's side between refinement windows "
-                   f"(> {MAX_CORNER_INSTABILITY:g})")
+        out.append(
+            f"blurred corners: they move by {ci:.3g} of the marker's side between refinement windows "
+            f"(> {MAX_CORNER_INSTABILITY:g})"
+        )
     bo = getattr(pose, "border_occlusion", None)
     if bo is not None and bo > MAX_BORDER_OCCLUSION:
-        out.append(f"marker partly covered: a border cell reads {bo:.2f} of the way to white "
-                   f"(> {MAX_BORDER_OCCLUSION:g})")
+        out.append(
+            f"marker partly covered: a border cell reads {bo:.2f} of the way to white (> {MAX_BORDER_OCCLUSION:g})"
+        )
     if getattr(pose, "kind", "marker") == "marker" and len(getattr(pose, "corners", ())) >= 4:
         q = np.asarray(pose.corners, np.float64)[:4]
         side = float(np.linalg.norm(q - np.roll(q, 1, axis=0), axis=1).min())
         if side < MIN_CONFIDENT_SIDE_PX:
-            out.append(f"small marker: {side:.1f} px across, under the {MIN_CONFIDENT_SIDE_PX:g} px a pose can be "
-                       "trusted at")
+            out.append(
+                f"small marker: {side:.1f} px across, under the {MIN_CONFIDENT_SIDE_PX:g} px a pose can be trusted at"
+            )
     return out or ["flagged by the tracker"]
 
 
@@ -383,15 +421,19 @@ class FrameChecks:
         if dist > MAX_CAMERA_DISTANCE_M and "far" not in self.said:
             self.said.add("far")
             ml = self.marker_length
-            why = (f"--marker-length {ml:g} is probably in {unit_guess(ml)}" if ml is not None and
-                   ml > MAX_MARKER_LENGTH_M else "the marker or board length is probably in the wrong units "
-                                                 "(metres)")
+            why = (
+                f"--marker-length {ml:g} is probably in {unit_guess(ml)}"
+                if ml is not None and ml > MAX_MARKER_LENGTH_M
+                else "the marker or board length is probably in the wrong units (metres)"
+            )
             out.append(f"the camera is {dist:.4g} m from the marker: {why}")
         if np.all(eye > self._lo) and np.all(eye < self._hi) and "inside" not in self.said:
             self.said.add("inside")
-            out.append(f"the camera is inside the bounding box of {self.caster.name or 'the object'} "
-                       f"({self._lo.round(4).tolist()} .. {self._hi.round(4).tolist()} m): the object may cover "
-                       "the whole photo")
+            out.append(
+                f"the camera is inside the bounding box of {self.caster.name or 'the object'} "
+                f"({self._lo.round(4).tolist()} .. {self._hi.round(4).tolist()} m): the object may cover "
+                "the whole photo"
+            )
         return out
 
 
@@ -480,5 +522,7 @@ class FlagTally:
         if not self.keys:
             return None
         kinds = ", ".join(f"{k} ({n})" for k, n in sorted(self.kinds.items(), key=lambda kv: -kv[1]))
-        return (f"{len(self.keys)} of {total} {what} have a flagged pose ({_ranges(self.keys)}): {kinds}; the "
-                "report's flag_reasons say why for each")
+        return (
+            f"{len(self.keys)} of {total} {what} have a flagged pose ({_ranges(self.keys)}): {kinds}; the "
+            "report's flag_reasons say why for each"
+        )

@@ -58,9 +58,20 @@ if TYPE_CHECKING:  # annotations only (the session imports this module; these lo
 
 log = logging.getLogger(__name__)
 
-__all__ = ["RenderOptions", "TrackerSpec", "ModelSpec", "TimeLapse", "SceneSpec", "Scene", "scene_from_dict",
-           "parse_time_lapse",
-           "scene_from_args", "load_scene", "parse_triple", "SCENE_KEYS"]
+__all__ = [
+    "RenderOptions",
+    "TrackerSpec",
+    "ModelSpec",
+    "TimeLapse",
+    "SceneSpec",
+    "Scene",
+    "scene_from_dict",
+    "parse_time_lapse",
+    "scene_from_args",
+    "load_scene",
+    "parse_triple",
+    "SCENE_KEYS",
+]
 
 
 #: shadow techniques: stencil volumes (exact), planar projection (exact on the ground for convex
@@ -177,8 +188,9 @@ class RenderOptions:
         if int(self.soft_samples) < 1:
             raise UsageError(f"--soft-samples {self.soft_samples}: must be >= 1")
         if self.aa not in AA_CHOICES:
-            raise UsageError(f"--aa {self.aa}: choose {', '.join(map(str, AA_CHOICES))} (multisample anti-aliasing "
-                             "samples; 0 = off)")
+            raise UsageError(
+                f"--aa {self.aa}: choose {', '.join(map(str, AA_CHOICES))} (multisample anti-aliasing samples; 0 = off)"
+            )
         if self.ground_size is not None and not (math.isfinite(self.ground_size) and self.ground_size > 0):
             raise UsageError(f"--ground-size {self.ground_size}: must be a positive number of metres")
         parse_ground(self.ground)
@@ -264,8 +276,15 @@ class ModelSpec:
         if self.color:
             parse_rgb(self.color, "--color")  # validates: three numbers 0..255
             color = tuple(float(v) / 255.0 for v in self.color.split(","))  # sRGB 0..1, as the loader takes
-        return load_occluder(self.source, scale=self.scale, rotate=self.rotate, place=self.place, color=color,
-                             up=self.up, drop_to_ground=self.drop_to_ground)
+        return load_occluder(
+            self.source,
+            scale=self.scale,
+            rotate=self.rotate,
+            place=self.place,
+            color=color,
+            up=self.up,
+            drop_to_ground=self.drop_to_ground,
+        )
 
 
 @dataclass(frozen=True)
@@ -327,8 +346,13 @@ class SceneSpec:
         elif lights is None:
             lights = [parse_light(s) if isinstance(s, str) else s for s in self.lights]
         opts = self.options.check()
-        for msg in check_scene(caster, lights, soft_samples=opts.soft_samples,  # LightError: exit 2, once
-                               marker_length=tracker.get("marker_length"), shadow_method=opts.shadow_method):
+        for msg in check_scene(
+            caster,
+            lights,
+            soft_samples=opts.soft_samples,  # LightError: exit 2, once
+            marker_length=tracker.get("marker_length"),
+            shadow_method=opts.shadow_method,
+        ):
             log.warning(msg)
         _check_silhouette_name(opts.silhouette)
         return Scene(intr, caster, list(lights), opts, tracker, static, tracks, time_lapse)
@@ -376,10 +400,43 @@ def _check_silhouette_name(name: str) -> None:
 
 
 #: the keys :func:`scene_from_dict` takes (``light`` is accepted for ``lights``)
-SCENE_KEYS = ("calib", "marker_length", "board", "dictionary", "marker_id", "refine", "inverted", "model", "scale", "rotate",
-              "place", "color", "up", "drop_to_ground", "lights", "soft_samples", "silhouette", "shadow_method", "opacity",
-              "shadow_color", "aa", "ground_size", "no_object", "roi", "truncate", "fast_detect", "plan", "compose",
-              "shadowmap_size", "track_roi", "light_from", "no_exposure", "ground", "time_lapse", "recompute_deg")
+SCENE_KEYS = (
+    "calib",
+    "marker_length",
+    "board",
+    "dictionary",
+    "marker_id",
+    "refine",
+    "inverted",
+    "model",
+    "scale",
+    "rotate",
+    "place",
+    "color",
+    "up",
+    "drop_to_ground",
+    "lights",
+    "soft_samples",
+    "silhouette",
+    "shadow_method",
+    "opacity",
+    "shadow_color",
+    "aa",
+    "ground_size",
+    "no_object",
+    "roi",
+    "truncate",
+    "fast_detect",
+    "plan",
+    "compose",
+    "shadowmap_size",
+    "track_roi",
+    "light_from",
+    "no_exposure",
+    "ground",
+    "time_lapse",
+    "recompute_deg",
+)
 
 
 def parse_triple(v: Any, key: str) -> tuple[float, float, float]:
@@ -412,9 +469,13 @@ def _value(d: Mapping[str, Any], key: str, conv: type, default: Any = None) -> A
     if v is None:
         return default
     what = {bool: "true or false", int: "a whole number", float: "a number", str: "a text"}[conv]
-    ok = (isinstance(v, bool) if conv is bool else
-          isinstance(v, str) if conv is str else
-          not isinstance(v, bool) and isinstance(v, (int, float, str)))
+    ok = (
+        isinstance(v, bool)
+        if conv is bool
+        else isinstance(v, str)
+        if conv is str
+        else not isinstance(v, bool) and isinstance(v, (int, float, str))
+    )
     try:
         out = conv(v) if ok else None
         if conv is int and (isinstance(v, float) and not float(v).is_integer()):
@@ -499,14 +560,18 @@ def scene_from_dict(d: Mapping[str, Any], base_dir: str | Path | None = None) ->
         if "lights" in d:
             raise UsageError("give either 'light' or 'lights', not both")
         d["lights"] = d.pop("light")
-    unknown = sorted(set(d) - set(SCENE_KEYS) - {"_shadow_color_linear", "_occluder_color", "_shading", "_exposure_gain"})
+    unknown = sorted(
+        set(d) - set(SCENE_KEYS) - {"_shadow_color_linear", "_occluder_color", "_shading", "_exposure_gain"}
+    )
     if unknown:
         raise UsageError(f"unknown scene key(s) {', '.join(map(repr, unknown))} (known: {', '.join(SCENE_KEYS)})")
     if d.get("light_from") is not None:  # a measured light (arshadow light -o FILE): docs/light.md
         d = _apply_estimate(d, base_dir)
     for key in ("calib", "model", "lights"):
         if d.get(key) is None or (key == "lights" and d[key] in ((), [])):
-            raise UsageError(f"the scene needs {key!r}" + (" (--light L or --light-from FILE)" if key == "lights" else ""))
+            raise UsageError(
+                f"the scene needs {key!r}" + (" (--light L or --light-from FILE)" if key == "lights" else "")
+            )
     lights = d["lights"]
     if isinstance(lights, str) or not hasattr(lights, "__iter__"):
         lights = [lights]
@@ -514,8 +579,12 @@ def scene_from_dict(d: Mapping[str, Any], base_dir: str | Path | None = None) ->
     if isinstance(model, (str, Path)) and ":" not in str(model):
         model = _path(model, base_dir)
     dictionary = d.get("dictionary")
-    if base_dir is not None and isinstance(dictionary, str) and not dictionary.upper().startswith("DICT_") and \
-            (Path(base_dir) / dictionary).exists():
+    if (
+        base_dir is not None
+        and isinstance(dictionary, str)
+        and not dictionary.upper().startswith("DICT_")
+        and (Path(base_dir) / dictionary).exists()
+    ):
         dictionary = _path(dictionary, base_dir)
     from .lights.spec import Light
 
@@ -526,24 +595,46 @@ def scene_from_dict(d: Mapping[str, Any], base_dir: str | Path | None = None) ->
         raise UsageError(f"model {model!r}: expected a mesh file or a primitive such as box:WX,WY,HZ")
     ml = _value(d, "marker_length", float)
     mid = _value(d, "marker_id", int)
-    tracker = TrackerSpec(dictionary=dictionary, marker_length=ml, marker_id=mid,
-                          board=_path(d.get("board"), base_dir), refine=d.get("refine", "default"),
-                          inverted=None if d.get("inverted") is None else bool(d.get("inverted")))
+    tracker = TrackerSpec(
+        dictionary=dictionary,
+        marker_length=ml,
+        marker_id=mid,
+        board=_path(d.get("board"), base_dir),
+        refine=d.get("refine", "default"),
+        inverted=None if d.get("inverted") is None else bool(d.get("inverted")),
+    )
     calib = d["calib"]
     if isinstance(calib, (str, Path)):
         calib = _path(calib, base_dir)
-    model_spec = ModelSpec(str(model), scale=_value(d, "scale", float, 1.0),
-                           rotate=parse_triple(d.get("rotate", (0, 0, 0)), "rotate"),
-                           place=parse_triple(d.get("place", (0, 0, 0)), "place"), color=_rgb_text(d.get("color")),
-                           up=_value(d, "up", str), drop_to_ground=_value(d, "drop_to_ground", bool, False))
+    model_spec = ModelSpec(
+        str(model),
+        scale=_value(d, "scale", float, 1.0),
+        rotate=parse_triple(d.get("rotate", (0, 0, 0)), "rotate"),
+        place=parse_triple(d.get("place", (0, 0, 0)), "place"),
+        color=_rgb_text(d.get("color")),
+        up=_value(d, "up", str),
+        drop_to_ground=_value(d, "drop_to_ground", bool, False),
+    )
     opts: dict[str, Any] = {}
     if d.get("shadow_color") is not None:
         from .compose.composite import parse_rgb
 
         opts["shadow_color"] = parse_rgb(d["shadow_color"], "--shadow-color")
-    for key, conv in (("opacity", float), ("shadow_method", str), ("shadowmap_size", int), ("silhouette", str), ("soft_samples", int),
-                      ("aa", int), ("ground_size", float), ("roi", bool), ("truncate", bool),
-                      ("fast_detect", bool), ("plan", str), ("compose", str), ("track_roi", bool)):
+    for key, conv in (
+        ("opacity", float),
+        ("shadow_method", str),
+        ("shadowmap_size", int),
+        ("silhouette", str),
+        ("soft_samples", int),
+        ("aa", int),
+        ("ground_size", float),
+        ("roi", bool),
+        ("truncate", bool),
+        ("fast_detect", bool),
+        ("plan", str),
+        ("compose", str),
+        ("track_roi", bool),
+    ):
         if d.get(key) is not None:
             opts[key] = _value(d, key, conv)
     if d.get("ground") is not None:
@@ -560,9 +651,14 @@ def scene_from_dict(d: Mapping[str, Any], base_dir: str | Path | None = None) ->
         opts["exposure"] = False
     if d.get("_exposure_gain") is not None:
         opts["exposure_gain"] = tuple(float(v) for v in d["_exposure_gain"])
-    return SceneSpec(camera=calib, tracker=tracker, model=model_spec,
-                     lights=tuple(s if not isinstance(s, str) else s.strip() for s in lights),
-                     options=RenderOptions(**opts), time_lapse=time_lapse_spec(d.get("time_lapse"), _value(d, "recompute_deg", float, 0.1), lights))
+    return SceneSpec(
+        camera=calib,
+        tracker=tracker,
+        model=model_spec,
+        lights=tuple(s if not isinstance(s, str) else s.strip() for s in lights),
+        options=RenderOptions(**opts),
+        time_lapse=time_lapse_spec(d.get("time_lapse"), _value(d, "recompute_deg", float, 0.1), lights),
+    )
 
 
 def scene_from_args(args: Any, **overrides: Any) -> SceneSpec:
@@ -601,8 +697,11 @@ def load_scene(path: str | Path, **overrides: Any) -> SceneSpec:
     except Exception as exc:  # noqa: BLE001 (yaml and json raise their own error types)
         mark = getattr(exc, "problem_mark", None)  # YAML: the message spans lines; say where, in one
         problem = getattr(exc, "problem", None)
-        why = (f"line {mark.line + 1}, column {mark.column + 1}: {problem}" if mark is not None and problem
-               else " ".join(str(exc).split()))
+        why = (
+            f"line {mark.line + 1}, column {mark.column + 1}: {problem}"
+            if mark is not None and problem
+            else " ".join(str(exc).split())
+        )
         raise UsageError(f"{p}: not a valid scene file ({type(exc).__name__}: {why})") from None
     if isinstance(data, dict) and isinstance(data.get("scene"), dict):
         data = data["scene"]

@@ -43,13 +43,13 @@ from typing import Any
 import cv2
 import numpy as np
 
+from .camera import Intrinsics
 from .compose.composite import Workspace
 from .compose.layers import Layers
-from .camera import Intrinsics
 from .compose.lens import LensWarp
 from .engine import CalibrationState, check_image, default_renderer, estimate_pose
-from .estimate.match import ExposureMatch
 from .errors import UsageError
+from .estimate.match import ExposureMatch
 from .execute import LAYERS_WHY, execute
 from .geometry.ground import check_camera_above, parse_ground
 from .io import read_image
@@ -141,8 +141,14 @@ class Session:
         The scene does not load (calibration, board, mesh, lights, options): the first problem found.
     """
 
-    def __init__(self, spec: SceneSpec | Scene | Mapping[str, Any] | str | os.PathLike[str], *,
-                 lights: Sequence[Any] | None = None, context: Any = None, renderer: Any = None) -> None:
+    def __init__(
+        self,
+        spec: SceneSpec | Scene | Mapping[str, Any] | str | os.PathLike[str],
+        *,
+        lights: Sequence[Any] | None = None,
+        context: Any = None,
+        renderer: Any = None,
+    ) -> None:
         if isinstance(spec, Scene):
             self.spec, self.scene = None, spec
         else:
@@ -174,10 +180,11 @@ class Session:
         tk = self.scene.tracker
         #: per-photo exposure / white balance match (arshadow.estimate.match); None when off, on a board or an
         #: inverted marker (its white cells are ink)
-        self.exposure = ExposureMatch(tk["marker_length"], tk.get("dictionary"), tk.get("marker_id"),
-                                      smooth=self.options.track_roi) \
-            if self.options.exposure and tk.get("board") is None and tk.get("marker_length") \
-            and not tk.get("inverted") else None
+        self.exposure = (
+            ExposureMatch(tk["marker_length"], tk.get("dictionary"), tk.get("marker_id"), smooth=self.options.track_roi)
+            if self.options.exposure and tk.get("board") is None and tk.get("marker_length") and not tk.get("inverted")
+            else None
+        )
         self.compose_chooser = PathChooser(force=None if self.options.compose == "auto" else self.options.compose)
 
     # -- resources ------------------------------------------------------------------------------------
@@ -263,8 +270,9 @@ class Session:
             # ROI, full-frame fallback: arshadow/tracking/roi_track.py)
             roi = bool(self.options.track_roi and self.options.plan != "general" and "board" not in tracker)
             lens = self._lens_for(intr) if intr.has_distortion else None
-            c = self._calibs[key] = CalibrationState(intr, scaled, lens, dict(tracker), roi,
-                                                     bool(self.options.fast_detect))
+            c = self._calibs[key] = CalibrationState(
+                intr, scaled, lens, dict(tracker), roi, bool(self.options.fast_detect)
+            )
         return c
 
     def _lens_for(self, intr: Intrinsics) -> LensWarp:
@@ -339,10 +347,20 @@ class Session:
         check_camera_above(cam_from_ground, self.ground.text)
         return cam_from_ground
 
-    def render(self, image: np.ndarray, pose: Any = None, *, plan: FramePlan | None = None, name: str = "",
-               want_mask: bool = True, out: np.ndarray | None = None, mask_out: np.ndarray | None = None,
-               timings: StageTimings | None = None, modes: Sequence[str] | None = None,
-               layers: bool | str = False) -> FrameResult:
+    def render(
+        self,
+        image: np.ndarray,
+        pose: Any = None,
+        *,
+        plan: FramePlan | None = None,
+        name: str = "",
+        want_mask: bool = True,
+        out: np.ndarray | None = None,
+        mask_out: np.ndarray | None = None,
+        timings: StageTimings | None = None,
+        modes: Sequence[str] | None = None,
+        layers: bool | str = False,
+    ) -> FrameResult:
         """Composite at a given pose, or carry out a plan of :meth:`plan`.
 
         Parameters
@@ -387,17 +405,25 @@ class Session:
         if plan is None:
             plan = self.plan(pose, image.shape[1], image.shape[0], modes=modes)
         elif tuple(plan.size) != (image.shape[1], image.shape[0]):
-            raise UsageError(f"{name or 'image'}: the plan is for {plan.size[0]}x{plan.size[1]}, the image is "
-                             f"{image.shape[1]}x{image.shape[0]}")
+            raise UsageError(
+                f"{name or 'image'}: the plan is for {plan.size[0]}x{plan.size[1]}, the image is "
+                f"{image.shape[1]}x{image.shape[0]}"
+            )
         tracked = pose if hasattr(pose, "cam_from_world") else None
         res = self._render(image, plan, tracked, item, timings, want_mask, out, mask_out, layers)
         timings.total += (time.perf_counter() - t0) * 1e3
         item.timings_ms = timings.as_dict(3)
         return res
 
-    def process(self, image: np.ndarray, name: str = "", want_mask: bool = True, out: np.ndarray | None = None,
-                mask_out: np.ndarray | None = None,
-                layers: bool | str = False) -> FrameResult:
+    def process(
+        self,
+        image: np.ndarray,
+        name: str = "",
+        want_mask: bool = True,
+        out: np.ndarray | None = None,
+        mask_out: np.ndarray | None = None,
+        layers: bool | str = False,
+    ) -> FrameResult:
         """:meth:`track` then :meth:`render`: composite the object and its shadow into one photo.
 
         Parameters
@@ -433,9 +459,18 @@ class Session:
         item.timings_ms = timings.as_dict(3)
         return res
 
-    def _render(self, image: np.ndarray, plan: FramePlan, pose: Any, item: ReportItem, timings: StageTimings,
-                want_mask: bool, out: np.ndarray | None, mask_out: np.ndarray | None,
-                layers: bool | str = False) -> FrameResult:
+    def _render(
+        self,
+        image: np.ndarray,
+        plan: FramePlan,
+        pose: Any,
+        item: ReportItem,
+        timings: StageTimings,
+        want_mask: bool,
+        out: np.ndarray | None,
+        mask_out: np.ndarray | None,
+        layers: bool | str = False,
+    ) -> FrameResult:
         """Execute ``plan`` on ``image`` and fill ``item`` (all but ``timings_ms``); ``pose``: the tracked
         :class:`~arshadow.tracking.pose.MarkerPose` or None; ``layers``: as :meth:`render`."""
         lay: dict[str, Any] | None = {"undistorted": layers == "undistorted"} if layers else None
@@ -464,15 +499,32 @@ class Session:
             if lay is not None and plan.compose != "cpu":  # the layers come from the numpy path
                 plan.decide("compose", "cpu", LAYERS_WHY)
             self._decide_compose(plan, renderer, key, want_mask, out, mask_out)
-        out, mask = execute(plan, image, cal.intrinsics, geometry=self.geometry, renderer=renderer, lens=cal.lens,
-                            work=self._work, timings=timings, item=item, want_mask=want_mask, out=out,
-                            mask_out=mask_out, chooser=self.compose_chooser, gpu=self._gpu_compositor,
-                            compose_key=key, layers=lay, color_gain=gain)
-        return FrameResult(out, mask, pose, np.asarray(cfw, np.float64), item, timings, plan,
-                           None if lay is None else lay["layers"])
+        out, mask = execute(
+            plan,
+            image,
+            cal.intrinsics,
+            geometry=self.geometry,
+            renderer=renderer,
+            lens=cal.lens,
+            work=self._work,
+            timings=timings,
+            item=item,
+            want_mask=want_mask,
+            out=out,
+            mask_out=mask_out,
+            chooser=self.compose_chooser,
+            gpu=self._gpu_compositor,
+            compose_key=key,
+            layers=lay,
+            color_gain=gain,
+        )
+        return FrameResult(
+            out, mask, pose, np.asarray(cfw, np.float64), item, timings, plan, None if lay is None else lay["layers"]
+        )
 
-    def _exposure_gain(self, image: np.ndarray, intr: Intrinsics, cfw: np.ndarray, pose: Any,
-                       item: ReportItem) -> np.ndarray | None:
+    def _exposure_gain(
+        self, image: np.ndarray, intr: Intrinsics, cfw: np.ndarray, pose: Any, item: ReportItem
+    ) -> np.ndarray | None:
         """The per-channel gain on the object's linear colour matching the marker paper (``item.exposure``
         gets the measurement), or None (off, or the paper not measurable)."""
         if self.exposure is None:
@@ -485,16 +537,30 @@ class Session:
             gain = gain / np.asarray(self.options.exposure_gain, np.float64)
         return gain
 
-    def _decide_compose(self, plan: FramePlan, renderer: Any, key: tuple[Any, ...], want_mask: bool,
-                        out: np.ndarray | None, mask_out: np.ndarray | None) -> None:
+    def _decide_compose(
+        self,
+        plan: FramePlan,
+        renderer: Any,
+        key: tuple[Any, ...],
+        want_mask: bool,
+        out: np.ndarray | None,
+        mask_out: np.ndarray | None,
+    ) -> None:
         """Record the plan's compose decision (unless it has one these buffers allow)."""
-        available = bool(getattr(renderer, "gpu_layers", False)) and (out is None or out.flags.c_contiguous) and \
-            (not want_mask or mask_out is None or mask_out.flags.c_contiguous)
+        available = (
+            bool(getattr(renderer, "gpu_layers", False))
+            and (out is None or out.flags.c_contiguous)
+            and (not want_mask or mask_out is None or mask_out.flags.c_contiguous)
+        )
         if plan.compose == "cpu" or (plan.compose is not None and available):
             return
         chooser = self.compose_chooser
-        decide_compose(plan, force=chooser.force, shader_available=available,
-                       measured=None if chooser.force else chooser.decisions.get(key))
+        decide_compose(
+            plan,
+            force=chooser.force,
+            shader_available=available,
+            measured=None if chooser.force else chooser.decisions.get(key),
+        )
 
     # -- lights and history ---------------------------------------------------------------------------
     def set_lights(self, lights: Sequence[Any]) -> int:
@@ -537,9 +603,11 @@ class Session:
         """The history later frames depend on, picklable: the current lights with their cached silhouettes
         and volumes, and the sun tracks' recompute schedule. :meth:`restore` it (here or in another
         process's session of the same spec) to go on exactly as this session would."""
-        return {"geometry": self.geometry.state(),
-                "sun_tracks": None if self._sun is None else [tr.state() for tr in self._sun[1]],
-                "exposure": None if self.exposure is None else self.exposure.state()}
+        return {
+            "geometry": self.geometry.state(),
+            "sun_tracks": None if self._sun is None else [tr.state() for tr in self._sun[1]],
+            "exposure": None if self.exposure is None else self.exposure.state(),
+        }
 
     def restore(self, state: dict[str, Any]) -> None:
         """Set the history saved by :meth:`state`."""
@@ -551,8 +619,9 @@ class Session:
                 tr.restore(st)
 
 
-def render_photo(spec: Any, image: np.ndarray | str | os.PathLike[str], name: str = "",
-                 want_mask: bool = True) -> FrameResult:
+def render_photo(
+    spec: Any, image: np.ndarray | str | os.PathLike[str], name: str = "", want_mask: bool = True
+) -> FrameResult:
     """One photo, one call: ``Session(spec).process(image)`` (context created and released).
 
     Parameters

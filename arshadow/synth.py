@@ -32,7 +32,16 @@ from .tracking.board import Board
 from .tracking.dictionary import get_dictionary, marker_bits, marker_object_points
 from .transforms import transform_points
 
-__all__ = ["SynthPhoto", "camera_effects", "camera_path", "look_at_pose", "pan_path", "random_pose", "render_marker_photo", "render_print_scene"]
+__all__ = [
+    "SynthPhoto",
+    "camera_effects",
+    "camera_path",
+    "look_at_pose",
+    "pan_path",
+    "random_pose",
+    "render_marker_photo",
+    "render_print_scene",
+]
 
 PAPER_WHITE = 235.0
 INK_BLACK = 22.0
@@ -136,10 +145,18 @@ def _rot_a_to_b(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.asarray(cv2.Rodrigues((v / s * math.atan2(s, c)).reshape(3, 1))[0])
 
 
-def random_pose(rng: np.random.Generator, intrinsics: Intrinsics, *,
-                distance: tuple[float, float] = (0.3, 0.8), tilt_deg: tuple[float, float] = (0.0, 70.0),
-                roll_deg: tuple[float, float] = (-180.0, 180.0), keep_in_view: ArrayLike | None = None,
-                margin_px: float = 10.0, max_tries: int = 200, target: ArrayLike = (0.0, 0.0, 0.0)) -> np.ndarray:
+def random_pose(
+    rng: np.random.Generator,
+    intrinsics: Intrinsics,
+    *,
+    distance: tuple[float, float] = (0.3, 0.8),
+    tilt_deg: tuple[float, float] = (0.0, 70.0),
+    roll_deg: tuple[float, float] = (-180.0, 180.0),
+    keep_in_view: ArrayLike | None = None,
+    margin_px: float = 10.0,
+    max_tries: int = 200,
+    target: ArrayLike = (0.0, 0.0, 0.0),
+) -> np.ndarray:
     """A random ``cam_from_world`` looking at ``target`` (default the world origin), placed anywhere in
     the image.
 
@@ -187,18 +204,29 @@ def random_pose(rng: np.random.Generator, intrinsics: Intrinsics, *,
             return pose
         uv = intrinsics.project(pts, pose)  # NaN for points behind the camera
         pin = intrinsics.project(pts, pose, distort=False)
-        if (np.all(np.isfinite(uv))
-                and np.all(uv >= margin_px) and np.all(uv[:, 0] <= intrinsics.width - 1 - margin_px)
-                and np.all(uv[:, 1] <= intrinsics.height - 1 - margin_px)
-                # guard against the distortion model's fold: the pinhole position must be sane too
-                and np.all(np.abs(pin[:, 0] - intrinsics.cx) < 2.0 * intrinsics.width)
-                and np.all(np.abs(pin[:, 1] - intrinsics.cy) < 2.0 * intrinsics.height)):
+        if (
+            np.all(np.isfinite(uv))
+            and np.all(uv >= margin_px)
+            and np.all(uv[:, 0] <= intrinsics.width - 1 - margin_px)
+            and np.all(uv[:, 1] <= intrinsics.height - 1 - margin_px)
+            # guard against the distortion model's fold: the pinhole position must be sane too
+            and np.all(np.abs(pin[:, 0] - intrinsics.cx) < 2.0 * intrinsics.width)
+            and np.all(np.abs(pin[:, 1] - intrinsics.cy) < 2.0 * intrinsics.height)
+        ):
             return pose
     raise UsageError("random_pose: could not keep the points in view; widen the distance range")
 
 
-def camera_path(n: int, *, radius: float = 0.55, height: tuple[float, float] = (0.3, 0.5), sweep_deg: float = 120.0,
-                start_deg: float = -90.0, target_wobble: float = 0.02, phase: float = 0.0) -> np.ndarray:
+def camera_path(
+    n: int,
+    *,
+    radius: float = 0.55,
+    height: tuple[float, float] = (0.3, 0.5),
+    sweep_deg: float = 120.0,
+    start_deg: float = -90.0,
+    target_wobble: float = 0.02,
+    phase: float = 0.0,
+) -> np.ndarray:
     """A smooth camera path around the origin: ``(n, 4, 4)`` float64 ``cam_from_world`` per frame.
 
     The eye moves on an arc of ``sweep_deg`` degrees at horizontal distance ``radius`` from the origin,
@@ -209,7 +237,7 @@ def camera_path(n: int, *, radius: float = 0.55, height: tuple[float, float] = (
     if n < 1:
         raise UsageError("camera_path needs n >= 1 frames")
     t = np.linspace(0.0, 1.0, n)
-    ang = np.radians(start_deg + sweep_deg * (3 * t ** 2 - 2 * t ** 3))  # ease in / out
+    ang = np.radians(start_deg + sweep_deg * (3 * t**2 - 2 * t**3))  # ease in / out
     h = height[0] + (height[1] - height[0]) * 0.5 * (1 - np.cos(2 * np.pi * (t + phase)))
     out = np.empty((n, 4, 4))
     for i in range(n):
@@ -219,8 +247,14 @@ def camera_path(n: int, *, radius: float = 0.55, height: tuple[float, float] = (
     return out
 
 
-def pan_path(n: int, *, eye: ArrayLike = (0.05, -0.5, 0.4), target: ArrayLike = (-0.06, 0.0, 0.0),
-             deg_per_frame: float = 0.25, axis: ArrayLike = (0.0, 0.0, 1.0)) -> np.ndarray:
+def pan_path(
+    n: int,
+    *,
+    eye: ArrayLike = (0.05, -0.5, 0.4),
+    target: ArrayLike = (-0.06, 0.0, 0.0),
+    deg_per_frame: float = 0.25,
+    axis: ArrayLike = (0.0, 0.0, 1.0),
+) -> np.ndarray:
     """A steady pan: ``(n, 4, 4)`` float64 ``cam_from_world``, the camera fixed at ``eye`` turning about
     ``axis`` (world, through the eye) at a constant ``deg_per_frame``, starting by looking at ``target``.
 
@@ -256,7 +290,7 @@ def _floor_texture(seed: int = 7) -> np.ndarray:
     fr[0, 0] = 1.0
     out = np.empty((n, n, 3), np.float32)
     base = np.array([95.0, 125.0, 150.0])  # BGR: warm grey-brown
-    spectrum = 1.0 / fr ** 1.3  # pink-ish noise: structure at every scale, no sharp edges
+    spectrum = 1.0 / fr**1.3  # pink-ish noise: structure at every scale, no sharp edges
     spectrum[fr > 0.25] = 0.0
     common = np.real(np.fft.ifft2(np.fft.fft2(rng.normal(size=(n, n))) * spectrum))
     common = (common - common.mean()) / common.std()
@@ -306,8 +340,9 @@ def _marker_texture(dictionary: str, marker_id: int, margin_rel: float) -> tuple
     """Texture of a single marker of side 1 (world units = marker lengths), centred on the origin."""
     bits = marker_bits(get_dictionary(dictionary), marker_id)
     h = 0.5 + margin_rel
-    tex, mapping = _layout_texture([((-0.5, 0.5), 1.0, bits)], np.zeros((0, 2, 2)), (-h, -h, h, h),
-                                   float(MARKER_TEXELS))
+    tex, mapping = _layout_texture(
+        [((-0.5, 0.5), 1.0, bits)], np.zeros((0, 2, 2)), (-h, -h, h, h), float(MARKER_TEXELS)
+    )
     tex.setflags(write=False)
     return tex, mapping
 
@@ -315,8 +350,9 @@ def _marker_texture(dictionary: str, marker_id: int, margin_rel: float) -> tuple
 def _board_markers(board: Board) -> list:
     """The board's markers as :func:`_layout_texture` takes them: ``((x_left, y_top), side, bits)``."""
     d = board.cv_dictionary
-    return [((c[0, 0], c[0, 1]), board.marker_length, marker_bits(d, mid))
-            for mid, c in board.marker_corners_world.items()]
+    return [
+        ((c[0, 0], c[0, 1]), board.marker_length, marker_bits(d, mid)) for mid, c in board.marker_corners_world.items()
+    ]
 
 
 def board_print(board: Board, margin: float, ppm: float) -> tuple[np.ndarray, tuple, tuple]:
@@ -378,10 +414,18 @@ def _plane_coords(hinv: np.ndarray, mx: np.ndarray, my: np.ndarray) -> tuple[np.
     return X / Wh, Y / Wh, valid
 
 
-def render_print_scene(intrinsics: Intrinsics, cam_from_world: ArrayLike, *, dictionary: str = "DICT_6X6_250",
-                       marker_id: int = 0, marker_length: float | None = None, board: Board | None = None,
-                       floor: str = "texture", paper_margin: float | None = None,
-                       supersample: int | None = None) -> dict:
+def render_print_scene(
+    intrinsics: Intrinsics,
+    cam_from_world: ArrayLike,
+    *,
+    dictionary: str = "DICT_6X6_250",
+    marker_id: int = 0,
+    marker_length: float | None = None,
+    board: Board | None = None,
+    floor: str = "texture",
+    paper_margin: float | None = None,
+    supersample: int | None = None,
+) -> dict:
     """The floor and the print seen from ``cam_from_world``, before any camera effect.
 
     The same scene as :func:`render_marker_photo` (parameters alike), as reflectance: the returned
@@ -392,8 +436,9 @@ def render_print_scene(intrinsics: Intrinsics, cam_from_world: ArrayLike, *, dic
     """
     if not isinstance(intrinsics, Intrinsics):
         raise UsageError("intrinsics must be an arshadow.camera.Intrinsics")
-    pose = check_finite(check_shape(np.asarray(cam_from_world, dtype=np.float64), "4,4", "cam_from_world"),
-                        "cam_from_world").copy()
+    pose = check_finite(
+        check_shape(np.asarray(cam_from_world, dtype=np.float64), "4,4", "cam_from_world"), "cam_from_world"
+    ).copy()
     if (board is None) == (marker_length is None):
         raise UsageError("give exactly one of marker_length and board")
     W, H = intrinsics.width, intrinsics.height
@@ -421,8 +466,10 @@ def render_print_scene(intrinsics: Intrinsics, cam_from_world: ArrayLike, *, dic
         tex, (tx0, ty1, tppm), paper = _board_texture(board, margin)
         corners_world = board.marker_corners_world
         dict_name = str(board.dictionary)
-    paper_world = np.array([[paper[0], paper[3], 0], [paper[2], paper[3], 0], [paper[2], paper[1], 0],
-                            [paper[0], paper[1], 0]], dtype=np.float64)
+    paper_world = np.array(
+        [[paper[0], paper[3], 0], [paper[2], paper[3], 0], [paper[2], paper[1], 0], [paper[0], paper[1], 0]],
+        dtype=np.float64,
+    )
 
     # -- floor over the whole image (float32 is plenty for the floor) --
     if floor not in ("texture", "plain"):
@@ -455,8 +502,12 @@ def render_print_scene(intrinsics: Intrinsics, cam_from_world: ArrayLike, *, dic
         else:
             r0, r1 = max(rows[0] * 8 - 8, 0), min(rows[-1] * 8 + 9, H)
             c0, c1 = max(cols[0] * 8 - 8, 0), min(cols[-1] * 8 + 9, W)
-            sub_in = ((mx[r0:r1, c0:c1] >= lo[0]) & (mx[r0:r1, c0:c1] <= hi[0])
-                      & (my[r0:r1, c0:c1] >= lo[1]) & (my[r0:r1, c0:c1] <= hi[1]))
+            sub_in = (
+                (mx[r0:r1, c0:c1] >= lo[0])
+                & (mx[r0:r1, c0:c1] <= hi[0])
+                & (my[r0:r1, c0:c1] >= lo[1])
+                & (my[r0:r1, c0:c1] <= hi[1])
+            )
             rr, cc = np.flatnonzero(sub_in.any(axis=1)), np.flatnonzero(sub_in.any(axis=0))
             roi = None if rr.size == 0 else (r0 + rr[0], r0 + rr[-1] + 1, c0 + cc[0], c0 + cc[-1] + 1)
     else:
@@ -483,12 +534,25 @@ def render_print_scene(intrinsics: Intrinsics, cam_from_world: ArrayLike, *, dic
     else:
         S = 0
 
-    return {"image": img, "cam_from_world": pose, "corners_world": corners_world, "paper_world": paper_world,
-            "dictionary": dict_name, "supersample": S}
+    return {
+        "image": img,
+        "cam_from_world": pose,
+        "corners_world": corners_world,
+        "paper_world": paper_world,
+        "dictionary": dict_name,
+        "supersample": S,
+    }
 
 
-def camera_effects(img: np.ndarray, *, exposure: float = 1.0, blur_sigma: float = 0.0, noise_sigma: float = 0.0,
-                   seed: int | None = None, jpeg_quality: int | None = None) -> np.ndarray:
+def camera_effects(
+    img: np.ndarray,
+    *,
+    exposure: float = 1.0,
+    blur_sigma: float = 0.0,
+    noise_sigma: float = 0.0,
+    seed: int | None = None,
+    jpeg_quality: int | None = None,
+) -> np.ndarray:
     """Exposure, Gaussian blur, Gaussian noise (8-bit units), rounding and JPEG on a float32 image in 8-bit
     code units: (H, W, 3) float32 (modified in place) -> (H, W, 3) uint8."""
     if exposure != 1.0:
@@ -511,11 +575,23 @@ def camera_effects(img: np.ndarray, *, exposure: float = 1.0, blur_sigma: float 
     return out
 
 
-def render_marker_photo(intrinsics: Intrinsics, cam_from_world: ArrayLike, *, dictionary: str = "DICT_6X6_250",
-                        marker_id: int = 0, marker_length: float | None = None, board: Board | None = None,
-                        noise_sigma: float = 0.0, blur_sigma: float = 0.0, jpeg_quality: int | None = None,
-                        exposure: float = 1.0, seed: int | None = None, floor: str = "texture",
-                        paper_margin: float | None = None, supersample: int | None = None) -> SynthPhoto:
+def render_marker_photo(
+    intrinsics: Intrinsics,
+    cam_from_world: ArrayLike,
+    *,
+    dictionary: str = "DICT_6X6_250",
+    marker_id: int = 0,
+    marker_length: float | None = None,
+    board: Board | None = None,
+    noise_sigma: float = 0.0,
+    blur_sigma: float = 0.0,
+    jpeg_quality: int | None = None,
+    exposure: float = 1.0,
+    seed: int | None = None,
+    floor: str = "texture",
+    paper_margin: float | None = None,
+    supersample: int | None = None,
+) -> SynthPhoto:
     """Render a photo of a printed marker (or board) lying on a floor, seen from ``cam_from_world``.
 
     Parameters
@@ -558,23 +634,45 @@ def render_marker_photo(intrinsics: Intrinsics, cam_from_world: ArrayLike, *, di
         raise UsageError(f"jpeg_quality must be 1..100, got {jpeg_quality}")
     if not (exposure > 0 and math.isfinite(exposure)):
         raise UsageError(f"exposure must be positive, got {exposure}")
-    scene = render_print_scene(intrinsics, cam_from_world, dictionary=dictionary, marker_id=marker_id,
-                               marker_length=marker_length, board=board, floor=floor, paper_margin=paper_margin,
-                               supersample=supersample)
+    scene = render_print_scene(
+        intrinsics,
+        cam_from_world,
+        dictionary=dictionary,
+        marker_id=marker_id,
+        marker_length=marker_length,
+        board=board,
+        floor=floor,
+        paper_margin=paper_margin,
+        supersample=supersample,
+    )
     pose, img, S = scene["cam_from_world"], scene["image"], scene["supersample"]
     corners_world, dict_name, paper_world = scene["corners_world"], scene["dictionary"], scene["paper_world"]
-    out = camera_effects(img, exposure=exposure, blur_sigma=blur_sigma, noise_sigma=noise_sigma, seed=seed,
-                         jpeg_quality=jpeg_quality)
+    out = camera_effects(
+        img, exposure=exposure, blur_sigma=blur_sigma, noise_sigma=noise_sigma, seed=seed, jpeg_quality=jpeg_quality
+    )
 
     corners_px = {mid: intrinsics.project(c, pose) for mid, c in corners_world.items()}
     ch = None
     if board is not None and board.kind == "charuco":
         ch = intrinsics.project(board.charuco_corners_world, pose)
     return SynthPhoto(
-        image=out, cam_from_world=pose, intrinsics=intrinsics, dictionary=dict_name,
+        image=out,
+        cam_from_world=pose,
+        intrinsics=intrinsics,
+        dictionary=dict_name,
         marker_id=None if board is not None else int(marker_id),
-        marker_length=None if marker_length is None else float(marker_length), board=board,
-        corners_px=corners_px, charuco_corners_px=ch, paper_world=paper_world,
-        params=dict(noise_sigma=noise_sigma, blur_sigma=blur_sigma, jpeg_quality=jpeg_quality,
-                    exposure=exposure, seed=seed, floor=floor, supersample=S),
+        marker_length=None if marker_length is None else float(marker_length),
+        board=board,
+        corners_px=corners_px,
+        charuco_corners_px=ch,
+        paper_world=paper_world,
+        params=dict(
+            noise_sigma=noise_sigma,
+            blur_sigma=blur_sigma,
+            jpeg_quality=jpeg_quality,
+            exposure=exposure,
+            seed=seed,
+            floor=floor,
+            supersample=S,
+        ),
     )

@@ -120,7 +120,7 @@ def _cone_directions(light, radius_deg: float, seed) -> np.ndarray:
     a = np.cross(z, [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0])
     a /= np.linalg.norm(a)
     b = np.cross(z, a)
-    return (cos_t[:, None] * z + sin_t[:, None] * (np.cos(phi)[:, None] * a + np.sin(phi)[:, None] * b))
+    return cos_t[:, None] * z + sin_t[:, None] * (np.cos(phi)[:, None] * a + np.sin(phi)[:, None] * b)
 
 
 def _lighting_samples(intr, pose, verts, faces, normals, kind, light, roi, S, cone=None):
@@ -129,7 +129,7 @@ def _lighting_samples(intr, pose, verts, faces, normals, kind, light, roi, S, co
     directions), ground n.l): four (h, w) float64 arrays."""
     x0, y0, w, h = roi
     off = (np.arange(S) + 0.5) / S - 0.5
-    vv, uu = np.mgrid[y0:y0 + h, x0:x0 + w].astype(np.float64)
+    vv, uu = np.mgrid[y0 : y0 + h, x0 : x0 + w].astype(np.float64)
     su = np.broadcast_to(uu[:, :, None, None] + off[None, None, None, :], (h, w, S, S)).reshape(-1)
     sv = np.broadcast_to(vv[:, :, None, None] + off[None, None, :, None], (h, w, S, S)).reshape(-1)
     pin = np.stack([su, sv], 1)
@@ -189,12 +189,31 @@ def _outward_normals(verts, faces):
     return n
 
 
-def render_lit_photo(intrinsics: Intrinsics, cam_from_world, *, marker_length=0.05, dictionary="DICT_6X6_250",
-                     marker_id=0, probe="box:0.05,0.05,0.1", probe_place=(0.1, 0.0, 0.0), probe_rotate=(0, 0, 0),
-                     probe_albedo=(0.55, 0.5, 0.45), light_kind="directional", light=(0.5, 0.0, 0.866),
-                     ambient=(0.35, 0.38, 0.45), direct=(1.0, 0.95, 0.85), exposure=0.8,
-                     white_balance=(1.0, 1.0, 1.0), blur_sigma=0.0, noise_sigma=0.0, jpeg_quality=None, seed=None,
-                     supersample=3, floor="texture", light_radius_deg=0.0) -> LitPhoto:
+def render_lit_photo(
+    intrinsics: Intrinsics,
+    cam_from_world,
+    *,
+    marker_length=0.05,
+    dictionary="DICT_6X6_250",
+    marker_id=0,
+    probe="box:0.05,0.05,0.1",
+    probe_place=(0.1, 0.0, 0.0),
+    probe_rotate=(0, 0, 0),
+    probe_albedo=(0.55, 0.5, 0.45),
+    light_kind="directional",
+    light=(0.5, 0.0, 0.866),
+    ambient=(0.35, 0.38, 0.45),
+    direct=(1.0, 0.95, 0.85),
+    exposure=0.8,
+    white_balance=(1.0, 1.0, 1.0),
+    blur_sigma=0.0,
+    noise_sigma=0.0,
+    jpeg_quality=None,
+    seed=None,
+    supersample=3,
+    floor="texture",
+    light_radius_deg=0.0,
+) -> LitPhoto:
     """Render a photo of the marker and a probe lit by ambient + one direct light, with its truth.
 
     Parameters
@@ -235,8 +254,9 @@ def render_lit_photo(intrinsics: Intrinsics, cam_from_world, *, marker_length=0.
     ambient = np.asarray(ambient, np.float64).reshape(3)
     direct = np.asarray(direct, np.float64).reshape(3)
     gain = float(exposure) * np.asarray(white_balance, np.float64).reshape(3)
-    scene = render_print_scene(intrinsics, cam_from_world, dictionary=dictionary, marker_id=marker_id,
-                               marker_length=marker_length, floor=floor)
+    scene = render_print_scene(
+        intrinsics, cam_from_world, dictionary=dictionary, marker_id=marker_id, marker_length=marker_length, floor=floor
+    )
     pose = scene["cam_from_world"]
     H, W = intrinsics.height, intrinsics.width
     rho = SRGB_TO_LINEAR[np.clip(np.rint(scene["image"]), 0, 255).astype(np.uint8)][:, :, ::-1].astype(np.float64)
@@ -246,8 +266,7 @@ def render_lit_photo(intrinsics: Intrinsics, cam_from_world, *, marker_length=0.
     normals = _outward_normals(verts, faces)
     lh = np.append(light, 0.0 if light_kind == "directional" else 1.0)
     cone = _cone_directions(light, float(light_radius_deg), seed) if light_kind == "directional" else light[None]
-    shadow2d = np.concatenate([ground_shadow_triangles(verts, faces, np.append(d, lh[3])).reshape(-1, 2)
-                               for d in cone])
+    shadow2d = np.concatenate([ground_shadow_triangles(verts, faces, np.append(d, lh[3])).reshape(-1, 2) for d in cone])
     # the region of the probe and its shadow (+ margin), in the image
     pts = np.concatenate([verts, np.column_stack([shadow2d, np.zeros(len(shadow2d))])])
     cam_pts = transform_points(pose, pts)
@@ -273,8 +292,9 @@ def render_lit_photo(intrinsics: Intrinsics, cam_from_world, *, marker_length=0.
     probe_mask = np.zeros((H, W), bool)
     if x1 > x0 and y1 > y0:
         roi = (x0, y0, x1 - x0, y1 - y0)
-        cov, pndl, gvis, gfrac = _lighting_samples(intrinsics, pose, verts, faces, normals, light_kind, light, roi,
-                                                   int(supersample), cone)
+        cov, pndl, gvis, gfrac = _lighting_samples(
+            intrinsics, pose, verts, faces, normals, light_kind, light, roi, int(supersample), cone
+        )
         sl = (slice(y0, y1), slice(x0, x1))
         ground_rad = rho[sl] * (ambient * gfrac[:, :, None] + direct * gvis[:, :, None])
         probe_rad = np.asarray(probe_albedo, np.float64) * (ambient + direct * pndl[:, :, None]) * cov[:, :, None]
@@ -293,25 +313,47 @@ def render_lit_photo(intrinsics: Intrinsics, cam_from_world, *, marker_length=0.
     paper_lin = gain * float(SRGB_TO_LINEAR[235]) * (ambient + direct * max(sin_p, 0.0))
     corners_px = {mid: intrinsics.project(c, pose) for mid, c in scene["corners_world"].items()}
     return LitPhoto(
-        image=out, cam_from_world=pose, intrinsics=intrinsics, dictionary=scene["dictionary"],
-        marker_id=int(marker_id), marker_length=float(marker_length), corners_px=corners_px,
+        image=out,
+        cam_from_world=pose,
+        intrinsics=intrinsics,
+        dictionary=scene["dictionary"],
+        marker_id=int(marker_id),
+        marker_length=float(marker_length),
+        corners_px=corners_px,
         paper_world=scene["paper_world"],
-        params={"probe": probe, "probe_place": list(map(float, probe_place)),
-                "probe_rotate": list(map(float, probe_rotate)), "exposure": float(exposure),
-                "white_balance": list(map(float, np.ravel(white_balance))), "blur_sigma": blur_sigma,
-                "noise_sigma": noise_sigma, "jpeg_quality": jpeg_quality, "seed": seed},
-        light_kind=light_kind, light=light, ambient=ambient, direct=direct, shadow_ratio=ratio,
-        paper_linear=paper_lin, probe_mask=probe_mask,
+        params={
+            "probe": probe,
+            "probe_place": list(map(float, probe_place)),
+            "probe_rotate": list(map(float, probe_rotate)),
+            "exposure": float(exposure),
+            "white_balance": list(map(float, np.ravel(white_balance))),
+            "blur_sigma": blur_sigma,
+            "noise_sigma": noise_sigma,
+            "jpeg_quality": jpeg_quality,
+            "seed": seed,
+        },
+        light_kind=light_kind,
+        light=light,
+        ambient=ambient,
+        direct=direct,
+        shadow_ratio=ratio,
+        paper_linear=paper_lin,
+        probe_mask=probe_mask,
     )
 
 
 #: (lat, lon, time) of the sun cases: elevations between 25 and 60 degrees
-SUN_CASES = (("48.85", "2.35", "2026-06-21T18:00+02:00"), ("52.2", "0.12", "2026-04-10T10:30+01:00"),
-             ("40.4", "-3.7", "2026-09-22T16:00+02:00"), ("35.7", "139.7", "2026-03-20T09:30+09:00"))
+SUN_CASES = (
+    ("48.85", "2.35", "2026-06-21T18:00+02:00"),
+    ("52.2", "0.12", "2026-04-10T10:30+01:00"),
+    ("40.4", "-3.7", "2026-09-22T16:00+02:00"),
+    ("35.7", "139.7", "2026-03-20T09:30+09:00"),
+)
 
 
-def random_lit_case(rng, intrinsics: Intrinsics, kind: str = "directional", *, marker_length=0.05,
-                    effects: bool = True) -> dict:
+def random_lit_case(
+    rng, intrinsics: Intrinsics, kind: str = "directional", *, marker_length=0.05, effects: bool = True
+) -> dict:
     """A random case of the light estimate's test distribution (docs/light.md), with its truth.
 
     A 5 x 5 x (8..12) cm box probe beside the marker's paper (8..13 cm from its centre, turned at random), a light
@@ -349,10 +391,12 @@ def random_lit_case(rng, intrinsics: Intrinsics, kind: str = "directional", *, m
     # the camera on the shadow's side (the shadow in front of the probe), the marker, the probe and the
     # shadow in view, the probe not hiding the marker
     foot = np.array(place)
-    tip = foot[:2] - (h / light[2]) * light[:2] if light_kind == "directional" else \
-        light[:2] + light[2] / (light[2] - h) * (foot[:2] - light[:2])
-    pts = np.array([[-0.04, -0.04, 0], [0.04, 0.04, 0], [-0.04, 0.04, 0], [0.04, -0.04, 0], [*foot[:2], h],
-                    [*tip, 0]])
+    tip = (
+        foot[:2] - (h / light[2]) * light[:2]
+        if light_kind == "directional"
+        else light[:2] + light[2] / (light[2] - h) * (foot[:2] - light[:2])
+    )
+    pts = np.array([[-0.04, -0.04, 0], [0.04, 0.04, 0], [-0.04, 0.04, 0], [0.04, -0.04, 0], [*foot[:2], h], [*tip, 0]])
     target = np.r_[pts[:, :2].mean(axis=0), 0.0]
     away = math.atan2(tip[1] - foot[1], tip[0] - foot[0])
     box = load_occluder(probe, rotate=rot, place=place).vertices
@@ -363,8 +407,12 @@ def random_lit_case(rng, intrinsics: Intrinsics, kind: str = "directional", *, m
         eye = target + d * np.array([math.sin(tilt) * math.cos(az), math.sin(tilt) * math.sin(az), math.cos(tilt)])
         pose = look_at_pose(eye, target)
         uv = intrinsics.project(pts, pose)
-        if not (np.all(np.isfinite(uv)) and np.all(uv >= 40) and np.all(uv[:, 0] <= intrinsics.width - 41)
-                and np.all(uv[:, 1] <= intrinsics.height - 41)):
+        if not (
+            np.all(np.isfinite(uv))
+            and np.all(uv >= 40)
+            and np.all(uv[:, 0] <= intrinsics.width - 41)
+            and np.all(uv[:, 1] <= intrinsics.height - 41)
+        ):
             continue
         quad = intrinsics.project(0.8 * pts[[0, 3, 1, 2]], pose).astype(np.float32)  # the marker, 3 mm slack
         hull = cv2.convexHull(intrinsics.project(np.asarray(box), pose).astype(np.float32))
@@ -374,12 +422,33 @@ def random_lit_case(rng, intrinsics: Intrinsics, kind: str = "directional", *, m
         raise UsageError("random_lit_case: no camera sees the marker, the probe and its shadow")
     kw = {}
     if effects:
-        kw = {"blur_sigma": float(rng.uniform(0, 1.2)), "noise_sigma": float(rng.uniform(0.5, 3.0)),
-              "jpeg_quality": int(rng.integers(75, 96)), "exposure": float(rng.uniform(0.45, 0.9)),
-              "white_balance": tuple(float(v) for v in rng.uniform(0.85, 1.15, 3)),
-              "seed": int(rng.integers(1 << 30))}
-    photo = render_lit_photo(intrinsics, pose, marker_length=marker_length, probe=probe, probe_place=place,
-                             probe_rotate=rot, light_kind=light_kind, light=light, ambient=amb * scale,
-                             direct=direct * scale, supersample=2, **kw)
-    return {"photo": photo, "probe": probe, "probe_place": place, "probe_rotate": rot, "kind": kind_spec,
-            "north_deg": north}
+        kw = {
+            "blur_sigma": float(rng.uniform(0, 1.2)),
+            "noise_sigma": float(rng.uniform(0.5, 3.0)),
+            "jpeg_quality": int(rng.integers(75, 96)),
+            "exposure": float(rng.uniform(0.45, 0.9)),
+            "white_balance": tuple(float(v) for v in rng.uniform(0.85, 1.15, 3)),
+            "seed": int(rng.integers(1 << 30)),
+        }
+    photo = render_lit_photo(
+        intrinsics,
+        pose,
+        marker_length=marker_length,
+        probe=probe,
+        probe_place=place,
+        probe_rotate=rot,
+        light_kind=light_kind,
+        light=light,
+        ambient=amb * scale,
+        direct=direct * scale,
+        supersample=2,
+        **kw,
+    )
+    return {
+        "photo": photo,
+        "probe": probe,
+        "probe_place": place,
+        "probe_rotate": rot,
+        "kind": kind_spec,
+        "north_deg": north,
+    }

@@ -82,6 +82,7 @@ def rotation_error_deg(r_a, r_b) -> float:
     >>> rotation_error_deg(np.eye(3), np.diag([1.0, -1.0, -1.0]))
     180.0
     """
+
     def as_mat(r):
         r = np.asarray(r, dtype=np.float64)
         return cv2.Rodrigues(r.reshape(3, 1))[0] if r.size == 3 else r[:3, :3]

@@ -22,8 +22,9 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 
 
-def torus_knot(n_seg: int = 194, n_side: int = 22, p: int = 2, q: int = 3, R: float = 0.04, r: float = 0.016,
-               tube: float = 0.011):
+def torus_knot(
+    n_seg: int = 194, n_side: int = 22, p: int = 2, q: int = 3, R: float = 0.04, r: float = 0.016, tube: float = 0.011
+):
     """A closed (p, q) torus-knot tube: ``n_seg * n_side * 2`` triangles, outward wound.
 
     Returns ``vertices (n_seg*n_side, 3)``, ``faces (2*n_seg*n_side, 3)`` and per-vertex colours
@@ -95,13 +96,25 @@ def house():
     cf = np.asarray(ch.faces) + len(v)
     verts = np.concatenate([v, cv])
     faces = np.concatenate([f, cf])
-    fc = np.concatenate([np.tile([200, 120, 90, 255], (6, 1)), np.tile([230, 220, 200, 255], (len(f) - 6, 1)),
-                         np.tile([120, 60, 50, 255], (len(cf), 1))])
+    fc = np.concatenate(
+        [
+            np.tile([200, 120, 90, 255], (6, 1)),
+            np.tile([230, 220, 200, 255], (len(f) - 6, 1)),
+            np.tile([120, 60, 50, 255], (len(cf), 1)),
+        ]
+    )
     return verts, faces, fc.astype(np.uint8)
 
 
-def umbrella(n_panels: int = 8, n_rings: int = 10, n_per_panel: int = 8, radius: float = 0.06, top: float = 0.09,
-             depth: float = 0.03, pole_r: float = 0.0025):
+def umbrella(
+    n_panels: int = 8,
+    n_rings: int = 10,
+    n_per_panel: int = 8,
+    radius: float = 0.06,
+    top: float = 0.09,
+    depth: float = 0.03,
+    pole_r: float = 0.0025,
+):
     """An open umbrella: a single-sided canopy (faces wound to face up) and an open tube as the pole."""
     n_ang = n_panels * n_per_panel
     ang = np.linspace(0.0, 2 * np.pi, n_ang, endpoint=False)

@@ -58,8 +58,11 @@ def _gl_guard(request, monkeypatch):
     import moderngl
 
     def refuse(*args, **kwargs):
-        pytest.fail(f"{request.node.nodeid} creates an OpenGL context but is not marked gl: use the ctx fixture, "
-                    "@pytest.mark.gl, or add its module to GL_MODULES in tests/conftest.py", pytrace=False)
+        pytest.fail(
+            f"{request.node.nodeid} creates an OpenGL context but is not marked gl: use the ctx fixture, "
+            "@pytest.mark.gl, or add its module to GL_MODULES in tests/conftest.py",
+            pytrace=False,
+        )
 
     monkeypatch.setattr(moderngl, "create_context", refuse)
     yield

@@ -21,8 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from arshadow.geometry.exact import (  # noqa: F401 (re-exported for the tests)
-    ShadowOracle, ground_points, in_ground_square, iou, occluder_coverage)
+from arshadow.geometry.exact import ShadowOracle, ground_points, in_ground_square, iou, occluder_coverage  # noqa: F401 (re-exported for the tests)
 
 __all__ = ["ShadowOracle", "boundary_distance", "ground_points", "iou", "occluder_coverage"]
 

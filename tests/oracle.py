@@ -54,13 +54,13 @@ def rasterize_triangles(tris_2d, grid: Grid) -> np.ndarray:
         j1, i1 = min(hi[0], grid.width - 1), min(hi[1], grid.height - 1)
         if j1 < j0 or i1 < i0:
             continue
-        X, Y = np.meshgrid(xs[j0:j1 + 1], ys[i0:i1 + 1])
+        X, Y = np.meshgrid(xs[j0 : j1 + 1], ys[i0 : i1 + 1])
         e = []
         for k in range(3):
             a, b = t[k], t[(k + 1) % 3]
             e.append((b[0] - a[0]) * (Y - a[1]) - (b[1] - a[1]) * (X - a[0]))
         inside = ((e[0] >= 0) & (e[1] >= 0) & (e[2] >= 0)) | ((e[0] <= 0) & (e[1] <= 0) & (e[2] <= 0))
-        mask[i0:i1 + 1, j0:j1 + 1] |= inside
+        mask[i0 : i1 + 1, j0 : j1 + 1] |= inside
     return mask
 
 
@@ -140,7 +140,7 @@ def points_in_shadow(points, vertices, faces, light_h) -> np.ndarray:
     out = np.zeros(len(P), bool)
     chunk = max(1, 2_000_000 // max(len(tri), 1))
     for s0 in range(0, len(P), chunk):
-        p = P[s0:s0 + chunk, None, :]  # (k, 1, 3)
+        p = P[s0 : s0 + chunk, None, :]  # (k, 1, 3)
         d = np.broadcast_to(h[:3], p.shape) if h[3] == 0 else h[:3] / h[3] - p
         tmax = np.inf if h[3] == 0 else 1.0
         pv = np.cross(d, e2[None])
@@ -153,7 +153,7 @@ def points_in_shadow(points, vertices, faces, light_h) -> np.ndarray:
             v = np.einsum("kij,kij->ki", q, np.broadcast_to(d, q.shape)) * inv
             t = np.einsum("kij,kij->ki", np.broadcast_to(e2, q.shape), q) * inv
         hit = (det != 0) & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 1e-12) & (t < tmax)
-        out[s0:s0 + chunk] = hit.any(axis=1)
+        out[s0 : s0 + chunk] = hit.any(axis=1)
     return out
 
 

@@ -23,8 +23,13 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 CALIB = str(ROOT / "calib" / "synth_1280x720.yml")
 
-SCENE = {"calib": CALIB, "marker_length": 0.05, "model": "box:0.04,0.04,0.06", "rotate": [0, 0, 30],
-         "lights": ["point:0.1,0.1,0.4", "directional:-0.3,0.2,1@0.5"]}
+SCENE = {
+    "calib": CALIB,
+    "marker_length": 0.05,
+    "model": "box:0.04,0.04,0.06",
+    "rotate": [0, 0, 30],
+    "lights": ["point:0.1,0.1,0.4", "directional:-0.3,0.2,1@0.5"],
+}
 
 
 def _volume_spec():
@@ -48,17 +53,25 @@ def _photo(eye=(0.1, -0.3, 0.4), seed=1):
 
 
 def _run(code: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120,
-                          env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"})
+    return subprocess.run(
+        [sys.executable, "-c", code],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"},
+    )
 
 
 # ------------------------------------------------------------------------------------------ imports
 def test_import_arshadow_loads_no_opengl():
-    r = _run("import sys, arshadow\n"
-             "arshadow.Session, arshadow.SceneSpec, arshadow.scene_from_dict, arshadow.render_photo, arshadow.synth\n"
-             "import arshadow.plan, arshadow.execute, arshadow.render_api, arshadow.session, arshadow.engine\n"
-             "bad = [m for m in sys.modules if m.startswith('moderngl') or m.startswith('arshadow.gl')]\n"
-             "assert not bad, bad\nprint('ok')")
+    r = _run(
+        "import sys, arshadow\n"
+        "arshadow.Session, arshadow.SceneSpec, arshadow.scene_from_dict, arshadow.render_photo, arshadow.synth\n"
+        "import arshadow.plan, arshadow.execute, arshadow.render_api, arshadow.session, arshadow.engine\n"
+        "bad = [m for m in sys.modules if m.startswith('moderngl') or m.startswith('arshadow.gl')]\n"
+        "assert not bad, bad\nprint('ok')"
+    )
     assert r.returncode == 0 and r.stdout.strip() == "ok", r.stderr
 
 
@@ -136,29 +149,40 @@ def test_light_pass_carries_the_planar_matrix():
 
 # ------------------------------------------------------------------------------------------ scene specs
 def test_scene_from_yaml_json_and_python_are_equal(tmp_path):
-    from arshadow.scene import ModelSpec, RenderOptions, SceneSpec, TrackerSpec, load_scene, scene_from_dict
-
     import arshadow
+    from arshadow.scene import ModelSpec, RenderOptions, SceneSpec, TrackerSpec, load_scene, scene_from_dict
 
     calib_dir = tmp_path / "cal"
     calib_dir.mkdir()
     (calib_dir / "cam.yml").write_text(Path(CALIB).read_text())
-    job = {"calib": "cal/cam.yml", "marker_length": 0.05, "marker_id": 0, "model": "box:0.04,0.04,0.06",
-           "rotate": [0, 0, 30], "place": [0.01, 0, 0], "color": "200,80,40",
-           "lights": ["point:0.1,0.1,0.4", "directional:-0.3,0.2,1@0.5"], "opacity": 0.6, "soft_samples": 2}
+    job = {
+        "calib": "cal/cam.yml",
+        "marker_length": 0.05,
+        "marker_id": 0,
+        "model": "box:0.04,0.04,0.06",
+        "rotate": [0, 0, 30],
+        "place": [0.01, 0, 0],
+        "color": "200,80,40",
+        "lights": ["point:0.1,0.1,0.4", "directional:-0.3,0.2,1@0.5"],
+        "opacity": 0.6,
+        "soft_samples": 2,
+    }
     (tmp_path / "job.json").write_text(json.dumps(job))
     (tmp_path / "job.yml").write_text(
         "# a job file\ncalib: cal/cam.yml\nmarker_length: 0.05\nmarker_id: 0\nmodel: box:0.04,0.04,0.06\n"
         "rotate: [0, 0, 30]\nplace: [0.01, 0, 0]\ncolor: [200, 80, 40]\nlights:\n  - point:0.1,0.1,0.4\n"
-        "  - directional:-0.3,0.2,1@0.5\nopacity: 0.6\nsoft_samples: 2\n")
+        "  - directional:-0.3,0.2,1@0.5\nopacity: 0.6\nsoft_samples: 2\n"
+    )
     from_yaml = load_scene(tmp_path / "job.yml")
     from_json = arshadow.load_scene(tmp_path / "job.json")
     from_dict = scene_from_dict(job, base_dir=tmp_path)
-    by_hand = SceneSpec(camera=str(calib_dir / "cam.yml"), tracker=TrackerSpec(marker_length=0.05, marker_id=0),
-                        model=ModelSpec("box:0.04,0.04,0.06", rotate=(0.0, 0.0, 30.0), place=(0.01, 0.0, 0.0),
-                                        color="200,80,40"),
-                        lights=("point:0.1,0.1,0.4", "directional:-0.3,0.2,1@0.5"),
-                        options=RenderOptions(opacity=0.6, soft_samples=2))
+    by_hand = SceneSpec(
+        camera=str(calib_dir / "cam.yml"),
+        tracker=TrackerSpec(marker_length=0.05, marker_id=0),
+        model=ModelSpec("box:0.04,0.04,0.06", rotate=(0.0, 0.0, 30.0), place=(0.01, 0.0, 0.0), color="200,80,40"),
+        lights=("point:0.1,0.1,0.4", "directional:-0.3,0.2,1@0.5"),
+        options=RenderOptions(opacity=0.6, soft_samples=2),
+    )
     assert from_yaml == from_json == from_dict == by_hand
     assert pickle.loads(pickle.dumps(from_yaml)) == by_hand
     scene = from_yaml.build()  # the relative calibration path resolved against the job file's folder
@@ -189,8 +213,14 @@ def test_readme_python_example_runs():
     text = (ROOT / "README.md").read_text()
     block = re.search(r"## Python\n.*?```python\n(.*?)```", text, re.S)
     assert block, "README has no ## Python example"
-    r = subprocess.run([sys.executable, "-c", block.group(1)], cwd=ROOT, capture_output=True, text=True,
-                       timeout=300, env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"})
+    r = subprocess.run(
+        [sys.executable, "-c", block.group(1)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"},
+    )
     assert r.returncode == 0, r.stderr
     first = r.stdout.splitlines()[0].split()
     # the README's box is convex: the planner (docs/planner.md) draws its shadow as a projection

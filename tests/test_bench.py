@@ -69,8 +69,17 @@ def test_bench_quick(tmp_path, gl_ctx):
     assert len(_rows(out / "pipeline_paper003.csv")) == 3
 
     md = (out / "summary.md").read_text()
-    for heading in ("## 1. Silhouette detectors", "## 2. Render quality vs time", "## 3. Tracking vs time",
-                    "## 4. Pipeline", "74.35", "61 438", "**Thin card**", "Verdict:", "llvmpipe" if "llvmpipe" in res["meta"]["GL_RENDERER"] else "GL"):
+    for heading in (
+        "## 1. Silhouette detectors",
+        "## 2. Render quality vs time",
+        "## 3. Tracking vs time",
+        "## 4. Pipeline",
+        "74.35",
+        "61 438",
+        "**Thin card**",
+        "Verdict:",
+        "llvmpipe" if "llvmpipe" in res["meta"]["GL_RENDERER"] else "GL",
+    ):
         assert heading in md
     if available():
         pngs = sorted(p.name for p in out.glob("*.png"))

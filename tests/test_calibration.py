@@ -26,9 +26,14 @@ def test_parse_pattern(spec, kind):
 
 @pytest.mark.parametrize(
     "spec, word",
-    [("chessboard:9,6", "bad pattern"), ("circles:4,11,0.02", "bad pattern"), ("chessboard:9,6,-1", "positive"),
-     ("charuco:5,7,0.04,0.05,DICT_6X6_250", "smaller"), ("charuco:5,7,0.04,0.02,DICT_NOPE", "unknown dictionary"),
-     ("chessboard:1,6,0.02", "2x2")],
+    [
+        ("chessboard:9,6", "bad pattern"),
+        ("circles:4,11,0.02", "bad pattern"),
+        ("chessboard:9,6,-1", "positive"),
+        ("charuco:5,7,0.04,0.05,DICT_6X6_250", "smaller"),
+        ("charuco:5,7,0.04,0.02,DICT_NOPE", "unknown dictionary"),
+        ("chessboard:1,6,0.02", "2x2"),
+    ],
 )
 def test_bad_patterns(spec, word):
     with pytest.raises(UsageError, match=word):

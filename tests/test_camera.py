@@ -23,8 +23,7 @@ DISTS = {
     "k1": np.array([-0.25, 0.0, 0.0, 0.0, 0.0]),
     "rational8": np.array([0.3, -0.1, 0.001, 0.002, 0.01, 0.35, -0.05, 0.02]),
     "prism12": np.array([-0.1, 0.03, 0.001, -0.001, 0.0, 0.0, 0.0, 0.0, 0.002, -0.001, 0.001, 0.0005]),
-    "tilt14": np.array([-0.1, 0.03, 0.001, -0.001, 0.0, 0.0, 0.0, 0.0, 0.002, -0.001, 0.001, 0.0005,
-                        0.01, -0.02]),
+    "tilt14": np.array([-0.1, 0.03, 0.001, -0.001, 0.0, 0.0, 0.0, 0.0, 0.002, -0.001, 0.001, 0.0005, 0.01, -0.02]),
 }
 
 
@@ -139,16 +138,31 @@ def test_ros_camera_info(tmp_path):
     "text, word",
     [
         ("%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\n", "camera_matrix"),
-        ("%YAML:1.0\n---\ncamera_matrix: {rows: 3, cols: 3, data: [500, 0, 320, 0, 500, 240, 0, 0, 1]}\n"
-         "image_height: 480\n", "image_width"),
-        ("%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\n"
-         "camera_matrix: {rows: 3, cols: 3, data: [.nan, 0, 320, 0, 500, 240, 0, 0, 1]}\n", "NaN"),
-        ("%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\n"
-         "camera_matrix: {rows: 3, cols: 3, data: [0, 0, 320, 0, 500, 240, 0, 0, 1]}\n", "positive"),
-        ("%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\n"
-         "camera_matrix: {rows: 2, cols: 2, data: [1, 0, 0, 1]}\n", "3x3"),
-        ("%YAML:1.0\n---\nimage_width: -640\nimage_height: 480\n"
-         "camera_matrix: {rows: 3, cols: 3, data: [500, 0, 320, 0, 500, 240, 0, 0, 1]}\n", "image_width"),
+        (
+            "%YAML:1.0\n---\ncamera_matrix: {rows: 3, cols: 3, data: [500, 0, 320, 0, 500, 240, 0, 0, 1]}\n"
+            "image_height: 480\n",
+            "image_width",
+        ),
+        (
+            "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\n"
+            "camera_matrix: {rows: 3, cols: 3, data: [.nan, 0, 320, 0, 500, 240, 0, 0, 1]}\n",
+            "NaN",
+        ),
+        (
+            "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\n"
+            "camera_matrix: {rows: 3, cols: 3, data: [0, 0, 320, 0, 500, 240, 0, 0, 1]}\n",
+            "positive",
+        ),
+        (
+            "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\n"
+            "camera_matrix: {rows: 2, cols: 2, data: [1, 0, 0, 1]}\n",
+            "3x3",
+        ),
+        (
+            "%YAML:1.0\n---\nimage_width: -640\nimage_height: 480\n"
+            "camera_matrix: {rows: 3, cols: 3, data: [500, 0, 320, 0, 500, 240, 0, 0, 1]}\n",
+            "image_width",
+        ),
         ("this is: [not: valid yaml\n", "calib"),
     ],
 )
@@ -318,8 +332,9 @@ def test_gl_projection_depth_range():
     assert clip[2] / clip[3] == pytest.approx(1.0) and clip[3] > 0
 
 
-@pytest.mark.parametrize("bad", [dict(znear=0.0), dict(znear=-1.0), dict(znear=1.0, zfar=0.5),
-                                 dict(znear=0.1, canvas=(0, 0, 0, 10))])
+@pytest.mark.parametrize(
+    "bad", [dict(znear=0.0), dict(znear=-1.0), dict(znear=1.0, zfar=0.5), dict(znear=0.1, canvas=(0, 0, 0, 10))]
+)
 def test_gl_projection_bad_args(bad):
     with pytest.raises(CalibrationError):
         cam_with(DISTS["none"]).gl_projection(**bad)

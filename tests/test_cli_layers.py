@@ -20,8 +20,20 @@ pytestmark = pytest.mark.gl
 
 ROOT = Path(__file__).resolve().parents[1]
 CALIB = ROOT / "calib" / "synth_1280x720_k1.yml"
-SCENE = ["--calib", CALIB, "--marker-length", "0.05", "--model", "box:0.04,0.03,0.05", "--place", "0.03,0,0",
-         "--rotate", "0,0,25", "--light", "point:-0.1,0.1,0.4"]
+SCENE = [
+    "--calib",
+    CALIB,
+    "--marker-length",
+    "0.05",
+    "--model",
+    "box:0.04,0.03,0.05",
+    "--place",
+    "0.03,0,0",
+    "--rotate",
+    "0,0,25",
+    "--light",
+    "point:-0.1,0.1,0.4",
+]
 
 
 @pytest.fixture(scope="module")
@@ -78,8 +90,7 @@ def test_layer_file_that_would_overwrite_an_input_is_exit_2(photos, tmp_path, ca
     (d / "a.png").write_bytes((photos / "p0.png").read_bytes())
     (d / "a.object.png").write_bytes((photos / "p1.png").read_bytes())
     before = {p.name: p.read_bytes() for p in d.iterdir()}
-    code, _so, se = _run(capsys, "render", d / "a.png", d / "a.object.png", *SCENE, "-o", tmp_path / "o2",
-                        "--layers")
+    code, _so, se = _run(capsys, "render", d / "a.png", d / "a.object.png", *SCENE, "-o", tmp_path / "o2", "--layers")
     assert code == 0, se  # another folder: fine
     # -o the inputs' folder: the layer file a.object.png of a.png would replace the input a.object.png
     code, _so, se = _run(capsys, "render", d / "a.png", d / "a.object.png", *SCENE, "-o", d, "--layers")
@@ -95,12 +106,31 @@ def test_export_track_of_a_photo_set_from_the_render_report(photos, tmp_path, ca
     pygltflib = pytest.importorskip("pygltflib")
     out = tmp_path / "out"
     rep = tmp_path / "report.json"
-    code, _so, se = _run(capsys, "render", photos / "p0.png", photos / "p1.png", *SCENE, "-o", out, "--report", rep,
-                         "-q")
+    code, _so, se = _run(
+        capsys, "render", photos / "p0.png", photos / "p1.png", *SCENE, "-o", out, "--report", rep, "-q"
+    )
     assert code == 0, se
-    code, _so, se = _run(capsys, "export-track", rep, "--calib", CALIB, "--model", "box:0.04,0.03,0.05",
-                        "--place", "0.03,0,0", "--rotate", "0,0,25", "-o", tmp_path / "t.glb", "-o",
-                        tmp_path / "t.json", "-o", tmp_path / "t.csv", "--fps", "4")
+    code, _so, se = _run(
+        capsys,
+        "export-track",
+        rep,
+        "--calib",
+        CALIB,
+        "--model",
+        "box:0.04,0.03,0.05",
+        "--place",
+        "0.03,0,0",
+        "--rotate",
+        "0,0,25",
+        "-o",
+        tmp_path / "t.glb",
+        "-o",
+        tmp_path / "t.json",
+        "-o",
+        tmp_path / "t.csv",
+        "--fps",
+        "4",
+    )
     assert code == 0, se
     g = pygltflib.GLTF2().load(str(tmp_path / "t.glb"))
     assert g.cameras[0].type == "perspective" and len(g.meshes) == 2 and len(g.animations) == 1
@@ -118,9 +148,18 @@ def test_render_layers_undistorted_writes_the_pinhole_layers_and_the_stmap(photo
     code, _so, se = _run(capsys, "render", photos / "p0.png", *SCENE, "-o", out, "--layers-undistorted", "-q")
     assert code == 0, se
     names = sorted(p.name for p in out.iterdir())
-    assert names == sorted(["p0.png", "p0.object.png", "p0.shadow.mult.png", "p0.shadow.only.png", "p0.stmap.png",
-                            "p0.undistorted.object.png", "p0.undistorted.shadow.mult.png",
-                            "p0.undistorted.shadow.only.png"])
+    assert names == sorted(
+        [
+            "p0.png",
+            "p0.object.png",
+            "p0.shadow.mult.png",
+            "p0.shadow.only.png",
+            "p0.stmap.png",
+            "p0.undistorted.object.png",
+            "p0.undistorted.shadow.mult.png",
+            "p0.undistorted.shadow.only.png",
+        ]
+    )
     st = cv2.imread(str(out / "p0.stmap.png"), cv2.IMREAD_UNCHANGED)
     assert st.dtype == np.uint16 and st.shape == (720, 1280, 3) and np.all(st[..., 0] == 0)  # B = 0
     # the principal point maps to itself (no distortion there): s = (cx + 0.5) / W
@@ -143,9 +182,25 @@ def test_progress_bar_on_a_terminal_only_and_not_with_q(photos, tmp_path):
     def run(*extra):
         master, slave = pty.openpty()
         fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 120, 0, 0))  # a 120-column terminal
-        p = subprocess.run([sys.executable, "-m", "arshadow", "render", str(photos / "p0.png"),
-                            str(photos / "p1.png"), *map(str, SCENE), "-o", str(tmp_path / "o"), *extra],
-                           cwd=ROOT, stdout=subprocess.PIPE, stderr=slave, timeout=300, check=False)
+        p = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "arshadow",
+                "render",
+                str(photos / "p0.png"),
+                str(photos / "p1.png"),
+                *map(str, SCENE),
+                "-o",
+                str(tmp_path / "o"),
+                *extra,
+            ],
+            cwd=ROOT,
+            stdout=subprocess.PIPE,
+            stderr=slave,
+            timeout=300,
+            check=False,
+        )
         os.close(slave)
         chunks = []
         while True:

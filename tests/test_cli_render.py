@@ -49,8 +49,18 @@ def _run(capsys, *argv):
     return code, cap.out, cap.err
 
 
-SCENE = ["--calib", CALIB, "--marker-length", "0.05", "--model", "box:0.04,0.03,0.05", "--place", "0.05,0,0",
-         "--light", "point:-0.1,0.1,0.4"]
+SCENE = [
+    "--calib",
+    CALIB,
+    "--marker-length",
+    "0.05",
+    "--model",
+    "box:0.04,0.03,0.05",
+    "--place",
+    "0.05,0,0",
+    "--light",
+    "point:-0.1,0.1,0.4",
+]
 
 
 def test_good_and_bad_inputs_in_one_run(photos, tmp_path, capsys):
@@ -58,8 +68,9 @@ def test_good_and_bad_inputs_in_one_run(photos, tmp_path, capsys):
     out = tmp_path / "out"
     report = tmp_path / "report.json"
     names = ["good.jpg", "corrupt.png", "missing.png", "square.png", "nomarker.png", "half.png"]
-    code, so, se = _run(capsys, "render", *[photos / n for n in names], *SCENE, "-o", out, "--save-mask",
-                        "--report", report)
+    code, so, se = _run(
+        capsys, "render", *[photos / n for n in names], *SCENE, "-o", out, "--save-mask", "--report", report
+    )
     assert code == 1
     lines = [ln for ln in se.splitlines() if ln.strip()]
     assert len(lines) == 4, se
@@ -74,8 +85,21 @@ def test_good_and_bad_inputs_in_one_run(photos, tmp_path, capsys):
     st = {Path(i["input"]).name: i for i in rep["images"]}
     assert [st[n]["status"] for n in names] == ["ok", "error", "error", "error", "no_marker", "ok"]
     ok = st["good.jpg"]
-    for key in ("input", "output", "mask", "status", "error", "marker_ids", "rvec", "tvec",
-                "reprojection_error_px", "pose_ambiguity", "mode", "silhouette_edges", "timings_ms"):
+    for key in (
+        "input",
+        "output",
+        "mask",
+        "status",
+        "error",
+        "marker_ids",
+        "rvec",
+        "tvec",
+        "reprojection_error_px",
+        "pose_ambiguity",
+        "mode",
+        "silhouette_edges",
+        "timings_ms",
+    ):
         assert key in ok
     # the scene's box is convex: the planner draws its shadow as a projection (no silhouette needed)
     assert ok["marker_ids"] == [0] and ok["mode"] == "planar" and ok["silhouette_edges"] == 0
@@ -83,8 +107,17 @@ def test_good_and_bad_inputs_in_one_run(photos, tmp_path, capsys):
     from arshadow.tracking.quality import AMBIGUITY_FLAG
 
     assert ok["pose_flagged"] is (ok["pose_ambiguity"] >= AMBIGUITY_FLAG)  # the flag is in every report
-    assert set(ok["timings_ms"]) >= {"detect", "pose", "silhouette", "volume", "render", "readback", "warp",
-                                     "composite", "total"}
+    assert set(ok["timings_ms"]) >= {
+        "detect",
+        "pose",
+        "silhouette",
+        "volume",
+        "render",
+        "readback",
+        "warp",
+        "composite",
+        "total",
+    }
     assert ok["timings_ms"]["detect"] > 0 and ok["timings_ms"]["pose"] > 0  # the tracker's time, split
     assert st["half.png"]["calibration_scaled"] == {"from": [1280, 720], "to": [640, 360]}
     assert st["nomarker.png"]["error"] and st["nomarker.png"]["output"] is None
@@ -126,8 +159,12 @@ def _near_object_box(shape, item):
     ],
 )
 def test_bad_configuration_exits_2_with_one_line(photos, tmp_path, capsys, problem, argv, needle):
-    args = {"--calib": str(CALIB), "--marker-length": "0.05", "--model": "box:0.04,0.03,0.05",
-            "--light": "point:-0.1,0.1,0.4"}
+    args = {
+        "--calib": str(CALIB),
+        "--marker-length": "0.05",
+        "--model": "box:0.04,0.03,0.05",
+        "--light": "point:-0.1,0.1,0.4",
+    }
     args.update(dict(zip(argv[::2], argv[1::2])))
     flat = [x for kv in args.items() for x in kv]
     code, so, se = _run(capsys, "render", photos / "good.jpg", *flat, "-o", tmp_path / "o")
@@ -140,24 +177,77 @@ def test_bad_configuration_exits_2_with_one_line(photos, tmp_path, capsys, probl
 def test_bad_calibration_and_mesh_files(photos, tmp_path, capsys):
     nan = tmp_path / "nan.yml"
     nan.write_text(CALIB.read_text().replace("1000., 0., 641.29999999999995", ".nan, 0., 641.29999999999995"))
-    code, _, se = _run(capsys, "render", photos / "good.jpg", *SCENE[:0], "--calib", nan, "--marker-length",
-                       "0.05", "--model", "box:0.04,0.03,0.05", "--light", "point:0,0,1", "-o", tmp_path / "o")
+    code, _, se = _run(
+        capsys,
+        "render",
+        photos / "good.jpg",
+        *SCENE[:0],
+        "--calib",
+        nan,
+        "--marker-length",
+        "0.05",
+        "--model",
+        "box:0.04,0.03,0.05",
+        "--light",
+        "point:0,0,1",
+        "-o",
+        tmp_path / "o",
+    )
     assert code == 2 and "nan.yml" in se and len(se.strip().splitlines()) == 1
     broken = tmp_path / "broken.yml"  # a YAML syntax error: OpenCV's parser message, not a Python wrapper's
     broken.write_text(CALIB.read_text().replace("data: [", "data: [ [", 1))
-    code, _, se = _run(capsys, "render", photos / "good.jpg", "--calib", broken, "--marker-length", "0.05",
-                       "--model", "box:0.04,0.03,0.05", "--light", "point:0,0,1", "-o", tmp_path / "o")
+    code, _, se = _run(
+        capsys,
+        "render",
+        photos / "good.jpg",
+        "--calib",
+        broken,
+        "--marker-length",
+        "0.05",
+        "--model",
+        "box:0.04,0.03,0.05",
+        "--light",
+        "point:0,0,1",
+        "-o",
+        tmp_path / "o",
+    )
     assert code == 2 and "broken.yml" in se and "cannot parse" in se and "SystemError" not in se, se
     assert len(se.strip().splitlines()) == 1
     bad_mesh = tmp_path / "bad.obj"
     bad_mesh.write_text("v 0 0 0\nv 1 0 nan\nv 0 1 0\nf 1 2 3\n")
-    code, _, se = _run(capsys, "render", photos / "good.jpg", "--calib", CALIB, "--marker-length", "0.05",
-                       "--model", bad_mesh, "--light", "point:0,0,1", "-o", tmp_path / "o")
+    code, _, se = _run(
+        capsys,
+        "render",
+        photos / "good.jpg",
+        "--calib",
+        CALIB,
+        "--marker-length",
+        "0.05",
+        "--model",
+        bad_mesh,
+        "--light",
+        "point:0,0,1",
+        "-o",
+        tmp_path / "o",
+    )
     assert code == 2 and "bad.obj" in se and len(se.strip().splitlines()) == 1
     garbage = tmp_path / "garbage.stl"
     garbage.write_bytes(b"\x00\x01 not a mesh at all" * 10)
-    code, _, se = _run(capsys, "render", photos / "good.jpg", "--calib", CALIB, "--marker-length", "0.05",
-                       "--model", garbage, "--light", "point:0,0,1", "-o", tmp_path / "o")
+    code, _, se = _run(
+        capsys,
+        "render",
+        photos / "good.jpg",
+        "--calib",
+        CALIB,
+        "--marker-length",
+        "0.05",
+        "--model",
+        garbage,
+        "--light",
+        "point:0,0,1",
+        "-o",
+        tmp_path / "o",
+    )
     assert code == 2 and "garbage.stl" in se and len(se.strip().splitlines()) == 1
 
 
@@ -177,9 +267,23 @@ def test_keep_format_glob_and_never_overwrite_inputs(photos, tmp_path, capsys):
 
 def test_real_process_exit_status(photos, tmp_path):
     """Through the installed entry point (a fresh process): exit code 1 and one line per failed input."""
-    r = subprocess.run([sys.executable, "-m", "arshadow", "render", str(photos / "good.jpg"),
-                        str(photos / "corrupt.png"), *map(str, SCENE), "-o", str(tmp_path / "o"), "-q"],
-                       capture_output=True, text=True, timeout=300)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "arshadow",
+            "render",
+            str(photos / "good.jpg"),
+            str(photos / "corrupt.png"),
+            *map(str, SCENE),
+            "-o",
+            str(tmp_path / "o"),
+            "-q",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert r.returncode == 1, r.stderr
     assert r.stderr.strip().count("\n") == 0 and "corrupt.png" in r.stderr and "Traceback" not in r.stderr
     assert (tmp_path / "o" / "good.png").is_file()
@@ -190,7 +294,7 @@ def test_gray16_and_alpha_inputs(photos, tmp_path, capsys):
     src = cv2.imread(str(photos / "good.jpg"))
     d = tmp_path / "in"
     d.mkdir()
-    gray16 = (cv2.cvtColor(src, cv2.COLOR_BGR2GRAY).astype(np.uint16) * 257)
+    gray16 = cv2.cvtColor(src, cv2.COLOR_BGR2GRAY).astype(np.uint16) * 257
     cv2.imwrite(str(d / "g16.png"), gray16)
     cv2.imwrite(str(d / "rgba.png"), cv2.cvtColor(src, cv2.COLOR_BGR2BGRA))
     code, _, se = _run(capsys, "render", d, *SCENE, "-o", tmp_path / "o", "--save-mask")

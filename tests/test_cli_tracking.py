@@ -19,8 +19,21 @@ from arshadow.transforms import rotation_error_deg
 ROOT = Path(__file__).resolve().parents[1]
 CALIB = ROOT / "calib" / "synth_1280x720.yml"
 CAM = Intrinsics.from_file(CALIB)
-REPORT_KEYS = {"input", "output", "mask", "status", "error", "marker_ids", "rvec", "tvec", "reprojection_error_px",
-               "pose_ambiguity", "mode", "silhouette_edges", "timings_ms"}
+REPORT_KEYS = {
+    "input",
+    "output",
+    "mask",
+    "status",
+    "error",
+    "marker_ids",
+    "rvec",
+    "tvec",
+    "reprojection_error_px",
+    "pose_ambiguity",
+    "mode",
+    "silhouette_edges",
+    "timings_ms",
+}
 
 
 @pytest.fixture(scope="module")
@@ -62,12 +75,30 @@ def test_pose_json_report(capsys, photos):
 
 def test_pose_text_and_overlay_and_report(capsys, photos, tmp_path):
     d, _ = photos
-    code, out, err = run(capsys, "pose", d / "good.png", d / "half.png", "--calib", CALIB, "--marker-length", 0.05,
-                         "--overlay", tmp_path / "ov", "--report", tmp_path / "r.json", "--refine", "contour")
+    code, out, err = run(
+        capsys,
+        "pose",
+        d / "good.png",
+        d / "half.png",
+        "--calib",
+        CALIB,
+        "--marker-length",
+        0.05,
+        "--overlay",
+        tmp_path / "ov",
+        "--report",
+        tmp_path / "r.json",
+        "--refine",
+        "contour",
+    )
     assert code == 0
     assert "good.png: ids [7] rvec [" in out and "reprojection" in out and "ambiguity" in out
     assert "calibration scaled to 640x360" in out
-    assert (tmp_path / "ov" / "good.png").is_file() and cv2.imread(str(tmp_path / "ov" / "half.png")).shape == (360, 640, 3)
+    assert (tmp_path / "ov" / "good.png").is_file() and cv2.imread(str(tmp_path / "ov" / "half.png")).shape == (
+        360,
+        640,
+        3,
+    )
     rep = json.loads((tmp_path / "r.json").read_text())
     assert [i["status"] for i in rep["images"]] == ["ok", "ok"]
     assert rep["images"][1]["calibration_scaled"] is True
@@ -98,12 +129,20 @@ def test_pose_requested_id_absent(capsys, photos):
     "calib_text, word",
     [
         ("%YAML:1.0\n---\nimage_width: 1280\nimage_height: 720\n", "missing key 'camera_matrix'"),
-        ("%YAML:1.0\n---\nimage_width: 1280\nimage_height: 720\n"
-         "camera_matrix: {rows: 3, cols: 3, data: [.nan, 0, 640, 0, 1000, 360, 0, 0, 1]}\n", "NaN"),
-        ("%YAML:1.0\n---\nimage_width: 1280\nimage_height: 720\n"
-         "camera_matrix: {rows: 3, cols: 3, data: [0, 0, 640, 0, 1000, 360, 0, 0, 1]}\n", "focal lengths must be positive"),
-        ("%YAML:1.0\n---\ncamera_matrix: {rows: 3, cols: 3, data: [1000, 0, 640, 0, 1000, 360, 0, 0, 1]}\n",
-         "image_width"),
+        (
+            "%YAML:1.0\n---\nimage_width: 1280\nimage_height: 720\n"
+            "camera_matrix: {rows: 3, cols: 3, data: [.nan, 0, 640, 0, 1000, 360, 0, 0, 1]}\n",
+            "NaN",
+        ),
+        (
+            "%YAML:1.0\n---\nimage_width: 1280\nimage_height: 720\n"
+            "camera_matrix: {rows: 3, cols: 3, data: [0, 0, 640, 0, 1000, 360, 0, 0, 1]}\n",
+            "focal lengths must be positive",
+        ),
+        (
+            "%YAML:1.0\n---\ncamera_matrix: {rows: 3, cols: 3, data: [1000, 0, 640, 0, 1000, 360, 0, 0, 1]}\n",
+            "image_width",
+        ),
     ],
 )
 def test_pose_bad_calibration(capsys, photos, tmp_path, calib_text, word):
@@ -139,8 +178,17 @@ def test_pose_missing_calibration(capsys, photos):
 @pytest.mark.realdata
 def test_pose_board_and_detector_params(capsys, realdata):
     a = realdata / "aruco_tutorial"
-    code, out, _ = run(capsys, "pose", a / "choriginal.jpg", a / "chocclusion_original.jpg", "--calib",
-                       a / "tutorial_camera_charuco.yml", "--board", ROOT / "calib" / "charuco_5x7.yml", "--json")
+    code, out, _ = run(
+        capsys,
+        "pose",
+        a / "choriginal.jpg",
+        a / "chocclusion_original.jpg",
+        "--calib",
+        a / "tutorial_camera_charuco.yml",
+        "--board",
+        ROOT / "calib" / "charuco_5x7.yml",
+        "--json",
+    )
     items = json.loads(out)["images"]
     assert code == 0 and [len(i["marker_ids"]) for i in items] == [17, 13]
     # the report also gives OpenCV's own board-frame pose: compare with OpenCV's ChArUco pipeline run here
@@ -153,8 +201,18 @@ def test_pose_board_and_detector_params(capsys, realdata):
     got_r, got_t = np.array(items[0]["opencv_board_rvec"]), np.array(items[0]["opencv_board_tvec"])
     assert rotation_error_deg(got_r, rvec.ravel()) < TOL.opencv_board_rot_deg
     assert np.linalg.norm(got_t - tvec.ravel()) < TOL.opencv_board_trans_rel * np.linalg.norm(tvec)
-    code, out, _ = run(capsys, "pose", a / "singlemarkersoriginal.jpg", "--calib", a / "tutorial_camera_charuco.yml",
-                       "--marker-length", 0.05, "--detector-params", a / "detector_params.yml", "--json")
+    code, out, _ = run(
+        capsys,
+        "pose",
+        a / "singlemarkersoriginal.jpg",
+        "--calib",
+        a / "tutorial_camera_charuco.yml",
+        "--marker-length",
+        0.05,
+        "--detector-params",
+        a / "detector_params.yml",
+        "--json",
+    )
     assert code == 0 and json.loads(out)["images"][0]["marker_ids"] == [23, 40, 62, 98, 124, 203]
 
 
@@ -222,8 +280,23 @@ def test_marker_png_true_size(capsys, tmp_path):
 
 
 def test_board_png_and_board_file(capsys, tmp_path):
-    code, _, _ = run(capsys, "board", "--type", "charuco", "--size", "5,7", "--square-mm", 30, "--marker-mm", 22,
-                     "-o", tmp_path / "b.png", "--save-board", tmp_path / "b.yml", "--svg")
+    code, _, _ = run(
+        capsys,
+        "board",
+        "--type",
+        "charuco",
+        "--size",
+        "5,7",
+        "--square-mm",
+        30,
+        "--marker-mm",
+        22,
+        "-o",
+        tmp_path / "b.png",
+        "--save-board",
+        tmp_path / "b.yml",
+        "--svg",
+    )
     assert code == 0 and (tmp_path / "b.svg").is_file()
     from arshadow.tracking.board import load_board
 

@@ -33,9 +33,13 @@ CORNERS = np.array([[-L / 2, L / 2, 0], [L / 2, L / 2, 0], [L / 2, -L / 2, 0], [
 
 def _quat_to_R(q):
     x, y, z, w = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
 
 
 def _trs(t, q):
@@ -79,7 +83,7 @@ def _gltf_projections(path):
     times, tr = by_path["translation"]
     _, rot = by_path["rotation"]
     out = {}
-    pts_gltf = (root_m @ np.c_[CORNERS, np.ones(4)].T)  # marker corners in glTF world
+    pts_gltf = root_m @ np.c_[CORNERS, np.ones(4)].T  # marker corners in glTF world
     for t, tt, q in zip(times, tr, rot):
         world_from_cam_gl = root_m @ _trs(tt, q / np.linalg.norm(q))
         cam_gl = np.linalg.inv(world_from_cam_gl) @ pts_gltf
@@ -96,8 +100,14 @@ def test_gltf_camera_reprojects_the_detected_corners(gl_ctx, tmp_path, calib):
     from arshadow.synth import look_at_pose, render_marker_photo
 
     intr = Intrinsics.from_file(str(ROOT / "calib" / calib))
-    scene = arshadow.scene_from_dict({"calib": str(ROOT / "calib" / calib), "marker_length": L,
-                                      "model": "box:0.04,0.04,0.06", "lights": ["point:0.1,0.1,0.4"]})
+    scene = arshadow.scene_from_dict(
+        {
+            "calib": str(ROOT / "calib" / calib),
+            "marker_length": L,
+            "model": "box:0.04,0.04,0.06",
+            "lights": ["point:0.1,0.1,0.4"],
+        }
+    )
     eyes = ([0.1, -0.3, 0.4], [-0.2, -0.25, 0.3], [0.05, 0.3, 0.35], [0.3, 0.05, 0.25])
     items, detected = [], []
     with arshadow.Session(scene, context=gl_ctx) as s:
@@ -109,8 +119,9 @@ def test_gltf_camera_reprojects_the_detected_corners(gl_ctx, tmp_path, calib):
             detected.append(np.asarray(pose.corners, float).reshape(-1, 2)[:4])
     items.append({"status": "no_marker", "rvec": None, "tvec": None})  # a lost photo
     track = track_from_items(items, intr, fps=2.0)
-    glb = write_track(tmp_path / "t.glb", track, caster=s.scene.caster, ground_size=0.5, lost="absent",
-                      interpolation="STEP")
+    glb = write_track(
+        tmp_path / "t.glb", track, caster=s.scene.caster, ground_size=0.5, lost="absent", interpolation="STEP"
+    )
     proj = _gltf_projections(glb)
     assert len(proj) == len(eyes)  # the lost photo has no key
     for k in range(len(eyes)):
@@ -162,10 +173,12 @@ def test_json_and_csv_state_both_conventions_and_key_lost_frames(tmp_path):
 def test_frames_jsonl_of_a_video(tmp_path):
     intr = Intrinsics.from_file(str(ROOT / "calib" / "synth_1280x720.yml"))
     rv = [0.1, 0.2, 0.3]
-    lines = [{"frame": 0, "time_s": 0.0, "status": "no_marker", "rvec": None, "tvec": None, "raw": None},
-             {"frame": 1, "time_s": 0.04, "status": "ok", "rvec": rv, "tvec": [0, 0, 0.4], "raw": {"rvec": rv}},
-             {"frame": 2, "time_s": 0.08, "status": "ok", "rvec": rv, "tvec": [0, 0, 0.41], "raw": None},
-             {"frame": 3, "time_s": 0.12, "status": "held", "rvec": rv, "tvec": [0, 0, 0.41], "raw": None}]
+    lines = [
+        {"frame": 0, "time_s": 0.0, "status": "no_marker", "rvec": None, "tvec": None, "raw": None},
+        {"frame": 1, "time_s": 0.04, "status": "ok", "rvec": rv, "tvec": [0, 0, 0.4], "raw": {"rvec": rv}},
+        {"frame": 2, "time_s": 0.08, "status": "ok", "rvec": rv, "tvec": [0, 0, 0.41], "raw": None},
+        {"frame": 3, "time_s": 0.12, "status": "held", "rvec": rv, "tvec": [0, 0, 0.41], "raw": None},
+    ]
     p = tmp_path / "clip.frames.jsonl"
     p.write_text("".join(json.dumps(d) + "\n" for d in lines))
     tr = track_from_frames_jsonl(p, intr)
@@ -190,7 +203,8 @@ def test_ground_scene_exports_the_camera_in_the_ground_frame():
     cam_from_ground = frame.cam_from_world
     origin = cam_from_marker @ np.r_[np.asarray(g.point, float), 1.0]
     np.testing.assert_allclose(cam_from_ground @ [0, 0, 0, 1.0], origin, atol=1e-12)
-    np.testing.assert_allclose(cam_from_ground[:3, :3] @ [0, 0, 1.0],
-                               cam_from_marker[:3, :3] @ np.asarray(g.normal, float), atol=1e-12)
+    np.testing.assert_allclose(
+        cam_from_ground[:3, :3] @ [0, 0, 1.0], cam_from_marker[:3, :3] @ np.asarray(g.normal, float), atol=1e-12
+    )
     (plain,) = track_from_items([dict(item, ground=None)], intr).frames  # no ground: the marker frame
     np.testing.assert_allclose(plain.cam_from_world, cam_from_marker, atol=1e-9)

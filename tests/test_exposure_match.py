@@ -31,8 +31,14 @@ def cam():
 
 
 def _spec(**kw):
-    d = {"calib": CALIB, "marker_length": 0.05, "model": "box:{:g},{:g},{:g}".format(*BOX), "place": ",".join(map(str, PLACE)),
-         "color": "255,255,255", "lights": ["directional:{:.6f},{:.6f},{:.6f}".format(*LIGHT)]}
+    d = {
+        "calib": CALIB,
+        "marker_length": 0.05,
+        "model": "box:{:g},{:g},{:g}".format(*BOX),
+        "place": ",".join(map(str, PLACE)),
+        "color": "255,255,255",
+        "lights": ["directional:{:.6f},{:.6f},{:.6f}".format(*LIGHT)],
+    }
     d.update(kw)
     return scene_from_dict(d)
 
@@ -40,7 +46,9 @@ def _spec(**kw):
 def _top_face_linear(image, cam, pose) -> np.ndarray:
     """Median linear RGB over the central half of the virtual box's top face (analytic projection)."""
     hx, hy = BOX[0] / 4, BOX[1] / 4
-    quad = np.array([[PLACE[0] + sx * hx, PLACE[1] + sy * hy, BOX[2]] for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1))])
+    quad = np.array(
+        [[PLACE[0] + sx * hx, PLACE[1] + sy * hy, BOX[2]] for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
+    )
     uv = cam.project(quad, pose)
     m = np.zeros(image.shape[:2], np.uint8)
     cv2.fillConvexPoly(m, np.rint(uv).astype(np.int32), 1)
@@ -53,8 +61,18 @@ def _top_face_linear(image, cam, pose) -> np.ndarray:
 def test_white_box_top_face_matches_the_paper(cam, compose):
     """Both compose paths (numpy, shader) apply the gain."""
     pose = look_at_pose(EYE, TARGET)
-    p = render_lit_photo(cam, pose, light=LIGHT, probe="box:0.05,0.05,0.1", probe_place=(0.1, 0.05, 0.0),
-                         exposure=0.55, white_balance=(1.15, 1.0, 0.8), noise_sigma=1.0, seed=5, supersample=1)
+    p = render_lit_photo(
+        cam,
+        pose,
+        light=LIGHT,
+        probe="box:0.05,0.05,0.1",
+        probe_place=(0.1, 0.05, 0.0),
+        exposure=0.55,
+        white_balance=(1.15, 1.0, 0.8),
+        noise_sigma=1.0,
+        seed=5,
+        supersample=1,
+    )
     with Session(_spec(compose=compose)) as s:
         res = s.process(p.image, name="lit")
     assert res.item.compose == compose
@@ -73,8 +91,20 @@ def test_white_box_top_face_matches_the_paper(cam, compose):
 def test_video_follows_an_exposure_step(cam):
     """A video session (``track_roi``): the smoothed paper is steady, then follows a step in exposure."""
     pose = look_at_pose(EYE, TARGET)
-    shots = [render_lit_photo(cam, pose, light=LIGHT, probe="box:0.05,0.05,0.1", probe_place=(0.1, 0.05, 0.0),
-                              exposure=e, noise_sigma=1.0, seed=i, supersample=1) for i, e in enumerate((0.45, 0.8))]
+    shots = [
+        render_lit_photo(
+            cam,
+            pose,
+            light=LIGHT,
+            probe="box:0.05,0.05,0.1",
+            probe_place=(0.1, 0.05, 0.0),
+            exposure=e,
+            noise_sigma=1.0,
+            seed=i,
+            supersample=1,
+        )
+        for i, e in enumerate((0.45, 0.8))
+    ]
     frames = [shots[0]] * 4 + [shots[1]] * 5
     with Session(_spec(track_roi=True)) as s:
         reps = [s.process(f.image.copy(), name=str(i)).item.to_dict()["exposure"] for i, f in enumerate(frames)]

@@ -91,12 +91,16 @@ def test_markers_board_file_round_trip_and_errors(tmp_path):
 def test_aruco_layout_file(tmp_path):
     """The ArUco library's layout (OpenCV's board convention: y down, z into the board) -> world frame."""
     p = tmp_path / "layout.yml"
-    p.write_text("%YAML:1.0\naruco_bc_nmarkers: 1\naruco_bc_mInfoType: 1\naruco_bc_markers:\n"
-                 "   - { id:7, corners:[ [ -0.02, -0.02, 0. ], [ 0.02, -0.02, 0. ], [ 0.02, 0.02, 0. ],"
-                 " [ -0.02, 0.02, 0. ] ] }\n")
+    p.write_text(
+        "%YAML:1.0\naruco_bc_nmarkers: 1\naruco_bc_mInfoType: 1\naruco_bc_markers:\n"
+        "   - { id:7, corners:[ [ -0.02, -0.02, 0. ], [ 0.02, -0.02, 0. ], [ 0.02, 0.02, 0. ],"
+        " [ -0.02, 0.02, 0. ] ] }\n"
+    )
     b = load_board(p)
     assert b.kind == "markers" and b.dictionary == "DICT_ARUCO_ORIGINAL" and b.marker_ids == (7,)
-    expected = np.array([[-0.02, -0.02, 0], [0.02, -0.02, 0], [0.02, 0.02, 0], [-0.02, 0.02, 0]]) @ OPENCV_BOARD_TO_WORLD.T
+    expected = (
+        np.array([[-0.02, -0.02, 0], [0.02, -0.02, 0], [0.02, 0.02, 0], [-0.02, 0.02, 0]]) @ OPENCV_BOARD_TO_WORLD.T
+    )
     np.testing.assert_allclose(b.marker_corners_world[7], expected)
     # TL is top-left in the world frame (y up): the single-marker frame's corner order
     assert b.marker_corners_world[7][0].tolist()[:2] == [-0.02, 0.02]
@@ -158,8 +162,9 @@ def test_rescue_detector_runs_a_second_search_only_on_a_miss():
 # issue 20's tracking messages: other dictionaries named, flag reasons with numbers, board units
 # ---------------------------------------------------------------------------------------------------
 def test_no_marker_names_the_dictionaries_in_the_photo():
-    photo = render_marker_photo(CAM, look_at_pose([0.05, -0.1, 0.3], [0, 0, 0]), marker_length=0.05,
-                                dictionary="DICT_5X5_1000", marker_id=403)
+    photo = render_marker_photo(
+        CAM, look_at_pose([0.05, -0.1, 0.3], [0, 0, 0]), marker_length=0.05, dictionary="DICT_5X5_1000", marker_id=403
+    )
     with pytest.raises(MarkerNotFoundError, match="DICT_5X5_1000 ids 403"):
         MarkerTracker(CAM, marker_length=0.05, dictionary="DICT_6X6_250").estimate(photo.image)
     # a video tracker (track_roi) does not spend the scan on every missed frame

@@ -67,8 +67,9 @@ def test_gl_info(ctx):
 
 @pytest.mark.gl
 def test_cli_info_json(gl_ctx):
-    out = subprocess.run([sys.executable, "-m", "arshadow", "info", "--json"], capture_output=True, text=True,
-                         check=True)
+    out = subprocess.run(
+        [sys.executable, "-m", "arshadow", "info", "--json"], capture_output=True, text=True, check=True
+    )
     info = json.loads(out.stdout)
     for key in ("arshadow", "python", "numpy", "cv2", "trimesh", "moderngl"):
         assert info[key]
@@ -80,7 +81,8 @@ def test_cli_info_json(gl_ctx):
 
 
 def test_cli_info_reports_failure(monkeypatch):
-    out = subprocess.run([sys.executable, "-m", "arshadow", "info", "--backend", "nonsense"], capture_output=True,
-                         text=True)
+    out = subprocess.run(
+        [sys.executable, "-m", "arshadow", "info", "--backend", "nonsense"], capture_output=True, text=True
+    )
     assert out.returncode == 2
     assert "nonsense" in out.stderr and "Traceback" not in out.stderr

@@ -20,7 +20,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import pytest
-
 from image_oracle import ShadowOracle, boundary_distance, iou
 
 pytestmark = pytest.mark.gl
@@ -42,8 +41,7 @@ class Scene:
 def _intrinsics(fx):
     from arshadow.camera import Intrinsics
 
-    return Intrinsics(fx=fx, fy=fx, cx=(W - 1) / 2 + 3.3, cy=(H - 1) / 2 - 2.7, width=W, height=H,
-                      dist=np.zeros(0))
+    return Intrinsics(fx=fx, fy=fx, cx=(W - 1) / 2 + 3.3, cy=(H - 1) / 2 - 2.7, width=W, height=H, dist=np.zeros(0))
 
 
 def _nonconvex_blob():
@@ -75,25 +73,46 @@ def _scenes():
     wall = load_occluder("box:1.0,0.05,0.6")
     blob = _nonconvex_blob()
     return [
-        Scene("box_point", box, look_at_pose([0.45, -0.55, 0.45], [0.05, 0.08, 0.02]),
-              [(np.array([-0.2, 0.1, 0.6, 1.0]), 1.0)]),
-        Scene("nonconvex_point", blob, look_at_pose([0.35, -0.4, 0.35], [0.02, 0.05, 0.03]),
-              [(np.array([-0.15, 0.2, 0.5, 1.0]), 1.0)]),
-        Scene("torus_directional", torus, look_at_pose([0.3, -0.45, 0.4], [0.03, 0.06, 0.0]),
-              [(np.array([0.45, 0.3, 1.0, 0.0]) / np.linalg.norm([0.45, 0.3, 1.0]), 1.0)]),
-        Scene("wall_camera_in_shadow", wall, look_at_pose([0.1, -0.6, 0.15], [0.6, -1.5, 0.0]),
-              [(np.array([0.0, 1.0, 0.25, 0.0]) / np.linalg.norm([0.0, 1.0, 0.25]), 1.0)], fx=800.0),
-        Scene("box_two_lights", box, look_at_pose([0.5, -0.45, 0.5], [0.03, 0.03, 0.02]),
-              [(np.array([-0.25, 0.05, 0.55, 1.0]), 0.5), (np.array([0.2, 0.25, 0.7, 1.0]), 0.5)]),
+        Scene(
+            "box_point",
+            box,
+            look_at_pose([0.45, -0.55, 0.45], [0.05, 0.08, 0.02]),
+            [(np.array([-0.2, 0.1, 0.6, 1.0]), 1.0)],
+        ),
+        Scene(
+            "nonconvex_point",
+            blob,
+            look_at_pose([0.35, -0.4, 0.35], [0.02, 0.05, 0.03]),
+            [(np.array([-0.15, 0.2, 0.5, 1.0]), 1.0)],
+        ),
+        Scene(
+            "torus_directional",
+            torus,
+            look_at_pose([0.3, -0.45, 0.4], [0.03, 0.06, 0.0]),
+            [(np.array([0.45, 0.3, 1.0, 0.0]) / np.linalg.norm([0.45, 0.3, 1.0]), 1.0)],
+        ),
+        Scene(
+            "wall_camera_in_shadow",
+            wall,
+            look_at_pose([0.1, -0.6, 0.15], [0.6, -1.5, 0.0]),
+            [(np.array([0.0, 1.0, 0.25, 0.0]) / np.linalg.norm([0.0, 1.0, 0.25]), 1.0)],
+            fx=800.0,
+        ),
+        Scene(
+            "box_two_lights",
+            box,
+            look_at_pose([0.5, -0.45, 0.5], [0.03, 0.03, 0.02]),
+            [(np.array([-0.25, 0.05, 0.55, 1.0]), 0.5), (np.array([0.2, 0.25, 0.7, 1.0]), 0.5)],
+        ),
     ]
 
 
 def _render(ctx_or_renderer, scene: Scene, mode: str | None = None, **kw):
     """Render a scene; ``mode=None`` picks z-pass/z-fail with the conservative test."""
-    from arshadow.gl.stencil import LightPass
     from arshadow.geometry.silhouette import silhouette
-    from arshadow.transforms import CV_TO_GL, invert_rigid
     from arshadow.geometry.volume import camera_may_be_in_shadow, near_plane_radius, shadow_volume
+    from arshadow.gl.stencil import LightPass
+    from arshadow.transforms import CV_TO_GL, invert_rigid
 
     K = _intrinsics(scene.fx)
     eye = invert_rigid(scene.cam_from_world)[:3, 3]
@@ -107,15 +126,29 @@ def _render(ctx_or_renderer, scene: Scene, mode: str | None = None, **kw):
         passes.append(LightPass(lh, w / total, vol, m))
         modes.append(m)
     r = ctx_or_renderer
-    res = r.render(projection=K.gl_projection(ZNEAR, None), view=CV_TO_GL @ scene.cam_from_world, width=W,
-                   height=H, caster=scene.caster, passes=passes, ground_size=scene.ground_size, **kw)
+    res = r.render(
+        projection=K.gl_projection(ZNEAR, None),
+        view=CV_TO_GL @ scene.cam_from_world,
+        width=W,
+        height=H,
+        caster=scene.caster,
+        passes=passes,
+        ground_size=scene.ground_size,
+        **kw,
+    )
     return res, modes
 
 
 def _oracle(scene: Scene):
     K = _intrinsics(scene.fx)
-    return ShadowOracle(K.K, scene.cam_from_world, scene.caster.vertices, scene.caster.faces, scene.lights,
-                        ground_size=scene.ground_size)
+    return ShadowOracle(
+        K.K,
+        scene.cam_from_world,
+        scene.caster.vertices,
+        scene.caster.faces,
+        scene.lights,
+        ground_size=scene.ground_size,
+    )
 
 
 def _threshold(scene):
@@ -145,15 +178,30 @@ def scene_results(gl_ctx, renderer):
         mism = np.argwhere(rm != ob)
         dist = boundary_distance(orc, mism[:, ::-1].astype(np.float64), t) if len(mism) else np.zeros(0)
         out[sc.name] = dict(
-            scene=sc, res=res, modes=modes, oracle=(om, og, oo), iou=iou(rm, ob), n_shadow=int(ob.sum()),
-            n_mismatch=len(mism), boundary_mean=float(dist.mean()) if len(dist) else 0.0,
+            scene=sc,
+            res=res,
+            modes=modes,
+            oracle=(om, og, oo),
+            iou=iou(rm, ob),
+            n_shadow=int(ob.sum()),
+            n_mismatch=len(mism),
+            boundary_mean=float(dist.mean()) if len(dist) else 0.0,
             boundary_max=float(dist.max()) if len(dist) else 0.0,
         )
     if os.environ.get("ARSHADOW_ACCURACY_JSON"):
         with open(os.environ["ARSHADOW_ACCURACY_JSON"], "w") as fh:
-            json.dump({k: {kk: vv for kk, vv in v.items() if kk in (
-                "modes", "iou", "n_shadow", "n_mismatch", "boundary_mean", "boundary_max")}
-                for k, v in out.items()}, fh, indent=1)
+            json.dump(
+                {
+                    k: {
+                        kk: vv
+                        for kk, vv in v.items()
+                        if kk in ("modes", "iou", "n_shadow", "n_mismatch", "boundary_mean", "boundary_max")
+                    }
+                    for k, v in out.items()
+                },
+                fh,
+                indent=1,
+            )
     return out
 
 
@@ -163,8 +211,9 @@ def test_modes_chosen_by_conservative_test(scene_results):
         assert set(r["modes"]) == {want}, (name, r["modes"])
 
 
-@pytest.mark.parametrize("name", ["box_point", "nonconvex_point", "torus_directional", "wall_camera_in_shadow",
-                                  "box_two_lights"])
+@pytest.mark.parametrize(
+    "name", ["box_point", "nonconvex_point", "torus_directional", "wall_camera_in_shadow", "box_two_lights"]
+)
 def test_scene_accuracy(scene_results, tol, name):
     r = scene_results[name]
     assert r["n_shadow"] >= tol.shadow_min_pixels, f"{name}: scene too small to judge ({r['n_shadow']} px)"
@@ -251,26 +300,38 @@ def test_stencil_bits_and_state(gl_ctx, renderer, scene_results):
 def test_self_shadowing(ctx, tol):
     """A low box's top face (facing the light) inside a tall box's shadow gets only ambient light."""
     from arshadow.compose.composite import srgb_to_linear
-    from arshadow.gl.stencil import LightPass, ShadowRenderer
     from arshadow.geometry.mesh import ShadowCaster, load_occluder
     from arshadow.geometry.silhouette import silhouette
+    from arshadow.geometry.volume import shadow_volume
+    from arshadow.gl.stencil import LightPass, ShadowRenderer
     from arshadow.synth import look_at_pose
     from arshadow.transforms import CV_TO_GL
-    from arshadow.geometry.volume import shadow_volume
 
     tall = load_occluder("box:0.04,0.2,0.3", place=(-0.06, 0, 0))
     low = load_occluder("box:0.2,0.2,0.05", place=(0.08, 0, 0))
-    caster = ShadowCaster(np.concatenate([tall.vertices, low.vertices]),
-                          np.concatenate([tall.faces, low.faces + len(tall.vertices)]), name="two boxes")
+    caster = ShadowCaster(
+        np.concatenate([tall.vertices, low.vertices]),
+        np.concatenate([tall.faces, low.faces + len(tall.vertices)]),
+        name="two boxes",
+    )
     L = np.array([-1.0, 0.0, 1.0, 0.0]) / np.sqrt(2)  # sun at 45 deg from -x: tall box shades x in [-0.02, 0.25]
     T = look_at_pose([0.25, -0.35, 0.5], [0.08, 0.0, 0.05])
     K = _intrinsics(1000.0)
     sil = silhouette(caster, L)
     vol = shadow_volume(caster, L, sil, caps=True)
     with ShadowRenderer(ctx, max_width=W, max_height=H) as r:
-        res = r.render(projection=K.gl_projection(ZNEAR, None), view=CV_TO_GL @ T, width=W, height=H,
-                       caster=caster, passes=[LightPass(L, 1.0, vol, "zfail")], ambient=0.25, diffuse=1.0,
-                       specular=0.0, occluder_color=(0.8, 0.8, 0.8))
+        res = r.render(
+            projection=K.gl_projection(ZNEAR, None),
+            view=CV_TO_GL @ T,
+            width=W,
+            height=H,
+            caster=caster,
+            passes=[LightPass(L, 1.0, vol, "zfail")],
+            ambient=0.25,
+            diffuse=1.0,
+            specular=0.0,
+            occluder_color=(0.8, 0.8, 0.8),
+        )
     # classify pixels on the low box's top face (z = 0.05) by its analytic shadow line:
     # a top-face point (x, y, 0.05) is shaded iff x <= -0.02 + (0.3 - 0.05) = 0.23 (light at 45 deg)
     vv, uu = np.mgrid[0:H, 0:W]
@@ -302,19 +363,24 @@ def test_render_sub_canvas_matches_full(renderer, scene_results, tol):
     K = _intrinsics(sc.fx)
     u0, v0, w, h = 500, 200, 400, 300
     res_full = r["res"]
-    from arshadow.gl.stencil import LightPass
     from arshadow.geometry.silhouette import silhouette
     from arshadow.geometry.volume import shadow_volume
+    from arshadow.gl.stencil import LightPass
 
     lh = sc.lights[0][0]
     vol = shadow_volume(sc.caster, lh, silhouette(sc.caster, lh), caps=False)
-    roi = renderer.render(projection=K.gl_projection(ZNEAR, None, canvas=(u0, v0, w, h)),
-                          view=CV_TO_GL @ sc.cam_from_world, width=w, height=h, caster=sc.caster,
-                          passes=[LightPass(lh, 1.0, vol, "zpass")])
-    sub = res_full.mask[v0:v0 + h, u0:u0 + w]
+    roi = renderer.render(
+        projection=K.gl_projection(ZNEAR, None, canvas=(u0, v0, w, h)),
+        view=CV_TO_GL @ sc.cam_from_world,
+        width=w,
+        height=h,
+        caster=sc.caster,
+        passes=[LightPass(lh, 1.0, vol, "zpass")],
+    )
+    sub = res_full.mask[v0 : v0 + h, u0 : u0 + w]
     assert roi.mask.shape == (h, w)
     assert np.count_nonzero((roi.mask >= 0.5) != (sub >= 0.5)) <= tol.roi_vs_full_px
-    assert np.count_nonzero((roi.alpha > 0.5) != (res_full.alpha[v0:v0 + h, u0:u0 + w] > 0.5)) <= tol.roi_vs_full_px
+    assert np.count_nonzero((roi.alpha > 0.5) != (res_full.alpha[v0 : v0 + h, u0 : u0 + w] > 0.5)) <= tol.roi_vs_full_px
 
 
 def test_bad_input(renderer):
@@ -332,8 +398,14 @@ def test_bad_input(renderer):
     with pytest.raises(ShapeError):
         renderer.render(projection=P * np.nan, view=V, width=W, height=H, caster=sc.caster, passes=[])
     with pytest.raises(UsageError):
-        renderer.render(projection=P, view=V, width=W, height=H, caster=sc.caster,
-                        passes=[LightPass(np.array([0, 0, 1, 0.0]), 1.0, None, "bogus")])
+        renderer.render(
+            projection=P,
+            view=V,
+            width=W,
+            height=H,
+            caster=sc.caster,
+            passes=[LightPass(np.array([0, 0, 1, 0.0]), 1.0, None, "bogus")],
+        )
 
 
 def test_contact_depth_stability(renderer, tol):
@@ -341,12 +413,12 @@ def test_contact_depth_stability(renderer, tol):
     not flicker there. Jittered poses (two of them grazing, camera 6-8 cm above the ground), z-pass, z-fail
     and a z-fail volume truncated just below the ground: every render matches the oracle up to a few
     boundary pixels. (Measured in docs/rendering.md: a polygon offset on the ground makes this worse.)"""
-    from arshadow.gl.stencil import LightPass
     from arshadow.geometry.mesh import load_occluder
     from arshadow.geometry.silhouette import silhouette
+    from arshadow.geometry.volume import shadow_volume
+    from arshadow.gl.stencil import LightPass
     from arshadow.synth import look_at_pose
     from arshadow.transforms import CV_TO_GL
-    from arshadow.geometry.volume import shadow_volume
 
     rng = np.random.default_rng(7)
     box = load_occluder("box:0.1,0.1,0.12")
@@ -361,8 +433,14 @@ def test_contact_depth_stability(renderer, tol):
         ob = orc.image(W, H)[0] >= 0.5
         for mode, trunc in (("zpass", None), ("zfail", None), ("zfail", -1e-3 * 0.12)):
             vol = shadow_volume(box, L, silhouette(box, L), caps=(mode == "zfail"), truncate_z=trunc)
-            res = renderer.render(projection=K.gl_projection(ZNEAR, None), view=CV_TO_GL @ T, width=W, height=H,
-                                  caster=box, passes=[LightPass(L, 1.0, vol, mode)])
+            res = renderer.render(
+                projection=K.gl_projection(ZNEAR, None),
+                view=CV_TO_GL @ T,
+                width=W,
+                height=H,
+                caster=box,
+                passes=[LightPass(L, 1.0, vol, mode)],
+            )
             mism = np.argwhere((res.mask >= 0.5) != ob)
             assert len(mism) <= 10, (trial, mode, trunc, len(mism))
             if len(mism):
@@ -374,10 +452,10 @@ def test_contact_depth_stability(renderer, tol):
 def test_antialiased_mask(ctx, tol, samples, supersample):
     """MSAA / supersampling give fractional edge values; thresholded at 0.5 the mask still matches the
     pixel-centre oracle, and the fractional values approach the true area coverage."""
-    from arshadow.gl.stencil import LightPass, ShadowRenderer
     from arshadow.geometry.silhouette import silhouette
-    from arshadow.transforms import CV_TO_GL
     from arshadow.geometry.volume import shadow_volume
+    from arshadow.gl.stencil import LightPass, ShadowRenderer
+    from arshadow.transforms import CV_TO_GL
 
     if samples > ctx.max_samples:
         pytest.skip(f"GL has at most {ctx.max_samples} samples")
@@ -387,8 +465,14 @@ def test_antialiased_mask(ctx, tol, samples, supersample):
     lh = sc.lights[0][0]
     vol = shadow_volume(sc.caster, lh, silhouette(sc.caster, lh), caps=False)
     passes = [LightPass(lh, 1.0, vol, "zpass")]
-    kw = dict(projection=K.gl_projection(ZNEAR, None, canvas=canvas), view=CV_TO_GL @ sc.cam_from_world,
-              width=canvas[2], height=canvas[3], caster=sc.caster, passes=passes)
+    kw = dict(
+        projection=K.gl_projection(ZNEAR, None, canvas=canvas),
+        view=CV_TO_GL @ sc.cam_from_world,
+        width=canvas[2],
+        height=canvas[3],
+        caster=sc.caster,
+        passes=passes,
+    )
     with ShadowRenderer(ctx, max_width=640, max_height=480, samples=samples, supersample=supersample) as r:
         res = r.render(**kw)
         if samples:
@@ -424,8 +508,9 @@ def test_planar_mode_and_empty_pass(renderer, tol):
     sc = _scenes()[0]
     K = _intrinsics(sc.fx)
     lh = sc.lights[0][0]
-    kw = dict(projection=K.gl_projection(ZNEAR, None), view=CV_TO_GL @ sc.cam_from_world, width=W, height=H,
-              caster=sc.caster)
+    kw = dict(
+        projection=K.gl_projection(ZNEAR, None), view=CV_TO_GL @ sc.cam_from_world, width=W, height=H, caster=sc.caster
+    )
     res = renderer.render(passes=[LightPass(lh, 1.0, None, "planar")], **kw)
     om = _oracle(sc).image(W, H)[0]
     assert iou(res.mask >= 0.5, om >= 0.5) >= tol.shadow_iou_median
@@ -440,11 +525,11 @@ def test_buffers_grow_and_caster_cache(ctx):
     bounded and keyed by the caster object; released casters' buffers are freed."""
     import gc
 
-    from arshadow.gl.stencil import LightPass, ShadowRenderer
     from arshadow.geometry.mesh import load_occluder
     from arshadow.geometry.silhouette import silhouette
-    from arshadow.transforms import CV_TO_GL
     from arshadow.geometry.volume import shadow_volume
+    from arshadow.gl.stencil import LightPass, ShadowRenderer
+    from arshadow.transforms import CV_TO_GL
 
     sc = _scenes()[0]
     K = _intrinsics(sc.fx)
@@ -452,12 +537,20 @@ def test_buffers_grow_and_caster_cache(ctx):
 
     def render(r, caster, canvas):
         vol = shadow_volume(caster, lh, silhouette(caster, lh), caps=False)
-        return r.render(projection=K.gl_projection(ZNEAR, None, canvas=canvas), view=CV_TO_GL @ sc.cam_from_world,
-                        width=canvas[2], height=canvas[3], caster=caster, passes=[LightPass(lh, 1.0, vol, "zpass")])
+        return r.render(
+            projection=K.gl_projection(ZNEAR, None, canvas=canvas),
+            view=CV_TO_GL @ sc.cam_from_world,
+            width=canvas[2],
+            height=canvas[3],
+            caster=caster,
+            passes=[LightPass(lh, 1.0, vol, "zpass")],
+        )
 
     small, big = (560, 300, 200, 150), (400, 200, 600, 400)
-    with ShadowRenderer(ctx, max_width=W, max_height=H, max_cached_casters=3) as r, \
-            ShadowRenderer(ctx, max_width=W, max_height=H) as fresh:
+    with (
+        ShadowRenderer(ctx, max_width=W, max_height=H, max_cached_casters=3) as r,
+        ShadowRenderer(ctx, max_width=W, max_height=H) as fresh,
+    ):
         a = render(r, sc.caster, small)
         b = render(r, sc.caster, big)  # grows
         c = render(r, sc.caster, small)  # reuses the big buffers
@@ -482,22 +575,29 @@ def test_upload_reuse_follows_the_volumes(ctx):
     arrays edited in place is uploaded again."""
     from dataclasses import replace
 
-    from arshadow.gl.stencil import LightPass, ShadowRenderer
     from arshadow.geometry.silhouette import silhouette
-    from arshadow.transforms import CV_TO_GL
     from arshadow.geometry.volume import shadow_volume
+    from arshadow.gl.stencil import LightPass, ShadowRenderer
+    from arshadow.transforms import CV_TO_GL
 
     sc = _scenes()[0]
     K = _intrinsics(sc.fx)
     canvas = (400, 250, 480, 360)
-    kw = dict(projection=K.gl_projection(ZNEAR, None, canvas=canvas), view=CV_TO_GL @ sc.cam_from_world,
-              width=canvas[2], height=canvas[3], caster=sc.caster)
+    kw = dict(
+        projection=K.gl_projection(ZNEAR, None, canvas=canvas),
+        view=CV_TO_GL @ sc.cam_from_world,
+        width=canvas[2],
+        height=canvas[3],
+        caster=sc.caster,
+    )
     la, lb = sc.lights[0][0], np.array([0.25, 0.2, 0.6, 1.0])
     va = shadow_volume(sc.caster, la, silhouette(sc.caster, la), caps=False)
     vb = shadow_volume(sc.caster, lb, silhouette(sc.caster, lb), caps=False)
     pa, pb = [LightPass(la, 1.0, va, "zpass")], [LightPass(lb, 1.0, vb, "zpass")]
-    with ShadowRenderer(ctx, max_width=640, max_height=480) as r, \
-            ShadowRenderer(ctx, max_width=640, max_height=480) as fresh:
+    with (
+        ShadowRenderer(ctx, max_width=640, max_height=480) as r,
+        ShadowRenderer(ctx, max_width=640, max_height=480) as fresh,
+    ):
         a1 = r.render(passes=pa, **kw)
         a2 = r.render(passes=pa, **kw)  # reused upload
         b = r.render(passes=pb, **kw)

@@ -14,10 +14,10 @@ import pytest
 W, H = 1280, 720
 
 
-
 def _rendered(res):
     """A :class:`arshadow.session.FrameResult` as ``(composite, mask, report item)``."""
     return res.composite, res.mask, res.item
+
 
 def _intrinsics(dist=()):
     from arshadow.camera import Intrinsics
@@ -33,8 +33,8 @@ def _photo(seed=3):
 
 
 def _both_paths(ctx, compose, *, dist, aa, caster_spec, light, eye, target, **opts):
-    from arshadow.lights.spec import parse_light
     from arshadow.geometry.mesh import load_occluder
+    from arshadow.lights.spec import parse_light
     from arshadow.scene import RenderOptions, Scene
     from arshadow.session import Session
     from arshadow.synth import look_at_pose
@@ -45,8 +45,9 @@ def _both_paths(ctx, compose, *, dist, aa, caster_spec, light, eye, target, **op
     photo = _photo()
     results = {}
     for path in ("cpu", "gpu"):
-        scene = Scene(intr, caster, [parse_light(light)], RenderOptions(aa=aa, compose=path, **opts),
-                      {"marker_length": 0.05})
+        scene = Scene(
+            intr, caster, [parse_light(light)], RenderOptions(aa=aa, compose=path, **opts), {"marker_length": 0.05}
+        )
         comp = Session(scene, context=ctx)
         with comp:
             out, mask, info = _rendered(comp.render(photo, pose))
@@ -56,13 +57,28 @@ def _both_paths(ctx, compose, *, dist, aa, caster_spec, light, eye, target, **op
 
 
 CASES = {
-    "box_point": dict(caster_spec="box:0.06,0.05,0.09", light="point:0.25,0.15,0.45", eye=[0.15, -0.55, 0.42],
-                      target=[0.17, -0.12, 0.02]),
-    "torus_sun_tinted": dict(caster_spec="torus:0.06,0.02", light="directional:-0.3,0.5,1.0",
-                             eye=[-0.5, -0.45, 0.35], target=[-0.08, 0.12, 0.0], opacity=0.55,
-                             shadow_color=(0.05, 0.1, 0.3)),
-    "sphere_no_occluder": dict(caster_spec="sphere:0.04", light="point:0.1,-0.2,0.5", eye=[0.0, -0.5, 0.4],
-                               target=[0.0, 0.0, 0.0], draw_occluder=False, opacity=1.0),
+    "box_point": dict(
+        caster_spec="box:0.06,0.05,0.09",
+        light="point:0.25,0.15,0.45",
+        eye=[0.15, -0.55, 0.42],
+        target=[0.17, -0.12, 0.02],
+    ),
+    "torus_sun_tinted": dict(
+        caster_spec="torus:0.06,0.02",
+        light="directional:-0.3,0.5,1.0",
+        eye=[-0.5, -0.45, 0.35],
+        target=[-0.08, 0.12, 0.0],
+        opacity=0.55,
+        shadow_color=(0.05, 0.1, 0.3),
+    ),
+    "sphere_no_occluder": dict(
+        caster_spec="sphere:0.04",
+        light="point:0.1,-0.2,0.5",
+        eye=[0.0, -0.5, 0.4],
+        target=[0.0, 0.0, 0.0],
+        draw_occluder=False,
+        opacity=1.0,
+    ),
 }
 
 
@@ -78,8 +94,10 @@ def test_shader_compose_equals_numpy_compose(ctx, tol, case, dist, aa):
     assert np.count_nonzero(np.any(o_cpu != photo, axis=2)) > 2000
     d = np.abs(o_gpu.astype(np.int16) - o_cpu)
     dm = np.abs(m_gpu.astype(np.int16) - m_cpu)
-    print(f"\n{case} {dist} aa={aa}: photo max {d.max()} ({np.count_nonzero(d)} values), "
-          f"mask max {dm.max()} ({np.count_nonzero(dm)})")
+    print(
+        f"\n{case} {dist} aa={aa}: photo max {d.max()} ({np.count_nonzero(d)} values), "
+        f"mask max {dm.max()} ({np.count_nonzero(dm)})"
+    )
     assert int(d.max()) <= tol.gpu_compose_levels
     assert int(dm.max()) <= tol.gpu_compose_levels
     # outside the ROI both leave the photo as it was
@@ -91,12 +109,12 @@ def test_shader_compose_equals_numpy_compose(ctx, tol, case, dist, aa):
 
 def test_gpu_layers_hold_what_the_readback_holds(ctx):
     """render_gpu() keeps the same layers the default readback returns (MSAA resolved on the GPU)."""
-    from arshadow.gl.stencil import LightPass, ShadowRenderer
     from arshadow.geometry.mesh import load_occluder
     from arshadow.geometry.silhouette import silhouette
+    from arshadow.geometry.volume import shadow_volume
+    from arshadow.gl.stencil import LightPass, ShadowRenderer
     from arshadow.synth import look_at_pose
     from arshadow.transforms import CV_TO_GL
-    from arshadow.geometry.volume import shadow_volume
 
     intr = _intrinsics()
     caster = load_occluder("box:0.06,0.05,0.09")
@@ -107,8 +125,14 @@ def test_gpu_layers_hold_what_the_readback_holds(ctx):
     proj = intr.gl_projection(0.01, None, canvas=canvas)
     for samples in (0, 4):
         with ShadowRenderer(ctx, samples=samples) as r:
-            kw = dict(projection=proj, view=CV_TO_GL @ pose, width=canvas[2], height=canvas[3], caster=caster,
-                      passes=[LightPass(L, 1.0, vol, "zfail")])
+            kw = dict(
+                projection=proj,
+                view=CV_TO_GL @ pose,
+                width=canvas[2],
+                height=canvas[3],
+                caster=caster,
+                passes=[LightPass(L, 1.0, vol, "zfail")],
+            )
             ref = r.render(**kw)
             lay = r.render_gpu(**kw)
             c = np.frombuffer(lay.color_tex.read(), np.float16).reshape(lay.color_tex.height, lay.color_tex.width, 4)
@@ -192,6 +216,7 @@ def test_path_chooser_keeps_the_default_unless_another_is_clearly_faster():
         def go():
             now[0] += ms / 1e3
             return ms
+
         return go
 
     def clock():

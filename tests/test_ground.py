@@ -17,11 +17,11 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
+from image_oracle import ShadowOracle, iou
 
 from arshadow.errors import UsageError
 from arshadow.geometry.ground import check_camera_above, ground_frame, parse_ground
 from arshadow.transforms import invert_rigid
-from image_oracle import ShadowOracle, iou
 
 W, H = 960, 720
 WALL_H = 0.25  # the marker's centre above the floor (m)
@@ -70,11 +70,19 @@ def test_parse_and_frames():
     np.testing.assert_allclose(m[:3, 1], [0, 1, 0], atol=1e-15)
 
 
-@pytest.mark.parametrize("bad, match", [
-    ("floor", "choose marker, wall:H or plane"), ("wall:", "expected 1"), ("wall:0", "must be > 0"),
-    ("wall:-0.3", "must be > 0"), ("wall:nan", "finite"), ("plane:0,0,0,0,0", "expected 6"),
-    ("plane:0,0,0,0,0,0", "must not be zero"), ("plane:a,0,0,0,0,1", "numbers"),
-])
+@pytest.mark.parametrize(
+    "bad, match",
+    [
+        ("floor", "choose marker, wall:H or plane"),
+        ("wall:", "expected 1"),
+        ("wall:0", "must be > 0"),
+        ("wall:-0.3", "must be > 0"),
+        ("wall:nan", "finite"),
+        ("plane:0,0,0,0,0", "expected 6"),
+        ("plane:0,0,0,0,0,0", "must not be zero"),
+        ("plane:a,0,0,0,0,1", "numbers"),
+    ],
+)
 def test_bad_specs_are_refused(bad, match):
     with pytest.raises(UsageError, match=match):
         parse_ground(bad)
@@ -155,8 +163,11 @@ def test_camera_below_or_edge_on_is_refused():
 
 
 # ------------------------------------------------------------------------------------------------ GL
-POSES = [([0.1, -0.6, 0.45], [-0.05, -0.1, 0.15]), ([-0.15, -0.55, 0.5], [-0.05, -0.1, 0.15]),
-         ([0.25, -0.55, 0.4], [-0.05, -0.1, 0.15])]
+POSES = [
+    ([0.1, -0.6, 0.45], [-0.05, -0.1, 0.15]),
+    ([-0.15, -0.55, 0.5], [-0.05, -0.1, 0.15]),
+    ([0.25, -0.55, 0.4], [-0.05, -0.1, 0.15]),
+]
 
 
 def _scene():
@@ -186,16 +197,20 @@ def test_wall_marker_shadow_on_the_floor(ctx, tol):
     intr, caster, lights = _scene()
     mfg = _wall_frame(WALL_H)  # the truth, built independently of arshadow.geometry.ground
     known, general, tracked, control = [], [], [], []
-    with _session(ctx, intr, caster, lights, f"wall:{WALL_H}") as comp, \
-            _session(ctx, intr, caster, lights, f"wall:{WALL_H}", plan="general") as ref_path, \
-            _session(ctx, intr, caster, lights, "marker") as plain:
+    with (
+        _session(ctx, intr, caster, lights, f"wall:{WALL_H}") as comp,
+        _session(ctx, intr, caster, lights, f"wall:{WALL_H}", plan="general") as ref_path,
+        _session(ctx, intr, caster, lights, "marker") as plain,
+    ):
         for i, (eye, target) in enumerate(POSES):
             cam_from_ground = look_at_pose(eye, target)  # the true camera, in the ground frame
             cam_from_marker = cam_from_ground @ invert_rigid(mfg)
-            ph = render_marker_photo(intr, cam_from_marker, marker_length=MARKER, noise_sigma=2.0,
-                                     blur_sigma=0.6, jpeg_quality=90, seed=i)
-            oracle = ShadowOracle(intr.K, cam_from_ground, caster.vertices, caster.faces,
-                                  [(lt.homogeneous, lt.weight) for lt in lights])
+            ph = render_marker_photo(
+                intr, cam_from_marker, marker_length=MARKER, noise_sigma=2.0, blur_sigma=0.6, jpeg_quality=90, seed=i
+            )
+            oracle = ShadowOracle(
+                intr.K, cam_from_ground, caster.vertices, caster.faces, [(lt.homogeneous, lt.weight) for lt in lights]
+            )
             ref = oracle.image(W, H)[0] >= 0.5
             assert ref.sum() > 5000, ref.sum()
             res = comp.render(ph.image, cam_from_marker)
@@ -216,9 +231,11 @@ def test_wall_marker_shadow_on_the_floor(ctx, tol):
             np.testing.assert_allclose(t_marker, cam_from_marker[:3, 3], atol=0.01)
             tracked.append(iou(mask >= 128, ref))
             control.append(iou(plain.process(ph.image, f"plain{i}").mask >= 128, ref))
-    print(f"\nwall marker IoUs: known pose {np.round(known, 4).tolist()} (general plan "
-          f"{np.round(general, 4).tolist()}), tracked {np.round(tracked, 4).tolist()}, "
-          f"marker plane as ground {np.round(control, 4).tolist()}")
+    print(
+        f"\nwall marker IoUs: known pose {np.round(known, 4).tolist()} (general plan "
+        f"{np.round(general, 4).tolist()}), tracked {np.round(tracked, 4).tolist()}, "
+        f"marker plane as ground {np.round(control, 4).tolist()}"
+    )
     assert min(known) >= 0.99 and min(general) >= 0.99, (known, general)
     assert np.median(tracked) >= tol.end_to_end_iou_median, tracked
     assert max(control) < 0.2, control
@@ -237,22 +254,27 @@ def test_planner_culls_in_the_ground_frame(ctx):
     cam_from_ground = look_at_pose([0.0, -0.5, WALL_H], [0.0, 0.0, WALL_H])
     cam_from_marker = cam_from_ground @ invert_rigid(_wall_frame(WALL_H))
     ph = render_marker_photo(intr, cam_from_marker, marker_length=MARKER, seed=4)
-    with _session(ctx, intr, caster, lights, f"wall:{WALL_H}") as comp, \
-            _session(ctx, intr, caster, lights, "marker") as plain:
+    with (
+        _session(ctx, intr, caster, lights, f"wall:{WALL_H}") as comp,
+        _session(ctx, intr, caster, lights, "marker") as plain,
+    ):
         res = comp.render(ph.image, cam_from_marker)
         mask, plan = res.mask, res.plan
         assert [lp.mode for lp in plan.lights] == ["none"], plan.decisions
         assert "footprint outside the canvas" in str(plan.decisions)
-        oracle = ShadowOracle(intr.K, cam_from_ground, caster.vertices, caster.faces,
-                              [(lt.homogeneous, lt.weight) for lt in lights])
+        oracle = ShadowOracle(
+            intr.K, cam_from_ground, caster.vertices, caster.faces, [(lt.homogeneous, lt.weight) for lt in lights]
+        )
         assert not (oracle.image(W, H)[0] > 0).any()
         assert not mask.any()
         res2 = plain.render(ph.image, cam_from_marker)
         mask2, plan2 = res2.mask, res2.plan
         assert [lp.mode for lp in plan2.lights] != ["none"] and (mask2 >= 128).sum() > 1000
         # the camera below the ground: refused, naming the option
-        with pytest.raises(UsageError, match="--ground plane"), \
-                _session(ctx, intr, caster, lights, "plane:0,0.5,0,0,1,0") as bad:
+        with (
+            pytest.raises(UsageError, match="--ground plane"),
+            _session(ctx, intr, caster, lights, "plane:0,0.5,0,0,1,0") as bad,
+        ):
             bad.render(ph.image, cam_from_marker)
 
 
@@ -285,8 +307,9 @@ def test_real_charuco_photo_as_a_wall_board(ctx, realdata):
     mask, item = res.mask, res.item
     assert item.status == "ok"
     cam_from_ground = matrix_from_rvec_tvec(item.rvec, item.tvec) @ mfg
-    oracle = ShadowOracle(intr.K, cam_from_ground, caster.vertices, caster.faces,
-                          [(lt.homogeneous, lt.weight) for lt in lights])
+    oracle = ShadowOracle(
+        intr.K, cam_from_ground, caster.vertices, caster.faces, [(lt.homogeneous, lt.weight) for lt in lights]
+    )
     hh, ww = mask.shape
     vv, uu = np.mgrid[0:hh, 0:ww]
     pts = np.stack([uu.ravel(), vv.ravel()], 1).astype(np.float64).reshape(-1, 1, 2)

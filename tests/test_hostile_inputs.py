@@ -25,8 +25,12 @@ pytestmark = pytest.mark.gl
 ROOT = Path(__file__).resolve().parents[1]
 CALIB = ROOT / "calib" / "synth_1280x720.yml"
 BOARD = ROOT / "calib" / "gridboard_5x7.yml"
-SCENE = {"--calib": str(CALIB), "--marker-length": "0.05", "--model": "box:0.04,0.03,0.05",
-         "--light": "point:-0.1,0.1,0.4"}
+SCENE = {
+    "--calib": str(CALIB),
+    "--marker-length": "0.05",
+    "--model": "box:0.04,0.03,0.05",
+    "--light": "point:-0.1,0.1,0.4",
+}
 TALLY: dict[str, list] = {"config (exit 2)": [], "per input (exit 1)": [], "accepted": []}
 
 
@@ -43,8 +47,7 @@ def good(tmp_path_factory, gl_ctx):
 
     d = tmp_path_factory.mktemp("good")
     intr = Intrinsics.from_file(CALIB)
-    img = render_marker_photo(intr, look_at_pose([0.15, -0.3, 0.3], [0.0, 0.0, 0.0]), marker_length=0.05,
-                              seed=3).image
+    img = render_marker_photo(intr, look_at_pose([0.15, -0.3, 0.3], [0.0, 0.0, 0.0]), marker_length=0.05, seed=3).image
     cv2.imwrite(str(d / "good.png"), img)
     cv2.imwrite(str(d / "good.jpg"), img, [cv2.IMWRITE_JPEG_QUALITY, 95])
     return d
@@ -66,14 +69,26 @@ CALIB_FILES = {  # name -> (file content (str or bytes), needle)
     "calib_no_K": (_calib_text(camera_matrix="camera_matrixx"), "missing key 'camera_matrix'"),
     "calib_nan_focal": (_calib_text(**{K_ROW: ".nan, 0., 641.29999999999995"}), "NaN"),
     "calib_zero_focal": (_calib_text(**{K_ROW: "0., 0., 641.29999999999995"}), "focal lengths must be positive"),
-    "calib_negative_focal": (_calib_text(**{K_ROW: "-1000., 0., 641.29999999999995"}),
-                             "focal lengths must be positive"),
-    "calib_K_2x2": (_calib_text(**{"rows: 3\n   cols: 3\n   dt: d\n   data: [ 1000., 0., 641.29999999999995, 0., "
-                                   "1000., 358.19999999999999,\n       0., 0., 1. ]":
-                                   "rows: 2\n   cols: 2\n   dt: d\n   data: [ 1000., 0., 0., 1000. ]"}), "3x3"),
+    "calib_negative_focal": (
+        _calib_text(**{K_ROW: "-1000., 0., 641.29999999999995"}),
+        "focal lengths must be positive",
+    ),
+    "calib_K_2x2": (
+        _calib_text(
+            **{
+                "rows: 3\n   cols: 3\n   dt: d\n   data: [ 1000., 0., 641.29999999999995, 0., "
+                "1000., 358.19999999999999,\n       0., 0., 1. ]": "rows: 2\n   cols: 2\n   dt: d\n   data: [ 1000., 0., 0., 1000. ]"
+            }
+        ),
+        "3x3",
+    ),
     "calib_no_width": (_calib_text(image_width="image_widthh"), "image_width"),
-    "calib_20_dist": (_calib_text(**{"cols: 5": "cols: 20", "-0.0060000000000000001 ]":
-                                     "-0.0060000000000000001" + ", 0." * 15 + " ]"}), "distortion"),
+    "calib_20_dist": (
+        _calib_text(
+            **{"cols: 5": "cols: 20", "-0.0060000000000000001 ]": "-0.0060000000000000001" + ", 0." * 15 + " ]"}
+        ),
+        "distortion",
+    ),
 }
 
 MESH_FILES = {  # name -> (content, needle)
@@ -112,8 +127,11 @@ ARG_CASES = [
     ("sun_bad_lat", {"--light": "sun:100,0,2024-06-21T12:00+00:00"}, "100"),
     ("board_missing", {"--marker-length": None, "--board": "nope_board.yml"}, "nope_board.yml"),
     ("board_garbage", {"--marker-length": None, "--board": "{tmp}/calib_garbage.yml"}, "calib_garbage.yml"),
-    ("board_dict_conflict", {"--marker-length": None, "--board": str(BOARD), "--dictionary": "DICT_4X4_50"},
-     "conflicts with the board"),
+    (
+        "board_dict_conflict",
+        {"--marker-length": None, "--board": str(BOARD), "--dictionary": "DICT_4X4_50"},
+        "conflicts with the board",
+    ),
     ("dict_unknown", {"--dictionary": "DICT_FOO"}, "DICT_FOO"),
     ("dict_file_garbage", {"--dictionary": "{tmp}/calib_garbage.yml"}, "calib_garbage.yml"),
     ("marker_id_out_of_range", {"--marker-id": "99999"}, "99999"),
@@ -192,7 +210,9 @@ def _pixel_bomb_png() -> bytes:
         return struct.pack(">I", len(data)) + tag + data + struct.pack(">I", zlib.crc32(tag + data))
 
     ihdr = struct.pack(">IIBBBBB", 60000, 60000, 8, 2, 0, 0, 0)
-    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", zlib.compress(b"\x00" * 100)) + chunk(b"IEND", b"")
+    return (
+        b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", zlib.compress(b"\x00" * 100)) + chunk(b"IEND", b"")
+    )
 
 
 def _bad_inputs(d: Path, good: Path):
@@ -216,14 +236,25 @@ def _bad_inputs(d: Path, good: Path):
     cv2.imwrite(str(d / "nomarker.png"), np.full((720, 1280, 3), 128, np.uint8))
     cv2.imwrite(str(d / "huge8k.png"), np.full((8192, 8192), 128, np.uint8))
     return {
-        "truncated.jpg": "cannot decode", "truncated.png": "truncated or corrupt PNG",
-        "corrupt.jpg": "cannot decode", "corrupt.png": "truncated or corrupt PNG", "zero.png": "empty file", "zero.jpg": "empty file",
-        "text.png": "cannot decode", "page.jpg": "cannot decode", "bmp_header.bmp": "cannot decode",
-        "pixelbomb.png": "cannot decode", "emptydir": "folder contains no image files",
-        "folder.png": "folder contains no image files", "dangling.png": "no such image file",
-        "missing.png": "no such image file", "nomatch*.png": "no file matches",
-        "square.png": "does not match the calibration", "tiny.png": "no marker",
-        "nomarker.png": "marker", "huge8k.png": "does not match the calibration",
+        "truncated.jpg": "cannot decode",
+        "truncated.png": "truncated or corrupt PNG",
+        "corrupt.jpg": "cannot decode",
+        "corrupt.png": "truncated or corrupt PNG",
+        "zero.png": "empty file",
+        "zero.jpg": "empty file",
+        "text.png": "cannot decode",
+        "page.jpg": "cannot decode",
+        "bmp_header.bmp": "cannot decode",
+        "pixelbomb.png": "cannot decode",
+        "emptydir": "folder contains no image files",
+        "folder.png": "folder contains no image files",
+        "dangling.png": "no such image file",
+        "missing.png": "no such image file",
+        "nomatch*.png": "no file matches",
+        "square.png": "does not match the calibration",
+        "tiny.png": "no marker",
+        "nomarker.png": "marker",
+        "huge8k.png": "does not match the calibration",
     }
 
 
@@ -236,8 +267,18 @@ def test_bad_inputs_in_one_run(good, tmp_path, capsys):
     names = ["good.png", *bad, "good.jpg"]
     paths = [good / n if n.startswith("good") else d / n for n in names]
     out, report = tmp_path / "out", tmp_path / "r.json"
-    code, so, se = _run(capsys, "render", *paths, *[x for kv in SCENE.items() for x in kv], "-o", out,
-                        "--report", report, "-q", "--save-mask")
+    code, so, se = _run(
+        capsys,
+        "render",
+        *paths,
+        *[x for kv in SCENE.items() for x in kv],
+        "-o",
+        out,
+        "--report",
+        report,
+        "-q",
+        "--save-mask",
+    )
     assert code == 1
     assert "Traceback" not in se
     lines = [ln for ln in se.splitlines() if ln.strip()]
@@ -246,11 +287,11 @@ def test_bad_inputs_in_one_run(good, tmp_path, capsys):
         ok = ln.startswith("arshadow render: error:") and name in ln and needle in ln
         TALLY["per input (exit 1)"].append((name, ok))
         assert ok, (name, ln)
-    assert sorted(p.name for p in out.iterdir()) == ["good.png", "good.shadow.png", "good_2.png",
-                                                     "good_2.shadow.png"]
+    assert sorted(p.name for p in out.iterdir()) == ["good.png", "good.shadow.png", "good_2.png", "good_2.shadow.png"]
     rep = json.loads(report.read_text())
-    assert [i["status"] for i in rep["images"]] == ["ok"] + ["no_marker" if n in ("nomarker.png", "tiny.png")
-                                                             else "error" for n in bad] + ["ok"]
+    assert [i["status"] for i in rep["images"]] == ["ok"] + [
+        "no_marker" if n in ("nomarker.png", "tiny.png") else "error" for n in bad
+    ] + ["ok"]
 
 
 def test_disk_full_while_writing(good, tmp_path, capsys, monkeypatch):
@@ -273,8 +314,9 @@ def test_disk_full_while_writing(good, tmp_path, capsys, monkeypatch):
     (d / "first.png").write_bytes((good / "good.png").read_bytes())
     (d / "second.png").write_bytes((good / "good.png").read_bytes())
     out = tmp_path / "out"
-    code, so, se = _run(capsys, "render", d / "first.png", d / "second.png",
-                        *[x for kv in SCENE.items() for x in kv], "-o", out, "-q")
+    code, so, se = _run(
+        capsys, "render", d / "first.png", d / "second.png", *[x for kv in SCENE.items() for x in kv], "-o", out, "-q"
+    )
     lines = [ln for ln in se.splitlines() if ln.strip()]
     ok = code == 1 and len(lines) == 1 and "No space left on device" in lines[0] and "first" in lines[0]
     TALLY["per input (exit 1)"].append(("disk_full", ok))
@@ -295,8 +337,9 @@ def test_unusual_inputs_are_accepted(good, tmp_path, capsys):
     cv2.imwrite(str(d / "rgba16.png"), cv2.cvtColor(src, cv2.COLOR_BGR2BGRA).astype(np.uint16) * 257)
     (d / "png_named.jpg").write_bytes((good / "good.png").read_bytes())
     cv2.imwrite(str(d / "float32.tiff"), src.astype(np.float32) / 255.0)
-    code, _, se = _run(capsys, "render", d, *[x for kv in SCENE.items() for x in kv], "-o", tmp_path / "o",
-                       "--save-mask", "-q")
+    code, _, se = _run(
+        capsys, "render", d, *[x for kv in SCENE.items() for x in kv], "-o", tmp_path / "o", "--save-mask", "-q"
+    )
     assert code == 0, se
     for f in sorted(d.iterdir()):
         out = cv2.imread(str(tmp_path / "o" / f"{f.stem}.png"), cv2.IMREAD_UNCHANGED)
@@ -318,13 +361,14 @@ def test_unusual_meshes_are_accepted(good, tmp_path, capsys, kind):
         m.write_bytes(b"v -0.02 -0.02 0.0\nv 0.03 -0.02 0.0\nv 0.0 0.02 0.05\nf 1 2 3\n")
     elif kind == "latin1_obj":
         m = tmp_path / "latin1.obj"
-        m.write_bytes("# modèle créé à la main (Latin-1)\n".encode("latin-1")
-                      + b"v -0.02 -0.02 0.0\nv 0.03 -0.02 0.0\nv 0.0 0.02 0.05\nv 0 0 0.06\nf 1 2 4\nf 2 3 4\n"
-                      + b"f 3 1 4\nf 1 3 2\n")
+        m.write_bytes(
+            "# modèle créé à la main (Latin-1)\n".encode("latin-1")
+            + b"v -0.02 -0.02 0.0\nv 0.03 -0.02 0.0\nv 0.0 0.02 0.05\nv 0 0 0.06\nf 1 2 4\nf 2 3 4\n"
+            + b"f 3 1 4\nf 1 3 2\n"
+        )
     elif kind == "non_manifold":
         m = tmp_path / "nonmanifold.obj"
-        m.write_bytes(b"v 0 0 0\nv 0 0 0.05\nv 0.03 0 0.02\nv -0.03 0 0.02\nv 0 0.03 0.02\n"
-                      b"f 1 2 3\nf 2 1 4\nf 1 2 5\n")
+        m.write_bytes(b"v 0 0 0\nv 0 0 0.05\nv 0.03 0 0.02\nv -0.03 0 0.02\nv 0 0.03 0.02\nf 1 2 3\nf 2 1 4\nf 1 2 5\n")
     else:
         a = trimesh.creation.box(extents=(0.04, 0.02, 0.05))
         b = trimesh.creation.box(extents=(0.02, 0.04, 0.03))
@@ -333,8 +377,16 @@ def test_unusual_meshes_are_accepted(good, tmp_path, capsys, kind):
         m = tmp_path / "selfint.ply"
         both.export(m)
     args = dict(SCENE, **{"--model": str(m), "--light": "point:0.3,-0.15,0.25"})  # shadow to the side: visible
-    code, _, se = _run(capsys, "render", good / "good.png", *[x for kv in args.items() for x in kv], "-o",
-                       tmp_path / "o", "--save-mask", "-q")
+    code, _, se = _run(
+        capsys,
+        "render",
+        good / "good.png",
+        *[x for kv in args.items() for x in kv],
+        "-o",
+        tmp_path / "o",
+        "--save-mask",
+        "-q",
+    )
     shadow = cv2.imread(str(tmp_path / "o" / "good.shadow.png"), 0)
     ok = code == 0 and "error" not in se and shadow is not None and (shadow == 255).sum() > 200
     TALLY["accepted"].append((kind, ok))
@@ -344,15 +396,38 @@ def test_unusual_meshes_are_accepted(good, tmp_path, capsys, kind):
 def test_warnings_wrong_units_camera_inside_sun_below_horizon(good, tmp_path):
     """Not errors, but said on stderr (exit 0): a model 1200x the marker (millimetres read as metres) with
     the camera inside it, and a sun below the horizon."""
-    r = subprocess.run([sys.executable, "-m", "arshadow", "render", str(good / "good.png"), "--calib", str(CALIB),
-                        "--marker-length", "0.05", "--model", "box:40,40,60", "--light", "point:0,0,100",
-                        "--light", "sun:52,0,2024-06-21T23:00+00:00", "-o", str(tmp_path / "o"), "-q"],
-                       capture_output=True, text=True, timeout=300)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "arshadow",
+            "render",
+            str(good / "good.png"),
+            "--calib",
+            str(CALIB),
+            "--marker-length",
+            "0.05",
+            "--model",
+            "box:40,40,60",
+            "--light",
+            "point:0,0,100",
+            "--light",
+            "sun:52,0,2024-06-21T23:00+00:00",
+            "-o",
+            str(tmp_path / "o"),
+            "-q",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert r.returncode == 0, r.stderr
     warn = [ln for ln in r.stderr.splitlines() if "WARNING" in ln]
-    found = {"wrong_units": any("wrong units" in w for w in warn),
-             "camera_inside": any("camera is inside" in w for w in warn),
-             "sun_below_horizon": any("below the horizon" in w for w in warn)}
+    found = {
+        "wrong_units": any("wrong units" in w for w in warn),
+        "camera_inside": any("camera is inside" in w for w in warn),
+        "sun_below_horizon": any("below the horizon" in w for w in warn),
+    }
     for k, v in found.items():
         TALLY["accepted"].append((k + "_warned", v))
     assert all(found.values()), r.stderr

@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import hashlib
 import json
-import re
 import os
+import re
 import resource
 import signal
 import subprocess
@@ -22,7 +22,6 @@ from pathlib import Path
 
 import cv2
 import pytest
-
 from video_clips import make_clip
 
 av = pytest.importorskip("av")
@@ -30,8 +29,16 @@ pytestmark = pytest.mark.gl
 
 ROOT = Path(__file__).resolve().parents[1]
 CALIB = ROOT / "calib" / "synth_640x360.yml"
-SCENE = ["--calib", str(CALIB), "--marker-length", "0.05", "--model", "box:0.04,0.03,0.06", "--light",
-         "point:-0.1,0.15,0.4"]
+SCENE = [
+    "--calib",
+    str(CALIB),
+    "--marker-length",
+    "0.05",
+    "--model",
+    "box:0.04,0.03,0.06",
+    "--light",
+    "point:-0.1,0.15,0.4",
+]
 JOB = {"calib": str(CALIB), "marker_length": 0.05, "model": "box:0.04,0.03,0.06", "lights": ["point:-0.1,0.15,0.4"]}
 TALLY: dict[str, list] = {"config (exit 2)": [], "per input (exit 1)": [], "accepted": [], "interrupted": []}
 
@@ -50,7 +57,9 @@ def _run(capsys, *argv):
 def _lines(text):
     """The non-empty stderr lines, without issue 20's flagged-pose warnings (these small, soft synthetic clips
     have every pose flagged; those lines are tested in tests/test_user_reports.py)."""
-    flagged = re.compile(r"arshadow (video|batch): warning: .*(: \d+ of \d+ frames have a flagged pose \(|: flagged pose: )")
+    flagged = re.compile(
+        r"arshadow (video|batch): warning: .*(: \d+ of \d+ frames have a flagged pose \(|: flagged pose: )"
+    )
     return [ln for ln in text.splitlines() if ln.strip() and not flagged.match(ln)]
 
 
@@ -127,8 +136,19 @@ def test_bad_videos_in_one_run(clips, tmp_path, capsys):
     out.mkdir()
     (out / ".good.k9x1.tmp.mp4").write_bytes(b"left by kill -9")
     (out / ".good.shadow.k9x2.tmp").mkdir()
-    code, so, se = _run(capsys, "video", *[clips / n for n in VIDEO_INPUTS], *SCENE, "-o", out, "-q",
-                        "--report", tmp_path / "r.json", "--save-mask", "png")
+    code, so, se = _run(
+        capsys,
+        "video",
+        *[clips / n for n in VIDEO_INPUTS],
+        *SCENE,
+        "-o",
+        out,
+        "-q",
+        "--report",
+        tmp_path / "r.json",
+        "--save-mask",
+        "png",
+    )
     lines = _lines(se)
     assert "Traceback" not in se
     rep = {v["input"]: v for v in json.loads((tmp_path / "r.json").read_text())["videos"]}
@@ -139,13 +159,22 @@ def test_bad_videos_in_one_run(clips, tmp_path, capsys):
             ok = not mine and v["status"] == "ok"
             TALLY["accepted"].append((name, ok))
         elif needle.startswith("!"):  # damaged: warned, exit 1, the frames decoded are written
-            ok = len(mine) >= 1 and all(ln.startswith("arshadow video: warning:") for ln in mine) and \
-                needle[1:] in mine[-1 if "damaged" in needle else 0] and v["status"] == "damaged" and v["frames"] > 0
+            ok = (
+                len(mine) >= 1
+                and all(ln.startswith("arshadow video: warning:") for ln in mine)
+                and needle[1:] in mine[-1 if "damaged" in needle else 0]
+                and v["status"] == "damaged"
+                and v["frames"] > 0
+            )
             ok = ok and len(list(av.open(v["output"]).decode(video=0))) == v["frames"]
             TALLY["per input (exit 1)"].append((name, ok))
         else:
-            ok = len(mine) == 1 and mine[0].startswith("arshadow video: error:") and needle in mine[0] and \
-                v["status"] == "error"
+            ok = (
+                len(mine) == 1
+                and mine[0].startswith("arshadow video: error:")
+                and needle in mine[0]
+                and v["status"] == "error"
+            )
             TALLY["per input (exit 1)"].append((name, ok))
         assert ok, (name, mine, v.get("status"))
     assert code == 1
@@ -154,7 +183,9 @@ def test_bad_videos_in_one_run(clips, tmp_path, capsys):
     assert rep[str(clips / "corrupt_mid.mp4")]["frames"] == 11
     seq = rep[str(clips / "seq/f%03d.png")]
     assert seq["frames"] == 3 and "f003.png is missing" in seq["warnings"][0]
-    assert {"good.mp4", "good_2.mp4", "clip.mp4", "truncated.mp4", "corrupt_mid.mp4", "f.mp4"} <= {p.name for p in out.iterdir()}
+    assert {"good.mp4", "good_2.mp4", "clip.mp4", "truncated.mp4", "corrupt_mid.mp4", "f.mp4"} <= {
+        p.name for p in out.iterdir()
+    }
     for stem in ("good", "good_2"):
         assert len(list((out / f"{stem}.shadow").iterdir())) == 6
     assert not [p for p in out.iterdir() if p.stem in ("zero", "text", "header_only", "junk", "folder", "missing")]
@@ -167,17 +198,41 @@ def test_bad_inputs_in_one_batch(clips, tmp_path, capsys):
     job = tmp_path / "job.json"
     job.write_text(json.dumps(JOB))
     (tmp_path / "text.png").write_text("not a png\n")
-    names = ["good.mp4", "zero.mp4", "text.mp4", "truncated.mp4", "header_only.mp4", "corrupt_mid.mp4",
-             "seq/f%03d.png", "junk.xyz", "clip.xyz", "folder.mp4", "missing.mp4", "photo.png"]
+    names = [
+        "good.mp4",
+        "zero.mp4",
+        "text.mp4",
+        "truncated.mp4",
+        "header_only.mp4",
+        "corrupt_mid.mp4",
+        "seq/f%03d.png",
+        "junk.xyz",
+        "clip.xyz",
+        "folder.mp4",
+        "missing.mp4",
+        "photo.png",
+    ]
     inputs = [clips / n for n in names] + [tmp_path / "text.png"]
     out = tmp_path / "out"
     code, so, se = _run(capsys, "batch", *inputs, "--config", job, "-o", out, "-q", "--contact-sheet", "0")
     assert "Traceback" not in se and code == 1
     summary = json.loads((out / "batch.json").read_text())
     status = {Path(it["input"]).name: it["status"] for it in summary["items"]}
-    expect = {"good.mp4": "ok", "zero.mp4": "error", "text.mp4": "error", "truncated.mp4": "damaged",
-              "header_only.mp4": "error", "corrupt_mid.mp4": "damaged", "f%03d.png": "damaged", "junk.xyz": "error",
-              "clip.xyz": "ok", "folder.mp4": "error", "missing.mp4": "error", "photo.png": "ok", "text.png": "error"}
+    expect = {
+        "good.mp4": "ok",
+        "zero.mp4": "error",
+        "text.mp4": "error",
+        "truncated.mp4": "damaged",
+        "header_only.mp4": "error",
+        "corrupt_mid.mp4": "damaged",
+        "f%03d.png": "damaged",
+        "junk.xyz": "error",
+        "clip.xyz": "ok",
+        "folder.mp4": "error",
+        "missing.mp4": "error",
+        "photo.png": "ok",
+        "text.png": "error",
+    }
     lines = _lines(se)
     for n, st in expect.items():
         mine = [ln for ln in lines if n in ln]
@@ -199,14 +254,21 @@ def test_output_never_overwrites_an_input(clips, tmp_path, capsys):
     job = tmp_path / "job.json"
     job.write_text(json.dumps(JOB))
     code, _, se = _run(capsys, "video", d / "good.mp4", clips / "two.mp4", *SCENE, "-o", d, "-q")
-    ok_v = code == 1 and _lines(se) == [ln for ln in _lines(se) if "would overwrite an input" in ln] and \
-        len(_lines(se)) == 1 and (d / "two.mp4").is_file()
-    code, _, se = _run(capsys, "batch", d / "good.mp4", d / "photo.png", "--config", job, "-o", d, "-q",
-                       "--contact-sheet", "0")
+    ok_v = (
+        code == 1
+        and _lines(se) == [ln for ln in _lines(se) if "would overwrite an input" in ln]
+        and len(_lines(se)) == 1
+        and (d / "two.mp4").is_file()
+    )
+    code, _, se = _run(
+        capsys, "batch", d / "good.mp4", d / "photo.png", "--config", job, "-o", d, "-q", "--contact-sheet", "0"
+    )
     ok_b = code == 1 and len(_lines(se)) == 2 and all("would overwrite an input" in ln for ln in _lines(se))
     unchanged = {n: _md5(d / n) for n in before} == before
-    TALLY["per input (exit 1)"] += [("video -o = input folder", ok_v and unchanged),
-                                    ("batch -o = input folder", ok_b and unchanged)]
+    TALLY["per input (exit 1)"] += [
+        ("video -o = input folder", ok_v and unchanged),
+        ("batch -o = input folder", ok_b and unchanged),
+    ]
     assert ok_v and ok_b and unchanged, se
 
 
@@ -268,8 +330,10 @@ SCENE_FILES = {  # name -> (content, needle)
     "unknown_key.json": ({**JOB, "colour": "200,0,0"}, "unknown scene key(s) 'colour'"),
     "missing_model.json": ({k: v for k, v in JOB.items() if k != "model"}, "needs 'model'"),
     "calib_missing.json": ({**JOB, "calib": "nope.yml"}, "no such calibration file"),
-    "light_unquoted.yml": (f"calib: {CALIB}\nmarker_length: 0.05\nmodel: box:0.04,0.03,0.06\n"
-                           "lights: [point:-0.1,0.15,0.4]\n", "(in YAML, quote it)"),
+    "light_unquoted.yml": (
+        f"calib: {CALIB}\nmarker_length: 0.05\nmodel: box:0.04,0.03,0.06\nlights: [point:-0.1,0.15,0.4]\n",
+        "(in YAML, quote it)",
+    ),
 }
 
 BATCH_CONFIG = [  # (kind, config file (name in SCENE_FILES or a path), extra args, needle)
@@ -305,8 +369,14 @@ def test_batch_bad_configuration(tmp_path, capsys, monkeypatch, kind, config, ex
     t0 = time.perf_counter()
     code, _, se = _run(capsys, "batch", tmp_path / "never_opened.mp4", *args)
     lines = _lines(se)
-    ok = code == 2 and len(lines) == 1 and needle in lines[0] and "never_opened" not in se and \
-        "Traceback" not in se and time.perf_counter() - t0 < 20
+    ok = (
+        code == 2
+        and len(lines) == 1
+        and needle in lines[0]
+        and "never_opened" not in se
+        and "Traceback" not in se
+        and time.perf_counter() - t0 < 20
+    )
     TALLY["config (exit 2)"].append(("batch " + kind, ok))
     assert ok, (code, se)
     assert not (tmp_path / "out").exists() or not [p for p in (tmp_path / "out").rglob("*") if p.is_file()]
@@ -321,17 +391,40 @@ def test_disk_full_while_encoding(clips, tmp_path):
     """Writes fail part-way through the first video (simulated: RLIMIT_FSIZE, so FFmpeg's own writes fail
     with EFBIG): one line naming the output, none of that video's files left (not its frames report either),
     no temporaries, and the next video (small enough) is still written."""
+
     def limit():
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
         resource.setrlimit(resource.RLIMIT_FSIZE, (90_000, 90_000))
 
     out = tmp_path / "out"
-    r = subprocess.run([sys.executable, "-m", "arshadow", "video", str(clips / "g12.mp4"), str(clips / "two.mp4"),
-                        *SCENE, "-o", str(out), "-q", "--contact-sheet", "0"], preexec_fn=limit, env=_env(),
-                       capture_output=True, text=True, timeout=300)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "arshadow",
+            "video",
+            str(clips / "g12.mp4"),
+            str(clips / "two.mp4"),
+            *SCENE,
+            "-o",
+            str(out),
+            "-q",
+            "--contact-sheet",
+            "0",
+        ],
+        preexec_fn=limit,
+        env=_env(),
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     lines = _lines(r.stderr)
-    ok = r.returncode == 1 and len(lines) == 1 and "g12.mp4: cannot write (File too large); nothing written" in \
-        lines[0] and sorted(p.name for p in out.iterdir()) == ["two.frames.jsonl", "two.mp4"]
+    ok = (
+        r.returncode == 1
+        and len(lines) == 1
+        and "g12.mp4: cannot write (File too large); nothing written" in lines[0]
+        and sorted(p.name for p in out.iterdir()) == ["two.frames.jsonl", "two.mp4"]
+    )
     TALLY["per input (exit 1)"].append(("disk_full", ok))
     assert ok, (r.returncode, r.stderr, sorted(p.name for p in out.iterdir()))
 
@@ -383,8 +476,7 @@ def test_sigterm_mid_video_leaves_nothing_and_rerun_completes(clips, tmp_path):
     assert proc.poll() is None, "the run ended before it could be stopped"
     proc.send_signal(signal.SIGTERM)
     err = proc.communicate(timeout=120)[1]
-    ok = proc.returncode == 143 and "interrupted (SIGTERM)" in err and "Traceback" not in err and \
-        not any(out.iterdir())
+    ok = proc.returncode == 143 and "interrupted (SIGTERM)" in err and "Traceback" not in err and not any(out.iterdir())
     TALLY["interrupted"].append(("SIGTERM", ok))
     assert ok, (proc.returncode, err, list(out.iterdir()))
     r = subprocess.run(cmd, env=_env(), capture_output=True, text=True, timeout=300)

@@ -81,9 +81,15 @@ def test_layers_of_random_inputs_recombine_to_the_composite(rng):
 
 # ------------------------------------------------------------------------------------------- pipeline
 def _scene(calib, **extra):
-    scene = {"calib": str(ROOT / "calib" / calib), "marker_length": 0.05, "model": "torus:0.03,0.01",
-             "place": [0.0, 0.0, 0.02], "rotate": [60, 0, 20], "color": "200,120,40",
-             "lights": ["point:0.1,0.15,0.45", "directional:-0.3,0.2,1@0.5"]}
+    scene = {
+        "calib": str(ROOT / "calib" / calib),
+        "marker_length": 0.05,
+        "model": "torus:0.03,0.01",
+        "place": [0.0, 0.0, 0.02],
+        "rotate": [60, 0, 20],
+        "color": "200,120,40",
+        "lights": ["point:0.1,0.15,0.45", "directional:-0.3,0.2,1@0.5"],
+    }
     scene.update(extra)
     return scene
 
@@ -97,10 +103,12 @@ def _photo(calib, eye):
     return render_marker_photo(cam, truth, marker_length=0.05, seed=3).image
 
 
-CASES = [("synth_1280x720.yml", (0.1, -0.3, 0.4), {}),
-         ("synth_1280x720_k1.yml", (0.15, -0.2, 0.3), {}),  # distorted lens
-         ("synth_1280x720_k1.yml", (0.15, -0.2, 0.3), {"aa": 4, "shadow_color": "90,40,160"}),
-         ("synth_1280x720.yml", (0.1, -0.3, 0.4), {"draw_occluder": False})]
+CASES = [
+    ("synth_1280x720.yml", (0.1, -0.3, 0.4), {}),
+    ("synth_1280x720_k1.yml", (0.15, -0.2, 0.3), {}),  # distorted lens
+    ("synth_1280x720_k1.yml", (0.15, -0.2, 0.3), {"aa": 4, "shadow_color": "90,40,160"}),
+    ("synth_1280x720.yml", (0.1, -0.3, 0.4), {"draw_occluder": False}),
+]
 
 
 @pytest.mark.gl
@@ -157,8 +165,10 @@ def test_layer_files_recombine_to_the_composite(gl_ctx, tmp_path, fmt):
         only = so[..., 3] / 65535.0
         assert np.all(so[..., :3] == 0)
     else:
+
         def read(p):
             return next(iter(OpenEXR.File(str(p)).channels().values())).pixels.astype(np.float64)
+
         obj, sh, only = read(paths["object"]), read(paths["shadow.mult"]), read(paths["shadow.only"])[..., 3]
     assert _maxdiff(_recombine(photo, obj, sh), res.composite) <= 1
     assert _maxdiff(_recombine(photo, obj, only, over=True), res.composite) <= 1
@@ -183,8 +193,13 @@ def test_undistorted_layers_and_the_stmap_give_the_distorted_layers(gl_ctx):
     st = stmap(intr)
     # independent check of the ST-map at one pixel: OpenCV's undistortPoints of the pixel centre
     u, v = 100.0, 80.0
-    ref = cv2.undistortPoints(np.array([[[u, v]]]), intr.K, intr.dist, P=intr.K,
-                              criteria=(cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)).ravel()
+    ref = cv2.undistortPoints(
+        np.array([[[u, v]]]),
+        intr.K,
+        intr.dist,
+        P=intr.K,
+        criteria=(cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12),
+    ).ravel()
     assert st[80, 100, 0] == pytest.approx((ref[0] + 0.5) / 1280, abs=2e-6)
     assert st[80, 100, 1] == pytest.approx(1 - (ref[1] + 0.5) / 720, abs=2e-6)
     mx, my = stmap_to_pixels(st, 1280, 720)

@@ -5,7 +5,6 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-
 from conftest import TOL
 
 from arshadow.camera import Intrinsics
@@ -58,7 +57,10 @@ def test_distorted_roi_is_conservative(warp_k1, rng):
             continue
         assert xs.min() >= x0 and xs.max() < x0 + w and ys.min() >= y0 and ys.max() < y0 + h
         # and not grossly larger than needed (two 8-px cells and the slack on each side)
-        assert w <= xs.max() - xs.min() + 1 + TOL.lens_roi_slack_px and h <= ys.max() - ys.min() + 1 + TOL.lens_roi_slack_px
+        assert (
+            w <= xs.max() - xs.min() + 1 + TOL.lens_roi_slack_px
+            and h <= ys.max() - ys.min() + 1 + TOL.lens_roi_slack_px
+        )
 
 
 def test_canvas_covers_the_roi_and_warp_reproduces_linear_functions(warp_k1):

@@ -24,8 +24,18 @@ PROBE = ["--probe", "box:0.05,0.05,0.1", "--probe-place", "0.1,0.02,0"]
 def lit(tmp_path_factory):
     cam = Intrinsics.from_file(CALIB)
     pose = look_at_pose([0.15, -0.35, 0.45], [0.05, 0.0, 0.0])
-    p = render_lit_photo(cam, pose, light=light_vector(160, 40), probe="box:0.05,0.05,0.1", probe_place=(0.1, 0.02, 0),
-                         exposure=0.7, white_balance=(1.1, 1.0, 0.85), noise_sigma=1.0, seed=2, supersample=2)
+    p = render_lit_photo(
+        cam,
+        pose,
+        light=light_vector(160, 40),
+        probe="box:0.05,0.05,0.1",
+        probe_place=(0.1, 0.02, 0),
+        exposure=0.7,
+        white_balance=(1.1, 1.0, 0.85),
+        noise_sigma=1.0,
+        seed=2,
+        supersample=2,
+    )
     d = tmp_path_factory.mktemp("lit")
     path = d / "lit.png"
     cv2.imwrite(str(path), p.image)
@@ -34,8 +44,9 @@ def lit(tmp_path_factory):
 
 def test_light_json(lit, capsys):
     p, path, d = lit
-    code = main(["light", str(path), "--calib", CALIB, "--marker-length", "0.05", *PROBE, "--json",
-                 "-o", str(d / "est.json")])
+    code = main(
+        ["light", str(path), "--calib", CALIB, "--marker-length", "0.05", *PROBE, "--json", "-o", str(d / "est.json")]
+    )
     out = capsys.readouterr().out
     assert code == 0
     est = json.loads(out)
@@ -68,14 +79,31 @@ def test_white_box_matches_the_paper(lit, gl_ctx, tmp_path, capsys):
     est = d / "est2.json"
     assert main(["light", str(path), "--calib", CALIB, "--marker-length", "0.05", *PROBE, "-o", str(est)]) == 0
     out = tmp_path / "out"
-    code = main(["render", str(path), "--calib", CALIB, "--marker-length", "0.05", "--model", "box:0.03,0.03,0.03",
-                 "--place=-0.02,0.08,0", "--color", "255,255,255", "--light-from", str(est), "-o", str(out)])
+    code = main(
+        [
+            "render",
+            str(path),
+            "--calib",
+            CALIB,
+            "--marker-length",
+            "0.05",
+            "--model",
+            "box:0.03,0.03,0.03",
+            "--place=-0.02,0.08,0",
+            "--color",
+            "255,255,255",
+            "--light-from",
+            str(est),
+            "-o",
+            str(out),
+        ]
+    )
     capsys.readouterr()
     assert code == 0
     img = cv2.imread(str(out / "lit.png"))
     uv = p.intrinsics.project(np.array([[-0.02, 0.08, 0.03]]), p.cam_from_world)[0]
     u, v = np.rint(uv).astype(int)
-    top = SRGB_TO_LINEAR[img[v - 2:v + 3, u - 2:u + 3]].reshape(-1, 3).mean(axis=0)[::-1]  # RGB
+    top = SRGB_TO_LINEAR[img[v - 2 : v + 3, u - 2 : u + 3]].reshape(-1, 3).mean(axis=0)[::-1]  # RGB
     assert np.allclose(top, p.paper_linear, rtol=0.05), (top, p.paper_linear)
     # and the shadow: its darkness is the measured ratio, not the default 0.7
     data = json.loads(est.read_text())
@@ -89,8 +117,13 @@ def test_light_from_in_a_scene(tmp_path):
     from arshadow.estimate import Exposure, LightEstimate
     from arshadow.scene import scene_from_dict
 
-    est = LightEstimate("directional", "directional:0,0.6,0.8", direction=(0.0, 0.6, 0.8), shadow_ratio=(0.3, 0.4, 0.5),
-                        exposure=Exposure((0.5, 0.45, 0.4), (0.02, 0.02, 0.02), 20))
+    est = LightEstimate(
+        "directional",
+        "directional:0,0.6,0.8",
+        direction=(0.0, 0.6, 0.8),
+        shadow_ratio=(0.3, 0.4, 0.5),
+        exposure=Exposure((0.5, 0.45, 0.4), (0.02, 0.02, 0.02), 20),
+    )
     (tmp_path / "est.json").write_text(est.to_json())
     base = {"calib": "cam.yml", "marker_length": 0.05, "model": "box:0.04,0.04,0.06", "color": "255,255,255"}
     spec = scene_from_dict({**base, "light_from": "est.json"}, base_dir=tmp_path)
@@ -100,8 +133,11 @@ def test_light_from_in_a_scene(tmp_path):
     a = 0.4 * 0.8 / 0.6  # ambient giving a horizontal surface the mean ratio 0.4 under sin(e) = 0.8
     assert o.ambient == pytest.approx(a)
     # a white horizontal face shaded ambient + sin(e) records the paper: colour = paper / (a + 0.8), linear
-    lin = np.where(np.array(o.occluder_color) <= 0.04045, np.array(o.occluder_color) / 12.92,
-                   ((np.array(o.occluder_color) + 0.055) / 1.055) ** 2.4)
+    lin = np.where(
+        np.array(o.occluder_color) <= 0.04045,
+        np.array(o.occluder_color) / 12.92,
+        ((np.array(o.occluder_color) + 0.055) / 1.055) ** 2.4,
+    )
     assert np.allclose(lin * (a + 0.8), (0.5, 0.45, 0.4), rtol=1e-6)
     off = scene_from_dict({**base, "light_from": "est.json", "no_exposure": True}, base_dir=tmp_path).options
     assert off.occluder_color is None
@@ -119,15 +155,32 @@ def test_render_with_probe_options(lit, gl_ctx, tmp_path, capsys):
     photographed paper (truth: the generating exposure / white balance) within 5 % per channel."""
     p, path, d = lit
     out = tmp_path / "out"
-    code = main(["render", str(path), "--calib", CALIB, "--marker-length", "0.05", *PROBE, "--model",
-                 "box:0.03,0.03,0.03", "--place=-0.02,0.08,0", "--color", "255,255,255", "-o", str(out),
-                 "--report", str(tmp_path / "r.json")])
+    code = main(
+        [
+            "render",
+            str(path),
+            "--calib",
+            CALIB,
+            "--marker-length",
+            "0.05",
+            *PROBE,
+            "--model",
+            "box:0.03,0.03,0.03",
+            "--place=-0.02,0.08,0",
+            "--color",
+            "255,255,255",
+            "-o",
+            str(out),
+            "--report",
+            str(tmp_path / "r.json"),
+        ]
+    )
     err = capsys.readouterr().err
     assert code == 0 and "light: directional:" in err
     img = cv2.imread(str(out / "lit.png"))
     uv = p.intrinsics.project(np.array([[-0.02, 0.08, 0.03]]), p.cam_from_world)[0]
     u, v = np.rint(uv).astype(int)
-    top = SRGB_TO_LINEAR[img[v - 2:v + 3, u - 2:u + 3]].reshape(-1, 3).mean(axis=0)[::-1]  # RGB
+    top = SRGB_TO_LINEAR[img[v - 2 : v + 3, u - 2 : u + 3]].reshape(-1, 3).mean(axis=0)[::-1]  # RGB
     assert np.allclose(top, p.paper_linear, rtol=0.05), (top, p.paper_linear)
     item = json.loads((tmp_path / "r.json").read_text())["images"][0]
     assert np.allclose(item["exposure"]["paper_rgb"], p.paper_linear, rtol=0.03)
@@ -161,9 +214,27 @@ def test_video_with_probe_options(lit, gl_ctx, tmp_path, capsys):
     for _ in range(3):
         vw.write(p.image)
     vw.release()
-    code = main(["video", str(clip), "--calib", CALIB, "--marker-length", "0.05", *PROBE, "--model",
-                 "box:0.03,0.03,0.03", "--place=-0.02,0.08,0", "--color", "255,255,255", "-o", str(tmp_path / "out"),
-                 "--report", str(tmp_path / "r.json"), "-q"])
+    code = main(
+        [
+            "video",
+            str(clip),
+            "--calib",
+            CALIB,
+            "--marker-length",
+            "0.05",
+            *PROBE,
+            "--model",
+            "box:0.03,0.03,0.03",
+            "--place=-0.02,0.08,0",
+            "--color",
+            "255,255,255",
+            "-o",
+            str(tmp_path / "out"),
+            "--report",
+            str(tmp_path / "r.json"),
+            "-q",
+        ]
+    )
     err = capsys.readouterr().err
     assert code == 0 and "light: directional:" in err and "3 frame(s)" in err
     frames = [i for i in json.loads((tmp_path / "r.json").read_text())["images"] if i.get("frame") is not None]
@@ -176,10 +247,39 @@ def test_batch_with_probe_options(lit, gl_ctx, tmp_path, capsys):
     """``batch --probe ...``: the measured light replaces the job file's; the same picture as ``render --probe``."""
     p, path, d = lit
     job = tmp_path / "job.json"
-    job.write_text(json.dumps({"calib": str(Path(CALIB).resolve()), "marker_length": 0.05, "model": "box:0.03,0.03,0.03",
-                               "place": [-0.02, 0.08, 0], "color": "255,255,255", "light": "point:0,0,1"}))
+    job.write_text(
+        json.dumps(
+            {
+                "calib": str(Path(CALIB).resolve()),
+                "marker_length": 0.05,
+                "model": "box:0.03,0.03,0.03",
+                "place": [-0.02, 0.08, 0],
+                "color": "255,255,255",
+                "light": "point:0,0,1",
+            }
+        )
+    )
     assert main(["batch", str(path), "-c", str(job), "-o", str(tmp_path / "b"), *PROBE, "-q"]) == 0
     assert "light: directional:" in capsys.readouterr().err
-    assert main(["render", str(path), "--calib", CALIB, "--marker-length", "0.05", *PROBE, "--model",
-                 "box:0.03,0.03,0.03", "--place=-0.02,0.08,0", "--color", "255,255,255", "-o", str(tmp_path / "r")]) == 0
+    assert (
+        main(
+            [
+                "render",
+                str(path),
+                "--calib",
+                CALIB,
+                "--marker-length",
+                "0.05",
+                *PROBE,
+                "--model",
+                "box:0.03,0.03,0.03",
+                "--place=-0.02,0.08,0",
+                "--color",
+                "255,255,255",
+                "-o",
+                str(tmp_path / "r"),
+            ]
+        )
+        == 0
+    )
     assert np.array_equal(cv2.imread(str(tmp_path / "b" / "lit.png")), cv2.imread(str(tmp_path / "r" / "lit.png")))

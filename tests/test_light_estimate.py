@@ -36,8 +36,16 @@ def _angle(a, b) -> float:
 
 
 def _estimate(case, **kw):
-    return estimate_light(case["photo"].image, calib=CALIB, marker_length=0.05, probe=case["probe"],
-                          probe_place=case["probe_place"], probe_rotate=case["probe_rotate"], kind=case["kind"], **kw)
+    return estimate_light(
+        case["photo"].image,
+        calib=CALIB,
+        marker_length=0.05,
+        probe=case["probe"],
+        probe_place=case["probe_place"],
+        probe_rotate=case["probe_rotate"],
+        kind=case["kind"],
+        **kw,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -48,9 +56,20 @@ def directional_cases(cam):
 
 def test_exposure_matches_the_paper(cam):
     pose = look_at_pose([0.15, -0.35, 0.45], [0.1, 0.0, 0.0])
-    p = render_lit_photo(cam, pose, light=light_vector(120, 40), probe=PROBE, probe_place=PLACE, exposure=0.7,
-                         white_balance=(1.1, 1.0, 0.85), noise_sigma=1.5, blur_sigma=0.6, jpeg_quality=90, seed=3,
-                         supersample=1)
+    p = render_lit_photo(
+        cam,
+        pose,
+        light=light_vector(120, 40),
+        probe=PROBE,
+        probe_place=PLACE,
+        exposure=0.7,
+        white_balance=(1.1, 1.0, 0.85),
+        noise_sigma=1.5,
+        blur_sigma=0.6,
+        jpeg_quality=90,
+        seed=3,
+        supersample=1,
+    )
     e = measure_exposure(p.image, cam, pose, 0.05)
     assert np.allclose(e.paper_rgb, p.paper_linear, rtol=0.02), (e.paper_rgb, p.paper_linear)
     # the white balance that makes the paper grey: the inverse of the camera's gains (green = 1)
@@ -121,8 +140,16 @@ def test_probe_not_in_view(cam):
 
 def test_flat_light_has_no_shadow(cam):
     pose = look_at_pose([0.15, -0.35, 0.45], [0.1, 0.0, 0.0])
-    p = render_lit_photo(cam, pose, light=light_vector(120, 40), probe=PROBE, probe_place=PLACE,
-                         ambient=(0.9, 0.9, 0.9), direct=(0.0, 0.0, 0.0), supersample=1)
+    p = render_lit_photo(
+        cam,
+        pose,
+        light=light_vector(120, 40),
+        probe=PROBE,
+        probe_place=PLACE,
+        ambient=(0.9, 0.9, 0.9),
+        direct=(0.0, 0.0, 0.0),
+        supersample=1,
+    )
     with pytest.raises(EstimateError, match="no shadow of the probe found"):
         estimate_light(p.image, calib=CALIB, marker_length=0.05, probe=PROBE, probe_place=PLACE)
 
@@ -152,8 +179,7 @@ def test_shadow_hidden_behind_the_probe(cam):
 
 def test_bad_kind_is_a_usage_error(directional_cases):
     with pytest.raises(UsageError, match="--kind"):
-        estimate_light(directional_cases[0]["photo"].image, calib=CALIB, marker_length=0.05, probe=PROBE,
-                       kind="spot")
+        estimate_light(directional_cases[0]["photo"].image, calib=CALIB, marker_length=0.05, probe=PROBE, kind="spot")
 
 
 def test_frames_of_a_video_add_up(cam, tmp_path):
@@ -162,8 +188,19 @@ def test_frames_of_a_video_add_up(cam, tmp_path):
 
     light = light_vector(200, 35)
     eyes = ([0.25, -0.3, 0.4], [0.0, 0.35, 0.42], [0.2, -0.4, 0.35])
-    frames = [render_lit_photo(cam, look_at_pose(e, [0.08, 0.0, 0.0]), light=light, probe=PROBE, probe_place=PLACE,
-                               noise_sigma=1.5, seed=i, supersample=1) for i, e in enumerate(eyes)]
+    frames = [
+        render_lit_photo(
+            cam,
+            look_at_pose(e, [0.08, 0.0, 0.0]),
+            light=light,
+            probe=PROBE,
+            probe_place=PLACE,
+            noise_sigma=1.5,
+            seed=i,
+            supersample=1,
+        )
+        for i, e in enumerate(eyes)
+    ]
     path = tmp_path / "clip.avi"
     vw = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 10, (cam.width, cam.height))
     for f in frames:
@@ -180,8 +217,17 @@ def test_penumbra_gives_the_light_size(cam, radius):
     """A disc light of angular radius 0 / 2 / 4 degrees (synth_lit: the mean of 64 exact hard shadows over
     its cone): the fitted angular diameter within 25 % of the truth (0: below 0.5 degrees, a hard spec)."""
     pose = look_at_pose([0.15, -0.35, 0.45], [0.1, 0.0, 0.0])
-    p = render_lit_photo(cam, pose, light=light_vector(160, 40), probe=PROBE, probe_place=PLACE, noise_sigma=1.0,
-                         seed=4, supersample=1, light_radius_deg=radius)
+    p = render_lit_photo(
+        cam,
+        pose,
+        light=light_vector(160, 40),
+        probe=PROBE,
+        probe_place=PLACE,
+        noise_sigma=1.0,
+        seed=4,
+        supersample=1,
+        light_radius_deg=radius,
+    )
     est = estimate_light(p.image, calib=CALIB, marker_length=0.05, probe=PROBE, probe_place=PLACE)
     assert _angle(est.direction, p.light) <= 1.5
     if radius == 0.0:
@@ -189,4 +235,6 @@ def test_penumbra_gives_the_light_size(cam, radius):
     else:
         assert est.angular_diameter_deg == pytest.approx(2 * radius, rel=0.25)
         assert f"radius={est.angular_diameter_deg / 2:.3f}" in est.light
-    assert LightEstimate.from_json(est.to_json()).angular_diameter_deg == pytest.approx(est.angular_diameter_deg, abs=1e-4)
+    assert LightEstimate.from_json(est.to_json()).angular_diameter_deg == pytest.approx(
+        est.angular_diameter_deg, abs=1e-4
+    )

@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 import pytest
+from conftest import TOL
+from oracle import disc_segment_fraction, profile_crossing
 
 from arshadow.errors import ArshadowError, LightError
 from arshadow.lights.area import sample_area_light, stratified_disc
@@ -16,8 +18,6 @@ from arshadow.lights.spec import (
     parse_light,
     total_weight,
 )
-from conftest import TOL
-from oracle import disc_segment_fraction, profile_crossing
 
 
 # ---------------------------------------------------------------------------------------------- parsing

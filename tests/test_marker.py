@@ -9,11 +9,12 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-
 from conftest import TOL
 
 from arshadow.camera import Intrinsics
 from arshadow.errors import CalibrationError, MarkerNotFoundError, UsageError
+from arshadow.report import ReportItem
+from arshadow.synth import look_at_pose, random_pose, render_marker_photo
 from arshadow.tracking.board import Board, load_board
 from arshadow.tracking.detect import (
     DEFAULT_REFINE,
@@ -25,8 +26,6 @@ from arshadow.tracking.detect import (
 from arshadow.tracking.dictionary import get_dictionary, marker_object_points
 from arshadow.tracking.quality import AMBIGUITY_FLAG
 from arshadow.tracking.tracker import MarkerTracker
-from arshadow.report import ReportItem
-from arshadow.synth import look_at_pose, random_pose, render_marker_photo
 from arshadow.transforms import rotation_error_deg
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -82,14 +81,20 @@ def test_board_file_round_trip(tmp_path, ext):
     p = b.to_file(tmp_path / f"b{ext}")
     back = load_board(p)
     assert (back.kind, back.size, back.marker_ids, back.marker_length, back.marker_separation) == (
-        "gridboard", (3, 2), (5, 9, 3, 1, 7, 8), 0.05, 0.01)
+        "gridboard",
+        (3, 2),
+        (5, 9, 3, 1, 7, 8),
+        0.05,
+        0.01,
+    )
 
 
 def test_board_with_relative_custom_dictionary(tmp_path, realdata):
     shutil.copy(realdata / "aruco_tutorial" / "tutorial_dict.yml", tmp_path / "tutorial_dict.yml")
     (tmp_path / "gb.yml").write_text(
         "%YAML:1.0\n---\ntype: gridboard\nsize: [5, 7]\nmarker_length: 0.04\nmarker_separation: 0.01\n"
-        "dictionary: tutorial_dict.yml\n")
+        "dictionary: tutorial_dict.yml\n"
+    )
     b = load_board(tmp_path / "gb.yml")
     assert len(b.cv_dictionary.bytesList) == 35
 
@@ -120,8 +125,14 @@ def test_missing_board_file(tmp_path):
         load_board(tmp_path / "none.yml")
 
 
-@pytest.mark.parametrize("reader, what", [(load_board, "board file"), (get_dictionary, "dictionary file"),
-                                          (load_detector_params, "detector parameter file")])
+@pytest.mark.parametrize(
+    "reader, what",
+    [
+        (load_board, "board file"),
+        (get_dictionary, "dictionary file"),
+        (load_detector_params, "detector parameter file"),
+    ],
+)
 def test_unparsable_files_quote_the_parser(tmp_path, reader, what):
     """Board, dictionary and detector parameter files fail like calibration files: one UsageError naming
     the file, what it should be, and OpenCV's parser message (file and line), not the binding's SystemError."""
@@ -160,7 +171,11 @@ MARKER_FILES = [
 
 
 def _dict_for(realdata, entry):
-    return str(realdata / "aruco_tutorial" / "tutorial_dict.yml") if "custom" in entry["dictionary"] else entry["dictionary"]
+    return (
+        str(realdata / "aruco_tutorial" / "tutorial_dict.yml")
+        if "custom" in entry["dictionary"]
+        else entry["dictionary"]
+    )
 
 
 @pytest.mark.realdata
@@ -197,8 +212,12 @@ def test_realdata_diamond_markers(realdata):
     name = "aruco_tutorial/diamondmarkers.png"
     e = _expected(realdata)[name]
     params = realdata / "aruco_tutorial" / "detector_params.yml"
-    det = detect_markers(cv2.imread(str(realdata / name)), realdata / "aruco_tutorial" / "tutorial_dict.yml",
-                         params=params, refine="apriltag")
+    det = detect_markers(
+        cv2.imread(str(realdata / name)),
+        realdata / "aruco_tutorial" / "tutorial_dict.yml",
+        params=params,
+        refine="apriltag",
+    )
     assert len(det) == e["n_markers"]
     got = {}
     for i in det.ids.tolist():
@@ -234,7 +253,8 @@ def test_realdata_custom_gridboard_pose(realdata, tmp_path):
     shutil.copy(realdata / "aruco_tutorial" / "tutorial_dict.yml", tmp_path / "tutorial_dict.yml")
     (tmp_path / "gb.yml").write_text(
         "%YAML:1.0\n---\ntype: gridboard\nsize: [5, 7]\nmarker_length: 0.04\nmarker_separation: 0.01\n"
-        "dictionary: tutorial_dict.yml\n")
+        "dictionary: tutorial_dict.yml\n"
+    )
     # camera and printed lengths unknown: a plausible camera; this checks detection through the board
     # path (detect + refineDetectedMarkers + matchImagePoints), not the pose's accuracy
     cam = Intrinsics(560.0, 560.0, 319.5, 239.5, 640, 480)
@@ -316,8 +336,7 @@ def test_previous_pose_hook():
     found_ambiguous = 0
     rng = np.random.default_rng(5)
     for i in range(40):
-        pose = random_pose(rng, CAM, distance=(0.7, 0.8), tilt_deg=(0, 12),
-                           keep_in_view=marker_object_points(0.05))
+        pose = random_pose(rng, CAM, distance=(0.7, 0.8), tilt_deg=(0, 12), keep_in_view=marker_object_points(0.05))
         photo = render_marker_photo(CAM, pose, marker_length=0.035, noise_sigma=4, blur_sigma=0.8, seed=i)
         tracker = MarkerTracker(CAM, marker_length=0.035)
         try:
@@ -330,7 +349,8 @@ def test_previous_pose_hook():
         q = tracker.estimate(photo.image, previous=pose)  # the truth as "previous frame"
         e_prev = rotation_error_deg(q.cam_from_world[:3, :3], pose[:3, :3])
         e_alt = rotation_error_deg(
-            (q.alternative.cam_from_world if q.alternative else q.cam_from_world)[:3, :3], pose[:3, :3])
+            (q.alternative.cam_from_world if q.alternative else q.cam_from_world)[:3, :3], pose[:3, :3]
+        )
         assert e_prev <= e_alt + 1e-9
         assert q.chosen_by in ("error", "previous")
     assert found_ambiguous >= 1  # the scenario really produces ambiguous poses

@@ -9,7 +9,6 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-
 from test_user_reports import _with_exif_orientation
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -41,10 +40,43 @@ def test_batch_honours_exif_orientation_as_render_does(tmp_path, capsys, gl_ctx)
     (d / "portrait.jpg").write_bytes(_with_exif_orientation(buf.tobytes(), 6))
     job = tmp_path / "job.json"
     job.write_text(json.dumps(JOB))
-    assert main(["batch", str(d / "plain.jpg"), str(d / "portrait.jpg"), "--config", str(job), "-o",
-                 str(tmp_path / "b"), "--save-mask", "-q"]) == 0, capsys.readouterr().err
-    assert main(["render", str(d), "--calib", str(CALIB), "--marker-length", "0.05", "--model", JOB["model"],
-                 "--light", JOB["lights"][0], "-o", str(tmp_path / "r"), "--save-mask", "-q"]) == 0
+    assert (
+        main(
+            [
+                "batch",
+                str(d / "plain.jpg"),
+                str(d / "portrait.jpg"),
+                "--config",
+                str(job),
+                "-o",
+                str(tmp_path / "b"),
+                "--save-mask",
+                "-q",
+            ]
+        )
+        == 0
+    ), capsys.readouterr().err
+    assert (
+        main(
+            [
+                "render",
+                str(d),
+                "--calib",
+                str(CALIB),
+                "--marker-length",
+                "0.05",
+                "--model",
+                JOB["model"],
+                "--light",
+                JOB["lights"][0],
+                "-o",
+                str(tmp_path / "r"),
+                "--save-mask",
+                "-q",
+            ]
+        )
+        == 0
+    )
     for kind in ("", ".shadow"):
         plain = cv2.imread(str(tmp_path / "b" / f"plain{kind}.png"), cv2.IMREAD_UNCHANGED)
         portrait = cv2.imread(str(tmp_path / "b" / f"portrait{kind}.png"), cv2.IMREAD_UNCHANGED)
@@ -118,8 +150,7 @@ def test_time_lapse_is_part_of_the_scene_spec():
     from arshadow.session import Session
 
     sun = "sun:48,11,2021-06-21T09:00+02:00,0@0.5"
-    d = {**JOB, "lights": ["point:0.1,0.1,0.4", sun], "time_lapse": "2021-06-21T12:00+02:00,600",
-         "recompute_deg": 0.2}
+    d = {**JOB, "lights": ["point:0.1,0.1,0.4", sun], "time_lapse": "2021-06-21T12:00+02:00,600", "recompute_deg": 0.2}
     spec = scene_from_dict(d)
     assert pickle.loads(pickle.dumps(spec)) == spec and spec.time_lapse.speed == 600.0
     s = Session(spec)
@@ -166,6 +197,5 @@ def test_one_stem_and_extension_list():
     inputs = ["a/shot.jpe", "b/SHOT.png", "c/clip.mp4"]
     assert unique_stems(inputs) == ["shot", "SHOT_2", "clip"]
     assert [j.output.name for j in photo_jobs(inputs[:2], Path("o"), keep_format=True)] == ["shot.jpe", "SHOT_2.png"]
-    assert [(b.kind, b.stem) for b in plan_batch(inputs)] == [("photo", "shot"), ("photo", "SHOT_2"),
-                                                              ("video", "clip")]
+    assert [(b.kind, b.stem) for b in plan_batch(inputs)] == [("photo", "shot"), ("photo", "SHOT_2"), ("video", "clip")]
     assert {".jpe", ".dib", ".pic", ".pfm"} <= IMAGE_EXTENSIONS

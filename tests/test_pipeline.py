@@ -17,7 +17,6 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-
 from image_oracle import ShadowOracle, boundary_distance, iou
 
 pytestmark = pytest.mark.gl
@@ -61,9 +60,13 @@ def _compare(mask_u8, oracle, roi, threshold, boundary=True):
     dist = np.zeros(0)
     if boundary and len(mism):
         dist = boundary_distance(oracle, (mism[:, ::-1] + [x0, y0]).astype(np.float64), threshold)
-    return dict(iou=iou(got, ref), n_shadow=int(ref.sum()), n_mismatch=len(mism),
-                boundary_mean=float(dist.mean()) if len(dist) else 0.0,
-                boundary_max=float(dist.max()) if len(dist) else 0.0)
+    return dict(
+        iou=iou(got, ref),
+        n_shadow=int(ref.sum()),
+        n_mismatch=len(mism),
+        boundary_mean=float(dist.mean()) if len(dist) else 0.0,
+        boundary_max=float(dist.max()) if len(dist) else 0.0,
+    )
 
 
 def _intrinsics(dist=()):
@@ -83,8 +86,9 @@ def _session(ctx, caster, lights, intr=None, **opts):
     from arshadow.scene import RenderOptions, Scene
     from arshadow.session import Session
 
-    scene = Scene(intr if intr is not None else _intrinsics(), caster, lights, RenderOptions(**opts),
-                  {"marker_length": 0.05})
+    scene = Scene(
+        intr if intr is not None else _intrinsics(), caster, lights, RenderOptions(**opts), {"marker_length": 0.05}
+    )
     return Session(scene, context=ctx)
 
 
@@ -156,12 +160,17 @@ def test_lens_distortion_k1(ctx, tol, case, aa):
     with comp:
         photo = _plain_photo()
         out, mask, info = _render(comp, photo, pose)
-    orc = DistortedOracle(ShadowOracle(intr.K, pose, caster.vertices, caster.faces, _oracle_lights(lights)),
-                          intr.K, intr.dist)
+    orc = DistortedOracle(
+        ShadowOracle(intr.K, pose, caster.vertices, caster.faces, _oracle_lights(lights)), intr.K, intr.dist
+    )
     # evaluate on a region well beyond the compositor's ROI (catches anything cut off by the ROI)
     x0, y0, w, h = info.roi
-    big = (max(0, x0 - 60), max(0, y0 - 60), min(W, x0 + w + 60) - max(0, x0 - 60),
-           min(H, y0 + h + 60) - max(0, y0 - 60))
+    big = (
+        max(0, x0 - 60),
+        max(0, y0 - 60),
+        min(W, x0 + w + 60) - max(0, x0 - 60),
+        min(H, y0 + h + 60) - max(0, y0 - 60),
+    )
     r = _compare(mask, orc, big, 0.5)
     K1_RESULTS[(case, aa)] = r
     print(f"\nk1 {case} aa={aa}: {r}")
@@ -231,8 +240,10 @@ def test_roi_render_equals_full_render(ctx, knot):
     photo = _plain_photo(120)
     for dist in ((), (-0.045, 0.021, 0.0004, -0.0003, -0.006)):
         intr = _intrinsics(dist)
-        with (_session(ctx, knot, lights, intr=intr) as c_roi,
-              _session(ctx, knot, lights, intr=intr, roi=False) as c_full):
+        with (
+            _session(ctx, knot, lights, intr=intr) as c_roi,
+            _session(ctx, knot, lights, intr=intr, roi=False) as c_full,
+        ):
             out_r, mask_r, info_r = _render(c_roi, photo, pose)
             out_f, mask_f, info_f = _render(c_full, photo, pose)
         x0, y0, w, h = info_r.roi
@@ -335,15 +346,23 @@ def test_end_to_end_synthetic_photos(ctx, tol):
     with Session(Scene(intr, caster, lights, RenderOptions(), {"marker_length": 0.05}), context=ctx) as comp:
         for i, (eye, target) in enumerate(E2E_POSES):
             true_pose = look_at_pose(eye, target)
-            ph = render_marker_photo(intr, true_pose, marker_length=0.05, noise_sigma=2.0, blur_sigma=0.6,
-                                     jpeg_quality=90, seed=i)
+            ph = render_marker_photo(
+                intr, true_pose, marker_length=0.05, noise_sigma=2.0, blur_sigma=0.6, jpeg_quality=90, seed=i
+            )
             out, mask, item = _process(comp, ph.image, name=f"pose{i}")
             assert item.status == "ok" and item.marker_ids == [0]
-            orc = DistortedOracle(ShadowOracle(intr.K, true_pose, caster.vertices, caster.faces,
-                                               _oracle_lights(lights)), intr.K, intr.dist)
+            orc = DistortedOracle(
+                ShadowOracle(intr.K, true_pose, caster.vertices, caster.faces, _oracle_lights(lights)),
+                intr.K,
+                intr.dist,
+            )
             x0, y0, w, h = item.roi
-            roi = (max(0, x0 - 30), max(0, y0 - 30), min(W, x0 + w + 30) - max(0, x0 - 30),
-                   min(H, y0 + h + 30) - max(0, y0 - 30))
+            roi = (
+                max(0, x0 - 30),
+                max(0, y0 - 30),
+                min(W, x0 + w + 30) - max(0, x0 - 30),
+                min(H, y0 + h + 30) - max(0, y0 - 30),
+            )
             r = _compare(mask, orc, roi, 0.5, boundary=False)
             assert r["n_shadow"] > 1000, (i, r)
             ious.append(r["iou"])
@@ -363,11 +382,11 @@ def _calib(name):
 @pytest.mark.realdata
 def test_real_charuco_photo_object_and_shadow_on_the_board(ctx, realdata):
     from arshadow.camera import Intrinsics
-    from arshadow.io import read_image
-    from arshadow.tracking.board import Board
     from arshadow.geometry.mesh import load_occluder
+    from arshadow.io import read_image
     from arshadow.scene import RenderOptions, Scene
     from arshadow.session import Session
+    from arshadow.tracking.board import Board
 
     folder = realdata / "aruco_tutorial"
     photo = read_image(folder / "choriginal.jpg")
@@ -405,15 +424,17 @@ def test_fast_detection_pass_and_its_fallbacks(ctx, monkeypatch, tol):
     from arshadow.geometry.mesh import load_occluder
     from arshadow.scene import RenderOptions, Scene
     from arshadow.session import Session
+    from arshadow.synth import look_at_pose, render_marker_photo
     from arshadow.tracking.fastdetect import HalfResolutionDetector
     from arshadow.tracking.tracker import make_fast_tracker
-    from arshadow.synth import look_at_pose, render_marker_photo
 
     intr = Intrinsics.from_file(_calib("synth_1280x720.yml"))
     near = look_at_pose([0.0, -0.3, 0.4], [0.0, 0.0, 0.0])
     far = look_at_pose([0.0, -1.2, 1.6], [0.0, 0.0, 0.0])
-    photos = {n: render_marker_photo(intr, p, marker_length=0.05, noise_sigma=2.0, seed=1).image
-              for n, p in (("near", near), ("far", far))}
+    photos = {
+        n: render_marker_photo(intr, p, marker_length=0.05, noise_sigma=2.0, seed=1).image
+        for n, p in (("near", near), ("far", far))
+    }
     fast = make_fast_tracker(intr, marker_length=0.05)
     det = fast._detector
     assert isinstance(det, HalfResolutionDetector)
@@ -431,8 +452,16 @@ def test_fast_detection_pass_and_its_fallbacks(ctx, monkeypatch, tol):
         assert calls["full"] == full_calls, name
         err = np.linalg.norm(est.cam_from_world[:3, 3] - pose[:3, 3]) / np.linalg.norm(pose[:3, 3])
         assert err < tol.fast_detector_distance_rel, (name, err)
-    with Session(Scene(intr, load_occluder("box:0.04,0.04,0.04"), _lights("point:0.1,0.1,0.5"),
-                       RenderOptions(), {"marker_length": 0.05}), context=ctx) as comp:
+    with Session(
+        Scene(
+            intr,
+            load_occluder("box:0.04,0.04,0.04"),
+            _lights("point:0.1,0.1,0.5"),
+            RenderOptions(),
+            {"marker_length": 0.05},
+        ),
+        context=ctx,
+    ) as comp:
         _, _, item = _process(comp, photos["near"])
         assert item.detector is None
 
@@ -442,7 +471,9 @@ def test_fast_detection_pass_and_its_fallbacks(ctx, monkeypatch, tol):
         monkeypatch.setattr(comp.calibration(1280, 720).trackers()[0], "estimate", nothing)
         _, _, item = _process(comp, photos["far"])
     assert item.status == "ok" and item.detector.startswith("full")
-    assert abs(np.linalg.norm(item.tvec) - np.linalg.norm(far[:3, 3])) < tol.fallback_detector_distance_rel * np.linalg.norm(far[:3, 3])
+    assert abs(
+        np.linalg.norm(item.tvec) - np.linalg.norm(far[:3, 3])
+    ) < tol.fallback_detector_distance_rel * np.linalg.norm(far[:3, 3])
 
 
 @pytest.mark.gl
@@ -451,8 +482,8 @@ def test_mode_choice_uses_the_near_rectangle_not_znear(ctx):
     eye->light ray passes the box closer than the near rectangle's corner radius (but farther than
     znear) must get z-fail."""
     from arshadow.camera import Intrinsics
-    from arshadow.lights.spec import parse_light
     from arshadow.geometry.mesh import load_occluder
+    from arshadow.lights.spec import parse_light
     from arshadow.scene import RenderOptions, Scene
     from arshadow.session import Session
     from arshadow.synth import look_at_pose

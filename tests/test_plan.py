@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from image_oracle import iou
 
 pytestmark = pytest.mark.gl
@@ -20,10 +19,10 @@ pytestmark = pytest.mark.gl
 W, H = 1280, 720
 
 
-
 def _rendered(res):
     """A :class:`arshadow.session.FrameResult` as ``(composite, mask, report item)``."""
     return res.composite, res.mask, res.item
+
 
 def _spec(lh, w):
     lh = np.asarray(lh, float)
@@ -34,16 +33,24 @@ def _spec(lh, w):
 
 def _scenes():
     """(name, caster, light specs, cam_from_world, intrinsics, options) of the accuracy tests' scenes."""
+    import test_gl_renderer as tg
+
     from arshadow.camera import Intrinsics
     from arshadow.geometry.mesh import load_occluder
     from arshadow.synth import look_at_pose
 
-    import test_gl_renderer as tg
-
     out = []
     for sc in tg._scenes():
-        out.append((f"renderer:{sc.name}", sc.caster, [_spec(lh, w) for lh, w in sc.lights], sc.cam_from_world,
-                    tg._intrinsics(sc.fx), {"ground_size": sc.ground_size}))
+        out.append(
+            (
+                f"renderer:{sc.name}",
+                sc.caster,
+                [_spec(lh, w) for lh, w in sc.lights],
+                sc.cam_from_world,
+                tg._intrinsics(sc.fx),
+                {"ground_size": sc.ground_size},
+            )
+        )
 
     def intr(dist=()):
         return Intrinsics(1000.0, 1000.0, 641.3, 358.2, W, H, np.asarray(dist, float))
@@ -52,25 +59,64 @@ def _scenes():
     k1 = (-0.25, 0.0, 0.0, 0.0, 0.0)
     mild = (-0.045, 0.021, 0.0004, -0.0003, -0.006)
     out += [
-        ("pipeline:k1_box_point_corner", load_occluder("box:0.06,0.05,0.09"), ["point:0.25,0.15,0.45"],
-         look_at_pose([0.15, -0.55, 0.42], [0.17, -0.12, 0.02]), intr(k1), {}),
-        ("pipeline:k1_torus_directional_edge", load_occluder("torus:0.06,0.02", rotate=(70, 0, 20), place=(0, 0, 0.09)),
-         ["directional:-0.3,0.5,1.0"], look_at_pose([-0.5, -0.45, 0.35], [-0.08, 0.12, 0.0]), intr(k1), {}),
-        ("pipeline:mask_zero_on_object", load_occluder("box:0.06,0.05,0.09"), ["point:0.25,0.15,0.45"],
-         look_at_pose([0.15, -0.55, 0.42], [0.0, 0.0, 0.02]), intr(), {}),
-        ("pipeline:knot_two_lights_mild_distortion", knot, ["point:0.2,0.1,0.5", "directional:-0.4,0.3,1@0.5"],
-         look_at_pose([0.25, -0.45, 0.4], [0.0, 0.02, 0.03]), intr(mild), {}),
-        ("pipeline:wall_camera_in_shadow", load_occluder("box:0.6,0.02,0.5", place=(0, 0.1, 0)),
-         ["directional:0,1,0.35"], look_at_pose([0.05, -0.2, 0.15], [0.0, -0.6, 0.0]), intr(), {}),
-        ("pipeline:ground_size", load_occluder("box:0.04,0.04,0.1"), ["directional:1,0,0.08"],
-         look_at_pose([0.0, -0.5, 0.4], [0.0, 0.0, 0.0]), intr(), {"ground_size": 0.3}),
-        ("pipeline:knot_no_object", knot, ["point:0.2,0.1,0.5"], look_at_pose([0.25, -0.45, 0.4], [0.0, 0.02, 0.03]),
-         intr(), {"draw_occluder": False}),
+        (
+            "pipeline:k1_box_point_corner",
+            load_occluder("box:0.06,0.05,0.09"),
+            ["point:0.25,0.15,0.45"],
+            look_at_pose([0.15, -0.55, 0.42], [0.17, -0.12, 0.02]),
+            intr(k1),
+            {},
+        ),
+        (
+            "pipeline:k1_torus_directional_edge",
+            load_occluder("torus:0.06,0.02", rotate=(70, 0, 20), place=(0, 0, 0.09)),
+            ["directional:-0.3,0.5,1.0"],
+            look_at_pose([-0.5, -0.45, 0.35], [-0.08, 0.12, 0.0]),
+            intr(k1),
+            {},
+        ),
+        (
+            "pipeline:mask_zero_on_object",
+            load_occluder("box:0.06,0.05,0.09"),
+            ["point:0.25,0.15,0.45"],
+            look_at_pose([0.15, -0.55, 0.42], [0.0, 0.0, 0.02]),
+            intr(),
+            {},
+        ),
+        (
+            "pipeline:knot_two_lights_mild_distortion",
+            knot,
+            ["point:0.2,0.1,0.5", "directional:-0.4,0.3,1@0.5"],
+            look_at_pose([0.25, -0.45, 0.4], [0.0, 0.02, 0.03]),
+            intr(mild),
+            {},
+        ),
+        (
+            "pipeline:wall_camera_in_shadow",
+            load_occluder("box:0.6,0.02,0.5", place=(0, 0.1, 0)),
+            ["directional:0,1,0.35"],
+            look_at_pose([0.05, -0.2, 0.15], [0.0, -0.6, 0.0]),
+            intr(),
+            {},
+        ),
+        (
+            "pipeline:ground_size",
+            load_occluder("box:0.04,0.04,0.1"),
+            ["directional:1,0,0.08"],
+            look_at_pose([0.0, -0.5, 0.4], [0.0, 0.0, 0.0]),
+            intr(),
+            {"ground_size": 0.3},
+        ),
+        (
+            "pipeline:knot_no_object",
+            knot,
+            ["point:0.2,0.1,0.5"],
+            look_at_pose([0.25, -0.45, 0.4], [0.0, 0.02, 0.03]),
+            intr(),
+            {"draw_occluder": False},
+        ),
     ]
     return out
-
-
-
 
 
 @pytest.fixture(scope="module")
@@ -96,10 +142,18 @@ def _run(ctx, scene, plan, aa=0, **extra):
 
 
 SCENE_NAMES = [
-    "renderer:box_point", "renderer:nonconvex_point", "renderer:torus_directional", "renderer:wall_camera_in_shadow",
-    "renderer:box_two_lights", "pipeline:k1_box_point_corner", "pipeline:k1_torus_directional_edge",
-    "pipeline:mask_zero_on_object", "pipeline:knot_two_lights_mild_distortion", "pipeline:wall_camera_in_shadow",
-    "pipeline:ground_size", "pipeline:knot_no_object",
+    "renderer:box_point",
+    "renderer:nonconvex_point",
+    "renderer:torus_directional",
+    "renderer:wall_camera_in_shadow",
+    "renderer:box_two_lights",
+    "pipeline:k1_box_point_corner",
+    "pipeline:k1_torus_directional_edge",
+    "pipeline:mask_zero_on_object",
+    "pipeline:knot_two_lights_mild_distortion",
+    "pipeline:wall_camera_in_shadow",
+    "pipeline:ground_size",
+    "pipeline:knot_no_object",
 ]
 PLAN_RESULTS: dict = {}
 
@@ -177,8 +231,8 @@ def test_light_with_shadow_off_screen_is_skipped(ctx, tol):
 
 
 def test_moved_light_reuses_geometry_only_when_exact(ctx):
-    from arshadow.lights.spec import parse_light
     from arshadow.geometry.mesh import load_occluder
+    from arshadow.lights.spec import parse_light
     from arshadow.scene import RenderOptions, Scene
     from arshadow.session import Session
     from arshadow.synth import look_at_pose
@@ -192,8 +246,11 @@ def test_moved_light_reuses_geometry_only_when_exact(ctx):
     with Session(scene, context=ctx) as comp:
         _rendered(comp.render(photo, pose))
         vol0 = comp.geometry.lights[0].volumes
-        for spec, expect in (("point:0.2,0.1,0.5000000000000001", "reused"), ("point:0.200002,0.1,0.5", "re-extruded"),
-                             ("point:-0.3,0.3,0.4", None)):
+        for spec, expect in (
+            ("point:0.2,0.1,0.5000000000000001", "reused"),
+            ("point:0.200002,0.1,0.5", "re-extruded"),
+            ("point:-0.3,0.3,0.4", None),
+        ):
             comp.set_lights([parse_light(spec)])
             out, mask, info = _rendered(comp.render(photo, pose))
             why = info.plan["lights"][0]["why"].get("reuse")
@@ -209,13 +266,13 @@ def test_moved_light_reuses_geometry_only_when_exact(ctx):
 def test_direct_planar_pass_equals_the_stencil_planar_pass(ctx, samples):
     """Convex closed caster: the light-facing faces flattened straight into the mask (one draw per light,
     no stencil count) give the same mask as the stencil projection pass, levels of two lights included."""
-    from arshadow.gl.stencil import ShadowRenderer
+    import test_gl_renderer as tg
+
     from arshadow.geometry.mesh import load_occluder
+    from arshadow.gl.stencil import ShadowRenderer
     from arshadow.render_api import LightPass
     from arshadow.synth import look_at_pose
     from arshadow.transforms import CV_TO_GL
-
-    import test_gl_renderer as tg
 
     box = load_occluder("box:0.1,0.08,0.15", rotate=(0, 0, 25))
     intr = tg._intrinsics(1000.0)
@@ -224,8 +281,14 @@ def test_direct_planar_pass_equals_the_stencil_planar_pass(ctx, samples):
     masks = {}
     with ShadowRenderer(ctx, samples=samples) as r:
         for direct in (False, True):
-            res = r.render(projection=intr.gl_projection(0.01, None), view=CV_TO_GL @ pose, width=W, height=H,
-                           caster=box, passes=[LightPass(lh, w, None, "planar", direct=direct) for lh, w in lights])
+            res = r.render(
+                projection=intr.gl_projection(0.01, None),
+                view=CV_TO_GL @ pose,
+                width=W,
+                height=H,
+                caster=box,
+                passes=[LightPass(lh, w, None, "planar", direct=direct) for lh, w in lights],
+            )
             masks[direct] = res.mask
     a, b = masks[False], masks[True]
     assert (a > 0.4).sum() > 5000 and (np.abs(a - 0.5) < 0.01).sum() > 1000  # both levels present

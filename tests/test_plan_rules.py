@@ -137,8 +137,11 @@ def test_tracking_detector_window_then_fallback(tol):
     trk = MarkerTracker(intr, marker_length=0.05)
     full = MarkerTracker(intr, marker_length=0.05)
     trk._detector = td = TrackingDetector(trk._detector)
-    poses = [look_at_pose([0.05, -0.3, 0.35], [0.0, 0.0, 0.0]), look_at_pose([0.06, -0.3, 0.35], [0.0, 0.0, 0.0]),
-             look_at_pose([0.05, -0.3, 0.35], [0.12, 0.08, 0.0])]  # last: a jump (outside the window)
+    poses = [
+        look_at_pose([0.05, -0.3, 0.35], [0.0, 0.0, 0.0]),
+        look_at_pose([0.06, -0.3, 0.35], [0.0, 0.0, 0.0]),
+        look_at_pose([0.05, -0.3, 0.35], [0.12, 0.08, 0.0]),
+    ]  # last: a jump (outside the window)
     kinds = []
     for pose in poses:
         img = render_marker_photo(intr, pose, marker_length=0.05, seed=1).image

@@ -47,9 +47,22 @@ def stock_detections(folder: Path) -> dict:
 def run_video(tmp_path, folder: Path, video: str, *tracker_args) -> tuple[list, str]:
     """``arshadow video`` on a clip (a small box, one light): (frames report records, stderr)."""
     out = tmp_path / "out"
-    argv = ["video", str(folder / video), "--calib", str(folder / "intrinsics.yml"), *tracker_args,
-            "--model", "box:0.01,0.01,0.01", "--light", "point:0.1,0.1,0.5", "--contact-sheet", "0",
-            "--quiet", "-o", str(out)]
+    argv = [
+        "video",
+        str(folder / video),
+        "--calib",
+        str(folder / "intrinsics.yml"),
+        *tracker_args,
+        "--model",
+        "box:0.01,0.01,0.01",
+        "--light",
+        "point:0.1,0.1,0.5",
+        "--contact-sheet",
+        "0",
+        "--quiet",
+        "-o",
+        str(out),
+    ]
     assert main(argv) == 0
     with open(next(out.glob("*.frames.jsonl"))) as fh:
         return [json.loads(line) for line in fh], ""
@@ -105,8 +118,10 @@ def test_target_marker_tracked_where_opencv_sees_it(realvideo, tmp_path, clip, r
     stock = stock_detections(folder)
     seen = [r for r in recs if mid in stock[r["frame"]]]
     ok = [r for r in seen if r["status"] == "ok"]
-    assert len(ok) >= 0.95 * len(seen), f"{len(ok)} of {len(seen)} frames; missed " \
+    assert len(ok) >= 0.95 * len(seen), (
+        f"{len(ok)} of {len(seen)} frames; missed "
         f"{[(r['frame'], r.get('not_tracked')) for r in seen if r['status'] != 'ok']}"
+    )
     errs = [r["reprojection_error_px"] for r in recs if r["status"] == "ok"]
     assert np.median(errs) < 1.0
     smooth = [None if r["rvec"] is None or r["status"] != "ok" else _rot(r["rvec"]) for r in recs]
@@ -141,10 +156,33 @@ def test_stderr_summary_and_reasons(realvideo, tmp_path, capsys):
     name, video, mid, length = CLIPS["single"]
     folder = realvideo / name
     out = tmp_path / "o"
-    assert main(["video", str(folder / video), "--calib", str(folder / "intrinsics.yml"), "--marker-length",
-                 str(length), "--dictionary", "DICT_ARUCO_ORIGINAL", "--marker-id", str(mid), "--max-frames", "40",
-                 "--model", "box:0.01,0.01,0.01", "--light", "point:0.1,0.1,0.5", "--contact-sheet", "0",
-                 "-o", str(out)]) == 0
+    assert (
+        main(
+            [
+                "video",
+                str(folder / video),
+                "--calib",
+                str(folder / "intrinsics.yml"),
+                "--marker-length",
+                str(length),
+                "--dictionary",
+                "DICT_ARUCO_ORIGINAL",
+                "--marker-id",
+                str(mid),
+                "--max-frames",
+                "40",
+                "--model",
+                "box:0.01,0.01,0.01",
+                "--light",
+                "point:0.1,0.1,0.5",
+                "--contact-sheet",
+                "0",
+                "-o",
+                str(out),
+            ]
+        )
+        == 0
+    )
     err = capsys.readouterr().err
     with open(next(out.glob("*.frames.jsonl"))) as fh:
         recs = [json.loads(line) for line in fh]
@@ -153,5 +191,7 @@ def test_stderr_summary_and_reasons(realvideo, tmp_path, capsys):
     for s in st:
         run = 0 if s == "ok" else run + 1
         longest = max(longest, run)
-    assert (f"tracked {st.count('ok')}, held {st.count('held')}, lost {st.count('no_marker')} of {len(st)} frames; "
-            f"longest gap {longest} frames") in err
+    assert (
+        f"tracked {st.count('ok')}, held {st.count('held')}, lost {st.count('no_marker')} of {len(st)} frames; "
+        f"longest gap {longest} frames"
+    ) in err

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from image_oracle import ShadowOracle, iou
 
 from arshadow.errors import UsageError
 from arshadow.gl.shadowmap import light_view_projection
-from image_oracle import ShadowOracle, iou
 
 W, H = 1280, 720
 
@@ -17,8 +17,9 @@ def _box_corners(b):
     return np.array([[x, y, z, 1.0] for x in b[:, 0] for y in b[:, 1] for z in b[:, 2]])
 
 
-@pytest.mark.parametrize("light", [[-0.2, 0.1, 0.6, 1.0], [0.3, -0.2, 0.25, 1.0], [0.2, 0.5, 0.3, 0.0],
-                                   [0.0, 0.0, 1.0, 0.0]])
+@pytest.mark.parametrize(
+    "light", [[-0.2, 0.1, 0.6, 1.0], [0.3, -0.2, 0.25, 1.0], [0.2, 0.5, 0.3, 0.0], [0.0, 0.0, 1.0, 0.0]]
+)
 def test_light_frustum_encloses_caster(light):
     b = np.array([[-0.05, -0.04, 0.0], [0.05, 0.04, 0.15]])
     clip = _box_corners(b) @ light_view_projection(np.array(light, float), b).T
@@ -36,10 +37,11 @@ def test_light_inside_bounding_sphere_is_refused():
 @pytest.mark.gl
 @pytest.mark.parametrize("name", ["box_point", "wall_camera_in_shadow"])
 def test_shadowmap_close_to_exact_at_high_resolution(ctx, tol, name):
-    from arshadow.gl.stencil import LightPass
-    from arshadow.gl.shadowmap import ShadowMapRenderer
-    from arshadow.transforms import CV_TO_GL
     from test_gl_renderer import ZNEAR, _intrinsics, _scenes
+
+    from arshadow.gl.shadowmap import ShadowMapRenderer
+    from arshadow.gl.stencil import LightPass
+    from arshadow.transforms import CV_TO_GL
 
     sc = next(s for s in _scenes() if s.name == name)
     K = _intrinsics(sc.fx)
@@ -51,8 +53,9 @@ def test_shadowmap_close_to_exact_at_high_resolution(ctx, tol, name):
     masks = {}
     for size, pcf in ((512, 1), (4096, 3)):
         with ShadowMapRenderer(ctx, map_size=size, pcf=pcf, max_width=W, max_height=H) as r:
-            res = r.render(projection=P, view=view, width=W, height=H, caster=sc.caster, passes=passes,
-                           ground_size=sc.ground_size)
+            res = r.render(
+                projection=P, view=view, width=W, height=H, caster=sc.caster, passes=passes, ground_size=sc.ground_size
+            )
         masks[size] = res.mask >= 0.5
         assert res.mask.shape == (H, W) and res.color.shape == (H, W, 3) and res.premultiplied
     assert iou(masks[4096], exact) >= tol.shadowmap_iou_4096

@@ -120,8 +120,9 @@ def test_grazing_lights_exactly_in_and_near_face_planes(rng):
                             continue
                         assert degrees_balanced(ref.edges)
                         for m in EXACT:
-                            np.testing.assert_array_equal(edge_multiset(silhouette(c, L, m).edges),
-                                                          edge_multiset(ref.edges))
+                            np.testing.assert_array_equal(
+                                edge_multiset(silhouette(c, L, m).edges), edge_multiset(ref.edges)
+                            )
 
 
 def test_far_point_light_matches_directional(rng):
@@ -156,7 +157,7 @@ def test_scaled_and_translated_meshes(scale, shift, rng):
         # same topology as the unscaled mesh (except for faces within rounding of grazing)
         s0 = silhouette(base, L)
         differ = s.facing != s0.facing
-        dirs = (L[:3] if L[3] == 0 else L[:3] - base.triangles.mean(axis=1))
+        dirs = L[:3] if L[3] == 0 else L[:3] - base.triangles.mean(axis=1)
         if L[3] == 0:
             cosang = np.abs(base.face_planes[:, :3] @ (dirs / np.linalg.norm(dirs)))
         else:
@@ -273,8 +274,9 @@ def test_cli_text_and_methods(capsys, tmp_path):
 
     code, out, _ = _cli(capsys, str(SAMPLES / "house.obj"), "--light", "directional:1,0.5,2", "--method", "hsd")
     assert code == 0 and "hsd:" in out and "loops" in out and "ms per light" in out
-    code, out, _ = _cli(capsys, "torus:1,0.3", "--light", "point:0.01,0.02,5", "--json", "--method", "vnv",
-                        "--place", "0,0,0.5")
+    code, out, _ = _cli(
+        capsys, "torus:1,0.3", "--light", "point:0.01,0.02,5", "--json", "--method", "vnv", "--place", "0,0,0.5"
+    )
     import json
 
     assert code == 0 and json.loads(out)["loops"] == 2
@@ -298,8 +300,11 @@ def test_fast_facing_equals_float64_expression(rng):
     """The float32 pre-test with its error margin decides exactly like the float64 expression, also for
     grazing lights and far / scaled / translated meshes (where float32 alone would get signs wrong)."""
     base = closed_meshes()["knot"]
-    cases = [base, ShadowCaster(base.vertices * 1e3 + 1000.0, base.faces),
-             ShadowCaster(base.vertices * 1e-3 - 1000.0, base.faces)]
+    cases = [
+        base,
+        ShadowCaster(base.vertices * 1e3 + 1000.0, base.faces),
+        ShadowCaster(base.vertices * 1e-3 - 1000.0, base.faces),
+    ]
     n_unsure_total = 0
     for c in cases:
         lights = list(random_lights(c, 100, rng))

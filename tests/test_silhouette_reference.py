@@ -5,12 +5,17 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from geometry_cases import SAMPLES, affine_icosphere, edge_multiset, random_lights
 
 from arshadow.geometry.mesh import load_occluder
 from arshadow.geometry.silhouette import silhouette
-from arshadow.geometry.silhouette_reference import (delta_plus_reference, paper000_formulas, paper003_claim, ta_reference,
-                                           vnv_reference)
-from geometry_cases import SAMPLES, affine_icosphere, edge_multiset, random_lights
+from arshadow.geometry.silhouette_reference import (
+    delta_plus_reference,
+    paper000_formulas,
+    paper003_claim,
+    ta_reference,
+    vnv_reference,
+)
 
 
 def _small_meshes():

@@ -14,11 +14,11 @@ import math
 
 import numpy as np
 import pytest
+from conftest import TOL
+from oracle import disc_segment_fraction, profile_crossing
 
 from arshadow.lights.area import sample_area_light
 from arshadow.lights.spec import Light, parse_light
-from conftest import TOL
-from oracle import disc_segment_fraction, profile_crossing
 
 pytestmark = pytest.mark.gl
 
@@ -29,14 +29,18 @@ A, HB = 0.05, 0.1  # box half-width and height (m)
 
 @pytest.fixture(scope="module")
 def scene():
-    for mod in ("arshadow.gl.stencil", "arshadow.geometry.mesh", "arshadow.geometry.silhouette", "arshadow.geometry.volume"):
+    for mod in (
+        "arshadow.gl.stencil",
+        "arshadow.geometry.mesh",
+        "arshadow.geometry.silhouette",
+        "arshadow.geometry.volume",
+    ):
         pytest.importorskip(mod)
     from arshadow.camera import Intrinsics
     from arshadow.geometry.mesh import load_occluder
     from arshadow.transforms import CV_TO_GL
 
-    intr = Intrinsics(fx=F_PX, fy=F_PX, cx=(W - 1) / 2, cy=(H_IMG - 1) / 2, width=W, height=H_IMG,
-                      dist=np.zeros(0))
+    intr = Intrinsics(fx=F_PX, fy=F_PX, cx=(W - 1) / 2, cy=(H_IMG - 1) / 2, width=W, height=H_IMG, dist=np.zeros(0))
     cam_from_world = np.diag([1.0, -1.0, -1.0, 1.0])
     cam_from_world[2, 3] = D  # z_cam = D - z
     caster = load_occluder(f"box:{2 * A},{2 * A},{HB}")
@@ -59,9 +63,9 @@ def renderer(gl_ctx):
 
 
 def _render(scene, renderer, lights, mode="zfail"):
-    from arshadow.gl.stencil import LightPass
     from arshadow.geometry.silhouette import silhouette
     from arshadow.geometry.volume import shadow_volume
+    from arshadow.gl.stencil import LightPass
 
     total = sum(li.weight for li in lights)
     passes = []
@@ -70,8 +74,15 @@ def _render(scene, renderer, lights, mode="zfail"):
         sil = silhouette(scene["caster"], h)
         vol = shadow_volume(scene["caster"], h, sil, caps=(mode == "zfail"))
         passes.append(LightPass(light_h=h, weight=li.weight / total, volume=vol, mode=mode))
-    res = renderer.render(projection=scene["proj"], view=scene["view"], width=W, height=H_IMG,
-                          caster=scene["caster"], passes=passes, draw_occluder=False)
+    res = renderer.render(
+        projection=scene["proj"],
+        view=scene["view"],
+        width=W,
+        height=H_IMG,
+        caster=scene["caster"],
+        passes=passes,
+        draw_occluder=False,
+    )
     return res.mask
 
 

@@ -38,10 +38,10 @@ import os
 
 import numpy as np
 import pytest
-
-from arshadow.geometry.exact import points_in_triangles as _points_in_triangles
 from image_oracle import ground_points, occluder_coverage
 from oracle import directed_edge_balance, ground_shadow_triangles, iou, points_in_shadow
+
+from arshadow.geometry.exact import points_in_triangles as _points_in_triangles
 
 hypothesis = pytest.importorskip("hypothesis")
 from hypothesis import HealthCheck, given, settings  # noqa: E402
@@ -51,8 +51,16 @@ pytestmark = pytest.mark.gl
 
 W, H = 128, 96
 MESHES = ("hull", "icosphere", "torus", "open_cap", "open_sheet", "dup_degenerate")
-LIGHTS = ("point", "directional", "in_face_plane", "near_face_plane", "1mm_from_surface", "inside_mesh",
-          "near_horizon", "far_1e6")
+LIGHTS = (
+    "point",
+    "directional",
+    "in_face_plane",
+    "near_face_plane",
+    "1mm_from_surface",
+    "inside_mesh",
+    "near_horizon",
+    "far_1e6",
+)
 CAMERAS = ("generic", "inside_volume")
 FAST_EXAMPLES = 60
 
@@ -83,8 +91,9 @@ def _mesh(kind: str, seed: int):
         v = v * r.uniform(0.4, 1.0, size=3)
         f = np.asarray(s.faces)
     elif kind == "torus":
-        t = trimesh.creation.torus(major_radius=0.6, minor_radius=r.uniform(0.1, 0.35), major_sections=12,
-                                   minor_sections=6)
+        t = trimesh.creation.torus(
+            major_radius=0.6, minor_radius=r.uniform(0.1, 0.35), major_sections=12, minor_sections=6
+        )
         v = np.asarray(t.vertices) * (1 + 0.1 * r.uniform(-1, 1, size=(len(t.vertices), 1)))
         ang = r.uniform(0, np.pi, size=3)
         v = v @ trimesh.transformations.euler_matrix(*ang)[:3, :3].T
@@ -118,7 +127,7 @@ def _config(draw):
     camera = draw(st.sampled_from(CAMERAS))
     seed = draw(st.integers(0, 2**31 - 1))
     log_scale = draw(st.floats(-3.0, 2.0))
-    return dict(mesh=mesh, light=light, camera=camera, seed=seed, scale=10.0 ** log_scale)
+    return dict(mesh=mesh, light=light, camera=camera, seed=seed, scale=10.0**log_scale)
 
 
 configs = st.composite(_config)
@@ -227,30 +236,37 @@ class Stats:
     def report(self) -> str:
         total = sum(self.tried[k] for k in self.tried if k.startswith("mesh:"))
         ok = sum(self.passed[k] for k in self.passed if k.startswith("mesh:"))
-        lines = [f"random geometry configurations: {total} tried, {ok} passed, "
-                 f"{sum(self.degenerate.values())} documented degenerate (counted as passed)"]
+        lines = [
+            f"random geometry configurations: {total} tried, {ok} passed, "
+            f"{sum(self.degenerate.values())} documented degenerate (counted as passed)"
+        ]
         for group in ("mesh", "light", "camera", "mode", "volume"):
-            parts = [f"{k.split(':', 1)[1]} {self.passed[k]}/{self.tried[k]}" for k in sorted(self.tried)
-                     if k.startswith(group + ":")]
+            parts = [
+                f"{k.split(':', 1)[1]} {self.passed[k]}/{self.tried[k]}"
+                for k in sorted(self.tried)
+                if k.startswith(group + ":")
+            ]
             lines.append(f"  {group}: " + ", ".join(parts))
         if self.iou:
             q = np.percentile(self.iou, [0, 1, 50])
-            lines.append(f"  full-image IoU (1-px boundary band included): min {q[0]:.4f}, 1st percentile "
-                         f"{q[1]:.4f}, median {q[2]:.4f}")
+            lines.append(
+                f"  full-image IoU (1-px boundary band included): min {q[0]:.4f}, 1st percentile "
+                f"{q[1]:.4f}, median {q[2]:.4f}"
+            )
         if self.degenerate:
             lines.append("  degenerate: " + ", ".join(f"{k} {n}" for k, n in sorted(self.degenerate.items())))
         return "\n".join(lines)
 
 
 def check_configuration(cfg, renderer, stats: Stats, tol):
+    from geometry_cases import degrees_balanced
+
     from arshadow.camera import Intrinsics
     from arshadow.errors import LightError
-    from arshadow.gl.stencil import LightPass
     from arshadow.geometry.silhouette import silhouette
-    from arshadow.transforms import CV_TO_GL, invert_rigid
     from arshadow.geometry.volume import camera_may_be_in_shadow, near_plane_radius, shadow_volume
-
-    from geometry_cases import degrees_balanced
+    from arshadow.gl.stencil import LightPass
+    from arshadow.transforms import CV_TO_GL, invert_rigid
 
     r = np.random.default_rng(cfg["seed"] + 2)
     caster, L = _scene(cfg)
@@ -282,7 +298,7 @@ def check_configuration(cfg, renderer, stats: Stats, tol):
         assert degrees_balanced(sil.edges), cfg
     batches = vol_fail.batches or ((0, len(vol_fail.triangles)),)
     for first, n in batches:
-        assert directed_edge_balance(vol_fail.triangles[first:first + n])[0] == 0, ("volume not watertight", cfg)
+        assert directed_edge_balance(vol_fail.triangles[first : first + n])[0] == 0, ("volume not watertight", cfg)
     vkey = "volume:batched" if vol_fail.batches else "volume:single"
     stats.tried[vkey] += 1
 
@@ -304,8 +320,9 @@ def check_configuration(cfg, renderer, stats: Stats, tol):
     proj, view = K.gl_projection(znear, None), CV_TO_GL @ T
 
     def render(m, vol):
-        return renderer.render(projection=proj, view=view, width=W, height=H, caster=caster,
-                               passes=[LightPass(L, 1.0, vol, m)]).mask
+        return renderer.render(
+            projection=proj, view=view, width=W, height=H, caster=caster, passes=[LightPass(L, 1.0, vol, m)]
+        ).mask
 
     got = render(mode, vol_fail if mode == "zfail" else vol_pass)
     assert np.all(np.isfinite(got))
@@ -350,8 +367,9 @@ def check_configuration(cfg, renderer, stats: Stats, tol):
             ys, xs = np.nonzero(off)
             near = [_edge_distance_px(x, y, K.K, T, tris) <= tol.stress_sliver_edge_px for x, y in zip(xs, ys)]
             assert all(near), ("mismatch off the boundary (small shadow)", cfg)
-            stats.degenerate["sub-pixel sliver: every mismatch within "
-                             f"{tol.stress_sliver_edge_px} px of the exact edge"] += 1
+            stats.degenerate[
+                f"sub-pixel sliver: every mismatch within {tol.stress_sliver_edge_px} px of the exact edge"
+            ] += 1
         else:
             assert not np.any(off), ("mismatch off the boundary (small shadow)", cfg)
             stats.degenerate["fewer than 50 shadow pixels: every mismatch within 1 px of the edge"] += 1
@@ -397,9 +415,14 @@ def _run(renderer, tol, n_examples, seed_mode):
                 fh.write(stats.report() + f"\n  failures so far: {len(failures)}\n")
             os.replace(progress + ".tmp", progress)
 
-    @settings(max_examples=n_examples, deadline=None, database=None,
-              derandomize=seed_mode == "fixed" and fixed is None, phases=[Phase.generate],
-              suppress_health_check=list(HealthCheck))
+    @settings(
+        max_examples=n_examples,
+        deadline=None,
+        database=None,
+        derandomize=seed_mode == "fixed" and fixed is None,
+        phases=[Phase.generate],
+        suppress_health_check=list(HealthCheck),
+    )
     @given(cfg=configs())
     def prop(cfg):
         try:

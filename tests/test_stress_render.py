@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from image_oracle import ShadowOracle, iou
 
 pytestmark = pytest.mark.gl
@@ -18,10 +17,10 @@ W, H = 200, 150
 ZNEAR = 0.01
 
 
-
 def _rendered(res):
     """A :class:`arshadow.session.FrameResult` as ``(composite, mask, report item)``."""
     return res.composite, res.mask, res.item
+
 
 def _stack(n: int, side: float = 0.1, gap: float = 0.002, thick: float = 0.001, z0: float = 0.02):
     """``n`` thin square plates stacked above each other (a pixel under them lies in n volume layers)."""
@@ -39,19 +38,25 @@ def _stack(n: int, side: float = 0.1, gap: float = 0.002, thick: float = 0.001, 
 
 def _render(renderer, caster, light_h, cam_from_world, *, fx=320.0, mode=None, draw_occluder=True, znear=ZNEAR):
     from arshadow.camera import Intrinsics
-    from arshadow.gl.stencil import LightPass
     from arshadow.geometry.silhouette import silhouette
-    from arshadow.transforms import CV_TO_GL, invert_rigid
     from arshadow.geometry.volume import camera_may_be_in_shadow, near_plane_radius, shadow_volume
+    from arshadow.gl.stencil import LightPass
+    from arshadow.transforms import CV_TO_GL, invert_rigid
 
     K = Intrinsics(fx=fx, fy=fx, cx=(W - 1) / 2, cy=(H - 1) / 2, width=W, height=H, dist=np.zeros(0))
     eye = invert_rigid(cam_from_world)[:3, 3]
     near = near_plane_radius(znear, W, H, K.fx, K.fy, K.cx, K.cy)
     m = mode or ("zfail" if camera_may_be_in_shadow(caster, light_h, eye, near) else "zpass")
     vol = shadow_volume(caster, light_h, silhouette(caster, light_h), caps=(m == "zfail"))
-    res = renderer.render(projection=K.gl_projection(znear, None), view=CV_TO_GL @ cam_from_world, width=W,
-                          height=H, caster=caster, passes=[LightPass(np.asarray(light_h, float), 1.0, vol, m)],
-                          draw_occluder=draw_occluder)
+    res = renderer.render(
+        projection=K.gl_projection(znear, None),
+        view=CV_TO_GL @ cam_from_world,
+        width=W,
+        height=H,
+        caster=caster,
+        passes=[LightPass(np.asarray(light_h, float), 1.0, vol, m)],
+        draw_occluder=draw_occluder,
+    )
     orc = ShadowOracle(K.K, cam_from_world, caster.vertices, caster.faces, [(np.asarray(light_h, float), 1.0)])
     return res, vol, orc.image(W, H)
 
@@ -69,8 +74,8 @@ def renderer(gl_ctx):
 def test_stacked_layers_past_the_stencil_range(renderer, tol, n):
     """n stacked plates under a light from above: the ground under them lies in n volume layers. A 6-bit
     count (mod 64) read 64 and 128 layers as lit before the batched volumes; 300 layers exceed 8 bits too."""
-    from arshadow.synth import look_at_pose
     from arshadow.geometry.volume import STENCIL_COUNT_RANGE
+    from arshadow.synth import look_at_pose
 
     caster = _stack(n)
     light = np.array([0.05, 0.03, 1.0, 0.0])
@@ -91,17 +96,17 @@ def test_stacked_layers_past_the_stencil_range(renderer, tol, n):
 
 def test_batched_volume_is_closed_and_union_exact():
     """Each batch of a batched volume is a closed, consistently wound surface."""
+    from oracle import directed_edge_balance
+
     from arshadow.geometry.silhouette import silhouette
     from arshadow.geometry.volume import BATCH_LAYERS, shadow_volume
-
-    from oracle import directed_edge_balance
 
     caster = _stack(80)
     light = np.array([0.3, 0.2, 1.5, 1.0])
     vol = shadow_volume(caster, light, silhouette(caster, light))
     assert vol.batches is not None and len(vol.batches) >= 2
     for first, n in vol.batches:
-        tris = vol.triangles[first:first + n]
+        tris = vol.triangles[first : first + n]
         assert directed_edge_balance(tris)[0] == 0  # closed, consistently wound
         assert n <= 8 * BATCH_LAYERS  # near + far cap + at most 3 sides (2 triangles each) per face
 
@@ -128,8 +133,8 @@ def test_depth_precision_at_one_km(gl_ctx, renderer, tol):
     distance to the object / ground, formerly capped at 5 cm: the contact then dissolved into metres of
     depth error, 82 wrong pixels here) the mask matches the oracle."""
     from arshadow.camera import Intrinsics
-    from arshadow.lights.spec import parse_light
     from arshadow.geometry.mesh import load_occluder
+    from arshadow.lights.spec import parse_light
     from arshadow.scene import RenderOptions, Scene
     from arshadow.session import Session
     from arshadow.synth import look_at_pose
@@ -177,8 +182,8 @@ def test_no_light_seam_where_object_meets_shadow(gl_ctx, tol, aa, k1):
     the mean signed error over the contact pixels was MEASURED below (old vs new in the report)."""
     from arshadow.camera import Intrinsics
     from arshadow.compose.composite import SRGB_TO_LINEAR
-    from arshadow.lights.spec import parse_light
     from arshadow.geometry.mesh import load_occluder
+    from arshadow.lights.spec import parse_light
     from arshadow.scene import RenderOptions, Scene
     from arshadow.session import Session
     from arshadow.synth import look_at_pose
@@ -192,16 +197,18 @@ def test_no_light_seam_where_object_meets_shadow(gl_ctx, tol, aa, k1):
     pose = look_at_pose([0.08, -0.3, 0.05], [0.0, 0.0, 0.0])
     opacity = 0.7
     photo = np.full((Hc, Wc, 3), 150, np.uint8)
-    scene = Scene(intr, box, [parse_light(light_spec)],
-                  RenderOptions(opacity=opacity, aa=aa, occluder_color=(0.0, 0.0, 0.0)), {})
+    scene = Scene(
+        intr, box, [parse_light(light_spec)], RenderOptions(opacity=opacity, aa=aa, occluder_color=(0.0, 0.0, 0.0)), {}
+    )
     with Session(scene, context=gl_ctx) as comp:
         out, mask, info = _rendered(comp.render(photo, pose))
     # truth over the object's neighbourhood
     uv = intr.project(box.vertices, pose)
     x0, y0 = (np.floor(uv.min(0)) - 4).astype(int)
     x1, y1 = (np.ceil(uv.max(0)) + 5).astype(int)
-    a, s = _contact_truth(intr.K, pose, box, [-0.1, 1.0, 0.8, 0.0], Wc, Hc,
-                          intr_dist=intr if k1 else None, roi=(x0, y0, x1, y1))
+    a, s = _contact_truth(
+        intr.K, pose, box, [-0.1, 1.0, 0.8, 0.0], Wc, Hc, intr_dist=intr if k1 else None, roi=(x0, y0, x1, y1)
+    )
     contact = (a > 0.1) & (a < 0.9) & (s > 0.1)
     assert contact.sum() >= 20
     # compared in linear light, as a share of the photo's light (8-bit sRGB averages of hard-edged
@@ -210,8 +217,10 @@ def test_no_light_seam_where_object_meets_shadow(gl_ctx, tol, aa, k1):
     expect = np.clip(1.0 - a - opacity * s, 0, 1)
     got = SRGB_TO_LINEAR[out[y0:y1, x0:x1, 1]].astype(np.float64) / lin
     err = (got - expect)[contact]
-    print(f"\ncontact seam {aa=} {k1=}: {contact.sum()} pixels, mean signed error {err.mean():+.3f} "
-          f"(share of the light), mean |error| {np.abs(err).mean():.3f}")
+    print(
+        f"\ncontact seam {aa=} {k1=}: {contact.sum()} pixels, mean signed error {err.mean():+.3f} "
+        f"(share of the light), mean |error| {np.abs(err).mean():.3f}"
+    )
     assert abs(err.mean()) <= tol.contact_seam_mean
     # away from the edges the composite is exact: deep shadow (and the black object)
     import cv2

@@ -67,23 +67,27 @@ def _case(kind: str, r, intr):
         d = r.uniform(0.25, 0.6)
         el = np.radians(r.uniform(35, 85))
         az = r.uniform(0, 2 * np.pi)
-        pose = look_at_pose(target + d * np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)]),
-                            target)
+        pose = look_at_pose(
+            target + d * np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)]), target
+        )
         blur = r.uniform(3.0, 6.0)
     elif kind == "partial_occlusion":
         d = r.uniform(0.25, 0.5)
         el = np.radians(r.uniform(35, 85))
         az = r.uniform(0, 2 * np.pi)
-        pose = look_at_pose(target + d * np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)]),
-                            target)
+        pose = look_at_pose(
+            target + d * np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)]), target
+        )
     else:  # tilt_80
         d = r.uniform(0.15, 0.35)
         az = r.uniform(0, 2 * np.pi)
         el = np.radians(10.0)
-        pose = look_at_pose(target + d * np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)]),
-                            target)
-    img = render_marker_photo(intr, pose, marker_length=L, blur_sigma=blur, noise_sigma=noise,
-                              seed=int(r.integers(1 << 30))).image
+        pose = look_at_pose(
+            target + d * np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)]), target
+        )
+    img = render_marker_photo(
+        intr, pose, marker_length=L, blur_sigma=blur, noise_sigma=noise, seed=int(r.integers(1 << 30))
+    ).image
     if kind == "partial_occlusion":
         import cv2
 
@@ -125,7 +129,9 @@ def _run(kinds, n_per_kind: int, tol, seed=20261123):
                 out[kind]["CONFIDENT WRONG"] += 1
                 wrong.append((kind, round(err, 2), round(float(pose.pose_ambiguity or 0), 3)))
     for k, c in out.items():
-        print(f"\ntracking stress {k}, {n_per_kind} photos: " + ", ".join(f"{n} {what}" for what, n in sorted(c.items())))
+        print(
+            f"\ntracking stress {k}, {n_per_kind} photos: " + ", ".join(f"{n} {what}" for what, n in sorted(c.items()))
+        )
     return out, wrong
 
 
@@ -137,8 +143,7 @@ def test_never_a_confident_wrong_pose(tol, kind):
 
 @pytest.mark.slow
 def test_never_a_confident_wrong_pose_sweep(tol):
-    out, wrong = _run(list(KINDS), int(os.environ.get("ARSHADOW_TRACK_STRESS", 100)),
-                      tol, seed=7)
+    out, wrong = _run(list(KINDS), int(os.environ.get("ARSHADOW_TRACK_STRESS", 100)), tol, seed=7)
     assert not wrong, wrong
 
 

@@ -6,11 +6,12 @@ from __future__ import annotations
 
 import json
 import math
-from datetime import datetime, timedelta, timezone, UTC
+from datetime import UTC, datetime, timedelta, timezone
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import TOL
 
 from arshadow.cli import main
 from arshadow.errors import LightError
@@ -26,7 +27,6 @@ from arshadow.lights.sun import (
     sun_positions,
     world_to_enu,
 )
-from conftest import TOL
 
 DATA = Path(__file__).parent / "data" / "sun_reference.json"
 MDT = timezone(timedelta(hours=-7))
@@ -50,8 +50,14 @@ def _errors(rows, model):
     ang, app = [], []
     for r in rows:
         s = sun_position(
-            parse_time(r["time"]), r["lat"], r["lon"], r["elevation"], model=model,
-            pressure_mbar=r["pressure_mbar"], temperature_c=r["temperature_c"], delta_t=r["delta_t"],
+            parse_time(r["time"]),
+            r["lat"],
+            r["lon"],
+            r["elevation"],
+            model=model,
+            pressure_mbar=r["pressure_mbar"],
+            temperature_c=r["temperature_c"],
+            delta_t=r["delta_t"],
         )
         ref = _enu(r["zenith"], r["azimuth"])
         ang.append(math.degrees(2 * math.atan2(np.linalg.norm(s.enu - ref), np.linalg.norm(s.enu + ref))))
@@ -216,8 +222,18 @@ def test_paper_model_handles_west_longitudes_and_quadrants():
     p = sun_position(t, 39.742476, -105.1786, model="paper")
     assert abs(p.azimuth_deg - 194.34) < 1.0 and abs(p.zenith_deg - 50.128) < 1.0
     # late afternoon in the west (quadrant > 180) and morning in the east
-    assert 240 < sun_position(datetime(2021, 6, 21, 19, tzinfo=timezone(timedelta(hours=2))), 48, 11, model="paper").azimuth_deg < 320
-    assert 40 < sun_position(datetime(2021, 6, 21, 7, tzinfo=timezone(timedelta(hours=2))), 48, 11, model="paper").azimuth_deg < 120
+    assert (
+        240
+        < sun_position(
+            datetime(2021, 6, 21, 19, tzinfo=timezone(timedelta(hours=2))), 48, 11, model="paper"
+        ).azimuth_deg
+        < 320
+    )
+    assert (
+        40
+        < sun_position(datetime(2021, 6, 21, 7, tzinfo=timezone(timedelta(hours=2))), 48, 11, model="paper").azimuth_deg
+        < 120
+    )
 
 
 # ---------------------------------------------------------------------------------------- world frame
@@ -261,7 +277,9 @@ def test_sun_light_spec():
     jan = parse_light("sun:0,0,2021-01-03T12:00Z").radius  # perihelion: largest disc
     jul = parse_light("sun:0,0,2021-07-05T12:00Z").radius  # aphelion: smallest
     assert math.degrees(jan) == pytest.approx(0.2712, abs=2e-4) and math.degrees(jul) == pytest.approx(0.2622, abs=2e-4)
-    assert parse_light("sun:0,0,2021-07-05T12:00Z,model=paper").radius == pytest.approx(math.radians(SUN_ANGULAR_RADIUS_DEG))
+    assert parse_light("sun:0,0,2021-07-05T12:00Z,model=paper").radius == pytest.approx(
+        math.radians(SUN_ANGULAR_RADIUS_DEG)
+    )
     assert li.homogeneous[3] == 0.0
     # NORTH defaults to 0: world = ENU
     np.testing.assert_allclose(parse_light("sun:1.28,103.45,2011-04-22T10:59+08:00").vector, s.enu, atol=1e-15)
@@ -349,8 +367,16 @@ def _cli_json(capsys, *argv):
 )
 def test_cli_pole_shadow_agrees_with_direction(capsys, lat, lon, time, north):
     out = _cli_json(capsys, "--lat", str(lat), "--lon", str(lon), "--time", time, "--north", str(north))
-    for key in ("zenith_deg", "apparent_zenith_deg", "azimuth_deg", "enu", "world", "above_horizon",
-                "shadow_length_1m", "shadow_bearing_deg"):
+    for key in (
+        "zenith_deg",
+        "apparent_zenith_deg",
+        "azimuth_deg",
+        "enu",
+        "world",
+        "above_horizon",
+        "shadow_length_1m",
+        "shadow_bearing_deg",
+    ):
         assert key in out
     assert out["above_horizon"] is True
     w = np.array(out["world"])
@@ -365,8 +391,10 @@ def test_cli_pole_shadow_agrees_with_direction(capsys, lat, lon, time, north):
     d = (out["shadow_bearing_deg"] - (out["azimuth_deg"] + 180.0)) % 360.0
     assert min(d, 360 - d) < 1e-6
     # the tip's world coordinates rotated back by NORTH point along that bearing
-    e, n = math.cos(math.radians(-north)) * tip[0] - math.sin(math.radians(-north)) * tip[1], \
-        math.sin(math.radians(-north)) * tip[0] + math.cos(math.radians(-north)) * tip[1]
+    e, n = (
+        math.cos(math.radians(-north)) * tip[0] - math.sin(math.radians(-north)) * tip[1],
+        math.sin(math.radians(-north)) * tip[0] + math.cos(math.radians(-north)) * tip[1],
+    )
     d = (math.degrees(math.atan2(e, n)) - out["shadow_bearing_deg"]) % 360.0
     assert min(d, 360 - d) < 1e-6
     # the world direction is the ENU one turned by NORTH; zenith/azimuth match the API
@@ -376,8 +404,22 @@ def test_cli_pole_shadow_agrees_with_direction(capsys, lat, lon, time, north):
 
 
 def test_cli_worked_example_and_text_output(capsys):
-    argv = ["--lat", "39.742476", "--lon", "-105.1786", "--time", "2003-10-17T12:30:30-07:00",
-            "--elevation", "1830.14", "--pressure", "820", "--temperature", "11", "--delta-t", "67"]
+    argv = [
+        "--lat",
+        "39.742476",
+        "--lon",
+        "-105.1786",
+        "--time",
+        "2003-10-17T12:30:30-07:00",
+        "--elevation",
+        "1830.14",
+        "--pressure",
+        "820",
+        "--temperature",
+        "11",
+        "--delta-t",
+        "67",
+    ]
     out = _cli_json(capsys, *argv)
     assert out["zenith_deg"] == pytest.approx(50.12795, abs=1e-5)
     assert out["apparent_zenith_deg"] == pytest.approx(50.11162, abs=1e-5)

@@ -156,8 +156,16 @@ def _single_marker_run(n, seed):
         L = frac * CAM.width * d / CAM.fx
         mid = int(rng.integers(250))
         pose = random_pose(rng, CAM, distance=(d, d), tilt_deg=(0, 70), keep_in_view=marker_object_points(1.6 * L))
-        photo = render_marker_photo(CAM, pose, marker_id=mid, marker_length=L, noise_sigma=2.0, blur_sigma=0.6,
-                                    jpeg_quality=90, seed=seed * 10000 + i)
+        photo = render_marker_photo(
+            CAM,
+            pose,
+            marker_id=mid,
+            marker_length=L,
+            noise_sigma=2.0,
+            blur_sigma=0.6,
+            jpeg_quality=90,
+            seed=seed * 10000 + i,
+        )
         try:
             p = MarkerTracker(CAM, marker_length=L, marker_id=mid).estimate(photo.image)
         except MarkerNotFoundError:
@@ -182,15 +190,19 @@ def test_single_marker_accuracy(tol):
     n_found = rot.size
     assert n_found >= tol.synth_detect_rate * N_POSES, f"only {n_found}/{N_POSES} markers detected"
     med_rot, p95_rot, med_trans = np.median(rot), np.percentile(rot, 95), np.median(trans)
-    print(f"\nsingle marker, {n_found}/{N_POSES} found: rotation median {med_rot:.3f} deg, p95 {p95_rot:.3f}, "
-          f"max {rot.max():.2f}; translation median {100 * med_trans:.3f} % of distance; "
-          f"flagged {flagged.sum()}; > {tol.synth_rot_flag_deg} deg: {(rot > tol.synth_rot_flag_deg).sum()}")
+    print(
+        f"\nsingle marker, {n_found}/{N_POSES} found: rotation median {med_rot:.3f} deg, p95 {p95_rot:.3f}, "
+        f"max {rot.max():.2f}; translation median {100 * med_trans:.3f} % of distance; "
+        f"flagged {flagged.sum()}; > {tol.synth_rot_flag_deg} deg: {(rot > tol.synth_rot_flag_deg).sum()}"
+    )
     assert med_rot <= tol.synth_rot_median_deg
     assert p95_rot <= tol.synth_rot_p95_deg
     assert med_trans <= tol.synth_trans_median_rel
     # none silently wrong: every frame off by more than 5 degrees carries the flag, in the report too
     wrong = rot > tol.synth_rot_flag_deg
-    assert np.all(flagged[wrong]), f"unflagged wrong poses: errors {rot[wrong & ~flagged]}, ratios {amb[wrong & ~flagged]}"
+    assert np.all(flagged[wrong]), (
+        f"unflagged wrong poses: errors {rot[wrong & ~flagged]}, ratios {amb[wrong & ~flagged]}"
+    )
     assert np.all(reported[wrong] >= AMBIGUITY_FLAG)
     assert np.all((amb > 0) & (amb <= 1))
 
@@ -208,8 +220,9 @@ def test_ambiguity_flag_catches_flips():
         d = rng.uniform(0.5, 0.8)
         L = rng.uniform(35, 70) * d / CAM.fx
         pose = random_pose(rng, CAM, distance=(d, d), tilt_deg=(0, 30), keep_in_view=marker_object_points(1.6 * L))
-        photo = render_marker_photo(CAM, pose, marker_id=5, marker_length=L, noise_sigma=3.0, blur_sigma=0.8,
-                                    jpeg_quality=80, seed=i)
+        photo = render_marker_photo(
+            CAM, pose, marker_id=5, marker_length=L, noise_sigma=3.0, blur_sigma=0.8, jpeg_quality=80, seed=i
+        )
         try:
             p = MarkerTracker(CAM, marker_length=L, marker_id=5).estimate(photo.image)
         except MarkerNotFoundError:
@@ -218,7 +231,9 @@ def test_ambiguity_flag_catches_flips():
         e_alt = rotation_error_deg(p.alternative.cam_from_world[:3, :3], pose[:3, :3])
         if e > 5.0 and e_alt < e:
             flips += 1
-            assert p.ambiguous, f"flipped pose not flagged: error {e:.1f} deg (other solution {e_alt:.1f}), ratio {p.pose_ambiguity:.2f}"
+            assert p.ambiguous, (
+                f"flipped pose not flagged: error {e:.1f} deg (other solution {e_alt:.1f}), ratio {p.pose_ambiguity:.2f}"
+            )
     assert flips >= 1  # the regime does produce flips: the check above is not vacuous
 
 
@@ -232,15 +247,18 @@ def test_charuco_accuracy_and_board_beats_marker(tol):
     bw, bh = CHARUCO.extent
     centre = np.array([bw / 2, -bh / 2, 0.0])
     board_rot, single_rot, board_t, single_t = [], [], [], []
-    centre_id = min(CHARUCO.marker_corners_world,
-                    key=lambda i: np.linalg.norm(CHARUCO.marker_corners_world[i].mean(axis=0) - centre))
+    centre_id = min(
+        CHARUCO.marker_corners_world,
+        key=lambda i: np.linalg.norm(CHARUCO.marker_corners_world[i].mean(axis=0) - centre),
+    )
     c_world = CHARUCO.marker_corners_world[centre_id].mean(axis=0)
     paper = np.array([[-0.02, 0.02, 0], [bw + 0.02, 0.02, 0], [bw + 0.02, -bh - 0.02, 0], [-0.02, -bh - 0.02, 0]])
     tb = MarkerTracker(CAM, board=CHARUCO)
     for i in range(40):
         pose = random_pose(rng, CAM, distance=(0.45, 0.8), tilt_deg=(0, 60), keep_in_view=paper, target=centre)
-        photo = render_marker_photo(CAM, pose, board=CHARUCO, noise_sigma=2.0, blur_sigma=0.6, jpeg_quality=90,
-                                    seed=100 + i)
+        photo = render_marker_photo(
+            CAM, pose, board=CHARUCO, noise_sigma=2.0, blur_sigma=0.6, jpeg_quality=90, seed=100 + i
+        )
         try:
             pb = tb.estimate(photo.image)
             ps = MarkerTracker(CAM, marker_length=CHARUCO.marker_length, marker_id=centre_id).estimate(photo.image)
@@ -253,9 +271,11 @@ def test_charuco_accuracy_and_board_beats_marker(tol):
         single_t.append(np.linalg.norm(ps.tvec - true_c))
     board_rot, single_rot = np.array(board_rot), np.array(single_rot)
     assert board_rot.size >= 36
-    print(f"\nChArUco board: rotation median {np.median(board_rot):.4f} deg (p95 {np.percentile(board_rot, 95):.3f}); "
-          f"single marker {centre_id} on the same photos: median {np.median(single_rot):.3f} deg; "
-          f"position of that marker: board {1000 * np.median(board_t):.2f} mm, single {1000 * np.median(single_t):.2f} mm")
+    print(
+        f"\nChArUco board: rotation median {np.median(board_rot):.4f} deg (p95 {np.percentile(board_rot, 95):.3f}); "
+        f"single marker {centre_id} on the same photos: median {np.median(single_rot):.3f} deg; "
+        f"position of that marker: board {1000 * np.median(board_t):.2f} mm, single {1000 * np.median(single_t):.2f} mm"
+    )
     assert np.median(board_rot) <= tol.charuco_rot_median_deg
     assert np.median(board_rot) < tol.board_vs_marker_rot_ratio * np.median(single_rot)
     assert np.median(board_t) < np.median(single_t)
@@ -287,5 +307,7 @@ def test_gridboard_beats_single_marker(tol):
         b_rot.append(rotation_error_deg(pb.cam_from_world[:3, :3], pose[:3, :3]))
         s_rot.append(rotation_error_deg(ps.cam_from_world[:3, :3], pose[:3, :3]))
     assert len(b_rot) >= 22
-    print(f"\ngrid board: rotation median {np.median(b_rot):.4f} deg; its marker {mid} alone: {np.median(s_rot):.3f} deg")
+    print(
+        f"\ngrid board: rotation median {np.median(b_rot):.4f} deg; its marker {mid} alone: {np.median(s_rot):.3f} deg"
+    )
     assert np.median(b_rot) < tol.board_vs_marker_rot_ratio * np.median(s_rot)

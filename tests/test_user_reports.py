@@ -72,23 +72,37 @@ def test_render_honours_exif_orientation(tmp_path, capsys, gl_ctx):
     from arshadow.synth import look_at_pose, render_marker_photo
 
     intr = Intrinsics.from_file(CALIB)
-    img = render_marker_photo(intr, look_at_pose([0.15, -0.3, 0.3], [0.0, 0.0, 0.0]), marker_length=0.05,
-                              seed=3).image
+    img = render_marker_photo(intr, look_at_pose([0.15, -0.3, 0.3], [0.0, 0.0, 0.0]), marker_length=0.05, seed=3).image
     ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, 95])
     d = tmp_path / "in"
     d.mkdir()
     (d / "plain.jpg").write_bytes(buf.tobytes())
     (d / "portrait.jpg").write_bytes(_with_exif_orientation(buf.tobytes(), 6))
-    args = ["render", str(d), "--calib", str(CALIB), "--marker-length", "0.05", "--model", "box:0.04,0.03,0.05",
-            "--light", "point:-0.1,0.1,0.4", "-o", str(tmp_path / "o"), "--save-mask", "-q"]
+    args = [
+        "render",
+        str(d),
+        "--calib",
+        str(CALIB),
+        "--marker-length",
+        "0.05",
+        "--model",
+        "box:0.04,0.03,0.05",
+        "--light",
+        "point:-0.1,0.1,0.4",
+        "-o",
+        str(tmp_path / "o"),
+        "--save-mask",
+        "-q",
+    ]
     assert main(args) == 0, capsys.readouterr().err
     plain = cv2.imread(str(tmp_path / "o" / "plain.png"), cv2.IMREAD_UNCHANGED)
     portrait = cv2.imread(str(tmp_path / "o" / "portrait.png"), cv2.IMREAD_UNCHANGED)
     assert portrait.shape == (1280, 720, 3)
     assert np.array_equal(portrait, cv2.rotate(plain, cv2.ROTATE_90_CLOCKWISE))
     pm = cv2.imread(str(tmp_path / "o" / "portrait.shadow.png"), 0)
-    assert np.array_equal(pm, cv2.rotate(cv2.imread(str(tmp_path / "o" / "plain.shadow.png"), 0),
-                                         cv2.ROTATE_90_CLOCKWISE))
+    assert np.array_equal(
+        pm, cv2.rotate(cv2.imread(str(tmp_path / "o" / "plain.shadow.png"), 0), cv2.ROTATE_90_CLOCKWISE)
+    )
 
 
 def test_marker_id_help_is_the_same_in_render_and_pose():
@@ -97,11 +111,15 @@ def test_marker_id_help_is_the_same_in_render_and_pose():
 
     parser = build_parser()
     sub = next(a for a in parser._actions if a.dest == "command").choices
-    helps = {name: next(a.help for a in sub[name]._actions if "--marker-id" in a.option_strings)
-             for name in ("render", "pose")}
+    helps = {
+        name: next(a.help for a in sub[name]._actions if "--marker-id" in a.option_strings)
+        for name in ("render", "pose")
+    }
     assert helps["render"] == helps["pose"] and "lowest id" in helps["render"]
-    dicts = {name: next(a.help for a in sub[name]._actions if "--dictionary" in a.option_strings)
-             for name in ("render", "pose")}
+    dicts = {
+        name: next(a.help for a in sub[name]._actions if "--dictionary" in a.option_strings)
+        for name in ("render", "pose")
+    }
     assert dicts["render"] == dicts["pose"]
 
 
@@ -176,12 +194,17 @@ def test_board_file_in_millimetres_warns_when_the_scene_loads(caplog, tmp_path):
     board file is probably in millimetres, naming the metre value; the same board in metres is silent."""
     text = (ROOT / "calib" / "gridboard_5x7.yml").read_text()
     mm = tmp_path / "board_mm.yml"
-    mm.write_text(text.replace("marker_length: 0.04", "marker_length: 40").replace("marker_separation: 0.01",
-                                                                                   "marker_separation: 10"))
+    mm.write_text(
+        text.replace("marker_length: 0.04", "marker_length: 40").replace(
+            "marker_separation: 0.01", "marker_separation: 10"
+        )
+    )
     msgs = _warnings_of_build(caplog, marker_length=None, board=str(mm))
     assert any("probably in millimetres" in m and "0.04" in m for m in msgs), msgs
-    assert not any("millimetres" in m for m in _warnings_of_build(caplog, marker_length=None,
-                                                                  board=str(ROOT / "calib" / "gridboard_5x7.yml")))
+    assert not any(
+        "millimetres" in m
+        for m in _warnings_of_build(caplog, marker_length=None, board=str(ROOT / "calib" / "gridboard_5x7.yml"))
+    )
     _tally("board file in millimetres", "warned")
 
 
@@ -237,11 +260,13 @@ def test_gltf_is_y_up_by_default_and_up_option(tmp_path):
     upright = _scene(model=str(glb)).build().caster
     assert np.allclose(upright.bounds[1] - upright.bounds[0], [0.02, 0.04, 0.10], atol=1e-6)
     assert abs(upright.bounds[0][2]) < 1e-6  # still on the ground
-    assert np.allclose(np.ptp(_scene(model=str(glb), up="z").build().caster.vertices, axis=0), [0.02, 0.10, 0.04],
-                       atol=1e-6)
+    assert np.allclose(
+        np.ptp(_scene(model=str(glb), up="z").build().caster.vertices, axis=0), [0.02, 0.10, 0.04], atol=1e-6
+    )
     assert np.allclose(np.ptp(_scene(model=str(obj)).build().caster.vertices, axis=0), [0.02, 0.10, 0.04], atol=1e-6)
-    assert np.allclose(np.ptp(_scene(model=str(obj), up="y").build().caster.vertices, axis=0), [0.02, 0.04, 0.10],
-                       atol=1e-6)
+    assert np.allclose(
+        np.ptp(_scene(model=str(obj), up="y").build().caster.vertices, axis=0), [0.02, 0.04, 0.10], atol=1e-6
+    )
     with pytest.raises(MeshError, match="primitives .* --up is for mesh files"):
         _scene(up="y").build()
     with pytest.raises(MeshError, match="choose z or y"):
@@ -255,14 +280,36 @@ def test_light_inside_the_object_is_one_error_before_any_work(tmp_path):
     from arshadow.camera import Intrinsics
     from arshadow.synth import look_at_pose, render_marker_photo
 
-    img = render_marker_photo(Intrinsics.from_file(CALIB), look_at_pose([0.1, -0.3, 0.4], [0, 0, 0]),
-                              marker_length=0.05).image
+    img = render_marker_photo(
+        Intrinsics.from_file(CALIB), look_at_pose([0.1, -0.3, 0.4], [0, 0, 0]), marker_length=0.05
+    ).image
     for k in range(3):
         cv2.imwrite(str(tmp_path / f"p{k}.png"), img)
     out = tmp_path / "o"
-    r = subprocess.run([sys.executable, "-m", "arshadow", "render", str(tmp_path / "p*.png"), "--calib", str(CALIB),
-                        "--marker-length", "0.05", "--model", "box:0.04,0.04,0.06", "--light", "point:0,0,0.03",
-                        "-o", str(out)], capture_output=True, text=True, cwd=ROOT, check=False, timeout=120)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "arshadow",
+            "render",
+            str(tmp_path / "p*.png"),
+            "--calib",
+            str(CALIB),
+            "--marker-length",
+            "0.05",
+            "--model",
+            "box:0.04,0.04,0.06",
+            "--light",
+            "point:0,0,0.03",
+            "-o",
+            str(out),
+        ],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        check=False,
+        timeout=120,
+    )
     assert r.returncode == 2, r.stderr
     lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
     assert len(lines) == 1 and "is inside the closed mesh 'box:0.04,0.04,0.06'" in lines[0], r.stderr
@@ -295,10 +342,16 @@ def test_sun_setting_during_a_time_lapse_names_the_frames():
     n, fps, speed = 5000, 25.0, 30.0  # 100 s of video, 50 min of sun: sampled, then bisected
     # independent: the first frame whose own position is below, found by scanning every 10th frame then
     # each frame of that stretch (the sun sets once here)
-    coarse = next(k for k in range(0, n, 10)
-                  if not sun_position(start + timedelta(seconds=k * speed / fps), 48.85, 2.35).above_horizon)
-    first = next(k for k in range(max(0, coarse - 10), coarse + 1)
-                 if not sun_position(start + timedelta(seconds=k * speed / fps), 48.85, 2.35).above_horizon)
+    coarse = next(
+        k
+        for k in range(0, n, 10)
+        if not sun_position(start + timedelta(seconds=k * speed / fps), 48.85, 2.35).above_horizon
+    )
+    first = next(
+        k
+        for k in range(max(0, coarse - 10), coarse + 1)
+        if not sun_position(start + timedelta(seconds=k * speed / fps), 48.85, 2.35).above_horizon
+    )
     msg = sun_set_warning([tr], start, speed, fps, n, label="clip.mp4")
     assert msg.startswith(f"clip.mp4: the sun is below the horizon in frames {first}-{n - 1} of {n}"), msg
     assert "those frames get no sun shadow" in msg
@@ -311,11 +364,34 @@ def test_time_lapse_sunset_warns_before_any_work_and_in_the_report(tmp_path):
     the video is processed, and the video's report warnings carry it; its range matches the per-frame
     ``above_horizon`` of the frames report."""
     out = tmp_path / "o"
-    r = subprocess.run([sys.executable, "-m", "arshadow", "video", "samples/video/orbit.mp4", "--calib",
-                        "calib/synth_640x360.yml", "--marker-length", "0.05", "--model", "box:0.04,0.04,0.06",
-                        "--light", "sun:48.85,2.35,2026-06-21T21:30+02:00",
-                        "--time-lapse", "2026-06-21T21:30+02:00,1200", "-o", str(out), "--report",
-                        str(tmp_path / "r.json")], capture_output=True, text=True, cwd=ROOT, check=False, timeout=300)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "arshadow",
+            "video",
+            "samples/video/orbit.mp4",
+            "--calib",
+            "calib/synth_640x360.yml",
+            "--marker-length",
+            "0.05",
+            "--model",
+            "box:0.04,0.04,0.06",
+            "--light",
+            "sun:48.85,2.35,2026-06-21T21:30+02:00",
+            "--time-lapse",
+            "2026-06-21T21:30+02:00,1200",
+            "-o",
+            str(out),
+            "--report",
+            str(tmp_path / "r.json"),
+        ],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        check=False,
+        timeout=300,
+    )
     assert r.returncode == 0, r.stderr
     warn = [ln for ln in r.stderr.splitlines() if "below the horizon" in ln]
     assert len(warn) == 1 and warn[0].startswith("arshadow video: warning: samples/video/orbit.mp4: the sun is")
@@ -327,13 +403,15 @@ def test_time_lapse_sunset_warns_before_any_work_and_in_the_report(tmp_path):
     _tally("time-lapse sun setting mid-video", "warned")
 
 
-@pytest.mark.parametrize("cmd", [["info"], ["render", "--help"], ["sun", "--lat", "48", "--lon", "2", "--time",
-                                                                    "2026-06-21T12:00+02:00"]])
+@pytest.mark.parametrize(
+    "cmd", [["info"], ["render", "--help"], ["sun", "--lat", "48", "--lon", "2", "--time", "2026-06-21T12:00+02:00"]]
+)
 def test_output_to_a_closed_pipe_has_no_traceback(cmd):
     """``arshadow info | head -1``: the reader closes the pipe; no BrokenPipeError traceback, exit 141
     (128 + SIGPIPE, as a shell reports a command killed by it)."""
-    p = subprocess.Popen([sys.executable, "-m", "arshadow", *cmd], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                         cwd=ROOT)
+    p = subprocess.Popen(
+        [sys.executable, "-m", "arshadow", *cmd], stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=ROOT
+    )
     p.stdout.close()  # the reader is gone before anything is written
     err = p.stderr.read().decode()
     p.wait(timeout=120)
@@ -347,8 +425,24 @@ def test_negative_first_number_for_place_and_rotate():
     """``--place -0.05,0,0`` / ``--rotate -90,0,0`` were "expected one argument"; the help says it works."""
     from arshadow.cli import build_parser, join_negative_values
 
-    argv = ["render", "a.jpg", "--calib", "c.yml", "--marker-length", "0.05", "--model", "box:1,1,1", "--light",
-            "point:0,0,1", "--place", "-0.05,0,0", "--rotate", "-90,0,0", "-o", "out"]
+    argv = [
+        "render",
+        "a.jpg",
+        "--calib",
+        "c.yml",
+        "--marker-length",
+        "0.05",
+        "--model",
+        "box:1,1,1",
+        "--light",
+        "point:0,0,1",
+        "--place",
+        "-0.05,0,0",
+        "--rotate",
+        "-90,0,0",
+        "-o",
+        "out",
+    ]
     args = build_parser().parse_args(join_negative_values(argv))
     assert args.place == (-0.05, 0.0, 0.0) and args.rotate == (-90.0, 0.0, 0.0)
     assert args.marker_length == 0.05 and args.output == "out"
@@ -360,8 +454,11 @@ def test_negative_first_number_for_place_and_rotate():
 
 def test_soft_samples_without_a_sized_light_warns(caplog):
     msgs = _warnings_of_build(caplog, soft_samples=16)
-    assert any(m.startswith("--soft-samples 16: no light has a size, so the shadows stay hard") and
-               "point:0.1,0.1,0.4,radius=0.02" in m for m in msgs), msgs
+    assert any(
+        m.startswith("--soft-samples 16: no light has a size, so the shadows stay hard")
+        and "point:0.1,0.1,0.4,radius=0.02" in m
+        for m in msgs
+    ), msgs
     assert not _warnings_of_build(caplog, soft_samples=16, lights=["point:0.1,0.1,0.4,radius=0.02"])
     _tally("--soft-samples with a point light without radius", "warned")
 
@@ -380,8 +477,9 @@ def test_hex_colour_accepted():
 
 def test_light_close_to_the_object_gets_a_slowness_notice(caplog):
     """A light 2 cm under the top of the knot (6.7 s for one photo): a notice; the sample scenes: none."""
-    msgs = _warnings_of_build(caplog, model=str(KNOT), place=[0.1, 0.05, 0], rotate=[0, 0, 15],
-                              lights=["point:0.1,0.05,0.034"])
+    msgs = _warnings_of_build(
+        caplog, model=str(KNOT), place=[0.1, 0.05, 0], rotate=[0, 0, 15], lights=["point:0.1,0.05,0.034"]
+    )
     assert any("may take seconds" in m and "knot.ply" in m for m in msgs), msgs
     scenes = json.loads((ROOT / "samples" / "scenes.json").read_text())["scenes"]
     for sc in scenes:
@@ -419,8 +517,10 @@ def test_calibration_of_another_size_is_said_on_stderr(caplog):
 
     with Session(_scene()) as s, caplog.at_level(logging.WARNING):
         s.calibration(640, 360)
-    assert any("the calibration is for 1280x720, the photo is 640x360" in r.getMessage() and "scaled by 0.5" in
-               r.getMessage() for r in caplog.records), caplog.text
+    assert any(
+        "the calibration is for 1280x720, the photo is 640x360" in r.getMessage() and "scaled by 0.5" in r.getMessage()
+        for r in caplog.records
+    ), caplog.text
     _tally("calibration of another size, scaled silently", "warned")
 
 
@@ -437,14 +537,22 @@ def test_batch_json_names_outputs_and_survives_an_interruption(tmp_path, monkeyp
         calls.append(item.input)
         if len(calls) == 2:
             raise KeyboardInterrupt
-        return {"input": item.input, "kind": item.kind, "stem": item.stem, "status": "ok", "error": None,
-                "outputs": [], "warnings": []}
+        return {
+            "input": item.input,
+            "kind": item.kind,
+            "stem": item.stem,
+            "status": "ok",
+            "error": None,
+            "outputs": [],
+            "warnings": [],
+        }
 
     monkeypatch.setattr(batch, "process_item", fake)
     out = tmp_path / "o"
     with pytest.raises(KeyboardInterrupt):
-        batch.run_batch(_scene(), [str(tmp_path / f"p{k}.png") for k in range(3)], out, EngineOptions(),
-                        session=object())
+        batch.run_batch(
+            _scene(), [str(tmp_path / f"p{k}.png") for k in range(3)], out, EngineOptions(), session=object()
+        )
     rep = json.loads((out / "batch.json").read_text())
     assert rep["interrupted"] is True
     assert [i["status"] for i in rep["items"]] == ["ok", "pending", "pending"]
@@ -459,8 +567,9 @@ def test_batch_json_item_output_is_not_null(tmp_path):
     from arshadow.video.batch import run_batch
     from arshadow.video.engine import EngineOptions
 
-    img = render_marker_photo(Intrinsics.from_file(CALIB), look_at_pose([0.1, -0.3, 0.4], [0, 0, 0]),
-                              marker_length=0.05).image
+    img = render_marker_photo(
+        Intrinsics.from_file(CALIB), look_at_pose([0.1, -0.3, 0.4], [0, 0, 0]), marker_length=0.05
+    ).image
     cv2.imwrite(str(tmp_path / "p.png"), img)
     out = tmp_path / "o"
     run_batch(_scene(), [str(tmp_path / "p.png")], out, EngineOptions(), save_mask=True)
@@ -469,13 +578,17 @@ def test_batch_json_item_output_is_not_null(tmp_path):
     assert it["item"]["mask"] == it["outputs"][1] == str(out / "p.shadow.png")
     assert it["warnings"] == [] and it["item"]["flag_reasons"] == []
     # a photo whose pose is flagged (a small marker): done, with a warning naming the reason
-    far = render_marker_photo(Intrinsics.from_file(CALIB), look_at_pose([0.2, -0.9, 1.2], [0, 0, 0]),
-                              marker_length=0.05, seed=2).image
+    far = render_marker_photo(
+        Intrinsics.from_file(CALIB), look_at_pose([0.2, -0.9, 1.2], [0, 0, 0]), marker_length=0.05, seed=2
+    ).image
     cv2.imwrite(str(tmp_path / "far.png"), far)
     run_batch(_scene(), [str(tmp_path / "far.png")], tmp_path / "o2", EngineOptions())
     it = json.loads((tmp_path / "o2" / "batch.json").read_text())["items"][0]
     assert it["status"] == "ok" and len(it["warnings"]) == 1
-    assert it["warnings"][0].startswith(f"{tmp_path / 'far.png'}: flagged pose: ") and "small marker: " in it["warnings"][0]
+    assert (
+        it["warnings"][0].startswith(f"{tmp_path / 'far.png'}: flagged pose: ")
+        and "small marker: " in it["warnings"][0]
+    )
     _tally("batch.json output: null beside outputs", "fixed")
 
 
@@ -493,8 +606,11 @@ def test_conventions_are_in_the_repository():
     """A clone has no ../shared: the conventions are docs/CONVENTIONS.md and nothing points outside."""
     assert (ROOT / "docs" / "CONVENTIONS.md").read_text().startswith("# arshadow conventions")
     files = [p for p in ROOT.rglob("*") if p.suffix in (".md", ".py") and ".git" not in p.parts]
-    bad = [str(p) for p in files if "shared/CONVENTIONS" in p.read_text(errors="replace")
-           and p.name != "test_user_reports.py"]
+    bad = [
+        str(p)
+        for p in files
+        if "shared/CONVENTIONS" in p.read_text(errors="replace") and p.name != "test_user_reports.py"
+    ]
     assert not bad, bad
     _tally("docs pointing to ../shared/CONVENTIONS.md", "fixed")
 
@@ -507,19 +623,47 @@ def test_render_says_unit_mistakes_and_flagged_poses_on_stderr(tmp_path):
     from arshadow.synth import look_at_pose, render_marker_photo
 
     intr = Intrinsics.from_file(CALIB)
-    cv2.imwrite(str(tmp_path / "near.png"), render_marker_photo(intr, look_at_pose([0.1, -0.3, 0.4], [0, 0, 0]),
-                                                                marker_length=0.05).image)
-    cv2.imwrite(str(tmp_path / "far.png"), render_marker_photo(intr, look_at_pose([0.2, -0.9, 1.2], [0, 0, 0]),
-                                                               marker_length=0.05, seed=2).image)
-    base = [sys.executable, "-m", "arshadow", "render", "--calib", str(CALIB), "--model", "box:0.04,0.04,0.06",
-            "--light", "point:0.1,0.1,0.4", "-q"]
-    r = subprocess.run(base + [str(tmp_path / "near.png"), "--marker-length", "50", "-o", str(tmp_path / "a")],
-                       capture_output=True, text=True, cwd=ROOT, check=False, timeout=300)
+    cv2.imwrite(
+        str(tmp_path / "near.png"),
+        render_marker_photo(intr, look_at_pose([0.1, -0.3, 0.4], [0, 0, 0]), marker_length=0.05).image,
+    )
+    cv2.imwrite(
+        str(tmp_path / "far.png"),
+        render_marker_photo(intr, look_at_pose([0.2, -0.9, 1.2], [0, 0, 0]), marker_length=0.05, seed=2).image,
+    )
+    base = [
+        sys.executable,
+        "-m",
+        "arshadow",
+        "render",
+        "--calib",
+        str(CALIB),
+        "--model",
+        "box:0.04,0.04,0.06",
+        "--light",
+        "point:0.1,0.1,0.4",
+        "-q",
+    ]
+    r = subprocess.run(
+        base + [str(tmp_path / "near.png"), "--marker-length", "50", "-o", str(tmp_path / "a")],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        check=False,
+        timeout=300,
+    )
     assert r.returncode == 0, r.stderr
     assert "--marker-length 50: a printed marker 50 m across?" in r.stderr
     assert "probably in millimetres" in r.stderr and "the camera is " in r.stderr
-    r = subprocess.run(base + [str(tmp_path / "near.png"), str(tmp_path / "far.png"), "--marker-length", "0.05",
-                               "-o", str(tmp_path / "b")], capture_output=True, text=True, cwd=ROOT, check=False, timeout=300)
+    r = subprocess.run(
+        base
+        + [str(tmp_path / "near.png"), str(tmp_path / "far.png"), "--marker-length", "0.05", "-o", str(tmp_path / "b")],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        check=False,
+        timeout=300,
+    )
     assert r.returncode == 0, r.stderr
     line = [ln for ln in r.stderr.splitlines() if "flagged pose" in ln]
     assert len(line) == 1 and line[0].startswith("arshadow render: warning: 1 of 2 photos have a flagged pose (")
@@ -533,7 +677,9 @@ def test_issue20_tally():
     warned = sum(v == "warned" for v in TALLY20.values())
     refused = sum(v == "refused" for v in TALLY20.values())
     fixed = sum(v == "fixed" for v in TALLY20.values())
-    print(f"\nissue 20 silent-wrong input kinds tried: {kinds}; warned: {warned}; refused: {refused}; "
-          f"now accepted / fixed: {fixed}")
+    print(
+        f"\nissue 20 silent-wrong input kinds tried: {kinds}; warned: {warned}; refused: {refused}; "
+        f"now accepted / fixed: {fixed}"
+    )
     for k, v in sorted(TALLY20.items()):
         print(f"  {v:8s} {k}")

@@ -48,8 +48,11 @@ def _write_clip(path, poses, *, marker_length=0.05, blank=(), noise=1.0, seed=0)
             if i in blank:
                 w.write(np.full((H, W, 3), 128, np.uint8))
             else:
-                w.write(render_marker_photo(intr, pose, marker_length=marker_length, noise_sigma=noise,
-                                            blur_sigma=0.6, seed=seed + i).image)
+                w.write(
+                    render_marker_photo(
+                        intr, pose, marker_length=marker_length, noise_sigma=noise, blur_sigma=0.6, seed=seed + i
+                    ).image
+                )
     return path
 
 
@@ -73,7 +76,7 @@ class _Distorted:
 
     def image(self, roi):
         x0, y0, w, h = roi
-        vv, uu = np.mgrid[y0:y0 + h, x0:x0 + w]
+        vv, uu = np.mgrid[y0 : y0 + h, x0 : x0 + w]
         pts = np.stack([uu.ravel(), vv.ravel()], 1).astype(np.float64).reshape(-1, 1, 2)
         crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
         p = cv2.undistortPoints(pts, self.K, self.dist, None, self.K, criteria=crit).reshape(-1, 2)
@@ -170,8 +173,10 @@ def test_temporal_choice_removes_ippe_flips():
     # small marker (4 cm at ~0.55 m: ~35 px), seen nearly face-on, noisy: many ambiguous frames
     truth = camera_path(40, radius=0.15, height=(0.5, 0.6), sweep_deg=90)
     tr = MarkerTracker(intr, marker_length=0.04)
-    est = [tr.estimate(render_marker_photo(intr, p, marker_length=0.04, noise_sigma=2.0, blur_sigma=0.6,
-                                           seed=i).image) for i, p in enumerate(truth)]
+    est = [
+        tr.estimate(render_marker_photo(intr, p, marker_length=0.04, noise_sigma=2.0, blur_sigma=0.6, seed=i).image)
+        for i, p in enumerate(truth)
+    ]
     wrong0, flips0 = _branch_flips(est, truth)
     assert flips0 >= 3, "the sequence must be ambiguous for this test to mean anything"
     for lag in (0, 16):
@@ -207,9 +212,30 @@ def test_video_end_to_end_mask_iou_against_oracle(tmp_path, tol, gl_ctx):
     poses = camera_path(10, radius=0.5, height=(0.3, 0.42), sweep_deg=40.0, start_deg=-110.0)
     clip = _write_clip(tmp_path / "clip.mp4", poses, blank={4})
     out = tmp_path / "out"
-    rc = _run_cli("video", clip, "--calib", CALIB, "--marker-length", "0.05", "--model", "box:0.04,0.03,0.06",
-                  "--place", "0.05,0,0", "--light", "point:-0.1,0.15,0.4", "-o", out, "--save-mask",
-                  "--format", "mkv", "--report", out / "r.json", "-q", "--hold", "0")
+    rc = _run_cli(
+        "video",
+        clip,
+        "--calib",
+        CALIB,
+        "--marker-length",
+        "0.05",
+        "--model",
+        "box:0.04,0.03,0.06",
+        "--place",
+        "0.05,0,0",
+        "--light",
+        "point:-0.1,0.15,0.4",
+        "-o",
+        out,
+        "--save-mask",
+        "--format",
+        "mkv",
+        "--report",
+        out / "r.json",
+        "-q",
+        "--hold",
+        "0",
+    )
     assert rc == 0
     rep = json.loads((out / "r.json").read_text())
     items = rep["images"]
@@ -228,8 +254,11 @@ def test_video_end_to_end_mask_iou_against_oracle(tmp_path, tol, gl_ctx):
     for i, it in enumerate(items):
         if it["status"] != "ok":
             continue
-        orc = _Distorted(ShadowOracle(intr.K, poses[i], caster.vertices, caster.faces,
-                                      [(np.array([-0.1, 0.15, 0.4, 1.0]), 1.0)]), intr.K, intr.dist)
+        orc = _Distorted(
+            ShadowOracle(intr.K, poses[i], caster.vertices, caster.faces, [(np.array([-0.1, 0.15, 0.4, 1.0]), 1.0)]),
+            intr.K,
+            intr.dist,
+        )
         x0, y0, w, h = it["roi"]
         x1, y1 = min(W, x0 + w + 20), min(H, y0 + h + 20)
         x0, y0 = max(0, x0 - 20), max(0, y0 - 20)
@@ -262,9 +291,30 @@ def test_time_lapse_moves_the_sun_and_recomputes_only_past_the_angle(tmp_path, m
     lat, lon, speed, thr = 48.8566, 2.3522, 1800.0, 0.45
     start = datetime(2024, 6, 21, 9, 0, tzinfo=timezone(timedelta(hours=2)))
     out = tmp_path / "o"
-    rc = _run_cli("video", clip, "--calib", CALIB, "--marker-length", "0.05", "--model", "box:0.03,0.03,0.05",
-                  "--light", f"sun:{lat},{lon}", "--time-lapse", f"{start.isoformat()},{speed}", "--plan", "zfail",
-                  "--recompute-deg", thr, "-o", out, "--save-mask", "--report", out / "r.json", "-q")
+    rc = _run_cli(
+        "video",
+        clip,
+        "--calib",
+        CALIB,
+        "--marker-length",
+        "0.05",
+        "--model",
+        "box:0.03,0.03,0.05",
+        "--light",
+        f"sun:{lat},{lon}",
+        "--time-lapse",
+        f"{start.isoformat()},{speed}",
+        "--plan",
+        "zfail",
+        "--recompute-deg",
+        thr,
+        "-o",
+        out,
+        "--save-mask",
+        "--report",
+        out / "r.json",
+        "-q",
+    )
     assert rc == 0
     rep = json.loads((out / "r.json").read_text())
     # independent expectation: sun direction per frame time; greedy "moved more than thr since last"
@@ -273,8 +323,10 @@ def test_time_lapse_moves_the_sun_and_recomputes_only_past_the_angle(tmp_path, m
         when = start + timedelta(seconds=it["time_s"] * speed)
         p = sun_position(when, lat, lon)
         dirs.append(enu_to_world(p.enu, 0.0))
+
     def ang(a, b):
         return np.degrees(np.arccos(np.clip(np.dot(a, b) / np.linalg.norm(a) / np.linalg.norm(b), -1, 1)))
+
     expect, last = [], None
     for d in dirs:
         rec = last is None or ang(d, last) > thr
@@ -306,8 +358,17 @@ def test_time_lapse_moves_the_sun_and_recomputes_only_past_the_angle(tmp_path, m
 # command line: bad input
 # --------------------------------------------------------------------------------------------------
 def _scene(*extra):
-    return ["--calib", CALIB, "--marker-length", "0.05", "--model", "box:0.03,0.03,0.05",
-            "--light", "point:0,0.1,0.4", *extra]
+    return [
+        "--calib",
+        CALIB,
+        "--marker-length",
+        "0.05",
+        "--model",
+        "box:0.03,0.03,0.05",
+        "--light",
+        "point:0,0.1,0.4",
+        *extra,
+    ]
 
 
 @pytest.mark.gl
@@ -318,24 +379,28 @@ def test_cli_bad_videos_one_line_each_others_processed(tmp_path, capsys):
     junk = tmp_path / "junk.avi"
     junk.write_bytes(b"\x00garbage" * 200)
     out = tmp_path / "o"
-    rc = _run_cli("video", tmp_path / "missing.mp4", junk, good, *_scene(), "-o", out, "--report", out / "r.json",
-                  "-q")
+    rc = _run_cli("video", tmp_path / "missing.mp4", junk, good, *_scene(), "-o", out, "--report", out / "r.json", "-q")
     assert rc == 1
     err = capsys.readouterr().err.strip().splitlines()
     # issue 20: the good clip's poses are flagged (a small, soft marker): beside the two errors, one warning
     # line saying so, and nothing else
     others = err[2:]
     assert len(err) == 2 + len(others) and len(others) <= 1, err
-    assert all(ln.startswith("arshadow video: warning: ") and "good.mp4" in ln and "flagged pose" in ln
-               for ln in others), err
+    assert all(
+        ln.startswith("arshadow video: warning: ") and "good.mp4" in ln and "flagged pose" in ln for ln in others
+    ), err
     assert "missing.mp4" in err[0] and "no such video file" in err[0]
     assert "junk.avi" in err[1] and "video" in err[1]
     assert "Traceback" not in "\n".join(err)
     assert (out / "good.mp4").is_file() and not (out / "junk.mp4").exists()
     rep = json.loads((out / "r.json").read_text())
     assert [v["status"] for v in rep["videos"]] == ["error", "error", "ok"]
-    assert sorted(p.name for p in out.iterdir()) == ["good.frames.jsonl", "good.mp4", "good.sheet.jpg",
-                                                     "r.json"]  # no temporaries
+    assert sorted(p.name for p in out.iterdir()) == [
+        "good.frames.jsonl",
+        "good.mp4",
+        "good.sheet.jpg",
+        "r.json",
+    ]  # no temporaries
 
 
 def test_cli_bad_usage_exit_2(tmp_path, capsys):

@@ -28,13 +28,40 @@ av = pytest.importorskip("av")
 
 ROOT = Path(__file__).resolve().parents[1]
 CALIB = ROOT / "calib" / "synth_640x360.yml"
-SCENE = ["--calib", str(CALIB), "--marker-length", "0.05", "--model", "box:0.04,0.03,0.06", "--place", "0.05,0,0",
-         "--light", "point:-0.1,0.15,0.4"]
-JOB = {"calib": str(CALIB), "marker_length": 0.05, "model": "box:0.04,0.03,0.06", "place": [0.05, 0, 0],
-       "lights": ["point:-0.1,0.15,0.4"], "refine": "edge", "compose": "cpu"}
+SCENE = [
+    "--calib",
+    str(CALIB),
+    "--marker-length",
+    "0.05",
+    "--model",
+    "box:0.04,0.03,0.06",
+    "--place",
+    "0.05,0,0",
+    "--light",
+    "point:-0.1,0.15,0.4",
+]
+JOB = {
+    "calib": str(CALIB),
+    "marker_length": 0.05,
+    "model": "box:0.04,0.03,0.06",
+    "place": [0.05, 0, 0],
+    "lights": ["point:-0.1,0.15,0.4"],
+    "refine": "edge",
+    "compose": "cpu",
+}
 #: keys of a frame record that must be equal between the runs
-KEYS = ("frame", "time_s", "status", "marker_ids", "rvec", "tvec", "raw", "reprojection_error_px", "pose_choice",
-        "mode")
+KEYS = (
+    "frame",
+    "time_s",
+    "status",
+    "marker_ids",
+    "rvec",
+    "tvec",
+    "raw",
+    "reprojection_error_px",
+    "pose_choice",
+    "mode",
+)
 
 
 def _intr():
@@ -91,8 +118,9 @@ def assert_same_run(a_dir, b_dir, stem, n):
 
 
 def _run(clip, out, *extra):
-    rc = _cli("video", clip, *SCENE, "--compose", "cpu", "--save-mask", "-q", "-o", out, "--report",
-              out / "r.json", *extra)
+    rc = _cli(
+        "video", clip, *SCENE, "--compose", "cpu", "--save-mask", "-q", "-o", out, "--report", out / "r.json", *extra
+    )
     return rc, _report(out / "r.json")
 
 
@@ -128,11 +156,23 @@ def test_jobs2_equals_sequential(tmp_path):
     lines = assert_same_run(tmp_path / "seq", tmp_path / "par", "c", 72)
     # the clip exercises what crosses a boundary: held frames and frames without the marker
     assert {d["status"] for d in lines} == {"ok", "held", "no_marker"}
-    for k in ("frames", "frames_ok", "frames_held", "frames_no_marker", "swapped", "status", "audio", "warnings",
-              "longest_gap", "longest_gap_start"):
+    for k in (
+        "frames",
+        "frames_ok",
+        "frames_held",
+        "frames_no_marker",
+        "swapped",
+        "status",
+        "audio",
+        "warnings",
+        "longest_gap",
+        "longest_gap_start",
+    ):
         assert s1[k] == s2[k], k
     assert s2["audio"] is True
-    assert not (tmp_path / "par" / ".arshadow-chunks").exists() or not any((tmp_path / "par" / ".arshadow-chunks").iterdir())
+    assert not (tmp_path / "par" / ".arshadow-chunks").exists() or not any(
+        (tmp_path / "par" / ".arshadow-chunks").iterdir()
+    )
 
 
 @pytest.mark.gl
@@ -200,11 +240,26 @@ def test_variable_frame_rate_chunks_keep_the_frame_times(tmp_path):
 def test_kill9_mid_video_then_rerun_redoes_only_unfinished_chunks(tmp_path):
     clip = _clip(tmp_path / "c.mp4", n=96, gop=24)
     out = tmp_path / "out"
-    cmd = [sys.executable, "-m", "arshadow", "video", str(clip), *SCENE, "--compose", "cpu", "--save-mask", "-q",
-           "-o", str(out), "--jobs", "3", "--report", str(out / "r.json")]
+    cmd = [
+        sys.executable,
+        "-m",
+        "arshadow",
+        "video",
+        str(clip),
+        *SCENE,
+        "--compose",
+        "cpu",
+        "--save-mask",
+        "-q",
+        "-o",
+        str(out),
+        "--jobs",
+        "3",
+        "--report",
+        str(out / "r.json"),
+    ]
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                            start_new_session=True)
+    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
     t0 = time.time()
     store = out / ".arshadow-chunks"
     while time.time() - t0 < 180:  # kill once a chunk is recorded and before the video is joined
@@ -252,8 +307,16 @@ def test_a_dying_worker_is_retried_or_fails_the_video_in_one_line(tmp_path, monk
     monkeypatch.setenv("ARSHADOW_TEST_DIE_ONCE", str(tmp_path / "died"))
     pool = ChunkPool(2)
     try:
-        s, _ = process_video_chunked(recipe, pool, clip, video_outputs(tmp_path / "a", "c", opts), opts,
-                                     outdir=tmp_path / "a", stem="c", task=dying_chunk_task)
+        s, _ = process_video_chunked(
+            recipe,
+            pool,
+            clip,
+            video_outputs(tmp_path / "a", "c", opts),
+            opts,
+            outdir=tmp_path / "a",
+            stem="c",
+            task=dying_chunk_task,
+        )
     finally:
         pool.close()
     assert (tmp_path / "died").exists() and s["frames"] == 48 and len(s["chunks"]) == 2
@@ -262,8 +325,16 @@ def test_a_dying_worker_is_retried_or_fails_the_video_in_one_line(tmp_path, monk
     pool = ChunkPool(2)
     try:
         with pytest.raises(ImageError, match=r"chunk 1 \(frames 24-47\): its worker process died twice") as e:
-            process_video_chunked(recipe, pool, clip, video_outputs(tmp_path / "b", "c", opts), opts,
-                                  outdir=tmp_path / "b", stem="c", task=dying_chunk_task)
+            process_video_chunked(
+                recipe,
+                pool,
+                clip,
+                video_outputs(tmp_path / "b", "c", opts),
+                opts,
+                outdir=tmp_path / "b",
+                stem="c",
+                task=dying_chunk_task,
+            )
     finally:
         pool.close()
     assert "\n" not in str(e.value)
@@ -284,8 +355,10 @@ def test_batch_jobs2_and_dask_localcluster_chunks_equal_local(tmp_path):
     jobs2 = run_batch(spec, [clip], tmp_path / "jobs2", opts, save_mask=True, jobs=2)  # batch --jobs 2
     assert jobs2["items"][0]["chunks"] == 2
     assert_same_run(tmp_path / "local", tmp_path / "jobs2", "c", 72)
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cl, \
-            distributed.Client(cl) as client:
+    with (
+        distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cl,
+        distributed.Client(cl) as client,
+    ):
         remote = run_batch(spec, [clip], tmp_path / "dask", opts, save_mask=True, client=client, jobs=3)
     assert [it["status"] for it in local["items"]] == [it["status"] for it in remote["items"]] == ["ok"]
     assert remote["items"][0]["chunks"] == 3 and "chunks" not in local["items"][0]

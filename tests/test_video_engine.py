@@ -16,17 +16,32 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from video_clips import make_clip
 
 av = pytest.importorskip("av")
 
 ROOT = Path(__file__).resolve().parents[1]
 CALIB = ROOT / "calib" / "synth_640x360.yml"
-SCENE = ["--calib", str(CALIB), "--marker-length", "0.05", "--model", "box:0.04,0.03,0.06", "--place", "0.05,0,0",
-         "--light", "point:-0.1,0.15,0.4"]
-JOB = {"calib": str(CALIB), "marker_length": 0.05, "model": "box:0.04,0.03,0.06", "place": [0.05, 0, 0],
-       "lights": ["point:-0.1,0.15,0.4"], "refine": "edge"}
+SCENE = [
+    "--calib",
+    str(CALIB),
+    "--marker-length",
+    "0.05",
+    "--model",
+    "box:0.04,0.03,0.06",
+    "--place",
+    "0.05,0,0",
+    "--light",
+    "point:-0.1,0.15,0.4",
+]
+JOB = {
+    "calib": str(CALIB),
+    "marker_length": 0.05,
+    "model": "box:0.04,0.03,0.06",
+    "place": [0.05, 0, 0],
+    "lights": ["point:-0.1,0.15,0.4"],
+    "refine": "edge",
+}
 
 
 def _intr():
@@ -62,8 +77,8 @@ def test_pose_stream_smooths_without_lag_and_holds_then_releases():
     """Unit test of PoseStream on synthetic poses: a steady pan with noise comes out less noisy and not
     behind; a gap is held for ``hold_frames`` and then passed through."""
     from arshadow.synth import pan_path
-    from arshadow.video.temporal import PoseStream
     from arshadow.transforms import matrix_from_rvec_tvec, rotation_error_deg, rvec_tvec_from_matrix
+    from arshadow.video.temporal import PoseStream
 
     rng = np.random.default_rng(3)
     truth = pan_path(80, deg_per_frame=0.5)
@@ -124,9 +139,11 @@ def test_i420_roi_conversion_changes_only_the_even_aligned_roi():
         if w > 0 and h > 0:
             inside[y0 - y0 % 2 : y1 + y1 % 2, x0 - x0 % 2 : x1 + x1 % 2] = True
         chroma = inside[::2, ::2].ravel()
-        for a, b, m in ((got[:H], full[:H], inside), (got[H:].ravel()[: H * W // 4], full[H:].ravel()[: H * W // 4],
-                                                      chroma), (got[H:].ravel()[H * W // 4 :],
-                                                                full[H:].ravel()[H * W // 4 :], chroma)):
+        for a, b, m in (
+            (got[:H], full[:H], inside),
+            (got[H:].ravel()[: H * W // 4], full[H:].ravel()[: H * W // 4], chroma),
+            (got[H:].ravel()[H * W // 4 :], full[H:].ravel()[H * W // 4 :], chroma),
+        ):
             assert np.array_equal(a[m], b[m])
         assert np.array_equal(got[:H][~inside], yuv[:H][~inside])
         assert np.array_equal(got[H:].ravel()[: H * W // 4][~chroma], yuv[H:].ravel()[: H * W // 4][~chroma])
@@ -233,8 +250,19 @@ def test_batch_kill9_mid_run_then_rerun_completes_everything(tmp_path):
     ins = _batch_inputs(tmp_path, frames=frames)
     job = _write_job(tmp_path)
     out = tmp_path / "out"
-    cmd = [sys.executable, "-m", "arshadow", "batch", *map(str, ins), "--config", str(job), "-o", str(out), "-q",
-           "--save-mask"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "arshadow",
+        "batch",
+        *map(str, ins),
+        "--config",
+        str(job),
+        "-o",
+        str(out),
+        "-q",
+        "--save-mask",
+    ]
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     rec = out / ".arshadow-batch"
@@ -271,8 +299,8 @@ def test_batch_kill9_mid_run_then_rerun_completes_everything(tmp_path):
 @pytest.mark.gl
 def test_batch_on_dask_localcluster_equals_local(tmp_path):
     distributed = pytest.importorskip("distributed")
-    from arshadow.video.batch import run_batch
     from arshadow.scene import scene_from_dict
+    from arshadow.video.batch import run_batch
     from arshadow.video.engine import EngineOptions
 
     ins = _batch_inputs(tmp_path, n_videos=2, frames=8)
@@ -281,8 +309,10 @@ def test_batch_on_dask_localcluster_equals_local(tmp_path):
     spec = scene_from_dict({**JOB, "compose": "cpu"})
     opts = EngineOptions(codec="ffv1", fmt="mkv", mask="mkv", contact_sheet=0)
     local = run_batch(spec, ins, tmp_path / "local", opts, save_mask=True)
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cl, \
-            distributed.Client(cl) as client:
+    with (
+        distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cl,
+        distributed.Client(cl) as client,
+    ):
         remote = run_batch(spec, ins, tmp_path / "dask", opts, save_mask=True, client=client)
     assert [it["status"] for it in local["items"]] == [it["status"] for it in remote["items"]] == ["ok"] * 3
     for k in range(2):

@@ -21,12 +21,32 @@ pytestmark = pytest.mark.gl
 
 ROOT = Path(__file__).resolve().parents[1]
 CALIB = ROOT / "calib" / "synth_640x360.yml"
-SCENE = ["--calib", str(CALIB), "--marker-length", "0.05", "--model", "box:0.04,0.03,0.06", "--place", "0.03,0,0",
-         "--rotate", "0,0,20", "--light", "point:-0.1,0.15,0.4", "--no-exposure"]
+SCENE = [
+    "--calib",
+    str(CALIB),
+    "--marker-length",
+    "0.05",
+    "--model",
+    "box:0.04,0.03,0.06",
+    "--place",
+    "0.03,0,0",
+    "--rotate",
+    "0,0,20",
+    "--light",
+    "point:-0.1,0.15,0.4",
+    "--no-exposure",
+]
 # no exposure match: the video's is smoothed over frames (and held on a blank frame), which a re-render of
 # one frame by a fresh session cannot reproduce (tests/test_exposure_match.py tests the match itself)
-JOB = {"calib": str(CALIB), "marker_length": 0.05, "model": "box:0.04,0.03,0.06", "place": [0.03, 0, 0],
-       "rotate": [0, 0, 20], "lights": ["point:-0.1,0.15,0.4"], "no_exposure": True}
+JOB = {
+    "calib": str(CALIB),
+    "marker_length": 0.05,
+    "model": "box:0.04,0.03,0.06",
+    "place": [0.03, 0, 0],
+    "rotate": [0, 0, 20],
+    "lights": ["point:-0.1,0.15,0.4"],
+    "no_exposure": True,
+}
 
 
 def _cli(*argv):
@@ -59,8 +79,10 @@ def test_ffv1_layer_videos_rebuild_every_frame(clip, tmp_path, gl_ctx):
     mult = _decode(out / "clip.shadow.mult.mkv", "gray16le")
     only = _decode(out / "clip.shadow.only.mkv", "rgba64le")
     lines = [json.loads(s) for s in (out / "clip.frames.jsonl").read_text().splitlines()]
-    frames = [cv2.cvtColor(f.image, cv2.COLOR_YUV2BGR_I420) if f.format == "yuv420p" else f.image
-              for f in AvReader(clip, raw=True)]
+    frames = [
+        cv2.cvtColor(f.image, cv2.COLOR_YUV2BGR_I420) if f.format == "yuv420p" else f.image
+        for f in AvReader(clip, raw=True)
+    ]
     assert len(obj) == len(mult) == len(only) == len(lines) == len(frames) == 5
     assert lines[2]["status"] == "held"  # the blank frame: the engine holds the last pose
     assert [ln["status"] for ln in lines].count("ok") >= 3
@@ -103,8 +125,22 @@ def test_missing_layer_codec_is_exit_2_before_any_work(clip, tmp_path, monkeypat
 
 def test_png_sequence_layers_undistorted(clip, tmp_path):
     out = tmp_path / "out"
-    assert _cli("video", clip, *SCENE, "-o", out, "-q", "--layers-undistorted", "--layers-format", "png",
-                "--max-frames", "2") == 0
+    assert (
+        _cli(
+            "video",
+            clip,
+            *SCENE,
+            "-o",
+            out,
+            "-q",
+            "--layers-undistorted",
+            "--layers-format",
+            "png",
+            "--max-frames",
+            "2",
+        )
+        == 0
+    )
     seq = sorted(p.name for p in (out / "clip.layers").iterdir())
     assert len(seq) == 12 and "undistorted.object.000001.png" in seq and "shadow.mult.000000.png" in seq
     assert (out / "clip.stmap.png").is_file()
@@ -133,11 +169,29 @@ def test_batch_layers_for_photos_and_videos(clip, tmp_path, gl_ctx):
     job.write_text(json.dumps(JOB))
     photo = tmp_path / "shot.png"
     intr = Intrinsics.from_file(CALIB)
-    _cv2.imwrite(str(photo), render_marker_photo(intr, look_at_pose([0.1, -0.3, 0.35], [0, 0, 0]),
-                                                 marker_length=0.05, seed=9).image)
+    _cv2.imwrite(
+        str(photo),
+        render_marker_photo(intr, look_at_pose([0.1, -0.3, 0.35], [0, 0, 0]), marker_length=0.05, seed=9).image,
+    )
     out = tmp_path / "out"
-    assert _cli("batch", photo, clip, "--config", job, "-o", out, "-q", "--layers", "--layers-format", "ffv1",
-                "--max-frames", "2") == 0
+    assert (
+        _cli(
+            "batch",
+            photo,
+            clip,
+            "--config",
+            job,
+            "-o",
+            out,
+            "-q",
+            "--layers",
+            "--layers-format",
+            "ffv1",
+            "--max-frames",
+            "2",
+        )
+        == 0
+    )
     names = {p.name for p in out.iterdir()}
     assert {"shot.object.png", "shot.shadow.mult.png", "shot.shadow.only.png"} <= names  # photos: 16-bit PNG
     assert {"clip.object.mkv", "clip.shadow.mult.mkv", "clip.shadow.only.mkv"} <= names

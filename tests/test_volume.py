@@ -90,8 +90,16 @@ def _footprint_iou(c, L, n=2048, tz=None):
     return iou(oracle, wind > 0), int(oracle.sum())
 
 
-FOOTPRINT_CASES = [("knot", 3), ("house", 3), ("torus", 2), ("box", 2), ("umbrella", 3), ("triangle", 2), ("sheet", 2),
-                   ("nonmanifold", 2)]
+FOOTPRINT_CASES = [
+    ("knot", 3),
+    ("house", 3),
+    ("torus", 2),
+    ("box", 2),
+    ("umbrella", 3),
+    ("triangle", 2),
+    ("sheet", 2),
+    ("nonmanifold", 2),
+]
 
 
 @pytest.mark.parametrize("name,n_lights", FOOTPRINT_CASES)
@@ -116,8 +124,14 @@ def test_footprint_of_mesh_partly_below_ground(rng, tol):
 def test_truncation_falls_back_to_infinity_when_rays_do_not_descend():
     c = closed_meshes()["knot"]
     top = c.bounds[1, 2]
-    for L in ([0.3, 0.0, top * 0.5, 1.0], [0.3, 0.0, top, 1.0], [0.3, 0.0, -0.5, 1.0], [1.0, 0.0, 0.0, 0.0],
-              [1.0, 0.0, -0.2, 0.0], [1.0, 0.0, 1e-6, 0.0]):
+    for L in (
+        [0.3, 0.0, top * 0.5, 1.0],
+        [0.3, 0.0, top, 1.0],
+        [0.3, 0.0, -0.5, 1.0],
+        [1.0, 0.0, 0.0, 0.0],
+        [1.0, 0.0, -0.2, 0.0],
+        [1.0, 0.0, 1e-6, 0.0],
+    ):
         sil = silhouette(c, L)
         vol = shadow_volume(c, L, sil, caps=True, truncate_z=-1e-4)
         assert not vol.truncated and np.all(np.isfinite(vol.vertices))
@@ -176,7 +190,12 @@ def test_camera_may_be_in_shadow_is_conservative(rng):
                 half_w = znear * np.tan(np.radians(30))
                 half_h = half_w * 0.75
                 u, v = np.meshgrid(np.linspace(-1, 1, 5), np.linspace(-1, 1, 5))
-                pts = eye + znear * R[:, 2] + (u.ravel()[:, None] * half_w) * R[:, 0] + (v.ravel()[:, None] * half_h) * R[:, 1]
+                pts = (
+                    eye
+                    + znear * R[:, 2]
+                    + (u.ravel()[:, None] * half_w) * R[:, 0]
+                    + (v.ravel()[:, None] * half_h) * R[:, 1]
+                )
                 near = float(np.sqrt(znear**2 + half_w**2 + half_h**2))
                 verdict = camera_may_be_in_shadow(c, L, eye, near)
                 if verdict and n_true_checked >= 60:

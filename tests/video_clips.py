@@ -14,21 +14,51 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 CALIB_720 = ROOT / "calib" / "synth_1280x720.yml"
 #: the scene of samples/knot_point.jpg: the 8 536-face knot under one point light
-KNOT_SCENE = ["--model", str(ROOT / "samples" / "meshes" / "knot.ply"), "--place", "0.1,0.05,0", "--rotate", "0,0,15",
-              "--light", "point:-0.12,0.2,0.42"]
+KNOT_SCENE = [
+    "--model",
+    str(ROOT / "samples" / "meshes" / "knot.ply"),
+    "--place",
+    "0.1,0.05,0",
+    "--rotate",
+    "0,0,15",
+    "--light",
+    "point:-0.12,0.2,0.42",
+]
 
 
-def make_clip(path, intr, poses, *, marker_length=0.05, noise=2.0, blur=0.8, jpeg=85, blank=(), seed=0,
-              crf=18, fps=25, codec="h264", audio=False, gop=None):
+def make_clip(
+    path,
+    intr,
+    poses,
+    *,
+    marker_length=0.05,
+    noise=2.0,
+    blur=0.8,
+    jpeg=85,
+    blank=(),
+    seed=0,
+    crf=18,
+    fps=25,
+    codec="h264",
+    audio=False,
+    gop=None,
+):
     """Encode one synthetic frame per pose (frames in ``blank``: the floor only, no marker); returns path."""
-    from arshadow.video.avio import AvWriter
     from arshadow.synth import render_marker_photo
+    from arshadow.video.avio import AvWriter
 
     path = Path(path)
     with AvWriter(path, fps, (intr.width, intr.height), codec=codec, crf=crf, preset="medium", gop=gop) as w:
         for i, pose in enumerate(poses):
-            ph = render_marker_photo(intr, pose, marker_length=marker_length, noise_sigma=noise, blur_sigma=blur,
-                                     jpeg_quality=jpeg, seed=seed + i)
+            ph = render_marker_photo(
+                intr,
+                pose,
+                marker_length=marker_length,
+                noise_sigma=noise,
+                blur_sigma=blur,
+                jpeg_quality=jpeg,
+                seed=seed + i,
+            )
             img = ph.image
             if i in blank:
                 img = np.full_like(img, 128)

@@ -33,15 +33,39 @@ __all__ = ["QUICK", "FULL", "SECTIONS", "run"]
 SECTIONS = ("silhouettes", "render", "tracking", "pipeline")
 
 #: settings of ``arshadow bench --quick`` (under 3 minutes on a loaded 2-core machine)
-QUICK = dict(quick=True, sizes=(1470, 10000), lights=4, repeat=3, ref_sizes=(200, 1470), vnv_max_faces=1470,
-             warmup=2, render_repeat=7, track_resolutions=((1280, 720),), poses=4,
-             resolutions=((640, 480), (1280, 720), (1920, 1080)), frames=6, light_counts=(1, 2, 4),
-             soft_samples=(1, 4, 16))
+QUICK = dict(
+    quick=True,
+    sizes=(1470, 10000),
+    lights=4,
+    repeat=3,
+    ref_sizes=(200, 1470),
+    vnv_max_faces=1470,
+    warmup=2,
+    render_repeat=7,
+    track_resolutions=((1280, 720),),
+    poses=4,
+    resolutions=((640, 480), (1280, 720), (1920, 1080)),
+    frames=6,
+    light_counts=(1, 2, 4),
+    soft_samples=(1, 4, 16),
+)
 #: settings of the full run
-FULL = dict(quick=False, sizes=(1470, 10000, 100000, 1000000), lights=8, repeat=5, ref_sizes=(200, 1470, 10000),
-            vnv_max_faces=1470, warmup=3, render_repeat=20, track_resolutions=((640, 480), (1280, 720), (1920, 1080)),
-            poses=20, resolutions=((640, 480), (1280, 720), (1920, 1080)), frames=30, light_counts=(1, 2, 4, 8),
-            soft_samples=(1, 2, 4, 8, 16, 32, 64))
+FULL = dict(
+    quick=False,
+    sizes=(1470, 10000, 100000, 1000000),
+    lights=8,
+    repeat=5,
+    ref_sizes=(200, 1470, 10000),
+    vnv_max_faces=1470,
+    warmup=3,
+    render_repeat=20,
+    track_resolutions=((640, 480), (1280, 720), (1920, 1080)),
+    poses=20,
+    resolutions=((640, 480), (1280, 720), (1920, 1080)),
+    frames=30,
+    light_counts=(1, 2, 4, 8),
+    soft_samples=(1, 2, 4, 8, 16, 32, 64),
+)
 
 
 def _csv_rows(results: dict) -> dict:
@@ -49,8 +73,12 @@ def _csv_rows(results: dict) -> dict:
     out = {}
     if "silhouettes" in results:
         s = results["silhouettes"]
-        out.update(silhouette_detectors=s["detectors"], silhouette_reference=s["reference"],
-                   silhouette_paper_formulas=s["paper"], silhouette_hsd_vs_ta=s["hsd_vs_ta"])
+        out.update(
+            silhouette_detectors=s["detectors"],
+            silhouette_reference=s["reference"],
+            silhouette_paper_formulas=s["paper"],
+            silhouette_hsd_vs_ta=s["hsd_vs_ta"],
+        )
     if "render" in results:
         out["render"] = results["render"]
     if "tracking" in results:
@@ -127,10 +155,19 @@ def run(out_dir, *, quick: bool = False, sections=SECTIONS, log=print, plots: bo
         log(P.HINT)
     files += list(plot_paths.values())
     duration = time.perf_counter() - t0
-    files.append(write_bytes(out / "results.json", (json.dumps({"meta": meta, "results": results}, indent=1,
-                                                               default=float) + "\n").encode()))
-    md = markdown(results, meta, {k: Path(v).name for k, v in plot_paths.items()}, duration,
-                  plots_hint=None if plot_paths or not plots else P.HINT)
+    files.append(
+        write_bytes(
+            out / "results.json",
+            (json.dumps({"meta": meta, "results": results}, indent=1, default=float) + "\n").encode(),
+        )
+    )
+    md = markdown(
+        results,
+        meta,
+        {k: Path(v).name for k, v in plot_paths.items()},
+        duration,
+        plots_hint=None if plot_paths or not plots else P.HINT,
+    )
     files.append(write_bytes(out / "summary.md", md.encode()))
     log(f"done in {duration:.0f} s: {out / 'summary.md'}")
     return {"meta": meta, "results": results, "files": [str(f) for f in files], "duration_s": duration}

@@ -39,10 +39,25 @@ def git_commit() -> tuple[str | None, bool | None]:
     if not (REPO / ".git").exists():
         return None, None
     try:
-        commit = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--short", "HEAD"], capture_output=True,
-                                text=True, check=False, timeout=10).stdout.strip() or None
-        dirty = bool(subprocess.run(["git", "-C", str(REPO), "status", "--porcelain", "--", "arshadow"],
-                                    capture_output=True, text=True, check=False, timeout=10).stdout.strip())
+        commit = (
+            subprocess.run(
+                ["git", "-C", str(REPO), "rev-parse", "--short", "HEAD"],
+                capture_output=True,
+                text=True,
+                check=False,
+                timeout=10,
+            ).stdout.strip()
+            or None
+        )
+        dirty = bool(
+            subprocess.run(
+                ["git", "-C", str(REPO), "status", "--porcelain", "--", "arshadow"],
+                capture_output=True,
+                text=True,
+                check=False,
+                timeout=10,
+            ).stdout.strip()
+        )
     except (OSError, subprocess.TimeoutExpired):
         return None, None
     return commit, dirty
@@ -63,32 +78,49 @@ def metadata(ctx=None) -> dict:
     of ``ctx`` (a moderngl context) when given."""
 
     commit, dirty = git_commit()
-    meta = {"git_commit": commit, "arshadow_dirty": dirty, "arshadow": __version__,
-            "python": platform.python_version(), "numpy": np.__version__, "opencv": cv2.__version__,
-            "trimesh": trimesh.__version__, "machine": platform.machine(), "cpu": _cpu_model(),
-            "cpus": os.cpu_count(), "loadavg_start": list(os.getloadavg()), "command": " ".join(sys.argv)}
+    meta = {
+        "git_commit": commit,
+        "arshadow_dirty": dirty,
+        "arshadow": __version__,
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "opencv": cv2.__version__,
+        "trimesh": trimesh.__version__,
+        "machine": platform.machine(),
+        "cpu": _cpu_model(),
+        "cpus": os.cpu_count(),
+        "loadavg_start": list(os.getloadavg()),
+        "command": " ".join(sys.argv),
+    }
     if ctx is not None:
-
         info = gl_info(ctx)
-        meta.update(moderngl=version("moderngl"), GL_RENDERER=info.get("GL_RENDERER"),
-                    GL_VERSION=info.get("GL_VERSION"))
+        meta.update(
+            moderngl=version("moderngl"), GL_RENDERER=info.get("GL_RENDERER"), GL_VERSION=info.get("GL_VERSION")
+        )
     return meta
 
 
 def machine_label(meta: dict) -> str:
     """One line for plots and tables: CPU, cores, GL renderer, versions, commit."""
     gl = meta.get("GL_RENDERER") or "no GL"
-    return (f"{meta.get('cpu')} x{meta.get('cpus')} | {gl} | arshadow {meta.get('arshadow')} "
-            f"({meta.get('git_commit')}{'+' if meta.get('arshadow_dirty') else ''}) | numpy {meta.get('numpy')} "
-            f"| OpenCV {meta.get('opencv')} | moderngl {meta.get('moderngl', '-')} | Python {meta.get('python')}")
+    return (
+        f"{meta.get('cpu')} x{meta.get('cpus')} | {gl} | arshadow {meta.get('arshadow')} "
+        f"({meta.get('git_commit')}{'+' if meta.get('arshadow_dirty') else ''}) | numpy {meta.get('numpy')} "
+        f"| OpenCV {meta.get('opencv')} | moderngl {meta.get('moderngl', '-')} | Python {meta.get('python')}"
+    )
 
 
 def summary(values, ndigits: int = 3) -> dict:
     """Median, interquartile range ``[q25, q75]``, min, max and count of repeated measurements."""
     a = np.asarray(values, dtype=np.float64)
     q1, med, q3 = np.percentile(a, [25, 50, 75])
-    return {"median": round(float(med), ndigits), "iqr": [round(float(q1), ndigits), round(float(q3), ndigits)],
-            "min": round(float(a.min()), ndigits), "max": round(float(a.max()), ndigits), "n": int(a.size)}
+    return {
+        "median": round(float(med), ndigits),
+        "iqr": [round(float(q1), ndigits), round(float(q3), ndigits)],
+        "min": round(float(a.min()), ndigits),
+        "max": round(float(a.max()), ndigits),
+        "n": int(a.size),
+    }
 
 
 def timed(fn, repeat: int, warmup: int = 1) -> list[float]:
@@ -119,5 +151,9 @@ def write_csv(path, rows: list[dict]) -> Path:
 def t_fields(prefix: str, times_ms) -> dict:
     """CSV columns ``<prefix>_ms`` (median), ``<prefix>_q25``, ``<prefix>_q75``, ``<prefix>_n`` of times."""
     s = summary(times_ms, 4)
-    return {f"{prefix}_ms": s["median"], f"{prefix}_q25": s["iqr"][0], f"{prefix}_q75": s["iqr"][1],
-            f"{prefix}_n": s["n"]}
+    return {
+        f"{prefix}_ms": s["median"],
+        f"{prefix}_q25": s["iqr"][0],
+        f"{prefix}_q75": s["iqr"][1],
+        f"{prefix}_n": s["n"],
+    }

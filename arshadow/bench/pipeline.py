@@ -43,8 +43,10 @@ def photo(width, height, seed=1):
 
 def _lights(n) -> list[str]:
     """``n`` point lights 0.5 m up on a 0.3 m circle (spec strings)."""
-    return [f"point:{0.3 * np.cos(a):.4f},{0.3 * np.sin(a):.4f},0.5"
-            for a in np.linspace(0, 2 * np.pi, n, endpoint=False) + 2.2]
+    return [
+        f"point:{0.3 * np.cos(a):.4f},{0.3 * np.sin(a):.4f},0.5"
+        for a in np.linspace(0, 2 * np.pi, n, endpoint=False) + 2.2
+    ]
 
 
 def scene(cam, n_lights: int, cold: bool = False, **options):
@@ -52,8 +54,15 @@ def scene(cam, n_lights: int, cold: bool = False, **options):
     point lights, ``options`` (scene keys: ``shadow_method``, ``silhouette``...). ``cold``: rebuild every
     light's silhouette and volume every frame (``RenderOptions.plan_off = ("reuse",)``: a moving light or
     object)."""
-    spec = scene_from_dict({"calib": cam, "marker_length": 0.05, "model": str(ROOT / "samples" / "meshes" / "knot.ply"),
-                            "lights": _lights(n_lights), **options})
+    spec = scene_from_dict(
+        {
+            "calib": cam,
+            "marker_length": 0.05,
+            "model": str(ROOT / "samples" / "meshes" / "knot.ply"),
+            "lights": _lights(n_lights),
+            **options,
+        }
+    )
     if cold:
         spec = spec.replace(options=dataclasses.replace(spec.options, plan_off=("reuse",)))
     return spec
@@ -82,9 +91,16 @@ def stages(cfg, ctx, log) -> list[dict]:
         image, cam = photo(w, h)
         for method in ("volume", "shadowmap"):
             walls, st = run_frames(scene(cam, 1, shadow_method=method), ctx, image, cfg["frames"], cfg["warmup"])
-            rows.append({"resolution": f"{w}x{h}", "pixels": w * h, "shadow_method": method, **t_fields("wall", walls),
-                         "fps": 1000.0 / summary(walls)["median"],
-                         **{f"{k}_ms": summary(v, 4)["median"] for k, v in st.items()}})
+            rows.append(
+                {
+                    "resolution": f"{w}x{h}",
+                    "pixels": w * h,
+                    "shadow_method": method,
+                    **t_fields("wall", walls),
+                    "fps": 1000.0 / summary(walls)["median"],
+                    **{f"{k}_ms": summary(v, 4)["median"] for k, v in st.items()},
+                }
+            )
         log(f"  pipeline: {w}x{h} done")
     return rows
 
@@ -95,9 +111,15 @@ def lights_sweep(cfg, ctx, log) -> list[dict]:
     for n in cfg["light_counts"]:
         for method in ("volume", "shadowmap"):
             walls, st = run_frames(scene(cam, n, shadow_method=method), ctx, image, cfg["frames"], cfg["warmup"])
-            rows.append({"lights": n, "shadow_method": method, **t_fields("wall", walls),
-                         "fps": 1000.0 / summary(walls)["median"],
-                         "render_ms": summary(st["render"], 4)["median"]})
+            rows.append(
+                {
+                    "lights": n,
+                    "shadow_method": method,
+                    **t_fields("wall", walls),
+                    "fps": 1000.0 / summary(walls)["median"],
+                    "render_ms": summary(st["render"], 4)["median"],
+                }
+            )
     log("  pipeline: lights sweep done")
     return rows
 
@@ -106,19 +128,37 @@ def paper003_scene(cfg, ctx, log) -> list[dict]:
     rows = []
     faces = load_occluder(ROOT / "samples" / "meshes" / "knot.ply").n_faces
     image, cam = photo(1280, 720)
-    for label, kw, cold in (("default (adjacency, volumes cached: fixed light)", {}, False),
-                            ("adjacency silhouette + volume every frame", {}, True),
-                            ("Delta+ silhouette + volume every frame (the paper's detector)",
-                             {"silhouette": "delta_plus"}, True)):
-        walls, st = run_frames(scene(cam, 1, cold=cold, **kw), ctx, image,
-                               cfg["frames"] if not kw else max(cfg["frames"] // 3, 3), cfg["warmup"] if not kw else 1)
-        rows.append({"case": label, "faces": faces, **t_fields("wall", walls),
-                     "fps": 1000.0 / summary(walls)["median"], "paper_fps": PAPER003_FPS,
-                     "paper_hardware": PAPER003_HARDWARE,
-                     "silhouette_ms": summary(st["silhouette"], 4)["median"], "render_ms": summary(st["render"], 4)["median"]})
+    for label, kw, cold in (
+        ("default (adjacency, volumes cached: fixed light)", {}, False),
+        ("adjacency silhouette + volume every frame", {}, True),
+        ("Delta+ silhouette + volume every frame (the paper's detector)", {"silhouette": "delta_plus"}, True),
+    ):
+        walls, st = run_frames(
+            scene(cam, 1, cold=cold, **kw),
+            ctx,
+            image,
+            cfg["frames"] if not kw else max(cfg["frames"] // 3, 3),
+            cfg["warmup"] if not kw else 1,
+        )
+        rows.append(
+            {
+                "case": label,
+                "faces": faces,
+                **t_fields("wall", walls),
+                "fps": 1000.0 / summary(walls)["median"],
+                "paper_fps": PAPER003_FPS,
+                "paper_hardware": PAPER003_HARDWARE,
+                "silhouette_ms": summary(st["silhouette"], 4)["median"],
+                "render_ms": summary(st["render"], 4)["median"],
+            }
+        )
     log("  pipeline: paper 003 scene done")
     return rows
 
 
 def run(cfg, ctx, log) -> dict:
-    return {"stages": stages(cfg, ctx, log), "lights": lights_sweep(cfg, ctx, log), "paper003": paper003_scene(cfg, ctx, log)}
+    return {
+        "stages": stages(cfg, ctx, log),
+        "lights": lights_sweep(cfg, ctx, log),
+        "paper003": paper003_scene(cfg, ctx, log),
+    }

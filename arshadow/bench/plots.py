@@ -47,15 +47,27 @@ def _save(fig, path) -> Path:
     return Path(path)
 
 
-_FAMILY_STYLE = {"stencil": ("tab:blue", "o"), "planar": ("tab:purple", "D"), "stencil AA": ("tab:green", "s"),
-                 "stencil scaled": ("tab:orange", "v"), "shadow map": ("tab:red", "^"),
-                 "shadow map, bias off": ("tab:pink", "x"), "soft shadow": ("tab:brown", "P")}
+_FAMILY_STYLE = {
+    "stencil": ("tab:blue", "o"),
+    "planar": ("tab:purple", "D"),
+    "stencil AA": ("tab:green", "s"),
+    "stencil scaled": ("tab:orange", "v"),
+    "shadow map": ("tab:red", "^"),
+    "shadow map, bias off": ("tab:pink", "x"),
+    "soft shadow": ("tab:brown", "P"),
+}
 
 
 def _short(config: str) -> str:
-    return (config.replace("shadow map ", "SM ").replace(", truncated", " trunc").replace("render at ", "")
-            .replace(" resolution, bilinear upscale", " res").replace("supersample", "SS")
-            .replace("planar projection (paper 002)", "planar").replace(" (caps)", ""))
+    return (
+        config.replace("shadow map ", "SM ")
+        .replace(", truncated", " trunc")
+        .replace("render at ", "")
+        .replace(" resolution, bilinear upscale", " res")
+        .replace("supersample", "SS")
+        .replace("planar projection (paper 002)", "planar")
+        .replace(" (caps)", "")
+    )
 
 
 def render_pareto(rows, out_dir, label) -> list[Path]:
@@ -64,13 +76,22 @@ def render_pareto(rows, out_dir, label) -> list[Path]:
     paths = []
     for i, scene in enumerate(dict.fromkeys(r["scene"] for r in rows)):
         rs = [r for r in rows if r["scene"] == scene]
-        fig, ax = _fig(f"Shadow render time vs error - {scene} ({rs[0]['roi_w']}x{rs[0]['roi_h']} px ROI of 1280x720)",
-                       label, size=(13.5, 6.2))
+        fig, ax = _fig(
+            f"Shadow render time vs error - {scene} ({rs[0]['roi_w']}x{rs[0]['roi_h']} px ROI of 1280x720)",
+            label,
+            size=(13.5, 6.2),
+        )
         fig.delaxes(ax)
         axes = fig.subplots(1, 2)
-        for ax, key, ylab in ((axes[0], "xor_px", "1 + pixels differing from the exact shadow (mask >= 0.5; log)"),
-                              (axes[1], "coverage_mae", "edge coverage error: mean |mask - exact area coverage|\n"
-                                                        "within 2 px of the edge (lower = smoother, truer edge)")):
+        for ax, key, ylab in (
+            (axes[0], "xor_px", "1 + pixels differing from the exact shadow (mask >= 0.5; log)"),
+            (
+                axes[1],
+                "coverage_mae",
+                "edge coverage error: mean |mask - exact area coverage|\n"
+                "within 2 px of the edge (lower = smoother, truer edge)",
+            ),
+        ):
             ax.grid(True, which="both", alpha=0.3)
             for fam, (col, mk) in _FAMILY_STYLE.items():
                 pts = sorted((r for r in rs if r["family"] == fam), key=lambda r: r["time_ms"])
@@ -82,11 +103,18 @@ def render_pareto(rows, out_dir, label) -> list[Path]:
                 ax.errorbar(x, y, xerr=err, fmt=mk, color=col, label=fam, ms=7, capsize=2, lw=1)
                 for k, (r, xx, yy) in enumerate(zip(pts, x, y)):
                     dy = (6, -11, 15, -20)[k % 4]
-                    ax.annotate(_short(r["config"]), (xx, yy), textcoords="offset points", xytext=(6, dy), fontsize=7,
-                                color=col)
+                    ax.annotate(
+                        _short(r["config"]), (xx, yy), textcoords="offset points", xytext=(6, dy), fontsize=7, color=col
+                    )
             front = pareto(rs, key)
-            ax.plot([r["time_ms"] for r in front], [r[key] + (1 if key == "xor_px" else 0) for r in front], "k--",
-                    lw=1, alpha=0.6, label="Pareto front")
+            ax.plot(
+                [r["time_ms"] for r in front],
+                [r[key] + (1 if key == "xor_px" else 0) for r in front],
+                "k--",
+                lw=1,
+                alpha=0.6,
+                label="Pareto front",
+            )
             ax.set_xscale("log")
             if key == "xor_px":
                 ax.set_yscale("log")
@@ -104,12 +132,24 @@ def silhouette_time_vs_faces(rows, out_dir, label) -> Path:
     fig, ax = _fig("Silhouette detection time per light vs mesh size", label)
     for m in dict.fromkeys(r["method"] for r in rows):
         pts = sorted((r for r in rows if r["method"] == m), key=lambda r: r["faces"])
-        ax.errorbar([r["faces"] for r in pts], [r["time_ms"] for r in pts],
-                    yerr=[[r["time_ms"] - r["time_q25"] for r in pts], [r["time_q75"] - r["time_ms"] for r in pts]],
-                    marker="o", capsize=2, label=m)
+        ax.errorbar(
+            [r["faces"] for r in pts],
+            [r["time_ms"] for r in pts],
+            yerr=[[r["time_ms"] - r["time_q25"] for r in pts], [r["time_q75"] - r["time_ms"] for r in pts]],
+            marker="o",
+            capsize=2,
+            label=m,
+        )
     ax.axvline(1470, color="0.6", ls=":", lw=1)
-    ax.text(1470, 0.02, " bunny size\n (~2 200 edges)", fontsize=7, color="0.4",
-            va="bottom", transform=ax.get_xaxis_transform())
+    ax.text(
+        1470,
+        0.02,
+        " bunny size\n (~2 200 edges)",
+        fontsize=7,
+        color="0.4",
+        va="bottom",
+        transform=ax.get_xaxis_transform(),
+    )
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("faces (log)")
@@ -129,12 +169,29 @@ def reference_ops(rows, out_dir, label) -> Path:
         x = [r["faces"] for r in pts]
         ax.plot(x, [r["counted_ops"] for r in pts], "o-", color=col, label=f"{alg}: counted {pts[0]['counted_what']}")
         if alg == "Delta+":
-            ax.plot(x, [r["paper_n_log2_n"] for r in pts], "x:", color=col, label="Delta+: paper 003's n log2 n (n = vertices)")
-            ax.plot(x, [r["fast_bvh_tests"] for r in pts], "s-.", color=col, alpha=0.6,
-                    label="Delta+ with a BVH (arshadow): box + triangle tests")
+            ax.plot(
+                x,
+                [r["paper_n_log2_n"] for r in pts],
+                "x:",
+                color=col,
+                label="Delta+: paper 003's n log2 n (n = vertices)",
+            )
+            ax.plot(
+                x,
+                [r["fast_bvh_tests"] for r in pts],
+                "s-.",
+                color=col,
+                alpha=0.6,
+                label="Delta+ with a BVH (arshadow): box + triangle tests",
+            )
         else:
-            ax.plot(x, [r["formula_main_term"] for r in pts], "x:", color=col,
-                    label=f"{alg}: paper 000 formula, main term ({'compares' if alg == 'TA' else 'mults'})")
+            ax.plot(
+                x,
+                [r["formula_main_term"] for r in pts],
+                "x:",
+                color=col,
+                label=f"{alg}: paper 000 formula, main term ({'compares' if alg == 'TA' else 'mults'})",
+            )
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("faces (log)")
@@ -154,15 +211,33 @@ def pipeline_time_vs_resolution(rows, out_dir, label) -> Path:
     for j, m in enumerate(methods):
         bottom = np.zeros(len(res))
         for k, s in enumerate(stages):
-            vals = np.array([next(r for r in rows if r["resolution"] == rr and r["shadow_method"] == m).get(f"{s}_ms", 0.0)
-                             for rr in res])
-            ax.bar(np.arange(len(res)) + (j - (len(methods) - 1) / 2) * width, vals, width * 0.95, bottom=bottom,
-                   color=cmap(k), label=s if j == 0 else None, edgecolor="white", lw=0.5)
+            vals = np.array(
+                [
+                    next(r for r in rows if r["resolution"] == rr and r["shadow_method"] == m).get(f"{s}_ms", 0.0)
+                    for rr in res
+                ]
+            )
+            ax.bar(
+                np.arange(len(res)) + (j - (len(methods) - 1) / 2) * width,
+                vals,
+                width * 0.95,
+                bottom=bottom,
+                color=cmap(k),
+                label=s if j == 0 else None,
+                edgecolor="white",
+                lw=0.5,
+            )
             bottom += vals
         for i, rr in enumerate(res):
             r = next(r for r in rows if r["resolution"] == rr and r["shadow_method"] == m)
-            ax.text(i + (j - (len(methods) - 1) / 2) * width, r["wall_ms"], f"{m}\n{r['wall_ms']:.0f} ms",
-                    ha="center", va="bottom", fontsize=7)
+            ax.text(
+                i + (j - (len(methods) - 1) / 2) * width,
+                r["wall_ms"],
+                f"{m}\n{r['wall_ms']:.0f} ms",
+                ha="center",
+                va="bottom",
+                fontsize=7,
+            )
     ax.set_xticks(range(len(res)), res)
     ax.set_ylabel("ms per photo (median of each stage; label = median wall time)")
     ax.set_ylim(0, ax.get_ylim()[1] * 1.15)
@@ -175,11 +250,22 @@ def fps_vs_lights(rows, out_dir, label) -> Path:
     for m, col in (("volume", "tab:blue"), ("shadowmap", "tab:red")):
         pts = sorted((r for r in rows if r["shadow_method"] == m), key=lambda r: r["lights"])
         if pts:
-            ax.plot([r["lights"] for r in pts], [r["fps"] for r in pts], "o-", color=col,
-                    label="stencil volumes" if m == "volume" else "shadow map 2048")
+            ax.plot(
+                [r["lights"] for r in pts],
+                [r["fps"] for r in pts],
+                "o-",
+                color=col,
+                label="stencil volumes" if m == "volume" else "shadow map 2048",
+            )
             for r in pts:
-                ax.annotate(f"{r['fps']:.1f}", (r["lights"], r["fps"]), textcoords="offset points", xytext=(4, 4),
-                            fontsize=7, color=col)
+                ax.annotate(
+                    f"{r['fps']:.1f}",
+                    (r["lights"], r["fps"]),
+                    textcoords="offset points",
+                    xytext=(4, 4),
+                    fontsize=7,
+                    color=col,
+                )
     ax.set_xlabel("lights")
     ax.set_ylabel("frames per second (1000 / median wall time)")
     ax.set_ylim(0, None)
@@ -191,8 +277,11 @@ def tracking(rows, out_dir, label) -> Path:
     """One panel per resolution: time against rotation error, one colour per configuration (legend)."""
     rows = [r for r in rows if r["rot_deg_median"] is not None]  # real footage: no true pose to plot against
     res = list(dict.fromkeys(r["resolution"] for r in rows))
-    fig, ax0 = _fig("Tracking: detection + pose time vs rotation error (synthetic photos, true pose known)", label,
-                    size=(5.0 * len(res) + 1.5, 5.8))
+    fig, ax0 = _fig(
+        "Tracking: detection + pose time vs rotation error (synthetic photos, true pose known)",
+        label,
+        size=(5.0 * len(res) + 1.5, 5.8),
+    )
     fig.delaxes(ax0)
     axes = fig.subplots(1, len(res), sharey=True, squeeze=False)[0]
     configs = list(dict.fromkeys(r["config"] for r in rows))
@@ -201,8 +290,16 @@ def tracking(rows, out_dir, label) -> Path:
     for ax, rr in zip(axes, res):
         ax.grid(True, which="both", alpha=0.3)
         for r in (r for r in rows if r["resolution"] == rr and r["rot_deg_median"] is not None):
-            ax.errorbar(r["time_ms"], r["rot_deg_median"], xerr=[[r["time_ms"] - r["time_q25"]], [r["time_q75"] - r["time_ms"]]],
-                        fmt="o", color=col[r["config"]], capsize=2, ms=7, label=r["config"])
+            ax.errorbar(
+                r["time_ms"],
+                r["rot_deg_median"],
+                xerr=[[r["time_ms"] - r["time_q25"]], [r["time_q75"] - r["time_ms"]]],
+                fmt="o",
+                color=col[r["config"]],
+                capsize=2,
+                ms=7,
+                label=r["config"],
+            )
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_title(rr, fontsize=10)
@@ -212,8 +309,14 @@ def tracking(rows, out_dir, label) -> Path:
         ax.set_xlabel("time per photo, ms (median, bars = IQR; log)")
     axes[0].set_ylabel("rotation error, degrees (median over photos; log)")
     handles = {h.get_label(): h for ax in axes for h in ax.get_legend_handles_labels()[0]}
-    fig.legend([handles[c] for c in configs if c in handles], [c for c in configs if c in handles], fontsize=8,
-               loc="lower center", ncol=4, bbox_to_anchor=(0.5, 0.03))
+    fig.legend(
+        [handles[c] for c in configs if c in handles],
+        [c for c in configs if c in handles],
+        fontsize=8,
+        loc="lower center",
+        ncol=4,
+        bbox_to_anchor=(0.5, 0.03),
+    )
     fig.suptitle("Tracking: detection + pose time vs rotation error (synthetic photos, true pose known)")
 
     fig.tight_layout(rect=(0, 0.14, 1, 1))

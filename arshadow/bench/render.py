@@ -30,8 +30,8 @@ from ..geometry.exact import ShadowOracle, boundary_error_px, ground_shadow_tria
 from ..geometry.mesh import load_occluder
 from ..geometry.silhouette import silhouette
 from ..geometry.volume import shadow_volume
-from ..gl.stencil import LightPass, ShadowRenderer
 from ..gl.shadowmap import MAP_SIZES, ShadowMapRenderer
+from ..gl.stencil import LightPass, ShadowRenderer
 from ..lights.area import sample_area_light
 from ..lights.spec import parse_light
 from ..synth import look_at_pose
@@ -77,11 +77,27 @@ def scenes(quick: bool):
         out.append(("knot, low sun (25 deg)", caster, K, T2, sun_direction(25.0, 120.0), None))
     card = load_occluder(THIN_CARD)  # the card's plane is x-z; 1 mm along y
     thin = ("stencil", "planar", "shadow map", NO_BIAS)
-    out.append(("thin card (1 mm), sun 20 deg in the card's plane (edge-on)", card, K,
-                look_at_pose([0.3, 0.35, 0.3], [0.08, 0.0, 0.02]), sun_direction(20.0, 180.0), thin))
+    out.append(
+        (
+            "thin card (1 mm), sun 20 deg in the card's plane (edge-on)",
+            card,
+            K,
+            look_at_pose([0.3, 0.35, 0.3], [0.08, 0.0, 0.02]),
+            sun_direction(20.0, 180.0),
+            thin,
+        )
+    )
     if not quick:
-        out.append(("thin card (1 mm), sun 20 deg facing the card", card, K,
-                    look_at_pose([0.3, 0.35, 0.3], [0.0, -0.08, 0.02]), sun_direction(20.0, -90.0), thin))
+        out.append(
+            (
+                "thin card (1 mm), sun 20 deg facing the card",
+                card,
+                K,
+                look_at_pose([0.3, 0.35, 0.3], [0.0, -0.08, 0.02]),
+                sun_direction(20.0, -90.0),
+                thin,
+            )
+        )
     return out
 
 
@@ -138,16 +154,21 @@ class Reference:
         b = mask >= 0.5
         xor = int(np.count_nonzero(b != self.mask))
         be = boundary_error_px(b, self.mask)
-        return {"iou": iou(b, self.mask), "xor_px": xor, "edge_offset_px": xor / max(self.perimeter, 1),
-                "area_ratio": int(np.count_nonzero(b)) / max(int(np.count_nonzero(self.mask)), 1),
-                "boundary_p95_px": be["p95"], "boundary_max_px": be["max"],
-                "coverage_mae": float(np.abs(mask[self.band[:, 0], self.band[:, 1]] - self.coverage).mean())}
+        return {
+            "iou": iou(b, self.mask),
+            "xor_px": xor,
+            "edge_offset_px": xor / max(self.perimeter, 1),
+            "area_ratio": int(np.count_nonzero(b)) / max(int(np.count_nonzero(self.mask)), 1),
+            "boundary_p95_px": be["p95"],
+            "boundary_max_px": be["max"],
+            "coverage_mae": float(np.abs(mask[self.band[:, 0], self.band[:, 1]] - self.coverage).mean()),
+        }
 
 
 def _configs(ctx, quick: bool):
     """``[(family, label, factory, pass options)]``; factory() -> renderer; pass options: mode, truncate,
     scale (render resolution scale)."""
-    st = lambda **kw: (lambda: ShadowRenderer(ctx, max_width=W, max_height=H, **kw))  # noqa: E731
+    st = lambda **kw: lambda: ShadowRenderer(ctx, max_width=W, max_height=H, **kw)  # noqa: E731
     out = [
         ("stencil", "z-pass, truncated (default)", st(), dict(mode="zpass", truncate=True)),
         ("stencil", "z-pass, to infinity", st(), dict(mode="zpass", truncate=False)),
@@ -161,21 +182,45 @@ def _configs(ctx, quick: bool):
     if not quick:
         aa += [("supersample 4x4", dict(supersample=4)), ("MSAA 4 + supersample 2x2", dict(samples=4, supersample=2))]
     out += [("stencil AA", lab, st(**kw), dict(mode="zpass", truncate=True)) for lab, kw in aa]
-    for s in ((0.5,) if quick else (0.25, 0.5, 0.75)):
-        out.append(("stencil scaled", f"render at {s:g}x resolution, bilinear upscale", st(),
-                    dict(mode="zpass", truncate=True, scale=s)))
+    for s in (0.5,) if quick else (0.25, 0.5, 0.75):
+        out.append(
+            (
+                "stencil scaled",
+                f"render at {s:g}x resolution, bilinear upscale",
+                st(),
+                dict(mode="zpass", truncate=True, scale=s),
+            )
+        )
     sizes = (512, 2048, 8192) if quick else MAP_SIZES
     for size in sizes:
-        for pcf in ((1, 3) if not quick or size == 2048 else (3,)):
-            out.append(("shadow map", f"shadow map {size}, PCF {pcf}x{pcf}",
-                        (lambda size=size, pcf=pcf: ShadowMapRenderer(ctx, map_size=size, pcf=pcf, max_width=W,
-                                                                      max_height=H)), dict(mode="zpass", map_size=size)))
+        for pcf in (1, 3) if not quick or size == 2048 else (3,):
+            out.append(
+                (
+                    "shadow map",
+                    f"shadow map {size}, PCF {pcf}x{pcf}",
+                    (
+                        lambda size=size, pcf=pcf: ShadowMapRenderer(
+                            ctx, map_size=size, pcf=pcf, max_width=W, max_height=H
+                        )
+                    ),
+                    dict(mode="zpass", map_size=size),
+                )
+            )
     # the bias's share in the thin card's error: the same map with glPolygonOffset(0, 0) (scenes that ask for
     # the family only)
-    for size in ((2048,) if quick else (1024, 4096)):
-        out.append((NO_BIAS, f"shadow map {size}, PCF 1x1, bias off",
-                    (lambda size=size: ShadowMapRenderer(ctx, map_size=size, pcf=1, slope_bias=0.0, constant_bias=0.0,
-                                                         max_width=W, max_height=H)), dict(mode="zpass", map_size=size)))
+    for size in (2048,) if quick else (1024, 4096):
+        out.append(
+            (
+                NO_BIAS,
+                f"shadow map {size}, PCF 1x1, bias off",
+                (
+                    lambda size=size: ShadowMapRenderer(
+                        ctx, map_size=size, pcf=1, slope_bias=0.0, constant_bias=0.0, max_width=W, max_height=H
+                    )
+                ),
+                dict(mode="zpass", map_size=size),
+            )
+        )
     return out
 
 
@@ -194,8 +239,11 @@ def run(cfg: dict, ctx, log) -> list[dict]:
         view = CV_TO_GL @ T
         sil = silhouette(caster, L)
         tz = -1e-3 * caster.scale
-        vols = {(caps, tr): shadow_volume(caster, L, sil, caps=caps, truncate_z=tz if tr else None)
-                for caps in (False, True) for tr in (False, True)}
+        vols = {
+            (caps, tr): shadow_volume(caster, L, sil, caps=caps, truncate_z=tz if tr else None)
+            for caps in (False, True)
+            for tr in (False, True)
+        }
         for family, label, factory, opt in _configs(ctx, cfg["quick"]):
             if (families is None and family == NO_BIAS) or (families is not None and family not in families):
                 continue
@@ -211,9 +259,11 @@ def run(cfg: dict, ctx, log) -> list[dict]:
             else:
                 canvas, P = roi, K.gl_projection(ZNEAR, None, canvas=roi)
             with factory() as r:
+
                 def once():
-                    res = r.render(projection=P, view=view, width=canvas[2], height=canvas[3], caster=caster,
-                                   passes=passes)
+                    res = r.render(
+                        projection=P, view=view, width=canvas[2], height=canvas[3], caster=caster, passes=passes
+                    )
                     m = res.mask
                     if s != 1.0:
                         # the scaled canvas covers [u0*s, (u0+w)*s) ~ the ROI: resample to the ROI's pixels
@@ -228,10 +278,21 @@ def run(cfg: dict, ctx, log) -> list[dict]:
                     m = once()
                     ts.append((time.perf_counter() - t1) * 1e3)
             st = summary(ts, 4)
-            rows.append({"scene": name, "family": family, "config": label, "roi_w": w, "roi_h": h,
-                         "time_ms": st["median"], "time_q25": st["iqr"][0], "time_q75": st["iqr"][1], "time_n": st["n"],
-                         **ref.errors(m), "map_texel_um": (map_texel_m(caster, L, opt["map_size"]) * 1e6
-                                                           if "map_size" in opt else None)})
+            rows.append(
+                {
+                    "scene": name,
+                    "family": family,
+                    "config": label,
+                    "roi_w": w,
+                    "roi_h": h,
+                    "time_ms": st["median"],
+                    "time_q25": st["iqr"][0],
+                    "time_q75": st["iqr"][1],
+                    "time_n": st["n"],
+                    **ref.errors(m),
+                    "map_texel_um": (map_texel_m(caster, L, opt["map_size"]) * 1e6 if "map_size" in opt else None),
+                }
+            )
         log(f"  render: '{name}' {len(rows)} points")
     return rows + soft(cfg, ctx, log)
 
@@ -249,8 +310,15 @@ def equal_time(rows: list[dict]) -> list[dict]:
         faster = [r for r in sm if r["time_ms"] <= st["time_ms"]]
         best_fast = max(faster, key=lambda r: r["iou"]) if faster else None
         nearest = min(sm, key=lambda r: abs(np.log(r["time_ms"] / st["time_ms"])))
-        out.append({"scene": scene, "stencil": st, "shadowmap_not_slower": best_fast, "shadowmap_nearest_time": nearest,
-                    "best_shadowmap": max(sm, key=lambda r: r["iou"])})
+        out.append(
+            {
+                "scene": scene,
+                "stencil": st,
+                "shadowmap_not_slower": best_fast,
+                "shadowmap_nearest_time": nearest,
+                "best_shadowmap": max(sm, key=lambda r: r["iou"]),
+            }
+        )
     return out
 
 
@@ -300,13 +368,25 @@ def soft(cfg: dict, ctx, log) -> list[dict]:
             st = summary(ts, 4)
             region = (ref > 0) | (m > 0)
             b, rb = m >= 0.5, ref >= 0.5
-            rows.append({"scene": "box, spherical light r = 4 cm (soft)", "family": "soft shadow",
-                         "config": f"{n} sample{'s' if n > 1 else ''} per light", "roi_w": w, "roi_h": h,
-                         "time_ms": st["median"], "time_q25": st["iqr"][0], "time_q75": st["iqr"][1], "time_n": st["n"],
-                         "iou": iou(b, rb), "xor_px": int(np.count_nonzero(b != rb)),
-                         "area_ratio": int(np.count_nonzero(b)) / max(int(np.count_nonzero(rb)), 1),
-                         "edge_offset_px": float("nan"), "boundary_p95_px": boundary_error_px(b, rb)["p95"],
-                         "boundary_max_px": boundary_error_px(b, rb)["max"],
-                         "coverage_mae": float(np.abs(m - ref)[region].mean())})
+            rows.append(
+                {
+                    "scene": "box, spherical light r = 4 cm (soft)",
+                    "family": "soft shadow",
+                    "config": f"{n} sample{'s' if n > 1 else ''} per light",
+                    "roi_w": w,
+                    "roi_h": h,
+                    "time_ms": st["median"],
+                    "time_q25": st["iqr"][0],
+                    "time_q75": st["iqr"][1],
+                    "time_n": st["n"],
+                    "iou": iou(b, rb),
+                    "xor_px": int(np.count_nonzero(b != rb)),
+                    "area_ratio": int(np.count_nonzero(b)) / max(int(np.count_nonzero(rb)), 1),
+                    "edge_offset_px": float("nan"),
+                    "boundary_p95_px": boundary_error_px(b, rb)["p95"],
+                    "boundary_max_px": boundary_error_px(b, rb)["max"],
+                    "coverage_mae": float(np.abs(m - ref)[region].mean()),
+                }
+            )
     log(f"  render: soft shadows {len(rows)} points")
     return rows

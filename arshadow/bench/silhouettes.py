@@ -82,10 +82,20 @@ def detectors(cfg: dict, log) -> list[dict]:
                 missed += len(ex - got)
                 extra += len(got - ex)
                 total += len(ex)
-            rows.append({"mesh": label, "faces": c.n_faces, "edges": len(c.edges), "method": m, "lights": nl,
-                         **t_fields("time", ts), "prepare_ms": round(prep, 3),
-                         "missed_edges_frac": missed / max(total, 1), "extra_edges_frac": extra / max(total, 1),
-                         "exact_lights": None})
+            rows.append(
+                {
+                    "mesh": label,
+                    "faces": c.n_faces,
+                    "edges": len(c.edges),
+                    "method": m,
+                    "lights": nl,
+                    **t_fields("time", ts),
+                    "prepare_ms": round(prep, 3),
+                    "missed_edges_frac": missed / max(total, 1),
+                    "extra_edges_frac": extra / max(total, 1),
+                    "exact_lights": None,
+                }
+            )
         log(f"  silhouettes: {label} ({c.n_faces} faces) done")
     return rows
 
@@ -98,9 +108,11 @@ def reference_ops(cfg: dict, log) -> list[dict]:
         L = lights(c, 1, seed=3)[0]
         n = c.n_faces
         formula = paper000_formulas(n, 3)
-        for name, fn, fast, key in (("TA", ta_reference, "triangular", "compares"),
-                                     ("VnV", vnv_reference, "vnv", "pairs"),
-                                     ("Delta+", delta_plus_reference, "delta_plus", "ray_face_tests")):
+        for name, fn, fast, key in (
+            ("TA", ta_reference, "triangular", "compares"),
+            ("VnV", vnv_reference, "vnv", "pairs"),
+            ("Delta+", delta_plus_reference, "delta_plus", "ray_face_tests"),
+        ):
             if name == "VnV" and n > cfg["vnv_max_faces"]:
                 continue
             t0 = time.perf_counter()
@@ -108,18 +120,33 @@ def reference_ops(cfg: dict, log) -> list[dict]:
             t_ref = (time.perf_counter() - t0) * 1e3
             s = silhouette(c, L, fast)
             t_fast = summary(timed(lambda: silhouette(c, L, fast), cfg["repeat"]))["median"]
-            row = {"mesh": label, "faces": n, "vertices": len(c.vertices), "edges": len(c.edges), "algorithm": name,
-                   "counted_ops": cnt[key], "counted_what": key, "reference_ms": round(t_ref, 3),
-                   "fast_detector": fast, "fast_ms": t_fast, "same_edges": _edge_set(e) == _edge_set(s.edges),
-                   "formula_total": formula.get(name, {}).get("total") if name != "Delta+" else None,
-                   "formula_main_term": (formula[name]["C"] if name == "TA" else formula[name]["M"])
-                   if name != "Delta+" else None}
+            row = {
+                "mesh": label,
+                "faces": n,
+                "vertices": len(c.vertices),
+                "edges": len(c.edges),
+                "algorithm": name,
+                "counted_ops": cnt[key],
+                "counted_what": key,
+                "reference_ms": round(t_ref, 3),
+                "fast_detector": fast,
+                "fast_ms": t_fast,
+                "same_edges": _edge_set(e) == _edge_set(s.edges),
+                "formula_total": formula.get(name, {}).get("total") if name != "Delta+" else None,
+                "formula_main_term": (formula[name]["C"] if name == "TA" else formula[name]["M"])
+                if name != "Delta+"
+                else None,
+            }
             if name == "Delta+":
                 V = len(c.vertices)
-                row.update(paper_n_log2_n=V * math.log2(V), paper_n2=float(V) ** 2,
-                           no_early_exit_tests=cnt["ray_face_tests_no_early_exit"],
-                           fast_bvh_tests=int(s.stats.get("node_tests", 0) + s.stats.get("triangle_tests", 0)
-                                              + s.stats.get("local_tests", 0)))
+                row.update(
+                    paper_n_log2_n=V * math.log2(V),
+                    paper_n2=float(V) ** 2,
+                    no_early_exit_tests=cnt["ray_face_tests_no_early_exit"],
+                    fast_bvh_tests=int(
+                        s.stats.get("node_tests", 0) + s.stats.get("triangle_tests", 0) + s.stats.get("local_tests", 0)
+                    ),
+                )
             rows.append(row)
         log(f"  reference detectors: {label} done")
     return rows
@@ -132,9 +159,16 @@ def paper_tables() -> list[dict]:
     for n, m in ((10, 5), (100, 10), (2_000_000, 3)):
         f = paper000_formulas(n, m)
         for name in ("TA", "VnV", "HSD"):
-            rows.append({"source": "paper 000 sec. VI formula", "n": n, "m": m, "algorithm": name,
-                         **{k: f[name][k] for k in ("C", "R", "M", "A", "W", "total")},
-                         "ratio_to_HSD": f[name]["total"] / f["HSD"]["total"]})
+            rows.append(
+                {
+                    "source": "paper 000 sec. VI formula",
+                    "n": n,
+                    "m": m,
+                    "algorithm": name,
+                    **{k: f[name][k] for k in ("C", "R", "M", "A", "W", "total")},
+                    "ratio_to_HSD": f[name]["total"] / f["HSD"]["total"],
+                }
+            )
     p = paper003_claim(5000)
     rows.append({"source": "paper 003 Table II", "n": 5000, "algorithm": "BSB/HFC O(n^2)", "total": p["quadratic"]})
     rows.append({"source": "paper 003 Table II", "n": 5000, "algorithm": "Delta+ O(n log2 n)", "total": p["n_log2_n"]})
@@ -145,10 +179,12 @@ def hsd_vs_ta(cfg: dict) -> list[dict]:
     """HSD's edge operations and time against TA on flat-faced and curved meshes (paper 000's claim that
     HSD does fewer operations and is faster)."""
     rows = []
-    for label, c in (("box", load_occluder("box:0.1,0.1,0.1")),
-                     ("house", load_occluder(ROOT / "samples" / "meshes" / "house.obj")),
-                     ("cylinder", load_occluder("cylinder:0.05,0.1")),
-                     ("knot 8536", load_occluder(ROOT / "samples" / "meshes" / "knot.ply"))):
+    for label, c in (
+        ("box", load_occluder("box:0.1,0.1,0.1")),
+        ("house", load_occluder(ROOT / "samples" / "meshes" / "house.obj")),
+        ("cylinder", load_occluder("cylinder:0.05,0.1")),
+        ("knot 8536", load_occluder(ROOT / "samples" / "meshes" / "knot.ply")),
+    ):
         Ls = lights(c, 6, seed=5)
         ta = [silhouette(c, L, "triangular").stats["edge_ops"] for L in Ls]
         hs = [silhouette(c, L, "hsd").stats["edge_ops"] for L in Ls]
@@ -156,12 +192,25 @@ def hsd_vs_ta(cfg: dict) -> list[dict]:
         for L in Ls:  # interleaved
             tt += timed(lambda: silhouette(c, L, "triangular"), cfg["repeat"])
             th += timed(lambda: silhouette(c, L, "hsd"), cfg["repeat"])
-        rows.append({"mesh": label, "faces": c.n_faces, "polygons": len(c.polygons["planes"]),
-                     "ta_edge_ops": float(np.mean(ta)), "hsd_edge_ops": float(np.mean(hs)),
-                     "ops_ratio_hsd_ta": float(np.mean(hs) / np.mean(ta)), **t_fields("ta", tt), **t_fields("hsd", th)})
+        rows.append(
+            {
+                "mesh": label,
+                "faces": c.n_faces,
+                "polygons": len(c.polygons["planes"]),
+                "ta_edge_ops": float(np.mean(ta)),
+                "hsd_edge_ops": float(np.mean(hs)),
+                "ops_ratio_hsd_ta": float(np.mean(hs) / np.mean(ta)),
+                **t_fields("ta", tt),
+                **t_fields("hsd", th),
+            }
+        )
     return rows
 
 
 def run(cfg: dict, log) -> dict:
-    return {"detectors": detectors(cfg, log), "reference": reference_ops(cfg, log), "paper": paper_tables(),
-            "hsd_vs_ta": hsd_vs_ta(cfg)}
+    return {
+        "detectors": detectors(cfg, log),
+        "reference": reference_ops(cfg, log),
+        "paper": paper_tables(),
+        "hsd_vs_ta": hsd_vs_ta(cfg),
+    }

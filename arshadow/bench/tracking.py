@@ -61,14 +61,26 @@ def make_photos(cam, n: int, seed: int):
         frac = rng.uniform(0.05, 0.10)
         L = frac * cam.width * d / cam.fx
         pose = random_pose(rng, cam, distance=(d, d), tilt_deg=(0, 70), keep_in_view=marker_object_points(1.6 * L))
-        photos.append(render_marker_photo(cam, pose, marker_length=L, marker_id=int(rng.integers(250)),
-                                          noise_sigma=2.0, blur_sigma=0.6, jpeg_quality=90, seed=seed * 1000 + i))
+        photos.append(
+            render_marker_photo(
+                cam,
+                pose,
+                marker_length=L,
+                marker_id=int(rng.integers(250)),
+                noise_sigma=2.0,
+                blur_sigma=0.6,
+                jpeg_quality=90,
+                seed=seed * 1000 + i,
+            )
+        )
     return photos
 
 
 def _errors(pose, truth, distance):
-    return (rotation_error_deg(pose.cam_from_world[:3, :3], truth[:3, :3]),
-            float(np.linalg.norm(pose.cam_from_world[:3, 3] - truth[:3, 3]) / distance))
+    return (
+        rotation_error_deg(pose.cam_from_world[:3, :3], truth[:3, :3]),
+        float(np.linalg.norm(pose.cam_from_world[:3, 3] - truth[:3, 3]) / distance),
+    )
 
 
 def session(cam, *, marker_length=None, marker_id=None, board=None, **options):
@@ -117,9 +129,19 @@ def run_configs(photos, configs: dict, repeat: int) -> list[dict]:
     for c, a in acc.items():
         tm, rot, trn = (np.asarray(a[k], float) for k in ("times", "rot", "trans"))
         q = lambda x, p: float(np.percentile(x, p)) if x.size else None  # noqa: E731
-        rows.append({"config": c, "photos": len(photos), "detected": a["found"], "time_ms": q(tm, 50),
-                     "time_q25": q(tm, 25), "time_q75": q(tm, 75), "rot_deg_median": q(rot, 50),
-                     "rot_deg_p95": q(rot, 95), "trans_pct_median": q(trn, 50)})
+        rows.append(
+            {
+                "config": c,
+                "photos": len(photos),
+                "detected": a["found"],
+                "time_ms": q(tm, 50),
+                "time_q25": q(tm, 25),
+                "time_q75": q(tm, 75),
+                "rot_deg_median": q(rot, 50),
+                "rot_deg_p95": q(rot, 95),
+                "trans_pct_median": q(trn, 50),
+            }
+        )
     return rows
 
 
@@ -128,13 +150,21 @@ def refinement_and_roi(cfg, log) -> list[dict]:
     for w, h in cfg["track_resolutions"]:
         cam = camera(w, h)
         photos = make_photos(cam, cfg["poses"], seed=w)
-        mk = lambda **kw: (lambda ph: (session(ph.intrinsics, marker_length=ph.marker_length,  # noqa: E731
-                                               marker_id=ph.marker_id, **kw), ph.image))
+
+        def mk(**kw):
+            return lambda ph: (
+                session(ph.intrinsics, marker_length=ph.marker_length, marker_id=ph.marker_id, **kw),
+                ph.image,
+            )
+
         configs = {f"refine {m}, full frame": mk(refine=m) for m in REFINE_METHODS}
         configs["refine subpix, full search only (fast_detect off)"] = mk(refine="subpix", fast_detect=False)
-        configs["refine subpix, full search only, no LM polish"] = lambda ph: (MarkerTracker(
-            ph.intrinsics, marker_length=ph.marker_length, marker_id=ph.marker_id, refine="subpix",
-            pnp_refine=False), ph.image)
+        configs["refine subpix, full search only, no LM polish"] = lambda ph: (
+            MarkerTracker(
+                ph.intrinsics, marker_length=ph.marker_length, marker_id=ph.marker_id, refine="subpix", pnp_refine=False
+            ),
+            ph.image,
+        )
         configs["refine subpix, ROI window (track_roi)"] = mk(refine="subpix", track_roi=True)
         for r in run_configs(photos, configs, cfg["repeat"]):
             rows.append({"resolution": f"{w}x{h}", **r})
@@ -153,18 +183,25 @@ def marker_vs_board(cfg, log) -> list[dict]:
     single, boards = [], []
     for i in range(cfg["poses"]):
         pose = random_pose(rng, cam, distance=(0.6, 1.0), tilt_deg=(0, 60), keep_in_view=corners, target=centre)
-        boards.append(render_marker_photo(cam, pose, board=board, noise_sigma=2.0, blur_sigma=0.6, jpeg_quality=90,
-                                          seed=500 + i))
+        boards.append(
+            render_marker_photo(cam, pose, board=board, noise_sigma=2.0, blur_sigma=0.6, jpeg_quality=90, seed=500 + i)
+        )
         # the single marker at the board's centre, same camera position
         shift = np.eye(4)
         shift[:3, 3] = centre
-        single.append(render_marker_photo(cam, pose @ shift, marker_length=0.05, noise_sigma=2.0, blur_sigma=0.6,
-                                          jpeg_quality=90, seed=500 + i))
-    rows = run_configs(single, {"single 5 cm marker": lambda ph: (session(cam, marker_length=0.05,
-                                                                          marker_id=ph.marker_id), ph.image)},
-                       cfg["repeat"])
-    rows += run_configs(boards, {"grid board 5x7 (35 markers)": lambda ph: (session(cam, board=board_file), ph.image)},
-                        cfg["repeat"])
+        single.append(
+            render_marker_photo(
+                cam, pose @ shift, marker_length=0.05, noise_sigma=2.0, blur_sigma=0.6, jpeg_quality=90, seed=500 + i
+            )
+        )
+    rows = run_configs(
+        single,
+        {"single 5 cm marker": lambda ph: (session(cam, marker_length=0.05, marker_id=ph.marker_id), ph.image)},
+        cfg["repeat"],
+    )
+    rows += run_configs(
+        boards, {"grid board 5x7 (35 markers)": lambda ph: (session(cam, board=board_file), ph.image)}, cfg["repeat"]
+    )
     log("  tracking: marker vs board done")
     return [{"resolution": "1280x720", **r} for r in rows]
 
@@ -219,18 +256,34 @@ def real_footage(cfg, log) -> list[dict]:
         cam = Intrinsics.from_file(d / "intrinsics.yml")
         n = 30 if cfg.get("quick") else None
         for refine in ("edge", "apriltag"):  # the video command's default, and AprilTag
-            s = session(cam, marker_length=length, marker_id=mid, dictionary="DICT_ARUCO_ORIGINAL", refine=refine,
-                        track_roi=True)
+            s = session(
+                cam,
+                marker_length=length,
+                marker_id=mid,
+                dictionary="DICT_ARUCO_ORIGINAL",
+                refine=refine,
+                track_roi=True,
+            )
             res = track_clip(s, d / video, n)
             s.close()
             seen = [k for k in range(len(res)) if stock.get(k)]
             ms = np.asarray([t for _, t in res])
             err = [p.reprojection_error_px for p, _ in res if p is not None]
-            rows.append({"resolution": "real 640x480", "config": f"real {folder} id {mid}, refine {refine}",
-                         "photos": len(seen), "detected": sum(res[k][0] is not None for k in seen),
-                         "time_ms": float(np.median(ms)), "time_q25": float(np.percentile(ms, 25)),
-                         "time_q75": float(np.percentile(ms, 75)), "rot_deg_median": None, "rot_deg_p95": None,
-                         "trans_pct_median": None, "reprojection_px_median": float(np.median(err)) if err else None})
+            rows.append(
+                {
+                    "resolution": "real 640x480",
+                    "config": f"real {folder} id {mid}, refine {refine}",
+                    "photos": len(seen),
+                    "detected": sum(res[k][0] is not None for k in seen),
+                    "time_ms": float(np.median(ms)),
+                    "time_q25": float(np.percentile(ms, 25)),
+                    "time_q75": float(np.percentile(ms, 75)),
+                    "rot_deg_median": None,
+                    "rot_deg_p95": None,
+                    "trans_pct_median": None,
+                    "reprojection_px_median": float(np.median(err)) if err else None,
+                }
+            )
         log(f"  tracking: real footage {folder} done")
     return rows
 

@@ -22,8 +22,21 @@ from .. import __version__
 from ..errors import ArshadowError, EstimateError, ImageError, MarkerNotFoundError
 
 #: command modules, in the order ``--help`` lists them
-COMMAND_MODULES = ("render", "demo", "video", "batch", "export_track", "pose", "calibrate", "marker", "silhouette",
-                   "sun", "bench", "info", "light")
+COMMAND_MODULES = (
+    "render",
+    "demo",
+    "video",
+    "batch",
+    "export_track",
+    "pose",
+    "calibrate",
+    "marker",
+    "silhouette",
+    "sun",
+    "bench",
+    "info",
+    "light",
+)
 
 EXIT_OK, EXIT_SOME_FAILED, EXIT_USAGE = 0, 1, 2
 
@@ -115,8 +128,10 @@ def _main(argv=None) -> int:
         return EXIT_SOME_FAILED if isinstance(exc, (ImageError, MarkerNotFoundError, EstimateError)) else EXIT_USAGE
     except KeyboardInterrupt as exc:
         signum = exc.args[0] if exc.args and isinstance(exc.args[0], int) else signal.SIGINT
-        print(f"arshadow: interrupted ({signal.Signals(signum).name}); the outputs being written were removed",
-              file=sys.stderr)
+        print(
+            f"arshadow: interrupted ({signal.Signals(signum).name}); the outputs being written were removed",
+            file=sys.stderr,
+        )
         return 128 + int(signum)
     finally:
         if previous is not None:
@@ -126,6 +141,7 @@ def _main(argv=None) -> int:
 def _terminate_as_interrupt():
     """SIGTERM (``kill``, a job scheduler's stop) unwinds like Ctrl-C: the temporary files of the outputs
     being written are removed, finished ones kept (only possible in the main thread; else left as is)."""
+
     def handler(signum, frame):
         raise KeyboardInterrupt(signum)
 

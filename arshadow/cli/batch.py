@@ -27,10 +27,13 @@ def register(subparsers) -> None:
     from .video import add_output_options
 
     p = subparsers.add_parser(
-        "batch", help="process photos and videos under one scene file (resumable; Dask optional)",
+        "batch",
+        help="process photos and videos under one scene file (resumable; Dask optional)",
         description="Composite the scene of a job file into every photo and video given, skipping the items "
-                    "an earlier run finished.",
-        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+        "an earlier run finished.",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     p.add_argument("inputs", nargs="+", metavar="INPUT", help="photos and videos (videos by extension)")
     p.add_argument("--config", "-c", required=True, metavar="JOB.yml", help="scene file (YAML or JSON)")
     p.add_argument("-o", "--output", required=True, metavar="DIR", help="output folder (created if missing)")
@@ -41,9 +44,12 @@ def register(subparsers) -> None:
     v.add_argument("--max-frames", type=int, metavar="N", help="only the first N frames of each video")
     add_output_options(p.add_argument_group("output"))
     add_probe_options(p, run=True)
-    p.add_argument("--dask", metavar="ADDRESS",
-                   help="run on a Dask cluster: a scheduler address (tcp://host:8786) or local[:N] for a "
-                        "LocalCluster of N worker processes (needs arshadow[dask])")
+    p.add_argument(
+        "--dask",
+        metavar="ADDRESS",
+        help="run on a Dask cluster: a scheduler address (tcp://host:8786) or local[:N] for a "
+        "LocalCluster of N worker processes (needs arshadow[dask])",
+    )
     p.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
     p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show tracebacks")
     p.set_defaults(func=run)
@@ -81,8 +87,9 @@ def _client(address: str, debug: bool = False):
         return Client(address, timeout=DASK_CONNECT_TIMEOUT_S), None
     except (OSError, TimeoutError, ValueError) as exc:
         why = str(exc).strip().splitlines()[0][:160] if str(exc).strip() else type(exc).__name__
-        raise UsageError(f"--dask {address}: cannot reach the scheduler within {DASK_CONNECT_TIMEOUT_S} s "
-                         f"({why})") from None
+        raise UsageError(
+            f"--dask {address}: cannot reach the scheduler within {DASK_CONNECT_TIMEOUT_S} s ({why})"
+        ) from None
 
 
 def run(args) -> int:
@@ -97,8 +104,14 @@ def run(args) -> int:
     debug = bool(getattr(args, "debug", False))
     quiet_opencv(debug)
     spec = load_scene(args.config)
-    est = probe_estimate(args, args.inputs, calib=spec.camera, marker_length=spec.tracker.marker_length,
-                         dictionary=spec.tracker.dictionary, marker_id=spec.tracker.marker_id)
+    est = probe_estimate(
+        args,
+        args.inputs,
+        calib=spec.camera,
+        marker_length=spec.tracker.marker_length,
+        dictionary=spec.tracker.dictionary,
+        marker_id=spec.tracker.marker_id,
+    )
     if est is not None:  # --probe: the measured light replaces the file's (docs/light.md)
         spec = load_scene(args.config, light_from=est, lights=[est.light])
     opts = engine_options(args)
@@ -127,8 +140,17 @@ def run(args) -> int:
                 (bar.write if bar is not None else print)(f"arshadow batch: warning: {w}", file=sys.stderr)
 
     try:
-        summary = run_batch(spec, args.inputs, outdir, opts, save_mask=bool(args.save_mask),
-                            client=client, progress=progress, session=session, jobs=args.jobs)
+        summary = run_batch(
+            spec,
+            args.inputs,
+            outdir,
+            opts,
+            save_mask=bool(args.save_mask),
+            client=client,
+            progress=progress,
+            session=session,
+            jobs=args.jobs,
+        )
     finally:
         if bar is not None:
             bar.close()
@@ -139,7 +161,10 @@ def run(args) -> int:
         if cluster is not None:
             cluster.close()
     c = summary["counts"]
-    print(f"{len(summary['items'])} items: " + ", ".join(f"{k} {v}" for k, v in sorted(c.items())) +
-          f"  (summary: {outdir / 'batch.json'})")
+    print(
+        f"{len(summary['items'])} items: "
+        + ", ".join(f"{k} {v}" for k, v in sorted(c.items()))
+        + f"  (summary: {outdir / 'batch.json'})"
+    )
     failed = sum(1 for r in summary["items"] if r["status"] != "ok")
     return EXIT_SOME_FAILED if failed else EXIT_OK

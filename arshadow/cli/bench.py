@@ -15,8 +15,12 @@ def register(subparsers) -> None:
     )
     p.add_argument("-o", "--output", required=True, metavar="DIR", help="output folder (created if needed)")
     p.add_argument("--quick", action="store_true", help="fewer sizes, repeats and photos (under 3 minutes)")
-    p.add_argument("--sections", default=None, metavar="LIST",
-                   help="comma-separated subset of: silhouettes, render, tracking, pipeline (default all)")
+    p.add_argument(
+        "--sections",
+        default=None,
+        metavar="LIST",
+        help="comma-separated subset of: silhouettes, render, tracking, pipeline (default all)",
+    )
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.set_defaults(func=run)
 

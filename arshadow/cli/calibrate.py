@@ -18,19 +18,31 @@ Exit status: 0 every view used, 1 calibration written but some views rejected, 2
 usable views (nothing written).
 """
 
+
 def register(subparsers) -> None:
-    p = subparsers.add_parser("calibrate", help="calibrate a camera from chessboard / ChArUco photos",
-                              description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = subparsers.add_parser(
+        "calibrate",
+        help="calibrate a camera from chessboard / ChArUco photos",
+        description=DESCRIPTION,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     p.add_argument("images", nargs="+", metavar="IMAGE", help="photos of the pattern, or folders of them")
-    p.add_argument("--pattern", required=True, help="chessboard:COLS,ROWS,SQUARE or charuco:COLS,ROWS,SQUARE,MARKER,DICT")
+    p.add_argument(
+        "--pattern", required=True, help="chessboard:COLS,ROWS,SQUARE or charuco:COLS,ROWS,SQUARE,MARKER,DICT"
+    )
     p.add_argument("-o", "--output", required=True, metavar="FILE", help="calibration file to write (.yml/.xml/.json)")
     p.add_argument("--fix-aspect", action="store_true", help="fx = fy (cv2.CALIB_FIX_ASPECT_RATIO)")
     p.add_argument("--zero-tangent", action="store_true", help="p1 = p2 = 0 (cv2.CALIB_ZERO_TANGENT_DIST)")
     p.add_argument("--fix-k3", action="store_true", help="k3 = 0 (cv2.CALIB_FIX_K3)")
     p.add_argument("--rational", action="store_true", help="8-coefficient rational model (cv2.CALIB_RATIONAL_MODEL)")
     p.add_argument("--min-views", type=int, default=None, metavar="N", help="fewest usable views (default 5)")
-    p.add_argument("--max-view-error", type=float, default=None, metavar="PX",
-                   help="reject views whose RMS error exceeds PX and calibrate again (default: keep all)")
+    p.add_argument(
+        "--max-view-error",
+        type=float,
+        default=None,
+        metavar="PX",
+        help="reject views whose RMS error exceeds PX and calibrate again (default: keep all)",
+    )
     p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
     p.set_defaults(func=run)
 
@@ -38,10 +50,9 @@ def register(subparsers) -> None:
 def run(args) -> int:
     import cv2
 
-    from ..photos import expand_inputs  # folders by arshadow.io.IMAGE_EXTENSIONS, globs
-
-    from ..tracking.calibration import MIN_VIEWS, calibrate, find_view, parse_pattern
     from ..errors import UsageError
+    from ..photos import expand_inputs  # folders by arshadow.io.IMAGE_EXTENSIONS, globs
+    from ..tracking.calibration import MIN_VIEWS, calibrate, find_view, parse_pattern
 
     pattern = parse_pattern(args.pattern)
     out = Path(args.output)
@@ -67,16 +78,27 @@ def run(args) -> int:
         v = find_view(f, pattern)
         views.append(v)
         if not args.json:
-            print(f"{f}: " + (f"{len(v.object_points)} corners" if v.ok else f"rejected: {v.reason}"),
-                  file=sys.stdout if v.ok else sys.stderr)
+            print(
+                f"{f}: " + (f"{len(v.object_points)} corners" if v.ok else f"rejected: {v.reason}"),
+                file=sys.stdout if v.ok else sys.stderr,
+            )
     res = calibrate(views, flags=flags, min_views=min_views, max_view_error=args.max_view_error, pattern=pattern)
     res.to_file(out)
     k = res.intrinsics
     summary = {
-        "output": str(out), "pattern": pattern.spec, "flags": flags, "views_used": len(res.views),
+        "output": str(out),
+        "pattern": pattern.spec,
+        "flags": flags,
+        "views_used": len(res.views),
         "views_rejected": [{"input": v.path, "reason": v.reason} for v in res.rejected],
-        "rms_px": res.rms, "fx": k.fx, "fy": k.fy, "cx": k.cx, "cy": k.cy, "dist": k.dist.tolist(),
-        "width": k.width, "height": k.height,
+        "rms_px": res.rms,
+        "fx": k.fx,
+        "fy": k.fy,
+        "cx": k.cx,
+        "cy": k.cy,
+        "dist": k.dist.tolist(),
+        "width": k.width,
+        "height": k.height,
         "per_view_errors_px": {v.path: float(e) for v, e in zip(res.views, res.per_view_errors)},
     }
     if args.json:
@@ -85,8 +107,10 @@ def run(args) -> int:
         for v in res.rejected:
             if v.reason and v.reason.startswith("reprojection error"):
                 print(f"{v.path}: rejected: {v.reason}", file=sys.stderr)
-        print(f"calibrated from {len(res.views)} of {len(views)} views ({pattern.describe()}), "
-              f"{k.width}x{k.height}: RMS {res.rms:.4f} px")
+        print(
+            f"calibrated from {len(res.views)} of {len(views)} views ({pattern.describe()}), "
+            f"{k.width}x{k.height}: RMS {res.rms:.4f} px"
+        )
         print(f"  fx {k.fx:.3f}  fy {k.fy:.3f}  cx {k.cx:.3f}  cy {k.cy:.3f}")
         print(f"  distortion {', '.join(f'{d:.6g}' for d in k.dist)}")
         worst = max(zip(res.per_view_errors, res.views), key=lambda t: t[0])

@@ -23,13 +23,22 @@ photo set: photo i at i / --fps seconds). Formats by extension: .glb, .gltf, .js
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "export-track", help="write the camera track (glTF 2.0 / JSON / CSV) of a video or a photo set",
+        "export-track",
+        help="write the camera track (glTF 2.0 / JSON / CSV) of a video or a photo set",
         description="The intrinsics and the per-frame camera in the marker frame, for Blender, three.js and "
-                    "compositors (docs/export.md).",
-        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+        "compositors (docs/export.md).",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     p.add_argument("source", metavar="SOURCE", help="<stem>.frames.jsonl of arshadow video, or a render report")
-    p.add_argument("-o", "--output", action="append", required=True, metavar="OUT",
-                   help="output file: .glb, .gltf, .json or .csv (repeat for several)")
+    p.add_argument(
+        "-o",
+        "--output",
+        action="append",
+        required=True,
+        metavar="OUT",
+        help="output file: .glb, .gltf, .json or .csv (repeat for several)",
+    )
     g = p.add_mutually_exclusive_group(required=True)
     g.add_argument("--config", metavar="JOB", help="the job file of the run (calibration and model)")
     g.add_argument("--calib", metavar="C", help="calibration file of the run")
@@ -37,12 +46,24 @@ def register(subparsers) -> None:
     p.add_argument("--scale", type=float, default=1.0, metavar="S")
     p.add_argument("--rotate", default="0,0,0", metavar="RX,RY,RZ")
     p.add_argument("--place", default="0,0,0", metavar="X,Y,Z")
-    p.add_argument("--ground-size", type=float, default=None, metavar="S",
-                   help="side of the proxy ground square in metres (default: the job's, else 1)")
-    p.add_argument("--size", metavar="W,H", help="the frames' size, when it differs from the calibration's "
-                                                 "(same aspect ratio: K is scaled)")
-    p.add_argument("--lost", choices=("held", "absent"), default="held",
-                   help="marker-lost frames: keyed with the last pose (held, default) or without a key")
+    p.add_argument(
+        "--ground-size",
+        type=float,
+        default=None,
+        metavar="S",
+        help="side of the proxy ground square in metres (default: the job's, else 1)",
+    )
+    p.add_argument(
+        "--size",
+        metavar="W,H",
+        help="the frames' size, when it differs from the calibration's (same aspect ratio: K is scaled)",
+    )
+    p.add_argument(
+        "--lost",
+        choices=("held", "absent"),
+        default="held",
+        help="marker-lost frames: keyed with the last pose (held, default) or without a key",
+    )
     p.add_argument("--fps", type=float, default=1.0, metavar="F", help="photo sets: photos per second (default 1)")
     p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show tracebacks")
     p.set_defaults(func=run)
@@ -71,8 +92,9 @@ def run(args) -> int:
     else:
         intr = Intrinsics.from_file(args.calib)
         if args.model:
-            caster = load_occluder(args.model, args.scale, parse_triple(args.rotate, "--rotate"),
-                                   parse_triple(args.place, "--place"))
+            caster = load_occluder(
+                args.model, args.scale, parse_triple(args.rotate, "--rotate"), parse_triple(args.place, "--place")
+            )
     if args.size:
         w, h = parse_triple(args.size + ",0", "--size")[:2]
         intr = intr.scaled(int(w), int(h))
@@ -92,4 +114,3 @@ def run(args) -> int:
         write_track(o, track, caster=caster, ground_size=ground or 1.0, lost=args.lost, interpolation=interp)
         print(f"{src} -> {o}  ({sum(1 for _ in track.keyed(args.lost))} of {len(track.frames)} frames keyed)")
     return EXIT_OK
-

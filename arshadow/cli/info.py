@@ -16,8 +16,9 @@ def register(subparsers) -> None:
         "Exit status 2 when no OpenGL context can be created (the message names the missing library).",
     )
     p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
-    p.add_argument("--backend", default=None,
-                   help="OpenGL backend: egl (default), x11, default; else $ARSHADOW_GL_BACKEND")
+    p.add_argument(
+        "--backend", default=None, help="OpenGL backend: egl (default), x11, default; else $ARSHADOW_GL_BACKEND"
+    )
     p.set_defaults(func=run)
 
 

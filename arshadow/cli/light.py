@@ -48,17 +48,37 @@ def _positive(text: str) -> float:
 def add_probe_options(p: argparse.ArgumentParser, run: bool = False) -> None:
     """The probe's options (``--probe``, ``--probe-place``, ``--probe-rotate``, ``--probe-scale``, ``--kind``);
     ``run``: of render / video / batch (the light measured first, from the run's inputs)."""
-    g = p.add_argument_group("the probe (reference object casting the real shadow)" + (
-        ": measure the light first, from the inputs (at most 30 frames), and use its light, shadow colour and "
-        "exposure as --light-from does (docs/light.md)" if run else ""))
+    g = p.add_argument_group(
+        "the probe (reference object casting the real shadow)"
+        + (
+            ": measure the light first, from the inputs (at most 30 frames), and use its light, shadow colour and "
+            "exposure as --light-from does (docs/light.md)"
+            if run
+            else ""
+        )
+    )
     g.add_argument("--probe", metavar="MODEL", help="mesh file (metres) or box:WX,WY,HZ / cylinder:R,H / sphere:R")
-    g.add_argument("--probe-place", type=_floats(3), default=(0.0, 0.0, 0.0), metavar="X,Y,Z",
-                   help="translation, metres, marker frame (applied last)")
-    g.add_argument("--probe-rotate", type=_floats(3), default=(0.0, 0.0, 0.0), metavar="RX,RY,RZ",
-                   help="degrees about x, then y, then z")
+    g.add_argument(
+        "--probe-place",
+        type=_floats(3),
+        default=(0.0, 0.0, 0.0),
+        metavar="X,Y,Z",
+        help="translation, metres, marker frame (applied last)",
+    )
+    g.add_argument(
+        "--probe-rotate",
+        type=_floats(3),
+        default=(0.0, 0.0, 0.0),
+        metavar="RX,RY,RZ",
+        help="degrees about x, then y, then z",
+    )
     g.add_argument("--probe-scale", type=_positive, default=1.0, metavar="S", help="uniform scale (first)")
-    g.add_argument("--kind", default="directional", metavar="K",
-                   help="directional (default), point, or sun:LAT,LON,TIME (fits the world's bearing NORTH)")
+    g.add_argument(
+        "--kind",
+        default="directional",
+        metavar="K",
+        help="directional (default), point, or sun:LAT,LON,TIME (fits the world's bearing NORTH)",
+    )
 
 
 #: frames a render / video / batch run's --probe estimate uses at most (photos evenly spaced; video frames)
@@ -90,19 +110,36 @@ def probe_estimate(args, inputs, *, calib, marker_length, dictionary=None, marke
     else:
         k = min(len(photos), PROBE_FRAMES)
         use, per = [photos[round(i * (len(photos) - 1) / max(k - 1, 1))] for i in range(k)], 1
-    est = estimate_light(use, calib=calib, marker_length=marker_length, probe=args.probe,
-                         probe_place=args.probe_place, probe_rotate=args.probe_rotate, probe_scale=args.probe_scale,
-                         dictionary=dictionary, marker_id=marker_id, kind=args.kind, max_frames=per)
-    print(f"light: {est.light} (+-{est.uncertainty_deg:.2f} deg, {est.frames} frame(s)), shadow ratio "
-          + " ".join(f"{v:.3f}" for v in est.shadow_ratio), file=sys.stderr)
+    est = estimate_light(
+        use,
+        calib=calib,
+        marker_length=marker_length,
+        probe=args.probe,
+        probe_place=args.probe_place,
+        probe_rotate=args.probe_rotate,
+        probe_scale=args.probe_scale,
+        dictionary=dictionary,
+        marker_id=marker_id,
+        kind=args.kind,
+        max_frames=per,
+    )
+    print(
+        f"light: {est.light} (+-{est.uncertainty_deg:.2f} deg, {est.frames} frame(s)), shadow ratio "
+        + " ".join(f"{v:.3f}" for v in est.shadow_ratio),
+        file=sys.stderr,
+    )
     for w in est.warnings:
         print(f"warning: {w}", file=sys.stderr)
     return type(est).from_dict(est.to_dict())  # the numbers its JSON holds: the same run as --light-from
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("light", help="measure the light, shadow colour and exposure from a probe's real shadow",
-                              description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = subparsers.add_parser(
+        "light",
+        help="measure the light, shadow colour and exposure from a probe's real shadow",
+        description=DESCRIPTION,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     p.add_argument("inputs", nargs="+", metavar="PHOTO|VIDEO")
     p.add_argument("--calib", required=True, metavar="C", help="camera calibration (OpenCV YAML/XML/JSON, ROS)")
     p.add_argument("--marker-length", required=True, type=_positive, metavar="M", help="printed marker side, metres")
@@ -121,22 +158,36 @@ def run(args) -> int:
 
     if not args.probe:
         raise UsageError("give --probe MODEL: the reference object whose real shadow is measured")
-    est = estimate_light(args.inputs, calib=args.calib, marker_length=args.marker_length, probe=args.probe,
-                         probe_place=args.probe_place, probe_rotate=args.probe_rotate, probe_scale=args.probe_scale,
-                         dictionary=args.dictionary, marker_id=args.marker_id, kind=args.kind)
+    est = estimate_light(
+        args.inputs,
+        calib=args.calib,
+        marker_length=args.marker_length,
+        probe=args.probe,
+        probe_place=args.probe_place,
+        probe_rotate=args.probe_rotate,
+        probe_scale=args.probe_scale,
+        dictionary=args.dictionary,
+        marker_id=args.marker_id,
+        kind=args.kind,
+    )
     if args.output:
         write_json(args.output, est.to_dict())
     if args.json:
         print(est.to_json())
         return 0
     print(f"light           {est.light}")
-    print(f"uncertainty     {est.uncertainty_deg:.2f} deg (1 sigma)" + (
-        f", position {1000 * est.position_uncertainty:.0f} mm" if est.position_uncertainty is not None else ""))
+    print(
+        f"uncertainty     {est.uncertainty_deg:.2f} deg (1 sigma)"
+        + (f", position {1000 * est.position_uncertainty:.0f} mm" if est.position_uncertainty is not None else "")
+    )
     print("shadow ratio    R {:.3f}  G {:.3f}  B {:.3f}  (linear, shadow / lit)".format(*est.shadow_ratio))
     if est.exposure is not None:
         e = est.exposure
-        print("paper (linear)  R {:.3f}  G {:.3f}  B {:.3f}  white balance {:.3f} {:.3f} {:.3f}".format(
-            *e.paper_rgb, *e.white_balance))
+        print(
+            "paper (linear)  R {:.3f}  G {:.3f}  B {:.3f}  white balance {:.3f} {:.3f} {:.3f}".format(
+                *e.paper_rgb, *e.white_balance
+            )
+        )
     for w in est.warnings:
         print(f"warning: {w}", file=sys.stderr)
     return 0

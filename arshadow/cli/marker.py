@@ -29,20 +29,32 @@ Write a printable grid or ChArUco board from a board file (--board, schema in ca
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("marker", help="printable ArUco marker (PNG with DPI, optional SVG)",
-                              description=MARKER_DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = subparsers.add_parser(
+        "marker",
+        help="printable ArUco marker (PNG with DPI, optional SVG)",
+        description=MARKER_DESCRIPTION,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     p.add_argument("--id", type=int, required=True, metavar="N", help="marker id")
-    p.add_argument("--dictionary", default="DICT_6X6_250", metavar="D", help="dictionary name or file (default DICT_6X6_250)")
+    p.add_argument(
+        "--dictionary", default="DICT_6X6_250", metavar="D", help="dictionary name or file (default DICT_6X6_250)"
+    )
     p.add_argument("--length-mm", type=float, required=True, metavar="L", help="printed side of the black square, mm")
-    p.add_argument("--margin-mm", type=float, default=10.0, metavar="MM", help="white margin around it, mm (default 10)")
+    p.add_argument(
+        "--margin-mm", type=float, default=10.0, metavar="MM", help="white margin around it, mm (default 10)"
+    )
     p.add_argument("--dpi", type=float, default=300.0, help="target resolution (default 300)")
     p.add_argument("--svg", action="store_true", help="also write an SVG beside the PNG")
     p.add_argument("--no-caption", action="store_true", help="no caption text in the margin")
     p.add_argument("-o", "--output", required=True, metavar="FILE", help="output .png (or .svg)")
     p.set_defaults(func=run_marker)
 
-    b = subparsers.add_parser("board", help="printable grid / ChArUco board (PNG with DPI, optional SVG)",
-                              description=BOARD_DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
+    b = subparsers.add_parser(
+        "board",
+        help="printable grid / ChArUco board (PNG with DPI, optional SVG)",
+        description=BOARD_DESCRIPTION,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     b.add_argument("--board", metavar="FILE", help="board file (YAML/JSON)")
     b.add_argument("--type", choices=("gridboard", "charuco"), help="board type (without --board)")
     b.add_argument("--size", metavar="COLS,ROWS", help="markers (gridboard) or squares (charuco)")
@@ -83,9 +95,9 @@ def read_png_dpi(data: bytes) -> float | None:
     """DPI from a PNG's pHYs chunk (None if absent or not in metres)."""
     pos = 8
     while pos + 8 <= len(data):
-        n, typ = struct.unpack(">I4s", data[pos:pos + 8])
+        n, typ = struct.unpack(">I4s", data[pos : pos + 8])
         if typ == b"pHYs":
-            x, y, unit = struct.unpack(">IIB", data[pos + 8:pos + 17])
+            x, y, unit = struct.unpack(">IIB", data[pos + 8 : pos + 17])
             return x * 0.0254 if unit == 1 else None
         if typ == b"IDAT":
             return None
@@ -104,8 +116,10 @@ def _svg(width_mm, height_mm, rects, caption=None, caption_y=None) -> str:
     for x, y, w, h in rects:
         out.append(f'<rect x="{x:.4f}" y="{y:.4f}" width="{w:.4f}" height="{h:.4f}" fill="#000000"/>')
     if caption:
-        out.append(f'<text x="{width_mm / 2:.4f}" y="{caption_y:.4f}" font-family="sans-serif" font-size="2.5" '
-                   f'text-anchor="middle" fill="#808080">{caption}</text>')
+        out.append(
+            f'<text x="{width_mm / 2:.4f}" y="{caption_y:.4f}" font-family="sans-serif" font-size="2.5" '
+            f'text-anchor="middle" fill="#808080">{caption}</text>'
+        )
     out.append("</svg>")
     return "\n".join(out) + "\n"
 
@@ -169,23 +183,28 @@ def run_marker(args) -> int:
         margin = int(round(args.margin_mm * ppmm))
         side = px_cell * cells
         img = np.full((side + 2 * margin, side + 2 * margin), 255, np.uint8)
-        img[margin:margin + side, margin:margin + side] = np.kron(bits.astype(np.uint8) * 255,
-                                                                  np.ones((px_cell, px_cell), np.uint8))
+        img[margin : margin + side, margin : margin + side] = np.kron(
+            bits.astype(np.uint8) * 255, np.ones((px_cell, px_cell), np.uint8)
+        )
         if caption:
             scale = max(0.3, 2.5 * ppmm / 22.0)
             (tw, th), _ = cv2.getTextSize(caption, cv2.FONT_HERSHEY_SIMPLEX, scale, 1)
             y = margin + side + min(margin - 2, int(margin * 0.6) + th // 2)
             if th < margin:
-                cv2.putText(img, caption, ((img.shape[1] - tw) // 2, y), cv2.FONT_HERSHEY_SIMPLEX, scale, 128, 1,
-                            cv2.LINE_AA)
+                cv2.putText(
+                    img, caption, ((img.shape[1] - tw) // 2, y), cv2.FONT_HERSHEY_SIMPLEX, scale, 128, 1, cv2.LINE_AA
+                )
         write_bytes(png, png_with_dpi(img, ppmm * 1000.0))
-        print(f"wrote {png}: {img.shape[1]}x{img.shape[0]} px at {ppmm * 25.4:.2f} dpi; marker side "
-              f"{side / ppmm:.3f} mm when printed at 100 %")
+        print(
+            f"wrote {png}: {img.shape[1]}x{img.shape[0]} px at {ppmm * 25.4:.2f} dpi; marker side "
+            f"{side / ppmm:.3f} mm when printed at 100 %"
+        )
     if svg is not None:
         m = args.margin_mm
         total = args.length_mm + 2 * m
-        write_bytes(svg, _svg(total, total, _bits_rects(bits, m, m, cell_mm), caption,
-                              m + args.length_mm + 0.6 * m).encode())
+        write_bytes(
+            svg, _svg(total, total, _bits_rects(bits, m, m, cell_mm), caption, m + args.length_mm + 0.6 * m).encode()
+        )
         print(f"wrote {svg}: {total:g} x {total:g} mm, marker side {args.length_mm:g} mm")
     return 0
 
@@ -197,8 +216,9 @@ def _board_from_args(args):
     if args.board:
         return load_board(args.board)
     if not args.type or not args.size or args.marker_mm is None:
-        raise UsageError("give --board FILE, or --type, --size COLS,ROWS and --marker-mm (plus --square-mm or "
-                         "--separation-mm)")
+        raise UsageError(
+            "give --board FILE, or --type, --size COLS,ROWS and --marker-mm (plus --square-mm or --separation-mm)"
+        )
     try:
         cols, rows = (int(v) for v in args.size.split(","))
     except ValueError:
@@ -206,12 +226,24 @@ def _board_from_args(args):
     if args.type == "charuco":
         if args.square_mm is None:
             raise UsageError("a ChArUco board needs --square-mm")
-        return Board("charuco", (cols, rows), args.marker_mm / 1000, dictionary=args.dictionary,
-                     square_length=args.square_mm / 1000, first_id=args.first_id)
+        return Board(
+            "charuco",
+            (cols, rows),
+            args.marker_mm / 1000,
+            dictionary=args.dictionary,
+            square_length=args.square_mm / 1000,
+            first_id=args.first_id,
+        )
     if args.separation_mm is None:
         raise UsageError("a grid board needs --separation-mm")
-    return Board("gridboard", (cols, rows), args.marker_mm / 1000, dictionary=args.dictionary,
-                 marker_separation=args.separation_mm / 1000, first_id=args.first_id)
+    return Board(
+        "gridboard",
+        (cols, rows),
+        args.marker_mm / 1000,
+        dictionary=args.dictionary,
+        marker_separation=args.separation_mm / 1000,
+        first_id=args.first_id,
+    )
 
 
 def run_board(args) -> int:
@@ -233,8 +265,10 @@ def run_board(args) -> int:
         v = tex[:, :, 0]
         img = np.clip((v - INK_BLACK) / (PAPER_WHITE - INK_BLACK) * 255.0 + 0.5, 0, 255).astype(np.uint8)
         write_bytes(png, png_with_dpi(img, ppm))
-        print(f"wrote {png}: {img.shape[1]}x{img.shape[0]} px at {args.dpi:g} dpi; board "
-              f"{1000 * bw:g} x {1000 * bh:g} mm when printed at 100 %")
+        print(
+            f"wrote {png}: {img.shape[1]}x{img.shape[0]} px at {args.dpi:g} dpi; board "
+            f"{1000 * bw:g} x {1000 * bh:g} mm when printed at 100 %"
+        )
     if svg is not None:
         rects = []
         for sq in board.black_squares_world:
@@ -246,4 +280,3 @@ def run_board(args) -> int:
         write_bytes(svg, _svg(1000 * (bw + 2 * m), 1000 * (bh + 2 * m), rects).encode())
         print(f"wrote {svg}: {1000 * (bw + 2 * m):g} x {1000 * (bh + 2 * m):g} mm")
     return 0
-

@@ -20,22 +20,45 @@ are still processed), 2 bad usage or unreadable calibration / board / dictionary
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("pose", help="marker / board pose per photo (ids, rvec, tvec, error, ambiguity)",
-                              description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = subparsers.add_parser(
+        "pose",
+        help="marker / board pose per photo (ids, rvec, tvec, error, ambiguity)",
+        description=DESCRIPTION,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     p.add_argument("images", nargs="+", metavar="IMAGE", help="photos (anything OpenCV reads)")
-    p.add_argument("--calib", required=True, metavar="FILE",
-                   help="camera calibration (OpenCV YAML/XML/JSON or ROS camera_info YAML)")
-    p.add_argument("--dictionary", metavar="D",
-                   help="ArUco dictionary name or custom dictionary file (default DICT_6X6_250; a --board file "
-                        "names its own)")
+    p.add_argument(
+        "--calib",
+        required=True,
+        metavar="FILE",
+        help="camera calibration (OpenCV YAML/XML/JSON or ROS camera_info YAML)",
+    )
+    p.add_argument(
+        "--dictionary",
+        metavar="D",
+        help="ArUco dictionary name or custom dictionary file (default DICT_6X6_250; a --board file names its own)",
+    )
     g = p.add_mutually_exclusive_group()
     g.add_argument("--marker-length", type=float, metavar="M", help="printed marker side, metres")
     g.add_argument("--board", metavar="FILE", help="board file (gridboard or charuco; see calib/README.md)")
-    p.add_argument("--marker-id", type=int, metavar="N", help="use only this marker id as the reference (default: the lowest id found)")
-    p.add_argument("--inverted", action="store_true", default=None,
-                   help="the markers are printed white on black (a board file may say 'inverted: 1')")
-    p.add_argument("--refine", default=None, choices=("none", "subpix", "contour", "apriltag"),
-                   help="corner refinement (default: subpix, or the --detector-params file's own)")
+    p.add_argument(
+        "--marker-id",
+        type=int,
+        metavar="N",
+        help="use only this marker id as the reference (default: the lowest id found)",
+    )
+    p.add_argument(
+        "--inverted",
+        action="store_true",
+        default=None,
+        help="the markers are printed white on black (a board file may say 'inverted: 1')",
+    )
+    p.add_argument(
+        "--refine",
+        default=None,
+        choices=("none", "subpix", "contour", "apriltag"),
+        help="corner refinement (default: subpix, or the --detector-params file's own)",
+    )
     p.add_argument("--detector-params", metavar="FILE", help="cv2.aruco.DetectorParameters YAML file")
     p.add_argument("--json", action="store_true", help="print the JSON report (CONVENTIONS.md) on stdout")
     p.add_argument("--report", metavar="PATH", help="also write the JSON report to PATH")
@@ -59,23 +82,34 @@ def run(args) -> int:
         raise UsageError(f"--marker-length must be a positive number of metres, got {args.marker_length}")
     intr = Intrinsics.from_file(args.calib)
     refine = args.refine if args.refine is not None else (None if args.detector_params else DEFAULT_REFINE)
-    tracker = MarkerTracker(intr, dictionary=args.dictionary, marker_length=args.marker_length,
-                            marker_id=args.marker_id, board=args.board, refine=refine, inverted=args.inverted,
-                            detector_params=args.detector_params)
+    tracker = MarkerTracker(
+        intr,
+        dictionary=args.dictionary,
+        marker_length=args.marker_length,
+        marker_id=args.marker_id,
+        board=args.board,
+        refine=refine,
+        inverted=args.inverted,
+        detector_params=args.detector_params,
+    )
 
     def done(name, item, pose, image, err):
         if err is not None:
             msg = str(err)
-            print(f"arshadow pose: error: {msg}" if msg.startswith(str(name)) else error_line("pose", str(name), err),
-                  file=sys.stderr)
+            print(
+                f"arshadow pose: error: {msg}" if msg.startswith(str(name)) else error_line("pose", str(name), err),
+                file=sys.stderr,
+            )
         elif not args.json:
             amb = "n/a" if pose.pose_ambiguity is None else f"{pose.pose_ambiguity:.3f}"
-            print(f"{name}: ids {item.marker_ids} rvec [{', '.join(f'{v:.6f}' for v in pose.rvec)}] "
-                  f"tvec [{', '.join(f'{v:.6f}' for v in pose.tvec)}] m, reprojection "
-                  f"{pose.reprojection_error_px:.3f} px, ambiguity {amb}"
-                  + (" AMBIGUOUS" if pose.ambiguous else (" FLAGGED" if pose.flagged else ""))
-                  + (f" ({'; '.join(pose.flag_reasons)})" if pose.flagged else "")
-                  + (f" (calibration scaled to {image.shape[1]}x{image.shape[0]})" if pose.scaled else ""))
+            print(
+                f"{name}: ids {item.marker_ids} rvec [{', '.join(f'{v:.6f}' for v in pose.rvec)}] "
+                f"tvec [{', '.join(f'{v:.6f}' for v in pose.tvec)}] m, reprojection "
+                f"{pose.reprojection_error_px:.3f} px, ambiguity {amb}"
+                + (" AMBIGUOUS" if pose.ambiguous else (" FLAGGED" if pose.flagged else ""))
+                + (f" ({'; '.join(pose.flag_reasons)})" if pose.flagged else "")
+                + (f" (calibration scaled to {image.shape[1]}x{image.shape[0]})" if pose.scaled else "")
+            )
 
     items = track_photos(tracker, args.images, overlay_dir=args.overlay, on_done=done)
     failed = sum(i.status != "ok" for i in items)

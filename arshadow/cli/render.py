@@ -29,6 +29,7 @@ exit status: 0 all done, 1 some inputs failed (the others were processed), 2 bad
 
 def _triple(what: str):
     """An argparse type over :func:`arshadow.scene.parse_triple` (a bad value: a usage error, exit 2)."""
+
     def parse(text: str):
         try:
             return parse_triple(text, what)
@@ -54,90 +55,178 @@ def _positive(what: str, integer: bool = False):
 def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> None:
     """Options shared by ``render`` (and usable by the video command): calibration, marker, model, lights."""
     g = p.add_argument_group("camera and marker")
-    g.add_argument("--calib", required=require, metavar="C",
-                   help="calibration file (OpenCV YAML/XML/JSON or ROS camera_info YAML)")
+    g.add_argument(
+        "--calib", required=require, metavar="C", help="calibration file (OpenCV YAML/XML/JSON or ROS camera_info YAML)"
+    )
     m = g.add_mutually_exclusive_group()
-    m.add_argument("--marker-length", type=_positive("--marker-length"), metavar="M",
-                   help="side of the printed marker in metres (single-marker mode)")
+    m.add_argument(
+        "--marker-length",
+        type=_positive("--marker-length"),
+        metavar="M",
+        help="side of the printed marker in metres (single-marker mode)",
+    )
     m.add_argument("--board", metavar="B", help="board file (GridBoard or ChArUco) instead of one marker")
-    g.add_argument("--dictionary", metavar="D",
-                   help="ArUco dictionary name or custom dictionary file (default DICT_6X6_250; a --board file "
-                        "names its own)")
-    g.add_argument("--marker-id", type=int, metavar="N", help="use only this marker id as the reference (default: the lowest id found)")
-    g.add_argument("--inverted", action="store_true", default=None,
-                   help="the markers are printed white on black (a board file may say 'inverted: 1')")
+    g.add_argument(
+        "--dictionary",
+        metavar="D",
+        help="ArUco dictionary name or custom dictionary file (default DICT_6X6_250; a --board file names its own)",
+    )
+    g.add_argument(
+        "--marker-id",
+        type=int,
+        metavar="N",
+        help="use only this marker id as the reference (default: the lowest id found)",
+    )
+    g.add_argument(
+        "--inverted",
+        action="store_true",
+        default=None,
+        help="the markers are printed white on black (a board file may say 'inverted: 1')",
+    )
     o = p.add_argument_group("virtual object")
-    o.add_argument("--model", required=require, metavar="M",
-                   help="mesh file (OBJ/PLY/STL/GLB/OFF, metres) or primitive box:WX,WY,HZ | cylinder:R,H | "
-                        "sphere:R | torus:R,r")
+    o.add_argument(
+        "--model",
+        required=require,
+        metavar="M",
+        help="mesh file (OBJ/PLY/STL/GLB/OFF, metres) or primitive box:WX,WY,HZ | cylinder:R,H | sphere:R | torus:R,r",
+    )
     o.add_argument("--scale", type=_positive("--scale"), default=1.0, metavar="S", help="uniform scale (first)")
-    o.add_argument("--rotate", type=_triple("--rotate"), default=(0.0, 0.0, 0.0), metavar="RX,RY,RZ",
-                   help="rotation in degrees, XYZ order (after scale); a negative first number is fine: "
-                        "--rotate -90,0,0")
-    o.add_argument("--place", type=_triple("--place"), default=(0.0, 0.0, 0.0), metavar="X,Y,Z",
-                   help="translation in metres, world (marker) frame (last); a negative first number is fine: "
-                        "--place -0.05,0,0")
-    o.add_argument("--up", choices=("y", "z"), metavar="y|z",
-                   help="the mesh file's up axis, turned to the world's +z first (default: y for glTF "
-                        ".glb/.gltf, which is Y-up by specification; z for OBJ/PLY/STL/OFF). Blender's OBJ "
-                        "export is Y-up: --up y")
-    o.add_argument("--drop-to-ground", action="store_true",
-                   help="stand the model on the ground: after scale and rotate, move it along z so that its "
-                        "lowest point is at z = 0 (for meshes centred on their origin); --place then adds")
-    o.add_argument("--color", metavar="R,G,B",
-                   help="object colour, 8-bit sRGB 0..255 or #rrggbb (default: the mesh's own)")
+    o.add_argument(
+        "--rotate",
+        type=_triple("--rotate"),
+        default=(0.0, 0.0, 0.0),
+        metavar="RX,RY,RZ",
+        help="rotation in degrees, XYZ order (after scale); a negative first number is fine: --rotate -90,0,0",
+    )
+    o.add_argument(
+        "--place",
+        type=_triple("--place"),
+        default=(0.0, 0.0, 0.0),
+        metavar="X,Y,Z",
+        help="translation in metres, world (marker) frame (last); a negative first number is fine: --place -0.05,0,0",
+    )
+    o.add_argument(
+        "--up",
+        choices=("y", "z"),
+        metavar="y|z",
+        help="the mesh file's up axis, turned to the world's +z first (default: y for glTF "
+        ".glb/.gltf, which is Y-up by specification; z for OBJ/PLY/STL/OFF). Blender's OBJ "
+        "export is Y-up: --up y",
+    )
+    o.add_argument(
+        "--drop-to-ground",
+        action="store_true",
+        help="stand the model on the ground: after scale and rotate, move it along z so that its "
+        "lowest point is at z = 0 (for meshes centred on their origin); --place then adds",
+    )
+    o.add_argument(
+        "--color", metavar="R,G,B", help="object colour, 8-bit sRGB 0..255 or #rrggbb (default: the mesh's own)"
+    )
     s = p.add_argument_group("lights and shadows")
-    s.add_argument("--light-from", metavar="FILE",
-                   help="a measured light (arshadow light ... -o FILE, docs/light.md): its light (unless --light "
-                        "is given), its shadow colour (instead of --opacity/--shadow-color) and the marker's exposure")
-    s.add_argument("--no-exposure", action="store_true",
-                   help="keep the object's colour as given: no exposure / white balance match to the marker paper "
-                        "(on by default, every photo and video frame; docs/light.md)")
-    s.add_argument("--light", action="append", metavar="L",
-                   help="point:X,Y,Z | directional:X,Y,Z | sun:LAT,LON,TIME[,NORTH], optional @W weight; "
-                        "repeat for several lights")
-    s.add_argument("--soft-samples", type=_positive("--soft-samples", integer=True), default=1, metavar="N",
-                   help="samples per area light (lights with radius=...; sun: its 0.266 deg disc); 1 = hard")
-    s.add_argument("--silhouette", default="adjacency", metavar="NAME",
-                   help="silhouette detector: adjacency (default), triangular, vnv, hsd, delta_plus")
-    s.add_argument("--shadow-method", choices=("volume", "planar", "shadowmap"), default="volume",
-                   help="stencil shadow volumes (default, exact), planar projection shadows, or a shadow map "
-                        "(the baseline of three.js / pyrender: approximate; see docs/benchmarks.md)")
-    s.add_argument("--shadowmap-size", type=_positive("--shadowmap-size", integer=True), default=2048,
-                   metavar="N", help="shadow map side in texels with --shadow-method shadowmap (default 2048)")
-    s.add_argument("--opacity", type=float, default=0.7, metavar="O",
-                   help="darkness of a full shadow, 0..1 (default 0.7)")
-    s.add_argument("--shadow-color", metavar="R,G,B",
-                   help="tint of a full shadow, 8-bit sRGB R,G,B or #rrggbb (default black)")
-    s.add_argument("--aa", type=int, default=DEFAULT_AA, metavar="N",
-                   help=f"multisample anti-aliasing samples, {DEFAULT_AA} (default, as arshadow demo: pixel-centre "
-                        "sampling, the fastest), "
-                        "2 or 4 (smoother edges; ~5x the render time on a CPU renderer, see "
-                        "docs/compositing.md)")
-    s.add_argument("--ground-size", type=_positive("--ground-size"), metavar="S",
-                   help="side of the square shadow-catching ground plane in metres (default unlimited)")
-    s.add_argument("--ground", metavar="SPEC",
-                   help="where the ground is, relative to the marker: marker (default: the marker plane), wall:H "
-                        "(marker upright on a wall, floor H m below its centre) or plane:PX,PY,PZ,NX,NY,NZ "
-                        "(point and up normal in the marker frame); the model and lights are placed in the "
-                        "ground's frame (docs/geometry.md)")
+    s.add_argument(
+        "--light-from",
+        metavar="FILE",
+        help="a measured light (arshadow light ... -o FILE, docs/light.md): its light (unless --light "
+        "is given), its shadow colour (instead of --opacity/--shadow-color) and the marker's exposure",
+    )
+    s.add_argument(
+        "--no-exposure",
+        action="store_true",
+        help="keep the object's colour as given: no exposure / white balance match to the marker paper "
+        "(on by default, every photo and video frame; docs/light.md)",
+    )
+    s.add_argument(
+        "--light",
+        action="append",
+        metavar="L",
+        help="point:X,Y,Z | directional:X,Y,Z | sun:LAT,LON,TIME[,NORTH], optional @W weight; "
+        "repeat for several lights",
+    )
+    s.add_argument(
+        "--soft-samples",
+        type=_positive("--soft-samples", integer=True),
+        default=1,
+        metavar="N",
+        help="samples per area light (lights with radius=...; sun: its 0.266 deg disc); 1 = hard",
+    )
+    s.add_argument(
+        "--silhouette",
+        default="adjacency",
+        metavar="NAME",
+        help="silhouette detector: adjacency (default), triangular, vnv, hsd, delta_plus",
+    )
+    s.add_argument(
+        "--shadow-method",
+        choices=("volume", "planar", "shadowmap"),
+        default="volume",
+        help="stencil shadow volumes (default, exact), planar projection shadows, or a shadow map "
+        "(the baseline of three.js / pyrender: approximate; see docs/benchmarks.md)",
+    )
+    s.add_argument(
+        "--shadowmap-size",
+        type=_positive("--shadowmap-size", integer=True),
+        default=2048,
+        metavar="N",
+        help="shadow map side in texels with --shadow-method shadowmap (default 2048)",
+    )
+    s.add_argument(
+        "--opacity", type=float, default=0.7, metavar="O", help="darkness of a full shadow, 0..1 (default 0.7)"
+    )
+    s.add_argument(
+        "--shadow-color", metavar="R,G,B", help="tint of a full shadow, 8-bit sRGB R,G,B or #rrggbb (default black)"
+    )
+    s.add_argument(
+        "--aa",
+        type=int,
+        default=DEFAULT_AA,
+        metavar="N",
+        help=f"multisample anti-aliasing samples, {DEFAULT_AA} (default, as arshadow demo: pixel-centre "
+        "sampling, the fastest), "
+        "2 or 4 (smoother edges; ~5x the render time on a CPU renderer, see "
+        "docs/compositing.md)",
+    )
+    s.add_argument(
+        "--ground-size",
+        type=_positive("--ground-size"),
+        metavar="S",
+        help="side of the square shadow-catching ground plane in metres (default unlimited)",
+    )
+    s.add_argument(
+        "--ground",
+        metavar="SPEC",
+        help="where the ground is, relative to the marker: marker (default: the marker plane), wall:H "
+        "(marker upright on a wall, floor H m below its centre) or plane:PX,PY,PZ,NX,NY,NZ "
+        "(point and up normal in the marker frame); the model and lights are placed in the "
+        "ground's frame (docs/geometry.md)",
+    )
     s.add_argument("--no-object", action="store_true", help="composite only the shadow, not the object")
     add_probe_options(p, run=True)
-    s.add_argument("--plan", choices=("auto", "general", "zpass", "zfail", "planar"), default="auto",
-                   help="frame planner: auto (default: the cheapest exact path per frame and light, decisions "
-                        "in the report's plan field), general (reference: z-fail, infinite volumes, whole "
-                        "photo, no reuse or culling), or force zpass / zfail / planar (docs/planner.md)")
-    s.add_argument("--compose", choices=("auto", "cpu", "gpu"), default="auto",
-                   help="lens warp + composite in numpy (cpu) or in a shader (gpu); auto (default) times both "
-                        "on the first photo of each size and keeps numpy unless the shader is > 15 %% faster")
+    s.add_argument(
+        "--plan",
+        choices=("auto", "general", "zpass", "zfail", "planar"),
+        default="auto",
+        help="frame planner: auto (default: the cheapest exact path per frame and light, decisions "
+        "in the report's plan field), general (reference: z-fail, infinite volumes, whole "
+        "photo, no reuse or culling), or force zpass / zfail / planar (docs/planner.md)",
+    )
+    s.add_argument(
+        "--compose",
+        choices=("auto", "cpu", "gpu"),
+        default="auto",
+        help="lens warp + composite in numpy (cpu) or in a shader (gpu); auto (default) times both "
+        "on the first photo of each size and keeps numpy unless the shader is > 15 %% faster",
+    )
 
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "render", help="composite a virtual object and its shadow into photos",
+        "render",
+        help="composite a virtual object and its shadow into photos",
         description="Detect the marker or board in each photo, place the object in its frame, and composite "
-                    "the object and its exact shadow (stencil shadow volumes) into the photo.",
-        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+        "the object and its exact shadow (stencil shadow volumes) into the photo.",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     p.add_argument("images", nargs="+", metavar="IMAGE", help="photos, folders of photos, or glob patterns")
     add_scene_options(p)
     out = p.add_argument_group("output")
@@ -145,18 +234,29 @@ def register(subparsers) -> None:
     out.add_argument("--save-mask", action="store_true", help="also write <stem>.shadow.png")
     out.add_argument("--report", metavar="R.json", help="write the JSON report of every input")
     out.add_argument("--keep-format", action="store_true", help="write the input's format instead of PNG")
-    out.add_argument("--layers", action="store_true",
-                     help="also write the compositing layers: <stem>.object, <stem>.shadow.mult (multiply pass), "
-                          "<stem>.shadow.only (black with alpha); plate x shadow.mult + object = the composite "
-                          "in linear light (docs/export.md)")
-    out.add_argument("--layers-format", choices=("png", "exr"), default="png",
-                     help="16-bit PNG (default) or half-float linear OpenEXR (needs arshadow[exr])")
-    out.add_argument("--layers-undistorted", action="store_true",
-                     help="with --layers: also the layers in the undistorted (pinhole) camera, "
-                          "<stem>.undistorted.*, and the ST-map that distorts them onto the photo, <stem>.stmap.*"),
+    out.add_argument(
+        "--layers",
+        action="store_true",
+        help="also write the compositing layers: <stem>.object, <stem>.shadow.mult (multiply pass), "
+        "<stem>.shadow.only (black with alpha); plate x shadow.mult + object = the composite "
+        "in linear light (docs/export.md)",
+    )
+    out.add_argument(
+        "--layers-format",
+        choices=("png", "exr"),
+        default="png",
+        help="16-bit PNG (default) or half-float linear OpenEXR (needs arshadow[exr])",
+    )
+    (
+        out.add_argument(
+            "--layers-undistorted",
+            action="store_true",
+            help="with --layers: also the layers in the undistorted (pinhole) camera, "
+            "<stem>.undistorted.*, and the ST-map that distorts them onto the photo, <stem>.stmap.*",
+        ),
+    )
     out.add_argument("--quiet", "-q", action="store_true", help="no per-image progress lines or progress bar")
-    p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
-                   help="show tracebacks and debug logging")
+    p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show tracebacks and debug logging")
     p.set_defaults(func=run)
 
 
@@ -179,12 +279,24 @@ def run(args) -> int:
         check_output_file(args.report, "--report")
     undistorted = bool(getattr(args, "layers_undistorted", False))
     layers = args.layers_format if getattr(args, "layers", False) or undistorted else None
-    jobs = photo_jobs(inputs, outdir, save_mask=args.save_mask, keep_format=args.keep_format,
-                      layers_format=layers, layers_undistorted=undistorted)
+    jobs = photo_jobs(
+        inputs,
+        outdir,
+        save_mask=args.save_mask,
+        keep_format=args.keep_format,
+        layers_format=layers,
+        layers_undistorted=undistorted,
+    )
     if layers is not None:  # a layer file that would replace an input: a usage error, before any work
         refuse_overwrite([p for j in jobs for p in j.layers.values()], inputs)
-    est = probe_estimate(args, inputs, calib=args.calib, marker_length=args.marker_length,
-                         dictionary=args.dictionary, marker_id=args.marker_id)  # --probe: docs/light.md
+    est = probe_estimate(
+        args,
+        inputs,
+        calib=args.calib,
+        marker_length=args.marker_length,
+        dictionary=args.dictionary,
+        marker_id=args.marker_id,
+    )  # --probe: docs/light.md
     bar = None
     spec = scene_from_args(args) if est is None else scene_from_args(args, light_from=est)
     with Session(spec) as session:  # loads the scene: a bad one is exit 2
@@ -211,8 +323,11 @@ def run(args) -> int:
     failed = sum(i.status != "ok" for i in items)
     if not args.quiet and len(jobs) > 1:
         flagged = sum(1 for it in items if it.pose_flagged)
-        print(f"{len(jobs) - failed} of {len(jobs)} photos rendered into {outdir}: "
-              f"{len(jobs) - failed} done, {failed} failed, {flagged} flagged (ambiguous pose)", file=sys.stdout)
+        print(
+            f"{len(jobs) - failed} of {len(jobs)} photos rendered into {outdir}: "
+            f"{len(jobs) - failed} done, {failed} failed, {flagged} flagged (ambiguous pose)",
+            file=sys.stdout,
+        )
     return EXIT_SOME_FAILED if failed else EXIT_OK
 
 

@@ -33,20 +33,49 @@ def register(subparsers) -> None:
     p.add_argument("--lat", type=float, required=True, help="latitude, degrees (north positive), -90..90")
     p.add_argument("--lon", type=float, required=True, help="longitude, degrees (EAST positive), -180..180")
     p.add_argument("--time", required=True, help="ISO 8601 instant WITH a UTC offset, e.g. 2011-04-22T10:59+08:00")
-    p.add_argument("--elevation", type=float, default=0.0, metavar="M", help="observer height above sea level, m (default 0)")
-    p.add_argument("--north", type=float, default=0.0, metavar="DEG",
-                   help="compass bearing of the world +y axis, degrees clockwise from true north (default 0)")
-    p.add_argument("--sun-model", default="spa", choices=("spa", "paper", "paper-printed"),
-                   help="spa = NREL SPA (default, ~0.0003 deg); paper = paper 004's formula, corrected (~0.2 deg); "
-                        "paper-printed = its azimuth exactly as printed (wrong; for comparison)")
-    p.add_argument("--pressure", type=float, default=None, metavar="MBAR",
-                   help="mean local pressure for refraction, mbar (default: standard atmosphere at --elevation)")
-    p.add_argument("--temperature", type=float, default=12.0, metavar="C",
-                   help="mean local temperature for refraction, deg C (default 12)")
-    p.add_argument("--delta-t", type=float, default=None, metavar="S",
-                   help="TT - UT in seconds (default: Espenak & Meeus estimate for the date)")
-    p.add_argument("--refraction", action="store_true",
-                   help="use the apparent (refracted) sun for the world direction and the shadow")
+    p.add_argument(
+        "--elevation", type=float, default=0.0, metavar="M", help="observer height above sea level, m (default 0)"
+    )
+    p.add_argument(
+        "--north",
+        type=float,
+        default=0.0,
+        metavar="DEG",
+        help="compass bearing of the world +y axis, degrees clockwise from true north (default 0)",
+    )
+    p.add_argument(
+        "--sun-model",
+        default="spa",
+        choices=("spa", "paper", "paper-printed"),
+        help="spa = NREL SPA (default, ~0.0003 deg); paper = paper 004's formula, corrected (~0.2 deg); "
+        "paper-printed = its azimuth exactly as printed (wrong; for comparison)",
+    )
+    p.add_argument(
+        "--pressure",
+        type=float,
+        default=None,
+        metavar="MBAR",
+        help="mean local pressure for refraction, mbar (default: standard atmosphere at --elevation)",
+    )
+    p.add_argument(
+        "--temperature",
+        type=float,
+        default=12.0,
+        metavar="C",
+        help="mean local temperature for refraction, deg C (default 12)",
+    )
+    p.add_argument(
+        "--delta-t",
+        type=float,
+        default=None,
+        metavar="S",
+        help="TT - UT in seconds (default: Espenak & Meeus estimate for the date)",
+    )
+    p.add_argument(
+        "--refraction",
+        action="store_true",
+        help="use the apparent (refracted) sun for the world direction and the shadow",
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
 
@@ -67,8 +96,14 @@ def compute(args) -> dict:
 
     when = parse_time(args.time, "--time")
     pos = sun_position(
-        when, args.lat, args.lon, elevation=args.elevation, model=args.sun_model,
-        pressure_mbar=args.pressure, temperature_c=args.temperature, delta_t=args.delta_t,
+        when,
+        args.lat,
+        args.lon,
+        elevation=args.elevation,
+        model=args.sun_model,
+        pressure_mbar=args.pressure,
+        temperature_c=args.temperature,
+        delta_t=args.delta_t,
     )
     world, above = sun_light_direction(pos, args.north, refraction=args.refraction)
     enu = pos.apparent_enu if args.refraction else pos.enu

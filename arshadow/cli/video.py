@@ -32,34 +32,73 @@ FORMAT_CODEC = {"mp4": "h264", "mov": "h264", "mkv": "ffv1", "avi": "mjpeg"}
 
 def add_output_options(out) -> None:
     """The video output options shared by ``arshadow video`` and ``arshadow batch``."""
-    out.add_argument("--format", choices=FORMATS, default="mp4",
-                     help="container of the output video: mp4 (H.264, default), mov, mkv (FFV1 lossless), "
-                          "avi (MJPEG)")
-    out.add_argument("--codec", choices=("h264", "mpeg4", "mjpeg", "ffv1"),
-                     help="video codec (default: the container's, see --format)")
-    out.add_argument("--crf", type=float, default=20.0, metavar="Q",
-                     help="H.264 quality, constant rate factor 0 (lossless) .. 51 (default 20)")
-    out.add_argument("--preset", default="ultrafast",
-                     help="x264 speed preset (default ultrafast; slower presets give smaller files)")
-    out.add_argument("--save-mask", nargs="?", const="mkv", choices=("mkv", "png"), metavar="mkv|png",
-                     help="also write the shadow mask: DIR/<stem>.shadow.mkv (lossless FFV1, default) or "
-                          "DIR/<stem>.shadow/NNNNNN.png")
-    out.add_argument("--contact-sheet", type=int, default=12, metavar="N",
-                     help="frames on DIR/<stem>.sheet.jpg (default 12; 0 = none)")
+    out.add_argument(
+        "--format",
+        choices=FORMATS,
+        default="mp4",
+        help="container of the output video: mp4 (H.264, default), mov, mkv (FFV1 lossless), avi (MJPEG)",
+    )
+    out.add_argument(
+        "--codec",
+        choices=("h264", "mpeg4", "mjpeg", "ffv1"),
+        help="video codec (default: the container's, see --format)",
+    )
+    out.add_argument(
+        "--crf",
+        type=float,
+        default=20.0,
+        metavar="Q",
+        help="H.264 quality, constant rate factor 0 (lossless) .. 51 (default 20)",
+    )
+    out.add_argument(
+        "--preset", default="ultrafast", help="x264 speed preset (default ultrafast; slower presets give smaller files)"
+    )
+    out.add_argument(
+        "--save-mask",
+        nargs="?",
+        const="mkv",
+        choices=("mkv", "png"),
+        metavar="mkv|png",
+        help="also write the shadow mask: DIR/<stem>.shadow.mkv (lossless FFV1, default) or "
+        "DIR/<stem>.shadow/NNNNNN.png",
+    )
+    out.add_argument(
+        "--contact-sheet",
+        type=int,
+        default=12,
+        metavar="N",
+        help="frames on DIR/<stem>.sheet.jpg (default 12; 0 = none)",
+    )
     out.add_argument("--no-audio", action="store_true", help="do not copy the input's audio")
-    out.add_argument("--jobs", "-j", type=int, default=1, metavar="N",
-                     help="worker processes per video: it is cut at keyframes into N chunks processed in parallel "
-                          "and joined (same output as one process; docs/video.md)")
-    out.add_argument("--layers", action="store_true",
-                     help="also write the compositing layers (object with alpha, shadow multiply pass, shadow-only "
-                          "with alpha), lens distortion applied: plate x shadow.mult + object = the composite in "
-                          "linear light (docs/export.md)")
-    out.add_argument("--layers-format", choices=("prores", "ffv1", "png", "exr"), default="prores",
-                     help="videos' layers: prores (ProRes 4444 .mov, default), ffv1 (lossless 16-bit .mkv), or "
-                          "png / exr sequences in DIR/<stem>.layers/; photos of a batch: 16-bit PNG, or EXR with exr")
-    out.add_argument("--layers-undistorted", action="store_true",
-                     help="with --layers: also the layers in the undistorted (pinhole) camera and the ST-map "
-                          "DIR/<stem>.stmap.* that distorts them onto the frames")
+    out.add_argument(
+        "--jobs",
+        "-j",
+        type=int,
+        default=1,
+        metavar="N",
+        help="worker processes per video: it is cut at keyframes into N chunks processed in parallel "
+        "and joined (same output as one process; docs/video.md)",
+    )
+    out.add_argument(
+        "--layers",
+        action="store_true",
+        help="also write the compositing layers (object with alpha, shadow multiply pass, shadow-only "
+        "with alpha), lens distortion applied: plate x shadow.mult + object = the composite in "
+        "linear light (docs/export.md)",
+    )
+    out.add_argument(
+        "--layers-format",
+        choices=("prores", "ffv1", "png", "exr"),
+        default="prores",
+        help="videos' layers: prores (ProRes 4444 .mov, default), ffv1 (lossless 16-bit .mkv), or "
+        "png / exr sequences in DIR/<stem>.layers/; photos of a batch: 16-bit PNG, or EXR with exr",
+    )
+    out.add_argument(
+        "--layers-undistorted",
+        action="store_true",
+        help="with --layers: also the layers in the undistorted (pinhole) camera and the ST-map "
+        "DIR/<stem>.stmap.* that distorts them onto the frames",
+    )
 
 
 def engine_options(args, collect_items=False):
@@ -67,12 +106,23 @@ def engine_options(args, collect_items=False):
     from ..video.engine import EngineOptions
 
     return EngineOptions(
-        fmt=args.format, codec=args.codec or FORMAT_CODEC[args.format], crf=args.crf, preset=args.preset,
-        mask=args.save_mask, pose_lag=None if getattr(args, "no_temporal", False) else getattr(args, "pose_lag", 16),
-        smooth=getattr(args, "smooth", 10), hold=getattr(args, "hold", 12), max_frames=getattr(args, "max_frames", None),
-        contact_sheet=args.contact_sheet, keep_audio=not args.no_audio, collect_items=collect_items,
-        layers=args.layers_format if (getattr(args, "layers", False) or getattr(args, "layers_undistorted", False))
-        else None, layers_undistorted=bool(getattr(args, "layers_undistorted", False))).check()
+        fmt=args.format,
+        codec=args.codec or FORMAT_CODEC[args.format],
+        crf=args.crf,
+        preset=args.preset,
+        mask=args.save_mask,
+        pose_lag=None if getattr(args, "no_temporal", False) else getattr(args, "pose_lag", 16),
+        smooth=getattr(args, "smooth", 10),
+        hold=getattr(args, "hold", 12),
+        max_frames=getattr(args, "max_frames", None),
+        contact_sheet=args.contact_sheet,
+        keep_audio=not args.no_audio,
+        collect_items=collect_items,
+        layers=args.layers_format
+        if (getattr(args, "layers", False) or getattr(args, "layers_undistorted", False))
+        else None,
+        layers_undistorted=bool(getattr(args, "layers_undistorted", False)),
+    ).check()
 
 
 def progress_bar(quiet: bool):
@@ -88,8 +138,11 @@ def progress_bar(quiet: bool):
 
         def update(done, total):
             if not bars:
-                bars.append(tqdm(desc=Path(name).name, unit="frame", total=total, dynamic_ncols=True,
-                                 file=sys.stderr, leave=True))
+                bars.append(
+                    tqdm(
+                        desc=Path(name).name, unit="frame", total=total, dynamic_ncols=True, file=sys.stderr, leave=True
+                    )
+                )
             bar = bars[0]
             if total and bar.total != total:
                 bar.total = total
@@ -108,45 +161,80 @@ def register(subparsers) -> None:
     from .render import add_scene_options
 
     p = subparsers.add_parser(
-        "video", help="composite a virtual object and its shadow into AR videos",
+        "video",
+        help="composite a virtual object and its shadow into AR videos",
         description="Decode each video (anything OpenCV's video I/O reads), track the marker or board in every "
-                    "frame with temporally consistent poses, composite the object and its exact shadow, and "
-                    "write the result video (atomically: never half-written).",
-        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("videos", nargs="+", metavar="VIDEO",
-                   help="video files (or OpenCV image-sequence patterns such as frames/%%04d.png)")
+        "frame with temporally consistent poses, composite the object and its exact shadow, and "
+        "write the result video (atomically: never half-written).",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument(
+        "videos",
+        nargs="+",
+        metavar="VIDEO",
+        help="video files (or OpenCV image-sequence patterns such as frames/%%04d.png)",
+    )
     add_scene_options(p)
     v = p.add_argument_group("video")
-    v.add_argument("--time-lapse", metavar="START[,SPEED]",
-                   help="sun lights follow the frame timestamps: the sun's time is START (ISO 8601 with UTC "
-                        "offset; replaces the sun spec's TIME, which may then be left out) + SPEED x the frame "
-                        "time (default SPEED 1)")
-    v.add_argument("--recompute-deg", type=float, default=0.1, metavar="A",
-                   help="with --time-lapse: recompute the silhouette only when the sun moved more than A "
-                        "degrees since the last recompute (default 0.1; the shadow is at most A off)")
+    v.add_argument(
+        "--time-lapse",
+        metavar="START[,SPEED]",
+        help="sun lights follow the frame timestamps: the sun's time is START (ISO 8601 with UTC "
+        "offset; replaces the sun spec's TIME, which may then be left out) + SPEED x the frame "
+        "time (default SPEED 1)",
+    )
+    v.add_argument(
+        "--recompute-deg",
+        type=float,
+        default=0.1,
+        metavar="A",
+        help="with --time-lapse: recompute the silhouette only when the sun moved more than A "
+        "degrees since the last recompute (default 0.1; the shadow is at most A off)",
+    )
     v.add_argument("--max-frames", type=int, metavar="N", help="process only the first N frames of each video")
-    v.add_argument("--pose-lag", type=int, default=16, metavar="K",
-                   help="frames of look-ahead for the temporally consistent IPPE choice (default 16; 0 = the "
-                        "solution consistent with the previous frame)")
-    v.add_argument("--corner-refine", choices=("edge", "apriltag", "subpix", "contour", "none"), default="edge",
-                   help="corner refinement (default edge: the four border edges fitted at full resolution and "
-                        "intersected, unbiased and fast; subpix puts small markers 1-4 %% too far; apriltag is "
-                        "unbiased but ~10x slower; see docs/video.md)")
-    v.add_argument("--smooth", type=int, default=10, metavar="K",
-                   help="pose smoothing: centred local-quadratic fit over 2K+1 frames (default 10; zero lag on "
-                        "steady motion; 0 = raw poses)")
-    v.add_argument("--hold", type=int, default=12, metavar="N",
-                   help="frames a lost marker's last pose is held before frames pass through untouched "
-                        "(default 12)")
-    v.add_argument("--no-temporal", action="store_true",
-                   help="choose each frame's pose by reprojection error alone (as for photos)")
+    v.add_argument(
+        "--pose-lag",
+        type=int,
+        default=16,
+        metavar="K",
+        help="frames of look-ahead for the temporally consistent IPPE choice (default 16; 0 = the "
+        "solution consistent with the previous frame)",
+    )
+    v.add_argument(
+        "--corner-refine",
+        choices=("edge", "apriltag", "subpix", "contour", "none"),
+        default="edge",
+        help="corner refinement (default edge: the four border edges fitted at full resolution and "
+        "intersected, unbiased and fast; subpix puts small markers 1-4 %% too far; apriltag is "
+        "unbiased but ~10x slower; see docs/video.md)",
+    )
+    v.add_argument(
+        "--smooth",
+        type=int,
+        default=10,
+        metavar="K",
+        help="pose smoothing: centred local-quadratic fit over 2K+1 frames (default 10; zero lag on "
+        "steady motion; 0 = raw poses)",
+    )
+    v.add_argument(
+        "--hold",
+        type=int,
+        default=12,
+        metavar="N",
+        help="frames a lost marker's last pose is held before frames pass through untouched (default 12)",
+    )
+    v.add_argument(
+        "--no-temporal",
+        action="store_true",
+        help="choose each frame's pose by reprojection error alone (as for photos)",
+    )
     out = p.add_argument_group("output")
     out.add_argument("-o", "--output", required=True, metavar="DIR", help="output folder (created if missing)")
     add_output_options(out)
     out.add_argument("--report", metavar="R.json", help="write the JSON report (one item per frame)")
     out.add_argument("--quiet", "-q", action="store_true", help="no progress bar, no per-video lines")
-    p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
-                   help="show tracebacks and debug logging")
+    p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show tracebacks and debug logging")
     p.set_defaults(func=run)
 
 
@@ -169,8 +257,14 @@ def run(args) -> int:
     opts = engine_options(args, collect_items=bool(args.report))
     # video: search the marker near the last detection first (not with --plan general); --time-lapse and
     # --recompute-deg are scene keys (SceneSpec.time_lapse)
-    est = probe_estimate(args, args.videos, calib=args.calib, marker_length=args.marker_length,
-                         dictionary=args.dictionary, marker_id=args.marker_id)  # --probe: docs/light.md
+    est = probe_estimate(
+        args,
+        args.videos,
+        calib=args.calib,
+        marker_length=args.marker_length,
+        dictionary=args.dictionary,
+        marker_id=args.marker_id,
+    )  # --probe: docs/light.md
     extra = {} if est is None else {"light_from": est}
     spec = scene_from_args(args, refine=args.corner_refine, track_roi=True, **extra)
     # output paths before any work: a bad -o / --report is one usage error, not one per video
@@ -182,14 +276,22 @@ def run(args) -> int:
         from ..io import unique_stems
         from ..video.engine import video_outputs
 
-        refuse_overwrite([p for stem in unique_stems(args.videos)
-                          for k, p in video_outputs(outdir, stem, opts).items() if k.startswith("layers:")], args.videos)
+        refuse_overwrite(
+            [
+                p
+                for stem in unique_stems(args.videos)
+                for k, p in video_outputs(outdir, stem, opts).items()
+                if k.startswith("layers:")
+            ],
+            args.videos,
+        )
     if args.jobs < 1:
         raise UsageError(f"--jobs {args.jobs}: must be >= 1")
     with Session(spec) as session:
         # before any frame is processed: a sun that sets during a time-lapse (the tracks are reset per video)
-        sun_set = time_lapse_warnings(args.videos, session.sun_tracks, session.time_lapse,
-                                      getattr(args, "max_frames", None))
+        sun_set = time_lapse_warnings(
+            args.videos, session.sun_tracks, session.time_lapse, getattr(args, "max_frames", None)
+        )
         for msg in sun_set.values():
             print(f"arshadow video: warning: {msg}", file=sys.stderr)
         backend = SessionBackend(session, session.sun_tracks, session.time_lapse)
@@ -200,9 +302,16 @@ def run(args) -> int:
             if debug:
                 raise exc
 
-        summaries, items = run_videos(backend, args.videos, outdir, opts,
-                                      progress_factory=progress_bar(args.quiet), on_error=on_error,
-                                      jobs=args.jobs, recipe=recipe)
+        summaries, items = run_videos(
+            backend,
+            args.videos,
+            outdir,
+            opts,
+            progress_factory=progress_bar(args.quiet),
+            on_error=on_error,
+            jobs=args.jobs,
+            recipe=recipe,
+        )
     failed = 0
     for s in summaries:
         for w in s.get("warnings", []):
@@ -214,13 +323,18 @@ def run(args) -> int:
         if s["status"] != "error" and not args.quiet:
             print(tracking_summary(s), file=sys.stderr)
         if s["status"] == "ok" and not args.quiet:
-            print(f"{s['input']} -> {s['output']}  ({s['frames']} frames: {s['frames_ok']} tracked, "
-                  f"{s['frames_held']} held, {s['frames_no_marker']} without marker; "
-                  f"{s['fps_processed']:.1f} fps)", file=sys.stdout)
+            print(
+                f"{s['input']} -> {s['output']}  ({s['frames']} frames: {s['frames_ok']} tracked, "
+                f"{s['frames_held']} held, {s['frames_no_marker']} without marker; "
+                f"{s['fps_processed']:.1f} fps)",
+                file=sys.stdout,
+            )
     if not args.quiet and len(summaries) > 1:
         flagged = sum(1 for s in summaries if s["status"] == "ok" and s.get("frames_no_marker"))
-        print(f"{len(summaries) - failed} of {len(summaries)} videos rendered into {outdir}: "
-              f"{len(summaries) - failed} done, {failed} failed, {flagged} flagged (frames without the marker)")
+        print(
+            f"{len(summaries) - failed} of {len(summaries)} videos rendered into {outdir}: "
+            f"{len(summaries) - failed} done, {failed} failed, {flagged} flagged (frames without the marker)"
+        )
     for s in summaries:  # the report says it too
         if s.get("input") in sun_set:
             s.setdefault("warnings", []).insert(0, sun_set[s["input"]])
@@ -235,5 +349,7 @@ def tracking_summary(s: dict) -> str:
     """The stderr line of one video's tracking: frames tracked / held / lost and the longest gap."""
     gap = s.get("longest_gap") or 0
     where = f" (frames {s['longest_gap_start']}-{s['longest_gap_start'] + gap - 1})" if gap else ""
-    return (f"arshadow video: {s['input']}: tracked {s['frames_ok']}, held {s['frames_held']}, lost "
-            f"{s['frames_no_marker']} of {s['frames']} frames; longest gap {gap} frames{where}")
+    return (
+        f"arshadow video: {s['input']}: tracked {s['frames_ok']}, held {s['frames_held']}, lost "
+        f"{s['frames_no_marker']} of {s['frames']} frames; longest gap {gap} frames{where}"
+    )

@@ -113,7 +113,7 @@ def rgb8(spec, name: str = "colour") -> tuple[float, float, float]:
         if text.startswith("#"):
             if re.fullmatch(r"#[0-9a-fA-F]{6}", text) is None:
                 raise UsageError(f"{name} {spec!r}: expected #rrggbb (six hex digits) or R,G,B with numbers 0..255")
-            return tuple(float(int(text[i:i + 2], 16)) for i in (1, 3, 5))
+            return tuple(float(int(text[i : i + 2], 16)) for i in (1, 3, 5))
         parts = [p.strip() for p in text.split(",")]
         try:
             vals = [float(p) for p in parts]

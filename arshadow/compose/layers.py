@@ -145,8 +145,9 @@ class Layers:
         return out
 
 
-def layers_from_warped(mask, rgba, roi, shape, *, opacity: float, shadow_color=(0.0, 0.0, 0.0),
-                       premultiplied: bool = True) -> Layers:
+def layers_from_warped(
+    mask, rgba, roi, shape, *, opacity: float, shadow_color=(0.0, 0.0, 0.0), premultiplied: bool = True
+) -> Layers:
     """The layers of a frame from the warped render the composite used (copies: the inputs may be scratch).
 
     Parameters
@@ -190,8 +191,9 @@ def pinhole_layers(mask, rgba, canvas, shape, **kw) -> Layers:
     if x1 <= x0 or y1 <= y0:
         return layers_from_warped(None, None, (0, 0, 0, 0), (H, W), opacity=0.0)
     sl = (slice(y0 - v0, y1 - v0), slice(x0 - u0, x1 - u0))
-    return layers_from_warped(np.asarray(mask)[sl], None if rgba is None else np.asarray(rgba)[sl],
-                              (x0, y0, x1 - x0, y1 - y0), (H, W), **kw)
+    return layers_from_warped(
+        np.asarray(mask)[sl], None if rgba is None else np.asarray(rgba)[sl], (x0, y0, x1 - x0, y1 - y0), (H, W), **kw
+    )
 
 
 def recombine(plate_bgr8, obj_rgba, shadow, *, over: bool = False) -> np.ndarray:

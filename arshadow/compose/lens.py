@@ -185,7 +185,11 @@ class LensWarp:
         for arr in (cx, cy):
             for ax in (0, 1):
                 d2 = np.abs(np.diff(arr, n=2, axis=ax))
-                ok = (valid[:-2] & valid[1:-1] & valid[2:]) if ax == 0 else (valid[:, :-2] & valid[:, 1:-1] & valid[:, 2:])
+                ok = (
+                    (valid[:-2] & valid[1:-1] & valid[2:])
+                    if ax == 0
+                    else (valid[:, :-2] & valid[:, 1:-1] & valid[:, 2:])
+                )
                 if np.any(ok):
                     curv = max(curv, float(np.max(d2[ok])))
         slack = np.where(vc.all(axis=0), 1.0 + curv, lip * s * math.sqrt(2.0) + 1.0)
@@ -246,7 +250,12 @@ class LensWarp:
         if np.all(valid):
             a0, a1, b0, b1 = float(sx.min()), float(sx.max()), float(sy.min()), float(sy.max())
         else:
-            a0, a1, b0, b1 = float(sx[valid].min()), float(sx[valid].max()), float(sy[valid].min()), float(sy[valid].max())
+            a0, a1, b0, b1 = (
+                float(sx[valid].min()),
+                float(sx[valid].max()),
+                float(sy[valid].min()),
+                float(sy[valid].max()),
+            )
         if pinhole_rect is not None:
             p0, q0, p1, q1 = pinhole_rect
             a0, b0 = max(a0, p0 - 2.0), max(b0, q0 - 2.0)

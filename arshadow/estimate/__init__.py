@@ -9,5 +9,12 @@ from .api import estimate_light
 from .exposure import Exposure, measure_exposure, smooth_exposures
 from .result import LightEstimate, load_estimate, shading_gain
 
-__all__ = ["Exposure", "LightEstimate", "estimate_light", "load_estimate", "measure_exposure", "shading_gain",
-           "smooth_exposures"]
+__all__ = [
+    "Exposure",
+    "LightEstimate",
+    "estimate_light",
+    "load_estimate",
+    "measure_exposure",
+    "shading_gain",
+    "smooth_exposures",
+]

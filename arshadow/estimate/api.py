@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import math
+import os
 import time
+from collections.abc import Sequence
 from pathlib import Path
 
 import cv2
@@ -70,11 +72,19 @@ def _frames(item, max_frames):
 def _probe_in_view(intr, pose, verts, name):
     cam = verts @ pose[:3, :3].T + pose[:3, 3]
     uv = intr.project(verts, pose)
-    inside = (cam[:, 2] > 0) & np.all(np.isfinite(uv), axis=1) & (uv[:, 0] >= 0) & (uv[:, 0] <= intr.width - 1) \
-        & (uv[:, 1] >= 0) & (uv[:, 1] <= intr.height - 1)
+    inside = (
+        (cam[:, 2] > 0)
+        & np.all(np.isfinite(uv), axis=1)
+        & (uv[:, 0] >= 0)
+        & (uv[:, 0] <= intr.width - 1)
+        & (uv[:, 1] >= 0)
+        & (uv[:, 1] <= intr.height - 1)
+    )
     if inside.mean() < 0.5:
-        raise EstimateError(f"{name}: the probe is not in view ({100 * inside.mean():.0f} % of its corners in the "
-                            "image): check --probe-place, or frame the probe and its shadow")
+        raise EstimateError(
+            f"{name}: the probe is not in view ({100 * inside.mean():.0f} % of its corners in the "
+            "image): check --probe-place, or frame the probe and its shadow"
+        )
 
 
 def _grids(img, intr, pose, verts, faces, L, paper, convex):
@@ -88,8 +98,21 @@ def _grids(img, intr, pose, verts, faces, L, paper, convex):
     px = depth / float(intr.K[0, 0])  # metres per pixel at the probe
     coarse_step = float(np.clip(max(6 * px, reach / 60.0), 0.003, 0.02))
     sigma = 0.6 * float(min(hi[0] - lo[0], hi[1] - lo[1]))
-    coarse = build_evidence(img, intr, pose, verts, faces, marker_length=L, paper_rgb=paper, center=centre,
-                            half=reach, step=coarse_step, convex=convex, sigma=sigma, supersample=2)
+    coarse = build_evidence(
+        img,
+        intr,
+        pose,
+        verts,
+        faces,
+        marker_length=L,
+        paper_rgb=paper,
+        center=centre,
+        half=reach,
+        step=coarse_step,
+        convex=convex,
+        sigma=sigma,
+        supersample=2,
+    )
     fine_step = float(np.clip(1.5 * px, 0.0006, 0.006))
 
     def fine(lights_h):
@@ -103,8 +126,20 @@ def _grids(img, intr, pose, verts, faces, L, paper, convex):
         c = 0.5 * (allp.min(axis=0) + allp.max(axis=0))
         half = 0.5 * float((allp.max(axis=0) - allp.min(axis=0)).max()) + 0.03 + 2 * sigma
         step = max(fine_step, half / 110.0)  # at most ~220 x 220 cells
-        return build_evidence(img, intr, pose, verts, faces, marker_length=L, paper_rgb=paper, center=c,
-                              half=half, step=step, convex=convex, sigma=sigma)
+        return build_evidence(
+            img,
+            intr,
+            pose,
+            verts,
+            faces,
+            marker_length=L,
+            paper_rgb=paper,
+            center=c,
+            half=half,
+            step=step,
+            convex=convex,
+            sigma=sigma,
+        )
 
     return coarse, fine, px
 
@@ -121,11 +156,13 @@ def _ratio(evs, h, px) -> tuple:
     ins, outs = [], []
     for ev, p in zip(evs, px):
         S = shadow_coverage(ev, h)
+        if S is None:  # no shadow on this frame's ground grid
+            continue
         for d in EDGE_DISTANCES:
             a, b = edge_pairs(ev, S, max(d, 3.0 * p))
             ins.append(a)
             outs.append(b)
-    a, b = np.concatenate(ins), np.concatenate(outs)
+    a, b = (np.concatenate(ins), np.concatenate(outs)) if ins else (np.zeros((0, 3)), np.zeros((0, 3)))
     if len(a) >= 30:
         lr = np.log(np.maximum(a, 1e-6)) - np.log(np.maximum(b, 1e-6))
         return tuple(float(math.exp(v)) for v in np.median(lr, axis=0))
@@ -133,8 +170,12 @@ def _ratio(evs, h, px) -> tuple:
     den = 0.0
     for ev in evs:
         S = shadow_coverage(ev, h)
-        band = cv2.dilate((S > 0).astype(np.uint8), np.ones((3, 3), np.uint8),
-                          iterations=max(1, round(0.03 / ev.step))) > 0
+        if S is None:
+            continue
+        band = (
+            cv2.dilate((S > 0).astype(np.uint8), np.ones((3, 3), np.uint8), iterations=max(1, round(0.03 / ev.step)))
+            > 0
+        )
         n = int(np.count_nonzero(ev.used & band))
         for c in range(3):
             _, d, _, _ = fit_levels(ev, S, values=np.log(np.maximum(ev.rgb[:, :, c], 1e-6)), weight=band)
@@ -150,9 +191,20 @@ def _sun_enu(spec: str):
     return np.asarray(light.vector, np.float64)
 
 
-def estimate_light(inputs, *, calib, marker_length: float, probe: str, probe_place=(0.0, 0.0, 0.0),
-                   probe_rotate=(0.0, 0.0, 0.0), probe_scale=1.0, dictionary=None, marker_id=None,
-                   kind: str = "directional", max_frames: int = MAX_FRAMES) -> LightEstimate:
+def estimate_light(
+    inputs: str | os.PathLike[str] | np.ndarray | Sequence[str | os.PathLike[str] | np.ndarray],
+    *,
+    calib: str | os.PathLike[str] | Intrinsics,
+    marker_length: float,
+    probe: str,
+    probe_place: Sequence[float] = (0.0, 0.0, 0.0),
+    probe_rotate: Sequence[float] = (0.0, 0.0, 0.0),
+    probe_scale: float = 1.0,
+    dictionary: str | None = None,
+    marker_id: int | None = None,
+    kind: str = "directional",
+    max_frames: int = MAX_FRAMES,
+) -> LightEstimate:
     """Measure the light from photos (or a video) of the marker and a probe's real shadow.
 
     Parameters
@@ -198,8 +250,9 @@ def estimate_light(inputs, *, calib, marker_length: float, probe: str, probe_pla
     caster = load_occluder(probe, scale=probe_scale, rotate=probe_rotate, place=probe_place)
     verts, faces = np.asarray(caster.vertices, np.float64), np.asarray(caster.faces)
     if verts[:, 2].min() < -1e-6:
-        raise UsageError(f"--probe {probe}: the probe must stand on the ground (z >= 0), it reaches "
-                         f"z = {verts[:, 2].min():.3f}")
+        raise UsageError(
+            f"--probe {probe}: the probe must stand on the ground (z >= 0), it reaches z = {verts[:, 2].min():.3f}"
+        )
     convex = str(probe).lower().startswith(CONVEX_PRIMITIVES)
     dictionary = dictionary or DEFAULT_DICTIONARY
     tracker = MarkerTracker(base, dictionary=dictionary, marker_length=marker_length, marker_id=marker_id)
@@ -241,8 +294,12 @@ def _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, verts, t0, notes) 
     ratio = _ratio(res.fine, res.light_h, pxs)
     paper = np.median(np.array([e.paper_rgb for e in exposures]), axis=0)
     ink = np.median(np.array([e.ink_rgb for e in exposures]), axis=0)
-    exp = Exposure(tuple(map(float, paper)), tuple(map(float, ink)), int(np.median([e.white_cells for e in exposures])),
-                   any(e.saturated for e in exposures))
+    exp = Exposure(
+        tuple(map(float, paper)),
+        tuple(map(float, ink)),
+        int(np.median([e.white_cells for e in exposures])),
+        any(e.saturated for e in exposures),
+    )
     warnings = list(notes)
     if exp.saturated:
         warnings.append("the marker's paper is over-exposed (clipped): the exposure match is a lower bound")
@@ -252,34 +309,70 @@ def _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, verts, t0, notes) 
         dist = float(np.linalg.norm(res.light_h[:3] - anchor))
         rel = res.position_sigma / max(dist, 1e-9)
         if dist > POINT_FAR:
-            warnings.append(f"low confidence: the point light fit went {dist:.1f} m away (a far light looks "
-                            "directional from one probe); fit --kind directional")
+            warnings.append(
+                f"low confidence: the point light fit went {dist:.1f} m away (a far light looks "
+                "directional from one probe); fit --kind directional"
+            )
         elif rel > POINT_REL_SIGMA:
-            warnings.append(f"low confidence: the point light's distance is uncertain (+/- {100 * rel:.0f} % of it); "
-                            "add views from other sides, or fit --kind directional")
+            warnings.append(
+                f"low confidence: the point light's distance is uncertain (+/- {100 * rel:.0f} % of it); "
+                "add views from other sides, or fit --kind directional"
+            )
     if res.runner_up is not None and res.runner_up > 0.6:
         warnings.append(f"a second light explains {100 * res.runner_up:.0f} % as much: check the result")
-    fit = {"explained": round(res.explained, 4), "visible": round(res.visible, 3),
-           "runner_up": None if res.runner_up is None else round(res.runner_up, 3),
-           "evaluations": int(res.evaluations), "darkening": round(1 - float(np.exp(np.median(res.deltas))), 4),
-           "time_ms": round((time.perf_counter() - t0) * 1e3, 1)}
+    fit = {
+        "explained": round(res.explained, 4),
+        "visible": round(res.visible, 3),
+        "runner_up": None if res.runner_up is None else round(res.runner_up, 3),
+        "evaluations": int(res.evaluations),
+        "darkening": round(1 - float(np.exp(np.median(res.deltas))), 4),
+        "time_ms": round((time.perf_counter() - t0) * 1e3, 1),
+    }
     h = res.light_h
     if kind_name == "directional":
         d = tuple(float(v) for v in h[:3])
         radius, _ = fit_angular_radius(res.fine, np.asarray(d))  # the penumbra: the light's angular size
-        spec = "directional:{:.6f},{:.6f},{:.6f}".format(*d) + (f",radius={radius:.3f}" if radius >= MIN_RADIUS_DEG else "")
-        return LightEstimate("directional", spec, direction=d, shadow_ratio=ratio, uncertainty_deg=res.uncertainty_deg,
-                             exposure=exp, frames=len(coarse), fit=fit, warnings=warnings,
-                             angular_diameter_deg=2.0 * radius)
+        spec = "directional:{:.6f},{:.6f},{:.6f}".format(*d) + (
+            f",radius={radius:.3f}" if radius >= MIN_RADIUS_DEG else ""
+        )
+        return LightEstimate(
+            "directional",
+            spec,
+            direction=d,
+            shadow_ratio=ratio,
+            uncertainty_deg=res.uncertainty_deg,
+            exposure=exp,
+            frames=len(coarse),
+            fit=fit,
+            warnings=warnings,
+            angular_diameter_deg=2.0 * radius,
+        )
     if kind_name == "sun":
         north = float(res.params[0]) % 360.0
         body = kind.split(":", 1)[1].split("@")[0]
         lat, lon, when = body.split(",")[:3]
-        return LightEstimate("sun", f"sun:{lat},{lon},{when},{north:.4f}", direction=tuple(float(v) for v in h[:3]),
-                             north_deg=north, shadow_ratio=ratio, uncertainty_deg=res.uncertainty_deg, exposure=exp,
-                             frames=len(coarse), fit=fit, warnings=warnings)
+        return LightEstimate(
+            "sun",
+            f"sun:{lat},{lon},{when},{north:.4f}",
+            direction=tuple(float(v) for v in h[:3]),
+            north_deg=north,
+            shadow_ratio=ratio,
+            uncertainty_deg=res.uncertainty_deg,
+            exposure=exp,
+            frames=len(coarse),
+            fit=fit,
+            warnings=warnings,
+        )
     p = tuple(float(v) for v in h[:3])
-    return LightEstimate("point", "point:{:.6f},{:.6f},{:.6f}".format(*p), position=p, shadow_ratio=ratio,
-                         uncertainty_deg=res.uncertainty_deg, position_uncertainty=res.position_sigma,
-                         exposure=exp, frames=len(coarse), fit=fit, warnings=warnings)
-
+    return LightEstimate(
+        "point",
+        "point:{:.6f},{:.6f},{:.6f}".format(*p),
+        position=p,
+        shadow_ratio=ratio,
+        uncertainty_deg=res.uncertainty_deg,
+        position_uncertainty=res.position_sigma,
+        exposure=exp,
+        frames=len(coarse),
+        fit=fit,
+        warnings=warnings,
+    )

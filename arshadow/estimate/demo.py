@@ -35,18 +35,39 @@ def light_demo(samples: Path, outdir: Path, *, context=None, renderer=None, aa: 
     root = Path(samples).parent
     photo = Path(samples) / sc["photo"]
     stem = photo.stem
-    est = estimate_light(photo, calib=str(root / sc["calib"]), marker_length=sc["marker_length"], probe=sc["probe"],
-                         probe_place=sc["probe_place"], probe_rotate=sc["probe_rotate"],
-                         dictionary=sc.get("dictionary"), marker_id=sc.get("marker_id"), kind=sc.get("kind", "directional"))
+    est = estimate_light(
+        photo,
+        calib=str(root / sc["calib"]),
+        marker_length=sc["marker_length"],
+        probe=sc["probe"],
+        probe_place=sc["probe_place"],
+        probe_rotate=sc["probe_rotate"],
+        dictionary=sc.get("dictionary"),
+        marker_id=sc.get("marker_id"),
+        kind=sc.get("kind", "directional"),
+    )
     est_path = write_json(Path(outdir) / f"{stem}.light.json", est.to_dict())
-    spec = scene_from_dict({"calib": sc["calib"], "marker_length": sc["marker_length"],
-                            "dictionary": sc.get("dictionary"), "marker_id": sc.get("marker_id"), "model": sc["model"],
-                            "place": sc["place"], "rotate": sc["rotate"], "color": sc.get("color"),
-                            "light_from": str(est_path), "aa": int(aa)}, base_dir=root)
+    spec = scene_from_dict(
+        {
+            "calib": sc["calib"],
+            "marker_length": sc["marker_length"],
+            "dictionary": sc.get("dictionary"),
+            "marker_id": sc.get("marker_id"),
+            "model": sc["model"],
+            "place": sc["place"],
+            "rotate": sc["rotate"],
+            "color": sc.get("color"),
+            "light_from": str(est_path),
+            "aa": int(aa),
+        },
+        base_dir=root,
+    )
     with Session(spec, context=context, renderer=renderer) as session:
         res = session.process(read_image(photo), name=str(photo))
     out = write_image(Path(outdir) / f"{stem}.png", res.composite)
     ratio = " ".join(f"{v:.2f}" for v in est.shadow_ratio)
-    line = (f"{photo.name} -> {out}  (measured light {est.light}, +/- {est.uncertainty_deg:.1f} deg, shadow ratio "
-            f"{ratio}; estimate in {est_path})")
+    line = (
+        f"{photo.name} -> {out}  (measured light {est.light}, +/- {est.uncertainty_deg:.1f} deg, shadow ratio "
+        f"{ratio}; estimate in {est_path})"
+    )
     return [line]

@@ -65,16 +65,23 @@ class Exposure:
         return float(w @ np.asarray(self.paper_rgb) / max(w @ np.asarray(self.ink_rgb), 1e-9))
 
     def to_dict(self) -> dict:
-        return {"paper_rgb": [round(float(v), 6) for v in self.paper_rgb],
-                "ink_rgb": [round(float(v), 6) for v in self.ink_rgb],
-                "white_balance": [round(v, 6) for v in self.white_balance],
-                "contrast": round(self.contrast, 3), "white_cells": int(self.white_cells),
-                "saturated": bool(self.saturated)}
+        return {
+            "paper_rgb": [round(float(v), 6) for v in self.paper_rgb],
+            "ink_rgb": [round(float(v), 6) for v in self.ink_rgb],
+            "white_balance": [round(v, 6) for v in self.white_balance],
+            "contrast": round(self.contrast, 3),
+            "white_cells": int(self.white_cells),
+            "saturated": bool(self.saturated),
+        }
 
     @classmethod
     def from_dict(cls, d: dict) -> Exposure:
-        return cls(tuple(float(v) for v in d["paper_rgb"]), tuple(float(v) for v in d["ink_rgb"]),
-                   int(d.get("white_cells", 0)), bool(d.get("saturated", False)))
+        return cls(
+            tuple(float(v) for v in d["paper_rgb"]),
+            tuple(float(v) for v in d["ink_rgb"]),
+            int(d.get("white_cells", 0)),
+            bool(d.get("saturated", False)),
+        )
 
 
 def sample_linear(image_bgr: np.ndarray, uv: np.ndarray) -> np.ndarray:
@@ -86,8 +93,9 @@ def sample_linear(image_bgr: np.ndarray, uv: np.ndarray) -> np.ndarray:
 
 def _remap_points(img: np.ndarray, uv: np.ndarray) -> np.ndarray:
     uv = np.asarray(uv, np.float32).reshape(-1, 1, 2)
-    out = cv2.remap(img, uv[:, :, 0], uv[:, :, 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
-                    borderValue=(np.nan,) * 4).reshape(len(uv), -1)
+    out = cv2.remap(
+        img, uv[:, :, 0], uv[:, :, 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=(np.nan,) * 4
+    ).reshape(len(uv), -1)
     H, W = img.shape[:2]
     bad = ~((uv[:, 0, 0] >= 0) & (uv[:, 0, 0] <= W - 1) & (uv[:, 0, 1] >= 0) & (uv[:, 0, 1] <= H - 1))
     out[bad] = np.nan
@@ -130,8 +138,15 @@ def _marker_cells(dictionary: str, marker_id: int, length: float):
     return _cell_points(marker_bits(get_dictionary(dictionary), marker_id), length)
 
 
-def measure_exposure(image_bgr: np.ndarray, intrinsics: Intrinsics, cam_from_world, marker_length: float,
-                     dictionary="DICT_6X6_250", marker_id: int = 0, min_cells: int = 3) -> Exposure:
+def measure_exposure(
+    image_bgr: np.ndarray,
+    intrinsics: Intrinsics,
+    cam_from_world,
+    marker_length: float,
+    dictionary="DICT_6X6_250",
+    marker_id: int = 0,
+    min_cells: int = 3,
+) -> Exposure:
     """Measure the lit paper and the ink of the detected marker in a photo.
 
     Parameters
@@ -179,14 +194,14 @@ def measure_exposure(image_bgr: np.ndarray, intrinsics: Intrinsics, cam_from_wor
     top = np.percentile(lum[w_ok], 90)
     lit = w_ok & (lum >= 0.85 * top)
     if np.count_nonzero(lit) < min_cells:
-        raise ExposureError(f"fewer than {min_cells} lit white cells on the marker (a shadow on it?): cannot "
-                            "measure its paper")
+        raise ExposureError(
+            f"fewer than {min_cells} lit white cells on the marker (a shadow on it?): cannot measure its paper"
+        )
     paper = np.median(cell[lit], axis=0)
     b_ok = ~white & ok
     ink = np.median(cell[b_ok], axis=0) if b_ok.any() else np.zeros(3)
     saturated = bool(np.nanmax(raw[lit]) >= 254.5)
-    return Exposure(tuple(float(v) for v in paper), tuple(float(v) for v in ink), int(np.count_nonzero(lit)),
-                    saturated)
+    return Exposure(tuple(float(v) for v in paper), tuple(float(v) for v in ink), int(np.count_nonzero(lit)), saturated)
 
 
 def smooth_exposures(measurements, time_constant: float = 5.0, jump: float = 0.15) -> list:
@@ -250,13 +265,17 @@ class ExposureSmoother:
             else:
                 self._state = self._state + self.a * (x - self._state)
         v = np.exp(self._state)
-        self._last = Exposure(tuple(float(t) for t in v[:3]), tuple(float(t) for t in v[3:]), m.white_cells,
-                              m.saturated)
+        self._last = Exposure(
+            tuple(float(t) for t in v[:3]), tuple(float(t) for t in v[3:]), m.white_cells, m.saturated
+        )
         return self._last
 
     def state(self) -> dict:
-        return {"state": None if self._state is None else self._state.tolist(), "pending": self._pending,
-                "last": None if self._last is None else self._last.to_dict()}
+        return {
+            "state": None if self._state is None else self._state.tolist(),
+            "pending": self._pending,
+            "last": None if self._last is None else self._last.to_dict(),
+        }
 
     def restore(self, st: dict) -> None:
         self._state = None if st.get("state") is None else np.asarray(st["state"], np.float64)

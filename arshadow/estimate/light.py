@@ -129,6 +129,7 @@ def _correlation_factor(evs, light_h) -> float:
 
 def _laplace(evs, to_light, p, steps) -> np.ndarray:
     """Covariance of the parameters ``p`` from the numerical Hessian of the summed RSS."""
+
     def rss(q):
         h = to_light(np.asarray(q, np.float64))
         if h is None:
@@ -144,8 +145,9 @@ def _laplace(evs, to_light, p, steps) -> np.ndarray:
             if i == j:
                 Hm[i, i] = (rss(p + ei) - 2 * f0 + rss(p - ei)) / steps[i] ** 2
             else:
-                Hm[i, j] = Hm[j, i] = (rss(p + ei + ej) - rss(p + ei - ej) - rss(p - ei + ej)
-                                       + rss(p - ei - ej)) / (4 * steps[i] * steps[j])
+                Hm[i, j] = Hm[j, i] = (rss(p + ei + ej) - rss(p + ei - ej) - rss(p - ei + ej) + rss(p - ei - ej)) / (
+                    4 * steps[i] * steps[j]
+                )
     n = sum(c for _, _, c in objective(evs, to_light(p))[2])
     sigma2 = f0 / max(n - k - 2, 1) * _correlation_factor(evs, to_light(p))
     try:
@@ -177,19 +179,25 @@ def _check(evs, h, score, deltas, runner_up_score):
     explained = 1.0 - score / nf
     dark = 1.0 - math.exp(float(np.median(deltas))) if deltas else 0.0
     if dark < MIN_DARKENING or explained < MIN_EXPLAINED:
-        raise EstimateError(f"no shadow of the probe found (best fit darkens the ground by {100 * dark:.0f} %, "
-                            f"explains {100 * max(explained, 0):.1f} % of its variation): flat light, or the "
-                            "shadow is hidden or out of view")
+        raise EstimateError(
+            f"no shadow of the probe found (best fit darkens the ground by {100 * dark:.0f} %, "
+            f"explains {100 * max(explained, 0):.1f} % of its variation): flat light, or the "
+            "shadow is hidden or out of view"
+        )
     visible = _visible_share(evs, h)
     if visible < MIN_VISIBLE:
-        raise EstimateError(f"the probe's shadow is mostly out of view ({100 * visible:.0f} % of it visible): "
-                            "frame the whole shadow, or it is hidden behind the probe")
+        raise EstimateError(
+            f"the probe's shadow is mostly out of view ({100 * visible:.0f} % of it visible): "
+            "frame the whole shadow, or it is hidden behind the probe"
+        )
     runner = None
     if runner_up_score is not None and math.isfinite(runner_up_score):
         runner = (1.0 - runner_up_score / nf) / explained
         if runner > AMBIGUOUS:
-            raise EstimateError(f"ambiguous fit: a light more than 15 degrees away explains the shadow almost as "
-                                f"well ({100 * runner:.0f} %); add frames from other viewpoints or a taller probe")
+            raise EstimateError(
+                f"ambiguous fit: a light more than 15 degrees away explains the shadow almost as "
+                f"well ({100 * runner:.0f} %); add frames from other viewpoints or a taller probe"
+            )
     return explained, visible, runner
 
 
@@ -198,8 +206,12 @@ def _refine(fine, to_light, starts, simplex_step, xatol):
     count = _Counter(fine, to_light)
     for p0 in starts:
         init = np.vstack([p0] + [p0 + np.eye(len(p0))[i] * simplex_step[i] for i in range(len(p0))])
-        res = minimize(count, p0, method="Nelder-Mead",
-                       options={"initial_simplex": init, "xatol": xatol, "fatol": 1e-7, "maxiter": 400})
+        res = minimize(
+            count,
+            p0,
+            method="Nelder-Mead",
+            options={"initial_simplex": init, "xatol": xatol, "fatol": 1e-7, "maxiter": 400},
+        )
         if best is None or res.fun < best.fun:
             best = res
     return best, count.n
@@ -211,6 +223,7 @@ def fit_directional(coarse: list, make_fine, el_range=(12.0, 84.0)) -> FitResult
     az = np.arange(0.0, 360.0, 8.0)
     el = np.arange(el_range[0], el_range[1] + 1e-9, 6.0)
     cands = np.array([(a, e) for e in el for a in az])
+
     def to_light(p):
         return np.append(direction_of(p[0], p[1]), 0.0) if el_range[0] - 6 < p[1] < 89.5 else None
 
@@ -248,6 +261,7 @@ def fit_sun(coarse: list, make_fine, enu) -> FitResult:
     enu = np.asarray(enu, np.float64)
     if enu[2] <= 0.0:
         raise EstimateError("the sun is below the horizon at that time and place: no shadow to fit")
+
     def to_light(p):
         return np.append(enu_to_world(enu, float(p[0])), 0.0)
 
@@ -299,16 +313,26 @@ def fit_point(coarse: list, make_fine, anchor) -> FitResult:
         if to_light(q0) is None:
             continue
         init = np.vstack([q0[:2], q0[:2] + [2.0, 0.0], q0[:2] + [0.0, 2.0]])
-        r = minimize(lambda a, lt=q0[2]: count(np.r_[a, lt]), q0[:2], method="Nelder-Mead",
-                     options={"initial_simplex": init, "xatol": 0.1, "fatol": 1e-6, "maxiter": 45})
+        r = minimize(
+            lambda a, lt=q0[2]: count(np.r_[a, lt]),
+            q0[:2],
+            method="Nelder-Mead",
+            options={"initial_simplex": init, "xatol": 0.1, "fatol": 1e-6, "maxiter": 45},
+        )
         profile.append((r.fun, np.r_[r.x, q0[2]]))
         if np.isfinite(r.fun):
             ae = r.x
     profile.sort(key=lambda x: x[0])
     starts = [q for f, q in profile[:2] if np.isfinite(f)]
     # and the best of a coarse 3-D grid around the directional fit (another basin, when the profile misses it)
-    grid = np.array([(a, e, math.log(t)) for t in np.geomspace(0.15, 3.0, 14)
-                     for a in az0 + np.arange(-12.0, 12.1, 4.0) for e in el0 + np.arange(-12.0, 12.1, 4.0)])
+    grid = np.array(
+        [
+            (a, e, math.log(t))
+            for t in np.geomspace(0.15, 3.0, 14)
+            for a in az0 + np.arange(-12.0, 12.1, 4.0)
+            for e in el0 + np.arange(-12.0, 12.1, 4.0)
+        ]
+    )
     scores = np.array([objective(coarse, h)[0] if (h := to_light(q)) is not None else math.inf for q in grid])
     if np.isfinite(scores.min()):
         starts.append(grid[int(np.argmin(scores))])
@@ -328,5 +352,6 @@ def fit_point(coarse: list, make_fine, anchor) -> FitResult:
     unc = math.sqrt(max(cov[1, 1] + cov[0, 0] * math.cos(math.radians(q[1])) ** 2, 0.0))
     # position: the direction's spread across, the log distance's along
     sig = dist * math.sqrt(max(math.radians(unc) ** 2 + cov[2, 2], 0.0))
-    return FitResult(h, position(q), score, deltas, unc, sig, explained, visible, None,
-                     d.evaluations + count.n + len(grid) + n, fine)
+    return FitResult(
+        h, position(q), score, deltas, unc, sig, explained, visible, None, d.evaluations + count.n + len(grid) + n, fine
+    )

@@ -67,8 +67,15 @@ class ExposureMatch:
         self.marker_id = marker_id
         self.smoother = ExposureSmoother() if smooth else None
 
-    def gain(self, image: np.ndarray, intr: Intrinsics, cam_from_marker: np.ndarray, marker_id: int | None,
-             geometry: Any, paper_from_world: Any = None) -> tuple[np.ndarray | None, dict]:
+    def gain(
+        self,
+        image: np.ndarray,
+        intr: Intrinsics,
+        cam_from_marker: np.ndarray,
+        marker_id: int | None,
+        geometry: Any,
+        paper_from_world: Any = None,
+    ) -> tuple[np.ndarray | None, dict]:
         """``(gain (3,) float or None, report dict)`` for one frame.
 
         The report dict (the report item's ``exposure``): ``paper_rgb``, ``ink_rgb``, ``white_cells``,
@@ -90,8 +97,9 @@ class ExposureMatch:
         lights = [ls for ls in geometry.lights]
         if use is None or not lights:
             return None, rep
-        s = paper_shading([ls.light_h for ls in lights], [ls.weight for ls in lights], geometry.options.ambient,
-                          paper_from_world)
+        s = paper_shading(
+            [ls.light_h for ls in lights], [ls.weight for ls in lights], geometry.options.ambient, paper_from_world
+        )
         g = np.asarray(use.paper_rgb, np.float64) / max(s, 1e-6)
         rep["shading"] = round(s, 6)
         rep["gain"] = [round(float(v), 6) for v in g]

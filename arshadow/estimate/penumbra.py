@@ -86,9 +86,9 @@ def fit_angular_radius(evs: list, direction) -> tuple[float, dict]:
     scores = np.array([_score(evs, direction, r) for r in radii])
     i = int(np.argmin(scores))
     r = float(radii[i])
-    if 0 < i < len(radii) - 1 and np.all(np.isfinite(scores[i - 1:i + 2])):
-        x0, x1, x2 = radii[i - 1:i + 2]
-        y0, y1, y2 = scores[i - 1:i + 2]
+    if 0 < i < len(radii) - 1 and np.all(np.isfinite(scores[i - 1 : i + 2])):
+        x0, x1, x2 = radii[i - 1 : i + 2]
+        y0, y1, y2 = scores[i - 1 : i + 2]
         # the vertex of the parabola through the three points (non-uniform spacing)
         den = (x0 - x1) * (x0 - x2) * (x1 - x2)
         A = (x2 * (y1 - y0) + x1 * (y0 - y2) + x0 * (y2 - y1)) / den

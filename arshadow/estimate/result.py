@@ -14,7 +14,14 @@ import numpy as np
 from ..errors import UsageError
 from .exposure import Exposure
 
-__all__ = ["DEFAULT_OBJECT_COLOR", "LightEstimate", "load_estimate", "measured_ambient", "scene_overrides", "shading_gain"]
+__all__ = [
+    "DEFAULT_OBJECT_COLOR",
+    "LightEstimate",
+    "load_estimate",
+    "measured_ambient",
+    "scene_overrides",
+    "shading_gain",
+]
 
 
 def _r(v: Any, nd: int = 6) -> Any:
@@ -82,13 +89,22 @@ class LightEstimate:
         return not self.warnings and self.uncertainty_deg <= 3.0
 
     def to_dict(self) -> dict:
-        return {"light": self.light, "kind": self.kind, "direction": _r(self.direction),
-                "position": _r(self.position), "north_deg": _r(self.north_deg, 4),
-                "shadow_ratio": _r(self.shadow_ratio, 4), "uncertainty_deg": _r(self.uncertainty_deg, 4),
-                "position_uncertainty": _r(self.position_uncertainty),
-                "exposure": None if self.exposure is None else self.exposure.to_dict(),
-                "frames": int(self.frames), "confident": self.confident, "fit": self.fit,
-                "warnings": list(self.warnings), "angular_diameter_deg": _r(self.angular_diameter_deg, 4)}
+        return {
+            "light": self.light,
+            "kind": self.kind,
+            "direction": _r(self.direction),
+            "position": _r(self.position),
+            "north_deg": _r(self.north_deg, 4),
+            "shadow_ratio": _r(self.shadow_ratio, 4),
+            "uncertainty_deg": _r(self.uncertainty_deg, 4),
+            "position_uncertainty": _r(self.position_uncertainty),
+            "exposure": None if self.exposure is None else self.exposure.to_dict(),
+            "frames": int(self.frames),
+            "confident": self.confident,
+            "fit": self.fit,
+            "warnings": list(self.warnings),
+            "angular_diameter_deg": _r(self.angular_diameter_deg, 4),
+        }
 
     def to_json(self, indent: int | None = 1) -> str:
         return json.dumps(self.to_dict(), indent=indent)
@@ -96,18 +112,25 @@ class LightEstimate:
     @classmethod
     def from_dict(cls, d: dict) -> LightEstimate:
         try:
-            return cls(kind=str(d["kind"]), light=str(d["light"]),
-                       direction=None if d.get("direction") is None else tuple(d["direction"]),
-                       position=None if d.get("position") is None else tuple(d["position"]),
-                       north_deg=d.get("north_deg"), shadow_ratio=tuple(float(v) for v in d["shadow_ratio"]),
-                       uncertainty_deg=float(d.get("uncertainty_deg", math.inf)),
-                       position_uncertainty=d.get("position_uncertainty"),
-                       exposure=None if d.get("exposure") is None else Exposure.from_dict(d["exposure"]),
-                       frames=int(d.get("frames", 1)), fit=dict(d.get("fit", {})),
-                       warnings=list(d.get("warnings", [])), angular_diameter_deg=d.get("angular_diameter_deg"))
+            return cls(
+                kind=str(d["kind"]),
+                light=str(d["light"]),
+                direction=None if d.get("direction") is None else tuple(d["direction"]),
+                position=None if d.get("position") is None else tuple(d["position"]),
+                north_deg=d.get("north_deg"),
+                shadow_ratio=tuple(float(v) for v in d["shadow_ratio"]),
+                uncertainty_deg=float(d.get("uncertainty_deg", math.inf)),
+                position_uncertainty=d.get("position_uncertainty"),
+                exposure=None if d.get("exposure") is None else Exposure.from_dict(d["exposure"]),
+                frames=int(d.get("frames", 1)),
+                fit=dict(d.get("fit", {})),
+                warnings=list(d.get("warnings", [])),
+                angular_diameter_deg=d.get("angular_diameter_deg"),
+            )
         except (KeyError, TypeError, ValueError) as exc:
-            raise UsageError(f"not a light estimate ({type(exc).__name__}: {exc}); make one with arshadow light "
-                             "--json") from None
+            raise UsageError(
+                f"not a light estimate ({type(exc).__name__}: {exc}); make one with arshadow light --json"
+            ) from None
 
     @classmethod
     def from_json(cls, text: str) -> LightEstimate:
@@ -202,13 +225,18 @@ def scene_overrides(est: LightEstimate, color: Any = None, exposure: bool = True
     [0.5948, 0.5948, 0.5948]
     """
     ambient = measured_ambient(est)
-    out: dict[str, Any] = {"lights": (est.light,), "opacity": 1.0,
-                           "shadow_color": tuple(float(np.clip(v, 0.0, 1.0)) for v in est.shadow_ratio),
-                           "ambient": ambient, "specular": 0.0}
+    out: dict[str, Any] = {
+        "lights": (est.light,),
+        "opacity": 1.0,
+        "shadow_color": tuple(float(np.clip(v, 0.0, 1.0)) for v in est.shadow_ratio),
+        "ambient": ambient,
+        "specular": 0.0,
+    }
     gain = shading_gain(est, ambient) if exposure else None
     if gain is not None:
         base = DEFAULT_OBJECT_COLOR if color is None else tuple(float(v) / 255.0 for v in str(color).split(","))
-        lin = np.where(np.asarray(base) <= 0.04045, np.asarray(base) / 12.92,
-                       ((np.asarray(base) + 0.055) / 1.055) ** 2.4) * np.asarray(gain)
+        lin = np.where(
+            np.asarray(base) <= 0.04045, np.asarray(base) / 12.92, ((np.asarray(base) + 0.055) / 1.055) ** 2.4
+        ) * np.asarray(gain)
         out["occluder_color"] = tuple(float(v) for v in _encode_unclipped(lin))
     return out

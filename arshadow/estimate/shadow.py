@@ -129,9 +129,22 @@ def _probe_footprint(uv_grid, uvp, faces, dilate_px):
     return out
 
 
-def build_evidence(image_bgr: np.ndarray, intr: Intrinsics, cam_from_world, verts, faces, *, marker_length: float,
-                   paper_rgb, center, half: float, step: float, convex: bool = True, sigma: float = 0.03,
-                   supersample: int = SS) -> Evidence:
+def build_evidence(
+    image_bgr: np.ndarray,
+    intr: Intrinsics,
+    cam_from_world,
+    verts,
+    faces,
+    *,
+    marker_length: float,
+    paper_rgb,
+    center,
+    half: float,
+    step: float,
+    convex: bool = True,
+    sigma: float = 0.03,
+    supersample: int = SS,
+) -> Evidence:
     """Sample one photo on a ground grid around the probe.
 
     Parameters
@@ -167,8 +180,14 @@ def build_evidence(image_bgr: np.ndarray, intr: Intrinsics, cam_from_world, vert
     uv = np.full((len(pts), 2), np.nan)
     uv[front] = intr.project(pts[front], pose)
     H, W = image_bgr.shape[:2]
-    inimg = front & np.all(np.isfinite(uv), axis=1) & (uv[:, 0] >= 1) & (uv[:, 0] <= W - 2) & (uv[:, 1] >= 1) \
+    inimg = (
+        front
+        & np.all(np.isfinite(uv), axis=1)
+        & (uv[:, 0] >= 1)
+        & (uv[:, 0] <= W - 2)
+        & (uv[:, 1] >= 1)
         & (uv[:, 1] <= H - 2)
+    )
     uv_s = np.where(inimg[:, None], uv, -10.0).astype(np.float32).reshape(n, n, 2)
     lin = cv2.LUT(image_bgr, SRGB_TO_LINEAR)
     rgb = cv2.remap(lin, uv_s[:, :, 0], uv_s[:, :, 1], cv2.INTER_LINEAR).reshape(-1, 3)[:, ::-1].astype(np.float64)
@@ -191,9 +210,20 @@ def build_evidence(image_bgr: np.ndarray, intr: Intrinsics, cam_from_world, vert
     paper = near & (np.abs(chroma - pc).max(axis=1) < 0.035) & (rgb @ LUMA > 0.2 * (p @ LUMA)) & used
     y = rgb @ LUMA
     log_y = np.log(np.maximum(y, 1e-6))
-    return Evidence(x0, y0, float(step), log_y.reshape(n, n), rgb.reshape(n, n, 3), used.reshape(n, n),
-                    paper.reshape(n, n), np.asarray(verts, np.float64), np.asarray(faces), bool(convex),
-                    float(sigma), int(supersample))
+    return Evidence(
+        x0,
+        y0,
+        float(step),
+        log_y.reshape(n, n),
+        rgb.reshape(n, n, 3),
+        used.reshape(n, n),
+        paper.reshape(n, n),
+        np.asarray(verts, np.float64),
+        np.asarray(faces),
+        bool(convex),
+        float(sigma),
+        int(supersample),
+    )
 
 
 def shadow_coverage(ev: Evidence, light_h) -> np.ndarray | None:
@@ -330,9 +360,15 @@ def edge_pairs(ev: Evidence, S: np.ndarray, distance: float):
 
     qi, gi = nearest(pin)
     qo, go = nearest(pout)
-    keep = gi & go & ev.used[qi[:, 1], qi[:, 0]] & ev.used[qo[:, 1], qo[:, 0]] \
-        & (ev.paper[qi[:, 1], qi[:, 0]] == ev.paper[qo[:, 1], qo[:, 0]]) \
-        & (S[qi[:, 1], qi[:, 0]] > 0.99) & (S[qo[:, 1], qo[:, 0]] < 0.01)
+    keep = (
+        gi
+        & go
+        & ev.used[qi[:, 1], qi[:, 0]]
+        & ev.used[qo[:, 1], qo[:, 0]]
+        & (ev.paper[qi[:, 1], qi[:, 0]] == ev.paper[qo[:, 1], qo[:, 0]])
+        & (S[qi[:, 1], qi[:, 0]] > 0.99)
+        & (S[qo[:, 1], qo[:, 0]] < 0.01)
+    )
     if not keep.any():
         return np.zeros((0, 3)), np.zeros((0, 3))
     rgb = ev.rgb.astype(np.float32)

@@ -60,8 +60,9 @@ def check_layer_format(fmt: str, what: str = "--layers-format") -> str:
         try:
             import OpenEXR  # noqa: F401  (optional extra: only checked when EXR layers are asked for)
         except ImportError:
-            raise UsageError(f"{what} exr: no OpenEXR writer (pip install 'arshadow[exr]', or use "
-                             f"{what} png)") from None
+            raise UsageError(
+                f"{what} exr: no OpenEXR writer (pip install 'arshadow[exr]', or use {what} png)"
+            ) from None
     return fmt
 
 

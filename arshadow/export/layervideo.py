@@ -37,9 +37,12 @@ from .layerfiles import LAYER_NAMES, check_layer_format, layer_arrays, write_lay
 __all__ = ["VIDEO_LAYER_FORMATS", "LayerSink", "check_video_layer_format", "video_layer_paths"]
 
 #: format -> (codec, container extension, RGBA pixel format, grey pixel format)
-VIDEO_LAYER_FORMATS = {"prores": ("prores_ks", "mov", "yuva444p10le", "yuv444p10le"),
-                       "ffv1": ("ffv1", "mkv", "rgba64le", "gray16le"),
-                       "png": None, "exr": None}
+VIDEO_LAYER_FORMATS = {
+    "prores": ("prores_ks", "mov", "yuva444p10le", "yuv444p10le"),
+    "ffv1": ("ffv1", "mkv", "rgba64le", "gray16le"),
+    "png": None,
+    "exr": None,
+}
 
 
 def check_video_layer_format(fmt: str, what: str = "--layers-format") -> str:
@@ -111,8 +114,7 @@ class LayerSink:
         if spec is None:
             target = Path(self.paths["folder"])
             target.parent.mkdir(parents=True, exist_ok=True)
-            self._tmp["folder"] = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".tmp",
-                                                        dir=target.parent))
+            self._tmp["folder"] = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent))
             return
         import av  # the video engine's own dependency
 

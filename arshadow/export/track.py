@@ -55,8 +55,25 @@ __all__ = [
 GLTF_FROM_MARKER = np.array([[1, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0], [0, 0, 0, 1]], np.float64)
 #: OpenCV camera axes -> OpenGL camera axes (and back): diag(1, -1, -1)
 _CV_GL = np.diag([1.0, -1.0, -1.0, 1.0])
-CSV_COLUMNS = ("frame", "time_s", "status", "keyed", "rvec_x", "rvec_y", "rvec_z", "tvec_x", "tvec_y", "tvec_z",
-               "gl_px", "gl_py", "gl_pz", "gl_qx", "gl_qy", "gl_qz", "gl_qw")
+CSV_COLUMNS = (
+    "frame",
+    "time_s",
+    "status",
+    "keyed",
+    "rvec_x",
+    "rvec_y",
+    "rvec_z",
+    "tvec_x",
+    "tvec_y",
+    "tvec_z",
+    "gl_px",
+    "gl_py",
+    "gl_pz",
+    "gl_qx",
+    "gl_qy",
+    "gl_qz",
+    "gl_qw",
+)
 
 
 @dataclass
@@ -83,8 +100,14 @@ class CameraTrack:
 
     @classmethod
     def from_intrinsics(cls, intr, frames=(), name: str = "") -> CameraTrack:
-        return cls(np.asarray(intr.K, np.float64), np.asarray(intr.dist, np.float64).ravel(), int(intr.width),
-                   int(intr.height), list(frames), name)
+        return cls(
+            np.asarray(intr.K, np.float64),
+            np.asarray(intr.dist, np.float64).ravel(),
+            int(intr.width),
+            int(intr.height),
+            list(frames),
+            name,
+        )
 
     def keyed(self, lost: str = "held") -> list:
         """``[(TrackFrame, cam_from_world)]`` of the frames with a key: tracked, held, and with
@@ -174,8 +197,14 @@ def track_from_items(items, intr, name: str = "photos", fps: float = 1.0) -> Cam
     for i, it in enumerate(items):
         d = it if isinstance(it, dict) else it.to_dict()
         ok = d.get("status") == "ok" and d.get("rvec") is not None
-        frames.append(TrackFrame(i, i / float(fps), "tracked" if ok else "lost",
-                                 _matrix(d["rvec"], d["tvec"], d.get("ground")) if ok else None))
+        frames.append(
+            TrackFrame(
+                i,
+                i / float(fps),
+                "tracked" if ok else "lost",
+                _matrix(d["rvec"], d["tvec"], d.get("ground")) if ok else None,
+            )
+        )
     return CameraTrack.from_intrinsics(intr, frames, name)
 
 
@@ -186,8 +215,11 @@ def _frame_record(f: TrackFrame, m, keyed: bool) -> dict:
         rvec = cv2.Rodrigues(m[:3, :3])[0].ravel()
         g = gl_world_from_camera(m)
         rec["opencv"] = {"rvec": rvec.tolist(), "tvec": m[:3, 3].tolist(), "cam_from_world": m.tolist()}
-        rec["opengl"] = {"world_from_camera": g.tolist(), "position": g[:3, 3].tolist(),
-                         "quaternion_xyzw": quat_from_matrix(g[:3, :3]).tolist()}
+        rec["opengl"] = {
+            "world_from_camera": g.tolist(),
+            "position": g[:3, 3].tolist(),
+            "quaternion_xyzw": quat_from_matrix(g[:3, :3]).tolist(),
+        }
     return rec
 
 
@@ -198,26 +230,40 @@ def _records(track: CameraTrack, lost: str) -> list:
 
 def _intrinsics_dict(track: CameraTrack) -> dict:
     K = track.K
-    return {"width": track.width, "height": track.height, "K": K.tolist(), "dist": track.dist.tolist(),
-            "fx": float(K[0, 0]), "fy": float(K[1, 1]), "cx": float(K[0, 2]), "cy": float(K[1, 2]),
-            "yfov_rad": 2.0 * math.atan(track.height / (2.0 * K[1, 1])),
-            "pixels": "(u, v), (0, 0) the centre of the top-left pixel (CONVENTIONS.md)"}
+    return {
+        "width": track.width,
+        "height": track.height,
+        "K": K.tolist(),
+        "dist": track.dist.tolist(),
+        "fx": float(K[0, 0]),
+        "fy": float(K[1, 1]),
+        "cx": float(K[0, 2]),
+        "cy": float(K[1, 2]),
+        "yfov_rad": 2.0 * math.atan(track.height / (2.0 * K[1, 1])),
+        "pixels": "(u, v), (0, 0) the centre of the top-left pixel (CONVENTIONS.md)",
+    }
 
 
 def track_json(track: CameraTrack, lost: str = "held") -> dict:
     """The JSON document of a track (conventions stated in it)."""
     from .. import __version__
 
-    return {"arshadow": __version__, "name": track.name, "lost_frames": lost,
-            "conventions": {
-                "world": "marker frame: origin at the marker centre, x right, y up the print, z out of it; "
-                         "ground z = 0; metres",
-                "opencv": "cam_from_world maps marker-frame points to the OpenCV camera (x right, y down, z "
-                          "forward): X_cam = R X_world + t, (rvec, tvec) as cv2.solvePnP",
-                "opengl": "world_from_camera is the camera's pose in the marker frame with OpenGL camera axes "
-                          "(x right, y up, looking down -z) = inverse(cam_from_world) @ diag(1, -1, -1, 1)",
-                "time_s": "presentation time of the frame in seconds (photo sets: index / fps)"},
-            "intrinsics": _intrinsics_dict(track), "frames": _records(track, lost)}
+    return {
+        "arshadow": __version__,
+        "name": track.name,
+        "lost_frames": lost,
+        "conventions": {
+            "world": "marker frame: origin at the marker centre, x right, y up the print, z out of it; "
+            "ground z = 0; metres",
+            "opencv": "cam_from_world maps marker-frame points to the OpenCV camera (x right, y down, z "
+            "forward): X_cam = R X_world + t, (rvec, tvec) as cv2.solvePnP",
+            "opengl": "world_from_camera is the camera's pose in the marker frame with OpenGL camera axes "
+            "(x right, y up, looking down -z) = inverse(cam_from_world) @ diag(1, -1, -1, 1)",
+            "time_s": "presentation time of the frame in seconds (photo sets: index / fps)",
+        },
+        "intrinsics": _intrinsics_dict(track),
+        "frames": _records(track, lost),
+    }
 
 
 def track_csv(track: CameraTrack, lost: str = "held") -> str:
@@ -268,8 +314,9 @@ def _mesh(b: _Bin, verts, faces, name: str, color) -> dict:
     return {"name": name, "primitives": [{"attributes": {"POSITION": pos}, "indices": idx, "material": color}]}
 
 
-def track_gltf(track: CameraTrack, *, caster=None, ground_size: float = 1.0, lost: str = "held",
-               interpolation: str = "LINEAR") -> tuple[dict, bytes]:
+def track_gltf(
+    track: CameraTrack, *, caster=None, ground_size: float = 1.0, lost: str = "held", interpolation: str = "LINEAR"
+) -> tuple[dict, bytes]:
     """The glTF document (dict) and its binary buffer.
 
     ``caster``: the occluder (:class:`arshadow.geometry.mesh.ShadowCaster`, world frame) or None;
@@ -284,19 +331,30 @@ def track_gltf(track: CameraTrack, *, caster=None, ground_size: float = 1.0, los
     yfov = 2.0 * math.atan(track.height / (2.0 * K[1, 1]))
     # glTF's aspectRatio is tan(xfov/2) / tan(yfov/2): W fy / (H fx) keeps fx != fy exact
     aspect = (track.width * K[1, 1]) / (track.height * K[0, 0])
-    cam = {"type": "perspective", "name": "arshadow_camera",
-           "perspective": {"yfov": yfov, "aspectRatio": aspect, "znear": 0.01},
-           "extras": {"opencv": _intrinsics_dict(track)}}
-    materials = [{"name": "occluder", "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1.0]},
-                  "doubleSided": True},
-                 {"name": "shadow_catcher", "pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 1]},
-                  "extras": {"arshadow": "proxy ground z = 0: use it as a shadow catcher"}}]
+    cam = {
+        "type": "perspective",
+        "name": "arshadow_camera",
+        "perspective": {"yfov": yfov, "aspectRatio": aspect, "znear": 0.01},
+        "extras": {"opencv": _intrinsics_dict(track)},
+    }
+    materials = [
+        {"name": "occluder", "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1.0]}, "doubleSided": True},
+        {
+            "name": "shadow_catcher",
+            "pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 1]},
+            "extras": {"arshadow": "proxy ground z = 0: use it as a shadow catcher"},
+        },
+    ]
     cam_node = {"name": "camera", "camera": 0}
     if keys:
         g0 = gl_world_from_camera(keys[0][1])
         cam_node.update(translation=g0[:3, 3].tolist(), rotation=quat_from_matrix(g0[:3, :3]).tolist())
-    root = {"name": "marker_frame", "rotation": [-math.sqrt(0.5), 0.0, 0.0, math.sqrt(0.5)], "children": [1],
-            "extras": {"arshadow": "marker frame (z up) -> glTF (y up)"}}
+    root = {
+        "name": "marker_frame",
+        "rotation": [-math.sqrt(0.5), 0.0, 0.0, math.sqrt(0.5)],
+        "children": [1],
+        "extras": {"arshadow": "marker frame (z up) -> glTF (y up)"},
+    }
     nodes: list[dict[str, Any]] = [root, cam_node]
     meshes = []
     s = float(ground_size) / 2.0
@@ -309,11 +367,22 @@ def track_gltf(track: CameraTrack, *, caster=None, ground_size: float = 1.0, los
         nodes.append({"name": "occluder", "mesh": 1})
         nodes[0]["children"].append(3)
     doc: dict[str, Any] = {
-           "asset": {"version": "2.0", "generator": f"arshadow {__version__}"},
-           "extras": {"arshadow": {"name": track.name, "lost_frames": lost,
-                                   "frames_keyed": len(keys), "frames": len(track.frames)}},
-           "scene": 0, "scenes": [{"name": track.name or "arshadow", "nodes": [0]}], "nodes": nodes,
-           "cameras": [cam], "meshes": meshes, "materials": materials}
+        "asset": {"version": "2.0", "generator": f"arshadow {__version__}"},
+        "extras": {
+            "arshadow": {
+                "name": track.name,
+                "lost_frames": lost,
+                "frames_keyed": len(keys),
+                "frames": len(track.frames),
+            }
+        },
+        "scene": 0,
+        "scenes": [{"name": track.name or "arshadow", "nodes": [0]}],
+        "nodes": nodes,
+        "cameras": [cam],
+        "meshes": meshes,
+        "materials": materials,
+    }
     if keys:
         times = np.array([f.time_s for f, _ in keys], np.float32)
         gs = [gl_world_from_camera(m) for _, m in keys]
@@ -323,13 +392,19 @@ def track_gltf(track: CameraTrack, *, caster=None, ground_size: float = 1.0, los
             if np.dot(q[i], q[i - 1]) < 0:
                 q[i] = -q[i]
         t_acc = b.add(times, "SCALAR", minmax=True)
-        doc["animations"] = [{
-            "name": "camera_track",
-            "samplers": [{"input": t_acc, "output": b.add(tr, "VEC3"), "interpolation": interpolation},
-                         {"input": t_acc, "output": b.add(q.astype(np.float32), "VEC4"),
-                          "interpolation": interpolation}],
-            "channels": [{"sampler": 0, "target": {"node": 1, "path": "translation"}},
-                         {"sampler": 1, "target": {"node": 1, "path": "rotation"}}]}]
+        doc["animations"] = [
+            {
+                "name": "camera_track",
+                "samplers": [
+                    {"input": t_acc, "output": b.add(tr, "VEC3"), "interpolation": interpolation},
+                    {"input": t_acc, "output": b.add(q.astype(np.float32), "VEC4"), "interpolation": interpolation},
+                ],
+                "channels": [
+                    {"sampler": 0, "target": {"node": 1, "path": "translation"}},
+                    {"sampler": 1, "target": {"node": 1, "path": "rotation"}},
+                ],
+            }
+        ]
     while len(b.data) % 4:
         b.data.append(0)
     doc["buffers"] = [{"byteLength": len(b.data)}]
@@ -341,19 +416,30 @@ def _glb(doc: dict, data: bytes) -> bytes:
     js = json.dumps(doc, separators=(",", ":")).encode()
     js += b" " * (-len(js) % 4)
     total = 12 + 8 + len(js) + 8 + len(data)
-    return (struct.pack("<III", 0x46546C67, 2, total) + struct.pack("<II", len(js), 0x4E4F534A) + js
-            + struct.pack("<II", len(data), 0x004E4942) + data)
+    return (
+        struct.pack("<III", 0x46546C67, 2, total)
+        + struct.pack("<II", len(js), 0x4E4F534A)
+        + js
+        + struct.pack("<II", len(data), 0x004E4942)
+        + data
+    )
 
 
-def write_track(path, track: CameraTrack, *, caster=None, ground_size: float = 1.0, lost: str = "held",
-                interpolation: str = "LINEAR") -> Path:
+def write_track(
+    path,
+    track: CameraTrack,
+    *,
+    caster=None,
+    ground_size: float = 1.0,
+    lost: str = "held",
+    interpolation: str = "LINEAR",
+) -> Path:
     """Write a track by ``path``'s extension: ``.glb``, ``.gltf`` (buffer embedded), ``.json`` or ``.csv``
     (atomically)."""
     p = Path(path)
     ext = p.suffix.lower()
     if ext in (".glb", ".gltf"):
-        doc, data = track_gltf(track, caster=caster, ground_size=ground_size, lost=lost,
-                               interpolation=interpolation)
+        doc, data = track_gltf(track, caster=caster, ground_size=ground_size, lost=lost, interpolation=interpolation)
         if ext == ".glb":
             return write_bytes(p, _glb(doc, data))
         doc["buffers"][0]["uri"] = "data:application/octet-stream;base64," + base64.b64encode(data).decode()

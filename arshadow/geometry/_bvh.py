@@ -49,8 +49,8 @@ def build(triangles: np.ndarray, scale: float) -> dict:
     n_nodes = 2 * n_l - 1
     nmin = np.empty((n_nodes, 3))
     nmax = np.empty((n_nodes, 3))
-    nmin[n_l - 1:] = lmin
-    nmax[n_l - 1:] = lmax
+    nmin[n_l - 1 :] = lmin
+    nmax[n_l - 1 :] = lmax
     first = n_l - 1
     while first > 0:
         parents = np.arange((first - 1) // 2, first)
@@ -60,8 +60,7 @@ def build(triangles: np.ndarray, scale: float) -> dict:
     # the triangles' edge vectors for the Moller-Trumbore tests (per mesh, not per query)
     e1 = triangles[:, 1] - triangles[:, 0]
     e2 = triangles[:, 2] - triangles[:, 0]
-    return {"nmin": nmin, "nmax": nmax, "leaf_faces": leaf_faces, "depth": depth, "n_leaves": n_l,
-            "e1": e1, "e2": e2}
+    return {"nmin": nmin, "nmax": nmax, "leaf_faces": leaf_faces, "depth": depth, "n_leaves": n_l, "e1": e1, "e2": e2}
 
 
 def _tree(caster) -> dict:

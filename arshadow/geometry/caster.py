@@ -260,9 +260,11 @@ class ShadowCaster:
         u = 2.0**-24
         # |s32 - exact| <= 8u (|L'| + |d'| |w|) (conversions + a length-4 dot product, any order);
         # |float64 expression - exact| <= 1e-15 (|L| + |d| |w|); 1e-30 covers float32 underflow
-        margin = 8.0 * u * (nl * (1.0 + 1e-6) + prep["dmax_c"] * w) + 1e-15 * (
-            float(np.sqrt(h[:3] @ h[:3])) + prep["dmax"] * w
-        ) + 1e-30
+        margin = (
+            8.0 * u * (nl * (1.0 + 1e-6) + prep["dmax_c"] * w)
+            + 1e-15 * (float(np.sqrt(h[:3] @ h[:3])) + prep["dmax"] * w)
+            + 1e-30
+        )
         pt = prep["pt32"]
         m = pt.shape[1]
         fac = np.empty(m, bool)

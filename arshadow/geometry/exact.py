@@ -13,8 +13,15 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-__all__ = ["ShadowOracle", "boundary_error_px", "ground_points", "ground_shadow_triangles", "iou",
-           "occluder_coverage", "points_in_triangles"]
+__all__ = [
+    "ShadowOracle",
+    "boundary_error_px",
+    "ground_points",
+    "ground_shadow_triangles",
+    "iou",
+    "occluder_coverage",
+    "points_in_triangles",
+]
 
 
 def ground_shadow_triangles(vertices, faces, light_h) -> np.ndarray:
@@ -220,7 +227,7 @@ class ShadowOracle:
         """Pixel-centre classification of a canvas ``(u0, v0, w, h)`` (default the whole image):
         ``(mask (h, w), ground (h, w), occluder (h, w))``."""
         u0, v0, w, h = (0, 0, width, height) if canvas is None else canvas
-        vv, uu = np.mgrid[v0:v0 + h, u0:u0 + w]
+        vv, uu = np.mgrid[v0 : v0 + h, u0 : u0 + w]
         m, g, o = self.classify(uu.ravel().astype(np.float64), vv.ravel().astype(np.float64))
         return m.reshape(h, w), g.reshape(h, w), o.reshape(h, w)
 
@@ -232,6 +239,7 @@ def boundary_error_px(mask, exact) -> dict:
     Returns ``{"mean": ..., "p95": ..., "max": ...}`` over both directions (0.0 when both are empty,
     ``inf`` when only one has a boundary).
     """
+
     def boundary(m):
         m = np.asarray(m, np.uint8)
         k = np.ones((3, 3), np.uint8)

@@ -38,8 +38,15 @@ import numpy as np
 
 from ..errors import UsageError
 
-__all__ = ["GROUND_KINDS", "MIN_ELEVATION_DEG", "GroundSpec", "check_camera_above", "ground_frame", "ground_warnings",
-           "parse_ground"]
+__all__ = [
+    "GROUND_KINDS",
+    "MIN_ELEVATION_DEG",
+    "GroundSpec",
+    "check_camera_above",
+    "ground_frame",
+    "ground_warnings",
+    "parse_ground",
+]
 
 #: the kinds of ground spec :func:`parse_ground` accepts
 GROUND_KINDS = ("marker", "wall", "plane")
@@ -121,8 +128,9 @@ def parse_ground(text) -> GroundSpec:
     if kind == "wall":
         (h,) = _numbers(body, 1, t)
         if h <= 0:
-            raise UsageError(f"--ground {t!r}: H is the height of the marker's centre above the floor, in metres, "
-                             "and must be > 0")
+            raise UsageError(
+                f"--ground {t!r}: H is the height of the marker's centre above the floor, in metres, and must be > 0"
+            )
         return GroundSpec(f"wall:{h:g}", (0.0, -h, 0.0), (0.0, 1.0, 0.0))
     if kind == "plane":
         v = _numbers(body, 6, t)
@@ -131,10 +139,10 @@ def parse_ground(text) -> GroundSpec:
         if not norm > 1e-12:
             raise UsageError(f"--ground {t!r}: the normal NX,NY,NZ must not be zero")
         n = n / norm
-        return GroundSpec("plane:" + ",".join(f"{x:g}" for x in v), tuple(float(x) for x in v[:3]),
-                          tuple(float(x) for x in n))
-    raise UsageError(f"--ground {t!r}: choose marker, wall:H or plane:PX,PY,PZ,NX,NY,NZ "
-                     "(metres, in the marker frame)")
+        return GroundSpec(
+            "plane:" + ",".join(f"{x:g}" for x in v), tuple(float(x) for x in v[:3]), tuple(float(x) for x in n)
+        )
+    raise UsageError(f"--ground {t!r}: choose marker, wall:H or plane:PX,PY,PZ,NX,NY,NZ (metres, in the marker frame)")
 
 
 def ground_warnings(spec) -> list[str]:
@@ -218,10 +226,14 @@ def check_camera_above(cam_from_ground, spec: str = "", *, min_elevation_deg: fl
     h, dist = float(c[2]), float(np.linalg.norm(c))
     name = f"--ground {spec}" if spec else "the ground"
     if not h > 0:
-        raise UsageError(f"{name}: the camera is {-h:.3g} m below that ground plane (or in it) in this photo; "
-                         "the plane's normal must point up, to the side the camera looks from (the marker "
-                         "frame: x right, y to the marker's top edge, z out of its face)")
+        raise UsageError(
+            f"{name}: the camera is {-h:.3g} m below that ground plane (or in it) in this photo; "
+            "the plane's normal must point up, to the side the camera looks from (the marker "
+            "frame: x right, y to the marker's top edge, z out of its face)"
+        )
     elev = math.degrees(math.asin(min(1.0, h / dist))) if dist > 0 else 90.0
     if elev < min_elevation_deg:
-        raise UsageError(f"{name}: the camera sees that ground plane edge-on ({elev:.2g} degrees above it, "
-                         f"{h:.3g} m over a distance of {dist:.3g} m); a shadow on it would be a line")
+        raise UsageError(
+            f"{name}: the camera sees that ground plane edge-on ({elev:.2g} degrees above it, "
+            f"{h:.3g} m over a distance of {dist:.3g} m); a shadow on it would be a line"
+        )

@@ -62,7 +62,9 @@ def primitive(spec: str):
 
     m = _PRIM_RE.match(spec)
     if not m:
-        raise MeshError(f"{spec!r} is not a primitive spec ({', '.join(k + ':' + ','.join(v) for k, v in PRIMITIVES.items())})")
+        raise MeshError(
+            f"{spec!r} is not a primitive spec ({', '.join(k + ':' + ','.join(v) for k, v in PRIMITIVES.items())})"
+        )
     kind = m.group(1).lower()
     names = PRIMITIVES[kind]
     try:
@@ -99,7 +101,7 @@ def _parse_color(color):
     if isinstance(color, str):
         s = color.strip().lstrip("#")
         if re.fullmatch(r"[0-9a-fA-F]{6}([0-9a-fA-F]{2})?", s):
-            return np.array([int(s[i:i + 2], 16) for i in range(0, len(s), 2)], np.float64) / 255.0
+            return np.array([int(s[i : i + 2], 16) for i in range(0, len(s), 2)], np.float64) / 255.0
         try:
             c = np.array([float(x) for x in s.split(",")])
         except ValueError:
@@ -132,8 +134,13 @@ def _load_mesh_file(p: Path):
         except UnicodeDecodeError:
             text = data.decode("latin-1")
             resolver = trimesh.resolvers.FilePathResolver(str(p))
-            return trimesh.load(io.BytesIO(text.encode("utf-8")), file_type=p.suffix.lower()[1:], force="mesh",
-                                process=False, resolver=resolver)
+            return trimesh.load(
+                io.BytesIO(text.encode("utf-8")),
+                file_type=p.suffix.lower()[1:],
+                force="mesh",
+                process=False,
+                resolver=resolver,
+            )
     return trimesh.load(str(p), force="mesh", process=False)
 
 
@@ -166,8 +173,9 @@ def up_rotation(up: str) -> np.ndarray:
     return np.eye(3) if up == "z" else rotation_xyz_deg((90.0, 0.0, 0.0))
 
 
-def load_occluder(spec_or_path, scale=1.0, rotate=(0.0, 0.0, 0.0), place=(0.0, 0.0, 0.0), color=None, *,
-                  up=None, drop_to_ground=False) -> ShadowCaster:
+def load_occluder(
+    spec_or_path, scale=1.0, rotate=(0.0, 0.0, 0.0), place=(0.0, 0.0, 0.0), color=None, *, up=None, drop_to_ground=False
+) -> ShadowCaster:
     """Load a mesh file (anything trimesh reads) or build a primitive, and place it in the world frame.
 
     Parameters
@@ -214,8 +222,10 @@ def load_occluder(spec_or_path, scale=1.0, rotate=(0.0, 0.0, 0.0), place=(0.0, 0
         up_rotation(up)  # an unknown axis: MeshError before the file is read
     if _PRIM_RE.match(spec) and not Path(spec).exists():
         if up not in (None, "z"):
-            raise MeshError(f"--up {up!r}: primitives ({spec.strip()}) are built standing on the ground, z up; "
-                            "--up is for mesh files")
+            raise MeshError(
+                f"--up {up!r}: primitives ({spec.strip()}) are built standing on the ground, z up; "
+                "--up is for mesh files"
+            )
         v, f = primitive(spec)
         name = spec.strip()
     else:
@@ -265,8 +275,10 @@ def load_occluder(spec_or_path, scale=1.0, rotate=(0.0, 0.0, 0.0), place=(0.0, 0
     v = v + t
     big = float(np.max(np.abs(v))) if v.size and np.all(np.isfinite(v)) else 0.0
     if big > MAX_COORDINATE:
-        raise MeshError(f"{name}: coordinates up to {big:.3g} m (more than {MAX_COORDINATE:.0e} m): wrong units? "
-                        "(mesh coordinates are metres; see --scale)")
+        raise MeshError(
+            f"{name}: coordinates up to {big:.3g} m (more than {MAX_COORDINATE:.0e} m): wrong units? "
+            "(mesh coordinates are metres; see --scale)"
+        )
     if np.prod(np.sign(s)) < 0:  # a mirroring scale flips the winding: keep normals outward
         f = f[:, ::-1]
     c = _parse_color(color)

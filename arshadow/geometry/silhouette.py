@@ -227,11 +227,15 @@ def _hsd(caster: ShadowCaster, h: np.ndarray, **_):
     else:
         sel = pe[pvis[poly["edge_polygon"]]]
     e = _toggle(sel[:, 0], sel[:, 1], len(caster.vertices))
-    return e, facing, {
-        "faces_tested": int(pvis.size),
-        "polygons": int(pvis.size),
-        "edge_ops": int(sel.shape[0]),
-    }
+    return (
+        e,
+        facing,
+        {
+            "faces_tested": int(pvis.size),
+            "polygons": int(pvis.size),
+            "edge_ops": int(sel.shape[0]),
+        },
+    )
 
 
 def _delta_plus(caster: ShadowCaster, h: np.ndarray, eps: float = 1e-6, **_):
@@ -286,8 +290,9 @@ def _delta_plus(caster: ShadowCaster, h: np.ndarray, eps: float = 1e-6, **_):
     hit = np.zeros(len(cand), bool)
     if ok_other.any():
         t = caster.triangles[other[ok_other]]
-        hit[ok_other] = moller_trumbore(origins[ok_other], dirs[ok_other], tmin[ok_other],
-                                         t[:, 0], t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+        hit[ok_other] = moller_trumbore(
+            origins[ok_other], dirs[ok_other], tmin[ok_other], t[:, 0], t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
+        )
     rest = np.flatnonzero(~hit)
     hit_rest, bstats = any_hit(caster, origins[rest], dirs[rest], tmin[rest], vis_faces)
     hit[rest] = hit_rest

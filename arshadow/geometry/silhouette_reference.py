@@ -34,8 +34,14 @@ import numpy as np
 from ._bvh import moller_trumbore
 from .mesh import plane_side
 
-__all__ = ["ta_reference", "vnv_reference", "delta_plus_reference", "paper000_formulas", "paper003_claim",
-           "face_planes"]
+__all__ = [
+    "ta_reference",
+    "vnv_reference",
+    "delta_plus_reference",
+    "paper000_formulas",
+    "paper003_claim",
+    "face_planes",
+]
 
 
 def face_planes(vertices, faces) -> np.ndarray:
@@ -84,8 +90,13 @@ def ta_reference(vertices, faces, light_h, planes=None):
                 S.append((a, b))
             writes += 1
             max_len = max(max_len, len(S))
-    counts = {"face_tests": int(len(faces)), "compares": compares, "reads": compares + deletes,
-              "writes": writes, "max_len": max_len}
+    counts = {
+        "face_tests": int(len(faces)),
+        "compares": compares,
+        "reads": compares + deletes,
+        "writes": writes,
+        "max_len": max_len,
+    }
     return np.asarray(S, np.intp).reshape(-1, 2), counts
 
 

@@ -20,8 +20,16 @@ from ..errors import LightError, UsageError
 from .mesh import ShadowCaster
 from .silhouette import Silhouette, as_light_h
 
-__all__ = ["ShadowVolume", "shadow_volume", "camera_may_be_in_shadow", "near_plane_radius", "MIN_DESCENT",
-           "layer_bound", "STENCIL_COUNT_RANGE", "BATCH_LAYERS"]
+__all__ = [
+    "ShadowVolume",
+    "shadow_volume",
+    "camera_may_be_in_shadow",
+    "near_plane_radius",
+    "MIN_DESCENT",
+    "layer_bound",
+    "STENCIL_COUNT_RANGE",
+    "BATCH_LAYERS",
+]
 
 #: a single-pass stencil count is exact while no pixel is covered by more than this many volume layers
 #: (6 count bits: counts are kept modulo 64, so 1..63 are all non-zero)
@@ -127,7 +135,9 @@ def _same_light(a: np.ndarray, b: np.ndarray) -> bool:
     return bool(np.allclose(a, b, rtol=1e-12, atol=1e-15))
 
 
-def shadow_volume(caster: ShadowCaster, light_h, sil: Silhouette, *, caps: bool = True, truncate_z=None) -> ShadowVolume:
+def shadow_volume(
+    caster: ShadowCaster, light_h, sil: Silhouette, *, caps: bool = True, truncate_z=None
+) -> ShadowVolume:
     """Build the shadow volume of ``caster`` for one light from its silhouette.
 
     Parameters
@@ -216,7 +226,7 @@ def _volume(caster, h, edges, lit, facing, caps, truncate_z, bound, far_faces=No
     verts = np.empty((fin_idx.size + ext_idx.size, 4))
     verts[: fin_idx.size, :3] = v[fin_idx]
     verts[: fin_idx.size, 3] = 1.0
-    verts[fin_idx.size:] = ext
+    verts[fin_idx.size :] = ext
     a, b = edges[:, 0], edges[:, 1]
     fa, fb, xa, xb = pos_fin[a], pos_fin[b], pos_ext[a], pos_ext[b]
     # quad fb, fa, xa, xb split along the diagonal from the larger vertex index to the extrusion of the
@@ -256,7 +266,7 @@ def _batched_volume(caster, h, lit, bound, truncate_z) -> ShadowVolume:
     n_side = n_near = n_far = 0
     truncated = True
     for k in range(0, len(lit), BATCH_LAYERS):
-        s = lit[k:k + BATCH_LAYERS]
+        s = lit[k : k + BATCH_LAYERS]
         e = np.concatenate([s[:, [0, 1]], s[:, [1, 2]], s[:, [2, 0]]])
         key = e[:, 0].astype(np.int64) * (len(caster.vertices) + 1) + e[:, 1]
         rkey = e[:, 1].astype(np.int64) * (len(caster.vertices) + 1) + e[:, 0]
@@ -274,10 +284,20 @@ def _batched_volume(caster, h, lit, bound, truncate_z) -> ShadowVolume:
     tris = np.concatenate([p.triangles + o for p, o in zip(parts, offs)]).astype(np.intp)
     verts.flags.writeable = False
     tris.flags.writeable = False
-    return ShadowVolume(vertices=verts, triangles=tris, n_side=n_side, n_cap=n_near + n_far, n_near_cap=n_near,
-                        n_far_cap=n_far, truncated=bool(truncated and truncate_z is not None),
-                        truncate_z=None if truncate_z is None else float(truncate_z), light_h=h,
-                        two_sided=caster.two_sided, max_layers=int(bound), batches=tuple(batches))
+    return ShadowVolume(
+        vertices=verts,
+        triangles=tris,
+        n_side=n_side,
+        n_cap=n_near + n_far,
+        n_near_cap=n_near,
+        n_far_cap=n_far,
+        truncated=bool(truncated and truncate_z is not None),
+        truncate_z=None if truncate_z is None else float(truncate_z),
+        light_h=h,
+        two_sided=caster.two_sided,
+        max_layers=int(bound),
+        batches=tuple(batches),
+    )
 
 
 def layer_bound(vertices, edges, light_h, lit_faces=None) -> int:
@@ -315,7 +335,7 @@ def layer_bound(vertices, edges, light_h, lit_faces=None) -> int:
     """
     h = as_light_h(light_h)
     e = np.asarray(edges, np.intp).reshape(-1, 2)
-    trivial = len(lit_faces) if lit_faces is not None else 2 ** 31 - 1
+    trivial = len(lit_faces) if lit_faces is not None else 2**31 - 1
     if len(e) == 0:
         return 0
     v = np.asarray(vertices, np.float64)

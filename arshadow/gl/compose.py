@@ -97,8 +97,7 @@ class GpuCompositor:
         self.prog = program(ctx, "fullscreen.vert", "compose.frag")
         self.vao = ctx.vertex_array(self.prog, [])
         dec = ctx.texture((256, 1), 1, data=np.ascontiguousarray(SRGB_TO_LINEAR, np.float32).tobytes(), dtype="f4")
-        enc = ctx.texture((256, 256), 1, data=np.ascontiguousarray(LINEAR_TO_SRGB16).tobytes(), dtype="u1",
-                          alignment=1)
+        enc = ctx.texture((256, 256), 1, data=np.ascontiguousarray(LINEAR_TO_SRGB16).tobytes(), dtype="u1", alignment=1)
         for t in (dec, enc):
             t.filter = (ctx.NEAREST, ctx.NEAREST)
         self._dec, self._enc = dec, enc
@@ -148,8 +147,22 @@ class GpuCompositor:
         return lt
 
     @current
-    def compose(self, image, layers, roi, canvas, *, lens=None, opacity=0.7, shadow_color=(0.0, 0.0, 0.0),
-                draw_occluder=True, out=None, mask_out=None, timings=None, color_gain=(1.0, 1.0, 1.0)):
+    def compose(
+        self,
+        image,
+        layers,
+        roi,
+        canvas,
+        *,
+        lens=None,
+        opacity=0.7,
+        shadow_color=(0.0, 0.0, 0.0),
+        draw_occluder=True,
+        out=None,
+        mask_out=None,
+        timings=None,
+        color_gain=(1.0, 1.0, 1.0),
+    ):
         """Composite the layers into ``out`` over ``roi`` (the numpy path's result within one level).
 
         Parameters
@@ -224,14 +237,18 @@ class GpuCompositor:
         if x0 < 0 or y0 < 0 or w < 0 or h < 0 or x0 + w > W or y0 + h > H:
             raise ShapeError(f"roi {tuple(roi)} is not inside the {W}x{H} photo")
         if (int(canvas[2]), int(canvas[3])) != (int(layers.width), int(layers.height)):
-            raise ShapeError("the layers do not hold the canvas", actual_shape=(layers.width, layers.height),
-                             expected_shape=tuple(canvas[2:]))
+            raise ShapeError(
+                "the layers do not hold the canvas",
+                actual_shape=(layers.width, layers.height),
+                expected_shape=tuple(canvas[2:]),
+            )
         if out is None:
             out = image.copy()
         for name, arr, shape in (("out", out, (H, W, 3)), ("mask_out", mask_out, (H, W))):
             if arr is not None and (arr.shape != shape or arr.dtype != np.uint8 or not arr.flags.c_contiguous):
-                raise ShapeError(f"{name} must be a C-contiguous uint8 array", actual_shape=arr.shape,
-                                 expected_shape=shape)
+                raise ShapeError(
+                    f"{name} must be a C-contiguous uint8 array", actual_shape=arr.shape, expected_shape=shape
+                )
         return out
 
     def _set_uniforms(self, canvas, roi, use_lens, opacity, shadow_color, draw_occluder) -> None:
@@ -305,8 +322,14 @@ class PathChooser:
         key -> ``{"choice": name, "ms": {name: median ms}}``.
     """
 
-    def __init__(self, trials: int = 3, force: str | None = None, decisions: dict | None = None,
-                 margin: float = 0.15, clock=time.perf_counter):
+    def __init__(
+        self,
+        trials: int = 3,
+        force: str | None = None,
+        decisions: dict | None = None,
+        margin: float = 0.15,
+        clock=time.perf_counter,
+    ):
         if int(trials) < 1:
             raise UsageError(f"trials must be >= 1, got {trials}")
         if not 0.0 <= float(margin) < 1.0:

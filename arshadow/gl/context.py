@@ -70,8 +70,9 @@ def detect_libraries() -> dict:
         "libEGL": ctypes.util.find_library("EGL"),
         "libOpenGL": ctypes.util.find_library("OpenGL"),
         "libGL": ctypes.util.find_library("GL"),
-        "egl_vendors": sorted(os.path.basename(f) for d in _EGL_VENDOR_DIRS
-                              for f in glob.glob(os.path.join(d, "*.json"))),
+        "egl_vendors": sorted(
+            os.path.basename(f) for d in _EGL_VENDOR_DIRS for f in glob.glob(os.path.join(d, "*.json"))
+        ),
         ENV_VAR: os.environ.get(ENV_VAR) or None,
     }
 
@@ -128,8 +129,10 @@ def create_context(backend: str | None = None):
     except Exception as exc:  # moderngl/glcontext raise plain Exceptions with the loader's message
         problems = diagnose(name)
         hint = "; ".join(problems) if problems else "the libraries are present: the driver refused to create a context"
-        raise GLContextError(f"cannot create an OpenGL {REQUIRE // 100}.{REQUIRE % 100 // 10} context with backend "
-                             f"{name!r}: {exc}. {hint}") from exc
+        raise GLContextError(
+            f"cannot create an OpenGL {REQUIRE // 100}.{REQUIRE % 100 // 10} context with backend "
+            f"{name!r}: {exc}. {hint}"
+        ) from exc
     ctx.extra = {"backend": name}
     return ctx
 
@@ -188,6 +191,7 @@ def current(method):
     that what the caller does next with the results (reading a returned texture) happens on that
     context too. The context is ``self.ctx``, or the first argument of ``__init__``.
     """
+
     @functools.wraps(method)
     def wrapper(self, *args, **kwargs):
         ctx = getattr(self, "ctx", None)

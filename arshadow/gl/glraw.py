@@ -218,8 +218,9 @@ class GL:
 
     def draw_buffers(self, n: int, only=None) -> None:
         """``glDrawBuffers`` for attachments 0..n-1 (or, with ``only``, that attachment and GL_NONE)."""
-        arr = (ctypes.c_uint * n)(*[
-            (GL_COLOR_ATTACHMENT0 + i) if (only is None or i == only) else GL_NONE for i in range(n)])
+        arr = (ctypes.c_uint * n)(
+            *[(GL_COLOR_ATTACHMENT0 + i) if (only is None or i == only) else GL_NONE for i in range(n)]
+        )
         self.glDrawBuffers(n, arr)
 
     def draw_buffer_list(self, attachments) -> None:
@@ -279,7 +280,8 @@ def load() -> GL:
                 break
             else:
                 raise GLContextError(
-                    "cannot load the OpenGL library libOpenGL.so.0 (" + "; ".join(errors)
+                    "cannot load the OpenGL library libOpenGL.so.0 ("
+                    + "; ".join(errors)
                     + "); install it, e.g. Debian/Ubuntu: apt-get install libopengl0 libgl1-mesa-dri"
                 )
         return _GL

@@ -12,5 +12,12 @@ from ..render_api import LightPass, RenderResult
 from .resources import ground_vertices, load_shader, local_origin
 from .stencil import ShadowRenderer
 
-__all__ = ["LightPass", "RenderResult", "ShadowRenderer", "ground_vertices", "load_shader", "local_origin",
-           "srgb_to_linear"]
+__all__ = [
+    "LightPass",
+    "RenderResult",
+    "ShadowRenderer",
+    "ground_vertices",
+    "load_shader",
+    "local_origin",
+    "srgb_to_linear",
+]

@@ -128,8 +128,12 @@ class CasterBuffers:
         self.n_light_vertices = len(first)
         self.vbo = ctx.buffer(data.tobytes())
         self.light_ibo = ctx.buffer(inverse.reshape(-1).astype(np.uint32).tobytes())
-        self.vao = ctx.vertex_array(prog_occ, [(self.vbo, "4f 3f 3f", "in_pos", "in_normal", "in_albedo")],
-                                    index_buffer=self.light_ibo, index_element_size=4)
+        self.vao = ctx.vertex_array(
+            prog_occ,
+            [(self.vbo, "4f 3f 3f", "in_pos", "in_normal", "in_albedo")],
+            index_buffer=self.light_ibo,
+            index_element_size=4,
+        )
         # base pass and planar shadow: welded, indexed vertices (positions + albedo; ~6x fewer vertex
         # shader runs). Same float32 positions as above -> bit-identical depth for the GL_EQUAL passes.
         welded = np.empty((len(v), 7), dtype=np.float32)
@@ -141,10 +145,12 @@ class CasterBuffers:
             welded[:, 4:7] = alb[0, 0]
         self.pos_vbo = ctx.buffer(welded.tobytes())
         self.ibo = ctx.buffer(f.astype(np.uint32).tobytes())
-        self.base_vao = ctx.vertex_array(prog_base, [(self.pos_vbo, "4f 3f", "in_pos", "in_albedo")],
-                                         index_buffer=self.ibo, index_element_size=4)
-        self.planar_vao = ctx.vertex_array(prog_pos, [(self.pos_vbo, "4f 12x", "in_pos")], index_buffer=self.ibo,
-                                           index_element_size=4)
+        self.base_vao = ctx.vertex_array(
+            prog_base, [(self.pos_vbo, "4f 3f", "in_pos", "in_albedo")], index_buffer=self.ibo, index_element_size=4
+        )
+        self.planar_vao = ctx.vertex_array(
+            prog_pos, [(self.pos_vbo, "4f 12x", "in_pos")], index_buffer=self.ibo, index_element_size=4
+        )
         self.n_indices = 3 * m
         self.below_ground = bool(v[:, 2].min() < 0.0)
         # homogeneous corners (8, 4) of the bounding box: the per-frame screen box of the colour readback
@@ -162,8 +168,12 @@ class CasterBuffers:
             planes = np.c_[n, -np.einsum("ij,ij->i", n, v[f[:, 0]])]
         self.face_planes = np.asarray(planes, np.float64)
         self.sub_ibo = ctx.buffer(reserve=max(self.light_tris.nbytes, 64), dynamic=True)
-        self.sub_vao = ctx.vertex_array(prog_occ, [(self.vbo, "4f 3f 3f", "in_pos", "in_normal", "in_albedo")],
-                                        index_buffer=self.sub_ibo, index_element_size=4)
+        self.sub_vao = ctx.vertex_array(
+            prog_occ,
+            [(self.vbo, "4f 3f 3f", "in_pos", "in_normal", "in_albedo")],
+            index_buffer=self.sub_ibo,
+            index_element_size=4,
+        )
         self.sub_ranges = {}
         self.sub_key = None  # the lights sub_ibo holds subsets for
         self._planar_sub_vao = None
@@ -171,8 +181,9 @@ class CasterBuffers:
     def planar_sub_vao(self, ctx, prog):
         """Positions of the light-facing subsets (``sub_ibo``) for the direct planar pass (made on first use)."""
         if self._planar_sub_vao is None:
-            self._planar_sub_vao = ctx.vertex_array(prog, [(self.vbo, "4f 24x", "in_pos")], index_buffer=self.sub_ibo,
-                                                    index_element_size=4)
+            self._planar_sub_vao = ctx.vertex_array(
+                prog, [(self.vbo, "4f 24x", "in_pos")], index_buffer=self.sub_ibo, index_element_size=4
+            )
         return self._planar_sub_vao
 
     def upload_light_subsets(self, passes) -> None:
@@ -202,8 +213,18 @@ class CasterBuffers:
             self.sub_ibo.write(data)
 
     def release(self):
-        for o in (self.vao, self.sub_vao, self._planar_sub_vao, self.base_vao, self.planar_vao, self.vbo,
-                  self.light_ibo, self.sub_ibo, self.pos_vbo, self.ibo):
+        for o in (
+            self.vao,
+            self.sub_vao,
+            self._planar_sub_vao,
+            self.base_vao,
+            self.planar_vao,
+            self.vbo,
+            self.light_ibo,
+            self.sub_ibo,
+            self.pos_vbo,
+            self.ibo,
+        ):
             if o is not None:
                 o.release()
 
@@ -234,11 +255,11 @@ class RenderTarget:
         status = gl.glCheckFramebufferStatus(G.GL_FRAMEBUFFER)
         self.stencil_bits = (
             gl.attachment_param(G.GL_STENCIL_ATTACHMENT, G.GL_FRAMEBUFFER_ATTACHMENT_STENCIL_SIZE)
-            if depth_stencil else 0
+            if depth_stencil
+            else 0
         )
         self.depth_bits = (
-            gl.attachment_param(G.GL_DEPTH_ATTACHMENT, G.GL_FRAMEBUFFER_ATTACHMENT_DEPTH_SIZE)
-            if depth_stencil else 0
+            gl.attachment_param(G.GL_DEPTH_ATTACHMENT, G.GL_FRAMEBUFFER_ATTACHMENT_DEPTH_SIZE) if depth_stencil else 0
         )
         gl.glBindFramebuffer(G.GL_FRAMEBUFFER, 0)
         if status != G.GL_FRAMEBUFFER_COMPLETE:
@@ -387,8 +408,12 @@ class VolumeBuffers:
         vols = tuple(None if p.mode == "planar" else p.volume for p in passes)
         origin = np.zeros(3) if origin is None else np.asarray(origin, np.float64)
         last = self._last
-        if (last is not None and len(last[0]) == len(vols) and all(a is b for a, b in zip(last[0], vols))
-                and np.array_equal(last[2], origin)):
+        if (
+            last is not None
+            and len(last[0]) == len(vols)
+            and all(a is b for a, b in zip(last[0], vols))
+            and np.array_equal(last[2], origin)
+        ):
             return list(last[1])
         self._last = None
         ranges: list[tuple[int, int] | None] = []
@@ -402,8 +427,11 @@ class VolumeBuffers:
             v = np.asarray(vol.vertices)
             t = np.asarray(vol.triangles)
             if v.ndim != 2 or v.shape[1] != 4 or t.ndim != 2 or t.shape[1] != 3:
-                raise ShapeError("shadow volume must have vertices (p, 4) and triangles (q, 3)",
-                                 actual_shape=(v.shape, t.shape), expected_shape="((p, 4), (q, 3))")
+                raise ShapeError(
+                    "shadow volume must have vertices (p, 4) and triangles (q, 3)",
+                    actual_shape=(v.shape, t.shape),
+                    expected_shape="((p, 4), (q, 3))",
+                )
             frozen = frozen and not (v.flags.writeable or t.flags.writeable)
             if len(t) == 0:
                 ranges.append(None)
@@ -435,8 +463,9 @@ class VolumeBuffers:
         self.release()
         self.vbo = self.ctx.buffer(reserve=vcap, dynamic=True)
         self.ibo = self.ctx.buffer(reserve=icap, dynamic=True)
-        self.vao = self.ctx.vertex_array(self.prog, [(self.vbo, "4f", "in_pos")], index_buffer=self.ibo,
-                                         index_element_size=4)
+        self.vao = self.ctx.vertex_array(
+            self.prog, [(self.vbo, "4f", "in_pos")], index_buffer=self.ibo, index_element_size=4
+        )
         self._cap = (vcap, icap)
 
     def release(self) -> None:
@@ -604,4 +633,3 @@ def screen_box(mvp, corners, width, height):
     x1 = int(max(min(math.ceil(x.max()) + 1, width), 0))
     y1 = int(max(min(math.ceil(y.max()) + 1, height), 0))
     return x0, y0, x1, y1
-

@@ -130,8 +130,20 @@ class ShadowMapRenderer:
     """
 
     @current
-    def __init__(self, ctx, *, map_size=2048, pcf=3, slope_bias=2.0, constant_bias=4.0, shader_bias=0.0,
-                 max_width=4096, max_height=4096, crease_deg=40.0, samples=0):
+    def __init__(
+        self,
+        ctx,
+        *,
+        map_size=2048,
+        pcf=3,
+        slope_bias=2.0,
+        constant_bias=4.0,
+        shader_bias=0.0,
+        max_width=4096,
+        max_height=4096,
+        crease_deg=40.0,
+        samples=0,
+    ):
         self.ctx = ctx
         self.gl = G.load()
         limit = int(ctx.info.get("GL_MAX_TEXTURE_SIZE", 8192))
@@ -142,7 +154,11 @@ class ShadowMapRenderer:
         if int(samples) not in (0, 1):
             raise UsageError("the shadow-map baseline renders without MSAA (samples=0)")
         self.map_size, self.pcf = int(map_size), int(pcf)
-        self.slope_bias, self.constant_bias, self.shader_bias = float(slope_bias), float(constant_bias), float(shader_bias)
+        self.slope_bias, self.constant_bias, self.shader_bias = (
+            float(slope_bias),
+            float(constant_bias),
+            float(shader_bias),
+        )
         self.max_width, self.max_height = int(max_width), int(max_height)
         self.crease_deg = float(crease_deg)
         self.samples = 0
@@ -196,8 +212,9 @@ class ShadowMapRenderer:
         if bufs is not None:
             bufs.release()
         # world coordinates (local=False): the shadow map's matrices and shading work in the world frame
-        bufs = CasterBuffers(self.ctx, self.prog_occ, self.prog_occ, self.prog_depth, caster, ckey, self.crease_deg,
-                              local=False)
+        bufs = CasterBuffers(
+            self.ctx, self.prog_occ, self.prog_occ, self.prog_depth, caster, ckey, self.crease_deg, local=False
+        )
         self._caster = (weakref.ref(caster), ckey, bufs)
         return bufs
 
@@ -209,15 +226,33 @@ class ShadowMapRenderer:
             w, h = max(width, self._size[0]), max(height, self._size[1])
             ctx = self.ctx
             self._default_fbo.use()
-            self._rbs = [ctx.renderbuffer((w, h), 4, dtype="f4"), ctx.renderbuffer((w, h), 2, dtype="f4"),
-                         ctx.depth_renderbuffer((w, h))]
+            self._rbs = [
+                ctx.renderbuffer((w, h), 4, dtype="f4"),
+                ctx.renderbuffer((w, h), 2, dtype="f4"),
+                ctx.depth_renderbuffer((w, h)),
+            ]
             self._fbo = ctx.framebuffer(color_attachments=self._rbs[:2], depth_attachment=self._rbs[2])
             self._size = (w, h)
         return self._fbo
 
     @current
-    def render(self, *, projection, view, width, height, caster, passes, ground_size=None, draw_occluder=True,
-               ambient=0.25, diffuse=1.0, specular=0.25, shininess=32.0, occluder_color=None) -> RenderResult:
+    def render(
+        self,
+        *,
+        projection,
+        view,
+        width,
+        height,
+        caster,
+        passes,
+        ground_size=None,
+        draw_occluder=True,
+        ambient=0.25,
+        diffuse=1.0,
+        specular=0.25,
+        shininess=32.0,
+        occluder_color=None,
+    ) -> RenderResult:
         """Render one frame (or canvas); arguments as :meth:`arshadow.gl.stencil.ShadowRenderer.render`.
 
         Returns
@@ -246,25 +281,35 @@ class ShadowMapRenderer:
         self._base_pass(fbo, mvp, width, height, bufs, draw_occluder, ambient)
         # -- per light: depth map, then the ground and the occluder again with the map
         for p in passes:
-            self._light_pass(fbo, width, height, bufs, p, bounds, eye, draw_occluder,
-                             (diffuse, specular, shininess))
+            self._light_pass(fbo, width, height, bufs, p, bounds, eye, draw_occluder, (diffuse, specular, shininess))
         ctx.enable_only(ctx.NOTHING)
         ctx.depth_func = "<"
         ctx.front_face = "ccw"
         ctx.finish()
         t2 = time.perf_counter()
-        c0 = np.frombuffer(fbo.read(viewport=(0, 0, width, height), components=4, attachment=0, dtype="f4"),
-                           np.float32).reshape(height, width, 4)[::-1]
-        c1 = np.frombuffer(fbo.read(viewport=(0, 0, width, height), components=2, attachment=1, dtype="f4"),
-                           np.float32).reshape(height, width, 2)[::-1]
+        c0 = np.frombuffer(
+            fbo.read(viewport=(0, 0, width, height), components=4, attachment=0, dtype="f4"), np.float32
+        ).reshape(height, width, 4)[::-1]
+        c1 = np.frombuffer(
+            fbo.read(viewport=(0, 0, width, height), components=2, attachment=1, dtype="f4"), np.float32
+        ).reshape(height, width, 2)[::-1]
         self._default_fbo.use()
         mask = np.clip(c1[..., 0], 0.0, 1.0)
         gcov = np.ascontiguousarray(c1[..., 1])
         t3 = time.perf_counter()
-        return RenderResult(mask=mask, color=np.ascontiguousarray(c0[..., :3]), alpha=np.ascontiguousarray(c0[..., 3]),
-                            ground=gcov > 0.5, ground_coverage=gcov,
-                            timings_ms={"upload": (t1 - t0) * 1e3, "draw": (t2 - t1) * 1e3,
-                                        "readback": (t3 - t2) * 1e3, "total": (t3 - t0) * 1e3})
+        return RenderResult(
+            mask=mask,
+            color=np.ascontiguousarray(c0[..., :3]),
+            alpha=np.ascontiguousarray(c0[..., 3]),
+            ground=gcov > 0.5,
+            ground_coverage=gcov,
+            timings_ms={
+                "upload": (t1 - t0) * 1e3,
+                "draw": (t2 - t1) * 1e3,
+                "readback": (t3 - t2) * 1e3,
+                "total": (t3 - t0) * 1e3,
+            },
+        )
 
     def _base_pass(self, fbo, mvp, width, height, bufs, draw_occluder, ambient) -> None:
         """Clear; the occluder (ambient, coverage) and the ground (coverage)."""

@@ -135,8 +135,18 @@ class ShadowRenderer:
     """
 
     @current
-    def __init__(self, ctx, *, max_width=4096, max_height=4096, samples=0, supersample=1,
-                 ground_offset=(0.0, 0.0), crease_deg=40.0, max_cached_casters=8):
+    def __init__(
+        self,
+        ctx,
+        *,
+        max_width=4096,
+        max_height=4096,
+        samples=0,
+        supersample=1,
+        ground_offset=(0.0, 0.0),
+        crease_deg=40.0,
+        max_cached_casters=8,
+    ):
         self.ctx = ctx
         self.gl = G.load()
         self.max_width, self.max_height = int(max_width), int(max_height)
@@ -151,8 +161,10 @@ class ShadowRenderer:
         self.supersample = int(supersample)
         limit = int(ctx.info.get("GL_MAX_RENDERBUFFER_SIZE", 16384))
         if self.max_width * self.supersample > limit or self.max_height * self.supersample > limit:
-            raise UsageError(f"max canvas {self.max_width}x{self.max_height} x supersample {self.supersample} "
-                             f"exceeds GL_MAX_RENDERBUFFER_SIZE {limit}")
+            raise UsageError(
+                f"max canvas {self.max_width}x{self.max_height} x supersample {self.supersample} "
+                f"exceeds GL_MAX_RENDERBUFFER_SIZE {limit}"
+            )
         self.ground_offset = (float(ground_offset[0]), float(ground_offset[1]))
         self.crease_deg = float(crease_deg)
         self.max_cached_casters = int(max_cached_casters)
@@ -167,8 +179,9 @@ class ShadowRenderer:
         self._ground = GroundBuffer(ctx, self.prog_ground)
         self._fs_vao = ctx.vertex_array(self.prog_mask, [])
         self._volumes = VolumeBuffers(ctx, self.prog_volume)
-        self._casters = CasterCache(ctx, (self.prog_occ_base, self.prog_occ_light, self.prog_volume),
-                                    self.max_cached_casters)
+        self._casters = CasterCache(
+            ctx, (self.prog_occ_base, self.prog_occ_light, self.prog_volume), self.max_cached_casters
+        )
         self._targets = FrameTargets(ctx, self.gl, samples, self.supersample)
         self._released = False
         #: render_gpu() keeps the layers on the GPU (arshadow.gl.compose composites them there)
@@ -218,9 +231,23 @@ class ShadowRenderer:
 
     # ------------------------------------------------------------------ entry points
     @current
-    def render(self, *, projection, view, width, height, caster, passes, ground_size=None,
-               draw_occluder=True, ambient=0.25, diffuse=1.0, specular=0.25, shininess=32.0,
-               occluder_color=None) -> RenderResult:
+    def render(
+        self,
+        *,
+        projection,
+        view,
+        width,
+        height,
+        caster,
+        passes,
+        ground_size=None,
+        draw_occluder=True,
+        ambient=0.25,
+        diffuse=1.0,
+        specular=0.25,
+        shininess=32.0,
+        occluder_color=None,
+    ) -> RenderResult:
         """Render one frame (or one canvas sub-rectangle of it) and read its layers back.
 
         Parameters
@@ -250,16 +277,43 @@ class ShadowRenderer:
         RenderResult
             The layers as numpy arrays (top-down rows) and the raw bottom-up ones (``layers``).
         """
-        f = self._draw(projection, view, width, height, caster, passes, ground_size, draw_occluder, ambient,
-                       diffuse, specular, shininess, occluder_color)
+        f = self._draw(
+            projection,
+            view,
+            width,
+            height,
+            caster,
+            passes,
+            ground_size,
+            draw_occluder,
+            ambient,
+            diffuse,
+            specular,
+            shininess,
+            occluder_color,
+        )
         src = self._resolve_canvas(f)
         self.ctx.finish()
         return self._readback(f, src)
 
     @current
-    def render_gpu(self, *, projection, view, width, height, caster, passes, ground_size=None,
-                   draw_occluder=True, ambient=0.25, diffuse=1.0, specular=0.25, shininess=32.0,
-                   occluder_color=None) -> GpuLayers:
+    def render_gpu(
+        self,
+        *,
+        projection,
+        view,
+        width,
+        height,
+        caster,
+        passes,
+        ground_size=None,
+        draw_occluder=True,
+        ambient=0.25,
+        diffuse=1.0,
+        specular=0.25,
+        shininess=32.0,
+        occluder_color=None,
+    ) -> GpuLayers:
         """As :meth:`render`, but the layers stay on the GPU: the (resolved) attachments are copied into two
         textures (no ``ctx.finish()``, no readback); :mod:`arshadow.gl.compose` samples them.
 
@@ -268,8 +322,21 @@ class ShadowRenderer:
         GpuLayers
             Valid until the next render.
         """
-        f = self._draw(projection, view, width, height, caster, passes, ground_size, draw_occluder, ambient,
-                       diffuse, specular, shininess, occluder_color)
+        f = self._draw(
+            projection,
+            view,
+            width,
+            height,
+            caster,
+            passes,
+            ground_size,
+            draw_occluder,
+            ambient,
+            diffuse,
+            specular,
+            shininess,
+            occluder_color,
+        )
         tt = self._targets.texture(f.width, f.height)
         if self.supersample == 1:
             # resolve (MSAA) or copy straight into the texture target
@@ -279,16 +346,52 @@ class ShadowRenderer:
             src = self._resolve_canvas(f)
             self._targets.blit(src, tt, f.width, f.height, f.width, f.height, G.GL_NEAREST)
         t2 = time.perf_counter()
-        return GpuLayers(tt.color_tex, tt.mask_tex, f.width, f.height,
-                         timings_ms={"upload": (f.t1 - f.t0) * 1e3, "draw": (t2 - f.t1) * 1e3, "readback": 0.0,
-                                     "total": (t2 - f.t0) * 1e3})
+        return GpuLayers(
+            tt.color_tex,
+            tt.mask_tex,
+            f.width,
+            f.height,
+            timings_ms={
+                "upload": (f.t1 - f.t0) * 1e3,
+                "draw": (t2 - f.t1) * 1e3,
+                "readback": 0.0,
+                "total": (t2 - f.t0) * 1e3,
+            },
+        )
 
     # ------------------------------------------------------------------ one frame, pass by pass
-    def _draw(self, projection, view, width, height, caster, passes, ground_size, draw_occluder, ambient,
-              diffuse, specular, shininess, occluder_color) -> _Frame:
+    def _draw(
+        self,
+        projection,
+        view,
+        width,
+        height,
+        caster,
+        passes,
+        ground_size,
+        draw_occluder,
+        ambient,
+        diffuse,
+        specular,
+        shininess,
+        occluder_color,
+    ) -> _Frame:
         """Every pass of one frame into the main target; GL state reset at the end."""
-        f = self._begin(projection, view, width, height, caster, passes, ground_size, draw_occluder, ambient,
-                        diffuse, specular, shininess, occluder_color)
+        f = self._begin(
+            projection,
+            view,
+            width,
+            height,
+            caster,
+            passes,
+            ground_size,
+            draw_occluder,
+            ambient,
+            diffuse,
+            specular,
+            shininess,
+            occluder_color,
+        )
         self._clear_pass(f)
         self._occluder_base_pass(f)
         self._ground_pass(f)
@@ -298,8 +401,22 @@ class ShadowRenderer:
         self._reset_state()
         return f
 
-    def _begin(self, projection, view, width, height, caster, passes, ground_size, draw_occluder, ambient,
-               diffuse, specular, shininess, occluder_color) -> _Frame:
+    def _begin(
+        self,
+        projection,
+        view,
+        width,
+        height,
+        caster,
+        passes,
+        ground_size,
+        draw_occluder,
+        ambient,
+        diffuse,
+        specular,
+        shininess,
+        occluder_color,
+    ) -> _Frame:
         """Check the arguments, upload what changed (caster, volumes, light subsets, ground), size the targets."""
         t0 = time.perf_counter()
         if self._released:
@@ -318,20 +435,35 @@ class ShadowRenderer:
         mvp = proj @ view
         origin = caster.bounds.mean(axis=0)  # = local_origin(caster.vertices), from the cached bounds
         mvp_local = mvp @ translation(origin)
-        bufs = self._casters.get(caster, occluder_color, self.crease_deg) if (draw_occluder or any(
-            p.mode == "planar" for p in passes)) else None
+        bufs = (
+            self._casters.get(caster, occluder_color, self.crease_deg)
+            if (draw_occluder or any(p.mode == "planar" for p in passes))
+            else None
+        )
         ranges = self._volumes.upload(passes, origin)
         if bufs is not None and (draw_occluder or any(p.mode == "planar" and p.direct for p in passes)):
             bufs.upload_light_subsets(passes)
         self._ground.set(ground_size, origin)
         self._targets.ensure(width, height)
-        f = _Frame(width=width, height=height, mvp=mvp,
-                   mvp_bytes=mvp_local.T.astype(np.float32).tobytes(),  # GLSL is column-major
-                   origin=origin, eye=-view[:3, :3].T @ view[:3, 3] - origin,
-                   # mirrored projections flip the winding: keep "front" = outward side seen from outside
-                   front="cw" if np.linalg.det(mvp) > 0 else "ccw",
-                   bufs=bufs, passes=passes, ranges=ranges, draw_occluder=bool(draw_occluder),
-                   ambient=ambient, diffuse=diffuse, specular=specular, shininess=shininess, t0=t0)
+        f = _Frame(
+            width=width,
+            height=height,
+            mvp=mvp,
+            mvp_bytes=mvp_local.T.astype(np.float32).tobytes(),  # GLSL is column-major
+            origin=origin,
+            eye=-view[:3, :3].T @ view[:3, 3] - origin,
+            # mirrored projections flip the winding: keep "front" = outward side seen from outside
+            front="cw" if np.linalg.det(mvp) > 0 else "ccw",
+            bufs=bufs,
+            passes=passes,
+            ranges=ranges,
+            draw_occluder=bool(draw_occluder),
+            ambient=ambient,
+            diffuse=diffuse,
+            specular=specular,
+            shininess=shininess,
+            t0=t0,
+        )
         f.t1 = time.perf_counter()
         self._marks = [("start", f.t1)]
         return f
@@ -469,8 +601,7 @@ class ShadowRenderer:
                 gl.glStencilFunc(G.GL_ALWAYS, 1, 0xFF)
                 gl.glStencilOp(G.GL_KEEP, G.GL_KEEP, G.GL_REPLACE)
                 smat = np.asarray(p.shadow_matrix, dtype=np.float64)
-                self.prog_volume["u_mvp"].write((f.mvp @ smat @ translation(f.origin)).T.astype(np.float32)
-                                                .tobytes())
+                self.prog_volume["u_mvp"].write((f.mvp @ smat @ translation(f.origin)).T.astype(np.float32).tobytes())
                 f.bufs.planar_vao.render(ctx.TRIANGLES, vertices=f.bufs.n_indices)
         elif getattr(p.volume, "batches", None):
             self._batched_volume(p.volume.batches, rng[0], f.mvp_bytes)
@@ -554,12 +685,23 @@ class ShadowRenderer:
         np.clip(mask, 0.0, 1.0, out=mask)
         gcov = c1[..., 1]
         t3 = time.perf_counter()
-        passes = ({f"pass_{b[0]}": (b[1] - a[1]) * 1e3 for a, b in zip(self._marks, self._marks[1:])}
-                  if self.profile else {})
+        passes = (
+            {f"pass_{b[0]}": (b[1] - a[1]) * 1e3 for a, b in zip(self._marks, self._marks[1:])} if self.profile else {}
+        )
         return RenderResult(
-            mask=mask, color=c0[..., :3], alpha=c0[..., 3], ground=gcov > 0.5, ground_coverage=gcov, layers=layers,
-            timings_ms={"upload": (f.t1 - f.t0) * 1e3, "draw": (t2 - f.t1) * 1e3, "readback": (t3 - t2) * 1e3,
-                        "total": (t3 - f.t0) * 1e3, **passes},
+            mask=mask,
+            color=c0[..., :3],
+            alpha=c0[..., 3],
+            ground=gcov > 0.5,
+            ground_coverage=gcov,
+            layers=layers,
+            timings_ms={
+                "upload": (f.t1 - f.t0) * 1e3,
+                "draw": (t2 - f.t1) * 1e3,
+                "readback": (t3 - t2) * 1e3,
+                "total": (t3 - f.t0) * 1e3,
+                **passes,
+            },
         )
 
     def _mark(self, name):

@@ -20,6 +20,7 @@ __all__ = ["sample_area_light", "stratified_disc"]
 
 _GOLDEN_ANGLE = math.pi * (3.0 - math.sqrt(5.0))
 
+
 def _orthonormal_frame(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Two unit vectors ``(u, v)`` completing unit ``axis`` to a right-handed frame."""
     a = axis / np.linalg.norm(axis)
@@ -131,5 +132,7 @@ def sample_area_light(light: Light, n: int, seed=0, towards=(0.0, 0.0, 0.0)) -> 
             return [dataclasses.replace(light, radius=0.0)]
         vecs = vecs[keep]
     w = light.weight / len(vecs)
-    return [dataclasses.replace(light, vector=vk, weight=w, radius=0.0, label=f"{light.label}#{k}")
-            for k, vk in enumerate(vecs)]
+    return [
+        dataclasses.replace(light, vector=vk, weight=w, radius=0.0, label=f"{light.label}#{k}")
+        for k, vk in enumerate(vecs)
+    ]

@@ -79,7 +79,9 @@ def spa(jd, delta_t, lat, lon, elev, pressure, temp) -> dict:
 
     # 3.9-3.10 geocentric right ascension and declination
     lam_r, eps_r, beta_r = np.radians(lam), np.radians(eps), np.radians(beta)
-    alpha = np.degrees(np.arctan2(np.sin(lam_r) * np.cos(eps_r) - np.tan(beta_r) * np.sin(eps_r), np.cos(lam_r))) % 360.0
+    alpha = (
+        np.degrees(np.arctan2(np.sin(lam_r) * np.cos(eps_r) - np.tan(beta_r) * np.sin(eps_r), np.cos(lam_r))) % 360.0
+    )
     delta = np.degrees(np.arcsin(np.sin(beta_r) * np.cos(eps_r) + np.cos(beta_r) * np.sin(eps_r) * np.sin(lam_r)))
 
     # 3.11 observer local hour angle (westward from south)
@@ -93,7 +95,9 @@ def spa(jd, delta_t, lat, lon, elev, pressure, temp) -> dict:
     yy = 0.99664719 * math.sin(uu) + elev / 6378140.0 * math.sin(lat_r)
     H_r, delta_r = np.radians(H), np.radians(delta)
     d_alpha = np.arctan2(-xx * np.sin(xi) * np.sin(H_r), np.cos(delta_r) - xx * np.sin(xi) * np.cos(H_r))
-    delta_p = np.arctan2((np.sin(delta_r) - yy * np.sin(xi)) * np.cos(d_alpha), np.cos(delta_r) - xx * np.sin(xi) * np.cos(H_r))
+    delta_p = np.arctan2(
+        (np.sin(delta_r) - yy * np.sin(xi)) * np.cos(d_alpha), np.cos(delta_r) - xx * np.sin(xi) * np.cos(H_r)
+    )
 
     # 3.13 topocentric local hour angle
     H_p = H_r - d_alpha

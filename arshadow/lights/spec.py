@@ -110,7 +110,9 @@ class Light:
             v = v / norm
         w = float(self.weight)
         if not (math.isfinite(w) and w > 0.0):
-            raise LightError(f"light {self.label or self.kind}: weight must be a finite number > 0, got {self.weight!r}")
+            raise LightError(
+                f"light {self.label or self.kind}: weight must be a finite number > 0, got {self.weight!r}"
+            )
         r = float(self.radius)
         if not (math.isfinite(r) and r >= 0.0):
             raise LightError(f"light {self.label or self.kind}: radius must be finite and >= 0, got {self.radius!r}")
@@ -195,9 +197,7 @@ def parse_time(text: str, what: str = "time") -> datetime:
     try:
         t = datetime.fromisoformat(s2)
     except ValueError:
-        raise LightError(
-            f"{what} {s!r} is not an ISO 8601 date-time (expected e.g. 2011-04-22T10:59+08:00)"
-        ) from None
+        raise LightError(f"{what} {s!r} is not an ISO 8601 date-time (expected e.g. 2011-04-22T10:59+08:00)") from None
     if t.tzinfo is None or t.utcoffset() is None:
         raise LightError(
             f"{what} {s!r} has no UTC offset: add one, e.g. {s}+00:00 (or {s}Z) for UTC, "
@@ -286,7 +286,9 @@ def parse_light(spec: str, default_time=None) -> Light:
     [0.7071, 0.0, 0.7071]
     """
     if not isinstance(spec, str) or not spec.strip():
-        raise LightError(f"empty light specification {spec!r} (expected point:X,Y,Z, directional:X,Y,Z or sun:LAT,LON,TIME)")
+        raise LightError(
+            f"empty light specification {spec!r} (expected point:X,Y,Z, directional:X,Y,Z or sun:LAT,LON,TIME)"
+        )
     spec = spec.strip()
     kind, colon, rest = spec.partition(":")
     kind = kind.strip().lower()
@@ -352,7 +354,9 @@ def _sun_params(spec, pos, kw, default_time, need_time=True) -> dict:
     elif default_time is not None:
         when = parse_time(default_time, "default time") if isinstance(default_time, str) else default_time
         if not isinstance(when, datetime) or when.utcoffset() is None:
-            raise LightError(f"light {spec!r}: default time {default_time!r} must be an aware datetime (with a UTC offset)")
+            raise LightError(
+                f"light {spec!r}: default time {default_time!r} must be an aware datetime (with a UTC offset)"
+            )
     elif need_time:
         raise LightError(f"light {spec!r}: no TIME given (sun:LAT,LON,TIME with e.g. 2011-04-22T10:59+08:00)")
     north = _float(pos[3], "north bearing", spec) if len(pos) == 4 and pos[3].strip() else 0.0
@@ -373,8 +377,15 @@ def _sun_params(spec, pos, kw, default_time, need_time=True) -> dict:
         kwargs["temperature_c"] = opts["temperature"]
     if "delta_t" in opts:
         kwargs["delta_t"] = opts["delta_t"]
-    return {"lat": lat, "lon": lon, "when": when, "north": north, "kwargs": kwargs, "refraction": refraction,
-            "radius_deg": radius_deg}
+    return {
+        "lat": lat,
+        "lon": lon,
+        "when": when,
+        "north": north,
+        "kwargs": kwargs,
+        "refraction": refraction,
+        "radius_deg": radius_deg,
+    }
 
 
 def sun_radius_deg(pos_sun, radius_deg: float | None = None) -> float:
@@ -397,7 +408,8 @@ def _parse_sun(spec, pos, kw, weight, default_time) -> Light:
     if not above:
         logging.getLogger(__name__).warning(
             f"light {spec!r}: the sun is below the horizon then (elevation "
-            f"{90.0 - float(pos_sun.zenith_deg):.2f} deg): it casts no shadow and gives no light")
+            f"{90.0 - float(pos_sun.zenith_deg):.2f} deg): it casts no shadow and gives no light"
+        )
     return Light(
         "directional",
         world,
@@ -432,9 +444,18 @@ def parse_sun_track(spec: str, recompute_deg: float = 0.1) -> SunLightTrack:
     pos, kw = _split_fields(body, spec)
     p = _sun_params(spec, pos, kw, None, need_time=False)
     try:
-        return SunLightTrack(p["lat"], p["lon"], north_deg=p["north"], recompute_deg=recompute_deg,
-                             refraction=p["refraction"], start=p["when"], weight=weight, label=spec,
-                             radius_deg=p["radius_deg"], **p["kwargs"])
+        return SunLightTrack(
+            p["lat"],
+            p["lon"],
+            north_deg=p["north"],
+            recompute_deg=recompute_deg,
+            refraction=p["refraction"],
+            start=p["when"],
+            weight=weight,
+            label=spec,
+            radius_deg=p["radius_deg"],
+            **p["kwargs"],
+        )
     except LightError as exc:
         raise LightError(f"light {spec!r}: {exc}") from None
 
@@ -464,9 +485,15 @@ class SunLightTrack(SunTrack):
         """The :class:`Light` to render for a :class:`arshadow.lights.sun.TrackFrame`: direction
         ``frame.world_used`` (the one the cached silhouette belongs to), this track's weight and label, and
         angular radius ``radius_deg`` or, when None, the sun's true radius for the frame's date."""
-        return Light("directional", frame.world_used, weight=self.weight,
-                     radius=math.radians(sun_radius_deg(frame.position, self.radius_deg)), label=self.label,
-                     above_horizon=frame.above_horizon, sun=frame.position)
+        return Light(
+            "directional",
+            frame.world_used,
+            weight=self.weight,
+            radius=math.radians(sun_radius_deg(frame.position, self.radius_deg)),
+            label=self.label,
+            above_horizon=frame.above_horizon,
+            sun=frame.position,
+        )
 
 
 def lights_homogeneous(lights) -> np.ndarray:

@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from datetime import datetime, timedelta, UTC
+from datetime import UTC, datetime, timedelta
 
 import numpy as np
 
@@ -154,7 +154,12 @@ def _paper(when_utc: list[datetime], lat, lon, printed: bool):
     j = np.array([w.timetuple().tm_yday for w in when_utc], dtype=np.float64)  # day of the year, 1..366
     ts = np.array([w.hour + w.minute / 60 + (w.second + w.microsecond / 1e6) / 3600 for w in when_utc])
     sm, L = 0.0, math.radians(-lon)
-    t = ts + 0.170 * np.sin(4 * np.pi * (j - 80) / 373) - 0.129 * np.sin(2 * np.pi * (j - 8) / 355) + 12 * (sm - L) / np.pi
+    t = (
+        ts
+        + 0.170 * np.sin(4 * np.pi * (j - 80) / 373)
+        - 0.129 * np.sin(2 * np.pi * (j - 8) / 355)
+        + 12 * (sm - L) / np.pi
+    )
     d = 0.4093 * np.sin(2 * np.pi * (j - 81) / 368)
     la = math.radians(lat)
     w = np.pi * t / 12
@@ -225,10 +230,23 @@ class SunPosition:
         if not isinstance(other, SunPosition):
             return NotImplemented
         return (
-            (self.zenith_deg, self.apparent_zenith_deg, self.azimuth_deg, self.when, self.latitude,
-             self.longitude, self.elevation, self.model)
-            == (other.zenith_deg, other.apparent_zenith_deg, other.azimuth_deg, other.when, other.latitude,
-                other.longitude, other.elevation, other.model)
+            self.zenith_deg,
+            self.apparent_zenith_deg,
+            self.azimuth_deg,
+            self.when,
+            self.latitude,
+            self.longitude,
+            self.elevation,
+            self.model,
+        ) == (
+            other.zenith_deg,
+            other.apparent_zenith_deg,
+            other.azimuth_deg,
+            other.when,
+            other.latitude,
+            other.longitude,
+            other.elevation,
+            other.model,
         )
 
     def __hash__(self):
@@ -309,8 +327,12 @@ def sun_positions(
                 model=model,
                 declination_deg=float(r["declination"][i]),
                 hour_angle_deg=float(((r["hour_angle"][i] + 180.0) % 360.0) - 180.0),
-                extra={"pressure_mbar": pressure, "temperature_c": temp, "delta_t": float(dt[i]),
-                       "earth_sun_distance_au": None if np.isnan(r_au[i]) else float(r_au[i])},
+                extra={
+                    "pressure_mbar": pressure,
+                    "temperature_c": temp,
+                    "delta_t": float(dt[i]),
+                    "earth_sun_distance_au": None if np.isnan(r_au[i]) else float(r_au[i]),
+                },
             )
         )
     return out
@@ -517,8 +539,9 @@ class SunTrack:
     3
     """
 
-    def __init__(self, lat, lon, elevation=0.0, north_deg=0.0, recompute_deg=0.1, model="spa",
-                 refraction=False, **kwargs):
+    def __init__(
+        self, lat, lon, elevation=0.0, north_deg=0.0, recompute_deg=0.1, model="spa", refraction=False, **kwargs
+    ):
         self.lat, self.lon, self.elevation = _check_place(lat, lon, elevation)
         self.north_deg = float(north_deg)
         if not math.isfinite(self.north_deg):

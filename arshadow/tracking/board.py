@@ -114,8 +114,7 @@ class Board:
         else:
             sq = float(self.square_length)
             if not (math.isfinite(sq) and sq > ml):
-                raise UsageError(
-                    f"{self._where()}square_length ({sq}) must be larger than marker_length ({ml})")
+                raise UsageError(f"{self._where()}square_length ({sq}) must be larger than marker_length ({ml})")
             object.__setattr__(self, "square_length", sq)
         if self.ids is not None:
             object.__setattr__(self, "ids", tuple(int(i) for i in self.ids))
@@ -151,8 +150,7 @@ class Board:
             raise UsageError(f"{self._where()}board needs {n} ids, got {len(ids)}")
         nd = len(self.cv_dictionary.bytesList)
         if min(ids) < 0 or max(ids) >= nd:
-            raise UsageError(f"{self._where()}marker ids {min(ids)}..{max(ids)} exceed the dictionary "
-                             f"({nd} markers)")
+            raise UsageError(f"{self._where()}marker ids {min(ids)}..{max(ids)} exceed the dictionary ({nd} markers)")
 
     def _where(self):
         return f"{self.source}: " if self.source else ""
@@ -169,8 +167,10 @@ class Board:
         if ml <= MAX_PLAUSIBLE_MARKER_M:
             return []
         unit, f = ("millimetres", 1000.0) if ml >= 10.0 else ("centimetres", 100.0)
-        return [f"{self._where()}marker side {ml:g} m: the board file is probably in {unit} (its lengths are "
-                f"metres: a {ml / f:g} m marker would be written {ml / f:g})"]
+        return [
+            f"{self._where()}marker side {ml:g} m: the board file is probably in {unit} (its lengths are "
+            f"metres: a {ml / f:g} m marker would be written {ml / f:g})"
+        ]
 
     @property
     def planar(self) -> bool:
@@ -206,8 +206,7 @@ class Board:
             obj = [np.ascontiguousarray(self.markers[i] @ OPENCV_BOARD_TO_WORLD.T, np.float32) for i in ids]
             return cv2.aruco.Board(obj, self.cv_dictionary, ids)
         if self.kind == "gridboard":
-            return cv2.aruco.GridBoard(self.size, self.marker_length, self.marker_separation,
-                                       self.cv_dictionary, ids)
+            return cv2.aruco.GridBoard(self.size, self.marker_length, self.marker_separation, self.cv_dictionary, ids)
         b = cv2.aruco.CharucoBoard(self.size, self.square_length, self.marker_length, self.cv_dictionary, ids)
         if self.legacy_pattern:
             b.setLegacyPattern(True)
@@ -399,12 +398,21 @@ def read_aruco_layout(path, dictionary=None) -> Board:
     with open_storage(p, "ArUco layout file", UsageError) as fs:
         info = _fs_number(fs, "aruco_bc_mInfoType", p, default=1.0)
         if int(info) != 1:
-            raise UsageError(f"{p}: the layout is in pixels (aruco_bc_mInfoType {int(info)}); arshadow needs "
-                             "the metre layout (aruco_bc_mInfoType: 1, e.g. chessboardinfo_meters.yml)")
+            raise UsageError(
+                f"{p}: the layout is in pixels (aruco_bc_mInfoType {int(info)}); arshadow needs "
+                "the metre layout (aruco_bc_mInfoType: 1, e.g. chessboardinfo_meters.yml)"
+            )
         name = _fs_string(fs, "aruco_bc_dict", "") or dictionary or "DICT_ARUCO_ORIGINAL"
         markers = _fs_markers(fs.getNode("aruco_bc_markers"), p, OPENCV_BOARD_TO_WORLD)
-    b = Board(kind="markers", size=(len(markers), 1), marker_length=1.0, dictionary=_aruco_dict_name(name),
-              markers=markers, base_dir=p.parent, source=str(p))
+    b = Board(
+        kind="markers",
+        size=(len(markers), 1),
+        marker_length=1.0,
+        dictionary=_aruco_dict_name(name),
+        markers=markers,
+        base_dir=p.parent,
+        source=str(p),
+    )
     b.cv_board  # noqa: B018 - build it now so that errors name the file
     return b
 
@@ -412,8 +420,11 @@ def read_aruco_layout(path, dictionary=None) -> Board:
 def _aruco_dict_name(name: str) -> str:
     """The ArUco library's dictionary names (``ARUCO``, ``ARUCO_MIP_36h12``...) as OpenCV's."""
     n = name.strip().upper()
-    return {"ARUCO": "DICT_ARUCO_ORIGINAL", "ARUCO_MIP_36H12": "DICT_ARUCO_MIP_36h12",
-            "TAG36H11": "DICT_APRILTAG_36h11"}.get(n, name)
+    return {
+        "ARUCO": "DICT_ARUCO_ORIGINAL",
+        "ARUCO_MIP_36H12": "DICT_ARUCO_MIP_36h12",
+        "TAG36H11": "DICT_APRILTAG_36h11",
+    }.get(n, name)
 
 
 def load_board(path) -> Board:
@@ -454,16 +465,33 @@ def _load_grid_board(fs, p: Path, kind: str) -> Board:
     sq = _fs_number(fs, "square_length", p, default=None if kind == "charuco" else 0.0)
     ids_node = fs.getNode("ids")
     ids = None if ids_node.empty() else tuple(_fs_int_list(ids_node, "ids", p))
-    return Board(kind=kind, size=tuple(size), marker_length=ml, dictionary=_fs_string(fs, "dictionary", "DICT_6X6_250"),
-                 marker_separation=sep, square_length=sq, ids=ids, first_id=int(_fs_number(fs, "first_id", p, default=0)),
-                 legacy_pattern=bool(_fs_number(fs, "legacy_pattern", p, default=0)), base_dir=p.parent, source=str(p),
-                 inverted=bool(_fs_number(fs, "inverted", p, default=0)))
+    return Board(
+        kind=kind,
+        size=tuple(size),
+        marker_length=ml,
+        dictionary=_fs_string(fs, "dictionary", "DICT_6X6_250"),
+        marker_separation=sep,
+        square_length=sq,
+        ids=ids,
+        first_id=int(_fs_number(fs, "first_id", p, default=0)),
+        legacy_pattern=bool(_fs_number(fs, "legacy_pattern", p, default=0)),
+        base_dir=p.parent,
+        source=str(p),
+        inverted=bool(_fs_number(fs, "inverted", p, default=0)),
+    )
 
 
 def _load_markers_board(fs, p: Path) -> Board:
     """A ``type: markers`` board file (its ``markers`` list of ``{id, corners}``, world frame)."""
     markers = _fs_markers(fs.getNode("markers"), p)
-    b = Board(kind="markers", size=(len(markers), 1), marker_length=1.0,
-              dictionary=_fs_string(fs, "dictionary", "DICT_6X6_250"), markers=markers,
-              inverted=bool(_fs_number(fs, "inverted", p, default=0)), base_dir=p.parent, source=str(p))
+    b = Board(
+        kind="markers",
+        size=(len(markers), 1),
+        marker_length=1.0,
+        dictionary=_fs_string(fs, "dictionary", "DICT_6X6_250"),
+        markers=markers,
+        inverted=bool(_fs_number(fs, "inverted", p, default=0)),
+        base_dir=p.parent,
+        source=str(p),
+    )
     return b

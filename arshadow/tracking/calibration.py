@@ -53,8 +53,10 @@ class Pattern:
     def describe(self) -> str:
         if self.kind == "chessboard":
             return f"chessboard {self.cols}x{self.rows} inner corners, {1000 * self.square:g} mm squares"
-        return (f"charuco {self.cols}x{self.rows} squares, {1000 * self.square:g} mm squares, "
-                f"{1000 * self.marker:g} mm {self.dictionary} markers")
+        return (
+            f"charuco {self.cols}x{self.rows} squares, {1000 * self.square:g} mm squares, "
+            f"{1000 * self.marker:g} mm {self.dictionary} markers"
+        )
 
     @property
     def spec(self) -> str:
@@ -66,14 +68,15 @@ class Pattern:
     def object_points(self) -> np.ndarray:
         """Chessboard: (cols*rows, 3) float32 object points."""
         obj = np.zeros((self.cols * self.rows, 3), np.float32)
-        obj[:, :2] = np.mgrid[0:self.cols, 0:self.rows].T.reshape(-1, 2) * self.square
+        obj[:, :2] = np.mgrid[0 : self.cols, 0 : self.rows].T.reshape(-1, 2) * self.square
         return obj
 
     @cached_property
     def charuco(self):
         """ChArUco: ``(Board, cv2.aruco.CharucoDetector)``, built once per pattern, not per photo."""
-        board = Board("charuco", (self.cols, self.rows), self.marker, dictionary=self.dictionary,
-                      square_length=self.square)
+        board = Board(
+            "charuco", (self.cols, self.rows), self.marker, dictionary=self.dictionary, square_length=self.square
+        )
         return board, cv2.aruco.CharucoDetector(board.cv_board)
 
 
@@ -91,7 +94,8 @@ def parse_pattern(spec: str) -> Pattern:
     parts = [p.strip() for p in rest.split(",")] if rest else []
     bad = UsageError(
         f"bad pattern '{s}' (use chessboard:COLS,ROWS,SQUARE or charuco:COLS,ROWS,SQUARE,MARKER,DICT; "
-        "lengths in metres, chessboard COLS,ROWS = inner corners)")
+        "lengths in metres, chessboard COLS,ROWS = inner corners)"
+    )
     try:
         if kind == "chessboard" and len(parts) == 3:
             p = Pattern("chessboard", int(parts[0]), int(parts[1]), float(parts[2]))
@@ -143,8 +147,11 @@ def find_view(path, pattern: Pattern, image=None) -> View:
         flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
         found, corners = cv2.findChessboardCorners(gray, (pattern.cols, pattern.rows), flags=flags)
         if not found:
-            return View(name, size, reason=f"no {pattern.cols}x{pattern.rows} chessboard found (all inner corners "
-                                           "must be visible)")
+            return View(
+                name,
+                size,
+                reason=f"no {pattern.cols}x{pattern.rows} chessboard found (all inner corners must be visible)",
+            )
         crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 30, 1e-4)
         corners = cv2.cornerSubPix(gray, corners, (11, 11), (-1, -1), crit)
         return View(name, size, pattern.object_points, corners.astype(np.float32))
@@ -192,8 +199,14 @@ class CalibrationResult:
         )
 
 
-def calibrate(views, *, flags: int = 0, min_views: int = MIN_VIEWS, max_view_error: float | None = None,
-              pattern: Pattern | None = None) -> CalibrationResult:
+def calibrate(
+    views,
+    *,
+    flags: int = 0,
+    min_views: int = MIN_VIEWS,
+    max_view_error: float | None = None,
+    pattern: Pattern | None = None,
+) -> CalibrationResult:
     """Calibrate from views (:func:`find_view` results; rejected ones are carried along).
 
     Parameters
@@ -223,14 +236,17 @@ def calibrate(views, *, flags: int = 0, min_views: int = MIN_VIEWS, max_view_err
         good = [v for v in good if v.ok]
     if len(good) < min_views:
         why = "; ".join(f"{Path(v.path).name}: {v.reason}" for v in rejected[:5])
-        raise CalibrationError(f"only {len(good)} usable view(s), need at least {min_views}"
-                               + (f" (rejected: {why}{' ...' if len(rejected) > 5 else ''})" if rejected else ""))
+        raise CalibrationError(
+            f"only {len(good)} usable view(s), need at least {min_views}"
+            + (f" (rejected: {why}{' ...' if len(rejected) > 5 else ''})" if rejected else "")
+        )
     size = good[0].size
     for _ in range(3):
         K0 = np.eye(3)
         try:
             rms, K, dist, rvecs, tvecs, std_int, _, per_view = cv2.calibrateCameraExtended(
-                [v.object_points for v in good], [v.image_points for v in good], size, K0, None, flags=flags)
+                [v.object_points for v in good], [v.image_points for v in good], size, K0, None, flags=flags
+            )
         except cv2.error as exc:
             raise CalibrationError(f"calibration failed: {str(exc).strip().splitlines()[-1][:120]}") from None
         per_view = np.asarray(per_view, float).ravel()
@@ -243,11 +259,22 @@ def calibrate(views, *, flags: int = 0, min_views: int = MIN_VIEWS, max_view_err
         rejected += worst
         good = [v for v in good if v.ok]
         if len(good) < min_views:
-            raise CalibrationError(f"only {len(good)} view(s) left after rejecting those above "
-                                   f"{max_view_error} px, need at least {min_views}")
+            raise CalibrationError(
+                f"only {len(good)} view(s) left after rejecting those above "
+                f"{max_view_error} px, need at least {min_views}"
+            )
     if not np.all(np.isfinite(K)) or K[0, 0] <= 0 or K[1, 1] <= 0:
         raise CalibrationError("calibration diverged (non-finite or non-positive focal length)")
     intr = Intrinsics.from_K(K, size[0], size[1], np.asarray(dist, float).ravel()[:14])
-    return CalibrationResult(intr, float(rms), per_view, good, rejected, flags, pattern,
-                             np.asarray(std_int, float).ravel(),
-                             np.asarray(rvecs, float).reshape(-1, 3), np.asarray(tvecs, float).reshape(-1, 3))
+    return CalibrationResult(
+        intr,
+        float(rms),
+        per_view,
+        good,
+        rejected,
+        flags,
+        pattern,
+        np.asarray(std_int, float).ravel(),
+        np.asarray(rvecs, float).reshape(-1, 3),
+        np.asarray(tvecs, float).reshape(-1, 3),
+    )

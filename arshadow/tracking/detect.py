@@ -333,11 +333,13 @@ class RescueDetector:
         self.rescued = True
         # the second search's markers, then the first's that it lacks
         seen = set(np.asarray(i2).ravel().tolist())
-        extra = [(c, i) for c, i in zip(corners, [] if ids is None else np.asarray(ids).ravel().tolist())
-                 if i not in seen]
+        extra = [
+            (c, i) for c, i in zip(corners, [] if ids is None else np.asarray(ids).ravel().tolist()) if i not in seen
+        ]
         c_out = tuple(c2) + tuple(c for c, _ in extra)
-        i_out = np.concatenate([np.asarray(i2).reshape(-1, 1), np.asarray([[i] for _, i in extra], np.int32)
-                                .reshape(-1, 1)]).astype(np.int32)
+        i_out = np.concatenate(
+            [np.asarray(i2).reshape(-1, 1), np.asarray([[i] for _, i in extra], np.int32).reshape(-1, 1)]
+        ).astype(np.int32)
         return c_out, i_out, r2
 
     def __getattr__(self, name):
@@ -350,8 +352,12 @@ DICTIONARY_FAMILIES = (
     ("DICT_5X5_50", "DICT_5X5_100", "DICT_5X5_250", "DICT_5X5_1000"),
     ("DICT_6X6_50", "DICT_6X6_100", "DICT_6X6_250", "DICT_6X6_1000"),
     ("DICT_7X7_50", "DICT_7X7_100", "DICT_7X7_250", "DICT_7X7_1000"),
-    ("DICT_ARUCO_ORIGINAL",), ("DICT_ARUCO_MIP_36h12",),
-    ("DICT_APRILTAG_16h5",), ("DICT_APRILTAG_25h9",), ("DICT_APRILTAG_36h10",), ("DICT_APRILTAG_36h11",),
+    ("DICT_ARUCO_ORIGINAL",),
+    ("DICT_ARUCO_MIP_36h12",),
+    ("DICT_APRILTAG_16h5",),
+    ("DICT_APRILTAG_25h9",),
+    ("DICT_APRILTAG_36h10",),
+    ("DICT_APRILTAG_36h11",),
 )
 
 

@@ -72,7 +72,8 @@ def get_dictionary(spec, base_dir=None) -> cv2.aruco.Dictionary:
         if const is None:
             raise UsageError(
                 f"unknown dictionary '{s}' (use a name such as DICT_6X6_250, one of "
-                f"{', '.join(PREDEFINED_DICTIONARIES)}, or a dictionary file)")
+                f"{', '.join(PREDEFINED_DICTIONARIES)}, or a dictionary file)"
+            )
         return cv2.aruco.getPredefinedDictionary(const)
     p = Path(s)
     if base_dir is not None and not p.is_absolute():

@@ -132,9 +132,16 @@ class MarkerPose:
             raise UsageError("this pose has no alternative solution")
         a = self.alternative
         alt = AltPose(self.rvec, self.tvec, self.cam_from_world, self.reprojection_error_px)
-        return replace(self, rvec=a.rvec, tvec=a.tvec, cam_from_world=a.cam_from_world,
-                       reprojection_error_px=a.reprojection_error_px, alternative=alt, chosen_by="previous",
-                       timings_ms=dict(self.timings_ms))
+        return replace(
+            self,
+            rvec=a.rvec,
+            tvec=a.tvec,
+            cam_from_world=a.cam_from_world,
+            reprojection_error_px=a.reprojection_error_px,
+            alternative=alt,
+            chosen_by="previous",
+            timings_ms=dict(self.timings_ms),
+        )
 
 
 def rms_reprojection_px(intr: Intrinsics, obj, img, rvec, tvec) -> float:

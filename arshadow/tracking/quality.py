@@ -62,8 +62,9 @@ def border_occlusion(gray, quad, bits) -> float:
     n, c = int(bits.shape[0]) + 2, 8
     dst = np.array([[0, 0], [n * c, 0], [n * c, n * c], [0, n * c]], np.float32)
     H = cv2.getPerspectiveTransform(np.asarray(quad, np.float32).reshape(4, 2), dst)
-    can = cv2.warpPerspective(gray, H, (n * c, n * c), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
-                              borderValue=0).astype(np.float32)
+    can = cv2.warpPerspective(
+        gray, H, (n * c, n * c), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0
+    ).astype(np.float32)
     cells = can.reshape(n, c, n, c)[:, 2:6, :, 2:6].mean(axis=(1, 3))
     h, w = gray.shape[:2]
     q = np.asarray(quad, np.float64).reshape(4, 2)
@@ -103,7 +104,6 @@ def corner_instability(gray, quad) -> float:
     return float(np.linalg.norm((a - b)[:, 0], axis=1).max() / side)
 
 
-
 def reprojection_limit_px(corners) -> float:
     """The RMS reprojection error (pixels) above which a pose is flagged, for image points ``corners
     (n, 2)`` (the first 4 = the reference marker's quad): see :data:`MAX_REPROJECTION_PX`."""
@@ -120,23 +120,31 @@ def flag_reasons(pose) -> list[str]:
     out = []
     ratio, thr = pose.pose_ambiguity, pose.ambiguity_threshold
     if ratio is not None and ratio >= thr:
-        out.append(f"ambiguous: the two planar solutions explain the corners almost equally (ratio {ratio:.3g} "
-                   f">= {thr:g})")
+        out.append(
+            f"ambiguous: the two planar solutions explain the corners almost equally (ratio {ratio:.3g} >= {thr:g})"
+        )
     ci = pose.corner_instability
     if ci is not None and ci > MAX_CORNER_INSTABILITY:
-        out.append(f"blurred corners: they move by {ci:.3g} of the marker's side between refinement windows "
-                   f"(> {MAX_CORNER_INSTABILITY:g})")
+        out.append(
+            f"blurred corners: they move by {ci:.3g} of the marker's side between refinement windows "
+            f"(> {MAX_CORNER_INSTABILITY:g})"
+        )
     bo = pose.border_occlusion
     if bo is not None and bo > MAX_BORDER_OCCLUSION:
-        out.append(f"marker partly covered: a border cell reads {bo:.2f} of the way to white (> {MAX_BORDER_OCCLUSION:g})")
+        out.append(
+            f"marker partly covered: a border cell reads {bo:.2f} of the way to white (> {MAX_BORDER_OCCLUSION:g})"
+        )
     if pose.kind == "marker" and pose.pose_ambiguity is not None and len(pose.corners) >= 4:
         q = np.asarray(pose.corners, np.float64)[:4]
         side = float(np.linalg.norm(q - np.roll(q, 1, axis=0), axis=1).min())
         if side < MIN_CONFIDENT_SIDE_PX:
-            out.append(f"small marker: {side:.1f} px across, under the {MIN_CONFIDENT_SIDE_PX:g} px a pose can be "
-                       "trusted at")
+            out.append(
+                f"small marker: {side:.1f} px across, under the {MIN_CONFIDENT_SIDE_PX:g} px a pose can be trusted at"
+            )
     lim = reprojection_limit_px(pose.corners)
     if pose.reprojection_error_px > lim:
-        out.append(f"reprojection error {pose.reprojection_error_px:.1f} px, far above the {lim:.1f} px the "
-                   "detected corners allow (a board file or marker length that does not match the print?)")
+        out.append(
+            f"reprojection error {pose.reprojection_error_px:.1f} px, far above the {lim:.1f} px the "
+            "detected corners allow (a board file or marker length that does not match the print?)"
+        )
     return out

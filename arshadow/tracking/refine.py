@@ -9,9 +9,18 @@ import numpy as np
 __all__ = ["refine_corners_edges"]
 
 
-def refine_corners_edges(gray, corners, intrinsics=None, *, bits: int = 8, iterations: int = 3,
-                         n_samples: int = 24, reach_in: float = 0.45, reach_out: float = 0.45,
-                         tol_px: float = 0.01) -> np.ndarray:
+def refine_corners_edges(
+    gray,
+    corners,
+    intrinsics=None,
+    *,
+    bits: int = 8,
+    iterations: int = 3,
+    n_samples: int = 24,
+    reach_in: float = 0.45,
+    reach_out: float = 0.45,
+    tol_px: float = 0.01,
+) -> np.ndarray:
     """Refine marker corners by fitting the four border edges and intersecting them.
 
     Why: ``cv2.cornerSubPix`` (ArUco's ``subpix``) puts a corner where the image gradients around it are
@@ -76,8 +85,7 @@ def _refine_step(img, c, intrinsics, t, bits, reach_in, reach_out):
     n_samples = len(t)
     side = float(np.mean(np.linalg.norm(c - np.roll(c, -1, axis=0), axis=1)))
     bit = side / bits
-    offs = np.arange(-float(np.clip(reach_in * bit, 1.0, 6.0)), float(np.clip(reach_out * bit, 1.0, 8.0)) + 1e-9,
-                     0.25)
+    offs = np.arange(-float(np.clip(reach_in * bit, 1.0, 6.0)), float(np.clip(reach_out * bit, 1.0, 8.0)) + 1e-9, 0.25)
     centre = c.mean(axis=0)
     a, b = c, np.roll(c, -1, axis=0)  # edge k: corner k -> corner k + 1
     d = b - a
@@ -91,7 +99,7 @@ def _refine_step(img, c, intrinsics, t, bits, reach_in, reach_out):
     if pts[..., 0].min() < 0 or pts[..., 1].min() < 0 or pts[..., 0].max() > W - 1 or pts[..., 1].max() > H - 1:
         return None, side  # too close to the image border to measure: keep the corners
     o, ok = _edge_crossings(img, pts, offs)
-    edge_pts = (base.reshape(-1, 2) + o[:, None] * np.repeat(nrm, n_samples, axis=0))
+    edge_pts = base.reshape(-1, 2) + o[:, None] * np.repeat(nrm, n_samples, axis=0)
     ok = ok.reshape(4, n_samples)
     if np.any(ok.sum(axis=1) < 4):
         return None, side
@@ -100,9 +108,14 @@ def _refine_step(img, c, intrinsics, t, bits, reach_in, reach_out):
         edge_pts = intrinsics.undistort_pixels(edge_pts)
     lines = _fit_lines(edge_pts.reshape(4, n_samples, 2), ok)
     prev = np.roll(lines, 1, axis=0)  # corner k = edge k-1 x edge k
-    x = np.stack([prev[:, 1] * lines[:, 2] - prev[:, 2] * lines[:, 1],
-                  prev[:, 2] * lines[:, 0] - prev[:, 0] * lines[:, 2],
-                  prev[:, 0] * lines[:, 1] - prev[:, 1] * lines[:, 0]], axis=1)
+    x = np.stack(
+        [
+            prev[:, 1] * lines[:, 2] - prev[:, 2] * lines[:, 1],
+            prev[:, 2] * lines[:, 0] - prev[:, 0] * lines[:, 2],
+            prev[:, 0] * lines[:, 1] - prev[:, 1] * lines[:, 0],
+        ],
+        axis=1,
+    )
     if np.any(np.abs(x[:, 2]) < 1e-12):
         return None, side
     new = x[:, :2] / x[:, 2:3]

@@ -53,12 +53,17 @@ class TrackingDetector:
         if win is not None:
             x0, y0, ww, hh = win
             corners, ids, rejected = self._base.detectMarkers(np.ascontiguousarray(gray[y0 : y0 + hh, x0 : x0 + ww]))
-            ok = ids is not None and len(ids) > 0 and (self.marker_id is None or self.marker_id in
-                                                       np.asarray(ids).ravel().tolist())
+            ok = (
+                ids is not None
+                and len(ids) > 0
+                and (self.marker_id is None or self.marker_id in np.asarray(ids).ravel().tolist())
+            )
             if ok:
                 off = np.array([x0, y0], np.float32)
                 corners = tuple(np.asarray(c, np.float32) + off for c in corners)
-                rejected = tuple(np.asarray(r, np.float32) + off for r in rejected) if rejected is not None else rejected
+                rejected = (
+                    tuple(np.asarray(r, np.float32) + off for r in rejected) if rejected is not None else rejected
+                )
                 self._remember(corners)
                 self.last = "window"
                 return corners, ids, rejected

@@ -19,11 +19,11 @@ from .board import OPENCV_BOARD_TO_WORLD, Board, load_board
 from .detect import (
     DEFAULT_REFINE,
     AprilTagDetector,
-    RescueDetector,
-    markers_in_image,
     Detection,
+    RescueDetector,
     detection_from_opencv,
     make_detector_params,
+    markers_in_image,
     to_gray,
 )
 from .dictionary import (
@@ -90,9 +90,21 @@ class MarkerTracker:
     ([0], True)
     """
 
-    def __init__(self, intrinsics: Intrinsics, dictionary=None, marker_length=None, marker_id=None,
-                 board=None, refine=DEFAULT_REFINE, detector_params=None, ambiguity_threshold=AMBIGUITY_FLAG,
-                 pnp_refine=True, detector="full", track_roi=False, inverted=None):
+    def __init__(
+        self,
+        intrinsics: Intrinsics,
+        dictionary=None,
+        marker_length=None,
+        marker_id=None,
+        board=None,
+        refine=DEFAULT_REFINE,
+        detector_params=None,
+        ambiguity_threshold=AMBIGUITY_FLAG,
+        pnp_refine=True,
+        detector="full",
+        track_roi=False,
+        inverted=None,
+    ):
         if not isinstance(intrinsics, Intrinsics):
             raise UsageError("intrinsics must be an arshadow.camera.Intrinsics")
         self.intrinsics = intrinsics
@@ -111,9 +123,11 @@ class MarkerTracker:
             self.dictionary_name = dictionary_label(dictionary)
         else:
             if dictionary is not None and dictionary_label(dictionary) != dictionary_label(board.dictionary):
-                raise UsageError(f"dictionary {dictionary_label(dictionary)} conflicts with the board file's "
-                                 f"dictionary {dictionary_label(board.dictionary)} (a board names its own: leave "
-                                 "the dictionary out or make them agree)")
+                raise UsageError(
+                    f"dictionary {dictionary_label(dictionary)} conflicts with the board file's "
+                    f"dictionary {dictionary_label(board.dictionary)} (a board names its own: leave "
+                    "the dictionary out or make them agree)"
+                )
             if marker_length is not None and abs(float(marker_length) - board.marker_length) > 1e-9:
                 raise UsageError("marker_length conflicts with the board file's marker_length")
             self.marker_length = board.marker_length
@@ -122,8 +136,10 @@ class MarkerTracker:
         if marker_id is not None:
             marker_id = int(marker_id)
             if not 0 <= marker_id < len(self.dictionary.bytesList):
-                raise UsageError(f"marker id {marker_id} is not in {self.dictionary_name} "
-                                 f"(ids 0..{len(self.dictionary.bytesList) - 1})")
+                raise UsageError(
+                    f"marker id {marker_id} is not in {self.dictionary_name} "
+                    f"(ids 0..{len(self.dictionary.bytesList) - 1})"
+                )
         self.marker_id = marker_id
         self.refine = refine
         self.pnp_refine = bool(pnp_refine)
@@ -234,16 +250,17 @@ class MarkerTracker:
         if pose.kind == "marker":
             pose.corner_instability = corner_instability(gray, pose.corners[:4])
             ref = pose.marker_ids[0]
-            bits = self.dictionary.getBitsFromByteList(self.dictionary.bytesList[ref : ref + 1],
-                                                       self.dictionary.markerSize)
+            bits = self.dictionary.getBitsFromByteList(
+                self.dictionary.bytesList[ref : ref + 1], self.dictionary.markerSize
+            )
             pose.border_occlusion = border_occlusion(gray, pose.corners[:4], bits)
             if self.inverted:  # a white-on-black marker's ring is white: measure it on the negative too
-                pose.border_occlusion = min(pose.border_occlusion,
-                                            border_occlusion(255 - gray, pose.corners[:4], bits))
+                pose.border_occlusion = min(pose.border_occlusion, border_occlusion(255 - gray, pose.corners[:4], bits))
         if previous is not None and pose.alternative is not None and pose.ambiguous:
             prev = previous.cam_from_world if isinstance(previous, MarkerPose) else np.asarray(previous, float)
-            if rotation_error_deg(pose.alternative.cam_from_world[:3, :3], prev[:3, :3]) < \
-                    rotation_error_deg(pose.cam_from_world[:3, :3], prev[:3, :3]):
+            if rotation_error_deg(pose.alternative.cam_from_world[:3, :3], prev[:3, :3]) < rotation_error_deg(
+                pose.cam_from_world[:3, :3], prev[:3, :3]
+            ):
                 pose = pose.swapped()
         return pose
 
@@ -258,8 +275,9 @@ class MarkerTracker:
         other = markers_in_image(gray, skip=self.dictionary)
         if not other:
             return ""
-        listed = "; ".join(f"{n} ids {', '.join(map(str, ids[:8]))}{' ...' if len(ids) > 8 else ''}"
-                           for n, ids in other.items())
+        listed = "; ".join(
+            f"{n} ids {', '.join(map(str, ids[:8]))}{' ...' if len(ids) > 8 else ''}" for n, ids in other.items()
+        )
         return f"; the image has markers of other dictionaries: {listed} (give --dictionary)"
 
     def inverted_hint(self, gray) -> str:
@@ -273,8 +291,10 @@ class MarkerTracker:
         if ids is None or len(ids) == 0:
             return ""
         found = ", ".join(map(str, sorted(set(np.asarray(ids).ravel().tolist()))))
-        return (f"; the image has inverted (white-on-black) markers, ids {found}: use --inverted (or "
-                "'inverted: 1' in the board file)")
+        return (
+            f"; the image has inverted (white-on-black) markers, ids {found}: use --inverted (or "
+            "'inverted: 1' in the board file)"
+        )
 
     def _make_pose(self, solved, obj, img, ids, all_corners, kind):
         sols, ratio = solved
@@ -283,9 +303,24 @@ class MarkerTracker:
         if len(sols) > 1:
             r2, t2, e2 = sols[1]
             alt = AltPose(r2, t2, matrix_from_rvec_tvec(r2, t2), e2)
-        return MarkerPose(r, t, matrix_from_rvec_tvec(r, t), [int(i) for i in ids], e, ratio,
-                          np.asarray(img, np.float64).reshape(-1, 2), np.asarray(obj, np.float64).reshape(-1, 3),
-                          int(len(obj)), alt, "error", None, False, all_corners, self.ambiguity_threshold, kind)
+        return MarkerPose(
+            r,
+            t,
+            matrix_from_rvec_tvec(r, t),
+            [int(i) for i in ids],
+            e,
+            ratio,
+            np.asarray(img, np.float64).reshape(-1, 2),
+            np.asarray(obj, np.float64).reshape(-1, 3),
+            int(len(obj)),
+            alt,
+            "error",
+            None,
+            False,
+            all_corners,
+            self.ambiguity_threshold,
+            kind,
+        )
 
     def _estimate_marker(self, gray, intr) -> MarkerPose:
         corners, ids, rejected = self._detector.detectMarkers(gray)
@@ -298,8 +333,7 @@ class MarkerTracker:
         found = sorted(set(det.ids.tolist()))
         if self.marker_id is not None:
             if self.marker_id not in found:
-                raise MarkerNotFoundError(
-                    f"marker id {self.marker_id} not found (found {', '.join(map(str, found))})")
+                raise MarkerNotFoundError(f"marker id {self.marker_id} not found (found {', '.join(map(str, found))})")
             ref = self.marker_id
         else:
             ref = found[0]
@@ -316,14 +350,17 @@ class MarkerTracker:
             raise MarkerNotFoundError(f"no marker of {self.dictionary_name} found{self.miss_hint(gray)}")
         if self.board.kind == "gridboard":
             corners, ids, rejected, _ = self._detector.refineDetectedMarkers(
-                gray, self.board.cv_board, corners, ids, rejected, intr.K, intr.dist_cv)
+                gray, self.board.cv_board, corners, ids, rejected, intr.K, intr.dist_cv
+            )
         det = detection_from_opencv(corners, ids, rejected, self._shift_params)
         self._t_detect = time.perf_counter()
-        obj, img = self.board.cv_board.matchImagePoints(tuple(c.reshape(1, 4, 2).astype(np.float32) for c in det.corners),
-                                                        det.ids.reshape(-1, 1).astype(np.int32))
+        obj, img = self.board.cv_board.matchImagePoints(
+            tuple(c.reshape(1, 4, 2).astype(np.float32) for c in det.corners), det.ids.reshape(-1, 1).astype(np.int32)
+        )
         if obj is None or len(obj) < 4:
             raise MarkerNotFoundError(
-                f"none of the board's markers found (found ids {', '.join(map(str, sorted(set(det.ids.tolist()))))})")
+                f"none of the board's markers found (found ids {', '.join(map(str, sorted(set(det.ids.tolist()))))})"
+            )
         obj = np.asarray(obj, np.float64).reshape(-1, 3) @ OPENCV_BOARD_TO_WORLD.T
         img = np.asarray(img, np.float64).reshape(-1, 2)
         if self.board.planar:

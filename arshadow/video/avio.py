@@ -188,8 +188,11 @@ class AvReader:
             for f in self._decoded():
                 if self.max_frames is not None and index >= self.max_frames:
                     return
-                fmt = "yuv420p" if (self.raw and f.format.name == "yuv420p" and not (f.width % 2 or f.height % 2)) \
+                fmt = (
+                    "yuv420p"
+                    if (self.raw and f.format.name == "yuv420p" and not (f.width % 2 or f.height % 2))
                     else "bgr24"
+                )
                 img = f.to_ndarray(format=fmt)
                 t = pts_time(f.pts, f.time_base) if f.pts is not None and f.time_base else f.time
                 if t is None or not math.isfinite(t):
@@ -314,9 +317,21 @@ class AvWriter:
         Unwritable target, a codec the container refuses, a frame of the wrong size.
     """
 
-    def __init__(self, path, rate, size, *, codec: str = "h264", crf: float = 20, preset: str = "veryfast",
-                 color: bool = True, audio_from=None, threads: int = 0, pix_fmt: str | None = None,
-                 gop: int | None = None):
+    def __init__(
+        self,
+        path,
+        rate,
+        size,
+        *,
+        codec: str = "h264",
+        crf: float = 20,
+        preset: str = "veryfast",
+        color: bool = True,
+        audio_from=None,
+        threads: int = 0,
+        pix_fmt: str | None = None,
+        gop: int | None = None,
+    ):
         self.path = Path(path)
         if codec not in VIDEO_CODECS:
             raise UsageError(f"--codec {codec}: use one of {', '.join(VIDEO_CODECS)}")
@@ -342,8 +357,12 @@ class AvWriter:
             self.tmp_path = stack.enter_context(atomic_path(self.path))
             try:
                 fmt = _container_format(self.path)
-                c = av.open(str(self.tmp_path), "w", format=fmt,
-                            options={"movflags": "+faststart"} if fmt in ("mp4", "mov") else None)
+                c = av.open(
+                    str(self.tmp_path),
+                    "w",
+                    format=fmt,
+                    options={"movflags": "+faststart"} if fmt in ("mp4", "mov") else None,
+                )
             except (av.FFmpegError, OSError, ValueError) as exc:
                 raise ImageError(f"{self.path}: cannot write ({_short(exc)})") from None
             stack.callback(self._close_container, av, c)
@@ -363,8 +382,10 @@ class AvWriter:
                 if self.gop:  # a keyframe every gop frames, and only there (chunk boundaries)
                     vs.options["x264-params"] = f"keyint={self.gop}:min-keyint={self.gop}:scenecut=0"
                 if self.size[0] % 2 or self.size[1] % 2:
-                    raise ImageError(f"{self.path}: H.264 (yuv420p) needs an even frame size, got {self.size}; "
-                                     f"use --codec ffv1 or mpeg4")
+                    raise ImageError(
+                        f"{self.path}: H.264 (yuv420p) needs an even frame size, got {self.size}; "
+                        f"use --codec ffv1 or mpeg4"
+                    )
             elif name == "mpeg4":
                 vs.options = {"qscale": "3"}
                 vs.codec_context.qmin = 2

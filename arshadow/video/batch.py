@@ -107,8 +107,9 @@ def _fingerprint(item: BatchItem, spec, opts, save_mask) -> str:
         ident = [st.st_size, st.st_mtime_ns]
     except OSError:
         ident = None
-    blob = json.dumps([str(Path(item.input).resolve()), ident, repr(spec), repr(opts), save_mask, item.kind],
-                      default=str)
+    blob = json.dumps(
+        [str(Path(item.input).resolve()), ident, repr(spec), repr(opts), save_mask, item.kind], default=str
+    )
     return hashlib.sha256(blob.encode()).hexdigest()
 
 
@@ -154,8 +155,9 @@ def _session_for(spec):
     return s
 
 
-def process_item(spec, item: BatchItem, outdir, opts, save_mask: bool, fingerprint: str, session=None,
-                 pool=None) -> dict:
+def process_item(
+    spec, item: BatchItem, outdir, opts, save_mask: bool, fingerprint: str, session=None, pool=None
+) -> dict:
     """Process one input and write its outputs and done record; returns the item's summary.
 
     ``pool`` (:class:`arshadow.video.parallel.ChunkPool`): a video is cut into chunks run on its workers.
@@ -167,22 +169,25 @@ def process_item(spec, item: BatchItem, outdir, opts, save_mask: bool, fingerpri
     def work(summary):
         outs = video_outputs(outdir, item.stem, opts) if item.kind == "video" else None
         if item.kind == "video" and pool is not None:
-            vs, note = process_video_chunked(BackendRecipe(spec), pool, item.input, outs, opts, outdir=outdir,
-                                             stem=item.stem, name=item.input)
+            vs, note = process_video_chunked(
+                BackendRecipe(spec), pool, item.input, outs, opts, outdir=outdir, stem=item.stem, name=item.input
+            )
             if vs is not None:
                 return _video_fields(summary, vs, outs)
             summary["warnings"] = [note] if note else []
         sess = session if session is not None else _session_for(spec)
         if item.kind == "video":
-            vs, _ = process_video(SessionBackend(sess, sess.sun_tracks, sess.time_lapse), item.input, outs, opts,
-                                  name=item.input)
+            vs, _ = process_video(
+                SessionBackend(sess, sess.sun_tracks, sess.time_lapse), item.input, outs, opts, name=item.input
+            )
             vs["warnings"] = summary["warnings"] + vs["warnings"]
             return _video_fields(summary, vs, outs)
         # the photo loop's one photo (EXIF orientation, upright outputs and layers), as arshadow render
         fmt = _photo_layers(opts)
         lay = None if opts.layers is None else layer_paths(outdir, item.stem, fmt, opts.layers_undistorted)
-        job = PhotoJob(item.input, outdir / f"{item.stem}.png",
-                       outdir / f"{item.stem}.shadow.png" if save_mask else None, lay, fmt)
+        job = PhotoJob(
+            item.input, outdir / f"{item.stem}.png", outdir / f"{item.stem}.shadow.png" if save_mask else None, lay, fmt
+        )
         res = render_photo_file(sess, job)
         summary["outputs"] = [str(p) for p in job.outputs]
         summary["status"] = "ok"
@@ -195,8 +200,22 @@ def process_item(spec, item: BatchItem, outdir, opts, save_mask: bool, fingerpri
 
 
 def _video_fields(summary: dict, vs: dict, outs: dict) -> None:
-    summary.update({k: vs.get(k) for k in ("status", "warnings", "frames", "frames_ok", "frames_held",
-                                           "frames_no_marker", "truncated", "decode_errors", "fps_processed")})
+    summary.update(
+        {
+            k: vs.get(k)
+            for k in (
+                "status",
+                "warnings",
+                "frames",
+                "frames_ok",
+                "frames_held",
+                "frames_no_marker",
+                "truncated",
+                "decode_errors",
+                "fps_processed",
+            )
+        }
+    )
     if "chunks" in vs:
         summary.update(chunks=len(vs["chunks"]), chunks_resumed=vs.get("chunks_resumed", 0))
     summary["outputs"] = [str(p) for p in outs.values() if p is not None and Path(p).exists()]
@@ -206,8 +225,15 @@ def _guarded(item: BatchItem, outdir: Path, fingerprint: str, work) -> dict:
     """``work(summary)`` fills the item's summary; a bad input becomes ``status: "error"``; the done record
     is written last, once every output is in place."""
     t0 = time.perf_counter()
-    summary = {"input": item.input, "kind": item.kind, "stem": item.stem, "status": "error", "error": None,
-               "outputs": [], "warnings": []}
+    summary = {
+        "input": item.input,
+        "kind": item.kind,
+        "stem": item.stem,
+        "status": "error",
+        "error": None,
+        "outputs": [],
+        "warnings": [],
+    }
     try:
         work(summary)
     except MarkerNotFoundError as exc:  # a photo without the marker: done (a rerun would find none either)
@@ -246,27 +272,53 @@ def _submit_dask(client, spec, it: BatchItem, outdir: Path, opts, save_mask, fp:
     them; anything else is one task. Returns the future of the item's summary."""
     if it.kind == "video" and chunks > 1:
         try:
-            prep, _note = prepare_chunked(it.input, video_outputs(outdir, it.stem, opts), opts.check(), chunks,
-                                          outdir, it.stem, BackendRecipe(spec).key(), it.input)
+            prep, _note = prepare_chunked(
+                it.input,
+                video_outputs(outdir, it.stem, opts),
+                opts.check(),
+                chunks,
+                outdir,
+                it.stem,
+                BackendRecipe(spec).key(),
+                it.input,
+            )
         except ArshadowError:
             prep = None  # the item's own task reports the problem
         if prep is not None:
             prep.store.open()
             done = {c.k: r for c in prep.chunks if (r := prep.store.done(c)) is not None}
             recipe = BackendRecipe(spec)
-            futs = [client.submit(chunk_task, recipe, prep, c, pure=False, retries=1,
-                                  key=f"arshadow-{it.stem}-{fp[:12]}-c{c.k}") for c in prep.chunks if c.k not in done]
-            return client.submit(_dask_join, spec, it, str(outdir), opts, fp, prep, done, *futs, pure=False,
-                                 key=f"arshadow-{it.stem}-{fp[:12]}-join")
-    return client.submit(_dask_task, spec, it, str(outdir), opts, save_mask, fp, pure=False,
-                         key=f"arshadow-{it.stem}-{fp[:12]}")
+            futs = [
+                client.submit(
+                    chunk_task, recipe, prep, c, pure=False, retries=1, key=f"arshadow-{it.stem}-{fp[:12]}-c{c.k}"
+                )
+                for c in prep.chunks
+                if c.k not in done
+            ]
+            return client.submit(
+                _dask_join,
+                spec,
+                it,
+                str(outdir),
+                opts,
+                fp,
+                prep,
+                done,
+                *futs,
+                pure=False,
+                key=f"arshadow-{it.stem}-{fp[:12]}-join",
+            )
+    return client.submit(
+        _dask_task, spec, it, str(outdir), opts, save_mask, fp, pure=False, key=f"arshadow-{it.stem}-{fp[:12]}"
+    )
 
 
 # --------------------------------------------------------------------------------------------------
 # the batch
 # --------------------------------------------------------------------------------------------------
-def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=None, progress=None,
-              session=None, jobs: int = 1) -> dict:
+def run_batch(
+    spec, inputs, outdir, opts, *, save_mask: bool = False, client=None, progress=None, session=None, jobs: int = 1
+) -> dict:
     """Process a batch (see the module); returns the summary also written to ``OUT_DIR/batch.json``.
 
     Parameters
@@ -331,9 +383,21 @@ def run_batch(spec, inputs, outdir, opts, *, save_mask: bool = False, client=Non
 
 def _write_summary(outdir: Path, items, results, interrupted: bool = False) -> dict:
     """``OUT_DIR/batch.json``; after an interruption the items not finished are ``status: "pending"``."""
-    results = [r if r is not None else {"input": it.input, "kind": it.kind, "stem": it.stem, "status": "pending",
-                                        "skipped": False, "error": None, "outputs": [], "warnings": []}
-               for it, r in zip(items, results)]
+    results = [
+        r
+        if r is not None
+        else {
+            "input": it.input,
+            "kind": it.kind,
+            "stem": it.stem,
+            "status": "pending",
+            "skipped": False,
+            "error": None,
+            "outputs": [],
+            "warnings": [],
+        }
+        for it, r in zip(items, results)
+    ]
     counts: dict = {}
     for r in results:
         counts[r["status"]] = counts.get(r["status"], 0) + 1
@@ -355,8 +419,16 @@ def _plan_todo(items, inputs, spec, outdir: Path, opts, save_mask):
         try:  # inputs are never modified
             guard.check(_outputs(it, outdir, opts, save_mask))
         except ArshadowError as exc:
-            results[k] = {"input": it.input, "kind": it.kind, "stem": it.stem, "status": "error", "skipped": False,
-                          "error": str(exc), "outputs": [], "warnings": []}
+            results[k] = {
+                "input": it.input,
+                "kind": it.kind,
+                "stem": it.stem,
+                "status": "error",
+                "skipped": False,
+                "error": str(exc),
+                "outputs": [],
+                "warnings": [],
+            }
             continue
         fp = _fingerprint(it, spec, opts, save_mask)
         rec = _done(outdir, it, fp)
@@ -396,7 +468,13 @@ def _run_dask(client, spec, items, todo, outdir, opts, save_mask, jobs: int, fin
             res = fut.result()
         except Exception as exc:  # noqa: BLE001 (a worker died or the task failed outside process_item)
             it = items[k]
-            res = {"input": it.input, "kind": it.kind, "stem": it.stem, "status": "error",
-                   "error": f"{it.input}: task failed on the cluster ({type(exc).__name__}: {exc})",
-                   "outputs": [], "warnings": []}
+            res = {
+                "input": it.input,
+                "kind": it.kind,
+                "stem": it.stem,
+                "status": "error",
+                "error": f"{it.input}: task failed on the cluster ({type(exc).__name__}: {exc})",
+                "outputs": [],
+                "warnings": [],
+            }
         finished(k, res)

@@ -96,12 +96,23 @@ class TemporalPoseChooser:
     True
     """
 
-    def __init__(self, lag: int = 16, sigma_px: float = 0.15, sigma_rot_deg: float = 3.0, fps: float = 25.0,
-                 max_gap_s: float = 1.0, max_motion_cost: float = math.inf):
+    def __init__(
+        self,
+        lag: int = 16,
+        sigma_px: float = 0.15,
+        sigma_rot_deg: float = 3.0,
+        fps: float = 25.0,
+        max_gap_s: float = 1.0,
+        max_motion_cost: float = math.inf,
+    ):
         if int(lag) < 0:
             raise UsageError(f"pose lag must be >= 0 frames, got {lag}")
-        for name, v in (("sigma_px", sigma_px), ("sigma_rot_deg", sigma_rot_deg), ("fps", fps),
-                        ("max_gap_s", max_gap_s)):
+        for name, v in (
+            ("sigma_px", sigma_px),
+            ("sigma_rot_deg", sigma_rot_deg),
+            ("fps", fps),
+            ("max_gap_s", max_gap_s),
+        ):
             if not (math.isfinite(float(v)) and float(v) > 0):
                 raise UsageError(f"{name} must be positive, got {v}")
         self.lag = int(lag)
@@ -116,7 +127,7 @@ class TemporalPoseChooser:
 
     # -- costs -------------------------------------------------------------------------------------
     def _data_cost(self, poses) -> np.ndarray:
-        c = np.array([p.n_points * float(p.reprojection_error_px) ** 2 / (2.0 * self.sigma_px ** 2) for p in poses])
+        c = np.array([p.n_points * float(p.reprojection_error_px) ** 2 / (2.0 * self.sigma_px**2) for p in poses])
         return c - c.min()
 
     def _motion_cost(self, r_prev, t_prev, r, t) -> float | None:
@@ -126,7 +137,7 @@ class TemporalPoseChooser:
             return None
         gap = max(1.0, dt * self.fps)
         th = rotation_error_deg(r, r_prev)
-        return min(th * th / (2.0 * self.sigma_rot ** 2 * gap), self.max_motion_cost)
+        return min(th * th / (2.0 * self.sigma_rot**2 * gap), self.max_motion_cost)
 
     # -- interface ---------------------------------------------------------------------------------
     def push(self, payload, pose, time_s: float) -> list[Choice]:
@@ -137,14 +148,18 @@ class TemporalPoseChooser:
             cands = [pose]
             if getattr(pose, "alternative", None) is not None:
                 cands.append(pose.swapped())
-            e = _Entry(payload, float(time_s), cands, self._data_cost(cands),
-                       [np.asarray(c.cam_from_world, np.float64)[:3, :3] for c in cands])
+            e = _Entry(
+                payload,
+                float(time_s),
+                cands,
+                self._data_cost(cands),
+                [np.asarray(c.cam_from_world, np.float64)[:3, :3] for c in cands],
+            )
             e.data_list = e.data.tolist()
             prev = self._last_posed
             if prev is not None and e.time_s - prev.time_s <= self.max_gap_s:
                 # the motion costs of this link, once (the Viterbi pass of every later decision reuses them)
-                e.link = [[self._motion_cost(rp, prev.time_s, r, e.time_s) or 0.0 for r in e.rots]
-                          for rp in prev.rots]
+                e.link = [[self._motion_cost(rp, prev.time_s, r, e.time_s) or 0.0 for r in e.rots] for rp in prev.rots]
             self._last_posed = e
         self._buf.append(e)
         out = []

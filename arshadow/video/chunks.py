@@ -48,8 +48,7 @@ from .engine import EngineOptions, Span, run_frames
 from .framejob import FrameComposer
 from .scan import SeekReader, StreamIndex
 
-__all__ = ["Chunk", "ChunkStore", "first_mismatch", "join_chunks", "margins", "plan_chunks", "run_chunk",
-           "widened"]
+__all__ = ["Chunk", "ChunkStore", "first_mismatch", "join_chunks", "margins", "plan_chunks", "run_chunk", "widened"]
 
 #: keys of a frame's JSON Lines record the chunk check compares
 CHECK_KEYS = ("frame", "status", "raw", "rvec", "tvec", "pose_choice")
@@ -141,8 +140,13 @@ class ChunkStore:
         """The chunk's files (``video``, ``mask`` or None, ``frames``, ``thumbs``)."""
         d, o = self.dir, self.opts
         mask = None if o.mask is None else d / (f"c{k:05d}.shadow.mkv" if o.mask == "mkv" else f"c{k:05d}.shadow")
-        return {"video": d / f"c{k:05d}.{o.fmt}", "mask": mask, "frames": d / f"c{k:05d}.jsonl",
-                "thumbs": d / f"c{k:05d}.thumbs.npz", "sheet": None}
+        return {
+            "video": d / f"c{k:05d}.{o.fmt}",
+            "mask": mask,
+            "frames": d / f"c{k:05d}.jsonl",
+            "thumbs": d / f"c{k:05d}.thumbs.npz",
+            "sheet": None,
+        }
 
     def record_path(self, k: int) -> Path:
         return self.dir / f"c{k:05d}.json"
@@ -172,8 +176,18 @@ def fingerprint(path, recipe_key: str, opts: EngineOptions, n: int) -> str:
     return hashlib.sha256(blob.encode()).hexdigest()
 
 
-def run_chunk(backend, path, index: StreamIndex, chunk: Chunk, opts: EngineOptions, store: ChunkStore, *,
-              name: str, final: dict, total) -> dict:
+def run_chunk(
+    backend,
+    path,
+    index: StreamIndex,
+    chunk: Chunk,
+    opts: EngineOptions,
+    store: ChunkStore,
+    *,
+    name: str,
+    final: dict,
+    total,
+) -> dict:
     """Process one chunk into the store (outputs first, then the record); returns the record.
 
     ``final``: the video's own outputs (named in the report items); ``total``: the frame count the
@@ -184,8 +198,9 @@ def run_chunk(backend, path, index: StreamIndex, chunk: Chunk, opts: EngineOptio
     outs = store.outputs(chunk.k)
     backend.start(reader.width, reader.height)
     backend.replay_sun(index.times[: chunk.start])
-    composer = FrameComposer(backend, name, final["video"], final.get("mask"), (reader.width, reader.height),
-                             final.get("mask") is not None)
+    composer = FrameComposer(
+        backend, name, final["video"], final.get("mask"), (reader.width, reader.height), final.get("mask") is not None
+    )
     sheet = SheetThumbs(opts.contact_sheet, total, (reader.width, reader.height))
     part_opts = dataclasses.replace(opts, keep_audio=False, collect_items=False)
     sink = EncodeSink(outs, part_opts, reader, path, False, composer.stage_ms, sheet, None, name, None)
@@ -194,12 +209,18 @@ def run_chunk(backend, path, index: StreamIndex, chunk: Chunk, opts: EngineOptio
     with atomic_path(outs["thumbs"]) as tmp, open(tmp, "wb") as f:
         np.savez(f, **{str(k): v for k, v in sheet.thumbs.items()})
     check = margins(opts)[1]
-    rec = {"chunk": dataclasses.asdict(chunk), "stats": composer.stats, "recomputes": backend.recomputes,
-           "tail": [{k: d[k] for k in CHECK_KEYS} for d in span.tail[:check]],
-           "wall_s": round(time.perf_counter() - t0, 3), "cpu_s": round(time.process_time() - c0, 3),
-           "frames_decoded": reader.n_read, "pid": os.getpid(),
-           "max_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, 1),
-           "flags": {"keys": composer.flags.keys, "kinds": composer.flags.kinds}}
+    rec = {
+        "chunk": dataclasses.asdict(chunk),
+        "stats": composer.stats,
+        "recomputes": backend.recomputes,
+        "tail": [{k: d[k] for k in CHECK_KEYS} for d in span.tail[:check]],
+        "wall_s": round(time.perf_counter() - t0, 3),
+        "cpu_s": round(time.process_time() - c0, 3),
+        "frames_decoded": reader.n_read,
+        "pid": os.getpid(),
+        "max_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, 1),
+        "flags": {"keys": composer.flags.keys, "kinds": composer.flags.kinds},
+    }
     write_json(store.record_path(chunk.k), rec)
     return rec
 
@@ -223,8 +244,9 @@ def first_mismatch(store: ChunkStore, chunks: list[Chunk], records: dict, opts: 
     return None
 
 
-def join_chunks(store: ChunkStore, chunks: list[Chunk], outputs: dict, opts: EngineOptions, rate, *,
-                audio_from=None) -> dict:
+def join_chunks(
+    store: ChunkStore, chunks: list[Chunk], outputs: dict, opts: EngineOptions, rate, *, audio_from=None
+) -> dict:
     """Join the chunks' outputs into the video's ``outputs`` (each atomic); returns ``{"audio": bool,
     "thumbs": {frame: thumbnail}}``. Entered video first, committed in reverse, as the engine does."""
     parts = [store.outputs(c.k) for c in chunks]
@@ -267,8 +289,9 @@ def concat_packets(parts, target, rate, *, audio_from=None) -> bool:
         fmt = {".mkv": "matroska", ".mp4": "mp4", ".mov": "mov", ".avi": "avi"}.get(Path(parts[0]).suffix.lower())
     with av.open(str(parts[0])) as first:
         template = first.streams.video[0]
-        with av.open(str(target), "w", format=fmt,
-                     options={"movflags": "+faststart"} if fmt in ("mp4", "mov") else None) as out:
+        with av.open(
+            str(target), "w", format=fmt, options={"movflags": "+faststart"} if fmt in ("mp4", "mov") else None
+        ) as out:
             vout = out.add_stream_from_template(template)
             audio = _open_audio(av, out, audio_from)
             end = _mux_video(av, out, vout, parts, audio, rate)

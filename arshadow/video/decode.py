@@ -54,9 +54,14 @@ def sequence_indices(pattern: str) -> list[int]:
         return []
     width = int(m.group(2) or 0)
     digits = rf"\d{{{width}}}" if m.group(1) and width else r"\d+"
-    rx = re.compile(re.escape(p.name[: m.start()]) + f"({digits})" + re.escape(p.name[m.end():]) + "$")
-    return sorted({int(g.group(1)) for f in (p.parent if str(p.parent) else Path(".")).iterdir()
-                   if f.is_file() and (g := rx.match(f.name))})
+    rx = re.compile(re.escape(p.name[: m.start()]) + f"({digits})" + re.escape(p.name[m.end() :]) + "$")
+    return sorted(
+        {
+            int(g.group(1))
+            for f in (p.parent if str(p.parent) else Path(".")).iterdir()
+            if f.is_file() and (g := rx.match(f.name))
+        }
+    )
 
 
 def open_reader(path, max_frames: int | None):
@@ -139,8 +144,9 @@ class VideoReader:
         cap = cv2.VideoCapture(self.path)
         if not cap.isOpened():
             cap.release()
-            raise ImageError(f"{self.path}: cannot open as a video (not a video, or a format/codec OpenCV's "
-                             f"video I/O cannot decode)")
+            raise ImageError(
+                f"{self.path}: cannot open as a video (not a video, or a format/codec OpenCV's video I/O cannot decode)"
+            )
         ok, first = cap.read()
         if not ok or first is None or first.size == 0:
             cap.release()
@@ -160,8 +166,10 @@ class VideoReader:
                     missing = self.path % gaps[0]
                 except (TypeError, ValueError):
                     missing = f"number {gaps[0]}"
-                self.end_note = (f"image {missing} is missing, the sequence stops there; "
-                                 f"{len([i for i in seq if i > gaps[0]])} later image(s) not read")
+                self.end_note = (
+                    f"image {missing} is missing, the sequence stops there; "
+                    f"{len([i for i in seq if i > gaps[0]])} later image(s) not read"
+                )
         self.height, self.width = first.shape[:2]
         self.n_read = 0
         self.n_decode_errors = 0
@@ -213,8 +221,13 @@ class VideoReader:
     @property
     def truncated(self) -> bool:
         """Fewer frames decoded than the container declares (a damaged tail), when reading to the end."""
-        return (self.frame_count is not None and self.max_frames is None and self._started
-                and self._cap is None and self.n_read < self.frame_count - 1)
+        return (
+            self.frame_count is not None
+            and self.max_frames is None
+            and self._started
+            and self._cap is None
+            and self.n_read < self.frame_count - 1
+        )
 
     def close(self) -> None:
         if self._cap is not None:
@@ -230,5 +243,3 @@ class VideoReader:
     def __del__(self):  # pragma: no cover - best effort
         with contextlib.suppress(Exception):
             self.close()
-
-

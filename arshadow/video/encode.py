@@ -118,8 +118,7 @@ class EncodeSink:
         and the frames report.
         """
         with ExitStack() as st:
-            jf = st.enter_context(open(st.enter_context(atomic_path(self.outputs["frames"])), "w",
-                                       encoding="utf-8"))
+            jf = st.enter_context(open(st.enter_context(atomic_path(self.outputs["frames"])), "w", encoding="utf-8"))
             mw, png_dir = self._open_mask(st)
             vw = st.enter_context(self._video_writer())
             n = 0
@@ -129,8 +128,10 @@ class EncodeSink:
                 if self.progress is not None:
                     self.progress(n, self.total)
             if n == 0:
-                raise ImageError(f"{self.name}: no decodable frame" + (
-                    " (truncated or damaged file)" if getattr(self.reader, "truncated", False) else ""))
+                raise ImageError(
+                    f"{self.name}: no decodable frame"
+                    + (" (truncated or damaged file)" if getattr(self.reader, "truncated", False) else "")
+                )
             jf.flush()
             os.fsync(jf.fileno())
         self.audio_copied = bool(vw.audio_copied)
@@ -157,9 +158,17 @@ class EncodeSink:
         opts, reader = self.opts, self.reader
         keep_yuv = opts.codec == "ffv1" and getattr(reader, "pix_fmt", None) == "yuv420p"
         audio = self.source if (opts.keep_audio and self.is_av and reader.has_audio) else None
-        return AvWriter(self.outputs["video"], getattr(reader, "rate", reader.fps), (self.W, self.H),
-                        codec=opts.codec, crf=opts.crf, pix_fmt="yuv420p" if keep_yuv else None,
-                        preset=opts.preset, audio_from=audio, threads=opts.encoder_threads)
+        return AvWriter(
+            self.outputs["video"],
+            getattr(reader, "rate", reader.fps),
+            (self.W, self.H),
+            codec=opts.codec,
+            crf=opts.crf,
+            pix_fmt="yuv420p" if keep_yuv else None,
+            preset=opts.preset,
+            audio_from=audio,
+            threads=opts.encoder_threads,
+        )
 
     def _write(self, job, vw, mw, png_dir, jf) -> None:
         img, fmt, mask, item, line = job
@@ -171,8 +180,10 @@ class EncodeSink:
         if mw is not None:
             mw.write(mask if mask is not None else np.zeros((self.H, self.W), np.uint8))
         elif png_dir is not None:
-            cv2.imwrite(str(png_dir / f"{item.frame:06d}.png"),
-                        mask if mask is not None else np.zeros((self.H, self.W), np.uint8))
+            cv2.imwrite(
+                str(png_dir / f"{item.frame:06d}.png"),
+                mask if mask is not None else np.zeros((self.H, self.W), np.uint8),
+            )
         enc = (time.perf_counter() - t) * 1e3
         line["timings_ms"]["encode"] = round(enc, 3)
         self.stage_ms["encode"].append(enc)

@@ -53,8 +53,18 @@ __all__ = [
 ]
 
 #: libx264's speed presets (``--preset``)
-X264_PRESETS = ("ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow", "slower", "veryslow",
-                "placebo")
+X264_PRESETS = (
+    "ultrafast",
+    "superfast",
+    "veryfast",
+    "faster",
+    "fast",
+    "medium",
+    "slow",
+    "slower",
+    "veryslow",
+    "placebo",
+)
 
 
 @dataclass
@@ -145,11 +155,16 @@ def video_outputs(outdir, stem: str, opts: EngineOptions) -> dict:
         mask = d / f"{stem}.shadow.mkv"
     elif opts.mask == "png":
         mask = d / f"{stem}.shadow"
-    out = {"video": d / f"{stem}.{opts.fmt}", "mask": mask, "frames": d / f"{stem}.frames.jsonl",
-           "sheet": d / f"{stem}.sheet.jpg" if opts.contact_sheet else None}
+    out = {
+        "video": d / f"{stem}.{opts.fmt}",
+        "mask": mask,
+        "frames": d / f"{stem}.frames.jsonl",
+        "sheet": d / f"{stem}.sheet.jpg" if opts.contact_sheet else None,
+    }
     if opts.layers is not None:  # "layers:object", ... (or "layers:folder"): arshadow.export.layervideo
-        out.update({f"layers:{k}": p for k, p in video_layer_paths(d, stem, opts.layers,
-                                                                   opts.layers_undistorted).items()})
+        out.update(
+            {f"layers:{k}": p for k, p in video_layer_paths(d, stem, opts.layers, opts.layers_undistorted).items()}
+        )
     return out
 
 
@@ -195,15 +210,21 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
         raise
     out_mask = outputs.get("mask")
     composer = FrameComposer(backend, name, outputs["video"], out_mask, (W, H), out_mask is not None)
-    total = reader.frame_count if opts.max_frames is None else min(reader.frame_count or opts.max_frames,
-                                                                   opts.max_frames)
+    total = (
+        reader.frame_count if opts.max_frames is None else min(reader.frame_count or opts.max_frames, opts.max_frames)
+    )
     sheet = SheetThumbs(opts.contact_sheet, total, (W, H))
     sink = EncodeSink(outputs, opts, reader, path, is_av, composer.stage_ms, sheet, progress, name, total)
     if opts.layers is not None:  # the layers, written on the main thread with the frames
         cal = backend.cal if opts.layers_undistorted else None
         st = None if cal is None else stmap(cal.intrinsics, None if cal.lens is None else cal.lens.maps)
-        composer.layer_sink = LayerSink({k[7:]: p for k, p in outputs.items() if k.startswith("layers:")},
-                                        opts.layers, getattr(reader, "rate", reader.fps), (W, H), stmap=st)
+        composer.layer_sink = LayerSink(
+            {k[7:]: p for k, p in outputs.items() if k.startswith("layers:")},
+            opts.layers,
+            getattr(reader, "rate", reader.fps),
+            (W, H),
+            stmap=st,
+        )
         backend.want_layers = "undistorted" if opts.layers_undistorted else True
     try:
         items = run_frames(reader, composer, sink, opts)
@@ -231,8 +252,9 @@ class Span:
     tail: list = field(default_factory=list)
 
 
-def run_frames(reader, composer: FrameComposer, sink: EncodeSink, opts: EngineOptions,
-               span: Span | None = None) -> list:
+def run_frames(
+    reader, composer: FrameComposer, sink: EncodeSink, opts: EngineOptions, span: Span | None = None
+) -> list:
     """Decode and encode threads around the main thread's frame jobs; returns the collected items.
 
     ``span``: composite and write only its frames (a chunk, :mod:`arshadow.video.chunks`).
@@ -310,8 +332,9 @@ def _summary(name, outputs, reader, composer: FrameComposer, sink: EncodeSink, o
     dec_err = int(getattr(reader, "n_decode_errors", 0))
     if truncated:
         why = getattr(reader, "end_note", None) or "truncated or damaged file"
-        warnings.append(f"{name}: the video ends early ({stats['frames']} of {reader.frame_count} frames decoded: "
-                        f"{why})")
+        warnings.append(
+            f"{name}: the video ends early ({stats['frames']} of {reader.frame_count} frames decoded: {why})"
+        )
     if dec_err:
         warnings.append(f"{name}: {dec_err} damaged packet(s) could not be decoded and were skipped")
     flagged = composer.flags.summary(stats["frames"], "frames")
@@ -324,19 +347,34 @@ def _summary(name, outputs, reader, composer: FrameComposer, sink: EncodeSink, o
         status = "no_marker"
         warnings.append(f"{name}: the marker was found in none of the {stats['frames']} frames")
     out_mask = outputs.get("mask")
-    summary = {"input": name, "output": str(outputs["video"]), "mask": None if out_mask is None else str(out_mask),
-               "frames_report": str(outputs["frames"]),
-               "sheet": str(outputs["sheet"]) if outputs.get("sheet") is not None and sink.sheet.thumbs else None,
-               "status": status, "error": None, "warnings": warnings, **stats, "recomputes": 0,
-               "decode_errors": dec_err, "truncated": truncated, "frame_count_declared": reader.frame_count,
-               "fps": reader.fps, "fps_assumed": bool(reader.fps_assumed), "size": [reader.width, reader.height],
-               "audio": sink.audio_copied, "codec": opts.codec, "crf": opts.crf,
-               "wall_s": round(wall, 3), "fps_processed": round(stats["frames"] / wall, 2) if wall > 0 else None,
-               "stage_ms_median": {k: round(float(np.median(v)), 3) for k, v in stage_ms.items() if v}}
+    summary = {
+        "input": name,
+        "output": str(outputs["video"]),
+        "mask": None if out_mask is None else str(out_mask),
+        "frames_report": str(outputs["frames"]),
+        "sheet": str(outputs["sheet"]) if outputs.get("sheet") is not None and sink.sheet.thumbs else None,
+        "status": status,
+        "error": None,
+        "warnings": warnings,
+        **stats,
+        "recomputes": 0,
+        "decode_errors": dec_err,
+        "truncated": truncated,
+        "frame_count_declared": reader.frame_count,
+        "fps": reader.fps,
+        "fps_assumed": bool(reader.fps_assumed),
+        "size": [reader.width, reader.height],
+        "audio": sink.audio_copied,
+        "codec": opts.codec,
+        "crf": opts.crf,
+        "wall_s": round(wall, 3),
+        "fps_processed": round(stats["frames"] / wall, 2) if wall > 0 else None,
+        "stage_ms_median": {k: round(float(np.median(v)), 3) for k, v in stage_ms.items() if v},
+    }
     fm = np.asarray(stage_ms["total"] or [0.0])
-    summary.update(frame_ms_median=float(np.median(fm)),
-                   frame_ms_iqr=[float(np.percentile(fm, 25)), float(np.percentile(fm, 75))],
-                   frame_ms_minmax=[float(fm.min()), float(fm.max())])
+    summary.update(
+        frame_ms_median=float(np.median(fm)),
+        frame_ms_iqr=[float(np.percentile(fm, 25)), float(np.percentile(fm, 75))],
+        frame_ms_minmax=[float(fm.min()), float(fm.max())],
+    )
     return summary
-
-

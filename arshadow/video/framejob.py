@@ -25,15 +25,35 @@ from ..compose.composite import clip_roi
 from ..errors import MarkerNotFoundError
 from ..report import ReportItem, StageTimings
 from ..sanity import FlagTally
-from ..transforms import rvec_tvec_from_matrix
 from ..tracking.detect import luma_to_gray
+from ..transforms import rvec_tvec_from_matrix
 
-__all__ = ["FRAME_STAGES", "FrameComposer", "SessionBackend", "even_box", "gray_of", "i420_planes", "i420_roi_to_bgr",
-           "i420_with_roi"]
+__all__ = [
+    "FRAME_STAGES",
+    "FrameComposer",
+    "SessionBackend",
+    "even_box",
+    "gray_of",
+    "i420_planes",
+    "i420_roi_to_bgr",
+    "i420_with_roi",
+]
 
 #: per-frame ``timings_ms`` keys of the JSON Lines report
-FRAME_STAGES = ("decode", "detect", "pose", "silhouette", "volume", "render", "readback", "warp", "composite",
-                "convert", "encode", "total")
+FRAME_STAGES = (
+    "decode",
+    "detect",
+    "pose",
+    "silhouette",
+    "volume",
+    "render",
+    "readback",
+    "warp",
+    "composite",
+    "convert",
+    "encode",
+    "total",
+)
 
 
 class SessionBackend:
@@ -94,9 +114,17 @@ class SessionBackend:
         when = self.time_lapse[0] + timedelta(seconds=time_s * self.time_lapse[1])
         frames = self.session.set_time(when)
         self.recomputes += sum(bool(f.recompute) for f in frames)
-        return [{"time": f.when.isoformat(), "zenith_deg": round(f.position.zenith_deg, 5),
-                 "azimuth_deg": round(f.position.azimuth_deg, 5), "above_horizon": bool(f.above_horizon),
-                 "recompute": bool(f.recompute), "stale_deg": round(f.stale_deg, 5)} for f in frames]
+        return [
+            {
+                "time": f.when.isoformat(),
+                "zenith_deg": round(f.position.zenith_deg, 5),
+                "azimuth_deg": round(f.position.azimuth_deg, 5),
+                "above_horizon": bool(f.above_horizon),
+                "recompute": bool(f.recompute),
+                "stale_deg": round(f.stale_deg, 5),
+            }
+            for f in frames
+        ]
 
     def plan(self, cam_from_world, width: int, height: int):
         """The frame's :class:`arshadow.plan.FramePlan` (its ``roi``: the only pixels the compositor reads
@@ -109,8 +137,7 @@ class SessionBackend:
         if plan is not None:
             res = self.session.render(bgr, plan=plan, want_mask=want_mask, out=bgr, layers=self.want_layers)
         else:
-            res = self.session.render(bgr, cam_from_world, want_mask=want_mask, out=bgr,
-                                      layers=self.want_layers)
+            res = self.session.render(bgr, cam_from_world, want_mask=want_mask, out=bgr, layers=self.want_layers)
         self.last_layers = res.layers
         for k, v in res.timings.as_dict().items():
             if k != "total":
@@ -162,8 +189,15 @@ class FrameComposer:
         self.out_video, self.out_mask = str(out_video), None if out_mask is None else str(out_mask)
         self.W, self.H = size
         self.want_mask = want_mask
-        self.stats = {"frames": 0, "frames_ok": 0, "frames_held": 0, "frames_no_marker": 0, "swapped": 0,
-                      "longest_gap": 0, "longest_gap_start": None}
+        self.stats = {
+            "frames": 0,
+            "frames_ok": 0,
+            "frames_held": 0,
+            "frames_no_marker": 0,
+            "swapped": 0,
+            "longest_gap": 0,
+            "longest_gap_start": None,
+        }
         self._gap = (0, None)  # (length, first frame) of the current run of frames not tracked
         self.flags = FlagTally()  # flagged poses: one warning line for the video
         self.stage_ms: dict = {k: [] for k in FRAME_STAGES}
@@ -218,9 +252,14 @@ class FrameComposer:
         if fp.raw is not None:
             item.set_pose(fp.raw)
         r, t = rvec_tvec_from_matrix(fp.cam_from_world)
-        item.raw = None if fp.raw is None else {
-            "rvec": np.asarray(fp.raw.rvec, float).ravel().tolist(),
-            "tvec": np.asarray(fp.raw.tvec, float).ravel().tolist()}
+        item.raw = (
+            None
+            if fp.raw is None
+            else {
+                "rvec": np.asarray(fp.raw.rvec, float).ravel().tolist(),
+                "tvec": np.asarray(fp.raw.tvec, float).ravel().tolist(),
+            }
+        )
         item.rvec, item.tvec = r.tolist(), t.tolist()
         item.pose_choice = "temporal (alternative IPPE solution)" if fp.swapped else "error"
 
@@ -230,8 +269,14 @@ class FrameComposer:
         item = ReportItem(input=self.name, status=fp.status)
         if fp.status != "no_marker":
             self._pose_fields(item, fp)
-        return {"frame": fp.payload[0].index, "status": item.status, "raw": item.raw, "rvec": item.rvec,
-                "tvec": item.tvec, "pose_choice": item.pose_choice}
+        return {
+            "frame": fp.payload[0].index,
+            "status": item.status,
+            "raw": item.raw,
+            "rvec": item.rvec,
+            "tvec": item.tvec,
+            "pose_choice": item.pose_choice,
+        }
 
     def _render(self, cam_from_world, img, fmt, timings):
         """Composite at ``cam_from_world``; returns the frame in its own format, the mask and the report
@@ -274,10 +319,20 @@ class FrameComposer:
 
 def frame_record(fr, item, sun) -> dict:
     """One frame's JSON Lines record (``timings_ms["encode"]`` is filled in by the encoder)."""
-    line = {"frame": fr.index, "time_s": round(fr.time_s, 6), "status": item.status,
-            "marker_ids": item.marker_ids, "rvec": item.rvec, "tvec": item.tvec, "raw": item.raw,
-            "reprojection_error_px": item.reprojection_error_px, "pose_ambiguity": item.pose_ambiguity,
-            "pose_choice": item.pose_choice, "mode": item.mode, "timings_ms": item.timings_ms}
+    line = {
+        "frame": fr.index,
+        "time_s": round(fr.time_s, 6),
+        "status": item.status,
+        "marker_ids": item.marker_ids,
+        "rvec": item.rvec,
+        "tvec": item.tvec,
+        "raw": item.raw,
+        "reprojection_error_px": item.reprojection_error_px,
+        "pose_ambiguity": item.pose_ambiguity,
+        "pose_choice": item.pose_choice,
+        "mode": item.mode,
+        "timings_ms": item.timings_ms,
+    }
     if sun is not None:
         line["sun"] = sun
     return line

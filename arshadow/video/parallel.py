@@ -39,8 +39,15 @@ from .engine import EngineOptions
 from .framejob import FRAME_STAGES, SessionBackend
 from .scan import StreamIndex, scan_stream
 
-__all__ = ["BackendRecipe", "ChunkPool", "Prepared", "chunk_task", "finish_chunked", "prepare_chunked",
-           "process_video_chunked"]
+__all__ = [
+    "BackendRecipe",
+    "ChunkPool",
+    "Prepared",
+    "chunk_task",
+    "finish_chunked",
+    "prepare_chunked",
+    "process_video_chunked",
+]
 
 
 @dataclass
@@ -109,8 +116,9 @@ class Prepared:
     note: str | None = None
 
 
-def prepare_chunked(path, outputs: dict, opts: EngineOptions, count: int, outdir, stem: str, recipe_key: str,
-                    name: str | None = None):
+def prepare_chunked(
+    path, outputs: dict, opts: EngineOptions, count: int, outdir, stem: str, recipe_key: str, name: str | None = None
+):
     """Plan one video into up to ``count`` chunks: a :class:`Prepared`, or ``(None, note)`` when it is
     processed in one piece (``note``: why, or None for an image sequence)."""
     p = str(path)
@@ -129,12 +137,24 @@ def prepare_chunked(path, outputs: dict, opts: EngineOptions, count: int, outdir
         note = f"{name or p}: {note}"
     if len(chunks) < 2:
         return None, note
-    total = probe.frame_count if opts.max_frames is None else min(probe.frame_count or opts.max_frames,
-                                                                  opts.max_frames)
+    total = probe.frame_count if opts.max_frames is None else min(probe.frame_count or opts.max_frames, opts.max_frames)
     store = ChunkStore(outdir, stem, fingerprint(p, recipe_key, opts, n), opts)
-    return Prepared(p, name or p, index, chunks, store, outputs, opts, total, probe.rate,
-                    (probe.width, probe.height), probe.has_audio, bool(probe.fps_assumed), probe.frame_count,
-                    note), None
+    return Prepared(
+        p,
+        name or p,
+        index,
+        chunks,
+        store,
+        outputs,
+        opts,
+        total,
+        probe.rate,
+        (probe.width, probe.height),
+        probe.has_audio,
+        bool(probe.fps_assumed),
+        probe.frame_count,
+        note,
+    ), None
 
 
 def encoder_threads(jobs: int) -> int:
@@ -154,8 +174,17 @@ def chunk_task(recipe: BackendRecipe, prep: Prepared, chunk) -> dict:
     t = time.perf_counter()
     backend = backend_for(recipe)
     setup = time.perf_counter() - t
-    rec = run_chunk(backend, prep.path, prep.index, chunk, prep.opts, prep.store, name=prep.name,
-                     final=prep.outputs, total=prep.total)
+    rec = run_chunk(
+        backend,
+        prep.path,
+        prep.index,
+        chunk,
+        prep.opts,
+        prep.store,
+        name=prep.name,
+        final=prep.outputs,
+        total=prep.total,
+    )
     rec["setup_s"] = round(setup, 3)  # the worker's session and GL context (0 once made)
     return rec
 
@@ -182,8 +211,10 @@ class ChunkPool:
             self.close()
             if self._round(fn, recipe, prep, [c], records, on_done):
                 self.close()
-                raise ImageError(f"{prep.name}: chunk {c.k} (frames {c.start}-{c.stop - 1}): its worker process "
-                                 f"died twice; the video is not written")
+                raise ImageError(
+                    f"{prep.name}: chunk {c.k} (frames {c.start}-{c.stop - 1}): its worker process "
+                    f"died twice; the video is not written"
+                )
         return records
 
     def _round(self, fn, recipe, prep, chunks, records, on_done) -> list:
@@ -220,8 +251,14 @@ def finish_chunked(prep: Prepared, records: dict, rerun) -> dict:
         records[bad] = rerun(wider)
         redone += 1
     t_join = time.perf_counter()
-    joined = join_chunks(prep.store, chunks, prep.outputs, prep.opts, prep.rate,
-                         audio_from=prep.path if (prep.opts.keep_audio and prep.has_audio) else None)
+    joined = join_chunks(
+        prep.store,
+        chunks,
+        prep.outputs,
+        prep.opts,
+        prep.rate,
+        audio_from=prep.path if (prep.opts.keep_audio and prep.has_audio) else None,
+    )
     sheet = SheetThumbs(prep.opts.contact_sheet, prep.total, prep.size)
     for k in sorted(joined["thumbs"]):
         sheet.offer(k, joined["thumbs"][k])
@@ -263,26 +300,61 @@ def _summary(prep: Prepared, chunks, records: dict, sheet, audio: bool, redone: 
     out_mask = prep.outputs.get("mask")
     fm = np.asarray(stage_ms["total"] or [0.0])
     cpu = sum(records[c.k]["cpu_s"] for c in chunks)
-    return {"input": prep.name, "output": str(prep.outputs["video"]),
-            "mask": None if out_mask is None else str(out_mask), "frames_report": str(prep.outputs["frames"]),
-            "sheet": str(prep.outputs["sheet"]) if prep.outputs.get("sheet") is not None and sheet.thumbs else None,
-            "status": status, "error": None, "warnings": warnings, **stats,
-            "recomputes": sum(records[c.k]["recomputes"] for c in chunks), "decode_errors": 0, "truncated": False,
-            "frame_count_declared": prep.frame_count, "fps": float(prep.rate), "fps_assumed": prep.fps_assumed,
-            "size": list(prep.size), "audio": audio, "codec": prep.opts.codec, "crf": prep.opts.crf,
-            "chunks": [{"k": c.k, "frames": [c.start, c.stop], "decoded_from": c.decode_from,
-                        "wall_s": records[c.k]["wall_s"], "cpu_s": records[c.k]["cpu_s"],
-                        "setup_s": records[c.k].get("setup_s", 0.0), "pid": records[c.k]["pid"],
-                        "max_rss_mb": records[c.k].get("max_rss_mb")} for c in chunks],
-            "chunks_redone": redone, "chunk_cpu_s": round(cpu, 3),
-            "stage_ms_median": {k: round(float(np.median(v)), 3) for k, v in stage_ms.items() if v},
-            "frame_ms_median": float(np.median(fm)),
-            "frame_ms_iqr": [float(np.percentile(fm, 25)), float(np.percentile(fm, 75))],
-            "frame_ms_minmax": [float(fm.min()), float(fm.max())]}
+    return {
+        "input": prep.name,
+        "output": str(prep.outputs["video"]),
+        "mask": None if out_mask is None else str(out_mask),
+        "frames_report": str(prep.outputs["frames"]),
+        "sheet": str(prep.outputs["sheet"]) if prep.outputs.get("sheet") is not None and sheet.thumbs else None,
+        "status": status,
+        "error": None,
+        "warnings": warnings,
+        **stats,
+        "recomputes": sum(records[c.k]["recomputes"] for c in chunks),
+        "decode_errors": 0,
+        "truncated": False,
+        "frame_count_declared": prep.frame_count,
+        "fps": float(prep.rate),
+        "fps_assumed": prep.fps_assumed,
+        "size": list(prep.size),
+        "audio": audio,
+        "codec": prep.opts.codec,
+        "crf": prep.opts.crf,
+        "chunks": [
+            {
+                "k": c.k,
+                "frames": [c.start, c.stop],
+                "decoded_from": c.decode_from,
+                "wall_s": records[c.k]["wall_s"],
+                "cpu_s": records[c.k]["cpu_s"],
+                "setup_s": records[c.k].get("setup_s", 0.0),
+                "pid": records[c.k]["pid"],
+                "max_rss_mb": records[c.k].get("max_rss_mb"),
+            }
+            for c in chunks
+        ],
+        "chunks_redone": redone,
+        "chunk_cpu_s": round(cpu, 3),
+        "stage_ms_median": {k: round(float(np.median(v)), 3) for k, v in stage_ms.items() if v},
+        "frame_ms_median": float(np.median(fm)),
+        "frame_ms_iqr": [float(np.percentile(fm, 25)), float(np.percentile(fm, 75))],
+        "frame_ms_minmax": [float(fm.min()), float(fm.max())],
+    }
 
 
-def process_video_chunked(recipe: BackendRecipe, pool: ChunkPool, path, outputs: dict, opts: EngineOptions, *,
-                          outdir, stem: str, name: str | None = None, progress=None, task=chunk_task):
+def process_video_chunked(
+    recipe: BackendRecipe,
+    pool: ChunkPool,
+    path,
+    outputs: dict,
+    opts: EngineOptions,
+    *,
+    outdir,
+    stem: str,
+    name: str | None = None,
+    progress=None,
+    task=chunk_task,
+):
     """One video on ``pool``'s workers in chunks; ``(summary, note)``, or ``(None, note)`` when it is to be
     processed in one piece (``note``: why, or None).
 

@@ -14,8 +14,9 @@ from .parallel import ChunkPool, process_video_chunked
 __all__ = ["items_from_frames", "run_videos"]
 
 
-def run_videos(backend, inputs, outdir, opts: EngineOptions, *, progress_factory=None, on_error=None, jobs: int = 1,
-               recipe=None):
+def run_videos(
+    backend, inputs, outdir, opts: EngineOptions, *, progress_factory=None, on_error=None, jobs: int = 1, recipe=None
+):
     """Process several videos one after another; a failed video is recorded and the others go on.
 
     Parameters
@@ -46,8 +47,7 @@ def run_videos(backend, inputs, outdir, opts: EngineOptions, *, progress_factory
     pool = ChunkPool(jobs) if jobs > 1 and recipe is not None else None
     try:
         for inp, stem in zip(inputs, unique_stems(inputs)):
-            summary, its = _one_video(backend, pool, recipe, inp, stem, outdir, opts, given, progress_factory,
-                                      on_error)
+            summary, its = _one_video(backend, pool, recipe, inp, stem, outdir, opts, given, progress_factory, on_error)
             summaries.append(summary)
             items.extend(its)
     finally:
@@ -68,8 +68,9 @@ def _one_video(backend, pool, recipe, inp, stem, outdir, opts, given, progress_f
         summary = note = None
         if pool is not None:
             try:
-                summary, note = process_video_chunked(recipe, pool, inp, outs, opts, outdir=outdir, stem=stem,
-                                                      name=str(inp), progress=update)
+                summary, note = process_video_chunked(
+                    recipe, pool, inp, outs, opts, outdir=outdir, stem=stem, name=str(inp), progress=update
+                )
             except ImageError as exc:  # e.g. a damaged packet: the one-piece run reports and skips it
                 summary, note = None, f"not cut into chunks ({exc})"
         if summary is None:
@@ -85,8 +86,7 @@ def _one_video(backend, pool, recipe, inp, stem, outdir, opts, given, progress_f
         msg = str(exc) if isinstance(exc, ArshadowError) else f"{type(exc).__name__}: {exc}"
         if str(inp) not in msg:
             msg = f"{inp}: {msg}"
-        summary = {"input": str(inp), "output": None, "mask": None, "status": "error", "error": msg,
-                   "warnings": []}
+        summary = {"input": str(inp), "output": None, "mask": None, "status": "error", "error": msg, "warnings": []}
         return summary, [ReportItem(input=str(inp), status="error", error=msg)]
     finally:
         if close is not None:
@@ -99,12 +99,26 @@ def items_from_frames(summary: dict) -> list:
     with open(summary["frames_report"], encoding="utf-8") as f:
         for line in f:
             d = json.loads(line)
-            it = ReportItem(input=summary["input"], output=summary["output"], mask=summary["mask"],
-                            status=d["status"], marker_ids=d["marker_ids"], rvec=d["rvec"], tvec=d["tvec"],
-                            reprojection_error_px=d["reprojection_error_px"], pose_ambiguity=d["pose_ambiguity"],
-                            mode=d["mode"], timings_ms=d["timings_ms"])
+            it = ReportItem(
+                input=summary["input"],
+                output=summary["output"],
+                mask=summary["mask"],
+                status=d["status"],
+                marker_ids=d["marker_ids"],
+                rvec=d["rvec"],
+                tvec=d["tvec"],
+                reprojection_error_px=d["reprojection_error_px"],
+                pose_ambiguity=d["pose_ambiguity"],
+                mode=d["mode"],
+                timings_ms=d["timings_ms"],
+            )
             it.error = "no marker found" if d["status"] == "no_marker" else None
-            it.frame, it.time_s, it.raw, it.pose_choice, it.sun = (d["frame"], d["time_s"], d["raw"],
-                                                                   d["pose_choice"], d.get("sun"))
+            it.frame, it.time_s, it.raw, it.pose_choice, it.sun = (
+                d["frame"],
+                d["time_s"],
+                d["raw"],
+                d["pose_choice"],
+                d.get("sun"),
+            )
             out.append(it)
     return out

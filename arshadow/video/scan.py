@@ -166,7 +166,9 @@ class SeekReader:
         try:
             yield from self._frames()
         except av.FFmpegError as exc:
-            raise ImageError(f"{self.path}: cannot decode frames {self.start}-{self.stop - 1} of a chunk ({exc})") from None
+            raise ImageError(
+                f"{self.path}: cannot decode frames {self.start}-{self.stop - 1} of a chunk ({exc})"
+            ) from None
 
     def _frames(self):
         pos = {p: i for i, p in enumerate(self.index.pts[self.start : self.stop + 64], self.start)}

@@ -131,7 +131,7 @@ def smooth_poses(times, poses, i, *, window_s, degree=2, outlier_deg=3.0, max_sp
                 window_s = min(window_s, max(max_span_deg / speed, 2.5 * frame_s))
     dt = (times - times[i]) / window_s
     u = np.abs(dt) / (1.0 + 1e-9)
-    w0 = np.where(u < 1.0, (1.0 - u ** 3) ** 3, 0.0)
+    w0 = np.where(u < 1.0, (1.0 - u**3) ** 3, 0.0)
     w = w0.copy()
     ys = np.concatenate([rv, centres], axis=1)
     for _ in range(2):
@@ -176,8 +176,16 @@ class PoseStream:
     ['no_marker']
     """
 
-    def __init__(self, fps: float = 25.0, lag: int | None = 16, window: int = 10, hold_frames: int = 12,
-                 outlier_deg: float = 3.0, max_gap_s: float = 1.0, degree: int = 2):
+    def __init__(
+        self,
+        fps: float = 25.0,
+        lag: int | None = 16,
+        window: int = 10,
+        hold_frames: int = 12,
+        outlier_deg: float = 3.0,
+        max_gap_s: float = 1.0,
+        degree: int = 2,
+    ):
         if not (math.isfinite(fps) and fps > 0):
             raise UsageError(f"frame rate must be positive, got {fps}")
         if int(window) < 0 or int(hold_frames) < 0:
@@ -254,8 +262,15 @@ class PoseStream:
                     prev_t = tf
             if self._hist and t - self._hist[-1][0] > self.max_gap_s:
                 times, mats, i = times[i:], mats[i:], 0
-            sm = smooth_poses(times, mats, i, window_s=self.window_s, degree=self.degree,
-                              outlier_deg=self.outlier_deg, trust_i=not getattr(pose, "ambiguous", False))
+            sm = smooth_poses(
+                times,
+                mats,
+                i,
+                window_s=self.window_s,
+                degree=self.degree,
+                outlier_deg=self.outlier_deg,
+                trust_i=not getattr(pose, "ambiguous", False),
+            )
         self._hist.append((t, raw))
         self._last = (t, sm)
         self._since = 0

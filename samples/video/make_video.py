@@ -43,12 +43,18 @@ def main(out_dir=HERE) -> int:
     out_dir = Path(out_dir)
     with AvWriter(out_dir / "orbit.mp4", FPS, (intr.width, intr.height)) as w:
         for i, pose in enumerate(poses):
-            ph = render_marker_photo(intr, pose, marker_length=MARKER_LENGTH, noise_sigma=1.0, blur_sigma=0.6,
-                                     seed=100 + i)
+            ph = render_marker_photo(
+                intr, pose, marker_length=MARKER_LENGTH, noise_sigma=1.0, blur_sigma=0.6, seed=100 + i
+            )
             w.write(ph.image)
     truth = {
-        "video": "orbit.mp4", "calib": "calib/synth_640x360.yml", "fps": FPS, "marker_length": MARKER_LENGTH,
-        "dictionary": "DICT_6X6_250", "marker_id": 0, "camera_path": PATH,
+        "video": "orbit.mp4",
+        "calib": "calib/synth_640x360.yml",
+        "fps": FPS,
+        "marker_length": MARKER_LENGTH,
+        "dictionary": "DICT_6X6_250",
+        "marker_id": 0,
+        "camera_path": PATH,
         "cam_from_world": np.round(poses, 9).tolist(),
     }
     from arshadow.io import write_json

@@ -44,11 +44,21 @@ def main(argv=None) -> int:
     from arshadow.export.layerfiles import layer_paths, write_layers
     from arshadow.io import read_image
 
-    sc = next(s for s in json.loads((ROOT / "samples" / "scenes.json").read_text())["scenes"]
-              if s["photo"] == "knot_point.jpg")
-    spec = arshadow.scene_from_dict({"calib": str(ROOT / "calib" / "synth_1280x720.yml"), "marker_length": 0.05,
-                                     "model": str(ROOT / sc["model"]), "rotate": sc.get("rotate", (0, 0, 0)),
-                                     "place": sc.get("place", (0, 0, 0)), "lights": [sc["lights"][0]]})
+    sc = next(
+        s
+        for s in json.loads((ROOT / "samples" / "scenes.json").read_text())["scenes"]
+        if s["photo"] == "knot_point.jpg"
+    )
+    spec = arshadow.scene_from_dict(
+        {
+            "calib": str(ROOT / "calib" / "synth_1280x720.yml"),
+            "marker_length": 0.05,
+            "model": str(ROOT / sc["model"]),
+            "rotate": sc.get("rotate", (0, 0, 0)),
+            "place": sc.get("place", (0, 0, 0)),
+            "lights": [sc["lights"][0]],
+        }
+    )
     image = read_image(ROOT / "samples" / "knot_point.jpg")
     buf = np.empty_like(image)
     times = {"off": [], "on": []}
@@ -59,7 +69,7 @@ def main(argv=None) -> int:
             s.process(image, want_mask=False, out=buf)
             s.process(image, want_mask=False, out=buf, layers=True)
         for i in range(args.frames):
-            for variant in (("off", "on") if i % 2 == 0 else ("on", "off")):
+            for variant in ("off", "on") if i % 2 == 0 else ("on", "off"):
                 t = time.perf_counter()
                 res = s.process(image, want_mask=False, out=buf, layers=variant == "on")
                 times[variant].append((time.perf_counter() - t) * 1e3)
@@ -70,12 +80,20 @@ def main(argv=None) -> int:
                     write_ms.append((time.perf_counter() - t) * 1e3)
     off, on = np.asarray(times["off"]), np.asarray(times["on"])
     ratio = on / off
-    result = {"benchmark": "ab_layers", "meta": _common.metadata(), "photo": "samples/knot_point.jpg 1280x720", "frames": args.frames,
-              "off": _common.summary(off), "on": _common.summary(on),
-              "compose_path": {k: sorted(str(v) for v in vs) for k, vs in compose.items()},
-              "ratio_on_off": {"median": round(float(np.median(ratio)), 4),
-                               "iqr": [round(float(np.percentile(ratio, q)), 4) for q in (25, 75)]},
-              "budget": "on <= 1.15 x off (issue 19)"}
+    result = {
+        "benchmark": "ab_layers",
+        "meta": _common.metadata(),
+        "photo": "samples/knot_point.jpg 1280x720",
+        "frames": args.frames,
+        "off": _common.summary(off),
+        "on": _common.summary(on),
+        "compose_path": {k: sorted(str(v) for v in vs) for k, vs in compose.items()},
+        "ratio_on_off": {
+            "median": round(float(np.median(ratio)), 4),
+            "iqr": [round(float(np.percentile(ratio, q)), 4) for q in (25, 75)],
+        },
+        "budget": "on <= 1.15 x off (issue 19)",
+    }
     if write_ms:
         result["write_ms_median"] = round(float(np.median(write_ms)), 2)
     _common.emit(result, args.json)

@@ -72,8 +72,9 @@ ctx.release()
 
 def _commit(tree: Path):
     r = subprocess.run(["git", "-C", str(tree), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
-    dirty = subprocess.run(["git", "-C", str(tree), "status", "--porcelain", "arshadow"], capture_output=True,
-                           text=True).stdout.strip()
+    dirty = subprocess.run(
+        ["git", "-C", str(tree), "status", "--porcelain", "arshadow"], capture_output=True, text=True
+    ).stdout.strip()
     return r.stdout.strip() + ("+dirty" if dirty else "")
 
 
@@ -89,8 +90,14 @@ def main(argv=None) -> int:
     procs = []
     for t in trees:
         env = dict(os.environ, PYTHONPATH=str(t))
-        p = subprocess.Popen([sys.executable, "-c", WORKER, str(t), str(args.warmup)], cwd=t, env=env,
-                             stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        p = subprocess.Popen(
+            [sys.executable, "-c", WORKER, str(t), str(args.warmup)],
+            cwd=t,
+            env=env,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+        )
         procs.append(p)
     for p in procs:
         if p.stdout.readline().strip() != "ready":
@@ -110,11 +117,20 @@ def main(argv=None) -> int:
         p.stdin.close()
         p.wait(timeout=60)
     ratios = np.asarray(times[1]) / np.asarray(times[0])
-    res = {"benchmark": "ab_pipeline: bench_pipeline default case, interleaved frame by frame",
-           **{ab: {"tree": str(trees[k]), "commit": _commit(trees[k]), "frame_ms": _common.summary(times[k]),
-                   "stage_ms_median": {n: round(float(np.median(v)), 3) for n, v in stages[k].items()}}
-              for k, ab in enumerate("ab")},
-           "ratio_b_over_a": _common.summary(ratios), "meta": _common.metadata()}
+    res = {
+        "benchmark": "ab_pipeline: bench_pipeline default case, interleaved frame by frame",
+        **{
+            ab: {
+                "tree": str(trees[k]),
+                "commit": _commit(trees[k]),
+                "frame_ms": _common.summary(times[k]),
+                "stage_ms_median": {n: round(float(np.median(v)), 3) for n, v in stages[k].items()},
+            }
+            for k, ab in enumerate("ab")
+        },
+        "ratio_b_over_a": _common.summary(ratios),
+        "meta": _common.metadata(),
+    }
     _common.emit(res, args.json)
     return 0
 

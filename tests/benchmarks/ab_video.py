@@ -63,8 +63,14 @@ def run_tree(tree: Path, clip: Path, calib: Path, scene: list[str]) -> float:
     """One ``arshadow video`` run of ``clip`` with the code of ``tree``; its processed fps."""
     env = dict(os.environ, PYTHONPATH=str(tree))
     with tempfile.TemporaryDirectory() as out:
-        res = subprocess.run([sys.executable, "-c", RUN, str(clip), out, str(calib), json.dumps(scene)],
-                             env=env, cwd=str(tree), capture_output=True, text=True, check=True)
+        res = subprocess.run(
+            [sys.executable, "-c", RUN, str(clip), out, str(calib), json.dumps(scene)],
+            env=env,
+            cwd=str(tree),
+            capture_output=True,
+            text=True,
+            check=True,
+        )
     got = json.loads(res.stdout.strip().splitlines()[-1])
     if got["rc"] != 0:
         raise RuntimeError(f"{tree}: arshadow video exited {got['rc']}: {res.stderr[-400:]}")
@@ -89,12 +95,27 @@ def main() -> int:
     ratio = np.asarray(fps["a"]) / np.asarray(fps["b"])
 
     def stats(x):
-        return {"median": round(float(np.median(x)), 3), "min": round(float(np.min(x)), 3),
-                "max": round(float(np.max(x)), 3), "runs": [round(float(v), 3) for v in x]}
+        return {
+            "median": round(float(np.median(x)), 3),
+            "min": round(float(np.min(x)), 3),
+            "max": round(float(np.max(x)), 3),
+            "runs": [round(float(v), 3) for v in x],
+        }
 
-    print(json.dumps({"a": str(args.a), "b": str(args.b), "frames": args.frames, "fps_a": stats(fps["a"]),
-                      "fps_b": stats(fps["b"]), "time_ratio_b_over_a": stats(ratio), "loadavg_before_rounds": loads},
-                     indent=1))
+    print(
+        json.dumps(
+            {
+                "a": str(args.a),
+                "b": str(args.b),
+                "frames": args.frames,
+                "fps_a": stats(fps["a"]),
+                "fps_b": stats(fps["b"]),
+                "time_ratio_b_over_a": stats(ratio),
+                "loadavg_before_rounds": loads,
+            },
+            indent=1,
+        )
+    )
     return 0
 
 

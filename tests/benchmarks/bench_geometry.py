@@ -25,6 +25,7 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
 import _common  # noqa: E402
+
 from arshadow.geometry.mesh import ShadowCaster, load_occluder  # noqa: E402
 from arshadow.geometry.silhouette import METHODS, silhouette  # noqa: E402
 from arshadow.geometry.volume import shadow_volume  # noqa: E402
@@ -65,10 +66,18 @@ def bench_size(n_faces: int, n_lights: int, repeat: int, methods=METHODS, volume
     _tree(c)  # Delta+
     t4 = time.perf_counter()
     out = {
-        "faces": c.n_faces, "vertices": len(c.vertices), "edges": len(c.edges),
-        "prepare_ms": {"weld_validate": round((t1 - t0) * 1e3, 2), "adjacency_planes": round((t2 - t1) * 1e3, 2),
-                       "hsd_polygons": round((t3 - t2) * 1e3, 2), "delta_plus_bvh": round((t4 - t3) * 1e3, 2)},
-        "detectors_ms": {}, "volume_ms": {}, "silhouette_edges": {},
+        "faces": c.n_faces,
+        "vertices": len(c.vertices),
+        "edges": len(c.edges),
+        "prepare_ms": {
+            "weld_validate": round((t1 - t0) * 1e3, 2),
+            "adjacency_planes": round((t2 - t1) * 1e3, 2),
+            "hsd_polygons": round((t3 - t2) * 1e3, 2),
+            "delta_plus_bvh": round((t4 - t3) * 1e3, 2),
+        },
+        "detectors_ms": {},
+        "volume_ms": {},
+        "silhouette_edges": {},
     }
     lights = _lights(c, n_lights)
     for m in methods:
@@ -82,8 +91,16 @@ def bench_size(n_faces: int, n_lights: int, repeat: int, methods=METHODS, volume
     ne = [silhouette(c, L).n_edges for L in lights]
     out["silhouette_edges"] = {"median": float(np.median(ne)), "min": int(min(ne)), "max": int(max(ne))}
     tz = -1e-3 * c.scale
-    for label, kw in () if not volumes else (("zpass_sides", {"caps": False}), ("zfail_caps", {"caps": True}),
-                      ("truncated_caps", {"caps": True, "truncate_z": tz}), ("truncated_sides", {"caps": False, "truncate_z": tz})):
+    for label, kw in (
+        ()
+        if not volumes
+        else (
+            ("zpass_sides", {"caps": False}),
+            ("zfail_caps", {"caps": True}),
+            ("truncated_caps", {"caps": True, "truncate_z": tz}),
+            ("truncated_sides", {"caps": False, "truncate_z": tz}),
+        )
+    ):
         ts = []
         for L in lights:
             s = silhouette(c, L)
@@ -116,14 +133,16 @@ def _covered(pts2, tri2, chunk=400):
     out = np.zeros(len(pts2), bool)
     a, b, c = tri2[:, 0], tri2[:, 1], tri2[:, 2]
     for s in range(0, len(pts2), chunk):
-        p = pts2[s:s + chunk, None, :]
+        p = pts2[s : s + chunk, None, :]
 
         def ef(x, y):
-            return (y[None, :, 0] - x[None, :, 0]) * (p[..., 1] - x[None, :, 1]) - (y[None, :, 1] - x[None, :, 1]) * (p[..., 0] - x[None, :, 0])
+            return (y[None, :, 0] - x[None, :, 0]) * (p[..., 1] - x[None, :, 1]) - (y[None, :, 1] - x[None, :, 1]) * (
+                p[..., 0] - x[None, :, 0]
+            )
 
         e0, e1, e2 = ef(a, b), ef(b, c), ef(c, a)
         ins = ((e0 >= 0) & (e1 >= 0) & (e2 >= 0)) | ((e0 <= 0) & (e1 <= 0) & (e2 <= 0))
-        out[s:s + chunk] = ins.any(axis=1)
+        out[s : s + chunk] = ins.any(axis=1)
     return out
 
 
@@ -150,10 +169,20 @@ def outline_classes(c, L, edges, n_samples=5, rel_off=1e-5):
 def delta_plus_disagreement(c: ShadowCaster, n_lights: int, eps: float = 1e-6) -> dict:
     from arshadow.geometry.silhouette import silhouette_loops
 
-    tot = {"transition_edges": 0, "delta_edges": 0, "delta_in_transition": 0, "missed_transitions": 0,
-           "extra_edges": 0, "outline_full": 0, "outline_partial": 0, "delta_on_full_outline": 0,
-           "delta_on_partial_outline": 0, "full_outline_missed": 0, "lights_with_open_loops": 0,
-           "lights_exact": 0}
+    tot = {
+        "transition_edges": 0,
+        "delta_edges": 0,
+        "delta_in_transition": 0,
+        "missed_transitions": 0,
+        "extra_edges": 0,
+        "outline_full": 0,
+        "outline_partial": 0,
+        "delta_on_full_outline": 0,
+        "delta_on_partial_outline": 0,
+        "full_outline_missed": 0,
+        "lights_with_open_loops": 0,
+        "lights_exact": 0,
+    }
     for L in _lights(c, n_lights, seed=11):
         A = silhouette(c, L)
         D = silhouette(c, L, "delta_plus", eps=eps)
@@ -188,8 +217,13 @@ def hsd_vs_ta_ops(c: ShadowCaster, n_lights: int = 50) -> dict:
     for L in _lights(c, n_lights, seed=3):
         ta.append(silhouette(c, L, "triangular").stats["edge_ops"])
         hsd.append(silhouette(c, L, "hsd").stats["edge_ops"])
-    return {"faces": c.n_faces, "polygons": len(c.polygons["planes"]), "ta_edge_ops_mean": float(np.mean(ta)),
-            "hsd_edge_ops_mean": float(np.mean(hsd)), "ratio": round(float(np.mean(hsd) / np.mean(ta)), 4)}
+    return {
+        "faces": c.n_faces,
+        "polygons": len(c.polygons["planes"]),
+        "ta_edge_ops_mean": float(np.mean(ta)),
+        "hsd_edge_ops_mean": float(np.mean(hsd)),
+        "ratio": round(float(np.mean(hsd) / np.mean(ta)), 4),
+    }
 
 
 def main(argv=None) -> int:
@@ -217,12 +251,16 @@ def main(argv=None) -> int:
             "icosphere_1280": delta_plus_disagreement(load_occluder("sphere:0.05"), a.delta_lights),
             "house_28": delta_plus_disagreement(load_occluder(samples / "house.obj"), a.delta_lights),
         }
-    res["hsd_vs_ta"] = {} if a.skip_delta_measure else {
-        "box": hsd_vs_ta_ops(load_occluder("box:0.1,0.1,0.1")),
-        "house": hsd_vs_ta_ops(load_occluder(samples / "house.obj")),
-        "cylinder": hsd_vs_ta_ops(load_occluder("cylinder:0.05,0.1")),
-        "knot": hsd_vs_ta_ops(load_occluder(samples / "knot.ply"), 10),
-    }
+    res["hsd_vs_ta"] = (
+        {}
+        if a.skip_delta_measure
+        else {
+            "box": hsd_vs_ta_ops(load_occluder("box:0.1,0.1,0.1")),
+            "house": hsd_vs_ta_ops(load_occluder(samples / "house.obj")),
+            "cylinder": hsd_vs_ta_ops(load_occluder("cylinder:0.05,0.1")),
+            "knot": hsd_vs_ta_ops(load_occluder(samples / "knot.ply"), 10),
+        }
+    )
     _common.emit(res, a.out)
     return 0
 

@@ -40,8 +40,12 @@ def _stats(v) -> dict:
     v = np.asarray([x for x in v if x is not None and math.isfinite(x)], float)
     if v.size == 0:
         return {"n": 0}
-    return {"n": int(v.size), "median": round(float(np.median(v)), 4), "p90": round(float(np.percentile(v, 90)), 4),
-            "max": round(float(v.max()), 4)}
+    return {
+        "n": int(v.size),
+        "median": round(float(np.median(v)), 4),
+        "p90": round(float(np.percentile(v, 90)), 4),
+        "max": round(float(v.max()), 4),
+    }
 
 
 def run_kind(kind: str, n: int, seed: int, calib: str) -> dict:
@@ -53,17 +57,28 @@ def run_kind(kind: str, n: int, seed: int, calib: str) -> dict:
         p = case["photo"]
         t = time.perf_counter()
         try:
-            est = estimate_light(p.image, calib=cam, marker_length=0.05, probe=case["probe"],
-                                 probe_place=case["probe_place"], probe_rotate=case["probe_rotate"], kind=case["kind"])
+            est = estimate_light(
+                p.image,
+                calib=cam,
+                marker_length=0.05,
+                probe=case["probe"],
+                probe_place=case["probe_place"],
+                probe_rotate=case["probe_rotate"],
+                kind=case["kind"],
+            )
         except ArshadowError as exc:
             refused.append({"case": i, "error": str(exc)})
             continue
         times.append((time.perf_counter() - t) * 1e3)
         rerr = np.abs(np.array(est.shadow_ratio) - p.shadow_ratio)
-        row = {"ratio_err": float(rerr.max()), "ratio_err_r": float(rerr[0]), "ratio_err_g": float(rerr[1]),
-               "ratio_err_b": float(rerr[2]),
-               "paper_err": float(np.abs(np.array(est.exposure.paper_rgb) / p.paper_linear - 1).max()),
-               "uncertainty_deg": est.uncertainty_deg}
+        row = {
+            "ratio_err": float(rerr.max()),
+            "ratio_err_r": float(rerr[0]),
+            "ratio_err_g": float(rerr[1]),
+            "ratio_err_b": float(rerr[2]),
+            "paper_err": float(np.abs(np.array(est.exposure.paper_rgb) / p.paper_linear - 1).max()),
+            "uncertainty_deg": est.uncertainty_deg,
+        }
         if kind == "point":
             foot = np.r_[np.asarray(case["probe_place"])[:2], 0.0]
             row["pos_rel"] = float(np.linalg.norm(np.array(est.position) - p.light) / np.linalg.norm(p.light - foot))
@@ -77,10 +92,24 @@ def run_kind(kind: str, n: int, seed: int, calib: str) -> dict:
         row["confident_wrong"] = bool(est.confident and bad)
         row["flagged"] = not est.confident
         rows.append(row)
-    out = {"cases": n, "refused": refused, "flagged": sum(r["flagged"] for r in rows),
-           "confident_wrong": sum(r["confident_wrong"] for r in rows), "time_ms": _common.summary(times) if times else None}
-    for key in ("dir_err", "north_err", "pos_rel", "ratio_err", "ratio_err_r", "ratio_err_g", "ratio_err_b", "paper_err",
-                "uncertainty_deg"):
+    out = {
+        "cases": n,
+        "refused": refused,
+        "flagged": sum(r["flagged"] for r in rows),
+        "confident_wrong": sum(r["confident_wrong"] for r in rows),
+        "time_ms": _common.summary(times) if times else None,
+    }
+    for key in (
+        "dir_err",
+        "north_err",
+        "pos_rel",
+        "ratio_err",
+        "ratio_err_r",
+        "ratio_err_g",
+        "ratio_err_b",
+        "paper_err",
+        "uncertainty_deg",
+    ):
         if any(key in r for r in rows):
             out[key] = _stats([r.get(key) for r in rows])
     return out

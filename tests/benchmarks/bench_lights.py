@@ -36,10 +36,10 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 
 
-
 def _rendered(res):
     """A :class:`arshadow.session.FrameResult` as ``(composite, mask, report item)``."""
     return res.composite, res.mask, res.item
+
 
 def _stats(ms) -> dict:
     """Frame times (ms): median, IQR, min, max, n (:func:`_common.summary`) and the median's frame rate."""
@@ -56,18 +56,24 @@ def penumbra_quality(ctx, ns) -> dict:
     from oracle import disc_segment_fraction
 
     from arshadow.camera import Intrinsics
+    from arshadow.geometry.mesh import load_occluder
     from arshadow.gl.stencil import ShadowRenderer
     from arshadow.lights.area import sample_area_light
     from arshadow.lights.spec import Light, parse_light
-    from arshadow.geometry.mesh import load_occluder
     from arshadow.transforms import CV_TO_GL
 
-    intr = Intrinsics(fx=T.F_PX, fy=T.F_PX, cx=(T.W - 1) / 2, cy=(T.H_IMG - 1) / 2, width=T.W, height=T.H_IMG,
-                      dist=np.zeros(0))
+    intr = Intrinsics(
+        fx=T.F_PX, fy=T.F_PX, cx=(T.W - 1) / 2, cy=(T.H_IMG - 1) / 2, width=T.W, height=T.H_IMG, dist=np.zeros(0)
+    )
     cfw = np.diag([1.0, -1.0, -1.0, 1.0])
     cfw[2, 3] = T.D
-    sc = {"intr": intr, "proj": intr.gl_projection(1e-3, None), "view": CV_TO_GL @ cfw,
-          "caster": load_occluder(f"box:{2 * T.A},{2 * T.A},{T.HB}"), "x": (np.arange(T.W) - intr.cx) / T.F_PX * T.D}
+    sc = {
+        "intr": intr,
+        "proj": intr.gl_projection(1e-3, None),
+        "view": CV_TO_GL @ cfw,
+        "caster": load_occluder(f"box:{2 * T.A},{2 * T.A},{T.HB}"),
+        "x": (np.arange(T.W) - intr.cx) / T.F_PX * T.D,
+    }
     out = {}
     with ShadowRenderer(ctx, max_width=T.W, max_height=T.H_IMG) as r:
         for n in ns:
@@ -82,10 +88,12 @@ def penumbra_quality(ctx, ns) -> dict:
             x2, f2 = T._profile(sc, T._render(sc, r, sample_area_light(sun, n, seed=1)))
             full2, _ = T._widths(x2, f2, n)
             fp2 = T.HB / math.tan(e - al) - T.HB / math.tan(e + al)
-            out[str(n)] = {"point_full_width_err": round(full / full_pred - 1, 4),
-                           "point_10_90_width_err": round(w / w_pred - 1, 4),
-                           "point_profile_max_dev": round(float(np.max(np.abs(f - exact))), 4),
-                           "sun_full_width_err": round(full2 / fp2 - 1, 4)}
+            out[str(n)] = {
+                "point_full_width_err": round(full / full_pred - 1, 4),
+                "point_10_90_width_err": round(w / w_pred - 1, 4),
+                "point_profile_max_dev": round(float(np.max(np.abs(f - exact))), 4),
+                "sun_full_width_err": round(full2 / fp2 - 1, 4),
+            }
             print(f"penumbra n={n}: {out[str(n)]}", file=sys.stderr)
     return out
 
@@ -101,10 +109,10 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
 
     from arshadow.camera import Intrinsics
+    from arshadow.geometry.mesh import load_occluder
     from arshadow.gl.context import create_context
     from arshadow.gl.stencil import ShadowRenderer
     from arshadow.lights.spec import Light, parse_light
-    from arshadow.geometry.mesh import load_occluder
     from arshadow.scene import RenderOptions, Scene
     from arshadow.session import Session
     from arshadow.synth import look_at_pose
@@ -137,27 +145,53 @@ def main(argv=None) -> int:
                 _, mask, info = _rendered(comp.render(image, cam_from_world))
                 warm.append((time.perf_counter() - t) * 1e3)
             n_passes = len(comp.geometry.lights)
-        return {"warm": _stats(warm), "cold": _stats(cold), "passes": n_passes, "modes": sorted(set(info.modes)),
-                "shadow_pixels": int(np.count_nonzero(mask))}
+        return {
+            "warm": _stats(warm),
+            "cold": _stats(cold),
+            "passes": n_passes,
+            "modes": sorted(set(info.modes)),
+            "shadow_pixels": int(np.count_nonzero(mask)),
+        }
 
-    out = {"benchmark": "bench_lights", "scene": {"image": [W, H], "mesh": args.mesh, "faces": int(len(caster.faces)),
-                                                   "options": {"aa": opts.aa, "roi": opts.roi,
-                                                               "shadow_method": opts.shadow_method}},
-           "meta": _common.metadata(ctx), "lights": {}, "soft_point": {}, "soft_sun": {}}
+    out = {
+        "benchmark": "bench_lights",
+        "scene": {
+            "image": [W, H],
+            "mesh": args.mesh,
+            "faces": int(len(caster.faces)),
+            "options": {"aa": opts.aa, "roi": opts.roi, "shadow_method": opts.shadow_method},
+        },
+        "meta": _common.metadata(ctx),
+        "lights": {},
+        "soft_point": {},
+        "soft_sun": {},
+    }
     for k in (int(x) for x in args.lights.split(",")):
-        lights = [parse_light(f"point:{0.3 * math.cos(2 * math.pi * i / k + 0.3):.6f},"
-                              f"{0.3 * math.sin(2 * math.pi * i / k + 0.3):.6f},0.4") for i in range(k)]
+        lights = [
+            parse_light(
+                f"point:{0.3 * math.cos(2 * math.pi * i / k + 0.3):.6f},"
+                f"{0.3 * math.sin(2 * math.pi * i / k + 0.3):.6f},0.4"
+            )
+            for i in range(k)
+        ]
         out["lights"][str(k)] = run(lights, 1)
         print(f"lights={k}: {out['lights'][str(k)]['warm']['median']} ms", file=sys.stderr)
     point = parse_light("point:0.2,-0.1,0.4,radius=0.05")
     e = math.radians(50.0)
-    sun = Light("directional", [math.cos(e) * math.sin(math.radians(200)), math.cos(e) * math.cos(math.radians(200)),
-                                math.sin(e)], radius=math.radians(0.266), label="sun")
+    sun = Light(
+        "directional",
+        [math.cos(e) * math.sin(math.radians(200)), math.cos(e) * math.cos(math.radians(200)), math.sin(e)],
+        radius=math.radians(0.266),
+        label="sun",
+    )
     for n in (int(x) for x in args.samples.split(",")):
         out["soft_point"][str(n)] = run([point], n)
         out["soft_sun"][str(n)] = run([sun], n)
-        print(f"samples={n}: point {out['soft_point'][str(n)]['warm']['median']} ms, "
-              f"sun {out['soft_sun'][str(n)]['warm']['median']} ms", file=sys.stderr)
+        print(
+            f"samples={n}: point {out['soft_point'][str(n)]['warm']['median']} ms, "
+            f"sun {out['soft_sun'][str(n)]['warm']['median']} ms",
+            file=sys.stderr,
+        )
     renderer.release()
     # N = 1 is the hard shadow (no penumbra to measure; tested bit for bit against it)
     out["penumbra_quality"] = penumbra_quality(ctx, [n for n in map(int, args.samples.split(",")) if n > 1] + [256])

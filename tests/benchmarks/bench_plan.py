@@ -30,9 +30,8 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 import _common
+import numpy as np
 
 ROOT = _common.ROOT
 DECISIONS = ("planar", "zpass", "truncate", "cull", "roi", "reuse")
@@ -48,8 +47,14 @@ def _specs(names):
         if names and stem not in names:
             continue
         d = {k: v for k, v in sc.items() if k in SCENE_KEYS}
-        out.append((stem, scene_from_dict(d, base_dir=ROOT), np.asarray(sc["true_cam_from_world"], float),
-                    ROOT / "samples" / sc["photo"]))
+        out.append(
+            (
+                stem,
+                scene_from_dict(d, base_dir=ROOT),
+                np.asarray(sc["true_cam_from_world"], float),
+                ROOT / "samples" / sc["photo"],
+            )
+        )
     return out
 
 
@@ -80,8 +85,10 @@ def bench_decisions(ctx, specs, runs):
     rows = []
     for stem, spec, pose, photo in specs:
         image = read_image(photo)
-        sessions = {"general": _session(spec, ctx, plan="general", compose="cpu"),
-                    "auto": _session(spec, ctx, plan="auto", compose="cpu")}
+        sessions = {
+            "general": _session(spec, ctx, plan="general", compose="cpu"),
+            "auto": _session(spec, ctx, plan="auto", compose="cpu"),
+        }
         for d in DECISIONS:
             sessions[f"auto-{d}"] = _session(spec, ctx, plan="auto", compose="cpu", plan_off=(d,))
         out = np.empty_like(image)
@@ -95,6 +102,7 @@ def bench_decisions(ctx, specs, runs):
                 t["call"] = (time.perf_counter() - t0) * 1e3
                 plans[name] = r.item.plan
                 return t
+
             return go
 
         res = _interleave({k: runner(k, s) for k, s in sessions.items()}, runs)
@@ -102,8 +110,10 @@ def bench_decisions(ctx, specs, runs):
             s.close()
         row = {"scene": stem, "auto_plan": plans["auto"], "variants": {}}
         for name, ts in res.items():
-            row["variants"][name] = {"render_stage_ms": _common.summary([_render_stage(t) for t in ts]),
-                                     "call_ms": _common.summary([t["call"] for t in ts])}
+            row["variants"][name] = {
+                "render_stage_ms": _common.summary([_render_stage(t) for t in ts]),
+                "call_ms": _common.summary([t["call"] for t in ts]),
+            }
         auto_rs = np.array([_render_stage(t) for t in res["auto"]])
         auto_call = np.array([t["call"] for t in res["auto"]])
         sp = {}
@@ -114,8 +124,9 @@ def bench_decisions(ctx, specs, runs):
             sp[name] = {"render_stage": _common.summary(rs / auto_rs), "call": _common.summary(call / auto_call)}
         row["speedup_of_auto_over"] = sp
         rows.append(row)
-        print(f"# {stem}: " + ", ".join(f"{k} x{v['render_stage']['median']:.2f}" for k, v in sp.items()),
-              file=sys.stderr)
+        print(
+            f"# {stem}: " + ", ".join(f"{k} x{v['render_stage']['median']:.2f}" for k, v in sp.items()), file=sys.stderr
+        )
     return rows
 
 
@@ -138,15 +149,23 @@ def bench_photo(ctx, specs, runs):
                     r = s.process(image, want_mask=True, out=out, mask_out=mask)
                     chosen[name] = r.item.compose
                     return dict(r.timings_ms)
+
                 return go
 
             res = _interleave({k: runner(k, s) for k, s in sessions.items()}, runs)
             for s in sessions.values():
                 s.close()
             for name, ts in res.items():
-                rows.append({"photo": stem, "aa": aa, "plan": name, "compose": chosen[name],
-                             "total_ms": _common.summary([t["total"] for t in ts]),
-                             "stages_median_ms": {k: round(float(np.median([t[k] for t in ts])), 3) for k in ts[0]}})
+                rows.append(
+                    {
+                        "photo": stem,
+                        "aa": aa,
+                        "plan": name,
+                        "compose": chosen[name],
+                        "total_ms": _common.summary([t["total"] for t in ts]),
+                        "stages_median_ms": {k: round(float(np.median([t[k] for t in ts])), 3) for k in ts[0]},
+                    }
+                )
             ratio = np.array([t["total"] for t in res["general"]]) / np.array([t["total"] for t in res["auto"]])
             rows.append({"photo": stem, "aa": aa, "speedup_auto_over_general_total": _common.summary(ratio)})
     return rows
@@ -172,6 +191,7 @@ def bench_compose(ctx, specs, runs):
                     t = dict(r.timings_ms)
                     t["call"] = (time.perf_counter() - t0) * 1e3
                     return t
+
                 return go
 
             res = _interleave({k: runner(k, s) for k, s in sessions.items() if k != "auto"}, runs)
@@ -180,11 +200,16 @@ def bench_compose(ctx, specs, runs):
                 s.close()
             row = {"scene": stem, "aa": aa, "auto_picked": picked["auto"][0], "auto_measured": picked["auto"][1]}
             for name, ts in res.items():
-                row[name] = {"render_call_ms": _common.summary([t["call"] for t in ts]),
-                             "stages_median_ms": {k: round(float(np.median([t[k] for t in ts])), 3)
-                                                  for k in ("render", "readback", "warp", "composite")}}
-            row["cpu_over_gpu"] = _common.summary(np.array([t["call"] for t in res["cpu"]])
-                                                  / np.array([t["call"] for t in res["gpu"]]))
+                row[name] = {
+                    "render_call_ms": _common.summary([t["call"] for t in ts]),
+                    "stages_median_ms": {
+                        k: round(float(np.median([t[k] for t in ts])), 3)
+                        for k in ("render", "readback", "warp", "composite")
+                    },
+                }
+            row["cpu_over_gpu"] = _common.summary(
+                np.array([t["call"] for t in res["cpu"]]) / np.array([t["call"] for t in res["gpu"]])
+            )
             rows.append(row)
     return rows
 
@@ -210,8 +235,10 @@ def main(argv=None) -> int:
         result["photo_720p"] = bench_photo(ctx, _specs(["knot_point"]), args.runs)
     if not args.skip_compose:
         result["compose"] = bench_compose(ctx, specs, args.runs)
-    result["gpu_figures"] = ("not measured: no GPU machine was available to this task (device tool: "
-                             "can_start_another=false); the compose choice is automatic per backend")
+    result["gpu_figures"] = (
+        "not measured: no GPU machine was available to this task (device tool: "
+        "can_start_another=false); the compose choice is automatic per backend"
+    )
     _common.emit(result, args.out)
     ctx.release()
     return 0

@@ -26,9 +26,8 @@ import argparse
 import sys
 import time
 
-import numpy as np
-
 import _common
+import numpy as np
 
 ROOT = _common.ROOT
 sys.path.insert(0, str(ROOT / "tests"))
@@ -70,11 +69,11 @@ def main(argv=None):
     ap.add_argument("--no-accuracy", action="store_true")
     args = ap.parse_args(argv)
 
+    from arshadow.geometry.silhouette import silhouette
+    from arshadow.geometry.volume import shadow_volume
     from arshadow.gl.context import create_context
     from arshadow.gl.stencil import LightPass, ShadowRenderer
-    from arshadow.geometry.silhouette import silhouette
     from arshadow.transforms import CV_TO_GL
-    from arshadow.geometry.volume import shadow_volume
 
     ctx = create_context()
     caster, K, T, L = load_scene()
@@ -128,7 +127,8 @@ def main(argv=None):
         import cv2 as _cv
 
         edge = _cv.dilate(ob.astype(np.uint8), np.ones((5, 5), np.uint8)) != _cv.erode(
-            ob.astype(np.uint8), np.ones((5, 5), np.uint8))
+            ob.astype(np.uint8), np.ones((5, 5), np.uint8)
+        )
         band = np.argwhere(edge)
         sub = (np.arange(8) + 0.5) / 8 - 0.5
         su, sv = np.meshgrid(sub, sub)

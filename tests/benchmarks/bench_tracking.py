@@ -49,8 +49,9 @@ def run_configs(photos, cam, configs, repeat):
     for ph in photos:
         trackers, poses = {}, {}
         for c in configs:
-            tr = MarkerTracker(cam, marker_length=ph.marker_length, marker_id=ph.marker_id, refine=c[0],
-                               pnp_refine=c[1])
+            tr = MarkerTracker(
+                cam, marker_length=ph.marker_length, marker_id=ph.marker_id, refine=c[0], pnp_refine=c[1]
+            )
             try:
                 poses[c] = tr.estimate(ph.image)  # warm-up, and the result
                 trackers[c] = tr
@@ -75,26 +76,44 @@ def run_configs(photos, cam, configs, repeat):
     q = lambda a, p: float(np.percentile(a, p)) if a.size else None  # noqa: E731
     for (refine, lm), a in acc.items():
         times, rot, trans = np.array(a["times"]) * 1e3, np.array(a["rot"]), np.array(a["trans"]) * 100
-        rows.append(dict(
-            refine=refine, pnp_refine=lm, n=len(photos), detected=a["found"],
-            time_ms_median=q(times, 50), time_ms_iqr=[q(times, 25), q(times, 75)],
-            rot_deg_median=q(rot, 50), rot_deg_p95=q(rot, 95), rot_deg_max=float(rot.max()) if rot.size else None,
-            trans_pct_median=q(trans, 50), trans_pct_p95=q(trans, 95),
-            n_rot_over_5deg=int((rot > 5).sum()), n_flagged=int(a["flagged"]),
-            n_wrong_unflagged=int(a["wrong_unflagged"]),
-        ))
+        rows.append(
+            dict(
+                refine=refine,
+                pnp_refine=lm,
+                n=len(photos),
+                detected=a["found"],
+                time_ms_median=q(times, 50),
+                time_ms_iqr=[q(times, 25), q(times, 75)],
+                rot_deg_median=q(rot, 50),
+                rot_deg_p95=q(rot, 95),
+                rot_deg_max=float(rot.max()) if rot.size else None,
+                trans_pct_median=q(trans, 50),
+                trans_pct_p95=q(trans, 95),
+                n_rot_over_5deg=int((rot > 5).sum()),
+                n_flagged=int(a["flagged"]),
+                n_wrong_unflagged=int(a["wrong_unflagged"]),
+            )
+        )
     return rows
 
 
 def metadata():
     try:
-        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
-                                text=True).stdout.strip()
+        commit = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True
+        ).stdout.strip()
     except OSError:  # pragma: no cover
         commit = None
-    return dict(git_commit=commit, arshadow=__version__, opencv=cv2.__version__, numpy=np.__version__,
-                python=platform.python_version(), machine=platform.machine(), cpus=cv2.getNumberOfCPUs(),
-                threads=cv2.getNumThreads())
+    return dict(
+        git_commit=commit,
+        arshadow=__version__,
+        opencv=cv2.__version__,
+        numpy=np.__version__,
+        python=platform.python_version(),
+        machine=platform.machine(),
+        cpus=cv2.getNumberOfCPUs(),
+        threads=cv2.getNumThreads(),
+    )
 
 
 def run(poses=60, repeat=5, resolutions=RESOLUTIONS, configs=CONFIGS):
@@ -105,22 +124,36 @@ def run(poses=60, repeat=5, resolutions=RESOLUTIONS, configs=CONFIGS):
         for r in run_configs(photos, cam, configs, repeat):
             rows.append(dict(resolution=f"{w}x{h}", **r))
             print(json.dumps(rows[-1]), file=sys.stderr, flush=True)
-    return dict(benchmark="tracking: detection + pose time vs pose error", metadata=metadata(),
-                conditions=dict(poses_per_resolution=poses, repeat=repeat, marker_width_frac=[0.05, 0.10],
-                                distance_m=[0.3, 0.8], tilt_deg=[0, 70], noise_sigma=2, blur_sigma=0.6,
-                                jpeg_quality=90), rows=rows)
+    return dict(
+        benchmark="tracking: detection + pose time vs pose error",
+        metadata=metadata(),
+        conditions=dict(
+            poses_per_resolution=poses,
+            repeat=repeat,
+            marker_width_frac=[0.05, 0.10],
+            distance_m=[0.3, 0.8],
+            tilt_deg=[0, 70],
+            noise_sigma=2,
+            blur_sigma=0.6,
+            jpeg_quality=90,
+        ),
+        rows=rows,
+    )
 
 
 def table(result) -> str:
-    lines = ["| resolution | refinement | LM | detected | time ms median [IQR] | rot deg median / p95 / max "
-             "| trans % median | >5 deg (unflagged) |",
-             "|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| resolution | refinement | LM | detected | time ms median [IQR] | rot deg median / p95 / max "
+        "| trans % median | >5 deg (unflagged) |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for r in result["rows"]:
         lines.append(
             f"| {r['resolution']} | {r['refine']} | {'yes' if r['pnp_refine'] else 'no'} | {r['detected']}/{r['n']} "
             f"| {r['time_ms_median']:.1f} [{r['time_ms_iqr'][0]:.1f}, {r['time_ms_iqr'][1]:.1f}] "
             f"| {r['rot_deg_median']:.3f} / {r['rot_deg_p95']:.2f} / {r['rot_deg_max']:.2f} "
-            f"| {r['trans_pct_median']:.3f} | {r['n_rot_over_5deg']} ({r['n_wrong_unflagged']}) |")
+            f"| {r['trans_pct_median']:.3f} | {r['n_rot_over_5deg']} ({r['n_wrong_unflagged']}) |"
+        )
     return "\n".join(lines)
 
 

@@ -37,8 +37,9 @@ def _meta():
     from arshadow import __version__
 
     try:
-        commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True,
-                                text=True).stdout.strip()
+        commit = subprocess.run(
+            ["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True, text=True
+        ).stdout.strip()
     except OSError:
         commit = None
     info = {}
@@ -50,15 +51,25 @@ def _meta():
         ctx.release()
     except Exception as exc:  # noqa: BLE001
         info = {"error": str(exc)}
-    return {"commit": commit, "arshadow": __version__, "opencv": cv2.__version__, "numpy": np.__version__,
-            "GL_RENDERER": info.get("GL_RENDERER"), "date": time.strftime("%Y-%m-%dT%H:%M:%S")}
+    return {
+        "commit": commit,
+        "arshadow": __version__,
+        "opencv": cv2.__version__,
+        "numpy": np.__version__,
+        "GL_RENDERER": info.get("GL_RENDERER"),
+        "date": time.strftime("%Y-%m-%dT%H:%M:%S"),
+    }
 
 
 def _stats(a):
     a = np.asarray(a, float)
-    return {"median": round(float(np.median(a)), 2), "iqr": [round(float(np.percentile(a, 25)), 2),
-            round(float(np.percentile(a, 75)), 2)], "min": round(float(a.min()), 2),
-            "max": round(float(a.max()), 2), "n": int(a.size)}
+    return {
+        "median": round(float(np.median(a)), 2),
+        "iqr": [round(float(np.percentile(a, 25)), 2), round(float(np.percentile(a, 75)), 2)],
+        "min": round(float(a.min()), 2),
+        "max": round(float(a.max()), 2),
+        "n": int(a.size),
+    }
 
 
 def frame_times(refine: str):
@@ -66,21 +77,47 @@ def frame_times(refine: str):
 
     truth = json.loads((ROOT / "samples/video/orbit.json").read_text())["cam_from_world"]
     with tempfile.TemporaryDirectory() as d:
-        argv = ["video", str(ROOT / "samples/video/orbit.mp4"), "--calib", str(ROOT / "calib/synth_640x360.yml"),
-                "--marker-length", "0.05", "--model", str(ROOT / "samples/meshes/house.obj"),
-                "--place", "0.07,0.03,0", "--rotate", "0,0,20", "--light", "sun:48.8566,2.3522,2024-06-21T10:00+02:00",
-                "--corner-refine", refine, "-o", d, "--report", f"{d}/r.json", "-q"]
+        argv = [
+            "video",
+            str(ROOT / "samples/video/orbit.mp4"),
+            "--calib",
+            str(ROOT / "calib/synth_640x360.yml"),
+            "--marker-length",
+            "0.05",
+            "--model",
+            str(ROOT / "samples/meshes/house.obj"),
+            "--place",
+            "0.07,0.03,0",
+            "--rotate",
+            "0,0,20",
+            "--light",
+            "sun:48.8566,2.3522,2024-06-21T10:00+02:00",
+            "--corner-refine",
+            refine,
+            "-o",
+            d,
+            "--report",
+            f"{d}/r.json",
+            "-q",
+        ]
         for _ in range(2):
             assert main(argv) == 0
         rep = json.loads(Path(f"{d}/r.json").read_text())
     items = [it for it in rep["images"] if it["status"] == "ok"]
     tot = [it["timings_ms"]["total"] for it in items]
     wall = [it["timings_ms"]["total"] + it["timings_ms"].get("decode", 0) + it["encode_ms"] for it in items]
-    derr = [abs(np.linalg.norm(it["tvec"]) / np.linalg.norm(np.asarray(truth[it["frame"]])[:3, 3]) - 1) * 100
-            for it in items]
+    derr = [
+        abs(np.linalg.norm(it["tvec"]) / np.linalg.norm(np.asarray(truth[it["frame"]])[:3, 3]) - 1) * 100
+        for it in items
+    ]
     stages = {k: _stats([it["timings_ms"][k] for it in items])["median"] for k in items[0]["timings_ms"]}
-    return {"refine": refine, "total": _stats(tot), "wall": _stats(wall), "stage_medians": stages,
-            "distance_error_pct_median": round(float(np.median(derr)), 3)}
+    return {
+        "refine": refine,
+        "total": _stats(tot),
+        "wall": _stats(wall),
+        "stage_medians": stages,
+        "distance_error_pct_median": round(float(np.median(derr)), 3),
+    }
 
 
 def flips(n_frames=40, seeds=(0, 1, 2), marker_length=0.04):
@@ -105,13 +142,22 @@ def flips(n_frames=40, seeds=(0, 1, 2), marker_length=0.04):
     for seed in seeds:
         truth = camera_path(n_frames, radius=0.15, height=(0.5, 0.6), sweep_deg=90, phase=0.3 * seed)
         tr = MarkerTracker(intr, marker_length=marker_length)
-        est = [tr.estimate(render_marker_photo(intr, p, marker_length=marker_length, noise_sigma=2.0,
-                                               blur_sigma=0.6, seed=1000 * seed + i).image)
-               for i, p in enumerate(truth)]
+        est = [
+            tr.estimate(
+                render_marker_photo(
+                    intr, p, marker_length=marker_length, noise_sigma=2.0, blur_sigma=0.6, seed=1000 * seed + i
+                ).image
+            )
+            for i, p in enumerate(truth)
+        ]
         hook, prev = [], None
         for p in est:  # the tracker's own hook: swap when ambiguous (ratio >= 0.6) and closer to previous
-            if prev is not None and p.ambiguous and rotation_angle_deg(p.alternative.cam_from_world, prev.cam_from_world) \
-                    < rotation_angle_deg(p.cam_from_world, prev.cam_from_world):
+            if (
+                prev is not None
+                and p.ambiguous
+                and rotation_angle_deg(p.alternative.cam_from_world, prev.cam_from_world)
+                < rotation_angle_deg(p.cam_from_world, prev.cam_from_world)
+            ):
                 p = p.swapped()
             hook.append(p)
             prev = p
@@ -128,16 +174,28 @@ def flips(n_frames=40, seeds=(0, 1, 2), marker_length=0.04):
             res[k][0] += w
             res[k][1] += f
             res[k][2] += e
-    return {"frames": n_frames * len(seeds), "marker_length": marker_length,
-            **{k: {"wrong_branch_frames": v[0], "branch_flips": v[1],
-                   "rotation_error_deg_median": round(float(np.median(v[2])), 2),
-                   "rotation_error_deg_p95": round(float(np.percentile(v[2], 95)), 2)} for k, v in res.items()}}
+    return {
+        "frames": n_frames * len(seeds),
+        "marker_length": marker_length,
+        **{
+            k: {
+                "wrong_branch_frames": v[0],
+                "branch_flips": v[1],
+                "rotation_error_deg_median": round(float(np.median(v[2])), 2),
+                "rotation_error_deg_p95": round(float(np.percentile(v[2], 95)), 2),
+            }
+            for k, v in res.items()
+        },
+    }
 
 
 def main() -> int:
     quick = "--quick" in sys.argv
-    out = {"meta": _meta(), "frame_ms": [frame_times("apriltag")] + ([] if quick else [frame_times("subpix")]),
-           "flips": [flips(seeds=(0,) if quick else (0, 1, 2))]}
+    out = {
+        "meta": _meta(),
+        "frame_ms": [frame_times("apriltag")] + ([] if quick else [frame_times("subpix")]),
+        "flips": [flips(seeds=(0,) if quick else (0, 1, 2))],
+    }
     if not quick:
         out["flips"].append(flips(seeds=(0, 1, 2), marker_length=0.05))
     print(json.dumps(out, indent=1))

@@ -67,8 +67,21 @@ def _run(clip, out, *extra):
     from arshadow.cli import main
 
     extra = (*EXTRA, *extra)
-    argv = ["video", str(clip), "--calib", str(CALIB_720), "--marker-length", "0.05", *KNOT_SCENE, "-o", str(out),
-            "-q", "--report", str(Path(out) / "r.json"), *extra]
+    argv = [
+        "video",
+        str(clip),
+        "--calib",
+        str(CALIB_720),
+        "--marker-length",
+        "0.05",
+        *KNOT_SCENE,
+        "-o",
+        str(out),
+        "-q",
+        "--report",
+        str(Path(out) / "r.json"),
+        *extra,
+    ]
     rc = main(argv)
     rep = json.loads((Path(out) / "r.json").read_text())
     lines = [json.loads(s) for s in (Path(out) / f"{Path(clip).stem}.frames.jsonl").read_text().splitlines()]
@@ -83,13 +96,16 @@ def _pose(rvec, tvec):
 
 def _exact():
     from arshadow.camera import Intrinsics
-    from arshadow.lights.spec import parse_light
     from arshadow.geometry.mesh import load_occluder
+    from arshadow.lights.spec import parse_light
 
     intr = Intrinsics.from_file(CALIB_720)
     args = dict(zip(KNOT_SCENE[::2], KNOT_SCENE[1::2]))
-    caster = load_occluder(args["--model"], rotate=[float(x) for x in args["--rotate"].split(",")],
-                           place=[float(x) for x in args["--place"].split(",")])
+    caster = load_occluder(
+        args["--model"],
+        rotate=[float(x) for x in args["--rotate"].split(",")],
+        place=[float(x) for x in args["--place"].split(",")],
+    )
     return intr, ExactShadow(intr, caster.vertices, caster.faces, parse_light(args["--light"]).homogeneous)
 
 
@@ -104,16 +120,24 @@ def throughput(clip, runs):
     fps = [r[0] for r in res]
     k = int(np.argsort(fps)[len(fps) // 2])
     lines = res[k][3]
-    stages = {key: round(float(np.median([ln["timings_ms"][key] for ln in lines])), 3)
-              for key in lines[0]["timings_ms"]}
-    return {"fps_runs": fps, "fps_median": float(np.median(fps)), "fps_min": min(fps), "fps_max": max(fps),
-            "loadavg_before_runs": [[round(x, 2) for x in r[1]] for r in res],
-            "stage_ms_median": stages, "frames": res[k][2]["frames"], "wall_s": res[k][2]["wall_s"]}
+    stages = {
+        key: round(float(np.median([ln["timings_ms"][key] for ln in lines])), 3) for key in lines[0]["timings_ms"]
+    }
+    return {
+        "fps_runs": fps,
+        "fps_median": float(np.median(fps)),
+        "fps_min": min(fps),
+        "fps_max": max(fps),
+        "loadavg_before_runs": [[round(x, 2) for x in r[1]] for r in res],
+        "stage_ms_median": stages,
+        "frames": res[k][2]["frames"],
+        "wall_s": res[k][2]["wall_s"],
+    }
 
 
 def accuracy(clip, poses, refine):
-    from arshadow.video.avio import AvReader
     from arshadow.transforms import rotation_error_deg
+    from arshadow.video.avio import AvReader
 
     intr, ex = _exact()
     with tempfile.TemporaryDirectory() as d:
@@ -143,13 +167,26 @@ def accuracy(clip, poses, refine):
     c_sm = np.where(both[:, None], c_sm, np.nan)
     j_raw, _ = jitter_and_lag(c_raw, c_true)
     j_sm, _ = jitter_and_lag(c_sm, c_true)
-    return {"refine": refine, "frames": summ["frames"], "statuses": {s: sum(ln["status"] == s for ln in lines)
-                                                                      for s in ("ok", "held", "no_marker")},
-            "iou": _common.summary(ious), "rotation_error_deg_raw": _common.summary(rot_raw), "distance_error_pct_raw": _common.summary(dist_raw),
-            "flipped_frames": flips, "jitter_px_raw": round(j_raw, 4), "jitter_px_smoothed": round(j_sm, 4),
-            "jitter_ratio": round(j_raw / j_sm, 3) if j_sm > 0 else None,
-            "detect_pose_ms_median": round(float(np.median([ln["timings_ms"]["detect"] + ln["timings_ms"]["pose"]
-                                                            for ln in lines if ln["raw"] is not None])), 3)}
+    return {
+        "refine": refine,
+        "frames": summ["frames"],
+        "statuses": {s: sum(ln["status"] == s for ln in lines) for s in ("ok", "held", "no_marker")},
+        "iou": _common.summary(ious),
+        "rotation_error_deg_raw": _common.summary(rot_raw),
+        "distance_error_pct_raw": _common.summary(dist_raw),
+        "flipped_frames": flips,
+        "jitter_px_raw": round(j_raw, 4),
+        "jitter_px_smoothed": round(j_sm, 4),
+        "jitter_ratio": round(j_raw / j_sm, 3) if j_sm > 0 else None,
+        "detect_pose_ms_median": round(
+            float(
+                np.median(
+                    [ln["timings_ms"]["detect"] + ln["timings_ms"]["pose"] for ln in lines if ln["raw"] is not None]
+                )
+            ),
+            3,
+        ),
+    }
 
 
 def pan(n):
@@ -160,14 +197,19 @@ def pan(n):
     assert rc == 0, summ
     c_true = [ex.centroid(p) for p in poses]
     c_sm = [ex.centroid(_pose(ln["rvec"], ln["tvec"])) for ln in lines]
-    c_raw = [ex.centroid(_pose(ln["raw"]["rvec"], ln["raw"]["tvec"])) if ln["raw"] else [np.nan] * 2
-             for ln in lines]
+    c_raw = [ex.centroid(_pose(ln["raw"]["rvec"], ln["raw"]["tvec"])) if ln["raw"] else [np.nan] * 2 for ln in lines]
     j_raw, lag_raw = jitter_and_lag(c_raw, c_true)
     j_sm, lag_sm = jitter_and_lag(c_sm, c_true)
     speed = float(np.median(np.linalg.norm(np.diff(np.asarray(c_true), axis=0), axis=1)))
-    return {"frames": n, "shadow_speed_px_per_frame": round(speed, 3), "lag_frames_smoothed": round(lag_sm, 4),
-            "lag_frames_raw": round(lag_raw, 4), "jitter_px_raw": round(j_raw, 4), "jitter_px_smoothed": round(j_sm, 4),
-            "jitter_ratio": round(j_raw / j_sm, 3) if j_sm > 0 else None}
+    return {
+        "frames": n,
+        "shadow_speed_px_per_frame": round(speed, 3),
+        "lag_frames_smoothed": round(lag_sm, 4),
+        "lag_frames_raw": round(lag_raw, 4),
+        "jitter_px_raw": round(j_raw, 4),
+        "jitter_px_smoothed": round(j_sm, 4),
+        "jitter_ratio": round(j_raw / j_sm, 3) if j_sm > 0 else None,
+    }
 
 
 def main() -> int:
@@ -183,7 +225,12 @@ def main() -> int:
     EXTRA[:] = a.extra.split()
     skip = set(filter(None, a.skip.split(",")))
     clip, poses = _clip("orbit", a.frames)
-    out = {"clip": str(clip), "frames": a.frames, "cpu_count": os.cpu_count(), "date": time.strftime("%Y-%m-%dT%H:%M:%S")}
+    out = {
+        "clip": str(clip),
+        "frames": a.frames,
+        "cpu_count": os.cpu_count(),
+        "date": time.strftime("%Y-%m-%dT%H:%M:%S"),
+    }
     if "throughput" not in skip:
         out["throughput"] = throughput(clip, a.runs)
         print(json.dumps(out["throughput"]), file=sys.stderr)

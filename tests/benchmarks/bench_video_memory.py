@@ -65,6 +65,7 @@ def main() -> int:
         def progress(done, total):
             if done % 25 == 0 or done == total:
                 samples.append((done, rss_mb()))
+
         kw["progress"] = progress
         return orig(*args, **kw)
 
@@ -72,13 +73,35 @@ def main() -> int:
     from arshadow.cli import main as cli
 
     with tempfile.TemporaryDirectory() as d:
-        rc = cli(["video", str(long), "--calib", str(b.CALIB_720), "--marker-length", "0.05", *b.KNOT_SCENE,
-                  "-o", d, "-q", "--save-mask"])
+        rc = cli(
+            [
+                "video",
+                str(long),
+                "--calib",
+                str(b.CALIB_720),
+                "--marker-length",
+                "0.05",
+                *b.KNOT_SCENE,
+                "-o",
+                d,
+                "-q",
+                "--save-mask",
+            ]
+        )
     base = next(r for n, r in samples if n >= warm)
     peak = max(r for n, r in samples if n >= warm)
-    out = {"rc": rc, "frames": a.frames, "height": a.height, "warm": warm, "rss_mb_at_warm": round(base, 1),
-           "rss_mb_max": round(peak, 1), "rss_mb_last": round(samples[-1][1], 1), "growth_mb": round(peak - base, 1),
-           "limit_mb": a.limit_mb, "samples": [(n, round(r, 1)) for n, r in samples[:: max(1, len(samples) // 20)]]}
+    out = {
+        "rc": rc,
+        "frames": a.frames,
+        "height": a.height,
+        "warm": warm,
+        "rss_mb_at_warm": round(base, 1),
+        "rss_mb_max": round(peak, 1),
+        "rss_mb_last": round(samples[-1][1], 1),
+        "growth_mb": round(peak - base, 1),
+        "limit_mb": a.limit_mb,
+        "samples": [(n, round(r, 1)) for n, r in samples[:: max(1, len(samples) // 20)]],
+    }
     print(json.dumps(out, indent=1))
     return 0 if rc == 0 and peak - base <= a.limit_mb else 1
 

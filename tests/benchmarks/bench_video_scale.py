@@ -83,8 +83,24 @@ def run(path: Path, *extra) -> dict:
     """One ``arshadow video`` process: its summary, with ``cpu_s`` (it and its children)."""
     with tempfile.TemporaryDirectory() as d:
         rep = Path(d) / "r.json"
-        cmd = [sys.executable, "-m", "arshadow", "video", str(path), "--calib", str(CALIB_720), "--marker-length",
-               "0.05", *KNOT_SCENE, "-o", d, "-q", "--report", str(rep), *extra]
+        cmd = [
+            sys.executable,
+            "-m",
+            "arshadow",
+            "video",
+            str(path),
+            "--calib",
+            str(CALIB_720),
+            "--marker-length",
+            "0.05",
+            *KNOT_SCENE,
+            "-o",
+            d,
+            "-q",
+            "--report",
+            str(rep),
+            *extra,
+        ]
         t = time.perf_counter()
         proc = subprocess.Popen(cmd, env=dict(os.environ, PYTHONPATH=str(ROOT)))
         _, status, ru = os.wait4(proc.pid, 0)
@@ -95,8 +111,9 @@ def run(path: Path, *extra) -> dict:
         lines = [json.loads(x) for x in (Path(d) / f"{path.stem}.frames.jsonl").read_text().splitlines()]
     s["cpu_s"] = ru.ru_utime + ru.ru_stime
     s["process_wall_s"] = wall_process
-    s["stage_ms"] = {k: round(float(np.median([ln["timings_ms"][k] for ln in lines])), 3)
-                     for k in lines[0]["timings_ms"]}
+    s["stage_ms"] = {
+        k: round(float(np.median([ln["timings_ms"][k] for ln in lines])), 3) for k in lines[0]["timings_ms"]
+    }
     return s
 
 
@@ -115,10 +132,15 @@ def codec(path: Path, bgr: bool = False) -> dict:
         "        w = AvWriter(dst, 25, (wd, h), crf=20, preset='ultrafast').__enter__()\n"
         "    w.write(f.image) if bgr else w.write_yuv420p(f.image); n += 1\n"
         "w.__exit__(None, None, None); wall = time.perf_counter() - t\n"
-        "print(n, wall)\n")
+        "print(n, wall)\n"
+    )
     with tempfile.TemporaryDirectory() as d:
-        proc = subprocess.Popen([sys.executable, "-c", code, str(path), str(Path(d) / "c.mp4"), "1" if bgr else "0"],
-                                env=dict(os.environ, PYTHONPATH=str(ROOT)), stdout=subprocess.PIPE, text=True)
+        proc = subprocess.Popen(
+            [sys.executable, "-c", code, str(path), str(Path(d) / "c.mp4"), "1" if bgr else "0"],
+            env=dict(os.environ, PYTHONPATH=str(ROOT)),
+            stdout=subprocess.PIPE,
+            text=True,
+        )
         out = proc.stdout.read() if proc.stdout else ""
         _, status, ru = os.wait4(proc.pid, 0)
     if os.waitstatus_to_exitcode(status) != 0:
@@ -138,11 +160,16 @@ def resolution(frames: int, runs: int, sizes) -> dict:
     for h, rs in res.items():
         fps = [r["fps_processed"] for r in rs]
         k = int(np.argsort(fps)[len(fps) // 2])
-        out[f"{h}p"] = {"fps_median": float(np.median(fps)), "fps_min": min(fps), "fps_max": max(fps),
-                        "frames_per_cpu_s": float(np.median([r["frames"] / r["cpu_s"] for r in rs])),
-                        "codec_only_fps_median": float(np.median([c["fps"] for c in ceil[h]])),
-                        "codec_only_frames_per_cpu_s": float(np.median([c["frames_per_cpu_s"] for c in ceil[h]])),
-                        "stage_ms_median": rs[k]["stage_ms"], "frames": rs[k]["frames"]}
+        out[f"{h}p"] = {
+            "fps_median": float(np.median(fps)),
+            "fps_min": min(fps),
+            "fps_max": max(fps),
+            "frames_per_cpu_s": float(np.median([r["frames"] / r["cpu_s"] for r in rs])),
+            "codec_only_fps_median": float(np.median([c["fps"] for c in ceil[h]])),
+            "codec_only_frames_per_cpu_s": float(np.median([c["frames_per_cpu_s"] for c in ceil[h]])),
+            "stage_ms_median": rs[k]["stage_ms"],
+            "frames": rs[k]["frames"],
+        }
     return out
 
 
@@ -150,9 +177,11 @@ def side_by_side(res: dict) -> str:
     """The resolution table, one row per size (printed to stderr before the JSON)."""
     rows = ["size    fps med (min-max)     frames/CPU-s   codec-only fps   codec frames/CPU-s"]
     for k, v in res.items():
-        rows.append(f"{k:>6}  {v['fps_median']:7.1f} ({v['fps_min']:.1f}-{v['fps_max']:.1f})"
-                    f"  {v['frames_per_cpu_s']:12.1f}   {v['codec_only_fps_median']:14.1f}"
-                    f"   {v['codec_only_frames_per_cpu_s']:18.1f}")
+        rows.append(
+            f"{k:>6}  {v['fps_median']:7.1f} ({v['fps_min']:.1f}-{v['fps_max']:.1f})"
+            f"  {v['frames_per_cpu_s']:12.1f}   {v['codec_only_fps_median']:14.1f}"
+            f"   {v['codec_only_frames_per_cpu_s']:18.1f}"
+        )
     return "\n".join(rows)
 
 
@@ -169,20 +198,32 @@ def scale(frames: int, height: int) -> dict:
     cores = os.cpu_count() or 1
 
     def local(n):
-        return (0.0 if n == 1 else start) + max(F / n * t_frame, F * c_frame * (1 + (rho if n > 1 else 0)) / cores) \
+        return (
+            (0.0 if n == 1 else start)
+            + max(F / n * t_frame, F * c_frame * (1 + (rho if n > 1 else 0)) / cores)
             + (0.0 if n == 1 else F * t_join)
+        )
 
     def cluster(n, f):
         return start + f / n * t_frame * (1 + rho) + f * t_join
 
     hour = 90_000
     need = next((n for n in range(1, 10_000) if cluster(n, hour) <= 3600.0), None)
-    return {"size": f"{height}p", "frames": F, "t_frame_ms": t_frame * 1e3, "c_frame_ms": c_frame * 1e3,
-            "start_s": start, "rho": rho, "t_join_ms": t_join * 1e3, "cores": cores,
-            "measured_wall_s": {"1": one["wall_s"], "2": two["wall_s"]},
-            "predicted_wall_s": {"1": local(1), "2": local(2)},
-            "cpu_s": {"1": one["cpu_s"], "2": two["cpu_s"]}, "chunks": chunks,
-            "workers_for_realtime_1h": need}
+    return {
+        "size": f"{height}p",
+        "frames": F,
+        "t_frame_ms": t_frame * 1e3,
+        "c_frame_ms": c_frame * 1e3,
+        "start_s": start,
+        "rho": rho,
+        "t_join_ms": t_join * 1e3,
+        "cores": cores,
+        "measured_wall_s": {"1": one["wall_s"], "2": two["wall_s"]},
+        "predicted_wall_s": {"1": local(1), "2": local(2)},
+        "cpu_s": {"1": one["cpu_s"], "2": two["cpu_s"]},
+        "chunks": chunks,
+        "workers_for_realtime_1h": need,
+    }
 
 
 def main() -> int:
@@ -201,8 +242,15 @@ def main() -> int:
     sizes = [int(s) for s in a.sizes.split(",")]
     res = resolution(a.frames, a.runs, sizes)
     print(side_by_side(res), file=sys.stderr, flush=True)
-    result = {"bench": "video_scale", "meta": _common.metadata(), "frames": a.frames, "runs": a.runs,
-              "resolution": res, "table": side_by_side(res).splitlines(), "scale": None if a.no_scale else scale(a.frames, a.model_size)}
+    result = {
+        "bench": "video_scale",
+        "meta": _common.metadata(),
+        "frames": a.frames,
+        "runs": a.runs,
+        "resolution": res,
+        "table": side_by_side(res).splitlines(),
+        "scale": None if a.no_scale else scale(a.frames, a.model_size),
+    }
     _common.emit(result, a.out)
     return 0
 

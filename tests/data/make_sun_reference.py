@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import json
 import sys
-from datetime import datetime, timedelta, timezone, UTC
+from datetime import UTC, datetime, timedelta, timezone
 from pathlib import Path
 
 import numpy as np
@@ -39,8 +39,14 @@ def _row(t_local: datetime, lat, lon, elev, tag, rng):
     t_utc = pd.Timestamp(t_local.astimezone(UTC))
     delta_t = float(np.round(pvlib.spa.calculate_deltat(t_utc.year, t_utc.month), 3))
     df = pvlib.solarposition.spa_python(
-        pd.DatetimeIndex([t_utc]), lat, lon, altitude=elev, pressure=pressure * 100.0, temperature=temp,
-        delta_t=delta_t, how="numpy",
+        pd.DatetimeIndex([t_utc]),
+        lat,
+        lon,
+        altitude=elev,
+        pressure=pressure * 100.0,
+        temperature=temp,
+        delta_t=delta_t,
+        how="numpy",
     )
     return {
         "time": t_local.isoformat(),
@@ -82,9 +88,15 @@ def main() -> int:
                 for dmin in (-20, 0, 20):
                     rows.append(_row(t + timedelta(minutes=dmin), lat, lon, 0.0, f"{key}{dmin:+d}min", rng))
     # polar day (midnight sun) and polar night, both hemispheres, every 2 hours
-    for lat, month, day, tag in ((70.0, 6, 21, "polar day"), (-70.0, 12, 21, "polar day"), (75.0, 6, 1, "polar day"),
-                                 (70.0, 12, 21, "polar night"), (-70.0, 6, 21, "polar night"),
-                                 (78.2, 12, 1, "polar night"), (-78.2, 6, 1, "polar night")):
+    for lat, month, day, tag in (
+        (70.0, 6, 21, "polar day"),
+        (-70.0, 12, 21, "polar day"),
+        (75.0, 6, 1, "polar day"),
+        (70.0, 12, 21, "polar night"),
+        (-70.0, 6, 21, "polar night"),
+        (78.2, 12, 1, "polar night"),
+        (-78.2, 6, 1, "polar night"),
+    ):
         lon = float(np.round(rng.uniform(-180, 180), 4))
         for hour in range(0, 24, 2):
             t = datetime(2022, month, day, hour, 0, 0, tzinfo=UTC)
