@@ -10,6 +10,8 @@ in turn (order alternating every pair), so both see the same machine load at nea
 JSON: per tree the median, IQR ``[q25, q75]`` and min of the frame times and the median of each stage the report times,
 and the median and IQR of the paired ratios
 B / A. On a shared machine the paired ratio is the figure to quote; absolute times move with the load.
+``AB_NEW_OPTIONS='{"exposure": false}'`` sets RenderOptions fields in a tree whose engine is Session (issue 16
+on), e.g. to time the façade without the exposure match that issue 17 turned on by default.
 """
 
 from __future__ import annotations
@@ -51,7 +53,9 @@ try:  # a tree from before Session became the engine (issue 16): the Compositor
 except ImportError:
     from arshadow.scene import RenderOptions, Scene
     from arshadow.session import Session
-    comp = Session(Scene(intr, caster, lights, RenderOptions(), {"marker_length": 0.05}), context=ctx)
+    import os  # AB_NEW_OPTIONS: RenderOptions fields for a tree with Session (e.g. '{"exposure": false}')
+    opts = RenderOptions(**json.loads(os.environ.get("AB_NEW_OPTIONS", "{}")))
+    comp = Session(Scene(intr, caster, lights, opts, {"marker_length": 0.05}), context=ctx)
     frame = lambda: comp.process(image, want_mask=False, out=buf).item
 else:
     comp = Compositor(ctx, intr, caster, lights, RenderOptions(), tracker={"marker_length": 0.05})
