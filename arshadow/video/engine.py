@@ -33,6 +33,7 @@ from ..errors import ArshadowError, UsageError
 from ..export.layervideo import LayerSink, check_video_layer_format, video_layer_paths
 from ..export.stmap import stmap
 from ..io import unique_stems
+from ..tracking.detect import retry_due
 from .avio import VIDEO_CODECS
 from .decode import decode_into, open_reader
 from .encode import EncodeSink, SheetThumbs, write_contact_sheet
@@ -280,14 +281,16 @@ def run_frames(
         if enc_t.error is not None or not put_or_stop(q_out, job, stop):
             raise enc_t.error or RuntimeError("encoder stopped")
 
+    misses = 0  # frames in a row without the marker (the colour retry's schedule, tracking.detect.retry_due)
     try:
         while (job := _next_decoded(q_in, dec_t, enc_t)) is not END:
             fr, dec_ms = job
             timings = dict.fromkeys(FRAME_STAGES, 0.0)
             pose, _err = composer.backend.track(gray_of(fr, reader.height), timings)
-            if pose is None and getattr(fr, "format", "bgr24") == "yuv420p":
+            if pose is None and getattr(fr, "format", "bgr24") == "yuv420p" and retry_due(misses):
                 # the luma is not the colour frame's grey (chroma): on a miss, the photo path's (issue 21)
                 pose, _err = composer.backend.track(gray_of(fr, reader.height, colour=True), timings)
+            misses = 0 if pose is not None else misses + 1
             reason = None if _err is None else str(_err)
             for fp in stream.push((fr, dec_ms, timings, getattr(fr, "format", "bgr24"), reason), pose, fr.time_s):
                 emit(fp)

@@ -83,6 +83,7 @@ def main() -> int:
     ap.add_argument("--b", type=Path, required=True, help="the new tree (B)")
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--frames", type=int, default=300)
+    ap.add_argument("--b-extra", default="", help="more arshadow video options for B only, space-separated")
     args = ap.parse_args()
     clip = judged_clip(args.frames)
     fps: dict[str, list[float]] = {"a": [], "b": []}
@@ -91,7 +92,8 @@ def main() -> int:
         loads.append([round(x, 2) for x in os.getloadavg()])
         order = ("a", "b") if r % 2 == 0 else ("b", "a")
         for k in order:
-            fps[k].append(run_tree(getattr(args, k).resolve(), clip, Path(CALIB_720).resolve(), list(KNOT_SCENE)))
+            scene = list(KNOT_SCENE) + (args.b_extra.split() if k == "b" else [])
+            fps[k].append(run_tree(getattr(args, k).resolve(), clip, Path(CALIB_720).resolve(), scene))
     ratio = np.asarray(fps["a"]) / np.asarray(fps["b"])
 
     def stats(x):
