@@ -350,8 +350,9 @@ def _compose_cpu(
     if gained and layer_request is not None:  # layers hold the gained colour (copies: the renderer's stay)
         color = np.array(color, np.float32)
         color[:, :, :3] *= gain
-        pinhole = (pinhole[0], np.array(pinhole[1], np.float32))
-        pinhole[1][:, :, :3] *= gain
+        if layer_request.get("undistorted"):  # the canvas-sized pinhole copy only for undistorted layers
+            pinhole = (pinhole[0], np.array(pinhole[1], np.float32))
+            pinhole[1][:, :, :3] *= gain
         gained = False  # applied
     if layer_request is not None:  # execute's ``layers``: gets the frame's layers
         layer_request["layers"] = _frame_layers(
