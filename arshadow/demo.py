@@ -9,9 +9,10 @@ from pathlib import Path
 from .errors import ArshadowError, UsageError
 from .io import read_image, write_image, write_json
 from .photos import PhotoJob, caption_panel, contact_sheet, render_photos
+from .render_options import DEFAULT_AA
 from .report import ReportItem, make_report
 from .resources import samples_dir
-from .scene import DEFAULT_AA, scene_from_dict
+from .scene import scene_from_dict
 from .session import Session
 
 __all__ = ["find_samples", "scene_spec", "run_demo", "SCENE_JSON_KEYS"]
@@ -63,7 +64,7 @@ def run_demo(samples: Path, outdir, *, aa: int = DEFAULT_AA, debug: bool = False
         A folder with ``scenes.json`` (:func:`find_samples`).
     outdir : str or Path
     aa : int
-        MSAA samples (default :data:`arshadow.scene.DEFAULT_AA`, as ``arshadow render``).
+        MSAA samples (default :data:`arshadow.render_options.DEFAULT_AA`, as ``arshadow render``).
     debug : bool
         Re-raise errors (tracebacks).
     on_done : callable, optional

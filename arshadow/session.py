@@ -36,16 +36,13 @@ import logging
 import os
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
-import cv2
 import numpy as np
 
 from .camera import Intrinsics
 from .compose.composite import Workspace
-from .compose.layers import Layers
 from .compose.lens import LensWarp
 from .engine import CalibrationState, check_image, default_renderer, estimate_pose
 from .errors import UsageError
@@ -57,6 +54,7 @@ from .lights.spec import parse_light
 from .plan import FramePlan, SceneGeometry, decide_compose, plan_frame
 from .render_api import Renderer
 from .report import ReportItem, StageTimings
+from .result import FrameResult
 from .sanity import FrameChecks, calibration_scaled_note
 from .scene import Scene, SceneSpec, load_scene, scene_from_dict
 from .transforms import invert_rigid, rvec_tvec_from_matrix
@@ -64,52 +62,6 @@ from .transforms import invert_rigid, rvec_tvec_from_matrix
 __all__ = ["Session", "FrameResult", "render_photo"]
 
 log = logging.getLogger(__name__)
-
-
-@dataclass
-class FrameResult:
-    """One frame's result (fields are added at the end, with defaults).
-
-    Attributes
-    ----------
-    composite : (H, W, 3) uint8
-        The photo with the object and its shadow (BGR).
-    mask : (H, W) uint8 or None
-        The shadow mask of CONVENTIONS.md (None when not asked for).
-    pose : arshadow.tracking.pose.MarkerPose or None
-        The tracked pose (None when rendering at a given ``cam_from_world``).
-    cam_from_world : (4, 4) float64
-        The camera rendered with, in the scene's frame: the ground frame (:meth:`Session.ground_camera`;
-        the marker's pose itself unless ``--ground`` moves the ground).
-    item : arshadow.report.ReportItem
-        The report entry (``output``/``mask`` paths left for the caller).
-    timings : arshadow.report.StageTimings
-        Milliseconds per stage.
-    plan : arshadow.plan.FramePlan
-        What was decided for the frame, with reasons (``plan.decisions``).
-    layers : arshadow.compose.layers.Layers or None
-        The object (premultiplied linear RGBA) and shadow (multiply pass) layers, when asked for
-        (``layers=True``): ``plate x shadow + object`` in linear light is the composite (docs/export.md).
-    """
-
-    composite: np.ndarray
-    mask: np.ndarray | None
-    pose: object
-    cam_from_world: np.ndarray
-    item: ReportItem
-    timings: StageTimings = field(default_factory=StageTimings)
-    plan: FramePlan | None = None
-    layers: Layers | None = None
-
-    def _repr_png_(self) -> bytes:
-        """The composite as PNG bytes: a result shows itself as an image in Jupyter."""
-        ok, buf = cv2.imencode(".png", self.composite)
-        return buf.tobytes() if ok else b""
-
-    @property
-    def timings_ms(self) -> dict[str, float]:
-        """``timings`` as the report's ``{stage: ms}`` (rounded to microseconds)."""
-        return self.timings.as_dict(3)
 
 
 class Session:

@@ -594,7 +594,7 @@ def test_batch_json_item_output_is_not_null(tmp_path):
 
 def test_demo_and_render_agree_on_aa():
     from arshadow.cli import build_parser
-    from arshadow.scene import DEFAULT_AA, RenderOptions
+    from arshadow.render_options import DEFAULT_AA, RenderOptions
 
     sub = next(a for a in build_parser()._actions if a.dest == "command").choices
     defaults = {n: next(a.default for a in sub[n]._actions if "--aa" in a.option_strings) for n in ("render", "demo")}

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from ..scene import DEFAULT_AA
+from ..render_options import DEFAULT_AA
 from . import EXIT_OK, EXIT_SOME_FAILED, quiet_opencv
 
 

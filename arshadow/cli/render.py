@@ -7,7 +7,8 @@ import logging
 import sys
 
 from ..errors import UsageError
-from ..scene import DEFAULT_AA, parse_triple, scene_from_args
+from ..render_options import DEFAULT_AA
+from ..scene import parse_triple, scene_from_args
 from . import EXIT_OK, EXIT_SOME_FAILED, error_line, quiet_opencv
 from .light import add_probe_options, probe_estimate
 

@@ -1,7 +1,12 @@
 """Offscreen stencil shadow-volume renderer (moderngl + raw GL stencil through ctypes): :class:`ShadowRenderer`.
 
-(A little over 600 lines: one class whose methods are the passes below; they share the frame's raw GL
-state, which each pass sets and the last resets, so they stay together.)
+(About 780 lines, over the project's ~600, on purpose: this is one class, and its methods are the frame's
+passes (clear, occluder base, ground, light, planar direct, count, mask, resolve, readback). The passes
+share the frame's raw GL state (stencil function and operations, write masks, depth test, bound
+framebuffer), which each pass sets from what the previous one left and the last resets. Split across
+modules, that state contract would span files and could no longer be read in one place. What is not a
+pass lives elsewhere: GPU resources in :mod:`arshadow.gl.resources`, render targets in
+:mod:`arshadow.gl.targets`, the GPU-resident layers in :mod:`arshadow.gl.layers`.)
 
 The renderer is handed a moderngl context (see :mod:`arshadow.gl.context`); it never creates one. Its GPU
 resources (programs, caster buffers, framebuffers, the ground) are in :mod:`arshadow.gl.resources`; each
@@ -60,13 +65,13 @@ from .context import current
 from .layers import GpuLayers
 from .resources import (
     CasterCache,
-    FrameTargets,
     GroundBuffer,
     VolumeBuffers,
     program,
     screen_box,
     translation,
 )
+from .targets import FrameTargets
 
 __all__ = ["LightPass", "RenderResult", "ShadowRenderer"]
 

@@ -1,5 +1,11 @@
 """The sun's position for an instant and a place, and its direction in the world frame.
 
+(About 600 lines, a little over the project's ~600: the position models and their options, the ENU <->
+world conversions and the per-frame :class:`SunTrack` are one public module of the docs (docs/lights.md
+imports ``sun_position``, ``enu_to_world``, ``SunTrack`` and ``frame_times`` from it). The bulk of the
+computation, NREL's SPA, is already in :mod:`arshadow.lights.spa`, and its tables are in
+:mod:`arshadow.lights._spa_tables`.)
+
 Models
 ------
 ``"spa"`` (default)

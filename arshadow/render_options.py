@@ -1,0 +1,135 @@
+"""Render options: what to render and how to composite it (:class:`RenderOptions`, the ``arshadow render``
+options), with the choices they accept. Part of the scene (:class:`arshadow.scene.SceneSpec` holds one);
+kept apart so that the scene module stays the spec and its builders.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from .errors import UsageError
+from .geometry.ground import parse_ground
+from .plan_rules import PLAN_OFF, PLANS
+
+__all__ = ["RenderOptions", "SHADOW_METHODS", "AA_CHOICES", "DEFAULT_AA"]
+
+#: shadow techniques: stencil volumes (exact), planar projection (exact on the ground for convex
+#: occluders), the shadow-map baseline (approximate)
+SHADOW_METHODS = ("volume", "planar", "shadowmap")
+#: MSAA sample counts :class:`RenderOptions` accepts (what ``--aa`` documents)
+AA_CHOICES = (0, 2, 4)
+#: the MSAA default of every command and of the API (``render``, ``video``, ``batch`` and ``demo`` agree): pixel-centre
+#: sampling, the exact and fastest path (docs/compositing.md); ``--aa 4`` for smoother edges
+DEFAULT_AA = 0
+
+
+@dataclass(frozen=True)
+class RenderOptions:
+    """What to render and how to composite it (the ``arshadow render`` options).
+
+    Attributes
+    ----------
+    opacity : float
+        How dark a fully blocked ground pixel gets (``1 - opacity`` of its light is kept).
+    shadow_color : (3,) float
+        Linear RGB tint of a full shadow (black: plain darkening).
+    shadow_method : str
+        ``"volume"`` (stencil shadow volumes, exact), ``"planar"`` (projection shadows, paper 002/004) or
+        ``"shadowmap"`` (the shadow-map baseline, :class:`arshadow.gl.shadowmap.ShadowMapRenderer`).
+    shadowmap_size : int
+        Shadow map side in texels (``shadow_method="shadowmap"`` only).
+    silhouette : str
+        Silhouette detector name (``adjacency``, ``triangular``, ``vnv``, ``hsd``, ``delta_plus``).
+    soft_samples : int
+        Samples per area light (lights with a radius); 1 = hard shadows from the light's centre.
+    aa : int
+        MSAA samples of the renderer (0 = none).
+    ground_size : float or None
+        Side of the square proxy ground plane centred on the origin (None: unlimited).
+    ground : str
+        Where the ground plane is, relative to the marker (:func:`arshadow.geometry.ground.parse_ground`):
+        ``marker`` (the marker plane, the default), ``wall:H`` or ``plane:PX,PY,PZ,NX,NY,NZ``. The model
+        and the lights are placed in its frame.
+    draw_occluder : bool
+        Draw the shaded object over the shadow.
+    truncate : bool
+        Extrude volumes only to just below the ground instead of to infinity (paper 002).
+    roi : bool
+        Render only the region the object and its shadow can cover (False: always the whole photo).
+    occluder_color : (3,) float, optional
+        Override of the occluder's colour handed to the renderer.
+    ambient, specular : float
+        The object's ambient term and specular weight (the renderer's shading; ``light_from`` sets them from
+        the measured light: the measured ambient share, a matte object like the paper).
+    fast_detect : bool
+        Try the fast detection pass first (``MarkerTracker(detector="fast")``,
+        :mod:`arshadow.tracking.fastdetect`), the full search only if it finds nothing.
+    plan : str
+        Frame planner (:mod:`arshadow.plan_rules`, docs/planner.md): ``auto`` (the cheapest exact path per
+        frame and light), ``general`` (the reference: z-fail, volumes to infinity, whole photo, every pass,
+        geometry rebuilt every frame, no culling), or force ``zpass`` / ``zfail`` / ``planar``.
+    plan_off : tuple of str
+        ``auto`` decisions to switch off (benchmarks, tests): ``planar``, ``zpass``, ``truncate``,
+        ``cull``, ``roi``, ``reuse``.
+    compose : str
+        ``auto`` (time the numpy and the shader lens-warp + composite on first use per photo size and
+        keep numpy unless the shader is > 15 % faster: :class:`arshadow.gl.compose.PathChooser`), ``cpu`` or
+        ``gpu``.
+    track_roi : bool
+        Video: search the marker in a window around the last detection first (full-frame fallback).
+    exposure : bool
+        Match the marker paper's exposure / white balance on every photo and video frame
+        (:mod:`arshadow.estimate.match`; ``--no-exposure`` turns it off).
+    exposure_gain : (3,) float, optional
+        The gain already in ``occluder_color`` (``light_from``): the per-photo gain is applied relative to it.
+    """
+
+    opacity: float = 0.7
+    shadow_color: tuple = (0.0, 0.0, 0.0)
+    shadow_method: str = "volume"
+    shadowmap_size: int = 2048
+    silhouette: str = "adjacency"
+    soft_samples: int = 1
+    aa: int = DEFAULT_AA
+    ground_size: float | None = None
+    ground: str = "marker"
+    draw_occluder: bool = True
+    truncate: bool = True
+    roi: bool = True
+    occluder_color: tuple | None = None
+    ambient: float = 0.25
+    specular: float = 0.25
+    fast_detect: bool = True
+    plan: str = "auto"
+    plan_off: tuple = ()
+    compose: str = "auto"
+    track_roi: bool = False
+    exposure: bool = True
+    exposure_gain: tuple | None = None
+
+    def check(self) -> RenderOptions:
+        """Validate (UsageError naming the ``arshadow render`` option); returns self."""
+        if self.plan not in PLANS:
+            raise UsageError(f"--plan {self.plan!r}: choose one of {', '.join(PLANS)}")
+        bad = set(self.plan_off) - set(PLAN_OFF)
+        if bad:
+            raise UsageError(f"plan_off: unknown decision(s) {', '.join(sorted(bad))} (known: {', '.join(PLAN_OFF)})")
+        if self.compose not in ("auto", "cpu", "gpu"):
+            raise UsageError(f"--compose {self.compose!r}: choose auto, cpu or gpu")
+        if not (0.0 <= float(self.opacity) <= 1.0):
+            raise UsageError(f"--opacity {self.opacity}: must be in [0, 1]")
+        if self.shadow_method not in SHADOW_METHODS:
+            raise UsageError(f"--shadow-method {self.shadow_method!r}: choose {', '.join(SHADOW_METHODS)}")
+        if self.shadow_method == "shadowmap" and not (16 <= int(self.shadowmap_size) <= 16384):
+            raise UsageError(f"--shadowmap-size {self.shadowmap_size}: must be 16..16384 texels")
+        if int(self.soft_samples) < 1:
+            raise UsageError(f"--soft-samples {self.soft_samples}: must be >= 1")
+        if self.aa not in AA_CHOICES:
+            raise UsageError(
+                f"--aa {self.aa}: choose {', '.join(map(str, AA_CHOICES))} (multisample anti-aliasing samples; 0 = off)"
+            )
+        if self.ground_size is not None and not (math.isfinite(self.ground_size) and self.ground_size > 0):
+            raise UsageError(f"--ground-size {self.ground_size}: must be a positive number of metres")
+        parse_ground(self.ground)
+        return self

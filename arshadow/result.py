@@ -1,0 +1,63 @@
+"""What a session returns for a frame: :class:`FrameResult` (composite, mask, pose, camera, report item,
+timings, plan, layers), shared by :class:`arshadow.session.Session` and the code that consumes its results
+(video engine, notebooks, exports) without importing the engine.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from .compose.layers import Layers
+from .plan import FramePlan
+from .report import ReportItem, StageTimings
+
+__all__ = ["FrameResult"]
+
+
+@dataclass
+class FrameResult:
+    """One frame's result (fields are added at the end, with defaults).
+
+    Attributes
+    ----------
+    composite : (H, W, 3) uint8
+        The photo with the object and its shadow (BGR).
+    mask : (H, W) uint8 or None
+        The shadow mask of CONVENTIONS.md (None when not asked for).
+    pose : arshadow.tracking.pose.MarkerPose or None
+        The tracked pose (None when rendering at a given ``cam_from_world``).
+    cam_from_world : (4, 4) float64
+        The camera rendered with, in the scene's frame: the ground frame (:meth:`arshadow.session.Session.ground_camera`;
+        the marker's pose itself unless ``--ground`` moves the ground).
+    item : arshadow.report.ReportItem
+        The report entry (``output``/``mask`` paths left for the caller).
+    timings : arshadow.report.StageTimings
+        Milliseconds per stage.
+    plan : arshadow.plan.FramePlan
+        What was decided for the frame, with reasons (``plan.decisions``).
+    layers : arshadow.compose.layers.Layers or None
+        The object (premultiplied linear RGBA) and shadow (multiply pass) layers, when asked for
+        (``layers=True``): ``plate x shadow + object`` in linear light is the composite (docs/export.md).
+    """
+
+    composite: np.ndarray
+    mask: np.ndarray | None
+    pose: object
+    cam_from_world: np.ndarray
+    item: ReportItem
+    timings: StageTimings = field(default_factory=StageTimings)
+    plan: FramePlan | None = None
+    layers: Layers | None = None
+
+    def _repr_png_(self) -> bytes:
+        """The composite as PNG bytes: a result shows itself as an image in Jupyter."""
+        ok, buf = cv2.imencode(".png", self.composite)
+        return buf.tobytes() if ok else b""
+
+    @property
+    def timings_ms(self) -> dict[str, float]:
+        """``timings`` as the report's ``{stage: ms}`` (rounded to microseconds)."""
+        return self.timings.as_dict(3)
