@@ -113,6 +113,21 @@ def test_point_light_from_one_photo(cam):
     assert est.position_uncertainty is not None and est.position_uncertainty > 0
 
 
+def test_point_light_never_confident_and_wrong(cam):
+    """Seed 17's cases 3, 11 and 17 of the benchmark's distribution: faint or texture-dominated shadows whose
+    fitted distance is off by 10..80 % (case 17: a light fitted at the search's near edge). Each must be
+    right within 15 % of its distance from the probe, or flagged (truth: the generating light)."""
+    rng = np.random.default_rng(17)
+    cases = [random_lit_case(rng, cam, "point") for _ in range(18)]
+    for i in (3, 11, 17):
+        case = cases[i]
+        est = _estimate(case)
+        p = case["photo"]
+        foot = np.r_[np.asarray(case["probe_place"])[:2], 0.0]
+        rel = np.linalg.norm(np.array(est.position) - p.light) / np.linalg.norm(p.light - foot)
+        assert rel <= 0.15 or not est.confident, (i, rel, est.warnings)
+
+
 def test_json_round_trip_and_scene_overrides(directional_cases):
     est = _estimate(directional_cases[0])
     again = LightEstimate.from_json(est.to_json())

@@ -35,10 +35,13 @@ MAX_FRAMES = 30
 #: lowest light elevation searched, degrees (sets the ground grid's extent)
 MIN_ELEVATION = 12.0
 CONVEX_PRIMITIVES = ("box:", "cylinder:", "sphere:")
-#: a point light whose 1-sigma position uncertainty exceeds this share of its distance is flagged
-POINT_REL_SIGMA = 0.2
+#: a point light whose 1-sigma position uncertainty exceeds this share of its distance is flagged (a
+#: position 15 % off is then at least a 1.5-sigma event)
+POINT_REL_SIGMA = 0.1
 #: a point light fitted farther than this from the probe (metres) is flagged (the search goes to 3 m)
 POINT_FAR = 2.0
+#: a point light fitted nearer than this to the probe's top (metres) is flagged (the search starts at 0.15 m)
+POINT_NEAR = 0.2
 
 
 def _frames(item, max_frames):
@@ -312,6 +315,11 @@ def _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, verts, t0, notes) 
             warnings.append(
                 f"low confidence: the point light fit went {dist:.1f} m away (a far light looks "
                 "directional from one probe); fit --kind directional"
+            )
+        elif dist < POINT_NEAR:
+            warnings.append(
+                f"low confidence: the point light fit went {100 * dist:.0f} cm from the probe's top, the "
+                "edge of the search (a faint shadow is explained as well by a light almost anywhere)"
             )
         elif rel > POINT_REL_SIGMA:
             warnings.append(

@@ -67,13 +67,26 @@ def direction_of(az_deg: float, el_deg: float) -> np.ndarray:
     return np.array([math.cos(e) * math.cos(a), math.cos(e) * math.sin(a), math.sin(e)])
 
 
-def objective(evs: list, light_h) -> tuple:
-    """``(score, deltas, rss list)``: sum over frames of RSS / RSS0, and each frame's log darkness."""
+def log_coverage(S: np.ndarray, delta: float) -> np.ndarray:
+    """The shadow's coverage ``S`` (ny, nx) as it darkens the log luminance of a shadow of log darkness
+    ``delta`` (< 0): ``log(1 - a S) / log(1 - a)``, ``a = 1 - exp(delta)``; 0 and 1 where ``S`` is, but at a
+    soft edge (the photo's blur mixes light linearly) deeper than ``S``. Fitting ``S`` itself to the log
+    luminance would make every edge of the shadow look a fraction of the blur inside its place: a shadow
+    too small by a constant margin, which a point light fits by moving away (a less divergent shadow)."""
+    a = float(np.clip(1.0 - math.exp(delta), 0.02, 0.98))
+    return (np.log1p(-a * S) / math.log1p(-a)).astype(np.float32)
+
+
+def objective(evs: list, light_h, darkness=None) -> tuple:
+    """``(score, deltas, rss list)``: sum over frames of RSS / RSS0, and each frame's log darkness.
+    ``darkness``: optional per-frame log darkness; given, the shadow model is :func:`log_coverage`."""
     score, deltas, parts = 0.0, [], []
-    for ev in evs:
+    for i, ev in enumerate(evs):
         S = shadow_coverage(ev, light_h)
         if S is None:
             return math.inf, [], []
+        if darkness is not None:
+            S = log_coverage(S, darkness[i])
         rss, delta, rss0, n = fit_levels(ev, S)
         if not math.isfinite(rss0) or rss0 <= 0:
             score += 1.0
@@ -89,13 +102,13 @@ def objective(evs: list, light_h) -> tuple:
 
 
 class _Counter:
-    def __init__(self, evs, to_light):
-        self.evs, self.to_light, self.n = evs, to_light, 0
+    def __init__(self, evs, to_light, darkness=None):
+        self.evs, self.to_light, self.n, self.darkness = evs, to_light, 0, darkness
 
     def __call__(self, p):
         self.n += 1
         h = self.to_light(np.asarray(p, np.float64))
-        return math.inf if h is None else objective(self.evs, h)[0]
+        return math.inf if h is None else objective(self.evs, h, self.darkness)[0]
 
 
 def _visible_share(evs, light_h) -> float:
@@ -110,12 +123,14 @@ def _visible_share(evs, light_h) -> float:
     return vis / tot if tot > 0 else 0.0
 
 
-def _correlation_factor(evs, light_h) -> float:
+def _correlation_factor(evs, light_h, darkness=None) -> float:
     """How many cells one independent residual spans: ((1 + rho) / (1 - rho))^2, rho the lag-1 correlation
     of the fit's residual along the grid's rows and columns (capped to [1, 400])."""
     f = []
-    for ev in evs:
+    for i, ev in enumerate(evs):
         S = shadow_coverage(ev, light_h)
+        if darkness is not None:
+            S = log_coverage(S, darkness[i])
         _, delta, _, _ = fit_levels(ev, S)
         r = np.where(ev.used, ev.log_y - delta * S, np.nan)
         r = r - np.nanmean(r)
@@ -127,14 +142,14 @@ def _correlation_factor(evs, light_h) -> float:
     return float(np.clip(np.mean(f), 1.0, 400.0))
 
 
-def _laplace(evs, to_light, p, steps) -> np.ndarray:
+def _laplace(evs, to_light, p, steps, darkness=None) -> np.ndarray:
     """Covariance of the parameters ``p`` from the numerical Hessian of the summed RSS."""
 
     def rss(q):
         h = to_light(np.asarray(q, np.float64))
         if h is None:
             return math.inf
-        return sum(a for a, _, _ in objective(evs, h)[2])
+        return sum(a for a, _, _ in objective(evs, h, darkness)[2])
 
     k = len(p)
     f0 = rss(p)
@@ -148,8 +163,8 @@ def _laplace(evs, to_light, p, steps) -> np.ndarray:
                 Hm[i, j] = Hm[j, i] = (rss(p + ei + ej) - rss(p + ei - ej) - rss(p - ei + ej) + rss(p - ei - ej)) / (
                     4 * steps[i] * steps[j]
                 )
-    n = sum(c for _, _, c in objective(evs, to_light(p))[2])
-    sigma2 = f0 / max(n - k - 2, 1) * _correlation_factor(evs, to_light(p))
+    n = sum(c for _, _, c in objective(evs, to_light(p), darkness)[2])
+    sigma2 = f0 / max(n - k - 2, 1) * _correlation_factor(evs, to_light(p), darkness)
     try:
         cov = 2.0 * sigma2 * np.linalg.inv(Hm)
     except np.linalg.LinAlgError:
@@ -201,9 +216,9 @@ def _check(evs, h, score, deltas, runner_up_score):
     return explained, visible, runner
 
 
-def _refine(fine, to_light, starts, simplex_step, xatol):
+def _refine(fine, to_light, starts, simplex_step, xatol, darkness=None):
     best = None
-    count = _Counter(fine, to_light)
+    count = _Counter(fine, to_light, darkness)
     for p0 in starts:
         init = np.vstack([p0] + [p0 + np.eye(len(p0))[i] * simplex_step[i] for i in range(len(p0))])
         res = minimize(
@@ -303,9 +318,12 @@ def fit_point(coarse: list, make_fine, anchor) -> FitResult:
         pos = position(q)
         return None if pos[2] <= top + 0.01 or q[1] >= 89.5 else np.append(pos, 1.0)
 
-    # the profile of the objective over the distance: (azimuth, elevation) re-fitted on the fine grids at
-    # each distance (the shadow's outline moves with both), from the directional fit
-    count = _Counter(fine, to_light)
+    # the profile of the objective over the distance: (azimuth, elevation) re-fitted on the coarse grids at
+    # each distance (the shadow's outline moves with both), from the directional fit; it only proposes
+    # starts, the fine grids (4x the cost of an evaluation) judge them
+    dark = [float(x) for x in d.deltas]  # the shadow's depth per frame, for its soft edges in log
+    count = _Counter(fine, to_light, dark)
+    count_c = _Counter(coarse, to_light, dark)
     profile = []
     ae = np.array([az0, el0])
     for t in np.geomspace(3.0, 0.15, 9):  # far to near, each distance warm-started from the previous one
@@ -314,7 +332,7 @@ def fit_point(coarse: list, make_fine, anchor) -> FitResult:
             continue
         init = np.vstack([q0[:2], q0[:2] + [2.0, 0.0], q0[:2] + [0.0, 2.0]])
         r = minimize(
-            lambda a, lt=q0[2]: count(np.r_[a, lt]),
+            lambda a, lt=q0[2]: count_c(np.r_[a, lt]),
             q0[:2],
             method="Nelder-Mead",
             options={"initial_simplex": init, "xatol": 0.1, "fatol": 1e-6, "maxiter": 45},
@@ -333,25 +351,35 @@ def fit_point(coarse: list, make_fine, anchor) -> FitResult:
             for e in el0 + np.arange(-12.0, 12.1, 4.0)
         ]
     )
-    scores = np.array([objective(coarse, h)[0] if (h := to_light(q)) is not None else math.inf for q in grid])
+    scores = np.array([objective(coarse, h, dark)[0] if (h := to_light(q)) is not None else math.inf for q in grid])
     if np.isfinite(scores.min()):
         starts.append(grid[int(np.argmin(scores))])
     if not starts:
         raise EstimateError("no point light above the probe explains its shadow")
     # the 3-D refinement from the two starts that explain the fine grids best (each costs up to 400 evaluations)
     starts = sorted(starts, key=lambda q: count(q))[:2]
-    res, n = _refine(fine, to_light, starts, (2.0, 2.0, 0.15), 1e-3)
+    res, n = _refine(fine, to_light, starts, (2.0, 2.0, 0.15), 1e-3, dark)
     q = res.x.copy()
     h = to_light(q)
     if h is None:
         raise EstimateError("the point light fit ended below the probe's top: no point light explains the shadow")
-    score, deltas, _ = objective(fine, h)
+    score, deltas, _ = objective(fine, h, dark)
     explained, visible, _ = _check(fine, h, score, deltas, None)
-    cov = _laplace(fine, to_light, q, np.array([0.3, 0.3, 0.02]))
+    cov = _laplace(fine, to_light, q, np.array([0.3, 0.3, 0.02]), dark)
     dist = math.exp(q[2])
     unc = math.sqrt(max(cov[1, 1] + cov[0, 0] * math.cos(math.radians(q[1])) ** 2, 0.0))
     # position: the direction's spread across, the log distance's along
     sig = dist * math.sqrt(max(math.radians(unc) ** 2 + cov[2, 2], 0.0))
     return FitResult(
-        h, position(q), score, deltas, unc, sig, explained, visible, None, d.evaluations + count.n + len(grid) + n, fine
+        h,
+        position(q),
+        score,
+        deltas,
+        unc,
+        sig,
+        explained,
+        visible,
+        None,
+        d.evaluations + count.n + count_c.n + len(grid) + n,
+        fine,
     )
