@@ -118,6 +118,25 @@ def test_pose_stream_smooths_without_lag_and_holds_then_releases():
     assert abs(lag) < 0.1 and j_raw > 3 * j_sm, (lag, j_raw, j_sm)
 
 
+def test_i420_roi_conversion_in_place_equals_the_copy():
+    """Written into the decoded frame itself (``out=yuv``: the engine's path), the result is the new array
+    of the copying call (checked against OpenCV's whole-frame conversion in the test below) and ``yuv``
+    is that result."""
+    from arshadow.video.framejob import i420_with_roi as _i420_with_roi
+
+    rng = np.random.default_rng(4)
+    H, W = 72, 128
+    for roi in [(11, 7, 31, 19), (0, 0, W, H), (W - 1, H - 1, 5, 5), (-10, -10, 30, 31), (50, 30, 0, 10), None]:
+        yuv = rng.integers(0, 256, (H * 3 // 2, W), np.uint8)
+        bgr = rng.integers(0, 256, (H, W, 3), np.uint8)
+        ref = _i420_with_roi(yuv, bgr, roi)
+        buf = yuv.copy()
+        got = _i420_with_roi(buf, bgr, roi, out=buf)
+        assert got is buf and np.array_equal(got, ref)
+        other = np.zeros_like(yuv)
+        assert _i420_with_roi(yuv, bgr, roi, out=other) is other and np.array_equal(other, ref)
+
+
 def test_i420_roi_conversion_changes_only_the_even_aligned_roi():
     """The encoder's frame: inside the ROI (widened to even pixels) exactly OpenCV's whole-frame BGR -> I420,
     outside it the decoded planes untouched."""
