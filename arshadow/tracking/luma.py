@@ -79,13 +79,23 @@ class LumaFrame:
         self.converted: list[tuple[int, int, int, int]] = []
         self._whole = False
 
-    def _ensure(self, x0: int, y0: int, x1: int, y1: int) -> None:
+    def _clip(self, x0: int, y0: int, x1: int, y1: int) -> tuple[int, int, int, int]:
         h, w = self.shape
-        x0, y0, x1, y1 = max(0, x0), max(0, y0), min(w, x1), min(h, y1)
-        if self._whole or x1 <= x0 or y1 <= y0:
+        return max(0, x0), max(0, y0), min(w, x1), min(h, y1)
+
+    def _covers(self, x0: int, y0: int, x1: int, y1: int) -> bool:
+        x0, y0, x1, y1 = self._clip(x0, y0, x1, y1)
+        return (
+            self._whole
+            or x1 <= x0
+            or y1 <= y0
+            or any(a <= x0 and b <= y0 and x1 <= c and y1 <= d for a, b, c, d in self.converted)
+        )
+
+    def _ensure(self, x0: int, y0: int, x1: int, y1: int) -> None:
+        if self._covers(x0, y0, x1, y1):
             return
-        if any(a <= x0 and b <= y0 and x1 <= c and y1 <= d for a, b, c, d in self.converted):
-            return
+        x0, y0, x1, y1 = self._clip(x0, y0, x1, y1)
         cv2.LUT(self.y[y0:y1, x0:x1], LUMA_LUT, dst=self._gray[y0:y1, x0:x1])
         self.converted.append((x0, y0, x1, y1))
 
@@ -94,20 +104,24 @@ class LumaFrame:
         self._ensure(x0, y0, x0 + w, y0 + h)
         return self._gray[y0 : y0 + h, x0 : x0 + w]
 
-    def near(self, points, margin: float = 16.0, grow: float = 0.25) -> np.ndarray:
+    def near(self, points, margin: float = 16.0, grow: float = 0.15) -> np.ndarray:
         """The frame's ``(H, W) uint8`` grey, converted (at least) around ``points (..., 2)`` (pixels): their
         bounding box grown by ``grow`` of its larger side plus ``margin`` pixels on every side. For readers
-        that look only near the found corners (edge refinement reaches ~0.1 of a marker's side, the corner
-        stability test 13-pixel windows); the rest of the array is not the frame's grey."""
+        that look only near the found corners (edge refinement reaches < 0.08 of a marker's side, the
+        corner stability test 13-pixel windows); the rest of the array is not the frame's grey. A region
+        that is not yet converted is converted with 4 more pixels of slack, so that the same corners moved
+        by refinement need no second conversion."""
         p = np.asarray(points, np.float64).reshape(-1, 2)
         lo, hi = p.min(axis=0), p.max(axis=0)
         pad = grow * float((hi - lo).max()) + margin
-        self._ensure(
+        box = (
             int(np.floor(lo[0] - pad)),
             int(np.floor(lo[1] - pad)),
             int(np.ceil(hi[0] + pad)) + 1,
             int(np.ceil(hi[1] + pad)) + 1,
         )
+        if not self._covers(*box):
+            self._ensure(box[0] - 4, box[1] - 4, box[2] + 4, box[3] + 4)
         return self._gray
 
     def full(self) -> np.ndarray:
