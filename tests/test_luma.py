@@ -117,3 +117,29 @@ def test_synthetic_clip_poses_identical_and_windowed(tmp_path):
             assert np.array_equal(a[0], b[0]) and a[1:] == b[1:]
     assert np.median(shares[40:]) < 0.2  # tracked frames convert the window only
     assert max(shares[40:]) == 1.0  # a search of the whole frame converts it all
+
+
+def test_full_range_yuv420p_is_not_read_as_limited_luma(tmp_path):
+    """A yuv420p stream flagged full range (FFV1 here; HEVC from some phones) must not take the planar
+    path, whose luma expansion and I420 conversions assume 16..235: it is read as BGR, range honoured."""
+    import av
+
+    path = tmp_path / "full.mkv"
+    y = np.full((48, 64), 250, np.uint8)
+    y[10:20, 10:30] = 5
+    planes = np.concatenate([y, np.full((24, 64), 128, np.uint8)])
+    with av.open(str(path), "w") as c:
+        s = c.add_stream("ffv1", rate=25)
+        s.width, s.height, s.pix_fmt = 64, 48, "yuv420p"
+        s.codec_context.color_range = 2
+        for _ in range(2):
+            f = av.VideoFrame.from_ndarray(planes, format="yuv420p")
+            f.color_range = 2
+            for p in s.encode(f):
+                c.mux(p)
+        for p in s.encode():
+            c.mux(p)
+    with AvReader(path, raw=True) as reader:
+        fr = next(iter(reader))
+    assert fr.format == "bgr24"
+    assert fr.image[0, 0].tolist() == [250, 250, 250] and fr.image[15, 15].tolist() == [5, 5, 5]

@@ -30,6 +30,9 @@ from ..errors import ImageError, UsageError
 
 __all__ = ["VIDEO_CODECS", "AvReader", "AvWriter", "RawFrame", "VideoFrame", "load_av", "pts_time"]
 
+#: FFmpeg's ``AVCOL_RANGE_JPEG``: a frame whose samples use the full 0..255 range
+FULL_RANGE = 2
+
 #: ``--codec`` choices -> (FFmpeg encoder, pixel format, container extensions it suits)
 VIDEO_CODECS = {
     "h264": ("libx264", "yuv420p"),
@@ -67,7 +70,8 @@ class RawFrame:
     index : int
     time_s : float
     image : ndarray
-        ``(H * 3 // 2, W) uint8`` planar Y, U, V when ``format == "yuv420p"``; else ``(H, W, 3) uint8`` BGR.
+        ``(H * 3 // 2, W) uint8`` planar Y, U, V when ``format == "yuv420p"`` (limited-range frames of even
+        size only); else ``(H, W, 3) uint8`` BGR.
     format : str
         ``"yuv420p"`` or ``"bgr24"``.
     """
@@ -188,9 +192,17 @@ class AvReader:
             for f in self._decoded():
                 if self.max_frames is not None and index >= self.max_frames:
                     return
+                # planar only for limited-range ("TV") frames: a full-range yuv420p frame (FFV1, HEVC from
+                # some phones; H.264 decodes those as yuvj420p) goes through FFmpeg's BGR conversion, which
+                # honours the range (the planar path's conversions assume 16..235)
                 fmt = (
                     "yuv420p"
-                    if (self.raw and f.format.name == "yuv420p" and not (f.width % 2 or f.height % 2))
+                    if (
+                        self.raw
+                        and f.format.name == "yuv420p"
+                        and getattr(f, "color_range", 0) != FULL_RANGE
+                        and not (f.width % 2 or f.height % 2)
+                    )
                     else "bgr24"
                 )
                 img = f.to_ndarray(format=fmt)
