@@ -28,7 +28,7 @@ import numpy as np
 
 from ..errors import ImageError, UsageError
 
-__all__ = ["VIDEO_CODECS", "AvReader", "AvWriter", "RawFrame", "VideoFrame", "load_av", "pts_time"]
+__all__ = ["VIDEO_CODECS", "AvReader", "AvWriter", "RawFrame", "VideoFrame", "display_rotation", "load_av", "pts_time"]
 
 #: FFmpeg's ``AVCOL_RANGE_JPEG``: a frame whose samples use the full 0..255 range
 FULL_RANGE = 2
@@ -126,6 +126,9 @@ class AvReader:
     frame_count : int or None
         Frames the container declares (None if it declares none).
     has_audio : bool
+    rotation : int
+        Degrees a player turns the stored frames for display (the stream's display matrix: a phone video
+        filmed upright is stored sideways with 90 or 270); the frames are read as stored.
     n_read, n_decode_errors : int
         Frames decoded so far; packets that failed to decode (skipped).
 
@@ -173,6 +176,7 @@ class AvReader:
         self.width, self.height = int(vs.codec_context.width), int(vs.codec_context.height)
         self.has_audio = bool(self._c.streams.audio)
         self.pix_fmt = vs.codec_context.pix_fmt
+        self.rotation = display_rotation(self.path)
         self.n_read = 0
         self.n_decode_errors = 0
         self.ended_with_error = False
@@ -322,6 +326,9 @@ class AvWriter:
     pix_fmt : str, optional
         Encode in this pixel format instead of the codec's default (``ffv1`` of ``yuv420p`` input: keep
         ``yuv420p``, so frames written with :meth:`write_yuv420p` stay bit-exact).
+    rotation : int
+        Display rotation (degrees) written into the stream (the input's :attr:`AvReader.rotation`): a
+        phone video filmed upright plays upright. The frames themselves are stored as given.
 
     Raises
     ------
@@ -343,6 +350,7 @@ class AvWriter:
         threads: int = 0,
         pix_fmt: str | None = None,
         gop: int | None = None,
+        rotation: int = 0,
     ):
         self.path = Path(path)
         if codec not in VIDEO_CODECS:
@@ -356,6 +364,7 @@ class AvWriter:
         self.codec, self.crf, self.preset, self.color = codec, float(crf), preset, bool(color)
         self.audio_from, self.threads, self.pix_fmt = audio_from, int(threads), pix_fmt
         self.gop = None if gop is None else int(gop)
+        self.rotation = int(rotation) % 360
         self.n_written = 0
         self.audio_copied = False
         self._stack = self._c = self._vs = None
@@ -387,6 +396,8 @@ class AvWriter:
                 raise ImageError(f"{self.path}: cannot encode {name} ({_short(exc)})") from None
             vs.width, vs.height = self.size
             vs.pix_fmt = pix
+            if self.rotation:  # the input's display rotation: players show the output as they showed it
+                vs.set_display_rotation(self.rotation)
             if self.threads:
                 vs.codec_context.thread_count = self.threads
             if name == "libx264":
@@ -506,6 +517,20 @@ class AvWriter:
             pkt.stream = out
             c.mux(pkt)
         self.audio_copied = True
+
+
+def display_rotation(path) -> int:
+    """The rotation (degrees, FFmpeg's display matrix: 0, 90, 180 or 270) a player applies to the stored
+    frames of ``path``, e.g. a phone video filmed upright: read from its first decoded frame (PyAV keeps
+    no stream-level side data), 0 when there is none or the file does not decode."""
+    av = load_av()
+    try:
+        with av.open(str(path), "r") as c:
+            for f in c.decode(video=0):
+                return int(round(float(getattr(f, "rotation", 0) or 0))) % 360
+    except (av.FFmpegError, OSError, ValueError):
+        pass
+    return 0
 
 
 def _container_format(path: Path) -> str | None:
