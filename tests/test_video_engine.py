@@ -235,6 +235,43 @@ def test_truncated_video_warns_and_exits_1_but_writes_what_it_read(tmp_path, gl_
 
 
 @pytest.mark.gl
+def test_phone_rotation_is_kept_and_named_when_the_calibration_is_turned(tmp_path, gl_ctx, capsys):
+    """A video stored sideways with a display rotation (a phone filmed upright) is tracked on its stored
+    frames and written with the same rotation; a calibration of the turned (displayed) size fails with
+    one line naming the rotation."""
+    import cv2
+
+    from arshadow.video.avio import AvReader
+
+    clip = make_clip(tmp_path / "r.mp4", _intr(), _poses(6), noise=1.0, rotation=90)
+    assert AvReader(clip).rotation == 90
+    out = tmp_path / "out"
+    assert _cli("video", clip, *SCENE, "-o", out, "-q") == 0
+    assert AvReader(out / "r.mp4").rotation == 90
+    # in chunks (the parts are joined by packet copy), the same
+    clip2 = make_clip(tmp_path / "r2.mp4", _intr(), _poses(40), noise=1.0, rotation=270, gop=10)
+    assert _cli("video", clip2, *SCENE, "-o", out, "-q", "--jobs", "2") == 0
+    assert AvReader(out / "r2.mp4").rotation == 270
+    # the same camera, calibrated in the displayed (portrait) orientation
+    intr = _intr()
+    K = intr.K.copy()
+    K[[0, 1]] = K[[1, 0]]
+    K[:, [0, 1]] = K[:, [1, 0]]
+    turned = tmp_path / "portrait.yml"
+    fs = cv2.FileStorage(str(turned), cv2.FILE_STORAGE_WRITE)
+    fs.write("image_width", intr.height)
+    fs.write("image_height", intr.width)
+    fs.write("camera_matrix", K)
+    fs.write("distortion_coefficients", np.zeros((5, 1)))
+    fs.release()
+    scene = [a if a != str(CALIB) else str(turned) for a in map(str, SCENE)]
+    capsys.readouterr()
+    rc = _cli("video", clip, *scene, "-o", tmp_path / "o2", "-q")
+    err = capsys.readouterr().err
+    assert rc != 0 and "shown turned by 90 degrees" in err and f"stored {intr.width}x{intr.height}" in err
+
+
+@pytest.mark.gl
 def test_h264_output_keeps_size_rate_and_audio(tmp_path, gl_ctx):
     clip = make_clip(tmp_path / "a.mp4", _intr(), _poses(10), noise=1.0, fps=30, audio=True)
     out = tmp_path / "out"

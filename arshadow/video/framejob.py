@@ -25,7 +25,7 @@ from ..compose.composite import clip_roi
 from ..errors import MarkerNotFoundError
 from ..report import ReportItem, StageTimings
 from ..sanity import FlagTally
-from ..tracking.detect import luma_to_gray
+from ..tracking.luma import LumaFrame
 from ..transforms import rvec_tvec_from_matrix
 
 __all__ = [
@@ -150,15 +150,16 @@ class SessionBackend:
         return list(self.session.notes or [])
 
 
-def gray_of(frame, height: int, colour: bool = False) -> np.ndarray:
-    """The grey ``(H, W) uint8`` image the tracker reads: the Y plane of a planar ``yuv420p`` frame
-    expanded from limited to full range (:func:`arshadow.tracking.detect.luma_to_gray`: the Y plane itself
-    lost real markers, issue 21), else OpenCV's BGR -> grey. ``colour``: a ``yuv420p`` frame's BGR -> grey
-    instead (the photo path's grey; the engine's retry when the Y plane shows no marker)."""
+def gray_of(frame, height: int, colour: bool = False) -> np.ndarray | LumaFrame:
+    """The grey image the tracker reads: for a planar ``yuv420p`` frame, its Y plane as a
+    :class:`arshadow.tracking.luma.LumaFrame` (expanded from limited to full range where the tracker reads
+    it: the Y plane itself lost real markers, issue 21), else OpenCV's BGR -> grey ``(H, W) uint8``.
+    ``colour``: a ``yuv420p`` frame's BGR -> grey instead (the photo path's grey; the engine's retry when
+    the Y plane shows no marker)."""
     if getattr(frame, "format", "bgr24") == "yuv420p":
         if colour:
             return cv2.cvtColor(cv2.cvtColor(frame.image, cv2.COLOR_YUV2BGR_I420), cv2.COLOR_BGR2GRAY)
-        return luma_to_gray(frame.image[:height])
+        return LumaFrame(frame.image[:height])
     return cv2.cvtColor(frame.image, cv2.COLOR_BGR2GRAY)
 
 
