@@ -7,7 +7,8 @@ report item and the frame's JSON Lines record.
 
 Colour: frames stay in the decoder's ``yuv420p`` when it gives that (the tracker reads the Y plane as its
 grey image; OpenCV converts to BGR for the compositor, and back for the encoder, only inside the frame's
-ROI, the only pixels the compositor reads and changes: every other pixel keeps its decoded value exactly).
+ROI, the only pixels the compositor reads and changes: every other pixel keeps its decoded value exactly;
+the ROI is written back into the decoded frame's own array, so no whole frame is copied).
 
 Rendering goes through :class:`SessionBackend`, the only place that knows the rendering API (the public
 methods of :class:`arshadow.session.Session`).
