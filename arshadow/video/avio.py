@@ -479,8 +479,8 @@ class AvWriter:
 
     def _frame(self, av, fmt: str):
         """The writer's one ``av.VideoFrame`` of format ``fmt``, allocated at the first frame and refilled for
-        every later one: a fresh frame per write (``VideoFrame.from_ndarray``) cost ~7 ms at 3840x2160 in
-        allocation and page faults alone. Reusing it is safe: FFmpeg takes its own copy of a frame that
+        every later one: a fresh frame per write (``VideoFrame.from_ndarray``) cost 1.8 ms of CPU per 3840x2160
+        frame against 0.6 ms refilled (and up to ~7 ms while a fresh allocation page-faults). Reusing it is safe: FFmpeg takes its own copy of a frame that
         is not reference-counted (PyAV's) when it is sent, and x264 copies the picture as it encodes."""
         vf = self._frames.get(fmt)
         if vf is None:
