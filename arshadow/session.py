@@ -57,6 +57,7 @@ from .report import ReportItem, StageTimings
 from .result import FrameResult
 from .sanity import FrameChecks, calibration_scaled_note
 from .scene import Scene, SceneSpec, load_scene, scene_from_dict
+from .tracking.luma import LumaFrame
 from .transforms import invert_rigid, rvec_tvec_from_matrix
 
 __all__ = ["Session", "FrameResult", "render_photo"]
@@ -241,12 +242,13 @@ class Session:
         return (backend, int(width), int(height), int(self.options.aa), bool(distorted))
 
     # -- the three steps --------------------------------------------------------------------------------
-    def track(self, image: np.ndarray, timings: StageTimings | None = None) -> Any:
+    def track(self, image: np.ndarray | LumaFrame, timings: StageTimings | None = None) -> Any:
         """Marker / board pose only (no rendering, no GL): the fast pass, the full search if it finds nothing.
 
         Parameters
         ----------
-        image : (H, W, 3) uint8 BGR or (H, W) uint8 grey
+        image : (H, W, 3) uint8 BGR or (H, W) uint8 grey, or arshadow.tracking.luma.LumaFrame
+            A video frame's limited-range luma (converted to grey only where the tracker reads it).
         timings : arshadow.report.StageTimings, optional
             ``detect`` and ``pose`` are added to.
 
@@ -258,7 +260,8 @@ class Session:
         ------
         MarkerNotFoundError
         """
-        image = check_image(image, "image", grey_ok=True)
+        if not isinstance(image, LumaFrame):
+            image = check_image(image, "image", grey_ok=True)
         cal = self.calibration(image.shape[1], image.shape[0])
         return estimate_pose(cal, image, timings if timings is not None else StageTimings())[0]
 

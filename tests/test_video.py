@@ -111,6 +111,31 @@ def test_reader_timestamps_and_lossless_mask_video(tmp_path):
     assert len(list(VideoReader(tmp_path / "m.mkv", max_frames=2))) == 2
 
 
+def test_writer_reused_frame_keeps_every_frame_exact(tmp_path):
+    """The writer refills one frame buffer per pixel format: lossless outputs (FFV1 of planar yuv420p, the
+    grey mask) decode to exactly the frames written, each different, at a width whose planes are padded
+    (100 px: rows of 112 and 64 bytes)."""
+    from arshadow.video.avio import AvReader, AvWriter
+
+    rng = np.random.default_rng(5)
+    H, W = 48, 100
+    yuv = [rng.integers(0, 256, (H * 3 // 2, W), np.uint8) for _ in range(4)]
+    gray = [rng.integers(0, 256, (H, W), np.uint8) for _ in range(4)]
+    with AvWriter(tmp_path / "y.mkv", 25, (W, H), codec="ffv1", pix_fmt="yuv420p") as w:
+        for f in yuv:
+            w.write_yuv420p(f)
+    with AvWriter(tmp_path / "g.mkv", 25, (W, H), color=False) as w:
+        for f in gray:
+            w.write(f)
+    got_y = [f.image for f in AvReader(tmp_path / "y.mkv", raw=True)]
+    assert len(got_y) == 4 and all(np.array_equal(a, b) for a, b in zip(got_y, yuv))
+    import av
+
+    with av.open(str(tmp_path / "g.mkv")) as c:
+        got_g = [f.to_ndarray(format="gray") for f in c.decode(video=0)]
+    assert len(got_g) == 4 and all(np.array_equal(a, b) for a, b in zip(got_g, gray))
+
+
 def test_writer_never_leaves_a_half_written_file(tmp_path):
     from arshadow.errors import ImageError
     from arshadow.video.avio import AvWriter as AtomicVideoWriter

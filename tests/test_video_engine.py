@@ -118,6 +118,25 @@ def test_pose_stream_smooths_without_lag_and_holds_then_releases():
     assert abs(lag) < 0.1 and j_raw > 3 * j_sm, (lag, j_raw, j_sm)
 
 
+def test_i420_roi_conversion_in_place_equals_the_copy():
+    """Written into the decoded frame itself (``out=yuv``: the engine's path), the result is the new array
+    of the copying call (checked against OpenCV's whole-frame conversion in the test below) and ``yuv``
+    is that result."""
+    from arshadow.video.framejob import i420_with_roi as _i420_with_roi
+
+    rng = np.random.default_rng(4)
+    H, W = 72, 128
+    for roi in [(11, 7, 31, 19), (0, 0, W, H), (W - 1, H - 1, 5, 5), (-10, -10, 30, 31), (50, 30, 0, 10), None]:
+        yuv = rng.integers(0, 256, (H * 3 // 2, W), np.uint8)
+        bgr = rng.integers(0, 256, (H, W, 3), np.uint8)
+        ref = _i420_with_roi(yuv, bgr, roi)
+        buf = yuv.copy()
+        got = _i420_with_roi(buf, bgr, roi, out=buf)
+        assert got is buf and np.array_equal(got, ref)
+        other = np.zeros_like(yuv)
+        assert _i420_with_roi(yuv, bgr, roi, out=other) is other and np.array_equal(other, ref)
+
+
 def test_i420_roi_conversion_changes_only_the_even_aligned_roi():
     """The encoder's frame: inside the ROI (widened to even pixels) exactly OpenCV's whole-frame BGR -> I420,
     outside it the decoded planes untouched."""
@@ -213,6 +232,43 @@ def test_truncated_video_warns_and_exits_1_but_writes_what_it_read(tmp_path, gl_
     v = json.loads((out / "r.json").read_text())["videos"][0]
     assert v["truncated"] and v["status"] == "damaged" and 0 < v["frames"] < n
     assert len(_frames(out / "t.mp4")) == v["frames"]
+
+
+@pytest.mark.gl
+def test_phone_rotation_is_kept_and_named_when_the_calibration_is_turned(tmp_path, gl_ctx, capsys):
+    """A video stored sideways with a display rotation (a phone filmed upright) is tracked on its stored
+    frames and written with the same rotation; a calibration of the turned (displayed) size fails with
+    one line naming the rotation."""
+    import cv2
+
+    from arshadow.video.avio import AvReader
+
+    clip = make_clip(tmp_path / "r.mp4", _intr(), _poses(6), noise=1.0, rotation=90)
+    assert AvReader(clip).rotation == 90
+    out = tmp_path / "out"
+    assert _cli("video", clip, *SCENE, "-o", out, "-q") == 0
+    assert AvReader(out / "r.mp4").rotation == 90
+    # in chunks (the parts are joined by packet copy), the same
+    clip2 = make_clip(tmp_path / "r2.mp4", _intr(), _poses(40), noise=1.0, rotation=270, gop=10)
+    assert _cli("video", clip2, *SCENE, "-o", out, "-q", "--jobs", "2") == 0
+    assert AvReader(out / "r2.mp4").rotation == 270
+    # the same camera, calibrated in the displayed (portrait) orientation
+    intr = _intr()
+    K = intr.K.copy()
+    K[[0, 1]] = K[[1, 0]]
+    K[:, [0, 1]] = K[:, [1, 0]]
+    turned = tmp_path / "portrait.yml"
+    fs = cv2.FileStorage(str(turned), cv2.FILE_STORAGE_WRITE)
+    fs.write("image_width", intr.height)
+    fs.write("image_height", intr.width)
+    fs.write("camera_matrix", K)
+    fs.write("distortion_coefficients", np.zeros((5, 1)))
+    fs.release()
+    scene = [a if a != str(CALIB) else str(turned) for a in map(str, SCENE)]
+    capsys.readouterr()
+    rc = _cli("video", clip, *scene, "-o", tmp_path / "o2", "-q")
+    err = capsys.readouterr().err
+    assert rc != 0 and "shown turned by 90 degrees" in err and f"stored {intr.width}x{intr.height}" in err
 
 
 @pytest.mark.gl

@@ -42,13 +42,16 @@ def make_clip(
     codec="h264",
     audio=False,
     gop=None,
+    rotation=0,
 ):
     """Encode one synthetic frame per pose (frames in ``blank``: the floor only, no marker); returns path."""
     from arshadow.synth import render_marker_photo
     from arshadow.video.avio import AvWriter
 
     path = Path(path)
-    with AvWriter(path, fps, (intr.width, intr.height), codec=codec, crf=crf, preset="medium", gop=gop) as w:
+    with AvWriter(
+        path, fps, (intr.width, intr.height), codec=codec, crf=crf, preset="medium", gop=gop, rotation=rotation
+    ) as w:
         for i, pose in enumerate(poses):
             ph = render_marker_photo(
                 intr,

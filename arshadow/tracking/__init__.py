@@ -4,6 +4,7 @@ One responsibility per module, in dependency order:
 
 - :mod:`arshadow.tracking.dictionary`: ArUco dictionaries (names, files), marker bits, the marker frame.
 - :mod:`arshadow.tracking.board`: the board model and board files (grid, ChArUco), the board frame.
+- :mod:`arshadow.tracking.luma`: a video frame's limited-range luma as grey, converted where it is read.
 - :mod:`arshadow.tracking.detect`: detector parameters, ``detect_markers``, ``Detection``, ``to_gray``.
 - :mod:`arshadow.tracking.refine`: edge-based corner refinement (``refine="edge"``).
 - :mod:`arshadow.tracking.quality`: the single-marker quality gates (ambiguity, blur, occlusion).

@@ -15,6 +15,7 @@ from ..camera import open_storage
 from ..errors import UsageError
 from ..io import to_bgr8
 from .dictionary import get_dictionary
+from .luma import LumaFrame, luma_to_gray
 
 __all__ = [
     "REFINE_METHODS",
@@ -175,36 +176,17 @@ class Detection:
         return out
 
 
-#: limited-range ("TV", BT.601/709) luma 16..235 -> full-range gray 0..255 (:func:`luma_to_gray`)
-_LUMA_LUT = np.clip(np.round((np.arange(256) - 16.0) * 255.0 / 219.0), 0, 255).astype(np.uint8)
-
-
-def luma_to_gray(y: np.ndarray) -> np.ndarray:
-    """(H, W) uint8 full-range gray from the limited-range luma plane ``y (H, W) uint8`` of a ``yuv420p``
-    video frame (16 = black, 235 = white), as ``cv2.cvtColor(BGR -> GRAY)`` of the decoded frame gives it
-    (within rounding).
-
-    Why: the detector's adaptive threshold subtracts a constant (7 grey levels) from the local mean; on the
-    Y plane, whose contrast is 219/255 of the gray image's, markers whose corners touch (a chessboard of
-    markers) fall apart into one blob: stock OpenCV found marker 32 of the shared real chessboard clip in
-    59 frames of the Y plane against 108 of the gray frames, 112 after this conversion (issue 21).
-
-    Examples
-    --------
-    >>> luma_to_gray(np.array([[16, 235, 0, 255]], np.uint8)).tolist()
-    [[0, 255, 0, 255]]
-    """
-    return cv2.LUT(np.ascontiguousarray(y), _LUMA_LUT)
-
-
 def to_gray(image) -> np.ndarray:
-    """(H, W) uint8 gray of an image of any layout or depth (BGR uint8, gray, BGRA, 16-bit, float).
+    """(H, W) uint8 gray of an image of any layout or depth (BGR uint8, gray, BGRA, 16-bit, float) or of a
+    video frame's :class:`arshadow.tracking.luma.LumaFrame` (all of it converted).
 
     Examples
     --------
     >>> to_gray(np.zeros((2, 3, 3), np.uint8)).shape
     (2, 3)
     """
+    if isinstance(image, LumaFrame):
+        return image.full()
     img = np.asarray(image)
     if img.ndim == 2 and img.dtype == np.uint8:
         return img

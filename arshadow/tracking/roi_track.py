@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..plan_rules import tracking_roi
+from .luma import LumaFrame
 
 __all__ = ["TrackingDetector"]
 
@@ -48,11 +49,14 @@ class TrackingDetector:
         self._corners = None
 
     def detectMarkers(self, gray):  # noqa: N802 (OpenCV's name)
+        """``gray``: (H, W) uint8, or a video frame's :class:`arshadow.tracking.luma.LumaFrame` (only the
+        window is converted unless the whole frame is searched)."""
         h, w = gray.shape[:2]
         self.window = win = None if self._corners is None else tracking_roi(self._corners, w, h)
         if win is not None:
             x0, y0, ww, hh = win
-            corners, ids, rejected = self._base.detectMarkers(np.ascontiguousarray(gray[y0 : y0 + hh, x0 : x0 + ww]))
+            crop = gray.region(x0, y0, ww, hh) if isinstance(gray, LumaFrame) else gray[y0 : y0 + hh, x0 : x0 + ww]
+            corners, ids, rejected = self._base.detectMarkers(np.ascontiguousarray(crop))
             ok = (
                 ids is not None
                 and len(ids) > 0
@@ -67,7 +71,7 @@ class TrackingDetector:
                 self._remember(corners)
                 self.last = "window"
                 return corners, ids, rejected
-        corners, ids, rejected = self._base.detectMarkers(gray)
+        corners, ids, rejected = self._base.detectMarkers(gray.full() if isinstance(gray, LumaFrame) else gray)
         self.window = None
         self.last = "full"
         if ids is not None and len(ids) > 0:

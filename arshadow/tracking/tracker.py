@@ -33,6 +33,7 @@ from .dictionary import (
     marker_object_points,
 )
 from .fastdetect import fast_detector_params, wrap_fast_detector
+from .luma import LumaFrame
 from .pose import AltPose, MarkerPose, solve_general, solve_planar
 from .quality import AMBIGUITY_FLAG, border_occlusion, corner_instability
 from .refine import refine_corners_edges
@@ -183,7 +184,7 @@ class MarkerTracker:
 
     # -- helpers ---------------------------------------------------------------------------------------
     def _intrinsics_for(self, image) -> tuple[Intrinsics, bool]:
-        h, w = np.asarray(image).shape[:2]
+        h, w = (image if isinstance(image, LumaFrame) else np.asarray(image)).shape[:2]
         return self.intrinsics.for_image(w, h)
 
     @property
@@ -229,11 +230,14 @@ class MarkerTracker:
         CalibrationError
             The image size does not fit the calibration.
         """
-        img = np.asarray(image_bgr)
-        if img.ndim not in (2, 3) or img.size == 0:
+        img = image_bgr if isinstance(image_bgr, LumaFrame) else np.asarray(image_bgr)
+        if img.ndim not in (2, 3) or 0 in img.shape:
             raise ImageError(f"not an image (shape {img.shape})")
         intr, scaled = self._intrinsics_for(img)
-        gray = to_gray(img)
+        # a video frame's luma is converted only where it is read: the tracking window and the found
+        # corners' neighbourhood (the whole frame for boards and full searches)
+        lazy = isinstance(img, LumaFrame) and self.board is None and isinstance(self._detector, TrackingDetector)
+        gray = img if lazy else to_gray(img)
         self._t_detect = None
         t0 = time.perf_counter()
         if self.board is None:
@@ -247,6 +251,8 @@ class MarkerTracker:
         pose.timings_ms = {"detect": det_ms, "pose": total - det_ms}
         pose.intrinsics, pose.scaled = intr, scaled
         pose.ambiguity_threshold = self.ambiguity_threshold
+        if isinstance(gray, LumaFrame):
+            gray = gray.near(pose.corners[:4])
         if pose.kind == "marker":
             pose.corner_instability = corner_instability(gray, pose.corners[:4])
             ref = pose.marker_ids[0]
@@ -327,7 +333,9 @@ class MarkerTracker:
         self._t_detect = time.perf_counter()
         det = detection_from_opencv(corners, ids, rejected, self._shift_params)
         if len(det) == 0:
-            raise MarkerNotFoundError(f"no marker of {self.dictionary_name} found{self.miss_hint(gray)}")
+            raise MarkerNotFoundError(f"no marker of {self.dictionary_name} found{self.miss_hint(to_gray(gray))}")
+        if isinstance(gray, LumaFrame):  # the found markers' neighbourhood is all the rest reads
+            gray = gray.near(det.corners)
         if self.refine == "edge":
             det.corners = refine_corners_edges(gray, det.corners, intr)
         found = sorted(set(det.ids.tolist()))

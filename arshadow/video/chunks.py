@@ -245,10 +245,11 @@ def first_mismatch(store: ChunkStore, chunks: list[Chunk], records: dict, opts: 
 
 
 def join_chunks(
-    store: ChunkStore, chunks: list[Chunk], outputs: dict, opts: EngineOptions, rate, *, audio_from=None
+    store: ChunkStore, chunks: list[Chunk], outputs: dict, opts: EngineOptions, rate, *, audio_from=None, rotation=0
 ) -> dict:
     """Join the chunks' outputs into the video's ``outputs`` (each atomic); returns ``{"audio": bool,
-    "thumbs": {frame: thumbnail}}``. Entered video first, committed in reverse, as the engine does."""
+    "thumbs": {frame: thumbnail}}``. Entered video first, committed in reverse, as the engine does.
+    ``rotation``: the input's display rotation (:attr:`arshadow.video.avio.AvReader.rotation`)."""
     parts = [store.outputs(c.k) for c in chunks]
     with ExitStack() as st:
         jpath = st.enter_context(atomic_path(outputs["frames"]))
@@ -270,7 +271,7 @@ def join_chunks(
                     except OSError:
                         shutil.copy2(f, d / f.name)
         tmp = st.enter_context(atomic_path(outputs["video"]))
-        audio = concat_packets([p["video"] for p in parts], tmp, rate, audio_from=audio_from)
+        audio = concat_packets([p["video"] for p in parts], tmp, rate, audio_from=audio_from, rotation=rotation)
     thumbs = {}
     for p in parts:
         with np.load(p["thumbs"]) as z:
@@ -278,11 +279,11 @@ def join_chunks(
     return {"audio": audio, "thumbs": thumbs}
 
 
-def concat_packets(parts, target, rate, *, audio_from=None) -> bool:
+def concat_packets(parts, target, rate, *, audio_from=None, rotation: int = 0) -> bool:
     """Copy the video packets of ``parts`` (same codec and settings, each starting with a keyframe) into
     ``target`` one after another, timestamps shifted, without decoding; with ``audio_from``, that file's
-    first audio stream is copied whole (up to the video's end), interleaved by time. Returns whether audio
-    was copied."""
+    first audio stream is copied whole (up to the video's end), interleaved by time; ``rotation``: the
+    display rotation (degrees) written into ``target``. Returns whether audio was copied."""
     av = load_av()
     fmt = {".mkv": "matroska", ".mp4": "mp4", ".mov": "mov", ".avi": "avi"}.get(Path(target).suffix.lower())
     if fmt is None:
@@ -293,6 +294,8 @@ def concat_packets(parts, target, rate, *, audio_from=None) -> bool:
             str(target), "w", format=fmt, options={"movflags": "+faststart"} if fmt in ("mp4", "mov") else None
         ) as out:
             vout = out.add_stream_from_template(template)
+            if rotation:  # the input's display rotation (the template does not carry it)
+                vout.set_display_rotation(rotation)
             audio = _open_audio(av, out, audio_from)
             end = _mux_video(av, out, vout, parts, audio, rate)
             if audio is not None:

@@ -168,6 +168,7 @@ class EncodeSink:
             preset=opts.preset,
             audio_from=audio,
             threads=opts.encoder_threads,
+            rotation=getattr(reader, "rotation", 0),
         )
 
     def _write(self, job, vw, mw, png_dir, jf) -> None:

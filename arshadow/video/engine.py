@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ArshadowError, UsageError
+from ..errors import ArshadowError, CalibrationError, UsageError
 from ..export.layervideo import LayerSink, check_video_layer_format, video_layer_paths
 from ..export.stmap import stmap
 from ..io import unique_stems
@@ -206,6 +206,15 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
     W, H = reader.width, reader.height
     try:
         backend.start(W, H)
+    except CalibrationError as exc:
+        reader.close()
+        rot = getattr(reader, "rotation", 0)
+        if rot in (90, 270):  # a phone video filmed upright: stored sideways, shown turned
+            raise CalibrationError(
+                f"{exc}; the video's frames are stored {W}x{H} and shown turned by {rot} degrees (a phone "
+                f"filmed upright): the calibration must be of the stored {W}x{H} frames"
+            ) from None
+        raise
     except BaseException:
         reader.close()
         raise

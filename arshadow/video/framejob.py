@@ -7,7 +7,8 @@ report item and the frame's JSON Lines record.
 
 Colour: frames stay in the decoder's ``yuv420p`` when it gives that (the tracker reads the Y plane as its
 grey image; OpenCV converts to BGR for the compositor, and back for the encoder, only inside the frame's
-ROI, the only pixels the compositor reads and changes: every other pixel keeps its decoded value exactly).
+ROI, the only pixels the compositor reads and changes: every other pixel keeps its decoded value exactly;
+the ROI is written back into the decoded frame's own array, so no whole frame is copied).
 
 Rendering goes through :class:`SessionBackend`, the only place that knows the rendering API (the public
 methods of :class:`arshadow.session.Session`).
@@ -25,7 +26,7 @@ from ..compose.composite import clip_roi
 from ..errors import MarkerNotFoundError
 from ..report import ReportItem, StageTimings
 from ..sanity import FlagTally
-from ..tracking.detect import luma_to_gray
+from ..tracking.luma import LumaFrame
 from ..transforms import rvec_tvec_from_matrix
 
 __all__ = [
@@ -37,6 +38,7 @@ __all__ = [
     "i420_planes",
     "i420_roi_to_bgr",
     "i420_with_roi",
+    "writable",
 ]
 
 #: per-frame ``timings_ms`` keys of the JSON Lines report
@@ -149,15 +151,16 @@ class SessionBackend:
         return list(self.session.notes or [])
 
 
-def gray_of(frame, height: int, colour: bool = False) -> np.ndarray:
-    """The grey ``(H, W) uint8`` image the tracker reads: the Y plane of a planar ``yuv420p`` frame
-    expanded from limited to full range (:func:`arshadow.tracking.detect.luma_to_gray`: the Y plane itself
-    lost real markers, issue 21), else OpenCV's BGR -> grey. ``colour``: a ``yuv420p`` frame's BGR -> grey
-    instead (the photo path's grey; the engine's retry when the Y plane shows no marker)."""
+def gray_of(frame, height: int, colour: bool = False) -> np.ndarray | LumaFrame:
+    """The grey image the tracker reads: for a planar ``yuv420p`` frame, its Y plane as a
+    :class:`arshadow.tracking.luma.LumaFrame` (expanded from limited to full range where the tracker reads
+    it: the Y plane itself lost real markers, issue 21), else OpenCV's BGR -> grey ``(H, W) uint8``.
+    ``colour``: a ``yuv420p`` frame's BGR -> grey instead (the photo path's grey; the engine's retry when
+    the Y plane shows no marker)."""
     if getattr(frame, "format", "bgr24") == "yuv420p":
         if colour:
             return cv2.cvtColor(cv2.cvtColor(frame.image, cv2.COLOR_YUV2BGR_I420), cv2.COLOR_BGR2GRAY)
-        return luma_to_gray(frame.image[:height])
+        return LumaFrame(frame.image[:height])
     return cv2.cvtColor(frame.image, cv2.COLOR_BGR2GRAY)
 
 
@@ -304,7 +307,7 @@ class FrameComposer:
         if self.layer_sink is not None:
             self.layer_sink.write(self.backend.last_layers)
         tc = time.perf_counter()
-        img = i420_with_roi(img, bgr, item.roi)
+        img = i420_with_roi(img, bgr, item.roi, out=writable(img))
         timings["convert"] += (time.perf_counter() - tc) * 1e3
         return img, mask, item
 
@@ -315,6 +318,22 @@ class FrameComposer:
         for k in FRAME_STAGES:
             if k in timings and k != "encode":
                 self.stage_ms[k].append(timings[k])
+
+
+def writable(a: np.ndarray) -> np.ndarray | None:
+    """``a`` made writable in place when its memory allows it (a decoded frame is the pipeline's own copy,
+    marked read-only only against accidents: the frame job writes its ROI back into it once the frame is
+    tracked and rendered, instead of copying the whole frame), else None.
+
+    >>> a = np.zeros(3, np.uint8); a.setflags(write=False)
+    >>> writable(a) is a, writable(np.frombuffer(b"abc", np.uint8))
+    (True, None)
+    """
+    try:
+        a.setflags(write=True)
+    except ValueError:
+        return None
+    return a
 
 
 def frame_record(fr, item, sun) -> dict:
@@ -388,7 +407,7 @@ def i420_roi_to_bgr(yuv: np.ndarray, bgr: np.ndarray, roi) -> None:
     bgr[y0:y1, x0:x1] = cv2.cvtColor(sub, cv2.COLOR_YUV2BGR_I420)
 
 
-def i420_with_roi(yuv: np.ndarray, bgr: np.ndarray, roi) -> np.ndarray:
+def i420_with_roi(yuv: np.ndarray, bgr: np.ndarray, roi, out: np.ndarray | None = None) -> np.ndarray:
     """The planar yuv420p frame ``yuv`` with the rectangle ``roi = (x0, y0, w, h)`` taken from ``bgr``.
 
     The compositor changes pixels inside the frame's ROI only, so only that rectangle (widened to even
@@ -403,17 +422,23 @@ def i420_with_roi(yuv: np.ndarray, bgr: np.ndarray, roi) -> np.ndarray:
     bgr : (H, W, 3) uint8
         The composited frame.
     roi : sequence of 4 int or None
+    out : (H * 3 // 2, W) uint8, optional
+        Where to write the result; may be ``yuv`` itself (only the ROI's pixels are then written: no copy
+        of the frame). A new array when None.
 
     Returns
     -------
     (H * 3 // 2, W) uint8
-        A new array.
+        ``out``, or a new array.
     """
     H, W = bgr.shape[:2]
     if roi is None:
-        return cv2.cvtColor(bgr, cv2.COLOR_BGR2YUV_I420)
+        return cv2.cvtColor(bgr, cv2.COLOR_BGR2YUV_I420, dst=out)
     x0, y0, w, h = clip_roi(roi, W, H)
-    out = np.array(yuv)
+    if out is None:
+        out = np.array(yuv)
+    elif out is not yuv:
+        np.copyto(out, yuv)
     if w == 0 or h == 0:
         return out
     x1, y1 = min(W, x0 + w + 1) & ~1, min(H, y0 + h + 1) & ~1

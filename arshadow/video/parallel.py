@@ -24,7 +24,7 @@ import numpy as np
 from ..errors import ImageError
 from ..sanity import FlagTally
 from ..session import Session
-from .avio import AvReader
+from .avio import AvReader, display_rotation
 from .chunks import (
     ChunkStore,
     fingerprint,
@@ -258,6 +258,7 @@ def finish_chunked(prep: Prepared, records: dict, rerun) -> dict:
         prep.opts,
         prep.rate,
         audio_from=prep.path if (prep.opts.keep_audio and prep.has_audio) else None,
+        rotation=display_rotation(prep.path),
     )
     sheet = SheetThumbs(prep.opts.contact_sheet, prep.total, prep.size)
     for k in sorted(joined["thumbs"]):
