@@ -9,7 +9,9 @@ frames of a video add up.
 Search, coarse to fine: an exhaustive grid on a coarse ground grid (directional: azimuth x elevation every
 8 x 6 degrees; sun: NORTH every 3 degrees), then Nelder-Mead on the fine grid from the three best distinct
 coarse minima; a point light is fitted as (azimuth, elevation, log distance) from the probe's top (the
-directional fit, the objective's profile over the distance, a coarse 3-D grid, then Nelder-Mead in 3-D).
+directional fit, the objective's profile over the distance on the coarse grid, a coarse 3-D grid, then
+Nelder-Mead in 3-D), its shadow's soft edges modelled in log (:func:`log_coverage`: a linear-coverage model
+biases a point light's distance away).
 The uncertainty is the Laplace approximation of the least-squares fit (numerical Hessian of the RSS, the
 noise variance from the residual, inflated by the residual's spatial correlation).
 
@@ -30,7 +32,7 @@ from ..errors import EstimateError
 from ..lights.sun import enu_to_world
 from .shadow import fit_levels, shadow_coverage
 
-__all__ = ["FitResult", "direction_of", "fit_directional", "fit_point", "fit_sun", "objective"]
+__all__ = ["FitResult", "direction_of", "fit_directional", "fit_point", "fit_sun", "log_coverage", "objective"]
 
 #: minimum darkening (1 - shadow ratio) of a shadow worth fitting
 MIN_DARKENING = 0.05
@@ -303,7 +305,7 @@ def fit_sun(coarse: list, make_fine, enu) -> FitResult:
 def fit_point(coarse: list, make_fine, anchor) -> FitResult:
     """Fit a point light's position (3 DOF) as (azimuth, elevation, log distance) from the probe's top
     ``anchor`` (3,): the directional fit, the objective's profile over 9 distances (3..0.15 m, warm-started; azimuth and
-    elevation re-fitted at each) and a coarse 3-D grid around it, then Nelder-Mead in 3-D on the fine grids
+    elevation re-fitted at each, on the coarse grids) and a coarse 3-D grid around it, then Nelder-Mead in 3-D on the fine grids
     from the two best distances of the profile and the grid's best; the lowest objective wins."""
     d = fit_directional(coarse, make_fine)
     fine = d.fine
