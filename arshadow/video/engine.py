@@ -265,18 +265,24 @@ class Span:
 def run_frames(
     reader, composer: FrameComposer, sink: EncodeSink, opts: EngineOptions, span: Span | None = None
 ) -> list:
-    """Decode and encode threads around the main thread's frame jobs; returns the collected items.
+    """Decode, track and encode threads around the main thread's frame jobs; returns the collected items.
 
-    ``span``: composite and write only its frames (a chunk, :mod:`arshadow.video.chunks`).
+    The main thread (the GL context's) smooths, renders and composites; tracking (OpenCV, no GL, the
+    tracker's state touched by this thread only) runs ahead on its own thread, in frame order, so a frame
+    is tracked while the one before it renders: the same calls in the same order as on one thread, the
+    same poses. ``span``: composite and write only its frames (a chunk, :mod:`arshadow.video.chunks`).
     """
     q_in: queue.Queue = queue.Queue(maxsize=opts.queue_frames)
+    q_trk: queue.Queue = queue.Queue(maxsize=opts.queue_frames)
     q_out: queue.Queue = queue.Queue(maxsize=opts.queue_frames)
     stop = threading.Event()
     stream = PoseStream(fps=reader.fps, lag=opts.pose_lag, window=opts.smooth, hold_frames=opts.hold)
     dec_t = Worker(lambda: decode_into(reader, q_in, stop), "arshadow-decode")
+    trk_t = Worker(lambda: track_into(q_in, q_trk, composer.backend, reader.height, stop, dec_t), "arshadow-track")
     enc_t = Worker(lambda: sink.run(q_out, stop), "arshadow-encode")
-    dec_t.start()
-    enc_t.start()
+    threads = (dec_t, trk_t, enc_t)
+    for t in threads:
+        t.start()
     items: list = []
 
     def emit(fp):
@@ -290,21 +296,11 @@ def run_frames(
         if enc_t.error is not None or not put_or_stop(q_out, job, stop):
             raise enc_t.error or RuntimeError("encoder stopped")
 
-    misses = 0  # frames in a row without the marker (the colour retry's schedule, tracking.detect.retry_due)
     try:
-        while (job := _next_decoded(q_in, dec_t, enc_t)) is not END:
-            fr, dec_ms = job
-            timings = dict.fromkeys(FRAME_STAGES, 0.0)
-            pose, _err = composer.backend.track(gray_of(fr, reader.height), timings)
-            if pose is None and getattr(fr, "format", "bgr24") == "yuv420p" and retry_due(misses):
-                # the luma is not the colour frame's grey (chroma): on a miss, the photo path's (issue 21)
-                pose, _err = composer.backend.track(gray_of(fr, reader.height, colour=True), timings)
-            misses = 0 if pose is not None else misses + 1
-            reason = None if _err is None else str(_err)
+        while (job := next_item(q_trk, (trk_t, enc_t))) is not END:
+            fr, dec_ms, timings, pose, reason = job
             for fp in stream.push((fr, dec_ms, timings, getattr(fr, "format", "bgr24"), reason), pose, fr.time_s):
                 emit(fp)
-        if dec_t.error is not None:
-            raise dec_t.error
         for fp in stream.flush():
             emit(fp)
         if not put_or_stop(q_out, END, stop):
@@ -314,26 +310,51 @@ def run_frames(
             raise enc_t.error
     except BaseException:
         stop.set()
-        dec_t.join()
-        enc_t.join()
+        for t in threads:
+            t.join()
         reader.close()
         if enc_t.error is not None and isinstance(enc_t.error, ArshadowError):
             raise enc_t.error from None
         raise
     dec_t.join()
+    trk_t.join()
     return items
 
 
-def _next_decoded(q_in: queue.Queue, dec_t: Worker, enc_t: Worker):
-    """The next ``(frame, decode_ms)`` or END; re-raises a failed decode or encode thread's error."""
-    while True:
+def track_into(q_in: queue.Queue, q_trk: queue.Queue, backend, height: int, stop, dec_t: Worker) -> None:
+    """The tracking thread: each decoded ``(frame, decode_ms)`` of ``q_in`` tracked, in order, into ``q_trk``
+    as ``(frame, decode_ms, timings, pose or None, reason or None)``, then :data:`END`; a failed decode
+    thread's error is raised here (and so reaches the main thread). On a miss of a ``yuv420p`` frame's luma,
+    the colour frame's grey is tried (the photo path's; :func:`arshadow.tracking.detect.retry_due` says
+    when, issue 21)."""
+    misses = 0  # frames in a row without the marker
+    while not stop.is_set():
+        job = next_item(q_in, (dec_t,), stop)
+        if job is END or job is None:
+            put_or_stop(q_trk, END, stop)
+            return
+        fr, dec_ms = job
+        timings = dict.fromkeys(FRAME_STAGES, 0.0)
+        pose, err = backend.track(gray_of(fr, height), timings)
+        if pose is None and getattr(fr, "format", "bgr24") == "yuv420p" and retry_due(misses):
+            # the luma is not the colour frame's grey (chroma): on a miss, the photo path's (issue 21)
+            pose, err = backend.track(gray_of(fr, height, colour=True), timings)
+        misses = 0 if pose is not None else misses + 1
+        if not put_or_stop(q_trk, (fr, dec_ms, timings, pose, None if err is None else str(err)), stop):
+            return
+
+
+def next_item(q: queue.Queue, workers, stop=None):
+    """The next item of ``q``; re-raises the error of any of ``workers`` (threads feeding or draining the
+    pipeline) that failed; None when ``stop`` is set first."""
+    while stop is None or not stop.is_set():
         try:
-            return q_in.get(timeout=0.1)
+            return q.get(timeout=0.1)
         except queue.Empty:
-            if dec_t.error is not None:
-                raise dec_t.error from None
-            if enc_t.error is not None:
-                raise enc_t.error from None
+            for w in workers:
+                if w.error is not None:
+                    raise w.error from None
+    return None
 
 
 def _summary(name, outputs, reader, composer: FrameComposer, sink: EncodeSink, opts, wall: float) -> dict:
