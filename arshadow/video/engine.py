@@ -1,15 +1,17 @@
-"""The video engine: decode, track + render, encode, overlapped on three threads.
+"""The video engine: decode, track, render, encode, overlapped on four threads.
 
 One video goes through :func:`process_video`::
 
-    decode thread            main thread (owns the GL context)                encode thread
-    AvReader --queue--> track (Y plane) -> PoseStream -> render + composite --queue--> AvWriter (+ mask)
-                        (branch by continuity, smoothing, marker loss)                 JSON Lines report,
-                                                                                        contact sheet, progress
-    video/decode.py     video/framejob.py                                              video/encode.py
+    decode thread          track thread            main thread (owns the GL context)     encode thread
+    AvReader --queue--> track (Y plane) --queue--> PoseStream -> render + composite --queue--> AvWriter
+                        (+ colour retry)           (branch by continuity, smoothing,      (+ mask), JSON Lines,
+                                                    marker loss)                           sheet, progress
+    video/decode.py     run_frames/track_into      video/framejob.py                      video/encode.py
 
-FFmpeg decodes and encodes without holding Python's GIL, so the decode and encode threads run on the
-other core while the main thread tracks and renders. The GL context never leaves the main thread.
+FFmpeg decodes and encodes without holding Python's GIL, and OpenCV's detection releases it too, so
+frame ``n + 1`` is decoded and tracked while frame ``n`` renders. Tracking runs in frame order on one
+thread (the tracker's window, IPPE continuity and retry schedule are its state), so the poses are those
+of tracking on the main thread. The GL context never leaves the main thread.
 
 Colour: frames stay in the decoder's ``yuv420p`` when it gives that (:mod:`arshadow.video.framejob`);
 other pixel formats are converted to BGR by FFmpeg and encoded from BGR.
