@@ -4,11 +4,13 @@ Plan (:func:`plan_chunks`): the chunk boundaries are keyframes of the input (fro
 :func:`arshadow.video.scan.scan_stream`), about evenly spaced. Chunk ``k`` writes frames ``[start, stop)``
 and decodes ``[decode_from, decode_stop)``:
 
-- **primer** ``[decode_from, start)``: decoding starts at the last keyframe at least ``prime`` frames
-  before ``start`` (:func:`margins`: pose look-ahead + 2 x smoothing half-window + hold), and those frames
-  are tracked and pushed through the pose stream (IPPE continuity, smoothing window, marker-loss hold,
-  tracking window) but not composited; the sun schedule is replayed over every frame time before
-  ``start`` (:meth:`arshadow.video.framejob.SessionBackend.replay_sun`);
+- **primer** ``[prime_from, start)``: the ``prime`` frames before ``start`` (:func:`margins`: pose
+  look-ahead + 2 x smoothing half-window + hold) are tracked and pushed through the pose stream (IPPE
+  continuity, smoothing window, marker-loss hold, tracking window) but not composited; decoding starts at
+  the last keyframe at or before ``prime_from`` (``decode_from``), and the frames in
+  ``[decode_from, prime_from)`` are only decoded (not converted, not tracked); the sun schedule is
+  replayed over every frame time before ``start``
+  (:meth:`arshadow.video.framejob.SessionBackend.replay_sun`);
 - **tail** ``[stop, decode_stop)``: tracked past ``stop`` so that the last frames get the look-ahead they
   have in the sequential run; the decisions of the first ``check`` frames past ``stop`` are recorded.
 
@@ -57,13 +59,15 @@ STORE = ".arshadow-chunks"
 
 @dataclass(frozen=True)
 class Chunk:
-    """Chunk ``k``: writes frames ``[start, stop)``, decodes ``[decode_from, decode_stop)``."""
+    """Chunk ``k``: writes frames ``[start, stop)``, decodes ``[decode_from, decode_stop)`` and tracks
+    ``[prime_from, decode_stop)`` (``decode_from <= prime_from <= start``)."""
 
     k: int
     start: int
     stop: int
     decode_from: int
     decode_stop: int
+    prime_from: int = 0
 
 
 def margins(opts: EngineOptions) -> tuple[int, int, int]:
@@ -101,18 +105,19 @@ def plan_chunks(index: StreamIndex, n: int, opts: EngineOptions, count: int) -> 
     out = []
     for k, a in enumerate(starts):
         b = starts[k + 1] if k + 1 < len(starts) else n
-        src = index.keyframe_at_or_before(max(0, a - prime))
-        out.append(Chunk(k, a, b, src, min(n, b + tail) if b < n else n))
+        first = max(0, a - prime)
+        src = index.keyframe_at_or_before(first)
+        out.append(Chunk(k, a, b, src, min(n, b + tail) if b < n else n, first))
     return out, note
 
 
 def widened(chunk: Chunk, index: StreamIndex, opts: EngineOptions) -> Chunk | None:
     """The chunk with a primer reaching 4x further back (None: it already starts at frame 0)."""
-    if chunk.decode_from == 0:
+    if chunk.prime_from == 0:
         return None
     prime = margins(opts)[0]
-    reach = max(4 * (chunk.start - chunk.decode_from), 4 * prime)
-    return dataclasses.replace(chunk, decode_from=index.keyframe_at_or_before(max(0, chunk.start - reach)))
+    first = max(0, chunk.start - max(4 * (chunk.start - chunk.prime_from), 4 * prime))
+    return dataclasses.replace(chunk, decode_from=index.keyframe_at_or_before(first), prime_from=first)
 
 
 class ChunkStore:
@@ -194,7 +199,9 @@ def run_chunk(
     sequential run would declare (contact-sheet spacing).
     """
     t0, c0 = time.perf_counter(), time.process_time()
-    reader = SeekReader(path, index, chunk.decode_from, chunk.decode_stop)
+    reader = SeekReader(
+        path, index, chunk.decode_from, chunk.decode_stop, skip_before=chunk.prime_from, threads=opts.encoder_threads
+    )
     outs = store.outputs(chunk.k)
     backend.start(reader.width, reader.height)
     backend.replay_sun(index.times[: chunk.start])
@@ -209,6 +216,7 @@ def run_chunk(
     with atomic_path(outs["thumbs"]) as tmp, open(tmp, "wb") as f:
         np.savez(f, **{str(k): v for k, v in sheet.thumbs.items()})
     check = margins(opts)[1]
+    ru = resource.getrusage(resource.RUSAGE_SELF)
     rec = {
         "chunk": dataclasses.asdict(chunk),
         "stats": composer.stats,
@@ -218,7 +226,8 @@ def run_chunk(
         "cpu_s": round(time.process_time() - c0, 3),
         "frames_decoded": reader.n_read,
         "pid": os.getpid(),
-        "max_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, 1),
+        "max_rss_mb": round(ru.ru_maxrss / 1024.0, 1),
+        "process_cpu_s": round(ru.ru_utime + ru.ru_stime, 3),  # this process's so far (start-up included)
         "flags": {"keys": composer.flags.keys, "kinds": composer.flags.kinds},
     }
     write_json(store.record_path(chunk.k), rec)

@@ -2,10 +2,17 @@
 (``arshadow video --jobs N``) or as Dask tasks (``arshadow batch --dask``), then joined.
 
 Each worker process builds its own :class:`arshadow.session.Session` (and OpenGL context) from a picklable
-:class:`BackendRecipe` once and keeps it for its later chunks. Local workers are started with ``spawn``
-(a fresh interpreter: an OpenGL context and threads do not survive ``fork``). A worker that dies (killed,
-out of memory) takes its chunk with it: the chunk is run again once in a fresh pool, and if it dies again
-the video fails with one line naming the chunk; never a silently missing range.
+:class:`BackendRecipe` once and keeps it for its later chunks. With ``--jobs N`` the calling process runs
+one chunk itself (it would only wait) and ``N - 1`` local workers the others: one interpreter start-up
+and one set of imports fewer (~1 CPU-second, a tenth of a 300-frame 720p run). Local workers are started
+with ``spawn`` (a fresh interpreter: an OpenGL context and threads do not survive ``fork``). A worker that
+dies (killed, out of memory) takes its chunk with it: the chunk is run again once in a fresh pool, and if
+it dies again the video fails with one line naming the chunk; never a silently missing range.
+
+Threads: every process gets its share of the cores, ``cores // N`` (:func:`encoder_threads`), for the x264
+encoder, the FFmpeg decoder and Mesa llvmpipe's rasterizer threads (``LP_NUM_THREADS``, set before the
+process's first GL context when not set already): N processes each running as many threads as there are
+cores only contend (measured in docs/video.md).
 """
 
 from __future__ import annotations
@@ -84,16 +91,29 @@ class BackendRecipe:
 _BACKENDS: dict = {}
 
 
-def backend_for(recipe: BackendRecipe) -> SessionBackend:
-    """One backend per recipe per process (a worker keeps its GL context between chunks)."""
+def backend_for(recipe: BackendRecipe, threads: int = 0) -> SessionBackend:
+    """One backend per recipe per process (a worker keeps its GL context between chunks). ``threads``: the
+    rasterizer threads of Mesa llvmpipe (``LP_NUM_THREADS``, set while the backend's GL context is created;
+    a setting of the user's is kept; 0: Mesa's choice, one per core)."""
     key = recipe.key()
     b = _BACKENDS.get(key)
     if b is None:
-        for old in _BACKENDS.values():
-            old.session.close()
-        _BACKENDS.clear()
+        release_backends()
         b = _BACKENDS[key] = recipe.build()
+        if threads and "LP_NUM_THREADS" not in os.environ:
+            os.environ["LP_NUM_THREADS"] = str(int(threads))
+            try:
+                b.session.context  # noqa: B018 (made now, while the setting is there)
+            finally:
+                del os.environ["LP_NUM_THREADS"]  # the process's other contexts keep Mesa's default
     return b
+
+
+def release_backends() -> None:
+    """Close this process's chunk backends (their sessions and GL contexts)."""
+    for old in _BACKENDS.values():
+        old.session.close()
+    _BACKENDS.clear()
 
 
 @dataclass
@@ -172,7 +192,7 @@ def chunk_task(recipe: BackendRecipe, prep: Prepared, chunk) -> dict:
     other chunks are writing.)"""
     prep.store.dir.mkdir(parents=True, exist_ok=True)
     t = time.perf_counter()
-    backend = backend_for(recipe)
+    backend = backend_for(recipe, prep.opts.encoder_threads)
     setup = time.perf_counter() - t
     rec = run_chunk(
         backend,
@@ -190,7 +210,8 @@ def chunk_task(recipe: BackendRecipe, prep: Prepared, chunk) -> dict:
 
 
 class ChunkPool:
-    """Local worker processes for chunks (``spawn``), recreated after a worker dies."""
+    """``jobs`` processes for chunks: this one and ``jobs - 1`` local workers (``spawn``), recreated after
+    a worker dies."""
 
     def __init__(self, jobs: int):
         self.jobs = int(jobs)
@@ -198,7 +219,8 @@ class ChunkPool:
 
     def _executor(self):
         if self._ex is None:
-            self._ex = ProcessPoolExecutor(self.jobs, mp_context=multiprocessing.get_context("spawn"))
+            workers = max(1, self.jobs - 1)
+            self._ex = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"))
         return self._ex
 
     def run(self, fn, recipe, prep: Prepared, chunks, on_done=None) -> dict:
@@ -218,9 +240,15 @@ class ChunkPool:
         return records
 
     def _round(self, fn, recipe, prep, chunks, records, on_done) -> list:
-        """Run the chunks in parallel; returns those lost to a dead worker."""
+        """Run the chunks in parallel, the first in this process when there are several (a lone chunk, as
+        a retry, goes to a worker: a death there names it); returns those lost to a dead worker."""
         ex = self._executor()
-        futs = {ex.submit(fn, recipe, prep, c): c for c in chunks}
+        here = chunks[0] if len(chunks) > 1 else None
+        futs = {ex.submit(fn, recipe, prep, c): c for c in chunks if c is not here}
+        if here is not None:
+            records[here.k] = fn(recipe, prep, here)
+            if on_done is not None:
+                on_done(records[here.k])
         died = []
         for fut, c in futs.items():
             try:
@@ -236,6 +264,7 @@ class ChunkPool:
         if self._ex is not None:
             self._ex.shutdown(wait=False, cancel_futures=True)
             self._ex = None
+        release_backends()  # the chunk this process ran kept a session and GL context
 
 
 def finish_chunked(prep: Prepared, records: dict, rerun) -> dict:
@@ -326,11 +355,14 @@ def _summary(prep: Prepared, chunks, records: dict, sheet, audio: bool, redone: 
                 "k": c.k,
                 "frames": [c.start, c.stop],
                 "decoded_from": c.decode_from,
+                "primed_from": c.prime_from,
                 "wall_s": records[c.k]["wall_s"],
                 "cpu_s": records[c.k]["cpu_s"],
                 "setup_s": records[c.k].get("setup_s", 0.0),
                 "pid": records[c.k]["pid"],
                 "max_rss_mb": records[c.k].get("max_rss_mb"),
+                "frames_decoded": records[c.k].get("frames_decoded"),
+                "process_cpu_s": records[c.k].get("process_cpu_s"),
             }
             for c in chunks
         ],

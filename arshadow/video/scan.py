@@ -132,6 +132,12 @@ class SeekReader:
         A keyframe index.
     stop : int
         One past the last frame wanted.
+    skip_before : int
+        Frames before this index are decoded (the decoder needs them) but not converted or yielded:
+        a chunk's primer tracks only the frames its pose stream needs (default ``start``: none skipped).
+    threads : int
+        Decoder threads (0: FFmpeg's choice, one per core and one more; a chunk worker sharing the cores
+        with others gets its share).
 
     Attributes
     ----------
@@ -144,12 +150,15 @@ class SeekReader:
         A decoded frame whose timestamp is not in the index (the index does not describe this file).
     """
 
-    def __init__(self, path, index: StreamIndex, start: int, stop: int):
+    def __init__(self, path, index: StreamIndex, start: int, stop: int, *, skip_before: int = 0, threads: int = 0):
         av = load_av()
         self.path, self.index, self.start, self.stop = str(path), index, int(start), int(stop)
+        self.skip_before = max(self.start, int(skip_before))
         self._c = av.open(self.path, "r")
         vs = self._vs = self._c.streams.video[0]
         vs.thread_type = "AUTO"
+        if threads:
+            vs.codec_context.thread_count = int(threads)
         rate = vs.average_rate or vs.guessed_rate
         self.fps_assumed = not (rate and 0 < float(rate) < 1e4)
         self.rate = Fraction(25, 1) if self.fps_assumed else Fraction(rate.numerator, rate.denominator)
@@ -184,6 +193,8 @@ class SeekReader:
                     raise ImageError(f"{self.path}: frame at pts {f.pts} is not in the stream's index")
                 if i >= self.stop:
                     return
+                if i < self.skip_before:
+                    continue  # decoded for the frames after it, not needed by the pose stream
                 fmt = "yuv420p" if (f.format.name == "yuv420p" and not (f.width % 2 or f.height % 2)) else "bgr24"
                 img = f.to_ndarray(format=fmt)
                 img.setflags(write=False)
