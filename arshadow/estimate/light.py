@@ -26,7 +26,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import minimize
 
 from ..errors import EstimateError
 from ..lights.sun import enu_to_world
@@ -42,6 +41,15 @@ MIN_EXPLAINED = 0.02
 MIN_VISIBLE = 0.4
 #: a second minimum this close (relative explained variance) and > 15 degrees away is ambiguous
 AMBIGUOUS = 0.85
+
+
+def _minimize(*args, **kwargs):
+    """``scipy.optimize.minimize``, imported on first use: every video or photo session imports this
+    package (the exposure match), and ``scipy.optimize`` costs ~0.4 s of start-up that only a light fit
+    needs (a ``--jobs`` worker paid it too)."""
+    from scipy.optimize import minimize  # deferred: see the docstring
+
+    return minimize(*args, **kwargs)
 
 
 @dataclass
@@ -223,7 +231,7 @@ def _refine(fine, to_light, starts, simplex_step, xatol, darkness=None):
     count = _Counter(fine, to_light, darkness)
     for p0 in starts:
         init = np.vstack([p0] + [p0 + np.eye(len(p0))[i] * simplex_step[i] for i in range(len(p0))])
-        res = minimize(
+        res = _minimize(
             count,
             p0,
             method="Nelder-Mead",
@@ -333,7 +341,7 @@ def fit_point(coarse: list, make_fine, anchor) -> FitResult:
         if to_light(q0) is None:
             continue
         init = np.vstack([q0[:2], q0[:2] + [2.0, 0.0], q0[:2] + [0.0, 2.0]])
-        r = minimize(
+        r = _minimize(
             lambda a, lt=q0[2]: count_c(np.r_[a, lt]),
             q0[:2],
             method="Nelder-Mead",
