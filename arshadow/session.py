@@ -477,6 +477,19 @@ class Session:
             out, mask, pose, np.asarray(cfw, np.float64), item, timings, plan, None if lay is None else lay["layers"]
         )
 
+    def exposure_region(self, cam_from_world: np.ndarray, width: int, height: int, pose: Any = None) -> tuple | None:
+        """``(x0, y0, w, h)``: the pixels the exposure match reads on a ``width x height`` frame at the
+        tracked pose ``cam_from_world`` (``cam_from_marker``, what :meth:`plan` takes), or None (the match is
+        off, or the marker is behind the camera). A caller converting only part of a frame (the video
+        engine: the plan's ROI) converts these too, or the paper is measured on pixels that are not the
+        frame's."""
+        if self.exposure is None:
+            return None
+        cal = self.calibration(width, height)
+        cfm = np.asarray(getattr(cam_from_world, "cam_from_world", cam_from_world), np.float64)
+        mid = pose.marker_ids[0] if pose is not None and len(getattr(pose, "marker_ids", ())) else None
+        return self.exposure.region(cal.intrinsics, cfm, mid)
+
     def _exposure_gain(
         self, image: np.ndarray, intr: Intrinsics, cfw: np.ndarray, pose: Any, item: ReportItem
     ) -> np.ndarray | None:

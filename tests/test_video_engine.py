@@ -272,6 +272,36 @@ def test_phone_rotation_is_kept_and_named_when_the_calibration_is_turned(tmp_pat
 
 
 @pytest.mark.gl
+def test_exposure_match_reads_the_paper_outside_the_roi(tmp_path, gl_ctx, monkeypatch):
+    """yuv420p frames are converted to BGR only inside the plan's ROI; an object placed away from the
+    marker leaves the paper outside it, and the exposure match read zeros there (a black object). The
+    paper measured by the engine must equal the measurement on the whole frame converted the same way."""
+    import cv2
+
+    from arshadow.estimate import match
+    from arshadow.estimate.exposure import measure_exposure
+    from arshadow.video.avio import AvReader
+
+    seen = []
+    gain = match.ExposureMatch.gain
+
+    def spy(self, image, intr, cfm, mid, geometry, pfw=None):
+        g, rep = gain(self, image, intr, cfm, mid, geometry, pfw)
+        seen.append((np.array(cfm), intr, rep.get("paper_rgb")))
+        return g, rep
+
+    monkeypatch.setattr(match.ExposureMatch, "gain", spy)
+    clip = make_clip(tmp_path / "c.mp4", _intr(), _poses(8), noise=1.0)
+    # the scene's box moved 0.2 m away from the marker (the last --place wins)
+    assert _cli("video", clip, *SCENE, "--place", "0.2,0.1,0", "-o", tmp_path / "o", "-q") == 0
+    frames = [f.image for f in AvReader(clip, raw=True)]
+    assert len(seen) == len(frames) and all(f.shape[0] == _intr().height * 3 // 2 for f in frames)
+    for (cfm, intr, paper), yuv in zip(seen, frames):
+        truth = measure_exposure(cv2.cvtColor(yuv, cv2.COLOR_YUV2BGR_I420), intr, cfm, 0.05, "DICT_6X6_250", 0)
+        assert paper is not None and np.allclose(paper, truth.paper_rgb, atol=1e-6), (paper, truth.paper_rgb)
+
+
+@pytest.mark.gl
 def test_h264_output_keeps_size_rate_and_audio(tmp_path, gl_ctx):
     clip = make_clip(tmp_path / "a.mp4", _intr(), _poses(10), noise=1.0, fps=30, audio=True)
     out = tmp_path / "out"

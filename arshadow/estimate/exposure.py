@@ -24,7 +24,15 @@ from ..compose.composite import SRGB_TO_LINEAR
 from ..errors import ArshadowError
 from ..tracking.dictionary import get_dictionary, marker_bits
 
-__all__ = ["Exposure", "ExposureError", "ExposureSmoother", "measure_exposure", "sample_linear", "smooth_exposures"]
+__all__ = [
+    "Exposure",
+    "ExposureError",
+    "ExposureSmoother",
+    "measure_exposure",
+    "paper_region",
+    "sample_linear",
+    "smooth_exposures",
+]
 
 
 class ExposureError(ArshadowError, ValueError):
@@ -136,6 +144,28 @@ def _marker_cells(dictionary: str, marker_id: int, length: float):
     """:func:`_cell_points` of one marker, computed once per (dictionary name, id, side): video frames and
     photo sets measure the same marker again and again."""
     return _cell_points(marker_bits(get_dictionary(dictionary), marker_id), length)
+
+
+def paper_region(
+    intrinsics: Intrinsics, cam_from_world, marker_length: float, dictionary="DICT_6X6_250", marker_id: int = 0
+) -> tuple | None:
+    """``(x0, y0, w, h)``: the pixels :func:`measure_exposure` reads for this marker pose (its sample points'
+    box + 3 px, inside the image), or None when none of them is in front of the camera. A caller that
+    converts only part of a frame (the video engine's ROI) converts this too."""
+    if isinstance(dictionary, str):
+        pts, _ = _marker_cells(dictionary, int(marker_id), float(marker_length))
+    else:
+        pts, _ = _cell_points(marker_bits(get_dictionary(dictionary), int(marker_id)), float(marker_length))
+    uv = intrinsics.project(pts, cam_from_world)
+    fin = np.all(np.isfinite(uv), axis=1)
+    if not fin.any():
+        return None
+    W, H = intrinsics.width, intrinsics.height
+    lo = np.floor(uv[fin].min(axis=0)).astype(int) - 3
+    hi = np.ceil(uv[fin].max(axis=0)).astype(int) + 4
+    x0, y0 = max(int(lo[0]), 0), max(int(lo[1]), 0)
+    x1, y1 = min(int(hi[0]), W), min(int(hi[1]), H)
+    return None if x1 <= x0 or y1 <= y0 else (x0, y0, x1 - x0, y1 - y0)
 
 
 def measure_exposure(

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..camera import Intrinsics
 from ..tracking.dictionary import DEFAULT_DICTIONARY
-from .exposure import Exposure, ExposureError, ExposureSmoother, measure_exposure
+from .exposure import Exposure, ExposureError, ExposureSmoother, measure_exposure, paper_region
 
 __all__ = ["ExposureMatch", "paper_shading"]
 
@@ -104,6 +104,11 @@ class ExposureMatch:
         rep["shading"] = round(s, 6)
         rep["gain"] = [round(float(v), 6) for v in g]
         return g, rep
+
+    def region(self, intr: Intrinsics, cam_from_marker: np.ndarray, marker_id: int | None) -> tuple | None:
+        """The pixels :meth:`gain` reads for this pose (:func:`arshadow.estimate.exposure.paper_region`)."""
+        mid = marker_id if marker_id is not None else (self.marker_id if self.marker_id is not None else 0)
+        return paper_region(intr, cam_from_marker, self.marker_length, self.dictionary, int(mid))
 
     def reset(self) -> None:
         """A new video: the smoothing forgets the previous frames."""

@@ -133,6 +133,10 @@ class SessionBackend:
         and changes)."""
         return self.session.plan(cam_from_world, width, height)
 
+    def exposure_region(self, cam_from_world, width: int, height: int):
+        """The pixels the exposure match reads (:meth:`arshadow.session.Session.exposure_region`), or None."""
+        return self.session.exposure_region(cam_from_world, width, height)
+
     def render(self, bgr, cam_from_world, want_mask, timings, plan=None):
         """Composite into ``bgr`` (modified in place), at ``cam_from_world`` or carrying out ``plan``;
         returns ``(mask or None, the frame's report item)``; ``timings`` gets the render stages."""
@@ -302,6 +306,8 @@ class FrameComposer:
             self._bgr = np.zeros((self.H, self.W, 3), np.uint8)
         bgr = self._bgr
         i420_roi_to_bgr(img, bgr, plan.roi)
+        if not plan.empty and (paper := self.backend.exposure_region(cam_from_world, self.W, self.H)) is not None:
+            i420_roi_to_bgr(img, bgr, paper)  # the exposure match reads the marker's paper, often outside the ROI
         timings["convert"] += (time.perf_counter() - tc) * 1e3
         mask, item = self.backend.render(bgr, cam_from_world, self.want_mask, timings, plan=plan)
         if self.layer_sink is not None:
