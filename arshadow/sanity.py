@@ -286,7 +286,7 @@ def sun_set_warning(tracks, start, speed: float, fps: float, n_frames: int, labe
 
     Parameters
     ----------
-    tracks : list of arshadow.lights.sun.SunTrack
+    tracks : list of arshadow.lights.suntrack.SunTrack
     start : datetime
         Time of frame 0 (aware).
     speed : float

@@ -46,7 +46,7 @@ from .compose.composite import Workspace
 from .compose.lens import LensWarp
 from .engine import CalibrationState, check_image, default_renderer, estimate_pose
 from .errors import UsageError
-from .estimate.match import ExposureMatch
+from .estimate.match import ExposureMatch, marker_id_of
 from .execute import LAYERS_WHY, execute
 from .geometry.ground import check_camera_above, parse_ground
 from .io import read_image
@@ -446,7 +446,11 @@ class Session:
             item.ground = self.ground.text
         for msg in self._checks.check(cfw):  # a far camera (wrong units), the camera inside: once per run
             log.warning(msg)
-        gain = self._exposure_gain(image, cal.intrinsics, cfw, pose, item) if not plan.empty else None
+        gain = None  # the exposure match: the object's colour gain, measured on the marker's paper
+        if self.exposure is not None and not plan.empty:
+            gain, item.exposure = self.exposure.frame_gain(
+                image, cal.intrinsics, cfw, pose, self.geometry, self._marker_from_ground, self.options.exposure_gain
+            )
         renderer = key = None
         if not plan.empty:  # the renderer (and the context) is made only when there is something to draw
             renderer = self.renderer
@@ -487,23 +491,7 @@ class Session:
             return None
         cal = self.calibration(width, height)
         cfm = np.asarray(getattr(cam_from_world, "cam_from_world", cam_from_world), np.float64)
-        mid = pose.marker_ids[0] if pose is not None and len(getattr(pose, "marker_ids", ())) else None
-        return self.exposure.region(cal.intrinsics, cfm, mid)
-
-    def _exposure_gain(
-        self, image: np.ndarray, intr: Intrinsics, cfw: np.ndarray, pose: Any, item: ReportItem
-    ) -> np.ndarray | None:
-        """The per-channel gain on the object's linear colour matching the marker paper (``item.exposure``
-        gets the measurement), or None (off, or the paper not measurable)."""
-        if self.exposure is None:
-            return None
-        mfg = self._marker_from_ground
-        cfm = cfw if mfg is None else cfw @ invert_rigid(mfg)
-        mid = pose.marker_ids[0] if pose is not None and len(getattr(pose, "marker_ids", ())) else None
-        gain, item.exposure = self.exposure.gain(image, intr, cfm, mid, self.geometry, mfg)
-        if gain is not None and self.options.exposure_gain is not None:  # already in the colour (light_from)
-            gain = gain / np.asarray(self.options.exposure_gain, np.float64)
-        return gain
+        return self.exposure.region(cal.intrinsics, cfm, marker_id_of(pose))
 
     def _decide_compose(
         self,
@@ -557,7 +545,7 @@ class Session:
 
         Returns
         -------
-        list of arshadow.lights.sun.TrackFrame
+        list of arshadow.lights.suntrack.TrackFrame
             One per track (``recompute``, ``stale_deg``... for the report).
         """
         if self._sun is None:

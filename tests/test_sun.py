@@ -18,15 +18,14 @@ from arshadow.errors import LightError
 from arshadow.lights.area import sample_area_light
 from arshadow.lights.spec import SUN_ANGULAR_RADIUS_DEG, parse_light, parse_time
 from arshadow.lights.sun import (
-    SunTrack,
     angle_between_deg,
     enu_to_world,
-    frame_times,
     pole_shadow,
     sun_position,
     sun_positions,
     world_to_enu,
 )
+from arshadow.lights.suntrack import SunTrack, frame_times
 
 DATA = Path(__file__).parent / "data" / "sun_reference.json"
 MDT = timezone(timedelta(hours=-7))

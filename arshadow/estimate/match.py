@@ -17,9 +17,16 @@ import numpy as np
 
 from ..camera import Intrinsics
 from ..tracking.dictionary import DEFAULT_DICTIONARY
+from ..transforms import invert_rigid
 from .exposure import Exposure, ExposureError, ExposureSmoother, measure_exposure, paper_region
 
 __all__ = ["ExposureMatch", "paper_shading"]
+
+
+def marker_id_of(pose: Any) -> int | None:
+    """The reference marker's id of a tracked pose (its first ``marker_ids``), or None."""
+    ids = getattr(pose, "marker_ids", ()) if pose is not None else ()
+    return ids[0] if len(ids) else None
 
 
 def paper_shading(lights_h: Any, weights: Any, ambient: float, paper_from_world: Any = None) -> float:
@@ -104,6 +111,27 @@ class ExposureMatch:
         rep["shading"] = round(s, 6)
         rep["gain"] = [round(float(v), 6) for v in g]
         return g, rep
+
+    def frame_gain(
+        self,
+        image: np.ndarray,
+        intr: Intrinsics,
+        cam_from_ground: np.ndarray,
+        pose: Any,
+        geometry: Any,
+        marker_from_ground: Any = None,
+        prior_gain: Any = None,
+    ) -> tuple[np.ndarray | None, dict]:
+        """:meth:`gain` for a rendered frame: ``cam_from_ground (4, 4)`` the plan's camera (the ground frame,
+        ``marker_from_ground`` None: the marker's), the marker id from the tracked ``pose`` (or None);
+        ``prior_gain (3,)``: a gain already folded into the object's colour (``--light-from``), divided
+        out."""
+        mfg = marker_from_ground
+        cfm = cam_from_ground if mfg is None else cam_from_ground @ invert_rigid(mfg)
+        gain, rep = self.gain(image, intr, cfm, marker_id_of(pose), geometry, mfg)
+        if gain is not None and prior_gain is not None:
+            gain = gain / np.asarray(prior_gain, np.float64)
+        return gain, rep
 
     def region(self, intr: Intrinsics, cam_from_marker: np.ndarray, marker_id: int | None) -> tuple | None:
         """The pixels :meth:`gain` reads for this pose (:func:`arshadow.estimate.exposure.paper_region`)."""

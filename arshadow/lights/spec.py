@@ -33,7 +33,8 @@ from datetime import datetime
 import numpy as np
 
 from ..errors import LightError
-from .sun import SunTrack, sun_light_direction, sun_position
+from .sun import sun_light_direction, sun_position
+from .suntrack import SunTrack
 
 __all__ = [
     "Light",
@@ -426,7 +427,7 @@ def parse_sun_track(spec: str, recompute_deg: float = 0.1) -> SunLightTrack:
 
     The spec's place, NORTH, options and weight are used; TIME may be omitted (the frame times come from
     the video; a given TIME is kept as ``track.start``). ``track.light(frame)`` gives the :class:`Light` to
-    render for a :class:`arshadow.lights.sun.TrackFrame` (direction ``frame.world_used``: the silhouette is
+    render for a :class:`arshadow.lights.suntrack.TrackFrame` (direction ``frame.world_used``: the silhouette is
     recomputed only when ``frame.recompute``).
 
     Examples
@@ -461,12 +462,12 @@ def parse_sun_track(spec: str, recompute_deg: float = 0.1) -> SunLightTrack:
 
 
 class SunLightTrack(SunTrack):
-    """A :class:`arshadow.lights.sun.SunTrack` that knows the light it stands for (:func:`parse_sun_track`).
+    """A :class:`arshadow.lights.suntrack.SunTrack` that knows the light it stands for (:func:`parse_sun_track`).
 
     Parameters
     ----------
     lat, lon, ..., **kwargs
-        As :class:`arshadow.lights.sun.SunTrack`.
+        As :class:`arshadow.lights.suntrack.SunTrack`.
     start : datetime or None
         The spec's TIME, if it had one.
     weight : float
@@ -482,7 +483,7 @@ class SunLightTrack(SunTrack):
         self.start, self.weight, self.label, self.radius_deg = start, float(weight), label, radius_deg
 
     def light(self, frame) -> Light:
-        """The :class:`Light` to render for a :class:`arshadow.lights.sun.TrackFrame`: direction
+        """The :class:`Light` to render for a :class:`arshadow.lights.suntrack.TrackFrame`: direction
         ``frame.world_used`` (the one the cached silhouette belongs to), this track's weight and label, and
         angular radius ``radius_deg`` or, when None, the sun's true radius for the frame's date."""
         return Light(

@@ -67,7 +67,7 @@ class SessionBackend:
     Parameters
     ----------
     session : arshadow.session.Session
-    tracks : list of arshadow.lights.sun.SunTrack
+    tracks : list of arshadow.lights.suntrack.SunTrack
         Sun lights following the frame times (``time_lapse = (start datetime, speed)``); the session
         must have them (:meth:`Session.use_sun_tracks`).
     """
