@@ -315,6 +315,8 @@ class Session:
         timings: StageTimings | None = None,
         modes: Sequence[str] | None = None,
         layers: bool | str = False,
+        marker: Any = None,
+        seen: bool = True,
     ) -> FrameResult:
         """Composite at a given pose, or carry out a plan of :meth:`plan`.
 
@@ -341,6 +343,13 @@ class Session:
         layers : bool or "undistorted"
             Also make the compositing layers (``FrameResult.layers``; the numpy compose path); with
             ``"undistorted"`` also their pinhole version (``FrameResult.layers.undistorted``).
+        marker : arshadow.tracking.pose.MarkerPose, optional
+            This frame's tracked marker when ``pose`` is not it (a video's smoothed pose, or a plan): the
+            exposure match reads the paper of its marker id.
+        seen : bool
+            False: the marker is not in this frame (a video frame rendered with a held pose). The exposure
+            match then measures nothing, because the paper is not where the pose says, and keeps the
+            video's last gain.
 
         Returns
         -------
@@ -365,7 +374,7 @@ class Session:
                 f"{image.shape[1]}x{image.shape[0]}"
             )
         tracked = pose if hasattr(pose, "cam_from_world") else None
-        res = self._render(image, plan, tracked, item, timings, want_mask, out, mask_out, layers)
+        res = self._render(image, plan, tracked, item, timings, want_mask, out, mask_out, layers, marker, seen)
         timings.total += (time.perf_counter() - t0) * 1e3
         item.timings_ms = timings.as_dict(3)
         return res
@@ -425,9 +434,12 @@ class Session:
         out: np.ndarray | None,
         mask_out: np.ndarray | None,
         layers: bool | str = False,
+        marker: Any = None,
+        seen: bool = True,
     ) -> FrameResult:
         """Execute ``plan`` on ``image`` and fill ``item`` (all but ``timings_ms``); ``pose``: the tracked
-        :class:`~arshadow.tracking.pose.MarkerPose` or None; ``layers``: as :meth:`render`."""
+        :class:`~arshadow.tracking.pose.MarkerPose` or None; ``layers``, ``marker``, ``seen``: as
+        :meth:`render`."""
         lay: dict[str, Any] | None = {"undistorted": layers == "undistorted"} if layers else None
         H, W = image.shape[:2]
         cal = self.calibration(W, H)
@@ -449,7 +461,14 @@ class Session:
         gain = None  # the exposure match: the object's colour gain, measured on the marker's paper
         if self.exposure is not None and not plan.empty:
             gain, item.exposure = self.exposure.frame_gain(
-                image, cal.intrinsics, cfw, pose, self.geometry, self._marker_from_ground, self.options.exposure_gain
+                image,
+                cal.intrinsics,
+                cfw,
+                pose if marker is None else marker,
+                self.geometry,
+                self._marker_from_ground,
+                self.options.exposure_gain,
+                seen,
             )
         renderer = key = None
         if not plan.empty:  # the renderer (and the context) is made only when there is something to draw

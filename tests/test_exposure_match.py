@@ -113,3 +113,18 @@ def test_video_follows_an_exposure_step(cam):
     assert np.allclose(smooth[6:], shots[1].paper_linear, rtol=0.03)  # followed within 2 frames of the step
     gains = np.array([r["gain"] for r in reps])
     assert np.allclose(gains[-1] / gains[0], shots[1].paper_linear / shots[0].paper_linear, rtol=0.04)
+
+
+def test_a_hidden_marker_is_not_measured(cam):
+    """The paper is measured only where the marker's white cells outshine its black ones: on a frame where
+    the marker is hidden (the floor where the pose says it is), a measurement would be the floor's."""
+    from arshadow.estimate.exposure import MIN_PAPER_CONTRAST, ExposureError, measure_exposure
+
+    pose = look_at_pose(EYE, TARGET)
+    p = render_lit_photo(cam, pose, light=LIGHT, exposure=0.55, noise_sigma=1.0, seed=3, supersample=1)
+    ok = measure_exposure(p.image, cam, pose, 0.05, "DICT_6X6_250", 0)
+    assert ok.contrast > 10 * MIN_PAPER_CONTRAST
+    floor = p.image.copy()
+    floor[:] = np.median(p.image.reshape(-1, 3), axis=0).astype(np.uint8)  # the marker covered
+    with pytest.raises(ExposureError, match="not brighter than its black ones"):
+        measure_exposure(floor, cam, pose, 0.05, "DICT_6X6_250", 0)

@@ -285,8 +285,8 @@ def test_exposure_match_reads_the_paper_outside_the_roi(tmp_path, gl_ctx, monkey
     seen = []
     gain = match.ExposureMatch.gain
 
-    def spy(self, image, intr, cfm, mid, geometry, pfw=None):
-        g, rep = gain(self, image, intr, cfm, mid, geometry, pfw)
+    def spy(self, image, intr, cfm, mid, geometry, pfw=None, in_frame=True):
+        g, rep = gain(self, image, intr, cfm, mid, geometry, pfw, in_frame)
         seen.append((np.array(cfm), intr, rep.get("paper_rgb")))
         return g, rep
 
@@ -299,6 +299,25 @@ def test_exposure_match_reads_the_paper_outside_the_roi(tmp_path, gl_ctx, monkey
     for (cfm, intr, paper), yuv in zip(seen, frames):
         truth = measure_exposure(cv2.cvtColor(yuv, cv2.COLOR_YUV2BGR_I420), intr, cfm, 0.05, "DICT_6X6_250", 0)
         assert paper is not None and np.allclose(paper, truth.paper_rgb, atol=1e-6), (paper, truth.paper_rgb)
+
+
+@pytest.mark.gl
+def test_exposure_match_holds_while_the_marker_is_hidden(tmp_path, gl_ctx):
+    """Frames rendered with a held pose (the marker hidden) must not measure the paper where the pose says
+    it is: the floor there made the object four times darker, and the first frame after the marker came
+    back too. Truth: the clip's exposure never changes (one camera gain for every frame of make_clip), so
+    every composited frame's gain is the tracked frames' gain, the held ones exactly the last one's."""
+    clip = make_clip(tmp_path / "h.mp4", _intr(), _poses(16), noise=1.0, blank=(6, 7, 8))
+    rep = tmp_path / "r.json"
+    assert _cli("video", clip, *SCENE, "-o", tmp_path / "o", "-q", "--report", rep) == 0
+    items = json.loads(rep.read_text())["images"]
+    status = [it["status"] for it in items]
+    assert status[6:9] == ["held"] * 3 and status.count("ok") == 13, status
+    gains = np.array([it["exposure"]["gain"] for it in items])
+    assert np.all(np.abs(gains / np.median(gains, axis=0) - 1) < 0.03), gains
+    assert np.array_equal(gains[6:9], np.repeat(gains[5:6], 3, axis=0))
+    assert all(items[i]["exposure"].get("held") for i in (6, 7, 8))
+    assert all("paper_rgb" not in items[i]["exposure"] for i in (6, 7, 8))
 
 
 @pytest.mark.gl

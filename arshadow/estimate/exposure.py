@@ -28,6 +28,7 @@ __all__ = [
     "Exposure",
     "ExposureError",
     "ExposureSmoother",
+    "MIN_PAPER_CONTRAST",
     "measure_exposure",
     "paper_region",
     "sample_linear",
@@ -168,6 +169,12 @@ def paper_region(
     return None if x1 <= x0 or y1 <= y0 else (x0, y0, x1 - x0, y1 - y0)
 
 
+#: fewest paper / ink luminance (:attr:`Exposure.contrast`) of a measurement that is taken: the real 5-fps
+#: clip (shared/realvideo/aruco_single_paroj) measures a median of 74; its frames at 0.98-2.8 are blurred
+#: swings, ambiguous poses and another marker's cells, where the "paper" is not the paper
+MIN_PAPER_CONTRAST = 3.0
+
+
 def measure_exposure(
     image_bgr: np.ndarray,
     intrinsics: Intrinsics,
@@ -201,7 +208,8 @@ def measure_exposure(
     Raises
     ------
     ExposureError
-        Fewer than ``min_cells`` white cells are in the image and lit.
+        Fewer than ``min_cells`` white cells are in the image and lit, or the white cells are not brighter
+        than the black ones by :data:`MIN_PAPER_CONTRAST` (the cells read are not the marker's).
     """
     if isinstance(dictionary, str):
         pts, white = _marker_cells(dictionary, int(marker_id), float(marker_length))
@@ -231,7 +239,14 @@ def measure_exposure(
     b_ok = ~white & ok
     ink = np.median(cell[b_ok], axis=0) if b_ok.any() else np.zeros(3)
     saturated = bool(np.nanmax(raw[lit]) >= 254.5)
-    return Exposure(tuple(float(v) for v in paper), tuple(float(v) for v in ink), int(np.count_nonzero(lit)), saturated)
+    out = Exposure(tuple(float(v) for v in paper), tuple(float(v) for v in ink), int(np.count_nonzero(lit)), saturated)
+    if b_ok.any() and out.contrast < MIN_PAPER_CONTRAST:
+        raise ExposureError(
+            f"the marker's white cells are not brighter than its black ones (paper / ink {out.contrast:.2f} < "
+            f"{MIN_PAPER_CONTRAST:g}): the marker is hidden, blurred, or not the one the pose says "
+            "(--marker-id, --dictionary): cannot measure its paper"
+        )
+    return out
 
 
 def smooth_exposures(measurements, time_constant: float = 5.0, jump: float = 0.15) -> list:

@@ -82,22 +82,28 @@ class ExposureMatch:
         marker_id: int | None,
         geometry: Any,
         paper_from_world: Any = None,
+        seen: bool = True,
     ) -> tuple[np.ndarray | None, dict]:
         """``(gain (3,) float or None, report dict)`` for one frame.
 
         The report dict (the report item's ``exposure``): ``paper_rgb``, ``ink_rgb``, ``white_cells``,
         ``saturated`` of the frame's measurement, ``smoothed_paper_rgb`` (video), ``shading`` (``S``) and
         ``gain``; or ``error`` when the paper cannot be measured (the object is then not changed, or keeps
-        the video's last gain).
+        the video's last gain). ``seen`` False: the marker is not in this frame (a video frame rendered
+        with a held pose): nothing is measured (the paper is not where the pose says), the video's last
+        gain is kept and the dict says ``held``.
         """
         mid = marker_id if marker_id is not None else (self.marker_id if self.marker_id is not None else 0)
         rep: dict = {}
         m: Exposure | None = None
-        try:
-            m = measure_exposure(image, intr, cam_from_marker, self.marker_length, self.dictionary, int(mid))
-            rep.update(m.to_dict())
-        except ExposureError as exc:
-            rep["error"] = str(exc)
+        if not seen:
+            rep["held"] = True
+        else:
+            try:
+                m = measure_exposure(image, intr, cam_from_marker, self.marker_length, self.dictionary, int(mid))
+                rep.update(m.to_dict())
+            except ExposureError as exc:
+                rep["error"] = str(exc)
         use = m if self.smoother is None else self.smoother.update(m)
         if self.smoother is not None and use is not None:
             rep["smoothed_paper_rgb"] = [round(float(v), 6) for v in use.paper_rgb]
@@ -121,14 +127,15 @@ class ExposureMatch:
         geometry: Any,
         marker_from_ground: Any = None,
         prior_gain: Any = None,
+        seen: bool = True,
     ) -> tuple[np.ndarray | None, dict]:
         """:meth:`gain` for a rendered frame: ``cam_from_ground (4, 4)`` the plan's camera (the ground frame,
         ``marker_from_ground`` None: the marker's), the marker id from the tracked ``pose`` (or None);
         ``prior_gain (3,)``: a gain already folded into the object's colour (``--light-from``), divided
-        out."""
+        out; ``seen``: as :meth:`gain`."""
         mfg = marker_from_ground
         cfm = cam_from_ground if mfg is None else cam_from_ground @ invert_rigid(mfg)
-        gain, rep = self.gain(image, intr, cfm, marker_id_of(pose), geometry, mfg)
+        gain, rep = self.gain(image, intr, cfm, marker_id_of(pose), geometry, mfg, seen)
         if gain is not None and prior_gain is not None:
             gain = gain / np.asarray(prior_gain, np.float64)
         return gain, rep

@@ -133,17 +133,27 @@ class SessionBackend:
         and changes)."""
         return self.session.plan(cam_from_world, width, height)
 
-    def exposure_region(self, cam_from_world, width: int, height: int):
-        """The pixels the exposure match reads (:meth:`arshadow.session.Session.exposure_region`), or None."""
-        return self.session.exposure_region(cam_from_world, width, height)
+    def exposure_region(self, cam_from_world, width: int, height: int, marker=None):
+        """The pixels the exposure match reads (:meth:`arshadow.session.Session.exposure_region`), or None;
+        ``marker``: the frame's tracked pose (its marker id)."""
+        return self.session.exposure_region(cam_from_world, width, height, marker)
 
-    def render(self, bgr, cam_from_world, want_mask, timings, plan=None):
+    def render(self, bgr, cam_from_world, want_mask, timings, plan=None, marker=None):
         """Composite into ``bgr`` (modified in place), at ``cam_from_world`` or carrying out ``plan``;
-        returns ``(mask or None, the frame's report item)``; ``timings`` gets the render stages."""
+        returns ``(mask or None, the frame's report item)``; ``timings`` gets the render stages. ``marker``:
+        the frame's tracked pose (the exposure match reads its paper), None when the marker is not in the
+        frame (a held pose: the exposure match keeps the last gain)."""
+        kw = {
+            "want_mask": want_mask,
+            "out": bgr,
+            "layers": self.want_layers,
+            "marker": marker,
+            "seen": marker is not None,
+        }
         if plan is not None:
-            res = self.session.render(bgr, plan=plan, want_mask=want_mask, out=bgr, layers=self.want_layers)
+            res = self.session.render(bgr, plan=plan, **kw)
         else:
-            res = self.session.render(bgr, cam_from_world, want_mask=want_mask, out=bgr, layers=self.want_layers)
+            res = self.session.render(bgr, cam_from_world, **kw)
         self.last_layers = res.layers
         for k, v in res.timings.as_dict().items():
             if k != "total":
@@ -231,7 +241,7 @@ class FrameComposer:
             if self.layer_sink is not None:
                 self.layer_sink.write(None)
         else:
-            img, mask, item = self._render(fp.cam_from_world, img, fmt, timings)  # the frame's one item
+            img, mask, item = self._render(fp.cam_from_world, img, fmt, timings, fp.raw)  # the frame's one item
             item.input, item.status = self.name, fp.status
             self._pose_fields(item, fp)
             self.stats["frames_ok" if fp.raw is not None else "frames_held"] += 1
@@ -285,9 +295,9 @@ class FrameComposer:
             "pose_choice": item.pose_choice,
         }
 
-    def _render(self, cam_from_world, img, fmt, timings):
+    def _render(self, cam_from_world, img, fmt, timings, marker=None):
         """Composite at ``cam_from_world``; returns the frame in its own format, the mask and the report
-        item of :meth:`arshadow.session.Session.render`.
+        item of :meth:`arshadow.session.Session.render`. ``marker``: the frame's tracked pose (None: held).
 
         A ``yuv420p`` frame is converted to BGR only inside the plan's ROI (even-aligned; into a buffer kept
         for the video): the compositor reads and writes no pixel outside it, and the result goes back into
@@ -296,7 +306,7 @@ class FrameComposer:
             tc = time.perf_counter()
             bgr = np.array(img)
             timings["convert"] += (time.perf_counter() - tc) * 1e3
-            mask, item = self.backend.render(bgr, cam_from_world, self.want_mask, timings)
+            mask, item = self.backend.render(bgr, cam_from_world, self.want_mask, timings, marker=marker)
             if self.layer_sink is not None:
                 self.layer_sink.write(self.backend.last_layers)
             return bgr, mask, item
@@ -306,10 +316,14 @@ class FrameComposer:
             self._bgr = np.zeros((self.H, self.W, 3), np.uint8)
         bgr = self._bgr
         i420_roi_to_bgr(img, bgr, plan.roi)
-        if not plan.empty and (paper := self.backend.exposure_region(cam_from_world, self.W, self.H)) is not None:
+        if (
+            marker is not None
+            and not plan.empty
+            and (paper := self.backend.exposure_region(cam_from_world, self.W, self.H, marker)) is not None
+        ):
             i420_roi_to_bgr(img, bgr, paper)  # the exposure match reads the marker's paper, often outside the ROI
         timings["convert"] += (time.perf_counter() - tc) * 1e3
-        mask, item = self.backend.render(bgr, cam_from_world, self.want_mask, timings, plan=plan)
+        mask, item = self.backend.render(bgr, cam_from_world, self.want_mask, timings, plan=plan, marker=marker)
         if self.layer_sink is not None:
             self.layer_sink.write(self.backend.last_layers)
         tc = time.perf_counter()
