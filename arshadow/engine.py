@@ -72,6 +72,16 @@ class CalibrationState:
             self._trackers = (fast, full)
         return self._trackers
 
+    def reset_trackers(self) -> None:
+        """Forget the frames tracked so far (a new video)."""
+        for t in self._trackers or ():
+            if t is not None:
+                t.reset()
+
+    def tracker_state(self) -> list:
+        """:meth:`~arshadow.tracking.tracker.MarkerTracker.state` of the trackers made so far (fast, full)."""
+        return [None if t is None else t.state() for t in (self._trackers or ())]
+
     def detect_note(self) -> str | None:
         """Where the last search looked (:data:`DETECT_NOTES`), None without a tracking window."""
         det = [t.last_search for t in (self._trackers or ()) if t is not None]
@@ -106,9 +116,14 @@ def estimate_pose(cal: CalibrationState, image, timings: StageTimings):
     note = None
     if fast is not None:
         try:
-            return _timed_estimate(fast, image, timings), None
+            pose = _timed_estimate(fast, image, timings)
         except MarkerNotFoundError:
             note = "full (fast pass found nothing)"
+        else:
+            # found: the full search's memory (its last window, its misses in a row) is stale; forgotten, so
+            # that its next search depends on no frame before this one (a video's chunks compare this state)
+            full.reset()
+            return pose, None
     return _timed_estimate(full, image, timings), note
 
 

@@ -265,6 +265,18 @@ class Session:
         cal = self.calibration(image.shape[1], image.shape[0])
         return estimate_pose(cal, image, timings if timings is not None else StageTimings())[0]
 
+    def reset_tracking(self) -> None:
+        """Forget the frames tracked so far, at every size (a new video: its first frame is searched
+        whole, as it would be in a fresh session)."""
+        for cal in self._calibs.values():
+            cal.reset_trackers()
+
+    def tracker_state(self, width: int, height: int) -> list:
+        """What the next :meth:`track` of a ``width x height`` frame depends on from the frames before
+        (tracking window, misses in a row), JSON-able: two runs whose states are equal track the next
+        frame alike (a video's chunks compare it at their boundaries)."""
+        return self.calibration(width, height).tracker_state()
+
     def plan(self, pose: Any, width: int, height: int, *, modes: Sequence[str] | None = None) -> FramePlan:
         """The :class:`arshadow.plan.FramePlan` for a pose and photo size, without rendering (no GL).
 

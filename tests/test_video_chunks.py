@@ -139,11 +139,16 @@ def test_plan_cuts_at_keyframes_and_primes_from_before():
     assert [c.stop for c in chunks] == [150, 300, 450, 600]
     for c in chunks[1:]:  # decoding starts at a keyframe at least `prime` frames before the chunk
         assert c.decode_from in idx.keyframes and c.start - c.decode_from >= prime
-    for c in chunks[:-1]:  # and goes on `tail` frames past its end
+    for c in chunks[:-1]:  # and goes on `tail` frames past its end: the pose look-ahead, no more
         assert c.decode_stop == c.stop + tail
+    assert tail == opts.smooth + opts.pose_lag + 2 and check == tail + opts.smooth
     one, note = plan_chunks(StreamIndex(pts=list(range(90)), times=[0.0] * 90, keyframes=[0]), 90, opts, 3)
     assert len(one) == 1 and "no keyframe after the first frame" in note
-    assert check < tail
+    # keyframes at 0 and 130 only (x264's scene cut): the boundary goes `prime` frames after 130, so that
+    # nothing is decoded in vain, rather than at 130 (a primer decoding 80 frames from frame 0)
+    idx = StreamIndex(pts=list(range(300)), times=[i / 25 for i in range(300)], keyframes=[0, 130])
+    two, _ = plan_chunks(idx, 300, opts, 2)
+    assert [c.start for c in two] == [0, 130 + prime] and two[1].decode_from == two[1].prime_from == 130
 
 
 @pytest.mark.gl
@@ -363,3 +368,48 @@ def test_batch_jobs2_and_dask_localcluster_chunks_equal_local(tmp_path):
     assert [it["status"] for it in local["items"]] == [it["status"] for it in remote["items"]] == ["ok"]
     assert remote["items"][0]["chunks"] == 3 and "chunks" not in local["items"][0]
     assert_same_run(tmp_path / "local", tmp_path / "dask", "c", 72)
+
+
+def test_boundary_check_compares_the_frames_before_a_chunk_and_the_tracker_state(tmp_path):
+    """first_mismatch (no GL): a chunk's primer decisions of the `check` frames before its start against
+    the previous chunk's records of them, and the tracker's state handed over at the boundary. Any one
+    difference (a pose, a status, a tracking window, misses in a row) redoes the chunk."""
+    from arshadow.video.chunks import Chunk, ChunkStore, first_mismatch, margins
+    from arshadow.video.engine import EngineOptions
+
+    opts = EngineOptions()
+    check = margins(opts)[1]
+    store = ChunkStore(tmp_path, "v", "f" * 16, opts).open()
+    chunks = [Chunk(0, 0, 100, 0, 128, 0), Chunk(1, 100, 200, 50, 200, 50)]
+
+    def rec(i, tx=0.1):
+        return {
+            "frame": i,
+            "status": "ok",
+            "raw": None,
+            "rvec": [0.0, 0.0, 0.0],
+            "tvec": [tx, 0.0, 0.5],
+            "pose_choice": "error",
+        }
+
+    store.outputs(0)["frames"].write_text("".join(json.dumps(rec(i)) + "\n" for i in range(100)))
+    state = {"tracker": [None, {"window_corners": [[1.0, 2.0]], "rescue_misses": 0}], "colour_misses": 0}
+    records = {
+        0: {"state_out": state, "head": []},
+        1: {"state_in": json.loads(json.dumps(state)), "head": [rec(i) for i in range(100 - check, 100)]},
+    }
+    assert first_mismatch(store, chunks, records, opts) is None
+    records[1]["head"][5] = rec(100 - check + 5, tx=0.1 + 1e-12)
+    assert first_mismatch(store, chunks, records, opts) == 1
+    records[1]["head"][5] = rec(100 - check + 5)
+    records[1]["head"][-1]["status"] = "held"
+    assert first_mismatch(store, chunks, records, opts) == 1
+    records[1]["head"][-1]["status"] = "ok"
+    records[1]["state_in"]["tracker"][1]["rescue_misses"] = 4  # the marker gone, misses counted apart
+    assert first_mismatch(store, chunks, records, opts) == 1
+    records[1]["state_in"] = state
+    records[1]["head"] = records[1]["head"][1:]  # a primer too short to decide every compared frame
+    assert first_mismatch(store, chunks, records, opts) == 1
+    # a chunk primed from frame 0 is the sequential run: nothing to compare
+    chunks[1] = Chunk(1, 100, 200, 0, 200, 0)
+    assert first_mismatch(store, chunks, records, opts) is None

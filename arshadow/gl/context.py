@@ -94,6 +94,20 @@ def diagnose(backend: str = "egl") -> list[str]:
     return problems
 
 
+_made = [0]  # contexts this process has created (see contexts_made)
+
+
+def contexts_made() -> int:
+    """How many OpenGL contexts this process has created. One that has made any must not ``fork`` a
+    worker: an EGL display and Mesa's rasterizer threads do not survive ``fork`` (the video chunk pool
+    then starts its workers with ``spawn``).
+
+    >>> contexts_made() >= 0
+    True
+    """
+    return _made[0]
+
+
 def create_context(backend: str | None = None):
     """Create a standalone (offscreen) moderngl context.
 
@@ -124,6 +138,7 @@ def create_context(backend: str | None = None):
     kwargs: dict[str, Any] = {"standalone": True, "require": REQUIRE}
     if name != "default":
         kwargs["backend"] = name
+    _made[0] += 1  # counted before the attempt: a failed one may have loaded and started the driver
     try:
         ctx = moderngl.create_context(**kwargs)
     except Exception as exc:  # moderngl/glcontext raise plain Exceptions with the loader's message

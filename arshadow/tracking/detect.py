@@ -325,6 +325,17 @@ class RescueDetector:
             return False
         return self.marker_id is None or self.marker_id in np.asarray(ids).ravel().tolist()
 
+    def reset(self) -> None:
+        """Forget the misses in a row (a new video)."""
+        self.misses = 0
+        if hasattr(self._base, "reset"):
+            self._base.reset()
+
+    def state(self) -> dict:
+        """What the next call depends on (the misses in a row that time the second search), JSON-able."""
+        base = self._base.state() if hasattr(self._base, "state") else {}
+        return {"rescue_misses": self.misses, **base}
+
     def detectMarkers(self, gray):  # noqa: N802 (OpenCV's name)
         corners, ids, rejected = self._base.detectMarkers(gray)
         self.rescued = False

@@ -45,8 +45,11 @@ class TrackingDetector:
         self.window = None
 
     def reset(self) -> None:
-        """Forget the last detection (e.g. at a cut): the next call searches the whole frame."""
+        """Forget the last detection (e.g. at a cut, or a new video): the next call searches the whole
+        frame (and the wrapped detector forgets too)."""
         self._corners = None
+        if hasattr(self._base, "reset"):
+            self._base.reset()
 
     def detectMarkers(self, gray):  # noqa: N802 (OpenCV's name)
         """``gray``: (H, W) uint8, or a video frame's :class:`arshadow.tracking.luma.LumaFrame` (only the
@@ -79,6 +82,12 @@ class TrackingDetector:
         else:
             self._corners = None
         return corners, ids, rejected
+
+    def state(self) -> dict:
+        """What the next call depends on (the corners its window is cut around, and the wrapped detector's
+        :meth:`state` if it has one), JSON-able: compared across a video's chunks."""
+        base = self._base.state() if hasattr(self._base, "state") else {}
+        return {"window_corners": None if self._corners is None else self._corners.tolist(), **base}
 
     def _remember(self, corners):
         self._corners = np.concatenate([np.asarray(c, np.float64).reshape(-1, 2) for c in corners])

@@ -212,6 +212,21 @@ class MarkerTracker:
         return det
 
     # -- pose ------------------------------------------------------------------------------------------
+    def reset(self) -> None:
+        """Forget the frames before (a new video): the next search is the first frame's."""
+        if hasattr(self._detector, "reset"):
+            self._detector.reset()
+
+    def state(self) -> dict:
+        """What the next frame's search depends on (its detectors' memory of the last frames: tracking
+        window, misses in a row), JSON-able; ``{}`` for a tracker without memory.
+
+        >>> from arshadow.camera import Intrinsics
+        >>> MarkerTracker(Intrinsics.from_file("calib/synth_1280x720.yml"), marker_length=0.05).state()
+        {'rescue_misses': 0}
+        """
+        return self._detector.state() if hasattr(self._detector, "state") else {}
+
     def estimate(self, image_bgr, previous=None) -> MarkerPose:
         """Detect and estimate the pose in one image.
 

@@ -1,24 +1,28 @@
-"""One video cut at keyframes into chunks, each processed on its own, with the sequential run's output.
+"""One video cut into chunks, each processed on its own, with the sequential run's output.
 
-Plan (:func:`plan_chunks`): the chunk boundaries are keyframes of the input (from
-:func:`arshadow.video.scan.scan_stream`), about evenly spaced. Chunk ``k`` writes frames ``[start, stop)``
-and decodes ``[decode_from, decode_stop)``:
+Plan (:func:`plan_chunks`): the chunks are about evenly spaced, each starting at a keyframe of the input
+(from :func:`arshadow.video.scan.scan_stream`) or, better, ``prime`` frames after one, so that its
+decoding starts at that keyframe and no frame is decoded in vain. Chunk ``k`` writes frames ``[start, stop)`` and decodes
+``[decode_from, decode_stop)``:
 
 - **primer** ``[prime_from, start)``: the ``prime`` frames before ``start`` (:func:`margins`: pose
   look-ahead + 2 x smoothing half-window + hold) are tracked and pushed through the pose stream (IPPE
   continuity, smoothing window, marker-loss hold, tracking window) but not composited; decoding starts at
-  the last keyframe at or before ``prime_from`` (``decode_from``), and the frames in
-  ``[decode_from, prime_from)`` are only decoded (not converted, not tracked); the sun schedule is
-  replayed over every frame time before ``start``
-  (:meth:`arshadow.video.framejob.SessionBackend.replay_sun`);
+  the last keyframe at or before ``prime_from`` (``decode_from``; the frames in
+  ``[decode_from, prime_from)``, if any, are only decoded); the sun schedule is replayed over every frame
+  time before ``start`` (:meth:`arshadow.video.framejob.SessionBackend.replay_sun`). The decisions of the
+  primer's last ``check`` frames are recorded (the chunk's ``head``);
 - **tail** ``[stop, decode_stop)``: tracked past ``stop`` so that the last frames get the look-ahead they
-  have in the sequential run; the decisions of the first ``check`` frames past ``stop`` are recorded.
+  have in the sequential run (pose look-ahead + smoothing half-window), and no more.
 
-Check (:func:`first_mismatch`): chunk ``k``'s first ``check`` records (status, raw and rendered pose,
-branch) must equal chunk ``k - 1``'s tail decisions for the same frames, which had the full history. The
-pose stream's state is a function of the last ``check`` frames' decisions and tracked poses, so equal
-there means equal for the rest of the chunk; a chunk that differs is redone with a primer reaching
-further back (from frame 0 at worst: the sequential run itself).
+Check (:func:`first_mismatch`): chunk ``k``'s head (status, raw and rendered pose, branch of the ``check``
+frames before its start) must equal chunk ``k - 1``'s records of the same frames, its own last frames,
+decided with the full history, and the tracker's state after the frame before the boundary (tracking
+window, misses in a row: :meth:`arshadow.session.Session.tracker_state`) must be the same in both. The pose
+stream's state at the boundary is a function of those frames' decisions and tracked poses, so equal there
+means equal for the rest of the chunk; a chunk that differs
+is redone with a primer reaching further back (from frame 0 at worst: the sequential run itself). The
+check reads frames both chunks decide anyway: it costs no frame of tracking.
 
 Store (:class:`ChunkStore`): each chunk's outputs (video, mask, JSON Lines, thumbnails) and then its
 record, every file atomic, in ``OUT/.arshadow-chunks/<stem>-<fingerprint>/``; a rerun after ``kill -9``
@@ -55,6 +59,11 @@ __all__ = ["Chunk", "ChunkStore", "first_mismatch", "join_chunks", "margins", "p
 #: keys of a frame's JSON Lines record the chunk check compares
 CHECK_KEYS = ("frame", "status", "raw", "rvec", "tvec", "pose_choice")
 STORE = ".arshadow-chunks"
+#: a frame decoded in vain (a primer starting after a keyframe) weighs this many frames of imbalance
+#: between chunks when a boundary is chosen (decoding is a fraction of a frame's work)
+WASTE_WEIGHT = 0.25
+#: a chunk record of another layout (an earlier version's store) is redone, not trusted
+RECORD_FORMAT = 2
 
 
 @dataclass(frozen=True)
@@ -71,33 +80,44 @@ class Chunk:
 
 
 def margins(opts: EngineOptions) -> tuple[int, int, int]:
-    """``(prime, check, tail)`` frames for the pose stream of ``opts``.
+    """``(prime, check, tail)`` frames for the pose stream of ``opts``: the primer, the frames before a
+    boundary whose decisions are compared (the pose stream's memory: its look-ahead and smoothing window
+    either side), the look-ahead past a chunk's end.
 
     >>> margins(EngineOptions())
-    (50, 38, 66)
+    (50, 38, 28)
     """
     lag = opts.pose_lag or 0
     check = 2 * opts.smooth + lag + 2
-    return lag + 2 * opts.smooth + opts.hold + 2, check, check + opts.smooth + lag + 2
+    return lag + 2 * opts.smooth + opts.hold + 2, check, opts.smooth + lag + 2
 
 
 def plan_chunks(index: StreamIndex, n: int, opts: EngineOptions, count: int) -> tuple[list[Chunk], str | None]:
-    """Up to ``count`` chunks of the first ``n`` frames, cut at keyframes; ``(chunks, note)`` where
-    ``note`` says why there are fewer (e.g. no keyframe after the first frame).
+    """Up to ``count`` chunks of the first ``n`` frames, starting at keyframes or ``prime`` frames after
+    one (whose primer then decodes from that keyframe: nothing decoded in vain); each start the candidate
+    nearest an even split, a frame decoded in vain counting as a quarter frame off (:data:`WASTE_WEIGHT`);
+    ``(chunks, note)`` where ``note`` says why there are fewer (e.g. no keyframe after the first frame).
 
     >>> idx = StreamIndex(pts=list(range(100)), times=[i / 25 for i in range(100)], keyframes=[0, 30, 60, 90])
-    >>> [(c.start, c.stop, c.decode_from, c.decode_stop) for c in plan_chunks(idx, 100, EngineOptions(), 3)[0]]
-    [(0, 30, 0, 96), (30, 60, 0, 100), (60, 100, 0, 100)]
+    >>> [(c.start, c.stop, c.decode_from, c.prime_from, c.decode_stop) for c in plan_chunks(idx, 100, EngineOptions(), 3)[0]]
+    [(0, 30, 0, 0, 58), (30, 60, 0, 0, 88), (60, 100, 0, 10, 100)]
     """
     prime, _check, tail = margins(opts)
-    cand = [k for k in index.keyframes if 0 < k < n]
+    # a lone keyframe 0 would put every later chunk's decoding at frame 0: one chunk
+    kfs = [k for k in index.keyframes if k < n] if len(index.keyframes) > 1 else []
+    cand = sorted({c for k in kfs for c in (k, k + prime) if 0 < c < n})
     note = None
     if not cand:
         note = "no keyframe after the first frame: processed as one chunk"
+
+    def waste(c: int) -> int:  # frames decoded only because the primer starts after a keyframe
+        first = max(0, c - prime)
+        return first - index.keyframe_at_or_before(first)
+
     starts = [0]
     for j in range(1, max(1, count)):
         want = j * n / count
-        best = min(cand, key=lambda k: abs(k - want), default=None)
+        best = min(cand, key=lambda c: abs(c - want) + WASTE_WEIGHT * waste(c), default=None)
         if best is not None and best > starts[-1]:
             starts.append(best)
     if cand and len(starts) < count:
@@ -162,7 +182,7 @@ class ChunkStore:
             rec = json.loads(self.record_path(chunk.k).read_text(encoding="utf-8"))
         except (OSError, ValueError):
             return None
-        if rec.get("chunk") != dataclasses.asdict(chunk):
+        if rec.get("format") != RECORD_FORMAT or rec.get("chunk") != dataclasses.asdict(chunk):
             return None
         outs = [p for key, p in self.outputs(chunk.k).items() if p is not None and key != "sheet"]
         return rec if all(Path(p).exists() for p in outs) else None
@@ -211,17 +231,20 @@ def run_chunk(
     sheet = SheetThumbs(opts.contact_sheet, total, (reader.width, reader.height))
     part_opts = dataclasses.replace(opts, keep_audio=False, collect_items=False)
     sink = EncodeSink(outs, part_opts, reader, path, False, composer.stage_ms, sheet, None, name, None)
-    span = Span(chunk.start, chunk.stop)
+    span = Span(chunk.start, chunk.stop, head_from=chunk.start - margins(opts)[1])
     run_frames(reader, composer, sink, part_opts, span)
     with atomic_path(outs["thumbs"]) as tmp, open(tmp, "wb") as f:
         np.savez(f, **{str(k): v for k, v in sheet.thumbs.items()})
-    check = margins(opts)[1]
     ru = resource.getrusage(resource.RUSAGE_SELF)
     rec = {
+        "format": RECORD_FORMAT,
         "chunk": dataclasses.asdict(chunk),
         "stats": composer.stats,
         "recomputes": backend.recomputes,
-        "tail": [{k: d[k] for k in CHECK_KEYS} for d in span.tail[:check]],
+        "head": [{k: d[k] for k in CHECK_KEYS} for d in span.head],
+        # the tracker's state after the frame before the start (a primer's) and after the last frame
+        "state_in": span.states.get(chunk.start - 1),
+        "state_out": span.states.get(chunk.stop - 1),
         "wall_s": round(time.perf_counter() - t0, 3),
         "cpu_s": round(time.process_time() - c0, 3),
         "frames_decoded": reader.n_read,
@@ -235,22 +258,38 @@ def run_chunk(
 
 
 def first_mismatch(store: ChunkStore, chunks: list[Chunk], records: dict, opts: EngineOptions) -> int | None:
-    """The first chunk whose first frames differ from the previous chunk's tail decisions, or None."""
+    """The first chunk whose primer decided the ``check`` frames before its start otherwise than the
+    chunks before it (their JSON Lines records), or None. A chunk primed from frame 0 is the sequential
+    run itself: not checked."""
     check = margins(opts)[1]
     for c in chunks[1:]:
-        tail = records[c.k - 1]["tail"]
-        if not tail:
+        if c.prime_from == 0:
             continue
-        head = []
-        with open(store.outputs(c.k)["frames"], encoding="utf-8") as f:
+        want = range(max(0, c.start - check), c.start)
+        head = {d["frame"]: d for d in records[c.k]["head"]}
+        if sorted(head) != list(want):  # a primer that did not decide them all: not comparable
+            return c.k
+        before = _records_of(store, [b for b in chunks if b.start < c.start], want)
+        if any(before.get(i) != head[i] for i in want):
+            return c.k
+        prev = next(b for b in chunks if b.stop == c.start)
+        if records[c.k].get("state_in") != records[prev.k].get("state_out"):
+            return c.k  # e.g. the marker gone for all the compared frames, misses in a row counted apart
+    return None
+
+
+def _records_of(store: ChunkStore, chunks: list[Chunk], frames: range) -> dict:
+    """``{frame: CHECK_KEYS of its JSON Lines record}`` for ``frames``, from the files of ``chunks``."""
+    out = {}
+    for b in chunks:
+        if b.stop <= frames.start or b.start >= frames.stop:
+            continue
+        with open(store.outputs(b.k)["frames"], encoding="utf-8") as f:
             for line in f:
                 d = json.loads(line)
-                head.append({k: d.get(k) for k in CHECK_KEYS})
-                if len(head) >= min(check, len(tail)):
-                    break
-        if head != tail[: len(head)]:
-            return c.k
-    return None
+                if d["frame"] in frames:
+                    out[d["frame"]] = {k: d.get(k) for k in CHECK_KEYS}
+    return out
 
 
 def join_chunks(

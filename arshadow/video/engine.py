@@ -256,12 +256,17 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
 @dataclass
 class Span:
     """The frames a chunk writes, ``[start, stop)``; the frames before ``start`` only prime the pose
-    stream (tracked, not composited), and the decisions of those from ``stop`` on go to :attr:`tail` (the
-    look-ahead its last frames need; compared with the next chunk's first frames)."""
+    stream (tracked, not composited), the decisions of those from ``head_from`` on go to :attr:`head`
+    (compared with the chunk before's records of them); those from ``stop`` on are the look-ahead its
+    last frames need."""
 
     start: int
     stop: int
-    tail: list = field(default_factory=list)
+    head_from: int = 0
+    head: list = field(default_factory=list)
+    #: ``{frame: tracker state after it}`` (:meth:`SessionBackend.tracker_state` and the colour retry's
+    #: misses in a row) for the frames before ``start`` and ``stop``: the state a chunk hands over
+    states: dict = field(default_factory=dict)
 
 
 def run_frames(
@@ -280,7 +285,9 @@ def run_frames(
     stop = threading.Event()
     stream = PoseStream(fps=reader.fps, lag=opts.pose_lag, window=opts.smooth, hold_frames=opts.hold)
     dec_t = Worker(lambda: decode_into(reader, q_in, stop), "arshadow-decode")
-    trk_t = Worker(lambda: track_into(q_in, q_trk, composer.backend, reader.height, stop, dec_t), "arshadow-track")
+    trk_t = Worker(
+        lambda: track_into(q_in, q_trk, composer.backend, reader.height, stop, dec_t, span), "arshadow-track"
+    )
     enc_t = Worker(lambda: sink.run(q_out, stop), "arshadow-encode")
     threads = (dec_t, trk_t, enc_t)
     for t in threads:
@@ -289,8 +296,8 @@ def run_frames(
 
     def emit(fp):
         if span is not None and not span.start <= fp.payload[0].index < span.stop:
-            if fp.payload[0].index >= span.stop:
-                span.tail.append(composer.decision(fp))
+            if span.head_from <= fp.payload[0].index < span.start:
+                span.head.append(composer.decision(fp))
             return
         job = composer.compose(fp)
         if opts.collect_items:
@@ -323,13 +330,17 @@ def run_frames(
     return items
 
 
-def track_into(q_in: queue.Queue, q_trk: queue.Queue, backend, height: int, stop, dec_t: Worker) -> None:
+def track_into(
+    q_in: queue.Queue, q_trk: queue.Queue, backend, height: int, stop, dec_t: Worker, span: Span | None = None
+) -> None:
     """The tracking thread: each decoded ``(frame, decode_ms)`` of ``q_in`` tracked, in order, into ``q_trk``
     as ``(frame, decode_ms, timings, pose or None, reason or None)``, then :data:`END`; a failed decode
     thread's error is raised here (and so reaches the main thread). On a miss of a ``yuv420p`` frame's luma,
     the colour frame's grey is tried (the photo path's; :func:`arshadow.tracking.detect.retry_due` says
-    when, issue 21)."""
+    when, issue 21). ``span``: a chunk's, whose :attr:`Span.states` get the tracker's state after the frames
+    before its start and its stop."""
     misses = 0  # frames in a row without the marker
+    snap = () if span is None else (span.start - 1, span.stop - 1)
     while not stop.is_set():
         job = next_item(q_in, (dec_t,), stop)
         if job is END or job is None:
@@ -342,6 +353,8 @@ def track_into(q_in: queue.Queue, q_trk: queue.Queue, backend, height: int, stop
             # the luma is not the colour frame's grey (chroma): on a miss, the photo path's (issue 21)
             pose, err = backend.track(gray_of(fr, height, colour=True), timings)
         misses = 0 if pose is not None else misses + 1
+        if span is not None and fr.index in snap:
+            span.states[fr.index] = {"tracker": backend.tracker_state(), "colour_misses": misses}
         if not put_or_stop(q_trk, (fr, dec_ms, timings, pose, None if err is None else str(err)), stop):
             return
 

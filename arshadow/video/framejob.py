@@ -82,6 +82,7 @@ class SessionBackend:
     def start(self, width: int, height: int) -> None:
         """A new video of this size (CalibrationError: the calibration does not fit it)."""
         self.cal = self.session.calibration(width, height)
+        self.session.reset_tracking()  # a video's output never depends on the video before it
         for tr in self.tracks:
             tr.reset()
         if getattr(self.session, "exposure", None) is not None:  # the exposure match's smoothing starts afresh
@@ -99,6 +100,10 @@ class SessionBackend:
         finally:
             timings["detect"] += st.detect
             timings["pose"] += st.pose
+
+    def tracker_state(self) -> list:
+        """:meth:`arshadow.session.Session.tracker_state` at this video's size."""
+        return self.session.tracker_state(self.cal.intrinsics.width, self.cal.intrinsics.height)
 
     def replay_sun(self, times) -> None:
         """Advance the sun tracks' recompute schedule over the frame times ``times`` (seconds) without

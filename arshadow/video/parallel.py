@@ -5,7 +5,10 @@ Each worker process builds its own :class:`arshadow.session.Session` (and OpenGL
 :class:`BackendRecipe` once and keeps it for its later chunks. With ``--jobs N`` the calling process runs
 one chunk itself (it would only wait) and ``N - 1`` local workers the others: one interpreter start-up
 and one set of imports fewer (~1 CPU-second, a tenth of a 300-frame 720p run). Local workers are started
-with ``spawn`` (a fresh interpreter: an OpenGL context and threads do not survive ``fork``). A worker that
+(:func:`start_method`) with ``fork`` on Linux while this process has made no OpenGL context yet (the pool is
+made before the calling process runs its chunk: the workers inherit the imported modules, 0.3-0.8
+CPU-second each with the mesh loader), else with ``spawn`` (a fresh interpreter: an OpenGL context does not
+survive ``fork``); ``$ARSHADOW_START_METHOD`` (``fork`` / ``spawn`` / ``forkserver``) overrides. A worker that
 dies (killed, out of memory) takes its chunk with it: the chunk is run again once in a fresh pool, and if
 it dies again the video fails with one line naming the chunk; never a silently missing range.
 
@@ -21,6 +24,7 @@ import dataclasses
 import json
 import multiprocessing
 import os
+import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
@@ -28,7 +32,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import ImageError
+from ..errors import ImageError, UsageError
+from ..gl.context import contexts_made
 from ..sanity import FlagTally
 from ..session import Session
 from .avio import AvReader, display_rotation
@@ -186,6 +191,26 @@ def encoder_threads(jobs: int) -> int:
     return max(1, (os.cpu_count() or 1) // max(1, int(jobs)))
 
 
+START_METHODS = ("fork", "spawn", "forkserver")
+
+
+def start_method() -> str:
+    """How local chunk workers start: ``$ARSHADOW_START_METHOD`` if set, else ``fork`` on Linux while this
+    process has made no OpenGL context (:func:`arshadow.gl.context.contexts_made`), else ``spawn``.
+
+    Raises
+    ------
+    UsageError
+        ``$ARSHADOW_START_METHOD`` is not one of :data:`START_METHODS`.
+    """
+    env = os.environ.get("ARSHADOW_START_METHOD", "").strip().lower()
+    if env:
+        if env not in START_METHODS:
+            raise UsageError(f"ARSHADOW_START_METHOD={env!r}: choose {', '.join(START_METHODS)}")
+        return env
+    return "fork" if sys.platform.startswith("linux") and contexts_made() == 0 else "spawn"
+
+
 def chunk_task(recipe: BackendRecipe, prep: Prepared, chunk) -> dict:
     """Run one chunk in this process (a pool worker or a Dask task); returns its record. (The store was
     opened, and an interrupted run's temporaries removed, before any chunk started: never here, where
@@ -210,8 +235,8 @@ def chunk_task(recipe: BackendRecipe, prep: Prepared, chunk) -> dict:
 
 
 class ChunkPool:
-    """``jobs`` processes for chunks: this one and ``jobs - 1`` local workers (``spawn``), recreated after
-    a worker dies."""
+    """``jobs`` processes for chunks: this one and ``jobs - 1`` local workers (:func:`start_method`),
+    recreated after a worker dies."""
 
     def __init__(self, jobs: int):
         self.jobs = int(jobs)
@@ -220,7 +245,7 @@ class ChunkPool:
     def _executor(self):
         if self._ex is None:
             workers = max(1, self.jobs - 1)
-            self._ex = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"))
+            self._ex = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context(start_method()))
         return self._ex
 
     def run(self, fn, recipe, prep: Prepared, chunks, on_done=None) -> dict:
