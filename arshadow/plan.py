@@ -389,10 +389,19 @@ def _plan_lights(plan: FramePlan, geometry: SceneGeometry, decisions: list[Any])
 
 #: the reason of a ``compose`` decision taken from an earlier measurement (the report's ``plan.compose``)
 MEASURED = "measured on first use in this process: {ms} ms (median)"
+SOFTWARE_COMPOSE = (
+    "numpy: the renderer rasterises on the CPU (llvmpipe), where the shader path runs on the same cores "
+    "(measured within 15 % of each other; not timed)"
+)
 
 
 def decide_compose(
-    plan: FramePlan, *, force: str | None, shader_available: bool, measured: dict[str, Any] | None = None
+    plan: FramePlan,
+    *,
+    force: str | None,
+    shader_available: bool,
+    measured: dict[str, Any] | None = None,
+    software: bool = False,
 ) -> str:
     """Decide how the frame's lens warp + composite runs, and record it in ``plan`` (``"compose"``).
 
@@ -406,6 +415,9 @@ def decide_compose(
     measured : dict, optional
         An earlier measurement for this photo size, anti-aliasing, lens and backend
         (:class:`arshadow.gl.compose.PathChooser` ``decisions[key]``: ``{"choice", "ms"}``).
+    software : bool
+        The renderer rasterises on the CPU (llvmpipe): the shader path would run on the pipeline's own
+        cores, so the numpy path is taken without timing either.
 
     Returns
     -------
@@ -417,6 +429,8 @@ def decide_compose(
     ('cpu', 'numpy (the shader path is not available here)')
     >>> decide_compose(p, force=None, shader_available=True, measured={"choice": "gpu", "ms": {"gpu": 1.0}})
     'gpu'
+    >>> decide_compose(p, force=None, shader_available=True, software=True)
+    'cpu'
     """
     if not shader_available:
         return plan.decide("compose", "cpu", "numpy (the shader path is not available here)")
@@ -424,6 +438,8 @@ def decide_compose(
         return plan.decide("compose", force, f"forced {force}")
     if measured is not None:
         return plan.decide("compose", str(measured["choice"]), MEASURED.format(ms=measured["ms"]))
+    if software:
+        return plan.decide("compose", "cpu", SOFTWARE_COMPOSE)
     return plan.decide(
         "compose",
         "measure",

@@ -547,6 +547,7 @@ class Session:
             force=chooser.force,
             shader_available=available,
             measured=None if chooser.force else chooser.decisions.get(key),
+            software=bool(getattr(renderer, "software", False)) and not chooser.time_software,
         )
 
     # -- lights and history ---------------------------------------------------------------------------

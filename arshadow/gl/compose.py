@@ -315,6 +315,11 @@ class PathChooser:
     decisions : dict, optional
         Where the measured choices are kept (default :data:`SHARED_DECISIONS`: shared by every chooser of the
         process, so each key is timed once; a forced chooser records nothing).
+    time_software : bool
+        Also time the paths on a software rasteriser (llvmpipe). Off by default: there the shader path runs
+        on the same cores as the rest of the pipeline, the timings of a path's wall time on the calling
+        thread say little about its CPU cost, and the default (numpy) path is taken untimed
+        (:meth:`arshadow.session.Session.render`).
 
     Attributes
     ----------
@@ -329,6 +334,7 @@ class PathChooser:
         decisions: dict | None = None,
         margin: float = 0.15,
         clock=time.perf_counter,
+        time_software: bool = False,
     ):
         if int(trials) < 1:
             raise UsageError(f"trials must be >= 1, got {trials}")
@@ -338,6 +344,7 @@ class PathChooser:
         self.margin = float(margin)
         self.force = force
         self.clock = clock  # seconds; a test hands in a deterministic clock
+        self.time_software = bool(time_software)
         if decisions is None:
             decisions = SHARED_DECISIONS  # one measurement per key and process, whichever session asks first
         self.decisions: dict = decisions

@@ -152,6 +152,17 @@ def create_context(backend: str | None = None):
     return ctx
 
 
+#: ``GL_RENDERER`` words of the rasterisers that run on the CPU (Mesa's llvmpipe, softpipe, swrast)
+SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swrast")
+
+
+def is_software(ctx) -> bool:
+    """Whether the context rasterises on the CPU (``GL_RENDERER`` names Mesa's llvmpipe, softpipe or
+    swrast): then "GPU" work shares the cores with the rest of the pipeline."""
+    renderer = str(getattr(ctx, "info", {}).get("GL_RENDERER", "")).lower()
+    return any(w in renderer for w in SOFTWARE_RENDERERS)
+
+
 def gl_info(ctx) -> dict:
     """Facts about a context: renderer, version, vendor, backend, stencil bits, MSAA samples.
 

@@ -61,7 +61,7 @@ from .._check import check_finite, check_shape
 from ..errors import UsageError
 from ..render_api import MODES, LightPass, RenderLayers, RenderResult
 from . import glraw as G
-from .context import current
+from .context import current, is_software
 from .layers import GpuLayers
 from .resources import (
     CasterCache,
@@ -191,6 +191,8 @@ class ShadowRenderer:
         self._released = False
         #: render_gpu() keeps the layers on the GPU (arshadow.gl.compose composites them there)
         self.gpu_layers = True
+        #: the context rasterises on the CPU (llvmpipe): its "GPU" paths run on the pipeline's own cores
+        self.software = is_software(ctx)
         #: when True, render() calls ctx.finish() after each pass and reports per-pass times (slower)
         self.profile = False
         self._marks = []

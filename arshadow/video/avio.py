@@ -35,6 +35,7 @@ __all__ = [
     "RawFrame",
     "VideoFrame",
     "display_rotation",
+    "frame_rotation",
     "fill_plane",
     "load_av",
     "pts_time",
@@ -186,7 +187,7 @@ class AvReader:
         self.width, self.height = int(vs.codec_context.width), int(vs.codec_context.height)
         self.has_audio = bool(self._c.streams.audio)
         self.pix_fmt = vs.codec_context.pix_fmt
-        self.rotation = display_rotation(self.path)
+        self._rotation: int | None = None  # read from the first frame decoded (or on demand: rotation)
         self.n_read = 0
         self.n_decode_errors = 0
         self.ended_with_error = False
@@ -236,6 +237,14 @@ class AvReader:
         finally:
             self.close()
 
+    @property
+    def rotation(self) -> int:
+        """Degrees a player turns the stored frames (see the class): from the first frame this reader
+        decoded, or, before any, from a frame decoded for the purpose (:func:`display_rotation`)."""
+        if self._rotation is None:
+            self._rotation = display_rotation(self.path)
+        return self._rotation
+
     def _decoded(self):
         """The decoded ``av.VideoFrame`` s in order, damaged packets skipped and counted.
 
@@ -254,6 +263,8 @@ class AvReader:
                     trouble = True
                     break
                 for f in frames:
+                    if self._rotation is None:  # the display matrix rides on the frames (no second decode)
+                        self._rotation = frame_rotation(f)
                     given += 1
                     yield f
         except av.FFmpegError:
@@ -562,6 +573,11 @@ def fill_plane(plane, rows: np.ndarray) -> None:
     np.frombuffer(plane, np.uint8)[: h * ls].reshape(h, ls)[:, :n] = rows
 
 
+def frame_rotation(frame) -> int:
+    """The display rotation (degrees: 0, 90, 180 or 270) of a decoded ``av.VideoFrame`` (its display matrix)."""
+    return int(round(float(getattr(frame, "rotation", 0) or 0))) % 360
+
+
 def display_rotation(path) -> int:
     """The rotation (degrees, FFmpeg's display matrix: 0, 90, 180 or 270) a player applies to the stored
     frames of ``path``, e.g. a phone video filmed upright: read from its first decoded frame (PyAV keeps
@@ -570,7 +586,7 @@ def display_rotation(path) -> int:
     try:
         with av.open(str(path), "r") as c:
             for f in c.decode(video=0):
-                return int(round(float(getattr(f, "rotation", 0) or 0))) % 360
+                return frame_rotation(f)
     except (av.FFmpegError, OSError, ValueError):
         pass
     return 0

@@ -101,8 +101,8 @@ class EngineOptions:
     queue_frames : int
         Frames in flight between the threads.
     encoder_threads : int
-        Threads of the video encoder (0: the encoder's choice, one per core; chunk workers that fill the
-        cores between them use 1 each).
+        Threads of the video encoder (0: :func:`arshadow.video.encode.default_encoder_threads`, one fewer
+        than the cores; chunk workers that fill the cores between them use ``cores // N`` each).
     layers : str or None
         Also write the compositing layers (:mod:`arshadow.export.layervideo`): ``prores``, ``ffv1``, ``png``
         or ``exr`` (photos of a batch: ``exr`` for ``exr``, else 16-bit PNG).
