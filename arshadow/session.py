@@ -512,6 +512,32 @@ class Session:
             out, mask, pose, np.asarray(cfw, np.float64), item, timings, plan, None if lay is None else lay["layers"]
         )
 
+    def exposure_gap(self) -> None:
+        """A video frame without the marker, not rendered: the exposure match's smoothing counts it (a long
+        loss restarts it, :data:`arshadow.estimate.exposure.RESTART_AFTER`). No-op when the match is off."""
+        if self.exposure is not None:
+            self.exposure.missing()
+
+    def observe_exposure(self, image: np.ndarray, cam_from_marker: np.ndarray, marker: Any = None) -> None:
+        """Measure the marker's paper on a frame that is not rendered (a video chunk's primer: the frames
+        before it, decided but not composited), so that the exposure match's smoothing over frames starts
+        where the run over those frames would be. No-op when the match is off.
+
+        Parameters
+        ----------
+        image : (H, W, 3) uint8
+            BGR frame (at least the paper's pixels, :meth:`exposure_region`).
+        cam_from_marker : (4, 4) float64
+            The frame's decided pose.
+        marker : arshadow.tracking.pose.MarkerPose, optional
+            The frame's tracked pose (its marker id).
+        """
+        if self.exposure is None:
+            return
+        cal = self.calibration(image.shape[1], image.shape[0])
+        cfw = self.ground_camera(cam_from_marker)
+        self.exposure.frame_gain(image, cal.intrinsics, cfw, marker, self.geometry, self._marker_from_ground)
+
     def exposure_region(self, cam_from_world: np.ndarray, width: int, height: int, pose: Any = None) -> tuple | None:
         """``(x0, y0, w, h)``: the pixels the exposure match reads on a ``width x height`` frame at the
         tracked pose ``cam_from_world`` (``cam_from_marker``, what :meth:`plan` takes), or None (the match is

@@ -151,14 +151,32 @@ def test_plan_cuts_at_keyframes_and_primes_from_before():
     assert [c.start for c in two] == [0, 130 + prime] and two[1].decode_from == two[1].prime_from == 130
 
 
+def assert_same_items(a_report, b_report, tol):
+    """The reports' per-frame items: every key equal but the timings and the output paths; the exposure
+    match's gain within ``tol.chunk_exposure_gain_rel`` (its smoothing's memory, see conftest)."""
+    ia = json.loads(Path(a_report).read_text())["images"]
+    ib = json.loads(Path(b_report).read_text())["images"]
+    assert len(ia) == len(ib)
+    for x, y in zip(ia, ib):
+        skip = {"timings_ms", "output", "mask", "exposure"}
+        assert {k: v for k, v in x.items() if k not in skip} == {k: v for k, v in y.items() if k not in skip}
+        assert set(x) == set(y), x["frame"]
+        if "exposure" in x:
+            ex, ey = x["exposure"], y["exposure"]
+            assert set(ex) == set(ey) and ex.get("paper_rgb") == ey.get("paper_rgb"), x["frame"]
+            if "gain" in ex:
+                np.testing.assert_allclose(ey["gain"], ex["gain"], rtol=tol.chunk_exposure_gain_rel)
+
+
 @pytest.mark.gl
-def test_jobs2_equals_sequential(tmp_path):
+def test_jobs2_equals_sequential(tmp_path, tol):
     clip = _clip(tmp_path / "c.mp4")
     rc1, s1 = _run(clip, tmp_path / "seq")
     rc2, s2 = _run(clip, tmp_path / "par", "--jobs", "2")
     assert rc1 == rc2 == 0
     assert "chunks" not in s1 and len(s2["chunks"]) == 2
     lines = assert_same_run(tmp_path / "seq", tmp_path / "par", "c", 72)
+    assert_same_items(tmp_path / "seq" / "r.json", tmp_path / "par" / "r.json", tol)
     # the clip exercises what crosses a boundary: held frames and frames without the marker
     assert {d["status"] for d in lines} == {"ok", "held", "no_marker"}
     for k in (
@@ -182,12 +200,13 @@ def test_jobs2_equals_sequential(tmp_path):
 
 @pytest.mark.gl
 @pytest.mark.slow
-def test_jobs2_equals_sequential_300_frames(tmp_path):
+def test_jobs2_equals_sequential_300_frames(tmp_path, tol):
     clip = make_clip(tmp_path / "c.mp4", _intr(), _poses(300), noise=1.0, seed=7, blank=set(range(100, 130)), gop=50)
     _run(clip, tmp_path / "seq")
     _, s2 = _run(clip, tmp_path / "par", "--jobs", "2")
     assert len(s2["chunks"]) == 2
     assert_same_run(tmp_path / "seq", tmp_path / "par", "c", 300)
+    assert_same_items(tmp_path / "seq" / "r.json", tmp_path / "par" / "r.json", tol)
 
 
 @pytest.mark.gl

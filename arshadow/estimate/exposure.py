@@ -278,6 +278,11 @@ def smooth_exposures(measurements, time_constant: float = 5.0, jump: float = 0.1
     return [sm.update(m) for m in measurements]
 
 
+#: frames in a row without a measurement after which the video's exposure smoothing starts afresh (the
+#: pose stream's default hold): a marker lost for longer is a new shot, whose exposure may have changed
+RESTART_AFTER = 12
+
+
 class ExposureSmoother:
     """:func:`smooth_exposures` one frame at a time (a video's render loop): :meth:`update` with each
     frame's measurement (or None) returns the smoothed one; :meth:`state` / :meth:`restore` carry the filter
@@ -288,18 +293,26 @@ class ExposureSmoother:
     [0.5, 0.5, 0.544, 0.8]
     """
 
-    def __init__(self, time_constant: float = 5.0, jump: float = 0.15):
+    def __init__(self, time_constant: float = 5.0, jump: float = 0.15, restart_after: int = RESTART_AFTER):
         self.a = 1.0 - math.exp(-1.0 / max(float(time_constant), 1e-6))
         self.jump = float(jump)
+        self.restart_after = int(restart_after)
         self._state: np.ndarray | None = None
         self._pending = 0
+        self._missing = 0  # frames in a row without a measurement
         self._last: Exposure | None = None
 
     def update(self, m: Exposure | None) -> Exposure | None:
-        """The smoothed measurement after frame measurement ``m`` (None: the last smoothed one)."""
+        """The smoothed measurement after frame measurement ``m`` (None: the last smoothed one). After
+        ``restart_after`` frames in a row without one (the marker lost, :meth:`missing` frames included)
+        the next measurement starts the filter afresh, as a new shot."""
         if m is None:
+            self._missing += 1
             return self._last
         x = np.log(np.maximum(np.r_[m.paper_rgb, m.ink_rgb], 1e-6))
+        if self._missing >= self.restart_after:
+            self._state, self._pending = None, 0
+        self._missing = 0
         if self._state is None:
             self._state = x
         else:
@@ -315,14 +328,20 @@ class ExposureSmoother:
         )
         return self._last
 
+    def missing(self) -> None:
+        """A frame without the marker that is not measured at all (not rendered: ``no_marker``)."""
+        self._missing += 1
+
     def state(self) -> dict:
         return {
             "state": None if self._state is None else self._state.tolist(),
             "pending": self._pending,
+            "missing": self._missing,
             "last": None if self._last is None else self._last.to_dict(),
         }
 
     def restore(self, st: dict) -> None:
         self._state = None if st.get("state") is None else np.asarray(st["state"], np.float64)
         self._pending = int(st.get("pending", 0))
+        self._missing = int(st.get("missing", 0))
         self._last = None if st.get("last") is None else Exposure.from_dict(st["last"])

@@ -145,6 +145,12 @@ class ExposureMatch:
         mid = marker_id if marker_id is not None else (self.marker_id if self.marker_id is not None else 0)
         return paper_region(intr, cam_from_marker, self.marker_length, self.dictionary, int(mid))
 
+    def missing(self) -> None:
+        """A video frame without the marker, not rendered: counts toward the smoothing's restart
+        (:class:`arshadow.estimate.exposure.ExposureSmoother`)."""
+        if self.smoother is not None:
+            self.smoother.missing()
+
     def reset(self) -> None:
         """A new video: the smoothing forgets the previous frames."""
         if self.smoother is not None:

@@ -170,6 +170,7 @@ class ChunkStore:
             "mask": mask,
             "frames": d / f"c{k:05d}.jsonl",
             "thumbs": d / f"c{k:05d}.thumbs.npz",
+            "items": d / f"c{k:05d}.items.jsonl" if o.collect_items else None,
             "sheet": None,
         }
 
@@ -229,12 +230,15 @@ def run_chunk(
         backend, name, final["video"], final.get("mask"), (reader.width, reader.height), final.get("mask") is not None
     )
     sheet = SheetThumbs(opts.contact_sheet, total, (reader.width, reader.height))
-    part_opts = dataclasses.replace(opts, keep_audio=False, collect_items=False)
+    part_opts = dataclasses.replace(opts, keep_audio=False)
     sink = EncodeSink(outs, part_opts, reader, path, False, composer.stage_ms, sheet, None, name, None)
     span = Span(chunk.start, chunk.stop, head_from=chunk.start - margins(opts)[1])
-    run_frames(reader, composer, sink, part_opts, span)
+    items = run_frames(reader, composer, sink, part_opts, span)
     with atomic_path(outs["thumbs"]) as tmp, open(tmp, "wb") as f:
         np.savez(f, **{str(k): v for k, v in sheet.thumbs.items()})
+    if outs["items"] is not None:  # the report's items, as the sequential run makes them
+        with atomic_path(outs["items"]) as tmp, open(tmp, "w", encoding="utf-8") as f:
+            f.writelines(json.dumps(it.to_dict()) + "\n" for it in items)
     ru = resource.getrusage(resource.RUSAGE_SELF)
     rec = {
         "format": RECORD_FORMAT,
@@ -296,7 +300,7 @@ def join_chunks(
     store: ChunkStore, chunks: list[Chunk], outputs: dict, opts: EngineOptions, rate, *, audio_from=None, rotation=0
 ) -> dict:
     """Join the chunks' outputs into the video's ``outputs`` (each atomic); returns ``{"audio": bool,
-    "thumbs": {frame: thumbnail}}``. Entered video first, committed in reverse, as the engine does.
+    "thumbs": {frame: thumbnail}, "items": [report item dicts] or None}`` (items when ``opts.collect_items``). Entered video first, committed in reverse, as the engine does.
     ``rotation``: the input's display rotation (:attr:`arshadow.video.avio.AvReader.rotation`)."""
     parts = [store.outputs(c.k) for c in chunks]
     with ExitStack() as st:
@@ -324,7 +328,13 @@ def join_chunks(
     for p in parts:
         with np.load(p["thumbs"]) as z:
             thumbs.update({int(k): z[k] for k in z.files})
-    return {"audio": audio, "thumbs": thumbs}
+    items = None
+    if opts.collect_items:
+        items = []
+        for p in parts:
+            with open(p["items"], encoding="utf-8") as f:
+                items += [json.loads(line) for line in f]
+    return {"audio": audio, "thumbs": thumbs, "items": items}
 
 
 def concat_packets(parts, target, rate, *, audio_from=None, rotation: int = 0) -> bool:

@@ -296,6 +296,8 @@ def run_frames(
 
     def emit(fp):
         if span is not None and not span.start <= fp.payload[0].index < span.stop:
+            if fp.payload[0].index < span.start:
+                composer.prime(fp)  # the exposure match's smoothing gets the frames before the chunk
             if span.head_from <= fp.payload[0].index < span.start:
                 span.head.append(composer.decision(fp))
             return

@@ -143,6 +143,14 @@ class SessionBackend:
         ``marker``: the frame's tracked pose (its marker id)."""
         return self.session.exposure_region(cam_from_world, width, height, marker)
 
+    def observe_exposure(self, bgr, cam_from_world, marker) -> None:
+        """:meth:`arshadow.session.Session.observe_exposure` (a chunk's primer frame)."""
+        self.session.observe_exposure(bgr, cam_from_world, marker)
+
+    def exposure_gap(self) -> None:
+        """:meth:`arshadow.session.Session.exposure_gap` (a frame without the marker)."""
+        self.session.exposure_gap()
+
     def render(self, bgr, cam_from_world, want_mask, timings, plan=None, marker=None):
         """Composite into ``bgr`` (modified in place), at ``cam_from_world`` or carrying out ``plan``;
         returns ``(mask or None, the frame's report item)``; ``timings`` gets the render stages. ``marker``:
@@ -239,6 +247,7 @@ class FrameComposer:
         sun = self.backend.lights_at(fr.time_s)
         mask = None
         if fp.status == "no_marker":
+            self.backend.exposure_gap()
             item = ReportItem(input=self.name, status=fp.status, error="no marker found")
             self.stats["frames_no_marker"] += 1
             if self.want_mask:
@@ -261,6 +270,29 @@ class FrameComposer:
         if fp.status != "ok" and rest and rest[0]:
             rec["not_tracked"] = str(rest[0])
         return img, fmt, mask, item, rec
+
+    def prime(self, fp) -> None:
+        """A decided frame before a chunk's start (not composited): its paper is measured for the exposure
+        match's smoothing (:meth:`SessionBackend.observe_exposure`) when the marker is in it, else counted as
+        a frame without a measurement, as rendering it would."""
+        if fp.status != "ok" or fp.raw is None:
+            self.backend.exposure_gap()
+            return
+        fr, fmt = fp.payload[0], fp.payload[3]
+        if self.backend.plan(fp.cam_from_world, self.W, self.H).empty:
+            return  # a frame with nothing to draw measures nothing when it is rendered either
+        region = self.backend.exposure_region(fp.cam_from_world, self.W, self.H, fp.raw)
+        if region is None:  # the match is off, or the paper is not in view (its measurement would fail)
+            self.backend.exposure_gap()
+            return
+        if fmt == "yuv420p":
+            if self._bgr is None:
+                self._bgr = np.zeros((self.H, self.W, 3), np.uint8)
+            i420_roi_to_bgr(fr.image, self._bgr, region)
+            bgr = self._bgr
+        else:
+            bgr = fr.image
+        self.backend.observe_exposure(bgr, fp.cam_from_world, fp.raw)
 
     def _count_gap(self, index: int, tracked: bool) -> None:
         n, start = self._gap

@@ -294,7 +294,8 @@ class ChunkPool:
 
 def finish_chunked(prep: Prepared, records: dict, rerun) -> dict:
     """Check the chunks against each other (redoing a chunk with a longer primer via ``rerun(chunk)``
-    until they agree), join them into the video's outputs, remove the store; returns the summary."""
+    until they agree), join them into the video's outputs, remove the store; returns the summary (with
+    ``items``, every frame's report item as the sequential run makes it, when ``opts.collect_items``)."""
     chunks = list(prep.chunks)
     redone = 0
     while (bad := first_mismatch(prep.store, chunks, records, prep.opts)) is not None:
@@ -321,6 +322,8 @@ def finish_chunked(prep: Prepared, records: dict, rerun) -> dict:
         write_contact_sheet(prep.outputs["sheet"], sheet.picked())
     summary = _summary(prep, chunks, records, sheet, joined["audio"], redone)
     summary["join_s"] = round(time.perf_counter() - t_join, 3)
+    if joined["items"] is not None:  # taken out by the caller (arshadow.video.runner): not a summary key
+        summary["items"] = joined["items"]
     prep.store.remove()
     return summary
 

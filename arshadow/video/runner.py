@@ -3,15 +3,13 @@
 
 from __future__ import annotations
 
-import json
-
 from ..errors import ArshadowError, ImageError
 from ..io import InputGuard, clean_temporaries
 from ..report import ReportItem
 from .engine import EngineOptions, process_video, unique_stems, video_outputs
 from .parallel import ChunkPool, process_video_chunked
 
-__all__ = ["items_from_frames", "run_videos"]
+__all__ = ["run_videos"]
 
 
 def run_videos(
@@ -78,7 +76,7 @@ def _one_video(backend, pool, recipe, inp, stem, outdir, opts, given, progress_f
             if note:
                 summary["warnings"].insert(0, note)
         else:
-            its = items_from_frames(summary) if opts.collect_items else []
+            its = summary.pop("items", None) or []  # the chunks' own items (opts.collect_items), in order
         return summary, its
     except (ArshadowError, OSError, MemoryError) as exc:
         if on_error is not None:
@@ -91,34 +89,3 @@ def _one_video(backend, pool, recipe, inp, stem, outdir, opts, given, progress_f
     finally:
         if close is not None:
             close()
-
-
-def items_from_frames(summary: dict) -> list:
-    """The per-frame report items of a chunked video, read back from its JSON Lines report."""
-    out = []
-    with open(summary["frames_report"], encoding="utf-8") as f:
-        for line in f:
-            d = json.loads(line)
-            it = ReportItem(
-                input=summary["input"],
-                output=summary["output"],
-                mask=summary["mask"],
-                status=d["status"],
-                marker_ids=d["marker_ids"],
-                rvec=d["rvec"],
-                tvec=d["tvec"],
-                reprojection_error_px=d["reprojection_error_px"],
-                pose_ambiguity=d["pose_ambiguity"],
-                mode=d["mode"],
-                timings_ms=d["timings_ms"],
-            )
-            it.error = "no marker found" if d["status"] == "no_marker" else None
-            it.frame, it.time_s, it.raw, it.pose_choice, it.sun = (
-                d["frame"],
-                d["time_s"],
-                d["raw"],
-                d["pose_choice"],
-                d.get("sun"),
-            )
-            out.append(it)
-    return out
