@@ -91,3 +91,43 @@ def rotation_error_deg(r_a, r_b) -> float:
     c = (np.trace(d) - 1.0) / 2.0
     s = 0.5 * np.sqrt((d[2, 1] - d[1, 2]) ** 2 + (d[0, 2] - d[2, 0]) ** 2 + (d[1, 0] - d[0, 1]) ** 2)
     return float(np.degrees(np.arctan2(s, c)))
+
+
+#: rotation angle (radians) above which :func:`rotation_vectors` takes ``cv2.Rodrigues`` per matrix: near
+#: pi the antisymmetric part of ``R`` no longer carries the axis accurately
+NEAR_PI_RAD = 2.5
+
+
+def rotation_vectors(R) -> np.ndarray:
+    """Rotation vectors (axis x angle, radians) of a stack of rotation matrices: ``cv2.Rodrigues`` of each,
+    vectorised (the video pose smoothing takes 21 a frame; one call each cost 0.1 ms).
+
+    The angle is ``atan2(|v|, (trace - 1) / 2)`` with ``v`` the antisymmetric part's vector (``sin`` of the
+    angle times the axis), accurate at small angles; matrices turned by more than :data:`NEAR_PI_RAD` go
+    through ``cv2.Rodrigues`` one by one.
+
+    Parameters
+    ----------
+    R : (n, 3, 3) float64
+        Rotation matrices.
+
+    Returns
+    -------
+    (n, 3) float64
+
+    Examples
+    --------
+    >>> Rz = cv2.Rodrigues(np.array([0.0, 0.0, 0.3]))[0]
+    >>> rotation_vectors(np.stack([Rz, np.eye(3)])).round(12).tolist()
+    [[0.0, 0.0, 0.3], [0.0, 0.0, 0.0]]
+    """
+    R = np.asarray(R, np.float64).reshape(-1, 3, 3)
+    v = 0.5 * np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], axis=1)
+    s = np.linalg.norm(v, axis=1)
+    c = 0.5 * (R[:, 0, 0] + R[:, 1, 1] + R[:, 2, 2] - 1.0)
+    theta = np.arctan2(s, c)
+    scale = np.divide(theta, s, out=np.ones_like(theta), where=s > 1e-300)
+    out = v * scale[:, None]
+    for i in np.flatnonzero(theta > NEAR_PI_RAD):
+        out[i] = cv2.Rodrigues(np.ascontiguousarray(R[i]))[0].ravel()
+    return out

@@ -437,3 +437,28 @@ def test_cli_bad_usage_exit_2(tmp_path, capsys):
     assert "sun light" in capsys.readouterr().err
     assert _run_cli("video", clip, *_scene("--recompute-deg", "-1"), "-o", out) == 2
     assert not out.exists()
+
+
+def test_rotation_vectors_equal_opencv_rodrigues():
+    """The vectorised log map used by the pose smoothing, from 1e-9 rad to pi (the near-pi branch
+    included): the generating rotation vector back, and cv2.Rodrigues's (which rounds angles below 1e-5
+    rad to 0: compared from 1e-3 rad up)."""
+    import cv2
+
+    from arshadow.transforms import NEAR_PI_RAD, rotation_vectors
+
+    rng = np.random.default_rng(3)
+    mats, truth, opencv = [], [], []
+    for angle in (0.0, 1e-9, 1e-6, 1e-3, 0.1, 1.0, NEAR_PI_RAD - 0.01, NEAR_PI_RAD + 0.01, 3.1, np.pi - 1e-6):
+        for _ in range(20):
+            axis = rng.normal(size=3)
+            r = axis / np.linalg.norm(axis) * angle
+            R = cv2.Rodrigues(r)[0]
+            mats.append(R)
+            truth.append(r)
+            opencv.append(cv2.Rodrigues(R)[0].ravel() if angle >= 1e-3 else r)
+    got = rotation_vectors(np.stack(mats))
+    assert np.abs(got - np.array(opencv)).max() < 1e-12
+    # near pi the vector is OpenCV's (r and -r are nearly the same rotation there; its sign is OpenCV's)
+    below = np.linalg.norm(truth, axis=1) < NEAR_PI_RAD
+    assert np.abs(got[below] - np.array(truth)[below]).max() < 1e-9

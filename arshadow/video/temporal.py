@@ -29,6 +29,7 @@ import cv2
 import numpy as np
 
 from ..errors import UsageError
+from ..transforms import rotation_vectors
 from .chooser import TemporalPoseChooser
 
 __all__ = ["FramePose", "PoseStream", "smooth_poses"]
@@ -59,10 +60,6 @@ class FramePose:
     cam_from_world: np.ndarray | None
     raw: object = None
     swapped: bool = False
-
-
-def _rvec(R):
-    return cv2.Rodrigues(np.ascontiguousarray(R))[0].ravel()
 
 
 def _rmat(r):
@@ -118,7 +115,7 @@ def smooth_poses(times, poses, i, *, window_s, degree=2, outlier_deg=3.0, max_sp
     R = P[:, :3, :3]
     Rc = R[i]
     centres = -np.einsum("nji,nj->ni", R, P[:, :3, 3])  # camera centre in the world: -R^T t
-    rv = np.array([_rvec(Rj @ Rc.T) for Rj in R])  # rotation relative to frame i's
+    rv = rotation_vectors(R @ Rc.T)  # rotation relative to frame i's
     if max_span_deg and len(times) > 2:
         order = np.argsort(times)
         steps = np.diff(times[order])
