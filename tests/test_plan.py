@@ -324,3 +324,29 @@ def test_footprint_hull_keeps_the_screen_bounds(light):
         assert (a is None) == (b is None)
         if a is not None:
             np.testing.assert_allclose(a, b, rtol=0, atol=1e-6)
+
+
+def test_roi_from_the_hull_vertices_equals_the_roi_from_every_vertex(rng):
+    """The planner bounds the ROI with the mesh's convex-hull vertices only (plan_geometry.extreme_points):
+    the projected bounding box and the in-front test must be those of every vertex, from any camera."""
+    from arshadow.camera import Intrinsics
+    from arshadow.geometry.mesh import load_occluder
+    from arshadow.plan_geometry import extreme_points, pinhole_rect
+    from arshadow.synth import look_at_pose
+
+    v = np.asarray(load_occluder("samples/meshes/knot.ply").vertices, np.float64)
+    ext = extreme_points(v)
+    assert len(ext) < len(v) / 4
+    intr = Intrinsics(1000.0, 1000.0, 640.0, 360.0, 1280, 720, np.zeros(5))
+    in_front = behind = 0
+    for _ in range(200):
+        eye = rng.normal(size=3) * rng.uniform(0.03, 0.6)
+        pose = look_at_pose(eye, rng.normal(size=3) * 0.02)
+        a, b = pinhole_rect(intr, pose, v, 1e-3), pinhole_rect(intr, pose, ext, 1e-3)
+        assert (a is None) == (b is None)
+        if a is None:
+            behind += 1
+            continue
+        in_front += 1
+        np.testing.assert_allclose(b, a, rtol=0, atol=1e-9)
+    assert in_front > 50 and behind > 5  # both branches exercised
