@@ -143,6 +143,11 @@ class SessionBackend:
         ``marker``: the frame's tracked pose (its marker id)."""
         return self.session.exposure_region(cam_from_world, width, height, marker)
 
+    @property
+    def measures_exposure(self) -> bool:
+        """The session's exposure match is on (:attr:`arshadow.session.Session.exposure`)."""
+        return getattr(self.session, "exposure", None) is not None
+
     def observe_exposure(self, bgr, cam_from_world, marker) -> None:
         """:meth:`arshadow.session.Session.observe_exposure` (a chunk's primer frame)."""
         self.session.observe_exposure(bgr, cam_from_world, marker)
@@ -275,6 +280,8 @@ class FrameComposer:
         """A decided frame before a chunk's start (not composited): its paper is measured for the exposure
         match's smoothing (:meth:`SessionBackend.observe_exposure`) when the marker is in it, else counted as
         a frame without a measurement, as rendering it would."""
+        if not self.backend.measures_exposure:
+            return
         if fp.status != "ok" or fp.raw is None:
             self.backend.exposure_gap()
             return
@@ -282,7 +289,7 @@ class FrameComposer:
         if self.backend.plan(fp.cam_from_world, self.W, self.H).empty:
             return  # a frame with nothing to draw measures nothing when it is rendered either
         region = self.backend.exposure_region(fp.cam_from_world, self.W, self.H, fp.raw)
-        if region is None:  # the match is off, or the paper is not in view (its measurement would fail)
+        if region is None:  # the paper is not in view (its measurement would fail)
             self.backend.exposure_gap()
             return
         if fmt == "yuv420p":
