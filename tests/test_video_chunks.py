@@ -391,8 +391,9 @@ def test_batch_jobs2_and_dask_localcluster_chunks_equal_local(tmp_path):
 
 def test_boundary_check_compares_the_frames_before_a_chunk_and_the_tracker_state(tmp_path):
     """first_mismatch (no GL): a chunk's primer decisions of the `check` frames before its start against
-    the previous chunk's records of them, and the tracker's state handed over at the boundary. Any one
-    difference (a pose, a status, a tracking window, misses in a row) redoes the chunk."""
+    the previous chunk's records of them, the tracker's state handed over at the boundary and the IPPE
+    anchor. Any one difference (a pose, a status, a tracking window, misses in a row, an anchor less than
+    a second back) redoes the chunk."""
     from arshadow.video.chunks import Chunk, ChunkStore, first_mismatch, margins
     from arshadow.video.engine import EngineOptions
 
@@ -427,6 +428,18 @@ def test_boundary_check_compares_the_frames_before_a_chunk_and_the_tracker_state
     records[1]["state_in"]["tracker"][1]["rescue_misses"] = 4  # the marker gone, misses counted apart
     assert first_mismatch(store, chunks, records, opts) == 1
     records[1]["state_in"] = state
+    # the IPPE branch choice's anchor: the last pose before the boundary, which may precede the compared
+    # frames (the marker lost for them); compared when it is less than a second before the boundary
+    from arshadow.video.scan import StreamIndex
+
+    idx = StreamIndex(pts=list(range(200)), times=[i / 25 for i in range(200)], keyframes=[0, 50])
+    old = {**rec(80), "time_s": 80 / 25}
+    records[0]["anchor_out"], records[1]["anchor_in"] = old, {**old, "tvec": [0.2, 0.0, 0.5]}
+    assert first_mismatch(store, chunks, records, opts, idx) == 1  # 0.8 s before frame 100: it counts
+    far = {**rec(70), "time_s": 70 / 25}  # 1.2 s back: the choice does not link across that gap
+    records[0]["anchor_out"], records[1]["anchor_in"] = far, None
+    assert first_mismatch(store, chunks, records, opts, idx) is None
+    records[0]["anchor_out"] = records[1]["anchor_in"] = None
     records[1]["head"] = records[1]["head"][1:]  # a primer too short to decide every compared frame
     assert first_mismatch(store, chunks, records, opts) == 1
     # a chunk primed from frame 0 is the sequential run: nothing to compare

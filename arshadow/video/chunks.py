@@ -18,7 +18,8 @@ decoding starts at that keyframe and no frame is decoded in vain. Chunk ``k`` wr
 Check (:func:`first_mismatch`): chunk ``k``'s head (status, raw and rendered pose, branch of the ``check``
 frames before its start) must equal chunk ``k - 1``'s records of the same frames, its own last frames,
 decided with the full history, and the tracker's state after the frame before the boundary (tracking
-window, misses in a row: :meth:`arshadow.session.Session.tracker_state`) must be the same in both. The pose
+window, misses in a row: :meth:`arshadow.session.Session.tracker_state`) and the IPPE branch choice's anchor
+(the last pose before the boundary, when less than :data:`MAX_GAP_S` back) must be the same in both. The pose
 stream's state at the boundary is a function of those frames' decisions and tracked poses, so equal there
 means equal for the rest of the chunk; a chunk that differs
 is redone with a primer reaching further back (from frame 0 at worst: the sequential run itself). The
@@ -53,6 +54,7 @@ from .encode import EncodeSink, SheetThumbs, atomic_dir
 from .engine import EngineOptions, Span, run_frames
 from .framejob import FrameComposer
 from .scan import SeekReader, StreamIndex
+from .temporal import MAX_GAP_S
 
 __all__ = ["Chunk", "ChunkStore", "first_mismatch", "join_chunks", "margins", "plan_chunks", "run_chunk", "widened"]
 
@@ -249,6 +251,8 @@ def run_chunk(
         # the tracker's state after the frame before the start (a primer's) and after the last frame
         "state_in": span.states.get(chunk.start - 1),
         "state_out": span.states.get(chunk.stop - 1),
+        "anchor_in": span.anchor_in,
+        "anchor_out": span.anchor_out,
         "wall_s": round(time.perf_counter() - t0, 3),
         "cpu_s": round(time.process_time() - c0, 3),
         "frames_decoded": reader.n_read,
@@ -261,10 +265,13 @@ def run_chunk(
     return rec
 
 
-def first_mismatch(store: ChunkStore, chunks: list[Chunk], records: dict, opts: EngineOptions) -> int | None:
+def first_mismatch(
+    store: ChunkStore, chunks: list[Chunk], records: dict, opts: EngineOptions, index: StreamIndex | None = None
+) -> int | None:
     """The first chunk whose primer decided the ``check`` frames before its start otherwise than the
-    chunks before it (their JSON Lines records), or None. A chunk primed from frame 0 is the sequential
-    run itself: not checked."""
+    chunks before it (their JSON Lines records), whose tracker state or IPPE anchor at the boundary differ,
+    or None. A chunk primed from frame 0 is the sequential run itself: not checked. ``index``: the frame
+    times (without it every anchor is compared, however old)."""
     check = margins(opts)[1]
     for c in chunks[1:]:
         if c.prime_from == 0:
@@ -279,7 +286,19 @@ def first_mismatch(store: ChunkStore, chunks: list[Chunk], records: dict, opts: 
         prev = next(b for b in chunks if b.stop == c.start)
         if records[c.k].get("state_in") != records[prev.k].get("state_out"):
             return c.k  # e.g. the marker gone for all the compared frames, misses in a row counted apart
+        t0 = float(index.times[c.start]) if index is not None else None
+        if _anchor(records[c.k].get("anchor_in"), t0) != _anchor(records[prev.k].get("anchor_out"), t0):
+            return c.k  # the branch choice's anchor: a pose before the compared frames, less than 1 s back
     return None
+
+
+def _anchor(a: dict | None, t_start: float | None) -> dict | None:
+    """A chunk's anchor (its last pose before the boundary) as far as the frames from ``t_start`` on
+    depend on it: None when none, or when it is more than :data:`MAX_GAP_S` before (the IPPE branch choice
+    does not link across such a gap)."""
+    if a is None or (t_start is not None and t_start - float(a["time_s"]) > MAX_GAP_S):
+        return None
+    return a
 
 
 def _records_of(store: ChunkStore, chunks: list[Chunk], frames: range) -> dict:

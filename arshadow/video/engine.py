@@ -267,6 +267,10 @@ class Span:
     #: ``{frame: tracker state after it}`` (:meth:`SessionBackend.tracker_state` and the colour retry's
     #: misses in a row) for the frames before ``start`` and ``stop``: the state a chunk hands over
     states: dict = field(default_factory=dict)
+    #: the last frame with a pose before ``start`` / before ``stop`` (its decision and ``time_s``): the IPPE
+    #: branch choice's anchor, which may lie before the compared frames (the marker lost up to a second)
+    anchor_in: dict | None = None
+    anchor_out: dict | None = None
 
 
 def run_frames(
@@ -295,6 +299,11 @@ def run_frames(
     items: list = []
 
     def emit(fp):
+        if span is not None and fp.raw is not None and fp.payload[0].index < span.stop:
+            anchor = {**composer.decision(fp), "time_s": fp.time_s}
+            span.anchor_out = anchor
+            if fp.payload[0].index < span.start:
+                span.anchor_in = anchor
         if span is not None and not span.start <= fp.payload[0].index < span.stop:
             if fp.payload[0].index < span.start:
                 composer.prime(fp)  # the exposure match's smoothing gets the frames before the chunk

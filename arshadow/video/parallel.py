@@ -298,7 +298,7 @@ def finish_chunked(prep: Prepared, records: dict, rerun) -> dict:
     ``items``, every frame's report item as the sequential run makes it, when ``opts.collect_items``)."""
     chunks = list(prep.chunks)
     redone = 0
-    while (bad := first_mismatch(prep.store, chunks, records, prep.opts)) is not None:
+    while (bad := first_mismatch(prep.store, chunks, records, prep.opts, prep.index)) is not None:
         wider = widened(chunks[bad], prep.index, prep.opts)
         if wider is None:
             raise ImageError(f"{prep.name}: chunk {bad} differs from the run before it even from frame 0")

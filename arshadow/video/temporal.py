@@ -32,7 +32,11 @@ from ..errors import UsageError
 from ..transforms import rotation_vectors
 from .chooser import TemporalPoseChooser
 
-__all__ = ["FramePose", "PoseStream", "smooth_poses"]
+__all__ = ["MAX_GAP_S", "FramePose", "PoseStream", "smooth_poses"]
+
+#: frames farther apart than this (seconds: the marker lost for longer) are not linked by the IPPE branch
+#: choice nor smoothed together
+MAX_GAP_S = 1.0
 
 
 @dataclass
@@ -180,7 +184,7 @@ class PoseStream:
         window: int = 10,
         hold_frames: int = 12,
         outlier_deg: float = 3.0,
-        max_gap_s: float = 1.0,
+        max_gap_s: float = MAX_GAP_S,
         degree: int = 2,
     ):
         if not (math.isfinite(fps) and fps > 0):
