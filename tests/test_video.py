@@ -462,3 +462,25 @@ def test_rotation_vectors_equal_opencv_rodrigues():
     # near pi the vector is OpenCV's (r and -r are nearly the same rotation there; its sign is OpenCV's)
     below = np.linalg.norm(truth, axis=1) < NEAR_PI_RAD
     assert np.abs(got[below] - np.array(truth)[below]).max() < 1e-9
+
+
+def test_exposure_smoothing_restarts_after_a_long_loss():
+    """A marker lost for RESTART_AFTER frames in a row is a new shot for the exposure smoothing: the next
+    measurement is taken as it is; after a shorter loss the filter goes on from where it was."""
+    from arshadow.estimate.exposure import RESTART_AFTER, Exposure, ExposureSmoother
+
+    def paper(v):
+        return Exposure((v, v, v), (0.02, 0.02, 0.02), 20)
+
+    for gap, restarted in ((RESTART_AFTER - 1, False), (RESTART_AFTER, True)):
+        sm = ExposureSmoother()
+        for _ in range(5):
+            sm.update(paper(0.5))
+        for k in range(gap):
+            if k % 2:
+                sm.update(None)  # a held frame (rendered, not measured)
+            else:
+                sm.missing()  # a frame without the marker (not rendered)
+        got = sm.update(paper(0.56)).paper_rgb[0]  # 12 % brighter: below the jump rule's 15 %
+        assert (got == pytest.approx(0.56, rel=1e-12)) == restarted, (gap, got)
+        assert got < 0.56 or restarted

@@ -254,7 +254,8 @@ def smooth_exposures(measurements, time_constant: float = 5.0, jump: float = 0.1
 
     A one-pole filter in log space with ``time_constant`` frames; a change of the paper's luminance by more
     than ``jump`` (relative) that persists for 3 frames resets the filter (a new exposure, followed at once).
-    ``None`` entries (marker not found) repeat the last smoothed value.
+    ``None`` entries (marker not found) repeat the last smoothed value; after :data:`RESTART_AFTER` of them
+    in a row the next measurement starts the filter afresh (a new shot).
 
     Parameters
     ----------
