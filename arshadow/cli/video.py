@@ -76,7 +76,7 @@ def add_output_options(out) -> None:
         type=int,
         default=1,
         metavar="N",
-        help="worker processes per video: it is cut at keyframes into N chunks processed in parallel "
+        help="worker processes per video: it is cut after keyframes into N chunks processed in parallel "
         "and joined (same output as one process; docs/video.md)",
     )
     out.add_argument(
