@@ -26,8 +26,9 @@ maps per photo size, silhouettes and volumes per light, the renderer). It pickle
 process unpickles it into a fresh session of the same scene.
 
 For a video engine: :meth:`Session.track` (pose only, grey images too), :meth:`Session.render` (at a given
-pose), :meth:`Session.set_lights` / :meth:`Session.set_time` (time-lapse), :meth:`Session.state` /
-:meth:`Session.restore` (resume a run or start a chunk of it with the same history).
+pose), :meth:`Session.tracker_state` (the trackers' memory); what carries from frame to frame (lights over
+time, the exposure match's smoothing, their saved state: ``set_lights`` / ``set_time``, ``state`` /
+``restore``) is :class:`arshadow.history.History`, which ``Session`` inherits.
 """
 
 from __future__ import annotations
@@ -36,7 +37,6 @@ import logging
 import os
 import time
 from collections.abc import Mapping, Sequence
-from datetime import datetime
 from typing import Any
 
 import numpy as np
@@ -49,8 +49,8 @@ from .errors import UsageError
 from .estimate.match import ExposureMatch, marker_id_of
 from .execute import LAYERS_WHY, execute
 from .geometry.ground import check_camera_above, parse_ground
+from .history import History
 from .io import read_image
-from .lights.spec import parse_light
 from .plan import FramePlan, SceneGeometry, decide_compose, plan_frame
 from .render_api import Renderer
 from .report import ReportItem, StageTimings
@@ -65,7 +65,7 @@ __all__ = ["Session", "FrameResult", "render_photo"]
 log = logging.getLogger(__name__)
 
 
-class Session:
+class Session(History):
     """Track, plan and render photos of one :class:`arshadow.scene.SceneSpec`.
 
     Parameters
@@ -121,7 +121,6 @@ class Session:
         self._renderer, self._own_renderer = shared, shared is None
         self._renderer_factory = None if shared is not None else renderer
         self._gpu = None
-        self._sun: tuple[list[Any], list[Any]] | None = None  # (static lights, sun tracks) of set_time
         if self.scene.sun_tracks:  # a time-lapse of the spec (SceneSpec.time_lapse)
             self.use_sun_tracks(self.scene.sun_tracks, self.scene.static_lights or ())
         self._calibs: dict = {}
@@ -512,32 +511,6 @@ class Session:
             out, mask, pose, np.asarray(cfw, np.float64), item, timings, plan, None if lay is None else lay["layers"]
         )
 
-    def exposure_gap(self) -> None:
-        """A video frame without the marker, not rendered: the exposure match's smoothing counts it (a long
-        loss restarts it, :data:`arshadow.estimate.exposure.RESTART_AFTER`). No-op when the match is off."""
-        if self.exposure is not None:
-            self.exposure.missing()
-
-    def observe_exposure(self, image: np.ndarray, cam_from_marker: np.ndarray, marker: Any = None) -> None:
-        """Measure the marker's paper on a frame that is not rendered (a video chunk's primer: the frames
-        before it, decided but not composited), so that the exposure match's smoothing over frames starts
-        where the run over those frames would be. No-op when the match is off.
-
-        Parameters
-        ----------
-        image : (H, W, 3) uint8
-            BGR frame (at least the paper's pixels, :meth:`exposure_region`).
-        cam_from_marker : (4, 4) float64
-            The frame's decided pose.
-        marker : arshadow.tracking.pose.MarkerPose, optional
-            The frame's tracked pose (its marker id).
-        """
-        if self.exposure is None:
-            return
-        cal = self.calibration(image.shape[1], image.shape[0])
-        cfw = self.ground_camera(cam_from_marker)
-        self.exposure.frame_gain(image, cal.intrinsics, cfw, marker, self.geometry, self._marker_from_ground)
-
     def exposure_region(self, cam_from_world: np.ndarray, width: int, height: int, pose: Any = None) -> tuple | None:
         """``(x0, y0, w, h)``: the pixels the exposure match reads on a ``width x height`` frame at the
         tracked pose ``cam_from_world`` (``cam_from_marker``, what :meth:`plan` takes), or None (the match is
@@ -575,62 +548,6 @@ class Session:
             measured=None if chooser.force else chooser.decisions.get(key),
             software=bool(getattr(renderer, "software", False)) and not chooser.time_software,
         )
-
-    # -- lights and history ---------------------------------------------------------------------------
-    def set_lights(self, lights: Sequence[Any]) -> int:
-        """Replace the lights (spec strings or :class:`arshadow.lights.spec.Light`), keeping the cached geometry
-        of the lights that stay (:meth:`arshadow.plan.SceneGeometry.set_lights`); returns the number of
-        (sample) lights to recompute."""
-        return self.geometry.set_lights([parse_light(s) if isinstance(s, str) else s for s in lights])
-
-    @property
-    def sun_tracks(self) -> list[Any]:
-        """The sun tracks :meth:`set_time` moves (the spec's time-lapse, or :meth:`use_sun_tracks`)."""
-        return [] if self._sun is None else list(self._sun[1])
-
-    @property
-    def time_lapse(self) -> tuple[Any, float] | None:
-        """``(start datetime, speed)`` of the spec's time-lapse, or None."""
-        return self.scene.time_lapse
-
-    def use_sun_tracks(self, tracks: Sequence[Any], static: Sequence[Any] = ()) -> None:
-        """Let :meth:`set_time` move the sun: ``tracks`` (:func:`arshadow.lights.spec.parse_sun_track`) plus fixed
-        ``static`` lights."""
-        self._sun = (list(static), list(tracks))
-
-    def set_time(self, when: datetime) -> list[Any]:
-        """Move the sun tracks of :meth:`use_sun_tracks` to ``when`` (aware datetime) and set the lights.
-
-        Returns
-        -------
-        list of arshadow.lights.suntrack.TrackFrame
-            One per track (``recompute``, ``stale_deg``... for the report).
-        """
-        if self._sun is None:
-            raise UsageError("set_time needs sun tracks (Session.use_sun_tracks)")
-        static, tracks = self._sun
-        frames = [tr.update(when) for tr in tracks]
-        self.geometry.set_lights(list(static) + [tr.light(f) for tr, f in zip(tracks, frames)])
-        return frames
-
-    def state(self) -> dict[str, Any]:
-        """The history later frames depend on, picklable: the current lights with their cached silhouettes
-        and volumes, and the sun tracks' recompute schedule. :meth:`restore` it (here or in another
-        process's session of the same spec) to go on exactly as this session would."""
-        return {
-            "geometry": self.geometry.state(),
-            "sun_tracks": None if self._sun is None else [tr.state() for tr in self._sun[1]],
-            "exposure": None if self.exposure is None else self.exposure.state(),
-        }
-
-    def restore(self, state: dict[str, Any]) -> None:
-        """Set the history saved by :meth:`state`."""
-        self.geometry.restore(state["geometry"])
-        if self.exposure is not None:
-            self.exposure.restore(state.get("exposure"))
-        if state.get("sun_tracks") is not None and self._sun is not None:
-            for tr, st in zip(self._sun[1], state["sun_tracks"]):
-                tr.restore(st)
 
 
 def render_photo(
