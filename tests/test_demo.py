@@ -24,3 +24,12 @@ def test_demo_renders_every_sample(gl_ctx, tmp_path, capsys):
         assert (mask > 0).sum() > 2000, f"{i['input']}: no shadow in the mask"
     assert cv2.imread(str(out / "contact_sheet.png")) is not None
     assert not [p for p in out.iterdir() if ".tmp" in p.name]  # nothing half-written left behind
+
+
+def test_demo_relative_output_outside_the_samples(gl_ctx, tmp_path, monkeypatch, capsys):
+    """The README's ``arshadow demo -o demo_out`` from any working directory: the measured-look item reads its
+    estimate back from the relative output folder (it was resolved against the samples' folder: exit 1)."""
+    monkeypatch.chdir(tmp_path)
+    assert main(["demo", "--quiet", "-o", "demo_out"]) == 0, capsys.readouterr().err
+    assert (tmp_path / "demo_out" / "probe_shadow.light.json").is_file()
+    assert (tmp_path / "demo_out" / "probe_shadow.png").is_file()

@@ -57,7 +57,9 @@ def light_demo(samples: Path, outdir: Path, *, context=None, renderer=None, aa: 
             "place": sc["place"],
             "rotate": sc["rotate"],
             "color": sc.get("color"),
-            "light_from": str(est_path),
+            # absolute: the scene resolves relative paths against the samples' folder (base_dir), and a
+            # relative -o (the README's `-o demo_out`) lies under the working directory, not there
+            "light_from": str(Path(est_path).resolve()),
             "aa": int(aa),
         },
         base_dir=root,
