@@ -153,6 +153,9 @@ class Tolerances:
     # video chunks (issue 18): a chunk's exposure smoothing (a one-pole filter, 0.82 per frame) starts from
     # its 50-frame primer, not from the whole history: 5e-5 of the first difference is left (measured 1.4e-6)
     chunk_exposure_gain_rel: float = 1e-5
+    # browser preview (issue 30): the dragged object's saved place vs the ground point under the target pixel
+    # (back-projected in the test with OpenCV's undistortPoints); the issue's bound
+    preview_place_mm: float = 1.0
 
 
 TOL = Tolerances()
