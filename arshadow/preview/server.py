@@ -66,6 +66,16 @@ class PreviewServer(ThreadingHTTPServer):
         self.info = dict(info or {})
         self.page = resources.files(__package__).joinpath("page.html").read_bytes()
 
+    def handle_error(self, request: Any, client_address: Any) -> None:
+        """A browser closing its connection is not an error (no traceback on the terminal); others are logged."""
+        import sys
+
+        exc = sys.exc_info()[1]
+        if isinstance(exc, (ConnectionError, TimeoutError)):
+            log.debug("preview: %s: %s", client_address, exc)
+            return
+        log.error("preview: request from %s failed", client_address, exc_info=exc)
+
     @property
     def port(self) -> int:
         return int(self.server_address[1])
