@@ -234,6 +234,38 @@ def test_set_model_renders_as_a_fresh_session():
     assert np.array_equal(got.composite, want.composite) and np.array_equal(got.mask, want.mask)
 
 
+def _decode(url):
+    import base64
+
+    return cv2.imdecode(np.frombuffer(base64.b64decode(url.split(",", 1)[1]), np.uint8), cv2.IMREAD_UNCHANGED)
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize("light", ["directional:-0.3,0.5,0.8", "point:-0.12,0.2,0.42"])
+def test_draft_frames_match_the_exact_render(light, tmp_path, tol):
+    """A draft (drag or turn: the equivalent camera and lights) shows the exact render's shadow to rounding;
+    under a directional light its composite too (a point light: the held exposure differs a few levels)."""
+    from arshadow.preview.engine import Media, PreviewEngine
+
+    engine = PreviewEngine(Media(PHOTO), {**BASE, "lights": [light]}, tmp_path / "s.yml")
+    try:
+        engine.render(engine.request({"controls": CONTROLS}))
+        for body in ({"drag_to": [850.0, 470.0]}, {"controls": {**CONTROLS, "rotate": [0, 0, 75.0]}}):
+            b = {"controls": CONTROLS, "mask": True, **body}
+            draft = engine.render(engine.request({**b, "draft": True}))
+            exact = engine.render(engine.request({**b, "draft": False}))
+            assert draft["draft"] and not exact["draft"] and draft["scene"] == exact["scene"]
+            assert int((_decode(draft["mask"]) != _decode(exact["mask"])).sum()) <= tol.preview_draft_mask_px
+            assert (_decode(exact["mask"]) > 0).sum() > 10000  # a real shadow was compared
+            diff = np.abs(_decode(draft["image"]).astype(int) - _decode(exact["image"]).astype(int)).max()
+            if light.startswith("directional"):
+                assert diff <= tol.preview_draft_levels
+        raised = {**CONTROLS, "place": [0.1, 0.05, 0.02]}  # not a motion on the ground: rendered exactly
+        assert not engine.render(engine.request({"controls": raised, "draft": True}))["draft"]
+    finally:
+        engine.close()
+
+
 @pytest.mark.gl
 def test_server_drops_superseded_renders(server):
     """Many renders at once: the ones that waited behind a newer one are answered 409, the newest 200."""

@@ -12,6 +12,7 @@ soft samples, the object shown or not, the measured light) makes a new session o
 from __future__ import annotations
 
 import base64
+import dataclasses
 import logging
 import os
 import threading
@@ -28,6 +29,8 @@ from ..errors import ImageError, MarkerNotFoundError
 from ..io import read_image, write_bytes
 from ..report import jsonable
 from ..scene import SCENE_KEYS, scene_from_dict
+from ..transforms import invert_rigid
+from .draft import draft_pose, ground_motion, moved_lights
 from .edit import ControlError, apply_controls, command_line, controls_of, ground_point, relative_paths
 from .worker import LatestWins
 
@@ -97,6 +100,8 @@ class RenderRequest:
     frame: int = 0
     drag_to: tuple | None = None
     want_mask: bool = False
+    #: a frame while the pointer moves: may be a draft (:mod:`arshadow.preview.draft`)
+    draft: bool = False
 
 
 def _data_url(img: np.ndarray) -> str:
@@ -132,6 +137,9 @@ class PreviewEngine:
         self._ctx: Any = None
         self._poses: dict[int, Any] = {}
         self._last: dict | None = None  # the scene of the last image shown
+        self._draft_session: Any = None  # drafts' session (arshadow.preview.draft), its spec's key, its frame
+        self._draft_key: Any = None
+        self._draft_frame: int | None = None
         self._last_lock = threading.Lock()
         self.worker = LatestWins(self._run, on_stop=self._release)
         scene_from_dict(self.base)  # a bad starting scene: one usage error now
@@ -148,7 +156,7 @@ class PreviewEngine:
         """
         if not isinstance(body, dict):
             raise ControlError("the request body is not a JSON object")
-        unknown = sorted(set(body) - {"controls", "frame", "drag_to", "mask", "seq"})
+        unknown = sorted(set(body) - {"controls", "frame", "drag_to", "mask", "draft", "seq"})
         if unknown:
             raise ControlError(f"unknown request key(s) {', '.join(map(repr, unknown))}")
         scene = apply_controls(self.base, body.get("controls"), own_lights=self.own_lights)
@@ -163,11 +171,12 @@ class PreviewEngine:
             if not (-0.5 <= drag[0] <= self.media.width - 0.5 and -0.5 <= drag[1] <= self.media.height - 0.5):
                 raise ControlError(f"drag_to {drag!r}: outside the {self.media.width}x{self.media.height} image")
             drag = (float(drag[0]), float(drag[1]))
-        mask = body.get("mask", False)
-        if not isinstance(mask, bool):
-            raise ControlError(f"mask {mask!r}: expected true or false")
+        flags = {k: body.get(k, False) for k in ("mask", "draft")}
+        for k, v in flags.items():
+            if not isinstance(v, bool):
+                raise ControlError(f"{k} {v!r}: expected true or false")
         scene_from_dict(scene)  # a scene the spec refuses: 400 here, not on the render thread
-        return RenderRequest(scene, frame, drag, mask)
+        return RenderRequest(scene, frame, drag, flags["mask"], flags["draft"])
 
     def render(self, req: RenderRequest, timeout: float = 120.0) -> dict:
         """Run ``req`` (newest wins: raises :class:`arshadow.preview.worker.Superseded` when dropped)."""
@@ -179,19 +188,18 @@ class PreviewEngine:
         self.worker.close()
 
     # -- the render thread --------------------------------------------------------------------------
-    def _session_for(self, spec: Any) -> Any:
-        """The session for ``spec``: the current one moved / relit when only the model or lights differ."""
+    def _session_for(self, spec: Any, move: bool = True) -> Any:
+        """The session for ``spec``: the current one moved / relit when only the model or lights differ
+        (``move`` False: left as it is then; the caller moves it once it knows where)."""
         from ..session import Session
 
         cur = self._spec
         if self._session is None or spec.replace(model=cur.model, lights=cur.lights) != cur:
-            if self._ctx is None:
-                from ..gl.context import create_context  # the one context, made on this thread
-
-                self._ctx = create_context()
             if self._session is not None:
                 self._session.close()
-            self._session = Session(spec, context=self._ctx)
+            self._session = Session(spec, context=self._context())
+        elif not move:
+            return self._session
         else:
             if spec.model != cur.model:
                 self._session.set_model(spec.model)
@@ -200,21 +208,54 @@ class PreviewEngine:
         self._spec = spec
         return self._session
 
+    def _context(self) -> Any:
+        if self._ctx is None:
+            from ..gl.context import create_context  # the one context, made on this (the render) thread
+
+            self._ctx = create_context()
+        return self._ctx
+
     def _pose(self, session: Any, index: int, image: np.ndarray) -> Any:
         pose = self._poses.get(index)
         if pose is None:
             pose = self._poses[index] = session.track(image)
         return pose
 
+    def _draft(self, spec: Any, image: np.ndarray, index: int, pose: Any, want_mask: bool) -> Any:
+        """Render ``spec`` as a draft (:mod:`arshadow.preview.draft`), or None when it is not a ground
+        motion of the model the draft session holds or of the exact session's."""
+        from ..lights.spec import parse_light
+        from ..session import Session
+
+        key = spec.replace(lights=(), options=dataclasses.replace(spec.options, track_roi=True))
+        motion = None
+        if self._draft_session is not None and key.replace(model=self._draft_key.model) == self._draft_key:
+            motion = ground_motion(self._draft_key.model, spec.model)
+        if motion is None:
+            motion = ground_motion(self._spec.model, spec.model)
+            if motion is None:
+                return None
+            if self._draft_session is not None:
+                self._draft_session.close()
+            self._draft_key = key.replace(model=self._spec.model)
+            self._draft_session = Session(self._draft_key.replace(lights=spec.lights), context=self._context())
+            self._draft_frame = None
+        s = self._draft_session
+        if self._draft_frame != index:  # the exposure the drafts keep: this frame's, at the real camera
+            s.observe_exposure(image, pose.cam_from_world, pose)
+            self._draft_frame = index
+        lights = [parse_light(x) if isinstance(x, str) else x for x in spec.lights]
+        s.set_lights(moved_lights(lights, invert_rigid(motion)))
+        mfg = None if s.ground.is_marker else s.ground.marker_from_ground
+        cfm = draft_pose(s.ground_camera(pose.cam_from_world), motion, mfg)
+        return s.render(image, cfm, name=self.media.name, want_mask=want_mask, marker=pose, seen=False)
+
     def _run(self, job: tuple) -> dict:
         req, t_submit = job
         t0 = time.perf_counter()
         scene = {k: (list(v) if isinstance(v, list) else v) for k, v in req.scene.items()}
         image = self.media.frame(req.frame)
-        spec = scene_from_dict(scene)
-        if req.drag_to is not None and self._spec is not None:  # moved once, below, when the place is known
-            spec = spec.replace(model=self._spec.model)
-        session = self._session_for(spec)
+        session = self._session_for(scene_from_dict(scene), move=False)  # moved below, once
         try:
             pose = self._pose(session, req.frame, image)
         except MarkerNotFoundError as exc:
@@ -227,15 +268,18 @@ class PreviewEngine:
             if g is None:
                 raise ControlError(f"drag_to {list(req.drag_to)}: that pixel's ray does not meet the ground")
             scene["place"] = [float(g[0]), float(g[1]), float(scene["place"][2])]
-            session = self._session_for(scene_from_dict(scene))
+        spec = scene_from_dict(scene)
         t1 = time.perf_counter()
-        res = session.render(image, pose, name=self.media.name, want_mask=req.want_mask)
+        res = self._draft(spec, image, req.frame, pose, req.want_mask) if req.draft else None
+        draft = res is not None
+        if res is None:
+            res = self._session_for(spec).render(image, pose, name=self.media.name, want_mask=req.want_mask)
         t2 = time.perf_counter()
         png = _data_url(res.composite)
         mask = _data_url(res.mask) if req.want_mask and res.mask is not None else None
         t3 = time.perf_counter()
         with self._last_lock:
-            self._last = {"scene": scene, "frame": req.frame}
+            self._last = {"scene": scene, "frame": req.frame, "draft": draft}
         length = float(session.scene.tracker.get("marker_length") or 0.05)
         axes = cal.intrinsics.project(np.array([[0, 0, 0], [length, 0, 0], [0, length, 0], [0, 0, length]], float), cfw)
         anchor = cal.intrinsics.project(np.asarray([scene["place"]], float), cfw)[0]
@@ -247,6 +291,7 @@ class PreviewEngine:
                 "scene": scene,
                 "controls": controls_of(scene),
                 "frame": req.frame,
+                "draft": draft,
                 "axes_px": axes.tolist(),
                 "anchor_px": anchor.tolist(),
                 "roi": item.get("roi"),
@@ -263,6 +308,9 @@ class PreviewEngine:
         )
 
     def _release(self) -> None:
+        if self._draft_session is not None:
+            self._draft_session.close()
+            self._draft_session = None
         if self._session is not None:
             self._session.close()
             self._session = None
