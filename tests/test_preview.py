@@ -330,3 +330,104 @@ def test_no_browser_opened_without_a_display(monkeypatch):
     monkeypatch.setattr(webbrowser, "open", broken)
     assert _open_browser("http://127.0.0.1:1/") is False
     assert os.environ["DISPLAY"] == ":99"
+
+
+def _start_cli(args, cwd):
+    """``arshadow preview ARGS --no-browser`` in a subprocess: (process, address)."""
+    cmd = [sys.executable, "-m", "arshadow", "preview", *map(str, args), "--no-browser"]
+    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=cwd)
+    line = p.stdout.readline()
+    if "token=" not in line:
+        p.kill()
+        raise AssertionError(f"no address printed: {line!r} {p.stderr.read()}")
+    return p, line.split(" at ", 1)[1].strip()
+
+
+def _post(url, route, body):
+    base, query = url.split("?", 1)
+    req = urllib.request.Request(f"{base.rstrip('/')}{route}?{query}", data=json.dumps(body).encode(), method="POST")
+    try:
+        with urllib.request.urlopen(req, timeout=300) as r:
+            return r.status, json.loads(r.read())
+    except urllib.error.HTTPError as e:
+        return e.code, json.loads(e.read())
+
+
+@pytest.mark.gl
+def test_probe_measured_light_switch_and_save(tmp_path):
+    """--probe: the measured light by default, a manual light and back; the saved scene names the measured
+    light's file and batch reproduces the page's pixels."""
+    probe = ROOT / "samples" / "probe_shadow.jpg"
+    p, url = _start_cli(
+        [
+            probe,
+            "--calib",
+            CALIB,
+            "--marker-length",
+            "0.05",
+            "--model",
+            ROOT / "samples/meshes/knot.ply",
+            "--place",
+            "-0.02,0.1,0",
+            "--probe",
+            "box:0.05,0.05,0.1",
+            "--probe-place",
+            "0.1,0.02,0",
+            "--scene-out",
+            tmp_path / "job.yml",
+        ],  # fmt: skip
+        tmp_path,
+    )
+    try:
+        controls = {"place": [-0.02, 0.1, 0.0], "rotate": [0.0, 0.0, 0.0], "scale": 1.0}
+        status, manual = _post(
+            url, "/api/render", {"controls": {**controls, "light": {"azimuth": 30, "elevation": 40}}}
+        )
+        assert status == 200 and manual["scene"]["lights"][0].startswith("directional:")
+        assert "light_from" not in manual["scene"]
+        status, measured = _post(url, "/api/render", {"controls": {**controls, "light": "measured"}})
+        assert status == 200 and "lights" not in measured["scene"] and measured["controls"]["light"] == "measured"
+        assert not np.array_equal(_decode(manual["image"]), _decode(measured["image"]))
+        status, saved = _post(url, "/api/save", {})
+        assert status == 200
+    finally:
+        p.send_signal(signal.SIGINT)
+        p.communicate(timeout=60)
+    assert p.returncode == 0
+    assert (tmp_path / "job.light.json").is_file() and "light_from: job.light.json" in saved["scene"]
+    run = subprocess.run(
+        [sys.executable, "-m", "arshadow", "batch", str(probe), "--config", saved["path"], "-o", str(tmp_path / "o")],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert run.returncode == 0, run.stderr
+    assert np.array_equal(cv2.imread(str(tmp_path / "o" / "probe_shadow.png")), _decode(measured["image"]))
+
+
+@pytest.mark.gl
+def test_video_frames_are_the_pipeline_s(tmp_path):
+    """A video's frames by index (the page's slider), each composited as Session.process composites it."""
+    from arshadow.preview.engine import Media, PreviewEngine
+    from arshadow.scene import scene_from_dict
+    from arshadow.session import Session
+
+    video = ROOT / "samples" / "video" / "orbit.mp4"
+    base = {**BASE, "calib": str(ROOT / "calib" / "synth_640x360.yml"), "model": "box:0.04,0.04,0.06"}
+    media = Media(video)
+    assert media.is_video and media.count > 20 and (media.width, media.height) == (640, 360)
+    engine = PreviewEngine(media, base, tmp_path / "s.yml")
+    try:
+        shown = [_decode(engine.render(engine.request({"controls": CONTROLS, "frame": i}))["image"]) for i in (0, 20)]
+        with pytest.raises(ControlError, match="frame"):
+            engine.request({"controls": CONTROLS, "frame": media.count})
+    finally:
+        engine.close()
+    cap = cv2.VideoCapture(str(video))
+    frames = [cap.read()[1] for _ in range(21)]
+    cap.release()
+    with Session(scene_from_dict(base)) as s:
+        assert np.array_equal(shown[0], s.process(frames[0]).composite)
+    with Session(scene_from_dict(base)) as s:
+        assert np.array_equal(shown[1], s.process(frames[20]).composite)
+    assert not np.array_equal(shown[0], shown[1])
