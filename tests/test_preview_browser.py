@@ -150,7 +150,7 @@ def test_drag_save_and_render_reproduce_the_page(browser, server, tmp_path, tol)
     keep = os.environ.get("ARSHADOW_PREVIEW_SCREENSHOT")
     if keep:  # the README's picture, made by this browser
         img = cv2.imread(str(shot))
-        small = cv2.resize(img, (img.shape[1] * 3 // 4, img.shape[0] * 3 // 4), interpolation=cv2.INTER_AREA)
+        small = cv2.resize(img, (img.shape[1] * 5 // 8, img.shape[0] * 5 // 8), interpolation=cv2.INTER_AREA)
         cv2.imwrite(keep, small, [cv2.IMWRITE_PNG_COMPRESSION, 9])
     page.close()
     assert not errors, errors
