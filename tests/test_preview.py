@@ -194,6 +194,32 @@ def test_bad_requests_get_400_with_the_reason(server):
 
 
 @pytest.mark.gl
+def test_a_scene_arshadow_refuses_is_a_400_and_the_server_goes_on(tmp_path):
+    """A light inside the (scaled-up) model: 400 naming it, whether the mesh moved or a new session loads
+    the scene; the next good requests render."""
+    from arshadow.preview.engine import Media, PreviewEngine
+    from arshadow.preview.server import PreviewServer
+
+    box = {**BASE, "model": "box:0.04,0.04,0.06", "lights": ["point:0.1,0.1,0.4"]}
+    engine = PreviewEngine(Media(PHOTO), box, tmp_path / "s.yml")
+    srv = PreviewServer(engine, 0, {})
+    threading.Thread(target=srv.serve_forever, kwargs={"poll_interval": 0.05}, daemon=True).start()
+    try:
+        assert _call(srv, "/api/render", {"controls": CONTROLS})[0] == 200
+        huge = {**CONTROLS, "scale": 20.0}  # 0.8 x 0.8 x 1.2 m: the light at 0.4 m is inside
+        for controls in (huge, {**huge, "opacity": 0.5}):  # the mesh moved; a new session
+            status, reply = _call(srv, "/api/render", {"controls": controls})
+            assert status == 400 and "inside the closed mesh" in reply["error"], reply
+        for controls in (CONTROLS, {**CONTROLS, "opacity": 0.5}):
+            status, reply = _call(srv, "/api/render", {"controls": controls})
+            assert status == 200 and reply["scene"]["scale"] == 1.0
+    finally:
+        srv.shutdown()
+        srv.server_close()
+        engine.close()
+
+
+@pytest.mark.gl
 def test_render_then_save_reproduces_through_batch(server, tmp_path):
     """The page's image (lossless) equals `arshadow batch --config` of the saved scene, pixel for pixel."""
     status, r = _call(server, "/api/render", {"controls": {**CONTROLS, "rotate": [0, 0, 40.0]}, "drag_to": [800, 480]})

@@ -152,9 +152,16 @@ def test_drag_save_and_render_reproduce_the_page(browser, server, tmp_path, tol)
         img = cv2.imread(str(shot))
         small = cv2.resize(img, (img.shape[1] * 5 // 8, img.shape[0] * 5 // 8), interpolation=cv2.INTER_AREA)
         cv2.imwrite(keep, small, [cv2.IMWRITE_PNG_COMPRESSION, 9])
+    # the shadow-mask toggle: the mask of the same frame over the image
+    page.check("#show_mask")
+    page.wait_for_function("() => window.previewIdle() && !document.getElementById('mask').hidden", timeout=120_000)
+    mask_src = page.evaluate("() => document.getElementById('mask').src")
     page.close()
     assert not errors, errors
     assert all(u.startswith(f"http://127.0.0.1:{server.port}/") or u.startswith("data:") for u in requests), requests
+
+    mask = cv2.imdecode(np.frombuffer(base64.b64decode(mask_src.split(",", 1)[1]), np.uint8), cv2.IMREAD_UNCHANGED)
+    assert mask.shape == shown.shape[:2] and (mask > 0).sum() > 10000
 
     # the saved place is the ground point under the target pixel
     scene_path = Path(server.engine.scene_out)

@@ -109,7 +109,9 @@ def run(args) -> int:
     engine = PreviewEngine(media, base, scene_out, own_lights=own or None)
     try:
         controls = controls_of(base)
-        engine.render(engine.request({"controls": controls}))  # the session and its context, made now
+        first = engine.render(engine.request({"controls": controls}))  # the session and its context, made now
+        if first.get("error"):
+            print(f"arshadow preview: warning: {first['error']}", file=sys.stderr, flush=True)
         info = {
             "name": media.name,
             "width": media.width,

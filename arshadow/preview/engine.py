@@ -197,6 +197,7 @@ class PreviewEngine:
         if self._session is None or spec.replace(model=cur.model, lights=cur.lights) != cur:
             if self._session is not None:
                 self._session.close()
+                self._session = self._spec = None  # a scene that fails to load leaves no closed session behind
             self._session = Session(spec, context=self._context())
         elif not move:
             return self._session
@@ -237,6 +238,7 @@ class PreviewEngine:
                 return None
             if self._draft_session is not None:
                 self._draft_session.close()
+                self._draft_session = None
             self._draft_key = key.replace(model=self._spec.model)
             self._draft_session = Session(self._draft_key.replace(lights=spec.lights), context=self._context())
             self._draft_frame = None

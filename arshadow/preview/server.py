@@ -12,8 +12,9 @@ Routes (every one needs ``?token=T`` or the header ``X-Arshadow-Token: T``; with
 - ``POST /api/save``: writes the scene file of the last image shown (at the path given on the command
   line, never one from the page) -> its path, text and the equivalent command lines.
 
-Every error is JSON ``{"error": "..."}`` with its status (400 bad request, 403 no token or a foreign
-``Host``, 404, 405, 409 superseded, 413 too large, 500). Nothing but the page and these answers is served:
+Every error is JSON ``{"error": "..."}`` with its status (400 a bad request or a scene arshadow refuses,
+e.g. a light inside the model, 403 no token or a foreign ``Host``, 404, 405, 409 superseded, 413 too
+large, 500 the server's own failure). Nothing but the page and these answers is served:
 no path the page sends is ever opened.
 """
 
@@ -28,7 +29,7 @@ from importlib import resources
 from typing import Any
 from urllib.parse import parse_qs, urlsplit
 
-from ..errors import ArshadowError, UsageError
+from ..errors import ArshadowError
 from .engine import PreviewEngine
 from .worker import Superseded
 
@@ -188,10 +189,10 @@ class _Handler(BaseHTTPRequestHandler):
             self._json(HTTPStatus.OK, out)
         except Superseded as exc:
             self._error(HTTPStatus.CONFLICT, str(exc))
-        except UsageError as exc:
-            self._error(HTTPStatus.BAD_REQUEST, str(exc))
-        except ArshadowError as exc:
-            self._error(HTTPStatus.UNPROCESSABLE_ENTITY, str(exc))
+        except ValueError as exc:  # UsageError, MeshError, LightError...: the scene asked for is refused
+            self._error(HTTPStatus.BAD_REQUEST, str(exc) or type(exc).__name__)
+        except ArshadowError as exc:  # the server's side (no GL context, an unreadable video frame)
+            self._error(HTTPStatus.INTERNAL_SERVER_ERROR, str(exc))
         except Exception as exc:  # noqa: BLE001 (one JSON answer per request, the server keeps serving)
             log.exception("preview: %s failed", route)
             self._error(HTTPStatus.INTERNAL_SERVER_ERROR, f"{type(exc).__name__}: {exc}")
