@@ -457,3 +457,48 @@ def test_video_frames_are_the_pipeline_s(tmp_path):
     with Session(scene_from_dict(base)) as s:
         assert np.array_equal(shown[1], s.process(frames[20]).composite)
     assert not np.array_equal(shown[0], shown[1])
+
+
+def _get(url, route):
+    base, query = url.split("?", 1)
+    with urllib.request.urlopen(f"{base.rstrip('/')}{route}?{query}", timeout=60) as r:
+        return json.loads(r.read())
+
+
+@pytest.mark.gl
+def test_config_reopens_a_saved_scene(tmp_path):
+    """--config starts from a job file (its relative paths its own folder's): the page's controls are the
+    file's, its image is batch's of that file; Save never replaces the file unless told to."""
+    job = tmp_path / "jobs" / "knot_point.scene.yml"
+    job.parent.mkdir()
+    rel = lambda p: os.path.relpath(p, job.parent)  # noqa: E731
+    job.write_text(
+        f"calib: {rel(CALIB)}\nmarker_length: 0.05\nmodel: {rel(BASE['model'])}\nscale: 0.9\n"
+        "rotate: [0, 0, 60]\nplace: [0.03, -0.04, 0.0]\nlights: ['directional:0.3,-0.4,0.8']\nopacity: 0.5\n"
+    )
+    refused = subprocess.run(
+        [sys.executable, "-m", "arshadow", "preview", str(PHOTO), "--config", str(job), "--no-browser"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=job.parent,
+    )
+    assert refused.returncode == 2 and "--scene-out" in refused.stderr
+    p, url = _start_cli([PHOTO, "--config", job, "--scene-out", tmp_path / "again.yml"], tmp_path)
+    try:
+        info = _get(url, "/api/info")
+        c = info["controls"]
+        assert (c["place"], c["rotate"], c["scale"], c["opacity"]) == ([0.03, -0.04, 0.0], [0, 0, 60], 0.9, 0.5)
+        status, shown = _post(url, "/api/render", {"controls": c})
+        assert status == 200
+    finally:
+        p.send_signal(signal.SIGINT)
+        p.communicate(timeout=60)
+    run = subprocess.run(
+        [sys.executable, "-m", "arshadow", "batch", str(PHOTO), "--config", str(job), "-o", str(tmp_path / "o")],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert run.returncode == 0, run.stderr
+    assert np.array_equal(cv2.imread(str(tmp_path / "o" / "knot_point.png")), _decode(shown["image"]))

@@ -16,6 +16,7 @@ examples:
       --model samples/meshes/knot.ply --light point:-0.12,0.2,0.42
   arshadow preview clip.mp4 --calib cam.yml --marker-length 0.05 --model box:0.04,0.04,0.06 \\
       --light-from light.json --scene-out job.yml --port 8765
+  arshadow preview clip.mp4 --config job.yml --scene-out job2.yml        # reopen a saved scene
 
 The page (served on 127.0.0.1 only, behind the random token in the printed address) shows the input
 composited by the same pipeline as render / video. Drag on the photo to stand the object under the cursor;
@@ -40,8 +41,15 @@ def register(subparsers) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("input", metavar="PHOTO|VIDEO", help="the photo or video to preview (the only file served)")
-    add_scene_options(p)
+    add_scene_options(p, require=False)
     g = p.add_argument_group("preview")
+    g.add_argument(
+        "--config",
+        "-c",
+        metavar="JOB.yml",
+        help="start from this scene file (e.g. one Save wrote: reopen it); scene options given as well "
+        "replace its keys (without it, --calib and --model are required)",
+    )
     g.add_argument("--port", type=int, default=0, metavar="N", help="port on 127.0.0.1 (default: any free port)")
     g.add_argument(
         "--scene-out",
@@ -54,18 +62,31 @@ def register(subparsers) -> None:
 
 
 def base_scene(args) -> dict:
-    """The starting scene (job-file keys) from the parsed options: defaults left out, paths absolute."""
+    """The starting scene (job-file keys) from the parsed options: defaults left out, paths absolute; over
+    ``--config``'s scene when given.
+
+    Raises
+    ------
+    UsageError
+        No ``--config`` and no ``--calib`` / ``--model``; a bad ``--config`` file.
+    """
+    from ..errors import UsageError
+    from ..preview.edit import read_job
+
     defaults = getattr(args, "preview_defaults", {})
-    d = {}
+    config = getattr(args, "config", None)
+    if config is None and not (args.calib and args.model):
+        raise UsageError("give --calib and --model (or --config JOB.yml)")
+    d = read_job(config) if config else {}
     for key in SCENE_KEYS:
         v = getattr(args, "light" if key == "lights" else key, None)
         if v is None or v is False or (key in defaults and v == defaults[key] and key not in ("calib", "model")):
             continue
+        if key in _PATHS and isinstance(v, str) and (key not in ("model", "dictionary") or Path(v).is_file()):
+            v = os.path.abspath(v)
         d[key] = list(v) if isinstance(v, tuple) else v
-    for key in _PATHS:
-        v = d.get(key)
-        if isinstance(v, str) and (key not in ("model", "dictionary") or Path(v).is_file()):
-            d[key] = os.path.abspath(v)
+    if config and args.light_from and not args.light:
+        d.pop("lights", None)  # --light-from over a file's lights: the measured light, as on render
     return d
 
 
@@ -97,8 +118,17 @@ def run(args) -> int:
     check_output_file(scene_out, "--scene-out")
     if scene_out.resolve() == Path(args.input).resolve():
         raise UsageError(f"--scene-out {scene_out}: that is the input")
+    if args.config and not args.scene_out and scene_out.resolve() == Path(args.config).resolve():
+        raise UsageError(f"Save would replace --config {args.config}: give --scene-out (that file, to do so)")
     base = base_scene(args)
-    est = probe_estimate(args, [args.input], calib=args.calib, marker_length=args.marker_length)
+    est = probe_estimate(
+        args,
+        [args.input],
+        calib=base.get("calib"),
+        marker_length=base.get("marker_length"),
+        dictionary=base.get("dictionary"),
+        marker_id=base.get("marker_id"),
+    )
     if est is not None:  # the measured light, kept beside the scene file so that the saved scene names it
         light_file = scene_out.with_name(scene_out.stem + ".light.json")
         write_json(light_file, est.to_dict())

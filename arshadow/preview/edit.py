@@ -50,6 +50,7 @@ __all__ = [
     "light_angles",
     "ground_point",
     "relative_paths",
+    "read_job",
     "command_line",
     "PATH_KEYS",
 ]
@@ -225,6 +226,47 @@ def ground_point(intrinsics: Any, cam_from_world: np.ndarray, uv: Any) -> np.nda
     p: np.ndarray = centre + ray * (-centre[2] / ray[2])
     p[2] = 0.0
     return p
+
+
+def read_job(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """A job file's scene keys as a mapping, its file paths made absolute (relative ones are the file's
+    folder's, as :func:`arshadow.scene.load_scene` reads them); checked by loading it.
+
+    Raises
+    ------
+    UsageError
+        Unreadable or malformed file, or a bad scene.
+    """
+    import json
+
+    from ..scene import load_scene
+
+    load_scene(path)  # every problem of the file, named as batch --config names it
+    p = Path(path)
+    text = p.read_text(encoding="utf-8")
+    if p.suffix.lower() in (".yml", ".yaml"):
+        import yaml
+
+        data = yaml.safe_load(text)
+    else:
+        data = json.loads(text)
+    if isinstance(data.get("scene"), dict):
+        data = data["scene"]
+    d = dict(data)
+    if "light" in d:
+        d["lights"] = d.pop("light")
+    if isinstance(d.get("lights"), str):
+        d["lights"] = [d["lights"]]
+    for key in PATH_KEYS:
+        v = d.get(key)
+        if not isinstance(v, str) or Path(v).is_absolute():
+            continue
+        if key == "dictionary" and v.upper().startswith("DICT_"):
+            continue
+        if key == "model" and ":" in v and not (p.parent / v).exists():
+            continue  # a primitive
+        d[key] = str((p.parent / v).resolve())
+    return d
 
 
 def relative_paths(d: Mapping[str, Any], folder: str | os.PathLike[str]) -> dict[str, Any]:

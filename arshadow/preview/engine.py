@@ -165,8 +165,9 @@ class PreviewEngine:
             raise ControlError(f"frame {frame!r}: expected a whole number in [0, {self.media.count - 1}]")
         drag = body.get("drag_to")
         if drag is not None:
-            ok = isinstance(drag, list) and len(drag) == 2 and all(isinstance(x, (int, float)) for x in drag)
-            if not ok or isinstance(drag[0], bool) or not all(np.isfinite(drag)):
+            ok = isinstance(drag, list) and len(drag) == 2
+            ok = ok and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in drag)
+            if not ok or not all(np.isfinite(drag)):
                 raise ControlError(f"drag_to {drag!r}: expected two finite pixel coordinates [u, v]")
             if not (-0.5 <= drag[0] <= self.media.width - 0.5 and -0.5 <= drag[1] <= self.media.height - 0.5):
                 raise ControlError(f"drag_to {drag!r}: outside the {self.media.width}x{self.media.height} image")
