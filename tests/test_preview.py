@@ -159,7 +159,7 @@ def _call(srv, path, body=None, token=True, headers=None):
 @pytest.mark.gl
 def test_server_needs_the_token_on_every_request(server):
     assert server.server_address[0] == "127.0.0.1"
-    for path in ("/", "/api/info", "/api/render", "/api/save", "/nope"):
+    for path in ("/", "/api/info", "/api/render", "/api/save", "/api/image/1/composite", "/nope"):
         status, body = _call(server, path, token=False)
         assert status == 403 and "token" in body["error"]
         status, body = _call(server, path + "?token=wrong" + server.token[5:], token=False)
@@ -190,6 +190,9 @@ def test_bad_requests_get_400_with_the_reason(server):
     status, reply = _call(server, "/api/render", b"x" * (70 * 1024))
     assert status == 413
     assert _call(server, "/nope")[0] == 404
+    for path in ("/api/image/999999/composite", "/api/image/1/../../etc/passwd", "/api/image/1/photo"):
+        status, reply = _call(server, path)
+        assert status == 404 and "error" in reply
     assert _call(server, "/api/render")[0] == 405
 
 
@@ -224,9 +227,9 @@ def test_render_then_save_reproduces_through_batch(server, tmp_path):
     """The page's image (lossless) equals `arshadow batch --config` of the saved scene, pixel for pixel."""
     status, r = _call(server, "/api/render", {"controls": {**CONTROLS, "rotate": [0, 0, 40.0]}, "drag_to": [800, 480]})
     assert status == 200, r
-    import base64
-
-    shown = cv2.imdecode(np.frombuffer(base64.b64decode(r["image"].split(",", 1)[1]), np.uint8), cv2.IMREAD_COLOR)
+    status, data = _call(server, r["image"])
+    assert status == 200 and data[:2] == b"BM"  # lossless: BMP
+    shown = _img(data)
     status, saved = _call(server, "/api/save", {})
     assert status == 200, saved
     out = tmp_path / "out"
@@ -260,10 +263,13 @@ def test_set_model_renders_as_a_fresh_session():
     assert np.array_equal(got.composite, want.composite) and np.array_equal(got.mask, want.mask)
 
 
-def _decode(url):
-    import base64
+def _img(data: bytes) -> np.ndarray:
+    return cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
 
-    return cv2.imdecode(np.frombuffer(base64.b64decode(url.split(",", 1)[1]), np.uint8), cv2.IMREAD_UNCHANGED)
+
+def _shown(engine, reply, kind="composite"):
+    """The image the page would load for ``reply`` (engine side)."""
+    return _img(engine.image(reply["image_id"], kind))
 
 
 @pytest.mark.gl
@@ -281,9 +287,10 @@ def test_draft_frames_match_the_exact_render(light, tmp_path, tol):
             draft = engine.render(engine.request({**b, "draft": True}))
             exact = engine.render(engine.request({**b, "draft": False}))
             assert draft["draft"] and not exact["draft"] and draft["scene"] == exact["scene"]
-            assert int((_decode(draft["mask"]) != _decode(exact["mask"])).sum()) <= tol.preview_draft_mask_px
-            assert (_decode(exact["mask"]) > 0).sum() > 10000  # a real shadow was compared
-            diff = np.abs(_decode(draft["image"]).astype(int) - _decode(exact["image"]).astype(int)).max()
+            masks = [_shown(engine, r, "mask") for r in (draft, exact)]
+            assert int((masks[0] != masks[1]).sum()) <= tol.preview_draft_mask_px
+            assert (masks[1] > 0).sum() > 10000  # a real shadow was compared
+            diff = np.abs(_shown(engine, draft).astype(int) - _shown(engine, exact).astype(int)).max()
             if light.startswith("directional"):
                 assert diff <= tol.preview_draft_levels
         raised = {**CONTROLS, "place": [0.1, 0.05, 0.02]}  # not a motion on the ground: rendered exactly
@@ -413,7 +420,8 @@ def test_probe_measured_light_switch_and_save(tmp_path):
         assert "light_from" not in manual["scene"]
         status, measured = _post(url, "/api/render", {"controls": {**controls, "light": "measured"}})
         assert status == 200 and "lights" not in measured["scene"] and measured["controls"]["light"] == "measured"
-        assert not np.array_equal(_decode(manual["image"]), _decode(measured["image"]))
+        shown = [_get_bytes(url, r["image"]) for r in (manual, measured)]
+        assert not np.array_equal(_img(shown[0]), _img(shown[1]))
         status, saved = _post(url, "/api/save", {})
         assert status == 200
     finally:
@@ -428,7 +436,7 @@ def test_probe_measured_light_switch_and_save(tmp_path):
         timeout=300,
     )
     assert run.returncode == 0, run.stderr
-    assert np.array_equal(cv2.imread(str(tmp_path / "o" / "probe_shadow.png")), _decode(measured["image"]))
+    assert np.array_equal(cv2.imread(str(tmp_path / "o" / "probe_shadow.png")), _img(shown[1]))
 
 
 @pytest.mark.gl
@@ -444,7 +452,8 @@ def test_video_frames_are_the_pipeline_s(tmp_path):
     assert media.is_video and media.count > 20 and (media.width, media.height) == (640, 360)
     engine = PreviewEngine(media, base, tmp_path / "s.yml")
     try:
-        shown = [_decode(engine.render(engine.request({"controls": CONTROLS, "frame": i}))["image"]) for i in (0, 20)]
+        replies = [engine.render(engine.request({"controls": CONTROLS, "frame": i})) for i in (0, 20)]
+        shown = [_shown(engine, r) for r in replies]
         with pytest.raises(ControlError, match="frame"):
             engine.request({"controls": CONTROLS, "frame": media.count})
     finally:
@@ -457,6 +466,12 @@ def test_video_frames_are_the_pipeline_s(tmp_path):
     with Session(scene_from_dict(base)) as s:
         assert np.array_equal(shown[1], s.process(frames[20]).composite)
     assert not np.array_equal(shown[0], shown[1])
+
+
+def _get_bytes(url, route):
+    base, query = url.split("?", 1)
+    with urllib.request.urlopen(f"{base.rstrip('/')}{route}?{query}", timeout=60) as r:
+        return r.read()
 
 
 def _get(url, route):
@@ -489,8 +504,9 @@ def test_config_reopens_a_saved_scene(tmp_path):
         info = _get(url, "/api/info")
         c = info["controls"]
         assert (c["place"], c["rotate"], c["scale"], c["opacity"]) == ([0.03, -0.04, 0.0], [0, 0, 60], 0.9, 0.5)
-        status, shown = _post(url, "/api/render", {"controls": c})
+        status, reply = _post(url, "/api/render", {"controls": c})
         assert status == 200
+        shown = _img(_get_bytes(url, reply["image"]))
     finally:
         p.send_signal(signal.SIGINT)
         p.communicate(timeout=60)
@@ -501,4 +517,4 @@ def test_config_reopens_a_saved_scene(tmp_path):
         timeout=300,
     )
     assert run.returncode == 0, run.stderr
-    assert np.array_equal(cv2.imread(str(tmp_path / "o" / "knot_point.png")), _decode(shown["image"]))
+    assert np.array_equal(cv2.imread(str(tmp_path / "o" / "knot_point.png")), shown)

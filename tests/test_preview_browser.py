@@ -10,12 +10,12 @@ package (the ``test`` extra); never ``playwright install``. Skips, saying which 
 
 from __future__ import annotations
 
-import base64
 import os
 import shlex
 import subprocess
 import sys
 import threading
+import urllib.request
 from pathlib import Path
 
 import cv2
@@ -103,11 +103,13 @@ def _css_point(page, uv):
     return box[0] + (uv[0] + 0.5) * box[2], box[1] + (uv[1] + 0.5) * box[3]
 
 
-def _shown_image(page) -> np.ndarray:
-    src = page.evaluate("() => document.getElementById('photo').src")
-    head, data = src.split(",", 1)
-    assert head in ("data:image/bmp;base64", "data:image/png;base64"), head  # lossless
-    return cv2.imdecode(np.frombuffer(base64.b64decode(data), np.uint8), cv2.IMREAD_COLOR)
+def _shown_image(page, element="photo") -> np.ndarray:
+    """The bytes the page's image element loaded (its address, fetched again: the server keeps them)."""
+    src = page.evaluate(f"() => document.getElementById('{element}').src")
+    with urllib.request.urlopen(src, timeout=60) as r:
+        data = r.read()
+    assert data[:2] == b"BM", data[:8]  # lossless (BMP)
+    return cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
 
 
 def _ground_under(pixel, rvec, tvec) -> np.ndarray:
@@ -155,12 +157,11 @@ def test_drag_save_and_render_reproduce_the_page(browser, server, tmp_path, tol)
     # the shadow-mask toggle: the mask of the same frame over the image
     page.check("#show_mask")
     page.wait_for_function("() => window.previewIdle() && !document.getElementById('mask').hidden", timeout=120_000)
-    mask_src = page.evaluate("() => document.getElementById('mask').src")
+    mask = _shown_image(page, "mask")
     page.close()
     assert not errors, errors
-    assert all(u.startswith(f"http://127.0.0.1:{server.port}/") or u.startswith("data:") for u in requests), requests
+    assert all(u.startswith(f"http://127.0.0.1:{server.port}/") for u in requests), requests
 
-    mask = cv2.imdecode(np.frombuffer(base64.b64decode(mask_src.split(",", 1)[1]), np.uint8), cv2.IMREAD_UNCHANGED)
     assert mask.shape == shown.shape[:2] and (mask > 0).sum() > 10000
 
     # the saved place is the ground point under the target pixel

@@ -11,7 +11,6 @@ soft samples, the object shown or not, the measured light) makes a new session o
 
 from __future__ import annotations
 
-import base64
 import dataclasses
 import logging
 import os
@@ -42,6 +41,12 @@ log = logging.getLogger(__name__)
 VIDEO_SUFFIXES = (".mp4", ".mov", ".mkv", ".avi", ".webm", ".m4v")
 #: decoded video frames kept (a frame slider going back and forth)
 FRAME_CACHE = 8
+#: rendered images kept for the page to fetch (``GET /api/image/ID/KIND``)
+KEEP_IMAGES = 8
+
+
+def _image_url(image_id: int, kind: str) -> str:
+    return f"/api/image/{image_id}/{kind}"
 
 
 class Media:
@@ -104,13 +109,13 @@ class RenderRequest:
     draft: bool = False
 
 
-def _data_url(img: np.ndarray) -> str:
-    """The image as a lossless BMP data URL: the page shows the composite's exact pixels (a 720p PNG takes
-    ~100 ms to encode here, a BMP ~5 ms, and the bytes only cross the loopback)."""
+def _bmp(img: np.ndarray) -> bytes:
+    """The image as BMP bytes: lossless, so the page shows the composite's exact pixels (a 720p PNG takes
+    ~100 ms to encode here, a BMP ~2 ms; the bytes only cross the loopback)."""
     ok, buf = cv2.imencode(".bmp", img)
     if not ok:  # pragma: no cover - OpenCV encodes any uint8 image
         raise ImageError("cannot encode the preview image")
-    return "data:image/bmp;base64," + base64.b64encode(buf.tobytes()).decode("ascii")
+    return buf.tobytes()
 
 
 class PreviewEngine:
@@ -141,6 +146,8 @@ class PreviewEngine:
         self._draft_key: Any = None
         self._draft_frame: int | None = None
         self._last_lock = threading.Lock()
+        self._images: OrderedDict[int, dict[str, bytes]] = OrderedDict()  # the last images, by id
+        self._image_id = 0
         self.worker = LatestWins(self._run, on_stop=self._release)
         scene_from_dict(self.base)  # a bad starting scene: one usage error now
 
@@ -262,7 +269,14 @@ class PreviewEngine:
         try:
             pose = self._pose(session, req.frame, image)
         except MarkerNotFoundError as exc:
-            return {"image": _data_url(image), "error": str(exc), "scene": scene, "controls": controls_of(scene)}
+            iid = self._store({"composite": _bmp(image)})
+            return {
+                "image": _image_url(iid, "composite"),
+                "image_id": iid,
+                "error": str(exc),
+                "scene": scene,
+                "controls": controls_of(scene),
+            }
         H, W = image.shape[:2]
         cal = session.calibration(W, H)
         cfw = session.ground_camera(pose.cam_from_world)
@@ -278,8 +292,10 @@ class PreviewEngine:
         if res is None:
             res = self._session_for(spec).render(image, pose, name=self.media.name, want_mask=req.want_mask)
         t2 = time.perf_counter()
-        png = _data_url(res.composite)
-        mask = _data_url(res.mask) if req.want_mask and res.mask is not None else None
+        images = {"composite": _bmp(res.composite)}
+        if req.want_mask and res.mask is not None:
+            images["mask"] = _bmp(res.mask)
+        iid = self._store(images)
         t3 = time.perf_counter()
         with self._last_lock:
             self._last = {"scene": scene, "frame": req.frame, "draft": draft}
@@ -289,8 +305,9 @@ class PreviewEngine:
         item = res.item.to_dict()
         return jsonable(
             {
-                "image": png,
-                "mask": mask,
+                "image": _image_url(iid, "composite"),
+                "mask": _image_url(iid, "mask") if "mask" in images else None,
+                "image_id": iid,
                 "scene": scene,
                 "controls": controls_of(scene),
                 "frame": req.frame,
@@ -309,6 +326,20 @@ class PreviewEngine:
                 },
             }
         )
+
+    def _store(self, images: dict[str, bytes]) -> int:
+        with self._last_lock:
+            self._image_id += 1
+            self._images[self._image_id] = images
+            while len(self._images) > KEEP_IMAGES:
+                self._images.popitem(last=False)
+            return self._image_id
+
+    def image(self, image_id: int, kind: str = "composite") -> bytes | None:
+        """The BMP bytes of a rendered image (``kind`` ``"composite"`` or ``"mask"``), or None when it is
+        not one of the last :data:`KEEP_IMAGES` (any thread)."""
+        with self._last_lock:
+            return self._images.get(int(image_id), {}).get(kind)
 
     def _release(self) -> None:
         if self._draft_session is not None:

@@ -6,9 +6,10 @@ Routes (every one needs ``?token=T`` or the header ``X-Arshadow-Token: T``; with
   elsewhere);
 - ``GET /api/info``: the input's size and frame count, the starting controls, whether a measured light
   is available;
-- ``POST /api/render``: ``{"controls": {...}, "frame": N, "drag_to": [u, v], "mask": bool}`` -> the
-  composite (PNG data URL), the resolved scene and controls, overlays, the frame's report, server times;
+- ``POST /api/render``: ``{"controls": {...}, "frame": N, "drag_to": [u, v], "mask": bool, "draft": bool}``
+  -> the images' addresses, the resolved scene and controls, overlays, the frame's report, server times;
   a request dropped for a newer one: 409;
+- ``GET /api/image/ID/composite`` (or ``/mask``): a rendered image, lossless (BMP; the last 8 are kept);
 - ``POST /api/save``: writes the scene file of the last image shown (at the path given on the command
   line, never one from the page) -> its path, text and the equivalent command lines.
 
@@ -22,6 +23,7 @@ from __future__ import annotations
 
 import json
 import logging
+import re
 import secrets
 from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
@@ -43,6 +45,8 @@ HOST = "127.0.0.1"
 MAX_BODY = 64 * 1024
 #: what ``_body`` returns after answering an error
 _FAILED = object()
+#: ``GET /api/image/ID/KIND``: a rendered image's BMP bytes
+_IMAGE_ROUTE = re.compile(r"^/api/image/([0-9]{1,12})/(composite|mask)$")
 
 
 class PreviewServer(ThreadingHTTPServer):
@@ -106,7 +110,7 @@ class _Handler(BaseHTTPRequestHandler):
         if ctype.startswith("text/html"):  # the page runs its own inline script, loads nothing from elsewhere
             self.send_header(
                 "Content-Security-Policy",
-                "default-src 'none'; script-src 'unsafe-inline'; style-src 'unsafe-inline'; img-src data:; "
+                "default-src 'none'; script-src 'unsafe-inline'; style-src 'unsafe-inline'; img-src 'self'; "
                 "connect-src 'self'; base-uri 'none'; form-action 'none'; frame-ancestors 'none'",
             )
         self.end_headers()
@@ -162,6 +166,14 @@ class _Handler(BaseHTTPRequestHandler):
             self._send(HTTPStatus.OK, self.server.page, "text/html; charset=utf-8")
         elif route == "/api/info":
             self._json(HTTPStatus.OK, self.server.info)
+        elif _IMAGE_ROUTE.match(route):
+            m = _IMAGE_ROUTE.match(route)
+            assert m is not None
+            data = self.server.engine.image(int(m.group(1)), m.group(2))
+            if data is None:
+                self._error(HTTPStatus.NOT_FOUND, f"no image {m.group(1)} {m.group(2)} (only the last ones are kept)")
+            else:
+                self._send(HTTPStatus.OK, data, "image/bmp")
         elif route in ("/api/render", "/api/save"):
             self._error(HTTPStatus.METHOD_NOT_ALLOWED, f"{route} takes POST")
         else:

@@ -8,7 +8,7 @@ render ``arshadow render`` writes), repeated ``--drags`` times; also ``--steps``
 the slider (drafts too) and the same moves rendered exactly (``draft`` false: a new mesh each time).
 Prints JSON: per kind, the median, IQR, min/max of the server's times for the request: ``wait`` (queue),
 ``prepare`` (scene check, pose lookup, drag ray cast), ``render`` (the session's render of the frame),
-``encode`` (lossless BMP data URL) and ``total``, with the machine's load at start and end.
+``encode`` (lossless BMP) and ``total``, with the machine's load at start and end.
 """
 
 from __future__ import annotations
