@@ -142,6 +142,12 @@ def test_drag_save_and_render_reproduce_the_page(browser, server, tmp_path, tol)
     page.mouse.up()
     page.wait_for_timeout(200)
     page.wait_for_function("() => window.previewIdle()", timeout=120_000)
+    # then the turn slider (drafts while it moves, exact when let go): the dragged place stays
+    page.fill("#rz", "40")
+    page.dispatch_event("#rz", "input")
+    page.dispatch_event("#rz", "change")
+    page.wait_for_timeout(200)
+    page.wait_for_function("() => window.previewIdle()", timeout=120_000)
     shown = _shown_image(page)
     report = page.evaluate("() => JSON.parse(document.getElementById('report').textContent)")
     page.click("#save")
@@ -170,7 +176,7 @@ def test_drag_save_and_render_reproduce_the_page(browser, server, tmp_path, tol)
     want = _ground_under(TARGET_PX, report["report"]["rvec"], report["report"]["tvec"])
     err_mm = 1e3 * float(np.hypot(scene["place"][0] - want[0], scene["place"][1] - want[1]))
     assert err_mm <= tol.preview_place_mm, (scene["place"], want.tolist(), err_mm)
-    assert scene["place"][2] == 0.0 and scene["rotate"] == [0.0, 0.0, 15.0]
+    assert scene["place"][2] == 0.0 and scene["rotate"] == [0.0, 0.0, 40.0]
 
     # arshadow render with the command line the page showed, and batch with the saved file: the page's pixels
     cmd = next(line for line in saved_text.splitlines() if line.startswith("arshadow render "))
