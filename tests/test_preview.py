@@ -440,6 +440,7 @@ def test_probe_measured_light_switch_and_save(tmp_path):
 
 
 @pytest.mark.gl
+@pytest.mark.video
 def test_video_frames_are_the_pipeline_s(tmp_path):
     """A video's frames by index (the page's slider), each composited as Session.process composites it."""
     from arshadow.preview.engine import Media, PreviewEngine
