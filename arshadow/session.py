@@ -56,7 +56,7 @@ from .render_api import Renderer
 from .report import ReportItem, StageTimings
 from .result import FrameResult
 from .sanity import FrameChecks, calibration_scaled_note
-from .scene import Scene, SceneSpec, load_scene, scene_from_dict
+from .scene import ModelSpec, Scene, SceneSpec, load_scene, scene_from_dict
 from .tracking.luma import LumaFrame
 from .transforms import invert_rigid, rvec_tvec_from_matrix
 
@@ -200,6 +200,26 @@ class Session(History):
         if self.spec is None:
             raise UsageError("a Session made from a loaded Scene does not pickle; make it from a SceneSpec")
         return (Session, (self.spec,))
+
+    def set_model(self, model: ModelSpec | Any) -> None:
+        """Replace the object, keeping the rest of the session: calibrations and lens maps, the renderer and
+        its context, the lights (their silhouettes and volumes are rebuilt for the new mesh on first use).
+        The next render equals a fresh session's of the changed scene (``arshadow preview``'s drag).
+
+        Parameters
+        ----------
+        model : arshadow.scene.ModelSpec or arshadow.geometry.mesh.ShadowCaster
+            A spec (built here; the session's spec follows it) or an already placed caster (the session
+            then no longer pickles).
+        """
+        if isinstance(model, ModelSpec):
+            caster = model.build()
+            self.spec = None if self.spec is None else self.spec.replace(model=model)
+        else:
+            caster, self.spec = model, None
+        self.scene.caster = caster
+        self.geometry = SceneGeometry(caster, self.options, self.geometry.lights_in)
+        self._checks = FrameChecks(caster, self.scene.tracker.get("marker_length"))
 
     # -- per photo size -------------------------------------------------------------------------------
     def calibration(self, width: int, height: int) -> CalibrationState:

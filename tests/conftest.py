@@ -153,6 +153,14 @@ class Tolerances:
     # video chunks (issue 18): a chunk's exposure smoothing (a one-pole filter, 0.82 per frame) starts from
     # its 50-frame primer, not from the whole history: 5e-5 of the first difference is left (measured 1.4e-6)
     chunk_exposure_gain_rel: float = 1e-5
+    # browser preview (issue 30): the dragged object's saved place vs the ground point under the target pixel
+    # (back-projected in the test with OpenCV's undistortPoints); the issue's bound
+    preview_place_mm: float = 1.0
+    # its draft frames (an equivalent camera and lights, arshadow/preview/draft.py) vs the exact render of the
+    # same drag or turn: shadow-mask pixels that differ (rounding at edges; measured 0-6) and, under a
+    # directional light, composite levels (measured 0 for a drag, 2 for a turn)
+    preview_draft_mask_px: int = 10
+    preview_draft_levels: int = 2
 
 
 TOL = Tolerances()
