@@ -342,7 +342,7 @@ def realism(rows, out_dir, label) -> Path:
             for r, x, y in zip(rows, xs, ys):
                 ax.annotate(r["option"], (x, y), fontsize=7, xytext=(4, 3), textcoords="offset points")
     ax.set_xlabel("time per 720p frame, ms (median)")
-    ax.set_ylabel("residual: sum|composite - truth| / sum|truth - plate| (median; 0 perfect, 1 no insert)")
+    ax.set_ylabel("residual to the path tracer (median; 0 perfect, 1 = no insert)")
     ax.legend(fontsize=8)
     return _save(fig, Path(out_dir) / "realism_cost_vs_residual.png")
 

@@ -50,8 +50,9 @@ def _photo_720p(marker_length: float = 0.08):
     return photo.image, K
 
 
-def _cost(keys: dict, light: str, est, cfg: dict, log) -> dict:
-    """Median / IQR ms of one 720p frame (total and render stage) with the option, and the plan's choices."""
+def _times(keys: dict, light: str, est, repeat: int, warmup: int) -> tuple[list, list, str]:
+    """One session with the option on the 720p photo: (total ms per frame, render-stage ms, the plan's
+    choices)."""
     from ..scene import scene_from_dict
     from ..session import Session
 
@@ -63,26 +64,49 @@ def _cost(keys: dict, light: str, est, cfg: dict, log) -> dict:
         d["lights"] = ["directional:-0.6,-0.35,0.65"]
     d.update(keys)
     render_ms: list[float] = []
+    last: list = []
     with Session(scene_from_dict(d)) as s:
-        last: list = []
 
         def frame():
             r = s.process(image, want_mask=False)
             render_ms.append(r.timings_ms.get("render", float("nan")))
             last[:] = [r]
 
-        total = timed(frame, repeat=int(cfg.get("render_repeat", 7)), warmup=int(cfg.get("warmup", 2)))
+        total = timed(frame, repeat=repeat, warmup=warmup)
     plan = last[0].plan
     choices = "; ".join(f"{dd.name}={dd.value}" for dd in plan.decisions) if plan is not None else ""
-    t = summary(total)
-    r = summary(render_ms[-len(total) :])
-    return {
-        "ms_720p": t["median"],
-        "ms_720p_q25": t["iqr"][0],
-        "ms_720p_q75": t["iqr"][1],
-        "render_ms_720p": r["median"],
-        "planner": choices,
-    }
+    return total, render_ms[-len(total) :], choices
+
+
+def _costs(est, cfg: dict) -> list[dict]:
+    """Median / IQR ms of one 720p frame (total and render stage) and the plan's choices, per option.
+
+    The options are timed in interleaved rounds (each round: every option, a few frames): on a shared machine
+    the load changes by the minute, and timing the options one after the other would give that to them.
+    """
+    rounds = 3
+    per = max(1, int(cfg.get("render_repeat", 7)) // rounds)
+    totals: list[list] = [[] for _ in OPTIONS]
+    renders: list[list] = [[] for _ in OPTIONS]
+    choices = [""] * len(OPTIONS)
+    for _ in range(rounds):
+        for i, (_name, keys, light) in enumerate(OPTIONS):
+            t, r, choices[i] = _times(keys, light, est, per, int(cfg.get("warmup", 2)))
+            totals[i] += t
+            renders[i] += r
+    out = []
+    for t, r, c in zip(totals, renders, choices):
+        st, sr = summary(t), summary(r)
+        out.append(
+            {
+                "ms_720p": st["median"],
+                "ms_720p_q25": st["iqr"][0],
+                "ms_720p_q75": st["iqr"][1],
+                "render_ms_720p": sr["median"],
+                "planner": c,
+            }
+        )
+    return out
 
 
 def _residuals(cases, estimates, keys: dict, light: str) -> dict:
@@ -107,11 +131,11 @@ def run(cfg: dict, ctx, log, folder: Path | None = None) -> list[dict]:
     # the light estimate of each plate once (it does not depend on the rendering options)
     est_own = [measure_light(c.plate8, c.scene) for c in own]
     est_held = [measure_light(c.plate8, c.scene) for c in heldout]
-    est = est_own[0]
+    costs = _costs(est_own[0], cfg)
     rows = []
-    for name, keys, light in OPTIONS:
+    for (name, keys, light), cost in zip(OPTIONS, costs):
         row: dict[str, Any] = {"option": name, "keys": ",".join(f"{k}={v}" for k, v in keys.items()), "light": light}
-        row.update(_cost(keys, light, est, cfg, log))
+        row.update(cost)
         row.update({f"own_{k}": v for k, v in _residuals(own, est_own, keys, light).items()})
         if heldout:
             row.update({f"heldout_{k}": v for k, v in _residuals(heldout, est_held, keys, light).items()})
