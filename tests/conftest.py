@@ -153,6 +153,11 @@ class Tolerances:
     # video chunks (issue 18): a chunk's exposure smoothing (a one-pole filter, 0.82 per frame) starts from
     # its 50-frame primer, not from the whole history: 5e-5 of the first difference is left (measured 1.4e-6)
     chunk_exposure_gain_rel: float = 1e-5
+    # marker maps (issue 29): learned marker poses against the generating poses (the issue's figures)
+    map_marker_median_mm: float = 1.0
+    map_marker_median_deg: float = 0.2
+    map_vs_single_rot_ratio: float = 0.5  # camera rotation error with the map <= half the single marker's
+    map_real_rigid_mm: float = 1.0  # real sheet: inter-marker distances of maps from disjoint halves agree
 
 
 TOL = Tolerances()

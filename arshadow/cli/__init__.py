@@ -36,6 +36,7 @@ COMMAND_MODULES = (
     "bench",
     "info",
     "light",
+    "map",
 )
 
 EXIT_OK, EXIT_SOME_FAILED, EXIT_USAGE = 0, 1, 2
