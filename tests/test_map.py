@@ -190,9 +190,65 @@ def test_render_with_map_auto_tracks_the_hidden_reference(scene, frames_on_disk,
     argv += ["--report", str(tmp_path / "r.json")]
     assert main(argv) == 0
     assert sorted(load_board(out / "map.yml").marker_ids) == sorted(IDS)
-    items = json.loads((tmp_path / "r.json").read_text())["images"]
+    rep = json.loads((tmp_path / "r.json").read_text())
+    items = rep["images"]
+    assert rep["map"]["reference_id"] == REF and rep["map"]["rms_px"] < 0.5 and len(rep["map"]["markers"]) == 6
     assert all(it["status"] == "ok" for it in items)
     hidden = [it for it in items if REF not in it["marker_ids"]]
     assert hidden and all(len(it["marker_ids"]) >= 1 for it in hidden)
     bad = ["render", str(paths[0]), "--calib", str(calib), "--map", "auto", "--model", "box:0.02,0.02,0.02"]
     assert main([*bad, "--light", "point:0,0,1", "-o", str(tmp_path / "o2")]) == 2  # no marker length
+
+
+@pytest.fixture(scope="module")
+def clip_on_disk(scene, frames_on_disk):
+    from video_clips import CvClipWriter
+
+    _, calib = frames_on_disk
+    path = calib.parent / "clip.mkv"  # FFV1: lossless
+    with CvClipWriter(path, 25, (640, 480)) as w:
+        for f in scene["frames"]:
+            w.write(f)
+    return path, calib
+
+
+def video_records(clip, calib, out, *tracker_args) -> list:
+    argv = ["video", str(clip), "--calib", str(calib), *tracker_args, "--model", "box:0.02,0.02,0.02"]
+    argv += ["--light", "point:0.1,0.1,0.5", "--contact-sheet", "0", "--quiet", "-o", str(out)]
+    assert main(argv) == 0
+    with open(next(out.glob("*.frames.jsonl"))) as fh:
+        return [json.loads(line) for line in fh]
+
+
+@pytest.mark.gl
+def test_video_with_map_tracks_frames_where_the_reference_is_hidden(scene, clip_on_disk, tmp_path):
+    """``video --map auto``: the hand's frames, held or lost with the reference marker alone, are tracked
+    against the map (the report names the markers used and the map's reprojection error), and the camera
+    rotation there is as good as elsewhere."""
+    clip, calib = clip_on_disk
+    one = video_records(clip, calib, tmp_path / "one", "--marker-length", "0.06", "--marker-id", str(REF))
+    mapped = video_records(clip, calib, tmp_path / "map", "--marker-length", "0.06", "--map", "auto")
+    occ = np.flatnonzero(scene["occluded"])
+    assert sum(one[k]["status"] != "ok" for k in occ) >= 5  # the reference alone: held or lost
+    assert all(r["status"] == "ok" for r in mapped)
+    W = scene["world_from_marker"]
+    for k in occ:
+        r = mapped[k]
+        assert REF not in r["marker_ids"] and len(r["marker_ids"]) >= 2 and r["reprojection_error_px"] < 1.0
+        R = cv2.Rodrigues(np.asarray(r["rvec"], float))[0]
+        assert rotation_error_deg(R, (scene["cam_from_world"][k] @ W[REF])[:3, :3]) < TOL.synth_rot_median_deg
+
+
+@pytest.mark.gl
+def test_batch_with_map_auto(scene, frames_on_disk, tmp_path):
+    """``batch --map auto``: the scene file's marker length scales the map learned from the inputs."""
+    paths, calib = frames_on_disk
+    job = tmp_path / "job.yml"
+    job.write_text(f"calib: {calib}\nmarker_length: 0.06\nmodel: box:0.02,0.02,0.02\nlights: ['point:0.1,0.1,0.5']\n")
+    use = [str(paths[k]) for k in range(0, len(paths), 3)]
+    assert main(["batch", *use, "-c", str(job), "--map", "auto", "-o", str(tmp_path / "out"), "-q"]) == 0
+    assert sorted(load_board(tmp_path / "out" / "map.yml").marker_ids) == sorted(IDS)
+    items = json.loads((tmp_path / "out" / "batch.json").read_text())["items"]
+    assert len(items) == len(use) and all(it["status"] == "ok" for it in items)
+    occ = [str(paths[k]) for k in np.flatnonzero(scene["occluded"]) if str(paths[k]) in use]
+    assert occ and all(REF not in it["item"]["marker_ids"] for it in items if it["input"] in occ)

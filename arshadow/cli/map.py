@@ -181,3 +181,32 @@ def resolve_map(
     path = write_map(mmap, check_output_folder(outdir, "-o") / "map.yml")
     _say(mmap, secs, "map", bool(getattr(args, "quiet", False)))
     return str(path)
+
+
+def map_info(path) -> dict:
+    """The report's ``map``: the file, and (for a map written by ``arshadow map``) its reference marker, total
+    and per-marker corner RMS (pixels) and frames seen, read back from the file."""
+    import cv2
+
+    out: dict = {"file": str(path)}
+    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+    try:
+        m = fs.getNode("map")
+        if not m.empty():
+            out["reference_id"] = int(m.getNode("reference_id").real())
+            out["rms_px"] = float(m.getNode("rms_px").real())
+            out["frames_used"] = int(m.getNode("frames_used").real())
+        mk = fs.getNode("markers")
+        per = {}
+        for k in range(mk.size() if mk.isSeq() else 0):
+            n = mk.at(k)
+            if not n.getNode("rms_px").empty():
+                per[str(int(n.getNode("id").real()))] = {
+                    "rms_px": float(n.getNode("rms_px").real()),
+                    "frames_seen": int(n.getNode("frames_seen").real()),
+                }
+        if per:
+            out["markers"] = per
+    finally:
+        fs.release()
+    return out

@@ -319,7 +319,10 @@ def run(args) -> int:
             if bar is not None:
                 bar.close()
     if args.report:
-        write_json(args.report, make_report(items))
+        rep = make_report(items)
+        if getattr(args, "map_info", None):  # --map: the map's file and residuals
+            rep["map"] = args.map_info
+        write_json(args.report, rep)
     flags = FlagTally()
     for it in items:
         flags.add(it.input, it.flag_reasons)
@@ -339,7 +342,7 @@ def run(args) -> int:
 def use_map(args, inputs) -> None:
     """``--map auto|FILE``: track against the map (learned from ``inputs`` into ``OUT/map.yml``, or read):
     ``args.board`` becomes the map file (cli/map.py)."""
-    from .map import resolve_map
+    from .map import map_info, resolve_map
 
     board = resolve_map(
         args,
@@ -354,6 +357,7 @@ def use_map(args, inputs) -> None:
     )
     if board is not None:
         args.board, args.marker_length = board, None
+        args.map_info = map_info(board)
 
 
 def _print_done(args, bar, job, item, res, err) -> None:

@@ -343,6 +343,8 @@ def run(args) -> int:
     if args.report:
         rep = make_report(items)
         rep["videos"] = jsonable(summaries)
+        if getattr(args, "map_info", None):  # --map: the map's file and residuals
+            rep["map"] = args.map_info
         write_json(args.report, rep)
     return EXIT_SOME_FAILED if failed else EXIT_OK
 
