@@ -6,7 +6,7 @@ in the map; ``cam_from_ref`` (4, 4) is a frame's camera pose (OpenCV camera). Th
 *normalised pinhole* coordinates (undistorted once, before the fit: the lens model stays out of the loop)
 scaled by the focal lengths, so a residual is in pixels.
 
-The solver is :func:`scipy.optimize.least_squares` (trust region, robust Huber loss, its Jacobian by finite
+The solver is :func:`scipy.optimize.least_squares` (trust region, robust soft-L1 loss, its Jacobian by finite
 differences over the sparse structure given by ``jac_sparsity``: an observation's 8 residuals depend only
 on its marker's 6 and its frame's 6 parameters).
 """
@@ -21,8 +21,11 @@ from scipy.sparse import coo_matrix
 
 __all__ = ["BundleResult", "bundle_adjust", "rodrigues_many", "project_normalised"]
 
-#: Huber threshold of the robust loss, pixels (a corner detected to a fraction of a pixel is an inlier)
-HUBER_PX = 1.0
+#: scale of the robust loss, pixels (a corner detected to a fraction of a pixel is an inlier). Soft-L1, not
+#: Huber: on the real six-marker clip scipy's trust region with Huber had not converged after 200
+#: evaluations (3.2 s); soft-L1 converges in 13 (0.25 s) to the same map (inter-marker distances within
+#: 0.2 mm)
+LOSS_SCALE_PX = 1.0
 
 
 def rodrigues_many(rvecs: np.ndarray) -> np.ndarray:
@@ -154,8 +157,8 @@ def bundle_adjust(marker_rt, cam_rt, local, obs_marker, obs_frame, obs_norm, foc
         x0,
         jac_sparsity=sp,
         method="trf",
-        loss="huber",
-        f_scale=HUBER_PX,
+        loss="soft_l1",
+        f_scale=LOSS_SCALE_PX,
         x_scale="jac",
         max_nfev=max_nfev,
         xtol=1e-8,

@@ -8,6 +8,10 @@ marker ``rms_px`` (corner RMS reprojection error after the bundle adjustment) an
 
 from __future__ import annotations
 
+import itertools
+import os
+import threading
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import cv2
@@ -58,6 +62,7 @@ def observe_inputs(
     refine="edge",
     inverted=None,
     max_frames: int = MAX_MAP_FRAMES,
+    workers: int | None = None,
 ) -> Observations:
     """Detect every marker in photos and videos (videos by extension, :data:`VIDEO_SUFFIXES`).
 
@@ -71,6 +76,8 @@ def observe_inputs(
         Corner refinement of the detections (default ``"edge"``: unbiased, docs/video.md).
     max_frames : int
         Frames read in all, at most (shared between the videos).
+    workers : int, optional
+        Detection threads (default: one per core).
 
     Returns
     -------
@@ -82,32 +89,53 @@ def observe_inputs(
     ImageError
         An unreadable photo or video, frames of different sizes.
     """
-    # one threshold window (the fast pass's, ~1.5x cheaper; a map does not need every marker of every frame)
-    # and edge-fitted corners: subpix corners put the map's markers 2-6 mm off on the synthetic clip
-    tracker = MarkerTracker(
-        intrinsics,
-        dictionary=dictionary,
-        marker_length=1.0,
-        refine=refine,
-        inverted=inverted,
-        detector_params=fast_detector_params(),
-    )
-    items = [Path(p) for p in inputs]
-    videos = [p for p in items if p.suffix.lower() in VIDEO_SUFFIXES]
-    per_video = max(1, max_frames // max(1, len(videos)))
-    dets, size = [], None
-    for p in items:
-        frames = _video_frames(p, per_video) if p in videos else [to_gray(read_image(p))]
-        for g in frames:
-            s = (g.shape[1], g.shape[0])
-            if size is not None and s != size:
-                raise ImageError(f"{p}: {s[0]}x{s[1]} frames among {size[0]}x{size[1]} ones: one map, one camera")
-            size = s
-            intrinsics.for_image(*s)  # a size the calibration cannot take: its error, naming the sizes
-            dets.append(tracker.detect(g))
+    local = threading.local()
+
+    def detect(gray):
+        if not hasattr(local, "tracker"):  # one tracker per thread (a tracker remembers its misses)
+            # one threshold window (the fast pass's, ~1.5x cheaper; a map does not need every marker of
+            # every frame) and edge-fitted corners: subpix corners put the synthetic clip's markers 2-6 mm off
+            local.tracker = MarkerTracker(
+                intrinsics,
+                dictionary=dictionary,
+                marker_length=1.0,
+                refine=refine,
+                inverted=inverted,
+                detector_params=fast_detector_params(),
+            )
+        return local.tracker.detect(gray)
+
+    frames = _frames(inputs, intrinsics, max_frames)
+    dets: list = []
+    n = max(1, int(workers or os.cpu_count() or 1))
+    with ThreadPoolExecutor(n) as pool:  # OpenCV and numpy release the GIL: detection runs on every core
+        while True:
+            chunk = list(itertools.islice(frames, 16 * n))
+            if not chunk:
+                break
+            size = (chunk[0].shape[1], chunk[0].shape[0])
+            dets.extend(pool.map(detect, chunk))
     if not dets:
         raise UsageError("no frames to learn a map from")
     return Observations.from_detections(dets, size)
+
+
+def _frames(inputs, intrinsics: Intrinsics, max_frames: int):
+    """Grey frames of photos and videos (videos evenly sampled, :data:`MAX_MAP_FRAMES` in all), all of one
+    size that the calibration takes."""
+    items = [Path(p) for p in inputs]
+    videos = [p for p in items if p.suffix.lower() in VIDEO_SUFFIXES]
+    per_video = max(1, max_frames // max(1, len(videos)))
+    size = None
+    for p in items:
+        for g in _video_frames(p, per_video) if p in videos else [to_gray(read_image(p))]:
+            s = (g.shape[1], g.shape[0])
+            if size is not None and s != size:
+                raise ImageError(f"{p}: {s[0]}x{s[1]} frames among {size[0]}x{size[1]} ones: one map, one camera")
+            if size is None:
+                intrinsics.for_image(*s)  # a size the calibration cannot take: its error, naming the sizes
+            size = s
+            yield g
 
 
 def _write_floats(fs, key, values, flow=True):
