@@ -43,17 +43,18 @@ REAL = Path(os.environ.get("ARSHADOW_REALVIDEO", _common.ROOT.parent / "shared" 
 
 
 def learn_cost(inputs, intr, length, dictionary, repeat):
-    """(observe ms, learn ms, frames, map) medians of ``repeat`` runs."""
-    obs_t, learn_t = [], []
+    """(observe ms, learn ms, CPU ms of both (all threads), frames, map): medians of ``repeat`` runs."""
+    obs_t, learn_t, cpu = [], [], []
     for _ in range(repeat):
-        t0 = time.perf_counter()
+        c0, t0 = time.process_time(), time.perf_counter()
         obs = observe_inputs(inputs, intr, dictionary=dictionary)
         t1 = time.perf_counter()
         mmap = learn_map(obs, intr, length, dictionary=dictionary)
         t2 = time.perf_counter()
         obs_t.append(1e3 * (t1 - t0))
         learn_t.append(1e3 * (t2 - t1))
-    return float(np.median(obs_t)), float(np.median(learn_t)), obs.n_frames, mmap
+        cpu.append(1e3 * (time.process_time() - c0))
+    return float(np.median(obs_t)), float(np.median(learn_t)), float(np.median(cpu)), obs.n_frames, mmap
 
 
 def track_cost(frames, intr, kwargs, roi, repeat):
@@ -83,12 +84,13 @@ def main() -> None:
     intr = sc["intrinsics"]
     with tempfile.TemporaryDirectory() as tmp:
         paths = write_frames(sc["frames"], tmp)
-        o, m_ms, n, mmap = learn_cost(paths, intr, LENGTH, "DICT_6X6_250", a.repeat)
+        o, m_ms, cpu, n, mmap = learn_cost(paths, intr, LENGTH, "DICT_6X6_250", a.repeat)
     res["synthetic_learn"] = {
         "frames": n,
         "observe_ms": o,
         "learn_ms": m_ms,
         "learn_ms_per_100": 100.0 * (o + m_ms) / n,
+        "cpu_ms_per_100": 100.0 * cpu / n,
         "map_rms_px": mmap.rms_total_px,
     }
     grey = [cv2.cvtColor(f, cv2.COLOR_BGR2GRAY) for f in sc["frames"]]
@@ -112,12 +114,13 @@ def main() -> None:
     }
     if (REAL / "video.avi").is_file():
         ri = Intrinsics.from_file(REAL / "intrinsics.yml")
-        o, m_ms, n, rmap = learn_cost([REAL / "video.avi"], ri, 0.05, "DICT_ARUCO_ORIGINAL", a.repeat)
+        o, m_ms, cpu, n, rmap = learn_cost([REAL / "video.avi"], ri, 0.05, "DICT_ARUCO_ORIGINAL", a.repeat)
         res["real_learn"] = {
             "frames": n,
             "observe_ms": o,
             "learn_ms": m_ms,
             "learn_ms_per_100": 100.0 * (o + m_ms) / n,
+            "cpu_ms_per_100": 100.0 * cpu / n,
             "map_rms_px": rmap.rms_total_px,
         }
         cap, frames = cv2.VideoCapture(str(REAL / "video.avi")), []
