@@ -252,3 +252,15 @@ def test_batch_with_map_auto(scene, frames_on_disk, tmp_path):
     assert len(items) == len(use) and all(it["status"] == "ok" for it in items)
     occ = [str(paths[k]) for k in np.flatnonzero(scene["occluded"]) if str(paths[k]) in use]
     assert occ and all(REF not in it["item"]["marker_ids"] for it in items if it["input"] in occ)
+
+
+def test_map_option_usage_errors(frames_on_disk, learned, tmp_path, capsys):
+    """``--map`` with ``--board``, a missing map file: one usage error each (exit 2), before any work."""
+    paths, calib = frames_on_disk
+    mfile = write_map(learned, tmp_path / "m.yml")
+    base = ["render", str(paths[0]), "--calib", str(calib), "--model", "box:0.02,0.02,0.02"]
+    base += ["--light", "point:0,0,1", "-o", str(tmp_path / "o")]
+    assert main([*base, "--board", str(mfile), "--map", str(mfile)]) == 2
+    assert "either --map or --board" in capsys.readouterr().err
+    assert main([*base, "--map", str(tmp_path / "nope.yml")]) == 2
+    assert "no such map file" in capsys.readouterr().err
