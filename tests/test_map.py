@@ -264,3 +264,13 @@ def test_map_option_usage_errors(frames_on_disk, learned, tmp_path, capsys):
     assert "either --map or --board" in capsys.readouterr().err
     assert main([*base, "--map", str(tmp_path / "nope.yml")]) == 2
     assert "no such map file" in capsys.readouterr().err
+
+
+def test_one_marker_is_a_map_of_one(scene, observations):
+    """Frames that only ever see one marker give a map of that marker alone (no adjustment), which tracks
+    like the marker itself."""
+    o = observations
+    k = o.ids == 12
+    m = learn_map(Observations(o.frame[k], o.ids[k], o.corners[k], o.n_frames, o.image_size), scene["intrinsics"], 0.06)
+    assert m.reference_id == 12 and list(m.corners) == [12] and m.frames_used == 0
+    assert np.allclose(m.corners[12], marker_object_points(LENGTH)) and m.rms_total_px < 0.5

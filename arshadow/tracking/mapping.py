@@ -175,10 +175,10 @@ def marker_lengths_for(spec, ids) -> dict:
 
 
 def _single_poses(obs_norm, lengths):
-    """Both IPPE solutions of each observation: (n, 2, 4, 4) float64 ``cam_from_marker`` and (n, 2) errors
-    (normalised units; the second solution's error is inf when IPPE gives one)."""
+    """Both IPPE solutions of each observation: (n, 2, 4, 4) float64 ``cam_from_marker`` (NaN where IPPE
+    gave no solution) and (n, 2) errors (normalised units; inf where no solution)."""
     n = len(obs_norm)
-    T = np.tile(np.eye(4), (n, 2, 1, 1))
+    T = np.full((n, 2, 4, 4), np.nan)
     err = np.full((n, 2), np.inf)
     for k in range(n):
         obj = marker_object_points(lengths[k])
@@ -230,7 +230,7 @@ def _pair_edges(frame, ids, T):
         for x in range(len(grp)):
             for y in range(len(grp)):
                 a, b = grp[x], grp[y]
-                if ids[a] < ids[b]:
+                if ids[a] < ids[b] and np.isfinite(T[a, 0, 0]) and np.isfinite(T[b, 0, 0]):
                     cands.setdefault((int(ids[a]), int(ids[b])), []).append(invert_rigid(T[a]) @ T[b])
     return {k: _robust_average(np.asarray(v)) for k, v in cands.items()}
 
@@ -280,7 +280,7 @@ def _init_cameras(frame, midx, T, marker_T, local, obs_norm, focal):
         best = None
         for r in rows:
             for j in range(2):
-                if not np.isfinite(T[r, j, 0, 0]) or (j == 1 and np.allclose(T[r, 1], np.eye(4))):
+                if not np.isfinite(T[r, j, 0, 0]):
                     continue
                 C = T[r, j] @ invert_rigid(marker_T[midx[r]])
                 p = np.einsum("ij,mkj->mki", C[:3, :3], pts) + C[:3, 3]
@@ -410,6 +410,21 @@ def _fit(d, fit, rejected, frames_seen, n_frames, dictionary):
     rows = np.flatnonzero(ok & np.isin(frame, list(use)))
     ref_index = order.index(ref)
     mrt = np.array([np.concatenate(rvec_tvec_from_matrix(Tm)) for Tm in marker_T])
+    if len(order) == 1 or rows.size == 0:  # one marker: nothing to adjust (a map of it alone)
+        rejected.append("only one marker in the map: no bundle adjustment")
+        e = d["rms"][ok]
+        return MarkerMap(
+            reference_id=int(ref),
+            dictionary=dictionary,
+            corners={ref: local[ref_index].copy()},
+            ref_from_marker={ref: np.eye(4)},
+            rms_px={ref: float(np.sqrt(np.mean(e**2))) if e.size else math.nan},
+            frames_seen={ref: frames_seen[ref]},
+            frames_used=0,
+            n_frames=int(n_frames),
+            rms_total_px=float(np.sqrt(np.mean(e**2))) if e.size else math.nan,
+            rejected=rejected,
+        )
     for _ in range(2):
         fl = sorted(set(frame[rows].tolist()))
         fpos = {f: k for k, f in enumerate(fl)}
