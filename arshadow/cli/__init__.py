@@ -37,6 +37,7 @@ COMMAND_MODULES = (
     "info",
     "light",
     "preview",
+    "map",
 )
 
 EXIT_OK, EXIT_SOME_FAILED, EXIT_USAGE = 0, 1, 2

@@ -24,6 +24,7 @@ processed), 2 bad usage or an unreadable scene file.
 
 
 def register(subparsers) -> None:
+    from .map import add_map_option
     from .video import add_output_options
 
     p = subparsers.add_parser(
@@ -44,6 +45,7 @@ def register(subparsers) -> None:
     v.add_argument("--max-frames", type=int, metavar="N", help="only the first N frames of each video")
     add_output_options(p.add_argument_group("output"))
     add_probe_options(p, run=True)
+    add_map_option(p)  # --map auto|FILE (cli/map.py)
     p.add_argument(
         "--dask",
         metavar="ADDRESS",
@@ -53,6 +55,27 @@ def register(subparsers) -> None:
     p.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
     p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show tracebacks")
     p.set_defaults(func=run)
+
+
+def _with_map(args, spec):
+    """``--map auto|FILE``: the scene with the map file as its board (cli/map.py)."""
+    from dataclasses import replace
+
+    from .map import resolve_map
+
+    t = spec.tracker
+    board = resolve_map(
+        args,
+        args.inputs,
+        args.output,
+        calib=spec.camera,
+        marker_length=t.marker_length,
+        dictionary=t.dictionary,
+        marker_id=t.marker_id,
+        inverted=t.inverted,
+        board=t.board,
+    )
+    return spec if board is None else replace(spec, tracker=replace(t, board=board, marker_length=None))
 
 
 #: seconds to wait for a Dask scheduler before giving up (a wrong address must not hang the run)
@@ -114,6 +137,7 @@ def run(args) -> int:
     )
     if est is not None:  # --probe: the measured light replaces the file's (docs/light.md)
         spec = load_scene(args.config, light_from=est, lights=[est.light])
+    spec = _with_map(args, spec)  # --map: the markers' map learned (or read) first
     opts = engine_options(args)
     # before any work: a bad -o, scene file or cluster address is one usage error (exit 2)
     outdir = check_output_folder(args.output, "-o")

@@ -55,6 +55,8 @@ def _positive(what: str, integer: bool = False):
 
 def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> None:
     """Options shared by ``render`` (and usable by the video command): calibration, marker, model, lights."""
+    from .map import add_map_option
+
     g = p.add_argument_group("camera and marker")
     g.add_argument(
         "--calib", required=require, metavar="C", help="calibration file (OpenCV YAML/XML/JSON or ROS camera_info YAML)"
@@ -67,6 +69,7 @@ def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> No
         help="side of the printed marker in metres (single-marker mode)",
     )
     m.add_argument("--board", metavar="B", help="board file (GridBoard or ChArUco) instead of one marker")
+    add_map_option(g)  # --map auto|FILE: loose markers learned into a map (cli/map.py)
     g.add_argument(
         "--dictionary",
         metavar="D",
@@ -298,6 +301,7 @@ def run(args) -> int:
         dictionary=args.dictionary,
         marker_id=args.marker_id,
     )  # --probe: docs/light.md
+    use_map(args, inputs)  # --map: the markers' map learned (or read) first
     bar = None
     spec = scene_from_args(args) if est is None else scene_from_args(args, light_from=est)
     with Session(spec) as session:  # loads the scene: a bad one is exit 2
@@ -315,7 +319,10 @@ def run(args) -> int:
             if bar is not None:
                 bar.close()
     if args.report:
-        write_json(args.report, make_report(items))
+        rep = make_report(items)
+        if getattr(args, "map_info", None):  # --map: the map's file and residuals
+            rep["map"] = args.map_info
+        write_json(args.report, rep)
     flags = FlagTally()
     for it in items:
         flags.add(it.input, it.flag_reasons)
@@ -330,6 +337,27 @@ def run(args) -> int:
             file=sys.stdout,
         )
     return EXIT_SOME_FAILED if failed else EXIT_OK
+
+
+def use_map(args, inputs) -> None:
+    """``--map auto|FILE``: track against the map (learned from ``inputs`` into ``OUT/map.yml``, or read):
+    ``args.board`` becomes the map file (cli/map.py)."""
+    from .map import map_info, resolve_map
+
+    board = resolve_map(
+        args,
+        inputs,
+        args.output,
+        calib=args.calib,
+        marker_length=args.marker_length,
+        dictionary=args.dictionary,
+        marker_id=args.marker_id,
+        inverted=args.inverted,
+        board=args.board,
+    )
+    if board is not None:
+        args.board, args.marker_length = board, None
+        args.map_info = map_info(board)
 
 
 def _print_done(args, bar, job, item, res, err) -> None:

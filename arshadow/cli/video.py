@@ -251,6 +251,7 @@ def run(args) -> int:
     from ..video.runner import run_videos
     from . import quiet_opencv
     from .light import probe_estimate
+    from .render import use_map
 
     debug = bool(getattr(args, "debug", False))
     quiet_opencv(debug)
@@ -266,6 +267,7 @@ def run(args) -> int:
         marker_id=args.marker_id,
     )  # --probe: docs/light.md
     extra = {} if est is None else {"light_from": est}
+    use_map(args, args.videos)  # --map: the markers' map learned (or read) first (cli/map.py)
     spec = scene_from_args(args, refine=args.corner_refine, track_roi=True, **extra)
     # output paths before any work: a bad -o / --report is one usage error, not one per video
     outdir = check_output_folder(args.output, "-o")
@@ -341,6 +343,8 @@ def run(args) -> int:
     if args.report:
         rep = make_report(items)
         rep["videos"] = jsonable(summaries)
+        if getattr(args, "map_info", None):  # --map: the map's file and residuals
+            rep["map"] = args.map_info
         write_json(args.report, rep)
     return EXIT_SOME_FAILED if failed else EXIT_OK
 

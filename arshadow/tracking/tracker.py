@@ -377,6 +377,8 @@ class MarkerTracker:
             )
         det = detection_from_opencv(corners, ids, rejected, self._shift_params)
         self._t_detect = time.perf_counter()
+        if self.refine == "edge" and len(det):  # as for one marker (the video default; issue 29)
+            det.corners = refine_corners_edges(gray, det.corners, intr)
         obj, img = self.board.cv_board.matchImagePoints(
             tuple(c.reshape(1, 4, 2).astype(np.float32) for c in det.corners), det.ids.reshape(-1, 1).astype(np.int32)
         )
