@@ -153,6 +153,11 @@ class Tolerances:
     # video chunks (issue 18): a chunk's exposure smoothing (a one-pole filter, 0.82 per frame) starts from
     # its 50-frame primer, not from the whole history: 5e-5 of the first difference is left (measured 1.4e-6)
     chunk_exposure_gain_rel: float = 1e-5
+    # light estimate, never confidently wrong (issue 26 items 2-4)
+    light_confident_deg: float = 3.0  # a confident light must be this close (the issue's bar)
+    light_hidden_deg: float = 1.0  # a partly hidden shadow's direction (the issue's median bar, one case)
+    # the probe's face shading at the generating light: log residual (measured 0.0006..0.005 on 5 cases)
+    light_face_shading_true: float = 0.05
 
 
 TOL = Tolerances()
