@@ -8,7 +8,8 @@ truth is the generating light, never the estimator's output. Scenarios:
 - ``placed``: the probe given where it stands (control: how often a good photo is refused or flagged);
 - ``absent``: the same photo re-rendered without the probe (a 2 mm box), the probe given as before;
 - ``misplaced``: the probe given 3..5 cm from where it stands, in a random direction;
-- ``suntime``: ``--kind sun:`` with the time 1..3 hours off (either sign);
+- ``suntime``: ``--kind sun:`` with the time 1..3 hours off (either sign); ``sun``: the right time (control:
+  the elevation check must not refuse it);
 - ``hidden``: the camera on the light's side (the probe hides part of its shadow); the visible share of the
   true shadow is measured on the photo itself (the true shadow's ground points, projected, against the
   rendered probe's pixels);
@@ -46,7 +47,7 @@ from arshadow.geometry.mesh import load_occluder
 from arshadow.synth import look_at_pose
 from arshadow.synth_lit import random_lit_case, render_lit_photo
 
-SCENARIOS = ("placed", "absent", "misplaced", "suntime", "hidden", "point", "point3")
+SCENARIOS = ("placed", "absent", "misplaced", "suntime", "hidden", "point", "point3", "sun")
 
 
 def _angle(a, b) -> float:
@@ -120,7 +121,7 @@ def _other_views(cam, case, rng, k):
 
 
 def run_case(cam, scenario: str, rng) -> dict:
-    kind = {"suntime": "sun", "point": "point", "point3": "point"}.get(scenario, "directional")
+    kind = {"suntime": "sun", "sun": "sun", "point": "point", "point3": "point"}.get(scenario, "directional")
     view = "light" if scenario == "hidden" else "shadow"
     pd = (0.35, 0.6)
     case = random_lit_case(rng, cam, kind, view=view, point_distance=pd)
