@@ -365,6 +365,45 @@ def _sun_elevation_check(coarse, make_fine, enu, kind) -> tuple:
     return el, sun_el, (f"low confidence: {text}" if diff > SUN_FLAG_DEG else None)
 
 
+def _checks(res, ratio, pxs, outline, views, verts, faces) -> dict:
+    """The checks of a fitted light that do not come from its shadow fit: the probe's outline on the photo
+    (pooled over the frames), the share of the fitted shadow's edge darker inside, and the probe's faces
+    against the light's shading (the median over up to :data:`SHADING_VIEWS` frames; NaN when not measured)."""
+    edge_darker, edge_n = _edge_consistency(res.fine, res.light_h, pxs)
+    r = float(np.asarray(ratio) @ LUMA)
+    shade = [face_shading_residual(im, it, T, verts, faces, res.light_h, r)[0] for im, it, T in views]
+    shade = [x for x in shade if math.isfinite(x)]
+    return {
+        "outline": _pooled(outline),
+        "edge_darker": edge_darker,
+        "edge_pairs": edge_n,
+        "face_shading": float(np.median(shade)) if shade else math.nan,
+    }
+
+
+def _check_warnings(checks: dict) -> list:
+    """The warnings (``confident: false``) of failed :func:`_checks`."""
+    out = []
+    agree, edge_darker, shade_res = checks["outline"], checks["edge_darker"], checks["face_shading"]
+    if math.isfinite(agree) and agree < OUTLINE_FLAG:
+        out.append(
+            f"low confidence: only {100 * agree:.0f} % of the probe's outline lies on an edge of the photo: "
+            "check --probe-place and --probe-rotate"
+        )
+    if math.isfinite(shade_res) and shade_res > SHADING_LOG:
+        out.append(
+            f"low confidence: the probe's faces are not shaded as this light shades them (a face "
+            f"{100 * math.expm1(shade_res):.0f} % off): the shadow fitted may not be the probe's, or the probe "
+            "is not matte and of one colour"
+        )
+    if math.isfinite(edge_darker) and edge_darker < EDGE_DARKER:
+        out.append(
+            f"low confidence: the fitted shadow is darker inside its edge on only {100 * edge_darker:.0f} % of it "
+            "(a real shadow: all along it): it may be the floor's pattern, the real shadow hidden or out of view"
+        )
+    return out
+
+
 def _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, probe, t0, notes, outline) -> LightEstimate:
     verts, faces, views = probe
 
@@ -383,20 +422,7 @@ def _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, probe, t0, notes, 
     else:
         res = fit_point(coarse, make_fine, anchor)
     ratio = _ratio(res.fine, res.light_h, pxs)
-    edge_darker, edge_n = _edge_consistency(res.fine, res.light_h, pxs)
-    agree = _pooled(outline)
-    shading = [
-        face_shading_residual(im, it, T, verts, faces, res.light_h, float(np.asarray(ratio) @ LUMA))
-        for im, it, T in views
-    ]
-    shade = [x for x, _ in shading if math.isfinite(x)]
-    shade_res = float(np.median(shade)) if shade else math.nan
-    shading = [
-        face_shading_residual(im, it, T, verts, faces, res.light_h, float(np.asarray(ratio) @ LUMA))
-        for im, it, T in views
-    ]
-    shade = [x for x, _ in shading if math.isfinite(x)]
-    shade_res = float(np.median(shade)) if shade else math.nan
+    checks = _checks(res, ratio, pxs, outline, views, verts, faces)
     paper = np.median(np.array([e.paper_rgb for e in exposures]), axis=0)
     ink = np.median(np.array([e.ink_rgb for e in exposures]), axis=0)
     exp = Exposure(
@@ -410,22 +436,7 @@ def _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, probe, t0, notes, 
         warnings.append("the marker's paper is over-exposed (clipped): the exposure match is a lower bound")
     if sun_check is not None and sun_check[2] is not None:
         warnings.append(sun_check[2])
-    if math.isfinite(agree) and agree < OUTLINE_FLAG:
-        warnings.append(
-            f"low confidence: only {100 * agree:.0f} % of the probe's outline lies on an edge of the photo: "
-            "check --probe-place and --probe-rotate"
-        )
-    if math.isfinite(shade_res) and shade_res > SHADING_LOG:
-        warnings.append(
-            f"low confidence: the probe's faces are not shaded as this light shades them (a face "
-            f"{100 * math.expm1(shade_res):.0f} % off): the shadow fitted may not be the probe's, or the probe "
-            "is not matte and of one colour"
-        )
-    if math.isfinite(edge_darker) and edge_darker < EDGE_DARKER:
-        warnings.append(
-            f"low confidence: the fitted shadow is darker inside its edge on only {100 * edge_darker:.0f} % of it "
-            "(a real shadow: all along it): it may be the floor's pattern, the real shadow hidden or out of view"
-        )
+    warnings += _check_warnings(checks)
     if res.uncertainty_deg > 3.0:
         warnings.append(f"low confidence: uncertainty {res.uncertainty_deg:.1f} degrees")
     if res.position_sigma is not None:
@@ -451,10 +462,7 @@ def _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, probe, t0, notes, 
     if res.runner_up is not None and res.runner_up > 0.6:
         warnings.append(f"a second light explains {100 * res.runner_up:.0f} % as much: check the result")
     fit = {
-        "outline": None if not math.isfinite(agree) else round(agree, 3),
-        "edge_darker": None if not math.isfinite(edge_darker) else round(edge_darker, 3),
-        "edge_pairs": edge_n,
-        "face_shading": None if not math.isfinite(shade_res) else round(shade_res, 3),
+        **{k: (None if not math.isfinite(v) else round(v, 3)) for k, v in checks.items()},
         "explained": round(res.explained, 4),
         **(
             {}

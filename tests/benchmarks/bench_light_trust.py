@@ -169,7 +169,10 @@ def run_case(cam, scenario: str, rng) -> dict:
         row["pos_rel"] = float(np.linalg.norm(np.array(est.position) - p.light) / np.linalg.norm(p.light - top))
         row["dir_err"] = _angle(np.array(est.position) - top, p.light - top)
         row["distance_interval"] = est.distance_interval
-        row["true_distance"] = float(np.linalg.norm(p.light - top))
+        probe_top = top + [0.0, 0.0, float(case["probe"].split(",")[-1])]
+        row["true_distance"] = float(np.linalg.norm(p.light - probe_top))  # the interval's reference point
+        lo, hi = est.distance_interval
+        row["in_interval"] = bool(lo <= row["true_distance"] <= hi)
         row["wrong"] = row["pos_rel"] > 0.15 or row["dir_err"] > 3.0
     else:
         row["dir_err"] = _angle(est.direction, p.light)
@@ -209,6 +212,11 @@ def summarise(rows: list, scenario: str) -> dict:
         }
     if scenario.startswith("point"):
         out["pos_rel"] = _stats([r["pos_rel"] for r in ans])
+        out["pos_rel_confident"] = _stats([r["pos_rel"] for r in ans if r["confident"]])
+        out["truth_in_interval"] = sum(r["in_interval"] for r in ans)
+        out["interval_rel_width"] = _stats(
+            [(r["distance_interval"][1] - r["distance_interval"][0]) / r["true_distance"] for r in ans]
+        )
     return out
 
 
