@@ -156,6 +156,7 @@ class Tolerances:
     # light estimate, never confidently wrong (issue 26 items 2-4)
     light_confident_deg: float = 3.0  # a confident light must be this close (the issue's bar)
     light_hidden_deg: float = 1.0  # a partly hidden shadow's direction (the issue's median bar, one case)
+    light_point_distance_rel: float = 0.05  # a point light's position error / distance: the issue's median bar
     # the probe's face shading at the generating light: log residual (measured 0.0006..0.005 on 5 cases)
     light_face_shading_true: float = 0.05
 
