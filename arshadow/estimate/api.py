@@ -296,7 +296,8 @@ def estimate_light(
     convex = str(probe).lower().startswith(CONVEX_PRIMITIVES)
     dictionary = dictionary or DEFAULT_DICTIONARY
     tracker = MarkerTracker(base, dictionary=dictionary, marker_length=marker_length, marker_id=marker_id)
-    coarse, fines, pxs, exposures, notes, outline, views = [], [], [], [], [], [], []
+    coarse, fines, pxs, exposures, notes, outline = [], [], [], [], [], []
+    views: list[tuple[np.ndarray, Intrinsics, np.ndarray]] = []  # (image, camera, cam_from_world), shading
     for item in items:
         for name, img in _frames(item, max_frames):
             intr, _ = base.for_image(img.shape[1], img.shape[0])
@@ -452,7 +453,7 @@ def _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, probe, t0, notes, 
                 f"low confidence: the point light fit went {100 * dist:.0f} cm from the probe's top, the "
                 "edge of the search (a faint shadow is explained as well by a light almost anywhere)"
             )
-        elif rel > POINT_REL_SIGMA:
+        elif rel > POINT_REL_SIGMA and res.distance_interval is not None:
             lo, hi = res.distance_interval
             warnings.append(
                 f"low confidence: the point light's distance is uncertain (+/- {100 * rel:.0f} % of it): "
@@ -521,7 +522,7 @@ def _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, probe, t0, notes, 
         shadow_ratio=ratio,
         uncertainty_deg=res.uncertainty_deg,
         position_uncertainty=res.position_sigma,
-        distance_interval=tuple(float(v) for v in res.distance_interval),
+        distance_interval=None if res.distance_interval is None else tuple(float(v) for v in res.distance_interval),
         exposure=exp,
         frames=len(coarse),
         fit=fit,
