@@ -405,6 +405,31 @@ def _check_warnings(checks: dict) -> list:
     return out
 
 
+def _point_warnings(res, dist: float) -> list:
+    """A point light's warnings: fitted at the search's far or near edge, or its distance ``dist`` (metres
+    from the probe's top) uncertain; each names the 2-sigma interval of the distance."""
+    lo, hi = res.distance_interval if res.distance_interval is not None else (math.nan, math.nan)
+    span = f"between {lo:.2f} and {hi:.2f} m from the probe's top (2 sigma)"
+    rel = res.position_sigma / max(dist, 1e-9)
+    if dist > POINT_FAR:
+        return [
+            f"low confidence: the point light fit went {dist:.1f} m away, {span} (a far light looks "
+            "directional from one probe); fit --kind directional"
+        ]
+    if dist < POINT_NEAR:
+        return [
+            f"low confidence: the point light fit went {100 * dist:.0f} cm from the probe's top, the edge of the "
+            f"search, {span} (a faint shadow is explained as well by a light almost anywhere)"
+        ]
+    if rel > POINT_REL_SIGMA:
+        return [
+            f"low confidence: the point light's distance is uncertain (+/- {100 * rel:.0f} % of it): "
+            f"{dist:.2f} m, {span}; add photos or frames from other sides (arshadow light a.jpg b.jpg ...), "
+            "or fit --kind directional"
+        ]
+    return []
+
+
 def _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, probe, t0, notes, outline) -> LightEstimate:
     verts, faces, views = probe
 
@@ -418,8 +443,8 @@ def _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, probe, t0, notes, 
     if kind_name == "directional":
         res = fit_directional(coarse, make_fine)
     elif kind_name == "sun":
+        sun_check = _sun_elevation_check(coarse, make_fine, enu, kind)  # first: a wrong time named as such
         res = fit_sun(coarse, make_fine, enu)
-        sun_check = _sun_elevation_check(coarse, make_fine, enu, kind)
     else:
         res = fit_point(coarse, make_fine, anchor)
     ratio = _ratio(res.fine, res.light_h, pxs)
@@ -441,25 +466,7 @@ def _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, probe, t0, notes, 
     if res.uncertainty_deg > 3.0:
         warnings.append(f"low confidence: uncertainty {res.uncertainty_deg:.1f} degrees")
     if res.position_sigma is not None:
-        dist = float(np.linalg.norm(res.light_h[:3] - anchor))
-        rel = res.position_sigma / max(dist, 1e-9)
-        if dist > POINT_FAR:
-            warnings.append(
-                f"low confidence: the point light fit went {dist:.1f} m away (a far light looks "
-                "directional from one probe); fit --kind directional"
-            )
-        elif dist < POINT_NEAR:
-            warnings.append(
-                f"low confidence: the point light fit went {100 * dist:.0f} cm from the probe's top, the "
-                "edge of the search (a faint shadow is explained as well by a light almost anywhere)"
-            )
-        elif rel > POINT_REL_SIGMA and res.distance_interval is not None:
-            lo, hi = res.distance_interval
-            warnings.append(
-                f"low confidence: the point light's distance is uncertain (+/- {100 * rel:.0f} % of it): "
-                f"{dist:.2f} m from the probe's top, between {lo:.2f} and {hi:.2f} m (2 sigma); add photos or "
-                "frames from other sides (arshadow light a.jpg b.jpg ...), or fit --kind directional"
-            )
+        warnings += _point_warnings(res, float(np.linalg.norm(res.light_h[:3] - anchor)))
     if res.runner_up is not None and res.runner_up > 0.6:
         warnings.append(f"a second light explains {100 * res.runner_up:.0f} % as much: check the result")
     fit = {

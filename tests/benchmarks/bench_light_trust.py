@@ -120,6 +120,31 @@ def _other_views(cam, case, rng, k):
     return out
 
 
+def _point_row(cam, case, images, place, spec) -> dict:
+    """A point light's position error / distance and its interval's width / distance, from ``images``."""
+    p = case["photo"]
+    top = np.r_[np.asarray(case["probe_place"])[:2], 0.0]
+    try:
+        est = estimate_light(
+            images,
+            calib=cam,
+            marker_length=0.05,
+            probe=case["probe"],
+            probe_place=place,
+            probe_rotate=case["probe_rotate"],
+            kind=spec,
+        )
+    except ArshadowError as exc:
+        return {"refused": str(exc)}
+    d = float(np.linalg.norm(p.light - top - [0.0, 0.0, float(case["probe"].split(",")[-1])]))
+    lo, hi = est.distance_interval
+    return {
+        "pos_rel": float(np.linalg.norm(np.array(est.position) - p.light) / np.linalg.norm(p.light - top)),
+        "interval_rel_width": (hi - lo) / d,
+        "confident": est.confident,
+    }
+
+
 def run_case(cam, scenario: str, rng) -> dict:
     kind = {"suntime": "sun", "sun": "sun", "point": "point", "point3": "point"}.get(scenario, "directional")
     view = "light" if scenario == "hidden" else "shadow"
@@ -161,6 +186,8 @@ def run_case(cam, scenario: str, rng) -> dict:
         row.update(refused=str(exc), time_ms=(time.perf_counter() - t) * 1e3)
         return row
     row["time_ms"] = (time.perf_counter() - t) * 1e3
+    if scenario == "point3":  # paired: the first photo alone
+        row["single"] = _point_row(cam, case, images[:1], place, spec)
     row["confident"] = est.confident
     row["warnings"] = est.warnings
     row["fit"] = est.fit
@@ -214,6 +241,19 @@ def summarise(rows: list, scenario: str) -> dict:
         out["pos_rel"] = _stats([r["pos_rel"] for r in ans])
         out["pos_rel_confident"] = _stats([r["pos_rel"] for r in ans if r["confident"]])
         out["truth_in_interval"] = sum(r["in_interval"] for r in ans)
+        paired = [r for r in ans if "pos_rel" in r.get("single", {})]
+        if paired:  # point3: the same scenes from their first photo alone
+            out["paired_single"] = {
+                "n": len(paired),
+                "pos_rel": _stats([r["single"]["pos_rel"] for r in paired]),
+                "pos_rel_three": _stats([r["pos_rel"] for r in paired]),
+                "interval_rel_width": _stats([r["single"]["interval_rel_width"] for r in paired]),
+                "interval_rel_width_three": _stats(
+                    [(r["distance_interval"][1] - r["distance_interval"][0]) / r["true_distance"] for r in paired]
+                ),
+                "confident": sum(r["single"]["confident"] for r in paired),
+                "confident_three": sum(r["confident"] for r in paired),
+            }
         out["interval_rel_width"] = _stats(
             [(r["distance_interval"][1] - r["distance_interval"][0]) / r["true_distance"] for r in ans]
         )
