@@ -352,7 +352,14 @@ SUN_CASES = (
 
 
 def random_lit_case(
-    rng, intrinsics: Intrinsics, kind: str = "directional", *, marker_length=0.05, effects: bool = True
+    rng,
+    intrinsics: Intrinsics,
+    kind: str = "directional",
+    *,
+    marker_length=0.05,
+    effects: bool = True,
+    view: str = "shadow",
+    point_distance=(0.35, 0.8),
 ) -> dict:
     """A random case of the light estimate's test distribution (docs/light.md), with its truth.
 
@@ -361,6 +368,8 @@ def random_lit_case(
     a random NORTH, or a point light 0.35..0.8 m from the probe), ambient 0.2..0.6 of the direct light with
     a random tint, exposure 0.45..0.9, white balance gains 0.85..1.15, blur 0..1.2 px, noise 0.5..3 codes,
     JPEG 75..95; the camera 0.4..0.6 m away, looking at the marker, the probe and the shadow.
+    ``view="light"`` puts the camera on the light's side instead (the probe hides part of its shadow);
+    ``point_distance`` (metres) is the range of a point light's distance from the probe's top.
 
     Returns ``{"photo": LitPhoto, "probe": spec, "probe_place": (3,), "probe_rotate": (3,), "kind": spec
     for estimate_light, "north_deg": float or None}``.
@@ -383,7 +392,7 @@ def random_lit_case(
         light = light_vector(rng.uniform(0, 360), rng.uniform(25, 60))
         light_kind = "directional"
         if kind == "point":
-            light = np.array([place[0], place[1], h]) + rng.uniform(0.35, 0.8) * light
+            light = np.array([place[0], place[1], h]) + rng.uniform(*point_distance) * light
             light_kind = "point"
     amb = rng.uniform(0.2, 0.6) * rng.uniform(0.85, 1.15, 3)
     direct = rng.uniform(0.85, 1.15, 3)
@@ -398,7 +407,7 @@ def random_lit_case(
     )
     pts = np.array([[-0.04, -0.04, 0], [0.04, 0.04, 0], [-0.04, 0.04, 0], [0.04, -0.04, 0], [*foot[:2], h], [*tip, 0]])
     target = np.r_[pts[:, :2].mean(axis=0), 0.0]
-    away = math.atan2(tip[1] - foot[1], tip[0] - foot[0])
+    away = math.atan2(tip[1] - foot[1], tip[0] - foot[0]) + (math.pi if view == "light" else 0.0)
     box = load_occluder(probe, rotate=rot, place=place).vertices
     for attempt in range(300):
         az = away + math.radians(rng.uniform(-1, 1) * min(180.0, 70.0 + attempt))

@@ -192,6 +192,12 @@ class Tolerances:
     map_real_rigid_mm: float = 1.0  # real sheet: inter-marker distances of maps from disjoint halves agree
     map_layout_median_mm: float = 0.5  # chessboard clip: centre distances vs the printed layout (0.23)
     map_layout_max_mm: float = 1.5  # (measured 0.81)
+    # light estimate, never confidently wrong (issue 26 items 2-4)
+    light_confident_deg: float = 3.0  # a confident light must be this close (the issue's bar)
+    light_hidden_deg: float = 1.0  # a partly hidden shadow's direction (the issue's median bar, one case)
+    light_point_distance_rel: float = 0.05  # a point light's position error / distance: the issue's median bar
+    # the probe's face shading at the generating light: log residual (measured 0.0006..0.005 on 5 cases)
+    light_face_shading_true: float = 0.05
 
 
 TOL = Tolerances()

@@ -283,3 +283,12 @@ def test_batch_with_probe_options(lit, gl_ctx, tmp_path, capsys):
         == 0
     )
     assert np.array_equal(cv2.imread(str(tmp_path / "b" / "lit.png")), cv2.imread(str(tmp_path / "r" / "lit.png")))
+
+
+def test_light_without_the_probe_is_one_line(capsys):
+    """samples/knot_point.jpg has no box probe where it is given: exit 1, one line naming the cause (issue 26:
+    it answered a confident light)."""
+    code = main(["light", "samples/knot_point.jpg", "--calib", CALIB, "--marker-length", "0.05", *PROBE, "--json"])
+    cap = capsys.readouterr()
+    err = cap.err.strip().splitlines()
+    assert code == 1 and cap.out == "" and len(err) == 1 and "probe is not in the photo" in err[0], cap

@@ -20,9 +20,11 @@ from ..tracking.dictionary import DEFAULT_DICTIONARY
 from ..tracking.tracker import MarkerTracker
 from .exposure import Exposure, ExposureError, measure_exposure
 from .light import fit_directional, fit_point, fit_sun
+from .outline import outline_agreement
 from .penumbra import fit_angular_radius
 from .result import LightEstimate
-from .shadow import build_evidence, edge_pairs, fit_levels, shadow_coverage
+from .shading import face_shading_residual
+from .shadow import LUMA, build_evidence, edge_pairs, fit_levels, shadow_coverage
 
 __all__ = ["MAX_FRAMES", "VIDEO_EXTENSIONS", "estimate_light"]
 
@@ -35,6 +37,25 @@ MAX_FRAMES = 30
 #: lowest light elevation searched, degrees (sets the ground grid's extent)
 MIN_ELEVATION = 12.0
 CONVEX_PRIMITIVES = ("box:", "cylinder:", "sphere:")
+#: the probe's outline (:func:`arshadow.estimate.outline.outline_agreement`) below this share on the photo's
+#: edges is a refusal: the probe is not there (tuning seeds: 0.11..0.28 on synthetic photos without the
+#: probe or with it given 3..5 cm away; 0.64..1 with it in place, its shadow hidden or not; ~0.2 by chance)
+OUTLINE_REFUSE = 0.4
+#: ... and below this, a warning
+OUTLINE_FLAG = 0.55
+#: a fitted shadow darker than the ground outside on less than this share of its edge is flagged (a real
+#: shadow: 0.97..1 on synthetic photos; a pattern of the floor or a mostly hidden shadow: 0.67..0.93)
+EDGE_DARKER = 0.95
+#: frames whose probe faces are compared with the fitted light's shading (convex probes)
+SHADING_VIEWS = 3
+#: a face of the probe brighter or darker than the fitted light shades it by more than this (log) is flagged
+#: (tuning seeds: 0.008..0.057 for the right light, 0.10..0.37 for lights fitted to the floor's pattern)
+SHADING_LOG = 0.1
+#: sun: the shadow's own elevation (a free directional fit) this far from the sun's (degrees) is a refusal
+#: (when also beyond 3 sigma of the free fit): the time, its zone or the place is wrong
+SUN_REFUSE_DEG = 3.0
+#: ... and this far, a warning (the sun's direction is then at least this far from the shadow's)
+SUN_FLAG_DEG = 1.5
 #: a point light whose 1-sigma position uncertainty exceeds this share of its distance is flagged (a
 #: position 15 % off is then at least a 1.5-sigma event)
 POINT_REL_SIGMA = 0.1
@@ -187,6 +208,22 @@ def _ratio(evs, h, px) -> tuple:
     return tuple(float(math.exp(v / max(den, 1))) for v in num)
 
 
+def _edge_consistency(evs, h, px) -> tuple:
+    """How consistently the fitted shadow's edge is a shadow's: the share of pairs of ground points straddling
+    it (:func:`arshadow.estimate.shadow.edge_pairs`, 5 mm or 3 px each side) whose inside is darker than
+    their outside, and the pairs' count. A real shadow is darker all along its edge (about 0.9 and more);
+    a pattern of the floor's texture that a wrong shadow explains is darker on some stretches only."""
+    darker, count = 0, 0
+    for ev, p in zip(evs, px):
+        S = shadow_coverage(ev, h)
+        if S is None:
+            continue
+        a, b = edge_pairs(ev, S, max(0.005, 3.0 * p))
+        darker += int(np.count_nonzero(a @ LUMA < b @ LUMA))
+        count += len(a)
+    return (darker / count if count else math.nan), count
+
+
 def _sun_enu(spec: str):
     light = parse_light(spec)  # NORTH 0: world = east-north-up
     if light.sun is None:
@@ -259,7 +296,8 @@ def estimate_light(
     convex = str(probe).lower().startswith(CONVEX_PRIMITIVES)
     dictionary = dictionary or DEFAULT_DICTIONARY
     tracker = MarkerTracker(base, dictionary=dictionary, marker_length=marker_length, marker_id=marker_id)
-    coarse, fines, pxs, exposures, notes = [], [], [], [], []
+    coarse, fines, pxs, exposures, notes, outline = [], [], [], [], [], []
+    views: list[tuple[np.ndarray, Intrinsics, np.ndarray]] = []  # (image, camera, cam_from_world), shading
     for item in items:
         for name, img in _frames(item, max_frames):
             intr, _ = base.for_image(img.shape[1], img.shape[0])
@@ -269,6 +307,9 @@ def estimate_light(
                 raise MarkerNotFoundError(f"{name}: {exc}") from None
             T = pose.cam_from_world
             _probe_in_view(intr, T, verts, name)
+            outline.append(outline_agreement(img, intr, T, verts, faces))
+            if convex and len(views) < SHADING_VIEWS:
+                views.append((img, intr, T))
             try:
                 exp = measure_exposure(img, intr, T, marker_length, dictionary, pose.marker_ids[0])
             except ExposureError as exc:  # a shadow over the marker: its brightest cell, flagged
@@ -279,22 +320,135 @@ def estimate_light(
             pxs.append(px)
             fines.append(f)
             exposures.append(exp)
-    return _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, verts, t0, notes)
+    _check_outline(outline)
+    return _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, (verts, faces, views), t0, notes, outline)
 
 
-def _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, verts, t0, notes) -> LightEstimate:
+def _pooled(outline) -> float:
+    """The outline's agreement over the frames (weighted by the points read), NaN when none was read."""
+    pts = sum(n for _, n in outline)
+    return sum(a * n for a, n in outline if n) / pts if pts else math.nan
+
+
+def _check_outline(outline) -> None:
+    """Refuse when the probe's projected outline is not on the photo's edges (:func:`outline_agreement`):
+    the probe is not where it is given, or not in the photo."""
+    agree = _pooled(outline)
+    if math.isfinite(agree) and agree < OUTLINE_REFUSE:
+        raise EstimateError(
+            f"the probe is not in the photo where it is given: only {100 * agree:.0f} % of its outline lies on an edge of the "
+            f"photo (chance: ~20 %; a probe in place: over {100 * OUTLINE_FLAG:.0f} %): check --probe-place, "
+            "--probe-rotate and --probe, or that the probe is in the photo"
+        )
+
+
+def _sun_elevation_check(coarse, make_fine, enu, kind) -> tuple:
+    """The shadow's own elevation (a directional light fitted with a free direction) against the sun's at the
+    given time and place. Raises EstimateError when they clearly disagree (more than
+    :data:`SUN_REFUSE_DEG` and 3 sigma of the free fit); returns ``(shadow elevation, sun elevation, warning
+    or None)`` (a warning beyond :data:`SUN_FLAG_DEG`); ``(None, sun elevation, None)`` when the free fit
+    fails (ambiguous)."""
+    sun_el = math.degrees(math.asin(float(enu[2] / np.linalg.norm(enu))))
+    try:
+        free = fit_directional(coarse, make_fine)
+    except EstimateError:
+        return None, sun_el, None
+    el = math.degrees(math.asin(float(np.clip(free.light_h[2], -1.0, 1.0))))
+    diff = abs(el - sun_el)
+    body = kind.split(":", 1)[1].split("@")[0]
+    lat, lon, when = body.split(",")[:3]
+    text = (
+        f"the shadow says {el:.0f} deg elevation, the sun at {when} at {lat},{lon} is at {sun_el:.0f} deg: "
+        "check the time and its time zone (or the probe's height)"
+    )
+    if diff > SUN_REFUSE_DEG and diff > 3.0 * free.uncertainty_deg:
+        raise EstimateError(text)
+    return el, sun_el, (f"low confidence: {text}" if diff > SUN_FLAG_DEG else None)
+
+
+def _checks(res, ratio, pxs, outline, views, verts, faces) -> dict:
+    """The checks of a fitted light that do not come from its shadow fit: the probe's outline on the photo
+    (pooled over the frames), the share of the fitted shadow's edge darker inside, and the probe's faces
+    against the light's shading (the median over up to :data:`SHADING_VIEWS` frames; NaN when not measured)."""
+    edge_darker, edge_n = _edge_consistency(res.fine, res.light_h, pxs)
+    r = float(np.asarray(ratio) @ LUMA)
+    shade = [face_shading_residual(im, it, T, verts, faces, res.light_h, r)[0] for im, it, T in views]
+    shade = [x for x in shade if math.isfinite(x)]
+    return {
+        "outline": _pooled(outline),
+        "edge_darker": edge_darker,
+        "edge_pairs": edge_n,
+        "face_shading": float(np.median(shade)) if shade else math.nan,
+    }
+
+
+def _check_warnings(checks: dict) -> list:
+    """The warnings (``confident: false``) of failed :func:`_checks`."""
+    out = []
+    agree, edge_darker, shade_res = checks["outline"], checks["edge_darker"], checks["face_shading"]
+    if math.isfinite(agree) and agree < OUTLINE_FLAG:
+        out.append(
+            f"low confidence: only {100 * agree:.0f} % of the probe's outline lies on an edge of the photo: "
+            "check --probe-place and --probe-rotate"
+        )
+    if math.isfinite(shade_res) and shade_res > SHADING_LOG:
+        out.append(
+            f"low confidence: the probe's faces are not shaded as this light shades them (a face "
+            f"{100 * math.expm1(shade_res):.0f} % off): the shadow fitted may not be the probe's, or the probe "
+            "is not matte and of one colour"
+        )
+    if math.isfinite(edge_darker) and edge_darker < EDGE_DARKER:
+        out.append(
+            f"low confidence: the fitted shadow is darker inside its edge on only {100 * edge_darker:.0f} % of it "
+            "(a real shadow: all along it): it may be the floor's pattern, the real shadow hidden or out of view"
+        )
+    return out
+
+
+def _point_warnings(res, dist: float) -> list:
+    """A point light's warnings: fitted at the search's far or near edge, or its distance ``dist`` (metres
+    from the probe's top) uncertain; each names the 2-sigma interval of the distance."""
+    lo, hi = res.distance_interval if res.distance_interval is not None else (math.nan, math.nan)
+    span = f"between {lo:.2f} and {hi:.2f} m from the probe's top (2 sigma)"
+    rel = res.position_sigma / max(dist, 1e-9)
+    if dist > POINT_FAR:
+        return [
+            f"low confidence: the point light fit went {dist:.1f} m away, {span} (a far light looks "
+            "directional from one probe); fit --kind directional"
+        ]
+    if dist < POINT_NEAR:
+        return [
+            f"low confidence: the point light fit went {100 * dist:.0f} cm from the probe's top, the edge of the "
+            f"search, {span} (a faint shadow is explained as well by a light almost anywhere)"
+        ]
+    if rel > POINT_REL_SIGMA:
+        return [
+            f"low confidence: the point light's distance is uncertain (+/- {100 * rel:.0f} % of it): "
+            f"{dist:.2f} m, {span}; add photos or frames from other sides (arshadow light a.jpg b.jpg ...), "
+            "or fit --kind directional"
+        ]
+    return []
+
+
+def _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, probe, t0, notes, outline) -> LightEstimate:
+    verts, faces, views = probe
+
     def make_fine(lights_h):
         return [f(lights_h) for f in fines]
+
+    sun_check = None
 
     top = verts[:, 2].max()
     anchor = np.r_[0.5 * (verts[:, :2].min(axis=0) + verts[:, :2].max(axis=0)), top]
     if kind_name == "directional":
         res = fit_directional(coarse, make_fine)
     elif kind_name == "sun":
+        sun_check = _sun_elevation_check(coarse, make_fine, enu, kind)  # first: a wrong time named as such
         res = fit_sun(coarse, make_fine, enu)
     else:
         res = fit_point(coarse, make_fine, anchor)
     ratio = _ratio(res.fine, res.light_h, pxs)
+    checks = _checks(res, ratio, pxs, outline, views, verts, faces)
     paper = np.median(np.array([e.paper_rgb for e in exposures]), axis=0)
     ink = np.median(np.array([e.ink_rgb for e in exposures]), axis=0)
     exp = Exposure(
@@ -306,30 +460,26 @@ def _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, verts, t0, notes) 
     warnings = list(notes)
     if exp.saturated:
         warnings.append("the marker's paper is over-exposed (clipped): the exposure match is a lower bound")
+    if sun_check is not None and sun_check[2] is not None:
+        warnings.append(sun_check[2])
+    warnings += _check_warnings(checks)
     if res.uncertainty_deg > 3.0:
         warnings.append(f"low confidence: uncertainty {res.uncertainty_deg:.1f} degrees")
     if res.position_sigma is not None:
-        dist = float(np.linalg.norm(res.light_h[:3] - anchor))
-        rel = res.position_sigma / max(dist, 1e-9)
-        if dist > POINT_FAR:
-            warnings.append(
-                f"low confidence: the point light fit went {dist:.1f} m away (a far light looks "
-                "directional from one probe); fit --kind directional"
-            )
-        elif dist < POINT_NEAR:
-            warnings.append(
-                f"low confidence: the point light fit went {100 * dist:.0f} cm from the probe's top, the "
-                "edge of the search (a faint shadow is explained as well by a light almost anywhere)"
-            )
-        elif rel > POINT_REL_SIGMA:
-            warnings.append(
-                f"low confidence: the point light's distance is uncertain (+/- {100 * rel:.0f} % of it); "
-                "add views from other sides, or fit --kind directional"
-            )
+        warnings += _point_warnings(res, float(np.linalg.norm(res.light_h[:3] - anchor)))
     if res.runner_up is not None and res.runner_up > 0.6:
         warnings.append(f"a second light explains {100 * res.runner_up:.0f} % as much: check the result")
     fit = {
+        **{k: (None if not math.isfinite(v) else round(v, 3)) for k, v in checks.items()},
         "explained": round(res.explained, 4),
+        **(
+            {}
+            if sun_check is None
+            else {
+                "shadow_elevation_deg": None if sun_check[0] is None else round(sun_check[0], 2),
+                "sun_elevation_deg": round(sun_check[1], 2),
+            }
+        ),
         "visible": round(res.visible, 3),
         "runner_up": None if res.runner_up is None else round(res.runner_up, 3),
         "evaluations": int(res.evaluations),
@@ -379,6 +529,7 @@ def _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, verts, t0, notes) 
         shadow_ratio=ratio,
         uncertainty_deg=res.uncertainty_deg,
         position_uncertainty=res.position_sigma,
+        distance_interval=None if res.distance_interval is None else tuple(float(v) for v in res.distance_interval),
         exposure=exp,
         frames=len(coarse),
         fit=fit,

@@ -16,8 +16,9 @@ The uncertainty is the Laplace approximation of the least-squares fit (numerical
 noise variance from the residual, inflated by the residual's spatial correlation).
 
 Refusals (:class:`arshadow.errors.EstimateError`): no shadow darker than 5 % or explaining < 2 % of the
-variance (flat light), the best shadow mostly out of view or hidden behind the probe, a second distinct
-minimum nearly as good (ambiguous).
+variance (flat light), a second distinct minimum nearly as good (ambiguous), a fit whose own uncertainty
+leaves the light unconstrained (> :data:`UNCONSTRAINED_DEG`: too little of the shadow in view or not
+hidden behind the probe; the visible share alone refuses nothing).
 """
 
 from __future__ import annotations
@@ -37,8 +38,8 @@ __all__ = ["FitResult", "direction_of", "fit_directional", "fit_point", "fit_sun
 MIN_DARKENING = 0.05
 #: minimum share of the ground's variance that the shadow must explain
 MIN_EXPLAINED = 0.02
-#: minimum visible (used) share of the fitted shadow's area, over the frames
-MIN_VISIBLE = 0.4
+#: a fit whose 1-sigma direction uncertainty exceeds this (degrees) leaves the light unconstrained: refused
+UNCONSTRAINED_DEG = 10.0
 #: a second minimum this close (relative explained variance) and > 15 degrees away is ambiguous
 AMBIGUOUS = 0.85
 
@@ -55,8 +56,9 @@ def _minimize(*args, **kwargs):
 @dataclass
 class FitResult:
     """A fitted light: ``light_h`` (4,), its parameters, the objective, the shadow's log darkness per frame,
-    a 1-sigma uncertainty (degrees of direction; metres of position for a point light), diagnostics and the
-    fine evidence it was refined on."""
+    a 1-sigma uncertainty (degrees of direction; metres of position for a point light), diagnostics, the
+    fine evidence it was refined on and (point light) the 2-sigma interval of its distance from the probe's
+    top, metres."""
 
     light_h: np.ndarray
     params: np.ndarray
@@ -69,6 +71,7 @@ class FitResult:
     runner_up: float | None
     evaluations: int
     fine: list
+    distance_interval: tuple | None = None
 
 
 def direction_of(az_deg: float, el_deg: float) -> np.ndarray:
@@ -210,11 +213,6 @@ def _check(evs, h, score, deltas, runner_up_score):
             "shadow is hidden or out of view"
         )
     visible = _visible_share(evs, h)
-    if visible < MIN_VISIBLE:
-        raise EstimateError(
-            f"the probe's shadow is mostly out of view ({100 * visible:.0f} % of it visible): "
-            "frame the whole shadow, or it is hidden behind the probe"
-        )
     runner = None
     if runner_up_score is not None and math.isfinite(runner_up_score):
         runner = (1.0 - runner_up_score / nf) / explained
@@ -224,6 +222,18 @@ def _check(evs, h, score, deltas, runner_up_score):
                 f"well ({100 * runner:.0f} %); add frames from other viewpoints or a taller probe"
             )
     return explained, visible, runner
+
+
+def _constrained(unc_deg: float, visible: float) -> None:
+    """Refuse a fit whose own uncertainty (1 sigma, degrees) leaves the light unconstrained: what is visible
+    of the shadow (``visible``, a share of its area) does not fix it. The visible share alone decides
+    nothing: a third of a shadow's outline can fix the light as well as all of it."""
+    if not math.isfinite(unc_deg) or unc_deg > UNCONSTRAINED_DEG:
+        raise EstimateError(
+            f"the visible part of the probe's shadow ({100 * visible:.0f} % of it) leaves the light unconstrained "
+            f"(+/- {unc_deg:.0f} degrees): frame the whole shadow, or photograph it from its side (not hidden "
+            "behind the probe)"
+        )
 
 
 def _refine(fine, to_light, starts, simplex_step, xatol, darkness=None):
@@ -269,6 +279,7 @@ def fit_directional(coarse: list, make_fine, el_range=(12.0, 84.0)) -> FitResult
     explained, visible, rr = _check(fine, h, score, deltas, runner)
     cov = _laplace(fine, to_light, p, np.array([0.3, 0.3]))
     unc = math.sqrt(max(cov[1, 1] + cov[0, 0] * math.cos(math.radians(p[1])) ** 2, 0.0))
+    _constrained(unc, visible)
     return FitResult(h, p, score, deltas, unc, None, explained, visible, rr, len(cands) + n, fine)
 
 
@@ -307,6 +318,7 @@ def fit_sun(coarse: list, make_fine, enu) -> FitResult:
     explained, visible, rr = _check(fine, h, score, deltas, runner)
     cov = _laplace(fine, to_light, p, np.array([0.3]))
     unc = math.sqrt(max(cov[0, 0], 0.0)) * math.cos(math.asin(min(1.0, enu[2] / np.linalg.norm(enu))))
+    _constrained(unc, visible)
     return FitResult(h, p, score, deltas, unc, None, explained, visible, rr, len(cands) + n, fine)
 
 
@@ -378,8 +390,11 @@ def fit_point(coarse: list, make_fine, anchor) -> FitResult:
     cov = _laplace(fine, to_light, q, np.array([0.3, 0.3, 0.02]), dark)
     dist = math.exp(q[2])
     unc = math.sqrt(max(cov[1, 1] + cov[0, 0] * math.cos(math.radians(q[1])) ** 2, 0.0))
+    _constrained(unc, visible)
     # position: the direction's spread across, the log distance's along
     sig = dist * math.sqrt(max(math.radians(unc) ** 2 + cov[2, 2], 0.0))
+    s_log = math.sqrt(max(cov[2, 2], 0.0)) if math.isfinite(cov[2, 2]) else math.inf
+    interval = (dist * math.exp(-2.0 * s_log), dist * math.exp(min(2.0 * s_log, 50.0)))  # 2 sigma, log-normal
     return FitResult(
         h,
         position(q),
@@ -392,4 +407,5 @@ def fit_point(coarse: list, make_fine, anchor) -> FitResult:
         None,
         d.evaluations + count.n + count_c.n + len(grid) + n,
         fine,
+        interval,
     )

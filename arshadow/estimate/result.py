@@ -67,6 +67,9 @@ class LightEstimate:
         Directional: the light's angular diameter fitted to the shadow's penumbra (an upper bound: the
         camera's blur softens the edge too); the light spec then carries ``radius=`` (half of it) when it is
         at least 0.25 degrees (radius), for ``--soft-samples``.
+    distance_interval : (2,) float or None
+        Point light: the 2-sigma interval of its distance from the probe's top, metres (the fit's own
+        uncertainty, log-normal).
     """
 
     kind: str
@@ -82,6 +85,7 @@ class LightEstimate:
     fit: dict = field(default_factory=dict)
     warnings: list = field(default_factory=list)
     angular_diameter_deg: float | None = None
+    distance_interval: tuple | None = None
 
     @property
     def confident(self) -> bool:
@@ -104,6 +108,7 @@ class LightEstimate:
             "fit": self.fit,
             "warnings": list(self.warnings),
             "angular_diameter_deg": _r(self.angular_diameter_deg, 4),
+            "distance_interval": _r(self.distance_interval, 4),
         }
 
     def to_json(self, indent: int | None = 1) -> str:
@@ -126,6 +131,7 @@ class LightEstimate:
                 fit=dict(d.get("fit", {})),
                 warnings=list(d.get("warnings", [])),
                 angular_diameter_deg=d.get("angular_diameter_deg"),
+                distance_interval=None if d.get("distance_interval") is None else tuple(d["distance_interval"]),
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise UsageError(

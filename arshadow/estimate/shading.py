@@ -1,0 +1,110 @@
+"""Does the probe's own shading agree with the fitted light?
+
+A matte probe of one colour under ambient + one light has faces as bright as ``rho (A + E max(0, n.l))``
+(``n`` a face's normal, ``l`` the unit vector to the light). The ground's shadow ratio fixes ``A / E``: a
+horizontal ground lit at elevation ``e`` keeps ``r = A / (A + E sin e)`` in the shadow, so
+``A / E = r sin(e) / (1 - r)``. What is left unknown is one scale (``rho E`` and the exposure), so with two or
+more faces in view, the ratios of their brightness test the light: a light fitted to the floor's pattern (a
+hidden shadow, a probe not there) shades the faces in the wrong order or proportions.
+
+:func:`face_shading_residual` measures every face group of a convex probe turned to the camera (coplanar
+triangles together), the median linear luminance of its pixels (eroded by 3 px from its outline), and
+returns the largest log residual of the model after fitting its scale.
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+
+from ..camera import Intrinsics
+from ..compose.composite import SRGB_TO_LINEAR
+from ..transforms import transform_points
+from .shadow import LUMA
+
+__all__ = ["MIN_FACE_PX", "face_shading_residual"]
+
+#: a face is measured when at least this many of its pixels remain after eroding its outline by 3 px
+MIN_FACE_PX = 40
+
+
+def _face_groups(verts: np.ndarray, faces: np.ndarray, eye: np.ndarray) -> list:
+    """[(unit outward normal (3,), centroid (3,), triangle indices)] of the faces turned to ``eye``, coplanar
+    triangles grouped (normals within ~0.5 degree)."""
+    tri = verts[faces]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+    flip = np.sum(n * (tri.mean(axis=1) - verts.mean(axis=0)), axis=1) < 0
+    n[flip] *= -1.0
+    front = np.sum(n * (eye - tri.mean(axis=1)), axis=1) > 0
+    groups: dict = {}
+    for k in np.flatnonzero(front):
+        key = tuple(np.round(n[k] * 100).astype(int))
+        groups.setdefault(key, []).append(k)
+    return [(n[ks[0]], tri[ks].reshape(-1, 3).mean(axis=0), ks) for ks in groups.values()]
+
+
+def face_shading_residual(
+    image_bgr: np.ndarray,
+    intr: Intrinsics,
+    cam_from_world,
+    verts,
+    faces,
+    light_h,
+    shadow_ratio: float,
+) -> tuple:
+    """The largest disagreement between the probe's faces in the photo and their shading by a light.
+
+    Parameters
+    ----------
+    image_bgr : (H, W, 3) uint8
+    intr : Intrinsics
+    cam_from_world : (4, 4) float64
+    verts : (n, 3) float64, faces : (m, 3) int
+        A convex probe, world frame.
+    light_h : (4,) float
+        ``(dx, dy, dz, 0)`` towards a directional light or ``(x, y, z, 1)`` a point light, world frame.
+    shadow_ratio : float
+        The ground's shadow / lit (luminance) that fixes ``A / E``.
+
+    Returns
+    -------
+    (residual, faces) : (float, int)
+        The largest ``|log(measured) - log(scale * model)|`` over the faces measured (the scale fitted in
+        log), and how many faces were measured; ``(NaN, k)`` with fewer than two.
+    """
+    v = np.asarray(verts, np.float64)
+    pose = np.asarray(cam_from_world, np.float64)
+    h = np.asarray(light_h, np.float64)
+    eye = transform_points(np.linalg.inv(pose), np.zeros((1, 3)))[0]
+    foot = np.r_[0.5 * (v[:, :2].min(axis=0) + v[:, :2].max(axis=0)), 0.0]
+
+    def to_light(p):
+        d = h[:3] if h[3] == 0.0 else h[:3] / h[3] - p
+        return d / np.linalg.norm(d)
+
+    r = float(np.clip(shadow_ratio, 0.0, 0.95))
+    amb = r * max(to_light(foot)[2], 0.0) / (1.0 - r)  # A / E
+    H, W = image_bgr.shape[:2]
+    lum = cv2.LUT(image_bgr, SRGB_TO_LINEAR).astype(np.float32) @ LUMA[::-1].astype(np.float32)
+    uv = intr.project(v, pose)
+    measured, model = [], []
+    kernel = np.ones((7, 7), np.uint8)
+    for normal, centre, ks in _face_groups(v, np.asarray(faces), eye):
+        mask = np.zeros((H, W), np.uint8)
+        for k in ks:
+            t = uv[np.asarray(faces)[k]]
+            if np.all(np.isfinite(t)):
+                cv2.fillConvexPoly(mask, np.round(t * 16).astype(np.int32), 1, cv2.LINE_8, shift=4)
+        mask = cv2.erode(mask, kernel)
+        px = lum[mask > 0]
+        if len(px) < MIN_FACE_PX:
+            continue
+        measured.append(float(np.median(px)))
+        model.append(amb + max(0.0, float(normal @ to_light(centre))))
+    if len(measured) < 2 or min(measured) <= 0 or min(model) <= 0:
+        return math.nan, len(measured)
+    res = np.log(measured) - np.log(model)
+    return float(np.abs(res - res.mean()).max()), len(measured)
