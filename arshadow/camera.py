@@ -106,7 +106,7 @@ class Intrinsics:
     def __hash__(self):
         return hash(self._key())
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return (
             f"Intrinsics(fx={self.fx:.6g}, fy={self.fy:.6g}, cx={self.cx:.6g}, cy={self.cy:.6g}, "
             f"width={self.width}, height={self.height}, dist={np.round(self.dist, 6).tolist()})"

@@ -117,7 +117,7 @@ def _demo_scene(sc, samples, root, outdir, aa, ctx, renderer, panels, debug, on_
     title = sc.get("title", stem)
     job = PhotoJob(str(samples / sc["photo"]), outdir / f"{stem}.png", outdir / f"{stem}.shadow.png")
 
-    def done(job, item, res, err):
+    def done(job, item, res, err) -> None:
         if res is not None:
             item.title = title
             panels.append(

@@ -127,7 +127,7 @@ def distort_normalized(xy, dist) -> np.ndarray:
     return np.stack([xd, yd], axis=1)
 
 
-def undistort_normalized(xy_d, dist, *, tol=1e-12, max_iter=50) -> np.ndarray:
+def undistort_normalized(xy_d, dist, *, tol: float = 1e-12, max_iter: int = 50) -> np.ndarray:
     """Exact inverse of :func:`distort_normalized` by damped Newton iteration (vectorised).
 
     Parameters

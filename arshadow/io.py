@@ -198,7 +198,7 @@ class InputGuard:
     'in/a.png'
     """
 
-    def __init__(self, inputs):
+    def __init__(self, inputs) -> None:
         self._given = {resolved_path(str(i)) for i in inputs}
 
     def clash(self, outputs) -> str | None:

@@ -120,7 +120,9 @@ def scene_hull_points(bounds, lights_h, ground_size=None, points=None) -> np.nda
     return np.concatenate(pts)
 
 
-def pinhole_rect_for_scene(intrinsics, cam_from_world, bounds, lights_h, ground_size=None, znear=1e-3, points=None):
+def pinhole_rect_for_scene(
+    intrinsics, cam_from_world, bounds, lights_h, ground_size=None, znear: float = 1e-3, points=None
+):
     """Pinhole pixel rectangle ``(u0, v0, u1, v1)`` covering the occluder and its shadows, or None (all).
 
     None means "the whole image": a footprint is unbounded and no ``ground_size`` limits it, or a point
@@ -217,7 +219,7 @@ class SceneGeometry:
         Initial lights (:meth:`set_lights`).
     """
 
-    def __init__(self, caster, options, lights=None):
+    def __init__(self, caster, options, lights=None) -> None:
         self.caster = caster
         self.options = options
         b = np.asarray(caster.bounds, dtype=np.float64)

@@ -193,26 +193,26 @@ def render_lit_photo(
     intrinsics: Intrinsics,
     cam_from_world,
     *,
-    marker_length=0.05,
-    dictionary="DICT_6X6_250",
-    marker_id=0,
-    probe="box:0.05,0.05,0.1",
+    marker_length: float = 0.05,
+    dictionary: str = "DICT_6X6_250",
+    marker_id: int = 0,
+    probe: str = "box:0.05,0.05,0.1",
     probe_place=(0.1, 0.0, 0.0),
     probe_rotate=(0, 0, 0),
     probe_albedo=(0.55, 0.5, 0.45),
-    light_kind="directional",
+    light_kind: str = "directional",
     light=(0.5, 0.0, 0.866),
     ambient=(0.35, 0.38, 0.45),
     direct=(1.0, 0.95, 0.85),
-    exposure=0.8,
+    exposure: float = 0.8,
     white_balance=(1.0, 1.0, 1.0),
-    blur_sigma=0.0,
-    noise_sigma=0.0,
+    blur_sigma: float = 0.0,
+    noise_sigma: float = 0.0,
     jpeg_quality=None,
     seed=None,
-    supersample=3,
-    floor="texture",
-    light_radius_deg=0.0,
+    supersample: int = 3,
+    floor: str = "texture",
+    light_radius_deg: float = 0.0,
 ) -> LitPhoto:
     """Render a photo of the marker and a probe lit by ambient + one direct light, with its truth.
 
@@ -352,7 +352,7 @@ SUN_CASES = (
 
 
 def random_lit_case(
-    rng, intrinsics: Intrinsics, kind: str = "directional", *, marker_length=0.05, effects: bool = True
+    rng, intrinsics: Intrinsics, kind: str = "directional", *, marker_length: float = 0.05, effects: bool = True
 ) -> dict:
     """A random case of the light estimate's test distribution (docs/light.md), with its truth.
 

@@ -143,7 +143,7 @@ class Workspace:
     flat buffer that only grows. Avoids allocating (and page-faulting) megabytes of temporaries per frame.
     Not thread-safe; one per pipeline."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         self._bufs: dict = {}
 
     def get(self, name: str, shape, dtype) -> np.ndarray:

@@ -93,7 +93,7 @@ class LensWarp:
     #: side of the square tiles in which the full-resolution map is computed on first use
     TILE = 64
 
-    def __init__(self, intrinsics, stride: int = 8):
+    def __init__(self, intrinsics, stride: int = 8) -> None:
         self.intrinsics = intrinsics
         self.width, self.height = int(intrinsics.width), int(intrinsics.height)
         self.stride = int(stride)
@@ -266,7 +266,7 @@ class LensWarp:
         u1, v1 = math.ceil(a1) + 1, math.ceil(b1) + 1
         return (u0, v0, u1 - u0 + 1, v1 - v0 + 1)
 
-    def warp(self, roi, canvas, *arrays, interpolation=None, work=None, bottom_up=False):
+    def warp(self, roi, canvas, *arrays, interpolation=None, work=None, bottom_up: bool = False):
         """Resample canvas-sized arrays at the photo ROI's pinhole points.
 
         Parameters

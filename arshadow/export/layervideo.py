@@ -103,7 +103,7 @@ class LayerSink:
         The ST-map of the undistorted layers (:func:`arshadow.export.stmap.stmap`), written by :meth:`close`.
     """
 
-    def __init__(self, paths: dict, fmt: str, rate, size, stmap=None):
+    def __init__(self, paths: dict, fmt: str, rate, size, stmap=None) -> None:
         self.paths, self.fmt, self.rate = dict(paths), fmt, rate
         self.W, self.H = int(size[0]), int(size[1])
         self.n = 0

@@ -201,7 +201,7 @@ class ShadowOracle:
     ground_size : float or None
     """
 
-    def __init__(self, K, cam_from_world, vertices, faces, lights, ground_size=None):
+    def __init__(self, K, cam_from_world, vertices, faces, lights, ground_size=None) -> None:
         self.K = np.asarray(K, np.float64)
         self.T = np.asarray(cam_from_world, np.float64)
         self.V = np.asarray(vertices, np.float64)

@@ -337,7 +337,7 @@ def parse_light(spec: str, default_time=None) -> Light:
 _SUN_KEYS = ("elevation", "pressure", "temperature", "delta_t", "model", "refraction", "radius")
 
 
-def _sun_params(spec, pos, kw, default_time, need_time=True) -> dict:
+def _sun_params(spec, pos, kw, default_time, need_time: bool = True) -> dict:
     """Validated parameters of a ``sun:`` spec (LightError naming the spec on bad input)."""
     _check_keys(kw, _SUN_KEYS, spec)
     if not 2 <= len(pos) <= 4:
@@ -478,7 +478,7 @@ class SunLightTrack(SunTrack):
         Angular radius of the sun disc (None: the sun's true radius for each frame's date).
     """
 
-    def __init__(self, *args, start=None, weight=1.0, label="sun", radius_deg=None, **kwargs):
+    def __init__(self, *args, start=None, weight: float = 1.0, label: str = "sun", radius_deg=None, **kwargs) -> None:
         super().__init__(*args, **kwargs)
         self.start, self.weight, self.label, self.radius_deg = start, float(weight), label, radius_deg
 

@@ -75,8 +75,16 @@ class SunTrack:
     """
 
     def __init__(
-        self, lat, lon, elevation=0.0, north_deg=0.0, recompute_deg=0.1, model="spa", refraction=False, **kwargs
-    ):
+        self,
+        lat,
+        lon,
+        elevation: float = 0.0,
+        north_deg: float = 0.0,
+        recompute_deg: float = 0.1,
+        model: str = "spa",
+        refraction: bool = False,
+        **kwargs,
+    ) -> None:
         self.lat, self.lon, self.elevation = check_place(lat, lon, elevation)
         self.north_deg = float(north_deg)
         if not math.isfinite(self.north_deg):
