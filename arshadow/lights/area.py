@@ -12,6 +12,7 @@ import dataclasses
 import math
 
 import numpy as np
+import numpy.typing as npt
 
 from ..errors import LightError
 from .spec import Light
@@ -57,7 +58,7 @@ def stratified_disc(n: int, seed: int = 0) -> np.ndarray:
     return np.stack([r * np.cos(theta), r * np.sin(theta)], axis=1)
 
 
-def sample_area_light(light: Light, n: int, seed: int = 0, towards=(0.0, 0.0, 0.0)) -> list[Light]:
+def sample_area_light(light: Light, n: int, seed: int = 0, towards: npt.ArrayLike = (0.0, 0.0, 0.0)) -> list[Light]:
     """Replace an area light by ``n`` stratified hard lights whose weights sum to ``light.weight``.
 
     * Point light of sphere radius ``r``: samples on the disc of radius ``r`` through the light's centre,
