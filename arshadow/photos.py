@@ -205,7 +205,7 @@ def render_photo_file(
 
 
 #: ``on_done(job, item, result or None, error or None)`` after each photo (printing, thumbnails)
-OnDone = Callable[[PhotoJob, ReportItem, object, BaseException | None], None]
+OnDone = Callable[[PhotoJob, ReportItem, "FrameResult | None", BaseException | None], None]
 
 
 def render_photos(
