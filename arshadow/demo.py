@@ -106,6 +106,7 @@ def run_demo(
             first = samples / scenes[0]["photo"] if scenes else None
             if panels and first is not None and first.is_file():
                 panels.append(caption_panel(read_image(first), f"input photo: {first.name} (before)"))
+            light: list[str] | ArshadowError
             try:  # the measured-look item (issue 17): extra outputs, the rest is unchanged
                 light = light_demo(samples, outdir, context=ctx, renderer=renderer, aa=aa)
             except ArshadowError as exc:

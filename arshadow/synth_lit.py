@@ -122,7 +122,8 @@ def _cone_directions(light: np.ndarray, radius_deg: float, seed: int | None) -> 
     a = np.cross(z, [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0])
     a /= np.linalg.norm(a)
     b = np.cross(z, a)
-    return cos_t[:, None] * z + sin_t[:, None] * (np.cos(phi)[:, None] * a + np.sin(phi)[:, None] * b)
+    dirs: np.ndarray = cos_t[:, None] * z + sin_t[:, None] * (np.cos(phi)[:, None] * a + np.sin(phi)[:, None] * b)
+    return dirs
 
 
 def _lighting_samples(
@@ -336,8 +337,8 @@ def render_lit_photo(
         paper_world=scene["paper_world"],
         params={
             "probe": probe,
-            "probe_place": list(map(float, probe_place)),
-            "probe_rotate": list(map(float, probe_rotate)),
+            "probe_place": list(map(float, np.ravel(probe_place))),
+            "probe_rotate": list(map(float, np.ravel(probe_rotate))),
             "exposure": float(exposure),
             "white_balance": list(map(float, np.ravel(white_balance))),
             "blur_sigma": blur_sigma,

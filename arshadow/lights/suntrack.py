@@ -131,6 +131,7 @@ class SunTrack:
                 recompute = float(angle_between_deg(world, self._last[0])) > self.recompute_deg
             if recompute:
                 self._last = (world, above)
+            assert self._last is not None  # set above when it was None
             used = self._last[0]
             out.append(TrackFrame(w, p, world, used, above, recompute, float(angle_between_deg(world, used))))
         return out
