@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import numpy as np
+import numpy.typing as npt
 
 from .errors import ShapeError
 
 
-def check_shape(a, spec: str, name: str = "array") -> np.ndarray:
+def check_shape(a: npt.ArrayLike, spec: str, name: str = "array") -> np.ndarray:
     """Check that ``a`` has the shape described by ``spec`` and return it as an ndarray.
 
     Parameters
@@ -37,7 +38,7 @@ def check_shape(a, spec: str, name: str = "array") -> np.ndarray:
     return arr
 
 
-def check_finite(a, name: str = "array") -> np.ndarray:
+def check_finite(a: npt.ArrayLike, name: str = "array") -> np.ndarray:
     """Raise :class:`ShapeError` naming ``name`` if ``a`` holds NaN or inf; return it as float64."""
     arr = np.asarray(a, dtype=np.float64)
     if not np.all(np.isfinite(arr)):

@@ -12,11 +12,13 @@ re-exported here) and OpenCV FileStorage reading/writing in :mod:`arshadow.cvsto
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import cv2
 import numpy as np
+import numpy.typing as npt
 
 from ._check import check_finite, check_shape
 from .cvstorage import open_storage, read_matrix, read_positive_int, write_storage
@@ -69,7 +71,7 @@ class Intrinsics:
     height: int
     dist: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         for name in ("fx", "fy", "cx", "cy"):
             v = getattr(self, name)
             try:
@@ -97,16 +99,16 @@ class Intrinsics:
         object.__setattr__(self, "dist", d)
 
     # -- value semantics ---------------------------------------------------------------------------
-    def _key(self):
+    def _key(self) -> tuple[float, float, float, float, int, int, tuple[float, ...]]:
         return (self.fx, self.fy, self.cx, self.cy, self.width, self.height, tuple(self.dist.tolist()))
 
-    def __eq__(self, other):
+    def __eq__(self, other: object) -> bool:
         return isinstance(other, Intrinsics) and self._key() == other._key()
 
-    def __hash__(self):
+    def __hash__(self) -> int:
         return hash(self._key())
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return (
             f"Intrinsics(fx={self.fx:.6g}, fy={self.fy:.6g}, cx={self.cx:.6g}, cy={self.cy:.6g}, "
             f"width={self.width}, height={self.height}, dist={np.round(self.dist, 6).tolist()})"
@@ -134,7 +136,7 @@ class Intrinsics:
         return self.dist.copy() if self.dist.size else np.zeros(5)
 
     @classmethod
-    def from_K(cls, K, width, height, dist=()):  # noqa: N802
+    def from_K(cls, K: npt.ArrayLike, width: int, height: int, dist: npt.ArrayLike = ()) -> Intrinsics:  # noqa: N802
         """Build from a (3, 3) camera matrix (skew must be zero)."""
         K = check_shape(np.asarray(K, dtype=np.float64), "3,3", "camera matrix")
         if abs(K[0, 1]) > 1e-9 * max(1.0, abs(K[0, 0])):
@@ -145,7 +147,7 @@ class Intrinsics:
 
     # -- files ---------------------------------------------------------------------------------------
     @classmethod
-    def from_file(cls, path) -> Intrinsics:
+    def from_file(cls, path: Path | str) -> Intrinsics:
         """Read an OpenCV FileStorage calibration (YAML/XML/JSON) or a ROS ``camera_info`` YAML.
 
         Keys: ``camera_matrix`` (3x3), ``distortion_coefficients`` (1xN or Nx1, optional = none),
@@ -191,7 +193,7 @@ class Intrinsics:
         except CalibrationError as exc:
             raise CalibrationError(f"{p}: {exc}") from None
 
-    def to_file(self, path, **extra) -> Path:
+    def to_file(self, path: Path | str, **extra: object) -> Path:
         """Write an OpenCV FileStorage calibration (format from the extension: .yml/.yaml/.xml/.json).
 
         ``extra`` keys are written too: numbers, strings, lists of strings, or arrays (as matrices), e.g.
@@ -259,7 +261,9 @@ class Intrinsics:
         return self.scaled(width, height), True
 
     # -- projection ----------------------------------------------------------------------------------
-    def project(self, points_world, cam_from_world=None, distort: bool = True) -> np.ndarray:
+    def project(
+        self, points_world: npt.ArrayLike, cam_from_world: npt.ArrayLike | None = None, distort: bool = True
+    ) -> np.ndarray:
         """Project world points to pixels.
 
         Parameters
@@ -287,13 +291,13 @@ class Intrinsics:
         xy[bad] = 0.0
         if distort and self.has_distortion:
             xy = distort_normalized(xy, self.dist)
-        uv = np.empty_like(xy)
+        uv: np.ndarray = np.empty_like(xy)
         uv[:, 0] = self.fx * xy[:, 0] + self.cx
         uv[:, 1] = self.fy * xy[:, 1] + self.cy
         uv[bad] = np.nan
         return uv
 
-    def distort_pixels(self, uv_pinhole) -> np.ndarray:
+    def distort_pixels(self, uv_pinhole: npt.ArrayLike) -> np.ndarray:
         """Pinhole pixel coordinates -> where the distorted camera images them, (n, 2) -> (n, 2)."""
         uv = check_shape(uv_pinhole, "N,2", "uv_pinhole").astype(np.float64)
         if not self.has_distortion:
@@ -302,7 +306,7 @@ class Intrinsics:
         xy = distort_normalized(xy, self.dist)
         return np.stack([xy[:, 0] * self.fx + self.cx, xy[:, 1] * self.fy + self.cy], axis=1)
 
-    def undistort_pixels(self, uv) -> np.ndarray:
+    def undistort_pixels(self, uv: npt.ArrayLike) -> np.ndarray:
         """Distorted pixel coordinates -> pinhole pixel coordinates (exact inverse, < 1e-6 px).
 
         Parameters
@@ -337,7 +341,9 @@ class Intrinsics:
         return np.stack([u.ravel(), v.ravel()], axis=1)
 
     # -- OpenGL ---------------------------------------------------------------------------------------
-    def gl_projection(self, znear: float, zfar: float | None = None, canvas=None) -> np.ndarray:
+    def gl_projection(
+        self, znear: float, zfar: float | None = None, canvas: Sequence[float] | None = None
+    ) -> np.ndarray:
         """OpenGL clip-from-eye matrix of this (pinhole) camera, exact to the pixel-centre convention.
 
         Eye coordinates are OpenGL's: ``X_gl = diag(1, -1, -1) @ X_cam``. A camera point imaged at

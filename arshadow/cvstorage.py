@@ -8,6 +8,7 @@ from __future__ import annotations
 import contextlib
 import math
 import re
+from collections.abc import Iterator
 from pathlib import Path
 
 import cv2
@@ -20,7 +21,7 @@ __all__ = ["open_storage", "read_matrix", "read_positive_int", "write_storage"]
 
 
 @contextlib.contextmanager
-def open_storage(path, what: str, error=CalibrationError):
+def open_storage(path: Path | str, what: str, error: type[Exception] = CalibrationError) -> Iterator[cv2.FileStorage]:
     """Open an OpenCV FileStorage (YAML/XML/JSON) for reading; released when the block ends.
 
     Every problem is one ``error`` naming the file and ``what`` it should be (``"calibration file"``,
@@ -53,7 +54,7 @@ def open_storage(path, what: str, error=CalibrationError):
 
 
 @contextlib.contextmanager
-def write_storage(path, what: str, error=CalibrationError):
+def write_storage(path: Path | str, what: str, error: type[Exception] = CalibrationError) -> Iterator[cv2.FileStorage]:
     """Open an OpenCV FileStorage for writing ``path`` atomically (format from the extension)."""
     p = Path(path)
     with atomic_path(p) as tmp:
@@ -66,7 +67,7 @@ def write_storage(path, what: str, error=CalibrationError):
             fs.release()
 
 
-def read_matrix(node, name: str, path) -> np.ndarray:
+def read_matrix(node: cv2.FileNode, name: str, path: Path | str) -> np.ndarray:
     """Read an OpenCV matrix node (key ``name`` of file ``path``, for messages), a ROS-style {rows, cols, data} map, or a plain sequence."""
     if node.isMap():
         data = node.getNode("data")
@@ -86,7 +87,7 @@ def read_matrix(node, name: str, path) -> np.ndarray:
     raise CalibrationError(f"{path}: key '{name}' is not a matrix")
 
 
-def read_positive_int(fs, key: str, path) -> int:
+def read_positive_int(fs: cv2.FileStorage, key: str, path: Path | str) -> int:
     """The positive integer under ``key`` of an open FileStorage ``fs`` (of file ``path``, for messages)."""
     node = fs.getNode(key)
     if node.empty():

@@ -5,15 +5,23 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from .errors import ArshadowError, UsageError
 from .io import read_image, write_image, write_json
-from .photos import PhotoJob, caption_panel, contact_sheet, render_photos
+from .photos import OnDone, PhotoJob, caption_panel, contact_sheet, render_photos
 from .render_options import DEFAULT_AA
 from .report import ReportItem, make_report
 from .resources import samples_dir
 from .scene import scene_from_dict
 from .session import Session
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from .gl.stencil import ShadowRenderer
+    from .result import FrameResult
+    from .scene import SceneSpec
 
 __all__ = ["find_samples", "scene_spec", "run_demo", "SCENE_JSON_KEYS"]
 
@@ -33,7 +41,7 @@ SCENE_JSON_KEYS = (
 )
 
 
-def find_samples(explicit=None) -> Path:
+def find_samples(explicit: Path | str | None = None) -> Path:
     """The samples folder: ``explicit``, else the bundled ``samples/`` (the repository's in a checkout, the
     installed copy otherwise: :func:`arshadow.resources.samples_dir`), else ``./samples``."""
     cands = [Path(explicit)] if explicit else [samples_dir(), Path("samples")]
@@ -46,7 +54,7 @@ def find_samples(explicit=None) -> Path:
     )
 
 
-def scene_spec(sc: dict, root: Path, aa: int):
+def scene_spec(sc: dict[str, Any], root: Path, aa: int) -> SceneSpec:
     """The :class:`arshadow.scene.SceneSpec` of one ``scenes.json`` entry (paths relative to ``root``)."""
     d = {k: sc[k] for k in SCENE_JSON_KEYS if sc.get(k) is not None}
     d["soft_samples"] = int(sc.get("soft_samples", 1))
@@ -54,7 +62,9 @@ def scene_spec(sc: dict, root: Path, aa: int):
     return scene_from_dict(d, base_dir=root)
 
 
-def run_demo(samples: Path, outdir, *, aa: int = DEFAULT_AA, debug: bool = False, on_done=None):
+def run_demo(
+    samples: Path, outdir: Path | str, *, aa: int = DEFAULT_AA, debug: bool = False, on_done: OnDone | None = None
+) -> tuple[list[ReportItem], Path | None, list[str] | ArshadowError]:
     """Render every sample scene into ``outdir``: ``<stem>.png``, ``<stem>.shadow.png``, ``report.json`` and
     ``contact_sheet.png`` (the composites, then the first input photo).
 
@@ -87,7 +97,7 @@ def run_demo(samples: Path, outdir, *, aa: int = DEFAULT_AA, debug: bool = False
     root, outdir = samples.parent, Path(outdir)
     scenes = json.loads((samples / "scenes.json").read_text())["scenes"]
     items: list[ReportItem] = []
-    panels: list = []
+    panels: list[np.ndarray] = []
     ctx = create_context()
     try:
         with ShadowRenderer(ctx, samples=int(aa)) as renderer:
@@ -96,6 +106,7 @@ def run_demo(samples: Path, outdir, *, aa: int = DEFAULT_AA, debug: bool = False
             first = samples / scenes[0]["photo"] if scenes else None
             if panels and first is not None and first.is_file():
                 panels.append(caption_panel(read_image(first), f"input photo: {first.name} (before)"))
+            light: list[str] | ArshadowError
             try:  # the measured-look item (issue 17): extra outputs, the rest is unchanged
                 light = light_demo(samples, outdir, context=ctx, renderer=renderer, aa=aa)
             except ArshadowError as exc:
@@ -111,13 +122,24 @@ def run_demo(samples: Path, outdir, *, aa: int = DEFAULT_AA, debug: bool = False
     return items, sheet, light
 
 
-def _demo_scene(sc, samples, root, outdir, aa, ctx, renderer, panels, debug, on_done) -> ReportItem:
+def _demo_scene(
+    sc: dict[str, Any],
+    samples: Path,
+    root: Path,
+    outdir: Path,
+    aa: int,
+    ctx: Any,  # a moderngl.Context (only arshadow.gl imports moderngl)
+    renderer: ShadowRenderer,
+    panels: list[np.ndarray],
+    debug: bool,
+    on_done: OnDone | None,
+) -> ReportItem:
     """One sample scene through the photo loop (its session sharing the context and renderer)."""
     stem = Path(sc["photo"]).stem
     title = sc.get("title", stem)
     job = PhotoJob(str(samples / sc["photo"]), outdir / f"{stem}.png", outdir / f"{stem}.shadow.png")
 
-    def done(job, item, res, err):
+    def done(job: PhotoJob, item: ReportItem, res: FrameResult | None, err: BaseException | None) -> None:
         if res is not None:
             item.title = title
             panels.append(

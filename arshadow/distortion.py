@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import numpy.typing as npt
 
 from ._check import check_shape
 
@@ -20,7 +21,7 @@ __all__ = ["DIST_LENGTHS", "distort_normalized", "undistort_normalized"]
 DIST_LENGTHS = (0, 4, 5, 8, 12, 14)
 
 
-def _full14(dist) -> np.ndarray:
+def _full14(dist: npt.ArrayLike) -> np.ndarray:
     d = np.zeros(14)
     dist = np.asarray(dist, dtype=np.float64).ravel()
     d[: dist.size] = dist
@@ -37,7 +38,7 @@ def _tilt_matrix(tau_x: float, tau_y: float) -> np.ndarray:
     return proj_z @ rxy
 
 
-def _distort_core(x, y, d):
+def _distort_core(x: np.ndarray, y: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Radial (rational) + tangential + thin-prism part, without tilt. Returns xd, yd."""
     k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4 = d[:12]
     r2 = x * x + y * y
@@ -50,7 +51,9 @@ def _distort_core(x, y, d):
     return xd, yd
 
 
-def _distort_core_jac(x, y, d):
+def _distort_core_jac(
+    x: np.ndarray, y: np.ndarray, d: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Values and analytic Jacobian of :func:`_distort_core`: (xd, yd, j00, j01, j10, j11).
 
     Terms whose coefficients are all zero are skipped (the common 5-coefficient case is ~2x faster).
@@ -97,7 +100,7 @@ def _distort_core_jac(x, y, d):
     return xd, yd, j00, j01, j10, j11
 
 
-def distort_normalized(xy, dist) -> np.ndarray:
+def distort_normalized(xy: npt.ArrayLike, dist: npt.ArrayLike) -> np.ndarray:
     """Apply OpenCV's lens distortion to normalized image coordinates.
 
     Parameters
@@ -127,7 +130,9 @@ def distort_normalized(xy, dist) -> np.ndarray:
     return np.stack([xd, yd], axis=1)
 
 
-def undistort_normalized(xy_d, dist, *, tol=1e-12, max_iter=50) -> np.ndarray:
+def undistort_normalized(
+    xy_d: npt.ArrayLike, dist: npt.ArrayLike, *, tol: float = 1e-12, max_iter: int = 50
+) -> np.ndarray:
     """Exact inverse of :func:`distort_normalized` by damped Newton iteration (vectorised).
 
     Parameters
@@ -170,7 +175,9 @@ def undistort_normalized(xy_d, dist, *, tol=1e-12, max_iter=50) -> np.ndarray:
     return out
 
 
-def _newton_whole(x, y, tx, ty, d, tol, iters):
+def _newton_whole(
+    x: np.ndarray, y: np.ndarray, tx: np.ndarray, ty: np.ndarray, d: np.ndarray, tol: float, iters: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """Phase 1 of :func:`undistort_normalized`: whole-array Newton with per-point backtracking (no fancy
     indexing: fast for image maps). Returns ``(x, y, done, it)``, ``it`` the index of the last iteration."""
     n = x.size
@@ -201,7 +208,16 @@ def _newton_whole(x, y, tx, ty, d, tol, iters):
     return x, y, done, it
 
 
-def _newton_stragglers(x, y, tx, ty, d, done, tol, iters) -> None:
+def _newton_stragglers(
+    x: np.ndarray,
+    y: np.ndarray,
+    tx: np.ndarray,
+    ty: np.ndarray,
+    d: np.ndarray,
+    done: np.ndarray,
+    tol: float,
+    iters: int,
+) -> None:
     """Phase 2 of :func:`undistort_normalized`: the few points not ``done``, by index, with a damped step;
     updates ``x``, ``y`` and ``done`` in place (points beyond the model's fold stay not done)."""
     active = np.flatnonzero(~done)

@@ -12,6 +12,7 @@ import json
 import os
 import re
 import tempfile
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 
 import cv2
@@ -49,7 +50,7 @@ IMAGE_EXTENSIONS = frozenset(
 )
 
 
-def read_image(path) -> np.ndarray:
+def read_image(path: Path | str) -> np.ndarray:
     """Read an image as 8-bit BGR, whatever OpenCV can decode.
 
     Grayscale becomes 3-channel, 16-bit is scaled to 8-bit, an alpha channel is dropped (composited
@@ -94,7 +95,7 @@ def read_image(path) -> np.ndarray:
     return to_bgr8(img, name=str(p))
 
 
-def exif_orientation(path) -> int:
+def exif_orientation(path: Path | str) -> int:
     """The EXIF orientation tag (1..8) of a JPEG or TIFF file; 1 (as stored) when there is none.
 
     arshadow processes a photo in its stored (sensor) orientation, the one the calibration describes, and
@@ -163,7 +164,7 @@ def apply_orientation(img: np.ndarray, orientation: int) -> np.ndarray:
     return img
 
 
-def resolved_path(p) -> str:
+def resolved_path(p: Path | str) -> str:
     """``p`` with links and ``..`` resolved (as given when that fails): compare outputs with the user's
     inputs, which must never be replaced (``{resolved_path(i) for i in inputs}``, built once per run)."""
     try:
@@ -172,7 +173,7 @@ def resolved_path(p) -> str:
         return str(p)
 
 
-def unique_stems(inputs, default: str = "image") -> list[str]:
+def unique_stems(inputs: Iterable[Path | str], default: str = "image") -> list[str]:
     """An output stem per input: ``photo``, ``photo_2``, ... when names collide (case-insensitively); an
     image-sequence pattern ``frames/img_%04d.png`` gives ``img``, ``frames/%04d.png`` gives ``frames``.
 
@@ -180,7 +181,7 @@ def unique_stems(inputs, default: str = "image") -> list[str]:
     ['x', 'X_2', 'img', 'frames']
     """
     seen: dict[str, int] = {}
-    out = []
+    out: list[str] = []
     for inp in inputs:
         p = Path(str(inp))
         stem = re.sub(r"%0?\d*d", "", p.stem).replace("%", "").strip("_.- ") or p.parent.name or default
@@ -198,21 +199,21 @@ class InputGuard:
     'in/a.png'
     """
 
-    def __init__(self, inputs):
+    def __init__(self, inputs: Iterable[Path | str]) -> None:
         self._given = {resolved_path(str(i)) for i in inputs}
 
-    def clash(self, outputs) -> str | None:
+    def clash(self, outputs: Iterable[Path | str | None]) -> str | None:
         """The first of ``outputs`` (paths or None) that is an input, else None."""
         return next((str(p) for p in outputs if p is not None and resolved_path(p) in self._given), None)
 
-    def check(self, outputs) -> None:
+    def check(self, outputs: Iterable[Path | str | None]) -> None:
         """Raise :class:`ImageError` naming the first output that would replace an input."""
         p = self.clash(outputs)
         if p is not None:
             raise ImageError(f"{p}: output would overwrite an input; choose another -o folder")
 
 
-def check_output_folder(path, what: str = "-o") -> Path:
+def check_output_folder(path: Path | str, what: str = "-o") -> Path:
     """Make sure ``path`` is (or can be created as) a writable folder, before any work is done.
 
     Raises
@@ -235,7 +236,7 @@ def check_output_folder(path, what: str = "-o") -> Path:
     return p
 
 
-def check_output_file(path, what: str) -> Path:
+def check_output_file(path: Path | str, what: str) -> Path:
     """Make sure a file can be written at ``path`` (not a folder, its folder writable), before any work."""
     from .errors import UsageError
 
@@ -266,7 +267,7 @@ def to_bgr8(img: np.ndarray, name: str = "image") -> np.ndarray:
 
 
 @contextlib.contextmanager
-def atomic_path(target):
+def atomic_path(target: Path | str) -> Iterator[Path]:
     """Yield a temporary path beside ``target``; rename it onto ``target`` only if the block succeeds.
 
     The temporary name keeps ``target``'s extension so that writers choosing a format by extension
@@ -287,7 +288,7 @@ def atomic_path(target):
         raise
 
 
-def clean_temporaries(folder, stem: str | None = None) -> int:
+def clean_temporaries(folder: Path | str, stem: str | None = None) -> int:
     """Remove the temporary files and folders an interrupted run (``kill -9``) left in ``folder``.
 
     They are :func:`atomic_path`'s ``.NAME.XXXX.tmp.EXT`` (and folders ``.NAME.XXXX.tmp``); with ``stem``
@@ -321,7 +322,7 @@ def _umask() -> int:
     return mask
 
 
-def write_image(path, image: np.ndarray, params=None) -> Path:
+def write_image(path: Path | str, image: np.ndarray, params: Sequence[int] | None = None) -> Path:
     """Write ``image`` atomically; the format follows ``path``'s extension. Returns the path."""
     path = Path(path)
     ok, buf = cv2.imencode(path.suffix or ".png", image, params or [])
@@ -330,8 +331,8 @@ def write_image(path, image: np.ndarray, params=None) -> Path:
     return write_bytes(path, buf)
 
 
-def write_bytes(path, data: bytes) -> Path:
-    """Write ``data`` atomically to ``path``."""
+def write_bytes(path: Path | str, data: bytes | np.ndarray) -> Path:
+    """Write ``data`` (bytes, or an array's buffer) atomically to ``path``."""
     path = Path(path)
     try:
         with atomic_path(path) as tmp:
@@ -341,11 +342,11 @@ def write_bytes(path, data: bytes) -> Path:
     return path
 
 
-def _write_file(path: Path, data) -> None:
+def _write_file(path: Path, data: bytes | np.ndarray) -> None:
     with open(path, "wb") as fh:
-        fh.write(memoryview(data).cast("B") if not isinstance(data, bytes) else data)
+        fh.write(data.data.cast("B") if not isinstance(data, bytes) else data)
 
 
-def write_json(path, obj) -> Path:
+def write_json(path: Path | str, obj: object) -> Path:
     """Write ``obj`` as indented JSON atomically (NaN is refused: JSON has none)."""
     return write_bytes(path, (json.dumps(obj, indent=1, allow_nan=False) + "\n").encode())

@@ -10,13 +10,18 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
 
 from .photos import caption_panel, contact_sheet
+
+if TYPE_CHECKING:
+    from .result import FrameResult
 
 __all__ = ["Sheet", "results_sheet"]
 
@@ -32,7 +37,9 @@ class Sheet:
         return buf.tobytes() if ok else b""
 
 
-def results_sheet(results, *, columns: int = 4, width: int = 320, captions: bool = True) -> Sheet:
+def results_sheet(
+    results: Sequence[FrameResult], *, columns: int = 4, width: int = 320, captions: bool = True
+) -> Sheet:
     """One sheet of the results' composites (:func:`arshadow.photos.contact_sheet`, the package's one).
 
     Parameters

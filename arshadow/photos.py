@@ -20,9 +20,10 @@ from __future__ import annotations
 import functools
 import glob
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
@@ -40,6 +41,12 @@ from .io import (
     write_image,
 )
 from .report import ReportItem
+
+if TYPE_CHECKING:
+    from .result import FrameResult
+    from .session import Session
+    from .tracking.pose import MarkerPose
+    from .tracking.tracker import MarkerTracker
 
 __all__ = [
     "PhotoJob",
@@ -75,7 +82,7 @@ class PhotoJob:
         return [self.output, *([self.mask] if self.mask is not None else []), *(self.layers or {}).values()]
 
 
-def expand_inputs(items) -> list[str]:
+def expand_inputs(items: Iterable[str]) -> list[str]:
     """Files as given; folders -> their image files (sorted, :data:`arshadow.io.IMAGE_EXTENSIONS`); glob
     patterns -> matches (sorted). Anything that matches nothing is kept as given, so that reading it
     reports the problem."""
@@ -94,8 +101,8 @@ def expand_inputs(items) -> list[str]:
 
 
 def photo_jobs(
-    inputs,
-    outdir,
+    inputs: Sequence[Path | str],
+    outdir: Path | str,
     *,
     save_mask: bool = False,
     keep_format: bool = False,
@@ -131,7 +138,7 @@ def photo_jobs(
     return jobs
 
 
-def write_params(path) -> list[int] | None:
+def write_params(path: Path | str) -> list[int] | None:
     """``cv2.imwrite`` parameters for an output: quality 95 for JPEG and WebP, else None."""
     ext = Path(path).suffix.lower()
     if ext in (".jpg", ".jpeg", ".jpe"):
@@ -141,7 +148,9 @@ def write_params(path) -> list[int] | None:
     return None
 
 
-def render_photo_file(session, job: PhotoJob, *, buffers: dict | None = None):
+def render_photo_file(
+    session: Session, job: PhotoJob, *, buffers: dict[tuple[int, int], Any] | None = None
+) -> FrameResult:
     """Render one photo file and write its outputs (atomically, upright).
 
     Parameters
@@ -178,8 +187,10 @@ def render_photo_file(session, job: PhotoJob, *, buffers: dict | None = None):
         write_image(job.output, apply_orientation(res.composite, orientation), write_params(job.output))
     )
     if job.mask is not None:
+        assert res.mask is not None  # asked for (want_mask)
         res.item.mask = str(write_image(job.mask, apply_orientation(res.mask, orientation)))
     if job.layers is not None:
+        assert res.layers is not None  # asked for (layers=)
         write_layers(
             job.layers,
             res.layers,
@@ -194,11 +205,16 @@ def render_photo_file(session, job: PhotoJob, *, buffers: dict | None = None):
 
 
 #: ``on_done(job, item, result or None, error or None)`` after each photo (printing, thumbnails)
-OnDone = Callable[[PhotoJob, ReportItem, object, BaseException | None], None]
+OnDone = Callable[[PhotoJob, ReportItem, "FrameResult | None", BaseException | None], None]
 
 
 def render_photos(
-    session, jobs, *, debug: bool = False, on_done: OnDone | None = None, guard: InputGuard | None = None
+    session: Session,
+    jobs: Sequence[PhotoJob],
+    *,
+    debug: bool = False,
+    on_done: OnDone | None = None,
+    guard: InputGuard | None = None,
 ) -> list[ReportItem]:
     """Render every photo; a photo that fails is recorded (``status`` ``no_marker`` or ``error``, with
     ``error``) and the others go on.
@@ -220,8 +236,8 @@ def render_photos(
         One per job, in order.
     """
     guard = guard if guard is not None else InputGuard([j.input for j in jobs])
-    buffers: dict = {}
-    items = []
+    buffers: dict[tuple[int, int], Any] = {}
+    items: list[ReportItem] = []
     for job in jobs:
         t0 = time.perf_counter()
         res = None
@@ -245,7 +261,13 @@ def render_photos(
     return items
 
 
-def track_photos(tracker, inputs, *, overlay_dir=None, on_done=None) -> list[ReportItem]:
+def track_photos(
+    tracker: MarkerTracker,
+    inputs: Sequence[Path | str],
+    *,
+    overlay_dir: Path | str | None = None,
+    on_done: Callable[[str, ReportItem, Any, np.ndarray | None, BaseException | None], None] | None = None,
+) -> list[ReportItem]:
     """The pose of the marker / board in each photo (``arshadow pose``): a report item per photo with the
     pose keys, ``n_points``, ``kind``, ``calibration_scaled`` and ``timings_ms`` (``read``, ``detect``,
     ``pose``, ``total``); a photo that fails is recorded (``no_marker`` / ``error``) and the others go on.
@@ -291,7 +313,7 @@ def track_photos(tracker, inputs, *, overlay_dir=None, on_done=None) -> list[Rep
     return items
 
 
-def pose_overlay(image, pose, tracker) -> np.ndarray:
+def pose_overlay(image: np.ndarray, pose: MarkerPose, tracker: MarkerTracker) -> np.ndarray:
     """A copy of ``image`` with the detected markers and the world axes drawn (``arshadow pose --overlay``)."""
     img = image.copy()
     ids = list(pose.all_corners)
@@ -302,6 +324,7 @@ def pose_overlay(image, pose, tracker) -> np.ndarray:
             np.asarray(ids, np.int32).reshape(-1, 1),
         )
     intr = pose.intrinsics
+    assert intr is not None  # a pose the tracker estimated has its camera
     if tracker.board is not None:
         length = 0.5 * min(tracker.board.extent)
     else:
@@ -315,7 +338,7 @@ def pose_overlay(image, pose, tracker) -> np.ndarray:
     return img
 
 
-def contact_sheet(tiles, columns: int, gap: int, background: int) -> np.ndarray:
+def contact_sheet(tiles: Sequence[np.ndarray], columns: int, gap: int, background: int) -> np.ndarray:
     """Tile equally sized ``(h, w, 3) uint8`` images row by row, ``gap`` pixels apart and around, on a
     grey ``background``; the one contact sheet of the package (the demo's, a video's).
 
@@ -332,7 +355,7 @@ def contact_sheet(tiles, columns: int, gap: int, background: int) -> np.ndarray:
     return sheet
 
 
-def caption_panel(image, caption: str, width: int = 640, height: int = 360, bar: int = 30) -> np.ndarray:
+def caption_panel(image: np.ndarray, caption: str, width: int = 640, height: int = 360, bar: int = 30) -> np.ndarray:
     """A ``width x height`` thumbnail of ``image`` with a dark caption bar of ``bar`` pixels below it."""
     th = cv2.resize(image, (width, height), interpolation=cv2.INTER_AREA)
     strip = np.full((bar, width, 3), 32, np.uint8)

@@ -10,15 +10,27 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Literal
 
 import cv2
 import numpy as np
+import numpy.typing as npt
 from scipy.spatial import ConvexHull, QhullError
 
 from .errors import LightError
 from .lights.area import sample_area_light
 from .transforms import invert_rigid, transform_points
+
+if TYPE_CHECKING:
+    from .camera import Intrinsics
+    from .geometry.caster import ShadowCaster
+    from .geometry.silhouette import Silhouette
+    from .geometry.volume import ShadowVolume
+    from .lights.spec import Light
+    from .render_options import RenderOptions
+    from .report import StageTimings
 
 __all__ = [
     "SceneGeometry",
@@ -38,12 +50,14 @@ ROI_MAX_POINTS = 20000
 # --------------------------------------------------------------------------------------------------
 # region of interest: pure geometry
 # --------------------------------------------------------------------------------------------------
-def _box_corners(bounds) -> np.ndarray:
+def _box_corners(bounds: npt.ArrayLike) -> np.ndarray:
     lo, hi = np.asarray(bounds, dtype=np.float64)
     return np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
 
 
-def shadow_footprint(bounds, light_h, *, points=None, eps: float = 1e-9) -> np.ndarray | None:
+def shadow_footprint(
+    bounds: npt.ArrayLike, light_h: npt.ArrayLike, *, points: np.ndarray | None = None, eps: float = 1e-9
+) -> np.ndarray | None:
     """Ground points (z = 0) whose convex hull contains the shadow of anything inside ``bounds``.
 
     Parameters
@@ -94,7 +108,12 @@ def _ground_hull(fp: np.ndarray) -> np.ndarray:
     return fp[np.sort(idx.ravel())]
 
 
-def scene_hull_points(bounds, lights_h, ground_size=None, points=None) -> np.ndarray | None:
+def scene_hull_points(
+    bounds: npt.ArrayLike,
+    lights_h: Iterable[npt.ArrayLike],
+    ground_size: float | None = None,
+    points: np.ndarray | None = None,
+) -> np.ndarray | None:
     """World points ``(n, 3) float64`` whose convex hull holds the occluder and its ground shadows, or None.
 
     They depend on the mesh and the lights only (not on the camera), so the :class:`Compositor` computes
@@ -120,7 +139,15 @@ def scene_hull_points(bounds, lights_h, ground_size=None, points=None) -> np.nda
     return np.concatenate(pts)
 
 
-def pinhole_rect_for_scene(intrinsics, cam_from_world, bounds, lights_h, ground_size=None, znear=1e-3, points=None):
+def pinhole_rect_for_scene(
+    intrinsics: Intrinsics,
+    cam_from_world: npt.ArrayLike,
+    bounds: npt.ArrayLike,
+    lights_h: Iterable[npt.ArrayLike],
+    ground_size: float | None = None,
+    znear: float = 1e-3,
+    points: np.ndarray | None = None,
+) -> tuple[float, float, float, float] | None:
     """Pinhole pixel rectangle ``(u0, v0, u1, v1)`` covering the occluder and its shadows, or None (all).
 
     None means "the whole image": a footprint is unbounded and no ``ground_size`` limits it, or a point
@@ -130,7 +157,7 @@ def pinhole_rect_for_scene(intrinsics, cam_from_world, bounds, lights_h, ground_
     return None if hull is None else pinhole_rect(intrinsics, cam_from_world, hull, znear)
 
 
-def extreme_points(points) -> np.ndarray:
+def extreme_points(points: npt.ArrayLike) -> np.ndarray:
     """The vertices of the convex hull of ``points (n, 3) float64`` (all of them when the hull is flat or
     cannot be built). The frame's ROI is the bounding box of the projected points, and a pinhole projection
     of points in front of the camera takes its extremes at hull vertices (``u`` is a ratio of affine
@@ -145,12 +172,15 @@ def extreme_points(points) -> np.ndarray:
     if len(p) < 5:
         return p
     try:
-        return p[np.sort(ConvexHull(p).vertices)]
+        hull: np.ndarray = p[np.sort(ConvexHull(p).vertices)]
+        return hull
     except (QhullError, ValueError):  # flat (a plane, a line) or degenerate: every point
         return p
 
 
-def pinhole_rect(intrinsics, cam_from_world, hull, znear):
+def pinhole_rect(
+    intrinsics: Intrinsics, cam_from_world: npt.ArrayLike, hull: np.ndarray, znear: float
+) -> tuple[float, float, float, float] | None:
     """Pinhole bounding rectangle of world points ``hull (n, 3)``; None if one is not beyond ``znear``."""
     pc = transform_points(cam_from_world, hull)
     if not np.all(pc[:, 2] > znear):
@@ -162,7 +192,7 @@ def pinhole_rect(intrinsics, cam_from_world, hull, znear):
     return (float(u.min()), float(v.min()), float(u.max()), float(v.max()))
 
 
-def int_rect(rect, margin: int):
+def int_rect(rect: Sequence[float], margin: int) -> tuple[int, int, int, int]:
     """Float pinhole rect (u0, v0, u1, v1) -> integer (x0, y0, w, h) with ``margin`` pixels around it."""
     u0, v0, u1, v1 = rect
     x0, y0 = math.floor(u0) - margin, math.floor(v0) - margin
@@ -195,12 +225,12 @@ class LightState:
         How the geometry was carried over from a moved light (:func:`arshadow.plan_rules.reuse_light_geometry`).
     """
 
-    light: object
+    light: Light
     weight: float
     light_h: np.ndarray
-    sil: object = None
-    volumes: dict = field(default_factory=dict)
-    footprint: object = False
+    sil: Silhouette | None = None
+    volumes: dict[tuple[bool, bool], ShadowVolume] = field(default_factory=dict)
+    footprint: np.ndarray | None | Literal[False] = False
     reuse: str | None = None
 
 
@@ -217,7 +247,7 @@ class SceneGeometry:
         Initial lights (:meth:`set_lights`).
     """
 
-    def __init__(self, caster, options, lights=None):
+    def __init__(self, caster: ShadowCaster, options: RenderOptions, lights: Iterable[Light] | None = None) -> None:
         self.caster = caster
         self.options = options
         b = np.asarray(caster.bounds, dtype=np.float64)
@@ -231,13 +261,16 @@ class SceneGeometry:
         )
         self.size = float(np.linalg.norm(b[1] - b[0]))
         self.lights: list[LightState] = []
-        self.lights_in: list = []
+        self.lights_in: list[Light] = []
         self.notes: list[str] = []
-        self._hull = (None, None)  # (lights' key, scene_hull_points) for the current lights
+        self._hull: tuple[tuple[bytes, ...] | None, np.ndarray | None] = (
+            None,
+            None,
+        )  # (lights' key, scene_hull_points) for the current lights
         if lights is not None:
             self.set_lights(lights)
 
-    def set_lights(self, lights) -> int:
+    def set_lights(self, lights: Iterable[Light]) -> int:
         """Replace the lights, keeping the cached geometry of every (sample) light that stays.
 
         A (sample) light whose homogeneous vector ``light_h`` equals one of the current lights' keeps
@@ -261,7 +294,9 @@ class SceneGeometry:
         old_list = list(self.lights)
         reuse = self.options.plan != "general" and "reuse" not in self.options.plan_off
         total = float(sum(lt.weight for lt in lights if lt.above_horizon))
-        notes, states, n_new = [], [], 0
+        notes: list[str] = []
+        states: list[LightState] = []
+        n_new = 0
         for lt in lights:
             if not lt.above_horizon:
                 notes.append(f"light {lt.label or lt.kind} is below the horizon: no light, no shadow")
@@ -299,7 +334,7 @@ class SceneGeometry:
         return n_new
 
     # -- history: picklable state ----------------------------------------------------------------------
-    def state(self) -> dict:
+    def state(self) -> dict[str, Any]:
         """The cached geometry, picklable: ``{"lights": [...], "geometry": [(light_h, sil, volumes)]}``.
 
         :meth:`restore` of it (in this or another process, same caster and options) gives the same lights
@@ -309,7 +344,7 @@ class SceneGeometry:
             "geometry": [(ls.light_h.copy(), ls.sil, dict(ls.volumes)) for ls in self.lights],
         }
 
-    def restore(self, state: dict) -> None:
+    def restore(self, state: dict[str, Any]) -> None:
         """Set the lights and cached geometry saved by :meth:`state`."""
         self.lights = []
         self.set_lights(state["lights"])
@@ -320,7 +355,7 @@ class SceneGeometry:
                 ls.sil, ls.volumes = hit[0], dict(hit[1])
 
     # -- geometry on demand ------------------------------------------------------------------------------
-    def silhouette(self, ls: LightState, timings=None):
+    def silhouette(self, ls: LightState, timings: StageTimings | None = None) -> Silhouette:
         """The light's silhouette (built once; ``timings.silhouette`` gets the build time, an :class:`arshadow.report.StageTimings`)."""
         if ls.sil is None:
             from .geometry.silhouette import silhouette
@@ -331,11 +366,13 @@ class SceneGeometry:
                 timings.silhouette += (time.perf_counter() - t) * 1e3
         return ls.sil
 
-    def truncate_z(self, truncate: bool = True):
+    def truncate_z(self, truncate: bool = True) -> float | None:
         """The plane volumes are truncated at (just below the ground), or None (to infinity)."""
         return -1e-3 * max(self.size, 1e-6) if truncate else None
 
-    def volume(self, ls: LightState, caps: bool, timings=None, truncate: bool | None = None):
+    def volume(
+        self, ls: LightState, caps: bool, timings: StageTimings | None = None, truncate: bool | None = None
+    ) -> ShadowVolume:
         """The light's shadow volume with or without caps, truncated below the ground or extruded to
         infinity (default ``options.truncate``); built once per variant (``timings.volume``)."""
         truncate = bool(self.options.truncate if truncate is None else truncate)
@@ -367,7 +404,9 @@ class SceneGeometry:
             c = self._convex = mesh_is_convex(self.caster)
         return c
 
-    def footprint_rect(self, ls: LightState, intr, cam_from_world, znear):
+    def footprint_rect(
+        self, ls: LightState, intr: Intrinsics, cam_from_world: npt.ArrayLike, znear: float
+    ) -> tuple[float, float, float, float] | None:
         """Pinhole screen box of one light's ground footprint (clipped to ``ground_size``), or None
         (unbounded, or a point behind the camera); an empty box far off screen when the shadow misses the
         ground square."""
@@ -396,7 +435,7 @@ class SceneGeometry:
             return (-1e9, -1e9, -1e9, -1e9)
         return pinhole_rect(intr, cam_from_world, fp, znear)
 
-    def hull(self):
+    def hull(self) -> np.ndarray | None:
         """:func:`scene_hull_points` of the current lights (recomputed only when the lights change)."""
         key = tuple(ls.light_h.tobytes() for ls in self.lights)
         if self._hull[0] != key:
@@ -406,7 +445,7 @@ class SceneGeometry:
             self._hull = (key, hull)
         return self._hull[1]
 
-    def znear_for(self, cam_from_world) -> float:
+    def znear_for(self, cam_from_world: npt.ArrayLike) -> float:
         """A near plane that clips nothing visible: a fraction of the distance to the object and ground.
 
         No upper bound: the depth resolution of a 24-bit buffer with an infinite far plane is about
@@ -418,7 +457,13 @@ class SceneGeometry:
         h = abs(float(eye[2]))
         return float(max(0.25 * min(d, h if h > 0 else d), 1e-4))
 
-    def modes_for(self, cam_from_world, znear, intr=None, canvas=None):
+    def modes_for(
+        self,
+        cam_from_world: npt.ArrayLike,
+        znear: float,
+        intr: Intrinsics | None = None,
+        canvas: Sequence[float] | None = None,
+    ) -> list[str]:
         """Per light: ``"zpass"`` if the camera is provably outside its volume, else ``"zfail"``
         (``"planar"`` for every light with ``shadow_method="planar"``).
 

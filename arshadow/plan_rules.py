@@ -39,11 +39,19 @@ tracking ROI (:func:`tracking_roi`)
 from __future__ import annotations
 
 import math
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
 from .geometry.silhouette import as_light_h
+
+if TYPE_CHECKING:
+    from .geometry.caster import ShadowCaster
+    from .geometry.silhouette import Silhouette
+    from .geometry.volume import ShadowVolume
 
 __all__ = [
     "mesh_is_convex",
@@ -66,7 +74,7 @@ PLANS = ("auto", "general", "zpass", "zfail", "planar")
 PLAN_OFF = ("planar", "zpass", "truncate", "cull", "roi", "reuse")
 
 
-def mesh_is_convex(caster, rel_tol: float = 1e-9) -> bool:
+def mesh_is_convex(caster: ShadowCaster, rel_tol: float = 1e-9) -> bool:
     """Whether a closed mesh is convex: every vertex lies on or behind every face's plane.
 
     Computed once per mesh (O(faces x vertices), in blocks, stopping at the first vertex in front of a
@@ -100,7 +108,9 @@ def mesh_is_convex(caster, rel_tol: float = 1e-9) -> bool:
     return True
 
 
-def planar_applies(caster, light_h, *, convex: bool, draw_occluder: bool, margin_rel: float = 1e-6):
+def planar_applies(
+    caster: ShadowCaster, light_h: npt.ArrayLike, *, convex: bool, draw_occluder: bool, margin_rel: float = 1e-6
+) -> tuple[bool, str]:
     """Whether projection shadows are exact for this light; returns ``(bool, reason)``.
 
     Parameters
@@ -133,7 +143,7 @@ def planar_applies(caster, light_h, *, convex: bool, draw_occluder: bool, margin
     return True, f"only the ground receives ({why}); mesh above the ground, light above the mesh"
 
 
-def zpass_safe(caster, light_h, eye_world, near: float):
+def zpass_safe(caster: ShadowCaster, light_h: npt.ArrayLike, eye_world: npt.ArrayLike, near: float) -> tuple[bool, str]:
     """``(bool, reason)``: z-pass is safe when the camera's near rectangle is provably outside the volume."""
     from .geometry.volume import camera_may_be_in_shadow
 
@@ -142,7 +152,9 @@ def zpass_safe(caster, light_h, eye_world, near: float):
     return True, "near rectangle provably outside the volume"
 
 
-def light_shadow_in_view(footprint_rect, canvas, *, occluder_matters: bool):
+def light_shadow_in_view(
+    footprint_rect: Sequence[float] | None, canvas: Sequence[float], *, occluder_matters: bool
+) -> tuple[bool, str]:
     """``(bool, reason)``: whether a light's volume pass can change a pixel of the canvas.
 
     Parameters
@@ -165,7 +177,9 @@ def light_shadow_in_view(footprint_rect, canvas, *, occluder_matters: bool):
     return True, "ground footprint in view"
 
 
-def outside_view(points_cam, fx, fy, cx, cy, extent, znear: float) -> bool:
+def outside_view(
+    points_cam: npt.ArrayLike, fx: float, fy: float, cx: float, cy: float, extent: Sequence[float], znear: float
+) -> bool:
     """Whether the convex hull of camera-frame points is entirely outside the view frustum.
 
     True when every point lies outside the same one of the five half-spaces bounding the frustum (in
@@ -198,7 +212,7 @@ def outside_view(points_cam, fx, fy, cx, cy, extent, znear: float) -> bool:
     return any(bool(np.all(t)) for t in tests)
 
 
-def same_silhouette(face_planes, facing, light_h) -> bool:
+def same_silhouette(face_planes: npt.ArrayLike, facing: npt.ArrayLike, light_h: npt.ArrayLike) -> bool:
     """Whether a light gives exactly the cached facing of every face (so the same silhouette edges).
 
     ``face_planes (m, 4)``, ``facing (m,) bool`` (the cached silhouette's), ``light_h (4,)``: the exact
@@ -207,7 +221,14 @@ def same_silhouette(face_planes, facing, light_h) -> bool:
     return bool(np.array_equal(np.asarray(face_planes) @ as_light_h(light_h) > 0.0, facing))
 
 
-def reuse_light_geometry(caster, light_h, sil, volumes: dict, *, truncate_z=None):
+def reuse_light_geometry(
+    caster: ShadowCaster,
+    light_h: npt.ArrayLike,
+    sil: Silhouette | None,
+    volumes: dict[bool, ShadowVolume],
+    *,
+    truncate_z: float | None = None,
+) -> tuple[Silhouette | None, dict[bool, ShadowVolume], str]:
     """Carry a light's cached silhouette and volumes over to a moved light where that is exact.
 
     Parameters
@@ -239,7 +260,8 @@ def reuse_light_geometry(caster, light_h, sil, volumes: dict, *, truncate_z=None
     if sil is None or not same_silhouette(caster.face_planes, sil.facing, h):
         return None, {}, "a face changed its facing: silhouette recomputed"
     sil2 = replace(sil, light_h=h)
-    out, kept = {}, 0
+    out: dict[bool, ShadowVolume] = {}
+    kept = 0
     for caps, vol in volumes.items():
         new = shadow_volume(caster, h, sil2, caps=caps, truncate_z=truncate_z)
         same = (
@@ -254,7 +276,9 @@ def reuse_light_geometry(caster, light_h, sil, volumes: dict, *, truncate_z=None
     return sil2, out, "same facing: silhouette reused, volume re-extruded"
 
 
-def tracking_roi(corners, width: int, height: int, grow: float = 0.5, min_margin: int = 32):
+def tracking_roi(
+    corners: npt.ArrayLike, width: int, height: int, grow: float = 0.5, min_margin: int = 32
+) -> tuple[int, int, int, int] | None:
     """Window ``(x0, y0, w, h)`` around the last detection's corners for the next frame's marker search.
 
     Parameters
@@ -309,17 +333,17 @@ class LightDecision:
 
 def decide_lights(
     plan: str,
-    caster,
-    lights_h,
+    caster: ShadowCaster,
+    lights_h: Sequence[npt.ArrayLike],
     *,
     convex: bool,
-    eye_world,
+    eye_world: npt.ArrayLike,
     near: float,
     draw_occluder: bool,
     truncate: bool,
-    footprint_rects=None,
-    canvas=None,
-    off=(),
+    footprint_rects: Sequence[Sequence[float] | None] | None = None,
+    canvas: Sequence[float] | None = None,
+    off: Collection[str] = (),
 ) -> list[LightDecision]:
     """Per light: volume mode (or planar, or culled) and truncation, with the reasons.
 

@@ -10,13 +10,18 @@ keys, then the optional ones that are set (not None), in the order of :data:`OPT
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field, fields
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from . import __version__
 from .sanity import pose_flag_reasons
 from .transforms import rvec_tvec_from_matrix
+
+if TYPE_CHECKING:
+    from .tracking.pose import MarkerPose
 
 __all__ = ["ReportItem", "StageTimings", "STAGES", "OPTIONAL_KEYS", "make_report", "jsonable"]
 
@@ -155,7 +160,7 @@ class ReportItem:
     ground: str | None = None
     exposure: dict | None = None
 
-    def set_pose(self, pose) -> None:
+    def set_pose(self, pose: MarkerPose) -> None:
         """Fill the pose keys from an :class:`arshadow.tracking.pose.MarkerPose`.
 
         ``rvec``/``tvec`` are world -> camera in arshadow's world frame (z up). For a board that frame is
@@ -183,7 +188,7 @@ class ReportItem:
             r, t = rvec_tvec_from_matrix(m)
             self.opencv_board_rvec, self.opencv_board_tvec = r.tolist(), t.tolist()
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         """The report's JSON object: the fixed keys, then the optional keys that are set."""
         d = {}
         for f in fields(self):
@@ -191,13 +196,14 @@ class ReportItem:
             if f.name in _OPTIONAL and v is None:
                 continue
             d[f.name] = v
-        return jsonable(d)
+        out: dict[str, Any] = jsonable(d)
+        return out
 
 
 _OPTIONAL = frozenset(OPTIONAL_KEYS)
 
 
-def make_report(items) -> dict:
+def make_report(items: Iterable[ReportItem | dict[str, Any]]) -> dict[str, Any]:
     """Wrap report items (``ReportItem`` or dicts) into the top-level report dict."""
     return {
         "arshadow": __version__,
@@ -205,7 +211,7 @@ def make_report(items) -> dict:
     }
 
 
-def jsonable(x):
+def jsonable(x: Any) -> Any:
     """numpy scalars/arrays -> Python; non-finite floats -> None (JSON has no NaN)."""
     if isinstance(x, dict):
         return {str(k): jsonable(v) for k, v in x.items()}

@@ -25,9 +25,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import cv2
 import numpy as np
+import numpy.typing as npt
 
 from .camera import Intrinsics
 from .compose.composite import SRGB_TO_LINEAR, linear_to_srgb
@@ -81,7 +83,7 @@ def light_vector(azimuth_deg: float, elevation_deg: float) -> np.ndarray:
     return np.array([math.cos(e) * math.cos(a), math.cos(e) * math.sin(a), math.sin(e)])
 
 
-def _ray_hits(origin, dirs, tris):
+def _ray_hits(origin: np.ndarray, dirs: np.ndarray, tris: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Nearest hit of rays ``origin + t dirs`` (n, 3) with triangles (m, 3, 3): (t (n,), face (n,) int, -1
     for a miss). Moller-Trumbore, vectorised over rays, looped over triangles."""
     n = len(dirs)
@@ -104,7 +106,7 @@ def _ray_hits(origin, dirs, tris):
     return best, face
 
 
-def _cone_directions(light, radius_deg: float, seed) -> np.ndarray:
+def _cone_directions(light: np.ndarray, radius_deg: float, seed: int | None) -> np.ndarray:
     """Unit directions uniform in solid angle within the cone of half-angle ``radius_deg`` around ``light``:
     (64, 3) float64, stratified (8 x 8 in cos(theta) and azimuth, jittered); ``light[None]`` for 0."""
     if radius_deg <= 0.0:
@@ -120,10 +122,22 @@ def _cone_directions(light, radius_deg: float, seed) -> np.ndarray:
     a = np.cross(z, [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0])
     a /= np.linalg.norm(a)
     b = np.cross(z, a)
-    return cos_t[:, None] * z + sin_t[:, None] * (np.cos(phi)[:, None] * a + np.sin(phi)[:, None] * b)
+    dirs: np.ndarray = cos_t[:, None] * z + sin_t[:, None] * (np.cos(phi)[:, None] * a + np.sin(phi)[:, None] * b)
+    return dirs
 
 
-def _lighting_samples(intr, pose, verts, faces, normals, kind, light, roi, S, cone=None):
+def _lighting_samples(
+    intr: Intrinsics,
+    pose: np.ndarray,
+    verts: np.ndarray,
+    faces: np.ndarray,
+    normals: np.ndarray,
+    kind: str,
+    light: np.ndarray,
+    roi: tuple[int, int, int, int],
+    S: int,
+    cone: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Per pixel of ``roi = (x0, y0, w, h)``: (probe coverage, probe n.l (mean over covered samples),
     ground visibility (mean over ground samples and, for an extended directional light, over the ``cone``'s
     directions), ground n.l): four (h, w) float64 arrays."""
@@ -179,7 +193,7 @@ def _lighting_samples(intr, pose, verts, faces, normals, kind, light, roi, S, co
     return cov, probe_ndl, gvis, gcount / (S * S)
 
 
-def _outward_normals(verts, faces):
+def _outward_normals(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Unit face normals pointing away from the (convex) mesh's centroid: (m, 3) float64."""
     tri = verts[faces]
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
@@ -191,28 +205,28 @@ def _outward_normals(verts, faces):
 
 def render_lit_photo(
     intrinsics: Intrinsics,
-    cam_from_world,
+    cam_from_world: npt.ArrayLike,
     *,
-    marker_length=0.05,
-    dictionary="DICT_6X6_250",
-    marker_id=0,
-    probe="box:0.05,0.05,0.1",
-    probe_place=(0.1, 0.0, 0.0),
-    probe_rotate=(0, 0, 0),
-    probe_albedo=(0.55, 0.5, 0.45),
-    light_kind="directional",
-    light=(0.5, 0.0, 0.866),
-    ambient=(0.35, 0.38, 0.45),
-    direct=(1.0, 0.95, 0.85),
-    exposure=0.8,
-    white_balance=(1.0, 1.0, 1.0),
-    blur_sigma=0.0,
-    noise_sigma=0.0,
-    jpeg_quality=None,
-    seed=None,
-    supersample=3,
-    floor="texture",
-    light_radius_deg=0.0,
+    marker_length: float = 0.05,
+    dictionary: str = "DICT_6X6_250",
+    marker_id: int = 0,
+    probe: str = "box:0.05,0.05,0.1",
+    probe_place: npt.ArrayLike = (0.1, 0.0, 0.0),
+    probe_rotate: npt.ArrayLike = (0, 0, 0),
+    probe_albedo: npt.ArrayLike = (0.55, 0.5, 0.45),
+    light_kind: str = "directional",
+    light: npt.ArrayLike = (0.5, 0.0, 0.866),
+    ambient: npt.ArrayLike = (0.35, 0.38, 0.45),
+    direct: npt.ArrayLike = (1.0, 0.95, 0.85),
+    exposure: float = 0.8,
+    white_balance: npt.ArrayLike = (1.0, 1.0, 1.0),
+    blur_sigma: float = 0.0,
+    noise_sigma: float = 0.0,
+    jpeg_quality: int | None = None,
+    seed: int | None = None,
+    supersample: int = 3,
+    floor: str = "texture",
+    light_radius_deg: float = 0.0,
 ) -> LitPhoto:
     """Render a photo of the marker and a probe lit by ambient + one direct light, with its truth.
 
@@ -323,8 +337,8 @@ def render_lit_photo(
         paper_world=scene["paper_world"],
         params={
             "probe": probe,
-            "probe_place": list(map(float, probe_place)),
-            "probe_rotate": list(map(float, probe_rotate)),
+            "probe_place": list(map(float, np.ravel(probe_place))),
+            "probe_rotate": list(map(float, np.ravel(probe_rotate))),
             "exposure": float(exposure),
             "white_balance": list(map(float, np.ravel(white_balance))),
             "blur_sigma": blur_sigma,
@@ -352,15 +366,15 @@ SUN_CASES = (
 
 
 def random_lit_case(
-    rng,
+    rng: np.random.Generator,
     intrinsics: Intrinsics,
     kind: str = "directional",
     *,
-    marker_length=0.05,
+    marker_length: float = 0.05,
     effects: bool = True,
     view: str = "shadow",
-    point_distance=(0.35, 0.8),
-) -> dict:
+    point_distance: tuple[float, float] = (0.35, 0.8),
+) -> dict[str, Any]:
     """A random case of the light estimate's test distribution (docs/light.md), with its truth.
 
     A 5 x 5 x (8..12) cm box probe beside the marker's paper (8..13 cm from its centre, turned at random), a light
@@ -429,7 +443,7 @@ def random_lit_case(
             break
     else:
         raise UsageError("random_lit_case: no camera sees the marker, the probe and its shadow")
-    kw = {}
+    kw: dict[str, Any] = {}
     if effects:
         kw = {
             "blur_sigma": float(rng.uniform(0, 1.2)),

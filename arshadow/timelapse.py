@@ -4,10 +4,12 @@ file): sun lights that follow a video's frame times. Part of :class:`arshadow.sc
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
+from datetime import datetime
 
 from .errors import LightError, UsageError
-from .lights.spec import parse_light, parse_sun_track, parse_time
+from .lights.spec import Light, SunLightTrack, parse_light, parse_sun_track, parse_time
 
 __all__ = ["TimeLapse", "parse_time_lapse", "time_lapse_spec"]
 
@@ -30,11 +32,12 @@ class TimeLapse:
     speed: float = 1.0
     recompute_deg: float = 0.1
 
-    def lights(self, specs):
+    def lights(self, specs: Iterable[str | Light]) -> tuple[list[Light], list[SunLightTrack], list[Light]]:
         """``(static lights, sun tracks, first lights)`` of light specs: each ``sun:`` spec becomes a
         :class:`arshadow.lights.spec.SunLightTrack`; the first lights are the static ones plus the suns at
         ``start``. UsageError without a sun."""
-        static, tracks = [], []
+        static: list[Light] = []
+        tracks: list[SunLightTrack] = []
         for s in specs:
             if isinstance(s, str) and s.strip().lower().startswith("sun:"):
                 tracks.append(parse_sun_track(s, recompute_deg=self.recompute_deg))
@@ -50,12 +53,12 @@ class TimeLapse:
             tr.reset()
         return static, tracks, first
 
-    def when(self):
+    def when(self) -> tuple[datetime, float]:
         """``(start datetime, speed)``."""
         return parse_time_lapse(f"{self.start},{self.speed!r}")
 
 
-def parse_time_lapse(text: str):
+def parse_time_lapse(text: str) -> tuple[datetime, float]:
     """``START[,SPEED]`` -> (aware datetime, speed > 0). UsageError on bad input.
 
     Examples
@@ -79,7 +82,7 @@ def parse_time_lapse(text: str):
     return start, speed
 
 
-def time_lapse_spec(text, recompute_deg: float, lights) -> TimeLapse | None:
+def time_lapse_spec(text: str | None, recompute_deg: float, lights: Iterable[str | Light]) -> TimeLapse | None:
     """The :class:`TimeLapse` of a scene's ``time_lapse`` (``START[,SPEED]`` or None) and ``recompute_deg``
     keys, checked (UsageError: a bad START or SPEED, a negative angle, no sun among the light specs)."""
     deg = float(recompute_deg)

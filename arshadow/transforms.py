@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
+import numpy.typing as npt
 
 from ._check import check_finite, check_shape
 
@@ -16,7 +17,7 @@ from ._check import check_finite, check_shape
 CV_TO_GL = np.diag([1.0, -1.0, -1.0, 1.0])
 
 
-def matrix_from_rvec_tvec(rvec, tvec) -> np.ndarray:
+def matrix_from_rvec_tvec(rvec: npt.ArrayLike, tvec: npt.ArrayLike) -> np.ndarray:
     """Build ``cam_from_world`` from a Rodrigues vector and a translation.
 
     Parameters
@@ -44,14 +45,14 @@ def matrix_from_rvec_tvec(rvec, tvec) -> np.ndarray:
     return m
 
 
-def rvec_tvec_from_matrix(m) -> tuple[np.ndarray, np.ndarray]:
+def rvec_tvec_from_matrix(m: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Inverse of :func:`matrix_from_rvec_tvec`: ``(4, 4)`` -> ``((3,) rvec, (3,) tvec)`` float64."""
     m = check_shape(m, "4,4", "transform").astype(np.float64)
     rvec = cv2.Rodrigues(m[:3, :3])[0].ravel()
     return rvec, m[:3, 3].copy()
 
 
-def invert_rigid(m) -> np.ndarray:
+def invert_rigid(m: npt.ArrayLike) -> np.ndarray:
     """Invert a rigid ``(4, 4)`` transform exactly (``R.T``, ``-R.T @ t``)."""
     m = check_shape(m, "4,4", "transform").astype(np.float64)
     out = np.eye(4)
@@ -60,14 +61,15 @@ def invert_rigid(m) -> np.ndarray:
     return out
 
 
-def transform_points(m, points) -> np.ndarray:
+def transform_points(m: npt.ArrayLike, points: npt.ArrayLike) -> np.ndarray:
     """Apply a ``(4, 4)`` transform to ``(n, 3)`` points; returns ``(n, 3)`` float64."""
     p = check_shape(points, "N,3", "points").astype(np.float64)
     m = np.asarray(m, dtype=np.float64)
-    return p @ m[:3, :3].T + m[:3, 3]
+    out: np.ndarray = p @ m[:3, :3].T + m[:3, 3]
+    return out
 
 
-def rotation_error_deg(r_a, r_b) -> float:
+def rotation_error_deg(r_a: npt.ArrayLike, r_b: npt.ArrayLike) -> float:
     """Angle in degrees of the rotation ``R_a @ R_b.T``.
 
     Parameters
@@ -83,7 +85,7 @@ def rotation_error_deg(r_a, r_b) -> float:
     180.0
     """
 
-    def as_mat(r):
+    def as_mat(r: npt.ArrayLike) -> np.ndarray:
         r = np.asarray(r, dtype=np.float64)
         return cv2.Rodrigues(r.reshape(3, 1))[0] if r.size == 3 else r[:3, :3]
 
@@ -98,7 +100,7 @@ def rotation_error_deg(r_a, r_b) -> float:
 NEAR_PI_RAD = 2.5
 
 
-def rotation_vectors(R) -> np.ndarray:
+def rotation_vectors(R: npt.ArrayLike) -> np.ndarray:
     """Rotation vectors (axis x angle, radians) of a stack of rotation matrices: ``cv2.Rodrigues`` of each,
     vectorised (the video pose smoothing takes 21 a frame; one call each cost 0.1 ms).
 
@@ -127,7 +129,7 @@ def rotation_vectors(R) -> np.ndarray:
     c = 0.5 * (R[:, 0, 0] + R[:, 1, 1] + R[:, 2, 2] - 1.0)
     theta = np.arctan2(s, c)
     scale = np.divide(theta, s, out=np.ones_like(theta), where=s > 1e-300)
-    out = v * scale[:, None]
+    out: np.ndarray = v * scale[:, None]
     for i in np.flatnonzero(theta > NEAR_PI_RAD):
         out[i] = cv2.Rodrigues(np.ascontiguousarray(R[i]))[0].ravel()
     return out

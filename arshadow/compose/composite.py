@@ -31,9 +31,12 @@ Examples
 from __future__ import annotations
 
 import re
+from collections.abc import Sequence
+from typing import cast
 
 import cv2
 import numpy as np
+import numpy.typing as npt
 
 from .._check import check_finite, check_shape
 from ..errors import ShapeError, UsageError
@@ -52,16 +55,22 @@ __all__ = [
 ]
 
 
-def srgb_to_linear(c):
+#: an (r, g, b) triple
+Rgb = tuple[float, float, float]
+
+
+def srgb_to_linear(c: npt.ArrayLike) -> np.ndarray:
     """The sRGB decoding curve (IEC 61966-2-1) on values in [0, 1]; float64 in, float64 out."""
     c = np.asarray(c, dtype=np.float64)
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+    out: np.ndarray = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+    return out
 
 
-def linear_to_srgb(x):
+def linear_to_srgb(x: npt.ArrayLike) -> np.ndarray:
     """The sRGB encoding curve on linear values in [0, 1] (clipped); float64 in, float64 out."""
     x = np.clip(np.asarray(x, dtype=np.float64), 0.0, 1.0)
-    return np.where(x <= 0.0031308, x * 12.92, 1.055 * x ** (1.0 / 2.4) - 0.055)
+    out: np.ndarray = np.where(x <= 0.0031308, x * 12.92, 1.055 * x ** (1.0 / 2.4) - 0.055)
+    return out
 
 
 #: (256,) float32: 8-bit sRGB code -> linear value in [0, 1]
@@ -80,7 +89,8 @@ def srgb8_to_linear(img: np.ndarray) -> np.ndarray:
         raise ShapeError(f"srgb8_to_linear needs uint8, got {img.dtype}")
     if img.ndim <= 3 and img.size and (img.ndim < 3 or img.shape[2] <= 4):
         return cv2.LUT(img, SRGB_TO_LINEAR)
-    return SRGB_TO_LINEAR[img]
+    lin: np.ndarray = SRGB_TO_LINEAR[img]
+    return lin
 
 
 def linear_to_srgb8(lin: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
@@ -92,14 +102,14 @@ def linear_to_srgb8(lin: np.ndarray, out: np.ndarray | None = None) -> np.ndarra
     idx = np.multiply(lin.reshape(lin.shape or (1,)), np.float32(65535.0))
     idx += np.float32(0.5)
     np.clip(idx, 0.0, 65535.0, out=idx)
-    res = np.take(LINEAR_TO_SRGB16, idx.astype(np.uint16))
+    res: np.ndarray = np.take(LINEAR_TO_SRGB16, idx.astype(np.uint16))
     if out is not None:
         out[...] = res.reshape(out.shape)
         return out
     return res.reshape(lin.shape)
 
 
-def rgb8(spec, name: str = "colour") -> tuple[float, float, float]:
+def rgb8(spec: str | Sequence[float] | np.ndarray, name: str = "colour") -> tuple[float, float, float]:
     """Parse ``"R,G,B"`` (numbers 0..255), ``"#rrggbb"`` (hex, as a colour picker gives it) or three numbers
     into 8-bit sRGB values 0..255 (floats).
 
@@ -113,7 +123,7 @@ def rgb8(spec, name: str = "colour") -> tuple[float, float, float]:
         if text.startswith("#"):
             if re.fullmatch(r"#[0-9a-fA-F]{6}", text) is None:
                 raise UsageError(f"{name} {spec!r}: expected #rrggbb (six hex digits) or R,G,B with numbers 0..255")
-            return tuple(float(int(text[i : i + 2], 16)) for i in (1, 3, 5))
+            return cast(Rgb, tuple(float(int(text[i : i + 2], 16)) for i in (1, 3, 5)))
         parts = [p.strip() for p in text.split(",")]
         try:
             vals = [float(p) for p in parts]
@@ -123,10 +133,10 @@ def rgb8(spec, name: str = "colour") -> tuple[float, float, float]:
         vals = [float(v) for v in spec]
     if len(vals) != 3 or not all(np.isfinite(vals)) or not all(0.0 <= v <= 255.0 for v in vals):
         raise UsageError(f"{name} {spec!r}: expected R,G,B with three numbers 0..255 (or #rrggbb)")
-    return tuple(float(v) for v in vals)
+    return cast(Rgb, tuple(float(v) for v in vals))
 
 
-def parse_rgb(spec, name: str = "colour") -> tuple[float, float, float]:
+def parse_rgb(spec: str | Sequence[float] | np.ndarray, name: str = "colour") -> tuple[float, float, float]:
     """Parse ``"R,G,B"`` (8-bit sRGB values 0..255) or ``"#rrggbb"`` into linear RGB floats in [0, 1].
 
     Examples
@@ -135,7 +145,7 @@ def parse_rgb(spec, name: str = "colour") -> tuple[float, float, float]:
     ((1.0, 0.0, 0.0), (1.0, 0.0, 0.0))
     """
     vals = rgb8(spec, name)
-    return tuple(float(v) for v in srgb_to_linear(np.array(vals) / 255.0))
+    return cast(Rgb, tuple(float(v) for v in srgb_to_linear(np.array(vals) / 255.0)))
 
 
 class Workspace:
@@ -143,10 +153,10 @@ class Workspace:
     flat buffer that only grows. Avoids allocating (and page-faulting) megabytes of temporaries per frame.
     Not thread-safe; one per pipeline."""
 
-    def __init__(self):
-        self._bufs: dict = {}
+    def __init__(self) -> None:
+        self._bufs: dict[tuple[str, np.dtype], np.ndarray] = {}
 
-    def get(self, name: str, shape, dtype) -> np.ndarray:
+    def get(self, name: str, shape: int | tuple[int, ...], dtype: npt.DTypeLike) -> np.ndarray:
         dtype = np.dtype(dtype)
         n = int(np.prod(shape))
         buf = self._bufs.get((name, dtype))
@@ -156,7 +166,7 @@ class Workspace:
         return buf[:n].reshape(shape)
 
 
-def clip_roi(roi, width: int, height: int) -> tuple[int, int, int, int]:
+def clip_roi(roi: Sequence[float], width: int, height: int) -> tuple[int, int, int, int]:
     """Intersect ``roi = (x0, y0, w, h)`` with a ``width`` x ``height`` image (may return w or h = 0)."""
     x0, y0, w, h = (int(v) for v in roi)
     x1, y1 = min(x0 + w, width), min(y0 + h, height)
@@ -167,14 +177,14 @@ def clip_roi(roi, width: int, height: int) -> tuple[int, int, int, int]:
 def composite(
     photo: np.ndarray,
     mask: np.ndarray | None,
-    roi=None,
+    roi: Sequence[float] | None = None,
     *,
     color: np.ndarray | None = None,
     alpha: np.ndarray | None = None,
     opacity: float = 1.0,
-    shadow_color=(0.0, 0.0, 0.0),
+    shadow_color: npt.ArrayLike = (0.0, 0.0, 0.0),
     premultiplied: bool = True,
-    color_gain=None,
+    color_gain: npt.ArrayLike | None = None,
     out: np.ndarray | None = None,
     work: Workspace | None = None,
 ) -> np.ndarray:

@@ -38,9 +38,12 @@ Examples
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ..errors import ShapeError
 from .composite import SRGB_TO_LINEAR, linear_to_srgb8
@@ -48,7 +51,9 @@ from .composite import SRGB_TO_LINEAR, linear_to_srgb8
 __all__ = ["Layers", "layers_from_warped", "pinhole_layers", "recombine", "shadow_factor", "shadow_only_alpha"]
 
 
-def shadow_factor(mask, alpha, opacity: float, shadow_color=(0.0, 0.0, 0.0)) -> np.ndarray:
+def shadow_factor(
+    mask: np.ndarray | None, alpha: np.ndarray | None, opacity: float, shadow_color: npt.ArrayLike = (0.0, 0.0, 0.0)
+) -> np.ndarray:
     """The multiply pass: the per-pixel linear factor the composite applies to the photo.
 
     Parameters
@@ -76,16 +81,18 @@ def shadow_factor(mask, alpha, opacity: float, shadow_color=(0.0, 0.0, 0.0)) -> 
         return keep
     m = np.asarray(mask, np.float32)
     if sc[0] == sc[1] == sc[2]:
-        g = m * np.float32(-opacity * (1.0 - sc[0]))
+        g: np.ndarray = m * np.float32(-opacity * (1.0 - sc[0]))
         g += keep
-        return np.maximum(g, np.float32(0.0))
+        res: np.ndarray = np.maximum(g, np.float32(0.0))
+        return res
     dark = (np.float32(opacity) * (1.0 - sc)).astype(np.float32)  # RGB
-    f = m[:, :, None] * -dark
+    f: np.ndarray = m[:, :, None] * -dark
     f += keep[:, :, None]
-    return np.maximum(f, np.float32(0.0))
+    res3: np.ndarray = np.maximum(f, np.float32(0.0))
+    return res3
 
 
-def shadow_only_alpha(shadow, alpha) -> np.ndarray:
+def shadow_only_alpha(shadow: np.ndarray, alpha: np.ndarray) -> np.ndarray:
     """Alpha of the black shadow-only layer: ``1 - shadow / (1 - alpha)`` (0 where alpha = 1).
 
     ``shadow`` (h, w) or (h, w, 3) float32 (the mean of the channels is used), ``alpha`` (h, w) float32;
@@ -127,7 +134,7 @@ class Layers:
     shadow: np.ndarray
     undistorted: Layers | None = None
 
-    def full(self):
+    def full(self) -> tuple[np.ndarray, np.ndarray]:
         """Photo-sized ``(object (H, W, 4) float32, shadow (H, W) or (H, W, 3) float32)``."""
         W, H = self.size
         x0, y0, w, h = self.roi
@@ -146,7 +153,14 @@ class Layers:
 
 
 def layers_from_warped(
-    mask, rgba, roi, shape, *, opacity: float, shadow_color=(0.0, 0.0, 0.0), premultiplied: bool = True
+    mask: np.ndarray | None,
+    rgba: np.ndarray | None,
+    roi: Sequence[int],
+    shape: Sequence[int],
+    *,
+    opacity: float,
+    shadow_color: npt.ArrayLike = (0.0, 0.0, 0.0),
+    premultiplied: bool = True,
 ) -> Layers:
     """The layers of a frame from the warped render the composite used (copies: the inputs may be scratch).
 
@@ -178,7 +192,9 @@ def layers_from_warped(
     return Layers(size=(int(shape[1]), int(shape[0])), roi=(x0, y0, w, h), object=obj, shadow=sh)
 
 
-def pinhole_layers(mask, rgba, canvas, shape, **kw) -> Layers:
+def pinhole_layers(
+    mask: np.ndarray, rgba: np.ndarray | None, canvas: Sequence[int], shape: Sequence[int], **kw: Any
+) -> Layers:
     """The layers of the rendered pinhole canvas (before the lens warp), clipped to the photo's size.
 
     ``mask`` (h, w), ``rgba`` (h, w, 4) or None: the canvas, rows top-down; ``canvas`` its
@@ -196,7 +212,7 @@ def pinhole_layers(mask, rgba, canvas, shape, **kw) -> Layers:
     )
 
 
-def recombine(plate_bgr8, obj_rgba, shadow, *, over: bool = False) -> np.ndarray:
+def recombine(plate_bgr8: np.ndarray, obj_rgba: np.ndarray, shadow: np.ndarray, *, over: bool = False) -> np.ndarray:
     """Rebuild the composite from the layers: ``plate x shadow + object`` in linear light -> 8-bit sRGB BGR.
 
     Parameters

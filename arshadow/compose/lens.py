@@ -20,13 +20,18 @@ Rectangles: an image ROI is ``(x0, y0, w, h)`` integers (pixels ``x0 .. x0+w-1``
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
 
 from ..errors import CalibrationError
 from .composite import Workspace
+
+if TYPE_CHECKING:
+    from ..camera import Intrinsics
 
 __all__ = ["LensWarp", "undistort_map"]
 
@@ -35,7 +40,7 @@ __all__ = ["LensWarp", "undistort_map"]
 INVALID = -1.0e6
 
 
-def _undistort_grid(intrinsics, us, vs) -> tuple[np.ndarray, np.ndarray]:
+def _undistort_grid(intrinsics: Intrinsics, us: np.ndarray, vs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Pinhole coordinates of the distorted pixel centres ``us x vs`` (float64, INVALID where none)."""
     uu, vv = np.meshgrid(np.asarray(us, np.float64), np.asarray(vs, np.float64))
     uv = np.column_stack([uu.ravel(), vv.ravel()])
@@ -45,7 +50,7 @@ def _undistort_grid(intrinsics, us, vs) -> tuple[np.ndarray, np.ndarray]:
     return und[:, :, 0], und[:, :, 1]
 
 
-def undistort_map(intrinsics, roi=None) -> tuple[np.ndarray, np.ndarray]:
+def undistort_map(intrinsics: Intrinsics, roi: Sequence[int] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Pinhole pixel coordinates of every distorted pixel centre of the image (or of ``roi``).
 
     Parameters
@@ -93,7 +98,7 @@ class LensWarp:
     #: side of the square tiles in which the full-resolution map is computed on first use
     TILE = 64
 
-    def __init__(self, intrinsics, stride: int = 8):
+    def __init__(self, intrinsics: Intrinsics, stride: int = 8) -> None:
         self.intrinsics = intrinsics
         self.width, self.height = int(intrinsics.width), int(intrinsics.height)
         self.stride = int(stride)
@@ -102,7 +107,7 @@ class LensWarp:
         self._my = np.full((self.height, self.width), INVALID, np.float32)
         self._done = np.zeros(((self.height + T - 1) // T, (self.width + T - 1) // T), bool)
 
-    def ensure(self, roi) -> None:
+    def ensure(self, roi: Sequence[int]) -> None:
         """Compute the map's tiles that ``roi = (x0, y0, w, h)`` touches (each tile once per calibration)."""
         x0, y0, w, h = roi
         if w <= 0 or h <= 0:
@@ -146,7 +151,7 @@ class LensWarp:
         return self._mx, self._my
 
     @cached_property
-    def _cells(self):
+    def _cells(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Coarse cells (``stride`` pixels, the last ones shorter) and the pinhole bounding box of each.
 
         Returns ``(rows, cols, lo_u, lo_v, hi_u, hi_v)``: node rows/columns and per-cell (r, c) boxes
@@ -203,7 +208,7 @@ class LensWarp:
         ok = np.isfinite(lo_u)
         return (float(lo_u[ok].min()), float(lo_v[ok].min()), float(hi_u[ok].max()), float(hi_v[ok].max()))
 
-    def distorted_roi(self, pinhole_rect, margin: int = 1) -> tuple[int, int, int, int]:
+    def distorted_roi(self, pinhole_rect: Sequence[float], margin: int = 1) -> tuple[int, int, int, int]:
         """The photo ROI ``(x0, y0, w, h)`` holding every distorted pixel whose pinhole point is in the rect.
 
         Conservative: the image is split into ``stride``-pixel cells, each with the pinhole bounding box of
@@ -229,7 +234,7 @@ class LensWarp:
         y1 = min(self.height, int(rows[r[-1] + 1]) + m + 1)
         return (x0, y0, x1 - x0, y1 - y0)
 
-    def canvas_for(self, roi, pinhole_rect=None) -> tuple[int, int, int, int]:
+    def canvas_for(self, roi: Sequence[int], pinhole_rect: Sequence[float] | None = None) -> tuple[int, int, int, int]:
         """The pinhole canvas ``(u0, v0, w, h)`` the photo ROI samples (bilinear neighbours included).
 
         Parameters
@@ -266,7 +271,15 @@ class LensWarp:
         u1, v1 = math.ceil(a1) + 1, math.ceil(b1) + 1
         return (u0, v0, u1 - u0 + 1, v1 - v0 + 1)
 
-    def warp(self, roi, canvas, *arrays, interpolation=None, work=None, bottom_up=False):
+    def warp(
+        self,
+        roi: Sequence[int],
+        canvas: Sequence[int],
+        *arrays: np.ndarray,
+        interpolation: int | None = None,
+        work: Workspace | None = None,
+        bottom_up: bool = False,
+    ) -> list[np.ndarray]:
         """Resample canvas-sized arrays at the photo ROI's pinhole points.
 
         Parameters

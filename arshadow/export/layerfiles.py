@@ -19,10 +19,12 @@ Formats: ``png`` (16-bit PNG, OpenCV) and ``exr`` (the optional ``OpenEXR`` pack
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterable
 from pathlib import Path
 
 import cv2
 import numpy as np
+import numpy.typing as npt
 
 from ..compose.composite import linear_to_srgb
 from ..compose.layers import Layers, shadow_only_alpha
@@ -66,7 +68,7 @@ def check_layer_format(fmt: str, what: str = "--layers-format") -> str:
     return fmt
 
 
-def layer_paths(outdir, stem: str, fmt: str, undistorted: bool = False) -> dict:
+def layer_paths(outdir: Path | str, stem: str, fmt: str, undistorted: bool = False) -> dict[str, Path]:
     """``{name: Path}`` of one photo's layer files (:data:`LAYER_NAMES`; with ``undistorted`` also
     ``undistorted.<name>`` and the ``stmap``) in ``outdir``."""
     names = list(LAYER_NAMES) + ([f"undistorted.{n}" for n in LAYER_NAMES] if undistorted else [])
@@ -76,14 +78,14 @@ def layer_paths(outdir, stem: str, fmt: str, undistorted: bool = False) -> dict:
     return out
 
 
-def refuse_overwrite(paths, inputs, what: str = "--layers") -> None:
+def refuse_overwrite(paths: Iterable[Path | str], inputs: Iterable[Path | str], what: str = "--layers") -> None:
     """A usage error (before any work) when one of the layer files ``paths`` would replace one of ``inputs``."""
     p = InputGuard(inputs).clash(paths)  # the one overwrite guard (arshadow.io)
     if p is not None:
         raise UsageError(f"{what}: {p} would overwrite an input; choose another -o folder")
 
 
-def layer_arrays(layers: Layers) -> dict:
+def layer_arrays(layers: Layers) -> dict[str, np.ndarray]:
     """Photo-sized float32 arrays, RGB(A) order: ``object`` (H, W, 4) premultiplied linear, ``shadow.mult``
     (H, W) or (H, W, 3), ``shadow.only`` (H, W, 4) black with alpha; and ``undistorted.<name>`` of
     ``layers.undistorted`` when there is one."""
@@ -96,7 +98,7 @@ def layer_arrays(layers: Layers) -> dict:
     return out
 
 
-def write_exr(path, arr: np.ndarray, dtype=np.float16) -> Path:
+def write_exr(path: Path | str, arr: np.ndarray, dtype: npt.DTypeLike = np.float16) -> Path:
     """Write ``(H, W)`` (channel Y), ``(H, W, 3)`` (RGB) or ``(H, W, 4)`` (RGBA) as EXR (half float by default;
     ``dtype=np.float32`` for full float), atomically."""
     import OpenEXR  # optional extra (checked by check_layer_format before any work)
@@ -113,7 +115,9 @@ def _png16(arr: np.ndarray) -> np.ndarray:
     return np.clip(np.rint(np.asarray(arr, np.float64) * 65535.0), 0, 65535).astype(np.uint16)
 
 
-def write_layers(paths: dict, layers: Layers, fmt: str, orient=None) -> dict:
+def write_layers(
+    paths: dict[str, Path], layers: Layers, fmt: str, orient: Callable[[np.ndarray], np.ndarray] | None = None
+) -> dict[str, Path]:
     """Write one frame's layers to ``paths`` (:func:`layer_paths`) in ``fmt``; returns ``paths``.
 
     ``orient``: a function applied to every photo-sized array before writing (EXIF orientation).

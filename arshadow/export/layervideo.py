@@ -26,13 +26,17 @@ import contextlib
 import os
 import shutil
 import tempfile
+from fractions import Fraction
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..errors import UsageError
 from .layerfiles import LAYER_NAMES, check_layer_format, layer_arrays, write_layers
+
+if TYPE_CHECKING:
+    from ..compose.layers import Layers
 
 __all__ = ["VIDEO_LAYER_FORMATS", "LayerSink", "check_video_layer_format", "video_layer_paths"]
 
@@ -67,7 +71,7 @@ def check_video_layer_format(fmt: str, what: str = "--layers-format") -> str:
     return fmt
 
 
-def video_layer_paths(outdir, stem: str, fmt: str, undistorted: bool = False) -> dict:
+def video_layer_paths(outdir: Path | str, stem: str, fmt: str, undistorted: bool = False) -> dict[str, Path]:
     """``{name: Path}``: one video per layer, or the sequence folder ``<stem>.layers`` (key ``folder``); with
     ``undistorted`` also the ``undistorted.<name>`` videos and the ``stmap`` (``<stem>.stmap.exr`` with
     ``exr``, else 16-bit PNG)."""
@@ -83,7 +87,7 @@ def video_layer_paths(outdir, stem: str, fmt: str, undistorted: bool = False) ->
     return out
 
 
-def _u16(arr) -> np.ndarray:
+def _u16(arr: np.ndarray) -> np.ndarray:
     return np.clip(np.rint(np.asarray(arr, np.float64) * 65535.0), 0, 65535).astype(np.uint16)
 
 
@@ -103,13 +107,20 @@ class LayerSink:
         The ST-map of the undistorted layers (:func:`arshadow.export.stmap.stmap`), written by :meth:`close`.
     """
 
-    def __init__(self, paths: dict, fmt: str, rate, size, stmap=None):
+    def __init__(
+        self,
+        paths: dict[str, Path],
+        fmt: str,
+        rate: Fraction | int,
+        size: tuple[int, int],
+        stmap: np.ndarray | None = None,
+    ) -> None:
         self.paths, self.fmt, self.rate = dict(paths), fmt, rate
         self.W, self.H = int(size[0]), int(size[1])
         self.n = 0
         self.stmap = stmap
-        self._tmp: dict = {}
-        self._streams: dict = {}
+        self._tmp: dict[str, Path] = {}
+        self._streams: dict[str, tuple[Any, Any]] = {}
         spec = VIDEO_LAYER_FORMATS[fmt]
         if spec is None:
             target = Path(self.paths["folder"])
@@ -133,7 +144,7 @@ class LayerSink:
                 s.options = {"profile": "4444"}
             self._streams[name] = (c, s)
 
-    def write(self, layers) -> None:
+    def write(self, layers: Layers | None) -> None:
         """Add one frame (``layers``: :class:`arshadow.compose.layers.Layers`, or None: nothing drawn)."""
         if layers is None:
             from ..compose.layers import layers_from_warped
@@ -167,7 +178,7 @@ class LayerSink:
                 c.mux(pkt)
         self.n += 1
 
-    def close(self) -> dict:
+    def close(self) -> dict[str, Path]:
         """Finish the files and rename them into place; returns the paths written."""
         for c, s in self._streams.values():
             for pkt in s.encode():

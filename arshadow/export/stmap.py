@@ -21,7 +21,9 @@ float32 EXR (``R``, ``G``, ``B`` = 0) or, without OpenEXR, a 16-bit PNG (``s``, 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
@@ -29,10 +31,13 @@ import numpy as np
 from ..compose.lens import INVALID, undistort_map
 from ..io import write_image
 
+if TYPE_CHECKING:
+    from ..camera import Intrinsics
+
 __all__ = ["stmap", "stmap_to_pixels", "write_stmap"]
 
 
-def stmap(intrinsics, maps=None) -> np.ndarray:
+def stmap(intrinsics: Intrinsics, maps: Sequence[np.ndarray] | None = None) -> np.ndarray:
     """``(H, W, 2) float32`` ST-map of a calibration (``maps``: its ``(map_x, map_y)`` if already computed,
     e.g. :attr:`arshadow.compose.lens.LensWarp.maps`)."""
     W, H = int(intrinsics.width), int(intrinsics.height)
@@ -49,13 +54,13 @@ def stmap(intrinsics, maps=None) -> np.ndarray:
     return st
 
 
-def stmap_to_pixels(st, width: int, height: int):
+def stmap_to_pixels(st: np.ndarray, width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
     """``(map_x, map_y)`` float32 pixel coordinates of an ST-map (for ``cv2.remap``)."""
     st = np.asarray(st, np.float64)
     return ((st[..., 0] * width - 0.5).astype(np.float32), ((1.0 - st[..., 1]) * height - 0.5).astype(np.float32))
 
 
-def write_stmap(path, st) -> Path:
+def write_stmap(path: Path | str, st: np.ndarray) -> Path:
     """Write an ST-map: ``.exr`` float32 (R = s, G = t, B = 0) or ``.png`` 16-bit (atomically)."""
     p = Path(path)
     rgb = np.zeros(st.shape[:2] + (3,), np.float32)

@@ -10,7 +10,12 @@ not depend on the light.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
+
+if TYPE_CHECKING:
+    from .caster import ShadowCaster
 
 LEAF = 8
 _CHUNK = 65536
@@ -25,7 +30,7 @@ def _spread_bits(x: np.ndarray) -> np.ndarray:
     return x
 
 
-def build(triangles: np.ndarray, scale: float) -> dict:
+def build(triangles: np.ndarray, scale: float) -> dict[str, Any]:
     """Build the tree for ``triangles (m, 3, 3)``; returns a dict of arrays (see module doc)."""
     m = triangles.shape[0]
     cen = triangles.mean(axis=1)
@@ -36,7 +41,7 @@ def build(triangles: np.ndarray, scale: float) -> dict:
     n_leaves = max(1, -(-m // LEAF))
     depth = int(np.ceil(np.log2(n_leaves))) if n_leaves > 1 else 0
     n_l = 1 << depth
-    leaf_faces = np.full(n_l * LEAF, -1, np.intp)
+    leaf_faces: np.ndarray = np.full(n_l * LEAF, -1, np.intp)
     leaf_faces[:m] = order
     leaf_faces = leaf_faces.reshape(n_l, LEAF)
     tmin = triangles.min(axis=1)
@@ -63,17 +68,19 @@ def build(triangles: np.ndarray, scale: float) -> dict:
     return {"nmin": nmin, "nmax": nmax, "leaf_faces": leaf_faces, "depth": depth, "n_leaves": n_l, "e1": e1, "e2": e2}
 
 
-def _tree(caster) -> dict:
+def _tree(caster: ShadowCaster) -> dict[str, Any]:
     """The caster's tree, built on first use and kept in its ``__dict__`` (per mesh, like its cached
     properties)."""
-    t = caster.__dict__.get("_bvh_cache")
+    t: dict[str, Any] | None = caster.__dict__.get("_bvh_cache")
     if t is None:
         t = build(caster.triangles, caster.scale)
         caster.__dict__["_bvh_cache"] = t
     return t
 
 
-def any_hit(caster, origins, dirs, tmin, face_mask) -> tuple[np.ndarray, dict]:
+def any_hit(
+    caster: ShadowCaster, origins: np.ndarray, dirs: np.ndarray, tmin: np.ndarray, face_mask: np.ndarray
+) -> tuple[np.ndarray, dict[str, int]]:
     """For each ray ``origins[i] + t dirs[i]``, ``t > tmin[i]``, does it hit a face with ``face_mask``?
 
     Returns ``hit (r,) bool`` and counts ``{"node_tests", "triangle_tests"}`` (totals over all rays).
@@ -124,7 +131,9 @@ def any_hit(caster, origins, dirs, tmin, face_mask) -> tuple[np.ndarray, dict]:
     return hit, counts
 
 
-def moller_trumbore(o, d, t0, v0, e1, e2) -> np.ndarray:
+def moller_trumbore(
+    o: np.ndarray, d: np.ndarray, t0: np.ndarray, v0: np.ndarray, e1: np.ndarray, e2: np.ndarray
+) -> np.ndarray:
     p = np.cross(d, e2)
     det = np.einsum("ij,ij->i", e1, p)
     ok = det != 0.0
@@ -135,4 +144,5 @@ def moller_trumbore(o, d, t0, v0, e1, e2) -> np.ndarray:
     qv = np.cross(s, e1)
     vv = np.einsum("ij,ij->i", d, qv) * inv
     t = np.einsum("ij,ij->i", e2, qv) * inv
-    return ok & (u >= 0.0) & (vv >= 0.0) & (u + vv <= 1.0) & (t > t0)
+    hit: np.ndarray = ok & (u >= 0.0) & (vv >= 0.0) & (u + vv <= 1.0) & (t > t0)
+    return hit

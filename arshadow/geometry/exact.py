@@ -10,8 +10,11 @@ at pixel centres; nothing here uses silhouettes, volumes or GL.
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Sequence
+
 import cv2
 import numpy as np
+import numpy.typing as npt
 
 __all__ = [
     "ShadowOracle",
@@ -24,7 +27,7 @@ __all__ = [
 ]
 
 
-def ground_shadow_triangles(vertices, faces, light_h) -> np.ndarray:
+def ground_shadow_triangles(vertices: npt.ArrayLike, faces: npt.ArrayLike, light_h: npt.ArrayLike) -> np.ndarray:
     """The shadow of a triangle mesh on the ground plane z = 0, as 2-D triangles.
 
     Each triangle is clipped to the half-space z >= 0 (Sutherland-Hodgman; a triangle becomes 0, 1 or 2
@@ -95,7 +98,8 @@ def ground_shadow_triangles(vertices, faces, light_h) -> np.ndarray:
             raise ValueError("point light is not above every vertex: unbounded shadow")
         t = L[2] / (L[2] - p[:, 2])
         q = L[None, :2] + t[:, None] * (p[:, :2] - L[None, :2])
-    return q.reshape(-1, 3, 2)
+    tris: np.ndarray = q.reshape(-1, 3, 2)
+    return tris
 
 
 def iou(a: np.ndarray, b: np.ndarray) -> float:
@@ -104,14 +108,16 @@ def iou(a: np.ndarray, b: np.ndarray) -> float:
     return 1.0 if u == 0 else np.count_nonzero(a & b) / u
 
 
-def _cam(K, cam_from_world):
+def _cam(K: npt.ArrayLike, cam_from_world: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     K = np.asarray(K, np.float64)
     T = np.asarray(cam_from_world, np.float64)
     R, t = T[:3, :3], T[:3, 3]
     return K, R, t, -R.T @ t
 
 
-def ground_points(u, v, K, cam_from_world):
+def ground_points(
+    u: np.ndarray, v: np.ndarray, K: npt.ArrayLike, cam_from_world: npt.ArrayLike
+) -> tuple[np.ndarray, np.ndarray]:
     """Ground hits ``(n, 2)`` of the rays through image points ``(u, v)`` and a bool ``(n,)`` hit flag."""
     K, R, t, C = _cam(K, cam_from_world)
     u = np.asarray(u, np.float64).ravel()
@@ -125,7 +131,7 @@ def ground_points(u, v, K, cam_from_world):
     return g, hit
 
 
-def points_in_triangles(pts, tris):
+def points_in_triangles(pts: np.ndarray, tris: np.ndarray) -> np.ndarray:
     """bool (n,): point inside (or on) any 2-D triangle of ``tris (m, 3, 2)``."""
     pts = np.asarray(pts, np.float64)
     inside = np.zeros(len(pts), bool)
@@ -162,7 +168,14 @@ def points_in_triangles(pts, tris):
     return inside
 
 
-def occluder_coverage(u, v, K, cam_from_world, vertices, faces):
+def occluder_coverage(
+    u: np.ndarray,
+    v: np.ndarray,
+    K: npt.ArrayLike,
+    cam_from_world: npt.ArrayLike,
+    vertices: npt.ArrayLike,
+    faces: npt.ArrayLike,
+) -> np.ndarray:
     """bool (n,): the ray through image point (u, v) hits an occluder triangle at height z >= 0 before
     the ground (every triangle must lie in front of the camera)."""
     K, R, t, C = _cam(K, cam_from_world)
@@ -183,11 +196,12 @@ def occluder_coverage(u, v, K, cam_from_world, vertices, faces):
     raise NotImplementedError("oracle: occluders reaching below the ground are not supported")
 
 
-def in_ground_square(g, ground_size):
+def in_ground_square(g: np.ndarray, ground_size: float | None) -> np.ndarray:
     if ground_size is None:
         return np.ones(len(g), bool)
     h = ground_size / 2.0
-    return (np.abs(g[:, 0]) <= h) & (np.abs(g[:, 1]) <= h)
+    inside: np.ndarray = (np.abs(g[:, 0]) <= h) & (np.abs(g[:, 1]) <= h)
+    return inside
 
 
 class ShadowOracle:
@@ -201,7 +215,15 @@ class ShadowOracle:
     ground_size : float or None
     """
 
-    def __init__(self, K, cam_from_world, vertices, faces, lights, ground_size=None):
+    def __init__(
+        self,
+        K: npt.ArrayLike,
+        cam_from_world: npt.ArrayLike,
+        vertices: npt.ArrayLike,
+        faces: npt.ArrayLike,
+        lights: Iterable[tuple[npt.ArrayLike, float]],
+        ground_size: float | None = None,
+    ) -> None:
         self.K = np.asarray(K, np.float64)
         self.T = np.asarray(cam_from_world, np.float64)
         self.V = np.asarray(vertices, np.float64)
@@ -211,7 +233,7 @@ class ShadowOracle:
         self.ground_size = ground_size
         self.shadow_tris = [ground_shadow_triangles(self.V, self.F, h) for h, _ in self.lights]
 
-    def classify(self, u, v):
+    def classify(self, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Returns ``(mask (n,) float64 blocked weight fraction, ground (n,) bool, occluder (n,) bool)``."""
         g, hit = ground_points(u, v, self.K, self.T)
         occ = occluder_coverage(u, v, self.K, self.T, self.V, self.F)
@@ -223,7 +245,9 @@ class ShadowOracle:
             mask[idx[inside]] += w / self.total
         return mask, ground, occ
 
-    def image(self, width, height, canvas=None):
+    def image(
+        self, width: int, height: int, canvas: Sequence[int] | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Pixel-centre classification of a canvas ``(u0, v0, w, h)`` (default the whole image):
         ``(mask (h, w), ground (h, w), occluder (h, w))``."""
         u0, v0, w, h = (0, 0, width, height) if canvas is None else canvas
@@ -232,7 +256,7 @@ class ShadowOracle:
         return m.reshape(h, w), g.reshape(h, w), o.reshape(h, w)
 
 
-def boundary_error_px(mask, exact) -> dict:
+def boundary_error_px(mask: np.ndarray, exact: np.ndarray) -> dict[str, float]:
     """Distances (px) between the boundaries of two boolean masks ``(h, w)``: each boundary pixel of one
     mask to the nearest boundary pixel of the other (``cv2.distanceTransform``, L2), both directions.
 
@@ -240,10 +264,11 @@ def boundary_error_px(mask, exact) -> dict:
     ``inf`` when only one has a boundary).
     """
 
-    def boundary(m):
+    def boundary(m: np.ndarray) -> np.ndarray:
         m = np.asarray(m, np.uint8)
         k = np.ones((3, 3), np.uint8)
-        return (m != cv2.erode(m, k, borderType=cv2.BORDER_REPLICATE)) & (m > 0)
+        edge: np.ndarray = (m != cv2.erode(m, k, borderType=cv2.BORDER_REPLICATE)) & (m > 0)
+        return edge
 
     ba, bb = boundary(mask), boundary(exact)
     if not ba.any() and not bb.any():

@@ -35,6 +35,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from ..errors import UsageError
 
@@ -100,7 +101,7 @@ def _numbers(body: str, n: int, text: str) -> list[float]:
     return vals
 
 
-def parse_ground(text) -> GroundSpec:
+def parse_ground(text: str | None) -> GroundSpec:
     """Parse a ground spec (module docstring); None or ``""`` means ``marker``.
 
     Raises
@@ -145,7 +146,7 @@ def parse_ground(text) -> GroundSpec:
     raise UsageError(f"--ground {t!r}: choose marker, wall:H or plane:PX,PY,PZ,NX,NY,NZ (metres, in the marker frame)")
 
 
-def ground_warnings(spec) -> list[str]:
+def ground_warnings(spec: str | None) -> list[str]:
     """Plausible mistakes in a ground spec (each a message naming the probable cause); [] if none.
 
     Examples
@@ -165,7 +166,7 @@ def ground_warnings(spec) -> list[str]:
     return [f"--ground {g.text}: the ground is {dist:g} m from the marker; lengths are metres{hint}"]
 
 
-def ground_frame(point, normal) -> np.ndarray:
+def ground_frame(point: npt.ArrayLike, normal: npt.ArrayLike) -> np.ndarray:
     """``marker_from_ground`` (4, 4) float64 of the plane through ``point (3,)`` with ``normal (3,)`` (marker
     frame; the normal need not be unit length): the axes of the module docstring, origin at ``point``.
 
@@ -194,7 +195,9 @@ def ground_frame(point, normal) -> np.ndarray:
     return m
 
 
-def check_camera_above(cam_from_ground, spec: str = "", *, min_elevation_deg: float = MIN_ELEVATION_DEG) -> None:
+def check_camera_above(
+    cam_from_ground: npt.ArrayLike, spec: str = "", *, min_elevation_deg: float = MIN_ELEVATION_DEG
+) -> None:
     """Refuse a pose that sees the ground plane from below, from within it, or edge-on.
 
     Parameters

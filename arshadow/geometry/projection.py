@@ -11,6 +11,7 @@ the plane. Paper 004 uses the same matrix with the sun as a directional light.
 from __future__ import annotations
 
 import numpy as np
+import numpy.typing as npt
 
 from ..errors import LightError, ShapeError
 from .mesh import ShadowCaster
@@ -22,7 +23,7 @@ __all__ = ["planar_shadow_matrix", "paper_shadow_matrix", "project_to_ground", "
 GROUND_PLANE = np.array([0.0, 0.0, 1.0, 0.0])
 
 
-def planar_shadow_matrix(plane, light_h) -> np.ndarray:
+def planar_shadow_matrix(plane: npt.ArrayLike, light_h: npt.ArrayLike) -> np.ndarray:
     """The (4, 4) matrix that projects homogeneous points from the light onto a plane.
 
     Parameters
@@ -64,7 +65,7 @@ def planar_shadow_matrix(plane, light_h) -> np.ndarray:
     return M if pl > 0 else -M
 
 
-def paper_shadow_matrix(normal, point_on_plane, light_xyz) -> np.ndarray:
+def paper_shadow_matrix(normal: npt.ArrayLike, point_on_plane: npt.ArrayLike, light_xyz: npt.ArrayLike) -> np.ndarray:
     """Paper 002's printed shadow matrix for a point light, with its symbols read as ``E = N . C - N . L``
     and ``D = N . L`` (the only reading under which it maps onto the plane). Kept for comparison:
     equals :func:`planar_shadow_matrix` up to a scale factor (``-1``)."""
@@ -81,7 +82,7 @@ def paper_shadow_matrix(normal, point_on_plane, light_xyz) -> np.ndarray:
     return M
 
 
-def project_to_ground(caster: ShadowCaster, light_h) -> np.ndarray:
+def project_to_ground(caster: ShadowCaster, light_h: npt.ArrayLike) -> np.ndarray:
     """Every face of the mesh projected from the light onto the ground z = 0.
 
     Parameters
@@ -125,4 +126,5 @@ def project_to_ground(caster: ShadowCaster, light_h) -> np.ndarray:
     w = v @ M[3, :3] + M[3, 3]
     P = X / w[:, None]
     P[:, 2] = 0.0
-    return P[caster.faces]
+    tris: np.ndarray = P[caster.faces]
+    return tris

@@ -35,9 +35,12 @@ and the silhouette is the net boundary of that chain (a fold edge of a sheet can
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ..errors import LightError, UsageError
 from ._bvh import any_hit, moller_trumbore
@@ -46,6 +49,9 @@ from .mesh import ShadowCaster, plane_side
 __all__ = ["Silhouette", "silhouette", "METHODS", "as_light_h", "silhouette_loops"]
 
 METHODS = ("adjacency", "triangular", "vnv", "hsd", "delta_plus")
+
+#: a detector's result: directed edges (k, 2) intp, light-facing faces (m,) bool, operation counts
+_Detected = tuple[np.ndarray, np.ndarray, dict[str, Any]]
 
 
 @dataclass(frozen=True)
@@ -81,7 +87,7 @@ class Silhouette:
         return int(self.edges.shape[0])
 
 
-def as_light_h(light) -> np.ndarray:
+def as_light_h(light: object) -> np.ndarray:
     """Validate a light as a homogeneous ``(4,) float64`` (w = 1 point, w = 0 direction towards it).
 
     Accepts a ``(4,)`` array or any object with a ``.homogeneous`` attribute (``arshadow.lights.spec.Light``).
@@ -151,7 +157,7 @@ def _net_two_sided(caster: ShadowCaster, facing: np.ndarray) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------- detectors
-def _adjacency(caster: ShadowCaster, h: np.ndarray, **_):
+def _adjacency(caster: ShadowCaster, h: np.ndarray, **_: object) -> _Detected:
     facing = caster.facing(h)
     m = facing.shape[0]
     if caster.two_sided:
@@ -167,7 +173,7 @@ def _adjacency(caster: ShadowCaster, h: np.ndarray, **_):
     return e, facing, {"faces_tested": m, "edge_ops": int(ef0.size)}
 
 
-def _toggle(faces_or_edges_a, b, n_vertices):
+def _toggle(faces_or_edges_a: np.ndarray, b: np.ndarray, n_vertices: int) -> np.ndarray:
     """Vectorised TA toggle: directed edges (a -> b) cancel against their reverses; returns the net
     directed edges (with multiplicity)."""
     a = faces_or_edges_a
@@ -189,7 +195,7 @@ def _toggle(faces_or_edges_a, b, n_vertices):
     return np.ascontiguousarray(e, dtype=np.intp)
 
 
-def _triangular(caster: ShadowCaster, h: np.ndarray, **_):
+def _triangular(caster: ShadowCaster, h: np.ndarray, **_: object) -> _Detected:
     facing = caster.facing(h)
     f = caster.faces
     if caster.two_sided:
@@ -202,7 +208,7 @@ def _triangular(caster: ShadowCaster, h: np.ndarray, **_):
     return e, facing, {"faces_tested": int(f.shape[0]), "edge_ops": int(a.size)}
 
 
-def _vnv(caster: ShadowCaster, h: np.ndarray, **_):
+def _vnv(caster: ShadowCaster, h: np.ndarray, **_: object) -> _Detected:
     facing = caster.facing(h)
     inc_edge, inc_face, inc_sign = caster.edge_incidence
     ne = len(caster.edges)
@@ -217,7 +223,7 @@ def _vnv(caster: ShadowCaster, h: np.ndarray, **_):
     return e, facing, {"faces_tested": int(facing.size), "edge_ops": ne, "incidences_read": int(inc_edge.size)}
 
 
-def _hsd(caster: ShadowCaster, h: np.ndarray, **_):
+def _hsd(caster: ShadowCaster, h: np.ndarray, **_: object) -> _Detected:
     poly = caster.polygons
     pvis = plane_side(poly["planes"], h) > 0.0
     facing = pvis[poly["face_polygon"]]
@@ -238,7 +244,7 @@ def _hsd(caster: ShadowCaster, h: np.ndarray, **_):
     )
 
 
-def _delta_plus(caster: ShadowCaster, h: np.ndarray, eps: float = 1e-6, **_):
+def _delta_plus(caster: ShadowCaster, h: np.ndarray, eps: float = 1e-6, **_: object) -> _Detected:
     facing = caster.facing(h)
     ef = caster.edge_faces
     edges = caster.edges
@@ -305,7 +311,7 @@ def _delta_plus(caster: ShadowCaster, h: np.ndarray, eps: float = 1e-6, **_):
     return np.ascontiguousarray(e, dtype=np.intp), facing, stats
 
 
-_DETECTORS = {
+_DETECTORS: dict[str, Callable[..., _Detected]] = {
     "adjacency": _adjacency,
     "triangular": _triangular,
     "vnv": _vnv,
@@ -314,7 +320,7 @@ _DETECTORS = {
 }
 
 
-def silhouette(caster: ShadowCaster, light_h, method: str = "adjacency", **options) -> Silhouette:
+def silhouette(caster: ShadowCaster, light_h: object, method: str = "adjacency", **options: Any) -> Silhouette:
     """Detect the silhouette of ``caster`` for one light.
 
     Parameters
@@ -364,7 +370,7 @@ def silhouette(caster: ShadowCaster, light_h, method: str = "adjacency", **optio
     return Silhouette(edges=e, facing=facing, method=method, stats=stats, two_sided=caster.two_sided, light_h=h)
 
 
-def silhouette_loops(edges) -> tuple[list[np.ndarray], int]:
+def silhouette_loops(edges: npt.ArrayLike) -> tuple[list[np.ndarray], int]:
     """Split directed silhouette edges into closed loops.
 
     Walks unused out-edges from each vertex until it returns to its start. Vertices shared by several

@@ -30,6 +30,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import numpy.typing as npt
 
 from ._bvh import moller_trumbore
 from .mesh import plane_side
@@ -44,21 +45,26 @@ __all__ = [
 ]
 
 
-def face_planes(vertices, faces) -> np.ndarray:
+def face_planes(vertices: npt.ArrayLike, faces: npt.ArrayLike) -> np.ndarray:
     """``(m, 4) float64`` planes ``(n, d)`` of the triangles (unit normal by the right-hand rule)."""
     v = np.asarray(vertices, np.float64)
     f = np.asarray(faces, np.intp)
     n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
     n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
-    return np.c_[n, -np.einsum("ij,ij->i", n, v[f[:, 0]])]
+    planes: np.ndarray = np.c_[n, -np.einsum("ij,ij->i", n, v[f[:, 0]])]
+    return planes
 
 
-def _facing(vertices, faces, light_h, planes=None):
+def _facing(
+    vertices: npt.ArrayLike, faces: npt.ArrayLike, light_h: npt.ArrayLike, planes: np.ndarray | None = None
+) -> np.ndarray:
     planes = face_planes(vertices, faces) if planes is None else planes
     return plane_side(planes, np.asarray(light_h, np.float64)) > 0.0
 
 
-def ta_reference(vertices, faces, light_h, planes=None):
+def ta_reference(
+    vertices: npt.ArrayLike, faces: npt.ArrayLike, light_h: npt.ArrayLike, planes: np.ndarray | None = None
+) -> tuple[np.ndarray, dict[str, int]]:
     """Triangular Algorithm with the linear array search (paper 000). See the module docstring.
 
     Returns
@@ -91,7 +97,7 @@ def ta_reference(vertices, faces, light_h, planes=None):
             writes += 1
             max_len = max(max_len, len(S))
     counts = {
-        "face_tests": int(len(faces)),
+        "face_tests": int(np.shape(faces)[0]),
         "compares": compares,
         "reads": compares + deletes,
         "writes": writes,
@@ -100,8 +106,8 @@ def ta_reference(vertices, faces, light_h, planes=None):
     return np.asarray(S, np.intp).reshape(-1, 2), counts
 
 
-def _unique_edges(faces):
-    seen = {}
+def _unique_edges(faces: npt.ArrayLike) -> list[tuple[int, int]]:
+    seen: dict[tuple[int, int], tuple[int, int]] = {}
     for f in np.asarray(faces).tolist():
         for q in range(3):
             a, b = f[q], f[(q + 1) % 3]
@@ -110,7 +116,9 @@ def _unique_edges(faces):
     return list(seen.values())
 
 
-def vnv_reference(vertices, faces, light_h, planes=None):
+def vnv_reference(
+    vertices: npt.ArrayLike, faces: npt.ArrayLike, light_h: npt.ArrayLike, planes: np.ndarray | None = None
+) -> tuple[np.ndarray, dict[str, int]]:
     """Visible / non-visible: the edge x face loop (paper 000). See the module docstring.
 
     Returns
@@ -127,7 +135,7 @@ def vnv_reference(vertices, faces, light_h, planes=None):
     pairs = member = 0
     for a, b in edges:
         counter = 0
-        vis_face = None
+        vis_face: list[int] | None = None
         for f, vis in zip(F, facing):
             pairs += 1
             if vis:
@@ -137,12 +145,19 @@ def vnv_reference(vertices, faces, light_h, planes=None):
                     vis_face = f
         if counter == 1:
             # orient as the visible face traverses it
+            assert vis_face is not None  # counter == 1: the one visible face holding the edge
             i = vis_face.index(a)
             out.append((a, b) if vis_face[(i + 1) % 3] == b else (b, a))
     return np.asarray(out, np.intp).reshape(-1, 2), {"pairs": pairs, "membership_tests": member, "writes": len(out)}
 
 
-def delta_plus_reference(vertices, faces, light_h, eps: float = 1e-6, planes=None):
+def delta_plus_reference(
+    vertices: npt.ArrayLike,
+    faces: npt.ArrayLike,
+    light_h: npt.ArrayLike,
+    eps: float = 1e-6,
+    planes: np.ndarray | None = None,
+) -> tuple[np.ndarray, dict[str, int]]:
     """Delta+ as written in paper 003: every candidate ray against all light-facing faces, first hit stops.
 
     Returns

@@ -15,6 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from ..errors import LightError, UsageError
 from .mesh import ShadowCaster
@@ -91,7 +92,7 @@ class ShadowVolume:
         return self.triangles[: self.n_side]
 
 
-def _extrude(v: np.ndarray, h: np.ndarray, truncate_z):
+def _extrude(v: np.ndarray, h: np.ndarray, truncate_z: float | None) -> tuple[np.ndarray, bool]:
     """Extrude points ``v (k, 3)`` away from the light: ``(k, 4)`` homogeneous, and whether truncated."""
     k = v.shape[0]
     out = np.empty((k, 4))
@@ -136,7 +137,7 @@ def _same_light(a: np.ndarray, b: np.ndarray) -> bool:
 
 
 def shadow_volume(
-    caster: ShadowCaster, light_h, sil: Silhouette, *, caps: bool = True, truncate_z=None
+    caster: ShadowCaster, light_h: npt.ArrayLike, sil: Silhouette, *, caps: bool = True, truncate_z: float | None = None
 ) -> ShadowVolume:
     """Build the shadow volume of ``caster`` for one light from its silhouette.
 
@@ -193,7 +194,17 @@ def shadow_volume(
     return _volume(caster, h, sil.edges, lit, facing, caps, truncate_z, bound)
 
 
-def _volume(caster, h, edges, lit, facing, caps, truncate_z, bound, far_faces=None):
+def _volume(
+    caster: ShadowCaster,
+    h: np.ndarray,
+    edges: np.ndarray,
+    lit: np.ndarray,
+    facing: np.ndarray | None,
+    caps: bool,
+    truncate_z: float | None,
+    bound: int,
+    far_faces: np.ndarray | None = None,
+) -> ShadowVolume:
     """One closed volume: sides on the directed ``edges (k, 2)``, near cap ``lit``, far cap."""
     n = len(caster.vertices)
     if caps:
@@ -203,6 +214,7 @@ def _volume(caster, h, edges, lit, facing, caps, truncate_z, bound, far_faces=No
         elif caster.two_sided:
             far = lit[:, ::-1]
         else:
+            assert facing is not None  # only the batched volumes, which give far_faces, pass None
             far = caster.faces[~facing]
     else:
         near = far = np.empty((0, 3), np.intp)
@@ -254,7 +266,9 @@ def _volume(caster, h, edges, lit, facing, caps, truncate_z, bound, far_faces=No
     )
 
 
-def _batched_volume(caster, h, lit, bound, truncate_z) -> ShadowVolume:
+def _batched_volume(
+    caster: ShadowCaster, h: np.ndarray, lit: np.ndarray, bound: int, truncate_z: float | None
+) -> ShadowVolume:
     """The volume as closed z-fail sub-volumes of :data:`BATCH_LAYERS` light-facing faces each.
 
     A batch S of light-facing faces bounds the closed volume S (near cap) + S reversed and extruded (far
@@ -300,7 +314,9 @@ def _batched_volume(caster, h, lit, bound, truncate_z) -> ShadowVolume:
     )
 
 
-def layer_bound(vertices, edges, light_h, lit_faces=None) -> int:
+def layer_bound(
+    vertices: npt.ArrayLike, edges: npt.ArrayLike, light_h: npt.ArrayLike, lit_faces: np.ndarray | None = None
+) -> int:
     """Upper bound of the depth complexity of a shadow volume: the largest number of light-facing faces
     any ray from the light crosses (so the largest stencil count of its volume).
 
@@ -363,7 +379,7 @@ def layer_bound(vertices, edges, light_h, lit_faces=None) -> int:
     pos = np.full(len(v), -1, np.intp)
     pos[used] = np.arange(len(used))
     ea, eb = pos[e[:, 0]], pos[e[:, 1]]
-    best = None
+    best: int | None = None
     for c in (x, y):
         lo, hi = np.minimum(c[ea], c[eb]), np.maximum(c[ea], c[eb])
         # closed spans: at a tie the openings come first (conservative)
@@ -373,10 +389,13 @@ def layer_bound(vertices, edges, light_h, lit_faces=None) -> int:
         step = np.where(kind[order] == 0, 1, -1)
         stab = int(np.cumsum(step).max())
         best = stab if best is None else min(best, stab)
+    assert best is not None  # the loop ran (twice)
     return int(min(best // 2, trivial))
 
 
-def near_plane_radius(znear: float, width: int, height: int, fx: float, fy: float, cx=None, cy=None) -> float:
+def near_plane_radius(
+    znear: float, width: int, height: int, fx: float, fy: float, cx: float | None = None, cy: float | None = None
+) -> float:
     """Distance from the eye to the farthest corner of the near-plane rectangle of a pinhole camera.
 
     This is the ``near`` to pass to :func:`camera_may_be_in_shadow` (``znear`` alone is too small: the
@@ -394,7 +413,9 @@ def near_plane_radius(znear: float, width: int, height: int, fx: float, fy: floa
     return float(znear * np.sqrt(1.0 + du * du + dv * dv))
 
 
-def camera_may_be_in_shadow(caster: ShadowCaster, light_h, eye_world, near: float) -> bool:
+def camera_may_be_in_shadow(
+    caster: ShadowCaster, light_h: npt.ArrayLike, eye_world: npt.ArrayLike, near: float
+) -> bool:
     """Conservative test: could the camera's near-plane rectangle touch this caster's shadow volume?
 
     ``False`` proves that every point within ``near`` of the eye is outside the (infinite) shadow

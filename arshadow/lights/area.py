@@ -12,6 +12,7 @@ import dataclasses
 import math
 
 import numpy as np
+import numpy.typing as npt
 
 from ..errors import LightError
 from .spec import Light
@@ -31,7 +32,7 @@ def _orthonormal_frame(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return u, v
 
 
-def stratified_disc(n: int, seed=0) -> np.ndarray:
+def stratified_disc(n: int, seed: int = 0) -> np.ndarray:
     """``(n, 2)`` float64 stratified points in the unit disc, each standing for an equal area ``pi/n``.
 
     Sample ``k`` lies in its own equal-area annulus ``[sqrt(k/n), sqrt((k+1)/n))`` (jittered radius) at the
@@ -57,7 +58,7 @@ def stratified_disc(n: int, seed=0) -> np.ndarray:
     return np.stack([r * np.cos(theta), r * np.sin(theta)], axis=1)
 
 
-def sample_area_light(light: Light, n: int, seed=0, towards=(0.0, 0.0, 0.0)) -> list[Light]:
+def sample_area_light(light: Light, n: int, seed: int = 0, towards: npt.ArrayLike = (0.0, 0.0, 0.0)) -> list[Light]:
     """Replace an area light by ``n`` stratified hard lights whose weights sum to ``light.weight``.
 
     * Point light of sphere radius ``r``: samples on the disc of radius ``r`` through the light's centre,

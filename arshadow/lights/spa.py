@@ -8,8 +8,10 @@ datetimes and places into the arguments and the result into :class:`arshadow.lig
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
+import numpy.typing as npt
 
 from . import _spa_tables as T
 
@@ -23,15 +25,19 @@ _SPA_SUN_RADIUS_DEG = 0.26667
 
 def _periodic(table: np.ndarray, jme: np.ndarray) -> np.ndarray:
     # sum_i A_i cos(B_i + C_i * JME)  (SPA eq. 9)
-    return np.sum(table[:, 0] * np.cos(table[:, 1] + table[:, 2] * jme[..., None]), axis=-1)
+    s: np.ndarray = np.sum(table[:, 0] * np.cos(table[:, 1] + table[:, 2] * jme[..., None]), axis=-1)
+    return s
 
 
-def _series(tables, jme):
+def _series(tables: Sequence[np.ndarray], jme: np.ndarray) -> np.ndarray:
     # (L0 + L1 JME + L2 JME^2 + ...) / 1e8  (SPA eq. 10-11)
-    return sum(_periodic(t, jme) * jme**i for i, t in enumerate(tables)) / 1e8
+    s: np.ndarray = sum(_periodic(t, jme) * jme**i for i, t in enumerate(tables)) / 1e8
+    return s
 
 
-def spa(jd, delta_t, lat, lon, elev, pressure, temp) -> dict:
+def spa(
+    jd: npt.ArrayLike, delta_t: np.ndarray | float, lat: float, lon: float, elev: float, pressure: float, temp: float
+) -> dict[str, np.ndarray]:
     """NREL SPA (report section 3) for Julian days ``jd`` (UT). Returns a dict of arrays (degrees)."""
     jd = np.asarray(jd, dtype=np.float64)
     jde = jd + delta_t / 86400.0  # 3.1.2

@@ -27,14 +27,17 @@ from __future__ import annotations
 import logging
 import math
 import re
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from datetime import datetime
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ..errors import LightError
-from .sun import sun_light_direction, sun_position
-from .suntrack import SunTrack
+from .sun import SunPosition, sun_light_direction, sun_position
+from .suntrack import SunTrack, TrackFrame
 
 __all__ = [
     "Light",
@@ -54,7 +57,7 @@ SUN_ANGULAR_RADIUS_DEG = 0.266
 SUN_SEMI_DIAMETER_1AU_DEG = 959.63 / 3600.0
 
 
-def _ro(a) -> np.ndarray:
+def _ro(a: npt.ArrayLike) -> np.ndarray:
     a = np.array(a, dtype=np.float64)  # always a copy: never alias the caller's array
     a.setflags(write=False)
     return a
@@ -94,9 +97,9 @@ class Light:
     radius: float = 0.0
     label: str = ""
     above_horizon: bool = True
-    sun: object = field(default=None, repr=False)
+    sun: SunPosition | None = field(default=None, repr=False)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if self.kind not in ("point", "directional"):
             raise LightError(f"light kind must be 'point' or 'directional', got {self.kind!r}")
         v = np.asarray(self.vector, dtype=np.float64).ravel()
@@ -125,7 +128,7 @@ class Light:
         object.__setattr__(self, "above_horizon", bool(self.above_horizon))
 
     # value semantics despite the ndarray field
-    def __eq__(self, other):
+    def __eq__(self, other: object) -> bool:
         if not isinstance(other, Light):
             return NotImplemented
         return (
@@ -138,7 +141,7 @@ class Light:
             and self.sun == other.sun
         )
 
-    def __hash__(self):
+    def __hash__(self) -> int:
         return hash((self.kind, tuple(self.vector.tolist()), self.weight, self.radius, self.label, self.above_horizon))
 
     @property
@@ -255,7 +258,7 @@ def _on_off(text: str, what: str, spec: str) -> bool:
     raise LightError(f"light {spec!r}: {what} must be on or off, got {text!r}")
 
 
-def parse_light(spec: str, default_time=None) -> Light:
+def parse_light(spec: str, default_time: datetime | str | None = None) -> Light:
     """Parse a light specification (CONVENTIONS.md) into a :class:`Light`.
 
     Parameters
@@ -337,7 +340,9 @@ def parse_light(spec: str, default_time=None) -> Light:
 _SUN_KEYS = ("elevation", "pressure", "temperature", "delta_t", "model", "refraction", "radius")
 
 
-def _sun_params(spec, pos, kw, default_time, need_time=True) -> dict:
+def _sun_params(
+    spec: str, pos: list[str], kw: dict[str, str], default_time: datetime | str | None, need_time: bool = True
+) -> dict[str, Any]:
     """Validated parameters of a ``sun:`` spec (LightError naming the spec on bad input)."""
     _check_keys(kw, _SUN_KEYS, spec)
     if not 2 <= len(pos) <= 4:
@@ -389,7 +394,7 @@ def _sun_params(spec, pos, kw, default_time, need_time=True) -> dict:
     }
 
 
-def sun_radius_deg(pos_sun, radius_deg: float | None = None) -> float:
+def sun_radius_deg(pos_sun: SunPosition | None, radius_deg: float | None = None) -> float:
     """Angular radius (degrees) to give a sun light: ``radius_deg`` when given (a spec's ``radius=``),
     else the sun's true angular radius for the date of ``pos_sun`` (SPA: 0.26656 deg / R[AU]; it varies
     0.262..0.271 over the year), else (paper models: no distance) the mean 0.266 deg."""
@@ -399,7 +404,9 @@ def sun_radius_deg(pos_sun, radius_deg: float | None = None) -> float:
     return SUN_SEMI_DIAMETER_1AU_DEG / r_au if r_au else SUN_ANGULAR_RADIUS_DEG
 
 
-def _parse_sun(spec, pos, kw, weight, default_time) -> Light:
+def _parse_sun(
+    spec: str, pos: list[str], kw: dict[str, str], weight: float, default_time: datetime | str | None
+) -> Light:
     p = _sun_params(spec, pos, kw, default_time)
     try:
         pos_sun = sun_position(p["when"], p["lat"], p["lon"], **p["kwargs"])
@@ -478,11 +485,19 @@ class SunLightTrack(SunTrack):
         Angular radius of the sun disc (None: the sun's true radius for each frame's date).
     """
 
-    def __init__(self, *args, start=None, weight=1.0, label="sun", radius_deg=None, **kwargs):
+    def __init__(
+        self,
+        *args: Any,
+        start: datetime | None = None,
+        weight: float = 1.0,
+        label: str = "sun",
+        radius_deg: float | None = None,
+        **kwargs: Any,
+    ) -> None:
         super().__init__(*args, **kwargs)
         self.start, self.weight, self.label, self.radius_deg = start, float(weight), label, radius_deg
 
-    def light(self, frame) -> Light:
+    def light(self, frame: TrackFrame) -> Light:
         """The :class:`Light` to render for a :class:`arshadow.lights.suntrack.TrackFrame`: direction
         ``frame.world_used`` (the one the cached silhouette belongs to), this track's weight and label, and
         angular radius ``radius_deg`` or, when None, the sun's true radius for the frame's date."""
@@ -497,12 +512,12 @@ class SunLightTrack(SunTrack):
         )
 
 
-def lights_homogeneous(lights) -> np.ndarray:
+def lights_homogeneous(lights: Iterable[Light]) -> np.ndarray:
     """``(k, 4)`` float64: the homogeneous vectors of ``lights`` (all of them, in order)."""
     return np.array([li.homogeneous for li in lights], dtype=np.float64).reshape(-1, 4)
 
 
-def total_weight(lights) -> float:
+def total_weight(lights: Iterable[Light]) -> float:
     """Sum of the weights of the lights that give light (a sun below the horizon gives none)."""
     return float(sum(li.weight for li in lights if li.above_horizon))
 

@@ -37,10 +37,13 @@ axis has compass bearing ``north_deg`` (degrees clockwise from true north; 0: +y
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from datetime import UTC, datetime, timedelta
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ..errors import LightError
 from .spa import spa
@@ -77,7 +80,8 @@ def standard_pressure_mbar(elevation_m: float) -> float:
     >>> round(standard_pressure_mbar(0.0), 2), round(standard_pressure_mbar(1830.14), 1)
     (1013.25, 811.9)
     """
-    return 1013.25 * (1.0 - 2.25577e-5 * float(elevation_m)) ** 5.25588
+    p: float = 1013.25 * (1.0 - 2.25577e-5 * float(elevation_m)) ** 5.25588
+    return p
 
 
 def delta_t_estimate(year: float) -> float:
@@ -115,7 +119,7 @@ def delta_t_estimate(year: float) -> float:
     return -20 + 32 * u * u
 
 
-def as_utc(when) -> datetime:
+def as_utc(when: object) -> datetime:
     if not isinstance(when, datetime):
         raise LightError(f"time must be a datetime with a UTC offset, got {type(when).__name__}")
     if when.tzinfo is None or when.utcoffset() is None:
@@ -126,7 +130,7 @@ def as_utc(when) -> datetime:
     return when.astimezone(UTC)
 
 
-def check_place(lat, lon, elevation):
+def check_place(lat: float, lon: float, elevation: float) -> tuple[float, float, float]:
     lat, lon, elevation = float(lat), float(lon), float(elevation)
     if not math.isfinite(lat) or not -90.0 <= lat <= 90.0:
         raise LightError(f"latitude {lat:g} is outside [-90, 90]")
@@ -137,22 +141,23 @@ def check_place(lat, lon, elevation):
     return lat, lon, elevation
 
 
-def _enu(zenith_deg, azimuth_deg) -> np.ndarray:
+def _enu(zenith_deg: npt.ArrayLike, azimuth_deg: npt.ArrayLike) -> np.ndarray:
     z, a = np.radians(zenith_deg), np.radians(azimuth_deg)
     s = np.sin(z)
     return np.stack([s * np.sin(a), s * np.cos(a), np.cos(z)], axis=-1)
 
 
-def angle_between_deg(a, b) -> np.ndarray:
+def angle_between_deg(a: npt.ArrayLike, b: npt.ArrayLike) -> np.ndarray:
     """Angle in degrees between unit vectors ``a`` and ``b`` (``(..., 3)``), accurate for tiny angles."""
     a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
-    return np.degrees(2.0 * np.arctan2(np.linalg.norm(a - b, axis=-1), np.linalg.norm(a + b, axis=-1)))
+    deg: np.ndarray = np.degrees(2.0 * np.arctan2(np.linalg.norm(a - b, axis=-1), np.linalg.norm(a + b, axis=-1)))
+    return deg
 
 
 # ------------------------------------------------------------------------------------------ paper 004
 
 
-def _paper(when_utc: list[datetime], lat, lon, printed: bool):
+def _paper(when_utc: list[datetime], lat: float, lon: float, printed: bool) -> dict[str, np.ndarray]:
     """Paper 004 eq. (2)-(5) in UTC (SM = 0), west-positive longitude ``L = -lon``."""
     j = np.array([w.timetuple().tm_yday for w in when_utc], dtype=np.float64)  # day of the year, 1..366
     ts = np.array([w.hour + w.minute / 60 + (w.second + w.microsecond / 1e6) / 3600 for w in when_utc])
@@ -227,9 +232,9 @@ class SunPosition:
     model: str = "spa"
     declination_deg: float = float("nan")
     hour_angle_deg: float = float("nan")
-    extra: dict = field(default_factory=dict, repr=False)
+    extra: dict[str, Any] = field(default_factory=dict, repr=False)
 
-    def __eq__(self, other):
+    def __eq__(self, other: object) -> bool:
         if not isinstance(other, SunPosition):
             return NotImplemented
         return (
@@ -252,7 +257,7 @@ class SunPosition:
             other.model,
         )
 
-    def __hash__(self):
+    def __hash__(self) -> int:
         return hash((self.zenith_deg, self.azimuth_deg, self.when, self.model))
 
     @property
@@ -272,7 +277,7 @@ class SunPosition:
 
 
 def sun_positions(
-    times,
+    times: Iterable[datetime],
     lat: float,
     lon: float,
     elevation: float = 0.0,
@@ -301,10 +306,10 @@ def sun_positions(
         if delta_t is None:
             dt = np.array([delta_t_estimate(u.year + (u.timetuple().tm_yday - 0.5) / 365.25) for u in utc])
         else:
-            dt = float(delta_t)
-            if not (math.isfinite(dt) and abs(dt) < 1e5):
+            dt_s = float(delta_t)
+            if not (math.isfinite(dt_s) and abs(dt_s) < 1e5):
                 raise LightError(f"delta_t {delta_t!r} s is not a plausible TT - UT")
-            dt = np.full(len(utc), dt)
+            dt = np.full(len(utc), dt_s)
         r = spa(jd, dt, lat, lon, elevation, pressure, temp)
         r_au = r["earth_sun_distance_au"]
     else:
@@ -394,7 +399,7 @@ def sun_position(
     return sun_positions([when], lat, lon, elevation, model, pressure_mbar, temperature_c, delta_t)[0]
 
 
-def enu_to_world(enu, north_deg: float = 0.0) -> np.ndarray:
+def enu_to_world(enu: npt.ArrayLike, north_deg: float = 0.0) -> np.ndarray:
     """Rotate an east-north-up vector into the world frame whose +y axis has compass bearing ``north_deg``.
 
     ``north_deg`` is the bearing of world +y in degrees clockwise from true north (CONVENTIONS.md); world
@@ -425,15 +430,16 @@ def enu_to_world(enu, north_deg: float = 0.0) -> np.ndarray:
         raise LightError(f"north bearing {north_deg!r} is not finite")
     c, s = math.cos(math.radians(n)), math.sin(math.radians(n))
     rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    return v @ rot.T
+    out: np.ndarray = v @ rot.T
+    return out
 
 
-def world_to_enu(world, north_deg: float = 0.0) -> np.ndarray:
+def world_to_enu(world: npt.ArrayLike, north_deg: float = 0.0) -> np.ndarray:
     """Inverse of :func:`enu_to_world`."""
     return enu_to_world(world, -float(north_deg))
 
 
-def sun_light_direction(pos: SunPosition, north_deg: float = 0.0, refraction: bool = False):
+def sun_light_direction(pos: SunPosition, north_deg: float = 0.0, refraction: bool = False) -> tuple[np.ndarray, bool]:
     """The world-frame unit direction towards the sun and whether it is above the horizon.
 
     ``refraction=False`` (default): the geometric direction and ``pos.above_horizon``, matching
@@ -448,7 +454,7 @@ def sun_light_direction(pos: SunPosition, north_deg: float = 0.0, refraction: bo
     return enu_to_world(enu, north_deg), bool(above)
 
 
-def pole_shadow(direction_world, height: float = 1.0, north_deg: float = 0.0):
+def pole_shadow(direction_world: npt.ArrayLike, height: float = 1.0, north_deg: float = 0.0) -> dict[str, Any] | None:
     """Shadow of a vertical pole of ``height`` standing at the world origin, cast on the ground z = 0.
 
     Parameters
@@ -481,7 +487,7 @@ def pole_shadow(direction_world, height: float = 1.0, north_deg: float = 0.0):
     }
 
 
-def __getattr__(name: str):
+def __getattr__(name: str) -> object:
     """``SunTrack``, ``TrackFrame`` and ``frame_times`` moved to :mod:`arshadow.lights.suntrack`; still
     importable from here (earlier releases and user code import them from this module)."""
     if name in ("SunTrack", "TrackFrame", "frame_times"):

@@ -5,8 +5,10 @@ for one instant is :mod:`arshadow.lights.sun`."""
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from datetime import datetime, timedelta
+from typing import Any
 
 import numpy as np
 
@@ -75,8 +77,16 @@ class SunTrack:
     """
 
     def __init__(
-        self, lat, lon, elevation=0.0, north_deg=0.0, recompute_deg=0.1, model="spa", refraction=False, **kwargs
-    ):
+        self,
+        lat: float,
+        lon: float,
+        elevation: float = 0.0,
+        north_deg: float = 0.0,
+        recompute_deg: float = 0.1,
+        model: str = "spa",
+        refraction: bool = False,
+        **kwargs: Any,
+    ) -> None:
         self.lat, self.lon, self.elevation = check_place(lat, lon, elevation)
         self.north_deg = float(north_deg)
         if not math.isfinite(self.north_deg):
@@ -85,13 +95,13 @@ class SunTrack:
         if not (math.isfinite(self.recompute_deg) and self.recompute_deg >= 0.0):
             raise LightError(f"recompute angle must be >= 0 degrees, got {recompute_deg!r}")
         self.model, self.refraction, self.kwargs = model, bool(refraction), kwargs
-        self._last = None  # (world_used, above_horizon) of the last recompute
+        self._last: tuple[np.ndarray, bool] | None = None  # (world_used, above_horizon) of the last recompute
 
     def reset(self) -> None:
         """Forget the last recompute (the next frame recomputes)."""
         self._last = None
 
-    def state(self):
+    def state(self) -> tuple[list[float], bool] | None:
         """The history the next frame depends on (the last recompute's direction and horizon side), as
         plain picklable values: ``None`` or ``((3,) list of float, bool)``. :meth:`restore` it to resume a
         video (or start a chunk of it) exactly where the recompute schedule was."""
@@ -99,7 +109,7 @@ class SunTrack:
             return None
         return ([float(v) for v in self._last[0]], bool(self._last[1]))
 
-    def restore(self, state) -> None:
+    def restore(self, state: tuple[Sequence[float], bool] | None) -> None:
         """Set the history saved by :meth:`state` (None: as :meth:`reset`)."""
         if state is None:
             self._last = None
@@ -108,7 +118,7 @@ class SunTrack:
         world.setflags(write=False)
         self._last = (world, bool(state[1]))
 
-    def track(self, times) -> list[TrackFrame]:
+    def track(self, times: Iterable[datetime]) -> list[TrackFrame]:
         """Sun direction for each instant in ``times`` (aware datetimes, in frame order)."""
         positions = sun_positions(times, self.lat, self.lon, self.elevation, self.model, **self.kwargs)
         out = []
@@ -121,11 +131,12 @@ class SunTrack:
                 recompute = float(angle_between_deg(world, self._last[0])) > self.recompute_deg
             if recompute:
                 self._last = (world, above)
+            assert self._last is not None  # set above when it was None
             used = self._last[0]
             out.append(TrackFrame(w, p, world, used, above, recompute, float(angle_between_deg(world, used))))
         return out
 
-    def update(self, when) -> TrackFrame:
+    def update(self, when: datetime) -> TrackFrame:
         """One frame (streaming use)."""
         return self.track([when])[0]
 
