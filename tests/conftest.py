@@ -153,6 +153,9 @@ class Tolerances:
     # video chunks (issue 18): a chunk's exposure smoothing (a one-pole filter, 0.82 per frame) starts from
     # its 50-frame primer, not from the whole history: 5e-5 of the first difference is left (measured 1.4e-6)
     chunk_exposure_gain_rel: float = 1e-5
+    # shading (issue 28): corner normals, sky visibility, materials, camera effects
+    normal_flat_deg: float = 1e-6  # a flat face's corner normals vs its face normal (exact up to rounding)
+    normal_sphere_deg: float = 0.5  # icosphere (1280 faces) corner normals vs the radial direction (0.30 measured)
 
 
 TOL = Tolerances()

@@ -28,6 +28,7 @@ import numpy as np
 
 from ..compose.composite import srgb_to_linear
 from ..errors import ShapeError, UsageError
+from ..shading.normals import crease_normals
 
 __all__ = [
     "DEFAULT_COLOR",
@@ -72,24 +73,6 @@ def program(ctx, vert: str, frag: str):
     return cache[key]
 
 
-def _crease_normals(vertices: np.ndarray, faces: np.ndarray, crease_deg: float) -> tuple[np.ndarray, np.ndarray]:
-    """Per-corner normals ``(m, 3, 3)`` float64 and ``(m, 3)`` bool "flat": the area-weighted vertex normal
-    where it is within ``crease_deg`` of the face normal, else the face normal (flat edges stay sharp,
-    curved parts smooth)."""
-    tri = vertices[faces]
-    raw = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])  # |raw| = 2 area
-    fn = raw / np.maximum(np.linalg.norm(raw, axis=1, keepdims=True), 1e-300)
-    vn = np.zeros_like(vertices)
-    for k in range(3):
-        np.add.at(vn, faces[:, k], raw)
-    vn /= np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-300)
-    corner = vn[faces]  # (m, 3, 3)
-    cos = np.einsum("mkj,mj->mk", corner, fn)
-    flat = cos < math.cos(math.radians(crease_deg))
-    corner = np.where(flat[..., None], fn[:, None, :], corner)
-    return corner, flat
-
-
 class CasterBuffers:
     """GPU copies of one caster: the occluder (unwelded corners: pos4, normal3, albedo3) and the welded
     positions (for the planar shadow). Built once per caster."""
@@ -110,10 +93,11 @@ class CasterBuffers:
                 alb = np.broadcast_to(srgb_to_linear(np.asarray(DEFAULT_COLOR)), (m, 3, 3))
             else:
                 alb = srgb_to_linear(np.asarray(cols, np.float64)[:, :3])[f]
-        nrm, flat = _crease_normals(v, f, crease_deg)
-        # lighting pass: one vertex per distinct (vertex, normal) -- smooth corners share the vertex
-        # normal, flat (crease) corners are per face -- drawn indexed so the vertex cache works
-        key = np.stack([f.ravel(), np.where(flat, np.repeat(np.arange(m), 3).reshape(m, 3), -1).ravel()], 1)
+        nrm = crease_normals(v, f, crease_deg)
+        # lighting pass: one vertex per distinct (vertex, normal) -- smooth corners share their vertex's
+        # normal, corners at a crease have their side's own -- drawn indexed so the vertex cache works
+        nrm32 = np.ascontiguousarray(nrm.reshape(-1, 3).astype(np.float32))
+        key = np.concatenate([f.reshape(-1, 1).astype(np.int64), nrm32.view(np.int32).astype(np.int64)], axis=1)
         _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
         corner_v = f.ravel()[first]
         data = np.empty((len(first), 10), dtype=np.float32)
