@@ -62,7 +62,7 @@ def crease_normals(vertices: np.ndarray, faces: np.ndarray, crease_deg: float = 
 
     >>> v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]])
     >>> crease_normals(v, np.array([[0, 1, 2], [0, 3, 1]]))[:, 0].round(6).tolist()
-    [[0.0, 0.0, 1.0], [0.0, -1.0, 0.0]]
+    [[0.0, 0.0, 1.0], [0.0, 1.0, 0.0]]
     """
     v = np.asarray(vertices, np.float64)
     f = np.asarray(faces, np.intp)
