@@ -81,8 +81,9 @@ class RenderLayers:
     ----------
     rgba : (h, w, 4) float32, C-contiguous
         rgb = shaded occluder (linear, premultiplied by a), a = occluder coverage.
-    mask_ground : (h, w, 2) float32, C-contiguous
-        Channel 0 = blocked light weight in [0, 1] (the shadow mask), channel 1 = ground coverage.
+    mask_ground : (h, w, 2|3) float32, C-contiguous
+        Channel 0 = blocked light weight in [0, 1] (the shadow mask), channel 1 = ground coverage; channel 2
+        (with sky occlusion only) = the share of the sky the object hides from the visible ground.
     """
 
     rgba: np.ndarray
@@ -127,6 +128,9 @@ class RenderResult:
     timings_ms: dict = field(default_factory=dict)
     premultiplied: bool = True
     layers: RenderLayers | None = None
+    #: (h, w) float32 in [0, 1] or None: the share of the sky the object hides from the visible ground
+    #: (coverage-weighted like ``mask``; :mod:`arshadow.shading.sky`), None without sky occlusion
+    sky_occlusion: np.ndarray | None = None
 
 
 @runtime_checkable

@@ -161,6 +161,9 @@ class Tolerances:
     sky_object_rays_abs: float = 0.01  # ray-cast self-occlusion (1024 directions) vs Lambert's form factor
     psf_sigma_px: float = 0.15  # marker-edge blur vs the synthetic photo's linear-light Gaussian (0..3 px)
     noise_sigma_rel: float = 0.1  # measured noise sigma vs the added one (with quantisation), relative
+    sky_projection_abs: float = 0.02  # rendered sky-occlusion channel vs the map sampled at the pixel's ground point
+    texture_median_abs: float = 0.01  # rendered textured quad vs cv2.warpPerspective of its texture (linear)
+    texture_p99_abs: float = 0.05
 
 
 TOL = Tolerances()

@@ -72,6 +72,7 @@ from .resources import (
     screen_box,
     translation,
 )
+from .sky import GroundSkyPass
 from .targets import FrameTargets
 
 __all__ = ["LightPass", "RenderResult", "ShadowRenderer"]
@@ -105,6 +106,7 @@ class _Frame:
     shininess: float
     t0: float
     t1: float = 0.0
+    sky: Any = None  # arshadow.shading.sky.SkyShading or None
 
     @property
     def size(self) -> tuple[int, int]:
@@ -189,6 +191,7 @@ class ShadowRenderer:
             ctx, (self.prog_occ_base, self.prog_occ_light, self.prog_volume), self.max_cached_casters
         )
         self._targets = FrameTargets(ctx, self.gl, samples, self.supersample)
+        self._sky_ground = None  # GroundSkyPass of the last ground occlusion map drawn
         self._released = False
         #: render_gpu() keeps the layers on the GPU (arshadow.gl.compose composites them there)
         self.gpu_layers = True
@@ -215,6 +218,8 @@ class ShadowRenderer:
         self._volumes.release()
         self._ground.release()
         self._fs_vao.release()
+        if self._sky_ground is not None:
+            self._sky_ground.release()
         self._released = True
 
     @property
@@ -255,6 +260,7 @@ class ShadowRenderer:
         specular=0.25,
         shininess=32.0,
         occluder_color=None,
+        sky=None,
     ) -> RenderResult:
         """Render one frame (or one canvas sub-rectangle of it) and read its layers back.
 
@@ -279,6 +285,9 @@ class ShadowRenderer:
             Phong coefficients (paper 002): ``I = K_a I_a + sum_l I_l (K_d (N.L) + K_s (N.H)^n)``.
         occluder_color : (3,) sRGB in [0, 1], optional
             Overrides the mesh's own colours (mesh colours and this are sRGB-encoded; output is linear).
+        sky : arshadow.shading.sky.SkyShading, optional
+            Sky occlusion: the ground occlusion map drawn into the mask's sky channel
+            (``RenderResult.sky_occlusion``), the object's own sky visibility and ground bounce.
 
         Returns
         -------
@@ -299,6 +308,7 @@ class ShadowRenderer:
             specular,
             shininess,
             occluder_color,
+            sky,
         )
         src = self._resolve_canvas(f)
         self.ctx.finish()
@@ -321,6 +331,7 @@ class ShadowRenderer:
         specular=0.25,
         shininess=32.0,
         occluder_color=None,
+        sky=None,
     ) -> GpuLayers:
         """As :meth:`render`, but the layers stay on the GPU: the (resolved) attachments are copied into two
         textures (no ``ctx.finish()``, no readback); :mod:`arshadow.gl.compose` samples them.
@@ -344,6 +355,7 @@ class ShadowRenderer:
             specular,
             shininess,
             occluder_color,
+            sky,
         )
         tt = self._targets.texture(f.width, f.height)
         if self.supersample == 1:
@@ -383,6 +395,7 @@ class ShadowRenderer:
         specular,
         shininess,
         occluder_color,
+        sky=None,
     ) -> _Frame:
         """Every pass of one frame into the main target; GL state reset at the end."""
         f = self._begin(
@@ -399,10 +412,13 @@ class ShadowRenderer:
             specular,
             shininess,
             occluder_color,
+            sky,
         )
         self._clear_pass(f)
         self._occluder_base_pass(f)
         self._ground_pass(f)
+        if f.sky is not None and f.sky.ground is not None:
+            self._sky_pass(f)
         for i, (p, rng) in enumerate(zip(f.passes, f.ranges)):
             self._light_pass(f, i, p, rng)
         self._mark("occluder_light")
@@ -424,6 +440,7 @@ class ShadowRenderer:
         specular,
         shininess,
         occluder_color,
+        sky=None,
     ) -> _Frame:
         """Check the arguments, upload what changed (caster, volumes, light subsets, ground), size the targets."""
         t0 = time.perf_counter()
@@ -444,7 +461,7 @@ class ShadowRenderer:
         origin = caster.bounds.mean(axis=0)  # = local_origin(caster.vertices), from the cached bounds
         mvp_local = mvp @ translation(origin)
         bufs = (
-            self._casters.get(caster, occluder_color, self.crease_deg)
+            self._casters.get(caster, occluder_color, self.crease_deg, None if sky is None else sky.object_sky)
             if (draw_occluder or any(p.mode == "planar" for p in passes))
             else None
         )
@@ -471,6 +488,7 @@ class ShadowRenderer:
             specular=specular,
             shininess=shininess,
             t0=t0,
+            sky=sky,
         )
         f.t1 = time.perf_counter()
         self._marks = [("start", f.t1)]
@@ -512,9 +530,14 @@ class ShadowRenderer:
             gl.glStencilOp(G.GL_KEEP, G.GL_KEEP, G.GL_REPLACE)
             # colour 1 stays 0 on the occluder (cleared; the ground pass overwrites it where it is nearer)
             gl.draw_buffer_list([0])
-            prog, vao = self.prog_occ_base, bufs.base_vao
+            prog = self.prog_occ_base
+            vao = bufs.base_vao if bufs.shade_base_vao is None else bufs.shade_base_vao
             prog["u_mvp"].write(f.mvp_bytes)
             prog["u_ambient"].value = float(f.ambient)
+            use_vis = bufs.sky is not None and f.sky is not None
+            prog["u_use_vis"].value = use_vis
+            prog["u_bounce"].value = tuple(float(x) for x in f.sky.bounce) if use_vis else (0.0, 0.0, 0.0)
+            self._bind_texture(prog, bufs)
             vao.render(ctx.TRIANGLES, vertices=bufs.n_indices)
             gl.draw_buffers(2)
         self._mark("occluder")
@@ -539,6 +562,25 @@ class ShadowRenderer:
         gl.draw_buffers(2)
         gl.glDisable(G.GL_POLYGON_OFFSET_FILL)
         self._mark("ground")
+
+    @staticmethod
+    def _bind_texture(prog, bufs) -> None:
+        """The caster's base-colour texture on unit 0 (``u_textured`` off without one)."""
+        prog["u_textured"].value = bufs.texture is not None
+        if bufs.texture is not None:
+            bufs.texture.use(location=0)
+            prog["u_tex"].value = 0
+
+    def _sky_pass(self, f: _Frame) -> None:
+        """The ground occlusion map (one quad on z = 0) into the mask's sky channel where the ground is
+        visible (:class:`arshadow.gl.sky.GroundSkyPass`), made on first use per map."""
+        sp = self._sky_ground
+        if sp is None or sp.occlusion is not f.sky.ground:
+            if sp is not None:
+                sp.release()
+            sp = self._sky_ground = GroundSkyPass(self.ctx, f.sky.ground)
+        sp.draw(self.ctx, self.gl, f.mvp_bytes, f.origin, GROUND_BIT, OCCLUDER_BIT)
+        self._mark("sky")
 
     def _light_pass(self, f: _Frame, i: int, p, rng) -> None:
         """One light: its shadow into the mask, then its lighting of the occluder."""
@@ -671,7 +713,8 @@ class ShadowRenderer:
         width, height = f.width, f.height
         t2 = time.perf_counter()
         c0 = np.zeros((height, width, 4), dtype=np.float32)
-        c1 = np.empty((height, width, 2), dtype=np.float32)
+        sky = f.sky is not None and f.sky.ground is not None
+        c1 = np.empty((height, width, 3 if sky else 2), dtype=np.float32)
         gl.glBindBuffer(G.GL_PIXEL_PACK_BUFFER, 0)
         gl.glPixelStorei(G.GL_PACK_ALIGNMENT, 4)
         gl.glBindFramebuffer(G.GL_READ_FRAMEBUFFER, src.fbo)
@@ -683,7 +726,7 @@ class ShadowRenderer:
             gl.glReadPixels(x0, y0, x1 - x0, y1 - y0, G.GL_RGBA, G.GL_FLOAT, c0[y0:, x0:].ctypes.data)
         gl.glPixelStorei(G.GL_PACK_ROW_LENGTH, 0)
         gl.glReadBuffer(G.GL_COLOR_ATTACHMENT0 + 1)
-        gl.glReadPixels(0, 0, width, height, G.GL_RG, G.GL_FLOAT, c1.ctypes.data)
+        gl.glReadPixels(0, 0, width, height, G.GL_RGB if sky else G.GL_RG, G.GL_FLOAT, c1.ctypes.data)
         gl.glBindFramebuffer(G.GL_FRAMEBUFFER, 0)
         ctx.screen.use() if ctx.screen is not None else None
         layers = RenderLayers(rgba=c0, mask_ground=c1)  # the raw bottom-up arrays
@@ -703,6 +746,7 @@ class ShadowRenderer:
             ground=gcov > 0.5,
             ground_coverage=gcov,
             layers=layers,
+            sky_occlusion=np.clip(c1[..., 2], 0.0, 1.0) if sky else None,
             timings_ms={
                 "upload": (f.t1 - f.t0) * 1e3,
                 "draw": (t2 - f.t1) * 1e3,
@@ -774,6 +818,7 @@ class ShadowRenderer:
         prog["u_kd"].value = float(f.diffuse)
         prog["u_ks"].value = float(f.specular)
         prog["u_shininess"].value = float(f.shininess)
+        self._bind_texture(prog, bufs)
         # closed meshes: only the light-facing faces (the others lie in this light's own shadow; with a
         # planar or no volume pass this is also what keeps a convex occluder's terminator as the volume has it)
         if i in bufs.sub_ranges:

@@ -82,7 +82,8 @@ class FrameTargets:
         1, 2 or 4: the main target is this many times the canvas size.
     """
 
-    FORMATS = (G.GL_RGBA16F, G.GL_RG16F)
+    #: colour 0: occluder colour + coverage; colour 1: shadow mask, ground coverage, sky occlusion (b)
+    FORMATS = (G.GL_RGBA16F, G.GL_RGBA16F)
 
     def __init__(self, ctx, gl, samples: int, supersample: int):
         self.ctx, self.gl = ctx, gl
@@ -136,7 +137,7 @@ class FrameTargets:
         return src
 
     def texture(self, width: int, height: int) -> TextureTarget:
-        """Single-sample ``RGBA16F`` + ``RG16F`` textures (grown, never shrunk) for GPU-resident results."""
+        """Single-sample ``RGBA16F`` + ``RGBA16F`` textures (grown, never shrunk) for GPU-resident results."""
         t = self.tex
         if t is None or t.width < width or t.height < height:
             w, h = max(width, t.width if t else 0), max(height, t.height if t else 0)

@@ -43,6 +43,7 @@ from ..geometry.rays import rays_blocked
 __all__ = [
     "SKY_MODELS",
     "GroundOcclusion",
+    "SkyShading",
     "cosine_directions",
     "ground_sky_visibility",
     "object_sky_visibility",
@@ -137,6 +138,28 @@ class GroundOcclusion:
             + v[i1, j1] * tx * ty
         )
         return out
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class SkyShading:
+    """What the renderer needs for sky occlusion and the object's sky shading (one per scene).
+
+    Attributes
+    ----------
+    ground : GroundOcclusion or None
+        The ground occlusion map (the contact shadow); None: the ground is not sky-occluded.
+    object_sky : str or None
+        Sky model of the object's per-vertex sky visibility and ground view (:func:`object_sky_visibility`);
+        None: a uniform ambient term (the old shading).
+    bounce : (3,) float
+        Linear RGB light bounced from the ground onto the object, in the renderer's light units: the
+        ground's albedo times the open ground's irradiance (``ambient + sum weight * sin(elevation)``);
+        multiplied by each vertex's ground view.
+    """
+
+    ground: GroundOcclusion | None = None
+    object_sky: str | None = "uniform"
+    bounce: tuple = (0.0, 0.0, 0.0)
 
 
 def _grid(caster: ShadowCaster, resolution: int, margin: float | None):
@@ -273,6 +296,13 @@ def object_sky_visibility(
     nrm = np.asarray(normals, np.float64).reshape(-1, 3)
     k = len(p)
     convex = _is_convex(caster)
+    if convex and sky == "uniform":
+        # nothing of a convex object hides its own sky: a plane tilted by a from the horizontal sees
+        # (1 + cos a) / 2 of the cosine lobe above the horizon and the rest of it on the ground
+        nz = np.clip(nrm[:, 2] / np.maximum(np.linalg.norm(nrm, axis=1), 1e-300), -1.0, 1.0)
+        return (1.0 + nz) / 2.0, (1.0 - nz) / 2.0
+    if convex:
+        n_dirs = max(int(n_dirs), 2048)  # no rays: the horizon alone, finely sampled
     n = int(max(16, min(int(n_dirs), max_rays // max(k, 1)))) if not convex else int(n_dirs)
     base = cosine_directions(n)
     sky_v = np.zeros(k)
