@@ -153,6 +153,8 @@ class Tolerances:
     # video chunks (issue 18): a chunk's exposure smoothing (a one-pole filter, 0.82 per frame) starts from
     # its 50-frame primer, not from the whole history: 5e-5 of the first difference is left (measured 1.4e-6)
     chunk_exposure_gain_rel: float = 1e-5
+    # the render seam (issue 27): a colour written into the RGBA16F colour attachment (11-bit mantissa)
+    half_float_rel: float = 2.0**-10
 
 
 TOL = Tolerances()

@@ -72,6 +72,16 @@ def program(ctx, vert: str, frag: str):
     return cache[key]
 
 
+def set_uniforms(progs, values: dict) -> None:
+    """Write ``values`` (uniform name -> value, e.g. :meth:`arshadow.render_api.Shading.uniforms`) into each
+    program of ``progs`` that declares the name (the others skip it)."""
+    for prog in progs:
+        for name, value in values.items():
+            u = prog.get(name, None)
+            if u is not None:
+                u.value = value
+
+
 def _crease_normals(vertices: np.ndarray, faces: np.ndarray, crease_deg: float) -> tuple[np.ndarray, np.ndarray]:
     """Per-corner normals ``(m, 3, 3)`` float64 and ``(m, 3)`` bool "flat": the area-weighted vertex normal
     where it is within ``crease_deg`` of the face normal, else the face normal (flat edges stay sharp,
