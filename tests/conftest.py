@@ -164,6 +164,8 @@ class Tolerances:
     sky_projection_abs: float = 0.02  # rendered sky-occlusion channel vs the map sampled at the pixel's ground point
     texture_median_abs: float = 0.01  # rendered textured quad vs cv2.warpPerspective of its texture (linear)
     texture_p99_abs: float = 0.05
+    # the render seam (issue 27): a colour written into the RGBA16F colour attachment (11-bit mantissa)
+    half_float_rel: float = 2.0**-10
 
 
 TOL = Tolerances()

@@ -30,24 +30,25 @@ def _renderer(ctx):
     return ShadowRenderer(ctx, max_width=W, max_height=H)
 
 
-def _render(r, caster, pose, *, sky=None, light=(0.3, -0.2, 1.0, 0.0), **kw):
+def _render(r, caster, pose, *, sky=None, light=(0.3, -0.2, 1.0, 0.0), **shading):
     from arshadow.geometry.silhouette import silhouette
     from arshadow.geometry.volume import shadow_volume
-    from arshadow.gl.stencil import LightPass
+    from arshadow.render_api import LightPass, RenderRequest, Shading
     from arshadow.transforms import CV_TO_GL
 
     lh = np.asarray(light, np.float64)
     vol = shadow_volume(caster, lh, silhouette(caster, lh), caps=True)
     K = _K()
     return r.render(
-        projection=K.gl_projection(ZNEAR, None),
-        view=CV_TO_GL @ pose,
-        width=W,
-        height=H,
-        caster=caster,
-        passes=[LightPass(lh, 1.0, vol, "zfail")],
-        sky=sky,
-        **kw,
+        RenderRequest(
+            projection=K.gl_projection(ZNEAR, None),
+            view=CV_TO_GL @ pose,
+            width=W,
+            height=H,
+            caster=caster,
+            passes=[LightPass(lh, 1.0, vol, "zfail")],
+            shading=Shading(sky=sky, **shading),
+        )
     )
 
 

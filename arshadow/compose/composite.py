@@ -164,7 +164,9 @@ def clip_roi(roi, width: int, height: int) -> tuple[int, int, int, int]:
     return x0, y0, max(x1 - x0, 0), max(y1 - y0, 0)
 
 
-def composite(
+# the public numpy compositor: its keyword arguments are its documented interface (docs/compositing.md, used by
+# name across the package and by users), and its checks of them come first (execute hands it one Look's fields)
+def composite(  # noqa: C901, PLR0913
     photo: np.ndarray,
     mask: np.ndarray | None,
     roi=None,

@@ -74,11 +74,22 @@ def program(ctx, vert: str, frag: str):
     return cache[key]
 
 
+def set_uniforms(progs, values: dict) -> None:
+    """Write ``values`` (uniform name -> value, e.g. :meth:`arshadow.render_api.Shading.uniforms`) into each
+    program of ``progs`` that declares the name (the others skip it)."""
+    for prog in progs:
+        for name, value in values.items():
+            u = prog.get(name, None)
+            if u is not None:
+                u.value = value
+
+
 class CasterBuffers:
     """GPU copies of one caster: the occluder (unwelded corners: pos4, normal3, albedo3) and the welded
     positions (for the planar shadow). Built once per caster."""
 
-    def __init__(self, ctx, prog_base, prog_occ, prog_pos, caster, color, crease_deg, local=True, sky=None):
+    # the three programs, the caster and how it is shaded (colour, crease, sky model, frame): one call site each
+    def __init__(self, ctx, prog_base, prog_occ, prog_pos, caster, color, crease_deg, local=True, sky=None):  # noqa: PLR0913
         v = np.asarray(caster.vertices, dtype=np.float64)
         #: the caster's local origin (its box centre; world origin with ``local=False``): positions go to
         #: float32 relative to it

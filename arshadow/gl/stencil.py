@@ -60,7 +60,7 @@ import numpy as np
 
 from .._check import check_finite, check_shape
 from ..errors import UsageError
-from ..render_api import MODES, LightPass, RenderLayers, RenderResult
+from ..render_api import MODES, LightPass, RenderLayers, RenderRequest, RenderResult
 from . import glraw as G
 from .context import current, is_software
 from .layers import GpuLayers
@@ -70,6 +70,7 @@ from .resources import (
     VolumeBuffers,
     program,
     screen_box,
+    set_uniforms,
     translation,
 )
 from .sky import GroundSkyPass
@@ -83,6 +84,12 @@ COUNT_MASK = 0x3F
 #: batched volumes (more layers than a 6-bit count holds): bits 0-4 count one batch, bit 5 ORs the batches
 BATCH_COUNT_MASK = 0x1F
 SHADOWED_BIT = 0x20
+
+
+def _object_sky(shading) -> str | None:
+    """The sky model of the object's per-vertex sky visibility (None: the uniform ambient term)."""
+    sky = getattr(shading, "sky", None)
+    return None if sky is None else sky.object_sky
 
 
 @dataclass
@@ -100,13 +107,9 @@ class _Frame:
     passes: list
     ranges: list
     draw_occluder: bool
-    ambient: float
-    diffuse: float
-    specular: float
-    shininess: float
     t0: float
     t1: float = 0.0
-    sky: Any = None  # arshadow.shading.sky.SkyShading or None
+    sky: Any = None  # arshadow.shading.sky.SkyShading or None (Shading.sky)
 
     @property
     def size(self) -> tuple[int, int]:
@@ -134,12 +137,12 @@ class ShadowRenderer:
     crease_deg : float
         Smoothing angle of the occluder's shading normals.
 
-    Two entry points with the same arguments: :meth:`render` reads the layers back
-    (:class:`RenderResult`), :meth:`render_gpu` leaves them in textures (:class:`GpuLayers`).
+    Two entry points taking one :class:`arshadow.render_api.RenderRequest`: :meth:`render` reads the layers
+    back (:class:`RenderResult`), :meth:`render_gpu` leaves them in textures (:class:`GpuLayers`).
 
     Examples
     --------
-    >>> # ctx = create_context(); r = ShadowRenderer(ctx); res = r.render(projection=P, view=V, ...)
+    >>> # ctx = create_context(); r = ShadowRenderer(ctx); res = r.render(RenderRequest(projection=P, ...))
     """
 
     @current
@@ -193,10 +196,13 @@ class ShadowRenderer:
         self._targets = FrameTargets(ctx, self.gl, samples, self.supersample)
         self._sky_ground = None  # GroundSkyPass of the last ground occlusion map drawn
         self._released = False
+        # the capabilities of arshadow.render_api.Renderer
         #: render_gpu() keeps the layers on the GPU (arshadow.gl.compose composites them there)
-        self.gpu_layers = True
+        self.gpu_layers: bool = True
         #: the context rasterises on the CPU (llvmpipe): its "GPU" paths run on the pipeline's own cores
-        self.software = is_software(ctx)
+        self.software: bool = is_software(ctx)
+        #: what renders (the GL renderer string): part of the compose path's key
+        self.backend: str = str((ctx.info or {}).get("GL_RENDERER", "?"))
         #: when True, render() calls ctx.finish() after each pass and reports per-pass times (slower)
         self.profile = False
         self._marks = []
@@ -244,95 +250,28 @@ class ShadowRenderer:
 
     # ------------------------------------------------------------------ entry points
     @current
-    def render(
-        self,
-        *,
-        projection,
-        view,
-        width,
-        height,
-        caster,
-        passes,
-        ground_size=None,
-        draw_occluder=True,
-        ambient=0.25,
-        diffuse=1.0,
-        specular=0.25,
-        shininess=32.0,
-        occluder_color=None,
-        sky=None,
-    ) -> RenderResult:
+    def render(self, request: RenderRequest) -> RenderResult:
         """Render one frame (or one canvas sub-rectangle of it) and read its layers back.
 
         Parameters
         ----------
-        projection : (4, 4) float64
-            ``clip_from_gl_eye`` for this canvas (``Intrinsics.gl_projection(znear, None, canvas=...)``;
-            an infinite far plane is needed when volumes reach infinity).
-        view : (4, 4) float64
-            ``gl_from_world = CV_TO_GL @ cam_from_world``.
-        width, height : int
-            Canvas size in pixels (<= max_width, max_height).
-        caster : ShadowCaster
-            The occluder (its GPU buffers are cached per caster object).
-        passes : sequence of LightPass
-            One per light; ``weight`` is the light's share of the total weight.
-        ground_size : float or None
-            Side of the square of ground (centred on the origin) that receives shadows; None = unlimited.
-        draw_occluder : bool
-            False: the occluder is neither drawn nor hides the ground (shadow only).
-        ambient, diffuse, specular, shininess : float
-            Phong coefficients (paper 002): ``I = K_a I_a + sum_l I_l (K_d (N.L) + K_s (N.H)^n)``.
-        occluder_color : (3,) sRGB in [0, 1], optional
-            Overrides the mesh's own colours (mesh colours and this are sRGB-encoded; output is linear).
-        sky : arshadow.shading.sky.SkyShading, optional
-            Sky occlusion: the ground occlusion map drawn into the mask's sky channel
-            (``RenderResult.sky_occlusion``), the object's own sky visibility and ground bounce.
+        request : arshadow.render_api.RenderRequest
+            The frame: projection and view, canvas size (<= max_width, max_height), caster (its GPU buffers
+            are cached per caster object), light passes, ground, what to draw, shading (Phong, paper 002:
+            ``I = K_a I_a + sum_l I_l (K_d (N.L) + K_s (N.H)^n)``; the colour overrides the mesh's own).
 
         Returns
         -------
         RenderResult
             The layers as numpy arrays (top-down rows) and the raw bottom-up ones (``layers``).
         """
-        f = self._draw(
-            projection,
-            view,
-            width,
-            height,
-            caster,
-            passes,
-            ground_size,
-            draw_occluder,
-            ambient,
-            diffuse,
-            specular,
-            shininess,
-            occluder_color,
-            sky,
-        )
+        f = self._draw(request)
         src = self._resolve_canvas(f)
         self.ctx.finish()
         return self._readback(f, src)
 
     @current
-    def render_gpu(
-        self,
-        *,
-        projection,
-        view,
-        width,
-        height,
-        caster,
-        passes,
-        ground_size=None,
-        draw_occluder=True,
-        ambient=0.25,
-        diffuse=1.0,
-        specular=0.25,
-        shininess=32.0,
-        occluder_color=None,
-        sky=None,
-    ) -> GpuLayers:
+    def render_gpu(self, request: RenderRequest) -> GpuLayers:
         """As :meth:`render`, but the layers stay on the GPU: the (resolved) attachments are copied into two
         textures (no ``ctx.finish()``, no readback); :mod:`arshadow.gl.compose` samples them.
 
@@ -341,22 +280,7 @@ class ShadowRenderer:
         GpuLayers
             Valid until the next render.
         """
-        f = self._draw(
-            projection,
-            view,
-            width,
-            height,
-            caster,
-            passes,
-            ground_size,
-            draw_occluder,
-            ambient,
-            diffuse,
-            specular,
-            shininess,
-            occluder_color,
-            sky,
-        )
+        f = self._draw(request)
         tt = self._targets.texture(f.width, f.height)
         if self.supersample == 1:
             # resolve (MSAA) or copy straight into the texture target
@@ -380,40 +304,9 @@ class ShadowRenderer:
         )
 
     # ------------------------------------------------------------------ one frame, pass by pass
-    def _draw(
-        self,
-        projection,
-        view,
-        width,
-        height,
-        caster,
-        passes,
-        ground_size,
-        draw_occluder,
-        ambient,
-        diffuse,
-        specular,
-        shininess,
-        occluder_color,
-        sky=None,
-    ) -> _Frame:
+    def _draw(self, request: RenderRequest) -> _Frame:
         """Every pass of one frame into the main target; GL state reset at the end."""
-        f = self._begin(
-            projection,
-            view,
-            width,
-            height,
-            caster,
-            passes,
-            ground_size,
-            draw_occluder,
-            ambient,
-            diffuse,
-            specular,
-            shininess,
-            occluder_color,
-            sky,
-        )
+        f = self._begin(request)
         self._clear_pass(f)
         self._occluder_base_pass(f)
         self._ground_pass(f)
@@ -425,50 +318,36 @@ class ShadowRenderer:
         self._reset_state()
         return f
 
-    def _begin(
-        self,
-        projection,
-        view,
-        width,
-        height,
-        caster,
-        passes,
-        ground_size,
-        draw_occluder,
-        ambient,
-        diffuse,
-        specular,
-        shininess,
-        occluder_color,
-        sky=None,
-    ) -> _Frame:
+    def _begin(self, request: RenderRequest) -> _Frame:
         """Check the arguments, upload what changed (caster, volumes, light subsets, ground), size the targets."""
         t0 = time.perf_counter()
         if self._released:
             raise UsageError("this ShadowRenderer has been released")
-        width, height = int(width), int(height)
+        width, height = int(request.width), int(request.height)
         if not (0 < width <= self.max_width and 0 < height <= self.max_height):
             raise UsageError(f"canvas {width}x{height} outside 1..{self.max_width} x 1..{self.max_height}")
-        proj = check_finite(check_shape(projection, "4,4", "projection"), "projection")
-        view = check_finite(check_shape(view, "4,4", "view"), "view")
-        passes = list(passes)
+        proj = check_finite(check_shape(request.projection, "4,4", "projection"), "projection")
+        view = check_finite(check_shape(request.view, "4,4", "view"), "view")
+        passes, draw_occluder, shading = list(request.passes), bool(request.draw_occluder), request.shading
         for p in passes:
             if p.mode not in MODES:
                 raise UsageError(f"unknown shadow mode {p.mode!r} (choose {', '.join(MODES)})")
             if not (math.isfinite(float(p.weight)) and float(p.weight) >= 0):
                 raise UsageError(f"light weight must be finite and >= 0, got {p.weight}")
         mvp = proj @ view
-        origin = caster.bounds.mean(axis=0)  # = local_origin(caster.vertices), from the cached bounds
+        origin = request.caster.bounds.mean(axis=0)  # = local_origin(caster.vertices), from the cached bounds
         mvp_local = mvp @ translation(origin)
         bufs = (
-            self._casters.get(caster, occluder_color, self.crease_deg, None if sky is None else sky.object_sky)
+            self._casters.get(request.caster, shading.color, self.crease_deg, _object_sky(shading))
             if (draw_occluder or any(p.mode == "planar" for p in passes))
             else None
         )
         ranges = self._volumes.upload(passes, origin)
         if bufs is not None and (draw_occluder or any(p.mode == "planar" and p.direct for p in passes)):
             bufs.upload_light_subsets(passes)
-        self._ground.set(ground_size, origin)
+        self._ground.set(request.ground_size, origin)
+        if draw_occluder:
+            set_uniforms((self.prog_occ_base, self.prog_occ_light), shading.uniforms())
         self._targets.ensure(width, height)
         f = _Frame(
             width=width,
@@ -482,13 +361,9 @@ class ShadowRenderer:
             bufs=bufs,
             passes=passes,
             ranges=ranges,
-            draw_occluder=bool(draw_occluder),
-            ambient=ambient,
-            diffuse=diffuse,
-            specular=specular,
-            shininess=shininess,
+            draw_occluder=draw_occluder,
             t0=t0,
-            sky=sky,
+            sky=shading.sky,
         )
         f.t1 = time.perf_counter()
         self._marks = [("start", f.t1)]
@@ -532,8 +407,7 @@ class ShadowRenderer:
             gl.draw_buffer_list([0])
             prog = self.prog_occ_base
             vao = bufs.base_vao if bufs.shade_base_vao is None else bufs.shade_base_vao
-            prog["u_mvp"].write(f.mvp_bytes)
-            prog["u_ambient"].value = float(f.ambient)
+            prog["u_mvp"].write(f.mvp_bytes)  # the shading's uniforms: written by _begin
             use_vis = bufs.sky is not None and f.sky is not None
             prog["u_use_vis"].value = use_vis
             prog["u_bounce"].value = tuple(float(x) for x in f.sky.bounce) if use_vis else (0.0, 0.0, 0.0)
@@ -814,10 +688,7 @@ class ShadowRenderer:
         prog["u_light"].value = tuple(float(x) for x in lh)
         col = np.asarray(p.color, dtype=np.float64)[:3] * float(p.weight)
         prog["u_light_color"].value = tuple(float(x) for x in col)
-        prog["u_eye"].value = tuple(float(x) for x in f.eye)
-        prog["u_kd"].value = float(f.diffuse)
-        prog["u_ks"].value = float(f.specular)
-        prog["u_shininess"].value = float(f.shininess)
+        prog["u_eye"].value = tuple(float(x) for x in f.eye)  # the shading's uniforms: written by _begin
         self._bind_texture(prog, bufs)
         # closed meshes: only the light-facing faces (the others lie in this light's own shadow; with a
         # planar or no volume pass this is also what keeps a convex occluder's terminator as the volume has it)
