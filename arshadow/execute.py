@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Hashable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
 import cv2
@@ -42,6 +42,8 @@ __all__ = ["LAYERS_WHY", "STAGES", "FrameContext", "FrameOutputs", "execute", "r
 
 #: the compose decision's reason when the layers are asked for
 LAYERS_WHY = "numpy (layers asked for: the composite and its layers come from the numpy path)"
+#: the shader compositor has no sky-occlusion channel yet
+SKY_WHY = "numpy (sky occlusion: the sky channel is composited by the numpy path)"
 
 
 @dataclass(frozen=True)
@@ -130,7 +132,7 @@ class _Frame:
 
 
 def render_request(
-    plan: FramePlan, intr: Intrinsics, geometry: SceneGeometry, passes: Sequence[LightPass]
+    plan: FramePlan, intr: Intrinsics, geometry: SceneGeometry, passes: Sequence[LightPass], sky: Any = None
 ) -> RenderRequest:
     """The frame's :class:`arshadow.render_api.RenderRequest`: the plan's canvas, znear and
     ``cam_from_world`` (the ground frame's camera), the scene's caster, the light passes, and the options'
@@ -145,7 +147,7 @@ def render_request(
         passes=tuple(passes),
         ground_size=opts.ground_size,
         draw_occluder=opts.draw_occluder,
-        shading=Shading.from_options(opts),
+        shading=replace(Shading.from_options(opts), sky=sky),
     )
 
 
@@ -190,10 +192,11 @@ def execute(
     if plan.empty:
         return out, mask_full  # nothing of the scene is in view
     cal = context.calibration(W, H)
+    sky = _sky_shading(plan, image, cal.intrinsics, geometry, outputs, color_gain)
     frame = _Frame(
         plan=plan,
         image=image,
-        request=render_request(plan, cal.intrinsics, geometry, passes),
+        request=render_request(plan, cal.intrinsics, geometry, passes, sky),
         renderer=context.renderer(),
         lens=cal.lens,
         work=context.work,
@@ -204,6 +207,35 @@ def execute(
     )
     _run_compose(frame, context)
     return out, mask_full
+
+
+def _sky_shading(plan, image, intr, geometry, outputs, color_gain):
+    """The frame's :class:`arshadow.shading.sky.SkyShading` (None when the planner's ``ambient_occlusion``
+    decision is off): the scene's ground occlusion map, the object's sky visibility and the ground bounce
+    measured on this photo round the object (with a measured exposure; 0 otherwise)."""
+    from .shading.decide import decide_ambient_occlusion, ground_bounce
+    from .shading.sky import SkyShading
+
+    opts = geometry.options
+    on, why = decide_ambient_occlusion(opts)
+    plan.decide("ambient_occlusion", on, why)
+    outputs.item.plan["ambient_occlusion"] = why  # type: ignore[index]  # a dict: _report_plan made it
+    if not on:
+        return None
+    if plan.compose not in (None, "cpu"):
+        plan.decide("compose", "cpu", SKY_WHY)
+    bounce = (0.0, 0.0, 0.0)
+    if opts.exposure_gain is not None and opts.draw_occluder:
+        b = geometry.bounds
+        c, r = 0.5 * (b[0, :2] + b[1, :2]), 0.5 * float(np.linalg.norm(b[1, :2] - b[0, :2])) + 0.01
+        a = np.linspace(0.0, 2 * np.pi, 32, endpoint=False)
+        ring = np.c_[c[0] + r * np.cos(a), c[1] + r * np.sin(a), np.zeros(32)]
+        gain = np.asarray(opts.exposure_gain, np.float64) * (1.0 if color_gain is None else np.asarray(color_gain))
+        m = ground_bounce(image, intr.project(ring, plan.cam_from_world), gain)
+        if m is not None:
+            bounce = tuple(float(v) for v in m)
+            outputs.item.plan["ground_bounce"] = [round(v, 4) for v in bounce]  # type: ignore[index]
+    return SkyShading(ground=geometry.sky_ground(outputs.timings), object_sky="uniform", bounce=bounce)
 
 
 def _report_plan(plan: FramePlan, geometry: SceneGeometry, item: ReportItem, lights: list[dict[str, Any]]) -> None:
@@ -387,6 +419,7 @@ class _Warped:
     alpha: np.ndarray
     color: np.ndarray
     pinhole: tuple
+    sky: np.ndarray | None = None  # sky occlusion over roi (RenderResult.sky_occlusion), None without
 
 
 def _warp_result(frame: _Frame, res: RenderResult) -> _Warped | None:
@@ -399,14 +432,19 @@ def _warp_result(frame: _Frame, res: RenderResult) -> _Warped | None:
         if warped is None:
             return None
         roi, (l0, l1) = warped
+        sky = l1[:, :, 2] if l1.shape[2] > 2 else None
         # the canvas top-down (views), for undistorted layers
-        return _Warped(roi, l1[:, :, 0], l0[:, :, 3], l0, (layers.mask_ground[::-1, :, 0], layers.rgba[::-1]))
+        pin = (layers.mask_ground[::-1, :, 0], layers.rgba[::-1])
+        return _Warped(roi, l1[:, :, 0], l0[:, :, 3], l0, pin, sky)
     roi, canvas = plan.roi, plan.canvas
-    mask, alpha, color = res.mask, res.alpha, res.color
+    mask, alpha, color, sky = res.mask, res.alpha, res.color, res.sky_occlusion
     pinhole = (mask, np.dstack([color, alpha]))
     if lens is not None:
-        mask, alpha, color = lens.warp(roi, canvas, mask, alpha, color, work=work)
-    return _Warped(roi, mask, alpha, color, pinhole)
+        if sky is not None:
+            mask, alpha, color, sky = lens.warp(roi, canvas, mask, alpha, color, sky, work=work)
+        else:
+            mask, alpha, color = lens.warp(roi, canvas, mask, alpha, color, work=work)
+    return _Warped(roi, mask, alpha, color, pinhole, sky)
 
 
 def _composite_cpu(frame: _Frame, wp: _Warped, premultiplied: bool) -> None:
@@ -437,6 +475,7 @@ def _composite_cpu(frame: _Frame, wp: _Warped, premultiplied: bool) -> None:
         color_gain=gain if gained else None,
         out=frame.out,
         work=frame.work,
+        sky=None if wp.sky is None else np.clip(wp.sky, 0.0, 1.0),
     )
     if frame.mask_full is not None:  # the mask is wanted
         x0, y0, w, h = wp.roi
@@ -462,6 +501,8 @@ def _warp_layers(
     ch, cw = c0.shape[:2]
     act = c1[:, :, 0] > 0
     act |= c0[:, :, 3] > 0
+    if c1.shape[2] > 2:  # the sky-occlusion channel reaches beyond the shadow (the contact shadow)
+        act |= c1[:, :, 2] > 0
     rows = np.flatnonzero(act.any(axis=1))
     if rows.size == 0:
         item.content = None

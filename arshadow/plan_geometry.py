@@ -367,6 +367,26 @@ class SceneGeometry:
             c = self._convex = mesh_is_convex(self.caster)
         return c
 
+    @property
+    def sky_on(self) -> bool:
+        """Sky occlusion is drawn (:func:`arshadow.shading.decide.decide_ambient_occlusion`)."""
+        from .shading.decide import decide_ambient_occlusion
+
+        return decide_ambient_occlusion(self.options)[0]
+
+    def sky_ground(self, timings=None):
+        """The occluder's :class:`arshadow.shading.sky.GroundOcclusion` (computed once per scene, in the
+        ground frame; ``timings.silhouette`` gets its build time, with the other per-scene geometry)."""
+        g = getattr(self, "_sky_ground", None)
+        if g is None:
+            from .shading.sky import ground_sky_visibility
+
+            t = time.perf_counter()
+            g = self._sky_ground = ground_sky_visibility(self.caster)
+            if timings is not None:
+                timings.silhouette += (time.perf_counter() - t) * 1e3
+        return g
+
     def footprint_rect(self, ls: LightState, intr, cam_from_world, znear):
         """Pinhole screen box of one light's ground footprint (clipped to ``ground_size``), or None
         (unbounded, or a point behind the camera); an empty box far off screen when the shadow misses the
@@ -403,6 +423,10 @@ class SceneGeometry:
             hull = scene_hull_points(
                 self.bounds, [ls.light_h for ls in self.lights], self.options.ground_size, points=self.roi_points
             )
+            if hull is not None and self.sky_on:
+                # sky occlusion darkens the ground round the object: its map's square joins the region
+                x0, y0, x1, y1 = self.sky_ground().extent
+                hull = np.vstack([hull, [[x0, y0, 0.0], [x1, y0, 0.0], [x1, y1, 0.0], [x0, y1, 0.0]]])
             self._hull = (key, hull)
         return self._hull[1]
 

@@ -45,6 +45,7 @@ __all__ = [
     "GroundOcclusion",
     "SkyShading",
     "cosine_directions",
+    "ground_grid",
     "ground_sky_visibility",
     "object_sky_visibility",
     "sky_radiance",
@@ -56,6 +57,10 @@ SKY_MODELS = ("uniform", "cie")
 _SHIFT = 8
 #: sub-texels per texel side (odd: one sits at the texel centre)
 _SUB = 3
+#: occlusion of the sky below the second value tapers linearly to 0 at the first (far from the object:
+#: times the sky's share of the light, < 1 % of a pixel's light, about one 8-bit step); the map keeps the
+#: texels where it is not 0
+ACTIVE_OCCLUSION = (0.015, 0.035)
 
 
 def cosine_directions(n: int, normal=(0.0, 0.0, 1.0)) -> np.ndarray:
@@ -101,7 +106,8 @@ class GroundOcclusion:
 
     ``visibility[i, j]`` (``(h, w) float32``, 0..1) is the value at the ground point
     ``(x0 + (j + 0.5) * texel, y0 + (i + 0.5) * texel)`` (metres, ground frame); outside the grid the
-    object's occlusion is below ``edge_occlusion`` and the ground counts as open (1).
+    object hides less than ``ACTIVE_OCCLUSION[0]`` of the sky and the ground counts as open (1);
+    ``edge_occlusion`` is the largest occlusion on the border of the full square computed.
     """
 
     x0: float
@@ -162,7 +168,8 @@ class SkyShading:
     bounce: tuple = (0.0, 0.0, 0.0)
 
 
-def _grid(caster: ShadowCaster, resolution: int, margin: float | None):
+def ground_grid(caster: ShadowCaster, resolution: int = 256, margin: float | None = None):
+    """``(x0, y0, texel)``: the ground occlusion map's square (ground frame, metres) and texel size."""
     lo, hi = caster.bounds
     height = max(float(hi[2]), 0.0)
     if margin is None:
@@ -202,7 +209,7 @@ def ground_sky_visibility(
         raise UsageError(f"ground occlusion resolution must be at least 2 texels, got {resolution}")
     n_faces = caster.n_faces if not caster.is_closed else max(1, caster.n_faces // 2)
     n_dirs = int(max(32, min(int(n_dirs), max_triangle_draws // max(n_faces, 1))))
-    x0, y0, texel = _grid(caster, resolution, margin)
+    x0, y0, texel = ground_grid(caster, resolution, margin)
     dirs = cosine_directions(n_dirs)
     weights = sky_radiance(dirs, sky)
     closed = caster.is_closed
@@ -230,7 +237,19 @@ def ground_sky_visibility(
     vis = (acc / weights.sum()).astype(np.float32)
     vis = _fill_under(vis)
     border = np.concatenate([vis[0], vis[-1], vis[:, 0], vis[:, -1]])
-    return GroundOcclusion(x0, y0, texel, vis, n_dirs, sky, float(1.0 - border.min()))
+    edge = float(1.0 - border.min())
+    # occlusion below ACTIVE_OCCLUSION[1] tapers to 0 at ACTIVE_OCCLUSION[0] (far from the object), and the
+    # map keeps only the texels where it is not 0 (+ 2 texels): the frame's region shrinks to what changes
+    occ = 1.0 - vis
+    t0, t1 = ACTIVE_OCCLUSION
+    vis = (1.0 - occ * np.clip((occ - t0) / (t1 - t0), 0.0, 1.0)).astype(np.float32)
+    (rows,) = np.nonzero((vis < 1.0).any(axis=1))
+    (cols,) = np.nonzero((vis < 1.0).any(axis=0))
+    if rows.size:
+        r0, r1 = max(int(rows[0]) - 2, 0), min(int(rows[-1]) + 3, resolution)
+        c0, c1 = max(int(cols[0]) - 2, 0), min(int(cols[-1]) + 3, resolution)
+        vis, x0, y0 = vis[r0:r1, c0:c1].copy(), x0 + c0 * texel, y0 + r0 * texel
+    return GroundOcclusion(x0, y0, texel, vis, n_dirs, sky, edge)
 
 
 def _fill_under(vis: np.ndarray) -> np.ndarray:
