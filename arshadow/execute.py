@@ -22,6 +22,7 @@ import numpy as np
 
 from ._check import check_shape
 from .compose.composite import clip_roi, composite
+from .compose.effects import add_noise, blur_layers, pad_for
 from .compose.layers import layers_from_warped, pinhole_layers
 from .compose.look import Look
 from .plan import MEASURED
@@ -42,6 +43,8 @@ __all__ = ["LAYERS_WHY", "STAGES", "FrameContext", "FrameOutputs", "execute", "r
 
 #: the compose decision's reason when the layers are asked for
 LAYERS_WHY = "numpy (layers asked for: the composite and its layers come from the numpy path)"
+#: the shader compositor applies no camera effects
+CAMERA_WHY = "numpy (camera effects: blur and noise are applied by the numpy path)"
 #: the shader compositor has no sky-occlusion channel yet
 SKY_WHY = "numpy (sky occlusion: the sky channel is composited by the numpy path)"
 
@@ -158,6 +161,7 @@ def execute(
     outputs: FrameOutputs,
     *,
     color_gain: Sequence[float] | np.ndarray | None = None,
+    camera: Any = None,
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """Render and composite one planned frame.
 
@@ -174,6 +178,8 @@ def execute(
     color_gain : (3,) float, optional
         Per-channel gain on the object's rendered linear colour (the marker paper's exposure match,
         :mod:`arshadow.estimate.match`), measured on this frame.
+    camera : arshadow.compose.effects.CameraEffects, optional
+        The photo's blur and noise, applied to the inserted layers (``--camera-effects on``).
 
     Returns
     -------
@@ -203,8 +209,12 @@ def execute(
         out=out,
         mask_full=mask_full,
         outputs=outputs,
-        look=Look.from_options(geometry.options, color_gain),
+        look=replace(Look.from_options(geometry.options, color_gain), camera=camera),
     )
+    if camera is not None:
+        outputs.item.plan["camera_effects"] = camera.report()  # type: ignore[index]  # _report_plan's dict
+        if plan.compose not in (None, "cpu"):
+            plan.decide("compose", "cpu", CAMERA_WHY)
     _run_compose(frame, context)
     return out, mask_full
 
@@ -450,6 +460,8 @@ def _warp_result(frame: _Frame, res: RenderResult) -> _Warped | None:
 def _composite_cpu(frame: _Frame, wp: _Warped, premultiplied: bool) -> None:
     """Composite the warped layers into the frame's buffers (and make its layers when asked for)."""
     look, layer_request = frame.look, frame.outputs.layers
+    if look.camera is not None:
+        wp = _blurred(wp, look.camera.blur_px, frame.image.shape)
     gain, color, pinhole = look.color_gain, wp.color, wp.pinhole
     gained = gain is not None and look.draw_occluder  # the exposure match, linear light (premultiplied colour)
     if gained and layer_request is not None:  # layers hold the gained colour (copies: the renderer's stay)
@@ -477,6 +489,10 @@ def _composite_cpu(frame: _Frame, wp: _Warped, premultiplied: bool) -> None:
         work=frame.work,
         sky=None if wp.sky is None else np.clip(wp.sky, 0.0, 1.0),
     )
+    if look.camera is not None and look.draw_occluder:
+        x0, y0, w, h = wp.roi
+        seed = int(np.asarray(frame.image[::61, ::53], np.int64).sum())  # per photo, reproducible
+        add_noise(frame.out[y0 : y0 + h, x0 : x0 + w], wp.alpha, look.camera.noise, seed)
     if frame.mask_full is not None:  # the mask is wanted
         x0, y0, w, h = wp.roi
         m = frame.work.get("mask255", (h, w), np.float32)
@@ -484,6 +500,24 @@ def _composite_cpu(frame: _Frame, wp: _Warped, premultiplied: bool) -> None:
         m += np.float32(0.5)
         np.clip(m, np.float32(0.0), np.float32(255.0), out=m)
         np.copyto(frame.mask_full[y0 : y0 + h, x0 : x0 + w], m, casting="unsafe")
+
+
+def _blurred(wp: _Warped, sigma: float, shape: tuple) -> _Warped:
+    """The warped layers grown by the blur's reach (zeros: nothing drawn there) and blurred by the photo's
+    point-spread width (:func:`arshadow.compose.effects.blur_layers`)."""
+    if sigma <= 0:
+        return wp
+    p = pad_for(sigma)
+    x0, y0, w, h = wp.roi
+    H, W = shape[:2]
+    nx0, ny0, nx1, ny1 = max(x0 - p, 0), max(y0 - p, 0), min(x0 + w + p, W), min(y0 + h + p, H)
+    pads = ((y0 - ny0, ny1 - y0 - h), (x0 - nx0, nx1 - x0 - w))
+
+    def grow(a):
+        return None if a is None else np.pad(a, pads + ((0, 0),) * (a.ndim - 2))
+
+    mask, alpha, color, sky = blur_layers(sigma, grow(wp.mask), grow(wp.alpha), grow(wp.color), grow(wp.sky))
+    return _Warped((nx0, ny0, nx1 - nx0, ny1 - ny0), mask, alpha, color, wp.pinhole, sky)
 
 
 def _warp_layers(

@@ -478,9 +478,23 @@ class Session(History):
             chooser=self.compose_chooser,
             gpu=self._gpu_compositor,
         )
-        out, mask = execute(plan, image, context, outputs, color_gain=gain)
+        out, mask = execute(plan, image, context, outputs, color_gain=gain, camera=self._camera_effects(image, pose))
         lay = None if outputs.layers is None else outputs.layers["layers"]
         return FrameResult(out, mask, pose, np.asarray(cfw, np.float64), outputs.item, outputs.timings, plan, lay)
+
+    def _camera_effects(self, image: np.ndarray, pose: Any) -> Any:
+        """The photo's blur and noise (``--camera-effects on``), measured on the first frame whose marker is
+        detected and kept for the session (:func:`arshadow.compose.effects.measure_camera`); else None."""
+        if self.options.camera_effects != "on":
+            return None
+        cam = getattr(self, "_camera", None)
+        corners = getattr(pose, "all_corners", None) or {}
+        if cam is None and corners:
+            from .compose.effects import measure_camera
+
+            ref = pose.marker_ids[0] if getattr(pose, "marker_ids", None) else next(iter(corners))
+            cam = self._camera = measure_camera(image, np.asarray(corners.get(ref, next(iter(corners.values())))))
+        return cam
 
     def _report_frame(self, item: ReportItem, plan: FramePlan, pose: Any, cal: CalibrationState) -> None:
         """The report item's pose, calibration, notes and ground; warnings on a far or inside camera."""

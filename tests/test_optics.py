@@ -81,3 +81,23 @@ def test_noise_recovered_on_paper_and_floor(sigma_noise):
     assert np.all(lo.level < hi.level)
     mid = noise_at(0.5 * (lo.level + hi.level)[None, :], [lo, hi])
     assert np.allclose(mid, 0.5 * (lo.sigma + hi.sigma))
+
+
+def test_camera_effects_blur_and_noise_layers():
+    # blur_layers: a Gaussian of the given sigma, zero outside (the layer's content ends at the array);
+    # add_noise: noise of the measured sigma only where the object covers
+    from arshadow.compose.effects import add_noise, blur_layers
+    from arshadow.estimate.optics import NoiseEstimate
+
+    a = np.zeros((41, 41), np.float32)
+    a[20, 20] = 1.0
+    (b,) = blur_layers(1.5, a)
+    yy, xx = np.mgrid[-20:21, -20:21]
+    g = np.exp(-(xx**2 + yy**2) / (2 * 1.5**2))
+    assert np.abs(b - g / g.sum()).max() < 2e-3
+    region = np.full((200, 200, 3), 128, np.uint8)
+    alpha = np.zeros((200, 200), np.float32)
+    alpha[:, 100:] = 1.0
+    add_noise(region, alpha, (NoiseEstimate(np.full(3, 4.0 / 255), np.full(3, 0.5), 100),), seed=1)
+    assert np.all(region[:, :100] == 128)
+    assert abs(region[:, 100:].astype(float).std() - 4.0) < 0.3

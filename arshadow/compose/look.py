@@ -49,6 +49,9 @@ class Look:
     shadow_color: tuple = (0.0, 0.0, 0.0)
     draw_occluder: bool = True
     color_gain: np.ndarray | None = None
+    #: the photo's measured blur and noise applied to the inserted layers (:mod:`arshadow.compose.effects`,
+    #: ``--camera-effects on``; the numpy compositor), None: none
+    camera: object = None
 
     @classmethod
     def from_options(cls, options: RenderOptions, color_gain: Sequence[float] | np.ndarray | None = None) -> Look:
