@@ -150,8 +150,18 @@ def render_request(
         passes=tuple(passes),
         ground_size=opts.ground_size,
         draw_occluder=opts.draw_occluder,
-        shading=replace(Shading.from_options(opts), sky=sky),
+        shading=_shading(opts, geometry.caster, sky),
     )
+
+
+def _shading(opts, caster, sky) -> Shading:
+    """:meth:`Shading.from_options` with the frame's sky; a mesh with its own colours or texture under a
+    measured light keeps them, times the exposure gain (``material_gain``), instead of the grey default."""
+    sh = replace(Shading.from_options(opts), sky=sky)
+    own = getattr(caster, "material", None) is not None or getattr(caster, "colors", None) is not None
+    if opts.material_gain is not None and own:
+        sh = replace(sh, color=None, albedo_gain=tuple(float(v) for v in opts.material_gain))
+    return sh
 
 
 def execute(

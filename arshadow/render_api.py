@@ -175,6 +175,8 @@ class Shading:
         Sky occlusion (issue 28): the ground occlusion map drawn into the mask's sky channel
         (``RenderResult.sky_occlusion``), the object's own sky visibility and the light bounced from the
         ground; None: the uniform ambient term, no sky channel.
+    albedo_gain : (3,) float
+        Linear RGB gain on the mesh's own colours / texture (the measured exposure when no colour is given).
 
     Phong (paper 002): ``I = K_a I_a + sum_l I_l (K_d (N.L) + K_s (N.H)^n)``.
 
@@ -193,6 +195,7 @@ class Shading:
     shininess: float = 32.0
     color: tuple[float, float, float] | None = None
     sky: Any = None
+    albedo_gain: tuple[float, float, float] = (1.0, 1.0, 1.0)
 
     def __post_init__(self) -> None:
         for name in ("ambient", "diffuse", "specular", "shininess"):
@@ -211,13 +214,14 @@ class Shading:
         ``occluder_color``; diffuse and shininess at their defaults)."""
         return cls(ambient=options.ambient, specular=options.specular, color=options.occluder_color)
 
-    def uniforms(self) -> dict[str, float]:
+    def uniforms(self) -> dict[str, float | tuple[float, ...]]:
         """Shader uniform name -> value, written into each occluder program that declares the name."""
         return {
             "u_ambient": float(self.ambient),
             "u_kd": float(self.diffuse),
             "u_ks": float(self.specular),
             "u_shininess": float(self.shininess),
+            "u_albedo_gain": tuple(float(v) for v in self.albedo_gain),
         }
 
 

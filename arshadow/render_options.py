@@ -95,6 +95,9 @@ class RenderOptions:
         noise matched to the photo's (:mod:`arshadow.estimate.optics`); ``off`` (default).
     ambient_measured : bool
         The ambient share (``shadow_color``, ``ambient``) comes from a measured light (``light_from``).
+    material_gain : (3,) float, optional
+        ``light_from`` without ``--color``: the exposure gain (linear RGB) a mesh with its own colours or
+        texture is rendered with instead of ``occluder_color`` (the default grey for meshes without).
     """
 
     opacity: float = 0.7
@@ -122,6 +125,7 @@ class RenderOptions:
     ambient_occlusion: str = "auto"
     camera_effects: str = "off"
     ambient_measured: bool = False
+    material_gain: tuple | None = None
 
     def check(self) -> RenderOptions:
         """Validate (UsageError naming the ``arshadow render`` option); returns self."""

@@ -30,7 +30,13 @@ def test_shading_comes_from_the_options():
     shininess at the renderers' former defaults: K_d 1, n 32)."""
     sh = Shading.from_options(RenderOptions(ambient=0.4, specular=0.1, occluder_color=(0.2, 0.5, 0.7)))
     assert (sh.ambient, sh.specular, sh.color) == (0.4, 0.1, (0.2, 0.5, 0.7))
-    assert sh.uniforms() == {"u_ambient": 0.4, "u_kd": 1.0, "u_ks": 0.1, "u_shininess": 32.0}
+    assert sh.uniforms() == {
+        "u_ambient": 0.4,
+        "u_kd": 1.0,
+        "u_ks": 0.1,
+        "u_shininess": 32.0,
+        "u_albedo_gain": (1.0, 1.0, 1.0),
+    }
     assert Shading.from_options(RenderOptions()).uniforms() == Shading().uniforms()
 
 

@@ -77,3 +77,18 @@ def test_uvs_follow_a_mirroring_scale_and_welding(tmp_path):
 def test_colour_override_drops_the_material_and_plain_meshes_have_none():
     assert load_occluder(DATA / "quad.glb", color="#808080").material is None
     assert load_occluder("box:0.1,0.1,0.1").material is None
+
+
+def test_measured_light_keeps_a_textured_mesh_textured():
+    # --light-from without --color: the scene's occluder colour is the exposed grey default; a mesh with its
+    # own texture / colours keeps them, times the exposure gain (it used to come out flat grey)
+    from arshadow.execute import _shading
+    from arshadow.render_options import RenderOptions
+
+    opts = RenderOptions(occluder_color=(0.6, 0.6, 0.6), material_gain=(1.2, 1.1, 0.9))
+    sh = _shading(opts, load_occluder(DATA / "quad.glb"), None)
+    assert sh.color is None and sh.albedo_gain == (1.2, 1.1, 0.9)
+    plain = _shading(opts, load_occluder("box:0.1,0.1,0.1"), None)
+    assert plain.color == (0.6, 0.6, 0.6) and plain.albedo_gain == (1.0, 1.0, 1.0)
+    # an explicit colour (no material_gain) wins over the texture
+    assert _shading(RenderOptions(occluder_color=(0.6, 0.6, 0.6)), load_occluder(DATA / "quad.glb"), None).color

@@ -6,6 +6,7 @@ uniform float u_ambient;
 uniform bool u_use_vis;
 uniform vec3 u_bounce;       // ground albedo x open-ground irradiance (linear RGB)
 uniform bool u_textured;
+uniform vec3 u_albedo_gain;   // linear gain on the mesh's own colours (measured exposure)
 uniform sampler2D u_tex;     // linear RGB base colour, row 0 = the image's bottom (GL order)
 in vec3 v_world;
 in vec3 v_normal;
@@ -15,7 +16,7 @@ in vec2 v_vis;
 layout(location = 0) out vec4 o_color;   // rgb: linear colour (premultiplied after MSAA resolve), a: coverage
 layout(location = 1) out vec4 o_mask;    // r: blocked light weight, g: ground coverage, b: sky occlusion
 void main() {
-    vec3 alb = u_textured ? v_albedo * texture(u_tex, v_uv).rgb : v_albedo;
+    vec3 alb = u_albedo_gain * (u_textured ? v_albedo * texture(u_tex, v_uv).rgb : v_albedo);
     vec3 e = u_use_vis ? vec3(u_ambient * v_vis.x) + u_bounce * v_vis.y : vec3(u_ambient);
     o_color = vec4(e * alb, 1.0);
     o_mask = vec4(0.0);

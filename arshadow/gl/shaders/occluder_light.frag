@@ -8,6 +8,7 @@ uniform float u_kd;
 uniform float u_ks;
 uniform float u_shininess;
 uniform bool u_textured;
+uniform vec3 u_albedo_gain;   // linear gain on the mesh's own colours (measured exposure)
 uniform sampler2D u_tex;     // linear RGB base colour (see occluder_base.frag)
 in vec2 v_uv;
 in vec3 v_world;
@@ -25,7 +26,7 @@ void main() {
     if (ndl > 0.0) {
         vec3 h = normalize(l + v);
         float spec = pow(max(dot(n, h), 0.0), u_shininess);
-        vec3 alb = u_textured ? v_albedo * texture(u_tex, v_uv).rgb : v_albedo;
+        vec3 alb = u_albedo_gain * (u_textured ? v_albedo * texture(u_tex, v_uv).rgb : v_albedo);
         c = u_light_color * (u_kd * alb * ndl + u_ks * spec);
     }
     o_color = vec4(c, 0.0);
