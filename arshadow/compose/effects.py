@@ -89,6 +89,11 @@ def add_noise(region: np.ndarray, alpha: np.ndarray, noise: tuple, seed: int) ->
     (``alpha (h, w)``), its sigma per channel :func:`arshadow.estimate.optics.noise_at` the pixel's level."""
     if not noise:
         return
+    rows, cols = np.nonzero(np.asarray(alpha).any(axis=1))[0], np.nonzero(np.asarray(alpha).any(axis=0))[0]
+    if rows.size == 0:
+        return
+    sub = (slice(int(rows[0]), int(rows[-1]) + 1), slice(int(cols[0]), int(cols[-1]) + 1))
+    region, alpha = region[sub], np.asarray(alpha)[sub]  # only where the object is (views: in place)
     lv = region.astype(np.float32) / np.float32(255.0)
     sig = noise_at(lv, list(noise)).astype(np.float32) * np.float32(255.0)
     n = np.random.default_rng(seed).standard_normal(region.shape, dtype=np.float32)

@@ -60,7 +60,7 @@ _SUB = 3
 #: occlusion of the sky below the second value tapers linearly to 0 at the first (far from the object:
 #: times the sky's share of the light, < 1 % of a pixel's light, about one 8-bit step); the map keeps the
 #: texels where it is not 0
-ACTIVE_OCCLUSION = (0.015, 0.035)
+ACTIVE_OCCLUSION = (0.03, 0.06)
 
 
 def cosine_directions(n: int, normal=(0.0, 0.0, 1.0)) -> np.ndarray:
