@@ -237,8 +237,8 @@ def _sky_shading(plan, image, intr, geometry, outputs, color_gain):
     from .shading.sky import SkyShading
 
     opts = geometry.options
-    on, why = decide_ambient_occlusion(opts)
-    plan.decide("ambient_occlusion", on, why)
+    made = next((d for d in plan.decisions if d.name == "ambient_occlusion"), None)
+    on, why = (bool(made.value), made.reason) if made is not None else decide_ambient_occlusion(opts)
     outputs.item.plan["ambient_occlusion"] = why  # type: ignore[index]  # a dict: _report_plan made it
     if not on:
         return None

@@ -159,6 +159,9 @@ class Tolerances:
     sky_ground_abs: float = 0.015  # ground sky visibility (256 directions, 256^2 texels) vs Lambert (0.010 measured)
     sky_object_abs: float = 2e-3  # convex object, 4096 directions vs the tilted-plane horizon closed form
     sky_object_rays_abs: float = 0.01  # ray-cast self-occlusion (1024 directions) vs Lambert's form factor
+    sky_object_raster_mean: float = (
+        0.02  # item-buffer self-occlusion (64 dirs) vs BVH rays (256), torus (0.009 measured)
+    )
     psf_sigma_px: float = 0.15  # marker-edge blur vs the synthetic photo's linear-light Gaussian (0..3 px)
     noise_sigma_rel: float = 0.1  # measured noise sigma vs the added one (with quantisation), relative
     sky_projection_abs: float = 0.02  # rendered sky-occlusion channel vs the map sampled at the pixel's ground point

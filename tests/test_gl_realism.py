@@ -153,3 +153,23 @@ def test_textured_quad_matches_the_projected_texture(ctx):
     )
     # and the untextured render (colour override) is flat: the texture did it
     assert res.color[sel].std(axis=0).max() > 0.1
+
+
+def test_gpu_item_buffer_equals_the_numpy_one(ctx):
+    from arshadow.geometry.mesh import load_occluder
+    from arshadow.gl.sky import GLItemBuffer
+    from arshadow.shading.raster import item_buffer
+
+    c = load_occluder("torus:0.05,0.015", rotate=(30, 0, 0))
+    w = np.array([0.3, 0.2, 0.9]) / np.linalg.norm([0.3, 0.2, 0.9])
+    e1 = np.cross([1.0, 0, 0], w)
+    e1 /= np.linalg.norm(e1)
+    fr = np.stack([e1, np.cross(w, e1), w])
+    pv = c.vertices @ fr.T
+    lo, hi = pv[:, :2].min(0), pv[:, :2].max(0)
+    xy = (pv[:, :2] - lo) * (254 / (hi - lo).max()) + 1
+    f = c.faces[c.face_planes[:, :3] @ w > 0]
+    ib = GLItemBuffer(ctx, 256)
+    a = ib(xy, pv[:, 2], f, 256)
+    b = item_buffer(xy, pv[:, 2], f, 256)
+    assert (a >= 0).sum() > 5000 and (a != b).mean() < 1e-3  # ties on shared edges only

@@ -140,9 +140,7 @@ class CasterBuffers:
                 shade[:, :2] = material.uv.reshape(-1, 2)[first]
                 self.texture = _texture(ctx, material.texture)
             if sky is not None:
-                shade[:, 2], shade[:, 3] = object_sky_visibility(
-                    caster, v[corner_v], nrm.reshape(-1, 3)[first], sky=sky
-                )
+                shade[:, 2:] = _object_sky(ctx, caster, v[corner_v], nrm.reshape(-1, 3)[first], sky)
             self.shade_vbo = ctx.buffer(shade.tobytes())
             content.append((self.shade_vbo, "2f 2f", "in_uv", "in_vis"))
             # the base pass then draws these vertices (per corner) instead of the welded ones
@@ -245,6 +243,21 @@ class CasterBuffers:
         ):
             if o is not None:
                 o.release()
+
+
+def _object_sky(ctx, caster, points: np.ndarray, normals: np.ndarray, sky: str) -> np.ndarray:
+    """``(k, 2)``: sky visibility and ground view of the shading vertices, self-occlusion found with item
+    buffers drawn on this context (:class:`arshadow.gl.sky.GLItemBuffer`, 512 px, 64 directions)."""
+    from .sky import GLItemBuffer
+
+    # one per context, kept like the programs (releasing a framebuffer moderngl may still think bound
+    # left GL_INVALID_OPERATION when the next one was made)
+    extra = _program_cache(ctx)
+    ib = extra.get("item_buffer_512")
+    if ib is None:
+        ib = extra["item_buffer_512"] = GLItemBuffer(ctx, 512)
+    s, g = object_sky_visibility(caster, points, normals, sky=sky, item_buffer=ib, res=512)
+    return np.stack([s, g], axis=1)
 
 
 def _texture(ctx, image: np.ndarray):

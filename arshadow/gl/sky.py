@@ -77,3 +77,65 @@ class GroundSkyPass:
     def release(self) -> None:
         for o in (self.vao, self.vbo, self.tex):
             o.release()
+
+
+class GLItemBuffer:
+    """:func:`arshadow.shading.raster.item_buffer` drawn by the GPU: the triangles' indices z-buffered into
+    an ``R32I`` texture (``gl_PrimitiveID + 1``; 0 = none) and read back. Same pixel convention (pixel
+    ``(i, j)`` centre at ``(j + 0.5, i + 0.5)``, row 0 = the array's first row), same nearest-to-the-source
+    rule (largest depth wins).
+
+    Parameters
+    ----------
+    ctx : moderngl.Context
+    res : int
+        Side of the square buffer in pixels.
+    """
+
+    def __init__(self, ctx, res: int):
+        self.ctx, self.res = ctx, int(res)
+        self.prog = program(ctx, "item.vert", "item.frag")
+        self.tex = ctx.texture((self.res, self.res), 1, dtype="i4")
+        self.depth = ctx.depth_renderbuffer((self.res, self.res))
+        self.fbo = ctx.framebuffer(color_attachments=[self.tex], depth_attachment=self.depth)
+        self._cap = 0
+        self.vbo = self.ibo = self.vao = None
+
+    def _buffers(self, n: int, m: int) -> None:
+        if self.vbo is None or n * 12 > self.vbo.size or m * 12 > self.ibo.size:
+            for o in (self.vao, self.vbo, self.ibo):
+                if o is not None:
+                    o.release()
+            self.vbo = self.ctx.buffer(reserve=max(n * 12, 64) * 2, dynamic=True)
+            self.ibo = self.ctx.buffer(reserve=max(m * 12, 64) * 2, dynamic=True)
+            self.vao = self.ctx.vertex_array(self.prog, [(self.vbo, "3f", "in_pos")], index_buffer=self.ibo)
+
+    def __call__(self, xy: np.ndarray, depth: np.ndarray, f: np.ndarray, res: int) -> np.ndarray:
+        if int(res) != self.res:
+            raise ValueError(f"GLItemBuffer made for {self.res} px, asked for {res}")
+        ctx = self.ctx
+        out = np.full((self.res, self.res), -1, np.int32)
+        if len(f) == 0:
+            return out
+        d0, d1 = float(depth.min()), float(depth.max())
+        half = max(0.5 * (d1 - d0), 1e-30)
+        pos = np.empty((len(xy), 3), np.float32)
+        pos[:, :2] = np.asarray(xy, np.float64) / self.res * 2.0 - 1.0
+        pos[:, 2] = -(np.asarray(depth, np.float64) - 0.5 * (d0 + d1)) / half * 0.99  # nearer the source: smaller z
+        self._buffers(len(pos), len(f))
+        self.vbo.write(pos.tobytes())
+        self.ibo.write(np.ascontiguousarray(f, np.int32).tobytes())
+        self.fbo.use()
+        self.fbo.viewport = (0, 0, self.res, self.res)
+        self.fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        ctx.enable_only(ctx.DEPTH_TEST)
+        ctx.depth_func = "<"
+        self.vao.render(ctx.TRIANGLES, vertices=3 * len(f))
+        ids = np.frombuffer(self.tex.read(), np.int32).reshape(self.res, self.res)
+        ctx.enable_only(ctx.NOTHING)
+        return ids - 1
+
+    def release(self) -> None:
+        for o in (self.vao, self.vbo, self.ibo, self.fbo, self.depth, self.tex):
+            if o is not None:
+                o.release()

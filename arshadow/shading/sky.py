@@ -279,14 +279,17 @@ def _is_convex(caster: ShadowCaster) -> bool:
     return True
 
 
-def object_sky_visibility(
+def object_sky_visibility(  # noqa: PLR0913 (the points, and keyword-only options)
     caster: ShadowCaster,
     points: np.ndarray,
     normals: np.ndarray,
     *,
     n_dirs: int = 64,
     sky: str = "uniform",
+    method: str = "raster",
     max_rays: int = 400_000,
+    item_buffer=None,
+    res: int = 384,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Sky visibility and ground view of points on the object's surface.
 
@@ -298,9 +301,17 @@ def object_sky_visibility(
     normals : (k, 3) float
         Their unit shading normals.
     n_dirs : int
-        Cosine-weighted directions per point; reduced (never below 16) so that points x directions stays
-        under ``max_rays`` (a big mesh: coarser per point, same time). Unused for a convex mesh.
+        ``"raster"``: directions over the whole sphere (uniform solid angle, shared by every point; at least
+        16); ``"rays"``: cosine-weighted directions per point (reduced, never below 16, so that points x
+        directions stays under ``max_rays``). Unused for a convex mesh.
     sky : {"uniform", "cie"}
+    method : {"raster", "rays"}
+        How a non-convex mesh's self-occlusion is found: item buffers per direction
+        (:func:`arshadow.shading.raster.hidden_directions`, fast) or exact BVH rays per point and
+        direction (:func:`arshadow.geometry.rays.rays_blocked`, the reference).
+    item_buffer, res : optional
+        ``"raster"``: who draws the item buffers (:func:`arshadow.shading.raster.hidden_directions`; the
+        renderer hands the GPU's) and their side in pixels.
 
     Returns
     -------
@@ -313,16 +324,58 @@ def object_sky_visibility(
     """
     p = np.asarray(points, np.float64).reshape(-1, 3)
     nrm = np.asarray(normals, np.float64).reshape(-1, 3)
-    k = len(p)
+    nrm = nrm / np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
     convex = _is_convex(caster)
     if convex and sky == "uniform":
         # nothing of a convex object hides its own sky: a plane tilted by a from the horizontal sees
         # (1 + cos a) / 2 of the cosine lobe above the horizon and the rest of it on the ground
-        nz = np.clip(nrm[:, 2] / np.maximum(np.linalg.norm(nrm, axis=1), 1e-300), -1.0, 1.0)
+        nz = np.clip(nrm[:, 2], -1.0, 1.0)
         return (1.0 + nz) / 2.0, (1.0 - nz) / 2.0
-    if convex:
-        n_dirs = max(int(n_dirs), 2048)  # no rays: the horizon alone, finely sampled
-    n = int(max(16, min(int(n_dirs), max_rays // max(k, 1)))) if not convex else int(n_dirs)
+    if method == "raster" or convex:
+        n = 2048 if convex else max(16, int(n_dirs))
+        return _object_raster(caster, p, nrm, n, sky, hide=not convex, item_buffer=item_buffer, res=res)
+    if method != "rays":
+        raise UsageError(f"object sky visibility method {method!r}: choose raster or rays")
+    return _object_rays(caster, p, nrm, int(max(16, min(int(n_dirs), max_rays // max(len(p), 1)))), sky)
+
+
+def _sphere_directions(n: int) -> np.ndarray:
+    """``(n, 3)`` unit directions of equal solid angle (a Fibonacci sphere)."""
+    z = 1.0 - (2.0 * np.arange(n) + 1.0) / n
+    r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+    phi = np.arange(n) * (math.pi * (3.0 - math.sqrt(5.0)))
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+
+
+def _object_raster(caster, p, nrm, n: int, sky: str, hide: bool, item_buffer=None, res: int = 384):
+    """Directions shared by every point, each weighted by the point's cosine (uniform-solid-angle
+    quadrature, normalised by the same quadrature of the open horizontal ground)."""
+    from .raster import hidden_directions
+
+    dirs = _sphere_directions(n)
+    cos = nrm @ dirs.T  # (k, n)
+    front = cos > 0.0
+    if hide:
+        fn = caster.face_planes[:, :3] if caster.is_closed else None
+        off = p + 1e-5 * caster.scale * nrm  # off the surface: its own faces lie behind it
+        free = ~hidden_directions(
+            caster.vertices, caster.faces, off, dirs, need=front, normals=fn, item_buffer=item_buffer, res=res
+        )
+    else:
+        free = front
+    free &= front
+    rad = sky_radiance(dirs, sky)
+    e_open = float(np.sum(rad * np.maximum(dirs[:, 2], 0.0)))  # the open ground, same quadrature
+    up = dirs[:, 2] > 0.0
+    sky_v = (cos * free) @ rad / e_open
+    g_open = float(np.sum(np.maximum(-dirs[:, 2], 0.0)))
+    ground_v = (cos * free) @ (~up).astype(np.float64) / g_open
+    return sky_v, ground_v
+
+
+def _object_rays(caster, p, nrm, n: int, sky: str) -> tuple[np.ndarray, np.ndarray]:
+    """Cosine-weighted directions per point, each tested with an exact ray (the reference method)."""
+    k = len(p)
     base = cosine_directions(n)
     sky_v = np.zeros(k)
     ground_v = np.zeros(k)
@@ -333,11 +386,8 @@ def object_sky_visibility(
         pp, nn = p[s : s + chunk], nrm[s : s + chunk]
         dirs = np.stack([_rotate_to(base, ni) for ni in nn])  # (c, n, 3)
         up = dirs[..., 2] > 0.0
-        if convex:
-            free = np.ones(dirs.shape[:2], bool)
-        else:
-            o = np.repeat(pp + eps * nn, n, axis=0)
-            free = ~rays_blocked(caster, o, dirs.reshape(-1, 3)).reshape(dirs.shape[:2])
+        o = np.repeat(pp + eps * nn, n, axis=0)
+        free = ~rays_blocked(caster, o, dirs.reshape(-1, 3)).reshape(dirs.shape[:2])
         rad = sky_radiance(dirs.reshape(-1, 3), sky).reshape(dirs.shape[:2])
         sky_v[s : s + chunk] = (rad * free).mean(axis=1) / e0
         ground_v[s : s + chunk] = (free & ~up).mean(axis=1)
