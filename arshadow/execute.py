@@ -38,6 +38,7 @@ if TYPE_CHECKING:
     from .gl.compose import GpuCompositor, PathChooser
     from .plan import FramePlan, SceneGeometry
     from .render_api import Renderer
+    from .render_options import RenderOptions
 
 __all__ = ["LAYERS_WHY", "STAGES", "FrameContext", "FrameOutputs", "execute", "render_request"]
 
@@ -154,13 +155,14 @@ def render_request(
     )
 
 
-def _shading(opts, caster, sky) -> Shading:
+def _shading(opts: RenderOptions, caster: Any, sky: Any) -> Shading:
     """:meth:`Shading.from_options` with the frame's sky; a mesh with its own colours or texture under a
     measured light keeps them, times the exposure gain (``material_gain``), instead of the grey default."""
     sh = replace(Shading.from_options(opts), sky=sky)
     own = getattr(caster, "material", None) is not None or getattr(caster, "colors", None) is not None
     if opts.material_gain is not None and own:
-        sh = replace(sh, color=None, albedo_gain=tuple(float(v) for v in opts.material_gain))
+        g = [float(v) for v in opts.material_gain]
+        sh = replace(sh, color=None, albedo_gain=(g[0], g[1], g[2]))
     return sh
 
 
@@ -229,7 +231,14 @@ def execute(
     return out, mask_full
 
 
-def _sky_shading(plan, image, intr, geometry, outputs, color_gain):
+def _sky_shading(
+    plan: FramePlan,
+    image: np.ndarray,
+    intr: Intrinsics,
+    geometry: SceneGeometry,
+    outputs: FrameOutputs,
+    color_gain: Sequence[float] | np.ndarray | None,
+) -> Any:
     """The frame's :class:`arshadow.shading.sky.SkyShading` (None when the planner's ``ambient_occlusion``
     decision is off): the scene's ground occlusion map, the object's sky visibility and the ground bounce
     measured on this photo round the object (with a measured exposure; 0 otherwise)."""
@@ -244,7 +253,7 @@ def _sky_shading(plan, image, intr, geometry, outputs, color_gain):
         return None
     if plan.compose not in (None, "cpu"):
         plan.decide("compose", "cpu", SKY_WHY)
-    bounce = (0.0, 0.0, 0.0)
+    bounce: tuple[float, ...] = (0.0, 0.0, 0.0)
     if opts.exposure_gain is not None and opts.draw_occluder:
         b = geometry.bounds
         c, r = 0.5 * (b[0, :2] + b[1, :2]), 0.5 * float(np.linalg.norm(b[1, :2] - b[0, :2])) + 0.01
@@ -523,7 +532,7 @@ def _blurred(wp: _Warped, sigma: float, shape: tuple) -> _Warped:
     nx0, ny0, nx1, ny1 = max(x0 - p, 0), max(y0 - p, 0), min(x0 + w + p, W), min(y0 + h + p, H)
     pads = ((y0 - ny0, ny1 - y0 - h), (x0 - nx0, nx1 - x0 - w))
 
-    def grow(a):
+    def grow(a: np.ndarray | None) -> np.ndarray | None:
         return None if a is None else np.pad(a, pads + ((0, 0),) * (a.ndim - 2))
 
     mask, alpha, color, sky = blur_layers(sigma, grow(wp.mask), grow(wp.alpha), grow(wp.color), grow(wp.sky))

@@ -18,6 +18,7 @@ import numpy as np
 
 if TYPE_CHECKING:
     from ..render_options import RenderOptions
+    from .effects import CameraEffects
 
 __all__ = ["Look"]
 
@@ -51,7 +52,7 @@ class Look:
     color_gain: np.ndarray | None = None
     #: the photo's measured blur and noise applied to the inserted layers (:mod:`arshadow.compose.effects`,
     #: ``--camera-effects on``; the numpy compositor), None: none
-    camera: object = None
+    camera: CameraEffects | None = None
 
     @classmethod
     def from_options(cls, options: RenderOptions, color_gain: Sequence[float] | np.ndarray | None = None) -> Look:
