@@ -253,10 +253,14 @@ def _object_sky(ctx, caster, points: np.ndarray, normals: np.ndarray, sky: str) 
     # one per context, kept like the programs (releasing a framebuffer moderngl may still think bound
     # left GL_INVALID_OPERATION when the next one was made)
     extra = _program_cache(ctx)
-    ib = extra.get("item_buffer_512")
-    if ib is None:
-        ib = extra["item_buffer_512"] = GLItemBuffer(ctx, 512)
-    s, g = object_sky_visibility(caster, points, normals, sky=sky, item_buffer=ib, res=512)
+
+    def draw(xy, depth, faces, res):  # made on first use: a convex mesh needs none
+        ib = extra.get("item_buffer_512")
+        if ib is None:
+            ib = extra["item_buffer_512"] = GLItemBuffer(ctx, 512)
+        return ib(xy, depth, faces, res)
+
+    s, g = object_sky_visibility(caster, points, normals, sky=sky, item_buffer=draw, res=512)
     return np.stack([s, g], axis=1)
 
 

@@ -97,6 +97,9 @@ class GLItemBuffer:
         self.prog = program(ctx, "item.vert", "item.frag")
         self.tex = ctx.texture((self.res, self.res), 1, dtype="i4")
         self.depth = ctx.depth_renderbuffer((self.res, self.res))
+        # moderngl rebinds "its" current framebuffer after making one: that may be a renderer target
+        # released since (raw GL), which fails with GL_INVALID_OPERATION; bind the default one first
+        ctx.detect_framebuffer(0).use()
         self.fbo = ctx.framebuffer(color_attachments=[self.tex], depth_attachment=self.depth)
         self._cap = 0
         self.vbo = self.ibo = self.vao = None
