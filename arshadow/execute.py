@@ -158,9 +158,10 @@ def render_request(
 def _shading(opts: RenderOptions, caster: Any, sky: Any) -> Shading:
     """:meth:`Shading.from_options` with the frame's sky; a mesh with its own colours or texture under a
     measured light keeps them, times the exposure gain (``material_gain``), instead of the grey default."""
-    sh = replace(Shading.from_options(opts), sky=sky)
-    own = getattr(caster, "material", None) is not None or getattr(caster, "colors", None) is not None
-    if opts.material_gain is not None and own:
+    sh = Shading.from_options(opts) if sky is None else replace(Shading.from_options(opts), sky=sky)
+    if opts.material_gain is not None and (
+        getattr(caster, "material", None) is not None or getattr(caster, "colors", None) is not None
+    ):
         g = [float(v) for v in opts.material_gain]
         sh = replace(sh, color=None, albedo_gain=(g[0], g[1], g[2]))
     return sh

@@ -89,7 +89,7 @@ class CasterBuffers:
     positions (for the planar shadow). Built once per caster."""
 
     # the three programs, the caster and how it is shaded (colour, crease, sky model, frame): one call site each
-    def __init__(self, ctx, prog_base, prog_occ, prog_pos, caster, color, crease_deg, local=True, sky=None):  # noqa: PLR0913
+    def __init__(self, ctx, prog_base, prog_occ, prog_pos, caster, color, crease_deg, local=True, sky=None, rich=None):  # noqa: PLR0913
         v = np.asarray(caster.vertices, dtype=np.float64)
         #: the caster's local origin (its box centre; world origin with ``local=False``): positions go to
         #: float32 relative to it
@@ -134,7 +134,12 @@ class CasterBuffers:
         self.shade_vbo, self.texture, self.shade_base_vao = None, None, None
         self.textured, self.sky = textured, sky
         content = [(self.vbo, "4f 3f 3f", "in_pos", "in_normal", "in_albedo")]
-        if textured or sky is not None:
+        #: the programs of the occluder's base and light passes: ``rich = (base, light)`` (the texture / sky /
+        #: albedo-gain shaders) when given, else the plain ones this was made with
+        self.prog_base, self.prog_light = (prog_base, prog_occ) if rich is None else rich
+        self.rich = rich is not None
+        if rich is not None:
+            prog_base, prog_occ = rich
             shade = np.zeros((len(first), 4), np.float32)
             if textured:
                 shade[:, :2] = material.uv.reshape(-1, 2)[first]
@@ -330,29 +335,48 @@ class CasterCache:
         Least recently *made* entries are released beyond this many.
     """
 
-    def __init__(self, ctx, programs, max_cached: int):
+    def __init__(self, ctx, programs, max_cached: int, rich_programs=None):
         self.ctx = ctx
         self.programs = tuple(programs)
+        #: (base, light) programs with textures, sky shading and the albedo gain (None: never used)
+        self.rich_programs = rich_programs
         self.max_cached = int(max_cached)
         self._entries: dict[int, tuple[Callable[[], object], tuple, CasterBuffers]] = {}
 
-    def get(self, caster, occluder_color, crease_deg: float, sky: str | None = None) -> CasterBuffers:
+    def get(
+        self, caster, occluder_color, crease_deg: float, sky: str | None = None, rich: bool = False
+    ) -> CasterBuffers:
         """The buffers of ``caster`` with ``occluder_color`` ((3,) sRGB or None), made on first use; ``sky``
-        (a sky model of :mod:`arshadow.shading.sky`, or None): with the object's sky visibility per vertex."""
+        (a sky model of :mod:`arshadow.shading.sky`, or None): with the object's sky visibility per vertex;
+        ``rich``: drawn by the rich programs (also when the caster has a texture and no colour overrides it)."""
+        material = getattr(caster, "material", None)
+        rich = bool(self.rich_programs) and (
+            rich or sky is not None or (occluder_color is None and material is not None and material.textured)
+        )
         entries = self._entries
         # purge dead casters
         for key in [k for k, (ref, _, _) in entries.items() if ref() is None]:
             entries.pop(key)[2].release()
         ckey = None if occluder_color is None else tuple(float(c) for c in np.ravel(occluder_color)[:3])
         entry = entries.get(id(caster))
-        if entry is not None and entry[0]() is caster and entry[1] == (ckey, crease_deg, sky):
+        if entry is not None and entry[0]() is caster and entry[1] == (ckey, crease_deg, sky, rich):
             return entry[2]
         if entry is not None:
             entries.pop(id(caster))[2].release()
         while len(entries) >= self.max_cached:
             entries.pop(next(iter(entries)))[2].release()
         prog_base, prog_occ, prog_pos = self.programs
-        bufs = CasterBuffers(self.ctx, prog_base, prog_occ, prog_pos, caster, ckey, crease_deg, sky=sky)
+        bufs = CasterBuffers(
+            self.ctx,
+            prog_base,
+            prog_occ,
+            prog_pos,
+            caster,
+            ckey,
+            crease_deg,
+            sky=sky,
+            rich=self.rich_programs if rich else None,
+        )
         ref: Callable[[], object]
         try:
             ref = weakref.ref(caster)
@@ -363,7 +387,7 @@ class CasterCache:
 
             ref = strong
 
-        entries[id(caster)] = (ref, (ckey, crease_deg, sky), bufs)
+        entries[id(caster)] = (ref, (ckey, crease_deg, sky, rich), bufs)
         return bufs
 
     def __len__(self) -> int:

@@ -182,6 +182,10 @@ class ShadowRenderer:
         # programs (compiled once per context)
         self.prog_occ_base = program(ctx, "occluder.vert", "occluder_base.frag")
         self.prog_occ_light = program(ctx, "occluder.vert", "occluder_light.frag")
+        # the same with a texture, sky shading and the albedo gain (issue 28), for casters that need them:
+        # the plain ones stay as fast as before
+        self.prog_rich_base = program(ctx, "occluder_rich.vert", "occluder_rich_base.frag")
+        self.prog_rich_light = program(ctx, "occluder_rich.vert", "occluder_rich_light.frag")
         self.prog_ground = program(ctx, "common.vert", "ground.frag")
         self.prog_volume = program(ctx, "common.vert", "volume.frag")
         self.prog_mask = program(ctx, "fullscreen.vert", "mask.frag")
@@ -191,7 +195,10 @@ class ShadowRenderer:
         self._fs_vao = ctx.vertex_array(self.prog_mask, [])
         self._volumes = VolumeBuffers(ctx, self.prog_volume)
         self._casters = CasterCache(
-            ctx, (self.prog_occ_base, self.prog_occ_light, self.prog_volume), self.max_cached_casters
+            ctx,
+            (self.prog_occ_base, self.prog_occ_light, self.prog_volume),
+            self.max_cached_casters,
+            rich_programs=(self.prog_rich_base, self.prog_rich_light),
         )
         self._targets = FrameTargets(ctx, self.gl, samples, self.supersample)
         self._sky_ground = None  # GroundSkyPass of the last ground occlusion map drawn
@@ -338,7 +345,13 @@ class ShadowRenderer:
         origin = request.caster.bounds.mean(axis=0)  # = local_origin(caster.vertices), from the cached bounds
         mvp_local = mvp @ translation(origin)
         bufs = (
-            self._casters.get(request.caster, shading.color, self.crease_deg, _object_sky(shading))
+            self._casters.get(
+                request.caster,
+                shading.color,
+                self.crease_deg,
+                _object_sky(shading),
+                rich=tuple(shading.albedo_gain) != (1.0, 1.0, 1.0),
+            )
             if (draw_occluder or any(p.mode == "planar" for p in passes))
             else None
         )
@@ -347,8 +360,9 @@ class ShadowRenderer:
             bufs.upload_light_subsets(passes)
         self._ground.set(request.ground_size, origin)
         if draw_occluder:
-            set_uniforms((self.prog_occ_base, self.prog_occ_light), shading.uniforms())
-        self._targets.ensure(width, height)
+            progs = (self.prog_occ_base, self.prog_occ_light, self.prog_rich_base, self.prog_rich_light)
+            set_uniforms(progs, shading.uniforms())
+        self._targets.ensure(width, height, sky=shading.sky is not None and shading.sky.ground is not None)
         f = _Frame(
             width=width,
             height=height,
@@ -405,13 +419,14 @@ class ShadowRenderer:
             gl.glStencilOp(G.GL_KEEP, G.GL_KEEP, G.GL_REPLACE)
             # colour 1 stays 0 on the occluder (cleared; the ground pass overwrites it where it is nearer)
             gl.draw_buffer_list([0])
-            prog = self.prog_occ_base
+            prog = bufs.prog_base
             vao = bufs.base_vao if bufs.shade_base_vao is None else bufs.shade_base_vao
             prog["u_mvp"].write(f.mvp_bytes)  # the shading's uniforms: written by _begin
-            use_vis = bufs.sky is not None and f.sky is not None
-            prog["u_use_vis"].value = use_vis
-            prog["u_bounce"].value = tuple(float(x) for x in f.sky.bounce) if use_vis else (0.0, 0.0, 0.0)
-            self._bind_texture(prog, bufs)
+            if bufs.rich:
+                use_vis = bufs.sky is not None and f.sky is not None
+                prog["u_use_vis"].value = use_vis
+                prog["u_bounce"].value = tuple(float(x) for x in f.sky.bounce) if use_vis else (0.0, 0.0, 0.0)
+                self._bind_texture(prog, bufs)
             vao.render(ctx.TRIANGLES, vertices=bufs.n_indices)
             gl.draw_buffers(2)
         self._mark("occluder")
@@ -681,7 +696,7 @@ class ShadowRenderer:
         # occluder pixels (bit 6) whose count is 0; without a volume: every occluder pixel
         gl.glStencilFunc(G.GL_EQUAL, OCCLUDER_BIT, 0xFF if stencil else 0xC0)
         gl.draw_buffer_list([0])
-        prog = self.prog_occ_light
+        prog = bufs.prog_light
         prog["u_mvp"].write(f.mvp_bytes)
         lh = np.asarray(p.light_h, dtype=np.float64).copy()
         lh[:3] -= bufs.origin * lh[3]  # the caster's local frame, like v_world
@@ -689,7 +704,8 @@ class ShadowRenderer:
         col = np.asarray(p.color, dtype=np.float64)[:3] * float(p.weight)
         prog["u_light_color"].value = tuple(float(x) for x in col)
         prog["u_eye"].value = tuple(float(x) for x in f.eye)  # the shading's uniforms: written by _begin
-        self._bind_texture(prog, bufs)
+        if bufs.rich:
+            self._bind_texture(prog, bufs)
         # closed meshes: only the light-facing faces (the others lie in this light's own shadow; with a
         # planar or no volume pass this is also what keeps a convex occluder's terminator as the volume has it)
         if i in bufs.sub_ranges:

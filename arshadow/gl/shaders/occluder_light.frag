@@ -7,10 +7,6 @@ uniform vec3 u_eye;          // camera centre, world
 uniform float u_kd;
 uniform float u_ks;
 uniform float u_shininess;
-uniform bool u_textured;
-uniform vec3 u_albedo_gain;   // linear gain on the mesh's own colours (measured exposure)
-uniform sampler2D u_tex;     // linear RGB base colour (see occluder_base.frag)
-in vec2 v_uv;
 in vec3 v_world;
 in vec3 v_normal;
 in vec3 v_albedo;
@@ -26,8 +22,7 @@ void main() {
     if (ndl > 0.0) {
         vec3 h = normalize(l + v);
         float spec = pow(max(dot(n, h), 0.0), u_shininess);
-        vec3 alb = u_albedo_gain * (u_textured ? v_albedo * texture(u_tex, v_uv).rgb : v_albedo);
-        c = u_light_color * (u_kd * alb * ndl + u_ks * spec);
+        c = u_light_color * (u_kd * v_albedo * ndl + u_ks * spec);
     }
     o_color = vec4(c, 0.0);
     o_mask = vec4(0.0);
