@@ -169,6 +169,30 @@ class Tolerances:
     texture_p99_abs: float = 0.05
     # the render seam (issue 27): a colour written into the RGBA16F colour attachment (11-bit mantissa)
     half_float_rel: float = 2.0**-10
+    # path-traced reference (issue 28 item 4, tests/test_reference.py, docs/reference.md). Camera: the Mitsuba
+    # plate's paper against arshadow's exact render of the print (measured: own set shift <= 0.035 px, scale
+    # <= 1e-4; held-out cameras up to 0.10 px and 0.11 %, unexplained: estimator bias or a residual mismatch).
+    # Detected corners (a detector's view, biased by the image's lighting and noise): on the plate against
+    # those detected on the exact render at the same camera, measured <= 0.51 px per corner (point light:
+    # a brightness gradient over the paper), centroid <= 0.16 px; the plate's centroid against the
+    # projected corners <= 0.14 px.
+    ref_camera_shift_px: float = 0.15
+    ref_camera_scale: float = 0.0015  # relative, about the principal point (see above; 0.25 % without mitsuba_fov)
+    ref_corner_px: float = 0.6
+    ref_corner_centroid_px: float = 0.2
+    # Baseline of today's renderer (2026-11-26, median over each set's six scenes; arshadow light on the
+    # plate, render --light-from with the tracked pose): own ground 0.402, contact 0.446, object 0.130; with
+    # the true light given (default options) ground 0.361. Limits = those + 0.01 (rounding up). The issue's
+    # targets (on the held-out set) are ground <= 0.10, contact <= 0.12, object <= 0.05: tighten these when
+    # the realism work lands, never loosen them.
+    ref_own_ground: float = 0.415
+    ref_own_contact: float = 0.46
+    ref_own_object: float = 0.14
+    ref_own_true_ground: float = 0.375
+    # held-out set, same pipeline: ground 0.320, contact 0.424, object 0.164 (+ 0.01)
+    ref_heldout_ground: float = 0.33
+    ref_heldout_contact: float = 0.435
+    ref_heldout_object: float = 0.175
 
 
 TOL = Tolerances()

@@ -8,6 +8,8 @@ One module per section, each built on the Python API:
   the shadow-map baseline) against the exact GL-independent shadow (:mod:`arshadow.geometry.exact`);
 - :mod:`.tracking` - detection + pose time vs pose error;
 - :mod:`.pipeline` - per-stage times, FPS vs lights, paper 003's AR scene (through :class:`arshadow.Session`);
+- :mod:`.realism` - each rendering option's cost per 720p frame against its residual on the path-traced
+  reference scenes (:mod:`.reference`), with the planner's choices;
 - :mod:`.plots` (matplotlib, optional) and :mod:`.summary` (Markdown).
 
 :func:`run` writes ``<section>.csv`` files, ``results.json``, PNG plots and ``summary.md`` into a folder.
@@ -23,14 +25,14 @@ from pathlib import Path
 from ..errors import UsageError
 from ..gl.context import create_context
 from ..io import write_bytes
-from . import pipeline, render, silhouettes, tracking
+from . import pipeline, realism, render, silhouettes, tracking
 from . import plots as P
 from .common import machine_label, metadata, write_csv
 from .summary import markdown
 
 __all__ = ["QUICK", "FULL", "SECTIONS", "run"]
 
-SECTIONS = ("silhouettes", "render", "tracking", "pipeline")
+SECTIONS = ("silhouettes", "render", "tracking", "pipeline", "realism")
 
 #: settings of ``arshadow bench --quick`` (under 3 minutes on a loaded 2-core machine)
 QUICK = dict(
@@ -86,6 +88,8 @@ def _csv_rows(results: dict) -> dict:
     if "pipeline" in results:
         p = results["pipeline"]
         out.update(pipeline_stages=p["stages"], pipeline_lights=p["lights"], pipeline_paper003=p["paper003"])
+    if results.get("realism"):
+        out["realism"] = results["realism"]
     return out
 
 
@@ -117,7 +121,7 @@ def run(out_dir, *, quick: bool = False, sections=SECTIONS, log=print, plots: bo
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     ctx = None
-    if any(s in sections for s in ("render", "pipeline")):
+    if any(s in sections for s in ("render", "pipeline", "realism")):
         ctx = create_context()
     try:
         meta = metadata(ctx)
@@ -135,6 +139,8 @@ def run(out_dir, *, quick: bool = False, sections=SECTIONS, log=print, plots: bo
                 results[name] = render.run(cfg, ctx, log)
             elif name == "tracking":
                 results[name] = tracking.run(cfg, log)
+            elif name == "realism":
+                results[name] = realism.run(cfg, ctx, log)
             else:
                 results[name] = pipeline.run(cfg, ctx, log)
             timings[name] = round(time.perf_counter() - ts, 1)

@@ -329,6 +329,24 @@ def tracking(rows, out_dir, label) -> Path:
     return path
 
 
+def realism(rows, out_dir, label) -> Path:
+    """Residual against the path tracer (median over the own reference scenes) vs ms per 720p frame, one
+    point per realism option and region (ground, contact band, object)."""
+    fig, ax = _fig("Realism options: cost vs residual against a path tracer (own reference scenes)", label)
+    styles = {"ground": ("tab:brown", "o"), "contact": ("tab:red", "s"), "object": ("tab:blue", "^")}
+    for region, (color, marker) in styles.items():
+        xs = [r["ms_720p"] for r in rows]
+        ys = [r[f"own_{region}"] for r in rows]
+        ax.scatter(xs, ys, color=color, marker=marker, label=region, s=36)
+        if region == "ground":
+            for r, x, y in zip(rows, xs, ys):
+                ax.annotate(r["option"], (x, y), fontsize=7, xytext=(4, 3), textcoords="offset points")
+    ax.set_xlabel("time per 720p frame, ms (median)")
+    ax.set_ylabel("residual to the path tracer (median; 0 perfect, 1 = no insert)")
+    ax.legend(fontsize=8)
+    return _save(fig, Path(out_dir) / "realism_cost_vs_residual.png")
+
+
 def all_plots(results: dict, out_dir, label, log) -> dict:
     """Every plot the results allow; ``{name: path}``."""
     out = {}
@@ -343,5 +361,7 @@ def all_plots(results: dict, out_dir, label, log) -> dict:
     if "pipeline" in results:
         out["pipeline_time_vs_resolution"] = pipeline_time_vs_resolution(results["pipeline"]["stages"], out_dir, label)
         out["fps_vs_lights"] = fps_vs_lights(results["pipeline"]["lights"], out_dir, label)
+    if results.get("realism"):
+        out["realism"] = realism(results["realism"], out_dir, label)
     log(f"  {len(out)} plots written")
     return out

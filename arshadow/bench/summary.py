@@ -424,6 +424,34 @@ def pipeline(res, meta, plots) -> list[str]:
     return L
 
 
+def realism(rows, plots) -> list[str]:
+    """The realism table: each option's cost per 720p frame against its residual (docs/reference.md)."""
+    if not rows:
+        return []
+    held = "heldout_ground" in rows[0]
+    head = ["option", "ms / 720p frame", "render ms", "ground", "contact", "object"]
+    head += ["held-out ground", "contact", "object"] if held else []
+    body = []
+    for r in rows:
+        line = [r["option"], _f(r["ms_720p"], 1), _f(r["render_ms_720p"], 1)]
+        line += [_f(r[f"own_{k}"], 3) for k in ("ground", "contact", "object")]
+        line += [_f(r[f"heldout_{k}"], 3) for k in ("ground", "contact", "object")] if held else []
+        body.append(line)
+    return [
+        "## 5. Realism: cost against the residual to a path tracer",
+        "",
+        "Residual = sum|composite - truth| / sum|truth - plate| in linear light (0 perfect, 1 no insert), median "
+        "over the Mitsuba reference scenes (docs/reference.md); cost: one 1280x720 frame through a Session.",
+        "",
+        _table(head, body),
+        "",
+        _img(plots, "realism", "realism options: cost vs residual"),
+        "",
+        "The planner's choices per option are in realism.csv (`planner`).",
+        "",
+    ]
+
+
 def headline(results: dict) -> str:
     """The key figures as one small Markdown table (the README quotes it)."""
     rows = []
@@ -540,4 +568,6 @@ def markdown(results: dict, meta: dict, plots: dict, duration_s: float, plots_hi
         L += tracking(results["tracking"], plots)
     if "pipeline" in results:
         L += pipeline(results["pipeline"], meta, plots)
+    if results.get("realism"):
+        L += realism(results["realism"], plots)
     return "\n".join(L) + "\n"

@@ -8,7 +8,7 @@ def register(subparsers) -> None:
         "bench",
         help="benchmark run time against error; writes CSV, PNG plots and a Markdown summary",
         description="Measure, for every setting that trades speed for accuracy (silhouette detectors, render "
-        "options, the shadow-map baseline, tracking, the whole pipeline), its run time (median and IQR of "
+        "options, the shadow-map baseline, tracking, the whole pipeline, the realism options against a path tracer), its run time (median and IQR of "
         "repeated runs) and its error against an independent exact reference; compare with the papers' claims. "
         "Writes <section>.csv, results.json, PNG plots (needs matplotlib: pip install arshadow[bench]) and "
         "summary.md into DIR. The full run takes about 10 minutes on 2 CPU cores; --quick under 3.",
@@ -19,7 +19,7 @@ def register(subparsers) -> None:
         "--sections",
         default=None,
         metavar="LIST",
-        help="comma-separated subset of: silhouettes, render, tracking, pipeline (default all)",
+        help="comma-separated subset of: silhouettes, render, tracking, pipeline, realism (default all)",
     )
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.set_defaults(func=run)
