@@ -189,6 +189,7 @@ def ground_sky_visibility(
     margin: float | None = None,
     sky: str = "uniform",
     max_triangle_draws: int = 2_000_000,
+    bounce: tuple | None = None,
 ) -> GroundOcclusion:
     """The object's :class:`GroundOcclusion` (ground frame = the caster's world frame, ground z = 0).
 
@@ -204,6 +205,12 @@ def ground_sky_visibility(
     margin : float, optional
         Metres of ground round the footprint's bounding square; default 3 x the object's height.
     sky : {"uniform", "cie"}
+    bounce : (light (3,), sky_share, albedo), optional
+        Also the light the object reflects onto the ground (interreflection): each blocked direction sees
+        the object's face nearest along it, lit by the direct light (unit ``light`` towards it, weight
+        ``1 - sky_share`` of the open ground's light) on its lit side and by the sky (``sky_share``,
+        ``(1 + n_z) / 2`` of it), times ``albedo``. Added to the map as ``bounce / sky_share``: the map then
+        holds ``V + bounce / r`` (more than 1 beside a lit face), what the composite's sky term multiplies.
     """
     if resolution < 2:
         raise UsageError(f"ground occlusion resolution must be at least 2 texels, got {resolution}")
@@ -222,6 +229,8 @@ def ground_sky_visibility(
     lim = (sub + 2) << _SHIFT
     acc = np.zeros((resolution, resolution), np.float64)
     img = np.zeros((sub, sub), np.uint8)
+    acc_b = np.zeros((resolution, resolution), np.float64) if bounce is not None else None
+    face_e = _face_irradiance(caster, bounce) if bounce is not None else None
     for d, w in zip(dirs, weights):
         h = np.r_[d, 0.0]
         faces = caster.faces[planes @ h > 0.0] if closed else caster.faces
@@ -234,6 +243,13 @@ def ground_sky_visibility(
         for t in q:
             cv2.fillConvexPoly(img, t, 1, lineType=cv2.LINE_8, shift=_SHIFT)
         acc += w * (1.0 - img[_SUB // 2 :: _SUB, _SUB // 2 :: _SUB])
+        if acc_b is not None:
+            acc_b += (
+                w
+                * _bounce_image(caster, d, face_e, (x0, y0, scale, half, lim, sub))[
+                    _SUB // 2 :: _SUB, _SUB // 2 :: _SUB
+                ]
+            )
     vis = (acc / weights.sum()).astype(np.float32)
     vis = _fill_under(vis)
     border = np.concatenate([vis[0], vis[-1], vis[:, 0], vis[:, -1]])
@@ -245,11 +261,46 @@ def ground_sky_visibility(
     vis = (1.0 - occ * np.clip((occ - t0) / (t1 - t0), 0.0, 1.0)).astype(np.float32)
     (rows,) = np.nonzero((vis < 1.0).any(axis=1))
     (cols,) = np.nonzero((vis < 1.0).any(axis=0))
+    if acc_b is not None and bounce is not None and float(bounce[1]) > 0:
+        b = float(bounce[2]) * acc_b / weights.sum()
+        vis = (vis + (b * np.clip((occ - t0) / (t1 - t0), 0.0, 1.0)) / float(bounce[1])).astype(np.float32)
     if rows.size:
         r0, r1 = max(int(rows[0]) - 2, 0), min(int(rows[-1]) + 3, resolution)
         c0, c1 = max(int(cols[0]) - 2, 0), min(int(cols[-1]) + 3, resolution)
         vis, x0, y0 = vis[r0:r1, c0:c1].copy(), x0 + c0 * texel, y0 + r0 * texel
     return GroundOcclusion(x0, y0, texel, vis, n_dirs, sky, edge)
+
+
+def _face_irradiance(caster: ShadowCaster, bounce: tuple) -> np.ndarray:
+    """``(m,)``: each face's irradiance as a share of the open ground's (direct on its lit side + sky)."""
+    light, r = np.asarray(bounce[0], np.float64), float(bounce[1])
+    light = light / np.linalg.norm(light)
+    n = caster.face_planes[:, :3]
+    direct = (1.0 - r) * np.maximum(n @ light, 0.0) / max(float(light[2]), 1e-3)
+    return direct + r * (1.0 + n[:, 2]) / 2.0
+
+
+def _bounce_image(caster, d, face_e, grid) -> np.ndarray:
+    """``(sub, sub) float32``: the irradiance share of the face a ground sub-texel sees first along ``d``
+    (0 where it sees the sky): the faces turned towards the ground point, drawn farthest first. ``grid``:
+    ``(x0, y0, scale, half, lim, sub)`` of the map's rasterisation."""
+    x0, y0, scale, half, lim, sub = grid
+    n = caster.face_planes[:, :3]
+    sel = np.flatnonzero(n @ d < 0.0) if caster.is_closed else np.arange(caster.n_faces)
+    img = np.zeros((sub, sub), np.float32)
+    if sel.size == 0:
+        return img
+    tri = ground_shadow_triangles(caster.vertices, caster.faces[sel], np.r_[d, 0.0])
+    if len(tri) != len(sel):  # faces below the ground were split or dropped: no interreflection then
+        return img
+    t = caster.vertices[caster.faces[sel], 2].mean(axis=1) / max(float(d[2]), 1e-6)
+    q = np.round((tri - [x0, y0]) * scale - half).astype(np.int64)
+    off = np.all(q < 0, axis=1).any(axis=1) | np.all(q > lim, axis=1).any(axis=1)
+    q = np.clip(q, -(1 << 30), 1 << 30).astype(np.int32)
+    for i in np.argsort(-t):  # farthest along d first: the nearest face ends on top
+        if not off[i]:
+            cv2.fillConvexPoly(img, q[i], float(face_e[sel[i]]), lineType=cv2.LINE_8, shift=_SHIFT)
+    return img
 
 
 def _fill_under(vis: np.ndarray) -> np.ndarray:
