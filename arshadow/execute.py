@@ -507,7 +507,7 @@ def _composite_cpu(frame: _Frame, wp: _Warped, premultiplied: bool) -> None:
         color_gain=gain if gained else None,
         out=frame.out,
         work=frame.work,
-        sky=None if wp.sky is None else np.clip(wp.sky, 0.0, 1.0),
+        sky=None if wp.sky is None else np.clip(wp.sky, -1.0, 1.0),
     )
     if look.camera is not None and look.draw_occluder:
         x0, y0, w, h = wp.roi
@@ -556,7 +556,7 @@ def _warp_layers(
     act = c1[:, :, 0] > 0
     act |= c0[:, :, 3] > 0
     if c1.shape[2] > 2:  # the sky-occlusion channel reaches beyond the shadow (the contact shadow)
-        act |= c1[:, :, 2] > 0
+        act |= c1[:, :, 2] != 0
     rows = np.flatnonzero(act.any(axis=1))
     if rows.size == 0:
         item.content = None

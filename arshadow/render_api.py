@@ -144,8 +144,9 @@ class RenderResult:
     timings_ms: dict = field(default_factory=dict)
     premultiplied: bool = True
     layers: RenderLayers | None = None
-    #: (h, w) float32 in [0, 1] or None: the share of the sky the object hides from the visible ground
-    #: (coverage-weighted like ``mask``; :mod:`arshadow.shading.sky`), None without sky occlusion
+    #: (h, w) float32 in [-1, 1] or None: the share of the sky the object hides from the visible ground, less
+    #: the light it reflects there over the sky's share (negative beside a lit face; coverage-weighted like
+    #: ``mask``; :mod:`arshadow.shading.sky`), None without sky occlusion
     sky_occlusion: np.ndarray | None = None
 
 

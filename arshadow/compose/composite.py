@@ -222,7 +222,7 @@ def composite(  # noqa: C901, PLR0913
         Output buffer (may be ``photo`` itself to composite in place); a copy of ``photo`` otherwise.
     work : Workspace, optional
         Scratch buffers reused between calls (no per-frame allocation of temporaries).
-    sky : (h, w) float32 in [0, 1], optional
+    sky : (h, w) float32 in [-1, 1], optional
         Sky occlusion over the ROI (:attr:`arshadow.render_api.RenderResult.sky_occlusion`): the share of the
         sky the object hides from the ground there. The ground keeps ``1 - opacity * mask * (1 - tint) -
         sky * ambient`` of its light, ``ambient = 1 - opacity * (1 - tint)`` being the share of the light a

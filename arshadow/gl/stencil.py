@@ -635,7 +635,7 @@ class ShadowRenderer:
             ground=gcov > 0.5,
             ground_coverage=gcov,
             layers=layers,
-            sky_occlusion=np.clip(c1[..., 2], 0.0, 1.0) if sky else None,
+            sky_occlusion=np.clip(c1[..., 2], -1.0, 1.0) if sky else None,
             timings_ms={
                 "upload": (f.t1 - f.t0) * 1e3,
                 "draw": (t2 - f.t1) * 1e3,
