@@ -13,44 +13,174 @@ Mask (CONVENTIONS.md)
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Hashable, Sequence
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
 
 from ._check import check_shape
 from .compose.composite import clip_roi, composite
+from .compose.effects import add_noise, blur_layers, pad_for
 from .compose.layers import layers_from_warped, pinhole_layers
+from .compose.look import Look
 from .plan import MEASURED
-from .render_api import LightPass
+from .render_api import LightPass, RenderLayers, RenderRequest, RenderResult, Shading
 from .report import STAGES, ReportItem, StageTimings
 from .transforms import CV_TO_GL
 
-__all__ = ["LAYERS_WHY", "STAGES", "execute"]
+if TYPE_CHECKING:
+    from .camera import Intrinsics
+    from .compose.composite import Workspace
+    from .compose.layers import Layers
+    from .compose.lens import LensWarp
+    from .gl.compose import GpuCompositor, PathChooser
+    from .plan import FramePlan, SceneGeometry
+    from .render_api import Renderer
+    from .render_options import RenderOptions
+
+__all__ = ["LAYERS_WHY", "STAGES", "FrameContext", "FrameOutputs", "execute", "render_request"]
 
 #: the compose decision's reason when the layers are asked for
 LAYERS_WHY = "numpy (layers asked for: the composite and its layers come from the numpy path)"
+#: the object's own sky visibility and ground bounce (SkyShading.object_sky) in the commands: None (off). On
+#: the path-traced reference (tests/benchmarks/score_realism.py, measured light) it made the object's residual
+#: worse (held-out median 0.149 -> 0.191, own 0.125 -> 0.134) while the ground's sky occlusion helps; the
+#: renderer and the API keep it (SkyShading(object_sky="uniform")) until the object's ambient is re-measured
+OBJECT_SKY: str | None = None
+#: the shader compositor applies no camera effects
+CAMERA_WHY = "numpy (camera effects: blur and noise are applied by the numpy path)"
+#: the shader compositor has no sky-occlusion channel yet
+SKY_WHY = "numpy (sky occlusion: the sky channel is composited by the numpy path)"
+
+
+@dataclass(frozen=True)
+class FrameContext:
+    """What :func:`execute` needs that lasts a session (a :class:`arshadow.session.Session` makes it).
+
+    Attributes
+    ----------
+    geometry : arshadow.plan.SceneGeometry
+        Lights and cached silhouettes / volumes (volumes the plan needs are built into it).
+    renderer : callable
+        ``renderer() -> arshadow.render_api.Renderer`` (made, with the context, on first use: only frames
+        with something to draw ask for it).
+    work : arshadow.compose.composite.Workspace
+        Scratch buffers reused across frames.
+    calibration : callable
+        ``calibration(width, height)`` -> :class:`arshadow.engine.CalibrationState` (``intrinsics``: the
+        calibration for this photo size, the one planned with; ``lens``: the plan's lens warp or None).
+    compose_key : callable, optional
+        ``compose_key(width, height, distorted)``: the chooser's key of a frame.
+    chooser : arshadow.gl.compose.PathChooser, optional
+        Times the numpy (``"cpu"``) and the shader (``"gpu"``) lens warp + composite when the plan's
+        ``compose`` decision is ``"measure"``, and records the faster under the frame's ``compose_key``.
+    gpu : callable, optional
+        ``gpu() -> arshadow.gl.compose.GpuCompositor`` (made on first use by the caller); the shader path
+        needs a renderer whose ``gpu_layers`` is True.
+    """
+
+    geometry: SceneGeometry
+    renderer: Callable[[], Renderer]
+    work: Workspace
+    calibration: Callable[[int, int], Any]
+    compose_key: Callable[[int, int, bool], Hashable] | None = None
+    chooser: PathChooser | None = None
+    gpu: Callable[[], GpuCompositor] | None = None
+
+
+@dataclass
+class FrameOutputs:
+    """Where :func:`execute` writes one frame, and what it reports.
+
+    Attributes
+    ----------
+    want_mask : bool
+        Also make the full-size mask.
+    out, mask_out : arrays, optional
+        Buffers for the composite ``(H, W, 3) uint8`` and the mask ``(H, W) uint8`` (``out`` may be the
+        image: the video engine composites in place).
+    timings : arshadow.report.StageTimings
+        Stage times are added to it.
+    item : arshadow.report.ReportItem
+        Gets the frame's keys: ``mode``, ``modes``, ``silhouette_edges``, ``roi``, ``canvas``, ``znear``,
+        ``plan`` (the planner's decisions with their reasons) and, when something was drawn, ``compose``
+        (the path taken), ``content`` (canvas pixels with content) and ``composited`` (photo pixels
+        composited).
+    layers : dict, optional
+        Asks for the frame's compositing layers: ``layers["layers"]`` receives them
+        (:class:`arshadow.compose.layers.Layers`; with ``layers["undistorted"]`` true also their pinhole
+        version, ``.undistorted``). They come from the numpy path only: with layers asked for, the numpy path
+        makes the composite too (the plan's compose decision becomes ``"cpu"``), so the composite and its
+        layers are one computation.
+    """
+
+    want_mask: bool = True
+    out: np.ndarray | None = None
+    mask_out: np.ndarray | None = None
+    timings: StageTimings = field(default_factory=StageTimings)
+    item: ReportItem = field(default_factory=lambda: ReportItem(input=""))
+    layers: dict | None = None
+
+
+@dataclass
+class _Frame:
+    """One frame's compose job, made once by :func:`execute` for whichever path (or both) runs."""
+
+    plan: FramePlan
+    image: np.ndarray
+    request: RenderRequest
+    renderer: Renderer
+    lens: LensWarp | None
+    work: Workspace
+    out: np.ndarray
+    mask_full: np.ndarray | None
+    outputs: FrameOutputs
+    look: Look
+
+
+def render_request(
+    plan: FramePlan, intr: Intrinsics, geometry: SceneGeometry, passes: Sequence[LightPass], sky: Any = None
+) -> RenderRequest:
+    """The frame's :class:`arshadow.render_api.RenderRequest`: the plan's canvas, znear and
+    ``cam_from_world`` (the ground frame's camera), the scene's caster, the light passes, and the options'
+    ground, what to draw and :class:`~arshadow.render_api.Shading`."""
+    opts, canvas = geometry.options, plan.canvas
+    return RenderRequest(
+        projection=intr.gl_projection(plan.znear, None, canvas=canvas),
+        view=CV_TO_GL @ plan.cam_from_world,
+        width=int(canvas[2]),
+        height=int(canvas[3]),
+        caster=geometry.caster,
+        passes=tuple(passes),
+        ground_size=opts.ground_size,
+        draw_occluder=opts.draw_occluder,
+        shading=_shading(opts, geometry.caster, sky),
+    )
+
+
+def _shading(opts: RenderOptions, caster: Any, sky: Any) -> Shading:
+    """:meth:`Shading.from_options` with the frame's sky; a mesh with its own colours or texture under a
+    measured light keeps them, times the exposure gain (``material_gain``), instead of the grey default."""
+    sh = Shading.from_options(opts) if sky is None else replace(Shading.from_options(opts), sky=sky)
+    if opts.material_gain is not None and (
+        getattr(caster, "material", None) is not None or getattr(caster, "colors", None) is not None
+    ):
+        g = [float(v) for v in opts.material_gain]
+        sh = replace(sh, color=None, albedo_gain=(g[0], g[1], g[2]))
+    return sh
 
 
 def execute(
-    plan,
-    image,
-    intr,
+    plan: FramePlan,
+    image: np.ndarray,
+    context: FrameContext,
+    outputs: FrameOutputs,
     *,
-    geometry,
-    renderer,
-    lens=None,
-    work,
-    timings: StageTimings | None = None,
-    item: ReportItem | None = None,
-    want_mask=True,
-    out=None,
-    mask_out=None,
-    chooser=None,
-    gpu=None,
-    compose_key=None,
-    layers: dict | None = None,
-    color_gain=None,
-):
+    color_gain: Sequence[float] | np.ndarray | None = None,
+    camera: Any = None,
+) -> tuple[np.ndarray, np.ndarray | None]:
     """Render and composite one planned frame.
 
     Parameters
@@ -58,54 +188,93 @@ def execute(
     plan : arshadow.plan.FramePlan
         With its ``compose`` decision (:func:`arshadow.plan.decide_compose`) unless empty.
     image : (H, W, 3) uint8
-        BGR photo (not modified).
-    intr : arshadow.camera.Intrinsics
-        Calibration for this photo size (the one planned with).
-    geometry : arshadow.plan.SceneGeometry
-        Lights and cached silhouettes / volumes (volumes the plan needs are built into it).
-    renderer : arshadow.render_api.Renderer
-    lens : arshadow.compose.lens.LensWarp or None
-        The plan's lens warp (``plan.distorted``).
-    work : arshadow.compose.composite.Workspace
-        Scratch buffers reused across frames.
-    timings : arshadow.report.StageTimings, optional
-        Stage times are added to it.
-    item : arshadow.report.ReportItem, optional
-        Gets the frame's keys: ``mode``, ``modes``, ``silhouette_edges``, ``roi``, ``canvas``, ``znear``,
-        ``plan`` (the planner's decisions with their reasons) and, when something was drawn, ``compose``
-        (the path taken), ``content`` (canvas pixels with content) and ``composited`` (photo pixels
-        composited).
-    want_mask : bool
-        Also return the full-size mask.
-    out, mask_out : arrays, optional
-        Buffers for the composite ``(H, W, 3) uint8`` and the mask ``(H, W) uint8``.
-    chooser : arshadow.gl.compose.PathChooser, optional
-        Times the numpy (``"cpu"``) and the shader (``"gpu"``) lens warp + composite when the plan's
-        ``compose`` decision is ``"measure"``, and records the faster under ``compose_key``.
-    gpu : callable, optional
-        ``gpu() -> arshadow.gl.compose.GpuCompositor`` (made on first use by the caller); the shader path
-        needs a renderer with ``render_gpu(...)`` (``renderer.gpu_layers``).
-    compose_key : hashable, optional
-        The chooser's key of this frame (:meth:`arshadow.session.Session.compose_key`).
-    layers : dict, optional
-        Asks for the frame's compositing layers: ``layers["layers"]`` receives them
-        (:class:`arshadow.compose.layers.Layers`; with ``layers["undistorted"]`` true also their pinhole
-        version, ``.undistorted``). They come from the numpy path only: with layers asked for, the numpy path
-        makes the composite too (the plan's compose decision becomes ``"cpu"``), so the composite and its
-        layers are one computation.
+        BGR photo (not modified unless it is ``outputs.out``).
+    context : FrameContext
+        The session's geometry, renderer, calibrations, scratch buffers and compose-path chooser.
+    outputs : FrameOutputs
+        Buffers, what to make (mask, layers), timings and report item of this frame (filled in).
     color_gain : (3,) float, optional
         Per-channel gain on the object's rendered linear colour (the marker paper's exposure match,
-        :mod:`arshadow.estimate.match`).
+        :mod:`arshadow.estimate.match`), measured on this frame.
+    camera : arshadow.compose.effects.CameraEffects, optional
+        The photo's blur and noise, applied to the inserted layers (``--camera-effects on``).
 
     Returns
     -------
     out : (H, W, 3) uint8
     mask : (H, W) uint8 or None
     """
-    timings = timings if timings is not None else StageTimings()
-    item = item if item is not None else ReportItem(input="")
+    timings, item, geometry = outputs.timings, outputs.item, context.geometry
     H, W = image.shape[:2]
-    passes = _light_passes(plan, geometry, timings, item)
+    passes, plan_lights = _light_passes(plan, geometry, timings, item)
+    _report_plan(plan, geometry, item, plan_lights)
+    out, mask_full = _output_buffers(image, outputs)
+    if outputs.layers is not None:  # nothing drawn until the numpy path says otherwise
+        _no_layers(outputs.layers, (H, W))
+        if not plan.empty and plan.compose != "cpu":
+            plan.decide("compose", "cpu", LAYERS_WHY)
+    if plan.empty:
+        return out, mask_full  # nothing of the scene is in view
+    cal = context.calibration(W, H)
+    sky = _sky_shading(plan, image, cal.intrinsics, geometry, outputs, color_gain)
+    frame = _Frame(
+        plan=plan,
+        image=image,
+        request=render_request(plan, cal.intrinsics, geometry, passes, sky),
+        renderer=context.renderer(),
+        lens=cal.lens,
+        work=context.work,
+        out=out,
+        mask_full=mask_full,
+        outputs=outputs,
+        look=replace(Look.from_options(geometry.options, color_gain), camera=camera),
+    )
+    if camera is not None:
+        outputs.item.plan["camera_effects"] = camera.report()  # type: ignore[index]  # _report_plan's dict
+        if plan.compose not in (None, "cpu"):
+            plan.decide("compose", "cpu", CAMERA_WHY)
+    _run_compose(frame, context)
+    return out, mask_full
+
+
+def _sky_shading(
+    plan: FramePlan,
+    image: np.ndarray,
+    intr: Intrinsics,
+    geometry: SceneGeometry,
+    outputs: FrameOutputs,
+    color_gain: Sequence[float] | np.ndarray | None,
+) -> Any:
+    """The frame's :class:`arshadow.shading.sky.SkyShading` (None when the planner's ``ambient_occlusion``
+    decision is off): the scene's ground occlusion map, the object's sky visibility and the ground bounce
+    measured on this photo round the object (with a measured exposure; 0 otherwise)."""
+    from .shading.decide import decide_ambient_occlusion, ground_bounce
+    from .shading.sky import SkyShading
+
+    opts = geometry.options
+    made = next((d for d in plan.decisions if d.name == "ambient_occlusion"), None)
+    on, why = (bool(made.value), made.reason) if made is not None else decide_ambient_occlusion(opts)
+    outputs.item.plan["ambient_occlusion"] = why  # type: ignore[index]  # a dict: _report_plan made it
+    if not on:
+        return None
+    if plan.compose not in (None, "cpu"):
+        plan.decide("compose", "cpu", SKY_WHY)
+    bounce: tuple[float, ...] = (0.0, 0.0, 0.0)
+    if opts.exposure_gain is not None and opts.draw_occluder:
+        b = geometry.bounds
+        c, r = 0.5 * (b[0, :2] + b[1, :2]), 0.5 * float(np.linalg.norm(b[1, :2] - b[0, :2])) + 0.01
+        a = np.linspace(0.0, 2 * np.pi, 32, endpoint=False)
+        ring = np.c_[c[0] + r * np.cos(a), c[1] + r * np.sin(a), np.zeros(32)]
+        gain = np.asarray(opts.exposure_gain, np.float64) * (1.0 if color_gain is None else np.asarray(color_gain))
+        m = ground_bounce(image, intr.project(ring, plan.cam_from_world), gain)
+        if m is not None:
+            bounce = tuple(float(v) for v in m)
+            outputs.item.plan["ground_bounce"] = [round(v, 4) for v in bounce]  # type: ignore[index]
+    return SkyShading(ground=geometry.sky_ground(outputs.timings), object_sky=OBJECT_SKY, bounce=bounce)
+
+
+def _report_plan(plan: FramePlan, geometry: SceneGeometry, item: ReportItem, lights: list[dict[str, Any]]) -> None:
+    """The plan's part of the report item (``lights``: the per-light part, of :func:`_light_passes`)."""
     which = (
         "planar"
         if geometry.options.shadow_method == "planar" and geometry.options.plan == "auto"
@@ -119,37 +288,42 @@ def execute(
         list(plan.canvas),
         plan.znear,
     )
-    item.plan = {"plan": which, "roi": roi_why, "lights": item.plan}
+    item.plan = {"plan": which, "roi": roi_why, "lights": lights}
+
+
+def _output_buffers(image: np.ndarray, outputs: FrameOutputs) -> tuple[np.ndarray, np.ndarray | None]:
+    """``(out, mask)``: the composite's buffer holding the photo, and the mask's zeroed (None when the mask
+    is not wanted), ``outputs.out`` / ``outputs.mask_out`` when given."""
+    H, W = image.shape[:2]
+    out = outputs.out
     if out is None:
         out = image.copy()
     else:
         check_shape(out, f"{H},{W},3", "out")
         np.copyto(out, image)
     mask_full = None
-    if want_mask:
-        if mask_out is None:
+    if outputs.want_mask:
+        if outputs.mask_out is None:
             mask_full = np.zeros((H, W), np.uint8)
         else:
-            mask_full = check_shape(mask_out, f"{H},{W}", "mask_out")
+            mask_full = check_shape(outputs.mask_out, f"{H},{W}", "mask_out")
             mask_full.fill(0)
-    if layers is not None:  # nothing drawn until the numpy path says otherwise
-        empty = layers_from_warped(None, None, (0, 0, 0, 0), (H, W), opacity=0.0)
-        layers["layers"] = empty
-        if layers.get("undistorted"):
-            empty.undistorted = layers_from_warped(None, None, (0, 0, 0, 0), (H, W), opacity=0.0)
-        if not plan.empty and plan.compose != "cpu":
-            plan.decide("compose", "cpu", LAYERS_WHY)
-    if plan.empty:
-        return out, mask_full  # nothing of the scene is in view
-    gain = None if color_gain is None else np.asarray(color_gain, np.float32).reshape(3)
-    args = (plan, image, intr, geometry, renderer, lens, work, passes, out, mask_full, want_mask, item, layers, gain)
-    _run_compose(args, plan, timings, item, chooser, gpu, compose_key)
     return out, mask_full
 
 
-def _light_passes(plan, geometry, timings, item) -> list:
-    """The renderer's passes, building the volumes the plan needs; ``item.silhouette_edges`` and the
-    per-light part of the report's ``plan`` are set (``item.plan``: the list, wrapped by the caller)."""
+def _no_layers(request: dict, shape: tuple[int, int]) -> None:
+    """The layers of a frame with nothing drawn (the numpy path replaces them when it draws)."""
+    empty = layers_from_warped(None, None, (0, 0, 0, 0), shape, opacity=0.0)
+    request["layers"] = empty
+    if request.get("undistorted"):
+        empty.undistorted = layers_from_warped(None, None, (0, 0, 0, 0), shape, opacity=0.0)
+
+
+def _light_passes(
+    plan: FramePlan, geometry: SceneGeometry, timings: StageTimings, item: ReportItem
+) -> tuple[list[LightPass], list[dict[str, Any]]]:
+    """The renderer's passes, building the volumes the plan needs, and the per-light part of the report's
+    ``plan``; ``item.silhouette_edges`` is set."""
     passes, n_edges, plan_lights = [], 0, []
     for lp in plan.lights:
         ls = geometry.lights[lp.index]
@@ -176,177 +350,145 @@ def _light_passes(plan, geometry, timings, item) -> list:
             )
         )
     item.silhouette_edges = n_edges
-    item.plan = plan_lights
-    return passes
+    return passes, plan_lights
 
 
-def _run_compose(args, plan, timings, item, chooser, gpu, key) -> None:
+def _run_compose(frame: _Frame, context: FrameContext) -> None:
     """Render, lens warp, composite by the path the plan's ``compose`` decision names (``"measure"``: the
     chooser times both on this frame and keeps the faster for its key)."""
-    image, out, mask_full = args[1], args[8], args[9]
+    plan, image, out, mask_full = frame.plan, frame.image, frame.out, frame.mask_full
+    timings, item = frame.outputs.timings, frame.outputs.item
     x0, y0, w, h = plan.roi
     choice = plan.compose or "cpu"
     why = next((d.reason for d in reversed(plan.decisions) if d.name == "compose"), "")  # as plan.compose
     clean = None  # the photo's ROI each timed run starts from (below)
 
-    def run(fn):
-        def go():
+    def run(fn: Callable[[_Frame, StageTimings], None]) -> Callable[[], StageTimings]:
+        def go() -> StageTimings:
             if clean is not None:
                 np.copyto(out[y0 : y0 + h, x0 : x0 + w], clean)
                 if mask_full is not None:
                     mask_full[y0 : y0 + h, x0 : x0 + w] = 0
             t = StageTimings()
-            fn(*args, timings=t)
+            fn(frame, t)
             return t
 
         return go
 
     paths = {"cpu": run(_compose_cpu)}
     if choice != "cpu":
-        paths["gpu"] = run(lambda *a, timings: _compose_gpu(*a, gpu=gpu(), timings=timings))
+        gpu = context.gpu
+        assert gpu is not None, "the shader compose path needs FrameContext.gpu"
+        paths["gpu"] = run(lambda fr, t: _compose_gpu(fr, gpu(), t))
     if choice == "measure":
+        chooser, key_of = context.chooser, context.compose_key
+        assert chooser is not None and key_of is not None, "measuring needs FrameContext.chooser and compose_key"
         # the chooser times every path, one run after the other: each must start from the untouched photo
         # ROI (a copy of it when the caller composites in place, out is image: the video engine)
         clean = image[y0 : y0 + h, x0 : x0 + w]
         if np.shares_memory(out, image):
             clean = clean.copy()
+        key = key_of(image.shape[1], image.shape[0], frame.lens is not None)
         choice, used = chooser.run(key, paths)
         why = MEASURED.format(ms=chooser.decisions[key]["ms"])
     else:
         used = paths[choice]()
     timings.add(used)
     item.compose = choice
-    item.plan["compose"] = why
+    item.plan["compose"] = why  # type: ignore[index]  # a dict: _report_plan made it
 
 
-def _compose_gpu(
-    plan,
-    image,
-    intr,
-    geometry,
-    renderer,
-    lens,
-    work,
-    passes,
-    out,
-    mask_full,
-    want_mask,
-    item,
-    layer_request,
-    gain,
-    *,
-    gpu,
-    timings,
-):
+def _compose_gpu(frame: _Frame, gpu: GpuCompositor, timings: StageTimings) -> None:
     """Render with the layers kept on the GPU; lens warp + composite in a shader; one 8-bit readback."""
-    opts = geometry.options
-    roi, canvas = plan.roi, plan.canvas
-    proj = intr.gl_projection(plan.znear, None, canvas=canvas)
+    roi = frame.plan.roi
     t = time.perf_counter()
-    lay = renderer.render_gpu(
-        projection=proj,
-        view=CV_TO_GL @ plan.cam_from_world,
-        width=int(canvas[2]),
-        height=int(canvas[3]),
-        caster=geometry.caster,
-        passes=passes,
-        ground_size=opts.ground_size,
-        draw_occluder=opts.draw_occluder,
-        occluder_color=opts.occluder_color,
-        ambient=opts.ambient,
-        specular=opts.specular,
-    )
+    lay = frame.renderer.render_gpu(frame.request)
     timings.render += (time.perf_counter() - t) * 1e3
     ct: dict = {}
     t = time.perf_counter()
     gpu.compose(
-        image,
+        frame.image,
         lay,
-        roi,
-        canvas,
-        lens=lens,
-        opacity=opts.opacity,
-        shadow_color=opts.shadow_color,
-        draw_occluder=opts.draw_occluder,
-        out=out,
-        mask_out=mask_full if want_mask else None,
+        frame.plan,
+        frame.look,
+        lens=frame.lens,
+        out=frame.out,
+        mask_out=frame.mask_full if frame.outputs.want_mask else None,
         timings=ct,
-        color_gain=(1.0, 1.0, 1.0) if gain is None else tuple(float(v) for v in gain),
     )
     # the readback waits for the render and the shader to finish: it holds the GPU time of both
     timings.readback += ct.get("readback", 0.0)
     timings.composite += (time.perf_counter() - t) * 1e3 - ct.get("readback", 0.0)
-    item.composited = list(roi)
+    frame.outputs.item.composited = list(roi)
 
 
-def _compose_cpu(
-    plan,
-    image,
-    intr,
-    geometry,
-    renderer,
-    lens,
-    work,
-    passes,
-    out,
-    mask_full,
-    want_mask,
-    item,
-    layer_request,
-    gain,
-    *,
-    timings,
-):
+def _compose_cpu(frame: _Frame, timings: StageTimings) -> None:
     """Render, read the float layers back, lens warp (cv2.remap) or flip, composite in numpy."""
-    H, W = image.shape[:2]
-    opts = geometry.options
-    roi, canvas = plan.roi, plan.canvas
-    # render the canvas
-    proj = intr.gl_projection(plan.znear, None, canvas=canvas)
-    view = CV_TO_GL @ plan.cam_from_world
     t = time.perf_counter()
-    res = renderer.render(
-        projection=proj,
-        view=view,
-        width=int(canvas[2]),
-        height=int(canvas[3]),
-        caster=geometry.caster,
-        passes=passes,
-        ground_size=opts.ground_size,
-        draw_occluder=opts.draw_occluder,
-        occluder_color=opts.occluder_color,
-        ambient=opts.ambient,
-        specular=opts.specular,
-    )
+    res = frame.renderer.render(frame.request)
     dt = (time.perf_counter() - t) * 1e3
-    rt = getattr(res, "timings_ms", None) or {}
+    rt = res.timings_ms or {}
     if "readback" in rt:
         timings.readback += float(rt["readback"])
         timings.render += dt - float(rt["readback"])
     else:
         timings.render += dt
-    layers = getattr(res, "layers", None)
     # lens warp (pinhole canvas -> distorted photo ROI)
     t = time.perf_counter()
-    if layers is not None:
-        warped = _warp_layers(layers, plan, lens, work, item, W, H)
-        if warped is None:  # nothing drawn, or nothing of it in the photo: the photo is unchanged
-            timings.warp += (time.perf_counter() - t) * 1e3
-            return
-        roi, (l0, l1) = warped
-        mask, alpha, color = l1[:, :, 0], l0[:, :, 3], l0
-        # the canvas top-down (views), for undistorted layers
-        pinhole = (layers.mask_ground[::-1, :, 0], layers.rgba[::-1])
-    else:
-        mask, alpha, color = res.mask, res.alpha, res.color
-        pinhole = (mask, np.dstack([color, alpha]))
-        if lens is not None:
-            mask, alpha, color = lens.warp(roi, canvas, mask, alpha, color, work=work)
+    warped = _warp_result(frame, res)
     timings.warp += (time.perf_counter() - t) * 1e3
-
-    # composite
+    if warped is None:  # nothing drawn, or nothing of it in the photo: the photo is unchanged
+        return
     t = time.perf_counter()
-    gained = gain is not None and opts.draw_occluder  # the exposure match, linear light (premultiplied colour)
+    _composite_cpu(frame, warped, bool(res.premultiplied))
+    timings.composite += (time.perf_counter() - t) * 1e3
+
+
+@dataclass
+class _Warped:
+    """The renderer's layers over the photo rectangle ``roi`` (top-down), and the canvas's own
+    ``pinhole = (mask, rgba)`` (top-down) for undistorted layers."""
+
+    roi: tuple
+    mask: np.ndarray
+    alpha: np.ndarray
+    color: np.ndarray
+    pinhole: tuple
+    sky: np.ndarray | None = None  # sky occlusion over roi (RenderResult.sky_occlusion), None without
+
+
+def _warp_result(frame: _Frame, res: RenderResult) -> _Warped | None:
+    """The result's layers warped (lens) or flipped into the photo; None when nothing of them lands in it."""
+    plan, lens, work = frame.plan, frame.lens, frame.work
+    H, W = frame.image.shape[:2]
+    layers = res.layers
+    if layers is not None:
+        warped = _warp_layers(layers, plan, lens, work, frame.outputs.item, W, H)
+        if warped is None:
+            return None
+        roi, (l0, l1) = warped
+        sky = l1[:, :, 2] if l1.shape[2] > 2 else None
+        # the canvas top-down (views), for undistorted layers
+        pin = (layers.mask_ground[::-1, :, 0], layers.rgba[::-1])
+        return _Warped(roi, l1[:, :, 0], l0[:, :, 3], l0, pin, sky)
+    roi, canvas = plan.roi, plan.canvas
+    mask, alpha, color, sky = res.mask, res.alpha, res.color, res.sky_occlusion
+    pinhole = (mask, np.dstack([color, alpha]))
+    if lens is not None:
+        if sky is not None:
+            mask, alpha, color, sky = lens.warp(roi, canvas, mask, alpha, color, sky, work=work)
+        else:
+            mask, alpha, color = lens.warp(roi, canvas, mask, alpha, color, work=work)
+    return _Warped(roi, mask, alpha, color, pinhole, sky)
+
+
+def _composite_cpu(frame: _Frame, wp: _Warped, premultiplied: bool) -> None:
+    """Composite the warped layers into the frame's buffers (and make its layers when asked for)."""
+    look, layer_request = frame.look, frame.outputs.layers
+    if look.camera is not None:
+        wp = _blurred(wp, look.camera.blur_px, frame.image.shape)
+    gain, color, pinhole = look.color_gain, wp.color, wp.pinhole
+    gained = gain is not None and look.draw_occluder  # the exposure match, linear light (premultiplied colour)
     if gained and layer_request is not None:  # layers hold the gained colour (copies: the renderer's stay)
         color = np.array(color, np.float32)
         color[:, :, :3] *= gain
@@ -356,42 +498,56 @@ def _compose_cpu(
         gained = False  # applied
     if layer_request is not None:  # execute's ``layers``: gets the frame's layers
         layer_request["layers"] = _frame_layers(
-            layer_request.get("undistorted"),
-            mask,
-            color,
-            alpha,
-            roi,
-            (H, W),
-            opts,
-            lens is not None,
-            pinhole,
-            canvas,
-            getattr(res, "premultiplied", True),
+            frame, _Warped(wp.roi, wp.mask, wp.alpha, color, pinhole), premultiplied
         )
     composite(
-        out,
-        mask,
-        roi,
-        color=color if opts.draw_occluder else None,
-        alpha=alpha if opts.draw_occluder else None,
-        opacity=opts.opacity,
-        shadow_color=opts.shadow_color,
-        premultiplied=getattr(res, "premultiplied", True),
+        frame.out,
+        wp.mask,
+        wp.roi,
+        color=color if look.draw_occluder else None,
+        alpha=wp.alpha if look.draw_occluder else None,
+        opacity=look.opacity,
+        shadow_color=look.shadow_color,
+        premultiplied=premultiplied,
         color_gain=gain if gained else None,
-        out=out,
-        work=work,
+        out=frame.out,
+        work=frame.work,
+        sky=None if wp.sky is None else np.clip(wp.sky, -1.0, 1.0),
     )
-    if want_mask:
-        x0, y0, w, h = roi
-        m = work.get("mask255", (h, w), np.float32)
-        np.multiply(mask, np.float32(255.0), out=m)
+    if look.camera is not None and look.draw_occluder:
+        x0, y0, w, h = wp.roi
+        seed = int(np.asarray(frame.image[::61, ::53], np.int64).sum())  # per photo, reproducible
+        add_noise(frame.out[y0 : y0 + h, x0 : x0 + w], wp.alpha, look.camera.noise, seed)
+    if frame.mask_full is not None:  # the mask is wanted
+        x0, y0, w, h = wp.roi
+        m = frame.work.get("mask255", (h, w), np.float32)
+        np.multiply(wp.mask, np.float32(255.0), out=m)
         m += np.float32(0.5)
         np.clip(m, np.float32(0.0), np.float32(255.0), out=m)
-        np.copyto(mask_full[y0 : y0 + h, x0 : x0 + w], m, casting="unsafe")
-    timings.composite += (time.perf_counter() - t) * 1e3
+        np.copyto(frame.mask_full[y0 : y0 + h, x0 : x0 + w], m, casting="unsafe")
 
 
-def _warp_layers(layers, plan, lens, work, item, W: int, H: int):
+def _blurred(wp: _Warped, sigma: float, shape: tuple) -> _Warped:
+    """The warped layers grown by the blur's reach (zeros: nothing drawn there) and blurred by the photo's
+    point-spread width (:func:`arshadow.compose.effects.blur_layers`)."""
+    if sigma <= 0:
+        return wp
+    p = pad_for(sigma)
+    x0, y0, w, h = wp.roi
+    H, W = shape[:2]
+    nx0, ny0, nx1, ny1 = max(x0 - p, 0), max(y0 - p, 0), min(x0 + w + p, W), min(y0 + h + p, H)
+    pads = ((y0 - ny0, ny1 - y0 - h), (x0 - nx0, nx1 - x0 - w))
+
+    def grow(a: np.ndarray | None) -> np.ndarray | None:
+        return None if a is None else np.pad(a, pads + ((0, 0),) * (a.ndim - 2))
+
+    mask, alpha, color, sky = blur_layers(sigma, grow(wp.mask), grow(wp.alpha), grow(wp.color), grow(wp.sky))
+    return _Warped((nx0, ny0, nx1 - nx0, ny1 - ny0), mask, alpha, color, wp.pinhole, sky)
+
+
+def _warp_layers(
+    layers: RenderLayers, plan: FramePlan, lens: LensWarp | None, work: Workspace, item: ReportItem, W: int, H: int
+) -> tuple[tuple, tuple[np.ndarray, np.ndarray]] | None:
     """The renderer's own bottom-up RGBA (colour, alpha) and RG (mask, ground) arrays into the photo: one
     remap (lens) or flip each instead of three strided arrays, and only over the part that has content.
 
@@ -404,6 +560,8 @@ def _warp_layers(layers, plan, lens, work, item, W: int, H: int):
     ch, cw = c0.shape[:2]
     act = c1[:, :, 0] > 0
     act |= c0[:, :, 3] > 0
+    if c1.shape[2] > 2:  # the sky-occlusion channel reaches beyond the shadow (the contact shadow)
+        act |= c1[:, :, 2] != 0
     rows = np.flatnonzero(act.any(axis=1))
     if rows.size == 0:
         item.content = None
@@ -436,18 +594,19 @@ def _warp_layers(layers, plan, lens, work, item, W: int, H: int):
     return roi, warped
 
 
-def _frame_layers(undistorted, mask, color, alpha, roi, shape, opts, distorted, pinhole, canvas, premultiplied):
+def _frame_layers(frame: _Frame, wp: _Warped, premultiplied: bool) -> Layers:
     """The frame's :class:`arshadow.compose.layers.Layers` from the warped arrays the composite uses (and,
-    with ``undistorted``, from the pinhole canvas ``pinhole = (mask, rgba)`` too)."""
+    with ``undistorted`` asked for, from the pinhole canvas ``wp.pinhole = (mask, rgba)`` too)."""
+    look, shape = frame.look, frame.image.shape[:2]
     rgba = None
-    if opts.draw_occluder:
-        rgba = color if np.shape(color)[2] == 4 else np.dstack([color, alpha])
-    kw = {"opacity": opts.opacity, "shadow_color": opts.shadow_color, "premultiplied": premultiplied}
-    lay = layers_from_warped(mask, rgba, roi, shape, **kw)
-    if undistorted:
+    if look.draw_occluder:
+        rgba = wp.color if np.shape(wp.color)[2] == 4 else np.dstack([wp.color, wp.alpha])
+    kw: dict[str, Any] = {"opacity": look.opacity, "shadow_color": look.shadow_color, "premultiplied": premultiplied}
+    lay = layers_from_warped(wp.mask, rgba, wp.roi, shape, **kw)
+    if (frame.outputs.layers or {}).get("undistorted"):
         lay.undistorted = (
-            pinhole_layers(pinhole[0], pinhole[1] if opts.draw_occluder else None, canvas, shape, **kw)
-            if distorted
+            pinhole_layers(wp.pinhole[0], wp.pinhole[1] if look.draw_occluder else None, frame.plan.canvas, shape, **kw)
+            if frame.lens is not None
             else lay
         )
     return lay

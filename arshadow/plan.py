@@ -232,6 +232,9 @@ def plan_frame(
         "znear", znear, "a quarter of the distance to the nearest of the object's box and the ground, at least 1e-4 m"
     )
     _plan_view(plan, geometry, intr, lens)
+    from .shading.decide import decide_ambient_occlusion  # sky occlusion (issue 28): once per frame, here
+
+    plan.decide("ambient_occlusion", *decide_ambient_occlusion(opts))
     general, off = opts.plan == "general", set(opts.plan_off)
     if opts.shadow_method == "volume":
         trunc = bool(opts.truncate) and not general and "truncate" not in off

@@ -234,6 +234,10 @@ class LightState:
     reuse: str | None = None
 
 
+#: the marker paper's reflectance, the white the object's colour is relative to (printer paper: 0.8-0.9)
+PAPER_ALBEDO = 0.8
+
+
 class SceneGeometry:
     """The CPU geometry of a scene that does not depend on the camera: lights split into hard samples,
     their silhouettes and shadow volumes (built on first use, then reused), the ROI hull points.
@@ -404,6 +408,48 @@ class SceneGeometry:
             c = self._convex = mesh_is_convex(self.caster)
         return c
 
+    @property
+    def sky_on(self) -> bool:
+        """Sky occlusion is drawn (:func:`arshadow.shading.decide.decide_ambient_occlusion`)."""
+        from .shading.decide import decide_ambient_occlusion
+
+        return decide_ambient_occlusion(self.options)[0]
+
+    def sky_ground(self, timings=None):
+        """The occluder's :class:`arshadow.shading.sky.GroundOcclusion` (computed once per scene, in the
+        ground frame; ``timings.silhouette`` gets its build time, with the other per-scene geometry)."""
+        key = tuple(ls.light_h.tobytes() for ls in self.lights)
+        g = getattr(self, "_sky_ground", None)
+        if g is None or g[0] != key:  # the object's interreflection depends on the light
+            from .shading.sky import ground_sky_visibility
+
+            t = time.perf_counter()
+            g = self._sky_ground = (key, ground_sky_visibility(self.caster, bounce=self._bounce_light()))
+            if timings is not None:
+                timings.silhouette += (time.perf_counter() - t) * 1e3
+        return g[1]
+
+    def _bounce_light(self):
+        """``(light (3,), sky share, albedo)`` of the object's interreflection onto the ground
+        (:func:`arshadow.shading.sky.ground_sky_visibility`): the strongest light's direction from the
+        object, the mean sky share, the object's mean albedo (its colour relative to the marker paper's,
+        without the exposure gain, times :data:`PAPER_ALBEDO`); None without a light or a sky share."""
+        from .compose.composite import srgb_to_linear
+        from .shading.decide import sky_share
+
+        opts = self.options
+        r = float(np.mean(sky_share(opts.opacity, opts.shadow_color)))
+        if not self.lights or r <= 0.0 or not opts.draw_occluder:
+            return None
+        h = max(self.lights, key=lambda ls: ls.weight).light_h
+        light = h[:3] if h[3] == 0 else h[:3] / h[3] - 0.5 * (self.bounds[0] + self.bounds[1])
+        if light[2] <= 0:
+            return None
+        col = srgb_to_linear(np.asarray(opts.occluder_color if opts.occluder_color is not None else (0.8, 0.8, 0.8)))
+        if opts.occluder_color is not None and opts.exposure_gain is not None:
+            col = col / np.maximum(np.asarray(opts.exposure_gain, np.float64), 1e-6)
+        return light, r, PAPER_ALBEDO * float(np.mean(np.clip(col, 0.0, 1.0)))
+
     def footprint_rect(
         self, ls: LightState, intr: Intrinsics, cam_from_world: npt.ArrayLike, znear: float
     ) -> tuple[float, float, float, float] | None:
@@ -442,6 +488,10 @@ class SceneGeometry:
             hull = scene_hull_points(
                 self.bounds, [ls.light_h for ls in self.lights], self.options.ground_size, points=self.roi_points
             )
+            if hull is not None and self.sky_on:
+                # sky occlusion darkens the ground round the object: its map's square joins the region
+                x0, y0, x1, y1 = self.sky_ground().extent
+                hull = np.vstack([hull, [[x0, y0, 0.0], [x1, y0, 0.0], [x1, y1, 0.0], [x0, y1, 0.0]]])
             self._hull = (key, hull)
         return self._hull[1]
 

@@ -331,7 +331,8 @@ class LightDecision:
         return self.mode == "none"
 
 
-def decide_lights(
+# the planner's rule table: every input a rule decides on, by name; one caller (arshadow.plan)
+def decide_lights(  # noqa: PLR0913
     plan: str,
     caster: ShadowCaster,
     lights_h: Sequence[npt.ArrayLike],

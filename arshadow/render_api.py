@@ -1,24 +1,40 @@
 """The renderer interface: what the executor hands a shadow renderer and what it gets back (no GL here).
 
-A renderer is any object with the :class:`Renderer` protocol's ``render(**kwargs) -> RenderResult`` and
-``release()``: the stencil shadow-volume renderer (:class:`arshadow.gl.stencil.ShadowRenderer`) and the
-shadow-map baseline (``arshadow.gl.shadowmap``) both are. The planner (:mod:`arshadow.plan`) decides
-per light what to draw (:class:`LightPass`: light, weight, technique and its geometry); the executor
-(:mod:`arshadow.execute`) calls the renderer, then warps and composites the layers of its
-:class:`RenderResult`.
+The seam is one frozen value each way: the executor (:mod:`arshadow.execute`) builds one
+:class:`RenderRequest` per frame from the plan and the options (projection, view, canvas size, caster,
+light passes, ground, what to draw, and the object's :class:`Shading`); a renderer answers
+``render(request) -> RenderResult`` (layers read back) or ``render_gpu(request) -> GpuLayers`` (layers left
+on the GPU, when its ``gpu_layers`` capability says it can). The planner (:mod:`arshadow.plan`) decides
+per light what to draw (:class:`LightPass`: light, weight, technique and its geometry).
 
-Everything a renderer needs is in its arguments: it never calls back into the geometry modules
+A renderer is any object with the :class:`Renderer` protocol's members: the stencil shadow-volume renderer
+(:class:`arshadow.gl.stencil.ShadowRenderer`) and the shadow-map baseline
+(:class:`arshadow.gl.shadowmap.ShadowMapRenderer`) both are; :class:`RendererBase` gives a new one the
+capabilities' defaults.
+
+Everything a renderer needs is in the request: it never calls back into the geometry modules
 (silhouettes, volumes, projection shadows are computed before, on the CPU).
+
+A new shading setting (docs/architecture.md, "The render seam") touches three places: the option
+(:class:`arshadow.render_options.RenderOptions`), :class:`Shading` (its field, :meth:`Shading.from_options`,
+:meth:`Shading.uniforms`) and the shader that declares the uniform (``arshadow/gl/shaders``).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
 
-__all__ = ["LightPass", "RenderLayers", "RenderResult", "Renderer", "MODES"]
+from .errors import UsageError
+
+if TYPE_CHECKING:
+    from .geometry.mesh import ShadowCaster
+    from .gl.layers import GpuLayers
+    from .render_options import RenderOptions
+
+__all__ = ["LightPass", "RenderLayers", "RenderRequest", "RenderResult", "Renderer", "RendererBase", "Shading", "MODES"]
 
 #: shadow modes a :class:`LightPass` may carry
 MODES = ("zpass", "zfail", "planar")
@@ -61,7 +77,7 @@ class LightPass:
     shadow_matrix: np.ndarray | None = None
     direct: bool = False
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if self.mode == "planar" and self.shadow_matrix is None:
             from .geometry.projection import GROUND_PLANE, planar_shadow_matrix
             from .geometry.silhouette import as_light_h
@@ -81,8 +97,9 @@ class RenderLayers:
     ----------
     rgba : (h, w, 4) float32, C-contiguous
         rgb = shaded occluder (linear, premultiplied by a), a = occluder coverage.
-    mask_ground : (h, w, 2) float32, C-contiguous
-        Channel 0 = blocked light weight in [0, 1] (the shadow mask), channel 1 = ground coverage.
+    mask_ground : (h, w, 2|3) float32, C-contiguous
+        Channel 0 = blocked light weight in [0, 1] (the shadow mask), channel 1 = ground coverage; channel 2
+        (with sky occlusion only) = the share of the sky the object hides from the visible ground.
     """
 
     rgba: np.ndarray
@@ -127,44 +144,190 @@ class RenderResult:
     timings_ms: dict = field(default_factory=dict)
     premultiplied: bool = True
     layers: RenderLayers | None = None
+    #: (h, w) float32 in [-1, 1] or None: the share of the sky the object hides from the visible ground, less
+    #: the light it reflects there over the sky's share (negative beside a lit face; coverage-weighted like
+    #: ``mask``; :mod:`arshadow.shading.sky`), None without sky occlusion
+    sky_occlusion: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class Shading:
+    """How the object is shaded: one value, handed to the renderer inside :class:`RenderRequest`.
+
+    The renderer writes :meth:`uniforms` into every occluder program that declares them (a program that
+    does not declare one ignores it), so a new scalar setting needs no renderer code: add the option
+    (:class:`arshadow.render_options.RenderOptions`), a field here (read in :meth:`from_options`, named in
+    :meth:`uniforms`) and the ``uniform`` in the shader. Values the renderer uploads otherwise (the colour:
+    vertex colours of the cached caster buffers) are read by the renderer by name.
+
+    Attributes
+    ----------
+    ambient : float
+        ``K_a I_a``: the object's ambient term (linear, times its colour).
+    diffuse : float
+        ``K_d``: the diffuse weight of each light's Phong term.
+    specular : float
+        ``K_s``: the specular weight.
+    shininess : float
+        The Phong exponent ``n``.
+    color : (3,) sRGB in [0, 1] or None
+        Overrides the mesh's own colours (mesh colours and this are sRGB-encoded; the output is linear).
+    sky : arshadow.shading.sky.SkyShading or None
+        Sky occlusion (issue 28): the ground occlusion map drawn into the mask's sky channel
+        (``RenderResult.sky_occlusion``), the object's own sky visibility and the light bounced from the
+        ground; None: the uniform ambient term, no sky channel.
+    albedo_gain : (3,) float
+        Linear RGB gain on the mesh's own colours / texture (the measured exposure when no colour is given).
+
+    Phong (paper 002): ``I = K_a I_a + sum_l I_l (K_d (N.L) + K_s (N.H)^n)``.
+
+    Examples
+    --------
+    >>> Shading(ambient=0.3).uniforms()["u_ambient"]
+    0.3
+    >>> from arshadow.render_options import RenderOptions
+    >>> Shading.from_options(RenderOptions(specular=0.0)).specular
+    0.0
+    """
+
+    ambient: float = 0.25
+    diffuse: float = 1.0
+    specular: float = 0.25
+    shininess: float = 32.0
+    color: tuple[float, float, float] | None = None
+    sky: Any = None
+    albedo_gain: tuple[float, float, float] = (1.0, 1.0, 1.0)
+
+    def __post_init__(self) -> None:
+        for name in ("ambient", "diffuse", "specular", "shininess"):
+            v = float(getattr(self, name))
+            if not np.isfinite(v):
+                raise UsageError(f"shading {name} {v}: must be a finite number")
+        if self.color is not None:
+            c = tuple(float(x) for x in np.ravel(self.color)[:3])
+            if len(c) != 3:
+                raise UsageError(f"shading color {self.color!r}: expected 3 sRGB values")
+            object.__setattr__(self, "color", c)
+
+    @classmethod
+    def from_options(cls, options: RenderOptions) -> Shading:
+        """The shading :class:`arshadow.render_options.RenderOptions` ask for (``ambient``, ``specular``,
+        ``occluder_color``; diffuse and shininess at their defaults)."""
+        return cls(ambient=options.ambient, specular=options.specular, color=options.occluder_color)
+
+    def uniforms(self) -> dict[str, float | tuple[float, ...]]:
+        """Shader uniform name -> value, written into each occluder program that declares the name."""
+        return {
+            "u_ambient": float(self.ambient),
+            "u_kd": float(self.diffuse),
+            "u_ks": float(self.specular),
+            "u_shininess": float(self.shininess),
+            "u_albedo_gain": tuple(float(v) for v in self.albedo_gain),
+        }
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class RenderRequest:
+    """Everything a renderer draws one frame (or one canvas of it) from; built once per frame by the
+    executor (:func:`arshadow.execute.execute`) from the plan and the options.
+
+    Attributes
+    ----------
+    projection : (4, 4) float64
+        ``clip_from_gl_eye`` of the canvas (``Intrinsics.gl_projection(znear, None, canvas=...)``; an
+        infinite far plane when volumes reach infinity).
+    view : (4, 4) float64
+        ``gl_from_world = CV_TO_GL @ cam_from_world`` (world: the ground frame).
+    width, height : int
+        Canvas size in pixels (the plan's ``canvas[2:]``; its offset is in ``projection``).
+    caster : arshadow.geometry.mesh.ShadowCaster
+        The occluder, world frame (renderers cache its GPU buffers per caster object).
+    passes : tuple of LightPass
+        One per (sample) light; ``weight`` is the light's share of the total weight.
+    ground_size : float or None
+        Side of the square of ground (centred on the origin) that receives shadows; None = unlimited.
+    draw_occluder : bool
+        False: the occluder is neither drawn nor hides the ground (shadow only).
+    shading : Shading
+        How the occluder is shaded.
+
+    Examples
+    --------
+    >>> from arshadow.geometry.mesh import load_occluder
+    >>> req = RenderRequest(projection=np.eye(4), view=np.eye(4), width=64, height=48, caster=load_occluder("box:0.1,0.1,0.1"),
+    ...                     passes=[LightPass(np.array([0.0, 0.0, 1.0, 0.0]), 1.0)])
+    >>> req.passes[0].weight, req.shading.ambient
+    (1.0, 0.25)
+    """
+
+    projection: np.ndarray
+    view: np.ndarray
+    width: int
+    height: int
+    caster: ShadowCaster
+    passes: tuple[LightPass, ...]
+    ground_size: float | None = None
+    draw_occluder: bool = True
+    shading: Shading = field(default_factory=Shading)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "passes", tuple(self.passes))
 
 
 @runtime_checkable
 class Renderer(Protocol):
     """A shadow renderer the executor can drive (stencil volumes, shadow maps, ...).
 
-    ``render`` takes keyword arguments only:
+    ``render(request)`` draws the :class:`RenderRequest` and returns a :class:`RenderResult` of its canvas;
+    ``render_gpu(request)`` leaves the layers on the GPU (:class:`arshadow.gl.layers.GpuLayers`, for the
+    shader compose path; only called when ``gpu_layers`` is True); ``release()`` frees its GPU resources.
 
-    projection : (4, 4) float64
-        ``clip_from_gl_eye`` of the canvas (``Intrinsics.gl_projection(znear, None, canvas=...)``).
-    view : (4, 4) float64
-        ``gl_from_world = CV_TO_GL @ cam_from_world``.
-    width, height : int
-        Canvas size in pixels.
-    caster : arshadow.geometry.mesh.ShadowCaster
-        The occluder, world frame.
-    passes : sequence of LightPass
-        One per (sample) light.
-    ground_size : float or None
-    draw_occluder : bool
-    occluder_color : (3,) sRGB or None
-
-    and returns a :class:`RenderResult` of the canvas. ``release()`` frees its GPU resources.
+    Attributes
+    ----------
+    gpu_layers : bool
+        ``render_gpu`` works (the shader compose path may be chosen).
+    software : bool
+        Its context rasterises on the CPU (llvmpipe): the shader compose path competes with the pipeline's
+        own cores, so the planner keeps numpy unless told to time it.
+    backend : str
+        What renders (the GL renderer string; ``"?"`` when unknown): part of the compose path's key.
+    ctx : moderngl.Context or None
+        The context its GPU layers live on (the shader compose path runs there); None without them.
     """
 
-    def render(
-        self,
-        *,
-        projection,
-        view,
-        width,
-        height,
-        caster,
-        passes,
-        ground_size=None,
-        draw_occluder=True,
-        occluder_color=None,
-        **kwargs,
-    ) -> RenderResult: ...
+    gpu_layers: bool
+    software: bool
+    backend: str
+    ctx: Any
+
+    def render(self, request: RenderRequest) -> RenderResult: ...
+
+    def render_gpu(self, request: RenderRequest) -> GpuLayers: ...
 
     def release(self) -> None: ...
+
+
+class RendererBase:
+    """The :class:`Renderer` capabilities' defaults for a renderer without GPU-resident layers: subclass it
+    and define ``render`` and ``release``.
+
+    Examples
+    --------
+    >>> class Blank(RendererBase):
+    ...     def render(self, request):
+    ...         z = np.zeros((request.height, request.width), np.float32)
+    ...         return RenderResult(z, np.zeros(z.shape + (3,), np.float32), z, z > 0, z)
+    ...     def release(self):
+    ...         pass
+    >>> isinstance(Blank(), Renderer), Blank().gpu_layers
+    (True, False)
+    """
+
+    gpu_layers: bool = False
+    software: bool = False
+    backend: str = "?"
+    ctx: Any = None
+
+    def render_gpu(self, request: RenderRequest) -> GpuLayers:
+        """Not available (``gpu_layers`` is False): the executor never calls it."""
+        raise UsageError(f"{type(self).__name__} keeps no layers on the GPU (gpu_layers is False)")

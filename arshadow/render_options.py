@@ -12,7 +12,10 @@ from .errors import UsageError
 from .geometry.ground import parse_ground
 from .plan_rules import PLAN_OFF, PLANS
 
-__all__ = ["RenderOptions", "SHADOW_METHODS", "AA_CHOICES", "DEFAULT_AA"]
+__all__ = ["RenderOptions", "SHADOW_METHODS", "AA_CHOICES", "AMBIENT_OCCLUSION", "DEFAULT_AA"]
+
+#: ``--ambient-occlusion`` choices: auto (on with a measured, non-negligible sky share), on, off
+AMBIENT_OCCLUSION = ("auto", "on", "off")
 
 #: shadow techniques: stencil volumes (exact), planar projection (exact on the ground for convex
 #: occluders), the shadow-map baseline (approximate)
@@ -83,6 +86,18 @@ class RenderOptions:
         (:mod:`arshadow.estimate.match`; ``--no-exposure`` turns it off).
     exposure_gain : (3,) float, optional
         The gain already in ``occluder_color`` (``light_from``): the per-photo gain is applied relative to it.
+    ambient_occlusion : str
+        Sky occlusion (:mod:`arshadow.shading.sky`, docs/shading.md): ``auto`` (on when the light is
+        measured and its sky share is not negligible: the planner's ``ambient_occlusion`` decision),
+        ``on`` or ``off``.
+    camera_effects : str
+        ``on``: the object and shadow layers are blurred by the photo's measured point-spread width and get
+        noise matched to the photo's (:mod:`arshadow.estimate.optics`); ``off`` (default).
+    ambient_measured : bool
+        The ambient share (``shadow_color``, ``ambient``) comes from a measured light (``light_from``).
+    material_gain : (3,) float, optional
+        ``light_from`` without ``--color``: the exposure gain (linear RGB) a mesh with its own colours or
+        texture is rendered with instead of ``occluder_color`` (the default grey for meshes without).
     """
 
     opacity: float = 0.7
@@ -107,6 +122,10 @@ class RenderOptions:
     track_roi: bool = False
     exposure: bool = True
     exposure_gain: tuple | None = None
+    ambient_occlusion: str = "auto"
+    camera_effects: str = "off"
+    ambient_measured: bool = False
+    material_gain: tuple | None = None
 
     def check(self) -> RenderOptions:
         """Validate (UsageError naming the ``arshadow render`` option); returns self."""
@@ -132,4 +151,8 @@ class RenderOptions:
         if self.ground_size is not None and not (math.isfinite(self.ground_size) and self.ground_size > 0):
             raise UsageError(f"--ground-size {self.ground_size}: must be a positive number of metres")
         parse_ground(self.ground)
+        if self.ambient_occlusion not in AMBIENT_OCCLUSION:
+            raise UsageError(f"--ambient-occlusion {self.ambient_occlusion!r}: choose {', '.join(AMBIENT_OCCLUSION)}")
+        if self.camera_effects not in ("on", "off"):
+            raise UsageError(f"--camera-effects {self.camera_effects!r}: choose on or off")
         return self

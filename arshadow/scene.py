@@ -309,6 +309,8 @@ SCENE_KEYS = (
     "compose",
     "shadowmap_size",
     "track_roi",
+    "ambient_occlusion",
+    "camera_effects",
     "light_from",
     "no_exposure",
     "ground",
@@ -403,6 +405,10 @@ def _apply_estimate(d: dict, base_dir: str | Path | None) -> dict:
         d["_occluder_color"] = o["occluder_color"]
         d["_exposure_gain"] = shading_gain(est, o["ambient"])  # the per-photo match is relative to it
     d["_shading"] = (o["ambient"], o["specular"])
+    d["_ambient_measured"] = True
+    if d.get("color") is None and "occluder_color" in o:
+        # a mesh with its own colours or texture keeps them, times the exposure (the grey default otherwise)
+        d["_material_gain"] = shading_gain(est, o["ambient"])
     return d
 
 
@@ -439,7 +445,16 @@ def scene_from_dict(d: Mapping[str, Any], base_dir: str | Path | None = None) ->
             raise UsageError("give either 'light' or 'lights', not both")
         d["lights"] = d.pop("light")
     unknown = sorted(
-        set(d) - set(SCENE_KEYS) - {"_shadow_color_linear", "_occluder_color", "_shading", "_exposure_gain"}
+        set(d)
+        - set(SCENE_KEYS)
+        - {
+            "_shadow_color_linear",
+            "_occluder_color",
+            "_shading",
+            "_exposure_gain",
+            "_ambient_measured",
+            "_material_gain",
+        }
     )
     if unknown:
         raise UsageError(f"unknown scene key(s) {', '.join(map(repr, unknown))} (known: {', '.join(SCENE_KEYS)})")
@@ -512,6 +527,8 @@ def scene_from_dict(d: Mapping[str, Any], base_dir: str | Path | None = None) ->
         ("plan", str),
         ("compose", str),
         ("track_roi", bool),
+        ("ambient_occlusion", str),
+        ("camera_effects", str),
     ):
         if d.get(key) is not None:
             opts[key] = _value(d, key, conv)
@@ -529,6 +546,10 @@ def scene_from_dict(d: Mapping[str, Any], base_dir: str | Path | None = None) ->
         opts["exposure"] = False
     if d.get("_exposure_gain") is not None:
         opts["exposure_gain"] = tuple(float(v) for v in d["_exposure_gain"])
+    if d.get("_ambient_measured"):
+        opts["ambient_measured"] = True
+    if d.get("_material_gain") is not None:
+        opts["material_gain"] = tuple(float(v) for v in d["_material_gain"])
     return SceneSpec(
         camera=calib,
         tracker=tracker,

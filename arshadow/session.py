@@ -47,7 +47,7 @@ from .compose.lens import LensWarp
 from .engine import CalibrationState, check_image, default_renderer, estimate_pose
 from .errors import UsageError
 from .estimate.match import ExposureMatch, marker_id_of
-from .execute import LAYERS_WHY, execute
+from .execute import LAYERS_WHY, FrameContext, FrameOutputs, execute
 from .geometry.ground import check_camera_above, parse_ground
 from .history import History
 from .io import read_image
@@ -150,7 +150,7 @@ class Session(History):
         return self._ctx
 
     @property
-    def renderer(self) -> Any:
+    def renderer(self) -> Renderer:
         """The renderer (made, with the context, on first use)."""
         if self._renderer is None:
             if self._renderer_factory is not None:
@@ -256,9 +256,7 @@ class Session(History):
 
     def compose_key(self, width: int, height: int, distorted: bool) -> tuple[Any, ...]:
         """The key under which the compose path is measured: (GL renderer, size, anti-aliasing, lens)."""
-        ctx = getattr(self.renderer, "ctx", None)
-        backend = (getattr(ctx, "info", None) or {}).get("GL_RENDERER", "?") if ctx is not None else "?"
-        return (backend, int(width), int(height), int(self.options.aa), bool(distorted))
+        return (self.renderer.backend, int(width), int(height), int(self.options.aa), bool(distorted))
 
     # -- the three steps --------------------------------------------------------------------------------
     def track(self, image: np.ndarray | LumaFrame, timings: StageTimings | None = None) -> Any:
@@ -333,7 +331,8 @@ class Session(History):
         check_camera_above(cam_from_ground, self.ground.text)
         return cam_from_ground
 
-    def render(
+    # phase 2 of issue 27: out/mask_out/timings/marker/seen are the video engine's, to move behind its hooks
+    def render(  # noqa: PLR0913
         self,
         image: np.ndarray,
         pose: Any = None,
@@ -405,7 +404,8 @@ class Session(History):
                 f"{image.shape[1]}x{image.shape[0]}"
             )
         tracked = pose if hasattr(pose, "cam_from_world") else None
-        res = self._render(image, plan, tracked, item, timings, want_mask, out, mask_out, layers, marker, seen)
+        outputs = FrameOutputs(want_mask, out, mask_out, timings, item, _layer_request(layers))
+        res = self._render(image, plan, tracked, outputs, marker, seen)
         timings.total += (time.perf_counter() - t0) * 1e3
         item.timings_ms = timings.as_dict(3)
         return res
@@ -446,7 +446,9 @@ class Session(History):
         pose, detector = estimate_pose(cal, image, timings)
         item = ReportItem(input=name, detector=detector)
         plan = self.plan(pose, image.shape[1], image.shape[0])
-        res = self._render(image, plan, pose, item, timings, want_mask, out, mask_out, layers)
+        res = self._render(
+            image, plan, pose, FrameOutputs(want_mask, out, mask_out, timings, item, _layer_request(layers))
+        )
         note = cal.detect_note()
         if note is not None and item.plan is not None:
             item.plan["detect"] = note
@@ -459,24 +461,66 @@ class Session(History):
         image: np.ndarray,
         plan: FramePlan,
         pose: Any,
-        item: ReportItem,
-        timings: StageTimings,
-        want_mask: bool,
-        out: np.ndarray | None,
-        mask_out: np.ndarray | None,
-        layers: bool | str = False,
+        outputs: FrameOutputs,
         marker: Any = None,
         seen: bool = True,
     ) -> FrameResult:
-        """Execute ``plan`` on ``image`` and fill ``item`` (all but ``timings_ms``); ``pose``: the tracked
-        :class:`~arshadow.tracking.pose.MarkerPose` or None; ``layers``, ``marker``, ``seen``: as
+        """Execute ``plan`` on ``image`` into ``outputs`` and fill its item (all but ``timings_ms``); ``pose``:
+        the tracked :class:`~arshadow.tracking.pose.MarkerPose` or None; ``marker``, ``seen``: as
         :meth:`render`."""
-        lay: dict[str, Any] | None = {"undistorted": layers == "undistorted"} if layers else None
         H, W = image.shape[:2]
         cal = self.calibration(W, H)
         cfw = plan.cam_from_world
+        self._report_frame(outputs.item, plan, pose, cal)
+        gain = None  # the exposure match: the object's colour gain, measured on the marker's paper
+        if self.exposure is not None and not plan.empty:
+            gain, outputs.item.exposure = self.exposure.frame_gain(
+                image,
+                cal.intrinsics,
+                cfw,
+                pose if marker is None else marker,
+                self.geometry,
+                self._marker_from_ground,
+                self.options.exposure_gain,
+                seen,
+            )
+        if not plan.empty:  # the renderer (and the context) is made only when there is something to draw
+            key = self.compose_key(W, H, cal.lens is not None)
+            if outputs.layers is not None and plan.compose != "cpu":  # the layers come from the numpy path
+                plan.decide("compose", "cpu", LAYERS_WHY)
+            self._decide_compose(plan, self.renderer, key, outputs)
+        context = FrameContext(
+            geometry=self.geometry,
+            renderer=lambda: self.renderer,
+            work=self._work,
+            calibration=self.calibration,
+            compose_key=self.compose_key,
+            chooser=self.compose_chooser,
+            gpu=self._gpu_compositor,
+        )
+        out, mask = execute(plan, image, context, outputs, color_gain=gain, camera=self._camera_effects(image, pose))
+        lay = None if outputs.layers is None else outputs.layers["layers"]
+        return FrameResult(out, mask, pose, np.asarray(cfw, np.float64), outputs.item, outputs.timings, plan, lay)
+
+    def _camera_effects(self, image: np.ndarray, pose: Any) -> Any:
+        """The photo's blur and noise (``--camera-effects on``), measured on the first frame whose marker is
+        detected and kept for the session (:func:`arshadow.compose.effects.measure_camera`); else None."""
+        if self.options.camera_effects != "on":
+            return None
+        cam = getattr(self, "_camera", None)
+        corners = getattr(pose, "all_corners", None) or {}
+        if cam is None and corners:
+            from .compose.effects import measure_camera
+
+            ref = pose.marker_ids[0] if getattr(pose, "marker_ids", None) else next(iter(corners))
+            cam = self._camera = measure_camera(image, np.asarray(corners.get(ref, next(iter(corners.values())))))
+        return cam
+
+    def _report_frame(self, item: ReportItem, plan: FramePlan, pose: Any, cal: CalibrationState) -> None:
+        """The report item's pose, calibration, notes and ground; warnings on a far or inside camera."""
+        cfw = plan.cam_from_world
         if cal.was_scaled:
-            item.calibration_scaled = {"from": [self.intrinsics.width, self.intrinsics.height], "to": [W, H]}
+            item.calibration_scaled = {"from": [self.intrinsics.width, self.intrinsics.height], "to": list(plan.size)}
         if self.notes:
             item.notes = list(self.notes)
         if pose is not None:
@@ -489,47 +533,6 @@ class Session(History):
             item.ground = self.ground.text
         for msg in self._checks.check(cfw):  # a far camera (wrong units), the camera inside: once per run
             log.warning(msg)
-        gain = None  # the exposure match: the object's colour gain, measured on the marker's paper
-        if self.exposure is not None and not plan.empty:
-            gain, item.exposure = self.exposure.frame_gain(
-                image,
-                cal.intrinsics,
-                cfw,
-                pose if marker is None else marker,
-                self.geometry,
-                self._marker_from_ground,
-                self.options.exposure_gain,
-                seen,
-            )
-        renderer = key = None
-        if not plan.empty:  # the renderer (and the context) is made only when there is something to draw
-            renderer = self.renderer
-            key = self.compose_key(W, H, cal.lens is not None)
-            if lay is not None and plan.compose != "cpu":  # the layers come from the numpy path
-                plan.decide("compose", "cpu", LAYERS_WHY)
-            self._decide_compose(plan, renderer, key, want_mask, out, mask_out)
-        out, mask = execute(
-            plan,
-            image,
-            cal.intrinsics,
-            geometry=self.geometry,
-            renderer=renderer,
-            lens=cal.lens,
-            work=self._work,
-            timings=timings,
-            item=item,
-            want_mask=want_mask,
-            out=out,
-            mask_out=mask_out,
-            chooser=self.compose_chooser,
-            gpu=self._gpu_compositor,
-            compose_key=key,
-            layers=lay,
-            color_gain=gain,
-        )
-        return FrameResult(
-            out, mask, pose, np.asarray(cfw, np.float64), item, timings, plan, None if lay is None else lay["layers"]
-        )
 
     def exposure_region(self, cam_from_world: np.ndarray, width: int, height: int, pose: Any = None) -> tuple | None:
         """``(x0, y0, w, h)``: the pixels the exposure match reads on a ``width x height`` frame at the
@@ -543,18 +546,11 @@ class Session(History):
         cfm = np.asarray(getattr(cam_from_world, "cam_from_world", cam_from_world), np.float64)
         return self.exposure.region(cal.intrinsics, cfm, marker_id_of(pose))
 
-    def _decide_compose(
-        self,
-        plan: FramePlan,
-        renderer: Any,
-        key: tuple[Any, ...],
-        want_mask: bool,
-        out: np.ndarray | None,
-        mask_out: np.ndarray | None,
-    ) -> None:
+    def _decide_compose(self, plan: FramePlan, renderer: Renderer, key: tuple[Any, ...], outputs: FrameOutputs) -> None:
         """Record the plan's compose decision (unless it has one these buffers allow)."""
+        out, mask_out, want_mask = outputs.out, outputs.mask_out, outputs.want_mask
         available = (
-            bool(getattr(renderer, "gpu_layers", False))
+            renderer.gpu_layers
             and (out is None or out.flags.c_contiguous)
             and (not want_mask or mask_out is None or mask_out.flags.c_contiguous)
         )
@@ -566,8 +562,13 @@ class Session(History):
             force=chooser.force,
             shader_available=available,
             measured=None if chooser.force else chooser.decisions.get(key),
-            software=bool(getattr(renderer, "software", False)) and not chooser.time_software,
+            software=renderer.software and not chooser.time_software,
         )
+
+
+def _layer_request(layers: bool | str) -> dict[str, Any] | None:
+    """:func:`arshadow.execute.execute`'s ``layers`` request of :meth:`Session.render`'s ``layers``."""
+    return {"undistorted": layers == "undistorted"} if layers else None
 
 
 def render_photo(

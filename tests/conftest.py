@@ -161,6 +161,22 @@ class Tolerances:
     # directional light, composite levels (measured 0 for a drag, 2 for a turn)
     preview_draft_mask_px: int = 10
     preview_draft_levels: int = 2
+    # shading (issue 28): corner normals, sky visibility, materials, camera effects
+    normal_flat_deg: float = 1e-6  # a flat face's corner normals vs its face normal (exact up to rounding)
+    normal_sphere_deg: float = 0.5  # icosphere (1280 faces) corner normals vs the radial direction (0.30 measured)
+    sky_ground_abs: float = 0.015  # ground sky visibility (256 directions, 256^2 texels) vs Lambert (0.010 measured)
+    sky_object_abs: float = 2e-3  # convex object, 4096 directions vs the tilted-plane horizon closed form
+    sky_object_rays_abs: float = 0.01  # ray-cast self-occlusion (1024 directions) vs Lambert's form factor
+    sky_object_raster_mean: float = (
+        0.02  # item-buffer self-occlusion (64 dirs) vs BVH rays (256), torus (0.009 measured)
+    )
+    psf_sigma_px: float = 0.15  # marker-edge blur vs the synthetic photo's linear-light Gaussian (0..3 px)
+    noise_sigma_rel: float = 0.1  # measured noise sigma vs the added one (with quantisation), relative
+    sky_projection_abs: float = 0.02  # rendered sky-occlusion channel vs the map sampled at the pixel's ground point
+    texture_median_abs: float = 0.01  # rendered textured quad vs cv2.warpPerspective of its texture (linear)
+    texture_p99_abs: float = 0.05
+    # the render seam (issue 27): a colour written into the RGBA16F colour attachment (11-bit mantissa)
+    half_float_rel: float = 2.0**-10
     # path-traced reference (issue 28 item 4, tests/test_reference.py, docs/reference.md). Camera: the Mitsuba
     # plate's paper against arshadow's exact render of the print (measured: own set shift <= 0.035 px, scale
     # <= 1e-4; held-out cameras up to 0.10 px and 0.11 %, unexplained: estimator bias or a residual mismatch).

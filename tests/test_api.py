@@ -306,16 +306,16 @@ def test_a_renderer_without_raw_layers_plugs_in_and_agrees(gl_ctx, tol):
 
     import arshadow
     from arshadow.gl.stencil import ShadowRenderer
-    from arshadow.render_api import Renderer
+    from arshadow.render_api import Renderer, RendererBase
 
-    class NoLayers:
+    class NoLayers(RendererBase):  # the capabilities' defaults: no GPU layers
         def __init__(self, ctx, options):
             self.inner = ShadowRenderer(ctx, samples=int(options.aa))
             self.calls = 0
 
-        def render(self, **kw):
+        def render(self, request):
             self.calls += 1
-            return dataclasses.replace(self.inner.render(**kw), layers=None)
+            return dataclasses.replace(self.inner.render(request), layers=None)
 
         def release(self):
             self.inner.release()

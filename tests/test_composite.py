@@ -129,3 +129,25 @@ def test_bad_input():
         parse_rgb("a,b,c")
     assert clip_roi((-5, 2, 10, 10), 8, 6) == (0, 2, 5, 4)
     assert clip_roi((20, 2, 10, 10), 8, 6)[2] == 0
+
+
+def test_sky_channel_darkens_by_the_sky_share():
+    # the ground keeps direct share x (1 - mask) + sky share x (1 - sky occlusion), per channel: with a
+    # measured light (opacity 1, tint = the shadow ratio r) that is 1 - (1 - r) m - r s
+    from arshadow.compose.composite import LINEAR_TO_SRGB16, SRGB_TO_LINEAR, composite
+
+    rng = np.random.default_rng(3)
+    photo = rng.integers(40, 250, (20, 30, 3), dtype=np.uint8)
+    m = rng.uniform(0, 1, (20, 30)).astype(np.float32)
+    s = rng.uniform(0, 1, (20, 30)).astype(np.float32)
+    r = np.array([0.4, 0.5, 0.6])  # RGB
+    out = composite(photo, m, opacity=1.0, shadow_color=r, sky=s)
+    lin = SRGB_TO_LINEAR[photo].astype(np.float64)  # BGR
+    k = 1.0 - (1.0 - r[::-1]) * m[..., None] - r[::-1] * s[..., None]
+    expect = LINEAR_TO_SRGB16[np.clip(lin * k * 65535 + 0.5, 0, 65535).astype(np.uint16)]
+    assert np.abs(out.astype(int) - expect.astype(int)).max() <= 1
+    # no sky occlusion: the plain composite
+    assert np.array_equal(
+        composite(photo, m, opacity=1.0, shadow_color=r, sky=np.zeros_like(s)),
+        composite(photo, m, opacity=1.0, shadow_color=r),
+    )

@@ -22,6 +22,8 @@ import numpy as np
 import pytest
 from image_oracle import ShadowOracle, boundary_distance, iou
 
+from arshadow.render_api import RenderRequest, Shading
+
 pytestmark = pytest.mark.gl
 
 W, H = 1280, 720
@@ -127,14 +129,16 @@ def _render(ctx_or_renderer, scene: Scene, mode: str | None = None, **kw):
         modes.append(m)
     r = ctx_or_renderer
     res = r.render(
-        projection=K.gl_projection(ZNEAR, None),
-        view=CV_TO_GL @ scene.cam_from_world,
-        width=W,
-        height=H,
-        caster=scene.caster,
-        passes=passes,
-        ground_size=scene.ground_size,
-        **kw,
+        RenderRequest(
+            projection=K.gl_projection(ZNEAR, None),
+            view=CV_TO_GL @ scene.cam_from_world,
+            width=W,
+            height=H,
+            caster=scene.caster,
+            passes=passes,
+            ground_size=scene.ground_size,
+            **kw,
+        )
     )
     return res, modes
 
@@ -321,16 +325,15 @@ def test_self_shadowing(ctx, tol):
     vol = shadow_volume(caster, L, sil, caps=True)
     with ShadowRenderer(ctx, max_width=W, max_height=H) as r:
         res = r.render(
-            projection=K.gl_projection(ZNEAR, None),
-            view=CV_TO_GL @ T,
-            width=W,
-            height=H,
-            caster=caster,
-            passes=[LightPass(L, 1.0, vol, "zfail")],
-            ambient=0.25,
-            diffuse=1.0,
-            specular=0.0,
-            occluder_color=(0.8, 0.8, 0.8),
+            RenderRequest(
+                projection=K.gl_projection(ZNEAR, None),
+                view=CV_TO_GL @ T,
+                width=W,
+                height=H,
+                caster=caster,
+                passes=[LightPass(L, 1.0, vol, "zfail")],
+                shading=Shading(ambient=0.25, diffuse=1.0, specular=0.0, color=(0.8, 0.8, 0.8)),
+            )
         )
     # classify pixels on the low box's top face (z = 0.05) by its analytic shadow line:
     # a top-face point (x, y, 0.05) is shaded iff x <= -0.02 + (0.3 - 0.05) = 0.23 (light at 45 deg)
@@ -370,12 +373,14 @@ def test_render_sub_canvas_matches_full(renderer, scene_results, tol):
     lh = sc.lights[0][0]
     vol = shadow_volume(sc.caster, lh, silhouette(sc.caster, lh), caps=False)
     roi = renderer.render(
-        projection=K.gl_projection(ZNEAR, None, canvas=(u0, v0, w, h)),
-        view=CV_TO_GL @ sc.cam_from_world,
-        width=w,
-        height=h,
-        caster=sc.caster,
-        passes=[LightPass(lh, 1.0, vol, "zpass")],
+        RenderRequest(
+            projection=K.gl_projection(ZNEAR, None, canvas=(u0, v0, w, h)),
+            view=CV_TO_GL @ sc.cam_from_world,
+            width=w,
+            height=h,
+            caster=sc.caster,
+            passes=[LightPass(lh, 1.0, vol, "zpass")],
+        )
     )
     sub = res_full.mask[v0 : v0 + h, u0 : u0 + w]
     assert roi.mask.shape == (h, w)
@@ -392,19 +397,21 @@ def test_bad_input(renderer):
     P = K.gl_projection(ZNEAR, None)
     V = np.eye(4)
     with pytest.raises(UsageError):
-        renderer.render(projection=P, view=V, width=W + 1, height=H, caster=sc.caster, passes=[])
+        renderer.render(RenderRequest(projection=P, view=V, width=W + 1, height=H, caster=sc.caster, passes=[]))
     with pytest.raises(ShapeError):
-        renderer.render(projection=P[:3], view=V, width=W, height=H, caster=sc.caster, passes=[])
+        renderer.render(RenderRequest(projection=P[:3], view=V, width=W, height=H, caster=sc.caster, passes=[]))
     with pytest.raises(ShapeError):
-        renderer.render(projection=P * np.nan, view=V, width=W, height=H, caster=sc.caster, passes=[])
+        renderer.render(RenderRequest(projection=P * np.nan, view=V, width=W, height=H, caster=sc.caster, passes=[]))
     with pytest.raises(UsageError):
         renderer.render(
-            projection=P,
-            view=V,
-            width=W,
-            height=H,
-            caster=sc.caster,
-            passes=[LightPass(np.array([0, 0, 1, 0.0]), 1.0, None, "bogus")],
+            RenderRequest(
+                projection=P,
+                view=V,
+                width=W,
+                height=H,
+                caster=sc.caster,
+                passes=[LightPass(np.array([0, 0, 1, 0.0]), 1.0, None, "bogus")],
+            )
         )
 
 
@@ -434,12 +441,14 @@ def test_contact_depth_stability(renderer, tol):
         for mode, trunc in (("zpass", None), ("zfail", None), ("zfail", -1e-3 * 0.12)):
             vol = shadow_volume(box, L, silhouette(box, L), caps=(mode == "zfail"), truncate_z=trunc)
             res = renderer.render(
-                projection=K.gl_projection(ZNEAR, None),
-                view=CV_TO_GL @ T,
-                width=W,
-                height=H,
-                caster=box,
-                passes=[LightPass(L, 1.0, vol, mode)],
+                RenderRequest(
+                    projection=K.gl_projection(ZNEAR, None),
+                    view=CV_TO_GL @ T,
+                    width=W,
+                    height=H,
+                    caster=box,
+                    passes=[LightPass(L, 1.0, vol, mode)],
+                )
             )
             mism = np.argwhere((res.mask >= 0.5) != ob)
             assert len(mism) <= 10, (trial, mode, trunc, len(mism))
@@ -474,11 +483,11 @@ def test_antialiased_mask(ctx, tol, samples, supersample):
         passes=passes,
     )
     with ShadowRenderer(ctx, max_width=640, max_height=480, samples=samples, supersample=supersample) as r:
-        res = r.render(**kw)
+        res = r.render(RenderRequest(**kw))
         if samples:
             assert r.actual_samples >= samples
     with ShadowRenderer(ctx, max_width=640, max_height=480) as r0:
-        hard = r0.render(**kw)
+        hard = r0.render(RenderRequest(**kw))
     orc = _oracle(sc)
     om = orc.image(W, H, canvas=canvas)[0]
     assert len(np.unique(res.mask)) > 3  # fractional edge values
@@ -511,10 +520,10 @@ def test_planar_mode_and_empty_pass(renderer, tol):
     kw = dict(
         projection=K.gl_projection(ZNEAR, None), view=CV_TO_GL @ sc.cam_from_world, width=W, height=H, caster=sc.caster
     )
-    res = renderer.render(passes=[LightPass(lh, 1.0, None, "planar")], **kw)
+    res = renderer.render(RenderRequest(passes=[LightPass(lh, 1.0, None, "planar")], **kw))
     om = _oracle(sc).image(W, H)[0]
     assert iou(res.mask >= 0.5, om >= 0.5) >= tol.shadow_iou_median
-    none = renderer.render(passes=[LightPass(lh, 1.0, None, "zpass")], **kw)
+    none = renderer.render(RenderRequest(passes=[LightPass(lh, 1.0, None, "zpass")], **kw))
     assert not np.any(none.mask)
     assert np.allclose(none.alpha, res.alpha)
     assert none.color.max() > 0.3  # lit, not just ambient
@@ -538,12 +547,14 @@ def test_buffers_grow_and_caster_cache(ctx):
     def render(r, caster, canvas):
         vol = shadow_volume(caster, lh, silhouette(caster, lh), caps=False)
         return r.render(
-            projection=K.gl_projection(ZNEAR, None, canvas=canvas),
-            view=CV_TO_GL @ sc.cam_from_world,
-            width=canvas[2],
-            height=canvas[3],
-            caster=caster,
-            passes=[LightPass(lh, 1.0, vol, "zpass")],
+            RenderRequest(
+                projection=K.gl_projection(ZNEAR, None, canvas=canvas),
+                view=CV_TO_GL @ sc.cam_from_world,
+                width=canvas[2],
+                height=canvas[3],
+                caster=caster,
+                passes=[LightPass(lh, 1.0, vol, "zpass")],
+            )
         )
 
     small, big = (560, 300, 200, 150), (400, 200, 600, 400)
@@ -598,20 +609,20 @@ def test_upload_reuse_follows_the_volumes(ctx):
         ShadowRenderer(ctx, max_width=640, max_height=480) as r,
         ShadowRenderer(ctx, max_width=640, max_height=480) as fresh,
     ):
-        a1 = r.render(passes=pa, **kw)
-        a2 = r.render(passes=pa, **kw)  # reused upload
-        b = r.render(passes=pb, **kw)
-        a3 = r.render(passes=pa, **kw)
-        b_ref = fresh.render(passes=pb, **kw)
+        a1 = r.render(RenderRequest(passes=pa, **kw))
+        a2 = r.render(RenderRequest(passes=pa, **kw))  # reused upload
+        b = r.render(RenderRequest(passes=pb, **kw))
+        a3 = r.render(RenderRequest(passes=pa, **kw))
+        b_ref = fresh.render(RenderRequest(passes=pb, **kw))
         assert np.any(a1.mask != b.mask)  # the two lights really differ
         for x in (a2, a3):
             assert np.array_equal(x.mask, a1.mask) and np.array_equal(x.color, a1.color)
         assert np.array_equal(b.mask, b_ref.mask) and np.array_equal(b.color, b_ref.color)
         # same object, writeable arrays changed in place: must not be served from the previous upload
         vw = replace(va, vertices=np.array(va.vertices), triangles=np.array(va.triangles))
-        w1 = r.render(passes=[LightPass(la, 1.0, vw, "zpass")], **kw)
+        w1 = r.render(RenderRequest(passes=[LightPass(la, 1.0, vw, "zpass")], **kw))
         np.copyto(vw.triangles, np.zeros_like(vw.triangles))  # every triangle degenerate: no shadow
-        w2 = r.render(passes=[LightPass(la, 1.0, vw, "zpass")], **kw)
+        w2 = r.render(RenderRequest(passes=[LightPass(la, 1.0, vw, "zpass")], **kw))
         assert np.array_equal(w1.mask, a1.mask)
         assert not np.any(w2.mask)
     assert ctx.error == "GL_NO_ERROR"

@@ -11,6 +11,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from arshadow.render_api import RenderRequest
+
 W, H = 1280, 720
 
 
@@ -133,10 +135,12 @@ def test_gpu_layers_hold_what_the_readback_holds(ctx):
                 caster=caster,
                 passes=[LightPass(L, 1.0, vol, "zfail")],
             )
-            ref = r.render(**kw)
-            lay = r.render_gpu(**kw)
+            ref = r.render(RenderRequest(**kw))
+            lay = r.render_gpu(RenderRequest(**kw))
             c = np.frombuffer(lay.color_tex.read(), np.float16).reshape(lay.color_tex.height, lay.color_tex.width, 4)
-            m = np.frombuffer(lay.mask_tex.read(), np.float16).reshape(lay.mask_tex.height, lay.mask_tex.width, 2)
+            m = np.frombuffer(lay.mask_tex.read(), np.float16).reshape(
+                lay.mask_tex.height, lay.mask_tex.width, lay.mask_tex.components
+            )[:, :, :2]
             c = c[: canvas[3], : canvas[2]][::-1].astype(np.float32)
             m = m[: canvas[3], : canvas[2]][::-1].astype(np.float32)
             assert ref.mask.sum() > 1000 and ref.alpha.sum() > 1000

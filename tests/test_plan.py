@@ -14,6 +14,8 @@ import numpy as np
 import pytest
 from image_oracle import iou
 
+from arshadow.render_api import RenderRequest
+
 pytestmark = pytest.mark.gl
 
 W, H = 1280, 720
@@ -282,12 +284,14 @@ def test_direct_planar_pass_equals_the_stencil_planar_pass(ctx, samples):
     with ShadowRenderer(ctx, samples=samples) as r:
         for direct in (False, True):
             res = r.render(
-                projection=intr.gl_projection(0.01, None),
-                view=CV_TO_GL @ pose,
-                width=W,
-                height=H,
-                caster=box,
-                passes=[LightPass(lh, w, None, "planar", direct=direct) for lh, w in lights],
+                RenderRequest(
+                    projection=intr.gl_projection(0.01, None),
+                    view=CV_TO_GL @ pose,
+                    width=W,
+                    height=H,
+                    caster=box,
+                    passes=[LightPass(lh, w, None, "planar", direct=direct) for lh, w in lights],
+                )
             )
             masks[direct] = res.mask
     a, b = masks[False], masks[True]

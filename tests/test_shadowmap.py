@@ -9,6 +9,7 @@ from image_oracle import ShadowOracle, iou
 
 from arshadow.errors import UsageError
 from arshadow.gl.shadowmap import light_view_projection
+from arshadow.render_api import RenderRequest
 
 W, H = 1280, 720
 
@@ -54,7 +55,15 @@ def test_shadowmap_close_to_exact_at_high_resolution(ctx, tol, name):
     for size, pcf in ((512, 1), (4096, 3)):
         with ShadowMapRenderer(ctx, map_size=size, pcf=pcf, max_width=W, max_height=H) as r:
             res = r.render(
-                projection=P, view=view, width=W, height=H, caster=sc.caster, passes=passes, ground_size=sc.ground_size
+                RenderRequest(
+                    projection=P,
+                    view=view,
+                    width=W,
+                    height=H,
+                    caster=sc.caster,
+                    passes=passes,
+                    ground_size=sc.ground_size,
+                )
             )
         masks[size] = res.mask >= 0.5
         assert res.mask.shape == (H, W) and res.color.shape == (H, W, 3) and res.premultiplied

@@ -19,6 +19,7 @@ from oracle import disc_segment_fraction, profile_crossing
 
 from arshadow.lights.area import sample_area_light
 from arshadow.lights.spec import Light, parse_light
+from arshadow.render_api import RenderRequest
 
 pytestmark = pytest.mark.gl
 
@@ -75,13 +76,15 @@ def _render(scene, renderer, lights, mode="zfail"):
         vol = shadow_volume(scene["caster"], h, sil, caps=(mode == "zfail"))
         passes.append(LightPass(light_h=h, weight=li.weight / total, volume=vol, mode=mode))
     res = renderer.render(
-        projection=scene["proj"],
-        view=scene["view"],
-        width=W,
-        height=H_IMG,
-        caster=scene["caster"],
-        passes=passes,
-        draw_occluder=False,
+        RenderRequest(
+            projection=scene["proj"],
+            view=scene["view"],
+            width=W,
+            height=H_IMG,
+            caster=scene["caster"],
+            passes=passes,
+            draw_occluder=False,
+        )
     )
     return res.mask
 

@@ -42,6 +42,7 @@ from image_oracle import ground_points, occluder_coverage
 from oracle import directed_edge_balance, ground_shadow_triangles, iou, points_in_shadow
 
 from arshadow.geometry.exact import points_in_triangles as _points_in_triangles
+from arshadow.render_api import RenderRequest
 
 hypothesis = pytest.importorskip("hypothesis")
 from hypothesis import HealthCheck, given, settings  # noqa: E402
@@ -321,7 +322,9 @@ def check_configuration(cfg, renderer, stats: Stats, tol):
 
     def render(m, vol):
         return renderer.render(
-            projection=proj, view=view, width=W, height=H, caster=caster, passes=[LightPass(L, 1.0, vol, m)]
+            RenderRequest(
+                projection=proj, view=view, width=W, height=H, caster=caster, passes=[LightPass(L, 1.0, vol, m)]
+            )
         ).mask
 
     got = render(mode, vol_fail if mode == "zfail" else vol_pass)

@@ -11,6 +11,8 @@ import numpy as np
 import pytest
 from image_oracle import ShadowOracle, iou
 
+from arshadow.render_api import RenderRequest
+
 pytestmark = pytest.mark.gl
 
 W, H = 200, 150
@@ -49,13 +51,15 @@ def _render(renderer, caster, light_h, cam_from_world, *, fx=320.0, mode=None, d
     m = mode or ("zfail" if camera_may_be_in_shadow(caster, light_h, eye, near) else "zpass")
     vol = shadow_volume(caster, light_h, silhouette(caster, light_h), caps=(m == "zfail"))
     res = renderer.render(
-        projection=K.gl_projection(znear, None),
-        view=CV_TO_GL @ cam_from_world,
-        width=W,
-        height=H,
-        caster=caster,
-        passes=[LightPass(np.asarray(light_h, float), 1.0, vol, m)],
-        draw_occluder=draw_occluder,
+        RenderRequest(
+            projection=K.gl_projection(znear, None),
+            view=CV_TO_GL @ cam_from_world,
+            width=W,
+            height=H,
+            caster=caster,
+            passes=[LightPass(np.asarray(light_h, float), 1.0, vol, m)],
+            draw_occluder=draw_occluder,
+        )
     )
     orc = ShadowOracle(K.K, cam_from_world, caster.vertices, caster.faces, [(np.asarray(light_h, float), 1.0)])
     return res, vol, orc.image(W, H)

@@ -33,6 +33,10 @@ OPTIONS: list[tuple[str, dict, str]] = [
     ("measured, no exposure match", {"no_exposure": True}, "measured"),
     ("true light (defaults)", {}, "true"),
     ("true light, opacity 0.5", {"opacity": 0.5}, "true"),
+    # issue 28 (docs/shading.md): sky occlusion is on by default with a measured light
+    ("measured, ambient occlusion off", {"ambient_occlusion": "off"}, "measured"),
+    ("measured, camera effects on", {"camera_effects": "on"}, "measured"),
+    ("true light, ambient occlusion on", {"ambient_occlusion": "on"}, "true"),
 ]
 
 

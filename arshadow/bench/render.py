@@ -34,6 +34,7 @@ from ..gl.shadowmap import MAP_SIZES, ShadowMapRenderer
 from ..gl.stencil import LightPass, ShadowRenderer
 from ..lights.area import sample_area_light
 from ..lights.spec import parse_light
+from ..render_api import RenderRequest
 from ..synth import look_at_pose
 from ..transforms import CV_TO_GL
 from .common import ROOT, summary
@@ -262,7 +263,9 @@ def run(cfg: dict, ctx, log) -> list[dict]:
 
                 def once():
                     res = r.render(
-                        projection=P, view=view, width=canvas[2], height=canvas[3], caster=caster, passes=passes
+                        RenderRequest(
+                            projection=P, view=view, width=canvas[2], height=canvas[3], caster=caster, passes=passes
+                        )
                     )
                     m = res.mask
                     if s != 1.0:
@@ -357,7 +360,8 @@ def soft(cfg: dict, ctx, log) -> list[dict]:
                 hh = np.asarray(s.homogeneous, np.float64)
                 vol = shadow_volume(caster, hh, silhouette(caster, hh), caps=False, truncate_z=-1e-3 * caster.scale)
                 passes.append(LightPass(hh, s.weight / tot, vol, "zpass"))
-            once = lambda: r.render(projection=P, view=view, width=w, height=h, caster=caster, passes=passes)  # noqa: E731
+            req = RenderRequest(projection=P, view=view, width=w, height=h, caster=caster, passes=passes)
+            once = lambda: r.render(req)  # noqa: E731
             for _ in range(cfg["warmup"]):
                 once()
             ts = []

@@ -134,6 +134,19 @@ def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> No
         "is given), its shadow colour (instead of --opacity/--shadow-color) and the marker's exposure",
     )
     s.add_argument(
+        "--ambient-occlusion",
+        choices=("auto", "on", "off"),
+        help="sky occlusion (docs/shading.md): the contact shadow on the ground, the object's own sky "
+        "visibility and the light bounced from the ground. auto (default): on with a measured light "
+        "(--light-from / --probe) whose sky share is not negligible",
+    )
+    s.add_argument(
+        "--camera-effects",
+        choices=("on", "off"),
+        help="blur the inserted object and shadow by the photo's point-spread width (measured on the "
+        "marker's edges) and add noise matched to the photo's (docs/shading.md); default off",
+    )
+    s.add_argument(
         "--no-exposure",
         action="store_true",
         help="keep the object's colour as given: no exposure / white balance match to the marker paper "

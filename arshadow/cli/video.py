@@ -239,7 +239,8 @@ def register(subparsers) -> None:
 
 
 # --------------------------------------------------------------------------------------------------
-def run(args) -> int:
+# the CLI's video recipe: moves into the API's video entry point (issue 27 item 3)
+def run(args) -> int:  # noqa: C901
     from ..errors import UsageError
     from ..io import check_output_file, check_output_folder, write_json
     from ..report import jsonable, make_report

@@ -174,7 +174,23 @@ def clip_roi(roi: Sequence[float], width: int, height: int) -> tuple[int, int, i
     return x0, y0, max(x1 - x0, 0), max(y1 - y0, 0)
 
 
-def composite(
+# the public numpy compositor: its keyword arguments are its documented interface (docs/compositing.md, used by
+# name across the package and by users), and its checks of them come first (execute hands it one Look's fields)
+def _darken_sky(lin, keep, mask, sky, opacity: float, sc: np.ndarray, ws: Workspace) -> None:
+    """``lin (h, w, 3)`` BGR *= max(keep - opacity * mask * (1 - tint) - sky * (1 - opacity * (1 - tint)), 0)."""
+    h, w = lin.shape[:2]
+    dark = (np.float32(opacity) * (1.0 - sc[::-1])).astype(np.float32)  # BGR: the direct light's share
+    amb = (np.float32(1.0) - dark).astype(np.float32)  # BGR: the sky's share
+    factor = ws.get("factor", (h, w, 3), np.float32)
+    np.multiply(np.asarray(sky, np.float32)[:, :, None], -amb, out=factor)
+    if mask is not None:
+        factor -= np.asarray(mask, np.float32)[:, :, None] * dark
+    factor += keep[:, :, None] if keep is not None else np.float32(1.0)
+    np.maximum(factor, np.float32(0.0), out=factor)
+    lin *= factor
+
+
+def composite(  # noqa: C901, PLR0913
     photo: np.ndarray,
     mask: np.ndarray | None,
     roi: Sequence[float] | None = None,
@@ -187,6 +203,7 @@ def composite(
     color_gain: npt.ArrayLike | None = None,
     out: np.ndarray | None = None,
     work: Workspace | None = None,
+    sky: np.ndarray | None = None,
 ) -> np.ndarray:
     """Composite a shadow mask and a shaded occluder into a photo.
 
@@ -215,6 +232,12 @@ def composite(
         Output buffer (may be ``photo`` itself to composite in place); a copy of ``photo`` otherwise.
     work : Workspace, optional
         Scratch buffers reused between calls (no per-frame allocation of temporaries).
+    sky : (h, w) float32 in [-1, 1], optional
+        Sky occlusion over the ROI (:attr:`arshadow.render_api.RenderResult.sky_occlusion`): the share of the
+        sky the object hides from the ground there. The ground keeps ``1 - opacity * mask * (1 - tint) -
+        sky * ambient`` of its light, ``ambient = 1 - opacity * (1 - tint)`` being the share of the light a
+        full shadow keeps (the sky's share, with a measured light): the direct light's visibility times its
+        share plus the sky's visibility times its share (docs/shading.md).
 
     Returns
     -------
@@ -241,7 +264,12 @@ def composite(
         return out
     if color is not None and not (np.ndim(color) == 3 and np.shape(color)[2] in (3, 4)):
         raise ShapeError("color must be (h, w, 3) RGB or (h, w, 4) RGBA", actual_shape=np.shape(color))
-    for name, arr, spec in (("mask", mask, "H,W"), ("alpha", alpha, "H,W"), ("color", color, "H,W,C")):
+    for name, arr, spec in (
+        ("mask", mask, "H,W"),
+        ("alpha", alpha, "H,W"),
+        ("color", color, "H,W,C"),
+        ("sky", sky, "H,W"),
+    ):
         if arr is not None and check_shape(arr, spec, name).shape[:2] != (h, w):
             raise ShapeError(f"{name} does not match the roi", actual_shape=arr.shape[:2], expected_shape=(h, w))
     if (color is None) != (alpha is None):
@@ -264,7 +292,10 @@ def composite(
         keep = ws.get("keep", (h, w), np.float32)
         np.subtract(np.float32(1.0), a, out=keep)
     g = keep  # (h, w) float32 single-channel multiplier (grey tint)
-    if mask is not None and opacity > 0.0:
+    if sky is not None:
+        _darken_sky(lin, keep, mask, sky, float(opacity), sc, ws)
+        g = None
+    elif mask is not None and opacity > 0.0:
         m = np.asarray(mask, dtype=np.float32)
         if gray:
             g = ws.get("g", (h, w), np.float32)

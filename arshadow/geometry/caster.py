@@ -140,6 +140,12 @@ class ShadowCaster:
         f = f[keep]
         if fc is not None:
             fc = fc[keep]
+        #: (m,) int: each face's index among the faces given (degenerate ones dropped): per-corner data read
+        #: with the file (texture coordinates) follows the faces through it
+        self.source_faces = _readonly(np.flatnonzero(keep))
+        #: the surface's :class:`arshadow.shading.material.Material` when the mesh file has one (set by
+        #: :func:`arshadow.geometry.mesh.load_occluder`), else None
+        self.material = None
 
         # drop unreferenced vertices
         used = np.zeros(v.shape[0], bool)

@@ -10,11 +10,13 @@ rotation and placement, optionally stands it on the ground (``drop_to_ground``),
 from __future__ import annotations
 
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import MeshError
+from ..shading.material import material_from_trimesh
 from .caster import ShadowCaster, connected_labels, plane_side
 
 __all__ = [
@@ -216,6 +218,7 @@ def load_occluder(
     [[-0.05, -0.3, 0.0], [0.05, 0.0, 0.2]]
     """
     vertex_colors = face_colors = None
+    material = None
     spec = str(spec_or_path)
     if up is not None:
         up = str(up).strip().lower()
@@ -243,6 +246,11 @@ def load_occluder(
             raise MeshError(f"{p}: no triangles in the file")
         v = np.asarray(mesh.vertices, np.float64)
         f = np.asarray(mesh.faces, np.intp)
+        try:
+            material = material_from_trimesh(mesh)
+        except Exception as exc:  # a material is a nicety: a file with a broken one still casts its shadow
+            warnings.warn(f"{p}: material not read ({type(exc).__name__}: {exc}); using its colours", stacklevel=2)
+            material = None
         try:
             kind = mesh.visual.kind
             if kind == "vertex":
@@ -279,9 +287,13 @@ def load_occluder(
             f"{name}: coordinates up to {big:.3g} m (more than {MAX_COORDINATE:.0e} m): wrong units? "
             "(mesh coordinates are metres; see --scale)"
         )
-    if np.prod(np.sign(s)) < 0:  # a mirroring scale flips the winding: keep normals outward
+    mirrored = bool(np.prod(np.sign(s)) < 0)
+    if mirrored:  # a mirroring scale flips the winding: keep normals outward
         f = f[:, ::-1]
     c = _parse_color(color)
     if c is not None:
-        vertex_colors, face_colors = np.broadcast_to(c, (len(v), c.size)), None
-    return ShadowCaster(v, f, vertex_colors=vertex_colors, face_colors=face_colors, name=name)
+        vertex_colors, face_colors, material = np.broadcast_to(c, (len(v), c.size)), None, None
+    caster = ShadowCaster(v, f, vertex_colors=vertex_colors, face_colors=face_colors, name=name)
+    if material is not None:
+        caster.material = material.select_faces(caster.source_faces, flip_winding=mirrored)
+    return caster

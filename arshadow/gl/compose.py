@@ -35,6 +35,7 @@ import time
 import numpy as np
 
 from ..compose.composite import LINEAR_TO_SRGB16, SRGB_TO_LINEAR
+from ..compose.look import Look
 from ..errors import ShapeError, UsageError
 from . import glraw as G
 from .context import current
@@ -147,52 +148,38 @@ class GpuCompositor:
         return lt
 
     @current
-    def compose(
-        self,
-        image,
-        layers,
-        roi,
-        canvas,
-        *,
-        lens=None,
-        opacity=0.7,
-        shadow_color=(0.0, 0.0, 0.0),
-        draw_occluder=True,
-        out=None,
-        mask_out=None,
-        timings=None,
-        color_gain=(1.0, 1.0, 1.0),
-    ):
-        """Composite the layers into ``out`` over ``roi`` (the numpy path's result within one level).
+    def compose(self, image, layers, plan, look: Look, *, lens=None, out=None, mask_out=None, timings=None):
+        """Composite the layers into ``out`` over ``plan.roi`` (the numpy path's result within one level).
 
         Parameters
         ----------
         image : (H, W, 3) uint8
             BGR photo (not modified).
         layers : arshadow.gl.layers.GpuLayers
-            From ``ShadowRenderer.render_gpu(...)`` of ``canvas``.
-        roi : (x0, y0, w, h) int
-            Photo pixels to composite (inside the photo); the others are left as they are in ``out``.
-        canvas : (u0, v0, w, h) int
-            Pinhole canvas the layers hold (``w, h`` = ``layers.width, layers.height``).
+            From ``ShadowRenderer.render_gpu(...)`` of ``plan.canvas``.
+        plan : arshadow.plan.FramePlan
+            Its ``roi`` ``(x0, y0, w, h)`` int: the photo pixels to composite (inside the photo; the others are
+            left as they are in ``out``), and its ``canvas`` ``(u0, v0, w, h)`` int: the pinhole canvas the
+            layers hold (``w, h`` = ``layers.width, layers.height``).
+        look : arshadow.compose.look.Look
+            Opacity, shadow colour (linear RGB), whether the object is drawn, the exposure gain, as the numpy
+            :func:`arshadow.compose.composite.composite` takes them.
         lens : arshadow.compose.lens.LensWarp, optional
             With a distorted calibration: the photo pixel's pinhole point comes from its map.
             Without: the canvas is the photo's own pixel grid.
-        opacity, shadow_color, draw_occluder
-            As :func:`arshadow.compose.composite.composite` (shadow_color linear RGB).
         out : (H, W, 3) uint8, optional
             Receives the result over ``roi`` (C-contiguous); a copy of ``image`` if None.
         mask_out : (H, W) uint8, optional
             Receives ``round(255 * mask)`` over ``roi`` (C-contiguous); not read back if None.
         timings : dict, optional
             ``upload``, ``draw``, ``readback`` (ms) are added to it.
-        color_gain : (3,) float
-            Per-channel (R, G, B) gain on the occluder's linear colour (the exposure match).
 
         Returns
         -------
         out : (H, W, 3) uint8
         """
+        roi, canvas = plan.roi, plan.canvas
+        color_gain = (1.0, 1.0, 1.0) if look.color_gain is None else tuple(float(v) for v in look.color_gain)
         if self._released:
             raise UsageError("this GpuCompositor has been released")
         H, W = image.shape[:2]
@@ -208,7 +195,7 @@ class GpuCompositor:
             lt = self._lens_texture(lens)
             lt.update((x0, y0, w, h))
             lt.tex.use(5)
-        self._set_uniforms(canvas, (x0, y0, w, h), lens is not None, opacity, shadow_color, draw_occluder)
+        self._set_uniforms(canvas, (x0, y0, w, h), lens is not None, look)
         self.prog["u_gain"].value = tuple(float(v) for v in np.asarray(color_gain, np.float32).reshape(3)[::-1])
         self._photo.use(0)
         self._dec.use(1)
@@ -251,9 +238,9 @@ class GpuCompositor:
                 )
         return out
 
-    def _set_uniforms(self, canvas, roi, use_lens, opacity, shadow_color, draw_occluder) -> None:
+    def _set_uniforms(self, canvas, roi, use_lens, look: Look) -> None:
         """The compose shader's texture units, geometry and darkening constants."""
-        prog = self.prog
+        prog, opacity, shadow_color, draw_occluder = self.prog, look.opacity, look.shadow_color, look.draw_occluder
         sc = np.asarray(shadow_color, np.float64).reshape(3)
         gray = bool(sc[0] == sc[1] == sc[2])
         prog["u_photo"].value = 0

@@ -12,13 +12,13 @@ __all__ = ["GpuLayers", "TextureTarget"]
 
 
 class TextureTarget:
-    """Texture-backed single-sample framebuffer (colour 0 ``RGBA16F``, colour 1 ``RG16F``): the blit
+    """Texture-backed single-sample framebuffer (colour 0 ``RGBA16F``, colour 1 ``RG16F``, ``RGBA16F`` with sky occlusion): the blit
     destination of ``render_gpu()``, sampled by :mod:`arshadow.gl.compose`."""
 
-    def __init__(self, ctx, width, height):
+    def __init__(self, ctx, width, height, mask_components: int = 2):
         self.width, self.height = int(width), int(height)
         self.color_tex = ctx.texture((self.width, self.height), 4, dtype="f2")
-        self.mask_tex = ctx.texture((self.width, self.height), 2, dtype="f2")
+        self.mask_tex = ctx.texture((self.width, self.height), int(mask_components), dtype="f2")
         for t in (self.color_tex, self.mask_tex):
             t.filter = (ctx.NEAREST, ctx.NEAREST)
         self.mgl = ctx.framebuffer(color_attachments=[self.color_tex, self.mask_tex])
@@ -38,7 +38,8 @@ class GpuLayers:
     color_tex : moderngl.Texture
         ``RGBA16F``: rgb = premultiplied linear occluder colour, a = coverage (as :class:`RenderResult`).
     mask_tex : moderngl.Texture
-        ``RG16F``: r = blocked weight (not yet clipped to [0, 1]), g = ground coverage.
+        ``RG16F``: r = blocked weight (not yet clipped to [0, 1]), g = ground coverage; ``RGBA16F`` with sky
+        occlusion: b = the share of the sky the object hides from the visible ground.
     width, height : int
         The canvas occupies texels ``[0, width) x [0, height)``, OpenGL's bottom-up rows (texel row 0 is
         the canvas's BOTTOM row); the textures may be larger (grown, never shrunk). Valid until the next

@@ -28,6 +28,8 @@ import numpy as np
 
 from ..compose.composite import srgb_to_linear
 from ..errors import ShapeError, UsageError
+from ..shading.normals import crease_normals
+from ..shading.sky import object_sky_visibility
 
 __all__ = [
     "DEFAULT_COLOR",
@@ -72,29 +74,22 @@ def program(ctx, vert: str, frag: str):
     return cache[key]
 
 
-def _crease_normals(vertices: np.ndarray, faces: np.ndarray, crease_deg: float) -> tuple[np.ndarray, np.ndarray]:
-    """Per-corner normals ``(m, 3, 3)`` float64 and ``(m, 3)`` bool "flat": the area-weighted vertex normal
-    where it is within ``crease_deg`` of the face normal, else the face normal (flat edges stay sharp,
-    curved parts smooth)."""
-    tri = vertices[faces]
-    raw = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])  # |raw| = 2 area
-    fn = raw / np.maximum(np.linalg.norm(raw, axis=1, keepdims=True), 1e-300)
-    vn = np.zeros_like(vertices)
-    for k in range(3):
-        np.add.at(vn, faces[:, k], raw)
-    vn /= np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-300)
-    corner = vn[faces]  # (m, 3, 3)
-    cos = np.einsum("mkj,mj->mk", corner, fn)
-    flat = cos < math.cos(math.radians(crease_deg))
-    corner = np.where(flat[..., None], fn[:, None, :], corner)
-    return corner, flat
+def set_uniforms(progs, values: dict) -> None:
+    """Write ``values`` (uniform name -> value, e.g. :meth:`arshadow.render_api.Shading.uniforms`) into each
+    program of ``progs`` that declares the name (the others skip it)."""
+    for prog in progs:
+        for name, value in values.items():
+            u = prog.get(name, None)
+            if u is not None:
+                u.value = value
 
 
 class CasterBuffers:
     """GPU copies of one caster: the occluder (unwelded corners: pos4, normal3, albedo3) and the welded
     positions (for the planar shadow). Built once per caster."""
 
-    def __init__(self, ctx, prog_base, prog_occ, prog_pos, caster, color, crease_deg, local=True):
+    # the three programs, the caster and how it is shaded (colour, crease, sky model, frame): one call site each
+    def __init__(self, ctx, prog_base, prog_occ, prog_pos, caster, color, crease_deg, local=True, sky=None, rich=None):  # noqa: PLR0913
         v = np.asarray(caster.vertices, dtype=np.float64)
         #: the caster's local origin (its box centre; world origin with ``local=False``): positions go to
         #: float32 relative to it
@@ -110,10 +105,21 @@ class CasterBuffers:
                 alb = np.broadcast_to(srgb_to_linear(np.asarray(DEFAULT_COLOR)), (m, 3, 3))
             else:
                 alb = srgb_to_linear(np.asarray(cols, np.float64)[:, :3])[f]
-        nrm, flat = _crease_normals(v, f, crease_deg)
-        # lighting pass: one vertex per distinct (vertex, normal) -- smooth corners share the vertex
-        # normal, flat (crease) corners are per face -- drawn indexed so the vertex cache works
-        key = np.stack([f.ravel(), np.where(flat, np.repeat(np.arange(m), 3).reshape(m, 3), -1).ravel()], 1)
+        # the mesh file's base-colour texture (arshadow.shading.material), unless a colour overrides it
+        material = getattr(caster, "material", None) if color is None else None
+        textured = material is not None and material.textured
+        if textured:
+            alb = np.broadcast_to(np.asarray(material.base_color, np.float64)[:3], (m, 3, 3))
+        nrm = crease_normals(v, f, crease_deg)
+        # lighting pass: one vertex per distinct (vertex, normal[, uv]) -- smooth corners share their
+        # vertex's normal, corners at a crease (or a texture seam) have their own -- drawn indexed so the
+        # vertex cache works
+        nrm32 = np.ascontiguousarray(nrm.reshape(-1, 3).astype(np.float32))
+        cols = [f.reshape(-1, 1).astype(np.int64), nrm32.view(np.int32).astype(np.int64)]
+        if textured:
+            uv32 = np.ascontiguousarray(material.uv.reshape(-1, 2).astype(np.float32))
+            cols.append(uv32.view(np.int32).astype(np.int64))
+        key = np.concatenate(cols, axis=1)
         _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
         corner_v = f.ravel()[first]
         data = np.empty((len(first), 10), dtype=np.float32)
@@ -124,11 +130,30 @@ class CasterBuffers:
         self.n_light_vertices = len(first)
         self.vbo = ctx.buffer(data.tobytes())
         self.light_ibo = ctx.buffer(inverse.reshape(-1).astype(np.uint32).tobytes())
+        # shading attributes per lighting vertex (uv, sky visibility, ground view) and the texture
+        self.shade_vbo, self.texture, self.shade_base_vao = None, None, None
+        self.textured, self.sky = textured, sky
+        content = [(self.vbo, "4f 3f 3f", "in_pos", "in_normal", "in_albedo")]
+        #: the programs of the occluder's base and light passes: ``rich = (base, light)`` (the texture / sky /
+        #: albedo-gain shaders) when given, else the plain ones this was made with
+        self.prog_base, self.prog_light = (prog_base, prog_occ) if rich is None else rich
+        self.rich = rich is not None
+        if rich is not None:
+            prog_base, prog_occ = rich
+            shade = np.zeros((len(first), 4), np.float32)
+            if textured:
+                shade[:, :2] = material.uv.reshape(-1, 2)[first]
+                self.texture = _texture(ctx, material.texture)
+            if sky is not None:
+                shade[:, 2:] = _object_sky(ctx, caster, v[corner_v], nrm.reshape(-1, 3)[first], sky)
+            self.shade_vbo = ctx.buffer(shade.tobytes())
+            content.append((self.shade_vbo, "2f 2f", "in_uv", "in_vis"))
+            # the base pass then draws these vertices (per corner) instead of the welded ones
+            self.shade_base_vao = ctx.vertex_array(
+                prog_base, content, index_buffer=self.light_ibo, index_element_size=4, skip_errors=True
+            )
         self.vao = ctx.vertex_array(
-            prog_occ,
-            [(self.vbo, "4f 3f 3f", "in_pos", "in_normal", "in_albedo")],
-            index_buffer=self.light_ibo,
-            index_element_size=4,
+            prog_occ, content, index_buffer=self.light_ibo, index_element_size=4, skip_errors=True
         )
         # base pass and planar shadow: welded, indexed vertices (positions + albedo; ~6x fewer vertex
         # shader runs). Same float32 positions as above -> bit-identical depth for the GL_EQUAL passes.
@@ -165,10 +190,7 @@ class CasterBuffers:
         self.face_planes = np.asarray(planes, np.float64)
         self.sub_ibo = ctx.buffer(reserve=max(self.light_tris.nbytes, 64), dynamic=True)
         self.sub_vao = ctx.vertex_array(
-            prog_occ,
-            [(self.vbo, "4f 3f 3f", "in_pos", "in_normal", "in_albedo")],
-            index_buffer=self.sub_ibo,
-            index_element_size=4,
+            prog_occ, content, index_buffer=self.sub_ibo, index_element_size=4, skip_errors=True
         )
         self.sub_ranges = {}
         self.sub_key = None  # the lights sub_ibo holds subsets for
@@ -210,6 +232,9 @@ class CasterBuffers:
 
     def release(self):
         for o in (
+            self.shade_base_vao,
+            self.shade_vbo,
+            self.texture,
             self.vao,
             self.sub_vao,
             self._planar_sub_vao,
@@ -223,6 +248,36 @@ class CasterBuffers:
         ):
             if o is not None:
                 o.release()
+
+
+def _object_sky(ctx, caster, points: np.ndarray, normals: np.ndarray, sky: str) -> np.ndarray:
+    """``(k, 2)``: sky visibility and ground view of the shading vertices, self-occlusion found with item
+    buffers drawn on this context (:class:`arshadow.gl.sky.GLItemBuffer`, 512 px, 64 directions)."""
+    from .sky import GLItemBuffer
+
+    # one per context, kept like the programs (releasing a framebuffer moderngl may still think bound
+    # left GL_INVALID_OPERATION when the next one was made)
+    extra = _program_cache(ctx)
+
+    def draw(xy, depth, faces, res):  # made on first use: a convex mesh needs none
+        ib = extra.get("item_buffer_512")
+        if ib is None:
+            ib = extra["item_buffer_512"] = GLItemBuffer(ctx, 512)
+        return ib(xy, depth, faces, res)
+
+    s, g = object_sky_visibility(caster, points, normals, sky=sky, item_buffer=draw, res=512)
+    return np.stack([s, g], axis=1)
+
+
+def _texture(ctx, image: np.ndarray):
+    """``(h, w, 3)`` linear RGB (row 0 = the image's top) as a mipmapped half-float texture, rows flipped
+    to GL order (texel row 0 = the image's bottom, so ``v`` counts from the bottom as the UVs do)."""
+    img = np.ascontiguousarray(np.asarray(image, np.float32)[::-1, :, :3].astype(np.float16))
+    tex = ctx.texture((img.shape[1], img.shape[0]), 3, img.tobytes(), dtype="f2")
+    tex.repeat_x = tex.repeat_y = True  # glTF's default sampler wraps
+    tex.build_mipmaps()
+    tex.filter = (ctx.LINEAR_MIPMAP_LINEAR, ctx.LINEAR)
+    return tex
 
 
 def ground_vertices(ground_size=None, origin=None) -> np.ndarray:
@@ -280,28 +335,48 @@ class CasterCache:
         Least recently *made* entries are released beyond this many.
     """
 
-    def __init__(self, ctx, programs, max_cached: int):
+    def __init__(self, ctx, programs, max_cached: int, rich_programs=None):
         self.ctx = ctx
         self.programs = tuple(programs)
+        #: (base, light) programs with textures, sky shading and the albedo gain (None: never used)
+        self.rich_programs = rich_programs
         self.max_cached = int(max_cached)
         self._entries: dict[int, tuple[Callable[[], object], tuple, CasterBuffers]] = {}
 
-    def get(self, caster, occluder_color, crease_deg: float) -> CasterBuffers:
-        """The buffers of ``caster`` with ``occluder_color`` ((3,) sRGB or None), made on first use."""
+    def get(
+        self, caster, occluder_color, crease_deg: float, sky: str | None = None, rich: bool = False
+    ) -> CasterBuffers:
+        """The buffers of ``caster`` with ``occluder_color`` ((3,) sRGB or None), made on first use; ``sky``
+        (a sky model of :mod:`arshadow.shading.sky`, or None): with the object's sky visibility per vertex;
+        ``rich``: drawn by the rich programs (also when the caster has a texture and no colour overrides it)."""
+        material = getattr(caster, "material", None)
+        rich = bool(self.rich_programs) and (
+            rich or sky is not None or (occluder_color is None and material is not None and material.textured)
+        )
         entries = self._entries
         # purge dead casters
         for key in [k for k, (ref, _, _) in entries.items() if ref() is None]:
             entries.pop(key)[2].release()
         ckey = None if occluder_color is None else tuple(float(c) for c in np.ravel(occluder_color)[:3])
         entry = entries.get(id(caster))
-        if entry is not None and entry[0]() is caster and entry[1] == (ckey, crease_deg):
+        if entry is not None and entry[0]() is caster and entry[1] == (ckey, crease_deg, sky, rich):
             return entry[2]
         if entry is not None:
             entries.pop(id(caster))[2].release()
         while len(entries) >= self.max_cached:
             entries.pop(next(iter(entries)))[2].release()
         prog_base, prog_occ, prog_pos = self.programs
-        bufs = CasterBuffers(self.ctx, prog_base, prog_occ, prog_pos, caster, ckey, crease_deg)
+        bufs = CasterBuffers(
+            self.ctx,
+            prog_base,
+            prog_occ,
+            prog_pos,
+            caster,
+            ckey,
+            crease_deg,
+            sky=sky,
+            rich=self.rich_programs if rich else None,
+        )
         ref: Callable[[], object]
         try:
             ref = weakref.ref(caster)
@@ -312,7 +387,7 @@ class CasterCache:
 
             ref = strong
 
-        entries[id(caster)] = (ref, (ckey, crease_deg), bufs)
+        entries[id(caster)] = (ref, (ckey, crease_deg, sky, rich), bufs)
         return bufs
 
     def __len__(self) -> int:

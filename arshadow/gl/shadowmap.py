@@ -1,6 +1,6 @@
 """Shadow-map baseline renderer: the technique of three.js, model-viewer and pyrender, for comparison.
 
-Same keyword interface and :class:`~arshadow.render_api.RenderResult` as
+Same :class:`~arshadow.render_api.RenderRequest` in and :class:`~arshadow.render_api.RenderResult` out as
 :meth:`arshadow.gl.stencil.ShadowRenderer.render`, so the compositor and the benchmarks can swap it in
 (``--shadow-method shadowmap``). The shadow volumes in ``passes`` are ignored: only ``light_h``,
 ``weight`` and ``color`` of each :class:`~arshadow.render_api.LightPass` are used.
@@ -32,10 +32,10 @@ import numpy as np
 
 from .._check import check_finite, check_shape
 from ..errors import UsageError
-from ..render_api import RenderResult
+from ..render_api import RendererBase, RenderRequest, RenderResult
 from . import glraw as G
 from .context import current
-from .resources import CasterBuffers, GroundBuffer, program
+from .resources import CasterBuffers, GroundBuffer, program, set_uniforms
 
 __all__ = ["ShadowMapRenderer", "light_view_projection", "MAP_SIZES"]
 
@@ -108,7 +108,7 @@ def light_view_projection(light_h, bounds) -> np.ndarray:
     return proj @ _look_at(L, c)
 
 
-class ShadowMapRenderer:
+class ShadowMapRenderer(RendererBase):
     """Hard (PCF-filtered) shadows of one caster on the ground z = 0 with a shadow map per light.
 
     Parameters
@@ -129,8 +129,9 @@ class ShadowMapRenderer:
         Smoothing angle of the occluder's shading normals.
     """
 
+    # the baseline's map settings (size, PCF kernel, three biases), each swept by name by arshadow bench
     @current
-    def __init__(
+    def __init__(  # noqa: PLR0913
         self,
         ctx,
         *,
@@ -162,6 +163,8 @@ class ShadowMapRenderer:
         self.max_width, self.max_height = int(max_width), int(max_height)
         self.crease_deg = float(crease_deg)
         self.samples = 0
+        #: what renders (the GL renderer string): part of the compose path's key (no GPU layers: numpy compose)
+        self.backend = str((ctx.info or {}).get("GL_RENDERER", "?"))
         self.prog_depth = program(ctx, "common.vert", "volume.frag")
         self.prog_occ = program(ctx, "shadowmap_occluder.vert", "shadowmap.frag")
         self.prog_ground = program(ctx, "shadowmap_ground.vert", "shadowmap.frag")
@@ -236,24 +239,9 @@ class ShadowMapRenderer:
         return self._fbo
 
     @current
-    def render(
-        self,
-        *,
-        projection,
-        view,
-        width,
-        height,
-        caster,
-        passes,
-        ground_size=None,
-        draw_occluder=True,
-        ambient=0.25,
-        diffuse=1.0,
-        specular=0.25,
-        shininess=32.0,
-        occluder_color=None,
-    ) -> RenderResult:
-        """Render one frame (or canvas); arguments as :meth:`arshadow.gl.stencil.ShadowRenderer.render`.
+    def render(self, request: RenderRequest) -> RenderResult:
+        """Render one frame (or canvas) of a :class:`arshadow.render_api.RenderRequest`, as
+        :meth:`arshadow.gl.stencil.ShadowRenderer.render` (the passes' volumes and modes are ignored).
 
         Returns
         -------
@@ -264,24 +252,25 @@ class ShadowMapRenderer:
         t0 = time.perf_counter()
         if self._released:
             raise UsageError("this ShadowMapRenderer has been released")
-        width, height = int(width), int(height)
+        width, height = int(request.width), int(request.height)
         if not (0 < width <= self.max_width and 0 < height <= self.max_height):
             raise UsageError(f"canvas {width}x{height} outside 1..{self.max_width} x 1..{self.max_height}")
-        proj = check_finite(check_shape(projection, "4,4", "projection"), "projection")
-        view = check_finite(check_shape(view, "4,4", "view"), "view")
-        passes = list(passes)
+        proj = check_finite(check_shape(request.projection, "4,4", "projection"), "projection")
+        view = check_finite(check_shape(request.view, "4,4", "view"), "view")
+        passes, caster, draw_occluder = list(request.passes), request.caster, bool(request.draw_occluder)
         ctx = self.ctx
         mvp = proj @ view
         eye = -view[:3, :3].T @ view[:3, 3]
-        bufs = self._buffers(caster, occluder_color)
-        self._ground.set(ground_size)
+        bufs = self._buffers(caster, request.shading.color)
+        self._ground.set(request.ground_size)
+        set_uniforms((self.prog_occ,), request.shading.uniforms())
         fbo = self._targets(width, height)
         bounds = np.asarray(caster.bounds, np.float64)
         t1 = time.perf_counter()
-        self._base_pass(fbo, mvp, width, height, bufs, draw_occluder, ambient)
+        self._base_pass(fbo, mvp, (width, height), bufs, draw_occluder)
         # -- per light: depth map, then the ground and the occluder again with the map
         for p in passes:
-            self._light_pass(fbo, width, height, bufs, p, bounds, eye, draw_occluder, (diffuse, specular, shininess))
+            self._light_pass(fbo, (width, height), bufs, p, (bounds, eye), draw_occluder)
         ctx.enable_only(ctx.NOTHING)
         ctx.depth_func = "<"
         ctx.front_face = "ccw"
@@ -311,9 +300,10 @@ class ShadowMapRenderer:
             },
         )
 
-    def _base_pass(self, fbo, mvp, width, height, bufs, draw_occluder, ambient) -> None:
-        """Clear; the occluder (ambient, coverage) and the ground (coverage)."""
-        ctx = self.ctx
+    def _base_pass(self, fbo, mvp, size, bufs, draw_occluder) -> None:
+        """Clear; the occluder (ambient, coverage) and the ground (coverage) of the ``size = (width,
+        height)`` canvas (the shading's uniforms: written by ``render``)."""
+        ctx, (width, height) = self.ctx, size
         fbo.use()
         fbo.viewport = (0, 0, width, height)
         ctx.scissor = (0, 0, width, height)
@@ -325,7 +315,6 @@ class ShadowMapRenderer:
             prog["u_mvp"].write(_f32(mvp))
             prog["u_light_vp"].write(_f32(np.eye(4)))
             prog["u_pass"].value = 0
-        self.prog_occ["u_ambient"].value = float(ambient)
         self.prog_occ["u_is_ground"].value = 0
         self.prog_ground["u_is_ground"].value = 1
         ctx.cull_face = "back"
@@ -339,10 +328,11 @@ class ShadowMapRenderer:
         """Closed meshes: back faces are never visible (the CULL_FACE flag, or 0)."""
         return self.ctx.CULL_FACE if bufs.cull else 0
 
-    def _light_pass(self, fbo, width, height, bufs, p, bounds, eye, draw_occluder, phong) -> None:
+    def _light_pass(self, fbo, size, bufs, p, bounds_eye, draw_occluder) -> None:
         """One light: the caster's depth from the light into the map, then the ground (its blocked weight)
-        and the occluder (its lit Phong term) again, compared against the map."""
-        ctx, gl = self.ctx, self.gl
+        and the occluder (its lit Phong term) again, compared against the map. ``size``: ``(width,
+        height)``; ``bounds_eye``: the caster's bounds and the camera centre."""
+        ctx, gl, (width, height), (bounds, eye) = self.ctx, self.gl, size, bounds_eye
         w = float(p.weight)
         if not (math.isfinite(w) and w >= 0):
             raise UsageError(f"light weight must be finite and >= 0, got {p.weight}")
@@ -377,14 +367,10 @@ class ShadowMapRenderer:
         self.prog_ground["u_weight"].value = w
         self._ground.render(ctx)
         if draw_occluder:
-            diffuse, specular, shininess = phong
             ctx.enable_only(ctx.DEPTH_TEST | ctx.BLEND | self._cull(bufs))
             po = self.prog_occ
             po["u_light"].value = tuple(float(x) for x in lh)
             po["u_light_color"].value = tuple(float(x) * w for x in np.asarray(p.color, np.float64)[:3])
-            po["u_eye"].value = tuple(float(x) for x in eye)
-            po["u_kd"].value = float(diffuse)
-            po["u_ks"].value = float(specular)
-            po["u_shininess"].value = float(shininess)
+            po["u_eye"].value = tuple(float(x) for x in eye)  # the shading's uniforms: written by render
             bufs.vao.render(ctx.TRIANGLES, vertices=bufs.n_indices)
         gl.glDepthMask(G.GL_TRUE)

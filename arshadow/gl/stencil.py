@@ -60,7 +60,7 @@ import numpy as np
 
 from .._check import check_finite, check_shape
 from ..errors import UsageError
-from ..render_api import MODES, LightPass, RenderLayers, RenderResult
+from ..render_api import MODES, LightPass, RenderLayers, RenderRequest, RenderResult
 from . import glraw as G
 from .context import current, is_software
 from .layers import GpuLayers
@@ -70,8 +70,10 @@ from .resources import (
     VolumeBuffers,
     program,
     screen_box,
+    set_uniforms,
     translation,
 )
+from .sky import GroundSkyPass
 from .targets import FrameTargets
 
 __all__ = ["LightPass", "RenderResult", "ShadowRenderer"]
@@ -82,6 +84,12 @@ COUNT_MASK = 0x3F
 #: batched volumes (more layers than a 6-bit count holds): bits 0-4 count one batch, bit 5 ORs the batches
 BATCH_COUNT_MASK = 0x1F
 SHADOWED_BIT = 0x20
+
+
+def _object_sky(shading) -> str | None:
+    """The sky model of the object's per-vertex sky visibility (None: the uniform ambient term)."""
+    sky = getattr(shading, "sky", None)
+    return None if sky is None else sky.object_sky
 
 
 @dataclass
@@ -99,12 +107,9 @@ class _Frame:
     passes: list
     ranges: list
     draw_occluder: bool
-    ambient: float
-    diffuse: float
-    specular: float
-    shininess: float
     t0: float
     t1: float = 0.0
+    sky: Any = None  # arshadow.shading.sky.SkyShading or None (Shading.sky)
 
     @property
     def size(self) -> tuple[int, int]:
@@ -132,12 +137,12 @@ class ShadowRenderer:
     crease_deg : float
         Smoothing angle of the occluder's shading normals.
 
-    Two entry points with the same arguments: :meth:`render` reads the layers back
-    (:class:`RenderResult`), :meth:`render_gpu` leaves them in textures (:class:`GpuLayers`).
+    Two entry points taking one :class:`arshadow.render_api.RenderRequest`: :meth:`render` reads the layers
+    back (:class:`RenderResult`), :meth:`render_gpu` leaves them in textures (:class:`GpuLayers`).
 
     Examples
     --------
-    >>> # ctx = create_context(); r = ShadowRenderer(ctx); res = r.render(projection=P, view=V, ...)
+    >>> # ctx = create_context(); r = ShadowRenderer(ctx); res = r.render(RenderRequest(projection=P, ...))
     """
 
     @current
@@ -177,6 +182,10 @@ class ShadowRenderer:
         # programs (compiled once per context)
         self.prog_occ_base = program(ctx, "occluder.vert", "occluder_base.frag")
         self.prog_occ_light = program(ctx, "occluder.vert", "occluder_light.frag")
+        # the same with a texture, sky shading and the albedo gain (issue 28), for casters that need them:
+        # the plain ones stay as fast as before
+        self.prog_rich_base = program(ctx, "occluder_rich.vert", "occluder_rich_base.frag")
+        self.prog_rich_light = program(ctx, "occluder_rich.vert", "occluder_rich_light.frag")
         self.prog_ground = program(ctx, "common.vert", "ground.frag")
         self.prog_volume = program(ctx, "common.vert", "volume.frag")
         self.prog_mask = program(ctx, "fullscreen.vert", "mask.frag")
@@ -186,14 +195,21 @@ class ShadowRenderer:
         self._fs_vao = ctx.vertex_array(self.prog_mask, [])
         self._volumes = VolumeBuffers(ctx, self.prog_volume)
         self._casters = CasterCache(
-            ctx, (self.prog_occ_base, self.prog_occ_light, self.prog_volume), self.max_cached_casters
+            ctx,
+            (self.prog_occ_base, self.prog_occ_light, self.prog_volume),
+            self.max_cached_casters,
+            rich_programs=(self.prog_rich_base, self.prog_rich_light),
         )
         self._targets = FrameTargets(ctx, self.gl, samples, self.supersample)
+        self._sky_ground = None  # GroundSkyPass of the last ground occlusion map drawn
         self._released = False
+        # the capabilities of arshadow.render_api.Renderer
         #: render_gpu() keeps the layers on the GPU (arshadow.gl.compose composites them there)
-        self.gpu_layers = True
+        self.gpu_layers: bool = True
         #: the context rasterises on the CPU (llvmpipe): its "GPU" paths run on the pipeline's own cores
-        self.software = is_software(ctx)
+        self.software: bool = is_software(ctx)
+        #: what renders (the GL renderer string): part of the compose path's key
+        self.backend: str = str((ctx.info or {}).get("GL_RENDERER", "?"))
         #: when True, render() calls ctx.finish() after each pass and reports per-pass times (slower)
         self.profile = False
         self._marks = []
@@ -215,6 +231,8 @@ class ShadowRenderer:
         self._volumes.release()
         self._ground.release()
         self._fs_vao.release()
+        if self._sky_ground is not None:
+            self._sky_ground.release()
         self._released = True
 
     @property
@@ -239,89 +257,28 @@ class ShadowRenderer:
 
     # ------------------------------------------------------------------ entry points
     @current
-    def render(
-        self,
-        *,
-        projection,
-        view,
-        width,
-        height,
-        caster,
-        passes,
-        ground_size=None,
-        draw_occluder=True,
-        ambient=0.25,
-        diffuse=1.0,
-        specular=0.25,
-        shininess=32.0,
-        occluder_color=None,
-    ) -> RenderResult:
+    def render(self, request: RenderRequest) -> RenderResult:
         """Render one frame (or one canvas sub-rectangle of it) and read its layers back.
 
         Parameters
         ----------
-        projection : (4, 4) float64
-            ``clip_from_gl_eye`` for this canvas (``Intrinsics.gl_projection(znear, None, canvas=...)``;
-            an infinite far plane is needed when volumes reach infinity).
-        view : (4, 4) float64
-            ``gl_from_world = CV_TO_GL @ cam_from_world``.
-        width, height : int
-            Canvas size in pixels (<= max_width, max_height).
-        caster : ShadowCaster
-            The occluder (its GPU buffers are cached per caster object).
-        passes : sequence of LightPass
-            One per light; ``weight`` is the light's share of the total weight.
-        ground_size : float or None
-            Side of the square of ground (centred on the origin) that receives shadows; None = unlimited.
-        draw_occluder : bool
-            False: the occluder is neither drawn nor hides the ground (shadow only).
-        ambient, diffuse, specular, shininess : float
-            Phong coefficients (paper 002): ``I = K_a I_a + sum_l I_l (K_d (N.L) + K_s (N.H)^n)``.
-        occluder_color : (3,) sRGB in [0, 1], optional
-            Overrides the mesh's own colours (mesh colours and this are sRGB-encoded; output is linear).
+        request : arshadow.render_api.RenderRequest
+            The frame: projection and view, canvas size (<= max_width, max_height), caster (its GPU buffers
+            are cached per caster object), light passes, ground, what to draw, shading (Phong, paper 002:
+            ``I = K_a I_a + sum_l I_l (K_d (N.L) + K_s (N.H)^n)``; the colour overrides the mesh's own).
 
         Returns
         -------
         RenderResult
             The layers as numpy arrays (top-down rows) and the raw bottom-up ones (``layers``).
         """
-        f = self._draw(
-            projection,
-            view,
-            width,
-            height,
-            caster,
-            passes,
-            ground_size,
-            draw_occluder,
-            ambient,
-            diffuse,
-            specular,
-            shininess,
-            occluder_color,
-        )
+        f = self._draw(request)
         src = self._resolve_canvas(f)
         self.ctx.finish()
         return self._readback(f, src)
 
     @current
-    def render_gpu(
-        self,
-        *,
-        projection,
-        view,
-        width,
-        height,
-        caster,
-        passes,
-        ground_size=None,
-        draw_occluder=True,
-        ambient=0.25,
-        diffuse=1.0,
-        specular=0.25,
-        shininess=32.0,
-        occluder_color=None,
-    ) -> GpuLayers:
+    def render_gpu(self, request: RenderRequest) -> GpuLayers:
         """As :meth:`render`, but the layers stay on the GPU: the (resolved) attachments are copied into two
         textures (no ``ctx.finish()``, no readback); :mod:`arshadow.gl.compose` samples them.
 
@@ -330,21 +287,7 @@ class ShadowRenderer:
         GpuLayers
             Valid until the next render.
         """
-        f = self._draw(
-            projection,
-            view,
-            width,
-            height,
-            caster,
-            passes,
-            ground_size,
-            draw_occluder,
-            ambient,
-            diffuse,
-            specular,
-            shininess,
-            occluder_color,
-        )
+        f = self._draw(request)
         tt = self._targets.texture(f.width, f.height)
         if self.supersample == 1:
             # resolve (MSAA) or copy straight into the texture target
@@ -368,91 +311,58 @@ class ShadowRenderer:
         )
 
     # ------------------------------------------------------------------ one frame, pass by pass
-    def _draw(
-        self,
-        projection,
-        view,
-        width,
-        height,
-        caster,
-        passes,
-        ground_size,
-        draw_occluder,
-        ambient,
-        diffuse,
-        specular,
-        shininess,
-        occluder_color,
-    ) -> _Frame:
+    def _draw(self, request: RenderRequest) -> _Frame:
         """Every pass of one frame into the main target; GL state reset at the end."""
-        f = self._begin(
-            projection,
-            view,
-            width,
-            height,
-            caster,
-            passes,
-            ground_size,
-            draw_occluder,
-            ambient,
-            diffuse,
-            specular,
-            shininess,
-            occluder_color,
-        )
+        f = self._begin(request)
         self._clear_pass(f)
         self._occluder_base_pass(f)
         self._ground_pass(f)
+        if f.sky is not None and f.sky.ground is not None:
+            self._sky_pass(f)
         for i, (p, rng) in enumerate(zip(f.passes, f.ranges)):
             self._light_pass(f, i, p, rng)
         self._mark("occluder_light")
         self._reset_state()
         return f
 
-    def _begin(
-        self,
-        projection,
-        view,
-        width,
-        height,
-        caster,
-        passes,
-        ground_size,
-        draw_occluder,
-        ambient,
-        diffuse,
-        specular,
-        shininess,
-        occluder_color,
-    ) -> _Frame:
+    def _begin(self, request: RenderRequest) -> _Frame:
         """Check the arguments, upload what changed (caster, volumes, light subsets, ground), size the targets."""
         t0 = time.perf_counter()
         if self._released:
             raise UsageError("this ShadowRenderer has been released")
-        width, height = int(width), int(height)
+        width, height = int(request.width), int(request.height)
         if not (0 < width <= self.max_width and 0 < height <= self.max_height):
             raise UsageError(f"canvas {width}x{height} outside 1..{self.max_width} x 1..{self.max_height}")
-        proj = check_finite(check_shape(projection, "4,4", "projection"), "projection")
-        view = check_finite(check_shape(view, "4,4", "view"), "view")
-        passes = list(passes)
+        proj = check_finite(check_shape(request.projection, "4,4", "projection"), "projection")
+        view = check_finite(check_shape(request.view, "4,4", "view"), "view")
+        passes, draw_occluder, shading = list(request.passes), bool(request.draw_occluder), request.shading
         for p in passes:
             if p.mode not in MODES:
                 raise UsageError(f"unknown shadow mode {p.mode!r} (choose {', '.join(MODES)})")
             if not (math.isfinite(float(p.weight)) and float(p.weight) >= 0):
                 raise UsageError(f"light weight must be finite and >= 0, got {p.weight}")
         mvp = proj @ view
-        origin = caster.bounds.mean(axis=0)  # = local_origin(caster.vertices), from the cached bounds
+        origin = request.caster.bounds.mean(axis=0)  # = local_origin(caster.vertices), from the cached bounds
         mvp_local = mvp @ translation(origin)
         bufs = (
-            self._casters.get(caster, occluder_color, self.crease_deg)
+            self._casters.get(
+                request.caster,
+                shading.color,
+                self.crease_deg,
+                _object_sky(shading),
+                rich=tuple(shading.albedo_gain) != (1.0, 1.0, 1.0),
+            )
             if (draw_occluder or any(p.mode == "planar" for p in passes))
             else None
         )
         ranges = self._volumes.upload(passes, origin)
         if bufs is not None and (draw_occluder or any(p.mode == "planar" and p.direct for p in passes)):
             bufs.upload_light_subsets(passes)
-        self._ground.set(ground_size, origin)
-        self._targets.ensure(width, height)
+        self._ground.set(request.ground_size, origin)
+        if draw_occluder:
+            progs = (self.prog_occ_base, self.prog_occ_light, self.prog_rich_base, self.prog_rich_light)
+            set_uniforms(progs, shading.uniforms())
+        self._targets.ensure(width, height, sky=shading.sky is not None and shading.sky.ground is not None)
         f = _Frame(
             width=width,
             height=height,
@@ -465,12 +375,9 @@ class ShadowRenderer:
             bufs=bufs,
             passes=passes,
             ranges=ranges,
-            draw_occluder=bool(draw_occluder),
-            ambient=ambient,
-            diffuse=diffuse,
-            specular=specular,
-            shininess=shininess,
+            draw_occluder=draw_occluder,
             t0=t0,
+            sky=shading.sky,
         )
         f.t1 = time.perf_counter()
         self._marks = [("start", f.t1)]
@@ -512,9 +419,14 @@ class ShadowRenderer:
             gl.glStencilOp(G.GL_KEEP, G.GL_KEEP, G.GL_REPLACE)
             # colour 1 stays 0 on the occluder (cleared; the ground pass overwrites it where it is nearer)
             gl.draw_buffer_list([0])
-            prog, vao = self.prog_occ_base, bufs.base_vao
-            prog["u_mvp"].write(f.mvp_bytes)
-            prog["u_ambient"].value = float(f.ambient)
+            prog = bufs.prog_base
+            vao = bufs.base_vao if bufs.shade_base_vao is None else bufs.shade_base_vao
+            prog["u_mvp"].write(f.mvp_bytes)  # the shading's uniforms: written by _begin
+            if bufs.rich:
+                use_vis = bufs.sky is not None and f.sky is not None
+                prog["u_use_vis"].value = use_vis
+                prog["u_bounce"].value = tuple(float(x) for x in f.sky.bounce) if use_vis else (0.0, 0.0, 0.0)
+                self._bind_texture(prog, bufs)
             vao.render(ctx.TRIANGLES, vertices=bufs.n_indices)
             gl.draw_buffers(2)
         self._mark("occluder")
@@ -539,6 +451,25 @@ class ShadowRenderer:
         gl.draw_buffers(2)
         gl.glDisable(G.GL_POLYGON_OFFSET_FILL)
         self._mark("ground")
+
+    @staticmethod
+    def _bind_texture(prog, bufs) -> None:
+        """The caster's base-colour texture on unit 0 (``u_textured`` off without one)."""
+        prog["u_textured"].value = bufs.texture is not None
+        if bufs.texture is not None:
+            bufs.texture.use(location=0)
+            prog["u_tex"].value = 0
+
+    def _sky_pass(self, f: _Frame) -> None:
+        """The ground occlusion map (one quad on z = 0) into the mask's sky channel where the ground is
+        visible (:class:`arshadow.gl.sky.GroundSkyPass`), made on first use per map."""
+        sp = self._sky_ground
+        if sp is None or sp.occlusion is not f.sky.ground:
+            if sp is not None:
+                sp.release()
+            sp = self._sky_ground = GroundSkyPass(self.ctx, f.sky.ground)
+        sp.draw(self.ctx, self.gl, f.mvp_bytes, f.origin, GROUND_BIT, OCCLUDER_BIT)
+        self._mark("sky")
 
     def _light_pass(self, f: _Frame, i: int, p, rng) -> None:
         """One light: its shadow into the mask, then its lighting of the occluder."""
@@ -671,7 +602,8 @@ class ShadowRenderer:
         width, height = f.width, f.height
         t2 = time.perf_counter()
         c0 = np.zeros((height, width, 4), dtype=np.float32)
-        c1 = np.empty((height, width, 2), dtype=np.float32)
+        sky = f.sky is not None and f.sky.ground is not None
+        c1 = np.empty((height, width, 3 if sky else 2), dtype=np.float32)
         gl.glBindBuffer(G.GL_PIXEL_PACK_BUFFER, 0)
         gl.glPixelStorei(G.GL_PACK_ALIGNMENT, 4)
         gl.glBindFramebuffer(G.GL_READ_FRAMEBUFFER, src.fbo)
@@ -683,7 +615,7 @@ class ShadowRenderer:
             gl.glReadPixels(x0, y0, x1 - x0, y1 - y0, G.GL_RGBA, G.GL_FLOAT, c0[y0:, x0:].ctypes.data)
         gl.glPixelStorei(G.GL_PACK_ROW_LENGTH, 0)
         gl.glReadBuffer(G.GL_COLOR_ATTACHMENT0 + 1)
-        gl.glReadPixels(0, 0, width, height, G.GL_RG, G.GL_FLOAT, c1.ctypes.data)
+        gl.glReadPixels(0, 0, width, height, G.GL_RGB if sky else G.GL_RG, G.GL_FLOAT, c1.ctypes.data)
         gl.glBindFramebuffer(G.GL_FRAMEBUFFER, 0)
         ctx.screen.use() if ctx.screen is not None else None
         layers = RenderLayers(rgba=c0, mask_ground=c1)  # the raw bottom-up arrays
@@ -703,6 +635,7 @@ class ShadowRenderer:
             ground=gcov > 0.5,
             ground_coverage=gcov,
             layers=layers,
+            sky_occlusion=np.clip(c1[..., 2], -1.0, 1.0) if sky else None,
             timings_ms={
                 "upload": (f.t1 - f.t0) * 1e3,
                 "draw": (t2 - f.t1) * 1e3,
@@ -763,17 +696,16 @@ class ShadowRenderer:
         # occluder pixels (bit 6) whose count is 0; without a volume: every occluder pixel
         gl.glStencilFunc(G.GL_EQUAL, OCCLUDER_BIT, 0xFF if stencil else 0xC0)
         gl.draw_buffer_list([0])
-        prog = self.prog_occ_light
+        prog = bufs.prog_light
         prog["u_mvp"].write(f.mvp_bytes)
         lh = np.asarray(p.light_h, dtype=np.float64).copy()
         lh[:3] -= bufs.origin * lh[3]  # the caster's local frame, like v_world
         prog["u_light"].value = tuple(float(x) for x in lh)
         col = np.asarray(p.color, dtype=np.float64)[:3] * float(p.weight)
         prog["u_light_color"].value = tuple(float(x) for x in col)
-        prog["u_eye"].value = tuple(float(x) for x in f.eye)
-        prog["u_kd"].value = float(f.diffuse)
-        prog["u_ks"].value = float(f.specular)
-        prog["u_shininess"].value = float(f.shininess)
+        prog["u_eye"].value = tuple(float(x) for x in f.eye)  # the shading's uniforms: written by _begin
+        if bufs.rich:
+            self._bind_texture(prog, bufs)
         # closed meshes: only the light-facing faces (the others lie in this light's own shadow; with a
         # planar or no volume pass this is also what keeps a convex occluder's terminator as the volume has it)
         if i in bufs.sub_ranges:

@@ -82,7 +82,10 @@ class FrameTargets:
         1, 2 or 4: the main target is this many times the canvas size.
     """
 
+    #: colour 0: occluder colour + coverage; colour 1: shadow mask, ground coverage
     FORMATS = (G.GL_RGBA16F, G.GL_RG16F)
+    #: with sky occlusion (:meth:`ensure` ``sky=True``): colour 1 gains the sky occlusion (b)
+    SKY_FORMATS = (G.GL_RGBA16F, G.GL_RGBA16F)
 
     def __init__(self, ctx, gl, samples: int, supersample: int):
         self.ctx, self.gl = ctx, gl
@@ -98,8 +101,12 @@ class FrameTargets:
         #: GPU-resident result
         self.tex: TextureTarget | None = None
 
-    def ensure(self, width: int, height: int) -> None:
-        """Grow the targets to hold a ``width`` x ``height`` canvas."""
+    def ensure(self, width: int, height: int, sky: bool = False) -> None:
+        """Grow the targets to hold a ``width`` x ``height`` canvas; ``sky``: with the sky-occlusion channel
+        (the targets are remade with it on the first frame that needs it, and keep it)."""
+        if sky and self.FORMATS != self.SKY_FORMATS:
+            self.release()
+            self.FORMATS = self.SKY_FORMATS
         s = self.supersample
         need_w, need_h = width * s, height * s
         main = self.main
@@ -136,13 +143,13 @@ class FrameTargets:
         return src
 
     def texture(self, width: int, height: int) -> TextureTarget:
-        """Single-sample ``RGBA16F`` + ``RG16F`` textures (grown, never shrunk) for GPU-resident results."""
+        """Single-sample ``RGBA16F`` + ``RGBA16F`` textures (grown, never shrunk) for GPU-resident results."""
         t = self.tex
         if t is None or t.width < width or t.height < height:
             w, h = max(width, t.width if t else 0), max(height, t.height if t else 0)
             if t is not None:
                 t.release()
-            t = self.tex = TextureTarget(self.ctx, w, h)
+            t = self.tex = TextureTarget(self.ctx, w, h, mask_components=4 if self.FORMATS == self.SKY_FORMATS else 2)
         return t
 
     def _main_resolve_ss(self) -> RenderTarget:

@@ -29,6 +29,8 @@ import time
 import _common
 import numpy as np
 
+from arshadow.render_api import RenderRequest
+
 ROOT = _common.ROOT
 sys.path.insert(0, str(ROOT / "tests"))
 
@@ -99,7 +101,9 @@ def main(argv=None):
         P = K.gl_projection(ZNEAR, None, canvas=canvas)
         recs = []
         for _ in range(n + 3):
-            res = r.render(projection=P, view=view, width=w, height=h, caster=caster, passes=ps or passes)
+            res = r.render(
+                RenderRequest(projection=P, view=view, width=w, height=h, caster=caster, passes=ps or passes)
+            )
             recs.append(res.timings_ms)
         recs = recs[3:]
         return {k: stats([t[k] for t in recs]) for k in recs[0]}, res

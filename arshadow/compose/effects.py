@@ -1,0 +1,107 @@
+"""Camera effects on the inserted layers: the photo's blur and sensor noise, measured on the photo.
+
+:func:`measure_camera` measures them once (:mod:`arshadow.estimate.optics`: the point-spread width on the
+marker's outer edges, the noise on the marker's paper margin and on the floor round it);
+:func:`blur_layers` blurs the rendered layers (shadow mask, sky occlusion, object coverage and its
+premultiplied colour) by that Gaussian before they are composited, as the lens blurred the real scene;
+:func:`add_noise` adds noise matched to the photo's at each pixel's level where the object covers it (the
+ground's own noise is the photo's: it is darkened, not replaced).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import cv2
+import numpy as np
+
+from ..errors import EstimateError
+from ..estimate.optics import measure_blur, measure_noise, noise_at
+
+__all__ = ["CameraEffects", "add_noise", "blur_layers", "measure_camera", "pad_for"]
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class CameraEffects:
+    """The photo's measured optics: ``blur_px`` (Gaussian sigma, pixels; 0: none) and the noise
+    estimates (paper, floor; code values 0..1) the object's noise is interpolated from."""
+
+    blur_px: float
+    noise: tuple = ()
+
+    def report(self) -> dict:
+        """The measured values for the report (noise sigma in 8-bit units, per channel B, G, R)."""
+        return {
+            "blur_sigma_px": round(float(self.blur_px), 3),
+            "noise": [
+                {
+                    "level": [round(float(v) * 255, 1) for v in n.level],
+                    "sigma": [round(float(v) * 255, 2) for v in n.sigma],
+                }
+                for n in self.noise
+            ],
+        }
+
+
+def _ring(shape, corners: np.ndarray, inner: float, outer: float) -> np.ndarray:
+    """``(h, w) bool``: between the marker quad scaled by ``inner`` and by ``outer`` about its centre."""
+    c = corners.mean(axis=0)
+    m = np.zeros(shape[:2], np.uint8)
+    cv2.fillConvexPoly(m, np.round(c + outer * (corners - c)).astype(np.int32), 1)
+    cv2.fillConvexPoly(m, np.round(c + inner * (corners - c)).astype(np.int32), 0)
+    return m.astype(bool)
+
+
+def measure_camera(image: np.ndarray, corners: np.ndarray, cells: int = 6) -> CameraEffects:
+    """Blur on the marker's outer edges, noise on its paper margin (1.1-1.25 x the marker about its centre:
+    inside the usual print margin) and on the floor (1.8-2.4 x). ``corners (4, 2)`` px, the marker's."""
+    corners = np.asarray(corners, np.float64).reshape(4, 2)
+    try:
+        blur = measure_blur(image, corners, cells=cells).sigma_px
+    except EstimateError:
+        blur = 0.0
+    noise = []
+    for inner, outer in ((1.1, 1.25), (1.8, 2.4)):
+        try:
+            noise.append(measure_noise(image, _ring(image.shape, corners, inner, outer)))
+        except EstimateError:
+            pass
+    return CameraEffects(float(blur), tuple(noise))
+
+
+def blur_layers(sigma: float, *layers):
+    """Each ``(h, w[, c]) float32`` layer blurred by a Gaussian of ``sigma`` px (border: 0, nothing drawn
+    beyond the arrays); returned as new arrays (None passes through)."""
+    out = []
+    for a in layers:
+        if a is None or sigma <= 0:
+            out.append(a)
+            continue
+        out.append(
+            cv2.GaussianBlur(np.ascontiguousarray(a, np.float32), (0, 0), float(sigma), borderType=cv2.BORDER_CONSTANT)
+        )
+    return out
+
+
+def add_noise(region: np.ndarray, alpha: np.ndarray, noise: tuple, seed: int) -> None:
+    """Add Gaussian noise to ``region (h, w, 3) uint8`` (BGR, in place) where the object covers it
+    (``alpha (h, w)``), its sigma per channel :func:`arshadow.estimate.optics.noise_at` the pixel's level."""
+    if not noise:
+        return
+    rows, cols = np.nonzero(np.asarray(alpha).any(axis=1))[0], np.nonzero(np.asarray(alpha).any(axis=0))[0]
+    if rows.size == 0:
+        return
+    sub = (slice(int(rows[0]), int(rows[-1]) + 1), slice(int(cols[0]), int(cols[-1]) + 1))
+    region, alpha = region[sub], np.asarray(alpha)[sub]  # only where the object is (views: in place)
+    lv = region.astype(np.float32) / np.float32(255.0)
+    sig = noise_at(lv, list(noise)).astype(np.float32) * np.float32(255.0)
+    n = np.random.default_rng(seed).standard_normal(region.shape, dtype=np.float32)
+    v = region.astype(np.float32) + n * sig * np.asarray(alpha, np.float32)[:, :, None]
+    np.clip(np.round(v), 0, 255, out=v)
+    region[...] = v.astype(np.uint8)
+
+
+def pad_for(sigma: float) -> int:
+    """Pixels the blur reaches beyond a layer's content (3 sigma, rounded up)."""
+    return int(math.ceil(3.0 * sigma)) if sigma > 0 else 0

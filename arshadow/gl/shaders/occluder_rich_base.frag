@@ -1,0 +1,23 @@
+#version 330 core
+// Base pass of the occluder: ambient term (paper 002: I_a K_a) and coverage. With sky shading
+// (u_use_vis): the sky term times the vertex's sky visibility plus the light bounced from the ground
+// times its ground view (arshadow.shading.sky); with a texture: the albedo times the base-colour texture.
+uniform float u_ambient;
+uniform bool u_use_vis;
+uniform vec3 u_bounce;       // ground albedo x open-ground irradiance (linear RGB)
+uniform bool u_textured;
+uniform vec3 u_albedo_gain;   // linear gain on the mesh's own colours (measured exposure)
+uniform sampler2D u_tex;     // linear RGB base colour, row 0 = the image's bottom (GL order)
+in vec3 v_world;
+in vec3 v_normal;
+in vec3 v_albedo;
+in vec2 v_uv;
+in vec2 v_vis;
+layout(location = 0) out vec4 o_color;   // rgb: linear colour (premultiplied after MSAA resolve), a: coverage
+layout(location = 1) out vec4 o_mask;    // r: blocked light weight, g: ground coverage, b: sky occlusion
+void main() {
+    vec3 alb = u_albedo_gain * (u_textured ? v_albedo * texture(u_tex, v_uv).rgb : v_albedo);
+    vec3 e = u_use_vis ? vec3(u_ambient * v_vis.x) + u_bounce * v_vis.y : vec3(u_ambient);
+    o_color = vec4(e * alb, 1.0);
+    o_mask = vec4(0.0);
+}

@@ -1,0 +1,34 @@
+#version 330 core
+// One light's direct Phong term (paper 002: K_d I_l (N.L) + I_l K_s (N.H)^n), added where the stencil
+// says the surface is outside this light's shadow volume.
+uniform vec4 u_light;        // homogeneous world position (w = 0: direction towards the light)
+uniform vec3 u_light_color;  // linear colour x weight
+uniform vec3 u_eye;          // camera centre, world
+uniform float u_kd;
+uniform float u_ks;
+uniform float u_shininess;
+uniform bool u_textured;
+uniform vec3 u_albedo_gain;   // linear gain on the mesh's own colours (measured exposure)
+uniform sampler2D u_tex;     // linear RGB base colour (see occluder_base.frag)
+in vec2 v_uv;
+in vec3 v_world;
+in vec3 v_normal;
+in vec3 v_albedo;
+layout(location = 0) out vec4 o_color;
+layout(location = 1) out vec4 o_mask;
+void main() {
+    vec3 n = normalize(v_normal);
+    if (!gl_FrontFacing) n = -n;             // open meshes seen from behind
+    vec3 l = normalize(u_light.xyz - v_world * u_light.w);
+    vec3 v = normalize(u_eye - v_world);
+    float ndl = dot(n, l);
+    vec3 c = vec3(0.0);
+    if (ndl > 0.0) {
+        vec3 h = normalize(l + v);
+        float spec = pow(max(dot(n, h), 0.0), u_shininess);
+        vec3 alb = u_albedo_gain * (u_textured ? v_albedo * texture(u_tex, v_uv).rgb : v_albedo);
+        c = u_light_color * (u_kd * alb * ndl + u_ks * spec);
+    }
+    o_color = vec4(c, 0.0);
+    o_mask = vec4(0.0);
+}

@@ -1,0 +1,455 @@
+"""Sky visibility: how much of the sky the object leaves to the ground around it and to its own surface.
+
+The ambient share of the measured light is a sky: light from every direction of the upper hemisphere. The
+object hides part of that sky from the ground near it (the contact shadow, and the umbra deepening towards
+the object) and from its own lower parts and concavities. Both depend on the object and the ground only,
+never on the camera: they are computed once per scene in the ground frame and projected per frame.
+
+Sky visibility of a point with normal ``n`` is the sky irradiance it receives as a fraction of the
+unoccluded horizontal ground's: ``V = (1/E0) * integral over the sky of L(w) vis(w) max(0, n.w) dw`` with
+``E0`` the same integral for ``n = +z`` and ``vis = 1``. Open ground: 1; a vertical face of a convex object
+under a uniform sky: 0.5 (the ground hides the lower half of its hemisphere); the ground right under it: 0.
+
+Method (chosen by error against time, see ``docs/shading.md``)
+--------------------------------------------------------------
+- **Ground**: a fixed set of ``n`` cosine-weighted sky directions (a Fibonacci spiral in the projected
+  disc: equal cosine-weighted solid angle each, no random noise). For each direction the object's exact
+  shadow on the ground for a directional light from there (:func:`arshadow.geometry.exact.ground_shadow_triangles`,
+  the light-facing faces of a closed mesh) is rasterised over a texel grid round the footprint; the map is
+  the (sky-weighted) mean of the unshadowed texels. Error O(1/n) for smooth occluders (256 directions: a
+  few thousandths), cost one projection + one rasterisation per direction.
+- **Object**: per shading point (the GL vertex buffer's (vertex, normal) corners), the cosine-weighted
+  directions round its normal; a direction below the horizon sees the ground, one above sees the sky unless
+  a ray along it hits the mesh (:func:`arshadow.geometry.rays.rays_blocked`, exact float64). A convex mesh
+  cannot hide itself, so no rays are cast for it.
+
+Sky models: ``"uniform"`` (default) and ``"cie"`` (CIE standard overcast sky, radiance proportional to
+``(1 + 2 cos(theta)) / 3``, brighter above: theta the zenith angle).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import cv2
+import numpy as np
+
+from ..errors import UsageError
+from ..geometry.caster import ShadowCaster
+from ..geometry.exact import ground_shadow_triangles
+from ..geometry.rays import rays_blocked
+
+__all__ = [
+    "SKY_MODELS",
+    "GroundOcclusion",
+    "SkyShading",
+    "cosine_directions",
+    "ground_grid",
+    "ground_sky_visibility",
+    "object_sky_visibility",
+    "sky_radiance",
+]
+
+#: sky radiance models: uniform, or the CIE standard overcast sky (brighter above)
+SKY_MODELS = ("uniform", "cie")
+#: rasterisation sub-pixel bits of cv2.fillConvexPoly
+_SHIFT = 8
+#: sub-texels per texel side (odd: one sits at the texel centre)
+_SUB = 3
+#: occlusion of the sky below the second value tapers linearly to 0 at the first (far from the object:
+#: times the sky's share of the light, < 1 % of a pixel's light, about one 8-bit step); the map keeps the
+#: texels where it is not 0
+ACTIVE_OCCLUSION = (0.03, 0.06)
+
+
+def cosine_directions(n: int, normal=(0.0, 0.0, 1.0)) -> np.ndarray:
+    """``(n, 3) float64`` unit directions distributed with density ``cos(angle to normal) / pi`` over the
+    hemisphere round ``normal (3,)``: a Fibonacci spiral in the unit disc lifted to the hemisphere, each
+    carrying ``1/n`` of the cosine-weighted solid angle (``pi``).
+
+    >>> d = cosine_directions(1000)
+    >>> bool(np.all(d[:, 2] > 0)), round(float(d[:, 2].mean()), 3)  # E[cos] = 2/3 under the cosine density
+    (True, 0.667)
+    """
+    n = int(n)
+    if n < 1:
+        raise UsageError(f"need at least one sky direction, got {n}")
+    u = (np.arange(n) + 0.5) / n
+    phi = np.arange(n) * (math.pi * (3.0 - math.sqrt(5.0)))
+    r = np.sqrt(u)
+    local = np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(1.0 - u)], axis=1)
+    return _rotate_to(local, np.asarray(normal, np.float64).reshape(3))
+
+
+def sky_radiance(dirs: np.ndarray, sky: str = "uniform") -> np.ndarray:
+    """``(k,) float64`` relative sky radiance towards world directions ``dirs (k, 3)`` (z up); 0 below the
+    horizon. ``"uniform"``: 1; ``"cie"``: ``(1 + 2 cos(theta)) / 3``.
+
+    >>> sky_radiance(np.array([[0, 0, 1.0], [0.8, 0, 0.6], [0, 0, -1]]), "cie").round(3).tolist()
+    [1.0, 0.733, 0.0]
+    """
+    if sky not in SKY_MODELS:
+        raise UsageError(f"sky model {sky!r}: choose one of {', '.join(SKY_MODELS)}")
+    z = np.asarray(dirs, np.float64)[:, 2]
+    up = z > 0.0
+    return np.where(up, 1.0 if sky == "uniform" else (1.0 + 2.0 * np.clip(z, 0.0, 1.0)) / 3.0, 0.0)
+
+
+#: the unoccluded horizontal ground's sky irradiance divided by pi, per model: uniform 1, CIE 7/9
+_E0 = {"uniform": 1.0, "cie": 7.0 / 9.0}
+
+
+@dataclasses.dataclass(frozen=True)
+class GroundOcclusion:
+    """Sky visibility of the ground round the object, on a texel grid in the ground frame.
+
+    ``visibility[i, j]`` (``(h, w) float32``, 0..1) is the value at the ground point
+    ``(x0 + (j + 0.5) * texel, y0 + (i + 0.5) * texel)`` (metres, ground frame); outside the grid the
+    object hides less than ``ACTIVE_OCCLUSION[0]`` of the sky and the ground counts as open (1);
+    ``edge_occlusion`` is the largest occlusion on the border of the full square computed.
+    """
+
+    x0: float
+    y0: float
+    texel: float
+    visibility: np.ndarray
+    n_dirs: int
+    sky: str
+    edge_occlusion: float  # largest 1 - V on the grid's border
+
+    @property
+    def extent(self) -> tuple[float, float, float, float]:
+        """``(x0, y0, x1, y1)`` metres, the grid's bounds in the ground frame."""
+        h, w = self.visibility.shape
+        return (self.x0, self.y0, self.x0 + w * self.texel, self.y0 + h * self.texel)
+
+    def sample(self, xy: np.ndarray) -> np.ndarray:
+        """``(k,) float64`` bilinear visibility at ground points ``xy (k, 2)`` (1 off the grid)."""
+        xy = np.asarray(xy, np.float64).reshape(-1, 2)
+        h, w = self.visibility.shape
+        fx = (xy[:, 0] - self.x0) / self.texel - 0.5
+        fy = (xy[:, 1] - self.y0) / self.texel - 0.5
+        out = np.ones(len(xy))
+        ok = (fx >= -0.5) & (fx <= w - 0.5) & (fy >= -0.5) & (fy <= h - 0.5)
+        fx, fy = np.clip(fx[ok], 0, w - 1), np.clip(fy[ok], 0, h - 1)
+        i0, j0 = np.minimum(fy.astype(int), h - 2 if h > 1 else 0), np.minimum(fx.astype(int), w - 2 if w > 1 else 0)
+        i1, j1 = np.minimum(i0 + 1, h - 1), np.minimum(j0 + 1, w - 1)
+        ty, tx = fy - i0, fx - j0
+        v = self.visibility.astype(np.float64)
+        out[ok] = (
+            v[i0, j0] * (1 - tx) * (1 - ty)
+            + v[i0, j1] * tx * (1 - ty)
+            + v[i1, j0] * (1 - tx) * ty
+            + v[i1, j1] * tx * ty
+        )
+        return out
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class SkyShading:
+    """What the renderer needs for sky occlusion and the object's sky shading (one per scene).
+
+    Attributes
+    ----------
+    ground : GroundOcclusion or None
+        The ground occlusion map (the contact shadow); None: the ground is not sky-occluded.
+    object_sky : str or None
+        Sky model of the object's per-vertex sky visibility and ground view (:func:`object_sky_visibility`);
+        None: a uniform ambient term (the old shading).
+    bounce : (3,) float
+        Linear RGB light bounced from the ground onto the object, in the renderer's light units: the
+        ground's albedo times the open ground's irradiance (``ambient + sum weight * sin(elevation)``);
+        multiplied by each vertex's ground view.
+    """
+
+    ground: GroundOcclusion | None = None
+    object_sky: str | None = "uniform"
+    bounce: tuple = (0.0, 0.0, 0.0)
+
+
+def ground_grid(caster: ShadowCaster, resolution: int = 256, margin: float | None = None):
+    """``(x0, y0, texel)``: the ground occlusion map's square (ground frame, metres) and texel size."""
+    lo, hi = caster.bounds
+    height = max(float(hi[2]), 0.0)
+    if margin is None:
+        # occlusion of the sky by an object of height h at distance d falls as ~(h/d)^3: at 3 h it is ~1 %
+        margin = 3.0 * height if height > 0 else 0.1 * caster.scale
+    cx, cy = 0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1])
+    half = 0.5 * max(hi[0] - lo[0], hi[1] - lo[1]) + float(margin)
+    texel = 2.0 * half / resolution
+    return cx - half, cy - half, texel
+
+
+def ground_sky_visibility(
+    caster: ShadowCaster,
+    *,
+    n_dirs: int = 256,
+    resolution: int = 256,
+    margin: float | None = None,
+    sky: str = "uniform",
+    max_triangle_draws: int = 2_000_000,
+    bounce: tuple | None = None,
+) -> GroundOcclusion:
+    """The object's :class:`GroundOcclusion` (ground frame = the caster's world frame, ground z = 0).
+
+    Parameters
+    ----------
+    caster : ShadowCaster
+        The object, metres, standing on or above the ground (parts below z = 0 cast nothing).
+    n_dirs : int
+        Cosine-weighted sky directions; reduced (never below 32) so that directions x light-facing
+        triangles stays under ``max_triangle_draws`` (a big mesh: a coarser sky, same time).
+    resolution : int
+        Texels along each side of the square grid.
+    margin : float, optional
+        Metres of ground round the footprint's bounding square; default 3 x the object's height.
+    sky : {"uniform", "cie"}
+    bounce : (light (3,), sky_share, albedo), optional
+        Also the light the object reflects onto the ground (interreflection): each blocked direction sees
+        the object's face nearest along it, lit by the direct light (unit ``light`` towards it, weight
+        ``1 - sky_share`` of the open ground's light) on its lit side and by the sky (``sky_share``,
+        ``(1 + n_z) / 2`` of it), times ``albedo``. Added to the map as ``bounce / sky_share``: the map then
+        holds ``V + bounce / r`` (more than 1 beside a lit face), what the composite's sky term multiplies.
+    """
+    if resolution < 2:
+        raise UsageError(f"ground occlusion resolution must be at least 2 texels, got {resolution}")
+    n_faces = caster.n_faces if not caster.is_closed else max(1, caster.n_faces // 2)
+    n_dirs = int(max(32, min(int(n_dirs), max_triangle_draws // max(n_faces, 1))))
+    x0, y0, texel = ground_grid(caster, resolution, margin)
+    dirs = cosine_directions(n_dirs)
+    weights = sky_radiance(dirs, sky)
+    closed = caster.is_closed
+    planes = caster.face_planes
+    # rasterised at 3 x 3 sub-texels and read at each texel's centre sub-texel: cv2 fills a polygon's boundary
+    # pixels too, which biases a shadow outward by up to one (sub-)pixel
+    sub = _SUB * resolution
+    scale = float(1 << _SHIFT) * _SUB / texel
+    half = 1 << (_SHIFT - 1)
+    lim = (sub + 2) << _SHIFT
+    acc = np.zeros((resolution, resolution), np.float64)
+    img = np.zeros((sub, sub), np.uint8)
+    acc_b = np.zeros((resolution, resolution), np.float64) if bounce is not None else None
+    face_e = _face_irradiance(caster, bounce) if bounce is not None else None
+    for d, w in zip(dirs, weights):
+        h = np.r_[d, 0.0]
+        faces = caster.faces[planes @ h > 0.0] if closed else caster.faces
+        tri = ground_shadow_triangles(caster.vertices, faces, h)
+        # sub-texel (a, b) centre at pixel coordinate (b, a): cv2 samples pixel centres at integers
+        q = np.round((tri - [x0, y0]) * scale - half).astype(np.int64)
+        off = np.all(q < 0, axis=1).any(axis=1) | np.all(q > lim, axis=1).any(axis=1)
+        q = np.clip(q[~off], -(1 << 30), 1 << 30).astype(np.int32)
+        img[:] = 0
+        for t in q:
+            cv2.fillConvexPoly(img, t, 1, lineType=cv2.LINE_8, shift=_SHIFT)
+        acc += w * (1.0 - img[_SUB // 2 :: _SUB, _SUB // 2 :: _SUB])
+        if acc_b is not None:
+            acc_b += (
+                w
+                * _bounce_image(caster, d, face_e, (x0, y0, scale, half, lim, sub))[
+                    _SUB // 2 :: _SUB, _SUB // 2 :: _SUB
+                ]
+            )
+    vis = (acc / weights.sum()).astype(np.float32)
+    vis = _fill_under(vis)
+    border = np.concatenate([vis[0], vis[-1], vis[:, 0], vis[:, -1]])
+    edge = float(1.0 - border.min())
+    # occlusion below ACTIVE_OCCLUSION[1] tapers to 0 at ACTIVE_OCCLUSION[0] (far from the object), and the
+    # map keeps only the texels where it is not 0 (+ 2 texels): the frame's region shrinks to what changes
+    occ = 1.0 - vis
+    t0, t1 = ACTIVE_OCCLUSION
+    vis = (1.0 - occ * np.clip((occ - t0) / (t1 - t0), 0.0, 1.0)).astype(np.float32)
+    (rows,) = np.nonzero((vis < 1.0).any(axis=1))
+    (cols,) = np.nonzero((vis < 1.0).any(axis=0))
+    if acc_b is not None and bounce is not None and float(bounce[1]) > 0:
+        b = float(bounce[2]) * acc_b / weights.sum()
+        vis = (vis + (b * np.clip((occ - t0) / (t1 - t0), 0.0, 1.0)) / float(bounce[1])).astype(np.float32)
+    if rows.size:
+        r0, r1 = max(int(rows[0]) - 2, 0), min(int(rows[-1]) + 3, resolution)
+        c0, c1 = max(int(cols[0]) - 2, 0), min(int(cols[-1]) + 3, resolution)
+        vis, x0, y0 = vis[r0:r1, c0:c1].copy(), x0 + c0 * texel, y0 + r0 * texel
+    return GroundOcclusion(x0, y0, texel, vis, n_dirs, sky, edge)
+
+
+def _face_irradiance(caster: ShadowCaster, bounce: tuple) -> np.ndarray:
+    """``(m,)``: each face's irradiance as a share of the open ground's (direct on its lit side + sky)."""
+    light, r = np.asarray(bounce[0], np.float64), float(bounce[1])
+    light = light / np.linalg.norm(light)
+    n = caster.face_planes[:, :3]
+    direct = (1.0 - r) * np.maximum(n @ light, 0.0) / max(float(light[2]), 1e-3)
+    return direct + r * (1.0 + n[:, 2]) / 2.0
+
+
+def _bounce_image(caster, d, face_e, grid) -> np.ndarray:
+    """``(sub, sub) float32``: the irradiance share of the face a ground sub-texel sees first along ``d``
+    (0 where it sees the sky): the faces turned towards the ground point, drawn farthest first. ``grid``:
+    ``(x0, y0, scale, half, lim, sub)`` of the map's rasterisation."""
+    x0, y0, scale, half, lim, sub = grid
+    n = caster.face_planes[:, :3]
+    sel = np.flatnonzero(n @ d < 0.0) if caster.is_closed else np.arange(caster.n_faces)
+    img = np.zeros((sub, sub), np.float32)
+    if sel.size == 0:
+        return img
+    tri = ground_shadow_triangles(caster.vertices, caster.faces[sel], np.r_[d, 0.0])
+    if len(tri) != len(sel):  # faces below the ground were split or dropped: no interreflection then
+        return img
+    t = caster.vertices[caster.faces[sel], 2].mean(axis=1) / max(float(d[2]), 1e-6)
+    q = np.round((tri - [x0, y0]) * scale - half).astype(np.int64)
+    off = np.all(q < 0, axis=1).any(axis=1) | np.all(q > lim, axis=1).any(axis=1)
+    q = np.clip(q, -(1 << 30), 1 << 30).astype(np.int32)
+    for i in np.argsort(-t):  # farthest along d first: the nearest face ends on top
+        if not off[i]:
+            cv2.fillConvexPoly(img, q[i], float(face_e[sel[i]]), lineType=cv2.LINE_8, shift=_SHIFT)
+    return img
+
+
+def _fill_under(vis: np.ndarray) -> np.ndarray:
+    """Texels under the object (sky fully hidden: 0) take their open neighbours' largest value (two 3 x 3
+    dilations), so that bilinear sampling of the ground just outside the footprint is not darkened by
+    the hidden texels under it (never seen: the object stands on them)."""
+    out = vis.copy()
+    kernel = np.ones((3, 3), np.uint8)
+    for _ in range(2):
+        under = out <= 0.0
+        if not under.any():
+            break
+        out[under] = cv2.dilate(out, kernel)[under]
+    return out
+
+
+def _is_convex(caster: ShadowCaster) -> bool:
+    """A closed mesh with every vertex on the inner side of every face plane (to 1e-9 of its size)."""
+    if not caster.is_closed:
+        return False
+    tol = 1e-9 * caster.scale
+    planes = caster.face_planes
+    v = caster.vertices
+    for s in range(0, len(planes), 4096):
+        if np.any(v @ planes[s : s + 4096, :3].T + planes[s : s + 4096, 3] > tol):
+            return False
+    return True
+
+
+def object_sky_visibility(  # noqa: PLR0913 (the points, and keyword-only options)
+    caster: ShadowCaster,
+    points: np.ndarray,
+    normals: np.ndarray,
+    *,
+    n_dirs: int = 64,
+    sky: str = "uniform",
+    method: str = "raster",
+    max_rays: int = 400_000,
+    item_buffer=None,
+    res: int = 384,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Sky visibility and ground view of points on the object's surface.
+
+    Parameters
+    ----------
+    caster : ShadowCaster
+    points : (k, 3) float
+        Surface points (world frame, metres): the shading vertices.
+    normals : (k, 3) float
+        Their unit shading normals.
+    n_dirs : int
+        ``"raster"``: directions over the whole sphere (uniform solid angle, shared by every point; at least
+        16); ``"rays"``: cosine-weighted directions per point (reduced, never below 16, so that points x
+        directions stays under ``max_rays``). Unused for a convex mesh.
+    sky : {"uniform", "cie"}
+    method : {"raster", "rays"}
+        How a non-convex mesh's self-occlusion is found: item buffers per direction
+        (:func:`arshadow.shading.raster.hidden_directions`, fast) or exact BVH rays per point and
+        direction (:func:`arshadow.geometry.rays.rays_blocked`, the reference).
+    item_buffer, res : optional
+        ``"raster"``: who draws the item buffers (:func:`arshadow.shading.raster.hidden_directions`; the
+        renderer hands the GPU's) and their side in pixels.
+
+    Returns
+    -------
+    sky_visibility : (k,) float64
+        The point's sky irradiance / the open horizontal ground's (0..1; a vertical face of a convex
+        object: 0.5 under a uniform sky).
+    ground_view : (k,) float64
+        The cosine-weighted share (0..1) of its hemisphere that reaches the ground without meeting the
+        object: the weight of light bounced from the ground (a vertical face: 0.5).
+    """
+    p = np.asarray(points, np.float64).reshape(-1, 3)
+    nrm = np.asarray(normals, np.float64).reshape(-1, 3)
+    nrm = nrm / np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
+    convex = _is_convex(caster)
+    if convex and sky == "uniform":
+        # nothing of a convex object hides its own sky: a plane tilted by a from the horizontal sees
+        # (1 + cos a) / 2 of the cosine lobe above the horizon and the rest of it on the ground
+        nz = np.clip(nrm[:, 2], -1.0, 1.0)
+        return (1.0 + nz) / 2.0, (1.0 - nz) / 2.0
+    if method == "raster" or convex:
+        n = 2048 if convex else max(16, int(n_dirs))
+        return _object_raster(caster, p, nrm, n, sky, hide=not convex, item_buffer=item_buffer, res=res)
+    if method != "rays":
+        raise UsageError(f"object sky visibility method {method!r}: choose raster or rays")
+    return _object_rays(caster, p, nrm, int(max(16, min(int(n_dirs), max_rays // max(len(p), 1)))), sky)
+
+
+def _sphere_directions(n: int) -> np.ndarray:
+    """``(n, 3)`` unit directions of equal solid angle (a Fibonacci sphere)."""
+    z = 1.0 - (2.0 * np.arange(n) + 1.0) / n
+    r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+    phi = np.arange(n) * (math.pi * (3.0 - math.sqrt(5.0)))
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+
+
+def _object_raster(caster, p, nrm, n: int, sky: str, hide: bool, item_buffer=None, res: int = 384):
+    """Directions shared by every point, each weighted by the point's cosine (uniform-solid-angle
+    quadrature, normalised by the same quadrature of the open horizontal ground)."""
+    from .raster import hidden_directions
+
+    dirs = _sphere_directions(n)
+    cos = nrm @ dirs.T  # (k, n)
+    front = cos > 0.0
+    if hide:
+        fn = caster.face_planes[:, :3] if caster.is_closed else None
+        off = p + 1e-5 * caster.scale * nrm  # off the surface: its own faces lie behind it
+        free = ~hidden_directions(
+            caster.vertices, caster.faces, off, dirs, need=front, normals=fn, item_buffer=item_buffer, res=res
+        )
+    else:
+        free = front
+    free &= front
+    rad = sky_radiance(dirs, sky)
+    e_open = float(np.sum(rad * np.maximum(dirs[:, 2], 0.0)))  # the open ground, same quadrature
+    up = dirs[:, 2] > 0.0
+    sky_v = (cos * free) @ rad / e_open
+    g_open = float(np.sum(np.maximum(-dirs[:, 2], 0.0)))
+    ground_v = (cos * free) @ (~up).astype(np.float64) / g_open
+    return sky_v, ground_v
+
+
+def _object_rays(caster, p, nrm, n: int, sky: str) -> tuple[np.ndarray, np.ndarray]:
+    """Cosine-weighted directions per point, each tested with an exact ray (the reference method)."""
+    k = len(p)
+    base = cosine_directions(n)
+    sky_v = np.zeros(k)
+    ground_v = np.zeros(k)
+    e0 = _E0[sky]
+    eps = 1e-6 * caster.scale
+    chunk = max(1, 65536 // n)
+    for s in range(0, k, chunk):
+        pp, nn = p[s : s + chunk], nrm[s : s + chunk]
+        dirs = np.stack([_rotate_to(base, ni) for ni in nn])  # (c, n, 3)
+        up = dirs[..., 2] > 0.0
+        o = np.repeat(pp + eps * nn, n, axis=0)
+        free = ~rays_blocked(caster, o, dirs.reshape(-1, 3)).reshape(dirs.shape[:2])
+        rad = sky_radiance(dirs.reshape(-1, 3), sky).reshape(dirs.shape[:2])
+        sky_v[s : s + chunk] = (rad * free).mean(axis=1) / e0
+        ground_v[s : s + chunk] = (free & ~up).mean(axis=1)
+    return sky_v, ground_v
+
+
+def _rotate_to(base: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """``base (n, 3)`` directions round +z turned round ``normal (3,)`` (the frame of :func:`cosine_directions`)."""
+    nz = normal / np.linalg.norm(normal)
+    a = np.array([1.0, 0.0, 0.0]) if abs(nz[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    tx = np.cross(a, nz)
+    tx /= np.linalg.norm(tx)
+    ty = np.cross(nz, tx)
+    return base @ np.stack([tx, ty, nz])

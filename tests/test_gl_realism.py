@@ -1,0 +1,175 @@
+"""GL side of issue 28: the ground occlusion map projected per frame (sky occlusion channel), the object's
+sky shading, and base-colour textures, against independent computations."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from tests.conftest import TOL
+
+pytestmark = pytest.mark.gl
+
+W, H = 640, 480
+ZNEAR = 0.01
+DATA = Path(__file__).parent / "data" / "textured"
+
+
+def _K(fx=700.0):
+    from arshadow.camera import Intrinsics
+
+    return Intrinsics(fx=fx, fy=fx, cx=(W - 1) / 2, cy=(H - 1) / 2, width=W, height=H, dist=np.zeros(0))
+
+
+def _renderer(ctx):
+    from arshadow.gl.stencil import ShadowRenderer
+
+    return ShadowRenderer(ctx, max_width=W, max_height=H)
+
+
+def _render(r, caster, pose, *, sky=None, light=(0.3, -0.2, 1.0, 0.0), **shading):
+    from arshadow.geometry.silhouette import silhouette
+    from arshadow.geometry.volume import shadow_volume
+    from arshadow.render_api import LightPass, RenderRequest, Shading
+    from arshadow.transforms import CV_TO_GL
+
+    lh = np.asarray(light, np.float64)
+    vol = shadow_volume(caster, lh, silhouette(caster, lh), caps=True)
+    K = _K()
+    return r.render(
+        RenderRequest(
+            projection=K.gl_projection(ZNEAR, None),
+            view=CV_TO_GL @ pose,
+            width=W,
+            height=H,
+            caster=caster,
+            passes=[LightPass(lh, 1.0, vol, "zfail")],
+            shading=Shading(sky=sky, **shading),
+        )
+    )
+
+
+def _pixel(pose, xyz):
+    K = _K()
+    p = pose[:3, :3] @ np.asarray(xyz, float) + pose[:3, 3]
+    return int(round(K.fx * p[0] / p[2] + K.cx)), int(round(K.fy * p[1] / p[2] + K.cy))
+
+
+def test_contact_darker_than_open_ground_with_ao_and_equal_without(ctx):
+    from arshadow.geometry.mesh import load_occluder
+    from arshadow.shading.sky import SkyShading, ground_sky_visibility
+    from arshadow.synth import look_at_pose
+
+    box = load_occluder("box:0.045,0.065,0.07")
+    pose = look_at_pose([0.0, -0.35, 0.3], [0.0, 0.0, 0.02])
+    g = ground_sky_visibility(box)
+    r = _renderer(ctx)
+    try:
+        # light from the camera side (-y): the shadow falls behind the box, the ground in front is lit
+        on = _render(r, box, pose, sky=SkyShading(ground=g), light=(0.0, -0.5, 1.0, 0.0))
+        off = _render(r, box, pose, sky=None, light=(0.0, -0.5, 1.0, 0.0))
+    finally:
+        r.release()
+    near = _pixel(pose, [0.0, -0.0325 - 0.003, 0.0])  # 3 mm in front of the front face
+    far = _pixel(pose, [0.0, -0.0325 - 0.05, 0.0])  # 5 cm in front
+    assert on.sky_occlusion is not None and off.sky_occlusion is None
+    s_near, s_far = on.sky_occlusion[near[1], near[0]], on.sky_occlusion[far[1], far[0]]
+    # the map's own values there (independent check of the projection: same ground points)
+    v_near, v_far = g.sample(np.array([[0.0, -0.0355], [0.0, -0.0825]]))
+    assert abs(s_near - (1 - v_near)) <= TOL.sky_projection_abs and abs(s_far - (1 - v_far)) <= TOL.sky_projection_abs
+    assert s_near > s_far + 0.2  # darker at the contact
+    # the direct shadow mask is the same with and without
+    assert np.array_equal(on.mask, off.mask)
+    # AO off: the composite of the two ground points is the same (no sky channel, equal direct mask 0)
+    assert off.mask[near[1], near[0]] == off.mask[far[1], far[0]] == 0.0
+    # the occluder covers no sky-occluded pixel (coverage-weighted: 0 where the box is)
+    assert np.all(on.sky_occlusion[on.alpha >= 1.0] == 0.0)
+
+
+def test_object_sky_shading_vertical_face_half_of_top(ctx):
+    # convex box, sky shading with no direct light reaching the faces (weight 0): each face's colour is
+    # ambient x sky visibility x albedo: top (V = 1) vs side (V = 1/2 under a uniform sky)
+    from arshadow.geometry.mesh import load_occluder
+    from arshadow.shading.sky import SkyShading
+    from arshadow.synth import look_at_pose
+
+    box = load_occluder("box:0.06,0.06,0.06")
+    pose = look_at_pose([0.0, -0.3, 0.25], [0.0, 0.0, 0.03])
+    r = _renderer(ctx)
+    try:
+        res = _render(
+            r, box, pose, sky=SkyShading(ground=None, object_sky="uniform"), ambient=0.5, diffuse=0.0, specular=0.0
+        )
+        plain = _render(r, box, pose, sky=None, ambient=0.5, diffuse=0.0, specular=0.0)
+    finally:
+        r.release()
+    top = _pixel(pose, [0.0, 0.0, 0.06])
+    side = _pixel(pose, [0.0, -0.03, 0.03])
+    alb = (0.8 / 1.055 + 0.055 / 1.055) ** 2.4  # DEFAULT_COLOR 0.8 decoded (sRGB)
+    assert res.color[top[1], top[0], 0] == pytest.approx(0.5 * alb, rel=2e-3)
+    assert res.color[side[1], side[0], 0] == pytest.approx(0.25 * alb, rel=2e-3)
+    assert plain.color[side[1], side[0], 0] == pytest.approx(0.5 * alb, rel=2e-3)
+
+
+def test_textured_quad_matches_the_projected_texture(ctx):
+    # the textured glTF square lying 1 mm above the ground, seen from above at an angle, unlit except by an
+    # ambient of 1: its colour is the texture. Expected: the texture warped into the image by the analytic
+    # homography of the square's plane (cv2.warpPerspective), in linear light.
+    pytest.importorskip("PIL")
+    from arshadow.geometry.mesh import load_occluder
+    from arshadow.synth import look_at_pose
+
+    quad = load_occluder(DATA / "quad.glb", place=(0.0, 0.0, 0.001))
+    pose = look_at_pose([0.05, -0.2, 0.25], [0.0, 0.0, 0.0])
+    r = _renderer(ctx)
+    try:
+        res = _render(r, quad, pose, ambient=1.0, diffuse=0.0, specular=0.0, light=(0.0, 0.0, 1.0, 0.0))
+    finally:
+        r.release()
+    tex = quad.material.texture  # (64, 64, 3) linear RGB, row 0 = top = +y edge of the square
+    th, tw = tex.shape[:2]
+    # texture pixel (col, row) -> world (x, y, 0.001): x = -0.05 + 0.1 (col + 0.5) / tw, y = 0.05 - 0.1 (row + 0.5) / th
+    A = np.array([[0.1 / tw, 0.0, -0.05 + 0.05 / tw], [0.0, -0.1 / th, 0.05 - 0.05 / th], [0.0, 0.0, 1.0]])
+    K = _K().K
+    R, t = pose[:3, :3], pose[:3, 3]
+    Hm = K @ np.c_[R[:, 0], R[:, 1], R[:, 2] * 0.001 + t] @ A  # texture pixel -> image pixel
+    expect = cv2.warpPerspective(tex, Hm, (W, H), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
+    inside = cv2.warpPerspective(np.ones((th, tw), np.float32), Hm, (W, H), flags=cv2.INTER_NEAREST)
+    # compare away from the square's edges and the texture's colour edges (bilinear vs mipmapped sampling)
+    interior = cv2.erode(inside, np.ones((5, 5), np.uint8)) > 0
+    edges = (
+        cv2.dilate((cv2.Canny((expect * 255).astype(np.uint8), 10, 30) > 0).astype(np.uint8), np.ones((5, 5), np.uint8))
+        > 0
+    )
+    sel = interior & ~edges
+    assert sel.sum() > 2000
+    err = np.abs(res.color[sel] - expect[sel])
+    assert np.median(err) <= TOL.texture_median_abs and np.percentile(err, 99) <= TOL.texture_p99_abs, (
+        np.median(err),
+        np.percentile(err, 99),
+    )
+    # and the untextured render (colour override) is flat: the texture did it
+    assert res.color[sel].std(axis=0).max() > 0.1
+
+
+def test_gpu_item_buffer_equals_the_numpy_one(ctx):
+    from arshadow.geometry.mesh import load_occluder
+    from arshadow.gl.sky import GLItemBuffer
+    from arshadow.shading.raster import item_buffer
+
+    c = load_occluder("torus:0.05,0.015", rotate=(30, 0, 0))
+    w = np.array([0.3, 0.2, 0.9]) / np.linalg.norm([0.3, 0.2, 0.9])
+    e1 = np.cross([1.0, 0, 0], w)
+    e1 /= np.linalg.norm(e1)
+    fr = np.stack([e1, np.cross(w, e1), w])
+    pv = c.vertices @ fr.T
+    lo, hi = pv[:, :2].min(0), pv[:, :2].max(0)
+    xy = (pv[:, :2] - lo) * (254 / (hi - lo).max()) + 1
+    f = c.faces[c.face_planes[:, :3] @ w > 0]
+    ib = GLItemBuffer(ctx, 256)
+    a = ib(xy, pv[:, 2], f, 256)
+    b = item_buffer(xy, pv[:, 2], f, 256)
+    assert (a >= 0).sum() > 5000 and (a != b).mean() < 1e-3  # ties on shared edges only

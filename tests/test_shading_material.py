@@ -1,0 +1,94 @@
+"""Materials from mesh files (arshadow.shading.material via load_occluder): textures, UVs, factors."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from arshadow.geometry.mesh import load_occluder
+
+pytest.importorskip("PIL", reason="trimesh decodes mesh textures with Pillow")
+
+DATA = Path(__file__).parent / "data" / "textured"
+
+
+def srgb_to_linear_ref(c):
+    """IEC 61966-2-1, written out here (independent of arshadow.compose)."""
+    c = np.asarray(c, np.float64) / 255.0
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+def uv_at(caster, xy):
+    """Texture coordinates at ground points xy (k, 2) by barycentric interpolation of the corner UVs of the
+    caster's face containing each point (a flat quad in z = 0)."""
+    out = []
+    tri = caster.vertices[caster.faces][:, :, :2]
+    for p in np.asarray(xy, float):
+        for fi, t in enumerate(tri):
+            m = np.c_[t[1] - t[0], t[2] - t[0]]
+            b1, b2 = np.linalg.solve(m, p - t[0])
+            if b1 >= -1e-9 and b2 >= -1e-9 and b1 + b2 <= 1 + 1e-9:
+                uv = caster.material.uv[fi]
+                out.append((1 - b1 - b2) * uv[0] + b1 * uv[1] + b2 * uv[2])
+                break
+        else:
+            raise AssertionError(f"{p} is on no face")
+    return np.array(out)
+
+
+# world points on the square and the texture colour there (tests/data/make_textured_assets.py: the image
+# lies on the square seen from above, top row at +y; quadrant colours; white disc in the top-left one)
+POINTS = np.array([[-0.045, 0.045], [0.045, 0.045], [-0.045, -0.045], [0.045, -0.045], [-0.025, 0.025]])
+COLOURS = srgb_to_linear_ref([(200, 30, 30), (30, 200, 30), (30, 30, 200), (220, 200, 40), (255, 255, 255)])
+
+
+@pytest.mark.parametrize("name", ["quad.glb", "quad.obj"])
+def test_texture_lands_where_the_file_puts_it(name):
+    c = load_occluder(DATA / name)
+    m = c.material
+    assert m is not None and m.textured and m.source == ("gltf" if name.endswith("glb") else "obj")
+    assert np.allclose(c.bounds[:, :2], [[-0.05, -0.05], [0.05, 0.05]]) and np.allclose(c.vertices[:, 2], 0)
+    got = m.sample(uv_at(c, POINTS))
+    assert np.abs(got - COLOURS).max() < 1e-6, got.round(4)
+    assert np.allclose(m.base_color, 1.0)
+    if name.endswith("glb"):
+        assert (m.metallic, m.roughness) == (0.0, pytest.approx(0.8))
+
+
+def test_uvs_follow_a_mirroring_scale_and_welding(tmp_path):
+    # mirrored in x: the faces' winding is reversed; each corner must keep its own UV
+    c = load_occluder(DATA / "quad.obj", scale=(-1, 1, 1))
+    corner_xy = c.vertices[c.faces][:, :, :2]
+    # file (x, y) -> (u, v) = ((x + 0.05) / 0.1, (y + 0.05) / 0.1); world x = -file x
+    expect = np.stack([(-corner_xy[..., 0] + 0.05) / 0.1, (corner_xy[..., 1] + 0.05) / 0.1], axis=-1)
+    assert np.allclose(c.material.uv, expect, atol=1e-6)
+    # a cube-like UV seam: the quad written twice with different UVs (duplicate positions), plus a degenerate
+    # face: the caster welds the positions and drops the face, the UVs stay per corner
+    text = (DATA / "quad.obj").read_text().replace("mtllib quad.mtl", f"mtllib {DATA / 'quad.mtl'}")
+    text += "vt 0.5 0.5\nv -0.05 -0.05 0\nv 0.05 -0.05 0\nf 1/5 2/5 2/5\nf 5/1 6/2 3/3\n"
+    (tmp_path / "seam.obj").write_text(text)
+    (tmp_path / "quad.png").write_bytes((DATA / "quad.png").read_bytes())
+    c2 = load_occluder(tmp_path / "seam.obj")
+    assert c2.n_dropped_faces == 1 and len(c2.vertices) == 4 and c2.n_faces == 3
+    assert c2.material is not None and c2.material.uv.shape == (3, 3, 2)
+    assert np.allclose(c2.material.uv[2], c2.material.uv[0])  # the duplicate face: same corners, same UVs
+
+
+def test_colour_override_drops_the_material_and_plain_meshes_have_none():
+    assert load_occluder(DATA / "quad.glb", color="#808080").material is None
+    assert load_occluder("box:0.1,0.1,0.1").material is None
+
+
+def test_measured_light_keeps_a_textured_mesh_textured():
+    # --light-from without --color: the scene's occluder colour is the exposed grey default; a mesh with its
+    # own texture / colours keeps them, times the exposure gain (it used to come out flat grey)
+    from arshadow.execute import _shading
+    from arshadow.render_options import RenderOptions
+
+    opts = RenderOptions(occluder_color=(0.6, 0.6, 0.6), material_gain=(1.2, 1.1, 0.9))
+    sh = _shading(opts, load_occluder(DATA / "quad.glb"), None)
+    assert sh.color is None and sh.albedo_gain == (1.2, 1.1, 0.9)
+    plain = _shading(opts, load_occluder("box:0.1,0.1,0.1"), None)
+    assert plain.color == (0.6, 0.6, 0.6) and plain.albedo_gain == (1.0, 1.0, 1.0)
+    # an explicit colour (no material_gain) wins over the texture
+    assert _shading(RenderOptions(occluder_color=(0.6, 0.6, 0.6)), load_occluder(DATA / "quad.glb"), None).color
