@@ -336,8 +336,8 @@ class FrameComposer:
             "pose_choice": item.pose_choice,
         }
 
-    def _render(self, cam_from_world, img, fmt, timings, marker=None):
-        """Composite at ``cam_from_world``; returns the frame in its own format, the mask and the report
+    def _render(self, cam_from_marker, img, fmt, timings, marker=None):
+        """Composite at the (decided) marker pose ``cam_from_marker``; returns the frame in its own format, the mask and the report
         item of :meth:`arshadow.session.Session.render`. ``marker``: the frame's tracked pose (None: held).
 
         A ``yuv420p`` frame is converted to BGR only inside the plan's ROI (even-aligned; into a buffer kept
@@ -347,11 +347,11 @@ class FrameComposer:
             tc = time.perf_counter()
             bgr = np.array(img)
             timings["convert"] += (time.perf_counter() - tc) * 1e3
-            mask, item = self.backend.render(bgr, cam_from_world, self.want_mask, timings, marker=marker)
+            mask, item = self.backend.render(bgr, cam_from_marker, self.want_mask, timings, marker=marker)
             if self.layer_sink is not None:
                 self.layer_sink.write(self.backend.last_layers)
             return bgr, mask, item
-        plan = self.backend.plan(cam_from_world, self.W, self.H)
+        plan = self.backend.plan(cam_from_marker, self.W, self.H)
         tc = time.perf_counter()
         if self._bgr is None:
             self._bgr = np.zeros((self.H, self.W, 3), np.uint8)
@@ -360,11 +360,11 @@ class FrameComposer:
         if (
             marker is not None
             and not plan.empty
-            and (paper := self.backend.exposure_region(cam_from_world, self.W, self.H, marker)) is not None
+            and (paper := self.backend.exposure_region(cam_from_marker, self.W, self.H, marker)) is not None
         ):
             i420_roi_to_bgr(img, bgr, paper)  # the exposure match reads the marker's paper, often outside the ROI
         timings["convert"] += (time.perf_counter() - tc) * 1e3
-        mask, item = self.backend.render(bgr, cam_from_world, self.want_mask, timings, plan=plan, marker=marker)
+        mask, item = self.backend.render(bgr, cam_from_marker, self.want_mask, timings, plan=plan, marker=marker)
         if self.layer_sink is not None:
             self.layer_sink.write(self.backend.last_layers)
         tc = time.perf_counter()
