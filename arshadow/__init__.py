@@ -13,8 +13,9 @@ Python API (docs/architecture.md, README "Python")::
         result = s.process(image_bgr)                 # arshadow.FrameResult
 
 :class:`Session`, :class:`SceneSpec`, :func:`scene_from_dict`, :func:`load_scene`, :func:`render_photo`,
-:class:`RenderOptions`, :class:`FrameResult`, :class:`FramePlan` and the :mod:`arshadow.synth` module
-(known-truth photos) are loaded on first access.
+:func:`process_video` (videos: :class:`EngineOptions` in, :class:`VideoRun` out), :class:`RenderOptions`,
+:class:`FrameResult`, :class:`FramePlan` and the :mod:`arshadow.synth` module (known-truth photos) are
+loaded on first access.
 
 Nothing here imports OpenGL; only :mod:`arshadow.gl` does, and only when it is used.
 """
@@ -43,6 +44,8 @@ if TYPE_CHECKING:  # the lazily loaded names, for type checkers (py.typed)
     from .plan import FramePlan, plan_frame
     from .scene import ModelSpec, RenderOptions, SceneSpec, TrackerSpec, load_scene, scene_from_dict
     from .session import FrameResult, Session, render_photo
+    from .video.api import VideoRun, process_video
+    from .video.engine import EngineOptions
 
 _LAZY = {
     "Session": "session",
@@ -58,6 +61,9 @@ _LAZY = {
     "plan_frame": "plan",
     "estimate_light": "estimate",
     "LightEstimate": "estimate",
+    "process_video": "video.api",
+    "VideoRun": "video.api",
+    "EngineOptions": "video.engine",
 }
 
 
@@ -87,6 +93,9 @@ __all__ = [
     "plan_frame",
     "estimate_light",
     "LightEstimate",
+    "process_video",
+    "VideoRun",
+    "EngineOptions",
     "synth",
     "ArshadowError",
     "CalibrationError",

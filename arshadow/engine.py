@@ -1,6 +1,10 @@
-"""The parts of a :class:`arshadow.session.Session` that are per photo size or per tracker: public names the
-session uses, kept apart so that the session module stays the façade.
+"""The parts of a :class:`arshadow.session.Session` that are per photo size or per tracker, and what a frame
+engine reaches into a session for: public names the session uses, kept apart so that the session module stays
+the façade.
 
+- :class:`EngineHooks` (``Session.hooks``): what the video engine (and the photo loop) needs of a session
+  beyond its public face: per-size calibrations and trackers (their state, their reset), the compose path's
+  chooser and key, the exposure match over frames, a render into the engine's buffers;
 - :class:`CalibrationState`: per photo size, the scaled intrinsics, the lens warp, and the trackers (made on
   first use: a session that only renders at given poses never builds one);
 - :func:`estimate_pose`: the fast detection pass, then the full search if it finds nothing, with stage times;
@@ -10,22 +14,35 @@ session uses, kept apart so that the session module stays the façade.
 
 from __future__ import annotations
 
+import logging
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .compose.lens import LensWarp
 from .errors import ImageError, MarkerNotFoundError
+from .estimate.match import ExposureMatch, marker_id_of
 from .report import StageTimings
+from .sanity import calibration_scaled_note
 from .scene import RenderOptions
+from .tracking.pose import MarkerPose
 from .tracking.tracker import MarkerTracker
 
 if TYPE_CHECKING:  # annotations only
     from .camera import Intrinsics
-    from .compose.lens import LensWarp
+    from .execute import FrameOutputs
+    from .gl.compose import PathChooser
+    from .plan import FramePlan
+    from .render_api import Renderer
+    from .result import FrameResult
+    from .session import Session
 
-__all__ = ["CalibrationState", "estimate_pose", "check_image", "default_renderer", "DETECT_NOTES"]
+__all__ = ["CalibrationState", "EngineHooks", "estimate_pose", "check_image", "default_renderer", "DETECT_NOTES"]
+
+log = logging.getLogger("arshadow.session")
 
 #: the report's ``plan.detect``: where the tracker searched (``MarkerTracker.last_search``)
 DETECT_NOTES = {
@@ -90,7 +107,7 @@ class CalibrationState:
         return DETECT_NOTES["window" if "window" in det else "full"]
 
 
-def estimate_pose(cal: CalibrationState, image, timings: StageTimings):
+def estimate_pose(cal: CalibrationState, image: Any, timings: StageTimings) -> tuple[MarkerPose, str | None]:
     """Marker / board pose of one image: the fast pass, then the full search if it finds nothing.
 
     Parameters
@@ -127,9 +144,9 @@ def estimate_pose(cal: CalibrationState, image, timings: StageTimings):
     return _timed_estimate(full, image, timings), note
 
 
-def _timed_estimate(tracker, image, timings: StageTimings):
+def _timed_estimate(tracker: MarkerTracker, image: Any, timings: StageTimings) -> MarkerPose:
     t = time.perf_counter()
-    pose = tracker.estimate(image)
+    pose: MarkerPose = tracker.estimate(image)
     total = (time.perf_counter() - t) * 1e3
     # the tracker splits its own time into marker search and pose (MarkerPose.timings_ms)
     pose_ms = float((getattr(pose, "timings_ms", None) or {}).get("pose", 0.0))
@@ -138,7 +155,7 @@ def _timed_estimate(tracker, image, timings: StageTimings):
     return pose
 
 
-def check_image(image, name: str = "", grey_ok: bool = False) -> np.ndarray:
+def check_image(image: Any, name: str = "", grey_ok: bool = False) -> np.ndarray:
     """``image`` as an ``(H, W, 3) uint8`` BGR array (or ``(H, W) uint8`` grey with ``grey_ok``), or an
     :class:`ImageError` naming ``name``.
 
@@ -146,21 +163,178 @@ def check_image(image, name: str = "", grey_ok: bool = False) -> np.ndarray:
     (2, 3, 3)
     """
     image = np.asarray(image)
+    arr: np.ndarray = image
     ok = image.dtype == np.uint8 and ((image.ndim == 3 and image.shape[2] == 3) or (grey_ok and image.ndim == 2))
     if not ok:
         want = "an (H, W, 3) uint8 BGR" + (" or (H, W) uint8 grey" if grey_ok else "")
         raise ImageError(f"{name or 'image'}: expected {want} image, got {image.shape} {image.dtype}")
-    return image
+    return arr
 
 
-def default_renderer(ctx, options: RenderOptions):
+def default_renderer(ctx: Any, options: RenderOptions) -> Renderer:
     """The renderer ``options`` ask for, on ``ctx``: the stencil :class:`arshadow.gl.stencil.ShadowRenderer`
     (volumes and planar shadows), or the :class:`arshadow.gl.shadowmap.ShadowMapRenderer` baseline."""
     # deferred: moderngl loads only when a session first renders (``import arshadow`` stays light)
     if options.shadow_method == "shadowmap":
         from .gl.shadowmap import ShadowMapRenderer
 
-        return ShadowMapRenderer(ctx, map_size=int(options.shadowmap_size), samples=int(options.aa))
+        shadowmap: Renderer = ShadowMapRenderer(ctx, map_size=int(options.shadowmap_size), samples=int(options.aa))
+        return shadowmap
     from .gl.stencil import ShadowRenderer
 
-    return ShadowRenderer(ctx, samples=int(options.aa))
+    stencil: Renderer = ShadowRenderer(ctx, samples=int(options.aa))
+    return stencil
+
+
+class EngineHooks:
+    """What a frame engine reaches into a :class:`arshadow.session.Session` for (``session.hooks``), kept off
+    the session's public face (``track``, ``plan``, ``render``, ``process``, ``state`` / ``restore``, ...).
+
+    The video engine (:class:`arshadow.video.framejob.SessionBackend`) and the photo loop
+    (:func:`arshadow.photos.render_photos`) use it. Names: ``cam_from_marker`` is the marker's pose (what
+    :meth:`Session.track` measures, what :meth:`Session.plan` takes); ``cam_from_world`` is always the
+    scene's world frame, the ground's (:meth:`Session.ground_camera`).
+
+    Attributes
+    ----------
+    compose_chooser : arshadow.gl.compose.PathChooser
+        Measures the numpy and shader compose paths when the plan says ``"measure"``.
+    exposure : arshadow.estimate.match.ExposureMatch or None
+        The per-frame exposure / white balance match (:mod:`arshadow.estimate.match`); None when off, on a
+        board or an inverted marker (its white cells are ink).
+    """
+
+    def __init__(self, session: Session, render: Callable[..., FrameResult]) -> None:
+        from .gl.compose import PathChooser  # deferred: no GL at import (moderngl loads on first render)
+
+        self._session, self._render = session, render
+        self._calibs: dict[tuple[int, int], CalibrationState] = {}
+        self._lenses: dict[Any, LensWarp] = {}
+        opts, tk = session.options, session.scene.tracker
+        self.compose_chooser: PathChooser = PathChooser(force=None if opts.compose == "auto" else opts.compose)
+        self.exposure: ExposureMatch | None = (
+            ExposureMatch(tk["marker_length"], tk.get("dictionary"), tk.get("marker_id"), smooth=opts.track_roi)
+            if opts.exposure and tk.get("board") is None and tk.get("marker_length") and not tk.get("inverted")
+            else None
+        )
+
+    # -- per photo size ---------------------------------------------------------------------------------
+    def calibration(self, width: int, height: int) -> CalibrationState:
+        """Intrinsics (scaled to the size), lens warp and trackers for a photo size (built once per size).
+
+        Raises
+        ------
+        CalibrationError
+            A size whose aspect ratio differs from the calibration's.
+        """
+        key = (int(width), int(height))
+        c = self._calibs.get(key)
+        if c is None:
+            s = self._session
+            intr, scaled = s.intrinsics.for_image(width, height)
+            if scaled:  # once per size, on stderr (the report says it per photo)
+                log.warning(calibration_scaled_note(s.intrinsics, width, height))
+            tracker, opts = s.scene.tracker, s.options
+            # video: each tracker searches a window around its last detection first (the planner's tracking
+            # ROI, full-frame fallback: arshadow/tracking/roi_track.py)
+            roi = bool(opts.track_roi and opts.plan != "general" and "board" not in tracker)
+            lens = None
+            if intr.has_distortion:  # one map per distinct calibration
+                lens = self._lenses.get(intr)
+                if lens is None:
+                    lens = self._lenses[intr] = LensWarp(intr)
+            c = self._calibs[key] = CalibrationState(intr, scaled, lens, dict(tracker), roi, bool(opts.fast_detect))
+        return c
+
+    def tracker_state(self, width: int, height: int) -> list:
+        """What the next :meth:`Session.track` of a ``width x height`` frame depends on from the frames before
+        (tracking window, misses in a row), JSON-able: two runs whose states are equal track the next frame
+        alike (a video's chunks compare it at their boundaries)."""
+        return self.calibration(width, height).tracker_state()
+
+    def reset_tracking(self) -> None:
+        """Forget the frames tracked so far, at every size (a new video: its first frame is searched whole,
+        as it would be in a fresh session)."""
+        for cal in self._calibs.values():
+            cal.reset_trackers()
+
+    def compose_key(self, width: int, height: int, distorted: bool) -> tuple[Any, ...]:
+        """The key under which the compose path is measured: (renderer backend, size, anti-aliasing, lens)."""
+        s = self._session
+        return (s.renderer.backend, int(width), int(height), int(s.options.aa), bool(distorted))
+
+    # -- the exposure match over frames -----------------------------------------------------------------
+    def exposure_region(
+        self, cam_from_marker: np.ndarray | MarkerPose, width: int, height: int, marker: MarkerPose | None = None
+    ) -> tuple | None:
+        """``(x0, y0, w, h)``: the pixels the exposure match reads on a ``width x height`` frame at the marker
+        pose ``cam_from_marker``, or None (the match is off, or the marker is behind the camera). A caller
+        converting only part of a frame (the video engine: the plan's ROI) converts these too, or the paper
+        is measured on pixels that are not the frame's. ``marker``: the frame's tracked pose (its id)."""
+        if self.exposure is None:
+            return None
+        cal = self.calibration(width, height)
+        cfm = cam_from_marker.cam_from_world if isinstance(cam_from_marker, MarkerPose) else cam_from_marker
+        return self.exposure.region(cal.intrinsics, np.asarray(cfm, np.float64), marker_id_of(marker))
+
+    def observe_exposure(
+        self, image: np.ndarray, cam_from_marker: np.ndarray, marker: MarkerPose | None = None
+    ) -> None:
+        """Measure the marker's paper on a frame that is not rendered (a video chunk's primer: the frames
+        before it, decided but not composited), so that the exposure match's smoothing over frames starts
+        where the run over those frames would be. No-op when the match is off.
+
+        Parameters
+        ----------
+        image : (H, W, 3) uint8
+            BGR frame (at least the paper's pixels, :meth:`exposure_region`).
+        cam_from_marker : (4, 4) float64
+            The frame's decided marker pose.
+        marker : arshadow.tracking.pose.MarkerPose, optional
+            The frame's tracked pose (its marker id).
+        """
+        if self.exposure is None:
+            return
+        s = self._session
+        cal = self.calibration(image.shape[1], image.shape[0])
+        cfw = s.ground_camera(cam_from_marker)
+        mfg = None if s.ground.is_marker else s.ground.marker_from_ground
+        self.exposure.frame_gain(image, cal.intrinsics, cfw, marker, s.geometry, mfg)
+
+    def exposure_gap(self) -> None:
+        """A video frame without the marker, not rendered: the exposure match's smoothing counts it (a long
+        loss restarts it, :data:`arshadow.estimate.exposure.RESTART_AFTER`). No-op when the match is off."""
+        if self.exposure is not None:
+            self.exposure.missing()
+
+    # -- a frame into the engine's buffers -----------------------------------------------------------------
+    def render(
+        self,
+        image: np.ndarray,
+        pose: MarkerPose | np.ndarray | None = None,
+        *,
+        plan: FramePlan | None = None,
+        outputs: FrameOutputs | None = None,
+        layers: bool | str = False,
+        marker: MarkerPose | None = None,
+        seen: bool = True,
+    ) -> FrameResult:
+        """:meth:`Session.render` with the engine's buffers and history.
+
+        Parameters
+        ----------
+        image, pose, plan, layers
+            As :meth:`Session.render` (``pose``: a tracked pose or ``cam_from_marker``).
+        outputs : arshadow.execute.FrameOutputs, optional
+            Buffers (``out`` may be ``image``: composited in place), ``want_mask``, the report item and the
+            stage times to add to (e.g. the ``detect`` / ``pose`` of :meth:`Session.track`; ``total`` grows by
+            this call's time).
+        marker : arshadow.tracking.pose.MarkerPose, optional
+            This frame's tracked marker when ``pose`` is not it (a video's smoothed pose, or a plan): the
+            exposure match reads the paper of its marker id.
+        seen : bool
+            False: the marker is not in this frame (a video frame rendered with a held pose). The exposure
+            match then measures nothing, because the paper is not where the pose says, and keeps the
+            video's last gain.
+        """
+        return self._render(image, pose, plan, outputs, layers, marker, seen)

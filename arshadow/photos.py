@@ -198,7 +198,7 @@ def render_photo_file(
             orient=functools.partial(apply_orientation, orientation=orientation),
         )
         if "stmap" in job.layers:  # the pinhole layers' distortion map (stored frame, as they are)
-            cal = session.calibration(image.shape[1], image.shape[0])
+            cal = session.hooks.calibration(image.shape[1], image.shape[0])
             write_stmap(job.layers["stmap"], stmap(cal.intrinsics, None if cal.lens is None else cal.lens.maps))
         res.item.layers = {n: str(p) for n, p in job.layers.items()}
     return res

@@ -55,7 +55,7 @@ from .plan_geometry import (
     scene_hull_points,
     shadow_footprint,
 )
-from .plan_rules import LightDecision, decide_lights, outside_view
+from .plan_rules import LightDecision, LightSwitches, decide_lights, outside_view
 from .transforms import invert_rigid, transform_points
 
 if TYPE_CHECKING:  # annotations only
@@ -333,18 +333,16 @@ def _light_decisions(plan: FramePlan, geometry: SceneGeometry, intr: Any, modes:
     rects = None
     if which == "auto" and "cull" not in off:
         rects = [geometry.footprint_rect(ls, intr, cam_from_world, znear) for ls in geometry.lights]
+    switches = LightSwitches(which, opts.draw_occluder, opts.truncate and "truncate" not in off, frozenset(off))
     return decide_lights(
-        which,
+        switches,
         geometry.caster,
         [ls.light_h for ls in geometry.lights],
         convex=geometry.convex if which == "auto" and "planar" not in off else False,
         eye_world=eye,
         near=near,
-        draw_occluder=opts.draw_occluder,
-        truncate=opts.truncate and "truncate" not in off,
         footprint_rects=rects,
         canvas=canvas,
-        off=off,
     )
 
 

@@ -39,7 +39,7 @@ tracking ROI (:func:`tracking_roi`)
 from __future__ import annotations
 
 import math
-from collections.abc import Collection, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -64,6 +64,7 @@ __all__ = [
     "outside_view",
     "decide_lights",
     "LightDecision",
+    "LightSwitches",
     "PLANS",
     "PLAN_OFF",
 ]
@@ -331,29 +332,46 @@ class LightDecision:
         return self.mode == "none"
 
 
-# the planner's rule table: every input a rule decides on, by name; one caller (arshadow.plan)
-def decide_lights(  # noqa: PLR0913
-    plan: str,
+@dataclass(frozen=True)
+class LightSwitches:
+    """What the options decide for :func:`decide_lights`.
+
+    Attributes
+    ----------
+    plan : str
+        One of :data:`PLANS`. ``general`` is the reference: z-fail, volumes to infinity, every pass.
+        ``zpass`` / ``zfail`` / ``planar`` force that mode for every light (``zpass`` is then the user's
+        responsibility: wrong counts where the camera is inside a volume).
+    draw_occluder : bool
+    truncate : bool
+        ``RenderOptions.truncate``.
+    off : collection of str
+        ``auto`` decisions switched off (``planar``, ``zpass``, ``cull``): benchmarks and tests.
+    """
+
+    plan: str
+    draw_occluder: bool
+    truncate: bool
+    off: frozenset[str] = frozenset()
+
+
+def decide_lights(
+    switches: LightSwitches,
     caster: ShadowCaster,
     lights_h: Sequence[npt.ArrayLike],
     *,
     convex: bool,
     eye_world: npt.ArrayLike,
     near: float,
-    draw_occluder: bool,
-    truncate: bool,
     footprint_rects: Sequence[Sequence[float] | None] | None = None,
     canvas: Sequence[float] | None = None,
-    off: Collection[str] = (),
 ) -> list[LightDecision]:
     """Per light: volume mode (or planar, or culled) and truncation, with the reasons.
 
     Parameters
     ----------
-    plan : str
-        One of :data:`PLANS`. ``general`` is the reference: z-fail, volumes to infinity, every pass.
-        ``zpass`` / ``zfail`` / ``planar`` force that mode for every light (``zpass`` is then the user's
-        responsibility: wrong counts where the camera is inside a volume).
+    switches : LightSwitches
+        The plan, whether the occluder is drawn, truncation, the decisions switched off.
     caster : ShadowCaster
     lights_h : sequence of (4,) float64
     convex : bool
@@ -362,16 +380,12 @@ def decide_lights(  # noqa: PLR0913
         Camera centre, world frame.
     near : float
         Radius of the near rectangle (:func:`arshadow.geometry.volume.near_plane_radius`).
-    draw_occluder : bool
-    truncate : bool
-        ``RenderOptions.truncate``.
     footprint_rects : sequence of ((u0, v0, u1, v1) or None), optional
         Per light, the pinhole screen box of its ground footprint (for culling); None: no culling.
     canvas : (u0, v0, w, h), optional
         The pinhole canvas rendered (for culling).
-    off : collection of str
-        ``auto`` decisions switched off (``planar``, ``zpass``, ``cull``): benchmarks and tests.
     """
+    plan, draw_occluder, truncate, off = switches.plan, switches.draw_occluder, switches.truncate, switches.off
     if plan not in PLANS:
         from .errors import UsageError
 

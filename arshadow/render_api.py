@@ -22,6 +22,7 @@ A new shading setting (docs/architecture.md, "The render seam") touches three pl
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
@@ -201,7 +202,7 @@ class Shading:
     def __post_init__(self) -> None:
         for name in ("ambient", "diffuse", "specular", "shininess"):
             v = float(getattr(self, name))
-            if not np.isfinite(v):
+            if not math.isfinite(v):
                 raise UsageError(f"shading {name} {v}: must be a finite number")
         if self.color is not None:
             c = tuple(float(x) for x in np.ravel(self.color)[:3])

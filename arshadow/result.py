@@ -6,6 +6,7 @@ timings, plan, layers), shared by :class:`arshadow.session.Session` and the code
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
@@ -13,6 +14,9 @@ import numpy as np
 from .compose.layers import Layers
 from .plan import FramePlan
 from .report import ReportItem, StageTimings
+
+if TYPE_CHECKING:
+    from .tracking.pose import MarkerPose
 
 __all__ = ["FrameResult"]
 
@@ -28,10 +32,12 @@ class FrameResult:
     mask : (H, W) uint8 or None
         The shadow mask of CONVENTIONS.md (None when not asked for).
     pose : arshadow.tracking.pose.MarkerPose or None
-        The tracked pose (None when rendering at a given ``cam_from_world``).
+        The tracked pose (its ``cam_from_world`` is ``cam_from_marker``); None when rendering at a given
+        ``cam_from_marker`` matrix or a plan.
     cam_from_world : (4, 4) float64
-        The camera rendered with, in the scene's frame: the ground frame (:meth:`arshadow.session.Session.ground_camera`;
-        the marker's pose itself unless ``--ground`` moves the ground).
+        The camera rendered with, in the scene's world frame, the ground's
+        (:meth:`arshadow.session.Session.ground_camera`; the marker's pose itself unless ``--ground`` moves
+        the ground).
     item : arshadow.report.ReportItem
         The report entry (``output``/``mask`` paths left for the caller).
     timings : arshadow.report.StageTimings
@@ -45,7 +51,7 @@ class FrameResult:
 
     composite: np.ndarray
     mask: np.ndarray | None
-    pose: object
+    pose: MarkerPose | None
     cam_from_world: np.ndarray
     item: ReportItem
     timings: StageTimings = field(default_factory=StageTimings)

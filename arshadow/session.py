@@ -26,9 +26,15 @@ maps per photo size, silhouettes and volumes per light, the renderer). It pickle
 process unpickles it into a fresh session of the same scene.
 
 For a video engine: :meth:`Session.track` (pose only, grey images too), :meth:`Session.render` (at a given
-pose), :meth:`Session.tracker_state` (the trackers' memory); what carries from frame to frame (lights over
-time, the exposure match's smoothing, their saved state: ``set_lights`` / ``set_time``, ``state`` /
-``restore``) is :class:`arshadow.history.History`, which ``Session`` inherits.
+pose); what carries from frame to frame (lights over time and their saved state: ``set_lights`` /
+``set_time``, ``state`` / ``restore``) is :class:`arshadow.history.History`, which ``Session`` inherits;
+what an engine reaches into (per-size calibrations and trackers, the compose path's chooser, the exposure
+match over frames, a render into its buffers) is ``session.hooks`` (:class:`arshadow.engine.EngineHooks`).
+
+Poses: ``cam_from_marker`` is the marker's pose (what :meth:`Session.track` measures:
+:class:`arshadow.tracking.pose.MarkerPose`, whose ``cam_from_world`` is it, the tracker's world being the
+marker); ``cam_from_world`` in the session, the plan and the result is always the scene's world frame, the
+ground's (:meth:`Session.ground_camera`; the marker's own unless ``--ground`` moves the ground).
 """
 
 from __future__ import annotations
@@ -36,28 +42,29 @@ from __future__ import annotations
 import logging
 import os
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
 from .camera import Intrinsics
 from .compose.composite import Workspace
-from .compose.lens import LensWarp
-from .engine import CalibrationState, check_image, default_renderer, estimate_pose
+from .engine import CalibrationState, EngineHooks, check_image, default_renderer, estimate_pose
 from .errors import UsageError
-from .estimate.match import ExposureMatch, marker_id_of
 from .execute import LAYERS_WHY, FrameContext, FrameOutputs, execute
 from .geometry.ground import check_camera_above, parse_ground
 from .history import History
 from .io import read_image
+from .lights.spec import Light
 from .plan import FramePlan, SceneGeometry, decide_compose, plan_frame
 from .render_api import Renderer
+from .render_options import RenderOptions
 from .report import ReportItem, StageTimings
 from .result import FrameResult
-from .sanity import FrameChecks, calibration_scaled_note
+from .sanity import FrameChecks
 from .scene import ModelSpec, Scene, SceneSpec, load_scene, scene_from_dict
 from .tracking.luma import LumaFrame
+from .tracking.pose import MarkerPose
 from .transforms import invert_rigid, rvec_tvec_from_matrix
 
 __all__ = ["Session", "FrameResult", "render_photo"]
@@ -85,8 +92,11 @@ class Session(History):
 
     Attributes
     ----------
-    compose_chooser : arshadow.gl.compose.PathChooser
-        Measures the numpy and shader compose paths when the plan says ``"measure"``.
+    spec, scene, options, geometry, ground
+        The scene as given and as loaded, its render options, its lights' cached geometry, its ground.
+    hooks : arshadow.engine.EngineHooks
+        What a frame engine reaches into (the video engine's calibrations, trackers, compose chooser,
+        exposure match over frames, render into its buffers).
 
     Raises
     ------
@@ -98,9 +108,9 @@ class Session(History):
         self,
         spec: SceneSpec | Scene | Mapping[str, Any] | str | os.PathLike[str],
         *,
-        lights: Sequence[Any] | None = None,
+        lights: Sequence[Light] | None = None,
         context: Any = None,
-        renderer: Any = None,
+        renderer: Renderer | Callable[[Any, RenderOptions], Renderer] | None = None,
     ) -> None:
         if isinstance(spec, Scene):
             self.spec, self.scene = None, spec
@@ -117,27 +127,18 @@ class Session(History):
         self.ground = parse_ground(self.options.ground)
         self._marker_from_ground = None if self.ground.is_marker else self.ground.marker_from_ground
         self._ctx, self._own_ctx = context, context is None
-        shared = renderer if isinstance(renderer, Renderer) else None
-        self._renderer, self._own_renderer = shared, shared is None
-        self._renderer_factory = None if shared is not None else renderer
+        self._renderer_factory: Callable[[Any, RenderOptions], Renderer] | None = None
+        self._renderer: Renderer | None
+        if isinstance(renderer, Renderer):  # shared: not released here
+            self._renderer, self._own_renderer = renderer, False
+        else:
+            self._renderer, self._own_renderer, self._renderer_factory = None, True, renderer
         self._gpu = None
         if self.scene.sun_tracks:  # a time-lapse of the spec (SceneSpec.time_lapse)
             self.use_sun_tracks(self.scene.sun_tracks, self.scene.static_lights or ())
-        self._calibs: dict = {}
-        self._lenses: dict = {}
         self._work = Workspace()
         self._checks = FrameChecks(self.scene.caster, self.scene.tracker.get("marker_length"))  # O(1) per frame
-        from .gl.compose import PathChooser  # deferred: no GL at import (moderngl loads on first render)
-
-        tk = self.scene.tracker
-        #: per-photo exposure / white balance match (arshadow.estimate.match); None when off, on a board or an
-        #: inverted marker (its white cells are ink)
-        self.exposure = (
-            ExposureMatch(tk["marker_length"], tk.get("dictionary"), tk.get("marker_id"), smooth=self.options.track_roi)
-            if self.options.exposure and tk.get("board") is None and tk.get("marker_length") and not tk.get("inverted")
-            else None
-        )
-        self.compose_chooser = PathChooser(force=None if self.options.compose == "auto" else self.options.compose)
+        self.hooks = EngineHooks(self, self._render_at)
 
     # -- resources ------------------------------------------------------------------------------------
     @property
@@ -221,45 +222,8 @@ class Session(History):
         self.geometry = SceneGeometry(caster, self.options, self.geometry.lights_in)
         self._checks = FrameChecks(caster, self.scene.tracker.get("marker_length"))
 
-    # -- per photo size -------------------------------------------------------------------------------
-    def calibration(self, width: int, height: int) -> CalibrationState:
-        """Intrinsics (scaled to the size), lens warp and trackers for a photo size
-        (:class:`arshadow.engine.CalibrationState`, built once per size).
-
-        Raises
-        ------
-        CalibrationError
-            A size whose aspect ratio differs from the calibration's.
-        """
-        key = (int(width), int(height))
-        c = self._calibs.get(key)
-        if c is None:
-            intr, scaled = self.intrinsics.for_image(width, height)
-            if scaled:  # once per size, on stderr (the report says it per photo)
-                log.warning(calibration_scaled_note(self.intrinsics, width, height))
-            tracker = self.scene.tracker
-            # video: each tracker searches a window around its last detection first (the planner's tracking
-            # ROI, full-frame fallback: arshadow/tracking/roi_track.py)
-            roi = bool(self.options.track_roi and self.options.plan != "general" and "board" not in tracker)
-            lens = self._lens_for(intr) if intr.has_distortion else None
-            c = self._calibs[key] = CalibrationState(
-                intr, scaled, lens, dict(tracker), roi, bool(self.options.fast_detect)
-            )
-        return c
-
-    def _lens_for(self, intr: Intrinsics) -> LensWarp:
-        """The cached :class:`LensWarp` of a calibration (one map per distinct calibration)."""
-        lens = self._lenses.get(intr)
-        if lens is None:
-            lens = self._lenses[intr] = LensWarp(intr)
-        return lens
-
-    def compose_key(self, width: int, height: int, distorted: bool) -> tuple[Any, ...]:
-        """The key under which the compose path is measured: (GL renderer, size, anti-aliasing, lens)."""
-        return (self.renderer.backend, int(width), int(height), int(self.options.aa), bool(distorted))
-
     # -- the three steps --------------------------------------------------------------------------------
-    def track(self, image: np.ndarray | LumaFrame, timings: StageTimings | None = None) -> Any:
+    def track(self, image: np.ndarray | LumaFrame, timings: StageTimings | None = None) -> MarkerPose:
         """Marker / board pose only (no rendering, no GL): the fast pass, the full search if it finds nothing.
 
         Parameters
@@ -279,22 +243,13 @@ class Session(History):
         """
         if not isinstance(image, LumaFrame):
             image = check_image(image, "image", grey_ok=True)
-        cal = self.calibration(image.shape[1], image.shape[0])
-        return estimate_pose(cal, image, timings if timings is not None else StageTimings())[0]
+        cal = self.hooks.calibration(image.shape[1], image.shape[0])
+        pose: MarkerPose = estimate_pose(cal, image, timings if timings is not None else StageTimings())[0]
+        return pose
 
-    def reset_tracking(self) -> None:
-        """Forget the frames tracked so far, at every size (a new video: its first frame is searched
-        whole, as it would be in a fresh session)."""
-        for cal in self._calibs.values():
-            cal.reset_trackers()
-
-    def tracker_state(self, width: int, height: int) -> list:
-        """What the next :meth:`track` of a ``width x height`` frame depends on from the frames before
-        (tracking window, misses in a row), JSON-able: two runs whose states are equal track the next
-        frame alike (a video's chunks compare it at their boundaries)."""
-        return self.calibration(width, height).tracker_state()
-
-    def plan(self, pose: Any, width: int, height: int, *, modes: Sequence[str] | None = None) -> FramePlan:
+    def plan(
+        self, pose: MarkerPose | np.ndarray, width: int, height: int, *, modes: Sequence[str] | None = None
+    ) -> FramePlan:
         """The :class:`arshadow.plan.FramePlan` for a pose and photo size, without rendering (no GL).
 
         Parameters
@@ -308,13 +263,13 @@ class Session(History):
 
         The compose path is decided when the plan is rendered (it depends on the output buffers).
         """
-        cal = self.calibration(width, height)
-        cfw = self.ground_camera(getattr(pose, "cam_from_world", pose))
+        cal = self.hooks.calibration(width, height)
+        cfw = self.ground_camera(pose)
         if self.options.plan == "general" or "reuse" in self.options.plan_off:
             self.geometry.forget()  # the reference rebuilds every light's geometry every frame
         return plan_frame(self.geometry, cal.intrinsics, cfw, int(width), int(height), lens=cal.lens, modes=modes)
 
-    def ground_camera(self, cam_from_marker: Any) -> np.ndarray:
+    def ground_camera(self, cam_from_marker: MarkerPose | np.ndarray) -> np.ndarray:
         """``cam_from_world`` (4, 4) float64 of the frame the scene lives in, the ground frame
         (:mod:`arshadow.geometry.ground`): ``cam_from_marker @ marker_from_ground``, the marker pose itself
         when the ground is the marker plane.
@@ -324,6 +279,8 @@ class Session(History):
         UsageError
             The camera sees the ground plane from below or edge-on.
         """
+        if isinstance(cam_from_marker, MarkerPose):
+            cam_from_marker = cam_from_marker.cam_from_world  # the tracker's world: the marker
         m = np.asarray(cam_from_marker, np.float64).reshape(4, 4)
         if self._marker_from_ground is None:
             return m
@@ -331,22 +288,17 @@ class Session(History):
         check_camera_above(cam_from_ground, self.ground.text)
         return cam_from_ground
 
-    # phase 2 of issue 27: out/mask_out/timings/marker/seen are the video engine's, to move behind its hooks
-    def render(  # noqa: PLR0913
+    def render(
         self,
         image: np.ndarray,
-        pose: Any = None,
+        pose: MarkerPose | np.ndarray | None = None,
         *,
         plan: FramePlan | None = None,
         name: str = "",
         want_mask: bool = True,
         out: np.ndarray | None = None,
         mask_out: np.ndarray | None = None,
-        timings: StageTimings | None = None,
-        modes: Sequence[str] | None = None,
         layers: bool | str = False,
-        marker: Any = None,
-        seen: bool = True,
     ) -> FrameResult:
         """Composite at a given pose, or carry out a plan of :meth:`plan`.
 
@@ -355,9 +307,9 @@ class Session(History):
         image : (H, W, 3) uint8
             BGR photo (not modified unless it is ``out``).
         pose : arshadow.tracking.pose.MarkerPose or (4, 4) float64
-            A tracked pose or ``cam_from_world`` (not with ``plan``).
+            A tracked pose or ``cam_from_marker`` (not with ``plan``).
         plan : arshadow.plan.FramePlan, optional
-            A plan of :meth:`plan` for this image's size.
+            A plan of :meth:`plan` for this image's size (e.g. with ``modes`` forced).
         name : str
             Used in the report item and messages.
         want_mask : bool
@@ -365,21 +317,9 @@ class Session(History):
         out, mask_out : arrays, optional
             Buffers for the composite ``(H, W, 3) uint8`` and the mask ``(H, W) uint8`` (reused across
             frames of one size by callers that consume each result at once; ``out`` may be ``image``).
-        timings : arshadow.report.StageTimings, optional
-            Stage times to add to (e.g. the ``detect``/``pose`` of :meth:`track`); ``total`` grows by this
-            call's time.
-        modes : list of str, optional
-            Force the volume mode per light (as :meth:`plan`).
         layers : bool or "undistorted"
             Also make the compositing layers (``FrameResult.layers``; the numpy compose path); with
             ``"undistorted"`` also their pinhole version (``FrameResult.layers.undistorted``).
-        marker : arshadow.tracking.pose.MarkerPose, optional
-            This frame's tracked marker when ``pose`` is not it (a video's smoothed pose, or a plan): the
-            exposure match reads the paper of its marker id.
-        seen : bool
-            False: the marker is not in this frame (a video frame rendered with a held pose). The exposure
-            match then measures nothing, because the paper is not where the pose says, and keeps the
-            video's last gain.
 
         Returns
         -------
@@ -389,25 +329,44 @@ class Session(History):
         ------
         ImageError, CalibrationError
             Unusable image, or a size the calibration cannot be scaled to.
+
+        A video engine's render (stage times to add to, the tracked marker of a smoothed pose, a frame
+        without the marker) is :meth:`arshadow.engine.EngineHooks.render`.
         """
+        outputs = FrameOutputs(want_mask, out, mask_out, StageTimings(), ReportItem(input=name))
+        return self._render_at(image, pose, plan, outputs, layers)
+
+    def _render_at(
+        self,
+        image: np.ndarray,
+        pose: MarkerPose | np.ndarray | None,
+        plan: FramePlan | None,
+        outputs: FrameOutputs | None,
+        layers: bool | str = False,
+        marker: MarkerPose | None = None,
+        seen: bool = True,
+    ) -> FrameResult:
+        """:meth:`render` (and :meth:`arshadow.engine.EngineHooks.render`): ``outputs`` holds the buffers, item
+        and timings (``total`` grows by this call's time); ``marker``, ``seen``: as the hook's."""
         if (pose is None) == (plan is None):
             raise UsageError("Session.render needs a pose or a plan (one of them)")
         t0 = time.perf_counter()
+        outputs = outputs if outputs is not None else FrameOutputs()
+        name = outputs.item.input
         image = check_image(image, name)
-        timings = timings if timings is not None else StageTimings()
-        item = ReportItem(input=name)
         if plan is None:
-            plan = self.plan(pose, image.shape[1], image.shape[0], modes=modes)
+            assert pose is not None  # one of them (checked above)
+            plan = self.plan(pose, image.shape[1], image.shape[0])
         elif tuple(plan.size) != (image.shape[1], image.shape[0]):
             raise UsageError(
                 f"{name or 'image'}: the plan is for {plan.size[0]}x{plan.size[1]}, the image is "
                 f"{image.shape[1]}x{image.shape[0]}"
             )
-        tracked = pose if hasattr(pose, "cam_from_world") else None
-        outputs = FrameOutputs(want_mask, out, mask_out, timings, item, _layer_request(layers))
+        tracked = pose if isinstance(pose, MarkerPose) else None
+        outputs.layers = _layer_request(layers)
         res = self._render(image, plan, tracked, outputs, marker, seen)
-        timings.total += (time.perf_counter() - t0) * 1e3
-        item.timings_ms = timings.as_dict(3)
+        outputs.timings.total += (time.perf_counter() - t0) * 1e3
+        outputs.item.timings_ms = outputs.timings.as_dict(3)
         return res
 
     def process(
@@ -442,7 +401,7 @@ class Session(History):
         t0 = time.perf_counter()
         timings = StageTimings()
         image = check_image(image, name)
-        cal = self.calibration(image.shape[1], image.shape[0])
+        cal = self.hooks.calibration(image.shape[1], image.shape[0])
         pose, detector = estimate_pose(cal, image, timings)
         item = ReportItem(input=name, detector=detector)
         plan = self.plan(pose, image.shape[1], image.shape[0])
@@ -460,21 +419,21 @@ class Session(History):
         self,
         image: np.ndarray,
         plan: FramePlan,
-        pose: Any,
+        pose: MarkerPose | None,
         outputs: FrameOutputs,
-        marker: Any = None,
+        marker: MarkerPose | None = None,
         seen: bool = True,
     ) -> FrameResult:
         """Execute ``plan`` on ``image`` into ``outputs`` and fill its item (all but ``timings_ms``); ``pose``:
         the tracked :class:`~arshadow.tracking.pose.MarkerPose` or None; ``marker``, ``seen``: as
         :meth:`render`."""
         H, W = image.shape[:2]
-        cal = self.calibration(W, H)
+        cal, hooks = self.hooks.calibration(W, H), self.hooks
         cfw = plan.cam_from_world
         self._report_frame(outputs.item, plan, pose, cal)
         gain = None  # the exposure match: the object's colour gain, measured on the marker's paper
-        if self.exposure is not None and not plan.empty:
-            gain, outputs.item.exposure = self.exposure.frame_gain(
+        if hooks.exposure is not None and not plan.empty:
+            gain, outputs.item.exposure = hooks.exposure.frame_gain(
                 image,
                 cal.intrinsics,
                 cfw,
@@ -485,7 +444,7 @@ class Session(History):
                 seen,
             )
         if not plan.empty:  # the renderer (and the context) is made only when there is something to draw
-            key = self.compose_key(W, H, cal.lens is not None)
+            key = hooks.compose_key(W, H, cal.lens is not None)
             if outputs.layers is not None and plan.compose != "cpu":  # the layers come from the numpy path
                 plan.decide("compose", "cpu", LAYERS_WHY)
             self._decide_compose(plan, self.renderer, key, outputs)
@@ -493,16 +452,16 @@ class Session(History):
             geometry=self.geometry,
             renderer=lambda: self.renderer,
             work=self._work,
-            calibration=self.calibration,
-            compose_key=self.compose_key,
-            chooser=self.compose_chooser,
+            calibration=hooks.calibration,
+            compose_key=hooks.compose_key,
+            chooser=hooks.compose_chooser,
             gpu=self._gpu_compositor,
         )
         out, mask = execute(plan, image, context, outputs, color_gain=gain, camera=self._camera_effects(image, pose))
         lay = None if outputs.layers is None else outputs.layers["layers"]
         return FrameResult(out, mask, pose, np.asarray(cfw, np.float64), outputs.item, outputs.timings, plan, lay)
 
-    def _camera_effects(self, image: np.ndarray, pose: Any) -> Any:
+    def _camera_effects(self, image: np.ndarray, pose: MarkerPose | None) -> Any:
         """The photo's blur and noise (``--camera-effects on``), measured on the first frame whose marker is
         detected and kept for the session (:func:`arshadow.compose.effects.measure_camera`); else None."""
         if self.options.camera_effects != "on":
@@ -516,7 +475,7 @@ class Session(History):
             cam = self._camera = measure_camera(image, np.asarray(corners.get(ref, next(iter(corners.values())))))
         return cam
 
-    def _report_frame(self, item: ReportItem, plan: FramePlan, pose: Any, cal: CalibrationState) -> None:
+    def _report_frame(self, item: ReportItem, plan: FramePlan, pose: MarkerPose | None, cal: CalibrationState) -> None:
         """The report item's pose, calibration, notes and ground; warnings on a far or inside camera."""
         cfw = plan.cam_from_world
         if cal.was_scaled:
@@ -534,18 +493,6 @@ class Session(History):
         for msg in self._checks.check(cfw):  # a far camera (wrong units), the camera inside: once per run
             log.warning(msg)
 
-    def exposure_region(self, cam_from_world: np.ndarray, width: int, height: int, pose: Any = None) -> tuple | None:
-        """``(x0, y0, w, h)``: the pixels the exposure match reads on a ``width x height`` frame at the
-        tracked pose ``cam_from_world`` (``cam_from_marker``, what :meth:`plan` takes), or None (the match is
-        off, or the marker is behind the camera). A caller converting only part of a frame (the video
-        engine: the plan's ROI) converts these too, or the paper is measured on pixels that are not the
-        frame's."""
-        if self.exposure is None:
-            return None
-        cal = self.calibration(width, height)
-        cfm = np.asarray(getattr(cam_from_world, "cam_from_world", cam_from_world), np.float64)
-        return self.exposure.region(cal.intrinsics, cfm, marker_id_of(pose))
-
     def _decide_compose(self, plan: FramePlan, renderer: Renderer, key: tuple[Any, ...], outputs: FrameOutputs) -> None:
         """Record the plan's compose decision (unless it has one these buffers allow)."""
         out, mask_out, want_mask = outputs.out, outputs.mask_out, outputs.want_mask
@@ -556,7 +503,7 @@ class Session(History):
         )
         if plan.compose == "cpu" or (plan.compose is not None and available):
             return
-        chooser = self.compose_chooser
+        chooser = self.hooks.compose_chooser
         decide_compose(
             plan,
             force=chooser.force,

@@ -199,9 +199,9 @@ def test_in_place_composite_while_the_chooser_times_both_paths(ctx, tol):
         scene = Scene(intr, caster, [parse_light(c["light"])], RenderOptions(compose="auto"), {"marker_length": 0.05})
         with Session(scene, context=ctx) as comp:
             # nothing decided yet: this first frame is timed (on llvmpipe too)
-            comp.compose_chooser = PathChooser(decisions={}, time_software=True)
+            comp.hooks.compose_chooser = PathChooser(decisions={}, time_software=True)
             out, mask, info = _rendered(comp.render(photo, pose, out=photo if where == "in_place" else None))
-            assert set(next(iter(comp.compose_chooser.decisions.values()))["ms"]) == {"cpu", "gpu"}
+            assert set(next(iter(comp.hooks.compose_chooser.decisions.values()))["ms"]) == {"cpu", "gpu"}
         assert (out is photo) == (where == "in_place")
         results[where] = (out.copy(), info.compose)
     (a, ca), (b, cb) = results["copy"], results["in_place"]

@@ -269,7 +269,8 @@ def test_zpass_equals_zfail_when_camera_outside(ctx, knot):
         photo = _plain_photo()
         out_a, mask_a, info = _render(comp, photo, pose)
         assert info.modes == ["zpass", "zpass"]
-        out_b, mask_b, info_b = _render(comp, photo, pose, modes=["zfail", "zfail"])
+        plan_b = comp.plan(pose, photo.shape[1], photo.shape[0], modes=["zfail", "zfail"])
+        out_b, mask_b, info_b = _render(comp, photo, None, plan=plan_b)
         assert info_b.mode == "zfail"
     assert np.array_equal(mask_a, mask_b)
     # the occluder's self-shadowing may differ on a handful of pixels: z-fail's near cap lies on the
@@ -468,7 +469,7 @@ def test_fast_detection_pass_and_its_fallbacks(ctx, monkeypatch, tol):
         def nothing(image, previous=None):
             raise MarkerNotFoundError("no marker")
 
-        monkeypatch.setattr(comp.calibration(1280, 720).trackers()[0], "estimate", nothing)
+        monkeypatch.setattr(comp.hooks.calibration(1280, 720).trackers()[0], "estimate", nothing)
         _, _, item = _process(comp, photos["far"])
     assert item.status == "ok" and item.detector.startswith("full")
     assert abs(

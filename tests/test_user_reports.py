@@ -516,7 +516,7 @@ def test_calibration_of_another_size_is_said_on_stderr(caplog):
     from arshadow.session import Session
 
     with Session(_scene()) as s, caplog.at_level(logging.WARNING):
-        s.calibration(640, 360)
+        s.hooks.calibration(640, 360)
     assert any(
         "the calibration is for 1280x720, the photo is 640x360" in r.getMessage() and "scaled by 0.5" in r.getMessage()
         for r in caplog.records

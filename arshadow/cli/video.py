@@ -239,17 +239,13 @@ def register(subparsers) -> None:
 
 
 # --------------------------------------------------------------------------------------------------
-# the CLI's video recipe: moves into the API's video entry point (issue 27 item 3)
-def run(args) -> int:  # noqa: C901
+def run(args) -> int:
+    """``arshadow video``: the scene from the options, :func:`arshadow.video.api.process_video`, the lines and
+    the report."""
     from ..errors import UsageError
     from ..io import check_output_file, check_output_folder, write_json
-    from ..report import jsonable, make_report
-    from ..sanity import time_lapse_warnings
     from ..scene import scene_from_args
-    from ..session import Session
-    from ..video.engine import SessionBackend
-    from ..video.parallel import BackendRecipe
-    from ..video.runner import run_videos
+    from ..video.api import process_video
     from . import quiet_opencv
     from .light import probe_estimate
     from .render import use_map
@@ -257,8 +253,8 @@ def run(args) -> int:  # noqa: C901
     debug = bool(getattr(args, "debug", False))
     quiet_opencv(debug)
     opts = engine_options(args, collect_items=bool(args.report))
-    # video: search the marker near the last detection first (not with --plan general); --time-lapse and
-    # --recompute-deg are scene keys (SceneSpec.time_lapse)
+    # --time-lapse and --recompute-deg are scene keys (SceneSpec.time_lapse); process_video tracks near the
+    # last detection first (track_roi), as set here for the probe's scene too
     est = probe_estimate(
         args,
         args.videos,
@@ -274,80 +270,54 @@ def run(args) -> int:  # noqa: C901
     outdir = check_output_folder(args.output, "-o")
     if args.report:
         check_output_file(args.report, "--report")
-    if opts.layers is not None:  # a layer file over an input: a usage error before any work
-        from ..export.layerfiles import refuse_overwrite
-        from ..io import unique_stems
-        from ..video.engine import video_outputs
-
-        refuse_overwrite(
-            [
-                p
-                for stem in unique_stems(args.videos)
-                for k, p in video_outputs(outdir, stem, opts).items()
-                if k.startswith("layers:")
-            ],
-            args.videos,
-        )
     if args.jobs < 1:
         raise UsageError(f"--jobs {args.jobs}: must be >= 1")
-    with Session(spec) as session:
-        # before any frame is processed: a sun that sets during a time-lapse (the tracks are reset per video)
-        sun_set = time_lapse_warnings(
-            args.videos, session.sun_tracks, session.time_lapse, getattr(args, "max_frames", None)
-        )
-        for msg in sun_set.values():
-            print(f"arshadow video: warning: {msg}", file=sys.stderr)
-        backend = SessionBackend(session, session.sun_tracks, session.time_lapse)
-        # workers rebuild the session from the spec (its time-lapse included)
-        recipe = BackendRecipe(spec) if args.jobs > 1 else None
+    run = process_video(
+        spec,
+        args.videos,
+        outdir,
+        options=opts,
+        jobs=args.jobs,
+        progress=progress_bar(args.quiet),
+        warn=lambda msg: print(f"arshadow video: warning: {msg}", file=sys.stderr),
+        raise_errors=debug,
+    )
+    _print_summaries(run, outdir, args.quiet)
+    if args.report:
+        rep = run.report()
+        if getattr(args, "map_info", None):  # --map: the map's file and residuals
+            rep["map"] = args.map_info
+        write_json(args.report, rep)
+    return EXIT_SOME_FAILED if run.failed else EXIT_OK
 
-        def on_error(exc):
-            if debug:
-                raise exc
 
-        summaries, items = run_videos(
-            backend,
-            args.videos,
-            outdir,
-            opts,
-            progress_factory=progress_bar(args.quiet),
-            on_error=on_error,
-            jobs=args.jobs,
-            recipe=recipe,
-        )
-    failed = 0
+def _print_summaries(run, outdir, quiet: bool) -> None:
+    """Each video's warnings, error or tracking line and output line; the closing line of several."""
+    failed, summaries = 0, run.summaries
     for s in summaries:
-        for w in s.get("warnings", []):
+        # the sun-set warning was printed before any frame (process_video's warn): its copy first in the
+        # summary's warnings is not repeated
+        for w in s.get("warnings", [])[1 if s.get("input") in run.warnings else 0 :]:
             print(f"arshadow video: warning: {w}", file=sys.stderr)
         if s["status"] == "error":
             print(f"arshadow video: error: {s['error']}", file=sys.stderr)
         if s["status"] != "ok":
             failed += 1
-        if s["status"] != "error" and not args.quiet:
+        if s["status"] != "error" and not quiet:
             print(tracking_summary(s), file=sys.stderr)
-        if s["status"] == "ok" and not args.quiet:
+        if s["status"] == "ok" and not quiet:
             print(
                 f"{s['input']} -> {s['output']}  ({s['frames']} frames: {s['frames_ok']} tracked, "
                 f"{s['frames_held']} held, {s['frames_no_marker']} without marker; "
                 f"{s['fps_processed']:.1f} fps)",
                 file=sys.stdout,
             )
-    if not args.quiet and len(summaries) > 1:
+    if not quiet and len(summaries) > 1:
         flagged = sum(1 for s in summaries if s["status"] == "ok" and s.get("frames_no_marker"))
         print(
             f"{len(summaries) - failed} of {len(summaries)} videos rendered into {outdir}: "
             f"{len(summaries) - failed} done, {failed} failed, {flagged} flagged (frames without the marker)"
         )
-    for s in summaries:  # the report says it too
-        if s.get("input") in sun_set:
-            s.setdefault("warnings", []).insert(0, sun_set[s["input"]])
-    if args.report:
-        rep = make_report(items)
-        rep["videos"] = jsonable(summaries)
-        if getattr(args, "map_info", None):  # --map: the map's file and residuals
-            rep["map"] = args.map_info
-        write_json(args.report, rep)
-    return EXIT_SOME_FAILED if failed else EXIT_OK
 
 
 def tracking_summary(s: dict) -> str:

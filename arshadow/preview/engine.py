@@ -25,8 +25,9 @@ import cv2
 import numpy as np
 
 from ..errors import ImageError, MarkerNotFoundError
+from ..execute import FrameOutputs
 from ..io import read_image, write_bytes
-from ..report import jsonable
+from ..report import ReportItem, jsonable
 from ..scene import SCENE_KEYS, scene_from_dict
 from ..transforms import invert_rigid
 from .draft import draft_pose, ground_motion, moved_lights
@@ -252,13 +253,15 @@ class PreviewEngine:
             self._draft_frame = None
         s = self._draft_session
         if self._draft_frame != index:  # the exposure the drafts keep: this frame's, at the real camera
-            s.observe_exposure(image, pose.cam_from_world, pose)
+            s.hooks.observe_exposure(image, pose.cam_from_world, pose)
             self._draft_frame = index
         lights = [parse_light(x) if isinstance(x, str) else x for x in spec.lights]
         s.set_lights(moved_lights(lights, invert_rigid(motion)))
         mfg = None if s.ground.is_marker else s.ground.marker_from_ground
         cfm = draft_pose(s.ground_camera(pose.cam_from_world), motion, mfg)
-        return s.render(image, cfm, name=self.media.name, want_mask=want_mask, marker=pose, seen=False)
+        item = ReportItem(input=self.media.name)
+        outputs = FrameOutputs(want_mask=want_mask, item=item)
+        return s.hooks.render(image, cfm, outputs=outputs, marker=pose, seen=False)
 
     def _run(self, job: tuple) -> dict:
         req, t_submit = job
@@ -278,7 +281,7 @@ class PreviewEngine:
                 "controls": controls_of(scene),
             }
         H, W = image.shape[:2]
-        cal = session.calibration(W, H)
+        cal = session.hooks.calibration(W, H)
         cfw = session.ground_camera(pose.cam_from_world)
         if req.drag_to is not None:
             g = ground_point(cal.intrinsics, cfw, req.drag_to)

@@ -24,6 +24,7 @@ import numpy as np
 
 from ..compose.composite import clip_roi
 from ..errors import MarkerNotFoundError
+from ..execute import FrameOutputs
 from ..report import ReportItem, StageTimings
 from ..sanity import FlagTally
 from ..tracking.luma import LumaFrame
@@ -74,6 +75,7 @@ class SessionBackend:
 
     def __init__(self, session, tracks=(), time_lapse=None):
         self.session, self.tracks, self.time_lapse = session, list(tracks), time_lapse
+        self.hooks = session.hooks  # arshadow.engine.EngineHooks: what the engine reaches into
         self.cal = None
         self.recomputes = 0
         self.want_layers = False  # set by process_video when the layers are written
@@ -81,12 +83,12 @@ class SessionBackend:
 
     def start(self, width: int, height: int) -> None:
         """A new video of this size (CalibrationError: the calibration does not fit it)."""
-        self.cal = self.session.calibration(width, height)
-        self.session.reset_tracking()  # a video's output never depends on the video before it
+        self.cal = self.hooks.calibration(width, height)
+        self.hooks.reset_tracking()  # a video's output never depends on the video before it
         for tr in self.tracks:
             tr.reset()
-        if getattr(self.session, "exposure", None) is not None:  # the exposure match's smoothing starts afresh
-            self.session.exposure.reset()
+        if self.hooks.exposure is not None:  # the exposure match's smoothing starts afresh
+            self.hooks.exposure.reset()
         self.recomputes = 0
 
     def track(self, gray, timings):
@@ -102,8 +104,8 @@ class SessionBackend:
             timings["pose"] += st.pose
 
     def tracker_state(self) -> list:
-        """:meth:`arshadow.session.Session.tracker_state` at this video's size."""
-        return self.session.tracker_state(self.cal.intrinsics.width, self.cal.intrinsics.height)
+        """:meth:`arshadow.engine.EngineHooks.tracker_state` at this video's size."""
+        return self.hooks.tracker_state(self.cal.intrinsics.width, self.cal.intrinsics.height)
 
     def replay_sun(self, times) -> None:
         """Advance the sun tracks' recompute schedule over the frame times ``times`` (seconds) without
@@ -133,45 +135,40 @@ class SessionBackend:
             for f in frames
         ]
 
-    def plan(self, cam_from_world, width: int, height: int):
-        """The frame's :class:`arshadow.plan.FramePlan` (its ``roi``: the only pixels the compositor reads
-        and changes)."""
-        return self.session.plan(cam_from_world, width, height)
+    def plan(self, cam_from_marker, width: int, height: int):
+        """The frame's :class:`arshadow.plan.FramePlan` at the marker pose ``cam_from_marker`` (its ``roi``:
+        the only pixels the compositor reads and changes)."""
+        return self.session.plan(cam_from_marker, width, height)
 
-    def exposure_region(self, cam_from_world, width: int, height: int, marker=None):
-        """The pixels the exposure match reads (:meth:`arshadow.session.Session.exposure_region`), or None;
+    def exposure_region(self, cam_from_marker, width: int, height: int, marker=None):
+        """The pixels the exposure match reads (:meth:`arshadow.engine.EngineHooks.exposure_region`), or None;
         ``marker``: the frame's tracked pose (its marker id)."""
-        return self.session.exposure_region(cam_from_world, width, height, marker)
+        return self.hooks.exposure_region(cam_from_marker, width, height, marker)
 
     @property
     def measures_exposure(self) -> bool:
-        """The session's exposure match is on (:attr:`arshadow.session.Session.exposure`)."""
-        return getattr(self.session, "exposure", None) is not None
+        """The session's exposure match is on (:attr:`arshadow.engine.EngineHooks.exposure`)."""
+        return self.hooks.exposure is not None
 
-    def observe_exposure(self, bgr, cam_from_world, marker) -> None:
-        """:meth:`arshadow.session.Session.observe_exposure` (a chunk's primer frame)."""
-        self.session.observe_exposure(bgr, cam_from_world, marker)
+    def observe_exposure(self, bgr, cam_from_marker, marker) -> None:
+        """:meth:`arshadow.engine.EngineHooks.observe_exposure` (a chunk's primer frame)."""
+        self.hooks.observe_exposure(bgr, cam_from_marker, marker)
 
     def exposure_gap(self) -> None:
-        """:meth:`arshadow.session.Session.exposure_gap` (a frame without the marker)."""
-        self.session.exposure_gap()
+        """:meth:`arshadow.engine.EngineHooks.exposure_gap` (a frame without the marker)."""
+        self.hooks.exposure_gap()
 
-    def render(self, bgr, cam_from_world, want_mask, timings, plan=None, marker=None):
-        """Composite into ``bgr`` (modified in place), at ``cam_from_world`` or carrying out ``plan``;
-        returns ``(mask or None, the frame's report item)``; ``timings`` gets the render stages. ``marker``:
-        the frame's tracked pose (the exposure match reads its paper), None when the marker is not in the
-        frame (a held pose: the exposure match keeps the last gain)."""
-        kw = {
-            "want_mask": want_mask,
-            "out": bgr,
-            "layers": self.want_layers,
-            "marker": marker,
-            "seen": marker is not None,
-        }
+    def render(self, bgr, cam_from_marker, want_mask, timings, plan=None, marker=None):
+        """Composite into ``bgr`` (modified in place), at the marker pose ``cam_from_marker`` or carrying out
+        ``plan``; returns ``(mask or None, the frame's report item)``; ``timings`` gets the render stages.
+        ``marker``: the frame's tracked pose (the exposure match reads its paper), None when the marker is
+        not in the frame (a held pose: the exposure match keeps the last gain)."""
+        outputs = FrameOutputs(want_mask=want_mask, out=bgr)
+        kw = {"outputs": outputs, "layers": self.want_layers, "marker": marker, "seen": marker is not None}
         if plan is not None:
-            res = self.session.render(bgr, plan=plan, **kw)
+            res = self.hooks.render(bgr, plan=plan, **kw)
         else:
-            res = self.session.render(bgr, cam_from_world, **kw)
+            res = self.hooks.render(bgr, cam_from_marker, **kw)
         self.last_layers = res.layers
         for k, v in res.timings.as_dict().items():
             if k != "total":
@@ -339,8 +336,8 @@ class FrameComposer:
             "pose_choice": item.pose_choice,
         }
 
-    def _render(self, cam_from_world, img, fmt, timings, marker=None):
-        """Composite at ``cam_from_world``; returns the frame in its own format, the mask and the report
+    def _render(self, cam_from_marker, img, fmt, timings, marker=None):
+        """Composite at the (decided) marker pose ``cam_from_marker``; returns the frame in its own format, the mask and the report
         item of :meth:`arshadow.session.Session.render`. ``marker``: the frame's tracked pose (None: held).
 
         A ``yuv420p`` frame is converted to BGR only inside the plan's ROI (even-aligned; into a buffer kept
@@ -350,11 +347,11 @@ class FrameComposer:
             tc = time.perf_counter()
             bgr = np.array(img)
             timings["convert"] += (time.perf_counter() - tc) * 1e3
-            mask, item = self.backend.render(bgr, cam_from_world, self.want_mask, timings, marker=marker)
+            mask, item = self.backend.render(bgr, cam_from_marker, self.want_mask, timings, marker=marker)
             if self.layer_sink is not None:
                 self.layer_sink.write(self.backend.last_layers)
             return bgr, mask, item
-        plan = self.backend.plan(cam_from_world, self.W, self.H)
+        plan = self.backend.plan(cam_from_marker, self.W, self.H)
         tc = time.perf_counter()
         if self._bgr is None:
             self._bgr = np.zeros((self.H, self.W, 3), np.uint8)
@@ -363,11 +360,11 @@ class FrameComposer:
         if (
             marker is not None
             and not plan.empty
-            and (paper := self.backend.exposure_region(cam_from_world, self.W, self.H, marker)) is not None
+            and (paper := self.backend.exposure_region(cam_from_marker, self.W, self.H, marker)) is not None
         ):
             i420_roi_to_bgr(img, bgr, paper)  # the exposure match reads the marker's paper, often outside the ROI
         timings["convert"] += (time.perf_counter() - tc) * 1e3
-        mask, item = self.backend.render(bgr, cam_from_world, self.want_mask, timings, plan=plan, marker=marker)
+        mask, item = self.backend.render(bgr, cam_from_marker, self.want_mask, timings, plan=plan, marker=marker)
         if self.layer_sink is not None:
             self.layer_sink.write(self.backend.last_layers)
         tc = time.perf_counter()
