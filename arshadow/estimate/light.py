@@ -156,7 +156,20 @@ def _correlation_factor(evs, light_h, darkness=None) -> float:
 
 
 def _laplace(evs, to_light, p, steps, darkness=None) -> np.ndarray:
-    """Covariance of the parameters ``p`` from the numerical Hessian of the summed RSS."""
+    """Covariance of the parameters ``p`` from the numerical Hessian of the summed RSS.
+
+    The RSS of a rasterised shadow is piecewise smooth at the finest steps: a Hessian that is not positive
+    definite there is measured again at 3x and 10x the steps (a curvature over a wider span) before the fit is
+    called unconstrained (an infinite covariance)."""
+    for scale in (1.0, 3.0, 10.0):
+        cov = _laplace_at(evs, to_light, p, np.asarray(steps, np.float64) * scale, darkness)
+        if np.all(np.isfinite(cov)):
+            return cov
+    return cov
+
+
+def _laplace_at(evs, to_light, p, steps, darkness=None) -> np.ndarray:
+    """:func:`_laplace` at one set of finite-difference steps."""
 
     def rss(q):
         h = to_light(np.asarray(q, np.float64))
