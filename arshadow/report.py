@@ -70,6 +70,7 @@ OPTIONAL_KEYS = (
     "sun",
     "pose_flagged",
     "flag_reasons",
+    "reference_id",
     "opencv_board_rvec",
     "opencv_board_tvec",
     "n_points",
@@ -99,7 +100,8 @@ class ReportItem:
 
     - tracking: ``calibration_scaled`` (``{"from": [w, h], "to": [w, h]}``; ``arshadow pose``: a bool),
       ``detector`` (set when the fast pass found nothing and the full search ran), ``pose_flagged`` and
-      ``flag_reasons`` (why, one text per reason),
+      ``flag_reasons`` (why, one text per reason), ``reference_id`` (single marker: the marker whose frame
+      the pose is in; a video's held frame: the last tracked one's),
       ``opencv_board_rvec``/``opencv_board_tvec`` (boards), ``n_points``, ``kind`` (``arshadow pose``);
     - the frame: ``modes`` (per light), ``roi``, ``canvas`` (``[x0, y0, w, h]``), ``znear``, ``plan`` (the
       planner's decisions with their reasons, docs/planner.md), ``content`` (canvas pixels with content),
@@ -136,6 +138,7 @@ class ReportItem:
     sun: list | None = None
     pose_flagged: bool | None = None
     flag_reasons: list[str] | None = None
+    reference_id: int | None = None
     opencv_board_rvec: list[float] | None = None
     opencv_board_tvec: list[float] | None = None
     n_points: int | None = None
@@ -164,6 +167,8 @@ class ReportItem:
         (``cam_from_opencv_board = cam_from_world @ diag(1, -1, -1, 1)``).
         """
         self.marker_ids = [int(i) for i in pose.marker_ids]
+        if getattr(pose, "kind", "marker") == "marker" and self.marker_ids:
+            self.reference_id = self.marker_ids[0]
         self.rvec = np.asarray(pose.rvec, float).ravel().tolist()
         self.tvec = np.asarray(pose.tvec, float).ravel().tolist()
         self.reprojection_error_px = float(pose.reprojection_error_px)

@@ -17,6 +17,8 @@ __all__ = [
     "border_occlusion",
     "corner_instability",
     "reprojection_limit_px",
+    "REPROJECTION_HOLD_FACTOR",
+    "reprojection_hold",
     "flag_reasons",
 ]
 
@@ -40,6 +42,11 @@ MAX_BORDER_OCCLUSION = 0.3
 #: a whole 18-marker board), a board file that does not match the photo gives tens of pixels (issue 20: 74)
 MAX_REPROJECTION_PX = 4.0
 MAX_REPROJECTION_SIDE_SHARE = 0.05
+#: a video frame whose pose reprojects worse than this many times :func:`reprojection_limit_px` is not
+#: rendered: the frame is held like a frame without the marker (issue 26: on the 2x upscaled chessboard
+#: clip, 7 frames at 43-148 px, the median 2.2 px, the frames between 4 and 8 px agreeing with their
+#: neighbours; the smoothing hid the broken ones within ~10 px of the path)
+REPROJECTION_HOLD_FACTOR = 3.0
 
 
 def border_occlusion(gray, quad, bits) -> float:
@@ -112,6 +119,26 @@ def reprojection_limit_px(corners) -> float:
     return max(MAX_REPROJECTION_PX, MAX_REPROJECTION_SIDE_SHARE * side)
 
 
+def reprojection_hold(pose) -> str | None:
+    """Why a video frame's pose must not be rendered (the frame is held instead), or None: its RMS
+    reprojection error is above :data:`REPROJECTION_HOLD_FACTOR` x :func:`reprojection_limit_px`.
+
+    >>> from types import SimpleNamespace
+    >>> quad = [[0, 0], [100, 0], [100, 100], [0, 100]]
+    >>> reprojection_hold(SimpleNamespace(corners=quad, reprojection_error_px=1.2)) is None
+    True
+    >>> reprojection_hold(SimpleNamespace(corners=quad, reprojection_error_px=40.0))
+    'reprojection error 40.0 px, above 3 x the 5.0 px the detected corners allow: pose not used'
+    """
+    lim = reprojection_limit_px(pose.corners)
+    if not pose.reprojection_error_px > REPROJECTION_HOLD_FACTOR * lim:
+        return None
+    return (
+        f"reprojection error {pose.reprojection_error_px:.1f} px, above {REPROJECTION_HOLD_FACTOR:g} x the "
+        f"{lim:.1f} px the detected corners allow: pose not used"
+    )
+
+
 def flag_reasons(pose) -> list[str]:
     """Why a pose (:class:`arshadow.tracking.pose.MarkerPose`) is flagged, one sentence per reason with
     its number (empty when it is not): the two planar solutions nearly equal, blurred corners, a covered
@@ -144,7 +171,7 @@ def flag_reasons(pose) -> list[str]:
     lim = reprojection_limit_px(pose.corners)
     if pose.reprojection_error_px > lim:
         out.append(
-            f"reprojection error {pose.reprojection_error_px:.1f} px, far above the {lim:.1f} px the "
+            f"reprojection error: {pose.reprojection_error_px:.1f} px, far above the {lim:.1f} px the "
             "detected corners allow (a board file or marker length that does not match the print?)"
         )
     return out
