@@ -71,6 +71,7 @@ OPTIONAL_KEYS = (
     "pose_flagged",
     "flag_reasons",
     "reference_id",
+    "pose_notes",
     "opencv_board_rvec",
     "opencv_board_tvec",
     "n_points",
@@ -101,7 +102,8 @@ class ReportItem:
     - tracking: ``calibration_scaled`` (``{"from": [w, h], "to": [w, h]}``; ``arshadow pose``: a bool),
       ``detector`` (set when the fast pass found nothing and the full search ran), ``pose_flagged`` and
       ``flag_reasons`` (why, one text per reason), ``reference_id`` (single marker: the marker whose frame
-      the pose is in; a video's held frame: the last tracked one's),
+      the pose is in; a video's held frame: the last tracked one's), ``pose_notes`` (reasons measured to
+      be wrong more often than right for the tracker's refinement: reported, not flagged; docs/tracking.md),
       ``opencv_board_rvec``/``opencv_board_tvec`` (boards), ``n_points``, ``kind`` (``arshadow pose``);
     - the frame: ``modes`` (per light), ``roi``, ``canvas`` (``[x0, y0, w, h]``), ``znear``, ``plan`` (the
       planner's decisions with their reasons, docs/planner.md), ``content`` (canvas pixels with content),
@@ -139,6 +141,7 @@ class ReportItem:
     pose_flagged: bool | None = None
     flag_reasons: list[str] | None = None
     reference_id: int | None = None
+    pose_notes: list[str] | None = None
     opencv_board_rvec: list[float] | None = None
     opencv_board_tvec: list[float] | None = None
     n_points: int | None = None
@@ -178,6 +181,7 @@ class ReportItem:
         self.flag_reasons = pose_flag_reasons(
             pose, self.pose_flagged
         )  # why it is flagged ([] when it is not; arshadow.sanity)
+        self.pose_notes = [str(r) for r in getattr(pose, "notes", None) or []] or None
         if getattr(pose, "kind", None) in ("gridboard", "charuco"):
             # deferred: the report module loads without OpenCV (arshadow pose / render only ever get here)
             from .tracking.board import OPENCV_BOARD_TO_WORLD

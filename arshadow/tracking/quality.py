@@ -18,8 +18,11 @@ __all__ = [
     "corner_instability",
     "reprojection_limit_px",
     "REPROJECTION_HOLD_FACTOR",
+    "REPORT_ONLY",
     "reprojection_hold",
+    "all_reasons",
     "flag_reasons",
+    "pose_notes",
 ]
 
 #: pose_ambiguity (err_best / err_second of the two IPPE solutions) at or above which a single-marker
@@ -47,6 +50,12 @@ MAX_REPROJECTION_SIDE_SHARE = 0.05
 #: clip, 7 frames at 43-148 px, the median 2.2 px, the frames between 4 and 8 px agreeing with their
 #: neighbours; the smoothing hid the broken ones within ~10 px of the path)
 REPROJECTION_HOLD_FACTOR = 3.0
+#: corner refinement -> the reasons (their kind, before the colon) that are report fields (``pose_notes``),
+#: not flags: measured by tests/benchmarks/bench_flags.py (docs/tracking.md, "Calibrated flags"), with the
+#: edge refinement (arshadow video's default) a pose with blurred corners or a marker under 32 px is more
+#: than 1 deg or 2 % off in only 34-47 % / 38-47 % of cases at every threshold tried (precision < 0.5), and
+#: the sample video's 60 frames (0.15 deg median from the truth) were all flagged for both
+REPORT_ONLY = {"edge": ("blurred corners", "small marker")}
 
 
 def border_occlusion(gray, quad, bits) -> float:
@@ -140,9 +149,23 @@ def reprojection_hold(pose) -> str | None:
 
 
 def flag_reasons(pose) -> list[str]:
-    """Why a pose (:class:`arshadow.tracking.pose.MarkerPose`) is flagged, one sentence per reason with
-    its number (empty when it is not): the two planar solutions nearly equal, blurred corners, a covered
-    border, a marker under :data:`MIN_CONFIDENT_SIDE_PX`, a reprojection error far above what the
+    """Why a pose (:class:`arshadow.tracking.pose.MarkerPose`) is flagged (:func:`all_reasons` but those
+    that :data:`REPORT_ONLY` makes report fields for the pose's ``refine``); empty when it is not."""
+    quiet = REPORT_ONLY.get(getattr(pose, "refine", None), ())
+    return [r for r in all_reasons(pose) if r.split(":", 1)[0] not in quiet]
+
+
+def pose_notes(pose) -> list[str]:
+    """The reasons of :func:`all_reasons` that are report fields, not flags, for the pose's ``refine``
+    (:data:`REPORT_ONLY`): said in the report and the per-frame records, not warned of."""
+    quiet = REPORT_ONLY.get(getattr(pose, "refine", None), ())
+    return [r for r in all_reasons(pose) if r.split(":", 1)[0] in quiet]
+
+
+def all_reasons(pose) -> list[str]:
+    """Every reason a pose (:class:`arshadow.tracking.pose.MarkerPose`) may be off, one sentence per
+    reason with its number (empty when none): the two planar solutions nearly equal, blurred corners, a
+    covered border, a marker under :data:`MIN_CONFIDENT_SIDE_PX`, a reprojection error far above what the
     detector's corners allow."""
     out = []
     ratio, thr = pose.pose_ambiguity, pose.ambiguity_threshold

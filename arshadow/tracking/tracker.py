@@ -275,6 +275,7 @@ class MarkerTracker:
         pose.timings_ms = {"detect": det_ms, "pose": total - det_ms}
         pose.intrinsics, pose.scaled = intr, scaled
         pose.ambiguity_threshold = self.ambiguity_threshold
+        pose.refine = self.refine
         if isinstance(gray, LumaFrame):
             gray = gray.near(pose.corners[:4])
         if pose.kind == "marker":

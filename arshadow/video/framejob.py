@@ -410,7 +410,7 @@ def frame_record(fr, item, sun) -> dict:
 
     ``reference_id``: the marker whose frame the pose is in (the tracked pose's, a held frame's last one;
     None for a board or without a pose); ``pose_flagged`` / ``flag_reasons``: the tracked pose's flags
-    (false / [] without one), issue 31."""
+    (false / [] without one), ``pose_notes`` its report-only reasons (issue 31)."""
     line = {
         "frame": fr.index,
         "time_s": round(fr.time_s, 6),
@@ -425,6 +425,7 @@ def frame_record(fr, item, sun) -> dict:
         "pose_choice": item.pose_choice,
         "pose_flagged": bool(item.pose_flagged),
         "flag_reasons": list(item.flag_reasons or []),
+        "pose_notes": list(item.pose_notes or []),
         "mode": item.mode,
         "timings_ms": item.timings_ms,
     }
