@@ -115,7 +115,7 @@ def measure(pose, truth: np.ndarray) -> dict:
         "rot_deg": rot,
         "trans_share": trans,
         "bad": bool(rot > BAD_ROT_DEG or trans > BAD_TRANS_SHARE),
-        "flag_reasons": [r.split(":", 1)[0] for r in pose.flag_reasons],
+        "flag_reasons": [r.split(":", 1)[0] for r in quality.all_reasons(pose)],  # flags and report fields
         "flagged": bool(pose.flagged),
     }
 
@@ -140,6 +140,64 @@ def orbit_rows() -> list[dict]:
             rows.append({"source": "orbit", "frame": k, **measure(pose, truths[k])})
     finally:
         reader.close()
+    return rows
+
+
+def _chordal_mean(rots) -> np.ndarray:
+    u, _, vt = np.linalg.svd(np.sum(rots, axis=0))
+    r = u @ vt
+    return r if np.linalg.det(r) > 0 else u @ np.diag([1, 1, -1]) @ vt
+
+
+def sheet_rows(folder: Path, refine: str, ref: int = 101) -> list[dict]:
+    """The shared six-marker clip (``aruco_single_paroj``): marker ``ref``'s pose in every frame against the
+    consensus of the other markers of the rigid sheet (truth without a generating pose).
+
+    The sheet's layout (each marker's pose in ``ref``'s frame) is the chordal mean / median over the
+    frames where both are found; a frame's consensus for ``ref`` is the medoid of the other markers'
+    predictions (at least 3 of them, so one flipped marker cannot carry it). The consensus is itself
+    noisy: its spread (median rotation distance of the predictions from the medoid) is reported per row.
+    """
+    from arshadow.video.avio import AvReader
+
+    intr = Intrinsics.from_file(folder / "intrinsics.yml")
+    ids = (101, 601, 701, 801, 901, 1001)
+    trackers = {
+        i: MarkerTracker(intr, dictionary="DICT_ARUCO_ORIGINAL", marker_length=0.05, marker_id=i, refine=refine)
+        for i in ids
+    }
+    frames = []
+    for fr in AvReader(str(folder / "video.avi")):
+        poses = {}
+        for i, t in trackers.items():
+            try:
+                poses[i] = t.estimate(fr.image)
+            except MarkerNotFoundError:
+                pass
+        frames.append(poses)
+    layout = {}
+    for k in ids:
+        if k == ref:
+            continue
+        rel = [np.linalg.inv(f[ref].cam_from_world) @ f[k].cam_from_world for f in frames if ref in f and k in f]
+        if len(rel) < 10:
+            continue
+        m = np.eye(4)
+        m[:3, :3] = _chordal_mean(np.array([r[:3, :3] for r in rel]))
+        m[:3, 3] = np.median([r[:3, 3] for r in rel], axis=0)
+        layout[k] = m
+    rows = []
+    for n, f in enumerate(frames):
+        if ref not in f:
+            continue
+        preds = [f[k].cam_from_world @ np.linalg.inv(layout[k]) for k in layout if k in f]
+        if len(preds) < 3:
+            continue
+        d = np.array([[rotation_error_deg(a, b) for b in preds] for a in preds])
+        med = int(np.argmin(d.sum(axis=1)))
+        row = {"source": "sheet", "refine": refine, "frame": n, **measure(f[ref], preds[med])}
+        row["consensus_spread_deg"] = float(np.median(np.delete(d[med], med)))
+        rows.append(row)
     return rows
 
 
@@ -173,6 +231,7 @@ def main(argv=None) -> int:
     ap.add_argument("--jsonl", help="write every photo's measurements here")
     ap.add_argument("--json", help="write the result JSON here")
     ap.add_argument("--refine", default="subpix,edge", help="corner refinements (render's default, video's)")
+    ap.add_argument("--realvideo", help="the shared real clips' folder: also measure the six-marker sheet")
     ap.add_argument("--no-orbit", action="store_true", help="skip the sample video")
     a = ap.parse_args(argv)
     intr = intrinsics()
@@ -189,8 +248,12 @@ def main(argv=None) -> int:
                 continue
             rows.append({"source": "sweep", "refine": m, "photo": i, **cond, **measure(pose, truth)})
     orbit = [] if a.no_orbit else orbit_rows()
+    sheet = []
+    if a.realvideo:
+        for m in trackers:
+            sheet += sheet_rows(Path(a.realvideo) / "aruco_single_paroj", m)
     if a.jsonl:
-        Path(a.jsonl).write_text("".join(json.dumps(x) + "\n" for x in rows + orbit))
+        Path(a.jsonl).write_text("".join(json.dumps(x) + "\n" for x in rows + orbit + sheet))
     res = {
         "meta": _common.metadata(),
         "photos": a.photos,
@@ -198,6 +261,17 @@ def main(argv=None) -> int:
         "with_pose": {m: sum(x["refine"] == m for x in rows) for m in trackers},
         "bad": {m: int(sum(x["bad"] for x in rows if x["refine"] == m)) for m in trackers},
         "sweep": {m: table([x for x in rows if x["refine"] == m]) for m in trackers},
+        "sheet": {
+            m: {
+                "frames": sum(x["refine"] == m for x in sheet),
+                "bad": int(sum(x["bad"] for x in sheet if x["refine"] == m)),
+                "consensus_spread_deg_median": float(np.median([x["consensus_spread_deg"] for x in sheet]))
+                if sheet
+                else None,
+                "table": table([x for x in sheet if x["refine"] == m]),
+            }
+            for m in (trackers if sheet else ())
+        },
         "orbit": {
             "frames": len(orbit),
             "bad": int(sum(x["bad"] for x in orbit)),
