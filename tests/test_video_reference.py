@@ -234,3 +234,27 @@ def test_upscaled_board_clip_broken_poses_held(tmp_path, capsys):
     recs = _records(out / "cb2x.frames.jsonl")
     assert max(r["reprojection_error_px"] for r in recs if r["status"] == "ok") < 20.0
     assert sum(r["status"] == "ok" for r in recs) >= 0.9 * len(recs)
+
+
+@pytest.mark.gl
+def test_reference_lock_chunked_equals_sequential(tmp_path, capsys):
+    """``--jobs 2`` cuts the clip where the reference is already chosen (and later lost for good): each
+    chunk's primer must hand over the same reference (the tracker state the chunks compare), so the records
+    equal the sequential run's and the switch is warned of once, at the same frame."""
+    n = 60
+    hidden = {0: (0, 1, 2, 3, 5), 4: (4,), 5: (4,), **{i: (4,) for i in range(10, n)}}
+    clip = _write_board_clip(tmp_path / "sheet.mp4", n, hidden)
+    runs = {}
+    for name, extra in (("seq", []), ("par", ["--jobs", "2"])):
+        out = tmp_path / name
+        code, err = _run(
+            capsys, "video", clip, "--calib", CALIB, "--marker-length", ML, *SCENE, "--hold", "3", "-o", out, *extra
+        )
+        assert code == 0 and "not cut into chunks" not in err, err
+        line = [ln for ln in err.splitlines() if "reference marker changed" in ln]
+        runs[name] = (_records(out / "sheet.frames.jsonl"), line)
+    (a, la), (b, lb) = runs["seq"], runs["par"]
+    keys = ("frame", "status", "reference_id", "raw", "rvec", "tvec", "pose_flagged", "flag_reasons", "pose_notes")
+    assert len(a) == len(b) == n
+    assert [[x.get(k) for k in keys] for x in a] == [[y.get(k) for k in keys] for y in b]
+    assert len(la) == len(lb) == 1 and la == lb and "4 -> " in la[0]
