@@ -29,6 +29,7 @@ from .report import StageTimings
 from .sanity import calibration_scaled_note
 from .scene import RenderOptions
 from .tracking.pose import MarkerPose
+from .tracking.reference import ReferenceLock
 from .tracking.tracker import MarkerTracker
 
 if TYPE_CHECKING:  # annotations only
@@ -82,10 +83,12 @@ class CalibrationState:
         """``(fast or None, full)`` :class:`~arshadow.tracking.tracker.MarkerTracker` (made on first use)."""
         if self._trackers is None:
             kw, roi = self.tracker_kwargs, self.track_roi
-            full = MarkerTracker(self.intrinsics, **kw, track_roi=roi)
+            # video: one reference marker for the whole video (issue 26), shared by both trackers
+            ref = ReferenceLock() if roi else None
+            full = MarkerTracker(self.intrinsics, **kw, track_roi=roi, reference=ref)
             fast = None
             if self.fast_detect and "detector_params" not in kw:
-                fast = MarkerTracker(self.intrinsics, **kw, detector="fast", track_roi=roi)
+                fast = MarkerTracker(self.intrinsics, **kw, detector="fast", track_roi=roi, reference=ref)
             self._trackers = (fast, full)
         return self._trackers
 
@@ -94,6 +97,8 @@ class CalibrationState:
         for t in self._trackers or ():
             if t is not None:
                 t.reset()
+                if t.reference is not None:
+                    t.reference.reset()
 
     def tracker_state(self) -> list:
         """:meth:`~arshadow.tracking.tracker.MarkerTracker.state` of the trackers made so far (fast, full)."""

@@ -75,6 +75,8 @@ OPTIONAL_KEYS = (
     "sun",
     "pose_flagged",
     "flag_reasons",
+    "reference_id",
+    "pose_notes",
     "opencv_board_rvec",
     "opencv_board_tvec",
     "n_points",
@@ -104,7 +106,9 @@ class ReportItem:
 
     - tracking: ``calibration_scaled`` (``{"from": [w, h], "to": [w, h]}``; ``arshadow pose``: a bool),
       ``detector`` (set when the fast pass found nothing and the full search ran), ``pose_flagged`` and
-      ``flag_reasons`` (why, one text per reason),
+      ``flag_reasons`` (why, one text per reason), ``reference_id`` (single marker: the marker whose frame
+      the pose is in; a video's held frame: the last tracked one's), ``pose_notes`` (reasons measured to
+      be wrong more often than right for the tracker's refinement: reported, not flagged; docs/tracking.md),
       ``opencv_board_rvec``/``opencv_board_tvec`` (boards), ``n_points``, ``kind`` (``arshadow pose``);
     - the frame: ``modes`` (per light), ``roi``, ``canvas`` (``[x0, y0, w, h]``), ``znear``, ``plan`` (the
       planner's decisions with their reasons, docs/planner.md), ``content`` (canvas pixels with content),
@@ -141,6 +145,8 @@ class ReportItem:
     sun: list | None = None
     pose_flagged: bool | None = None
     flag_reasons: list[str] | None = None
+    reference_id: int | None = None
+    pose_notes: list[str] | None = None
     opencv_board_rvec: list[float] | None = None
     opencv_board_tvec: list[float] | None = None
     n_points: int | None = None
@@ -169,6 +175,8 @@ class ReportItem:
         (``cam_from_opencv_board = cam_from_world @ diag(1, -1, -1, 1)``).
         """
         self.marker_ids = [int(i) for i in pose.marker_ids]
+        if getattr(pose, "kind", "marker") == "marker" and self.marker_ids:
+            self.reference_id = self.marker_ids[0]
         self.rvec = np.asarray(pose.rvec, float).ravel().tolist()
         self.tvec = np.asarray(pose.tvec, float).ravel().tolist()
         self.reprojection_error_px = float(pose.reprojection_error_px)
@@ -178,6 +186,7 @@ class ReportItem:
         self.flag_reasons = pose_flag_reasons(
             pose, self.pose_flagged
         )  # why it is flagged ([] when it is not; arshadow.sanity)
+        self.pose_notes = [str(r) for r in getattr(pose, "notes", None) or []] or None
         if getattr(pose, "kind", None) in ("gridboard", "charuco"):
             # deferred: the report module loads without OpenCV (arshadow pose / render only ever get here)
             from .tracking.board import OPENCV_BOARD_TO_WORLD

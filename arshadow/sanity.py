@@ -517,12 +517,11 @@ class FlagTally:
             kind = str(r).split(":", 1)[0]
             self.kinds[kind] = self.kinds.get(kind, 0) + 1
 
-    def summary(self, total: int, what: str = "photos") -> str | None:
-        """One line, or None when nothing was flagged."""
+    def summary(self, total: int, what: str = "photos", where=None) -> str | None:
+        """One line, or None when nothing was flagged; ``where``: the file whose records carry
+        ``flag_reasons`` (a video's ``.frames.jsonl``), else "the report's"."""
         if not self.keys:
             return None
         kinds = ", ".join(f"{k} ({n})" for k, n in sorted(self.kinds.items(), key=lambda kv: -kv[1]))
-        return (
-            f"{len(self.keys)} of {total} {what} have a flagged pose ({_ranges(self.keys)}): {kinds}; the "
-            "report's flag_reasons say why for each"
-        )
+        src = "the report's flag_reasons" if where is None else f"flag_reasons in {where}"
+        return f"{len(self.keys)} of {total} {what} have a flagged pose ({_ranges(self.keys)}): {kinds}; {src} say why for each"

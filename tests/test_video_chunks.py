@@ -191,7 +191,10 @@ def test_jobs2_equals_sequential(tmp_path, tol):
         "longest_gap",
         "longest_gap_start",
     ):
-        assert s1[k] == s2[k], k
+        seq = s1[k]
+        if k == "warnings":  # they name the run's own frames file (issue 31)
+            seq = [w.replace(str(tmp_path / "seq"), str(tmp_path / "par")) for w in seq]
+        assert seq == s2[k], k
     assert s2["audio"] is True
     assert not (tmp_path / "par" / ".arshadow-chunks").exists() or not any(
         (tmp_path / "par" / ".arshadow-chunks").iterdir()

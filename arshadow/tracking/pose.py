@@ -18,6 +18,7 @@ from .quality import (
     MAX_BORDER_OCCLUSION,
     MAX_CORNER_INSTABILITY,
     MIN_CONFIDENT_SIDE_PX,
+    pose_notes,
 )
 from .quality import flag_reasons as quality_flag_reasons  # MarkerPose.flag_reasons shadows the name
 
@@ -95,6 +96,9 @@ class MarkerPose:
     #: single marker: how light the lightest cell of its black border ring is, between its black (0) and
     #: white (1) (:func:`border_occlusion`); None for boards
     border_occlusion: float | None = None
+    #: the corner refinement the tracker used (``"subpix"``, ``"edge"``, ...): which reasons are flags and
+    #: which report fields (:data:`arshadow.tracking.quality.REPORT_ONLY`); None: every reason is a flag
+    refine: str | None = None
 
     @property
     def ambiguous(self) -> bool:
@@ -118,13 +122,21 @@ class MarkerPose:
     def flag_reasons(self) -> list[str]:
         """Why this pose is flagged, one sentence per reason with its number ([] when it is not):
         :func:`arshadow.tracking.quality.flag_reasons` (the ambiguity tests of :attr:`ambiguous`, and a
-        reprojection error far above what the detected corners allow)."""
+        reprojection error far above what the detected corners allow), less those that are report fields
+        for this pose's refinement (:attr:`notes`)."""
         return quality_flag_reasons(self)
 
     @property
+    def notes(self) -> list[str]:
+        """The reasons that are report fields, not flags, for this pose's refinement
+        (:func:`arshadow.tracking.quality.pose_notes`: measured to be wrong more often than right)."""
+        return pose_notes(self)
+
+    @property
     def flagged(self) -> bool:
-        """:attr:`ambiguous`, or a reprojection error far above what the detected corners allow."""
-        return self.ambiguous or bool(self.flag_reasons)
+        """A flag reason holds (:attr:`flag_reasons`): one of :attr:`ambiguous`'s tests that are flags for
+        this pose's refinement, or a reprojection error far above what the detected corners allow."""
+        return bool(self.flag_reasons)
 
     def swapped(self) -> MarkerPose:
         """This pose with the alternative IPPE solution chosen instead (for sequences)."""

@@ -17,7 +17,12 @@ __all__ = [
     "border_occlusion",
     "corner_instability",
     "reprojection_limit_px",
+    "REPROJECTION_HOLD_FACTOR",
+    "REPORT_ONLY",
+    "reprojection_hold",
+    "all_reasons",
     "flag_reasons",
+    "pose_notes",
 ]
 
 #: pose_ambiguity (err_best / err_second of the two IPPE solutions) at or above which a single-marker
@@ -40,6 +45,17 @@ MAX_BORDER_OCCLUSION = 0.3
 #: a whole 18-marker board), a board file that does not match the photo gives tens of pixels (issue 20: 74)
 MAX_REPROJECTION_PX = 4.0
 MAX_REPROJECTION_SIDE_SHARE = 0.05
+#: a video frame whose pose reprojects worse than this many times :func:`reprojection_limit_px` is not
+#: rendered: the frame is held like a frame without the marker (issue 26: on the 2x upscaled chessboard
+#: clip, 7 frames at 43-148 px, the median 2.2 px, the frames between 4 and 8 px agreeing with their
+#: neighbours; the smoothing hid the broken ones within ~10 px of the path)
+REPROJECTION_HOLD_FACTOR = 3.0
+#: corner refinement -> the reasons (their kind, before the colon) that are report fields (``pose_notes``),
+#: not flags: measured by tests/benchmarks/bench_flags.py (docs/tracking.md, "Calibrated flags"), with the
+#: edge refinement (arshadow video's default) a pose with blurred corners or a marker under 32 px is more
+#: than 1 deg or 2 % off in only 34-47 % / 38-47 % of cases at every threshold tried (precision < 0.5), and
+#: the sample video's 60 frames (0.15 deg median from the truth) were all flagged for both
+REPORT_ONLY = {"edge": ("blurred corners", "small marker")}
 
 
 def border_occlusion(gray, quad, bits) -> float:
@@ -112,10 +128,44 @@ def reprojection_limit_px(corners) -> float:
     return max(MAX_REPROJECTION_PX, MAX_REPROJECTION_SIDE_SHARE * side)
 
 
+def reprojection_hold(pose) -> str | None:
+    """Why a video frame's pose must not be rendered (the frame is held instead), or None: its RMS
+    reprojection error is above :data:`REPROJECTION_HOLD_FACTOR` x :func:`reprojection_limit_px`.
+
+    >>> from types import SimpleNamespace
+    >>> quad = [[0, 0], [100, 0], [100, 100], [0, 100]]
+    >>> reprojection_hold(SimpleNamespace(corners=quad, reprojection_error_px=1.2)) is None
+    True
+    >>> reprojection_hold(SimpleNamespace(corners=quad, reprojection_error_px=40.0))
+    'reprojection error 40.0 px, above 3 x the 5.0 px the detected corners allow: pose not used'
+    """
+    lim = reprojection_limit_px(pose.corners)
+    if not pose.reprojection_error_px > REPROJECTION_HOLD_FACTOR * lim:
+        return None
+    return (
+        f"reprojection error {pose.reprojection_error_px:.1f} px, above {REPROJECTION_HOLD_FACTOR:g} x the "
+        f"{lim:.1f} px the detected corners allow: pose not used"
+    )
+
+
 def flag_reasons(pose) -> list[str]:
-    """Why a pose (:class:`arshadow.tracking.pose.MarkerPose`) is flagged, one sentence per reason with
-    its number (empty when it is not): the two planar solutions nearly equal, blurred corners, a covered
-    border, a marker under :data:`MIN_CONFIDENT_SIDE_PX`, a reprojection error far above what the
+    """Why a pose (:class:`arshadow.tracking.pose.MarkerPose`) is flagged (:func:`all_reasons` but those
+    that :data:`REPORT_ONLY` makes report fields for the pose's ``refine``); empty when it is not."""
+    quiet = REPORT_ONLY.get(getattr(pose, "refine", None), ())
+    return [r for r in all_reasons(pose) if r.split(":", 1)[0] not in quiet]
+
+
+def pose_notes(pose) -> list[str]:
+    """The reasons of :func:`all_reasons` that are report fields, not flags, for the pose's ``refine``
+    (:data:`REPORT_ONLY`): said in the report and the per-frame records, not warned of."""
+    quiet = REPORT_ONLY.get(getattr(pose, "refine", None), ())
+    return [r for r in all_reasons(pose) if r.split(":", 1)[0] in quiet]
+
+
+def all_reasons(pose) -> list[str]:
+    """Every reason a pose (:class:`arshadow.tracking.pose.MarkerPose`) may be off, one sentence per
+    reason with its number (empty when none): the two planar solutions nearly equal, blurred corners, a
+    covered border, a marker under :data:`MIN_CONFIDENT_SIDE_PX`, a reprojection error far above what the
     detector's corners allow."""
     out = []
     ratio, thr = pose.pose_ambiguity, pose.ambiguity_threshold
@@ -144,7 +194,7 @@ def flag_reasons(pose) -> list[str]:
     lim = reprojection_limit_px(pose.corners)
     if pose.reprojection_error_px > lim:
         out.append(
-            f"reprojection error {pose.reprojection_error_px:.1f} px, far above the {lim:.1f} px the "
+            f"reprojection error: {pose.reprojection_error_px:.1f} px, far above the {lim:.1f} px the "
             "detected corners allow (a board file or marker length that does not match the print?)"
         )
     return out

@@ -80,6 +80,11 @@ class MarkerTracker:
     track_roi : bool
         Video: search a window around the last detection first, the whole frame when it holds no marker
         (:class:`arshadow.tracking.roi_track.TrackingDetector`; single markers and ChArUco, not grid boards).
+    reference : ReferenceLock, optional
+        Video, single marker without ``marker_id``: the reference marker is chosen once and kept
+        (:mod:`arshadow.tracking.reference`); shared by the trackers of one video (the fast pass gives it
+        ``"peek"`` use: a miss of its own is followed by the full search, which counts it). Not reset by
+        :meth:`reset` (the fast pass resets the full search's memory on every hit): reset it at a new video.
 
     Examples
     --------
@@ -105,6 +110,7 @@ class MarkerTracker:
         detector="full",
         track_roi=False,
         inverted=None,
+        reference=None,
     ):
         if not isinstance(intrinsics, Intrinsics):
             raise UsageError("intrinsics must be an arshadow.camera.Intrinsics")
@@ -142,9 +148,11 @@ class MarkerTracker:
                     f"(ids 0..{len(self.dictionary.bytesList) - 1})"
                 )
         self.marker_id = marker_id
+        self.reference = None if (marker_id is not None or board is not None) else reference
         self.refine = refine
         self.pnp_refine = bool(pnp_refine)
         fast = isinstance(detector, str) and detector == "fast"
+        self._counts_misses = not fast  # the full search has the last word on a frame (ReferenceLock)
         if isinstance(detector, str) and detector not in ("full", "fast"):
             raise UsageError(f"detector {detector!r}: choose 'full', 'fast' or a detector object")
         if fast and detector_params is None:
@@ -225,7 +233,8 @@ class MarkerTracker:
         >>> MarkerTracker(Intrinsics.from_file("calib/synth_1280x720.yml"), marker_length=0.05).state()
         {'rescue_misses': 0}
         """
-        return self._detector.state() if hasattr(self._detector, "state") else {}
+        st = self._detector.state() if hasattr(self._detector, "state") else {}
+        return st if self.reference is None else {**st, **self.reference.state()}
 
     def estimate(self, image_bgr, previous=None) -> MarkerPose:
         """Detect and estimate the pose in one image.
@@ -266,6 +275,7 @@ class MarkerTracker:
         pose.timings_ms = {"detect": det_ms, "pose": total - det_ms}
         pose.intrinsics, pose.scaled = intr, scaled
         pose.ambiguity_threshold = self.ambiguity_threshold
+        pose.refine = self.refine
         if isinstance(gray, LumaFrame):
             gray = gray.near(pose.corners[:4])
         if pose.kind == "marker":
@@ -317,6 +327,14 @@ class MarkerTracker:
             "'inverted: 1' in the board file)"
         )
 
+    def _want(self, marker_id) -> None:
+        """Tell the wrapped detectors (tracking window, second search) which marker the next frame wants."""
+        d = self._detector
+        while hasattr(d, "__dict__"):  # the wrappers (Python objects) around OpenCV's detector
+            if "marker_id" in vars(d):
+                d.marker_id = marker_id
+            d = vars(d).get("_base")
+
     def _make_pose(self, solved, obj, img, ids, all_corners, kind):
         sols, ratio = solved
         r, t, e = sols[0]
@@ -354,13 +372,18 @@ class MarkerTracker:
         if self.refine == "edge":
             det.corners = refine_corners_edges(gray, det.corners, intr)
         found = sorted(set(det.ids.tolist()))
+        by_id = det.by_id
         if self.marker_id is not None:
             if self.marker_id not in found:
                 raise MarkerNotFoundError(f"marker id {self.marker_id} not found (found {', '.join(map(str, found))})")
             ref = self.marker_id
+        elif self.reference is not None:
+            try:
+                ref = self.reference.choose(by_id, count=self._counts_misses)
+            finally:
+                self._want(self.reference.id)  # the tracking window and the second search look for it
         else:
             ref = found[0]
-        by_id = det.by_id
         img = by_id[ref]
         obj = marker_object_points(self.marker_length)
         sols = solve_planar(intr, obj, img, square=True, lm=self.pnp_refine)

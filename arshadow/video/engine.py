@@ -36,6 +36,7 @@ from ..export.layervideo import LayerSink, check_video_layer_format, video_layer
 from ..export.stmap import stmap
 from ..io import unique_stems
 from ..tracking.detect import retry_due
+from ..tracking.quality import reprojection_hold
 from .avio import VIDEO_CODECS
 from .decode import decode_into, open_reader
 from .encode import EncodeSink, SheetThumbs, write_contact_sheet
@@ -348,7 +349,9 @@ def track_into(
     as ``(frame, decode_ms, timings, pose or None, reason or None)``, then :data:`END`; a failed decode
     thread's error is raised here (and so reaches the main thread). On a miss of a ``yuv420p`` frame's luma,
     the colour frame's grey is tried (the photo path's; :func:`arshadow.tracking.detect.retry_due` says
-    when, issue 21). ``span``: a chunk's, whose :attr:`Span.states` get the tracker's state after the frames
+    when, issue 21). A pose that reprojects far worse than its corners allow
+    (:func:`arshadow.tracking.quality.reprojection_hold`) is passed on as a miss with that reason.
+    ``span``: a chunk's, whose :attr:`Span.states` get the tracker's state after the frames
     before its start and its stop."""
     misses = 0  # frames in a row without the marker
     snap = () if span is None else (span.start - 1, span.stop - 1)
@@ -364,6 +367,8 @@ def track_into(
             # the luma is not the colour frame's grey (chroma): on a miss, the photo path's (issue 21)
             pose, err = backend.track(gray_of(fr, height, colour=True), timings)
         misses = 0 if pose is not None else misses + 1
+        if pose is not None and (why := reprojection_hold(pose)) is not None:
+            pose, err = None, why  # a broken pose (issue 26): held like a miss, never rendered as ok
         if span is not None and fr.index in snap:
             span.states[fr.index] = {"tracker": backend.tracker_state(), "colour_misses": misses}
         if not put_or_stop(q_trk, (fr, dec_ms, timings, pose, None if err is None else str(err)), stop):
@@ -396,9 +401,11 @@ def _summary(name, outputs, reader, composer: FrameComposer, sink: EncodeSink, o
         )
     if dec_err:
         warnings.append(f"{name}: {dec_err} damaged packet(s) could not be decoded and were skipped")
-    flagged = composer.flags.summary(stats["frames"], "frames")
+    flagged = composer.flags.summary(stats["frames"], "frames", outputs["frames"])
     if flagged:
         warnings.append(f"{name}: {flagged}")
+    if (switched := composer.refs.summary()) is not None:
+        warnings.append(f"{name}: {switched}")
     status = "ok"
     if truncated or dec_err:
         status = "damaged"

@@ -28,6 +28,7 @@ from ..execute import FrameOutputs
 from ..report import ReportItem, StageTimings
 from ..sanity import FlagTally
 from ..tracking.luma import LumaFrame
+from ..tracking.reference import ReferenceTally
 from ..transforms import rvec_tvec_from_matrix
 
 __all__ = [
@@ -232,6 +233,7 @@ class FrameComposer:
         }
         self._gap = (0, None)  # (length, first frame) of the current run of frames not tracked
         self.flags = FlagTally()  # flagged poses: one warning line for the video
+        self.refs = ReferenceTally()  # the reference marker of each tracked frame: a change is warned of
         self.stage_ms: dict = {k: [] for k in FRAME_STAGES}
         self._bgr = None  # (H, W, 3) uint8: BGR of the current frame inside its ROI (yuv420p input)
         #: an :class:`arshadow.export.layervideo.LayerSink` getting every frame's layers, or None
@@ -260,6 +262,8 @@ class FrameComposer:
             img, mask, item = self._render(fp.cam_from_world, img, fmt, timings, fp.raw)  # the frame's one item
             item.input, item.status = self.name, fp.status
             self._pose_fields(item, fp)
+            if fp.raw is not None:
+                self.refs.add(fr.index, fp.reference_id)
             self.stats["frames_ok" if fp.raw is not None else "frames_held"] += 1
             self.stats["swapped"] += int(fp.swapped)
         item.output, item.mask = self.out_video, self.out_mask
@@ -319,6 +323,7 @@ class FrameComposer:
             }
         )
         item.rvec, item.tvec = r.tolist(), t.tolist()
+        item.reference_id = fp.reference_id
         item.pose_choice = "temporal (alternative IPPE solution)" if fp.swapped else "error"
 
     def decision(self, fp) -> dict:
@@ -398,11 +403,16 @@ def writable(a: np.ndarray) -> np.ndarray | None:
 
 
 def frame_record(fr, item, sun) -> dict:
-    """One frame's JSON Lines record (``timings_ms["encode"]`` is filled in by the encoder)."""
+    """One frame's JSON Lines record (``timings_ms["encode"]`` is filled in by the encoder).
+
+    ``reference_id``: the marker whose frame the pose is in (the tracked pose's, a held frame's last one;
+    None for a board or without a pose); ``pose_flagged`` / ``flag_reasons``: the tracked pose's flags
+    (false / [] without one), ``pose_notes`` its report-only reasons (issue 31)."""
     line = {
         "frame": fr.index,
         "time_s": round(fr.time_s, 6),
         "status": item.status,
+        "reference_id": getattr(item, "reference_id", None),
         "marker_ids": item.marker_ids,
         "rvec": item.rvec,
         "tvec": item.tvec,
@@ -410,6 +420,9 @@ def frame_record(fr, item, sun) -> dict:
         "reprojection_error_px": item.reprojection_error_px,
         "pose_ambiguity": item.pose_ambiguity,
         "pose_choice": item.pose_choice,
+        "pose_flagged": bool(item.pose_flagged),
+        "flag_reasons": list(item.flag_reasons or []),
+        "pose_notes": list(item.pose_notes or []),
         "mode": item.mode,
         "timings_ms": item.timings_ms,
     }

@@ -36,6 +36,7 @@ from ..errors import ImageError, UsageError
 from ..gl.context import contexts_made
 from ..sanity import FlagTally
 from ..session import Session
+from ..tracking.reference import ReferenceTally
 from .avio import AvReader, display_rotation
 from .chunks import (
     ChunkStore,
@@ -333,11 +334,14 @@ def _summary(prep: Prepared, chunks, records: dict, sheet, audio: bool, redone: 
     stats = {k: sum(records[c.k]["stats"][k] for c in chunks) for k in counts}
     stage_ms: dict = {k: [] for k in FRAME_STAGES}
     gap, longest = (0, None), (0, None)  # runs of frames not tracked, across the chunks' boundaries
+    refs = ReferenceTally()  # the reference marker of each tracked frame (a change is warned of)
     with open(prep.outputs["frames"], encoding="utf-8") as f:
         for line in f:
             d = json.loads(line)
             for k, v in d["timings_ms"].items():
                 stage_ms.setdefault(k, []).append(v)
+            if d["status"] == "ok":
+                refs.add(d["frame"], d.get("reference_id"))
             gap = (0, None) if d["status"] == "ok" else (gap[0] + 1, d["frame"] if gap[1] is None else gap[1])
             longest = gap if gap[0] > longest[0] else longest
     if "longest_gap" in records[chunks[0].k]["stats"]:
@@ -349,8 +353,10 @@ def _summary(prep: Prepared, chunks, records: dict, sheet, audio: bool, redone: 
         flags.keys += fl["keys"]
         for kind, n in fl["kinds"].items():
             flags.kinds[kind] = flags.kinds.get(kind, 0) + n
-    if (flagged := flags.summary(stats["frames"], "frames")) is not None:
+    if (flagged := flags.summary(stats["frames"], "frames", prep.outputs["frames"])) is not None:
         warnings.append(f"{prep.name}: {flagged}")
+    if (switched := refs.summary()) is not None:
+        warnings.append(f"{prep.name}: {switched}")
     status = "ok"
     if stats["frames_ok"] == 0:
         status = "no_marker"

@@ -56,6 +56,9 @@ class FramePose:
         The tracked pose on the chosen IPPE branch, unsmoothed (None when not tracked in this frame).
     swapped : bool
         The chooser took the alternative IPPE solution.
+    reference_id : int or None
+        The marker whose frame ``cam_from_world`` is in (a held frame: the last tracked frame's); None for
+        a board or without a pose.
     """
 
     payload: object
@@ -64,6 +67,7 @@ class FramePose:
     cam_from_world: np.ndarray | None
     raw: object = None
     swapped: bool = False
+    reference_id: int | None = None
 
 
 def _rmat(r):
@@ -201,7 +205,7 @@ class PoseStream:
         self.max_gap_s = float(max_gap_s)
         self._buf: deque = deque()  # (payload, time_s, raw pose or None, swapped) awaiting the look-ahead
         self._hist: deque = deque()  # (time_s, (4, 4)) of decided frames with a pose, within the window
-        self._last = None  # (time_s, frame count since, pose) of the last frame with a pose
+        self._last = None  # (time_s, pose, reference id) of the last frame with a pose
         self._since = 0
 
     # -- interface -------------------------------------------------------------------------------
@@ -239,7 +243,7 @@ class PoseStream:
         if pose is None:
             self._since += 1
             if self._last is not None and self._since <= self.hold_frames and t - self._last[0] <= self.max_gap_s:
-                return FramePose(payload, t, "held", self._last[1].copy(), None, False)
+                return FramePose(payload, t, "held", self._last[1].copy(), None, False, self._last[2])
             return FramePose(payload, t, "no_marker", None, None, False)
         raw = np.asarray(pose.cam_from_world, np.float64)
         if self.window == 0:
@@ -273,6 +277,8 @@ class PoseStream:
                 trust_i=not getattr(pose, "ambiguous", False),
             )
         self._hist.append((t, raw))
-        self._last = (t, sm)
+        ids = getattr(pose, "marker_ids", None)
+        ref = int(ids[0]) if ids and getattr(pose, "kind", "marker") == "marker" else None
+        self._last = (t, sm, ref)
         self._since = 0
-        return FramePose(payload, t, "ok", sm, pose, bool(swapped))
+        return FramePose(payload, t, "ok", sm, pose, bool(swapped), ref)
