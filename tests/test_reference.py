@@ -136,3 +136,19 @@ def test_realism_bench_rows(own, gl_ctx, monkeypatch):
         assert 0.0 < r["own_ground"] < 2.0 and 0.0 < r["own_object"] < 2.0
     direct = [run_case(c, "measured") for c in own[:3]]
     assert rows[0]["own_ground"] == pytest.approx(float(np.median([r["ground"] for r in direct])), abs=1e-9)
+
+
+def test_load_cases_names_a_missing_plate(tmp_path):
+    """A case whose plate JPEG is missing (half-committed) is refused by name when loaded, not kept as a None
+    plate that fails deep in the scoring (mypy's find: ``cv2.imread`` returns None)."""
+    import json
+    import shutil
+
+    from arshadow.errors import ImageError
+
+    cases = json.loads((DATA / "own" / "cases.json").read_text())
+    name = sorted(cases)[0]
+    (tmp_path / "cases.json").write_text(json.dumps({name: cases[name]}))
+    shutil.copy(DATA / "own" / f"{name}.npz", tmp_path / f"{name}.npz")  # the plate's .jpg left out
+    with pytest.raises(ImageError, match=f"{name}.jpg"):
+        load_cases(tmp_path)

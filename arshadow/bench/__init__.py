@@ -20,7 +20,9 @@ from __future__ import annotations
 import json
 import os
 import time
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any
 
 from ..errors import UsageError
 from ..gl.context import create_context
@@ -72,7 +74,7 @@ FULL = dict(
 
 def _csv_rows(results: dict) -> dict:
     """``{file stem: rows}`` of everything tabular in ``results``."""
-    out = {}
+    out: dict[str, list] = {}
     if "silhouettes" in results:
         s = results["silhouettes"]
         out.update(
@@ -93,7 +95,14 @@ def _csv_rows(results: dict) -> dict:
     return out
 
 
-def run(out_dir, *, quick: bool = False, sections=SECTIONS, log=print, plots: bool = True) -> dict:
+def run(
+    out_dir: Path,
+    *,
+    quick: bool = False,
+    sections: Sequence[str] = SECTIONS,
+    log: Callable[[str], None] = print,
+    plots: bool = True,
+) -> dict:
     """Run the benchmark and write its outputs into ``out_dir`` (created if needed).
 
     Parameters
@@ -126,8 +135,8 @@ def run(out_dir, *, quick: bool = False, sections=SECTIONS, log=print, plots: bo
     try:
         meta = metadata(ctx)
         meta["settings"] = "quick" if quick else "full"
-        results = {}
-        timings = {}
+        results: dict[str, Any] = {}
+        timings: dict[str, float] = {}
         for name in SECTIONS:
             if name not in sections:
                 continue

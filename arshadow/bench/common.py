@@ -12,8 +12,10 @@ import platform
 import subprocess
 import sys
 import time
+from collections.abc import Callable, Sequence
 from importlib.metadata import version
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -73,7 +75,7 @@ def _cpu_model() -> str:
     return platform.processor() or platform.machine()
 
 
-def metadata(ctx=None) -> dict:
+def metadata(ctx: Any = None) -> dict:
     """Commit, versions, machine (CPU model, count) and load at the start; ``GL_RENDERER`` / ``GL_VERSION``
     of ``ctx`` (a moderngl context) when given."""
 
@@ -110,7 +112,7 @@ def machine_label(meta: dict) -> str:
     )
 
 
-def summary(values, ndigits: int = 3) -> dict:
+def summary(values: Sequence[float], ndigits: int = 3) -> dict:
     """Median, interquartile range ``[q25, q75]``, min, max and count of repeated measurements."""
     a = np.asarray(values, dtype=np.float64)
     q1, med, q3 = np.percentile(a, [25, 50, 75])
@@ -123,7 +125,7 @@ def summary(values, ndigits: int = 3) -> dict:
     }
 
 
-def timed(fn, repeat: int, warmup: int = 1) -> list[float]:
+def timed(fn: Callable[[], object], repeat: int, warmup: int = 1) -> list[float]:
     """Wall times (ms) of ``repeat`` calls of ``fn()`` after ``warmup`` untimed calls."""
     for _ in range(warmup):
         fn()
@@ -135,7 +137,7 @@ def timed(fn, repeat: int, warmup: int = 1) -> list[float]:
     return out
 
 
-def write_csv(path, rows: list[dict]) -> Path:
+def write_csv(path: Path | str, rows: list[dict]) -> Path:
     """Write ``rows`` (dicts; the union of their keys as columns, in first-seen order) atomically."""
     cols: list[str] = []
     for r in rows:
@@ -148,7 +150,7 @@ def write_csv(path, rows: list[dict]) -> Path:
     return write_bytes(path, buf.getvalue().encode())
 
 
-def t_fields(prefix: str, times_ms) -> dict:
+def t_fields(prefix: str, times_ms: Sequence[float]) -> dict:
     """CSV columns ``<prefix>_ms`` (median), ``<prefix>_q25``, ``<prefix>_q75``, ``<prefix>_n`` of times."""
     s = summary(times_ms, 4)
     return {

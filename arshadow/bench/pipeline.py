@@ -16,11 +16,14 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
+from ..camera import Intrinsics
 from ..geometry.mesh import load_occluder
-from ..scene import scene_from_dict
+from ..scene import SceneSpec, scene_from_dict
 from ..session import Session
 from ..synth import look_at_pose, render_marker_photo
 from .common import ROOT, summary, t_fields
@@ -33,7 +36,7 @@ PAPER003_FPS = 74.35
 PAPER003_HARDWARE = "2.5 GHz Intel Core i5-3210 CPU + ATI Radeon HD 7670M GPU (paper 003)"
 
 
-def photo(width, height, seed=1):
+def photo(width: int, height: int, seed: int = 1) -> tuple[np.ndarray, Intrinsics]:
     """A synthetic photo of a 5 cm marker seen from ~0.5 m, with its camera."""
     cam = camera(width, height)
     T = look_at_pose([0.3, -0.32, 0.3], [0.0, 0.02, 0.02])
@@ -41,7 +44,7 @@ def photo(width, height, seed=1):
     return ph.image, cam
 
 
-def _lights(n) -> list[str]:
+def _lights(n: int) -> list[str]:
     """``n`` point lights 0.5 m up on a 0.3 m circle (spec strings)."""
     return [
         f"point:{0.3 * np.cos(a):.4f},{0.3 * np.sin(a):.4f},0.5"
@@ -49,7 +52,7 @@ def _lights(n) -> list[str]:
     ]
 
 
-def scene(cam, n_lights: int, cold: bool = False, **options):
+def scene(cam: Intrinsics, n_lights: int, cold: bool = False, **options: Any) -> SceneSpec:
     """The :class:`arshadow.scene.SceneSpec` of the section: the 8 536-face knot on a 5 cm marker, ``n_lights``
     point lights, ``options`` (scene keys: ``shadow_method``, ``silhouette``...). ``cold``: rebuild every
     light's silhouette and volume every frame (``RenderOptions.plan_off = ("reuse",)``: a moving light or
@@ -68,11 +71,12 @@ def scene(cam, n_lights: int, cold: bool = False, **options):
     return spec
 
 
-def run_frames(spec, ctx, image, runs: int, warmup: int) -> tuple[list[float], dict]:
+def run_frames(spec: Any, ctx: Any, image: np.ndarray, runs: int, warmup: int) -> tuple[list[float], dict]:
     """``runs`` timed :meth:`arshadow.Session.process` calls after ``warmup``, on a session of ``spec``
     sharing ``ctx``: wall times (ms) and ``{stage: [ms, ...]}`` (``FrameResult.timings_ms``)."""
     out = np.empty_like(image)
-    walls, stages = [], {}
+    walls: list[float] = []
+    stages: dict[str, list[float]] = {}
     with Session(spec, context=ctx) as s:
         for i in range(warmup + runs):
             t = time.perf_counter()
@@ -85,7 +89,7 @@ def run_frames(spec, ctx, image, runs: int, warmup: int) -> tuple[list[float], d
     return walls, stages
 
 
-def stages(cfg, ctx, log) -> list[dict]:
+def stages(cfg: dict, ctx: Any, log: Callable[[str], None]) -> list[dict]:
     rows = []
     for w, h in cfg["resolutions"]:
         image, cam = photo(w, h)
@@ -105,7 +109,7 @@ def stages(cfg, ctx, log) -> list[dict]:
     return rows
 
 
-def lights_sweep(cfg, ctx, log) -> list[dict]:
+def lights_sweep(cfg: dict, ctx: Any, log: Callable[[str], None]) -> list[dict]:
     rows = []
     image, cam = photo(1280, 720)
     for n in cfg["light_counts"]:
@@ -124,7 +128,7 @@ def lights_sweep(cfg, ctx, log) -> list[dict]:
     return rows
 
 
-def paper003_scene(cfg, ctx, log) -> list[dict]:
+def paper003_scene(cfg: dict, ctx: Any, log: Callable[[str], None]) -> list[dict]:
     rows = []
     faces = load_occluder(ROOT / "samples" / "meshes" / "knot.ply").n_faces
     image, cam = photo(1280, 720)
@@ -156,7 +160,7 @@ def paper003_scene(cfg, ctx, log) -> list[dict]:
     return rows
 
 
-def run(cfg, ctx, log) -> dict:
+def run(cfg: dict, ctx: Any, log: Callable[[str], None]) -> dict:
     return {
         "stages": stages(cfg, ctx, log),
         "lights": lights_sweep(cfg, ctx, log),

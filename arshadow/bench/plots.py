@@ -5,7 +5,9 @@ Every plot carries the machine line (CPU, GL_RENDERER, versions, commit) at its 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -24,7 +26,7 @@ def available() -> bool:
     return True
 
 
-def _fig(title, label, size=(9.5, 6.0)):
+def _fig(title: str, label: str, size: tuple[float, float] = (9.5, 6.0)) -> tuple[Any, Any]:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -37,7 +39,7 @@ def _fig(title, label, size=(9.5, 6.0)):
     return fig, ax
 
 
-def _save(fig, path) -> Path:
+def _save(fig: Any, path: Path | str) -> Path:
     fig.tight_layout(rect=(0, 0.04, 1, 1))
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png")
@@ -70,7 +72,7 @@ def _short(config: str) -> str:
     )
 
 
-def render_pareto(rows, out_dir, label) -> list[Path]:
+def render_pareto(rows: list[dict], out_dir: Path, label: str) -> list[Path]:
     """Per scene: render time against (left) 1 + pixels differing from the exact shadow, with the Pareto
     front, and (right) the edge coverage error that anti-aliasing reduces."""
     paths = []
@@ -128,7 +130,7 @@ def render_pareto(rows, out_dir, label) -> list[Path]:
     return paths
 
 
-def silhouette_time_vs_faces(rows, out_dir, label) -> Path:
+def silhouette_time_vs_faces(rows: list[dict], out_dir: Path, label: str) -> Path:
     fig, ax = _fig("Silhouette detection time per light vs mesh size", label)
     for m in dict.fromkeys(r["method"] for r in rows):
         pts = sorted((r for r in rows if r["method"] == m), key=lambda r: r["faces"])
@@ -158,7 +160,7 @@ def silhouette_time_vs_faces(rows, out_dir, label) -> Path:
     return _save(fig, Path(out_dir) / "silhouette_time_vs_faces.png")
 
 
-def reference_ops(rows, out_dir, label) -> Path:
+def reference_ops(rows: list[dict], out_dir: Path, label: str) -> Path:
     """Counted operations of the reference detectors against the papers' formulas, vs faces."""
     fig, ax = _fig("Reference detectors: counted operations vs the papers' formulas", label)
     colors = {"TA": "tab:blue", "VnV": "tab:orange", "Delta+": "tab:red"}
@@ -200,7 +202,7 @@ def reference_ops(rows, out_dir, label) -> Path:
     return _save(fig, Path(out_dir) / "silhouette_reference_ops.png")
 
 
-def pipeline_time_vs_resolution(rows, out_dir, label) -> Path:
+def pipeline_time_vs_resolution(rows: list[dict], out_dir: Path, label: str) -> Path:
     fig, ax = _fig("Pipeline time per photo vs resolution (8 536-face knot, 1 light)", label)
     stages = ("detect", "pose", "silhouette", "volume", "render", "readback", "warp", "composite")
     res = list(dict.fromkeys(r["resolution"] for r in rows))
@@ -245,7 +247,7 @@ def pipeline_time_vs_resolution(rows, out_dir, label) -> Path:
     return _save(fig, Path(out_dir) / "pipeline_time_vs_resolution.png")
 
 
-def fps_vs_lights(rows, out_dir, label) -> Path:
+def fps_vs_lights(rows: list[dict], out_dir: Path, label: str) -> Path:
     fig, ax = _fig("Frames per second vs number of lights (1280x720, 8 536 faces; cf. paper 002 Fig. 8)", label)
     for m, col in (("volume", "tab:blue"), ("shadowmap", "tab:red")):
         pts = sorted((r for r in rows if r["shadow_method"] == m), key=lambda r: r["lights"])
@@ -273,7 +275,7 @@ def fps_vs_lights(rows, out_dir, label) -> Path:
     return _save(fig, Path(out_dir) / "fps_vs_lights.png")
 
 
-def tracking(rows, out_dir, label) -> Path:
+def tracking(rows: list[dict], out_dir: Path, label: str) -> Path:
     """One panel per resolution: time against rotation error, one colour per configuration (legend)."""
     rows = [r for r in rows if r["rot_deg_median"] is not None]  # real footage: no true pose to plot against
     res = list(dict.fromkeys(r["resolution"] for r in rows))
@@ -329,7 +331,7 @@ def tracking(rows, out_dir, label) -> Path:
     return path
 
 
-def realism(rows, out_dir, label) -> Path:
+def realism(rows: list[dict], out_dir: Path, label: str) -> Path:
     """Residual against the path tracer (median over the own reference scenes) vs ms per 720p frame, one
     point per realism option and region (ground, contact band, object)."""
     fig, ax = _fig("Realism options: cost vs residual against a path tracer (own reference scenes)", label)
@@ -347,7 +349,7 @@ def realism(rows, out_dir, label) -> Path:
     return _save(fig, Path(out_dir) / "realism_cost_vs_residual.png")
 
 
-def all_plots(results: dict, out_dir, label, log) -> dict:
+def all_plots(results: dict, out_dir: Path, label: str, log: Callable[[str], None]) -> dict:
     """Every plot the results allow; ``{name: path}``."""
     out = {}
     if "silhouettes" in results:

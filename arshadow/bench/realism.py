@@ -11,12 +11,16 @@ A new realism option is one more entry in :data:`OPTIONS`; the table, the CSV, t
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .common import REPO, summary, timed
+
+if TYPE_CHECKING:
+    from ..camera import Intrinsics
 
 __all__ = ["OPTIONS", "REFERENCE_DIR", "run"]
 
@@ -40,7 +44,7 @@ OPTIONS: list[tuple[str, dict, str]] = [
 ]
 
 
-def _photo_720p(marker_length: float = 0.08):
+def _photo_720p(marker_length: float = 0.08) -> tuple[np.ndarray, Intrinsics]:
     """A synthetic 1280 x 720 photo of the marker (and a probe, lit), its camera: ``(image, intrinsics)``."""
     from ..camera import Intrinsics
     from ..synth import look_at_pose
@@ -54,7 +58,7 @@ def _photo_720p(marker_length: float = 0.08):
     return photo.image, K
 
 
-def _times(keys: dict, light: str, est, repeat: int, warmup: int) -> tuple[list, list, str]:
+def _times(keys: dict, light: str, est: Any, repeat: int, warmup: int) -> tuple[list, list, str]:
     """One session with the option on the 720p photo: (total ms per frame, render-stage ms, the plan's
     choices)."""
     from ..scene import scene_from_dict
@@ -71,7 +75,7 @@ def _times(keys: dict, light: str, est, repeat: int, warmup: int) -> tuple[list,
     last: list = []
     with Session(scene_from_dict(d)) as s:
 
-        def frame():
+        def frame() -> None:
             r = s.process(image, want_mask=False)
             render_ms.append(r.timings_ms.get("render", float("nan")))
             last[:] = [r]
@@ -82,7 +86,7 @@ def _times(keys: dict, light: str, est, repeat: int, warmup: int) -> tuple[list,
     return total, render_ms[-len(total) :], choices
 
 
-def _costs(est, cfg: dict) -> list[dict]:
+def _costs(est: Any, cfg: dict) -> list[dict]:
     """Median / IQR ms of one 720p frame (total and render stage) and the plan's choices, per option.
 
     The options are timed in interleaved rounds (each round: every option, a few frames): on a shared machine
@@ -113,14 +117,14 @@ def _costs(est, cfg: dict) -> list[dict]:
     return out
 
 
-def _residuals(cases, estimates, keys: dict, light: str) -> dict:
+def _residuals(cases: list, estimates: Any, keys: dict, light: str) -> dict:
     from .reference import run_case
 
     rs = [run_case(c, light, keys, est=e) for c, e in zip(cases, estimates)]
     return {k: float(np.median([r[k] for r in rs])) for k in ("ground", "contact", "object")}
 
 
-def run(cfg: dict, ctx, log, folder: Path | None = None) -> list[dict]:
+def run(cfg: dict, ctx: Any, log: Callable[[str], None], folder: Path | None = None) -> list[dict]:
     """One row per :data:`OPTIONS` entry (``[]`` when the reference cases are not there, e.g. an installed
     wheel: they live in the checkout's tests/data/reference). Quick settings: three of the own scenes only."""
     from .reference import load_cases, measure_light

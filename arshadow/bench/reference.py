@@ -22,14 +22,18 @@ import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
 
 from ..compose.composite import linear_to_srgb
+from ..errors import ImageError
 from ..io import write_bytes
 from .reference_scene import PAPER_CODE, ReferenceScene, intrinsics_of, light_spec, pose_of
+
+if TYPE_CHECKING:
+    from ..estimate.result import LightEstimate
 from .reference_score import change_map, change_threshold, decode8, residuals, residuals_smoothed, smooth_regions
 
 __all__ = [
@@ -110,8 +114,8 @@ def run_arshadow(
     light: str = "measured",
     options: dict | None = None,
     pose: str = "tracked",
-    est=None,
-):
+    est: Any = None,
+) -> tuple[np.ndarray, Any]:
     """arshadow on the plate: ``(composite (H, W, 3) uint8 BGR, estimate or None)``.
 
     ``light``: ``"measured"`` (``arshadow light`` with the probe, then ``--light-from``) or ``"true"`` (the
@@ -150,7 +154,7 @@ def run_arshadow(
     return res.composite, est
 
 
-def measure_light(plate8: np.ndarray, sc: ReferenceScene):
+def measure_light(plate8: np.ndarray, sc: ReferenceScene) -> LightEstimate:
     """``arshadow light`` on the plate with the scene's probe (``--kind point`` for a point light):
     :class:`arshadow.estimate.LightEstimate`."""
     from ..estimate import estimate_light
@@ -174,7 +178,9 @@ def case_residuals(case: Case, composite8: np.ndarray) -> dict:
     return residuals_smoothed(smooth_regions(dc, case.masks), case.smoothed_truth, case.masks, thr)
 
 
-def run_case(case: Case, light: str = "measured", options: dict | None = None, pose: str = "tracked", est=None) -> dict:
+def run_case(
+    case: Case, light: str = "measured", options: dict | None = None, pose: str = "tracked", est: Any = None
+) -> dict:
     """arshadow on the case's plate (:func:`run_arshadow`), scored: the residuals plus ``light_error_deg``
     (directional) or ``light_error_pct`` (point, of the distance) of the estimate when measured."""
     comp, est = run_arshadow(case.plate8, case.scene, light, options, pose, est)
@@ -184,7 +190,7 @@ def run_case(case: Case, light: str = "measured", options: dict | None = None, p
     return out
 
 
-def light_error(sc: ReferenceScene, est) -> dict:
+def light_error(sc: ReferenceScene, est: Any) -> dict:
     """How far the estimate's light is from the scene's."""
     v = np.asarray(sc.light_vec, np.float64)
     if sc.light == "point":
@@ -207,7 +213,9 @@ def make_case(sc: ReferenceScene) -> tuple[Case, dict]:
     masks = scene_masks(sc)
     plate8 = to_plate8(r["plate"])
     ok, buf = cv2.imencode(".jpg", plate8, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
-    plate8 = cv2.imdecode(buf, cv2.IMREAD_COLOR)
+    decoded = cv2.imdecode(buf, cv2.IMREAD_COLOR)
+    assert decoded is not None  # decoding what imencode just wrote
+    plate8 = decoded
     truth, truth2, plate = (np.clip(r[k], 0.0, 1.0) for k in ("truth", "truth2", "plate"))
     thr = change_threshold(truth2 - truth, masks)
     thr_map = change_map(thr, decode8(plate8))
@@ -254,12 +262,12 @@ def save_case(folder: str | os.PathLike[str], case: Case) -> None:
     name = case.scene.name
     write_bytes(folder / f"{name}.jpg", case.plate_jpeg)
     tmp = folder / f".{name}.tmp.npz"
-    np.savez_compressed(
-        tmp,
-        smoothed_truth=np.rint(case.smoothed_truth / STORE_STEP).astype(np.int16),
+    arrays: dict[str, np.ndarray] = {
+        "smoothed_truth": np.rint(case.smoothed_truth / STORE_STEP).astype(np.int16),
         **{f"mask_{k}": np.packbits(v) for k, v in case.masks.items()},
-        shape=np.array(case.smoothed_truth.shape[:2]),
-    )
+        "shape": np.array(case.smoothed_truth.shape[:2]),
+    }
+    np.savez_compressed(tmp, **arrays)  # type: ignore[arg-type]  # numpy's stub reads ** as its bool options
     os.replace(tmp, folder / f"{name}.npz")
     index = folder / "cases.json"
     cases = json.loads(index.read_text()) if index.exists() else {}
@@ -283,6 +291,8 @@ def load_cases(folder: str | os.PathLike[str]) -> list[Case]:
             for k in ("ground", "object", "contact")
         }
         plate8 = cv2.imread(str(folder / f"{name}.jpg"), cv2.IMREAD_COLOR)
+        if plate8 is None:  # a case half-committed: name it here, not as a None plate deep in the scoring
+            raise ImageError(f"{folder / f'{name}.jpg'}: the plate of reference case {name!r} is missing or unreadable")
         out.append(
             Case(
                 ReferenceScene.from_json(info["scene"]),

@@ -30,7 +30,9 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -134,7 +136,8 @@ class ReferenceScene:
     @classmethod
     def from_json(cls, d: dict) -> ReferenceScene:
         """The inverse of :meth:`to_json` (lists become tuples)."""
-        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
+        kw: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in d.items()}
+        return cls(**kw)
 
 
 def intrinsics_of(sc: ReferenceScene) -> Intrinsics:
@@ -177,7 +180,8 @@ def paper_irradiance(sc: ReferenceScene) -> np.ndarray:
     else:
         d = np.linalg.norm(v)
         e = np.asarray(sc.direct) * max(v[2] / d, 0.0) / d**2
-    return e + np.asarray(sc.sky)
+    out: np.ndarray = e + np.asarray(sc.sky)
+    return out
 
 
 def set_exposure(sc: ReferenceScene, paper_linear: float = 0.75) -> ReferenceScene:
@@ -193,7 +197,7 @@ def set_exposure(sc: ReferenceScene, paper_linear: float = 0.75) -> ReferenceSce
 # ---------------------------------------------------------------------------------------------------
 # textures
 # ---------------------------------------------------------------------------------------------------
-def floor_texture(kind: str, seed: int, tint=(1.0, 1.0, 1.0)) -> np.ndarray:
+def floor_texture(kind: str, seed: int, tint: tuple[float, float, float] = (1.0, 1.0, 1.0)) -> np.ndarray:
     """(FLOOR_TEXELS, FLOOR_TEXELS, 3) float32 linear RGB reflectance of the floor, periodic.
 
     ``noise``: a warm grey-brown with structure at every scale (like :mod:`arshadow.synth`'s floor);
@@ -222,7 +226,8 @@ def floor_texture(kind: str, seed: int, tint=(1.0, 1.0, 1.0)) -> np.ndarray:
         raise UsageError(f"floor must be 'noise' or 'tiles', got {kind!r}")
     codes = np.clip(codes, 0, 255)
     lin = SRGB_TO_LINEAR[np.rint(codes).astype(np.uint8)].astype(np.float32)
-    return lin * np.asarray(tint, np.float32)
+    out: np.ndarray = lin * np.asarray(tint, np.float32)
+    return out
 
 
 def paper_texture(sc: ReferenceScene, texels_per_cell: int = 24) -> tuple[np.ndarray, float]:
@@ -243,7 +248,7 @@ def paper_texture(sc: ReferenceScene, texels_per_cell: int = 24) -> tuple[np.nda
 # ---------------------------------------------------------------------------------------------------
 # the Mitsuba scene
 # ---------------------------------------------------------------------------------------------------
-def _mitsuba():
+def _mitsuba() -> Any:  # the mitsuba module
     """Mitsuba 3 with :data:`VARIANT` set (the ``reference`` extra)."""
     try:
         import mitsuba as mi
@@ -253,7 +258,16 @@ def _mitsuba():
     return mi
 
 
-def _mesh(mi, name, verts, faces, uv=None, normals=None, bsdf=None, emitter=None):
+def _mesh(
+    mi: Any,
+    name: str,
+    verts: np.ndarray,
+    faces: np.ndarray,
+    uv: np.ndarray | None = None,
+    normals: np.ndarray | None = None,
+    bsdf: Any = None,
+    emitter: Any = None,
+) -> Any:
     """A Mitsuba mesh from (n, 3) vertices, (m, 3) faces, optional (n, 2) texture coordinates."""
     props = mi.Properties()
     if bsdf is not None:
@@ -279,13 +293,13 @@ def _mesh(mi, name, verts, faces, uv=None, normals=None, bsdf=None, emitter=None
     return m
 
 
-def _quad(x0, y0, x1, y1):
+def _quad(x0: float, y0: float, x1: float, y1: float) -> tuple[np.ndarray, np.ndarray]:
     """Vertices (4, 3) and faces (2, 3) of the rectangle [x0, x1] x [y0, y1] on z = 0, facing +z."""
     v = np.array([[x0, y0, 0], [x1, y0, 0], [x1, y1, 0], [x0, y1, 0]], np.float64)
     return v, np.array([[0, 1, 2], [0, 2, 3]])
 
 
-def _floor_parts(half_paper: float, extent: float = 3.0):
+def _floor_parts(half_paper: float, extent: float = 3.0) -> tuple[Any, Any]:
     """The floor around the paper: four quads leaving the paper's square [-h, h]^2 open."""
     h, e = half_paper, extent
     quads = [_quad(-e, -e, e, -h), _quad(-e, h, e, e), _quad(-e, -h, -h, h), _quad(h, -h, e, h)]
@@ -294,7 +308,9 @@ def _floor_parts(half_paper: float, extent: float = 3.0):
     return verts, faces
 
 
-def _object_mesh(spec: str, place, rotate):
+def _object_mesh(
+    spec: str, place: Sequence[float], rotate: Sequence[float]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """(verts (n, 3), faces (m, 3), normals (n, 3) or None): the placed primitive as arshadow loads it;
     smooth normals for the round ones (their facets stand for a smooth surface), flat for a box."""
     caster = load_occluder(spec, rotate=rotate, place=place)
@@ -309,7 +325,7 @@ def _object_mesh(spec: str, place, rotate):
     return verts, faces, np.asarray(tm.vertex_normals)
 
 
-def _cylinder_split(verts, faces):
+def _cylinder_split(verts: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A cylinder with its caps flat and its side smooth (the caps' faces get their own vertices)."""
     import trimesh
 
@@ -326,11 +342,11 @@ def _cylinder_split(verts, faces):
     return np.concatenate([sv, cv]), np.concatenate([sf, cf]), np.concatenate([sn, cn])
 
 
-def _diffuse(mi, rgb):
+def _diffuse(mi: Any, rgb: Sequence[float]) -> Any:
     return mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb", "value": [float(v) for v in rgb]}})
 
 
-def _textured(mi, tex):
+def _textured(mi: Any, tex: np.ndarray) -> Any:
     return mi.load_dict(
         {
             "type": "diffuse",
@@ -345,7 +361,7 @@ def _textured(mi, tex):
     )
 
 
-def build_scene(sc: ReferenceScene, *, with_object: bool, mode: str = "photo"):
+def build_scene(sc: ReferenceScene, *, with_object: bool, mode: str = "photo") -> Any:
     """The Mitsuba scene (loaded).
 
     ``mode``: ``"photo"`` the lit scene; ``"object"`` / ``"ground"`` a coverage scene where only the object
@@ -462,7 +478,7 @@ def _lights(sc: ReferenceScene) -> dict:
     return out
 
 
-def _render(scene, spp: int, seed: int) -> np.ndarray:
+def _render(scene: Any, spp: int, seed: int) -> np.ndarray:
     mi = _mitsuba()
     img = mi.render(scene, spp=spp, seed=seed)
     return np.asarray(img, np.float64)[:, :, :3]
@@ -487,7 +503,8 @@ def coverage(sc: ReferenceScene, what: str, spp: int = 16) -> np.ndarray:
     """(H, W) float64: the fraction of each pixel that sees ``what`` (``"object"`` or ``"ground"``: the
     floor and the paper), from a ray-cast of the geometry (with the object in the scene)."""
     img = _render(build_scene(sc, with_object=True, mode=what), spp, 0)
-    return img.mean(axis=2)
+    out: np.ndarray = img.mean(axis=2)
+    return out
 
 
 def contact_band(sc: ReferenceScene, ground: np.ndarray, dist_m: float = CONTACT_BAND_M) -> np.ndarray:

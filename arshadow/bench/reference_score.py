@@ -47,7 +47,8 @@ CHANGE_REL = 0.02
 
 def decode8(bgr8: np.ndarray) -> np.ndarray:
     """(H, W, 3) uint8 BGR sRGB codes -> (H, W, 3) float64 linear RGB."""
-    return SRGB_TO_LINEAR[bgr8][:, :, ::-1].astype(np.float64)
+    rgb: np.ndarray = SRGB_TO_LINEAR[bgr8][:, :, ::-1].astype(np.float64)
+    return rgb
 
 
 def smooth_within(d: np.ndarray, mask: np.ndarray, sigma: float = SMOOTH_SIGMA_PX) -> np.ndarray:
@@ -73,23 +74,29 @@ def change_threshold(noise_delta: np.ndarray, masks: dict) -> float:
     difference of two renders has sqrt(2) times one render's noise)."""
     s = np.abs(smooth_regions(noise_delta, masks)).sum(axis=2)[masks["ground"]]
     sigma = 1.4826 * float(np.median(s)) / np.sqrt(2.0)
-    return CHANGE_NOISE_K * max(sigma, 1e-6)
+    return float(CHANGE_NOISE_K * max(sigma, 1e-6))
 
 
 def change_map(noise_threshold: float, plate: np.ndarray) -> np.ndarray:
     """(H, W) float64: the per-pixel changed threshold, the larger of ``noise_threshold``
     (:func:`change_threshold`) and :data:`CHANGE_REL` times the plate's camera-linear RGB (H, W, 3) summed."""
-    return np.maximum(noise_threshold, CHANGE_REL * np.asarray(plate, np.float64).sum(axis=2))
+    out: np.ndarray = np.maximum(noise_threshold, CHANGE_REL * np.asarray(plate, np.float64).sum(axis=2))
+    return out
 
 
 def smooth_regions(d: np.ndarray, masks: dict) -> np.ndarray:
     """``d`` (H, W, 3) smoothed within the ground and within the object separately (0 elsewhere): the ``S`` of
     the residual (linear: S(a - b) = S(a) - S(b), so the truth's change can be stored smoothed)."""
-    return smooth_within(d, masks["ground"]) + smooth_within(d, masks["object"])
+    out: np.ndarray = smooth_within(d, masks["ground"]) + smooth_within(d, masks["object"])
+    return out
 
 
 def residuals(
-    delta_comp: np.ndarray, delta_truth: np.ndarray, masks: dict, threshold: float, comp_changes: bool = True
+    delta_comp: np.ndarray,
+    delta_truth: np.ndarray,
+    masks: dict,
+    threshold: float | np.ndarray,
+    comp_changes: bool = True,
 ) -> dict:
     """The residuals of an insert, per region (:func:`residuals_smoothed` of the smoothed changes).
 
@@ -113,7 +120,7 @@ def residuals(
 
 
 def residuals_smoothed(
-    sc: np.ndarray, st: np.ndarray, masks: dict, threshold: float, comp_changes: bool = True
+    sc: np.ndarray, st: np.ndarray, masks: dict, threshold: float | np.ndarray, comp_changes: bool = True
 ) -> dict:
     """The residuals from the smoothed changes ``sc`` = S(composite - plate) and ``st`` = S(truth - plate),
     (H, W, 3) float64; other parameters as :func:`residuals`.

@@ -8,12 +8,19 @@ floors and cameras and is kept for judging: tune nothing on it. Each entry is a 
 
 from __future__ import annotations
 
+from typing import Any
+
 from .reference_scene import ReferenceScene
 
 __all__ = ["HELDOUT", "OWN", "SETS"]
 
 #: a point light and the ambient that goes with it (a dim uniform environment)
-_POINT = {"light": "point", "light_vec": (-0.22, -0.14, 0.34), "direct": (0.42, 0.4, 0.36), "sky": (0.45, 0.45, 0.5)}
+_POINT: dict[str, Any] = {
+    "light": "point",
+    "light_vec": (-0.22, -0.14, 0.34),
+    "direct": (0.42, 0.4, 0.36),
+    "sky": (0.45, 0.45, 0.5),
+}
 
 
 def own() -> list[ReferenceScene]:

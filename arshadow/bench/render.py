@@ -20,12 +20,16 @@ supersampling, render resolution scale (render smaller, upscale bilinearly), and
 
 from __future__ import annotations
 
+import functools
 import time
+from collections.abc import Callable
+from typing import Any
 
 import cv2
 import numpy as np
 
 from ..camera import Intrinsics
+from ..geometry.caster import ShadowCaster
 from ..geometry.exact import ShadowOracle, boundary_error_px, ground_shadow_triangles, iou
 from ..geometry.mesh import load_occluder
 from ..geometry.silhouette import silhouette
@@ -39,6 +43,9 @@ from ..synth import look_at_pose
 from ..transforms import CV_TO_GL
 from .common import ROOT, summary
 
+#: (name, caster, camera, cam_from_world (4, 4), light_h (4,), families measured or None = all)
+Scene = tuple[str, ShadowCaster, Intrinsics, np.ndarray, np.ndarray, tuple[str, ...] | None]
+
 W, H = 1280, 720
 ZNEAR = 0.01
 
@@ -51,14 +58,14 @@ NO_BIAS = "shadow map, bias off"
 THIN_CARD = "box:0.06,0.001,0.08"
 
 
-def sun_direction(elevation_deg, azimuth_deg) -> np.ndarray:
+def sun_direction(elevation_deg: float, azimuth_deg: float) -> np.ndarray:
     """``(4,) float64`` homogeneous direction towards a light at that elevation above the ground and azimuth
     (degrees from +x towards +y)."""
     el, az = np.radians(elevation_deg), np.radians(azimuth_deg)
     return np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el), 0.0])
 
 
-def scenes(quick: bool):
+def scenes(quick: bool) -> list[Scene]:
     """``[(name, caster, Intrinsics, cam_from_world, light_h, families)]`` (``families``: the configuration
     families measured, None = all).
 
@@ -72,7 +79,7 @@ def scenes(quick: bool):
     caster = load_occluder(ROOT / "samples" / "meshes" / "knot.ply")
     K = Intrinsics(fx=1000.0, fy=1000.0, cx=641.3, cy=357.8, width=W, height=H, dist=np.zeros(0))
     T = look_at_pose([0.3, -0.32, 0.3], [0.0, 0.02, 0.02])
-    out = [("knot, point light", caster, K, T, np.array([-0.15, 0.2, 0.5, 1.0]), None)]
+    out: list[Scene] = [("knot, point light", caster, K, T, np.array([-0.15, 0.2, 0.5, 1.0]), None)]
     if not quick:
         T2 = look_at_pose([0.25, -0.45, 0.35], [-0.05, 0.05, 0.0])
         out.append(("knot, low sun (25 deg)", caster, K, T2, sun_direction(25.0, 120.0), None))
@@ -102,7 +109,7 @@ def scenes(quick: bool):
     return out
 
 
-def map_texel_m(caster, light_h, map_size: int) -> float:
+def map_texel_m(caster: ShadowCaster, light_h: np.ndarray, map_size: int) -> float:
     """Side (metres) of one shadow-map texel at the caster's centre: the map spans the caster's bounding
     sphere (:func:`arshadow.gl.shadowmap.light_view_projection`: 2 r for a directional light, the tangent cone's
     width at the centre for a point light)."""
@@ -112,10 +119,12 @@ def map_texel_m(caster, light_h, map_size: int) -> float:
     if h[3] == 0:
         return 2.0 * r / map_size
     d = float(np.linalg.norm(c - h[:3] / h[3]))
-    return 2.0 * d * np.tan(np.arcsin(min(r / d, 1.0))) / map_size
+    return 2.0 * d * float(np.tan(np.arcsin(min(r / d, 1.0)))) / map_size
 
 
-def roi_of(caster, K, T, L, margin=2, width=W, height=H):
+def roi_of(
+    caster: ShadowCaster, K: Intrinsics, T: np.ndarray, L: np.ndarray, margin: int = 2, width: int = W, height: int = H
+) -> tuple[int, int, int, int]:
     """Pixel box ``(u0, v0, w, h)`` of the occluder and its exact ground shadow, clipped to the image."""
     V = np.asarray(caster.vertices)
     S = ground_shadow_triangles(V, caster.faces, L).reshape(-1, 2)
@@ -131,7 +140,7 @@ def roi_of(caster, K, T, L, margin=2, width=W, height=H):
 class Reference:
     """The exact shadow of one scene on its ROI: pixel-centre mask, boundary band and area coverage."""
 
-    def __init__(self, caster, K, T, L, roi):
+    def __init__(self, caster: ShadowCaster, K: Intrinsics, T: np.ndarray, L: np.ndarray, roi: Any):
 
         self.roi = roi
         self.oracle = ShadowOracle(K.K, T, caster.vertices, caster.faces, [(L, 1.0)])
@@ -151,7 +160,7 @@ class Reference:
         er = cv2.erode(m8, np.ones((3, 3), np.uint8), borderType=cv2.BORDER_REPLICATE)
         self.perimeter = int(np.count_nonzero(m8 != er))
 
-    def errors(self, mask) -> dict:
+    def errors(self, mask: np.ndarray) -> dict:
         b = mask >= 0.5
         xor = int(np.count_nonzero(b != self.mask))
         be = boundary_error_px(b, self.mask)
@@ -166,11 +175,11 @@ class Reference:
         }
 
 
-def _configs(ctx, quick: bool):
+def _configs(ctx: Any, quick: bool) -> list[tuple[str, str, Callable[[], Any], dict]]:
     """``[(family, label, factory, pass options)]``; factory() -> renderer; pass options: mode, truncate,
     scale (render resolution scale)."""
     st = lambda **kw: lambda: ShadowRenderer(ctx, max_width=W, max_height=H, **kw)  # noqa: E731
-    out = [
+    out: list[tuple[str, str, Callable[[], Any], dict]] = [
         ("stencil", "z-pass, truncated (default)", st(), dict(mode="zpass", truncate=True)),
         ("stencil", "z-pass, to infinity", st(), dict(mode="zpass", truncate=False)),
         ("stencil", "z-fail (caps), truncated", st(), dict(mode="zfail", truncate=True)),
@@ -199,11 +208,7 @@ def _configs(ctx, quick: bool):
                 (
                     "shadow map",
                     f"shadow map {size}, PCF {pcf}x{pcf}",
-                    (
-                        lambda size=size, pcf=pcf: ShadowMapRenderer(
-                            ctx, map_size=size, pcf=pcf, max_width=W, max_height=H
-                        )
-                    ),
+                    functools.partial(ShadowMapRenderer, ctx, map_size=size, pcf=pcf, max_width=W, max_height=H),
                     dict(mode="zpass", map_size=size),
                 )
             )
@@ -214,10 +219,15 @@ def _configs(ctx, quick: bool):
             (
                 NO_BIAS,
                 f"shadow map {size}, PCF 1x1, bias off",
-                (
-                    lambda size=size: ShadowMapRenderer(
-                        ctx, map_size=size, pcf=1, slope_bias=0.0, constant_bias=0.0, max_width=W, max_height=H
-                    )
+                functools.partial(
+                    ShadowMapRenderer,
+                    ctx,
+                    map_size=size,
+                    pcf=1,
+                    slope_bias=0.0,
+                    constant_bias=0.0,
+                    max_width=W,
+                    max_height=H,
                 ),
                 dict(mode="zpass", map_size=size),
             )
@@ -225,7 +235,7 @@ def _configs(ctx, quick: bool):
     return out
 
 
-def run(cfg: dict, ctx, log) -> list[dict]:
+def run(cfg: dict, ctx: Any, log: Callable[[str], None]) -> list[dict]:
 
     rows = []
     for name, caster, K, T, L, families in scenes(cfg["quick"]):
@@ -261,7 +271,7 @@ def run(cfg: dict, ctx, log) -> list[dict]:
                 canvas, P = roi, K.gl_projection(ZNEAR, None, canvas=roi)
             with factory() as r:
 
-                def once():
+                def once() -> np.ndarray:
                     res = r.render(
                         RenderRequest(
                             projection=P, view=view, width=canvas[2], height=canvas[3], caster=caster, passes=passes
@@ -271,7 +281,8 @@ def run(cfg: dict, ctx, log) -> list[dict]:
                     if s != 1.0:
                         # the scaled canvas covers [u0*s, (u0+w)*s) ~ the ROI: resample to the ROI's pixels
                         m = cv2.resize(m, (w, h), interpolation=cv2.INTER_LINEAR)
-                    return m
+                    out: np.ndarray = m
+                    return out
 
                 for _ in range(cfg["warmup"]):
                     once()
@@ -325,7 +336,7 @@ def equal_time(rows: list[dict]) -> list[dict]:
     return out
 
 
-def pareto(rows: list[dict], key="xor_px") -> list[dict]:
+def pareto(rows: list[dict], key: str = "xor_px") -> list[dict]:
     """The points no other point beats in both time and ``key`` (lower is better for both)."""
     pts = sorted(rows, key=lambda r: (r["time_ms"], r[key]))
     out, best = [], float("inf")
@@ -336,7 +347,7 @@ def pareto(rows: list[dict], key="xor_px") -> list[dict]:
     return out
 
 
-def soft(cfg: dict, ctx, log) -> list[dict]:
+def soft(cfg: dict, ctx: Any, log: Callable[[str], None]) -> list[dict]:
     """Soft shadows: a spherical light of radius 4 cm split into N hard samples (stencil volumes, one pass
     each) against a GL-independent reference: the exact hard shadows (:class:`arshadow.geometry.exact.ShadowOracle`)
     of 256 stratified samples of the same disc, averaged. ``coverage_mae`` here is the mean |mask -

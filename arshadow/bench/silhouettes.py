@@ -11,6 +11,7 @@ from __future__ import annotations
 import importlib.util
 import math
 import time
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -29,22 +30,23 @@ from .common import ROOT, summary, t_fields, timed
 KNOT_RES = {200: (10, 10), 1470: (49, 15), 10000: (100, 50), 100000: (500, 100), 1000000: (2500, 200)}
 
 
-def torus_knot(n_faces: int):
+def torus_knot(n_faces: int) -> ShadowCaster:
     """A closed, non-convex (2, 3) torus-knot tube with ``n_faces`` triangles (samples/make_meshes.py)."""
     spec = importlib.util.spec_from_file_location("make_meshes", ROOT / "samples" / "make_meshes.py")
+    assert spec is not None and spec.loader is not None  # a .py file path: always a spec with a loader
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     v, f, _ = mod.torus_knot(*KNOT_RES[n_faces])
     return ShadowCaster(v, f, name=f"knot{n_faces}")
 
 
-def meshes(sizes):
+def meshes(sizes: Sequence[int]) -> list[tuple[str, ShadowCaster]]:
     """``[(label, caster)]``: the cube (12 triangles, 18 edges) and torus knots of the given sizes."""
     out = [("cube", load_occluder("box:0.1,0.1,0.1"))]
     return out + [(f"knot {n}", torus_knot(n)) for n in sizes]
 
 
-def lights(caster, n, seed=7):
+def lights(caster: ShadowCaster, n: int, seed: int = 7) -> list[np.ndarray]:
     """``n`` lights around the caster: alternately point lights at 2-8 x its half-size and directions."""
     rng = np.random.default_rng(seed)
     c = caster.bounds.mean(axis=0)
@@ -58,11 +60,11 @@ def lights(caster, n, seed=7):
     return out
 
 
-def _edge_set(e):
+def _edge_set(e: np.ndarray) -> set[tuple]:
     return {tuple(x) for x in np.asarray(e).tolist()}
 
 
-def detectors(cfg: dict, log) -> list[dict]:
+def detectors(cfg: dict, log: Callable[[str], None]) -> list[dict]:
     """Time per light and error of every detector at every mesh size."""
     rows = []
     for label, c in meshes(cfg["sizes"]):
@@ -100,7 +102,7 @@ def detectors(cfg: dict, log) -> list[dict]:
     return rows
 
 
-def reference_ops(cfg: dict, log) -> list[dict]:
+def reference_ops(cfg: dict, log: Callable[[str], None]) -> list[dict]:
     """Reference versions on small meshes: counted operations, time, same edges as the fast detectors,
     next to the paper's formula at the same n (faces) and m (3 sides, triangles)."""
     rows = []
@@ -207,7 +209,7 @@ def hsd_vs_ta(cfg: dict) -> list[dict]:
     return rows
 
 
-def run(cfg: dict, log) -> dict:
+def run(cfg: dict, log: Callable[[str], None]) -> dict:
     return {
         "detectors": detectors(cfg, log),
         "reference": reference_ops(cfg, log),

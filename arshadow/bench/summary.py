@@ -4,12 +4,13 @@ numbers; the papers' claims labelled as such (nothing else is copied from them).
 from __future__ import annotations
 
 import math
+from typing import Any
 
 from .common import machine_label
 from .render import NO_BIAS, THIN_CARD, equal_time, pareto
 
 
-def _f(x, nd=2):
+def _f(x: Any, nd: int = 2) -> str:
     if x is None:
         return "-"
     if isinstance(x, bool):
@@ -24,14 +25,14 @@ def _f(x, nd=2):
     return f"{x:.{nd}f}"
 
 
-def _t(r, key="time"):
+def _t(r: dict, key: str = "time") -> str:
     return (
         f"{_f(r[f'{key}_ms'], 3 if r[f'{key}_ms'] < 1 else 1)} [{_f(r[f'{key}_q25'], 3 if r[f'{key}_q25'] < 1 else 1)}, "
         f"{_f(r[f'{key}_q75'], 3 if r[f'{key}_q75'] < 1 else 1)}]"
     )
 
 
-def _table(head, rows):
+def _table(head: list[str], rows: list) -> str:
     out = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     out += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
     return "\n".join(out)
@@ -40,11 +41,11 @@ def _table(head, rows):
 _METHOD = {"volume": "stencil volumes", "shadowmap": "shadow map 2048"}
 
 
-def _img(plots, key, alt):
+def _img(plots: dict, key: str, alt: str) -> str:
     return f"\n![{alt}]({plots[key]})\n" if key in plots else ""
 
 
-def silhouettes(res, plots) -> list[str]:
+def silhouettes(res: dict, plots: dict) -> list[str]:
     d, ref, paper, hsd = res["detectors"], res["reference"], res["paper"], res["hsd_vs_ta"]
     L = ["## 1. Silhouette detectors", ""]
     L.append(
@@ -169,7 +170,7 @@ def silhouettes(res, plots) -> list[str]:
     return L
 
 
-def render(rows, plots) -> list[str]:
+def render(rows: list[dict], plots: dict) -> list[str]:
     L = [
         "## 2. Render quality vs time",
         "",
@@ -260,7 +261,7 @@ def render(rows, plots) -> list[str]:
     return L
 
 
-def thin_card(rows) -> list[str]:
+def thin_card(rows: list[dict]) -> list[str]:
     """Does the thin card's shadow-map shadow vanish at >= 4096 texels (issue 11, quoting pyrender)? The
     answer from this run's rows: per thin-card scene, the share of the exact shadow kept and the IoU by map
     size, and the map's texel against the card's 1 mm thickness."""
@@ -327,7 +328,7 @@ def thin_card(rows) -> list[str]:
     return L
 
 
-def tracking(rows, plots) -> list[str]:
+def tracking(rows: list[dict], plots: dict) -> list[str]:
     L = [
         "## 3. Tracking vs time",
         "",
@@ -361,7 +362,7 @@ def tracking(rows, plots) -> list[str]:
     return L
 
 
-def pipeline(res, meta, plots) -> list[str]:
+def pipeline(res: dict, meta: dict, plots: dict) -> list[str]:
     L = [
         "## 4. Pipeline",
         "",
@@ -424,7 +425,7 @@ def pipeline(res, meta, plots) -> list[str]:
     return L
 
 
-def realism(rows, plots) -> list[str]:
+def realism(rows: list[dict], plots: dict) -> list[str]:
     """The realism table: each option's cost per 720p frame against its residual (docs/reference.md)."""
     if not rows:
         return []
@@ -542,7 +543,7 @@ def headline(results: dict) -> str:
     return _table(["what", "time (median [IQR])", "error / note"], rows)
 
 
-def markdown(results: dict, meta: dict, plots: dict, duration_s: float, plots_hint=None) -> str:
+def markdown(results: dict, meta: dict, plots: dict, duration_s: float, plots_hint: str | None = None) -> str:
     L = [
         "# arshadow benchmark: run time against error",
         "",

@@ -27,7 +27,9 @@ from __future__ import annotations
 import csv
 import os
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -46,13 +48,13 @@ from .common import ROOT
 DIST = np.array([-0.045, 0.021, 0.0004, -0.0003, -0.006])
 
 
-def camera(w, h):
+def camera(w: int, h: int) -> Intrinsics:
     """A camera with the horizontal field of view of calib/synth_1280x720.yml (f = 0.78 W)."""
     f = 1000.0 * w / 1280.0
     return Intrinsics(f, f, w / 2.0 + 1.3 * w / 1280, h / 2.0 - 1.8 * w / 1280, w, h, DIST)
 
 
-def make_photos(cam, n: int, seed: int):
+def make_photos(cam: Intrinsics, n: int, seed: int) -> list:
     """``n`` single-marker photos under the issue-2 conditions."""
     rng = np.random.default_rng(seed)
     photos = []
@@ -76,14 +78,21 @@ def make_photos(cam, n: int, seed: int):
     return photos
 
 
-def _errors(pose, truth, distance):
+def _errors(pose: Any, truth: np.ndarray, distance: float) -> tuple[float, float]:
     return (
         rotation_error_deg(pose.cam_from_world[:3, :3], truth[:3, :3]),
         float(np.linalg.norm(pose.cam_from_world[:3, 3] - truth[:3, 3]) / distance),
     )
 
 
-def session(cam, *, marker_length=None, marker_id=None, board=None, **options):
+def session(
+    cam: Intrinsics,
+    *,
+    marker_length: float | None = None,
+    marker_id: int | None = None,
+    board: Any = None,
+    **options: Any,
+) -> Session:
     """An :class:`arshadow.Session` that tracks ``cam``'s photos (scene keys ``options``: ``refine``,
     ``fast_detect``, ``track_roi``...; the model and light are placeholders: tracking draws nothing)."""
     d = {"calib": cam, "model": "box:0.02,0.02,0.02", "lights": ["point:0,0,1"], **options}
@@ -91,12 +100,12 @@ def session(cam, *, marker_length=None, marker_id=None, board=None, **options):
     return Session(scene_from_dict(d))
 
 
-def run_configs(photos, configs: dict, repeat: int) -> list[dict]:
+def run_configs(photos: list, configs: dict, repeat: int) -> list[dict]:
     """Every configuration on the same photos, timings interleaved round-robin. ``configs``: label ->
     ``make(photo) -> (tracker, image)``, the tracker an :class:`arshadow.Session` (``track``) or a
     :class:`arshadow.tracking.tracker.MarkerTracker` (``estimate``). One row per configuration: time median /
     IQR over photos, rotation error (deg) median / p95, translation error (% of distance) median, detections."""
-    acc = {c: dict(times=[], rot=[], trans=[], found=0) for c in configs}
+    acc: dict[str, dict[str, Any]] = {c: dict(times=[], rot=[], trans=[], found=0) for c in configs}
     for ph in photos:
         jobs, poses, opened = {}, {}, []
         for c, make in configs.items():
@@ -108,7 +117,7 @@ def run_configs(photos, configs: dict, repeat: int) -> list[dict]:
                 jobs[c] = (est, img)
             except MarkerNotFoundError:
                 pass
-        t = {c: [] for c in jobs}
+        t: dict[str, list[float]] = {c: [] for c in jobs}
         for _ in range(repeat):
             for c, (est, img) in jobs.items():
                 t0 = time.perf_counter()
@@ -145,13 +154,13 @@ def run_configs(photos, configs: dict, repeat: int) -> list[dict]:
     return rows
 
 
-def refinement_and_roi(cfg, log) -> list[dict]:
+def refinement_and_roi(cfg: dict, log: Callable[[str], None]) -> list[dict]:
     rows = []
     for w, h in cfg["track_resolutions"]:
         cam = camera(w, h)
         photos = make_photos(cam, cfg["poses"], seed=w)
 
-        def mk(**kw):
+        def mk(**kw: Any) -> Callable[[Any], tuple[Any, np.ndarray]]:
             return lambda ph: (
                 session(ph.intrinsics, marker_length=ph.marker_length, marker_id=ph.marker_id, **kw),
                 ph.image,
@@ -172,7 +181,7 @@ def refinement_and_roi(cfg, log) -> list[dict]:
     return rows
 
 
-def marker_vs_board(cfg, log) -> list[dict]:
+def marker_vs_board(cfg: dict, log: Callable[[str], None]) -> list[dict]:
     """A 5 cm single marker against the 5 x 7 grid board at the same camera poses (1280x720)."""
     board_file = ROOT / "calib" / "gridboard_5x7.yml"
     board = load_board(board_file)
@@ -215,7 +224,7 @@ def realvideo_dir() -> Path:
     return Path(os.environ.get("ARSHADOW_REALVIDEO", ROOT.parent / "shared" / "realvideo"))
 
 
-def track_clip(session, path, max_frames=None):
+def track_clip(session: Any, path: Path | str, max_frames: int | None = None) -> list[tuple[Any, float]]:
     """Per frame of a video: ``(pose or None, ms)``, tracked as the video engine tracks (the Y plane; on a
     miss the colour frame's grey; the session's ``track_roi`` window)."""
     from ..errors import MarkerNotFoundError
@@ -239,7 +248,7 @@ def track_clip(session, path, max_frames=None):
     return out
 
 
-def real_footage(cfg, log) -> list[dict]:
+def real_footage(cfg: dict, log: Callable[[str], None]) -> list[dict]:
     """One row per shared real clip and refinement (the video default edge, apriltag): target marker found in the frames
     where stock OpenCV finds it; time per frame; reprojection error (no true pose)."""
     from ..camera import Intrinsics
@@ -288,5 +297,5 @@ def real_footage(cfg, log) -> list[dict]:
     return rows
 
 
-def run(cfg, log) -> list[dict]:
+def run(cfg: dict, log: Callable[[str], None]) -> list[dict]:
     return refinement_and_roi(cfg, log) + marker_vs_board(cfg, log) + real_footage(cfg, log)

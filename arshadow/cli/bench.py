@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import argparse
+from typing import Any
 
-def register(subparsers) -> None:
+
+# subparsers: the argparse._SubParsersAction cli/__init__.py passes in (a private class, hence Any)
+def register(subparsers: Any) -> None:
     p = subparsers.add_parser(
         "bench",
         help="benchmark run time against error; writes CSV, PNG plots and a Markdown summary",
@@ -25,7 +29,7 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from ..bench import SECTIONS
     from ..bench import run as bench_run
 

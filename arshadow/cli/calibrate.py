@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from typing import Any
 
 DESCRIPTION = """\
 Calibrate a camera from photos of a printed pattern and write an OpenCV calibration file (camera_matrix,
@@ -19,7 +20,8 @@ usable views (nothing written).
 """
 
 
-def register(subparsers) -> None:
+# subparsers: the argparse._SubParsersAction cli/__init__.py passes in (a private class, hence Any)
+def register(subparsers: Any) -> None:
     p = subparsers.add_parser(
         "calibrate",
         help="calibrate a camera from chessboard / ChArUco photos",
@@ -47,7 +49,7 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     import cv2
 
     from ..errors import UsageError
@@ -79,7 +81,7 @@ def run(args) -> int:
         views.append(v)
         if not args.json:
             print(
-                f"{f}: " + (f"{len(v.object_points)} corners" if v.ok else f"rejected: {v.reason}"),
+                f"{f}: " + (f"{len(v.object_points or ())} corners" if v.ok else f"rejected: {v.reason}"),
                 file=sys.stdout if v.ok else sys.stderr,
             )
     res = calibrate(views, flags=flags, min_views=min_views, max_view_error=args.max_view_error, pattern=pattern)

@@ -5,12 +5,14 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import Any
 
 from ..render_options import DEFAULT_AA
 from . import EXIT_OK, EXIT_SOME_FAILED, quiet_opencv
 
 
-def register(subparsers) -> None:
+# subparsers: the argparse._SubParsersAction cli/__init__.py passes in (a private class, hence Any)
+def register(subparsers: Any) -> None:
     p = subparsers.add_parser(
         "demo",
         help="render the bundled sample photos and write a contact sheet",
@@ -34,13 +36,13 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from ..demo import find_samples, run_demo  # deferred: the API loads when the command runs
 
     debug = bool(getattr(args, "debug", False))
     quiet_opencv(debug)
 
-    def done(job, item, res, err):
+    def done(job: Any, item: Any, res: Any, err: BaseException | None) -> None:
         name = Path(job.input).name
         if err is not None:
             print(f"arshadow demo: error: {name}: {err}", file=sys.stderr)

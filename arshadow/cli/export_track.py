@@ -21,7 +21,8 @@ photo set: photo i at i / --fps seconds). Formats by extension: .glb, .gltf, .js
 """
 
 
-def register(subparsers) -> None:
+# subparsers: the argparse._SubParsersAction cli/__init__.py passes in (a private class, hence Any)
+def register(subparsers: Any) -> None:
     p = subparsers.add_parser(
         "export-track",
         help="write the camera track (glTF 2.0 / JSON / CSV) of a video or a photo set",
@@ -69,7 +70,7 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from ..camera import Intrinsics
     from ..errors import UsageError
     from ..export.track import track_from_frames_jsonl, track_from_items, write_track

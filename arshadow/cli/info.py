@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import platform
 import sys
+from typing import Any
 
 
-def register(subparsers) -> None:
+# subparsers: the argparse._SubParsersAction cli/__init__.py passes in (a private class, hence Any)
+def register(subparsers: Any) -> None:
     p = subparsers.add_parser(
         "info",
         help="print versions, the OpenGL backend/renderer and what was detected",
@@ -59,7 +62,7 @@ def collect(backend: str | None = None) -> dict:
     return out
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     info = collect(args.backend)
     gl = info["gl"]
     if args.json:

@@ -6,6 +6,11 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+from collections.abc import Callable, Iterable
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from ..estimate.result import LightEstimate
 
 DESCRIPTION = """\
 Measure the real light from PHOTO or VIDEO files of the marker with a reference object (the probe) of known
@@ -22,8 +27,8 @@ exit status: 0 measured, 1 no marker / unreadable input / no usable shadow (one 
 """
 
 
-def _floats(n: int):
-    def parse(text: str):
+def _floats(n: int) -> Callable[[str], tuple[float, ...]]:
+    def parse(text: str) -> tuple[float, ...]:
         try:
             vals = tuple(float(v) for v in text.split(","))
         except ValueError:
@@ -85,7 +90,15 @@ def add_probe_options(p: argparse.ArgumentParser, run: bool = False) -> None:
 PROBE_FRAMES = 30
 
 
-def probe_estimate(args, inputs, *, calib, marker_length, dictionary=None, marker_id=None):
+def probe_estimate(
+    args: argparse.Namespace,
+    inputs: Iterable[Any],
+    *,
+    calib: Any,
+    marker_length: Any,
+    dictionary: Any = None,
+    marker_id: int | None = None,
+) -> LightEstimate | None:
     """``render`` / ``video`` / ``batch`` with ``--probe``: the light estimated once from the run's inputs (at
     most :data:`PROBE_FRAMES` frames in all), one line on stderr; None without ``--probe``.
 
@@ -133,7 +146,8 @@ def probe_estimate(args, inputs, *, calib, marker_length, dictionary=None, marke
     return type(est).from_dict(est.to_dict())  # the numbers its JSON holds: the same run as --light-from
 
 
-def register(subparsers) -> None:
+# subparsers: the argparse._SubParsersAction cli/__init__.py passes in (a private class, hence Any)
+def register(subparsers: Any) -> None:
     p = subparsers.add_parser(
         "light",
         help="measure the light, shadow colour and exposure from a probe's real shadow",
@@ -151,7 +165,7 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from ..errors import UsageError
     from ..estimate import estimate_light
     from ..io import write_json

@@ -10,9 +10,14 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from . import EXIT_OK
+
+if TYPE_CHECKING:
+    from ..tracking.mapping import MarkerMap
 
 EPILOG = """\
 examples:
@@ -29,7 +34,7 @@ exit status: 0 map written, 1 no map (no marker seen twice), 2 bad usage.
 """
 
 
-def parse_lengths(items) -> dict | float:
+def parse_lengths(items: Sequence[str]) -> dict | float:
     """``--marker-length`` values: ``L`` (every id) and ``ID=L`` (that id) -> a float or {id or None: L}.
 
     >>> parse_lengths(["0.05"]), parse_lengths(["0.05", "7=0.1"])
@@ -51,7 +56,8 @@ def parse_lengths(items) -> dict | float:
     return out[None] if list(out) == [None] else out
 
 
-def register(subparsers) -> None:
+# subparsers: the argparse._SubParsersAction cli/__init__.py passes in (a private class, hence Any)
+def register(subparsers: Any) -> None:
     p = subparsers.add_parser(
         "map",
         help="learn a rigid map of loose markers from photos or a video (a board file)",
@@ -76,7 +82,16 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def learn(inputs, *, calib, marker_length, dictionary=None, marker_id=None, inverted=None, max_frames=None):
+def learn(
+    inputs: Any,
+    *,
+    calib: Any,
+    marker_length: dict | float,
+    dictionary: str | None = None,
+    marker_id: int | None = None,
+    inverted: bool | None = None,
+    max_frames: int | None = None,
+) -> tuple[MarkerMap, float]:
     """The map of ``inputs``: ``(MarkerMap, seconds)``."""
     from ..camera import Intrinsics
     from ..tracking.dictionary import DEFAULT_DICTIONARY, dictionary_label
@@ -93,7 +108,7 @@ def learn(inputs, *, calib, marker_length, dictionary=None, marker_id=None, inve
     return mmap, time.perf_counter() - t0
 
 
-def _say(mmap, seconds, prog, quiet) -> None:
+def _say(mmap: MarkerMap, seconds: float, prog: str, quiet: bool) -> None:
     if quiet:
         return
     print(f"arshadow {prog}: {mmap.summary()} ({seconds:.2f} s)", file=sys.stderr)
@@ -109,7 +124,7 @@ def _say(mmap, seconds, prog, quiet) -> None:
         print(f"  rejected: {shown}", file=sys.stderr)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from ..io import check_output_file
     from ..tracking.mapio import write_map
     from . import quiet_opencv
@@ -133,7 +148,7 @@ def run(args) -> int:
 
 
 # -- --map for render / video / batch -------------------------------------------------------------------
-def add_map_option(group) -> None:
+def add_map_option(group: Any) -> None:  # an argparse group (a private class, hence Any)
     """``--map auto|FILE`` (an argparse group of render / video / batch)."""
     group.add_argument(
         "--map",
@@ -145,8 +160,17 @@ def add_map_option(group) -> None:
 
 
 def resolve_map(
-    args, inputs, outdir, *, calib, marker_length, dictionary=None, marker_id=None, inverted=None, board=None
-):
+    args: argparse.Namespace,
+    inputs: Any,
+    outdir: str | Path,
+    *,
+    calib: Any,
+    marker_length: dict | float | None,
+    dictionary: str | None = None,
+    marker_id: int | None = None,
+    inverted: bool | None = None,
+    board: str | None = None,
+) -> str | None:
     """The board file a ``--map`` run tracks against (None without ``--map``): ``auto`` learns the map from
     ``inputs`` and writes it to ``outdir/map.yml`` (one line on stderr with its residuals).
 
@@ -183,7 +207,7 @@ def resolve_map(
     return str(path)
 
 
-def map_info(path) -> dict:
+def map_info(path: str | Path) -> dict:
     """The report's ``map``: the file, and (for a map written by ``arshadow map``) its reference marker, total
     and per-marker corner RMS (pixels) and frames seen, read back from the file."""
     import cv2

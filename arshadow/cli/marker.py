@@ -12,8 +12,12 @@ import math
 import struct
 import zlib
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from ..tracking.board import Board
 
 MARKER_DESCRIPTION = """\
 Write a printable ArUco marker: the black-bordered marker of side --length-mm with a white margin
@@ -28,7 +32,8 @@ Write a printable grid or ChArUco board from a board file (--board, schema in ca
 """
 
 
-def register(subparsers) -> None:
+# subparsers: the argparse._SubParsersAction cli/__init__.py passes in (a private class, hence Any)
+def register(subparsers: Any) -> None:
     p = subparsers.add_parser(
         "marker",
         help="printable ArUco marker (PNG with DPI, optional SVG)",
@@ -105,7 +110,13 @@ def read_png_dpi(data: bytes) -> float | None:
     return None
 
 
-def _svg(width_mm, height_mm, rects, caption=None, caption_y=None) -> str:
+def _svg(
+    width_mm: float,
+    height_mm: float,
+    rects: list[tuple[float, float, float, float]],
+    caption: str | None = None,
+    caption_y: float | None = None,
+) -> str:
     """rects: list of (x, y, w, h) black rectangles in mm (y down)."""
     out = [
         '<?xml version="1.0" encoding="UTF-8"?>',
@@ -124,9 +135,9 @@ def _svg(width_mm, height_mm, rects, caption=None, caption_y=None) -> str:
     return "\n".join(out) + "\n"
 
 
-def _bits_rects(bits, x0, y0, cell):
+def _bits_rects(bits: np.ndarray, x0: float, y0: float, cell: float) -> list[tuple[float, float, float, float]]:
     """Black cells of a marker (bits True = white) as mm rectangles, merged along rows."""
-    rects = []
+    rects: list[tuple[float, float, float, float]] = []
     for r in range(bits.shape[0]):
         c = 0
         while c < bits.shape[1]:
@@ -140,7 +151,7 @@ def _bits_rects(bits, x0, y0, cell):
     return rects
 
 
-def _outputs(output: str, svg: bool):
+def _outputs(output: str, svg: bool) -> tuple[Path | None, Path | None]:
     p = Path(output)
     if p.suffix.lower() == ".svg":
         return None, p
@@ -151,7 +162,7 @@ def _outputs(output: str, svg: bool):
     return p, (p.with_suffix(".svg") if svg else None)
 
 
-def _check_positive(name, v, allow_zero=False):
+def _check_positive(name: str, v: float | None, allow_zero: bool = False) -> None:
     from ..errors import UsageError
 
     if v is None or not math.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
@@ -161,7 +172,7 @@ def _check_positive(name, v, allow_zero=False):
 # ---------------------------------------------------------------------------------------------------
 # commands
 # ---------------------------------------------------------------------------------------------------
-def run_marker(args) -> int:
+def run_marker(args: argparse.Namespace) -> int:
     import cv2
 
     from ..io import write_bytes
@@ -209,7 +220,7 @@ def run_marker(args) -> int:
     return 0
 
 
-def _board_from_args(args):
+def _board_from_args(args: argparse.Namespace) -> Board:
     from ..errors import UsageError
     from ..tracking.board import Board, load_board
 
@@ -246,7 +257,7 @@ def _board_from_args(args):
     )
 
 
-def run_board(args) -> int:
+def run_board(args: argparse.Namespace) -> int:
     from ..io import write_bytes
     from ..synth import INK_BLACK, PAPER_WHITE, _board_markers, board_print
 

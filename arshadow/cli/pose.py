@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from typing import Any
 
 DESCRIPTION = """\
 Detect an ArUco marker (or a grid / ChArUco board) in each IMAGE and print the pose of the marker
@@ -19,7 +20,8 @@ are still processed), 2 bad usage or unreadable calibration / board / dictionary
 """
 
 
-def register(subparsers) -> None:
+# subparsers: the argparse._SubParsersAction cli/__init__.py passes in (a private class, hence Any)
+def register(subparsers: Any) -> None:
     p = subparsers.add_parser(
         "pose",
         help="marker / board pose per photo (ids, rvec, tvec, error, ambiguity)",
@@ -66,7 +68,7 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from ..camera import Intrinsics
     from ..errors import UsageError
     from ..io import write_json
@@ -93,7 +95,7 @@ def run(args) -> int:
         detector_params=args.detector_params,
     )
 
-    def done(name, item, pose, image, err):
+    def done(name: Any, item: Any, pose: Any, image: Any, err: BaseException | None) -> None:
         if err is not None:
             msg = str(err)
             print(

@@ -6,6 +6,7 @@ import argparse
 import os
 import sys
 from pathlib import Path
+from typing import Any
 
 from ..scene import SCENE_KEYS
 from . import EXIT_OK
@@ -28,7 +29,8 @@ job-file format of batch --config) and shows the equivalent command lines. Ctrl-
 _PATHS = ("calib", "board", "dictionary", "model", "light_from")
 
 
-def register(subparsers) -> None:
+# subparsers: the argparse._SubParsersAction cli/__init__.py passes in (a private class, hence Any)
+def register(subparsers: Any) -> None:
     from .render import add_scene_options
 
     p = subparsers.add_parser(
@@ -61,7 +63,7 @@ def register(subparsers) -> None:
     p.set_defaults(func=run, preview_defaults={k: p.get_default(k) for k in SCENE_KEYS})
 
 
-def base_scene(args) -> dict:
+def base_scene(args: argparse.Namespace) -> dict:
     """The starting scene (job-file keys) from the parsed options: defaults left out, paths absolute; over
     ``--config``'s scene when given.
 
@@ -102,7 +104,7 @@ def _open_browser(url: str) -> bool:
         return False
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from ..errors import UsageError
     from ..estimate.result import load_estimate
     from ..io import check_output_file, write_json

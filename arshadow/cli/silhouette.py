@@ -5,9 +5,13 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from typing import Any
+
+import numpy as np
 
 
-def register(subparsers) -> None:
+# subparsers: the argparse._SubParsersAction cli/__init__.py passes in (a private class, hence Any)
+def register(subparsers: Any) -> None:
     p = subparsers.add_parser(
         "silhouette",
         help="print a mesh's silhouette edges for one light",
@@ -43,7 +47,7 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def _light_h(spec: str):
+def _light_h(spec: str) -> np.ndarray:
     from ..errors import LightError
     from ..lights.spec import parse_light
 

@@ -12,6 +12,7 @@ import json
 import math
 import sys
 from datetime import UTC
+from typing import Any
 
 DESCRIPTION = """\
 Sun position for an instant and a place (NREL SPA by default; paper 004's formula with --sun-model paper).
@@ -23,7 +24,8 @@ use the geometric sun unless --refraction is given.
 """
 
 
-def register(subparsers) -> None:
+# subparsers: the argparse._SubParsersAction cli/__init__.py passes in (a private class, hence Any)
+def register(subparsers: Any) -> None:
     p = subparsers.add_parser(
         "sun",
         help="sun zenith/azimuth/direction and a 1 m pole's shadow for a date, time and place",
@@ -80,7 +82,7 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def _round(v, nd=9):
+def _round(v: Any, nd: int = 9) -> Any:
     if v is None:
         return None
     if isinstance(v, (list, tuple)):
@@ -88,7 +90,7 @@ def _round(v, nd=9):
     return round(float(v), nd)
 
 
-def compute(args) -> dict:
+def compute(args: argparse.Namespace) -> dict:
     """The JSON object of ``arshadow sun`` for parsed ``args`` (LightError on bad input)."""
 
     from ..lights.spec import parse_time
@@ -108,6 +110,7 @@ def compute(args) -> dict:
     world, above = sun_light_direction(pos, args.north, refraction=args.refraction)
     enu = pos.apparent_enu if args.refraction else pos.enu
     shadow = pole_shadow(world, 1.0, args.north) if above else None
+    assert pos.when is not None  # sun_position always sets it
     return {
         "time": when.isoformat(),
         "time_utc": pos.when.astimezone(UTC).isoformat(),
@@ -137,7 +140,7 @@ def compute(args) -> dict:
     }
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     out = compute(args)
     if args.json:
         json.dump(out, sys.stdout, indent=1, allow_nan=False)

@@ -5,8 +5,9 @@ from __future__ import annotations
 import math
 import os
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
+from typing import cast
 
 import cv2
 import numpy as np
@@ -19,12 +20,12 @@ from ..lights.spec import parse_light
 from ..tracking.dictionary import DEFAULT_DICTIONARY
 from ..tracking.tracker import MarkerTracker
 from .exposure import Exposure, ExposureError, measure_exposure
-from .light import fit_directional, fit_point, fit_sun
+from .light import FitResult, MakeFine, fit_directional, fit_point, fit_sun
 from .outline import outline_agreement
 from .penumbra import fit_angular_radius
 from .result import LightEstimate
 from .shading import face_shading_residual
-from .shadow import LUMA, build_evidence, edge_pairs, fit_levels, shadow_coverage
+from .shadow import LUMA, Evidence, build_evidence, edge_pairs, fit_levels, shadow_coverage
 
 __all__ = ["MAX_FRAMES", "VIDEO_EXTENSIONS", "estimate_light"]
 
@@ -64,8 +65,11 @@ POINT_FAR = 2.0
 #: a point light fitted nearer than this to the probe's top (metres) is flagged (the search starts at 0.15 m)
 POINT_NEAR = 0.2
 
+#: lights' homogeneous vectors -> one frame's fine evidence grid covering their shadows (:func:`_grids`)
+FineGrid = Callable[[list], Evidence]
 
-def _frames(item, max_frames):
+
+def _frames(item: str | os.PathLike[str] | np.ndarray, max_frames: int) -> Iterator[tuple[str, np.ndarray]]:
     """Yield (name, BGR uint8 image) for a photo path, an array or a video path."""
     if isinstance(item, np.ndarray):
         yield "array", to_bgr8(item)
@@ -93,7 +97,7 @@ def _frames(item, max_frames):
         cap.release()
 
 
-def _probe_in_view(intr, pose, verts, name):
+def _probe_in_view(intr: Intrinsics, pose: np.ndarray, verts: np.ndarray, name: str) -> None:
     cam = verts @ pose[:3, :3].T + pose[:3, 3]
     uv = intr.project(verts, pose)
     inside = (
@@ -111,7 +115,16 @@ def _probe_in_view(intr, pose, verts, name):
         )
 
 
-def _grids(img, intr, pose, verts, faces, L, paper, convex):
+def _grids(
+    img: np.ndarray,
+    intr: Intrinsics,
+    pose: np.ndarray,
+    verts: np.ndarray,
+    faces: np.ndarray,
+    L: float,
+    paper: Sequence[float],
+    convex: bool,
+) -> tuple[Evidence, FineGrid, float]:
     """The coarse evidence (the whole reach of the shadow), a builder of fine evidence and the size of a
     pixel on the ground at the probe (metres)."""
     lo, hi = verts.min(axis=0), verts.max(axis=0)
@@ -139,7 +152,7 @@ def _grids(img, intr, pose, verts, faces, L, paper, convex):
     )
     fine_step = float(np.clip(1.5 * px, 0.0006, 0.006))
 
-    def fine(lights_h):
+    def fine(lights_h: list) -> Evidence:
         pts = [verts[:, :2]]
         for h in lights_h:
             S = shadow_coverage(coarse, h)
@@ -172,7 +185,7 @@ def _grids(img, intr, pose, verts, faces, L, paper, convex):
 EDGE_DISTANCES = (0.003, 0.005, 0.008)
 
 
-def _ratio(evs, h, px) -> tuple:
+def _ratio(evs: list[Evidence], h: np.ndarray, px: Sequence[float]) -> tuple:
     """Per-channel shadow / lit of the ground: the median, over pairs of points straddling the shadow's edge
     (:func:`arshadow.estimate.shadow.edge_pairs`, a few millimetres each side, where the floor's texture is
     nearly the same), of the ratio inside / outside; the high-passed fit within 3 cm of the shadow when
@@ -208,7 +221,7 @@ def _ratio(evs, h, px) -> tuple:
     return tuple(float(math.exp(v / max(den, 1))) for v in num)
 
 
-def _edge_consistency(evs, h, px) -> tuple:
+def _edge_consistency(evs: list[Evidence], h: np.ndarray, px: Sequence[float]) -> tuple:
     """How consistently the fitted shadow's edge is a shadow's: the share of pairs of ground points straddling
     it (:func:`arshadow.estimate.shadow.edge_pairs`, 5 mm or 3 px each side) whose inside is darker than
     their outside, and the pairs' count. A real shadow is darker all along its edge (about 0.9 and more);
@@ -224,7 +237,7 @@ def _edge_consistency(evs, h, px) -> tuple:
     return (darker / count if count else math.nan), count
 
 
-def _sun_enu(spec: str):
+def _sun_enu(spec: str) -> np.ndarray:
     light = parse_light(spec)  # NORTH 0: world = east-north-up
     if light.sun is None:
         raise UsageError(f"--kind {spec!r}: expected sun:LAT,LON,TIME")
@@ -279,14 +292,17 @@ def estimate_light(
         Bad options (kind, probe, calibration).
     """
     t0 = time.perf_counter()
-    items = inputs if isinstance(inputs, (list, tuple)) else [inputs]
+    # a str is a Sequence too: the list / tuple test is what tells one input from several
+    items = cast(
+        Sequence[str | os.PathLike[str] | np.ndarray], inputs if isinstance(inputs, (list, tuple)) else [inputs]
+    )
     if not items:
         raise UsageError("give at least one photo or video")
     kind_name = "sun" if str(kind).startswith("sun:") else str(kind)
     if kind_name not in ("directional", "point", "sun"):
         raise UsageError(f"--kind {kind!r}: choose directional, point or sun:LAT,LON,TIME")
     enu = _sun_enu(kind) if kind_name == "sun" else None
-    base = calib if isinstance(calib, Intrinsics) else Intrinsics.from_file(calib)
+    base = calib if isinstance(calib, Intrinsics) else Intrinsics.from_file(os.fspath(calib))
     caster = load_occluder(probe, scale=probe_scale, rotate=probe_rotate, place=probe_place)
     verts, faces = np.asarray(caster.vertices, np.float64), np.asarray(caster.faces)
     if verts[:, 2].min() < -1e-6:
@@ -324,13 +340,13 @@ def estimate_light(
     return _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, (verts, faces, views), t0, notes, outline)
 
 
-def _pooled(outline) -> float:
+def _pooled(outline: Sequence[tuple[float, int]]) -> float:
     """The outline's agreement over the frames (weighted by the points read), NaN when none was read."""
     pts = sum(n for _, n in outline)
     return sum(a * n for a, n in outline if n) / pts if pts else math.nan
 
 
-def _check_outline(outline) -> None:
+def _check_outline(outline: Sequence[tuple[float, int]]) -> None:
     """Refuse when the probe's projected outline is not on the photo's edges (:func:`outline_agreement`):
     the probe is not where it is given, or not in the photo."""
     agree = _pooled(outline)
@@ -342,7 +358,7 @@ def _check_outline(outline) -> None:
         )
 
 
-def _sun_elevation_check(coarse, make_fine, enu, kind) -> tuple:
+def _sun_elevation_check(coarse: list[Evidence], make_fine: MakeFine, enu: np.ndarray, kind: str) -> tuple:
     """The shadow's own elevation (a directional light fitted with a free direction) against the sun's at the
     given time and place. Raises EstimateError when they clearly disagree (more than
     :data:`SUN_REFUSE_DEG` and 3 sigma of the free fit); returns ``(shadow elevation, sun elevation, warning
@@ -366,7 +382,15 @@ def _sun_elevation_check(coarse, make_fine, enu, kind) -> tuple:
     return el, sun_el, (f"low confidence: {text}" if diff > SUN_FLAG_DEG else None)
 
 
-def _checks(res, ratio, pxs, outline, views, verts, faces) -> dict:
+def _checks(
+    res: FitResult,
+    ratio: tuple,
+    pxs: Sequence[float],
+    outline: Sequence[tuple[float, int]],
+    views: Sequence[tuple[np.ndarray, Intrinsics, np.ndarray]],
+    verts: np.ndarray,
+    faces: np.ndarray,
+) -> dict:
     """The checks of a fitted light that do not come from its shadow fit: the probe's outline on the photo
     (pooled over the frames), the share of the fitted shadow's edge darker inside, and the probe's faces
     against the light's shading (the median over up to :data:`SHADING_VIEWS` frames; NaN when not measured)."""
@@ -405,11 +429,12 @@ def _check_warnings(checks: dict) -> list:
     return out
 
 
-def _point_warnings(res, dist: float) -> list:
+def _point_warnings(res: FitResult, dist: float) -> list:
     """A point light's warnings: fitted at the search's far or near edge, or its distance ``dist`` (metres
     from the probe's top) uncertain; each names the 2-sigma interval of the distance."""
     lo, hi = res.distance_interval if res.distance_interval is not None else (math.nan, math.nan)
     span = f"between {lo:.2f} and {hi:.2f} m from the probe's top (2 sigma)"
+    assert res.position_sigma is not None  # a point light's fit
     rel = res.position_sigma / max(dist, 1e-9)
     if dist > POINT_FAR:
         return [
@@ -430,10 +455,22 @@ def _point_warnings(res, dist: float) -> list:
     return []
 
 
-def _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, probe, t0, notes, outline) -> LightEstimate:
+def _fit(
+    kind_name: str,
+    kind: str,
+    enu: np.ndarray | None,
+    coarse: list[Evidence],
+    fines: list[FineGrid],
+    pxs: list[float],
+    exposures: list[Exposure],
+    probe: tuple,
+    t0: float,
+    notes: list[str],
+    outline: list[tuple[float, int]],
+) -> LightEstimate:
     verts, faces, views = probe
 
-    def make_fine(lights_h):
+    def make_fine(lights_h: list) -> list[Evidence]:
         return [f(lights_h) for f in fines]
 
     sun_check = None
@@ -443,6 +480,7 @@ def _fit(kind_name, kind, enu, coarse, fines, pxs, exposures, probe, t0, notes, 
     if kind_name == "directional":
         res = fit_directional(coarse, make_fine)
     elif kind_name == "sun":
+        assert enu is not None  # kind_name 'sun': _sun_enu(kind)
         sun_check = _sun_elevation_check(coarse, make_fine, enu, kind)  # first: a wrong time named as such
         res = fit_sun(coarse, make_fine, enu)
     else:

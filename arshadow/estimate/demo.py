@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 from ..io import read_image, write_image, write_json
 from ..scene import scene_from_dict
@@ -21,7 +22,7 @@ __all__ = ["SAMPLE_FILE", "light_demo"]
 SAMPLE_FILE = "light_probe.json"
 
 
-def light_demo(samples: Path, outdir: Path, *, context=None, renderer=None, aa: int = 4) -> list[str]:
+def light_demo(samples: Path, outdir: Path, *, context: Any = None, renderer: Any = None, aa: int = 4) -> list[str]:
     """Run the measured-look item if ``samples/light_probe.json`` exists; returns lines to print.
 
     Writes ``outdir/<stem>.light.json`` (the estimate, as ``arshadow light --json``) and ``outdir/<stem>.png``

@@ -111,7 +111,7 @@ def _remap_points(img: np.ndarray, uv: np.ndarray) -> np.ndarray:
     return out
 
 
-def _crop_to(image: np.ndarray, uv: np.ndarray):
+def _crop_to(image: np.ndarray, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The part of ``image`` around the finite points ``uv`` (n, 2) (+ 3 px, inside the image) and the points
     in its pixels: a point is inside the crop exactly when it is inside the image."""
     H, W = image.shape[:2]
@@ -127,7 +127,7 @@ def _crop_to(image: np.ndarray, uv: np.ndarray):
     return image[y0:y1, x0:x1], uv - np.array([x0, y0], np.float64)
 
 
-def _cell_points(bits: np.ndarray, length: float):
+def _cell_points(bits: np.ndarray, length: float) -> tuple[np.ndarray, np.ndarray]:
     """World points (3 x 3 per cell, central half) of every cell: ((c*c*9, 3) float64, (c*c,) bool white);
     rows of cells top to bottom, then columns, then the 3 x 3 points row by row."""
     c = bits.shape[0]
@@ -141,14 +141,18 @@ def _cell_points(bits: np.ndarray, length: float):
 
 
 @functools.lru_cache(maxsize=64)
-def _marker_cells(dictionary: str, marker_id: int, length: float):
+def _marker_cells(dictionary: str, marker_id: int, length: float) -> tuple[np.ndarray, np.ndarray]:
     """:func:`_cell_points` of one marker, computed once per (dictionary name, id, side): video frames and
     photo sets measure the same marker again and again."""
     return _cell_points(marker_bits(get_dictionary(dictionary), marker_id), length)
 
 
 def paper_region(
-    intrinsics: Intrinsics, cam_from_world, marker_length: float, dictionary="DICT_6X6_250", marker_id: int = 0
+    intrinsics: Intrinsics,
+    cam_from_world: np.ndarray,
+    marker_length: float,
+    dictionary: str = "DICT_6X6_250",
+    marker_id: int = 0,
 ) -> tuple | None:
     """``(x0, y0, w, h)``: the pixels :func:`measure_exposure` reads for this marker pose (its sample points'
     box + 3 px, inside the image), or None when none of them is in front of the camera. A caller that
@@ -178,9 +182,9 @@ MIN_PAPER_CONTRAST = 3.0
 def measure_exposure(
     image_bgr: np.ndarray,
     intrinsics: Intrinsics,
-    cam_from_world,
+    cam_from_world: np.ndarray,
     marker_length: float,
-    dictionary="DICT_6X6_250",
+    dictionary: str = "DICT_6X6_250",
     marker_id: int = 0,
     min_cells: int = 3,
 ) -> Exposure:
@@ -249,7 +253,7 @@ def measure_exposure(
     return out
 
 
-def smooth_exposures(measurements, time_constant: float = 5.0, jump: float = 0.15) -> list:
+def smooth_exposures(measurements: list[Exposure | None], time_constant: float = 5.0, jump: float = 0.15) -> list:
     """Smooth a video's per-frame measurements, following auto-exposure changes.
 
     A one-pole filter in log space with ``time_constant`` frames; a change of the paper's luminance by more

@@ -24,13 +24,22 @@ hidden behind the probe; the visible share alone refuses nothing).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from ..errors import EstimateError
 from ..lights.sun import enu_to_world
-from .shadow import fit_levels, shadow_coverage
+from .shadow import Evidence, fit_levels, shadow_coverage
+
+#: parameters (k,) -> the light's homogeneous (4,) vector, None outside the fit's domain
+ToLight = Callable[[np.ndarray], "np.ndarray | None"]
+#: parameters (k,) -> the unit direction (3,) towards the light
+ToDir = Callable[[np.ndarray], np.ndarray]
+#: lights' homogeneous vectors -> per frame, a fine evidence grid covering their shadows
+MakeFine = Callable[[list], list[Evidence]]
 
 __all__ = ["FitResult", "direction_of", "fit_directional", "fit_point", "fit_sun", "log_coverage", "objective"]
 
@@ -44,7 +53,7 @@ UNCONSTRAINED_DEG = 10.0
 AMBIGUOUS = 0.85
 
 
-def _minimize(*args, **kwargs):
+def _minimize(*args: Any, **kwargs: Any) -> Any:
     """``scipy.optimize.minimize``, imported on first use: every video or photo session imports this
     package (the exposure match), and ``scipy.optimize`` costs ~0.4 s of start-up that only a light fit
     needs (a ``--jobs`` worker paid it too)."""
@@ -90,10 +99,12 @@ def log_coverage(S: np.ndarray, delta: float) -> np.ndarray:
     return (np.log1p(-a * S) / math.log1p(-a)).astype(np.float32)
 
 
-def objective(evs: list, light_h, darkness=None) -> tuple:
+def objective(evs: list[Evidence], light_h: np.ndarray | None, darkness: Sequence[float] | None = None) -> tuple:
     """``(score, deltas, rss list)``: sum over frames of RSS / RSS0, and each frame's log darkness.
     ``darkness``: optional per-frame log darkness; given, the shadow model is :func:`log_coverage`."""
     score, deltas, parts = 0.0, [], []
+    if light_h is None:  # a parameter outside the fit's domain (ToLight): no light, as no shadow
+        return math.inf, [], []
     for i, ev in enumerate(evs):
         S = shadow_coverage(ev, light_h)
         if S is None:
@@ -115,16 +126,16 @@ def objective(evs: list, light_h, darkness=None) -> tuple:
 
 
 class _Counter:
-    def __init__(self, evs, to_light, darkness=None):
+    def __init__(self, evs: list[Evidence], to_light: ToLight, darkness: Sequence[float] | None = None) -> None:
         self.evs, self.to_light, self.n, self.darkness = evs, to_light, 0, darkness
 
-    def __call__(self, p):
+    def __call__(self, p: np.ndarray) -> float:
         self.n += 1
         h = self.to_light(np.asarray(p, np.float64))
-        return math.inf if h is None else objective(self.evs, h, self.darkness)[0]
+        return math.inf if h is None else float(objective(self.evs, h, self.darkness)[0])
 
 
-def _visible_share(evs, light_h) -> float:
+def _visible_share(evs: list[Evidence], light_h: np.ndarray) -> float:
     """Used share of the fitted shadow's area (the rest is off-image, behind the probe or saturated)."""
     tot = vis = 0.0
     for ev in evs:
@@ -136,12 +147,13 @@ def _visible_share(evs, light_h) -> float:
     return vis / tot if tot > 0 else 0.0
 
 
-def _correlation_factor(evs, light_h, darkness=None) -> float:
+def _correlation_factor(evs: list[Evidence], light_h: np.ndarray, darkness: Sequence[float] | None = None) -> float:
     """How many cells one independent residual spans: ((1 + rho) / (1 - rho))^2, rho the lag-1 correlation
     of the fit's residual along the grid's rows and columns (capped to [1, 400])."""
     f = []
     for i, ev in enumerate(evs):
         S = shadow_coverage(ev, light_h)
+        assert S is not None  # the fitted light, whose objective was finite: it casts a shadow
         if darkness is not None:
             S = log_coverage(S, darkness[i])
         _, delta, _, _ = fit_levels(ev, S)
@@ -155,12 +167,15 @@ def _correlation_factor(evs, light_h, darkness=None) -> float:
     return float(np.clip(np.mean(f), 1.0, 400.0))
 
 
-def _laplace(evs, to_light, p, steps, darkness=None) -> np.ndarray:
+def _laplace(
+    evs: list[Evidence], to_light: ToLight, p: np.ndarray, steps: np.ndarray, darkness: Sequence[float] | None = None
+) -> np.ndarray:
     """Covariance of the parameters ``p`` from the numerical Hessian of the summed RSS.
 
     The RSS of a rasterised shadow is piecewise smooth at the finest steps: a Hessian that is not positive
     definite there is measured again at 3x and 10x the steps (a curvature over a wider span) before the fit is
     called unconstrained (an infinite covariance)."""
+    cov = np.full((len(p), len(p)), np.inf)
     for scale in (1.0, 3.0, 10.0):
         cov = _laplace_at(evs, to_light, p, np.asarray(steps, np.float64) * scale, darkness)
         if np.all(np.isfinite(cov)):
@@ -168,14 +183,16 @@ def _laplace(evs, to_light, p, steps, darkness=None) -> np.ndarray:
     return cov
 
 
-def _laplace_at(evs, to_light, p, steps, darkness=None) -> np.ndarray:
+def _laplace_at(
+    evs: list[Evidence], to_light: ToLight, p: np.ndarray, steps: np.ndarray, darkness: Sequence[float] | None = None
+) -> np.ndarray:
     """:func:`_laplace` at one set of finite-difference steps."""
 
-    def rss(q):
+    def rss(q: np.ndarray) -> float:
         h = to_light(np.asarray(q, np.float64))
         if h is None:
             return math.inf
-        return sum(a for a, _, _ in objective(evs, h, darkness)[2])
+        return float(sum(a for a, _, _ in objective(evs, h, darkness)[2]))
 
     k = len(p)
     f0 = rss(p)
@@ -189,18 +206,21 @@ def _laplace_at(evs, to_light, p, steps, darkness=None) -> np.ndarray:
                 Hm[i, j] = Hm[j, i] = (rss(p + ei + ej) - rss(p + ei - ej) - rss(p - ei + ej) + rss(p - ei - ej)) / (
                     4 * steps[i] * steps[j]
                 )
-    n = sum(c for _, _, c in objective(evs, to_light(p), darkness)[2])
-    sigma2 = f0 / max(n - k - 2, 1) * _correlation_factor(evs, to_light(p), darkness)
+    h0 = to_light(p)
+    assert h0 is not None  # p is the fit's optimum, a valid light
+    n = sum(c for _, _, c in objective(evs, h0, darkness)[2])
+    sigma2 = f0 / max(n - k - 2, 1) * _correlation_factor(evs, h0, darkness)
     try:
         cov = 2.0 * sigma2 * np.linalg.inv(Hm)
     except np.linalg.LinAlgError:
         return np.full((k, k), np.inf)
     if not np.all(np.isfinite(cov)) or np.any(np.diag(cov) < 0):
         return np.full((k, k), np.inf)
-    return cov
+    out: np.ndarray = cov
+    return out
 
 
-def _distinct_minima(cands: np.ndarray, scores: np.ndarray, sep_deg: float, k: int, to_dir) -> list:
+def _distinct_minima(cands: np.ndarray, scores: np.ndarray, sep_deg: float, k: int, to_dir: ToDir) -> list:
     order = np.argsort(scores)
     keep: list = []
     for i in order:
@@ -214,7 +234,9 @@ def _distinct_minima(cands: np.ndarray, scores: np.ndarray, sep_deg: float, k: i
     return keep
 
 
-def _check(evs, h, score, deltas, runner_up_score):
+def _check(
+    evs: list[Evidence], h: np.ndarray, score: float, deltas: list, runner_up_score: float | None
+) -> tuple[float, float, float | None]:
     """Refuse a fit that is not a shadow, not in view, or ambiguous. Returns (explained, visible, runner)."""
     nf = len(evs)
     explained = 1.0 - score / nf
@@ -249,7 +271,14 @@ def _constrained(unc_deg: float, visible: float) -> None:
         )
 
 
-def _refine(fine, to_light, starts, simplex_step, xatol, darkness=None):
+def _refine(
+    fine: list[Evidence],
+    to_light: ToLight,
+    starts: Sequence[np.ndarray],
+    simplex_step: Sequence[float],
+    xatol: float,
+    darkness: Sequence[float] | None = None,
+) -> tuple[Any, int]:
     best = None
     count = _Counter(fine, to_light, darkness)
     for p0 in starts:
@@ -265,17 +294,19 @@ def _refine(fine, to_light, starts, simplex_step, xatol, darkness=None):
     return best, count.n
 
 
-def fit_directional(coarse: list, make_fine, el_range=(12.0, 84.0)) -> FitResult:
+def fit_directional(
+    coarse: list[Evidence], make_fine: MakeFine, el_range: tuple[float, float] = (12.0, 84.0)
+) -> FitResult:
     """Fit a directional light (azimuth, elevation) to the evidence: ``coarse`` (one grid per frame) and
     ``make_fine(lights_h) -> list`` (per frame, a fine grid covering those lights' shadows)."""
     az = np.arange(0.0, 360.0, 8.0)
     el = np.arange(el_range[0], el_range[1] + 1e-9, 6.0)
     cands = np.array([(a, e) for e in el for a in az])
 
-    def to_light(p):
+    def to_light(p: np.ndarray) -> np.ndarray | None:
         return np.append(direction_of(p[0], p[1]), 0.0) if el_range[0] - 6 < p[1] < 89.5 else None
 
-    def to_dir(p):
+    def to_dir(p: np.ndarray) -> np.ndarray:
         return direction_of(p[0], p[1])
 
     scores = np.array([objective(coarse, to_light(c))[0] for c in cands])
@@ -287,6 +318,7 @@ def fit_directional(coarse: list, make_fine, el_range=(12.0, 84.0)) -> FitResult
     p = res.x.copy()
     p[0] %= 360.0
     h = to_light(p)
+    assert h is not None  # Nelder-Mead ends no worse than its (finite-scored) start: inside the domain
     score, deltas, _ = objective(fine, h)
     runner = _runner_up(fine, to_light, cands, keep, p, to_dir)
     explained, visible, rr = _check(fine, h, score, deltas, runner)
@@ -296,25 +328,27 @@ def fit_directional(coarse: list, make_fine, el_range=(12.0, 84.0)) -> FitResult
     return FitResult(h, p, score, deltas, unc, None, explained, visible, rr, len(cands) + n, fine)
 
 
-def _runner_up(fine, to_light, cands, keep, p, to_dir):
+def _runner_up(
+    fine: list[Evidence], to_light: ToLight, cands: np.ndarray, keep: list, p: np.ndarray, to_dir: ToDir
+) -> float | None:
     """The best fine score among the coarse minima more than 15 degrees from the optimum ``p``."""
     d = to_dir(p)
     others = [cands[i] for i in keep if math.degrees(math.acos(np.clip(d @ to_dir(cands[i]), -1, 1))) > 15.0]
     if not others:
         return None
-    return min(objective(fine, to_light(q))[0] for q in others)
+    return float(min(objective(fine, to_light(q))[0] for q in others))
 
 
-def fit_sun(coarse: list, make_fine, enu) -> FitResult:
+def fit_sun(coarse: list[Evidence], make_fine: MakeFine, enu: np.ndarray) -> FitResult:
     """Fit the world's bearing NORTH (1 DOF) for a known sun direction ``enu`` (east, north, up)."""
     enu = np.asarray(enu, np.float64)
     if enu[2] <= 0.0:
         raise EstimateError("the sun is below the horizon at that time and place: no shadow to fit")
 
-    def to_light(p):
+    def to_light(p: np.ndarray) -> np.ndarray | None:
         return np.append(enu_to_world(enu, float(p[0])), 0.0)
 
-    def to_dir(p):
+    def to_dir(p: np.ndarray) -> np.ndarray:
         return enu_to_world(enu, float(p[0]))
 
     cands = np.arange(0.0, 360.0, 3.0)[:, None]
@@ -326,6 +360,7 @@ def fit_sun(coarse: list, make_fine, enu) -> FitResult:
     res, n = _refine(fine, to_light, [cands[i] for i in keep], (1.5,), 0.01)
     p = np.array([res.x[0] % 360.0])
     h = to_light(p)
+    assert h is not None  # Nelder-Mead ends no worse than its (finite-scored) start: inside the domain
     score, deltas, _ = objective(fine, h)
     runner = _runner_up(fine, to_light, cands, keep, p, to_dir)
     explained, visible, rr = _check(fine, h, score, deltas, runner)
@@ -335,7 +370,7 @@ def fit_sun(coarse: list, make_fine, enu) -> FitResult:
     return FitResult(h, p, score, deltas, unc, None, explained, visible, rr, len(cands) + n, fine)
 
 
-def fit_point(coarse: list, make_fine, anchor) -> FitResult:
+def fit_point(coarse: list[Evidence], make_fine: MakeFine, anchor: np.ndarray) -> FitResult:
     """Fit a point light's position (3 DOF) as (azimuth, elevation, log distance) from the probe's top
     ``anchor`` (3,): the directional fit, the objective's profile over 9 distances (3..0.15 m, warm-started; azimuth and
     elevation re-fitted at each, on the coarse grids) and a coarse 3-D grid around it, then Nelder-Mead in 3-D on the fine grids
@@ -346,10 +381,10 @@ def fit_point(coarse: list, make_fine, anchor) -> FitResult:
     top = float(max(ev.verts[:, 2].max() for ev in fine))
     az0, el0 = float(d.params[0]), float(d.params[1])
 
-    def position(q):
+    def position(q: np.ndarray) -> np.ndarray:
         return anchor + math.exp(q[2]) * direction_of(q[0], q[1])
 
-    def to_light(q):
+    def to_light(q: np.ndarray) -> np.ndarray | None:
         pos = position(q)
         return None if pos[2] <= top + 0.01 or q[1] >= 89.5 else np.append(pos, 1.0)
 

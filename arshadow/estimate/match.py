@@ -25,7 +25,7 @@ __all__ = ["ExposureMatch", "paper_shading"]
 
 def marker_id_of(pose: Any) -> int | None:
     """The reference marker's id of a tracked pose (its first ``marker_ids``), or None."""
-    ids = getattr(pose, "marker_ids", ()) if pose is not None else ()
+    ids: Any = getattr(pose, "marker_ids", ()) if pose is not None else ()
     return ids[0] if len(ids) else None
 
 

@@ -63,10 +63,11 @@ def silhouette_edges(verts: np.ndarray, faces: np.ndarray, eye: np.ndarray) -> n
     sil = ((cnt == 2) & (n_front == 1)) | ((cnt == 1) & (n_front == 1))
     first = np.full(len(cnt), -1)
     first[inv[::-1]] = np.arange(len(inv))[::-1]
-    return v[key[first[sil]]]
+    edges: np.ndarray = v[key[first[sil]]]
+    return edges
 
 
-def _samples(intr: Intrinsics, pose: np.ndarray, segs: np.ndarray):
+def _samples(intr: Intrinsics, pose: np.ndarray, segs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Points along the projected segments every :data:`STEP_PX` and their unit image normals:
     ((n, 2), (n, 2)) float64 (distortion included)."""
     pts, nrm = [], []
@@ -90,7 +91,9 @@ def _samples(intr: Intrinsics, pose: np.ndarray, segs: np.ndarray):
     return np.concatenate(pts), np.concatenate(nrm)
 
 
-def outline_agreement(image_bgr: np.ndarray, intr: Intrinsics, cam_from_world, verts, faces) -> tuple:
+def outline_agreement(
+    image_bgr: np.ndarray, intr: Intrinsics, cam_from_world: np.ndarray, verts: np.ndarray, faces: np.ndarray
+) -> tuple:
     """The share of the probe's projected outline that lies on an edge of the photo.
 
     Parameters
@@ -120,7 +123,7 @@ def outline_agreement(image_bgr: np.ndarray, intr: Intrinsics, cam_from_world, v
     pts, nrm = pts[ok], nrm[ok]
     if len(pts) == 0:
         return math.nan, 0
-    gray = cv2.cvtColor(image_bgr, cv2.COLOR_BGR2GRAY).astype(np.float32)
+    gray: np.ndarray = cv2.cvtColor(image_bgr, cv2.COLOR_BGR2GRAY).astype(np.float32)
     gray = cv2.GaussianBlur(gray, (0, 0), 1.0)
     gx = cv2.Sobel(gray, cv2.CV_32F, 1, 0, ksize=3)
     gy = cv2.Sobel(gray, cv2.CV_32F, 0, 1, ksize=3)

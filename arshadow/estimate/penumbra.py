@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from .shadow import fit_levels, shadow_coverage
+from .shadow import Evidence, fit_levels, shadow_coverage
 
 __all__ = ["RADII_DEG", "cone_directions", "disc_coverage", "fit_angular_radius"]
 
@@ -25,7 +25,7 @@ __all__ = ["RADII_DEG", "cone_directions", "disc_coverage", "fit_angular_radius"
 RADII_DEG = (0.0, 0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.5, 8.0, 10.0)
 
 
-def cone_directions(direction, radius_deg: float, n: int = 32) -> np.ndarray:
+def cone_directions(direction: np.ndarray, radius_deg: float, n: int = 32) -> np.ndarray:
     """``n`` unit directions uniform in solid angle within the cone of half-angle ``radius_deg`` around
     ``direction`` (a sunflower pattern; deterministic): (n, 3) float64; ``direction[None]`` for radius 0.
 
@@ -44,10 +44,11 @@ def cone_directions(direction, radius_deg: float, n: int = 32) -> np.ndarray:
     a = np.cross(z, [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0])
     a /= np.linalg.norm(a)
     b = np.cross(z, a)
-    return cos_t[:, None] * z + sin_t[:, None] * (np.cos(phi)[:, None] * a + np.sin(phi)[:, None] * b)
+    out: np.ndarray = cos_t[:, None] * z + sin_t[:, None] * (np.cos(phi)[:, None] * a + np.sin(phi)[:, None] * b)
+    return out
 
 
-def disc_coverage(ev, direction, radius_deg: float) -> np.ndarray | None:
+def disc_coverage(ev: Evidence, direction: np.ndarray, radius_deg: float) -> np.ndarray | None:
     """The probe's ground shadow of a disc light (angular radius ``radius_deg`` around ``direction``) as
     coverage of the evidence's grid: (ny, nx) float32 in [0, 1], or None (a direction casts no shadow)."""
     acc = None
@@ -60,7 +61,7 @@ def disc_coverage(ev, direction, radius_deg: float) -> np.ndarray | None:
     return None if acc is None else acc / np.float32(len(dirs))
 
 
-def _score(evs, direction, r) -> float:
+def _score(evs: list[Evidence], direction: np.ndarray, r: float) -> float:
     total = 0.0
     for ev in evs:
         S = disc_coverage(ev, direction, r)
@@ -71,7 +72,7 @@ def _score(evs, direction, r) -> float:
     return total
 
 
-def fit_angular_radius(evs: list, direction) -> tuple[float, dict]:
+def fit_angular_radius(evs: list[Evidence], direction: np.ndarray) -> tuple[float, dict]:
     """The light's angular radius (degrees) that best explains the shadow's softness in the evidence grids
     ``evs`` (one per frame) for the light's centre ``direction`` (3,).
 

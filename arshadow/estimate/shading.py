@@ -49,10 +49,10 @@ def _face_groups(verts: np.ndarray, faces: np.ndarray, eye: np.ndarray) -> list:
 def face_shading_residual(
     image_bgr: np.ndarray,
     intr: Intrinsics,
-    cam_from_world,
-    verts,
-    faces,
-    light_h,
+    cam_from_world: np.ndarray,
+    verts: np.ndarray,
+    faces: np.ndarray,
+    light_h: np.ndarray,
     shadow_ratio: float,
 ) -> tuple:
     """The largest disagreement between the probe's faces in the photo and their shading by a light.
@@ -81,7 +81,7 @@ def face_shading_residual(
     eye = transform_points(np.linalg.inv(pose), np.zeros((1, 3)))[0]
     foot = np.r_[0.5 * (v[:, :2].min(axis=0) + v[:, :2].max(axis=0)), 0.0]
 
-    def to_light(p):
+    def to_light(p: np.ndarray) -> np.ndarray:
         d = h[:3] if h[3] == 0.0 else h[:3] / h[3] - p
         return d / np.linalg.norm(d)
 
@@ -93,7 +93,7 @@ def face_shading_residual(
     measured, model = [], []
     kernel = np.ones((7, 7), np.uint8)
     for normal, centre, ks in _face_groups(v, np.asarray(faces), eye):
-        mask = np.zeros((H, W), np.uint8)
+        mask: np.ndarray = np.zeros((H, W), np.uint8)
         for k in ks:
             t = uv[np.asarray(faces)[k]]
             if np.all(np.isfinite(t)):

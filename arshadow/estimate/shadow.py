@@ -20,6 +20,7 @@ light is chosen by (analysis by synthesis: a light is as good as its exact shado
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import cv2
@@ -76,9 +77,9 @@ class Evidence:
     sigma: float = 0.03
     supersample: int = SS
 
-    def __post_init__(self):
-        self._norms = None
-        self._residual = None
+    def __post_init__(self) -> None:
+        self._norms: list | None = None
+        self._residual: np.ndarray | None = None
 
     @property
     def shape(self) -> tuple:
@@ -106,7 +107,7 @@ class Evidence:
         return (np.asarray(xy, np.float64) - [self.x0, self.y0]) / self.step
 
 
-def _probe_footprint(uv_grid, uvp, faces, dilate_px):
+def _probe_footprint(uv_grid: np.ndarray, uvp: np.ndarray, faces: np.ndarray, dilate_px: float) -> np.ndarray:
     """bool (n,): image points ``uv_grid`` (n, 2) on the probe, whose vertices project to ``uvp`` (k, 2)
     (triangles ``faces``), dilated by ``dilate_px``."""
     tri = uvp[faces]
@@ -117,7 +118,7 @@ def _probe_footprint(uv_grid, uvp, faces, dilate_px):
     lo = np.floor(np.nanmin(uvp, axis=0) - dilate_px - 2).astype(int)
     hi = np.ceil(np.nanmax(uvp, axis=0) + dilate_px + 2).astype(int)
     w, h = int(hi[0] - lo[0] + 1), int(hi[1] - lo[1] + 1)
-    img = np.zeros((h, w), np.uint8)
+    img: np.ndarray = np.zeros((h, w), np.uint8)
     for t in tri[ok]:
         cv2.fillConvexPoly(img, np.round((t - lo) * 16).astype(np.int32), 1, cv2.LINE_8, shift=4)
     k = 2 * int(math.ceil(dilate_px)) + 1
@@ -132,13 +133,13 @@ def _probe_footprint(uv_grid, uvp, faces, dilate_px):
 def build_evidence(
     image_bgr: np.ndarray,
     intr: Intrinsics,
-    cam_from_world,
-    verts,
-    faces,
+    cam_from_world: np.ndarray,
+    verts: np.ndarray,
+    faces: np.ndarray,
     *,
     marker_length: float,
-    paper_rgb,
-    center,
+    paper_rgb: np.ndarray | Sequence[float],
+    center: np.ndarray,
     half: float,
     step: float,
     convex: bool = True,
@@ -226,7 +227,7 @@ def build_evidence(
     )
 
 
-def shadow_coverage(ev: Evidence, light_h) -> np.ndarray | None:
+def shadow_coverage(ev: Evidence, light_h: np.ndarray) -> np.ndarray | None:
     """The probe's exact ground shadow for a light, as coverage of the evidence's grid.
 
     Parameters
@@ -284,7 +285,8 @@ def _local_mean(ev: Evidence, values: np.ndarray) -> np.ndarray:
     norms = ev.class_norms()
     if len(norms) == 1:
         cls, norm = norms[0]
-        return smooth(ev, np.where(cls, values, 0.0).astype(np.float32)) / norm
+        mean: np.ndarray = smooth(ev, np.where(cls, values, 0.0).astype(np.float32)) / norm
+        return mean
     out = np.zeros(ev.shape, np.float32)
     for cls, norm in norms:
         num = smooth(ev, np.where(cls, values, 0.0).astype(np.float32))
@@ -299,7 +301,9 @@ def highpass(ev: Evidence, values: np.ndarray) -> np.ndarray:
     return np.where(ev.used, v - _local_mean(ev, v), 0.0).astype(np.float32)
 
 
-def fit_levels(ev: Evidence, S: np.ndarray, values: np.ndarray | None = None, weight: np.ndarray | None = None):
+def fit_levels(
+    ev: Evidence, S: np.ndarray, values: np.ndarray | None = None, weight: np.ndarray | None = None
+) -> tuple[float, float, float, int]:
     """Least squares of the high-passed photo by the high-passed shadow: ``hp(values) = delta * hp(S)``.
 
     Parameters
@@ -334,7 +338,7 @@ def fit_levels(ev: Evidence, S: np.ndarray, values: np.ndarray | None = None, we
     return max(rr - rs * rs / ss, 0.0), delta, rr, n
 
 
-def edge_pairs(ev: Evidence, S: np.ndarray, distance: float):
+def edge_pairs(ev: Evidence, S: np.ndarray, distance: float) -> tuple[np.ndarray, np.ndarray]:
     """Pairs of ground cells straddling the modelled shadow's edge: for every edge cell, the points
     ``distance`` (metres) inside and outside along the edge's normal, kept when both are used, of the same
     albedo class, clearly in and out of the shadow. Returns ``(inside rgb (k, 3), outside rgb (k, 3))``
@@ -352,7 +356,7 @@ def edge_pairs(ev: Evidence, S: np.ndarray, distance: float):
     pout = np.stack([cc - k * g[:, 0], rr - k * g[:, 1]], 1)
     ny, nx = ev.shape
 
-    def nearest(p):
+    def nearest(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         q = np.rint(p).astype(int)
         good = (q[:, 0] >= 0) & (q[:, 0] < nx) & (q[:, 1] >= 0) & (q[:, 1] < ny)
         q[~good] = 0
@@ -373,7 +377,7 @@ def edge_pairs(ev: Evidence, S: np.ndarray, distance: float):
         return np.zeros((0, 3)), np.zeros((0, 3))
     rgb = ev.rgb.astype(np.float32)
 
-    def sample(p):
+    def sample(p: np.ndarray) -> np.ndarray:
         m = p[keep].astype(np.float32).reshape(-1, 1, 2)
         return cv2.remap(rgb, m[:, :, 0], m[:, :, 1], cv2.INTER_LINEAR).reshape(-1, 3).astype(np.float64)
 

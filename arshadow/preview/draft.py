@@ -74,4 +74,7 @@ def draft_pose(cam_from_ground: np.ndarray, motion: np.ndarray, marker_from_grou
     """``cam_from_marker (4, 4)`` to render the unmoved object at: the session's plan then uses
     ``cam_from_ground @ motion`` (``marker_from_ground`` None: the ground is the marker plane)."""
     cfg = np.asarray(cam_from_ground, np.float64) @ motion
-    return cfg if marker_from_ground is None else cfg @ invert_rigid(np.asarray(marker_from_ground, np.float64))
+    out: np.ndarray = (
+        cfg if marker_from_ground is None else cfg @ invert_rigid(np.asarray(marker_from_ground, np.float64))
+    )
+    return out

@@ -186,12 +186,13 @@ def apply_controls(base: Mapping[str, Any], controls: Any, *, own_lights: Any = 
 
 def controls_of(d: Mapping[str, Any]) -> dict[str, Any]:
     """The control state showing scene ``d`` (the page's starting values)."""
+    opacity = d.get("opacity")
     return {
         "place": list(map(float, d.get("place") or (0.0, 0.0, 0.0))),
         "rotate": list(map(float, d.get("rotate") or (0.0, 0.0, 0.0))),
         "scale": float(d.get("scale") or 1.0),
         "light": "measured" if d.get("light_from") and not d.get("lights") else None,
-        "opacity": float(d.get("opacity") if d.get("opacity") is not None else 0.7),
+        "opacity": float(opacity if opacity is not None else 0.7),
         "soft_samples": int(d.get("soft_samples") or 1),
         "object": not d.get("no_object"),
     }
@@ -241,8 +242,8 @@ def read_job(path: str | os.PathLike[str]) -> dict[str, Any]:
 
     from ..scene import load_scene
 
-    load_scene(path)  # every problem of the file, named as batch --config names it
     p = Path(path)
+    load_scene(p)  # every problem of the file, named as batch --config names it
     text = p.read_text(encoding="utf-8")
     if p.suffix.lower() in (".yml", ".yaml"):
         import yaml

@@ -19,7 +19,7 @@ import time
 from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import cv2
 import numpy as np
@@ -70,7 +70,7 @@ class Media:
             ok, first = cap.read() if cap.isOpened() else (False, None)
             n = int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) if ok else 0
             cap.release()
-            if not ok:
+            if not ok or first is None:
                 raise ImageError(f"{self.path}: cannot read the video")
             self.count = max(n, 1)
             self._frames[0] = first
@@ -306,28 +306,31 @@ class PreviewEngine:
         axes = cal.intrinsics.project(np.array([[0, 0, 0], [length, 0, 0], [0, length, 0], [0, 0, length]], float), cfw)
         anchor = cal.intrinsics.project(np.asarray([scene["place"]], float), cfw)[0]
         item = res.item.to_dict()
-        return jsonable(
-            {
-                "image": _image_url(iid, "composite"),
-                "mask": _image_url(iid, "mask") if "mask" in images else None,
-                "image_id": iid,
-                "scene": scene,
-                "controls": controls_of(scene),
-                "frame": req.frame,
-                "draft": draft,
-                "axes_px": axes.tolist(),
-                "anchor_px": anchor.tolist(),
-                "roi": item.get("roi"),
-                "report": item,
-                "decisions": [[d.name, d.value, d.reason] for d in res.plan.decisions],
-                "server_ms": {
-                    "wait": round((t0 - t_submit) * 1e3, 3),
-                    "prepare": round((t1 - t0) * 1e3, 3),
-                    "render": round((t2 - t1) * 1e3, 3),
-                    "encode": round((t3 - t2) * 1e3, 3),
-                    "total": round((t3 - t_submit) * 1e3, 3),
-                },
-            }
+        return cast(
+            dict,
+            jsonable(
+                {
+                    "image": _image_url(iid, "composite"),
+                    "mask": _image_url(iid, "mask") if "mask" in images else None,
+                    "image_id": iid,
+                    "scene": scene,
+                    "controls": controls_of(scene),
+                    "frame": req.frame,
+                    "draft": draft,
+                    "axes_px": axes.tolist(),
+                    "anchor_px": anchor.tolist(),
+                    "roi": item.get("roi"),
+                    "report": item,
+                    "decisions": [[d.name, d.value, d.reason] for d in res.plan.decisions],
+                    "server_ms": {
+                        "wait": round((t0 - t_submit) * 1e3, 3),
+                        "prepare": round((t1 - t0) * 1e3, 3),
+                        "render": round((t2 - t1) * 1e3, 3),
+                        "encode": round((t3 - t2) * 1e3, 3),
+                        "total": round((t3 - t_submit) * 1e3, 3),
+                    },
+                }
+            ),
         )
 
     def _store(self, images: dict[str, bytes]) -> int:

@@ -14,6 +14,7 @@ on its marker's 6 and its frame's 6 parameters).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -46,10 +47,13 @@ def rodrigues_many(rvecs: np.ndarray) -> np.ndarray:
     s, c = np.sin(th)[:, None, None], (1.0 - np.cos(th))[:, None, None]
     R = np.eye(3) + s * K + c * (K @ K)
     R[small] = np.eye(3)
-    return R
+    out: np.ndarray = R
+    return out
 
 
-def project_normalised(marker_rt, cam_rt, local, obs_marker, obs_frame):
+def project_normalised(
+    marker_rt: np.ndarray, cam_rt: np.ndarray, local: np.ndarray, obs_marker: np.ndarray, obs_frame: np.ndarray
+) -> np.ndarray:
     """Normalised pinhole coordinates of every observed corner: ``(n, 4, 2)`` float64.
 
     Parameters
@@ -67,7 +71,8 @@ def project_normalised(marker_rt, cam_rt, local, obs_marker, obs_frame):
     ref = np.einsum("mij,mkj->mki", Rm, local) + marker_rt[:, None, 3:]  # (m, 4, 3) in the map
     p = np.einsum("nij,nkj->nki", Rc[obs_frame], ref[obs_marker]) + cam_rt[obs_frame, None, 3:]
     z = np.where(np.abs(p[..., 2]) < 1e-9, 1e-9, p[..., 2])
-    return p[..., :2] / z[..., None]
+    uv: np.ndarray = p[..., :2] / z[..., None]
+    return uv
 
 
 @dataclass
@@ -92,7 +97,9 @@ class BundleResult:
     nfev: int
 
 
-def _sparsity(n_obs, n_free_markers, n_frames, obs_free, obs_frame):
+def _sparsity(
+    n_obs: int, n_free_markers: int, n_frames: int, obs_free: np.ndarray, obs_frame: np.ndarray
+) -> Any:  # a scipy.sparse CSR matrix
     """(8 n, 6 m' + 6 f) 0/1 structure: rows of an observation, columns of its marker and its frame."""
     rows, cols = [], []
     r = np.arange(n_obs)[:, None] * 8 + np.arange(8)[None, :]  # (n, 8)
@@ -108,7 +115,17 @@ def _sparsity(n_obs, n_free_markers, n_frames, obs_free, obs_frame):
     return coo_matrix((np.ones(rr.size, np.int8), (rr, cc)), shape=shape).tocsr()
 
 
-def bundle_adjust(marker_rt, cam_rt, local, obs_marker, obs_frame, obs_norm, focal, ref_index, max_nfev=60):
+def bundle_adjust(
+    marker_rt: np.ndarray,
+    cam_rt: np.ndarray,
+    local: np.ndarray,
+    obs_marker: np.ndarray,
+    obs_frame: np.ndarray,
+    obs_norm: np.ndarray,
+    focal: np.ndarray,
+    ref_index: int,
+    max_nfev: int = 60,
+) -> BundleResult:
     """Fit every marker pose (but the reference's) and every camera pose to the observed corners.
 
     Parameters
@@ -140,15 +157,16 @@ def bundle_adjust(marker_rt, cam_rt, local, obs_marker, obs_frame, obs_norm, foc
     obs_free = free_of[obs_marker]
     fxy = np.asarray(focal, np.float64)
 
-    def unpack(x):
+    def unpack(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         mr = marker_rt.copy()
         mr[free] = x[: 6 * len(free)].reshape(-1, 6)
         return mr, x[6 * len(free) :].reshape(f, 6)
 
-    def fun(x):
+    def fun(x: np.ndarray) -> np.ndarray:
         mr, cr = unpack(x)
         uv = project_normalised(mr, cr, local, obs_marker, obs_frame)
-        return ((uv - obs_norm) * fxy).ravel()
+        res: np.ndarray = ((uv - obs_norm) * fxy).ravel()
+        return res
 
     x0 = np.concatenate([marker_rt[free].ravel(), np.asarray(cam_rt, np.float64).ravel()])
     sp = _sparsity(n, len(free), f, obs_free, obs_frame)

@@ -11,6 +11,7 @@ from __future__ import annotations
 import itertools
 import os
 import threading
+from collections.abc import Iterable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -21,7 +22,7 @@ from ..camera import Intrinsics
 from ..cvstorage import write_storage
 from ..errors import ImageError, UsageError
 from ..io import read_image
-from .detect import to_gray
+from .detect import Detection, to_gray
 from .fastdetect import fast_detector_params
 from .mapping import MarkerMap, Observations
 from .tracker import MarkerTracker
@@ -33,7 +34,7 @@ VIDEO_SUFFIXES = (".mp4", ".m4v", ".mov", ".mkv", ".avi", ".webm", ".mpg", ".mpe
 MAX_MAP_FRAMES = 600
 
 
-def _video_frames(path: Path, max_frames: int):
+def _video_frames(path: Path, max_frames: int) -> Iterator[np.ndarray]:
     """Grey frames of a video, evenly sampled down to ``max_frames`` (decoding all, converting those used)."""
     cap = cv2.VideoCapture(str(path))
     if not cap.isOpened():
@@ -55,12 +56,12 @@ def _video_frames(path: Path, max_frames: int):
 
 
 def observe_inputs(
-    inputs,
+    inputs: Iterable[str | os.PathLike[str]],
     intrinsics: Intrinsics,
     *,
-    dictionary=None,
-    refine="edge",
-    inverted=None,
+    dictionary: str | None = None,
+    refine: str = "edge",
+    inverted: bool | None = None,
     max_frames: int = MAX_MAP_FRAMES,
     workers: int | None = None,
 ) -> Observations:
@@ -91,7 +92,7 @@ def observe_inputs(
     """
     local = threading.local()
 
-    def detect(gray):
+    def detect(gray: np.ndarray) -> Detection:
         if not hasattr(local, "tracker"):  # one tracker per thread (a tracker remembers its misses)
             # one threshold window (the fast pass's, ~1.5x cheaper; a map does not need every marker of
             # every frame) and edge-fitted corners: subpix corners put the synthetic clip's markers 2-6 mm off
@@ -103,7 +104,8 @@ def observe_inputs(
                 inverted=inverted,
                 detector_params=fast_detector_params(),
             )
-        return local.tracker.detect(gray)
+        tracker: MarkerTracker = local.tracker
+        return tracker.detect(gray)
 
     frames = _frames(inputs, intrinsics, max_frames)
     dets: list = []
@@ -120,7 +122,7 @@ def observe_inputs(
     return Observations.from_detections(dets, size)
 
 
-def _frames(inputs, intrinsics: Intrinsics, max_frames: int):
+def _frames(inputs: Iterable[str | os.PathLike[str]], intrinsics: Intrinsics, max_frames: int) -> Iterator[np.ndarray]:
     """Grey frames of photos and videos (videos evenly sampled, :data:`MAX_MAP_FRAMES` in all), all of one
     size that the calibration takes."""
     items = [Path(p) for p in inputs]
@@ -138,14 +140,14 @@ def _frames(inputs, intrinsics: Intrinsics, max_frames: int):
             yield g
 
 
-def _write_floats(fs, key, values, flow=True):
+def _write_floats(fs: cv2.FileStorage, key: str, values: Iterable[float], flow: bool = True) -> None:
     fs.startWriteStruct(key, cv2.FileNode_SEQ | (cv2.FileNode_FLOW if flow else 0))
     for v in values:
         fs.write("", float(v))
     fs.endWriteStruct()
 
 
-def write_map(mmap: MarkerMap, path) -> Path:
+def write_map(mmap: MarkerMap, path: str | os.PathLike[str]) -> Path:
     """Write ``mmap`` as a ``type: markers`` board file with its residuals (YAML/JSON by extension,
     atomically). Returns the path."""
     p = Path(path)

@@ -23,7 +23,9 @@ world frame as a single-marker run with that marker, so ``--place`` keeps its me
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import cv2
 import numpy as np
@@ -76,7 +78,7 @@ class Observations:
     image_size: tuple | None = None
 
     @classmethod
-    def from_detections(cls, detections, image_size=None) -> Observations:
+    def from_detections(cls, detections: Iterable[Any], image_size: tuple | None = None) -> Observations:
         """From a sequence of :class:`~arshadow.tracking.detect.Detection` (or ``(ids, corners)``), one per frame."""
         fr, ids, cs = [], [], []
         n = 0
@@ -132,7 +134,7 @@ class MarkerMap:
     rejected: list = field(default_factory=list)
     cam_from_ref: dict = field(default_factory=dict)
 
-    def board(self, source: str | None = None) -> Board:
+    def board(self, source: str = "") -> Board:
         """The map as a generic board (``type: markers``): what ``--board`` reads."""
         return Board(
             kind="markers",
@@ -151,7 +153,7 @@ class MarkerMap:
         )
 
 
-def marker_lengths_for(spec, ids) -> dict:
+def marker_lengths_for(spec: dict | float, ids: Iterable[int]) -> dict:
     """id -> marker side (metres) from ``spec``: a number (all ids), or a dict id -> length with an optional
     ``None`` key for the others.
 
@@ -165,7 +167,7 @@ def marker_lengths_for(spec, ids) -> dict:
     """
     if not isinstance(spec, dict):
         spec = {None: float(spec)}
-    out = {}
+    out: dict[int, float] = {}
     for i in ids:
         v = spec.get(int(i), spec.get(None))
         if v is None:
@@ -174,7 +176,7 @@ def marker_lengths_for(spec, ids) -> dict:
     return out
 
 
-def _single_poses(obs_norm, lengths):
+def _single_poses(obs_norm: np.ndarray, lengths: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
     """Both IPPE solutions of each observation: (n, 2, 4, 4) float64 ``cam_from_marker`` (NaN where IPPE
     gave no solution) and (n, 2) errors (normalised units; inf where no solution)."""
     n = len(obs_norm)
@@ -194,10 +196,11 @@ def _single_poses(obs_norm, lengths):
     return T, err
 
 
-def _rot_deg(Ra, Rb):
+def _rot_deg(Ra: np.ndarray, Rb: np.ndarray) -> np.ndarray:
     """Angles (degrees) between rotation stacks ``Ra (..., 3, 3)`` and ``Rb (..., 3, 3)``."""
     c = (np.einsum("...ij,...ij->...", Ra, Rb) - 1.0) / 2.0
-    return np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
+    out: np.ndarray = np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
+    return out
 
 
 def _robust_average(Ts: np.ndarray) -> tuple[np.ndarray, int]:
@@ -219,7 +222,7 @@ def _robust_average(Ts: np.ndarray) -> tuple[np.ndarray, int]:
     return out, int(inl.sum())
 
 
-def _pair_edges(frame, ids, T):
+def _pair_edges(frame: np.ndarray, ids: np.ndarray, T: np.ndarray) -> dict[tuple[int, int], tuple[np.ndarray, int]]:
     """Per co-visible pair (a < b): the robust ``a_from_b`` and how many frames agree with it."""
     cands: dict = {}
     order = np.argsort(frame, kind="stable")
@@ -235,7 +238,7 @@ def _pair_edges(frame, ids, T):
     return {k: _robust_average(np.asarray(v)) for k, v in cands.items()}
 
 
-def _spanning_tree(edges, ref):
+def _spanning_tree(edges: dict[tuple[int, int], tuple[np.ndarray, int]], ref: int) -> dict[int, np.ndarray]:
     """Prim's maximum spanning tree on the agreeing counts (>= 2) from ``ref``: id -> ``ref_from_id``."""
     adj: dict = {}
     for (a, b), (T, w) in edges.items():
@@ -255,20 +258,28 @@ def _spanning_tree(edges, ref):
         placed[b] = placed[a] @ T
 
 
-def _graph_disagreements(edges, placed) -> list:
+def _graph_disagreements(edges: dict[tuple[int, int], tuple[np.ndarray, int]], placed: dict[int, np.ndarray]) -> list:
     """Pairs (both placed) whose average is far from the tree's: descriptions for :attr:`MarkerMap.rejected`."""
     out = []
     for (a, b), (T, _w) in sorted(edges.items()):
         if a in placed and b in placed:
             G = invert_rigid(placed[a]) @ placed[b]
             ang = float(_rot_deg(G[:3, :3], T[:3, :3]))
-            d = float(np.linalg.norm(G[:3, 3] - T[:3, 3]) / max(np.linalg.norm(G[:3, 3]), 1e-3))
+            d = float(np.linalg.norm(G[:3, 3] - T[:3, 3]) / max(float(np.linalg.norm(G[:3, 3])), 1e-3))
             if ang > GRAPH_DISAGREE_DEG or d > GRAPH_DISAGREE_REL:
                 out.append(f"pair {a}-{b} disagrees with the graph ({ang:.1f} deg, {100 * d:.0f} % of the distance)")
     return out
 
 
-def _init_cameras(frame, midx, T, marker_T, local, obs_norm, focal):
+def _init_cameras(
+    frame: np.ndarray,
+    midx: np.ndarray,
+    T: np.ndarray,
+    marker_T: np.ndarray,
+    local: np.ndarray,
+    obs_norm: np.ndarray,
+    focal: np.ndarray,
+) -> tuple[dict[int, np.ndarray], np.ndarray]:
     """Each frame's ``cam_from_ref``: of every observation's two IPPE solutions composed with its marker's
     map pose, the one that reprojects the frame's markers best. Returns ({frame: (4, 4)}, (n,) RMS px)."""
     rms = np.full(len(frame), np.inf)
@@ -296,7 +307,7 @@ def _init_cameras(frame, midx, T, marker_T, local, obs_norm, focal):
     return cams, rms
 
 
-def _select_frames(frame, midx, max_frames):
+def _select_frames(frame: np.ndarray, midx: np.ndarray, max_frames: int) -> set[int]:
     """Frames for the bundle adjustment: those with >= 2 markers, evenly thinned to ``max_frames``, then
     frames added back for a marker left in fewer than 3."""
     fs, counts = np.unique(frame, return_counts=True)
@@ -315,7 +326,7 @@ def _select_frames(frame, midx, max_frames):
 def learn_map(
     obs: Observations,
     intrinsics: Intrinsics,
-    marker_length,
+    marker_length: dict | float,
     *,
     dictionary: str = "DICT_6X6_250",
     reference_id: int | None = None,
@@ -397,7 +408,7 @@ def learn_map(
     return _fit(d, fit, rejected, frames_seen, obs.n_frames, str(dictionary))
 
 
-def _fit(d, fit, rejected, frames_seen, n_frames, dictionary):
+def _fit(d: dict, fit: tuple, rejected: list, frames_seen: dict, n_frames: int, dictionary: str) -> MarkerMap:
     """Bundle adjustment with two outlier passes; the :class:`MarkerMap`."""
     cams, marker_T, order, ref, focal, max_ba_frames = fit
     frame, midx, obs_norm, local = d["frame"], d["midx"], d["obs_norm"], d["local"]
