@@ -159,7 +159,7 @@ def add_map_option(group: Any) -> None:  # an argparse group (a private class, h
     )
 
 
-def resolve_map(
+def resolve_map(  # noqa: PLR0913 -- the tracker options of render/video/batch, one per flag (CLI glue)
     args: argparse.Namespace,
     inputs: Any,
     outdir: str | Path,
