@@ -115,7 +115,7 @@ def _sparsity(
     return coo_matrix((np.ones(rr.size, np.int8), (rr, cc)), shape=shape).tocsr()
 
 
-def bundle_adjust(
+def bundle_adjust(  # noqa: PLR0913 -- the sparse problem's arrays, as least_squares takes them
     marker_rt: np.ndarray,
     cam_rt: np.ndarray,
     local: np.ndarray,
