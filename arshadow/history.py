@@ -79,7 +79,7 @@ class History:
             raise UsageError("set_time needs sun tracks (Session.use_sun_tracks)")
         static, tracks = self._sun
         frames = [tr.update(when) for tr in tracks]
-        self.geometry.set_lights(list(static) + [tr.light(f) for tr, f in zip(tracks, frames)])
+        self.geometry.set_lights(list(static) + [tr.light(f) for tr, f in zip(tracks, frames, strict=True)])
         return frames
 
     # -- saved state ------------------------------------------------------------------------------------
@@ -100,5 +100,5 @@ class History:
         if self.hooks.exposure is not None:
             self.hooks.exposure.restore(state.get("exposure"))
         if state.get("sun_tracks") is not None and self._sun is not None:
-            for tr, st in zip(self._sun[1], state["sun_tracks"]):
+            for tr, st in zip(self._sun[1], state["sun_tracks"], strict=True):
                 tr.restore(st)

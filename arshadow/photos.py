@@ -122,7 +122,7 @@ def photo_jobs(
     if layers_format is not None:
         check_layer_format(layers_format)
     jobs = []
-    for inp, stem in zip(inputs, unique_stems(inputs)):
+    for inp, stem in zip(inputs, unique_stems(inputs), strict=True):
         suffix = Path(inp).suffix.lower()
         ext = suffix if keep_format and suffix in IMAGE_EXTENSIONS else ".png"
         lay = None if layers_format is None else layer_paths(outdir, stem, layers_format, layers_undistorted)
@@ -283,7 +283,7 @@ def track_photos(
     """
     items = []
     stems = unique_stems(inputs)
-    for name, stem in zip(inputs, stems):
+    for name, stem in zip(inputs, stems, strict=True):
         item = ReportItem(input=str(name))
         t0 = time.perf_counter()
         pose = image = err = None

@@ -348,7 +348,7 @@ def _light_decisions(plan: FramePlan, geometry: SceneGeometry, intr: Any, modes:
 
 def _plan_lights(plan: FramePlan, geometry: SceneGeometry, decisions: list[Any]) -> None:
     """A :class:`LightPlan` per light from its decision, and the decisions recorded with their reasons."""
-    for i, (ls, d) in enumerate(zip(geometry.lights, decisions)):
+    for i, (ls, d) in enumerate(zip(geometry.lights, decisions, strict=True)):
         mode = d.mode
         planar, culled = mode in ("planar", "shadowmap"), mode == "none"
         caps = mode == "zfail"

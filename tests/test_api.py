@@ -357,7 +357,7 @@ def test_sun_track_state_resumes_the_recompute_schedule():
     b.restore(pickle.loads(pickle.dumps(a.state())))
     tail = b.track(times[k:])
     assert [f.recompute for f in head + tail] == [f.recompute for f in whole]
-    assert all(np.array_equal(x.world_used, y.world_used) for x, y in zip(head + tail, whole))
+    assert all(np.array_equal(x.world_used, y.world_used) for x, y in zip(head + tail, whole, strict=True))
     assert parse_sun_track(spec, recompute_deg=0.2).track(times[k:])[0].recompute  # without the state
     assert b.light(tail[-1]).weight == 2.0
 

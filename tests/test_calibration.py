@@ -66,7 +66,7 @@ def test_per_view_poses_match_reference(realdata, tol):
     files = sorted(f for f in (realdata / "chessboard_left").glob("left*.jpg") if f.name != "left10.jpg")
     p = parse_pattern("chessboard:9,6,0.025")
     res = calibrate([find_view(f, p) for f in files], flags=cv2.CALIB_FIX_ASPECT_RATIO, pattern=p)
-    for v, r, t in zip(res.views, res.rvecs, res.tvecs):
+    for v, r, t in zip(res.views, res.rvecs, res.tvecs, strict=True):
         truth = exp[f"chessboard_left/{v.path.rsplit('/', 1)[-1]}"]["pose_ground_truth"]
         assert rotation_error_deg(r, np.array(truth["board_in_camera_rvec"])) < tol.calib_extrinsic_rot_deg
         assert 1000 * np.linalg.norm(t - np.array(truth["board_in_camera_tvec_m"])) < tol.calib_extrinsic_mm

@@ -75,7 +75,7 @@ def test_good_and_bad_inputs_in_one_run(photos, tmp_path, capsys):
     lines = [ln for ln in se.splitlines() if ln.strip()]
     assert len(lines) == 4, se
     assert "Traceback" not in se
-    for ln, name in zip(lines, ["corrupt.png", "missing.png", "square.png", "nomarker.png"]):
+    for ln, name in zip(lines, ["corrupt.png", "missing.png", "square.png", "nomarker.png"], strict=True):
         assert ln.startswith("arshadow render: error:") and name in ln, ln
     assert "does not match the calibration" in lines[2]
     # good inputs processed, bad ones left no file; no temporary files left behind
@@ -165,7 +165,7 @@ def test_bad_configuration_exits_2_with_one_line(photos, tmp_path, capsys, probl
         "--model": "box:0.04,0.03,0.05",
         "--light": "point:-0.1,0.1,0.4",
     }
-    args.update(dict(zip(argv[::2], argv[1::2])))
+    args.update(dict(zip(argv[::2], argv[1::2], strict=True)))
     flat = [x for kv in args.items() for x in kv]
     code, so, se = _run(capsys, "render", photos / "good.jpg", *flat, "-o", tmp_path / "o")
     assert code == 2, (problem, se)

@@ -84,7 +84,7 @@ def _gltf_projections(path):
     _, rot = by_path["rotation"]
     out = {}
     pts_gltf = root_m @ np.c_[CORNERS, np.ones(4)].T  # marker corners in glTF world
-    for t, tt, q in zip(times, tr, rot):
+    for t, tt, q in zip(times, tr, rot, strict=True):
         world_from_cam_gl = root_m @ _trs(tt, q / np.linalg.norm(q))
         cam_gl = np.linalg.inv(world_from_cam_gl) @ pts_gltf
         cam_cv = (np.diag([1, -1, -1]) @ cam_gl[:3]).T

@@ -135,7 +135,7 @@ def test_apriltag_detector_keeps_what_the_ordinary_search_finds():
     c, ids, _ = AprilTagDetector(GRID.cv_dictionary, p).detectMarkers(gray)
     found = set(np.asarray(ids).ravel().tolist())
     assert found == set(GRID.marker_ids)
-    for cc, i in zip(c, np.asarray(ids).ravel()):  # pixel-centre corners, at the true corners
+    for cc, i in zip(c, np.asarray(ids).ravel(), strict=True):  # pixel-centre corners, at the true corners
         assert np.abs(np.asarray(cc).reshape(4, 2) - photo.corners_px[int(i)]).max() < 0.5
 
 

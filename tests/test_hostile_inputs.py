@@ -283,7 +283,7 @@ def test_bad_inputs_in_one_run(good, tmp_path, capsys):
     assert "Traceback" not in se
     lines = [ln for ln in se.splitlines() if ln.strip()]
     assert len(lines) == len(bad), se
-    for ln, (name, needle) in zip(lines, bad.items()):
+    for ln, (name, needle) in zip(lines, bad.items(), strict=True):
         ok = ln.startswith("arshadow render: error:") and name in ln and needle in ln
         TALLY["per input (exit 1)"].append((name, ok))
         assert ok, (name, ln)

@@ -92,7 +92,7 @@ def test_real_footage_poses_identical(refine):
         full, lazy = runs
         assert len(full) == len(lazy) == 60
         assert sum(not isinstance(r, str) for r in full) >= 40  # the test sees tracked frames
-        for a, b in zip(full, lazy):
+        for a, b in zip(full, lazy, strict=True):
             if isinstance(a, str):
                 assert a == b
             else:
@@ -110,7 +110,7 @@ def test_synthetic_clip_poses_identical_and_windowed(tmp_path):
         s.close()
     full, lazy = runs
     assert sum(isinstance(r, str) for r in full) == 3  # the blank frames
-    for a, b in zip(full, lazy):
+    for a, b in zip(full, lazy, strict=True):
         if isinstance(a, str):
             assert a == b
         else:

@@ -159,7 +159,7 @@ def stock_rotations(folder: Path, video: str, length: float) -> list:
         for fr in c.decode(video=0):
             corners, ids, _ = det.detectMarkers(fr.to_ndarray(format="bgr24"))
             rots = {}
-            for cc, i in zip(corners, [] if ids is None else ids.ravel().tolist()):
+            for cc, i in zip(corners, [] if ids is None else ids.ravel().tolist(), strict=True):
                 ok, rvec, _ = cv2.solvePnP(
                     obj, cc.reshape(4, 2).astype(np.float64), K, dist, flags=cv2.SOLVEPNP_IPPE_SQUARE
                 )

@@ -368,7 +368,9 @@ def check_configuration(cfg, renderer, stats: Stats, tol):
             # there is still a boundary case if the pixel centre lies within rounding of the exact edge,
             # measured on the ground against the triangles themselves
             ys, xs = np.nonzero(off)
-            near = [_edge_distance_px(x, y, K.K, T, tris) <= tol.stress_sliver_edge_px for x, y in zip(xs, ys)]
+            near = [
+                _edge_distance_px(x, y, K.K, T, tris) <= tol.stress_sliver_edge_px for x, y in zip(xs, ys, strict=True)
+            ]
             assert all(near), ("mismatch off the boundary (small shadow)", cfg)
             stats.degenerate[
                 f"sub-pixel sliver: every mismatch within {tol.stress_sliver_edge_px} px of the exact edge"

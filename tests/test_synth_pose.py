@@ -33,7 +33,7 @@ def _detect(image, refine=cv2.aruco.CORNER_REFINE_SUBPIX):
     params.cornerRefinementMethod = refine
     det = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_6X6_250), params)
     corners, ids, _ = det.detectMarkers(image)
-    return {} if ids is None else {int(i): c.reshape(4, 2) for i, c in zip(ids.ravel(), corners)}
+    return {} if ids is None else {int(i): c.reshape(4, 2) for i, c in zip(ids.ravel(), corners, strict=True)}
 
 
 # ---------------------------------------------------------------------------------------------------

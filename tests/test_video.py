@@ -15,6 +15,7 @@
 from __future__ import annotations
 
 import json
+from itertools import pairwise
 from pathlib import Path
 
 import cv2
@@ -105,7 +106,7 @@ def test_reader_timestamps_and_lossless_mask_video(tmp_path):
     assert [f.index for f in frames] == list(range(6))
     # Matroska stores timestamps in milliseconds: the decoder gives them at that resolution
     assert np.allclose([f.time_s for f in frames], np.arange(6) / 30.0, atol=1e-3)
-    for f, m in zip(frames, masks):
+    for f, m in zip(frames, masks, strict=True):
         assert f.image.shape == (48, 64, 3) and not f.image.flags.writeable
         assert np.array_equal(f.image[:, :, 0], m)  # FFV1: exact 8-bit values
     assert len(list(VideoReader(tmp_path / "m.mkv", max_frames=2))) == 2
@@ -128,12 +129,12 @@ def test_writer_reused_frame_keeps_every_frame_exact(tmp_path):
         for f in gray:
             w.write(f)
     got_y = [f.image for f in AvReader(tmp_path / "y.mkv", raw=True)]
-    assert len(got_y) == 4 and all(np.array_equal(a, b) for a, b in zip(got_y, yuv))
+    assert len(got_y) == 4 and all(np.array_equal(a, b) for a, b in zip(got_y, yuv, strict=True))
     import av
 
     with av.open(str(tmp_path / "g.mkv")) as c:
         got_g = [f.to_ndarray(format="gray") for f in c.decode(video=0)]
-    assert len(got_g) == 4 and all(np.array_equal(a, b) for a, b in zip(got_g, gray))
+    assert len(got_g) == 4 and all(np.array_equal(a, b) for a, b in zip(got_g, gray, strict=True))
 
 
 def test_writer_never_leaves_a_half_written_file(tmp_path):
@@ -182,11 +183,11 @@ def _branch_flips(chosen, truth):
     from arshadow.transforms import rotation_error_deg as rotation_angle_deg
 
     br = []
-    for c, t in zip(chosen, truth):
+    for c, t in zip(chosen, truth, strict=True):
         a = rotation_angle_deg(c.cam_from_world, t)
         b = rotation_angle_deg(c.alternative.cam_from_world, t)
         br.append(0 if abs(a - b) < 5.0 else int(a > b))
-    return sum(br), sum(1 for x, y in zip(br, br[1:]) if x != y)
+    return sum(br), sum(1 for x, y in pairwise(br) if x != y)
 
 
 def test_temporal_choice_removes_ippe_flips():
@@ -365,13 +366,13 @@ def test_time_lapse_moves_the_sun_and_recomputes_only_past_the_angle(tmp_path, m
     # cached silhouette of a moved light whose faces all keep their facing: docs/planner.md); the box's
     # face normals are the six axis directions, so its facing is the sign pattern of the sun direction
     want, facing = [], None
-    for d, e in zip(dirs, expect):
+    for d, e in zip(dirs, expect, strict=True):
         f = tuple(np.sign(np.round(d, 12)))
         if e and f != facing:
             want.append(d)
             facing = f
     assert len(calls) == len(want)
-    for c, d in zip(calls, want):
+    for c, d in zip(calls, want, strict=True):
         assert ang(c[:3], d) < 1e-6 and c[3] == 0.0
     # the shadow moves: masks of the first and last frame differ
     m = _read_all(out / "tl.shadow.mkv")

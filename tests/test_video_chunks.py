@@ -108,11 +108,11 @@ def assert_same_run(a_dir, b_dir, stem, n):
     """Equal per-frame records (status, poses: exact), equal mask frames, same frame count and audio."""
     la, lb = _lines(a_dir / f"{stem}.frames.jsonl"), _lines(b_dir / f"{stem}.frames.jsonl")
     assert [d["frame"] for d in la] == [d["frame"] for d in lb] == list(range(n))
-    for x, y in zip(la, lb):
+    for x, y in zip(la, lb, strict=True):
         assert {k: x.get(k) for k in KEYS} == {k: y.get(k) for k in KEYS}, f"frame {x['frame']}"
     ma, mb = _masks(a_dir / f"{stem}.shadow.mkv"), _masks(b_dir / f"{stem}.shadow.mkv")
     assert len(ma) == len(mb) == n
-    assert all(np.array_equal(x, y) for x, y in zip(ma, mb))
+    assert all(np.array_equal(x, y) for x, y in zip(ma, mb, strict=True))
     assert _video(a_dir / f"{stem}.mp4") == _video(b_dir / f"{stem}.mp4")
     return la
 
@@ -157,7 +157,7 @@ def assert_same_items(a_report, b_report, tol):
     ia = json.loads(Path(a_report).read_text())["images"]
     ib = json.loads(Path(b_report).read_text())["images"]
     assert len(ia) == len(ib)
-    for x, y in zip(ia, ib):
+    for x, y in zip(ia, ib, strict=True):
         skip = {"timings_ms", "output", "mask", "exposure"}
         assert {k: v for k, v in x.items() if k not in skip} == {k: v for k, v in y.items() if k not in skip}
         assert set(x) == set(y), x["frame"]

@@ -296,7 +296,7 @@ def test_exposure_match_reads_the_paper_outside_the_roi(tmp_path, gl_ctx, monkey
     assert _cli("video", clip, *SCENE, "--place", "0.2,0.1,0", "-o", tmp_path / "o", "-q") == 0
     frames = [f.image for f in AvReader(clip, raw=True)]
     assert len(seen) == len(frames) and all(f.shape[0] == _intr().height * 3 // 2 for f in frames)
-    for (cfm, intr, paper), yuv in zip(seen, frames):
+    for (cfm, intr, paper), yuv in zip(seen, frames, strict=True):
         truth = measure_exposure(cv2.cvtColor(yuv, cv2.COLOR_YUV2BGR_I420), intr, cfm, 0.05, "DICT_6X6_250", 0)
         assert paper is not None and np.allclose(paper, truth.paper_rgb, atol=1e-6), (paper, truth.paper_rgb)
 
@@ -422,10 +422,10 @@ def test_batch_on_dask_localcluster_equals_local(tmp_path):
     assert [it["status"] for it in local["items"]] == [it["status"] for it in remote["items"]] == ["ok"] * 3
     for k in range(2):
         a, b = _lines(tmp_path / "local" / f"v{k}.frames.jsonl"), _lines(tmp_path / "dask" / f"v{k}.frames.jsonl")
-        for la, lb in zip(a, b):
+        for la, lb in zip(a, b, strict=True):
             la.pop("timings_ms"), lb.pop("timings_ms")
         assert a == b
         for name in (f"v{k}.mkv", f"v{k}.shadow.mkv"):
             fa, fb = _frames(tmp_path / "local" / name, raw=True), _frames(tmp_path / "dask" / name, raw=True)
-            assert len(fa) == len(fb) == 8 and all(np.array_equal(x, y) for x, y in zip(fa, fb))
+            assert len(fa) == len(fb) == 8 and all(np.array_equal(x, y) for x, y in zip(fa, fb, strict=True))
     assert (tmp_path / "local" / "p0.png").read_bytes() == (tmp_path / "dask" / "p0.png").read_bytes()

@@ -103,7 +103,7 @@ def render_pareto(rows: list[dict], out_dir: Path, label: str) -> list[Path]:
                 y = [r[key] + (1 if key == "xor_px" else 0) for r in pts]
                 err = [[r["time_ms"] - r["time_q25"] for r in pts], [r["time_q75"] - r["time_ms"] for r in pts]]
                 ax.errorbar(x, y, xerr=err, fmt=mk, color=col, label=fam, ms=7, capsize=2, lw=1)
-                for k, (r, xx, yy) in enumerate(zip(pts, x, y)):
+                for k, (r, xx, yy) in enumerate(zip(pts, x, y, strict=True)):
                     dy = (6, -11, 15, -20)[k % 4]
                     ax.annotate(
                         _short(r["config"]), (xx, yy), textcoords="offset points", xytext=(6, dy), fontsize=7, color=col
@@ -289,7 +289,7 @@ def tracking(rows: list[dict], out_dir: Path, label: str) -> Path:
     configs = list(dict.fromkeys(r["config"] for r in rows))
     cmap = __import__("matplotlib").colormaps["tab10"]
     col = {c: cmap(k % 10) for k, c in enumerate(configs)}
-    for ax, rr in zip(axes, res):
+    for ax, rr in zip(axes, res, strict=True):
         ax.grid(True, which="both", alpha=0.3)
         for r in (r for r in rows if r["resolution"] == rr and r["rot_deg_median"] is not None):
             ax.errorbar(
@@ -341,7 +341,7 @@ def realism(rows: list[dict], out_dir: Path, label: str) -> Path:
         ys = [r[f"own_{region}"] for r in rows]
         ax.scatter(xs, ys, color=color, marker=marker, label=region, s=36)
         if region == "ground":
-            for r, x, y in zip(rows, xs, ys):
+            for r, x, y in zip(rows, xs, ys, strict=True):
                 ax.annotate(r["option"], (x, y), fontsize=7, xytext=(4, 3), textcoords="offset points")
     ax.set_xlabel("time per 720p frame, ms (median)")
     ax.set_ylabel("residual to the path tracer (median; 0 perfect, 1 = no insert)")

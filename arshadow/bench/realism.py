@@ -103,7 +103,7 @@ def _costs(est: Any, cfg: dict) -> list[dict]:
             totals[i] += t
             renders[i] += r
     out = []
-    for t, r, c in zip(totals, renders, choices):
+    for t, r, c in zip(totals, renders, choices, strict=True):
         st, sr = summary(t), summary(r)
         out.append(
             {
@@ -120,7 +120,7 @@ def _costs(est: Any, cfg: dict) -> list[dict]:
 def _residuals(cases: list, estimates: Any, keys: dict, light: str) -> dict:
     from .reference import run_case
 
-    rs = [run_case(c, light, keys, est=e) for c, e in zip(cases, estimates)]
+    rs = [run_case(c, light, keys, est=e) for c, e in zip(cases, estimates, strict=True)]
     return {k: float(np.median([r[k] for r in rs])) for k in ("ground", "contact", "object")}
 
 
@@ -141,7 +141,7 @@ def run(cfg: dict, ctx: Any, log: Callable[[str], None], folder: Path | None = N
     est_held = [measure_light(c.plate8, c.scene) for c in heldout]
     costs = _costs(est_own[0], cfg)
     rows = []
-    for (name, keys, light), cost in zip(OPTIONS, costs):
+    for (name, keys, light), cost in zip(OPTIONS, costs, strict=True):
         row: dict[str, Any] = {"option": name, "keys": ",".join(f"{k}={v}" for k, v in keys.items()), "light": light}
         row.update(cost)
         row.update({f"own_{k}": v for k, v in _residuals(own, est_own, keys, light).items()})

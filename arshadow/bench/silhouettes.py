@@ -78,7 +78,7 @@ def detectors(cfg: dict, log: Callable[[str], None]) -> list[dict]:
             if m == "delta_plus" and c.n_faces >= 100000:
                 nl, rep = min(nl, 2), 1
             ts, missed, extra, total = [], 0, 0, 0
-            for L, ex in zip(Ls[:nl], exact):
+            for L, ex in zip(Ls[:nl], exact, strict=True):
                 ts += timed(lambda: silhouette(c, L, m), rep)
                 got = _edge_set(silhouette(c, L, m).edges)
                 missed += len(ex - got)

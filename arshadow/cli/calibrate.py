@@ -101,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
         "dist": k.dist.tolist(),
         "width": k.width,
         "height": k.height,
-        "per_view_errors_px": {v.path: float(e) for v, e in zip(res.views, res.per_view_errors)},
+        "per_view_errors_px": {v.path: float(e) for v, e in zip(res.views, res.per_view_errors, strict=True)},
     }
     if args.json:
         print(json.dumps(summary, indent=1))
@@ -115,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
         )
         print(f"  fx {k.fx:.3f}  fy {k.fy:.3f}  cx {k.cx:.3f}  cy {k.cy:.3f}")
         print(f"  distortion {', '.join(f'{d:.6g}' for d in k.dist)}")
-        worst = max(zip(res.per_view_errors, res.views), key=lambda t: t[0])
+        worst = max(zip(res.per_view_errors, res.views, strict=True), key=lambda t: t[0])
         print(f"  per-view RMS {min(res.per_view_errors):.3f}..{worst[0]:.3f} px (worst {Path(worst[1].path).name})")
         print(f"wrote {out}")
     return 1 if res.rejected else 0

@@ -191,7 +191,7 @@ def _ratio(evs: list[Evidence], h: np.ndarray, px: Sequence[float]) -> tuple:
     nearly the same), of the ratio inside / outside; the high-passed fit within 3 cm of the shadow when
     fewer than 30 pairs are visible."""
     ins, outs = [], []
-    for ev, p in zip(evs, px):
+    for ev, p in zip(evs, px, strict=True):
         S = shadow_coverage(ev, h)
         if S is None:  # no shadow on this frame's ground grid
             continue
@@ -227,7 +227,7 @@ def _edge_consistency(evs: list[Evidence], h: np.ndarray, px: Sequence[float]) -
     their outside, and the pairs' count. A real shadow is darker all along its edge (about 0.9 and more);
     a pattern of the floor's texture that a wrong shadow explains is darker on some stretches only."""
     darker, count = 0, 0
-    for ev, p in zip(evs, px):
+    for ev, p in zip(evs, px, strict=True):
         S = shadow_coverage(ev, h)
         if S is None:
             continue

@@ -50,7 +50,7 @@ def paper_shading(lights_h: Any, weights: Any, ambient: float, paper_from_world:
     M = np.eye(4) if paper_from_world is None else np.linalg.inv(np.asarray(paper_from_world, np.float64))
     n, o = M[:3, 2], M[:3, 3]  # the paper's normal and centre in the world frame
     s = float(ambient)
-    for lh, w in zip(np.asarray(lights_h, np.float64).reshape(-1, 4), np.ravel(weights)):
+    for lh, w in zip(np.asarray(lights_h, np.float64).reshape(-1, 4), np.ravel(weights), strict=True):
         d = lh[:3] if abs(lh[3]) < 1e-12 else lh[:3] / lh[3] - o
         s += float(w) * max(0.0, float(n @ d) / max(float(np.linalg.norm(d)), 1e-12))
     return s

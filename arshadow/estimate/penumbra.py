@@ -96,4 +96,4 @@ def fit_angular_radius(evs: list[Evidence], direction: np.ndarray) -> tuple[floa
         B = (x2 * x2 * (y0 - y1) + x1 * x1 * (y2 - y0) + x0 * x0 * (y1 - y2)) / den
         if A > 0:
             r = float(np.clip(-B / (2 * A), x0, x2))
-    return r, {float(k): round(float(v), 5) for k, v in zip(radii, scores)}
+    return r, {float(k): round(float(v), 5) for k, v in zip(radii, scores, strict=True)}

@@ -240,7 +240,7 @@ class ShadowOracle:
         ground = hit & ~occ & in_ground_square(g, self.ground_size)
         mask = np.zeros(len(g))
         idx = np.flatnonzero(ground)
-        for (_h, w), tris in zip(self.lights, self.shadow_tris):
+        for (_h, w), tris in zip(self.lights, self.shadow_tris, strict=True):
             inside = points_in_triangles(g[idx], tris)
             mask[idx[inside]] += w / self.total
         return mask, ground, occ

@@ -136,7 +136,7 @@ def vnv_reference(
     for a, b in edges:
         counter = 0
         vis_face: list[int] | None = None
-        for f, vis in zip(F, facing):
+        for f, vis in zip(F, facing, strict=True):
             pairs += 1
             if vis:
                 member += 1

@@ -295,7 +295,7 @@ def _batched_volume(
         first += len(vol.triangles)
     offs = np.cumsum([0] + [len(p.vertices) for p in parts[:-1]])
     verts = np.concatenate([p.vertices for p in parts])
-    tris = np.concatenate([p.triangles + o for p, o in zip(parts, offs)]).astype(np.intp)
+    tris = np.concatenate([p.triangles + o for p, o in zip(parts, offs, strict=True)]).astype(np.intp)
     verts.flags.writeable = False
     tris.flags.writeable = False
     return ShadowVolume(

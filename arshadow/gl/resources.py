@@ -430,7 +430,7 @@ class VolumeBuffers:
         if (
             last is not None
             and len(last[0]) == len(vols)
-            and all(a is b for a, b in zip(last[0], vols))
+            and all(a is b for a, b in zip(last[0], vols, strict=True))
             and np.array_equal(last[2], origin)
         ):
             return list(last[1])

@@ -54,6 +54,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from itertools import pairwise
 from typing import Any
 
 import numpy as np
@@ -319,7 +320,7 @@ class ShadowRenderer:
         self._ground_pass(f)
         if f.sky is not None and f.sky.ground is not None:
             self._sky_pass(f)
-        for i, (p, rng) in enumerate(zip(f.passes, f.ranges)):
+        for i, (p, rng) in enumerate(zip(f.passes, f.ranges, strict=True)):
             self._light_pass(f, i, p, rng)
         self._mark("occluder_light")
         self._reset_state()
@@ -625,9 +626,7 @@ class ShadowRenderer:
         np.clip(mask, 0.0, 1.0, out=mask)
         gcov = c1[..., 1]
         t3 = time.perf_counter()
-        passes = (
-            {f"pass_{b[0]}": (b[1] - a[1]) * 1e3 for a, b in zip(self._marks, self._marks[1:])} if self.profile else {}
-        )
+        passes = {f"pass_{b[0]}": (b[1] - a[1]) * 1e3 for a, b in pairwise(self._marks)} if self.profile else {}
         return RenderResult(
             mask=mask,
             color=c0[..., :3],

@@ -305,7 +305,7 @@ def parse_light(spec: str, default_time: datetime | str | None = None) -> Light:
         _check_keys(kw, ("radius",), spec)
         if len(pos) != 3:
             raise LightError(f"light {spec!r}: {kind} needs 3 values X,Y,Z, got {len(pos)}")
-        v = np.array([_float(p, n, spec) for p, n in zip(pos, "XYZ")])
+        v = np.array([_float(p, n, spec) for p, n in zip(pos, "XYZ", strict=True)])
         radius = _float(kw["radius"], "radius", spec) if "radius" in kw else 0.0
         if radius < 0:
             raise LightError(f"light {spec!r}: radius must be >= 0, got {radius:g}")

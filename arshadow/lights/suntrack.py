@@ -122,7 +122,7 @@ class SunTrack:
         """Sun direction for each instant in ``times`` (aware datetimes, in frame order)."""
         positions = sun_positions(times, self.lat, self.lon, self.elevation, self.model, **self.kwargs)
         out = []
-        for w, p in zip(times, positions):
+        for w, p in zip(times, positions, strict=True):
             world, above = sun_light_direction(p, self.north_deg, self.refraction)
             world.setflags(write=False)
             if self._last is None or above != self._last[1]:

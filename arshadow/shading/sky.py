@@ -231,7 +231,7 @@ def ground_sky_visibility(
     img = np.zeros((sub, sub), np.uint8)
     acc_b = np.zeros((resolution, resolution), np.float64) if bounce is not None else None
     face_e = _face_irradiance(caster, bounce) if bounce is not None else None
-    for d, w in zip(dirs, weights):
+    for d, w in zip(dirs, weights, strict=True):
         h = np.r_[d, 0.0]
         faces = caster.faces[planes @ h > 0.0] if closed else caster.faces
         tri = ground_shadow_triangles(caster.vertices, faces, h)

@@ -223,7 +223,7 @@ class Board:
         cv_obj = [np.asarray(o, dtype=np.float64).reshape(4, 3) for o in self.cv_board.getObjPoints()]
         out = {}
         ml = self.marker_length
-        for mid, o in zip(self.marker_ids, cv_obj):
+        for mid, o in zip(self.marker_ids, cv_obj, strict=True):
             if self.kind == "gridboard":
                 step = ml + self.marker_separation
                 col, row = round(o[0, 0] / step), round(o[0, 1] / step)

@@ -252,8 +252,8 @@ def calibrate(
         per_view = np.asarray(per_view, float).ravel()
         if max_view_error is None or per_view.max() <= max_view_error:
             break
-        worst = [v for v, e in zip(good, per_view) if e > max_view_error]
-        for v, e in zip(good, per_view):
+        worst = [v for v, e in zip(good, per_view, strict=True) if e > max_view_error]
+        for v, e in zip(good, per_view, strict=True):
             if e > max_view_error:
                 v.reason = f"reprojection error {e:.2f} px > {max_view_error} px"
         rejected += worst

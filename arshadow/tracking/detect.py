@@ -171,7 +171,7 @@ class Detection:
     def by_id(self) -> dict:
         """id -> (4, 2) corners (the first detection of a repeated id)."""
         out = {}
-        for i, c in zip(self.ids.tolist(), self.corners):
+        for i, c in zip(self.ids.tolist(), self.corners, strict=True):
             out.setdefault(int(i), c)
         return out
 
@@ -266,7 +266,7 @@ class AprilTagDetector:
         have = set(out_i)
         self.n_fallback = 0
         if f_ids is not None:
-            for c, i in zip(f_corners, np.asarray(f_ids).ravel().tolist()):
+            for c, i in zip(f_corners, np.asarray(f_ids).ravel().tolist(), strict=True):
                 if int(i) not in have:
                     out_c.append(np.asarray(c, np.float32).reshape(1, 4, 2))
                     out_i.append(int(i))
@@ -354,7 +354,9 @@ class RescueDetector:
         # the second search's markers, then the first's that it lacks
         seen = set(np.asarray(i2).ravel().tolist())
         extra = [
-            (c, i) for c, i in zip(corners, [] if ids is None else np.asarray(ids).ravel().tolist()) if i not in seen
+            (c, i)
+            for c, i in zip(corners, [] if ids is None else np.asarray(ids).ravel().tolist(), strict=True)
+            if i not in seen
         ]
         c_out = tuple(c2) + tuple(c for c, _ in extra)
         i_out = np.concatenate(

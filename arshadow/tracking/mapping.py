@@ -449,7 +449,7 @@ def _fit(d: dict, fit: tuple, rejected: list, frames_seen: dict, n_frames: int, 
         bad = res.residual_px > limit
         if not bad.any():
             break
-        for r, e in zip(rows[bad], res.residual_px[bad]):
+        for r, e in zip(rows[bad], res.residual_px[bad], strict=True):
             rejected.append(f"marker {order[midx[r]]} in frame {int(frame[r])}: {e:.1f} px after the fit")
         rows = rows[~bad]
     resid = res.residual_px[~bad] if bad.any() else res.residual_px

@@ -184,7 +184,7 @@ def solve_planar(intr: Intrinsics, obj, img, square: bool, lm: bool = True):
     except cv2.error as exc:
         raise MarkerNotFoundError(f"pose estimation failed ({str(exc).strip().splitlines()[-1][:80]})") from None
     raw = []
-    for r, t in zip(rvecs[:n], tvecs[:n]):
+    for r, t in zip(rvecs[:n], tvecs[:n], strict=True):
         r = np.asarray(r, np.float64).reshape(3, 1).copy()
         t = np.asarray(t, np.float64).reshape(3, 1).copy()
         raw.append((r, t, rms_reprojection_px(intr, obj, img, r, t)))

@@ -67,7 +67,7 @@ def plan_batch(inputs) -> list[BatchItem]:
     inputs = [str(i) for i in inputs]
     if not inputs:
         raise UsageError("no input given")
-    return [BatchItem(i, _kind(i), s) for i, s in zip(inputs, unique_stems(inputs))]
+    return [BatchItem(i, _kind(i), s) for i, s in zip(inputs, unique_stems(inputs), strict=True)]
 
 
 def _kind(path: str) -> str:
@@ -396,7 +396,7 @@ def _write_summary(outdir: Path, items, results, interrupted: bool = False) -> d
             "outputs": [],
             "warnings": [],
         }
-        for it, r in zip(items, results)
+        for it, r in zip(items, results, strict=True)
     ]
     counts: dict = {}
     for r in results:

@@ -207,7 +207,7 @@ class TemporalPoseChooser:
             link = e.link  # from the chain's previous frame: the frame with a pose pushed just before e
             back, new = [], []
             for j, dj in enumerate(e.data_list):
-                costs = [c + row[j] for c, row in zip(cum, link)]
+                costs = [c + row[j] for c, row in zip(cum, link, strict=True)]
                 b = min(range(len(costs)), key=costs.__getitem__)  # the first minimum, as np.argmin
                 back.append(b)
                 new.append(costs[b] + dj)

@@ -518,6 +518,6 @@ def i420_with_roi(yuv: np.ndarray, bgr: np.ndarray, roi, out: np.ndarray | None 
     x1, y1 = min(W, x0 + w + 1) & ~1, min(H, y0 + h + 1) & ~1
     x0, y0 = x0 & ~1, y0 & ~1
     sub = cv2.cvtColor(np.ascontiguousarray(bgr[y0:y1, x0:x1]), cv2.COLOR_BGR2YUV_I420)
-    for dst, src, k in zip(i420_planes(out, H, W), i420_planes(sub, y1 - y0, x1 - x0), (1, 2, 2)):
+    for dst, src, k in zip(i420_planes(out, H, W), i420_planes(sub, y1 - y0, x1 - x0), (1, 2, 2), strict=True):
         dst[y0 // k : y1 // k, x0 // k : x1 // k] = src
     return out

@@ -44,7 +44,7 @@ def run_videos(
     given = InputGuard(inputs)  # outputs never replace an input
     pool = ChunkPool(jobs) if jobs > 1 and recipe is not None else None
     try:
-        for inp, stem in zip(inputs, unique_stems(inputs)):
+        for inp, stem in zip(inputs, unique_stems(inputs), strict=True):
             summary, its = _one_video(backend, pool, recipe, inp, stem, outdir, opts, given, progress_factory, on_error)
             summaries.append(summary)
             items.extend(its)

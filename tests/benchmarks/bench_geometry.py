@@ -189,8 +189,8 @@ def delta_plus_disagreement(c: ShadowCaster, n_lights: int, eps: float = 1e-6) -
         a = {tuple(e) for e in A.edges.tolist()}
         d = {tuple(e) for e in D.edges.tolist()}
         cls = outline_classes(c, L, A.edges)
-        full = {tuple(e) for e, k in zip(A.edges.tolist(), cls) if k == 2}
-        part = {tuple(e) for e, k in zip(A.edges.tolist(), cls) if k == 1}
+        full = {tuple(e) for e, k in zip(A.edges.tolist(), cls, strict=True) if k == 2}
+        part = {tuple(e) for e, k in zip(A.edges.tolist(), cls, strict=True) if k == 1}
         tot["transition_edges"] += len(a)
         tot["delta_edges"] += len(d)
         tot["delta_in_transition"] += len(d & a)

@@ -23,6 +23,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from itertools import pairwise
 from pathlib import Path
 
 import numpy as np
@@ -131,12 +132,12 @@ def flips(n_frames=40, seeds=(0, 1, 2), marker_length=0.04):
 
     def branch_stats(chosen, truth):
         br = []
-        for c, t in zip(chosen, truth):
+        for c, t in zip(chosen, truth, strict=True):
             a = rotation_angle_deg(c.cam_from_world, t)
             b = rotation_angle_deg(c.alternative.cam_from_world, t)
             br.append(0 if abs(a - b) < 5.0 else int(a > b))
-        err = [rotation_angle_deg(c.cam_from_world, t) for c, t in zip(chosen, truth)]
-        return sum(br), sum(1 for x, y in zip(br, br[1:]) if x != y), err
+        err = [rotation_angle_deg(c.cam_from_world, t) for c, t in zip(chosen, truth, strict=True)]
+        return sum(br), sum(1 for x, y in pairwise(br) if x != y), err
 
     res = {k: [0, 0, []] for k in ("error", "tracker_hook", "chooser_lag0", "chooser_lag16")}
     for seed in seeds:

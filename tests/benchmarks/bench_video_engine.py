@@ -100,7 +100,7 @@ def _exact():
     from arshadow.lights.spec import parse_light
 
     intr = Intrinsics.from_file(CALIB_720)
-    args = dict(zip(KNOT_SCENE[::2], KNOT_SCENE[1::2]))
+    args = dict(zip(KNOT_SCENE[::2], KNOT_SCENE[1::2], strict=True))
     caster = load_occluder(
         args["--model"],
         rotate=[float(x) for x in args["--rotate"].split(",")],
@@ -144,7 +144,7 @@ def accuracy(clip, poses, refine):
         rc, summ, lines = _run(clip, d, "--save-mask", "--corner-refine", refine, "--contact-sheet", "0")
         masks = [f.image[:, :, 0] >= 128 for f in AvReader(Path(d) / f"{Path(clip).stem}.shadow.mkv")]
     ious, rot_raw, dist_raw, flips, c_raw, c_sm, c_true = [], [], [], 0, [], [], []
-    for ln, m, true in zip(lines, masks, poses):
+    for ln, m, true in zip(lines, masks, poses, strict=True):
         if ln["status"] == "no_marker":
             c_raw.append([np.nan, np.nan]), c_sm.append([np.nan, np.nan]), c_true.append(ex.centroid(true))
             continue
