@@ -12,9 +12,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from cli_run import run_cli
 from test_layers import _lin, _maxdiff, _recombine
-
-from arshadow.cli import main
 
 pytestmark = pytest.mark.gl
 
@@ -49,15 +48,9 @@ def photos(tmp_path_factory, gl_ctx):
     return d
 
 
-def _run(capsys, *argv):
-    code = main([str(a) for a in argv])
-    cap = capsys.readouterr()
-    return code, cap.out, cap.err
-
-
 def test_render_layers_png_recombine_and_summary(photos, tmp_path, capsys):
     out = tmp_path / "out"
-    code, so, se = _run(capsys, "render", photos / "p0.png", photos / "p1.png", *SCENE, "-o", out, "--layers")
+    code, so, se = run_cli(capsys, "render", photos / "p0.png", photos / "p1.png", *SCENE, "-o", out, "--layers")
     assert code == 0, se
     assert "render:" not in se  # no progress bar: stderr is not a terminal here
     assert "2 done, 0 failed, 0 flagged" in so
@@ -77,7 +70,9 @@ def test_render_layers_png_recombine_and_summary(photos, tmp_path, capsys):
 def test_missing_exr_writer_is_exit_2_before_any_work(photos, tmp_path, capsys, monkeypatch):
     monkeypatch.setitem(sys.modules, "OpenEXR", None)  # import OpenEXR -> ImportError
     out = tmp_path / "out"
-    code, _so, se = _run(capsys, "render", photos / "p0.png", *SCENE, "-o", out, "--layers", "--layers-format", "exr")
+    code, _so, se = run_cli(
+        capsys, "render", photos / "p0.png", *SCENE, "-o", out, "--layers", "--layers-format", "exr"
+    )
     assert code == 2
     lines = se.strip().splitlines()
     assert len(lines) == 1 and "OpenEXR" in lines[0] and "arshadow[exr]" in lines[0]
@@ -90,10 +85,12 @@ def test_layer_file_that_would_overwrite_an_input_is_exit_2(photos, tmp_path, ca
     (d / "a.png").write_bytes((photos / "p0.png").read_bytes())
     (d / "a.object.png").write_bytes((photos / "p1.png").read_bytes())
     before = {p.name: p.read_bytes() for p in d.iterdir()}
-    code, _so, se = _run(capsys, "render", d / "a.png", d / "a.object.png", *SCENE, "-o", tmp_path / "o2", "--layers")
+    code, _so, se = run_cli(
+        capsys, "render", d / "a.png", d / "a.object.png", *SCENE, "-o", tmp_path / "o2", "--layers"
+    )
     assert code == 0, se  # another folder: fine
     # -o the inputs' folder: the layer file a.object.png of a.png would replace the input a.object.png
-    code, _so, se = _run(capsys, "render", d / "a.png", d / "a.object.png", *SCENE, "-o", d, "--layers")
+    code, _so, se = run_cli(capsys, "render", d / "a.png", d / "a.object.png", *SCENE, "-o", d, "--layers")
     assert code == 2
     lines = se.strip().splitlines()
     assert len(lines) == 1 and "would overwrite an input" in lines[0] and "a.object.png" in lines[0]
@@ -106,11 +103,11 @@ def test_export_track_of_a_photo_set_from_the_render_report(photos, tmp_path, ca
     pygltflib = pytest.importorskip("pygltflib")
     out = tmp_path / "out"
     rep = tmp_path / "report.json"
-    code, _so, se = _run(
+    code, _so, se = run_cli(
         capsys, "render", photos / "p0.png", photos / "p1.png", *SCENE, "-o", out, "--report", rep, "-q"
     )
     assert code == 0, se
-    code, _so, se = _run(
+    code, _so, se = run_cli(
         capsys,
         "export-track",
         rep,
@@ -139,13 +136,13 @@ def test_export_track_of_a_photo_set_from_the_render_report(photos, tmp_path, ca
     items = json.loads(rep.read_text())["images"]
     assert doc["frames"][1]["opencv"]["tvec"] == pytest.approx(items[1]["tvec"])
     # bad input: one line, exit 2, nothing written
-    code, _so, se = _run(capsys, "export-track", rep, "--calib", CALIB, "-o", tmp_path / "t.obj")
+    code, _so, se = run_cli(capsys, "export-track", rep, "--calib", CALIB, "-o", tmp_path / "t.obj")
     assert code == 2 and len(se.strip().splitlines()) == 1 and "unknown track format" in se
 
 
 def test_render_layers_undistorted_writes_the_pinhole_layers_and_the_stmap(photos, tmp_path, capsys):
     out = tmp_path / "out"
-    code, _so, se = _run(capsys, "render", photos / "p0.png", *SCENE, "-o", out, "--layers-undistorted", "-q")
+    code, _so, se = run_cli(capsys, "render", photos / "p0.png", *SCENE, "-o", out, "--layers-undistorted", "-q")
     assert code == 0, se
     names = sorted(p.name for p in out.iterdir())
     assert names == sorted(

@@ -11,8 +11,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-
-from arshadow.cli import main
+from cli_run import run_cli
 
 pytestmark = pytest.mark.gl
 
@@ -43,12 +42,6 @@ def photos(tmp_path_factory, gl_ctx):
     return d
 
 
-def _run(capsys, *argv):
-    code = main([str(a) for a in argv])
-    cap = capsys.readouterr()
-    return code, cap.out, cap.err
-
-
 SCENE = [
     "--calib",
     CALIB,
@@ -68,7 +61,7 @@ def test_good_and_bad_inputs_in_one_run(photos, tmp_path, capsys):
     out = tmp_path / "out"
     report = tmp_path / "report.json"
     names = ["good.jpg", "corrupt.png", "missing.png", "square.png", "nomarker.png", "half.png"]
-    code, so, se = _run(
+    code, so, se = run_cli(
         capsys, "render", *[photos / n for n in names], *SCENE, "-o", out, "--save-mask", "--report", report
     )
     assert code == 1
@@ -167,7 +160,7 @@ def test_bad_configuration_exits_2_with_one_line(photos, tmp_path, capsys, probl
     }
     args.update(dict(zip(argv[::2], argv[1::2], strict=True)))
     flat = [x for kv in args.items() for x in kv]
-    code, so, se = _run(capsys, "render", photos / "good.jpg", *flat, "-o", tmp_path / "o")
+    code, so, se = run_cli(capsys, "render", photos / "good.jpg", *flat, "-o", tmp_path / "o")
     assert code == 2, (problem, se)
     lines = [ln for ln in se.splitlines() if ln.strip()]
     assert len(lines) == 1 and needle in lines[0] and "Traceback" not in se, se
@@ -177,7 +170,7 @@ def test_bad_configuration_exits_2_with_one_line(photos, tmp_path, capsys, probl
 def test_bad_calibration_and_mesh_files(photos, tmp_path, capsys):
     nan = tmp_path / "nan.yml"
     nan.write_text(CALIB.read_text().replace("1000., 0., 641.29999999999995", ".nan, 0., 641.29999999999995"))
-    code, _, se = _run(
+    code, _, se = run_cli(
         capsys,
         "render",
         photos / "good.jpg",
@@ -196,7 +189,7 @@ def test_bad_calibration_and_mesh_files(photos, tmp_path, capsys):
     assert code == 2 and "nan.yml" in se and len(se.strip().splitlines()) == 1
     broken = tmp_path / "broken.yml"  # a YAML syntax error: OpenCV's parser message, not a Python wrapper's
     broken.write_text(CALIB.read_text().replace("data: [", "data: [ [", 1))
-    code, _, se = _run(
+    code, _, se = run_cli(
         capsys,
         "render",
         photos / "good.jpg",
@@ -215,7 +208,7 @@ def test_bad_calibration_and_mesh_files(photos, tmp_path, capsys):
     assert len(se.strip().splitlines()) == 1
     bad_mesh = tmp_path / "bad.obj"
     bad_mesh.write_text("v 0 0 0\nv 1 0 nan\nv 0 1 0\nf 1 2 3\n")
-    code, _, se = _run(
+    code, _, se = run_cli(
         capsys,
         "render",
         photos / "good.jpg",
@@ -233,7 +226,7 @@ def test_bad_calibration_and_mesh_files(photos, tmp_path, capsys):
     assert code == 2 and "bad.obj" in se and len(se.strip().splitlines()) == 1
     garbage = tmp_path / "garbage.stl"
     garbage.write_bytes(b"\x00\x01 not a mesh at all" * 10)
-    code, _, se = _run(
+    code, _, se = run_cli(
         capsys,
         "render",
         photos / "good.jpg",
@@ -258,9 +251,9 @@ def test_keep_format_glob_and_never_overwrite_inputs(photos, tmp_path, capsys):
     (work / "a.jpg").write_bytes(src.read_bytes())
     before = _digest(work)
     # output folder = input folder with --keep-format would overwrite a.jpg: refused, input untouched
-    code, _, se = _run(capsys, "render", work / "*.jpg", *SCENE, "-o", work, "--keep-format")
+    code, _, se = run_cli(capsys, "render", work / "*.jpg", *SCENE, "-o", work, "--keep-format")
     assert code == 1 and "overwrite" in se and _digest(work) == before
-    code, so, se = _run(capsys, "render", work / "*.jpg", *SCENE, "-o", tmp_path / "o", "--keep-format")
+    code, so, se = run_cli(capsys, "render", work / "*.jpg", *SCENE, "-o", tmp_path / "o", "--keep-format")
     assert code == 0, se
     assert (tmp_path / "o" / "a.jpg").is_file() and cv2.imread(str(tmp_path / "o" / "a.jpg")).shape == (720, 1280, 3)
 
@@ -297,7 +290,7 @@ def test_gray16_and_alpha_inputs(photos, tmp_path, capsys):
     gray16 = cv2.cvtColor(src, cv2.COLOR_BGR2GRAY).astype(np.uint16) * 257
     cv2.imwrite(str(d / "g16.png"), gray16)
     cv2.imwrite(str(d / "rgba.png"), cv2.cvtColor(src, cv2.COLOR_BGR2BGRA))
-    code, _, se = _run(capsys, "render", d, *SCENE, "-o", tmp_path / "o", "--save-mask")
+    code, _, se = run_cli(capsys, "render", d, *SCENE, "-o", tmp_path / "o", "--save-mask")
     assert code == 0, se
     for stem in ("g16", "rgba"):
         out = cv2.imread(str(tmp_path / "o" / f"{stem}.png"), cv2.IMREAD_UNCHANGED)

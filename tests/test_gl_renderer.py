@@ -16,97 +16,15 @@ from __future__ import annotations
 
 import json
 import os
-from dataclasses import dataclass
 
 import numpy as np
 import pytest
 from image_oracle import ShadowOracle, boundary_distance, iou
+from render_scenes import ZNEAR, H, Scene, W, intrinsics, scenes
 
 from arshadow.render_api import RenderRequest, Shading
 
 pytestmark = pytest.mark.gl
-
-W, H = 1280, 720
-ZNEAR = 0.01
-
-
-@dataclass
-class Scene:
-    name: str
-    caster: object
-    cam_from_world: np.ndarray
-    lights: list  # [(light_h, weight)]
-    fx: float = 1000.0
-    ground_size: float | None = None
-
-
-def _intrinsics(fx):
-    from arshadow.camera import Intrinsics
-
-    return Intrinsics(fx=fx, fy=fx, cx=(W - 1) / 2 + 3.3, cy=(H - 1) / 2 - 2.7, width=W, height=H, dist=np.zeros(0))
-
-
-def _nonconvex_blob():
-    """A star-shaped bumpy sphere, ~8.6k faces, standing on the ground (deep concavities self-shadow)."""
-    import trimesh
-
-    from arshadow.geometry.mesh import ShadowCaster
-
-    m = trimesh.creation.uv_sphere(radius=1.0, count=[48, 92])
-    v = np.asarray(m.vertices, np.float64)
-    r = np.linalg.norm(v, axis=1)
-    th = np.arctan2(v[:, 1], v[:, 0])
-    ph = np.arccos(np.clip(v[:, 2] / r, -1, 1))
-    rad = 0.06 * (1.0 + 0.35 * np.sin(5 * th) * np.sin(4 * ph) ** 2)
-    v = v / r[:, None] * rad[:, None]
-    v[:, 2] -= v[:, 2].min()
-    return ShadowCaster(v, np.asarray(m.faces), name="blob")
-
-
-def _scenes():
-    from arshadow.geometry.mesh import ShadowCaster, load_occluder
-    from arshadow.synth import look_at_pose
-
-    box = load_occluder("box:0.1,0.08,0.15")
-    t = load_occluder("torus:0.08,0.03", rotate=(60, 0, 0))
-    tv = np.array(t.vertices)
-    tv[:, 2] -= tv[:, 2].min()  # stand the tilted torus on the ground
-    torus = ShadowCaster(tv, t.faces, name="torus")
-    wall = load_occluder("box:1.0,0.05,0.6")
-    blob = _nonconvex_blob()
-    return [
-        Scene(
-            "box_point",
-            box,
-            look_at_pose([0.45, -0.55, 0.45], [0.05, 0.08, 0.02]),
-            [(np.array([-0.2, 0.1, 0.6, 1.0]), 1.0)],
-        ),
-        Scene(
-            "nonconvex_point",
-            blob,
-            look_at_pose([0.35, -0.4, 0.35], [0.02, 0.05, 0.03]),
-            [(np.array([-0.15, 0.2, 0.5, 1.0]), 1.0)],
-        ),
-        Scene(
-            "torus_directional",
-            torus,
-            look_at_pose([0.3, -0.45, 0.4], [0.03, 0.06, 0.0]),
-            [(np.array([0.45, 0.3, 1.0, 0.0]) / np.linalg.norm([0.45, 0.3, 1.0]), 1.0)],
-        ),
-        Scene(
-            "wall_camera_in_shadow",
-            wall,
-            look_at_pose([0.1, -0.6, 0.15], [0.6, -1.5, 0.0]),
-            [(np.array([0.0, 1.0, 0.25, 0.0]) / np.linalg.norm([0.0, 1.0, 0.25]), 1.0)],
-            fx=800.0,
-        ),
-        Scene(
-            "box_two_lights",
-            box,
-            look_at_pose([0.5, -0.45, 0.5], [0.03, 0.03, 0.02]),
-            [(np.array([-0.25, 0.05, 0.55, 1.0]), 0.5), (np.array([0.2, 0.25, 0.7, 1.0]), 0.5)],
-        ),
-    ]
 
 
 def _render(ctx_or_renderer, scene: Scene, mode: str | None = None, **kw):
@@ -116,7 +34,7 @@ def _render(ctx_or_renderer, scene: Scene, mode: str | None = None, **kw):
     from arshadow.gl.stencil import LightPass
     from arshadow.transforms import CV_TO_GL, invert_rigid
 
-    K = _intrinsics(scene.fx)
+    K = intrinsics(scene.fx)
     eye = invert_rigid(scene.cam_from_world)[:3, 3]
     near = near_plane_radius(ZNEAR, W, H, K.fx, K.fy, K.cx, K.cy)
     passes, modes = [], []
@@ -144,7 +62,7 @@ def _render(ctx_or_renderer, scene: Scene, mode: str | None = None, **kw):
 
 
 def _oracle(scene: Scene):
-    K = _intrinsics(scene.fx)
+    K = intrinsics(scene.fx)
     return ShadowOracle(
         K.K,
         scene.cam_from_world,
@@ -173,7 +91,7 @@ def renderer(gl_ctx):
 def scene_results(gl_ctx, renderer):
     """Render every scene once with the automatically chosen mode; compare with the oracle."""
     out = {}
-    for sc in _scenes():
+    for sc in scenes():
         res, modes = _render(renderer, sc)
         orc = _oracle(sc)
         om, og, oo = orc.image(W, H)
@@ -278,7 +196,7 @@ def test_zpass_wrong_inside_volume(renderer, scene_results, tol):
 
 
 def test_ground_size_limits_mask(gl_ctx, renderer, tol):
-    sc = _scenes()[0]
+    sc = scenes()[0]
     sc.ground_size = 0.3
     res, _ = _render(renderer, sc)
     orc = _oracle(sc)
@@ -320,7 +238,7 @@ def test_self_shadowing(ctx, tol):
     )
     L = np.array([-1.0, 0.0, 1.0, 0.0]) / np.sqrt(2)  # sun at 45 deg from -x: tall box shades x in [-0.02, 0.25]
     T = look_at_pose([0.25, -0.35, 0.5], [0.08, 0.0, 0.05])
-    K = _intrinsics(1000.0)
+    K = intrinsics(1000.0)
     sil = silhouette(caster, L)
     vol = shadow_volume(caster, L, sil, caps=True)
     with ShadowRenderer(ctx, max_width=W, max_height=H) as r:
@@ -363,7 +281,7 @@ def test_render_sub_canvas_matches_full(renderer, scene_results, tol):
     sc = r["scene"]
     from arshadow.transforms import CV_TO_GL
 
-    K = _intrinsics(sc.fx)
+    K = intrinsics(sc.fx)
     u0, v0, w, h = 500, 200, 400, 300
     res_full = r["res"]
     from arshadow.geometry.silhouette import silhouette
@@ -392,8 +310,8 @@ def test_bad_input(renderer):
     from arshadow.errors import ShapeError, UsageError
     from arshadow.gl.stencil import LightPass
 
-    sc = _scenes()[0]
-    K = _intrinsics(1000.0)
+    sc = scenes()[0]
+    K = intrinsics(1000.0)
     P = K.gl_projection(ZNEAR, None)
     V = np.eye(4)
     with pytest.raises(UsageError):
@@ -429,7 +347,7 @@ def test_contact_depth_stability(renderer, tol):
 
     rng = np.random.default_rng(7)
     box = load_occluder("box:0.1,0.1,0.12")
-    K = _intrinsics(1000.0)
+    K = intrinsics(1000.0)
     for trial in range(4):
         eye = np.array([0.4, -0.5, 0.25]) + rng.normal(0, 0.02, 3)
         if trial % 2:
@@ -468,8 +386,8 @@ def test_antialiased_mask(ctx, tol, samples, supersample):
 
     if samples > ctx.max_samples:
         pytest.skip(f"GL has at most {ctx.max_samples} samples")
-    sc = _scenes()[0]
-    K = _intrinsics(sc.fx)
+    sc = scenes()[0]
+    K = intrinsics(sc.fx)
     canvas = (400, 250, 480, 360)
     lh = sc.lights[0][0]
     vol = shadow_volume(sc.caster, lh, silhouette(sc.caster, lh), caps=False)
@@ -514,8 +432,8 @@ def test_planar_mode_and_empty_pass(renderer, tol):
     from arshadow.gl.stencil import LightPass
     from arshadow.transforms import CV_TO_GL
 
-    sc = _scenes()[0]
-    K = _intrinsics(sc.fx)
+    sc = scenes()[0]
+    K = intrinsics(sc.fx)
     lh = sc.lights[0][0]
     kw = dict(
         projection=K.gl_projection(ZNEAR, None), view=CV_TO_GL @ sc.cam_from_world, width=W, height=H, caster=sc.caster
@@ -540,8 +458,8 @@ def test_buffers_grow_and_caster_cache(ctx):
     from arshadow.gl.stencil import LightPass, ShadowRenderer
     from arshadow.transforms import CV_TO_GL
 
-    sc = _scenes()[0]
-    K = _intrinsics(sc.fx)
+    sc = scenes()[0]
+    K = intrinsics(sc.fx)
     lh = sc.lights[0][0]
 
     def render(r, caster, canvas):
@@ -591,8 +509,8 @@ def test_upload_reuse_follows_the_volumes(ctx):
     from arshadow.gl.stencil import LightPass, ShadowRenderer
     from arshadow.transforms import CV_TO_GL
 
-    sc = _scenes()[0]
-    K = _intrinsics(sc.fx)
+    sc = scenes()[0]
+    K = intrinsics(sc.fx)
     canvas = (400, 250, 480, 360)
     kw = dict(
         projection=K.gl_projection(ZNEAR, None, canvas=canvas),

@@ -17,8 +17,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-
-from arshadow.cli import main
+from cli_run import run_cli
 
 pytestmark = pytest.mark.gl
 
@@ -32,12 +31,6 @@ SCENE = {
     "--light": "point:-0.1,0.1,0.4",
 }
 TALLY: dict[str, list] = {"config (exit 2)": [], "per input (exit 1)": [], "accepted": []}
-
-
-def _run(capsys, *argv):
-    code = main([str(a) for a in argv])
-    cap = capsys.readouterr()
-    return code, cap.out, cap.err
 
 
 @pytest.fixture(scope="module")
@@ -185,7 +178,7 @@ def test_bad_configuration(good, config_dir, tmp_path, capsys, kind, over, needl
             args[k] = v.replace("{tmp}", str(config_dir))
     flat = [x for kv in args.items() for x in kv]
     try:
-        code, so, se = _run(capsys, "render", good / "good.png", *flat)
+        code, so, se = run_cli(capsys, "render", good / "good.png", *flat)
     except SystemExit as exc:  # argparse
         code = exc.code
         cap = capsys.readouterr()
@@ -267,7 +260,7 @@ def test_bad_inputs_in_one_run(good, tmp_path, capsys):
     names = ["good.png", *bad, "good.jpg"]
     paths = [good / n if n.startswith("good") else d / n for n in names]
     out, report = tmp_path / "out", tmp_path / "r.json"
-    code, so, se = _run(
+    code, so, se = run_cli(
         capsys,
         "render",
         *paths,
@@ -314,7 +307,7 @@ def test_disk_full_while_writing(good, tmp_path, capsys, monkeypatch):
     (d / "first.png").write_bytes((good / "good.png").read_bytes())
     (d / "second.png").write_bytes((good / "good.png").read_bytes())
     out = tmp_path / "out"
-    code, so, se = _run(
+    code, so, se = run_cli(
         capsys, "render", d / "first.png", d / "second.png", *[x for kv in SCENE.items() for x in kv], "-o", out, "-q"
     )
     lines = [ln for ln in se.splitlines() if ln.strip()]
@@ -337,7 +330,7 @@ def test_unusual_inputs_are_accepted(good, tmp_path, capsys):
     cv2.imwrite(str(d / "rgba16.png"), cv2.cvtColor(src, cv2.COLOR_BGR2BGRA).astype(np.uint16) * 257)
     (d / "png_named.jpg").write_bytes((good / "good.png").read_bytes())
     cv2.imwrite(str(d / "float32.tiff"), src.astype(np.float32) / 255.0)
-    code, _, se = _run(
+    code, _, se = run_cli(
         capsys, "render", d, *[x for kv in SCENE.items() for x in kv], "-o", tmp_path / "o", "--save-mask", "-q"
     )
     assert code == 0, se
@@ -377,7 +370,7 @@ def test_unusual_meshes_are_accepted(good, tmp_path, capsys, kind):
         m = tmp_path / "selfint.ply"
         both.export(m)
     args = dict(SCENE, **{"--model": str(m), "--light": "point:0.3,-0.15,0.25"})  # shadow to the side: visible
-    code, _, se = _run(
+    code, _, se = run_cli(
         capsys,
         "render",
         good / "good.png",

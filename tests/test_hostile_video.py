@@ -22,6 +22,7 @@ from pathlib import Path
 
 import cv2
 import pytest
+from cli_run import run_cli
 from video_clips import make_clip
 
 av = pytest.importorskip("av")
@@ -41,17 +42,6 @@ SCENE = [
 ]
 JOB = {"calib": str(CALIB), "marker_length": 0.05, "model": "box:0.04,0.03,0.06", "lights": ["point:-0.1,0.15,0.4"]}
 TALLY: dict[str, list] = {"config (exit 2)": [], "per input (exit 1)": [], "accepted": [], "interrupted": []}
-
-
-def _run(capsys, *argv):
-    from arshadow.cli import main
-
-    try:
-        code = main([str(a) for a in argv])
-    except SystemExit as exc:  # argparse
-        code = exc.code
-    cap = capsys.readouterr()
-    return code, cap.out, cap.err
 
 
 def _lines(text):
@@ -136,7 +126,7 @@ def test_bad_videos_in_one_run(clips, tmp_path, capsys):
     out.mkdir()
     (out / ".good.k9x1.tmp.mp4").write_bytes(b"left by kill -9")
     (out / ".good.shadow.k9x2.tmp").mkdir()
-    code, so, se = _run(
+    code, so, se = run_cli(
         capsys,
         "video",
         *[clips / n for n in VIDEO_INPUTS],
@@ -214,7 +204,7 @@ def test_bad_inputs_in_one_batch(clips, tmp_path, capsys):
     ]
     inputs = [clips / n for n in names] + [tmp_path / "text.png"]
     out = tmp_path / "out"
-    code, so, se = _run(capsys, "batch", *inputs, "--config", job, "-o", out, "-q", "--contact-sheet", "0")
+    code, so, se = run_cli(capsys, "batch", *inputs, "--config", job, "-o", out, "-q", "--contact-sheet", "0")
     assert "Traceback" not in se and code == 1
     summary = json.loads((out / "batch.json").read_text())
     status = {Path(it["input"]).name: it["status"] for it in summary["items"]}
@@ -253,14 +243,14 @@ def test_output_never_overwrites_an_input(clips, tmp_path, capsys):
     before = {n: _md5(d / n) for n in ("good.mp4", "photo.png")}
     job = tmp_path / "job.json"
     job.write_text(json.dumps(JOB))
-    code, _, se = _run(capsys, "video", d / "good.mp4", clips / "two.mp4", *SCENE, "-o", d, "-q")
+    code, _, se = run_cli(capsys, "video", d / "good.mp4", clips / "two.mp4", *SCENE, "-o", d, "-q")
     ok_v = (
         code == 1
         and _lines(se) == [ln for ln in _lines(se) if "would overwrite an input" in ln]
         and len(_lines(se)) == 1
         and (d / "two.mp4").is_file()
     )
-    code, _, se = _run(
+    code, _, se = run_cli(
         capsys, "batch", d / "good.mp4", d / "photo.png", "--config", job, "-o", d, "-q", "--contact-sheet", "0"
     )
     ok_b = code == 1 and len(_lines(se)) == 2 and all("would overwrite an input" in ln for ln in _lines(se))
@@ -307,7 +297,7 @@ def test_video_bad_configuration(tmp_path, capsys, kind, extra, needle):
     (tmp_path / "afile").write_text("x")
     extra = [a.replace("{file}", str(tmp_path / "afile")).replace("{dir}", str(tmp_path)) for a in extra]
     args = ["-o", tmp_path / "out", *SCENE, *extra]
-    code, _, se = _run(capsys, "video", tmp_path / "never_opened.mp4", *args)
+    code, _, se = run_cli(capsys, "video", tmp_path / "never_opened.mp4", *args)
     lines = _lines(se)
     ok = code == 2 and len(lines) == 1 and needle in lines[0] and "never_opened" not in se and "Traceback" not in se
     TALLY["config (exit 2)"].append(("video " + kind, ok))
@@ -367,7 +357,7 @@ def test_batch_bad_configuration(tmp_path, capsys, monkeypatch, kind, config, ex
     cfg = str(tmp_path) if config == "{dir}" else str(tmp_path / config)
     args = ["--config", cfg, "-o", tmp_path / "out", "-q", *extra]
     t0 = time.perf_counter()
-    code, _, se = _run(capsys, "batch", tmp_path / "never_opened.mp4", *args)
+    code, _, se = run_cli(capsys, "batch", tmp_path / "never_opened.mp4", *args)
     lines = _lines(se)
     ok = (
         code == 2
@@ -444,7 +434,7 @@ def test_keyboard_interrupt_mid_video_leaves_nothing(clips, tmp_path, capsys, mo
 
     monkeypatch.setattr(engine.SessionBackend, "render", render)
     out = tmp_path / "out"
-    code, _, se = _run(capsys, "video", clips / "g12.mp4", *SCENE, "-o", out, "-q", "--save-mask")
+    code, _, se = run_cli(capsys, "video", clips / "g12.mp4", *SCENE, "-o", out, "-q", "--save-mask")
     ok = code == 130 and len(_lines(se)) == 1 and "interrupted" in se and not any(out.iterdir())
     TALLY["interrupted"].append(("KeyboardInterrupt", ok))
     assert ok, (code, se, list(out.iterdir()))

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import render_scenes
 from image_oracle import iou
 
 from arshadow.render_api import RenderRequest
@@ -35,21 +36,20 @@ def _spec(lh, w):
 
 def _scenes():
     """(name, caster, light specs, cam_from_world, intrinsics, options) of the accuracy tests' scenes."""
-    import test_gl_renderer as tg
 
     from arshadow.camera import Intrinsics
     from arshadow.geometry.mesh import load_occluder
     from arshadow.synth import look_at_pose
 
     out = []
-    for sc in tg._scenes():
+    for sc in render_scenes.scenes():
         out.append(
             (
                 f"renderer:{sc.name}",
                 sc.caster,
                 [_spec(lh, w) for lh, w in sc.lights],
                 sc.cam_from_world,
-                tg._intrinsics(sc.fx),
+                render_scenes.intrinsics(sc.fx),
                 {"ground_size": sc.ground_size},
             )
         )
@@ -268,7 +268,6 @@ def test_moved_light_reuses_geometry_only_when_exact(ctx):
 def test_direct_planar_pass_equals_the_stencil_planar_pass(ctx, samples):
     """Convex closed caster: the light-facing faces flattened straight into the mask (one draw per light,
     no stencil count) give the same mask as the stencil projection pass, levels of two lights included."""
-    import test_gl_renderer as tg
 
     from arshadow.geometry.mesh import load_occluder
     from arshadow.gl.stencil import ShadowRenderer
@@ -277,7 +276,7 @@ def test_direct_planar_pass_equals_the_stencil_planar_pass(ctx, samples):
     from arshadow.transforms import CV_TO_GL
 
     box = load_occluder("box:0.1,0.08,0.15", rotate=(0, 0, 25))
-    intr = tg._intrinsics(1000.0)
+    intr = render_scenes.intrinsics(1000.0)
     pose = look_at_pose([0.5, -0.45, 0.5], [0.03, 0.03, 0.02])
     lights = [(np.array([-0.25, 0.05, 0.55, 1.0]), 0.5), (np.array([0.3, 0.2, 1.0, 0.0]), 0.5)]
     masks = {}

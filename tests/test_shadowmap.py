@@ -38,14 +38,14 @@ def test_light_inside_bounding_sphere_is_refused():
 @pytest.mark.gl
 @pytest.mark.parametrize("name", ["box_point", "wall_camera_in_shadow"])
 def test_shadowmap_close_to_exact_at_high_resolution(ctx, tol, name):
-    from test_gl_renderer import ZNEAR, _intrinsics, _scenes
+    from render_scenes import ZNEAR, intrinsics, scenes
 
     from arshadow.gl.shadowmap import ShadowMapRenderer
     from arshadow.gl.stencil import LightPass
     from arshadow.transforms import CV_TO_GL
 
-    sc = next(s for s in _scenes() if s.name == name)
-    K = _intrinsics(sc.fx)
+    sc = next(s for s in scenes() if s.name == name)
+    K = intrinsics(sc.fx)
     orc = ShadowOracle(K.K, sc.cam_from_world, sc.caster.vertices, sc.caster.faces, sc.lights, sc.ground_size)
     exact = orc.image(W, H)[0] >= 0.5
     assert exact.sum() > 5000

@@ -149,15 +149,10 @@ def test_aa_only_documented_values():
 
 # ==================================================================================================
 # issue 20: plausible mistakes that gave silent wrong output. Each case asserts the message (not only the
-# exit status) and is counted: kinds tried / warned / refused (printed by test_issue20_tally, run last).
+# exit status).
 # ==================================================================================================
 
-TALLY20: dict[str, str] = {}  # kind -> "warned" | "refused" | "fixed" (accepted now)
 KNOT = ROOT / "samples" / "meshes" / "knot.ply"
-
-
-def _tally(kind: str, outcome: str) -> None:
-    TALLY20[kind] = outcome
 
 
 def _scene(**kw):
@@ -185,8 +180,6 @@ def test_marker_length_in_wrong_units_names_the_unit(caplog, length, unit, fix):
     assert f"probably {unit} (then give --marker-length {fix};" in first
     assert any("1/" in m and "of the" in m and "marker" in m and "Wrong units?" in m for m in msgs), msgs
     assert not _warnings_of_build(caplog, marker_length=0.05)  # the right length: silent
-    _tally(f"--marker-length {length:g} ({unit})", "warned")
-    _tally("object much smaller than the marker", "warned")
 
 
 def test_board_file_in_millimetres_warns_when_the_scene_loads(caplog, tmp_path):
@@ -205,7 +198,6 @@ def test_board_file_in_millimetres_warns_when_the_scene_loads(caplog, tmp_path):
         "millimetres" in m
         for m in _warnings_of_build(caplog, marker_length=None, board=str(ROOT / "calib" / "gridboard_5x7.yml"))
     )
-    _tally("board file in millimetres", "warned")
 
 
 def test_camera_tens_of_metres_away_is_a_unit_warning_once():
@@ -222,7 +214,6 @@ def test_camera_tens_of_metres_away_is_a_unit_warning_once():
     assert "--marker-length 50 is probably in millimetres" in msgs[0]
     assert checks.check(far) == []  # once per run
     assert FrameChecks(load_occluder("box:0.04,0.04,0.06"), 0.05).check(look_at_pose([0, -0.3, 0.4], [0, 0, 0])) == []
-    _tally("camera tens of metres away", "warned")
 
 
 def test_model_below_the_ground_warns_and_drop_to_ground_fixes(caplog, tmp_path):
@@ -240,8 +231,6 @@ def test_model_below_the_ground_warns_and_drop_to_ground_fixes(caplog, tmp_path)
     assert not [m for m in _warnings_of_build(caplog, model=str(centred), drop_to_ground=True) if "below" in m]
     caster = _scene(model=str(centred), drop_to_ground=True, place=[0.1, 0, 0]).build().caster
     assert np.allclose(caster.bounds, [[0.08, -0.025, 0.0], [0.12, 0.025, 0.06]], atol=1e-9)
-    _tally("model below the ground (--place Z < 0)", "warned")
-    _tally("mesh centred on its origin", "warned")
 
 
 def test_gltf_is_y_up_by_default_and_up_option(tmp_path):
@@ -271,7 +260,6 @@ def test_gltf_is_y_up_by_default_and_up_option(tmp_path):
         _scene(up="y").build()
     with pytest.raises(MeshError, match="choose z or y"):
         _scene(model=str(obj), up="x").build()
-    _tally("Y-up mesh (glTF) on its side", "fixed")
 
 
 def test_light_inside_the_object_is_one_error_before_any_work(tmp_path):
@@ -314,7 +302,6 @@ def test_light_inside_the_object_is_one_error_before_any_work(tmp_path):
     lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
     assert len(lines) == 1 and "is inside the closed mesh 'box:0.04,0.04,0.06'" in lines[0], r.stderr
     assert "p0.png" not in r.stderr and not list(out.glob("*.png"))
-    _tally("light inside the object", "refused")
 
 
 def test_shadow_map_around_a_point_light_is_one_usage_error():
@@ -327,7 +314,6 @@ def test_shadow_map_around_a_point_light_is_one_usage_error():
         _scene(shadow_method="shadowmap", lights=["point:0,0,0.07"]).build()
     _scene(shadow_method="shadowmap", lights=["point:0.1,0.1,0.4"]).build()  # outside: fine
     _scene(lights=["point:0,0,0.07"]).build()  # stencil volumes: fine
-    _tally("shadow map around a point light (one error per photo)", "refused")
 
 
 def test_sun_setting_during_a_time_lapse_names_the_frames():
@@ -400,7 +386,6 @@ def test_time_lapse_sunset_warns_before_any_work_and_in_the_report(tmp_path):
     assert dark and f"frames {dark[0]}-{dark[-1]} of {len(frames)}" in warn[0], (warn, dark)
     rep = json.loads((tmp_path / "r.json").read_text())
     assert any("below the horizon" in w for w in rep["videos"][0]["warnings"])
-    _tally("time-lapse sun setting mid-video", "warned")
 
 
 @pytest.mark.parametrize(
@@ -418,7 +403,6 @@ def test_output_to_a_closed_pipe_has_no_traceback(cmd):
     assert "Traceback" not in err and "BrokenPipeError" not in err, err
     # argparse's --help ignores a closed pipe itself (exit 0); our commands exit 141
     assert p.returncode == (0 if "--help" in cmd else 141), (p.returncode, err)
-    _tally("output to a closed pipe (| head)", "fixed")
 
 
 def test_negative_first_number_for_place_and_rotate():
@@ -449,7 +433,6 @@ def test_negative_first_number_for_place_and_rotate():
     sub = next(a for a in build_parser()._actions if a.dest == "command").choices["render"]
     helps = {a.dest: a.help for a in sub._actions}
     assert "--place -0.05,0,0" in helps["place"] and "--rotate -90,0,0" in helps["rotate"]
-    _tally("--place / --rotate with a negative first number", "fixed")
 
 
 def test_soft_samples_without_a_sized_light_warns(caplog):
@@ -460,7 +443,6 @@ def test_soft_samples_without_a_sized_light_warns(caplog):
         for m in msgs
     ), msgs
     assert not _warnings_of_build(caplog, soft_samples=16, lights=["point:0.1,0.1,0.4,radius=0.02"])
-    _tally("--soft-samples with a point light without radius", "warned")
 
 
 def test_hex_colour_accepted():
@@ -472,7 +454,6 @@ def test_hex_colour_accepted():
     assert np.allclose(caster.colors[:, :3], [1.0, 0.0, 0.0])
     with pytest.raises(UsageError, match="#rrggbb"):
         _scene(color="#ff00")
-    _tally("--color '#ff0000'", "fixed")
 
 
 def test_light_close_to_the_object_gets_a_slowness_notice(caplog):
@@ -490,7 +471,6 @@ def test_light_close_to_the_object_gets_a_slowness_notice(caplog):
         with caplog.at_level(logging.WARNING):
             scene_from_dict(d, base_dir=ROOT).build()
         assert not [r for r in caplog.records if r.levelno >= logging.WARNING], (sc["photo"], caplog.text)
-    _tally("light very close to the object (slow photo)", "warned")
 
 
 def test_flagged_pose_carries_its_reason():
@@ -509,7 +489,6 @@ def test_flagged_pose_carries_its_reason():
     assert item.pose_flagged is True and item.to_dict()["flag_reasons"] == item.flag_reasons
     reasons = item.flag_reasons
     assert any(r.startswith("small marker: ") and "px across, under the 32 px" in r for r in reasons), reasons
-    _tally("flagged pose without its reason", "warned")
 
 
 def test_calibration_of_another_size_is_said_on_stderr(caplog):
@@ -521,7 +500,6 @@ def test_calibration_of_another_size_is_said_on_stderr(caplog):
         "the calibration is for 1280x720, the photo is 640x360" in r.getMessage() and "scaled by 0.5" in r.getMessage()
         for r in caplog.records
     ), caplog.text
-    _tally("calibration of another size, scaled silently", "warned")
 
 
 def test_batch_json_names_outputs_and_survives_an_interruption(tmp_path, monkeypatch):
@@ -557,7 +535,6 @@ def test_batch_json_names_outputs_and_survives_an_interruption(tmp_path, monkeyp
     assert rep["interrupted"] is True
     assert [i["status"] for i in rep["items"]] == ["ok", "pending", "pending"]
     assert rep["counts"]["pending"] == 2
-    _tally("batch.json missing after an interruption", "fixed")
 
 
 @pytest.mark.gl
@@ -589,7 +566,6 @@ def test_batch_json_item_output_is_not_null(tmp_path):
         it["warnings"][0].startswith(f"{tmp_path / 'far.png'}: flagged pose: ")
         and "small marker: " in it["warnings"][0]
     )
-    _tally("batch.json output: null beside outputs", "fixed")
 
 
 def test_demo_and_render_agree_on_aa():
@@ -599,7 +575,6 @@ def test_demo_and_render_agree_on_aa():
     sub = next(a for a in build_parser()._actions if a.dest == "command").choices
     defaults = {n: next(a.default for a in sub[n]._actions if "--aa" in a.option_strings) for n in ("render", "demo")}
     assert defaults == {"render": DEFAULT_AA, "demo": DEFAULT_AA} and RenderOptions().aa == DEFAULT_AA
-    _tally("demo --aa 4 vs render --aa 0", "fixed")
 
 
 def test_conventions_are_in_the_repository():
@@ -612,7 +587,6 @@ def test_conventions_are_in_the_repository():
         if "shared/CONVENTIONS" in p.read_text(errors="replace") and p.name != "test_user_reports.py"
     ]
     assert not bad, bad
-    _tally("docs pointing to ../shared/CONVENTIONS.md", "fixed")
 
 
 @pytest.mark.gl
@@ -668,18 +642,3 @@ def test_render_says_unit_mistakes_and_flagged_poses_on_stderr(tmp_path):
     line = [ln for ln in r.stderr.splitlines() if "flagged pose" in ln]
     assert len(line) == 1 and line[0].startswith("arshadow render: warning: 1 of 2 photos have a flagged pose (")
     assert "far.png" in line[0] and "small marker (1)" in line[0]
-    _tally("render never mentioning flagged poses", "warned")
-
-
-def test_issue20_tally():
-    """Print the tally of issue 20's silent-wrong inputs (run last in this module)."""
-    kinds = len(TALLY20)
-    warned = sum(v == "warned" for v in TALLY20.values())
-    refused = sum(v == "refused" for v in TALLY20.values())
-    fixed = sum(v == "fixed" for v in TALLY20.values())
-    print(
-        f"\nissue 20 silent-wrong input kinds tried: {kinds}; warned: {warned}; refused: {refused}; "
-        f"now accepted / fixed: {fixed}"
-    )
-    for k, v in sorted(TALLY20.items()):
-        print(f"  {v:8s} {k}")

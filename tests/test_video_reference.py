@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from cli_run import run_cli
 from video_clips import CvClipWriter
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -64,13 +65,6 @@ def _write_board_clip(path, n, hidden=None, moved=()):
     return path
 
 
-def _run(capsys, *argv):
-    from arshadow.cli import main
-
-    code = main([str(a) for a in argv])
-    return code, capsys.readouterr().err
-
-
 def _records(path):
     return [json.loads(ln) for ln in Path(path).read_text().splitlines() if ln.strip()]
 
@@ -91,7 +85,9 @@ def test_reference_marker_kept_switch_warned_flags_in_records(tmp_path, capsys):
     hidden = {0: (0, 1, 2, 3, 5), 4: (4,), 5: (4,), **{i: (4,) for i in range(10, n)}}
     clip = _write_board_clip(tmp_path / "sheet.mp4", n, hidden)
     out = tmp_path / "out"
-    code, err = _run(capsys, "video", clip, "--calib", CALIB, "--marker-length", ML, *SCENE, "--hold", "3", "-o", out)
+    code, _, err = run_cli(
+        capsys, "video", clip, "--calib", CALIB, "--marker-length", ML, *SCENE, "--hold", "3", "-o", out
+    )
     assert code == 0, err
     recs = _records(out / "sheet.frames.jsonl")
     assert len(recs) == n
@@ -127,7 +123,7 @@ def test_broken_pose_is_held_not_rendered(tmp_path, capsys):
     board_file = _board().to_file(tmp_path / "board.yml")
     clip = _write_board_clip(tmp_path / "b.mp4", 12, moved=(5, 6, 7))
     out = tmp_path / "out"
-    code, err = _run(capsys, "video", clip, "--calib", CALIB, "--board", board_file, *SCENE, "-o", out)
+    code, _, err = run_cli(capsys, "video", clip, "--calib", CALIB, "--board", board_file, *SCENE, "-o", out)
     assert code == 0, err
     recs = _records(out / "b.frames.jsonl")
     assert [r["status"] for r in recs[5:8]] == ["held"] * 3, [(r["frame"], r["status"]) for r in recs]
@@ -146,7 +142,7 @@ def test_broken_pose_is_held_not_rendered(tmp_path, capsys):
             }
         )
     )
-    code, err = _run(capsys, "batch", clip, "--config", job, "-o", tmp_path / "bo", "-q", "--contact-sheet", "0")
+    code, _, err = run_cli(capsys, "batch", clip, "--config", job, "-o", tmp_path / "bo", "-q", "--contact-sheet", "0")
     assert code == 0, err
     brecs = _records(tmp_path / "bo" / "b.frames.jsonl")
     assert [r["status"] for r in brecs] == [r["status"] for r in recs]
@@ -171,7 +167,7 @@ def test_six_marker_sheet_one_reference(tmp_path, capsys):
 
     folder = _realvideo() / "aruco_single_paroj"
     out = tmp_path / "o"
-    code, err = _run(
+    code, _, err = run_cli(
         capsys,
         "video",
         folder / "video.avi",
@@ -218,7 +214,7 @@ def test_upscaled_board_clip_broken_poses_held(tmp_path, capsys):
         for p in s.encode():
             outc.mux(p)
     out = tmp_path / "o"
-    code, err = _run(
+    code, _, err = run_cli(
         capsys,
         "video",
         clip,
@@ -247,7 +243,7 @@ def test_reference_lock_chunked_equals_sequential(tmp_path, capsys):
     runs = {}
     for name, extra in (("seq", []), ("par", ["--jobs", "2"])):
         out = tmp_path / name
-        code, err = _run(
+        code, _, err = run_cli(
             capsys, "video", clip, "--calib", CALIB, "--marker-length", ML, *SCENE, "--hold", "3", "-o", out, *extra
         )
         assert code == 0 and "not cut into chunks" not in err, err

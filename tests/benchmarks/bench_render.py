@@ -48,9 +48,9 @@ def load_scene():
     if p.is_file():
         caster = load_occluder(str(p))
     else:  # same generator as tests/test_gl_renderer.py
-        from test_gl_renderer import _nonconvex_blob
+        from render_scenes import nonconvex_blob
 
-        caster = _nonconvex_blob()
+        caster = nonconvex_blob()
     K = Intrinsics(fx=1000.0, fy=1000.0, cx=641.3, cy=357.8, width=W, height=H, dist=np.zeros(0))
     T = look_at_pose([0.3, -0.32, 0.3], [0.0, 0.02, 0.02])
     L = np.array([-0.15, 0.2, 0.5, 1.0])
