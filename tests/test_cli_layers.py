@@ -13,7 +13,7 @@ import cv2
 import numpy as np
 import pytest
 from cli_run import run_cli
-from test_layers import _lin, _maxdiff, _recombine
+from layer_checks import linear, maxdiff, recombine
 
 pytestmark = pytest.mark.gl
 
@@ -61,10 +61,10 @@ def test_render_layers_png_recombine_and_summary(photos, tmp_path, capsys):
         m = cv2.imread(str(out / f"p{k}.shadow.mult.png"), cv2.IMREAD_UNCHANGED)
         only = cv2.imread(str(out / f"p{k}.shadow.only.png"), cv2.IMREAD_UNCHANGED)
         a = o[..., 3] / 65535.0
-        obj = np.dstack([_lin(o[..., 2::-1] / 257.0) * a[..., None], a])
+        obj = np.dstack([linear(o[..., 2::-1] / 257.0) * a[..., None], a])
         assert np.count_nonzero(a > 0.5) > 300 and np.count_nonzero(m < 50000) > 300
-        assert _maxdiff(_recombine(plate, obj, m / 65535.0), comp) <= 1
-        assert _maxdiff(_recombine(plate, obj, only[..., 3] / 65535.0, over=True), comp) <= 1
+        assert maxdiff(recombine(plate, obj, m / 65535.0), comp) <= 1
+        assert maxdiff(recombine(plate, obj, only[..., 3] / 65535.0, over=True), comp) <= 1
 
 
 def test_missing_exr_writer_is_exit_2_before_any_work(photos, tmp_path, capsys, monkeypatch):

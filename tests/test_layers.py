@@ -13,37 +13,12 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from layer_checks import linear, maxdiff, recombine
 
 from arshadow.compose.composite import composite, parse_rgb
 from arshadow.compose.layers import layers_from_warped, shadow_factor, shadow_only_alpha
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def _lin(codes):
-    c = np.asarray(codes, np.float64) / 255.0
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
-
-
-def _srgb8(x):
-    x = np.clip(np.asarray(x, np.float64), 0.0, 1.0)
-    c = np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055)
-    return np.floor(c * 255.0 + 0.5).astype(np.int64)
-
-
-def _recombine(plate_bgr, obj_rgba, shadow, over=False):
-    """Independent float64 recombination: returns int BGR."""
-    lin = _lin(plate_bgr)[..., ::-1]
-    s = np.asarray(shadow, np.float64)
-    if over:
-        s = (1.0 - np.asarray(obj_rgba[..., 3], np.float64)) * (1.0 - s)
-    if s.ndim == 2:
-        s = s[..., None]
-    return _srgb8(lin * s + np.asarray(obj_rgba[..., :3], np.float64))[..., ::-1]
-
-
-def _maxdiff(a, b):
-    return int(np.abs(np.asarray(a, np.int64) - np.asarray(b, np.int64)).max())
 
 
 # ------------------------------------------------------------------------------------------- pure math
@@ -72,9 +47,9 @@ def test_layers_of_random_inputs_recombine_to_the_composite(rng):
         comp = composite(plate, mask, roi, color=rgba, alpha=alpha, opacity=0.7, shadow_color=tint)
         lay = layers_from_warped(mask, rgba, roi, (H, W), opacity=0.7, shadow_color=tint)
         obj, sh = lay.full()
-        assert _maxdiff(_recombine(plate, obj, sh), comp) <= 1
+        assert maxdiff(recombine(plate, obj, sh), comp) <= 1
         if tint[0] == tint[1] == tint[2]:  # the shadow-only layer is exact for grey tints
-            assert _maxdiff(_recombine(plate, obj, shadow_only_alpha(sh, obj[..., 3]), over=True), comp) <= 1
+            assert maxdiff(recombine(plate, obj, shadow_only_alpha(sh, obj[..., 3]), over=True), comp) <= 1
         # outside the roi: nothing
         assert np.all(sh[:5] == 1.0) and np.all(obj[:5] == 0.0)
 
@@ -134,9 +109,9 @@ def test_session_layers_recombine_to_the_composite(gl_ctx, calib, eye, extra):
     else:
         assert np.count_nonzero(obj[..., 3] > 0.5) > 500
     assert np.count_nonzero(sh < 0.9) > 500  # a real shadow
-    assert _maxdiff(_recombine(photo, obj, sh), res.composite) <= 1
+    assert maxdiff(recombine(photo, obj, sh), res.composite) <= 1
     if "shadow_color" not in extra:
-        assert _maxdiff(_recombine(photo, obj, shadow_only_alpha(sh, obj[..., 3]), over=True), res.composite) <= 1
+        assert maxdiff(recombine(photo, obj, shadow_only_alpha(sh, obj[..., 3]), over=True), res.composite) <= 1
     assert "layers" not in res.item.to_dict() and "want_layers" not in res.item.to_dict()
     assert res.item.compose == "cpu" and "layers asked for" in res.item.plan["compose"]
 
@@ -160,7 +135,7 @@ def test_layer_files_recombine_to_the_composite(gl_ctx, tmp_path, fmt):
         so = cv2.imread(str(paths["shadow.only"]), cv2.IMREAD_UNCHANGED)
         assert o.dtype == np.uint16 and o.shape == photo.shape[:2] + (4,) and m.shape == photo.shape[:2]
         a = o[..., 3] / 65535.0
-        obj = np.dstack([_lin(o[..., 2::-1].astype(np.float64) / 257.0) * a[..., None], a])  # straight sRGB
+        obj = np.dstack([linear(o[..., 2::-1].astype(np.float64) / 257.0) * a[..., None], a])  # straight sRGB
         sh = m / 65535.0
         only = so[..., 3] / 65535.0
         assert np.all(so[..., :3] == 0)
@@ -170,8 +145,8 @@ def test_layer_files_recombine_to_the_composite(gl_ctx, tmp_path, fmt):
             return next(iter(OpenEXR.File(str(p)).channels().values())).pixels.astype(np.float64)
 
         obj, sh, only = read(paths["object"]), read(paths["shadow.mult"]), read(paths["shadow.only"])[..., 3]
-    assert _maxdiff(_recombine(photo, obj, sh), res.composite) <= 1
-    assert _maxdiff(_recombine(photo, obj, only, over=True), res.composite) <= 1
+    assert maxdiff(recombine(photo, obj, sh), res.composite) <= 1
+    assert maxdiff(recombine(photo, obj, only, over=True), res.composite) <= 1
 
 
 @pytest.mark.gl

@@ -12,7 +12,7 @@ import json
 import numpy as np
 import pytest
 from conftest import TOL
-from test_realvideo import CLIPS, _angle, _rot, jumps, literal_jumps, stock_detections, stock_rotations
+from realvideo_clips import CLIPS, angle, jumps, literal_jumps, rot, stock_detections, stock_rotations
 
 from arshadow.camera import Intrinsics
 from arshadow.cli import main
@@ -101,14 +101,14 @@ def test_video_with_map_tracks_every_frame_with_a_sheet_marker(realvideo_dir, tm
     missed = [(r["frame"], r["status"]) for r in seen if r["status"] != "ok"]
     assert not missed, missed
     assert sum(1 for r in seen if 101 not in r["marker_ids"]) >= 10  # tracked without the reference
-    smooth = [None if r["rvec"] is None or r["status"] != "ok" else _rot(r["rvec"]) for r in recs]
+    smooth = [None if r["rvec"] is None or r["status"] != "ok" else rot(r["rvec"]) for r in recs]
     assert jumps(smooth) == []
     rots = stock_rotations(folder, video, length)
     for i in literal_jumps(smooth):
         for j in (i - 1, i + 1):
-            others = [_angle(rots[i][k], rots[j][k]) for k in rots[i].keys() & rots[j].keys()]
+            others = [angle(rots[i][k], rots[j][k]) for k in rots[i].keys() & rots[j].keys()]
             if others:  # (motion-blurred frames: stock OpenCV may see no marker in both; jumps() judged them)
-                assert _angle(smooth[i], smooth[j]) < float(np.median(others)) + 1.5, (i, j, others)
+                assert angle(smooth[i], smooth[j]) < float(np.median(others)) + 1.5, (i, j, others)
 
 
 @pytest.mark.realvideo

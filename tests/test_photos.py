@@ -9,7 +9,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from test_user_reports import _with_exif_orientation
+from image_files import with_exif_orientation
 
 ROOT = Path(__file__).resolve().parents[1]
 CALIB = ROOT / "calib" / "synth_1280x720.yml"
@@ -37,7 +37,7 @@ def test_batch_honours_exif_orientation_as_render_does(tmp_path, capsys, gl_ctx)
     d = tmp_path / "in"
     d.mkdir()
     (d / "plain.jpg").write_bytes(buf.tobytes())
-    (d / "portrait.jpg").write_bytes(_with_exif_orientation(buf.tobytes(), 6))
+    (d / "portrait.jpg").write_bytes(with_exif_orientation(buf.tobytes(), 6))
     job = tmp_path / "job.json"
     job.write_text(json.dumps(JOB))
     assert (

@@ -8,26 +8,19 @@ OpenCV's detection list and the geometry of the rigid printed sheets, never arsh
 
 from __future__ import annotations
 
-import csv
 import json
 import os
 from pathlib import Path
 
-import av
 import cv2
 import numpy as np
 import pytest
+from realvideo_clips import CLIPS, angle, jumps, literal_jumps, rot, stock_detections, stock_rotations
 
 from arshadow.cli import main
 from arshadow.tracking.board import load_board
 
 ROOT = Path(__file__).resolve().parents[1]
-
-#: clip -> (folder, video file, target marker id, marker side m)
-CLIPS = {
-    "chessboard": ("aruco_chessboard_paroj", "chessboard.avi", 32, 0.034),
-    "single": ("aruco_single_paroj", "video.avi", 101, 0.05),
-}
 
 
 @pytest.fixture(scope="module")
@@ -37,12 +30,6 @@ def realvideo() -> Path:
     if not (p / CLIPS["single"][0] / "detections.csv").is_file():
         pytest.skip(f"real video clips not found at {p} (set ARSHADOW_REALVIDEO)")
     return p
-
-
-def stock_detections(folder: Path) -> dict:
-    """frame -> set of ids stock OpenCV found (the shared ``detections.csv``)."""
-    with open(folder / "detections.csv") as fh:
-        return {int(r["frame"]): set(map(int, r["ids"].split())) for r in csv.DictReader(fh)}
 
 
 def run_video(tmp_path, folder: Path, video: str, *tracker_args) -> tuple[list, str]:
@@ -69,28 +56,6 @@ def run_video(tmp_path, folder: Path, video: str, *tracker_args) -> tuple[list, 
         return [json.loads(line) for line in fh], ""
 
 
-def _rot(rvec):
-    return cv2.Rodrigues(np.asarray(rvec, np.float64).reshape(3, 1))[0]
-
-
-def _angle(a, b) -> float:
-    return float(np.degrees(np.arccos(np.clip((np.trace(a.T @ b) - 1.0) / 2.0, -1.0, 1.0))))
-
-
-def jumps(rots) -> list:
-    """Indices whose rotation is more than 5 deg from both neighbours *and* off the path between them
-    (the neighbours closer to each other than to it): a spike, not steady fast motion (the 5-fps clip
-    turns 6-8 deg per frame at times, as every one of its six markers shows)."""
-    out = []
-    for i in range(1, len(rots) - 1):
-        if any(r is None for r in rots[i - 1 : i + 2]):
-            continue
-        a, b = _angle(rots[i], rots[i - 1]), _angle(rots[i], rots[i + 1])
-        if a > 5.0 and b > 5.0 and _angle(rots[i - 1], rots[i + 1]) < max(a, b):
-            out.append(i)
-    return out
-
-
 def jitter(rots) -> float:
     """Median distance (deg) of each rotation from the geodesic midpoint of its two neighbours."""
     d = []
@@ -99,7 +64,7 @@ def jitter(rots) -> float:
         if p is None or c is None or n is None:
             continue
         half = cv2.Rodrigues(0.5 * cv2.Rodrigues(np.ascontiguousarray(p.T @ n))[0])[0]
-        d.append(_angle(c, p @ half))
+        d.append(angle(c, p @ half))
     return float(np.median(d))
 
 
@@ -125,48 +90,12 @@ def test_target_marker_tracked_where_opencv_sees_it(realvideo, tmp_path, clip, r
     )
     errs = [r["reprojection_error_px"] for r in recs if r["status"] == "ok"]
     assert np.median(errs) < 1.0
-    smooth = [None if r["rvec"] is None or r["status"] != "ok" else _rot(r["rvec"]) for r in recs]
-    raw = [None if r["raw"] is None else _rot(r["raw"]["rvec"]) for r in recs]
+    smooth = [None if r["rvec"] is None or r["status"] != "ok" else rot(r["rvec"]) for r in recs]
+    raw = [None if r["raw"] is None else rot(r["raw"]["rvec"]) for r in recs]
     assert jumps(smooth) == []
     assert jitter(smooth) < jitter(raw)
     # every frame not tracked says why (the tracker's reason)
     assert all(r.get("not_tracked") for r in recs if r["status"] != "ok" and r["frame"] > 1)
-
-
-def literal_jumps(rots) -> list:
-    """The issue's words: frames whose rotation is more than 5 deg from both neighbours."""
-    return [
-        i
-        for i in range(1, len(rots) - 1)
-        if all(r is not None for r in rots[i - 1 : i + 2])
-        and _angle(rots[i], rots[i - 1]) > 5.0
-        and _angle(rots[i], rots[i + 1]) > 5.0
-    ]
-
-
-def stock_rotations(folder: Path, video: str, length: float) -> list:
-    """Per frame, ``{id: (3, 3) rotation}`` of every marker stock OpenCV finds on the decoded colour frames,
-    each posed on its own by ``cv2.solvePnP(SOLVEPNP_IPPE_SQUARE)`` with the shared intrinsics (no
-    arshadow code)."""
-    fs = cv2.FileStorage(str(folder / "intrinsics.yml"), cv2.FILE_STORAGE_READ)
-    K, dist = fs.getNode("camera_matrix").mat(), fs.getNode("distortion_coefficients").mat()
-    fs.release()
-    h = length / 2
-    obj = np.array([[-h, h, 0], [h, h, 0], [h, -h, 0], [-h, -h, 0]], np.float64)
-    det = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_ARUCO_ORIGINAL))
-    out = []
-    with av.open(str(folder / video)) as c:
-        for fr in c.decode(video=0):
-            corners, ids, _ = det.detectMarkers(fr.to_ndarray(format="bgr24"))
-            rots = {}
-            for cc, i in zip(corners, [] if ids is None else ids.ravel().tolist(), strict=True):
-                ok, rvec, _ = cv2.solvePnP(
-                    obj, cc.reshape(4, 2).astype(np.float64), K, dist, flags=cv2.SOLVEPNP_IPPE_SQUARE
-                )
-                if ok:
-                    rots[int(i)] = _rot(rvec)
-            out.append(rots)
-    return out
 
 
 @pytest.mark.gl
@@ -181,14 +110,14 @@ def test_fast_turns_of_the_5fps_clip_are_the_sheets_motion(realvideo, tmp_path):
     folder = realvideo / name
     args = ["--marker-length", str(length), "--dictionary", "DICT_ARUCO_ORIGINAL", "--marker-id", str(mid)]
     recs, _ = run_video(tmp_path, folder, video, *args)
-    smooth = [None if r["rvec"] is None or r["status"] != "ok" else _rot(r["rvec"]) for r in recs]
+    smooth = [None if r["rvec"] is None or r["status"] != "ok" else rot(r["rvec"]) for r in recs]
     stock = stock_rotations(folder, video, length)
     fast = literal_jumps(smooth)
     print("frames turning > 5 deg from both neighbours:", fast)
     for i in fast:
         for j in (i - 1, i + 1):
-            ours = _angle(smooth[i], smooth[j])
-            others = [_angle(stock[i][k], stock[j][k]) for k in stock[i].keys() & stock[j].keys() if k != mid]
+            ours = angle(smooth[i], smooth[j])
+            others = [angle(stock[i][k], stock[j][k]) for k in stock[i].keys() & stock[j].keys() if k != mid]
             assert len(others) >= 3, f"frame {i}: too few other markers to compare"
             sheet = float(np.median(others))
             assert sheet > 5.0, (i, j, ours, others)  # the sheet itself turned more than 5 deg

@@ -16,16 +16,12 @@ import numpy as np
 import pytest
 from conftest import TOL
 from oracle import disc_segment_fraction, profile_crossing
+from soft_shadow_scene import F_PX, H_IMG, HB, A, D, W, profile, render_masks, widths
 
 from arshadow.lights.area import sample_area_light
 from arshadow.lights.spec import Light, parse_light
-from arshadow.render_api import RenderRequest
 
 pytestmark = pytest.mark.gl
-
-F_PX, D = 2000.0, 1.0  # focal length (px) and camera height (m)
-W, H_IMG = 640, 240  # ground x in [-0.16, 0.16] m at 0.5 mm per pixel
-A, HB = 0.05, 0.1  # box half-width and height (m)
 
 
 @pytest.fixture(scope="module")
@@ -63,61 +59,17 @@ def renderer(gl_ctx):
     r.release()
 
 
-def _render(scene, renderer, lights, mode="zfail"):
-    from arshadow.geometry.silhouette import silhouette
-    from arshadow.geometry.volume import shadow_volume
-    from arshadow.gl.stencil import LightPass
-
-    total = sum(li.weight for li in lights)
-    passes = []
-    for li in lights:
-        h = li.homogeneous
-        sil = silhouette(scene["caster"], h)
-        vol = shadow_volume(scene["caster"], h, sil, caps=(mode == "zfail"))
-        passes.append(LightPass(light_h=h, weight=li.weight / total, volume=vol, mode=mode))
-    res = renderer.render(
-        RenderRequest(
-            projection=scene["proj"],
-            view=scene["view"],
-            width=W,
-            height=H_IMG,
-            caster=scene["caster"],
-            passes=passes,
-            draw_occluder=False,
-        )
-    )
-    return res.mask
-
-
-def _profile(scene, mask):
-    """Mask along the row through the box centre, for x beyond the box edge (ground z = 0 at y = 0)."""
-    row = int(round(scene["intr"].cy))
-    x = scene["x"]
-    keep = x > A
-    return x[keep], mask[row, keep].astype(np.float64)
-
-
-def _widths(x, f, n):
-    """Full penumbra width (first departure from 1 to last departure from 0) and the 10-90 % width."""
-    eps = 0.5 / n
-    part = np.nonzero((f > eps) & (f < 1 - eps))[0]
-    lo, hi = np.nonzero(f < 1 - eps)[0][0], np.nonzero(f > eps)[0][-1]
-    assert part.size > 3
-    full = x[hi] - x[lo] + (x[1] - x[0])  # pixel extent: count the end pixels whole
-    return full, profile_crossing(x, f, 0.1) - profile_crossing(x, f, 0.9)
-
-
 def test_point_light_penumbra_width(scene, renderer):
     r, Hl, n = 0.05, 0.5, 64
     li = parse_light(f"point:0,0,{Hl},radius={r}")
-    mask = _render(scene, renderer, sample_area_light(li, n, seed=0))
-    x, f = _profile(scene, mask)
+    mask = render_masks(scene, renderer, sample_area_light(li, n, seed=0))
+    x, f = profile(scene, mask)
     # geometry: a disc sample at x-offset s is hidden from ground point x iff s < x - (x - A) Hl / HB
     full_pred = 2 * r * HB / (Hl - HB)
     c = x - (x - A) * Hl / HB
     exact = 1.0 - disc_segment_fraction(c / r)
-    _, w1090_pred = _widths(x, np.where(exact > 1 - 1e-12, 1.0, exact), 1e6)
-    full, w1090 = _widths(x, f, n)
+    _, w1090_pred = widths(x, np.where(exact > 1 - 1e-12, 1.0, exact), 1e6)
+    full, w1090 = widths(x, f, n)
     assert abs(full - full_pred) / full_pred <= TOL.penumbra_rel, (full, full_pred)
     assert abs(w1090 - w1090_pred) / w1090_pred <= TOL.penumbra_rel, (w1090, w1090_pred)
     # and the whole profile follows the disc's segment area (stratified: within a few samples)
@@ -131,10 +83,10 @@ def test_sun_cone_penumbra_width(scene, renderer):
     many pixels): penumbra from HB / tan(e + alpha) to HB / tan(e - alpha) beyond the edge."""
     e, alpha, n = math.radians(55.0), math.radians(3.0), 64
     li = Light("directional", [-math.cos(e), 0.0, math.sin(e)], radius=alpha, label="sun-like")
-    mask = _render(scene, renderer, sample_area_light(li, n, seed=1))
-    x, f = _profile(scene, mask)
+    mask = render_masks(scene, renderer, sample_area_light(li, n, seed=1))
+    x, f = profile(scene, mask)
     full_pred = HB / math.tan(e - alpha) - HB / math.tan(e + alpha)
-    full, _ = _widths(x, f, n)
+    full, _ = widths(x, f, n)
     assert abs(full - full_pred) / full_pred <= TOL.penumbra_rel, (full, full_pred)
     # 50 % where the centre direction puts the hard edge
     assert profile_crossing(x, f, 0.5) == pytest.approx(A + HB / math.tan(e), abs=2 * D / F_PX)
@@ -144,10 +96,10 @@ def test_sun_cone_penumbra_width(scene, renderer):
 def test_one_sample_is_the_hard_shadow_exactly(scene, renderer, spec):
     li = parse_light(spec)
     hard = Light(li.kind, li.vector, weight=li.weight, radius=0.0, label=li.label)
-    m1 = _render(scene, renderer, sample_area_light(li, 1))
-    mh = _render(scene, renderer, [hard])
+    m1 = render_masks(scene, renderer, sample_area_light(li, 1))
+    mh = render_masks(scene, renderer, [hard])
     np.testing.assert_array_equal(m1, mh)
     assert set(np.unique(m1)) <= {0.0, 1.0} and m1.sum() > 1000
     # and the soft shadow is not the hard one, yet has the same total darkness to within the penumbra
-    ms = _render(scene, renderer, sample_area_light(li, 16))
+    ms = render_masks(scene, renderer, sample_area_light(li, 16))
     assert not np.array_equal(ms, mh)

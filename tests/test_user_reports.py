@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import json
 import logging
-import struct
 import subprocess
 import sys
 from datetime import datetime, timedelta, timezone
@@ -16,18 +15,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from image_files import with_exif_orientation
 
 ROOT = Path(__file__).resolve().parents[1]
 CALIB = ROOT / "calib" / "synth_1280x720.yml"
-
-
-def _with_exif_orientation(jpeg: bytes, orientation: int, big_endian: bool = False) -> bytes:
-    """Insert an APP1 Exif segment with IFD0 tag 0x0112 = orientation right after SOI."""
-    e = ">" if big_endian else "<"
-    tiff = (b"MM" if big_endian else b"II") + struct.pack(e + "HI", 42, 8)
-    tiff += struct.pack(e + "H", 1) + struct.pack(e + "HHIHH", 0x0112, 3, 1, orientation, 0) + struct.pack(e + "I", 0)
-    seg = b"Exif\0\0" + tiff
-    return jpeg[:2] + b"\xff\xe1" + struct.pack(">H", len(seg) + 2) + seg + jpeg[2:]
 
 
 @pytest.mark.parametrize("orientation", range(1, 9))
@@ -42,7 +33,7 @@ def test_exif_orientation_matches_opencv(tmp_path, orientation, big_endian):
     img = cv2.resize(img, (80, 48), interpolation=cv2.INTER_NEAREST)  # smooth enough for JPEG
     ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, 100])
     p = tmp_path / "o.jpg"
-    p.write_bytes(_with_exif_orientation(buf.tobytes(), orientation, big_endian))
+    p.write_bytes(with_exif_orientation(buf.tobytes(), orientation, big_endian))
     assert exif_orientation(p) == orientation
     stored = read_image(p)  # as stored: the calibration's frame
     assert stored.shape == (48, 80, 3)
@@ -77,7 +68,7 @@ def test_render_honours_exif_orientation(tmp_path, capsys, gl_ctx):
     d = tmp_path / "in"
     d.mkdir()
     (d / "plain.jpg").write_bytes(buf.tobytes())
-    (d / "portrait.jpg").write_bytes(_with_exif_orientation(buf.tobytes(), 6))
+    (d / "portrait.jpg").write_bytes(with_exif_orientation(buf.tobytes(), 6))
     args = [
         "render",
         str(d),

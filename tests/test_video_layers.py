@@ -13,7 +13,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from test_layers import _lin, _maxdiff, _recombine
+from layer_checks import linear, maxdiff, recombine
 from video_clips import make_clip
 
 av = pytest.importorskip("av")
@@ -96,10 +96,10 @@ def test_ffv1_layer_videos_rebuild_every_frame(clip, tmp_path, gl_ctx):
             m[:3, 3] = ln["tvec"]
             comp = s.render(frames[k], m).composite
             a = obj[k][..., 3] / 65535.0
-            o = np.dstack([_lin(obj[k][..., :3] / 257.0) * a[..., None], a])
+            o = np.dstack([linear(obj[k][..., :3] / 257.0) * a[..., None], a])
             assert np.count_nonzero(a > 0.5) > 200 or ln["status"] == "held"
-            assert _maxdiff(_recombine(frames[k], o, mult[k] / 65535.0), comp) <= 1
-            assert _maxdiff(_recombine(frames[k], o, only[k][..., 3] / 65535.0, over=True), comp) <= 1
+            assert maxdiff(recombine(frames[k], o, mult[k] / 65535.0), comp) <= 1
+            assert maxdiff(recombine(frames[k], o, only[k][..., 3] / 65535.0, over=True), comp) <= 1
 
 
 def test_prores_4444_layers_have_alpha(clip, tmp_path):

@@ -49,10 +49,10 @@ def _stats(ms) -> dict:
 
 
 def penumbra_quality(ctx, ns) -> dict:
-    """The other side of the trade-off: penumbra width error vs samples, in tests/test_soft_shadows.py's
+    """The other side of the trade-off: penumbra width error vs samples, in tests/soft_shadow_scene.py's
     scene (box edge, sphere light r = 0.05 m at 0.5 m; sun-like cone alpha = 3 deg at 55 deg)."""
     sys.path.insert(0, str(ROOT / "tests"))
-    import test_soft_shadows as T
+    import soft_shadow_scene as T
     from oracle import disc_segment_fraction
 
     from arshadow.camera import Intrinsics
@@ -78,15 +78,17 @@ def penumbra_quality(ctx, ns) -> dict:
     with ShadowRenderer(ctx, max_width=T.W, max_height=T.H_IMG) as r:
         for n in ns:
             rr, hl = 0.05, 0.5
-            x, f = T._profile(sc, T._render(sc, r, sample_area_light(parse_light(f"point:0,0,{hl},radius={rr}"), n)))
+            x, f = T.profile(
+                sc, T.render_masks(sc, r, sample_area_light(parse_light(f"point:0,0,{hl},radius={rr}"), n))
+            )
             full_pred = 2 * rr * T.HB / (hl - T.HB)
             exact = 1 - disc_segment_fraction((x - (x - T.A) * hl / T.HB) / rr)
-            _, w_pred = T._widths(x, np.where(exact > 1 - 1e-12, 1.0, exact), 1e6)
-            full, w = T._widths(x, f, n)
+            _, w_pred = T.widths(x, np.where(exact > 1 - 1e-12, 1.0, exact), 1e6)
+            full, w = T.widths(x, f, n)
             e, al = math.radians(55), math.radians(3)
             sun = Light("directional", [-math.cos(e), 0, math.sin(e)], radius=al)
-            x2, f2 = T._profile(sc, T._render(sc, r, sample_area_light(sun, n, seed=1)))
-            full2, _ = T._widths(x2, f2, n)
+            x2, f2 = T.profile(sc, T.render_masks(sc, r, sample_area_light(sun, n, seed=1)))
+            full2, _ = T.widths(x2, f2, n)
             fp2 = T.HB / math.tan(e - al) - T.HB / math.tan(e + al)
             out[str(n)] = {
                 "point_full_width_err": round(full / full_pred - 1, 4),
