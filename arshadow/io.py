@@ -8,6 +8,7 @@ Inputs are never modified.
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import os
 import re
@@ -273,7 +274,7 @@ def atomic_path(target):
     (``cv2.imwrite``) work on it.
     """
     target = Path(target)
-    target.parent.mkdir(parents=True, exist_ok=True)
+    make_folder(target.parent)
     fd, tmp = tempfile.mkstemp(prefix=f".{target.stem}.", suffix=f".tmp{target.suffix}", dir=target.parent)
     os.close(fd)
     try:
@@ -285,6 +286,54 @@ def atomic_path(target):
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         raise
+
+
+#: how often :func:`make_folder` recreates a path whose parent another process removed meanwhile
+MAKE_FOLDER_TRIES = 50
+
+
+def make_folder(path) -> Path:
+    """Create the folder ``path`` and its parents (existing ones are fine); returns it as a Path.
+
+    Tolerates a parent removed by another process between the creation of that parent and of its child
+    (a shared folder such as ``OUT/.arshadow-chunks`` that another task removes when it looks empty, see
+    :func:`remove_empty_folder`): the whole path is created again, up to :data:`MAKE_FOLDER_TRIES` times.
+
+    >>> import tempfile
+    >>> d = Path(tempfile.mkdtemp())
+    >>> make_folder(d / "a" / "b").is_dir()
+    True
+    """
+    p = Path(path)
+    for _ in range(MAKE_FOLDER_TRIES - 1):
+        try:
+            os.makedirs(p, exist_ok=True)
+            return p
+        except FileNotFoundError:  # a parent made by this call was removed before its child was made
+            continue
+    os.makedirs(p, exist_ok=True)
+    return p
+
+
+def remove_empty_folder(path) -> bool:
+    """Remove the folder ``path`` if it is empty, in one system call (``rmdir``); True when removed.
+
+    A folder that is not empty (another task created something in it meanwhile) or already gone is left
+    as it is: no check-then-remove window in which another task's sub-folder could be lost.
+
+    >>> import tempfile
+    >>> d = Path(tempfile.mkdtemp())
+    >>> (d / "x").mkdir()
+    >>> remove_empty_folder(d), remove_empty_folder(d / "x"), remove_empty_folder(d / "x")
+    (False, True, False)
+    """
+    try:
+        os.rmdir(path)
+    except OSError as exc:
+        if exc.errno in (errno.ENOENT, errno.ENOTEMPTY, errno.EEXIST):
+            return False
+        raise
+    return True
 
 
 def clean_temporaries(folder, stem: str | None = None) -> int:

@@ -34,6 +34,7 @@ import numpy as np
 
 from ..errors import ImageError, UsageError
 from ..gl.context import contexts_made
+from ..io import make_folder
 from ..sanity import FlagTally
 from ..session import Session
 from .avio import AvReader, display_rotation
@@ -215,7 +216,7 @@ def chunk_task(recipe: BackendRecipe, prep: Prepared, chunk) -> dict:
     """Run one chunk in this process (a pool worker or a Dask task); returns its record. (The store was
     opened, and an interrupted run's temporaries removed, before any chunk started: never here, where
     other chunks are writing.)"""
-    prep.store.dir.mkdir(parents=True, exist_ok=True)
+    make_folder(prep.store.dir)  # the shared parent may be removed meanwhile by another video's join
     t = time.perf_counter()
     backend = backend_for(recipe, prep.opts.encoder_threads)
     setup = time.perf_counter() - t
