@@ -18,7 +18,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .errors import ImageError
+from .errors import ImageError, write_error
 
 #: the photo extensions arshadow recognises (OpenCV's image readers): folders are listed by them, ``batch``
 #: tells photos from videos by them, ``--keep-format`` keeps them
@@ -386,7 +386,7 @@ def write_bytes(path, data: bytes) -> Path:
         with atomic_path(path) as tmp:
             _write_file(tmp, data)
     except OSError as exc:  # disk full, permissions, a file where a folder should be...
-        raise ImageError(f"{path}: cannot write ({exc.strerror or exc}); nothing written") from None
+        raise write_error(f"{path}: cannot write ({exc.strerror or exc}); nothing written", exc) from None
     return path
 
 
