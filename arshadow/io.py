@@ -364,6 +364,12 @@ def clean_temporaries(folder, stem: str | None = None) -> int:
     return n
 
 
+def output_mode(folder: bool = False) -> int:
+    """The mode of an output file (``0o666``) or folder (``0o777``) less the process's umask: what a plain
+    ``open`` / ``mkdir`` would give (``mkstemp`` / ``mkdtemp`` give owner-only 0600 / 0700)."""
+    return (0o777 if folder else 0o666) & ~_umask()
+
+
 def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import logging
 import math
+import re
 from datetime import timedelta
 
 import numpy as np
@@ -40,6 +41,7 @@ __all__ = [
     "MIN_OBJECT_RATIO",
     "SLOW_LIGHT_RATIO",
     "FlagTally",
+    "flag_kind",
     "FrameChecks",
     "calibration_scaled_note",
     "check_lights_inside",
@@ -495,6 +497,17 @@ def _ranges(keys) -> str:
     return ", ".join(f"{a}-{b}" if b > a else f"{a}" for a, b in runs)
 
 
+def flag_kind(reason) -> str:
+    """The kind of a flag reason, its words before the first ``:`` or number (so that reasons that differ
+    only by their measurements group into one).
+
+    >>> flag_kind("small marker: 20.1 px across"), flag_kind("reprojection error 35.2 px, far above ...")
+    ('small marker', 'reprojection error')
+    """
+    head = re.split(r"[:\d]", str(reason), maxsplit=1)[0].strip(" ,;(")
+    return head or str(reason)
+
+
 class FlagTally:
     """Flagged poses of a run, for one summary line on stderr (``render``: per photo, ``video``: per frame).
 
@@ -514,7 +527,7 @@ class FlagTally:
             return
         self.keys.append(key)
         for r in reasons:
-            kind = str(r).split(":", 1)[0]
+            kind = flag_kind(r)
             self.kinds[kind] = self.kinds.get(kind, 0) + 1
 
     def summary(self, total: int, what: str = "photos") -> str | None:

@@ -1,0 +1,144 @@
+"""What a new user hit (issue 26 item 7): each test fails on the code before the fix.
+
+Ground truth is independent of the code under test: file modes from ``os.stat``, a glTF read by its own
+parser (pygltflib), placements computed by hand from the box's dimensions, warnings by their text.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import stat
+from fractions import Fraction
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+CALIB = ROOT / "calib" / "synth_1280x720.yml"
+
+
+def _cli(capsys, *argv):
+    from arshadow.cli import main
+
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+# ----------------------------------------------------------------------------- flagged-pose warning
+def test_flag_reasons_with_numbers_are_grouped():
+    """Reasons that differ only in their numbers ('reprojection error 35.2 px ...') are one kind."""
+    from arshadow.sanity import FlagTally
+
+    t = FlagTally()
+    for k, e in enumerate([35.2, 164.0, 80.5, 41.0]):
+        t.add(k, [f"reprojection error {e:.1f} px, far above the 4.0 px the detected corners allow (...)"])
+    t.add(9, ["small marker: 20.1 px across, under the 30 px a pose can be trusted at"])
+    line = t.summary(10, "frames")
+    assert "reprojection error (4)" in line and "small marker (1)" in line
+    assert "35.2" not in line and len(line) < 200
+
+
+# ----------------------------------------------------------------------------- layer file modes
+@pytest.mark.parametrize("fmt", ["ffv1", "png"])
+def test_video_layer_files_are_written_0644(tmp_path, fmt):
+    """Every other output is 0666 less the umask (0644 under the usual 022); the layer videos (mkstemp)
+    and the PNG-sequence folder (mkdtemp) were owner-only."""
+    pytest.importorskip("av")
+    from arshadow.export.layerfiles import LAYER_NAMES
+    from arshadow.export.layervideo import LayerSink
+
+    old = os.umask(0o022)
+    try:
+        if fmt == "png":
+            paths = {"folder": tmp_path / "clip.layers"}
+        else:
+            paths = {n: tmp_path / f"clip.{n}.mkv" for n in LAYER_NAMES}
+        sink = LayerSink(paths, fmt, Fraction(25), (64, 48))
+        sink.write(None)
+        sink.close()
+    finally:
+        os.umask(old)
+    for p in paths.values():
+        mode = stat.S_IMODE(os.stat(p).st_mode)
+        assert mode == (0o755 if Path(p).is_dir() else 0o644), (p, oct(mode))
+
+
+# ----------------------------------------------------------------------------- FrameResult repr
+def test_frame_result_repr_is_short():
+    """``print(result)`` names the size, status, camera and timings; it does not dump the arrays."""
+    from arshadow.report import ReportItem, StageTimings
+    from arshadow.result import FrameResult
+
+    m = np.eye(4)
+    m[:3, 3] = [0.0, 0.0, 0.5]  # the camera 0.5 m from the marker, by construction
+    res = FrameResult(
+        np.zeros((720, 1280, 3), np.uint8),
+        np.zeros((720, 1280), np.uint8),
+        None,
+        m,
+        ReportItem(input="x.jpg", status="ok"),
+        StageTimings(detect=1.25, total=10.5),
+    )
+    text = repr(res)
+    assert len(text) < 240 and "\n" not in text, text
+    assert "1280x720" in text and "0.500 m" in text and "10.5 ms" in text and "array" not in text
+
+
+# ----------------------------------------------------------------------------- export-track placement
+def _y_up_obj(path, w=0.04, h=0.10, d=0.02):
+    """A box ``w`` (x) by ``h`` (y, up) by ``d`` (z) with its base centred on the origin, as Blender's
+    OBJ export writes a standing object (Y-up)."""
+    vs = [(x, y, z) for x in (-w / 2, w / 2) for y in (0.0, h) for z in (-d / 2, d / 2)]
+    faces = [(1, 2, 4, 3), (5, 7, 8, 6), (1, 5, 6, 2), (3, 4, 8, 7), (1, 3, 7, 5), (2, 6, 8, 4)]
+    path.write_text(
+        "".join(f"v {x} {y} {z}\n" for x, y, z in vs) + "".join("f " + " ".join(map(str, f)) + "\n" for f in faces)
+    )
+    return path
+
+
+def _frames_jsonl(path):
+    rv, lines = [0.1, 0.2, 0.3], []
+    for i in range(3):
+        lines.append({"frame": i, "time_s": i / 25, "status": "ok", "rvec": rv, "tvec": [0, 0, 0.4], "raw": None})
+    path.write_text("".join(json.dumps(d) + "\n" for d in lines))
+    return path
+
+
+def test_export_track_places_the_occluder_as_render_does(tmp_path, capsys):
+    """``--up y`` and ``--drop-to-ground`` are accepted as by render; the occluder node's translation is
+    its --place (the pivot), and node + mesh put the box standing upright there: its height (0.10 m) along
+    world z, its base on the ground."""
+    pygltflib = pytest.importorskip("pygltflib")
+    obj = _y_up_obj(tmp_path / "tower.obj")
+    src = _frames_jsonl(tmp_path / "clip.frames.jsonl")
+    out = tmp_path / "clip.glb"
+    code, _, err = _cli(
+        capsys,
+        "export-track",
+        src,
+        "--calib",
+        CALIB,
+        "--model",
+        obj,
+        "--up",
+        "y",
+        "--drop-to-ground",
+        "--place",
+        "0.1,0.05,0",
+        "-o",
+        out,
+    )
+    assert code == 0, err
+    g = pygltflib.GLTF2().load(str(out))
+    node = next(n for n in g.nodes if n.name == "occluder")
+    assert node.translation == pytest.approx([0.1, 0.05, 0.0])
+    prim = g.meshes[node.mesh].primitives[0]
+    acc = g.accessors[prim.attributes.POSITION]
+    view = g.bufferViews[acc.bufferView]
+    v = np.frombuffer(g.binary_blob(), np.float32, acc.count * 3, view.byteOffset + (acc.byteOffset or 0))
+    world = v.reshape(-1, 3) + np.asarray(node.translation)  # the node is a child of the marker frame
+    assert world.min(axis=0) == pytest.approx([0.08, 0.04, 0.0], abs=1e-6)
+    assert world.max(axis=0) == pytest.approx([0.12, 0.06, 0.10], abs=1e-6)
