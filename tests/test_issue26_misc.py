@@ -142,3 +142,48 @@ def test_export_track_places_the_occluder_as_render_does(tmp_path, capsys):
     world = v.reshape(-1, 3) + np.asarray(node.translation)  # the node is a child of the marker frame
     assert world.min(axis=0) == pytest.approx([0.08, 0.04, 0.0], abs=1e-6)
     assert world.max(axis=0) == pytest.approx([0.12, 0.06, 0.10], abs=1e-6)
+
+
+# ----------------------------------------------------------------------------- object out of view
+KNOT_SCENE = [
+    "--calib",
+    CALIB,
+    "--marker-length",
+    "0.05",
+    "--model",
+    ROOT / "samples" / "meshes" / "knot.ply",
+    "--light",
+    "point:-0.12,0.2,0.42",
+]
+
+
+@pytest.mark.gl
+def test_an_object_out_of_view_in_every_photo_is_warned(tmp_path, capsys):
+    """``--place 3,0,0`` (a cm/m slip): the knot is 3 m beside a marker seen from ~0.6 m, outside the
+    view (its distance alone puts it beyond the frame's ~50 degree field); exit 0 with a warning that says
+    so and names the placement."""
+    photo = ROOT / "samples" / "knot_point.jpg"
+    code, _, err = _cli(capsys, "render", photo, *KNOT_SCENE, "--place", "3,0,0", "-o", tmp_path / "o", "-q")
+    assert code == 0
+    warn = [ln for ln in err.splitlines() if "outside the view" in ln]
+    assert len(warn) == 1 and "every photo" in warn[0] and "--place 3,0,0" in warn[0], err
+    code, _, err = _cli(capsys, "render", photo, *KNOT_SCENE, "--place", "0.1,0.05,0", "-o", tmp_path / "p", "-q")
+    assert code == 0 and "outside the view" not in err
+
+
+# ----------------------------------------------------------------------------- own outputs on re-render
+@pytest.mark.gl
+def test_rerendering_a_folder_skips_arshadows_own_outputs(tmp_path, capsys):
+    """``render DIR -o DIR --save-mask`` twice: the second run renders the one photo again (no
+    ``*.shadow.png`` taken as a photo, no ``knot_point_2.png``) and says in one line what it skipped."""
+    d = tmp_path / "shots"
+    d.mkdir()
+    (d / "knot_point.jpg").write_bytes((ROOT / "samples" / "knot_point.jpg").read_bytes())
+    scene = [*KNOT_SCENE, "--place", "0.1,0.05,0", "--save-mask"]
+    assert _cli(capsys, "render", d, *scene, "-o", d, "-q")[0] == 0
+    assert sorted(p.name for p in d.iterdir()) == ["knot_point.jpg", "knot_point.png", "knot_point.shadow.png"]
+    code, _, err = _cli(capsys, "render", d, *scene, "-o", d, "-q")
+    assert code == 0, err
+    assert sorted(p.name for p in d.iterdir()) == ["knot_point.jpg", "knot_point.png", "knot_point.shadow.png"]
+    lines = [ln for ln in err.splitlines() if "skipped" in ln]
+    assert len(lines) == 1 and "2 of arshadow's own outputs" in lines[0], err
