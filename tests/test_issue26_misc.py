@@ -187,3 +187,37 @@ def test_rerendering_a_folder_skips_arshadows_own_outputs(tmp_path, capsys):
     assert sorted(p.name for p in d.iterdir()) == ["knot_point.jpg", "knot_point.png", "knot_point.shadow.png"]
     lines = [ln for ln in err.splitlines() if "skipped" in ln]
     assert len(lines) == 1 and "2 of arshadow's own outputs" in lines[0], err
+
+
+# ----------------------------------------------------------------------------- video, wrong dictionary
+@pytest.mark.gl
+def test_video_with_the_wrong_dictionary_names_the_one_there(tmp_path, capsys):
+    """samples/video/orbit.mp4 shows DICT_6X6_250 marker 0 (its orbit.json): with --dictionary DICT_4X4_50
+    the warning names the dictionary family that is there, as a photo's message does."""
+    pytest.importorskip("av")
+    clip = ROOT / "samples" / "video" / "orbit.mp4"
+    code, _, err = _cli(
+        capsys,
+        "video",
+        clip,
+        "--calib",
+        ROOT / "calib" / "synth_640x360.yml",
+        "--marker-length",
+        "0.05",
+        "--dictionary",
+        "DICT_4X4_50",
+        "--model",
+        "box:0.04,0.04,0.06",
+        "--light",
+        "point:0,0,1",
+        "--max-frames",
+        "20",
+        "--contact-sheet",
+        "0",
+        "-q",
+        "-o",
+        tmp_path,
+    )
+    line = next((ln for ln in err.splitlines() if "found in none of the" in ln), "")
+    # the family's smallest dictionary holding the ids found (as for photos): DICT_6X6_50 holds id 0
+    assert "other dictionaries: DICT_6X6_" in line and " ids 0 " in line and "give --dictionary" in line, err
