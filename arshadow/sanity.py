@@ -44,6 +44,8 @@ __all__ = [
     "flag_kind",
     "FrameChecks",
     "calibration_scaled_note",
+    "quiet_notes",
+    "say_once",
     "check_lights_inside",
     "check_scene",
     "check_shadowmap_lights",
@@ -274,10 +276,33 @@ def check_scene(
     )
 
 
-def calibration_scaled_note(intrinsics, width: int, height: int) -> str:
-    """The stderr line for a photo of another size than the calibration's (same aspect ratio: K scaled)."""
+#: the notes said in this process (:func:`say_once`)
+_SAID: set = set()
+#: set in a worker process whose parent says the run's notes (local chunk workers): it says none
+QUIET_NOTES = False
+
+
+def say_once(logger: logging.Logger, msg: str) -> bool:
+    """Log ``msg`` as a warning unless this process said it already (a run of many inputs or chunks says
+    a note once) or is a quiet worker (:func:`quiet_notes`); returns whether it was said."""
+    if QUIET_NOTES or msg in _SAID:
+        return False
+    _SAID.add(msg)
+    logger.warning(msg)
+    return True
+
+
+def quiet_notes() -> None:
+    """Say no note in this process (the initializer of local chunk workers: the parent says them)."""
+    global QUIET_NOTES
+    QUIET_NOTES = True
+
+
+def calibration_scaled_note(intrinsics, width: int, height: int, kind: str = "photo") -> str:
+    """The stderr line for a ``kind`` (``photo`` / ``video``) of another size than the calibration's (same
+    aspect ratio: K scaled)."""
     return (
-        f"the calibration is for {intrinsics.width}x{intrinsics.height}, the photo is {width}x{height}: "
+        f"the calibration is for {intrinsics.width}x{intrinsics.height}, the {kind} is {width}x{height}: "
         f"focal lengths and centre scaled by {width / intrinsics.width:.4g} (same aspect ratio); calibrate "
         "at this size for the best accuracy"
     )

@@ -55,7 +55,7 @@ from .plan import FramePlan, SceneGeometry, decide_compose, plan_frame
 from .render_api import Renderer
 from .report import ReportItem, StageTimings
 from .result import FrameResult
-from .sanity import FrameChecks, calibration_scaled_note
+from .sanity import FrameChecks, calibration_scaled_note, say_once
 from .scene import Scene, SceneSpec, load_scene, scene_from_dict
 from .tracking.luma import LumaFrame
 from .transforms import invert_rigid, rvec_tvec_from_matrix
@@ -93,6 +93,9 @@ class Session(History):
     ArshadowError
         The scene does not load (calibration, board, mesh, lights, options): the first problem found.
     """
+
+    #: what the inputs are, for the notes (``"video"``: set by arshadow.video.framejob.SessionBackend)
+    input_kind = "photo"
 
     def __init__(
         self,
@@ -216,7 +219,7 @@ class Session(History):
         if c is None:
             intr, scaled = self.intrinsics.for_image(width, height)
             if scaled:  # once per size, on stderr (the report says it per photo)
-                log.warning(calibration_scaled_note(self.intrinsics, width, height))
+                say_once(log, calibration_scaled_note(self.intrinsics, width, height, self.input_kind))
             tracker = self.scene.tracker
             # video: each tracker searches a window around its last detection first (the planner's tracking
             # ROI, full-frame fallback: arshadow/tracking/roi_track.py)

@@ -221,3 +221,38 @@ def test_video_with_the_wrong_dictionary_names_the_one_there(tmp_path, capsys):
     line = next((ln for ln in err.splitlines() if "found in none of the" in ln), "")
     # the family's smallest dictionary holding the ids found (as for photos): DICT_6X6_50 holds id 0
     assert "other dictionaries: DICT_6X6_" in line and " ids 0 " in line and "give --dictionary" in line, err
+
+
+# ----------------------------------------------------------------------------- scaled calibration, once
+@pytest.mark.gl
+@pytest.mark.parametrize("jobs", ["1", "2"])
+def test_scaled_calibration_note_once_per_run_and_says_video(tmp_path, jobs):
+    """Two 640x360 videos with the 1280x720 calibration (same aspect: K scaled): ``arshadow batch`` says
+    so once in the run (it said it per video, and per chunk worker with --jobs), and says "video"."""
+    import subprocess
+    import sys
+
+    import yaml
+    from dask_cluster import make_clips
+
+    clips = make_clips(tmp_path / "clips", n_videos=2, n=24, gop=12)
+    job = tmp_path / "job.yml"
+    job.write_text(
+        yaml.safe_dump(
+            {
+                "calib": str(CALIB),
+                "marker_length": 0.05,
+                "model": "box:0.04,0.03,0.06",
+                "place": [0.05, 0, 0],
+                "lights": ["point:-0.1,0.15,0.4"],
+                "compose": "cpu",
+            }
+        )
+    )
+    cmd = [sys.executable, "-m", "arshadow", "batch", *map(str, clips), "--config", str(job), "-o", str(tmp_path / "o")]
+    cmd += ["--contact-sheet", "0", "--jobs", jobs, "-q"]
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    assert r.returncode == 0, r.stderr
+    notes = [ln for ln in r.stderr.splitlines() if "the calibration is for 1280x720" in ln]
+    assert len(notes) == 1, r.stderr
+    assert "the video is 640x360" in notes[0]

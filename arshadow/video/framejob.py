@@ -74,6 +74,7 @@ class SessionBackend:
 
     def __init__(self, session, tracks=(), time_lapse=None):
         self.session, self.tracks, self.time_lapse = session, list(tracks), time_lapse
+        session.input_kind = "video"  # its notes say "the video is WxH"
         self.cal = None
         self.recomputes = 0
         self.want_layers = False  # set by process_video when the layers are written

@@ -35,7 +35,7 @@ import numpy as np
 from ..errors import ImageError, UsageError
 from ..gl.context import contexts_made
 from ..io import make_folder
-from ..sanity import FlagTally
+from ..sanity import FlagTally, quiet_notes
 from ..session import Session
 from .avio import AvReader, display_rotation
 from .chunks import (
@@ -246,7 +246,9 @@ class ChunkPool:
     def _executor(self):
         if self._ex is None:
             workers = max(1, self.jobs - 1)
-            self._ex = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context(start_method()))
+            self._ex = ProcessPoolExecutor(
+                workers, mp_context=multiprocessing.get_context(start_method()), initializer=quiet_notes
+            )  # the notes (a scaled calibration) are said once, by this process
         return self._ex
 
     def run(self, fn, recipe, prep: Prepared, chunks, on_done=None) -> dict:
