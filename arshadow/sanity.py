@@ -437,14 +437,17 @@ class FrameChecks:
         self._lo, self._hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
         self.said: set = set()
 
-    def check(self, cam_from_world) -> list[str]:
-        """Messages for this frame's pose ``(4, 4)`` (world -> camera) not said before in this run."""
+    def check(self, cam_from_world, cam_from_marker=None) -> list[str]:
+        """Messages for this frame's pose ``(4, 4)`` (world -> camera) not said before in this run.
+        ``cam_from_marker`` ``(4, 4)``: the marker's pose when the world (the ground frame) is elsewhere
+        (``--ground``): the camera's distance, a check of the marker length, is from the marker."""
         if len(self.said) == 2:
             return []
         m = np.asarray(cam_from_world, np.float64)
         eye = -m[:3, :3].T @ m[:3, 3]  # the camera centre, world frame
         out = []
-        dist = float(np.linalg.norm(eye))
+        mm = m if cam_from_marker is None else np.asarray(cam_from_marker, np.float64)
+        dist = float(np.linalg.norm(mm[:3, :3].T @ mm[:3, 3]))  # the camera's distance from the marker
         if dist > MAX_CAMERA_DISTANCE_M and "far" not in self.said:
             self.said.add("far")
             ml = self.marker_length

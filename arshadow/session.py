@@ -470,7 +470,8 @@ class Session(History):
             item.rvec, item.tvec = rvec.tolist(), tvec.tolist()
         if self._marker_from_ground is not None:
             item.ground = self.ground.text
-        for msg in self._checks.check(cfw):  # a far camera (wrong units), the camera inside: once per run
+        cfm = cfw if self._marker_from_ground is None else cfw @ invert_rigid(self._marker_from_ground)
+        for msg in self._checks.check(cfw, cfm):  # a far camera (wrong units), the camera inside: once per run
             log.warning(msg)
         gain = None  # the exposure match: the object's colour gain, measured on the marker's paper
         if self.exposure is not None and not plan.empty:

@@ -256,3 +256,19 @@ def test_scaled_calibration_note_once_per_run_and_says_video(tmp_path, jobs):
     notes = [ln for ln in r.stderr.splitlines() if "the calibration is for 1280x720" in ln]
     assert len(notes) == 1, r.stderr
     assert "the video is 640x360" in notes[0]
+
+
+# ----------------------------------------------------------------------------- --ground wall:300
+@pytest.mark.gl
+def test_a_far_ground_is_one_units_warning_not_two(tmp_path):
+    """``--ground wall:300`` (mm for m): its own warning names the slip; the camera is ~0.6 m from the
+    marker, so no second "the camera is 299.6 m from the marker ... wrong units" warning."""
+    import subprocess
+    import sys
+
+    cmd = [sys.executable, "-m", "arshadow", "render", str(ROOT / "samples" / "knot_point.jpg"), *map(str, KNOT_SCENE)]
+    cmd += ["--place", "0.1,0.05,0", "--ground", "wall:300", "-o", str(tmp_path), "-q"]
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    assert r.returncode == 0, r.stderr
+    assert "--ground wall:300" in r.stderr and "300 mm would be wall:0.3" in r.stderr
+    assert "the camera is" not in r.stderr and "wrong units" not in r.stderr, r.stderr

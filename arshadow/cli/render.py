@@ -357,7 +357,7 @@ def out_of_view_warning(items, place=None) -> str | None:
     if not away:
         return None
     where = ""
-    if place is not None and any(place):
+    if place is not None and math.hypot(*map(float, place)) > 1.0:  # metres: a cm/m slip
         where = (
             f" (--place {','.join(f'{float(v):g}' for v in place)} is in metres, "
             f"{math.hypot(*map(float, place)):.3g} m from the marker: a cm/m slip?)"
