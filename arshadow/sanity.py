@@ -50,6 +50,7 @@ __all__ = [
     "check_scene",
     "check_shadowmap_lights",
     "ground_warnings",
+    "looks_y_up",
     "light_warnings",
     "pose_flag_reasons",
     "scale_warnings",
@@ -154,7 +155,21 @@ def scale_warnings(caster, marker_length=None, square_length=None) -> list[str]:
     return out
 
 
-def ground_warnings(caster) -> list[str]:
+def looks_y_up(caster) -> bool:
+    """Whether a mesh read Z-up looks like a Y-up file (Blender's OBJ export): its extent along y more
+    than 1.5 x its height and its z range straddling the ground (a model standing on y = 0 lies on its
+    back, half under the ground).
+
+    >>> from arshadow.geometry.mesh import load_occluder
+    >>> looks_y_up(load_occluder("box:0.02,0.1,0.02", place=(0, 0, -0.01))), looks_y_up(load_occluder("box:0.02,0.02,0.1"))
+    (True, False)
+    """
+    lo, hi = (np.asarray(b, np.float64) for b in caster.bounds)
+    size = hi - lo
+    return bool(size[1] > 1.5 * size[2] and lo[2] < 0.0 < hi[2])
+
+
+def ground_warnings(caster, maybe_y_up: bool = False) -> list[str]:
     """The model reaching below the ground (z = 0 of the world frame): that part is hidden under the
     ground and casts no shadow on it. ``--drop-to-ground`` stands it on the ground.
 
@@ -169,6 +184,12 @@ def ground_warnings(caster) -> list[str]:
         return []
     name = caster.name or "the model"
     share = min(1.0, -low / (high - low)) if high > low else 1.0
+    if maybe_y_up and looks_y_up(caster):  # a Y-up file read Z-up: lying on its back, half underground
+        return [
+            f"{name} reaches {-low:.4g} m below the ground and is {float(caster.bounds[1][1] - caster.bounds[0][1]):.4g} m "
+            f"long along y but {high - low:.4g} m high: a Y-up mesh file (Blender's OBJ export) read Z-up? "
+            "Give --up y"
+        ]
     msg = (
         f"{name} reaches {-low:.4g} m below the ground (lowest z = {low:.4g} m; {share:.0%} of its height): "
         "that part is hidden under the ground and casts no shadow (a mesh centred on its origin? use "
@@ -261,17 +282,24 @@ def check_shadowmap_lights(caster, lights) -> None:
 
 
 def check_scene(
-    caster, lights, *, soft_samples: int = 1, marker_length=None, square_length=None, shadow_method: str = "volume"
+    caster,
+    lights,
+    *,
+    soft_samples: int = 1,
+    marker_length=None,
+    square_length=None,
+    shadow_method: str = "volume",
+    maybe_y_up: bool = False,
 ) -> list[str]:
     """Every scene-level check, once per scene: raises for a scene that cannot render (LightError: a light
     inside the model; UsageError: a shadow map around a point light), returns the warnings (also logged by
-    the caller)."""
+    the caller). ``maybe_y_up``: the mesh file was read Z-up by default, unrotated (:func:`looks_y_up`)."""
     check_lights_inside(caster, lights)
     if shadow_method == "shadowmap":
         check_shadowmap_lights(caster, lights)
     return (
         scale_warnings(caster, marker_length, square_length)
-        + ground_warnings(caster)
+        + ground_warnings(caster, maybe_y_up)
         + light_warnings(caster, lights, soft_samples)
     )
 

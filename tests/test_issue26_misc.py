@@ -272,3 +272,26 @@ def test_a_far_ground_is_one_units_warning_not_two(tmp_path):
     assert r.returncode == 0, r.stderr
     assert "--ground wall:300" in r.stderr and "300 mm would be wall:0.3" in r.stderr
     assert "the camera is" not in r.stderr and "wrong units" not in r.stderr, r.stderr
+
+
+# ----------------------------------------------------------------------------- a Y-up OBJ
+def test_a_y_up_obj_read_z_up_suggests_up_y(tmp_path, caplog):
+    """A standing 10 cm tower written Y-up (as Blender exports OBJ), given without --up: it lies on its
+    back half under the ground; the warning suggests --up y (not --drop-to-ground). With --up y: none."""
+    from arshadow.scene import scene_from_dict
+
+    obj = _y_up_obj(tmp_path / "tower.obj")
+    job = {"calib": str(CALIB), "marker_length": 0.05, "model": str(obj), "lights": ["point:0,0,1"]}
+    with caplog.at_level("WARNING"):
+        scene_from_dict(job).build()
+    said = [r.getMessage() for r in caplog.records if "below the ground" in r.getMessage()]
+    assert len(said) == 1 and "--up y" in said[0] and "--drop-to-ground" not in said[0], said
+    caplog.clear()
+    with caplog.at_level("WARNING"):
+        scene_from_dict({**job, "up": "y"}).build()
+    assert not [r for r in caplog.records if "below the ground" in r.getMessage()]
+    caplog.clear()
+    with caplog.at_level("WARNING"):  # a Z-up model centred on its origin: still --drop-to-ground
+        scene_from_dict({**job, "model": "box:0.02,0.02,0.1", "place": [0, 0, -0.05]}).build()
+    said = [r.getMessage() for r in caplog.records if "below the ground" in r.getMessage()]
+    assert len(said) == 1 and "--drop-to-ground" in said[0]
