@@ -295,3 +295,26 @@ def test_a_y_up_obj_read_z_up_suggests_up_y(tmp_path, caplog):
         scene_from_dict({**job, "model": "box:0.02,0.02,0.1", "place": [0, 0, -0.05]}).build()
     said = [r.getMessage() for r in caplog.records if "below the ground" in r.getMessage()]
     assert len(said) == 1 and "--drop-to-ground" in said[0]
+
+
+# ----------------------------------------------------------------------------- README
+def test_readme_places_the_knot_tells_where_the_wheel_meshes_are_and_gives_one_suite_time():
+    """The README's knot render places it beside the marker (--place), prints the folder of the meshes
+    shipped in the package with a command that works (run here: it names a folder holding knot.ply), and
+    states one suite time."""
+    import re
+    import subprocess
+    import sys
+
+    text = (ROOT / "README.md").read_text()
+    commands = re.findall(r"arshadow render (?:[^\n]*\\\n)*[^\n]*", text)  # with its continuation lines
+    knot = [c for c in commands if "samples/meshes/knot.ply" in c]
+    assert knot and all("--place" in c for c in knot), knot
+    cmd = re.search(
+        r'python3 -c "(from arshadow.resources import samples_dir; print\(samples_dir\(\) / .meshes.\))"', text
+    )
+    assert cmd is not None
+    r = subprocess.run([sys.executable, "-c", cmd.group(1)], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0 and (Path(r.stdout.strip()) / "knot.ply").is_file(), r.stderr
+    times = re.findall(r"(?:the tests|suite)[^\n]*?[~ ](\d+) min", text)  # the suite's time, wherever given
+    assert len(set(times)) == 1, times
