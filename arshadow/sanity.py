@@ -45,7 +45,7 @@ __all__ = [
     "FrameChecks",
     "calibration_scaled_note",
     "quiet_notes",
-    "say_once",
+    "say_note",
     "check_lights_inside",
     "check_scene",
     "check_shadowmap_lights",
@@ -304,18 +304,15 @@ def check_scene(
     )
 
 
-#: the notes said in this process (:func:`say_once`)
-_SAID: set = set()
 #: set in a worker process whose parent says the run's notes (local chunk workers): it says none
 QUIET_NOTES = False
 
 
-def say_once(logger: logging.Logger, msg: str) -> bool:
-    """Log ``msg`` as a warning unless this process said it already (a run of many inputs or chunks says
-    a note once) or is a quiet worker (:func:`quiet_notes`); returns whether it was said."""
-    if QUIET_NOTES or msg in _SAID:
+def say_note(logger: logging.Logger, msg: str) -> bool:
+    """Log ``msg`` as a warning unless this process is a quiet worker (:func:`quiet_notes`: its parent
+    says the run's notes, once); returns whether it was said. (A session says each note once itself.)"""
+    if QUIET_NOTES:
         return False
-    _SAID.add(msg)
     logger.warning(msg)
     return True
 

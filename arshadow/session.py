@@ -55,7 +55,7 @@ from .plan import FramePlan, SceneGeometry, decide_compose, plan_frame
 from .render_api import Renderer
 from .report import ReportItem, StageTimings
 from .result import FrameResult
-from .sanity import FrameChecks, calibration_scaled_note, say_once
+from .sanity import FrameChecks, calibration_scaled_note, say_note
 from .scene import Scene, SceneSpec, load_scene, scene_from_dict
 from .tracking.luma import LumaFrame
 from .transforms import invert_rigid, rvec_tvec_from_matrix
@@ -219,7 +219,7 @@ class Session(History):
         if c is None:
             intr, scaled = self.intrinsics.for_image(width, height)
             if scaled:  # once per size, on stderr (the report says it per photo)
-                say_once(log, calibration_scaled_note(self.intrinsics, width, height, self.input_kind))
+                say_note(log, calibration_scaled_note(self.intrinsics, width, height, self.input_kind))
             tracker = self.scene.tracker
             # video: each tracker searches a window around its last detection first (the planner's tracking
             # ROI, full-frame fallback: arshadow/tracking/roi_track.py)
