@@ -191,7 +191,8 @@ def test_rerendering_a_folder_skips_arshadows_own_outputs(tmp_path, capsys):
 
 # ----------------------------------------------------------------------------- video, wrong dictionary
 @pytest.mark.gl
-def test_video_with_the_wrong_dictionary_names_the_one_there(tmp_path, capsys):
+@pytest.mark.parametrize("jobs", ["1", "2"])
+def test_video_with_the_wrong_dictionary_names_the_one_there(tmp_path, capsys, jobs):
     """samples/video/orbit.mp4 shows DICT_6X6_250 marker 0 (its orbit.json): with --dictionary DICT_4X4_50
     the warning names the dictionary family that is there, as a photo's message does."""
     pytest.importorskip("av")
@@ -214,6 +215,8 @@ def test_video_with_the_wrong_dictionary_names_the_one_there(tmp_path, capsys):
         "20",
         "--contact-sheet",
         "0",
+        "--jobs",
+        jobs,
         "-q",
         "-o",
         tmp_path,

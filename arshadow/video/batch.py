@@ -45,6 +45,7 @@ from .parallel import (
     ChunkPool,
     chunk_task,
     finish_chunked,
+    name_other_dictionaries,
     prepare_chunked,
     process_video_chunked,
 )
@@ -283,6 +284,7 @@ def _dask_join(spec, item, outdir, opts, fingerprint, prep, done: dict, *records
     def work(summary):
         vs = finish_chunked(prep, recs, lambda c: chunk_task(recipe, prep, c))
         vs["chunks_resumed"] = len(done)
+        name_other_dictionaries(vs, spec, prep.path)
         _video_fields(summary, vs, prep.outputs)
 
     return _guarded(item, Path(outdir), fingerprint, work)

@@ -37,6 +37,7 @@ from ..gl.context import contexts_made
 from ..io import make_folder
 from ..sanity import FlagTally, quiet_notes
 from ..session import Session
+from ..tracking.dictionary import DEFAULT_DICTIONARY
 from .avio import AvReader, display_rotation
 from .chunks import (
     ChunkStore,
@@ -50,6 +51,7 @@ from .chunks import (
 from .encode import SheetThumbs, write_contact_sheet
 from .engine import EngineOptions
 from .framejob import FRAME_STAGES, SessionBackend
+from .hints import other_dictionaries_hint
 from .scan import StreamIndex, scan_stream
 
 __all__ = [
@@ -406,6 +408,18 @@ def _summary(prep: Prepared, chunks, records: dict, sheet, audio: bool, redone: 
     }
 
 
+def name_other_dictionaries(summary: dict, spec, path) -> None:
+    """A video whose marker was found in no frame: its warning names the other dictionaries' markers the
+    video shows (:func:`arshadow.video.hints.other_dictionaries_hint`; single-marker mode), as the
+    one-piece run's does."""
+    tracker = getattr(spec, "tracker", None)
+    if summary.get("status") != "no_marker" or tracker is None or getattr(tracker, "board", None):
+        return
+    hint = other_dictionaries_hint(path, getattr(tracker, "dictionary", None) or DEFAULT_DICTIONARY)
+    end = f"found in none of the {summary['frames']} frames"
+    summary["warnings"] = [w + hint if w.endswith(end) else w for w in summary["warnings"]]
+
+
 def process_video_chunked(
     recipe: BackendRecipe,
     pool: ChunkPool,
@@ -445,6 +459,7 @@ def process_video_chunked(
     records.update(pool.run(task, recipe, prep, todo, on_done))
     summary = finish_chunked(prep, records, lambda c: pool.run(task, recipe, prep, [c])[c.k])
     summary["chunks_resumed"] = len(prep.chunks) - len(todo)
+    name_other_dictionaries(summary, recipe.spec, prep.path)
     wall = time.perf_counter() - t0
     summary.update(wall_s=round(wall, 3), fps_processed=round(summary["frames"] / wall, 2) if wall > 0 else None)
     return summary, None
