@@ -72,6 +72,8 @@ class Cluster:
                 "--port",
                 str(getattr(self, "port", 0) or 0),
                 "--no-dashboard",
+                "--idle-timeout",  # a scheduler left behind (its test killed) ends by itself; its workers
+                "600s",  # follow (--death-timeout)
                 "--scheduler-file",
                 str(self.file),
             ],
