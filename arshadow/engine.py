@@ -26,7 +26,7 @@ from .compose.lens import LensWarp
 from .errors import ImageError, MarkerNotFoundError
 from .estimate.match import ExposureMatch, marker_id_of
 from .report import StageTimings
-from .sanity import calibration_scaled_note
+from .sanity import calibration_scaled_note, say_note
 from .scene import RenderOptions
 from .tracking.pose import MarkerPose
 from .tracking.reference import ReferenceLock
@@ -207,7 +207,12 @@ class EngineHooks:
     exposure : arshadow.estimate.match.ExposureMatch or None
         The per-frame exposure / white balance match (:mod:`arshadow.estimate.match`); None when off, on a
         board or an inverted marker (its white cells are ink).
+    input_kind : str
+        What the inputs are, for the notes: ``"photo"``, or ``"video"`` (set by the video engine).
     """
+
+    #: what the inputs are, for the notes ("video": set by arshadow.video.framejob.SessionBackend)
+    input_kind = "photo"
 
     def __init__(self, session: Session, render: Callable[..., FrameResult]) -> None:
         from .gl.compose import PathChooser  # deferred: no GL at import (moderngl loads on first render)
@@ -238,7 +243,7 @@ class EngineHooks:
             s = self._session
             intr, scaled = s.intrinsics.for_image(width, height)
             if scaled:  # once per size, on stderr (the report says it per photo)
-                log.warning(calibration_scaled_note(s.intrinsics, width, height))
+                say_note(log, calibration_scaled_note(s.intrinsics, width, height, self.input_kind))
             tracker, opts = s.scene.tracker, s.options
             # video: each tracker searches a window around its last detection first (the planner's tracking
             # ROI, full-frame fallback: arshadow/tracking/roi_track.py)

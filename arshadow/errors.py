@@ -1,6 +1,8 @@
 """Typed errors. Every error a user can cause is an :class:`ArshadowError` with a one-line message
 that names the file or value and the problem; the command line prints that line and no traceback."""
 
+import errno
+
 
 class ArshadowError(Exception):
     """Base class of every error arshadow raises on purpose."""
@@ -56,3 +58,23 @@ class GLContextError(ArshadowError, RuntimeError):
 class EstimateError(ArshadowError, ValueError):
     """The light (or the exposure) cannot be measured from the photos: no usable shadow of the probe, the
     probe or its shadow out of view, an ambiguous fit. The message names the reason."""
+
+
+class BatchStoppedError(ArshadowError, RuntimeError):
+    """A batch cannot go on: the Dask scheduler was lost, the output disk is full. What was finished is
+    kept (done records, video chunks): the message says to rerun the same command to resume."""
+
+
+class OutputSpaceError(ImageError):
+    """An output cannot be written because its disk is full (``ENOSPC``) or over quota (``EDQUOT``)."""
+
+
+def write_error(msg: str, exc: BaseException) -> ImageError:
+    """The error of a failed write: :class:`OutputSpaceError` when ``exc`` (an ``OSError`` or FFmpeg
+    error, with ``errno``) says the disk is full, else :class:`ImageError`.
+
+    >>> type(write_error("out.mp4: cannot write", OSError(errno.ENOSPC, "No space left on device"))).__name__
+    'OutputSpaceError'
+    """
+    full = getattr(exc, "errno", None) in (errno.ENOSPC, errno.EDQUOT)
+    return (OutputSpaceError if full else ImageError)(msg)

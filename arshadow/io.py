@@ -8,6 +8,7 @@ Inputs are never modified.
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import os
 import re
@@ -18,7 +19,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .errors import ImageError
+from .errors import ImageError, write_error
 
 #: the photo extensions arshadow recognises (OpenCV's image readers): folders are listed by them, ``batch``
 #: tells photos from videos by them, ``--keep-format`` keeps them
@@ -274,7 +275,7 @@ def atomic_path(target: Path | str) -> Iterator[Path]:
     (``cv2.imwrite``) work on it.
     """
     target = Path(target)
-    target.parent.mkdir(parents=True, exist_ok=True)
+    make_folder(target.parent)
     fd, tmp = tempfile.mkstemp(prefix=f".{target.stem}.", suffix=f".tmp{target.suffix}", dir=target.parent)
     os.close(fd)
     try:
@@ -286,6 +287,54 @@ def atomic_path(target: Path | str) -> Iterator[Path]:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         raise
+
+
+#: how often :func:`make_folder` recreates a path whose parent another process removed meanwhile
+MAKE_FOLDER_TRIES = 50
+
+
+def make_folder(path) -> Path:
+    """Create the folder ``path`` and its parents (existing ones are fine); returns it as a Path.
+
+    Tolerates a parent removed by another process between the creation of that parent and of its child
+    (a shared folder such as ``OUT/.arshadow-chunks`` that another task removes when it looks empty, see
+    :func:`remove_empty_folder`): the whole path is created again, up to :data:`MAKE_FOLDER_TRIES` times.
+
+    >>> import tempfile
+    >>> d = Path(tempfile.mkdtemp())
+    >>> make_folder(d / "a" / "b").is_dir()
+    True
+    """
+    p = Path(path)
+    for _ in range(MAKE_FOLDER_TRIES - 1):
+        try:
+            os.makedirs(p, exist_ok=True)
+            return p
+        except FileNotFoundError:  # a parent made by this call was removed before its child was made
+            continue
+    os.makedirs(p, exist_ok=True)
+    return p
+
+
+def remove_empty_folder(path) -> bool:
+    """Remove the folder ``path`` if it is empty, in one system call (``rmdir``); True when removed.
+
+    A folder that is not empty (another task created something in it meanwhile) or already gone is left
+    as it is: no check-then-remove window in which another task's sub-folder could be lost.
+
+    >>> import tempfile
+    >>> d = Path(tempfile.mkdtemp())
+    >>> (d / "x").mkdir()
+    >>> remove_empty_folder(d), remove_empty_folder(d / "x"), remove_empty_folder(d / "x")
+    (False, True, False)
+    """
+    try:
+        os.rmdir(path)
+    except OSError as exc:
+        if exc.errno in (errno.ENOENT, errno.ENOTEMPTY, errno.EEXIST):
+            return False
+        raise
+    return True
 
 
 def clean_temporaries(folder: Path | str, stem: str | None = None) -> int:
@@ -316,6 +365,12 @@ def clean_temporaries(folder: Path | str, stem: str | None = None) -> int:
     return n
 
 
+def output_mode(folder: bool = False) -> int:
+    """The mode of an output file (``0o666``) or folder (``0o777``) less the process's umask: what a plain
+    ``open`` / ``mkdir`` would give (``mkstemp`` / ``mkdtemp`` give owner-only 0600 / 0700)."""
+    return (0o777 if folder else 0o666) & ~_umask()
+
+
 def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)
@@ -338,7 +393,7 @@ def write_bytes(path: Path | str, data: bytes | np.ndarray) -> Path:
         with atomic_path(path) as tmp:
             _write_file(tmp, data)
     except OSError as exc:  # disk full, permissions, a file where a folder should be...
-        raise ImageError(f"{path}: cannot write ({exc.strerror or exc}); nothing written") from None
+        raise write_error(f"{path}: cannot write ({exc.strerror or exc}); nothing written", exc) from None
     return path
 
 

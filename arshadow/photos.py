@@ -82,15 +82,46 @@ class PhotoJob:
         return [self.output, *([self.mask] if self.mask is not None else []), *(self.layers or {}).values()]
 
 
-def expand_inputs(items: Iterable[str]) -> list[str]:
-    """Files as given; folders -> their image files (sorted, :data:`arshadow.io.IMAGE_EXTENSIONS`); glob
-    patterns -> matches (sorted). Anything that matches nothing is kept as given, so that reading it
-    reports the problem."""
+#: the middle of the name of arshadow's own per-photo outputs other than the composite: the shadow mask
+#: ``<stem>.shadow.png`` and the layer files ``<stem>.<layer>.<png|exr>`` (arshadow.export.layerfiles)
+OWN_OUTPUT_PARTS = ("shadow", "object", "shadow.mult", "shadow.only", "stmap", "undistorted")
+
+
+def own_outputs(files: Sequence[str | Path]) -> set[str]:
+    """Those of ``files`` (one folder's images) that are arshadow's own outputs: shadow masks and layer
+    files (:data:`OWN_OUTPUT_PARTS`), and the composites ``<stem>.png`` / ``<stem>_N.png`` of a photo
+    ``<stem>.<other extension>`` in the same list.
+
+    >>> sorted(own_outputs(["d/a.jpg", "d/a.png", "d/a_2.png", "d/a.shadow.png", "d/b.png", "d/c.object.exr"]))
+    ['d/a.png', 'd/a.shadow.png', 'd/a_2.png', 'd/c.object.exr']
+    """
+    paths = [Path(f) for f in files]
+    sources = {p.stem for p in paths if p.suffix.lower() != ".png"}
+    out: set[str] = set()
+    for f, p in zip(files, paths, strict=True):
+        middle = p.stem.split(".", 1)[1] if "." in p.stem else ""
+        base = p.stem.rsplit("_", 1)[0] if p.stem.rsplit("_", 1)[-1].isdigit() else p.stem
+        if any(middle == m or middle.startswith(m + ".") for m in OWN_OUTPUT_PARTS):
+            out.add(str(f))
+        elif p.suffix.lower() == ".png" and (p.stem in sources or base in sources):
+            out.add(str(f))
+    return out
+
+
+def expand_inputs(items: Iterable[str], skipped: list[str] | None = None) -> list[str]:
+    """Files as given; folders -> their image files (sorted, :data:`arshadow.io.IMAGE_EXTENSIONS`), less
+    arshadow's own outputs (:func:`own_outputs`, appended to ``skipped`` when given: an earlier run's
+    masks and composites are not photos); glob patterns -> matches (sorted). Anything that matches nothing
+    is kept as given, so that reading it reports the problem."""
     out: list[str] = []
     for it in items:
         p = Path(it)
         if p.is_dir():
             files = sorted(str(f) for f in p.iterdir() if f.is_file() and f.suffix.lower() in IMAGE_EXTENSIONS)
+            own = own_outputs(files)
+            if skipped is not None:
+                skipped.extend(f for f in files if f in own)
+            files = [f for f in files if f not in own]
             out.extend(files if files else [it])
         elif not p.exists() and any(c in it for c in "*?["):
             matches = sorted(m for m in glob.glob(it) if Path(m).is_file())

@@ -21,7 +21,7 @@ if TYPE_CHECKING:
 __all__ = ["FrameResult"]
 
 
-@dataclass
+@dataclass(repr=False)
 class FrameResult:
     """One frame's result (fields are added at the end, with defaults).
 
@@ -57,6 +57,20 @@ class FrameResult:
     timings: StageTimings = field(default_factory=StageTimings)
     plan: FramePlan | None = None
     layers: Layers | None = None
+
+    def __repr__(self) -> str:
+        """One short line (size, status, the camera's distance from the marker, timings), not the arrays."""
+        h, w = np.shape(self.composite)[:2]
+        cam = "no camera"
+        if self.cam_from_world is not None:
+            m = np.asarray(self.cam_from_world, np.float64)
+            cam = f"camera {float(np.linalg.norm(m[:3, :3].T @ m[:3, 3])):.3f} m from the marker"
+        t = self.timings
+        return (
+            f"FrameResult({w}x{h}, {getattr(self.item, 'status', '?')}, {cam}, mask={self.mask is not None}, "
+            f"layers={self.layers is not None}, {t.total:.1f} ms: detect {t.detect:.1f}, pose {t.pose:.1f}, "
+            f"render {t.render:.1f}, composite {t.composite:.1f})"
+        )
 
     def _repr_png_(self) -> bytes:
         """The composite as PNG bytes: a result shows itself as an image in Jupyter."""

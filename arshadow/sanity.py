@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import logging
 import math
+import re
 from datetime import timedelta
 
 import numpy as np
@@ -40,12 +41,16 @@ __all__ = [
     "MIN_OBJECT_RATIO",
     "SLOW_LIGHT_RATIO",
     "FlagTally",
+    "flag_kind",
     "FrameChecks",
     "calibration_scaled_note",
+    "quiet_notes",
+    "say_note",
     "check_lights_inside",
     "check_scene",
     "check_shadowmap_lights",
     "ground_warnings",
+    "looks_y_up",
     "light_warnings",
     "pose_flag_reasons",
     "scale_warnings",
@@ -150,7 +155,21 @@ def scale_warnings(caster, marker_length=None, square_length=None) -> list[str]:
     return out
 
 
-def ground_warnings(caster) -> list[str]:
+def looks_y_up(caster) -> bool:
+    """Whether a mesh read Z-up looks like a Y-up file (Blender's OBJ export): its extent along y more
+    than 1.5 x its height and its z range straddling the ground (a model standing on y = 0 lies on its
+    back, half under the ground).
+
+    >>> from arshadow.geometry.mesh import load_occluder
+    >>> looks_y_up(load_occluder("box:0.02,0.1,0.02", place=(0, 0, -0.01))), looks_y_up(load_occluder("box:0.02,0.02,0.1"))
+    (True, False)
+    """
+    lo, hi = (np.asarray(b, np.float64) for b in caster.bounds)
+    size = hi - lo
+    return bool(size[1] > 1.5 * size[2] and lo[2] < 0.0 < hi[2])
+
+
+def ground_warnings(caster, maybe_y_up: bool = False) -> list[str]:
     """The model reaching below the ground (z = 0 of the world frame): that part is hidden under the
     ground and casts no shadow on it. ``--drop-to-ground`` stands it on the ground.
 
@@ -165,6 +184,12 @@ def ground_warnings(caster) -> list[str]:
         return []
     name = caster.name or "the model"
     share = min(1.0, -low / (high - low)) if high > low else 1.0
+    if maybe_y_up and looks_y_up(caster):  # a Y-up file read Z-up: lying on its back, half underground
+        return [
+            f"{name} reaches {-low:.4g} m below the ground and is {float(caster.bounds[1][1] - caster.bounds[0][1]):.4g} m "
+            f"long along y but {high - low:.4g} m high: a Y-up mesh file (Blender's OBJ export) read Z-up? "
+            "Give --up y"
+        ]
     msg = (
         f"{name} reaches {-low:.4g} m below the ground (lowest z = {low:.4g} m; {share:.0%} of its height): "
         "that part is hidden under the ground and casts no shadow (a mesh centred on its origin? use "
@@ -257,25 +282,52 @@ def check_shadowmap_lights(caster, lights) -> None:
 
 
 def check_scene(
-    caster, lights, *, soft_samples: int = 1, marker_length=None, square_length=None, shadow_method: str = "volume"
+    caster,
+    lights,
+    *,
+    soft_samples: int = 1,
+    marker_length=None,
+    square_length=None,
+    shadow_method: str = "volume",
+    maybe_y_up: bool = False,
 ) -> list[str]:
     """Every scene-level check, once per scene: raises for a scene that cannot render (LightError: a light
     inside the model; UsageError: a shadow map around a point light), returns the warnings (also logged by
-    the caller)."""
+    the caller). ``maybe_y_up``: the mesh file was read Z-up by default, unrotated (:func:`looks_y_up`)."""
     check_lights_inside(caster, lights)
     if shadow_method == "shadowmap":
         check_shadowmap_lights(caster, lights)
     return (
         scale_warnings(caster, marker_length, square_length)
-        + ground_warnings(caster)
+        + ground_warnings(caster, maybe_y_up)
         + light_warnings(caster, lights, soft_samples)
     )
 
 
-def calibration_scaled_note(intrinsics, width: int, height: int) -> str:
-    """The stderr line for a photo of another size than the calibration's (same aspect ratio: K scaled)."""
+#: set in a worker process whose parent says the run's notes (local chunk workers): it says none
+QUIET_NOTES = False
+
+
+def say_note(logger: logging.Logger, msg: str) -> bool:
+    """Log ``msg`` as a warning unless this process is a quiet worker (:func:`quiet_notes`: its parent
+    says the run's notes, once); returns whether it was said. (A session says each note once itself.)"""
+    if QUIET_NOTES:
+        return False
+    logger.warning(msg)
+    return True
+
+
+def quiet_notes() -> None:
+    """Say no note in this process (the initializer of local chunk workers: the parent says them)."""
+    global QUIET_NOTES
+    QUIET_NOTES = True
+
+
+def calibration_scaled_note(intrinsics, width: int, height: int, kind: str = "photo") -> str:
+    """The stderr line for a ``kind`` (``photo`` / ``video``) of another size than the calibration's (same
+    aspect ratio: K scaled)."""
     return (
-        f"the calibration is for {intrinsics.width}x{intrinsics.height}, the photo is {width}x{height}: "
+        f"the calibration is for {intrinsics.width}x{intrinsics.height}, the {kind} is {width}x{height}: "
         f"focal lengths and centre scaled by {width / intrinsics.width:.4g} (same aspect ratio); calibrate "
         "at this size for the best accuracy"
     )
@@ -410,14 +462,17 @@ class FrameChecks:
         self._lo, self._hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
         self.said: set = set()
 
-    def check(self, cam_from_world) -> list[str]:
-        """Messages for this frame's pose ``(4, 4)`` (world -> camera) not said before in this run."""
+    def check(self, cam_from_world, cam_from_marker=None) -> list[str]:
+        """Messages for this frame's pose ``(4, 4)`` (world -> camera) not said before in this run.
+        ``cam_from_marker`` ``(4, 4)``: the marker's pose when the world (the ground frame) is elsewhere
+        (``--ground``): the camera's distance, a check of the marker length, is from the marker."""
         if len(self.said) == 2:
             return []
         m = np.asarray(cam_from_world, np.float64)
         eye = -m[:3, :3].T @ m[:3, 3]  # the camera centre, world frame
         out = []
-        dist = float(np.linalg.norm(eye))
+        mm = m if cam_from_marker is None else np.asarray(cam_from_marker, np.float64)
+        dist = float(np.linalg.norm(mm[:3, :3].T @ mm[:3, 3]))  # the camera's distance from the marker
         if dist > MAX_CAMERA_DISTANCE_M and "far" not in self.said:
             self.said.add("far")
             ml = self.marker_length
@@ -495,6 +550,17 @@ def _ranges(keys) -> str:
     return ", ".join(f"{a}-{b}" if b > a else f"{a}" for a, b in runs)
 
 
+def flag_kind(reason) -> str:
+    """The kind of a flag reason, its words before the first ``:`` or number (so that reasons that differ
+    only by their measurements group into one).
+
+    >>> flag_kind("small marker: 20.1 px across"), flag_kind("reprojection error 35.2 px, far above ...")
+    ('small marker', 'reprojection error')
+    """
+    head = re.split(r"[:\d]", str(reason), maxsplit=1)[0].strip(" ,;(")
+    return head or str(reason)
+
+
 class FlagTally:
     """Flagged poses of a run, for one summary line on stderr (``render``: per photo, ``video``: per frame).
 
@@ -514,7 +580,7 @@ class FlagTally:
             return
         self.keys.append(key)
         for r in reasons:
-            kind = str(r).split(":", 1)[0]
+            kind = flag_kind(r)
             self.kinds[kind] = self.kinds.get(kind, 0) + 1
 
     def summary(self, total: int, what: str = "photos", where=None) -> str | None:

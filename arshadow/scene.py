@@ -145,6 +145,14 @@ class ModelSpec:
     up: str | None = None
     drop_to_ground: bool = False
 
+    def maybe_y_up(self) -> bool:
+        """A mesh file read Z-up because no ``up`` was given (not glTF, not a primitive), not rotated: it
+        may be a Y-up file (the ground warning then suggests ``--up y``)."""
+        from .geometry.mesh import default_up
+
+        primitive = ":" in self.source and not Path(self.source).exists()
+        return self.up is None and not primitive and default_up(self.source) == "z" and not any(self.rotate)
+
     def build(self) -> ShadowCaster:
         """The :class:`arshadow.geometry.mesh.ShadowCaster` (MeshError / UsageError on a bad file or colour)."""
         from .compose.composite import parse_rgb
@@ -230,6 +238,7 @@ class SceneSpec:
             soft_samples=opts.soft_samples,  # LightError: exit 2, once
             marker_length=tracker.get("marker_length"),
             shadow_method=opts.shadow_method,
+            maybe_y_up=self.model.maybe_y_up(),
         ):
             log.warning(msg)
         _check_silhouette_name(opts.silhouette)

@@ -490,7 +490,8 @@ class Session(History):
             item.rvec, item.tvec = rvec.tolist(), tvec.tolist()
         if self._marker_from_ground is not None:
             item.ground = self.ground.text
-        for msg in self._checks.check(cfw):  # a far camera (wrong units), the camera inside: once per run
+        cfm = cfw if self._marker_from_ground is None else cfw @ invert_rigid(self._marker_from_ground)
+        for msg in self._checks.check(cfw, cfm):  # a far camera (wrong units), the camera inside: once per run
             log.warning(msg)
 
     def _decide_compose(self, plan: FramePlan, renderer: Renderer, key: tuple[Any, ...], outputs: FrameOutputs) -> None:

@@ -19,7 +19,7 @@ import signal
 import sys
 
 from .. import __version__
-from ..errors import ArshadowError, EstimateError, ImageError, MarkerNotFoundError
+from ..errors import ArshadowError, BatchStoppedError, EstimateError, ImageError, MarkerNotFoundError
 
 #: command modules, in the order ``--help`` lists them
 COMMAND_MODULES = (
@@ -127,7 +127,11 @@ def _main(argv=None) -> int:
         if args.debug:
             raise
         print(f"arshadow {args.command}: error: {exc}", file=sys.stderr)
-        return EXIT_SOME_FAILED if isinstance(exc, (ImageError, MarkerNotFoundError, EstimateError)) else EXIT_USAGE
+        return (
+            EXIT_SOME_FAILED
+            if isinstance(exc, (ImageError, MarkerNotFoundError, EstimateError, BatchStoppedError))
+            else EXIT_USAGE
+        )
     except KeyboardInterrupt as exc:
         signum = exc.args[0] if exc.args and isinstance(exc.args[0], int) else signal.SIGINT
         print(

@@ -106,6 +106,10 @@ def _client(address: str, debug: bool = False):
         return Client(cluster), cluster
     if "://" not in address and ":" not in address:
         raise UsageError(f"--dask {address}: give a scheduler address (tcp://HOST:PORT) or local[:N]")
+    if not debug:  # a lost scheduler is arshadow's one line, not the client's reconnection tracebacks
+        names = [n for n in logging.root.manager.loggerDict if n.startswith("distributed.")]
+        for name in ["distributed", "distributed.client", "distributed.utils", *names]:
+            logging.getLogger(name).setLevel(logging.CRITICAL)
     try:
         return Client(address, timeout=DASK_CONNECT_TIMEOUT_S), None
     except (OSError, TimeoutError, ValueError) as exc:

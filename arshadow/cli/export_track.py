@@ -46,7 +46,11 @@ def register(subparsers: Any) -> None:
     p.add_argument("--model", metavar="M", help="the occluder (mesh file or primitive) for the glTF")
     p.add_argument("--scale", type=float, default=1.0, metavar="S")
     p.add_argument("--rotate", default="0,0,0", metavar="RX,RY,RZ")
-    p.add_argument("--place", default="0,0,0", metavar="X,Y,Z")
+    p.add_argument("--place", default="0,0,0", metavar="X,Y,Z", help="as render's; the occluder's pivot in the glTF")
+    p.add_argument(
+        "--up", choices=("y", "z"), metavar="y|z", help="the mesh file's up axis, as render's (default: y for glTF)"
+    )
+    p.add_argument("--drop-to-ground", action="store_true", help="stand the model on the ground, as render's")
     p.add_argument(
         "--ground-size",
         type=float,
@@ -84,17 +88,24 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError(f"-o {o}: unknown track format (expected .glb, .gltf, .json or .csv)")
         if InputGuard([args.source]).clash([o]):
             raise UsageError(f"-o {o}: would overwrite the input")
-    caster, ground = None, args.ground_size
+    caster, ground, pivot = None, args.ground_size, None
     intr: Any
     if args.config:
-        scene = load_scene(args.config).build()
-        intr, caster = scene.intrinsics, scene.caster
+        spec = load_scene(args.config)
+        scene = spec.build()
+        intr, caster, pivot = scene.intrinsics, scene.caster, spec.model.place
         ground = ground or scene.options.ground_size
     else:
         intr = Intrinsics.from_file(args.calib)
         if args.model:
+            pivot = parse_triple(args.place, "--place")
             caster = load_occluder(
-                args.model, args.scale, parse_triple(args.rotate, "--rotate"), parse_triple(args.place, "--place")
+                args.model,
+                args.scale,
+                parse_triple(args.rotate, "--rotate"),
+                pivot,
+                up=args.up,
+                drop_to_ground=bool(args.drop_to_ground),
             )
     if args.size:
         w, h = parse_triple(args.size + ",0", "--size")[:2]
@@ -112,6 +123,8 @@ def run(args: argparse.Namespace) -> int:
         track = track_from_items(items, intr, name=src.stem, fps=args.fps)
         interp = "STEP"
     for o in outs:
-        write_track(o, track, caster=caster, ground_size=ground or 1.0, lost=args.lost, interpolation=interp)
+        write_track(
+            o, track, caster=caster, ground_size=ground or 1.0, lost=args.lost, interpolation=interp, pivot=pivot
+        )
         print(f"{src} -> {o}  ({sum(1 for _ in track.keyed(args.lost))} of {len(track.frames)} frames keyed)")
     return EXIT_OK

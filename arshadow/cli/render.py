@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import argparse
 import logging
+import math
 import sys
+from pathlib import Path
 
 from ..errors import UsageError
 from ..render_options import DEFAULT_AA
@@ -289,7 +291,15 @@ def run(args) -> int:
 
     debug = bool(getattr(args, "debug", False))
     quiet_opencv(debug)
-    inputs = expand_inputs(args.images)
+    own: list[str] = []
+    inputs = expand_inputs(args.images, skipped=own)
+    if own:  # an earlier run's outputs in a folder given: not photos
+        names = ", ".join(Path(f).name for f in own[:4]) + (", ..." if len(own) > 4 else "")
+        print(
+            f"arshadow render: skipped {len(own)} of arshadow's own outputs in the folder(s) given ({names}); "
+            "give a file by name to render it anyway",
+            file=sys.stderr,
+        )
     # output paths first: a bad -o / --report / layer writer is one usage error before any work
     outdir = check_output_folder(args.output, "-o")
     if args.report:
@@ -336,6 +346,8 @@ def run(args) -> int:
         if getattr(args, "map_info", None):  # --map: the map's file and residuals
             rep["map"] = args.map_info
         write_json(args.report, rep)
+    if (away := out_of_view_warning(items, getattr(args, "place", None))) is not None:
+        print(f"arshadow render: warning: {away}", file=sys.stderr)
     flags = FlagTally()
     for it in items:
         flags.add(it.input, it.flag_reasons)
@@ -371,6 +383,32 @@ def use_map(args, inputs) -> None:
     if board is not None:
         args.board, args.marker_length = board, None
         args.map_info = map_info(board)
+
+
+def out_of_view_warning(items, place=None) -> str | None:
+    """The warning when the object and its shadows are outside the view (the planner's empty region,
+    ``roi`` ``[0, 0, 0, 0]``) in every photo rendered, or in some of them; None when it is in view.
+
+    >>> from types import SimpleNamespace as N
+    >>> out_of_view_warning([N(status="ok", roi=[0, 0, 0, 0], input="a.jpg")], (3, 0, 0))[:60]
+    'the object and its shadow are outside the view in every phot'
+    """
+    ok = [it for it in items if it.status == "ok"]
+    away = [it for it in ok if it.roi is not None and not any(it.roi)]
+    if not away:
+        return None
+    where = ""
+    if place is not None and math.hypot(*map(float, place)) > 1.0:  # metres: a cm/m slip
+        where = (
+            f" (--place {','.join(f'{float(v):g}' for v in place)} is in metres, "
+            f"{math.hypot(*map(float, place)):.3g} m from the marker: a cm/m slip?)"
+        )
+    if len(away) == len(ok):
+        return f"the object and its shadow are outside the view in every photo: nothing was drawn{where}"
+    return (
+        f"the object and its shadow are outside the view in {len(away)} of {len(ok)} photos "
+        f"({', '.join(it.input for it in away[:3])}{', ...' if len(away) > 3 else ''}){where}"
+    )
 
 
 def _print_done(args, bar, job, item, res, err) -> None:

@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..errors import UsageError
+from ..io import output_mode
 from .layerfiles import LAYER_NAMES, check_layer_format, layer_arrays, write_layers
 
 if TYPE_CHECKING:
@@ -191,6 +192,7 @@ class LayerSink:
             write_stmap(self.paths["stmap"], self.stmap)
         for name, tmp in self._tmp.items():
             target = Path(self.paths[name])
+            os.chmod(tmp, output_mode(folder=tmp.is_dir()))  # mkstemp / mkdtemp: owner-only
             if tmp.is_dir():
                 if target.exists():
                     shutil.rmtree(target)

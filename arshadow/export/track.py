@@ -315,11 +315,19 @@ def _mesh(b: _Bin, verts, faces, name: str, color) -> dict:
 
 
 def track_gltf(
-    track: CameraTrack, *, caster=None, ground_size: float = 1.0, lost: str = "held", interpolation: str = "LINEAR"
+    track: CameraTrack,
+    *,
+    caster=None,
+    ground_size: float = 1.0,
+    lost: str = "held",
+    interpolation: str = "LINEAR",
+    pivot=None,
 ) -> tuple[dict, bytes]:
     """The glTF document (dict) and its binary buffer.
 
     ``caster``: the occluder (:class:`arshadow.geometry.mesh.ShadowCaster`, world frame) or None;
+    ``pivot``: ``(3,)`` its placed position, world frame (``--place``): the occluder node's translation,
+    its vertices relative to it (None: the marker's origin);
     ``ground_size``: side of the proxy ground square (metres); ``interpolation``: ``LINEAR`` (video) or
     ``STEP`` (photo sets: the photos are unrelated).
     """
@@ -363,8 +371,9 @@ def track_gltf(
     nodes.append({"name": "ground", "mesh": 0})
     nodes[0]["children"].append(2)
     if caster is not None:
-        meshes.append(_mesh(b, caster.vertices, caster.faces, "occluder", 0))
-        nodes.append({"name": "occluder", "mesh": 1})
+        at = np.zeros(3) if pivot is None else np.asarray(pivot, np.float64).reshape(3)
+        meshes.append(_mesh(b, np.asarray(caster.vertices, np.float64) - at, caster.faces, "occluder", 0))
+        nodes.append({"name": "occluder", "mesh": 1, **({"translation": at.tolist()} if at.any() else {})})
         nodes[0]["children"].append(3)
     doc: dict[str, Any] = {
         "asset": {"version": "2.0", "generator": f"arshadow {__version__}"},
@@ -433,13 +442,16 @@ def write_track(
     ground_size: float = 1.0,
     lost: str = "held",
     interpolation: str = "LINEAR",
+    pivot=None,
 ) -> Path:
     """Write a track by ``path``'s extension: ``.glb``, ``.gltf`` (buffer embedded), ``.json`` or ``.csv``
-    (atomically)."""
+    (atomically); ``pivot``: the occluder's placed position (:func:`track_gltf`)."""
     p = Path(path)
     ext = p.suffix.lower()
     if ext in (".glb", ".gltf"):
-        doc, data = track_gltf(track, caster=caster, ground_size=ground_size, lost=lost, interpolation=interpolation)
+        doc, data = track_gltf(
+            track, caster=caster, ground_size=ground_size, lost=lost, interpolation=interpolation, pivot=pivot
+        )
         if ext == ".glb":
             return write_bytes(p, _glb(doc, data))
         doc["buffers"][0]["uri"] = "data:application/octet-stream;base64," + base64.b64encode(data).decode()

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ImageError, UsageError
+from ..errors import ImageError, UsageError, write_error
 
 __all__ = [
     "VIDEO_CODECS",
@@ -407,7 +407,7 @@ class AvWriter:
                     options={"movflags": "+faststart"} if fmt in ("mp4", "mov") else None,
                 )
             except (av.FFmpegError, OSError, ValueError) as exc:
-                raise ImageError(f"{self.path}: cannot write ({_short(exc)})") from None
+                raise write_error(f"{self.path}: cannot write ({_short(exc)})", exc) from None
             stack.callback(self._close_container, av, c)
             name, pix = VIDEO_CODECS[self.codec] if self.color else ("ffv1", "gray")
             if self.pix_fmt is not None and self.color:
@@ -508,7 +508,7 @@ class AvWriter:
             for pkt in vs.encode(vf):
                 c.mux(pkt)
         except (av.FFmpegError, OSError) as exc:
-            raise ImageError(f"{self.path}: cannot write ({_short(exc)}); nothing written") from None
+            raise write_error(f"{self.path}: cannot write ({_short(exc)}); nothing written", exc) from None
         if vf is not None:
             self.n_written += 1
 
@@ -527,7 +527,7 @@ class AvWriter:
                     try:
                         self._copy_audio(c)
                     except (av.FFmpegError, OSError) as e:
-                        raise ImageError(f"{self.path}: cannot write ({_short(e)}); nothing written") from None
+                        raise write_error(f"{self.path}: cannot write ({_short(e)}); nothing written", e) from None
         except BaseException:
             if stack.__exit__(*sys.exc_info()):
                 return True
@@ -542,7 +542,7 @@ class AvWriter:
         try:
             c.close()  # writes the trailer
         except (av.FFmpegError, OSError) as exc:
-            raise ImageError(f"{self.path}: cannot write ({_short(exc)}); nothing written") from None
+            raise write_error(f"{self.path}: cannot write ({_short(exc)}); nothing written", exc) from None
 
     def _copy_audio(self, c):
         """Copy the source's audio packets up to the video's duration."""

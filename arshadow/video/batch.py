@@ -20,7 +20,9 @@ be a folder every worker sees (a shared file system); the outputs and records ar
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import errno
 import hashlib
 import json
 import os
@@ -30,9 +32,9 @@ from pathlib import Path
 import cv2
 
 from .. import __version__
-from ..errors import ArshadowError, MarkerNotFoundError, UsageError
+from ..errors import ArshadowError, BatchStoppedError, MarkerNotFoundError, OutputSpaceError, UsageError
 from ..export.layerfiles import layer_paths
-from ..io import IMAGE_EXTENSIONS, InputGuard, check_output_folder, unique_stems, write_json
+from ..io import IMAGE_EXTENSIONS, InputGuard, check_output_folder, make_folder, unique_stems, write_json
 from ..io import clean_temporaries as clean_io_temporaries
 from ..photos import PhotoJob, render_photo_file
 from ..session import Session
@@ -43,6 +45,7 @@ from .parallel import (
     ChunkPool,
     chunk_task,
     finish_chunked,
+    name_other_dictionaries,
     prepare_chunked,
     process_video_chunked,
 )
@@ -236,10 +239,18 @@ def _guarded(item: BatchItem, outdir: Path, fingerprint: str, work) -> dict:
     }
     try:
         work(summary)
+    except OutputSpaceError as exc:  # the next items would fail the same way: stop
+        raise disk_full(outdir, exc) from None
+    except OSError as exc:
+        if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+            raise disk_full(outdir, exc) from None
+        summary["error"] = f"{type(exc).__name__}: {exc}"
+        if item.input not in summary["error"]:
+            summary["error"] = f"{item.input}: {summary['error']}"
     except MarkerNotFoundError as exc:  # a photo without the marker: done (a rerun would find none either)
         summary["status"] = "no_marker"
         summary["error"] = f"{item.input}: {exc}"
-    except (ArshadowError, OSError, MemoryError) as exc:
+    except (ArshadowError, MemoryError) as exc:
         summary["status"] = "error"
         summary["error"] = str(exc) if isinstance(exc, ArshadowError) else f"{type(exc).__name__}: {exc}"
         if item.input not in summary["error"]:
@@ -248,6 +259,17 @@ def _guarded(item: BatchItem, outdir: Path, fingerprint: str, work) -> dict:
     if summary["status"] in ("ok", "no_marker", "damaged"):
         write_json(_record_path(outdir, item), {"fingerprint": fingerprint, **summary})
     return summary
+
+
+RESUME = "rerun the same command to resume (finished items and video chunks are kept)"
+
+
+def disk_full(outdir, exc: Exception) -> BatchStoppedError:
+    """The one-line error of a full output disk (``ENOSPC``/``EDQUOT`` while writing under ``outdir``)."""
+    return BatchStoppedError(
+        f"{outdir}: no space left on the output disk ({exc}); no half-written output was kept: free some "
+        f"space and {RESUME}"
+    )
 
 
 def _dask_task(spec, item, outdir, opts, save_mask, fingerprint):
@@ -262,6 +284,7 @@ def _dask_join(spec, item, outdir, opts, fingerprint, prep, done: dict, *records
     def work(summary):
         vs = finish_chunked(prep, recs, lambda c: chunk_task(recipe, prep, c))
         vs["chunks_resumed"] = len(done)
+        name_other_dictionaries(vs, spec, prep.path)
         _video_fields(summary, vs, prep.outputs)
 
     return _guarded(item, Path(outdir), fingerprint, work)
@@ -313,6 +336,17 @@ def _submit_dask(client, spec, it: BatchItem, outdir: Path, opts, save_mask, fp:
     )
 
 
+def _stop_if_lost(client, exc: Exception, outdir) -> None:
+    """Raise the batch's one-line error when ``exc`` (a task's) means the batch cannot go on: the
+    scheduler lost (every other task is cancelled with it), the output disk full."""
+    if isinstance(exc, OutputSpaceError) or (isinstance(exc, OSError) and exc.errno in (errno.ENOSPC, errno.EDQUOT)):
+        raise disk_full(outdir, exc) from None
+    lost = "scheduler-connection-lost" in str(exc) or getattr(client, "status", "running") != "running"
+    if lost:
+        addr = getattr(getattr(client, "scheduler", None), "address", None) or "of the batch"
+        raise BatchStoppedError(f"the Dask scheduler {addr} was lost; {RESUME}") from None
+
+
 # --------------------------------------------------------------------------------------------------
 # the batch
 # --------------------------------------------------------------------------------------------------
@@ -351,7 +385,7 @@ def run_batch(
     if int(jobs) < 1:
         raise UsageError(f"--jobs {jobs}: must be >= 1")
     outdir = check_output_folder(outdir, "-o")
-    (outdir / RECORDS).mkdir(parents=True, exist_ok=True)
+    make_folder(outdir / RECORDS)
     clean_temporaries(outdir)
     items = plan_batch(inputs)
     results, todo = _plan_todo(items, inputs, spec, outdir, opts, save_mask)
@@ -377,6 +411,10 @@ def run_batch(
             _run_dask(client, spec, items, todo, outdir, opts, save_mask, int(jobs), finished)
     except KeyboardInterrupt:  # Ctrl-C / SIGTERM: batch.json still says what is done and what is not
         _write_summary(outdir, items, results, interrupted=True)
+        raise
+    except BatchStoppedError:  # the scheduler lost, the disk full: batch.json says so if it can be written
+        with contextlib.suppress(OSError):
+            _write_summary(outdir, items, results, interrupted=True)
         raise
     return _write_summary(outdir, items, results)
 
@@ -466,7 +504,10 @@ def _run_dask(client, spec, items, todo, outdir, opts, save_mask, jobs: int, fin
         k = futs[fut]
         try:
             res = fut.result()
+        except BatchStoppedError:
+            raise
         except Exception as exc:  # noqa: BLE001 (a worker died or the task failed outside process_item)
+            _stop_if_lost(client, exc, outdir)
             it = items[k]
             res = {
                 "input": it.input,

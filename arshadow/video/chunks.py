@@ -48,7 +48,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ImageError
-from ..io import atomic_path, clean_temporaries, write_json
+from ..io import atomic_path, clean_temporaries, make_folder, remove_empty_folder, write_json
 from .avio import load_av
 from .encode import EncodeSink, SheetThumbs, atomic_dir
 from .engine import EngineOptions, Span, run_frames
@@ -159,7 +159,9 @@ class ChunkStore:
         self.opts = opts
 
     def open(self) -> ChunkStore:
-        self.dir.mkdir(parents=True, exist_ok=True)
+        """Create the folder (tolerating the shared parent removed meanwhile by another video's
+        :meth:`remove`) and remove the temporaries a killed worker left in it."""
+        make_folder(self.dir)
         clean_temporaries(self.dir)  # left by a worker killed while writing a chunk
         return self
 
@@ -191,10 +193,11 @@ class ChunkStore:
         return rec if all(Path(p).exists() for p in outs) else None
 
     def remove(self) -> None:
+        """Remove this video's folder, then the shared ``OUT/.arshadow-chunks`` if it is empty: in one
+        ``rmdir`` (:func:`arshadow.io.remove_empty_folder`), never a look then a removal, so that another
+        video's store being opened or removed at the same moment is left whole and raises nothing."""
         shutil.rmtree(self.dir, ignore_errors=True)
-        with_parent = self.dir.parent
-        if with_parent.exists() and not any(with_parent.iterdir()):
-            with_parent.rmdir()
+        remove_empty_folder(self.dir.parent)
 
 
 def fingerprint(path, recipe_key: str, opts: EngineOptions, n: int) -> str:

@@ -41,6 +41,7 @@ from .avio import VIDEO_CODECS
 from .decode import decode_into, open_reader
 from .encode import EncodeSink, SheetThumbs, write_contact_sheet
 from .framejob import FRAME_STAGES, FrameComposer, SessionBackend, gray_of
+from .hints import other_dictionaries_hint
 from .temporal import PoseStream
 from .threads import END, Worker, put_or_stop
 
@@ -411,7 +412,9 @@ def _summary(name, outputs, reader, composer: FrameComposer, sink: EncodeSink, o
         status = "damaged"
     elif stats["frames_ok"] == 0:
         status = "no_marker"
-        warnings.append(f"{name}: the marker was found in none of the {stats['frames']} frames")
+        cal, path = getattr(composer.backend, "cal", None), getattr(reader, "path", None)
+        hint = "" if cal is None or path is None else other_dictionaries_hint(path, cal.trackers()[1].dictionary)
+        warnings.append(f"{name}: the marker was found in none of the {stats['frames']} frames{hint}")
     out_mask = outputs.get("mask")
     summary = {
         "input": name,

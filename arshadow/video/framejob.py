@@ -77,6 +77,7 @@ class SessionBackend:
     def __init__(self, session, tracks=(), time_lapse=None):
         self.session, self.tracks, self.time_lapse = session, list(tracks), time_lapse
         self.hooks = session.hooks  # arshadow.engine.EngineHooks: what the engine reaches into
+        self.hooks.input_kind = "video"  # its notes say "the video is WxH"
         self.cal = None
         self.recomputes = 0
         self.want_layers = False  # set by process_video when the layers are written

@@ -34,8 +34,10 @@ import numpy as np
 
 from ..errors import ImageError, UsageError
 from ..gl.context import contexts_made
-from ..sanity import FlagTally
+from ..io import make_folder
+from ..sanity import FlagTally, quiet_notes
 from ..session import Session
+from ..tracking.dictionary import DEFAULT_DICTIONARY
 from ..tracking.reference import ReferenceTally
 from .avio import AvReader, display_rotation
 from .chunks import (
@@ -50,6 +52,7 @@ from .chunks import (
 from .encode import SheetThumbs, write_contact_sheet
 from .engine import EngineOptions
 from .framejob import FRAME_STAGES, SessionBackend
+from .hints import other_dictionaries_hint
 from .scan import StreamIndex, scan_stream
 
 __all__ = [
@@ -216,7 +219,7 @@ def chunk_task(recipe: BackendRecipe, prep: Prepared, chunk) -> dict:
     """Run one chunk in this process (a pool worker or a Dask task); returns its record. (The store was
     opened, and an interrupted run's temporaries removed, before any chunk started: never here, where
     other chunks are writing.)"""
-    prep.store.dir.mkdir(parents=True, exist_ok=True)
+    make_folder(prep.store.dir)  # the shared parent may be removed meanwhile by another video's join
     t = time.perf_counter()
     backend = backend_for(recipe, prep.opts.encoder_threads)
     setup = time.perf_counter() - t
@@ -246,7 +249,9 @@ class ChunkPool:
     def _executor(self):
         if self._ex is None:
             workers = max(1, self.jobs - 1)
-            self._ex = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context(start_method()))
+            self._ex = ProcessPoolExecutor(
+                workers, mp_context=multiprocessing.get_context(start_method()), initializer=quiet_notes
+            )  # the notes (a scaled calibration) are said once, by this process
         return self._ex
 
     def run(self, fn, recipe, prep: Prepared, chunks, on_done=None) -> dict:
@@ -409,6 +414,18 @@ def _summary(prep: Prepared, chunks, records: dict, sheet, audio: bool, redone: 
     }
 
 
+def name_other_dictionaries(summary: dict, spec, path) -> None:
+    """A video whose marker was found in no frame: its warning names the other dictionaries' markers the
+    video shows (:func:`arshadow.video.hints.other_dictionaries_hint`; single-marker mode), as the
+    one-piece run's does."""
+    tracker = getattr(spec, "tracker", None)
+    if summary.get("status") != "no_marker" or tracker is None or getattr(tracker, "board", None):
+        return
+    hint = other_dictionaries_hint(path, getattr(tracker, "dictionary", None) or DEFAULT_DICTIONARY)
+    end = f"found in none of the {summary['frames']} frames"
+    summary["warnings"] = [w + hint if w.endswith(end) else w for w in summary["warnings"]]
+
+
 def process_video_chunked(
     recipe: BackendRecipe,
     pool: ChunkPool,
@@ -448,6 +465,7 @@ def process_video_chunked(
     records.update(pool.run(task, recipe, prep, todo, on_done))
     summary = finish_chunked(prep, records, lambda c: pool.run(task, recipe, prep, [c])[c.k])
     summary["chunks_resumed"] = len(prep.chunks) - len(todo)
+    name_other_dictionaries(summary, recipe.spec, prep.path)
     wall = time.perf_counter() - t0
     summary.update(wall_s=round(wall, 3), fps_processed=round(summary["frames"] / wall, 2) if wall > 0 else None)
     return summary, None
