@@ -81,7 +81,12 @@ def run(args: argparse.Namespace) -> int:
         views.append(v)
         if not args.json:
             print(
-                f"{f}: " + (f"{len(v.object_points or ())} corners" if v.ok else f"rejected: {v.reason}"),
+                f"{f}: "
+                + (
+                    f"{0 if v.object_points is None else len(v.object_points)} corners"
+                    if v.ok
+                    else f"rejected: {v.reason}"
+                ),
                 file=sys.stdout if v.ok else sys.stderr,
             )
     res = calibrate(views, flags=flags, min_views=min_views, max_view_error=args.max_view_error, pattern=pattern)
