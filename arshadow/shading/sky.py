@@ -205,11 +205,13 @@ def ground_sky_visibility(
     margin : float, optional
         Metres of ground round the footprint's bounding square; default 3 x the object's height.
     sky : {"uniform", "cie"}
-    bounce : (light (3,), sky_share, albedo), optional
+    bounce : (light (3,), sky_share, albedo[, ground]), optional
         Also the light the object reflects onto the ground (interreflection): each blocked direction sees
         the object's face nearest along it, lit by the direct light (unit ``light`` towards it, weight
-        ``1 - sky_share`` of the open ground's light) on its lit side and by the sky (``sky_share``,
-        ``(1 + n_z) / 2`` of it), times ``albedo``. Added to the map as ``bounce / sky_share``: the map then
+        ``1 - sky_share`` of the open ground's light) on its lit side, by the sky (``sky_share``,
+        ``(1 + n_z) / 2`` of it) and by the ground round it (``ground``: the ground's albedo times its
+        irradiance, a share of the open ground's light; ``(1 - n_z) / 2`` of it; 0 when not given), times
+        ``albedo``. Added to the map as ``bounce / sky_share``: the map then
         holds ``V + bounce / r`` (more than 1 beside a lit face), what the composite's sky term multiplies.
     """
     if resolution < 2:
@@ -272,12 +274,15 @@ def ground_sky_visibility(
 
 
 def _face_irradiance(caster: ShadowCaster, bounce: tuple) -> np.ndarray:
-    """``(m,)``: each face's irradiance as a share of the open ground's (direct on its lit side + sky)."""
+    """``(m,)``: each face's irradiance as a share of the open ground's (direct on its lit side + sky + the
+    light the ground reflects up to it: the path tracer's ground -> object -> ground path, which lights a box's
+    shadowed faces and a sphere's underside about as much as the sky does)."""
     light, r = np.asarray(bounce[0], np.float64), float(bounce[1])
     light = light / np.linalg.norm(light)
     n = caster.face_planes[:, :3]
     direct = (1.0 - r) * np.maximum(n @ light, 0.0) / max(float(light[2]), 1e-3)
-    return direct + r * (1.0 + n[:, 2]) / 2.0
+    g = float(bounce[3]) if len(bounce) > 3 else 0.0
+    return direct + r * (1.0 + n[:, 2]) / 2.0 + g * (1.0 - n[:, 2]) / 2.0
 
 
 def _bounce_image(caster, d, face_e, grid) -> np.ndarray:
