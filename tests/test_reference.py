@@ -18,6 +18,7 @@ import pytest
 from arshadow.bench.reference import case_residuals, load_cases, plate_alignment, run_case, to_plate8
 from arshadow.bench.reference_scene import intrinsics_of, pose_of
 from arshadow.bench.reference_score import decode8, residuals_smoothed, smooth_regions
+from arshadow.errors import EstimateError
 from arshadow.synth import render_marker_photo
 from arshadow.tracking.dictionary import marker_object_points
 from arshadow.tracking.tracker import MarkerTracker
@@ -97,7 +98,13 @@ def test_reference_scoring_bounds(own):
 
 
 def _medians(cases, light):
-    rs = [run_case(c, light) for c in cases]
+    rs = []
+    for c in cases:
+        try:
+            rs.append(run_case(c, light))
+        except EstimateError:  # the estimate refuses the case (both own point-light plates, issue 26's gate)
+            continue
+    assert len(rs) >= len(cases) - 2, f"the light estimate refused {len(cases) - len(rs)} of {len(cases)} cases"
     return {k: float(np.median([r[k] for r in rs])) for k in ("ground", "contact", "object")}
 
 
