@@ -141,5 +141,11 @@ def test_realism_bench_rows(own, gl_ctx, monkeypatch):
     for r in rows:
         assert r["ms_720p"] > 0 and r["render_ms_720p"] > 0 and r["planner"]
         assert 0.0 < r["own_ground"] < 2.0 and 0.0 < r["own_object"] < 2.0
-    direct = [run_case(c, "measured") for c in own[:3]]
+    direct = []
+    for c in own:  # the first three plates the light estimate accepts, as the bench takes them
+        try:
+            direct.append(run_case(c, "measured"))
+        except EstimateError:
+            continue
+    direct = direct[:3]
     assert rows[0]["own_ground"] == pytest.approx(float(np.median([r["ground"] for r in direct])), abs=1e-9)
