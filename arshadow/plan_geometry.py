@@ -501,9 +501,9 @@ class SceneGeometry:
                 self.bounds, [ls.light_h for ls in self.lights], self.options.ground_size, points=self.roi_points
             )
             if hull is not None and self.sky_on:
-                # sky occlusion darkens the ground round the object: its map's square joins the region
-                x0, y0, x1, y1 = self.sky_ground().extent
-                hull = np.vstack([hull, [[x0, y0, 0.0], [x1, y0, 0.0], [x1, y1, 0.0], [x0, y1, 0.0]]])
+                # sky occlusion darkens the ground round the object: the outline of where its map is not 1
+                # joins the region (not the map's square: its corners are open ground, 1.5 x the pixels)
+                hull = np.vstack([hull, self.sky_ground().outline()])
             self._hull = (key, hull)
         return self._hull[1]
 

@@ -124,6 +124,24 @@ class GroundOcclusion:
         h, w = self.visibility.shape
         return (self.x0, self.y0, self.x0 + w * self.texel, self.y0 + h * self.texel)
 
+    def outline(self) -> np.ndarray:
+        """``(k, 3) float64``: ground points (z = 0, metres) whose convex hull holds every texel where the map
+        is not 1 (where sky occlusion changes the ground): tighter than the grid's square, whose corners
+        are open ground. The square's corners when nothing is occluded (an empty map has none to bound).
+
+        >>> v = np.ones((4, 4), np.float32); v[1, 1] = 0.5
+        >>> GroundOcclusion(0.0, 0.0, 1.0, v, 8, "uniform", 0.0).outline()[:, :2].min(axis=0).tolist()
+        [1.0, 1.0]
+        """
+        active = np.abs(self.visibility - 1.0) > 0.0
+        if not active.any():
+            x0, y0, x1, y1 = self.extent
+            return np.array([[x0, y0, 0.0], [x1, y0, 0.0], [x1, y1, 0.0], [x0, y1, 0.0]])
+        ii, jj = np.nonzero(active)
+        corners = np.concatenate([np.c_[jj + dj, ii + di] for di in (0, 1) for dj in (0, 1)]).astype(np.int32)
+        hull = cv2.convexHull(corners).reshape(-1, 2).astype(np.float64)
+        return np.c_[self.x0 + hull[:, 0] * self.texel, self.y0 + hull[:, 1] * self.texel, np.zeros(len(hull))]
+
     def sample(self, xy: np.ndarray) -> np.ndarray:
         """``(k,) float64`` bilinear visibility at ground points ``xy (k, 2)`` (1 off the grid)."""
         xy = np.asarray(xy, np.float64).reshape(-1, 2)
