@@ -226,7 +226,7 @@ def _probe_sky(probe):
     or None without a probe."""
     if probe is None:
         return None
-    return ground_sky_visibility(probe, n_dirs=128, resolution=128)
+    return ground_sky_visibility(probe, n_dirs=128, resolution=128, taper=None)
 
 
 def _edge_consistency(evs, h, px) -> tuple:
