@@ -269,6 +269,7 @@ def _sky_shading(
         m = ground_bounce(image, intr.project(ring, plan.cam_from_world), gain)
         if m is not None:
             bounce = tuple(float(v) for v in m)
+            geometry.set_ground_light(m)  # lights the object's lower faces, reflected back to the ground
             outputs.item.plan["ground_bounce"] = [round(v, 4) for v in bounce]  # type: ignore[index]
     return SkyShading(ground=geometry.sky_ground(outputs.timings), object_sky=OBJECT_SKY, bounce=bounce)
 

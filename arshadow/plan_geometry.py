@@ -417,8 +417,9 @@ class SceneGeometry:
 
     def sky_ground(self, timings=None):
         """The occluder's :class:`arshadow.shading.sky.GroundOcclusion` (computed once per scene, in the
-        ground frame; ``timings.silhouette`` gets its build time, with the other per-scene geometry)."""
-        key = tuple(ls.light_h.tobytes() for ls in self.lights)
+        ground frame; ``timings.silhouette`` gets its build time, with the other per-scene geometry). Remade
+        when the lights change or when the ground's reflectance is first measured (:meth:`set_ground_light`)."""
+        key = (tuple(ls.light_h.tobytes() for ls in self.lights), getattr(self, "_ground_light", None))
         g = getattr(self, "_sky_ground", None)
         if g is None or g[0] != key:  # the object's interreflection depends on the light
             from .shading.sky import ground_sky_visibility
@@ -429,11 +430,21 @@ class SceneGeometry:
                 timings.silhouette += (time.perf_counter() - t) * 1e3
         return g[1]
 
+    def set_ground_light(self, reflected) -> None:
+        """Record the light the ground round the object reflects, ``reflected (3,)`` linear RGB in the
+        renderer's units (the marker paper = white: :func:`arshadow.shading.decide.ground_bounce`), once per
+        scene (the first measurement is kept: the map is not remade every frame). It lights the object's
+        lower faces, which reflect part of it back onto the ground beside them."""
+        if getattr(self, "_ground_light", None) is None:
+            self._ground_light = round(PAPER_ALBEDO * float(np.mean(reflected)), 3)
+
     def _bounce_light(self):
-        """``(light (3,), sky share, albedo)`` of the object's interreflection onto the ground
+        """``(light (3,), sky share, albedo, ground)`` of the object's interreflection onto the ground
         (:func:`arshadow.shading.sky.ground_sky_visibility`): the strongest light's direction from the
         object, the mean sky share, the object's mean albedo (its colour relative to the marker paper's,
-        without the exposure gain, times :data:`PAPER_ALBEDO`); None without a light or a sky share."""
+        without the exposure gain, times :data:`PAPER_ALBEDO`), the ground's reflected light (its albedo times
+        its irradiance, a share of the open ground's: :meth:`set_ground_light`, 0 until measured); None
+        without a light or a sky share."""
         from .compose.composite import srgb_to_linear
         from .shading.decide import sky_share
 
@@ -448,7 +459,8 @@ class SceneGeometry:
         col = srgb_to_linear(np.asarray(opts.occluder_color if opts.occluder_color is not None else (0.8, 0.8, 0.8)))
         if opts.occluder_color is not None and opts.exposure_gain is not None:
             col = col / np.maximum(np.asarray(opts.exposure_gain, np.float64), 1e-6)
-        return light, r, PAPER_ALBEDO * float(np.mean(np.clip(col, 0.0, 1.0)))
+        ground = float(getattr(self, "_ground_light", None) or 0.0)
+        return light, r, PAPER_ALBEDO * float(np.mean(np.clip(col, 0.0, 1.0))), ground
 
     def footprint_rect(
         self, ls: LightState, intr: Intrinsics, cam_from_world: npt.ArrayLike, znear: float
@@ -489,9 +501,9 @@ class SceneGeometry:
                 self.bounds, [ls.light_h for ls in self.lights], self.options.ground_size, points=self.roi_points
             )
             if hull is not None and self.sky_on:
-                # sky occlusion darkens the ground round the object: its map's square joins the region
-                x0, y0, x1, y1 = self.sky_ground().extent
-                hull = np.vstack([hull, [[x0, y0, 0.0], [x1, y0, 0.0], [x1, y1, 0.0], [x0, y1, 0.0]]])
+                # sky occlusion darkens the ground round the object: the outline of where its map is not 1
+                # joins the region (not the map's square: its corners are open ground, 1.5 x the pixels)
+                hull = np.vstack([hull, self.sky_ground().outline()])
             self._hull = (key, hull)
         return self._hull[1]
 

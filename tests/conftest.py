@@ -193,14 +193,19 @@ class Tolerances:
     # the true light given (default options) ground 0.361. Limits = those + 0.01 (rounding up). The issue's
     # targets (on the held-out set) are ground <= 0.10, contact <= 0.12, object <= 0.05: tighten these when
     # the realism work lands, never loosen them.
-    ref_own_ground: float = 0.415
-    ref_own_contact: float = 0.46
-    ref_own_object: float = 0.14
+    # Re-measured 2026-11-26 after the ground's light reflected by the object and the estimate's allowance
+    # for the probe's sky occlusion (tests/benchmarks/score_realism.py, config "sky"; the light estimate
+    # now refuses both own point-light plates, so the own medians are over its four sun scenes): own ground
+    # 0.252, contact 0.275, object 0.118; limits + 0.01. ref_own_true_ground (true light, no sky occlusion)
+    # is unchanged.
+    ref_own_ground: float = 0.262
+    ref_own_contact: float = 0.285
+    ref_own_object: float = 0.128
     ref_own_true_ground: float = 0.375
-    # held-out set, same pipeline: ground 0.320, contact 0.424, object 0.164 (+ 0.01)
-    ref_heldout_ground: float = 0.33
-    ref_heldout_contact: float = 0.435
-    ref_heldout_object: float = 0.175
+    # held-out set, same pipeline: ground 0.270, contact 0.388, object 0.153 (+ 0.01)
+    ref_heldout_ground: float = 0.28
+    ref_heldout_contact: float = 0.398
+    ref_heldout_object: float = 0.163
     # marker maps (issue 29): learned marker poses against the generating poses (the issue's figures)
     map_marker_median_mm: float = 1.0
     map_marker_median_deg: float = 0.2

@@ -18,6 +18,7 @@ import pytest
 from arshadow.bench.reference import case_residuals, load_cases, plate_alignment, run_case, to_plate8
 from arshadow.bench.reference_scene import intrinsics_of, pose_of
 from arshadow.bench.reference_score import decode8, residuals_smoothed, smooth_regions
+from arshadow.errors import EstimateError
 from arshadow.synth import render_marker_photo
 from arshadow.tracking.dictionary import marker_object_points
 from arshadow.tracking.tracker import MarkerTracker
@@ -97,7 +98,13 @@ def test_reference_scoring_bounds(own):
 
 
 def _medians(cases, light):
-    rs = [run_case(c, light) for c in cases]
+    rs = []
+    for c in cases:
+        try:
+            rs.append(run_case(c, light))
+        except EstimateError:  # the estimate refuses the case (both own point-light plates, issue 26's gate)
+            continue
+    assert len(rs) >= len(cases) - 2, f"the light estimate refused {len(cases) - len(rs)} of {len(cases)} cases"
     return {k: float(np.median([r[k] for r in rs])) for k in ("ground", "contact", "object")}
 
 
@@ -134,7 +141,13 @@ def test_realism_bench_rows(own, gl_ctx, monkeypatch):
     for r in rows:
         assert r["ms_720p"] > 0 and r["render_ms_720p"] > 0 and r["planner"]
         assert 0.0 < r["own_ground"] < 2.0 and 0.0 < r["own_object"] < 2.0
-    direct = [run_case(c, "measured") for c in own[:3]]
+    direct = []
+    for c in own:  # the first three plates the light estimate accepts, as the bench takes them
+        try:
+            direct.append(run_case(c, "measured"))
+        except EstimateError:
+            continue
+    direct = direct[:3]
     assert rows[0]["own_ground"] == pytest.approx(float(np.median([r["ground"] for r in direct])), abs=1e-9)
 
 
@@ -152,3 +165,25 @@ def test_load_cases_names_a_missing_plate(tmp_path):
     shutil.copy(DATA / "own" / f"{name}.npz", tmp_path / f"{name}.npz")  # the plate's .jpg left out
     with pytest.raises(ImageError, match=f"{name}.jpg"):
         load_cases(tmp_path)
+
+
+def test_shadow_ratio_allows_for_the_probes_sky_occlusion(own):
+    """The light estimate's shadow ratio on path-traced plates against the scene's true sky share
+    (sky / (sky + direct sin(elevation)), from the scene's irradiances): the probe hides part of the sky from
+    both sides of its shadow's edge, which read the sky too dark without the allowance (box_sun: 0.33 / 0.32 /
+    0.31 against the true 0.37 / 0.40 / 0.46; with it 0.36 / 0.34 / 0.33)."""
+    from arshadow.estimate import estimate_light
+    from arshadow.estimate.shadow import LUMA
+
+    for c in [c for c in own if c.scene.name in ("box_sun", "sphere_sun")]:
+        sc = c.scene
+        v = np.asarray(sc.light_vec, np.float64)
+        direct = np.asarray(sc.direct) * v[2] / np.linalg.norm(v)
+        truth = np.asarray(sc.sky) / (np.asarray(sc.sky) + direct)
+        kw = dict(calib=intrinsics_of(sc), marker_length=sc.marker_length, probe=sc.probe, probe_place=sc.probe_place)
+        with_sky = np.asarray(estimate_light(c.plate8, **kw).shadow_ratio)
+        without = np.asarray(estimate_light(c.plate8, sky_occlusion=False, **kw).shadow_ratio)
+        # measured 2026-11-26: box_sun 0.052 against 0.080 without (the green and blue still read low: the
+        # ratio comes out nearly grey where the truth is bluish), sphere_sun 0.009 against 0.036
+        err, err0 = abs((with_sky - truth) @ LUMA), abs((without - truth) @ LUMA)
+        assert err < 0.75 * err0 and err <= 0.06, (sc.name, with_sky, without, truth)

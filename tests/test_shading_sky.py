@@ -189,3 +189,20 @@ def test_object_raster_matches_rays_on_a_torus():
         and np.abs(g - g_ref).mean() <= TOL.sky_object_raster_mean
     )
     assert s_ref.min() < 0.3 and s_ref.max() > 0.9  # the test sees occluded and open points
+
+
+def test_ground_light_reflected_by_the_object_back_onto_the_ground():
+    # the ground lights the box's faces from below ((1 - n_z) / 2 of the ground's reflected light g: 1/2 on
+    # a vertical face), and they reflect it back: in front of the unlit -x face every blocked sky direction
+    # sees that face, so the map rises by albedo * g / 2 * (1 - V) / r there, V the exact (Lambert) sky
+    # visibility; without the ground's light (the old model) the path tracer's sphere and box halos came
+    # out too dark (docs/reference.md)
+    c = load_occluder(BOX_SPEC)
+    light, r, albedo, g = np.array([1.0, 0.0, 1.0]), 0.4, 0.5, 0.3
+    pts = np.array([(-0.0225 - d, 0.0) for d in (0.003, 0.01, 0.02)])
+    v = np.array([box_ground_visibility(np.r_[q, 0.0], *BOX) for q in pts])
+    without = ground_sky_visibility(c, bounce=(light, r, albedo)).sample(pts)
+    with_g = ground_sky_visibility(c, bounce=(light, r, albedo, g)).sample(pts)
+    expect = albedo * g / 2 * (1.0 - v) / r
+    assert np.abs((with_g - without) - expect).max() <= TOL.sky_ground_abs, ((with_g - without), expect)
+    assert np.all(expect > 0.05)  # a visible change

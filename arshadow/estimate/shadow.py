@@ -338,11 +338,12 @@ def fit_levels(
     return max(rr - rs * rs / ss, 0.0), delta, rr, n
 
 
-def edge_pairs(ev: Evidence, S: np.ndarray, distance: float) -> tuple[np.ndarray, np.ndarray]:
+def edge_pairs(ev: Evidence, S: np.ndarray, distance: float, points: bool = False) -> tuple[np.ndarray, ...]:
     """Pairs of ground cells straddling the modelled shadow's edge: for every edge cell, the points
     ``distance`` (metres) inside and outside along the edge's normal, kept when both are used, of the same
     albedo class, clearly in and out of the shadow. Returns ``(inside rgb (k, 3), outside rgb (k, 3))``
-    float64 (linear, bilinear samples)."""
+    float64 (linear, bilinear samples); with ``points``, also their ground points ``(inside xy (k, 2),
+    outside xy (k, 2))`` float64 (metres, the evidence's ground frame)."""
     sb = cv2.GaussianBlur(S.astype(np.float32), (0, 0), 1.0)
     gy, gx = np.gradient(sb)
     edge = (S > 0.2) & (S < 0.8)
@@ -374,11 +375,14 @@ def edge_pairs(ev: Evidence, S: np.ndarray, distance: float) -> tuple[np.ndarray
         & (S[qo[:, 1], qo[:, 0]] < 0.01)
     )
     if not keep.any():
-        return np.zeros((0, 3)), np.zeros((0, 3))
+        return (np.zeros((0, 3)), np.zeros((0, 3))) + ((np.zeros((0, 2)), np.zeros((0, 2))) if points else ())
     rgb = ev.rgb.astype(np.float32)
 
     def sample(p: np.ndarray) -> np.ndarray:
         m = p[keep].astype(np.float32).reshape(-1, 1, 2)
         return cv2.remap(rgb, m[:, :, 0], m[:, :, 1], cv2.INTER_LINEAR).reshape(-1, 3).astype(np.float64)
 
-    return sample(pin), sample(pout)
+    if not points:
+        return sample(pin), sample(pout)
+    origin = np.array([ev.x0, ev.y0])
+    return sample(pin), sample(pout), origin + ev.step * pin[keep], origin + ev.step * pout[keep]
