@@ -41,16 +41,16 @@ from .errors import (  # noqa: E402
 if TYPE_CHECKING:  # the lazily loaded names, for type checkers (py.typed)
     from . import synth
     from .estimate import LightEstimate, estimate_light
-    from .plan import FramePlan, plan_frame
-    from .scene import ModelSpec, RenderOptions, SceneSpec, TrackerSpec, load_scene, scene_from_dict
-    from .session import FrameResult, Session, render_photo
+    from .frame.session import FrameResult, Session, render_photo
+    from .plan.planner import FramePlan, plan_frame
+    from .scene.spec import ModelSpec, RenderOptions, SceneSpec, TrackerSpec, load_scene, scene_from_dict
     from .video.api import VideoRun, process_video
     from .video.engine import EngineOptions
 
 _LAZY = {
-    "Session": "session",
-    "FrameResult": "session",
-    "render_photo": "session",
+    "Session": "frame.session",
+    "FrameResult": "frame.session",
+    "render_photo": "frame.session",
     "SceneSpec": "scene",
     "TrackerSpec": "scene",
     "ModelSpec": "scene",

@@ -1,4 +1,4 @@
-"""Notebook helpers: a :class:`arshadow.session.FrameResult` shows itself as its composite (``_repr_png_``);
+"""Notebook helpers: a :class:`arshadow.frame.session.FrameResult` shows itself as its composite (``_repr_png_``);
 :func:`results_sheet` tiles a list of results into one image that shows itself too.
 
 ::
@@ -21,7 +21,7 @@ import numpy as np
 from .photos import caption_panel, contact_sheet
 
 if TYPE_CHECKING:
-    from .result import FrameResult
+    from .frame.result import FrameResult
 
 __all__ = ["Sheet", "results_sheet"]
 
@@ -44,7 +44,7 @@ def results_sheet(
 
     Parameters
     ----------
-    results : sequence of arshadow.session.FrameResult
+    results : sequence of arshadow.frame.session.FrameResult
     columns : int
         Tiles per row (fewer when there are fewer results).
     width : int

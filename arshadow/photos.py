@@ -31,6 +31,7 @@ import numpy as np
 from .errors import ArshadowError, MarkerNotFoundError
 from .export.layerfiles import check_layer_format, layer_paths, write_layers
 from .export.stmap import stmap, write_stmap
+from .frame.report import ReportItem
 from .io import (
     IMAGE_EXTENSIONS,
     InputGuard,
@@ -40,11 +41,10 @@ from .io import (
     unique_stems,
     write_image,
 )
-from .report import ReportItem
 
 if TYPE_CHECKING:
-    from .result import FrameResult
-    from .session import Session
+    from .frame.result import FrameResult
+    from .frame.session import Session
     from .tracking.pose import MarkerPose
     from .tracking.tracker import MarkerTracker
 
@@ -186,21 +186,21 @@ def render_photo_file(
 
     Parameters
     ----------
-    session : arshadow.session.Session
+    session : arshadow.frame.session.Session
     job : PhotoJob
     buffers : dict, optional
         ``{(H, W): (composite, mask)}`` output buffers reused per photo size (filled as needed).
 
     Returns
     -------
-    arshadow.session.FrameResult
+    arshadow.frame.session.FrameResult
         Its ``item`` has ``output`` (and ``mask``) set; ``composite`` / ``mask`` are in the stored
         orientation (and are the reused buffers).
 
     Raises
     ------
     MarkerNotFoundError, ArshadowError, OSError, cv2.error
-        As :meth:`arshadow.session.Session.process` and the reading / writing.
+        As :meth:`arshadow.frame.session.Session.process` and the reading / writing.
     """
     image = read_image(job.input)
     orientation = exif_orientation(job.input)  # processed as stored (the calibration's frame)
@@ -252,7 +252,7 @@ def render_photos(
 
     Parameters
     ----------
-    session : arshadow.session.Session
+    session : arshadow.frame.session.Session
     jobs : list of PhotoJob
     debug : bool
         Re-raise errors other than a missing marker (tracebacks).

@@ -2,7 +2,7 @@
 
     python samples/make_light_sample.py
 
-A photo made by arshadow's own lit generator (:func:`arshadow.synth_lit.render_lit_photo`): the 5 cm marker
+A photo made by arshadow's own lit generator (:func:`arshadow.synth.lit.render_lit_photo`): the 5 cm marker
 on the textured floor, a 5 x 5 x 10 cm grey box (the probe) beside it casting its real shadow under a sun-like
 directional light and a bluish sky (ambient), exposed at 0.7 with a warm white balance, mild blur, noise and
 JPEG. ``light_probe.json`` holds the probe's placement (what ``arshadow light`` is told), the virtual object
@@ -56,9 +56,9 @@ LIGHT = dict(
 
 def make(out_dir: Path = HERE) -> dict:
     sys.path.insert(0, str(ROOT))
-    from arshadow.camera import Intrinsics
-    from arshadow.synth import look_at_pose
-    from arshadow.synth_lit import light_vector, render_lit_photo
+    from arshadow.camera.model import Intrinsics
+    from arshadow.synth.lit import light_vector, render_lit_photo
+    from arshadow.synth.markers import look_at_pose
 
     intr = Intrinsics.from_file(ROOT / SAMPLE["calib"])
     pose = look_at_pose(EYE, TARGET)

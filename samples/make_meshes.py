@@ -2,7 +2,7 @@
 
     python samples/make_meshes.py
 
-- ``knot.ply``: a (2, 3) torus-knot tube, 194 x 22 quads = 8 536 triangles (the size of paper 003's AR
+- ``knot.ply``: a (2, 3) torus-knot tube, 194 x 22 quads = 8 536 triangles (the size of [Kolivand-DeltaPlus]'s AR
   scene), closed, non-convex, with a colour gradient along the tube; about 0.12 m across, resting on
   the ground.
 - ``house.obj``: a low-poly house (walls + gable roof as one closed pentagonal prism, plus a closed box

@@ -96,8 +96,8 @@ MARKER = {"marker_length": 0.05, "dictionary": "DICT_6X6_250", "marker_id": 0}
 
 def make(out_dir: Path = HERE) -> list[dict]:
     sys.path.insert(0, str(ROOT))
-    from arshadow.camera import Intrinsics
-    from arshadow.synth import look_at_pose, render_marker_photo
+    from arshadow.camera.model import Intrinsics
+    from arshadow.synth.markers import look_at_pose, render_marker_photo
 
     scenes = []
     for sc in SCENES:

@@ -70,7 +70,7 @@ def _gl_guard(request, monkeypatch):
 
 @dataclass(frozen=True)
 class Tolerances:
-    # tracking (issue 2)
+    # tracking (the tracking acceptance tests)
     corner_px: float = 1.0  # OpenCV's own test tolerance on realdata corners
     calib_focal_rel: float = 0.005  # fx, fy within 0.5 %
     calib_center_px: float = 2.0  # cx, cy within 2 px
@@ -98,14 +98,14 @@ class Tolerances:
     board_vs_marker_rot_ratio: float = 0.5  # board median rotation error < this x single marker's
     calib_extrinsic_rot_deg: float = 0.1  # per-view board pose vs OpenCV's reference calibration
     calib_extrinsic_mm: float = 0.5
-    # geometry (issue 3)
+    # geometry (the geometry core)
     footprint_iou: float = 0.9999
     # faces whose facing may flip between a light at 1e6 m and the same direction at infinity: |cos| of the
     # angle between face normal and light below mesh size / 1e6 (~1e-7), bounded here with margin
     grazing_far_light_cos: float = 1e-6
     # faces whose facing may flip when the mesh is scaled by 1e-3/1e3 or moved 1 km: rounding-level grazing
     grazing_rescaled_cos: float = 1e-9
-    # compositor (issue 4)
+    # compositor (the compositor)
     shadow_iou_median: float = 0.99
     shadow_iou_worst: float = 0.97
     shadow_boundary_px: float = 0.25
@@ -115,7 +115,7 @@ class Tolerances:
     phong_shadow_atol: float = 2e-3  # linear colour of a self-shadowed face vs ambient only
     phong_lit_atol: float = 5e-3  # linear colour of a lit face vs ambient + diffuse
     roi_vs_full_px: int = 10  # mismatched pixels between a sub-canvas render and the full render
-    # shadow-map baseline (issue 11) at 4096 texels, PCF 3x3: measured IoU 0.99984 (box, point light) and
+    # shadow-map baseline (the benchmarks' brief) at 4096 texels, PCF 3x3: measured IoU 0.99984 (box, point light) and
     # 0.99983 (wall, low sun, camera in its shadow) on llvmpipe; the stencil path is exact (IoU 1)
     shadowmap_iou_4096: float = 0.999
     aa_error_ratio: float = 0.6  # anti-aliased mask's coverage error must be below this share of no-AA's
@@ -123,14 +123,14 @@ class Tolerances:
     remap_step_px: float = 1 / 32  # cv2.remap's sub-pixel coordinate quantisation
     lens_roi_slack_px: int = 40  # distorted ROI may exceed the content's box by two 8-px tiles and slack
     lens_warp_disk_iou: float = 0.995  # warped pinhole disk vs the analytically distorted disk
-    gpu_compose_levels: int = 1  # shader compose vs numpy compose, per channel / mask value (issue 10)
+    gpu_compose_levels: int = 1  # shader compose vs numpy compose, per channel / mask value (the planner)
     # window search vs full-frame search of the same photo: corner refinement sees a cropped image (measured
     # 2e-7 in the pose matrix entries)
     tracking_window_pose_atol: float = 1e-5
-    plan_mask_iou: float = 0.999  # planner's auto plan vs the general (reference) plan (issue 10)
+    plan_mask_iou: float = 0.999  # planner's auto plan vs the general (reference) plan (the planner)
     fast_detector_distance_rel: float = 0.01  # fast detection pass: camera position error / distance
     fallback_detector_distance_rel: float = 0.02  # full-search fallback: distance error / distance
-    # lights (issue 5)
+    # lights (the lights work)
     sun_median_deg: float = 0.01
     sun_max_deg: float = 0.05
     penumbra_rel: float = 0.15
@@ -140,7 +140,7 @@ class Tolerances:
     penumbra_profile_64: float = 0.1  # rendered profile vs exact disc profile, 64 samples (measured 0.04)
     penumbra_1090_rel: float = 0.05  # 10-90 % penumbra width of the sampled disc vs exact (256 samples)
     penumbra_centre_rel: float = 0.02  # 50 % crossing of a sampled sun cone vs the centre direction's shadow
-    # stress suite (issue 12)
+    # stress suite (the stress suite)
     stress_stack_iou: float = 0.99  # stacked plates (10..300 layers) vs the oracle at 200x150
     stress_f32_pixels: int = 3  # boundary pixels that may flip between float32-exact and float64 vertices
     stress_far_iou: float = 0.99  # box 1 km away, infinite far plane, vs the oracle
@@ -150,10 +150,10 @@ class Tolerances:
     stress_sliver_edge_px: float = 0.01
     stress_track_rot_deg: float = 2.0  # tracking stress: a confident (unflagged) pose must be this close
     contact_seam_mean: float = 0.03  # mean signed error (share of the photo's light) over contact pixels
-    # video chunks (issue 18): a chunk's exposure smoothing (a one-pole filter, 0.82 per frame) starts from
+    # video chunks (the long-video work): a chunk's exposure smoothing (a one-pole filter, 0.82 per frame) starts from
     # its 50-frame primer, not from the whole history: 5e-5 of the first difference is left (measured 1.4e-6)
     chunk_exposure_gain_rel: float = 1e-5
-    # browser preview (issue 30): the dragged object's saved place vs the ground point under the target pixel
+    # browser preview (the preview work): the dragged object's saved place vs the ground point under the target pixel
     # (back-projected in the test with OpenCV's undistortPoints); the issue's bound
     preview_place_mm: float = 1.0
     # its draft frames (an equivalent camera and lights, arshadow/preview/draft.py) vs the exact render of the
@@ -161,7 +161,7 @@ class Tolerances:
     # directional light, composite levels (measured 0 for a drag, 2 for a turn)
     preview_draft_mask_px: int = 10
     preview_draft_levels: int = 2
-    # shading (issue 28): corner normals, sky visibility, materials, camera effects
+    # shading (the realism work): corner normals, sky visibility, materials, camera effects
     normal_flat_deg: float = 1e-6  # a flat face's corner normals vs its face normal (exact up to rounding)
     normal_sphere_deg: float = 0.5  # icosphere (1280 faces) corner normals vs the radial direction (0.30 measured)
     sky_ground_abs: float = 0.015  # ground sky visibility (256 directions, 256^2 texels) vs Lambert (0.010 measured)
@@ -175,9 +175,9 @@ class Tolerances:
     sky_projection_abs: float = 0.02  # rendered sky-occlusion channel vs the map sampled at the pixel's ground point
     texture_median_abs: float = 0.01  # rendered textured quad vs cv2.warpPerspective of its texture (linear)
     texture_p99_abs: float = 0.05
-    # the render seam (issue 27): a colour written into the RGBA16F colour attachment (11-bit mantissa)
+    # the render seam (the layout work): a colour written into the RGBA16F colour attachment (11-bit mantissa)
     half_float_rel: float = 2.0**-10
-    # path-traced reference (issue 28 item 4, tests/test_reference.py, docs/reference.md). Camera: the Mitsuba
+    # path-traced reference (the realism work, tests/test_reference.py, docs/reference.md). Camera: the Mitsuba
     # plate's paper against arshadow's exact render of the print (measured: own set shift <= 0.035 px, scale
     # <= 1e-4; held-out cameras up to 0.10 px and 0.11 %, unexplained: estimator bias or a residual mismatch).
     # Detected corners (a detector's view, biased by the image's lighting and noise): on the plate against
@@ -207,14 +207,14 @@ class Tolerances:
     ref_heldout_ground: float = 0.28
     ref_heldout_contact: float = 0.398
     ref_heldout_object: float = 0.163
-    # marker maps (issue 29): learned marker poses against the generating poses (the issue's figures)
+    # marker maps (the marker-map work): learned marker poses against the generating poses (the issue's figures)
     map_marker_median_mm: float = 1.0
     map_marker_median_deg: float = 0.2
     map_vs_single_rot_ratio: float = 0.5  # camera rotation error with the map <= half the single marker's
     map_real_rigid_mm: float = 1.0  # real sheet: inter-marker distances of maps from disjoint halves agree
     map_layout_median_mm: float = 0.5  # chessboard clip: centre distances vs the printed layout (0.23)
     map_layout_max_mm: float = 1.5  # (measured 0.81)
-    # light estimate, never confidently wrong (issue 26 items 2-4)
+    # light estimate, never confidently wrong (the trust fixes items 2-4)
     light_confident_deg: float = 3.0  # a confident light must be this close (the issue's bar)
     light_hidden_deg: float = 1.0  # a partly hidden shadow's direction (the issue's median bar, one case)
     light_point_distance_rel: float = 0.05  # a point light's position error / distance: the issue's median bar

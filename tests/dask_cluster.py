@@ -143,8 +143,8 @@ def make_clips(folder, n_videos: int = 3, n: int = 36, gop: int = 12) -> list:
     its own camera path."""
     from video_clips import make_clip
 
-    from arshadow.camera import Intrinsics
-    from arshadow.synth import camera_path
+    from arshadow.camera.model import Intrinsics
+    from arshadow.synth.markers import camera_path
 
     intr = Intrinsics.from_file(CALIB)
     folder = Path(folder)

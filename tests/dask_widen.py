@@ -1,5 +1,5 @@
 """Dask worker preload (``dask worker --preload tests/dask_widen.py``): widens the window of the chunk-store
-race (issue 31 item 1) on real worker processes, so that a test sees it in every run instead of one in nine.
+race (the cluster and flags work) on real worker processes, so that a test sees it in every run instead of one in nine.
 
 - after a video's join removes its own chunk folder, it waits (up to :data:`WAIT_S`) until the shared
   ``OUT/.arshadow-chunks`` holds no other video's folder: the joins of two videos then go on together;

@@ -1,4 +1,4 @@
-"""A synthetic clip of loose markers with known poses (issue 29: the marker map's truth).
+"""A synthetic clip of loose markers with known poses (the marker-map work: the marker map's truth).
 
 Six markers (DICT_6X6_250, ids 3, 5, 8, 12, 17, 21, side :data:`LENGTH`) lie scattered on the ground, some
 tilted a few degrees (paper curls); a camera pans across them so that markers leave and enter the view, and
@@ -16,8 +16,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from arshadow.camera import Intrinsics
-from arshadow.synth_poses import look_at_pose
+from arshadow.camera.model import Intrinsics
+from arshadow.synth.poses import look_at_pose
 
 IDS = (3, 5, 8, 12, 17, 21)
 LENGTH = 0.06

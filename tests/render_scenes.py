@@ -23,7 +23,7 @@ class Scene:
 
 
 def intrinsics(fx):
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
 
     return Intrinsics(fx=fx, fy=fx, cx=(W - 1) / 2 + 3.3, cy=(H - 1) / 2 - 2.7, width=W, height=H, dist=np.zeros(0))
 
@@ -47,7 +47,7 @@ def nonconvex_blob():
 
 def scenes():
     from arshadow.geometry.mesh import ShadowCaster, load_occluder
-    from arshadow.synth import look_at_pose
+    from arshadow.synth.markers import look_at_pose
 
     box = load_occluder("box:0.1,0.08,0.15")
     t = load_occluder("torus:0.08,0.03", rotate=(60, 0, 0))

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from oracle import profile_crossing
 
-from arshadow.render_api import RenderRequest
+from arshadow.renderer.request import RenderRequest
 
 F_PX, D = 2000.0, 1.0  # focal length (px) and camera height (m)
 W, H_IMG = 640, 240  # ground x in [-0.16, 0.16] m at 0.5 mm per pixel

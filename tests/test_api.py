@@ -1,4 +1,4 @@
-"""The Python API (issue 8): scene specs, Session, the pure planner, the renderer interface, history state.
+"""The Python API (the Python API work): scene specs, Session, the pure planner, the renderer interface, history state.
 
 Ground truth is independent of the code under test: the synthetic photos' generating poses, analytic
 projections of the box's corners, and equality between two routes through the pipeline that share no
@@ -44,8 +44,8 @@ def _volume_spec():
 
 
 def _photo(eye=(0.1, -0.3, 0.4), seed=1):
-    from arshadow.camera import Intrinsics
-    from arshadow.synth import look_at_pose, render_marker_photo
+    from arshadow.camera.model import Intrinsics
+    from arshadow.synth.markers import look_at_pose, render_marker_photo
 
     cam = Intrinsics.from_file(CALIB)
     truth = look_at_pose(list(eye), [0.0, 0.0, 0.0])
@@ -68,7 +68,7 @@ def test_import_arshadow_loads_no_opengl():
     r = _run(
         "import sys, arshadow\n"
         "arshadow.Session, arshadow.SceneSpec, arshadow.scene_from_dict, arshadow.render_photo, arshadow.synth\n"
-        "import arshadow.plan, arshadow.execute, arshadow.render_api, arshadow.session, arshadow.engine\n"
+        "import arshadow.plan, arshadow.frame.execute, arshadow.renderer.request, arshadow.frame.session, arshadow.frame.hooks\n"
         "bad = [m for m in sys.modules if m.startswith('moderngl') or m.startswith('arshadow.gl')]\n"
         "assert not bad, bad\nprint('ok')"
     )
@@ -133,7 +133,7 @@ print("ok")
 
 def test_light_pass_carries_the_planar_matrix():
     from arshadow.geometry.projection import GROUND_PLANE, planar_shadow_matrix
-    from arshadow.render_api import LightPass
+    from arshadow.renderer.request import LightPass
 
     lh = np.array([0.1, 0.2, 0.5, 1.0])
     p = LightPass(lh, 1.0, None, "planar")
@@ -150,7 +150,7 @@ def test_light_pass_carries_the_planar_matrix():
 # ------------------------------------------------------------------------------------------ scene specs
 def test_scene_from_yaml_json_and_python_are_equal(tmp_path):
     import arshadow
-    from arshadow.scene import ModelSpec, RenderOptions, SceneSpec, TrackerSpec, load_scene, scene_from_dict
+    from arshadow.scene.spec import ModelSpec, RenderOptions, SceneSpec, TrackerSpec, load_scene, scene_from_dict
 
     calib_dir = tmp_path / "cal"
     calib_dir.mkdir()
@@ -191,7 +191,7 @@ def test_scene_from_yaml_json_and_python_are_equal(tmp_path):
 
 def test_scene_errors_are_usage_errors(tmp_path):
     from arshadow.errors import CalibrationError, UsageError
-    from arshadow.scene import load_scene, scene_from_dict
+    from arshadow.scene.spec import load_scene, scene_from_dict
 
     with pytest.raises(UsageError, match="unknown scene key"):
         scene_from_dict({**SCENE, "ligths": ["point:0,0,1"]})
@@ -306,7 +306,7 @@ def test_a_renderer_without_raw_layers_plugs_in_and_agrees(gl_ctx, tol):
 
     import arshadow
     from arshadow.gl.stencil import ShadowRenderer
-    from arshadow.render_api import Renderer, RendererBase
+    from arshadow.renderer.request import Renderer, RendererBase
 
     class NoLayers(RendererBase):  # the capabilities' defaults: no GPU layers
         def __init__(self, ctx, options):
@@ -363,7 +363,7 @@ def test_sun_track_state_resumes_the_recompute_schedule():
 
 
 def test_marker_tracker_detector_option():
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
     from arshadow.errors import UsageError
     from arshadow.tracking.fastdetect import HalfResolutionDetector
     from arshadow.tracking.tracker import MarkerTracker

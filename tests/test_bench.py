@@ -50,7 +50,7 @@ def test_bench_quick(tmp_path, gl_ctx):
     assert any(r["config"].startswith("shadow map 8192") for r in rnd)
     for r in rnd:
         assert float(r["area_ratio"]) >= 0.0
-    # the thin card (issue 11: pyrender loses its shadow-map shadow at >= 4096 texels): stencil and shadow-map
+    # the thin card (the benchmarks' brief: pyrender loses its shadow-map shadow at >= 4096 texels): stencil and shadow-map
     # rows against its exact shadow, the map's texel recorded, the summary's verdict present
     card = [r for r in rnd if r["scene"].startswith("thin card")]
     assert {r["family"] for r in card} == {"stencil", "planar", "shadow map", "shadow map, bias off"}

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from conftest import TOL
 
-from arshadow.camera import Intrinsics
+from arshadow.camera.model import Intrinsics
 from arshadow.errors import CalibrationError, UsageError
-from arshadow.synth import random_pose, render_marker_photo
+from arshadow.synth.markers import random_pose, render_marker_photo
 from arshadow.tracking.board import Board
 from arshadow.tracking.calibration import MIN_VIEWS, calibrate, find_view, parse_pattern
 

@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from arshadow.camera import Intrinsics, distort_normalized, undistort_normalized
+from arshadow.camera.model import Intrinsics, distort_normalized, undistort_normalized
 from arshadow.errors import CalibrationError
 from arshadow.transforms import CV_TO_GL, matrix_from_rvec_tvec
 

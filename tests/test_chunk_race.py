@@ -1,4 +1,4 @@
-"""The shared chunk-store folder ``OUT/.arshadow-chunks`` under concurrent videos (issue 31 item 1).
+"""The shared chunk-store folder ``OUT/.arshadow-chunks`` under concurrent videos (the cluster and flags work).
 
 Every video of a batch keeps its finished chunks in ``OUT/.arshadow-chunks/<stem>-<fp>/``; the video's
 join removes its own folder and then the shared parent when it is empty. On a cluster, videos open and

@@ -1,4 +1,4 @@
-"""``arshadow render --layers`` (issue 19): the files, their recombination, bad input, progress and summary.
+"""``arshadow render --layers`` (the compositing-layers work): the files, their recombination, bad input, progress and summary.
 
 Ground truth: the composite ``arshadow render`` wrote; the recombination is float64 from the sRGB formula
 (tests/test_layers.py's helpers), not the module's tables.
@@ -37,8 +37,8 @@ SCENE = [
 
 @pytest.fixture(scope="module")
 def photos(tmp_path_factory, gl_ctx):
-    from arshadow.camera import Intrinsics
-    from arshadow.synth import look_at_pose, render_marker_photo
+    from arshadow.camera.model import Intrinsics
+    from arshadow.synth.markers import look_at_pose, render_marker_photo
 
     d = tmp_path_factory.mktemp("inputs")
     intr = Intrinsics.from_file(CALIB)
@@ -160,7 +160,7 @@ def test_render_layers_undistorted_writes_the_pinhole_layers_and_the_stmap(photo
     st = cv2.imread(str(out / "p0.stmap.png"), cv2.IMREAD_UNCHANGED)
     assert st.dtype == np.uint16 and st.shape == (720, 1280, 3) and np.all(st[..., 0] == 0)  # B = 0
     # the principal point maps to itself (no distortion there): s = (cx + 0.5) / W
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
 
     intr = Intrinsics.from_file(CALIB)
     u, v = round(intr.K[0, 2]), round(intr.K[1, 2])

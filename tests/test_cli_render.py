@@ -26,8 +26,8 @@ def _digest(folder: Path) -> dict:
 @pytest.fixture(scope="module")
 def photos(tmp_path_factory, gl_ctx):
     """A folder of inputs: two good photos (one at half size: same aspect), and bad ones."""
-    from arshadow.camera import Intrinsics
-    from arshadow.synth import look_at_pose, render_marker_photo
+    from arshadow.camera.model import Intrinsics
+    from arshadow.synth.markers import look_at_pose, render_marker_photo
 
     d = tmp_path_factory.mktemp("inputs")
     intr = Intrinsics.from_file(CALIB)

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 from conftest import TOL
 
-from arshadow.camera import Intrinsics
+from arshadow.camera.model import Intrinsics
 from arshadow.cli import main
 from arshadow.cli.marker import read_png_dpi
-from arshadow.synth import look_at_pose, render_marker_photo
+from arshadow.synth.markers import look_at_pose, render_marker_photo
 from arshadow.transforms import rotation_error_deg
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -88,7 +88,7 @@ def test_occluder_over_premultiplied_and_straight():
     color = np.array([[[0.5, 0.25, 0.0], [0.5, 0.25, 0.0]]], np.float32)  # linear RGB
     alpha = np.array([[1.0, 0.5]], np.float32)
     # fully blocked ground wherever the ground is seen: the mask is coverage-weighted like the renderer's
-    # (0 under the object, 1 - alpha where alpha is partial); it was 1 everywhere before issue 12's fix
+    # (0 under the object, 1 - alpha where alpha is partial); it was 1 everywhere before the stress suite ('s)'s fix
     mask = np.array([[0.0, 0.5]], np.float32)
     out = composite(photo, mask, color=color, alpha=alpha, opacity=0.5, premultiplied=False)
     bg = _lin(100) * 0.5

@@ -1,4 +1,4 @@
-"""Batches on a real Dask cluster under races and faults (issue 31 items 1-2).
+"""Batches on a real Dask cluster under races and faults (the cluster and flags work items 1-2).
 
 The cluster is ``dask scheduler`` + ``dask worker --nworkers 2`` started as separate processes on
 127.0.0.1 (tests/dask_cluster.py), not a LocalCluster. Ground truth is the one-process run of the same
@@ -47,7 +47,7 @@ def batch3(tmp_path_factory):
 
 
 def _spec_opts():
-    from arshadow.scene import scene_from_dict
+    from arshadow.scene.spec import scene_from_dict
     from arshadow.video.engine import EngineOptions
 
     return scene_from_dict(JOB), EngineOptions(mask="mkv", contact_sheet=0)
@@ -163,7 +163,9 @@ def test_scheduler_killed_fails_in_one_line_and_the_rerun_resumes(tmp_path, batc
         assert proc.poll() is None, "the batch ended before the scheduler could be killed"
         cl.kill_scheduler()
         _, err = proc.communicate(timeout=120)
-    lines = [ln for ln in err.splitlines() if ln.strip() and ": warning: " not in ln]  # flagged poses: issue 31.3
+    lines = [
+        ln for ln in err.splitlines() if ln.strip() and ": warning: " not in ln
+    ]  # flagged poses: the cluster and flags work.3
     assert proc.returncode == 1, err
     assert len(lines) == 1, err
     assert "scheduler" in lines[0] and "was lost" in lines[0] and "rerun the same command" in lines[0]

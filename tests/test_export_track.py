@@ -1,4 +1,4 @@
-"""Camera-track export (issue 19 item 2): the exported camera reprojects the detected marker corners.
+"""Camera-track export (the compositing-layers work): the exported camera reprojects the detected marker corners.
 
 The files are parsed independently of the writer: glTF with pygltflib (and trimesh loads it), JSON with
 json, CSV with csv. The camera pose is rebuilt from the parsed glTF node hierarchy and animation (root
@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 import pytest
 
-from arshadow.camera import Intrinsics
+from arshadow.camera.model import Intrinsics
 from arshadow.export.track import (
     CameraTrack,
     TrackFrame,
@@ -97,7 +97,7 @@ def _gltf_projections(path):
 @pytest.mark.parametrize("calib", ["synth_1280x720.yml", "synth_1280x720_k1.yml"])
 def test_gltf_camera_reprojects_the_detected_corners(gl_ctx, tmp_path, calib):
     import arshadow
-    from arshadow.synth import look_at_pose, render_marker_photo
+    from arshadow.synth.markers import look_at_pose, render_marker_photo
 
     intr = Intrinsics.from_file(str(ROOT / "calib" / calib))
     scene = arshadow.scene_from_dict(
@@ -137,7 +137,7 @@ def test_gltf_camera_reprojects_the_detected_corners(gl_ctx, tmp_path, calib):
 
 
 def _lost_track(intr):
-    from arshadow.synth import look_at_pose
+    from arshadow.synth.markers import look_at_pose
 
     poses = [look_at_pose([0.1 * np.cos(a), 0.3 * np.sin(a) - 0.1, 0.4], [0, 0, 0]) for a in np.linspace(0, 1, 6)]
     status = ["lost", "tracked", "tracked", "lost", "held", "tracked"]
@@ -191,7 +191,7 @@ def test_ground_scene_exports_the_camera_in_the_ground_frame():
     ``cam_from_marker @ marker_from_ground``: the ground's origin and up axis land where the marker pose puts
     the plane's point and normal (given in the marker frame by the spec), not at the marker's own origin."""
     from arshadow.geometry.ground import parse_ground
-    from arshadow.synth import look_at_pose
+    from arshadow.synth.markers import look_at_pose
     from arshadow.transforms import rvec_tvec_from_matrix
 
     intr = Intrinsics.from_file(str(ROOT / "calib" / "synth_1280x720.yml"))

@@ -1,6 +1,6 @@
-"""The exposure / white-balance match on the default render path (issue 17 item 1).
+"""The exposure / white-balance match on the default render path (the light estimate).
 
-Truth: :func:`arshadow.synth_lit.render_lit_photo` records the lit paper as ``paper_linear`` = the camera's
+Truth: :func:`arshadow.synth.lit.render_lit_photo` records the lit paper as ``paper_linear`` = the camera's
 gains x the paper's reflectance x (ambient + direct sin(elevation)), from its own parameters (never from
 the measurement). A white (255) virtual box lit like the paper must come out with that linear RGB.
 """
@@ -11,12 +11,12 @@ import cv2
 import numpy as np
 import pytest
 
-from arshadow.camera import Intrinsics
+from arshadow.camera.model import Intrinsics
 from arshadow.compose.composite import SRGB_TO_LINEAR
-from arshadow.scene import scene_from_dict
-from arshadow.session import Session
-from arshadow.synth import look_at_pose
-from arshadow.synth_lit import light_vector, render_lit_photo
+from arshadow.frame.session import Session
+from arshadow.scene.spec import scene_from_dict
+from arshadow.synth.lit import light_vector, render_lit_photo
+from arshadow.synth.markers import look_at_pose
 
 CALIB = "calib/synth_1280x720.yml"
 pytestmark = pytest.mark.gl

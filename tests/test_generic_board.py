@@ -1,5 +1,5 @@
 """Generic boards (markers at known 3D corners), ArUco layout files, inverted markers, and the detector
-fixes of issue 21 (luma range, AprilTag losses, the second search), on synthetic photos with known truth."""
+fixes of the real-footage work (luma range, AprilTag losses, the second search), on synthetic photos with known truth."""
 
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ import cv2
 import numpy as np
 import pytest
 
-from arshadow.camera import Intrinsics
+from arshadow.camera.model import Intrinsics
 from arshadow.errors import MarkerNotFoundError, UsageError
-from arshadow.synth import look_at_pose, render_marker_photo
+from arshadow.synth.markers import look_at_pose, render_marker_photo
 from arshadow.tracking.board import OPENCV_BOARD_TO_WORLD, Board, load_board, read_aruco_layout
 from arshadow.tracking.detect import AprilTagDetector, RescueDetector, luma_to_gray, make_detector_params
 from arshadow.tracking.tracker import MarkerTracker
@@ -159,7 +159,7 @@ def test_rescue_detector_runs_a_second_search_only_on_a_miss():
 
 
 # ---------------------------------------------------------------------------------------------------
-# issue 20's tracking messages: other dictionaries named, flag reasons with numbers, board units
+# the sanity gates ('s)'s tracking messages: other dictionaries named, flag reasons with numbers, board units
 # ---------------------------------------------------------------------------------------------------
 def test_no_marker_names_the_dictionaries_in_the_photo():
     photo = render_marker_photo(

@@ -14,7 +14,7 @@ from arshadow.gl import context as glc
 
 def test_import_creates_no_context():
     code = (
-        "import sys, arshadow.gl, arshadow.gl.context, arshadow.gl.renderer, arshadow.gl.stencil, arshadow.gl.resources, arshadow.gl.shadowmap, arshadow.gl.compose, arshadow.gl.glraw\n"
+        "import sys, arshadow.gl, arshadow.gl.context, arshadow.gl.stencil, arshadow.gl.resources, arshadow.gl.shadowmap, arshadow.gl.gpu_compose, arshadow.gl.glraw\n"
         "assert 'moderngl' not in sys.modules, 'moderngl imported at import time'\n"
         "import arshadow.gl.glraw as g; assert g._GL is None\n"
     )

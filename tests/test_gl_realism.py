@@ -1,4 +1,4 @@
-"""GL side of issue 28: the ground occlusion map projected per frame (sky occlusion channel), the object's
+"""GL side of the realism work: the ground occlusion map projected per frame (sky occlusion channel), the object's
 sky shading, and base-colour textures, against independent computations."""
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ DATA = Path(__file__).parent / "data" / "textured"
 
 
 def _K(fx=700.0):
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
 
     return Intrinsics(fx=fx, fy=fx, cx=(W - 1) / 2, cy=(H - 1) / 2, width=W, height=H, dist=np.zeros(0))
 
@@ -33,7 +33,7 @@ def _renderer(ctx):
 def _render(r, caster, pose, *, sky=None, light=(0.3, -0.2, 1.0, 0.0), **shading):
     from arshadow.geometry.silhouette import silhouette
     from arshadow.geometry.volume import shadow_volume
-    from arshadow.render_api import LightPass, RenderRequest, Shading
+    from arshadow.renderer.request import LightPass, RenderRequest, Shading
     from arshadow.transforms import CV_TO_GL
 
     lh = np.asarray(light, np.float64)
@@ -61,7 +61,7 @@ def _pixel(pose, xyz):
 def test_contact_darker_than_open_ground_with_ao_and_equal_without(ctx):
     from arshadow.geometry.mesh import load_occluder
     from arshadow.shading.sky import SkyShading, ground_sky_visibility
-    from arshadow.synth import look_at_pose
+    from arshadow.synth.markers import look_at_pose
 
     box = load_occluder("box:0.045,0.065,0.07")
     pose = look_at_pose([0.0, -0.35, 0.3], [0.0, 0.0, 0.02])
@@ -94,7 +94,7 @@ def test_object_sky_shading_vertical_face_half_of_top(ctx):
     # ambient x sky visibility x albedo: top (V = 1) vs side (V = 1/2 under a uniform sky)
     from arshadow.geometry.mesh import load_occluder
     from arshadow.shading.sky import SkyShading
-    from arshadow.synth import look_at_pose
+    from arshadow.synth.markers import look_at_pose
 
     box = load_occluder("box:0.06,0.06,0.06")
     pose = look_at_pose([0.0, -0.3, 0.25], [0.0, 0.0, 0.03])
@@ -120,7 +120,7 @@ def test_textured_quad_matches_the_projected_texture(ctx):
     # homography of the square's plane (cv2.warpPerspective), in linear light.
     pytest.importorskip("PIL")
     from arshadow.geometry.mesh import load_occluder
-    from arshadow.synth import look_at_pose
+    from arshadow.synth.markers import look_at_pose
 
     quad = load_occluder(DATA / "quad.glb", place=(0.0, 0.0, 0.001))
     pose = look_at_pose([0.05, -0.2, 0.25], [0.0, 0.0, 0.0])

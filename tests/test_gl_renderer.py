@@ -22,7 +22,7 @@ import pytest
 from image_oracle import ShadowOracle, boundary_distance, iou
 from render_scenes import ZNEAR, H, Scene, W, intrinsics, scenes
 
-from arshadow.render_api import RenderRequest, Shading
+from arshadow.renderer.request import RenderRequest, Shading
 
 pytestmark = pytest.mark.gl
 
@@ -226,7 +226,7 @@ def test_self_shadowing(ctx, tol):
     from arshadow.geometry.silhouette import silhouette
     from arshadow.geometry.volume import shadow_volume
     from arshadow.gl.stencil import LightPass, ShadowRenderer
-    from arshadow.synth import look_at_pose
+    from arshadow.synth.markers import look_at_pose
     from arshadow.transforms import CV_TO_GL
 
     tall = load_occluder("box:0.04,0.2,0.3", place=(-0.06, 0, 0))
@@ -342,7 +342,7 @@ def test_contact_depth_stability(renderer, tol):
     from arshadow.geometry.silhouette import silhouette
     from arshadow.geometry.volume import shadow_volume
     from arshadow.gl.stencil import LightPass
-    from arshadow.synth import look_at_pose
+    from arshadow.synth.markers import look_at_pose
     from arshadow.transforms import CV_TO_GL
 
     rng = np.random.default_rng(7)
@@ -427,7 +427,7 @@ def test_antialiased_mask(ctx, tol, samples, supersample):
 
 
 def test_planar_mode_and_empty_pass(renderer, tol):
-    """Paper 002's projection shadow (mode "planar") gives the same ground mask as the volumes; a pass with
+    """[Kolivand-Stencil]'s projection shadow (mode "planar") gives the same ground mask as the volumes; a pass with
     no volume casts nothing but still lights the occluder."""
     from arshadow.gl.stencil import LightPass
     from arshadow.transforms import CV_TO_GL

@@ -1,4 +1,4 @@
-"""The GPU-resident compose path (arshadow/gl/compose.py) against the numpy path (lens warp + composite).
+"""The GPU-resident compose path (arshadow/gl/gpu_compose.py) against the numpy path (lens warp + composite).
 
 Both paths are fed the same render of the same canvas; the numpy path's result is the reference (it is
 tested against hand values and analytic oracles in test_composite.py / test_lens.py / test_pipeline.py).
@@ -11,18 +11,18 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from arshadow.render_api import RenderRequest
+from arshadow.renderer.request import RenderRequest
 
 W, H = 1280, 720
 
 
 def _rendered(res):
-    """A :class:`arshadow.session.FrameResult` as ``(composite, mask, report item)``."""
+    """A :class:`arshadow.frame.session.FrameResult` as ``(composite, mask, report item)``."""
     return res.composite, res.mask, res.item
 
 
 def _intrinsics(dist=()):
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
 
     return Intrinsics(1000.0, 1000.0, 641.3, 358.2, W, H, np.asarray(dist, float))
 
@@ -35,11 +35,11 @@ def _photo(seed=3):
 
 
 def _both_paths(ctx, compose, *, dist, aa, caster_spec, light, eye, target, **opts):
+    from arshadow.frame.session import Session
     from arshadow.geometry.mesh import load_occluder
     from arshadow.lights.spec import parse_light
-    from arshadow.scene import RenderOptions, Scene
-    from arshadow.session import Session
-    from arshadow.synth import look_at_pose
+    from arshadow.scene.spec import RenderOptions, Scene
+    from arshadow.synth.markers import look_at_pose
 
     intr = _intrinsics(dist)
     caster = load_occluder(caster_spec)
@@ -115,7 +115,7 @@ def test_gpu_layers_hold_what_the_readback_holds(ctx):
     from arshadow.geometry.silhouette import silhouette
     from arshadow.geometry.volume import shadow_volume
     from arshadow.gl.stencil import LightPass, ShadowRenderer
-    from arshadow.synth import look_at_pose
+    from arshadow.synth.markers import look_at_pose
     from arshadow.transforms import CV_TO_GL
 
     intr = _intrinsics()
@@ -153,7 +153,7 @@ def test_gpu_layers_hold_what_the_readback_holds(ctx):
 def test_path_chooser_times_both_and_keeps_the_faster():
     import time
 
-    from arshadow.gl.compose import PathChooser
+    from arshadow.gl.gpu_compose import PathChooser
 
     calls = []
 
@@ -172,7 +172,7 @@ def test_path_chooser_times_both_and_keeps_the_faster():
     assert ch.decisions["k"]["choice"] == "fast" and ch.decisions["k"]["ms"]["slow"] >= 4.0
     calls.clear()
     assert ch.run("k", {"slow": slow, "fast": fast}) == ("fast", "f") and calls == ["fast"]
-    from arshadow.gl.compose import SHARED_DECISIONS
+    from arshadow.gl.gpu_compose import SHARED_DECISIONS
 
     assert PathChooser(decisions=SHARED_DECISIONS).decisions is SHARED_DECISIONS
     forced = PathChooser(force="slow")
@@ -183,12 +183,12 @@ def test_in_place_composite_while_the_chooser_times_both_paths(ctx, tol):
     """The video engine composites in place (out is the decoded frame). On a session's first frame the
     chooser runs every path several times: each run must start from the untouched photo, not from the
     previous run's composite (the shadow was applied once per run: 17 levels where 88 belong)."""
+    from arshadow.frame.session import Session
     from arshadow.geometry.mesh import load_occluder
-    from arshadow.gl.compose import PathChooser
+    from arshadow.gl.gpu_compose import PathChooser
     from arshadow.lights.spec import parse_light
-    from arshadow.scene import RenderOptions, Scene
-    from arshadow.session import Session
-    from arshadow.synth import look_at_pose
+    from arshadow.scene.spec import RenderOptions, Scene
+    from arshadow.synth.markers import look_at_pose
 
     c = CASES["box_point"]
     intr, caster = _intrinsics(), load_occluder(c["caster_spec"])
@@ -213,7 +213,7 @@ def test_in_place_composite_while_the_chooser_times_both_paths(ctx, tol):
 def test_path_chooser_keeps_the_default_unless_another_is_clearly_faster():
     """The first path is the default: a path within the margin does not displace it (no swapping from run
     to run on noise); one faster by more than the margin does."""
-    from arshadow.gl.compose import PathChooser
+    from arshadow.gl.gpu_compose import PathChooser
 
     now = [0.0]  # a deterministic clock (s): each path advances it by its cost, whatever the machine's load
 

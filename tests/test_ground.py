@@ -1,4 +1,4 @@
-"""A ground that is not the marker plane (issue 20 item 2): ``--ground wall:H`` / ``plane:...``.
+"""A ground that is not the marker plane (the sanity gates): ``--ground wall:H`` / ``plane:...``.
 
 - the pure math (:mod:`arshadow.geometry.ground`): parsing, the frame's axes against a hand-built one,
   rigidity, the refusals (camera below the plane, plane seen edge-on);
@@ -89,7 +89,7 @@ def test_bad_specs_are_refused(bad, match):
 
 
 def test_scene_spec_and_options_carry_the_ground():
-    from arshadow.scene import RenderOptions, scene_from_dict
+    from arshadow.scene.spec import RenderOptions, scene_from_dict
 
     d = {"calib": "c.yml", "marker_length": 0.05, "model": "box:0.1,0.1,0.1", "lights": ["point:0,0,1"]}
     assert scene_from_dict(d).options.ground == "marker"
@@ -114,7 +114,7 @@ def test_a_ground_in_millimetres_warns():
 def test_loading_a_scene_warns_once(caplog):
     from pathlib import Path
 
-    from arshadow.scene import scene_from_dict
+    from arshadow.scene.spec import scene_from_dict
 
     calib = Path(__file__).resolve().parents[1] / "calib" / "synth_1280x720.yml"
     d = {"calib": calib, "marker_length": 0.05, "model": "box:0.1,0.1,0.1", "lights": ["point:0,0,1"]}
@@ -130,7 +130,7 @@ def test_command_line_option():
     import argparse
 
     from arshadow.cli.render import add_scene_options
-    from arshadow.scene import scene_from_args
+    from arshadow.scene.spec import scene_from_args
 
     p = argparse.ArgumentParser()
     add_scene_options(p)
@@ -142,7 +142,7 @@ def test_command_line_option():
 
 
 def test_camera_below_or_edge_on_is_refused():
-    from arshadow.synth import look_at_pose
+    from arshadow.synth.markers import look_at_pose
 
     mfg = _wall_frame(WALL_H)
     gfm = invert_rigid(mfg)
@@ -171,7 +171,7 @@ POSES = [
 
 
 def _scene():
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
     from arshadow.geometry.mesh import load_occluder
     from arshadow.lights.spec import parse_light
 
@@ -183,8 +183,8 @@ def _scene():
 
 
 def _session(ctx, intr, caster, lights, ground, tracker=None, **opts):
-    from arshadow.scene import RenderOptions, Scene
-    from arshadow.session import Session
+    from arshadow.frame.session import Session
+    from arshadow.scene.spec import RenderOptions, Scene
 
     scene = Scene(intr, caster, lights, RenderOptions(ground=ground, **opts), tracker or {"marker_length": MARKER})
     return Session(scene, context=ctx)
@@ -192,7 +192,7 @@ def _session(ctx, intr, caster, lights, ground, tracker=None, **opts):
 
 @pytest.mark.gl
 def test_wall_marker_shadow_on_the_floor(ctx, tol):
-    from arshadow.synth import look_at_pose, render_marker_photo
+    from arshadow.synth.markers import look_at_pose, render_marker_photo
 
     intr, caster, lights = _scene()
     mfg = _wall_frame(WALL_H)  # the truth, built independently of arshadow.geometry.ground
@@ -248,7 +248,7 @@ def test_planner_culls_in_the_ground_frame(ctx):
     oracle agrees that no shadow pixel is in view. With the marker plane as ground the object stands out
     of the wall in front of the marker and its shadow falls on the wall, in view: not culled. The
     decision follows the ground frame."""
-    from arshadow.synth import look_at_pose, render_marker_photo
+    from arshadow.synth.markers import look_at_pose, render_marker_photo
 
     intr, caster, lights = _scene()
     cam_from_ground = look_at_pose([0.0, -0.5, WALL_H], [0.0, 0.0, WALL_H])
@@ -284,7 +284,7 @@ def test_real_charuco_photo_as_a_wall_board(ctx, realdata):
     its left edge (board frame x = -0.02, normal +x; the camera is at board x = 0.13, above that floor):
     the composited shadow against the oracle at the tracked pose composed with a hand-built ground frame,
     seen through the real lens (cv2.undistortPoints)."""
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
     from arshadow.geometry.mesh import load_occluder
     from arshadow.io import read_image
     from arshadow.lights.spec import parse_light

@@ -1,4 +1,4 @@
-"""Hostile files and arguments (issue 12): every kind gets one clear line on stderr naming the problem, the
+"""Hostile files and arguments (the stress suite): every kind gets one clear line on stderr naming the problem, the
 right exit status (CONVENTIONS.md: 1 = some inputs failed, the rest processed; 2 = bad usage or
 configuration), no traceback, no half-written output; merely unusual inputs are accepted.
 
@@ -35,8 +35,8 @@ TALLY: dict[str, list] = {"config (exit 2)": [], "per input (exit 1)": [], "acce
 
 @pytest.fixture(scope="module")
 def good(tmp_path_factory, gl_ctx):
-    from arshadow.camera import Intrinsics
-    from arshadow.synth import look_at_pose, render_marker_photo
+    from arshadow.camera.model import Intrinsics
+    from arshadow.synth.markers import look_at_pose, render_marker_photo
 
     d = tmp_path_factory.mktemp("good")
     intr = Intrinsics.from_file(CALIB)

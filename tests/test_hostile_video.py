@@ -1,4 +1,4 @@
-"""Hostile input for ``arshadow video`` and ``arshadow batch`` (issue 12, the video side of
+"""Hostile input for ``arshadow video`` and ``arshadow batch`` (the stress suite, the video side of
 tests/test_hostile_inputs.py): every kind gets one clear line naming the file or value, the exit status of
 CONVENTIONS.md (1: some inputs failed, the rest processed; 2: bad usage / configuration, before any
 decoding), no traceback, nothing half-written, inputs never modified.
@@ -45,7 +45,7 @@ TALLY: dict[str, list] = {"config (exit 2)": [], "per input (exit 1)": [], "acce
 
 
 def _lines(text):
-    """The non-empty stderr lines, without issue 20's flagged-pose warnings (these small, soft synthetic clips
+    """The non-empty stderr lines, without the sanity gates ('s)'s flagged-pose warnings (these small, soft synthetic clips
     have every pose flagged; those lines are tested in tests/test_user_reports.py)."""
     flagged = re.compile(
         r"arshadow (video|batch): warning: .*(: \d+ of \d+ frames have a flagged pose \(|: flagged pose: )"
@@ -64,9 +64,9 @@ def _temporaries(d):
 @pytest.fixture(scope="module")
 def clips(tmp_path_factory):
     """Good clips of 2, 6 and 12 frames, a photo, and the damaged and hostile files made from them."""
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
     from arshadow.io import write_image
-    from arshadow.synth import camera_path, render_marker_photo
+    from arshadow.synth.markers import camera_path, render_marker_photo
     from arshadow.video.avio import AvReader
 
     d = tmp_path_factory.mktemp("clips")

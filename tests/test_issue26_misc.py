@@ -1,4 +1,4 @@
-"""What a new user hit (issue 26 item 7): each test fails on the code before the fix.
+"""What a new user hit (the trust fixes): each test fails on the code before the fix.
 
 Ground truth is independent of the code under test: file modes from ``os.stat``, a glTF read by its own
 parser (pygltflib), placements computed by hand from the box's dimensions, warnings by their text.
@@ -30,7 +30,7 @@ def _cli(capsys, *argv):
 # ----------------------------------------------------------------------------- flagged-pose warning
 def test_flag_reasons_with_numbers_are_grouped():
     """Reasons that differ only in their numbers ('reprojection error 35.2 px ...') are one kind."""
-    from arshadow.sanity import FlagTally
+    from arshadow.scene.sanity import FlagTally
 
     t = FlagTally()
     for k, e in enumerate([35.2, 164.0, 80.5, 41.0]):
@@ -69,8 +69,8 @@ def test_video_layer_files_are_written_0644(tmp_path, fmt):
 # ----------------------------------------------------------------------------- FrameResult repr
 def test_frame_result_repr_is_short():
     """``print(result)`` names the size, status, camera and timings; it does not dump the arrays."""
-    from arshadow.report import ReportItem, StageTimings
-    from arshadow.result import FrameResult
+    from arshadow.frame.report import ReportItem, StageTimings
+    from arshadow.frame.result import FrameResult
 
     m = np.eye(4)
     m[:3, 3] = [0.0, 0.0, 0.5]  # the camera 0.5 m from the marker, by construction
@@ -281,7 +281,7 @@ def test_a_far_ground_is_one_units_warning_not_two(tmp_path):
 def test_a_y_up_obj_read_z_up_suggests_up_y(tmp_path, caplog):
     """A standing 10 cm tower written Y-up (as Blender exports OBJ), given without --up: it lies on its
     back half under the ground; the warning suggests --up y (not --drop-to-ground). With --up y: none."""
-    from arshadow.scene import scene_from_dict
+    from arshadow.scene.spec import scene_from_dict
 
     obj = _y_up_obj(tmp_path / "tower.obj")
     job = {"calib": str(CALIB), "marker_length": 0.05, "model": str(obj), "lights": ["point:0,0,1"]}
@@ -314,7 +314,7 @@ def test_readme_places_the_knot_tells_where_the_wheel_meshes_are_and_gives_one_s
     knot = [c for c in commands if "samples/meshes/knot.ply" in c]
     assert knot and all("--place" in c for c in knot), knot
     cmd = re.search(
-        r'python3 -c "(from arshadow.resources import samples_dir; print\(samples_dir\(\) / .meshes.\))"', text
+        r'python3 -c "(from arshadow.demo.data import samples_dir; print\(samples_dir\(\) / .meshes.\))"', text
     )
     assert cmd is not None
     r = subprocess.run([sys.executable, "-c", cmd.group(1)], capture_output=True, text=True, timeout=60)

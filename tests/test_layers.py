@@ -1,4 +1,4 @@
-"""Compositing layers (issue 19 item 1): ``plate x shadow + object`` in linear light is the composite.
+"""Compositing layers (the compositing-layers work): ``plate x shadow + object`` in linear light is the composite.
 
 Ground truth: the composite the pipeline wrote (not the layer code), and hand values of the formula.
 The recombination is computed here from the IEC 61966-2-1 curve in float64 (not the module's tables)
@@ -70,8 +70,8 @@ def _scene(calib, **extra):
 
 
 def _photo(calib, eye):
-    from arshadow.camera import Intrinsics
-    from arshadow.synth import look_at_pose, render_marker_photo
+    from arshadow.camera.model import Intrinsics
+    from arshadow.synth.markers import look_at_pose, render_marker_photo
 
     cam = Intrinsics.from_file(str(ROOT / "calib" / calib))
     truth = look_at_pose(list(eye), [0.0, 0.0, 0.0])
@@ -154,7 +154,7 @@ def test_undistorted_layers_and_the_stmap_give_the_distorted_layers(gl_ctx):
     """The pinhole layers resampled through the ST-map (decoded here from its s, t definition) are the
     distorted layers: the pipeline's warp is the same bilinear lookup of the same pinhole points."""
     import arshadow
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
     from arshadow.export.stmap import stmap, stmap_to_pixels
 
     calib, eye = "synth_1280x720_k1.yml", (0.15, -0.2, 0.3)

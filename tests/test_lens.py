@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from conftest import TOL
 
-from arshadow.camera import Intrinsics
+from arshadow.camera.model import Intrinsics
 from arshadow.compose.lens import LensWarp, undistort_map
 
 

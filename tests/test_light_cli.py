@@ -1,5 +1,5 @@
 """``arshadow light`` and ``--light-from`` end to end: the measured look on a synthetic photo whose light,
-reflectances and camera are known (truth from :mod:`arshadow.synth_lit`, never from the estimator)."""
+reflectances and camera are known (truth from :mod:`arshadow.synth.lit`, never from the estimator)."""
 
 from __future__ import annotations
 
@@ -10,11 +10,11 @@ import cv2
 import numpy as np
 import pytest
 
-from arshadow.camera import Intrinsics
+from arshadow.camera.model import Intrinsics
 from arshadow.cli import main
 from arshadow.compose.composite import SRGB_TO_LINEAR
-from arshadow.synth import look_at_pose
-from arshadow.synth_lit import light_vector, render_lit_photo
+from arshadow.synth.lit import light_vector, render_lit_photo
+from arshadow.synth.markers import look_at_pose
 
 CALIB = "calib/synth_1280x720.yml"
 PROBE = ["--probe", "box:0.05,0.05,0.1", "--probe-place", "0.1,0.02,0"]
@@ -115,7 +115,7 @@ def test_light_from_in_a_scene(tmp_path):
     opacity 1, a matte object with the measured ambient, and the exposure on the colour unless no_exposure."""
     from arshadow.errors import UsageError
     from arshadow.estimate import Exposure, LightEstimate
-    from arshadow.scene import scene_from_dict
+    from arshadow.scene.spec import scene_from_dict
 
     est = LightEstimate(
         "directional",
@@ -286,7 +286,7 @@ def test_batch_with_probe_options(lit, gl_ctx, tmp_path, capsys):
 
 
 def test_light_without_the_probe_is_one_line(capsys):
-    """samples/knot_point.jpg has no box probe where it is given: exit 1, one line naming the cause (issue 26:
+    """samples/knot_point.jpg has no box probe where it is given: exit 1, one line naming the cause (the trust fixes:
     it answered a confident light)."""
     code = main(["light", "samples/knot_point.jpg", "--calib", CALIB, "--marker-length", "0.05", *PROBE, "--json"])
     cap = capsys.readouterr()

@@ -1,6 +1,6 @@
-"""The light / exposure / shadow-colour estimate (issue 17) against the generating truth of synthetic photos.
+"""The light / exposure / shadow-colour estimate (the light estimate) against the generating truth of synthetic photos.
 
-Truth: :func:`arshadow.synth_lit.render_lit_photo` renders the light, the reflectances and the camera it is
+Truth: :func:`arshadow.synth.lit.render_lit_photo` renders the light, the reflectances and the camera it is
 given (exact ray / triangle hits and the exact ground shadow, supersampled); nothing of the estimator is
 used to make or judge a photo. The full distribution's figures come from tests/benchmarks/bench_light.py.
 """
@@ -14,12 +14,12 @@ import numpy as np
 import pytest
 from conftest import TOL
 
-from arshadow.camera import Intrinsics
+from arshadow.camera.model import Intrinsics
 from arshadow.errors import EstimateError, MarkerNotFoundError, UsageError
 from arshadow.estimate import LightEstimate, estimate_light, measure_exposure
-from arshadow.estimate.result import scene_overrides
-from arshadow.synth import look_at_pose
-from arshadow.synth_lit import light_vector, random_lit_case, render_lit_photo
+from arshadow.estimate.record import scene_overrides
+from arshadow.synth.lit import light_vector, random_lit_case, render_lit_photo
+from arshadow.synth.markers import look_at_pose
 
 CALIB = "calib/synth_1280x720.yml"
 PROBE = "box:0.05,0.05,0.1"
@@ -264,7 +264,7 @@ def test_penumbra_gives_the_light_size(cam, radius):
     )
 
 
-# ---- never a confident wrong light (issue 26 items 2-4) ---------------------------------------------------
+# ---- never a confident wrong light (the trust fixes items 2-4) ---------------------------------------------------
 def _shifted_sun(kind: str, hours: int) -> str:
     from datetime import datetime, timedelta
 

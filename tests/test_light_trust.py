@@ -1,7 +1,7 @@
-"""The light estimate is never confidently wrong (issue 26 items 2-4), over held-out synthetic photos (slow:
+"""The light estimate is never confidently wrong (the trust fixes items 2-4), over held-out synthetic photos (slow:
 the sweep of tests/benchmarks/bench_light_trust.py on its held-out seeds 900.., never tuned on).
 
-Truth: the generating light of :func:`arshadow.synth_lit.random_lit_case`. Run with ``pytest -m slow
+Truth: the generating light of :func:`arshadow.synth.lit.random_lit_case`. Run with ``pytest -m slow
 tests/test_light_trust.py`` (about 10 minutes on an idle 2-core machine).
 """
 
@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from conftest import TOL
 
-from arshadow.camera import Intrinsics
+from arshadow.camera.model import Intrinsics
 
 sys.path.insert(0, str(Path(__file__).resolve().parent / "benchmarks"))
 from bench_light_trust import SCENARIOS, run_case, summarise  # noqa: E402

@@ -15,9 +15,9 @@ import pytest
 from video_clips import CALIB_720, make_clip
 
 from arshadow.bench.tracking import REAL_CLIPS, realvideo_dir, session
-from arshadow.camera import Intrinsics
+from arshadow.camera.model import Intrinsics
 from arshadow.errors import MarkerNotFoundError
-from arshadow.synth import camera_path
+from arshadow.synth.markers import camera_path
 from arshadow.tracking.detect import to_gray
 from arshadow.tracking.luma import LumaFrame, luma_to_gray
 from arshadow.video.avio import AvReader

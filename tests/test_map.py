@@ -1,4 +1,4 @@
-"""Marker maps (issue 29): loose markers learned into a rigid map, checked against the generating poses.
+"""Marker maps (the marker-map work): loose markers learned into a rigid map, checked against the generating poses.
 
 The clip (tests/map_scene.py) is rendered from known marker and camera poses by plain OpenCV warps, never
 by arshadow's tracking code; the truth of every figure below is those poses.

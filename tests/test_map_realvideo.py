@@ -1,4 +1,4 @@
-"""Marker maps on real footage (issue 29): the six-marker sheet of the ArUco library's webcam clip.
+"""Marker maps on real footage (the marker-map work): the six-marker sheet of the ArUco library's webcam clip.
 
 Truth here is the sheet's rigidity and stock OpenCV (its detections in ``detections.csv`` and its own
 per-marker IPPE poses), never arshadow's output. Skipped, saying why, when ``../shared/realvideo`` (or
@@ -14,7 +14,7 @@ import pytest
 from conftest import TOL
 from realvideo_clips import CLIPS, angle, jumps, literal_jumps, rot, stock_detections, stock_rotations
 
-from arshadow.camera import Intrinsics
+from arshadow.camera.model import Intrinsics
 from arshadow.cli import main
 from arshadow.tracking.mapio import observe_inputs
 from arshadow.tracking.mapping import Observations, learn_map

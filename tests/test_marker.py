@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 from conftest import TOL
 
-from arshadow.camera import Intrinsics
+from arshadow.camera.model import Intrinsics
 from arshadow.errors import CalibrationError, MarkerNotFoundError, UsageError
-from arshadow.report import ReportItem
-from arshadow.synth import look_at_pose, random_pose, render_marker_photo
+from arshadow.frame.report import ReportItem
+from arshadow.synth.markers import look_at_pose, random_pose, render_marker_photo
 from arshadow.tracking.board import Board, load_board
 from arshadow.tracking.detect import (
     DEFAULT_REFINE,

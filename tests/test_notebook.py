@@ -1,4 +1,4 @@
-"""Notebook friendliness (issue 19 item 4): results show themselves as images; a sheet of results."""
+"""Notebook friendliness (the compositing-layers work): results show themselves as images; a sheet of results."""
 
 from __future__ import annotations
 
@@ -6,9 +6,9 @@ import cv2
 import numpy as np
 import pytest
 
+from arshadow.frame.report import ReportItem
+from arshadow.frame.session import FrameResult
 from arshadow.notebook import results_sheet
-from arshadow.report import ReportItem
-from arshadow.session import FrameResult
 
 
 def _result(k, shape=(90, 160)):

@@ -86,8 +86,8 @@ def test_noise_recovered_on_paper_and_floor(sigma_noise):
 def test_camera_effects_blur_and_noise_layers():
     # blur_layers: a Gaussian of the given sigma, zero outside (the layer's content ends at the array);
     # add_noise: noise of the measured sigma only where the object covers
-    from arshadow.compose.effects import add_noise, blur_layers
     from arshadow.estimate.optics import NoiseEstimate
+    from arshadow.frame.effects import add_noise, blur_layers
 
     a = np.zeros((41, 41), np.float32)
     a[20, 20] = 1.0

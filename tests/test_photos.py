@@ -1,5 +1,5 @@
 """The photo loop (arshadow/photos.py) shared by render, batch and demo; the session's plan -> render path;
-the time-lapse of the scene spec; the one stems / guard / contact-sheet helpers (issue 16 item 2)."""
+the time-lapse of the scene spec; the one stems / guard / contact-sheet helpers (the façade work)."""
 
 from __future__ import annotations
 
@@ -17,8 +17,8 @@ JOB = {"calib": str(CALIB), "marker_length": 0.05, "model": "box:0.04,0.03,0.05"
 
 
 def _photo(seed=3, eye=(0.15, -0.3, 0.3)):
-    from arshadow.camera import Intrinsics
-    from arshadow.synth import look_at_pose, render_marker_photo
+    from arshadow.camera.model import Intrinsics
+    from arshadow.synth.markers import look_at_pose, render_marker_photo
 
     intr = Intrinsics.from_file(CALIB)
     pose = look_at_pose(list(eye), [0.0, 0.0, 0.0])
@@ -94,9 +94,9 @@ def test_batch_honours_exif_orientation_as_render_does(tmp_path, capsys, gl_ctx)
 def test_photo_loop_records_failures_and_goes_on(tmp_path, gl_ctx):
     """A missing file, a photo without the marker and an output that would replace an input each fail
     alone (status and error recorded); the good photo is still rendered."""
+    from arshadow.frame.session import Session
     from arshadow.io import InputGuard
     from arshadow.photos import PhotoJob, photo_jobs, render_photos
-    from arshadow.session import Session
 
     img, _ = _photo()
     good = tmp_path / "good.png"
@@ -121,7 +121,7 @@ def test_render_of_a_plan_equals_render_at_the_pose(gl_ctx):
     """Session.plan then Session.render(plan=...) is the same frame as Session.render(pose): the plan is
     the whole of the per-frame decisions, the compose path among them."""
     from arshadow.errors import UsageError
-    from arshadow.session import Session
+    from arshadow.frame.session import Session
 
     img, pose = _photo()
     with Session({**JOB, "compose": "cpu"}, context=gl_ctx) as s:
@@ -145,9 +145,9 @@ def test_time_lapse_is_part_of_the_scene_spec():
     import pickle
 
     from arshadow.errors import UsageError
+    from arshadow.frame.session import Session
     from arshadow.lights.spec import parse_light, parse_sun_track
-    from arshadow.scene import scene_from_dict
-    from arshadow.session import Session
+    from arshadow.scene.spec import scene_from_dict
 
     sun = "sun:48,11,2021-06-21T09:00+02:00,0@0.5"
     d = {**JOB, "lights": ["point:0.1,0.1,0.4", sun], "time_lapse": "2021-06-21T12:00+02:00,600", "recompute_deg": 0.2}

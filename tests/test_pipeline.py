@@ -70,7 +70,7 @@ def _compare(mask_u8, oracle, roi, threshold, boundary=True):
 
 
 def _intrinsics(dist=()):
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
 
     return Intrinsics(1000.0, 1000.0, 641.3, 358.2, W, H, np.asarray(dist, float))
 
@@ -83,8 +83,8 @@ def _plain_photo(value=150):
 
 def _session(ctx, caster, lights, intr=None, **opts):
     """A session of loaded objects on the shared context (intrinsics default: :func:`_intrinsics`)."""
-    from arshadow.scene import RenderOptions, Scene
-    from arshadow.session import Session
+    from arshadow.frame.session import Session
+    from arshadow.scene.spec import RenderOptions, Scene
 
     scene = Scene(
         intr if intr is not None else _intrinsics(), caster, lights, RenderOptions(**opts), {"marker_length": 0.05}
@@ -143,7 +143,7 @@ def test_lens_distortion_k1(ctx, tol, case, aa):
     and the same mean boundary error.
     """
     from arshadow.geometry.mesh import load_occluder
-    from arshadow.synth import look_at_pose
+    from arshadow.synth.markers import look_at_pose
 
     K1 = (-0.25, 0.0, 0.0, 0.0, 0.0)
     intr = _intrinsics(K1)
@@ -191,7 +191,7 @@ def test_lens_distortion_k1(ctx, tol, case, aa):
 def test_nothing_in_view_renders_nothing(ctx):
     """The camera looks away from the object: no canvas, the photo is returned unchanged."""
     from arshadow.geometry.mesh import load_occluder
-    from arshadow.synth import look_at_pose
+    from arshadow.synth.markers import look_at_pose
 
     caster = load_occluder("box:0.04,0.04,0.06")
     pose = look_at_pose([0.0, -0.3, 0.3], [0.0, -1.5, 0.0])  # looking away, down at the ground behind
@@ -204,7 +204,7 @@ def test_nothing_in_view_renders_nothing(ctx):
 
 def test_sun_below_the_horizon_casts_nothing(ctx):
     from arshadow.geometry.mesh import load_occluder
-    from arshadow.synth import look_at_pose
+    from arshadow.synth.markers import look_at_pose
 
     night = _lights("sun:48.8566,2.3522,2024-06-21T23:30+02:00")
     assert not night[0].above_horizon
@@ -216,7 +216,7 @@ def test_sun_below_the_horizon_casts_nothing(ctx):
 
 def test_mask_is_zero_on_the_object_and_full_in_the_shadow(ctx):
     from arshadow.geometry.mesh import load_occluder
-    from arshadow.synth import look_at_pose
+    from arshadow.synth.markers import look_at_pose
 
     caster = load_occluder("box:0.06,0.05,0.09")
     lights = _lights("point:0.25,0.15,0.45")
@@ -233,7 +233,7 @@ def test_mask_is_zero_on_the_object_and_full_in_the_shadow(ctx):
 
 
 def test_roi_render_equals_full_render(ctx, knot):
-    from arshadow.synth import look_at_pose
+    from arshadow.synth.markers import look_at_pose
 
     lights = _lights("point:0.2,0.1,0.5")
     pose = look_at_pose([0.25, -0.45, 0.4], [0.0, 0.02, 0.03])
@@ -260,7 +260,7 @@ def test_roi_render_equals_full_render(ctx, knot):
 
 
 def test_zpass_equals_zfail_when_camera_outside(ctx, knot):
-    from arshadow.synth import look_at_pose
+    from arshadow.synth.markers import look_at_pose
 
     lights = _lights("point:0.2,0.1,0.5", "directional:-0.4,0.3,1@0.5")
     pose = look_at_pose([0.25, -0.45, 0.4], [0.0, 0.02, 0.03])
@@ -285,7 +285,7 @@ def test_zpass_equals_zfail_when_camera_outside(ctx, knot):
 def test_camera_inside_shadow_volume_uses_zfail(ctx, tol):
     """A tall wall between a low sun and the camera: the camera stands in the wall's shadow."""
     from arshadow.geometry.mesh import load_occluder
-    from arshadow.synth import look_at_pose
+    from arshadow.synth.markers import look_at_pose
 
     wall = load_occluder("box:0.6,0.02,0.5", place=(0, 0.1, 0))
     lights = _lights("directional:0,1,0.35")  # low light from +y: the shadow falls towards -y
@@ -303,7 +303,7 @@ def test_camera_inside_shadow_volume_uses_zfail(ctx, tol):
 
 def test_ground_size_clips_the_roi_and_the_mask(ctx):
     from arshadow.geometry.mesh import load_occluder
-    from arshadow.synth import look_at_pose
+    from arshadow.synth.markers import look_at_pose
 
     caster = load_occluder("box:0.04,0.04,0.1")
     lights = _lights("directional:1,0,0.08")  # near the horizon: a very long shadow
@@ -334,11 +334,11 @@ E2E_POSES = [
 
 
 def test_end_to_end_synthetic_photos(ctx, tol):
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
+    from arshadow.frame.session import Session
     from arshadow.geometry.mesh import load_occluder
-    from arshadow.scene import RenderOptions, Scene
-    from arshadow.session import Session
-    from arshadow.synth import look_at_pose, render_marker_photo
+    from arshadow.scene.spec import RenderOptions, Scene
+    from arshadow.synth.markers import look_at_pose, render_marker_photo
 
     intr = Intrinsics.from_file(_calib("synth_1280x720.yml"))
     caster = load_occluder("box:0.04,0.03,0.06", place=(0.05, 0.0, 0.0))
@@ -382,11 +382,11 @@ def _calib(name):
 # --------------------------------------------------------------------------------------------------
 @pytest.mark.realdata
 def test_real_charuco_photo_object_and_shadow_on_the_board(ctx, realdata):
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
+    from arshadow.frame.session import Session
     from arshadow.geometry.mesh import load_occluder
     from arshadow.io import read_image
-    from arshadow.scene import RenderOptions, Scene
-    from arshadow.session import Session
+    from arshadow.scene.spec import RenderOptions, Scene
     from arshadow.tracking.board import Board
 
     folder = realdata / "aruco_tutorial"
@@ -420,12 +420,12 @@ def test_real_charuco_photo_object_and_shadow_on_the_board(ctx, realdata):
 def test_fast_detection_pass_and_its_fallbacks(ctx, monkeypatch, tol):
     """Half resolution for big markers; full resolution for small ones (5 cm at 2 m, ~25 px); the
     tracker's full search when the fast pass finds nothing."""
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
     from arshadow.errors import MarkerNotFoundError
+    from arshadow.frame.session import Session
     from arshadow.geometry.mesh import load_occluder
-    from arshadow.scene import RenderOptions, Scene
-    from arshadow.session import Session
-    from arshadow.synth import look_at_pose, render_marker_photo
+    from arshadow.scene.spec import RenderOptions, Scene
+    from arshadow.synth.markers import look_at_pose, render_marker_photo
     from arshadow.tracking.fastdetect import HalfResolutionDetector
     from arshadow.tracking.tracker import make_fast_tracker
 
@@ -482,12 +482,12 @@ def test_mode_choice_uses_the_near_rectangle_not_znear(ctx):
     """z-pass is safe only if the whole near-plane rectangle is outside the volume: a camera whose
     eye->light ray passes the box closer than the near rectangle's corner radius (but farther than
     znear) must get z-fail."""
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
+    from arshadow.frame.session import Session
     from arshadow.geometry.mesh import load_occluder
     from arshadow.lights.spec import parse_light
-    from arshadow.scene import RenderOptions, Scene
-    from arshadow.session import Session
-    from arshadow.synth import look_at_pose
+    from arshadow.scene.spec import RenderOptions, Scene
+    from arshadow.synth.markers import look_at_pose
 
     intr = Intrinsics(fx=500.0, fy=500.0, cx=639.5, cy=359.5, width=1280, height=720, dist=np.zeros(0))
     box = load_occluder("box:0.1,0.1,0.1")  # x, y in [-0.05, 0.05], z in [0, 0.1]

@@ -15,7 +15,7 @@ import pytest
 import render_scenes
 from image_oracle import iou
 
-from arshadow.render_api import RenderRequest
+from arshadow.renderer.request import RenderRequest
 
 pytestmark = pytest.mark.gl
 
@@ -23,7 +23,7 @@ W, H = 1280, 720
 
 
 def _rendered(res):
-    """A :class:`arshadow.session.FrameResult` as ``(composite, mask, report item)``."""
+    """A :class:`arshadow.frame.session.FrameResult` as ``(composite, mask, report item)``."""
     return res.composite, res.mask, res.item
 
 
@@ -37,9 +37,9 @@ def _spec(lh, w):
 def _scenes():
     """(name, caster, light specs, cam_from_world, intrinsics, options) of the accuracy tests' scenes."""
 
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
     from arshadow.geometry.mesh import load_occluder
-    from arshadow.synth import look_at_pose
+    from arshadow.synth.markers import look_at_pose
 
     out = []
     for sc in render_scenes.scenes():
@@ -127,9 +127,9 @@ def scenes():
 
 
 def _run(ctx, scene, plan, aa=0, **extra):
+    from arshadow.frame.session import Session
     from arshadow.lights.spec import parse_light
-    from arshadow.scene import RenderOptions, Scene
-    from arshadow.session import Session
+    from arshadow.scene.spec import RenderOptions, Scene
 
     name, caster, specs, pose, intr, opts = scene
     lights = [parse_light(s) for s in specs]
@@ -209,9 +209,9 @@ def test_camera_inside_a_volume_never_zpass(ctx, scenes):
 def test_light_with_shadow_off_screen_is_skipped(ctx, tol):
     """A box floating 10 cm above the ground in a tele view: light A's shadow falls right below it (in
     view), the low light B's far to the left, off the photo."""
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
     from arshadow.geometry.mesh import load_occluder
-    from arshadow.synth import look_at_pose
+    from arshadow.synth.markers import look_at_pose
 
     box = load_occluder("box:0.04,0.04,0.04", place=(0, 0, 0.1))
     intr = Intrinsics(1500.0, 1500.0, 639.5, 359.5, W, H, np.zeros(5))
@@ -233,11 +233,11 @@ def test_light_with_shadow_off_screen_is_skipped(ctx, tol):
 
 
 def test_moved_light_reuses_geometry_only_when_exact(ctx):
+    from arshadow.frame.session import Session
     from arshadow.geometry.mesh import load_occluder
     from arshadow.lights.spec import parse_light
-    from arshadow.scene import RenderOptions, Scene
-    from arshadow.session import Session
-    from arshadow.synth import look_at_pose
+    from arshadow.scene.spec import RenderOptions, Scene
+    from arshadow.synth.markers import look_at_pose
 
     knot = load_occluder("samples/meshes/knot.ply")
     intr = _scenes()[5][4]
@@ -271,8 +271,8 @@ def test_direct_planar_pass_equals_the_stencil_planar_pass(ctx, samples):
 
     from arshadow.geometry.mesh import load_occluder
     from arshadow.gl.stencil import ShadowRenderer
-    from arshadow.render_api import LightPass
-    from arshadow.synth import look_at_pose
+    from arshadow.renderer.request import LightPass
+    from arshadow.synth.markers import look_at_pose
     from arshadow.transforms import CV_TO_GL
 
     box = load_occluder("box:0.1,0.08,0.15", rotate=(0, 0, 25))
@@ -304,10 +304,10 @@ def test_footprint_hull_keeps_the_screen_bounds(light):
     """shadow_footprint returns only the vertices of the footprint's 2D convex hull: the screen rectangle of
     the footprint, from a random camera, is that of every vertex's own ground shadow (computed here
     directly: each vertex moved along the light ray to z = 0)."""
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
     from arshadow.geometry.mesh import load_occluder
-    from arshadow.plan import pinhole_rect, shadow_footprint
-    from arshadow.synth import look_at_pose
+    from arshadow.plan.planner import pinhole_rect, shadow_footprint
+    from arshadow.synth.markers import look_at_pose
 
     v = np.asarray(load_occluder("torus:0.05,0.02", place=(0.0, 0.0, 0.03)).vertices, np.float64)
     L = np.asarray(light, np.float64)
@@ -332,10 +332,10 @@ def test_footprint_hull_keeps_the_screen_bounds(light):
 def test_roi_from_the_hull_vertices_equals_the_roi_from_every_vertex(rng):
     """The planner bounds the ROI with the mesh's convex-hull vertices only (plan_geometry.extreme_points):
     the projected bounding box and the in-front test must be those of every vertex, from any camera."""
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
     from arshadow.geometry.mesh import load_occluder
-    from arshadow.plan_geometry import extreme_points, pinhole_rect
-    from arshadow.synth import look_at_pose
+    from arshadow.plan.scene_geometry import extreme_points, pinhole_rect
+    from arshadow.synth.markers import look_at_pose
 
     v = np.asarray(load_occluder("samples/meshes/knot.ply").vertices, np.float64)
     ext = extreme_points(v)

@@ -1,4 +1,4 @@
-"""The planner's pure decisions (arshadow/plan_rules.py), each taken when it should be and never when it
+"""The planner's pure decisions (arshadow/plan/rules.py), each taken when it should be and never when it
 must not be. Ground truth is independent: hand-built meshes whose convexity is known, cameras placed inside
 or outside a volume by construction, footprints far off screen by construction."""
 
@@ -9,15 +9,15 @@ import pytest
 
 from arshadow.errors import MarkerNotFoundError
 from arshadow.geometry.mesh import ShadowCaster, load_occluder
-from arshadow.plan_rules import (
+from arshadow.plan.rules import (
     light_shadow_in_view,
     mesh_is_convex,
     planar_applies,
     reuse_light_geometry,
     same_silhouette,
-    tracking_roi,
     zpass_safe,
 )
+from arshadow.tracking.roi_track import tracking_roi
 
 
 def _l_shape():
@@ -128,8 +128,8 @@ def test_tracking_roi_window():
 
 
 def test_tracking_detector_window_then_fallback(tol):
-    from arshadow.camera import Intrinsics
-    from arshadow.synth import look_at_pose, render_marker_photo
+    from arshadow.camera.model import Intrinsics
+    from arshadow.synth.markers import look_at_pose, render_marker_photo
     from arshadow.tracking.roi_track import TrackingDetector
     from arshadow.tracking.tracker import MarkerTracker
 
@@ -158,7 +158,7 @@ def test_tracking_detector_window_then_fallback(tol):
 
 
 def test_outside_view_only_when_one_plane_excludes_everything():
-    from arshadow.plan_rules import outside_view
+    from arshadow.plan.rules import outside_view
 
     ext = (-0.5, -0.5, 639.5, 479.5)
     k = dict(fx=500.0, fy=500.0, cx=319.5, cy=239.5, extent=ext, znear=0.01)

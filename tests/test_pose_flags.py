@@ -1,4 +1,4 @@
-"""Calibrated pose flags (issue 31 item 3): a good clip gets no flagged-pose warning, a bad pose still does.
+"""Calibrated pose flags (the cluster and flags work): a good clip gets no flagged-pose warning, a bad pose still does.
 
 Truth: ``samples/video/orbit.json`` (the generating pose of every frame of the sample video) and the
 generating poses of :func:`arshadow.synth.render_marker_photo` photos from the flag benchmark's sweep
@@ -28,7 +28,7 @@ def _mat(rvec, tvec):
 
 @pytest.mark.gl
 def test_orbit_sample_has_no_flagged_pose_warning(tmp_path, capsys):
-    """`arshadow video` on the bundled sample with its own calibration: no flagged-pose warning (issue 31:
+    """`arshadow video` on the bundled sample with its own calibration: no flagged-pose warning (the cluster and flags work:
     "60 of 60 frames have a flagged pose" for poses 0.15 deg from the truth), and the poses are indeed
     good: every rendered pose within 1 deg and 2 % of the distance of orbit.json's truth. The records
     still say what was measured (pose_notes)."""

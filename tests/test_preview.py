@@ -1,4 +1,4 @@
-"""``arshadow preview`` without a browser (issue 30): the server's token, its errors, latest-wins, the
+"""``arshadow preview`` without a browser (the preview work): the server's token, its errors, latest-wins, the
 ground point under a pixel, Session.set_model, and Ctrl-C. The browser test is test_preview_browser.py."""
 
 from __future__ import annotations
@@ -39,8 +39,8 @@ CONTROLS = {"place": [0.1, 0.05, 0.0], "rotate": [0.0, 0.0, 15.0], "scale": 1.0}
 def test_ground_point_matches_opencv_back_projection():
     """The pixel's ray meets z = 0 where OpenCV's undistortPoints + the plane intersection put it, and the
     point projects back onto the pixel (distortion included)."""
-    from arshadow.camera import Intrinsics
-    from arshadow.synth import look_at_pose
+    from arshadow.camera.model import Intrinsics
+    from arshadow.synth.markers import look_at_pose
 
     cam = Intrinsics.from_file(CALIB)
     cfw = look_at_pose([0.1, -0.3, 0.4], [0.0, 0.0, 0.0])
@@ -89,7 +89,7 @@ def test_light_sliders_move_the_first_light():
 def test_command_line_reads_back_to_the_same_scene():
     """The command line the page shows parses (render's own parser) to the scene it describes."""
     from arshadow.cli import build_parser, join_negative_values
-    from arshadow.scene import scene_from_args, scene_from_dict
+    from arshadow.scene.spec import scene_from_args, scene_from_dict
 
     d = {**BASE, "place": [-0.0123456789012345, 0.1, 0.0], "no_object": True, "opacity": 0.35}
     import shlex
@@ -246,9 +246,9 @@ def test_render_then_save_reproduces_through_batch(server, tmp_path):
 @pytest.mark.gl
 def test_set_model_renders_as_a_fresh_session():
     """Session.set_model (the preview's drag) gives the pixels of a new session of the moved scene."""
+    from arshadow.frame.session import Session
     from arshadow.io import read_image
-    from arshadow.scene import scene_from_dict
-    from arshadow.session import Session
+    from arshadow.scene.spec import scene_from_dict
 
     img = read_image(PHOTO)
     moved = {**BASE, "place": [0.02, -0.03, 0.01], "rotate": [0, 0, 70], "scale": 0.8}
@@ -443,9 +443,9 @@ def test_probe_measured_light_switch_and_save(tmp_path):
 @pytest.mark.video
 def test_video_frames_are_the_pipeline_s(tmp_path):
     """A video's frames by index (the page's slider), each composited as Session.process composites it."""
+    from arshadow.frame.session import Session
     from arshadow.preview.engine import Media, PreviewEngine
-    from arshadow.scene import scene_from_dict
-    from arshadow.session import Session
+    from arshadow.scene.spec import scene_from_dict
 
     video = ROOT / "samples" / "video" / "orbit.mp4"
     base = {**BASE, "calib": str(ROOT / "calib" / "synth_640x360.yml"), "model": "box:0.04,0.04,0.06"}

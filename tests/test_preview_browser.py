@@ -1,4 +1,4 @@
-"""``arshadow preview`` in a real browser (issue 30): headless Chromium (Debian's ``chromium``) driven by
+"""``arshadow preview`` in a real browser (the preview work): headless Chromium (Debian's ``chromium``) driven by
 Playwright loads the page, drags the object to a pixel, saves; the saved place is the ground point under
 that pixel (back-projected here with OpenCV) and ``arshadow render`` of the saved scene gives the page's
 image pixel for pixel.

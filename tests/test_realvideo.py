@@ -1,4 +1,4 @@
-"""Real footage (issue 21): video tracking against stock OpenCV on the shared clips of the ArUco library.
+"""Real footage (the real-footage work): video tracking against stock OpenCV on the shared clips of the ArUco library.
 
 The clips, their intrinsics and stock OpenCV's per-frame detections (``detections.csv``: OpenCV 5's
 ``ArucoDetector`` with default parameters on the decoded colour frames) live in ``../shared/realvideo``

@@ -1,4 +1,4 @@
-"""The path-traced reference (issue 28 item 4): arshadow against Mitsuba 3 renders, without Mitsuba.
+"""The path-traced reference (the realism work): arshadow against Mitsuba 3 renders, without Mitsuba.
 
 The committed cases (tests/data/reference/{own,heldout}, made by tests/reference/make_reference.py) hold the
 plate as a user photographs it and the truth's (smoothed) change of it. These tests check that the path
@@ -19,7 +19,7 @@ from arshadow.bench.reference import case_residuals, load_cases, plate_alignment
 from arshadow.bench.reference_scene import intrinsics_of, pose_of
 from arshadow.bench.reference_score import decode8, residuals_smoothed, smooth_regions
 from arshadow.errors import EstimateError
-from arshadow.synth import render_marker_photo
+from arshadow.synth.markers import render_marker_photo
 from arshadow.tracking.dictionary import marker_object_points
 from arshadow.tracking.tracker import MarkerTracker
 
@@ -102,7 +102,9 @@ def _medians(cases, light):
     for c in cases:
         try:
             rs.append(run_case(c, light))
-        except EstimateError:  # the estimate refuses the case (both own point-light plates, issue 26's gate)
+        except (
+            EstimateError
+        ):  # the estimate refuses the case (both own point-light plates, the trust fixes ('s)'s's gate)
             continue
     assert len(rs) >= len(cases) - 2, f"the light estimate refused {len(cases) - len(rs)} of {len(cases)} cases"
     return {k: float(np.median([r[k] for r in rs])) for k in ("ground", "contact", "object")}

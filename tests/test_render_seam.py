@@ -1,4 +1,4 @@
-"""The render seam (issue 27 item 1): one frozen RenderRequest per frame, the object's Shading in it, the
+"""The render seam (the layout work): one frozen RenderRequest per frame, the object's Shading in it, the
 renderers' capabilities as typed attributes, execute's four values."""
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ import pytest
 
 from arshadow.compose.composite import srgb_to_linear
 from arshadow.errors import UsageError
-from arshadow.render_api import LightPass, Renderer, RendererBase, RenderRequest, RenderResult, Shading
-from arshadow.render_options import RenderOptions
+from arshadow.renderer.request import LightPass, Renderer, RendererBase, RenderRequest, RenderResult, Shading
+from arshadow.scene.options import RenderOptions
 
 
 def test_shading_and_request_are_frozen_values():
@@ -72,10 +72,10 @@ def test_shading_reaches_the_shader(ctx, tol, method):
     """Shading's ambient and colour are what the occluder's base pass writes: with a light of weight 0 (no
     diffuse or specular added) every covered pixel of the box is ``ambient * linear(colour)``, computed here
     from the sRGB curve, in both renderers (the uniform goes by name into each program that declares it)."""
-    from arshadow.camera import Intrinsics
-    from arshadow.engine import default_renderer
+    from arshadow.camera.model import Intrinsics
+    from arshadow.frame.hooks import default_renderer
     from arshadow.geometry.mesh import load_occluder
-    from arshadow.synth import look_at_pose
+    from arshadow.synth.markers import look_at_pose
     from arshadow.transforms import CV_TO_GL
 
     W, H = 160, 120

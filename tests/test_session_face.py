@@ -1,4 +1,4 @@
-"""Session's public face is what a user calls (issue 27 item 3): the video engine's hooks are on
+"""Session's public face is what a user calls (the layout work): the video engine's hooks are on
 ``session.hooks``; poses are typed (``MarkerPose`` in and out, ``cam_from_marker`` matrices)."""
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ HOOKS = (
 
 def test_the_engine_hooks_are_off_the_public_face():
     import arshadow
-    from arshadow.engine import EngineHooks
+    from arshadow.frame.hooks import EngineHooks
 
     with arshadow.Session(SCENE) as s:
         assert {n for n in dir(s) if not n.startswith("_")} == PUBLIC
@@ -37,8 +37,8 @@ def test_track_returns_a_marker_pose_that_plan_takes_as_its_matrix():
     """``track`` returns a MarkerPose; ``plan`` takes it or its ``cam_from_marker`` matrix alike, and the
     plan's ``cam_from_world`` (the ground frame: here the marker's) is the generating pose (the truth)."""
     import arshadow
-    from arshadow.camera import Intrinsics
-    from arshadow.synth import look_at_pose, render_marker_photo
+    from arshadow.camera.model import Intrinsics
+    from arshadow.synth.markers import look_at_pose, render_marker_photo
     from arshadow.tracking.pose import MarkerPose
 
     intr = Intrinsics.from_file(SCENE["calib"])

@@ -1,4 +1,4 @@
-"""Materials from mesh files (arshadow.shading.material via load_occluder): textures, UVs, factors."""
+"""Materials from mesh files (arshadow.geometry.material via load_occluder): textures, UVs, factors."""
 
 from pathlib import Path
 
@@ -82,8 +82,8 @@ def test_colour_override_drops_the_material_and_plain_meshes_have_none():
 def test_measured_light_keeps_a_textured_mesh_textured():
     # --light-from without --color: the scene's occluder colour is the exposed grey default; a mesh with its
     # own texture / colours keeps them, times the exposure gain (it used to come out flat grey)
-    from arshadow.execute import _shading
-    from arshadow.render_options import RenderOptions
+    from arshadow.frame.execute import _shading
+    from arshadow.scene.options import RenderOptions
 
     opts = RenderOptions(occluder_color=(0.6, 0.6, 0.6), material_gain=(1.2, 1.1, 0.9))
     sh = _shading(opts, load_occluder(DATA / "quad.glb"), None)

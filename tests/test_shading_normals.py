@@ -1,10 +1,10 @@
-"""Corner normals with a per-face crease angle (arshadow.shading.normals) and their use in the GL buffers."""
+"""Corner normals with a per-face crease angle (arshadow.geometry.normals) and their use in the GL buffers."""
 
 import numpy as np
 import pytest
 
 from arshadow.geometry.mesh import load_occluder, primitive
-from arshadow.shading.normals import crease_normals, face_normals
+from arshadow.geometry.normals import crease_normals, face_normals
 from tests.conftest import TOL
 
 

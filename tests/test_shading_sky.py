@@ -175,7 +175,7 @@ def test_torus_hole_and_sphere_base(spec):
 def test_object_raster_matches_rays_on_a_torus():
     # the fast method (item buffers per direction, shared by every point) against the exact reference
     # (BVH rays, 256 cosine-weighted directions per point) on a torus: its hole's walls hide the sky
-    from arshadow.shading.normals import crease_normals
+    from arshadow.geometry.normals import crease_normals
 
     c = load_occluder("torus:0.05,0.015")
     n = crease_normals(c.vertices, c.faces)

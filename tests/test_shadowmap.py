@@ -9,7 +9,7 @@ from image_oracle import ShadowOracle, iou
 
 from arshadow.errors import UsageError
 from arshadow.gl.shadowmap import light_view_projection
-from arshadow.render_api import RenderRequest
+from arshadow.renderer.request import RenderRequest
 
 W, H = 1280, 720
 

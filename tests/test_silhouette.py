@@ -219,7 +219,7 @@ def test_delta_plus_on_convex_meshes_equals_exact(rng):
 
 
 def test_delta_plus_misses_hidden_transitions_on_nonconvex_mesh(rng):
-    """Characterisation of paper 003's Delta+: on the knot it returns a subset of the transition edges
+    """Characterisation of [Kolivand-DeltaPlus]'s Delta+: on the knot it returns a subset of the transition edges
     (the outline seen from the light), and then the loops of the shadow volume need not close."""
     c = closed_meshes()["knot"]
     missing = extra = unclosed = 0

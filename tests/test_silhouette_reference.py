@@ -45,9 +45,9 @@ def test_reference_equals_fast(name, rng):
 
 
 def test_paper_formulas_as_printed():
-    # paper 003 Table II: 5 000 vertices -> 25 000 000 against 61 438
+    # [Kolivand-DeltaPlus] Table II: 5 000 vertices -> 25 000 000 against 61 438
     p = paper003_claim(5000)
     assert p["quadratic"] == 25_000_000 and int(p["n_log2_n"]) == 61_438  # the paper truncates
-    # paper 000 sec. VI: HSD is TA with m = 1 (its derivation), so TA(m=1) == HSD term by term
+    # [Kolivand-HSD] sec. VI: HSD is TA with m = 1 (its derivation), so TA(m=1) == HSD term by term
     f = paper000_formulas(100, 1)
     assert f["TA"]["C"] == f["HSD"]["C"] - 100 and f["TA"]["total"] < f["VnV"]["total"]

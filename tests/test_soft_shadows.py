@@ -33,7 +33,7 @@ def scene():
         "arshadow.geometry.volume",
     ):
         pytest.importorskip(mod)
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
     from arshadow.geometry.mesh import load_occluder
     from arshadow.transforms import CV_TO_GL
 

@@ -1,4 +1,4 @@
-"""Property-based stress of the shadow geometry and renderer (issue 12), with hypothesis.
+"""Property-based stress of the shadow geometry and renderer (the stress suite), with hypothesis.
 
 Every example draws a random configuration:
 
@@ -42,7 +42,7 @@ from image_oracle import ground_points, occluder_coverage
 from oracle import directed_edge_balance, ground_shadow_triangles, iou, points_in_shadow
 
 from arshadow.geometry.exact import points_in_triangles as _points_in_triangles
-from arshadow.render_api import RenderRequest
+from arshadow.renderer.request import RenderRequest
 
 hypothesis = pytest.importorskip("hypothesis")
 from hypothesis import HealthCheck, given, settings  # noqa: E402
@@ -191,7 +191,7 @@ def _scene(cfg):
 
 
 def _look_at(eye, target):
-    from arshadow.synth import look_at_pose
+    from arshadow.synth.markers import look_at_pose
 
     return look_at_pose(np.asarray(eye, float), np.asarray(target, float))
 
@@ -262,7 +262,7 @@ class Stats:
 def check_configuration(cfg, renderer, stats: Stats, tol):
     from geometry_cases import degrees_balanced
 
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
     from arshadow.errors import LightError
     from arshadow.geometry.silhouette import silhouette
     from arshadow.geometry.volume import camera_may_be_in_shadow, near_plane_radius, shadow_volume

@@ -1,4 +1,4 @@
-"""Renderer precision under stress (issue 12): stencil counts past the counter range, float32 vs float64
+"""Renderer precision under stress (the stress suite): stencil counts past the counter range, float32 vs float64
 geometry, depth precision with the infinite far plane at 1 km.
 
 Ground truth: the independent per-pixel oracle (tests/image_oracle.py: ray casting + analytic ground
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from image_oracle import ShadowOracle, iou
 
-from arshadow.render_api import RenderRequest
+from arshadow.renderer.request import RenderRequest
 
 pytestmark = pytest.mark.gl
 
@@ -20,7 +20,7 @@ ZNEAR = 0.01
 
 
 def _rendered(res):
-    """A :class:`arshadow.session.FrameResult` as ``(composite, mask, report item)``."""
+    """A :class:`arshadow.frame.session.FrameResult` as ``(composite, mask, report item)``."""
     return res.composite, res.mask, res.item
 
 
@@ -39,7 +39,7 @@ def _stack(n: int, side: float = 0.1, gap: float = 0.002, thick: float = 0.001, 
 
 
 def _render(renderer, caster, light_h, cam_from_world, *, fx=320.0, mode=None, draw_occluder=True, znear=ZNEAR):
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
     from arshadow.geometry.silhouette import silhouette
     from arshadow.geometry.volume import camera_may_be_in_shadow, near_plane_radius, shadow_volume
     from arshadow.gl.stencil import LightPass
@@ -79,7 +79,7 @@ def test_stacked_layers_past_the_stencil_range(renderer, tol, n):
     """n stacked plates under a light from above: the ground under them lies in n volume layers. A 6-bit
     count (mod 64) read 64 and 128 layers as lit before the batched volumes; 300 layers exceed 8 bits too."""
     from arshadow.geometry.volume import STENCIL_COUNT_RANGE
-    from arshadow.synth import look_at_pose
+    from arshadow.synth.markers import look_at_pose
 
     caster = _stack(n)
     light = np.array([0.05, 0.03, 1.0, 0.0])
@@ -119,7 +119,7 @@ def test_float32_vs_float64_geometry(renderer, tol):
     """The GPU gets float32 vertices: a mesh whose coordinates are exactly float32 (cast first) and the
     float64 original render masks that agree pixel for pixel but for rounding-level boundary pixels."""
     from arshadow.geometry.mesh import ShadowCaster, load_occluder
-    from arshadow.synth import look_at_pose
+    from arshadow.synth.markers import look_at_pose
 
     box = load_occluder("sphere:0.05", place=(0.013, -0.007, 0.0))
     c32 = ShadowCaster(box.vertices.astype(np.float32).astype(np.float64), box.faces, name="f32")
@@ -136,12 +136,12 @@ def test_depth_precision_at_one_km(gl_ctx, renderer, tol):
     """Infinite far plane: a 20 m box 1 km away. With the compositor's near plane (a quarter of the
     distance to the object / ground, formerly capped at 5 cm: the contact then dissolved into metres of
     depth error, 82 wrong pixels here) the mask matches the oracle."""
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
+    from arshadow.frame.session import Session
     from arshadow.geometry.mesh import load_occluder
     from arshadow.lights.spec import parse_light
-    from arshadow.scene import RenderOptions, Scene
-    from arshadow.session import Session
-    from arshadow.synth import look_at_pose
+    from arshadow.scene.spec import RenderOptions, Scene
+    from arshadow.synth.markers import look_at_pose
 
     box = load_occluder("box:20,20,30")
     light = np.array([-0.3, 0.2, 1.0, 0.0])
@@ -157,7 +157,7 @@ def test_depth_precision_at_one_km(gl_ctx, renderer, tol):
     assert ((res.alpha > 0.5) != oo).mean() <= tol.coverage_mismatch_frac * 10
 
 
-# ------------------------------------------------------------------ the contact seam (issue 12)
+# ------------------------------------------------------------------ the contact seam (the stress suite)
 def _contact_truth(K_pin, pose, caster, light_h, width, height, intr_dist=None, n=8, roi=None):
     """Per-pixel object coverage and shadowed-ground coverage from n x n sub-samples of the independent
     oracle (pixel (j, i) covers [j - 0.5, j + 0.5] x [i - 0.5, i + 0.5]); with ``intr_dist`` the samples
@@ -184,13 +184,13 @@ def test_no_light_seam_where_object_meets_shadow(gl_ctx, tol, aa, k1):
     oracle sub-samples per pixel. The old composite, (1 - a)(1 - opacity * mask) with the
     coverage-weighted mask, left these pixels lighter than both sides (the box demo's ~70 between ~62):
     the mean signed error over the contact pixels was MEASURED below (old vs new in the report)."""
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
     from arshadow.compose.composite import SRGB_TO_LINEAR
+    from arshadow.frame.session import Session
     from arshadow.geometry.mesh import load_occluder
     from arshadow.lights.spec import parse_light
-    from arshadow.scene import RenderOptions, Scene
-    from arshadow.session import Session
-    from arshadow.synth import look_at_pose
+    from arshadow.scene.spec import RenderOptions, Scene
+    from arshadow.synth.markers import look_at_pose
 
     Wc, Hc = 640, 480
     intr = Intrinsics(600.0, 600.0, 319.5, 239.5, Wc, Hc, np.array([k1, 0.0, 0.0, 0.0, 0.0]))

@@ -1,4 +1,4 @@
-"""Tracking under stress (issue 12): never a confident wrong pose.
+"""Tracking under stress (the stress suite): never a confident wrong pose.
 
 Known-truth photos from :func:`arshadow.synth.render_marker_photo` (the generating pose is the truth) of
 hard cases: fronto-parallel markers (the planar pose ambiguity is worst there), markers ~20 px across,
@@ -24,14 +24,14 @@ L = 0.05  # marker side, metres
 
 
 def _intr():
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
 
     return Intrinsics(1000.0, 1000.0, 639.5, 359.5, 1280, 720, np.array([-0.05, 0.02, 0.0, 0.0, 0.0]))
 
 
 def _case(kind: str, r, intr):
     """(photo (H, W, 3) uint8, true cam_from_world)."""
-    from arshadow.synth import look_at_pose, render_marker_photo
+    from arshadow.synth.markers import look_at_pose, render_marker_photo
 
     blur, noise = 0.5, 1.0
     target = np.r_[r.uniform(-0.005, 0.005, 2), 0.0]

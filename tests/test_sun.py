@@ -1,5 +1,5 @@
 """Sun position: SPA against the NREL report and an independent implementation (pvlib, stored in
-tests/data/sun_reference.json by tests/data/make_sun_reference.py), paper 004's formula (corrected and as
+tests/data/sun_reference.json by tests/data/make_sun_reference.py), [Kolivand-Sun]'s formula (corrected and as
 printed) with its measured error, world-frame rotation, sun lights, time-lapse tracks and ``arshadow sun``."""
 
 from __future__ import annotations
@@ -175,7 +175,7 @@ def test_naive_time_refused():
     assert parse_time("2020-01-01T12:00z").utcoffset() == timedelta(0)
 
 
-# -------------------------------------------------------------------------------- paper 004's formula
+# -------------------------------------------------------------------------------- [Kolivand-Sun]'s formula
 PAPER_MEDIAN = TOL.sun_paper_median_deg  # documented: median 0.20-0.21 deg (docs/lights.md)
 PAPER_MAX = TOL.sun_paper_max_deg  # documented: max 1.05-1.07 deg
 

@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 from conftest import TOL
 
-from arshadow.camera import Intrinsics
+from arshadow.camera.model import Intrinsics
 from arshadow.errors import ShapeError, UsageError
-from arshadow.report import ReportItem
-from arshadow.synth import camera_path, look_at_pose, random_pose, render_marker_photo
+from arshadow.frame.report import ReportItem
+from arshadow.synth.markers import camera_path, look_at_pose, random_pose, render_marker_photo
 from arshadow.tracking.board import Board
 from arshadow.tracking.dictionary import marker_object_points
 from arshadow.transforms import invert_rigid, rotation_error_deg
@@ -138,7 +138,7 @@ def test_render_bad_args():
 
 
 # ---------------------------------------------------------------------------------------------------
-# pose accuracy against the generating pose (issue 2 acceptance)
+# pose accuracy against the generating pose (the tracking acceptance tests acceptance)
 # ---------------------------------------------------------------------------------------------------
 N_POSES = 200
 

@@ -1,4 +1,4 @@
-"""Problems a new user met (issue 12, "Also found when tried as a new user would"), each pinned by a test.
+"""Problems a new user met (the stress suite, "Also found when tried as a new user would"), each pinned by a test.
 The others of that list are in tests/test_hostile_inputs.py (Latin-1 OBJ, output paths checked first,
 wrong-units / camera-inside / sun-below-horizon warnings, --board with --dictionary, --aa 3, empty folder,
 --calib DIR) and tests/test_stress_render.py (the light seam where the object meets its shadow)."""
@@ -58,9 +58,9 @@ def test_render_honours_exif_orientation(tmp_path, capsys, gl_ctx):
     """A landscape sensor photo tagged 'rotate 90 CW' (a phone held upright): rendered in the stored
     orientation (where the calibration applies), written upright: the output is the untagged photo's
     output turned the same way."""
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
     from arshadow.cli import main
-    from arshadow.synth import look_at_pose, render_marker_photo
+    from arshadow.synth.markers import look_at_pose, render_marker_photo
 
     intr = Intrinsics.from_file(CALIB)
     img = render_marker_photo(intr, look_at_pose([0.15, -0.3, 0.3], [0.0, 0.0, 0.0]), marker_length=0.05, seed=3).image
@@ -115,7 +115,7 @@ def test_marker_id_help_is_the_same_in_render_and_pose():
 
 
 def test_board_with_conflicting_dictionary_is_refused():
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
     from arshadow.errors import UsageError
     from arshadow.tracking.tracker import MarkerTracker
 
@@ -129,7 +129,7 @@ def test_board_with_conflicting_dictionary_is_refused():
 
 def test_aa_only_documented_values():
     from arshadow.errors import UsageError
-    from arshadow.scene import RenderOptions
+    from arshadow.scene.spec import RenderOptions
 
     for ok in (0, 2, 4):
         RenderOptions(aa=ok).check()
@@ -139,7 +139,7 @@ def test_aa_only_documented_values():
 
 
 # ==================================================================================================
-# issue 20: plausible mistakes that gave silent wrong output. Each case asserts the message (not only the
+# the sanity gates: plausible mistakes that gave silent wrong output. Each case asserts the message (not only the
 # exit status).
 # ==================================================================================================
 
@@ -147,7 +147,7 @@ KNOT = ROOT / "samples" / "meshes" / "knot.ply"
 
 
 def _scene(**kw):
-    from arshadow.scene import scene_from_dict
+    from arshadow.scene.spec import scene_from_dict
 
     d = {"calib": str(CALIB), "marker_length": 0.05, "model": "box:0.04,0.04,0.06", "lights": ["point:0.1,0.1,0.4"]}
     d.update(kw)
@@ -195,8 +195,8 @@ def test_camera_tens_of_metres_away_is_a_unit_warning_once():
     """The per-frame check (O(1)): a camera 574 m from the marker (what a 50 m marker gives) is said once per
     run, naming the unit mistake; a camera 0.5 m away is silent."""
     from arshadow.geometry.mesh import load_occluder
-    from arshadow.sanity import FrameChecks
-    from arshadow.synth import look_at_pose
+    from arshadow.scene.sanity import FrameChecks
+    from arshadow.synth.markers import look_at_pose
 
     checks = FrameChecks(load_occluder("box:0.04,0.04,0.06"), marker_length=50.0)
     far = look_at_pose([0.0, -344.4, 459.2], [0.0, 0.0, 0.0])  # |eye| = 574 m
@@ -256,8 +256,8 @@ def test_gltf_is_y_up_by_default_and_up_option(tmp_path):
 def test_light_inside_the_object_is_one_error_before_any_work(tmp_path):
     """A light inside the model: one line, exit 2, before any photo is read or written (it was one error
     per photo, exit 1)."""
-    from arshadow.camera import Intrinsics
-    from arshadow.synth import look_at_pose, render_marker_photo
+    from arshadow.camera.model import Intrinsics
+    from arshadow.synth.markers import look_at_pose, render_marker_photo
 
     img = render_marker_photo(
         Intrinsics.from_file(CALIB), look_at_pose([0.1, -0.3, 0.4], [0, 0, 0]), marker_length=0.05
@@ -312,7 +312,7 @@ def test_sun_setting_during_a_time_lapse_names_the_frames():
     own sun_position, no sampling or bisection)."""
     from arshadow.lights.spec import parse_sun_track
     from arshadow.lights.sun import sun_position
-    from arshadow.sanity import sun_set_warning
+    from arshadow.scene.sanity import sun_set_warning
 
     tr = parse_sun_track("sun:48.85,2.35,2026-06-21T21:30+02:00")
     start = datetime(2026, 6, 21, 21, 30, tzinfo=timezone(timedelta(hours=2)))
@@ -455,7 +455,7 @@ def test_light_close_to_the_object_gets_a_slowness_notice(caplog):
     assert any("may take seconds" in m and "knot.ply" in m for m in msgs), msgs
     scenes = json.loads((ROOT / "samples" / "scenes.json").read_text())["scenes"]
     for sc in scenes:
-        from arshadow.scene import scene_from_dict
+        from arshadow.scene.spec import scene_from_dict
 
         d = {k: v for k, v in sc.items() if k not in ("photo", "title", "true_cam_from_world")}
         caplog.clear()
@@ -466,10 +466,10 @@ def test_light_close_to_the_object_gets_a_slowness_notice(caplog):
 
 def test_flagged_pose_carries_its_reason():
     """A pose flagged for a small marker carries the reason with the number (the report's ``flag_reasons``)."""
-    from arshadow.camera import Intrinsics
-    from arshadow.report import ReportItem
-    from arshadow.session import Session
-    from arshadow.synth import look_at_pose, render_marker_photo
+    from arshadow.camera.model import Intrinsics
+    from arshadow.frame.report import ReportItem
+    from arshadow.frame.session import Session
+    from arshadow.synth.markers import look_at_pose, render_marker_photo
 
     intr = Intrinsics.from_file(CALIB)
     img = render_marker_photo(intr, look_at_pose([0.2, -0.9, 1.2], [0, 0, 0]), marker_length=0.05, seed=2).image
@@ -483,7 +483,7 @@ def test_flagged_pose_carries_its_reason():
 
 
 def test_calibration_of_another_size_is_said_on_stderr(caplog):
-    from arshadow.session import Session
+    from arshadow.frame.session import Session
 
     with Session(_scene()) as s, caplog.at_level(logging.WARNING):
         s.hooks.calibration(640, 360)
@@ -530,8 +530,8 @@ def test_batch_json_names_outputs_and_survives_an_interruption(tmp_path, monkeyp
 
 @pytest.mark.gl
 def test_batch_json_item_output_is_not_null(tmp_path):
-    from arshadow.camera import Intrinsics
-    from arshadow.synth import look_at_pose, render_marker_photo
+    from arshadow.camera.model import Intrinsics
+    from arshadow.synth.markers import look_at_pose, render_marker_photo
     from arshadow.video.batch import run_batch
     from arshadow.video.engine import EngineOptions
 
@@ -561,7 +561,7 @@ def test_batch_json_item_output_is_not_null(tmp_path):
 
 def test_demo_and_render_agree_on_aa():
     from arshadow.cli import build_parser
-    from arshadow.render_options import DEFAULT_AA, RenderOptions
+    from arshadow.scene.options import DEFAULT_AA, RenderOptions
 
     sub = next(a for a in build_parser()._actions if a.dest == "command").choices
     defaults = {n: next(a.default for a in sub[n]._actions if "--aa" in a.option_strings) for n in ("render", "demo")}
@@ -584,8 +584,8 @@ def test_conventions_are_in_the_repository():
 def test_render_says_unit_mistakes_and_flagged_poses_on_stderr(tmp_path):
     """The photo path end to end: ``--marker-length 50`` warns (unit, object size, camera distance) with
     exit 0, and a photo with a small (flagged) marker gets the flagged-pose summary line."""
-    from arshadow.camera import Intrinsics
-    from arshadow.synth import look_at_pose, render_marker_photo
+    from arshadow.camera.model import Intrinsics
+    from arshadow.synth.markers import look_at_pose, render_marker_photo
 
     intr = Intrinsics.from_file(CALIB)
     cv2.imwrite(

@@ -34,14 +34,14 @@ FPS = 25.0
 # helpers
 # --------------------------------------------------------------------------------------------------
 def _intr():
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
 
     return Intrinsics.from_file(CALIB)
 
 
 def _write_clip(path, poses, *, marker_length=0.05, blank=(), noise=1.0, seed=0):
     """Synthetic clip: one render_marker_photo per pose (frames in ``blank``: plain grey, no marker)."""
-    from arshadow.synth import render_marker_photo
+    from arshadow.synth.markers import render_marker_photo
 
     intr = _intr()
     with CvClipWriter(path, FPS, (W, H)) as w:
@@ -191,7 +191,7 @@ def _branch_flips(chosen, truth):
 
 
 def test_temporal_choice_removes_ippe_flips():
-    from arshadow.synth import camera_path, render_marker_photo
+    from arshadow.synth.markers import camera_path, render_marker_photo
     from arshadow.tracking.tracker import MarkerTracker
     from arshadow.video.chooser import TemporalPoseChooser
 
@@ -233,7 +233,7 @@ def test_temporal_chooser_passes_frames_without_pose_and_breaks_long_gaps():
 @pytest.mark.gl
 def test_video_end_to_end_mask_iou_against_oracle(tmp_path, tol, gl_ctx):
     from arshadow.geometry.mesh import load_occluder
-    from arshadow.synth import camera_path
+    from arshadow.synth.markers import camera_path
 
     poses = camera_path(10, radius=0.5, height=(0.3, 0.42), sweep_deg=40.0, start_deg=-110.0)
     clip = _write_clip(tmp_path / "clip.mp4", poses, blank={4})
@@ -302,7 +302,7 @@ def test_time_lapse_moves_the_sun_and_recomputes_only_past_the_angle(tmp_path, m
 
     import arshadow.geometry.silhouette as sil_mod
     from arshadow.lights.sun import enu_to_world, sun_position
-    from arshadow.synth import camera_path
+    from arshadow.synth.markers import camera_path
 
     poses = camera_path(8, radius=0.5, height=(0.35, 0.4), sweep_deg=10.0, start_deg=-100.0)
     clip = _write_clip(tmp_path / "tl.mp4", poses)
@@ -399,7 +399,7 @@ def _scene(*extra):
 
 @pytest.mark.gl
 def test_cli_bad_videos_one_line_each_others_processed(tmp_path, capsys):
-    from arshadow.synth import camera_path
+    from arshadow.synth.markers import camera_path
 
     good = _write_clip(tmp_path / "good.mp4", camera_path(3, radius=0.5, height=(0.35, 0.4), sweep_deg=5.0))
     junk = tmp_path / "junk.avi"
@@ -408,7 +408,7 @@ def test_cli_bad_videos_one_line_each_others_processed(tmp_path, capsys):
     rc = _run_cli("video", tmp_path / "missing.mp4", junk, good, *_scene(), "-o", out, "--report", out / "r.json", "-q")
     assert rc == 1
     err = capsys.readouterr().err.strip().splitlines()
-    # issue 20: the good clip's poses are flagged (a small, soft marker): beside the two errors, one warning
+    # the sanity gates: the good clip's poses are flagged (a small, soft marker): beside the two errors, one warning
     # line saying so, and nothing else
     others = err[2:]
     assert len(err) == 2 + len(others) and len(others) <= 1, err

@@ -1,4 +1,4 @@
-"""The video entry point of the API (issue 27 item 3): ``arshadow.process_video`` is what ``arshadow video``
+"""The video entry point of the API (the layout work): ``arshadow.process_video`` is what ``arshadow video``
 runs; the CLI only parses, calls it and prints. Same clip, same scene: the same frames, masks and report."""
 
 from __future__ import annotations
@@ -42,9 +42,9 @@ def _comparable(d):
 @pytest.mark.gl
 def test_process_video_is_what_the_cli_runs(tmp_path, gl_ctx):
     import arshadow
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
     from arshadow.cli import main
-    from arshadow.synth import camera_path
+    from arshadow.synth.markers import camera_path
 
     poses = camera_path(8, radius=0.5, height=(0.3, 0.42), sweep_deg=30.0, start_deg=-110.0)
     clip = make_clip(tmp_path / "clip.mp4", Intrinsics.from_file(CALIB), poses, blank={3}, noise=1.0)

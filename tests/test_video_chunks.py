@@ -65,13 +65,13 @@ KEYS = (
 
 
 def _intr():
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
 
     return Intrinsics.from_file(CALIB)
 
 
 def _poses(n):
-    from arshadow.synth import camera_path
+    from arshadow.synth.markers import camera_path
 
     return camera_path(n, radius=0.5, height=(0.3, 0.42), sweep_deg=40.0, start_deg=-110.0)
 
@@ -192,7 +192,7 @@ def test_jobs2_equals_sequential(tmp_path, tol):
         "longest_gap_start",
     ):
         seq = s1[k]
-        if k == "warnings":  # they name the run's own frames file (issue 31)
+        if k == "warnings":  # they name the run's own frames file (the cluster and flags work)
             seq = [w.replace(str(tmp_path / "seq"), str(tmp_path / "par")) for w in seq]
         assert seq == s2[k], k
     assert s2["audio"] is True
@@ -227,7 +227,7 @@ def test_no_keyframe_after_the_first_is_one_chunk_and_said(tmp_path, capsys):
 
 def _vfr_clip(path, n=60):
     """H.264 with frame intervals alternating 30 and 50 ms (variable frame rate), keyframe every 15."""
-    from arshadow.synth import render_marker_photo
+    from arshadow.synth.markers import render_marker_photo
 
     intr = _intr()
     with av.open(str(path), "w") as c:
@@ -324,7 +324,7 @@ def dying_chunk_task(recipe, prep, chunk):
 @pytest.mark.gl
 def test_a_dying_worker_is_retried_or_fails_the_video_in_one_line(tmp_path, monkeypatch):
     from arshadow.errors import ImageError
-    from arshadow.scene import scene_from_dict
+    from arshadow.scene.spec import scene_from_dict
     from arshadow.video.engine import EngineOptions, video_outputs
     from arshadow.video.parallel import BackendRecipe, ChunkPool, process_video_chunked
 
@@ -371,7 +371,7 @@ def test_a_dying_worker_is_retried_or_fails_the_video_in_one_line(tmp_path, monk
 @pytest.mark.gl
 def test_batch_jobs2_and_dask_localcluster_chunks_equal_local(tmp_path):
     distributed = pytest.importorskip("distributed")
-    from arshadow.scene import scene_from_dict
+    from arshadow.scene.spec import scene_from_dict
     from arshadow.video.batch import run_batch
     from arshadow.video.engine import EngineOptions
 

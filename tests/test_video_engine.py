@@ -45,13 +45,13 @@ JOB = {
 
 
 def _intr():
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
 
     return Intrinsics.from_file(CALIB)
 
 
 def _poses(n):
-    from arshadow.synth import camera_path
+    from arshadow.synth.markers import camera_path
 
     return camera_path(n, radius=0.5, height=(0.3, 0.42), sweep_deg=30.0, start_deg=-110.0)
 
@@ -76,7 +76,7 @@ def _lines(path):
 def test_pose_stream_smooths_without_lag_and_holds_then_releases():
     """Unit test of PoseStream on synthetic poses: a steady pan with noise comes out less noisy and not
     behind; a gap is held for ``hold_frames`` and then passed through."""
-    from arshadow.synth import pan_path
+    from arshadow.synth.markers import pan_path
     from arshadow.transforms import matrix_from_rvec_tvec, rotation_error_deg, rvec_tvec_from_matrix
     from arshadow.video.temporal import PoseStream
 
@@ -341,7 +341,7 @@ def _write_job(tmp_path):
 
 def _batch_inputs(tmp_path, n_videos=3, frames=16):
     from arshadow.io import write_image
-    from arshadow.synth import render_marker_photo
+    from arshadow.synth.markers import render_marker_photo
 
     ins = [make_clip(tmp_path / f"v{k}.mp4", _intr(), _poses(frames), noise=1.0, seed=10 * k) for k in range(n_videos)]
     ph = render_marker_photo(_intr(), _poses(3)[1], marker_length=0.05, noise_sigma=1.0, seed=5)
@@ -404,7 +404,7 @@ def test_batch_kill9_mid_run_then_rerun_completes_everything(tmp_path):
 @pytest.mark.gl
 def test_batch_on_dask_localcluster_equals_local(tmp_path):
     distributed = pytest.importorskip("distributed")
-    from arshadow.scene import scene_from_dict
+    from arshadow.scene.spec import scene_from_dict
     from arshadow.video.batch import run_batch
     from arshadow.video.engine import EngineOptions
 

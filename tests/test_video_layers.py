@@ -1,4 +1,4 @@
-"""Video layers (issue 19 item 1): ``arshadow video --layers`` writes per-frame layers that rebuild the frames.
+"""Video layers (the compositing-layers work): ``arshadow video --layers`` writes per-frame layers that rebuild the frames.
 
 Ground truth: each decoded input frame composited again by a Session at the pose the engine reports for
 it (``<stem>.frames.jsonl``); the layer videos, decoded independently with PyAV, recombine with the decoded
@@ -57,8 +57,8 @@ def _cli(*argv):
 
 @pytest.fixture(scope="module")
 def clip(tmp_path_factory, gl_ctx):
-    from arshadow.camera import Intrinsics
-    from arshadow.synth import camera_path
+    from arshadow.camera.model import Intrinsics
+    from arshadow.synth.markers import camera_path
 
     poses = camera_path(5, radius=0.45, height=(0.3, 0.4), sweep_deg=20.0, start_deg=-110.0)
     return make_clip(tmp_path_factory.mktemp("clip") / "clip.mp4", Intrinsics.from_file(CALIB), poses, blank=(2,))
@@ -162,8 +162,8 @@ def test_layer_file_over_an_input_video_is_exit_2(clip, tmp_path, capsys):
 def test_batch_layers_for_photos_and_videos(clip, tmp_path, gl_ctx):
     import cv2 as _cv2
 
-    from arshadow.camera import Intrinsics
-    from arshadow.synth import look_at_pose, render_marker_photo
+    from arshadow.camera.model import Intrinsics
+    from arshadow.synth.markers import look_at_pose, render_marker_photo
 
     job = tmp_path / "job.json"
     job.write_text(json.dumps(JOB))

@@ -1,4 +1,4 @@
-"""Video pose trust (issues 26 items 5-6, 31 item 4): one reference marker through a video, broken poses
+"""Video pose trust (the trust fixes, the cluster and flags work): one reference marker through a video, broken poses
 held, every per-frame record carrying its reference id and its flags.
 
 Synthetic clips from :func:`arshadow.synth.render_marker_photo` of a 3 x 2 grid board (ids 0-5) seen along
@@ -44,8 +44,8 @@ def _write_board_clip(path, n, hidden=None, moved=()):
     cut out and pasted 70 px lower (the board fit then has an outlier marker)."""
     import cv2
 
-    from arshadow.camera import Intrinsics
-    from arshadow.synth import camera_path, render_marker_photo
+    from arshadow.camera.model import Intrinsics
+    from arshadow.synth.markers import camera_path, render_marker_photo
 
     intr, board = Intrinsics.from_file(CALIB), _board()
     poses = camera_path(n, radius=0.3, height=(0.25, 0.3), sweep_deg=25.0, start_deg=-110.0)
@@ -159,7 +159,7 @@ def _realvideo() -> Path:
 @pytest.mark.gl
 @pytest.mark.realvideo
 def test_six_marker_sheet_one_reference(tmp_path, capsys):
-    """The shared six-marker clip without --marker-id (issue 26: the reference was 1001, 101, 601 and a
+    """The shared six-marker clip without --marker-id (the trust fixes: the reference was 1001, 101, 601 and a
     false 0 in turn): one reference id in every frame record with a pose, no switch; the reference is one of
     the sheet's ids (101, 601, ..., 1001) and is tracked in at least as many frames as stock OpenCV finds it
     (detections.csv)."""
@@ -197,7 +197,7 @@ def test_six_marker_sheet_one_reference(tmp_path, capsys):
 @pytest.mark.realvideo
 @pytest.mark.slow
 def test_upscaled_board_clip_broken_poses_held(tmp_path, capsys):
-    """The shared chessboard clip upscaled 2x (issue 26: frames with 35-164 px reprojection error were drawn
+    """The shared chessboard clip upscaled 2x (the trust fixes: frames with 35-164 px reprojection error were drawn
     as ok behind the smoothing): no ``ok`` frame above 20 px."""
     import av
     import cv2

@@ -45,7 +45,7 @@ def make_clip(
     rotation=0,
 ):
     """Encode one synthetic frame per pose (frames in ``blank``: the floor only, no marker); returns path."""
-    from arshadow.synth import render_marker_photo
+    from arshadow.synth.markers import render_marker_photo
     from arshadow.video.avio import AvWriter
 
     path = Path(path)

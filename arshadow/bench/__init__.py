@@ -7,7 +7,7 @@ One module per section, each built on the Python API:
 - :mod:`.render` - render time vs shadow error (stencil variants, anti-aliasing, resolution scale, planar,
   the shadow-map baseline) against the exact GL-independent shadow (:mod:`arshadow.geometry.exact`);
 - :mod:`.tracking` - detection + pose time vs pose error;
-- :mod:`.pipeline` - per-stage times, FPS vs lights, paper 003's AR scene (through :class:`arshadow.Session`);
+- :mod:`.pipeline` - per-stage times, FPS vs lights, [Kolivand-DeltaPlus]'s AR scene (through :class:`arshadow.Session`);
 - :mod:`.realism` - each rendering option's cost per 720p frame against its residual on the path-traced
   reference scenes (:mod:`.reference`), with the planner's choices;
 - :mod:`.plots` (matplotlib, optional) and :mod:`.summary` (Markdown).

@@ -25,7 +25,7 @@ from arshadow import __version__
 from arshadow.gl.context import gl_info
 from arshadow.io import write_bytes
 
-from ..resources import data_root
+from ..demo.data import data_root
 
 #: the folder holding samples/ and calib/: the repository root in a checkout, the installed copy otherwise
 ROOT = data_root()

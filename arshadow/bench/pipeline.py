@@ -1,8 +1,8 @@
 """Section 4: the whole pipeline (detection -> composite) on synthetic photos with a known pose.
 
 - per-stage times at 640x480, 1280x720 and 1920x1080 (the 8 536-face knot, one point light);
-- frames per second against the number of lights (paper 002 Fig. 8 plots the same curve for its scene);
-- paper 003's AR scene (8 536 faces, one light) against its reported 74.35 FPS, also with Delta+ run on
+- frames per second against the number of lights ([Kolivand-Stencil] Fig. 8 plots the same curve for its scene);
+- [Kolivand-DeltaPlus]'s AR scene (8 536 faces, one light) against its reported 74.35 FPS, also with Delta+ run on
   every frame (as a moving light or object needs) - the paper's hardware was a 2.5 GHz Core i5-3210 with
   an ATI Radeon HD 7670M GPU; here it is the CPU and Mesa's software rasteriser (see the metadata).
 
@@ -21,19 +21,19 @@ from typing import Any
 
 import numpy as np
 
-from ..camera import Intrinsics
+from ..camera.model import Intrinsics
+from ..frame.session import Session
 from ..geometry.mesh import load_occluder
-from ..scene import SceneSpec, scene_from_dict
-from ..session import Session
-from ..synth import look_at_pose, render_marker_photo
+from ..scene.spec import SceneSpec, scene_from_dict
+from ..synth.markers import look_at_pose, render_marker_photo
 from .common import ROOT, summary, t_fields
 from .tracking import camera
 
 RESOLUTIONS = ((640, 480), (1280, 720), (1920, 1080))
-#: paper 003 sec. V: "The AR system including shadow volumes using Delta+ Algorithm is performed in 74.35 FPS.
+#: [Kolivand-DeltaPlus] sec. V: "The AR system including shadow volumes using Delta+ Algorithm is performed in 74.35 FPS.
 #: The 3D objects include 8536 faces." Hardware: 2.5 GHz Intel Core i5-3210, ATI Radeon HD 7670M.
 PAPER003_FPS = 74.35
-PAPER003_HARDWARE = "2.5 GHz Intel Core i5-3210 CPU + ATI Radeon HD 7670M GPU (paper 003)"
+PAPER003_HARDWARE = "2.5 GHz Intel Core i5-3210 CPU + ATI Radeon HD 7670M GPU ([Kolivand-DeltaPlus])"
 
 
 def photo(width: int, height: int, seed: int = 1) -> tuple[np.ndarray, Intrinsics]:
@@ -156,7 +156,7 @@ def paper003_scene(cfg: dict, ctx: Any, log: Callable[[str], None]) -> list[dict
                 "render_ms": summary(st["render"], 4)["median"],
             }
         )
-    log("  pipeline: paper 003 scene done")
+    log("  pipeline: [Kolivand-DeltaPlus] scene done")
     return rows
 
 

@@ -67,7 +67,7 @@ def _short(config: str) -> str:
         .replace("render at ", "")
         .replace(" resolution, bilinear upscale", " res")
         .replace("supersample", "SS")
-        .replace("planar projection (paper 002)", "planar")
+        .replace("planar projection ([Kolivand-Stencil])", "planar")
         .replace(" (caps)", "")
     )
 
@@ -176,7 +176,7 @@ def reference_ops(rows: list[dict], out_dir: Path, label: str) -> Path:
                 [r["paper_n_log2_n"] for r in pts],
                 "x:",
                 color=col,
-                label="Delta+: paper 003's n log2 n (n = vertices)",
+                label="Delta+: [Kolivand-DeltaPlus]'s n log2 n (n = vertices)",
             )
             ax.plot(
                 x,
@@ -192,7 +192,7 @@ def reference_ops(rows: list[dict], out_dir: Path, label: str) -> Path:
                 [r["formula_main_term"] for r in pts],
                 "x:",
                 color=col,
-                label=f"{alg}: paper 000 formula, main term ({'compares' if alg == 'TA' else 'mults'})",
+                label=f"{alg}: [Kolivand-HSD] formula, main term ({'compares' if alg == 'TA' else 'mults'})",
             )
     ax.set_xscale("log")
     ax.set_yscale("log")
@@ -248,7 +248,9 @@ def pipeline_time_vs_resolution(rows: list[dict], out_dir: Path, label: str) -> 
 
 
 def fps_vs_lights(rows: list[dict], out_dir: Path, label: str) -> Path:
-    fig, ax = _fig("Frames per second vs number of lights (1280x720, 8 536 faces; cf. paper 002 Fig. 8)", label)
+    fig, ax = _fig(
+        "Frames per second vs number of lights (1280x720, 8 536 faces; cf. [Kolivand-Stencil] Fig. 8)", label
+    )
     for m, col in (("volume", "tab:blue"), ("shadowmap", "tab:red")):
         pts = sorted((r for r in rows if r["shadow_method"] == m), key=lambda r: r["lights"])
         if pts:

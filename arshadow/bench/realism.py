@@ -1,4 +1,4 @@
-"""The realism table of ``arshadow bench`` (issue 28 item 5): each rendering option's cost against its residual.
+"""The realism table of ``arshadow bench`` (the realism work): each rendering option's cost against its residual.
 
 For every entry of :data:`OPTIONS` (a name, the scene keys it sets, and whether the light is measured by
 ``arshadow light`` or given): the cost (ms per 720p frame, :class:`arshadow.Session` on a synthetic 1280 x 720
@@ -21,7 +21,7 @@ from ..errors import EstimateError
 from .common import REPO, summary, timed
 
 if TYPE_CHECKING:
-    from ..camera import Intrinsics
+    from ..camera.model import Intrinsics
 
 __all__ = ["OPTIONS", "REFERENCE_DIR", "run"]
 
@@ -38,7 +38,7 @@ OPTIONS: list[tuple[str, dict, str]] = [
     ("measured, no exposure match", {"no_exposure": True}, "measured"),
     ("true light (defaults)", {}, "true"),
     ("true light, opacity 0.5", {"opacity": 0.5}, "true"),
-    # issue 28 (docs/shading.md): sky occlusion is on by default with a measured light
+    # the realism work (docs/shading.md): sky occlusion is on by default with a measured light
     ("measured, ambient occlusion off", {"ambient_occlusion": "off"}, "measured"),
     ("measured, camera effects on", {"camera_effects": "on"}, "measured"),
     ("true light, ambient occlusion on", {"ambient_occlusion": "on"}, "true"),
@@ -47,9 +47,9 @@ OPTIONS: list[tuple[str, dict, str]] = [
 
 def _photo_720p(marker_length: float = 0.08) -> tuple[np.ndarray, Intrinsics]:
     """A synthetic 1280 x 720 photo of the marker (and a probe, lit), its camera: ``(image, intrinsics)``."""
-    from ..camera import Intrinsics
-    from ..synth import look_at_pose
-    from ..synth_lit import render_lit_photo
+    from ..camera.model import Intrinsics
+    from ..synth.lit import render_lit_photo
+    from ..synth.markers import look_at_pose
 
     K = Intrinsics(1000.0, 1000.0, 639.5, 359.5, 1280, 720)
     pose = look_at_pose((0.0, -0.34, 0.28), (0.0, 0.04, 0.0))
@@ -62,8 +62,8 @@ def _photo_720p(marker_length: float = 0.08) -> tuple[np.ndarray, Intrinsics]:
 def _times(keys: dict, light: str, est: Any, repeat: int, warmup: int) -> tuple[list, list, str]:
     """One session with the option on the 720p photo: (total ms per frame, render-stage ms, the plan's
     choices)."""
-    from ..scene import scene_from_dict
-    from ..session import Session
+    from ..frame.session import Session
+    from ..scene.spec import scene_from_dict
 
     image, K = _photo_720p()
     d: dict[str, Any] = {"calib": K, "marker_length": 0.08, "model": "box:0.045,0.065,0.07", "place": [0.1, 0.09, 0]}
@@ -150,7 +150,7 @@ def run(cfg: dict, ctx: Any, log: Callable[[str], None], folder: Path | None = N
         log(f"  no reference cases in {folder}: the realism table needs a checkout (tests/data/reference)")
         return []
     # the light estimate of each plate once (it does not depend on the rendering options); a plate the
-    # estimate refuses (EstimateError: both own point-light plates since issue 26's gate) is left out
+    # estimate refuses (EstimateError: both own point-light plates since the trust fixes ('s)'s's gate) is left out
     own, est_own = _estimated(load_cases(folder / "own"), log)
     own, est_own = (own[:3], est_own[:3]) if cfg.get("quick") else (own, est_own)
     heldout, est_held = ([], []) if cfg.get("quick") else _estimated(load_cases(folder / "heldout"), log)

@@ -33,7 +33,7 @@ from ..io import write_bytes
 from .reference_scene import PAPER_CODE, ReferenceScene, intrinsics_of, light_spec, pose_of
 
 if TYPE_CHECKING:
-    from ..estimate.result import LightEstimate
+    from ..estimate.record import LightEstimate
 from .reference_score import change_map, change_threshold, decode8, residuals, residuals_smoothed, smooth_regions
 
 __all__ = [
@@ -125,8 +125,8 @@ def run_arshadow(
     the rendering model alone; the light estimate still tracks). ``est``: a light estimate of this plate
     already made (measured light; made here when None).
     """
-    from ..scene import scene_from_dict
-    from ..session import Session
+    from ..frame.session import Session
+    from ..scene.spec import scene_from_dict
 
     K = intrinsics_of(sc)
     d: dict[str, Any] = {
@@ -320,7 +320,7 @@ def plate_alignment(plate8: np.ndarray, sc: ReferenceScene) -> tuple[float, floa
     (``Tolerances.synth_corner_px``): a camera mismatch of a tenth of a pixel or 0.1 % of focal length shows.
     """
     from ..compose.composite import SRGB_TO_LINEAR
-    from ..synth import render_print_scene
+    from ..synth.markers import render_print_scene
 
     K, pose = intrinsics_of(sc), pose_of(sc)
     scene = render_print_scene(K, pose, marker_length=sc.marker_length, supersample=8)

@@ -1,6 +1,6 @@
 """Path-traced reference scenes (Mitsuba 3): a floor, the printed marker, a probe box, an object, a light.
 
-The truth for the realism work (issue 28): each scene is rendered once without the object (the PLATE, what
+The truth for the realism work (the realism work): each scene is rendered once without the object (the PLATE, what
 a user photographs and gives arshadow), once with it (the TRUTH), and once more with it and another seed
 (a second truth: the path tracer's noise floor). Nothing here comes from arshadow's renderer: the images
 are Mitsuba's, the masks come from the geometry (ray casts by Mitsuba, distances to the object's surface).
@@ -36,11 +36,11 @@ from typing import Any
 
 import numpy as np
 
-from ..camera import Intrinsics
+from ..camera.model import Intrinsics
 from ..compose.composite import SRGB_TO_LINEAR
 from ..errors import UsageError
 from ..geometry.mesh import load_occluder
-from ..synth_poses import look_at_pose
+from ..synth.poses import look_at_pose
 from ..tracking.dictionary import get_dictionary, marker_bits
 
 __all__ = ["ReferenceScene", "intrinsics_of", "pose_of", "render_scene", "scene_masks", "light_spec"]

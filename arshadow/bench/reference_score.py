@@ -1,4 +1,4 @@
-"""Score a composite against a path-traced truth (issue 28): the residual of the insert's effect.
+"""Score a composite against a path-traced truth (the realism work): the residual of the insert's effect.
 
 For a region R (ground pixels, object pixels, or the contact band), in camera-linear RGB::
 

@@ -1,4 +1,4 @@
-"""The path-traced reference scenes: the project's own set and a held-out set (issue 28 item 4).
+"""The path-traced reference scenes: the project's own set and a held-out set (the realism work).
 
 ``OWN`` is for developing the rendering model (a box, a torus, a sphere, a cylinder under a sun, hard or
 with a disc, plus a uniform sky, or a point light plus ambient); ``HELDOUT`` has other objects, lights,

@@ -28,7 +28,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from ..camera import Intrinsics
+from ..camera.model import Intrinsics
 from ..geometry.caster import ShadowCaster
 from ..geometry.exact import ShadowOracle, boundary_error_px, ground_shadow_triangles, iou
 from ..geometry.mesh import load_occluder
@@ -38,8 +38,8 @@ from ..gl.shadowmap import MAP_SIZES, ShadowMapRenderer
 from ..gl.stencil import LightPass, ShadowRenderer
 from ..lights.area import sample_area_light
 from ..lights.spec import parse_light
-from ..render_api import RenderRequest
-from ..synth import look_at_pose
+from ..renderer.request import RenderRequest
+from ..synth.markers import look_at_pose
 from ..transforms import CV_TO_GL
 from .common import ROOT, summary
 
@@ -53,7 +53,7 @@ ZNEAR = 0.01
 #: configuration family measured only in the scenes that name it (the thin cards)
 NO_BIAS = "shadow map, bias off"
 
-#: the thin card: 6 cm x 8 cm, 1 mm thick, standing on the ground (issue 11 quotes pyrender's shadow map
+#: the thin card: 6 cm x 8 cm, 1 mm thick, standing on the ground (the benchmarks' brief quotes pyrender's shadow map
 #: losing a thin card's shadow at 4096 texels and above)
 THIN_CARD = "box:0.06,0.001,0.08"
 
@@ -184,7 +184,7 @@ def _configs(ctx: Any, quick: bool) -> list[tuple[str, str, Callable[[], Any], d
         ("stencil", "z-pass, to infinity", st(), dict(mode="zpass", truncate=False)),
         ("stencil", "z-fail (caps), truncated", st(), dict(mode="zfail", truncate=True)),
         ("stencil", "z-fail (caps), to infinity", st(), dict(mode="zfail", truncate=False)),
-        ("planar", "planar projection (paper 002)", st(), dict(mode="planar")),
+        ("planar", "planar projection ([Kolivand-Stencil])", st(), dict(mode="planar")),
     ]
     ms = [s for s in (2, 4, 8) if s <= ctx.max_samples]
     aa = [(f"MSAA {s}", dict(samples=s)) for s in (ms if not quick else ms[-1:])]

@@ -155,15 +155,15 @@ def reference_ops(cfg: dict, log: Callable[[str], None]) -> list[dict]:
 
 
 def paper_tables() -> list[dict]:
-    """Paper 000 Figs. 5-6 (formulas of sec. VI at n = 10, m = 5 and n = 100, m = 10), the 2 M-face ratio
-    claim, and paper 003 Table II - all computed from the papers' own formulas (labelled as such)."""
+    """[Kolivand-HSD] Figs. 5-6 (formulas of sec. VI at n = 10, m = 5 and n = 100, m = 10), the 2 M-face ratio
+    claim, and [Kolivand-DeltaPlus] Table II - all computed from the papers' own formulas (labelled as such)."""
     rows = []
     for n, m in ((10, 5), (100, 10), (2_000_000, 3)):
         f = paper000_formulas(n, m)
         for name in ("TA", "VnV", "HSD"):
             rows.append(
                 {
-                    "source": "paper 000 sec. VI formula",
+                    "source": "[Kolivand-HSD] sec. VI formula",
                     "n": n,
                     "m": m,
                     "algorithm": name,
@@ -172,13 +172,22 @@ def paper_tables() -> list[dict]:
                 }
             )
     p = paper003_claim(5000)
-    rows.append({"source": "paper 003 Table II", "n": 5000, "algorithm": "BSB/HFC O(n^2)", "total": p["quadratic"]})
-    rows.append({"source": "paper 003 Table II", "n": 5000, "algorithm": "Delta+ O(n log2 n)", "total": p["n_log2_n"]})
+    rows.append(
+        {"source": "[Kolivand-DeltaPlus] Table II", "n": 5000, "algorithm": "BSB/HFC O(n^2)", "total": p["quadratic"]}
+    )
+    rows.append(
+        {
+            "source": "[Kolivand-DeltaPlus] Table II",
+            "n": 5000,
+            "algorithm": "Delta+ O(n log2 n)",
+            "total": p["n_log2_n"],
+        }
+    )
     return rows
 
 
 def hsd_vs_ta(cfg: dict) -> list[dict]:
-    """HSD's edge operations and time against TA on flat-faced and curved meshes (paper 000's claim that
+    """HSD's edge operations and time against TA on flat-faced and curved meshes ([Kolivand-HSD]'s claim that
     HSD does fewer operations and is faster)."""
     rows = []
     for label, c in (

@@ -1,4 +1,4 @@
-"""The Markdown summary of an ``arshadow bench`` run: every question of issue 11 answered with the run's own
+"""The Markdown summary of an ``arshadow bench`` run: every question of the benchmarks' brief answered with the run's own
 numbers; the papers' claims labelled as such (nothing else is copied from them)."""
 
 from __future__ import annotations
@@ -71,7 +71,7 @@ def silhouettes(res: dict, plots: dict) -> list[str]:
     L += [
         "Reference versions (plain loops as the papers write them, `arshadow/geometry/silhouette_reference.py`) on one "
         "light: counted operations, time, and whether they give exactly the fast detector's edges; next to "
-        "paper 000's sec. VI formula at n = faces, m = 3 (its main term) and paper 003's n log2 n.",
+        "[Kolivand-HSD]'s sec. VI formula at n = faces, m = 3 (its main term) and [Kolivand-DeltaPlus]'s n log2 n.",
         "",
     ]
     rows = []
@@ -99,11 +99,11 @@ def silhouettes(res: dict, plots: dict) -> list[str]:
         ),
         _img(plots, "silhouette_reference_ops", "reference operation counts"),
     ]
-    f5 = [r for r in paper if r["source"].startswith("paper 000") and r["n"] == 10]
-    f6 = [r for r in paper if r["source"].startswith("paper 000") and r["n"] == 100]
-    f2m = [r for r in paper if r["source"].startswith("paper 000") and r["n"] == 2_000_000]
+    f5 = [r for r in paper if r["source"].startswith("[Kolivand-HSD]") and r["n"] == 10]
+    f6 = [r for r in paper if r["source"].startswith("[Kolivand-HSD]") and r["n"] == 100]
+    f2m = [r for r in paper if r["source"].startswith("[Kolivand-HSD]") and r["n"] == 2_000_000]
     L += [
-        "Paper 000 Figs. 5-6, recomputed from its own sec. VI formulas (paper's claims, not measurements; "
+        "[Kolivand-HSD] Figs. 5-6, recomputed from its own sec. VI formulas (paper's claims, not measurements; "
         "total = every operation counted once):",
         "",
     ]
@@ -124,7 +124,7 @@ def silhouettes(res: dict, plots: dict) -> list[str]:
         a, b = ta_ref[-2], ta_ref[-1]
         k = math.log(b["counted_ops"] / a["counted_ops"]) / math.log(b["faces"] / a["faces"])
         claims.append(
-            f"- **TA is O(n^2) (paper 000):** holds in shape - the linear search's counted compares grow as "
+            f"- **TA is O(n^2) ([Kolivand-HSD]):** holds in shape - the linear search's counted compares grow as "
             f"n^{k:.2f} from {_f(a['faces'])} to {_f(b['faces'])} faces - but the formula's 6 n^2 m compares "
             f"over-count by {b['formula_main_term'] / b['counted_ops']:.0f}x at {_f(b['faces'])} faces: S holds "
             f"only the not-yet-matched edges, not all 6n. arshadow's vectorised TA (sort + signed sum) is "
@@ -134,7 +134,7 @@ def silhouettes(res: dict, plots: dict) -> list[str]:
     if vnv_ref:
         b = vnv_ref[-1]
         claims.append(
-            f"- **VnV is the slowest, O(n^2) (paper 000):** holds for the edge x face loop as written "
+            f"- **VnV is the slowest, O(n^2) ([Kolivand-HSD]):** holds for the edge x face loop as written "
             f"({_f(b['counted_ops'])} iterations, {_f(b['reference_ms'], 0)} ms at {_f(b['faces'])} faces); "
             f"with precomputed edge -> face adjacency VnV is O(n) and among the fastest detectors here "
             f"({_f(b['fast_ms'], 3)} ms)."
@@ -145,7 +145,7 @@ def silhouettes(res: dict, plots: dict) -> list[str]:
             f"{m}: {r['ops_ratio_hsd_ta']:.2f} ops, time {r['hsd_ms'] / r['ta_ms']:.2f}" for m, r in h.items()
         )
         claims.append(
-            f"- **HSD beats TA (paper 000: TA 5x and VnV 6x HSD's cost beyond 2 M faces):** the formulas "
+            f"- **HSD beats TA ([Kolivand-HSD]: TA 5x and VnV 6x HSD's cost beyond 2 M faces):** the formulas "
             f"themselves give TA/HSD = {_f(f2m[0]['ratio_to_HSD'])} and VnV/HSD = {_f(f2m[1]['ratio_to_HSD'])} at "
             f"2 M triangles (m = 3), not 5 and 6. Measured HSD/TA (edge operations, time): {parts}. HSD "
             f"helps only on flat-faced meshes; on a smooth mesh every polygon is one triangle and HSD = TA."
@@ -156,7 +156,7 @@ def silhouettes(res: dict, plots: dict) -> list[str]:
         b = dp[-1]
         miss = max(r["missed_edges_frac"] for r in dd) if dd else float("nan")
         claims.append(
-            f"- **Delta+ is O(n log2 n), 5 000 vertices -> 61 438 vs 25 000 000 (paper 003 Table II):** the "
+            f"- **Delta+ is O(n log2 n), 5 000 vertices -> 61 438 vs 25 000 000 ([Kolivand-DeltaPlus] Table II):** the "
             f"algorithm as written tests every ray against all visible faces: at {_f(b['vertices'])} vertices "
             f"it made {_f(b['counted_ops'])} ray-face tests with early exit ({_f(b['no_early_exit_tests'])} "
             f"without), vs n log2 n = {_f(b['paper_n_log2_n'], 0)}: **does not hold** as written. With a BVH "
@@ -262,14 +262,14 @@ def render(rows: list[dict], plots: dict) -> list[str]:
 
 
 def thin_card(rows: list[dict]) -> list[str]:
-    """Does the thin card's shadow-map shadow vanish at >= 4096 texels (issue 11, quoting pyrender)? The
+    """Does the thin card's shadow-map shadow vanish at >= 4096 texels (the benchmarks' brief, quoting pyrender)? The
     answer from this run's rows: per thin-card scene, the share of the exact shadow kept and the IoU by map
     size, and the map's texel against the card's 1 mm thickness."""
     scenes = [s for s in dict.fromkeys(r["scene"] for r in rows) if s.startswith("thin card")]
     if not scenes:
         return []
     L = [
-        f"**Thin card** (`{THIN_CARD}`: 6 x 8 cm, 1 mm thick, standing on the ground; issue 11 quotes pyrender's "
+        f"**Thin card** (`{THIN_CARD}`: 6 x 8 cm, 1 mm thick, standing on the ground; the benchmarks' brief quotes pyrender's "
         "shadow map losing such a card's shadow at 4096 texels and above). The shadow-map baseline with its "
         'default bias (`glPolygonOffset(2, 4)`, no shader bias): shadow pixels / exact shadow pixels ("kept") and '
         "IoU per map size and PCF kernel:",
@@ -385,7 +385,7 @@ def pipeline(res: dict, meta: dict, plots: dict) -> list[str]:
     L += [
         _img(plots, "pipeline_time_vs_resolution", "pipeline time vs resolution"),
         "",
-        "Frames per second against the number of lights (1280x720; paper 002 Fig. 8 plots the same curve for "
+        "Frames per second against the number of lights (1280x720; [Kolivand-Stencil] Fig. 8 plots the same curve for "
         "its own scene and GPU):",
         "",
     ]
@@ -401,7 +401,7 @@ def pipeline(res: dict, meta: dict, plots: dict) -> list[str]:
     L += [_img(plots, "fps_vs_lights", "FPS vs lights"), ""]
     p = res["paper003"]
     L += [
-        "Paper 003's AR scene (8 536 faces, one light) against its reported **74.35 FPS** (paper's claim, on a "
+        "[Kolivand-DeltaPlus]'s AR scene (8 536 faces, one light) against its reported **74.35 FPS** (paper's claim, on a "
         f"{p[0]['paper_hardware']}); here: {meta.get('cpu')}, {meta.get('cpus')} logical CPUs shared with other "
         f"jobs, GL_RENDERER = {meta.get('GL_RENDERER')} (a software rasteriser, no GPU):",
         "",
@@ -476,7 +476,7 @@ def headline(results: dict) -> str:
             r = dp[-1]
             rows.append(
                 [
-                    f"Delta+ as written (paper 003), {_f(r['vertices'])} vertices",
+                    f"Delta+ as written ([Kolivand-DeltaPlus]), {_f(r['vertices'])} vertices",
                     f"{_f(r['counted_ops'])} ray-face tests",
                     f"paper: n log2 n = {_f(r['paper_n_log2_n'], 0)}",
                 ]
@@ -532,7 +532,7 @@ def headline(results: dict) -> str:
                 [
                     "pipeline 1280x720, 8 536 faces, 1 light",
                     f"{_t(r, 'wall')} ms",
-                    f"{_f(r['fps'], 1)} FPS (paper 003: 74.35 FPS on a GPU)",
+                    f"{_f(r['fps'], 1)} FPS ([Kolivand-DeltaPlus]: 74.35 FPS on a GPU)",
                 ]
             )
         for r in p["lights"]:

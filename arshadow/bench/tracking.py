@@ -11,13 +11,13 @@ half-resolution pass first (:mod:`arshadow.tracking.fastdetect`), the full searc
   window around its last detection, :mod:`arshadow.tracking.roi_track`; here the warm-up call's detection
   on the same photo);
 - single marker against a grid board (5 x 7 markers, calib/gridboard_5x7.yml);
-- real footage (issue 21): the shared webcam clips of the ArUco library (``../shared/realvideo`` or
+- real footage (the real-footage work): the shared webcam clips of the ArUco library (``../shared/realvideo`` or
   ``$ARSHADOW_REALVIDEO``; skipped when absent), tracked as ``arshadow video`` tracks (the Y plane, the
   colour frame's grey on a miss, the window around the last marker): frames with the target marker
   ``detected`` against the frames where stock OpenCV detects it (their ``detections.csv``), time per frame;
   no true pose, so no pose error (the reprojection error instead).
 
-Photos: :func:`arshadow.synth.render_marker_photo` with the acceptance conditions of issue 2 (marker
+Photos: :func:`arshadow.synth.render_marker_photo` with the acceptance conditions of the tracking acceptance tests (marker
 5-10 % of the image width, 0.3-0.8 m, tilt 0-70 deg, noise sigma 2, blur sigma 0.6, JPEG 90).
 Per photo the time is the median of ``repeat`` runs after a warm-up, configurations interleaved.
 """
@@ -33,11 +33,11 @@ from typing import Any
 
 import numpy as np
 
-from ..camera import Intrinsics
+from ..camera.model import Intrinsics
 from ..errors import MarkerNotFoundError
-from ..scene import scene_from_dict
-from ..session import Session
-from ..synth import random_pose, render_marker_photo
+from ..frame.session import Session
+from ..scene.spec import scene_from_dict
+from ..synth.markers import random_pose, render_marker_photo
 from ..tracking.board import load_board
 from ..tracking.detect import REFINE_METHODS
 from ..tracking.dictionary import marker_object_points
@@ -215,7 +215,7 @@ def marker_vs_board(cfg: dict, log: Callable[[str], None]) -> list[dict]:
     return [{"resolution": "1280x720", **r} for r in rows]
 
 
-#: real clips (issue 21): folder, video, target id, marker side (m)
+#: real clips (the real-footage work): folder, video, target id, marker side (m)
 REAL_CLIPS = (("aruco_chessboard_paroj", "chessboard.avi", 32, 0.034), ("aruco_single_paroj", "video.avi", 101, 0.05))
 
 
@@ -251,7 +251,7 @@ def track_clip(session: Any, path: Path | str, max_frames: int | None = None) ->
 def real_footage(cfg: dict, log: Callable[[str], None]) -> list[dict]:
     """One row per shared real clip and refinement (the video default edge, apriltag): target marker found in the frames
     where stock OpenCV finds it; time per frame; reprojection error (no true pose)."""
-    from ..camera import Intrinsics
+    from ..camera.model import Intrinsics
 
     base = realvideo_dir()
     if not (base / REAL_CLIPS[0][0] / "detections.csv").is_file():

@@ -120,9 +120,9 @@ def _client(address: str, debug: bool = False):
 
 
 def run(args) -> int:
+    from ..frame.session import Session
     from ..io import check_output_folder
-    from ..scene import load_scene
-    from ..session import Session
+    from ..scene.spec import load_scene
     from ..video.batch import run_batch
     from . import quiet_opencv
     from .light import probe_estimate

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from ..render_options import DEFAULT_AA
+from ..scene.options import DEFAULT_AA
 from . import EXIT_OK, EXIT_SOME_FAILED, quiet_opencv
 
 
@@ -37,7 +37,7 @@ def register(subparsers: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..demo import find_samples, run_demo  # deferred: the API loads when the command runs
+    from ..demo.run import find_samples, run_demo  # deferred: the API loads when the command runs
 
     debug = bool(getattr(args, "debug", False))
     quiet_opencv(debug)

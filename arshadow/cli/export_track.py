@@ -75,12 +75,12 @@ def register(subparsers: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..camera import Intrinsics
+    from ..camera.model import Intrinsics
     from ..errors import UsageError
     from ..export.track import track_from_frames_jsonl, track_from_items, write_track
     from ..geometry.mesh import load_occluder
     from ..io import InputGuard, check_output_file
-    from ..scene import load_scene, parse_triple
+    from ..scene.spec import load_scene, parse_triple
 
     outs = [check_output_file(o, "-o") for o in args.output]
     for o in outs:

@@ -10,7 +10,7 @@ from collections.abc import Callable, Iterable
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from ..estimate.result import LightEstimate
+    from ..estimate.record import LightEstimate
 
 DESCRIPTION = """\
 Measure the real light from PHOTO or VIDEO files of the marker with a reference object (the probe) of known

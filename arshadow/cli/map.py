@@ -93,7 +93,7 @@ def learn(
     max_frames: int | None = None,
 ) -> tuple[MarkerMap, float]:
     """The map of ``inputs``: ``(MarkerMap, seconds)``."""
-    from ..camera import Intrinsics
+    from ..camera.model import Intrinsics
     from ..tracking.dictionary import DEFAULT_DICTIONARY, dictionary_label
     from ..tracking.mapio import MAX_MAP_FRAMES, observe_inputs
     from ..tracking.mapping import learn_map

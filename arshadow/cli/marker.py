@@ -259,7 +259,7 @@ def _board_from_args(args: argparse.Namespace) -> Board:
 
 def run_board(args: argparse.Namespace) -> int:
     from ..io import write_bytes
-    from ..synth import INK_BLACK, PAPER_WHITE, _board_markers, board_print
+    from ..synth.markers import INK_BLACK, PAPER_WHITE, _board_markers, board_print
 
     _check_positive("--margin-mm", args.margin_mm, allow_zero=True)
     _check_positive("--dpi", args.dpi)

@@ -69,11 +69,11 @@ def register(subparsers: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..camera import Intrinsics
+    from ..camera.model import Intrinsics
     from ..errors import UsageError
+    from ..frame.report import make_report
     from ..io import write_json
     from ..photos import track_photos
-    from ..report import make_report
     from ..tracking.detect import DEFAULT_REFINE
     from ..tracking.tracker import MarkerTracker
     from . import error_line

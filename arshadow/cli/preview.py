@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from ..scene import SCENE_KEYS
+from ..scene.spec import SCENE_KEYS
 from . import EXIT_OK
 
 EPILOG = """\
@@ -106,7 +106,7 @@ def _open_browser(url: str) -> bool:
 
 def run(args: argparse.Namespace) -> int:
     from ..errors import UsageError
-    from ..estimate.result import load_estimate
+    from ..estimate.record import load_estimate
     from ..io import check_output_file, write_json
     from ..preview.edit import controls_of, light_angles
     from ..preview.engine import Media, PreviewEngine

@@ -9,8 +9,8 @@ import sys
 from pathlib import Path
 
 from ..errors import UsageError
-from ..render_options import DEFAULT_AA
-from ..scene import parse_triple, scene_from_args
+from ..scene.options import DEFAULT_AA
+from ..scene.spec import parse_triple, scene_from_args
 from . import EXIT_OK, EXIT_SOME_FAILED, error_line, quiet_opencv
 from .light import add_probe_options, probe_estimate
 
@@ -283,11 +283,11 @@ def register(subparsers) -> None:
 def run(args) -> int:
     # deferred: the engine (OpenCV, meshes) loads when a command runs, not at start-up (cli/__init__.py)
     from ..export.layerfiles import refuse_overwrite
+    from ..frame.report import make_report
+    from ..frame.session import Session
     from ..io import check_output_file, check_output_folder, write_json
     from ..photos import expand_inputs, photo_jobs, render_photos
-    from ..report import make_report
-    from ..sanity import FlagTally
-    from ..session import Session
+    from ..scene.sanity import FlagTally
 
     debug = bool(getattr(args, "debug", False))
     quiet_opencv(debug)

@@ -65,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
     from ..errors import UsageError
     from ..geometry.mesh import load_occluder
     from ..geometry.silhouette import METHODS, silhouette, silhouette_loops
-    from ..scene import parse_triple
+    from ..scene.spec import parse_triple
 
     if args.method not in METHODS:
         raise UsageError(f"unknown --method {args.method!r} (choose from {', '.join(METHODS)})")

@@ -15,7 +15,7 @@ from datetime import UTC
 from typing import Any
 
 DESCRIPTION = """\
-Sun position for an instant and a place (NREL SPA by default; paper 004's formula with --sun-model paper).
+Sun position for an instant and a place (NREL SPA by default; [Kolivand-Sun]'s formula with --sun-model paper).
 TIME is ISO 8601 with a UTC offset, e.g. 2011-04-22T10:59+08:00 or 2003-10-17T19:30:30Z.
 Longitude is east positive. NORTH (--north) is the compass bearing of the world +y axis, degrees clockwise
 from true north (0: +y = north, +x = east). "zenith" is geometric (no refraction); "apparent zenith"
@@ -49,7 +49,7 @@ def register(subparsers: Any) -> None:
         "--sun-model",
         default="spa",
         choices=("spa", "paper", "paper-printed"),
-        help="spa = NREL SPA (default, ~0.0003 deg); paper = paper 004's formula, corrected (~0.2 deg); "
+        help="spa = NREL SPA (default, ~0.0003 deg); paper = [Kolivand-Sun]'s formula, corrected (~0.2 deg); "
         "paper-printed = its azimuth exactly as printed (wrong; for comparison)",
     )
     p.add_argument(

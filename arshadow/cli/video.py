@@ -244,7 +244,7 @@ def run(args) -> int:
     the report."""
     from ..errors import UsageError
     from ..io import check_output_file, check_output_folder, write_json
-    from ..scene import scene_from_args
+    from ..scene.spec import scene_from_args
     from ..video.api import process_video
     from . import quiet_opencv
     from .light import probe_estimate

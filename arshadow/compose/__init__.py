@@ -3,5 +3,5 @@
 - :mod:`arshadow.compose.lens`: the lens warp of a pinhole render into the distorted photo.
 - :mod:`arshadow.compose.composite`: linear-light compositing of the object and its shadow.
 
-The shader path that does the same on the GPU is :mod:`arshadow.gl.compose`.
+The shader path that does the same on the GPU is :mod:`arshadow.gl.gpu_compose`.
 """

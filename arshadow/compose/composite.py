@@ -233,7 +233,7 @@ def composite(  # noqa: C901, PLR0913
     work : Workspace, optional
         Scratch buffers reused between calls (no per-frame allocation of temporaries).
     sky : (h, w) float32 in [-1, 1], optional
-        Sky occlusion over the ROI (:attr:`arshadow.render_api.RenderResult.sky_occlusion`): the share of the
+        Sky occlusion over the ROI (:attr:`arshadow.renderer.request.RenderResult.sky_occlusion`): the share of the
         sky the object hides from the ground there. The ground keeps ``1 - opacity * mask * (1 - tint) -
         sky * ambient`` of its light, ``ambient = 1 - opacity * (1 - tint)`` being the share of the light a
         full shadow keeps (the sky's share, with a measured light): the direct light's visibility times its

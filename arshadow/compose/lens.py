@@ -31,7 +31,7 @@ from ..errors import CalibrationError
 from .composite import Workspace
 
 if TYPE_CHECKING:
-    from ..camera import Intrinsics
+    from ..camera.model import Intrinsics
 
 __all__ = ["LensWarp", "undistort_map"]
 

@@ -1,9 +1,9 @@
 """How the rendered layers meet the photo: :class:`Look`, the compositing side's one value per frame.
 
-The executor (:mod:`arshadow.execute`) builds one per frame from the options and the frame's measured
+The executor (:mod:`arshadow.frame.execute`) builds one per frame from the options and the frame's measured
 exposure gain, and hands it to whichever compositor runs (the numpy
-:func:`arshadow.compose.composite.composite` or the shader :class:`arshadow.gl.compose.GpuCompositor`); it is
-to the composite what :class:`arshadow.render_api.Shading` is to the renderer. A new compositing setting
+:func:`arshadow.compose.composite.composite` or the shader :class:`arshadow.gl.gpu_compose.GpuCompositor`); it is
+to the composite what :class:`arshadow.renderer.request.Shading` is to the renderer. A new compositing setting
 (a camera effect measured from the photo, say) is a field here, read in :meth:`Look.from_options` or
 measured per frame, and used by both compositors.
 """
@@ -17,8 +17,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from ..render_options import RenderOptions
-    from .effects import CameraEffects
+    from ..frame.effects import CameraEffects
+    from ..scene.options import RenderOptions
 
 __all__ = ["Look"]
 
@@ -41,7 +41,7 @@ class Look:
 
     Examples
     --------
-    >>> from arshadow.render_options import RenderOptions
+    >>> from arshadow.scene.options import RenderOptions
     >>> Look.from_options(RenderOptions(opacity=0.5), color_gain=(1.0, 0.9, 0.8)).color_gain.dtype
     dtype('float32')
     """
@@ -50,7 +50,7 @@ class Look:
     shadow_color: tuple = (0.0, 0.0, 0.0)
     draw_occluder: bool = True
     color_gain: np.ndarray | None = None
-    #: the photo's measured blur and noise applied to the inserted layers (:mod:`arshadow.compose.effects`,
+    #: the photo's measured blur and noise applied to the inserted layers (:mod:`arshadow.frame.effects`,
     #: ``--camera-effects on``; the numpy compositor), None: none
     camera: CameraEffects | None = None
 

@@ -7,7 +7,7 @@ Pure numpy / OpenCV / scipy; no OpenGL.
 
 from .api import estimate_light
 from .exposure import Exposure, measure_exposure, smooth_exposures
-from .result import LightEstimate, load_estimate, shading_gain
+from .record import LightEstimate, load_estimate, shading_gain
 
 __all__ = [
     "Exposure",

@@ -12,7 +12,7 @@ from typing import Any, cast
 import cv2
 import numpy as np
 
-from ..camera import Intrinsics
+from ..camera.model import Intrinsics
 from ..errors import EstimateError, ImageError, MarkerNotFoundError, UsageError
 from ..geometry.caster import ShadowCaster
 from ..geometry.mesh import load_occluder
@@ -25,7 +25,7 @@ from .exposure import Exposure, ExposureError, measure_exposure
 from .light import FitResult, MakeFine, fit_directional, fit_point, fit_sun
 from .outline import outline_agreement
 from .penumbra import fit_angular_radius
-from .result import LightEstimate
+from .record import LightEstimate
 from .shading import face_shading_residual
 from .shadow import LUMA, Evidence, build_evidence, edge_pairs, fit_levels, shadow_coverage
 
@@ -301,7 +301,7 @@ def estimate_light(
         1 DOF).
     sky_occlusion : bool
         The shadow ratio allows for the sky the probe hides from the ground round it (true of every real
-        photo: :func:`_ratio`); False for images rendered without it (``arshadow.synth_lit``).
+        photo: :func:`_ratio`); False for images rendered without it (``arshadow.synth.lit``).
 
     Returns
     -------

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from ..camera import Intrinsics
+from ..camera.model import Intrinsics
 from ..compose.composite import SRGB_TO_LINEAR
 from ..errors import ArshadowError
 from ..tracking.dictionary import get_dictionary, marker_bits

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from ..camera import Intrinsics
+from ..camera.model import Intrinsics
 from ..tracking.dictionary import DEFAULT_DICTIONARY
 from ..transforms import invert_rigid
 from .exposure import Exposure, ExposureError, ExposureSmoother, measure_exposure, paper_region

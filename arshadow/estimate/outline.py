@@ -20,7 +20,7 @@ import math
 import cv2
 import numpy as np
 
-from ..camera import Intrinsics
+from ..camera.model import Intrinsics
 from ..transforms import transform_points
 
 __all__ = ["ALIGN_PX", "outline_agreement", "silhouette_edges"]

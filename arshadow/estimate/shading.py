@@ -19,7 +19,7 @@ import math
 import cv2
 import numpy as np
 
-from ..camera import Intrinsics
+from ..camera.model import Intrinsics
 from ..compose.composite import SRGB_TO_LINEAR
 from ..transforms import transform_points
 from .shadow import LUMA

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from ..camera import Intrinsics
+from ..camera.model import Intrinsics
 from ..compose.composite import SRGB_TO_LINEAR
 from ..geometry.exact import ground_shadow_triangles, points_in_triangles
 from ..transforms import transform_points

@@ -32,7 +32,7 @@ from ..compose.lens import INVALID, undistort_map
 from ..io import write_image
 
 if TYPE_CHECKING:
-    from ..camera import Intrinsics
+    from ..camera.model import Intrinsics
 
 __all__ = ["stmap", "stmap_to_pixels", "write_stmap"]
 

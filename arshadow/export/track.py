@@ -191,7 +191,7 @@ def track_from_frames_jsonl(path, intr, name: str = "") -> CameraTrack:
 
 
 def track_from_items(items, intr, name: str = "photos", fps: float = 1.0) -> CameraTrack:
-    """The track of a photo set from report items (:class:`arshadow.report.ReportItem` or their dicts):
+    """The track of a photo set from report items (:class:`arshadow.frame.report.ReportItem` or their dicts):
     photo ``i`` at ``i / fps`` seconds; a photo without a pose is lost."""
     frames = []
     for i, it in enumerate(items):

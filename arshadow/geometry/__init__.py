@@ -5,7 +5,7 @@
 - :mod:`arshadow.geometry.silhouette`: the silhouette detectors (adjacency, triangular, VnV, HSD, Delta+).
 - :mod:`arshadow.geometry.silhouette_reference`: paper-faithful, operation-counting versions (benchmarks).
 - :mod:`arshadow.geometry.volume`: shadow volumes (caps, truncation, stencil layer bounds).
-- :mod:`arshadow.geometry.projection`: planar projection shadows (papers 002 / 004).
+- :mod:`arshadow.geometry.projection`: planar projection shadows ([Kolivand-Stencil] and [Kolivand-Sun]).
 - :mod:`arshadow.geometry.exact`: the exact projected shadow (the tests' and benchmarks' reference).
 - :mod:`arshadow.geometry.ground`: a ground plane that is not the marker plane (``--ground``, ``marker_from_ground``).
 """

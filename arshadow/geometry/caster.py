@@ -143,7 +143,7 @@ class ShadowCaster:
         #: (m,) int: each face's index among the faces given (degenerate ones dropped): per-corner data read
         #: with the file (texture coordinates) follows the faces through it
         self.source_faces = _readonly(np.flatnonzero(keep))
-        #: the surface's :class:`arshadow.shading.material.Material` when the mesh file has one (set by
+        #: the surface's :class:`arshadow.geometry.material.Material` when the mesh file has one (set by
         #: :func:`arshadow.geometry.mesh.load_occluder`), else None
         self.material = None
 
@@ -465,7 +465,7 @@ class ShadowCaster:
 
     @functools.cached_property
     def polygons(self) -> dict:
-        """Connected coplanar faces merged into polygons (Hybrid Silhouette Detection, paper 000).
+        """Connected coplanar faces merged into polygons (Hybrid Silhouette Detection, [Kolivand-HSD]).
 
         Returns a dict: ``face_polygon (m,) intp`` (polygon of each face), ``planes (P, 4)`` (the plane
         shared by the polygon's faces), ``edges (B, 2) intp`` (the polygons' boundary edges, oriented

@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import MeshError
-from ..shading.material import material_from_trimesh
 from .caster import ShadowCaster, connected_labels, plane_side
+from .material import material_from_trimesh
 
 __all__ = [
     "PRIMITIVES",

@@ -1,11 +1,11 @@
-"""Projection shadows (papers 002 and 004): the planar shadow matrix and a mesh flattened onto the ground.
+"""Projection shadows ([Kolivand-Stencil] and [Kolivand-Sun]): the planar shadow matrix and a mesh flattened onto the ground.
 
 The matrix ``M = (p . L) I - L p^T`` (``p`` the plane as a 4-vector, ``L`` the homogeneous light) maps a
 homogeneous point X to the intersection of the line through X and the light with the plane: for a point
 light that is the central projection, for a directional light (w = 0) the parallel one. It is what
-paper 002 prints, once its symbols are read as ``D = N . L`` and ``E = N . C - N . L`` (C a point of the
+[Kolivand-Stencil] prints, once its symbols are read as ``D = N . L`` and ``E = N . C - N . L`` (C a point of the
 plane; see :func:`paper_shadow_matrix`): as printed, with D the plane offset, its matrix maps points off
-the plane. Paper 004 uses the same matrix with the sun as a directional light.
+the plane. [Kolivand-Sun] uses the same matrix with the sun as a directional light.
 """
 
 from __future__ import annotations
@@ -66,7 +66,7 @@ def planar_shadow_matrix(plane: npt.ArrayLike, light_h: npt.ArrayLike) -> np.nda
 
 
 def paper_shadow_matrix(normal: npt.ArrayLike, point_on_plane: npt.ArrayLike, light_xyz: npt.ArrayLike) -> np.ndarray:
-    """Paper 002's printed shadow matrix for a point light, with its symbols read as ``E = N . C - N . L``
+    """[Kolivand-Stencil]'s printed shadow matrix for a point light, with its symbols read as ``E = N . C - N . L``
     and ``D = N . L`` (the only reading under which it maps onto the plane). Kept for comparison:
     equals :func:`planar_shadow_matrix` up to a scale factor (``-1``)."""
     N = np.asarray(normal, np.float64).reshape(3)

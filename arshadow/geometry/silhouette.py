@@ -7,17 +7,17 @@ One interface, five detectors (``silhouette(caster, light_h, method=...)``):
     of its two faces (precomputed edge -> face indices): a silhouette edge is one whose faces differ.
     Because each face is tested exactly once, every vertex of the result has equal in- and out-degree:
     the loops always close, whatever the rounding.
-``triangular`` (TA, paper 000)
+``triangular`` (TA, [Kolivand-HSD])
     Toggle the directed edges of every light-facing triangle in a set: an edge whose reverse is already
     there cancels it; what is left is the silhouette. Needs no adjacency. Vectorised as a sort of the
     edge keys plus a signed sum (same result as the sequential set).
-``vnv`` (Visible-non-Visible, paper 000)
+``vnv`` (Visible-non-Visible, [Kolivand-HSD])
     Count the light-facing faces on every edge (all incidences, precomputed); exactly one => silhouette.
-``hsd`` (Hybrid Silhouette Detection, paper 000)
+``hsd`` (Hybrid Silhouette Detection, [Kolivand-HSD])
     Connected coplanar triangles are merged into polygons once per mesh; per light one sign test per
     polygon, then TA over the boundary edges of the light-facing polygons only (fewer edge operations
     on flat-faced meshes).
-``delta_plus`` (Delta+, paper 003)
+``delta_plus`` (Delta+, [Kolivand-DeltaPlus])
     For every edge of a light-facing face, push the edge's midpoint by epsilon outwards (perpendicular to
     the edge and to the light ray, away from the face), cast the ray from the light through the pushed
     point and test it against the light-facing faces with a bounding volume hierarchy; no hit => the

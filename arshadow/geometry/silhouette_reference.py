@@ -4,15 +4,15 @@ Slow on purpose (plain Python loops as the papers' pseudo code is written): they
 vectorised detectors of :mod:`arshadow.geometry.silhouette` (same edges on small meshes) and to put the papers'
 operation-count formulas next to counted operations and measured time (``arshadow bench``).
 
-``ta_reference`` (paper 000, sec. IV.1)
+``ta_reference`` ([Kolivand-HSD], sec. IV.1)
     For each light-facing triangle, for each of its sides ``(a, b)``: search the array S linearly for the
     reversed edge ``(b, a)``; delete it when found, else append ``(a, b)``. What stays in S is the
     silhouette.
-``vnv_reference`` (paper 000, sec. IV.2)
+``vnv_reference`` ([Kolivand-HSD], sec. IV.2)
     For each edge, loop over every face and count the light-facing faces that contain the edge; exactly
     one => silhouette. (The printed pseudo code omits the "contains the edge" test, which would count
     every visible face for every edge; it is implied by the text and done here.)
-``delta_plus_reference`` (paper 003, Algorithm 4)
+``delta_plus_reference`` ([Kolivand-DeltaPlus], Algorithm 4)
     For each edge of a light-facing face, push its midpoint by ``eps`` x the edge length outwards
     (perpendicular to the edge and the light ray, away from the face), cast the ray from the light
     through the pushed point and test it against *all* light-facing faces ("Step 4. For all visible
@@ -65,7 +65,7 @@ def _facing(
 def ta_reference(
     vertices: npt.ArrayLike, faces: npt.ArrayLike, light_h: npt.ArrayLike, planes: np.ndarray | None = None
 ) -> tuple[np.ndarray, dict[str, int]]:
-    """Triangular Algorithm with the linear array search (paper 000). See the module docstring.
+    """Triangular Algorithm with the linear array search ([Kolivand-HSD]). See the module docstring.
 
     Returns
     -------
@@ -119,7 +119,7 @@ def _unique_edges(faces: npt.ArrayLike) -> list[tuple[int, int]]:
 def vnv_reference(
     vertices: npt.ArrayLike, faces: npt.ArrayLike, light_h: npt.ArrayLike, planes: np.ndarray | None = None
 ) -> tuple[np.ndarray, dict[str, int]]:
-    """Visible / non-visible: the edge x face loop (paper 000). See the module docstring.
+    """Visible / non-visible: the edge x face loop ([Kolivand-HSD]). See the module docstring.
 
     Returns
     -------
@@ -158,7 +158,7 @@ def delta_plus_reference(
     eps: float = 1e-6,
     planes: np.ndarray | None = None,
 ) -> tuple[np.ndarray, dict[str, int]]:
-    """Delta+ as written in paper 003: every candidate ray against all light-facing faces, first hit stops.
+    """Delta+ as written in [Kolivand-DeltaPlus]: every candidate ray against all light-facing faces, first hit stops.
 
     Returns
     -------
@@ -210,7 +210,7 @@ def delta_plus_reference(
 
 # ------------------------------------------------------------------------------------------ the papers
 def paper000_formulas(n: float, m: float) -> dict:
-    """Paper 000 sec. VI, as printed: operation counts of TA, VnV and HSD for ``n`` faces with ``m``
+    """[Kolivand-HSD] sec. VI, as printed: operation counts of TA, VnV and HSD for ``n`` faces with ``m``
     sides each (the paper takes e_n = 6n). Returns per algorithm the counts of Compares, Reads, Mults,
     Adds, Writes and their ``total`` (every operation counted once: the paper gives no cycle weights)."""
     ta = {"C": 6 * n * n * m, "R": 6 * n * n * m + m * n + 8 * n, "M": (m + 10) * n, "A": 8 * n, "W": 2 * m * n}
@@ -223,5 +223,5 @@ def paper000_formulas(n: float, m: float) -> dict:
 
 
 def paper003_claim(n_vertices: int = 5000) -> dict:
-    """Paper 003 Table II as printed: O(n^2) = n^2 for BSB tree / HFC against O(n log2 n) for Delta+."""
+    """[Kolivand-DeltaPlus] Table II as printed: O(n^2) = n^2 for BSB tree / HFC against O(n log2 n) for Delta+."""
     return {"n": n_vertices, "quadratic": float(n_vertices) ** 2, "n_log2_n": n_vertices * math.log2(n_vertices)}

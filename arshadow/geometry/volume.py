@@ -58,7 +58,7 @@ class ShadowVolume:
         edge), then ``n_near_cap`` near-cap and ``n_far_cap`` far-cap triangles (z-fail only).
     n_side, n_cap, n_near_cap, n_far_cap : int
     truncated : bool
-        True when the sides and far cap end on the plane ``z = truncate_z`` (paper 002 variant); False for
+        True when the sides and far cap end on the plane ``z = truncate_z`` ([Kolivand-Stencil] variant); False for
         volumes extruded to infinity (also when a truncation was asked for but a ray does not descend
         enough to meet the plane, see :data:`MIN_DESCENT`).
     truncate_z : float or None
@@ -154,7 +154,7 @@ def shadow_volume(
         is the near cap and its extruded reverse the far cap.
     truncate_z : float, optional
         Extrude only down to the plane ``z = truncate_z`` (just below the ground, e.g. ``-1e-3 *
-        caster.scale``) instead of to infinity (paper 002). Vertices at or below the plane stay where they
+        caster.scale``) instead of to infinity ([Kolivand-Stencil]). Vertices at or below the plane stay where they
         are (zero-length extrusion). If any extruded ray does not descend by at least
         :data:`MIN_DESCENT` (light at or below a vertex, a sun at the horizon) the volume is extruded to
         infinity instead and ``truncated`` is False.

@@ -1,6 +1,6 @@
 """GPU-resident render results: the renderer's layers kept in textures (``ShadowRenderer.render_gpu``).
 
-Kept apart from :mod:`arshadow.gl.stencil` so that the compose path (:mod:`arshadow.gl.compose`) and the
+Kept apart from :mod:`arshadow.gl.stencil` so that the compose path (:mod:`arshadow.gl.gpu_compose`) and the
 renderer share these two small types without importing each other.
 """
 
@@ -13,7 +13,7 @@ __all__ = ["GpuLayers", "TextureTarget"]
 
 class TextureTarget:
     """Texture-backed single-sample framebuffer (colour 0 ``RGBA16F``, colour 1 ``RG16F``, ``RGBA16F`` with sky occlusion): the blit
-    destination of ``render_gpu()``, sampled by :mod:`arshadow.gl.compose`."""
+    destination of ``render_gpu()``, sampled by :mod:`arshadow.gl.gpu_compose`."""
 
     def __init__(self, ctx, width, height, mask_components: int = 2):
         self.width, self.height = int(width), int(height)

@@ -1,7 +1,7 @@
 """GPU resources of the renderers: shader programs, caster buffers, raw-GL framebuffers, the ground plane.
 
 Shared by the stencil renderer (:mod:`arshadow.gl.stencil`), the shadow-map baseline
-(:mod:`arshadow.gl.shadowmap`) and the GPU compositor (:mod:`arshadow.gl.compose`); none of them imports
+(:mod:`arshadow.gl.shadowmap`) and the GPU compositor (:mod:`arshadow.gl.gpu_compose`); none of them imports
 another. Nothing here creates a context or imports moderngl (the objects come from the context handed in).
 
 - :func:`program`: a shader program compiled once per context (cached in ``ctx.extra``);
@@ -28,7 +28,7 @@ import numpy as np
 
 from ..compose.composite import srgb_to_linear
 from ..errors import ShapeError, UsageError
-from ..shading.normals import crease_normals
+from ..geometry.normals import crease_normals
 from ..shading.sky import object_sky_visibility
 
 __all__ = [
@@ -75,7 +75,7 @@ def program(ctx, vert: str, frag: str):
 
 
 def set_uniforms(progs, values: dict) -> None:
-    """Write ``values`` (uniform name -> value, e.g. :meth:`arshadow.render_api.Shading.uniforms`) into each
+    """Write ``values`` (uniform name -> value, e.g. :meth:`arshadow.renderer.request.Shading.uniforms`) into each
     program of ``progs`` that declares the name (the others skip it)."""
     for prog in progs:
         for name, value in values.items():
@@ -105,7 +105,7 @@ class CasterBuffers:
                 alb = np.broadcast_to(srgb_to_linear(np.asarray(DEFAULT_COLOR)), (m, 3, 3))
             else:
                 alb = srgb_to_linear(np.asarray(cols, np.float64)[:, :3])[f]
-        # the mesh file's base-colour texture (arshadow.shading.material), unless a colour overrides it
+        # the mesh file's base-colour texture (arshadow.geometry.material), unless a colour overrides it
         material = getattr(caster, "material", None) if color is None else None
         textured = material is not None and material.textured
         if textured:

@@ -1,9 +1,9 @@
 """Shadow-map baseline renderer: the technique of three.js, model-viewer and pyrender, for comparison.
 
-Same :class:`~arshadow.render_api.RenderRequest` in and :class:`~arshadow.render_api.RenderResult` out as
+Same :class:`~arshadow.renderer.request.RenderRequest` in and :class:`~arshadow.renderer.request.RenderResult` out as
 :meth:`arshadow.gl.stencil.ShadowRenderer.render`, so the compositor and the benchmarks can swap it in
 (``--shadow-method shadowmap``). The shadow volumes in ``passes`` are ignored: only ``light_h``,
-``weight`` and ``color`` of each :class:`~arshadow.render_api.LightPass` are used.
+``weight`` and ``color`` of each :class:`~arshadow.renderer.request.LightPass` are used.
 
 Per light:
 
@@ -32,7 +32,7 @@ import numpy as np
 
 from .._check import check_finite, check_shape
 from ..errors import UsageError
-from ..render_api import RendererBase, RenderRequest, RenderResult
+from ..renderer.request import RendererBase, RenderRequest, RenderResult
 from . import glraw as G
 from .context import current
 from .resources import CasterBuffers, GroundBuffer, program, set_uniforms
@@ -240,7 +240,7 @@ class ShadowMapRenderer(RendererBase):
 
     @current
     def render(self, request: RenderRequest) -> RenderResult:
-        """Render one frame (or canvas) of a :class:`arshadow.render_api.RenderRequest`, as
+        """Render one frame (or canvas) of a :class:`arshadow.renderer.request.RenderRequest`, as
         :meth:`arshadow.gl.stencil.ShadowRenderer.render` (the passes' volumes and modes are ignored).
 
         Returns

@@ -36,7 +36,7 @@ Passes per frame
    and colour writes off, depth clamp on, and two-sided stencil:
    z-pass  front: depth-pass -> INCR_WRAP, back: depth-pass -> DECR_WRAP (sides only);
    z-fail  back: depth-fail -> INCR_WRAP, front: depth-fail -> DECR_WRAP (sides + both caps);
-   planar  the caster flattened onto z = 0 by the projection-shadow matrix (paper 002) -> REPLACE 1.
+   planar  the caster flattened onto z = 0 by the projection-shadow matrix ([Kolivand-Stencil]) -> REPLACE 1.
    Then a full-viewport triangle adds the light's weight to the mask where ``stencil > 0x80`` (ground bit
    set and count != 0), and the occluder is redrawn with GL_EQUAL depth adding this light's Phong
    diffuse + specular where the stencil is exactly 0x40 (occluder, count 0: self-shadowing).
@@ -61,7 +61,7 @@ import numpy as np
 
 from .._check import check_finite, check_shape
 from ..errors import UsageError
-from ..render_api import MODES, LightPass, RenderLayers, RenderRequest, RenderResult
+from ..renderer.request import MODES, LightPass, RenderLayers, RenderRequest, RenderResult
 from . import glraw as G
 from .context import current, is_software
 from .layers import GpuLayers
@@ -138,7 +138,7 @@ class ShadowRenderer:
     crease_deg : float
         Smoothing angle of the occluder's shading normals.
 
-    Two entry points taking one :class:`arshadow.render_api.RenderRequest`: :meth:`render` reads the layers
+    Two entry points taking one :class:`arshadow.renderer.request.RenderRequest`: :meth:`render` reads the layers
     back (:class:`RenderResult`), :meth:`render_gpu` leaves them in textures (:class:`GpuLayers`).
 
     Examples
@@ -183,7 +183,7 @@ class ShadowRenderer:
         # programs (compiled once per context)
         self.prog_occ_base = program(ctx, "occluder.vert", "occluder_base.frag")
         self.prog_occ_light = program(ctx, "occluder.vert", "occluder_light.frag")
-        # the same with a texture, sky shading and the albedo gain (issue 28), for casters that need them:
+        # the same with a texture, sky shading and the albedo gain (the realism work), for casters that need them:
         # the plain ones stay as fast as before
         self.prog_rich_base = program(ctx, "occluder_rich.vert", "occluder_rich_base.frag")
         self.prog_rich_light = program(ctx, "occluder_rich.vert", "occluder_rich_light.frag")
@@ -204,8 +204,8 @@ class ShadowRenderer:
         self._targets = FrameTargets(ctx, self.gl, samples, self.supersample)
         self._sky_ground = None  # GroundSkyPass of the last ground occlusion map drawn
         self._released = False
-        # the capabilities of arshadow.render_api.Renderer
-        #: render_gpu() keeps the layers on the GPU (arshadow.gl.compose composites them there)
+        # the capabilities of arshadow.renderer.request.Renderer
+        #: render_gpu() keeps the layers on the GPU (arshadow.gl.gpu_compose composites them there)
         self.gpu_layers: bool = True
         #: the context rasterises on the CPU (llvmpipe): its "GPU" paths run on the pipeline's own cores
         self.software: bool = is_software(ctx)
@@ -263,9 +263,9 @@ class ShadowRenderer:
 
         Parameters
         ----------
-        request : arshadow.render_api.RenderRequest
+        request : arshadow.renderer.request.RenderRequest
             The frame: projection and view, canvas size (<= max_width, max_height), caster (its GPU buffers
-            are cached per caster object), light passes, ground, what to draw, shading (Phong, paper 002:
+            are cached per caster object), light passes, ground, what to draw, shading (Phong, [Kolivand-Stencil]:
             ``I = K_a I_a + sum_l I_l (K_d (N.L) + K_s (N.H)^n)``; the colour overrides the mesh's own).
 
         Returns
@@ -281,7 +281,7 @@ class ShadowRenderer:
     @current
     def render_gpu(self, request: RenderRequest) -> GpuLayers:
         """As :meth:`render`, but the layers stay on the GPU: the (resolved) attachments are copied into two
-        textures (no ``ctx.finish()``, no readback); :mod:`arshadow.gl.compose` samples them.
+        textures (no ``ctx.finish()``, no readback); :mod:`arshadow.gl.gpu_compose` samples them.
 
         Returns
         -------
@@ -532,7 +532,7 @@ class ShadowRenderer:
         gl.glEnable(G.GL_DEPTH_CLAMP)
         gl.glStencilFunc(G.GL_ALWAYS, 0, 0xFF)
         if p.mode == "planar":
-            # projection shadow (paper 002): the caster flattened onto z = 0; depth test "always",
+            # projection shadow ([Kolivand-Stencil]): the caster flattened onto z = 0; depth test "always",
             # the ground bit limits it to visible ground in the mask pass. A light at or below the
             # ground lights none of it from above: nothing to draw.
             # (LightPass.shadow_matrix: None when the light is not above the ground)

@@ -523,7 +523,7 @@ def total_weight(lights: Iterable[Light]) -> float:
 
 
 def __getattr__(name: str) -> object:
-    """``sample_area_light`` and ``stratified_disc`` moved to :mod:`arshadow.lights.area` (issue 16); they stay
+    """``sample_area_light`` and ``stratified_disc`` moved to :mod:`arshadow.lights.area` (the façade work); they stay
     importable from here for code written against this module."""
     if name in ("sample_area_light", "stratified_disc"):
         from . import area  # deferred: arshadow.lights.area imports this module (Light)

@@ -17,7 +17,7 @@ Models
     applied while the geometric elevation is above -(0.26667 + 0.5667) deg, the sun's radius plus the
     refraction at the horizon).
 ``"paper"``
-    Paper 004 (Kolivand et al. 2011), taken from Preetham et al. 1999 / Iqbal 1983: equations (2)-(5),
+    [Kolivand-Sun] (Kolivand et al. 2011), taken from Preetham et al. 1999 / Iqbal 1983: equations (2)-(5),
     with the azimuth CORRECTED: ``phi = atan2(-cos d sin(pi t/12), cos l sin d + sin l cos d cos(pi t/12))``
     (the paper prints ``-`` before the second term of the denominator and uses ``atan``, which loses the
     quadrant). ``phi`` is measured from north towards the WEST, so the compass azimuth is ``-phi``. The
@@ -25,7 +25,7 @@ Models
     ``L = -lon``); we evaluate it in UTC (standard meridian SM = 0, standard time = UTC hours, J = UTC
     day of the year). No refraction model: apparent = geometric.
 ``"paper-printed"``
-    Paper 004's azimuth exactly as printed (``atan``, ``-`` sign), same convention; for comparison only.
+    [Kolivand-Sun]'s azimuth exactly as printed (``atan``, ``-`` sign), same convention; for comparison only.
 
 Frames
 ------
@@ -154,11 +154,11 @@ def angle_between_deg(a: npt.ArrayLike, b: npt.ArrayLike) -> np.ndarray:
     return deg
 
 
-# ------------------------------------------------------------------------------------------ paper 004
+# ------------------------------------------------------------------------------------------ [Kolivand-Sun]
 
 
 def _paper(when_utc: list[datetime], lat: float, lon: float, printed: bool) -> dict[str, np.ndarray]:
-    """Paper 004 eq. (2)-(5) in UTC (SM = 0), west-positive longitude ``L = -lon``."""
+    """[Kolivand-Sun] eq. (2)-(5) in UTC (SM = 0), west-positive longitude ``L = -lon``."""
     j = np.array([w.timetuple().tm_yday for w in when_utc], dtype=np.float64)  # day of the year, 1..366
     ts = np.array([w.hour + w.minute / 60 + (w.second + w.microsecond / 1e6) / 3600 for w in when_utc])
     sm, L = 0.0, math.radians(-lon)

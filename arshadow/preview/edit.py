@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import UsageError
-from ..scene import SCENE_KEYS
+from ..scene.spec import SCENE_KEYS
 
 __all__ = [
     "ControlError",
@@ -242,7 +242,7 @@ def read_job(path: str | os.PathLike[str]) -> dict[str, Any]:
     """
     import json
 
-    from ..scene import load_scene
+    from ..scene.spec import load_scene
 
     p = Path(path)
     load_scene(p)  # every problem of the file, named as batch --config names it

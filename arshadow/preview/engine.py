@@ -1,11 +1,11 @@
-"""The preview's renderer: one :class:`arshadow.session.Session` on one thread renders what the page asks.
+"""The preview's renderer: one :class:`arshadow.frame.session.Session` on one thread renders what the page asks.
 
 A request is the page's whole control state (:mod:`arshadow.preview.edit`), checked on the server thread
 that received it (a bad one is answered 400 before it queues), then run by a
 :class:`arshadow.preview.worker.LatestWins` thread that owns the session and its OpenGL context: only the
 newest waiting request runs. The session is the one ``arshadow render`` uses: what the page shows is what
 ``render`` writes from the saved scene file. Moving, turning or scaling the object keeps the session
-(:meth:`arshadow.session.Session.set_model`), a light change too (``set_lights``); any other change (opacity,
+(:meth:`arshadow.frame.session.Session.set_model`), a light change too (``set_lights``); any other change (opacity,
 soft samples, the object shown or not, the measured light) makes a new session on the same context.
 """
 
@@ -25,10 +25,10 @@ import cv2
 import numpy as np
 
 from ..errors import ImageError, MarkerNotFoundError
-from ..execute import FrameOutputs
+from ..frame.execute import FrameOutputs
+from ..frame.report import ReportItem, jsonable
 from ..io import read_image, write_bytes
-from ..report import ReportItem, jsonable
-from ..scene import SCENE_KEYS, scene_from_dict
+from ..scene.spec import SCENE_KEYS, scene_from_dict
 from ..transforms import invert_rigid
 from .draft import draft_pose, ground_motion, moved_lights
 from .edit import ControlError, apply_controls, command_line, controls_of, ground_point, relative_paths
@@ -200,7 +200,7 @@ class PreviewEngine:
     def _session_for(self, spec: Any, move: bool = True) -> Any:
         """The session for ``spec``: the current one moved / relit when only the model or lights differ
         (``move`` False: left as it is then; the caller moves it once it knows where)."""
-        from ..session import Session
+        from ..frame.session import Session
 
         cur = self._spec
         if self._session is None or spec.replace(model=cur.model, lights=cur.lights) != cur:
@@ -234,8 +234,8 @@ class PreviewEngine:
     def _draft(self, spec: Any, image: np.ndarray, index: int, pose: Any, want_mask: bool) -> Any:
         """Render ``spec`` as a draft (:mod:`arshadow.preview.draft`), or None when it is not a ground
         motion of the model the draft session holds or of the exact session's."""
+        from ..frame.session import Session
         from ..lights.spec import parse_light
-        from ..session import Session
 
         key = spec.replace(lights=(), options=dataclasses.replace(spec.options, track_roi=True))
         motion = None

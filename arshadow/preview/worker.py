@@ -1,7 +1,7 @@
 """One worker thread that runs the newest request only: a request still waiting when a newer one comes is
 dropped (answered :class:`Superseded`), so no work queues behind a stale drag position.
 
-The thread owns whatever its job function touches (the preview's :class:`arshadow.session.Session` and its
+The thread owns whatever its job function touches (the preview's :class:`arshadow.frame.session.Session` and its
 OpenGL context live on it: a GL context is current on one thread).
 
 Examples

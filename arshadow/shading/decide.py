@@ -25,9 +25,9 @@ def sky_share(opacity: float, shadow_color) -> np.ndarray:
 
 
 def decide_ambient_occlusion(options) -> tuple[bool, str]:
-    """``(on, reason)`` for :class:`arshadow.render_options.RenderOptions` ``options``.
+    """``(on, reason)`` for :class:`arshadow.scene.options.RenderOptions` ``options``.
 
-    >>> from arshadow.render_options import RenderOptions
+    >>> from arshadow.scene.options import RenderOptions
     >>> decide_ambient_occlusion(RenderOptions())[0], decide_ambient_occlusion(RenderOptions(ambient_occlusion="on"))[0]
     (False, True)
     """

@@ -24,7 +24,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..camera import open_storage, write_storage
+from ..camera.model import open_storage, write_storage
 from ..errors import UsageError
 from .dictionary import get_dictionary
 

@@ -18,7 +18,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..camera import Intrinsics
+from ..camera.model import Intrinsics
 from ..errors import ArshadowError, CalibrationError, UsageError
 from ..io import read_image
 from .board import Board

@@ -11,7 +11,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..camera import open_storage
+from ..camera.model import open_storage
 from ..errors import UsageError
 from ..io import to_bgr8
 from .dictionary import get_dictionary
@@ -234,7 +234,7 @@ class AprilTagDetector:
     OpenCV's AprilTag "refinement" is a second candidate search (AprilTag's quad detector on the decimated
     image), and a marker whose quad it does not find is dropped: on the shared real chessboard clip, whose
     markers touch at their corners, it kept 3 of the 17 markers stock detection finds (marker 32 in none
-    of the 149 frames, issue 21). This detector runs it, moves its corners to pixel centres
+    of the 149 frames, the real-footage work). This detector runs it, moves its corners to pixel centres
     (:data:`APRILTAG_OFFSET_PX`), and adds every marker the ordinary search (``fallback``: the same
     parameters with sub-pixel refinement) finds and AprilTag does not, with sub-pixel corners.
 
@@ -285,7 +285,7 @@ class RescueDetector:
 
     Why: markers whose corners touch (a chessboard of markers) fall apart into separate quads only in a
     narrow band of threshold constants; which constant works changes from frame to frame. On the shared
-    real chessboard clip (issue 21), OpenCV's default constant (7) found marker 32 in 112 frames of the
+    real chessboard clip (the real-footage work), OpenCV's default constant (7) found marker 32 in 112 frames of the
     video's luma, 6 in 123, and the two together in 105 of the 108 frames where stock OpenCV finds it on
     the decoded colour frames (7 alone: 101). The second search costs time only on frames that miss.
 
@@ -388,7 +388,7 @@ def markers_in_image(image, skip=None) -> dict:
     family, the smallest dictionary holding every id found (e.g. ``{"DICT_5X5_1000": [403]}``).
 
     One detection per family (10 in all: for the message of a photo where the asked dictionary found
-    nothing, issue 20). ``skip``: a dictionary (name or ``cv2.aruco.Dictionary``) left out with its family.
+    nothing, the sanity gates). ``skip``: a dictionary (name or ``cv2.aruco.Dictionary``) left out with its family.
     """
     gray = to_gray(image)
     skip_bytes = None

@@ -12,7 +12,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..camera import open_storage
+from ..camera.model import open_storage
 from ..errors import UsageError
 
 __all__ = [

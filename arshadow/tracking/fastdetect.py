@@ -1,7 +1,7 @@
 """The fast first detection pass: one adaptive-threshold window, half resolution for big markers.
 
 Used through ``MarkerTracker(..., detector="fast")`` (:mod:`arshadow.tracking.tracker`); a session
-(:meth:`arshadow.session.Session.track`) runs it first and the tracker's full search only when it finds
+(:meth:`arshadow.frame.session.Session.track`) runs it first and the tracker's full search only when it finds
 nothing. Measured in docs/tracking.md and ``tests/benchmarks/bench_pipeline.py --detectors``.
 """
 
@@ -82,7 +82,7 @@ def fast_detector_params():
     OpenCV's default tries windows 3, 13 and 23 px (three thresholdings and contour searches); one
     window finds the same corners on the benchmark set (tests/benchmarks/bench_pipeline.py
     ``--detectors``: 60 of 60 synthetic photos, identical pose errors) about 5x faster. The
-    session (:meth:`arshadow.session.Session.track`) falls back to the full search when this pass finds nothing, so robustness is kept.
+    session (:meth:`arshadow.frame.session.Session.track`) falls back to the full search when this pass finds nothing, so robustness is kept.
     The tracker's corner refinement is applied on top (``make_detector_params``).
     """
     p = cv2.aruco.DetectorParameters()

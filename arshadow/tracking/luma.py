@@ -1,7 +1,7 @@
 """A video frame's luma as the tracker's grey, converted only where the tracker reads it.
 
 A ``yuv420p`` video frame's Y plane is limited-range ("TV": 16 = black, 235 = white). The detector needs
-the full-range grey (:func:`luma_to_gray`; issue 21: on the Y plane itself markers whose corners touch
+the full-range grey (:func:`luma_to_gray`; the real-footage work: on the Y plane itself markers whose corners touch
 merge into one blob). Converting a whole 720p plane costs ~0.2 ms alone but ~1 ms per frame inside the
 video engine, where the decoder, the encoder and the rasteriser share the cores (measured: 1.0-1.7 ms
 median per frame with ``cv2.LUT``, ``cv2.convertScaleAbs`` or ``numpy.take``); a tracked marker needs
@@ -29,7 +29,7 @@ def luma_to_gray(y: np.ndarray) -> np.ndarray:
     Why: the detector's adaptive threshold subtracts a constant (7 grey levels) from the local mean; on the
     Y plane, whose contrast is 219/255 of the gray image's, markers whose corners touch (a chessboard of
     markers) fall apart into one blob: stock OpenCV found marker 32 of the shared real chessboard clip in
-    59 frames of the Y plane against 108 of the gray frames, 112 after this conversion (issue 21).
+    59 frames of the Y plane against 108 of the gray frames, 112 after this conversion (the real-footage work).
 
     Examples
     --------

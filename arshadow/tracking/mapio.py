@@ -18,8 +18,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..camera import Intrinsics
-from ..cvstorage import write_storage
+from ..camera.cvstorage import write_storage
+from ..camera.model import Intrinsics
 from ..errors import ImageError, UsageError
 from ..io import read_image
 from .detect import Detection, to_gray

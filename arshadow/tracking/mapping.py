@@ -1,4 +1,4 @@
-"""Learn a rigid map of loose markers from the frames that see them (issue 29).
+"""Learn a rigid map of loose markers from the frames that see them (the marker-map work).
 
 The method (after MarkerMapper, Muñoz-Salinas et al., Pattern Recognition 2018):
 
@@ -30,7 +30,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from ..camera import Intrinsics
+from ..camera.model import Intrinsics
 from ..errors import MarkerNotFoundError, UsageError
 from ..transforms import invert_rigid, matrix_from_rvec_tvec, rvec_tvec_from_matrix
 from .board import Board

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field, replace
 import cv2
 import numpy as np
 
-from ..camera import Intrinsics
+from ..camera.model import Intrinsics
 from ..errors import MarkerNotFoundError, UsageError
 from .quality import (
     AMBIGUITY_FLAG,
@@ -104,7 +104,7 @@ class MarkerPose:
     def ambiguous(self) -> bool:
         """True when the two IPPE solutions explain the corners almost equally well, or (single marker)
         when the marker is under :data:`MIN_CONFIDENT_SIDE_PX` across: its corners cannot tell the two
-        solutions apart reliably (issue 12's stress suite: a 20-px marker gave a pose 69 deg off with
+        solutions apart reliably (the stress suite ('s)'s stress suite: a 20-px marker gave a pose 69 deg off with
         ratio 0.20), its corners are blurred (:data:`MAX_CORNER_INSTABILITY`) or something lies over it
         (:data:`MAX_BORDER_OCCLUSION`)."""
         if self.pose_ambiguity is not None and self.pose_ambiguity >= self.ambiguity_threshold:

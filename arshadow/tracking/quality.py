@@ -31,7 +31,7 @@ AMBIGUITY_FLAG = 0.3
 #: a single marker with a side shorter than this (pixels) is always flagged ambiguous (see MarkerPose)
 MIN_CONFIDENT_SIDE_PX = 32.0
 #: a single marker whose corners move by more than this share of its side between refinement windows is
-#: flagged ambiguous: blurred corners (issue 12: heavy blur gave confident poses 2-4 deg off; their
+#: flagged ambiguous: blurred corners (the stress suite: heavy blur gave confident poses 2-4 deg off; their
 #: corners moved by 0.010-0.068 of the side, sharp ones by < 0.006)
 MAX_CORNER_INSTABILITY = 0.008
 #: a single marker whose black border ring has a cell lighter than this share of the way from the marker's
@@ -42,11 +42,11 @@ MAX_BORDER_OCCLUSION = 0.3
 #: a pose whose RMS reprojection error exceeds ``max(MAX_REPROJECTION_PX, MAX_REPROJECTION_SIDE_SHARE x
 #: the shortest marker side in pixels)`` is flagged: the detector's corners are good to a fraction of a
 #: pixel (real 640x480 webcam clips with strong distortion: 0.1-0.4 px for one marker, 1.1 px median for
-#: a whole 18-marker board), a board file that does not match the photo gives tens of pixels (issue 20: 74)
+#: a whole 18-marker board), a board file that does not match the photo gives tens of pixels (the sanity gates: 74)
 MAX_REPROJECTION_PX = 4.0
 MAX_REPROJECTION_SIDE_SHARE = 0.05
 #: a video frame whose pose reprojects worse than this many times :func:`reprojection_limit_px` is not
-#: rendered: the frame is held like a frame without the marker (issue 26: on the 2x upscaled chessboard
+#: rendered: the frame is held like a frame without the marker (the trust fixes: on the 2x upscaled chessboard
 #: clip, 7 frames at 43-148 px, the median 2.2 px, the frames between 4 and 8 px agreeing with their
 #: neighbours; the smoothing hid the broken ones within ~10 px of the path)
 REPROJECTION_HOLD_FACTOR = 3.0

@@ -1,4 +1,4 @@
-"""The reference marker of a video: chosen once, kept, switched only when it is lost for good (issue 26).
+"""The reference marker of a video: chosen once, kept, switched only when it is lost for good (the trust fixes).
 
 A sheet of several markers and no ``--marker-id``: a photo takes the lowest id it finds, but in a video
 that id changes whenever a marker comes and goes (on the shared six-marker clip: 1001 in 77 frames, 101

@@ -3,7 +3,7 @@
 :class:`TrackingDetector` wraps the detector of a single-marker :class:`~arshadow.tracking.tracker.MarkerTracker`
 (``cv2.aruco.ArucoDetector`` or the pipeline's half-resolution detector) the way that detector wraps
 OpenCV's: ``detectMarkers(gray)`` first searches a window around the last detection's corners
-(:func:`arshadow.plan_rules.tracking_roi`: the corners' box grown by half its size, at least 32 px) and
+(:func:`tracking_roi`: the corners' box grown by half its size, at least 32 px) and
 shifts the corners found back to full-frame pixels; when the window holds no marker (or not the one asked
 for), the whole frame is searched (the fallback). Corner refinement is local (sub-pixel windows of a few
 pixels), so a marker found well inside the window gets the corners of a full-frame search (measured: pose
@@ -12,9 +12,11 @@ matrix entries within 2e-7, tests/test_plan_rules.py).
 
 from __future__ import annotations
 
-import numpy as np
+import math
 
-from ..plan_rules import tracking_roi
+import numpy as np
+import numpy.typing as npt
+
 from .luma import LumaFrame
 
 __all__ = ["TrackingDetector"]
@@ -94,3 +96,33 @@ class TrackingDetector:
 
     def __getattr__(self, name):
         return getattr(self._base, name)
+
+
+def tracking_roi(
+    corners: npt.ArrayLike, width: int, height: int, grow: float = 0.5, min_margin: int = 32
+) -> tuple[int, int, int, int] | None:
+    """Window ``(x0, y0, w, h)`` around the last detection's corners for the next frame's marker search.
+
+    Parameters
+    ----------
+    corners : (n, 2) float
+        All corners (pixels) of the last frame's detection.
+    grow : float
+        Margin as a fraction of the corners' box size (per axis), at least ``min_margin`` pixels.
+
+    Returns
+    -------
+    (x0, y0, w, h) int, or None when the window would cover most of the frame (then search it all).
+    """
+    c = np.asarray(corners, np.float64).reshape(-1, 2)
+    if c.size == 0 or not np.all(np.isfinite(c)):
+        return None
+    lo, hi = c.min(axis=0), c.max(axis=0)
+    m = np.maximum(grow * (hi - lo), min_margin)
+    x0 = max(0, int(math.floor(lo[0] - m[0])))
+    y0 = max(0, int(math.floor(lo[1] - m[1])))
+    x1 = min(int(width), int(math.ceil(hi[0] + m[0])) + 1)
+    y1 = min(int(height), int(math.ceil(hi[1] + m[1])) + 1)
+    if x1 <= x0 or y1 <= y0 or (x1 - x0) * (y1 - y0) > 0.6 * width * height:
+        return None
+    return (x0, y0, x1 - x0, y1 - y0)

@@ -12,7 +12,7 @@ import time
 import cv2
 import numpy as np
 
-from ..camera import Intrinsics
+from ..camera.model import Intrinsics
 from ..errors import ImageError, MarkerNotFoundError, UsageError
 from ..transforms import matrix_from_rvec_tvec, rotation_error_deg
 from .board import OPENCV_BOARD_TO_WORLD, Board, load_board
@@ -175,7 +175,7 @@ class MarkerTracker:
         else:
             self._detector = cv2.aruco.ArucoDetector(self.dictionary, self.params)
         if not custom and not fast and (board is None or board.kind == "markers"):
-            # a second search with a lower threshold constant when the first misses (issue 21)
+            # a second search with a lower threshold constant when the first misses (the real-footage work)
             self._detector = RescueDetector(self._detector, self.dictionary, self.params, marker_id)
         if fast:
             self._detector = wrap_fast_detector(self._detector, board)
@@ -400,7 +400,7 @@ class MarkerTracker:
             )
         det = detection_from_opencv(corners, ids, rejected, self._shift_params)
         self._t_detect = time.perf_counter()
-        if self.refine == "edge" and len(det):  # as for one marker (the video default; issue 29)
+        if self.refine == "edge" and len(det):  # as for one marker (the video default; the marker-map work)
             det.corners = refine_corners_edges(gray, det.corners, intr)
         obj, img = self.board.cv_board.matchImagePoints(
             tuple(c.reshape(1, 4, 2).astype(np.float32) for c in det.corners), det.ids.reshape(-1, 1).astype(np.int32)

@@ -1,7 +1,7 @@
 """The video entry point of the API: :func:`process_video` composites a scene into videos (what
 ``arshadow video`` runs; the CLI only parses its arguments, calls this and prints).
 
-A video run is one :class:`arshadow.session.Session` of the scene (tracking near the last detection first:
+A video run is one :class:`arshadow.frame.session.Session` of the scene (tracking near the last detection first:
 ``RenderOptions.track_roi``), the engine's backend over it
 (:class:`arshadow.video.framejob.SessionBackend`), and :func:`arshadow.video.runner.run_videos` over the
 inputs: one after another, each in one piece or cut at keyframes into ``jobs`` chunks processed by worker
@@ -19,11 +19,11 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import UsageError
+from ..frame.report import ReportItem, jsonable, make_report
 from ..io import check_output_folder
-from ..report import ReportItem, jsonable, make_report
-from ..sanity import time_lapse_warnings
-from ..scene import SceneSpec, load_scene, scene_from_dict
+from ..scene.spec import SceneSpec, load_scene, scene_from_dict
 from .engine import EngineOptions, SessionBackend, video_outputs
+from .scan import time_lapse_warnings
 
 __all__ = ["VideoRun", "process_video"]
 
@@ -43,7 +43,7 @@ class VideoRun:
         One per input, in order: ``status`` (``"ok"``, ``"error"`` with ``error``, ...), ``input``,
         ``output``, ``frames``, ``frames_ok`` / ``frames_held`` / ``frames_no_marker``, ``fps_processed``,
         ``warnings`` (the sun-set warning of a time-lapse first), ... (docs/video.md).
-    items : list of arshadow.report.ReportItem
+    items : list of arshadow.frame.report.ReportItem
         Every frame's report item when ``EngineOptions.collect_items`` (else empty).
     warnings : dict
         ``{input: message}``: a sun that sets during the input's time-lapse, found before any frame.
@@ -113,7 +113,7 @@ def process_video(
     Examples
     --------
     >>> import tempfile, arshadow
-    >>> from arshadow.resources import data_root
+    >>> from arshadow.demo.data import data_root
     >>> root = data_root()
     >>> spec = arshadow.scene_from_dict({"calib": str(root / "calib" / "synth_640x360.yml"), "marker_length": 0.05,
     ...                                  "model": "box:0.04,0.04,0.06", "lights": ["point:0.1,0.1,0.4"]})
@@ -123,7 +123,7 @@ def process_video(
     >>> s["status"], s["frames"], s["frames_ok"], run.failed
     ('ok', 5, 5, 0)
     """
-    from ..session import Session  # deferred: the session loads the GL side on first render
+    from ..frame.session import Session  # deferred: the session loads the GL side on first render
     from .parallel import BackendRecipe
     from .runner import run_videos
 

@@ -13,7 +13,7 @@ present) and redoes the others from scratch; temporary files an interrupted run 
 first. No output is ever half-written.
 
 Dask (``pip install arshadow[dask]``): ``run_batch(..., client=distributed.Client(...))`` runs one task
-per item; each worker builds its own :class:`arshadow.session.Session` (and OpenGL context) from the
+per item; each worker builds its own :class:`arshadow.frame.session.Session` (and OpenGL context) from the
 picklable spec once and reuses it for its later items. Workers write into ``OUT_DIR`` directly, so it must
 be a folder every worker sees (a shared file system); the outputs and records are the same as a local run.
 """
@@ -34,10 +34,10 @@ import cv2
 from .. import __version__
 from ..errors import ArshadowError, BatchStoppedError, MarkerNotFoundError, OutputSpaceError, UsageError
 from ..export.layerfiles import layer_paths
+from ..frame.session import Session
 from ..io import IMAGE_EXTENSIONS, InputGuard, check_output_folder, make_folder, unique_stems, write_json
 from ..io import clean_temporaries as clean_io_temporaries
 from ..photos import PhotoJob, render_photo_file
-from ..session import Session
 from .decode import looks_like_sequence
 from .engine import SessionBackend, process_video, video_outputs
 from .parallel import (
@@ -194,7 +194,7 @@ def process_item(
         res = render_photo_file(sess, job)
         summary["outputs"] = [str(p) for p in job.outputs]
         summary["status"] = "ok"
-        if res.item.flag_reasons:  # issue 20: a flagged pose is said (its reasons also in the item)
+        if res.item.flag_reasons:  # the sanity gates: a flagged pose is said (its reasons also in the item)
             summary["warnings"].append(f"{item.input}: flagged pose: {'; '.join(res.item.flag_reasons)}")
         summary["item"] = res.item.to_dict()
         return None
@@ -371,7 +371,7 @@ def run_batch(
         task per video, all scheduled together.
     progress : callable, optional
         ``progress(done, total, summary)`` after each item.
-    session : arshadow.session.Session, optional
+    session : arshadow.frame.session.Session, optional
         Local runs: use this session (else one is made).
     jobs : int
         Local runs: worker processes per video (chunks, :mod:`arshadow.video.chunks`); 1: in this process.

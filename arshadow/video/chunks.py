@@ -18,7 +18,7 @@ decoding starts at that keyframe and no frame is decoded in vain. Chunk ``k`` wr
 Check (:func:`first_mismatch`): chunk ``k``'s head (status, raw and rendered pose, branch of the ``check``
 frames before its start) must equal chunk ``k - 1``'s records of the same frames, its own last frames,
 decided with the full history, and the tracker's state after the frame before the boundary (tracking
-window, misses in a row: :meth:`arshadow.session.Session.tracker_state`) and the IPPE branch choice's anchor
+window, misses in a row: :meth:`arshadow.frame.session.Session.tracker_state`) and the IPPE branch choice's anchor
 (the last pose before the boundary, when less than :data:`MAX_GAP_S` back) must be the same in both. The pose
 stream's state at the boundary is a function of those frames' decisions and tracked poses, so equal there
 means equal for the rest of the chunk; a chunk that differs

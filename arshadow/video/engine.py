@@ -350,7 +350,7 @@ def track_into(
     as ``(frame, decode_ms, timings, pose or None, reason or None)``, then :data:`END`; a failed decode
     thread's error is raised here (and so reaches the main thread). On a miss of a ``yuv420p`` frame's luma,
     the colour frame's grey is tried (the photo path's; :func:`arshadow.tracking.detect.retry_due` says
-    when, issue 21). A pose that reprojects far worse than its corners allow
+    when, the real-footage work). A pose that reprojects far worse than its corners allow
     (:func:`arshadow.tracking.quality.reprojection_hold`) is passed on as a miss with that reason.
     ``span``: a chunk's, whose :attr:`Span.states` get the tracker's state after the frames
     before its start and its stop."""
@@ -365,11 +365,11 @@ def track_into(
         timings = dict.fromkeys(FRAME_STAGES, 0.0)
         pose, err = backend.track(gray_of(fr, height), timings)
         if pose is None and getattr(fr, "format", "bgr24") == "yuv420p" and retry_due(misses):
-            # the luma is not the colour frame's grey (chroma): on a miss, the photo path's (issue 21)
+            # the luma is not the colour frame's grey (chroma): on a miss, the photo path's (the real-footage work)
             pose, err = backend.track(gray_of(fr, height, colour=True), timings)
         misses = 0 if pose is not None else misses + 1
         if pose is not None and (why := reprojection_hold(pose)) is not None:
-            pose, err = None, why  # a broken pose (issue 26): held like a miss, never rendered as ok
+            pose, err = None, why  # a broken pose (the trust fixes): held like a miss, never rendered as ok
         if span is not None and fr.index in snap:
             span.states[fr.index] = {"tracker": backend.tracker_state(), "colour_misses": misses}
         if not put_or_stop(q_trk, (fr, dec_ms, timings, pose, None if err is None else str(err)), stop):

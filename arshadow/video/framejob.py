@@ -11,7 +11,7 @@ ROI, the only pixels the compositor reads and changes: every other pixel keeps i
 the ROI is written back into the decoded frame's own array, so no whole frame is copied).
 
 Rendering goes through :class:`SessionBackend`, the only place that knows the rendering API (the public
-methods of :class:`arshadow.session.Session`).
+methods of :class:`arshadow.frame.session.Session`).
 """
 
 from __future__ import annotations
@@ -24,9 +24,9 @@ import numpy as np
 
 from ..compose.composite import clip_roi
 from ..errors import MarkerNotFoundError
-from ..execute import FrameOutputs
-from ..report import ReportItem, StageTimings
-from ..sanity import FlagTally
+from ..frame.execute import FrameOutputs
+from ..frame.report import ReportItem, StageTimings
+from ..scene.sanity import FlagTally
 from ..tracking.luma import LumaFrame
 from ..tracking.reference import ReferenceTally
 from ..transforms import rvec_tvec_from_matrix
@@ -61,14 +61,14 @@ FRAME_STAGES = (
 
 
 class SessionBackend:
-    """Tracking and rendering for the engine, over an :class:`arshadow.session.Session`.
+    """Tracking and rendering for the engine, over an :class:`arshadow.frame.session.Session`.
 
     The only place the engine touches the rendering API. Tracking reads a grey image (the decoder's
     Y plane: no colour conversion for frames that are only tracked).
 
     Parameters
     ----------
-    session : arshadow.session.Session
+    session : arshadow.frame.session.Session
     tracks : list of arshadow.lights.suntrack.SunTrack
         Sun lights following the frame times (``time_lapse = (start datetime, speed)``); the session
         must have them (:meth:`Session.use_sun_tracks`).
@@ -76,7 +76,7 @@ class SessionBackend:
 
     def __init__(self, session, tracks=(), time_lapse=None):
         self.session, self.tracks, self.time_lapse = session, list(tracks), time_lapse
-        self.hooks = session.hooks  # arshadow.engine.EngineHooks: what the engine reaches into
+        self.hooks = session.hooks  # arshadow.frame.hooks.EngineHooks: what the engine reaches into
         self.hooks.input_kind = "video"  # its notes say "the video is WxH"
         self.cal = None
         self.recomputes = 0
@@ -106,7 +106,7 @@ class SessionBackend:
             timings["pose"] += st.pose
 
     def tracker_state(self) -> list:
-        """:meth:`arshadow.engine.EngineHooks.tracker_state` at this video's size."""
+        """:meth:`arshadow.frame.hooks.EngineHooks.tracker_state` at this video's size."""
         return self.hooks.tracker_state(self.cal.intrinsics.width, self.cal.intrinsics.height)
 
     def replay_sun(self, times) -> None:
@@ -143,21 +143,21 @@ class SessionBackend:
         return self.session.plan(cam_from_marker, width, height)
 
     def exposure_region(self, cam_from_marker, width: int, height: int, marker=None):
-        """The pixels the exposure match reads (:meth:`arshadow.engine.EngineHooks.exposure_region`), or None;
+        """The pixels the exposure match reads (:meth:`arshadow.frame.hooks.EngineHooks.exposure_region`), or None;
         ``marker``: the frame's tracked pose (its marker id)."""
         return self.hooks.exposure_region(cam_from_marker, width, height, marker)
 
     @property
     def measures_exposure(self) -> bool:
-        """The session's exposure match is on (:attr:`arshadow.engine.EngineHooks.exposure`)."""
+        """The session's exposure match is on (:attr:`arshadow.frame.hooks.EngineHooks.exposure`)."""
         return self.hooks.exposure is not None
 
     def observe_exposure(self, bgr, cam_from_marker, marker) -> None:
-        """:meth:`arshadow.engine.EngineHooks.observe_exposure` (a chunk's primer frame)."""
+        """:meth:`arshadow.frame.hooks.EngineHooks.observe_exposure` (a chunk's primer frame)."""
         self.hooks.observe_exposure(bgr, cam_from_marker, marker)
 
     def exposure_gap(self) -> None:
-        """:meth:`arshadow.engine.EngineHooks.exposure_gap` (a frame without the marker)."""
+        """:meth:`arshadow.frame.hooks.EngineHooks.exposure_gap` (a frame without the marker)."""
         self.hooks.exposure_gap()
 
     def render(self, bgr, cam_from_marker, want_mask, timings, plan=None, marker=None):
@@ -185,7 +185,7 @@ class SessionBackend:
 def gray_of(frame, height: int, colour: bool = False) -> np.ndarray | LumaFrame:
     """The grey image the tracker reads: for a planar ``yuv420p`` frame, its Y plane as a
     :class:`arshadow.tracking.luma.LumaFrame` (expanded from limited to full range where the tracker reads
-    it: the Y plane itself lost real markers, issue 21), else OpenCV's BGR -> grey ``(H, W) uint8``.
+    it: the Y plane itself lost real markers, the real-footage work), else OpenCV's BGR -> grey ``(H, W) uint8``.
     ``colour``: a ``yuv420p`` frame's BGR -> grey instead (the photo path's grey; the engine's retry when
     the Y plane shows no marker)."""
     if getattr(frame, "format", "bgr24") == "yuv420p":
@@ -344,7 +344,7 @@ class FrameComposer:
 
     def _render(self, cam_from_marker, img, fmt, timings, marker=None):
         """Composite at the (decided) marker pose ``cam_from_marker``; returns the frame in its own format, the mask and the report
-        item of :meth:`arshadow.session.Session.render`. ``marker``: the frame's tracked pose (None: held).
+        item of :meth:`arshadow.frame.session.Session.render`. ``marker``: the frame's tracked pose (None: held).
 
         A ``yuv420p`` frame is converted to BGR only inside the plan's ROI (even-aligned; into a buffer kept
         for the video): the compositor reads and writes no pixel outside it, and the result goes back into
@@ -408,7 +408,7 @@ def frame_record(fr, item, sun) -> dict:
 
     ``reference_id``: the marker whose frame the pose is in (the tracked pose's, a held frame's last one;
     None for a board or without a pose); ``pose_flagged`` / ``flag_reasons``: the tracked pose's flags
-    (false / [] without one), ``pose_notes`` its report-only reasons (issue 31)."""
+    (false / [] without one), ``pose_notes`` its report-only reasons (the cluster and flags work)."""
     line = {
         "frame": fr.index,
         "time_s": round(fr.time_s, 6),

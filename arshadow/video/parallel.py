@@ -1,7 +1,7 @@
 """One video across processes: its chunks (:mod:`arshadow.video.chunks`) on local worker processes
 (``arshadow video --jobs N``) or as Dask tasks (``arshadow batch --dask``), then joined.
 
-Each worker process builds its own :class:`arshadow.session.Session` (and OpenGL context) from a picklable
+Each worker process builds its own :class:`arshadow.frame.session.Session` (and OpenGL context) from a picklable
 :class:`BackendRecipe` once and keeps it for its later chunks. With ``--jobs N`` the calling process runs
 one chunk itself (it would only wait) and ``N - 1`` local workers the others: one interpreter start-up
 and one set of imports fewer (~1 CPU-second, a tenth of a 300-frame 720p run). Local workers are started
@@ -33,10 +33,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ImageError, UsageError
+from ..frame.session import Session
 from ..gl.context import contexts_made
 from ..io import make_folder
-from ..sanity import FlagTally, quiet_notes
-from ..session import Session
+from ..scene.sanity import FlagTally, quiet_notes
 from ..tracking.dictionary import DEFAULT_DICTIONARY
 from ..tracking.reference import ReferenceTally
 from .avio import AvReader, display_rotation

@@ -4,8 +4,8 @@
 from __future__ import annotations
 
 from ..errors import ArshadowError, ImageError
+from ..frame.report import ReportItem
 from ..io import InputGuard, clean_temporaries
-from ..report import ReportItem
 from .engine import EngineOptions, process_video, unique_stems, video_outputs
 from .parallel import ChunkPool, process_video_chunked
 

@@ -21,6 +21,7 @@ from fractions import Fraction
 from pathlib import Path
 
 from ..errors import ImageError
+from ..scene.sanity import sun_set_warning
 from .avio import RawFrame, load_av, pts_time
 
 __all__ = ["SeekReader", "StreamIndex", "scan_stream"]
@@ -212,3 +213,46 @@ class SeekReader:
 def chunk_name(path) -> str:
     """A file-name-safe label of ``path`` (for chunk folders)."""
     return "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in Path(str(path)).name)[:60]
+
+
+def time_lapse_warnings(videos, tracks, time_lapse, max_frames=None) -> dict:
+    """:func:`sun_set_warning` for each video of a time-lapse, read before any frame is decoded (the
+    container's frame count and rate).
+
+    Parameters
+    ----------
+    videos : list of str
+    tracks : list of SunTrack
+    time_lapse : (datetime, float) or None
+        ``(start, speed)`` of ``arshadow video --time-lapse``.
+    max_frames : int, optional
+
+    Returns
+    -------
+    dict
+        ``{video: message}`` for the videos in which a sun sets (a video that cannot be opened is left to
+        the engine, which reports it).
+    """
+    # deferred: PyAV is loaded only when a time-lapse is asked for (sanity is imported by every path)
+    from ..errors import ArshadowError
+    from .avio import AvReader
+
+    out: dict[str, str] = {}
+    if not tracks or time_lapse is None:
+        return out
+    for v in videos:
+        try:
+            reader = AvReader(v, max_frames=max_frames)
+        except (ArshadowError, OSError):
+            continue
+        try:
+            n, fps = reader.frame_count, reader.fps
+        finally:
+            reader.close()
+        if n is None:
+            continue
+        n = min(n, int(max_frames)) if max_frames else n
+        msg = sun_set_warning(tracks, time_lapse[0], time_lapse[1], fps, n, label=str(v))
+        if msg:
+            out[str(v)] = msg
+    return out

@@ -112,7 +112,7 @@ def smooth_poses(times, poses, i, *, window_s, degree=2, outlier_deg=3.0, max_sp
     trust_i : bool
         Frame ``i`` always takes part in its own fit. False (its pose is flagged, e.g. blurred corners):
         it is left out like any neighbour when it disagrees with the fit, provided frames on both sides
-        take part (issue 21: a blurred frame of the real 5-fps clip sat 8 deg off its neighbours' path).
+        take part (the real-footage work: a blurred frame of the real 5-fps clip sat 8 deg off its neighbours' path).
 
     Returns
     -------

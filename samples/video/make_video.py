@@ -34,8 +34,8 @@ PATH = dict(radius=0.5, height=(0.3, 0.42), sweep_deg=70.0, start_deg=-110.0, ta
 
 def main(out_dir=HERE) -> int:
     sys.path.insert(0, str(ROOT))
-    from arshadow.camera import Intrinsics
-    from arshadow.synth import camera_path, render_marker_photo
+    from arshadow.camera.model import Intrinsics
+    from arshadow.synth.markers import camera_path, render_marker_photo
     from arshadow.video.avio import AvWriter
 
     intr = Intrinsics.from_file(ROOT / "calib" / "synth_640x360.yml")

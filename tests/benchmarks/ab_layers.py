@@ -1,4 +1,4 @@
-"""A/B benchmark: the 720p photo pipeline with the compositing layers off and on (issue 19: on <= 15 %).
+"""A/B benchmark: the 720p photo pipeline with the compositing layers off and on (the compositing-layers work: on <= 15 %).
 
     python tests/benchmarks/ab_layers.py [--frames 200] [--warmup 10] [--write png|exr] [--quick]
 
@@ -92,7 +92,7 @@ def main(argv=None) -> int:
             "median": round(float(np.median(ratio)), 4),
             "iqr": [round(float(np.percentile(ratio, q)), 4) for q in (25, 75)],
         },
-        "budget": "on <= 1.15 x off (issue 19)",
+        "budget": "on <= 1.15 x off (the compositing-layers work)",
     }
     if write_ms:
         result["write_ms_median"] = round(float(np.median(write_ms)), 2)

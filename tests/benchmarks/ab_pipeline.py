@@ -5,13 +5,13 @@
 Each tree runs in its own worker process (``PYTHONPATH`` = the tree), set up once like
 ``bench_pipeline.py``'s default row (samples/knot_point.jpg, 1280 x 720, the knot, its first light,
 ``Session.process(image, want_mask=False, out=buf)``, or
-``Compositor.process`` in a tree from before issue 16); then the driver asks A and B for one frame each
+``Compositor.process`` in a tree from before the façade work); then the driver asks A and B for one frame each
 in turn (order alternating every pair), so both see the same machine load at nearly the same time. Prints
 JSON: per tree the median, IQR ``[q25, q75]`` and min of the frame times and the median of each stage the report times,
 and the median and IQR of the paired ratios
 B / A. On a shared machine the paired ratio is the figure to quote; absolute times move with the load.
-``AB_NEW_OPTIONS='{"exposure": false}'`` sets RenderOptions fields in a tree whose engine is Session (issue 16
-on), e.g. to time the façade without the exposure match that issue 17 turned on by default.
+``AB_NEW_OPTIONS='{"exposure": false}'`` sets RenderOptions fields in a tree whose engine is Session (the façade work
+on), e.g. to time the façade without the exposure match that the light estimate turned on by default.
 """
 
 from __future__ import annotations
@@ -48,11 +48,11 @@ caster = load_occluder(root / sc["model"], rotate=sc.get("rotate", (0, 0, 0)), p
 ctx = create_context()
 lights = [parse_light(sc["lights"][0])]
 buf = np.empty_like(image)
-try:  # a tree from before Session became the engine (issue 16): the Compositor
+try:  # a tree from before Session became the engine (the façade work): the Compositor
     from arshadow.pipeline import Compositor, RenderOptions
 except ImportError:
     from arshadow.scene import RenderOptions, Scene
-    from arshadow.session import Session
+    from arshadow.frame.session import Session
     import os  # AB_NEW_OPTIONS: RenderOptions fields for a tree with Session (e.g. '{"exposure": false}')
     opts = RenderOptions(**json.loads(os.environ.get("AB_NEW_OPTIONS", "{}")))
     comp = Session(Scene(intr, caster, lights, opts, {"marker_length": 0.05}), context=ctx)

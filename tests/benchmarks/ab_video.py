@@ -30,8 +30,8 @@ sys.path.insert(0, str(HERE.parents[1]))
 
 from video_clips import CALIB_720, KNOT_SCENE, make_clip  # noqa: E402  (tests/, put on the path above)
 
-from arshadow.camera import Intrinsics  # noqa: E402
-from arshadow.synth import camera_path  # noqa: E402
+from arshadow.camera.model import Intrinsics  # noqa: E402
+from arshadow.synth.markers import camera_path  # noqa: E402
 
 CACHE = Path(os.environ.get("ARSHADOW_BENCH_CACHE", "/tmp/arshadow-bench"))
 

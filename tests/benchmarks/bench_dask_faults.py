@@ -1,4 +1,4 @@
-"""Batches on a real Dask cluster, repeated, clean and with a worker killed (issue 31 items 1-2).
+"""Batches on a real Dask cluster, repeated, clean and with a worker killed (the cluster and flags work items 1-2).
 
     python tests/benchmarks/bench_dask_faults.py [--runs 100] [--kill-runs 20] [--max-minutes 0]
                                                  [--videos 3] [--frames 36] [--seed 31] [--out r.json]
@@ -63,7 +63,7 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     import distributed
 
-    from arshadow.scene import scene_from_dict
+    from arshadow.scene.spec import scene_from_dict
     from arshadow.video.batch import run_batch
     from arshadow.video.engine import EngineOptions
 

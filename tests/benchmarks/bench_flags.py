@@ -1,4 +1,4 @@
-"""Benchmark: precision and recall of each pose flag against the truth (issue 31 item 3).
+"""Benchmark: precision and recall of each pose flag against the truth (the cluster and flags work).
 
 Run (a few minutes; prints the table docs/tracking.md keeps, and writes every measurement as JSON Lines):
 
@@ -31,9 +31,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import _common  # noqa: E402
 
-from arshadow.camera import Intrinsics  # noqa: E402
+from arshadow.camera.model import Intrinsics  # noqa: E402
 from arshadow.errors import MarkerNotFoundError  # noqa: E402
-from arshadow.synth import look_at_pose, render_marker_photo  # noqa: E402
+from arshadow.synth.markers import look_at_pose, render_marker_photo  # noqa: E402
 from arshadow.tracking import quality  # noqa: E402
 from arshadow.tracking.tracker import MarkerTracker  # noqa: E402
 from arshadow.transforms import rotation_error_deg  # noqa: E402

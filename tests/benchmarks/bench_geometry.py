@@ -1,5 +1,5 @@
 """Geometry benchmark: silhouette detectors, volume construction and one-time preparation, at 1k, 10k,
-100k and 1M faces; plus the measured disagreement of Delta+ (paper 003) with the exact silhouette and
+100k and 1M faces; plus the measured disagreement of Delta+ ([Kolivand-DeltaPlus]) with the exact silhouette and
 with the outline seen from the light, and HSD's edge operations against TA.
 
     python tests/benchmarks/bench_geometry.py [--sizes 1000,10000,100000,1000000] [--lights 10]

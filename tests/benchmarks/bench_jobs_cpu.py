@@ -1,4 +1,4 @@
-"""CPU overhead of ``arshadow video --jobs 2`` against the sequential run (issue 18, judged: at most +10 %).
+"""CPU overhead of ``arshadow video --jobs 2`` against the sequential run (the long-video work, judged: at most +10 %).
 
     python tests/benchmarks/bench_jobs_cpu.py [--size 720|2160] [--frames 300] [--runs 3] [--out r.json]
 

@@ -1,6 +1,6 @@
-"""Accuracy and time of the light estimate (issue 17) over its synthetic distribution.
+"""Accuracy and time of the light estimate (the light estimate) over its synthetic distribution.
 
-Each case is a random 1280 x 720 photo of :func:`arshadow.synth_lit.random_lit_case` (textured floor, a
+Each case is a random 1280 x 720 photo of :func:`arshadow.synth.lit.random_lit_case` (textured floor, a
 5 x 5 x 8..12 cm box probe beside the marker, light elevation 25..60 degrees, exposure, white balance,
 blur, noise, JPEG); the truth is the generating light and reflectances, never the estimator's output.
 
@@ -25,10 +25,10 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import _common
 
-from arshadow.camera import Intrinsics
+from arshadow.camera.model import Intrinsics
 from arshadow.errors import ArshadowError
 from arshadow.estimate import estimate_light
-from arshadow.synth_lit import random_lit_case
+from arshadow.synth.lit import random_lit_case
 
 
 def _angle(a, b) -> float:

@@ -1,7 +1,7 @@
-"""Never a confident wrong light (issue 26 items 2-4): the light estimate on photos it must refuse or flag,
+"""Never a confident wrong light (the trust fixes items 2-4): the light estimate on photos it must refuse or flag,
 on partly hidden shadows and on point lights, over varied synthetic photos with known truth.
 
-Each case is a photo of :func:`arshadow.synth_lit.random_lit_case` (textured floor, a 5 x 5 x 8..12 cm box
+Each case is a photo of :func:`arshadow.synth.lit.random_lit_case` (textured floor, a 5 x 5 x 8..12 cm box
 probe beside the marker, light elevation 25..60 degrees, exposure, white balance, blur, noise, JPEG); the
 truth is the generating light, never the estimator's output. Scenarios:
 
@@ -39,13 +39,13 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import _common
 
-from arshadow.camera import Intrinsics
+from arshadow.camera.model import Intrinsics
 from arshadow.errors import ArshadowError
 from arshadow.estimate import estimate_light
 from arshadow.geometry.exact import ground_shadow_triangles, points_in_triangles
 from arshadow.geometry.mesh import load_occluder
-from arshadow.synth import look_at_pose
-from arshadow.synth_lit import random_lit_case, render_lit_photo
+from arshadow.synth.lit import random_lit_case, render_lit_photo
+from arshadow.synth.markers import look_at_pose
 
 SCENARIOS = ("placed", "absent", "misplaced", "suntime", "hidden", "point", "point3", "sun")
 

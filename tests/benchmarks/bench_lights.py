@@ -1,4 +1,4 @@
-"""Frame time against the number of lights and against soft-shadow samples (paper 002, Figure 8 analogue).
+"""Frame time against the number of lights and against soft-shadow samples ([Kolivand-Stencil], Figure 8 analogue).
 
 A plain script: prints one JSON object (median and IQR / min-max of repeated frames after warm-up, plus
 metadata: git commit, versions, GL_RENDERER). Not a test (timings on a shared 2-core machine are noisy).
@@ -37,7 +37,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def _rendered(res):
-    """A :class:`arshadow.session.FrameResult` as ``(composite, mask, report item)``."""
+    """A :class:`arshadow.frame.session.FrameResult` as ``(composite, mask, report item)``."""
     return res.composite, res.mask, res.item
 
 
@@ -55,7 +55,7 @@ def penumbra_quality(ctx, ns) -> dict:
     import soft_shadow_scene as T
     from oracle import disc_segment_fraction
 
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
     from arshadow.geometry.mesh import load_occluder
     from arshadow.gl.stencil import ShadowRenderer
     from arshadow.lights.area import sample_area_light
@@ -110,14 +110,14 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default=None, help="also write the JSON here")
     args = ap.parse_args(argv)
 
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
+    from arshadow.frame.session import Session
     from arshadow.geometry.mesh import load_occluder
     from arshadow.gl.context import create_context
     from arshadow.gl.stencil import ShadowRenderer
     from arshadow.lights.spec import Light, parse_light
-    from arshadow.scene import RenderOptions, Scene
-    from arshadow.session import Session
-    from arshadow.synth import look_at_pose
+    from arshadow.scene.spec import RenderOptions, Scene
+    from arshadow.synth.markers import look_at_pose
 
     ctx = create_context()
     W, H = 640, 480

@@ -1,4 +1,4 @@
-"""Marker maps (issue 29): what learning a map and tracking against it cost, and how accurate each mode is.
+"""Marker maps (the marker-map work): what learning a map and tracking against it cost, and how accurate each mode is.
 
     python tests/benchmarks/bench_map.py [--repeat 3] [--frames 80] [--json out.json]
 
@@ -7,7 +7,7 @@ Figures (each the median of ``--repeat`` runs, with the load average in ``meta``
 * ``learn_ms_per_100``: ``arshadow map``'s work (decode, detect every frame, pose graph, bundle adjustment)
   per 100 frames at 640 x 480, on the synthetic clip of tests/map_scene.py and, when ``../shared/realvideo``
   is present, on its six-marker clip (145 frames); split into ``observe`` (decode + detect) and ``learn``.
-* ``track_ms``: the video engine's tracking per frame (:func:`arshadow.engine.estimate_pose`: fast pass,
+* ``track_ms``: the video engine's tracking per frame (:func:`arshadow.frame.hooks.estimate_pose`: fast pass,
   tracking window for one marker, full search fallback) for one marker (the reference, ``--marker-id``), the
   learned map (a generic board), and their ratio.
 * ``rot_err_deg``: median camera rotation error against the generating poses, one marker vs the map.
@@ -31,10 +31,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import _common  # noqa: E402
 from map_scene import LENGTH, make_scene, write_frames  # noqa: E402
 
-from arshadow.camera import Intrinsics  # noqa: E402
-from arshadow.engine import CalibrationState, estimate_pose  # noqa: E402
+from arshadow.camera.model import Intrinsics  # noqa: E402
 from arshadow.errors import MarkerNotFoundError  # noqa: E402
-from arshadow.report import StageTimings  # noqa: E402
+from arshadow.frame.hooks import CalibrationState, estimate_pose  # noqa: E402
+from arshadow.frame.report import StageTimings  # noqa: E402
 from arshadow.tracking.mapio import observe_inputs  # noqa: E402
 from arshadow.tracking.mapping import learn_map  # noqa: E402
 from arshadow.transforms import rotation_error_deg  # noqa: E402

@@ -2,7 +2,7 @@
 
     python tests/benchmarks/bench_pipeline.py [--runs 40] [--warmup 5] [--aa 4] [--photo P] [--variants]
 
-Times :meth:`arshadow.session.Session.process` (marker detection, pose, per-light mode decision,
+Times :meth:`arshadow.frame.session.Session.process` (marker detection, pose, per-light mode decision,
 silhouette + volume (cached after the first frame: the occluder and the light are fixed in the world
 frame), ROI rendering, readback, lens warp, composite), excluding file decode/encode, process start and
 context creation. Prints JSON: median, IQR and min/max of the total and of every stage over ``--runs``
@@ -99,7 +99,7 @@ def detector_settings() -> dict:
 
 def compare_detectors(image, intr, n, runs, seed=5) -> list:
     from arshadow.errors import MarkerNotFoundError
-    from arshadow.synth import random_pose, render_marker_photo
+    from arshadow.synth.markers import random_pose, render_marker_photo
     from arshadow.tracking.tracker import MarkerTracker
     from arshadow.transforms import rotation_error_deg
 
@@ -167,8 +167,8 @@ def run_case(
     fast_detect=True,
     truncate=True,
 ):
-    from arshadow.scene import RenderOptions, Scene
-    from arshadow.session import Session
+    from arshadow.frame.session import Session
+    from arshadow.scene.spec import RenderOptions, Scene
 
     tracker = {"marker_length": 0.05, **(tracker_extra or {})}
     # cold: the planner's reuse switched off, so every frame rebuilds the silhouettes and volumes
@@ -221,12 +221,12 @@ def main(argv=None) -> int:
         print("note: fewer than 30 runs", file=sys.stderr)
 
     sys.path.insert(0, str(ROOT))
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
     from arshadow.geometry.mesh import load_occluder
     from arshadow.gl.context import create_context
     from arshadow.io import read_image
     from arshadow.lights.spec import parse_light
-    from arshadow.scene import RenderOptions
+    from arshadow.scene.spec import RenderOptions
 
     scenes = json.loads((ROOT / "samples" / "scenes.json").read_text())["scenes"]
     sc = next(s for s in scenes if Path(s["photo"]).name == Path(args.photo).name)

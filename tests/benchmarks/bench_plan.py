@@ -38,7 +38,7 @@ DECISIONS = ("planar", "zpass", "truncate", "cull", "roi", "reuse")
 
 
 def _specs(names):
-    from arshadow.scene import SCENE_KEYS, scene_from_dict
+    from arshadow.scene.spec import SCENE_KEYS, scene_from_dict
 
     data = json.loads((ROOT / "samples" / "scenes.json").read_text())
     out = []
@@ -59,7 +59,7 @@ def _specs(names):
 
 
 def _session(spec, ctx, **opts):
-    from arshadow.session import Session
+    from arshadow.frame.session import Session
 
     return Session(dataclasses.replace(spec, options=dataclasses.replace(spec.options, **opts)), context=ctx)
 

@@ -36,9 +36,9 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=15)
     ap.add_argument("--out")
     args = ap.parse_args()
+    from arshadow.frame.session import Session
     from arshadow.io import read_image
-    from arshadow.scene import scene_from_dict
-    from arshadow.session import Session
+    from arshadow.scene.spec import scene_from_dict
 
     photo = ROOT / "samples" / "probe_shadow.jpg"
     base = {

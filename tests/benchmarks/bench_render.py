@@ -29,7 +29,7 @@ import time
 import _common
 import numpy as np
 
-from arshadow.render_api import RenderRequest
+from arshadow.renderer.request import RenderRequest
 
 ROOT = _common.ROOT
 sys.path.insert(0, str(ROOT / "tests"))
@@ -40,9 +40,9 @@ stats = _common.summary
 
 
 def load_scene():
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
     from arshadow.geometry.mesh import load_occluder
-    from arshadow.synth import look_at_pose
+    from arshadow.synth.markers import look_at_pose
 
     p = ROOT / "samples" / "meshes" / "knot.ply"
     if p.is_file():

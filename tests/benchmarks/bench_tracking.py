@@ -6,7 +6,7 @@ Run (prints a JSON document and a markdown table; takes a few minutes):
 
 or through pytest: ``pytest -m slow tests/benchmarks/bench_tracking.py -s``.
 
-Photos come from :func:`arshadow.synth.render_marker_photo` with the acceptance conditions of issue 2
+Photos come from :func:`arshadow.synth.render_marker_photo` with the acceptance conditions of the tracking acceptance tests
 (marker 5-10 % of the image width, 0.3-0.8 m, tilt 0-70 deg, noise sigma 2, blur sigma 0.6, JPEG 90);
 the same poses are used for every method at a resolution. The error is against the generating pose.
 Per photo the time is the median of ``repeat`` runs after one warm-up, the configurations interleaved

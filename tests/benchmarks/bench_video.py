@@ -122,8 +122,8 @@ def frame_times(refine: str):
 
 
 def flips(n_frames=40, seeds=(0, 1, 2), marker_length=0.04):
-    from arshadow.camera import Intrinsics
-    from arshadow.synth import camera_path, render_marker_photo
+    from arshadow.camera.model import Intrinsics
+    from arshadow.synth.markers import camera_path, render_marker_photo
     from arshadow.tracking.tracker import MarkerTracker
     from arshadow.transforms import rotation_error_deg as rotation_angle_deg
     from arshadow.video.chooser import TemporalPoseChooser

@@ -48,8 +48,8 @@ BLANK = range(100, 130)
 
 
 def _clip(kind: str, n: int):
-    from arshadow.camera import Intrinsics
-    from arshadow.synth import camera_path, pan_path
+    from arshadow.camera.model import Intrinsics
+    from arshadow.synth.markers import camera_path, pan_path
 
     CACHE.mkdir(parents=True, exist_ok=True)
     path = CACHE / f"{kind}{n}.mp4"
@@ -95,7 +95,7 @@ def _pose(rvec, tvec):
 
 
 def _exact():
-    from arshadow.camera import Intrinsics
+    from arshadow.camera.model import Intrinsics
     from arshadow.geometry.mesh import load_occluder
     from arshadow.lights.spec import parse_light
 

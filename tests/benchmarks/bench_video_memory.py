@@ -8,7 +8,7 @@ bench_video_scale.py) looped (decoded and re-encoded, H.264) to ``--frames`` fra
 $ARSHADOW_BENCH_CACHE. The run goes through the CLI in this process (default settings, with the mask
 video); the progress callback samples VmRSS from /proc/self/status. Prints the RSS after frame ``--warm``
 (everything warmed up and the look-ahead buffers full), the maximum and the last sample, and growth =
-max - RSS(warm); exits 1 when growth exceeds ``--limit-mb`` (issue 18: a 3 000-frame 2160p run grows
+max - RSS(warm); exits 1 when growth exceeds ``--limit-mb`` (the long-video work: a 3 000-frame 2160p run grows
 <= 100 MB). A short check: ``--height 2160 --frames 150 --warm 50 --source-frames 40``.
 """
 

@@ -1,4 +1,4 @@
-"""Video cost against resolution, and the scale model of a chunked run (issue 18).
+"""Video cost against resolution, and the scale model of a chunked run (the long-video work).
 
     python tests/benchmarks/bench_video_scale.py [--frames 300] [--runs 3] [--sizes 720,1080,2160]
                                                  [--model-size 2160] [--out results.json] [--quick]

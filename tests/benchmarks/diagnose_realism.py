@@ -1,4 +1,4 @@
-"""Where the ground residual of the path-traced reference comes from (issue 28; docs/reference.md).
+"""Where the ground residual of the path-traced reference comes from (the realism work; docs/reference.md).
 
     python tests/benchmarks/diagnose_realism.py [--set own|heldout ...] [--png DIR] [--opt KEY=VALUE ...]
 
@@ -72,8 +72,8 @@ def hard_shadow(case) -> np.ndarray:
     shadow mask for the true light: exact geometry)."""
     from arshadow.bench.reference import intrinsics_of, object_color
     from arshadow.bench.reference_scene import light_spec, pose_of
-    from arshadow.scene import scene_from_dict
-    from arshadow.session import Session
+    from arshadow.frame.session import Session
+    from arshadow.scene.spec import scene_from_dict
 
     sc = case.scene
     d = {
@@ -176,7 +176,7 @@ def main() -> None:
                 continue
             try:
                 est = measure_light(case.plate8, case.scene)
-            except EstimateError as e:  # the estimate refuses (issue 26): no measured pipeline for this case
+            except EstimateError as e:  # the estimate refuses (the trust fixes): no measured pipeline for this case
                 result["cases"][f"{name}/{case.scene.name}"] = {"refused": str(e)}
                 print(case.scene.name, "refused:", e, file=sys.stderr, flush=True)
                 continue

@@ -1,4 +1,4 @@
-"""The typing gate's figure (issue 27 item 5): the share of the package's lines (``arshadow/**/*.py``) in
+"""The typing gate's figure (the layout work): the share of the package's lines (``arshadow/**/*.py``) in
 modules that mypy checks with the full strict settings of pyproject.toml's [tool.mypy], i.e. modules no
 ``[[tool.mypy.overrides]]`` block relaxes. .ci/run prints it right after ``mypy``.
 

@@ -1,5 +1,5 @@
 """Rewrite pyproject.toml's per-module mypy relaxations: exactly what each module not yet clean under the
-strict [tool.mypy] settings needs, nothing more (the typing gate, issue 27 item 5).
+strict [tool.mypy] settings needs, nothing more (the typing gate, the layout work).
 
     python tests/benchmarks/mypy_overrides.py          # rewrites the blocks after the marker line
     python tests/benchmarks/mypy_overrides.py --check  # exit 1 if they would change

@@ -39,7 +39,7 @@ def main() -> None:
         for case in load_cases(ROOT / "tests" / "data" / "reference" / name):
             try:
                 est = measure_light(case.plate8, case.scene)
-            except EstimateError as e:  # the estimate refuses (issue 26): no composite to score
+            except EstimateError as e:  # the estimate refuses (the trust fixes): no composite to score
                 result["cases"][f"{name}/{case.scene.name}"] = {"refused": str(e)}
                 print(case.scene.name, "refused:", e, file=sys.stderr, flush=True)
                 continue

@@ -1,4 +1,4 @@
-"""Per-frame cost of the render seam's values (microseconds): what issue 27 adds to a frame, apart from the
+"""Per-frame cost of the render seam's values (microseconds): what the layout work adds to a frame, apart from the
 GL work (a frame of ``ab_pipeline.py``'s case takes ~14 ms).
 
     python tests/benchmarks/seam_overhead.py      # from the repository root
@@ -15,12 +15,12 @@ import numpy as np
 import arshadow
 from arshadow.compose.composite import Workspace
 from arshadow.compose.look import Look
-from arshadow.execute import FrameContext, FrameOutputs, render_request
+from arshadow.frame.execute import FrameContext, FrameOutputs, render_request
 from arshadow.gl.context import create_context
 from arshadow.gl.resources import set_uniforms
 from arshadow.gl.stencil import ShadowRenderer
-from arshadow.render_api import LightPass, Shading
-from arshadow.synth import look_at_pose
+from arshadow.renderer.request import LightPass, Shading
+from arshadow.synth.markers import look_at_pose
 
 N = 20000
 

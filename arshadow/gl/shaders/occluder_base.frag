@@ -1,5 +1,5 @@
 #version 330 core
-// Base pass of the occluder: ambient term (paper 002: I_a K_a) and coverage.
+// Base pass of the occluder: ambient term ([Kolivand-Stencil]: I_a K_a) and coverage.
 uniform float u_ambient;
 in vec3 v_world;
 in vec3 v_normal;

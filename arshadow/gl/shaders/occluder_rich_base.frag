@@ -1,5 +1,5 @@
 #version 330 core
-// Base pass of the occluder: ambient term (paper 002: I_a K_a) and coverage. With sky shading
+// Base pass of the occluder: ambient term ([Kolivand-Stencil]: I_a K_a) and coverage. With sky shading
 // (u_use_vis): the sky term times the vertex's sky visibility plus the light bounced from the ground
 // times its ground view (arshadow.shading.sky); with a texture: the albedo times the base-colour texture.
 uniform float u_ambient;

@@ -1,5 +1,5 @@
 #version 330 core
-// One light's direct Phong term (paper 002: K_d I_l (N.L) + I_l K_s (N.H)^n), added where the stencil
+// One light's direct Phong term ([Kolivand-Stencil]: K_d I_l (N.L) + I_l K_s (N.H)^n), added where the stencil
 // says the surface is outside this light's shadow volume.
 uniform vec4 u_light;        // homogeneous world position (w = 0: direction towards the light)
 uniform vec3 u_light_color;  // linear colour x weight

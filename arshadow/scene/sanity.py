@@ -5,7 +5,7 @@ no GL, no files. Scene-level checks run once per scene (:func:`check_scene`, cal
 :meth:`arshadow.scene.SceneSpec.build`, so every path -- photo, video, batch, API -- gets them); the
 per-frame check (:class:`FrameChecks`) is O(1) per frame and says each problem once per run.
 
-What is checked (issue 20):
+What is checked (the sanity gates):
 
 * units: a marker length in millimetres or centimetres (``--marker-length 50`` or ``14.5``), an object
   much smaller than the marker, a camera tens of metres from the marker (:func:`scale_warnings`,
@@ -29,7 +29,7 @@ from datetime import timedelta
 
 import numpy as np
 
-from .errors import LightError, UsageError
+from ..errors import LightError, UsageError
 
 log = logging.getLogger(__name__)
 
@@ -55,7 +55,6 @@ __all__ = [
     "pose_flag_reasons",
     "scale_warnings",
     "sun_set_warning",
-    "time_lapse_warnings",
     "unit_guess",
 ]
 
@@ -70,7 +69,7 @@ MAX_SIZE_RATIO = 100.0
 #: an object smaller than this share of the marker's side is taken for a unit mistake
 MIN_OBJECT_RATIO = 1.0 / 50.0
 #: a point light nearer to the object's bounding box than this share of the object's size fans its shadow
-#: volumes over most of the photo: each photo may take seconds (issue 20: 2 cm under the knot, 6.7 s)
+#: volumes over most of the photo: each photo may take seconds (the sanity gates: 2 cm under the knot, 6.7 s)
 SLOW_LIGHT_RATIO = 0.25
 #: a typical printed marker side (metres), the centre of :func:`unit_guess`'s choice
 TYPICAL_MARKER_M = 0.08
@@ -352,7 +351,7 @@ def sun_set_warning(tracks, start, speed: float, fps: float, n_frames: int, labe
     its frame by bisection (positions are vectorised SPA; a few milliseconds in all).
     """
     # deferred: the SPA tables load only for a time-lapse (sanity is imported on every path)
-    from .lights.sun import sun_positions
+    from ..lights.sun import sun_positions
 
     n = int(n_frames)
     if n <= 0 or not tracks:
@@ -404,7 +403,7 @@ def pose_flag_reasons(pose, flagged: bool | None = None) -> list[str]:
     """Why a pose is flagged (empty when it is not): the tracker's own reasons when it gives them
     (``pose.flag_reasons``), else read from the pose's measurements (:class:`MarkerPose.ambiguous`'s tests).
 
-    A clearly separate stand-in for the tracking package's reasons (issue 20): when ``MarkerPose`` carries
+    A clearly separate stand-in for the tracking package's reasons (the sanity gates): when ``MarkerPose`` carries
     ``flag_reasons`` this function only passes them on.
     """
     own = getattr(pose, "flag_reasons", None)
@@ -413,7 +412,7 @@ def pose_flag_reasons(pose, flagged: bool | None = None) -> list[str]:
     if not (getattr(pose, "ambiguous", False) if flagged is None else flagged):  # ``flagged``: already known
         return []
     # deferred: the thresholds live with the tracker (OpenCV); sanity itself stays light
-    from .tracking.quality import (
+    from ..tracking.quality import (
         MAX_BORDER_OCCLUSION,
         MAX_CORNER_INSTABILITY,
         MIN_CONFIDENT_SIDE_PX,
@@ -490,49 +489,6 @@ class FrameChecks:
                 "the whole photo"
             )
         return out
-
-
-def time_lapse_warnings(videos, tracks, time_lapse, max_frames=None) -> dict:
-    """:func:`sun_set_warning` for each video of a time-lapse, read before any frame is decoded (the
-    container's frame count and rate).
-
-    Parameters
-    ----------
-    videos : list of str
-    tracks : list of SunTrack
-    time_lapse : (datetime, float) or None
-        ``(start, speed)`` of ``arshadow video --time-lapse``.
-    max_frames : int, optional
-
-    Returns
-    -------
-    dict
-        ``{video: message}`` for the videos in which a sun sets (a video that cannot be opened is left to
-        the engine, which reports it).
-    """
-    # deferred: PyAV is loaded only when a time-lapse is asked for (sanity is imported by every path)
-    from .errors import ArshadowError
-    from .video.avio import AvReader
-
-    out: dict[str, str] = {}
-    if not tracks or time_lapse is None:
-        return out
-    for v in videos:
-        try:
-            reader = AvReader(v, max_frames=max_frames)
-        except (ArshadowError, OSError):
-            continue
-        try:
-            n, fps = reader.frame_count, reader.fps
-        finally:
-            reader.close()
-        if n is None:
-            continue
-        n = min(n, int(max_frames)) if max_frames else n
-        msg = sun_set_warning(tracks, time_lapse[0], time_lapse[1], fps, n, label=str(v))
-        if msg:
-            out[str(v)] = msg
-    return out
 
 
 def _ranges(keys) -> str:

@@ -7,21 +7,21 @@ import json
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from .errors import ArshadowError, UsageError
-from .io import read_image, write_image, write_json
-from .photos import OnDone, PhotoJob, caption_panel, contact_sheet, render_photos
-from .render_options import DEFAULT_AA
-from .report import ReportItem, make_report
-from .resources import samples_dir
-from .scene import scene_from_dict
-from .session import Session
+from ..errors import ArshadowError, UsageError
+from ..frame.report import ReportItem, make_report
+from ..frame.session import Session
+from ..io import read_image, write_image, write_json
+from ..photos import OnDone, PhotoJob, caption_panel, contact_sheet, render_photos
+from ..scene.options import DEFAULT_AA
+from ..scene.spec import scene_from_dict
+from .data import samples_dir
 
 if TYPE_CHECKING:
     import numpy as np
 
-    from .gl.stencil import ShadowRenderer
-    from .result import FrameResult
-    from .scene import SceneSpec
+    from ..frame.result import FrameResult
+    from ..gl.stencil import ShadowRenderer
+    from ..scene.spec import SceneSpec
 
 __all__ = ["find_samples", "scene_spec", "run_demo", "SCENE_JSON_KEYS"]
 
@@ -43,7 +43,7 @@ SCENE_JSON_KEYS = (
 
 def find_samples(explicit: Path | str | None = None) -> Path:
     """The samples folder: ``explicit``, else the bundled ``samples/`` (the repository's in a checkout, the
-    installed copy otherwise: :func:`arshadow.resources.samples_dir`), else ``./samples``."""
+    installed copy otherwise: :func:`arshadow.demo.data.samples_dir`), else ``./samples``."""
     cands = [Path(explicit)] if explicit else [samples_dir(), Path("samples")]
     for c in cands:
         if (c / "scenes.json").is_file():
@@ -74,7 +74,7 @@ def run_demo(
         A folder with ``scenes.json`` (:func:`find_samples`).
     outdir : str or Path
     aa : int
-        MSAA samples (default :data:`arshadow.render_options.DEFAULT_AA`, as ``arshadow render``).
+        MSAA samples (default :data:`arshadow.scene.options.DEFAULT_AA`, as ``arshadow render``).
     debug : bool
         Re-raise errors (tracebacks).
     on_done : callable, optional
@@ -82,17 +82,17 @@ def run_demo(
 
     Returns
     -------
-    items : list of arshadow.report.ReportItem
+    items : list of arshadow.frame.report.ReportItem
     sheet : Path or None
         The contact sheet (None when nothing was rendered).
     light : list of str or ArshadowError
-        The measured-light item's lines (:func:`arshadow.estimate.demo.light_demo`: extra outputs), or its
+        The measured-light item's lines (:func:`arshadow.demo.light.light_demo`: extra outputs), or its
         error.
     """
     # deferred: the GL context and renderer load only when the demo runs (the CLI imports this module)
-    from .estimate.demo import light_demo
-    from .gl.context import create_context
-    from .gl.stencil import ShadowRenderer
+    from ..gl.context import create_context
+    from ..gl.stencil import ShadowRenderer
+    from .light import light_demo
 
     root, outdir = samples.parent, Path(outdir)
     scenes = json.loads((samples / "scenes.json").read_text())["scenes"]
@@ -107,7 +107,7 @@ def run_demo(
             if panels and first is not None and first.is_file():
                 panels.append(caption_panel(read_image(first), f"input photo: {first.name} (before)"))
             light: list[str] | ArshadowError
-            try:  # the measured-look item (issue 17): extra outputs, the rest is unchanged
+            try:  # the measured-look item (the light estimate): extra outputs, the rest is unchanged
                 light = light_demo(samples, outdir, context=ctx, renderer=renderer, aa=aa)
             except ArshadowError as exc:
                 if debug:

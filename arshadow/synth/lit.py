@@ -31,14 +31,14 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from .camera import Intrinsics
-from .compose.composite import SRGB_TO_LINEAR, linear_to_srgb
-from .errors import UsageError
-from .geometry.exact import ground_points, ground_shadow_triangles, points_in_triangles
-from .geometry.mesh import load_occluder
-from .lights.spec import parse_light
-from .synth import SynthPhoto, camera_effects, look_at_pose, render_print_scene
-from .transforms import transform_points
+from ..camera.model import Intrinsics
+from ..compose.composite import SRGB_TO_LINEAR, linear_to_srgb
+from ..errors import UsageError
+from ..geometry.exact import ground_points, ground_shadow_triangles, points_in_triangles
+from ..geometry.mesh import load_occluder
+from ..lights.spec import parse_light
+from ..transforms import transform_points
+from .markers import SynthPhoto, camera_effects, look_at_pose, render_print_scene
 
 __all__ = ["LitPhoto", "light_vector", "render_lit_photo"]
 

@@ -1,17 +1,17 @@
-"""What a :class:`arshadow.session.Session` carries from one frame to the next: :class:`History`.
+"""What a :class:`arshadow.frame.session.Session` carries from one frame to the next: :class:`History`.
 
 A session renders each frame from the frame's own pose, but three things carry over between the frames of
 a video (or a time-lapse of photos), and this mixin holds the user's side of them, apart from the frame path
-of :mod:`arshadow.session` (track, plan, render):
+of :mod:`arshadow.frame.session` (track, plan, render):
 
 - the lights over time: :meth:`History.set_lights`, and the sun tracks that :meth:`History.set_time`
   moves (a time-lapse, :mod:`arshadow.lights.suntrack`);
 - the exposure match's smoothing over frames (:class:`arshadow.estimate.match.ExposureMatch`, fed by the
-  video engine through ``session.hooks``: :meth:`arshadow.engine.EngineHooks.observe_exposure`,
-  :meth:`~arshadow.engine.EngineHooks.exposure_gap`);
+  video engine through ``session.hooks``: :meth:`arshadow.frame.hooks.EngineHooks.observe_exposure`,
+  :meth:`~arshadow.frame.hooks.EngineHooks.exposure_gap`);
 - their saved state: :meth:`History.state` / :meth:`History.restore` (resume a run, or start a chunk of
   a video with the same history; the trackers' memory is compared instead:
-  :meth:`arshadow.engine.EngineHooks.tracker_state`).
+  :meth:`arshadow.frame.hooks.EngineHooks.tracker_state`).
 
 The mixin uses only the session's public attributes (``geometry``, ``hooks``, ``scene``).
 """
@@ -22,25 +22,25 @@ from collections.abc import Sequence
 from datetime import datetime
 from typing import TYPE_CHECKING, Any
 
-from .errors import UsageError
-from .lights.spec import Light, parse_light
+from ..errors import UsageError
+from ..lights.spec import Light, parse_light
 
 if TYPE_CHECKING:
-    from .engine import EngineHooks
-    from .lights.suntrack import TrackFrame
-    from .plan import SceneGeometry
-    from .scene import Scene
+    from ..lights.suntrack import TrackFrame
+    from ..plan.planner import SceneGeometry
+    from ..scene.spec import Scene
+    from .hooks import EngineHooks
 
 __all__ = ["History"]
 
 
 class History:
-    """The frame-to-frame memory of a :class:`arshadow.session.Session` (see the module)."""
+    """The frame-to-frame memory of a :class:`arshadow.frame.session.Session` (see the module)."""
 
     #: ``(static lights, sun tracks)`` that :meth:`set_time` moves, or None
     _sun: tuple[list[Light], list[Any]] | None = None
 
-    if TYPE_CHECKING:  # provided by arshadow.session.Session
+    if TYPE_CHECKING:  # provided by arshadow.frame.session.Session
         geometry: SceneGeometry
         hooks: EngineHooks
         scene: Scene

@@ -306,7 +306,7 @@ class PathChooser:
         Also time the paths on a software rasteriser (llvmpipe). Off by default: there the shader path runs
         on the same cores as the rest of the pipeline, the timings of a path's wall time on the calling
         thread say little about its CPU cost, and the default (numpy) path is taken untimed
-        (:meth:`arshadow.session.Session.render`).
+        (:meth:`arshadow.frame.session.Session.render`).
 
     Attributes
     ----------

@@ -8,9 +8,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from .errors import UsageError
-from .geometry.ground import parse_ground
-from .plan_rules import PLAN_OFF, PLANS
+from ..errors import UsageError
+from ..geometry.ground import parse_ground
+from ..plan.rules import PLAN_OFF, PLANS
 
 __all__ = ["RenderOptions", "SHADOW_METHODS", "AA_CHOICES", "AMBIENT_OCCLUSION", "DEFAULT_AA"]
 
@@ -38,7 +38,7 @@ class RenderOptions:
     shadow_color : (3,) float
         Linear RGB tint of a full shadow (black: plain darkening).
     shadow_method : str
-        ``"volume"`` (stencil shadow volumes, exact), ``"planar"`` (projection shadows, paper 002/004) or
+        ``"volume"`` (stencil shadow volumes, exact), ``"planar"`` (projection shadows, [Kolivand-Stencil] and [Kolivand-Sun]) or
         ``"shadowmap"`` (the shadow-map baseline, :class:`arshadow.gl.shadowmap.ShadowMapRenderer`).
     shadowmap_size : int
         Shadow map side in texels (``shadow_method="shadowmap"`` only).
@@ -57,7 +57,7 @@ class RenderOptions:
     draw_occluder : bool
         Draw the shaded object over the shadow.
     truncate : bool
-        Extrude volumes only to just below the ground instead of to infinity (paper 002).
+        Extrude volumes only to just below the ground instead of to infinity ([Kolivand-Stencil]).
     roi : bool
         Render only the region the object and its shadow can cover (False: always the whole photo).
     occluder_color : (3,) float, optional
@@ -69,7 +69,7 @@ class RenderOptions:
         Try the fast detection pass first (``MarkerTracker(detector="fast")``,
         :mod:`arshadow.tracking.fastdetect`), the full search only if it finds nothing.
     plan : str
-        Frame planner (:mod:`arshadow.plan_rules`, docs/planner.md): ``auto`` (the cheapest exact path per
+        Frame planner (:mod:`arshadow.plan.rules`, docs/planner.md): ``auto`` (the cheapest exact path per
         frame and light), ``general`` (the reference: z-fail, volumes to infinity, whole photo, every pass,
         geometry rebuilt every frame, no culling), or force ``zpass`` / ``zfail`` / ``planar``.
     plan_off : tuple of str
@@ -77,7 +77,7 @@ class RenderOptions:
         ``cull``, ``roi``, ``reuse``.
     compose : str
         ``auto`` (time the numpy and the shader lens-warp + composite on first use per photo size and
-        keep numpy unless the shader is > 15 % faster: :class:`arshadow.gl.compose.PathChooser`), ``cpu`` or
+        keep numpy unless the shader is > 15 % faster: :class:`arshadow.gl.gpu_compose.PathChooser`), ``cpu`` or
         ``gpu``.
     track_roi : bool
         Video: search the marker in a window around the last detection first (full-frame fallback).

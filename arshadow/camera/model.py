@@ -5,8 +5,8 @@ OpenCV's (x right, y down, z forward); OpenGL eye space is ``X_gl = diag(1, -1, 
 distortion model is OpenCV's (k1, k2, p1, p2[, k3[, k4, k5, k6[, s1..s4[, tx, ty]]]]).
 
 :class:`Intrinsics` is a thin frozen object over plain functions kept in their own modules: the
-distortion model in :mod:`arshadow.distortion` (:func:`distort_normalized`, :func:`undistort_normalized`,
-re-exported here) and OpenCV FileStorage reading/writing in :mod:`arshadow.cvstorage`.
+distortion model in :mod:`arshadow.camera.distortion` (:func:`distort_normalized`, :func:`undistort_normalized`,
+re-exported here) and OpenCV FileStorage reading/writing in :mod:`arshadow.camera.cvstorage`.
 """
 
 from __future__ import annotations
@@ -20,10 +20,10 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from ._check import check_finite, check_shape
+from .._check import check_finite, check_shape
+from ..errors import CalibrationError
 from .cvstorage import open_storage, read_matrix, read_positive_int, write_storage
 from .distortion import DIST_LENGTHS, distort_normalized, undistort_normalized
-from .errors import CalibrationError
 
 __all__ = [
     "Intrinsics",

@@ -25,13 +25,13 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ._check import check_finite, check_shape
-from .camera import Intrinsics
-from .errors import UsageError
-from .synth_poses import camera_path, look_at_pose, pan_path, random_pose
-from .tracking.board import Board
-from .tracking.dictionary import get_dictionary, marker_bits, marker_object_points
-from .transforms import transform_points
+from .._check import check_finite, check_shape
+from ..camera.model import Intrinsics
+from ..errors import UsageError
+from ..tracking.board import Board
+from ..tracking.dictionary import get_dictionary, marker_bits, marker_object_points
+from ..transforms import transform_points
+from .poses import camera_path, look_at_pose, pan_path, random_pose
 
 __all__ = [
     "SynthPhoto",

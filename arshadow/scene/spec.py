@@ -3,7 +3,7 @@
 A :class:`SceneSpec` says *what* (camera, marker or board, model and its placement, lights, render
 options) with paths and spec strings, not loaded objects, so it pickles to a worker process and compares
 equal when two sources describe the same scene. :meth:`SceneSpec.build` loads it into a :class:`Scene`
-(calibration, occluder, parsed lights, tracker arguments); a :class:`arshadow.session.Session` does that
+(calibration, occluder, parsed lights, tracker arguments); a :class:`arshadow.frame.session.Session` does that
 once and renders photos with it.
 
 One function builds specs from every source, :func:`scene_from_dict`; the command line
@@ -47,15 +47,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from .errors import UsageError
-from .geometry.ground import ground_warnings, parse_ground
-from .render_options import RenderOptions
+from ..errors import UsageError
+from ..geometry.ground import ground_warnings, parse_ground
+from .options import RenderOptions
 from .timelapse import TimeLapse, parse_time_lapse, time_lapse_spec
 
 if TYPE_CHECKING:  # annotations only (the session imports this module; these load on build)
-    from .camera import Intrinsics
-    from .geometry.mesh import ShadowCaster
-    from .lights.spec import Light
+    from ..camera.model import Intrinsics
+    from ..geometry.mesh import ShadowCaster
+    from ..lights.spec import Light
 
 log = logging.getLogger(__name__)
 
@@ -110,8 +110,8 @@ class TrackerSpec:
         UsageError
             Neither a marker length nor a board; an unknown dictionary.
         """
-        from .tracking.board import load_board
-        from .tracking.dictionary import DEFAULT_DICTIONARY, get_dictionary
+        from ..tracking.board import load_board
+        from ..tracking.dictionary import DEFAULT_DICTIONARY, get_dictionary
 
         if self.board is None and self.marker_length is None:
             raise UsageError("give --marker-length M (metres) for a single marker, or --board B")
@@ -148,15 +148,15 @@ class ModelSpec:
     def maybe_y_up(self) -> bool:
         """A mesh file read Z-up because no ``up`` was given (not glTF, not a primitive), not rotated: it
         may be a Y-up file (the ground warning then suggests ``--up y``)."""
-        from .geometry.mesh import default_up
+        from ..geometry.mesh import default_up
 
         primitive = ":" in self.source and not Path(self.source).exists()
         return self.up is None and not primitive and default_up(self.source) == "z" and not any(self.rotate)
 
     def build(self) -> ShadowCaster:
         """The :class:`arshadow.geometry.mesh.ShadowCaster` (MeshError / UsageError on a bad file or colour)."""
-        from .compose.composite import parse_rgb
-        from .geometry.mesh import load_occluder
+        from ..compose.composite import parse_rgb
+        from ..geometry.mesh import load_occluder
 
         color = None
         if self.color:
@@ -211,12 +211,12 @@ class SceneSpec:
         ArshadowError
             CalibrationError, UsageError, MeshError, LightError: the first problem found.
         """
-        from .camera import Intrinsics
-        from .lights.spec import parse_light
+        from ..camera.model import Intrinsics
+        from ..lights.spec import parse_light
 
         intr = self.camera if isinstance(self.camera, Intrinsics) else Intrinsics.from_file(self.camera)
+        from ..tracking.tracker import MarkerTracker
         from .sanity import check_scene
-        from .tracking.tracker import MarkerTracker
 
         tracker = self.tracker.kwargs()
         board = MarkerTracker(intr, **tracker).board  # a dictionary conflicting with the board: a usage error
@@ -280,7 +280,7 @@ class Scene:
 
 
 def _check_silhouette_name(name: str) -> None:
-    from .geometry.silhouette import METHODS
+    from ..geometry.silhouette import METHODS
 
     if name not in METHODS:
         raise UsageError(f"--silhouette {name!r}: choose one of {', '.join(METHODS)}")
@@ -382,7 +382,7 @@ def _rgb_text(v: Any, key: str = "color") -> str | None:
         return None
     if isinstance(v, str) and not v.strip().startswith("#"):
         return v  # checked when the scene is built
-    from .compose.composite import rgb8
+    from ..compose.composite import rgb8
 
     return ",".join(f"{x:g}" for x in rgb8(v, f"--{key}"))
 
@@ -399,7 +399,7 @@ def _path(v: Any, base_dir: str | Path | None) -> Any:
 def _apply_estimate(d: dict, base_dir: str | Path | None) -> dict:
     """``light_from``: the estimate's light (unless ``lights`` are given), its shadow colour (opacity 1) and
     the marker paper's exposure on the object's colour (``occluder_color``)."""
-    from .estimate.result import LightEstimate, load_estimate, scene_overrides, shading_gain
+    from ..estimate.record import LightEstimate, load_estimate, scene_overrides, shading_gain
 
     d = dict(d)
     est = d.pop("light_from")  # a file, or the estimate itself (render/video/batch --probe)
@@ -488,7 +488,7 @@ def scene_from_dict(d: Mapping[str, Any], base_dir: str | Path | None = None) ->
         and (Path(base_dir) / dictionary).exists()
     ):
         dictionary = _path(dictionary, base_dir)
-    from .lights.spec import Light
+    from ..lights.spec import Light
 
     bad = [s for s in lights if not isinstance(s, (str, Light))]
     if bad:
@@ -519,7 +519,7 @@ def scene_from_dict(d: Mapping[str, Any], base_dir: str | Path | None = None) ->
     )
     opts: dict[str, Any] = {}
     if d.get("shadow_color") is not None:
-        from .compose.composite import parse_rgb
+        from ..compose.composite import parse_rgb
 
         opts["shadow_color"] = parse_rgb(d["shadow_color"], "--shadow-color")
     for key, conv in (

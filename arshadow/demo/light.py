@@ -12,10 +12,10 @@ import json
 from pathlib import Path
 from typing import Any
 
+from ..estimate.api import estimate_light
+from ..frame.session import Session
 from ..io import read_image, write_image, write_json
-from ..scene import scene_from_dict
-from ..session import Session
-from .api import estimate_light
+from ..scene.spec import scene_from_dict
 
 __all__ = ["SAMPLE_FILE", "light_demo"]
 

@@ -16,12 +16,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from . import __version__
-from .sanity import pose_flag_reasons
-from .transforms import rvec_tvec_from_matrix
+from .. import __version__
+from ..scene.sanity import pose_flag_reasons
+from ..transforms import rvec_tvec_from_matrix
 
 if TYPE_CHECKING:
-    from .tracking.pose import MarkerPose
+    from ..tracking.pose import MarkerPose
 
 __all__ = ["ReportItem", "StageTimings", "STAGES", "OPTIONAL_KEYS", "make_report", "jsonable"]
 
@@ -185,11 +185,11 @@ class ReportItem:
         self.pose_flagged = bool(getattr(pose, "flagged", getattr(pose, "ambiguous", False)))
         self.flag_reasons = pose_flag_reasons(
             pose, self.pose_flagged
-        )  # why it is flagged ([] when it is not; arshadow.sanity)
+        )  # why it is flagged ([] when it is not; arshadow.scene.sanity)
         self.pose_notes = [str(r) for r in getattr(pose, "notes", None) or []] or None
         if getattr(pose, "kind", None) in ("gridboard", "charuco"):
             # deferred: the report module loads without OpenCV (arshadow pose / render only ever get here)
-            from .tracking.board import OPENCV_BOARD_TO_WORLD
+            from ..tracking.board import OPENCV_BOARD_TO_WORLD
 
             world_from_board = np.eye(4)
             world_from_board[:3, :3] = OPENCV_BOARD_TO_WORLD

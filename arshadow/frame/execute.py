@@ -1,7 +1,7 @@
 """Carrying out a :class:`arshadow.plan.FramePlan`: CPU geometry -> renderer -> lens warp -> composite.
 
 :func:`execute` builds (or reuses) each light's shadow volume as the plan says, hands the renderer (any
-:class:`arshadow.render_api.Renderer`) the canvas's projection and one :class:`~arshadow.render_api.LightPass`
+:class:`arshadow.renderer.request.Renderer`) the canvas's projection and one :class:`~arshadow.renderer.request.LightPass`
 per light, warps the result's layers into the photo's ROI (:class:`arshadow.compose.lens.LensWarp`, or a flip
 without distortion) and composites them (:func:`arshadow.compose.composite.composite`).
 
@@ -20,25 +20,25 @@ from typing import TYPE_CHECKING, Any
 import cv2
 import numpy as np
 
-from ._check import check_shape
-from .compose.composite import clip_roi, composite
-from .compose.effects import add_noise, blur_layers, pad_for
-from .compose.layers import layers_from_warped, pinhole_layers
-from .compose.look import Look
-from .plan import MEASURED
-from .render_api import LightPass, RenderLayers, RenderRequest, RenderResult, Shading
+from .._check import check_shape
+from ..compose.composite import clip_roi, composite
+from ..compose.layers import layers_from_warped, pinhole_layers
+from ..compose.look import Look
+from ..plan.planner import MEASURED
+from ..renderer.request import LightPass, RenderLayers, RenderRequest, RenderResult, Shading
+from ..transforms import CV_TO_GL
+from .effects import add_noise, blur_layers, pad_for
 from .report import STAGES, ReportItem, StageTimings
-from .transforms import CV_TO_GL
 
 if TYPE_CHECKING:
-    from .camera import Intrinsics
-    from .compose.composite import Workspace
-    from .compose.layers import Layers
-    from .compose.lens import LensWarp
-    from .gl.compose import GpuCompositor, PathChooser
-    from .plan import FramePlan, SceneGeometry
-    from .render_api import Renderer
-    from .render_options import RenderOptions
+    from ..camera.model import Intrinsics
+    from ..compose.composite import Workspace
+    from ..compose.layers import Layers
+    from ..compose.lens import LensWarp
+    from ..gl.gpu_compose import GpuCompositor, PathChooser
+    from ..plan.planner import FramePlan, SceneGeometry
+    from ..renderer.request import Renderer
+    from ..scene.options import RenderOptions
 
 __all__ = ["LAYERS_WHY", "STAGES", "FrameContext", "FrameOutputs", "execute", "render_request"]
 
@@ -57,27 +57,27 @@ SKY_WHY = "numpy (sky occlusion: the sky channel is composited by the numpy path
 
 @dataclass(frozen=True)
 class FrameContext:
-    """What :func:`execute` needs that lasts a session (a :class:`arshadow.session.Session` makes it).
+    """What :func:`execute` needs that lasts a session (a :class:`arshadow.frame.session.Session` makes it).
 
     Attributes
     ----------
     geometry : arshadow.plan.SceneGeometry
         Lights and cached silhouettes / volumes (volumes the plan needs are built into it).
     renderer : callable
-        ``renderer() -> arshadow.render_api.Renderer`` (made, with the context, on first use: only frames
+        ``renderer() -> arshadow.renderer.request.Renderer`` (made, with the context, on first use: only frames
         with something to draw ask for it).
     work : arshadow.compose.composite.Workspace
         Scratch buffers reused across frames.
     calibration : callable
-        ``calibration(width, height)`` -> :class:`arshadow.engine.CalibrationState` (``intrinsics``: the
+        ``calibration(width, height)`` -> :class:`arshadow.frame.hooks.CalibrationState` (``intrinsics``: the
         calibration for this photo size, the one planned with; ``lens``: the plan's lens warp or None).
     compose_key : callable, optional
         ``compose_key(width, height, distorted)``: the chooser's key of a frame.
-    chooser : arshadow.gl.compose.PathChooser, optional
+    chooser : arshadow.gl.gpu_compose.PathChooser, optional
         Times the numpy (``"cpu"``) and the shader (``"gpu"``) lens warp + composite when the plan's
         ``compose`` decision is ``"measure"``, and records the faster under the frame's ``compose_key``.
     gpu : callable, optional
-        ``gpu() -> arshadow.gl.compose.GpuCompositor`` (made on first use by the caller); the shader path
+        ``gpu() -> arshadow.gl.gpu_compose.GpuCompositor`` (made on first use by the caller); the shader path
         needs a renderer whose ``gpu_layers`` is True.
     """
 
@@ -101,9 +101,9 @@ class FrameOutputs:
     out, mask_out : arrays, optional
         Buffers for the composite ``(H, W, 3) uint8`` and the mask ``(H, W) uint8`` (``out`` may be the
         image: the video engine composites in place).
-    timings : arshadow.report.StageTimings
+    timings : arshadow.frame.report.StageTimings
         Stage times are added to it.
-    item : arshadow.report.ReportItem
+    item : arshadow.frame.report.ReportItem
         Gets the frame's keys: ``mode``, ``modes``, ``silhouette_edges``, ``roi``, ``canvas``, ``znear``,
         ``plan`` (the planner's decisions with their reasons) and, when something was drawn, ``compose``
         (the path taken), ``content`` (canvas pixels with content) and ``composited`` (photo pixels
@@ -143,9 +143,9 @@ class _Frame:
 def render_request(
     plan: FramePlan, intr: Intrinsics, geometry: SceneGeometry, passes: Sequence[LightPass], sky: Any = None
 ) -> RenderRequest:
-    """The frame's :class:`arshadow.render_api.RenderRequest`: the plan's canvas, znear and
+    """The frame's :class:`arshadow.renderer.request.RenderRequest`: the plan's canvas, znear and
     ``cam_from_world`` (the ground frame's camera), the scene's caster, the light passes, and the options'
-    ground, what to draw and :class:`~arshadow.render_api.Shading`."""
+    ground, what to draw and :class:`~arshadow.renderer.request.Shading`."""
     opts, canvas = geometry.options, plan.canvas
     return RenderRequest(
         projection=intr.gl_projection(plan.znear, None, canvas=canvas),
@@ -196,7 +196,7 @@ def execute(
     color_gain : (3,) float, optional
         Per-channel gain on the object's rendered linear colour (the marker paper's exposure match,
         :mod:`arshadow.estimate.match`), measured on this frame.
-    camera : arshadow.compose.effects.CameraEffects, optional
+    camera : arshadow.frame.effects.CameraEffects, optional
         The photo's blur and noise, applied to the inserted layers (``--camera-effects on``).
 
     Returns
@@ -248,8 +248,8 @@ def _sky_shading(
     """The frame's :class:`arshadow.shading.sky.SkyShading` (None when the planner's ``ambient_occlusion``
     decision is off): the scene's ground occlusion map, the object's sky visibility and the ground bounce
     measured on this photo round the object (with a measured exposure; 0 otherwise)."""
-    from .shading.decide import decide_ambient_occlusion, ground_bounce
-    from .shading.sky import SkyShading
+    from ..shading.decide import decide_ambient_occlusion, ground_bounce
+    from ..shading.sky import SkyShading
 
     opts = geometry.options
     made = next((d for d in plan.decisions if d.name == "ambient_occlusion"), None)
@@ -530,7 +530,7 @@ def _composite_cpu(frame: _Frame, wp: _Warped, premultiplied: bool) -> None:
 
 def _blurred(wp: _Warped, sigma: float, shape: tuple) -> _Warped:
     """The warped layers grown by the blur's reach (zeros: nothing drawn there) and blurred by the photo's
-    point-spread width (:func:`arshadow.compose.effects.blur_layers`)."""
+    point-spread width (:func:`arshadow.frame.effects.blur_layers`)."""
     if sigma <= 0:
         return wp
     p = pad_for(sigma)

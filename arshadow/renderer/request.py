@@ -1,6 +1,6 @@
 """The renderer interface: what the executor hands a shadow renderer and what it gets back (no GL here).
 
-The seam is one frozen value each way: the executor (:mod:`arshadow.execute`) builds one
+The seam is one frozen value each way: the executor (:mod:`arshadow.frame.execute`) builds one
 :class:`RenderRequest` per frame from the plan and the options (projection, view, canvas size, caster,
 light passes, ground, what to draw, and the object's :class:`Shading`); a renderer answers
 ``render(request) -> RenderResult`` (layers read back) or ``render_gpu(request) -> GpuLayers`` (layers left
@@ -16,7 +16,7 @@ Everything a renderer needs is in the request: it never calls back into the geom
 (silhouettes, volumes, projection shadows are computed before, on the CPU).
 
 A new shading setting (docs/architecture.md, "The render seam") touches three places: the option
-(:class:`arshadow.render_options.RenderOptions`), :class:`Shading` (its field, :meth:`Shading.from_options`,
+(:class:`arshadow.scene.options.RenderOptions`), :class:`Shading` (its field, :meth:`Shading.from_options`,
 :meth:`Shading.uniforms`) and the shader that declares the uniform (``arshadow/gl/shaders``).
 """
 
@@ -28,12 +28,12 @@ from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from .errors import UsageError
+from ..errors import UsageError
 
 if TYPE_CHECKING:
-    from .geometry.mesh import ShadowCaster
-    from .gl.layers import GpuLayers
-    from .render_options import RenderOptions
+    from ..geometry.mesh import ShadowCaster
+    from ..gl.layers import GpuLayers
+    from ..scene.options import RenderOptions
 
 __all__ = ["LightPass", "RenderLayers", "RenderRequest", "RenderResult", "Renderer", "RendererBase", "Shading", "MODES"]
 
@@ -80,8 +80,8 @@ class LightPass:
 
     def __post_init__(self) -> None:
         if self.mode == "planar" and self.shadow_matrix is None:
-            from .geometry.projection import GROUND_PLANE, planar_shadow_matrix
-            from .geometry.silhouette import as_light_h
+            from ..geometry.projection import GROUND_PLANE, planar_shadow_matrix
+            from ..geometry.silhouette import as_light_h
 
             if as_light_h(self.light_h)[2] > 0.0:
                 self.shadow_matrix = planar_shadow_matrix(GROUND_PLANE, self.light_h)
@@ -157,7 +157,7 @@ class Shading:
 
     The renderer writes :meth:`uniforms` into every occluder program that declares them (a program that
     does not declare one ignores it), so a new scalar setting needs no renderer code: add the option
-    (:class:`arshadow.render_options.RenderOptions`), a field here (read in :meth:`from_options`, named in
+    (:class:`arshadow.scene.options.RenderOptions`), a field here (read in :meth:`from_options`, named in
     :meth:`uniforms`) and the ``uniform`` in the shader. Values the renderer uploads otherwise (the colour:
     vertex colours of the cached caster buffers) are read by the renderer by name.
 
@@ -174,19 +174,19 @@ class Shading:
     color : (3,) sRGB in [0, 1] or None
         Overrides the mesh's own colours (mesh colours and this are sRGB-encoded; the output is linear).
     sky : arshadow.shading.sky.SkyShading or None
-        Sky occlusion (issue 28): the ground occlusion map drawn into the mask's sky channel
+        Sky occlusion (the realism work): the ground occlusion map drawn into the mask's sky channel
         (``RenderResult.sky_occlusion``), the object's own sky visibility and the light bounced from the
         ground; None: the uniform ambient term, no sky channel.
     albedo_gain : (3,) float
         Linear RGB gain on the mesh's own colours / texture (the measured exposure when no colour is given).
 
-    Phong (paper 002): ``I = K_a I_a + sum_l I_l (K_d (N.L) + K_s (N.H)^n)``.
+    Phong ([Kolivand-Stencil]): ``I = K_a I_a + sum_l I_l (K_d (N.L) + K_s (N.H)^n)``.
 
     Examples
     --------
     >>> Shading(ambient=0.3).uniforms()["u_ambient"]
     0.3
-    >>> from arshadow.render_options import RenderOptions
+    >>> from arshadow.scene.options import RenderOptions
     >>> Shading.from_options(RenderOptions(specular=0.0)).specular
     0.0
     """
@@ -212,7 +212,7 @@ class Shading:
 
     @classmethod
     def from_options(cls, options: RenderOptions) -> Shading:
-        """The shading :class:`arshadow.render_options.RenderOptions` ask for (``ambient``, ``specular``,
+        """The shading :class:`arshadow.scene.options.RenderOptions` ask for (``ambient``, ``specular``,
         ``occluder_color``; diffuse and shininess at their defaults)."""
         return cls(ambient=options.ambient, specular=options.specular, color=options.occluder_color)
 
@@ -230,7 +230,7 @@ class Shading:
 @dataclass(frozen=True, kw_only=True, eq=False)
 class RenderRequest:
     """Everything a renderer draws one frame (or one canvas of it) from; built once per frame by the
-    executor (:func:`arshadow.execute.execute`) from the plan and the options.
+    executor (:func:`arshadow.frame.execute.execute`) from the plan and the options.
 
     Attributes
     ----------

@@ -14,9 +14,9 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ._check import check_finite, check_shape
-from .camera import Intrinsics
-from .errors import UsageError
+from .._check import check_finite, check_shape
+from ..camera.model import Intrinsics
+from ..errors import UsageError
 
 __all__ = ["camera_path", "look_at_pose", "pan_path", "random_pose"]
 

@@ -1,4 +1,4 @@
-"""The parts of a :class:`arshadow.session.Session` that are per photo size or per tracker, and what a frame
+"""The parts of a :class:`arshadow.frame.session.Session` that are per photo size or per tracker, and what a frame
 engine reaches into a session for: public names the session uses, kept apart so that the session module stays
 the façade.
 
@@ -22,28 +22,28 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .compose.lens import LensWarp
-from .errors import ImageError, MarkerNotFoundError
-from .estimate.match import ExposureMatch, marker_id_of
+from ..compose.lens import LensWarp
+from ..errors import ImageError, MarkerNotFoundError
+from ..estimate.match import ExposureMatch, marker_id_of
+from ..scene.sanity import calibration_scaled_note, say_note
+from ..scene.spec import RenderOptions
+from ..tracking.pose import MarkerPose
+from ..tracking.reference import ReferenceLock
+from ..tracking.tracker import MarkerTracker
 from .report import StageTimings
-from .sanity import calibration_scaled_note, say_note
-from .scene import RenderOptions
-from .tracking.pose import MarkerPose
-from .tracking.reference import ReferenceLock
-from .tracking.tracker import MarkerTracker
 
 if TYPE_CHECKING:  # annotations only
-    from .camera import Intrinsics
+    from ..camera.model import Intrinsics
+    from ..gl.gpu_compose import PathChooser
+    from ..plan.planner import FramePlan
+    from ..renderer.request import Renderer
     from .execute import FrameOutputs
-    from .gl.compose import PathChooser
-    from .plan import FramePlan
-    from .render_api import Renderer
     from .result import FrameResult
     from .session import Session
 
 __all__ = ["CalibrationState", "EngineHooks", "estimate_pose", "check_image", "default_renderer", "DETECT_NOTES"]
 
-log = logging.getLogger("arshadow.session")
+log = logging.getLogger("arshadow.frame.session")
 
 #: the report's ``plan.detect``: where the tracker searched (``MarkerTracker.last_search``)
 DETECT_NOTES = {
@@ -83,7 +83,7 @@ class CalibrationState:
         """``(fast or None, full)`` :class:`~arshadow.tracking.tracker.MarkerTracker` (made on first use)."""
         if self._trackers is None:
             kw, roi = self.tracker_kwargs, self.track_roi
-            # video: one reference marker for the whole video (issue 26), shared by both trackers
+            # video: one reference marker for the whole video (the trust fixes), shared by both trackers
             ref = ReferenceLock() if roi else None
             full = MarkerTracker(self.intrinsics, **kw, track_roi=roi, reference=ref)
             fast = None
@@ -181,18 +181,18 @@ def default_renderer(ctx: Any, options: RenderOptions) -> Renderer:
     (volumes and planar shadows), or the :class:`arshadow.gl.shadowmap.ShadowMapRenderer` baseline."""
     # deferred: moderngl loads only when a session first renders (``import arshadow`` stays light)
     if options.shadow_method == "shadowmap":
-        from .gl.shadowmap import ShadowMapRenderer
+        from ..gl.shadowmap import ShadowMapRenderer
 
         shadowmap: Renderer = ShadowMapRenderer(ctx, map_size=int(options.shadowmap_size), samples=int(options.aa))
         return shadowmap
-    from .gl.stencil import ShadowRenderer
+    from ..gl.stencil import ShadowRenderer
 
     stencil: Renderer = ShadowRenderer(ctx, samples=int(options.aa))
     return stencil
 
 
 class EngineHooks:
-    """What a frame engine reaches into a :class:`arshadow.session.Session` for (``session.hooks``), kept off
+    """What a frame engine reaches into a :class:`arshadow.frame.session.Session` for (``session.hooks``), kept off
     the session's public face (``track``, ``plan``, ``render``, ``process``, ``state`` / ``restore``, ...).
 
     The video engine (:class:`arshadow.video.framejob.SessionBackend`) and the photo loop
@@ -202,7 +202,7 @@ class EngineHooks:
 
     Attributes
     ----------
-    compose_chooser : arshadow.gl.compose.PathChooser
+    compose_chooser : arshadow.gl.gpu_compose.PathChooser
         Measures the numpy and shader compose paths when the plan says ``"measure"``.
     exposure : arshadow.estimate.match.ExposureMatch or None
         The per-frame exposure / white balance match (:mod:`arshadow.estimate.match`); None when off, on a
@@ -215,7 +215,7 @@ class EngineHooks:
     input_kind = "photo"
 
     def __init__(self, session: Session, render: Callable[..., FrameResult]) -> None:
-        from .gl.compose import PathChooser  # deferred: no GL at import (moderngl loads on first render)
+        from ..gl.gpu_compose import PathChooser  # deferred: no GL at import (moderngl loads on first render)
 
         self._session, self._render = session, render
         self._calibs: dict[tuple[int, int], CalibrationState] = {}
@@ -335,7 +335,7 @@ class EngineHooks:
         ----------
         image, pose, plan, layers
             As :meth:`Session.render` (``pose``: a tracked pose or ``cam_from_marker``).
-        outputs : arshadow.execute.FrameOutputs, optional
+        outputs : arshadow.frame.execute.FrameOutputs, optional
             Buffers (``out`` may be ``image``: composited in place), ``want_mask``, the report item and the
             stage times to add to (e.g. the ``detect`` / ``pose`` of :meth:`Session.track`; ``total`` grows by
             this call's time).

@@ -8,7 +8,7 @@ the ground mask; where that cannot be shown cheaply, the general path is taken.
 Rules
 -----
 planar (:func:`planar_applies`)
-    Projection shadows (papers 002/004) draw the mesh flattened onto z = 0 from the light; a ground point
+    Projection shadows ([Kolivand-Stencil] and [Kolivand-Sun]) draw the mesh flattened onto z = 0 from the light; a ground point
     is darkened iff the segment from it to the light meets the mesh -- exactly what the shadow volume
     gives on the ground -- provided every vertex is at or above the ground and the light is strictly
     above every vertex (a point light) or shines down (a directional light). The volume also shadows the
@@ -31,14 +31,13 @@ reuse (:func:`same_silhouette`)
     cached silhouette when no face changes its facing (one sign test per face), and keeps the cached,
     uploaded volume when its float32 vertices (what the GPU draws) are bit-identical: the same GPU input
     cannot change a pixel.
-tracking ROI (:func:`tracking_roi`)
+tracking ROI (:func:`arshadow.tracking.roi_track.tracking_roi`)
     Video: detect the marker in a window around the last detection, the whole frame when it is not found
     there.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
@@ -46,12 +45,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
-from .geometry.silhouette import as_light_h
+from ..geometry.silhouette import as_light_h
 
 if TYPE_CHECKING:
-    from .geometry.caster import ShadowCaster
-    from .geometry.silhouette import Silhouette
-    from .geometry.volume import ShadowVolume
+    from ..geometry.caster import ShadowCaster
+    from ..geometry.silhouette import Silhouette
+    from ..geometry.volume import ShadowVolume
 
 __all__ = [
     "mesh_is_convex",
@@ -60,7 +59,6 @@ __all__ = [
     "light_shadow_in_view",
     "same_silhouette",
     "reuse_light_geometry",
-    "tracking_roi",
     "outside_view",
     "decide_lights",
     "LightDecision",
@@ -146,7 +144,7 @@ def planar_applies(
 
 def zpass_safe(caster: ShadowCaster, light_h: npt.ArrayLike, eye_world: npt.ArrayLike, near: float) -> tuple[bool, str]:
     """``(bool, reason)``: z-pass is safe when the camera's near rectangle is provably outside the volume."""
-    from .geometry.volume import camera_may_be_in_shadow
+    from ..geometry.volume import camera_may_be_in_shadow
 
     if camera_may_be_in_shadow(caster, light_h, eye_world, near):
         return False, "camera may be inside the volume (eye-to-light segment meets the grown box)"
@@ -255,7 +253,7 @@ def reuse_light_geometry(
     """
     from dataclasses import replace
 
-    from .geometry.volume import shadow_volume
+    from ..geometry.volume import shadow_volume
 
     h = as_light_h(light_h)
     if sil is None or not same_silhouette(caster.face_planes, sil.facing, h):
@@ -275,36 +273,6 @@ def reuse_light_geometry(
     if volumes and kept == len(volumes):
         return sil2, out, "same facing and float32-identical volume: cached geometry and GPU buffers reused"
     return sil2, out, "same facing: silhouette reused, volume re-extruded"
-
-
-def tracking_roi(
-    corners: npt.ArrayLike, width: int, height: int, grow: float = 0.5, min_margin: int = 32
-) -> tuple[int, int, int, int] | None:
-    """Window ``(x0, y0, w, h)`` around the last detection's corners for the next frame's marker search.
-
-    Parameters
-    ----------
-    corners : (n, 2) float
-        All corners (pixels) of the last frame's detection.
-    grow : float
-        Margin as a fraction of the corners' box size (per axis), at least ``min_margin`` pixels.
-
-    Returns
-    -------
-    (x0, y0, w, h) int, or None when the window would cover most of the frame (then search it all).
-    """
-    c = np.asarray(corners, np.float64).reshape(-1, 2)
-    if c.size == 0 or not np.all(np.isfinite(c)):
-        return None
-    lo, hi = c.min(axis=0), c.max(axis=0)
-    m = np.maximum(grow * (hi - lo), min_margin)
-    x0 = max(0, int(math.floor(lo[0] - m[0])))
-    y0 = max(0, int(math.floor(lo[1] - m[1])))
-    x1 = min(int(width), int(math.ceil(hi[0] + m[0])) + 1)
-    y1 = min(int(height), int(math.ceil(hi[1] + m[1])) + 1)
-    if x1 <= x0 or y1 <= y0 or (x1 - x0) * (y1 - y0) > 0.6 * width * height:
-        return None
-    return (x0, y0, x1 - x0, y1 - y0)
 
 
 @dataclass
@@ -387,7 +355,7 @@ def decide_lights(
     """
     plan, draw_occluder, truncate, off = switches.plan, switches.draw_occluder, switches.truncate, switches.off
     if plan not in PLANS:
-        from .errors import UsageError
+        from ..errors import UsageError
 
         raise UsageError(f"--plan {plan!r}: choose one of {', '.join(PLANS)}")
     out = []

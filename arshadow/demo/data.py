@@ -16,7 +16,7 @@ from pathlib import Path
 
 __all__ = ["data_root", "samples_dir"]
 
-_PACKAGE = Path(__file__).resolve().parent
+_PACKAGE = Path(__file__).resolve().parents[1]  # arshadow/ (this module is arshadow/demo/data.py)
 
 
 def data_root() -> Path:

@@ -14,8 +14,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .errors import CalibrationError
-from .io import atomic_path
+from ..errors import CalibrationError
+from ..io import atomic_path
 
 __all__ = ["open_storage", "read_matrix", "read_positive_int", "write_storage"]
 

@@ -19,18 +19,18 @@ import numpy as np
 import numpy.typing as npt
 from scipy.spatial import ConvexHull, QhullError
 
-from .errors import LightError
-from .lights.area import sample_area_light
-from .transforms import invert_rigid, transform_points
+from ..errors import LightError
+from ..lights.area import sample_area_light
+from ..transforms import invert_rigid, transform_points
 
 if TYPE_CHECKING:
-    from .camera import Intrinsics
-    from .geometry.caster import ShadowCaster
-    from .geometry.silhouette import Silhouette
-    from .geometry.volume import ShadowVolume
-    from .lights.spec import Light
-    from .render_options import RenderOptions
-    from .report import StageTimings
+    from ..camera.model import Intrinsics
+    from ..frame.report import StageTimings
+    from ..geometry.caster import ShadowCaster
+    from ..geometry.silhouette import Silhouette
+    from ..geometry.volume import ShadowVolume
+    from ..lights.spec import Light
+    from ..scene.options import RenderOptions
 
 __all__ = [
     "SceneGeometry",
@@ -222,7 +222,7 @@ class LightState:
         Ground footprint points (clipped to ``ground_size``; empty: the shadow misses the ground square),
         None when unbounded; False until computed.
     reuse : str or None
-        How the geometry was carried over from a moved light (:func:`arshadow.plan_rules.reuse_light_geometry`).
+        How the geometry was carried over from a moved light (:func:`arshadow.plan.rules.reuse_light_geometry`).
     """
 
     light: Light
@@ -315,7 +315,7 @@ class SceneGeometry:
                 prev = old.get(tuple(h.tolist()))
                 if prev is None and reuse and len(states) < len(old_list) and old_list[len(states)].sil is not None:
                     # a moved light (same slot): keep what provably gives the same pixels
-                    from .plan_rules import reuse_light_geometry
+                    from .rules import reuse_light_geometry
 
                     o = old_list[len(states)]
                     tz = self.truncate_z(True)
@@ -360,9 +360,9 @@ class SceneGeometry:
 
     # -- geometry on demand ------------------------------------------------------------------------------
     def silhouette(self, ls: LightState, timings: StageTimings | None = None) -> Silhouette:
-        """The light's silhouette (built once; ``timings.silhouette`` gets the build time, an :class:`arshadow.report.StageTimings`)."""
+        """The light's silhouette (built once; ``timings.silhouette`` gets the build time, an :class:`arshadow.frame.report.StageTimings`)."""
         if ls.sil is None:
-            from .geometry.silhouette import silhouette
+            from ..geometry.silhouette import silhouette
 
             t = time.perf_counter()
             ls.sil = silhouette(self.caster, ls.light_h, method=self.options.silhouette)
@@ -382,7 +382,7 @@ class SceneGeometry:
         truncate = bool(self.options.truncate if truncate is None else truncate)
         vol = ls.volumes.get((caps, truncate))
         if vol is None:
-            from .geometry.volume import shadow_volume
+            from ..geometry.volume import shadow_volume
 
             sil = self.silhouette(ls, timings)
             t = time.perf_counter()
@@ -400,10 +400,10 @@ class SceneGeometry:
 
     @property
     def convex(self) -> bool:
-        """:func:`arshadow.plan_rules.mesh_is_convex` of the occluder (computed once per mesh)."""
+        """:func:`arshadow.plan.rules.mesh_is_convex` of the occluder (computed once per mesh)."""
         c = getattr(self, "_convex", None)
         if c is None:
-            from .plan_rules import mesh_is_convex
+            from .rules import mesh_is_convex
 
             c = self._convex = mesh_is_convex(self.caster)
         return c
@@ -411,7 +411,7 @@ class SceneGeometry:
     @property
     def sky_on(self) -> bool:
         """Sky occlusion is drawn (:func:`arshadow.shading.decide.decide_ambient_occlusion`)."""
-        from .shading.decide import decide_ambient_occlusion
+        from ..shading.decide import decide_ambient_occlusion
 
         return decide_ambient_occlusion(self.options)[0]
 
@@ -422,7 +422,7 @@ class SceneGeometry:
         key = (tuple(ls.light_h.tobytes() for ls in self.lights), getattr(self, "_ground_light", None))
         g = getattr(self, "_sky_ground", None)
         if g is None or g[0] != key:  # the object's interreflection depends on the light
-            from .shading.sky import ground_sky_visibility
+            from ..shading.sky import ground_sky_visibility
 
             t = time.perf_counter()
             g = self._sky_ground = (key, ground_sky_visibility(self.caster, bounce=self._bounce_light()))
@@ -445,8 +445,8 @@ class SceneGeometry:
         without the exposure gain, times :data:`PAPER_ALBEDO`), the ground's reflected light (its albedo times
         its irradiance, a share of the open ground's: :meth:`set_ground_light`, 0 until measured); None
         without a light or a sky share."""
-        from .compose.composite import srgb_to_linear
-        from .shading.decide import sky_share
+        from ..compose.composite import srgb_to_linear
+        from ..shading.decide import sky_share
 
         opts = self.options
         r = float(np.mean(sky_share(opts.opacity, opts.shadow_color)))
@@ -535,7 +535,7 @@ class SceneGeometry:
         """
         if self.options.shadow_method in ("planar", "shadowmap"):
             return [self.options.shadow_method] * len(self.lights)
-        from .geometry.volume import camera_may_be_in_shadow, near_plane_radius
+        from ..geometry.volume import camera_may_be_in_shadow, near_plane_radius
 
         if intr is not None and canvas is not None and canvas[2] > 0 and canvas[3] > 0:
             u0, v0, w, h = canvas

@@ -13,7 +13,7 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from ._check import check_shape
+from .._check import check_shape
 
 __all__ = ["DIST_LENGTHS", "distort_normalized", "undistort_normalized"]
 

@@ -1,5 +1,5 @@
 """What a session returns for a frame: :class:`FrameResult` (composite, mask, pose, camera, report item,
-timings, plan, layers), shared by :class:`arshadow.session.Session` and the code that consumes its results
+timings, plan, layers), shared by :class:`arshadow.frame.session.Session` and the code that consumes its results
 (video engine, notebooks, exports) without importing the engine.
 """
 
@@ -11,12 +11,12 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
-from .compose.layers import Layers
-from .plan import FramePlan
+from ..compose.layers import Layers
+from ..plan.planner import FramePlan
 from .report import ReportItem, StageTimings
 
 if TYPE_CHECKING:
-    from .tracking.pose import MarkerPose
+    from ..tracking.pose import MarkerPose
 
 __all__ = ["FrameResult"]
 
@@ -36,11 +36,11 @@ class FrameResult:
         ``cam_from_marker`` matrix or a plan.
     cam_from_world : (4, 4) float64
         The camera rendered with, in the scene's world frame, the ground's
-        (:meth:`arshadow.session.Session.ground_camera`; the marker's pose itself unless ``--ground`` moves
+        (:meth:`arshadow.frame.session.Session.ground_camera`; the marker's pose itself unless ``--ground`` moves
         the ground).
-    item : arshadow.report.ReportItem
+    item : arshadow.frame.report.ReportItem
         The report entry (``output``/``mask`` paths left for the caller).
-    timings : arshadow.report.StageTimings
+    timings : arshadow.frame.report.StageTimings
         Milliseconds per stage.
     plan : arshadow.plan.FramePlan
         What was decided for the frame, with reasons (``plan.decisions``).

@@ -11,7 +11,7 @@ The planner decides everything about a frame before anything is drawn, and recor
 
 Each decision is a :class:`Decision` (name, value, reason) in ``FramePlan.decisions``; a new decision is
 one more ``plan.decide(...)`` call in :func:`plan_frame` (or a function it calls). The executor
-(:mod:`arshadow.execute`) carries the plan out: CPU geometry, the renderer, lens warp, composite.
+(:mod:`arshadow.frame.execute`) carries the plan out: CPU geometry, the renderer, lens warp, composite.
 
 What is computed once, not per photo
     The occluder and the lights are both fixed in the world (marker) frame, so each light's silhouette
@@ -43,9 +43,11 @@ from typing import TYPE_CHECKING, Any, TypeVar
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .compose.composite import clip_roi
-from .geometry.volume import near_plane_radius
-from .plan_geometry import (
+from ..compose.composite import clip_roi
+from ..geometry.volume import near_plane_radius
+from ..transforms import invert_rigid, transform_points
+from .rules import LightDecision, LightSwitches, decide_lights, outside_view
+from .scene_geometry import (
     ROI_MAX_POINTS,
     LightState,
     SceneGeometry,
@@ -55,12 +57,10 @@ from .plan_geometry import (
     scene_hull_points,
     shadow_footprint,
 )
-from .plan_rules import LightDecision, LightSwitches, decide_lights, outside_view
-from .transforms import invert_rigid, transform_points
 
 if TYPE_CHECKING:  # annotations only
-    from .camera import Intrinsics
-    from .compose.lens import LensWarp
+    from ..camera.model import Intrinsics
+    from ..compose.lens import LensWarp
 
 _T = TypeVar("_T")
 
@@ -232,7 +232,7 @@ def plan_frame(
         "znear", znear, "a quarter of the distance to the nearest of the object's box and the ground, at least 1e-4 m"
     )
     _plan_view(plan, geometry, intr, lens)
-    from .shading.decide import decide_ambient_occlusion  # sky occlusion (issue 28): once per frame, here
+    from ..shading.decide import decide_ambient_occlusion  # sky occlusion (the realism work): once per frame, here
 
     plan.decide("ambient_occlusion", *decide_ambient_occlusion(opts))
     general, off = opts.plan == "general", set(opts.plan_off)
@@ -310,7 +310,7 @@ def _plan_view(plan: FramePlan, geometry: SceneGeometry, intr: Any, lens: Any) -
 
 
 def _light_decisions(plan: FramePlan, geometry: SceneGeometry, intr: Any, modes: Sequence[str] | None) -> list[Any]:
-    """Per light: culling, technique, mode, truncation (:func:`arshadow.plan_rules.decide_lights`)."""
+    """Per light: culling, technique, mode, truncation (:func:`arshadow.plan.rules.decide_lights`)."""
     opts = geometry.options
     off = set(opts.plan_off)
     if modes is not None:
@@ -415,7 +415,7 @@ def decide_compose(
         The renderer can keep its layers on the GPU and the output buffers are contiguous.
     measured : dict, optional
         An earlier measurement for this photo size, anti-aliasing, lens and backend
-        (:class:`arshadow.gl.compose.PathChooser` ``decisions[key]``: ``{"choice", "ms"}``).
+        (:class:`arshadow.gl.gpu_compose.PathChooser` ``decisions[key]``: ``{"choice", "ms"}``).
     software : bool
         The renderer rasterises on the CPU (llvmpipe): the shader path would run on the pipeline's own
         cores, so the numpy path is taken without timing either.

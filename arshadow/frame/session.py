@@ -16,7 +16,7 @@ A frame goes through three steps, each a public method:
 2. :meth:`Session.plan`: :func:`arshadow.plan.plan_frame` (pure, no GL): ROI and canvas, near plane,
    z-pass / z-fail per light, which cached geometry is reused; at render time also the compose path
    (:func:`arshadow.plan.decide_compose`) -> :class:`arshadow.plan.FramePlan`;
-3. :meth:`Session.render` (at a pose or a plan): :func:`arshadow.execute.execute`: volumes, renderer, lens
+3. :meth:`Session.render` (at a pose or a plan): :func:`arshadow.frame.execute.execute`: volumes, renderer, lens
    warp, composite -> :class:`FrameResult`.
 
 :meth:`Session.process` is ``track`` then ``render``. A session loads the scene once
@@ -27,9 +27,9 @@ process unpickles it into a fresh session of the same scene.
 
 For a video engine: :meth:`Session.track` (pose only, grey images too), :meth:`Session.render` (at a given
 pose); what carries from frame to frame (lights over time and their saved state: ``set_lights`` /
-``set_time``, ``state`` / ``restore``) is :class:`arshadow.history.History`, which ``Session`` inherits;
+``set_time``, ``state`` / ``restore``) is :class:`arshadow.frame.history.History`, which ``Session`` inherits;
 what an engine reaches into (per-size calibrations and trackers, the compose path's chooser, the exposure
-match over frames, a render into its buffers) is ``session.hooks`` (:class:`arshadow.engine.EngineHooks`).
+match over frames, a render into its buffers) is ``session.hooks`` (:class:`arshadow.frame.hooks.EngineHooks`).
 
 Poses: ``cam_from_marker`` is the marker's pose (what :meth:`Session.track` measures:
 :class:`arshadow.tracking.pose.MarkerPose`, whose ``cam_from_world`` is it, the tracker's world being the
@@ -47,25 +47,25 @@ from typing import Any
 
 import numpy as np
 
-from .camera import Intrinsics
-from .compose.composite import Workspace
-from .engine import CalibrationState, EngineHooks, check_image, default_renderer, estimate_pose
-from .errors import UsageError
+from ..camera.model import Intrinsics
+from ..compose.composite import Workspace
+from ..errors import UsageError
+from ..geometry.ground import check_camera_above, parse_ground
+from ..io import read_image
+from ..lights.spec import Light
+from ..plan.planner import FramePlan, SceneGeometry, decide_compose, plan_frame
+from ..renderer.request import Renderer
+from ..scene.options import RenderOptions
+from ..scene.sanity import FrameChecks
+from ..scene.spec import ModelSpec, Scene, SceneSpec, load_scene, scene_from_dict
+from ..tracking.luma import LumaFrame
+from ..tracking.pose import MarkerPose
+from ..transforms import invert_rigid, rvec_tvec_from_matrix
 from .execute import LAYERS_WHY, FrameContext, FrameOutputs, execute
-from .geometry.ground import check_camera_above, parse_ground
 from .history import History
-from .io import read_image
-from .lights.spec import Light
-from .plan import FramePlan, SceneGeometry, decide_compose, plan_frame
-from .render_api import Renderer
-from .render_options import RenderOptions
+from .hooks import CalibrationState, EngineHooks, check_image, default_renderer, estimate_pose
 from .report import ReportItem, StageTimings
 from .result import FrameResult
-from .sanity import FrameChecks
-from .scene import ModelSpec, Scene, SceneSpec, load_scene, scene_from_dict
-from .tracking.luma import LumaFrame
-from .tracking.pose import MarkerPose
-from .transforms import invert_rigid, rvec_tvec_from_matrix
 
 __all__ = ["Session", "FrameResult", "render_photo"]
 
@@ -86,7 +86,7 @@ class Session(History):
     context : moderngl.Context, optional
         Use this OpenGL context (not released by :meth:`close`) instead of creating one on first use.
     renderer : Renderer or callable, optional
-        A renderer to share (:class:`arshadow.render_api.Renderer`, not released by :meth:`close`), or
+        A renderer to share (:class:`arshadow.renderer.request.Renderer`, not released by :meth:`close`), or
         ``renderer(ctx, options) -> Renderer`` making this session's own: another shadow technique
         (default: the stencil :class:`arshadow.gl.stencil.ShadowRenderer` with ``options.aa`` samples).
 
@@ -94,7 +94,7 @@ class Session(History):
     ----------
     spec, scene, options, geometry, ground
         The scene as given and as loaded, its render options, its lights' cached geometry, its ground.
-    hooks : arshadow.engine.EngineHooks
+    hooks : arshadow.frame.hooks.EngineHooks
         What a frame engine reaches into (the video engine's calibrations, trackers, compose chooser,
         exposure match over frames, render into its buffers).
 
@@ -145,7 +145,7 @@ class Session(History):
     def context(self) -> Any:
         """The OpenGL context (created on first use, once per session)."""
         if self._ctx is None:
-            from .gl.context import create_context  # deferred: moderngl loads on first render only
+            from ..gl.context import create_context  # deferred: moderngl loads on first render only
 
             self._ctx = create_context()
         return self._ctx
@@ -163,7 +163,7 @@ class Session(History):
     def _gpu_compositor(self) -> Any:
         """The shader compose path on the renderer's context (made on first use)."""
         if self._gpu is None:
-            from .gl.compose import GpuCompositor  # deferred: GL, only when the shader path runs
+            from ..gl.gpu_compose import GpuCompositor  # deferred: GL, only when the shader path runs
 
             self._gpu = GpuCompositor(self.renderer.ctx)
         return self._gpu
@@ -230,7 +230,7 @@ class Session(History):
         ----------
         image : (H, W, 3) uint8 BGR or (H, W) uint8 grey, or arshadow.tracking.luma.LumaFrame
             A video frame's limited-range luma (converted to grey only where the tracker reads it).
-        timings : arshadow.report.StageTimings, optional
+        timings : arshadow.frame.report.StageTimings, optional
             ``detect`` and ``pose`` are added to.
 
         Returns
@@ -331,7 +331,7 @@ class Session(History):
             Unusable image, or a size the calibration cannot be scaled to.
 
         A video engine's render (stage times to add to, the tracked marker of a smoothed pose, a frame
-        without the marker) is :meth:`arshadow.engine.EngineHooks.render`.
+        without the marker) is :meth:`arshadow.frame.hooks.EngineHooks.render`.
         """
         outputs = FrameOutputs(want_mask, out, mask_out, StageTimings(), ReportItem(input=name))
         return self._render_at(image, pose, plan, outputs, layers)
@@ -346,7 +346,7 @@ class Session(History):
         marker: MarkerPose | None = None,
         seen: bool = True,
     ) -> FrameResult:
-        """:meth:`render` (and :meth:`arshadow.engine.EngineHooks.render`): ``outputs`` holds the buffers, item
+        """:meth:`render` (and :meth:`arshadow.frame.hooks.EngineHooks.render`): ``outputs`` holds the buffers, item
         and timings (``total`` grows by this call's time); ``marker``, ``seen``: as the hook's."""
         if (pose is None) == (plan is None):
             raise UsageError("Session.render needs a pose or a plan (one of them)")
@@ -463,13 +463,13 @@ class Session(History):
 
     def _camera_effects(self, image: np.ndarray, pose: MarkerPose | None) -> Any:
         """The photo's blur and noise (``--camera-effects on``), measured on the first frame whose marker is
-        detected and kept for the session (:func:`arshadow.compose.effects.measure_camera`); else None."""
+        detected and kept for the session (:func:`arshadow.frame.effects.measure_camera`); else None."""
         if self.options.camera_effects != "on":
             return None
         cam = getattr(self, "_camera", None)
         corners = getattr(pose, "all_corners", None) or {}
         if cam is None and corners:
-            from .compose.effects import measure_camera
+            from .effects import measure_camera
 
             ref = pose.marker_ids[0] if getattr(pose, "marker_ids", None) else next(iter(corners))
             cam = self._camera = measure_camera(image, np.asarray(corners.get(ref, next(iter(corners.values())))))
@@ -515,7 +515,7 @@ class Session(History):
 
 
 def _layer_request(layers: bool | str) -> dict[str, Any] | None:
-    """:func:`arshadow.execute.execute`'s ``layers`` request of :meth:`Session.render`'s ``layers``."""
+    """:func:`arshadow.frame.execute.execute`'s ``layers`` request of :meth:`Session.render`'s ``layers``."""
     return {"undistorted": layers == "undistorted"} if layers else None
 
 

@@ -8,8 +8,8 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from datetime import datetime
 
-from .errors import LightError, UsageError
-from .lights.spec import Light, SunLightTrack, parse_light, parse_sun_track, parse_time
+from ..errors import LightError, UsageError
+from ..lights.spec import Light, SunLightTrack, parse_light, parse_sun_track, parse_time
 
 __all__ = ["TimeLapse", "parse_time_lapse", "time_lapse_spec"]
 

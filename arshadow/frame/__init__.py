@@ -1,0 +1,1 @@
+"""The frame pipeline: the :class:`~arshadow.frame.session.Session` engine, what it carries from frame to frame (:mod:`.history`), the video engine's hooks and the per-size state (:mod:`.hooks`), the executor (:mod:`.execute`), camera effects (:mod:`.effects`), and what a frame returns (:mod:`.result`, :mod:`.report`)."""
