@@ -52,7 +52,7 @@ try:  # a tree from before Session became the engine (the façade work): the Com
     from arshadow.pipeline import Compositor, RenderOptions
 except ImportError:
     from arshadow.scene import RenderOptions, Scene
-    from arshadow.frame.session import Session
+    from arshadow import Session  # the façade, in every tree since it became the engine
     import os  # AB_NEW_OPTIONS: RenderOptions fields for a tree with Session (e.g. '{"exposure": false}')
     opts = RenderOptions(**json.loads(os.environ.get("AB_NEW_OPTIONS", "{}")))
     comp = Session(Scene(intr, caster, lights, opts, {"marker_length": 0.05}), context=ctx)
