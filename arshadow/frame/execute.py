@@ -5,6 +5,10 @@
 per light, warps the result's layers into the photo's ROI (:class:`arshadow.compose.lens.LensWarp`, or a flip
 without distortion) and composites them (:func:`arshadow.compose.composite.composite`).
 
+(About 610 lines, just over the project's ~600: the frame's steps in order -- the request, the volumes, the
+two compose paths, the layers, the sky-occlusion and camera-effect steps -- each a function under 80 lines
+that reads the same FrameContext / FrameOutputs; the next step that grows goes to a module of its own.)
+
 Mask (CONVENTIONS.md)
     ``(H, W) uint8``: ``round(255 * blocked weight / total weight)`` at pixels that see the ground and are
     not covered by the object, 0 elsewhere.
