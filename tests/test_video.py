@@ -22,7 +22,7 @@ import cv2
 import numpy as np
 import pytest
 from image_oracle import ShadowOracle, iou
-from video_clips import CvClipWriter
+from video_clips import CvClipWriter, read_frames
 
 ROOT = Path(__file__).resolve().parents[1]
 CALIB = ROOT / "calib" / "synth_640x360.yml"
@@ -55,18 +55,6 @@ def _write_clip(path, poses, *, marker_length=0.05, blank=(), noise=1.0, seed=0)
                     ).image
                 )
     return path
-
-
-def _read_all(path):
-    cap = cv2.VideoCapture(str(path))
-    out = []
-    while True:
-        ok, f = cap.read()
-        if not ok:
-            break
-        out.append(f)
-    cap.release()
-    return out
 
 
 class _Distorted:
@@ -268,9 +256,9 @@ def test_video_end_to_end_mask_iou_against_oracle(tmp_path, tol, gl_ctx):
     assert [it["frame"] for it in items] == list(range(10))
     assert [it["status"] for it in items] == ["ok"] * 4 + ["no_marker"] + ["ok"] * 5
     assert rep["videos"][0]["frames_no_marker"] == 1 and rep["videos"][0]["status"] == "ok"
-    masks = _read_all(out / "clip.shadow.mkv")
-    outs = _read_all(out / "clip.mkv")
-    ins = _read_all(clip)
+    masks = read_frames(out / "clip.shadow.mkv")
+    outs = read_frames(out / "clip.mkv")
+    ins = read_frames(clip)
     assert len(masks) == len(outs) == 10
     # the frame without a marker is passed through unchanged (lossless output), with an empty mask
     assert np.array_equal(outs[4], ins[4]) and not masks[4].any()
@@ -375,7 +363,7 @@ def test_time_lapse_moves_the_sun_and_recomputes_only_past_the_angle(tmp_path, m
     for c, d in zip(calls, want, strict=True):
         assert ang(c[:3], d) < 1e-6 and c[3] == 0.0
     # the shadow moves: masks of the first and last frame differ
-    m = _read_all(out / "tl.shadow.mkv")
+    m = read_frames(out / "tl.shadow.mkv")
     assert np.count_nonzero((m[0][:, :, 0] >= 128) != (m[-1][:, :, 0] >= 128)) > 50
     assert rep["videos"][0]["recomputes"] == sum(expect)
 

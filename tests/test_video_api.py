@@ -5,10 +5,9 @@ from __future__ import annotations
 
 import json
 
-import cv2
 import numpy as np
 import pytest
-from video_clips import ROOT, make_clip
+from video_clips import ROOT, make_clip, read_frames
 
 CALIB = ROOT / "calib" / "synth_640x360.yml"
 SCENE = {
@@ -19,18 +18,6 @@ SCENE = {
     "lights": ["point:-0.1,0.15,0.4"],
     "refine": "edge",  # arshadow video's --corner-refine default
 }
-
-
-def _frames(path):
-    cap = cv2.VideoCapture(str(path))
-    out = []
-    while True:
-        ok, f = cap.read()
-        if not ok:
-            break
-        out.append(f)
-    cap.release()
-    return out
 
 
 def _comparable(d):
@@ -82,10 +69,10 @@ def test_process_video_is_what_the_cli_runs(tmp_path, gl_ctx):
     assert statuses == ["ok"] * 3 + ["held"] + ["ok"] * 4, statuses
     # the CLI's files and report are the API's
     for name in ("clip.mkv", "clip.shadow.mkv"):
-        a, b = _frames(cli_out / name), _frames(api_out / name)
+        a, b = read_frames(cli_out / name), read_frames(api_out / name)
         assert len(a) == len(b) == 8, name
         assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=True)), name
-    assert all(m.any() for m in _frames(api_out / "clip.shadow.mkv"))  # a shadow in every frame
+    assert all(m.any() for m in read_frames(api_out / "clip.shadow.mkv"))  # a shadow in every frame
     # the report, its output paths relative to the output folder
     cli_rep = json.loads((cli_out / "r.json").read_text().replace(f"{cli_out}/", "OUT/"))
     api_rep = json.loads(json.dumps(run.report(), default=str).replace(f"{api_out}/", "OUT/"))

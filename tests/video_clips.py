@@ -222,3 +222,18 @@ class CvClipWriter:
 
     def __exit__(self, *exc):
         self.w.release()
+
+
+def read_frames(path) -> list:
+    """Every frame of a video file decoded by OpenCV (independent of arshadow's PyAV reader), BGR uint8."""
+    import cv2
+
+    cap = cv2.VideoCapture(str(path))
+    out = []
+    while True:
+        ok, f = cap.read()
+        if not ok:
+            break
+        out.append(f)
+    cap.release()
+    return out
