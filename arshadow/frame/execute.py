@@ -43,6 +43,7 @@ if TYPE_CHECKING:
     from ..plan.planner import FramePlan, SceneGeometry
     from ..renderer.request import Renderer
     from ..scene.options import RenderOptions
+    from ..shading.sky import GroundRaster
 
 __all__ = ["LAYERS_WHY", "STAGES", "FrameContext", "FrameOutputs", "execute", "render_request"]
 
@@ -220,12 +221,13 @@ def execute(
     if plan.empty:
         return out, mask_full  # nothing of the scene is in view
     cal = context.calibration(W, H)
-    sky = _sky_shading(plan, image, cal.intrinsics, geometry, outputs, color_gain)
+    renderer = context.renderer()
+    sky = _sky_shading(plan, image, cal.intrinsics, geometry, outputs, color_gain, renderer.ground_raster)
     frame = _Frame(
         plan=plan,
         image=image,
         request=render_request(plan, cal.intrinsics, geometry, passes, sky),
-        renderer=context.renderer(),
+        renderer=renderer,
         lens=cal.lens,
         work=context.work,
         out=out,
@@ -241,16 +243,18 @@ def execute(
     return out, mask_full
 
 
-def _sky_shading(
+def _sky_shading(  # noqa: PLR0913 (the frame's plan, photo, camera, scene, outputs, gain and rasteriser)
     plan: FramePlan,
     image: np.ndarray,
     intr: Intrinsics,
     geometry: SceneGeometry,
     outputs: FrameOutputs,
     color_gain: Sequence[float] | np.ndarray | None,
+    raster: GroundRaster | None = None,
 ) -> Any:
     """The frame's :class:`arshadow.shading.sky.SkyShading` (None when the planner's ``ambient_occlusion``
-    decision is off): the scene's ground occlusion map, the object's sky visibility and the ground bounce
+    decision is off): the scene's ground occlusion map (made on first use with ``raster``, the renderer's
+    :class:`arshadow.shading.sky.GroundRaster`), the object's sky visibility and the ground bounce
     measured on this photo round the object (with a measured exposure; 0 otherwise)."""
     from ..shading.decide import decide_ambient_occlusion, ground_bounce
     from ..shading.sky import SkyShading
@@ -275,7 +279,8 @@ def _sky_shading(
             bounce = tuple(float(v) for v in m)
             geometry.set_ground_light(m)  # lights the object's lower faces, reflected back to the ground
             outputs.item.plan["ground_bounce"] = [round(v, 4) for v in bounce]  # type: ignore[index]
-    return SkyShading(ground=geometry.sky_ground(outputs.timings), object_sky=OBJECT_SKY, bounce=bounce)
+    ground = geometry.sky_ground(outputs.timings, raster)
+    return SkyShading(ground=ground, object_sky=OBJECT_SKY, bounce=bounce)
 
 
 def _report_plan(plan: FramePlan, geometry: SceneGeometry, item: ReportItem, lights: list[dict[str, Any]]) -> None:

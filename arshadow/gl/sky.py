@@ -9,12 +9,25 @@ per frame, coverage-weighted like the shadow mask. Nothing here creates a contex
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 
 from . import glraw as G
 from .resources import program
 
-__all__ = ["GroundSkyPass"]
+if TYPE_CHECKING:
+    from ..geometry.caster import ShadowCaster
+    from ..shading.sky import GroundGrid
+
+__all__ = ["GLGroundRaster", "GLItemBuffer", "GroundSkyPass"]
+
+#: GL_CLIP_DISTANCE0: the ground raster clips faces at z = 0
+_CLIP_DISTANCE0 = 0x3000
+#: width of the faces' value texture (GLGroundRaster: one texel per face, gl_PrimitiveID)
+_VALUES_W = 4096
+#: sky directions drawn side by side per batch (ground_accum.frag's TILES)
+_TILES = 16
 
 
 class GroundSkyPass:
@@ -142,3 +155,120 @@ class GLItemBuffer:
         for o in (self.vao, self.vbo, self.ibo, self.fbo, self.depth, self.tex):
             if o is not None:
                 o.release()
+
+
+class GLGroundRaster:
+    """:class:`arshadow.shading.sky.GroundRaster` drawn by the GPU: per sky direction the faces projected
+    along it onto the texel grid (exact coverage at texel centres, GL's fill rule: no outward bias, so no
+    sub-texels), the nearest face's value kept by the depth test, added with the direction's weight into two
+    float sums; one read-back per map. Same sums as :func:`arshadow.shading.sky.ground_raster_cpu` (which
+    fills 3 x 3 sub-texels: its shadows reach up to a third of a texel further out).
+
+    Parameters
+    ----------
+    ctx : moderngl.Context
+    """
+
+    def __init__(self, ctx: Any) -> None:
+        self.ctx = ctx
+        self._res = 0
+        self._objs: list[Any] = []  # made on first use (a renderer that never draws sky occlusion makes none)
+        self.acc_vao: Any = None
+
+    def _targets(self, res: int) -> None:
+        """The programs (first use) and the ``res x res`` scratch and sums targets (remade for a new size)."""
+        ctx = self.ctx
+        if self.acc_vao is None:
+            self.prog = program(ctx, "ground_raster.vert", "ground_raster.frag")
+            self.acc_prog = program(ctx, "fullscreen.vert", "ground_accum.frag")
+            self.acc_vao = ctx.vertex_array(self.acc_prog, [])
+        if res == self._res:
+            return
+        for o in self._objs:
+            o.release()
+        ctx.detect_framebuffer(0).use()  # see GLItemBuffer: moderngl rebinds "its" current framebuffer
+        self.scratch = ctx.texture((_TILES * res, res), 2, dtype="f4")
+        self.scratch.filter = (ctx.NEAREST, ctx.NEAREST)
+        self.depth = ctx.depth_renderbuffer((_TILES * res, res))
+        self.scratch_fbo = ctx.framebuffer(color_attachments=[self.scratch], depth_attachment=self.depth)
+        self.sums = ctx.texture((res, res), 2, dtype="f4")
+        self.sums_fbo = ctx.framebuffer(color_attachments=[self.sums])
+        self._objs = [self.scratch_fbo, self.sums_fbo, self.depth, self.scratch, self.sums]
+        self._res = res
+
+    def __call__(
+        self,
+        caster: ShadowCaster,
+        dirs: np.ndarray,
+        weights: np.ndarray,
+        grid: GroundGrid,
+        face_values: np.ndarray | None,
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """``(open, bounce)`` ``(res, res) float64`` sums (:class:`arshadow.shading.sky.GroundRaster`)."""
+        ctx, res = self.ctx, int(grid.res)
+        ctx.__enter__()
+        self._targets(res)
+        size = grid.texel * res
+        cx, cy = grid.x0 + 0.5 * size, grid.y0 + 0.5 * size
+        m = len(caster.faces)
+        vals = np.zeros(_VALUES_W * -(-m // _VALUES_W), np.float32)
+        if face_values is not None:
+            vals[:m] = np.asarray(face_values, np.float64)
+        values = ctx.texture((_VALUES_W, len(vals) // _VALUES_W), 1, vals.tobytes(), dtype="f4")
+        values.filter = (ctx.NEAREST, ctx.NEAREST)
+        vbo = ctx.buffer(np.ascontiguousarray(caster.vertices - [cx, cy, 0.0], np.float32).tobytes())
+        ibo = ctx.buffer(np.ascontiguousarray(caster.faces, np.int32).tobytes())
+        vao = ctx.vertex_array(self.prog, [(vbo, "3f", "in_pos")], index_buffer=ibo)
+        zmax = max(float(caster.vertices[:, 2].max()), 1e-9)
+        below = float(caster.vertices[:, 2].min()) < 0.0
+        self.prog["u_grid"].value = (-0.5 * size, -0.5 * size, size)
+        self.prog["u_values"].value = 1
+        values.use(location=1)
+        self.scratch.use(location=0)
+        self.acc_prog["u_scratch"].value = 0
+        self.sums_fbo.use()
+        self.sums_fbo.clear(0.0, 0.0, 0.0, 0.0)
+        # the faces turned towards the ground project clockwise seen from above: a closed mesh above the
+        # ground culls the others (the first face a ground point meets along d is one of them); an open mesh,
+        # or a closed one reaching below the ground, draws every face (ground points inside the solid meet
+        # a face turned away first; the depth test still finds the entry face for the points outside it)
+        draw = ctx.DEPTH_TEST | (ctx.CULL_FACE if caster.is_closed and not below else 0)
+        ctx.front_face = "cw"
+        if below:
+            ctx.enable_direct(_CLIP_DISTANCE0)
+        self.acc_prog["u_res"].value = res
+        dirs, weights = np.asarray(dirs, np.float64), np.asarray(weights, np.float64)
+        try:
+            for s0 in range(0, len(dirs), _TILES):  # a batch of directions side by side, then one sum pass
+                self.scratch_fbo.use()
+                self.scratch_fbo.viewport = (0, 0, _TILES * res, res)
+                self.scratch_fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+                ctx.enable_only(draw)
+                ctx.depth_func = "<"
+                for k, d in enumerate(dirs[s0 : s0 + _TILES]):
+                    self.scratch_fbo.viewport = (k * res, 0, res, res)
+                    self.prog["u_dir"].value = tuple(float(x) for x in d)
+                    self.prog["u_tmax"].value = 1.001 * zmax / float(d[2])
+                    vao.render(ctx.TRIANGLES)
+                w = np.zeros(_TILES)
+                w[: len(weights[s0 : s0 + _TILES])] = weights[s0 : s0 + _TILES]
+                self.sums_fbo.use()
+                ctx.enable_only(ctx.BLEND)
+                ctx.blend_func = ctx.ONE, ctx.ONE
+                self.acc_prog["u_weight"].value = tuple(float(x) for x in w)
+                self.acc_vao.render(ctx.TRIANGLES, vertices=3)
+            sums = np.frombuffer(self.sums.read(), np.float32).reshape(res, res, 2).astype(np.float64)
+        finally:
+            if below:
+                ctx.disable_direct(_CLIP_DISTANCE0)
+            ctx.front_face = "ccw"
+            ctx.enable_only(ctx.NOTHING)
+            for o in (vao, vbo, ibo, values):
+                o.release()
+        return sums[..., 0], (sums[..., 1] if face_values is not None else None)
+
+    def release(self) -> None:
+        for o in (*self._objs, self.acc_vao):
+            if o is not None:
+                o.release()
+        self._objs, self._res, self.acc_vao = [], 0, None

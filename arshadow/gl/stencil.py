@@ -74,7 +74,7 @@ from .resources import (
     set_uniforms,
     translation,
 )
-from .sky import GroundSkyPass
+from .sky import GLGroundRaster, GroundSkyPass
 from .targets import FrameTargets
 
 __all__ = ["LightPass", "RenderResult", "ShadowRenderer"]
@@ -211,6 +211,8 @@ class ShadowRenderer:
         self.software: bool = is_software(ctx)
         #: what renders (the GL renderer string): part of the compose path's key
         self.backend: str = str((ctx.info or {}).get("GL_RENDERER", "?"))
+        #: the ground occlusion map's shadows drawn on this context (its GL objects made on first use)
+        self.ground_raster: GLGroundRaster = GLGroundRaster(ctx)
         #: when True, render() calls ctx.finish() after each pass and reports per-pass times (slower)
         self.profile = False
         self._marks = []
@@ -234,6 +236,7 @@ class ShadowRenderer:
         self._fs_vao.release()
         if self._sky_ground is not None:
             self._sky_ground.release()
+        self.ground_raster.release()
         self._released = True
 
     @property

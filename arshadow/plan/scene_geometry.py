@@ -415,17 +415,18 @@ class SceneGeometry:
 
         return decide_ambient_occlusion(self.options)[0]
 
-    def sky_ground(self, timings=None):
+    def sky_ground(self, timings=None, raster=None):
         """The occluder's :class:`arshadow.shading.sky.GroundOcclusion` (computed once per scene, in the
         ground frame; ``timings.silhouette`` gets its build time, with the other per-scene geometry). Remade
-        when the lights change or when the ground's reflectance is first measured (:meth:`set_ground_light`)."""
+        when the lights change or when the ground's reflectance is first measured (:meth:`set_ground_light`).
+        ``raster``: the renderer's :class:`arshadow.shading.sky.GroundRaster` (None: numpy)."""
         key = (tuple(ls.light_h.tobytes() for ls in self.lights), getattr(self, "_ground_light", None))
         g = getattr(self, "_sky_ground", None)
         if g is None or g[0] != key:  # the object's interreflection depends on the light
             from ..shading.sky import ground_sky_visibility
 
             t = time.perf_counter()
-            g = self._sky_ground = (key, ground_sky_visibility(self.caster, bounce=self._bounce_light()))
+            g = self._sky_ground = (key, ground_sky_visibility(self.caster, bounce=self._bounce_light(), raster=raster))
             if timings is not None:
                 timings.silhouette += (time.perf_counter() - t) * 1e3
         return g[1]

@@ -34,6 +34,7 @@ if TYPE_CHECKING:
     from ..geometry.mesh import ShadowCaster
     from ..gl.layers import GpuLayers
     from ..scene.options import RenderOptions
+    from ..shading.sky import GroundRaster
 
 __all__ = ["LightPass", "RenderLayers", "RenderRequest", "RenderResult", "Renderer", "RendererBase", "Shading", "MODES"]
 
@@ -294,12 +295,19 @@ class Renderer(Protocol):
         What renders (the GL renderer string; ``"?"`` when unknown): part of the compose path's key.
     ctx : moderngl.Context or None
         The context its GPU layers live on (the shader compose path runs there); None without them.
+    ground_raster : arshadow.shading.sky.GroundRaster or None
+        Rasterises the ground occlusion map's shadows on this renderer's device
+        (:class:`arshadow.gl.sky.GLGroundRaster`); None: the numpy one
+        (:func:`arshadow.shading.sky.ground_raster_cpu`).
     """
 
     gpu_layers: bool
     software: bool
     backend: str
     ctx: Any
+
+    @property
+    def ground_raster(self) -> GroundRaster | None: ...
 
     def render(self, request: RenderRequest) -> RenderResult: ...
 
@@ -328,6 +336,7 @@ class RendererBase:
     software: bool = False
     backend: str = "?"
     ctx: Any = None
+    ground_raster: GroundRaster | None = None
 
     def render_gpu(self, request: RenderRequest) -> GpuLayers:
         """Not available (``gpu_layers`` is False): the executor never calls it."""

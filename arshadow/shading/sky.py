@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import Protocol
 
 import cv2
 import numpy as np
@@ -42,10 +43,13 @@ from ..geometry.rays import rays_blocked
 
 __all__ = [
     "SKY_MODELS",
+    "GroundGrid",
     "GroundOcclusion",
+    "GroundRaster",
     "SkyShading",
     "cosine_directions",
     "ground_grid",
+    "ground_raster_cpu",
     "ground_sky_visibility",
     "object_sky_visibility",
     "sky_radiance",
@@ -188,7 +192,7 @@ class SkyShading:
     bounce: tuple = (0.0, 0.0, 0.0)
 
 
-def ground_grid(caster: ShadowCaster, resolution: int = 256, margin: float | None = None):
+def ground_grid(caster: ShadowCaster, resolution: int = 256, margin: float | None = None) -> tuple[float, float, float]:
     """``(x0, y0, texel)``: the ground occlusion map's square (ground frame, metres) and texel size."""
     lo, hi = caster.bounds
     height = max(float(hi[2]), 0.0)
@@ -201,7 +205,38 @@ def ground_grid(caster: ShadowCaster, resolution: int = 256, margin: float | Non
     return cx - half, cy - half, texel
 
 
-def ground_sky_visibility(
+@dataclasses.dataclass(frozen=True)
+class GroundGrid:
+    """The ground occlusion map's texel grid: ``res x res`` texels of side ``texel`` metres, texel ``(i, j)``
+    centred on the ground point ``(x0 + (j + 0.5) * texel, y0 + (i + 0.5) * texel)`` (ground frame)."""
+
+    x0: float
+    y0: float
+    texel: float
+    res: int
+
+
+class GroundRaster(Protocol):
+    """Who rasterises the object's shadows for the ground occlusion map: :func:`ground_raster_cpu` (numpy
+    and OpenCV) or a renderer's (:class:`arshadow.gl.sky.GLGroundRaster`, the same sums on the GPU).
+
+    Called with the caster, the sky directions ``dirs (n, 3)`` (unit, z > 0) and their weights ``(n,)``,
+    the :class:`GroundGrid` and ``face_values (m,)`` (or None); returns ``(open, bounce)``: ``(res, res)
+    float64`` sums over the directions of ``weight * (texel centre not in the object's shadow along d)``,
+    and of ``weight * face_values[f]`` for the face ``f`` a texel centre meets first along ``d`` (0 where it
+    meets none; None when ``face_values`` is None)."""
+
+    def __call__(
+        self,
+        caster: ShadowCaster,
+        dirs: np.ndarray,
+        weights: np.ndarray,
+        grid: GroundGrid,
+        face_values: np.ndarray | None,
+    ) -> tuple[np.ndarray, np.ndarray | None]: ...
+
+
+def ground_sky_visibility(  # noqa: PLR0913 (the caster, and keyword-only options)
     caster: ShadowCaster,
     *,
     n_dirs: int = 256,
@@ -211,6 +246,7 @@ def ground_sky_visibility(
     max_triangle_draws: int = 2_000_000,
     bounce: tuple | None = None,
     taper: tuple | None = ACTIVE_OCCLUSION,
+    raster: GroundRaster | None = None,
 ) -> GroundOcclusion:
     """The object's :class:`GroundOcclusion` (ground frame = the caster's world frame, ground z = 0).
 
@@ -238,47 +274,20 @@ def ground_sky_visibility(
         Occlusion under ``t1`` tapers linearly to 0 at ``t0`` and the map is cropped to where it is not 0
         (:data:`ACTIVE_OCCLUSION`: the frame's region stays small); None: the exact visibility everywhere on
         the grid (the light estimate's allowance for its probe).
+    raster : GroundRaster, optional
+        Who rasterises the shadows (a renderer's GPU one); default :func:`ground_raster_cpu`.
     """
     if resolution < 2:
         raise UsageError(f"ground occlusion resolution must be at least 2 texels, got {resolution}")
     n_faces = caster.n_faces if not caster.is_closed else max(1, caster.n_faces // 2)
     n_dirs = int(max(32, min(int(n_dirs), max_triangle_draws // max(n_faces, 1))))
     x0, y0, texel = ground_grid(caster, resolution, margin)
+    grid = GroundGrid(x0, y0, texel, resolution)
     dirs = cosine_directions(n_dirs)
     weights = sky_radiance(dirs, sky)
-    closed = caster.is_closed
-    planes = caster.face_planes
-    # rasterised at 3 x 3 sub-texels and read at each texel's centre sub-texel: cv2 fills a polygon's boundary
-    # pixels too, which biases a shadow outward by up to one (sub-)pixel
-    sub = _SUB * resolution
-    scale = float(1 << _SHIFT) * _SUB / texel
-    half = 1 << (_SHIFT - 1)
-    lim = (sub + 2) << _SHIFT
-    acc = np.zeros((resolution, resolution), np.float64)
-    img = np.zeros((sub, sub), np.uint8)
-    acc_b = np.zeros((resolution, resolution), np.float64) if bounce is not None else None
     face_e = _face_irradiance(caster, bounce) if bounce is not None else None
-    for d, w in zip(dirs, weights, strict=True):
-        h = np.r_[d, 0.0]
-        faces = caster.faces[planes @ h > 0.0] if closed else caster.faces
-        tri = ground_shadow_triangles(caster.vertices, faces, h)
-        # sub-texel (a, b) centre at pixel coordinate (b, a): cv2 samples pixel centres at integers
-        q = np.round((tri - [x0, y0]) * scale - half).astype(np.int64)
-        off = np.all(q < 0, axis=1).any(axis=1) | np.all(q > lim, axis=1).any(axis=1)
-        q = np.clip(q[~off], -(1 << 30), 1 << 30).astype(np.int32)
-        img[:] = 0
-        for t in q:
-            cv2.fillConvexPoly(img, t, 1, lineType=cv2.LINE_8, shift=_SHIFT)
-        acc += w * (1.0 - img[_SUB // 2 :: _SUB, _SUB // 2 :: _SUB])
-        if acc_b is not None:
-            acc_b += (
-                w
-                * _bounce_image(caster, d, face_e, (x0, y0, scale, half, lim, sub))[
-                    _SUB // 2 :: _SUB, _SUB // 2 :: _SUB
-                ]
-            )
-    vis = (acc / weights.sum()).astype(np.float32)
-    vis = _fill_under(vis)
+    acc, acc_b = (raster or ground_raster_cpu)(caster, dirs, weights, grid, face_e)
+    vis = _fill_under((acc / weights.sum()).astype(np.float32))
     border = np.concatenate([vis[0], vis[-1], vis[:, 0], vis[:, -1]])
     edge = float(1.0 - border.min())
     # occlusion below ACTIVE_OCCLUSION[1] tapers to 0 at ACTIVE_OCCLUSION[0] (far from the object), and the
@@ -298,6 +307,45 @@ def ground_sky_visibility(
     return GroundOcclusion(x0, y0, texel, vis, n_dirs, sky, edge)
 
 
+def ground_raster_cpu(
+    caster: ShadowCaster,
+    dirs: np.ndarray,
+    weights: np.ndarray,
+    grid: GroundGrid,
+    face_values: np.ndarray | None,
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """:class:`GroundRaster` with OpenCV: per direction the exact shadow triangles
+    (:func:`arshadow.geometry.exact.ground_shadow_triangles`, the light-facing faces of a closed mesh) filled
+    with ``cv2.fillConvexPoly`` at 3 x 3 sub-texels and read at each texel's centre sub-texel (cv2 fills a
+    polygon's boundary pixels too, which biases a shadow outward by up to one sub-texel: a third of a texel)."""
+    res = grid.res
+    sub = _SUB * res
+    scale = float(1 << _SHIFT) * _SUB / grid.texel
+    half = 1 << (_SHIFT - 1)
+    lim = (sub + 2) << _SHIFT
+    sub_grid = (grid.x0, grid.y0, scale, half, lim, sub)
+    closed, planes = caster.is_closed, caster.face_planes
+    acc = np.zeros((res, res), np.float64)
+    acc_b = np.zeros((res, res), np.float64) if face_values is not None else None
+    img = np.zeros((sub, sub), np.uint8)
+    c = _SUB // 2
+    for d, w in zip(dirs, weights, strict=True):
+        h = np.r_[d, 0.0]
+        faces = caster.faces[planes @ h > 0.0] if closed else caster.faces
+        tri = ground_shadow_triangles(caster.vertices, faces, h)
+        # sub-texel (a, b) centre at pixel coordinate (b, a): cv2 samples pixel centres at integers
+        q = np.round((tri - [grid.x0, grid.y0]) * scale - half).astype(np.int64)
+        off = np.all(q < 0, axis=1).any(axis=1) | np.all(q > lim, axis=1).any(axis=1)
+        q = np.clip(q[~off], -(1 << 30), 1 << 30).astype(np.int32)
+        img[:] = 0
+        for t in q:
+            cv2.fillConvexPoly(img, t, 1, lineType=cv2.LINE_8, shift=_SHIFT)
+        acc += w * (1.0 - img[c::_SUB, c::_SUB])
+        if acc_b is not None and face_values is not None:
+            acc_b += w * _bounce_image(caster, d, face_values, sub_grid)[c::_SUB, c::_SUB]
+    return acc, acc_b
+
+
 def _face_irradiance(caster: ShadowCaster, bounce: tuple) -> np.ndarray:
     """``(m,)``: each face's irradiance as a share of the open ground's (direct on its lit side + sky + the
     light the ground reflects up to it: the path tracer's ground -> object -> ground path, which lights a box's
@@ -310,7 +358,7 @@ def _face_irradiance(caster: ShadowCaster, bounce: tuple) -> np.ndarray:
     return direct + r * (1.0 + n[:, 2]) / 2.0 + g * (1.0 - n[:, 2]) / 2.0
 
 
-def _bounce_image(caster, d, face_e, grid) -> np.ndarray:
+def _bounce_image(caster: ShadowCaster, d: np.ndarray, face_e: np.ndarray, grid: tuple) -> np.ndarray:
     """``(sub, sub) float32``: the irradiance share of the face a ground sub-texel sees first along ``d``
     (0 where it sees the sky): the faces turned towards the ground point, drawn farthest first. ``grid``:
     ``(x0, y0, scale, half, lim, sub)`` of the map's rasterisation."""
