@@ -260,7 +260,7 @@ def run(cfg: dict, ctx: Any, log: Callable[[str], None]) -> list[dict]:
                 continue
             mode = opt["mode"]
             vol = None if mode == "planar" else vols[(mode == "zfail", opt.get("truncate", True))]
-            passes = [LightPass(L, 1.0, vol, mode)]
+            passes = (LightPass(L, 1.0, vol, mode),)
             s = opt.get("scale", 1.0)
             u0, v0, w, h = roi
             if s != 1.0:
@@ -371,7 +371,7 @@ def soft(cfg: dict, ctx: Any, log: Callable[[str], None]) -> list[dict]:
                 hh = np.asarray(s.homogeneous, np.float64)
                 vol = shadow_volume(caster, hh, silhouette(caster, hh), caps=False, truncate_z=-1e-3 * caster.scale)
                 passes.append(LightPass(hh, s.weight / tot, vol, "zpass"))
-            req = RenderRequest(projection=P, view=view, width=w, height=h, caster=caster, passes=passes)
+            req = RenderRequest(projection=P, view=view, width=w, height=h, caster=caster, passes=tuple(passes))
             once = lambda: r.render(req)  # noqa: E731
             for _ in range(cfg["warmup"]):
                 once()

@@ -39,7 +39,7 @@ def collect(backend: str | None = None) -> dict:
     from ..errors import GLContextError
     from ..gl.context import create_context, detect_libraries, diagnose, gl_info, resolve_backend
 
-    out = {
+    out: dict[str, object] = {
         "arshadow": __version__,
         "python": platform.python_version(),
         "platform": platform.platform(),

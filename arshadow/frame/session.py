@@ -133,7 +133,7 @@ class Session(History):
             self._renderer, self._own_renderer = renderer, False
         else:
             self._renderer, self._own_renderer, self._renderer_factory = None, True, renderer
-        self._gpu = None
+        self._gpu: Any = None  # the GpuCompositor (arshadow.gl, imported on first use: _gpu_compositor)
         if self.scene.sun_tracks:  # a time-lapse of the spec (SceneSpec.time_lapse)
             self.use_sun_tracks(self.scene.sun_tracks, self.scene.static_lights or ())
         self._work = Workspace()

@@ -19,11 +19,16 @@ shadow whichever side the light is on. See ``docs/geometry.md``.
 from __future__ import annotations
 
 import functools
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
 from .._check import check_shape
 from ..errors import MeshError, ShapeError
+
+if TYPE_CHECKING:  # an annotation only (mesh.py sets it)
+    from .material import Material
 
 __all__ = ["ShadowCaster", "connected_labels", "plane_side"]
 
@@ -34,11 +39,11 @@ def _readonly(a: np.ndarray) -> np.ndarray:
     return a
 
 
-def _as_rgba(c, count: int, name: str) -> np.ndarray | None:
+def _as_rgba(colors: npt.ArrayLike | None, count: int, name: str) -> np.ndarray | None:
     """Colours (count, 3|4) uint8 (0..255) or float (0..1) -> (count, 4) float32 RGBA, or None."""
-    if c is None:
+    if colors is None:
         return None
-    c = np.asarray(c)
+    c = np.asarray(colors)
     if c.ndim == 1:
         c = np.broadcast_to(c, (count, c.shape[0]))
     if c.ndim != 2 or c.shape[0] != count or c.shape[1] not in (3, 4):
@@ -50,7 +55,8 @@ def _as_rgba(c, count: int, name: str) -> np.ndarray | None:
         raise MeshError(f"{name} contains NaN or inf")
     if c.shape[1] == 3:
         c = np.concatenate([c, np.ones((count, 1), np.float32)], axis=1)
-    return np.clip(c, 0.0, 1.0)
+    rgba: np.ndarray = np.clip(c, 0.0, 1.0)
+    return rgba
 
 
 class ShadowCaster:
@@ -84,7 +90,14 @@ class ShadowCaster:
     (False, 3)
     """
 
-    def __init__(self, vertices, faces, vertex_colors=None, face_colors=None, name: str = ""):
+    def __init__(
+        self,
+        vertices: npt.ArrayLike,
+        faces: npt.ArrayLike,
+        vertex_colors: npt.ArrayLike | None = None,
+        face_colors: npt.ArrayLike | None = None,
+        name: str = "",
+    ) -> None:
         self.name = str(name)
         label = f"mesh {self.name!r}" if self.name else "mesh"
         try:
@@ -145,7 +158,7 @@ class ShadowCaster:
         self.source_faces = _readonly(np.flatnonzero(keep))
         #: the surface's :class:`arshadow.geometry.material.Material` when the mesh file has one (set by
         #: :func:`arshadow.geometry.mesh.load_occluder`), else None
-        self.material = None
+        self.material: Material | None = None
 
         # drop unreferenced vertices
         used = np.zeros(v.shape[0], bool)
@@ -301,7 +314,7 @@ class ShadowCaster:
 
     # ------------------------------------------------------------------ adjacency
     @functools.cached_property
-    def _adjacency(self) -> dict:
+    def _adjacency(self) -> dict[str, np.ndarray]:
         f = self.faces
         m = f.shape[0]
         n = len(self.vertices)
@@ -430,11 +443,11 @@ class ShadowCaster:
         return np.concatenate([n, d[:, None]], axis=1)
 
     @functools.cached_property
-    def _polygon_grouping(self):
+    def _polygon_grouping(self) -> tuple[np.ndarray, np.ndarray]:
         """``(labels (m,), polygon planes (P, 4))`` from the faces' own planes (computed once)."""
         return self._polygon_labels_planes(self._own_face_planes())
 
-    def _polygon_labels_planes(self, planes: np.ndarray):
+    def _polygon_labels_planes(self, planes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Group faces into connected coplanar polygons.
 
         Two faces sharing a two-face edge join when their unit normals agree to 1e-12 and the far vertex
@@ -464,7 +477,7 @@ class ShadowCaster:
         return labels, np.concatenate([nrm, d[:, None]], axis=1)
 
     @functools.cached_property
-    def polygons(self) -> dict:
+    def polygons(self) -> dict[str, np.ndarray]:
         """Connected coplanar faces merged into polygons (Hybrid Silhouette Detection, [Kolivand-HSD]).
 
         Returns a dict: ``face_polygon (m,) intp`` (polygon of each face), ``planes (P, 4)`` (the plane
@@ -500,7 +513,7 @@ class ShadowCaster:
         }
 
     # ------------------------------------------------------------------ geometry helpers
-    def winding_number(self, point) -> float:
+    def winding_number(self, point: npt.ArrayLike) -> float:
         """Generalised winding number of the surface around ``point (3,)`` (1 inside, 0 outside a closed
         outward-wound mesh), by the solid angles of the triangles (Van Oosterom & Strackee)."""
         p = np.asarray(point, np.float64).reshape(3)
@@ -522,7 +535,8 @@ def plane_side(planes: np.ndarray, light_h: np.ndarray) -> np.ndarray:
     ``((n_x L_x + n_y L_y) + n_z L_z) + d w``, element-wise in this order (no BLAS, so a face's value
     does not depend on which other faces are evaluated with it)."""
     h = light_h
-    return ((planes[:, 0] * h[0] + planes[:, 1] * h[1]) + planes[:, 2] * h[2]) + planes[:, 3] * h[3]
+    side: np.ndarray = ((planes[:, 0] * h[0] + planes[:, 1] * h[1]) + planes[:, 2] * h[2]) + planes[:, 3] * h[3]
+    return side
 
 
 def connected_labels(n: int, u: np.ndarray, v: np.ndarray) -> np.ndarray:

@@ -18,10 +18,16 @@ the image array (row 0 = top). trimesh converts glTF's top-left origin on readin
 from __future__ import annotations
 
 import dataclasses
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
 from ..compose.composite import srgb_to_linear
+
+if TYPE_CHECKING:  # annotations only: trimesh and Pillow are imported where a mesh file is read
+    import trimesh
+    from PIL import Image
 
 __all__ = ["Material", "material_from_trimesh"]
 
@@ -90,10 +96,11 @@ class Material:
             + tex[yb, xa] * (1 - tx) * ty
             + tex[yb, xb] * tx * ty
         )
-        return c * self.base_color[:3]
+        out: np.ndarray = c * self.base_color[:3]
+        return out
 
 
-def _rgba01(c, default) -> np.ndarray:
+def _rgba01(c: npt.ArrayLike | None, default: tuple[float, float, float, float]) -> np.ndarray:
     if c is None:
         return np.asarray(default, np.float64)
     a = np.asarray(c, np.float64).ravel()
@@ -102,7 +109,7 @@ def _rgba01(c, default) -> np.ndarray:
     return a / 255.0 if np.asarray(c).dtype.kind in "ui" or a.max() > 1.0 else a
 
 
-def _image(img) -> np.ndarray | None:
+def _image(img: Image.Image | np.ndarray | None) -> np.ndarray | None:
     """A PIL image (or array) -> ``(h, w, 3) float32`` linear RGB, or None."""
     if img is None:
         return None
@@ -114,7 +121,7 @@ def _image(img) -> np.ndarray | None:
     return srgb_to_linear(a.astype(np.float64) / scale).astype(np.float32)
 
 
-def material_from_trimesh(mesh) -> Material | None:
+def material_from_trimesh(mesh: trimesh.Trimesh) -> Material | None:
     """The :class:`Material` of a ``trimesh.Trimesh`` as loaded (``process=False``), its UVs per corner of
     ``mesh.faces``; None when the mesh has no material (vertex / face colours, or nothing).
 

@@ -12,12 +12,17 @@ from __future__ import annotations
 import re
 import warnings
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
 from ..errors import MeshError
 from .caster import ShadowCaster, connected_labels, plane_side
-from .material import material_from_trimesh
+from .material import Material, material_from_trimesh
+
+if TYPE_CHECKING:  # annotations only: trimesh is imported where a mesh is built or read
+    import trimesh
 
 __all__ = [
     "PRIMITIVES",
@@ -36,7 +41,7 @@ __all__ = [
 PRIMITIVES = {"box": ("WX", "WY", "HZ"), "cylinder": ("R", "H"), "sphere": ("R",), "torus": ("R", "r")}
 
 
-def rotation_xyz_deg(angles) -> np.ndarray:
+def rotation_xyz_deg(angles: npt.ArrayLike) -> np.ndarray:
     """(3, 3) rotation for XYZ angles in degrees: about x first, then y, then z (fixed axes),
     i.e. ``Rz @ Ry @ Rx``."""
     rx, ry, rz = np.radians(np.asarray(angles, np.float64).reshape(3))
@@ -44,13 +49,14 @@ def rotation_xyz_deg(angles) -> np.ndarray:
     mx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
     my = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
     mz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
-    return mz @ my @ mx
+    rot: np.ndarray = mz @ my @ mx
+    return rot
 
 
 _PRIM_RE = re.compile(r"^\s*(box|cylinder|sphere|torus)\s*:\s*(.*)$", re.IGNORECASE)
 
 
-def primitive(spec: str):
+def primitive(spec: str) -> tuple[np.ndarray, np.ndarray]:
     """Vertices ``(n, 3)`` and faces ``(m, 3)`` of a primitive spec standing on the ground (z = 0),
     centred on the origin: ``box:WX,WY,HZ``, ``cylinder:R,H`` (64 sides), ``sphere:R`` (icosphere,
     1280 faces), ``torus:R,r`` (lying flat, 64 x 32 sections).
@@ -97,7 +103,7 @@ def primitive(spec: str):
     return v, np.asarray(t.faces, np.intp)
 
 
-def _parse_color(color):
+def _parse_color(color: str | npt.ArrayLike | None) -> np.ndarray | None:
     if color is None:
         return None
     if isinstance(color, str):
@@ -122,7 +128,7 @@ _TEXT_FORMATS = (".obj", ".off")
 MAX_COORDINATE = 1e6
 
 
-def _load_mesh_file(p: Path):
+def _load_mesh_file(p: Path) -> trimesh.Geometry:
     """``trimesh.load`` of a file; text formats that are not UTF-8 (a Latin-1 comment) are read as Latin-1
     (every byte is a valid Latin-1 character) instead of failing on trimesh's optional encoding detector."""
     import io
@@ -152,7 +158,7 @@ UP_AXES = ("z", "y")
 Y_UP_FORMATS = (".glb", ".gltf")
 
 
-def default_up(spec_or_path) -> str:
+def default_up(spec_or_path: str | Path) -> str:
     """The up axis a mesh file is read with when none is given: ``"y"`` for glTF (``.glb`` / ``.gltf``: Y-up by
     specification), else ``"z"`` (arshadow's world frame; OBJ, PLY, STL and OFF say nothing).
 
@@ -176,7 +182,14 @@ def up_rotation(up: str) -> np.ndarray:
 
 
 def load_occluder(
-    spec_or_path, scale=1.0, rotate=(0.0, 0.0, 0.0), place=(0.0, 0.0, 0.0), color=None, *, up=None, drop_to_ground=False
+    spec_or_path: str | Path,
+    scale: npt.ArrayLike = 1.0,
+    rotate: npt.ArrayLike = (0.0, 0.0, 0.0),
+    place: npt.ArrayLike = (0.0, 0.0, 0.0),
+    color: str | npt.ArrayLike | None = None,
+    *,
+    up: str | None = None,
+    drop_to_ground: bool = False,
 ) -> ShadowCaster:
     """Load a mesh file (anything trimesh reads) or build a primitive, and place it in the world frame.
 
@@ -217,8 +230,9 @@ def load_occluder(
     >>> load_occluder("box:0.1,0.2,0.3", rotate=(90, 0, 0), drop_to_ground=True).bounds.round(6).tolist()
     [[-0.05, -0.3, 0.0], [0.05, 0.0, 0.2]]
     """
-    vertex_colors = face_colors = None
-    material = None
+    vertex_colors: np.ndarray | None = None
+    face_colors: np.ndarray | None = None
+    material: Material | None = None
     spec = str(spec_or_path)
     if up is not None:
         up = str(up).strip().lower()
@@ -252,13 +266,15 @@ def load_occluder(
             warnings.warn(f"{p}: material not read ({type(exc).__name__}: {exc}); using its colours", stacklevel=2)
             material = None
         try:
-            kind = mesh.visual.kind
-            if kind == "vertex":
-                vertex_colors = np.asarray(mesh.visual.vertex_colors)
-            elif kind == "face":
-                face_colors = np.asarray(mesh.visual.face_colors)
-            elif kind == "texture":
-                vertex_colors = np.asarray(mesh.visual.to_color().vertex_colors)
+            visual = mesh.visual  # ColorVisuals: kind "vertex", "face" or None; TextureVisuals: kind "texture"
+            if isinstance(visual, trimesh.visual.ColorVisuals):
+                kind = visual.kind
+                if kind == "vertex":
+                    vertex_colors = np.asarray(visual.vertex_colors)
+                elif kind == "face":
+                    face_colors = np.asarray(visual.face_colors)
+            elif isinstance(visual, trimesh.visual.TextureVisuals):
+                vertex_colors = np.asarray(visual.to_color().vertex_colors)
         except Exception:  # colours are a nicety: a file with broken colours still casts its shadow
             vertex_colors = face_colors = None
         if vertex_colors is not None and vertex_colors.shape[0] != len(v):

@@ -22,7 +22,8 @@ def face_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     zero-area faces get a zero vector."""
     tri = np.asarray(vertices, np.float64)[np.asarray(faces)]
     raw = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    return raw / np.maximum(np.linalg.norm(raw, axis=1, keepdims=True), 1e-300)
+    unit: np.ndarray = raw / np.maximum(np.linalg.norm(raw, axis=1, keepdims=True), 1e-300)
+    return unit
 
 
 def corner_angles(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:

@@ -29,7 +29,8 @@ def box_hit(origins: np.ndarray, dirs: np.ndarray, lo: np.ndarray, hi: np.ndarra
         t2 = (hi - origins) * inv
     tn = np.fmax.reduce(np.fmin(t1, t2), axis=1)
     tf = np.fmin.reduce(np.fmax(t1, t2), axis=1)
-    return (tn <= tf) & (tf > tmin)
+    hit: np.ndarray = (tn <= tf) & (tf > tmin)
+    return hit
 
 
 def rays_blocked(caster: ShadowCaster, origins: np.ndarray, dirs: np.ndarray, tmin: float = 0.0) -> np.ndarray:

@@ -13,10 +13,18 @@ import ctypes.util
 import functools
 import glob
 import os
-from typing import Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, Concatenate, ParamSpec, TypeVar, cast
 
 from ..errors import GLContextError
 from . import glraw
+
+if TYPE_CHECKING:  # annotations only: importing this module must not import moderngl (create_context does)
+    import moderngl
+
+_Self = TypeVar("_Self")
+_P = ParamSpec("_P")
+_R = TypeVar("_R")
 
 #: backends accepted by :func:`create_context` (``$ARSHADOW_GL_BACKEND`` takes the same names)
 BACKENDS = ("egl", "x11", "default")
@@ -63,7 +71,7 @@ def _mesa_egl_driver_present() -> bool:
     return any(glob.glob(os.path.join(d, "*.json")) for d in _EGL_VENDOR_DIRS)
 
 
-def detect_libraries() -> dict:
+def detect_libraries() -> dict[str, str | list[str] | None]:
     """What the system offers, without creating a context: the GL/EGL libraries ``ctypes`` finds, the
     registered EGL vendor files (GLVND ICDs) and ``$ARSHADOW_GL_BACKEND``."""
     return {
@@ -108,7 +116,7 @@ def contexts_made() -> int:
     return _made[0]
 
 
-def create_context(backend: str | None = None):
+def create_context(backend: str | None = None) -> moderngl.Context:
     """Create a standalone (offscreen) moderngl context.
 
     Parameters
@@ -156,14 +164,14 @@ def create_context(backend: str | None = None):
 SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swrast")
 
 
-def is_software(ctx) -> bool:
+def is_software(ctx: moderngl.Context) -> bool:
     """Whether the context rasterises on the CPU (``GL_RENDERER`` names Mesa's llvmpipe, softpipe or
     swrast): then "GPU" work shares the cores with the rest of the pipeline."""
     renderer = str(getattr(ctx, "info", {}).get("GL_RENDERER", "")).lower()
     return any(w in renderer for w in SOFTWARE_RENDERERS)
 
 
-def gl_info(ctx) -> dict:
+def gl_info(ctx: moderngl.Context) -> dict[str, str | int]:
     """Facts about a context: renderer, version, vendor, backend, stencil bits, MSAA samples.
 
     The stencil bits are those actually obtained for a ``GL_DEPTH24_STENCIL8`` renderbuffer (the
@@ -206,7 +214,7 @@ def gl_info(ctx) -> dict:
     }
 
 
-def current(method):
+def current(method: Callable[Concatenate[_Self, _P], _R]) -> Callable[Concatenate[_Self, _P], _R]:
     """Decorator: make the object's own context current before a GL method runs (and leave it current).
 
     Every arshadow GL object (renderer, compositor) works on the context it was handed; OpenGL calls go to
@@ -219,10 +227,10 @@ def current(method):
     """
 
     @functools.wraps(method)
-    def wrapper(self, *args, **kwargs):
-        ctx = getattr(self, "ctx", None)
+    def wrapper(self: _Self, /, *args: _P.args, **kwargs: _P.kwargs) -> _R:
+        ctx: moderngl.Context | None = getattr(self, "ctx", None)
         if ctx is None:
-            ctx = args[0] if args else kwargs["ctx"]
+            ctx = cast("moderngl.Context", args[0] if args else kwargs["ctx"])
         ctx.__enter__()  # make current; not restored on return (see above)
         return method(self, *args, **kwargs)
 

@@ -19,9 +19,18 @@ from __future__ import annotations
 import ctypes
 import ctypes.util
 import threading
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
 
 from ..errors import GLContextError
+
+if TYPE_CHECKING:
+    # typeshed's type of ``ctypes.byref(x)`` (it has no public name)
+    from ctypes import _CArgObject
+
+    #: what a ``GLuint *`` / ``GLint *`` parameter takes: ``ctypes.byref(c_uint(...))`` or a ``c_uint`` array
+    UIntPointer = ctypes.Array[ctypes.c_uint] | _CArgObject
+    IntPointer = ctypes.Array[ctypes.c_int] | _CArgObject
 
 # ---- enums (OpenGL 4.5 core) -------------------------------------------------------------------------
 GL_NO_ERROR = 0
@@ -180,13 +189,64 @@ _SIGNATURES = {
 
 
 class GL:
-    """Namespace of loaded GL functions (attributes named like the C functions)."""
+    """Namespace of loaded GL functions (attributes named like the C functions).
 
-    if TYPE_CHECKING:  # the functions of _SIGNATURES are set per instance, by name
+    The functions of ``_SIGNATURES`` are set per instance, by name; their types are declared below, as
+    ctypes converts them: ``GLenum``, ``GLuint``, ``GLint``, ``GLsizei``, ``GLbitfield`` and ``GLboolean`` are
+    Python ints, ``GLfloat`` / ``GLdouble`` floats, a ``void *`` an address (``ndarray.ctypes.data``), a
+    ``const GLubyte *`` result bytes (None for NULL). Every loaded function has its declaration:
 
-        def __getattr__(self, name: str) -> Any: ...
+    >>> sorted(set(_SIGNATURES) - set(GL.__annotations__))
+    []
+    """
 
-    def __init__(self, lib: ctypes.CDLL, path: str):
+    library: str
+    glGetError: Callable[[], int]
+    glGetIntegerv: Callable[[int, IntPointer], None]
+    glGetString: Callable[[int], bytes | None]
+    glEnable: Callable[[int], None]
+    glDisable: Callable[[int], None]
+    glIsEnabled: Callable[[int], int]
+    glGenRenderbuffers: Callable[[int, UIntPointer], None]
+    glDeleteRenderbuffers: Callable[[int, UIntPointer], None]
+    glBindRenderbuffer: Callable[[int, int], None]
+    glRenderbufferStorage: Callable[[int, int, int, int], None]
+    glRenderbufferStorageMultisample: Callable[[int, int, int, int, int], None]
+    glGetRenderbufferParameteriv: Callable[[int, int, IntPointer], None]
+    glGenFramebuffers: Callable[[int, UIntPointer], None]
+    glDeleteFramebuffers: Callable[[int, UIntPointer], None]
+    glBindFramebuffer: Callable[[int, int], None]
+    glFramebufferRenderbuffer: Callable[[int, int, int, int], None]
+    glFramebufferTexture2D: Callable[[int, int, int, int, int], None]
+    glCheckFramebufferStatus: Callable[[int], int]
+    glGetFramebufferAttachmentParameteriv: Callable[[int, int, int, IntPointer], None]
+    glDrawBuffers: Callable[[int, UIntPointer], None]
+    glReadBuffer: Callable[[int], None]
+    glBlitFramebuffer: Callable[[int, int, int, int, int, int, int, int, int, int], None]
+    glStencilFunc: Callable[[int, int, int], None]
+    glStencilFuncSeparate: Callable[[int, int, int, int], None]
+    glStencilOp: Callable[[int, int, int], None]
+    glStencilOpSeparate: Callable[[int, int, int, int], None]
+    glStencilMask: Callable[[int], None]
+    glClearStencil: Callable[[int], None]
+    glClearDepth: Callable[[float], None]
+    glClearColor: Callable[[float, float, float, float], None]
+    glClear: Callable[[int], None]
+    glDepthMask: Callable[[int], None]
+    glDepthFunc: Callable[[int], None]
+    glColorMask: Callable[[int, int, int, int], None]
+    glColorMaski: Callable[[int, int, int, int, int], None]
+    glFrontFace: Callable[[int], None]
+    glPolygonOffset: Callable[[float, float], None]
+    glViewport: Callable[[int, int, int, int], None]
+    glScissor: Callable[[int, int, int, int], None]
+    glPixelStorei: Callable[[int, int], None]
+    glBindBuffer: Callable[[int, int], None]
+    glReadPixels: Callable[[int, int, int, int, int, int, int], None]
+    glFinish: Callable[[], None]
+    glFlush: Callable[[], None]
+
+    def __init__(self, lib: ctypes.CDLL, path: str) -> None:
         self.library = path
         for name, (restype, argtypes) in _SIGNATURES.items():
             try:
@@ -216,14 +276,14 @@ class GL:
         v = ctypes.c_uint(name)
         self.glDeleteFramebuffers(1, ctypes.byref(v))
 
-    def draw_buffers(self, n: int, only=None) -> None:
+    def draw_buffers(self, n: int, only: int | None = None) -> None:
         """``glDrawBuffers`` for attachments 0..n-1 (or, with ``only``, that attachment and GL_NONE)."""
         arr = (ctypes.c_uint * n)(
             *[(GL_COLOR_ATTACHMENT0 + i) if (only is None or i == only) else GL_NONE for i in range(n)]
         )
         self.glDrawBuffers(n, arr)
 
-    def draw_buffer_list(self, attachments) -> None:
+    def draw_buffer_list(self, attachments: Sequence[int | None]) -> None:
         """``glDrawBuffers`` with fragment output i -> colour attachment ``attachments[i]`` (None: GL_NONE)."""
         n = len(attachments)
         arr = (ctypes.c_uint * n)(*[GL_NONE if a is None else GL_COLOR_ATTACHMENT0 + int(a) for a in attachments])

@@ -31,6 +31,8 @@ from __future__ import annotations
 
 import statistics
 import time
+from collections.abc import Callable, Hashable, Mapping, Sequence
+from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
 
@@ -39,7 +41,16 @@ from ..compose.look import Look
 from ..errors import ShapeError, UsageError
 from . import glraw as G
 from .context import current
-from .resources import program
+from .layers import GpuLayers
+from .resources import program, uniform
+
+if TYPE_CHECKING:  # annotations only: the context is handed in (arshadow.gl.context makes it)
+    import moderngl
+
+    from ..compose.lens import LensWarp
+    from ..plan.planner import FramePlan
+
+_T = TypeVar("_T")
 
 __all__ = ["GpuCompositor", "PathChooser", "SHARED_DECISIONS"]
 
@@ -52,13 +63,13 @@ class _LensTexture:
     """The undistortion map of one :class:`LensWarp` as an ``RG32F`` texture, filled tile by tile as the
     warp computes its map (never recomputed, each tile uploaded once)."""
 
-    def __init__(self, ctx, lens):
+    def __init__(self, ctx: moderngl.Context, lens: LensWarp) -> None:
         self.lens = lens
         self.tex = ctx.texture((lens.width, lens.height), 2, dtype="f4", alignment=4)
         self.tex.filter = (ctx.NEAREST, ctx.NEAREST)
         self.uploaded = np.zeros_like(lens.tiles_done)
 
-    def update(self, roi) -> None:
+    def update(self, roi: Sequence[int]) -> None:
         lens = self.lens
         lens.ensure(roi)
         done = lens.tiles_done
@@ -67,7 +78,8 @@ class _LensTexture:
             return
         T = lens.TILE
         mx, my = lens.maps_partial()
-        for r in np.flatnonzero(todo.any(axis=1)):
+        for row in np.flatnonzero(todo.any(axis=1)):
+            r = int(row)
             cols = np.flatnonzero(todo[r])
             a, b = int(cols[0]), int(cols[-1]) + 1
             y0, y1 = r * T, min(lens.height, (r + 1) * T)
@@ -78,7 +90,7 @@ class _LensTexture:
             self.tex.write(data.tobytes(), viewport=(x0, y0, x1 - x0, y1 - y0))
             self.uploaded[r, a:b] |= done[r, a:b]
 
-    def release(self):
+    def release(self) -> None:
         self.tex.release()
 
 
@@ -92,7 +104,7 @@ class GpuCompositor:
     """
 
     @current
-    def __init__(self, ctx):
+    def __init__(self, ctx: moderngl.Context) -> None:
         self.ctx = ctx
         self.gl = G.load()
         self.prog = program(ctx, "fullscreen.vert", "compose.frag")
@@ -102,9 +114,13 @@ class GpuCompositor:
         for t in (dec, enc):
             t.filter = (ctx.NEAREST, ctx.NEAREST)
         self._dec, self._enc = dec, enc
-        self._size = None
-        self._photo = self._out = self._mask = self._fbo = None
-        self._lens: dict = {}
+        self._size: tuple[int, int] | None = None
+        # the photo-size textures and framebuffer (_ensure_size)
+        self._photo: moderngl.Texture | None = None
+        self._out: moderngl.Texture | None = None
+        self._mask: moderngl.Texture | None = None
+        self._fbo: moderngl.Framebuffer | None = None
+        self._lens: dict[int, _LensTexture] = {}
         self._released = False
 
     @current
@@ -119,7 +135,7 @@ class GpuCompositor:
             o.release()
         self._released = True
 
-    def _free_size(self):
+    def _free_size(self) -> None:
         for o in (self._fbo, self._photo, self._out, self._mask):
             if o is not None:
                 o.release()
@@ -139,7 +155,7 @@ class GpuCompositor:
         self._fbo = ctx.framebuffer(color_attachments=[self._out, self._mask])
         self._size = (width, height)
 
-    def _lens_texture(self, lens) -> _LensTexture:
+    def _lens_texture(self, lens: LensWarp) -> _LensTexture:
         lt = self._lens.get(id(lens))
         if lt is None or lt.lens is not lens:
             if lt is not None:
@@ -148,7 +164,18 @@ class GpuCompositor:
         return lt
 
     @current
-    def compose(self, image, layers, plan, look: Look, *, lens=None, out=None, mask_out=None, timings=None):
+    def compose(
+        self,
+        image: np.ndarray,
+        layers: GpuLayers,
+        plan: FramePlan,
+        look: Look,
+        *,
+        lens: LensWarp | None = None,
+        out: np.ndarray | None = None,
+        mask_out: np.ndarray | None = None,
+        timings: dict[str, float] | None = None,
+    ) -> np.ndarray:
         """Composite the layers into ``out`` over ``plan.roi`` (the numpy path's result within one level).
 
         Parameters
@@ -190,26 +217,29 @@ class GpuCompositor:
         t0 = time.perf_counter()
         ctx = self.ctx
         self._ensure_size(W, H)
-        self._photo.write(np.ascontiguousarray(image[y0 : y0 + h, x0 : x0 + w]).data, viewport=(x0, y0, w, h))
+        photo, fbo = self._photo, self._fbo
+        assert photo is not None and fbo is not None  # made by _ensure_size
+        photo.write(np.ascontiguousarray(image[y0 : y0 + h, x0 : x0 + w]).data, viewport=(x0, y0, w, h))
         if lens is not None:
             lt = self._lens_texture(lens)
             lt.update((x0, y0, w, h))
             lt.tex.use(5)
         self._set_uniforms(canvas, (x0, y0, w, h), lens is not None, look)
-        self.prog["u_gain"].value = tuple(float(v) for v in np.asarray(color_gain, np.float32).reshape(3)[::-1])
-        self._photo.use(0)
+        uniform(self.prog, "u_gain").value = tuple(
+            float(v) for v in np.asarray(color_gain, np.float32).reshape(3)[::-1]
+        )
+        photo.use(0)
         self._dec.use(1)
         self._enc.use(2)
         layers.color_tex.use(3)
         layers.mask_tex.use(4)
-        fbo = self._fbo
         fbo.use()
         fbo.viewport = (x0, y0, w, h)
         ctx.enable_only(ctx.NOTHING)
         t1 = time.perf_counter()
         self.vao.render(ctx.TRIANGLES, vertices=3)
         t2 = time.perf_counter()
-        self._readback((x0, y0, w, h), W, out, mask_out)
+        self._readback(fbo, (x0, y0, w, h), W, out, mask_out)
         t3 = time.perf_counter()
         if timings is not None:
             for k, v in (("upload", t1 - t0), ("draw", t2 - t1), ("readback", t3 - t2)):
@@ -217,7 +247,14 @@ class GpuCompositor:
         return out
 
     @staticmethod
-    def _checked_out(image, layers, roi, canvas, out, mask_out):
+    def _checked_out(
+        image: np.ndarray,
+        layers: GpuLayers,
+        roi: Sequence[int],
+        canvas: Sequence[int],
+        out: np.ndarray | None,
+        mask_out: np.ndarray | None,
+    ) -> np.ndarray:
         """Check the arguments of :meth:`compose`; returns ``out`` (a copy of ``image`` if None)."""
         H, W = image.shape[:2]
         x0, y0, w, h = (int(v) for v in roi)
@@ -238,32 +275,42 @@ class GpuCompositor:
                 )
         return out
 
-    def _set_uniforms(self, canvas, roi, use_lens, look: Look) -> None:
+    def _set_uniforms(self, canvas: Sequence[int], roi: tuple[int, int, int, int], use_lens: bool, look: Look) -> None:
         """The compose shader's texture units, geometry and darkening constants."""
         prog, opacity, shadow_color, draw_occluder = self.prog, look.opacity, look.shadow_color, look.draw_occluder
         sc = np.asarray(shadow_color, np.float64).reshape(3)
         gray = bool(sc[0] == sc[1] == sc[2])
-        prog["u_photo"].value = 0
-        prog["u_decode"].value = 1
-        prog["u_encode"].value = 2
-        prog["u_color"].value = 3
-        prog["u_mask"].value = 4
-        prog["u_lens"].value = 5
-        prog["u_use_lens"].value = use_lens
-        prog["u_canvas"].value = tuple(int(v) for v in canvas)
-        prog["u_roi"].value = tuple(roi)
-        prog["u_occluder"].value = bool(draw_occluder)
-        prog["u_gray"].value = gray
-        prog["u_gray_k"].value = float(np.float32(-float(opacity) * (1.0 - sc[0])))
-        prog["u_dark"].value = tuple(float(v) for v in (np.float32(opacity) * (1.0 - sc[::-1])).astype(np.float32))
-        prog["u_darken"].value = float(opacity) > 0.0
+        uniform(prog, "u_photo").value = 0
+        uniform(prog, "u_decode").value = 1
+        uniform(prog, "u_encode").value = 2
+        uniform(prog, "u_color").value = 3
+        uniform(prog, "u_mask").value = 4
+        uniform(prog, "u_lens").value = 5
+        uniform(prog, "u_use_lens").value = use_lens
+        uniform(prog, "u_canvas").value = tuple(int(v) for v in canvas)
+        uniform(prog, "u_roi").value = tuple(roi)
+        uniform(prog, "u_occluder").value = bool(draw_occluder)
+        uniform(prog, "u_gray").value = gray
+        uniform(prog, "u_gray_k").value = float(np.float32(-float(opacity) * (1.0 - sc[0])))
+        uniform(prog, "u_dark").value = tuple(
+            float(v) for v in (np.float32(opacity) * (1.0 - sc[::-1])).astype(np.float32)
+        )
+        uniform(prog, "u_darken").value = float(opacity) > 0.0
 
-    def _readback(self, roi, W, out, mask_out) -> None:
-        """One readback of the 8-bit ROI straight into the output photo (and the mask)."""
+    def _readback(
+        self,
+        fbo: moderngl.Framebuffer,
+        roi: tuple[int, int, int, int],
+        W: int,
+        out: np.ndarray,
+        mask_out: np.ndarray | None,
+    ) -> None:
+        """One readback of the 8-bit ROI of ``fbo`` (the photo-size framebuffer) straight into the output
+        photo (and the mask)."""
         ctx, gl = self.ctx, self.gl
         x0, y0, w, h = roi
         gl.glBindBuffer(G.GL_PIXEL_PACK_BUFFER, 0)
-        gl.glBindFramebuffer(G.GL_READ_FRAMEBUFFER, self._fbo.glo)
+        gl.glBindFramebuffer(G.GL_READ_FRAMEBUFFER, fbo.glo)
         gl.glPixelStorei(G.GL_PACK_ALIGNMENT, 1)
         gl.glPixelStorei(G.GL_PACK_ROW_LENGTH, W)
         gl.glReadBuffer(G.GL_COLOR_ATTACHMENT0)
@@ -320,9 +367,9 @@ class PathChooser:
         force: str | None = None,
         decisions: dict | None = None,
         margin: float = 0.15,
-        clock=time.perf_counter,
+        clock: Callable[[], float] = time.perf_counter,
         time_software: bool = False,
-    ):
+    ) -> None:
         if int(trials) < 1:
             raise UsageError(f"trials must be >= 1, got {trials}")
         if not 0.0 <= float(margin) < 1.0:
@@ -336,7 +383,7 @@ class PathChooser:
             decisions = SHARED_DECISIONS  # one measurement per key and process, whichever session asks first
         self.decisions: dict = decisions
 
-    def run(self, key, paths: dict):
+    def run(self, key: Hashable, paths: Mapping[str, Callable[[], _T]]) -> tuple[str, _T]:
         """Run the chosen path for ``key`` (timing all ``paths`` on first use); returns ``(name, result)``.
 
         ``paths`` maps a name to a no-argument callable; each must have the same effect (the caller's
@@ -350,7 +397,7 @@ class PathChooser:
         if d is not None:
             return d["choice"], paths[d["choice"]]()
         times: dict[str, list[float]] = {name: [] for name in paths}
-        result = {}
+        result: dict[str, _T] = {}
         for rnd in range(self.trials + 1):
             for name, fn in paths.items():
                 t = self.clock()

@@ -7,6 +7,10 @@ renderer share these two small types without importing each other.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # annotations only: the objects come from the context handed in
+    import moderngl
 
 __all__ = ["GpuLayers", "TextureTarget"]
 
@@ -15,7 +19,7 @@ class TextureTarget:
     """Texture-backed single-sample framebuffer (colour 0 ``RGBA16F``, colour 1 ``RG16F``, ``RGBA16F`` with sky occlusion): the blit
     destination of ``render_gpu()``, sampled by :mod:`arshadow.gl.gpu_compose`."""
 
-    def __init__(self, ctx, width, height, mask_components: int = 2):
+    def __init__(self, ctx: moderngl.Context, width: int, height: int, mask_components: int = 2) -> None:
         self.width, self.height = int(width), int(height)
         self.color_tex = ctx.texture((self.width, self.height), 4, dtype="f2")
         self.mask_tex = ctx.texture((self.width, self.height), int(mask_components), dtype="f2")
@@ -24,7 +28,7 @@ class TextureTarget:
         self.mgl = ctx.framebuffer(color_attachments=[self.color_tex, self.mask_tex])
         self.fbo = self.mgl.glo
 
-    def release(self):
+    def release(self) -> None:
         for o in (self.mgl, self.color_tex, self.mask_tex):
             o.release()
 
@@ -48,9 +52,9 @@ class GpuLayers:
         ``upload``, ``draw`` (commands issued; not waited for), ``readback`` (0), ``total``.
     """
 
-    color_tex: object
-    mask_tex: object
+    color_tex: moderngl.Texture
+    mask_tex: moderngl.Texture
     width: int
     height: int
-    timings_ms: dict = field(default_factory=dict)
+    timings_ms: dict[str, float] = field(default_factory=dict)
     premultiplied: bool = True

@@ -4,7 +4,8 @@ Shared by the stencil renderer (:mod:`arshadow.gl.stencil`), the shadow-map base
 (:mod:`arshadow.gl.shadowmap`) and the GPU compositor (:mod:`arshadow.gl.gpu_compose`); none of them imports
 another. Nothing here creates a context or imports moderngl (the objects come from the context handed in).
 
-- :func:`program`: a shader program compiled once per context (cached in ``ctx.extra``);
+- :func:`program`: a shader program compiled once per context (cached in ``ctx.extra``); :func:`uniform`: one of
+  its uniforms (typed as such);
 - :class:`CasterBuffers`: one caster's vertex/index buffers (lit occluder, welded positions, light-facing
   subsets), relative to its :func:`local_origin`;
 - :class:`CasterCache`: those buffers for the last few casters;
@@ -14,6 +15,9 @@ another. Nothing here creates a context or imports moderngl (the objects come fr
 - :func:`ground_vertices`: the ground plane z = 0 as homogeneous triangles (unlimited or a square), kept
   in a :class:`GroundBuffer`;
 - :func:`screen_box`: the conservative pixel box of a caster's bounding box (the colour readback's).
+
+(About 615 lines, just over the project's ~600 since the typing work wrote the signatures out one parameter
+per line: the GPU resources the three renderers share, each a small class or function.)
 """
 
 from __future__ import annotations
@@ -21,15 +25,26 @@ from __future__ import annotations
 import functools
 import math
 import weakref
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from importlib import resources
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
+import numpy.typing as npt
 
 from ..compose.composite import srgb_to_linear
 from ..errors import ShapeError, UsageError
 from ..geometry.normals import crease_normals
 from ..shading.sky import object_sky_visibility
+
+if TYPE_CHECKING:  # annotations only (nothing here imports moderngl; .sky imports this module)
+    import moderngl
+
+    from ..geometry.caster import ShadowCaster
+    from ..geometry.material import Material
+    from ..geometry.volume import ShadowVolume
+    from ..renderer.request import LightPass
+    from .sky import GLItemBuffer
 
 __all__ = [
     "DEFAULT_COLOR",
@@ -43,6 +58,7 @@ __all__ = [
     "program",
     "screen_box",
     "translation",
+    "uniform",
 ]
 
 #: default occluder colour (sRGB) when the mesh has none and none is given
@@ -55,31 +71,40 @@ def load_shader(name: str) -> str:
     return resources.files("arshadow.gl").joinpath("shaders", name).read_text(encoding="utf-8")
 
 
-def _program_cache(ctx) -> dict:
-    """Programs are cached per context (in ``ctx.extra``), compiled once."""
+def _program_cache(ctx: moderngl.Context) -> dict[object, Any]:
+    """Programs are cached per context (in ``ctx.extra``), compiled once: ``(vert, frag)`` ->
+    ``moderngl.Program``; also ``"item_buffer_512"`` -> :class:`arshadow.gl.sky.GLItemBuffer`."""
     extra = ctx.extra if isinstance(getattr(ctx, "extra", None), dict) else None
     if extra is None:
         extra = {}
         ctx.extra = extra
-    return extra.setdefault("arshadow_programs", {})
+    cache: dict[object, Any] = extra.setdefault("arshadow_programs", {})
+    return cache
 
 
-def program(ctx, vert: str, frag: str):
+def program(ctx: moderngl.Context, vert: str, frag: str) -> moderngl.Program:
     """The program of shaders ``vert`` + ``frag`` (names in ``arshadow/gl/shaders``) on ``ctx``, compiled on
     first use and cached on the context."""
     cache = _program_cache(ctx)
     key = (vert, frag)
     if key not in cache:
         cache[key] = ctx.program(vertex_shader=load_shader(vert), fragment_shader=load_shader(frag))
-    return cache[key]
+    prog: moderngl.Program = cache[key]
+    return prog
 
 
-def set_uniforms(progs, values: dict) -> None:
+def uniform(prog: moderngl.Program, name: str) -> moderngl.Uniform:
+    """``prog[name]``, a uniform of the program (moderngl types ``prog[name]`` as any kind of member: uniform,
+    uniform block, attribute or varying; the names asked for here are the shaders' uniforms)."""
+    return cast("moderngl.Uniform", prog[name])
+
+
+def set_uniforms(progs: Iterable[moderngl.Program], values: Mapping[str, object]) -> None:
     """Write ``values`` (uniform name -> value, e.g. :meth:`arshadow.renderer.request.Shading.uniforms`) into each
     program of ``progs`` that declares the name (the others skip it)."""
     for prog in progs:
         for name, value in values.items():
-            u = prog.get(name, None)
+            u = cast("moderngl.Uniform | None", prog.get(name, None))  # a uniform, as in uniform()
             if u is not None:
                 u.value = value
 
@@ -89,7 +114,19 @@ class CasterBuffers:
     positions (for the planar shadow). Built once per caster."""
 
     # the three programs, the caster and how it is shaded (colour, crease, sky model, frame): one call site each
-    def __init__(self, ctx, prog_base, prog_occ, prog_pos, caster, color, crease_deg, local=True, sky=None, rich=None):  # noqa: PLR0913
+    def __init__(  # noqa: PLR0913
+        self,
+        ctx: moderngl.Context,
+        prog_base: moderngl.Program,
+        prog_occ: moderngl.Program,
+        prog_pos: moderngl.Program,
+        caster: ShadowCaster,
+        color: npt.ArrayLike | None,
+        crease_deg: float,
+        local: bool = True,
+        sky: str | None = None,
+        rich: tuple[moderngl.Program, moderngl.Program] | None = None,
+    ) -> None:
         v = np.asarray(caster.vertices, dtype=np.float64)
         #: the caster's local origin (its box centre; world origin with ``local=False``): positions go to
         #: float32 relative to it
@@ -106,9 +143,13 @@ class CasterBuffers:
             else:
                 alb = srgb_to_linear(np.asarray(cols, np.float64)[:, :3])[f]
         # the mesh file's base-colour texture (arshadow.geometry.material), unless a colour overrides it
-        material = getattr(caster, "material", None) if color is None else None
-        textured = material is not None and material.textured
-        if textured:
+        material: Material | None = getattr(caster, "material", None) if color is None else None
+        # its texture and per-corner UVs: both set when it is textured (Material.textured), else both None
+        tex_image, tex_uv = (
+            (material.texture, material.uv) if material is not None and material.textured else (None, None)
+        )
+        textured = tex_image is not None and tex_uv is not None
+        if material is not None and textured:
             alb = np.broadcast_to(np.asarray(material.base_color, np.float64)[:3], (m, 3, 3))
         nrm = crease_normals(v, f, crease_deg)
         # lighting pass: one vertex per distinct (vertex, normal[, uv]) -- smooth corners share their
@@ -116,8 +157,8 @@ class CasterBuffers:
         # vertex cache works
         nrm32 = np.ascontiguousarray(nrm.reshape(-1, 3).astype(np.float32))
         cols = [f.reshape(-1, 1).astype(np.int64), nrm32.view(np.int32).astype(np.int64)]
-        if textured:
-            uv32 = np.ascontiguousarray(material.uv.reshape(-1, 2).astype(np.float32))
+        if tex_uv is not None:  # = textured
+            uv32 = np.ascontiguousarray(tex_uv.reshape(-1, 2).astype(np.float32))
             cols.append(uv32.view(np.int32).astype(np.int64))
         key = np.concatenate(cols, axis=1)
         _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
@@ -131,9 +172,12 @@ class CasterBuffers:
         self.vbo = ctx.buffer(data.tobytes())
         self.light_ibo = ctx.buffer(inverse.reshape(-1).astype(np.uint32).tobytes())
         # shading attributes per lighting vertex (uv, sky visibility, ground view) and the texture
-        self.shade_vbo, self.texture, self.shade_base_vao = None, None, None
+        self.shade_vbo: moderngl.Buffer | None = None
+        self.texture: moderngl.Texture | None = None
+        self.shade_base_vao: moderngl.VertexArray | None = None
         self.textured, self.sky = textured, sky
-        content = [(self.vbo, "4f 3f 3f", "in_pos", "in_normal", "in_albedo")]
+        # (buffer, format, attribute names...) per buffer of the lighting vertices
+        content: list[tuple[moderngl.Buffer | str, ...]] = [(self.vbo, "4f 3f 3f", "in_pos", "in_normal", "in_albedo")]
         #: the programs of the occluder's base and light passes: ``rich = (base, light)`` (the texture / sky /
         #: albedo-gain shaders) when given, else the plain ones this was made with
         self.prog_base, self.prog_light = (prog_base, prog_occ) if rich is None else rich
@@ -141,9 +185,9 @@ class CasterBuffers:
         if rich is not None:
             prog_base, prog_occ = rich
             shade = np.zeros((len(first), 4), np.float32)
-            if textured:
-                shade[:, :2] = material.uv.reshape(-1, 2)[first]
-                self.texture = _texture(ctx, material.texture)
+            if tex_uv is not None and tex_image is not None:  # = textured
+                shade[:, :2] = tex_uv.reshape(-1, 2)[first]
+                self.texture = _texture(ctx, tex_image)
             if sky is not None:
                 shade[:, 2:] = _object_sky(ctx, caster, v[corner_v], nrm.reshape(-1, 3)[first], sky)
             self.shade_vbo = ctx.buffer(shade.tobytes())
@@ -192,11 +236,11 @@ class CasterBuffers:
         self.sub_vao = ctx.vertex_array(
             prog_occ, content, index_buffer=self.sub_ibo, index_element_size=4, skip_errors=True
         )
-        self.sub_ranges = {}
-        self.sub_key = None  # the lights sub_ibo holds subsets for
-        self._planar_sub_vao = None
+        self.sub_ranges: dict[int, tuple[int, int]] = {}
+        self.sub_key: tuple[bytes, ...] | None = None  # the lights sub_ibo holds subsets for
+        self._planar_sub_vao: moderngl.VertexArray | None = None
 
-    def planar_sub_vao(self, ctx, prog):
+    def planar_sub_vao(self, ctx: moderngl.Context, prog: moderngl.Program) -> moderngl.VertexArray:
         """Positions of the light-facing subsets (``sub_ibo``) for the direct planar pass (made on first use)."""
         if self._planar_sub_vao is None:
             self._planar_sub_vao = ctx.vertex_array(
@@ -204,7 +248,7 @@ class CasterBuffers:
             )
         return self._planar_sub_vao
 
-    def upload_light_subsets(self, passes) -> None:
+    def upload_light_subsets(self, passes: Sequence[LightPass]) -> None:
         """Write, for each pass, the light-facing triangles (closed meshes) into ``sub_ibo``; records
         ``sub_ranges[i] = (first, count)``. Skipped when the lights are those of the previous call (lights
         fixed in the world: the subsets are per mesh and light, not per frame)."""
@@ -215,7 +259,8 @@ class CasterBuffers:
         if key == self.sub_key:
             return
         self.sub_ranges, self.sub_key = {}, key
-        parts, first = [], 0
+        parts: list[np.ndarray] = []
+        first = 0
         for i, h in enumerate(lights):
             facing = self.face_planes @ h > 0.0
             sub = self.light_tris[facing]
@@ -230,7 +275,7 @@ class CasterBuffers:
                 self.sub_ibo.orphan(2 * data.nbytes)
             self.sub_ibo.write(data)
 
-    def release(self):
+    def release(self) -> None:
         for o in (
             self.shade_base_vao,
             self.shade_vbo,
@@ -250,7 +295,9 @@ class CasterBuffers:
                 o.release()
 
 
-def _object_sky(ctx, caster, points: np.ndarray, normals: np.ndarray, sky: str) -> np.ndarray:
+def _object_sky(
+    ctx: moderngl.Context, caster: ShadowCaster, points: np.ndarray, normals: np.ndarray, sky: str
+) -> np.ndarray:
     """``(k, 2)``: sky visibility and ground view of the shading vertices, self-occlusion found with item
     buffers drawn on this context (:class:`arshadow.gl.sky.GLItemBuffer`, 512 px, 64 directions)."""
     from .sky import GLItemBuffer
@@ -259,8 +306,9 @@ def _object_sky(ctx, caster, points: np.ndarray, normals: np.ndarray, sky: str) 
     # left GL_INVALID_OPERATION when the next one was made)
     extra = _program_cache(ctx)
 
-    def draw(xy, depth, faces, res):  # made on first use: a convex mesh needs none
-        ib = extra.get("item_buffer_512")
+    def draw(xy: np.ndarray, depth: np.ndarray, faces: np.ndarray, res: int) -> np.ndarray:
+        # made on first use: a convex mesh needs none
+        ib: GLItemBuffer | None = extra.get("item_buffer_512")
         if ib is None:
             ib = extra["item_buffer_512"] = GLItemBuffer(ctx, 512)
         return ib(xy, depth, faces, res)
@@ -269,7 +317,7 @@ def _object_sky(ctx, caster, points: np.ndarray, normals: np.ndarray, sky: str) 
     return np.stack([s, g], axis=1)
 
 
-def _texture(ctx, image: np.ndarray):
+def _texture(ctx: moderngl.Context, image: np.ndarray) -> moderngl.Texture:
     """``(h, w, 3)`` linear RGB (row 0 = the image's top) as a mipmapped half-float texture, rows flipped
     to GL order (texel row 0 = the image's bottom, so ``v`` counts from the bottom as the UVs do)."""
     img = np.ascontiguousarray(np.asarray(image, np.float32)[::-1, :, :3].astype(np.float16))
@@ -280,14 +328,14 @@ def _texture(ctx, image: np.ndarray):
     return tex
 
 
-def ground_vertices(ground_size=None, origin=None) -> np.ndarray:
+def ground_vertices(ground_size: float | None = None, origin: npt.ArrayLike | None = None) -> np.ndarray:
     """The ground plane z = 0 as 12 homogeneous vertices ``(12, 4) float32`` (4 triangles, CCW seen from
     +z): unlimited (``None``: triangles fanning out to points at infinity, w = 0) or a square of side
     ``ground_size`` centred on the world origin (2 triangles padded with degenerate ones).
 
     ``origin (3,)``: the vertices relative to this point (:func:`local_origin`; points at infinity
     unchanged); the unlimited fan's centre is then the ground point under it (small local coordinates)."""
-    origin = np.zeros(3) if origin is None else np.asarray(origin, np.float64)
+    o3 = np.zeros(3) if origin is None else np.asarray(origin, np.float64)
     tris: list[tuple[float, float, float, float]]
     if ground_size is None:
         o, px, py, nx, ny = (0, 0, 0, 1), (1, 0, 0, 0), (0, 1, 0, 0), (-1, 0, 0, 0), (0, -1, 0, 0)
@@ -301,21 +349,22 @@ def ground_vertices(ground_size=None, origin=None) -> np.ndarray:
         tris = [a, b, c, a, c, d] + [(0.0, 0.0, 0.0, 1.0)] * 6
     t = np.asarray(tris, dtype=np.float64)
     if ground_size is None:
-        t[t[:, 3] == 1.0, :2] = origin[:2]  # fan centre under the origin (the plane itself stays z = 0)
-    t[:, :3] -= origin * t[:, 3:4]
+        t[t[:, 3] == 1.0, :2] = o3[:2]  # fan centre under the origin (the plane itself stays z = 0)
+    t[:, :3] -= o3 * t[:, 3:4]
     return t.astype(np.float32)
 
 
-def local_origin(vertices) -> np.ndarray:
+def local_origin(vertices: npt.ArrayLike) -> np.ndarray:
     """(3,) float64: the centre of the bounding box of ``vertices (n, 3)``, the origin of the frame the GPU
     works in. Every position is converted to float32 relative to it (and the matrices absorb the
     translation in float64): a millimetre object 1 km from the marker keeps float32's relative precision
     of its own size instead of losing ~0.06 mm (float32 at 1000) to the distance."""
     v = np.asarray(vertices, np.float64)
-    return 0.5 * (v.min(axis=0) + v.max(axis=0)) if len(v) else np.zeros(3)
+    centre: np.ndarray = 0.5 * (v.min(axis=0) + v.max(axis=0)) if len(v) else np.zeros(3)
+    return centre
 
 
-def translation(o) -> np.ndarray:
+def translation(o: npt.ArrayLike) -> np.ndarray:
     """(4, 4) float64: the translation by ``o (3,)``."""
     t = np.eye(4)
     t[:3, 3] = o
@@ -335,7 +384,13 @@ class CasterCache:
         Least recently *made* entries are released beyond this many.
     """
 
-    def __init__(self, ctx, programs, max_cached: int, rich_programs=None):
+    def __init__(
+        self,
+        ctx: moderngl.Context,
+        programs: tuple[moderngl.Program, moderngl.Program, moderngl.Program],
+        max_cached: int,
+        rich_programs: tuple[moderngl.Program, moderngl.Program] | None = None,
+    ) -> None:
         self.ctx = ctx
         self.programs = tuple(programs)
         #: (base, light) programs with textures, sky shading and the albedo gain (None: never used)
@@ -344,7 +399,12 @@ class CasterCache:
         self._entries: dict[int, tuple[Callable[[], object], tuple, CasterBuffers]] = {}
 
     def get(
-        self, caster, occluder_color, crease_deg: float, sky: str | None = None, rich: bool = False
+        self,
+        caster: ShadowCaster,
+        occluder_color: npt.ArrayLike | None,
+        crease_deg: float,
+        sky: str | None = None,
+        rich: bool = False,
     ) -> CasterBuffers:
         """The buffers of ``caster`` with ``occluder_color`` ((3,) sRGB or None), made on first use; ``sky``
         (a sky model of :mod:`arshadow.shading.sky`, or None): with the object's sky visibility per vertex;
@@ -382,7 +442,7 @@ class CasterCache:
             ref = weakref.ref(caster)
         except TypeError:  # objects without weakref support: keep a strong reference
 
-            def strong(obj=caster):
+            def strong(obj: object = caster) -> object:
                 return obj
 
             ref = strong
@@ -409,14 +469,23 @@ class VolumeBuffers:
         The program the vertex array is made for (``in_pos``: vec4).
     """
 
-    def __init__(self, ctx, prog_volume):
+    def __init__(self, ctx: moderngl.Context, prog_volume: moderngl.Program) -> None:
         self.ctx = ctx
         self.prog = prog_volume
-        self.vbo = self.ibo = self.vao = None
+        self.vbo: moderngl.Buffer | None = None
+        self.ibo: moderngl.Buffer | None = None
+        self.vao: moderngl.VertexArray | None = None
         self._cap = (0, 0)
-        self._last = None  # (volumes, ranges, origin) of the last upload, kept when their arrays are read-only
+        # (volumes, ranges, origin) of the last upload, kept when their arrays are read-only
+        self._last: tuple[tuple[ShadowVolume | None, ...], tuple[tuple[int, int] | None, ...], np.ndarray] | None = None
 
-    def upload(self, passes, origin=None) -> list:
+    @property
+    def array(self) -> moderngl.VertexArray:
+        """The vertex array of the uploaded volumes (made by the first :meth:`upload` with a volume)."""
+        assert self.vao is not None, "upload() first"
+        return self.vao
+
+    def upload(self, passes: Sequence[LightPass], origin: npt.ArrayLike | None = None) -> list[tuple[int, int] | None]:
         """Write every light's volume into the reused vertex/index buffers; returns per-pass
         ``(first_index, n_indices)`` (None where a pass has no volume).
 
@@ -424,19 +493,20 @@ class VolumeBuffers:
         put: when the passes' volumes are exactly those of the previous upload, the buffers already hold
         them and nothing is converted or uploaded. ``origin (3,)``: vertices are written relative to it
         (:func:`local_origin`; points at infinity unchanged)."""
-        vols = tuple(None if p.mode == "planar" else p.volume for p in passes)
-        origin = np.zeros(3) if origin is None else np.asarray(origin, np.float64)
+        # LightPass.volume: a ShadowVolume (or None)
+        vols = tuple(None if p.mode == "planar" else cast("ShadowVolume | None", p.volume) for p in passes)
+        o3 = np.zeros(3) if origin is None else np.asarray(origin, np.float64)
         last = self._last
         if (
             last is not None
             and len(last[0]) == len(vols)
             and all(a is b for a, b in zip(last[0], vols, strict=True))
-            and np.array_equal(last[2], origin)
+            and np.array_equal(last[2], o3)
         ):
             return list(last[1])
         self._last = None
         ranges: list[tuple[int, int] | None] = []
-        parts = []
+        parts: list[tuple[np.ndarray, np.ndarray, int, int]] = []
         nv = ni = 0
         frozen = True
         for vol in vols:
@@ -461,17 +531,19 @@ class VolumeBuffers:
             ni += 3 * len(t)
         if ni:
             self._reserve(16 * nv, 4 * ni)
+            vbo, ibo = self.vbo, self.ibo
+            assert vbo is not None and ibo is not None  # made by _reserve
             # each volume straight into its slice of the buffers (no concatenated copy)
             for v, t, v_first, i_first in parts:
                 idx = t.astype(np.uint32)
                 if v_first:
                     idx += np.uint32(v_first)
                 loc = v.astype(np.float64)  # relative to origin: X - origin * w (points at infinity unchanged)
-                loc[:, :3] -= origin * loc[:, 3:4]
-                self.vbo.write(loc.astype(np.float32), offset=16 * v_first)
-                self.ibo.write(idx, offset=4 * i_first)
+                loc[:, :3] -= o3 * loc[:, 3:4]
+                vbo.write(loc.astype(np.float32), offset=16 * v_first)
+                ibo.write(idx, offset=4 * i_first)
         if frozen:  # read-only arrays cannot change behind our back: safe to reuse next frame
-            self._last = (vols, tuple(ranges), origin)
+            self._last = (vols, tuple(ranges), o3)
         return ranges
 
     def _reserve(self, vbytes: int, ibytes: int) -> None:
@@ -505,21 +577,21 @@ class GroundBuffer:
         The program the vertex array is made for (``in_pos``: vec4).
     """
 
-    def __init__(self, ctx, prog):
+    def __init__(self, ctx: moderngl.Context, prog: moderngl.Program) -> None:
         self.vbo = ctx.buffer(reserve=12 * 4 * 4)
         self.vao = ctx.vertex_array(prog, [(self.vbo, "4f", "in_pos")])
-        self._key = None
+        self._key: tuple[str | float, tuple[float, ...]] | None = None
 
-    def set(self, ground_size, origin=None) -> None:
+    def set(self, ground_size: float | None, origin: npt.ArrayLike | None = None) -> None:
         """The ground z = 0 (unlimited, or a ``ground_size`` square) relative to ``origin (3,)``."""
-        origin = np.zeros(3) if origin is None else np.asarray(origin, np.float64)
-        key = ("inf" if ground_size is None else float(ground_size), tuple(origin.tolist()))
+        o3 = np.zeros(3) if origin is None else np.asarray(origin, np.float64)
+        key = ("inf" if ground_size is None else float(ground_size), tuple(o3.tolist()))
         if key == self._key:
             return
-        self.vbo.write(ground_vertices(ground_size, origin).tobytes())
+        self.vbo.write(ground_vertices(ground_size, o3).tobytes())
         self._key = key
 
-    def render(self, ctx) -> None:
+    def render(self, ctx: moderngl.Context) -> None:
         self.vao.render(ctx.TRIANGLES, vertices=12)
 
     def release(self) -> None:
@@ -527,7 +599,7 @@ class GroundBuffer:
         self.vbo.release()
 
 
-def screen_box(mvp, corners, width, height):
+def screen_box(mvp: np.ndarray, corners: np.ndarray, width: int, height: int) -> tuple[int, int, int, int]:
     """Conservative pixel box ``(x0, y0, x1, y1)`` (GL window coordinates, bottom-up, half-open) of the
     caster's projection: its 8 bounding-box ``corners (8, 4)`` (homogeneous world) projected; the whole
     canvas if a corner is not strictly in front of the camera."""

@@ -27,15 +27,22 @@ from __future__ import annotations
 import math
 import time
 import weakref
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
 from .._check import check_finite, check_shape
 from ..errors import UsageError
-from ..renderer.request import RendererBase, RenderRequest, RenderResult
+from ..renderer.request import LightPass, RendererBase, RenderRequest, RenderResult
 from . import glraw as G
 from .context import current
-from .resources import CasterBuffers, GroundBuffer, program, set_uniforms
+from .resources import CasterBuffers, GroundBuffer, program, set_uniforms, uniform
+
+if TYPE_CHECKING:  # annotations only: the context is handed in (arshadow.gl.context makes it)
+    import moderngl
+
+    from ..geometry.caster import ShadowCaster
 
 __all__ = ["ShadowMapRenderer", "light_view_projection", "MAP_SIZES"]
 
@@ -43,12 +50,14 @@ __all__ = ["ShadowMapRenderer", "light_view_projection", "MAP_SIZES"]
 MAP_SIZES = (512, 1024, 2048, 4096, 8192)
 
 
-def _f32(m) -> bytes:
+def _f32(m: npt.ArrayLike) -> bytes:
     """A (4, 4) matrix as float32 bytes, column-major (GLSL)."""
     return np.asarray(m, np.float64).T.astype(np.float32).tobytes()
 
 
-def _look_at(eye, target, up_hint=(0.0, 0.0, 1.0)) -> np.ndarray:
+def _look_at(
+    eye: npt.ArrayLike, target: npt.ArrayLike, up_hint: tuple[float, float, float] = (0.0, 0.0, 1.0)
+) -> np.ndarray:
     """OpenGL view matrix ``(4, 4)`` (camera looks down -z) from ``eye`` towards ``target``."""
     eye = np.asarray(eye, np.float64)
     f = np.asarray(target, np.float64) - eye
@@ -65,7 +74,7 @@ def _look_at(eye, target, up_hint=(0.0, 0.0, 1.0)) -> np.ndarray:
     return m
 
 
-def light_view_projection(light_h, bounds) -> np.ndarray:
+def light_view_projection(light_h: npt.ArrayLike, bounds: npt.ArrayLike) -> np.ndarray:
     """Light ``clip_from_world (4, 4) float64`` whose frustum encloses the bounding sphere of ``bounds``.
 
     Parameters
@@ -95,7 +104,8 @@ def light_view_projection(light_h, bounds) -> np.ndarray:
         view = _look_at(c + 2.0 * r * d, c)
         n, f = r, 3.0 * r
         proj = np.array([[1 / r, 0, 0, 0], [0, 1 / r, 0, 0], [0, 0, -2 / (f - n), -(f + n) / (f - n)], [0, 0, 0, 1]])
-        return proj @ view
+        ortho: np.ndarray = proj @ view
+        return ortho
     L = h[:3] / h[3]
     dist = float(np.linalg.norm(c - L))
     if dist <= r * 1.0001:
@@ -105,7 +115,8 @@ def light_view_projection(light_h, bounds) -> np.ndarray:
     n, f = dist - r, dist + r
     n = max(n, 1e-4 * dist)
     proj = np.array([[t, 0, 0, 0], [0, t, 0, 0], [0, 0, -(f + n) / (f - n), -2 * f * n / (f - n)], [0, 0, -1, 0]])
-    return proj @ _look_at(L, c)
+    persp: np.ndarray = proj @ _look_at(L, c)
+    return persp
 
 
 class ShadowMapRenderer(RendererBase):
@@ -133,18 +144,18 @@ class ShadowMapRenderer(RendererBase):
     @current
     def __init__(  # noqa: PLR0913
         self,
-        ctx,
+        ctx: moderngl.Context,
         *,
-        map_size=2048,
-        pcf=3,
-        slope_bias=2.0,
-        constant_bias=4.0,
-        shader_bias=0.0,
-        max_width=4096,
-        max_height=4096,
-        crease_deg=40.0,
-        samples=0,
-    ):
+        map_size: int = 2048,
+        pcf: int = 3,
+        slope_bias: float = 2.0,
+        constant_bias: float = 4.0,
+        shader_bias: float = 0.0,
+        max_width: int = 4096,
+        max_height: int = 4096,
+        crease_deg: float = 40.0,
+        samples: int = 0,
+    ) -> None:
         self.ctx = ctx
         self.gl = G.load()
         limit = int(ctx.info.get("GL_MAX_TEXTURE_SIZE", 8192))
@@ -179,15 +190,20 @@ class ShadowMapRenderer(RendererBase):
         self.depth_tex.repeat_x = self.depth_tex.repeat_y = False
         self.depth_tex.filter = (ctx.LINEAR, ctx.LINEAR)
         self.depth_fbo = ctx.framebuffer(depth_attachment=self.depth_tex)
-        self._fbo = None
+        self._fbo: moderngl.Framebuffer | None = None
+        self._rbs: list[moderngl.Renderbuffer] = []  # the attachments of _fbo
         self._size = (0, 0)
-        self._caster = (None, None, None)  # (weakref, key, CasterBuffers)
+        self._caster: tuple[weakref.ref[ShadowCaster] | None, tuple[float, ...] | None, CasterBuffers | None] = (
+            None,
+            None,
+            None,
+        )  # (weakref, key, CasterBuffers)
         self._released = False
 
-    def __enter__(self):
+    def __enter__(self) -> ShadowMapRenderer:
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> None:
         self.release()
 
     @current
@@ -197,7 +213,7 @@ class ShadowMapRenderer(RendererBase):
             return
         self._default_fbo.use()
         self._ground.release()
-        objs = [self.depth_fbo, self.depth_tex]
+        objs: list[moderngl.Framebuffer | moderngl.Texture | moderngl.Renderbuffer] = [self.depth_fbo, self.depth_tex]
         if self._fbo is not None:
             objs += [self._fbo, *self._rbs]
         for o in objs:
@@ -207,10 +223,10 @@ class ShadowMapRenderer(RendererBase):
         self._caster = (None, None, None)
         self._released = True
 
-    def _buffers(self, caster, occluder_color):
+    def _buffers(self, caster: ShadowCaster, occluder_color: npt.ArrayLike | None) -> CasterBuffers:
         ckey = None if occluder_color is None else tuple(float(c) for c in np.ravel(occluder_color)[:3])
         ref, key, bufs = self._caster
-        if ref is not None and ref() is caster and key == ckey:
+        if ref is not None and bufs is not None and ref() is caster and key == ckey:  # bufs: set with ref
             return bufs
         if bufs is not None:
             bufs.release()
@@ -221,11 +237,13 @@ class ShadowMapRenderer(RendererBase):
         self._caster = (weakref.ref(caster), ckey, bufs)
         return bufs
 
-    def _targets(self, width, height):
-        if self._fbo is None or self._size[0] < width or self._size[1] < height:
-            if self._fbo is not None:
-                for o in (self._fbo, *self._rbs):
-                    o.release()
+    def _targets(self, width: int, height: int) -> moderngl.Framebuffer:
+        fbo = self._fbo
+        if fbo is None or self._size[0] < width or self._size[1] < height:
+            if fbo is not None:
+                fbo.release()
+                for rb in self._rbs:
+                    rb.release()
             w, h = max(width, self._size[0]), max(height, self._size[1])
             ctx = self.ctx
             self._default_fbo.use()
@@ -234,9 +252,9 @@ class ShadowMapRenderer(RendererBase):
                 ctx.renderbuffer((w, h), 2, dtype="f4"),
                 ctx.depth_renderbuffer((w, h)),
             ]
-            self._fbo = ctx.framebuffer(color_attachments=self._rbs[:2], depth_attachment=self._rbs[2])
+            fbo = self._fbo = ctx.framebuffer(color_attachments=self._rbs[:2], depth_attachment=self._rbs[2])
             self._size = (w, h)
-        return self._fbo
+        return fbo
 
     @current
     def render(self, request: RenderRequest) -> RenderResult:
@@ -300,7 +318,14 @@ class ShadowMapRenderer(RendererBase):
             },
         )
 
-    def _base_pass(self, fbo, mvp, size, bufs, draw_occluder) -> None:
+    def _base_pass(
+        self,
+        fbo: moderngl.Framebuffer,
+        mvp: np.ndarray,
+        size: tuple[int, int],
+        bufs: CasterBuffers,
+        draw_occluder: bool,
+    ) -> None:
         """Clear; the occluder (ambient, coverage) and the ground (coverage) of the ``size = (width,
         height)`` canvas (the shading's uniforms: written by ``render``)."""
         ctx, (width, height) = self.ctx, size
@@ -312,11 +337,11 @@ class ShadowMapRenderer(RendererBase):
         ctx.enable_only(ctx.DEPTH_TEST)
         ctx.depth_func = "<"
         for prog in (self.prog_occ, self.prog_ground):
-            prog["u_mvp"].write(_f32(mvp))
-            prog["u_light_vp"].write(_f32(np.eye(4)))
-            prog["u_pass"].value = 0
-        self.prog_occ["u_is_ground"].value = 0
-        self.prog_ground["u_is_ground"].value = 1
+            uniform(prog, "u_mvp").write(_f32(mvp))
+            uniform(prog, "u_light_vp").write(_f32(np.eye(4)))
+            uniform(prog, "u_pass").value = 0
+        uniform(self.prog_occ, "u_is_ground").value = 0
+        uniform(self.prog_ground, "u_is_ground").value = 1
         ctx.cull_face = "back"
         if draw_occluder:
             ctx.enable_only(ctx.DEPTH_TEST | self._cull(bufs))
@@ -324,11 +349,19 @@ class ShadowMapRenderer(RendererBase):
             ctx.enable_only(ctx.DEPTH_TEST)
         self._ground.render(ctx)
 
-    def _cull(self, bufs) -> int:
+    def _cull(self, bufs: CasterBuffers) -> int:
         """Closed meshes: back faces are never visible (the CULL_FACE flag, or 0)."""
         return self.ctx.CULL_FACE if bufs.cull else 0
 
-    def _light_pass(self, fbo, size, bufs, p, bounds_eye, draw_occluder) -> None:
+    def _light_pass(
+        self,
+        fbo: moderngl.Framebuffer,
+        size: tuple[int, int],
+        bufs: CasterBuffers,
+        p: LightPass,
+        bounds_eye: tuple[np.ndarray, np.ndarray],
+        draw_occluder: bool,
+    ) -> None:
         """One light: the caster's depth from the light into the map, then the ground (its blocked weight)
         and the occluder (its lit Phong term) again, compared against the map. ``size``: ``(width,
         height)``; ``bounds_eye``: the caster's bounds and the camera centre."""
@@ -346,7 +379,7 @@ class ShadowMapRenderer(RendererBase):
         ctx.depth_func = "<"
         gl.glEnable(G.GL_POLYGON_OFFSET_FILL)
         gl.glPolygonOffset(self.slope_bias, self.constant_bias)
-        self.prog_depth["u_mvp"].write(_f32(lvp))
+        uniform(self.prog_depth, "u_mvp").write(_f32(lvp))
         bufs.planar_vao.render(ctx.TRIANGLES, vertices=bufs.n_indices)
         gl.glDisable(G.GL_POLYGON_OFFSET_FILL)
 
@@ -358,19 +391,19 @@ class ShadowMapRenderer(RendererBase):
         gl.glDepthMask(G.GL_FALSE)
         self.depth_tex.use(location=0)
         for prog in (self.prog_ground, self.prog_occ):
-            prog["u_light_vp"].write(_f32(lvp))
-            prog["u_pass"].value = 1
-            prog["u_map"].value = 0
-            prog["u_pcf"].value = self.pcf
-            prog["u_texel"].value = 1.0 / self.map_size
-            prog["u_bias"].value = self.shader_bias
-        self.prog_ground["u_weight"].value = w
+            uniform(prog, "u_light_vp").write(_f32(lvp))
+            uniform(prog, "u_pass").value = 1
+            uniform(prog, "u_map").value = 0
+            uniform(prog, "u_pcf").value = self.pcf
+            uniform(prog, "u_texel").value = 1.0 / self.map_size
+            uniform(prog, "u_bias").value = self.shader_bias
+        uniform(self.prog_ground, "u_weight").value = w
         self._ground.render(ctx)
         if draw_occluder:
             ctx.enable_only(ctx.DEPTH_TEST | ctx.BLEND | self._cull(bufs))
             po = self.prog_occ
-            po["u_light"].value = tuple(float(x) for x in lh)
-            po["u_light_color"].value = tuple(float(x) * w for x in np.asarray(p.color, np.float64)[:3])
-            po["u_eye"].value = tuple(float(x) for x in eye)  # the shading's uniforms: written by render
+            uniform(po, "u_light").value = tuple(float(x) for x in lh)
+            uniform(po, "u_light_color").value = tuple(float(x) * w for x in np.asarray(p.color, np.float64)[:3])
+            uniform(po, "u_eye").value = tuple(float(x) for x in eye)  # the shading's uniforms: written by render
             bufs.vao.render(ctx.TRIANGLES, vertices=bufs.n_indices)
         gl.glDepthMask(G.GL_TRUE)

@@ -14,11 +14,14 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from . import glraw as G
-from .resources import program
+from .resources import program, uniform
 
 if TYPE_CHECKING:
+    import moderngl
+
     from ..geometry.caster import ShadowCaster
-    from ..shading.sky import GroundGrid
+    from ..shading.sky import GroundGrid, GroundOcclusion
+    from .glraw import GL
 
 __all__ = ["GLGroundRaster", "GLItemBuffer", "GroundSkyPass"]
 
@@ -39,7 +42,7 @@ class GroundSkyPass:
     occlusion : arshadow.shading.sky.GroundOcclusion
     """
 
-    def __init__(self, ctx, occlusion):
+    def __init__(self, ctx: moderngl.Context, occlusion: GroundOcclusion) -> None:
         self.occlusion = occlusion
         self.prog = program(ctx, "sky_ground.vert", "sky_ground.frag")
         vis = np.ascontiguousarray(occlusion.visibility, dtype=np.float32)
@@ -51,7 +54,7 @@ class GroundSkyPass:
         self.corners = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], np.float64)
         self.vbo = ctx.buffer(reserve=6 * 6 * 4, dynamic=True)
         self.vao = ctx.vertex_array(self.prog, [(self.vbo, "4f 2f", "in_pos", "in_st")])
-        self._origin = None
+        self._origin: np.ndarray | None = None
 
     def _upload(self, origin: np.ndarray) -> None:
         """The square's vertices relative to the caster's local origin (float32 near the object)."""
@@ -67,7 +70,9 @@ class GroundSkyPass:
         self.vbo.write(data.tobytes())
         self._origin = np.array(origin, np.float64)
 
-    def draw(self, ctx, gl, mvp_bytes: bytes, origin: np.ndarray, ground_bit: int, occluder_bit: int) -> None:
+    def draw(  # noqa: PLR0913 (the context, its raw GL, the frame's matrix and origin, two stencil bits)
+        self, ctx: moderngl.Context, gl: GL, mvp_bytes: bytes, origin: np.ndarray, ground_bit: int, occluder_bit: int
+    ) -> None:
         """Add ``1 - V`` into the mask target's ``b`` where the stencil has the ground bit and not the
         occluder bit (depth test off: the stencil already says the ground is the visible surface)."""
         self._upload(np.asarray(origin, np.float64))
@@ -80,9 +85,9 @@ class GroundSkyPass:
         gl.glStencilOp(G.GL_KEEP, G.GL_KEEP, G.GL_KEEP)
         gl.glStencilFunc(G.GL_EQUAL, ground_bit, ground_bit | occluder_bit)
         gl.draw_buffer_list([None, 1])
-        self.prog["u_mvp"].write(mvp_bytes)
+        uniform(self.prog, "u_mvp").write(mvp_bytes)
         self.tex.use(location=0)
-        self.prog["u_vis"].value = 0
+        uniform(self.prog, "u_vis").value = 0
         self.vao.render(ctx.TRIANGLES, vertices=6)
         gl.draw_buffers(2)
         gl.glDepthMask(G.GL_TRUE)
@@ -105,7 +110,7 @@ class GLItemBuffer:
         Side of the square buffer in pixels.
     """
 
-    def __init__(self, ctx, res: int):
+    def __init__(self, ctx: moderngl.Context, res: int) -> None:
         self.ctx, self.res = ctx, int(res)
         self.prog = program(ctx, "item.vert", "item.frag")
         self.tex = ctx.texture((self.res, self.res), 1, dtype="i4")
@@ -115,18 +120,24 @@ class GLItemBuffer:
         ctx.detect_framebuffer(0).use()
         self.fbo = ctx.framebuffer(color_attachments=[self.tex], depth_attachment=self.depth)
         self._cap = 0
-        self.vbo = self.ibo = self.vao = None
+        self.vbo: moderngl.Buffer | None = None
+        self.ibo: moderngl.Buffer | None = None
+        self.vao: moderngl.VertexArray | None = None
 
-    def _buffers(self, n: int, m: int) -> None:
-        if self.vbo is None or n * 12 > self.vbo.size or m * 12 > self.ibo.size:
-            for o in (self.vao, self.vbo, self.ibo):
+    def _buffers(self, n: int, m: int) -> tuple[moderngl.Buffer, moderngl.Buffer, moderngl.VertexArray]:
+        """The vertex, index and vertex-array objects, grown to ``n`` vertices and ``m`` triangles."""
+        vbo, ibo, vao = self.vbo, self.ibo, self.vao
+        if vbo is None or ibo is None or vao is None or n * 12 > vbo.size or m * 12 > ibo.size:
+            for o in (vao, vbo, ibo):
                 if o is not None:
                     o.release()
-            self.vbo = self.ctx.buffer(reserve=max(n * 12, 64) * 2, dynamic=True)
-            self.ibo = self.ctx.buffer(reserve=max(m * 12, 64) * 2, dynamic=True)
-            self.vao = self.ctx.vertex_array(self.prog, [(self.vbo, "3f", "in_pos")], index_buffer=self.ibo)
+            vbo = self.vbo = self.ctx.buffer(reserve=max(n * 12, 64) * 2, dynamic=True)
+            ibo = self.ibo = self.ctx.buffer(reserve=max(m * 12, 64) * 2, dynamic=True)
+            vao = self.vao = self.ctx.vertex_array(self.prog, [(vbo, "3f", "in_pos")], index_buffer=ibo)
+        return vbo, ibo, vao
 
     def __call__(self, xy: np.ndarray, depth: np.ndarray, f: np.ndarray, res: int) -> np.ndarray:
+        """``(res, res) int32``: :func:`arshadow.shading.raster.item_buffer`'s result, drawn here."""
         if int(res) != self.res:
             raise ValueError(f"GLItemBuffer made for {self.res} px, asked for {res}")
         ctx = self.ctx
@@ -138,15 +149,15 @@ class GLItemBuffer:
         pos = np.empty((len(xy), 3), np.float32)
         pos[:, :2] = np.asarray(xy, np.float64) / self.res * 2.0 - 1.0
         pos[:, 2] = -(np.asarray(depth, np.float64) - 0.5 * (d0 + d1)) / half * 0.99  # nearer the source: smaller z
-        self._buffers(len(pos), len(f))
-        self.vbo.write(pos.tobytes())
-        self.ibo.write(np.ascontiguousarray(f, np.int32).tobytes())
+        vbo, ibo, vao = self._buffers(len(pos), len(f))
+        vbo.write(pos.tobytes())
+        ibo.write(np.ascontiguousarray(f, np.int32).tobytes())
         self.fbo.use()
         self.fbo.viewport = (0, 0, self.res, self.res)
         self.fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
         ctx.enable_only(ctx.DEPTH_TEST)
         ctx.depth_func = "<"
-        self.vao.render(ctx.TRIANGLES, vertices=3 * len(f))
+        vao.render(ctx.TRIANGLES, vertices=3 * len(f))
         ids = np.frombuffer(self.tex.read(), np.int32).reshape(self.res, self.res)
         ctx.enable_only(ctx.NOTHING)
         return ids - 1
@@ -169,21 +180,24 @@ class GLGroundRaster:
     ctx : moderngl.Context
     """
 
-    def __init__(self, ctx: Any) -> None:
+    def __init__(self, ctx: moderngl.Context) -> None:
         self.ctx = ctx
         self._res = 0
-        self._objs: list[Any] = []  # made on first use (a renderer that never draws sky occlusion makes none)
-        self.acc_vao: Any = None
+        self._objs: list[
+            Any
+        ] = []  # moderngl objects, made on first use (a renderer that never draws sky occlusion makes none)
+        self.acc_vao: moderngl.VertexArray | None = None
 
-    def _targets(self, res: int) -> None:
-        """The programs (first use) and the ``res x res`` scratch and sums targets (remade for a new size)."""
+    def _targets(self, res: int) -> moderngl.VertexArray:
+        """The programs (first use) and the ``res x res`` scratch and sums targets (remade for a new size);
+        returns the sums pass's vertex array."""
         ctx = self.ctx
         if self.acc_vao is None:
             self.prog = program(ctx, "ground_raster.vert", "ground_raster.frag")
             self.acc_prog = program(ctx, "fullscreen.vert", "ground_accum.frag")
             self.acc_vao = ctx.vertex_array(self.acc_prog, [])
         if res == self._res:
-            return
+            return self.acc_vao
         for o in self._objs:
             o.release()
         ctx.detect_framebuffer(0).use()  # see GLItemBuffer: moderngl rebinds "its" current framebuffer
@@ -195,6 +209,7 @@ class GLGroundRaster:
         self.sums_fbo = ctx.framebuffer(color_attachments=[self.sums])
         self._objs = [self.scratch_fbo, self.sums_fbo, self.depth, self.scratch, self.sums]
         self._res = res
+        return self.acc_vao
 
     def __call__(
         self,
@@ -207,7 +222,7 @@ class GLGroundRaster:
         """``(open, bounce)`` ``(res, res) float64`` sums (:class:`arshadow.shading.sky.GroundRaster`)."""
         ctx, res = self.ctx, int(grid.res)
         ctx.__enter__()
-        self._targets(res)
+        acc_vao = self._targets(res)
         size = grid.texel * res
         cx, cy = grid.x0 + 0.5 * size, grid.y0 + 0.5 * size
         m = len(caster.faces)
@@ -221,11 +236,11 @@ class GLGroundRaster:
         vao = ctx.vertex_array(self.prog, [(vbo, "3f", "in_pos")], index_buffer=ibo)
         zmax = max(float(caster.vertices[:, 2].max()), 1e-9)
         below = float(caster.vertices[:, 2].min()) < 0.0
-        self.prog["u_grid"].value = (-0.5 * size, -0.5 * size, size)
-        self.prog["u_values"].value = 1
+        uniform(self.prog, "u_grid").value = (-0.5 * size, -0.5 * size, size)
+        uniform(self.prog, "u_values").value = 1
         values.use(location=1)
         self.scratch.use(location=0)
-        self.acc_prog["u_scratch"].value = 0
+        uniform(self.acc_prog, "u_scratch").value = 0
         self.sums_fbo.use()
         self.sums_fbo.clear(0.0, 0.0, 0.0, 0.0)
         # the faces turned towards the ground project clockwise seen from above: a closed mesh above the
@@ -236,7 +251,7 @@ class GLGroundRaster:
         ctx.front_face = "cw"
         if below:
             ctx.enable_direct(_CLIP_DISTANCE0)
-        self.acc_prog["u_res"].value = res
+        uniform(self.acc_prog, "u_res").value = res
         dirs, weights = np.asarray(dirs, np.float64), np.asarray(weights, np.float64)
         try:
             for s0 in range(0, len(dirs), _TILES):  # a batch of directions side by side, then one sum pass
@@ -247,16 +262,16 @@ class GLGroundRaster:
                 ctx.depth_func = "<"
                 for k, d in enumerate(dirs[s0 : s0 + _TILES]):
                     self.scratch_fbo.viewport = (k * res, 0, res, res)
-                    self.prog["u_dir"].value = tuple(float(x) for x in d)
-                    self.prog["u_tmax"].value = 1.001 * zmax / float(d[2])
+                    uniform(self.prog, "u_dir").value = tuple(float(x) for x in d)
+                    uniform(self.prog, "u_tmax").value = 1.001 * zmax / float(d[2])
                     vao.render(ctx.TRIANGLES)
                 w = np.zeros(_TILES)
                 w[: len(weights[s0 : s0 + _TILES])] = weights[s0 : s0 + _TILES]
                 self.sums_fbo.use()
                 ctx.enable_only(ctx.BLEND)
                 ctx.blend_func = ctx.ONE, ctx.ONE
-                self.acc_prog["u_weight"].value = tuple(float(x) for x in w)
-                self.acc_vao.render(ctx.TRIANGLES, vertices=3)
+                uniform(self.acc_prog, "u_weight").value = tuple(float(x) for x in w)
+                acc_vao.render(ctx.TRIANGLES, vertices=3)
             sums = np.frombuffer(self.sums.read(), np.float32).reshape(res, res, 2).astype(np.float64)
         finally:
             if below:

@@ -1,6 +1,6 @@
 """Offscreen stencil shadow-volume renderer (moderngl + raw GL stencil through ctypes): :class:`ShadowRenderer`.
 
-(About 720 lines, over the project's ~600, on purpose: this is one class, and its methods are the frame's
+(About 740 lines, over the project's ~600, on purpose: this is one class, and its methods are the frame's
 passes (clear, occluder base, ground, light, planar direct, count, mask, resolve, readback), each under 80
 lines; this docstring, the frame's stencil layout and pass order, is 60 of them. The passes
 share the frame's raw GL state (stencil function and operations, write masks, depth test, bound
@@ -53,19 +53,21 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from itertools import pairwise
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .._check import check_finite, check_shape
 from ..errors import UsageError
-from ..renderer.request import MODES, LightPass, RenderLayers, RenderRequest, RenderResult
+from ..renderer.request import MODES, LightPass, RenderLayers, RenderRequest, RenderResult, Shading
 from . import glraw as G
 from .context import current, is_software
 from .layers import GpuLayers
 from .resources import (
+    CasterBuffers,
     CasterCache,
     GroundBuffer,
     VolumeBuffers,
@@ -73,9 +75,15 @@ from .resources import (
     screen_box,
     set_uniforms,
     translation,
+    uniform,
 )
 from .sky import GLGroundRaster, GroundSkyPass
-from .targets import FrameTargets
+from .targets import FrameTargets, RenderTarget
+
+if TYPE_CHECKING:  # annotations only: the context is handed in (arshadow.gl.context makes it)
+    import moderngl
+
+    from ..shading.sky import GroundOcclusion, SkyShading
 
 __all__ = ["LightPass", "RenderResult", "ShadowRenderer"]
 
@@ -87,7 +95,7 @@ BATCH_COUNT_MASK = 0x1F
 SHADOWED_BIT = 0x20
 
 
-def _object_sky(shading) -> str | None:
+def _object_sky(shading: Shading) -> str | None:
     """The sky model of the object's per-vertex sky visibility (None: the uniform ambient term)."""
     sky = getattr(shading, "sky", None)
     return None if sky is None else sky.object_sky
@@ -104,17 +112,23 @@ class _Frame:
     origin: np.ndarray  # (3,) the caster's local origin
     eye: np.ndarray  # (3,) the camera centre in the local frame
     front: str
-    bufs: Any  # CasterBuffers; None when neither the occluder nor a planar pass needs the caster's buffers
-    passes: list
-    ranges: list
+    bufs: CasterBuffers | None  # None when neither the occluder nor a planar pass needs the caster's buffers
+    passes: list[LightPass]
+    ranges: list[tuple[int, int] | None]  # per pass: (first index, index count) of its volume, or None
     draw_occluder: bool
     t0: float
     t1: float = 0.0
-    sky: Any = None  # arshadow.shading.sky.SkyShading or None (Shading.sky)
+    sky: SkyShading | None = None  # Shading.sky
 
     @property
     def size(self) -> tuple[int, int]:
         return self.width, self.height
+
+    @property
+    def caster(self) -> CasterBuffers:
+        """:attr:`bufs`, in the passes that run only when they were made (the occluder's, a planar light's)."""
+        assert self.bufs is not None, "no caster buffers in this frame"
+        return self.bufs
 
 
 class ShadowRenderer:
@@ -149,16 +163,16 @@ class ShadowRenderer:
     @current
     def __init__(
         self,
-        ctx,
+        ctx: moderngl.Context,
         *,
-        max_width=4096,
-        max_height=4096,
-        samples=0,
-        supersample=1,
-        ground_offset=(0.0, 0.0),
-        crease_deg=40.0,
-        max_cached_casters=8,
-    ):
+        max_width: int = 4096,
+        max_height: int = 4096,
+        samples: int = 0,
+        supersample: int = 1,
+        ground_offset: tuple[float, float] = (0.0, 0.0),
+        crease_deg: float = 40.0,
+        max_cached_casters: int = 8,
+    ) -> None:
         self.ctx = ctx
         self.gl = G.load()
         self.max_width, self.max_height = int(max_width), int(max_height)
@@ -202,7 +216,7 @@ class ShadowRenderer:
             rich_programs=(self.prog_rich_base, self.prog_rich_light),
         )
         self._targets = FrameTargets(ctx, self.gl, samples, self.supersample)
-        self._sky_ground = None  # GroundSkyPass of the last ground occlusion map drawn
+        self._sky_ground: GroundSkyPass | None = None  # of the last ground occlusion map drawn
         self._released = False
         # the capabilities of arshadow.renderer.request.Renderer
         #: render_gpu() keeps the layers on the GPU (arshadow.gl.gpu_compose composites them there)
@@ -215,13 +229,13 @@ class ShadowRenderer:
         self.ground_raster: GLGroundRaster = GLGroundRaster(ctx)
         #: when True, render() calls ctx.finish() after each pass and reports per-pass times (slower)
         self.profile = False
-        self._marks = []
+        self._marks: list[tuple[str, float]] = []
 
     # ------------------------------------------------------------------ resources
-    def __enter__(self):
+    def __enter__(self) -> ShadowRenderer:
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> None:
         self.release()
 
     @current
@@ -255,7 +269,7 @@ class ShadowRenderer:
         return self._main.depth_bits if self._main is not None else 0
 
     @property
-    def _main(self):
+    def _main(self) -> RenderTarget | None:
         """The main render target (None before the first render)."""
         return self._targets.main
 
@@ -295,7 +309,9 @@ class ShadowRenderer:
         tt = self._targets.texture(f.width, f.height)
         if self.supersample == 1:
             # resolve (MSAA) or copy straight into the texture target
-            self._targets.blit(self._main, tt, f.width, f.height, f.width, f.height, G.GL_NEAREST)
+            main = self._main
+            assert main is not None  # made by _draw
+            self._targets.blit(main, tt, f.width, f.height, f.width, f.height, G.GL_NEAREST)
             self._mark("resolve")
         else:
             src = self._resolve_canvas(f)
@@ -322,7 +338,7 @@ class ShadowRenderer:
         self._occluder_base_pass(f)
         self._ground_pass(f)
         if f.sky is not None and f.sky.ground is not None:
-            self._sky_pass(f)
+            self._sky_pass(f, f.sky.ground)
         for i, (p, rng) in enumerate(zip(f.passes, f.ranges, strict=True)):
             self._light_pass(f, i, p, rng)
         self._mark("occluder_light")
@@ -393,7 +409,9 @@ class ShadowRenderer:
         ctx, gl = self.ctx, self.gl
         s = self.supersample
         rw, rh = f.width * s, f.height * s
-        fbo = self._main.mgl
+        main = self._main
+        assert main is not None  # made by _begin (FrameTargets.ensure)
+        fbo = main.mgl
         fbo.viewport = (0, 0, rw, rh)
         fbo.scissor = (0, 0, rw, rh)  # clears touch only the canvas
         fbo.use()  # binds, sets viewport/scissor, and moderngl's colour/depth masks (all on)
@@ -415,7 +433,7 @@ class ShadowRenderer:
         ctx.enable_only(ctx.DEPTH_TEST)
         ctx.depth_func = "<"
         if f.draw_occluder:
-            bufs = f.bufs
+            bufs = f.caster
             ctx.enable_only(ctx.DEPTH_TEST | (ctx.CULL_FACE if bufs.cull else 0))
             ctx.cull_face = "back"
             gl.glEnable(G.GL_STENCIL_TEST)
@@ -425,11 +443,12 @@ class ShadowRenderer:
             gl.draw_buffer_list([0])
             prog = bufs.prog_base
             vao = bufs.base_vao if bufs.shade_base_vao is None else bufs.shade_base_vao
-            prog["u_mvp"].write(f.mvp_bytes)  # the shading's uniforms: written by _begin
+            uniform(prog, "u_mvp").write(f.mvp_bytes)  # the shading's uniforms: written by _begin
             if bufs.rich:
                 use_vis = bufs.sky is not None and f.sky is not None
-                prog["u_use_vis"].value = use_vis
-                prog["u_bounce"].value = tuple(float(x) for x in f.sky.bounce) if use_vis else (0.0, 0.0, 0.0)
+                uniform(prog, "u_use_vis").value = use_vis
+                bounce = tuple(float(x) for x in f.sky.bounce) if use_vis and f.sky is not None else (0.0, 0.0, 0.0)
+                uniform(prog, "u_bounce").value = bounce
                 self._bind_texture(prog, bufs)
             vao.render(ctx.TRIANGLES, vertices=bufs.n_indices)
             gl.draw_buffers(2)
@@ -446,36 +465,36 @@ class ShadowRenderer:
         if self.ground_offset != (0.0, 0.0):
             gl.glEnable(G.GL_POLYGON_OFFSET_FILL)
             gl.glPolygonOffset(*self.ground_offset)
-        if f.draw_occluder and not f.bufs.below_ground:
+        if f.draw_occluder and not f.caster.below_ground:
             gl.draw_buffer_list([None, 1])  # nothing of the occluder below z = 0 to erase: skip colour 0
         else:
             gl.draw_buffers(2)
-        self.prog_ground["u_mvp"].write(f.mvp_bytes)
+        uniform(self.prog_ground, "u_mvp").write(f.mvp_bytes)
         self._ground.render(ctx)
         gl.draw_buffers(2)
         gl.glDisable(G.GL_POLYGON_OFFSET_FILL)
         self._mark("ground")
 
     @staticmethod
-    def _bind_texture(prog, bufs) -> None:
+    def _bind_texture(prog: moderngl.Program, bufs: CasterBuffers) -> None:
         """The caster's base-colour texture on unit 0 (``u_textured`` off without one)."""
-        prog["u_textured"].value = bufs.texture is not None
+        uniform(prog, "u_textured").value = bufs.texture is not None
         if bufs.texture is not None:
             bufs.texture.use(location=0)
-            prog["u_tex"].value = 0
+            uniform(prog, "u_tex").value = 0
 
-    def _sky_pass(self, f: _Frame) -> None:
-        """The ground occlusion map (one quad on z = 0) into the mask's sky channel where the ground is
-        visible (:class:`arshadow.gl.sky.GroundSkyPass`), made on first use per map."""
+    def _sky_pass(self, f: _Frame, ground: GroundOcclusion) -> None:
+        """The ground occlusion map ``ground`` (``f.sky.ground``; one quad on z = 0) into the mask's sky channel
+        where the ground is visible (:class:`arshadow.gl.sky.GroundSkyPass`), made on first use per map."""
         sp = self._sky_ground
-        if sp is None or sp.occlusion is not f.sky.ground:
+        if sp is None or sp.occlusion is not ground:
             if sp is not None:
                 sp.release()
-            sp = self._sky_ground = GroundSkyPass(self.ctx, f.sky.ground)
+            sp = self._sky_ground = GroundSkyPass(self.ctx, ground)
         sp.draw(self.ctx, self.gl, f.mvp_bytes, f.origin, GROUND_BIT, OCCLUDER_BIT)
         self._mark("sky")
 
-    def _light_pass(self, f: _Frame, i: int, p, rng) -> None:
+    def _light_pass(self, f: _Frame, i: int, p: LightPass, rng: tuple[int, int] | None) -> None:
         """One light: its shadow into the mask, then its lighting of the occluder."""
         planar = p.mode == "planar"
         if rng is None and not planar:
@@ -483,7 +502,7 @@ class ShadowRenderer:
             if f.draw_occluder:
                 self._light_occluder(f, p, i, stencil=False)
             return
-        if planar and p.direct and f.bufs.cull and i in f.bufs.sub_ranges:
+        if planar and p.direct and f.caster.cull and i in f.caster.sub_ranges:
             self._planar_direct_pass(f, p, i)
             self._mark("mask")
             if f.draw_occluder:
@@ -496,12 +515,12 @@ class ShadowRenderer:
         if f.draw_occluder:
             self._light_occluder(f, p, i, stencil=not planar)
 
-    def _planar_direct_pass(self, f: _Frame, p, i: int) -> None:
+    def _planar_direct_pass(self, f: _Frame, p: LightPass, i: int) -> None:
         """Convex closed caster: its light-facing faces, flattened from the light, tile the shadow exactly
         once -> add the weight straight into the mask where the ground is visible and the occluder is not
         (stencil ground bit set, occluder bit clear); no count, no clear."""
         ctx, gl = self.ctx, self.gl
-        first, count = f.bufs.sub_ranges[i]
+        first, count = f.caster.sub_ranges[i]
         if p.shadow_matrix is None or not p.weight > 0 or not count:
             return
         ctx.enable_only(ctx.BLEND)  # no depth test, no culling (projection may mirror)
@@ -515,13 +534,13 @@ class ShadowRenderer:
         gl.draw_buffer_list([None, 1])
         smat = np.asarray(p.shadow_matrix, dtype=np.float64)
         prog = self.prog_planar_mask
-        prog["u_mvp"].write((f.mvp @ smat @ translation(f.origin)).T.astype(np.float32).tobytes())
-        prog["u_weight"].value = float(p.weight)
-        f.bufs.planar_sub_vao(self.ctx, prog).render(ctx.TRIANGLES, vertices=count, first=first)
+        uniform(prog, "u_mvp").write((f.mvp @ smat @ translation(f.origin)).T.astype(np.float32).tobytes())
+        uniform(prog, "u_weight").value = float(p.weight)
+        f.caster.planar_sub_vao(self.ctx, prog).render(ctx.TRIANGLES, vertices=count, first=first)
         gl.draw_buffers(2)
         gl.glDisable(G.GL_DEPTH_CLAMP)
 
-    def _count_pass(self, f: _Frame, p, rng) -> None:
+    def _count_pass(self, f: _Frame, p: LightPass, rng: tuple[int, int] | None) -> None:
         """The light's stencil count: clear the count bits (keep the ground bit), then draw its volume
         (z-pass, z-fail, batched) or its flattened caster (planar) with depth test on, depth/colour writes
         off, depth clamp on, two-sided stencil."""
@@ -544,10 +563,15 @@ class ShadowRenderer:
                 gl.glStencilFunc(G.GL_ALWAYS, 1, 0xFF)
                 gl.glStencilOp(G.GL_KEEP, G.GL_KEEP, G.GL_REPLACE)
                 smat = np.asarray(p.shadow_matrix, dtype=np.float64)
-                self.prog_volume["u_mvp"].write((f.mvp @ smat @ translation(f.origin)).T.astype(np.float32).tobytes())
-                f.bufs.planar_vao.render(ctx.TRIANGLES, vertices=f.bufs.n_indices)
-        elif getattr(p.volume, "batches", None):
-            self._batched_volume(p.volume.batches, rng[0], f.mvp_bytes)
+                uniform(self.prog_volume, "u_mvp").write(
+                    (f.mvp @ smat @ translation(f.origin)).T.astype(np.float32).tobytes()
+                )
+                f.caster.planar_vao.render(ctx.TRIANGLES, vertices=f.caster.n_indices)
+            return
+        assert rng is not None  # a volume pass with nothing to draw returned in _light_pass
+        batches = getattr(p.volume, "batches", None)  # ShadowVolume.batches
+        if batches:
+            self._batched_volume(batches, rng[0], f.mvp_bytes)
         else:
             if p.mode == "zpass":
                 gl.glStencilOpSeparate(G.GL_FRONT, G.GL_KEEP, G.GL_KEEP, G.GL_INCR_WRAP)
@@ -555,10 +579,10 @@ class ShadowRenderer:
             else:  # zfail
                 gl.glStencilOpSeparate(G.GL_BACK, G.GL_KEEP, G.GL_INCR_WRAP, G.GL_KEEP)
                 gl.glStencilOpSeparate(G.GL_FRONT, G.GL_KEEP, G.GL_DECR_WRAP, G.GL_KEEP)
-            self.prog_volume["u_mvp"].write(f.mvp_bytes)
-            self._volumes.vao.render(ctx.TRIANGLES, vertices=rng[1], first=rng[0])
+            uniform(self.prog_volume, "u_mvp").write(f.mvp_bytes)
+            self._volumes.array.render(ctx.TRIANGLES, vertices=rng[1], first=rng[0])
 
-    def _mask_pass(self, p) -> None:
+    def _mask_pass(self, p: LightPass) -> None:
         """Add the light's weight to the mask where the ground bit is set and the count != 0
         (``0x80 < stencil``), with a full-viewport triangle."""
         ctx, gl = self.ctx, self.gl
@@ -571,7 +595,7 @@ class ShadowRenderer:
             gl.glColorMask(1, 1, 1, 1)
             gl.draw_buffer_list([None, 1])  # adds (weight, 0): the ground channel is unchanged
             gl.glStencilFunc(G.GL_LESS, GROUND_BIT, 0xFF)
-            self.prog_mask["u_weight"].value = float(p.weight)
+            uniform(self.prog_mask, "u_weight").value = float(p.weight)
             self._fs_vao.render(ctx.TRIANGLES, vertices=3)
             gl.draw_buffers(2)
 
@@ -592,13 +616,13 @@ class ShadowRenderer:
         ctx.depth_func = "<"
         ctx.front_face = "ccw"
 
-    def _resolve_canvas(self, f: _Frame):
+    def _resolve_canvas(self, f: _Frame) -> RenderTarget:
         """MSAA resolve / supersampling downsample into a single-sample canvas-size target (returned)."""
         src = self._targets.resolve_canvas(f.width, f.height)
         self._mark("resolve")
         return src
 
-    def _readback(self, f: _Frame, src) -> RenderResult:
+    def _readback(self, f: _Frame, src: RenderTarget) -> RenderResult:
         """One read per attachment of just the canvas, rows flipped to top-down. Colour: only the
         occluder's conservative screen box is read (np.zeros pages elsewhere stay untouched);
         mask/ground: the whole canvas."""
@@ -611,7 +635,7 @@ class ShadowRenderer:
         gl.glBindBuffer(G.GL_PIXEL_PACK_BUFFER, 0)
         gl.glPixelStorei(G.GL_PACK_ALIGNMENT, 4)
         gl.glBindFramebuffer(G.GL_READ_FRAMEBUFFER, src.fbo)
-        box = screen_box(f.mvp, f.bufs.box_corners, width, height) if f.draw_occluder else None
+        box = screen_box(f.mvp, f.caster.box_corners, width, height) if f.draw_occluder else None
         if box is not None and box[2] > box[0] and box[3] > box[1]:
             x0, y0, x1, y1 = box
             gl.glPixelStorei(G.GL_PACK_ROW_LENGTH, width)
@@ -647,12 +671,12 @@ class ShadowRenderer:
             },
         )
 
-    def _mark(self, name):
+    def _mark(self, name: str) -> None:
         if self.profile:
             self.ctx.finish()
             self._marks.append((name, time.perf_counter()))
 
-    def _batched_volume(self, batches, first_index, mvp_bytes) -> None:
+    def _batched_volume(self, batches: Sequence[tuple[int, int]], first_index: int, mvp_bytes: bytes) -> None:
         """Count a batched volume (:attr:`arshadow.geometry.volume.ShadowVolume.batches`) exactly: each closed
         z-fail batch is counted in bits 0-4 (its count is 0..31, so exact modulo 32), then a full-viewport
         pass sets :data:`SHADOWED_BIT` where that count is not 0 and the count bits are cleared for the
@@ -668,8 +692,8 @@ class ShadowRenderer:
             gl.glStencilFunc(G.GL_ALWAYS, 0, 0xFF)
             gl.glStencilOpSeparate(G.GL_BACK, G.GL_KEEP, G.GL_INCR_WRAP, G.GL_KEEP)
             gl.glStencilOpSeparate(G.GL_FRONT, G.GL_KEEP, G.GL_DECR_WRAP, G.GL_KEEP)
-            self.prog_volume["u_mvp"].write(mvp_bytes)
-            self._volumes.vao.render(ctx.TRIANGLES, vertices=3 * n_tri, first=first_index + 3 * first_tri)
+            uniform(self.prog_volume, "u_mvp").write(mvp_bytes)
+            self._volumes.array.render(ctx.TRIANGLES, vertices=3 * n_tri, first=first_index + 3 * first_tri)
             gl.glDisable(G.GL_DEPTH_CLAMP)
             # count != 0 -> set the shadowed bit (ref & mask = 0: passes where the count is not 0; REPLACE
             # writes ref = SHADOWED_BIT through the write mask SHADOWED_BIT)
@@ -683,9 +707,9 @@ class ShadowRenderer:
         # the mask pass tests "stencil > GROUND_BIT": with the count bits 0 that is "shadowed bit set"
         ctx.enable_only(ctx.DEPTH_TEST)
 
-    def _light_occluder(self, f: _Frame, p, i: int, stencil: bool) -> None:
+    def _light_occluder(self, f: _Frame, p: LightPass, i: int, stencil: bool) -> None:
         """Add one light's Phong diffuse + specular to the occluder where its count is 0."""
-        ctx, gl, bufs = self.ctx, self.gl, f.bufs
+        ctx, gl, bufs = self.ctx, self.gl, f.caster
         ctx.enable_only(ctx.DEPTH_TEST | ctx.BLEND | (ctx.CULL_FACE if bufs.cull else 0))
         ctx.cull_face = "back"
         ctx.depth_func = "=="
@@ -699,13 +723,13 @@ class ShadowRenderer:
         gl.glStencilFunc(G.GL_EQUAL, OCCLUDER_BIT, 0xFF if stencil else 0xC0)
         gl.draw_buffer_list([0])
         prog = bufs.prog_light
-        prog["u_mvp"].write(f.mvp_bytes)
+        uniform(prog, "u_mvp").write(f.mvp_bytes)
         lh = np.asarray(p.light_h, dtype=np.float64).copy()
         lh[:3] -= bufs.origin * lh[3]  # the caster's local frame, like v_world
-        prog["u_light"].value = tuple(float(x) for x in lh)
+        uniform(prog, "u_light").value = tuple(float(x) for x in lh)
         col = np.asarray(p.color, dtype=np.float64)[:3] * float(p.weight)
-        prog["u_light_color"].value = tuple(float(x) for x in col)
-        prog["u_eye"].value = tuple(float(x) for x in f.eye)  # the shading's uniforms: written by _begin
+        uniform(prog, "u_light_color").value = tuple(float(x) for x in col)
+        uniform(prog, "u_eye").value = tuple(float(x) for x in f.eye)  # the shading's uniforms: written by _begin
         if bufs.rich:
             self._bind_texture(prog, bufs)
         # closed meshes: only the light-facing faces (the others lie in this light's own shadow; with a

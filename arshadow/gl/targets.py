@@ -7,9 +7,15 @@ Nothing here creates a context or imports moderngl (the objects come from the co
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
 from ..errors import GLContextError
 from . import glraw as G
 from .layers import TextureTarget
+
+if TYPE_CHECKING:  # annotations only (see above)
+    import moderngl
 
 __all__ = ["FrameTargets", "RenderTarget"]
 
@@ -17,11 +23,20 @@ __all__ = ["FrameTargets", "RenderTarget"]
 class RenderTarget:
     """A raw-GL framebuffer: colour renderbuffers (+ optional D24S8), wrapped by moderngl."""
 
-    def __init__(self, ctx, gl, width, height, samples, color_formats, depth_stencil):
+    def __init__(
+        self,
+        ctx: moderngl.Context,
+        gl: G.GL,
+        width: int,
+        height: int,
+        samples: int,
+        color_formats: Sequence[int],
+        depth_stencil: bool,
+    ) -> None:
         self.gl = gl
         self.width, self.height, self.samples = int(width), int(height), int(samples)
         self.fbo = gl.gen_framebuffer()
-        self.rbs = []
+        self.rbs: list[int] = []
         gl.glBindFramebuffer(G.GL_FRAMEBUFFER, self.fbo)
         formats = list(color_formats) + ([G.GL_DEPTH24_STENCIL8] if depth_stencil else [])
         for i, fmt in enumerate(formats):
@@ -56,7 +71,7 @@ class RenderTarget:
         self.n_color = len(color_formats)
         self.mgl = ctx.detect_framebuffer(self.fbo)
 
-    def release(self):
+    def release(self) -> None:
         gl = self.gl
         if self.fbo:
             gl.delete_framebuffer(self.fbo)
@@ -64,6 +79,12 @@ class RenderTarget:
         for rb in self.rbs:
             gl.delete_renderbuffer(rb)
         self.rbs = []
+
+
+def _made(target: RenderTarget | None) -> RenderTarget:
+    """``target``, which :meth:`FrameTargets.ensure` has made (for the size asked)."""
+    assert target is not None, "ensure() first"
+    return target
 
 
 class FrameTargets:
@@ -83,11 +104,11 @@ class FrameTargets:
     """
 
     #: colour 0: occluder colour + coverage; colour 1: shadow mask, ground coverage
-    FORMATS = (G.GL_RGBA16F, G.GL_RG16F)
+    FORMATS: tuple[int, int] = (G.GL_RGBA16F, G.GL_RG16F)
     #: with sky occlusion (:meth:`ensure` ``sky=True``): colour 1 gains the sky occlusion (b)
-    SKY_FORMATS = (G.GL_RGBA16F, G.GL_RGBA16F)
+    SKY_FORMATS: tuple[int, int] = (G.GL_RGBA16F, G.GL_RGBA16F)
 
-    def __init__(self, ctx, gl, samples: int, supersample: int):
+    def __init__(self, ctx: moderngl.Context, gl: G.GL, samples: int, supersample: int) -> None:
         self.ctx, self.gl = ctx, gl
         self.samples, self.supersample = int(samples), int(supersample)
         #: render target (MSAA and/or supersampled)
@@ -123,23 +144,25 @@ class FrameTargets:
             if s == 4:
                 self.half = RenderTarget(self.ctx, self.gl, w // 2, h // 2, 0, self.FORMATS, False)
 
-    def resolve_canvas(self, width: int, height: int):
+    def resolve_canvas(self, width: int, height: int) -> RenderTarget:
         """MSAA resolve / supersampling downsample (glBlitFramebuffer) of the canvas into a single-sample
         canvas-size target; returns it (the main target itself when there is nothing to resolve)."""
         s = self.supersample
         rw, rh = width * s, height * s
-        src = self.main
+        src = _made(self.main)
         if self.samples:
-            dst = self.resolve if s == 1 else self._main_resolve_ss()
+            dst = _made(self.resolve) if s == 1 else self._main_resolve_ss()
             self.blit(src, dst, rw, rh, rw, rh, G.GL_NEAREST)
             src = dst
         if s == 4:
-            self.blit(src, self.half, rw, rh, rw // 2, rh // 2, G.GL_LINEAR)
-            src = self.half
+            half = _made(self.half)
+            self.blit(src, half, rw, rh, rw // 2, rh // 2, G.GL_LINEAR)
+            src = half
             rw, rh = rw // 2, rh // 2
         if s > 1:
-            self.blit(src, self.resolve, rw, rh, width, height, G.GL_LINEAR)
-            src = self.resolve
+            resolve = _made(self.resolve)
+            self.blit(src, resolve, rw, rh, width, height, G.GL_LINEAR)
+            src = resolve
         return src
 
     def texture(self, width: int, height: int) -> TextureTarget:
@@ -163,7 +186,16 @@ class FrameTargets:
             self.ss_resolve = t
         return t
 
-    def blit(self, src, dst, sw, sh, dw, dh, filt) -> None:
+    def blit(
+        self,
+        src: RenderTarget | TextureTarget,
+        dst: RenderTarget | TextureTarget,
+        sw: int,
+        sh: int,
+        dw: int,
+        dh: int,
+        filt: int,
+    ) -> None:
         """Copy both colour attachments of ``src`` (``sw`` x ``sh``) into ``dst`` (``dw`` x ``dh``)."""
         gl = self.gl
         gl.glDisable(G.GL_SCISSOR_TEST)
