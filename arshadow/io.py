@@ -293,7 +293,7 @@ def atomic_path(target: Path | str) -> Iterator[Path]:
 MAKE_FOLDER_TRIES = 50
 
 
-def make_folder(path) -> Path:
+def make_folder(path: str | Path) -> Path:
     """Create the folder ``path`` and its parents (existing ones are fine); returns it as a Path.
 
     Tolerates a parent removed by another process between the creation of that parent and of its child
@@ -316,7 +316,7 @@ def make_folder(path) -> Path:
     return p
 
 
-def remove_empty_folder(path) -> bool:
+def remove_empty_folder(path: str | Path) -> bool:
     """Remove the folder ``path`` if it is empty, in one system call (``rmdir``); True when removed.
 
     A folder that is not empty (another task created something in it meanwhile) or already gone is left

@@ -77,8 +77,9 @@ def _fit_edge(s: np.ndarray, y: np.ndarray) -> tuple[float, float]:
     if b0 <= 1e-6:
         return math.nan, math.nan
 
-    def model(p):
-        return p[0] + p[1] * 0.5 * (1.0 + erf((s - p[2]) / (math.sqrt(2.0) * abs(p[3]) + 1e-12)))
+    def model(p: np.ndarray) -> np.ndarray:
+        out: np.ndarray = p[0] + p[1] * 0.5 * (1.0 + erf((s - p[2]) / (math.sqrt(2.0) * abs(p[3]) + 1e-12)))
+        return out
 
     r = least_squares(lambda p: model(p) - y, [a0, b0, 0.0, 1.0], loss="soft_l1", f_scale=0.05 * b0)
     a, b, s0, sig = r.x

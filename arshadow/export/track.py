@@ -28,16 +28,23 @@ import io
 import json
 import math
 import struct
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
+import numpy.typing as npt
 
 from ..errors import UsageError
 from ..geometry.ground import parse_ground
 from ..io import write_bytes
+
+if TYPE_CHECKING:
+    from ..camera.model import Intrinsics
+    from ..frame.report import ReportItem
+    from ..geometry.caster import ShadowCaster
 
 __all__ = [
     "CSV_COLUMNS",
@@ -95,11 +102,11 @@ class CameraTrack:
     dist: np.ndarray
     width: int
     height: int
-    frames: list = field(default_factory=list)
+    frames: list[TrackFrame] = field(default_factory=list)
     name: str = ""
 
     @classmethod
-    def from_intrinsics(cls, intr, frames=(), name: str = "") -> CameraTrack:
+    def from_intrinsics(cls, intr: Intrinsics, frames: Iterable[TrackFrame] = (), name: str = "") -> CameraTrack:
         return cls(
             np.asarray(intr.K, np.float64),
             np.asarray(intr.dist, np.float64).ravel(),
@@ -109,23 +116,26 @@ class CameraTrack:
             name,
         )
 
-    def keyed(self, lost: str = "held") -> list:
+    def keyed(self, lost: str = "held") -> list[tuple[TrackFrame, np.ndarray]]:
         """``[(TrackFrame, cam_from_world)]`` of the frames with a key: tracked, held, and with
         ``lost="held"`` the lost ones with the last pose before them (none before the first tracked one)."""
         if lost not in ("held", "absent"):
             raise UsageError(f"lost frames: expected 'held' or 'absent', got {lost!r}")
-        out, last = [], None
+        out: list[tuple[TrackFrame, np.ndarray]] = []
+        last: np.ndarray | None = None
         for f in self.frames:
             m = f.cam_from_world
             if m is not None and f.status != "lost":
                 last = m
                 out.append((f, m))
-            elif lost == "held" and (m is not None or last is not None):
-                out.append((f, m if m is not None else last))
+            elif lost == "held":
+                held = m if m is not None else last
+                if held is not None:  # none before the first tracked frame
+                    out.append((f, held))
         return out
 
 
-def gl_world_from_camera(cam_from_world) -> np.ndarray:
+def gl_world_from_camera(cam_from_world: npt.ArrayLike) -> np.ndarray:
     """(4, 4): the OpenGL camera's pose in the marker frame (x right, y up, looking down -z)."""
     m = np.asarray(cam_from_world, np.float64)
     inv = np.eye(4)
@@ -134,7 +144,7 @@ def gl_world_from_camera(cam_from_world) -> np.ndarray:
     return inv @ _CV_GL
 
 
-def quat_from_matrix(R) -> np.ndarray:
+def quat_from_matrix(R: npt.ArrayLike) -> np.ndarray:
     """(4,) float64 ``(x, y, z, w)`` unit quaternion of a 3x3 rotation, ``w >= 0``.
 
     >>> quat_from_matrix(np.diag([1.0, -1.0, -1.0])).round(6).tolist()
@@ -158,7 +168,7 @@ def quat_from_matrix(R) -> np.ndarray:
     return -qa if qa[3] < 0 else qa
 
 
-def _matrix(rvec, tvec, ground=None) -> np.ndarray:
+def _matrix(rvec: npt.ArrayLike, tvec: npt.ArrayLike, ground: str | None = None) -> np.ndarray:
     """(4, 4) float64 ``cam_from_world`` of a report's marker pose; with a ``ground`` spec (``--ground``) the
     world is the ground frame (``cam_from_marker @ marker_from_ground``), where the occluder was placed."""
     m = np.eye(4)
@@ -167,10 +177,10 @@ def _matrix(rvec, tvec, ground=None) -> np.ndarray:
     return m if not ground else m @ parse_ground(ground).marker_from_ground
 
 
-def track_from_frames_jsonl(path, intr, name: str = "") -> CameraTrack:
+def track_from_frames_jsonl(path: str | Path, intr: Intrinsics, name: str = "") -> CameraTrack:
     """The track of a video from ``arshadow video``'s ``<stem>.frames.jsonl`` (the pose each frame was
     rendered with; status ``held`` (or ``raw`` null) = held by the engine; ``no_marker`` = lost)."""
-    frames = []
+    frames: list[TrackFrame] = []
     p = Path(path)
     try:
         lines = p.read_text(encoding="utf-8").splitlines()
@@ -190,10 +200,12 @@ def track_from_frames_jsonl(path, intr, name: str = "") -> CameraTrack:
     return CameraTrack.from_intrinsics(intr, frames, name or p.name.split(".")[0])
 
 
-def track_from_items(items, intr, name: str = "photos", fps: float = 1.0) -> CameraTrack:
+def track_from_items(
+    items: Iterable[ReportItem | dict[str, Any]], intr: Intrinsics, name: str = "photos", fps: float = 1.0
+) -> CameraTrack:
     """The track of a photo set from report items (:class:`arshadow.frame.report.ReportItem` or their dicts):
     photo ``i`` at ``i / fps`` seconds; a photo without a pose is lost."""
-    frames = []
+    frames: list[TrackFrame] = []
     for i, it in enumerate(items):
         d = it if isinstance(it, dict) else it.to_dict()
         ok = d.get("status") == "ok" and d.get("rvec") is not None
@@ -209,8 +221,15 @@ def track_from_items(items, intr, name: str = "photos", fps: float = 1.0) -> Cam
 
 
 # ------------------------------------------------------------------------------------------- JSON / CSV
-def _frame_record(f: TrackFrame, m, keyed: bool) -> dict:
-    rec = {"frame": f.frame, "time_s": f.time_s, "status": f.status, "keyed": keyed, "opencv": None, "opengl": None}
+def _frame_record(f: TrackFrame, m: np.ndarray | None, keyed: bool) -> dict[str, Any]:
+    rec: dict[str, Any] = {
+        "frame": f.frame,
+        "time_s": f.time_s,
+        "status": f.status,
+        "keyed": keyed,
+        "opencv": None,
+        "opengl": None,
+    }
     if m is not None:
         rvec = cv2.Rodrigues(m[:3, :3])[0].ravel()
         g = gl_world_from_camera(m)
@@ -223,12 +242,12 @@ def _frame_record(f: TrackFrame, m, keyed: bool) -> dict:
     return rec
 
 
-def _records(track: CameraTrack, lost: str) -> list:
+def _records(track: CameraTrack, lost: str) -> list[dict[str, Any]]:
     keyed = {id(f): m for f, m in track.keyed(lost)}
     return [_frame_record(f, keyed.get(id(f)), id(f) in keyed) for f in track.frames]
 
 
-def _intrinsics_dict(track: CameraTrack) -> dict:
+def _intrinsics_dict(track: CameraTrack) -> dict[str, Any]:
     K = track.K
     return {
         "width": track.width,
@@ -244,7 +263,7 @@ def _intrinsics_dict(track: CameraTrack) -> dict:
     }
 
 
-def track_json(track: CameraTrack, lost: str = "held") -> dict:
+def track_json(track: CameraTrack, lost: str = "held") -> dict[str, Any]:
     """The JSON document of a track (conventions stated in it)."""
     from .. import __version__
 
@@ -284,11 +303,12 @@ def track_csv(track: CameraTrack, lost: str = "held") -> str:
 class _Bin:
     """The glTF binary buffer, its bufferViews and accessors."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         self.data = bytearray()
-        self.views, self.accessors = [], []
+        self.views: list[dict[str, int]] = []
+        self.accessors: list[dict[str, Any]] = []
 
-    def add(self, arr, ctype: str, target=None, minmax: bool = False) -> int:
+    def add(self, arr: np.ndarray, ctype: str, target: int | None = None, minmax: bool = False) -> int:
         arr = np.ascontiguousarray(arr)
         comp = {np.dtype(np.float32): 5126, np.dtype(np.uint32): 5125}[arr.dtype]
         while len(self.data) % 4:
@@ -299,7 +319,12 @@ class _Bin:
         self.data += arr.tobytes()
         self.views.append(view)
         count = arr.shape[0] if ctype != "SCALAR" or arr.ndim == 1 else arr.size
-        acc = {"bufferView": len(self.views) - 1, "componentType": comp, "count": int(count), "type": ctype}
+        acc: dict[str, Any] = {
+            "bufferView": len(self.views) - 1,
+            "componentType": comp,
+            "count": int(count),
+            "type": ctype,
+        }
         if minmax:
             flat = arr.reshape(int(count), -1)
             acc["min"] = [float(v) for v in flat.min(axis=0)]
@@ -308,7 +333,7 @@ class _Bin:
         return len(self.accessors) - 1
 
 
-def _mesh(b: _Bin, verts, faces, name: str, color) -> dict:
+def _mesh(b: _Bin, verts: npt.ArrayLike, faces: npt.ArrayLike, name: str, color: int) -> dict[str, Any]:
     pos = b.add(np.asarray(verts, np.float32), "VEC3", target=34962, minmax=True)
     idx = b.add(np.asarray(faces, np.uint32).ravel(), "SCALAR", target=34963)
     return {"name": name, "primitives": [{"attributes": {"POSITION": pos}, "indices": idx, "material": color}]}
@@ -317,12 +342,12 @@ def _mesh(b: _Bin, verts, faces, name: str, color) -> dict:
 def track_gltf(
     track: CameraTrack,
     *,
-    caster=None,
+    caster: ShadowCaster | None = None,
     ground_size: float = 1.0,
     lost: str = "held",
     interpolation: str = "LINEAR",
-    pivot=None,
-) -> tuple[dict, bytes]:
+    pivot: npt.ArrayLike | None = None,
+) -> tuple[dict[str, Any], bytes]:
     """The glTF document (dict) and its binary buffer.
 
     ``caster``: the occluder (:class:`arshadow.geometry.mesh.ShadowCaster`, world frame) or None;
@@ -421,7 +446,7 @@ def track_gltf(
     return doc, bytes(b.data)
 
 
-def _glb(doc: dict, data: bytes) -> bytes:
+def _glb(doc: dict[str, Any], data: bytes) -> bytes:
     js = json.dumps(doc, separators=(",", ":")).encode()
     js += b" " * (-len(js) % 4)
     total = 12 + 8 + len(js) + 8 + len(data)
@@ -435,14 +460,14 @@ def _glb(doc: dict, data: bytes) -> bytes:
 
 
 def write_track(
-    path,
+    path: str | Path,
     track: CameraTrack,
     *,
-    caster=None,
+    caster: ShadowCaster | None = None,
     ground_size: float = 1.0,
     lost: str = "held",
     interpolation: str = "LINEAR",
-    pivot=None,
+    pivot: npt.ArrayLike | None = None,
 ) -> Path:
     """Write a track by ``path``'s extension: ``.glb``, ``.gltf`` (buffer embedded), ``.json`` or ``.csv``
     (atomically); ``pivot``: the occluder's placed position (:func:`track_gltf`)."""

@@ -31,6 +31,7 @@ if TYPE_CHECKING:
     from ..geometry.volume import ShadowVolume
     from ..lights.spec import Light
     from ..scene.options import RenderOptions
+    from ..shading.sky import GroundOcclusion, GroundRaster
 
 __all__ = [
     "SceneGeometry",
@@ -415,7 +416,7 @@ class SceneGeometry:
 
         return decide_ambient_occlusion(self.options)[0]
 
-    def sky_ground(self, timings=None, raster=None):
+    def sky_ground(self, timings: StageTimings | None = None, raster: GroundRaster | None = None) -> GroundOcclusion:
         """The occluder's :class:`arshadow.shading.sky.GroundOcclusion` (computed once per scene, in the
         ground frame; ``timings.silhouette`` gets its build time, with the other per-scene geometry). Remade
         when the lights change or when the ground's reflectance is first measured (:meth:`set_ground_light`).
@@ -429,9 +430,10 @@ class SceneGeometry:
             g = self._sky_ground = (key, ground_sky_visibility(self.caster, bounce=self._bounce_light(), raster=raster))
             if timings is not None:
                 timings.silhouette += (time.perf_counter() - t) * 1e3
-        return g[1]
+        occlusion: GroundOcclusion = g[1]
+        return occlusion
 
-    def set_ground_light(self, reflected) -> None:
+    def set_ground_light(self, reflected: np.ndarray | Sequence[float]) -> None:
         """Record the light the ground round the object reflects, ``reflected (3,)`` linear RGB in the
         renderer's units (the marker paper = white: :func:`arshadow.shading.decide.ground_bounce`), once per
         scene (the first measurement is kept: the map is not remade every frame). It lights the object's
@@ -439,7 +441,7 @@ class SceneGeometry:
         if getattr(self, "_ground_light", None) is None:
             self._ground_light = round(PAPER_ALBEDO * float(np.mean(reflected)), 3)
 
-    def _bounce_light(self):
+    def _bounce_light(self) -> tuple[np.ndarray, float, float, float] | None:
         """``(light (3,), sky share, albedo, ground)`` of the object's interreflection onto the ground
         (:func:`arshadow.shading.sky.ground_sky_visibility`): the strongest light's direction from the
         object, the mean sky share, the object's mean albedo (its colour relative to the marker paper's,

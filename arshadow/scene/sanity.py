@@ -25,11 +25,22 @@ from __future__ import annotations
 import logging
 import math
 import re
-from datetime import timedelta
+from collections.abc import Iterable, Sequence
+from datetime import datetime, timedelta
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
 from ..errors import LightError, UsageError
+
+if TYPE_CHECKING:  # annotations only (sanity is imported on every path and stays light)
+    from ..camera.model import Intrinsics
+    from ..geometry.caster import ShadowCaster
+    from ..lights.spec import Light
+    from ..lights.suntrack import SunTrack
+    from ..tracking.pose import MarkerPose
 
 log = logging.getLogger(__name__)
 
@@ -96,7 +107,9 @@ def unit_guess(value: float, what: str = "--marker-length") -> str:
     return f"{u1} (then give {what} {m1:.4g}; if {u2}, {m2:.4g})"
 
 
-def scale_warnings(caster, marker_length=None, square_length=None) -> list[str]:
+def scale_warnings(
+    caster: ShadowCaster | None, marker_length: float | None = None, square_length: float | None = None
+) -> list[str]:
     """Lengths that are probably in the wrong units; one message per problem.
 
     Parameters
@@ -154,7 +167,7 @@ def scale_warnings(caster, marker_length=None, square_length=None) -> list[str]:
     return out
 
 
-def looks_y_up(caster) -> bool:
+def looks_y_up(caster: ShadowCaster) -> bool:
     """Whether a mesh read Z-up looks like a Y-up file (Blender's OBJ export): its extent along y more
     than 1.5 x its height and its z range straddling the ground (a model standing on y = 0 lies on its
     back, half under the ground).
@@ -168,7 +181,7 @@ def looks_y_up(caster) -> bool:
     return bool(size[1] > 1.5 * size[2] and lo[2] < 0.0 < hi[2])
 
 
-def ground_warnings(caster, maybe_y_up: bool = False) -> list[str]:
+def ground_warnings(caster: ShadowCaster, maybe_y_up: bool = False) -> list[str]:
     """The model reaching below the ground (z = 0 of the world frame): that part is hidden under the
     ground and casts no shadow on it. ``--drop-to-ground`` stands it on the ground.
 
@@ -197,7 +210,7 @@ def ground_warnings(caster, maybe_y_up: bool = False) -> list[str]:
     return [msg]
 
 
-def check_lights_inside(caster, lights) -> None:
+def check_lights_inside(caster: ShadowCaster, lights: Iterable[Light]) -> None:
     """LightError when a point light is inside a closed model: it lights nothing outside the model, so no
     photo can be rendered (a scene error: found once, before any work, exit 2)."""
     if caster.two_sided:
@@ -221,7 +234,7 @@ def _box_distance(p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> float:
     return float(np.linalg.norm(np.maximum(0.0, np.maximum(lo - p, p - hi))))
 
 
-def light_warnings(caster, lights, soft_samples: int = 1) -> list[str]:
+def light_warnings(caster: ShadowCaster | None, lights: Sequence[Light], soft_samples: int = 1) -> list[str]:
     """Lights that do not do what was probably meant, and lights that will make every photo slow.
 
     * ``soft_samples > 1`` with no light that has a size (``radius=``; the sun always has one): the
@@ -234,7 +247,7 @@ def light_warnings(caster, lights, soft_samples: int = 1) -> list[str]:
     >>> light_warnings(load_occluder("box:0.04,0.04,0.06"), [parse_light("point:0,0,0.5")], soft_samples=16)[0][:60]
     '--soft-samples 16: no light has a size, so the shadows stay '
     """
-    out = []
+    out: list[str] = []
     if int(soft_samples) > 1 and not any(
         float(getattr(L, "radius", 0.0)) > 0 or getattr(L, "kind", "") == "sun" for L in lights
     ):
@@ -263,7 +276,7 @@ def light_warnings(caster, lights, soft_samples: int = 1) -> list[str]:
     return out
 
 
-def check_shadowmap_lights(caster, lights) -> None:
+def check_shadowmap_lights(caster: ShadowCaster, lights: Iterable[Light]) -> None:
     """UsageError when ``--shadow-method shadowmap`` meets a point light inside the model's bounding sphere
     (one shadow map cannot see the whole model: every photo would fail the same way)."""
     lo, hi = (np.asarray(b, np.float64) for b in caster.bounds)
@@ -281,12 +294,12 @@ def check_shadowmap_lights(caster, lights) -> None:
 
 
 def check_scene(
-    caster,
-    lights,
+    caster: ShadowCaster,
+    lights: Sequence[Light],
     *,
     soft_samples: int = 1,
-    marker_length=None,
-    square_length=None,
+    marker_length: float | None = None,
+    square_length: float | None = None,
     shadow_method: str = "volume",
     maybe_y_up: bool = False,
 ) -> list[str]:
@@ -322,7 +335,7 @@ def quiet_notes() -> None:
     QUIET_NOTES = True
 
 
-def calibration_scaled_note(intrinsics, width: int, height: int, kind: str = "photo") -> str:
+def calibration_scaled_note(intrinsics: Intrinsics, width: int, height: int, kind: str = "photo") -> str:
     """The stderr line for a ``kind`` (``photo`` / ``video``) of another size than the calibration's (same
     aspect ratio: K scaled)."""
     return (
@@ -332,7 +345,9 @@ def calibration_scaled_note(intrinsics, width: int, height: int, kind: str = "ph
     )
 
 
-def sun_set_warning(tracks, start, speed: float, fps: float, n_frames: int, label: str = "") -> str | None:
+def sun_set_warning(
+    tracks: Sequence[SunTrack], start: datetime, speed: float, fps: float, n_frames: int, label: str = ""
+) -> str | None:
     """The frames of a time-lapse during which a sun is below the horizon (no shadow), or None.
 
     Parameters
@@ -359,11 +374,11 @@ def sun_set_warning(tracks, start, speed: float, fps: float, n_frames: int, labe
     step = max(1, -(-n // 2000))
     frames = list(range(0, n, step)) + ([n - 1] if (n - 1) % step else [])
 
-    def below(tr, idx):
+    def below(tr: SunTrack, idx: Iterable[int]) -> list[bool]:
         times = [start + timedelta(seconds=i * speed / fps) for i in idx]
         return [not p.above_horizon for p in sun_positions(times, tr.lat, tr.lon, tr.elevation, tr.model, **tr.kwargs)]
 
-    ranges = []
+    ranges: list[tuple[int, int]] = []
     samples = frames
     for tr in tracks:
         flags = below(tr, samples)
@@ -380,7 +395,7 @@ def sun_set_warning(tracks, start, speed: float, fps: float, n_frames: int, labe
                     else:
                         a = m
                 frames[k] = b
-        run_start = None
+        run_start: int | None = None
         for k, f in enumerate(frames):
             if flags[k] and run_start is None:
                 run_start = f
@@ -399,7 +414,7 @@ def sun_set_warning(tracks, start, speed: float, fps: float, n_frames: int, labe
     )
 
 
-def pose_flag_reasons(pose, flagged: bool | None = None) -> list[str]:
+def pose_flag_reasons(pose: MarkerPose, flagged: bool | None = None) -> list[str]:
     """Why a pose is flagged (empty when it is not): the tracker's own reasons when it gives them
     (``pose.flag_reasons``), else read from the pose's measurements (:class:`MarkerPose.ambiguous`'s tests).
 
@@ -418,7 +433,7 @@ def pose_flag_reasons(pose, flagged: bool | None = None) -> list[str]:
         MIN_CONFIDENT_SIDE_PX,
     )
 
-    out = []
+    out: list[str] = []
     ratio, thr = pose.pose_ambiguity, getattr(pose, "ambiguity_threshold", None)
     if ratio is not None and thr is not None and ratio >= thr:
         out.append(
@@ -455,13 +470,13 @@ class FrameChecks:
         For the message of a far camera (the unit mistake it probably comes from).
     """
 
-    def __init__(self, caster, marker_length=None):
+    def __init__(self, caster: ShadowCaster, marker_length: float | None = None):
         self.caster, self.marker_length = caster, marker_length
         lo, hi = caster.bounds
         self._lo, self._hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
-        self.said: set = set()
+        self.said: set[str] = set()
 
-    def check(self, cam_from_world, cam_from_marker=None) -> list[str]:
+    def check(self, cam_from_world: npt.ArrayLike, cam_from_marker: npt.ArrayLike | None = None) -> list[str]:
         """Messages for this frame's pose ``(4, 4)`` (world -> camera) not said before in this run.
         ``cam_from_marker`` ``(4, 4)``: the marker's pose when the world (the ground frame) is elsewhere
         (``--ground``): the camera's distance, a check of the marker length, is from the marker."""
@@ -469,7 +484,7 @@ class FrameChecks:
             return []
         m = np.asarray(cam_from_world, np.float64)
         eye = -m[:3, :3].T @ m[:3, 3]  # the camera centre, world frame
-        out = []
+        out: list[str] = []
         mm = m if cam_from_marker is None else np.asarray(cam_from_marker, np.float64)
         dist = float(np.linalg.norm(mm[:3, :3].T @ mm[:3, 3]))  # the camera's distance from the marker
         if dist > MAX_CAMERA_DISTANCE_M and "far" not in self.said:
@@ -491,12 +506,13 @@ class FrameChecks:
         return out
 
 
-def _ranges(keys) -> str:
+def _ranges(keys: Iterable[int | str]) -> str:
     """``[1, 2, 3, 7]`` -> ``"1-3, 7"`` (ints), names joined as they are."""
-    keys = list(keys)
-    if not keys or not all(isinstance(k, int) for k in keys):
-        return ", ".join(map(str, keys))
-    ks = sorted(keys)
+    listed = list(keys)
+    ks = [k for k in listed if isinstance(k, int)]
+    if not listed or len(ks) < len(listed):
+        return ", ".join(map(str, listed))
+    ks.sort()
     runs = [[ks[0], ks[0]]]
     for k in ks[1:]:
         if k == runs[-1][1] + 1:
@@ -506,7 +522,7 @@ def _ranges(keys) -> str:
     return ", ".join(f"{a}-{b}" if b > a else f"{a}" for a, b in runs)
 
 
-def flag_kind(reason) -> str:
+def flag_kind(reason: str) -> str:
     """The kind of a flag reason, its words before the first ``:`` or number (so that reasons that differ
     only by their measurements group into one).
 
@@ -526,11 +542,11 @@ class FlagTally:
     2 of 6 frames have a flagged pose (3-4): small marker (2); the report's flag_reasons say why for each
     """
 
-    def __init__(self):
-        self.keys: list = []
-        self.kinds: dict = {}
+    def __init__(self) -> None:
+        self.keys: list[int | str] = []
+        self.kinds: dict[str, int] = {}
 
-    def add(self, key, reasons) -> None:
+    def add(self, key: int | str, reasons: Iterable[str] | None) -> None:
         """Record the reasons (:func:`pose_flag_reasons`) of the pose of ``key`` (a frame index or a name)."""
         if not reasons:
             return
@@ -539,7 +555,7 @@ class FlagTally:
             kind = flag_kind(r)
             self.kinds[kind] = self.kinds.get(kind, 0) + 1
 
-    def summary(self, total: int, what: str = "photos", where=None) -> str | None:
+    def summary(self, total: int, what: str = "photos", where: str | Path | None = None) -> str | None:
         """One line, or None when nothing was flagged; ``where``: the file whose records carry
         ``flag_reasons`` (a video's ``.frames.jsonl``), else "the report's"."""
         if not self.keys:

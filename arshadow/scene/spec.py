@@ -47,6 +47,7 @@ import logging
 import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
+from datetime import datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -58,7 +59,7 @@ from .timelapse import TimeLapse, parse_time_lapse, time_lapse_spec
 if TYPE_CHECKING:  # annotations only (the session imports this module; these load on build)
     from ..camera.model import Intrinsics
     from ..geometry.mesh import ShadowCaster
-    from ..lights.spec import Light
+    from ..lights.spec import Light, SunLightTrack
 
 log = logging.getLogger(__name__)
 
@@ -194,7 +195,7 @@ class SceneSpec:
         Sun lights follow the frame times (video).
     """
 
-    camera: object
+    camera: str | Path | Intrinsics
     tracker: TrackerSpec
     model: ModelSpec
     lights: tuple
@@ -228,16 +229,19 @@ class SceneSpec:
         caster = self.model.build()
         for msg in ground_warnings(self.options.ground):
             log.warning(msg)
-        static, tracks, time_lapse = None, [], None
+        static: list[Light] | None = None
+        tracks: list[SunLightTrack] = []
+        time_lapse: tuple[datetime, float] | None = None
         if lights is None and self.time_lapse is not None:
             static, tracks, lights = self.time_lapse.lights(self.lights)
             time_lapse = self.time_lapse.when()
         elif lights is None:
             lights = [parse_light(s) if isinstance(s, str) else s for s in self.lights]
         opts = self.options.check()
+        light_list = list(lights)
         for msg in check_scene(
             caster,
-            lights,
+            light_list,
             soft_samples=opts.soft_samples,  # LightError: exit 2, once
             marker_length=tracker.get("marker_length"),
             shadow_method=opts.shadow_method,
@@ -245,7 +249,7 @@ class SceneSpec:
         ):
             log.warning(msg)
         _check_silhouette_name(opts.silhouette)
-        return Scene(intr, caster, list(lights), opts, tracker, static, tracks, time_lapse)
+        return Scene(intr, caster, light_list, opts, tracker, static, tracks, time_lapse)
 
     def replace(self, **changes: Any) -> SceneSpec:
         """A copy with some fields changed (``dataclasses.replace``)."""
@@ -273,13 +277,13 @@ class Scene:
     """
 
     intrinsics: Intrinsics
-    caster: object
-    lights: list
+    caster: ShadowCaster
+    lights: list[Light]
     options: RenderOptions
-    tracker: dict
-    static_lights: list | None = None
-    sun_tracks: list = field(default_factory=list)
-    time_lapse: tuple | None = None
+    tracker: dict[str, Any]
+    static_lights: list[Light] | None = None
+    sun_tracks: list[SunLightTrack] = field(default_factory=list)
+    time_lapse: tuple[datetime, float] | None = None
 
 
 def _check_silhouette_name(name: str) -> None:

@@ -73,20 +73,20 @@ class Board:
     """
 
     kind: str
-    size: tuple
+    size: tuple[int, ...]
     marker_length: float
     dictionary: str = "DICT_6X6_250"
     marker_separation: float = 0.0
     square_length: float = 0.0
-    ids: tuple | None = None
+    ids: tuple[int, ...] | None = None
     first_id: int = 0
     legacy_pattern: bool = False
     base_dir: Path | None = None
     source: str = ""
-    markers: dict | None = None
+    markers: dict[int, np.ndarray] | None = None
     inverted: bool = False
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         kind = str(self.kind).lower()
         if kind not in BOARD_KINDS:
             raise UsageError(f"{self._where()}board type must be one of {', '.join(BOARD_KINDS)}, got '{self.kind}'")
@@ -120,11 +120,11 @@ class Board:
             object.__setattr__(self, "ids", tuple(int(i) for i in self.ids))
         self._check_ids()
 
-    def _init_markers(self):
+    def _init_markers(self) -> None:
         """Validate a generic board's ``markers`` and derive ``size``, ``marker_length`` and ``ids``."""
         if not self.markers:
             raise UsageError(f"{self._where()}a 'markers' board needs a non-empty 'markers' list")
-        out = {}
+        out: dict[int, np.ndarray] = {}
         for mid, c in dict(self.markers).items():
             c = np.asarray(c, np.float64)
             if c.shape != (4, 3) or not np.all(np.isfinite(c)):
@@ -143,7 +143,7 @@ class Board:
         object.__setattr__(self, "ids", tuple(out))
         self._check_ids()
 
-    def _check_ids(self):
+    def _check_ids(self) -> None:
         n = self.n_markers
         ids = self.marker_ids
         if len(ids) != n:
@@ -152,13 +152,20 @@ class Board:
         if min(ids) < 0 or max(ids) >= nd:
             raise UsageError(f"{self._where()}marker ids {min(ids)}..{max(ids)} exceed the dictionary ({nd} markers)")
 
-    def _where(self):
+    def _where(self) -> str:
         return f"{self.source}: " if self.source else ""
 
     @property
     def n_markers(self) -> int:
         cols, rows = self.size
-        return cols * rows if self.kind in ("gridboard", "markers") else (cols * rows) // 2
+        n: int = cols * rows if self.kind in ("gridboard", "markers") else (cols * rows) // 2
+        return n
+
+    def _generic_markers(self) -> dict[int, np.ndarray]:
+        """A generic board's markers (``kind == "markers"``: ``__post_init__`` made them a dict)."""
+        if self.markers is None:  # pragma: no cover - __post_init__ rejects a generic board without markers
+            raise UsageError(f"{self._where()}a 'markers' board needs a non-empty 'markers' list")
+        return self.markers
 
     def unit_warnings(self) -> list[str]:
         """Warnings for lengths that are plausible only in another unit (board files are in metres): a
@@ -175,10 +182,10 @@ class Board:
     @property
     def planar(self) -> bool:
         """All markers on the plane z = 0 of the world frame (grid and ChArUco boards always are)."""
-        return self.kind != "markers" or all(abs(c[:, 2]).max() < 1e-9 for c in self.markers.values())
+        return self.kind != "markers" or all(abs(c[:, 2]).max() < 1e-9 for c in self._generic_markers().values())
 
     @property
-    def marker_ids(self) -> tuple:
+    def marker_ids(self) -> tuple[int, ...]:
         return self.ids if self.ids is not None else tuple(range(self.first_id, self.first_id + self.n_markers))
 
     @property
@@ -186,8 +193,9 @@ class Board:
         """(width, height) of the board's outer edge, metres."""
         cols, rows = self.size
         if self.kind == "markers":
-            pts = np.concatenate(list(self.markers.values()))
-            return tuple(float(v) for v in pts[:, :2].max(axis=0) - pts[:, :2].min(axis=0))
+            pts = np.concatenate(list(self._generic_markers().values()))
+            w, h = (float(v) for v in pts[:, :2].max(axis=0) - pts[:, :2].min(axis=0))
+            return w, h
         if self.kind == "charuco":
             return cols * self.square_length, rows * self.square_length
         s, ml = self.marker_separation, self.marker_length
@@ -198,12 +206,13 @@ class Board:
         return get_dictionary(self.dictionary, self.base_dir)
 
     @cached_property
-    def cv_board(self):
+    def cv_board(self) -> cv2.aruco.Board:
         """The ``cv2.aruco.GridBoard`` / ``CharucoBoard``."""
         ids = np.asarray(self.marker_ids, dtype=np.int32)
         if self.kind == "markers":
             # OpenCV's object points in its board convention: the inverse of OPENCV_BOARD_TO_WORLD is itself
-            obj = [np.ascontiguousarray(self.markers[i] @ OPENCV_BOARD_TO_WORLD.T, np.float32) for i in ids]
+            markers = self._generic_markers()
+            obj = [np.ascontiguousarray(markers[i] @ OPENCV_BOARD_TO_WORLD.T, np.float32) for i in ids]
             return cv2.aruco.Board(obj, self.cv_dictionary, ids)
         if self.kind == "gridboard":
             return cv2.aruco.GridBoard(self.size, self.marker_length, self.marker_separation, self.cv_dictionary, ids)
@@ -212,16 +221,24 @@ class Board:
             b.setLegacyPattern(True)
         return b
 
+    @property
+    def cv_charuco(self) -> cv2.aruco.CharucoBoard:
+        """A ChArUco board's :attr:`cv_board`, typed as OpenCV's ``CharucoBoard``."""
+        b = self.cv_board
+        if not isinstance(b, cv2.aruco.CharucoBoard):
+            raise UsageError(f"{self._where()}a {self.kind} board is not a ChArUco board")
+        return b
+
     @cached_property
-    def marker_corners_world(self) -> dict:
+    def marker_corners_world(self) -> dict[int, np.ndarray]:
         """marker id -> (4, 3) float64 corners TL, TR, BR, BL in the arshadow world frame (exact, float64).
 
         Recomputed from the float64 lengths (OpenCV stores float32), with OpenCV's layout.
         """
         if self.kind == "markers":
-            return dict(self.markers)
+            return dict(self._generic_markers())
         cv_obj = [np.asarray(o, dtype=np.float64).reshape(4, 3) for o in self.cv_board.getObjPoints()]
-        out = {}
+        out: dict[int, np.ndarray] = {}
         ml = self.marker_length
         for mid, o in zip(self.marker_ids, cv_obj, strict=True):
             if self.kind == "gridboard":
@@ -256,9 +273,9 @@ class Board:
             return np.zeros((0, 2, 2))
         cols, rows = self.size
         sq = self.square_length
-        with_marker = set()
-        for c in self.marker_corners_world.values():
-            cx, cy = c[:, 0].mean(), -c[:, 1].mean()  # OpenCV frame centre
+        with_marker: set[tuple[int, int]] = set()
+        for q in self.marker_corners_world.values():
+            cx, cy = q[:, 0].mean(), -q[:, 1].mean()  # OpenCV frame centre
             with_marker.add((math.floor(cx / sq), math.floor(cy / sq)))
         out = []
         for r in range(rows):
@@ -267,7 +284,7 @@ class Board:
                     out.append([[c * sq, -(r + 1) * sq], [(c + 1) * sq, -r * sq]])
         return np.asarray(out, dtype=np.float64).reshape(-1, 2, 2)
 
-    def to_file(self, path) -> Path:
+    def to_file(self, path: str | Path) -> Path:
         """Write this board as a board file (YAML/JSON by extension), atomically."""
         p = Path(path)
         if self.kind == "markers":
@@ -304,7 +321,7 @@ class Board:
             if self.inverted:
                 fs.write("inverted", 1)
             fs.startWriteStruct("markers", cv2.FileNode_SEQ)
-            for mid, c in self.markers.items():
+            for mid, c in self._generic_markers().items():
                 fs.startWriteStruct("", cv2.FileNode_MAP)
                 fs.write("id", int(mid))
                 fs.startWriteStruct("corners", cv2.FileNode_SEQ)
@@ -319,7 +336,7 @@ class Board:
         return p
 
 
-def _fs_number(fs, key, path, default=None):
+def _fs_number(fs: cv2.FileStorage, key: str, path: Path, default: float | None = None) -> float:
     node = fs.getNode(key)
     if node.empty():
         if default is None:
@@ -330,7 +347,7 @@ def _fs_number(fs, key, path, default=None):
     return node.real()
 
 
-def _fs_int_list(node, key, path):
+def _fs_int_list(node: cv2.FileNode, key: str, path: Path) -> list[int]:
     if not node.isSeq():
         raise UsageError(f"{path}: '{key}' must be a list of integers")
     vals = [node.at(i).real() for i in range(node.size())]
@@ -339,13 +356,13 @@ def _fs_int_list(node, key, path):
     return [int(v) for v in vals]
 
 
-def _fs_string(fs, key, default):
+def _fs_string(fs: cv2.FileStorage, key: str, default: str) -> str:
     node = fs.getNode(key)
     s = node.string() if (not node.empty() and node.isString()) else default
     return s.split(" #")[0].strip()  # OpenCV keeps a same-line YAML comment in a string
 
 
-def _fs_corners(node, where):
+def _fs_corners(node: cv2.FileNode, where: str) -> np.ndarray:
     """(4, 3) float64 from a FileNode list of 4 [x, y, z] lists."""
     if not node.isSeq() or node.size() != 4:
         raise UsageError(f"{where}: 'corners' must be a list of 4 [x, y, z] points")
@@ -358,11 +375,11 @@ def _fs_corners(node, where):
     return np.asarray(out, np.float64)
 
 
-def _fs_markers(node, p, to_world=None) -> dict:
+def _fs_markers(node: cv2.FileNode, p: Path, to_world: np.ndarray | None = None) -> dict[int, np.ndarray]:
     """id -> (4, 3) corners from a board file's ``markers`` (or the ArUco library's ``aruco_bc_markers``)."""
     if not node.isSeq() or node.size() == 0:
         raise UsageError(f"{p}: 'markers' must be a non-empty list of {{id, corners}}")
-    out = {}
+    out: dict[int, np.ndarray] = {}
     for k in range(node.size()):
         m = node.at(k)
         idn = m.getNode("id") if m.isMap() else None
@@ -376,7 +393,7 @@ def _fs_markers(node, p, to_world=None) -> dict:
     return out
 
 
-def read_aruco_layout(path, dictionary=None) -> Board:
+def read_aruco_layout(path: str | Path, dictionary: str | None = None) -> Board:
     """A generic board from the ArUco library's layout file (``aruco_bc_nmarkers``, ``aruco_bc_markers``:
     each marker's ``id`` and four 3D ``corners`` in metres, OpenCV's board convention; e.g. the library's
     ``chessboardinfo_meters.yml``).
@@ -427,7 +444,7 @@ def _aruco_dict_name(name: str) -> str:
     }.get(n, name)
 
 
-def load_board(path) -> Board:
+def load_board(path: str | Path) -> Board:
     """Read a board file (YAML or JSON; schema in calib/README.md), or an ArUco library layout file
     (:func:`read_aruco_layout`).
 
@@ -452,7 +469,7 @@ def load_board(path) -> Board:
     return b
 
 
-def _load_grid_board(fs, p: Path, kind: str) -> Board:
+def _load_grid_board(fs: cv2.FileStorage, p: Path, kind: str) -> Board:
     """A ``type: gridboard`` / ``charuco`` board file."""
     size_node = fs.getNode("size")
     if size_node.empty():
@@ -481,7 +498,7 @@ def _load_grid_board(fs, p: Path, kind: str) -> Board:
     )
 
 
-def _load_markers_board(fs, p: Path) -> Board:
+def _load_markers_board(fs: cv2.FileStorage, p: Path) -> Board:
     """A ``type: markers`` board file (its ``markers`` list of ``{id, corners}``, world frame)."""
     markers = _fs_markers(fs.getNode("markers"), p)
     b = Board(

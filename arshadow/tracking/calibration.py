@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -72,12 +73,12 @@ class Pattern:
         return obj
 
     @cached_property
-    def charuco(self):
+    def charuco(self) -> tuple[Board, cv2.aruco.CharucoDetector]:
         """ChArUco: ``(Board, cv2.aruco.CharucoDetector)``, built once per pattern, not per photo."""
         board = Board(
             "charuco", (self.cols, self.rows), self.marker, dictionary=self.dictionary, square_length=self.square
         )
-        return board, cv2.aruco.CharucoDetector(board.cv_board)
+        return board, cv2.aruco.CharucoDetector(board.cv_charuco)
 
 
 def parse_pattern(spec: str) -> Pattern:
@@ -124,7 +125,7 @@ class View:
     or ``reason`` (why it was rejected) with no points."""
 
     path: str
-    size: tuple | None = None
+    size: tuple[int, int] | None = None
     object_points: np.ndarray | None = None
     image_points: np.ndarray | None = None
     reason: str | None = None
@@ -134,7 +135,7 @@ class View:
         return self.reason is None
 
 
-def find_view(path, pattern: Pattern, image=None) -> View:
+def find_view(path: str | Path, pattern: Pattern, image: np.ndarray | None = None) -> View:
     """Detect the pattern in one photo. Never raises for a bad photo: the View carries the reason."""
     name = str(path)
     try:
@@ -161,9 +162,10 @@ def find_view(path, pattern: Pattern, image=None) -> View:
     if n < MIN_CHARUCO_CORNERS:
         nm = 0 if m_ids is None else len(m_ids)
         return View(name, size, reason=f"only {n} ChArUco corners found ({nm} markers; need {MIN_CHARUCO_CORNERS})")
-    if board.cv_board.checkCharucoCornersCollinear(ch_ids):
+    if board.cv_charuco.checkCharucoCornersCollinear(ch_ids):
         return View(name, size, reason="the ChArUco corners found are collinear")
-    obj, imgp = board.cv_board.matchImagePoints(ch_corners, ch_ids)
+    # OpenCV's stubs want a sequence of corner arrays; ChArUco corners are one (n, 1, 2) array
+    obj, imgp = board.cv_charuco.matchImagePoints(ch_corners, ch_ids)  # type: ignore[call-overload]
     return View(name, size, np.asarray(obj, np.float32).reshape(-1, 3), np.asarray(imgp, np.float32).reshape(-1, 1, 2))
 
 
@@ -174,21 +176,21 @@ class CalibrationResult:
     intrinsics: Intrinsics
     rms: float
     per_view_errors: np.ndarray
-    views: list
-    rejected: list
+    views: list[View]
+    rejected: list[View]
     flags: int
-    pattern: Pattern
+    pattern: Pattern | None
     intrinsics_std: np.ndarray = field(default_factory=lambda: np.zeros(0))
     rvecs: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     tvecs: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
-    def to_file(self, path) -> Path:
+    def to_file(self, path: str | Path) -> Path:
         """Write the calibration (OpenCV keys) with RMS, per-view errors, views, extrinsics."""
         return self.intrinsics.to_file(
             path,
             calibration_time=_dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
             nframes=len(self.views),
-            pattern=self.pattern.spec,
+            pattern=None if self.pattern is None else self.pattern.spec,
             flags=int(self.flags),
             avg_reprojection_error=float(self.rms),
             per_view_reprojection_errors=np.asarray(self.per_view_errors, float),
@@ -199,8 +201,22 @@ class CalibrationResult:
         )
 
 
+def _view_size(v: View) -> tuple[int, int]:
+    """A usable view's image size ``(W, H)`` (:func:`find_view` sets it)."""
+    if v.size is None:
+        raise CalibrationError(f"{v.path}: the view has no image size")
+    return v.size
+
+
+def _view_points(v: View) -> tuple[np.ndarray, np.ndarray]:
+    """A usable view's ``object_points (n, 3) float32`` and ``image_points (n, 1, 2) float32``."""
+    if v.object_points is None or v.image_points is None:
+        raise CalibrationError(f"{v.path}: the view has no points")
+    return v.object_points, v.image_points
+
+
 def calibrate(
-    views,
+    views: Iterable[View],
     *,
     flags: int = 0,
     min_views: int = MIN_VIEWS,
@@ -228,10 +244,11 @@ def calibrate(
     rejected = [v for v in views if not v.ok]
     good = [v for v in views if v.ok]
     if good:
-        size = good[0].size
+        size = _view_size(good[0])
         for v in good[1:]:
             if v.size != size:
-                v.reason = f"image size {v.size[0]}x{v.size[1]} differs from the first view's {size[0]}x{size[1]}"
+                w, h = _view_size(v)
+                v.reason = f"image size {w}x{h} differs from the first view's {size[0]}x{size[1]}"
         rejected += [v for v in good if not v.ok]
         good = [v for v in good if v.ok]
     if len(good) < min_views:
@@ -240,12 +257,18 @@ def calibrate(
             f"only {len(good)} usable view(s), need at least {min_views}"
             + (f" (rejected: {why}{' ...' if len(rejected) > 5 else ''})" if rejected else "")
         )
-    size = good[0].size
+    size = _view_size(good[0])
     for _ in range(3):
         K0 = np.eye(3)
         try:
-            rms, K, dist, rvecs, tvecs, std_int, _, per_view = cv2.calibrateCameraExtended(
-                [v.object_points for v in good], [v.image_points for v in good], size, K0, None, flags=flags
+            # OpenCV's stubs lack None for the output-only distCoeffs
+            rms, K, dist, rvecs, tvecs, std_int, _, per_view = cv2.calibrateCameraExtended(  # type: ignore[call-overload]
+                [_view_points(v)[0] for v in good],
+                [_view_points(v)[1] for v in good],
+                size,
+                K0,
+                None,
+                flags=flags,
             )
         except cv2.error as exc:
             raise CalibrationError(f"calibration failed: {str(exc).strip().splitlines()[-1][:120]}") from None

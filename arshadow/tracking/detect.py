@@ -5,8 +5,10 @@ Corners are in CONVENTIONS.md's pixel-centre coordinates, TL, TR, BR, BL in the 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, Protocol, TypeAlias
 
 import cv2
 import numpy as np
@@ -14,7 +16,7 @@ import numpy as np
 from ..camera.model import open_storage
 from ..errors import UsageError
 from ..io import to_bgr8
-from .dictionary import get_dictionary
+from .dictionary import DictionarySpec, get_dictionary
 from .luma import LumaFrame, luma_to_gray
 
 __all__ = [
@@ -26,6 +28,9 @@ __all__ = [
     "make_detector_params",
     "copy_detector_params",
     "Detection",
+    "DetectorOutput",
+    "MarkerDetector",
+    "BoardDetector",
     "to_gray",
     "detection_from_opencv",
     "detect_markers",
@@ -79,7 +84,39 @@ MIN_MARKER_DISTANCE_RATE = 0.05
 APRILTAG_OFFSET_PX = 0.5
 
 
-def load_detector_params(path) -> cv2.aruco.DetectorParameters:
+#: ``detectMarkers``' output, as OpenCV's: the markers' corners (``(1, 4, 2) float32`` each), their ids
+#: (``(n, 1) int32``; None or empty when none) and the rejected candidates' corners (None possible)
+DetectorOutput: TypeAlias = tuple[Sequence[np.ndarray], np.ndarray | None, Sequence[np.ndarray] | None]
+
+
+class MarkerDetector(Protocol):
+    """What a tracker needs of its detector: OpenCV's ``cv2.aruco.ArucoDetector.detectMarkers`` (the
+    wrappers below forward every other method to the detector they wrap)."""
+
+    def detectMarkers(self, image: np.ndarray, /) -> DetectorOutput:  # noqa: N802 (OpenCV's name)
+        """The markers in ``image (H, W) uint8``."""
+        ...
+
+
+class BoardDetector(MarkerDetector, Protocol):
+    """A detector that also recovers a grid board's missed markers (``ArucoDetector.refineDetectedMarkers``)."""
+
+    def refineDetectedMarkers(  # noqa: N802 (OpenCV's name)
+        self,
+        image: np.ndarray,
+        board: cv2.aruco.Board,
+        detectedCorners: Sequence[np.ndarray],  # noqa: N803
+        detectedIds: np.ndarray,  # noqa: N803
+        rejectedCorners: Sequence[np.ndarray] | None,  # noqa: N803
+        cameraMatrix: np.ndarray | None = ...,  # noqa: N803
+        distCoeffs: np.ndarray | None = ...,  # noqa: N803
+        /,
+    ) -> tuple[Sequence[np.ndarray], np.ndarray, Sequence[np.ndarray], np.ndarray]:
+        """OpenCV's: corners, ids, rejected candidates, the indices of the recovered candidates."""
+        ...
+
+
+def load_detector_params(path: str | Path) -> cv2.aruco.DetectorParameters:
     """Read ``cv2.aruco.DetectorParameters`` from a YAML/XML/JSON file (OpenCV's key names).
 
     Raises
@@ -99,7 +136,9 @@ def load_detector_params(path) -> cv2.aruco.DetectorParameters:
     return params
 
 
-def make_detector_params(refine=DEFAULT_REFINE, base=None) -> cv2.aruco.DetectorParameters:
+def make_detector_params(
+    refine: str | None = DEFAULT_REFINE, base: cv2.aruco.DetectorParameters | str | Path | None = None
+) -> cv2.aruco.DetectorParameters:
     """Detector parameters with the corner refinement ``refine`` (None keeps ``base``'s own).
 
     ``base`` may be a ``DetectorParameters``, a parameter file path, or None (OpenCV's defaults).
@@ -164,19 +203,19 @@ class Detection:
     corners: np.ndarray
     n_rejected: int = 0
 
-    def __len__(self):
+    def __len__(self) -> int:
         return int(self.ids.size)
 
     @property
-    def by_id(self) -> dict:
+    def by_id(self) -> dict[int, np.ndarray]:
         """id -> (4, 2) corners (the first detection of a repeated id)."""
-        out = {}
+        out: dict[int, np.ndarray] = {}
         for i, c in zip(self.ids.tolist(), self.corners, strict=True):
             out.setdefault(int(i), c)
         return out
 
 
-def to_gray(image) -> np.ndarray:
+def to_gray(image: np.ndarray | LumaFrame) -> np.ndarray:
     """(H, W) uint8 gray of an image of any layout or depth (BGR uint8, gray, BGRA, 16-bit, float) or of a
     video frame's :class:`arshadow.tracking.luma.LumaFrame` (all of it converted).
 
@@ -195,7 +234,12 @@ def to_gray(image) -> np.ndarray:
     return cv2.cvtColor(to_bgr8(img), cv2.COLOR_BGR2GRAY)
 
 
-def detection_from_opencv(corners, ids, rejected, params=None) -> Detection:
+def detection_from_opencv(
+    corners: Sequence[np.ndarray],
+    ids: np.ndarray | None,
+    rejected: Sequence[np.ndarray] | None,
+    params: cv2.aruco.DetectorParameters | None = None,
+) -> Detection:
     """A :class:`Detection` from ``detectMarkers``' output; AprilTag-refined corners (``params``) are moved
     to pixel-centre coordinates (:data:`APRILTAG_OFFSET_PX`)."""
     if ids is None or len(ids) == 0:
@@ -206,7 +250,12 @@ def detection_from_opencv(corners, ids, rejected, params=None) -> Detection:
     return Detection(np.asarray(ids).ravel().astype(int), c, len(rejected) if rejected is not None else 0)
 
 
-def detect_markers(image, dictionary="DICT_6X6_250", params=None, refine=DEFAULT_REFINE) -> Detection:
+def detect_markers(
+    image: np.ndarray,
+    dictionary: DictionarySpec = "DICT_6X6_250",
+    params: cv2.aruco.DetectorParameters | str | Path | None = None,
+    refine: str | None = DEFAULT_REFINE,
+) -> Detection:
     """Detect every marker of ``dictionary`` in ``image``.
 
     Parameters
@@ -248,7 +297,7 @@ class AprilTagDetector:
         With ``cornerRefinementMethod == CORNER_REFINE_APRILTAG``.
     """
 
-    def __init__(self, dictionary, params):
+    def __init__(self, dictionary: cv2.aruco.Dictionary, params: cv2.aruco.DetectorParameters):
         self._base = cv2.aruco.ArucoDetector(dictionary, params)
         sub = copy_detector_params(params)
         sub.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
@@ -258,7 +307,7 @@ class AprilTagDetector:
         #: markers of the last call that came from the fallback search
         self.n_fallback = 0
 
-    def detectMarkers(self, gray):  # noqa: N802 (OpenCV's name)
+    def detectMarkers(self, gray: np.ndarray) -> DetectorOutput:  # noqa: N802 (OpenCV's name)
         corners, ids, rejected = self._base.detectMarkers(gray)
         out_c = [np.asarray(c, np.float32).reshape(1, 4, 2) - np.float32(APRILTAG_OFFSET_PX) for c in corners]
         out_i = [] if ids is None else [int(i) for i in np.asarray(ids).ravel()]
@@ -275,7 +324,7 @@ class AprilTagDetector:
             return (), None, rejected
         return tuple(out_c), np.asarray(out_i, np.int32).reshape(-1, 1), rejected
 
-    def __getattr__(self, name):
+    def __getattr__(self, name: str) -> Any:  # OpenCV's other methods, untyped here
         return getattr(self._base, name)
 
 
@@ -308,10 +357,17 @@ class RescueDetector:
         only when :func:`retry_due` says so.
     """
 
-    def __init__(self, base, dictionary, params, marker_id=None):
+    def __init__(
+        self,
+        base: MarkerDetector,
+        dictionary: cv2.aruco.Dictionary,
+        params: cv2.aruco.DetectorParameters,
+        marker_id: int | None = None,
+    ):
         self._base = base
         p = copy_detector_params(params)
         p.adaptiveThreshConstant = float(params.adaptiveThreshConstant) + RESCUE_THRESHOLD_STEP
+        self._second: MarkerDetector
         if params.cornerRefinementMethod == cv2.aruco.CORNER_REFINE_APRILTAG:
             self._second = AprilTagDetector(dictionary, p)
         else:
@@ -320,7 +376,7 @@ class RescueDetector:
         self.rescued = False
         self.misses = 0  # searches in a row without the wanted marker (see retry_due)
 
-    def _has(self, ids) -> bool:
+    def _has(self, ids: np.ndarray | None) -> bool:
         if ids is None or len(ids) == 0:
             return False
         return self.marker_id is None or self.marker_id in np.asarray(ids).ravel().tolist()
@@ -331,12 +387,12 @@ class RescueDetector:
         if hasattr(self._base, "reset"):
             self._base.reset()
 
-    def state(self) -> dict:
+    def state(self) -> dict[str, object]:
         """What the next call depends on (the misses in a row that time the second search), JSON-able."""
-        base = self._base.state() if hasattr(self._base, "state") else {}
+        base: dict[str, object] = self._base.state() if hasattr(self._base, "state") else {}
         return {"rescue_misses": self.misses, **base}
 
-    def detectMarkers(self, gray):  # noqa: N802 (OpenCV's name)
+    def detectMarkers(self, gray: np.ndarray) -> DetectorOutput:  # noqa: N802 (OpenCV's name)
         corners, ids, rejected = self._base.detectMarkers(gray)
         self.rescued = False
         if self._has(ids):
@@ -364,7 +420,7 @@ class RescueDetector:
         ).astype(np.int32)
         return c_out, i_out, r2
 
-    def __getattr__(self, name):
+    def __getattr__(self, name: str) -> Any:  # the wrapped detector's other methods
         return getattr(self._base, name)
 
 
@@ -383,7 +439,7 @@ DICTIONARY_FAMILIES = (
 )
 
 
-def markers_in_image(image, skip=None) -> dict:
+def markers_in_image(image: np.ndarray | LumaFrame, skip: DictionarySpec | None = None) -> dict[str, list[int]]:
     """Which predefined dictionaries have markers in ``image``, and their ids: ``{name: [ids]}`` with, per
     family, the smallest dictionary holding every id found (e.g. ``{"DICT_5X5_1000": [403]}``).
 
@@ -395,7 +451,7 @@ def markers_in_image(image, skip=None) -> dict:
     if skip is not None:
         skip_bytes = get_dictionary(skip).bytesList[:1].tobytes()
     p = make_detector_params("none")
-    out = {}
+    out: dict[str, list[int]] = {}
     for fam in DICTIONARY_FAMILIES:
         big = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, fam[-1]))
         if skip_bytes is not None and big.bytesList[:1].tobytes() == skip_bytes:
@@ -403,7 +459,7 @@ def markers_in_image(image, skip=None) -> dict:
         _, ids, _ = cv2.aruco.ArucoDetector(big, p).detectMarkers(gray)
         if ids is None or len(ids) == 0:
             continue
-        found = sorted(set(np.asarray(ids).ravel().tolist()))
+        found = sorted({int(i) for i in np.asarray(ids).ravel().tolist()})
         name = next(n for n in fam if int(n.rsplit("_", 1)[-1]) > found[-1]) if len(fam) > 1 else fam[0]
         out[name] = found
     return out

@@ -8,6 +8,7 @@ edge), z out of the printed face; corners TL, TR, BR, BL = ``(-s/2, s/2, 0), (s/
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TypeAlias
 
 import cv2
 import numpy as np
@@ -24,13 +25,16 @@ __all__ = [
     "marker_bits",
 ]
 
+#: what names a dictionary: a predefined name, a dictionary file, or the dictionary itself
+DictionarySpec: TypeAlias = str | Path | cv2.aruco.Dictionary
+
 #: names accepted by :func:`get_dictionary` (case-insensitive, the ``DICT_`` prefix optional)
 PREDEFINED_DICTIONARIES = tuple(
     sorted(n for n in dir(cv2.aruco) if n.startswith("DICT_") and not any(c.islower() for c in n))
 )
 
 
-def _dict_constant(name: str):
+def _dict_constant(name: str) -> tuple[str, int | None]:
     n = name.strip().upper()
     if not n.startswith("DICT_"):
         n = "DICT_" + n
@@ -41,7 +45,7 @@ def _dict_constant(name: str):
 DEFAULT_DICTIONARY = "DICT_6X6_250"
 
 
-def get_dictionary(spec, base_dir=None) -> cv2.aruco.Dictionary:
+def get_dictionary(spec: DictionarySpec, base_dir: str | Path | None = None) -> cv2.aruco.Dictionary:
     """An ArUco dictionary from a predefined name or a custom dictionary file.
 
     Parameters
@@ -91,7 +95,7 @@ def get_dictionary(spec, base_dir=None) -> cv2.aruco.Dictionary:
     return d
 
 
-def dictionary_label(spec) -> str:
+def dictionary_label(spec: DictionarySpec) -> str:
     """A short human name for a dictionary spec (the predefined name, or the file name)."""
     if isinstance(spec, cv2.aruco.Dictionary):
         return f"custom {spec.markerSize}x{spec.markerSize} dictionary ({len(spec.bytesList)} markers)"
@@ -112,7 +116,7 @@ def marker_object_points(length: float) -> np.ndarray:
     return np.array([[-h, h, 0.0], [h, h, 0.0], [h, -h, 0.0], [-h, -h, 0.0]])
 
 
-def marker_bits(dictionary, marker_id: int, border_bits: int = 1) -> np.ndarray:
+def marker_bits(dictionary: DictionarySpec, marker_id: int, border_bits: int = 1) -> np.ndarray:
     """(c, c) bool, True = white cell, for ``marker_id`` including its black border (c = size + 2 border)."""
     d = get_dictionary(dictionary)
     if not 0 <= int(marker_id) < len(d.bytesList):

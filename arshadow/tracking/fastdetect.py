@@ -7,10 +7,15 @@ nothing. Measured in docs/tracking.md and ``tests/benchmarks/bench_pipeline.py -
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import cv2
 import numpy as np
 
-from .detect import MIN_MARKER_DISTANCE_RATE, AprilTagDetector
+from .detect import MIN_MARKER_DISTANCE_RATE, AprilTagDetector, DetectorOutput, MarkerDetector
+
+if TYPE_CHECKING:
+    from .board import Board
 
 __all__ = ["HalfResolutionDetector", "fast_detector_params", "wrap_fast_detector"]
 
@@ -32,7 +37,7 @@ class HalfResolutionDetector:
     #: shortest marker side (full-resolution pixels) for which the half-resolution corners are used
     MIN_SIDE_PX = 64.0
 
-    def __init__(self, base, dictionary):
+    def __init__(self, base: MarkerDetector, dictionary: cv2.aruco.Dictionary):
         self._base = base
         p = cv2.aruco.DetectorParameters()
         p.adaptiveThreshWinSizeMin = 5
@@ -41,7 +46,7 @@ class HalfResolutionDetector:
         self._small = cv2.aruco.ArucoDetector(dictionary, p)
         self._criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 0.01)
 
-    def detectMarkers(self, gray):  # noqa: N802 (OpenCV's name)
+    def detectMarkers(self, gray: np.ndarray) -> DetectorOutput:  # noqa: N802 (OpenCV's name)
         if gray.ndim == 3:
             gray = cv2.cvtColor(gray, cv2.COLOR_BGR2GRAY)
         h, w = gray.shape[:2]
@@ -64,11 +69,11 @@ class HalfResolutionDetector:
         rej = tuple(np.asarray(r, np.float32) * 2.0 + 0.5 for r in rejected) if rejected is not None else rejected
         return full, ids, rej
 
-    def __getattr__(self, name):
+    def __getattr__(self, name: str) -> Any:  # the full-resolution detector's other methods
         return getattr(self._base, name)
 
 
-def wrap_fast_detector(detector, board=None):
+def wrap_fast_detector(detector: MarkerDetector, board: Board | None = None) -> MarkerDetector:
     """The fast pass's detector around a tracker's full-resolution ``cv2.aruco.ArucoDetector``:
     :class:`HalfResolutionDetector` in single-marker mode (``board`` None), else ``detector`` itself."""
     if isinstance(detector, (cv2.aruco.ArucoDetector, AprilTagDetector)) and board is None:
@@ -76,7 +81,7 @@ def wrap_fast_detector(detector, board=None):
     return detector
 
 
-def fast_detector_params():
+def fast_detector_params() -> cv2.aruco.DetectorParameters:
     """ArUco detector parameters for the fast first pass: one adaptive-threshold window (7 px).
 
     OpenCV's default tries windows 3, 13 and 23 px (three thresholdings and contour searches); one

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
+import numpy.typing as npt
 
 __all__ = ["LUMA_LUT", "LumaFrame", "luma_to_gray"]
 
@@ -104,7 +105,7 @@ class LumaFrame:
         self._ensure(x0, y0, x0 + w, y0 + h)
         return self._gray[y0 : y0 + h, x0 : x0 + w]
 
-    def near(self, points, margin: float = 16.0, grow: float = 0.15) -> np.ndarray:
+    def near(self, points: npt.ArrayLike, margin: float = 16.0, grow: float = 0.15) -> np.ndarray:
         """The frame's ``(H, W) uint8`` grey, converted (at least) around ``points (..., 2)`` (pixels): their
         bounding box grown by ``grow`` of its larger side plus ``margin`` pixels on every side. For readers
         that look only near the found corners (edge refinement reaches < 0.08 of a marker's side, the

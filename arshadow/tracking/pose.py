@@ -7,9 +7,11 @@ Pose: ``(rvec, tvec)`` world -> OpenCV camera, as ``cv2.solvePnP`` gives them (w
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from typing import TypeAlias
 
 import cv2
 import numpy as np
+import numpy.typing as npt
 
 from ..camera.model import Intrinsics
 from ..errors import MarkerNotFoundError, UsageError
@@ -23,6 +25,11 @@ from .quality import (
 from .quality import flag_reasons as quality_flag_reasons  # MarkerPose.flag_reasons shadows the name
 
 __all__ = ["AltPose", "MarkerPose", "rms_reprojection_px", "solve_general", "solve_planar"]
+
+#: one pose solution: ``(rvec (3,) float64, tvec (3,) float64, rms reprojection error px)``
+Solution: TypeAlias = tuple[np.ndarray, np.ndarray, float]
+#: what the solvers return: the solutions (best first) and the ambiguity ratio (None: one solution)
+Solved: TypeAlias = tuple[list[Solution], float | None]
 
 
 @dataclass
@@ -76,7 +83,7 @@ class MarkerPose:
     rvec: np.ndarray
     tvec: np.ndarray
     cam_from_world: np.ndarray
-    marker_ids: list
+    marker_ids: list[int]
     reprojection_error_px: float
     pose_ambiguity: float | None
     corners: np.ndarray
@@ -86,10 +93,10 @@ class MarkerPose:
     chosen_by: str = "error"
     intrinsics: Intrinsics | None = None
     scaled: bool = False
-    all_corners: dict = field(default_factory=dict)
+    all_corners: dict[int, np.ndarray] = field(default_factory=dict)
     ambiguity_threshold: float = AMBIGUITY_FLAG
     kind: str = "marker"
-    timings_ms: dict = field(default_factory=dict)
+    timings_ms: dict[str, float] = field(default_factory=dict)
     #: single marker: how far its corners move between sub-pixel refinement windows of 5 and 13 px, as a
     #: share of its shortest side (:func:`corner_instability`); None for boards
     corner_instability: float | None = None
@@ -156,13 +163,15 @@ class MarkerPose:
         )
 
 
-def rms_reprojection_px(intr: Intrinsics, obj, img, rvec, tvec) -> float:
+def rms_reprojection_px(
+    intr: Intrinsics, obj: np.ndarray, img: np.ndarray, rvec: np.ndarray, tvec: np.ndarray
+) -> float:
     """RMS distance (pixels) between ``img (n, 2)`` and ``obj (n, 3)`` projected by ``(rvec, tvec)``."""
     proj = cv2.projectPoints(obj, rvec, tvec, intr.K, intr.dist_cv)[0].reshape(-1, 2)
     return float(np.sqrt(np.mean(np.sum((proj - img) ** 2, axis=1))))
 
 
-def solve_planar(intr: Intrinsics, obj, img, square: bool, lm: bool = True):
+def solve_planar(intr: Intrinsics, obj: npt.ArrayLike, img: npt.ArrayLike, square: bool, lm: bool = True) -> Solved:
     """Both planar (IPPE) solutions, sorted by RMS reprojection error, and their ambiguity ratio.
 
     The ratio ``err_best / err_second`` is taken from the two IPPE solutions as IPPE returns them
@@ -195,7 +204,7 @@ def solve_planar(intr: Intrinsics, obj, img, square: bool, lm: bool = True):
     if len(raw) > 1:
         e0, e1 = raw[0][2], raw[1][2]
         ratio = 1.0 if e1 <= 0 else float(min(1.0, e0 / e1))
-    sols = []
+    sols: list[Solution] = []
     crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 50, 1e-12)
     for k, (r, t, e) in enumerate(raw[:2]):
         if lm:
@@ -208,7 +217,7 @@ def solve_planar(intr: Intrinsics, obj, img, square: bool, lm: bool = True):
     return sols, ratio
 
 
-def solve_general(intr: Intrinsics, obj, img, lm: bool = True):
+def solve_general(intr: Intrinsics, obj: npt.ArrayLike, img: npt.ArrayLike, lm: bool = True) -> Solved:
     """The pose of non-coplanar points ``obj (n, 3)`` seen at ``img (n, 2)`` (a generic board whose markers
     are not on one plane): ``cv2.SOLVEPNP_SQPNP`` (globally optimal), polished by Levenberg-Marquardt
     (``lm``). Returns ``([(rvec (3,), tvec (3,), rms_px)], None)`` like :func:`solve_planar` (one

@@ -4,8 +4,14 @@ across refinement windows, occlusion of the black border ring)."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Protocol
+
 import cv2
 import numpy as np
+import numpy.typing as npt
+
+if TYPE_CHECKING:
+    from .pose import MarkerPose
 
 __all__ = [
     "AMBIGUITY_FLAG",
@@ -55,10 +61,22 @@ REPROJECTION_HOLD_FACTOR = 3.0
 #: edge refinement (arshadow video's default) a pose with blurred corners or a marker under 32 px is more
 #: than 1 deg or 2 % off in only 34-47 % / 38-47 % of cases at every threshold tried (precision < 0.5), and
 #: the sample video's 60 frames (0.15 deg median from the truth) were all flagged for both
-REPORT_ONLY = {"edge": ("blurred corners", "small marker")}
+REPORT_ONLY: dict[str, tuple[str, ...]] = {"edge": ("blurred corners", "small marker")}
 
 
-def border_occlusion(gray, quad, bits) -> float:
+class ReprojectedPose(Protocol):
+    """What :func:`reprojection_hold` reads of a pose (a :class:`~arshadow.tracking.pose.MarkerPose`)."""
+
+    @property
+    def corners(self) -> npt.ArrayLike:
+        """(n, 2) image points, the reference marker's quad first."""
+
+    @property
+    def reprojection_error_px(self) -> float:
+        """RMS reprojection error, pixels."""
+
+
+def border_occlusion(gray: np.ndarray, quad: npt.ArrayLike, bits: np.ndarray) -> float:
     """How light the lightest cell of a marker's black border ring is, as a share of the way from the
     marker's black (0) to its white (1).
 
@@ -90,7 +108,7 @@ def border_occlusion(gray, quad, bits) -> float:
         g = np.arange(n, dtype=np.float32) * c
         corners = np.stack(np.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 1, 2)[:, :, ::-1]  # (x, y)
         for dx, dy in ((2, 2), (6, 2), (2, 6), (6, 6)):
-            p = cv2.perspectiveTransform(corners + np.float32([dx, dy]), np.linalg.inv(H)).reshape(n, n, 2)
+            p = cv2.perspectiveTransform(corners + np.array([dx, dy], np.float32), np.linalg.inv(H)).reshape(n, n, 2)
             inside &= (p[..., 0] >= 0) & (p[..., 1] >= 0) & (p[..., 0] <= w - 1) & (p[..., 1] <= h - 1)
     white = np.zeros((n, n), bool)
     white[1:-1, 1:-1] = np.asarray(bits) > 0
@@ -104,7 +122,7 @@ def border_occlusion(gray, quad, bits) -> float:
     return float(((cells[inside & ring] - black_level) / (white_level - black_level)).max())
 
 
-def corner_instability(gray, quad) -> float:
+def corner_instability(gray: np.ndarray, quad: npt.ArrayLike) -> float:
     """How far the 4 corners ``quad (4, 2)`` of a marker move between ``cv2.cornerSubPix`` windows of 5 and
     13 px, as a share of the quad's shortest side: ~0 for a sharp corner (any window finds the same
     point), large for a blurred or disturbed one."""
@@ -120,7 +138,7 @@ def corner_instability(gray, quad) -> float:
     return float(np.linalg.norm((a - b)[:, 0], axis=1).max() / side)
 
 
-def reprojection_limit_px(corners) -> float:
+def reprojection_limit_px(corners: npt.ArrayLike) -> float:
     """The RMS reprojection error (pixels) above which a pose is flagged, for image points ``corners
     (n, 2)`` (the first 4 = the reference marker's quad): see :data:`MAX_REPROJECTION_PX`."""
     q = np.asarray(corners, np.float64).reshape(-1, 2)[:4]
@@ -128,7 +146,7 @@ def reprojection_limit_px(corners) -> float:
     return max(MAX_REPROJECTION_PX, MAX_REPROJECTION_SIDE_SHARE * side)
 
 
-def reprojection_hold(pose) -> str | None:
+def reprojection_hold(pose: ReprojectedPose) -> str | None:
     """Why a video frame's pose must not be rendered (the frame is held instead), or None: its RMS
     reprojection error is above :data:`REPROJECTION_HOLD_FACTOR` x :func:`reprojection_limit_px`.
 
@@ -148,26 +166,32 @@ def reprojection_hold(pose) -> str | None:
     )
 
 
-def flag_reasons(pose) -> list[str]:
+def _report_only(pose: MarkerPose) -> tuple[str, ...]:
+    """The reasons' kinds that are report fields for the pose's ``refine`` (:data:`REPORT_ONLY`)."""
+    refine: str | None = getattr(pose, "refine", None)
+    return () if refine is None else REPORT_ONLY.get(refine, ())
+
+
+def flag_reasons(pose: MarkerPose) -> list[str]:
     """Why a pose (:class:`arshadow.tracking.pose.MarkerPose`) is flagged (:func:`all_reasons` but those
     that :data:`REPORT_ONLY` makes report fields for the pose's ``refine``); empty when it is not."""
-    quiet = REPORT_ONLY.get(getattr(pose, "refine", None), ())
+    quiet = _report_only(pose)
     return [r for r in all_reasons(pose) if r.split(":", 1)[0] not in quiet]
 
 
-def pose_notes(pose) -> list[str]:
+def pose_notes(pose: MarkerPose) -> list[str]:
     """The reasons of :func:`all_reasons` that are report fields, not flags, for the pose's ``refine``
     (:data:`REPORT_ONLY`): said in the report and the per-frame records, not warned of."""
-    quiet = REPORT_ONLY.get(getattr(pose, "refine", None), ())
+    quiet = _report_only(pose)
     return [r for r in all_reasons(pose) if r.split(":", 1)[0] in quiet]
 
 
-def all_reasons(pose) -> list[str]:
+def all_reasons(pose: MarkerPose) -> list[str]:
     """Every reason a pose (:class:`arshadow.tracking.pose.MarkerPose`) may be off, one sentence per
     reason with its number (empty when none): the two planar solutions nearly equal, blurred corners, a
     covered border, a marker under :data:`MIN_CONFIDENT_SIDE_PX`, a reprojection error far above what the
     detector's corners allow."""
-    out = []
+    out: list[str] = []
     ratio, thr = pose.pose_ambiguity, pose.ambiguity_threshold
     if ratio is not None and ratio >= thr:
         out.append(

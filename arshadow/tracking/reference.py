@@ -20,7 +20,10 @@ writes the warning line.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
+import numpy.typing as npt
 
 from ..errors import MarkerNotFoundError
 
@@ -31,18 +34,19 @@ __all__ = ["REFERENCE_SWITCH_FRAMES", "ReferenceLock", "ReferenceTally", "larges
 REFERENCE_SWITCH_FRAMES = 25
 
 
-def largest_marker(by_id: dict) -> int:
+def largest_marker(by_id: Mapping[int, npt.ArrayLike]) -> int:
     """The id whose quad ``(4, 2)`` has the longest shortest side (ties: the lowest id).
 
     >>> largest_marker({3: [[0, 0], [10, 0], [10, 10], [0, 10]], 7: [[0, 0], [30, 0], [30, 30], [0, 30]]})
     7
     """
 
-    def side(q) -> float:
-        q = np.asarray(q, np.float64).reshape(-1, 2)[:4]
+    def side(corners: npt.ArrayLike) -> float:
+        q = np.asarray(corners, np.float64).reshape(-1, 2)[:4]
         return float(np.linalg.norm(q - np.roll(q, 1, axis=0), axis=1).min())
 
-    return min(by_id, key=lambda i: (-side(by_id[i]), int(i)))
+    best: int = min(by_id, key=lambda i: (-side(by_id[i]), int(i)))
+    return best
 
 
 class ReferenceLock:
@@ -85,7 +89,7 @@ class ReferenceLock:
         """A new video: the next frame with markers chooses again."""
         self.id, self.missing = None, 0
 
-    def choose(self, by_id: dict, count: bool = True) -> int:
+    def choose(self, by_id: Mapping[int, npt.ArrayLike], count: bool = True) -> int:
         """The reference id for a frame whose markers are ``by_id`` (id -> (4, 2) corners, not empty).
 
         ``count``: this call has the last word on the frame (the full search; the fast pass, whose miss
@@ -105,7 +109,7 @@ class ReferenceLock:
         found = ", ".join(map(str, sorted(by_id)))
         raise MarkerNotFoundError(f"reference marker {self.id} not found (found {found})")
 
-    def state(self) -> dict:
+    def state(self) -> dict[str, int | None]:
         """What the next frame's choice depends on, JSON-able (compared across a video's chunks)."""
         return {"reference": self.id, "reference_missing": self.missing}
 
@@ -120,11 +124,11 @@ class ReferenceTally:
     the reference marker changed once: 4 -> 9 at frame 4 (4 last seen in frame 3); the object's position is relative to the reference, so it jumps there: give --marker-id to keep one marker
     """
 
-    def __init__(self):
-        self.last: tuple | None = None  # (frame, id) of the last frame with a reference
-        self.changes: list = []  # (frame, old id, new id, old id's last frame)
+    def __init__(self) -> None:
+        self.last: tuple[int, int] | None = None  # (frame, id) of the last frame with a reference
+        self.changes: list[tuple[int, int, int, int]] = []  # (frame, old id, new id, old id's last frame)
 
-    def add(self, frame: int, reference_id) -> None:
+    def add(self, frame: int, reference_id: int | None) -> None:
         """A tracked frame's reference id (None: no pose, or a board)."""
         if reference_id is None:
             return

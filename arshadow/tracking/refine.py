@@ -3,16 +3,22 @@ them (``refine="edge"``; unbiased at any marker size, docs/tracking.md)."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import cv2
 import numpy as np
+import numpy.typing as npt
+
+if TYPE_CHECKING:
+    from ..camera.model import Intrinsics
 
 __all__ = ["refine_corners_edges"]
 
 
 def refine_corners_edges(
-    gray,
-    corners,
-    intrinsics=None,
+    gray: np.ndarray,
+    corners: npt.ArrayLike,
+    intrinsics: Intrinsics | None = None,
     *,
     bits: int = 8,
     iterations: int = 3,
@@ -79,7 +85,15 @@ def refine_corners_edges(
     return c_all
 
 
-def _refine_step(img, c, intrinsics, t, bits, reach_in, reach_out):
+def _refine_step(
+    img: np.ndarray,
+    c: np.ndarray,
+    intrinsics: Intrinsics | None,
+    t: np.ndarray,
+    bits: int,
+    reach_in: float,
+    reach_out: float,
+) -> tuple[np.ndarray | None, float]:
     """One refinement round of one marker ``c (4, 2)``: (new corners (4, 2) or None, mean side px)."""
     H, W = img.shape[:2]
     n_samples = len(t)
@@ -103,9 +117,9 @@ def _refine_step(img, c, intrinsics, t, bits, reach_in, reach_out):
     ok = ok.reshape(4, n_samples)
     if np.any(ok.sum(axis=1) < 4):
         return None, side
-    dist = intrinsics is not None and intrinsics.has_distortion
-    if dist:
-        edge_pts = intrinsics.undistort_pixels(edge_pts)
+    lens = intrinsics if intrinsics is not None and intrinsics.has_distortion else None
+    if lens is not None:
+        edge_pts = lens.undistort_pixels(edge_pts)
     lines = _fit_lines(edge_pts.reshape(4, n_samples, 2), ok)
     prev = np.roll(lines, 1, axis=0)  # corner k = edge k-1 x edge k
     x = np.stack(
@@ -119,12 +133,12 @@ def _refine_step(img, c, intrinsics, t, bits, reach_in, reach_out):
     if np.any(np.abs(x[:, 2]) < 1e-12):
         return None, side
     new = x[:, :2] / x[:, 2:3]
-    if dist:
-        new = intrinsics.distort_pixels(new)
+    if lens is not None:
+        new = lens.distort_pixels(new)
     return new, side
 
 
-def _edge_crossings(img, pts, offs):
+def _edge_crossings(img: np.ndarray, pts: np.ndarray, offs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The 50 % crossing of each profile sampled at ``pts (4, S, P, 2)``: (offset along the normal (4S,),
     valid (4S,) bool)."""
     mx = np.ascontiguousarray(pts[..., 0].reshape(-1, len(offs)), np.float32)
@@ -143,7 +157,7 @@ def _edge_crossings(img, pts, offs):
     return offs[idx] + frac * (offs[1] - offs[0]), ok
 
 
-def _fit_lines(q, ok):
+def _fit_lines(q: np.ndarray, ok: np.ndarray) -> np.ndarray:
     """Total-least-squares line (closed form) through each edge's points ``q (4, S, 2)`` (valid ``ok
     (4, S)``), with one outlier rejection pass: (4, 3) lines ``a x + b y + c = 0``."""
     w = ok.astype(np.float64)

@@ -13,10 +13,13 @@ matrix entries within 2e-7, tests/test_plan_rules.py).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
+from .detect import DetectorOutput, MarkerDetector
 from .luma import LumaFrame
 
 __all__ = ["TrackingDetector"]
@@ -39,12 +42,12 @@ class TrackingDetector:
         The window searched by the last call (None: the whole frame).
     """
 
-    def __init__(self, base, marker_id=None):
+    def __init__(self, base: MarkerDetector, marker_id: int | None = None):
         self._base = base
         self.marker_id = marker_id
-        self._corners = None
-        self.last = None
-        self.window = None
+        self._corners: np.ndarray | None = None
+        self.last: str | None = None
+        self.window: tuple[int, int, int, int] | None = None
 
     def reset(self) -> None:
         """Forget the last detection (e.g. at a cut, or a new video): the next call searches the whole
@@ -53,7 +56,7 @@ class TrackingDetector:
         if hasattr(self._base, "reset"):
             self._base.reset()
 
-    def detectMarkers(self, gray):  # noqa: N802 (OpenCV's name)
+    def detectMarkers(self, gray: np.ndarray | LumaFrame) -> DetectorOutput:  # noqa: N802 (OpenCV's name)
         """``gray``: (H, W) uint8, or a video frame's :class:`arshadow.tracking.luma.LumaFrame` (only the
         window is converted unless the whole frame is searched)."""
         h, w = gray.shape[:2]
@@ -85,16 +88,16 @@ class TrackingDetector:
             self._corners = None
         return corners, ids, rejected
 
-    def state(self) -> dict:
+    def state(self) -> dict[str, object]:
         """What the next call depends on (the corners its window is cut around, and the wrapped detector's
         :meth:`state` if it has one), JSON-able: compared across a video's chunks."""
-        base = self._base.state() if hasattr(self._base, "state") else {}
+        base: dict[str, object] = self._base.state() if hasattr(self._base, "state") else {}
         return {"window_corners": None if self._corners is None else self._corners.tolist(), **base}
 
-    def _remember(self, corners):
+    def _remember(self, corners: Sequence[np.ndarray]) -> None:
         self._corners = np.concatenate([np.asarray(c, np.float64).reshape(-1, 2) for c in corners])
 
-    def __getattr__(self, name):
+    def __getattr__(self, name: str) -> Any:  # the wrapped detector's other methods
         return getattr(self._base, name)
 
 

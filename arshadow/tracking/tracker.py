@@ -8,6 +8,9 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, cast
 
 import cv2
 import numpy as np
@@ -19,7 +22,10 @@ from .board import OPENCV_BOARD_TO_WORLD, Board, load_board
 from .detect import (
     DEFAULT_REFINE,
     AprilTagDetector,
+    BoardDetector,
     Detection,
+    DetectorOutput,
+    MarkerDetector,
     RescueDetector,
     detection_from_opencv,
     make_detector_params,
@@ -28,14 +34,16 @@ from .detect import (
 )
 from .dictionary import (
     DEFAULT_DICTIONARY,
+    DictionarySpec,
     dictionary_label,
     get_dictionary,
     marker_object_points,
 )
 from .fastdetect import fast_detector_params, wrap_fast_detector
 from .luma import LumaFrame
-from .pose import AltPose, MarkerPose, solve_general, solve_planar
+from .pose import AltPose, MarkerPose, Solved, solve_general, solve_planar
 from .quality import AMBIGUITY_FLAG, border_occlusion, corner_instability
+from .reference import ReferenceLock
 from .refine import refine_corners_edges
 from .roi_track import TrackingDetector
 
@@ -99,19 +107,19 @@ class MarkerTracker:
     def __init__(
         self,
         intrinsics: Intrinsics,
-        dictionary=None,
-        marker_length=None,
-        marker_id=None,
-        board=None,
-        refine=DEFAULT_REFINE,
-        detector_params=None,
-        ambiguity_threshold=AMBIGUITY_FLAG,
-        pnp_refine=True,
-        detector="full",
-        track_roi=False,
-        inverted=None,
-        reference=None,
-    ):
+        dictionary: DictionarySpec | None = None,
+        marker_length: float | None = None,
+        marker_id: int | None = None,
+        board: Board | str | Path | None = None,
+        refine: str | None = DEFAULT_REFINE,
+        detector_params: cv2.aruco.DetectorParameters | str | Path | None = None,
+        ambiguity_threshold: float = AMBIGUITY_FLAG,
+        pnp_refine: bool = True,
+        detector: str | MarkerDetector = "full",
+        track_roi: bool = False,
+        inverted: bool | None = None,
+        reference: ReferenceLock | None = None,
+    ) -> None:
         if not isinstance(intrinsics, Intrinsics):
             raise UsageError("intrinsics must be an arshadow.camera.Intrinsics")
         self.intrinsics = intrinsics
@@ -170,6 +178,7 @@ class MarkerTracker:
         # the built-in detectors give pixel-centre corners; a custom one, OpenCV's raw output (AprilTag's
         # corners shifted by APRILTAG_OFFSET_PX when the parameters ask for it)
         self._shift_params = self.params if custom else None
+        self._detector: MarkerDetector
         if apriltag and not custom:
             self._detector = AprilTagDetector(self.dictionary, self.params)
         else:
@@ -183,15 +192,16 @@ class MarkerTracker:
             self._detector = detector
         if track_roi:
             self._detector = TrackingDetector(self._detector, marker_id)
-        self._charuco = None
+        self._charuco: cv2.aruco.CharucoDetector | None = None
         if board is not None and board.kind == "charuco":
             cp = cv2.aruco.CharucoParameters()
             cp.minMarkers = 1
             self._charuco_params = cp
-        self._charuco_for = None
+        self._charuco_for: Intrinsics | None = None
+        self._t_detect: float | None = None  # when the last estimate's detection ended (perf_counter)
 
     # -- helpers ---------------------------------------------------------------------------------------
-    def _intrinsics_for(self, image) -> tuple[Intrinsics, bool]:
+    def _intrinsics_for(self, image: np.ndarray | LumaFrame) -> tuple[Intrinsics, bool]:
         h, w = (image if isinstance(image, LumaFrame) else np.asarray(image)).shape[:2]
         return self.intrinsics.for_image(w, h)
 
@@ -199,18 +209,28 @@ class MarkerTracker:
     def last_search(self) -> str | None:
         """With ``track_roi``: where the last detection searched, ``"window"`` (around the previous marker)
         or ``"full"`` (the whole frame); None without ``track_roi``."""
-        return getattr(self._detector, "last", None)
+        last: str | None = getattr(self._detector, "last", None)
+        return last
 
-    def _charuco_detector(self, intr: Intrinsics):
-        if self._charuco_for != intr:
+    def _charuco_detector(self, intr: Intrinsics, board: Board) -> cv2.aruco.CharucoDetector:
+        det = self._charuco
+        if det is None or self._charuco_for != intr:
             cp = self._charuco_params
             cp.cameraMatrix = intr.K
             cp.distCoeffs = intr.dist_cv
-            self._charuco = cv2.aruco.CharucoDetector(self.board.cv_board, cp, self.params)
+            det = self._charuco = cv2.aruco.CharucoDetector(board.cv_charuco, cp, self.params)
             self._charuco_for = intr
-        return self._charuco
+        return det
 
-    def detect(self, image) -> Detection:
+    def _detect_in(self, gray: np.ndarray | LumaFrame) -> DetectorOutput:
+        """``detectMarkers`` of this tracker's detector; a video frame's luma goes only to the tracking
+        window (:meth:`estimate` keeps it unconverted only then)."""
+        d = self._detector
+        if isinstance(d, TrackingDetector):
+            return d.detectMarkers(gray)
+        return d.detectMarkers(gray.full() if isinstance(gray, LumaFrame) else gray)
+
+    def detect(self, image: np.ndarray | LumaFrame) -> Detection:
         """Detect the markers of this tracker's dictionary (no pose)."""
         gray = to_gray(image)
         corners, ids, rejected = self._detector.detectMarkers(gray)
@@ -225,7 +245,7 @@ class MarkerTracker:
         if hasattr(self._detector, "reset"):
             self._detector.reset()
 
-    def state(self) -> dict:
+    def state(self) -> dict[str, object]:
         """What the next frame's search depends on (its detectors' memory of the last frames: tracking
         window, misses in a row), JSON-able; ``{}`` for a tracker without memory.
 
@@ -233,10 +253,12 @@ class MarkerTracker:
         >>> MarkerTracker(Intrinsics.from_file("calib/synth_1280x720.yml"), marker_length=0.05).state()
         {'rescue_misses': 0}
         """
-        st = self._detector.state() if hasattr(self._detector, "state") else {}
+        st: dict[str, object] = self._detector.state() if hasattr(self._detector, "state") else {}
         return st if self.reference is None else {**st, **self.reference.state()}
 
-    def estimate(self, image_bgr, previous=None) -> MarkerPose:
+    def estimate(
+        self, image_bgr: np.ndarray | LumaFrame, previous: MarkerPose | np.ndarray | None = None
+    ) -> MarkerPose:
         """Detect and estimate the pose in one image.
 
         Parameters
@@ -264,12 +286,13 @@ class MarkerTracker:
         gray = img if lazy else to_gray(img)
         self._t_detect = None
         t0 = time.perf_counter()
-        if self.board is None:
+        board = self.board
+        if board is None:
             pose = self._estimate_marker(gray, intr)
-        elif self.board.kind == "charuco":
-            pose = self._estimate_charuco(gray, intr)
+        elif board.kind == "charuco":
+            pose = self._estimate_charuco(to_gray(gray), intr, board)
         else:
-            pose = self._estimate_gridboard(gray, intr)
+            pose = self._estimate_gridboard(to_gray(gray), intr, board)
         total = 1e3 * (time.perf_counter() - t0)
         det_ms = total if self._t_detect is None else 1e3 * (self._t_detect - t0)
         pose.timings_ms = {"detect": det_ms, "pose": total - det_ms}
@@ -295,7 +318,7 @@ class MarkerTracker:
                 pose = pose.swapped()
         return pose
 
-    def miss_hint(self, gray) -> str:
+    def miss_hint(self, gray: np.ndarray) -> str:
         """The end of a "no marker found" message: markers printed inverted (:meth:`inverted_hint`), or
         (``explain_misses``) the other dictionaries' markers in the image (:func:`markers_in_image`)."""
         if not self.explain_misses:
@@ -311,7 +334,7 @@ class MarkerTracker:
         )
         return f"; the image has markers of other dictionaries: {listed} (give --dictionary)"
 
-    def inverted_hint(self, gray) -> str:
+    def inverted_hint(self, gray: np.ndarray) -> str:
         """``""``, or (no marker found, not in inverted mode) a sentence saying that the image holds markers
         of this dictionary printed white on black, for the error message (one extra detection)."""
         if self.inverted:
@@ -327,15 +350,23 @@ class MarkerTracker:
             "'inverted: 1' in the board file)"
         )
 
-    def _want(self, marker_id) -> None:
+    def _want(self, marker_id: int | None) -> None:
         """Tell the wrapped detectors (tracking window, second search) which marker the next frame wants."""
-        d = self._detector
+        d: object = self._detector
         while hasattr(d, "__dict__"):  # the wrappers (Python objects) around OpenCV's detector
             if "marker_id" in vars(d):
-                d.marker_id = marker_id
+                vars(d)["marker_id"] = marker_id
             d = vars(d).get("_base")
 
-    def _make_pose(self, solved, obj, img, ids, all_corners, kind):
+    def _make_pose(
+        self,
+        solved: Solved,
+        obj: np.ndarray,
+        img: np.ndarray,
+        ids: Sequence[int],
+        all_corners: dict[int, np.ndarray],
+        kind: str,
+    ) -> MarkerPose:
         sols, ratio = solved
         r, t, e = sols[0]
         alt = None
@@ -361,8 +392,8 @@ class MarkerTracker:
             kind,
         )
 
-    def _estimate_marker(self, gray, intr) -> MarkerPose:
-        corners, ids, rejected = self._detector.detectMarkers(gray)
+    def _estimate_marker(self, gray: np.ndarray | LumaFrame, intr: Intrinsics) -> MarkerPose:
+        corners, ids, rejected = self._detect_in(gray)
         self._t_detect = time.perf_counter()
         det = detection_from_opencv(corners, ids, rejected, self._shift_params)
         if len(det) == 0:
@@ -387,22 +418,21 @@ class MarkerTracker:
         img = by_id[ref]
         obj = marker_object_points(self.marker_length)
         sols = solve_planar(intr, obj, img, square=True, lm=self.pnp_refine)
-        ids = [ref] + [i for i in found if i != ref]
-        return self._make_pose(sols, obj, img, ids, by_id, "marker")
+        return self._make_pose(sols, obj, img, [ref] + [i for i in found if i != ref], by_id, "marker")
 
-    def _estimate_gridboard(self, gray, intr) -> MarkerPose:
+    def _estimate_gridboard(self, gray: np.ndarray, intr: Intrinsics, board: Board) -> MarkerPose:
         corners, ids, rejected = self._detector.detectMarkers(gray)
         if ids is None or len(ids) == 0:
             raise MarkerNotFoundError(f"no marker of {self.dictionary_name} found{self.miss_hint(gray)}")
-        if self.board.kind == "gridboard":
-            corners, ids, rejected, _ = self._detector.refineDetectedMarkers(
-                gray, self.board.cv_board, corners, ids, rejected, intr.K, intr.dist_cv
+        if board.kind == "gridboard":  # the detector given for a grid board has refineDetectedMarkers (docstring)
+            corners, ids, rejected, _ = cast(BoardDetector, self._detector).refineDetectedMarkers(
+                gray, board.cv_board, corners, ids, rejected, intr.K, intr.dist_cv
             )
         det = detection_from_opencv(corners, ids, rejected, self._shift_params)
         self._t_detect = time.perf_counter()
         if self.refine == "edge" and len(det):  # as for one marker (the video default; the marker-map work)
             det.corners = refine_corners_edges(gray, det.corners, intr)
-        obj, img = self.board.cv_board.matchImagePoints(
+        obj, img = board.cv_board.matchImagePoints(
             tuple(c.reshape(1, 4, 2).astype(np.float32) for c in det.corners), det.ids.reshape(-1, 1).astype(np.int32)
         )
         if obj is None or len(obj) < 4:
@@ -411,16 +441,16 @@ class MarkerTracker:
             )
         obj = np.asarray(obj, np.float64).reshape(-1, 3) @ OPENCV_BOARD_TO_WORLD.T
         img = np.asarray(img, np.float64).reshape(-1, 2)
-        if self.board.planar:
+        if board.planar:
             sols = solve_planar(intr, obj, img, square=False, lm=self.pnp_refine)
         else:
             sols = solve_general(intr, obj, img, lm=self.pnp_refine)
-        board_ids = set(self.board.marker_ids)
+        board_ids = set(board.marker_ids)
         used = [i for i in sorted(set(det.ids.tolist())) if i in board_ids]
-        return self._make_pose(sols, obj, img, used, det.by_id, self.board.kind)
+        return self._make_pose(sols, obj, img, used, det.by_id, board.kind)
 
-    def _estimate_charuco(self, gray, intr) -> MarkerPose:
-        det = self._charuco_detector(intr)
+    def _estimate_charuco(self, gray: np.ndarray, intr: Intrinsics, board: Board) -> MarkerPose:
+        det = self._charuco_detector(intr, board)
         ch_corners, ch_ids, m_corners, m_ids = det.detectBoard(gray)
         self._t_detect = time.perf_counter()
         if m_ids is None or len(m_ids) == 0:
@@ -428,9 +458,10 @@ class MarkerTracker:
         n = 0 if ch_ids is None else len(ch_ids)
         if n < 4:
             raise MarkerNotFoundError(f"ChArUco board: only {n} chessboard corners found (need at least 4)")
-        if self.board.cv_board.checkCharucoCornersCollinear(ch_ids):
+        if board.cv_charuco.checkCharucoCornersCollinear(ch_ids):
             raise MarkerNotFoundError("ChArUco board: the detected corners are collinear (no pose)")
-        obj, img = self.board.cv_board.matchImagePoints(ch_corners, ch_ids)
+        # OpenCV's stubs want a sequence of corner arrays; ChArUco corners are one (n, 1, 2) array
+        obj, img = board.cv_charuco.matchImagePoints(ch_corners, ch_ids)  # type: ignore[call-overload]
         obj = np.asarray(obj, np.float64).reshape(-1, 3) @ OPENCV_BOARD_TO_WORLD.T
         img = np.asarray(img, np.float64).reshape(-1, 2)
         sols = solve_planar(intr, obj, img, square=False, lm=self.pnp_refine)
@@ -438,7 +469,7 @@ class MarkerTracker:
         return self._make_pose(sols, obj, img, sorted(set(mdet.ids.tolist())), mdet.by_id, "charuco")
 
 
-def make_fast_tracker(intrinsics, **tracker_kwargs) -> MarkerTracker:
+def make_fast_tracker(intrinsics: Intrinsics, **tracker_kwargs: Any) -> MarkerTracker:
     """The tracker of the pipeline's fast first pass: ``MarkerTracker(intrinsics, detector="fast", ...)``.
 
     A :class:`MarkerTracker` with one 7-px threshold window
