@@ -22,16 +22,40 @@ import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Protocol
 
 import cv2
 import numpy as np
 
 from ..errors import ImageError, UsageError
 from ..io import to_bgr8
-from .avio import AvReader, VideoFrame
+from .avio import AvReader, RawFrame, VideoFrame
 from .threads import END, put_or_stop
 
-__all__ = ["VideoReader", "decode_into", "looks_like_sequence", "open_reader", "sequence_indices"]
+__all__ = ["FrameReader", "VideoReader", "decode_into", "looks_like_sequence", "open_reader", "sequence_indices"]
+
+
+class FrameReader(Protocol):
+    """What the engine reads of a video's reader (:class:`VideoReader`, :class:`arshadow.video.avio.AvReader`,
+    :class:`arshadow.video.scan.SeekReader`); the others (``rate``, ``pix_fmt``, ``rotation``, ``has_audio``,
+    ``path``, ``end_note``, ``n_decode_errors``) are read with ``getattr`` where a reader may lack them."""
+
+    @property
+    def width(self) -> int: ...
+    @property
+    def height(self) -> int: ...
+    @property
+    def fps(self) -> float: ...
+    @property
+    def fps_assumed(self) -> bool: ...
+    @property
+    def frame_count(self) -> int | None: ...
+    @property
+    def n_read(self) -> int: ...
+    @property
+    def truncated(self) -> bool: ...
+    def __iter__(self) -> Iterator[RawFrame | VideoFrame]: ...
+    def close(self) -> None: ...
 
 
 def _quiet_ffmpeg() -> None:
@@ -78,7 +102,7 @@ def open_reader(path: str | os.PathLike[str], max_frames: int | None) -> tuple[V
     return AvReader(p, max_frames=max_frames, raw=True), True
 
 
-def decode_into(reader: VideoReader | AvReader, q: queue.Queue[object], stop: threading.Event) -> None:
+def decode_into(reader: FrameReader, q: queue.Queue[object], stop: threading.Event) -> None:
     """Decode every frame of ``reader`` into the queue ``q`` as ``(frame, decode_ms)``, then :data:`END`;
     returns early when ``stop`` is set (a consumer failed)."""
     t = time.perf_counter()
