@@ -42,6 +42,7 @@ __all__ = [
     "EncodeJob",
     "EncodeSink",
     "Progress",
+    "ProgressFactory",
     "SheetThumbs",
     "VideoOutputs",
     "atomic_dir",
@@ -55,6 +56,8 @@ __all__ = [
 VideoOutputs: TypeAlias = dict[str, Path | None]
 #: ``progress(frames_done, frames_total_or_None)``
 Progress: TypeAlias = Callable[[int, "int | None"], object]
+#: ``progress_factory(input) -> (update(done, total), close())`` per video (a progress bar)
+ProgressFactory: TypeAlias = Callable[[str], tuple[Progress, Callable[[], object]]]
 #: what :meth:`arshadow.video.framejob.FrameComposer.compose` hands the encode thread: ``(image, format,
 #: mask or None, report item, JSON Lines record)``
 EncodeJob: TypeAlias = tuple[np.ndarray, str, "np.ndarray | None", "ReportItem", dict[str, Any]]
