@@ -17,6 +17,9 @@ import os
 import re
 import signal
 import sys
+from collections.abc import Callable, Iterable
+from types import FrameType
+from typing import Any, NoReturn, TypeAlias
 
 from .. import __version__
 from ..errors import ArshadowError, BatchStoppedError, EstimateError, ImageError, MarkerNotFoundError
@@ -47,7 +50,7 @@ class _Parser(argparse.ArgumentParser):
     """argparse with one-line usage errors (``PROG: error: MESSAGE (see PROG --help)``, exit 2) instead of
     the usage block; subcommand parsers inherit it."""
 
-    def error(self, message):
+    def error(self, message: str) -> NoReturn:
         self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
@@ -74,14 +77,14 @@ def build_parser() -> argparse.ArgumentParser:
 _NEGATIVE_LIST = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?(,[-+]?[\d.eE+-]*)+$")
 
 
-def join_negative_values(argv) -> list[str]:
+def join_negative_values(argv: Iterable[str]) -> list[str]:
     """``--place -0.05,0,0`` -> ``--place=-0.05,0,0``: a long option followed by a number list that starts
     with a minus (argparse would read the list as an unknown option and say "expected one argument").
 
     >>> join_negative_values(["render", "--place", "-0.05,0,0", "--rotate", "-90,0,0", "-o", "out"])
     ['render', '--place=-0.05,0,0', '--rotate=-90,0,0', '-o', 'out']
     """
-    out = []
+    out: list[str] = []
     for tok in argv:
         if out and _NEGATIVE_LIST.match(tok) and out[-1].startswith("--") and "=" not in out[-1]:
             out[-1] = f"{out[-1]}={tok}"
@@ -90,7 +93,7 @@ def join_negative_values(argv) -> list[str]:
     return out
 
 
-def main(argv=None) -> int:
+def main(argv: Iterable[str] | None = None) -> int:
     try:
         code = _main(argv)
         sys.stdout.flush()  # here, not at exit: a closed pipe is caught below
@@ -109,7 +112,7 @@ def _stdout_to_devnull() -> None:
         pass
 
 
-def _main(argv=None) -> int:
+def _main(argv: Iterable[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(join_negative_values(sys.argv[1:] if argv is None else list(argv)))
     logging.basicConfig(
@@ -144,11 +147,15 @@ def _main(argv=None) -> int:
             signal.signal(signal.SIGTERM, previous)
 
 
-def _terminate_as_interrupt():
+#: what ``signal.signal`` gives back: the previous handler
+_Handler: TypeAlias = Callable[[int, FrameType | None], Any] | int | signal.Handlers | None
+
+
+def _terminate_as_interrupt() -> _Handler:
     """SIGTERM (``kill``, a job scheduler's stop) unwinds like Ctrl-C: the temporary files of the outputs
     being written are removed, finished ones kept (only possible in the main thread; else left as is)."""
 
-    def handler(signum, frame):
+    def handler(signum: int, frame: FrameType | None) -> NoReturn:
         raise KeyboardInterrupt(signum)
 
     try:
@@ -168,7 +175,7 @@ def quiet_opencv(debug: bool = False) -> None:
         pass
 
 
-def error_line(command: str, what: str, exc: BaseException) -> str:
+def error_line(command: str, what: str, exc: BaseException | str) -> str:
     """The one-line message for a failed input: ``arshadow CMD: error: WHAT: MESSAGE``."""
     return f"arshadow {command}: error: {what}: {exc}"
 

@@ -4,9 +4,16 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import TYPE_CHECKING, Any
 
 from . import EXIT_OK, EXIT_SOME_FAILED
 from .light import add_probe_options
+
+if TYPE_CHECKING:
+    from distributed import Client, LocalCluster
+
+    from ..frame.session import Session
+    from ..scene.spec import SceneSpec
 
 EPILOG = """\
 examples:
@@ -23,7 +30,7 @@ processed), 2 bad usage or an unreadable scene file.
 """
 
 
-def register(subparsers) -> None:
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     from .map import add_map_option
     from .video import add_output_options
 
@@ -57,7 +64,7 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def _with_map(args, spec):
+def _with_map(args: argparse.Namespace, spec: SceneSpec) -> SceneSpec:
     """``--map auto|FILE``: the scene with the map file as its board (cli/map.py)."""
     from dataclasses import replace
 
@@ -82,7 +89,7 @@ def _with_map(args, spec):
 DASK_CONNECT_TIMEOUT_S = 10
 
 
-def _client(address: str, debug: bool = False):
+def _client(address: str, debug: bool = False) -> tuple[Client, LocalCluster | None]:
     """``(Client, LocalCluster or None)`` for ``--dask ADDRESS``; UsageError for a bad or unreachable one."""
     import logging
 
@@ -119,7 +126,7 @@ def _client(address: str, debug: bool = False):
         ) from None
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from ..frame.session import Session
     from ..io import check_output_folder
     from ..scene.spec import load_scene
@@ -145,7 +152,9 @@ def run(args) -> int:
     opts = engine_options(args)
     # before any work: a bad -o, scene file or cluster address is one usage error (exit 2)
     outdir = check_output_folder(args.output, "-o")
-    client = cluster = session = None
+    client: Client | None = None
+    cluster: LocalCluster | None = None
+    session: Session | None = None
     if args.dask:
         spec.build()  # the scene's files, read here once: a bad one fails before any task is sent
         client, cluster = _client(args.dask, debug)
@@ -157,7 +166,7 @@ def run(args) -> int:
 
         bar = tqdm(total=len(args.inputs), unit="item", desc="batch", file=sys.stderr, dynamic_ncols=True)
 
-    def progress(done, total, res):
+    def progress(done: int, total: int, res: dict[str, Any] | None) -> None:
         if bar is not None:
             bar.update(done - bar.n)
         if res is not None and res["status"] != "ok":

@@ -6,13 +6,22 @@ import argparse
 import logging
 import math
 import sys
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..errors import UsageError
 from ..scene.options import DEFAULT_AA
 from ..scene.spec import parse_triple, scene_from_args
 from . import EXIT_OK, EXIT_SOME_FAILED, error_line, quiet_opencv
 from .light import add_probe_options, probe_estimate
+
+if TYPE_CHECKING:
+    from tqdm import tqdm
+
+    from ..frame.report import ReportItem
+    from ..frame.result import FrameResult
+    from ..photos import PhotoJob
 
 log = logging.getLogger(__name__)
 
@@ -30,10 +39,10 @@ exit status: 0 all done, 1 some inputs failed (the others were processed), 2 bad
 """
 
 
-def _triple(what: str):
+def _triple(what: str) -> Callable[[str], tuple[float, float, float]]:
     """An argparse type over :func:`arshadow.scene.parse_triple` (a bad value: a usage error, exit 2)."""
 
-    def parse(text: str):
+    def parse(text: str) -> tuple[float, float, float]:
         try:
             return parse_triple(text, what)
         except UsageError as exc:
@@ -42,8 +51,10 @@ def _triple(what: str):
     return parse
 
 
-def _positive(what: str, integer: bool = False):
-    def parse(text: str):
+def _positive(what: str, integer: bool = False) -> Callable[[str], float]:
+    """An argparse type: a positive finite number (an int with ``integer``)."""
+
+    def parse(text: str) -> float:
         try:
             v = int(text) if integer else float(text)
         except ValueError:
@@ -237,7 +248,7 @@ def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> No
     )
 
 
-def register(subparsers) -> None:
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = subparsers.add_parser(
         "render",
         help="composite a virtual object and its shadow into photos",
@@ -280,7 +291,7 @@ def register(subparsers) -> None:
 
 
 # --------------------------------------------------------------------------------------------------
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     # deferred: the engine (OpenCV, meshes) loads when a command runs, not at start-up (cli/__init__.py)
     from ..export.layerfiles import refuse_overwrite
     from ..frame.report import make_report
@@ -315,7 +326,7 @@ def run(args) -> int:
         layers_undistorted=undistorted,
     )
     if layers is not None:  # a layer file that would replace an input: a usage error, before any work
-        refuse_overwrite([p for j in jobs for p in j.layers.values()], inputs)
+        refuse_overwrite([p for j in jobs for p in (j.layers or {}).values()], inputs)  # every job has layers
     est = probe_estimate(
         args,
         inputs,
@@ -364,7 +375,7 @@ def run(args) -> int:
     return EXIT_SOME_FAILED if failed else EXIT_OK
 
 
-def use_map(args, inputs) -> None:
+def use_map(args: argparse.Namespace, inputs: Sequence[str]) -> None:
     """``--map auto|FILE``: track against the map (learned from ``inputs`` into ``OUT/map.yml``, or read):
     ``args.board`` becomes the map file (cli/map.py)."""
     from .map import map_info, resolve_map
@@ -385,7 +396,7 @@ def use_map(args, inputs) -> None:
         args.map_info = map_info(board)
 
 
-def out_of_view_warning(items, place=None) -> str | None:
+def out_of_view_warning(items: Sequence[ReportItem], place: Sequence[float] | None = None) -> str | None:
     """The warning when the object and its shadows are outside the view (the planner's empty region,
     ``roi`` ``[0, 0, 0, 0]``) in every photo rendered, or in some of them; None when it is in view.
 
@@ -411,7 +422,14 @@ def out_of_view_warning(items, place=None) -> str | None:
     )
 
 
-def _print_done(args, bar, job, item, res, err) -> None:
+def _print_done(
+    args: argparse.Namespace,
+    bar: tqdm | None,
+    job: PhotoJob,
+    item: ReportItem,
+    res: FrameResult | None,
+    err: BaseException | None,
+) -> None:
     """One line per photo: the output (stdout, unless ``--quiet``) or the problem (stderr), above the
     progress bar when there is one."""
     say = bar.write if bar is not None else print
@@ -424,7 +442,7 @@ def _print_done(args, bar, job, item, res, err) -> None:
         bar.update(1)
 
 
-def _error_line(inp, exc) -> str:
+def _error_line(inp: str | Path, exc: BaseException) -> str:
     """One line naming the input (once) and the problem."""
     msg = str(exc) or type(exc).__name__
     if str(inp) in msg:

@@ -4,9 +4,18 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from . import EXIT_OK, EXIT_SOME_FAILED
+
+if TYPE_CHECKING:
+    from tqdm import tqdm
+
+    from ..video.api import VideoRun
+    from ..video.encode import ProgressFactory
+    from ..video.engine import EngineOptions
 
 EPILOG = """\
 examples:
@@ -30,7 +39,7 @@ FORMATS = ("mp4", "mkv", "mov", "avi")
 FORMAT_CODEC = {"mp4": "h264", "mov": "h264", "mkv": "ffv1", "avi": "mjpeg"}
 
 
-def add_output_options(out) -> None:
+def add_output_options(out: argparse._ArgumentGroup) -> None:
     """The video output options shared by ``arshadow video`` and ``arshadow batch``."""
     out.add_argument(
         "--format",
@@ -101,7 +110,7 @@ def add_output_options(out) -> None:
     )
 
 
-def engine_options(args, collect_items=False):
+def engine_options(args: argparse.Namespace, collect_items: bool = False) -> EngineOptions:
     """:class:`arshadow.video.engine.EngineOptions` from the parsed options."""
     from ..video.engine import EngineOptions
 
@@ -125,18 +134,18 @@ def engine_options(args, collect_items=False):
     ).check()
 
 
-def progress_bar(quiet: bool):
+def progress_bar(quiet: bool) -> ProgressFactory | None:
     """A ``progress_factory`` for :func:`arshadow.video.runner.run_videos`: a tqdm bar per video (none with
     ``-q`` or when stderr is not a terminal: a log file gets the closing lines only)."""
     if quiet or not sys.stderr.isatty():
         return None
 
-    def factory(name):
+    def factory(name: str) -> tuple[Callable[[int, int | None], None], Callable[[], None]]:
         from tqdm import tqdm
 
-        bars = []  # made on the first frame: a video that cannot be opened prints only its error line
+        bars: list[tqdm] = []  # made on the first frame: a video that cannot be opened prints only its error line
 
-        def update(done, total):
+        def update(done: int, total: int | None) -> None:
             if not bars:
                 bars.append(
                     tqdm(
@@ -148,7 +157,7 @@ def progress_bar(quiet: bool):
                 bar.total = total
             bar.update(done - bar.n)
 
-        def close():
+        def close() -> None:
             if bars:
                 bars[0].close()
 
@@ -157,7 +166,7 @@ def progress_bar(quiet: bool):
     return factory
 
 
-def register(subparsers) -> None:
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     from .render import add_scene_options
 
     p = subparsers.add_parser(
@@ -239,7 +248,7 @@ def register(subparsers) -> None:
 
 
 # --------------------------------------------------------------------------------------------------
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     """``arshadow video``: the scene from the options, :func:`arshadow.video.api.process_video`, the lines and
     the report."""
     from ..errors import UsageError
@@ -263,7 +272,7 @@ def run(args) -> int:
         dictionary=args.dictionary,
         marker_id=args.marker_id,
     )  # --probe: docs/light.md
-    extra = {} if est is None else {"light_from": est}
+    extra: dict[str, object] = {} if est is None else {"light_from": est}
     use_map(args, args.videos)  # --map: the markers' map learned (or read) first (cli/map.py)
     spec = scene_from_args(args, refine=args.corner_refine, track_roi=True, **extra)
     # output paths before any work: a bad -o / --report is one usage error, not one per video
@@ -291,7 +300,7 @@ def run(args) -> int:
     return EXIT_SOME_FAILED if run.failed else EXIT_OK
 
 
-def _print_summaries(run, outdir, quiet: bool) -> None:
+def _print_summaries(run: VideoRun, outdir: Path, quiet: bool) -> None:
     """Each video's warnings, error or tracking line and output line; the closing line of several."""
     failed, summaries = 0, run.summaries
     for s in summaries:
@@ -320,7 +329,7 @@ def _print_summaries(run, outdir, quiet: bool) -> None:
         )
 
 
-def tracking_summary(s: dict) -> str:
+def tracking_summary(s: dict[str, Any]) -> str:
     """The stderr line of one video's tracking: frames tracked / held / lost and the longest gap."""
     gap = s.get("longest_gap") or 0
     where = f" (frames {s['longest_gap_start']}-{s['longest_gap_start'] + gap - 1})" if gap else ""

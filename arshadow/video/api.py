@@ -22,6 +22,7 @@ from ..errors import UsageError
 from ..frame.report import ReportItem, jsonable, make_report
 from ..io import check_output_folder
 from ..scene.spec import SceneSpec, load_scene, scene_from_dict
+from .encode import ProgressFactory as EncodeProgressFactory
 from .engine import EngineOptions, SessionBackend, video_outputs
 from .scan import time_lapse_warnings
 
@@ -30,7 +31,7 @@ __all__ = ["VideoRun", "process_video"]
 log = logging.getLogger("arshadow.video")
 
 #: ``progress(input) -> (update(done, total), close())`` per video (a progress bar), or None
-ProgressFactory = Callable[[str], Any]
+ProgressFactory = EncodeProgressFactory
 
 
 @dataclass
@@ -43,14 +44,15 @@ class VideoRun:
         One per input, in order: ``status`` (``"ok"``, ``"error"`` with ``error``, ...), ``input``,
         ``output``, ``frames``, ``frames_ok`` / ``frames_held`` / ``frames_no_marker``, ``fps_processed``,
         ``warnings`` (the sun-set warning of a time-lapse first), ... (docs/video.md).
-    items : list of arshadow.frame.report.ReportItem
-        Every frame's report item when ``EngineOptions.collect_items`` (else empty).
+    items : list of arshadow.frame.report.ReportItem or dict
+        Every frame's report item when ``EngineOptions.collect_items`` (else empty); a video run in chunks
+        (``jobs > 1``) gives its items as their dicts (:meth:`ReportItem.to_dict`, read back from the chunks).
     warnings : dict
         ``{input: message}``: a sun that sets during the input's time-lapse, found before any frame.
     """
 
     summaries: list[dict[str, Any]]
-    items: list[ReportItem] = field(default_factory=list)
+    items: list[ReportItem | dict[str, Any]] = field(default_factory=list)
     warnings: dict[str, str] = field(default_factory=dict)
 
     @property
@@ -130,7 +132,7 @@ def process_video(
     spec = _video_spec(spec)
     inputs = [os.fspath(videos)] if isinstance(videos, str | os.PathLike) else [os.fspath(v) for v in videos]
     opts = (options if options is not None else EngineOptions()).check()
-    outdir = check_output_folder(output, "output")
+    outdir = check_output_folder(os.fspath(output), "output")
     if int(jobs) < 1:
         raise UsageError(f"jobs {jobs}: must be >= 1")
     if opts.layers is not None:  # a layer file over an input: a usage error before any work
@@ -177,6 +179,6 @@ def _refuse_layer_overwrite(inputs: list[str], outdir: Path, opts: EngineOptions
         p
         for stem in unique_stems(inputs)
         for k, p in video_outputs(outdir, stem, opts).items()
-        if k.startswith("layers:")
+        if k.startswith("layers:") and p is not None
     ]
     refuse_overwrite(paths, inputs)

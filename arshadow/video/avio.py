@@ -13,18 +13,28 @@ Why PyAV rather than OpenCV's writer: OpenCV's wheel has no H.264 encoder (MPEG-
 bits for the same quality), no audio, and no CRF; measured in docs/video.md.
 
 Frames (CONVENTIONS.md): images are ``(H, W, 3) uint8`` BGR, row 0 at the top.
+
+(About 630 lines, over the project's ~600: the reader and the writer share PyAV's loading, its error
+handling and the frame plumbing, annotated with PyAV's own types; the next part that grows moves out.)
 """
 
 from __future__ import annotations
 
 import contextlib
 import math
+import os
 import sys
+from collections.abc import Iterator
 from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
+from types import ModuleType, TracebackType
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:  # PyAV loads on first use (load_av): importing arshadow does not load FFmpeg
+    import av
 
 from ..errors import ImageError, UsageError, write_error
 
@@ -93,7 +103,7 @@ class RawFrame:
     format: str = "bgr24"
 
 
-def load_av():
+def load_av() -> ModuleType:
     """PyAV, with FFmpeg's own log silenced (a UsageError naming the package when it is missing)."""
     try:
         import av  # deferred: importing arshadow does not load FFmpeg; the error names the package
@@ -103,7 +113,7 @@ def load_av():
     return av
 
 
-def pts_time(pts: int, time_base) -> float:
+def pts_time(pts: int, time_base: Fraction | float) -> float:
     """Seconds of a timestamp, ``pts * time_base`` rounded once (the same float in every reader).
 
     >>> from fractions import Fraction
@@ -149,7 +159,12 @@ class AvReader:
         Missing, empty, or not a decodable video.
     """
 
-    def __init__(self, path, max_frames: int | None = None, threads: int = 0, raw: bool = False):
+    _c: av.container.InputContainer | None  # None once closed
+    _vs: av.video.stream.VideoStream
+
+    def __init__(
+        self, path: str | os.PathLike[str], max_frames: int | None = None, threads: int = 0, raw: bool = False
+    ) -> None:
         av = load_av()
         self.raw = bool(raw)
         self.path = str(path)
@@ -164,13 +179,14 @@ class AvReader:
             raise UsageError(f"--max-frames {max_frames}: must be >= 1")
         self.max_frames = None if max_frames is None else int(max_frames)
         try:
-            self._c = av.open(self.path, "r")
+            c = av.open(self.path, "r")
         except (av.FFmpegError, OSError, ValueError) as exc:
             raise ImageError(f"{self.path}: cannot open as a video ({_short(exc)})") from None
-        if not self._c.streams.video:
-            self._c.close()
+        self._c = c
+        if not c.streams.video:
+            c.close()
             raise ImageError(f"{self.path}: no video stream")
-        vs = self._vs = self._c.streams.video[0]
+        vs = self._vs = c.streams.video[0]
         vs.thread_type = "AUTO"
         if threads:
             vs.codec_context.thread_count = int(threads)
@@ -181,11 +197,11 @@ class AvReader:
         n = int(vs.frames or 0)
         if n <= 0 and vs.duration and vs.time_base:
             n = int(round(float(vs.duration * vs.time_base) * self.fps))
-        if n <= 0 and self._c.duration:  # e.g. Matroska: the container's duration (microseconds)
-            n = int(round(self._c.duration / 1e6 * self.fps))
+        if n <= 0 and c.duration:  # e.g. Matroska: the container's duration (microseconds)
+            n = int(round(c.duration / 1e6 * self.fps))
         self.frame_count = n if n > 0 else None
         self.width, self.height = int(vs.codec_context.width), int(vs.codec_context.height)
-        self.has_audio = bool(self._c.streams.audio)
+        self.has_audio = bool(c.streams.audio)
         self.pix_fmt = vs.codec_context.pix_fmt
         self._rotation: int | None = None  # read from the first frame decoded (or on demand: rotation)
         self.n_read = 0
@@ -196,7 +212,7 @@ class AvReader:
             self.close()
             raise ImageError(f"{self.path}: no decodable frame (unknown frame size)")
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator[RawFrame | VideoFrame]:
         if self._started:
             raise UsageError(f"{self.path}: an AvReader can be iterated only once")
         self._started = True
@@ -245,7 +261,7 @@ class AvReader:
             self._rotation = display_rotation(self.path)
         return self._rotation
 
-    def _decoded(self):
+    def _decoded(self) -> Iterator[av.VideoFrame]:
         """The decoded ``av.VideoFrame`` s in order, damaged packets skipped and counted.
 
         Frame threading (fast) drops the frames in flight when a packet fails to decode or the file ends
@@ -255,6 +271,7 @@ class AvReader:
         av = load_av()
         given = 0
         trouble = False
+        assert self._c is not None  # open until this iteration ends (the reader is iterated once)
         try:
             for packet in self._c.demux(self._vs):
                 try:
@@ -273,11 +290,11 @@ class AvReader:
             return
         self.close()
         try:
-            self._c = av.open(self.path, "r")
-            vs = self._c.streams.video[0]
+            self._c = c = av.open(self.path, "r")
+            vs = c.streams.video[0]
             vs.thread_type = "SLICE"
             k = 0
-            for packet in self._c.demux(vs):
+            for packet in c.demux(vs):
                 try:
                     frames = packet.decode()
                 except av.FFmpegError:
@@ -298,20 +315,20 @@ class AvReader:
         got = self.n_read + self.n_decode_errors  # a damaged packet is not a missing tail
         return self.ended_with_error or (self.frame_count is not None and got < self.frame_count - 1)
 
-    def close(self):
+    def close(self) -> None:
         c, self._c = getattr(self, "_c", None), None
         if c is not None:
             with contextlib.suppress(Exception):
                 c.close()
 
-    def __enter__(self):
+    def __enter__(self) -> AvReader:
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
 
-def _short(exc) -> str:
+def _short(exc: BaseException) -> str:
     """FFmpeg's own reason (``Invalid data found when processing input``) without the file name and log."""
     reason = getattr(exc, "strerror", None)
     if reason:
@@ -359,20 +376,20 @@ class AvWriter:
 
     def __init__(
         self,
-        path,
-        rate,
-        size,
+        path: str | os.PathLike[str],
+        rate: Fraction | float,
+        size: tuple[int, int],
         *,
         codec: str = "h264",
         crf: float = 20,
         preset: str = "veryfast",
         color: bool = True,
-        audio_from=None,
+        audio_from: str | os.PathLike[str] | None = None,
         threads: int = 0,
         pix_fmt: str | None = None,
         gop: int | None = None,
         rotation: int = 0,
-    ):
+    ) -> None:
         self.path = Path(path)
         if codec not in VIDEO_CODECS:
             raise UsageError(f"--codec {codec}: use one of {', '.join(VIDEO_CODECS)}")
@@ -388,10 +405,14 @@ class AvWriter:
         self.rotation = int(rotation) % 360
         self.n_written = 0
         self.audio_copied = False
-        self._stack = self._c = self._vs = None
-        self._frames: dict = {}  # pixel format -> the reused av.VideoFrame (see _frame)
+        self._stack: contextlib.ExitStack[bool | None] | None = None
+        self._c: av.container.OutputContainer | None = None
+        self._vs: av.video.stream.VideoStream | None = None
+        # (source container, its audio stream, the output's copy) while the audio is copied
+        self._audio: tuple[av.container.InputContainer, av.stream.Stream, av.stream.Stream] | None = None
+        self._frames: dict[str, av.VideoFrame] = {}  # pixel format -> the reused av.VideoFrame (see _frame)
 
-    def __enter__(self):
+    def __enter__(self) -> AvWriter:
         from ..io import atomic_path
 
         av = load_av()
@@ -443,7 +464,9 @@ class AvWriter:
             raise
         return self
 
-    def _open_audio(self, av, c):
+    def _open_audio(
+        self, av: ModuleType, c: av.container.OutputContainer
+    ) -> tuple[av.container.InputContainer, av.stream.Stream, av.stream.Stream] | None:
         try:
             src = av.open(str(self.audio_from), "r")
         except (av.FFmpegError, OSError):
@@ -461,7 +484,8 @@ class AvWriter:
     def write(self, frame: np.ndarray) -> None:
         """Append one frame: ``(H, W, 3) uint8`` BGR (``color``) or ``(H, W) uint8``."""
         av = load_av()
-        if self._vs is None:
+        vs, cont = self._vs, self._c
+        if vs is None or cont is None:  # both set in __enter__, cleared in __exit__
             raise UsageError("AvWriter.write outside its with-block")
         f = np.asarray(frame)
         want = (self.size[1], self.size[0], 3) if self.color else (self.size[1], self.size[0])
@@ -469,12 +493,13 @@ class AvWriter:
             raise ImageError(f"{self.path}: frame {self.n_written} is {f.shape} {f.dtype}, expected {want} uint8")
         vf = self._frame(av, "bgr24" if self.color else "gray")
         fill_plane(vf.planes[0], f.reshape(f.shape[0], -1))
-        self._encode(av, vf, self._vs, self._c)
+        self._encode(av, vf, vs, cont)
 
     def write_yuv420p(self, planes: np.ndarray) -> None:
         """Append one frame given as planar ``(H * 3 // 2, W) uint8`` Y, U, V (BT.601, as decoded)."""
         av = load_av()
-        if self._vs is None:
+        vs, cont = self._vs, self._c
+        if vs is None or cont is None:  # both set in __enter__, cleared in __exit__
             raise UsageError("AvWriter.write_yuv420p outside its with-block")
         f = np.asarray(planes)
         if f.shape != (self.size[1] * 3 // 2, self.size[0]) or f.dtype != np.uint8 or not self.color:
@@ -486,9 +511,9 @@ class AvWriter:
         fill_plane(vf.planes[0], f[:H])
         fill_plane(vf.planes[1], c[:q].reshape(H // 2, W // 2))
         fill_plane(vf.planes[2], c[q:].reshape(H // 2, W // 2))
-        self._encode(av, vf, self._vs, self._c)
+        self._encode(av, vf, vs, cont)
 
-    def _frame(self, av, fmt: str):
+    def _frame(self, av: ModuleType, fmt: str) -> av.VideoFrame:
         """The writer's one ``av.VideoFrame`` of format ``fmt``, allocated at the first frame and refilled for
         every later one: a fresh frame per write (``VideoFrame.from_ndarray``) cost 1.8 ms of CPU per 3840x2160
         frame against 0.6 ms refilled (and up to ~7 ms while a fresh allocation page-faults). Reusing it is safe: FFmpeg takes its own copy of a frame that
@@ -498,7 +523,13 @@ class AvWriter:
             vf = self._frames[fmt] = av.VideoFrame(self.size[0], self.size[1], fmt)
         return vf
 
-    def _encode(self, av, vf, vs, c) -> None:
+    def _encode(
+        self,
+        av: ModuleType,
+        vf: av.VideoFrame | None,
+        vs: av.video.stream.VideoStream,
+        c: av.container.OutputContainer,
+    ) -> None:
         """Encode and mux one frame (``None``: flush); a failing encoder or write (disk full) is an ImageError
         naming the target (the temporary file is removed when the with-block ends)."""
         if vf is not None:
@@ -512,11 +543,14 @@ class AvWriter:
         if vf is not None:
             self.n_written += 1
 
-    def __exit__(self, exc_type, exc, tb):
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> bool | None:
         c, vs, stack = self._c, self._vs, self._stack
         self._c = self._vs = self._stack = None
         if stack is None:
             return False
+        assert c is not None and vs is not None  # opened with the stack (__enter__)
         av = load_av()
         try:
             if exc_type is None:
@@ -538,14 +572,15 @@ class AvWriter:
                     self._audio[0].close()
         return stack.__exit__(exc_type, exc, tb)
 
-    def _close_container(self, av, c) -> None:
+    def _close_container(self, av: ModuleType, c: av.container.OutputContainer) -> None:
         try:
             c.close()  # writes the trailer
         except (av.FFmpegError, OSError) as exc:
             raise write_error(f"{self.path}: cannot write ({_short(exc)}); nothing written", exc) from None
 
-    def _copy_audio(self, c):
+    def _copy_audio(self, c: av.container.OutputContainer) -> None:
         """Copy the source's audio packets up to the video's duration."""
+        assert self._audio is not None  # called when the audio is copied
         src, ins, out = self._audio
         end = self.n_written / float(self.rate)
         for pkt in src.demux(ins):
@@ -558,7 +593,7 @@ class AvWriter:
         self.audio_copied = True
 
 
-def fill_plane(plane, rows: np.ndarray) -> None:
+def fill_plane(plane: av.video.plane.VideoPlane, rows: np.ndarray) -> None:
     """Copy ``rows (h, n) uint8`` (``n`` bytes of pixels per row) into a PyAV frame plane, whose rows may be
     padded to a longer ``line_size``.
 
@@ -570,15 +605,16 @@ def fill_plane(plane, rows: np.ndarray) -> None:
     """
     h, n = rows.shape
     ls = plane.line_size  # the plane's buffer holds line_size * h bytes
-    np.frombuffer(plane, np.uint8)[: h * ls].reshape(h, ls)[:, :n] = rows
+    # a VideoPlane has the buffer protocol; PyAV's stubs do not declare it
+    np.frombuffer(plane, np.uint8)[: h * ls].reshape(h, ls)[:, :n] = rows  # type: ignore[call-overload]
 
 
-def frame_rotation(frame) -> int:
+def frame_rotation(frame: av.VideoFrame) -> int:
     """The display rotation (degrees: 0, 90, 180 or 270) of a decoded ``av.VideoFrame`` (its display matrix)."""
     return int(round(float(getattr(frame, "rotation", 0) or 0))) % 360
 
 
-def display_rotation(path) -> int:
+def display_rotation(path: str | os.PathLike[str]) -> int:
     """The rotation (degrees, FFmpeg's display matrix: 0, 90, 180 or 270) a player applies to the stored
     frames of ``path``, e.g. a phone video filmed upright: read from its first decoded frame (PyAV keeps
     no stream-level side data), 0 when there is none or the file does not decode."""

@@ -27,7 +27,9 @@ import hashlib
 import json
 import os
 import time
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 import cv2
 
@@ -39,10 +41,12 @@ from ..io import IMAGE_EXTENSIONS, InputGuard, check_output_folder, make_folder,
 from ..io import clean_temporaries as clean_io_temporaries
 from ..photos import PhotoJob, render_photo_file
 from .decode import looks_like_sequence
-from .engine import SessionBackend, process_video, video_outputs
+from .encode import VideoOutputs
+from .engine import EngineOptions, SessionBackend, process_video, video_outputs
 from .parallel import (
     BackendRecipe,
     ChunkPool,
+    Prepared,
     chunk_task,
     finish_chunked,
     name_other_dictionaries,
@@ -50,7 +54,17 @@ from .parallel import (
     process_video_chunked,
 )
 
+if TYPE_CHECKING:
+    from distributed import Client, Future
+
+    from ..scene.spec import SceneSpec
+
 __all__ = ["VIDEO_EXTENSIONS", "BatchItem", "clean_temporaries", "plan_batch", "process_item", "run_batch"]
+
+#: an item's summary (JSON: ``input``, ``kind``, ``stem``, ``status``, ``error``, ``outputs``, ``warnings``, ...)
+Summary: TypeAlias = dict[str, Any]
+#: ``(index in the batch, item, fingerprint)`` of an item to process
+Todo: TypeAlias = tuple[int, "BatchItem", str]
 
 VIDEO_EXTENSIONS = {".mp4", ".m4v", ".mov", ".mkv", ".avi", ".webm", ".mpg", ".mpeg", ".ts", ".mts", ".wmv", ".flv"}
 RECORDS = ".arshadow-batch"
@@ -65,12 +79,12 @@ class BatchItem:
     stem: str
 
 
-def plan_batch(inputs) -> list[BatchItem]:
+def plan_batch(inputs: Iterable[str | os.PathLike[str]]) -> list[BatchItem]:
     """Classify inputs by extension (videos: :data:`VIDEO_EXTENSIONS`) and give each a unique stem."""
-    inputs = [str(i) for i in inputs]
-    if not inputs:
+    names = [str(i) for i in inputs]
+    if not names:
         raise UsageError("no input given")
-    return [BatchItem(i, _kind(i), s) for i, s in zip(inputs, unique_stems(inputs), strict=True)]
+    return [BatchItem(i, _kind(i), s) for i, s in zip(names, unique_stems(names), strict=True)]
 
 
 def _kind(path: str) -> str:
@@ -88,7 +102,7 @@ def _kind(path: str) -> str:
         return "photo"
 
 
-def _outputs(item: BatchItem, outdir: Path, opts, save_mask: bool) -> list:
+def _outputs(item: BatchItem, outdir: Path, opts: EngineOptions, save_mask: bool) -> list[Path]:
     """The files an item writes (before its done record)."""
     if item.kind == "video":
         return [p for p in video_outputs(outdir, item.stem, opts).values() if p is not None]
@@ -98,16 +112,16 @@ def _outputs(item: BatchItem, outdir: Path, opts, save_mask: bool) -> list:
     return outs
 
 
-def _photo_layers(opts) -> str:
+def _photo_layers(opts: EngineOptions) -> str:
     """The layer format of a batch's photos: EXR with ``--layers-format exr``, else 16-bit PNG."""
     return "exr" if opts.layers == "exr" else "png"
 
 
-def _fingerprint(item: BatchItem, spec, opts, save_mask) -> str:
+def _fingerprint(item: BatchItem, spec: SceneSpec, opts: EngineOptions, save_mask: bool) -> str:
     """Input file identity (size, mtime) + scene + options: a changed input or setting redoes the item."""
     try:
         st = os.stat(item.input)
-        ident = [st.st_size, st.st_mtime_ns]
+        ident: list[int] | None = [st.st_size, st.st_mtime_ns]
     except OSError:
         ident = None
     blob = json.dumps(
@@ -120,17 +134,17 @@ def _record_path(outdir: Path, item: BatchItem) -> Path:
     return outdir / RECORDS / f"{item.stem}.json"
 
 
-def clean_temporaries(outdir) -> int:
+def clean_temporaries(outdir: str | os.PathLike[str]) -> int:
     """Remove the temporary files and folders an interrupted run left in ``outdir`` (``.NAME.*.tmp*``)."""
     d = Path(outdir)
     return clean_io_temporaries(d) + clean_io_temporaries(d / RECORDS)
 
 
-def _done(outdir: Path, item: BatchItem, fp: str):
+def _done(outdir: Path, item: BatchItem, fp: str) -> Summary | None:
     """The item's done record when it matches and its outputs exist, else None."""
     p = _record_path(outdir, item)
     try:
-        rec = json.loads(p.read_text(encoding="utf-8"))
+        rec: Summary = json.loads(p.read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
     if rec.get("fingerprint") != fp:
@@ -143,10 +157,10 @@ def _done(outdir: Path, item: BatchItem, fp: str):
 # --------------------------------------------------------------------------------------------------
 # one item (local or on a worker)
 # --------------------------------------------------------------------------------------------------
-_WORKER_SESSIONS: dict = {}
+_WORKER_SESSIONS: dict[str, Session] = {}
 
 
-def _session_for(spec):
+def _session_for(spec: SceneSpec) -> Session:
     """One Session per spec per process (a Dask worker keeps its GL context between items)."""
     key = repr(spec)
     s = _WORKER_SESSIONS.get(key)
@@ -159,37 +173,50 @@ def _session_for(spec):
 
 
 def process_item(
-    spec, item: BatchItem, outdir, opts, save_mask: bool, fingerprint: str, session=None, pool=None
-) -> dict:
+    spec: SceneSpec,
+    item: BatchItem,
+    outdir: str | os.PathLike[str],
+    opts: EngineOptions,
+    save_mask: bool,
+    fingerprint: str,
+    session: Session | None = None,
+    pool: ChunkPool | None = None,
+) -> Summary:
     """Process one input and write its outputs and done record; returns the item's summary.
 
     ``pool`` (:class:`arshadow.video.parallel.ChunkPool`): a video is cut into chunks run on its workers.
     Never raises for a bad input: the summary has ``status: "error"`` and ``error`` (nothing is recorded
     as done, so a rerun tries it again).
     """
-    outdir = Path(outdir)
+    out_dir = Path(outdir)
 
-    def work(summary):
-        outs = video_outputs(outdir, item.stem, opts) if item.kind == "video" else None
-        if item.kind == "video" and pool is not None:
+    def work(summary: Summary) -> None:
+        outs = video_outputs(out_dir, item.stem, opts) if item.kind == "video" else None
+        if outs is not None and pool is not None:  # a video
             vs, note = process_video_chunked(
-                BackendRecipe(spec), pool, item.input, outs, opts, outdir=outdir, stem=item.stem, name=item.input
+                BackendRecipe(spec), pool, item.input, outs, opts, outdir=out_dir, stem=item.stem, name=item.input
             )
             if vs is not None:
-                return _video_fields(summary, vs, outs)
+                _video_fields(summary, vs, outs)
+                return
             summary["warnings"] = [note] if note else []
         sess = session if session is not None else _session_for(spec)
-        if item.kind == "video":
-            vs, _ = process_video(
+        if outs is not None:  # a video
+            vs1, _ = process_video(
                 SessionBackend(sess, sess.sun_tracks, sess.time_lapse), item.input, outs, opts, name=item.input
             )
-            vs["warnings"] = summary["warnings"] + vs["warnings"]
-            return _video_fields(summary, vs, outs)
+            vs1["warnings"] = summary["warnings"] + vs1["warnings"]
+            _video_fields(summary, vs1, outs)
+            return
         # the photo loop's one photo (EXIF orientation, upright outputs and layers), as arshadow render
         fmt = _photo_layers(opts)
-        lay = None if opts.layers is None else layer_paths(outdir, item.stem, fmt, opts.layers_undistorted)
+        lay = None if opts.layers is None else layer_paths(out_dir, item.stem, fmt, opts.layers_undistorted)
         job = PhotoJob(
-            item.input, outdir / f"{item.stem}.png", outdir / f"{item.stem}.shadow.png" if save_mask else None, lay, fmt
+            item.input,
+            out_dir / f"{item.stem}.png",
+            out_dir / f"{item.stem}.shadow.png" if save_mask else None,
+            lay,
+            fmt,
         )
         res = render_photo_file(sess, job)
         summary["outputs"] = [str(p) for p in job.outputs]
@@ -197,12 +224,11 @@ def process_item(
         if res.item.flag_reasons:  # the sanity gates: a flagged pose is said (its reasons also in the item)
             summary["warnings"].append(f"{item.input}: flagged pose: {'; '.join(res.item.flag_reasons)}")
         summary["item"] = res.item.to_dict()
-        return None
 
-    return _guarded(item, outdir, fingerprint, work)
+    return _guarded(item, out_dir, fingerprint, work)
 
 
-def _video_fields(summary: dict, vs: dict, outs: dict) -> None:
+def _video_fields(summary: Summary, vs: dict[str, Any], outs: VideoOutputs) -> None:
     summary.update(
         {
             k: vs.get(k)
@@ -224,11 +250,11 @@ def _video_fields(summary: dict, vs: dict, outs: dict) -> None:
     summary["outputs"] = [str(p) for p in outs.values() if p is not None and Path(p).exists()]
 
 
-def _guarded(item: BatchItem, outdir: Path, fingerprint: str, work) -> dict:
+def _guarded(item: BatchItem, outdir: Path, fingerprint: str, work: Callable[[Summary], None]) -> Summary:
     """``work(summary)`` fills the item's summary; a bad input becomes ``status: "error"``; the done record
     is written last, once every output is in place."""
     t0 = time.perf_counter()
-    summary = {
+    summary: Summary = {
         "input": item.input,
         "kind": item.kind,
         "stem": item.stem,
@@ -264,7 +290,7 @@ def _guarded(item: BatchItem, outdir: Path, fingerprint: str, work) -> dict:
 RESUME = "rerun the same command to resume (finished items and video chunks are kept)"
 
 
-def disk_full(outdir, exc: Exception) -> BatchStoppedError:
+def disk_full(outdir: str | os.PathLike[str], exc: Exception) -> BatchStoppedError:
     """The one-line error of a full output disk (``ENOSPC``/``EDQUOT`` while writing under ``outdir``)."""
     return BatchStoppedError(
         f"{outdir}: no space left on the output disk ({exc}); no half-written output was kept: free some "
@@ -272,16 +298,27 @@ def disk_full(outdir, exc: Exception) -> BatchStoppedError:
     )
 
 
-def _dask_task(spec, item, outdir, opts, save_mask, fingerprint):
+def _dask_task(
+    spec: SceneSpec, item: BatchItem, outdir: str, opts: EngineOptions, save_mask: bool, fingerprint: str
+) -> Summary:
     return process_item(spec, item, outdir, opts, save_mask, fingerprint)
 
 
-def _dask_join(spec, item, outdir, opts, fingerprint, prep, done: dict, *records):
+def _dask_join(
+    spec: SceneSpec,
+    item: BatchItem,
+    outdir: str,
+    opts: EngineOptions,
+    fingerprint: str,
+    prep: Prepared,
+    done: dict[int, dict[str, Any]],
+    *records: dict[str, Any],
+) -> Summary:
     """The join task of a chunked video on Dask: its chunk tasks' records are the arguments."""
     recs = {**{int(k): r for k, r in done.items()}, **{r["chunk"]["k"]: r for r in records}}
     recipe = BackendRecipe(spec)
 
-    def work(summary):
+    def work(summary: Summary) -> None:
         vs = finish_chunked(prep, recs, lambda c: chunk_task(recipe, prep, c))
         vs["chunks_resumed"] = len(done)
         name_other_dictionaries(vs, spec, prep.path)
@@ -290,7 +327,16 @@ def _dask_join(spec, item, outdir, opts, fingerprint, prep, done: dict, *records
     return _guarded(item, Path(outdir), fingerprint, work)
 
 
-def _submit_dask(client, spec, it: BatchItem, outdir: Path, opts, save_mask, fp: str, chunks: int):
+def _submit_dask(
+    client: Client,
+    spec: SceneSpec,
+    it: BatchItem,
+    outdir: Path,
+    opts: EngineOptions,
+    save_mask: bool,
+    fp: str,
+    chunks: int,
+) -> Future[Summary]:
     """One item's tasks: a chunked video is one task per unfinished chunk and a join task depending on
     them; anything else is one task. Returns the future of the item's summary."""
     if it.kind == "video" and chunks > 1:
@@ -336,7 +382,7 @@ def _submit_dask(client, spec, it: BatchItem, outdir: Path, opts, save_mask, fp:
     )
 
 
-def _stop_if_lost(client, exc: Exception, outdir) -> None:
+def _stop_if_lost(client: Client, exc: Exception, outdir: str | os.PathLike[str]) -> None:
     """Raise the batch's one-line error when ``exc`` (a task's) means the batch cannot go on: the
     scheduler lost (every other task is cancelled with it), the output disk full."""
     if isinstance(exc, OutputSpaceError) or (isinstance(exc, OSError) and exc.errno in (errno.ENOSPC, errno.EDQUOT)):
@@ -351,8 +397,17 @@ def _stop_if_lost(client, exc: Exception, outdir) -> None:
 # the batch
 # --------------------------------------------------------------------------------------------------
 def run_batch(
-    spec, inputs, outdir, opts, *, save_mask: bool = False, client=None, progress=None, session=None, jobs: int = 1
-) -> dict:
+    spec: SceneSpec,
+    inputs: Sequence[str | Path],
+    outdir: Path | str,
+    opts: EngineOptions,
+    *,
+    save_mask: bool = False,
+    client: Client | None = None,
+    progress: Callable[[int, int, Summary | None], object] | None = None,
+    session: Session | None = None,
+    jobs: int = 1,
+) -> dict[str, Any]:
     """Process a batch (see the module); returns the summary also written to ``OUT_DIR/batch.json``.
 
     Parameters
@@ -384,11 +439,11 @@ def run_batch(
     """
     if int(jobs) < 1:
         raise UsageError(f"--jobs {jobs}: must be >= 1")
-    outdir = check_output_folder(outdir, "-o")
-    make_folder(outdir / RECORDS)
-    clean_temporaries(outdir)
+    out_dir = check_output_folder(outdir, "-o")
+    make_folder(out_dir / RECORDS)
+    clean_temporaries(out_dir)
     items = plan_batch(inputs)
-    results, todo = _plan_todo(items, inputs, spec, outdir, opts, save_mask)
+    results, todo = _plan_todo(items, inputs, spec, out_dir, opts, save_mask)
     done = len(items) - len(todo)
     if progress is not None:
         for r in results:
@@ -397,7 +452,7 @@ def run_batch(
         if done:
             progress(done, len(items), None)
 
-    def finished(k, res):
+    def finished(k: int, res: Summary) -> None:
         nonlocal done
         results[k] = {**res, "skipped": False}
         done += 1
@@ -406,22 +461,24 @@ def run_batch(
 
     try:
         if client is None:
-            _run_local(spec, todo, outdir, opts, save_mask, session, int(jobs), finished)
+            _run_local(spec, todo, out_dir, opts, save_mask, session, int(jobs), finished)
         else:
-            _run_dask(client, spec, items, todo, outdir, opts, save_mask, int(jobs), finished)
+            _run_dask(client, spec, items, todo, out_dir, opts, save_mask, int(jobs), finished)
     except KeyboardInterrupt:  # Ctrl-C / SIGTERM: batch.json still says what is done and what is not
-        _write_summary(outdir, items, results, interrupted=True)
+        _write_summary(out_dir, items, results, interrupted=True)
         raise
     except BatchStoppedError:  # the scheduler lost, the disk full: batch.json says so if it can be written
         with contextlib.suppress(OSError):
-            _write_summary(outdir, items, results, interrupted=True)
+            _write_summary(out_dir, items, results, interrupted=True)
         raise
-    return _write_summary(outdir, items, results)
+    return _write_summary(out_dir, items, results)
 
 
-def _write_summary(outdir: Path, items, results, interrupted: bool = False) -> dict:
+def _write_summary(
+    outdir: Path, items: list[BatchItem], results: list[Summary | None], interrupted: bool = False
+) -> dict[str, Any]:
     """``OUT_DIR/batch.json``; after an interruption the items not finished are ``status: "pending"``."""
-    results = [
+    filled: list[Summary] = [
         r
         if r is not None
         else {
@@ -436,22 +493,29 @@ def _write_summary(outdir: Path, items, results, interrupted: bool = False) -> d
         }
         for it, r in zip(items, results, strict=True)
     ]
-    counts: dict = {}
-    for r in results:
+    counts: dict[str, int] = {}
+    for r in filled:
         counts[r["status"]] = counts.get(r["status"], 0) + 1
-    counts["skipped"] = sum(bool(r.get("skipped")) for r in results)
-    summary = {"arshadow": __version__, "items": results, "counts": counts}
+    counts["skipped"] = sum(bool(r.get("skipped")) for r in filled)
+    summary: dict[str, Any] = {"arshadow": __version__, "items": filled, "counts": counts}
     if interrupted:
         summary["interrupted"] = True  # rerun the same command to finish the pending items
     write_json(outdir / "batch.json", summary)
     return summary
 
 
-def _plan_todo(items, inputs, spec, outdir: Path, opts, save_mask):
+def _plan_todo(
+    items: list[BatchItem],
+    inputs: Sequence[str | Path],
+    spec: SceneSpec,
+    outdir: Path,
+    opts: EngineOptions,
+    save_mask: bool,
+) -> tuple[list[Summary | None], list[Todo]]:
     """``(results, todo)``: results of items refused (an output onto an input) or done by an earlier run,
     and ``(index, item, fingerprint)`` of the others."""
-    results: list = [None] * len(items)
-    todo = []
+    results: list[Summary | None] = [None] * len(items)
+    todo: list[Todo] = []
     guard = InputGuard(inputs)
     for k, it in enumerate(items):
         try:  # inputs are never modified
@@ -478,10 +542,19 @@ def _plan_todo(items, inputs, spec, outdir: Path, opts, save_mask):
     return results, todo
 
 
-def _run_local(spec, todo, outdir, opts, save_mask, session, jobs: int, finished) -> None:
-    own = session is None and todo
-    if own:
-        session = Session(spec)
+def _run_local(
+    spec: SceneSpec,
+    todo: list[Todo],
+    outdir: Path,
+    opts: EngineOptions,
+    save_mask: bool,
+    session: Session | None,
+    jobs: int,
+    finished: Callable[[int, Summary], None],
+) -> None:
+    own = Session(spec) if session is None and todo else None
+    if own is not None:
+        session = own
     pool = ChunkPool(jobs) if jobs > 1 and any(it.kind == "video" for _, it, _ in todo) else None
     try:
         for k, it, fp in todo:
@@ -489,11 +562,21 @@ def _run_local(spec, todo, outdir, opts, save_mask, session, jobs: int, finished
     finally:
         if pool is not None:
             pool.close()
-        if own:
-            session.close()
+        if own is not None:
+            own.close()
 
 
-def _run_dask(client, spec, items, todo, outdir, opts, save_mask, jobs: int, finished) -> None:
+def _run_dask(
+    client: Client,
+    spec: SceneSpec,
+    items: list[BatchItem],
+    todo: list[Todo],
+    outdir: Path,
+    opts: EngineOptions,
+    save_mask: bool,
+    jobs: int,
+    finished: Callable[[int, Summary], None],
+) -> None:
     from distributed import (
         as_completed,  # deferred: Dask is an optional extra (arshadow[dask])
     )
@@ -503,7 +586,7 @@ def _run_dask(client, spec, items, todo, outdir, opts, save_mask, jobs: int, fin
     for fut in as_completed(futs):
         k = futs[fut]
         try:
-            res = fut.result()
+            res: Summary = fut.result()
         except BatchStoppedError:
             raise
         except Exception as exc:  # noqa: BLE001 (a worker died or the task failed outside process_item)

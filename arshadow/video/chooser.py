@@ -15,7 +15,8 @@ With ``lag = 0`` that is the greedy rule "the solution consistent with the previ
 ``lag = K`` each frame is decided K frames later (fixed-lag smoothing), so that a wrong *first* frame
 is corrected by the frames that follow. Measured in docs/video.md and tests/test_video.py.
 
-Frames (CONVENTIONS.md): poses are world (marker) -> OpenCV camera.
+Frames (CONVENTIONS.md): poses are marker -> OpenCV camera, ``cam_from_marker`` (the tracker's
+:attr:`MarkerPose.cam_from_world <arshadow.tracking.pose.MarkerPose>`: its world is the marker).
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import UsageError
+from ..tracking.pose import MarkerPose
 from ..transforms import rotation_error_deg
 
 __all__ = ["Choice", "TemporalPoseChooser"]
@@ -50,7 +52,7 @@ class Choice:
     """
 
     payload: object
-    pose: object
+    pose: MarkerPose | None
     swapped: bool = False
     ambiguity: float | None = None
 
@@ -59,13 +61,13 @@ class Choice:
 class _Entry:
     payload: object
     time_s: float
-    cands: list | None  # [best-by-error pose, alternative pose] (MarkerPose), or None: no pose
+    cands: list[MarkerPose] | None  # [best-by-error pose, alternative pose], or None: no pose
     data: np.ndarray | None = None  # (k,) data cost
-    rots: list = field(default_factory=list)  # (3, 3) rotations of the candidates
+    rots: list[np.ndarray] = field(default_factory=list)  # (3, 3) rotations of the candidates (cam_from_marker)
     #: motion costs ``[k_prev][k]`` from the previous frame with a pose (computed once, when pushed;
     #: None: no previous one, or too far apart in time to be linked)
-    link: list | None = None
-    data_list: list = field(default_factory=list)  # ``data`` as floats
+    link: list[list[float]] | None = None
+    data_list: list[float] = field(default_factory=list)  # ``data`` as floats
 
 
 class TemporalPoseChooser:
@@ -120,56 +122,60 @@ class TemporalPoseChooser:
         self.fps, self.max_gap_s = float(fps), float(max_gap_s)
         self.max_motion_cost = float(max_motion_cost)
         self._buf: deque[_Entry] = deque()
-        self._anchor = None  # (rotation (3,3), time_s) of the last decided frame with a pose
-        self._last_posed = None  # the last pushed _Entry with a pose (its link to the next one)
+        self._anchor: tuple[np.ndarray, float] | None = None  # (rotation (3,3), time_s) of the last decided posed frame
+        self._last_posed: _Entry | None = None  # the last pushed _Entry with a pose (its link to the next one)
         self.n_swapped = 0
         self.n_decided = 0
 
     # -- costs -------------------------------------------------------------------------------------
-    def _data_cost(self, poses) -> np.ndarray:
+    def _data_cost(self, poses: list[MarkerPose]) -> np.ndarray:
+        """(k,) float64: each candidate's data cost, less the smallest."""
         c = np.array([p.n_points * float(p.reprojection_error_px) ** 2 / (2.0 * self.sigma_px**2) for p in poses])
-        return c - c.min()
+        out: np.ndarray = c - c.min()
+        return out
 
-    def _motion_cost(self, r_prev, t_prev, r, t) -> float | None:
+    def _motion_cost(self, r_prev: np.ndarray, t_prev: float, r: np.ndarray, t: float) -> float | None:
         """None: too far apart in time to be linked."""
         dt = t - t_prev
         if dt > self.max_gap_s:
             return None
         gap = max(1.0, dt * self.fps)
         th = rotation_error_deg(r, r_prev)
-        return min(th * th / (2.0 * self.sigma_rot**2 * gap), self.max_motion_cost)
+        cost: float = min(th * th / (2.0 * self.sigma_rot**2 * gap), self.max_motion_cost)
+        return cost
 
     # -- interface ---------------------------------------------------------------------------------
-    def push(self, payload, pose, time_s: float) -> list[Choice]:
+    def push(self, payload: object, pose: MarkerPose | None, time_s: float) -> list[Choice]:
         """Add one frame (``pose`` None: no marker in it); returns the frames decided now, in order."""
         if pose is None:
             e = _Entry(payload, float(time_s), None)
         else:
-            cands = [pose]
+            cands: list[MarkerPose] = [pose]
             if getattr(pose, "alternative", None) is not None:
                 cands.append(pose.swapped())
+            data = self._data_cost(cands)
             e = _Entry(
                 payload,
                 float(time_s),
                 cands,
-                self._data_cost(cands),
-                [np.asarray(c.cam_from_world, np.float64)[:3, :3] for c in cands],
+                data,
+                [np.asarray(c.cam_from_world, np.float64)[:3, :3] for c in cands],  # cam_from_marker's rotations
             )
-            e.data_list = e.data.tolist()
+            e.data_list = data.tolist()
             prev = self._last_posed
             if prev is not None and e.time_s - prev.time_s <= self.max_gap_s:
                 # the motion costs of this link, once (the Viterbi pass of every later decision reuses them)
                 e.link = [[self._motion_cost(rp, prev.time_s, r, e.time_s) or 0.0 for r in e.rots] for rp in prev.rots]
             self._last_posed = e
         self._buf.append(e)
-        out = []
+        out: list[Choice] = []
         while len(self._buf) > self.lag:
             out.append(self._decide_oldest())
         return out
 
     def flush(self) -> list[Choice]:
         """Decide every frame still waiting (end of the video)."""
-        out = []
+        out: list[Choice] = []
         while self._buf:
             out.append(self._decide_oldest())
         return out
@@ -187,25 +193,28 @@ class TemporalPoseChooser:
             self._buf.popleft()
             return Choice(first.payload, None)
         # forward pass over the buffered frames that have poses, linked in time
-        chain = []
+        chain: list[_Entry] = []
         for e in self._buf:
             if e.cands is None:
                 continue
             if chain and e.time_s - chain[-1].time_s > self.max_gap_s:
                 break  # the chain is cut: later frames cannot influence this decision
             chain.append(e)
-        cum = first.data.copy()
+        assert first.data is not None  # set with cands
+        cum0 = first.data.copy()
         if self._anchor is not None:
             r_a, t_a = self._anchor
             for j, r in enumerate(first.rots):
                 m = self._motion_cost(r_a, t_a, r, first.time_s)
                 if m is not None:
-                    cum[j] += m
-        backs = []
-        cum = cum.tolist()  # plain floats: the same float64 arithmetic, without numpy's per-call cost
+                    cum0[j] += m
+        backs: list[list[int]] = []
+        cum: list[float] = cum0.tolist()  # plain floats: the same float64 arithmetic, without numpy's per-call cost
         for e in chain[1:]:
             link = e.link  # from the chain's previous frame: the frame with a pose pushed just before e
-            back, new = [], []
+            assert link is not None  # e is within max_gap_s of the frame with a pose pushed before it
+            back: list[int] = []
+            new: list[float] = []
             for j, dj in enumerate(e.data_list):
                 costs = [c + row[j] for c, row in zip(cum, link, strict=True)]
                 b = min(range(len(costs)), key=costs.__getitem__)  # the first minimum, as np.argmin

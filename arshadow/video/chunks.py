@@ -41,20 +41,39 @@ import os
 import resource
 import shutil
 import time
+from collections.abc import Iterator, Sequence
 from contextlib import ExitStack
 from dataclasses import dataclass
+from fractions import Fraction
 from pathlib import Path
+from types import ModuleType
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 import numpy as np
 
 from ..errors import ImageError
 from ..io import atomic_path, clean_temporaries, make_folder, remove_empty_folder, write_json
 from .avio import load_av
-from .encode import EncodeSink, SheetThumbs, atomic_dir
+from .encode import EncodeSink, SheetThumbs, VideoOutputs, atomic_dir, required
 from .engine import EngineOptions, Span, run_frames
-from .framejob import FrameComposer
+from .framejob import FrameComposer, SessionBackend
 from .scan import SeekReader, StreamIndex
 from .temporal import MAX_GAP_S
+
+if TYPE_CHECKING:
+    import av.container
+    import av.packet
+    import av.stream
+
+#: an audio stream being copied (:func:`_open_audio`): ``(source container, its audio stream, the output's
+#: stream, the source's packets, [the packet read but not yet muxed, or None])``
+_Audio: TypeAlias = tuple[
+    "av.container.InputContainer",
+    "av.stream.Stream",
+    "av.stream.Stream",
+    Iterator["av.packet.Packet"],
+    list["av.packet.Packet | None"],
+]
 
 __all__ = ["Chunk", "ChunkStore", "first_mismatch", "join_chunks", "margins", "plan_chunks", "run_chunk", "widened"]
 
@@ -154,7 +173,7 @@ class ChunkStore:
     opts : EngineOptions
     """
 
-    def __init__(self, outdir, stem: str, fingerprint: str, opts: EngineOptions):
+    def __init__(self, outdir: str | os.PathLike[str], stem: str, fingerprint: str, opts: EngineOptions) -> None:
         self.dir = Path(outdir) / STORE / f"{stem}-{fingerprint[:16]}"
         self.opts = opts
 
@@ -165,7 +184,7 @@ class ChunkStore:
         clean_temporaries(self.dir)  # left by a worker killed while writing a chunk
         return self
 
-    def outputs(self, k: int) -> dict:
+    def outputs(self, k: int) -> VideoOutputs:
         """The chunk's files (``video``, ``mask`` or None, ``frames``, ``thumbs``)."""
         d, o = self.dir, self.opts
         mask = None if o.mask is None else d / (f"c{k:05d}.shadow.mkv" if o.mask == "mkv" else f"c{k:05d}.shadow")
@@ -181,10 +200,10 @@ class ChunkStore:
     def record_path(self, k: int) -> Path:
         return self.dir / f"c{k:05d}.json"
 
-    def done(self, chunk: Chunk):
+    def done(self, chunk: Chunk) -> dict[str, Any] | None:
         """The chunk's record if it finished with this plan and its files are all there, else None."""
         try:
-            rec = json.loads(self.record_path(chunk.k).read_text(encoding="utf-8"))
+            rec: dict[str, Any] = json.loads(self.record_path(chunk.k).read_text(encoding="utf-8"))
         except (OSError, ValueError):
             return None
         if rec.get("format") != RECORD_FORMAT or rec.get("chunk") != dataclasses.asdict(chunk):
@@ -200,7 +219,7 @@ class ChunkStore:
         remove_empty_folder(self.dir.parent)
 
 
-def fingerprint(path, recipe_key: str, opts: EngineOptions, n: int) -> str:
+def fingerprint(path: str | os.PathLike[str], recipe_key: str, opts: EngineOptions, n: int) -> str:
     """Input identity (resolved path, size, modification time) + scene + options + frames."""
     st = os.stat(path)
     blob = json.dumps([str(Path(path).resolve()), st.st_size, st.st_mtime_ns, recipe_key, repr(opts), n])
@@ -208,17 +227,17 @@ def fingerprint(path, recipe_key: str, opts: EngineOptions, n: int) -> str:
 
 
 def run_chunk(
-    backend,
-    path,
+    backend: SessionBackend,
+    path: str | os.PathLike[str],
     index: StreamIndex,
     chunk: Chunk,
     opts: EngineOptions,
     store: ChunkStore,
     *,
     name: str,
-    final: dict,
-    total,
-) -> dict:
+    final: VideoOutputs,
+    total: int | None,
+) -> dict[str, Any]:
     """Process one chunk into the store (outputs first, then the record); returns the record.
 
     ``final``: the video's own outputs (named in the report items); ``total``: the frame count the
@@ -232,18 +251,24 @@ def run_chunk(
     backend.start(reader.width, reader.height)
     backend.replay_sun(index.times[: chunk.start])
     composer = FrameComposer(
-        backend, name, final["video"], final.get("mask"), (reader.width, reader.height), final.get("mask") is not None
+        backend,
+        name,
+        required(final, "video"),
+        final.get("mask"),
+        (reader.width, reader.height),
+        final.get("mask") is not None,
     )
     sheet = SheetThumbs(opts.contact_sheet, total, (reader.width, reader.height))
     part_opts = dataclasses.replace(opts, keep_audio=False)
     sink = EncodeSink(outs, part_opts, reader, path, False, composer.stage_ms, sheet, None, name, None)
     span = Span(chunk.start, chunk.stop, head_from=chunk.start - margins(opts)[1])
     items = run_frames(reader, composer, sink, part_opts, span)
-    with atomic_path(outs["thumbs"]) as tmp, open(tmp, "wb") as f:
-        np.savez(f, **{str(k): v for k, v in sheet.thumbs.items()})
-    if outs["items"] is not None:  # the report's items, as the sequential run makes them
-        with atomic_path(outs["items"]) as tmp, open(tmp, "w", encoding="utf-8") as f:
-            f.writelines(json.dumps(it.to_dict()) + "\n" for it in items)
+    with atomic_path(required(outs, "thumbs")) as tmp, open(tmp, "wb") as f:
+        # the names are frame numbers ("12"), never savez's allow_pickle keyword
+        np.savez(f, **{str(k): v for k, v in sheet.thumbs.items()})  # type: ignore[arg-type]
+    if (items_path := outs["items"]) is not None:  # the report's items, as the sequential run makes them
+        with atomic_path(items_path) as tmp, open(tmp, "w", encoding="utf-8") as fi:
+            fi.writelines(json.dumps(it.to_dict()) + "\n" for it in items)
     ru = resource.getrusage(resource.RUSAGE_SELF)
     rec = {
         "format": RECORD_FORMAT,
@@ -269,7 +294,11 @@ def run_chunk(
 
 
 def first_mismatch(
-    store: ChunkStore, chunks: list[Chunk], records: dict, opts: EngineOptions, index: StreamIndex | None = None
+    store: ChunkStore,
+    chunks: list[Chunk],
+    records: dict[int, dict[str, Any]],
+    opts: EngineOptions,
+    index: StreamIndex | None = None,
 ) -> int | None:
     """The first chunk whose primer decided the ``check`` frames before its start otherwise than the
     chunks before it (their JSON Lines records), whose tracker state or IPPE anchor at the boundary differ,
@@ -295,7 +324,7 @@ def first_mismatch(
     return None
 
 
-def _anchor(a: dict | None, t_start: float | None) -> dict | None:
+def _anchor(a: dict[str, Any] | None, t_start: float | None) -> dict[str, Any] | None:
     """A chunk's anchor (its last pose before the boundary) as far as the frames from ``t_start`` on
     depend on it: None when none, or when it is more than :data:`MAX_GAP_S` before (the IPPE branch choice
     does not link across such a gap)."""
@@ -304,13 +333,13 @@ def _anchor(a: dict | None, t_start: float | None) -> dict | None:
     return a
 
 
-def _records_of(store: ChunkStore, chunks: list[Chunk], frames: range) -> dict:
+def _records_of(store: ChunkStore, chunks: list[Chunk], frames: range) -> dict[int, dict[str, Any]]:
     """``{frame: CHECK_KEYS of its JSON Lines record}`` for ``frames``, from the files of ``chunks``."""
-    out = {}
+    out: dict[int, dict[str, Any]] = {}
     for b in chunks:
         if b.stop <= frames.start or b.start >= frames.stop:
             continue
-        with open(store.outputs(b.k)["frames"], encoding="utf-8") as f:
+        with open(required(store.outputs(b.k), "frames"), encoding="utf-8") as f:
             for line in f:
                 d = json.loads(line)
                 if d["frame"] in frames:
@@ -319,47 +348,64 @@ def _records_of(store: ChunkStore, chunks: list[Chunk], frames: range) -> dict:
 
 
 def join_chunks(
-    store: ChunkStore, chunks: list[Chunk], outputs: dict, opts: EngineOptions, rate, *, audio_from=None, rotation=0
-) -> dict:
+    store: ChunkStore,
+    chunks: list[Chunk],
+    outputs: VideoOutputs,
+    opts: EngineOptions,
+    rate: Fraction | float,
+    *,
+    audio_from: str | os.PathLike[str] | None = None,
+    rotation: int = 0,
+) -> dict[str, Any]:
     """Join the chunks' outputs into the video's ``outputs`` (each atomic); returns ``{"audio": bool,
     "thumbs": {frame: thumbnail}, "items": [report item dicts] or None}`` (items when ``opts.collect_items``). Entered video first, committed in reverse, as the engine does.
     ``rotation``: the input's display rotation (:attr:`arshadow.video.avio.AvReader.rotation`)."""
     parts = [store.outputs(c.k) for c in chunks]
     with ExitStack() as st:
-        jpath = st.enter_context(atomic_path(outputs["frames"]))
+        jpath = st.enter_context(atomic_path(required(outputs, "frames")))
         with open(jpath, "wb") as jf:
             for p in parts:
-                with open(p["frames"], "rb") as src:
+                with open(required(p, "frames"), "rb") as src:
                     shutil.copyfileobj(src, jf)
             jf.flush()
             os.fsync(jf.fileno())
-        if outputs.get("mask") is not None and opts.mask == "mkv":
-            tmp = st.enter_context(atomic_path(outputs["mask"]))
-            concat_packets([p["mask"] for p in parts], tmp, rate)
-        elif outputs.get("mask") is not None:
-            d = st.enter_context(atomic_dir(Path(outputs["mask"])))
+        mask = outputs.get("mask")
+        if mask is not None and opts.mask == "mkv":
+            tmp = st.enter_context(atomic_path(mask))
+            concat_packets([required(p, "mask") for p in parts], tmp, rate)
+        elif mask is not None:
+            d = st.enter_context(atomic_dir(Path(mask)))
             for p in parts:  # linked (copied where links fail): the store stays whole until the join ends
-                for f in sorted(Path(p["mask"]).iterdir()):
+                for f in sorted(Path(required(p, "mask")).iterdir()):
                     try:
                         os.link(f, d / f.name)
                     except OSError:
                         shutil.copy2(f, d / f.name)
-        tmp = st.enter_context(atomic_path(outputs["video"]))
-        audio = concat_packets([p["video"] for p in parts], tmp, rate, audio_from=audio_from, rotation=rotation)
-    thumbs = {}
+        tmp = st.enter_context(atomic_path(required(outputs, "video")))
+        audio = concat_packets(
+            [required(p, "video") for p in parts], tmp, rate, audio_from=audio_from, rotation=rotation
+        )
+    thumbs: dict[int, np.ndarray] = {}
     for p in parts:
-        with np.load(p["thumbs"]) as z:
+        with np.load(required(p, "thumbs")) as z:
             thumbs.update({int(k): z[k] for k in z.files})
-    items = None
+    items: list[dict[str, Any]] | None = None
     if opts.collect_items:
         items = []
         for p in parts:
-            with open(p["items"], encoding="utf-8") as f:
-                items += [json.loads(line) for line in f]
+            with open(required(p, "items"), encoding="utf-8") as fh:
+                items += [json.loads(line) for line in fh]
     return {"audio": audio, "thumbs": thumbs, "items": items}
 
 
-def concat_packets(parts, target, rate, *, audio_from=None, rotation: int = 0) -> bool:
+def concat_packets(
+    parts: Sequence[str | os.PathLike[str]],
+    target: str | os.PathLike[str],
+    rate: Fraction | float,
+    *,
+    audio_from: str | os.PathLike[str] | None = None,
+    rotation: int = 0,
+) -> bool:
     """Copy the video packets of ``parts`` (same codec and settings, each starting with a keyframe) into
     ``target`` one after another, timestamps shifted, without decoding; with ``audio_from``, that file's
     first audio stream is copied whole (up to the video's end), interleaved by time; ``rotation``: the
@@ -386,7 +432,9 @@ def concat_packets(parts, target, rate, *, audio_from=None, rotation: int = 0) -
     return audio is not None
 
 
-def _open_audio(av, out, audio_from):
+def _open_audio(
+    av: ModuleType, out: av.container.OutputContainer, audio_from: str | os.PathLike[str] | None
+) -> _Audio | None:
     if audio_from is None:
         return None
     try:
@@ -405,7 +453,7 @@ def _open_audio(av, out, audio_from):
     return src, ins, aout, src.demux(ins), [None]
 
 
-def _mux_audio(out, audio, until_s) -> None:
+def _mux_audio(out: av.container.OutputContainer, audio: _Audio, until_s: float | None) -> None:
     """Mux the source's audio packets up to ``until_s`` seconds (None: to the end)."""
     _src, _ins, aout, it, pending = audio
     while True:
@@ -425,9 +473,17 @@ def _mux_audio(out, audio, until_s) -> None:
         out.mux(pkt)
 
 
-def _mux_video(av, out, vout, parts, audio, rate):
+def _mux_video(
+    av: ModuleType,
+    out: av.container.OutputContainer,
+    vout: av.stream.Stream,
+    parts: Sequence[str | os.PathLike[str]],
+    audio: _Audio | None,
+    rate: Fraction | float,
+) -> float | None:
     """Mux every part's packets, shifted by the frames before it; returns the end time (s) or None."""
-    offset, end = 0, None
+    offset = 0
+    end: float | None = None
     for part in parts:
         with av.open(str(part)) as src:
             vin = src.streams.video[0]

@@ -16,18 +16,46 @@ import contextlib
 import itertools
 import math
 import os
+import queue
 import re
+import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Protocol
 
 import cv2
+import numpy as np
 
 from ..errors import ImageError, UsageError
 from ..io import to_bgr8
-from .avio import AvReader, VideoFrame
+from .avio import AvReader, RawFrame, VideoFrame
 from .threads import END, put_or_stop
 
-__all__ = ["VideoReader", "decode_into", "looks_like_sequence", "open_reader", "sequence_indices"]
+__all__ = ["FrameReader", "VideoReader", "decode_into", "looks_like_sequence", "open_reader", "sequence_indices"]
+
+
+class FrameReader(Protocol):
+    """What the engine reads of a video's reader (:class:`VideoReader`, :class:`arshadow.video.avio.AvReader`,
+    :class:`arshadow.video.scan.SeekReader`); the others (``rate``, ``pix_fmt``, ``rotation``, ``has_audio``,
+    ``path``, ``end_note``, ``n_decode_errors``) are read with ``getattr`` where a reader may lack them."""
+
+    @property
+    def width(self) -> int: ...
+    @property
+    def height(self) -> int: ...
+    @property
+    def fps(self) -> float: ...
+    @property
+    def fps_assumed(self) -> bool: ...
+    @property
+    def frame_count(self) -> int | None: ...
+    @property
+    def n_read(self) -> int: ...
+    @property
+    def truncated(self) -> bool: ...
+    def __iter__(self) -> Iterator[RawFrame | VideoFrame]: ...
+    def close(self) -> None: ...
 
 
 def _quiet_ffmpeg() -> None:
@@ -37,7 +65,7 @@ def _quiet_ffmpeg() -> None:
     os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
 
 
-def looks_like_sequence(path) -> bool:
+def looks_like_sequence(path: str | os.PathLike[str]) -> bool:
     """An OpenCV image-sequence pattern (``img_%04d.png``) rather than a file name.
 
     >>> looks_like_sequence("frames/img_%04d.png"), looks_like_sequence("clip.mp4")
@@ -64,7 +92,7 @@ def sequence_indices(pattern: str) -> list[int]:
     )
 
 
-def open_reader(path, max_frames: int | None):
+def open_reader(path: str | os.PathLike[str], max_frames: int | None) -> tuple[VideoReader | AvReader, bool]:
     """The reader of one input: ``(reader, is_av)``; an image-sequence pattern is read by OpenCV
     (:class:`VideoReader`, BGR frames), anything else by PyAV (:class:`AvReader`, raw ``yuv420p`` frames
     where the decoder gives them)."""
@@ -74,7 +102,7 @@ def open_reader(path, max_frames: int | None):
     return AvReader(p, max_frames=max_frames, raw=True), True
 
 
-def decode_into(reader, q, stop) -> None:
+def decode_into(reader: FrameReader, q: queue.Queue[object], stop: threading.Event) -> None:
     """Decode every frame of ``reader`` into the queue ``q`` as ``(frame, decode_ms)``, then :data:`END`;
     returns early when ``stop`` is set (a consumer failed)."""
     t = time.perf_counter()
@@ -123,7 +151,7 @@ class VideoReader:
     [(0, (48, 64, 3)), (1, (48, 64, 3)), (2, (48, 64, 3))]
     """
 
-    def __init__(self, path, max_frames: int | None = None):
+    def __init__(self, path: str | os.PathLike[str], max_frames: int | None = None) -> None:
         self.path = str(path)
         if max_frames is not None and int(max_frames) < 1:
             raise UsageError(f"--max-frames {max_frames}: must be >= 1")
@@ -136,7 +164,7 @@ class VideoReader:
                 raise ImageError(f"{self.path}: is a folder, not a video (use a pattern such as DIR/%04d.png)")
             if p.stat().st_size == 0:
                 raise ImageError(f"{self.path}: empty file, not a video")
-        self.end_note = None  # why the frames stop before frame_count (engine warnings)
+        self.end_note: str | None = None  # why the frames stop before frame_count (engine warnings)
         seq = sequence_indices(self.path) if looks_like_sequence(self.path) else None
         if seq is not None and not seq:
             raise ImageError(f"{self.path}: no file matches this image-sequence pattern")
@@ -151,8 +179,8 @@ class VideoReader:
         if not ok or first is None or first.size == 0:
             cap.release()
             raise ImageError(f"{self.path}: no decodable frame (corrupt or unsupported video)")
-        self._cap = cap
-        self._first = first
+        self._cap: cv2.VideoCapture | None = cap
+        self._first: np.ndarray | None = first
         fps = float(cap.get(cv2.CAP_PROP_FPS) or 0.0)
         self.fps_assumed = not (math.isfinite(fps) and 0.0 < fps < 1e4)
         self.fps = 25.0 if self.fps_assumed else fps
@@ -173,15 +201,16 @@ class VideoReader:
         self.height, self.width = first.shape[:2]
         self.n_read = 0
         self.n_decode_errors = 0
-        self._last_t = None
-        self._t0 = None
+        self._last_t: float | None = None
+        self._t0: float | None = None
         self._started = False
 
     # -- iteration ---------------------------------------------------------------------------------
     def _timestamp(self, index: int) -> float:
         """The decoder's timestamp of the frame just read (s), if usable; else index / fps."""
+        assert self._cap is not None  # open while iterated
         ms = self._cap.get(cv2.CAP_PROP_POS_MSEC)
-        t = None
+        t: float | None = None
         if math.isfinite(ms) and ms >= 0.0:
             t = ms / 1000.0
             if self._t0 is None:
@@ -194,13 +223,15 @@ class VideoReader:
         self._last_t = t
         return t
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator[VideoFrame]:
         if self._started:
             raise UsageError(f"{self.path}: a VideoReader can be iterated only once")
         self._started = True
         index = 0
         img = self._first
         self._first = None
+        cap = self._cap
+        assert cap is not None  # closed at the end of this, the one iteration
         while img is not None:
             if self.max_frames is not None and index >= self.max_frames:
                 break
@@ -214,7 +245,7 @@ class VideoReader:
             self.n_read += 1
             yield VideoFrame(index, t, img)
             index += 1
-            ok, nxt = self._cap.read()
+            ok, nxt = cap.read()
             img = nxt if ok and nxt is not None and nxt.size else None
         self.close()
 
@@ -234,12 +265,12 @@ class VideoReader:
             self._cap.release()
             self._cap = None
 
-    def __enter__(self):
+    def __enter__(self) -> VideoReader:
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def __del__(self):  # pragma: no cover - best effort
+    def __del__(self) -> None:  # pragma: no cover - best effort
         with contextlib.suppress(Exception):
             self.close()

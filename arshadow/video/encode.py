@@ -17,8 +17,10 @@ import queue
 import shutil
 import tempfile
 import time
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import ExitStack
 from pathlib import Path
+from typing import IO, TYPE_CHECKING, Any, TypeAlias, cast
 
 import cv2
 import numpy as np
@@ -27,9 +29,45 @@ from ..errors import ImageError
 from ..io import atomic_path, write_image
 from ..photos import contact_sheet
 from .avio import AvWriter
+from .decode import FrameReader
 from .threads import END
 
-__all__ = ["EncodeSink", "SheetThumbs", "atomic_dir", "replace_dir", "write_contact_sheet"]
+if TYPE_CHECKING:
+    import threading
+
+    from ..frame.report import ReportItem
+    from .engine import EngineOptions
+
+__all__ = [
+    "EncodeJob",
+    "EncodeSink",
+    "Progress",
+    "ProgressFactory",
+    "SheetThumbs",
+    "VideoOutputs",
+    "atomic_dir",
+    "replace_dir",
+    "required",
+    "write_contact_sheet",
+]
+
+#: one video's (or chunk's) output paths by role (``video``, ``mask``, ``frames``, ``sheet``, ``layers:...``;
+#: :func:`arshadow.video.engine.video_outputs`), None for one not written
+VideoOutputs: TypeAlias = dict[str, Path | None]
+#: ``progress(frames_done, frames_total_or_None)``
+Progress: TypeAlias = Callable[[int, "int | None"], object]
+#: ``progress_factory(input) -> (update(done, total), close())`` per video (a progress bar)
+ProgressFactory: TypeAlias = Callable[[str], tuple[Progress, Callable[[], object]]]
+#: what :meth:`arshadow.video.framejob.FrameComposer.compose` hands the encode thread: ``(image, format,
+#: mask or None, report item, JSON Lines record)``
+EncodeJob: TypeAlias = tuple[np.ndarray, str, "np.ndarray | None", "ReportItem", dict[str, Any]]
+
+
+def required(outputs: Mapping[str, Path | None], key: str) -> Path:
+    """``outputs[key]``, an output every run writes (``video``, ``frames``, a chunk's ``thumbs``)."""
+    path = outputs[key]
+    assert path is not None, key  # always set by video_outputs / ChunkStore.outputs
+    return path
 
 
 class SheetThumbs:
@@ -46,11 +84,11 @@ class SheetThumbs:
         ``(width, height)`` of the frames.
     """
 
-    def __init__(self, count: int, total, size):
+    def __init__(self, count: int, total: int | None, size: tuple[int, int]) -> None:
         self.count = int(count)
         self.step = max(1, (total or 0) // max(self.count, 1))
         self.W, self.H = size
-        self.thumbs: dict = {}
+        self.thumbs: dict[int, np.ndarray] = {}
 
     def add(self, index: int, img: np.ndarray, fmt: str) -> None:
         """Offer frame ``index`` (``(H, W, 3)`` BGR, or planar ``yuv420p`` when ``fmt`` says so)."""
@@ -69,7 +107,7 @@ class SheetThumbs:
             for k in [k for k in self.thumbs if k % self.step]:
                 del self.thumbs[k]
 
-    def picked(self) -> dict:
+    def picked(self) -> dict[int, np.ndarray]:
         """``count`` thumbnails evenly spread over those kept, ``{frame: (h, 320, 3) uint8}``."""
         keys = sorted(self.thumbs)
         if not keys:
@@ -115,7 +153,19 @@ class EncodeSink:
     total : int or None
     """
 
-    def __init__(self, outputs, opts, reader, source, is_av, stage_ms, sheet, progress=None, name="", total=None):
+    def __init__(
+        self,
+        outputs: VideoOutputs,
+        opts: EngineOptions,
+        reader: FrameReader,
+        source: str | os.PathLike[str],
+        is_av: bool,
+        stage_ms: dict[str, list[float]],
+        sheet: SheetThumbs,
+        progress: Progress | None = None,
+        name: str = "",
+        total: int | None = None,
+    ) -> None:
         self.outputs, self.opts, self.reader = outputs, opts, reader
         self.source, self.is_av = source, is_av
         self.stage_ms, self.sheet, self.progress = stage_ms, sheet, progress
@@ -123,7 +173,7 @@ class EncodeSink:
         self.W, self.H = reader.width, reader.height
         self.audio_copied = False
 
-    def run(self, q: queue.Queue, stop) -> None:
+    def run(self, q: queue.Queue[object], stop: threading.Event) -> None:
         """Write every job from ``q``; raises ``RuntimeError("stopped")`` when ``stop`` is set first.
 
         The outputs are entered in this order and committed in the reverse one: the video (the likeliest
@@ -131,12 +181,13 @@ class EncodeSink:
         and the frames report.
         """
         with ExitStack() as st:
-            jf = st.enter_context(open(st.enter_context(atomic_path(self.outputs["frames"])), "w", encoding="utf-8"))
+            jpath = st.enter_context(atomic_path(required(self.outputs, "frames")))
+            jf = st.enter_context(open(jpath, "w", encoding="utf-8"))
             mw, png_dir = self._open_mask(st)
             vw = st.enter_context(self._video_writer())
             n = 0
             while (job := self._next(q, stop)) is not END:
-                self._write(job, vw, mw, png_dir, jf)
+                self._write(cast(EncodeJob, job), vw, mw, png_dir, jf)  # anything but END is a job
                 n += 1
                 if self.progress is not None:
                     self.progress(n, self.total)
@@ -150,7 +201,7 @@ class EncodeSink:
         self.audio_copied = bool(vw.audio_copied)
 
     @staticmethod
-    def _next(q, stop):
+    def _next(q: queue.Queue[object], stop: threading.Event) -> object:
         while True:
             try:
                 return q.get(timeout=0.1)
@@ -158,7 +209,7 @@ class EncodeSink:
                 if stop.is_set():
                     raise RuntimeError("stopped") from None
 
-    def _open_mask(self, st):
+    def _open_mask(self, st: ExitStack[bool | None]) -> tuple[AvWriter | None, Path | None]:
         out_mask, opts = self.outputs.get("mask"), self.opts
         if out_mask is not None and opts.mask == "mkv":
             rate = getattr(self.reader, "rate", self.reader.fps)
@@ -170,9 +221,9 @@ class EncodeSink:
     def _video_writer(self) -> AvWriter:
         opts, reader = self.opts, self.reader
         keep_yuv = opts.codec == "ffv1" and getattr(reader, "pix_fmt", None) == "yuv420p"
-        audio = self.source if (opts.keep_audio and self.is_av and reader.has_audio) else None
+        audio = self.source if (opts.keep_audio and self.is_av and getattr(reader, "has_audio", False)) else None
         return AvWriter(
-            self.outputs["video"],
+            required(self.outputs, "video"),
             getattr(reader, "rate", reader.fps),
             (self.W, self.H),
             codec=opts.codec,
@@ -184,8 +235,9 @@ class EncodeSink:
             rotation=getattr(reader, "rotation", 0),
         )
 
-    def _write(self, job, vw, mw, png_dir, jf) -> None:
+    def _write(self, job: EncodeJob, vw: AvWriter, mw: AvWriter | None, png_dir: Path | None, jf: IO[str]) -> None:
         img, fmt, mask, item, line = job
+        assert item.frame is not None  # set by FrameComposer.compose
         t = time.perf_counter()
         if fmt == "yuv420p":
             vw.write_yuv420p(img)
@@ -206,7 +258,7 @@ class EncodeSink:
 
 
 @contextlib.contextmanager
-def atomic_dir(target: Path):
+def atomic_dir(target: Path) -> Iterator[Path]:
     """Yield a temporary folder beside ``target``; moved onto it only if the block succeeds."""
     tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent))
     try:
@@ -228,7 +280,7 @@ def replace_dir(tmp: Path, target: Path) -> None:
         shutil.rmtree(old, ignore_errors=True)
 
 
-def write_contact_sheet(path, thumbs: dict, cols: int = 4) -> Path:
+def write_contact_sheet(path: Path | str, thumbs: Mapping[int, np.ndarray], cols: int = 4) -> Path:
     """Tile ``{frame: (h, w, 3) uint8}`` thumbnails (frame order, labelled) into one image, atomically."""
     tiles = []
     for f in sorted(thumbs):

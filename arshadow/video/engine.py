@@ -23,11 +23,14 @@ frame), ``.sheet.jpg`` (contact sheet), and with a mask ``.shadow.mkv`` (lossles
 
 from __future__ import annotations
 
+import os
 import queue
 import threading
 import time
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, TypeAlias, cast
 
 import numpy as np
 
@@ -38,12 +41,18 @@ from ..io import unique_stems
 from ..tracking.detect import retry_due
 from ..tracking.quality import reprojection_hold
 from .avio import VIDEO_CODECS
-from .decode import decode_into, open_reader
-from .encode import EncodeSink, SheetThumbs, write_contact_sheet
-from .framejob import FRAME_STAGES, FrameComposer, SessionBackend, gray_of
+from .decode import FrameReader, decode_into, open_reader
+from .encode import EncodeSink, Progress, SheetThumbs, VideoOutputs, required, write_contact_sheet
+from .framejob import FRAME_STAGES, Frame, FrameComposer, FramePayload, SessionBackend, gray_of
 from .hints import other_dictionaries_hint
 from .temporal import PoseStream
 from .threads import END, Worker, put_or_stop
+
+if TYPE_CHECKING:
+    from ..errors import MarkerNotFoundError
+    from ..frame.report import ReportItem
+    from ..tracking.pose import MarkerPose
+    from .temporal import FramePose
 
 __all__ = [
     "FRAME_STAGES",
@@ -56,6 +65,9 @@ __all__ = [
     "video_outputs",
     "write_contact_sheet",
 ]
+
+#: what the tracking thread hands the main thread: ``(frame, decode_ms, timings, pose or None, reason or None)``
+TrackJob: TypeAlias = tuple[Frame, float, dict[str, float], "MarkerPose | None", "str | None"]
 
 #: libx264's speed presets (``--preset``)
 X264_PRESETS = (
@@ -152,7 +164,7 @@ class EngineOptions:
         return self
 
 
-def video_outputs(outdir, stem: str, opts: EngineOptions) -> dict:
+def video_outputs(outdir: str | os.PathLike[str], stem: str, opts: EngineOptions) -> VideoOutputs:
     """The output paths of one video: ``video``, ``mask`` (or None), ``frames`` (JSONL), ``sheet``."""
     d = Path(outdir)
     mask = None
@@ -160,7 +172,7 @@ def video_outputs(outdir, stem: str, opts: EngineOptions) -> dict:
         mask = d / f"{stem}.shadow.mkv"
     elif opts.mask == "png":
         mask = d / f"{stem}.shadow"
-    out = {
+    out: VideoOutputs = {
         "video": d / f"{stem}.{opts.fmt}",
         "mask": mask,
         "frames": d / f"{stem}.frames.jsonl",
@@ -173,7 +185,15 @@ def video_outputs(outdir, stem: str, opts: EngineOptions) -> dict:
     return out
 
 
-def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress=None, name: str | None = None):
+def process_video(
+    backend: SessionBackend,
+    path: str | os.PathLike[str],
+    outputs: VideoOutputs,
+    opts: EngineOptions,
+    *,
+    progress: Progress | None = None,
+    name: str | None = None,
+) -> tuple[dict[str, Any], list[ReportItem]]:
     """Composite every frame of one video and write its outputs (each atomically).
 
     Parameters
@@ -223,7 +243,7 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
         reader.close()
         raise
     out_mask = outputs.get("mask")
-    composer = FrameComposer(backend, name, outputs["video"], out_mask, (W, H), out_mask is not None)
+    composer = FrameComposer(backend, name, required(outputs, "video"), out_mask, (W, H), out_mask is not None)
     total = (
         reader.frame_count if opts.max_frames is None else min(reader.frame_count or opts.max_frames, opts.max_frames)
     )
@@ -233,9 +253,10 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
         cal = backend.cal if opts.layers_undistorted else None
         st = None if cal is None else stmap(cal.intrinsics, None if cal.lens is None else cal.lens.maps)
         composer.layer_sink = LayerSink(
-            {k[7:]: p for k, p in outputs.items() if k.startswith("layers:")},
+            {k[7:]: p for k, p in outputs.items() if k.startswith("layers:") and p is not None},
             opts.layers,
-            getattr(reader, "rate", reader.fps),
+            # an image sequence's rate is its float fps: LayerSink documents "Fraction or float", annotates Fraction | int
+            getattr(reader, "rate", reader.fps),  # type: ignore[arg-type]
             (W, H),
             stmap=st,
         )
@@ -248,8 +269,8 @@ def process_video(backend, path, outputs: dict, opts: EngineOptions, *, progress
         raise
     if composer.layer_sink is not None:
         composer.layer_sink.close()
-    if outputs.get("sheet") is not None and sheet.thumbs:
-        write_contact_sheet(outputs["sheet"], sheet.picked())
+    if (sheet_path := outputs.get("sheet")) is not None and sheet.thumbs:
+        write_contact_sheet(sheet_path, sheet.picked())
     summary = _summary(name, outputs, reader, composer, sink, opts, time.perf_counter() - t_wall)
     summary["recomputes"] = backend.recomputes
     return summary, items
@@ -265,19 +286,19 @@ class Span:
     start: int
     stop: int
     head_from: int = 0
-    head: list = field(default_factory=list)
+    head: list[dict[str, Any]] = field(default_factory=list)
     #: ``{frame: tracker state after it}`` (:meth:`SessionBackend.tracker_state` and the colour retry's
     #: misses in a row) for the frames before ``start`` and ``stop``: the state a chunk hands over
-    states: dict = field(default_factory=dict)
+    states: dict[int, dict[str, Any]] = field(default_factory=dict)
     #: the last frame with a pose before ``start`` / before ``stop`` (its decision and ``time_s``): the IPPE
     #: branch choice's anchor, which may lie before the compared frames (the marker lost up to a second)
-    anchor_in: dict | None = None
-    anchor_out: dict | None = None
+    anchor_in: dict[str, Any] | None = None
+    anchor_out: dict[str, Any] | None = None
 
 
 def run_frames(
-    reader, composer: FrameComposer, sink: EncodeSink, opts: EngineOptions, span: Span | None = None
-) -> list:
+    reader: FrameReader, composer: FrameComposer, sink: EncodeSink, opts: EngineOptions, span: Span | None = None
+) -> list[ReportItem]:
     """Decode, track and encode threads around the main thread's frame jobs; returns the collected items.
 
     The main thread (the GL context's) smooths, renders and composites; tracking (OpenCV, no GL, the
@@ -285,9 +306,9 @@ def run_frames(
     is tracked while the one before it renders: the same calls in the same order as on one thread, the
     same poses. ``span``: composite and write only its frames (a chunk, :mod:`arshadow.video.chunks`).
     """
-    q_in: queue.Queue = queue.Queue(maxsize=opts.queue_frames)
-    q_trk: queue.Queue = queue.Queue(maxsize=opts.queue_frames)
-    q_out: queue.Queue = queue.Queue(maxsize=opts.queue_frames)
+    q_in: queue.Queue[object] = queue.Queue(maxsize=opts.queue_frames)
+    q_trk: queue.Queue[object] = queue.Queue(maxsize=opts.queue_frames)
+    q_out: queue.Queue[object] = queue.Queue(maxsize=opts.queue_frames)
     stop = threading.Event()
     stream = PoseStream(fps=reader.fps, lag=opts.pose_lag, window=opts.smooth, hold_frames=opts.hold)
     dec_t = Worker(lambda: decode_into(reader, q_in, stop), "arshadow-decode")
@@ -298,18 +319,19 @@ def run_frames(
     threads = (dec_t, trk_t, enc_t)
     for t in threads:
         t.start()
-    items: list = []
+    items: list[ReportItem] = []
 
-    def emit(fp):
-        if span is not None and fp.raw is not None and fp.payload[0].index < span.stop:
+    def emit(fp: FramePose) -> None:
+        index = cast(FramePayload, fp.payload)[0].index
+        if span is not None and fp.raw is not None and index < span.stop:
             anchor = {**composer.decision(fp), "time_s": fp.time_s}
             span.anchor_out = anchor
-            if fp.payload[0].index < span.start:
+            if index < span.start:
                 span.anchor_in = anchor
-        if span is not None and not span.start <= fp.payload[0].index < span.stop:
-            if fp.payload[0].index < span.start:
+        if span is not None and not span.start <= index < span.stop:
+            if index < span.start:
                 composer.prime(fp)  # the exposure match's smoothing gets the frames before the chunk
-            if span.head_from <= fp.payload[0].index < span.start:
+            if span.head_from <= index < span.start:
                 span.head.append(composer.decision(fp))
             return
         job = composer.compose(fp)
@@ -320,7 +342,7 @@ def run_frames(
 
     try:
         while (job := next_item(q_trk, (trk_t, enc_t))) is not END:
-            fr, dec_ms, timings, pose, reason = job
+            fr, dec_ms, timings, pose, reason = cast(TrackJob, job)
             for fp in stream.push((fr, dec_ms, timings, getattr(fr, "format", "bgr24"), reason), pose, fr.time_s):
                 emit(fp)
         for fp in stream.flush():
@@ -344,7 +366,13 @@ def run_frames(
 
 
 def track_into(
-    q_in: queue.Queue, q_trk: queue.Queue, backend, height: int, stop, dec_t: Worker, span: Span | None = None
+    q_in: queue.Queue[object],
+    q_trk: queue.Queue[object],
+    backend: SessionBackend,
+    height: int,
+    stop: threading.Event,
+    dec_t: Worker,
+    span: Span | None = None,
 ) -> None:
     """The tracking thread: each decoded ``(frame, decode_ms)`` of ``q_in`` tracked, in order, into ``q_trk``
     as ``(frame, decode_ms, timings, pose or None, reason or None)``, then :data:`END`; a failed decode
@@ -355,13 +383,14 @@ def track_into(
     ``span``: a chunk's, whose :attr:`Span.states` get the tracker's state after the frames
     before its start and its stop."""
     misses = 0  # frames in a row without the marker
-    snap = () if span is None else (span.start - 1, span.stop - 1)
+    err: MarkerNotFoundError | str | None
+    snap: tuple[int, ...] = () if span is None else (span.start - 1, span.stop - 1)
     while not stop.is_set():
         job = next_item(q_in, (dec_t,), stop)
         if job is END or job is None:
             put_or_stop(q_trk, END, stop)
             return
-        fr, dec_ms = job
+        fr, dec_ms = cast(tuple[Frame, float], job)
         timings = dict.fromkeys(FRAME_STAGES, 0.0)
         pose, err = backend.track(gray_of(fr, height), timings)
         if pose is None and getattr(fr, "format", "bgr24") == "yuv420p" and retry_due(misses):
@@ -376,7 +405,7 @@ def track_into(
             return
 
 
-def next_item(q: queue.Queue, workers, stop=None):
+def next_item(q: queue.Queue[object], workers: Iterable[Worker], stop: threading.Event | None = None) -> object:
     """The next item of ``q``; re-raises the error of any of ``workers`` (threads feeding or draining the
     pipeline) that failed; None when ``stop`` is set first."""
     while stop is None or not stop.is_set():
@@ -389,10 +418,18 @@ def next_item(q: queue.Queue, workers, stop=None):
     return None
 
 
-def _summary(name, outputs, reader, composer: FrameComposer, sink: EncodeSink, opts, wall: float) -> dict:
+def _summary(
+    name: str,
+    outputs: VideoOutputs,
+    reader: FrameReader,
+    composer: FrameComposer,
+    sink: EncodeSink,
+    opts: EngineOptions,
+    wall: float,
+) -> dict[str, Any]:
     """The video's summary (see :func:`process_video`)."""
     stats, stage_ms = composer.stats, composer.stage_ms
-    warnings = []
+    warnings: list[str] = []
     truncated = bool(reader.truncated)
     dec_err = int(getattr(reader, "n_decode_errors", 0))
     if truncated:
@@ -416,7 +453,7 @@ def _summary(name, outputs, reader, composer: FrameComposer, sink: EncodeSink, o
         hint = "" if cal is None or path is None else other_dictionaries_hint(path, cal.trackers()[1].dictionary)
         warnings.append(f"{name}: the marker was found in none of the {stats['frames']} frames{hint}")
     out_mask = outputs.get("mask")
-    summary = {
+    summary: dict[str, Any] = {
         "input": name,
         "output": str(outputs["video"]),
         "mask": None if out_mask is None else str(out_mask),

@@ -17,7 +17,10 @@ methods of :class:`arshadow.frame.session.Session`).
 from __future__ import annotations
 
 import time
-from datetime import timedelta
+from collections.abc import Iterable, Sequence
+from datetime import datetime, timedelta
+from os import PathLike
+from typing import TYPE_CHECKING, Any, TypeAlias, TypedDict, cast
 
 import cv2
 import numpy as np
@@ -30,10 +33,22 @@ from ..scene.sanity import FlagTally
 from ..tracking.luma import LumaFrame
 from ..tracking.reference import ReferenceTally
 from ..transforms import rvec_tvec_from_matrix
+from .avio import RawFrame, VideoFrame
+
+if TYPE_CHECKING:
+    from ..compose.layers import Layers
+    from ..export.layervideo import LayerSink
+    from ..frame.hooks import CalibrationState
+    from ..frame.session import Session
+    from ..lights.suntrack import SunTrack
+    from ..plan.planner import FramePlan
+    from ..tracking.pose import MarkerPose
+    from .temporal import FramePose
 
 __all__ = [
     "FRAME_STAGES",
     "FrameComposer",
+    "FrameStats",
     "SessionBackend",
     "even_box",
     "gray_of",
@@ -42,6 +57,12 @@ __all__ = [
     "i420_with_roi",
     "writable",
 ]
+
+#: a decoded frame: planar ``yuv420p`` or BGR (:class:`RawFrame`), or BGR (:class:`VideoFrame`)
+Frame: TypeAlias = RawFrame | VideoFrame
+#: what the engine pushes with a frame into the pose stream: ``(frame, decode_ms, timings, format, reason)``
+#: (``reason``: why the tracker found no pose, or None)
+FramePayload: TypeAlias = tuple[Frame, float, dict[str, float], str, str | None]
 
 #: per-frame ``timings_ms`` keys of the JSON Lines report
 FRAME_STAGES = (
@@ -74,14 +95,19 @@ class SessionBackend:
         must have them (:meth:`Session.use_sun_tracks`).
     """
 
-    def __init__(self, session, tracks=(), time_lapse=None):
+    def __init__(
+        self,
+        session: Session,
+        tracks: Iterable[SunTrack] = (),
+        time_lapse: tuple[datetime, float] | None = None,
+    ) -> None:
         self.session, self.tracks, self.time_lapse = session, list(tracks), time_lapse
         self.hooks = session.hooks  # arshadow.frame.hooks.EngineHooks: what the engine reaches into
         self.hooks.input_kind = "video"  # its notes say "the video is WxH"
-        self.cal = None
+        self.cal: CalibrationState | None = None
         self.recomputes = 0
-        self.want_layers = False  # set by process_video when the layers are written
-        self.last_layers = None  # the last render's layers (with want_layers)
+        self.want_layers: bool | str = False  # set by process_video when the layers are written
+        self.last_layers: Layers | None = None  # the last render's layers (with want_layers)
 
     def start(self, width: int, height: int) -> None:
         """A new video of this size (CalibrationError: the calibration does not fit it)."""
@@ -93,7 +119,9 @@ class SessionBackend:
             self.hooks.exposure.reset()
         self.recomputes = 0
 
-    def track(self, gray, timings):
+    def track(
+        self, gray: np.ndarray | LumaFrame, timings: dict[str, float]
+    ) -> tuple[MarkerPose | None, MarkerNotFoundError | None]:
         """The marker pose in a grey ``(H, W) uint8`` frame, or ``(None, error)``; ``timings`` (the
         frame's dict of :data:`FRAME_STAGES`) gets ``detect`` and ``pose``."""
         st = StageTimings()
@@ -107,21 +135,24 @@ class SessionBackend:
 
     def tracker_state(self) -> list:
         """:meth:`arshadow.frame.hooks.EngineHooks.tracker_state` at this video's size."""
+        assert self.cal is not None  # set by start()
         return self.hooks.tracker_state(self.cal.intrinsics.width, self.cal.intrinsics.height)
 
-    def replay_sun(self, times) -> None:
+    def replay_sun(self, times: Iterable[float]) -> None:
         """Advance the sun tracks' recompute schedule over the frame times ``times`` (seconds) without
         setting lights or counting recomputes: a chunk starts where a run over the frames before it would
         be. Frame by frame, as :meth:`lights_at` does (the same floats)."""
         for time_s in times if self.tracks else ():
+            assert self.time_lapse is not None  # sun tracks follow a time-lapse
             when = self.time_lapse[0] + timedelta(seconds=time_s * self.time_lapse[1])
             for tr in self.tracks:
                 tr.update(when)
 
-    def lights_at(self, time_s: float):
+    def lights_at(self, time_s: float) -> list[dict[str, Any]] | None:
         """Set the lights for a frame time (time-lapse); returns the report's ``sun`` list or None."""
         if not self.tracks:
             return None
+        assert self.time_lapse is not None  # sun tracks follow a time-lapse
         when = self.time_lapse[0] + timedelta(seconds=time_s * self.time_lapse[1])
         frames = self.session.set_time(when)
         self.recomputes += sum(bool(f.recompute) for f in frames)
@@ -137,12 +168,14 @@ class SessionBackend:
             for f in frames
         ]
 
-    def plan(self, cam_from_marker, width: int, height: int):
+    def plan(self, cam_from_marker: np.ndarray, width: int, height: int) -> FramePlan:
         """The frame's :class:`arshadow.plan.FramePlan` at the marker pose ``cam_from_marker`` (its ``roi``:
         the only pixels the compositor reads and changes)."""
         return self.session.plan(cam_from_marker, width, height)
 
-    def exposure_region(self, cam_from_marker, width: int, height: int, marker=None):
+    def exposure_region(
+        self, cam_from_marker: np.ndarray, width: int, height: int, marker: MarkerPose | None = None
+    ) -> tuple | None:
         """The pixels the exposure match reads (:meth:`arshadow.frame.hooks.EngineHooks.exposure_region`), or None;
         ``marker``: the frame's tracked pose (its marker id)."""
         return self.hooks.exposure_region(cam_from_marker, width, height, marker)
@@ -152,7 +185,7 @@ class SessionBackend:
         """The session's exposure match is on (:attr:`arshadow.frame.hooks.EngineHooks.exposure`)."""
         return self.hooks.exposure is not None
 
-    def observe_exposure(self, bgr, cam_from_marker, marker) -> None:
+    def observe_exposure(self, bgr: np.ndarray, cam_from_marker: np.ndarray, marker: MarkerPose | None) -> None:
         """:meth:`arshadow.frame.hooks.EngineHooks.observe_exposure` (a chunk's primer frame)."""
         self.hooks.observe_exposure(bgr, cam_from_marker, marker)
 
@@ -160,17 +193,25 @@ class SessionBackend:
         """:meth:`arshadow.frame.hooks.EngineHooks.exposure_gap` (a frame without the marker)."""
         self.hooks.exposure_gap()
 
-    def render(self, bgr, cam_from_marker, want_mask, timings, plan=None, marker=None):
+    def render(
+        self,
+        bgr: np.ndarray,
+        cam_from_marker: np.ndarray | None,
+        want_mask: bool,
+        timings: dict[str, float],
+        plan: FramePlan | None = None,
+        marker: MarkerPose | None = None,
+    ) -> tuple[np.ndarray | None, ReportItem]:
         """Composite into ``bgr`` (modified in place), at the marker pose ``cam_from_marker`` or carrying out
         ``plan``; returns ``(mask or None, the frame's report item)``; ``timings`` gets the render stages.
         ``marker``: the frame's tracked pose (the exposure match reads its paper), None when the marker is
         not in the frame (a held pose: the exposure match keeps the last gain)."""
         outputs = FrameOutputs(want_mask=want_mask, out=bgr)
-        kw = {"outputs": outputs, "layers": self.want_layers, "marker": marker, "seen": marker is not None}
+        layers, seen = self.want_layers, marker is not None
         if plan is not None:
-            res = self.hooks.render(bgr, plan=plan, **kw)
+            res = self.hooks.render(bgr, plan=plan, outputs=outputs, layers=layers, marker=marker, seen=seen)
         else:
-            res = self.hooks.render(bgr, cam_from_marker, **kw)
+            res = self.hooks.render(bgr, cam_from_marker, outputs=outputs, layers=layers, marker=marker, seen=seen)
         self.last_layers = res.layers
         for k, v in res.timings.as_dict().items():
             if k != "total":
@@ -178,11 +219,11 @@ class SessionBackend:
         return res.mask, res.item
 
     @property
-    def notes(self):
+    def notes(self) -> list[str]:
         return list(self.session.notes or [])
 
 
-def gray_of(frame, height: int, colour: bool = False) -> np.ndarray | LumaFrame:
+def gray_of(frame: Frame, height: int, colour: bool = False) -> np.ndarray | LumaFrame:
     """The grey image the tracker reads: for a planar ``yuv420p`` frame, its Y plane as a
     :class:`arshadow.tracking.luma.LumaFrame` (expanded from limited to full range where the tracker reads
     it: the Y plane itself lost real markers, the real-footage work), else OpenCV's BGR -> grey ``(H, W) uint8``.
@@ -190,9 +231,23 @@ def gray_of(frame, height: int, colour: bool = False) -> np.ndarray | LumaFrame:
     the Y plane shows no marker)."""
     if getattr(frame, "format", "bgr24") == "yuv420p":
         if colour:
-            return cv2.cvtColor(cv2.cvtColor(frame.image, cv2.COLOR_YUV2BGR_I420), cv2.COLOR_BGR2GRAY)
+            grey: np.ndarray = cv2.cvtColor(cv2.cvtColor(frame.image, cv2.COLOR_YUV2BGR_I420), cv2.COLOR_BGR2GRAY)
+            return grey
         return LumaFrame(frame.image[:height])
-    return cv2.cvtColor(frame.image, cv2.COLOR_BGR2GRAY)
+    grey = cv2.cvtColor(frame.image, cv2.COLOR_BGR2GRAY)
+    return grey
+
+
+class FrameStats(TypedDict):
+    """A video's frame counts (:attr:`FrameComposer.stats`)."""
+
+    frames: int
+    frames_ok: int
+    frames_held: int
+    frames_no_marker: int
+    swapped: int
+    longest_gap: int
+    longest_gap_start: int | None
 
 
 class FrameComposer:
@@ -218,12 +273,20 @@ class FrameComposer:
         Per stage of :data:`FRAME_STAGES`, every frame's milliseconds (``encode`` filled by the encoder).
     """
 
-    def __init__(self, backend, name: str, out_video, out_mask, size, want_mask: bool):
+    def __init__(
+        self,
+        backend: SessionBackend,
+        name: str,
+        out_video: str | PathLike[str],
+        out_mask: str | PathLike[str] | None,
+        size: tuple[int, int],
+        want_mask: bool,
+    ) -> None:
         self.backend, self.name = backend, name
         self.out_video, self.out_mask = str(out_video), None if out_mask is None else str(out_mask)
         self.W, self.H = size
         self.want_mask = want_mask
-        self.stats = {
+        self.stats: FrameStats = {
             "frames": 0,
             "frames_ok": 0,
             "frames_held": 0,
@@ -232,21 +295,22 @@ class FrameComposer:
             "longest_gap": 0,
             "longest_gap_start": None,
         }
-        self._gap = (0, None)  # (length, first frame) of the current run of frames not tracked
+        self._gap: tuple[int, int | None] = (0, None)  # (length, first frame) of the current run of frames not tracked
         self.flags = FlagTally()  # flagged poses: one warning line for the video
         self.refs = ReferenceTally()  # the reference marker of each tracked frame: a change is warned of
-        self.stage_ms: dict = {k: [] for k in FRAME_STAGES}
-        self._bgr = None  # (H, W, 3) uint8: BGR of the current frame inside its ROI (yuv420p input)
+        self.stage_ms: dict[str, list[float]] = {k: [] for k in FRAME_STAGES}
+        # (H, W, 3) uint8: BGR of the current frame inside its ROI (yuv420p input)
+        self._bgr: np.ndarray | None = None
         #: an :class:`arshadow.export.layervideo.LayerSink` getting every frame's layers, or None
-        self.layer_sink = None
+        self.layer_sink: LayerSink | None = None
 
-    def compose(self, fp):
+    def compose(self, fp: FramePose) -> tuple[np.ndarray, str, np.ndarray | None, ReportItem, dict[str, Any]]:
         """One decided frame -> ``(image, format, mask or None, ReportItem, JSON Lines record)``.
 
         ``fp.payload`` is ``(frame, decode_ms, timings, format[, reason])`` as pushed by the engine
         (``reason``: why the tracker found no pose, the record's ``not_tracked``).
         """
-        fr, dec_ms, timings, fmt, *rest = fp.payload
+        fr, dec_ms, timings, fmt, *rest = cast(FramePayload, fp.payload)
         self._count_gap(fr.index, fp.status == "ok")
         img = fr.image
         sun = self.backend.lights_at(fr.time_s)
@@ -260,12 +324,16 @@ class FrameComposer:
             if self.layer_sink is not None:
                 self.layer_sink.write(None)
         else:
-            img, mask, item = self._render(fp.cam_from_world, img, fmt, timings, fp.raw)  # the frame's one item
+            assert fp.cam_from_marker is not None  # "ok" or "held"
+            img, mask, item = self._render(fp.cam_from_marker, img, fmt, timings, fp.raw)  # the frame's one item
             item.input, item.status = self.name, fp.status
             self._pose_fields(item, fp)
             if fp.raw is not None:
                 self.refs.add(fr.index, fp.reference_id)
-            self.stats["frames_ok" if fp.raw is not None else "frames_held"] += 1
+            if fp.raw is not None:
+                self.stats["frames_ok"] += 1
+            else:
+                self.stats["frames_held"] += 1
             self.stats["swapped"] += int(fp.swapped)
         item.output, item.mask = self.out_video, self.out_mask
         item.frame, item.time_s, item.sun = fr.index, round(fr.time_s, 6), sun
@@ -278,7 +346,7 @@ class FrameComposer:
             rec["not_tracked"] = str(rest[0])
         return img, fmt, mask, item, rec
 
-    def prime(self, fp) -> None:
+    def prime(self, fp: FramePose) -> None:
         """A decided frame before a chunk's start (not composited): its paper is measured for the exposure
         match's smoothing (:meth:`SessionBackend.observe_exposure`) when the marker is in it, else counted as
         a frame without a measurement, as rendering it would."""
@@ -287,21 +355,22 @@ class FrameComposer:
         if fp.status != "ok" or fp.raw is None:
             self.backend.exposure_gap()
             return
-        fr, fmt = fp.payload[0], fp.payload[3]
-        if self.backend.plan(fp.cam_from_world, self.W, self.H).empty:
+        fr, fmt = cast(FramePayload, fp.payload)[0], cast(FramePayload, fp.payload)[3]
+        assert fp.cam_from_marker is not None  # status "ok"
+        if self.backend.plan(fp.cam_from_marker, self.W, self.H).empty:
             return  # a frame with nothing to draw measures nothing when it is rendered either
-        region = self.backend.exposure_region(fp.cam_from_world, self.W, self.H, fp.raw)
+        region = self.backend.exposure_region(fp.cam_from_marker, self.W, self.H, fp.raw)
         if region is None:  # the paper is not in view (its measurement would fail)
             self.backend.exposure_gap()
             return
         if fmt == "yuv420p":
             if self._bgr is None:
                 self._bgr = np.zeros((self.H, self.W, 3), np.uint8)
-            i420_roi_to_bgr(fr.image, self._bgr, region)
             bgr = self._bgr
+            i420_roi_to_bgr(fr.image, bgr, region)
         else:
             bgr = fr.image
-        self.backend.observe_exposure(bgr, fp.cam_from_world, fp.raw)
+        self.backend.observe_exposure(bgr, fp.cam_from_marker, fp.raw)
 
     def _count_gap(self, index: int, tracked: bool) -> None:
         n, start = self._gap
@@ -310,11 +379,12 @@ class FrameComposer:
             self.stats["longest_gap"], self.stats["longest_gap_start"] = self._gap
 
     @staticmethod
-    def _pose_fields(item, fp) -> None:
+    def _pose_fields(item: ReportItem, fp: FramePose) -> None:
         """The report's pose keys: the tracked (raw) pose and the one rendered with (smoothed / held)."""
         if fp.raw is not None:
             item.set_pose(fp.raw)
-        r, t = rvec_tvec_from_matrix(fp.cam_from_world)
+        assert fp.cam_from_marker is not None  # a frame with a pose (tracked or held)
+        r, t = rvec_tvec_from_matrix(fp.cam_from_marker)
         item.raw = (
             None
             if fp.raw is None
@@ -327,14 +397,14 @@ class FrameComposer:
         item.reference_id = fp.reference_id
         item.pose_choice = "temporal (alternative IPPE solution)" if fp.swapped else "error"
 
-    def decision(self, fp) -> dict:
+    def decision(self, fp: FramePose) -> dict[str, Any]:
         """The pose decision of a frame that is not composited (a chunk's look-ahead past its end):
         ``frame``, ``status``, ``raw``, ``rvec``, ``tvec``, ``pose_choice`` as its JSON Lines record has them."""
         item = ReportItem(input=self.name, status=fp.status)
         if fp.status != "no_marker":
             self._pose_fields(item, fp)
         return {
-            "frame": fp.payload[0].index,
+            "frame": cast(FramePayload, fp.payload)[0].index,
             "status": item.status,
             "raw": item.raw,
             "rvec": item.rvec,
@@ -342,7 +412,14 @@ class FrameComposer:
             "pose_choice": item.pose_choice,
         }
 
-    def _render(self, cam_from_marker, img, fmt, timings, marker=None):
+    def _render(
+        self,
+        cam_from_marker: np.ndarray,
+        img: np.ndarray,
+        fmt: str,
+        timings: dict[str, float],
+        marker: MarkerPose | None = None,
+    ) -> tuple[np.ndarray, np.ndarray | None, ReportItem]:
         """Composite at the (decided) marker pose ``cam_from_marker``; returns the frame in its own format, the mask and the report
         item of :meth:`arshadow.frame.session.Session.render`. ``marker``: the frame's tracked pose (None: held).
 
@@ -378,7 +455,7 @@ class FrameComposer:
         timings["convert"] += (time.perf_counter() - tc) * 1e3
         return img, mask, item
 
-    def _finish_timings(self, item, timings, dec_ms) -> None:
+    def _finish_timings(self, item: ReportItem, timings: dict[str, float], dec_ms: float) -> None:
         timings["decode"] = dec_ms
         timings["total"] = sum(v for k, v in timings.items() if k not in ("total", "decode", "encode"))
         item.timings_ms = {k: round(v, 3) for k, v in timings.items()}
@@ -403,13 +480,13 @@ def writable(a: np.ndarray) -> np.ndarray | None:
     return a
 
 
-def frame_record(fr, item, sun) -> dict:
+def frame_record(fr: Frame, item: ReportItem, sun: list[dict[str, Any]] | None) -> dict[str, Any]:
     """One frame's JSON Lines record (``timings_ms["encode"]`` is filled in by the encoder).
 
     ``reference_id``: the marker whose frame the pose is in (the tracked pose's, a held frame's last one;
     None for a board or without a pose); ``pose_flagged`` / ``flag_reasons``: the tracked pose's flags
     (false / [] without one), ``pose_notes`` its report-only reasons (the cluster and flags work)."""
-    line = {
+    line: dict[str, Any] = {
         "frame": fr.index,
         "time_s": round(fr.time_s, 6),
         "status": item.status,
@@ -432,14 +509,14 @@ def frame_record(fr, item, sun) -> dict:
     return line
 
 
-def i420_planes(a: np.ndarray, H: int, W: int):
+def i420_planes(a: np.ndarray, H: int, W: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Views ``(Y (H, W), U (H/2, W/2), V (H/2, W/2))`` of a planar ``(H * 3 // 2, W)`` yuv420p frame."""
     c = a[H:].reshape(-1)
     q = (H // 2) * (W // 2)
     return a[:H], c[:q].reshape(H // 2, W // 2), c[q:].reshape(H // 2, W // 2)
 
 
-def even_box(roi, W: int, H: int):
+def even_box(roi: Sequence[float], W: int, H: int) -> tuple[int, int, int, int] | None:
     """``(x0, y0, x1, y1)`` of ``roi = (x0, y0, w, h)`` clipped to the frame and widened to even
     coordinates (a chroma sample of yuv420p covers 2x2 pixels); None for an empty ROI.
 
@@ -452,7 +529,7 @@ def even_box(roi, W: int, H: int):
     return x0 & ~1, y0 & ~1, min(W, x0 + w + 1) & ~1, min(H, y0 + h + 1) & ~1
 
 
-def i420_roi_to_bgr(yuv: np.ndarray, bgr: np.ndarray, roi) -> None:
+def i420_roi_to_bgr(yuv: np.ndarray, bgr: np.ndarray, roi: Sequence[float] | None) -> None:
     """Convert the planar yuv420p frame to BGR into ``bgr`` inside ``roi`` only (even-aligned); equal there
     to a whole-frame ``cv2.COLOR_YUV2BGR_I420`` (each 2x2 block has its own chroma sample). ``roi`` None:
     the whole frame.
@@ -482,7 +559,9 @@ def i420_roi_to_bgr(yuv: np.ndarray, bgr: np.ndarray, roi) -> None:
     bgr[y0:y1, x0:x1] = cv2.cvtColor(sub, cv2.COLOR_YUV2BGR_I420)
 
 
-def i420_with_roi(yuv: np.ndarray, bgr: np.ndarray, roi, out: np.ndarray | None = None) -> np.ndarray:
+def i420_with_roi(
+    yuv: np.ndarray, bgr: np.ndarray, roi: Sequence[float] | None, out: np.ndarray | None = None
+) -> np.ndarray:
     """The planar yuv420p frame ``yuv`` with the rectangle ``roi = (x0, y0, w, h)`` taken from ``bgr``.
 
     The compositor changes pixels inside the frame's ROI only, so only that rectangle (widened to even
@@ -508,7 +587,8 @@ def i420_with_roi(yuv: np.ndarray, bgr: np.ndarray, roi, out: np.ndarray | None 
     """
     H, W = bgr.shape[:2]
     if roi is None:
-        return cv2.cvtColor(bgr, cv2.COLOR_BGR2YUV_I420, dst=out)
+        whole: np.ndarray = cv2.cvtColor(bgr, cv2.COLOR_BGR2YUV_I420, dst=out)
+        return whole
     x0, y0, w, h = clip_roi(roi, W, H)
     if out is None:
         out = np.array(yuv)

@@ -3,6 +3,11 @@ when the marker was found in no frame (as a photo's "no marker found" message na
 
 from __future__ import annotations
 
+import os
+from collections.abc import Sequence
+
+import cv2
+
 from ..errors import ArshadowError
 from ..tracking.detect import markers_in_image
 from .avio import AvReader
@@ -13,7 +18,9 @@ __all__ = ["other_dictionaries_hint"]
 HINT_FRAMES = (0, 15, 30)
 
 
-def other_dictionaries_hint(path, dictionary, frames=HINT_FRAMES) -> str:
+def other_dictionaries_hint(
+    path: str | os.PathLike[str], dictionary: str | cv2.aruco.Dictionary | None, frames: Sequence[int] = HINT_FRAMES
+) -> str:
     """``"; the video has markers of other dictionaries: DICT_4X4_50 ids 0 (give --dictionary)"``, from
     the first of ``frames`` (frame indices) that shows any, or ``""`` (none, or the video unreadable).
 

@@ -26,9 +26,13 @@ import multiprocessing
 import os
 import sys
 import time
+from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
+from datetime import datetime
+from fractions import Fraction
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 import numpy as np
 
@@ -41,6 +45,7 @@ from ..tracking.dictionary import DEFAULT_DICTIONARY
 from ..tracking.reference import ReferenceTally
 from .avio import AvReader, display_rotation
 from .chunks import (
+    Chunk,
     ChunkStore,
     fingerprint,
     first_mismatch,
@@ -49,11 +54,16 @@ from .chunks import (
     run_chunk,
     widened,
 )
-from .encode import SheetThumbs, write_contact_sheet
+from .encode import Progress, SheetThumbs, VideoOutputs, required, write_contact_sheet
 from .engine import EngineOptions
 from .framejob import FRAME_STAGES, SessionBackend
 from .hints import other_dictionaries_hint
 from .scan import StreamIndex, scan_stream
+
+if TYPE_CHECKING:
+    from ..lights.spec import Light
+    from ..lights.suntrack import SunTrack
+    from ..scene.spec import SceneSpec
 
 __all__ = [
     "BackendRecipe",
@@ -80,11 +90,11 @@ class BackendRecipe:
     time_lapse : (datetime, float) or None
     """
 
-    spec: object
-    lights: list | None = None
-    static: list = field(default_factory=list)
-    tracks: list = field(default_factory=list)
-    time_lapse: tuple | None = None
+    spec: SceneSpec
+    lights: list[Light] | None = None
+    static: list[Light] = field(default_factory=list)
+    tracks: list[SunTrack] = field(default_factory=list)
+    time_lapse: tuple[datetime, float] | None = None
 
     def key(self) -> str:
         return repr((self.spec, self.lights, self.static, self.tracks, self.time_lapse))
@@ -97,7 +107,7 @@ class BackendRecipe:
         return SessionBackend(session, self.tracks or session.sun_tracks, self.time_lapse or session.time_lapse)
 
 
-_BACKENDS: dict = {}
+_BACKENDS: dict[str, SessionBackend] = {}
 
 
 def backend_for(recipe: BackendRecipe, threads: int = 0) -> SessionBackend:
@@ -132,13 +142,13 @@ class Prepared:
     path: str
     name: str
     index: StreamIndex
-    chunks: list
+    chunks: list[Chunk]
     store: ChunkStore
-    outputs: dict
+    outputs: VideoOutputs
     opts: EngineOptions
     total: int | None
-    rate: object
-    size: tuple
+    rate: Fraction
+    size: tuple[int, int]
     has_audio: bool
     fps_assumed: bool
     frame_count: int | None
@@ -146,8 +156,15 @@ class Prepared:
 
 
 def prepare_chunked(
-    path, outputs: dict, opts: EngineOptions, count: int, outdir, stem: str, recipe_key: str, name: str | None = None
-):
+    path: str | os.PathLike[str],
+    outputs: VideoOutputs,
+    opts: EngineOptions,
+    count: int,
+    outdir: str | os.PathLike[str],
+    stem: str,
+    recipe_key: str,
+    name: str | None = None,
+) -> tuple[Prepared | None, str | None]:
     """Plan one video into up to ``count`` chunks: a :class:`Prepared`, or ``(None, note)`` when it is
     processed in one piece (``note``: why, or None for an image sequence)."""
     p = str(path)
@@ -215,7 +232,11 @@ def start_method() -> str:
     return "fork" if sys.platform.startswith("linux") and contexts_made() == 0 else "spawn"
 
 
-def chunk_task(recipe: BackendRecipe, prep: Prepared, chunk) -> dict:
+#: a chunk's work: ``task(recipe, prep, chunk) -> record`` (:func:`chunk_task`; a picklable stand-in in tests)
+ChunkTask: TypeAlias = Callable[["BackendRecipe", "Prepared", Chunk], dict[str, Any]]
+
+
+def chunk_task(recipe: BackendRecipe, prep: Prepared, chunk: Chunk) -> dict[str, Any]:
     """Run one chunk in this process (a pool worker or a Dask task); returns its record. (The store was
     opened, and an interrupted run's temporaries removed, before any chunk started: never here, where
     other chunks are writing.)"""
@@ -242,11 +263,11 @@ class ChunkPool:
     """``jobs`` processes for chunks: this one and ``jobs - 1`` local workers (:func:`start_method`),
     recreated after a worker dies."""
 
-    def __init__(self, jobs: int):
+    def __init__(self, jobs: int) -> None:
         self.jobs = int(jobs)
-        self._ex = None
+        self._ex: ProcessPoolExecutor | None = None
 
-    def _executor(self):
+    def _executor(self) -> ProcessPoolExecutor:
         if self._ex is None:
             workers = max(1, self.jobs - 1)
             self._ex = ProcessPoolExecutor(
@@ -254,11 +275,18 @@ class ChunkPool:
             )  # the notes (a scaled calibration) are said once, by this process
         return self._ex
 
-    def run(self, fn, recipe, prep: Prepared, chunks, on_done=None) -> dict:
+    def run(
+        self,
+        fn: ChunkTask,
+        recipe: BackendRecipe,
+        prep: Prepared,
+        chunks: Sequence[Chunk],
+        on_done: Callable[[dict[str, Any]], None] | None = None,
+    ) -> dict[int, dict[str, Any]]:
         """``fn(recipe, prep, chunk)`` for every chunk; ``{k: record}``. When a worker dies every chunk in
         flight is lost with it: those are run again one at a time in a fresh pool (so that a death names
         its chunk), and a chunk whose worker dies again fails the video (ImageError naming it)."""
-        records: dict = {}
+        records: dict[int, dict[str, Any]] = {}
         died = self._round(fn, recipe, prep, chunks, records, on_done)
         for c in died:
             self.close()
@@ -270,7 +298,15 @@ class ChunkPool:
                 )
         return records
 
-    def _round(self, fn, recipe, prep, chunks, records, on_done) -> list:
+    def _round(
+        self,
+        fn: ChunkTask,
+        recipe: BackendRecipe,
+        prep: Prepared,
+        chunks: Sequence[Chunk],
+        records: dict[int, dict[str, Any]],
+        on_done: Callable[[dict[str, Any]], None] | None,
+    ) -> list[Chunk]:
         """Run the chunks in parallel, the first in this process when there are several (a lone chunk, as
         a retry, goes to a worker: a death there names it); returns those lost to a dead worker."""
         ex = self._executor()
@@ -280,7 +316,7 @@ class ChunkPool:
             records[here.k] = fn(recipe, prep, here)
             if on_done is not None:
                 on_done(records[here.k])
-        died = []
+        died: list[Chunk] = []
         for fut, c in futs.items():
             try:
                 records[c.k] = fut.result()
@@ -298,7 +334,9 @@ class ChunkPool:
         release_backends()  # the chunk this process ran kept a session and GL context
 
 
-def finish_chunked(prep: Prepared, records: dict, rerun) -> dict:
+def finish_chunked(
+    prep: Prepared, records: dict[int, dict[str, Any]], rerun: Callable[[Chunk], dict[str, Any]]
+) -> dict[str, Any]:
     """Check the chunks against each other (redoing a chunk with a longer primer via ``rerun(chunk)``
     until they agree), join them into the video's outputs, remove the store; returns the summary (with
     ``items``, every frame's report item as the sequential run makes it, when ``opts.collect_items``)."""
@@ -324,8 +362,8 @@ def finish_chunked(prep: Prepared, records: dict, rerun) -> dict:
     sheet = SheetThumbs(prep.opts.contact_sheet, prep.total, prep.size)
     for k in sorted(joined["thumbs"]):
         sheet.offer(k, joined["thumbs"][k])
-    if prep.outputs.get("sheet") is not None and sheet.thumbs:
-        write_contact_sheet(prep.outputs["sheet"], sheet.picked())
+    if (sheet_path := prep.outputs.get("sheet")) is not None and sheet.thumbs:
+        write_contact_sheet(sheet_path, sheet.picked())
     summary = _summary(prep, chunks, records, sheet, joined["audio"], redone)
     summary["join_s"] = round(time.perf_counter() - t_join, 3)
     if joined["items"] is not None:  # taken out by the caller (arshadow.video.runner): not a summary key
@@ -334,13 +372,23 @@ def finish_chunked(prep: Prepared, records: dict, rerun) -> dict:
     return summary
 
 
-def _summary(prep: Prepared, chunks, records: dict, sheet, audio: bool, redone: int) -> dict:
+def _summary(
+    prep: Prepared,
+    chunks: list[Chunk],
+    records: dict[int, dict[str, Any]],
+    sheet: SheetThumbs,
+    audio: bool,
+    redone: int,
+) -> dict[str, Any]:
     counts = ("frames", "frames_ok", "frames_held", "frames_no_marker", "swapped")
-    stats = {k: sum(records[c.k]["stats"][k] for c in chunks) for k in counts}
-    stage_ms: dict = {k: [] for k in FRAME_STAGES}
-    gap, longest = (0, None), (0, None)  # runs of frames not tracked, across the chunks' boundaries
+    stats: dict[str, int] = {k: sum(records[c.k]["stats"][k] for c in chunks) for k in counts}
+    gaps: dict[str, int | None] = {}  # the longest run of frames not tracked, when the records count it
+    stage_ms: dict[str, list[float]] = {k: [] for k in FRAME_STAGES}
+    # runs of frames not tracked, across the chunks' boundaries: (length, first frame)
+    gap: tuple[int, int | None] = (0, None)
+    longest: tuple[int, int | None] = (0, None)
     refs = ReferenceTally()  # the reference marker of each tracked frame (a change is warned of)
-    with open(prep.outputs["frames"], encoding="utf-8") as f:
+    with open(required(prep.outputs, "frames"), encoding="utf-8") as f:
         for line in f:
             d = json.loads(line)
             for k, v in d["timings_ms"].items():
@@ -350,8 +398,8 @@ def _summary(prep: Prepared, chunks, records: dict, sheet, audio: bool, redone: 
             gap = (0, None) if d["status"] == "ok" else (gap[0] + 1, d["frame"] if gap[1] is None else gap[1])
             longest = gap if gap[0] > longest[0] else longest
     if "longest_gap" in records[chunks[0].k]["stats"]:
-        stats["longest_gap"], stats["longest_gap_start"] = longest
-    warnings = [prep.note] if prep.note else []
+        gaps["longest_gap"], gaps["longest_gap_start"] = longest
+    warnings: list[str] = [prep.note] if prep.note else []
     flags = FlagTally()  # the flagged poses of every chunk, in frame order: the sequential run's line
     for c in chunks:
         fl = records[c.k].get("flags") or {"keys": [], "kinds": {}}
@@ -379,6 +427,7 @@ def _summary(prep: Prepared, chunks, records: dict, sheet, audio: bool, redone: 
         "error": None,
         "warnings": warnings,
         **stats,
+        **gaps,
         "recomputes": sum(records[c.k]["recomputes"] for c in chunks),
         "decode_errors": 0,
         "truncated": False,
@@ -414,7 +463,7 @@ def _summary(prep: Prepared, chunks, records: dict, sheet, audio: bool, redone: 
     }
 
 
-def name_other_dictionaries(summary: dict, spec, path) -> None:
+def name_other_dictionaries(summary: dict[str, Any], spec: SceneSpec, path: str | os.PathLike[str]) -> None:
     """A video whose marker was found in no frame: its warning names the other dictionaries' markers the
     video shows (:func:`arshadow.video.hints.other_dictionaries_hint`; single-marker mode), as the
     one-piece run's does."""
@@ -429,16 +478,16 @@ def name_other_dictionaries(summary: dict, spec, path) -> None:
 def process_video_chunked(
     recipe: BackendRecipe,
     pool: ChunkPool,
-    path,
-    outputs: dict,
+    path: str | os.PathLike[str],
+    outputs: VideoOutputs,
     opts: EngineOptions,
     *,
-    outdir,
+    outdir: str | os.PathLike[str],
     stem: str,
     name: str | None = None,
-    progress=None,
-    task=chunk_task,
-):
+    progress: Progress | None = None,
+    task: ChunkTask = chunk_task,
+) -> tuple[dict[str, Any] | None, str | None]:
     """One video on ``pool``'s workers in chunks; ``(summary, note)``, or ``(None, note)`` when it is to be
     processed in one piece (``note``: why, or None).
 
@@ -456,7 +505,7 @@ def process_video_chunked(
     records = {c.k: r for c in prep.chunks if (r := prep.store.done(c)) is not None}
     done = [0]
 
-    def on_done(rec):
+    def on_done(rec: dict[str, Any]) -> None:
         done[0] += rec["chunk"]["stop"] - rec["chunk"]["start"]
         if progress is not None:
             progress(done[0], prep.total)

@@ -3,18 +3,32 @@
 
 from __future__ import annotations
 
+import os
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
 from ..errors import ArshadowError, ImageError
 from ..frame.report import ReportItem
 from ..io import InputGuard, clean_temporaries
-from .engine import EngineOptions, process_video, unique_stems, video_outputs
-from .parallel import ChunkPool, process_video_chunked
+from .encode import Progress, ProgressFactory
+from .engine import EngineOptions, SessionBackend, process_video, unique_stems, video_outputs
+from .parallel import BackendRecipe, ChunkPool, process_video_chunked
 
 __all__ = ["run_videos"]
 
 
 def run_videos(
-    backend, inputs, outdir, opts: EngineOptions, *, progress_factory=None, on_error=None, jobs: int = 1, recipe=None
-):
+    backend: SessionBackend,
+    inputs: Sequence[str],
+    outdir: Path,
+    opts: EngineOptions,
+    *,
+    progress_factory: ProgressFactory | None = None,
+    on_error: Callable[[BaseException], None] | None = None,
+    jobs: int = 1,
+    recipe: BackendRecipe | None = None,
+) -> tuple[list[dict[str, Any]], list[ReportItem | dict[str, Any]]]:
     """Process several videos one after another; a failed video is recorded and the others go on.
 
     Parameters
@@ -37,10 +51,12 @@ def run_videos(
     -------
     summaries : list of dict
         One per input (:func:`process_video`'s, or ``status: "error"`` with ``error``).
-    items : list of ReportItem
-        Per-frame items when ``opts.collect_items``; an unreadable video has one item with ``frame: None``.
+    items : list of ReportItem or dict
+        Per-frame items when ``opts.collect_items`` (a video run in chunks: their dicts); an unreadable video
+        has one item with ``frame: None``.
     """
-    summaries, items = [], []
+    summaries: list[dict[str, Any]] = []
+    items: list[ReportItem | dict[str, Any]] = []
     given = InputGuard(inputs)  # outputs never replace an input
     pool = ChunkPool(jobs) if jobs > 1 and recipe is not None else None
     try:
@@ -54,23 +70,37 @@ def run_videos(
     return summaries, items
 
 
-def _one_video(backend, pool, recipe, inp, stem, outdir, opts, given, progress_factory, on_error):
+def _one_video(
+    backend: SessionBackend,
+    pool: ChunkPool | None,
+    recipe: BackendRecipe | None,
+    inp: str | os.PathLike[str],
+    stem: str,
+    outdir: Path,
+    opts: EngineOptions,
+    given: InputGuard,
+    progress_factory: ProgressFactory | None,
+    on_error: Callable[[BaseException], None] | None,
+) -> tuple[dict[str, Any], Sequence[ReportItem | dict[str, Any]]]:
     outs = video_outputs(outdir, stem, opts)
-    close = None
+    close: Callable[[], object] | None = None
     try:
         given.check(outs.values())
         clean_temporaries(outdir, stem)  # left by a run killed while writing this video
-        update = None
+        update: Progress | None = None
         if progress_factory is not None:
             update, close = progress_factory(str(inp))
-        summary = note = None
+        summary: dict[str, Any] | None = None
+        note: str | None = None
         if pool is not None:
+            assert recipe is not None  # the pool is made with a recipe (run_videos)
             try:
                 summary, note = process_video_chunked(
                     recipe, pool, inp, outs, opts, outdir=outdir, stem=stem, name=str(inp), progress=update
                 )
             except ImageError as exc:  # e.g. a damaged packet: the one-piece run reports and skips it
                 summary, note = None, f"not cut into chunks ({exc})"
+        its: Sequence[ReportItem | dict[str, Any]]
         if summary is None:
             summary, its = process_video(backend, inp, outs, opts, progress=update, name=str(inp))
             if note:

@@ -15,14 +15,24 @@ from __future__ import annotations
 
 import itertools
 import math
+import os
 from bisect import bisect_right
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
+from datetime import datetime
 from fractions import Fraction
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..errors import ImageError
 from ..scene.sanity import sun_set_warning
 from .avio import RawFrame, load_av, pts_time
+
+if TYPE_CHECKING:
+    import av.container
+    import av.video.stream
+
+    from ..lights.suntrack import SunTrack
 
 __all__ = ["SeekReader", "StreamIndex", "scan_stream"]
 
@@ -46,9 +56,9 @@ class StreamIndex:
         Why the video cannot be cut (then it is processed in one piece), or None.
     """
 
-    pts: list = field(default_factory=list)
-    times: list = field(default_factory=list)
-    keyframes: list = field(default_factory=list)
+    pts: list[int] = field(default_factory=list)
+    times: list[float] = field(default_factory=list)
+    keyframes: list[int] = field(default_factory=list)
     fps: float = 25.0
     vfr: bool = False
     problem: str | None = None
@@ -63,7 +73,7 @@ class StreamIndex:
         return self.keyframes[max(k, 0)]
 
 
-def scan_stream(path) -> StreamIndex:
+def scan_stream(path: str | os.PathLike[str]) -> StreamIndex:
     """Index the frames of a video file from its packets (no decoding).
 
     Raises
@@ -83,7 +93,9 @@ def scan_stream(path) -> StreamIndex:
         rate = vs.average_rate or vs.guessed_rate
         fps = float(rate) if rate and 0 < float(rate) < 1e4 else 25.0
         tb = vs.time_base
-        pts, keys, problem = [], set(), None
+        pts: list[int] = []
+        keys: set[int] = set()
+        problem: str | None = None
         try:
             for pkt in c.demux(vs):
                 if pkt.size == 0:
@@ -99,14 +111,15 @@ def scan_stream(path) -> StreamIndex:
     return _index(pts, keys, tb, fps, problem)
 
 
-def _index(pts, keys, tb, fps, problem) -> StreamIndex:
+def _index(pts: list[int], keys: set[int], tb: Fraction, fps: float, problem: str | None) -> StreamIndex:
     pts = sorted(pts)
     if not pts:
         return StreamIndex(fps=fps, problem=problem or "no video packets")
     if len(set(pts)) != len(pts):
         problem = problem or "duplicate timestamps"
     t0 = pts_time(pts[0], tb)
-    times, last = [], -math.inf
+    times: list[float] = []
+    last = -math.inf
     for i, p in enumerate(pts):
         t = pts_time(p, tb) - t0
         if not t > last:
@@ -151,12 +164,24 @@ class SeekReader:
         A decoded frame whose timestamp is not in the index (the index does not describe this file).
     """
 
-    def __init__(self, path, index: StreamIndex, start: int, stop: int, *, skip_before: int = 0, threads: int = 0):
+    _c: av.container.InputContainer | None  # None once closed
+    _vs: av.video.stream.VideoStream
+
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        index: StreamIndex,
+        start: int,
+        stop: int,
+        *,
+        skip_before: int = 0,
+        threads: int = 0,
+    ) -> None:
         av = load_av()
         self.path, self.index, self.start, self.stop = str(path), index, int(start), int(stop)
         self.skip_before = max(self.start, int(skip_before))
-        self._c = av.open(self.path, "r")
-        vs = self._vs = self._c.streams.video[0]
+        self._c = c = av.open(self.path, "r")
+        vs = self._vs = c.streams.video[0]
         vs.thread_type = "AUTO"
         if threads:
             vs.codec_context.thread_count = int(threads)
@@ -166,12 +191,13 @@ class SeekReader:
         self.fps = float(self.rate)
         self.width, self.height = int(vs.codec_context.width), int(vs.codec_context.height)
         self.pix_fmt = vs.codec_context.pix_fmt
-        self.has_audio = bool(self._c.streams.audio)
+        self.has_audio = bool(c.streams.audio)
         self.frame_count = index.n
-        self.truncated, self.n_decode_errors, self.end_note = False, 0, None
+        self.truncated, self.n_decode_errors = False, 0
+        self.end_note: str | None = None
         self.n_read = 0
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator[RawFrame]:
         av = load_av()
         try:
             yield from self._frames()
@@ -180,13 +206,15 @@ class SeekReader:
                 f"{self.path}: cannot decode frames {self.start}-{self.stop - 1} of a chunk ({exc})"
             ) from None
 
-    def _frames(self):
+    def _frames(self) -> Iterator[RawFrame]:
         pos = {p: i for i, p in enumerate(self.index.pts[self.start : self.stop + 64], self.start)}
         first = self.index.pts[self.start]
+        c = self._c
+        assert c is not None  # open until its one iteration ends
         try:
             if self.start > 0:
-                self._c.seek(first, stream=self._vs, backward=True, any_frame=False)
-            for f in self._c.decode(self._vs):
+                c.seek(first, stream=self._vs, backward=True, any_frame=False)
+            for f in c.decode(self._vs):
                 if f.pts is None or f.pts < first:
                     continue  # leading frames of an open GOP, decoded from before the keyframe
                 i = pos.get(int(f.pts))
@@ -210,12 +238,17 @@ class SeekReader:
             c.close()
 
 
-def chunk_name(path) -> str:
+def chunk_name(path: str | os.PathLike[str]) -> str:
     """A file-name-safe label of ``path`` (for chunk folders)."""
     return "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in Path(str(path)).name)[:60]
 
 
-def time_lapse_warnings(videos, tracks, time_lapse, max_frames=None) -> dict:
+def time_lapse_warnings(
+    videos: Sequence[str | os.PathLike[str]],
+    tracks: Sequence[SunTrack],
+    time_lapse: tuple[datetime, float] | None,
+    max_frames: int | None = None,
+) -> dict[str, str]:
     """:func:`sun_set_warning` for each video of a time-lapse, read before any frame is decoded (the
     container's frame count and rate).
 

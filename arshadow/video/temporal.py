@@ -16,7 +16,8 @@ frames later and in the same order, a :class:`FramePose`:
    frame's (smoothed) pose (``status = "held"``); later frames are passed through untouched
    (``status = "no_marker"``).
 
-Frames (CONVENTIONS.md): poses are world (marker) -> OpenCV camera, ``cam_from_world`` (4, 4) float64.
+Frames (CONVENTIONS.md): poses are marker -> OpenCV camera, ``cam_from_marker`` (4, 4) float64 (the
+tracker's :attr:`MarkerPose.cam_from_world <arshadow.tracking.pose.MarkerPose>`: its world is the marker).
 """
 
 from __future__ import annotations
@@ -24,11 +25,14 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass
+from typing import cast
 
 import cv2
 import numpy as np
+import numpy.typing as npt
 
 from ..errors import UsageError
+from ..tracking.pose import MarkerPose
 from ..transforms import rotation_vectors
 from .chooser import TemporalPoseChooser
 
@@ -50,32 +54,35 @@ class FramePose:
     time_s : float
     status : str
         ``"ok"`` (tracked), ``"held"`` (marker lost, last pose held) or ``"no_marker"``.
-    cam_from_world : (4, 4) float64 or None
-        The pose to render with (smoothed; held; None for ``no_marker``).
+    cam_from_marker : (4, 4) float64 or None
+        The marker's pose to render with (smoothed; held; None for ``no_marker``).
     raw : MarkerPose or None
         The tracked pose on the chosen IPPE branch, unsmoothed (None when not tracked in this frame).
     swapped : bool
         The chooser took the alternative IPPE solution.
     reference_id : int or None
-        The marker whose frame ``cam_from_world`` is in (a held frame: the last tracked frame's); None for
+        The marker whose frame ``cam_from_marker`` is in (a held frame: the last tracked frame's); None for
         a board or without a pose.
     """
 
     payload: object
     time_s: float
     status: str
-    cam_from_world: np.ndarray | None
-    raw: object = None
+    cam_from_marker: np.ndarray | None
+    raw: MarkerPose | None = None
     swapped: bool = False
     reference_id: int | None = None
 
 
-def _rmat(r):
-    return cv2.Rodrigues(np.asarray(r, np.float64).reshape(3, 1))[0]
+def _rmat(r: npt.ArrayLike) -> np.ndarray:
+    """(3, 3) float64 rotation matrix of the rotation vector ``r`` (3,)."""
+    m: np.ndarray = cv2.Rodrigues(np.asarray(r, np.float64).reshape(3, 1))[0]
+    return m
 
 
-def _local_poly(dt, w, ys, degree):
-    """Weighted least-squares polynomial in ``dt`` through ``ys``: ``(value at dt = 0 (d,), fitted (n, d))``."""
+def _local_poly(dt: np.ndarray, w: np.ndarray, ys: np.ndarray, degree: int) -> tuple[np.ndarray, np.ndarray]:
+    """Weighted least-squares polynomial in ``dt`` (n,) with weights ``w`` (n,) through ``ys`` (n, d):
+    ``(value at dt = 0 (d,), fitted (n, d))``."""
     deg = int(min(degree, max(0, int((w > 0).sum()) - 1)))
     X = np.vander(dt, deg + 1, increasing=True)
     sw = np.sqrt(w)[:, None]
@@ -83,7 +90,17 @@ def _local_poly(dt, w, ys, degree):
     return beta[0], X @ beta
 
 
-def smooth_poses(times, poses, i, *, window_s, degree=2, outlier_deg=3.0, max_span_deg=6.0, trust_i=True):
+def smooth_poses(
+    times: npt.ArrayLike,
+    poses: npt.ArrayLike,
+    i: int,
+    *,
+    window_s: float,
+    degree: int = 2,
+    outlier_deg: float = 3.0,
+    max_span_deg: float = 6.0,
+    trust_i: bool = True,
+) -> np.ndarray:
     """The smoothed pose of frame ``i`` from its neighbours (:class:`PoseStream` step 2).
 
     A local polynomial (``degree`` 2: constant acceleration is followed exactly, so an arc of a camera
@@ -96,7 +113,7 @@ def smooth_poses(times, poses, i, *, window_s, degree=2, outlier_deg=3.0, max_sp
     times : (n,) float64
         Frame times, seconds (the neighbours of frame ``i`` that may take part).
     poses : (n, 4, 4) float64
-        Their ``cam_from_world``.
+        Their ``cam_from_marker``.
     i : int
         The frame to smooth.
     window_s : float
@@ -117,6 +134,7 @@ def smooth_poses(times, poses, i, *, window_s, degree=2, outlier_deg=3.0, max_sp
     Returns
     -------
     (4, 4) float64
+        The smoothed ``cam_from_marker``.
     """
     times = np.asarray(times, np.float64)
     P = np.asarray(poses, np.float64)
@@ -190,7 +208,7 @@ class PoseStream:
         outlier_deg: float = 3.0,
         max_gap_s: float = MAX_GAP_S,
         degree: int = 2,
-    ):
+    ) -> None:
         if not (math.isfinite(fps) and fps > 0):
             raise UsageError(f"frame rate must be positive, got {fps}")
         if int(window) < 0 or int(hold_frames) < 0:
@@ -203,35 +221,40 @@ class PoseStream:
         self.outlier_deg = float(outlier_deg)
         self.degree = int(degree)
         self.max_gap_s = float(max_gap_s)
-        self._buf: deque = deque()  # (payload, time_s, raw pose or None, swapped) awaiting the look-ahead
-        self._hist: deque = deque()  # (time_s, (4, 4)) of decided frames with a pose, within the window
-        self._last = None  # (time_s, pose, reference id) of the last frame with a pose
+        # (payload, time_s, raw pose or None, swapped) awaiting the look-ahead
+        self._buf: deque[tuple[object, float, MarkerPose | None, bool]] = deque()
+        # (time_s, (4, 4) cam_from_marker) of decided frames with a pose, within the window
+        self._hist: deque[tuple[float, np.ndarray]] = deque()
+        # (time_s, cam_from_marker, reference id) of the last frame with a pose
+        self._last: tuple[float, np.ndarray, int | None] | None = None
         self._since = 0
 
     # -- interface -------------------------------------------------------------------------------
-    def push(self, payload, pose, time_s: float) -> list[FramePose]:
+    def push(self, payload: object, pose: MarkerPose | None, time_s: float) -> list[FramePose]:
         """Add a frame (``pose``: the tracker's MarkerPose, or None); returns the frames decided now."""
         if self.chooser is None:
             return self._smooth_push(payload, float(time_s), pose, False)
-        out = []
+        out: list[FramePose] = []
         for ch in self.chooser.push((payload, float(time_s)), pose, time_s):
-            out += self._smooth_push(ch.payload[0], ch.payload[1], ch.pose, ch.swapped)
+            pl, t = cast(tuple[object, float], ch.payload)  # what push gave the chooser
+            out += self._smooth_push(pl, t, ch.pose, ch.swapped)
         return out
 
     def flush(self) -> list[FramePose]:
         """Decide every frame still waiting (end of the video)."""
-        out = []
+        out: list[FramePose] = []
         if self.chooser is not None:
             for ch in self.chooser.flush():
-                out += self._smooth_push(ch.payload[0], ch.payload[1], ch.pose, ch.swapped)
+                pl, t = cast(tuple[object, float], ch.payload)  # what push gave the chooser
+                out += self._smooth_push(pl, t, ch.pose, ch.swapped)
         while self._buf:
             out.append(self._decide_oldest())
         return out
 
     # -- smoothing over the buffered look-ahead -------------------------------------------------------
-    def _smooth_push(self, payload, t, pose, swapped):
+    def _smooth_push(self, payload: object, t: float, pose: MarkerPose | None, swapped: bool) -> list[FramePose]:
         self._buf.append((payload, t, pose, swapped))
-        out = []
+        out: list[FramePose] = []
         while self._buf and self._buf[-1][1] - self._buf[0][1] >= self.window_s - 0.5 / self.fps:
             out.append(self._decide_oldest())
         return out
@@ -250,7 +273,8 @@ class PoseStream:
             sm = raw.copy()
         else:
             # neighbours: decided past frames (raw poses) and the buffered future ones, linked in time
-            times, mats = [], []
+            times: list[float] = []
+            mats: list[np.ndarray] = []
             for th, mh in self._hist:
                 times.append(th)
                 mats.append(mh)

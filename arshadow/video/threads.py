@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import queue
 import threading
+from collections.abc import Callable
 
 __all__ = ["END", "Worker", "put_or_stop"]
 
@@ -16,7 +17,7 @@ class Worker(threading.Thread):
     """A daemon thread running ``target()``; an exception it raises is kept in :attr:`error` for the main
     thread to re-raise."""
 
-    def __init__(self, target, name: str):
+    def __init__(self, target: Callable[[], object], name: str) -> None:
         super().__init__(name=name, daemon=True)
         self._target_fn = target
         self.error: BaseException | None = None
@@ -28,7 +29,7 @@ class Worker(threading.Thread):
             self.error = exc
 
 
-def put_or_stop(q: queue.Queue, item, stop: threading.Event) -> bool:
+def put_or_stop(q: queue.Queue[object], item: object, stop: threading.Event) -> bool:
     """Put ``item`` on the bounded queue ``q``, waiting while it is full; False if ``stop`` is set first."""
     while not stop.is_set():
         try:
