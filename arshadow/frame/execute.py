@@ -19,13 +19,13 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypedDict
 
 import cv2
 import numpy as np
 
 from .._check import check_shape
-from ..compose.composite import clip_roi, composite
+from ..compose.composite import Overlay, clip_roi, composite
 from ..compose.layers import layers_from_warped, pinhole_layers
 from ..compose.look import Look
 from ..plan.planner import MEASURED
@@ -39,12 +39,16 @@ if TYPE_CHECKING:
     from ..compose.composite import Workspace
     from ..compose.layers import Layers
     from ..compose.lens import LensWarp
+    from ..geometry.caster import ShadowCaster
     from ..gl.gpu_compose import GpuCompositor, PathChooser
     from ..plan.planner import FramePlan, SceneGeometry
     from ..renderer.request import Renderer
     from ..scene.options import RenderOptions
+    from ..shading.sky import SkyShading
+    from .effects import CameraEffects
+    from .hooks import CalibrationState
 
-__all__ = ["LAYERS_WHY", "STAGES", "FrameContext", "FrameOutputs", "execute", "render_request"]
+__all__ = ["LAYERS_WHY", "STAGES", "FrameContext", "FrameOutputs", "LayerRequest", "execute", "render_request"]
 
 #: the compose decision's reason when the layers are asked for
 LAYERS_WHY = "numpy (layers asked for: the composite and its layers come from the numpy path)"
@@ -57,6 +61,14 @@ OBJECT_SKY: str | None = None
 CAMERA_WHY = "numpy (camera effects: blur and noise are applied by the numpy path)"
 #: the shader compositor has no sky-occlusion channel yet
 SKY_WHY = "numpy (sky occlusion: the sky channel is composited by the numpy path)"
+
+
+class LayerRequest(TypedDict, total=False):
+    """:attr:`FrameOutputs.layers`: what the caller asks for (``undistorted``: also the pinhole layers) and
+    where :func:`execute` puts the frame's layers (``layers``)."""
+
+    undistorted: bool
+    layers: Layers
 
 
 @dataclass(frozen=True)
@@ -88,7 +100,7 @@ class FrameContext:
     geometry: SceneGeometry
     renderer: Callable[[], Renderer]
     work: Workspace
-    calibration: Callable[[int, int], Any]
+    calibration: Callable[[int, int], CalibrationState]
     compose_key: Callable[[int, int, bool], Hashable] | None = None
     chooser: PathChooser | None = None
     gpu: Callable[[], GpuCompositor] | None = None
@@ -112,7 +124,7 @@ class FrameOutputs:
         ``plan`` (the planner's decisions with their reasons) and, when something was drawn, ``compose``
         (the path taken), ``content`` (canvas pixels with content) and ``composited`` (photo pixels
         composited).
-    layers : dict, optional
+    layers : LayerRequest, optional
         Asks for the frame's compositing layers: ``layers["layers"]`` receives them
         (:class:`arshadow.compose.layers.Layers`; with ``layers["undistorted"]`` true also their pinhole
         version, ``.undistorted``). They come from the numpy path only: with layers asked for, the numpy path
@@ -125,7 +137,7 @@ class FrameOutputs:
     mask_out: np.ndarray | None = None
     timings: StageTimings = field(default_factory=StageTimings)
     item: ReportItem = field(default_factory=lambda: ReportItem(input=""))
-    layers: dict | None = None
+    layers: LayerRequest | None = None
 
 
 @dataclass
@@ -145,7 +157,11 @@ class _Frame:
 
 
 def render_request(
-    plan: FramePlan, intr: Intrinsics, geometry: SceneGeometry, passes: Sequence[LightPass], sky: Any = None
+    plan: FramePlan,
+    intr: Intrinsics,
+    geometry: SceneGeometry,
+    passes: Sequence[LightPass],
+    sky: SkyShading | None = None,
 ) -> RenderRequest:
     """The frame's :class:`arshadow.renderer.request.RenderRequest`: the plan's canvas, znear and
     ``cam_from_world`` (the ground frame's camera), the scene's caster, the light passes, and the options'
@@ -164,7 +180,7 @@ def render_request(
     )
 
 
-def _shading(opts: RenderOptions, caster: Any, sky: Any) -> Shading:
+def _shading(opts: RenderOptions, caster: ShadowCaster, sky: SkyShading | None) -> Shading:
     """:meth:`Shading.from_options` with the frame's sky; a mesh with its own colours or texture under a
     measured light keeps them, times the exposure gain (``material_gain``), instead of the grey default."""
     sh = Shading.from_options(opts) if sky is None else replace(Shading.from_options(opts), sky=sky)
@@ -183,7 +199,7 @@ def execute(
     outputs: FrameOutputs,
     *,
     color_gain: Sequence[float] | np.ndarray | None = None,
-    camera: Any = None,
+    camera: CameraEffects | None = None,
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """Render and composite one planned frame.
 
@@ -248,7 +264,7 @@ def _sky_shading(
     geometry: SceneGeometry,
     outputs: FrameOutputs,
     color_gain: Sequence[float] | np.ndarray | None,
-) -> Any:
+) -> SkyShading | None:
     """The frame's :class:`arshadow.shading.sky.SkyShading` (None when the planner's ``ambient_occlusion``
     decision is off): the scene's ground occlusion map, the object's sky visibility and the ground bounce
     measured on this photo round the object (with a measured exposure; 0 otherwise)."""
@@ -316,7 +332,7 @@ def _output_buffers(image: np.ndarray, outputs: FrameOutputs) -> tuple[np.ndarra
     return out, mask_full
 
 
-def _no_layers(request: dict, shape: tuple[int, int]) -> None:
+def _no_layers(request: LayerRequest, shape: tuple[int, int]) -> None:
     """The layers of a frame with nothing drawn (the numpy path replaces them when it draws)."""
     empty = layers_from_warped(None, None, (0, 0, 0, 0), shape, opacity=0.0)
     request["layers"] = empty
@@ -409,7 +425,7 @@ def _compose_gpu(frame: _Frame, gpu: GpuCompositor, timings: StageTimings) -> No
     t = time.perf_counter()
     lay = frame.renderer.render_gpu(frame.request)
     timings.render += (time.perf_counter() - t) * 1e3
-    ct: dict = {}
+    ct: dict[str, float] = {}
     t = time.perf_counter()
     gpu.compose(
         frame.image,
@@ -445,28 +461,26 @@ def _compose_cpu(frame: _Frame, timings: StageTimings) -> None:
     if warped is None:  # nothing drawn, or nothing of it in the photo: the photo is unchanged
         return
     t = time.perf_counter()
-    _composite_cpu(frame, warped, bool(res.premultiplied))
+    _composite_cpu(frame, warped)
     timings.composite += (time.perf_counter() - t) * 1e3
 
 
 @dataclass
 class _Warped:
-    """The renderer's layers over the photo rectangle ``roi`` (top-down), and the canvas's own
-    ``pinhole = (mask, rgba)`` (top-down) for undistorted layers."""
+    """The renderer's layers over the photo rectangle ``roi`` (top-down: ``overlay``, the compositor's input:
+    mask, alpha, colour and the sky occlusion, None without), and the canvas's own ``pinhole = (mask, rgba)``
+    (top-down) for undistorted layers."""
 
-    roi: tuple
-    mask: np.ndarray
-    alpha: np.ndarray
-    color: np.ndarray
-    pinhole: tuple
-    sky: np.ndarray | None = None  # sky occlusion over roi (RenderResult.sky_occlusion), None without
+    roi: tuple[int, int, int, int]
+    overlay: Overlay
+    pinhole: tuple[np.ndarray, np.ndarray]
 
 
 def _warp_result(frame: _Frame, res: RenderResult) -> _Warped | None:
     """The result's layers warped (lens) or flipped into the photo; None when nothing of them lands in it."""
     plan, lens, work = frame.plan, frame.lens, frame.work
     H, W = frame.image.shape[:2]
-    layers = res.layers
+    layers, premultiplied = res.layers, bool(res.premultiplied)
     if layers is not None:
         warped = _warp_layers(layers, plan, lens, work, frame.outputs.item, W, H)
         if warped is None:
@@ -475,7 +489,7 @@ def _warp_result(frame: _Frame, res: RenderResult) -> _Warped | None:
         sky = l1[:, :, 2] if l1.shape[2] > 2 else None
         # the canvas top-down (views), for undistorted layers
         pin = (layers.mask_ground[::-1, :, 0], layers.rgba[::-1])
-        return _Warped(roi, l1[:, :, 0], l0[:, :, 3], l0, pin, sky)
+        return _Warped(roi, Overlay(l1[:, :, 0], l0, l0[:, :, 3], sky, premultiplied), pin)
     roi, canvas = plan.roi, plan.canvas
     mask, alpha, color, sky = res.mask, res.alpha, res.color, res.sky_occlusion
     pinhole = (mask, np.dstack([color, alpha]))
@@ -484,55 +498,57 @@ def _warp_result(frame: _Frame, res: RenderResult) -> _Warped | None:
             mask, alpha, color, sky = lens.warp(roi, canvas, mask, alpha, color, sky, work=work)
         else:
             mask, alpha, color = lens.warp(roi, canvas, mask, alpha, color, work=work)
-    return _Warped(roi, mask, alpha, color, pinhole, sky)
+    return _Warped(roi, Overlay(mask, color, alpha, sky, premultiplied), pinhole)
 
 
-def _composite_cpu(frame: _Frame, wp: _Warped, premultiplied: bool) -> None:
+def _composite_cpu(frame: _Frame, wp: _Warped) -> None:
     """Composite the warped layers into the frame's buffers (and make its layers when asked for)."""
     look, layer_request = frame.look, frame.outputs.layers
     if look.camera is not None:
         wp = _blurred(wp, look.camera.blur_px, frame.image.shape)
-    gain, color, pinhole = look.color_gain, wp.color, wp.pinhole
-    gained = gain is not None and look.draw_occluder  # the exposure match, linear light (premultiplied colour)
-    if gained and layer_request is not None:  # layers hold the gained colour (copies: the renderer's stay)
-        color = np.array(color, np.float32)
-        color[:, :, :3] *= gain
-        if layer_request.get("undistorted"):  # the canvas-sized pinhole copy only for undistorted layers
-            pinhole = (pinhole[0], np.array(pinhole[1], np.float32))
-            pinhole[1][:, :, :3] *= gain
-        gained = False  # applied
-    if layer_request is not None:  # execute's ``layers``: gets the frame's layers
-        layer_request["layers"] = _frame_layers(
-            frame, _Warped(wp.roi, wp.mask, wp.alpha, color, pinhole), premultiplied
-        )
+    if layer_request is not None:  # execute's ``layers``: gets the frame's layers, with the gained colour
+        wp = _gained(wp, look, bool(layer_request.get("undistorted")))
+        look = replace(look, color_gain=None)  # applied
+        layer_request["layers"] = _frame_layers(frame, wp)
+    sky = wp.overlay.sky
     composite(
         frame.out,
-        wp.mask,
+        replace(wp.overlay, sky=None if sky is None else np.clip(sky, -1.0, 1.0)),
         wp.roi,
-        color=color if look.draw_occluder else None,
-        alpha=wp.alpha if look.draw_occluder else None,
-        opacity=look.opacity,
-        shadow_color=look.shadow_color,
-        premultiplied=premultiplied,
-        color_gain=gain if gained else None,
+        look=look,
         out=frame.out,
         work=frame.work,
-        sky=None if wp.sky is None else np.clip(wp.sky, -1.0, 1.0),
     )
-    if look.camera is not None and look.draw_occluder:
-        x0, y0, w, h = wp.roi
+    x0, y0, w, h = wp.roi
+    alpha, mask = wp.overlay.alpha, wp.overlay.mask
+    if look.camera is not None and look.draw_occluder and alpha is not None:
         seed = int(np.asarray(frame.image[::61, ::53], np.int64).sum())  # per photo, reproducible
-        add_noise(frame.out[y0 : y0 + h, x0 : x0 + w], wp.alpha, look.camera.noise, seed)
-    if frame.mask_full is not None:  # the mask is wanted
-        x0, y0, w, h = wp.roi
+        add_noise(frame.out[y0 : y0 + h, x0 : x0 + w], alpha, look.camera.noise, seed)
+    if frame.mask_full is not None and mask is not None:  # the mask is wanted
         m = frame.work.get("mask255", (h, w), np.float32)
-        np.multiply(wp.mask, np.float32(255.0), out=m)
+        np.multiply(mask, np.float32(255.0), out=m)
         m += np.float32(0.5)
         np.clip(m, np.float32(0.0), np.float32(255.0), out=m)
         np.copyto(frame.mask_full[y0 : y0 + h, x0 : x0 + w], m, casting="unsafe")
 
 
-def _blurred(wp: _Warped, sigma: float, shape: tuple) -> _Warped:
+def _gained(wp: _Warped, look: Look, undistorted: bool) -> _Warped:
+    """``wp`` with the look's exposure match applied to copies of its colour (linear light, premultiplied
+    colour; the renderer's arrays stay) and, for ``undistorted`` layers, of its canvas-sized pinhole RGBA
+    (only then); ``wp`` itself without a gain or without the object."""
+    gain, color = look.color_gain, wp.overlay.color
+    if gain is None or not look.draw_occluder or color is None:
+        return wp
+    color = np.array(color, np.float32)
+    color[:, :, :3] *= gain
+    pinhole = wp.pinhole
+    if undistorted:
+        pinhole = (pinhole[0], np.array(pinhole[1], np.float32))
+        pinhole[1][:, :, :3] *= gain
+    return _Warped(wp.roi, replace(wp.overlay, color=color), pinhole)
+
+
+def _blurred(wp: _Warped, sigma: float, shape: tuple[int, ...]) -> _Warped:
     """The warped layers grown by the blur's reach (zeros: nothing drawn there) and blurred by the photo's
     point-spread width (:func:`arshadow.frame.effects.blur_layers`)."""
     if sigma <= 0:
@@ -546,13 +562,14 @@ def _blurred(wp: _Warped, sigma: float, shape: tuple) -> _Warped:
     def grow(a: np.ndarray | None) -> np.ndarray | None:
         return None if a is None else np.pad(a, pads + ((0, 0),) * (a.ndim - 2))
 
-    mask, alpha, color, sky = blur_layers(sigma, grow(wp.mask), grow(wp.alpha), grow(wp.color), grow(wp.sky))
-    return _Warped((nx0, ny0, nx1 - nx0, ny1 - ny0), mask, alpha, color, wp.pinhole, sky)
+    ov = wp.overlay
+    mask, alpha, color, sky = blur_layers(sigma, grow(ov.mask), grow(ov.alpha), grow(ov.color), grow(ov.sky))
+    return _Warped((nx0, ny0, nx1 - nx0, ny1 - ny0), Overlay(mask, color, alpha, sky, ov.premultiplied), wp.pinhole)
 
 
 def _warp_layers(
     layers: RenderLayers, plan: FramePlan, lens: LensWarp | None, work: Workspace, item: ReportItem, W: int, H: int
-) -> tuple[tuple, tuple[np.ndarray, np.ndarray]] | None:
+) -> tuple[tuple[int, int, int, int], tuple[np.ndarray, np.ndarray]] | None:
     """The renderer's own bottom-up RGBA (colour, alpha) and RG (mask, ground) arrays into the photo: one
     remap (lens) or flip each instead of three strided arrays, and only over the part that has content.
 
@@ -586,7 +603,8 @@ def _warp_layers(
         if x1 <= x0 or y1 <= y0:
             return None
         roi = (x0, y0, x1 - x0, y1 - y0)
-        warped = lens.warp(roi, canvas, c0, c1, work=work, bottom_up=True)
+        w0, w1 = lens.warp(roi, canvas, c0, c1, work=work, bottom_up=True)
+        warped: tuple[np.ndarray, np.ndarray] = (w0, w1)
     else:
         roi = (int(canvas[0]) + k0, int(canvas[1]) + r0, k1 - k0 + 1, r1 - r0 + 1)
         b0, b1 = ch - 1 - r1, ch - r0  # the same rows, bottom-up
@@ -599,15 +617,15 @@ def _warp_layers(
     return roi, warped
 
 
-def _frame_layers(frame: _Frame, wp: _Warped, premultiplied: bool) -> Layers:
+def _frame_layers(frame: _Frame, wp: _Warped) -> Layers:
     """The frame's :class:`arshadow.compose.layers.Layers` from the warped arrays the composite uses (and,
     with ``undistorted`` asked for, from the pinhole canvas ``wp.pinhole = (mask, rgba)`` too)."""
-    look, shape = frame.look, frame.image.shape[:2]
+    look, shape, ov = frame.look, frame.image.shape[:2], wp.overlay
     rgba = None
-    if look.draw_occluder:
-        rgba = wp.color if np.shape(wp.color)[2] == 4 else np.dstack([wp.color, wp.alpha])
-    kw: dict[str, Any] = {"opacity": look.opacity, "shadow_color": look.shadow_color, "premultiplied": premultiplied}
-    lay = layers_from_warped(wp.mask, rgba, wp.roi, shape, **kw)
+    if look.draw_occluder and ov.color is not None and ov.alpha is not None:
+        rgba = ov.color if np.shape(ov.color)[2] == 4 else np.dstack([ov.color, ov.alpha])
+    kw: dict[str, Any] = {"opacity": look.opacity, "shadow_color": look.shadow_color, "premultiplied": ov.premultiplied}
+    lay = layers_from_warped(ov.mask, rgba, wp.roi, shape, **kw)
     if (frame.outputs.layers or {}).get("undistorted"):
         lay.undistorted = (
             pinhole_layers(wp.pinhole[0], wp.pinhole[1] if look.draw_occluder else None, frame.plan.canvas, shape, **kw)
