@@ -8,12 +8,14 @@ import pytest
 from arshadow.compose.composite import (
     LINEAR_TO_SRGB16,
     SRGB_TO_LINEAR,
+    Overlay,
     clip_roi,
     composite,
     linear_to_srgb8,
     parse_rgb,
     srgb8_to_linear,
 )
+from arshadow.compose.look import Look
 from arshadow.errors import ShapeError, UsageError
 
 
@@ -59,7 +61,7 @@ def test_shadow_darkens_in_linear_light_hand_values():
     mask = np.zeros((2, 2), np.float32)
     mask[0, 0] = 1.0
     mask[0, 1] = 0.5
-    out = composite(photo, mask, roi=(1, 1, 2, 2), opacity=0.8)
+    out = composite(photo, Overlay(mask), roi=(1, 1, 2, 2), look=Look(opacity=0.8))
     # pixels outside the ROI and with mask 0 are untouched
     assert np.array_equal(out[0], photo[0])
     assert np.array_equal(out[:, 0], photo[:, 0])
@@ -76,10 +78,10 @@ def test_shadow_tint():
     photo = np.full((1, 1, 3), 255, np.uint8)
     mask = np.ones((1, 1), np.float32)
     tint = parse_rgb("0,0,255")  # blue shadow: R and G blocked, B kept
-    out = composite(photo, mask, opacity=1.0, shadow_color=tint)
+    out = composite(photo, Overlay(mask), look=Look(opacity=1.0, shadow_color=tint))
     assert out[0, 0].tolist() == [255, 0, 0]  # BGR
     # half opacity, grey tint 128: factor = 1 - 0.5 * (1 - 0.21586) = 0.60793 -> sRGB 0.8033*255 = 204.8
-    out = composite(photo, mask, opacity=0.5, shadow_color=parse_rgb("128,128,128"))
+    out = composite(photo, Overlay(mask), look=Look(opacity=0.5, shadow_color=parse_rgb("128,128,128")))
     assert out[0, 0].tolist() == [_srgb(1 - 0.5 * (1 - _lin(128)))] * 3 == [205] * 3
 
 
@@ -90,13 +92,13 @@ def test_occluder_over_premultiplied_and_straight():
     # fully blocked ground wherever the ground is seen: the mask is coverage-weighted like the renderer's
     # (0 under the object, 1 - alpha where alpha is partial); it was 1 everywhere before the stress suite ('s)'s fix
     mask = np.array([[0.0, 0.5]], np.float32)
-    out = composite(photo, mask, color=color, alpha=alpha, opacity=0.5, premultiplied=False)
+    out = composite(photo, Overlay(mask, color=color, alpha=alpha, premultiplied=False), look=Look(opacity=0.5))
     bg = _lin(100) * 0.5
     # full coverage: the occluder's colour alone (BGR order!)
     assert out[0, 0].tolist() == [_srgb(0.0), _srgb(0.25), _srgb(0.5)]
     assert out[0, 1].tolist() == [_srgb(0.5 * c + 0.5 * bg) for c in (0.0, 0.25, 0.5)]
     # premultiplied colour (the renderer's convention): colour already times alpha
-    out2 = composite(photo, mask, color=color * alpha[..., None], alpha=alpha, opacity=0.5)
+    out2 = composite(photo, Overlay(mask, color=color * alpha[..., None], alpha=alpha), look=Look(opacity=0.5))
     assert np.array_equal(out, out2)
 
 
@@ -104,23 +106,23 @@ def test_out_buffer_and_in_place():
     photo = np.full((4, 4, 3), 77, np.uint8)
     keep = photo.copy()
     buf = np.zeros_like(photo)
-    res = composite(photo, np.ones((2, 2), np.float32), roi=(0, 0, 2, 2), opacity=1.0, out=buf)
+    res = composite(photo, Overlay(np.ones((2, 2), np.float32)), roi=(0, 0, 2, 2), look=Look(opacity=1.0), out=buf)
     assert res is buf and np.array_equal(photo, keep)
     assert buf[0, 0].tolist() == [0, 0, 0] and buf[3, 3].tolist() == [77, 77, 77]
-    res = composite(photo, np.ones((2, 2), np.float32), roi=(2, 2, 2, 2), opacity=1.0, out=photo)
+    res = composite(photo, Overlay(np.ones((2, 2), np.float32)), roi=(2, 2, 2, 2), look=Look(opacity=1.0), out=photo)
     assert res is photo and photo[3, 3].tolist() == [0, 0, 0]
 
 
 def test_bad_input():
     photo = np.zeros((4, 4, 3), np.uint8)
     with pytest.raises(ShapeError):
-        composite(photo, np.ones((2, 3), np.float32), roi=(0, 0, 2, 2))
+        composite(photo, Overlay(np.ones((2, 3), np.float32)), roi=(0, 0, 2, 2))
     with pytest.raises(ShapeError):
-        composite(photo, np.ones((2, 2), np.float32), roi=(3, 3, 2, 2))
+        composite(photo, Overlay(np.ones((2, 2), np.float32)), roi=(3, 3, 2, 2))
     with pytest.raises(ShapeError):
-        composite(photo.astype(np.float32), None)
+        composite(photo.astype(np.float32), Overlay(None))
     with pytest.raises(UsageError):
-        composite(photo, None, opacity=1.5)
+        composite(photo, Overlay(None), look=Look(opacity=1.5))
     with pytest.raises(UsageError):
         parse_rgb("1,2")
     with pytest.raises(UsageError):
@@ -134,20 +136,21 @@ def test_bad_input():
 def test_sky_channel_darkens_by_the_sky_share():
     # the ground keeps direct share x (1 - mask) + sky share x (1 - sky occlusion), per channel: with a
     # measured light (opacity 1, tint = the shadow ratio r) that is 1 - (1 - r) m - r s
-    from arshadow.compose.composite import LINEAR_TO_SRGB16, SRGB_TO_LINEAR, composite
+    from arshadow.compose.composite import LINEAR_TO_SRGB16, SRGB_TO_LINEAR, Overlay, composite
+    from arshadow.compose.look import Look
 
     rng = np.random.default_rng(3)
     photo = rng.integers(40, 250, (20, 30, 3), dtype=np.uint8)
     m = rng.uniform(0, 1, (20, 30)).astype(np.float32)
     s = rng.uniform(0, 1, (20, 30)).astype(np.float32)
     r = np.array([0.4, 0.5, 0.6])  # RGB
-    out = composite(photo, m, opacity=1.0, shadow_color=r, sky=s)
+    out = composite(photo, Overlay(m, sky=s), look=Look(opacity=1.0, shadow_color=r))
     lin = SRGB_TO_LINEAR[photo].astype(np.float64)  # BGR
     k = 1.0 - (1.0 - r[::-1]) * m[..., None] - r[::-1] * s[..., None]
     expect = LINEAR_TO_SRGB16[np.clip(lin * k * 65535 + 0.5, 0, 65535).astype(np.uint16)]
     assert np.abs(out.astype(int) - expect.astype(int)).max() <= 1
     # no sky occlusion: the plain composite
     assert np.array_equal(
-        composite(photo, m, opacity=1.0, shadow_color=r, sky=np.zeros_like(s)),
-        composite(photo, m, opacity=1.0, shadow_color=r),
+        composite(photo, Overlay(m, sky=np.zeros_like(s)), look=Look(opacity=1.0, shadow_color=r)),
+        composite(photo, Overlay(m), look=Look(opacity=1.0, shadow_color=r)),
     )

@@ -15,8 +15,9 @@ import numpy as np
 import pytest
 from layer_checks import linear, maxdiff, recombine
 
-from arshadow.compose.composite import composite, parse_rgb
+from arshadow.compose.composite import Overlay, composite, parse_rgb
 from arshadow.compose.layers import layers_from_warped, shadow_factor, shadow_only_alpha
+from arshadow.compose.look import Look
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -44,7 +45,7 @@ def test_layers_of_random_inputs_recombine_to_the_composite(rng):
     rgb = rng.random((20, 30, 3)).astype(np.float32) * alpha[..., None]
     rgba = np.dstack([rgb, alpha])
     for tint in ((0.0, 0.0, 0.0), parse_rgb("60,60,60"), parse_rgb("40,20,120")):
-        comp = composite(plate, mask, roi, color=rgba, alpha=alpha, opacity=0.7, shadow_color=tint)
+        comp = composite(plate, Overlay(mask, color=rgba, alpha=alpha), roi, look=Look(opacity=0.7, shadow_color=tint))
         lay = layers_from_warped(mask, rgba, roi, (H, W), opacity=0.7, shadow_color=tint)
         obj, sh = lay.full()
         assert maxdiff(recombine(plate, obj, sh), comp) <= 1

@@ -1,13 +1,15 @@
 """Shadow-catcher compositing: darken the photo by the shadow in linear light, put the occluder over it.
 
 Pure numpy / OpenCV, no GL. The renderer's arrays cover a region of interest (ROI) of the photo; only that
-region is touched, everything else is copied unchanged.
+region is touched, everything else is copied unchanged. What crosses into :func:`composite` is two values: the
+arrays over the ROI (:class:`Overlay`: mask, colour, alpha, sky occlusion) and the settings
+(:class:`arshadow.compose.look.Look`: opacity, shadow colour, whether the object is drawn, exposure gain).
 
 For every ROI pixel (all colours linear RGB, the photo converted from sRGB by a 256-entry table)::
 
     factor  = (1 - alpha) - opacity * mask * (1 - shadow_color)   # black tint: 1 - alpha - opacity * mask
     out     = color + photo_linear * factor                        # premultiplied occluder colour (default)
-            = alpha * color + photo_linear * factor                # straight (premultiplied=False)
+            = alpha * color + photo_linear * factor                # straight (Overlay.premultiplied False)
 
 The mask is coverage-weighted like the colour (the renderer's mask: the mean over a pixel's samples of
 "sees the ground" x blocked weight, 0 on the object), so it is subtracted from the uncovered share
@@ -23,7 +25,8 @@ Examples
 >>> import numpy as np
 >>> photo = np.full((2, 2, 3), 128, np.uint8)
 >>> mask = np.array([[1.0, 0.0], [0.0, 0.0]], np.float32)
->>> out = composite(photo, mask, roi=(0, 0, 2, 2), opacity=0.5)
+>>> from arshadow.compose.look import Look
+>>> out = composite(photo, Overlay(mask=mask), roi=(0, 0, 2, 2), look=Look(opacity=0.5))
 >>> out[0, 0].tolist(), out[1, 1].tolist()
 ([92, 92, 92], [128, 128, 128])
 """
@@ -32,6 +35,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Sequence
+from dataclasses import dataclass, replace
 from typing import cast
 
 import cv2
@@ -40,6 +44,7 @@ import numpy.typing as npt
 
 from .._check import check_finite, check_shape
 from ..errors import ShapeError, UsageError
+from .look import Look
 
 __all__ = [
     "SRGB_TO_LINEAR",
@@ -50,6 +55,8 @@ __all__ = [
     "srgb8_to_linear",
     "parse_rgb",
     "composite",
+    "Overlay",
+    "DEFAULT_LOOK",
     "clip_roi",
     "Workspace",
 ]
@@ -174,9 +181,49 @@ def clip_roi(roi: Sequence[float], width: int, height: int) -> tuple[int, int, i
     return x0, y0, max(x1 - x0, 0), max(y1 - y0, 0)
 
 
-# the public numpy compositor: its keyword arguments are its documented interface (docs/compositing.md, used by
-# name across the package and by users), and its checks of them come first (execute hands it one Look's fields)
-def _darken_sky(lin, keep, mask, sky, opacity: float, sc: np.ndarray, ws: Workspace) -> None:
+@dataclass(frozen=True, eq=False)
+class Overlay:
+    """What :func:`composite` lays over the photo's region of interest: the renderer's layers there, rows top
+    to bottom, after the lens warp (one value, like :class:`arshadow.compose.look.Look` for the settings).
+
+    Attributes
+    ----------
+    mask : (h, w) float32 in [0, 1] or None
+        Blocked light fraction over the ROI (coverage-weighted: 0 on the object; ``RenderResult.mask``).
+    color : (h, w, 3) or (h, w, 4) float32, optional
+        Occluder colour, **linear RGB** (not BGR), premultiplied by ``alpha`` unless ``premultiplied`` is
+        False; a 4th channel (RGBA layout) is ignored.
+    alpha : (h, w) float32 in [0, 1], optional
+        Occluder coverage. Required with ``color``.
+    sky : (h, w) float32 in [-1, 1], optional
+        Sky occlusion over the ROI (:attr:`arshadow.renderer.request.RenderResult.sky_occlusion`): the share of
+        the sky the object hides from the ground there (:func:`composite` says how it darkens the ground).
+    premultiplied : bool
+        Whether ``color`` is premultiplied by ``alpha`` (the renderers' convention).
+
+    The arrays are not copied (compared by identity: ``eq=False``).
+    """
+
+    mask: np.ndarray | None = None
+    color: np.ndarray | None = None
+    alpha: np.ndarray | None = None
+    sky: np.ndarray | None = None
+    premultiplied: bool = True
+
+
+#: the look :func:`composite` uses when given none (``Look()``'s defaults: opacity 0.7, black shadow, object drawn)
+DEFAULT_LOOK = Look()
+
+
+def _darken_sky(
+    lin: np.ndarray,
+    keep: np.ndarray | None,
+    mask: np.ndarray | None,
+    sky: np.ndarray,
+    opacity: float,
+    sc: np.ndarray,
+    ws: Workspace,
+) -> None:
     """``lin (h, w, 3)`` BGR *= max(keep - opacity * mask * (1 - tint) - sky * (1 - opacity * (1 - tint)), 0)."""
     h, w = lin.shape[:2]
     dark = (np.float32(opacity) * (1.0 - sc[::-1])).astype(np.float32)  # BGR: the direct light's share
@@ -190,20 +237,14 @@ def _darken_sky(lin, keep, mask, sky, opacity: float, sc: np.ndarray, ws: Worksp
     lin *= factor
 
 
-def composite(  # noqa: C901, PLR0913
+def composite(
     photo: np.ndarray,
-    mask: np.ndarray | None,
+    overlay: Overlay,
     roi: Sequence[float] | None = None,
     *,
-    color: np.ndarray | None = None,
-    alpha: np.ndarray | None = None,
-    opacity: float = 1.0,
-    shadow_color: npt.ArrayLike = (0.0, 0.0, 0.0),
-    premultiplied: bool = True,
-    color_gain: npt.ArrayLike | None = None,
+    look: Look = DEFAULT_LOOK,
     out: np.ndarray | None = None,
     work: Workspace | None = None,
-    sky: np.ndarray | None = None,
 ) -> np.ndarray:
     """Composite a shadow mask and a shaded occluder into a photo.
 
@@ -211,33 +252,27 @@ def composite(  # noqa: C901, PLR0913
     ----------
     photo : (H, W, 3) uint8
         BGR sRGB photo. Never modified (unless passed as ``out`` too).
-    mask : (h, w) float32 in [0, 1] or None
-        Blocked light fraction over the ROI (rows top to bottom).
+    overlay : Overlay
+        The layers over the ROI: shadow ``mask``, occluder ``color`` / ``alpha`` (with ``premultiplied``) and
+        ``sky`` occlusion, each ``(h, w)``-sized or None.
     roi : (x0, y0, w, h) ints, optional
         Where the ``(h, w)`` arrays sit in the photo; default the whole photo. Must lie inside the photo.
-    color : (h, w, 3) or (h, w, 4) float32, optional
-        Occluder colour, **linear RGB** (not BGR), premultiplied by ``alpha`` unless
-        ``premultiplied=False``; a 4th channel (RGBA layout) is ignored.
-    alpha : (h, w) float32 in [0, 1], optional
-        Occluder coverage. Required with ``color``.
-    opacity : float in [0, 1]
-        How dark a fully blocked pixel gets: it is multiplied by ``1 - opacity * (1 - shadow_color)``.
-    shadow_color : (3,) linear RGB in [0, 1]
-        Tint of a full shadow (black = plain darkening); see :func:`parse_rgb`.
-    premultiplied : bool
-        Whether ``color`` is premultiplied by ``alpha``.
-    color_gain : (3,) float linear RGB, optional
-        Per-channel gain on ``color`` (the exposure / white-balance match); ``color`` itself is not modified.
+    look : arshadow.compose.look.Look
+        ``opacity`` in [0, 1]: how dark a fully blocked pixel gets (it is multiplied by ``1 - opacity *
+        (1 - shadow_color)``); ``shadow_color`` (3,) linear RGB in [0, 1]: the tint of a full shadow (black =
+        plain darkening; see :func:`parse_rgb`); ``draw_occluder``: False leaves the overlay's ``color`` and
+        ``alpha`` out; ``color_gain`` (3,) linear RGB or None: per-channel gain on ``color`` (the exposure /
+        white-balance match; ``color`` itself is not modified). Its ``camera`` effects are the caller's
+        (:mod:`arshadow.frame.effects`, applied by the executor around this call). Default :data:`DEFAULT_LOOK`.
     out : (H, W, 3) uint8, optional
         Output buffer (may be ``photo`` itself to composite in place); a copy of ``photo`` otherwise.
     work : Workspace, optional
         Scratch buffers reused between calls (no per-frame allocation of temporaries).
-    sky : (h, w) float32 in [-1, 1], optional
-        Sky occlusion over the ROI (:attr:`arshadow.renderer.request.RenderResult.sky_occlusion`): the share of the
-        sky the object hides from the ground there. The ground keeps ``1 - opacity * mask * (1 - tint) -
-        sky * ambient`` of its light, ``ambient = 1 - opacity * (1 - tint)`` being the share of the light a
-        full shadow keeps (the sky's share, with a measured light): the direct light's visibility times its
-        share plus the sky's visibility times its share (docs/shading.md).
+
+    With ``overlay.sky``, the ground keeps ``1 - opacity * mask * (1 - tint) - sky * ambient`` of its light,
+    ``ambient = 1 - opacity * (1 - tint)`` being the share of the light a full shadow keeps (the sky's share,
+    with a measured light): the direct light's visibility times its share plus the sky's visibility times its
+    share (docs/shading.md).
 
     Returns
     -------
@@ -247,53 +282,77 @@ def composite(  # noqa: C901, PLR0913
     photo = check_shape(photo, "H,W,3", "photo")
     if photo.dtype != np.uint8:
         raise ShapeError(f"photo must be uint8, got {photo.dtype}")
-    H, W = photo.shape[:2]
-    if roi is None:
-        roi = (0, 0, W, H)
-    x0, y0, w, h = (int(v) for v in roi)
-    if x0 < 0 or y0 < 0 or w < 0 or h < 0 or x0 + w > W or y0 + h > H:
-        raise ShapeError(f"roi {tuple(roi)} is not inside the {W}x{H} photo")
-    if not (0.0 <= float(opacity) <= 1.0):
-        raise UsageError(f"opacity {opacity} is not in [0, 1]")
-    sc = check_finite(check_shape(np.ravel(shadow_color), "3", "shadow_color"), "shadow_color")
+    x0, y0, w, h = _checked_roi(roi, photo.shape[1], photo.shape[0])
+    if not (0.0 <= float(look.opacity) <= 1.0):
+        raise UsageError(f"opacity {look.opacity} is not in [0, 1]")
+    sc = check_finite(check_shape(np.ravel(look.shadow_color), "3", "shadow_color"), "shadow_color")
     if out is None:
         out = photo.copy()
     elif out is not photo:
         np.copyto(out, photo)
     if w == 0 or h == 0:
         return out
+    if not look.draw_occluder:
+        overlay = replace(overlay, color=None, alpha=None)
+    _check_overlay(overlay, h, w)
+
+    ws = work if work is not None else Workspace()
+    lin = ws.get("lin", (h, w, 3), np.float32)
+    cv2.LUT(photo[y0 : y0 + h, x0 : x0 + w], SRGB_TO_LINEAR, dst=lin)  # (h, w, 3) float32 linear BGR
+    _darken(lin, overlay, float(look.opacity), sc, ws)
+    if overlay.alpha is not None and overlay.color is not None:
+        _add_object(lin, overlay.color, overlay.alpha, overlay.premultiplied, look.color_gain, ws)
+    _encode(lin, out[y0 : y0 + h, x0 : x0 + w], ws)
+    return out
+
+
+def _checked_roi(roi: Sequence[float] | None, W: int, H: int) -> tuple[int, int, int, int]:
+    """``roi`` as ints ``(x0, y0, w, h)`` (None: the whole ``W`` x ``H`` photo); ShapeError outside the photo."""
+    if roi is None:
+        roi = (0, 0, W, H)
+    x0, y0, w, h = (int(v) for v in roi)
+    if x0 < 0 or y0 < 0 or w < 0 or h < 0 or x0 + w > W or y0 + h > H:
+        raise ShapeError(f"roi {tuple(roi)} is not inside the {W}x{H} photo")
+    return x0, y0, w, h
+
+
+def _check_overlay(overlay: Overlay, h: int, w: int) -> None:
+    """ShapeError unless every array of ``overlay`` is ``(h, w)``-sized (``color`` RGB or RGBA); UsageError
+    unless ``color`` and ``alpha`` come together."""
+    color = overlay.color
     if color is not None and not (np.ndim(color) == 3 and np.shape(color)[2] in (3, 4)):
         raise ShapeError("color must be (h, w, 3) RGB or (h, w, 4) RGBA", actual_shape=np.shape(color))
     for name, arr, spec in (
-        ("mask", mask, "H,W"),
-        ("alpha", alpha, "H,W"),
+        ("mask", overlay.mask, "H,W"),
+        ("alpha", overlay.alpha, "H,W"),
         ("color", color, "H,W,C"),
-        ("sky", sky, "H,W"),
+        ("sky", overlay.sky, "H,W"),
     ):
         if arr is not None and check_shape(arr, spec, name).shape[:2] != (h, w):
             raise ShapeError(f"{name} does not match the roi", actual_shape=arr.shape[:2], expected_shape=(h, w))
-    if (color is None) != (alpha is None):
+    if (color is None) != (overlay.alpha is None):
         raise UsageError("color and alpha go together")
 
-    ws = work if work is not None else Workspace()
-    region = out[y0 : y0 + h, x0 : x0 + w]
-    src = photo[y0 : y0 + h, x0 : x0 + w]
-    lin = ws.get("lin", (h, w, 3), np.float32)
-    cv2.LUT(src, SRGB_TO_LINEAR, dst=lin)  # (h, w, 3) float32 linear BGR
-    # per-pixel multiplier of the photo's light: (1 - alpha) - opacity * mask * (1 - tint). The mask is
-    # already weighted by the pixel's ground coverage (0 on the object; anti-aliased and warped edges:
-    # the covered share, like the premultiplied colour), so it is subtracted from the uncovered share
-    # rather than multiplied by it: (1 - alpha) * (1 - opacity * mask) counted the coverage twice and left
-    # a light seam where the object meets its shadow (alpha 0.5, mask 0.5 -> half the shadow)
+
+def _darken(lin: np.ndarray, overlay: Overlay, opacity: float, sc: np.ndarray, ws: Workspace) -> None:
+    """Multiply ``lin (h, w, 3)`` linear BGR by what the photo keeps of its light: ``(1 - alpha) - opacity *
+    mask * (1 - tint)`` (minus the sky's share with ``overlay.sky``), clipped at 0.
+
+    The mask is already weighted by the pixel's ground coverage (0 on the object; anti-aliased and warped
+    edges: the covered share, like the premultiplied colour), so it is subtracted from the uncovered share
+    rather than multiplied by it: ``(1 - alpha) * (1 - opacity * mask)`` counted the coverage twice and left
+    a light seam where the object meets its shadow (alpha 0.5, mask 0.5 -> half the shadow).
+    """
+    h, w = lin.shape[:2]
+    mask, alpha = overlay.mask, overlay.alpha
     gray = bool(sc[0] == sc[1] == sc[2])
     keep = None  # (h, w) float32: 1 - alpha
     if alpha is not None:
-        a = np.asarray(alpha, dtype=np.float32)
         keep = ws.get("keep", (h, w), np.float32)
-        np.subtract(np.float32(1.0), a, out=keep)
+        np.subtract(np.float32(1.0), np.asarray(alpha, dtype=np.float32), out=keep)
     g = keep  # (h, w) float32 single-channel multiplier (grey tint)
-    if sky is not None:
-        _darken_sky(lin, keep, mask, sky, float(opacity), sc, ws)
+    if overlay.sky is not None:
+        _darken_sky(lin, keep, mask, overlay.sky, opacity, sc, ws)
         g = None
     elif mask is not None and opacity > 0.0:
         m = np.asarray(mask, dtype=np.float32)
@@ -312,16 +371,33 @@ def composite(  # noqa: C901, PLR0913
             g = None
     if g is not None:
         lin *= g[:, :, None]
-    if alpha is not None:
-        cb = ws.get("color", (h, w, 3), np.float32)
-        col = np.asarray(color, dtype=np.float32)
-        cv2.cvtColor(col, cv2.COLOR_RGBA2BGR if col.shape[2] == 4 else cv2.COLOR_RGB2BGR, dst=cb)
-        if not premultiplied:
-            cb *= a[:, :, None]
-        if color_gain is not None:
-            cb *= np.asarray(color_gain, np.float32).reshape(3)[::-1]  # RGB gain on the BGR buffer
-        lin += cb
-    # back to 8-bit sRGB through the 16-bit table, in the workspace
+
+
+def _add_object(
+    lin: np.ndarray,
+    color: np.ndarray,
+    alpha: np.ndarray,
+    premultiplied: bool,
+    color_gain: npt.ArrayLike | None,
+    ws: Workspace,
+) -> None:
+    """``lin (h, w, 3)`` linear BGR += the occluder's premultiplied colour (``color`` RGB(A), times ``alpha``
+    unless ``premultiplied``, times ``color_gain`` (3,) RGB when given)."""
+    h, w = lin.shape[:2]
+    cb = ws.get("color", (h, w, 3), np.float32)
+    col = np.asarray(color, dtype=np.float32)
+    cv2.cvtColor(col, cv2.COLOR_RGBA2BGR if col.shape[2] == 4 else cv2.COLOR_RGB2BGR, dst=cb)
+    if not premultiplied:
+        cb *= np.asarray(alpha, dtype=np.float32)[:, :, None]
+    if color_gain is not None:
+        cb *= np.asarray(color_gain, np.float32).reshape(3)[::-1]  # RGB gain on the BGR buffer
+    lin += cb
+
+
+def _encode(lin: np.ndarray, region: np.ndarray, ws: Workspace) -> None:
+    """``region (h, w, 3) uint8`` = ``lin (h, w, 3)`` float32 linear encoded to 8-bit sRGB through the 16-bit
+    table, in the workspace (``lin`` is overwritten)."""
+    h, w = lin.shape[:2]
     lin *= np.float32(65535.0)
     lin += np.float32(0.5)
     np.clip(lin, np.float32(0.0), np.float32(65535.0), out=lin)
@@ -330,4 +406,3 @@ def composite(  # noqa: C901, PLR0913
     res = ws.get("res", (h, w, 3), np.uint8)
     np.take(LINEAR_TO_SRGB16, idx, out=res)
     region[...] = res
-    return out

@@ -12,12 +12,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Sequence
 
 import cv2
 import numpy as np
 
 from ..errors import EstimateError
-from ..estimate.optics import measure_blur, measure_noise, noise_at
+from ..estimate.optics import NoiseEstimate, measure_blur, measure_noise, noise_at
 
 __all__ = ["CameraEffects", "add_noise", "blur_layers", "measure_camera", "pad_for"]
 
@@ -28,9 +29,9 @@ class CameraEffects:
     estimates (paper, floor; code values 0..1) the object's noise is interpolated from."""
 
     blur_px: float
-    noise: tuple = ()
+    noise: tuple[NoiseEstimate, ...] = ()
 
-    def report(self) -> dict:
+    def report(self) -> dict[str, object]:
         """The measured values for the report (noise sigma in 8-bit units, per channel B, G, R)."""
         return {
             "blur_sigma_px": round(float(self.blur_px), 3),
@@ -44,8 +45,8 @@ class CameraEffects:
         }
 
 
-def _ring(shape, corners: np.ndarray, inner: float, outer: float) -> np.ndarray:
-    """``(h, w) bool``: between the marker quad scaled by ``inner`` and by ``outer`` about its centre."""
+def _ring(shape: Sequence[int], corners: np.ndarray, inner: float, outer: float) -> np.ndarray:
+    """``shape`` (h, w[, c]) -> ``(h, w) bool``: between the marker quad scaled by ``inner`` and by ``outer`` about its centre."""
     c = corners.mean(axis=0)
     m = np.zeros(shape[:2], np.uint8)
     cv2.fillConvexPoly(m, np.round(c + outer * (corners - c)).astype(np.int32), 1)
@@ -61,7 +62,7 @@ def measure_camera(image: np.ndarray, corners: np.ndarray, cells: int = 6) -> Ca
         blur = measure_blur(image, corners, cells=cells).sigma_px
     except EstimateError:
         blur = 0.0
-    noise = []
+    noise: list[NoiseEstimate] = []
     for inner, outer in ((1.1, 1.25), (1.8, 2.4)):
         try:
             noise.append(measure_noise(image, _ring(image.shape, corners, inner, outer)))
@@ -70,10 +71,10 @@ def measure_camera(image: np.ndarray, corners: np.ndarray, cells: int = 6) -> Ca
     return CameraEffects(float(blur), tuple(noise))
 
 
-def blur_layers(sigma: float, *layers):
+def blur_layers(sigma: float, *layers: np.ndarray | None) -> list[np.ndarray | None]:
     """Each ``(h, w[, c]) float32`` layer blurred by a Gaussian of ``sigma`` px (border: 0, nothing drawn
     beyond the arrays); returned as new arrays (None passes through)."""
-    out = []
+    out: list[np.ndarray | None] = []
     for a in layers:
         if a is None or sigma <= 0:
             out.append(a)
@@ -84,7 +85,7 @@ def blur_layers(sigma: float, *layers):
     return out
 
 
-def add_noise(region: np.ndarray, alpha: np.ndarray, noise: tuple, seed: int) -> None:
+def add_noise(region: np.ndarray, alpha: np.ndarray, noise: Sequence[NoiseEstimate], seed: int) -> None:
     """Add Gaussian noise to ``region (h, w, 3) uint8`` (BGR, in place) where the object covers it
     (``alpha (h, w)``), its sigma per channel :func:`arshadow.estimate.optics.noise_at` the pixel's level."""
     if not noise:

@@ -3,11 +3,9 @@
 :func:`execute` builds (or reuses) each light's shadow volume as the plan says, hands the renderer (any
 :class:`arshadow.renderer.request.Renderer`) the canvas's projection and one :class:`~arshadow.renderer.request.LightPass`
 per light, warps the result's layers into the photo's ROI (:class:`arshadow.compose.lens.LensWarp`, or a flip
-without distortion) and composites them (:func:`arshadow.compose.composite.composite`).
-
-(About 610 lines, just over the project's ~600: the frame's steps in order -- the request, the volumes, the
-two compose paths, the layers, the sky-occlusion and camera-effect steps -- each a function under 80 lines
-that reads the same FrameContext / FrameOutputs; the next step that grows goes to a module of its own.)
+without distortion) and composites them by the path the plan names: numpy
+(:func:`arshadow.frame.numpy_compose.compose_cpu`: :func:`arshadow.compose.composite.composite`, camera effects,
+the frame's layers) or shaders (:class:`arshadow.gl.gpu_compose.GpuCompositor`).
 
 Mask (CONVENTIONS.md)
     ``(H, W) uint8``: ``round(255 * blocked weight / total weight)`` at pixels that see the ground and are
@@ -19,19 +17,17 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypedDict
 
-import cv2
 import numpy as np
 
 from .._check import check_shape
-from ..compose.composite import clip_roi, composite
-from ..compose.layers import layers_from_warped, pinhole_layers
+from ..compose.layers import layers_from_warped
 from ..compose.look import Look
 from ..plan.planner import MEASURED
-from ..renderer.request import LightPass, RenderLayers, RenderRequest, RenderResult, Shading
+from ..renderer.request import LightPass, RenderRequest, Shading
 from ..transforms import CV_TO_GL
-from .effects import add_noise, blur_layers, pad_for
+from .numpy_compose import compose_cpu
 from .report import STAGES, ReportItem, StageTimings
 
 if TYPE_CHECKING:
@@ -39,13 +35,16 @@ if TYPE_CHECKING:
     from ..compose.composite import Workspace
     from ..compose.layers import Layers
     from ..compose.lens import LensWarp
+    from ..geometry.caster import ShadowCaster
     from ..gl.gpu_compose import GpuCompositor, PathChooser
     from ..plan.planner import FramePlan, SceneGeometry
     from ..renderer.request import Renderer
     from ..scene.options import RenderOptions
-    from ..shading.sky import GroundRaster
+    from ..shading.sky import GroundRaster, SkyShading
+    from .effects import CameraEffects
+    from .hooks import CalibrationState
 
-__all__ = ["LAYERS_WHY", "STAGES", "FrameContext", "FrameOutputs", "execute", "render_request"]
+__all__ = ["LAYERS_WHY", "STAGES", "FrameContext", "FrameOutputs", "LayerRequest", "execute", "render_request"]
 
 #: the compose decision's reason when the layers are asked for
 LAYERS_WHY = "numpy (layers asked for: the composite and its layers come from the numpy path)"
@@ -58,6 +57,14 @@ OBJECT_SKY: str | None = None
 CAMERA_WHY = "numpy (camera effects: blur and noise are applied by the numpy path)"
 #: the shader compositor has no sky-occlusion channel yet
 SKY_WHY = "numpy (sky occlusion: the sky channel is composited by the numpy path)"
+
+
+class LayerRequest(TypedDict, total=False):
+    """:attr:`FrameOutputs.layers`: what the caller asks for (``undistorted``: also the pinhole layers) and
+    where :func:`execute` puts the frame's layers (``layers``)."""
+
+    undistorted: bool
+    layers: Layers
 
 
 @dataclass(frozen=True)
@@ -89,7 +96,7 @@ class FrameContext:
     geometry: SceneGeometry
     renderer: Callable[[], Renderer]
     work: Workspace
-    calibration: Callable[[int, int], Any]
+    calibration: Callable[[int, int], CalibrationState]
     compose_key: Callable[[int, int, bool], Hashable] | None = None
     chooser: PathChooser | None = None
     gpu: Callable[[], GpuCompositor] | None = None
@@ -113,7 +120,7 @@ class FrameOutputs:
         ``plan`` (the planner's decisions with their reasons) and, when something was drawn, ``compose``
         (the path taken), ``content`` (canvas pixels with content) and ``composited`` (photo pixels
         composited).
-    layers : dict, optional
+    layers : LayerRequest, optional
         Asks for the frame's compositing layers: ``layers["layers"]`` receives them
         (:class:`arshadow.compose.layers.Layers`; with ``layers["undistorted"]`` true also their pinhole
         version, ``.undistorted``). They come from the numpy path only: with layers asked for, the numpy path
@@ -126,12 +133,13 @@ class FrameOutputs:
     mask_out: np.ndarray | None = None
     timings: StageTimings = field(default_factory=StageTimings)
     item: ReportItem = field(default_factory=lambda: ReportItem(input=""))
-    layers: dict | None = None
+    layers: LayerRequest | None = None
 
 
 @dataclass
-class _Frame:
-    """One frame's compose job, made once by :func:`execute` for whichever path (or both) runs."""
+class FrameJob:
+    """One frame's compose job, made once by :func:`execute` for whichever path (or both) runs (the numpy
+    path: :func:`arshadow.frame.numpy_compose.compose_cpu`; the shader path: :func:`_compose_gpu`)."""
 
     plan: FramePlan
     image: np.ndarray
@@ -146,7 +154,11 @@ class _Frame:
 
 
 def render_request(
-    plan: FramePlan, intr: Intrinsics, geometry: SceneGeometry, passes: Sequence[LightPass], sky: Any = None
+    plan: FramePlan,
+    intr: Intrinsics,
+    geometry: SceneGeometry,
+    passes: Sequence[LightPass],
+    sky: SkyShading | None = None,
 ) -> RenderRequest:
     """The frame's :class:`arshadow.renderer.request.RenderRequest`: the plan's canvas, znear and
     ``cam_from_world`` (the ground frame's camera), the scene's caster, the light passes, and the options'
@@ -165,7 +177,7 @@ def render_request(
     )
 
 
-def _shading(opts: RenderOptions, caster: Any, sky: Any) -> Shading:
+def _shading(opts: RenderOptions, caster: ShadowCaster, sky: SkyShading | None) -> Shading:
     """:meth:`Shading.from_options` with the frame's sky; a mesh with its own colours or texture under a
     measured light keeps them, times the exposure gain (``material_gain``), instead of the grey default."""
     sh = Shading.from_options(opts) if sky is None else replace(Shading.from_options(opts), sky=sky)
@@ -184,7 +196,7 @@ def execute(
     outputs: FrameOutputs,
     *,
     color_gain: Sequence[float] | np.ndarray | None = None,
-    camera: Any = None,
+    camera: CameraEffects | None = None,
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """Render and composite one planned frame.
 
@@ -223,7 +235,7 @@ def execute(
     cal = context.calibration(W, H)
     renderer = context.renderer()
     sky = _sky_shading(plan, image, cal.intrinsics, geometry, outputs, color_gain, renderer.ground_raster)
-    frame = _Frame(
+    frame = FrameJob(
         plan=plan,
         image=image,
         request=render_request(plan, cal.intrinsics, geometry, passes, sky),
@@ -251,7 +263,7 @@ def _sky_shading(  # noqa: PLR0913 (the frame's plan, photo, camera, scene, outp
     outputs: FrameOutputs,
     color_gain: Sequence[float] | np.ndarray | None,
     raster: GroundRaster | None = None,
-) -> Any:
+) -> SkyShading | None:
     """The frame's :class:`arshadow.shading.sky.SkyShading` (None when the planner's ``ambient_occlusion``
     decision is off): the scene's ground occlusion map (made on first use with ``raster``, the renderer's
     :class:`arshadow.shading.sky.GroundRaster`), the object's sky visibility and the ground bounce
@@ -321,7 +333,7 @@ def _output_buffers(image: np.ndarray, outputs: FrameOutputs) -> tuple[np.ndarra
     return out, mask_full
 
 
-def _no_layers(request: dict, shape: tuple[int, int]) -> None:
+def _no_layers(request: LayerRequest, shape: tuple[int, int]) -> None:
     """The layers of a frame with nothing drawn (the numpy path replaces them when it draws)."""
     empty = layers_from_warped(None, None, (0, 0, 0, 0), shape, opacity=0.0)
     request["layers"] = empty
@@ -363,7 +375,7 @@ def _light_passes(
     return passes, plan_lights
 
 
-def _run_compose(frame: _Frame, context: FrameContext) -> None:
+def _run_compose(frame: FrameJob, context: FrameContext) -> None:
     """Render, lens warp, composite by the path the plan's ``compose`` decision names (``"measure"``: the
     chooser times both on this frame and keeps the faster for its key)."""
     plan, image, out, mask_full = frame.plan, frame.image, frame.out, frame.mask_full
@@ -373,7 +385,7 @@ def _run_compose(frame: _Frame, context: FrameContext) -> None:
     why = next((d.reason for d in reversed(plan.decisions) if d.name == "compose"), "")  # as plan.compose
     clean = None  # the photo's ROI each timed run starts from (below)
 
-    def run(fn: Callable[[_Frame, StageTimings], None]) -> Callable[[], StageTimings]:
+    def run(fn: Callable[[FrameJob, StageTimings], None]) -> Callable[[], StageTimings]:
         def go() -> StageTimings:
             if clean is not None:
                 np.copyto(out[y0 : y0 + h, x0 : x0 + w], clean)
@@ -385,7 +397,7 @@ def _run_compose(frame: _Frame, context: FrameContext) -> None:
 
         return go
 
-    paths = {"cpu": run(_compose_cpu)}
+    paths = {"cpu": run(compose_cpu)}
     if choice != "cpu":
         gpu = context.gpu
         assert gpu is not None, "the shader compose path needs FrameContext.gpu"
@@ -408,13 +420,13 @@ def _run_compose(frame: _Frame, context: FrameContext) -> None:
     item.plan["compose"] = why  # type: ignore[index]  # a dict: _report_plan made it
 
 
-def _compose_gpu(frame: _Frame, gpu: GpuCompositor, timings: StageTimings) -> None:
+def _compose_gpu(frame: FrameJob, gpu: GpuCompositor, timings: StageTimings) -> None:
     """Render with the layers kept on the GPU; lens warp + composite in a shader; one 8-bit readback."""
     roi = frame.plan.roi
     t = time.perf_counter()
     lay = frame.renderer.render_gpu(frame.request)
     timings.render += (time.perf_counter() - t) * 1e3
-    ct: dict = {}
+    ct: dict[str, float] = {}
     t = time.perf_counter()
     gpu.compose(
         frame.image,
@@ -430,193 +442,3 @@ def _compose_gpu(frame: _Frame, gpu: GpuCompositor, timings: StageTimings) -> No
     timings.readback += ct.get("readback", 0.0)
     timings.composite += (time.perf_counter() - t) * 1e3 - ct.get("readback", 0.0)
     frame.outputs.item.composited = list(roi)
-
-
-def _compose_cpu(frame: _Frame, timings: StageTimings) -> None:
-    """Render, read the float layers back, lens warp (cv2.remap) or flip, composite in numpy."""
-    t = time.perf_counter()
-    res = frame.renderer.render(frame.request)
-    dt = (time.perf_counter() - t) * 1e3
-    rt = res.timings_ms or {}
-    if "readback" in rt:
-        timings.readback += float(rt["readback"])
-        timings.render += dt - float(rt["readback"])
-    else:
-        timings.render += dt
-    # lens warp (pinhole canvas -> distorted photo ROI)
-    t = time.perf_counter()
-    warped = _warp_result(frame, res)
-    timings.warp += (time.perf_counter() - t) * 1e3
-    if warped is None:  # nothing drawn, or nothing of it in the photo: the photo is unchanged
-        return
-    t = time.perf_counter()
-    _composite_cpu(frame, warped, bool(res.premultiplied))
-    timings.composite += (time.perf_counter() - t) * 1e3
-
-
-@dataclass
-class _Warped:
-    """The renderer's layers over the photo rectangle ``roi`` (top-down), and the canvas's own
-    ``pinhole = (mask, rgba)`` (top-down) for undistorted layers."""
-
-    roi: tuple
-    mask: np.ndarray
-    alpha: np.ndarray
-    color: np.ndarray
-    pinhole: tuple
-    sky: np.ndarray | None = None  # sky occlusion over roi (RenderResult.sky_occlusion), None without
-
-
-def _warp_result(frame: _Frame, res: RenderResult) -> _Warped | None:
-    """The result's layers warped (lens) or flipped into the photo; None when nothing of them lands in it."""
-    plan, lens, work = frame.plan, frame.lens, frame.work
-    H, W = frame.image.shape[:2]
-    layers = res.layers
-    if layers is not None:
-        warped = _warp_layers(layers, plan, lens, work, frame.outputs.item, W, H)
-        if warped is None:
-            return None
-        roi, (l0, l1) = warped
-        sky = l1[:, :, 2] if l1.shape[2] > 2 else None
-        # the canvas top-down (views), for undistorted layers
-        pin = (layers.mask_ground[::-1, :, 0], layers.rgba[::-1])
-        return _Warped(roi, l1[:, :, 0], l0[:, :, 3], l0, pin, sky)
-    roi, canvas = plan.roi, plan.canvas
-    mask, alpha, color, sky = res.mask, res.alpha, res.color, res.sky_occlusion
-    pinhole = (mask, np.dstack([color, alpha]))
-    if lens is not None:
-        if sky is not None:
-            mask, alpha, color, sky = lens.warp(roi, canvas, mask, alpha, color, sky, work=work)
-        else:
-            mask, alpha, color = lens.warp(roi, canvas, mask, alpha, color, work=work)
-    return _Warped(roi, mask, alpha, color, pinhole, sky)
-
-
-def _composite_cpu(frame: _Frame, wp: _Warped, premultiplied: bool) -> None:
-    """Composite the warped layers into the frame's buffers (and make its layers when asked for)."""
-    look, layer_request = frame.look, frame.outputs.layers
-    if look.camera is not None:
-        wp = _blurred(wp, look.camera.blur_px, frame.image.shape)
-    gain, color, pinhole = look.color_gain, wp.color, wp.pinhole
-    gained = gain is not None and look.draw_occluder  # the exposure match, linear light (premultiplied colour)
-    if gained and layer_request is not None:  # layers hold the gained colour (copies: the renderer's stay)
-        color = np.array(color, np.float32)
-        color[:, :, :3] *= gain
-        if layer_request.get("undistorted"):  # the canvas-sized pinhole copy only for undistorted layers
-            pinhole = (pinhole[0], np.array(pinhole[1], np.float32))
-            pinhole[1][:, :, :3] *= gain
-        gained = False  # applied
-    if layer_request is not None:  # execute's ``layers``: gets the frame's layers
-        layer_request["layers"] = _frame_layers(
-            frame, _Warped(wp.roi, wp.mask, wp.alpha, color, pinhole), premultiplied
-        )
-    composite(
-        frame.out,
-        wp.mask,
-        wp.roi,
-        color=color if look.draw_occluder else None,
-        alpha=wp.alpha if look.draw_occluder else None,
-        opacity=look.opacity,
-        shadow_color=look.shadow_color,
-        premultiplied=premultiplied,
-        color_gain=gain if gained else None,
-        out=frame.out,
-        work=frame.work,
-        sky=None if wp.sky is None else np.clip(wp.sky, -1.0, 1.0),
-    )
-    if look.camera is not None and look.draw_occluder:
-        x0, y0, w, h = wp.roi
-        seed = int(np.asarray(frame.image[::61, ::53], np.int64).sum())  # per photo, reproducible
-        add_noise(frame.out[y0 : y0 + h, x0 : x0 + w], wp.alpha, look.camera.noise, seed)
-    if frame.mask_full is not None:  # the mask is wanted
-        x0, y0, w, h = wp.roi
-        m = frame.work.get("mask255", (h, w), np.float32)
-        np.multiply(wp.mask, np.float32(255.0), out=m)
-        m += np.float32(0.5)
-        np.clip(m, np.float32(0.0), np.float32(255.0), out=m)
-        np.copyto(frame.mask_full[y0 : y0 + h, x0 : x0 + w], m, casting="unsafe")
-
-
-def _blurred(wp: _Warped, sigma: float, shape: tuple) -> _Warped:
-    """The warped layers grown by the blur's reach (zeros: nothing drawn there) and blurred by the photo's
-    point-spread width (:func:`arshadow.frame.effects.blur_layers`)."""
-    if sigma <= 0:
-        return wp
-    p = pad_for(sigma)
-    x0, y0, w, h = wp.roi
-    H, W = shape[:2]
-    nx0, ny0, nx1, ny1 = max(x0 - p, 0), max(y0 - p, 0), min(x0 + w + p, W), min(y0 + h + p, H)
-    pads = ((y0 - ny0, ny1 - y0 - h), (x0 - nx0, nx1 - x0 - w))
-
-    def grow(a: np.ndarray | None) -> np.ndarray | None:
-        return None if a is None else np.pad(a, pads + ((0, 0),) * (a.ndim - 2))
-
-    mask, alpha, color, sky = blur_layers(sigma, grow(wp.mask), grow(wp.alpha), grow(wp.color), grow(wp.sky))
-    return _Warped((nx0, ny0, nx1 - nx0, ny1 - ny0), mask, alpha, color, wp.pinhole, sky)
-
-
-def _warp_layers(
-    layers: RenderLayers, plan: FramePlan, lens: LensWarp | None, work: Workspace, item: ReportItem, W: int, H: int
-) -> tuple[tuple, tuple[np.ndarray, np.ndarray]] | None:
-    """The renderer's own bottom-up RGBA (colour, alpha) and RG (mask, ground) arrays into the photo: one
-    remap (lens) or flip each instead of three strided arrays, and only over the part that has content.
-
-    Returns ``(roi, (rgba, mask_ground))`` top-down over the photo rectangle ``roi``, or None when nothing
-    was drawn (``item.content`` None) or nothing of it lands in the plan's ROI. Sets ``item.content`` and
-    ``item.composited``.
-    """
-    roi, canvas = plan.roi, plan.canvas
-    c0, c1 = layers.rgba, layers.mask_ground
-    ch, cw = c0.shape[:2]
-    act = c1[:, :, 0] > 0
-    act |= c0[:, :, 3] > 0
-    if c1.shape[2] > 2:  # the sky-occlusion channel reaches beyond the shadow (the contact shadow)
-        act |= c1[:, :, 2] != 0
-    rows = np.flatnonzero(act.any(axis=1))
-    if rows.size == 0:
-        item.content = None
-        return None
-    cols = np.flatnonzero(act.any(axis=0))
-    r0, r1 = ch - 1 - int(rows[-1]), ch - 1 - int(rows[0])  # top-down canvas rows
-    k0, k1 = int(cols[0]), int(cols[-1])
-    item.content = [int(canvas[0]) + k0, int(canvas[1]) + r0, k1 - k0 + 1, r1 - r0 + 1]
-    if lens is not None:
-        # photo pixels whose pinhole point can see the content (+1 px: bilinear support)
-        rect = (canvas[0] + k0 - 1.0, canvas[1] + r0 - 1.0, canvas[0] + k1 + 1.0, canvas[1] + r1 + 1.0)
-        sub = clip_roi(lens.distorted_roi(rect, margin=1), W, H)
-        x0 = max(sub[0], roi[0])
-        y0 = max(sub[1], roi[1])
-        x1 = min(sub[0] + sub[2], roi[0] + roi[2])
-        y1 = min(sub[1] + sub[3], roi[1] + roi[3])
-        if x1 <= x0 or y1 <= y0:
-            return None
-        roi = (x0, y0, x1 - x0, y1 - y0)
-        warped = lens.warp(roi, canvas, c0, c1, work=work, bottom_up=True)
-    else:
-        roi = (int(canvas[0]) + k0, int(canvas[1]) + r0, k1 - k0 + 1, r1 - r0 + 1)
-        b0, b1 = ch - 1 - r1, ch - r0  # the same rows, bottom-up
-        s0, s1 = c0[b0:b1, k0 : k1 + 1], c1[b0:b1, k0 : k1 + 1]
-        warped = (
-            cv2.flip(s0, 0, dst=work.get("flip0", s0.shape, np.float32)),
-            cv2.flip(s1, 0, dst=work.get("flip1", s1.shape, np.float32)),
-        )
-    item.composited = list(roi)
-    return roi, warped
-
-
-def _frame_layers(frame: _Frame, wp: _Warped, premultiplied: bool) -> Layers:
-    """The frame's :class:`arshadow.compose.layers.Layers` from the warped arrays the composite uses (and,
-    with ``undistorted`` asked for, from the pinhole canvas ``wp.pinhole = (mask, rgba)`` too)."""
-    look, shape = frame.look, frame.image.shape[:2]
-    rgba = None
-    if look.draw_occluder:
-        rgba = wp.color if np.shape(wp.color)[2] == 4 else np.dstack([wp.color, wp.alpha])
-    kw: dict[str, Any] = {"opacity": look.opacity, "shadow_color": look.shadow_color, "premultiplied": premultiplied}
-    lay = layers_from_warped(wp.mask, rgba, wp.roi, shape, **kw)
-    if (frame.outputs.layers or {}).get("undistorted"):
-        lay.undistorted = (
-            pinhole_layers(wp.pinhole[0], wp.pinhole[1] if look.draw_occluder else None, frame.plan.canvas, shape, **kw)
-            if frame.lens is not None
-            else lay
-        )
-    return lay

@@ -43,7 +43,7 @@ import logging
 import os
 import time
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -61,11 +61,16 @@ from ..scene.spec import ModelSpec, Scene, SceneSpec, load_scene, scene_from_dic
 from ..tracking.luma import LumaFrame
 from ..tracking.pose import MarkerPose
 from ..transforms import invert_rigid, rvec_tvec_from_matrix
-from .execute import LAYERS_WHY, FrameContext, FrameOutputs, execute
+from .execute import LAYERS_WHY, FrameContext, FrameOutputs, LayerRequest, execute
 from .history import History
 from .hooks import CalibrationState, EngineHooks, check_image, default_renderer, estimate_pose
 from .report import ReportItem, StageTimings
 from .result import FrameResult
+
+if TYPE_CHECKING:
+    from ..geometry.caster import ShadowCaster
+    from ..gl.gpu_compose import GpuCompositor
+    from .effects import CameraEffects
 
 __all__ = ["Session", "FrameResult", "render_photo"]
 
@@ -133,7 +138,8 @@ class Session(History):
             self._renderer, self._own_renderer = renderer, False
         else:
             self._renderer, self._own_renderer, self._renderer_factory = None, True, renderer
-        self._gpu: Any = None  # the GpuCompositor (arshadow.gl, imported on first use: _gpu_compositor)
+        self._gpu: GpuCompositor | None = None
+        self._camera: CameraEffects | None = None  # measured on the first frame with a marker (camera effects)
         if self.scene.sun_tracks:  # a time-lapse of the spec (SceneSpec.time_lapse)
             self.use_sun_tracks(self.scene.sun_tracks, self.scene.static_lights or ())
         self._work = Workspace()
@@ -160,7 +166,7 @@ class Session(History):
                 self._renderer = default_renderer(self.context, self.options)
         return self._renderer
 
-    def _gpu_compositor(self) -> Any:
+    def _gpu_compositor(self) -> GpuCompositor:
         """The shader compose path on the renderer's context (made on first use)."""
         if self._gpu is None:
             from ..gl.gpu_compose import GpuCompositor  # deferred: GL, only when the shader path runs
@@ -196,13 +202,13 @@ class Session(History):
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def __reduce__(self) -> tuple[Any, ...]:
+    def __reduce__(self) -> tuple[type[Session], tuple[SceneSpec]]:
         # a session pickles as its spec: the receiver loads the scene and makes its own context
         if self.spec is None:
             raise UsageError("a Session made from a loaded Scene does not pickle; make it from a SceneSpec")
         return (Session, (self.spec,))
 
-    def set_model(self, model: ModelSpec | Any) -> None:
+    def set_model(self, model: ModelSpec | ShadowCaster) -> None:
         """Replace the object, keeping the rest of the session: calibrations and lens maps, the renderer and
         its context, the lights (their silhouettes and volumes are rebuilt for the new mesh on first use).
         The next render equals a fresh session's of the changed scene (``arshadow preview``'s drag).
@@ -461,17 +467,17 @@ class Session(History):
         lay = None if outputs.layers is None else outputs.layers["layers"]
         return FrameResult(out, mask, pose, np.asarray(cfw, np.float64), outputs.item, outputs.timings, plan, lay)
 
-    def _camera_effects(self, image: np.ndarray, pose: MarkerPose | None) -> Any:
+    def _camera_effects(self, image: np.ndarray, pose: MarkerPose | None) -> CameraEffects | None:
         """The photo's blur and noise (``--camera-effects on``), measured on the first frame whose marker is
         detected and kept for the session (:func:`arshadow.frame.effects.measure_camera`); else None."""
         if self.options.camera_effects != "on":
             return None
-        cam = getattr(self, "_camera", None)
-        corners = getattr(pose, "all_corners", None) or {}
-        if cam is None and corners:
+        cam = self._camera
+        if cam is None and pose is not None and pose.all_corners:
             from .effects import measure_camera
 
-            ref = pose.marker_ids[0] if getattr(pose, "marker_ids", None) else next(iter(corners))
+            corners = pose.all_corners
+            ref = pose.marker_ids[0] if pose.marker_ids else next(iter(corners))
             cam = self._camera = measure_camera(image, np.asarray(corners.get(ref, next(iter(corners.values())))))
         return cam
 
@@ -494,7 +500,9 @@ class Session(History):
         for msg in self._checks.check(cfw, cfm):  # a far camera (wrong units), the camera inside: once per run
             log.warning(msg)
 
-    def _decide_compose(self, plan: FramePlan, renderer: Renderer, key: tuple[Any, ...], outputs: FrameOutputs) -> None:
+    def _decide_compose(
+        self, plan: FramePlan, renderer: Renderer, key: tuple[object, ...], outputs: FrameOutputs
+    ) -> None:
         """Record the plan's compose decision (unless it has one these buffers allow)."""
         out, mask_out, want_mask = outputs.out, outputs.mask_out, outputs.want_mask
         available = (
@@ -514,13 +522,16 @@ class Session(History):
         )
 
 
-def _layer_request(layers: bool | str) -> dict[str, Any] | None:
+def _layer_request(layers: bool | str) -> LayerRequest | None:
     """:func:`arshadow.frame.execute.execute`'s ``layers`` request of :meth:`Session.render`'s ``layers``."""
     return {"undistorted": layers == "undistorted"} if layers else None
 
 
 def render_photo(
-    spec: Any, image: np.ndarray | str | os.PathLike[str], name: str = "", want_mask: bool = True
+    spec: SceneSpec | Mapping[str, Any] | str | os.PathLike[str],
+    image: np.ndarray | str | os.PathLike[str],
+    name: str = "",
+    want_mask: bool = True,
 ) -> FrameResult:
     """One photo, one call: ``Session(spec).process(image)`` (context created and released).
 
@@ -531,6 +542,6 @@ def render_photo(
     """
     if not isinstance(image, np.ndarray):
         name = name or str(image)
-        image = read_image(image)
+        image = read_image(os.fspath(image))
     with Session(spec) as s:
         return s.process(image, name=name, want_mask=want_mask)

@@ -3,9 +3,15 @@ measured from the photo (GL-free)."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+import numpy.typing as npt
 
 from ..compose.composite import srgb_to_linear
+
+if TYPE_CHECKING:
+    from ..scene.options import RenderOptions
 
 __all__ = ["MIN_SKY_SHARE", "decide_ambient_occlusion", "ground_bounce", "sky_share"]
 
@@ -14,7 +20,7 @@ __all__ = ["MIN_SKY_SHARE", "decide_ambient_occlusion", "ground_bounce", "sky_sh
 MIN_SKY_SHARE = 0.03
 
 
-def sky_share(opacity: float, shadow_color) -> np.ndarray:
+def sky_share(opacity: float, shadow_color: npt.ArrayLike) -> np.ndarray:
     """``(3,) float64``: the share of the ground's light a full shadow keeps, ``1 - opacity * (1 - tint)``:
     the sky's share of the light for a measured light (opacity 1, tint = the measured shadow ratio).
 
@@ -24,7 +30,7 @@ def sky_share(opacity: float, shadow_color) -> np.ndarray:
     return 1.0 - float(opacity) * (1.0 - np.asarray(shadow_color, np.float64).reshape(3))
 
 
-def decide_ambient_occlusion(options) -> tuple[bool, str]:
+def decide_ambient_occlusion(options: RenderOptions) -> tuple[bool, str]:
     """``(on, reason)`` for :class:`arshadow.scene.options.RenderOptions` ``options``.
 
     >>> from arshadow.scene.options import RenderOptions
@@ -48,7 +54,7 @@ def decide_ambient_occlusion(options) -> tuple[bool, str]:
     return True, f"on: measured sky share {share:.2f}"
 
 
-def ground_bounce(image: np.ndarray, pixels: np.ndarray, gain) -> np.ndarray | None:
+def ground_bounce(image: np.ndarray, pixels: np.ndarray, gain: npt.ArrayLike) -> np.ndarray | None:
     """Light bounced from the ground onto the object, in the renderer's units (linear RGB, the marker paper
     = white): the ground's linear colour round the object (``pixels (k, 2)`` in the photo: a ring of ground
     points round the footprint) over the total exposure gain ``gain (3,)`` (paper linear RGB / the paper's
@@ -63,4 +69,5 @@ def ground_bounce(image: np.ndarray, pixels: np.ndarray, gain) -> np.ndarray | N
         return None
     bgr = img[px[ok, 1], px[ok, 0]].astype(np.float64) / 255.0
     lin = np.percentile(srgb_to_linear(bgr), 75, axis=0)[::-1]  # RGB
-    return lin / np.maximum(np.asarray(gain, np.float64).reshape(3), 1e-6)
+    out: np.ndarray = lin / np.maximum(np.asarray(gain, np.float64).reshape(3), 1e-6)
+    return out

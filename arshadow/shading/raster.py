@@ -12,9 +12,14 @@ found at the pixel's centre: within a pixel of a silhouette edge the point may t
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
-__all__ = ["hidden_directions", "item_buffer", "points_hidden"]
+__all__ = ["ItemBuffer", "hidden_directions", "item_buffer", "points_hidden"]
+
+#: who draws an item buffer: :func:`item_buffer`'s arguments ``(xy, depth, faces, res)`` and result
+ItemBuffer = Callable[[np.ndarray, np.ndarray, np.ndarray, int], np.ndarray]
 
 
 def item_buffer(xy: np.ndarray, depth: np.ndarray, f: np.ndarray, res: int) -> np.ndarray:
@@ -71,7 +76,7 @@ def hidden_directions(  # noqa: PLR0913 (the mesh, the queries, and four keyword
     eps: float = 0.0,
     need: np.ndarray | None = None,
     normals: np.ndarray | None = None,
-    item_buffer=None,
+    item_buffer: ItemBuffer | None = None,
 ) -> np.ndarray:
     """``(k, d) bool``: is direction ``dirs[j]`` (unit, ``(d, 3)``) hidden from ``points[i]`` (``(k, 3)``,
     offset off the surface by the caller) by a triangle of the mesh ``vertices (n, 3)``, ``faces (m, 3)``?
@@ -105,7 +110,15 @@ def hidden_directions(  # noqa: PLR0913 (the mesh, the queries, and four keyword
     return out
 
 
-def points_hidden(img, xy, depth, f, qxy, qdepth, eps: float = 0.0) -> np.ndarray:
+def points_hidden(  # noqa: PLR0913 (the item buffer, its mesh, the queries)
+    img: np.ndarray,
+    xy: np.ndarray,
+    depth: np.ndarray,
+    f: np.ndarray,
+    qxy: np.ndarray,
+    qdepth: np.ndarray,
+    eps: float = 0.0,
+) -> np.ndarray:
     """``(q,) bool``: is each query point (pixel coordinates ``qxy (q, 2)``, depth ``qdepth (q,)``) behind
     the triangle the item buffer ``img (res, res)`` (indices into ``f``, -1: none) holds at its pixel?
     Exact: the point must lie inside that triangle's projection (``xy (n, 2)`` of the vertices) and more

@@ -35,11 +35,13 @@ from typing import Protocol
 
 import cv2
 import numpy as np
+import numpy.typing as npt
 
 from ..errors import UsageError
 from ..geometry.caster import ShadowCaster
 from ..geometry.exact import ground_shadow_triangles
 from ..geometry.rays import rays_blocked
+from .raster import ItemBuffer, hidden_directions
 
 __all__ = [
     "SKY_MODELS",
@@ -69,7 +71,7 @@ _SUB = 3
 ACTIVE_OCCLUSION = (0.05, 0.1)
 
 
-def cosine_directions(n: int, normal=(0.0, 0.0, 1.0)) -> np.ndarray:
+def cosine_directions(n: int, normal: npt.ArrayLike = (0.0, 0.0, 1.0)) -> np.ndarray:
     """``(n, 3) float64`` unit directions distributed with density ``cos(angle to normal) / pi`` over the
     hemisphere round ``normal (3,)``: a Fibonacci spiral in the unit disc lifted to the hemisphere, each
     carrying ``1/n`` of the cosine-weighted solid angle (``pi``).
@@ -146,7 +148,10 @@ class GroundOcclusion:
         ii, jj = np.nonzero(active)
         corners = np.concatenate([np.c_[jj + dj, ii + di] for di in (0, 1) for dj in (0, 1)]).astype(np.int32)
         hull = cv2.convexHull(corners).reshape(-1, 2).astype(np.float64)
-        return np.c_[self.x0 + hull[:, 0] * self.texel, self.y0 + hull[:, 1] * self.texel, np.zeros(len(hull))]
+        out: np.ndarray = np.c_[
+            self.x0 + hull[:, 0] * self.texel, self.y0 + hull[:, 1] * self.texel, np.zeros(len(hull))
+        ]
+        return out
 
     def sample(self, xy: np.ndarray) -> np.ndarray:
         """``(k,) float64`` bilinear visibility at ground points ``xy (k, 2)`` (1 off the grid)."""
@@ -417,7 +422,7 @@ def object_sky_visibility(  # noqa: PLR0913 (the points, and keyword-only option
     sky: str = "uniform",
     method: str = "raster",
     max_rays: int = 400_000,
-    item_buffer=None,
+    item_buffer: ItemBuffer | None = None,
     res: int = 384,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Sky visibility and ground view of points on the object's surface.
@@ -458,7 +463,7 @@ def object_sky_visibility(  # noqa: PLR0913 (the points, and keyword-only option
     if convex and sky == "uniform":
         # nothing of a convex object hides its own sky: a plane tilted by a from the horizontal sees
         # (1 + cos a) / 2 of the cosine lobe above the horizon and the rest of it on the ground
-        nz = np.clip(nrm[:, 2], -1.0, 1.0)
+        nz: np.ndarray = np.clip(nrm[:, 2], -1.0, 1.0)
         return (1.0 + nz) / 2.0, (1.0 - nz) / 2.0
     if method == "raster" or convex:
         n = 2048 if convex else max(16, int(n_dirs))
@@ -476,11 +481,18 @@ def _sphere_directions(n: int) -> np.ndarray:
     return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
 
 
-def _object_raster(caster, p, nrm, n: int, sky: str, hide: bool, item_buffer=None, res: int = 384):
+def _object_raster(  # noqa: PLR0913 (the mesh, the points, the quadrature and how to draw it)
+    caster: ShadowCaster,
+    p: np.ndarray,
+    nrm: np.ndarray,
+    n: int,
+    sky: str,
+    hide: bool,
+    item_buffer: ItemBuffer | None = None,
+    res: int = 384,
+) -> tuple[np.ndarray, np.ndarray]:
     """Directions shared by every point, each weighted by the point's cosine (uniform-solid-angle
     quadrature, normalised by the same quadrature of the open horizontal ground)."""
-    from .raster import hidden_directions
-
     dirs = _sphere_directions(n)
     cos = nrm @ dirs.T  # (k, n)
     front = cos > 0.0
@@ -502,7 +514,9 @@ def _object_raster(caster, p, nrm, n: int, sky: str, hide: bool, item_buffer=Non
     return sky_v, ground_v
 
 
-def _object_rays(caster, p, nrm, n: int, sky: str) -> tuple[np.ndarray, np.ndarray]:
+def _object_rays(
+    caster: ShadowCaster, p: np.ndarray, nrm: np.ndarray, n: int, sky: str
+) -> tuple[np.ndarray, np.ndarray]:
     """Cosine-weighted directions per point, each tested with an exact ray (the reference method)."""
     k = len(p)
     base = cosine_directions(n)
@@ -530,4 +544,5 @@ def _rotate_to(base: np.ndarray, normal: np.ndarray) -> np.ndarray:
     tx = np.cross(a, nz)
     tx /= np.linalg.norm(tx)
     ty = np.cross(nz, tx)
-    return base @ np.stack([tx, ty, nz])
+    out: np.ndarray = base @ np.stack([tx, ty, nz])
+    return out
