@@ -465,7 +465,8 @@ def test_light_close_to_the_object_gets_a_slowness_notice(caplog):
 
 
 def test_flagged_pose_carries_its_reason():
-    """A pose flagged for a small marker carries the reason with the number (the report's ``flag_reasons``)."""
+    """A pose flagged for a small marker carries the reason with the number (the report's ``flag_reasons``);
+    a flag of ``subpix`` corners (with the default ``edge`` corners a small marker is a report note)."""
     from arshadow.camera.model import Intrinsics
     from arshadow.frame.report import ReportItem
     from arshadow.frame.session import Session
@@ -473,7 +474,7 @@ def test_flagged_pose_carries_its_reason():
 
     intr = Intrinsics.from_file(CALIB)
     img = render_marker_photo(intr, look_at_pose([0.2, -0.9, 1.2], [0, 0, 0]), marker_length=0.05, seed=2).image
-    with Session(_scene()) as s:
+    with Session(_scene(refine="subpix")) as s:
         pose = s.track(img)
     item = ReportItem(input="far.png")
     item.set_pose(pose)
@@ -545,12 +546,12 @@ def test_batch_json_item_output_is_not_null(tmp_path):
     assert it["status"] == "ok" and it["item"]["output"] == it["outputs"][0] == str(out / "p.png")
     assert it["item"]["mask"] == it["outputs"][1] == str(out / "p.shadow.png")
     assert it["warnings"] == [] and it["item"]["flag_reasons"] == []
-    # a photo whose pose is flagged (a small marker): done, with a warning naming the reason
+    # a photo whose pose is flagged (a small marker, subpix corners): done, with a warning naming the reason
     far = render_marker_photo(
         Intrinsics.from_file(CALIB), look_at_pose([0.2, -0.9, 1.2], [0, 0, 0]), marker_length=0.05, seed=2
     ).image
     cv2.imwrite(str(tmp_path / "far.png"), far)
-    run_batch(_scene(), [str(tmp_path / "far.png")], tmp_path / "o2", EngineOptions())
+    run_batch(_scene(refine="subpix"), [str(tmp_path / "far.png")], tmp_path / "o2", EngineOptions())
     it = json.loads((tmp_path / "o2" / "batch.json").read_text())["items"][0]
     assert it["status"] == "ok" and len(it["warnings"]) == 1
     assert (
@@ -583,7 +584,7 @@ def test_conventions_are_in_the_repository():
 @pytest.mark.gl
 def test_render_says_unit_mistakes_and_flagged_poses_on_stderr(tmp_path):
     """The photo path end to end: ``--marker-length 50`` warns (unit, object size, camera distance) with
-    exit 0, and a photo with a small (flagged) marker gets the flagged-pose summary line."""
+    exit 0, and a photo with a small (flagged: ``--refine subpix``) marker gets the flagged-pose summary line."""
     from arshadow.camera.model import Intrinsics
     from arshadow.synth.markers import look_at_pose, render_marker_photo
 
@@ -622,7 +623,8 @@ def test_render_says_unit_mistakes_and_flagged_poses_on_stderr(tmp_path):
     assert "probably in millimetres" in r.stderr and "the camera is " in r.stderr
     r = subprocess.run(
         base
-        + [str(tmp_path / "near.png"), str(tmp_path / "far.png"), "--marker-length", "0.05", "-o", str(tmp_path / "b")],
+        + [str(tmp_path / "near.png"), str(tmp_path / "far.png"), "--marker-length", "0.05", "--refine", "subpix"]
+        + ["-o", str(tmp_path / "b")],
         capture_output=True,
         text=True,
         cwd=ROOT,

@@ -59,7 +59,7 @@ def register(subparsers: Any) -> None:
         "--refine",
         default=None,
         choices=("none", "subpix", "contour", "apriltag"),
-        help="corner refinement (default: subpix, or the --detector-params file's own)",
+        help="corner refinement (default: edge, or the --detector-params file's own)",
     )
     p.add_argument("--detector-params", metavar="FILE", help="cv2.aruco.DetectorParameters YAML file")
     p.add_argument("--json", action="store_true", help="print the JSON report (CONVENTIONS.md) on stdout")

@@ -95,6 +95,11 @@ def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> No
         help="use only this marker id as the reference (default: the lowest id found)",
     )
     g.add_argument(
+        "--refine",
+        choices=("edge", "subpix", "apriltag", "contour", "none"),
+        help="corner refinement (default edge: the marker's border edges fitted and intersected, docs/tracking.md)",
+    )
+    g.add_argument(
         "--inverted",
         action="store_true",
         default=None,

@@ -73,7 +73,7 @@ REFINE_METHODS = {
 }
 
 #: the default refinement, chosen by tests/benchmarks/bench_tracking.py (see docs/tracking.md)
-DEFAULT_REFINE = "subpix"
+DEFAULT_REFINE = "edge"
 
 #: ``DetectorParameters.minMarkerDistanceRate`` used unless a parameter file is given (OpenCV 4.x's value)
 MIN_MARKER_DISTANCE_RATE = 0.05
