@@ -40,7 +40,7 @@ if TYPE_CHECKING:
     from ..plan.planner import FramePlan, SceneGeometry
     from ..renderer.request import Renderer
     from ..scene.options import RenderOptions
-    from ..shading.sky import GroundRaster, SkyShading
+    from ..shading.sky import SkyShading
     from .effects import CameraEffects
     from .hooks import CalibrationState
 
@@ -233,13 +233,12 @@ def execute(
     if plan.empty:
         return out, mask_full  # nothing of the scene is in view
     cal = context.calibration(W, H)
-    renderer = context.renderer()
-    sky = _sky_shading(plan, image, cal.intrinsics, geometry, outputs, color_gain, renderer.ground_raster)
+    sky = _sky_shading(plan, image, cal.intrinsics, geometry, outputs, color_gain)
     frame = FrameJob(
         plan=plan,
         image=image,
         request=render_request(plan, cal.intrinsics, geometry, passes, sky),
-        renderer=renderer,
+        renderer=context.renderer(),
         lens=cal.lens,
         work=context.work,
         out=out,
@@ -255,18 +254,17 @@ def execute(
     return out, mask_full
 
 
-def _sky_shading(  # noqa: PLR0913 (the frame's plan, photo, camera, scene, outputs, gain and rasteriser)
+def _sky_shading(
     plan: FramePlan,
     image: np.ndarray,
     intr: Intrinsics,
     geometry: SceneGeometry,
     outputs: FrameOutputs,
     color_gain: Sequence[float] | np.ndarray | None,
-    raster: GroundRaster | None = None,
 ) -> SkyShading | None:
     """The frame's :class:`arshadow.shading.sky.SkyShading` (None when the planner's ``ambient_occlusion``
-    decision is off): the scene's ground occlusion map (made on first use with ``raster``, the renderer's
-    :class:`arshadow.shading.sky.GroundRaster`), the object's sky visibility and the ground bounce
+    decision is off): the scene's ground occlusion map (made on first use, by the geometry's
+    ``raster_source``), the object's sky visibility and the ground bounce
     measured on this photo round the object (with a measured exposure; 0 otherwise)."""
     from ..shading.decide import decide_ambient_occlusion, ground_bounce
     from ..shading.sky import SkyShading
@@ -291,7 +289,7 @@ def _sky_shading(  # noqa: PLR0913 (the frame's plan, photo, camera, scene, outp
             bounce = tuple(float(v) for v in m)
             geometry.set_ground_light(m)  # lights the object's lower faces, reflected back to the ground
             outputs.item.plan["ground_bounce"] = [round(v, 4) for v in bounce]  # type: ignore[index]
-    ground = geometry.sky_ground(outputs.timings, raster)
+    ground = geometry.sky_ground(outputs.timings)
     return SkyShading(ground=ground, object_sky=OBJECT_SKY, bounce=bounce)
 
 

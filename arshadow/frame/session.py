@@ -70,6 +70,7 @@ from .result import FrameResult
 if TYPE_CHECKING:
     from ..geometry.caster import ShadowCaster
     from ..gl.gpu_compose import GpuCompositor
+    from ..shading.sky import GroundRaster
     from .effects import CameraEffects
 
 __all__ = ["Session", "FrameResult", "render_photo"]
@@ -128,6 +129,7 @@ class Session(History):
             self.scene = spec.build(lights=lights)
         self.options = self.scene.options
         self.geometry = SceneGeometry(self.scene.caster, self.options, self.scene.lights)
+        self.geometry.raster_source = self._ground_raster
         #: the proxy ground (``options.ground``, :mod:`arshadow.geometry.ground`): the scene's world frame
         self.ground = parse_ground(self.options.ground)
         self._marker_from_ground = None if self.ground.is_marker else self.ground.marker_from_ground
@@ -165,6 +167,10 @@ class Session(History):
             else:
                 self._renderer = default_renderer(self.context, self.options)
         return self._renderer
+
+    def _ground_raster(self) -> GroundRaster | None:
+        """The renderer's rasteriser of the ground occlusion map (:attr:`SceneGeometry.raster_source`)."""
+        return self.renderer.ground_raster
 
     def _gpu_compositor(self) -> GpuCompositor:
         """The shader compose path on the renderer's context (made on first use)."""
@@ -226,6 +232,7 @@ class Session(History):
             caster, self.spec = model, None
         self.scene.caster = caster
         self.geometry = SceneGeometry(caster, self.options, self.geometry.lights_in)
+        self.geometry.raster_source = self._ground_raster
         self._checks = FrameChecks(caster, self.scene.tracker.get("marker_length"))
 
     # -- the three steps --------------------------------------------------------------------------------

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -272,6 +272,10 @@ class SceneGeometry:
             None,
             None,
         )  # (lights' key, scene_hull_points) for the current lights
+        #: who rasterises the ground occlusion map: a callable giving a renderer's
+        #: :class:`arshadow.shading.sky.GroundRaster` (made on first use; the Session hands its renderer's),
+        #: None or a None result: numpy (:func:`arshadow.shading.sky.ground_raster_cpu`)
+        self.raster_source: Callable[[], GroundRaster | None] | None = None
         if lights is not None:
             self.set_lights(lights)
 
@@ -416,17 +420,18 @@ class SceneGeometry:
 
         return decide_ambient_occlusion(self.options)[0]
 
-    def sky_ground(self, timings: StageTimings | None = None, raster: GroundRaster | None = None) -> GroundOcclusion:
+    def sky_ground(self, timings: StageTimings | None = None) -> GroundOcclusion:
         """The occluder's :class:`arshadow.shading.sky.GroundOcclusion` (computed once per scene, in the
         ground frame; ``timings.silhouette`` gets its build time, with the other per-scene geometry). Remade
         when the lights change or when the ground's reflectance is first measured (:meth:`set_ground_light`).
-        ``raster``: the renderer's :class:`arshadow.shading.sky.GroundRaster` (None: numpy)."""
+        Rasterised by :attr:`raster_source`'s rasteriser (the renderer's GPU one in a Session)."""
         key = (tuple(ls.light_h.tobytes() for ls in self.lights), getattr(self, "_ground_light", None))
         g = getattr(self, "_sky_ground", None)
         if g is None or g[0] != key:  # the object's interreflection depends on the light
             from ..shading.sky import ground_sky_visibility
 
             t = time.perf_counter()
+            raster = self.raster_source() if self.raster_source is not None else None
             g = self._sky_ground = (key, ground_sky_visibility(self.caster, bounce=self._bounce_light(), raster=raster))
             if timings is not None:
                 timings.silhouette += (time.perf_counter() - t) * 1e3
