@@ -173,3 +173,41 @@ def test_gpu_item_buffer_equals_the_numpy_one(ctx):
     a = ib(xy, pv[:, 2], f, 256)
     b = item_buffer(xy, pv[:, 2], f, 256)
     assert (a >= 0).sum() > 5000 and (a != b).mean() < 1e-3  # ties on shared edges only
+
+
+def test_session_rasterises_its_ground_map_once_on_the_gpu(ctx, monkeypatch):
+    """A Session with sky occlusion builds one ground map per scene, with its renderer's GL rasteriser, for
+    the planner's region and the executor alike (the planner asked numpy for it first: 7 s for the knot)."""
+    import arshadow.shading.sky as sky
+    from arshadow.frame.session import Session
+    from arshadow.scene.spec import scene_from_dict
+    from arshadow.synth.markers import look_at_pose, render_marker_photo
+
+    calls = []
+    real = sky.ground_sky_visibility
+
+    def counted(*a, **k):
+        calls.append(type(k.get("raster")).__name__)
+        return real(*a, **k)
+
+    def refuse(*a, **k):
+        raise AssertionError("the numpy rasteriser ran in a GL session")
+
+    monkeypatch.setattr(sky, "ground_sky_visibility", counted)
+    monkeypatch.setattr(sky, "ground_raster_cpu", refuse)
+    K = _K()
+    photo = render_marker_photo(K, look_at_pose([0.0, -0.35, 0.3], [0.0, 0.0, 0.0]), marker_length=0.05).image
+    spec = scene_from_dict(
+        {
+            "calib": K,
+            "marker_length": 0.05,
+            "model": "box:0.03,0.03,0.04",
+            "lights": ["directional:0.3,-0.2,1"],
+            "ambient_occlusion": "on",
+        }  # fmt: skip
+    )
+    with Session(spec, context=ctx) as s:
+        for _ in range(2):
+            res = s.process(photo, want_mask=False)
+    assert res.item.plan["ambient_occlusion"].startswith("on")
+    assert calls == ["GLGroundRaster"]
