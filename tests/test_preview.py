@@ -348,20 +348,20 @@ def test_cli_prints_the_address_and_stops_cleanly_on_ctrl_c(tmp_path):
 def test_no_browser_opened_without_a_display(monkeypatch):
     import webbrowser
 
-    from arshadow.cli.preview import _open_browser
+    from arshadow.cli.preview import open_browser
 
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     monkeypatch.setattr(webbrowser, "open", lambda *a, **k: pytest.fail("opened a browser"))
     if sys.platform.startswith("linux"):
-        assert _open_browser("http://127.0.0.1:1/") is False
+        assert open_browser("http://127.0.0.1:1/") is False
     monkeypatch.setenv("DISPLAY", ":99")
 
     def broken(*a, **k):
         raise webbrowser.Error("no runnable browser")
 
     monkeypatch.setattr(webbrowser, "open", broken)
-    assert _open_browser("http://127.0.0.1:1/") is False
+    assert open_browser("http://127.0.0.1:1/") is False
     assert os.environ["DISPLAY"] == ":99"
 
 

@@ -82,13 +82,13 @@ def test_colour_override_drops_the_material_and_plain_meshes_have_none():
 def test_measured_light_keeps_a_textured_mesh_textured():
     # --light-from without --color: the scene's occluder colour is the exposed grey default; a mesh with its
     # own texture / colours keeps them, times the exposure gain (it used to come out flat grey)
-    from arshadow.frame.execute import _shading
+    from arshadow.frame.execute import frame_shading
     from arshadow.scene.options import RenderOptions
 
     opts = RenderOptions(occluder_color=(0.6, 0.6, 0.6), material_gain=(1.2, 1.1, 0.9))
-    sh = _shading(opts, load_occluder(DATA / "quad.glb"), None)
+    sh = frame_shading(opts, load_occluder(DATA / "quad.glb"), None)
     assert sh.color is None and sh.albedo_gain == (1.2, 1.1, 0.9)
-    plain = _shading(opts, load_occluder("box:0.1,0.1,0.1"), None)
+    plain = frame_shading(opts, load_occluder("box:0.1,0.1,0.1"), None)
     assert plain.color == (0.6, 0.6, 0.6) and plain.albedo_gain == (1.0, 1.0, 1.0)
     # an explicit colour (no material_gain) wins over the texture
-    assert _shading(RenderOptions(occluder_color=(0.6, 0.6, 0.6)), load_occluder(DATA / "quad.glb"), None).color
+    assert frame_shading(RenderOptions(occluder_color=(0.6, 0.6, 0.6)), load_occluder(DATA / "quad.glb"), None).color

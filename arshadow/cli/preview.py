@@ -92,7 +92,7 @@ def base_scene(args: argparse.Namespace) -> dict:
     return d
 
 
-def _open_browser(url: str) -> bool:
+def open_browser(url: str) -> bool:
     """Open ``url`` in the desktop's browser when there is a desktop (never a console browser, never an error)."""
     if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
         return False
@@ -160,7 +160,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"arshadow preview: {media.name} at {server.url}", flush=True)
         print(f"  Save writes {scene_out}; Ctrl-C stops the server.", flush=True)
         if not args.no_browser:
-            _open_browser(server.url)
+            open_browser(server.url)
         try:
             server.serve_forever(poll_interval=0.2)
         except KeyboardInterrupt:

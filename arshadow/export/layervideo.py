@@ -112,7 +112,7 @@ class LayerSink:
         self,
         paths: dict[str, Path],
         fmt: str,
-        rate: Fraction | int,
+        rate: Fraction | float,
         size: tuple[int, int],
         stmap: np.ndarray | None = None,
     ) -> None:
@@ -138,7 +138,7 @@ class LayerSink:
             os.close(fd)
             self._tmp[name] = Path(tmp)
             c = av.open(tmp, "w")
-            s: Any = c.add_stream(codec, rate=rate)
+            s: Any = c.add_stream(codec, rate=rate if isinstance(rate, Fraction | int) else _fraction(rate))
             s.width, s.height = self.W, self.H
             s.pix_fmt = grey_fmt if name.endswith("shadow.mult") else rgba_fmt
             if codec == "prores_ks":
@@ -215,3 +215,8 @@ class LayerSink:
                 with contextlib.suppress(OSError):
                     tmp.unlink()
         self._tmp.clear()
+
+
+def _fraction(rate: float) -> Fraction:
+    """A float frame rate (an image sequence's) as the fraction PyAV takes (29.97 -> 2997/100)."""
+    return Fraction(rate).limit_denominator(1_000_000)

@@ -44,7 +44,16 @@ if TYPE_CHECKING:
     from .effects import CameraEffects
     from .hooks import CalibrationState
 
-__all__ = ["LAYERS_WHY", "STAGES", "FrameContext", "FrameOutputs", "LayerRequest", "execute", "render_request"]
+__all__ = [
+    "LAYERS_WHY",
+    "STAGES",
+    "FrameContext",
+    "FrameOutputs",
+    "LayerRequest",
+    "execute",
+    "frame_shading",
+    "render_request",
+]
 
 #: the compose decision's reason when the layers are asked for
 LAYERS_WHY = "numpy (layers asked for: the composite and its layers come from the numpy path)"
@@ -173,11 +182,11 @@ def render_request(
         passes=tuple(passes),
         ground_size=opts.ground_size,
         draw_occluder=opts.draw_occluder,
-        shading=_shading(opts, geometry.caster, sky),
+        shading=frame_shading(opts, geometry.caster, sky),
     )
 
 
-def _shading(opts: RenderOptions, caster: ShadowCaster, sky: SkyShading | None) -> Shading:
+def frame_shading(opts: RenderOptions, caster: ShadowCaster, sky: SkyShading | None) -> Shading:
     """:meth:`Shading.from_options` with the frame's sky; a mesh with its own colours or texture under a
     measured light keeps them, times the exposure gain (``material_gain``), instead of the grey default."""
     sh = Shading.from_options(opts) if sky is None else replace(Shading.from_options(opts), sky=sky)

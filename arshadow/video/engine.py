@@ -256,7 +256,7 @@ def process_video(
             {k[7:]: p for k, p in outputs.items() if k.startswith("layers:") and p is not None},
             opts.layers,
             # an image sequence's rate is its float fps: LayerSink documents "Fraction or float", annotates Fraction | int
-            getattr(reader, "rate", reader.fps),  # type: ignore[arg-type]
+            getattr(reader, "rate", reader.fps),
             (W, H),
             stmap=st,
         )
