@@ -36,8 +36,11 @@ def test_shading_comes_from_the_options():
         "u_ks": 0.1,
         "u_shininess": 32.0,
         "u_albedo_gain": (1.0, 1.0, 1.0),
+        "u_point_falloff": 0.0,
     }
     assert Shading.from_options(RenderOptions()).uniforms() == Shading().uniforms()
+    # a measured light's point lamp falls off with distance (the exposure is matched at the paper)
+    assert Shading.from_options(RenderOptions(ambient_measured=True)).uniforms()["u_point_falloff"] == 1.0
 
 
 def test_a_renderer_declares_its_capabilities():

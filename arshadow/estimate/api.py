@@ -192,7 +192,9 @@ def _grids(
 EDGE_DISTANCES = (0.003, 0.005, 0.008)
 
 
-def _ratio(evs: list[Evidence], h: np.ndarray, px: Sequence[float], probe: Any = None) -> tuple:
+def _ratio(
+    evs: list[Evidence], h: np.ndarray, px: Sequence[float], probe: Any = None
+) -> tuple[tuple[float, ...], tuple[float, float] | None]:
     """Per-channel shadow / lit of the ground: the median, over pairs of points straddling the shadow's edge
     (:func:`arshadow.estimate.shadow.edge_pairs`, a few millimetres each side, where the floor's texture is
     nearly the same), of the ratio inside / outside; the high-passed fit within 3 cm of the shadow when
@@ -202,8 +204,12 @@ def _ratio(evs: list[Evidence], h: np.ndarray, px: Sequence[float], probe: Any =
     part of the sky from the ground round it, both sides of its shadow's edge (a pair at sky visibility
     ``V_in``, ``V_out`` reads ``q = r V_in / (1 - r + r V_out)``), so each pair's ``r = q / (V_in + q (1 -
     V_out))`` (:func:`arshadow.shading.sky.ground_sky_visibility`): without this a probe's shadow measures
-    the sky 10-40 % too dark on the path-traced reference (docs/reference.md)."""
-    ins, outs, vin, vout = [], [], [], []
+    the sky 10-40 % too dark on the path-traced reference (docs/reference.md).
+
+    Returns ``(ratio (R, G, B), at)``: ``at`` the mean ground point ``(x, y)`` (metres, world frame) of the
+    pairs, where the ratio was read (a point light's ratio changes across the floor:
+    :func:`arshadow.estimate.record.ratio_at`); None from the fit."""
+    ins, outs, vin, vout, xin, xout = [], [], [], [], [], []
     grid = _probe_sky(probe)
     for ev, p in zip(evs, px, strict=True):
         S = shadow_coverage(ev, h)
@@ -213,6 +219,8 @@ def _ratio(evs: list[Evidence], h: np.ndarray, px: Sequence[float], probe: Any =
             a, b, xa, xb = edge_pairs(ev, S, max(d, 3.0 * p), points=True)
             ins.append(a)
             outs.append(b)
+            xin.append(xa)
+            xout.append(xb)
             vin.append(grid.sample(xa) if grid is not None else np.ones(len(a)))
             vout.append(grid.sample(xb) if grid is not None else np.ones(len(b)))
     a, b = (np.concatenate(ins), np.concatenate(outs)) if ins else (np.zeros((0, 3)), np.zeros((0, 3)))
@@ -220,7 +228,8 @@ def _ratio(evs: list[Evidence], h: np.ndarray, px: Sequence[float], probe: Any =
         q = np.maximum(a, 1e-6) / np.maximum(b, 1e-6)
         v_in, v_out = np.concatenate(vin)[:, None], np.concatenate(vout)[:, None]
         r = q / np.maximum(v_in + q * (1.0 - v_out), 1e-6)
-        return tuple(float(v) for v in np.median(r, axis=0))
+        at = np.concatenate([np.concatenate(xs) for xs in (xin, xout)]).mean(axis=0)
+        return tuple(float(v) for v in np.median(r, axis=0)), (float(at[0]), float(at[1]))
     num = np.zeros(3)
     den = 0.0
     for ev in evs:
@@ -236,7 +245,7 @@ def _ratio(evs: list[Evidence], h: np.ndarray, px: Sequence[float], probe: Any =
             _, d, _, _ = fit_levels(ev, S, values=np.log(np.maximum(ev.rgb[:, :, c], 1e-6)), weight=band)
             num[c] += n * d
         den += n
-    return tuple(float(math.exp(v / max(den, 1))) for v in num)
+    return tuple(float(math.exp(v / max(den, 1))) for v in num), None
 
 
 def _probe_sky(probe: Any) -> Any:
@@ -517,7 +526,7 @@ def _fit(
         res = fit_sun(coarse, make_fine, enu)
     else:
         res = fit_point(coarse, make_fine, anchor)
-    ratio = _ratio(res.fine, res.light_h, pxs, ShadowCaster(verts, faces) if sky_occlusion else None)
+    ratio, ratio_at = _ratio(res.fine, res.light_h, pxs, ShadowCaster(verts, faces) if sky_occlusion else None)
     checks = _checks(res, ratio, pxs, outline, views, verts, faces)
     paper = np.median(np.array([e.paper_rgb for e in exposures]), axis=0)
     ink = np.median(np.array([e.ink_rgb for e in exposures]), axis=0)
@@ -597,6 +606,7 @@ def _fit(
         "point:{:.6f},{:.6f},{:.6f}".format(*p),
         position=p,
         shadow_ratio=ratio,
+        ratio_at=ratio_at,
         uncertainty_deg=res.uncertainty_deg,
         position_uncertainty=res.position_sigma,
         distance_interval=None if res.distance_interval is None else tuple(float(v) for v in res.distance_interval),

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -19,6 +20,7 @@ __all__ = [
     "LightEstimate",
     "load_estimate",
     "measured_ambient",
+    "ratio_at",
     "scene_overrides",
     "shading_gain",
 ]
@@ -86,6 +88,9 @@ class LightEstimate:
     warnings: list = field(default_factory=list)
     angular_diameter_deg: float | None = None
     distance_interval: tuple | None = None
+    #: a point light's: the ground point (x, y), metres, world frame, where ``shadow_ratio`` was read (its
+    #: probe's shadow edge); the ratio elsewhere follows from the lamp's fall-off (:func:`ratio_at`)
+    ratio_at: tuple | None = None
 
     @property
     def confident(self) -> bool:
@@ -109,6 +114,7 @@ class LightEstimate:
             "warnings": list(self.warnings),
             "angular_diameter_deg": _r(self.angular_diameter_deg, 4),
             "distance_interval": _r(self.distance_interval, 4),
+            "ratio_at": _r(self.ratio_at, 5),
         }
 
     def to_json(self, indent: int | None = 1) -> str:
@@ -132,6 +138,7 @@ class LightEstimate:
                 warnings=list(d.get("warnings", [])),
                 angular_diameter_deg=d.get("angular_diameter_deg"),
                 distance_interval=None if d.get("distance_interval") is None else tuple(d["distance_interval"]),
+                ratio_at=None if d.get("ratio_at") is None else tuple(float(v) for v in d["ratio_at"]),
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise UsageError(
@@ -158,11 +165,36 @@ def _sin_elevation(est: LightEstimate) -> float:
     return 1.0
 
 
+def ratio_at(est: LightEstimate, xy: Sequence[float]) -> tuple[float, ...]:
+    """The shadow ratio (R, G, B) at the ground point ``xy (2,)`` (metres, world frame).
+
+    A sun's or a directional light's irradiance is the same everywhere: its measured ``shadow_ratio``. A
+    point light's falls off as ``z / d^3`` (``cos / d^2``) while the sky's does not, so the sky-to-lamp ratio
+    ``s = r / (1 - r)`` read at ``est.ratio_at`` scales by ``E(ratio_at) / E(xy)`` (without ``ratio_at``, an
+    estimate from before it was recorded: the measured ratio).
+
+    >>> e = LightEstimate("point", "point:0,0,1", position=(0.0, 0.0, 1.0), shadow_ratio=(0.5, 0.5, 0.5), ratio_at=(0.0, 0.0))
+    >>> [round(v, 4) for v in ratio_at(e, (1.0, 0.0))]  # the lamp's irradiance 2^-1.5 of it: s = 2.83
+    [0.7388, 0.7388, 0.7388]
+    """
+    if est.kind != "point" or est.position is None or est.ratio_at is None:
+        return tuple(float(v) for v in est.shadow_ratio)
+    lamp = np.asarray(est.position, np.float64)
+
+    def irradiance(q: Sequence[float]) -> float:
+        return float(lamp[2] / np.linalg.norm(lamp - np.array([q[0], q[1], 0.0])) ** 3)
+
+    r = np.clip(np.asarray(est.shadow_ratio, np.float64), 1e-6, 1.0 - 1e-6)
+    sky = r / (1.0 - r) * irradiance(est.ratio_at) / irradiance(xy)
+    return tuple(float(v) for v in sky / (1.0 + sky))
+
+
 def measured_ambient(est: LightEstimate) -> float:
-    """The renderer's ambient term (light weight 1) that gives a horizontal surface the measured shadow
-    ratio: ``a / (a + sin(elevation)) = r`` -> ``a = r sin(e) / (1 - r)``, ``r`` the mean of the channels
-    (clipped to 0..4)."""
-    r = float(np.clip(np.mean(est.shadow_ratio), 0.0, 0.95))
+    """The renderer's ambient term (light weight 1) that gives a horizontal surface at the world origin (the
+    marker's paper, where the exposure is matched) the measured shadow ratio there (:func:`ratio_at`):
+    ``a / (a + sin(elevation)) = r`` -> ``a = r sin(e) / (1 - r)``, ``r`` the mean of the channels (clipped
+    to 0..4)."""
+    r = float(np.clip(np.mean(ratio_at(est, (0.0, 0.0))), 0.0, 0.95))
     return float(np.clip(r * _sin_elevation(est) / (1.0 - r), 0.0, 4.0))
 
 
@@ -200,7 +232,9 @@ def _encode_unclipped(x: np.ndarray) -> np.ndarray:
 DEFAULT_OBJECT_COLOR = (0.8, 0.8, 0.8)
 
 
-def scene_overrides(est: LightEstimate, color: Any = None, exposure: bool = True) -> dict:
+def scene_overrides(
+    est: LightEstimate, color: Any = None, exposure: bool = True, place: Sequence[float] | None = None
+) -> dict:
     """What an estimate changes in a scene (``--light-from``).
 
     Parameters
@@ -210,12 +244,15 @@ def scene_overrides(est: LightEstimate, color: Any = None, exposure: bool = True
         The model's ``--color`` (8-bit sRGB ``"R,G,B"``), None for the default grey.
     exposure : bool
         Apply the marker's exposure / white balance to the object's colour.
+    place : (3,) float or None
+        Where the object stands (world frame, metres; None: the origin): a point light's shadow ratio is
+        the one there (:func:`ratio_at`).
 
     Returns
     -------
     dict
-        ``lights`` (tuple of one spec), ``opacity`` 1.0 and ``shadow_color`` (the measured ratio, linear
-        RGB): a full shadow keeps exactly the measured share of each channel; ``ambient``
+        ``lights`` (tuple of one spec), ``opacity`` 1.0 and ``shadow_color`` (the measured ratio at the
+        object, linear RGB): a full shadow keeps exactly the measured share of each channel; ``ambient``
         (:func:`measured_ambient`) and ``specular`` 0 (matte, like the paper) for the object's shading;
         ``occluder_color`` (sRGB 0..1, unclipped) when ``exposure``: the colour times :func:`shading_gain`
         in linear light.
@@ -234,7 +271,7 @@ def scene_overrides(est: LightEstimate, color: Any = None, exposure: bool = True
     out: dict[str, Any] = {
         "lights": (est.light,),
         "opacity": 1.0,
-        "shadow_color": tuple(float(np.clip(v, 0.0, 1.0)) for v in est.shadow_ratio),
+        "shadow_color": tuple(float(np.clip(v, 0.0, 1.0)) for v in ratio_at(est, (place or (0.0, 0.0))[:2])),
         "ambient": ambient,
         "specular": 0.0,
     }

@@ -727,6 +727,9 @@ class ShadowRenderer:
         lh = np.asarray(p.light_h, dtype=np.float64).copy()
         lh[:3] -= bufs.origin * lh[3]  # the caster's local frame, like v_world
         uniform(prog, "u_light").value = tuple(float(x) for x in lh)
+        if lh[3] != 0:  # a point light's squared distance to the world origin (Shading.point_falloff)
+            world = np.asarray(p.light_h, np.float64)
+            uniform(prog, "u_light_d2").value = float(np.sum((world[:3] / world[3]) ** 2))
         col = np.asarray(p.color, dtype=np.float64)[:3] * float(p.weight)
         uniform(prog, "u_light_color").value = tuple(float(x) for x in col)
         uniform(prog, "u_eye").value = tuple(float(x) for x in f.eye)  # the shading's uniforms: written by _begin

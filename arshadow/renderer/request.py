@@ -180,6 +180,11 @@ class Shading:
         ground; None: the uniform ambient term, no sky channel.
     albedo_gain : (3,) float
         Linear RGB gain on the mesh's own colours / texture (the measured exposure when no colour is given).
+    point_falloff : bool
+        A point light's irradiance falls off as ``cos / d^2``: each light's term is scaled by ``d0^2 / d^2``,
+        ``d0`` its distance to the world origin (the marker's paper, where a measured light's exposure is
+        matched, so the paper keeps its measured level); False: no fall-off (the light's weight everywhere).
+        On with a measured light (``RenderOptions.ambient_measured``).
 
     Phong ([Kolivand-Stencil]): ``I = K_a I_a + sum_l I_l (K_d (N.L) + K_s (N.H)^n)``.
 
@@ -199,6 +204,7 @@ class Shading:
     color: tuple[float, float, float] | None = None
     sky: Any = None
     albedo_gain: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    point_falloff: bool = False
 
     def __post_init__(self) -> None:
         for name in ("ambient", "diffuse", "specular", "shininess"):
@@ -215,7 +221,12 @@ class Shading:
     def from_options(cls, options: RenderOptions) -> Shading:
         """The shading :class:`arshadow.scene.options.RenderOptions` ask for (``ambient``, ``specular``,
         ``occluder_color``; diffuse and shininess at their defaults)."""
-        return cls(ambient=options.ambient, specular=options.specular, color=options.occluder_color)
+        return cls(
+            ambient=options.ambient,
+            specular=options.specular,
+            color=options.occluder_color,
+            point_falloff=bool(options.ambient_measured),
+        )
 
     def uniforms(self) -> dict[str, float | tuple[float, ...]]:
         """Shader uniform name -> value, written into each occluder program that declares the name."""
@@ -225,6 +236,7 @@ class Shading:
             "u_ks": float(self.specular),
             "u_shininess": float(self.shininess),
             "u_albedo_gain": tuple(float(v) for v in self.albedo_gain),
+            "u_point_falloff": 1.0 if self.point_falloff else 0.0,
         }
 
 

@@ -411,7 +411,8 @@ def _apply_estimate(d: dict, base_dir: str | Path | None) -> dict:
     d = dict(d)
     est = d.pop("light_from")  # a file, or the estimate itself (render/video/batch --probe)
     est = est if isinstance(est, LightEstimate) else load_estimate(_path(est, base_dir))
-    o = scene_overrides(est, _rgb_text(d.get("color")), exposure=not d.get("no_exposure"))
+    place = parse_triple(d.get("place", (0, 0, 0)), "place")  # a point light's shadow ratio is the one there
+    o = scene_overrides(est, _rgb_text(d.get("color")), exposure=not d.get("no_exposure"), place=place)
     if not d.get("lights"):
         d["lights"] = list(o["lights"])
     d["opacity"] = o["opacity"]

@@ -3,6 +3,8 @@
 // says the surface is outside this light's shadow volume.
 uniform vec4 u_light;        // homogeneous world position (w = 0: direction towards the light)
 uniform vec3 u_light_color;  // linear colour x weight
+uniform float u_light_d2;    // a point light's squared distance to the world origin (the marker's paper)
+uniform float u_point_falloff;  // 1: a point light's term times u_light_d2 / d^2 (Shading.point_falloff)
 uniform vec3 u_eye;          // camera centre, world
 uniform float u_kd;
 uniform float u_ks;
@@ -19,7 +21,10 @@ layout(location = 1) out vec4 o_mask;
 void main() {
     vec3 n = normalize(v_normal);
     if (!gl_FrontFacing) n = -n;             // open meshes seen from behind
-    vec3 l = normalize(u_light.xyz - v_world * u_light.w);
+    vec3 to_light = u_light.xyz - v_world * u_light.w;
+    vec3 l = normalize(to_light);
+    // irradiance ~ cos / d^2, normalised at the world origin (where the exposure is matched)
+    float falloff = (u_point_falloff > 0.5 && u_light.w != 0.0) ? u_light_d2 / max(dot(to_light, to_light), 1e-12) : 1.0;
     vec3 v = normalize(u_eye - v_world);
     float ndl = dot(n, l);
     vec3 c = vec3(0.0);
@@ -27,7 +32,7 @@ void main() {
         vec3 h = normalize(l + v);
         float spec = pow(max(dot(n, h), 0.0), u_shininess);
         vec3 alb = u_albedo_gain * (u_textured ? v_albedo * texture(u_tex, v_uv).rgb : v_albedo);
-        c = u_light_color * (u_kd * alb * ndl + u_ks * spec);
+        c = falloff * u_light_color * (u_kd * alb * ndl + u_ks * spec);
     }
     o_color = vec4(c, 0.0);
     o_mask = vec4(0.0);
