@@ -165,7 +165,9 @@ class Tolerances:
     normal_flat_deg: float = 1e-6  # a flat face's corner normals vs its face normal (exact up to rounding)
     normal_sphere_deg: float = 0.5  # icosphere (1280 faces) corner normals vs the radial direction (0.30 measured)
     sky_ground_abs: float = 0.015  # ground sky visibility (256 directions, 256^2 texels) vs Lambert (0.010 measured)
-    falloff_rel: float = 0.01  # a point light's shaded term vs albedo cos |L|^2 / d^2 (float32 shading, per-vertex normals)
+    falloff_rel: float = (
+        0.01  # a point light's shaded term vs albedo cos |L|^2 / d^2 (float32 shading, per-vertex normals)
+    )
     sky_raster_mean: float = 0.004  # GL vs numpy ground map, mean |difference| (tori: 0.0009, 0.0022 measured)
     sky_raster_p99: float = 0.03  # GL vs numpy ground map, 99th percentile |difference| (0.012, 0.027 measured)
     sky_object_abs: float = 2e-3  # convex object, 4096 directions vs the tilted-plane horizon closed form
