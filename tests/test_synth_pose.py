@@ -207,16 +207,13 @@ def test_single_marker_accuracy(tol):
     assert np.all((amb > 0) & (amb <= 1))
 
 
-def test_ambiguity_flag_catches_flips():
-    """Where the planar flip ambiguity really bites (small, nearly frontal, noisy markers), every frame
-    whose chosen IPPE solution is the *wrong* one of the pair by more than 5 deg is flagged.
-    (Non-flip failures in that regime are not all caught: see docs/tracking.md.) ``subpix`` corners: with the
-    default ``edge`` corners this regime gives no flip at all (test_edge_corners_do_not_flip_there)."""
+def _small_frontal_poses(refine: str):
+    """``(pose, estimate)`` where the planar flip ambiguity really bites: 60 small (35-70 px), nearly frontal
+    (tilt 0-30 deg), noisy markers tracked with ``refine`` corners (the undetected ones skipped)."""
     from arshadow.errors import MarkerNotFoundError
     from arshadow.tracking.tracker import MarkerTracker
 
     rng = np.random.default_rng(21)
-    flips = 0
     for i in range(60):
         d = rng.uniform(0.5, 0.8)
         L = rng.uniform(35, 70) * d / CAM.fx
@@ -225,9 +222,18 @@ def test_ambiguity_flag_catches_flips():
             CAM, pose, marker_id=5, marker_length=L, noise_sigma=3.0, blur_sigma=0.8, jpeg_quality=80, seed=i
         )
         try:
-            p = MarkerTracker(CAM, marker_length=L, marker_id=5, refine="subpix").estimate(photo.image)
+            yield pose, MarkerTracker(CAM, marker_length=L, marker_id=5, refine=refine).estimate(photo.image)
         except MarkerNotFoundError:
             continue
+
+
+def test_ambiguity_flag_catches_flips():
+    """Where the planar flip ambiguity really bites (small, nearly frontal, noisy markers), every frame
+    whose chosen IPPE solution is the *wrong* one of the pair by more than 5 deg is flagged.
+    (Non-flip failures in that regime are not all caught: see docs/tracking.md.) ``subpix`` corners: with the
+    default ``edge`` corners this regime gives no flip at all (test_edge_corners_do_not_flip_there)."""
+    flips = 0
+    for pose, p in _small_frontal_poses("subpix"):
         e = rotation_error_deg(p.cam_from_world[:3, :3], pose[:3, :3])
         e_alt = rotation_error_deg(p.alternative.cam_from_world[:3, :3], pose[:3, :3])
         if e > 5.0 and e_alt < e:
@@ -241,23 +247,7 @@ def test_ambiguity_flag_catches_flips():
 def test_edge_corners_do_not_flip_there():
     """The same small, nearly frontal, noisy markers with the default (``edge``) corners: no pose more than 5
     deg off at all (the reason the default changed from ``subpix``; docs/tracking.md)."""
-    from arshadow.errors import MarkerNotFoundError
-    from arshadow.tracking.tracker import MarkerTracker
-
-    rng = np.random.default_rng(21)
-    errors = []
-    for i in range(60):
-        d = rng.uniform(0.5, 0.8)
-        L = rng.uniform(35, 70) * d / CAM.fx
-        pose = random_pose(rng, CAM, distance=(d, d), tilt_deg=(0, 30), keep_in_view=marker_object_points(1.6 * L))
-        photo = render_marker_photo(
-            CAM, pose, marker_id=5, marker_length=L, noise_sigma=3.0, blur_sigma=0.8, jpeg_quality=80, seed=i
-        )
-        try:
-            p = MarkerTracker(CAM, marker_length=L, marker_id=5).estimate(photo.image)
-        except MarkerNotFoundError:
-            continue
-        errors.append(rotation_error_deg(p.cam_from_world[:3, :3], pose[:3, :3]))
+    errors = [rotation_error_deg(p.cam_from_world[:3, :3], pose[:3, :3]) for pose, p in _small_frontal_poses("edge")]
     assert len(errors) >= 50 and max(errors) <= 5.0, (len(errors), max(errors))
 
 
