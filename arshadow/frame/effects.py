@@ -11,6 +11,7 @@ ground's own noise is the photo's: it is darkened, not replaced).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections.abc import Sequence
 
@@ -20,7 +21,7 @@ import numpy as np
 from ..errors import EstimateError
 from ..estimate.optics import NoiseEstimate, measure_blur, measure_noise, noise_at
 
-__all__ = ["CameraEffects", "add_noise", "blur_layers", "measure_camera", "pad_for"]
+__all__ = ["CameraEffects", "add_noise", "blur_layers", "measure_camera", "noise_table", "pad_for"]
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -30,6 +31,11 @@ class CameraEffects:
 
     blur_px: float
     noise: tuple[NoiseEstimate, ...] = ()
+
+    @functools.cached_property
+    def noise_table(self) -> np.ndarray | None:
+        """:func:`noise_table` of the measured noise (made once per scene, not per frame); None without it."""
+        return noise_table(self.noise) if self.noise else None
 
     def report(self) -> dict[str, object]:
         """The measured values for the report (noise sigma in 8-bit units, per channel B, G, R)."""
@@ -85,20 +91,25 @@ def blur_layers(sigma: float, *layers: np.ndarray | None) -> list[np.ndarray | N
     return out
 
 
-def add_noise(region: np.ndarray, alpha: np.ndarray, noise: Sequence[NoiseEstimate], seed: int) -> None:
+def noise_table(noise: Sequence[NoiseEstimate], channels: int = 3) -> np.ndarray:
+    """``(1, 256, channels) float32``: the noise sigma per channel (8-bit units) at each code value,
+    :func:`arshadow.estimate.optics.noise_at` (a table looked up per pixel: no interpolation per pixel)."""
+    levels = np.repeat(np.arange(256, dtype=np.float64)[:, None] / 255.0, channels, axis=1)
+    return (noise_at(levels, list(noise)) * 255.0).astype(np.float32).reshape(1, 256, channels)
+
+
+def add_noise(region: np.ndarray, alpha: np.ndarray, noise: Sequence[NoiseEstimate] | np.ndarray, seed: int) -> None:
     """Add Gaussian noise to ``region (h, w, 3) uint8`` (BGR, in place) where the object covers it
-    (``alpha (h, w)``), its sigma per channel :func:`arshadow.estimate.optics.noise_at` the pixel's level."""
-    if not noise:
+    (``alpha (h, w)``), its sigma per channel :func:`arshadow.estimate.optics.noise_at` the pixel's level;
+    ``noise``: the estimates, or their :func:`noise_table` (:attr:`CameraEffects.noise_table`)."""
+    if len(noise) == 0:
         return
     rows, cols = np.nonzero(np.asarray(alpha).any(axis=1))[0], np.nonzero(np.asarray(alpha).any(axis=0))[0]
     if rows.size == 0:
         return
     sub = (slice(int(rows[0]), int(rows[-1]) + 1), slice(int(cols[0]), int(cols[-1]) + 1))
     region, alpha = region[sub], np.asarray(alpha)[sub]  # only where the object is (views: in place)
-    # sigma per channel at each of the 256 code values, looked up per pixel (one table, not an
-    # interpolation per pixel: 3 x faster on the bench photo's object)
-    levels = np.repeat(np.arange(256, dtype=np.float64)[:, None] / 255.0, region.shape[2], axis=1)
-    table = (noise_at(levels, list(noise)) * 255.0).astype(np.float32).reshape(1, 256, region.shape[2])
+    table = noise if isinstance(noise, np.ndarray) else noise_table(noise, region.shape[2])
     sig = cv2.LUT(np.ascontiguousarray(region), table)
     n = np.random.default_rng(seed).standard_normal(region.shape, dtype=np.float32)
     n *= sig

@@ -128,8 +128,7 @@ class Session(History):
             self.spec = spec
             self.scene = spec.build(lights=lights)
         self.options = self.scene.options
-        self.geometry = SceneGeometry(self.scene.caster, self.options, self.scene.lights)
-        self.geometry.raster_source = self._ground_raster
+        self.geometry = SceneGeometry(self.scene.caster, self.options, self.scene.lights, self._ground_raster)
         #: the proxy ground (``options.ground``, :mod:`arshadow.geometry.ground`): the scene's world frame
         self.ground = parse_ground(self.options.ground)
         self._marker_from_ground = None if self.ground.is_marker else self.ground.marker_from_ground
@@ -231,8 +230,7 @@ class Session(History):
         else:
             caster, self.spec = model, None
         self.scene.caster = caster
-        self.geometry = SceneGeometry(caster, self.options, self.geometry.lights_in)
-        self.geometry.raster_source = self._ground_raster
+        self.geometry = SceneGeometry(caster, self.options, self.geometry.lights_in, self._ground_raster)
         self._checks = FrameChecks(caster, self.scene.tracker.get("marker_length"))
 
     # -- the three steps --------------------------------------------------------------------------------

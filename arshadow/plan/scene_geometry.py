@@ -252,7 +252,13 @@ class SceneGeometry:
         Initial lights (:meth:`set_lights`).
     """
 
-    def __init__(self, caster: ShadowCaster, options: RenderOptions, lights: Iterable[Light] | None = None) -> None:
+    def __init__(
+        self,
+        caster: ShadowCaster,
+        options: RenderOptions,
+        lights: Iterable[Light] | None = None,
+        raster_source: Callable[[], GroundRaster | None] | None = None,
+    ) -> None:
         self.caster = caster
         self.options = options
         b = np.asarray(caster.bounds, dtype=np.float64)
@@ -275,7 +281,7 @@ class SceneGeometry:
         #: who rasterises the ground occlusion map: a callable giving a renderer's
         #: :class:`arshadow.shading.sky.GroundRaster` (made on first use; the Session hands its renderer's),
         #: None or a None result: numpy (:func:`arshadow.shading.sky.ground_raster_cpu`)
-        self.raster_source: Callable[[], GroundRaster | None] | None = None
+        self.raster_source = raster_source
         if lights is not None:
             self.set_lights(lights)
 

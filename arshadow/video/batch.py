@@ -16,6 +16,10 @@ Dask (``pip install arshadow[dask]``): ``run_batch(..., client=distributed.Clien
 per item; each worker builds its own :class:`arshadow.frame.session.Session` (and OpenGL context) from the
 picklable spec once and reuses it for its later items. Workers write into ``OUT_DIR`` directly, so it must
 be a folder every worker sees (a shared file system); the outputs and records are the same as a local run.
+
+About 605 lines: one batch's resumable bookkeeping (fingerprints, done records, temporary outputs) and
+its local and Dask drivers, which share it; a photo's work is :func:`arshadow.photos.render_photo_file`'s, a
+video's :func:`arshadow.video.engine.process_video`'s.
 """
 
 from __future__ import annotations

@@ -12,6 +12,9 @@ the ROI is written back into the decoded frame's own array, so no whole frame is
 
 Rendering goes through :class:`SessionBackend`, the only place that knows the rendering API (the public
 methods of :class:`arshadow.frame.session.Session`).
+
+About 605 lines: the frame job's three steps (track, decide, compose) and the encoder's hand-off share
+the frame's colour and ROI bookkeeping; split, each part would import the others' private state.
 """
 
 from __future__ import annotations
