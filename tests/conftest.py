@@ -168,6 +168,7 @@ class Tolerances:
     falloff_rel: float = (
         0.01  # a point light's shaded term vs albedo cos |L|^2 / d^2 (float32 shading, per-vertex normals)
     )
+    object_shade_rel: float = 0.012  # measured light, box face vs the physics (8-bit: ~0.5 %/level)
     sky_raster_mean: float = 0.004  # GL vs numpy ground map, mean |difference| (tori: 0.0009, 0.0022 measured)
     sky_raster_p99: float = 0.03  # GL vs numpy ground map, 99th percentile |difference| (0.012, 0.027 measured)
     sky_object_abs: float = 2e-3  # convex object, 4096 directions vs the tilted-plane horizon closed form
@@ -208,13 +209,16 @@ class Tolerances:
     # shrank; docs/tracking.md): own ground 0.221, contact 0.248, object 0.107, true light 0.348; held-out
     # 0.204 / 0.217 / 0.142. Limits + 0.01. Then the point lamps' fall-off on the object and the shadow ratio
     # at the object (docs/reference.md): held-out object 0.142 -> 0.134, the rest unchanged.
-    ref_own_ground: float = 0.231
-    ref_own_contact: float = 0.258
-    ref_own_object: float = 0.117
+    # Re-measured 2026-11-26 after the ground bounce's units (times the paper's albedo) and the object's own
+    # sky visibility on by default, with the sky's and the light's colours on it: own 0.214 / 0.237 / 0.065,
+    # held-out 0.199 / 0.202 / 0.096; limits + 0.01.
+    ref_own_ground: float = 0.224
+    ref_own_contact: float = 0.247
+    ref_own_object: float = 0.075
     ref_own_true_ground: float = 0.358
-    ref_heldout_ground: float = 0.214
-    ref_heldout_contact: float = 0.227
-    ref_heldout_object: float = 0.144
+    ref_heldout_ground: float = 0.209
+    ref_heldout_contact: float = 0.212
+    ref_heldout_object: float = 0.106
     # marker maps (the marker-map work): learned marker poses against the generating poses (the issue's figures)
     map_marker_median_mm: float = 1.0
     map_marker_median_deg: float = 0.2

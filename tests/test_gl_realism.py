@@ -241,3 +241,41 @@ def test_point_light_falls_off_with_distance(ctx):
         assert on.alpha[y, x] == 1.0
         assert abs(got_on - want_on) <= TOL.falloff_rel * want_on, (p, got_on, want_on)
         assert abs(got_off - want_off) <= TOL.falloff_rel * want_off, (p, got_off, want_off)
+
+
+def test_measured_light_shades_a_vertical_face_with_half_the_sky_and_half_the_ground(gl_ctx):
+    # A light measured from a photo (straight down, shadow ratio r, paper recorded as P) and a uniform ground
+    # recorded as g: a white box's vertical face sees half the sky and half the ground, so a camera records
+    # it as paper-albedo x (r P / 2 + g / 2 x ground-albedo / paper-albedo x ...), i.e. in the photo's linear
+    # units ``0.5 (r_c P_c + rho_p g_c)`` (sky irradiance r P / rho_p, ground radiance g); its top face as
+    # the paper, ``P_c``. Physics of the generating values; nothing of the renderer.
+    from arshadow.camera.model import Intrinsics
+    from arshadow.compose.composite import srgb_to_linear
+    from arshadow.estimate.exposure import Exposure
+    from arshadow.estimate.record import LightEstimate
+    from arshadow.frame.session import Session
+    from arshadow.scene.spec import scene_from_dict
+    from arshadow.shading.decide import PAPER_ALBEDO
+    from arshadow.synth.markers import look_at_pose
+
+    r, P, g8 = np.array([0.3, 0.4, 0.5]), np.array([0.6, 0.62, 0.58]), (120, 140, 160)  # g8: B, G, R
+    est = LightEstimate(
+        "directional", "directional:0,0,1", direction=(0.0, 0.0, 1.0), shadow_ratio=tuple(r),
+        exposure=Exposure(tuple(P), (0.02, 0.02, 0.02), 20),
+    )  # fmt: skip
+    K = Intrinsics(fx=700.0, fy=700.0, cx=(W - 1) / 2, cy=(H - 1) / 2, width=W, height=H, dist=np.zeros(0))
+    spec = scene_from_dict(
+        {"calib": K, "marker_length": 0.05, "model": "box:0.06,0.06,0.06", "color": "255,255,255",
+         "light_from": est, "ambient_occlusion": "on"}
+    )  # fmt: skip
+    pose = look_at_pose([0.0, -0.3, 0.2], [0.0, 0.0, 0.03])
+    photo = np.empty((H, W, 3), np.uint8)
+    photo[:] = g8
+    with Session(spec) as s:
+        out = s.render(photo, pose, want_mask=False).composite
+    g = srgb_to_linear(np.array(g8[::-1], np.float64) / 255.0)
+    side, top = _pixel(pose, [0.0, -0.03, 0.02]), _pixel(pose, [0.0, 0.0, 0.06])
+    got_side = srgb_to_linear(out[side[1], side[0], ::-1] / 255.0)
+    got_top = srgb_to_linear(out[top[1], top[0], ::-1] / 255.0)
+    np.testing.assert_allclose(got_top, P, rtol=TOL.object_shade_rel)
+    np.testing.assert_allclose(got_side, 0.5 * (r * P + PAPER_ALBEDO * g), rtol=TOL.object_shade_rel)

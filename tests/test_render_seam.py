@@ -37,8 +37,13 @@ def test_shading_comes_from_the_options():
         "u_shininess": 32.0,
         "u_albedo_gain": (1.0, 1.0, 1.0),
         "u_point_falloff": 0.0,
+        "u_ambient_tint": (1.0, 1.0, 1.0),
+        "u_direct_tint": (1.0, 1.0, 1.0),
     }
     assert Shading.from_options(RenderOptions()).uniforms() == Shading().uniforms()
+    # a measured sky's and light's colours (light_from) tint the ambient and the direct terms
+    tinted = Shading.from_options(RenderOptions(ambient_tint=(0.8, 1.0, 1.2), direct_tint=(1.1, 1.0, 0.9))).uniforms()
+    assert (tinted["u_ambient_tint"], tinted["u_direct_tint"]) == ((0.8, 1.0, 1.2), (1.1, 1.0, 0.9))
     # a measured light's point lamp falls off with distance (the exposure is matched at the paper)
     assert Shading.from_options(RenderOptions(ambient_measured=True)).uniforms()["u_point_falloff"] == 1.0
 
@@ -107,3 +112,14 @@ def test_shading_reaches_the_shader(ctx, tol, method):
             assert np.allclose(got, want, rtol=tol.half_float_rel, atol=0), (ambient, got.min(0), got.max(0), want)
     finally:
         r.release()
+
+
+def test_a_bad_tint_is_a_usage_error_naming_it():
+    """A tint that is not three finite gains >= 0 is refused by the options' check, naming the option."""
+    from arshadow.errors import UsageError
+
+    for bad in ((1.0, float("nan"), 1.0), (1.0, 1.0), (1.0, -0.5, 1.0)):
+        with pytest.raises(UsageError, match="ambient_tint"):
+            RenderOptions(ambient_tint=bad).check()
+    with pytest.raises(UsageError, match="direct_tint"):
+        RenderOptions(direct_tint=(float("inf"), 1.0, 1.0)).check()

@@ -20,6 +20,7 @@ __all__ = [
     "LightEstimate",
     "load_estimate",
     "measured_ambient",
+    "measured_tints",
     "ratio_at",
     "scene_overrides",
     "shading_gain",
@@ -198,6 +199,22 @@ def measured_ambient(est: LightEstimate) -> float:
     return float(np.clip(r * _sin_elevation(est) / (1.0 - r), 0.0, 4.0))
 
 
+def measured_tints(est: LightEstimate) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """``(ambient_tint, direct_tint)``, (3,) linear RGB each: the measured sky's and direct light's colours
+    relative to the paper's mixed light, ``r_c / mean(r)`` and ``(1 - r_c) / (1 - mean(r))`` with ``r`` the
+    shadow ratio at the world origin (:func:`ratio_at`; clipped as :func:`measured_ambient` clips its mean).
+    A horizontal face at the paper keeps the paper's colour (``a t_a + s t_d`` sums to the grey ``a + s``
+    per channel when ``a / (a + s) = mean(r)``), a face the light does not reach takes the sky's.
+
+    >>> e = LightEstimate("directional", "directional:0,0,1", direction=(0.0, 0.0, 1.0), shadow_ratio=(0.3, 0.4, 0.5))
+    >>> [[round(v, 3) for v in t] for t in measured_tints(e)]
+    [[0.75, 1.0, 1.25], [1.167, 1.0, 0.833]]
+    """
+    r = np.clip(np.asarray(ratio_at(est, (0.0, 0.0)), np.float64), 0.0, 0.95)
+    m = float(np.clip(r.mean(), 1e-6, 0.95))
+    return tuple(float(v) for v in r / m), tuple(float(v) for v in (1.0 - r) / (1.0 - m))
+
+
 def load_estimate(path: str | Path) -> LightEstimate:
     """Read a light estimate written by ``arshadow light --json`` (UsageError naming the file otherwise)."""
     p = Path(path)
@@ -254,7 +271,8 @@ def scene_overrides(
         ``lights`` (tuple of one spec), ``opacity`` 1.0 and ``shadow_color`` (the measured ratio at the
         object, linear RGB): a full shadow keeps exactly the measured share of each channel; ``ambient``
         (:func:`measured_ambient`) and ``specular`` 0 (matte, like the paper) for the object's shading;
-        ``occluder_color`` (sRGB 0..1, unclipped) when ``exposure``: the colour times :func:`shading_gain`
+        ``ambient_tint`` and ``direct_tint`` (:func:`measured_tints`): the sky's and the light's colours on
+        the object; ``occluder_color`` (sRGB 0..1, unclipped) when ``exposure``: the colour times :func:`shading_gain`
         in linear light.
 
     Examples
@@ -275,6 +293,7 @@ def scene_overrides(
         "ambient": ambient,
         "specular": 0.0,
     }
+    out["ambient_tint"], out["direct_tint"] = measured_tints(est)
     gain = shading_gain(est, ambient) if exposure else None
     if gain is not None:
         base = DEFAULT_OBJECT_COLOR if color is None else tuple(float(v) / 255.0 for v in str(color).split(","))

@@ -57,11 +57,11 @@ __all__ = [
 
 #: the compose decision's reason when the layers are asked for
 LAYERS_WHY = "numpy (layers asked for: the composite and its layers come from the numpy path)"
-#: the object's own sky visibility and ground bounce (SkyShading.object_sky) in the commands: None (off). On
-#: the path-traced reference (tests/benchmarks/score_realism.py, measured light) it made the object's residual
-#: worse (held-out median 0.149 -> 0.191, own 0.125 -> 0.134) while the ground's sky occlusion helps; the
-#: renderer and the API keep it (SkyShading(object_sky="uniform")) until the object's ambient is re-measured
-OBJECT_SKY: str | None = None
+#: the object's own sky visibility and ground bounce (SkyShading.object_sky) with sky occlusion on: the
+#: uniform sky. Off until the ground bounce's units were fixed (it lacked the paper's albedo, 1.25 x too
+#: much, so vertical faces took too much of the floor's colour); with them right it halves the object's
+#: residual on the path-traced reference (own set, tracked pose: median 0.108 -> 0.065; docs/reference.md)
+OBJECT_SKY: str | None = "uniform"
 #: the shader compositor applies no camera effects
 CAMERA_WHY = "numpy (camera effects: blur and noise are applied by the numpy path)"
 #: the shader compositor has no sky-occlusion channel yet

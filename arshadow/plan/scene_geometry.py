@@ -21,6 +21,7 @@ from scipy.spatial import ConvexHull, QhullError
 
 from ..errors import LightError
 from ..lights.area import sample_area_light
+from ..shading.decide import PAPER_ALBEDO
 from ..transforms import invert_rigid, transform_points
 
 if TYPE_CHECKING:
@@ -235,10 +236,6 @@ class LightState:
     reuse: str | None = None
 
 
-#: the marker paper's reflectance, the white the object's colour is relative to (printer paper: 0.8-0.9)
-PAPER_ALBEDO = 0.8
-
-
 class SceneGeometry:
     """The CPU geometry of a scene that does not depend on the camera: lights split into hard samples,
     their silhouettes and shadow volumes (built on first use, then reused), the ROI hull points.
@@ -446,17 +443,17 @@ class SceneGeometry:
 
     def set_ground_light(self, reflected: np.ndarray | Sequence[float]) -> None:
         """Record the light the ground round the object reflects, ``reflected (3,)`` linear RGB in the
-        renderer's units (the marker paper = white: :func:`arshadow.shading.decide.ground_bounce`), once per
+        renderer's units (:func:`arshadow.shading.decide.ground_bounce`: its albedo times its irradiance), once per
         scene (the first measurement is kept: the map is not remade every frame). It lights the object's
         lower faces, which reflect part of it back onto the ground beside them."""
         if getattr(self, "_ground_light", None) is None:
-            self._ground_light = round(PAPER_ALBEDO * float(np.mean(reflected)), 3)
+            self._ground_light = round(float(np.mean(reflected)), 3)
 
     def _bounce_light(self) -> tuple[np.ndarray, float, float, float] | None:
         """``(light (3,), sky share, albedo, ground)`` of the object's interreflection onto the ground
         (:func:`arshadow.shading.sky.ground_sky_visibility`): the strongest light's direction from the
         object, the mean sky share, the object's mean albedo (its colour relative to the marker paper's,
-        without the exposure gain, times :data:`PAPER_ALBEDO`), the ground's reflected light (its albedo times
+        without the exposure gain, times :data:`arshadow.shading.decide.PAPER_ALBEDO`), the ground's reflected light (its albedo times
         its irradiance, a share of the open ground's: :meth:`set_ground_light`, 0 until measured); None
         without a light or a sky share."""
         from ..compose.composite import srgb_to_linear

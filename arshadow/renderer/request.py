@@ -152,6 +152,12 @@ class RenderResult:
     sky_occlusion: np.ndarray | None = None
 
 
+def _rgb(v: Any) -> tuple[float, float, float]:
+    """Three floats of an RGB-like sequence."""
+    a, b, c = (float(x) for x in np.ravel(np.asarray(v, np.float64))[:3])
+    return (a, b, c)
+
+
 @dataclass(frozen=True)
 class Shading:
     """How the object is shaded: one value, handed to the renderer inside :class:`RenderRequest`.
@@ -180,6 +186,9 @@ class Shading:
         ground; None: the uniform ambient term, no sky channel.
     albedo_gain : (3,) float
         Linear RGB gain on the mesh's own colours / texture (the measured exposure when no colour is given).
+    ambient_tint, direct_tint : (3,) float
+        Linear RGB tints of the ambient (sky) term and of every light's direct term
+        (:attr:`arshadow.scene.options.RenderOptions.ambient_tint`; 1: grey).
     point_falloff : bool
         A point light's irradiance falls off as ``cos / d^2``: each light's term is scaled by ``d0^2 / d^2``,
         ``d0`` its distance to the world origin (the marker's paper, where a measured light's exposure is
@@ -205,6 +214,8 @@ class Shading:
     sky: Any = None
     albedo_gain: tuple[float, float, float] = (1.0, 1.0, 1.0)
     point_falloff: bool = False
+    ambient_tint: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    direct_tint: tuple[float, float, float] = (1.0, 1.0, 1.0)
 
     def __post_init__(self) -> None:
         for name in ("ambient", "diffuse", "specular", "shininess"):
@@ -226,6 +237,8 @@ class Shading:
             specular=options.specular,
             color=options.occluder_color,
             point_falloff=bool(options.ambient_measured),
+            ambient_tint=_rgb(options.ambient_tint),
+            direct_tint=_rgb(options.direct_tint),
         )
 
     def uniforms(self) -> dict[str, float | tuple[float, ...]]:
@@ -237,6 +250,8 @@ class Shading:
             "u_shininess": float(self.shininess),
             "u_albedo_gain": tuple(float(v) for v in self.albedo_gain),
             "u_point_falloff": 1.0 if self.point_falloff else 0.0,
+            "u_ambient_tint": _rgb(self.ambient_tint),
+            "u_direct_tint": _rgb(self.direct_tint),
         }
 
 

@@ -65,6 +65,11 @@ class RenderOptions:
     ambient, specular : float
         The object's ambient term and specular weight (the renderer's shading; ``light_from`` sets them from
         the measured light: the measured ambient share, a matte object like the paper).
+    ambient_tint, direct_tint : (3,) float
+        Linear RGB tints of the object's ambient (sky) term and of its lights' direct term, 1 = grey
+        (``light_from``: the measured sky's and sun's colour, each relative to the paper's mixed light, so
+        that a face the sun does not reach takes the sky's colour: ``r_c / mean(r)`` and
+        ``(1 - r_c) / (1 - mean(r))``, ``r`` the shadow ratio at the paper).
     fast_detect : bool
         Try the fast detection pass first (``MarkerTracker(detector="fast")``,
         :mod:`arshadow.tracking.fastdetect`), the full search only if it finds nothing.
@@ -115,6 +120,8 @@ class RenderOptions:
     occluder_color: tuple | None = None
     ambient: float = 0.25
     specular: float = 0.25
+    ambient_tint: tuple = (1.0, 1.0, 1.0)
+    direct_tint: tuple = (1.0, 1.0, 1.0)
     fast_detect: bool = True
     plan: str = "auto"
     plan_off: tuple = ()
@@ -155,4 +162,8 @@ class RenderOptions:
             raise UsageError(f"--ambient-occlusion {self.ambient_occlusion!r}: choose {', '.join(AMBIENT_OCCLUSION)}")
         if self.camera_effects not in ("on", "off"):
             raise UsageError(f"--camera-effects {self.camera_effects!r}: choose on or off")
+        for name in ("ambient_tint", "direct_tint"):
+            t = tuple(getattr(self, name))
+            if len(t) != 3 or not all(math.isfinite(float(v)) and float(v) >= 0.0 for v in t):
+                raise UsageError(f"{name} {t!r}: expected 3 finite linear RGB gains >= 0")
         return self

@@ -54,12 +54,24 @@ def decide_ambient_occlusion(options: RenderOptions) -> tuple[bool, str]:
     return True, f"on: measured sky share {share:.2f}"
 
 
+#: the marker paper's reflectance, the white the object's colour is relative to (printer paper: 0.8-0.9)
+PAPER_ALBEDO = 0.8
+
+
 def ground_bounce(image: np.ndarray, pixels: np.ndarray, gain: npt.ArrayLike) -> np.ndarray | None:
-    """Light bounced from the ground onto the object, in the renderer's units (linear RGB, the marker paper
-    = white): the ground's linear colour round the object (``pixels (k, 2)`` in the photo: a ring of ground
-    points round the footprint) over the total exposure gain ``gain (3,)`` (paper linear RGB / the paper's
-    irradiance in renderer units). The 75th percentile per channel (the part of the ring in the object's
-    own shadow is not what lights it). None when no ring point lies in the photo.
+    """``(3,) float64``: the light the ground round the object reflects (linear RGB, in the renderer's units:
+    the open ground's irradiance is the paper's, a white object is as bright as the paper): the ground's
+    linear colour round the object (``pixels (k, 2)`` in the photo: a ring of ground points round the
+    footprint) over the total exposure gain ``gain (3,)`` (paper linear RGB / the paper's irradiance in
+    renderer units) is the ground's albedo relative to the paper's times its irradiance; times
+    :data:`PAPER_ALBEDO` it is the ground's albedo times its irradiance, the light it sends onto a surface
+    that sees it. The 75th percentile per channel (the part of the ring in the object's own shadow is not
+    what lights it). None when no ring point lies in the photo.
+
+    >>> img = np.full((4, 4, 3), 188, np.uint8)  # a ground half as bright as the paper (sRGB 188 ~ 0.5)
+    >>> b = ground_bounce(img, np.array([[1.0, 1.0], [2.0, 2.0]]), gain=(1.0, 1.0, 1.0))
+    >>> [round(float(v), 3) for v in b]  # 0.8 x 0.503
+    [0.402, 0.402, 0.402]
     """
     img = np.asarray(image)
     h, w = img.shape[:2]
@@ -69,5 +81,5 @@ def ground_bounce(image: np.ndarray, pixels: np.ndarray, gain: npt.ArrayLike) ->
         return None
     bgr = img[px[ok, 1], px[ok, 0]].astype(np.float64) / 255.0
     lin = np.percentile(srgb_to_linear(bgr), 75, axis=0)[::-1]  # RGB
-    out: np.ndarray = lin / np.maximum(np.asarray(gain, np.float64).reshape(3), 1e-6)
+    out: np.ndarray = PAPER_ALBEDO * lin / np.maximum(np.asarray(gain, np.float64).reshape(3), 1e-6)
     return out

@@ -3,6 +3,7 @@
 // says the surface is outside this light's shadow volume.
 uniform vec4 u_light;        // homogeneous world position (w = 0: direction towards the light)
 uniform vec3 u_light_color;  // linear colour x weight
+uniform vec3 u_direct_tint;  // linear RGB tint of every light's direct term (1: grey)
 uniform float u_light_d2;    // a point light's squared distance to the world origin (the marker's paper)
 uniform float u_point_falloff;  // 1: a point light's term times u_light_d2 / d^2 (Shading.point_falloff)
 uniform vec3 u_eye;          // camera centre, world
@@ -27,7 +28,7 @@ void main() {
     if (ndl > 0.0) {
         vec3 h = normalize(l + v);
         float spec = pow(max(dot(n, h), 0.0), u_shininess);
-        c = falloff * u_light_color * (u_kd * v_albedo * ndl + u_ks * spec);
+        c = falloff * u_direct_tint * u_light_color * (u_kd * v_albedo * ndl + u_ks * spec);
     }
     o_color = vec4(c, 0.0);
     o_mask = vec4(0.0);

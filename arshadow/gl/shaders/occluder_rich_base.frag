@@ -3,6 +3,7 @@
 // (u_use_vis): the sky term times the vertex's sky visibility plus the light bounced from the ground
 // times its ground view (arshadow.shading.sky); with a texture: the albedo times the base-colour texture.
 uniform float u_ambient;
+uniform vec3 u_ambient_tint;  // linear RGB tint of the ambient (sky) term (1: grey)
 uniform bool u_use_vis;
 uniform vec3 u_bounce;       // ground albedo x open-ground irradiance (linear RGB)
 uniform bool u_textured;
@@ -17,7 +18,8 @@ layout(location = 0) out vec4 o_color;   // rgb: linear colour (premultiplied af
 layout(location = 1) out vec4 o_mask;    // r: blocked light weight, g: ground coverage, b: sky occlusion
 void main() {
     vec3 alb = u_albedo_gain * (u_textured ? v_albedo * texture(u_tex, v_uv).rgb : v_albedo);
-    vec3 e = u_use_vis ? vec3(u_ambient * v_vis.x) + u_bounce * v_vis.y : vec3(u_ambient);
+    vec3 sky = u_ambient * u_ambient_tint;
+    vec3 e = u_use_vis ? sky * v_vis.x + u_bounce * v_vis.y : sky;
     o_color = vec4(e * alb, 1.0);
     o_mask = vec4(0.0);
 }

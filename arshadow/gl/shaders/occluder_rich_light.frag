@@ -3,6 +3,7 @@
 // says the surface is outside this light's shadow volume.
 uniform vec4 u_light;        // homogeneous world position (w = 0: direction towards the light)
 uniform vec3 u_light_color;  // linear colour x weight
+uniform vec3 u_direct_tint;  // linear RGB tint of every light's direct term (1: grey)
 uniform float u_light_d2;    // a point light's squared distance to the world origin (the marker's paper)
 uniform float u_point_falloff;  // 1: a point light's term times u_light_d2 / d^2 (Shading.point_falloff)
 uniform vec3 u_eye;          // camera centre, world
@@ -32,7 +33,7 @@ void main() {
         vec3 h = normalize(l + v);
         float spec = pow(max(dot(n, h), 0.0), u_shininess);
         vec3 alb = u_albedo_gain * (u_textured ? v_albedo * texture(u_tex, v_uv).rgb : v_albedo);
-        c = falloff * u_light_color * (u_kd * alb * ndl + u_ks * spec);
+        c = falloff * u_direct_tint * u_light_color * (u_kd * alb * ndl + u_ks * spec);
     }
     o_color = vec4(c, 0.0);
     o_mask = vec4(0.0);

@@ -15,8 +15,10 @@ uniform float u_texel;       // 1 / map size
 uniform float u_bias;
 uniform float u_weight;
 uniform float u_ambient;
+uniform vec3 u_ambient_tint;  // linear RGB tint of the ambient (sky) term (1: grey)
 uniform vec4 u_light;        // homogeneous world position (w = 0: direction towards the light)
 uniform vec3 u_light_color;  // linear colour x weight
+uniform vec3 u_direct_tint;  // linear RGB tint of every light's direct term (1: grey)
 uniform vec3 u_eye;
 uniform float u_kd;
 uniform float u_ks;
@@ -52,7 +54,7 @@ void main() {
             o_color = vec4(0.0);                      // overwrites occluder parts below the ground
             o_mask = vec4(0.0, 1.0, 0.0, 0.0);
         } else {
-            o_color = vec4(u_ambient * v_albedo, 1.0);
+            o_color = vec4(u_ambient * u_ambient_tint * v_albedo, 1.0);
             o_mask = vec4(0.0);
         }
         return;
@@ -72,7 +74,7 @@ void main() {
     if (ndl > 0.0) {
         vec3 hv = normalize(l + v);
         float spec = pow(max(dot(n, hv), 0.0), u_shininess);
-        c = vis * u_light_color * (u_kd * v_albedo * ndl + u_ks * spec);
+        c = vis * u_direct_tint * u_light_color * (u_kd * v_albedo * ndl + u_ks * spec);
     }
     o_color = vec4(c, 0.0);
     o_mask = vec4(0.0);
