@@ -3,7 +3,8 @@
 Both paths are fed the same render of the same canvas; the numpy path's result is the reference (it is
 tested against hand values and analytic oracles in test_composite.py / test_lens.py / test_pipeline.py).
 The shader must give the same 8-bit photo and mask within TOL.gpu_compose_levels, with and without lens
-distortion, with MSAA 0 and 4, grey and tinted shadows, with and without the occluder.
+distortion, with MSAA 0 and 4, grey and tinted shadows, with and without the occluder, with and without sky
+occlusion (the ground occlusion map's channel, darkening the ground beyond the shadow's mask).
 """
 
 from __future__ import annotations
@@ -34,7 +35,9 @@ def _photo(seed=3):
     return img
 
 
-def _both_paths(ctx, compose, *, dist, aa, caster_spec, light, eye, target, **opts):
+def _both_paths(ctx, paths, *, dist, aa, caster_spec, light, eye, target, **opts):
+    """The frame rendered by each compose path of ``paths`` (None: numpy and shader) in a session of its own:
+    ``(photo, {path: (composite, mask, report item)})``."""
     from arshadow.frame.session import Session
     from arshadow.geometry.mesh import load_occluder
     from arshadow.lights.spec import parse_light
@@ -46,7 +49,7 @@ def _both_paths(ctx, compose, *, dist, aa, caster_spec, light, eye, target, **op
     pose = look_at_pose(eye, target)
     photo = _photo()
     results = {}
-    for path in ("cpu", "gpu"):
+    for path in paths or ("cpu", "gpu"):
         scene = Scene(
             intr, caster, [parse_light(light)], RenderOptions(aa=aa, compose=path, **opts), {"marker_length": 0.05}
         )
@@ -107,6 +110,130 @@ def test_shader_compose_equals_numpy_compose(ctx, tol, case, dist, aa):
     outside = np.ones((H, W), bool)
     outside[y0 : y0 + h, x0 : x0 + w] = False
     assert np.array_equal(o_gpu[outside], photo[outside]) and not np.any(m_gpu[outside])
+
+
+#: sky occlusion on ("on" whatever the light): a tinted shadow, the ground's reflected light (negative sky
+#: occlusion beside the lit faces: ``exposure_gain`` turns the bounce's measurement on), no object drawn
+SKY_CASES = {
+    "box_point_sky_tinted": dict(
+        CASES["box_point"], ambient_occlusion="on", opacity=0.8, shadow_color=(0.25, 0.3, 0.4)
+    ),
+    "box_point_sky_bounce": dict(CASES["box_point"], ambient_occlusion="on", exposure_gain=(1.2, 1.1, 1.0)),
+    "sphere_sky_no_occluder": dict(CASES["sphere_no_occluder"], ambient_occlusion="on", opacity=0.6),
+}
+
+
+@pytest.mark.parametrize("aa", [0, 4])
+@pytest.mark.parametrize("dist", [(), (-0.25, 0.05, 0.001, -0.002, 0.0)], ids=["pinhole", "distorted"])
+@pytest.mark.parametrize("case", sorted(SKY_CASES))
+def test_shader_compose_equals_numpy_compose_with_sky_occlusion(ctx, tol, case, dist, aa):
+    """The shader composites the sky-occlusion channel as the numpy path does (composite._darken_sky), over
+    the same region: the sky darkens (or, with the reflected light, brightens) the ground beyond the mask."""
+    photo, res = _both_paths(ctx, None, dist=dist, aa=aa, **SKY_CASES[case])
+    (o_cpu, m_cpu, i_cpu), (o_gpu, m_gpu, i_gpu) = res["cpu"], res["gpu"]
+    assert i_cpu.plan["ambient_occlusion"].startswith("on") and i_gpu.plan["ambient_occlusion"].startswith("on")
+    assert i_cpu.roi == i_gpu.roi and i_cpu.canvas == i_gpu.canvas
+    # what the sky term changes: the numpy composite of the same frame without sky occlusion
+    off = _both_paths(ctx, ("cpu",), dist=dist, aa=aa, **{**SKY_CASES[case], "ambient_occlusion": "off"})
+    o_off = off[1]["cpu"][0]
+    sky = np.abs(o_cpu.astype(np.int16) - o_off).max(axis=2) > tol.gpu_compose_levels
+    assert np.count_nonzero(sky & (m_cpu == 0)) > 2000  # beyond the shadow's mask too
+    if "bounce" in case:  # the ground's reflected light: brighter than without sky occlusion somewhere
+        assert np.count_nonzero(o_cpu.astype(np.int16).sum(axis=2) - o_off.astype(np.int16).sum(axis=2) > 3) > 100
+    d = np.abs(o_gpu.astype(np.int16) - o_cpu)
+    dm = np.abs(m_gpu.astype(np.int16) - m_cpu)
+    print(
+        f"\n{case} {dist} aa={aa}: sky changes {np.count_nonzero(sky)} px; photo max {d.max()} "
+        f"({np.count_nonzero(d)} values), mask max {dm.max()} ({np.count_nonzero(dm)})"
+    )
+    assert int(d.max()) <= tol.gpu_compose_levels
+    assert int(dm.max()) <= tol.gpu_compose_levels
+    x0, y0, w, h = i_cpu.roi
+    outside = np.ones((H, W), bool)
+    outside[y0 : y0 + h, x0 : x0 + w] = False
+    assert np.array_equal(o_gpu[outside], photo[outside]) and not np.any(m_gpu[outside])
+
+
+def _sky_session(ctx, chooser=None, renderer=None, **opts):
+    """A Session of the box_point case with sky occlusion on (compose "auto" unless ``opts`` say), its pose."""
+    from arshadow.frame.session import Session
+    from arshadow.geometry.mesh import load_occluder
+    from arshadow.lights.spec import parse_light
+    from arshadow.scene.spec import RenderOptions, Scene
+    from arshadow.synth.markers import look_at_pose
+
+    c = CASES["box_point"]
+    options = RenderOptions(**{"compose": "auto", "ambient_occlusion": "on", **opts})
+    scene = Scene(_intrinsics(), load_occluder(c["caster_spec"]), [parse_light(c["light"])], options, {})
+    s = Session(scene, context=ctx, renderer=renderer)
+    if chooser is not None:
+        s.hooks.compose_chooser = chooser
+    return s, look_at_pose(c["eye"], c["target"])
+
+
+def test_a_frame_with_sky_occlusion_may_take_the_shader_path(ctx):
+    """Sky occlusion no longer forces the numpy path: the chooser's choice for the frame's key is taken, and
+    the plan records it with the measurement (a key of its own: sky occlusion is part of it)."""
+    from arshadow.gl.gpu_compose import PathChooser
+    from arshadow.plan.planner import MEASURED
+
+    decisions: dict = {}
+    s, pose = _sky_session(ctx, PathChooser(decisions=decisions, time_software=True))
+    with s:
+        key = s.hooks.compose_key(W, H, False)
+        with _sky_session(ctx, ambient_occlusion="off")[0] as plain:
+            assert plain.hooks.compose_key(W, H, False) != key  # measured apart from frames without the sky
+        ms = {"cpu": 5.0, "gpu": 1.0}
+        decisions[key] = {"choice": "gpu", "ms": ms}
+        res = s.render(_photo(), pose)
+        assert res.item.plan["ambient_occlusion"].startswith("on")
+        assert res.item.compose == "gpu" and res.plan.compose == "gpu"
+        assert res.item.plan["compose"] == MEASURED.format(ms=ms)
+        assert np.count_nonzero(res.mask) > 2000
+    # not measured yet: both paths are timed on this frame (on llvmpipe too, as asked), the faster kept
+    decisions.clear()
+    s, pose = _sky_session(ctx, PathChooser(decisions=decisions, time_software=True))
+    with s:
+        res = s.render(_photo(), pose)
+        d = decisions[s.hooks.compose_key(W, H, False)]
+    assert set(d["ms"]) == {"cpu", "gpu"} and res.item.compose == d["choice"]
+    assert res.item.plan["compose"] == MEASURED.format(ms=d["ms"])
+    # forced: taken as asked, with its reason
+    s, pose = _sky_session(ctx, compose="gpu")
+    with s:
+        res = s.render(_photo(), pose)
+    assert res.item.compose == "gpu" and res.item.plan["compose"] == "forced gpu"
+
+
+class _NoSkyOnGpu:
+    """The default renderer, but its GPU layers say they hold no sky channel (a renderer that cannot)."""
+
+    def __init__(self, ctx, options):
+        from arshadow.frame.hooks import default_renderer
+
+        self.inner = default_renderer(ctx, options)
+        self.gpu_layers, self.software, self.backend, self.ctx = True, self.inner.software, "nosky", ctx
+        self.ground_raster = self.inner.ground_raster
+
+    def render(self, request):
+        return self.inner.render(request)
+
+    def render_gpu(self, request):
+        import dataclasses
+
+        return dataclasses.replace(self.inner.render_gpu(request), sky=False)
+
+    def release(self):
+        self.inner.release()
+
+
+def test_the_shader_path_refuses_layers_without_the_frame_sky(ctx):
+    """GPU layers without the sky channel a frame asks for are an error, not a composite without the sky."""
+    from arshadow.errors import UsageError
+
+    s, pose = _sky_session(ctx, renderer=_NoSkyOnGpu, compose="gpu")
+    with s, pytest.raises(UsageError, match="sky occlusion"):
+        s.render(_photo(), pose)
 
 
 def test_gpu_layers_hold_what_the_readback_holds(ctx):

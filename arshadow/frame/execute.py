@@ -24,6 +24,7 @@ import numpy as np
 from .._check import check_shape
 from ..compose.layers import layers_from_warped
 from ..compose.look import Look
+from ..errors import UsageError
 from ..plan.planner import MEASURED
 from ..renderer.request import LightPass, RenderRequest, Shading
 from ..transforms import CV_TO_GL
@@ -64,8 +65,6 @@ LAYERS_WHY = "numpy (layers asked for: the composite and its layers come from th
 OBJECT_SKY: str | None = "uniform"
 #: the shader compositor applies no camera effects
 CAMERA_WHY = "numpy (camera effects: blur and noise are applied by the numpy path)"
-#: the shader compositor has no sky-occlusion channel yet
-SKY_WHY = "numpy (sky occlusion: the sky channel is composited by the numpy path)"
 
 
 class LayerRequest(TypedDict, total=False):
@@ -284,8 +283,6 @@ def _sky_shading(
     outputs.item.plan["ambient_occlusion"] = why  # type: ignore[index]  # a dict: _report_plan made it
     if not on:
         return None
-    if plan.compose not in (None, "cpu"):
-        plan.decide("compose", "cpu", SKY_WHY)
     bounce: tuple[float, ...] = (0.0, 0.0, 0.0)
     if opts.exposure_gain is not None and opts.draw_occluder:
         b = geometry.bounds
@@ -433,6 +430,12 @@ def _compose_gpu(frame: FrameJob, gpu: GpuCompositor, timings: StageTimings) -> 
     t = time.perf_counter()
     lay = frame.renderer.render_gpu(frame.request)
     timings.render += (time.perf_counter() - t) * 1e3
+    sky = frame.request.shading.sky
+    if sky is not None and sky.ground is not None and not lay.sky:
+        raise UsageError(
+            f"{type(frame.renderer).__name__}.render_gpu left out the sky occlusion the frame asks for "
+            "(GpuLayers.sky is False): the shader compose path cannot composite it"
+        )
     ct: dict[str, float] = {}
     t = time.perf_counter()
     gpu.compose(

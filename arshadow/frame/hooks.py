@@ -269,9 +269,10 @@ class EngineHooks:
             cal.reset_trackers()
 
     def compose_key(self, width: int, height: int, distorted: bool) -> tuple[Any, ...]:
-        """The key under which the compose path is measured: (renderer backend, size, anti-aliasing, lens)."""
+        """The key under which the compose path is measured: (renderer backend, size, anti-aliasing, lens, sky
+        occlusion: the numpy path pays for the sky channel per pixel, the shader path hardly)."""
         s = self._session
-        return (s.renderer.backend, int(width), int(height), int(s.options.aa), bool(distorted))
+        return (s.renderer.backend, int(width), int(height), int(s.options.aa), bool(distorted), s.geometry.sky_on)
 
     # -- the exposure match over frames -----------------------------------------------------------------
     def exposure_region(

@@ -1,6 +1,7 @@
 """GPU-resident compositing: lens warp + linear-light composite in a shader, one 8-bit readback.
 
-The numpy path reads the renderer's float layers back (``RGBA16F`` colour, ``RG16F`` mask), warps them
+The numpy path reads the renderer's float layers back (``RGBA16F`` colour, ``RG16F`` mask; with sky occlusion
+``RGBA16F``, its b channel the sky occlusion read back as ``GL_RGB``), warps them
 to the distorted photo with :meth:`arshadow.compose.lens.LensWarp.warp` (``cv2.remap``) and composites them with
 :func:`arshadow.compose.composite.composite`. This module does the same work on the GPU:
 
@@ -11,7 +12,10 @@ to the distorted photo with :meth:`arshadow.compose.lens.LensWarp.warp` (``cv2.r
    calibration, tile by tile as :class:`LensWarp` computes it) gives the pinhole point, the layers are
    sampled bilinearly exactly as ``cv2.remap`` does (coordinates rounded to 1/32 px, border 0), and the
    composite is the numpy path's arithmetic with its own tables (``SRGB_TO_LINEAR`` as a 256-texel float
-   texture, ``LINEAR_TO_SRGB16`` as a 256 x 256 ``R8UI`` texture);
+   texture, ``LINEAR_TO_SRGB16`` as a 256 x 256 ``R8UI`` texture), the sky-occlusion term included when the
+   layers carry it (``GpuLayers.sky``: the warped sky clipped to [-1, 1], the ground keeping
+   ``max(keep - opacity * mask * (1 - tint) - sky * (1 - opacity * (1 - tint)), 0)`` as
+   :func:`arshadow.compose.composite.composite` does; the plan's ROI holds the sky's reach, the map's outline);
 4. one ``glReadPixels`` of the 8-bit ROI straight into the output photo (``GL_PACK_ROW_LENGTH`` = photo
    width, no intermediate copy), and one of the 8-bit mask when asked.
 
@@ -24,7 +28,8 @@ differ by one 8-bit level where a value lies within ~1e-7 of a rounding tie (tes
 
 Which path is faster depends on the backend (llvmpipe runs the shader on the same CPU cores; a GPU runs
 it in microseconds and saves the float readback): :class:`PathChooser` times both on first use per key
-(photo size, anti-aliasing, backend) and keeps numpy unless the shader is clearly (> 15 %) faster.
+(photo size, anti-aliasing, lens, sky occlusion, backend) and keeps numpy unless the shader is clearly (> 15 %)
+faster.
 """
 
 from __future__ import annotations
@@ -183,7 +188,8 @@ class GpuCompositor:
         image : (H, W, 3) uint8
             BGR photo (not modified).
         layers : arshadow.gl.layers.GpuLayers
-            From ``ShadowRenderer.render_gpu(...)`` of ``plan.canvas``.
+            From ``ShadowRenderer.render_gpu(...)`` of ``plan.canvas`` (with its sky occlusion when
+            ``layers.sky``: composited too, with the look's opacity and shadow colour).
         plan : arshadow.plan.FramePlan
             Its ``roi`` ``(x0, y0, w, h)`` int: the photo pixels to composite (inside the photo; the others are
             left as they are in ``out``), and its ``canvas`` ``(u0, v0, w, h)`` int: the pinhole canvas the
@@ -225,6 +231,7 @@ class GpuCompositor:
             lt.update((x0, y0, w, h))
             lt.tex.use(5)
         self._set_uniforms(canvas, (x0, y0, w, h), lens is not None, look)
+        self._set_sky(look, layers.sky)
         uniform(self.prog, "u_gain").value = tuple(
             float(v) for v in np.asarray(color_gain, np.float32).reshape(3)[::-1]
         )
@@ -296,6 +303,15 @@ class GpuCompositor:
             float(v) for v in (np.float32(opacity) * (1.0 - sc[::-1])).astype(np.float32)
         )
         uniform(prog, "u_darken").value = float(opacity) > 0.0
+
+    def _set_sky(self, look: Look, sky: bool) -> None:
+        """The sky-occlusion term's switch and weights (BGR, float32 as ``composite._darken_sky`` makes them:
+        the mask's ``-opacity * (1 - tint)``, the sky's ``opacity * (1 - tint) - 1``)."""
+        prog = self.prog
+        uniform(prog, "u_sky").value = bool(sky)
+        dark = float(look.opacity) * (1.0 - np.asarray(look.shadow_color, np.float64).reshape(3)[::-1])
+        uniform(prog, "u_sky_wm").value = tuple(float(v) for v in (-dark).astype(np.float32))
+        uniform(prog, "u_sky_ws").value = tuple(float(v) for v in (dark - 1.0).astype(np.float32))
 
     def _readback(
         self,

@@ -42,14 +42,20 @@ class GpuLayers:
     color_tex : moderngl.Texture
         ``RGBA16F``: rgb = premultiplied linear occluder colour, a = coverage (as :class:`RenderResult`).
     mask_tex : moderngl.Texture
-        ``RG16F``: r = blocked weight (not yet clipped to [0, 1]), g = ground coverage; ``RGBA16F`` with sky
-        occlusion: b = the share of the sky the object hides from the visible ground.
+        ``RG16F``: r = blocked weight (not yet clipped to [0, 1]), g = ground coverage; ``RGBA16F`` once the
+        renderer has drawn sky occlusion: b = the share of the sky the object hides from the visible ground
+        (not yet clipped to [-1, 1]; meaningful only when ``sky`` is True).
     width, height : int
         The canvas occupies texels ``[0, width) x [0, height)``, OpenGL's bottom-up rows (texel row 0 is
         the canvas's BOTTOM row); the textures may be larger (grown, never shrunk). Valid until the next
         render.
     timings_ms : dict
         ``upload``, ``draw`` (commands issued; not waited for), ``readback`` (0), ``total``.
+    premultiplied : bool
+        The colour is premultiplied by the coverage (the renderers' convention).
+    sky : bool
+        This frame drew its sky occlusion into ``mask_tex``'s b channel (``RenderResult.sky_occlusion`` of the
+        same request): the shader compositor darkens the ground by it (:mod:`arshadow.gl.gpu_compose`).
     """
 
     color_tex: moderngl.Texture
@@ -58,3 +64,4 @@ class GpuLayers:
     height: int
     timings_ms: dict[str, float] = field(default_factory=dict)
     premultiplied: bool = True
+    sky: bool = False

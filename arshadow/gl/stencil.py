@@ -328,6 +328,7 @@ class ShadowRenderer:
                 "readback": 0.0,
                 "total": (t2 - f.t0) * 1e3,
             },
+            sky=f.sky is not None and f.sky.ground is not None,
         )
 
     # ------------------------------------------------------------------ one frame, pass by pass

@@ -309,7 +309,8 @@ class Renderer(Protocol):
 
     ``render(request)`` draws the :class:`RenderRequest` and returns a :class:`RenderResult` of its canvas;
     ``render_gpu(request)`` leaves the layers on the GPU (:class:`arshadow.gl.layers.GpuLayers`, for the
-    shader compose path; only called when ``gpu_layers`` is True); ``release()`` frees its GPU resources.
+    shader compose path; only called when ``gpu_layers`` is True; with the request's sky occlusion drawn, as
+    ``render``'s ``sky_occlusion``, and ``GpuLayers.sky`` True); ``release()`` frees its GPU resources.
 
     Attributes
     ----------

@@ -1,6 +1,6 @@
 """Cost of the issue-28 realism options on one 720p photo (plain script; prints JSON).
 
-    python tests/benchmarks/bench_realism.py [--repeat 15] [--out FILE.json]
+    python tests/benchmarks/bench_realism.py [--repeat 15] [--compose auto|cpu|gpu] [--out FILE.json]
 
 The light sample (samples/probe_shadow.jpg, 1280 x 720): the light measured by ``arshadow light`` with the
 sample's probe, then a 4.5 x 6.5 x 7 cm box rendered with ``light_from`` (a session per configuration,
@@ -8,7 +8,7 @@ frames after the first): everything off (``ambient_occlusion off``, ``camera_eff
 and everything on (plus camera effects). The configurations are interleaved frame by frame so that they see
 the same machine load; per configuration the median, IQR and min of the frame times (ms), and the paired
 ratio to "off" (median and IQR). The first frame of each (the ground occlusion map, the buffers) is
-reported apart (``first_ms``).
+reported apart (``first_ms``); ``compose`` gives each configuration's compose path and its reason.
 """
 
 from __future__ import annotations
@@ -35,6 +35,7 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeat", type=int, default=15)
     ap.add_argument("--out")
+    ap.add_argument("--compose", choices=("auto", "cpu", "gpu"), default="auto", help="the sessions' compose path")
     args = ap.parse_args()
     from arshadow.frame.session import Session
     from arshadow.io import read_image
@@ -47,6 +48,7 @@ def main() -> None:
         "dictionary": "DICT_6X6_250",
         "model": "box:0.045,0.065,0.07",
         "place": (-0.02, 0.1, 0.0),
+        "compose": args.compose,
     }
     with tempfile.TemporaryDirectory() as tmp:
         light = Path(tmp) / "light.json"
@@ -74,7 +76,7 @@ def main() -> None:
             capture_output=True,
         )
         image = read_image(photo)
-        sessions, first, roi = {}, {}, {}
+        sessions, first, roi, compose = {}, {}, {}, {}
         for name, opts in CONFIGS.items():
             s = Session(scene_from_dict({**base, **opts, "light_from": str(light)}))
             t = time.perf_counter()
@@ -91,6 +93,7 @@ def main() -> None:
                 times[name].append((time.perf_counter() - t) * 1e3)
                 stages[name].append(dict(res.item.timings_ms))
                 roi[name] = res.item.roi
+                compose[name] = [res.item.compose, (res.item.plan or {}).get("compose")]
         for s in sessions.values():
             s.close()
     off = np.array(times["off"])
@@ -102,6 +105,7 @@ def main() -> None:
             k: {st: round(float(np.median([d.get(st, 0.0) for d in v])), 2) for st in v[0]} for k, v in stages.items()
         },
         "roi": roi,
+        "compose": compose,
         "ratio_to_off": {
             k: {
                 "median": round(float(np.median(np.array(v) / off)), 3),

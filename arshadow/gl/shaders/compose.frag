@@ -1,13 +1,14 @@
 #version 330 core
-// GPU-resident compositing (arshadow/gl/compose.py): the same arithmetic as arshadow/composite.py
-// composite() + arshadow/lens.py LensWarp.warp(), per photo pixel of the region drawn.
+// GPU-resident compositing (arshadow/gl/gpu_compose.py): the same arithmetic as arshadow/compose/composite.py
+// composite() (the sky-occlusion term of _darken_sky included) + arshadow/compose/lens.py LensWarp.warp(),
+// per photo pixel of the region drawn.
 // Rows: every texture here is indexed by the photo's memory row (row 0 = top row of the photo), except the
 // renderer's layers, whose texel row 0 is the canvas's BOTTOM row (OpenGL order).
 uniform usampler2D u_photo;      // RGB8UI, photo as stored (B, G, R bytes), full photo size
 uniform sampler2D u_decode;      // R32F 256 x 1: 8-bit sRGB code -> linear (SRGB_TO_LINEAR)
 uniform usampler2D u_encode;     // R8UI 256 x 256: round(x * 65535) -> 8-bit sRGB code (LINEAR_TO_SRGB16)
 uniform sampler2D u_color;       // RGBA16F renderer colour (premultiplied linear RGB, coverage)
-uniform sampler2D u_mask;        // RG16F renderer mask (blocked weight, ground coverage)
+uniform sampler2D u_mask;        // RG16F renderer mask (blocked weight, ground coverage); RGBA16F: b = sky
 uniform sampler2D u_lens;        // RG32F undistortion map (pinhole u, v per photo pixel); only if u_use_lens
 uniform bool u_use_lens;
 uniform ivec4 u_canvas;          // (u0, v0, w, h) pinhole canvas
@@ -18,6 +19,9 @@ uniform float u_gray_k;          // float32(-opacity * (1 - shadow_color[0]))
 uniform vec3 u_dark;             // float32(opacity * (1 - shadow_color)) in B, G, R order
 uniform bool u_darken;           // mask present and opacity > 0
 uniform vec3 u_gain;             // gain on the occluder's colour in B, G, R order (exposure match)
+uniform bool u_sky;              // the mask's b channel holds the sky occlusion (GpuLayers.sky)
+uniform vec3 u_sky_wm;           // float32(-opacity * (1 - shadow_color)) in B, G, R order: the mask's weight
+uniform vec3 u_sky_ws;           // float32(opacity * (1 - shadow_color) - 1) in B, G, R order: the sky's weight
 layout(location = 0) out vec4 o_rgb;   // RGBA8: (B, G, R, 255) / 255 (read back as GL_RGB -> BGR bytes)
 layout(location = 1) out vec4 o_mask;  // R8: round(255 * mask) / 255
 
@@ -25,9 +29,10 @@ vec4 fetch_c(ivec2 p) {   // canvas texel with BORDER_CONSTANT 0
     if (p.x < 0 || p.y < 0 || p.x >= u_canvas.z || p.y >= u_canvas.w) return vec4(0.0);
     return texelFetch(u_color, p, 0);
 }
-float fetch_m(ivec2 p) {
-    if (p.x < 0 || p.y < 0 || p.x >= u_canvas.z || p.y >= u_canvas.w) return 0.0;
-    return clamp(texelFetch(u_mask, p, 0).r, 0.0, 1.0);
+vec2 fetch_m(ivec2 p) {   // (mask clipped to [0, 1] as the readback is, sky occlusion as drawn)
+    if (p.x < 0 || p.y < 0 || p.x >= u_canvas.z || p.y >= u_canvas.w) return vec2(0.0);
+    vec4 t = texelFetch(u_mask, p, 0);
+    return vec2(clamp(t.r, 0.0, 1.0), t.b);
 }
 
 void main() {
@@ -40,7 +45,7 @@ void main() {
         return;
     }
     vec4 c;
-    float m;
+    vec2 ms;   // (mask, sky occlusion), warped
     if (u_use_lens) {
         // LensWarp.warp(bottom_up=True): map_x = mx - u0, map_y = (h - 1 + v0) - my (float32), then
         // cv2.convertMaps(CV_16SC2) rounds to 1/32 px and cv2.remap interpolates bilinearly, border 0
@@ -57,14 +62,15 @@ void main() {
         float w01 = (1.0 - f.x) * f.y, w11 = f.x * f.y;
         c = fetch_c(i0) * w00 + fetch_c(i0 + ivec2(1, 0)) * w10 + fetch_c(i0 + ivec2(0, 1)) * w01
             + fetch_c(i0 + ivec2(1, 1)) * w11;
-        m = fetch_m(i0) * w00 + fetch_m(i0 + ivec2(1, 0)) * w10 + fetch_m(i0 + ivec2(0, 1)) * w01
+        ms = fetch_m(i0) * w00 + fetch_m(i0 + ivec2(1, 0)) * w10 + fetch_m(i0 + ivec2(0, 1)) * w01
             + fetch_m(i0 + ivec2(1, 1)) * w11;
     } else {
         // no lens: the canvas is the photo's pixel grid; canvas row r (top-down) is texel row h - 1 - r
         ivec2 t = ivec2(px.x - u_canvas.x, u_canvas.w - 1 - (px.y - u_canvas.y));
         c = fetch_c(t);
-        m = fetch_m(t);
+        ms = fetch_m(t);
     }
+    float m = ms.x;
     // composite(): linear light, B, G, R order as the numpy path
     vec3 lin = vec3(texelFetch(u_decode, ivec2(int(bgr.r), 0), 0).r,
                     texelFetch(u_decode, ivec2(int(bgr.g), 0), 0).r,
@@ -73,7 +79,13 @@ void main() {
     // colour, so it is subtracted from the uncovered share (composite.py: no seam along the contact)
     float keep = u_occluder ? 1.0 - c.a : 1.0;
     float g = keep;
-    if (u_darken) {
+    if (u_sky) {
+        // _darken_sky: keep - opacity * mask * (1 - tint) - sky * (1 - opacity * (1 - tint)), clipped at 0,
+        // the warped sky clipped to [-1, 1] first (numpy_compose.py), whatever the opacity
+        float s = clamp(ms.y, -1.0, 1.0);
+        lin *= max(vec3(keep) + vec3(m) * u_sky_wm + vec3(s) * u_sky_ws, vec3(0.0));
+        g = 1.0;
+    } else if (u_darken) {
         if (u_gray) {
             g = max(m * u_gray_k + keep, 0.0);
         } else {
