@@ -178,6 +178,13 @@ class Tolerances:
     )
     psf_sigma_px: float = 0.15  # marker-edge blur vs the synthetic photo's linear-light Gaussian (0..3 px)
     noise_sigma_rel: float = 0.1  # measured noise sigma vs the added one (with quantisation), relative
+    # the compose paths' sensor noise vs the measured table, per 16-level bin of ~5000 samples (standard error
+    # of the sigma 1 %): sigma (with the rounding's 1/12 level^2) within 5 % (numpy's add_noise measured
+    # <= 3.0 %, the shader <= 2.5 %), the mean within 4 standard errors of the bin's (sd / sqrt(n)), and the
+    # correlation of neighbouring pixels and of two channels (standard error 0.003) within 0.02
+    noise_table_sigma_rel: float = 0.05
+    noise_table_mean_se: float = 4.0
+    noise_corr_abs: float = 0.02
     sky_projection_abs: float = 0.02  # rendered sky-occlusion channel vs the map sampled at the pixel's ground point
     texture_median_abs: float = 0.01  # rendered textured quad vs cv2.warpPerspective of its texture (linear)
     texture_p99_abs: float = 0.05

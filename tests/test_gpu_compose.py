@@ -4,7 +4,8 @@ Both paths are fed the same render of the same canvas; the numpy path's result i
 tested against hand values and analytic oracles in test_composite.py / test_lens.py / test_pipeline.py).
 The shader must give the same 8-bit photo and mask within TOL.gpu_compose_levels, with and without lens
 distortion, with MSAA 0 and 4, grey and tinted shadows, with and without the occluder, with and without sky
-occlusion (the ground occlusion map's channel, darkening the ground beyond the shadow's mask).
+occlusion (the ground occlusion map's channel, darkening the ground beyond the shadow's mask), with the
+camera effects' blur; the shader's sensor noise is checked against the measured table, as numpy's is.
 """
 
 from __future__ import annotations
@@ -154,7 +155,7 @@ def test_shader_compose_equals_numpy_compose_with_sky_occlusion(ctx, tol, case, 
     assert np.array_equal(o_gpu[outside], photo[outside]) and not np.any(m_gpu[outside])
 
 
-def _sky_session(ctx, chooser=None, renderer=None, **opts):
+def _sky_session(ctx, chooser=None, renderer=None, dist=(), **opts):
     """A Session of the box_point case with sky occlusion on (compose "auto" unless ``opts`` say), its pose."""
     from arshadow.frame.session import Session
     from arshadow.geometry.mesh import load_occluder
@@ -164,7 +165,7 @@ def _sky_session(ctx, chooser=None, renderer=None, **opts):
 
     c = CASES["box_point"]
     options = RenderOptions(**{"compose": "auto", "ambient_occlusion": "on", **opts})
-    scene = Scene(_intrinsics(), load_occluder(c["caster_spec"]), [parse_light(c["light"])], options, {})
+    scene = Scene(_intrinsics(dist), load_occluder(c["caster_spec"]), [parse_light(c["light"])], options, {})
     s = Session(scene, context=ctx, renderer=renderer)
     if chooser is not None:
         s.hooks.compose_chooser = chooser
@@ -275,6 +276,172 @@ def test_gpu_layers_hold_what_the_readback_holds(ctx):
             np.testing.assert_array_equal(m[..., 1], ref.ground_coverage)
             np.testing.assert_array_equal(c[..., 3], ref.alpha)
             np.testing.assert_array_equal(c[..., :3], ref.color)
+
+
+def _executed(ctx, camera, paths, *, dist=(), out=None, chooser=None, **opts):
+    """The box_point frame composited by :func:`arshadow.frame.execute.execute` with the camera effects
+    ``camera`` (a CameraEffects: the session measures them on a tracked photo; here they are given), by each
+    compose path of ``paths`` (``"measure"``: both, timed by ``chooser``): ``{path: (composite, mask, item)}``."""
+    return {path: _executed_by(ctx, camera, path, dist, out, chooser, opts) for path in paths}
+
+
+def _executed_by(ctx, camera, path, dist, out, chooser, opts):
+    from arshadow.compose.composite import Workspace
+    from arshadow.frame.execute import FrameContext, FrameOutputs, execute
+    from arshadow.gl.gpu_compose import GpuCompositor
+    from arshadow.plan.planner import decide_compose
+
+    s, pose = _sky_session(ctx, chooser, dist=dist, **{"aa": 4, "ambient_occlusion": "off", **opts})
+    made = []
+
+    def gpu():
+        if not made:
+            made.append(GpuCompositor(s.renderer.ctx))
+        return made[0]
+
+    with s:
+        plan = s.plan(pose, W, H)
+        decide_compose(plan, force=None if path == "measure" else path, shader_available=True)
+        context = FrameContext(
+            geometry=s.geometry,
+            renderer=lambda: s.renderer,
+            work=Workspace(),
+            calibration=s.hooks.calibration,
+            compose_key=s.hooks.compose_key,
+            chooser=s.hooks.compose_chooser,
+            gpu=gpu,
+        )
+        outputs = FrameOutputs(out=out)
+        composite, mask = execute(plan, _photo() if out is None else out, context, outputs, camera=camera)
+        for g in made:
+            g.release()
+    return composite.copy(), mask, outputs.item
+
+
+@pytest.mark.parametrize("sigma", [0.8, 2.4])
+@pytest.mark.parametrize("sky", ["off", "on"])
+@pytest.mark.parametrize("dist", [(), (-0.25, 0.05, 0.001, -0.002, 0.0)], ids=["pinhole", "distorted"])
+def test_shader_compose_blurs_the_layers_as_the_numpy_path(ctx, tol, dist, sky, sigma):
+    """Camera effects' blur (the photo's point-spread width) on the shader path: the warped layers (shadow,
+    sky occlusion, object) blurred by the same Gaussian over the ROI grown by its reach, equal to the numpy
+    path's composite within one level; the frame takes the shader path as decided (no forced numpy)."""
+    from arshadow.frame.effects import CameraEffects
+
+    cam = CameraEffects(sigma, ())  # blur only: the noise is compared statistically (below)
+    res = _executed(ctx, cam, ("cpu", "gpu"), dist=dist, ambient_occlusion=sky)
+    plain = _executed(ctx, None, ("cpu",), dist=dist, ambient_occlusion=sky)["cpu"][0]
+    (o_cpu, m_cpu, i_cpu), (o_gpu, m_gpu, i_gpu) = res["cpu"], res["gpu"]
+    assert i_gpu.compose == "gpu" and i_gpu.plan["compose"] == "forced gpu"
+    assert i_cpu.plan["camera_effects"]["blur_sigma_px"] == sigma
+    # the blur really changes the photo, where nothing was composited without it too
+    blurred = np.abs(o_cpu.astype(np.int16) - plain).max(axis=2) > tol.gpu_compose_levels
+    untouched = np.all(plain == _photo(), axis=2)
+    assert np.count_nonzero(blurred) > 2000 and np.count_nonzero(blurred & untouched) > 100
+    d = np.abs(o_gpu.astype(np.int16) - o_cpu)
+    dm = np.abs(m_gpu.astype(np.int16) - m_cpu)
+    print(
+        f"\nblur {sigma} sky {sky} {dist}: {np.count_nonzero(blurred)} px blurred; photo max {d.max()} "
+        f"({np.count_nonzero(d)}), mask max {dm.max()} ({np.count_nonzero(dm)})"
+    )
+    assert int(d.max()) <= tol.gpu_compose_levels
+    assert int(dm.max()) <= tol.gpu_compose_levels
+
+
+def test_in_place_composite_with_camera_blur_while_the_chooser_times_both_paths(ctx, tol):
+    """The blur writes beyond the plan's ROI: every timed run must start from the untouched photo there too
+    (the grown region), not from the previous run's composite."""
+    from arshadow.frame.effects import CameraEffects
+    from arshadow.gl.gpu_compose import PathChooser
+
+    cam = CameraEffects(2.4, ())
+    ref = _executed(ctx, cam, ("cpu",))["cpu"][0]
+    photo = np.array(_photo())
+    chooser = PathChooser(decisions={}, time_software=True)
+    res = _executed(ctx, cam, ("measure",), out=photo, chooser=chooser)["measure"]
+    assert res[0] is not None and set(next(iter(chooser.decisions.values()))["ms"]) == {"cpu", "gpu"}
+    assert res[2].compose in ("cpu", "gpu")
+    lim = 0 if res[2].compose == "cpu" else tol.gpu_compose_levels
+    assert int(np.abs(photo.astype(np.int16) - ref).max()) <= lim
+
+
+def _noise_stats(tol, noisy, clean, table, rows, half):
+    """Check the noise ``noisy - clean`` (8-bit) against ``table (1, 256, 3)``: over ``rows`` (full coverage)
+    per channel and 16-level bin of the clean code, its sigma (with the rounding's 1/12) and mean; there,
+    neighbours and channels uncorrelated; over ``half`` (coverage 0.5), half the sigma. Returns the worst
+    relative sigma error."""
+    d, c = noisy[half].astype(np.float64) - clean[half], clean[half]
+    for ch in range(3):
+        want = np.sqrt(np.mean(0.25 * table[0, c[:, :, ch], ch].astype(np.float64) ** 2) + 1 / 12)
+        assert abs(d[:, :, ch].std() / want - 1) <= tol.noise_table_sigma_rel, (ch, d[:, :, ch].std(), want)
+    d = noisy[rows].astype(np.float64) - clean[rows]
+    c = clean[rows]
+    worst, bins = 0.0, 0
+    for ch in range(3):
+        for lo in range(16, 224, 16):  # clear of the clipping at 0 and 255
+            sel = (c[:, :, ch] >= lo) & (c[:, :, ch] < lo + 16)
+            if np.count_nonzero(sel) < 3000:
+                continue
+            want = np.sqrt(np.mean(table[0, c[:, :, ch][sel], ch].astype(np.float64) ** 2) + 1 / 12)
+            got = d[:, :, ch][sel]
+            worst = max(worst, abs(got.std() / want - 1))
+            assert abs(got.std() / want - 1) <= tol.noise_table_sigma_rel, (ch, lo, got.std(), want)
+            assert abs(got.mean()) <= tol.noise_table_mean_se * got.std() / np.sqrt(got.size), (ch, lo, got.mean())
+            bins += 1
+    assert bins >= 36  # the ramp covers the levels in every channel
+    for a, b in ((d[:, :-1, 0], d[:, 1:, 0]), (d[:-1, :, 1], d[1:, :, 1]), (d[:, :, 0], d[:, :, 2])):
+        assert abs(np.corrcoef(a.ravel(), b.ravel())[0, 1]) <= tol.noise_corr_abs
+    return worst
+
+
+def test_shader_noise_matches_the_measured_table(ctx, tol):
+    """The shader path's sensor noise where the object covers: per level and channel the sigma of the
+    measured table (as numpy's add_noise, checked by the same rule), zero mean, independent between pixels
+    and channels, none where nothing is drawn, the same for the same photo."""
+    from arshadow.compose.composite import srgb_to_linear
+    from arshadow.compose.look import Look
+    from arshadow.estimate.optics import NoiseEstimate
+    from arshadow.frame.effects import CameraEffects, add_noise
+    from arshadow.gl.gpu_compose import GpuCompositor
+    from arshadow.gl.layers import GpuLayers
+    from arshadow.plan.planner import FramePlan
+
+    w, h, top, half = 512, 256, 32, 96
+    # the object covers all but the top rows with a ramp of every code (B rising, G falling, R rising), half
+    # of rows top..half (premultiplied colour), all of the rows below
+    lin = srgb_to_linear(np.linspace(0.0, 1.0, w))
+    rgba = np.zeros((h, w, 4), np.float32)  # bottom-up rows, as the renderer's
+    rgba[:, :, 0], rgba[:, :, 1], rgba[:, :, 2], rgba[:, :, 3] = lin, lin[::-1], lin, 1.0
+    rgba[h - half : h - top] *= 0.5
+    rgba[h - top :] = 0.0
+    color = ctx.texture((w, h), 4, data=rgba.astype(np.float16).tobytes(), dtype="f2")
+    mask = ctx.texture((w, h), 2, data=np.zeros((h, w, 2), np.float16).tobytes(), dtype="f2")
+    layers = GpuLayers(color, mask, w, h)
+    plan = FramePlan(size=(w, h), cam_from_world=np.eye(4), znear=0.1, roi=(0, 0, w, h), canvas=(0, 0, w, h))
+    paper = NoiseEstimate(np.array([2.0, 3.0, 4.0]) / 255, np.full(3, 0.2), 100)
+    floor = NoiseEstimate(np.array([5.0, 6.0, 9.0]) / 255, np.full(3, 0.8), 100)
+    cam = CameraEffects(0.0, (paper, floor))
+    photo = np.random.default_rng(1).integers(0, 256, (h, w, 3), dtype=np.uint8)
+    gpu = GpuCompositor(ctx)
+    try:
+        clean = gpu.compose(photo, layers, plan, Look())
+        noisy = gpu.compose(photo, layers, plan, Look(camera=cam))
+        again = gpu.compose(photo, layers, plan, Look(camera=cam))
+        other = gpu.compose(photo[::-1].copy(), layers, plan, Look(camera=cam))
+    finally:
+        gpu.release()
+        color.release()
+        mask.release()
+    assert np.array_equal(noisy, again)  # reproducible per photo
+    assert np.array_equal(noisy[:top], clean[:top])  # nothing drawn: the photo's own noise only
+    assert not np.array_equal(other[top:] - clean[top:], noisy[top:] - clean[top:])  # seeded by the photo
+    worst_gpu = _noise_stats(tol, noisy, clean, cam.noise_table, slice(half, None), slice(top, half))
+    # the numpy path's noise on the same composite passes the same rule
+    ref = clean.copy()
+    alpha = np.ones((h, w), np.float32)
+    alpha[:top], alpha[top:half] = 0.0, 0.5
+    add_noise(ref, alpha, cam.noise_table, cam.noise_seed(photo))
+    worst_cpu = _noise_stats(tol, ref, clean, cam.noise_table, slice(half, None), slice(top, half))
+    print(f"\nworst sigma error: shader {worst_gpu:.4f}, numpy {worst_cpu:.4f}")
 
 
 def test_path_chooser_times_both_and_keeps_the_faster():

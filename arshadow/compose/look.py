@@ -51,7 +51,7 @@ class Look:
     draw_occluder: bool = True
     color_gain: np.ndarray | None = None
     #: the photo's measured blur and noise applied to the inserted layers (:mod:`arshadow.frame.effects`,
-    #: ``--camera-effects on``; the numpy compositor), None: none
+    #: ``--camera-effects on``; both compositors: the shader one in :mod:`arshadow.gl.gpu_effects`), None: none
     camera: CameraEffects | None = None
 
     @classmethod

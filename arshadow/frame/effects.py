@@ -21,7 +21,7 @@ import numpy as np
 from ..errors import EstimateError
 from ..estimate.optics import NoiseEstimate, measure_blur, measure_noise, noise_at
 
-__all__ = ["CameraEffects", "add_noise", "blur_layers", "measure_camera", "noise_table", "pad_for"]
+__all__ = ["CameraEffects", "add_noise", "blur_kernel", "blur_layers", "measure_camera", "noise_table", "pad_for"]
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -36,6 +36,22 @@ class CameraEffects:
     def noise_table(self) -> np.ndarray | None:
         """:func:`noise_table` of the measured noise (made once per scene, not per frame); None without it."""
         return noise_table(self.noise) if self.noise else None
+
+    @functools.cached_property
+    def blur_kernel(self) -> np.ndarray | None:
+        """:func:`blur_kernel` of the measured blur (the shader path's); None without blur."""
+        return blur_kernel(self.blur_px)
+
+    @property
+    def pad(self) -> int:
+        """Pixels the blur reaches beyond the layers' content (:func:`pad_for`)."""
+        return pad_for(self.blur_px)
+
+    @staticmethod
+    def noise_seed(image: np.ndarray) -> int:
+        """The noise's seed for the photo ``image (H, W, 3) uint8``: the sum of a sparse grid of its values
+        (reproducible per photo, different between photos and video frames)."""
+        return int(np.asarray(image[::61, ::53], np.int64).sum())
 
     def report(self) -> dict[str, object]:
         """The measured values for the report (noise sigma in 8-bit units, per channel B, G, R)."""
@@ -117,6 +133,22 @@ def add_noise(region: np.ndarray, alpha: np.ndarray, noise: Sequence[NoiseEstima
     n += region
     np.clip(np.round(n, out=n), 0, 255, out=n)
     region[...] = n.astype(np.uint8)
+
+
+def blur_kernel(sigma: float) -> np.ndarray | None:
+    """``(k,) float32``: the Gaussian :func:`blur_layers` applies (``cv2.GaussianBlur`` of ``float32`` layers
+    with ``ksize`` (0, 0): ``k = round(8 sigma + 1) | 1``, :func:`cv2.getGaussianKernel`); None for
+    ``sigma <= 0``.
+
+    >>> k = blur_kernel(1.5)
+    >>> k.size, round(float(k.sum()), 6), bool(k[6] == k.max())
+    (13, 1.0, True)
+    """
+    if sigma <= 0:
+        return None
+    k = int(round(float(sigma) * 8.0 + 1.0)) | 1
+    kernel: np.ndarray = cv2.getGaussianKernel(k, float(sigma), cv2.CV_32F).ravel()
+    return kernel
 
 
 def pad_for(sigma: float) -> int:

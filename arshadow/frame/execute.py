@@ -5,7 +5,8 @@
 per light, warps the result's layers into the photo's ROI (:class:`arshadow.compose.lens.LensWarp`, or a flip
 without distortion) and composites them by the path the plan names: numpy
 (:func:`arshadow.frame.numpy_compose.compose_cpu`: :func:`arshadow.compose.composite.composite`, camera effects,
-the frame's layers) or shaders (:class:`arshadow.gl.gpu_compose.GpuCompositor`).
+the frame's layers) or shaders (:class:`arshadow.gl.gpu_compose.GpuCompositor`: the composite with the sky
+occlusion and the camera effects; not the frame's layers).
 
 Mask (CONVENTIONS.md)
     ``(H, W) uint8``: ``round(255 * blocked weight / total weight)`` at pixels that see the ground and are
@@ -22,6 +23,7 @@ from typing import TYPE_CHECKING, Any, TypedDict
 import numpy as np
 
 from .._check import check_shape
+from ..compose.composite import clip_roi
 from ..compose.layers import layers_from_warped
 from ..compose.look import Look
 from ..errors import UsageError
@@ -63,8 +65,6 @@ LAYERS_WHY = "numpy (layers asked for: the composite and its layers come from th
 #: much, so vertical faces took too much of the floor's colour); with them right it halves the object's
 #: residual on the path-traced reference (own set, tracked pose: median 0.108 -> 0.065; docs/reference.md)
 OBJECT_SKY: str | None = "uniform"
-#: the shader compositor applies no camera effects
-CAMERA_WHY = "numpy (camera effects: blur and noise are applied by the numpy path)"
 
 
 class LayerRequest(TypedDict, total=False):
@@ -256,8 +256,6 @@ def execute(
     )
     if camera is not None:
         outputs.item.plan["camera_effects"] = camera.report()  # type: ignore[index]  # _report_plan's dict
-        if plan.compose not in (None, "cpu"):
-            plan.decide("compose", "cpu", CAMERA_WHY)
     _run_compose(frame, context)
     return out, mask_full
 
@@ -384,7 +382,7 @@ def _run_compose(frame: FrameJob, context: FrameContext) -> None:
     chooser times both on this frame and keeps the faster for its key)."""
     plan, image, out, mask_full = frame.plan, frame.image, frame.out, frame.mask_full
     timings, item = frame.outputs.timings, frame.outputs.item
-    x0, y0, w, h = plan.roi
+    x0, y0, w, h = _touched(frame)
     choice = plan.compose or "cpu"
     why = next((d.reason for d in reversed(plan.decisions) if d.name == "compose"), "")  # as plan.compose
     clean = None  # the photo's ROI each timed run starts from (below)
@@ -422,6 +420,14 @@ def _run_compose(frame: FrameJob, context: FrameContext) -> None:
     timings.add(used)
     item.compose = choice
     item.plan["compose"] = why  # type: ignore[index]  # a dict: _report_plan made it
+
+
+def _touched(frame: FrameJob) -> tuple[int, int, int, int]:
+    """The photo pixels either compose path may write: the plan's ROI, grown by the camera blur's reach."""
+    x0, y0, w, h = (int(v) for v in frame.plan.roi)
+    p = 0 if frame.look.camera is None else frame.look.camera.pad
+    H, W = frame.image.shape[:2]
+    return clip_roi((x0 - p, y0 - p, w + 2 * p, h + 2 * p), W, H)
 
 
 def _compose_gpu(frame: FrameJob, gpu: GpuCompositor, timings: StageTimings) -> None:

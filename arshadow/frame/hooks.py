@@ -270,9 +270,19 @@ class EngineHooks:
 
     def compose_key(self, width: int, height: int, distorted: bool) -> tuple[Any, ...]:
         """The key under which the compose path is measured: (renderer backend, size, anti-aliasing, lens, sky
-        occlusion: the numpy path pays for the sky channel per pixel, the shader path hardly)."""
+        occlusion, camera effects: the numpy path pays for the sky channel and the effects per pixel, the
+        shader path hardly)."""
         s = self._session
-        return (s.renderer.backend, int(width), int(height), int(s.options.aa), bool(distorted), s.geometry.sky_on)
+        effects = s.options.camera_effects == "on"
+        return (
+            s.renderer.backend,
+            int(width),
+            int(height),
+            int(s.options.aa),
+            bool(distorted),
+            s.geometry.sky_on,
+            effects,
+        )
 
     # -- the exposure match over frames -----------------------------------------------------------------
     def exposure_region(

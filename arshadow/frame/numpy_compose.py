@@ -115,10 +115,9 @@ def _composite_cpu(frame: FrameJob, wp: _Warped) -> None:
     x0, y0, w, h = wp.roi
     alpha, mask = wp.overlay.alpha, wp.overlay.mask
     if look.camera is not None and look.draw_occluder and alpha is not None:
-        seed = int(np.asarray(frame.image[::61, ::53], np.int64).sum())  # per photo, reproducible
         table = look.camera.noise_table
         if table is not None:
-            add_noise(frame.out[y0 : y0 + h, x0 : x0 + w], alpha, table, seed)
+            add_noise(frame.out[y0 : y0 + h, x0 : x0 + w], alpha, table, look.camera.noise_seed(frame.image))
     if frame.mask_full is not None and mask is not None:  # the mask is wanted
         m = frame.work.get("mask255", (h, w), np.float32)
         np.multiply(mask, np.float32(255.0), out=m)

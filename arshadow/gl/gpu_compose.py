@@ -16,6 +16,8 @@ to the distorted photo with :meth:`arshadow.compose.lens.LensWarp.warp` (``cv2.r
    layers carry it (``GpuLayers.sky``: the warped sky clipped to [-1, 1], the ground keeping
    ``max(keep - opacity * mask * (1 - tint) - sky * (1 - opacity * (1 - tint)), 0)`` as
    :func:`arshadow.compose.composite.composite` does; the plan's ROI holds the sky's reach, the map's outline);
+   with camera effects (``look.camera``) the warped layers are first written into float textures over the ROI
+   grown by the blur's reach and blurred there, and the sensor noise is added (:mod:`arshadow.gl.gpu_effects`);
 4. one ``glReadPixels`` of the 8-bit ROI straight into the output photo (``GL_PACK_ROW_LENGTH`` = photo
    width, no intermediate copy), and one of the 8-bit mask when asked.
 
@@ -23,13 +25,14 @@ Rows: the photo, the lens map and the output are stored with texel row = photo m
 so neither upload nor readback flips anything; only the renderer's layers are bottom-up (OpenGL).
 
 Parity with the numpy path: the same float32 operations in the same order on the same table values;
-left-over differences come from the order of the bilinear sum and fused multiply-adds, so a pixel may
-differ by one 8-bit level where a value lies within ~1e-7 of a rounding tie (tests/test_gpu_compose.py).
+left-over differences come from the order of the bilinear (and the blur's) sums and fused multiply-adds, so a
+pixel may differ by one 8-bit level where a value lies within ~1e-7 of a rounding tie (tests/test_gpu_compose.py).
+The sensor noise is the exception: the same distribution, not the same random numbers.
 
 Which path is faster depends on the backend (llvmpipe runs the shader on the same CPU cores; a GPU runs
 it in microseconds and saves the float readback): :class:`PathChooser` times both on first use per key
-(photo size, anti-aliasing, lens, sky occlusion, backend) and keeps numpy unless the shader is clearly (> 15 %)
-faster.
+(photo size, anti-aliasing, lens, sky occlusion, camera effects, backend) and keeps numpy unless the shader is
+clearly (> 15 %) faster.
 """
 
 from __future__ import annotations
@@ -41,11 +44,12 @@ from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
 
-from ..compose.composite import LINEAR_TO_SRGB16, SRGB_TO_LINEAR
+from ..compose.composite import LINEAR_TO_SRGB16, SRGB_TO_LINEAR, clip_roi
 from ..compose.look import Look
 from ..errors import ShapeError, UsageError
 from . import glraw as G
 from .context import current
+from .gpu_effects import LayerBlur, NoiseTexture
 from .layers import GpuLayers
 from .resources import program, uniform
 
@@ -99,6 +103,12 @@ class _LensTexture:
         self.tex.release()
 
 
+def _grown(roi: tuple[int, int, int, int], pad: int, width: int, height: int) -> tuple[int, int, int, int]:
+    """``roi (x0, y0, w, h)`` grown by ``pad`` px on each side, within a ``width`` x ``height`` photo."""
+    x0, y0, w, h = roi
+    return clip_roi((x0 - pad, y0 - pad, w + 2 * pad, h + 2 * pad), width, height)
+
+
 class GpuCompositor:
     """Composites :class:`~arshadow.gl.layers.GpuLayers` into a photo on the GPU (one per context).
 
@@ -126,6 +136,8 @@ class GpuCompositor:
         self._mask: moderngl.Texture | None = None
         self._fbo: moderngl.Framebuffer | None = None
         self._lens: dict[int, _LensTexture] = {}
+        self._blur: LayerBlur | None = None  # the camera effects' (made on first use)
+        self._noise: NoiseTexture | None = None
         self._released = False
 
     @current
@@ -136,6 +148,10 @@ class GpuCompositor:
         for lt in self._lens.values():
             lt.release()
         self._lens.clear()
+        for fx in (self._blur, self._noise):
+            if fx is not None:
+                fx.release()
+        self._blur = self._noise = None
         for o in (self.vao, self._dec, self._enc):
             o.release()
         self._released = True
@@ -157,6 +173,7 @@ class GpuCompositor:
         self._mask = ctx.texture((width, height), 1, dtype="f1")
         for t in (self._photo, self._out, self._mask):
             t.filter = (ctx.NEAREST, ctx.NEAREST)
+        ctx.detect_framebuffer(0).use()  # moderngl rebinds "its" current framebuffer, maybe one released since
         self._fbo = ctx.framebuffer(color_attachments=[self._out, self._mask])
         self._size = (width, height)
 
@@ -196,7 +213,9 @@ class GpuCompositor:
             layers hold (``w, h`` = ``layers.width, layers.height``).
         look : arshadow.compose.look.Look
             Opacity, shadow colour (linear RGB), whether the object is drawn, the exposure gain, as the numpy
-            :func:`arshadow.compose.composite.composite` takes them.
+            :func:`arshadow.compose.composite.composite` takes them, and the camera effects (``look.camera``,
+            :mod:`arshadow.gl.gpu_effects`): with a blur the region composited (and read back) is the ROI grown
+            by the blur's reach (``look.camera.pad``), within the photo.
         lens : arshadow.compose.lens.LensWarp, optional
             With a distorted calibration: the photo pixel's pinhole point comes from its map.
             Without: the canvas is the photo's own pixel grid.
@@ -212,7 +231,6 @@ class GpuCompositor:
         out : (H, W, 3) uint8
         """
         roi, canvas = plan.roi, plan.canvas
-        color_gain = (1.0, 1.0, 1.0) if look.color_gain is None else tuple(float(v) for v in look.color_gain)
         if self._released:
             raise UsageError("this GpuCompositor has been released")
         H, W = image.shape[:2]
@@ -225,33 +243,62 @@ class GpuCompositor:
         self._ensure_size(W, H)
         photo, fbo = self._photo, self._fbo
         assert photo is not None and fbo is not None  # made by _ensure_size
-        photo.write(np.ascontiguousarray(image[y0 : y0 + h, x0 : x0 + w]).data, viewport=(x0, y0, w, h))
+        cam = look.camera
+        kernel = None if cam is None else cam.blur_kernel
+        # the region composited: the ROI, grown by the blur's reach (the numpy path's _blurred)
+        region = (x0, y0, w, h) if kernel is None or cam is None else _grown((x0, y0, w, h), cam.pad, W, H)
+        rx, ry, rw, rh = region
+        photo.write(np.ascontiguousarray(image[ry : ry + rh, rx : rx + rw]).data, viewport=region)
         if lens is not None:
             lt = self._lens_texture(lens)
             lt.update((x0, y0, w, h))
             lt.tex.use(5)
         self._set_uniforms(canvas, (x0, y0, w, h), lens is not None, look)
         self._set_sky(look, layers.sky)
-        uniform(self.prog, "u_gain").value = tuple(
-            float(v) for v in np.asarray(color_gain, np.float32).reshape(3)[::-1]
-        )
-        photo.use(0)
-        self._dec.use(1)
-        self._enc.use(2)
-        layers.color_tex.use(3)
-        layers.mask_tex.use(4)
-        fbo.use()
-        fbo.viewport = (x0, y0, w, h)
+        self._set_noise(image, look)
         ctx.enable_only(ctx.NOTHING)
+        self._bind(layers)
         t1 = time.perf_counter()
+        if kernel is not None:
+            self._blur_layers(region, kernel)
+            self._bind(layers)  # the blur's passes used units 0-2
+        fbo.use()
+        fbo.viewport = region
         self.vao.render(ctx.TRIANGLES, vertices=3)
         t2 = time.perf_counter()
-        self._readback(fbo, (x0, y0, w, h), W, out, mask_out)
+        self._readback(fbo, region, W, out, mask_out)
         t3 = time.perf_counter()
         if timings is not None:
             for k, v in (("upload", t1 - t0), ("draw", t2 - t1), ("readback", t3 - t2)):
                 timings[k] = timings.get(k, 0.0) + v * 1e3
         return out
+
+    def _bind(self, layers: GpuLayers) -> None:
+        """The compose shader's textures on their units (the lens map, unit 5, is bound by :meth:`compose`)."""
+        assert self._photo is not None  # made by _ensure_size
+        for unit, tex in enumerate((self._photo, self._dec, self._enc, layers.color_tex, layers.mask_tex)):
+            tex.use(unit)
+
+    def _blur_layers(self, region: tuple[int, int, int, int], kernel: np.ndarray) -> None:
+        """The warped layers over ``region`` (stage 1: zeros outside the ROI) into the blur's textures,
+        blurred there (:class:`arshadow.gl.gpu_effects.LayerBlur`); the shader set to composite them
+        (stage 2) over the whole region."""
+        prog, (rx, ry, rw, rh) = self.prog, region
+        if self._blur is None:
+            self._blur = LayerBlur(self.ctx)
+        target = self._blur.target(rw, rh)
+        uniform(prog, "u_stage").value = 1
+        uniform(prog, "u_origin").value = (rx, ry)
+        target.use()
+        target.viewport = (0, 0, rw, rh)
+        self.vao.render(self.ctx.TRIANGLES, vertices=3)
+        color, mask = self._blur.run(kernel, rw, rh)
+        color.use(6)
+        mask.use(7)
+        uniform(prog, "u_stage").value = 2
+        uniform(prog, "u_origin").value = (0, 0)
+        uniform(prog, "u_blurred_origin").value = (rx, ry)
+        uniform(prog, "u_roi").value = region
 
     @staticmethod
     def _checked_out(
@@ -303,6 +350,26 @@ class GpuCompositor:
             float(v) for v in (np.float32(opacity) * (1.0 - sc[::-1])).astype(np.float32)
         )
         uniform(prog, "u_darken").value = float(opacity) > 0.0
+        gain = (1.0, 1.0, 1.0) if look.color_gain is None else tuple(float(v) for v in look.color_gain)
+        uniform(prog, "u_gain").value = tuple(float(v) for v in np.asarray(gain, np.float32).reshape(3)[::-1])
+
+    def _set_noise(self, image: np.ndarray, look: Look) -> None:
+        """The stage (0: warp and composite), the blur's and the noise's texture units, and the noise of
+        ``look.camera`` (with a table and the object drawn, as the numpy path; seeded by the photo)."""
+        prog = self.prog
+        uniform(prog, "u_stage").value = 0
+        uniform(prog, "u_origin").value = (0, 0)
+        uniform(prog, "u_blurred_origin").value = (0, 0)
+        for name, unit in (("u_bl_color", 6), ("u_bl_mask", 7), ("u_noise_tab", 8)):
+            uniform(prog, name).value = unit
+        cam = look.camera
+        table = None if cam is None or not look.draw_occluder else cam.noise_table
+        uniform(prog, "u_noise").value = table is not None
+        if cam is not None and table is not None:
+            uniform(prog, "u_seed").value = cam.noise_seed(image) & 0xFFFFFFFF
+            if self._noise is None:
+                self._noise = NoiseTexture(self.ctx)
+            self._noise.use(table, 8)
 
     def _set_sky(self, look: Look, sky: bool) -> None:
         """The sky-occlusion term's switch and weights (BGR, float32 as ``composite._darken_sky`` makes them:

@@ -414,7 +414,8 @@ def decide_compose(
     shader_available : bool
         The renderer can keep its layers on the GPU and the output buffers are contiguous.
     measured : dict, optional
-        An earlier measurement for this photo size, anti-aliasing, lens, sky occlusion and backend
+        An earlier measurement for this photo size, anti-aliasing, lens, sky occlusion, camera effects and
+        backend
         (:class:`arshadow.gl.gpu_compose.PathChooser` ``decisions[key]``: ``{"choice", "ms"}``).
     software : bool
         The renderer rasterises on the CPU (llvmpipe): the shader path would run on the pipeline's own
@@ -444,6 +445,6 @@ def decide_compose(
     return plan.decide(
         "compose",
         "measure",
-        "not measured yet for this photo size, anti-aliasing, lens, sky occlusion and "
+        "not measured yet for this photo size, anti-aliasing, lens, sky occlusion, camera effects and "
         "backend: both paths are timed on this frame, the faster is kept",
     )
