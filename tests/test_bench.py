@@ -20,16 +20,34 @@ def _rows(path):
         return list(csv.DictReader(f))
 
 
+#: the sections the default suite's quick bench runs: the realism section (the path-traced reference's
+#: scoring, 30-80 s of the run's 70-200 s) has its own default test (test_reference.py::test_realism_bench_rows);
+#: the whole quick bench is the `slow` test below
+DEFAULT_SECTIONS = ("silhouettes", "render", "tracking", "pipeline")
+
+
 def test_bench_quick(tmp_path, gl_ctx):
-    from arshadow.bench import QUICK, SECTIONS
+    _bench_quick(tmp_path, DEFAULT_SECTIONS)
+
+
+@pytest.mark.slow
+def test_bench_quick_every_section(tmp_path, gl_ctx):
+    from arshadow.bench import SECTIONS
+
+    out = _bench_quick(tmp_path, SECTIONS)
+    assert (out / "realism.csv").is_file() and "realism" in (out / "summary.md").read_text().lower()
+
+
+def _bench_quick(tmp_path, sections):
+    from arshadow.bench import QUICK
     from arshadow.bench.plots import available
     from arshadow.cli import main
 
     out = tmp_path / "bench"
-    assert main(["bench", "--quick", "-o", str(out)]) == 0
+    assert main(["bench", "--quick", "--sections", ",".join(sections), "-o", str(out)]) == 0
     res = json.loads((out / "results.json").read_text())
     assert res["meta"]["settings"] == "quick" and res["meta"]["GL_RENDERER"]
-    assert set(res["meta"]["section_seconds"]) == set(SECTIONS)
+    assert set(res["meta"]["section_seconds"]) == set(sections)
 
     det = _rows(out / "silhouette_detectors.csv")
     assert {int(r["faces"]) for r in det} == {12, *QUICK["sizes"]}
@@ -89,3 +107,4 @@ def test_bench_quick(tmp_path, gl_ctx):
             assert f"]({p})" in md  # embedded in the summary
     else:
         assert "pip install arshadow[bench]" in md
+    return out

@@ -154,3 +154,23 @@ def test_sky_channel_darkens_by_the_sky_share():
         composite(photo, Overlay(m, sky=np.zeros_like(s)), look=Look(opacity=1.0, shadow_color=r)),
         composite(photo, Overlay(m), look=Look(opacity=1.0, shadow_color=r)),
     )
+
+
+def test_sky_per_colour_channel_darkens_each_channel_by_its_own_sky():
+    """A per-channel sky (colour bleeding, ``sky_planes``) gives each channel the darkening its own sky plane
+    gives a grey composite: the (h, w, 3) sky composited equals three grey-sky composites, channel by channel."""
+    from arshadow.compose.composite import Overlay, composite, sky_planes
+    from arshadow.compose.look import Look
+
+    rng = np.random.default_rng(5)
+    photo = rng.integers(40, 220, (6, 7, 3), dtype=np.uint8)
+    sky = rng.uniform(-0.2, 0.6, (6, 7)).astype(np.float32)
+    refl = rng.uniform(0.0, 0.3, (6, 7)).astype(np.float32)
+    mask = rng.uniform(0.0, 1.0, (6, 7)).astype(np.float32)
+    bleed = (0.9, -0.2, -0.7)
+    look = Look(opacity=0.8, shadow_color=(0.3, 0.35, 0.45))
+    got = composite(photo, Overlay(mask=mask, sky=sky_planes(sky, refl, bleed)), look=look)
+    for c in range(3):  # RGB channel c is photo channel 2 - c (BGR)
+        one = composite(photo, Overlay(mask=mask, sky=sky - refl * bleed[c]), look=look)
+        assert np.array_equal(got[:, :, 2 - c], one[:, :, 2 - c]), c
+    assert not np.array_equal(got, composite(photo, Overlay(mask=mask, sky=sky), look=look))

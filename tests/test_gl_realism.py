@@ -279,3 +279,37 @@ def test_measured_light_shades_a_vertical_face_with_half_the_sky_and_half_the_gr
     got_top = srgb_to_linear(out[top[1], top[0], ::-1] / 255.0)
     np.testing.assert_allclose(got_top, P, rtol=TOL.object_shade_rel)
     np.testing.assert_allclose(got_side, 0.5 * (r * P + PAPER_ALBEDO * g), rtol=TOL.object_shade_rel)
+
+
+def test_colour_bleeding_sky_channel_per_colour_channel(ctx):
+    # an orange box lit from -x: in front of its lit face the ground gets its reflected light, stronger in
+    # red than in blue. The rendered sky channel is per colour channel, 1 - V - reflected * (1 + bleed_c) with
+    # V + reflected the map's visibility and reflected its bounce part at that ground point (the map sampled
+    # independently of the renderer's projection), bleed the colour over its mean minus 1
+    from dataclasses import replace
+
+    from arshadow.geometry.mesh import load_occluder
+    from arshadow.shading.sky import SkyShading, ground_sky_visibility
+    from arshadow.synth.markers import look_at_pose
+
+    box = load_occluder("box:0.045,0.065,0.07")
+    g = ground_sky_visibility(box, bounce=(np.array([-1.0, 0.0, 1.0]), 0.4, 0.5))
+    assert g.bounce is not None
+    bleed = (0.8, -0.1, -0.7)
+    pose = look_at_pose([-0.3, -0.2, 0.25], [0.0, 0.0, 0.02])
+    r = _renderer(ctx)
+    try:
+        res = _render(r, box, pose, sky=SkyShading(ground=g, bleed=bleed), light=(-1.0, 0.0, 1.0, 0.0))
+        grey = _render(r, box, pose, sky=SkyShading(ground=g), light=(-1.0, 0.0, 1.0, 0.0))
+    finally:
+        r.release()
+    assert res.sky_occlusion is not None and res.sky_occlusion.shape == (H, W, 3)
+    assert grey.sky_occlusion is not None and grey.sky_occlusion.shape == (H, W)
+    pt = np.array([[-0.0225 - 0.006, 0.0]])  # 6 mm in front of the lit -x face
+    vis, refl = g.sample(pt)[0], replace(g, visibility=g.bounce).sample(pt)[0]
+    assert refl > 0.05  # a visible reflection
+    px = _pixel(pose, [pt[0, 0], pt[0, 1], 0.0])
+    expect = 1.0 - (vis - refl) - refl * (1.0 + np.array(bleed))
+    got = res.sky_occlusion[px[1], px[0]]
+    assert np.abs(got - expect).max() <= TOL.sky_projection_abs, (got, expect)
+    assert abs(grey.sky_occlusion[px[1], px[0]] - (1.0 - vis)) <= TOL.sky_projection_abs

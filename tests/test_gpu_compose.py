@@ -121,6 +121,10 @@ SKY_CASES = {
     ),
     "box_point_sky_bounce": dict(CASES["box_point"], ambient_occlusion="on", exposure_gain=(1.2, 1.1, 1.0)),
     "sphere_sky_no_occluder": dict(CASES["sphere_no_occluder"], ambient_occlusion="on", opacity=0.6),
+    # an orange box: its reflected light is orange (colour bleeding, the sky channel per colour channel)
+    "box_point_sky_bounce_orange": dict(
+        CASES["box_point"], ambient_occlusion="on", exposure_gain=(1.2, 1.1, 1.0), occluder_color=(1.0, 0.55, 0.1)
+    ),
 }
 
 
@@ -133,6 +137,7 @@ def test_shader_compose_equals_numpy_compose_with_sky_occlusion(ctx, tol, case, 
     photo, res = _both_paths(ctx, None, dist=dist, aa=aa, **SKY_CASES[case])
     (o_cpu, m_cpu, i_cpu), (o_gpu, m_gpu, i_gpu) = res["cpu"], res["gpu"]
     assert i_cpu.plan["ambient_occlusion"].startswith("on") and i_gpu.plan["ambient_occlusion"].startswith("on")
+    assert ("colour_bleeding" in i_cpu.plan) == ("orange" in case) == ("colour_bleeding" in i_gpu.plan)
     assert i_cpu.roi == i_gpu.roi and i_cpu.canvas == i_gpu.canvas
     # what the sky term changes: the numpy composite of the same frame without sky occlusion
     off = _both_paths(ctx, ("cpu",), dist=dist, aa=aa, **{**SKY_CASES[case], "ambient_occlusion": "off"})

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 import cv2
 import numpy as np
 
-from ..compose.composite import Overlay, clip_roi, composite
+from ..compose.composite import Overlay, clip_roi, composite, sky_planes
 from ..compose.layers import layers_from_warped, pinhole_layers
 from ..compose.look import Look
 from ..renderer.request import RenderLayers, RenderResult
@@ -79,7 +79,10 @@ def _warp_result(frame: FrameJob, res: RenderResult) -> _Warped | None:
         if warped is None:
             return None
         roi, (l0, l1) = warped
-        sky = l1[:, :, 2] if l1.shape[2] > 2 else None
+        sky_shading = frame.request.shading.sky
+        refl = l1[:, :, 3] if l1.shape[2] > 3 else None
+        bleed = sky_shading.bleed if sky_shading is not None else None
+        sky = sky_planes(l1[:, :, 2], refl, bleed) if l1.shape[2] > 2 else None
         # the canvas top-down (views), for undistorted layers
         pin = (layers.mask_ground[::-1, :, 0], layers.rgba[::-1])
         return _Warped(roi, Overlay(l1[:, :, 0], l0, l0[:, :, 3], sky, premultiplied), pin)

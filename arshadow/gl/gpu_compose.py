@@ -254,7 +254,7 @@ class GpuCompositor:
             lt.update((x0, y0, w, h))
             lt.tex.use(5)
         self._set_uniforms(canvas, (x0, y0, w, h), lens is not None, look)
-        self._set_sky(look, layers.sky)
+        self._set_sky(look, layers.sky, layers.bleed)
         self._set_noise(image, look)
         ctx.enable_only(ctx.NOTHING)
         self._bind(layers)
@@ -371,7 +371,7 @@ class GpuCompositor:
                 self._noise = NoiseTexture(self.ctx)
             self._noise.use(table, 8)
 
-    def _set_sky(self, look: Look, sky: bool) -> None:
+    def _set_sky(self, look: Look, sky: bool, bleed: tuple | None = None) -> None:
         """The sky-occlusion term's switch and weights (BGR, float32 as ``composite._darken_sky`` makes them:
         the mask's ``-opacity * (1 - tint)``, the sky's ``opacity * (1 - tint) - 1``)."""
         prog = self.prog
@@ -379,6 +379,8 @@ class GpuCompositor:
         dark = float(look.opacity) * (1.0 - np.asarray(look.shadow_color, np.float64).reshape(3)[::-1])
         uniform(prog, "u_sky_wm").value = tuple(float(v) for v in (-dark).astype(np.float32))
         uniform(prog, "u_sky_ws").value = tuple(float(v) for v in (dark - 1.0).astype(np.float32))
+        b = np.zeros(3, np.float32) if bleed is None else np.asarray(bleed, np.float32).reshape(3)[::-1]
+        uniform(prog, "u_bleed").value = tuple(float(v) for v in b)  # BGR
 
     def _readback(
         self,

@@ -56,6 +56,9 @@ class GpuLayers:
     sky : bool
         This frame drew its sky occlusion into ``mask_tex``'s b channel (``RenderResult.sky_occlusion`` of the
         same request): the shader compositor darkens the ground by it (:mod:`arshadow.gl.gpu_compose`).
+    bleed : (3,) float or None
+        Colour bleeding (``SkyShading.bleed`` when ``SkyShading.colored``): ``mask_tex``'s a channel holds
+        the object's reflected light, the sky channel is ``b - a * bleed`` per colour channel.
     """
 
     color_tex: moderngl.Texture
@@ -65,3 +68,4 @@ class GpuLayers:
     timings_ms: dict[str, float] = field(default_factory=dict)
     premultiplied: bool = True
     sky: bool = False
+    bleed: tuple | None = None

@@ -45,9 +45,11 @@ class GroundSkyPass:
     def __init__(self, ctx: moderngl.Context, occlusion: GroundOcclusion) -> None:
         self.occlusion = occlusion
         self.prog = program(ctx, "sky_ground.vert", "sky_ground.frag")
-        vis = np.ascontiguousarray(occlusion.visibility, dtype=np.float32)
+        vis = np.asarray(occlusion.visibility, dtype=np.float32)
         h, w = vis.shape
-        self.tex = ctx.texture((w, h), 1, vis.tobytes(), dtype="f4")
+        refl = occlusion.bounce if occlusion.bounce is not None else np.zeros_like(vis)
+        data = np.ascontiguousarray(np.dstack([vis, np.asarray(refl, np.float32)]))
+        self.tex = ctx.texture((w, h), 2, data.tobytes(), dtype="f4")
         self.tex.repeat_x = self.tex.repeat_y = False  # clamp to edge: the border's value at the edge
         self.tex.filter = (ctx.LINEAR, ctx.LINEAR)
         x0, y0, x1, y1 = occlusion.extent
@@ -73,8 +75,9 @@ class GroundSkyPass:
     def draw(  # noqa: PLR0913 (the context, its raw GL, the frame's matrix and origin, two stencil bits)
         self, ctx: moderngl.Context, gl: GL, mvp_bytes: bytes, origin: np.ndarray, ground_bit: int, occluder_bit: int
     ) -> None:
-        """Add ``1 - V`` into the mask target's ``b`` where the stencil has the ground bit and not the
-        occluder bit (depth test off: the stencil already says the ground is the visible surface)."""
+        """Add ``1 - V`` into the mask target's ``b`` (and the object's reflected light, the map's ``bounce``,
+        into its ``a``) where the stencil has the ground bit and not the occluder bit (depth test off: the
+        stencil already says the ground is the visible surface)."""
         self._upload(np.asarray(origin, np.float64))
         ctx.enable_only(ctx.BLEND)
         ctx.blend_func = ctx.ONE, ctx.ONE

@@ -61,6 +61,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .._check import check_finite, check_shape
+from ..compose.composite import sky_planes
 from ..errors import UsageError
 from ..renderer.request import MODES, LightPass, RenderLayers, RenderRequest, RenderResult, Shading
 from . import glraw as G
@@ -93,6 +94,15 @@ COUNT_MASK = 0x3F
 #: batched volumes (more layers than a 6-bit count holds): bits 0-4 count one batch, bit 5 ORs the batches
 BATCH_COUNT_MASK = 0x1F
 SHADOWED_BIT = 0x20
+
+
+def _sky_channel(c1: np.ndarray, sky: SkyShading | None) -> np.ndarray:
+    """The result's sky occlusion from the mask target read back top-down ``c1 (h, w, 3|4)``: its b channel,
+    per colour channel with a coloured object's reflected light (a), clipped to [-1, 1]."""
+    refl = c1[..., 3] if c1.shape[2] > 3 else None
+    bleed = sky.bleed if sky is not None else None
+    out: np.ndarray = np.clip(sky_planes(c1[..., 2], refl, bleed), -1.0, 1.0)
+    return out
 
 
 def _object_sky(shading: Shading) -> str | None:
@@ -329,6 +339,7 @@ class ShadowRenderer:
                 "total": (t2 - f.t0) * 1e3,
             },
             sky=f.sky is not None and f.sky.ground is not None,
+            bleed=f.sky.bleed if f.sky is not None and f.sky.ground is not None and f.sky.colored else None,
         )
 
     # ------------------------------------------------------------------ one frame, pass by pass
@@ -632,7 +643,8 @@ class ShadowRenderer:
         t2 = time.perf_counter()
         c0 = np.zeros((height, width, 4), dtype=np.float32)
         sky = f.sky is not None and f.sky.ground is not None
-        c1 = np.empty((height, width, 3 if sky else 2), dtype=np.float32)
+        rgb = sky and f.sky is not None and f.sky.colored
+        c1 = np.empty((height, width, (4 if rgb else 3) if sky else 2), dtype=np.float32)
         gl.glBindBuffer(G.GL_PIXEL_PACK_BUFFER, 0)
         gl.glPixelStorei(G.GL_PACK_ALIGNMENT, 4)
         gl.glBindFramebuffer(G.GL_READ_FRAMEBUFFER, src.fbo)
@@ -644,7 +656,8 @@ class ShadowRenderer:
             gl.glReadPixels(x0, y0, x1 - x0, y1 - y0, G.GL_RGBA, G.GL_FLOAT, c0[y0:, x0:].ctypes.data)
         gl.glPixelStorei(G.GL_PACK_ROW_LENGTH, 0)
         gl.glReadBuffer(G.GL_COLOR_ATTACHMENT0 + 1)
-        gl.glReadPixels(0, 0, width, height, G.GL_RGB if sky else G.GL_RG, G.GL_FLOAT, c1.ctypes.data)
+        fmt = (G.GL_RGBA if rgb else G.GL_RGB) if sky else G.GL_RG
+        gl.glReadPixels(0, 0, width, height, fmt, G.GL_FLOAT, c1.ctypes.data)
         gl.glBindFramebuffer(G.GL_FRAMEBUFFER, 0)
         ctx.screen.use() if ctx.screen is not None else None
         layers = RenderLayers(rgba=c0, mask_ground=c1)  # the raw bottom-up arrays
@@ -662,7 +675,7 @@ class ShadowRenderer:
             ground=gcov > 0.5,
             ground_coverage=gcov,
             layers=layers,
-            sky_occlusion=np.clip(c1[..., 2], -1.0, 1.0) if sky else None,
+            sky_occlusion=_sky_channel(c1, f.sky) if sky else None,
             timings_ms={
                 "upload": (f.t1 - f.t0) * 1e3,
                 "draw": (t2 - f.t1) * 1e3,

@@ -236,6 +236,10 @@ class LightState:
     reuse: str | None = None
 
 
+#: colour bleeding is drawn when a channel of the object's colour differs from its mean by this share or more
+BLEED_MIN = 0.05
+
+
 class SceneGeometry:
     """The CPU geometry of a scene that does not depend on the camera: lights split into hard samples,
     their silhouettes and shadow volumes (built on first use, then reused), the ROI hull points.
@@ -472,6 +476,26 @@ class SceneGeometry:
             col = col / np.maximum(np.asarray(opts.exposure_gain, np.float64), 1e-6)
         ground = float(getattr(self, "_ground_light", None) or 0.0)
         return light, r, PAPER_ALBEDO * float(np.mean(np.clip(col, 0.0, 1.0))), ground
+
+    def object_bleed(self) -> tuple[float, float, float] | None:
+        """Colour bleeding: ``(3,)`` the object's linear RGB colour (``occluder_color`` over the exposure
+        gain, as :meth:`_bounce_light` takes its albedo) over its mean, minus 1; None for a grey object
+        (every channel within :data:`BLEED_MIN` of the mean: the sky channel stays one plane) or a mesh
+        with its own colours or texture (their mean is not modelled: grey)."""
+        from ..compose.composite import srgb_to_linear
+
+        opts = self.options
+        if opts.occluder_color is None or not opts.draw_occluder:
+            return None
+        col = srgb_to_linear(np.asarray(opts.occluder_color, np.float64))
+        if opts.exposure_gain is not None:
+            col = col / np.maximum(np.asarray(opts.exposure_gain, np.float64), 1e-6)
+        col = np.clip(col, 0.0, 1.0)
+        m = float(col.mean())
+        if m <= 0.0 or float(np.max(np.abs(col / m - 1.0))) < BLEED_MIN:
+            return None
+        a, b, c = (float(v) for v in col / m - 1.0)
+        return (a, b, c)
 
     def footprint_rect(
         self, ls: LightState, intr: Intrinsics, cam_from_world: npt.ArrayLike, znear: float

@@ -99,9 +99,10 @@ class RenderLayers:
     ----------
     rgba : (h, w, 4) float32, C-contiguous
         rgb = shaded occluder (linear, premultiplied by a), a = occluder coverage.
-    mask_ground : (h, w, 2|3) float32, C-contiguous
+    mask_ground : (h, w, 2|3|4) float32, C-contiguous
         Channel 0 = blocked light weight in [0, 1] (the shadow mask), channel 1 = ground coverage; channel 2
-        (with sky occlusion only) = the share of the sky the object hides from the visible ground.
+        (with sky occlusion only) = the share of the sky the object hides from the visible ground (less its
+        reflected light); channel 3 (a coloured object's, ``SkyShading.colored``) = that reflected light.
     """
 
     rgba: np.ndarray
@@ -148,7 +149,8 @@ class RenderResult:
     layers: RenderLayers | None = None
     #: (h, w) float32 in [-1, 1] or None: the share of the sky the object hides from the visible ground, less
     #: the light it reflects there over the sky's share (negative beside a lit face; coverage-weighted like
-    #: ``mask``; :mod:`arshadow.shading.sky`), None without sky occlusion
+    #: ``mask``; :mod:`arshadow.shading.sky`), None without sky occlusion; (h, w, 3) linear RGB for a coloured
+    #: object's reflected light (``SkyShading.colored``: colour bleeding, :func:`arshadow.compose.composite.sky_planes`)
     sky_occlusion: np.ndarray | None = None
 
 

@@ -115,7 +115,11 @@ class GroundOcclusion:
     ``visibility[i, j]`` (``(h, w) float32``, 0..1) is the value at the ground point
     ``(x0 + (j + 0.5) * texel, y0 + (i + 0.5) * texel)`` (metres, ground frame); outside the grid the
     object hides less than ``ACTIVE_OCCLUSION[0]`` of the sky and the ground counts as open (1);
-    ``edge_occlusion`` is the largest occlusion on the border of the full square computed.
+    ``edge_occlusion`` is the largest occlusion on the border of the full square computed. ``bounce``
+    (``(h, w) float32`` >= 0, or None without interreflection) is the part of ``visibility`` that is the
+    light the object reflects onto the ground over the sky's share (``visibility`` = sky visibility +
+    ``bounce``), computed for the object's mean albedo: a coloured object's reflected light is ``bounce``
+    times its colour over its mean (colour bleeding, :func:`arshadow.compose.composite.composite`).
     """
 
     x0: float
@@ -125,6 +129,7 @@ class GroundOcclusion:
     n_dirs: int
     sky: str
     edge_occlusion: float  # largest 1 - V on the grid's border
+    bounce: np.ndarray | None = None
 
     @property
     def extent(self) -> tuple[float, float, float, float]:
@@ -190,11 +195,26 @@ class SkyShading:
         Linear RGB light bounced from the ground onto the object, in the renderer's light units: the
         ground's albedo times the open ground's irradiance (``ambient + sum weight * sin(elevation)``);
         multiplied by each vertex's ground view.
+    bleed : (3,) float or None
+        Colour bleeding: the object's linear RGB colour over its mean, minus 1 (the light it reflects onto
+        the ground, ``ground.bounce``, is that much stronger per channel); None: a grey object (the sky
+        channel stays one plane).
+
+    Examples
+    --------
+    >>> SkyShading().colored, SkyShading(bleed=(0.3, -0.1, -0.2)).colored
+    (False, True)
     """
 
     ground: GroundOcclusion | None = None
     object_sky: str | None = "uniform"
     bounce: tuple = (0.0, 0.0, 0.0)
+    bleed: tuple | None = None
+
+    @property
+    def colored(self) -> bool:
+        """The sky channel is per colour channel: a coloured object's reflected light on a map that has it."""
+        return self.bleed is not None and (self.ground is None or self.ground.bounce is not None)
 
 
 def ground_grid(caster: ShadowCaster, resolution: int = 256, margin: float | None = None) -> tuple[float, float, float]:
@@ -302,14 +322,17 @@ def ground_sky_visibility(  # noqa: PLR0913 (the caster, and keyword-only option
     vis = (1.0 - occ * np.clip((occ - t0) / (t1 - t0), 0.0, 1.0)).astype(np.float32)
     (rows,) = np.nonzero((vis < 1.0).any(axis=1))
     (cols,) = np.nonzero((vis < 1.0).any(axis=0))
+    reflected = None
     if acc_b is not None and bounce is not None and float(bounce[1]) > 0:
         b = float(bounce[2]) * acc_b / weights.sum()
-        vis = (vis + (b * np.clip((occ - t0) / (t1 - t0), 0.0, 1.0)) / float(bounce[1])).astype(np.float32)
+        reflected = (b * np.clip((occ - t0) / (t1 - t0), 0.0, 1.0) / float(bounce[1])).astype(np.float32)
+        vis = (vis + reflected).astype(np.float32)
     if rows.size:
         r0, r1 = max(int(rows[0]) - 2, 0), min(int(rows[-1]) + 3, resolution)
         c0, c1 = max(int(cols[0]) - 2, 0), min(int(cols[-1]) + 3, resolution)
         vis, x0, y0 = vis[r0:r1, c0:c1].copy(), x0 + c0 * texel, y0 + r0 * texel
-    return GroundOcclusion(x0, y0, texel, vis, n_dirs, sky, edge)
+        reflected = None if reflected is None else reflected[r0:r1, c0:c1].copy()
+    return GroundOcclusion(x0, y0, texel, vis, n_dirs, sky, edge, reflected)
 
 
 def ground_raster_cpu(

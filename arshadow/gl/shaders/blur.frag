@@ -3,7 +3,7 @@
 // (colour + coverage, mask + sky occlusion; RGBA32F textures of the region) convolved along u_dir with the
 // kernel cv2.GaussianBlur applies to float32 layers, zero beyond the region (BORDER_CONSTANT).
 uniform sampler2D u_src0;        // RGBA32F premultiplied colour, coverage
-uniform sampler2D u_src1;        // RGBA32F (mask, sky occlusion, 0, 0)
+uniform sampler2D u_src1;        // RGBA32F (mask, sky occlusion, its reflected part, 0)
 uniform sampler2D u_kernel;      // R32F (2 r + 1) x 1: cv2.getGaussianKernel(2 r + 1, sigma, CV_32F)
 uniform int u_radius;            // r
 uniform ivec2 u_dir;             // (1, 0): along rows (cv2's row filter, first); (0, 1): along columns

@@ -23,13 +23,14 @@ uniform vec3 u_gain;             // gain on the occluder's colour in B, G, R ord
 uniform bool u_sky;              // the mask's b channel holds the sky occlusion (GpuLayers.sky)
 uniform vec3 u_sky_wm;           // float32(-opacity * (1 - shadow_color)) in B, G, R order: the mask's weight
 uniform vec3 u_sky_ws;           // float32(opacity * (1 - shadow_color) - 1) in B, G, R order: the sky's weight
+uniform vec3 u_bleed;            // colour bleeding (SkyShading.bleed) in B, G, R order; 0: a grey object
 // the stages: 0 warp + composite; 1 warp only, into the float textures of the blur (the region's texel
 // (0, 0) is photo pixel u_origin; zeros outside u_roi); 2 composite the blurred layers (texel = pixel -
 // u_blurred_origin)
 uniform int u_stage;
 uniform ivec2 u_origin;          // photo pixel of the framebuffer's pixel (0, 0)
 uniform sampler2D u_bl_color;    // RGBA32F blurred colour + coverage (stage 2)
-uniform sampler2D u_bl_mask;     // RGBA32F blurred (mask, sky occlusion) (stage 2)
+uniform sampler2D u_bl_mask;     // RGBA32F blurred (mask, sky occlusion, its reflected part) (stage 2)
 uniform ivec2 u_blurred_origin;
 uniform bool u_noise;            // add the sensor noise where the object covers (frame/effects.add_noise)
 uniform sampler2D u_noise_tab;   // RGB32F 256 x 1: noise sigma (8-bit units) per code, B, G, R
@@ -41,14 +42,14 @@ vec4 fetch_c(ivec2 p) {   // canvas texel with BORDER_CONSTANT 0
     if (p.x < 0 || p.y < 0 || p.x >= u_canvas.z || p.y >= u_canvas.w) return vec4(0.0);
     return texelFetch(u_color, p, 0);
 }
-vec2 fetch_m(ivec2 p) {   // (mask clipped to [0, 1] as the readback is, sky occlusion as drawn)
-    if (p.x < 0 || p.y < 0 || p.x >= u_canvas.z || p.y >= u_canvas.w) return vec2(0.0);
+vec3 fetch_m(ivec2 p) {   // (mask clipped to [0, 1] as the readback is, sky occlusion, its reflected part)
+    if (p.x < 0 || p.y < 0 || p.x >= u_canvas.z || p.y >= u_canvas.w) return vec3(0.0);
     vec4 t = texelFetch(u_mask, p, 0);
-    return vec2(clamp(t.r, 0.0, 1.0), t.b);
+    return vec3(clamp(t.r, 0.0, 1.0), t.b, t.a);
 }
 
-// the renderer's layers at photo pixel px: colour + coverage, (mask, sky occlusion)
-void warp(ivec2 px, out vec4 c, out vec2 ms) {
+// the renderer's layers at photo pixel px: colour + coverage, (mask, sky occlusion, its reflected part)
+void warp(ivec2 px, out vec4 c, out vec3 ms) {
     if (u_use_lens) {
         // LensWarp.warp(bottom_up=True): map_x = mx - u0, map_y = (h - 1 + v0) - my (float32), then
         // cv2.convertMaps(CV_16SC2) rounds to 1/32 px and cv2.remap interpolates bilinearly, border 0
@@ -93,13 +94,13 @@ void main() {
     ivec2 px = ivec2(gl_FragCoord.xy) + u_origin;   // photo pixel (x, memory row y)
     bool inside = px.x >= u_roi.x && px.y >= u_roi.y && px.x < u_roi.x + u_roi.z && px.y < u_roi.y + u_roi.w;
     vec4 c;
-    vec2 ms;   // (mask, sky occlusion), warped (and blurred in stage 2)
+    vec3 ms;   // (mask, sky occlusion, its reflected part), warped (and blurred in stage 2)
     if (u_stage == 1) {
         c = vec4(0.0);
-        ms = vec2(0.0);
+        ms = vec3(0.0);
         if (inside) warp(px, c, ms);
         o_rgb = c;
-        o_mask = vec4(ms, 0.0, 0.0);
+        o_mask = vec4(ms, 0.0);
         return;
     }
     uvec3 bgr = texelFetch(u_photo, px, 0).rgb;
@@ -110,7 +111,7 @@ void main() {
     }
     if (u_stage == 2) {
         c = texelFetch(u_bl_color, px - u_blurred_origin, 0);
-        ms = texelFetch(u_bl_mask, px - u_blurred_origin, 0).rg;
+        ms = texelFetch(u_bl_mask, px - u_blurred_origin, 0).rgb;
     } else {
         warp(px, c, ms);
     }
@@ -126,8 +127,9 @@ void main() {
     if (u_sky) {
         // _darken_sky: keep - opacity * mask * (1 - tint) - sky * (1 - opacity * (1 - tint)), clipped at 0,
         // the warped sky clipped to [-1, 1] first (numpy_compose.py), whatever the opacity
-        float s = clamp(ms.y, -1.0, 1.0);
-        lin *= max(vec3(keep) + vec3(m) * u_sky_wm + vec3(s) * u_sky_ws, vec3(0.0));
+        // (per colour channel with a coloured object's reflected light: composite.sky_planes)
+        vec3 s = clamp(vec3(ms.y) - vec3(ms.z) * u_bleed, -1.0, 1.0);
+        lin *= max(vec3(keep) + vec3(m) * u_sky_wm + s * u_sky_ws, vec3(0.0));
         g = 1.0;
     } else if (u_darken) {
         if (u_gray) {
