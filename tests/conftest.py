@@ -168,6 +168,7 @@ class Tolerances:
     falloff_rel: float = (
         0.01  # a point light's shaded term vs albedo cos |L|^2 / d^2 (float32 shading, per-vertex normals)
     )
+    mean_albedo_rel: float = 0.01  # a textured mesh's sampled mean colour vs its texture's mean (0.6 % measured)
     object_shade_rel: float = 0.012  # measured light, box face vs the physics (8-bit: ~0.5 %/level)
     sky_raster_mean: float = 0.004  # GL vs numpy ground map, mean |difference| (tori: 0.0009, 0.0022 measured)
     sky_raster_p99: float = 0.03  # GL vs numpy ground map, 99th percentile |difference| (0.012, 0.027 measured)

@@ -4,6 +4,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import TOL
 
 from arshadow.geometry.mesh import load_occluder
 
@@ -92,3 +93,32 @@ def test_measured_light_keeps_a_textured_mesh_textured():
     assert plain.color == (0.6, 0.6, 0.6) and plain.albedo_gain == (1.0, 1.0, 1.0)
     # an explicit colour (no material_gain) wins over the texture
     assert frame_shading(RenderOptions(occluder_color=(0.6, 0.6, 0.6)), load_occluder(DATA / "quad.glb"), None).color
+
+
+@pytest.mark.parametrize("name", ["quad.glb", "quad.obj"])
+def test_mean_albedo_of_a_textured_mesh_is_its_textures_mean(name):
+    """The textured square covers its whole texture once: its area-weighted mean colour (what it reflects onto
+    the ground: colour bleeding) is the decoded texture's plain mean (times the base colour), within the
+    sampling's error (1024 points per face on two faces)."""
+    c = load_occluder(DATA / name)
+    m = c.material
+    expect = np.asarray(m.base_color, np.float64)[:3] * np.asarray(m.texture, np.float64).reshape(-1, 3).mean(axis=0)
+    np.testing.assert_allclose(c.mean_albedo, expect, rtol=TOL.mean_albedo_rel)
+
+
+def test_a_coloured_mesh_bleeds_its_own_colour_and_a_grey_one_none():
+    """Colour bleeding takes the mesh's own colours when no colour is given: a red vertex-coloured mesh bleeds
+    red (its linear colour over its mean, minus 1), the default grey box and a grey override none."""
+    from arshadow.plan.scene_geometry import SceneGeometry
+    from arshadow.scene.options import RenderOptions
+
+    red = load_occluder("box:0.05,0.05,0.05")
+    red = type(red)(red.vertices, red.faces, vertex_colors=np.tile([200, 40, 40], (len(red.vertices), 1)))
+    lin = np.array([200, 40, 40]) / 255.0
+    lin = np.where(lin <= 0.04045, lin / 12.92, ((lin + 0.055) / 1.055) ** 2.4)
+    got = SceneGeometry(red, RenderOptions()).object_bleed()
+    assert got is not None
+    np.testing.assert_allclose(got, lin / lin.mean() - 1.0, rtol=1e-6)  # colours stored as float32
+    assert SceneGeometry(load_occluder("box:0.05,0.05,0.05"), RenderOptions()).object_bleed() is None
+    grey = RenderOptions(occluder_color=(0.5, 0.5, 0.5))
+    assert SceneGeometry(red, grey).object_bleed() is None

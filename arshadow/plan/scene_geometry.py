@@ -460,7 +460,6 @@ class SceneGeometry:
         without the exposure gain, times :data:`arshadow.shading.decide.PAPER_ALBEDO`), the ground's reflected light (its albedo times
         its irradiance, a share of the open ground's: :meth:`set_ground_light`, 0 until measured); None
         without a light or a sky share."""
-        from ..compose.composite import srgb_to_linear
         from ..shading.decide import sky_share
 
         opts = self.options
@@ -471,26 +470,34 @@ class SceneGeometry:
         light = h[:3] if h[3] == 0 else h[:3] / h[3] - 0.5 * (self.bounds[0] + self.bounds[1])
         if light[2] <= 0:
             return None
-        col = srgb_to_linear(np.asarray(opts.occluder_color if opts.occluder_color is not None else (0.8, 0.8, 0.8)))
-        if opts.occluder_color is not None and opts.exposure_gain is not None:
-            col = col / np.maximum(np.asarray(opts.exposure_gain, np.float64), 1e-6)
+        col = self._object_albedo()
         ground = float(getattr(self, "_ground_light", None) or 0.0)
-        return light, r, PAPER_ALBEDO * float(np.mean(np.clip(col, 0.0, 1.0))), ground
+        return light, r, PAPER_ALBEDO * float(np.mean(col)), ground
 
-    def object_bleed(self) -> tuple[float, float, float] | None:
-        """Colour bleeding: ``(3,)`` the object's linear RGB colour (``occluder_color`` over the exposure
-        gain, as :meth:`_bounce_light` takes its albedo) over its mean, minus 1; None for a grey object
-        (every channel within :data:`BLEED_MIN` of the mean: the sky channel stays one plane) or a mesh
-        with its own colours or texture (their mean is not modelled: grey)."""
+    def _object_albedo(self) -> np.ndarray:
+        """``(3,) float64`` the object's linear colour relative to the paper: ``occluder_color`` over the exposure
+        gain (the option holds the colour times the gain), else the mesh's own mean colour
+        (:attr:`arshadow.geometry.caster.ShadowCaster.mean_albedo`), else the renderer's default grey."""
         from ..compose.composite import srgb_to_linear
 
         opts = self.options
-        if opts.occluder_color is None or not opts.draw_occluder:
+        if opts.occluder_color is not None:
+            col = srgb_to_linear(np.asarray(opts.occluder_color, np.float64))
+            if opts.exposure_gain is not None:
+                col = col / np.maximum(np.asarray(opts.exposure_gain, np.float64), 1e-6)
+        else:
+            own = self.caster.mean_albedo
+            col = own if own is not None else srgb_to_linear(np.array([0.8, 0.8, 0.8]))
+        out: np.ndarray = np.clip(np.asarray(col, np.float64), 0.0, 1.0)
+        return out
+
+    def object_bleed(self) -> tuple[float, float, float] | None:
+        """Colour bleeding: ``(3,)`` the object's linear RGB colour (:meth:`_object_albedo`: the option's
+        colour, or the mesh's own mean colour or texture) over its mean, minus 1; None for a grey object
+        (every channel within :data:`BLEED_MIN` of the mean: the sky channel stays one plane)."""
+        if not self.options.draw_occluder:
             return None
-        col = srgb_to_linear(np.asarray(opts.occluder_color, np.float64))
-        if opts.exposure_gain is not None:
-            col = col / np.maximum(np.asarray(opts.exposure_gain, np.float64), 1e-6)
-        col = np.clip(col, 0.0, 1.0)
+        col = self._object_albedo()
         m = float(col.mean())
         if m <= 0.0 or float(np.max(np.abs(col / m - 1.0))) < BLEED_MIN:
             return None
