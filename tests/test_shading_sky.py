@@ -191,21 +191,46 @@ def test_object_raster_matches_rays_on_a_torus():
     assert s_ref.min() < 0.3 and s_ref.max() > 0.9  # the test sees occluded and open points
 
 
-def test_ground_light_reflected_by_the_object_back_onto_the_ground():
-    # the ground lights the box's faces from below ((1 - n_z) / 2 of the ground's reflected light g: 1/2 on
-    # a vertical face), and they reflect it back: in front of the unlit -x face every blocked sky direction
-    # sees that face, so the map rises by albedo * g / 2 * (1 - V) / r there, V the exact (Lambert) sky
-    # visibility; without the ground's light (the old model) the path tracer's sphere and box halos came
-    # out too dark (docs/reference.md)
+def _reflected_light_rise(raster=None):
+    """The box's map in front of its -x face with and without the ground's light, and the rise expected: the
+    light from +x at 45 degrees (the face unlit, the box's shadow on the ground in front of it); every blocked
+    sky direction there sees that face, so the map rises by ``albedo g S (1 - V) / r``, V the exact (Lambert)
+    sky visibility and S the face's view of the ground counted at the ground's irradiance, ``(1 - r) lit(q) +
+    r V(q)`` at each ground point q it sees (lit: outside the box's exact shadow; the ground beside a box is
+    darker than the open ground the ring measures). S here: 2000 cosine-weighted rays from the face's centre
+    (Malley's method), each ground point's V by Lambert's form factor. Returns ``(rise, expected rise, S)``."""
     c = load_occluder(BOX_SPEC)
     light, r, albedo, g = np.array([1.0, 0.0, 1.0]), 0.4, 0.5, 0.3
-    pts = np.array([(-0.0225 - d, 0.0) for d in (0.003, 0.01, 0.02)])
-    v = np.array([box_ground_visibility(np.r_[q, 0.0], *BOX) for q in pts])
-    without = ground_sky_visibility(c, bounce=(light, r, albedo)).sample(pts)
-    with_g = ground_sky_visibility(c, bounce=(light, r, albedo, g)).sample(pts)
-    expect = albedo * g / 2 * (1.0 - v) / r
-    assert np.abs((with_g - without) - expect).max() <= TOL.sky_ground_abs, ((with_g - without), expect)
-    assert np.all(expect > 0.05)  # a visible change
+    wx, wy, hz = BOX
+    rng = np.random.default_rng(3)
+    rad, ang = np.sqrt(rng.uniform(0, 1, 2000)), rng.uniform(0, 2 * np.pi, 2000)
+    local = np.c_[rad * np.cos(ang), rad * np.sin(ang), np.sqrt(1 - rad**2)]  # cosine lobe about +z
+    d = np.c_[-local[:, 2], local[:, 0], local[:, 1]]  # about the face's normal -x
+    centre = np.array([-wx / 2, 0.0, hz / 2])
+    down = d[:, 2] < 0
+    q = centre + (-centre[2] / d[down, 2])[:, None] * d[down]
+    # the box's shadow under a light along (1, 0, 1): |y| <= wy / 2 and -wx / 2 - hz <= x <= wx / 2
+    lit = ~((np.abs(q[:, 1]) <= wy / 2) & (q[:, 0] >= -wx / 2 - hz) & (q[:, 0] <= wx / 2))
+    e_ground = np.array(
+        [(1 - r) * lt + r * box_ground_visibility(np.r_[p[:2], 0.0], *BOX) for p, lt in zip(q, lit, strict=True)]
+    )
+    seen = down.mean() * e_ground.mean()
+    pts = np.array([(-wx / 2 - dd, 0.0) for dd in (0.003, 0.01, 0.02)])
+    v = np.array([box_ground_visibility(np.r_[p, 0.0], *BOX) for p in pts])
+    without = ground_sky_visibility(c, bounce=(light, r, albedo), raster=raster).sample(pts)
+    with_g = ground_sky_visibility(c, bounce=(light, r, albedo, g), raster=raster).sample(pts)
+    return with_g - without, albedo * g * seen * (1.0 - v) / r, seen
+
+
+def test_ground_light_reflected_by_the_object_back_onto_the_ground():
+    # the ground lights the box's faces from below, and they reflect it back (_reflected_light_rise). Without
+    # the ground's light (the old model) the path tracer's sphere and box halos came out too dark; with the
+    # open ground's (S = 1/2 for a vertical face) the ground right beside round objects too bright
+    # (docs/reference.md)
+    rise, expect, seen = _reflected_light_rise()
+    assert np.abs(rise - expect).max() <= TOL.sky_ground_abs, (rise, expect)
+    assert np.all(expect > 0.03)  # a visible change
+    assert 0.25 < seen < 0.45  # the ground it sees is darker than the open ground (1/2)
 
 
 # -- the GPU rasteriser (arshadow.gl.sky.GLGroundRaster) against the same closed forms -------------------------
@@ -239,14 +264,8 @@ def test_gl_ground_under_a_raised_plate_matches_the_rectangle_view_factor(gl_ras
 def test_gl_ground_light_reflected_by_the_object_matches_lambert(gl_raster):
     # as test_ground_light_reflected_by_the_object_back_onto_the_ground: the depth test picks the face a
     # ground point sees first (the numpy path paints faces farthest first)
-    c = load_occluder(BOX_SPEC)
-    light, r, albedo, g = np.array([1.0, 0.0, 1.0]), 0.4, 0.5, 0.3
-    pts = np.array([(-0.0225 - d, 0.0) for d in (0.003, 0.01, 0.02)])
-    v = np.array([box_ground_visibility(np.r_[q, 0.0], *BOX) for q in pts])
-    without = ground_sky_visibility(c, bounce=(light, r, albedo), raster=gl_raster).sample(pts)
-    with_g = ground_sky_visibility(c, bounce=(light, r, albedo, g), raster=gl_raster).sample(pts)
-    expect = albedo * g / 2 * (1.0 - v) / r
-    assert np.abs((with_g - without) - expect).max() <= TOL.sky_ground_abs, ((with_g - without), expect)
+    rise, expect, _ = _reflected_light_rise(gl_raster)
+    assert np.abs(rise - expect).max() <= TOL.sky_ground_abs, (rise, expect)
 
 
 def test_gl_and_numpy_rasters_agree_on_a_mesh_through_the_ground(gl_raster):

@@ -310,8 +310,12 @@ def ground_sky_visibility(  # noqa: PLR0913 (the caster, and keyword-only option
     grid = GroundGrid(x0, y0, texel, resolution)
     dirs = cosine_directions(n_dirs)
     weights = sky_radiance(dirs, sky)
-    face_e = _face_irradiance(caster, bounce) if bounce is not None else None
-    acc, acc_b = (raster or ground_raster_cpu)(caster, dirs, weights, grid, face_e)
+    rast = raster or ground_raster_cpu
+    seen = None
+    if bounce is not None and len(bounce) > 3 and float(bounce[3]) > 0:
+        seen = _ground_seen(caster, bounce, rast, dirs, weights, grid)
+    face_e = _face_irradiance(caster, bounce, seen) if bounce is not None else None
+    acc, acc_b = rast(caster, dirs, weights, grid, face_e)
     vis = _fill_under((acc / weights.sum()).astype(np.float32))
     border = np.concatenate([vis[0], vis[-1], vis[:, 0], vis[:, -1]])
     edge = float(1.0 - border.min())
@@ -374,16 +378,57 @@ def ground_raster_cpu(
     return acc, acc_b
 
 
-def _face_irradiance(caster: ShadowCaster, bounce: tuple) -> np.ndarray:
+def _face_irradiance(caster: ShadowCaster, bounce: tuple, seen: np.ndarray | None = None) -> np.ndarray:
     """``(m,)``: each face's irradiance as a share of the open ground's (direct on its lit side + sky + the
     light the ground reflects up to it: the path tracer's ground -> object -> ground path, which lights a box's
-    shadowed faces and a sphere's underside about as much as the sky does)."""
+    shadowed faces and a sphere's underside about as much as the sky does). ``seen (m,)``: each face's view of
+    the ground weighted by the ground's irradiance there (:func:`_ground_seen`); None: open ground,
+    ``(1 - n_z) / 2``."""
     light, r = np.asarray(bounce[0], np.float64), float(bounce[1])
     light = light / np.linalg.norm(light)
     n = caster.face_planes[:, :3]
     direct = (1.0 - r) * np.maximum(n @ light, 0.0) / max(float(light[2]), 1e-3)
     g = float(bounce[3]) if len(bounce) > 3 else 0.0
-    return direct + r * (1.0 + n[:, 2]) / 2.0 + g * (1.0 - n[:, 2]) / 2.0
+    view = (1.0 - n[:, 2]) / 2.0 if seen is None else seen
+    out: np.ndarray = direct + r * (1.0 + n[:, 2]) / 2.0 + g * view
+    return out
+
+
+#: cosine-weighted directions per face for :func:`_ground_seen`
+GROUND_SEEN_DIRS = 64
+
+
+def _ground_seen(  # noqa: PLR0913 (the caster, its light, the map's rasteriser and its grid)
+    caster: ShadowCaster, bounce: tuple, rast: GroundRaster, dirs: np.ndarray, weights: np.ndarray, grid: GroundGrid
+) -> np.ndarray:
+    """``(m,)``: each face's view of the ground, each ground point counted at its irradiance as a share of the
+    open ground's, ``(1 - r) lit + r V``: the ground under and beside an object is in its shadow and sees less
+    sky, so its lower faces get less of the ground's light than the open ground's ring measures. ``V`` is the
+    map's sky visibility and ``lit`` the direct light's (one direction, ``bounce[0]``), both rasterised on the
+    map's grid; each face looks along :data:`GROUND_SEEN_DIRS` cosine-weighted directions from its centre and
+    the ones that reach the ground read it there (1 off the grid, the object itself not counted as a blocker).
+    Open ground everywhere gives ``(1 - n_z) / 2``."""
+    light, r = np.asarray(bounce[0], np.float64), float(bounce[1])
+    light = light / np.linalg.norm(light)
+    acc, _ = rast(caster, dirs, weights, grid, None)
+    lit, _ = rast(caster, light[None], np.ones(1), grid, None)
+    e = ((1.0 - r) * lit + r * _fill_under((acc / weights.sum()).astype(np.float32))).astype(np.float32)
+    ground = GroundOcclusion(grid.x0, grid.y0, grid.texel, e, 0, "uniform", 0.0)
+    n = caster.face_planes[:, :3]
+    c = caster.vertices[caster.faces].mean(axis=1)
+    base = cosine_directions(GROUND_SEEN_DIRS)  # about +z, rotated onto each face's normal below
+    # an orthonormal frame per face: t, b, n
+    helper = np.where(np.abs(n[:, 2:3]) < 0.9, np.array([[0.0, 0.0, 1.0]]), np.array([[1.0, 0.0, 0.0]]))
+    t = np.cross(helper, n)
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    b = np.cross(n, t)
+    d = base[None, :, 0:1] * t[:, None, :] + base[None, :, 1:2] * b[:, None, :] + base[None, :, 2:3] * n[:, None, :]
+    down = d[..., 2] < -1e-6  # (m, k) directions that reach the ground
+    tz = np.where(down, -np.maximum(c[:, None, 2], 0.0) / np.where(down, d[..., 2], -1.0), 0.0)
+    q = c[:, None, :2] + tz[..., None] * d[..., :2]
+    val = ground.sample(q.reshape(-1, 2)).reshape(q.shape[:2])
+    out: np.ndarray = np.where(down, val, 0.0).sum(axis=1) / len(base)
+    return out
 
 
 def _bounce_image(caster: ShadowCaster, d: np.ndarray, face_e: np.ndarray, grid: tuple) -> np.ndarray:
