@@ -25,6 +25,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .._check import check_shape
+from ..compose.composite import srgb_to_linear
 from ..errors import MeshError, ShapeError
 
 if TYPE_CHECKING:  # an annotation only (mesh.py sets it)
@@ -37,31 +38,6 @@ def _readonly(a: np.ndarray) -> np.ndarray:
     a = np.ascontiguousarray(a)
     a.flags.writeable = False
     return a
-
-
-@functools.lru_cache(maxsize=8)
-def _barycentric_samples(level: int) -> np.ndarray:
-    """``(level^2, 3)`` barycentric centroids of a triangle split into ``level^2`` equal triangles."""
-    pts = []
-    for i in range(level):
-        for j in range(level - i):
-            pts.append(((i + 1 / 3) / level, (j + 1 / 3) / level))  # upright sub-triangle
-            if i + j < level - 1:
-                pts.append(((i + 2 / 3) / level, (j + 2 / 3) / level))  # inverted one
-    a = np.array(pts, np.float64)
-    out: np.ndarray = np.c_[1.0 - a.sum(axis=1), a]
-    return out
-
-
-#: texture samples for :attr:`ShadowCaster.mean_albedo`: about this many in all, each face split into
-#: ``L x L`` triangles sampled at their centroids, ``L`` from 8 (64 per face) to 32 (1024 per face)
-ALBEDO_SAMPLES = 1 << 20
-
-
-def _srgb_decode(x: np.ndarray) -> np.ndarray:
-    """sRGB-encoded 0..1 -> linear (the renderer's decoding of mesh colours)."""
-    out: np.ndarray = np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4)
-    return out
 
 
 def _as_rgba(colors: npt.ArrayLike | None, count: int, name: str) -> np.ndarray | None:
@@ -271,8 +247,8 @@ class ShadowCaster:
     @functools.cached_property
     def mean_albedo(self) -> np.ndarray | None:
         """``(3,) float64`` linear RGB: the surface's area-weighted mean colour (its material's base colour
-        times its texture, sampled at about :data:`ALBEDO_SAMPLES` points over its faces, or its vertex / face colours,
-        sRGB-decoded), or None for a mesh with none (the renderer's default grey). What the object reflects
+        times its texture, :meth:`arshadow.geometry.material.Material.texture_mean`, or its vertex / face
+        colours, sRGB-decoded), or None for a mesh with none (the renderer's default grey). What the object reflects
         onto the ground (colour bleeding, :meth:`arshadow.plan.scene_geometry.SceneGeometry.object_bleed`).
 
         >>> c = ShadowCaster(np.eye(3), [[0, 1, 2]], vertex_colors=[[255, 0, 0]] * 3)
@@ -282,22 +258,13 @@ class ShadowCaster:
         m, w = self.material, self.face_areas
         if w.sum() <= 0:
             return None
-        if m is not None and m.textured and m.texture is not None and m.uv is not None:
-            tex = np.asarray(m.texture, np.float64)
-            th, tw = tex.shape[:2]
-            level = int(np.clip(np.sqrt(ALBEDO_SAMPLES / max(len(w), 1)), 8, 32))
-            bary = _barycentric_samples(level)
-            uv = np.einsum("sk,mkd->msd", bary, np.asarray(m.uv, np.float64))  # (m, s, 2) sample points
-            col = np.floor(np.mod(uv[..., 0], 1.0) * tw).astype(np.int64).clip(0, tw - 1)
-            row = np.floor((1.0 - np.mod(uv[..., 1], 1.0)) * th).astype(np.int64).clip(0, th - 1)
-            per_face = tex[row, col].mean(axis=1)  # (m, 3)
-            out: np.ndarray = np.asarray(m.base_color, np.float64)[:3] * (w @ per_face) / w.sum()
-            return out
+        if m is not None and m.textured:
+            return m.texture_mean(w)
         if m is not None:
             return np.asarray(m.base_color, np.float64)[:3].copy()
         if self.colors is None:
             return None
-        lin = _srgb_decode(np.asarray(self.colors, np.float64)[:, :3])
+        lin = srgb_to_linear(np.asarray(self.colors, np.float64)[:, :3])
         per_face = lin[self.faces].mean(axis=1)
         mean: np.ndarray = (w @ per_face) / w.sum()
         return mean

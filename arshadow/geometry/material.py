@@ -18,6 +18,7 @@ the image array (row 0 = top). trimesh converts glTF's top-left origin on readin
 from __future__ import annotations
 
 import dataclasses
+import functools
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -30,6 +31,25 @@ if TYPE_CHECKING:  # annotations only: trimesh and Pillow are imported where a m
     from PIL import Image
 
 __all__ = ["Material", "material_from_trimesh"]
+
+
+@functools.lru_cache(maxsize=8)
+def _barycentric_samples(level: int) -> np.ndarray:
+    """``(level^2, 3)`` barycentric centroids of a triangle split into ``level^2`` equal triangles."""
+    pts = []
+    for i in range(level):
+        for j in range(level - i):
+            pts.append(((i + 1 / 3) / level, (j + 1 / 3) / level))  # upright sub-triangle
+            if i + j < level - 1:
+                pts.append(((i + 2 / 3) / level, (j + 2 / 3) / level))  # inverted one
+    a = np.array(pts, np.float64)
+    out: np.ndarray = np.c_[1.0 - a.sum(axis=1), a]
+    return out
+
+
+#: texture samples for :attr:`ShadowCaster.mean_albedo`: about this many in all, each face split into
+#: ``L x L`` triangles sampled at their centroids, ``L`` from 8 (64 per face) to 32 (1024 per face)
+ALBEDO_SAMPLES = 1 << 20
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -61,6 +81,23 @@ class Material:
     @property
     def textured(self) -> bool:
         return self.texture is not None and self.uv is not None
+
+    def texture_mean(self, areas: np.ndarray) -> np.ndarray:
+        """``(3,) float64`` linear RGB: the base colour times the texture's mean over the faces, weighted by
+        their ``areas (m,)`` (the faces it was selected for): each face sampled at the centroids of its split
+        into ``L x L`` triangles (nearest texel, wrapped), about :data:`ALBEDO_SAMPLES` samples in all."""
+        w = np.asarray(areas, np.float64)
+        if self.texture is None or self.uv is None or w.sum() <= 0:
+            return np.asarray(self.base_color, np.float64)[:3].copy()
+        tex = np.asarray(self.texture, np.float64)
+        th, tw = tex.shape[:2]
+        level = int(np.clip(np.sqrt(ALBEDO_SAMPLES / max(len(w), 1)), 8, 32))
+        uv = np.einsum("sk,mkd->msd", _barycentric_samples(level), np.asarray(self.uv, np.float64))  # (m, s, 2)
+        col = np.floor(np.mod(uv[..., 0], 1.0) * tw).astype(np.int64).clip(0, tw - 1)
+        row = np.floor((1.0 - np.mod(uv[..., 1], 1.0)) * th).astype(np.int64).clip(0, th - 1)
+        per_face = tex[row, col].mean(axis=1)  # (m, 3)
+        out: np.ndarray = np.asarray(self.base_color, np.float64)[:3] * (w @ per_face) / w.sum()
+        return out
 
     def select_faces(self, index: np.ndarray, flip_winding: bool = False) -> Material:
         """This material for the faces ``index (m',) int`` of the ones it was read with (the caster's
