@@ -116,9 +116,9 @@ def test_a_coloured_mesh_bleeds_its_own_colour_and_a_grey_one_none():
     red = type(red)(red.vertices, red.faces, vertex_colors=np.tile([200, 40, 40], (len(red.vertices), 1)))
     lin = np.array([200, 40, 40]) / 255.0
     lin = np.where(lin <= 0.04045, lin / 12.92, ((lin + 0.055) / 1.055) ** 2.4)
-    got = SceneGeometry(red, RenderOptions()).object_bleed()
+    got = SceneGeometry(red, RenderOptions()).object_bleed
     assert got is not None
     np.testing.assert_allclose(got, lin / lin.mean() - 1.0, rtol=1e-6)  # colours stored as float32
-    assert SceneGeometry(load_occluder("box:0.05,0.05,0.05"), RenderOptions()).object_bleed() is None
+    assert SceneGeometry(load_occluder("box:0.05,0.05,0.05"), RenderOptions()).object_bleed is None
     grey = RenderOptions(occluder_color=(0.5, 0.5, 0.5))
-    assert SceneGeometry(red, grey).object_bleed() is None
+    assert SceneGeometry(red, grey).object_bleed is None

@@ -294,7 +294,7 @@ def _sky_shading(
             geometry.set_ground_light(m)  # lights the object's lower faces, reflected back to the ground
             outputs.item.plan["ground_bounce"] = [round(v, 4) for v in bounce]  # type: ignore[index]
     ground = geometry.sky_ground(outputs.timings)
-    bleed = geometry.object_bleed()
+    bleed = geometry.object_bleed
     sky = SkyShading(ground=ground, object_sky=OBJECT_SKY, bounce=bounce, bleed=bleed)
     if sky.colored and bleed is not None:
         outputs.item.plan["colour_bleeding"] = [round(v, 3) for v in bleed]  # type: ignore[index]

@@ -8,6 +8,7 @@ of interest (:func:`scene_hull_points`: the object and its shadow footprints on 
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Callable, Iterable, Sequence
@@ -491,6 +492,7 @@ class SceneGeometry:
         out: np.ndarray = np.clip(np.asarray(col, np.float64), 0.0, 1.0)
         return out
 
+    @functools.cached_property
     def object_bleed(self) -> tuple[float, float, float] | None:
         """Colour bleeding: ``(3,)`` the object's linear RGB colour (:meth:`_object_albedo`: the option's
         colour, or the mesh's own mean colour or texture) over its mean, minus 1; None for a grey object

@@ -421,7 +421,7 @@ def _apply_estimate(d: dict, base_dir: str | Path | None) -> dict:
     if "occluder_color" in o:
         d["_occluder_color"] = o["occluder_color"]
         d["_exposure_gain"] = shading_gain(est, o["ambient"])  # the per-photo match is relative to it
-    d["_shading"] = (o["ambient"], o["specular"], o["ambient_tint"], o["direct_tint"])
+    d["_shading"] = {k: o[k] for k in ("ambient", "specular", "ambient_tint", "direct_tint")}  # RenderOptions fields
     d["_ambient_measured"] = True
     if d.get("color") is None and "occluder_color" in o:
         # a mesh with its own colours or texture keeps them, times the exposure (the grey default otherwise)
@@ -558,7 +558,7 @@ def scene_from_dict(d: Mapping[str, Any], base_dir: str | Path | None = None) ->
     if d.get("_occluder_color") is not None:
         opts["occluder_color"] = d["_occluder_color"]
     if d.get("_shading") is not None:
-        opts["ambient"], opts["specular"], opts["ambient_tint"], opts["direct_tint"] = d["_shading"]
+        opts.update(d["_shading"])
     if d.get("no_exposure"):
         opts["exposure"] = False
     if d.get("_exposure_gain") is not None:

@@ -420,18 +420,12 @@ def _ground_seen(  # noqa: PLR0913 (the caster, its light, the map's rasteriser 
     ground = GroundOcclusion(grid.x0, grid.y0, grid.texel, e, 0, "uniform", 0.0)
     n = caster.face_planes[:, :3]
     c = caster.vertices[caster.faces].mean(axis=1)
-    base = cosine_directions(GROUND_SEEN_DIRS)  # about +z, rotated onto each face's normal below
-    # an orthonormal frame per face: t, b, n
-    helper = np.where(np.abs(n[:, 2:3]) < 0.9, np.array([[0.0, 0.0, 1.0]]), np.array([[1.0, 0.0, 0.0]]))
-    t = np.cross(helper, n)
-    t /= np.linalg.norm(t, axis=1, keepdims=True)
-    b = np.cross(n, t)
-    d = base[None, :, 0:1] * t[:, None, :] + base[None, :, 1:2] * b[:, None, :] + base[None, :, 2:3] * n[:, None, :]
+    d = _rotate_to(cosine_directions(GROUND_SEEN_DIRS), n)  # (m, k, 3) round each face's normal
     down = d[..., 2] < -1e-6  # (m, k) directions that reach the ground
     tz = np.where(down, -np.maximum(c[:, None, 2], 0.0) / np.where(down, d[..., 2], -1.0), 0.0)
     q = c[:, None, :2] + tz[..., None] * d[..., :2]
     val = ground.sample(q.reshape(-1, 2)).reshape(q.shape[:2])
-    out: np.ndarray = np.where(down, val, 0.0).sum(axis=1) / len(base)
+    out: np.ndarray = np.where(down, val, 0.0).sum(axis=1) / d.shape[1]
     return out
 
 
@@ -599,7 +593,7 @@ def _object_rays(
     chunk = max(1, 65536 // n)
     for s in range(0, k, chunk):
         pp, nn = p[s : s + chunk], nrm[s : s + chunk]
-        dirs = np.stack([_rotate_to(base, ni) for ni in nn])  # (c, n, 3)
+        dirs = _rotate_to(base, nn)  # (c, n, 3)
         up = dirs[..., 2] > 0.0
         o = np.repeat(pp + eps * nn, n, axis=0)
         free = ~rays_blocked(caster, o, dirs.reshape(-1, 3)).reshape(dirs.shape[:2])
@@ -610,11 +604,13 @@ def _object_rays(
 
 
 def _rotate_to(base: np.ndarray, normal: np.ndarray) -> np.ndarray:
-    """``base (n, 3)`` directions round +z turned round ``normal (3,)`` (the frame of :func:`cosine_directions`)."""
-    nz = normal / np.linalg.norm(normal)
-    a = np.array([1.0, 0.0, 0.0]) if abs(nz[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    """``base (n, 3)`` directions round +z turned round ``normal (3,)`` -> ``(n, 3)``, or round each of
+    ``normal (m, 3)`` -> ``(m, n, 3)`` (the frame of :func:`cosine_directions`)."""
+    nz = np.atleast_2d(np.asarray(normal, np.float64))
+    nz = nz / np.linalg.norm(nz, axis=1, keepdims=True)
+    a = np.where(np.abs(nz[:, :1]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
     tx = np.cross(a, nz)
-    tx /= np.linalg.norm(tx)
+    tx /= np.linalg.norm(tx, axis=1, keepdims=True)
     ty = np.cross(nz, tx)
-    out: np.ndarray = base @ np.stack([tx, ty, nz])
-    return out
+    out: np.ndarray = np.einsum("nk,mkd->mnd", base, np.stack([tx, ty, nz], axis=1))
+    return out[0] if np.ndim(normal) == 1 else out
