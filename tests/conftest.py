@@ -168,6 +168,9 @@ class Tolerances:
     falloff_rel: float = (
         0.01  # a point light's shaded term vs albedo cos |L|^2 / d^2 (float32 shading, per-vertex normals)
     )
+    ground_seen_rel: float = 0.03  # a face point's ground light (32 directions per fragment) vs Monte Carlo
+    ratio_falloff_abs: float = 0.004  # mask scaled by a point light's fall-off vs the closed form (RG16F target)
+    ratio_falloff_rel: float = 0.012  # composite's shadow share vs the lamp's and sky's physics (8-bit output)
     mean_albedo_rel: float = 0.01  # a textured mesh's sampled mean colour vs its texture's mean (0.6 % measured)
     object_shade_rel: float = 0.012  # measured light, box face vs the physics (8-bit: ~0.5 %/level)
     sky_raster_mean: float = 0.004  # GL vs numpy ground map, mean |difference| (tori: 0.0009, 0.0022 measured)

@@ -273,7 +273,8 @@ def scene_overrides(
         (:func:`measured_ambient`) and ``specular`` 0 (matte, like the paper) for the object's shading;
         ``ambient_tint`` and ``direct_tint`` (:func:`measured_tints`): the sky's and the light's colours on
         the object; ``occluder_color`` (sRGB 0..1, unclipped) when ``exposure``: the colour times :func:`shading_gain`
-        in linear light.
+        in linear light. ``ratio_at`` for a point light: ``place``, where ``shadow_color`` holds (the renderer follows
+        the lamp's fall-off elsewhere on the floor).
 
     Examples
     --------
@@ -294,6 +295,8 @@ def scene_overrides(
         "specular": 0.0,
     }
     out["ambient_tint"], out["direct_tint"] = measured_tints(est)
+    if est.kind == "point" and est.position is not None:  # the lamp's ratio changes across the floor
+        out["ratio_at"] = tuple(float(v) for v in (place or (0.0, 0.0))[:2])
     gain = shading_gain(est, ambient) if exposure else None
     if gain is not None:
         base = DEFAULT_OBJECT_COLOR if color is None else tuple(float(v) / 255.0 for v in str(color).split(","))

@@ -66,6 +66,7 @@ from ..errors import UsageError
 from ..renderer.request import MODES, LightPass, RenderLayers, RenderRequest, RenderResult, Shading
 from . import glraw as G
 from .context import current, is_software
+from .falloff import Falloff, frame_falloff, set_falloff
 from .layers import GpuLayers
 from .resources import (
     CasterBuffers,
@@ -129,6 +130,7 @@ class _Frame:
     t0: float
     t1: float = 0.0
     sky: SkyShading | None = None  # Shading.sky
+    falloff: Falloff | None = None  # Shading.ratio_falloff, in the local frame
 
     @property
     def size(self) -> tuple[int, int]:
@@ -410,6 +412,9 @@ class ShadowRenderer:
             draw_occluder=draw_occluder,
             t0=t0,
             sky=shading.sky,
+            falloff=frame_falloff(
+                shading, passes, origin, mvp_local, (width * self.supersample, height * self.supersample)
+            ),
         )
         f.t1 = time.perf_counter()
         self._marks = [("start", f.t1)]
@@ -461,6 +466,10 @@ class ShadowRenderer:
                 uniform(prog, "u_use_vis").value = use_vis
                 bounce = tuple(float(x) for x in f.sky.bounce) if use_vis and f.sky is not None else (0.0, 0.0, 0.0)
                 uniform(prog, "u_bounce").value = bounce
+                if use_vis and f.sky is not None and f.sky.ground is not None:
+                    self._sky_map(f.sky.ground).bind_seen(prog, f.origin, 1)
+                else:
+                    uniform(prog, "u_seen").value = False
                 self._bind_texture(prog, bufs)
             vao.render(ctx.TRIANGLES, vertices=bufs.n_indices)
             gl.draw_buffers(2)
@@ -498,13 +507,19 @@ class ShadowRenderer:
     def _sky_pass(self, f: _Frame, ground: GroundOcclusion) -> None:
         """The ground occlusion map ``ground`` (``f.sky.ground``; one quad on z = 0) into the mask's sky channel
         where the ground is visible (:class:`arshadow.gl.sky.GroundSkyPass`), made on first use per map."""
+        sp = self._sky_map(ground)
+        set_falloff(sp.prog, f.falloff, f.origin, None)
+        sp.draw(self.ctx, self.gl, f.mvp_bytes, f.origin, GROUND_BIT, OCCLUDER_BIT)
+        self._mark("sky")
+
+    def _sky_map(self, ground: GroundOcclusion) -> GroundSkyPass:
+        """The ground occlusion map ``ground`` on the GPU, made on first use per map (the last one kept)."""
         sp = self._sky_ground
         if sp is None or sp.occlusion is not ground:
             if sp is not None:
                 sp.release()
             sp = self._sky_ground = GroundSkyPass(self.ctx, ground)
-        sp.draw(self.ctx, self.gl, f.mvp_bytes, f.origin, GROUND_BIT, OCCLUDER_BIT)
-        self._mark("sky")
+        return sp
 
     def _light_pass(self, f: _Frame, i: int, p: LightPass, rng: tuple[int, int] | None) -> None:
         """One light: its shadow into the mask, then its lighting of the occluder."""
@@ -522,7 +537,7 @@ class ShadowRenderer:
             return
         self._count_pass(f, p, rng)
         self._mark("volume")
-        self._mask_pass(p)
+        self._mask_pass(f, p)
         self._mark("mask")
         if f.draw_occluder:
             self._light_occluder(f, p, i, stencil=not planar)
@@ -548,6 +563,7 @@ class ShadowRenderer:
         prog = self.prog_planar_mask
         uniform(prog, "u_mvp").write((f.mvp @ smat @ translation(f.origin)).T.astype(np.float32).tobytes())
         uniform(prog, "u_weight").value = float(p.weight)
+        set_falloff(prog, f.falloff, f.origin, np.asarray(p.light_h, np.float64))
         f.caster.planar_sub_vao(self.ctx, prog).render(ctx.TRIANGLES, vertices=count, first=first)
         gl.draw_buffers(2)
         gl.glDisable(G.GL_DEPTH_CLAMP)
@@ -594,7 +610,7 @@ class ShadowRenderer:
             uniform(self.prog_volume, "u_mvp").write(f.mvp_bytes)
             self._volumes.array.render(ctx.TRIANGLES, vertices=rng[1], first=rng[0])
 
-    def _mask_pass(self, p: LightPass) -> None:
+    def _mask_pass(self, f: _Frame, p: LightPass) -> None:
         """Add the light's weight to the mask where the ground bit is set and the count != 0
         (``0x80 < stencil``), with a full-viewport triangle."""
         ctx, gl = self.ctx, self.gl
@@ -608,6 +624,7 @@ class ShadowRenderer:
             gl.draw_buffer_list([None, 1])  # adds (weight, 0): the ground channel is unchanged
             gl.glStencilFunc(G.GL_LESS, GROUND_BIT, 0xFF)
             uniform(self.prog_mask, "u_weight").value = float(p.weight)
+            set_falloff(self.prog_mask, f.falloff, f.origin, np.asarray(p.light_h, np.float64))
             self._fs_vao.render(ctx.TRIANGLES, vertices=3)
             gl.draw_buffers(2)
 

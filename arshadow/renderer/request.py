@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 import numpy as np
 
 from ..errors import UsageError
+from ..shading.decide import sky_share
 
 if TYPE_CHECKING:
     from ..geometry.mesh import ShadowCaster
@@ -120,6 +121,8 @@ class RenderResult:
         Blocked light weight / total weight at pixels that see the ground plane and are not covered by the
         occluder; 0 elsewhere. With anti-aliasing it is coverage-weighted: the mean over the pixel's
         samples of (sample sees the ground) x (blocked weight of that sample).
+        With :attr:`Shading.ratio_falloff` a point light's weight is scaled to the share of the ground
+        point's own light it blocks (at most its weight).
     color : (h, w, 3) float32
         Linear RGB of the shaded occluder, **premultiplied by** ``alpha`` (equal to the straight colour
         wherever alpha = 1, 0 where alpha = 0).
@@ -196,6 +199,14 @@ class Shading:
         ``d0`` its distance to the world origin (the marker's paper, where a measured light's exposure is
         matched, so the paper keeps its measured level); False: no fall-off (the light's weight everywhere).
         On with a measured light (``RenderOptions.ambient_measured``).
+    ratio_falloff : (3,) float or None
+        ``(x0, y0, q0)``: a point light's shadow ratio across the ground. The sky-to-lamp ratio is ``q0`` at
+        the ground point ``(x0, y0)`` (world, metres; where the composite's shadow ratio ``r0 = q0 / (1 +
+        q0)`` holds) and ``q0 / g`` elsewhere, ``g = (d0 / d)^3`` the lamp's irradiance there relative to
+        ``(x0, y0)`` (``cos / d^2`` on the floor). The renderer scales each point light's shadow mask by
+        ``g (1 + q0) / (g + q0)`` (at most 1) and the sky channel by ``(1 + q0) / (g + q0)``, so that the composite's one
+        ratio becomes the one at each ground point (docs/shading.md); None: one ratio everywhere. Set from
+        ``RenderOptions.ratio_at`` with a measured light.
 
     Phong ([Kolivand-Stencil]): ``I = K_a I_a + sum_l I_l (K_d (N.L) + K_s (N.H)^n)``.
 
@@ -218,6 +229,7 @@ class Shading:
     point_falloff: bool = False
     ambient_tint: tuple[float, float, float] = (1.0, 1.0, 1.0)
     direct_tint: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    ratio_falloff: tuple[float, float, float] | None = None
 
     def __post_init__(self) -> None:
         for name in ("ambient", "diffuse", "specular", "shininess"):
@@ -241,6 +253,7 @@ class Shading:
             point_falloff=bool(options.ambient_measured),
             ambient_tint=_rgb(options.ambient_tint),
             direct_tint=_rgb(options.direct_tint),
+            ratio_falloff=_ratio_falloff(options),
         )
 
     def uniforms(self) -> dict[str, float | tuple[float, ...]]:
@@ -255,6 +268,22 @@ class Shading:
             "u_ambient_tint": _rgb(self.ambient_tint),
             "u_direct_tint": _rgb(self.direct_tint),
         }
+
+
+def _ratio_falloff(options: RenderOptions) -> tuple[float, float, float] | None:
+    """:attr:`Shading.ratio_falloff` of ``options``: ``(x0, y0, q0)`` with a measured light's ``ratio_at``
+    (``q0`` from the mean of the composite's sky share, ``1 - opacity (1 - shadow_color)``), else None.
+
+    >>> from arshadow.scene.options import RenderOptions
+    >>> o = RenderOptions(opacity=1.0, shadow_color=(0.2, 0.2, 0.2), ambient_measured=True, ratio_at=(0.1, 0.0))
+    >>> [round(v, 6) for v in _ratio_falloff(o)]
+    [0.1, 0.0, 0.25]
+    """
+    if not options.ambient_measured or options.ratio_at is None:
+        return None
+    r = float(np.clip(np.mean(sky_share(options.opacity, options.shadow_color)), 1e-3, 0.999))
+    x0, y0 = (float(v) for v in options.ratio_at)
+    return (x0, y0, r / (1.0 - r))
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)

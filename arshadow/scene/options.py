@@ -103,6 +103,12 @@ class RenderOptions:
     material_gain : (3,) float, optional
         ``light_from`` without ``--color``: the exposure gain (linear RGB) a mesh with its own colours or
         texture is rendered with instead of ``occluder_color`` (the default grey for meshes without).
+    ratio_at : (2,) float, optional
+        With a measured point light (``light_from``): the ground point (ground frame, metres: where the
+        object stands) at which ``shadow_color`` is the shadow ratio. A lamp's irradiance falls off across
+        the floor while the sky's does not, so elsewhere the renderer scales the shadow and the sky
+        occlusion to the ratio there (:class:`arshadow.renderer.request.Shading` ``ratio_falloff``); None:
+        the same ratio everywhere (a sun, a given light).
     """
 
     opacity: float = 0.7
@@ -133,6 +139,7 @@ class RenderOptions:
     camera_effects: str = "off"
     ambient_measured: bool = False
     material_gain: tuple | None = None
+    ratio_at: tuple | None = None
 
     def check(self) -> RenderOptions:
         """Validate (UsageError naming the ``arshadow render`` option); returns self."""
@@ -162,8 +169,17 @@ class RenderOptions:
             raise UsageError(f"--ambient-occlusion {self.ambient_occlusion!r}: choose {', '.join(AMBIENT_OCCLUSION)}")
         if self.camera_effects not in ("on", "off"):
             raise UsageError(f"--camera-effects {self.camera_effects!r}: choose on or off")
-        for name in ("ambient_tint", "direct_tint"):
-            t = tuple(getattr(self, name))
-            if len(t) != 3 or not all(math.isfinite(float(v)) and float(v) >= 0.0 for v in t):
-                raise UsageError(f"{name} {t!r}: expected 3 finite linear RGB gains >= 0")
+        _check_shading(self)
         return self
+
+
+def _check_shading(o: RenderOptions) -> None:
+    """The shading vectors of ``o`` (UsageError naming the field)."""
+    for name in ("ambient_tint", "direct_tint"):
+        t = tuple(getattr(o, name))
+        if len(t) != 3 or not all(math.isfinite(float(v)) and float(v) >= 0.0 for v in t):
+            raise UsageError(f"{name} {t!r}: expected 3 finite linear RGB gains >= 0")
+    if o.ratio_at is not None:
+        t = tuple(o.ratio_at)
+        if len(t) != 2 or not all(math.isfinite(float(v)) for v in t):
+            raise UsageError(f"ratio_at {t!r}: expected a ground point (x, y) in metres")

@@ -421,7 +421,8 @@ def _apply_estimate(d: dict, base_dir: str | Path | None) -> dict:
     if "occluder_color" in o:
         d["_occluder_color"] = o["occluder_color"]
         d["_exposure_gain"] = shading_gain(est, o["ambient"])  # the per-photo match is relative to it
-    d["_shading"] = {k: o[k] for k in ("ambient", "specular", "ambient_tint", "direct_tint")}  # RenderOptions fields
+    # RenderOptions fields (ratio_at: a point light's, where its shadow ratio holds)
+    d["_shading"] = {k: o[k] for k in ("ambient", "specular", "ambient_tint", "direct_tint", "ratio_at") if k in o}
     d["_ambient_measured"] = True
     if d.get("color") is None and "occluder_color" in o:
         # a mesh with its own colours or texture keeps them, times the exposure (the grey default otherwise)

@@ -62,7 +62,13 @@ def composite(case, est, pipeline: str, opts: dict):
     if pipeline == "measured_pose":
         return run_arshadow(case.plate8, case.scene, "measured", o, "true", est)[0]
     if pipeline == "oracle":
-        est = dataclasses.replace(est, shadow_ratio=tuple(float(v) for v in true_ratio(case.scene)))
+        # the true ratio is the one at the object: read there (a lamp's ratio is rescaled from ratio_at)
+        sc = case.scene
+        est = dataclasses.replace(
+            est,
+            shadow_ratio=tuple(float(v) for v in true_ratio(sc)),
+            ratio_at=(float(sc.place[0]), float(sc.place[1])),
+        )
     o["lights"] = [light_spec(case.scene)]
     return run_arshadow(case.plate8, case.scene, "measured", o, "true", est)[0]
 
