@@ -168,7 +168,6 @@ class Tolerances:
     falloff_rel: float = (
         0.01  # a point light's shaded term vs albedo cos |L|^2 / d^2 (float32 shading, per-vertex normals)
     )
-    ground_seen_rel: float = 0.03  # a face point's ground light (32 directions per fragment) vs Monte Carlo
     ratio_falloff_abs: float = 0.004  # mask scaled by a point light's fall-off vs the closed form (RG16F target)
     ratio_falloff_rel: float = 0.012  # composite's shadow share vs the lamp's and sky's physics (8-bit output)
     mean_albedo_rel: float = 0.01  # a textured mesh's sampled mean colour vs its texture's mean (0.6 % measured)
@@ -226,11 +225,14 @@ class Tolerances:
     # per colour channel): held-out 0.191 / 0.174 / 0.096, own unchanged. Then the ground's light on the
     # object's faces weighted by the irradiance of the ground each face sees: own 0.185 / 0.235 / 0.065,
     # held-out 0.191 / 0.175 / 0.096 (the held-out limits stay: never loosened).
-    ref_own_ground: float = 0.195
-    ref_own_contact: float = 0.245
+    # Re-measured 2026-11-28 on this session's machine (its llvmpipe gives own 0.183 / 0.231 / 0.065, held-out
+    # 0.192 / 0.177 / 0.096 for the same code), then a measured point lamp's shadow ratio across the floor:
+    # held-out ground 0.183, the rest unchanged. Limits + 0.01 where that is tighter.
+    ref_own_ground: float = 0.193
+    ref_own_contact: float = 0.241
     ref_own_object: float = 0.075
     ref_own_true_ground: float = 0.358
-    ref_heldout_ground: float = 0.201
+    ref_heldout_ground: float = 0.193
     ref_heldout_contact: float = 0.184
     ref_heldout_object: float = 0.106
     # marker maps (the marker-map work): learned marker poses against the generating poses (the figures)

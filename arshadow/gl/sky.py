@@ -57,15 +57,6 @@ class GroundSkyPass:
         self.vbo = ctx.buffer(reserve=6 * 6 * 4, dynamic=True)
         self.vao = ctx.vertex_array(self.prog, [(self.vbo, "4f 2f", "in_pos", "in_st")])
         self._origin: np.ndarray | None = None
-        #: the ground's irradiance (``occlusion.irradiance``) for the object's ground light, or None
-        self.seen: moderngl.Texture | None = None
-        irr = occlusion.irradiance
-        if irr is not None:
-            e = np.ascontiguousarray(np.asarray(irr.visibility, np.float32))
-            self.seen = ctx.texture((e.shape[1], e.shape[0]), 1, e.tobytes(), dtype="f4")
-            self.seen.repeat_x = self.seen.repeat_y = False
-            self.seen.filter = (ctx.LINEAR, ctx.LINEAR)
-            self.seen_rect = np.array(irr.extent, np.float64)
 
     def _upload(self, origin: np.ndarray) -> None:
         """The square's vertices relative to the caster's local origin (float32 near the object)."""
@@ -104,23 +95,9 @@ class GroundSkyPass:
         gl.draw_buffers(2)
         gl.glDepthMask(G.GL_TRUE)
 
-    def bind_seen(self, prog: moderngl.Program, origin: np.ndarray, unit: int) -> None:
-        """Give the occluder's base pass ``prog`` (``occluder_rich_base.frag``) the ground's irradiance on
-        texture ``unit``: its rectangle relative to the caster's local ``origin (3,)`` (the vertices' frame)
-        and the ground's height there; ``u_seen`` off without one (the open ground's light)."""
-        uniform(prog, "u_seen").value = self.seen is not None
-        if self.seen is None:
-            return
-        x0, y0, x1, y1 = self.seen_rect
-        uniform(prog, "u_seen_rect").value = (x0 - origin[0], y0 - origin[1], x1 - x0, y1 - y0)
-        uniform(prog, "u_seen_z").value = float(-origin[2])
-        self.seen.use(location=unit)
-        uniform(prog, "u_seen_map").value = unit
-
     def release(self) -> None:
-        for o in (self.vao, self.vbo, self.tex, self.seen):
-            if o is not None:
-                o.release()
+        for o in (self.vao, self.vbo, self.tex):
+            o.release()
 
 
 class GLItemBuffer:

@@ -466,10 +466,6 @@ class ShadowRenderer:
                 uniform(prog, "u_use_vis").value = use_vis
                 bounce = tuple(float(x) for x in f.sky.bounce) if use_vis and f.sky is not None else (0.0, 0.0, 0.0)
                 uniform(prog, "u_bounce").value = bounce
-                if use_vis and f.sky is not None and f.sky.ground is not None:
-                    self._sky_map(f.sky.ground).bind_seen(prog, f.origin, 1)
-                else:
-                    uniform(prog, "u_seen").value = False
                 self._bind_texture(prog, bufs)
             vao.render(ctx.TRIANGLES, vertices=bufs.n_indices)
             gl.draw_buffers(2)
@@ -507,19 +503,14 @@ class ShadowRenderer:
     def _sky_pass(self, f: _Frame, ground: GroundOcclusion) -> None:
         """The ground occlusion map ``ground`` (``f.sky.ground``; one quad on z = 0) into the mask's sky channel
         where the ground is visible (:class:`arshadow.gl.sky.GroundSkyPass`), made on first use per map."""
-        sp = self._sky_map(ground)
-        set_falloff(sp.prog, f.falloff, f.origin, None)
-        sp.draw(self.ctx, self.gl, f.mvp_bytes, f.origin, GROUND_BIT, OCCLUDER_BIT)
-        self._mark("sky")
-
-    def _sky_map(self, ground: GroundOcclusion) -> GroundSkyPass:
-        """The ground occlusion map ``ground`` on the GPU, made on first use per map (the last one kept)."""
         sp = self._sky_ground
         if sp is None or sp.occlusion is not ground:
             if sp is not None:
                 sp.release()
             sp = self._sky_ground = GroundSkyPass(self.ctx, ground)
-        return sp
+        set_falloff(sp.prog, f.falloff, f.origin, None)
+        sp.draw(self.ctx, self.gl, f.mvp_bytes, f.origin, GROUND_BIT, OCCLUDER_BIT)
+        self._mark("sky")
 
     def _light_pass(self, f: _Frame, i: int, p: LightPass, rng: tuple[int, int] | None) -> None:
         """One light: its shadow into the mask, then its lighting of the occluder."""

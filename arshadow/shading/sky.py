@@ -134,7 +134,6 @@ class GroundOcclusion:
     sky: str
     edge_occlusion: float  # largest 1 - V on the grid's border
     bounce: np.ndarray | None = None
-    irradiance: GroundOcclusion | None = None
 
     @property
     def extent(self) -> tuple[float, float, float, float]:
@@ -316,10 +315,9 @@ def ground_sky_visibility(  # noqa: PLR0913 (the caster, and keyword-only option
     dirs = cosine_directions(n_dirs)
     weights = sky_radiance(dirs, sky)
     rast = raster or ground_raster_cpu
-    seen, ground_e = None, None
+    seen = None
     if bounce is not None and len(bounce) > 3 and float(bounce[3]) > 0:
-        ground_e = _ground_irradiance(caster, bounce, rast, dirs, weights, grid)
-        seen, _ = ground_seen(caster.vertices[caster.faces].mean(axis=1), caster.face_planes[:, :3], ground_e)
+        seen = _ground_seen(caster, bounce, rast, dirs, weights, grid)
     face_e = _face_irradiance(caster, bounce, seen) if bounce is not None else None
     acc, acc_b = rast(caster, dirs, weights, grid, face_e)
     vis = _fill_under((acc / weights.sum()).astype(np.float32))
@@ -342,7 +340,7 @@ def ground_sky_visibility(  # noqa: PLR0913 (the caster, and keyword-only option
         c0, c1 = max(int(cols[0]) - 2, 0), min(int(cols[-1]) + 3, resolution)
         vis, x0, y0 = vis[r0:r1, c0:c1].copy(), x0 + c0 * texel, y0 + r0 * texel
         reflected = None if reflected is None else reflected[r0:r1, c0:c1].copy()
-    return GroundOcclusion(x0, y0, texel, vis, n_dirs, sky, edge, reflected, ground_e)
+    return GroundOcclusion(x0, y0, texel, vis, n_dirs, sky, edge, reflected)
 
 
 def ground_raster_cpu(
@@ -388,7 +386,7 @@ def _face_irradiance(caster: ShadowCaster, bounce: tuple, seen: np.ndarray | Non
     """``(m,)``: each face's irradiance as a share of the open ground's (direct on its lit side + sky + the
     light the ground reflects up to it: the path tracer's ground -> object -> ground path, which lights a box's
     shadowed faces and a sphere's underside about as much as the sky does). ``seen (m,)``: each face's view of
-    the ground weighted by the ground's irradiance there (:func:`ground_seen`); None: open ground,
+    the ground weighted by the ground's irradiance there (:func:`_ground_seen`); None: open ground,
     ``(1 - n_z) / 2``."""
     light, r = np.asarray(bounce[0], np.float64), float(bounce[1])
     light = light / np.linalg.norm(light)
@@ -400,74 +398,35 @@ def _face_irradiance(caster: ShadowCaster, bounce: tuple, seen: np.ndarray | Non
     return out
 
 
-#: cosine-weighted directions per point for :func:`ground_seen`
+#: cosine-weighted directions per face for :func:`_ground_seen`
 GROUND_SEEN_DIRS = 64
 
 
-def _ground_irradiance(  # noqa: PLR0913 (the caster, its light, the map's rasteriser and its grid)
+def _ground_seen(  # noqa: PLR0913 (the caster, its light, the map's rasteriser and its grid)
     caster: ShadowCaster, bounce: tuple, rast: GroundRaster, dirs: np.ndarray, weights: np.ndarray, grid: GroundGrid
-) -> GroundOcclusion:
-    """The ground's irradiance round the object as a share of the open ground's, ``(1 - r) lit + r V``, on
-    the map's whole grid (its ``visibility``; 1 off the grid): ``V`` the map's sky visibility and ``lit``
-    the direct light's (one direction, ``bounce[0]``), both rasterised on ``grid``. The ground under and
-    beside an object is in its shadow and sees less sky than the open ground's ring the ground light is
-    measured on."""
+) -> np.ndarray:
+    """``(m,)``: each face's view of the ground, each ground point counted at its irradiance as a share of the
+    open ground's, ``(1 - r) lit + r V``: the ground under and beside an object is in its shadow and sees less
+    sky, so its lower faces get less of the ground's light than the open ground's ring measures. ``V`` is the
+    map's sky visibility and ``lit`` the direct light's (one direction, ``bounce[0]``), both rasterised on the
+    map's grid; each face looks along :data:`GROUND_SEEN_DIRS` cosine-weighted directions from its centre and
+    the ones that reach the ground read it there (1 off the grid, the object itself not counted as a blocker).
+    Open ground everywhere gives ``(1 - n_z) / 2``."""
     light, r = np.asarray(bounce[0], np.float64), float(bounce[1])
     light = light / np.linalg.norm(light)
     acc, _ = rast(caster, dirs, weights, grid, None)
     lit, _ = rast(caster, light[None], np.ones(1), grid, None)
     e = ((1.0 - r) * lit + r * _fill_under((acc / weights.sum()).astype(np.float32))).astype(np.float32)
-    return GroundOcclusion(grid.x0, grid.y0, grid.texel, e, 0, "uniform", 0.0)
-
-
-def ground_seen(
-    points: np.ndarray, normals: np.ndarray, irradiance: GroundOcclusion, n_dirs: int = GROUND_SEEN_DIRS
-) -> tuple[np.ndarray, np.ndarray]:
-    """What points above the ground see of it, each ground point counted at its irradiance.
-
-    Parameters
-    ----------
-    points : (k, 3) float
-        Points on the object (world = ground frame, metres; below z = 0 counted as on it).
-    normals : (k, 3) float
-        Their normals (unit or not).
-    irradiance : GroundOcclusion
-        The ground's irradiance as a share of the open ground's (``GroundOcclusion.irradiance``).
-    n_dirs : int
-        Cosine-weighted directions round each normal.
-
-    Returns
-    -------
-    seen : (k,) float64
-        The cosine-weighted mean over the point's hemisphere of the irradiance of the ground a direction
-        reaches (0 for the sky; the object itself is not counted as a blocker): open ground everywhere
-        gives ``view``.
-    view : (k,) float64
-        The same with the ground's irradiance 1: the share of directions that reach the ground, about
-        ``(1 - n_z) / 2``.
-
-    Examples
-    --------
-    >>> flat = GroundOcclusion(-1.0, -1.0, 0.5, np.ones((4, 4), np.float32), 0, "uniform", 0.0)
-    >>> seen, view = ground_seen(np.array([[0.0, 0.0, 0.1]]), np.array([[1.0, 0.0, 0.0]]), flat)
-    >>> bool(np.isclose(seen[0], view[0])), bool(0.4 < view[0] < 0.6)
-    (True, True)
-    """
-    p = np.asarray(points, np.float64).reshape(-1, 3)
-    nrm = np.asarray(normals, np.float64).reshape(-1, 3)
-    base = cosine_directions(n_dirs)
-    seen, view = np.zeros(len(p)), np.zeros(len(p))
-    step = max(1, 262_144 // n_dirs)
-    for s in range(0, len(p), step):
-        d = _rotate_to(base, nrm[s : s + step])  # (c, n, 3) round each normal
-        down = d[..., 2] < -1e-6  # directions that reach the ground
-        h = np.maximum(p[s : s + step, 2], 0.0)
-        tz = np.where(down, -h[:, None] / np.where(down, d[..., 2], -1.0), 0.0)
-        q = p[s : s + step, None, :2] + tz[..., None] * d[..., :2]
-        val = irradiance.sample(q.reshape(-1, 2)).reshape(q.shape[:2])
-        seen[s : s + step] = np.where(down, val, 0.0).sum(axis=1) / n_dirs
-        view[s : s + step] = down.sum(axis=1) / n_dirs
-    return seen, view
+    ground = GroundOcclusion(grid.x0, grid.y0, grid.texel, e, 0, "uniform", 0.0)
+    n = caster.face_planes[:, :3]
+    c = caster.vertices[caster.faces].mean(axis=1)
+    d = _rotate_to(cosine_directions(GROUND_SEEN_DIRS), n)  # (m, k, 3) round each face's normal
+    down = d[..., 2] < -1e-6  # (m, k) directions that reach the ground
+    tz = np.where(down, -np.maximum(c[:, None, 2], 0.0) / np.where(down, d[..., 2], -1.0), 0.0)
+    q = c[:, None, :2] + tz[..., None] * d[..., :2]
+    val = ground.sample(q.reshape(-1, 2)).reshape(q.shape[:2])
+    out: np.ndarray = np.where(down, val, 0.0).sum(axis=1) / d.shape[1]
+    return out
 
 
 def _bounce_image(caster: ShadowCaster, d: np.ndarray, face_e: np.ndarray, grid: tuple) -> np.ndarray:
