@@ -70,10 +70,14 @@ REFINE_METHODS = {
     # :func:`arshadow.tracking.refine.refine_corners_edges` fits the four border edges at full resolution
     # and intersects them (unbiased at any marker size; docs/tracking.md)
     "edge": cv2.aruco.CORNER_REFINE_NONE,
+    # the edge corners, then the marker's bitmap aligned to the image by ECC
+    # (:func:`arshadow.tracking.ecc.refine_corners_ecc`; docs/tracking.md)
+    "ecc": cv2.aruco.CORNER_REFINE_NONE,
 }
 
-#: the default refinement, chosen by tests/benchmarks/bench_tracking.py (see docs/tracking.md)
-DEFAULT_REFINE = "edge"
+#: the default refinement of photos, chosen by tests/benchmarks/bench_tracking.py and bench_ecc.py (see
+#: docs/tracking.md; ``arshadow video`` keeps ``edge``: its ``--corner-refine``)
+DEFAULT_REFINE = "ecc"
 
 #: ``DetectorParameters.minMarkerDistanceRate`` used unless a parameter file is given (OpenCV 4.x's value)
 MIN_MARKER_DISTANCE_RATE = 0.05
