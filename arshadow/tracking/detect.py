@@ -22,6 +22,7 @@ from .luma import LumaFrame, luma_to_gray
 __all__ = [
     "REFINE_METHODS",
     "DEFAULT_REFINE",
+    "VIDEO_REFINE",
     "MIN_MARKER_DISTANCE_RATE",
     "APRILTAG_OFFSET_PX",
     "load_detector_params",
@@ -76,8 +77,13 @@ REFINE_METHODS = {
 }
 
 #: the default refinement of photos, chosen by tests/benchmarks/bench_tracking.py and bench_ecc.py (see
-#: docs/tracking.md; ``arshadow video`` keeps ``edge``: its ``--corner-refine``)
+#: docs/tracking.md; videos keep :data:`VIDEO_REFINE`)
 DEFAULT_REFINE = "ecc"
+
+#: the default refinement of videos (``arshadow video --corner-refine``, the video API's tracking window):
+#: ``ecc`` measured less jitter but a slightly worse raw pose on the video benchmark's clip, and its tracking
+#: time per frame rose 5.8 -> 15.7 ms there (docs/tracking.md)
+VIDEO_REFINE = "edge"
 
 #: ``DetectorParameters.minMarkerDistanceRate`` used unless a parameter file is given (OpenCV 4.x's value)
 MIN_MARKER_DISTANCE_RATE = 0.05
