@@ -58,8 +58,9 @@ def register(subparsers: Any) -> None:
     p.add_argument(
         "--refine",
         default=None,
-        choices=("none", "subpix", "contour", "apriltag"),
-        help="corner refinement (default: edge, or the --detector-params file's own)",
+        choices=("none", "subpix", "contour", "apriltag", "edge", "ecc"),
+        help="corner refinement (default: ecc, the edge corners then the marker's bitmap aligned to the "
+        "photo; or the --detector-params file's own)",
     )
     p.add_argument("--detector-params", metavar="FILE", help="cv2.aruco.DetectorParameters YAML file")
     p.add_argument("--json", action="store_true", help="print the JSON report (CONVENTIONS.md) on stdout")

@@ -96,8 +96,9 @@ def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> No
     )
     g.add_argument(
         "--refine",
-        choices=("edge", "subpix", "apriltag", "contour", "none"),
-        help="corner refinement (default edge: the marker's border edges fitted and intersected, docs/tracking.md)",
+        choices=("edge", "ecc", "subpix", "apriltag", "contour", "none"),
+        help="corner refinement (default ecc: the marker's border edges fitted and intersected (edge), then "
+        "the marker's bitmap aligned to the photo, the edge corners kept where that fails; docs/tracking.md)",
     )
     g.add_argument(
         "--inverted",

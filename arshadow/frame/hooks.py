@@ -27,6 +27,7 @@ from ..errors import ImageError, MarkerNotFoundError
 from ..estimate.match import ExposureMatch, marker_id_of
 from ..scene.sanity import calibration_scaled_note, say_note
 from ..scene.spec import RenderOptions
+from ..tracking.detect import VIDEO_REFINE
 from ..tracking.pose import MarkerPose
 from ..tracking.reference import ReferenceLock
 from ..tracking.tracker import MarkerTracker
@@ -248,6 +249,8 @@ class EngineHooks:
             # video: each tracker searches a window around its last detection first (the planner's tracking
             # ROI, full-frame fallback: arshadow/tracking/roi_track.py)
             roi = bool(opts.track_roi and opts.plan != "general" and "board" not in tracker)
+            if opts.track_roi and "refine" not in tracker:  # a video: its own default refinement
+                tracker = {**tracker, "refine": VIDEO_REFINE}
             lens = None
             if intr.has_distortion:  # one map per distinct calibration
                 lens = self._lenses.get(intr)

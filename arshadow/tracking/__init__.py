@@ -7,6 +7,7 @@ One responsibility per module, in dependency order:
 - :mod:`arshadow.tracking.luma`: a video frame's limited-range luma as grey, converted where it is read.
 - :mod:`arshadow.tracking.detect`: detector parameters, ``detect_markers``, ``Detection``, ``to_gray``.
 - :mod:`arshadow.tracking.refine`: edge-based corner refinement (``refine="edge"``).
+- :mod:`arshadow.tracking.ecc`: the marker's bitmap aligned to the image from the edge corners (``refine="ecc"``).
 - :mod:`arshadow.tracking.quality`: the single-marker quality gates (ambiguity, blur, occlusion).
 - :mod:`arshadow.tracking.pose`: planar pose (IPPE + LM) and ``MarkerPose``.
 - :mod:`arshadow.tracking.fastdetect`: the half-resolution detection pass (``MarkerTracker(detector="fast")``).

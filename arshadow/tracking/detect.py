@@ -22,6 +22,7 @@ from .luma import LumaFrame, luma_to_gray
 __all__ = [
     "REFINE_METHODS",
     "DEFAULT_REFINE",
+    "VIDEO_REFINE",
     "MIN_MARKER_DISTANCE_RATE",
     "APRILTAG_OFFSET_PX",
     "load_detector_params",
@@ -70,10 +71,19 @@ REFINE_METHODS = {
     # :func:`arshadow.tracking.refine.refine_corners_edges` fits the four border edges at full resolution
     # and intersects them (unbiased at any marker size; docs/tracking.md)
     "edge": cv2.aruco.CORNER_REFINE_NONE,
+    # the edge corners, then the marker's bitmap aligned to the image by ECC
+    # (:func:`arshadow.tracking.ecc.refine_corners_ecc`; docs/tracking.md)
+    "ecc": cv2.aruco.CORNER_REFINE_NONE,
 }
 
-#: the default refinement, chosen by tests/benchmarks/bench_tracking.py (see docs/tracking.md)
-DEFAULT_REFINE = "edge"
+#: the default refinement of photos, chosen by tests/benchmarks/bench_tracking.py and bench_ecc.py (see
+#: docs/tracking.md; videos keep :data:`VIDEO_REFINE`)
+DEFAULT_REFINE = "ecc"
+
+#: the default refinement of videos (``arshadow video --corner-refine``, the video API's tracking window):
+#: ``ecc`` measured less jitter but a slightly worse raw pose on the video benchmark's clip, and its tracking
+#: time per frame rose 5.8 -> 15.7 ms there (docs/tracking.md)
+VIDEO_REFINE = "edge"
 
 #: ``DetectorParameters.minMarkerDistanceRate`` used unless a parameter file is given (OpenCV 4.x's value)
 MIN_MARKER_DISTANCE_RATE = 0.05

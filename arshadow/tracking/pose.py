@@ -106,6 +106,9 @@ class MarkerPose:
     #: the corner refinement the tracker used (``"subpix"``, ``"edge"``, ...): which reasons are flags and
     #: which report fields (:data:`arshadow.tracking.quality.REPORT_ONLY`); None: every reason is a flag
     refine: str | None = None
+    #: why the requested refinement was not used for some markers (``"ecc"``: the alignment failed and the
+    #: edge corners were kept, :mod:`arshadow.tracking.ecc`); None when it was used throughout
+    refine_note: str | None = None
 
     @property
     def ambiguous(self) -> bool:

@@ -60,8 +60,13 @@ REPROJECTION_HOLD_FACTOR = 3.0
 #: not flags: measured by tests/benchmarks/bench_flags.py (docs/tracking.md, "Calibrated flags"), with the
 #: edge refinement (arshadow video's default) a pose with blurred corners or a marker under 32 px is more
 #: than 1 deg or 2 % off in only 34-47 % / 38-47 % of cases at every threshold tried (precision < 0.5), and
-#: the sample video's 60 frames (0.15 deg median from the truth) were all flagged for both
-REPORT_ONLY: dict[str, tuple[str, ...]] = {"edge": ("blurred corners", "small marker")}
+#: the sample video's 60 frames (0.15 deg median from the truth) were all flagged for both. The ECC
+#: refinement starts from the edge corners and keeps them when it fails: the same, and its fallback
+#: (``refinement``: the corners are the edge refinement's, as good as ``edge`` gives) is a note too
+REPORT_ONLY: dict[str, tuple[str, ...]] = {
+    "edge": ("blurred corners", "small marker"),
+    "ecc": ("blurred corners", "small marker", "refinement"),
+}
 
 
 class ReprojectedPose(Protocol):
@@ -189,8 +194,8 @@ def pose_notes(pose: MarkerPose) -> list[str]:
 def all_reasons(pose: MarkerPose) -> list[str]:
     """Every reason a pose (:class:`arshadow.tracking.pose.MarkerPose`) may be off, one sentence per
     reason with its number (empty when none): the two planar solutions nearly equal, blurred corners, a
-    covered border, a marker under :data:`MIN_CONFIDENT_SIDE_PX`, a reprojection error far above what the
-    detector's corners allow."""
+    covered border, a marker under :data:`MIN_CONFIDENT_SIDE_PX`, the requested refinement not used for some
+    marker (``MarkerPose.refine_note``), a reprojection error far above what the detector's corners allow."""
     out: list[str] = []
     ratio, thr = pose.pose_ambiguity, pose.ambiguity_threshold
     if ratio is not None and ratio >= thr:
@@ -215,6 +220,9 @@ def all_reasons(pose: MarkerPose) -> list[str]:
             out.append(
                 f"small marker: {side:.1f} px across, under the {MIN_CONFIDENT_SIDE_PX:g} px a pose can be trusted at"
             )
+    note = getattr(pose, "refine_note", None)
+    if note:
+        out.append(f"refinement: {note}")
     lim = reprojection_limit_px(pose.corners)
     if pose.reprojection_error_px > lim:
         out.append(
