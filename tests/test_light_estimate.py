@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import TOL
+from conftest import ROOT, TOL
 
 from arshadow.camera.model import Intrinsics
 from arshadow.errors import EstimateError, MarkerNotFoundError, UsageError
@@ -380,3 +380,29 @@ def test_point_light_distance_interval(point5):
     assert 0 < lo < dist < hi and est.distance_interval == pytest.approx((lo, hi), abs=1e-4)
     assert all("between" in w for w in est.warnings if "point light" in w)
     assert LightEstimate.from_json(est.to_json()).distance_interval == pytest.approx((lo, hi), abs=1e-4)
+
+
+@pytest.mark.parametrize("name", ["box_point", "torus_point"])
+def test_face_shading_of_a_point_light_on_the_path_traced_plates(name):
+    """A point light 30-40 cm from the probe (the path tracer's own plates, tests/data/reference/own) lights
+    its top a third more than its sides' centres, and the shadow ratio at its foot differs from the one at its
+    shadow's edge: with the true lamp and the true ratio at the foot (the scene's irradiances: never the
+    estimator's) the faces fit the model within the check's limit (it flagged them 40 % off before)."""
+    from arshadow.bench.reference import load_cases
+    from arshadow.bench.reference_scene import intrinsics_of, pose_of
+    from arshadow.estimate.api import SHADING_LOG
+    from arshadow.estimate.shading import face_shading_residual
+    from arshadow.estimate.shadow import LUMA
+    from arshadow.geometry.mesh import load_occluder
+
+    (case,) = [c for c in load_cases(ROOT / "tests" / "data" / "reference" / "own") if c.scene.name == name]
+    sc = case.scene
+    probe = load_occluder(sc.probe, place=sc.probe_place)
+    v, f = np.asarray(probe.vertices), np.asarray(probe.faces)
+    lamp = np.asarray(sc.light_vec, np.float64)
+    foot = np.r_[0.5 * (v[:, :2].min(axis=0) + v[:, :2].max(axis=0)), 0.0]
+    lamp_e = np.asarray(sc.direct, np.float64) * (lamp - foot)[2] / np.linalg.norm(lamp - foot) ** 3
+    sky = np.asarray(sc.sky, np.float64)
+    ratio = float((sky / (sky + lamp_e)) @ LUMA)
+    res, k = face_shading_residual(case.plate8, intrinsics_of(sc), pose_of(sc), v, f, np.r_[lamp, 1.0], ratio)
+    assert k >= 2 and res <= SHADING_LOG, (res, k)

@@ -22,6 +22,7 @@ __all__ = [
     "measured_ambient",
     "measured_tints",
     "ratio_at",
+    "moved_ratio",
     "scene_overrides",
     "shading_gain",
 ]
@@ -180,14 +181,28 @@ def ratio_at(est: LightEstimate, xy: Sequence[float]) -> tuple[float, ...]:
     """
     if est.kind != "point" or est.position is None or est.ratio_at is None:
         return tuple(float(v) for v in est.shadow_ratio)
-    lamp = np.asarray(est.position, np.float64)
+    return tuple(float(v) for v in moved_ratio(est.shadow_ratio, est.position, est.ratio_at, xy))
+
+
+def moved_ratio(
+    ratio: Sequence[float] | np.ndarray, lamp: Sequence[float], src: Sequence[float], dst: Sequence[float]
+) -> np.ndarray:
+    """A point light's shadow ratio ``ratio (c,)`` read at the ground point ``src (2,)``, moved to ``dst (2,)``
+    (world frame, metres): the lamp at ``lamp (3,)`` lights the floor with ``z / d^3`` while the sky's light is
+    the same everywhere, so the sky-to-lamp ratio ``r / (1 - r)`` scales by ``E(src) / E(dst)``; ``(c,)``.
+
+    >>> [round(float(v), 4) for v in moved_ratio([0.5], (0.0, 0.0, 1.0), (0.0, 0.0), (1.0, 0.0))]
+    [0.7388]
+    """
+    p = np.asarray(lamp, np.float64)
 
     def irradiance(q: Sequence[float]) -> float:
-        return float(lamp[2] / np.linalg.norm(lamp - np.array([q[0], q[1], 0.0])) ** 3)
+        return float(p[2] / np.linalg.norm(p - np.array([q[0], q[1], 0.0])) ** 3)
 
-    r = np.clip(np.asarray(est.shadow_ratio, np.float64), 1e-6, 1.0 - 1e-6)
-    sky = r / (1.0 - r) * irradiance(est.ratio_at) / irradiance(xy)
-    return tuple(float(v) for v in sky / (1.0 + sky))
+    r = np.clip(np.asarray(ratio, np.float64), 1e-6, 1.0 - 1e-6)
+    sky = r / (1.0 - r) * irradiance(src) / irradiance(dst)
+    out: np.ndarray = sky / (1.0 + sky)
+    return out
 
 
 def measured_ambient(est: LightEstimate) -> float:
