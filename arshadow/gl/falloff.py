@@ -4,7 +4,7 @@ The composite applies one shadow ratio ``r0`` (the sky's share of the ground's l
 stands). A lamp's irradiance on the floor falls off as ``cos / d^2 = z / d^3`` while the sky's does not, so
 at a ground point where the lamp gives ``g`` times its irradiance at the object the sky's share is ``q0 /
 (g + q0)``, ``q0 = r0 / (1 - r0)``. The shadow mask pass (``mask.frag``) scales each point light's weight by
-``g (1 + q0) / (g + q0)`` and the sky pass (``sky_ground.frag``) the sky channel by ``(1 + q0) / (g + q0)``:
+``g (1 + q0) / (g + q0)`` and the ground pass (``ground.frag``) the sky channel by ``(1 + q0) / (g + q0)``:
 ``(1 - r0)`` and ``r0`` times them are the lamp's and the sky's shares at that point. The mask pass finds
 its fragment's ground point from the canvas' inverse matrix (a full-viewport triangle has no position to
 interpolate). Nothing here creates a context or imports moderngl.
@@ -31,7 +31,7 @@ __all__ = ["Falloff", "frame_falloff", "set_falloff"]
 class Falloff:
     """A point light's shadow ratio across the ground (:attr:`Shading.ratio_falloff`) as the mask and sky
     shaders take it: the local frame's ``ref = (x0, y0, ground z, q0)``, the canvas' ``local_from_clip``
-    (column-major float32 bytes) and size in pixels, and the lamp the sky pass uses (the point lights'
+    (column-major float32 bytes) and size in pixels, and the lamp the ground pass uses for the sky channel (the point lights'
     weighted mean position; each mask pass uses its own)."""
 
     ref: tuple[float, float, float, float]

@@ -1,10 +1,13 @@
-"""GPU side of sky occlusion: the ground occlusion map as a texture, drawn over the visible ground.
+"""GPU side of sky occlusion: the ground occlusion map as a texture, read over the visible ground.
 
-:class:`GroundSkyPass` holds one :class:`arshadow.shading.sky.GroundOcclusion` (computed once per scene in
-the ground frame) as an ``R32F`` texture and the map's square on z = 0. Each frame it is drawn with the
-frame's matrix into the mask target's ``b`` channel as ``1 - V`` (the share of the sky the object hides),
-where the stencil says the sample sees the ground and not the occluder: the ground occlusion map projected
-per frame, coverage-weighted like the shadow mask. Nothing here creates a context or imports moderngl.
+:class:`GroundSkyMap` holds one :class:`arshadow.shading.sky.GroundOcclusion` (computed once per scene in
+the ground frame) as an ``RG32F`` texture. Each frame the ground pass (``ground.frag``, which finds every
+visible ground sample's point on z = 0) reads it into the mask target's ``b`` channel as ``1 - V`` (the
+share of the sky the object hides) and its reflected-light part into ``a``: the map projected per frame,
+coverage-weighted like the shadow mask. (Until 2026-11-28 a separate pass drew the map's square with
+additive blending where the stencil said the ground was visible: the same values, one pass more, 0.6-1.0 ms
+a frame on llvmpipe.) :class:`GLGroundRaster` and :class:`GLItemBuffer` make the maps' shadows and item
+buffers on the GPU. Nothing here creates a context or imports moderngl.
 """
 
 from __future__ import annotations
@@ -13,7 +16,6 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from . import glraw as G
 from .resources import program, uniform
 
 if TYPE_CHECKING:
@@ -21,9 +23,8 @@ if TYPE_CHECKING:
 
     from ..geometry.caster import ShadowCaster
     from ..shading.sky import GroundGrid, GroundOcclusion
-    from .glraw import GL
 
-__all__ = ["GLGroundRaster", "GLItemBuffer", "GroundSkyPass"]
+__all__ = ["GLGroundRaster", "GLItemBuffer", "GroundSkyMap"]
 
 #: GL_CLIP_DISTANCE0: the ground raster clips faces at z = 0
 _CLIP_DISTANCE0 = 0x3000
@@ -33,8 +34,10 @@ _VALUES_W = 4096
 _TILES = 16
 
 
-class GroundSkyPass:
-    """The ground occlusion map of one scene on the GPU (made by the renderer on first use).
+class GroundSkyMap:
+    """The ground occlusion map of one scene on the GPU (made by the renderer on first use): an ``RG32F``
+    texture of the sky visibility and its reflected-light part, read by the ground pass
+    (``ground.frag``) at each visible ground point.
 
     Parameters
     ----------
@@ -44,7 +47,6 @@ class GroundSkyPass:
 
     def __init__(self, ctx: moderngl.Context, occlusion: GroundOcclusion) -> None:
         self.occlusion = occlusion
-        self.prog = program(ctx, "sky_ground.vert", "sky_ground.frag")
         vis = np.asarray(occlusion.visibility, dtype=np.float32)
         h, w = vis.shape
         refl = occlusion.bounce if occlusion.bounce is not None else np.zeros_like(vis)
@@ -52,52 +54,20 @@ class GroundSkyPass:
         self.tex = ctx.texture((w, h), 2, data.tobytes(), dtype="f4")
         self.tex.repeat_x = self.tex.repeat_y = False  # clamp to edge: the border's value at the edge
         self.tex.filter = (ctx.LINEAR, ctx.LINEAR)
-        x0, y0, x1, y1 = occlusion.extent
-        self.corners = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], np.float64)
-        self.vbo = ctx.buffer(reserve=6 * 6 * 4, dynamic=True)
-        self.vao = ctx.vertex_array(self.prog, [(self.vbo, "4f 2f", "in_pos", "in_st")])
-        self._origin: np.ndarray | None = None
+        self.extent = np.array(occlusion.extent, np.float64)
 
-    def _upload(self, origin: np.ndarray) -> None:
-        """The square's vertices relative to the caster's local origin (float32 near the object)."""
-        if self._origin is not None and np.array_equal(self._origin, origin):
-            return
-        st = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float64)
-        data = np.zeros((6, 6), np.float32)
-        for k, i in enumerate((0, 1, 2, 0, 2, 3)):
-            data[k, :2] = self.corners[i] - origin[:2]
-            data[k, 2] = -origin[2]
-            data[k, 3] = 1.0
-            data[k, 4:] = st[i]
-        self.vbo.write(data.tobytes())
-        self._origin = np.array(origin, np.float64)
-
-    def draw(  # noqa: PLR0913 (the context, its raw GL, the frame's matrix and origin, two stencil bits)
-        self, ctx: moderngl.Context, gl: GL, mvp_bytes: bytes, origin: np.ndarray, ground_bit: int, occluder_bit: int
-    ) -> None:
-        """Add ``1 - V`` into the mask target's ``b`` (and the object's reflected light, the map's ``bounce``,
-        into its ``a``) where the stencil has the ground bit and not the occluder bit (depth test off: the
-        stencil already says the ground is the visible surface)."""
-        self._upload(np.asarray(origin, np.float64))
-        ctx.enable_only(ctx.BLEND)
-        ctx.blend_func = ctx.ONE, ctx.ONE
-        gl.glDepthMask(G.GL_FALSE)
-        gl.glColorMask(1, 1, 1, 1)
-        gl.glEnable(G.GL_STENCIL_TEST)
-        gl.glStencilMask(0)
-        gl.glStencilOp(G.GL_KEEP, G.GL_KEEP, G.GL_KEEP)
-        gl.glStencilFunc(G.GL_EQUAL, ground_bit, ground_bit | occluder_bit)
-        gl.draw_buffer_list([None, 1])
-        uniform(self.prog, "u_mvp").write(mvp_bytes)
-        self.tex.use(location=0)
-        uniform(self.prog, "u_vis").value = 0
-        self.vao.render(ctx.TRIANGLES, vertices=6)
-        gl.draw_buffers(2)
-        gl.glDepthMask(G.GL_TRUE)
+    def bind(self, prog: moderngl.Program, origin: np.ndarray, unit: int = 0) -> None:
+        """Give the ground program ``prog`` the map on texture ``unit`` and its square relative to the local
+        ``origin (3,)`` (the frame the ground's vertices are in), ``u_sky`` on."""
+        x0, y0, x1, y1 = self.extent
+        o = np.asarray(origin, np.float64)
+        uniform(prog, "u_sky").value = True
+        uniform(prog, "u_vis_rect").value = (float(x0 - o[0]), float(y0 - o[1]), float(x1 - x0), float(y1 - y0))
+        self.tex.use(location=unit)
+        uniform(prog, "u_vis").value = unit
 
     def release(self) -> None:
-        for o in (self.vao, self.vbo, self.tex):
-            o.release()
+        self.tex.release()
 
 
 class GLItemBuffer:

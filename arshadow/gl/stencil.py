@@ -79,7 +79,7 @@ from .resources import (
     translation,
     uniform,
 )
-from .sky import GLGroundRaster, GroundSkyPass
+from .sky import GLGroundRaster, GroundSkyMap
 from .targets import FrameTargets, RenderTarget
 
 if TYPE_CHECKING:  # annotations only: the context is handed in (arshadow.gl.context makes it)
@@ -213,7 +213,7 @@ class ShadowRenderer:
         # the plain ones stay as fast as before
         self.prog_rich_base = program(ctx, "occluder_rich.vert", "occluder_rich_base.frag")
         self.prog_rich_light = program(ctx, "occluder_rich.vert", "occluder_rich_light.frag")
-        self.prog_ground = program(ctx, "common.vert", "ground.frag")
+        self.prog_ground = program(ctx, "ground.vert", "ground.frag")
         self.prog_volume = program(ctx, "common.vert", "volume.frag")
         self.prog_mask = program(ctx, "fullscreen.vert", "mask.frag")
         self.prog_planar_mask = program(ctx, "common.vert", "mask.frag")  # direct planar shadows
@@ -228,7 +228,7 @@ class ShadowRenderer:
             rich_programs=(self.prog_rich_base, self.prog_rich_light),
         )
         self._targets = FrameTargets(ctx, self.gl, samples, self.supersample)
-        self._sky_ground: GroundSkyPass | None = None  # of the last ground occlusion map drawn
+        self._sky_ground: GroundSkyMap | None = None  # of the last ground occlusion map drawn
         self._released = False
         # the capabilities of arshadow.renderer.request.Renderer
         #: render_gpu() keeps the layers on the GPU (arshadow.gl.gpu_compose composites them there)
@@ -351,8 +351,6 @@ class ShadowRenderer:
         self._clear_pass(f)
         self._occluder_base_pass(f)
         self._ground_pass(f)
-        if f.sky is not None and f.sky.ground is not None:
-            self._sky_pass(f, f.sky.ground)
         for i, (p, rng) in enumerate(zip(f.passes, f.ranges, strict=True)):
             self._light_pass(f, i, p, rng)
         self._mark("occluder_light")
@@ -472,7 +470,8 @@ class ShadowRenderer:
         self._mark("occluder")
 
     def _ground_pass(self, f: _Frame) -> None:
-        """The ground plane's depth, ground coverage (colour 1 g) and ground stencil bit."""
+        """The ground plane's depth, ground coverage (colour 1 g), sky channel (colour 1 b, a: the ground occlusion
+        map read at each ground sample, with sky occlusion) and ground stencil bit."""
         ctx, gl = self.ctx, self.gl
         ctx.enable_only(ctx.DEPTH_TEST | ctx.CULL_FACE)
         ctx.cull_face = "back"
@@ -486,7 +485,13 @@ class ShadowRenderer:
             gl.draw_buffer_list([None, 1])  # nothing of the occluder below z = 0 to erase: skip colour 0
         else:
             gl.draw_buffers(2)
-        uniform(self.prog_ground, "u_mvp").write(f.mvp_bytes)
+        prog = self.prog_ground
+        uniform(prog, "u_mvp").write(f.mvp_bytes)
+        if f.sky is not None and f.sky.ground is not None:  # the sky channel from the ground occlusion map
+            self._sky_map(f.sky.ground).bind(prog, f.origin)
+            set_falloff(prog, f.falloff, f.origin, None)
+        else:
+            uniform(prog, "u_sky").value = False
         self._ground.render(ctx)
         gl.draw_buffers(2)
         gl.glDisable(G.GL_POLYGON_OFFSET_FILL)
@@ -500,17 +505,14 @@ class ShadowRenderer:
             bufs.texture.use(location=0)
             uniform(prog, "u_tex").value = 0
 
-    def _sky_pass(self, f: _Frame, ground: GroundOcclusion) -> None:
-        """The ground occlusion map ``ground`` (``f.sky.ground``; one quad on z = 0) into the mask's sky channel
-        where the ground is visible (:class:`arshadow.gl.sky.GroundSkyPass`), made on first use per map."""
-        sp = self._sky_ground
-        if sp is None or sp.occlusion is not ground:
-            if sp is not None:
-                sp.release()
-            sp = self._sky_ground = GroundSkyPass(self.ctx, ground)
-        set_falloff(sp.prog, f.falloff, f.origin, None)
-        sp.draw(self.ctx, self.gl, f.mvp_bytes, f.origin, GROUND_BIT, OCCLUDER_BIT)
-        self._mark("sky")
+    def _sky_map(self, ground: GroundOcclusion) -> GroundSkyMap:
+        """The ground occlusion map ``ground`` (``f.sky.ground``) on the GPU, made on first use per map."""
+        sm = self._sky_ground
+        if sm is None or sm.occlusion is not ground:
+            if sm is not None:
+                sm.release()
+            sm = self._sky_ground = GroundSkyMap(self.ctx, ground)
+        return sm
 
     def _light_pass(self, f: _Frame, i: int, p: LightPass, rng: tuple[int, int] | None) -> None:
         """One light: its shadow into the mask, then its lighting of the occluder."""
