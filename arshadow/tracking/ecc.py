@@ -1,11 +1,12 @@
 """Photometric corner refinement: the marker's known bitmap aligned to the image (``refine="ecc"``).
 
 The edge refinement (:mod:`arshadow.tracking.refine`) fits the four border edges at their 50 % crossings.
-That crossing is the edge only when the blur is symmetric *in the image's code values*; a camera blurs
-light (linearly) and then applies its tone curve, which moves the code-value midpoint towards the dark
-side: the black square looks smaller, the pose too far (measured: every edge corner 0.1-0.15 px inwards on
-the path-traced reference plates, whose only blur is the pixel's area; 0.8-1.0 px inwards on synthetic
-photos blurred by a 1 px Gaussian in linear light; docs/tracking.md). This module uses the whole pattern: a
+Taken in code values, that crossing is the edge only when the blur is symmetric *in the image's code
+values*; a camera blurs light (linearly) and then applies its tone curve, which moves the code-value
+midpoint towards the dark side: the black square looks smaller, the pose too far (measured: 0.8-1.0 px
+inwards on synthetic photos blurred by a 1 px Gaussian in linear light; docs/tracking.md). Since
+2026-11-29 the edge refinement reads from the border's width which space is right and fits there
+("Edges in linear light"). This module uses the whole pattern: a
 template of the marker (its cells from the dictionary, the black border and half a cell of white paper
 round it) is aligned to the image by OpenCV's ECC (``cv2.findTransformECC``, ``MOTION_HOMOGRAPHY``:
 enhanced correlation, invariant to brightness and contrast), starting from the edge corners.

@@ -243,10 +243,16 @@ class MarkerTracker:
         det = detection_from_opencv(corners, ids, rejected, self._shift_params)
         if self.refine in ("edge", "ecc") and len(det):
             intr = self._intrinsics_for(gray)[0]
-            det.corners = refine_corners_edges(gray, det.corners, intr)
+            det.corners = self._edges(gray, det.corners, intr)
             if self.refine == "ecc":
                 det.corners = self._ecc(gray, det.corners, det.ids, intr)[0]
         return det
+
+    def _edges(self, gray: np.ndarray, corners: np.ndarray, intr: Intrinsics) -> np.ndarray:
+        """The edge refinement of corners ``(n, 4, 2)`` (distorted pixels), told the markers' cells across
+        and their border (the border's width tells blur in linear light from blur in code values)."""
+        border = int(self.params.markerBorderBits)
+        return refine_corners_edges(gray, corners, intr, bits=self.dictionary.markerSize + 2 * border, border=border)
 
     def _ecc(
         self, gray: np.ndarray, corners: np.ndarray, ids: Sequence[int] | np.ndarray, intr: Intrinsics
@@ -423,7 +429,7 @@ class MarkerTracker:
         if isinstance(gray, LumaFrame):  # the found markers' neighbourhood is all the rest reads
             gray = gray.near(det.corners)
         if self.refine in ("edge", "ecc"):
-            det.corners = refine_corners_edges(gray, det.corners, intr)
+            det.corners = self._edges(gray, det.corners, intr)
         found = sorted(set(det.ids.tolist()))
         by_id = det.by_id
         if self.marker_id is not None:
@@ -461,7 +467,7 @@ class MarkerTracker:
         # as for one marker (the video default; the marker-map work). Not ECC: a board's many corners average
         # their errors out (a 5 x 7 board: no rotation gain, 0.05 -> 0.015 mm, for 46 -> 90-98 ms a photo)
         if self.refine in ("edge", "ecc") and len(det):
-            det.corners = refine_corners_edges(gray, det.corners, intr)
+            det.corners = self._edges(gray, det.corners, intr)
         obj, img = board.cv_board.matchImagePoints(
             tuple(c.reshape(1, 4, 2).astype(np.float32) for c in det.corners), det.ids.reshape(-1, 1).astype(np.int32)
         )
