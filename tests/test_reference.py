@@ -50,8 +50,9 @@ def test_reference_sets_committed(own, heldout):
 
 def test_reference_camera_is_arshadows(own, heldout, tol):
     """Mitsuba's sensor images the printed paper where arshadow's pinhole does (its own exact render of the
-    print), to a small fraction of a pixel and 0.1 % of scale; a 0.3 px principal point error is seen, and
-    the 0.25 % scale of Mitsuba's field of view taken over W pixels instead of W - 1 (mitsuba_fov)."""
+    print, averaged in linear light), to a small fraction of a pixel and 0.1 % of scale; a 0.3 px principal
+    point error is seen, and a 0.25 % scale (the field of view over W - 1 pixels the plates had until
+    2026-11-28, mitsuba_fov)."""
     for c in own + heldout:
         dx, dy, scale = plate_alignment(c.plate8, c.scene)
         assert np.hypot(dx, dy) < tol.ref_camera_shift_px, (c.scene.name, dx, dy)
@@ -61,7 +62,7 @@ def test_reference_camera_is_arshadows(own, heldout, tol):
     dx, _, _ = plate_alignment(c.plate8, dataclasses.replace(c.scene, principal_offset=(x0 + 0.3, y0)))
     assert abs(dx + 0.3) < tol.ref_camera_shift_px
     W, fx = c.scene.width, intrinsics_of(c.scene).fx
-    wide = math.degrees(2 * math.atan(W / 2 / (fx * (W - 1) / W)))  # arshadow's camera if it had Mitsuba's f
+    wide = math.degrees(2 * math.atan(W / 2 / (fx * (W - 1) / W)))  # a focal length 0.25 % short
     assert abs(plate_alignment(c.plate8, dataclasses.replace(c.scene, fov_x_deg=wide))[2]) > tol.ref_camera_scale
 
 

@@ -310,32 +310,62 @@ def load_cases(folder: str | os.PathLike[str]) -> list[Case]:
 # ---------------------------------------------------------------------------------------------------
 # the camera check: does the path tracer's camera image the world where arshadow's pinhole does?
 # ---------------------------------------------------------------------------------------------------
+def print_linear(sc: ReferenceScene, box: tuple[int, int, int, int], sub: int = 16) -> np.ndarray:
+    """arshadow's exact render of the scene's print (:func:`arshadow.synth.render_print_scene`), green, in
+    linear light over the pixel box ``(r0, r1, c0, c1)``: each pixel the mean of its ``sub x sub`` sub-pixels,
+    each decoded from sRGB first (a sensor integrates light; averaging code values and then decoding, as the
+    renderer's own supersampling does, darkens the pixels an edge crosses: it biased the camera check's
+    scale by -0.25 % on the committed plates)."""
+    from ..camera import Intrinsics
+    from ..compose.composite import srgb_to_linear
+    from ..synth.markers import render_print_scene
+
+    K, (r0, r1, c0, c1) = intrinsics_of(sc), box
+    # the box at sub x the resolution: pixel (c, r)'s centre is sub-pixel ((c - c0 + 0.5) sub - 0.5, ...)
+    fine = Intrinsics(
+        K.fx * sub,
+        K.fy * sub,
+        (K.cx - c0 + 0.5) * sub - 0.5,
+        (K.cy - r0 + 0.5) * sub - 0.5,
+        (c1 - c0) * sub,
+        (r1 - r0) * sub,
+    )
+    code = render_print_scene(fine, pose_of(sc), marker_length=sc.marker_length, supersample=1)["image"][:, :, 1]
+    lin = srgb_to_linear(np.clip(code, 0.0, 255.0) / 255.0)
+    out: np.ndarray = lin.reshape(r1 - r0, sub, c1 - c0, sub).mean(axis=(1, 3))
+    return out
+
+
 def plate_alignment(plate8: np.ndarray, sc: ReferenceScene) -> tuple[float, float, float]:
-    """How the plate's printed paper sits against arshadow's own exact rendering of the print
-    (:func:`arshadow.synth.render_print_scene`) at the scene's camera: ``(dx, dy, scale)``, the shift in pixels
+    """How the plate's printed paper sits against arshadow's own exact rendering of the print at the scene's
+    camera, area-averaged in linear light (:func:`print_linear`): ``(dx, dy, scale)``, the shift in pixels
     and the relative scale about the principal point (Lucas-Kanade over the paper eroded by 2 px, with a
     brightness gain and gradient: the paper's lighting need not be uniform).
 
     Independent of the marker detector, whose own corner bias on an exact render is a few tenths of a pixel
     (``Tolerances.synth_corner_px``): a camera mismatch of a tenth of a pixel or 0.1 % of focal length shows.
+    (Before 2026-11-28 the reference was averaged in code values, which biased the scale by -0.25 %.)
     """
-    from ..compose.composite import SRGB_TO_LINEAR
     from ..synth.markers import render_print_scene
 
     K, pose = intrinsics_of(sc), pose_of(sc)
-    scene = render_print_scene(K, pose, marker_length=sc.marker_length, supersample=8)
-    ref = SRGB_TO_LINEAR[np.clip(np.rint(scene["image"][:, :, 1]), 0, 255).astype(np.uint8)].astype(np.float64)
+    paper = render_print_scene(K, pose, marker_length=sc.marker_length, supersample=2)["paper_world"]
     img = decode8(plate8)[:, :, 1]
-    uv = K.project(scene["paper_world"], pose)
+    uv = K.project(paper, pose)
     mask = np.zeros(img.shape, np.uint8)
     cv2.fillConvexPoly(mask, np.round(uv * 16).astype(np.int32), 1, shift=4)
     m = cv2.erode(mask, np.ones((5, 5), np.uint8)) > 0
+    rows, cols = np.flatnonzero(m.any(axis=1)), np.flatnonzero(m.any(axis=0))
+    r0, r1 = max(rows[0] - 2, 0), min(rows[-1] + 3, img.shape[0])
+    c0, c1 = max(cols[0] - 2, 0), min(cols[-1] + 3, img.shape[1])
+    ref = print_linear(sc, (r0, r1, c0, c1))
+    img, m = img[r0:r1, c0:c1], m[r0:r1, c0:c1]
     gy, gx = np.gradient(ref)
-    vv, uu = np.mgrid[0 : img.shape[0], 0 : img.shape[1]]
+    vv, uu = np.mgrid[r0:r1, c0:c1]
     X, Y = uu - K.cx, vv - K.cy
     # img ~ (a + bx X + by Y) ref(x - d - (s - 1) x): linear in (a, bx, by, a dx, a dy, a (s - 1)), ignoring b d
-    cols = [ref, ref * X, ref * Y, -gx, -gy, -(gx * X + gy * Y)]
-    A = np.column_stack([c[m] for c in cols])
+    cols_ = [ref, ref * X, ref * Y, -gx, -gy, -(gx * X + gy * Y)]
+    A = np.column_stack([c[m] for c in cols_])
     sol = np.linalg.lstsq(A, img[m], rcond=None)[0]
     a = sol[0]
     return float(sol[3] / a), float(sol[4] / a), float(sol[5] / a)

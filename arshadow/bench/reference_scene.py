@@ -149,15 +149,17 @@ def intrinsics_of(sc: ReferenceScene) -> Intrinsics:
 
 
 def mitsuba_fov(sc: ReferenceScene) -> float:
-    """The ``fov`` (degrees, x axis) to give Mitsuba's ``perspective`` sensor for arshadow's ``fx``.
+    """The ``fov`` (degrees, x axis) to give Mitsuba's ``perspective`` sensor for arshadow's ``fx``: the plain
+    ``2 atan(W / 2 / fx)`` (Mitsuba spreads it over the W pixels' full width, as arshadow's pinhole does).
 
-    Measured: Mitsuba 3.9's sensor spreads its field of view over W - 1 pixels (the edge columns' centres),
-    not W: given ``2 atan(W / 2 / fx)`` its image is 0.25 % smaller than arshadow's pinhole (0.5 px at
-    the image's corners; :func:`arshadow.bench.reference.plate_alignment` measured scale -0.0032), given
-    ``2 atan((W - 1) / 2 / fx)`` it agrees to 0.0006.
+    Until 2026-11-28 this gave ``2 atan((W - 1) / 2 / fx)``, a "fix" for a 0.25 % scale that was an artefact of
+    the camera check: its reference averaged each pixel's sub-samples in code values, not linear light, which
+    shrinks the printed paper's bright area by about a quarter of a pixel. Against a linear-light reference
+    (:func:`arshadow.bench.reference.plate_alignment`) the 12 plates rendered over W - 1 measured scale
+    +0.0023..+0.0031 (W / (W - 1)); re-rendered with this plain fov, see docs/reference.md.
     """
     K = intrinsics_of(sc)
-    return math.degrees(2.0 * math.atan((sc.width - 1) / 2.0 / K.fx))
+    return math.degrees(2.0 * math.atan(sc.width / 2.0 / K.fx))
 
 
 def pose_of(sc: ReferenceScene) -> np.ndarray:

@@ -15,8 +15,9 @@ started from the ``edge_code`` corners (:func:`edge_space` swaps the tracker's e
   (deg) and translation (mm) of the pose; medians and 90th percentiles, overall and per condition.
 - ``plates``: the committed path-traced plates (tests/data/reference/{own,heldout}), corners against the
   scene's true projected corners (``corner_*``) and against the corners of the camera the plates were
-  rendered with (``rendered_*``: Mitsuba was given ``reference_scene.mitsuba_fov``, a field of view over
-  W - 1 pixels, which scales the plates by W / (W - 1) about the principal point: docs/tracking.md).
+  rendered with (``rendered_*``: Mitsuba was given ``reference_scene.mitsuba_fov``; until 2026-11-28 a field
+  of view over W - 1 pixels, which scaled the plates by W / (W - 1) about the principal point:
+  docs/tracking.md, docs/reference.md; since, the scenes' own, and the two columns agree).
 - ``cost``: ms per marker of the refinements alone on 1280x720 synthetic photos blurred by 0.6 px in code
   values (``<size>px``) or in linear light (``<size>px_linear_blur``): ``edge``, ``edge_code`` and what
   ECC adds (median over photos of the median of repeated runs, interleaved), with the load average.
@@ -27,6 +28,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import functools
+import math
 import os
 import time
 from collections.abc import Iterator
@@ -37,7 +39,7 @@ import numpy as np
 
 import arshadow.tracking.tracker as tracker_module
 from arshadow.bench.reference import load_cases
-from arshadow.bench.reference_scene import intrinsics_of, pose_of
+from arshadow.bench.reference_scene import intrinsics_of, mitsuba_fov, pose_of
 from arshadow.bench.tracking import camera
 from arshadow.compose.composite import linear_to_srgb, srgb_to_linear
 from arshadow.errors import MarkerNotFoundError
@@ -171,7 +173,8 @@ def plates():
             K = intrinsics_of(c.scene)
             truth = K.project(marker_object_points(c.scene.marker_length), pose_of(c.scene))
             pp = np.array([K.cx, K.cy])
-            rendered = pp + (truth - pp) * c.scene.width / (c.scene.width - 1.0)  # the plates' camera
+            f_rendered = c.scene.width / 2.0 / math.tan(math.radians(mitsuba_fov(c.scene)) / 2.0)
+            rendered = pp + (truth - pp) * f_rendered / K.fx  # the plates' camera
             per[c.scene.name] = {}
             for method in METHODS:
                 pose = estimate(method, c.plate8, K, marker_length=c.scene.marker_length)
