@@ -95,7 +95,7 @@ class Tolerances:
     synth_corner_px: float = 0.35  # generator's true corners vs OpenCV's sub-pixel detection (no noise)
     # ECC corners (refine="ecc") vs the generating pose's projected corners, worst corner of 12 photos (blur 0.8
     # in code values or 1.0 in linear light, noise 2, JPEG 90, 52-94 px markers): measured 0.088 / 0.174 px
-    # (the edge corners: 0.105 / 0.97 px before 2026-11-29, biased inwards by the blur in linear light;
+    # (the edge corners: 0.105 / 0.97 px before 2026-11-28, biased inwards by the blur in linear light;
     # 0.105 / 0.33 px since); a half-pixel error fails
     ecc_corner_px: float = 0.2
     ecc_corner_centroid_px: float = 0.1  # their mean offset per photo (measured <= 0.053): half a pixel fails

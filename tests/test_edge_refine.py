@@ -71,7 +71,7 @@ def start_corners(cam, image, marker_id, dictionary="DICT_6X6_250"):
 def test_edge_corners_in_linear_light(blur):
     """Pixel area (and a 0.8 px blur) in linear light: every edge corner within TOL.edge_linear_corner_px,
     the marker's scale within TOL.edge_linear_scale_px. The code-value crossings alone (the refinement
-    before 2026-11-29) put every corner 0.21-0.82 px inwards here."""
+    before 2026-11-28) put every corner 0.21-0.82 px inwards here."""
     for k, view in enumerate(VIEWS):
         pose = look_at_pose(*view)
         image = linear_light_photo(CAM, pose, k + 3, blur, seed=k)
@@ -87,7 +87,7 @@ def test_edge_corners_in_linear_light(blur):
 
 def test_edge_corners_blurred_in_code_values_keep_the_code_fit():
     """Blur in code values (arshadow.synth's photos): the border shows no bias, the corners are the code-value
-    fit's exactly (the refinement before 2026-11-29), within TOL.edge_linear_corner_px of the truth."""
+    fit's exactly (the refinement before 2026-11-28), within TOL.edge_linear_corner_px of the truth."""
     cam = Intrinsics.from_file(ROOT / "calib" / "synth_1280x720.yml")
     for k, view in enumerate(VIEWS):
         pose = look_at_pose(*view)

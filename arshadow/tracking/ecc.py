@@ -5,7 +5,7 @@ Taken in code values, that crossing is the edge only when the blur is symmetric 
 values*; a camera blurs light (linearly) and then applies its tone curve, which moves the code-value
 midpoint towards the dark side: the black square looks smaller, the pose too far (measured: 0.8-1.0 px
 inwards on synthetic photos blurred by a 1 px Gaussian in linear light; docs/tracking.md). Since
-2026-11-29 the edge refinement reads from the border's width which space is right and fits there
+2026-11-28 the edge refinement reads from the border's width which space is right and fits there
 ("Edges in linear light"). This module uses the whole pattern: a
 template of the marker (its cells from the dictionary, the black border and half a cell of white paper
 round it) is aligned to the image by OpenCV's ECC (``cv2.findTransformECC``, ``MOTION_HOMOGRAPHY``:

@@ -181,7 +181,7 @@ def refine_edges(
         Cells of black border (ArUco's ``markerBorderBits``).
     space : {"auto", "code", "linear"}
         Where the 50 % crossings are taken (:data:`SPACES`); ``code`` is this function's behaviour before
-        2026-11-29.
+        2026-11-28.
 
     Returns
     -------

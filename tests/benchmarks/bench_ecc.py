@@ -4,7 +4,7 @@
     python tests/benchmarks/bench_ecc.py [--photos 200] [--sections synth,plates,cost] [--out result.json]
 
 Methods: ``edge`` and ``ecc`` as shipped; ``edge_code`` / ``edge_linear``: the edge refinement with its
-crossings in code values only (its behaviour before 2026-11-29) / in linear light only; ``ecc_code``: ECC
+crossings in code values only (its behaviour before 2026-11-28) / in linear light only; ``ecc_code``: ECC
 started from the ``edge_code`` corners (:func:`edge_space` swaps the tracker's edge refinement).
 
 - ``synth``: synthetic photos (:func:`arshadow.synth.render_print_scene`) at 1280x720 with the benchmark's
