@@ -1,6 +1,6 @@
 """``estimate_light``: photos (or video frames) of the marker and a probe -> a :class:`LightEstimate`.
 
-(About 620 lines: the one public entry and its private steps -- evidence per photo, the fit, the shadow
+(About 625 lines: the one public entry and its private steps -- evidence per photo, the fit, the shadow
 ratio with the probe's sky occlusion, the trust checks -- in the order they run; the checks' own measurements
 live in :mod:`.outline`, :mod:`.shading` and :mod:`.shadow`.)
 """
