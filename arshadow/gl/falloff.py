@@ -1,13 +1,16 @@
 """A measured point light's shadow ratio across the ground, on the GPU (:attr:`Shading.ratio_falloff`).
 
 The composite applies one shadow ratio ``r0`` (the sky's share of the ground's light where the object
-stands). A lamp's irradiance on the floor falls off as ``cos / d^2 = z / d^3`` while the sky's does not, so
-at a ground point where the lamp gives ``g`` times its irradiance at the object the sky's share is ``q0 /
-(g + q0)``, ``q0 = r0 / (1 - r0)``. The shadow mask pass (``mask.frag``) scales each point light's weight by
-``g (1 + q0) / (g + q0)`` and the ground pass (``ground.frag``) the sky channel by ``(1 + q0) / (g + q0)``:
-``(1 - r0)`` and ``r0`` times them are the lamp's and the sky's shares at that point. The mask pass finds
-its fragment's ground point from the canvas' inverse matrix (a full-viewport triangle has no position to
-interpolate). Nothing here creates a context or imports moderngl.
+stands): a pixel keeps ``1 - (1 - r0) mask - r0 sky``. A lamp's irradiance on the floor falls off as
+``cos / d^2 = z / d^3`` while the sky's does not, so at a ground point where the lamp gives ``g`` times its
+irradiance at the object the sky's share is ``q0 / (g + q0)``, ``q0 = r0 / (1 - r0)``: the lamp's blocked
+share is ``a = g (1 + q0) / (g + q0)`` times the mask's and the sky's ``b = (1 + q0) / (g + q0)`` times the
+sky channel's. The mask keeps the blocked weight (the saved shadow mask's contract, CONVENTIONS.md): the
+mask pass (``mask.frag``) adds ``weight (a - 1) / q0`` to the sky channel instead, the same composite
+(``r0 / q0 = 1 - r0``), and the ground pass (``ground.frag``) scales the ground occlusion map's value by
+``b``. So the correction needs the sky channel: it is on with sky occlusion (a measured light's default),
+off without. The mask pass finds its fragment's ground point from the canvas' inverse matrix (a
+full-viewport triangle has no position to interpolate). Nothing here creates a context or imports moderngl.
 """
 
 from __future__ import annotations
@@ -43,11 +46,13 @@ class Falloff:
 def frame_falloff(
     shading: Shading, passes: list[LightPass], origin: np.ndarray, mvp_local: np.ndarray, canvas: tuple[int, int]
 ) -> Falloff | None:
-    """The frame's :class:`Falloff`, or None (no ``ratio_falloff``, or no point light above the ground)."""
+    """The frame's :class:`Falloff`, or None (no ``ratio_falloff``, no sky channel, or no point light above the
+    ground)."""
     rf = getattr(shading, "ratio_falloff", None)
+    sky = getattr(shading, "sky", None)
     pts = [(np.asarray(p.light_h, np.float64), float(p.weight)) for p in passes if float(p.light_h[3]) != 0.0]
-    if rf is None or not pts or sum(w for _, w in pts) <= 0:
-        return None
+    if rf is None or sky is None or sky.ground is None or not pts or sum(w for _, w in pts) <= 0:
+        return None  # (the correction rides on the sky channel: none without sky occlusion)
     lamp = sum(w * (h[:3] / h[3]) for h, w in pts) / sum(w for _, w in pts) - origin
     if lamp[2] <= -origin[2]:
         return None

@@ -121,8 +121,6 @@ class RenderResult:
         Blocked light weight / total weight at pixels that see the ground plane and are not covered by the
         occluder; 0 elsewhere. With anti-aliasing it is coverage-weighted: the mean over the pixel's
         samples of (sample sees the ground) x (blocked weight of that sample).
-        With :attr:`Shading.ratio_falloff` a point light's weight is scaled to the share of the ground
-        point's own light it blocks (at most its weight).
     color : (h, w, 3) float32
         Linear RGB of the shaded occluder, **premultiplied by** ``alpha`` (equal to the straight colour
         wherever alpha = 1, 0 where alpha = 0).
@@ -203,9 +201,9 @@ class Shading:
         ``(x0, y0, q0)``: a point light's shadow ratio across the ground. The sky-to-lamp ratio is ``q0`` at
         the ground point ``(x0, y0)`` (world, metres; where the composite's shadow ratio ``r0 = q0 / (1 +
         q0)`` holds) and ``q0 / g`` elsewhere, ``g = (d0 / d)^3`` the lamp's irradiance there relative to
-        ``(x0, y0)`` (``cos / d^2`` on the floor). The renderer scales each point light's shadow mask by
-        ``g (1 + q0) / (g + q0)`` (at most 1) and the sky channel by ``(1 + q0) / (g + q0)``, so that the composite's one
-        ratio becomes the one at each ground point (docs/shading.md); None: one ratio everywhere. Set from
+        ``(x0, y0)`` (``cos / d^2`` on the floor). The renderer makes the composite's one ratio the one at each
+        ground point through the sky channel (the mask keeps the blocked weight; arshadow/gl/falloff.py,
+        docs/shading.md), so only with sky occlusion on; None: one ratio everywhere. Set from
         ``RenderOptions.ratio_at`` with a measured light.
 
     Phong ([Kolivand-Stencil]): ``I = K_a I_a + sum_l I_l (K_d (N.L) + K_s (N.H)^n)``.

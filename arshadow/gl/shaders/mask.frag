@@ -1,9 +1,10 @@
 #version 330 core
 // Accumulates one light's weight where the stencil test passed (ground bit set, volume count != 0).
-// With u_falloff (a measured point light, Shading.ratio_falloff): the weight times g (1 + q0) / (g + q0)
-// at the fragment's ground point, g = (d0 / d)^3 the lamp's irradiance there relative to the point where
-// the composite's shadow ratio holds: the blocked share of that ground point's own light (at most the
-// weight: ground nearer the lamp than that point keeps the mask's [0, 1]).
+// With u_falloff (a measured point light, Shading.ratio_falloff): the blocked share of the fragment's own
+// ground light is the weight times a = g (1 + q0) / (g + q0), g = (d0 / d)^3 the lamp's irradiance there
+// relative to the point where the composite's shadow ratio r0 = q0 / (1 + q0) holds. The mask (r) keeps the
+// weight (the shadow mask's contract, CONVENTIONS.md); the difference rides on the sky channel (b), which
+// the composite weighs by r0 where the mask is weighed by 1 - r0: weight (a - 1) / q0.
 uniform float u_weight;
 uniform bool u_falloff;
 uniform mat4 u_inv_mvp;   // local_from_clip of the canvas
@@ -25,11 +26,11 @@ vec3 ground_point() {
 }
 
 void main() {
-    float w = u_weight;
+    float extra = 0.0;
     if (u_falloff) {
         float g = pow(distance(u_lamp, u_ref.xyz) / max(distance(u_lamp, ground_point()), 1e-9), 3.0);
-        w *= min(g * (1.0 + u_ref.w) / (g + u_ref.w), 1.0);
+        extra = u_weight * (g * (1.0 + u_ref.w) / (g + u_ref.w) - 1.0) / u_ref.w;
     }
     o_color = vec4(0.0);
-    o_mask = vec4(w, 0.0, 0.0, 0.0);
+    o_mask = vec4(u_weight, 0.0, extra, 0.0);
 }
