@@ -13,6 +13,7 @@ import cv2
 import numpy as np
 import pytest
 from conftest import TOL
+from marker_views import VIEWS
 
 import arshadow.tracking.tracker as tracker_module
 from arshadow.camera.model import Intrinsics
@@ -27,15 +28,6 @@ from arshadow.transforms import rotation_error_deg
 ROOT = Path(__file__).resolve().parents[1]
 CAM = Intrinsics.from_file(ROOT / "calib" / "synth_1280x720.yml")
 L = 0.05
-#: (eye, target) of the photos: 52-94 px markers, tilted, rolled
-VIEWS = [
-    ([0.1, -0.2, 0.45], [0, 0, 0]),
-    ([-0.25, -0.3, 0.35], [0.02, 0, 0]),
-    ([0.3, 0.1, 0.5], [0, 0.01, 0]),
-    ([0.0, -0.1, 0.7], [0, 0, 0]),
-    ([-0.1, 0.35, 0.4], [0, 0, 0]),
-    ([0.2, 0.2, 0.9], [0, 0, 0]),
-]
 
 
 def _photo(k: int, linear_blur: bool) -> tuple[np.ndarray, np.ndarray, int]:

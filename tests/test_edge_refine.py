@@ -14,6 +14,7 @@ import cv2
 import numpy as np
 import pytest
 from conftest import TOL
+from marker_views import VIEWS
 
 from arshadow.camera.model import Intrinsics
 from arshadow.compose.composite import linear_to_srgb, srgb_to_linear
@@ -25,15 +26,6 @@ from arshadow.tracking.tracker import MarkerTracker
 ROOT = Path(__file__).resolve().parents[1]
 CAM = Intrinsics.from_file(ROOT / "calib" / "synth_1280x720.yml").scaled(640, 360)
 L = 0.05
-#: (eye, target): 26-47 px markers at 640 x 360, tilted, rolled (one nearly frontal, one small)
-VIEWS = [
-    ([0.1, -0.2, 0.45], [0, 0, 0]),
-    ([-0.25, -0.3, 0.35], [0.02, 0, 0]),
-    ([0.3, 0.1, 0.5], [0, 0.01, 0]),
-    ([0.0, -0.1, 0.7], [0, 0, 0]),
-    ([-0.1, 0.35, 0.4], [0, 0, 0]),
-    ([0.2, 0.2, 0.9], [0, 0, 0]),
-]
 
 
 def linear_light_photo(cam, pose, marker_id, blur, *, dictionary="DICT_6X6_250", length=L, seed=0, jpeg=90):

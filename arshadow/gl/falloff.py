@@ -65,7 +65,7 @@ def frame_falloff(
 
 
 def set_falloff(prog: moderngl.Program, fo: Falloff | None, origin: np.ndarray, light_h: np.ndarray | None) -> None:
-    """Write :class:`Falloff` ``fo`` into a mask or sky program (``u_falloff`` off without it or for a
+    """Write :class:`Falloff` ``fo`` into a mask or ground program (``u_falloff`` off without it or for a
     directional ``light_h``); ``light_h`` (4,) world: this pass's lamp (None: ``fo.lamp``)."""
     on = fo is not None and (light_h is None or float(light_h[3]) != 0.0)
     uniform(prog, "u_falloff").value = on
