@@ -17,7 +17,6 @@ from marker_views import VIEWS
 
 import arshadow.tracking.tracker as tracker_module
 from arshadow.camera.model import Intrinsics
-from arshadow.compose.composite import linear_to_srgb, srgb_to_linear
 from arshadow.synth.markers import camera_effects, look_at_pose, render_marker_photo, render_print_scene
 from arshadow.tracking.board import load_board
 from arshadow.tracking.dictionary import marker_bits, marker_object_points
@@ -36,10 +35,7 @@ def _photo(k: int, linear_blur: bool) -> tuple[np.ndarray, np.ndarray, int]:
     mid = k + 3
     if linear_blur:
         img = render_print_scene(CAM, pose, marker_id=mid, marker_length=L)["image"]
-        lin = cv2.GaussianBlur(srgb_to_linear(img / 255.0).astype(np.float32), (0, 0), 1.0)
-        image = camera_effects(
-            (linear_to_srgb(lin) * 255.0).astype(np.float32), noise_sigma=2.0, seed=k, jpeg_quality=90
-        )
+        image = camera_effects(img, blur_sigma=1.0, blur_linear=True, noise_sigma=2.0, seed=k, jpeg_quality=90)
     else:
         image = render_marker_photo(
             CAM, pose, marker_length=L, marker_id=mid, blur_sigma=0.8, noise_sigma=2.0, jpeg_quality=90, seed=k

@@ -349,23 +349,23 @@ def plate_alignment(plate8: np.ndarray, sc: ReferenceScene) -> tuple[float, floa
     from ..synth.markers import render_print_scene
 
     K, pose = intrinsics_of(sc), pose_of(sc)
-    paper = render_print_scene(K, pose, marker_length=sc.marker_length, supersample=2)["paper_world"]
+    paper = render_print_scene(K, pose, marker_length=sc.marker_length, supersample=1)["paper_world"]
     img = decode8(plate8)[:, :, 1]
     uv = K.project(paper, pose)
     mask = np.zeros(img.shape, np.uint8)
     cv2.fillConvexPoly(mask, np.round(uv * 16).astype(np.int32), 1, shift=4)
     m = cv2.erode(mask, np.ones((5, 5), np.uint8)) > 0
-    rows, cols = np.flatnonzero(m.any(axis=1)), np.flatnonzero(m.any(axis=0))
-    r0, r1 = max(rows[0] - 2, 0), min(rows[-1] + 3, img.shape[0])
-    c0, c1 = max(cols[0] - 2, 0), min(cols[-1] + 3, img.shape[1])
+    ys, xs = np.flatnonzero(m.any(axis=1)), np.flatnonzero(m.any(axis=0))
+    r0, r1 = max(ys[0] - 2, 0), min(ys[-1] + 3, img.shape[0])
+    c0, c1 = max(xs[0] - 2, 0), min(xs[-1] + 3, img.shape[1])
     ref = print_linear(sc, (r0, r1, c0, c1))
     img, m = img[r0:r1, c0:c1], m[r0:r1, c0:c1]
     gy, gx = np.gradient(ref)
     vv, uu = np.mgrid[r0:r1, c0:c1]
     X, Y = uu - K.cx, vv - K.cy
     # img ~ (a + bx X + by Y) ref(x - d - (s - 1) x): linear in (a, bx, by, a dx, a dy, a (s - 1)), ignoring b d
-    cols_ = [ref, ref * X, ref * Y, -gx, -gy, -(gx * X + gy * Y)]
-    A = np.column_stack([c[m] for c in cols_])
+    cols = [ref, ref * X, ref * Y, -gx, -gy, -(gx * X + gy * Y)]
+    A = np.column_stack([c[m] for c in cols])
     sol = np.linalg.lstsq(A, img[m], rcond=None)[0]
     a = sol[0]
     return float(sol[3] / a), float(sol[4] / a), float(sol[5] / a)

@@ -1,6 +1,6 @@
 """``estimate_light``: photos (or video frames) of the marker and a probe -> a :class:`LightEstimate`.
 
-(About 625 lines: the one public entry and its private steps -- evidence per photo, the fit, the shadow
+(About 620 lines: the one public entry and its private steps -- evidence per photo, the fit, the shadow
 ratio with the probe's sky occlusion, the trust checks -- in the order they run; the checks' own measurements
 live in :mod:`.outline`, :mod:`.shading` and :mod:`.shadow`.)
 """
@@ -30,7 +30,7 @@ from .exposure import Exposure, ExposureError, measure_exposure
 from .light import FitResult, MakeFine, fit_directional, fit_point, fit_sun
 from .outline import outline_agreement
 from .penumbra import fit_angular_radius
-from .record import LightEstimate, moved_ratio
+from .record import LightEstimate
 from .shading import face_shading_residual
 from .shadow import LUMA, Evidence, build_evidence, edge_pairs, fit_levels, shadow_coverage
 
@@ -423,10 +423,9 @@ def _sun_elevation_check(coarse: list[Evidence], make_fine: MakeFine, enu: np.nd
     return el, sun_el, (f"low confidence: {text}" if diff > SUN_FLAG_DEG else None)
 
 
-def _checks(  # noqa: PLR0913 (the fit, its ratio and where it was read, the evidence and the probe)
+def _checks(
     res: FitResult,
-    ratio: tuple,
-    ratio_at: tuple[float, float] | None,
+    read: tuple[tuple, tuple[float, float] | None],
     pxs: Sequence[float],
     outline: Sequence[tuple[float, int]],
     views: Sequence[tuple[np.ndarray, Intrinsics, np.ndarray]],
@@ -435,16 +434,11 @@ def _checks(  # noqa: PLR0913 (the fit, its ratio and where it was read, the evi
 ) -> dict:
     """The checks of a fitted light that do not come from its shadow fit: the probe's outline on the photo
     (pooled over the frames), the share of the fitted shadow's edge darker inside, and the probe's faces
-    against the light's shading (the median over up to :data:`SHADING_VIEWS` frames; NaN when not measured)."""
+    against the light's shading (the median over up to :data:`SHADING_VIEWS` frames; NaN when not measured).
+    ``read``: the shadow ratio and where it was read (:func:`_ratio`)."""
     edge_darker, edge_n = _edge_consistency(res.fine, res.light_h, pxs)
-    r = float(np.asarray(ratio) @ LUMA)
-    h = np.asarray(res.light_h, np.float64)
-    if (
-        h[3] != 0.0 and ratio_at is not None
-    ):  # a point light's ratio at the probe's foot, where the faces' model wants it
-        foot = 0.5 * (verts[:, :2].min(axis=0) + verts[:, :2].max(axis=0))
-        r = float(moved_ratio([r], h[:3] / h[3], ratio_at, foot)[0])
-    shade = [face_shading_residual(im, it, T, verts, faces, res.light_h, r)[0] for im, it, T in views]
+    r = float(np.asarray(read[0]) @ LUMA)
+    shade = [face_shading_residual(im, it, T, verts, faces, res.light_h, r, read[1])[0] for im, it, T in views]
     shade = [x for x in shade if math.isfinite(x)]
     return {
         "outline": _pooled(outline),
@@ -534,7 +528,7 @@ def _fit(
     else:
         res = fit_point(coarse, make_fine, anchor)
     ratio, ratio_at = _ratio(res.fine, res.light_h, pxs, ShadowCaster(verts, faces) if sky_occlusion else None)
-    checks = _checks(res, ratio, ratio_at, pxs, outline, views, verts, faces)
+    checks = _checks(res, (ratio, ratio_at), pxs, outline, views, verts, faces)
     paper = np.median(np.array([e.paper_rgb for e in exposures]), axis=0)
     ink = np.median(np.array([e.ink_rgb for e in exposures]), axis=0)
     exp = Exposure(

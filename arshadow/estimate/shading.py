@@ -26,6 +26,7 @@ import numpy as np
 from ..camera.model import Intrinsics
 from ..compose.composite import SRGB_TO_LINEAR
 from ..transforms import transform_points
+from .record import moved_ratio
 from .shadow import LUMA
 
 __all__ = ["MIN_FACE_PX", "face_shading_residual"]
@@ -58,6 +59,7 @@ def face_shading_residual(
     faces: np.ndarray,
     light_h: np.ndarray,
     shadow_ratio: float,
+    ratio_at: tuple[float, float] | None = None,
 ) -> tuple:
     """The largest disagreement between the probe's faces in the photo and their shading by a light.
 
@@ -71,8 +73,10 @@ def face_shading_residual(
     light_h : (4,) float
         ``(dx, dy, dz, 0)`` towards a directional light or ``(x, y, z, 1)`` a point light, world frame.
     shadow_ratio : float
-        The ground's shadow / lit (luminance) at the probe's foot (the centre of its footprint), that fixes
-        ``A / E``.
+        The ground's shadow / lit (luminance), that fixes ``A / E``.
+    ratio_at : (2,) float, optional
+        Where it was read (world, metres): a point light's is moved to the probe's foot, the centre of its
+        footprint (:func:`arshadow.estimate.record.moved_ratio`); None: read at the foot.
 
     Returns
     -------
@@ -93,6 +97,8 @@ def face_shading_residual(
     def falloff(p: np.ndarray) -> float:  # a point light's irradiance at p over at the foot (normal incidence)
         return 1.0 if h[3] == 0.0 else float(np.sum((h[:3] / h[3] - foot) ** 2) / np.sum((h[:3] / h[3] - p) ** 2))
 
+    if h[3] != 0.0 and ratio_at is not None:
+        shadow_ratio = float(moved_ratio([shadow_ratio], h[:3] / h[3], ratio_at, foot[:2])[0])
     r = float(np.clip(shadow_ratio, 0.0, 0.95))
     amb = r * max(to_light(foot)[2], 0.0) / (1.0 - r)  # A / E
     H, W = image_bgr.shape[:2]

@@ -48,8 +48,7 @@ def frame_falloff(
 ) -> Falloff | None:
     """The frame's :class:`Falloff`, or None (no ``ratio_falloff``, no sky channel, or no point light above the
     ground)."""
-    rf = getattr(shading, "ratio_falloff", None)
-    sky = getattr(shading, "sky", None)
+    rf, sky = shading.ratio_falloff, shading.sky
     pts = [(np.asarray(p.light_h, np.float64), float(p.weight)) for p in passes if float(p.light_h[3]) != 0.0]
     if rf is None or sky is None or sky.ground is None or not pts or sum(w for _, w in pts) <= 0:
         return None  # (the correction rides on the sky channel: none without sky occlusion)

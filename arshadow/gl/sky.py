@@ -54,12 +54,11 @@ class GroundSkyMap:
         self.tex = ctx.texture((w, h), 2, data.tobytes(), dtype="f4")
         self.tex.repeat_x = self.tex.repeat_y = False  # clamp to edge: the border's value at the edge
         self.tex.filter = (ctx.LINEAR, ctx.LINEAR)
-        self.extent = np.array(occlusion.extent, np.float64)
 
     def bind(self, prog: moderngl.Program, origin: np.ndarray, unit: int = 0) -> None:
         """Give the ground program ``prog`` the map on texture ``unit`` and its square relative to the local
         ``origin (3,)`` (the frame the ground's vertices are in), ``u_sky`` on."""
-        x0, y0, x1, y1 = self.extent
+        x0, y0, x1, y1 = self.occlusion.extent
         o = np.asarray(origin, np.float64)
         uniform(prog, "u_sky").value = True
         uniform(prog, "u_vis_rect").value = (float(x0 - o[0]), float(y0 - o[1]), float(x1 - x0), float(y1 - y0))

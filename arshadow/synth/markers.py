@@ -27,6 +27,7 @@ from numpy.typing import ArrayLike
 
 from .._check import check_finite, check_shape
 from ..camera.model import Intrinsics
+from ..compose.composite import linear_to_srgb, srgb_to_linear
 from ..errors import UsageError
 from ..tracking.board import Board
 from ..tracking.dictionary import get_dictionary, marker_bits, marker_object_points
@@ -365,12 +366,20 @@ def camera_effects(
     noise_sigma: float = 0.0,
     seed: int | None = None,
     jpeg_quality: int | None = None,
+    blur_linear: bool = False,
 ) -> np.ndarray:
     """Exposure, Gaussian blur, Gaussian noise (8-bit units), rounding and JPEG on a float32 image in 8-bit
-    code units: (H, W, 3) float32 (modified in place) -> (H, W, 3) uint8."""
+    code units: (H, W, 3) float32 (modified in place) -> (H, W, 3) uint8. The blur acts on the code values,
+    or with ``blur_linear`` on linear light (decoded, blurred, encoded: as optics blur, before the tone
+    curve)."""
     if exposure != 1.0:
         img *= np.float32(exposure)
-    if blur_sigma and blur_sigma > 0:
+    if blur_sigma and blur_sigma > 0 and blur_linear:
+        lin = cv2.GaussianBlur(
+            srgb_to_linear(np.clip(img, 0, 255) / 255.0).astype(np.float32), (0, 0), float(blur_sigma)
+        )
+        img = (linear_to_srgb(lin) * 255.0).astype(np.float32)
+    elif blur_sigma and blur_sigma > 0:
         img = cv2.GaussianBlur(img, (0, 0), float(blur_sigma))
     if noise_sigma and noise_sigma > 0:
         # OpenCV's RNG is 3x faster than numpy's here; seeded per call, so photos are reproducible

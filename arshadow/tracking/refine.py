@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
@@ -86,20 +86,10 @@ class EdgeRefinement:
 
 
 def refine_corners_edges(
-    gray: np.ndarray,
-    corners: npt.ArrayLike,
-    intrinsics: Intrinsics | None = None,
-    *,
-    bits: int = 8,
-    border: int = 1,
-    space: str = "auto",
-    iterations: int = 3,
-    n_samples: int = 24,
-    reach_in: float = 0.45,
-    reach_out: float = 0.45,
-    tol_px: float = 0.01,
+    gray: np.ndarray, corners: npt.ArrayLike, intrinsics: Intrinsics | None = None, **options: Any
 ) -> np.ndarray:
-    """The corners of :func:`refine_edges` (same parameters): ``(n, 4, 2) float64`` distorted pixels.
+    """The corners of :func:`refine_edges` (``options``: its keyword parameters): ``(n, 4, 2) float64``
+    distorted pixels.
 
     Examples
     --------
@@ -113,19 +103,7 @@ def refine_corners_edges(
     >>> bool(np.abs(c[0] - photo.corners_px[0]).max() < 0.1)
     True
     """
-    return refine_edges(
-        gray,
-        corners,
-        intrinsics,
-        bits=bits,
-        border=border,
-        space=space,
-        iterations=iterations,
-        n_samples=n_samples,
-        reach_in=reach_in,
-        reach_out=reach_out,
-        tol_px=tol_px,
-    ).corners
+    return refine_edges(gray, corners, intrinsics, **options).corners
 
 
 def refine_edges(

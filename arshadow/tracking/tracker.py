@@ -261,7 +261,7 @@ class MarkerTracker:
         refined corners and a note naming the markers that kept their edge corners (None: none did)."""
         for i in ids:
             if int(i) not in self._bits:
-                self._bits[int(i)] = marker_bits(self.dictionary, int(i))
+                self._bits[int(i)] = marker_bits(self.dictionary, int(i), int(self.params.markerBorderBits))
         res = refine_corners_ecc(gray, corners, [self._bits[int(i)] for i in ids], intr)
         kept = [f"marker {int(i)}: {why}" for i, why in zip(ids, res.fallback, strict=True) if why is not None]
         note = f"ECC alignment not used, edge corners kept ({'; '.join(kept)})" if kept else None

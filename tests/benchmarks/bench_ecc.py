@@ -34,14 +34,12 @@ import time
 from collections.abc import Iterator
 
 import _common
-import cv2
 import numpy as np
 
 import arshadow.tracking.tracker as tracker_module
 from arshadow.bench.reference import load_cases
 from arshadow.bench.reference_scene import intrinsics_of, mitsuba_fov, pose_of
 from arshadow.bench.tracking import camera
-from arshadow.compose.composite import linear_to_srgb, srgb_to_linear
 from arshadow.errors import MarkerNotFoundError
 from arshadow.synth.markers import camera_effects, random_pose, render_print_scene
 from arshadow.tracking.detect import to_gray
@@ -99,12 +97,9 @@ def make_photo(cam, rng, seed, size=None, blur=None, space=None, noise=None, jpe
     noise = float(rng.choice([0.0, 2.0, 4.0])) if noise is None else noise
     jpeg = [None, 90][int(rng.integers(2))] if jpeg == "random" else jpeg
     img = render_print_scene(cam, pose, marker_id=mid, marker_length=MARKER_LENGTH)["image"]
-    if space == "linear" and blur > 0:  # optics: the blur acts on light, before the tone curve
-        lin = cv2.GaussianBlur(srgb_to_linear(np.clip(img, 0, 255) / 255.0).astype(np.float32), (0, 0), blur)
-        img, code_blur = (linear_to_srgb(lin) * 255.0).astype(np.float32), 0.0
-    else:
-        code_blur = blur
-    photo = camera_effects(img, blur_sigma=code_blur, noise_sigma=noise, seed=seed, jpeg_quality=jpeg)
+    photo = camera_effects(  # linear: optics, the blur acts on light before the tone curve
+        img, blur_sigma=blur, blur_linear=space == "linear", noise_sigma=noise, seed=seed, jpeg_quality=jpeg
+    )
     truth = cam.project(marker_object_points(MARKER_LENGTH), pose)
     cond = dict(size=size, blur=blur, space=space if blur > 0 else "-", noise=noise, jpeg=jpeg, tilt=round(tilt, 1))
     return dict(image=photo, pose=pose, mid=mid, truth=truth, cond=cond)
