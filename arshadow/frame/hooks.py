@@ -28,6 +28,7 @@ from ..estimate.match import ExposureMatch, marker_id_of
 from ..scene.sanity import calibration_scaled_note, say_note
 from ..scene.spec import RenderOptions
 from ..tracking.detect import VIDEO_REFINE
+from ..tracking.edgelock import EdgeSpaceLock
 from ..tracking.pose import MarkerPose
 from ..tracking.reference import ReferenceLock
 from ..tracking.tracker import MarkerTracker
@@ -70,6 +71,9 @@ class CalibrationState:
         Trackers search a window around their last detection first (video).
     fast_detect : bool
         A fast first pass (``detector="fast"``) before the full search.
+    video : bool
+        The frames are a video's: the trackers share one :class:`~arshadow.tracking.edgelock.EdgeSpaceLock`
+        (the edge fit's space decided once per marker and video).
     """
 
     intrinsics: Intrinsics
@@ -78,6 +82,7 @@ class CalibrationState:
     tracker_kwargs: dict
     track_roi: bool = False
     fast_detect: bool = False
+    video: bool = False
     _trackers: tuple | None = None
 
     def trackers(self) -> tuple:
@@ -86,10 +91,15 @@ class CalibrationState:
             kw, roi = self.tracker_kwargs, self.track_roi
             # video: one reference marker for the whole video (the trust fixes), shared by both trackers
             ref = ReferenceLock() if roi else None
-            full = MarkerTracker(self.intrinsics, **kw, track_roi=roi, reference=ref)
+            shared: dict[str, Any] = {
+                "track_roi": roi,
+                "reference": ref,
+                "edge_lock": EdgeSpaceLock() if self.video else None,
+            }
+            full = MarkerTracker(self.intrinsics, **kw, **shared)
             fast = None
             if self.fast_detect and "detector_params" not in kw:
-                fast = MarkerTracker(self.intrinsics, **kw, detector="fast", track_roi=roi, reference=ref)
+                fast = MarkerTracker(self.intrinsics, **kw, detector="fast", **shared)
             self._trackers = (fast, full)
         return self._trackers
 
@@ -98,8 +108,9 @@ class CalibrationState:
         for t in self._trackers or ():
             if t is not None:
                 t.reset()
-                if t.reference is not None:
-                    t.reference.reset()
+                for shared in (t.reference, t.edge_lock):
+                    if shared is not None:
+                        shared.reset()
 
     def tracker_state(self) -> list:
         """:meth:`~arshadow.tracking.tracker.MarkerTracker.state` of the trackers made so far (fast, full)."""
@@ -256,7 +267,10 @@ class EngineHooks:
                 lens = self._lenses.get(intr)
                 if lens is None:
                     lens = self._lenses[intr] = LensWarp(intr)
-            c = self._calibs[key] = CalibrationState(intr, scaled, lens, dict(tracker), roi, bool(opts.fast_detect))
+            video = bool(opts.track_roi)
+            c = self._calibs[key] = CalibrationState(
+                intr, scaled, lens, dict(tracker), roi, bool(opts.fast_detect), video
+            )
         return c
 
     def tracker_state(self, width: int, height: int) -> list:

@@ -18,6 +18,7 @@ each space lies between the two fits).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import TYPE_CHECKING, Any
@@ -113,7 +114,7 @@ def refine_edges(
     *,
     bits: int = 8,
     border: int = 1,
-    space: str = "auto",
+    space: str | Sequence[str] = "auto",
     iterations: int = 3,
     n_samples: int = 24,
     reach_in: float = 0.45,
@@ -157,25 +158,28 @@ def refine_edges(
         Marker cells across, border included (ArUco 6x6: 8).
     border : int
         Cells of black border (ArUco's ``markerBorderBits``).
-    space : {"auto", "code", "linear"}
-        Where the 50 % crossings are taken (:data:`SPACES`); ``code`` is this function's behaviour before
-        2026-11-28.
+    space : {"auto", "code", "linear"} or sequence of them
+        Where the 50 % crossings are taken (:data:`SPACES`), for all markers or per marker (``n``; a video's
+        markers locked to the code values, :class:`arshadow.tracking.edgelock.EdgeSpaceLock`); ``code`` is
+        this function's behaviour before 2026-11-28.
 
     Returns
     -------
     EdgeRefinement
         A marker whose edges cannot be measured keeps its input corners.
     """
-    if space not in SPACES:
-        raise ValueError(f"space must be one of {SPACES}, got {space!r}")
     lens = intrinsics if intrinsics is not None and intrinsics.has_distortion else None
     c_all = np.asarray(corners, np.float64).reshape(-1, 4, 2).copy()
+    spaces = [space] * len(c_all) if isinstance(space, str) else list(space)
+    asked = {space} if isinstance(space, str) else set(spaces)
+    if len(spaces) != len(c_all) or not asked <= set(SPACES):
+        raise ValueError(f"space must be one of {SPACES} or one of them per marker ({len(c_all)}), got {space!r}")
     weight = np.full(len(c_all), np.nan)
     bias = np.full((4, len(c_all)), np.nan)  # code, linear, their standard errors
     fit = _EdgeFit(np.asarray(gray), lens, np.linspace(0.15, 0.85, n_samples), bits, border, reach_in, reach_out,
                    iterations, tol_px)  # fmt: skip
     for m in range(len(c_all)):
-        c_all[m], weight[m], bias[:, m] = fit.marker(c_all[m], space)
+        c_all[m], weight[m], bias[:, m] = fit.marker(c_all[m], spaces[m])
     return EdgeRefinement(c_all, weight, *bias)
 
 

@@ -41,12 +41,13 @@ from .dictionary import (
     marker_object_points,
 )
 from .ecc import refine_corners_ecc
+from .edgelock import EdgeSpaceLock
 from .fastdetect import fast_detector_params, wrap_fast_detector
 from .luma import LumaFrame
 from .pose import AltPose, MarkerPose, Solved, solve_general, solve_planar
 from .quality import AMBIGUITY_FLAG, border_occlusion, corner_instability
 from .reference import ReferenceLock
-from .refine import refine_corners_edges
+from .refine import refine_edges
 from .roi_track import TrackingDetector
 
 __all__ = ["MarkerTracker", "make_fast_tracker"]
@@ -98,6 +99,10 @@ class MarkerTracker:
         (:mod:`arshadow.tracking.reference`); shared by the trackers of one video (the fast pass gives it
         ``"peek"`` use: a miss of its own is followed by the full search, which counts it). Not reset by
         :meth:`reset` (the fast pass resets the full search's memory on every hit): reset it at a new video.
+    edge_lock : EdgeSpaceLock, optional
+        Video: the ``edge`` refinement's space check skipped for a marker once the video has shown it
+        blurs in code values (:mod:`arshadow.tracking.edgelock`); shared by the trackers of one video, in
+        their :meth:`state`, and, like ``reference``, reset by its owner at a new video. Photos: None.
 
     Examples
     --------
@@ -124,6 +129,7 @@ class MarkerTracker:
         track_roi: bool = False,
         inverted: bool | None = None,
         reference: ReferenceLock | None = None,
+        edge_lock: EdgeSpaceLock | None = None,
     ) -> None:
         if not isinstance(intrinsics, Intrinsics):
             raise UsageError("intrinsics must be an arshadow.camera.Intrinsics")
@@ -162,6 +168,7 @@ class MarkerTracker:
                 )
         self.marker_id = marker_id
         self.reference = None if (marker_id is not None or board is not None) else reference
+        self.edge_lock = edge_lock
         self.refine = refine
         self.pnp_refine = bool(pnp_refine)
         fast = isinstance(detector, str) and detector == "fast"
@@ -243,16 +250,26 @@ class MarkerTracker:
         det = detection_from_opencv(corners, ids, rejected, self._shift_params)
         if self.refine in ("edge", "ecc") and len(det):
             intr = self._intrinsics_for(gray)[0]
-            det.corners = self._edges(gray, det.corners, intr)
+            det.corners = self._edges(gray, det.corners, det.ids, intr)
             if self.refine == "ecc":
                 det.corners = self._ecc(gray, det.corners, det.ids, intr)[0]
         return det
 
-    def _edges(self, gray: np.ndarray, corners: np.ndarray, intr: Intrinsics) -> np.ndarray:
-        """The edge refinement of corners ``(n, 4, 2)`` (distorted pixels), told the markers' cells across
-        and their border (the border's width tells blur in linear light from blur in code values)."""
+    def _edges(
+        self, gray: np.ndarray, corners: np.ndarray, ids: Sequence[int] | np.ndarray, intr: Intrinsics
+    ) -> np.ndarray:
+        """The edge refinement of corners ``(n, 4, 2)`` (distorted pixels) of markers ``ids``, told the
+        markers' cells across and their border (the border's width tells blur in linear light from blur in
+        code values; in a video, a marker the lock has decided skips that check: :attr:`edge_lock`)."""
         border = int(self.params.markerBorderBits)
-        return refine_corners_edges(gray, corners, intr, bits=self.dictionary.markerSize + 2 * border, border=border)
+        lock = self.edge_lock
+        space = "auto" if lock is None else lock.spaces(ids)
+        res = refine_edges(
+            gray, corners, intr, bits=self.dictionary.markerSize + 2 * border, border=border, space=space
+        )
+        if lock is not None:
+            lock.observe(ids, res.linear_weight)
+        return res.corners
 
     def _ecc(
         self, gray: np.ndarray, corners: np.ndarray, ids: Sequence[int] | np.ndarray, intr: Intrinsics
@@ -282,7 +299,10 @@ class MarkerTracker:
         {'rescue_misses': 0}
         """
         st: dict[str, object] = self._detector.state() if hasattr(self._detector, "state") else {}
-        return st if self.reference is None else {**st, **self.reference.state()}
+        for shared in (self.reference, self.edge_lock):
+            if shared is not None:
+                st = {**st, **shared.state()}
+        return st
 
     def estimate(
         self, image_bgr: np.ndarray | LumaFrame, previous: MarkerPose | np.ndarray | None = None
@@ -429,7 +449,7 @@ class MarkerTracker:
         if isinstance(gray, LumaFrame):  # the found markers' neighbourhood is all the rest reads
             gray = gray.near(det.corners)
         if self.refine in ("edge", "ecc"):
-            det.corners = self._edges(gray, det.corners, intr)
+            det.corners = self._edges(gray, det.corners, det.ids, intr)
         found = sorted(set(det.ids.tolist()))
         by_id = det.by_id
         if self.marker_id is not None:
@@ -467,7 +487,7 @@ class MarkerTracker:
         # as for one marker (the video default; the marker-map work). Not ECC: a board's many corners average
         # their errors out (a 5 x 7 board: no rotation gain, 0.05 -> 0.015 mm, for 46 -> 90-98 ms a photo)
         if self.refine in ("edge", "ecc") and len(det):
-            det.corners = self._edges(gray, det.corners, intr)
+            det.corners = self._edges(gray, det.corners, det.ids, intr)
         obj, img = board.cv_board.matchImagePoints(
             tuple(c.reshape(1, 4, 2).astype(np.float32) for c in det.corners), det.ids.reshape(-1, 1).astype(np.int32)
         )
