@@ -200,35 +200,43 @@ def _video(tmp_path, clip, tag, *extra):
 def test_video_motion_from_the_rendered_poses_and_off_unchanged(tmp_path, gl_ctx, tol):
     """In a video each frame's motion is the box corners' projected motion between the previous and the
     next frame's rendered poses (their records, projected with cv2.projectPoints and the calibration's lens),
-    halved, times the shutter; --motion-blur off, and a blur skipped as negligible, leave the frames as they
-    are without it, bit for bit."""
+    over the frames between them, times the shutter; one-sided beside a frame without the marker (held:
+    none); --motion-blur off, and a blur skipped as negligible, leave the frames as they are without it,
+    bit for bit."""
     from arshadow.camera.model import Intrinsics
 
     intr = Intrinsics.from_file(CALIB)
-    n = 8
-    clip = make_clip(tmp_path / "c.mkv", intr, _poses(n, sweep=60.0), codec="ffv1", noise=1.0)
+    n, gap = 9, 5
+    clip = make_clip(tmp_path / "c.mkv", intr, _poses(n, sweep=60.0), codec="ffv1", noise=1.0, blank={gap})
     on, rec = _video(tmp_path, clip, "on", "--shutter", "0.75")
     off, rec_off = _video(tmp_path, clip, "off", "--motion-blur", "off")
     tiny, rec_tiny = _video(tmp_path, clip, "tiny", "--shutter", "0.001")
-    assert all(r["status"] == "ok" for r in rec) and all("motion_blur" not in r for r in rec_off)
+    assert [r["status"] for r in rec] == ["ok"] * gap + ["held"] + ["ok"] * (n - gap - 1)
+    assert all("motion_blur" not in r for r in rec_off)
     K = np.array([[intr.fx, 0, intr.cx], [0, intr.fy, intr.cy], [0, 0, 1]])
 
     def project(r):
         return cv2.projectPoints(BOX, np.array(r["rvec"]), np.array(r["tvec"]), K, np.asarray(intr.dist))[0][:, 0]
 
+    def tracked(i):
+        return 0 <= i < n and rec[i]["status"] == "ok"
+
     applied = 0
     for i in range(n):
         mb = rec[i]["motion_blur"]
-        a, b = rec[max(i - 1, 0)], rec[min(i + 1, n - 1)]
-        steps = min(i + 1, n - 1) - max(i - 1, 0)
-        truth = (project(b) - project(a)).mean(axis=0) / steps
-        assert mb["from"].split(":")[0] == ("forward" if i == 0 else "backward" if i == n - 1 else "central")
+        assert rec_tiny[i]["motion_blur"]["applied"] is False
+        assert np.array_equal(tiny[i], off[i])
+        if i == gap:
+            assert mb["from"].startswith("none") and mb["shift_px"] == [0.0, 0.0] and not mb["applied"]
+            continue
+        lo, hi = (i - 1 if tracked(i - 1) else i), (i + 1 if tracked(i + 1) else i)
+        truth = (project(rec[hi]) - project(rec[lo])).mean(axis=0) / (hi - lo)
+        kind = "central" if hi - lo == 2 else "forward" if lo == i else "backward"
+        assert mb["from"].split(":")[0] == kind, (i, mb["from"])
         assert np.abs(np.array(mb["frame_motion_px"]) - truth).max() <= tol.motion_record_px, (i, mb, truth)
         assert np.abs(np.array(mb["shift_px"]) - 0.75 * truth).max() <= tol.motion_record_px
         applied += mb["applied"]
-        assert rec_tiny[i]["motion_blur"]["applied"] is False
-        assert np.array_equal(tiny[i], off[i])
-    assert applied >= n - 2
+    assert applied >= n - 3
     changed = [not np.array_equal(x, y) for x, y in zip(on, off, strict=True)]
     assert sum(changed) >= applied
 

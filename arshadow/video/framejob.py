@@ -205,10 +205,12 @@ class SessionBackend:
         if o.camera_effects != "on" or o.motion_blur != "on" or fp.cam_from_marker is None:
             return None
         assert self.cal is not None  # set by start()
+        if fp.status != "ok":
+            return MotionBlur(shutter=float(o.shutter), source="none: a held pose (it does not follow the camera)")
         index = cast(FramePayload, fp.payload)[0].index
 
         def near(n: FramePose | None) -> tuple[np.ndarray, int] | None:
-            if fp.status != "ok" or n is None or n.status != "ok" or n.cam_from_marker is None:
+            if n is None or n.status != "ok" or n.cam_from_marker is None:
                 return None
             k = abs(cast(FramePayload, n.payload)[0].index - index)
             return (s.ground_camera(n.cam_from_marker), k) if k == 1 else None
