@@ -73,7 +73,8 @@ class MotionBlur:
     @property
     def reach(self) -> int:
         """Pixels the blur reaches beyond the layers' content (the kernel's radius; 0 when not applied)."""
-        return (motion_kernel(self.shift_px).shape[0] // 2) if self.active else 0
+        k = self.kernel
+        return 0 if k is None else k.shape[0] // 2
 
     @functools.cached_property
     def kernel(self) -> np.ndarray | None:
