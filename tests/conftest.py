@@ -269,6 +269,16 @@ class Tolerances:
     light_point_distance_rel: float = 0.05  # a point light's position error / distance: the median bar
     # the probe's face shading at the generating light: log residual (measured 0.0006..0.005 on 5 cases)
     light_face_shading_true: float = 0.05
+    # motion blur (camera effects in a video, tests/test_motion_blur.py): the frame's image motion against the
+    # box corners projected by hand / by cv2.projectPoints (float64 both; the video's poses round-trip through
+    # the JSON record's rvec / tvec); the box kernel's second moments against a segment's L^2 / 12 (the
+    # bilinear splat adds u (1 - u) per axis, 1/6 px^2 on average, at most 1/4); an edge's 10-90 % rise
+    # against 0.8 L; the blurred layers against the static ones blurred by an independent kernel (float32)
+    motion_project_px: float = 1e-9
+    motion_record_px: float = 1e-3
+    motion_moment_px2: float = 0.25
+    motion_ramp_px: float = 0.1
+    motion_layer_abs: float = 1e-5
 
 
 TOL = Tolerances()

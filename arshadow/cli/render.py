@@ -166,6 +166,18 @@ def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> No
         "marker's edges) and add noise matched to the photo's (docs/shading.md); default off",
     )
     s.add_argument(
+        "--motion-blur",
+        choices=("on", "off"),
+        help="with --camera-effects on, in a video: blur the inserted object and shadow along the image "
+        "motion of the camera's pose change during the exposure (docs/shading.md); default on (photos: never)",
+    )
+    s.add_argument(
+        "--shutter",
+        type=float,
+        metavar="FRACTION",
+        help="exposure time / frame interval for --motion-blur, in (0, 1]; default 0.5 (a 180-degree shutter)",
+    )
+    s.add_argument(
         "--no-exposure",
         action="store_true",
         help="keep the object's colour as given: no exposure / white balance match to the marker paper "

@@ -18,6 +18,7 @@ import numpy as np
 
 if TYPE_CHECKING:
     from ..frame.effects import CameraEffects
+    from ..frame.motion import MotionBlur
     from ..scene.options import RenderOptions
 
 __all__ = ["Look"]
@@ -53,6 +54,9 @@ class Look:
     #: the photo's measured blur and noise applied to the inserted layers (:mod:`arshadow.frame.effects`,
     #: ``--camera-effects on``; both compositors: the shader one in :mod:`arshadow.gl.gpu_effects`), None: none
     camera: CameraEffects | None = None
+    #: a video frame's motion blur of the inserted layers (:mod:`arshadow.frame.motion`, ``--motion-blur``;
+    #: the numpy compositor only: a frame whose blur is applied is composited by it), None: none
+    motion: MotionBlur | None = None
 
     @classmethod
     def from_options(cls, options: RenderOptions, color_gain: Sequence[float] | np.ndarray | None = None) -> Look:

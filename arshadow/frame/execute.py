@@ -46,9 +46,11 @@ if TYPE_CHECKING:
     from ..shading.sky import SkyShading
     from .effects import CameraEffects
     from .hooks import CalibrationState
+    from .motion import MotionBlur
 
 __all__ = [
     "LAYERS_WHY",
+    "MOTION_WHY",
     "STAGES",
     "FrameContext",
     "FrameOutputs",
@@ -60,6 +62,8 @@ __all__ = [
 
 #: the compose decision's reason when the layers are asked for
 LAYERS_WHY = "numpy (layers asked for: the composite and its layers come from the numpy path)"
+#: the compose decision's reason when a frame's motion blur is applied (the numpy path's alone)
+MOTION_WHY = "numpy (motion blur applied: the shader path does not motion-blur the layers)"
 #: the object's own sky visibility and ground bounce (SkyShading.object_sky) with sky occlusion on: the
 #: uniform sky. Off until the ground bounce's units were fixed (it lacked the paper's albedo, 1.25 x too
 #: much, so vertical faces took too much of the floor's colour); with them right it halves the object's
@@ -205,6 +209,7 @@ def execute(
     *,
     color_gain: Sequence[float] | np.ndarray | None = None,
     camera: CameraEffects | None = None,
+    motion: MotionBlur | None = None,
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """Render and composite one planned frame.
 
@@ -223,6 +228,10 @@ def execute(
         :mod:`arshadow.estimate.match`), measured on this frame.
     camera : arshadow.frame.effects.CameraEffects, optional
         The photo's blur and noise, applied to the inserted layers (``--camera-effects on``).
+    motion : arshadow.frame.motion.MotionBlur, optional
+        A video frame's motion blur of the inserted layers (``--motion-blur on``): its values go to the
+        report's ``plan.motion_blur``; applied (by the numpy compose path: the plan's compose decision becomes
+        ``"cpu"``) when :attr:`~arshadow.frame.motion.MotionBlur.active`.
 
     Returns
     -------
@@ -238,6 +247,8 @@ def execute(
         _no_layers(outputs.layers, (H, W))
         if not plan.empty and plan.compose != "cpu":
             plan.decide("compose", "cpu", LAYERS_WHY)
+    if motion is not None and motion.active and not plan.empty and plan.compose != "cpu":
+        plan.decide("compose", "cpu", MOTION_WHY)
     if plan.empty:
         return out, mask_full  # nothing of the scene is in view
     cal = context.calibration(W, H)
@@ -252,10 +263,12 @@ def execute(
         out=out,
         mask_full=mask_full,
         outputs=outputs,
-        look=replace(Look.from_options(geometry.options, color_gain), camera=camera),
+        look=replace(Look.from_options(geometry.options, color_gain), camera=camera, motion=motion),
     )
     if camera is not None:
         outputs.item.plan["camera_effects"] = camera.report()  # type: ignore[index]  # _report_plan's dict
+    if motion is not None:
+        outputs.item.plan["motion_blur"] = motion.report()  # type: ignore[index]  # _report_plan's dict
     _run_compose(frame, context)
     return out, mask_full
 
@@ -427,9 +440,10 @@ def _run_compose(frame: FrameJob, context: FrameContext) -> None:
 
 
 def _touched(frame: FrameJob) -> tuple[int, int, int, int]:
-    """The photo pixels either compose path may write: the plan's ROI, grown by the camera blur's reach."""
+    """The photo pixels either compose path may write: the plan's ROI, grown by the blurs' reach."""
     x0, y0, w, h = (int(v) for v in frame.plan.roi)
     p = 0 if frame.look.camera is None else frame.look.camera.pad
+    p += 0 if frame.look.motion is None else frame.look.motion.reach
     H, W = frame.image.shape[:2]
     return clip_roi((x0 - p, y0 - p, w + 2 * p, h + 2 * p), W, H)
 

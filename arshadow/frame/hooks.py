@@ -40,6 +40,7 @@ if TYPE_CHECKING:  # annotations only
     from ..plan.planner import FramePlan
     from ..renderer.request import Renderer
     from .execute import FrameOutputs
+    from .motion import MotionBlur
     from .result import FrameResult
     from .session import Session
 
@@ -356,6 +357,7 @@ class EngineHooks:
         layers: bool | str = False,
         marker: MarkerPose | None = None,
         seen: bool = True,
+        motion: MotionBlur | None = None,
     ) -> FrameResult:
         """:meth:`Session.render` with the engine's buffers and history.
 
@@ -374,5 +376,8 @@ class EngineHooks:
             False: the marker is not in this frame (a video frame rendered with a held pose). The exposure
             match then measures nothing, because the paper is not where the pose says, and keeps the
             video's last gain.
+        motion : arshadow.frame.motion.MotionBlur, optional
+            The frame's motion blur (a video's, from its neighbouring frames' poses:
+            :meth:`arshadow.video.framejob.SessionBackend.motion`); None: none (a photo).
         """
-        return self._render(image, pose, plan, outputs, layers, marker, seen)
+        return self._render(image, pose, plan, outputs, layers, marker, seen, motion)

@@ -12,6 +12,7 @@ Mask (CONVENTIONS.md)
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
@@ -23,6 +24,7 @@ from ..compose.layers import layers_from_warped, pinhole_layers
 from ..compose.look import Look
 from ..renderer.request import RenderLayers, RenderResult
 from .effects import add_noise, blur_layers, pad_for
+from .motion import motion_blur_layers
 from .report import ReportItem, StageTimings
 
 if TYPE_CHECKING:
@@ -100,8 +102,12 @@ def _warp_result(frame: FrameJob, res: RenderResult) -> _Warped | None:
 def _composite_cpu(frame: FrameJob, wp: _Warped) -> None:
     """Composite the warped layers into the frame's buffers (and make its layers when asked for)."""
     look, layer_request = frame.look, frame.outputs.layers
-    if look.camera is not None:
-        wp = _blurred(wp, look.camera.blur_px, frame.image.shape)
+    if look.motion is not None and look.motion.kernel is not None:  # the exposure's motion (a video frame)
+        kernel = look.motion.kernel
+        wp = _blurred(wp, look.motion.reach, frame.image.shape, lambda *a: motion_blur_layers(kernel, *a))
+    if look.camera is not None and look.camera.blur_px > 0:
+        sigma = look.camera.blur_px
+        wp = _blurred(wp, pad_for(sigma), frame.image.shape, lambda *a: blur_layers(sigma, *a))
     if layer_request is not None:  # execute's ``layers``: gets the frame's layers, with the gained colour
         wp = _gained(wp, look, bool(layer_request.get("undistorted")))
         look = replace(look, color_gain=None)  # applied
@@ -145,12 +151,16 @@ def _gained(wp: _Warped, look: Look, undistorted: bool) -> _Warped:
     return _Warped(wp.roi, replace(wp.overlay, color=color), pinhole)
 
 
-def _blurred(wp: _Warped, sigma: float, shape: tuple[int, ...]) -> _Warped:
-    """The warped layers grown by the blur's reach (zeros: nothing drawn there) and blurred by the photo's
-    point-spread width (:func:`arshadow.frame.effects.blur_layers`)."""
-    if sigma <= 0:
-        return wp
-    p = pad_for(sigma)
+def _blurred(
+    wp: _Warped,
+    p: int,
+    shape: tuple[int, ...],
+    blur: Callable[..., list[np.ndarray | None]],
+) -> _Warped:
+    """The warped layers grown by the blur's reach ``p`` px (zeros: nothing drawn there; within the photo of
+    ``shape``) and blurred by ``blur(mask, alpha, color, sky)`` (the photo's point-spread width,
+    :func:`arshadow.frame.effects.blur_layers`, or the exposure's motion,
+    :func:`arshadow.frame.motion.motion_blur_layers`)."""
     x0, y0, w, h = wp.roi
     H, W = shape[:2]
     nx0, ny0, nx1, ny1 = max(x0 - p, 0), max(y0 - p, 0), min(x0 + w + p, W), min(y0 + h + p, H)
@@ -160,7 +170,7 @@ def _blurred(wp: _Warped, sigma: float, shape: tuple[int, ...]) -> _Warped:
         return None if a is None else np.pad(a, pads + ((0, 0),) * (a.ndim - 2))
 
     ov = wp.overlay
-    mask, alpha, color, sky = blur_layers(sigma, grow(ov.mask), grow(ov.alpha), grow(ov.color), grow(ov.sky))
+    mask, alpha, color, sky = blur(grow(ov.mask), grow(ov.alpha), grow(ov.color), grow(ov.sky))
     return _Warped((nx0, ny0, nx1 - nx0, ny1 - ny0), Overlay(mask, color, alpha, sky, ov.premultiplied), wp.pinhole)
 
 

@@ -72,6 +72,7 @@ if TYPE_CHECKING:
     from ..gl.gpu_compose import GpuCompositor
     from ..shading.sky import GroundRaster
     from .effects import CameraEffects
+    from .motion import MotionBlur
 
 __all__ = ["Session", "FrameResult", "render_photo"]
 
@@ -356,9 +357,10 @@ class Session(History):
         layers: bool | str = False,
         marker: MarkerPose | None = None,
         seen: bool = True,
+        motion: MotionBlur | None = None,
     ) -> FrameResult:
         """:meth:`render` (and :meth:`arshadow.frame.hooks.EngineHooks.render`): ``outputs`` holds the buffers, item
-        and timings (``total`` grows by this call's time); ``marker``, ``seen``: as the hook's."""
+        and timings (``total`` grows by this call's time); ``marker``, ``seen``, ``motion``: as the hook's."""
         if (pose is None) == (plan is None):
             raise UsageError("Session.render needs a pose or a plan (one of them)")
         t0 = time.perf_counter()
@@ -375,7 +377,7 @@ class Session(History):
             )
         tracked = pose if isinstance(pose, MarkerPose) else None
         outputs.layers = _layer_request(layers)
-        res = self._render(image, plan, tracked, outputs, marker, seen)
+        res = self._render(image, plan, tracked, outputs, marker, seen, motion)
         outputs.timings.total += (time.perf_counter() - t0) * 1e3
         outputs.item.timings_ms = outputs.timings.as_dict(3)
         return res
@@ -434,10 +436,11 @@ class Session(History):
         outputs: FrameOutputs,
         marker: MarkerPose | None = None,
         seen: bool = True,
+        motion: MotionBlur | None = None,
     ) -> FrameResult:
         """Execute ``plan`` on ``image`` into ``outputs`` and fill its item (all but ``timings_ms``); ``pose``:
-        the tracked :class:`~arshadow.tracking.pose.MarkerPose` or None; ``marker``, ``seen``: as
-        :meth:`render`."""
+        the tracked :class:`~arshadow.tracking.pose.MarkerPose` or None; ``marker``, ``seen``, ``motion``: as
+        :meth:`arshadow.frame.hooks.EngineHooks.render`."""
         H, W = image.shape[:2]
         cal, hooks = self.hooks.calibration(W, H), self.hooks
         cfw = plan.cam_from_world
@@ -468,9 +471,16 @@ class Session(History):
             chooser=hooks.compose_chooser,
             gpu=self._gpu_compositor,
         )
-        out, mask = execute(plan, image, context, outputs, color_gain=gain, camera=self._camera_effects(image, pose))
+        camera = self._camera_effects(image, pose)
+        out, mask = execute(plan, image, context, outputs, color_gain=gain, camera=camera, motion=motion)
         lay = None if outputs.layers is None else outputs.layers["layers"]
         return FrameResult(out, mask, pose, np.asarray(cfw, np.float64), outputs.item, outputs.timings, plan, lay)
+
+    @property
+    def camera_effects(self) -> CameraEffects | None:
+        """The photo's measured blur and noise (``--camera-effects on``; None before the first frame with the
+        marker, or off)."""
+        return self._camera
 
     def _camera_effects(self, image: np.ndarray, pose: MarkerPose | None) -> CameraEffects | None:
         """The photo's blur and noise (``--camera-effects on``), measured on the first frame whose marker is

@@ -98,6 +98,12 @@ class RenderOptions:
     camera_effects : str
         ``on``: the object and shadow layers are blurred by the photo's measured point-spread width and get
         noise matched to the photo's (:mod:`arshadow.estimate.optics`); ``off`` (default).
+    motion_blur : str
+        ``on`` (default): with ``camera_effects`` on, a video frame's layers are also blurred along the image
+        motion of the camera's pose change during the exposure (:mod:`arshadow.frame.motion`; photos never:
+        they have no neighbouring frames); ``off``.
+    shutter : float
+        The exposure time over the frame interval, in (0, 1] (default 0.5: the 180° shutter of most video).
     ambient_measured : bool
         The ambient share (``shadow_color``, ``ambient``) comes from a measured light (``light_from``).
     material_gain : (3,) float, optional
@@ -137,6 +143,8 @@ class RenderOptions:
     exposure_gain: tuple | None = None
     ambient_occlusion: str = "auto"
     camera_effects: str = "off"
+    motion_blur: str = "on"
+    shutter: float = 0.5
     ambient_measured: bool = False
     material_gain: tuple | None = None
     ratio_at: tuple | None = None
@@ -169,6 +177,10 @@ class RenderOptions:
             raise UsageError(f"--ambient-occlusion {self.ambient_occlusion!r}: choose {', '.join(AMBIENT_OCCLUSION)}")
         if self.camera_effects not in ("on", "off"):
             raise UsageError(f"--camera-effects {self.camera_effects!r}: choose on or off")
+        if self.motion_blur not in ("on", "off"):
+            raise UsageError(f"--motion-blur {self.motion_blur!r}: choose on or off")
+        if not (math.isfinite(float(self.shutter)) and 0.0 < float(self.shutter) <= 1.0):
+            raise UsageError(f"--shutter {self.shutter}: must be in (0, 1] (exposure time / frame interval)")
         _check_shading(self)
         return self
 

@@ -327,6 +327,8 @@ SCENE_KEYS = (
     "track_roi",
     "ambient_occlusion",
     "camera_effects",
+    "motion_blur",
+    "shutter",
     "light_from",
     "no_exposure",
     "ground",
@@ -547,6 +549,8 @@ def scene_from_dict(d: Mapping[str, Any], base_dir: str | Path | None = None) ->
         ("track_roi", bool),
         ("ambient_occlusion", str),
         ("camera_effects", str),
+        ("motion_blur", str),
+        ("shutter", float),
     ):
         if d.get(key) is not None:
             opts[key] = _value(d, key, conv)

@@ -320,8 +320,24 @@ def run_frames(
     for t in threads:
         t.start()
     items: list[ReportItem] = []
+    # a frame is composited once the next one is decided (its pose gives the motion blur): the frame waiting
+    # and the one decided before it; frames outside the span only neighbour the span's
+    seq: dict[str, FramePose | None] = {"before": None, "waiting": None, "last": None}
 
-    def emit(fp: FramePose) -> None:
+    def finish(fp: FramePose, before: FramePose | None, after: FramePose | None) -> None:
+        job = composer.compose(fp, before, after)
+        if opts.collect_items:
+            items.append(job[3])
+        if enc_t.error is not None or not put_or_stop(q_out, job, stop):
+            raise enc_t.error or RuntimeError("encoder stopped")
+
+    def emit(fp: FramePose | None) -> None:
+        if seq["waiting"] is not None:
+            finish(seq["waiting"], seq["before"], fp)
+            seq["waiting"] = None
+        if fp is None:  # the end of the video
+            return
+        last, seq["last"] = seq["last"], fp
         index = cast(FramePayload, fp.payload)[0].index
         if span is not None and fp.raw is not None and index < span.stop:
             anchor = {**composer.decision(fp), "time_s": fp.time_s}
@@ -334,11 +350,7 @@ def run_frames(
             if span.head_from <= index < span.start:
                 span.head.append(composer.decision(fp))
             return
-        job = composer.compose(fp)
-        if opts.collect_items:
-            items.append(job[3])
-        if enc_t.error is not None or not put_or_stop(q_out, job, stop):
-            raise enc_t.error or RuntimeError("encoder stopped")
+        seq["before"], seq["waiting"] = last, fp
 
     try:
         while (job := next_item(q_trk, (trk_t, enc_t))) is not END:
@@ -347,6 +359,7 @@ def run_frames(
                 emit(fp)
         for fp in stream.flush():
             emit(fp)
+        emit(None)
         if not put_or_stop(q_out, END, stop):
             raise enc_t.error or RuntimeError("encoder stopped")
         enc_t.join()

@@ -13,8 +13,7 @@ the ROI is written back into the decoded frame's own array, so no whole frame is
 Rendering goes through :class:`SessionBackend`, the only place that knows the rendering API (the public
 methods of :class:`arshadow.frame.session.Session`).
 
-About 605 lines: the frame job's three steps (track, decide, compose) and the encoder's hand-off share
-the frame's colour and ROI bookkeeping; split, each part would import the others' private state.
+The ``yuv420p`` conversions inside a rectangle are :mod:`arshadow.video.i420` (re-exported here).
 """
 
 from __future__ import annotations
@@ -31,12 +30,14 @@ import numpy as np
 from ..compose.composite import clip_roi
 from ..errors import MarkerNotFoundError
 from ..frame.execute import FrameOutputs
+from ..frame.motion import MotionBlur, frame_motion
 from ..frame.report import ReportItem, StageTimings
 from ..scene.sanity import FlagTally
 from ..tracking.luma import LumaFrame
 from ..tracking.reference import ReferenceTally
 from ..transforms import rvec_tvec_from_matrix
 from .avio import RawFrame, VideoFrame
+from .i420 import even_box, i420_planes, i420_roi_to_bgr, i420_with_roi
 
 if TYPE_CHECKING:
     from ..compose.layers import Layers
@@ -196,6 +197,35 @@ class SessionBackend:
         """:meth:`arshadow.frame.hooks.EngineHooks.exposure_gap` (a frame without the marker)."""
         self.hooks.exposure_gap()
 
+    def motion(self, fp: FramePose, before: FramePose | None, after: FramePose | None) -> MotionBlur | None:
+        """The decided frame ``fp``'s motion blur (:func:`arshadow.frame.motion.frame_motion`: its neighbours'
+        poses, each used when tracked and one frame away; none for a held pose), None when off (camera effects
+        or motion blur off)."""
+        o, s = self.session.options, self.session
+        if o.camera_effects != "on" or o.motion_blur != "on" or fp.cam_from_marker is None:
+            return None
+        assert self.cal is not None  # set by start()
+        if fp.status != "ok":
+            return MotionBlur(shutter=float(o.shutter), source="none: a held pose (it does not follow the camera)")
+        index = cast(FramePayload, fp.payload)[0].index
+
+        def near(n: FramePose | None) -> tuple[np.ndarray, int] | None:
+            if n is None or n.status != "ok" or n.cam_from_marker is None:
+                return None
+            k = abs(cast(FramePayload, n.payload)[0].index - index)
+            return (s.ground_camera(n.cam_from_marker), k) if k == 1 else None
+
+        cfw = s.ground_camera(fp.cam_from_marker)
+        return frame_motion(self.cal.intrinsics, s.geometry.corners, cfw, near(before), near(after), o.shutter)
+
+    def grown(self, roi: Sequence[int], motion: MotionBlur) -> tuple[int, int, int, int]:
+        """``roi`` grown by the blurs' reach (``motion``'s and the measured camera blur's), within the frame."""
+        assert self.cal is not None  # set by start()
+        cam = self.session.camera_effects
+        p = motion.reach + (0 if cam is None else cam.pad)
+        x0, y0, w, h = (int(v) for v in roi)
+        return clip_roi((x0 - p, y0 - p, w + 2 * p, h + 2 * p), self.cal.intrinsics.width, self.cal.intrinsics.height)
+
     def render(
         self,
         bgr: np.ndarray,
@@ -204,17 +234,19 @@ class SessionBackend:
         timings: dict[str, float],
         plan: FramePlan | None = None,
         marker: MarkerPose | None = None,
+        motion: MotionBlur | None = None,
     ) -> tuple[np.ndarray | None, ReportItem]:
         """Composite into ``bgr`` (modified in place), at the marker pose ``cam_from_marker`` or carrying out
         ``plan``; returns ``(mask or None, the frame's report item)``; ``timings`` gets the render stages.
         ``marker``: the frame's tracked pose (the exposure match reads its paper), None when the marker is
-        not in the frame (a held pose: the exposure match keeps the last gain)."""
+        not in the frame (a held pose: the exposure match keeps the last gain). ``motion``: the frame's motion
+        blur (:meth:`motion`), None: none."""
         outputs = FrameOutputs(want_mask=want_mask, out=bgr)
-        layers, seen = self.want_layers, marker is not None
+        kw: dict[str, Any] = {"outputs": outputs, "layers": self.want_layers, "marker": marker, "motion": motion}
         if plan is not None:
-            res = self.hooks.render(bgr, plan=plan, outputs=outputs, layers=layers, marker=marker, seen=seen)
+            res = self.hooks.render(bgr, plan=plan, seen=marker is not None, **kw)
         else:
-            res = self.hooks.render(bgr, cam_from_marker, outputs=outputs, layers=layers, marker=marker, seen=seen)
+            res = self.hooks.render(bgr, cam_from_marker, seen=marker is not None, **kw)
         self.last_layers = res.layers
         for k, v in res.timings.as_dict().items():
             if k != "total":
@@ -307,11 +339,15 @@ class FrameComposer:
         #: an :class:`arshadow.export.layervideo.LayerSink` getting every frame's layers, or None
         self.layer_sink: LayerSink | None = None
 
-    def compose(self, fp: FramePose) -> tuple[np.ndarray, str, np.ndarray | None, ReportItem, dict[str, Any]]:
+    def compose(
+        self, fp: FramePose, before: FramePose | None = None, after: FramePose | None = None
+    ) -> tuple[np.ndarray, str, np.ndarray | None, ReportItem, dict[str, Any]]:
         """One decided frame -> ``(image, format, mask or None, ReportItem, JSON Lines record)``.
 
         ``fp.payload`` is ``(frame, decode_ms, timings, format[, reason])`` as pushed by the engine
-        (``reason``: why the tracker found no pose, the record's ``not_tracked``).
+        (``reason``: why the tracker found no pose, the record's ``not_tracked``); ``before``, ``after``: the
+        frames decided just before and after it, if any (their poses give the motion blur,
+        :meth:`SessionBackend.motion`).
         """
         fr, dec_ms, timings, fmt, *rest = cast(FramePayload, fp.payload)
         self._count_gap(fr.index, fp.status == "ok")
@@ -328,7 +364,8 @@ class FrameComposer:
                 self.layer_sink.write(None)
         else:
             assert fp.cam_from_marker is not None  # "ok" or "held"
-            img, mask, item = self._render(fp.cam_from_marker, img, fmt, timings, fp.raw)  # the frame's one item
+            motion = self.backend.motion(fp, before, after)
+            img, mask, item = self._render(fp.cam_from_marker, img, fmt, timings, fp.raw, motion)  # the one item
             item.input, item.status = self.name, fp.status
             self._pose_fields(item, fp)
             if fp.raw is not None:
@@ -422,27 +459,33 @@ class FrameComposer:
         fmt: str,
         timings: dict[str, float],
         marker: MarkerPose | None = None,
+        motion: MotionBlur | None = None,
     ) -> tuple[np.ndarray, np.ndarray | None, ReportItem]:
         """Composite at the (decided) marker pose ``cam_from_marker``; returns the frame in its own format, the mask and the report
-        item of :meth:`arshadow.frame.session.Session.render`. ``marker``: the frame's tracked pose (None: held).
+        item of :meth:`arshadow.frame.session.Session.render`. ``marker``: the frame's tracked pose (None: held);
+        ``motion``: its motion blur.
 
         A ``yuv420p`` frame is converted to BGR only inside the plan's ROI (even-aligned; into a buffer kept
-        for the video): the compositor reads and writes no pixel outside it, and the result goes back into
-        the planes inside it only (:func:`i420_with_roi`)."""
+        for the video; with a motion blur applied, the ROI grown by the blurs' reach,
+        :meth:`SessionBackend.grown`): the compositor reads and writes no pixel outside it, and the result
+        goes back into the planes inside it only (:func:`i420_with_roi`)."""
         if fmt != "yuv420p":
             tc = time.perf_counter()
             bgr = np.array(img)
             timings["convert"] += (time.perf_counter() - tc) * 1e3
-            mask, item = self.backend.render(bgr, cam_from_marker, self.want_mask, timings, marker=marker)
+            mask, item = self.backend.render(
+                bgr, cam_from_marker, self.want_mask, timings, marker=marker, motion=motion
+            )
             if self.layer_sink is not None:
                 self.layer_sink.write(self.backend.last_layers)
             return bgr, mask, item
         plan = self.backend.plan(cam_from_marker, self.W, self.H)
+        region = None if motion is None or not motion.active else self.backend.grown(plan.roi, motion)
         tc = time.perf_counter()
         if self._bgr is None:
             self._bgr = np.zeros((self.H, self.W, 3), np.uint8)
         bgr = self._bgr
-        i420_roi_to_bgr(img, bgr, plan.roi)
+        i420_roi_to_bgr(img, bgr, plan.roi if region is None else region)
         if (
             marker is not None
             and not plan.empty
@@ -450,11 +493,13 @@ class FrameComposer:
         ):
             i420_roi_to_bgr(img, bgr, paper)  # the exposure match reads the marker's paper, often outside the ROI
         timings["convert"] += (time.perf_counter() - tc) * 1e3
-        mask, item = self.backend.render(bgr, cam_from_marker, self.want_mask, timings, plan=plan, marker=marker)
+        mask, item = self.backend.render(
+            bgr, cam_from_marker, self.want_mask, timings, plan=plan, marker=marker, motion=motion
+        )
         if self.layer_sink is not None:
             self.layer_sink.write(self.backend.last_layers)
         tc = time.perf_counter()
-        img = i420_with_roi(img, bgr, item.roi, out=writable(img))
+        img = i420_with_roi(img, bgr, item.roi if region is None else region, out=writable(img))
         timings["convert"] += (time.perf_counter() - tc) * 1e3
         return img, mask, item
 
@@ -488,7 +533,9 @@ def frame_record(fr: Frame, item: ReportItem, sun: list[dict[str, Any]] | None) 
 
     ``reference_id``: the marker whose frame the pose is in (the tracked pose's, a held frame's last one;
     None for a board or without a pose); ``pose_flagged`` / ``flag_reasons``: the tracked pose's flags
-    (false / [] without one), ``pose_notes`` its report-only reasons (the cluster and flags work)."""
+    (false / [] without one), ``pose_notes`` its report-only reasons (the cluster and flags work);
+    ``motion_blur``: the frame's motion blur values (:meth:`arshadow.frame.motion.MotionBlur.report`), only
+    with camera effects and motion blur on."""
     line: dict[str, Any] = {
         "frame": fr.index,
         "time_s": round(fr.time_s, 6),
@@ -509,99 +556,6 @@ def frame_record(fr: Frame, item: ReportItem, sun: list[dict[str, Any]] | None) 
     }
     if sun is not None:
         line["sun"] = sun
+    if item.plan and "motion_blur" in item.plan:  # --camera-effects on, --motion-blur on: the frame's values
+        line["motion_blur"] = item.plan["motion_blur"]
     return line
-
-
-def i420_planes(a: np.ndarray, H: int, W: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Views ``(Y (H, W), U (H/2, W/2), V (H/2, W/2))`` of a planar ``(H * 3 // 2, W)`` yuv420p frame."""
-    c = a[H:].reshape(-1)
-    q = (H // 2) * (W // 2)
-    return a[:H], c[:q].reshape(H // 2, W // 2), c[q:].reshape(H // 2, W // 2)
-
-
-def even_box(roi: Sequence[float], W: int, H: int) -> tuple[int, int, int, int] | None:
-    """``(x0, y0, x1, y1)`` of ``roi = (x0, y0, w, h)`` clipped to the frame and widened to even
-    coordinates (a chroma sample of yuv420p covers 2x2 pixels); None for an empty ROI.
-
-    >>> even_box((3, 5, 10, 4), 64, 48)
-    (2, 4, 14, 10)
-    """
-    x0, y0, w, h = clip_roi(roi, W, H)
-    if w == 0 or h == 0:
-        return None
-    return x0 & ~1, y0 & ~1, min(W, x0 + w + 1) & ~1, min(H, y0 + h + 1) & ~1
-
-
-def i420_roi_to_bgr(yuv: np.ndarray, bgr: np.ndarray, roi: Sequence[float] | None) -> None:
-    """Convert the planar yuv420p frame to BGR into ``bgr`` inside ``roi`` only (even-aligned); equal there
-    to a whole-frame ``cv2.COLOR_YUV2BGR_I420`` (each 2x2 block has its own chroma sample). ``roi`` None:
-    the whole frame.
-
-    Parameters
-    ----------
-    yuv : (H * 3 // 2, W) uint8
-    bgr : (H, W, 3) uint8
-        Written inside the ROI; other pixels are left as they are.
-    roi : sequence of 4 int or None
-    """
-    H, W = bgr.shape[:2]
-    if roi is None:
-        cv2.cvtColor(yuv, cv2.COLOR_YUV2BGR_I420, dst=bgr)
-        return
-    box = even_box(roi, W, H)
-    if box is None:
-        return
-    x0, y0, x1, y1 = box
-    y, u, v = i420_planes(yuv, H, W)
-    hh, ww = y1 - y0, x1 - x0
-    sub = np.empty((hh * 3 // 2, ww), np.uint8)
-    sy, su, sv = i420_planes(sub, hh, ww)
-    sy[:] = y[y0:y1, x0:x1]
-    su[:] = u[y0 // 2 : y1 // 2, x0 // 2 : x1 // 2]
-    sv[:] = v[y0 // 2 : y1 // 2, x0 // 2 : x1 // 2]
-    bgr[y0:y1, x0:x1] = cv2.cvtColor(sub, cv2.COLOR_YUV2BGR_I420)
-
-
-def i420_with_roi(
-    yuv: np.ndarray, bgr: np.ndarray, roi: Sequence[float] | None, out: np.ndarray | None = None
-) -> np.ndarray:
-    """The planar yuv420p frame ``yuv`` with the rectangle ``roi = (x0, y0, w, h)`` taken from ``bgr``.
-
-    The compositor changes pixels inside the frame's ROI only, so only that rectangle (widened to even
-    coordinates: a chroma sample covers 2x2 pixels) is converted back; every other pixel keeps the decoded
-    value exactly. Inside it the result equals a whole-frame ``cv2.COLOR_BGR2YUV_I420`` (each chroma
-    sample is computed from its own 2x2 block). ``roi`` None: the whole frame.
-
-    Parameters
-    ----------
-    yuv : (H * 3 // 2, W) uint8
-        The decoded frame (not modified), H and W even.
-    bgr : (H, W, 3) uint8
-        The composited frame.
-    roi : sequence of 4 int or None
-    out : (H * 3 // 2, W) uint8, optional
-        Where to write the result; may be ``yuv`` itself (only the ROI's pixels are then written: no copy
-        of the frame). A new array when None.
-
-    Returns
-    -------
-    (H * 3 // 2, W) uint8
-        ``out``, or a new array.
-    """
-    H, W = bgr.shape[:2]
-    if roi is None:
-        whole: np.ndarray = cv2.cvtColor(bgr, cv2.COLOR_BGR2YUV_I420, dst=out)
-        return whole
-    x0, y0, w, h = clip_roi(roi, W, H)
-    if out is None:
-        out = np.array(yuv)
-    elif out is not yuv:
-        np.copyto(out, yuv)
-    if w == 0 or h == 0:
-        return out
-    x1, y1 = min(W, x0 + w + 1) & ~1, min(H, y0 + h + 1) & ~1
-    x0, y0 = x0 & ~1, y0 & ~1
-    sub = cv2.cvtColor(np.ascontiguousarray(bgr[y0:y1, x0:x1]), cv2.COLOR_BGR2YUV_I420)
-    for dst, src, k in zip(i420_planes(out, H, W), i420_planes(sub, y1 - y0, x1 - x0), (1, 2, 2), strict=True):
-        dst[y0 // k : y1 // k, x0 // k : x1 // k] = src
-    return out
