@@ -16,7 +16,7 @@ SCENE = {
 PUBLIC = {
     "spec", "scene", "options", "geometry", "ground", "hooks", "context", "renderer", "intrinsics", "notes",
     "close", "track", "plan", "render", "process", "ground_camera", "state", "restore",
-    "set_lights", "set_time", "use_sun_tracks", "sun_tracks", "time_lapse", "set_model",
+    "set_lights", "set_time", "use_sun_tracks", "sun_tracks", "time_lapse", "set_model", "camera_effects",
 }  # fmt: skip
 HOOKS = (
     "calibration", "tracker_state", "reset_tracking", "compose_key", "compose_chooser", "exposure",
