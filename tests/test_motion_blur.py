@@ -131,6 +131,30 @@ def test_an_edge_spreads_along_the_motion_only(tol):
         assert np.abs(c[m:-m] - step[m:-m]).max() <= tol.motion_layer_abs  # float32 sums
 
 
+@pytest.mark.parametrize("shift", [(4.0, 0.0), (12.0, 0.0), (12.0, 7.0), (20.0, -13.0), (-30.0, 30.0), (3.0, 25.0)])
+def test_a_long_kernel_in_pieces_is_the_direct_convolution(tol, shift):
+    """Kernels past OpenCV's DFT threshold are applied in pieces (arshadow.frame.motion.kernel_pieces): the
+    result equals the convolution written out here as a sum of shifted copies of the zero-padded layer."""
+    from arshadow.frame.motion import DFT_AREA, kernel_pieces, motion_blur_layers, motion_kernel
+
+    rng = np.random.default_rng(7)
+    a = rng.random((70, 90, 3)).astype(np.float32)
+    k = motion_kernel(shift)
+    r = k.shape[0] // 2
+    p = np.pad(a.astype(np.float64), ((r, r), (r, r), (0, 0)))
+    want = np.zeros(a.shape, np.float64)
+    for i, j in zip(*np.nonzero(k), strict=True):  # out[y, x] += k[i, j] a[y + i - r, x + j - r]
+        want += float(k[i, j]) * p[i : i + a.shape[0], j : j + a.shape[1]]
+    (got,) = motion_blur_layers(k, a)
+    assert np.abs(got - want).max() <= tol.motion_layer_abs
+    pieces = kernel_pieces(k)
+    assert all(pc.size < DFT_AREA for pc, _, _ in pieces)
+    total = np.zeros_like(k)
+    for pc, y0, x0 in pieces:
+        total[y0 : y0 + pc.shape[0], x0 : x0 + pc.shape[1]] += pc
+    assert np.array_equal(total, k)
+
+
 def _trapezoid(length):
     """A box of integer ``length`` convolved with the bilinear tent, at integer offsets -L/2..L/2 (the ends
     half weight): what a box of that length sampled by linear interpolation is."""
