@@ -249,12 +249,16 @@ class Tolerances:
     # Re-rendered 2026-11-28 with the scenes' own camera (mitsuba_fov over W, not W - 1; docs/reference.md):
     # own 0.177 / 0.186 / 0.053, true light 0.350; held-out 0.148 / 0.166 / 0.075 (five cases,
     # ho_box_rotated_tiles refused by the probe-outline check). Limits + 0.01 where that is tighter.
+    # Re-measured 2026-11-29 after the object's faces see the ground's light as the photo shows it (the
+    # marker's paper beside the object) in the map's units, and a point lamp's light per face at its own
+    # distance (docs/reference.md): own 0.176 / 0.191 / 0.053; held-out 0.147 / 0.121 / 0.075. Limits +
+    # 0.01 where that is tighter (held-out ground and contact).
     ref_own_ground: float = 0.184
     ref_own_contact: float = 0.196
     ref_own_object: float = 0.063
     ref_own_true_ground: float = 0.352
-    ref_heldout_ground: float = 0.158
-    ref_heldout_contact: float = 0.176
+    ref_heldout_ground: float = 0.157
+    ref_heldout_contact: float = 0.131
     ref_heldout_object: float = 0.085
     # marker maps (the marker-map work): learned marker poses against the generating poses (the issue's figures)
     map_marker_median_mm: float = 1.0

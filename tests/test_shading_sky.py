@@ -8,7 +8,17 @@ import pytest
 
 from arshadow.geometry.caster import ShadowCaster
 from arshadow.geometry.mesh import load_occluder, primitive
-from arshadow.shading.sky import cosine_directions, ground_sky_visibility, object_sky_visibility
+from arshadow.shading import sky
+from arshadow.shading.decide import PAPER_ALBEDO, ground_light, ground_units
+from arshadow.shading.sky import (
+    GroundGrid,
+    cosine_directions,
+    ground_grid,
+    ground_raster_cpu,
+    ground_sky_visibility,
+    lamp_incidence,
+    object_sky_visibility,
+)
 from tests.conftest import TOL
 
 UP = np.array([0.0, 0.0, 1.0])
@@ -231,6 +241,64 @@ def test_ground_light_reflected_by_the_object_back_onto_the_ground():
     assert np.abs(rise - expect).max() <= TOL.sky_ground_abs, (rise, expect)
     assert np.all(expect > 0.03)  # a visible change
     assert 0.25 < seen < 0.45  # the ground it sees is darker than the open ground (1/2)
+
+
+def test_faces_see_the_ground_light_beyond_a_line_as_the_strip_view_factor(monkeypatch):
+    # the ground's reflected light read per ground point (arshadow.shading.decide.GroundLight: a white paper
+    # beside the object) against the view factor from a point of a vertical face to the ground beyond a line
+    # parallel to it, D in front: (sin phi2 - sin phi1) / 2 = h / (2 sqrt(h^2 + D^2)) (an infinite strip)
+    monkeypatch.setattr(sky, "GROUND_SEEN_DIRS", 4096)
+    caster = load_occluder("box:0.04,0.06,0.07")
+    bounce = (np.array([-1.0, 0.0, 1.0]), 1e-9, 0.5, 0.2)  # lit from -x: the ground in front of -x is lit
+    dirs = cosine_directions(64)
+    x0, y0, t = ground_grid(caster, 128)
+    grid = GroundGrid(x0, y0, t, 128)
+    face_x, d, a = float(caster.bounds[0][0]), 0.015, 4.0  # the -x face; a paper 4 x the ring's light
+    open_ = sky._ground_seen(caster, bounce, ground_raster_cpu, dirs, np.ones(64), grid, None)
+    paper = sky._ground_seen(
+        caster, bounce, ground_raster_cpu, dirs, np.ones(64), grid, lambda q: np.where(q[:, 0] < face_x - d, a, 1.0)
+    )
+    n = caster.face_planes[:, :3]
+    west = np.flatnonzero(n[:, 0] < -0.99)
+    h = caster.vertices[caster.faces[west]].mean(axis=1)[:, 2]
+    expect = (a - 1.0) * h / (2.0 * np.sqrt(h * h + d * d))
+    assert np.abs(paper[west] - open_[west] - expect).max() < 0.01, (paper[west] - open_[west], expect)
+    assert np.abs(open_[west] - 0.5).max() < 0.01  # open, lit ground: (1 - n_z) / 2
+    others = np.flatnonzero(n[:, 0] > -0.99)  # faces turned away from the line see none of it...
+    far = others[n[others, 0] > 0.5]
+    assert np.abs(paper[far] - open_[far]).max() < 1e-9
+
+
+def test_point_lamp_lights_a_face_at_its_own_distance():
+    # a face at the reference point itself is the open ground there (1); a vertical face nearer the lamp gets
+    # the lamp's cos / d^2 there over its z / d^3 at the reference, not a far light's n.L / L_z
+    flat = ShadowCaster(np.array([[-1e-3, -1e-3, 0.0], [1e-3, -1e-3, 0], [0, 1e-3, 0]]), np.array([[0, 1, 2]]))
+    lamp, ref = np.array([-0.3, 0.0, 0.3]), np.zeros(3)
+    assert abs(float(lamp_incidence(flat, lamp, ref)[0]) - 1.0) < 1e-4
+    wall = ShadowCaster(np.array([[-0.1, -1e-3, 0.05], [-0.1, 1e-3, 0.05], [-0.1, 0.0, 0.052]]), np.array([[0, 2, 1]]))
+    assert wall.face_planes[0, 0] < 0  # turned towards the lamp (-x)
+    q = wall.vertices.mean(axis=0)
+    dq = lamp - q
+    exact = (-dq[0] / np.linalg.norm(dq) ** 3) / (lamp[2] / np.linalg.norm(lamp - ref) ** 3)
+    got = float(lamp_incidence(wall, lamp, ref)[0])
+    assert abs(got - exact) < 1e-4 * exact
+    assert got > 1.5  # a far light from the same direction gives cos 45 / sin 45 = 1
+
+
+def test_ground_light_read_from_the_photo_and_its_units():
+    # the paper (code 255) reads PAPER_ALBEDO with a unit gain, a mid grey half of it; off the photo NaN
+    img = np.full((100, 100, 3), 255, np.uint8)
+    img[:, 50:] = 188  # sRGB 188 ~ 0.503 linear
+    g = ground_light(img, lambda p: p[:, :2] * 1000.0, (1.0, 1.0, 1.0), (0.0, 0.0, 0.2), res=8)
+    v = g(np.array([[0.01, 0.01], [0.07, 0.01], [0.15, 0.01], [-0.5, 0.0]]))
+    assert abs(v[0] - PAPER_ALBEDO) < 1e-6 and abs(v[1] - PAPER_ALBEDO * 0.5029) < 1e-3
+    assert np.isnan(v[2]) and np.isnan(v[3])  # 150 px: off the photo; off the grid
+    # a lamp nearer the paper (at the origin) than the object: the ring's light is in the paper's units
+    lamp = np.array([-0.2, 0.0, 0.3, 1.0])
+    ref, r = np.array([0.1, 0.0, 0.0]), 0.3
+    k = (np.linalg.norm(lamp[:3] - ref) / np.linalg.norm(lamp[:3])) ** 3
+    sin_e = 0.3 / np.linalg.norm(lamp[:3])
+    assert abs(ground_units(lamp, r, ref, 0.25) - (r + (1 - r) * k) / (0.25 + sin_e)) < 1e-12
 
 
 # -- the GPU rasteriser (arshadow.gl.sky.GLGroundRaster) against the same closed forms -------------------------

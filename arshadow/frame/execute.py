@@ -43,6 +43,7 @@ if TYPE_CHECKING:
     from ..plan.planner import FramePlan, SceneGeometry
     from ..renderer.request import Renderer
     from ..scene.options import RenderOptions
+    from ..shading.decide import GroundLight
     from ..shading.sky import SkyShading
     from .effects import CameraEffects
     from .hooks import CalibrationState
@@ -69,6 +70,10 @@ MOTION_WHY = "numpy (motion blur applied: the shader path does not motion-blur t
 #: much, so vertical faces took too much of the floor's colour); with them right it halves the object's
 #: residual on the path-traced reference (own set, tracked pose: median 0.108 -> 0.065; docs/reference.md)
 OBJECT_SKY: str | None = "uniform"
+#: texels per side of the photo's ground light read for the object's lower faces
+#: (:func:`arshadow.shading.decide.ground_light`, over the sky occlusion map's square: 6-8 mm texels for a
+#: 7 cm object)
+GROUND_LIGHT_RES = 64
 
 
 class LayerRequest(TypedDict, total=False):
@@ -285,8 +290,8 @@ def _sky_shading(
     decision is off): the scene's ground occlusion map (made on first use, by the geometry's
     ``raster_source``), the object's sky visibility and the ground bounce
     measured on this photo round the object (with a measured exposure; 0 otherwise)."""
-    from ..shading.decide import decide_ambient_occlusion, ground_bounce
-    from ..shading.sky import SkyShading
+    from ..shading.decide import decide_ambient_occlusion, ground_bounce, ground_light
+    from ..shading.sky import SkyShading, ground_grid
 
     opts = geometry.options
     made = next((d for d in plan.decisions if d.name == "ambient_occlusion"), None)
@@ -304,7 +309,13 @@ def _sky_shading(
         m = ground_bounce(image, intr.project(ring, plan.cam_from_world), gain)
         if m is not None:
             bounce = tuple(float(v) for v in m)
-            geometry.set_ground_light(m)  # lights the object's lower faces, reflected back to the ground
+
+            def field() -> GroundLight:  # the ground round the object as the photo shows it (the paper too)
+                x0, y0, t = ground_grid(geometry.caster, GROUND_LIGHT_RES)
+                cam = plan.cam_from_world
+                return ground_light(image, lambda p: intr.project(p, cam), gain, (x0, y0, GROUND_LIGHT_RES * t))
+
+            geometry.set_ground_light(m, field)  # lights the object's lower faces, reflected back to the ground
             outputs.item.plan["ground_bounce"] = [round(v, 4) for v in bounce]  # type: ignore[index]
     ground = geometry.sky_ground(outputs.timings)
     bleed = geometry.object_bleed

@@ -12,7 +12,7 @@ import functools
 import math
 import time
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, Literal
 
 import cv2
@@ -22,7 +22,7 @@ from scipy.spatial import ConvexHull, QhullError
 
 from ..errors import LightError
 from ..lights.area import sample_area_light
-from ..shading.decide import PAPER_ALBEDO
+from ..shading.decide import PAPER_ALBEDO, GroundLight, ground_units
 from ..transforms import invert_rigid, transform_points
 
 if TYPE_CHECKING:
@@ -440,27 +440,39 @@ class SceneGeometry:
 
             t = time.perf_counter()
             raster = self.raster_source() if self.raster_source is not None else None
-            g = self._sky_ground = (key, ground_sky_visibility(self.caster, bounce=self._bounce_light(), raster=raster))
+            seen = getattr(self, "_ground_field", None)
+            vis = ground_sky_visibility(self.caster, bounce=self._bounce_light(), raster=raster, ground_light=seen)
+            g = self._sky_ground = (key, vis)
             if timings is not None:
                 timings.silhouette += (time.perf_counter() - t) * 1e3
         occlusion: GroundOcclusion = g[1]
         return occlusion
 
-    def set_ground_light(self, reflected: np.ndarray | Sequence[float]) -> None:
+    def set_ground_light(
+        self, reflected: np.ndarray | Sequence[float], field_of: Callable[[], GroundLight] | None = None
+    ) -> None:
         """Record the light the ground round the object reflects, ``reflected (3,)`` linear RGB in the
         renderer's units (:func:`arshadow.shading.decide.ground_bounce`: its albedo times its irradiance), once per
         scene (the first measurement is kept: the map is not remade every frame). It lights the object's
-        lower faces, which reflect part of it back onto the ground beside them."""
+        lower faces, which reflect part of it back onto the ground beside them. ``field_of``: makes the same
+        light per ground point as the photo shows it (:func:`arshadow.shading.decide.ground_light`; called
+        once, with the first measurement; kept relative to ``reflected``): each face then sees the ground it
+        faces (a white paper beside the object), ``reflected`` where the photo does not show it."""
         if getattr(self, "_ground_light", None) is None:
             self._ground_light = round(float(np.mean(reflected)), 3)
+            f = field_of() if field_of is not None and self._ground_light > 0 else None
+            # relative to the ring's value: the map converts that one to its units (ground_units)
+            self._ground_field = None if f is None else replace(f, values=f.values / self._ground_light)
 
-    def _bounce_light(self) -> tuple[np.ndarray, float, float, float] | None:
-        """``(light (3,), sky share, albedo, ground)`` of the object's interreflection onto the ground
+    def _bounce_light(self) -> tuple | None:
+        """``(light (3,), sky share, albedo, ground, lamp)`` of the object's interreflection onto the ground
         (:func:`arshadow.shading.sky.ground_sky_visibility`): the strongest light's direction from the
         object, the mean sky share, the object's mean albedo (its colour relative to the marker paper's,
         without the exposure gain, times :data:`arshadow.shading.decide.PAPER_ALBEDO`), the ground's reflected light (its albedo times
-        its irradiance, a share of the open ground's: :meth:`set_ground_light`, 0 until measured); None
-        without a light or a sky share."""
+        its irradiance, a share of the open ground's: :meth:`set_ground_light`, 0 until measured) and for a
+        point light ``(its position, the ground point where the sky share holds)`` (``ratio_at`` with a
+        measured light, else under the object's centre; None for a far light); None without a light or a
+        sky share."""
         from ..shading.decide import sky_share
 
         opts = self.options
@@ -468,12 +480,16 @@ class SceneGeometry:
         if not self.lights or r <= 0.0 or not opts.draw_occluder:
             return None
         h = max(self.lights, key=lambda ls: ls.weight).light_h
-        light = h[:3] if h[3] == 0 else h[:3] / h[3] - 0.5 * (self.bounds[0] + self.bounds[1])
+        centre = 0.5 * (self.bounds[0] + self.bounds[1])
+        light = h[:3] if h[3] == 0 else h[:3] / h[3] - centre
         if light[2] <= 0:
             return None
         col = self._object_albedo()
-        ground = float(getattr(self, "_ground_light", None) or 0.0)
-        return light, r, PAPER_ALBEDO * float(np.mean(col)), ground
+        at = opts.ratio_at if opts.ambient_measured and opts.ratio_at is not None else centre[:2]
+        ref = np.array([float(at[0]), float(at[1]), 0.0])  # where r holds: the map's unit of light
+        ground = float(getattr(self, "_ground_light", None) or 0.0) * ground_units(h, r, ref, opts.ambient)
+        lamp = (h[:3] / h[3], ref) if h[3] != 0 else None  # a point light: each face at its own distance
+        return light, r, PAPER_ALBEDO * float(np.mean(col)), ground, lamp
 
     def _object_albedo(self) -> np.ndarray:
         """``(3,) float64`` the object's linear colour relative to the paper: ``occluder_color`` over the exposure

@@ -3,6 +3,8 @@ measured from the photo (GL-free)."""
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -13,7 +15,15 @@ from ..compose.composite import srgb_to_linear
 if TYPE_CHECKING:
     from ..scene.options import RenderOptions
 
-__all__ = ["MIN_SKY_SHARE", "decide_ambient_occlusion", "ground_bounce", "sky_share"]
+__all__ = [
+    "MIN_SKY_SHARE",
+    "GroundLight",
+    "decide_ambient_occlusion",
+    "ground_bounce",
+    "ground_light",
+    "ground_units",
+    "sky_share",
+]
 
 #: below this mean sky share (of the ground's light) the contact shadow changes a pixel by less than
 #: ~1 % (the sky visibility under an object is >= 0 and the share scales it): skipped by ``auto``
@@ -83,3 +93,87 @@ def ground_bounce(image: np.ndarray, pixels: np.ndarray, gain: npt.ArrayLike) ->
     lin = np.percentile(srgb_to_linear(bgr), 75, axis=0)[::-1]  # RGB
     out: np.ndarray = PAPER_ALBEDO * lin / np.maximum(np.asarray(gain, np.float64).reshape(3), 1e-6)
     return out
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class GroundLight:
+    """The light the ground reflects, read from the photo on a texel grid round the object (ground frame):
+    ``values[i, j]`` (``(h, w) float32``, NaN where the photo does not show it) at the ground point
+    ``(x0 + (j + 0.5) texel, y0 + (i + 0.5) texel)``, in :func:`ground_bounce`'s units (the ground's albedo
+    times its irradiance, the paper's white being :data:`PAPER_ALBEDO`; the channels' mean). The object's
+    lower faces see the ground round them, the marker's white paper included: one ring's value
+    (:func:`ground_bounce`) misses a paper beside the object, three to four times brighter than a floor.
+
+    >>> g = GroundLight(0.0, 0.0, 1.0, np.array([[0.2, np.nan]], np.float32))
+    >>> g(np.array([[0.5, 0.5], [1.5, 0.5], [5.0, 0.5]])).tolist()
+    [0.20000000298023224, nan, nan]
+    """
+
+    x0: float
+    y0: float
+    texel: float
+    values: np.ndarray
+
+    def __call__(self, xy: np.ndarray) -> np.ndarray:
+        """``(k,) float64`` at ground points ``xy (k, 2)`` (the nearest texel; NaN off the grid or the photo)."""
+        xy = np.asarray(xy, np.float64).reshape(-1, 2)
+        h, w = self.values.shape
+        j = np.floor((xy[:, 0] - self.x0) / self.texel).astype(np.int64)
+        i = np.floor((xy[:, 1] - self.y0) / self.texel).astype(np.int64)
+        ok = (i >= 0) & (i < h) & (j >= 0) & (j < w)
+        out = np.full(len(xy), np.nan)
+        out[ok] = self.values[i[ok], j[ok]]
+        return out
+
+
+def ground_light(
+    image: np.ndarray,
+    project: Callable[[np.ndarray], np.ndarray],
+    gain: npt.ArrayLike,
+    grid: tuple[float, float, float],
+    res: int = 64,
+) -> GroundLight:
+    """:class:`GroundLight` of the photo ``image (H, W, 3) uint8`` BGR over ``res x res`` texels of the ground
+    square ``grid = (x0, y0, side)`` (metres, ground frame: its corner and side); ``project`` maps ground
+    points ``(k, 3)`` to pixels ``(k, 2)`` (the camera and its lens); ``gain (3,)`` as in
+    :func:`ground_bounce`. Each texel reads the pixel at its centre (nearest): the plate holds no object, so
+    it is the open ground's light (a real object in the photo reads as its own colour)."""
+    x0, y0, side = (float(v) for v in grid)
+    texel = side / res
+    c = (np.arange(res) + 0.5) * texel
+    xx, yy = np.meshgrid(x0 + c, y0 + c)
+    pts = np.c_[xx.ravel(), yy.ravel(), np.zeros(xx.size)]
+    img = np.asarray(image)
+    h, w = img.shape[:2]
+    px = np.asarray(project(pts), np.float64)
+    px = np.where(np.isfinite(px), px, -1.0)
+    p = np.round(px).astype(np.int64)
+    ok = (p[:, 0] >= 0) & (p[:, 0] < w) & (p[:, 1] >= 0) & (p[:, 1] < h)
+    vals = np.full(len(pts), np.nan, np.float32)
+    lin = srgb_to_linear(img[p[ok, 1], p[ok, 0]].astype(np.float64) / 255.0)[:, ::-1]  # RGB
+    g = np.maximum(np.asarray(gain, np.float64).reshape(3), 1e-6)
+    vals[ok] = (PAPER_ALBEDO * lin / g).mean(axis=1)
+    return GroundLight(x0, y0, texel, vals.reshape(res, res))
+
+
+def ground_units(light_h: np.ndarray, r: float, ref: np.ndarray, ambient: float) -> float:
+    """The ground's measured light (:func:`arshadow.shading.decide.ground_bounce`, in the renderer's units: the
+    paper's irradiance under the estimated light is ``ambient + sin(elevation)``, the shading gain's unit)
+    over the ground occlusion map's unit, the open ground's light at ``ref (3,)`` where the sky share ``r``
+    holds: ``(E_paper / E_ref) / (ambient + sin(elevation))``. A sun's light is the same on the paper and at
+    ``ref``; a point lamp's (``light_h (4,)``, world) falls off as ``z / d^3``, and the paper (at the
+    origin, the marker) is often nearer to it than the object.
+
+    >>> round(ground_units(np.array([0.0, 0.0, 1.0, 0.0]), 0.4, np.zeros(3), 0.0), 6)  # a sun overhead
+    1.0
+    >>> round(ground_units(np.array([0.0, 0.0, 1.0, 1.0]), 0.0, np.array([1.0, 0.0, 0.0]), 0.0), 4)  # 2^1.5
+    2.8284
+    """
+    h = np.asarray(light_h, np.float64)
+    if h[3] == 0:
+        sin_e, k = float(h[2] / np.linalg.norm(h[:3])), 1.0
+    else:
+        p = h[:3] / h[3]
+        sin_e = float(p[2] / np.linalg.norm(p))
+        k = float(np.linalg.norm(p - np.asarray(ref, np.float64)) / np.linalg.norm(p)) ** 3
+    return (r + (1.0 - r) * k) / max(float(ambient) + max(sin_e, 0.0), 1e-6)

@@ -10,7 +10,7 @@ unoccluded horizontal ground's: ``V = (1/E0) * integral over the sky of L(w) vis
 ``E0`` the same integral for ``n = +z`` and ``vis = 1``. Open ground: 1; a vertical face of a convex object
 under a uniform sky: 0.5 (the ground hides the lower half of its hemisphere); the ground right under it: 0.
 
-(About 620 lines, just over the project's ~600: the ground map, the object's own visibility and the light
+(About 660 lines, over the project's ~600: the ground map, the object's own visibility and the light
 they exchange share one grid, one set of directions and one rasteriser protocol; split, each half would
 import the other's private pieces.)
 
@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 from typing import Protocol
 
 import cv2
@@ -57,6 +58,7 @@ __all__ = [
     "ground_grid",
     "ground_raster_cpu",
     "ground_sky_visibility",
+    "lamp_incidence",
     "object_sky_visibility",
     "sky_radiance",
 ]
@@ -276,6 +278,7 @@ def ground_sky_visibility(  # noqa: PLR0913 (the caster, and keyword-only option
     bounce: tuple | None = None,
     taper: tuple | None = ACTIVE_OCCLUSION,
     raster: GroundRaster | None = None,
+    ground_light: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> GroundOcclusion:
     """The object's :class:`GroundOcclusion` (ground frame = the caster's world frame, ground z = 0).
 
@@ -291,13 +294,15 @@ def ground_sky_visibility(  # noqa: PLR0913 (the caster, and keyword-only option
     margin : float, optional
         Metres of ground round the footprint's bounding square; default 3 x the object's height.
     sky : {"uniform", "cie"}
-    bounce : (light (3,), sky_share, albedo[, ground]), optional
+    bounce : (light (3,), sky_share, albedo[, ground[, lamp]]), optional
         Also the light the object reflects onto the ground (interreflection): each blocked direction sees
         the object's face nearest along it, lit by the direct light (unit ``light`` towards it, weight
         ``1 - sky_share`` of the open ground's light) on its lit side, by the sky (``sky_share``,
         ``(1 + n_z) / 2`` of it) and by the ground round it (``ground``: the ground's albedo times its
         irradiance, a share of the open ground's light; ``(1 - n_z) / 2`` of it; 0 when not given), times
-        ``albedo``. Added to the map as ``bounce / sky_share``: the map then
+        ``albedo``. ``lamp``: ``(position (3,), ref (3,))`` (world, metres) for a point light: each face's
+        direct light is then the lamp's at the face's own distance and incidence over its light on the
+        open ground at ``ref``, where ``sky_share`` holds (:func:`lamp_incidence`); None: a far light. Added to the map as ``bounce / sky_share``: the map then
         holds ``V + bounce / r`` (more than 1 beside a lit face), what the composite's sky term multiplies.
     taper : (t0, t1) or None
         Occlusion under ``t1`` tapers linearly to 0 at ``t0`` and the map is cropped to where it is not 0
@@ -305,6 +310,10 @@ def ground_sky_visibility(  # noqa: PLR0913 (the caster, and keyword-only option
         the grid (the light estimate's allowance for its probe).
     raster : GroundRaster, optional
         Who rasterises the shadows (a renderer's GPU one); default :func:`ground_raster_cpu`.
+    ground_light : callable, optional
+        ``(k, 2)`` ground points -> ``(k,)`` the ground's reflected light there over ``bounce``'s ``ground``,
+        NaN where unknown (:class:`arshadow.shading.decide.GroundLight`, read from the photo): the object's
+        faces see ``ground`` times it (a white paper beside the object: 3-4).
     """
     if resolution < 2:
         raise UsageError(f"ground occlusion resolution must be at least 2 texels, got {resolution}")
@@ -317,7 +326,7 @@ def ground_sky_visibility(  # noqa: PLR0913 (the caster, and keyword-only option
     rast = raster or ground_raster_cpu
     seen = None
     if bounce is not None and len(bounce) > 3 and float(bounce[3]) > 0:
-        seen = _ground_seen(caster, bounce, rast, dirs, weights, grid)
+        seen = _ground_seen(caster, bounce, rast, dirs, weights, grid, ground_light)
     face_e = _face_irradiance(caster, bounce, seen) if bounce is not None else None
     acc, acc_b = rast(caster, dirs, weights, grid, face_e)
     vis = _fill_under((acc / weights.sum()).astype(np.float32))
@@ -391,10 +400,38 @@ def _face_irradiance(caster: ShadowCaster, bounce: tuple, seen: np.ndarray | Non
     light, r = np.asarray(bounce[0], np.float64), float(bounce[1])
     light = light / np.linalg.norm(light)
     n = caster.face_planes[:, :3]
-    direct = (1.0 - r) * np.maximum(n @ light, 0.0) / max(float(light[2]), 1e-3)
+    lamp = bounce[4] if len(bounce) > 4 else None
+    if lamp is None:
+        direct = (1.0 - r) * np.maximum(n @ light, 0.0) / max(float(light[2]), 1e-3)
+    else:
+        direct = (1.0 - r) * lamp_incidence(caster, lamp[0], lamp[1])
     g = float(bounce[3]) if len(bounce) > 3 else 0.0
     view = (1.0 - n[:, 2]) / 2.0 if seen is None else seen
     out: np.ndarray = direct + r * (1.0 + n[:, 2]) / 2.0 + g * view
+    return out
+
+
+def lamp_incidence(caster: ShadowCaster, lamp: npt.ArrayLike, ref: npt.ArrayLike) -> np.ndarray:
+    """``(m,)``: each face's mean irradiance from a point lamp at ``lamp (3,)`` (world, metres) over the open
+    ground's at the ground point ``ref (3,)``: ``mean over the face of max(0, n.(P - q)) / |P - q|^3``
+    divided by ``(P_z - ref_z) / |P - ref|^3``, the mean taken at the triangle's edge midpoints (exact for
+    a quadratic). A near lamp lights a face nearer to it more than the ground where the ratio is measured,
+    and unevenly (``1 / d^2`` and the incidence per point); a far lamp gives ``max(0, n.L) / L_z``.
+
+    >>> from arshadow.geometry.caster import ShadowCaster
+    >>> tri = ShadowCaster(np.array([[0.0, -1, 0], [0, 1, 0], [0, 0, 1]]), np.array([[0, 1, 2]]))
+    >>> round(float(lamp_incidence(tri, (1e6, 0.0, 1e6), (0.0, 0.0, 0.0))[0]), 4)  # far: cos 45 / sin 45
+    1.0
+    """
+    p = np.asarray(lamp, np.float64).reshape(3)
+    q0 = np.asarray(ref, np.float64).reshape(3)
+    tri = caster.vertices[caster.faces]  # (m, 3, 3)
+    mid = 0.5 * (tri + np.roll(tri, -1, axis=1))  # (m, 3, 3) edge midpoints
+    n = caster.face_planes[:, :3]
+    d = p - mid
+    e = np.maximum(np.einsum("mkd,md->mk", d, n), 0.0) / np.linalg.norm(d, axis=2) ** 3
+    e_ref = max(float(p[2] - q0[2]), 1e-9) / float(np.linalg.norm(p - q0)) ** 3
+    out: np.ndarray = e.mean(axis=1) / e_ref
     return out
 
 
@@ -403,7 +440,13 @@ GROUND_SEEN_DIRS = 64
 
 
 def _ground_seen(  # noqa: PLR0913 (the caster, its light, the map's rasteriser and its grid)
-    caster: ShadowCaster, bounce: tuple, rast: GroundRaster, dirs: np.ndarray, weights: np.ndarray, grid: GroundGrid
+    caster: ShadowCaster,
+    bounce: tuple,
+    rast: GroundRaster,
+    dirs: np.ndarray,
+    weights: np.ndarray,
+    grid: GroundGrid,
+    ground_light: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> np.ndarray:
     """``(m,)``: each face's view of the ground, each ground point counted at its irradiance as a share of the
     open ground's, ``(1 - r) lit + r V``: the ground under and beside an object is in its shadow and sees less
@@ -411,7 +454,9 @@ def _ground_seen(  # noqa: PLR0913 (the caster, its light, the map's rasteriser 
     map's sky visibility and ``lit`` the direct light's (one direction, ``bounce[0]``), both rasterised on the
     map's grid; each face looks along :data:`GROUND_SEEN_DIRS` cosine-weighted directions from its centre and
     the ones that reach the ground read it there (1 off the grid, the object itself not counted as a blocker).
-    Open ground everywhere gives ``(1 - n_z) / 2``."""
+    Open ground everywhere gives ``(1 - n_z) / 2``. ``ground_light``: each ground point's reflected light
+    over ``bounce[3]`` multiplies its irradiance (the ground's albedo is not the same everywhere: a white
+    paper beside the object; 1 where it is NaN)."""
     light, r = np.asarray(bounce[0], np.float64), float(bounce[1])
     light = light / np.linalg.norm(light)
     acc, _ = rast(caster, dirs, weights, grid, None)
@@ -425,6 +470,9 @@ def _ground_seen(  # noqa: PLR0913 (the caster, its light, the map's rasteriser 
     tz = np.where(down, -np.maximum(c[:, None, 2], 0.0) / np.where(down, d[..., 2], -1.0), 0.0)
     q = c[:, None, :2] + tz[..., None] * d[..., :2]
     val = ground.sample(q.reshape(-1, 2)).reshape(q.shape[:2])
+    if ground_light is not None:
+        rel = np.asarray(ground_light(q.reshape(-1, 2)), np.float64).reshape(q.shape[:2])
+        val = val * np.where(np.isfinite(rel), rel, 1.0)
     out: np.ndarray = np.where(down, val, 0.0).sum(axis=1) / d.shape[1]
     return out
 
