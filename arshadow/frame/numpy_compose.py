@@ -21,8 +21,8 @@ import numpy as np
 
 from ..compose.composite import Overlay, clip_roi, composite, sky_planes
 from ..compose.layers import layers_from_warped, pinhole_layers
-from ..compose.outline import antialias_outline, outline_segments
 from ..compose.look import Look
+from ..compose.outline import antialias_outline, outline_segments
 from ..renderer.request import RenderLayers, RenderResult
 from .effects import add_noise, blur_layers, pad_for
 from .motion import motion_blur_layers
