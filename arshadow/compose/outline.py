@@ -97,7 +97,8 @@ def outline_segments(
     xy[ok, 0] = (clip[ok, 0] / w[ok] + 1.0) * (0.5 * width)
     xy[ok, 1] = (clip[ok, 1] / w[ok] + 1.0) * (0.5 * height)
     xy[~ok] = 0.0
-    return xy[e[keep]]
+    out: np.ndarray = xy[e[keep]]
+    return out
 
 
 def box_coverage(t: np.ndarray, nx: np.ndarray, ny: np.ndarray) -> np.ndarray:
