@@ -260,6 +260,10 @@ class Tolerances:
     ref_heldout_ground: float = 0.157
     ref_heldout_contact: float = 0.131
     ref_heldout_object: float = 0.085
+    # the object's outline anti-aliased without MSAA (arshadow.compose.outline; tests/test_outline_aa.py)
+    outline_exact: float = 1e-6  # a pixel one straight edge crosses: its coverage against the clipped square's area
+    outline_area_px2: float = 1.0  # the AA'd alpha's sum against the silhouette polygon's area (a box: 0.4 measured)
+    outline_edge_mean: float = 0.01  # mean |coverage error| over the outline's pixels (0.0025 measured; aa 0: 0.24)
     # marker maps (the marker-map work): learned marker poses against the generating poses (the figures)
     map_marker_median_mm: float = 1.0
     map_marker_median_deg: float = 0.2
