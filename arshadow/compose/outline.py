@@ -229,15 +229,16 @@ def antialias_outline(rgba: np.ndarray, ground: np.ndarray, segments: np.ndarray
     nc = np.clip(cols[:, None] + _NEIGHBOURS[None, :, 1], 0, w - 1)
     n_on = on[nr, nc].astype(np.float32)  # (k, 8): which neighbours' centres are on the object
     # the object's straight colour: the pixel's own where its centre is on it, else its object neighbours'
-    own = rgba[rows, cols, :3]
-    near_obj = (rgba[nr, nc, :3] * n_on[:, :, None]).sum(1) / np.maximum(n_on.sum(1), 1.0)[:, None]
-    colour = np.where(obj[:, None], own, near_obj)
+    colour = rgba[rows, cols, :3]
+    m = ~obj
+    wts = n_on[m] / np.maximum(n_on[m].sum(1), 1.0)[:, None]
+    colour[m] = np.einsum("kn,knc->kc", wts, rgba[nr[m], nc[m], :3])
     # the ground's values: its own where its centre missed the object, else its ground neighbours'
-    n_off = 1.0 - n_on
-    own_g = ground[rows, cols]
-    near_g = (ground[nr, nc] * n_off[:, :, None]).sum(1) / np.maximum(n_off.sum(1), 1.0)[:, None]
-    ground_value = np.where(obj[:, None], near_g, own_g)
+    value = ground[rows, cols]
+    n_off = 1.0 - n_on[obj]
+    wts = n_off / np.maximum(n_off.sum(1), 1.0)[:, None]
+    value[obj] = np.einsum("kn,knc->kc", wts, ground[nr[obj], nc[obj]])
     rgba[rows, cols, :3] = colour * cov[:, None]
     rgba[rows, cols, 3] = cov
-    ground[rows, cols] = ground_value * (1.0 - cov)[:, None]
+    ground[rows, cols] = value * (1.0 - cov)[:, None]
     return int(rows.size)
