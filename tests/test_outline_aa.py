@@ -143,3 +143,16 @@ def test_the_composite_at_the_outline_is_the_coverage_blend_written_out():
     want = _linear_to_srgb8(cov * np.array([0.6, 0.3, 0.1]) + (1 - cov) * shadowed)  # the object's colour is RGB
     got = out[edge][:, ::-1].astype(np.float64)  # BGR -> RGB
     assert np.abs(got - want).max() <= 1
+
+
+def test_a_camera_inside_the_object_sees_no_outline():
+    from arshadow.camera.model import Intrinsics
+    from arshadow.compose.outline import outline_segments
+    from arshadow.geometry.mesh import load_occluder
+    from arshadow.transforms import CV_TO_GL
+
+    K = Intrinsics(100.0, 100.0, 31.5, 31.5, 64, 64)
+    cam = np.eye(4)
+    cam[2, 3] = -0.1  # the camera at z = 0.1, inside the 0.2 m box
+    seg = outline_segments(load_occluder("box:0.2,0.2,0.2"), K.gl_projection(0.01, None), CV_TO_GL @ cam, 64, 64)
+    assert seg.shape == (0, 2, 2)

@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
+from ..errors import LightError
 from ..geometry.silhouette import silhouette
 
 if TYPE_CHECKING:
@@ -69,7 +70,7 @@ def outline_segments(
     (s, 2, 2) float64
         Segments ``(start, end)`` of ``(x, y)`` in OpenGL window coordinates of the canvas (origin at its
         bottom-left corner, pixel centres at ``+ 0.5``: the bottom-up layers' own); edges with an end at or
-        behind the camera's plane are left out.
+        behind the camera's plane are left out; none when the camera is inside the closed object.
 
     Examples
     --------
@@ -84,7 +85,10 @@ def outline_segments(
     """
     view = np.asarray(view, np.float64)
     eye = np.linalg.solve(view, np.array([0.0, 0.0, 0.0, 1.0]))
-    sil = silhouette(caster, eye / eye[3])
+    try:
+        sil = silhouette(caster, eye / eye[3])
+    except LightError:  # the camera inside the (closed) object: it sees no outline
+        return np.zeros((0, 2, 2))
     if sil.n_edges == 0:
         return np.zeros((0, 2, 2))
     v = np.asarray(caster.vertices, np.float64)
