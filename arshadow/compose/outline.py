@@ -132,9 +132,10 @@ def box_coverage(t: np.ndarray, nx: np.ndarray, ny: np.ndarray) -> np.ndarray:
 
 
 def _nearest_segments(band: np.ndarray, segments: np.ndarray) -> tuple[np.ndarray, ...]:
-    """For the band pixels (``band``: (h, w) bool), the nearest of the segments that cross or pass within a
-    pixel of them: ``(rows, cols, t, nx, ny)``, the pixels that have one, the signed offset of its line from
-    their centre along its unit normal ``(nx, ny)`` (the normal's side chosen so that ``t >= 0``)."""
+    """For the band pixels (``band``: (h, w) bool), the nearest of the segments that cross their square:
+    ``(rows, cols, t, nx, ny)``, the pixels that have one, the signed offset of its line from their centre
+    along its unit normal ``(nx, ny)`` (the normal's side chosen so that ``t >= 0``). A pixel no segment
+    crosses (none within half its diagonal) is left out: it is wholly on one side."""
     h, w = band.shape
     a, b = segments[:, 0], segments[:, 1]
     d = b - a
@@ -146,31 +147,37 @@ def _nearest_segments(band: np.ndarray, segments: np.ndarray) -> tuple[np.ndarra
     n = np.ceil(length).astype(np.intp) + 1
     seg = np.repeat(np.arange(len(a)), n)
     f = (np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)) / np.repeat(n - 1, n)
-    px = np.floor(a[seg, 0] + f * d[seg, 0]).astype(np.intp)
-    py = np.floor(a[seg, 1] + f * d[seg, 1]).astype(np.intp)
-    key = np.unique((py * (w + 2) + px + 1) * len(a) + seg)  # (pixel, segment) once each
-    seg, pk = key % len(a), key // len(a)
-    py, px = pk // (w + 2), pk % (w + 2) - 1
-    cy = (py[:, None] + _NEIGHBOURS9[None, :, 0]).ravel()
-    cx = (px[:, None] + _NEIGHBOURS9[None, :, 1]).ravel()
-    cs = np.repeat(seg, 9)
-    keep = (cx >= 0) & (cx < w) & (cy >= 0) & (cy < h)
-    cy, cx, cs = cy[keep], cx[keep], cs[keep]
-    keep = band[cy, cx]
-    cy, cx, cs = cy[keep], cx[keep], cs[keep]
-    if cy.size == 0:
-        e = np.zeros(0)
-        return np.zeros(0, np.intp), np.zeros(0, np.intp), e, e, e
-    # distance from each candidate pixel's centre to its segment; keep the nearest per pixel
-    rel = np.c_[cx + 0.5, cy + 0.5] - a[cs]
-    u = np.clip(np.einsum("ij,ij->i", rel, d[cs]) / np.square(length[cs]), 0.0, 1.0)
-    dist = np.hypot(*(rel - u[:, None] * d[cs]).T)
-    order = np.argsort((cy * w + cx) * 4.0 + np.minimum(dist, 3.5))  # by pixel, then distance (< 2 px)
-    cy, cx, cs, rel = cy[order], cx[order], cs[order], rel[order]
-    one = np.r_[True, (cy[1:] != cy[:-1]) | (cx[1:] != cx[:-1])]
-    cy, cx, cs, rel = cy[one], cx[one], cs[one], rel[one]
+    # their pixels in the band padded by one (a point beyond the window: its nearest pixel of it, whose
+    # neighbours hold those of the point's own that lie in the window)
+    px = np.clip(np.floor(a[seg, 0] + f * d[seg, 0]), 0, w - 1).astype(np.intp) + 1
+    py = np.clip(np.floor(a[seg, 1] + f * d[seg, 1]), 0, h - 1).astype(np.intp) + 1
+    padded = np.zeros((h + 2, w + 2), np.uint8)
+    padded[1:-1, 1:-1] = band
+    near = cv2.dilate(padded, np.ones((3, 3), np.uint8)).ravel()
+    q = py * (w + 2) + px
+    keep = near[q] > 0  # only points beside the band (most of a complex mesh's contour is hidden inside)
+    key = np.unique(q[keep] * len(a) + seg[keep])  # (pixel, segment) once each
+    offsets = (_NEIGHBOURS9[:, 0] * (w + 2) + _NEIGHBOURS9[:, 1])[None, :]
+    cq = ((key // len(a))[:, None] + offsets).ravel()
+    cs = np.repeat(key % len(a), 9)
+    keep = padded.ravel()[cq] > 0
+    cq, cs = cq[keep], cs[keep]
+    # the squared distance from each candidate pixel's centre to its segment: a segment crosses the square
+    # only within half its diagonal; the nearest per pixel
+    cy, cx = cq // (w + 2) - 1, cq % (w + 2) - 1
+    rx, ry = cx + 0.5 - a[cs, 0], cy + 0.5 - a[cs, 1]
+    dx, dy = d[cs, 0], d[cs, 1]
+    u = np.clip((rx * dx + ry * dy) / np.square(length[cs]), 0.0, 1.0)
+    d2 = np.square(rx - u * dx) + np.square(ry - u * dy)
+    keep = d2 <= 0.5 + 1e-9
+    cq, cs, d2 = cq[keep], cs[keep], d2[keep]
+    order = np.argsort(cq * 2.0 + d2)  # by pixel, then distance (d2 <= 0.5)
+    cq, cs = cq[order], cs[order]
+    one = np.r_[True, cq[1:] != cq[:-1]]
+    cq, cs = cq[one], cs[one]
+    cy, cx = cq // (w + 2) - 1, cq % (w + 2) - 1
     nx, ny = -d[cs, 1] / length[cs], d[cs, 0] / length[cs]
-    t = -(rel[:, 0] * nx + rel[:, 1] * ny)  # the line's offset from the centre along (nx, ny)
+    t = -((cx + 0.5 - a[cs, 0]) * nx + (cy + 0.5 - a[cs, 1]) * ny)  # the line's offset along (nx, ny)
     sign = np.where(t < 0.0, -1.0, 1.0)
     return cy, cx, t * sign, nx * sign, ny * sign
 
