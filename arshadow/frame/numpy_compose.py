@@ -1,4 +1,6 @@
-"""The numpy compose path of :func:`arshadow.frame.execute.execute`: render and read the layers back, lens warp
+"""The numpy compose path of :func:`arshadow.frame.execute.execute`: render and read the layers back, give the
+object's outline its coverage (the plan's ``outline_aa``: :func:`outline_aa`, :mod:`arshadow.compose.outline`; in
+the ``warp`` stage's time), lens warp
 (:class:`arshadow.compose.lens.LensWarp`) or flip them into the photo's ROI, apply the camera effects
 (:mod:`arshadow.frame.effects`), composite (:func:`arshadow.compose.composite.composite`, one
 :class:`~arshadow.compose.composite.Overlay` and the frame's :class:`~arshadow.compose.look.Look`) and make the
