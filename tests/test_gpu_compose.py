@@ -6,6 +6,8 @@ The shader must give the same 8-bit photo and mask within TOL.gpu_compose_levels
 distortion, with MSAA 0 and 4, grey and tinted shadows, with and without the occluder, with and without sky
 occlusion (the ground occlusion map's channel, darkening the ground beyond the shadow's mask), with the
 camera effects' blur; the shader's sensor noise is checked against the measured table, as numpy's is.
+The outline's anti-aliasing (the planner's ``outline_aa``) is off here: a frame with it takes the numpy path
+(tests/test_gl_outline_aa.py).
 """
 
 from __future__ import annotations
@@ -52,7 +54,11 @@ def _both_paths(ctx, paths, *, dist, aa, caster_spec, light, eye, target, **opts
     results = {}
     for path in paths or ("cpu", "gpu"):
         scene = Scene(
-            intr, caster, [parse_light(light)], RenderOptions(aa=aa, compose=path, **opts), {"marker_length": 0.05}
+            intr,
+            caster,
+            [parse_light(light)],
+            RenderOptions(aa=aa, compose=path, outline_aa="off", **opts),
+            {"marker_length": 0.05},
         )
         comp = Session(scene, context=ctx)
         with comp:
@@ -163,7 +169,7 @@ def _sky_session(ctx, chooser=None, renderer=None, dist=(), **opts):
     from arshadow.synth.markers import look_at_pose
 
     c = CASES["box_point"]
-    options = RenderOptions(**{"compose": "auto", "ambient_occlusion": "on", **opts})
+    options = RenderOptions(**{"compose": "auto", "ambient_occlusion": "on", "outline_aa": "off", **opts})
     scene = Scene(_intrinsics(dist), load_occluder(c["caster_spec"]), [parse_light(c["light"])], options, {})
     s = Session(scene, context=ctx, renderer=renderer)
     if chooser is not None:
@@ -489,7 +495,13 @@ def test_in_place_composite_while_the_chooser_times_both_paths(ctx, tol):
     results = {}
     for where in ("copy", "in_place"):
         photo = np.array(_photo())
-        scene = Scene(intr, caster, [parse_light(c["light"])], RenderOptions(compose="auto"), {"marker_length": 0.05})
+        scene = Scene(
+            intr,
+            caster,
+            [parse_light(c["light"])],
+            RenderOptions(compose="auto", outline_aa="off"),
+            {"marker_length": 0.05},
+        )
         with Session(scene, context=ctx) as comp:
             # nothing decided yet: this first frame is timed (on llvmpipe too)
             comp.hooks.compose_chooser = PathChooser(decisions={}, time_software=True)

@@ -234,6 +234,12 @@ def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> No
         "docs/compositing.md)",
     )
     s.add_argument(
+        "--outline-aa",
+        choices=("on", "off"),
+        help="on (default): with --aa 0, the object's outline gets each pixel's coverage of its silhouette "
+        "(exact for a straight edge, ~1 ms; docs/compositing.md); off: pixel-centre samples only",
+    )
+    s.add_argument(
         "--ground-size",
         type=_positive("--ground-size"),
         metavar="S",

@@ -52,6 +52,7 @@ if TYPE_CHECKING:
 __all__ = [
     "LAYERS_WHY",
     "MOTION_WHY",
+    "OUTLINE_WHY",
     "STAGES",
     "FrameContext",
     "FrameOutputs",
@@ -65,6 +66,8 @@ __all__ = [
 LAYERS_WHY = "numpy (layers asked for: the composite and its layers come from the numpy path)"
 #: the compose decision's reason when a frame's motion blur is applied (the numpy path's alone)
 MOTION_WHY = "numpy (motion blur applied: the shader path does not motion-blur the layers)"
+#: the compose decision's reason when the object's outline is anti-aliased (the planner's ``outline_aa``)
+OUTLINE_WHY = "numpy (outline anti-aliasing: the shader path composites the render's layers as they are)"
 #: the object's own sky visibility and ground bounce (SkyShading.object_sky) with sky occlusion on: the
 #: uniform sky. Off until the ground bounce's units were fixed (it lacked the paper's albedo, 1.25 x too
 #: much, so vertical faces took too much of the floor's colour); with them right it halves the object's
@@ -254,6 +257,11 @@ def execute(
             plan.decide("compose", "cpu", LAYERS_WHY)
     if motion is not None and motion.active and not plan.empty and plan.compose != "cpu":
         plan.decide("compose", "cpu", MOTION_WHY)
+    outline = next((d for d in reversed(plan.decisions) if d.name == "outline_aa"), None)
+    if outline is not None:
+        item.plan["outline_aa"] = outline.reason  # type: ignore[index]  # a dict: _report_plan made it
+        if outline.value and not plan.empty and plan.compose != "cpu":
+            plan.decide("compose", "cpu", OUTLINE_WHY)
     if plan.empty:
         return out, mask_full  # nothing of the scene is in view
     cal = context.calibration(W, H)

@@ -1,4 +1,6 @@
-"""The numpy compose path of :func:`arshadow.frame.execute.execute`: render and read the layers back, lens warp
+"""The numpy compose path of :func:`arshadow.frame.execute.execute`: render and read the layers back, give the
+object's outline its coverage (the plan's ``outline_aa``: :func:`outline_aa`, :mod:`arshadow.compose.outline`; in
+the ``warp`` stage's time), lens warp
 (:class:`arshadow.compose.lens.LensWarp`) or flip them into the photo's ROI, apply the camera effects
 (:mod:`arshadow.frame.effects`), composite (:func:`arshadow.compose.composite.composite`, one
 :class:`~arshadow.compose.composite.Overlay` and the frame's :class:`~arshadow.compose.look.Look`) and make the
@@ -22,6 +24,7 @@ import numpy as np
 from ..compose.composite import Overlay, clip_roi, composite, sky_planes
 from ..compose.layers import layers_from_warped, pinhole_layers
 from ..compose.look import Look
+from ..compose.outline import antialias_outline, outline_segments
 from ..renderer.request import RenderLayers, RenderResult
 from .effects import add_noise, blur_layers, pad_for
 from .motion import motion_blur_layers
@@ -34,7 +37,7 @@ if TYPE_CHECKING:
     from ..plan.planner import FramePlan
     from .execute import FrameJob
 
-__all__ = ["compose_cpu"]
+__all__ = ["compose_cpu", "outline_aa", "outline_on"]
 
 
 def compose_cpu(frame: FrameJob, timings: StageTimings) -> None:
@@ -49,8 +52,10 @@ def compose_cpu(frame: FrameJob, timings: StageTimings) -> None:
         timings.render += dt - float(rt["readback"])
     else:
         timings.render += dt
-    # lens warp (pinhole canvas -> distorted photo ROI)
+    # the outline's coverage (in the pinhole canvas), then the lens warp (pinhole canvas -> distorted photo ROI)
     t = time.perf_counter()
+    if outline_on(frame.plan):
+        outline_aa(frame, res)
     warped = _warp_result(frame, res)
     timings.warp += (time.perf_counter() - t) * 1e3
     if warped is None:  # nothing drawn, or nothing of it in the photo: the photo is unchanged
@@ -58,6 +63,40 @@ def compose_cpu(frame: FrameJob, timings: StageTimings) -> None:
     t = time.perf_counter()
     _composite_cpu(frame, warped)
     timings.composite += (time.perf_counter() - t) * 1e3
+
+
+def outline_on(plan: FramePlan) -> bool:
+    """The plan's ``outline_aa`` decision (:func:`arshadow.plan.planner.decide_outline_aa`; False without)."""
+    return bool(next((d.value for d in reversed(plan.decisions) if d.name == "outline_aa"), False))
+
+
+def outline_aa(frame: FrameJob, res: RenderResult) -> int:
+    """Give the object's outline in ``res`` its pixels' coverage, in place (the renderer's fresh arrays;
+    :func:`arshadow.compose.outline.antialias_outline`, in the render's pinhole canvas, before the lens
+    warp); returns the pixels changed.
+
+    The renderer's bottom-up layers (``res.layers``) are changed where the views ``res.mask`` / ``color`` /
+    ``alpha`` see them; without them the top-down fields are changed (the contour's rows flipped)."""
+    req = frame.request
+    if not req.draw_occluder:
+        return 0
+    seg = outline_segments(req.caster, req.projection, req.view, req.width, req.height)
+    layers = res.layers
+    if layers is not None:
+        return antialias_outline(layers.rgba, layers.mask_ground, seg)
+    seg = seg.copy()
+    seg[:, :, 1] = req.height - seg[:, :, 1]  # window (bottom-up) -> top-down rows
+    sky = res.sky_occlusion
+    planes = [res.mask, res.ground_coverage.astype(np.float32)]
+    if sky is not None:
+        planes += [sky] if sky.ndim == 2 else list(np.moveaxis(sky, 2, 0))
+    rgba, ground = np.dstack([res.color, res.alpha]), np.dstack(planes)
+    n = antialias_outline(rgba, ground, seg)
+    res.color[...], res.alpha[...], res.mask[...] = rgba[:, :, :3], rgba[:, :, 3], ground[:, :, 0]
+    res.ground_coverage = ground[:, :, 1]
+    if sky is not None:
+        sky[...] = ground[:, :, 2] if sky.ndim == 2 else ground[:, :, 2:5]
+    return n
 
 
 @dataclass

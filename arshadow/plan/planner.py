@@ -72,6 +72,7 @@ __all__ = [
     "LightState",
     "plan_frame",
     "decide_compose",
+    "decide_outline_aa",
     "shadow_footprint",
     "scene_hull_points",
     "pinhole_rect_for_scene",
@@ -235,6 +236,7 @@ def plan_frame(
     from ..shading.decide import decide_ambient_occlusion  # sky occlusion (the realism work): once per frame, here
 
     plan.decide("ambient_occlusion", *decide_ambient_occlusion(opts))
+    plan.decide("outline_aa", *decide_outline_aa(opts))
     general, off = opts.plan == "general", set(opts.plan_off)
     if opts.shadow_method == "volume":
         trunc = bool(opts.truncate) and not general and "truncate" not in off
@@ -394,6 +396,26 @@ SOFTWARE_COMPOSE = (
     "numpy: the renderer rasterises on the CPU (llvmpipe), where the shader path runs on the same cores "
     "(measured within 15 % of each other; not timed)"
 )
+
+
+def decide_outline_aa(options: Any) -> tuple[bool, str]:
+    """``(on, reason)``: whether the object's outline gets its pixels' coverage after the render
+    (:mod:`arshadow.compose.outline`), for :class:`arshadow.scene.options.RenderOptions` ``options``.
+
+    On by default with pixel-centre sampling (``aa`` 0) and the object drawn; off with MSAA (its samples
+    already give the outline its coverage), without the object, or with ``outline_aa`` off.
+
+    >>> from arshadow.scene.options import RenderOptions
+    >>> decide_outline_aa(RenderOptions())[0], decide_outline_aa(RenderOptions(aa=4))[1]
+    (True, 'off: MSAA (--aa 4) gives the outline its coverage')
+    """
+    if options.outline_aa == "off":
+        return False, "off (--outline-aa off)"
+    if not options.draw_occluder:
+        return False, "off: no object drawn"
+    if int(options.aa) > 0:
+        return False, f"off: MSAA (--aa {int(options.aa)}) gives the outline its coverage"
+    return True, "on: the object's outline gets each pixel's coverage of its silhouette (--aa 0)"
 
 
 def decide_compose(

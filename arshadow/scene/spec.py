@@ -31,6 +31,7 @@ map onto its keys, which are the ``arshadow render`` option names with ``_`` for
     opacity: 0.7
     shadow_color: 0,0,0
     aa: 0
+    outline_aa: on                   # the object's outline anti-aliased without MSAA (with aa 0)
     ground_size: null
     no_object: false
     time_lapse: 2026-06-21T08:00+02:00,600   # video: the suns follow the frame times (START[,SPEED])
@@ -316,6 +317,7 @@ SCENE_KEYS = (
     "opacity",
     "shadow_color",
     "aa",
+    "outline_aa",
     "ground_size",
     "no_object",
     "roi",
@@ -540,6 +542,7 @@ def scene_from_dict(d: Mapping[str, Any], base_dir: str | Path | None = None) ->
         ("silhouette", str),
         ("soft_samples", int),
         ("aa", int),
+        ("outline_aa", str),
         ("ground_size", float),
         ("roi", bool),
         ("truncate", bool),
