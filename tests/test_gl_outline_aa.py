@@ -125,3 +125,18 @@ def test_outline_aa_is_a_planner_decision_that_changes_only_the_outline(gl_ctx):
     changed = np.any(on.composite != off.composite, axis=2)
     assert changed.sum() > 100
     assert not np.any(changed & ~outline)
+
+
+def test_auto_outline_aa_in_a_video_follows_the_sky_occlusion(gl_ctx):
+    """``auto``: a video frame (``track_roi``) without sky occlusion keeps pixel-centre samples (its speed);
+    with sky occlusion on, or ``on`` given, its outline is anti-aliased like a photo's."""
+    from arshadow.io import read_image
+
+    photo = read_image(str(ROOT / "samples" / "probe_shadow.jpg"))
+    plain = _session_result(photo, track_roi=True)
+    assert plain.item.plan["outline_aa"].startswith("off: a video without sky occlusion")
+    sky = _session_result(photo, track_roi=True, ambient_occlusion="on")
+    assert sky.item.plan["outline_aa"].startswith("on")
+    forced = _session_result(photo, track_roi=True, outline_aa="on")
+    assert forced.item.plan["outline_aa"].startswith("on")
+    assert np.any(forced.composite != plain.composite)

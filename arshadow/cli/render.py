@@ -235,9 +235,10 @@ def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> No
     )
     s.add_argument(
         "--outline-aa",
-        choices=("on", "off"),
-        help="on (default): with --aa 0, the object's outline gets each pixel's coverage of its silhouette "
-        "(exact for a straight edge, ~1 ms; docs/compositing.md); off: pixel-centre samples only",
+        choices=("auto", "on", "off"),
+        help="with --aa 0, the object's outline gets each pixel's coverage of its silhouette (exact for a "
+        "straight edge, 1-2 ms; docs/compositing.md): auto (default) in photos, and in videos with sky "
+        "occlusion on; on: always; off: pixel-centre samples only",
     )
     s.add_argument(
         "--ground-size",

@@ -235,8 +235,9 @@ def plan_frame(
     _plan_view(plan, geometry, intr, lens)
     from ..shading.decide import decide_ambient_occlusion  # sky occlusion (the realism work): once per frame, here
 
-    plan.decide("ambient_occlusion", *decide_ambient_occlusion(opts))
-    plan.decide("outline_aa", *decide_outline_aa(opts))
+    sky, why = decide_ambient_occlusion(opts)
+    plan.decide("ambient_occlusion", sky, why)
+    plan.decide("outline_aa", *decide_outline_aa(opts, sky))
     general, off = opts.plan == "general", set(opts.plan_off)
     if opts.shadow_method == "volume":
         trunc = bool(opts.truncate) and not general and "truncate" not in off
@@ -398,16 +399,21 @@ SOFTWARE_COMPOSE = (
 )
 
 
-def decide_outline_aa(options: Any) -> tuple[bool, str]:
+def decide_outline_aa(options: Any, sky: bool = False) -> tuple[bool, str]:
     """``(on, reason)``: whether the object's outline gets its pixels' coverage after the render
-    (:mod:`arshadow.compose.outline`), for :class:`arshadow.scene.options.RenderOptions` ``options``.
+    (:mod:`arshadow.compose.outline`), for :class:`arshadow.scene.options.RenderOptions` ``options`` and the
+    frame's sky occlusion decision ``sky``.
 
-    On by default with pixel-centre sampling (``aa`` 0) and the object drawn; off with MSAA (its samples
-    already give the outline its coverage), without the object, or with ``outline_aa`` off.
+    With pixel-centre sampling (``aa`` 0) and the object drawn: ``auto`` (the default) turns it on in a
+    photo, and in a video (``track_roi``) with sky occlusion on (the realism options; without them a video
+    keeps the speed it had: 1-2 ms a frame, 7-15 % on the benchmark's knot); ``on`` always. Off with MSAA (its
+    samples already give the outline its coverage), without the object, or with ``outline_aa`` off.
 
     >>> from arshadow.scene.options import RenderOptions
     >>> decide_outline_aa(RenderOptions())[0], decide_outline_aa(RenderOptions(aa=4))[1]
     (True, 'off: MSAA (--aa 4) gives the outline its coverage')
+    >>> decide_outline_aa(RenderOptions(track_roi=True)), decide_outline_aa(RenderOptions(track_roi=True), True)[0]
+    ((False, 'off: a video without sky occlusion (--outline-aa on for it)'), True)
     """
     if options.outline_aa == "off":
         return False, "off (--outline-aa off)"
@@ -415,6 +421,8 @@ def decide_outline_aa(options: Any) -> tuple[bool, str]:
         return False, "off: no object drawn"
     if int(options.aa) > 0:
         return False, f"off: MSAA (--aa {int(options.aa)}) gives the outline its coverage"
+    if options.outline_aa == "auto" and options.track_roi and not sky:
+        return False, "off: a video without sky occlusion (--outline-aa on for it)"
     return True, "on: the object's outline gets each pixel's coverage of its silhouette (--aa 0)"
 
 

@@ -49,9 +49,10 @@ class RenderOptions:
     aa : int
         MSAA samples of the renderer (0 = none).
     outline_aa : str
-        ``on`` (default): with ``aa`` 0 and the object drawn, the object's outline gets each pixel's coverage
-        of its silhouette (:mod:`arshadow.compose.outline`: the planner's ``outline_aa`` decision; MSAA has
-        its own coverage); ``off``: pixel-centre samples only.
+        With ``aa`` 0 and the object drawn, the object's outline gets each pixel's coverage of its silhouette
+        (:mod:`arshadow.compose.outline`: the planner's ``outline_aa`` decision; MSAA has its own coverage):
+        ``auto`` (default): in photos, and in videos with sky occlusion on (the realism options; a video
+        without them keeps its speed, 1-2 ms a frame); ``on``: always; ``off``: pixel-centre samples only.
     ground_size : float or None
         Side of the square proxy ground plane centred on the origin (None: unlimited).
     ground : str
@@ -128,7 +129,7 @@ class RenderOptions:
     silhouette: str = "adjacency"
     soft_samples: int = 1
     aa: int = DEFAULT_AA
-    outline_aa: str = "on"
+    outline_aa: str = "auto"
     ground_size: float | None = None
     ground: str = "marker"
     draw_occluder: bool = True
@@ -175,8 +176,8 @@ class RenderOptions:
             raise UsageError(
                 f"--aa {self.aa}: choose {', '.join(map(str, AA_CHOICES))} (multisample anti-aliasing samples; 0 = off)"
             )
-        if self.outline_aa not in ("on", "off"):
-            raise UsageError(f"--outline-aa {self.outline_aa!r}: choose on or off")
+        if self.outline_aa not in ("auto", "on", "off"):
+            raise UsageError(f"--outline-aa {self.outline_aa!r}: choose auto, on or off")
         if self.ground_size is not None and not (math.isfinite(self.ground_size) and self.ground_size > 0):
             raise UsageError(f"--ground-size {self.ground_size}: must be a positive number of metres")
         parse_ground(self.ground)

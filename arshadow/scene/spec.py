@@ -31,7 +31,7 @@ map onto its keys, which are the ``arshadow render`` option names with ``_`` for
     opacity: 0.7
     shadow_color: 0,0,0
     aa: 0
-    outline_aa: on                   # the object's outline anti-aliased without MSAA (with aa 0)
+    outline_aa: auto                 # the object's outline anti-aliased without MSAA (aa 0): photos, realistic videos
     ground_size: null
     no_object: false
     time_lapse: 2026-06-21T08:00+02:00,600   # video: the suns follow the frame times (START[,SPEED])
