@@ -5,7 +5,8 @@
 The light sample (samples/probe_shadow.jpg, 1280 x 720): the light measured by ``arshadow light`` with the
 sample's probe, then a 4.5 x 6.5 x 7 cm box rendered with ``light_from`` (a session per configuration,
 frames after the first): everything off (``ambient_occlusion off``, ``camera_effects off``), sky occlusion on,
-and everything on (plus camera effects). The configurations are interleaved frame by frame so that they see
+and everything on (plus camera effects), and ``plain``: off with the outline's anti-aliasing off too (the
+default before the realism work; ``ratio_to_plain``). The configurations are interleaved frame by frame so that they see
 the same machine load; per configuration the median, IQR and min of the frame times (ms), and the paired
 ratio to "off" (median and IQR). The first frame of each (the ground occlusion map, the buffers) is
 reported apart (``first_ms``); ``compose`` gives each configuration's compose path and its reason.
@@ -25,6 +26,8 @@ import numpy as np
 
 ROOT = _common.ROOT
 CONFIGS = {
+    # the default before the realism work: no sky occlusion, no camera effects, pixel-centre outline
+    "plain": {"ambient_occlusion": "off", "camera_effects": "off", "outline_aa": "off"},
     "off": {"ambient_occlusion": "off", "camera_effects": "off"},
     "sky": {"ambient_occlusion": "on", "camera_effects": "off"},
     "all": {"ambient_occlusion": "on", "camera_effects": "on"},
@@ -96,7 +99,7 @@ def main() -> None:
                 compose[name] = [res.item.compose, (res.item.plan or {}).get("compose")]
         for s in sessions.values():
             s.close()
-    off = np.array(times["off"])
+    off, plain = np.array(times["off"]), np.array(times["plain"])
     result = {
         "meta": _common.metadata(),
         "first_ms": {k: round(v, 1) for k, v in first.items()},
@@ -113,6 +116,14 @@ def main() -> None:
             }
             for k, v in times.items()
             if k != "off"
+        },
+        "ratio_to_plain": {
+            k: {
+                "median": round(float(np.median(np.array(v) / plain)), 3),
+                "iqr": [round(float(q), 3) for q in np.percentile(np.array(v) / plain, [25, 75])],
+            }
+            for k, v in times.items()
+            if k != "plain"
         },
     }
     _common.emit(result, args.out)
