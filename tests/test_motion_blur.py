@@ -14,7 +14,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from video_clips import make_clip
+from video_clips import BOX_JOB, BOX_SCENE, make_clip
 
 av = pytest.importorskip("av")
 
@@ -22,25 +22,8 @@ ROOT = Path(__file__).resolve().parents[1]
 CALIB = ROOT / "calib" / "synth_640x360.yml"
 #: the object: box:0.04,0.03,0.06 placed at (0.05, 0, 0), standing on the ground (world = marker frame)
 BOX = np.array([[x, y, z] for x in (0.03, 0.07) for y in (-0.015, 0.015) for z in (0.0, 0.06)])
-SCENE = [
-    "--calib",
-    str(CALIB),
-    "--marker-length",
-    "0.05",
-    "--model",
-    "box:0.04,0.03,0.06",
-    "--place",
-    "0.05,0,0",
-    "--light",
-    "point:-0.1,0.15,0.4",
-]
-JOB = {
-    "calib": str(CALIB),
-    "marker_length": 0.05,
-    "model": "box:0.04,0.03,0.06",
-    "place": [0.05, 0, 0],
-    "lights": ["point:-0.1,0.15,0.4"],
-}
+SCENE = BOX_SCENE
+JOB = dict(BOX_JOB)
 
 
 def _cli(*argv):

@@ -16,30 +16,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from video_clips import make_clip
+from video_clips import BOX_JOB, BOX_SCENE, make_clip
 
 av = pytest.importorskip("av")
 
 ROOT = Path(__file__).resolve().parents[1]
 CALIB = ROOT / "calib" / "synth_640x360.yml"
-SCENE = [
-    "--calib",
-    str(CALIB),
-    "--marker-length",
-    "0.05",
-    "--model",
-    "box:0.04,0.03,0.06",
-    "--place",
-    "0.05,0,0",
-    "--light",
-    "point:-0.1,0.15,0.4",
-]
+SCENE = BOX_SCENE
 JOB = {
-    "calib": str(CALIB),
-    "marker_length": 0.05,
-    "model": "box:0.04,0.03,0.06",
-    "place": [0.05, 0, 0],
-    "lights": ["point:-0.1,0.15,0.4"],
+    **BOX_JOB,
     "refine": "edge",
 }
 

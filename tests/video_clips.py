@@ -13,6 +13,28 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 CALIB_720 = ROOT / "calib" / "synth_1280x720.yml"
+CALIB_360 = ROOT / "calib" / "synth_640x360.yml"
+#: the video tests' scene: a 4 x 3 x 6 cm box beside the marker under one point light (CLI arguments, and the
+#: same as job keys: :data:`BOX_JOB`)
+BOX_SCENE = [
+    "--calib",
+    str(CALIB_360),
+    "--marker-length",
+    "0.05",
+    "--model",
+    "box:0.04,0.03,0.06",
+    "--place",
+    "0.05,0,0",
+    "--light",
+    "point:-0.1,0.15,0.4",
+]
+BOX_JOB = {
+    "calib": str(CALIB_360),
+    "marker_length": 0.05,
+    "model": "box:0.04,0.03,0.06",
+    "place": [0.05, 0, 0],
+    "lights": ["point:-0.1,0.15,0.4"],
+}
 #: the scene of samples/knot_point.jpg: the 8 536-face knot under one point light
 KNOT_SCENE = [
     "--model",

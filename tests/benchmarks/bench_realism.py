@@ -34,6 +34,20 @@ CONFIGS = {
 }
 
 
+def _ratios(times: dict, base: str) -> dict:
+    """Per configuration but ``base``: the median and IQR of its frame times over ``base``'s, paired."""
+    b = np.array(times[base])
+    out = {}
+    for k, v in times.items():
+        if k != base:
+            r = np.array(v) / b
+            out[k] = {
+                "median": round(float(np.median(r)), 3),
+                "iqr": [round(float(q), 3) for q in np.percentile(r, [25, 75])],
+            }
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeat", type=int, default=15)
@@ -99,7 +113,6 @@ def main() -> None:
                 compose[name] = [res.item.compose, (res.item.plan or {}).get("compose")]
         for s in sessions.values():
             s.close()
-    off, plain = np.array(times["off"]), np.array(times["plain"])
     result = {
         "meta": _common.metadata(),
         "first_ms": {k: round(v, 1) for k, v in first.items()},
@@ -109,22 +122,8 @@ def main() -> None:
         },
         "roi": roi,
         "compose": compose,
-        "ratio_to_off": {
-            k: {
-                "median": round(float(np.median(np.array(v) / off)), 3),
-                "iqr": [round(float(q), 3) for q in np.percentile(np.array(v) / off, [25, 75])],
-            }
-            for k, v in times.items()
-            if k != "off"
-        },
-        "ratio_to_plain": {
-            k: {
-                "median": round(float(np.median(np.array(v) / plain)), 3),
-                "iqr": [round(float(q), 3) for q in np.percentile(np.array(v) / plain, [25, 75])],
-            }
-            for k, v in times.items()
-            if k != "plain"
-        },
+        "ratio_to_off": _ratios(times, "off"),
+        "ratio_to_plain": _ratios(times, "plain"),
     }
     _common.emit(result, args.out)
 
