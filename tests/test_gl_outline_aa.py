@@ -57,7 +57,8 @@ def _box_render(ctx):
 
 
 def test_a_box_outlines_coverage_is_its_projected_silhouettes(ctx):
-    from arshadow.compose.outline import antialias_outline, outline_segments
+    from arshadow.compose.outline import antialias_outline
+    from arshadow.geometry.contour import outline_segments
 
     box, pose, req, res = _box_render(ctx)
     before = res.alpha.copy()  # top-down

@@ -147,7 +147,7 @@ def test_the_composite_at_the_outline_is_the_coverage_blend_written_out():
 
 def test_a_camera_inside_the_object_sees_no_outline():
     from arshadow.camera.model import Intrinsics
-    from arshadow.compose.outline import outline_segments
+    from arshadow.geometry.contour import outline_segments
     from arshadow.geometry.mesh import load_occluder
     from arshadow.transforms import CV_TO_GL
 
@@ -156,3 +156,20 @@ def test_a_camera_inside_the_object_sees_no_outline():
     cam[2, 3] = -0.1  # the camera at z = 0.1, inside the 0.2 m box
     seg = outline_segments(load_occluder("box:0.2,0.2,0.2"), K.gl_projection(0.01, None), CV_TO_GL @ cam, 64, 64)
     assert seg.shape == (0, 2, 2)
+
+
+def test_an_object_a_pixel_across_or_a_point_contour_changes_nothing_and_does_not_fail():
+    """A user report's 50 m marker put the object a pixel or two across: no contour segment crosses a band
+    pixel (and a contour of points only has no segment at all); the layers stay as rendered."""
+    from arshadow.compose.outline import antialias_outline
+
+    rgba = np.zeros((8, 8, 4), np.float32)
+    rgba[4, 4] = (0.5, 0.5, 0.5, 1.0)  # one pixel's centre on the object
+    ground = np.ones((8, 8, 1), np.float32)
+    ground[4, 4] = 0.0
+    before = rgba.copy(), ground.copy()
+    far = np.array([[[0.2, 0.2], [0.3, 0.2]]])  # a segment nowhere near it
+    points = np.array([[[4.5, 4.5], [4.5, 4.5]]])  # zero length
+    for seg in (far, points):
+        assert antialias_outline(rgba, ground, seg) == 0
+        assert np.array_equal(rgba, before[0]) and np.array_equal(ground, before[1])

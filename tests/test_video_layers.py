@@ -86,7 +86,8 @@ def test_ffv1_layer_videos_rebuild_every_frame(clip, tmp_path, gl_ctx):
     assert len(obj) == len(mult) == len(only) == len(lines) == len(frames) == 5
     assert lines[2]["status"] == "held"  # the blank frame: the engine holds the last pose
     assert [ln["status"] for ln in lines].count("ok") >= 3
-    with arshadow.Session(arshadow.scene_from_dict(JOB), context=gl_ctx) as s:
+    # the video's own scene (a video: track_roi; its outline is a video's, auto: off without sky occlusion)
+    with arshadow.Session(arshadow.scene_from_dict({**JOB, "track_roi": True}), context=gl_ctx) as s:
         for k, ln in enumerate(lines):
             if ln["rvec"] is None:
                 assert np.all(obj[k] == 0) and np.all(mult[k] == 65535)  # nothing drawn

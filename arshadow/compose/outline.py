@@ -1,9 +1,9 @@
 """The object's anti-aliased outline without MSAA: per-pixel coverage of its silhouette, in numpy.
 
 With ``--aa 0`` the renderer samples pixel centres: a pixel the object's outline crosses is all object or
-all ground, where the truth (and MSAA) mixes them. :func:`outline_segments` projects the object's contour
-(the mesh edges between faces that face the camera and faces that do not: the silhouette from the camera's
-centre, :func:`arshadow.geometry.silhouette.silhouette`) into the render's canvas; :func:`antialias_outline`
+all ground, where the truth (and MSAA) mixes them. :func:`arshadow.geometry.contour.outline_segments` projects the object's
+contour (the mesh edges between faces that face the camera and faces that do not: the silhouette from the
+camera's centre, :func:`arshadow.geometry.silhouette.silhouette`) into the render's canvas; :func:`antialias_outline`
 gives every pixel the outline crosses the exact coverage of the half-plane of its nearest contour segment
 (the area of the pixel square on the object's side, :func:`box_coverage`), on the side the pixel centre's
 sample found, and rewrites the layers there as MSAA's coverage would:
@@ -30,79 +30,15 @@ Examples
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import cv2
 import numpy as np
 
-from ..errors import LightError
-from ..geometry.silhouette import silhouette
-
-if TYPE_CHECKING:
-    from ..geometry.caster import ShadowCaster
-
-__all__ = ["antialias_outline", "box_coverage", "outline_segments"]
+__all__ = ["antialias_outline", "box_coverage"]
 
 #: the 8 neighbours (row, column offsets) a changed pixel takes its other layer's value from
 _NEIGHBOURS = np.array([(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)], np.intp)
 #: the same and the pixel itself
 _NEIGHBOURS9 = np.r_[_NEIGHBOURS, [(0, 0)]]
-
-
-def outline_segments(
-    caster: ShadowCaster, projection: np.ndarray, view: np.ndarray, width: int, height: int
-) -> np.ndarray:
-    """The object's contour as seen by the camera, projected into the canvas.
-
-    Parameters
-    ----------
-    caster : arshadow.geometry.caster.ShadowCaster
-        The object, world frame.
-    projection : (4, 4) float64
-        ``clip_from_gl_eye`` of the canvas (:attr:`arshadow.renderer.request.RenderRequest.projection`).
-    view : (4, 4) float64
-        ``gl_from_world`` (:attr:`~arshadow.renderer.request.RenderRequest.view`).
-    width, height : int
-        The canvas size in pixels.
-
-    Returns
-    -------
-    (s, 2, 2) float64
-        Segments ``(start, end)`` of ``(x, y)`` in OpenGL window coordinates of the canvas (origin at its
-        bottom-left corner, pixel centres at ``+ 0.5``: the bottom-up layers' own); edges with an end at or
-        behind the camera's plane are left out; none when the camera is inside the closed object.
-
-    Examples
-    --------
-    >>> from arshadow.geometry.mesh import load_occluder
-    >>> from arshadow.camera.model import Intrinsics
-    >>> from arshadow.transforms import CV_TO_GL
-    >>> K = Intrinsics(100.0, 100.0, 31.5, 31.5, 64, 64)
-    >>> cam = np.eye(4); cam[2, 3] = 1.0  # the box (z from 0 to 0.2) seen along its z axis, its near face 1 m away
-    >>> seg = outline_segments(load_occluder("box:0.2,0.2,0.2"), K.gl_projection(0.1, None), CV_TO_GL @ cam, 64, 64)
-    >>> len(seg), float(np.round(np.ptp(seg[:, :, 0]), 6))  # its square outline, 0.2 m at 1 m x 100 px wide
-    (4, 20.0)
-    """
-    view = np.asarray(view, np.float64)
-    eye = np.linalg.solve(view, np.array([0.0, 0.0, 0.0, 1.0]))
-    try:
-        sil = silhouette(caster, eye / eye[3])
-    except LightError:  # the camera inside the (closed) object: it sees no outline
-        return np.zeros((0, 2, 2))
-    if sil.n_edges == 0:
-        return np.zeros((0, 2, 2))
-    v = np.asarray(caster.vertices, np.float64)
-    clip = np.c_[v, np.ones(len(v))] @ (np.asarray(projection, np.float64) @ view).T
-    e = np.asarray(sil.edges)
-    w = clip[:, 3]
-    keep = (w[e[:, 0]] > 1e-9) & (w[e[:, 1]] > 1e-9)
-    xy = np.empty((len(v), 2))
-    ok = w > 1e-9
-    xy[ok, 0] = (clip[ok, 0] / w[ok] + 1.0) * (0.5 * width)
-    xy[ok, 1] = (clip[ok, 1] / w[ok] + 1.0) * (0.5 * height)
-    xy[~ok] = 0.0
-    out: np.ndarray = xy[e[keep]]
-    return out
 
 
 def box_coverage(t: np.ndarray, nx: np.ndarray, ny: np.ndarray) -> np.ndarray:
@@ -142,6 +78,9 @@ def _nearest_segments(band: np.ndarray, segments: np.ndarray) -> tuple[np.ndarra
     length = np.hypot(d[:, 0], d[:, 1])
     good = length > 1e-9
     a, d, length = a[good], d[good], length[good]
+    if len(a) == 0:  # points only (an object seen edge-on, or far below a pixel)
+        empty = np.zeros(0)
+        return empty.astype(np.intp), empty.astype(np.intp), empty, empty, empty
     # points every <= 1 px along each segment: a pixel the segment crosses holds a point within 0.5 px, so
     # that point's pixel is the pixel or one of its 8 neighbours
     n = np.ceil(length).astype(np.intp) + 1
@@ -171,6 +110,9 @@ def _nearest_segments(band: np.ndarray, segments: np.ndarray) -> tuple[np.ndarra
     d2 = np.square(rx - u * dx) + np.square(ry - u * dy)
     keep = d2 <= 0.5 + 1e-9
     cq, cs, d2 = cq[keep], cs[keep], d2[keep]
+    if cq.size == 0:  # no segment crosses a band pixel (an object a pixel or two across)
+        empty = np.zeros(0)
+        return empty.astype(np.intp), empty.astype(np.intp), empty, empty, empty
     order = np.argsort(cq * 2.0 + d2)  # by pixel, then distance (d2 <= 0.5)
     cq, cs = cq[order], cs[order]
     one = np.r_[True, cq[1:] != cq[:-1]]
@@ -193,7 +135,7 @@ def antialias_outline(rgba: np.ndarray, ground: np.ndarray, segments: np.ndarray
         The ground's channels (the shadow mask, the ground coverage, the sky channels), each 0 where the
         pixel centre is on the object, coverage-weighted elsewhere.
     segments : (s, 2, 2) float64
-        The object's contour in the arrays' pixel coordinates (:func:`outline_segments`; pixel ``(i, j)``'s
+        The object's contour in the arrays' pixel coordinates (:func:`arshadow.geometry.contour.outline_segments`; pixel ``(i, j)``'s
         centre at ``(j + 0.5, i + 0.5)``).
 
     Returns

@@ -24,7 +24,8 @@ import numpy as np
 from ..compose.composite import Overlay, clip_roi, composite, sky_planes
 from ..compose.layers import layers_from_warped, pinhole_layers
 from ..compose.look import Look
-from ..compose.outline import antialias_outline, outline_segments
+from ..compose.outline import antialias_outline
+from ..geometry.contour import outline_segments
 from ..renderer.request import RenderLayers, RenderResult
 from .effects import add_noise, blur_layers, pad_for
 from .motion import motion_blur_layers

@@ -237,7 +237,10 @@ class PreviewEngine:
         from ..frame.session import Session
         from ..lights.spec import parse_light
 
-        key = spec.replace(lights=(), options=dataclasses.replace(spec.options, track_roi=True))
+        # the draft session tracks like a video's (track_roi); its outline is the exact render's (a photo's:
+        # the planner's auto decision would take a video's)
+        outline = "on" if spec.options.outline_aa == "auto" else spec.options.outline_aa
+        key = spec.replace(lights=(), options=dataclasses.replace(spec.options, track_roi=True, outline_aa=outline))
         motion = None
         if self._draft_session is not None and key.replace(model=self._draft_key.model) == self._draft_key:
             motion = ground_motion(self._draft_key.model, spec.model)
