@@ -1,8 +1,8 @@
 """``estimate_light``: photos (or video frames) of the marker and a probe -> a :class:`LightEstimate`.
 
-(About 620 lines: the one public entry and its private steps -- evidence per photo, the fit, the shadow
-ratio with the probe's sky occlusion, the trust checks -- in the order they run; the checks' own measurements
-live in :mod:`.outline`, :mod:`.shading` and :mod:`.shadow`.)
+(About 560 lines: the one public entry and its private steps -- evidence per photo, the fit, the trust
+checks -- in the order they run; the shadow ratio lives in :mod:`.ratio`, the checks' own measurements in
+:mod:`.outline`, :mod:`.shading` and :mod:`.shadow`.)
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import os
 import time
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
-from typing import Any, cast
+from typing import cast
 
 import cv2
 import numpy as np
@@ -23,16 +23,16 @@ from ..geometry.caster import ShadowCaster
 from ..geometry.mesh import load_occluder
 from ..io import read_image, to_bgr8
 from ..lights.spec import parse_light
-from ..shading.sky import ground_sky_visibility
 from ..tracking.dictionary import DEFAULT_DICTIONARY
 from ..tracking.tracker import MarkerTracker
 from .exposure import Exposure, ExposureError, measure_exposure
 from .light import FitResult, MakeFine, fit_directional, fit_point, fit_sun
 from .outline import outline_agreement
 from .penumbra import fit_angular_radius
+from .ratio import shadow_ratio
 from .record import LightEstimate
 from .shading import face_shading_residual
-from .shadow import LUMA, Evidence, build_evidence, edge_pairs, fit_levels, shadow_coverage
+from .shadow import LUMA, Evidence, build_evidence, edge_pairs, shadow_coverage
 
 __all__ = ["MAX_FRAMES", "VIDEO_EXTENSIONS", "estimate_light"]
 
@@ -188,74 +188,6 @@ def _grids(
     return coarse, fine, px
 
 
-#: distances from a shadow's edge at which its two sides are compared (metres, at least 3 pixels)
-EDGE_DISTANCES = (0.003, 0.005, 0.008)
-
-
-def _ratio(
-    evs: list[Evidence], h: np.ndarray, px: Sequence[float], probe: Any = None
-) -> tuple[tuple[float, ...], tuple[float, float] | None]:
-    """Per-channel shadow / lit of the ground: the median, over pairs of points straddling the shadow's edge
-    (:func:`arshadow.estimate.shadow.edge_pairs`, a few millimetres each side, where the floor's texture is
-    nearly the same), of the ratio inside / outside; the high-passed fit within 3 cm of the shadow when
-    fewer than 30 pairs are visible.
-
-    The ratio is the sky's share of the open ground's light: the probe (``probe``: its ShadowCaster) hides
-    part of the sky from the ground round it, both sides of its shadow's edge (a pair at sky visibility
-    ``V_in``, ``V_out`` reads ``q = r V_in / (1 - r + r V_out)``), so each pair's ``r = q / (V_in + q (1 -
-    V_out))`` (:func:`arshadow.shading.sky.ground_sky_visibility`): without this a probe's shadow measures
-    the sky 10-40 % too dark on the path-traced reference (docs/reference.md).
-
-    Returns ``(ratio (R, G, B), at)``: ``at`` the mean ground point ``(x, y)`` (metres, world frame) of the
-    pairs, where the ratio was read (a point light's ratio changes across the floor:
-    :func:`arshadow.estimate.record.ratio_at`); None from the fit."""
-    ins, outs, vin, vout, xin, xout = [], [], [], [], [], []
-    grid = _probe_sky(probe)
-    for ev, p in zip(evs, px, strict=True):
-        S = shadow_coverage(ev, h)
-        if S is None:  # no shadow on this frame's ground grid
-            continue
-        for d in EDGE_DISTANCES:
-            a, b, xa, xb = edge_pairs(ev, S, max(d, 3.0 * p), points=True)
-            ins.append(a)
-            outs.append(b)
-            xin.append(xa)
-            xout.append(xb)
-            vin.append(grid.sample(xa) if grid is not None else np.ones(len(a)))
-            vout.append(grid.sample(xb) if grid is not None else np.ones(len(b)))
-    a, b = (np.concatenate(ins), np.concatenate(outs)) if ins else (np.zeros((0, 3)), np.zeros((0, 3)))
-    if len(a) >= 30:
-        q = np.maximum(a, 1e-6) / np.maximum(b, 1e-6)
-        v_in, v_out = np.concatenate(vin)[:, None], np.concatenate(vout)[:, None]
-        r = q / np.maximum(v_in + q * (1.0 - v_out), 1e-6)
-        at = np.concatenate([np.concatenate(xs) for xs in (xin, xout)]).mean(axis=0)
-        return tuple(float(v) for v in np.median(r, axis=0)), (float(at[0]), float(at[1]))
-    num = np.zeros(3)
-    den = 0.0
-    for ev in evs:
-        S = shadow_coverage(ev, h)
-        if S is None:
-            continue
-        band = (
-            cv2.dilate((S > 0).astype(np.uint8), np.ones((3, 3), np.uint8), iterations=max(1, round(0.03 / ev.step)))
-            > 0
-        )
-        n = int(np.count_nonzero(ev.used & band))
-        for c in range(3):
-            _, d, _, _ = fit_levels(ev, S, values=np.log(np.maximum(ev.rgb[:, :, c], 1e-6)), weight=band)
-            num[c] += n * d
-        den += n
-    return tuple(float(math.exp(v / max(den, 1))) for v in num), None
-
-
-def _probe_sky(probe: Any) -> Any:
-    """The probe's :class:`arshadow.shading.sky.GroundOcclusion` (its sky occlusion of the ground round it),
-    or None without a probe."""
-    if probe is None:
-        return None
-    return ground_sky_visibility(probe, n_dirs=128, resolution=128, taper=None)
-
-
 def _edge_consistency(evs: list[Evidence], h: np.ndarray, px: Sequence[float]) -> tuple:
     """How consistently the fitted shadow's edge is a shadow's: the share of pairs of ground points straddling
     it (:func:`arshadow.estimate.shadow.edge_pairs`, 5 mm or 3 px each side) whose inside is darker than
@@ -315,7 +247,7 @@ def estimate_light(
         1 DOF).
     sky_occlusion : bool
         The shadow ratio allows for the sky the probe hides from the ground round it (true of every real
-        photo: :func:`_ratio`); False for images rendered without it (``arshadow.synth.lit``).
+        photo: :func:`.ratio.shadow_ratio`); False for images rendered without it (``arshadow.synth.lit``).
 
     Returns
     -------
@@ -435,7 +367,7 @@ def _checks(
     """The checks of a fitted light that do not come from its shadow fit: the probe's outline on the photo
     (pooled over the frames), the share of the fitted shadow's edge darker inside, and the probe's faces
     against the light's shading (the median over up to :data:`SHADING_VIEWS` frames; NaN when not measured).
-    ``read``: the shadow ratio and where it was read (:func:`_ratio`)."""
+    ``read``: the shadow ratio and where it was read (:func:`.ratio.shadow_ratio`)."""
     edge_darker, edge_n = _edge_consistency(res.fine, res.light_h, pxs)
     r = float(np.asarray(read[0]) @ LUMA)
     shade = [face_shading_residual(im, it, T, verts, faces, res.light_h, r, read[1])[0] for im, it, T in views]
@@ -527,7 +459,7 @@ def _fit(
         res = fit_sun(coarse, make_fine, enu)
     else:
         res = fit_point(coarse, make_fine, anchor)
-    ratio, ratio_at = _ratio(res.fine, res.light_h, pxs, ShadowCaster(verts, faces) if sky_occlusion else None)
+    ratio, ratio_at = shadow_ratio(res.fine, res.light_h, pxs, ShadowCaster(verts, faces) if sky_occlusion else None)
     checks = _checks(res, (ratio, ratio_at), pxs, outline, views, verts, faces)
     paper = np.median(np.array([e.paper_rgb for e in exposures]), axis=0)
     ink = np.median(np.array([e.ink_rgb for e in exposures]), axis=0)

@@ -1,0 +1,128 @@
+"""The shadow ratio read on a probe's shadow edge: its level and, optionally, its colour beyond the chroma blur.
+
+The ratio is the sky's share of the open ground's light, per linear RGB channel: shadowed / lit ground,
+read on pairs of ground points straddling the probe's fitted shadow edge (:func:`.shadow.edge_pairs`),
+allowing for the sky the probe hides from both points (``q = r V_in / (1 - r + r V_out)``).
+
+It is read on pairs a few millimetres from the edge (:data:`EDGE_DISTANCES`), where the floor's texture is
+nearly the same on both sides. A camera records colour at a lower resolution than brightness -- JPEG's 4:2:0
+chroma subsampling (cv2's JPEGs and most phones': chroma at half the resolution, coded in 8 x 8 blocks of
+16 x 16 pixels and upsampled), a phone's chroma denoising -- so within a few pixels of the edge the lit
+side's (warmer) colour leaks into the shadow side and the shadow's (bluer) colour into the lit side: the
+ratio reads grey where the pairs are only 3-7 px from the edge (the path-traced reference's 400 x 300
+plates, 1.15 mm per pixel). ``shadow_ratio(..., chroma_px=CHROMA_PX)`` keeps the near pairs' luminance (the
+luma stays sharp: within 0.5 % of the linear render's there) and reads the colour (each channel over its
+luminance) on pairs pushed to at least :data:`CHROMA_PX` pixels from the edge. Measured 2026-11-29 and not
+the default (docs/reference.md, "the shadow's colour"): the colour comes out closer to the truth, but with
+the level still darkened by the floor's texture the realism residuals do not improve.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import cv2
+import numpy as np
+
+from ..shading.sky import ground_sky_visibility
+from .shadow import LUMA, Evidence, edge_pairs, fit_levels, shadow_coverage
+
+__all__ = ["CHROMA_PX", "EDGE_DISTANCES", "MIN_PAIRS", "probe_sky", "shadow_ratio"]
+
+#: distances from a shadow's edge at which its two sides are compared for the ratio's level (metres, at
+#: least 3 pixels)
+EDGE_DISTANCES = (0.003, 0.005, 0.008)
+#: the least distances (pixels of the photo at the probe), one per :data:`EDGE_DISTANCES` entry, at which
+#: ``chroma_px=CHROMA_PX`` reads the ratio's colour: beyond the chroma blur of a 4:2:0 JPEG (chroma pixels of
+#: 2 px, upsampled over 2 more; 8 px is 4 chroma pixels, half a chroma DCT block)
+CHROMA_PX = (8.0, 10.0, 12.0)
+#: pairs needed for a median (fewer: the ratio from the fit; the colour from the near pairs)
+MIN_PAIRS = 30
+
+
+def probe_sky(probe: Any) -> Any:
+    """The probe's :class:`arshadow.shading.sky.GroundOcclusion` (its sky occlusion of the ground round it),
+    or None without a probe."""
+    if probe is None:
+        return None
+    return ground_sky_visibility(probe, n_dirs=128, resolution=128, taper=None)
+
+
+def _pair_ratios(
+    evs: list[Evidence], h: np.ndarray, distances: Sequence[Sequence[float]], grid: Any
+) -> tuple[np.ndarray, np.ndarray]:
+    """Each pair's sky share ``r = q / (V_in + q (1 - V_out))``, (k, 3) float64, and the pairs' ground
+    points, (2k, 2) float64 (metres, world frame; the inside points, then the outside ones):
+    ``distances[i]`` are frame ``i``'s (metres)."""
+    rs, xin, xout = [np.zeros((0, 3))], [np.zeros((0, 2))], [np.zeros((0, 2))]
+    for ev, ds in zip(evs, distances, strict=True):
+        S = shadow_coverage(ev, h)
+        if S is None:  # no shadow on this frame's ground grid
+            continue
+        for d in ds:
+            a, b, xa, xb = edge_pairs(ev, S, d, points=True)
+            if not len(a):
+                continue
+            q = np.maximum(a, 1e-6) / np.maximum(b, 1e-6)
+            v_in = grid.sample(xa)[:, None] if grid is not None else np.ones((len(a), 1))
+            v_out = grid.sample(xb)[:, None] if grid is not None else np.ones((len(a), 1))
+            rs.append(q / np.maximum(v_in + q * (1.0 - v_out), 1e-6))
+            xin.append(xa)
+            xout.append(xb)
+    return np.concatenate(rs), np.concatenate(xin + xout)
+
+
+def _fit_ratio(evs: list[Evidence], h: np.ndarray) -> tuple[float, ...]:
+    """The high-passed fit's ratio within 3 cm of the shadow (too few pairs), (R, G, B)."""
+    num = np.zeros(3)
+    den = 0.0
+    for ev in evs:
+        S = shadow_coverage(ev, h)
+        if S is None:
+            continue
+        band = (
+            cv2.dilate((S > 0).astype(np.uint8), np.ones((3, 3), np.uint8), iterations=max(1, round(0.03 / ev.step)))
+            > 0
+        )
+        n = int(np.count_nonzero(ev.used & band))
+        for c in range(3):
+            _, d, _, _ = fit_levels(ev, S, values=np.log(np.maximum(ev.rgb[:, :, c], 1e-6)), weight=band)
+            num[c] += n * d
+        den += n
+    return tuple(float(math.exp(v / max(den, 1))) for v in num)
+
+
+def shadow_ratio(
+    evs: list[Evidence], h: np.ndarray, px: Sequence[float], probe: Any = None, chroma_px: Sequence[float] = ()
+) -> tuple[tuple[float, ...], tuple[float, float] | None]:
+    """Per-channel shadow / lit of the ground (the sky's share of the open ground's light).
+
+    ``evs``: the frames' fine evidence; ``h``: the fitted light (homogeneous, (4,)); ``px``: each frame's
+    metres per pixel at the probe; ``probe``: its ShadowCaster (None: no sky occlusion, for
+    ``arshadow.synth.lit``'s photos); ``chroma_px``: empty (the default) reads the colour with the level;
+    :data:`CHROMA_PX` reads it beyond the chroma blur (not adopted: the module's docstring).
+
+    The ratio: the per-channel median, over the pairs at :data:`EDGE_DISTANCES` (at least 3 px each), of
+    each pair's ``r``. With ``chroma_px``: its luminance (:data:`.shadow.LUMA`) times the per-channel median
+    of each far pair's ``r`` over its luminance, the far pairs at ``max(EDGE_DISTANCES[i], chroma_px[i]
+    px)``, when at least :data:`MIN_PAIRS` of them are in view. With fewer than :data:`MIN_PAIRS` near
+    pairs, the high-passed fit within 3 cm of the shadow (no sky occlusion).
+
+    Returns ``(ratio (R, G, B), at)``: ``at`` the mean ground point ``(x, y)`` (metres, world frame) of the
+    near pairs, where the ratio was read (a point light's ratio changes across the floor:
+    :func:`arshadow.estimate.record.ratio_at`); None from the fit."""
+    grid = probe_sky(probe)
+    near, xs = _pair_ratios(evs, h, [[max(d, 3.0 * p) for d in EDGE_DISTANCES] for p in px], grid)
+    if len(near) < MIN_PAIRS:
+        return _fit_ratio(evs, h), None
+    ratio = np.median(near, axis=0)
+    if len(chroma_px):
+        far_d = [[max(d, k * p) for d, k in zip(EDGE_DISTANCES, chroma_px, strict=False)] for p in px]
+        far, _ = _pair_ratios(evs, h, far_d, grid)
+        if len(far) >= MIN_PAIRS:
+            colour = np.median(far / np.maximum(far @ LUMA, 1e-9)[:, None], axis=0)
+            ratio = float(ratio @ LUMA) * colour / float(colour @ LUMA)
+    at = xs.mean(axis=0)
+    return tuple(float(v) for v in ratio), (float(at[0]), float(at[1]))

@@ -1,0 +1,77 @@
+"""The shadow ratio's colour through a chroma-subsampled JPEG (arshadow.estimate.ratio, docs/light.md).
+
+An independent computation: :func:`arshadow.synth.lit.render_lit_photo` lights a plain floor with a known
+blue ambient and a warm direct light (its ``shadow_ratio`` is ``ambient / (ambient + direct sin(e))``), at
+about 1.2 mm per pixel, and codes the photo as a JPEG (quality 90, cv2's 4:2:0 chroma subsampling), so the
+pairs a few pixels from the shadow's edge see the lit side's colour. Read beyond the chroma blur
+(``chroma_px=CHROMA_PX``, measured and not the default: docs/reference.md, "the shadow's colour") the
+estimate recovers the generating ratio's colour (each channel over its luminance) and keeps the level; the
+default reading (near the edge) shows the JPEG's bias, so the test is not vacuous.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+
+import arshadow.estimate.api as api
+from arshadow.camera.model import Intrinsics
+from arshadow.estimate import estimate_light
+from arshadow.estimate.ratio import CHROMA_PX, shadow_ratio
+from arshadow.estimate.shadow import LUMA
+from arshadow.synth.lit import light_vector, render_lit_photo
+from arshadow.synth.markers import look_at_pose
+
+CALIB = "calib/synth_640x360.yml"
+PROBE = "box:0.05,0.05,0.1"
+PLACE = (0.1, 0.02, 0.0)
+
+
+def _chroma(r) -> np.ndarray:
+    """(3,) each channel of a ratio over its luminance."""
+    r = np.asarray(r, np.float64)
+    return r / float(r @ LUMA)
+
+
+@pytest.fixture(scope="module")
+def blue_sky_jpeg():
+    cam = Intrinsics.from_file(CALIB)
+    pose = look_at_pose((0.05, -0.45, 0.396), (0.08, 0.04, 0.0))  # 0.6 m away: ~1.2 mm per pixel
+    return render_lit_photo(
+        cam,
+        pose,
+        probe=PROBE,
+        probe_place=PLACE,
+        light=light_vector(200.0, 40.0),
+        ambient=(0.22, 0.3, 0.5),
+        direct=(1.0, 0.9, 0.72),
+        jpeg_quality=90,
+        noise_sigma=1.0,
+        seed=5,
+        floor="plain",
+    )
+
+
+def _estimate(photo):
+    return estimate_light(
+        photo.image, calib=CALIB, marker_length=0.05, probe=PROBE, probe_place=PLACE, sky_occlusion=False
+    )
+
+
+def test_the_ratio_keeps_its_colour_through_a_subsampled_jpeg(blue_sky_jpeg, monkeypatch):
+    truth = _chroma(blue_sky_jpeg.shadow_ratio)
+    assert truth[2] > 1.4  # a blue shadow
+    # the default reading, near the edge: the JPEG's chroma blur greys the ratio (redder, less blue)
+    near = _estimate(blue_sky_jpeg)
+    near_err = _chroma(near.shadow_ratio) / truth - 1.0
+    assert near_err[0] > 0.02 and near_err[2] < -0.03, near_err
+    # read beyond the chroma blur: the generating colour within 3 % per channel, the same level
+    monkeypatch.setattr(api, "shadow_ratio", functools.partial(shadow_ratio, chroma_px=CHROMA_PX))
+    est = _estimate(blue_sky_jpeg)
+    err = _chroma(est.shadow_ratio) / truth - 1.0
+    assert np.abs(err).max() < 0.03, err
+    lum = float(np.asarray(est.shadow_ratio) @ LUMA)
+    assert lum == pytest.approx(float(np.asarray(near.shadow_ratio) @ LUMA), rel=1e-9)
+    assert lum / float(blue_sky_jpeg.shadow_ratio @ LUMA) == pytest.approx(1.0, abs=0.02)
