@@ -35,6 +35,7 @@ import numpy.typing as npt
 from ..compose.composite import srgb_to_linear
 from ..errors import ShapeError, UsageError
 from ..geometry.normals import crease_normals
+from ..shading.interreflect import SelfView, self_view
 from ..shading.sky import object_sky_visibility
 
 if TYPE_CHECKING:  # annotations only (nothing here imports moderngl; .sky imports this module)
@@ -176,6 +177,9 @@ class CasterBuffers:
         self.texture: moderngl.Texture | None = None
         self.shade_base_vao: moderngl.VertexArray | None = None
         self.textured, self.sky = textured, sky
+        #: the faces' view of the object itself (its light on itself, arshadow.shading.interreflect): set with
+        #: sky shading when some of the mesh sees itself, else None
+        self.self_view: SelfView | None = None
         # (buffer, format, attribute names...) per buffer of the lighting vertices
         content: list[tuple[moderngl.Buffer | str, ...]] = [(self.vbo, "4f 3f 3f", "in_pos", "in_normal", "in_albedo")]
         #: the programs of the occluder's base and light passes: ``rich = (base, light)`` (the texture / sky /
@@ -190,6 +194,7 @@ class CasterBuffers:
                 self.texture = _texture(ctx, tex_image)
             if sky is not None:
                 shade[:, 2:] = _object_sky(ctx, caster, v[corner_v], nrm.reshape(-1, 3)[first], sky)
+                self.self_view = self_view(caster, inverse.reshape(m, 3), shade[:, 2:])
             self.shade_vbo = ctx.buffer(shade.tobytes())
             content.append((self.shade_vbo, "2f 2f", "in_uv", "in_vis"))
             # the base pass then draws these vertices (per corner) instead of the welded ones

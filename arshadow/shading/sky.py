@@ -205,6 +205,9 @@ class SkyShading:
         Colour bleeding: the object's linear RGB colour over its mean, minus 1 (the light it reflects onto
         the ground, ``ground.bounce``, is that much stronger per channel); None: a grey object (the sky
         channel stays one plane).
+    albedo : (3,) float or None
+        The object's mean reflectance, linear RGB (absolute: the paper's white is ``PAPER_ALBEDO``): the light
+        it reflects onto its own parts (:mod:`arshadow.shading.interreflect`); None: no interreflection.
 
     Examples
     --------
@@ -216,6 +219,7 @@ class SkyShading:
     object_sky: str | None = "uniform"
     bounce: tuple = (0.0, 0.0, 0.0)
     bleed: tuple | None = None
+    albedo: tuple | None = None
 
     @property
     def colored(self) -> bool:
