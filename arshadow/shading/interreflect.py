@@ -34,6 +34,7 @@ class SelfView:
         cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
         self.areas = 0.5 * np.linalg.norm(cross, axis=1)
         self.normals = np.asarray(caster.face_planes, np.float64)[:, :3]
+        self.last: tuple[bytes, tuple[float, float, float]] | None = None  # frame_self_light's last key and value
         self.centres = tri.mean(axis=1)
         self.vis = np.clip(np.asarray(vis, np.float64).reshape(-1, 2), 0.0, 1.0)
         self.seen = np.clip(1.0 - self.vis[:, 0] - self.vis[:, 1], 0.0, 1.0)
@@ -129,16 +130,20 @@ def frame_self_light(view: SelfView | None, passes: Sequence, shading: object) -
         return (0.0, 0.0, 0.0)
     kd = float(getattr(shading, "diffuse", 1.0))
     lights = [
-        (p.light_h, kd * float(p.weight) * np.asarray(p.color, np.float64)[:3]) for p in passes if float(p.weight) > 0
+        (np.asarray(p.light_h, np.float64), kd * float(p.weight) * np.asarray(p.color, np.float64)[:3])
+        for p in passes
+        if float(p.weight) > 0
     ]
-    e = face_irradiance(
-        view,
-        lights,
+    terms = (
         float(getattr(shading, "ambient", 0.0)),
         getattr(shading, "ambient_tint", (1.0, 1.0, 1.0)),
         getattr(shading, "direct_tint", (1.0, 1.0, 1.0)),
         sky.bounce,
-        bool(getattr(shading, "point_falloff", False)),
     )
-    a, b, c = (float(x) for x in self_light(view, e, albedo))
-    return (a, b, c)
+    falloff = bool(getattr(shading, "point_falloff", False))
+    key = np.concatenate([np.r_[h, c] for h, c in lights] + [np.hstack(terms), np.asarray(albedo), [falloff]]).tobytes()
+    if view.last is None or view.last[0] != key:  # the same light and shading as the last frame: kept
+        e = face_irradiance(view, lights, terms[0], terms[1], terms[2], terms[3], falloff)
+        a, b, c = (float(x) for x in self_light(view, e, albedo))
+        view.last = (key, (a, b, c))
+    return view.last[1]
