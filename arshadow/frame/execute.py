@@ -328,7 +328,14 @@ def _sky_shading(
     ground = geometry.sky_ground(outputs.timings)
     bleed = geometry.object_bleed
     albedo = tuple(float(v) for v in PAPER_ALBEDO * geometry.object_albedo()) if any(bounce) else None
-    sky = SkyShading(ground=ground, object_sky=OBJECT_SKY, bounce=bounce, bleed=bleed, albedo=albedo)
+    sky = SkyShading(
+        ground=ground,
+        object_sky=OBJECT_SKY,
+        bounce=bounce,
+        bleed=bleed,
+        albedo=albedo,
+        object_ground=geometry.ground_field if any(bounce) else None,
+    )
     if sky.colored and bleed is not None:
         outputs.item.plan["colour_bleeding"] = [round(v, 3) for v in bleed]  # type: ignore[index]
     return sky

@@ -416,6 +416,8 @@ class ShadowRenderer:
                 shading, passes, origin, mvp_local, (width * self.supersample, height * self.supersample)
             ),
         )
+        if draw_occluder and bufs is not None and shading.sky is not None:
+            bufs.set_object_ground(shading.sky.object_ground)
         if draw_occluder and bufs is not None and bufs.self_view is not None:
             f.self_light = frame_self_light(bufs.self_view, passes, shading)
         f.t1 = time.perf_counter()

@@ -464,6 +464,13 @@ class SceneGeometry:
             # relative to the ring's value: the map converts that one to its units (ground_units)
             self._ground_field = None if f is None else replace(f, values=f.values / self._ground_light)
 
+    @property
+    def ground_field(self) -> GroundLight | None:
+        """The photo's ground light round the object over the ring's value (:meth:`set_ground_light`; None until
+        measured, or where the photo showed none of it)."""
+        field: GroundLight | None = getattr(self, "_ground_field", None)
+        return field
+
     def _bounce_light(self) -> tuple | None:
         """``(light (3,), sky share, albedo, ground, lamp)`` of the object's interreflection onto the ground
         (:func:`arshadow.shading.sky.ground_sky_visibility`): the strongest light's direction from the

@@ -208,6 +208,10 @@ class SkyShading:
     albedo : (3,) float or None
         The object's mean reflectance, linear RGB (absolute: the paper's white is ``PAPER_ALBEDO``): the light
         it reflects onto its own parts (:mod:`arshadow.shading.interreflect`); None: no interreflection.
+    object_ground : callable or None
+        ``(k, 2)`` ground points -> ``(k,)`` the ground's light there over ``bounce`` (NaN where unknown: the
+        photo's ground, :class:`arshadow.shading.decide.GroundLight`): each shading vertex's ground view is
+        weighted by the ground its faces see (:mod:`arshadow.shading.objground`); None: ``bounce`` everywhere.
 
     Examples
     --------
@@ -220,6 +224,7 @@ class SkyShading:
     bounce: tuple = (0.0, 0.0, 0.0)
     bleed: tuple | None = None
     albedo: tuple | None = None
+    object_ground: Callable[[np.ndarray], np.ndarray] | None = None
 
     @property
     def colored(self) -> bool:
