@@ -7,6 +7,8 @@ Per committed case, the composite of ``diagnose_realism.py``'s ``oracle`` (the t
 ratio at the object, the true pose: the rendering model alone) and ``measured`` (``arshadow light`` +
 ``render --light-from``, tracked: what a user gets) pipelines, and the object residual split
 
+- by face (:func:`by_face`: pixels grouped by their shading normal): each face's mean error (``level``, the
+  channels' mean, and ``colour``, per channel less the level) and the rest (``within``: gradients, noise);
 - by part of the object: ``top`` (a face whose normal is within 45 degrees of +z), ``side``, ``under``
   (normal z < -0.3), and per part ``lit`` (the light reaches the point: n.L > 0 and no part of the object in
   the way, a ray cast) against ``dark`` (facing away or shadowed by the object itself); ``contour`` (object
@@ -36,6 +38,7 @@ from pathlib import Path
 import _common
 import cv2
 import numpy as np
+import trimesh
 from diagnose_realism import composite
 
 ROOT = _common.ROOT
@@ -94,9 +97,7 @@ def first_hit(tri: np.ndarray, orig: np.ndarray, dirs: np.ndarray) -> tuple[np.n
 def object_geometry(case) -> dict:
     """Per object pixel of the crop (at its centre, the true pose): ``normal`` (h, w, 3) world (the shading
     normal: interpolated for the round primitives), ``lit`` (h, w) bool (n.L > 0 and the ray to the light
-    misses the object), ``hit`` (h, w) bool."""
-    import trimesh
-
+    misses the object), ``hit`` (h, w) bool, ``z`` (h, w) the point's height (metres)."""
     from arshadow.bench.reference_scene import _object_mesh, intrinsics_of, pose_of
 
     sc = case.scene
