@@ -298,7 +298,7 @@ def _sky_shading(
     decision is off): the scene's ground occlusion map (made on first use, by the geometry's
     ``raster_source``), the object's sky visibility and the ground bounce
     measured on this photo round the object (with a measured exposure; 0 otherwise)."""
-    from ..shading.decide import decide_ambient_occlusion, ground_bounce, ground_light
+    from ..shading.decide import PAPER_ALBEDO, decide_ambient_occlusion, ground_bounce, ground_light
     from ..shading.sky import SkyShading, ground_grid
 
     opts = geometry.options
@@ -327,7 +327,15 @@ def _sky_shading(
             outputs.item.plan["ground_bounce"] = [round(v, 4) for v in bounce]  # type: ignore[index]
     ground = geometry.sky_ground(outputs.timings)
     bleed = geometry.object_bleed
-    sky = SkyShading(ground=ground, object_sky=OBJECT_SKY, bounce=bounce, bleed=bleed)
+    albedo = tuple(float(v) for v in PAPER_ALBEDO * geometry.object_albedo()) if any(bounce) else None
+    sky = SkyShading(
+        ground=ground,
+        object_sky=OBJECT_SKY,
+        bounce=bounce,
+        bleed=bleed,
+        albedo=albedo,
+        object_ground=geometry.ground_field if any(bounce) else None,
+    )
     if sky.colored and bleed is not None:
         outputs.item.plan["colour_bleeding"] = [round(v, 3) for v in bleed]  # type: ignore[index]
     return sky

@@ -35,6 +35,8 @@ import numpy.typing as npt
 from ..compose.composite import srgb_to_linear
 from ..errors import ShapeError, UsageError
 from ..geometry.normals import crease_normals
+from ..shading.interreflect import SelfView, self_view
+from ..shading.objground import face_ground, vertex_ground
 from ..shading.sky import object_sky_visibility
 
 if TYPE_CHECKING:  # annotations only (nothing here imports moderngl; .sky imports this module)
@@ -176,6 +178,16 @@ class CasterBuffers:
         self.texture: moderngl.Texture | None = None
         self.shade_base_vao: moderngl.VertexArray | None = None
         self.textured, self.sky = textured, sky
+        #: the faces' view of the object itself (its light on itself, arshadow.shading.interreflect): set with
+        #: sky shading when some of the mesh sees itself, else None
+        self.self_view: SelfView | None = None
+        #: with sky shading: the shading vertices' attributes, their ground view before the ground's light,
+        #: each face corner's shading vertex (set_object_ground)
+        self._shade: np.ndarray | None = None
+        self._ground_view: np.ndarray | None = None
+        self._corners: np.ndarray | None = None
+        self._caster: ShadowCaster | None = None
+        self.ground_of: object = None  # the ground light the shading vertices hold (set_object_ground)
         # (buffer, format, attribute names...) per buffer of the lighting vertices
         content: list[tuple[moderngl.Buffer | str, ...]] = [(self.vbo, "4f 3f 3f", "in_pos", "in_normal", "in_albedo")]
         #: the programs of the occluder's base and light passes: ``rich = (base, light)`` (the texture / sky /
@@ -190,6 +202,9 @@ class CasterBuffers:
                 self.texture = _texture(ctx, tex_image)
             if sky is not None:
                 shade[:, 2:] = _object_sky(ctx, caster, v[corner_v], nrm.reshape(-1, 3)[first], sky)
+                self.self_view = self_view(caster, inverse.reshape(m, 3), shade[:, 2:])
+                self._shade, self._ground_view = shade, shade[:, 3].copy()
+                self._corners, self._caster = inverse.reshape(m, 3), caster
             self.shade_vbo = ctx.buffer(shade.tobytes())
             content.append((self.shade_vbo, "2f 2f", "in_uv", "in_vis"))
             # the base pass then draws these vertices (per corner) instead of the welded ones
@@ -239,6 +254,22 @@ class CasterBuffers:
         self.sub_ranges: dict[int, tuple[int, int]] = {}
         self.sub_key: tuple[bytes, ...] | None = None  # the lights sub_ibo holds subsets for
         self._planar_sub_vao: moderngl.VertexArray | None = None
+
+    def set_object_ground(self, light: Callable[[np.ndarray], np.ndarray] | None) -> None:
+        """Give the shading vertices the ground light their faces see (:func:`arshadow.shading.objground.vertex_ground`
+        of ``light``, the photo's ground over the ring's value; None: the ring's everywhere) as a factor on their
+        ground view; once per ``light`` (kept while the same object is handed in)."""
+        if light is self.ground_of or self._shade is None or self.shade_vbo is None:
+            return
+        view = self._ground_view
+        assert view is not None and self._corners is not None and self._caster is not None  # set with _shade
+        if light is None:
+            self._shade[:, 3] = view
+        else:
+            faces = face_ground(self._caster, light)
+            self._shade[:, 3] = view * vertex_ground(self._caster, self._corners, len(view), faces)
+        self.shade_vbo.write(self._shade.tobytes())
+        self.ground_of = light
 
     def planar_sub_vao(self, ctx: moderngl.Context, prog: moderngl.Program) -> moderngl.VertexArray:
         """Positions of the light-facing subsets (``sub_ibo``) for the direct planar pass (made on first use)."""

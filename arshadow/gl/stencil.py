@@ -64,6 +64,7 @@ from .._check import check_finite, check_shape
 from ..compose.composite import sky_planes
 from ..errors import UsageError
 from ..renderer.request import MODES, LightPass, RenderLayers, RenderRequest, RenderResult, Shading
+from ..shading.interreflect import frame_self_light
 from . import glraw as G
 from .context import current, is_software
 from .falloff import Falloff, frame_falloff, set_falloff
@@ -131,6 +132,7 @@ class _Frame:
     t1: float = 0.0
     sky: SkyShading | None = None  # Shading.sky
     falloff: Falloff | None = None  # Shading.ratio_falloff, in the local frame
+    self_light: tuple = (0.0, 0.0, 0.0)  # the object's light on itself (arshadow.shading.interreflect)
 
     @property
     def size(self) -> tuple[int, int]:
@@ -414,6 +416,10 @@ class ShadowRenderer:
                 shading, passes, origin, mvp_local, (width * self.supersample, height * self.supersample)
             ),
         )
+        if draw_occluder and bufs is not None and shading.sky is not None:
+            bufs.set_object_ground(shading.sky.object_ground)
+        if draw_occluder and bufs is not None and bufs.self_view is not None:
+            f.self_light = frame_self_light(bufs.self_view, passes, shading)
         f.t1 = time.perf_counter()
         self._marks = [("start", f.t1)]
         return f
@@ -464,6 +470,7 @@ class ShadowRenderer:
                 uniform(prog, "u_use_vis").value = use_vis
                 bounce = tuple(float(x) for x in f.sky.bounce) if use_vis and f.sky is not None else (0.0, 0.0, 0.0)
                 uniform(prog, "u_bounce").value = bounce
+                uniform(prog, "u_self").value = f.self_light if use_vis else (0.0, 0.0, 0.0)
                 self._bind_texture(prog, bufs)
             vao.render(ctx.TRIANGLES, vertices=bufs.n_indices)
             gl.draw_buffers(2)

@@ -464,6 +464,13 @@ class SceneGeometry:
             # relative to the ring's value: the map converts that one to its units (ground_units)
             self._ground_field = None if f is None else replace(f, values=f.values / self._ground_light)
 
+    @property
+    def ground_field(self) -> GroundLight | None:
+        """The photo's ground light round the object over the ring's value (:meth:`set_ground_light`; None until
+        measured, or where the photo showed none of it)."""
+        field: GroundLight | None = getattr(self, "_ground_field", None)
+        return field
+
     def _bounce_light(self) -> tuple | None:
         """``(light (3,), sky share, albedo, ground, lamp)`` of the object's interreflection onto the ground
         (:func:`arshadow.shading.sky.ground_sky_visibility`): the strongest light's direction from the
@@ -484,14 +491,14 @@ class SceneGeometry:
         light = h[:3] if h[3] == 0 else h[:3] / h[3] - centre
         if light[2] <= 0:
             return None
-        col = self._object_albedo()
+        col = self.object_albedo()
         at = opts.ratio_at if opts.ambient_measured and opts.ratio_at is not None else centre[:2]
         ref = np.array([float(at[0]), float(at[1]), 0.0])  # where r holds: the map's unit of light
         ground = float(getattr(self, "_ground_light", None) or 0.0) * ground_units(h, r, ref, opts.ambient)
         lamp = (h[:3] / h[3], ref) if h[3] != 0 else None  # a point light: each face at its own distance
         return light, r, PAPER_ALBEDO * float(np.mean(col)), ground, lamp
 
-    def _object_albedo(self) -> np.ndarray:
+    def object_albedo(self) -> np.ndarray:
         """``(3,) float64`` the object's linear colour relative to the paper: ``occluder_color`` over the exposure
         gain (the option holds the colour times the gain), else the mesh's own mean colour
         (:attr:`arshadow.geometry.caster.ShadowCaster.mean_albedo`), else the renderer's default grey."""
@@ -510,12 +517,12 @@ class SceneGeometry:
 
     @functools.cached_property
     def object_bleed(self) -> tuple[float, float, float] | None:
-        """Colour bleeding: ``(3,)`` the object's linear RGB colour (:meth:`_object_albedo`: the option's
+        """Colour bleeding: ``(3,)`` the object's linear RGB colour (:meth:`object_albedo`: the option's
         colour, or the mesh's own mean colour or texture) over its mean, minus 1; None for a grey object
         (every channel within :data:`BLEED_MIN` of the mean: the sky channel stays one plane)."""
         if not self.options.draw_occluder:
             return None
-        col = self._object_albedo()
+        col = self.object_albedo()
         m = float(col.mean())
         if m <= 0.0 or float(np.max(np.abs(col / m - 1.0))) < BLEED_MIN:
             return None

@@ -205,6 +205,13 @@ class SkyShading:
         Colour bleeding: the object's linear RGB colour over its mean, minus 1 (the light it reflects onto
         the ground, ``ground.bounce``, is that much stronger per channel); None: a grey object (the sky
         channel stays one plane).
+    albedo : (3,) float or None
+        The object's mean reflectance, linear RGB (absolute: the paper's white is ``PAPER_ALBEDO``): the light
+        it reflects onto its own parts (:mod:`arshadow.shading.interreflect`); None: no interreflection.
+    object_ground : callable or None
+        ``(k, 2)`` ground points -> ``(k,)`` the ground's light there over ``bounce`` (NaN where unknown: the
+        photo's ground, :class:`arshadow.shading.decide.GroundLight`): each shading vertex's ground view is
+        weighted by the ground its faces see (:mod:`arshadow.shading.objground`); None: ``bounce`` everywhere.
 
     Examples
     --------
@@ -216,6 +223,8 @@ class SkyShading:
     object_sky: str | None = "uniform"
     bounce: tuple = (0.0, 0.0, 0.0)
     bleed: tuple | None = None
+    albedo: tuple | None = None
+    object_ground: Callable[[np.ndarray], np.ndarray] | None = None
 
     @property
     def colored(self) -> bool:

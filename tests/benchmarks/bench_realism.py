@@ -1,6 +1,6 @@
 """Cost of the issue-28 realism options on one 720p photo (plain script; prints JSON).
 
-    python tests/benchmarks/bench_realism.py [--repeat 15] [--compose auto|cpu|gpu] [--out FILE.json]
+    python tests/benchmarks/bench_realism.py [--repeat 15] [--compose auto|cpu|gpu] [--model SPEC] [--out FILE.json]
 
 The light sample (samples/probe_shadow.jpg, 1280 x 720): the light measured by ``arshadow light`` with the
 sample's probe, then a 4.5 x 6.5 x 7 cm box rendered with ``light_from`` (a session per configuration,
@@ -53,6 +53,7 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=15)
     ap.add_argument("--out")
     ap.add_argument("--compose", choices=("auto", "cpu", "gpu"), default="auto", help="the sessions' compose path")
+    ap.add_argument("--model", default="box:0.045,0.065,0.07", help="the object (a torus: its light on itself)")
     args = ap.parse_args()
     from arshadow.frame.session import Session
     from arshadow.io import read_image
@@ -63,7 +64,7 @@ def main() -> None:
         "calib": str(ROOT / "calib" / "synth_1280x720.yml"),
         "marker_length": 0.05,
         "dictionary": "DICT_6X6_250",
-        "model": "box:0.045,0.065,0.07",
+        "model": args.model,
         "place": (-0.02, 0.1, 0.0),
         "compose": args.compose,
     }
