@@ -101,3 +101,18 @@ def test_camera_effects_blur_and_noise_layers():
     add_noise(region, alpha, (NoiseEstimate(np.full(3, 4.0 / 255), np.full(3, 0.5), 100),), seed=1)
     assert np.all(region[:, :100] == 128)
     assert abs(region[:, 100:].astype(float).std() - 4.0) < 0.3
+
+
+def test_noise_window_is_standard_normal_per_frame_and_falls_back_beyond_the_field():
+    """The object's noise is a window of one standard normal field at an offset drawn from the frame's seed:
+    each window's values have mean 0 and deviation 1 and no correlation between neighbours; frames (seeds)
+    get different windows; a region larger than the field gets fresh draws of the same law."""
+    from arshadow.frame.effects import NOISE_FIELD_PX, noise_window
+
+    windows = [noise_window((200, 300, 3), seed) for seed in range(8)]
+    for n in windows:
+        assert abs(float(n.mean())) < 0.01 and abs(float(n.std()) - 1.0) < 0.01
+        assert abs(float(np.corrcoef(n[:, :-1].ravel(), n[:, 1:].ravel())[0, 1])) < 0.01
+    assert len({n.tobytes() for n in windows}) == len(windows)
+    big = noise_window((NOISE_FIELD_PX + 1, 8, 3), 3)
+    assert big.shape == (NOISE_FIELD_PX + 1, 8, 3) and abs(float(big.std()) - 1.0) < 0.02
