@@ -19,7 +19,7 @@ from collections.abc import Callable
 import numpy as np
 
 from ..geometry.caster import ShadowCaster, connected_labels
-from .sky import _rotate_to, cosine_directions
+from .sky import cosine_directions, rotate_to
 
 __all__ = ["face_ground", "vertex_ground"]
 
@@ -49,7 +49,7 @@ def face_ground(
     the face) meet the ground; 1 for a face that sees no ground."""
     tri = np.asarray(caster.vertices, np.float64)[np.asarray(caster.faces)]
     n = np.asarray(caster.face_planes, np.float64)[:, :3]
-    d = _rotate_to(cosine_directions(n_dirs), n)  # (m, k, 3)
+    d = rotate_to(cosine_directions(n_dirs), n)  # (m, k, 3)
     down = d[..., 2] < -1e-6
     total, count = np.zeros(len(tri)), down.sum(axis=1).astype(np.float64) * len(_BARY)
     for b in _BARY:

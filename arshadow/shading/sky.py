@@ -59,6 +59,7 @@ __all__ = [
     "ground_raster_cpu",
     "ground_sky_visibility",
     "lamp_incidence",
+    "rotate_to",
     "object_sky_visibility",
     "sky_radiance",
 ]
@@ -93,7 +94,7 @@ def cosine_directions(n: int, normal: npt.ArrayLike = (0.0, 0.0, 1.0)) -> np.nda
     phi = np.arange(n) * (math.pi * (3.0 - math.sqrt(5.0)))
     r = np.sqrt(u)
     local = np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(1.0 - u)], axis=1)
-    return _rotate_to(local, np.asarray(normal, np.float64).reshape(3))
+    return rotate_to(local, np.asarray(normal, np.float64).reshape(3))
 
 
 def sky_radiance(dirs: np.ndarray, sky: str = "uniform") -> np.ndarray:
@@ -474,7 +475,7 @@ def _ground_seen(  # noqa: PLR0913 (the caster, its light, the map's rasteriser 
     ground = GroundOcclusion(grid.x0, grid.y0, grid.texel, e, 0, "uniform", 0.0)
     n = caster.face_planes[:, :3]
     c = caster.vertices[caster.faces].mean(axis=1)
-    d = _rotate_to(cosine_directions(GROUND_SEEN_DIRS), n)  # (m, k, 3) round each face's normal
+    d = rotate_to(cosine_directions(GROUND_SEEN_DIRS), n)  # (m, k, 3) round each face's normal
     down = d[..., 2] < -1e-6  # (m, k) directions that reach the ground
     tz = np.where(down, -np.maximum(c[:, None, 2], 0.0) / np.where(down, d[..., 2], -1.0), 0.0)
     q = c[:, None, :2] + tz[..., None] * d[..., :2]
@@ -650,7 +651,7 @@ def _object_rays(
     chunk = max(1, 65536 // n)
     for s in range(0, k, chunk):
         pp, nn = p[s : s + chunk], nrm[s : s + chunk]
-        dirs = _rotate_to(base, nn)  # (c, n, 3)
+        dirs = rotate_to(base, nn)  # (c, n, 3)
         up = dirs[..., 2] > 0.0
         o = np.repeat(pp + eps * nn, n, axis=0)
         free = ~rays_blocked(caster, o, dirs.reshape(-1, 3)).reshape(dirs.shape[:2])
@@ -660,9 +661,13 @@ def _object_rays(
     return sky_v, ground_v
 
 
-def _rotate_to(base: np.ndarray, normal: np.ndarray) -> np.ndarray:
+def rotate_to(base: np.ndarray, normal: np.ndarray) -> np.ndarray:
     """``base (n, 3)`` directions round +z turned round ``normal (3,)`` -> ``(n, 3)``, or round each of
-    ``normal (m, 3)`` -> ``(m, n, 3)`` (the frame of :func:`cosine_directions`)."""
+    ``normal (m, 3)`` -> ``(m, n, 3)`` (the frame of :func:`cosine_directions`).
+
+    >>> rotate_to(np.array([[0.0, 0.0, 1.0]]), np.array([1.0, 0.0, 0.0])).round(6).tolist()  # +z onto +x
+    [[1.0, 0.0, 0.0]]
+    """
     nz = np.atleast_2d(np.asarray(normal, np.float64))
     nz = nz / np.linalg.norm(nz, axis=1, keepdims=True)
     a = np.where(np.abs(nz[:, :1]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
