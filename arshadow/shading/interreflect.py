@@ -14,11 +14,15 @@ GL-free (numpy): the renderer calls :func:`self_light` once per light set and ha
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 
 from ..geometry.caster import ShadowCaster
+
+if TYPE_CHECKING:
+    from ..renderer.request import Shading
 
 __all__ = ["SelfView", "face_irradiance", "frame_self_light", "self_light", "self_view"]
 
@@ -119,28 +123,23 @@ def self_light(view: SelfView, face_e: np.ndarray, albedo: npt.ArrayLike) -> np.
     return out
 
 
-def frame_self_light(view: SelfView | None, passes: Sequence, shading: object) -> tuple[float, float, float]:
+def frame_self_light(view: SelfView | None, passes: Sequence, shading: Shading) -> tuple[float, float, float]:
     """The renderer's ``u_self`` for a frame: :func:`self_light` of the object under the frame's light passes
     (``light_h``, ``weight``, ``color``: :class:`arshadow.renderer.request.LightPass`) and shading
     (:class:`arshadow.renderer.request.Shading`: ``ambient``, ``diffuse``, the tints, ``point_falloff`` and
     its ``sky``'s ``bounce`` and ``albedo``); 0 without a view, a sky or the object's albedo."""
-    sky = getattr(shading, "sky", None)
-    albedo = getattr(sky, "albedo", None)
+    sky = shading.sky
+    albedo = None if sky is None else sky.albedo
     if view is None or sky is None or albedo is None:
         return (0.0, 0.0, 0.0)
-    kd = float(getattr(shading, "diffuse", 1.0))
+    kd = float(shading.diffuse)
     lights = [
         (np.asarray(p.light_h, np.float64), kd * float(p.weight) * np.asarray(p.color, np.float64)[:3])
         for p in passes
         if float(p.weight) > 0
     ]
-    terms = (
-        float(getattr(shading, "ambient", 0.0)),
-        getattr(shading, "ambient_tint", (1.0, 1.0, 1.0)),
-        getattr(shading, "direct_tint", (1.0, 1.0, 1.0)),
-        sky.bounce,
-    )
-    falloff = bool(getattr(shading, "point_falloff", False))
+    terms = (float(shading.ambient), shading.ambient_tint, shading.direct_tint, sky.bounce)
+    falloff = bool(shading.point_falloff)
     key = np.concatenate([np.r_[h, c] for h, c in lights] + [np.hstack(terms), np.asarray(albedo), [falloff]]).tobytes()
     if view.last is None or view.last[0] != key:  # the same light and shading as the last frame: kept
         e = face_irradiance(view, lights, terms[0], terms[1], terms[2], terms[3], falloff)
