@@ -16,7 +16,7 @@ another. Nothing here creates a context or imports moderngl (the objects come fr
   in a :class:`GroundBuffer`;
 - :func:`screen_box`: the conservative pixel box of a caster's bounding box (the colour readback's).
 
-(About 615 lines, just over the project's ~600 since the typing work wrote the signatures out one parameter
+(About 650 lines, over the project's ~600 since the typing work wrote the signatures out one parameter
 per line: the GPU resources the three renderers share, each a small class or function.)
 """
 

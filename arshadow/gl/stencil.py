@@ -1,6 +1,6 @@
 """Offscreen stencil shadow-volume renderer (moderngl + raw GL stencil through ctypes): :class:`ShadowRenderer`.
 
-(About 770 lines, over the project's ~600, on purpose: this is one class, and its methods are the frame's
+(About 780 lines, over the project's ~600, on purpose: this is one class, and its methods are the frame's
 passes (clear, occluder base, ground, light, planar direct, count, mask, resolve, readback), each under 80
 lines; this docstring, the frame's stencil layout and pass order, is 60 of them. The passes
 share the frame's raw GL state (stencil function and operations, write masks, depth test, bound
