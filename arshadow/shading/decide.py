@@ -83,16 +83,25 @@ def ground_bounce(image: np.ndarray, pixels: np.ndarray, gain: npt.ArrayLike) ->
     >>> [round(float(v), 3) for v in b]  # 0.8 x 0.503
     [0.402, 0.402, 0.402]
     """
-    img = np.asarray(image)
-    h, w = img.shape[:2]
-    px = np.round(np.asarray(pixels, np.float64)).astype(np.int64)
-    ok = (px[:, 0] >= 0) & (px[:, 0] < w) & (px[:, 1] >= 0) & (px[:, 1] < h)
+    light, ok = _reflected(image, pixels, gain)
     if not ok.any():
         return None
-    bgr = img[px[ok, 1], px[ok, 0]].astype(np.float64) / 255.0
-    lin = np.percentile(srgb_to_linear(bgr), 75, axis=0)[::-1]  # RGB
-    out: np.ndarray = PAPER_ALBEDO * lin / np.maximum(np.asarray(gain, np.float64).reshape(3), 1e-6)
+    out: np.ndarray = np.percentile(light, 75, axis=0)
     return out
+
+
+def _reflected(image: np.ndarray, pixels: np.ndarray, gain: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    """The light the ground reflects at ``pixels (k, 2)`` of the photo ``image (H, W, 3) uint8`` BGR (nearest
+    pixel), in the renderer's units (:func:`ground_bounce`): ``(light (n, 3) float64 linear RGB, in the photo
+    (k,) bool)``, one row per pixel in the photo."""
+    img = np.asarray(image)
+    h, w = img.shape[:2]
+    px = np.asarray(pixels, np.float64)
+    px = np.round(np.where(np.isfinite(px), px, -1.0)).astype(np.int64)
+    ok = (px[:, 0] >= 0) & (px[:, 0] < w) & (px[:, 1] >= 0) & (px[:, 1] < h)
+    lin = srgb_to_linear(img[px[ok, 1], px[ok, 0]].astype(np.float64) / 255.0)[:, ::-1]  # RGB
+    light: np.ndarray = PAPER_ALBEDO * lin / np.maximum(np.asarray(gain, np.float64).reshape(3), 1e-6)
+    return light, ok
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -143,16 +152,9 @@ def ground_light(
     c = (np.arange(res) + 0.5) * texel
     xx, yy = np.meshgrid(x0 + c, y0 + c)
     pts = np.c_[xx.ravel(), yy.ravel(), np.zeros(xx.size)]
-    img = np.asarray(image)
-    h, w = img.shape[:2]
-    px = np.asarray(project(pts), np.float64)
-    px = np.where(np.isfinite(px), px, -1.0)
-    p = np.round(px).astype(np.int64)
-    ok = (p[:, 0] >= 0) & (p[:, 0] < w) & (p[:, 1] >= 0) & (p[:, 1] < h)
+    light, ok = _reflected(image, np.asarray(project(pts), np.float64), gain)
     vals = np.full(len(pts), np.nan, np.float32)
-    lin = srgb_to_linear(img[p[ok, 1], p[ok, 0]].astype(np.float64) / 255.0)[:, ::-1]  # RGB
-    g = np.maximum(np.asarray(gain, np.float64).reshape(3), 1e-6)
-    vals[ok] = (PAPER_ALBEDO * lin / g).mean(axis=1)
+    vals[ok] = light.mean(axis=1)
     return GroundLight(x0, y0, texel, vals.reshape(res, res))
 
 
