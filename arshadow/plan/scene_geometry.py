@@ -4,6 +4,10 @@ Part of the planner (:mod:`arshadow.plan`, which re-exports these names): :class
 lights split into hard samples with their silhouettes and shadow volumes (built on first use, then reused:
 the history a video depends on, :meth:`SceneGeometry.state`), and the world points that bound the region
 of interest (:func:`scene_hull_points`: the object and its shadow footprints on the ground).
+
+(About 620 lines, just over the project's ~600: :class:`SceneGeometry` is one cache whose parts (the lights'
+silhouettes and volumes, the sky-visibility map and the ground light it is made with) are invalidated
+together when the lights change; split, each part would read the others' private keys.)
 """
 
 from __future__ import annotations
@@ -284,6 +288,12 @@ class SceneGeometry:
         #: :class:`arshadow.shading.sky.GroundRaster` (made on first use; the Session hands its renderer's),
         #: None or a None result: numpy (:func:`arshadow.shading.sky.ground_raster_cpu`)
         self.raster_source = raster_source
+        # the ground's reflected light measured on the first photo (set_ground_light; None until then), the
+        # same per ground point over it (None: not read), the sky-visibility map with its key, the convexity
+        self._ground_light: float | None = None
+        self._ground_field: GroundLight | None = None
+        self._sky_ground: tuple[Any, GroundOcclusion] | None = None
+        self._convex: bool | None = None
         if lights is not None:
             self.set_lights(lights)
 
@@ -414,7 +424,7 @@ class SceneGeometry:
     @property
     def convex(self) -> bool:
         """:func:`arshadow.plan.rules.mesh_is_convex` of the occluder (computed once per mesh)."""
-        c = getattr(self, "_convex", None)
+        c = self._convex
         if c is None:
             from .rules import mesh_is_convex
 
@@ -433,14 +443,14 @@ class SceneGeometry:
         ground frame; ``timings.silhouette`` gets its build time, with the other per-scene geometry). Remade
         when the lights change or when the ground's reflectance is first measured (:meth:`set_ground_light`).
         Rasterised by :attr:`raster_source`'s rasteriser (the renderer's GPU one in a Session)."""
-        key = (tuple(ls.light_h.tobytes() for ls in self.lights), getattr(self, "_ground_light", None))
-        g = getattr(self, "_sky_ground", None)
+        key = (tuple(ls.light_h.tobytes() for ls in self.lights), self._ground_light)
+        g = self._sky_ground
         if g is None or g[0] != key:  # the object's interreflection depends on the light
             from ..shading.sky import ground_sky_visibility
 
             t = time.perf_counter()
             raster = self.raster_source() if self.raster_source is not None else None
-            seen = getattr(self, "_ground_field", None)
+            seen = self._ground_field
             vis = ground_sky_visibility(self.caster, bounce=self._bounce_light(), raster=raster, ground_light=seen)
             g = self._sky_ground = (key, vis)
             if timings is not None:
@@ -458,7 +468,7 @@ class SceneGeometry:
         light per ground point as the photo shows it (:func:`arshadow.shading.decide.ground_light`; called
         once, with the first measurement; kept relative to ``reflected``): each face then sees the ground it
         faces (a white paper beside the object), ``reflected`` where the photo does not show it."""
-        if getattr(self, "_ground_light", None) is None:
+        if self._ground_light is None:
             self._ground_light = round(float(np.mean(reflected)), 3)
             f = field_of() if field_of is not None and self._ground_light > 0 else None
             # relative to the ring's value: the map converts that one to its units (ground_units)
@@ -468,7 +478,7 @@ class SceneGeometry:
     def ground_field(self) -> GroundLight | None:
         """The photo's ground light round the object over the ring's value (:meth:`set_ground_light`; None until
         measured, or where the photo showed none of it)."""
-        field: GroundLight | None = getattr(self, "_ground_field", None)
+        field: GroundLight | None = self._ground_field
         return field
 
     def _bounce_light(self) -> tuple | None:
@@ -494,7 +504,7 @@ class SceneGeometry:
         col = self.object_albedo()
         at = opts.ratio_at if opts.ambient_measured and opts.ratio_at is not None else centre[:2]
         ref = np.array([float(at[0]), float(at[1]), 0.0])  # where r holds: the map's unit of light
-        ground = float(getattr(self, "_ground_light", None) or 0.0) * ground_units(h, r, ref, opts.ambient)
+        ground = float(self._ground_light or 0.0) * ground_units(h, r, ref, opts.ambient)
         lamp = (h[:3] / h[3], ref) if h[3] != 0 else None  # a point light: each face at its own distance
         return light, r, PAPER_ALBEDO * float(np.mean(col)), ground, lamp
 
