@@ -254,10 +254,9 @@ def test_faces_see_the_ground_light_beyond_a_line_as_the_strip_view_factor(monke
     x0, y0, t = ground_grid(caster, 128)
     grid = GroundGrid(x0, y0, t, 128)
     face_x, d, a = float(caster.bounds[0][0]), 0.015, 4.0  # the -x face; a paper 4 x the ring's light
-    open_ = sky._ground_seen(caster, bounce, ground_raster_cpu, dirs, np.ones(64), grid, None)
-    paper = sky._ground_seen(
-        caster, bounce, ground_raster_cpu, dirs, np.ones(64), grid, lambda q: np.where(q[:, 0] < face_x - d, a, 1.0)
-    )
+    open_ = sky._ground_seen(caster, sky.Interreflection(*bounce), ground_raster_cpu, dirs, np.ones(64), grid)
+    paper_light = sky.Interreflection(*bounce, ground_field=lambda q: np.where(q[:, 0] < face_x - d, a, 1.0))
+    paper = sky._ground_seen(caster, paper_light, ground_raster_cpu, dirs, np.ones(64), grid)
     n = caster.face_planes[:, :3]
     west = np.flatnonzero(n[:, 0] < -0.99)
     h = caster.vertices[caster.faces[west]].mean(axis=1)[:, 2]

@@ -27,6 +27,7 @@ from scipy.spatial import ConvexHull, QhullError
 from ..errors import LightError
 from ..lights.area import sample_area_light
 from ..shading.decide import PAPER_ALBEDO, GroundLight, ground_units
+from ..shading.sky import Interreflection, ground_sky_visibility
 from ..transforms import invert_rigid, transform_points
 
 if TYPE_CHECKING:
@@ -446,12 +447,9 @@ class SceneGeometry:
         key = (tuple(ls.light_h.tobytes() for ls in self.lights), self._ground_light)
         g = self._sky_ground
         if g is None or g[0] != key:  # the object's interreflection depends on the light
-            from ..shading.sky import ground_sky_visibility
-
             t = time.perf_counter()
             raster = self.raster_source() if self.raster_source is not None else None
-            seen = self._ground_field
-            vis = ground_sky_visibility(self.caster, bounce=self._bounce_light(), raster=raster, ground_light=seen)
+            vis = ground_sky_visibility(self.caster, bounce=self._bounce_light(), raster=raster)
             g = self._sky_ground = (key, vis)
             if timings is not None:
                 timings.silhouette += (time.perf_counter() - t) * 1e3
@@ -481,15 +479,14 @@ class SceneGeometry:
         field: GroundLight | None = self._ground_field
         return field
 
-    def _bounce_light(self) -> tuple | None:
-        """``(light (3,), sky share, albedo, ground, lamp)`` of the object's interreflection onto the ground
-        (:func:`arshadow.shading.sky.ground_sky_visibility`): the strongest light's direction from the
-        object, the mean sky share, the object's mean albedo (its colour relative to the marker paper's,
-        without the exposure gain, times :data:`arshadow.shading.decide.PAPER_ALBEDO`), the ground's reflected light (its albedo times
-        its irradiance, a share of the open ground's: :meth:`set_ground_light`, 0 until measured) and for a
+    def _bounce_light(self) -> Interreflection | None:
+        """The object's :class:`arshadow.shading.sky.Interreflection` onto the ground: the strongest light's
+        direction from the object, the mean sky share, the object's mean albedo (its colour relative to the
+        marker paper's, without the exposure gain, times :data:`arshadow.shading.decide.PAPER_ALBEDO`), the
+        ground's reflected light (its albedo times its irradiance, a share of the open ground's:
+        :meth:`set_ground_light`, 0 until measured) and as the photo shows it per ground point, and for a
         point light ``(its position, the ground point where the sky share holds)`` (``ratio_at`` with a
-        measured light, else under the object's centre; None for a far light); None without a light or a
-        sky share."""
+        measured light, else under the object's centre); None without a light or a sky share."""
         from ..shading.decide import sky_share
 
         opts = self.options
@@ -506,7 +503,7 @@ class SceneGeometry:
         ref = np.array([float(at[0]), float(at[1]), 0.0])  # where r holds: the map's unit of light
         ground = float(self._ground_light or 0.0) * ground_units(h, r, ref, opts.ambient)
         lamp = (h[:3] / h[3], ref) if h[3] != 0 else None  # a point light: each face at its own distance
-        return light, r, PAPER_ALBEDO * float(np.mean(col)), ground, lamp
+        return Interreflection(light, r, PAPER_ALBEDO * float(np.mean(col)), ground, lamp, self._ground_field)
 
     def object_albedo(self) -> np.ndarray:
         """``(3,) float64`` the object's linear colour relative to the paper: ``occluder_color`` over the exposure

@@ -53,6 +53,7 @@ __all__ = [
     "GroundGrid",
     "GroundOcclusion",
     "GroundRaster",
+    "Interreflection",
     "SkyShading",
     "cosine_directions",
     "ground_grid",
@@ -277,6 +278,43 @@ class GroundRaster(Protocol):
     ) -> tuple[np.ndarray, np.ndarray | None]: ...
 
 
+@dataclasses.dataclass(frozen=True, eq=False)
+class Interreflection:
+    """The light the object reflects onto the ground (:func:`ground_sky_visibility`'s ``bounce``): each
+    blocked sky direction sees the object's face nearest along it, lit by the direct light on its lit side,
+    by the sky (``sky_share``, ``(1 + n_z) / 2`` of it) and by the ground round it (``(1 - n_z) / 2`` of
+    ``ground``), times ``albedo``; added to the map as ``bounce / sky_share``, so that it holds
+    ``V + bounce / r`` (more than 1 beside a lit face), what the composite's sky term multiplies.
+
+    Attributes
+    ----------
+    light : (3,) float64
+        Towards the strongest light from the object (any length), weight ``1 - sky_share`` of the open
+        ground's light.
+    sky_share : float
+        The sky's share of the open ground's light.
+    albedo : float
+        The object's mean albedo.
+    ground : float
+        The ground's albedo times its irradiance, a share of the open ground's light (0: not measured).
+    lamp : ((3,), (3,)) or None
+        ``(position, ref)`` (world, metres) for a point light: each face's direct light is the lamp's at the
+        face's own distance and incidence over its light on the open ground at ``ref``, where ``sky_share``
+        holds (:func:`lamp_incidence`); None: a far light.
+    ground_field : callable or None
+        ``(k, 2)`` ground points -> ``(k,)`` the ground's reflected light there over ``ground``, NaN where
+        unknown (:class:`arshadow.shading.decide.GroundLight`, read from the photo: a white paper beside the
+        object, 3-4); None: ``ground`` everywhere.
+    """
+
+    light: np.ndarray
+    sky_share: float
+    albedo: float
+    ground: float = 0.0
+    lamp: tuple | None = None
+    ground_field: Callable[[np.ndarray], np.ndarray] | None = None
+
+
 def ground_sky_visibility(  # noqa: PLR0913 (the caster, and keyword-only options)
     caster: ShadowCaster,
     *,
@@ -285,10 +323,9 @@ def ground_sky_visibility(  # noqa: PLR0913 (the caster, and keyword-only option
     margin: float | None = None,
     sky: str = "uniform",
     max_triangle_draws: int = 2_000_000,
-    bounce: tuple | None = None,
+    bounce: Interreflection | tuple | None = None,
     taper: tuple | None = ACTIVE_OCCLUSION,
     raster: GroundRaster | None = None,
-    ground_light: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> GroundOcclusion:
     """The object's :class:`GroundOcclusion` (ground frame = the caster's world frame, ground z = 0).
 
@@ -304,26 +341,15 @@ def ground_sky_visibility(  # noqa: PLR0913 (the caster, and keyword-only option
     margin : float, optional
         Metres of ground round the footprint's bounding square; default 3 x the object's height.
     sky : {"uniform", "cie"}
-    bounce : (light (3,), sky_share, albedo[, ground[, lamp]]), optional
-        Also the light the object reflects onto the ground (interreflection): each blocked direction sees
-        the object's face nearest along it, lit by the direct light (unit ``light`` towards it, weight
-        ``1 - sky_share`` of the open ground's light) on its lit side, by the sky (``sky_share``,
-        ``(1 + n_z) / 2`` of it) and by the ground round it (``ground``: the ground's albedo times its
-        irradiance, a share of the open ground's light; ``(1 - n_z) / 2`` of it; 0 when not given), times
-        ``albedo``. ``lamp``: ``(position (3,), ref (3,))`` (world, metres) for a point light: each face's
-        direct light is then the lamp's at the face's own distance and incidence over its light on the
-        open ground at ``ref``, where ``sky_share`` holds (:func:`lamp_incidence`); None: a far light. Added to the map as ``bounce / sky_share``: the map then
-        holds ``V + bounce / r`` (more than 1 beside a lit face), what the composite's sky term multiplies.
+    bounce : Interreflection, optional
+        Also the light the object reflects onto the ground (or the :class:`Interreflection`'s fields as a
+        tuple: ``(light, sky_share, albedo[, ground[, lamp]])``).
     taper : (t0, t1) or None
         Occlusion under ``t1`` tapers linearly to 0 at ``t0`` and the map is cropped to where it is not 0
         (:data:`ACTIVE_OCCLUSION`: the frame's region stays small); None: the exact visibility everywhere on
         the grid (the light estimate's allowance for its probe).
     raster : GroundRaster, optional
         Who rasterises the shadows (a renderer's GPU one); default :func:`ground_raster_cpu`.
-    ground_light : callable, optional
-        ``(k, 2)`` ground points -> ``(k,)`` the ground's reflected light there over ``bounce``'s ``ground``,
-        NaN where unknown (:class:`arshadow.shading.decide.GroundLight`, read from the photo): the object's
-        faces see ``ground`` times it (a white paper beside the object: 3-4).
     """
     if resolution < 2:
         raise UsageError(f"ground occlusion resolution must be at least 2 texels, got {resolution}")
@@ -334,9 +360,11 @@ def ground_sky_visibility(  # noqa: PLR0913 (the caster, and keyword-only option
     dirs = cosine_directions(n_dirs)
     weights = sky_radiance(dirs, sky)
     rast = raster or ground_raster_cpu
+    if bounce is not None and not isinstance(bounce, Interreflection):
+        bounce = Interreflection(*bounce)
     seen = None
-    if bounce is not None and len(bounce) > 3 and float(bounce[3]) > 0:
-        seen = _ground_seen(caster, bounce, rast, dirs, weights, grid, ground_light)
+    if bounce is not None and bounce.ground > 0:
+        seen = _ground_seen(caster, bounce, rast, dirs, weights, grid)
     face_e = _face_irradiance(caster, bounce, seen) if bounce is not None else None
     acc, acc_b = rast(caster, dirs, weights, grid, face_e)
     vis = _fill_under((acc / weights.sum()).astype(np.float32))
@@ -350,9 +378,9 @@ def ground_sky_visibility(  # noqa: PLR0913 (the caster, and keyword-only option
     (rows,) = np.nonzero((vis < 1.0).any(axis=1))
     (cols,) = np.nonzero((vis < 1.0).any(axis=0))
     reflected = None
-    if acc_b is not None and bounce is not None and float(bounce[1]) > 0:
-        b = float(bounce[2]) * acc_b / weights.sum()
-        reflected = (b * np.clip((occ - t0) / (t1 - t0), 0.0, 1.0) / float(bounce[1])).astype(np.float32)
+    if acc_b is not None and bounce is not None and bounce.sky_share > 0:
+        b = float(bounce.albedo) * acc_b / weights.sum()
+        reflected = (b * np.clip((occ - t0) / (t1 - t0), 0.0, 1.0) / float(bounce.sky_share)).astype(np.float32)
         vis = (vis + reflected).astype(np.float32)
     if rows.size:
         r0, r1 = max(int(rows[0]) - 2, 0), min(int(rows[-1]) + 3, resolution)
@@ -401,21 +429,20 @@ def ground_raster_cpu(
     return acc, acc_b
 
 
-def _face_irradiance(caster: ShadowCaster, bounce: tuple, seen: np.ndarray | None = None) -> np.ndarray:
+def _face_irradiance(caster: ShadowCaster, bounce: Interreflection, seen: np.ndarray | None = None) -> np.ndarray:
     """``(m,)``: each face's irradiance as a share of the open ground's (direct on its lit side + sky + the
     light the ground reflects up to it: the path tracer's ground -> object -> ground path, which lights a box's
     shadowed faces and a sphere's underside about as much as the sky does). ``seen (m,)``: each face's view of
     the ground weighted by the ground's irradiance there (:func:`_ground_seen`); None: open ground,
     ``(1 - n_z) / 2``."""
-    light, r = np.asarray(bounce[0], np.float64), float(bounce[1])
+    light, r = np.asarray(bounce.light, np.float64), float(bounce.sky_share)
     light = light / np.linalg.norm(light)
     n = caster.face_planes[:, :3]
-    lamp = bounce[4] if len(bounce) > 4 else None
-    if lamp is None:
+    if bounce.lamp is None:
         direct = (1.0 - r) * np.maximum(n @ light, 0.0) / max(float(light[2]), 1e-3)
     else:
-        direct = (1.0 - r) * lamp_incidence(caster, lamp[0], lamp[1])
-    g = float(bounce[3]) if len(bounce) > 3 else 0.0
+        direct = (1.0 - r) * lamp_incidence(caster, bounce.lamp[0], bounce.lamp[1])
+    g = float(bounce.ground)
     view = (1.0 - n[:, 2]) / 2.0 if seen is None else seen
     out: np.ndarray = direct + r * (1.0 + n[:, 2]) / 2.0 + g * view
     return out
@@ -451,23 +478,22 @@ GROUND_SEEN_DIRS = 64
 
 def _ground_seen(  # noqa: PLR0913 (the caster, its light, the map's rasteriser and its grid)
     caster: ShadowCaster,
-    bounce: tuple,
+    bounce: Interreflection,
     rast: GroundRaster,
     dirs: np.ndarray,
     weights: np.ndarray,
     grid: GroundGrid,
-    ground_light: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> np.ndarray:
     """``(m,)``: each face's view of the ground, each ground point counted at its irradiance as a share of the
     open ground's, ``(1 - r) lit + r V``: the ground under and beside an object is in its shadow and sees less
     sky, so its lower faces get less of the ground's light than the open ground's ring measures. ``V`` is the
-    map's sky visibility and ``lit`` the direct light's (one direction, ``bounce[0]``), both rasterised on the
+    map's sky visibility and ``lit`` the direct light's (one direction, ``bounce.light``), both rasterised on the
     map's grid; each face looks along :data:`GROUND_SEEN_DIRS` cosine-weighted directions from its centre and
     the ones that reach the ground read it there (1 off the grid, the object itself not counted as a blocker).
-    Open ground everywhere gives ``(1 - n_z) / 2``. ``ground_light``: each ground point's reflected light
-    over ``bounce[3]`` multiplies its irradiance (the ground's albedo is not the same everywhere: a white
-    paper beside the object; 1 where it is NaN)."""
-    light, r = np.asarray(bounce[0], np.float64), float(bounce[1])
+    Open ground everywhere gives ``(1 - n_z) / 2``. ``bounce.ground_field``: each ground point's reflected
+    light over ``bounce.ground`` multiplies its irradiance (the ground's albedo is not the same everywhere: a
+    white paper beside the object; 1 where it is NaN)."""
+    light, r = np.asarray(bounce.light, np.float64), float(bounce.sky_share)
     light = light / np.linalg.norm(light)
     acc, _ = rast(caster, dirs, weights, grid, None)
     lit, _ = rast(caster, light[None], np.ones(1), grid, None)
@@ -480,8 +506,8 @@ def _ground_seen(  # noqa: PLR0913 (the caster, its light, the map's rasteriser 
     tz = np.where(down, -np.maximum(c[:, None, 2], 0.0) / np.where(down, d[..., 2], -1.0), 0.0)
     q = c[:, None, :2] + tz[..., None] * d[..., :2]
     val = ground.sample(q.reshape(-1, 2)).reshape(q.shape[:2])
-    if ground_light is not None:
-        rel = np.asarray(ground_light(q.reshape(-1, 2)), np.float64).reshape(q.shape[:2])
+    if bounce.ground_field is not None:
+        rel = np.asarray(bounce.ground_field(q.reshape(-1, 2)), np.float64).reshape(q.shape[:2])
         val = val * np.where(np.isfinite(rel), rel, 1.0)
     out: np.ndarray = np.where(down, val, 0.0).sum(axis=1) / d.shape[1]
     return out
