@@ -27,7 +27,7 @@ from scipy.spatial import ConvexHull, QhullError
 from ..errors import LightError
 from ..lights.area import sample_area_light
 from ..shading.decide import PAPER_ALBEDO, GroundLight, ground_units
-from ..shading.sky import Interreflection, ground_sky_visibility
+from ..shading.sky import Interreflection
 from ..transforms import invert_rigid, transform_points
 
 if TYPE_CHECKING:
@@ -447,6 +447,8 @@ class SceneGeometry:
         key = (tuple(ls.light_h.tobytes() for ls in self.lights), self._ground_light)
         g = self._sky_ground
         if g is None or g[0] != key:  # the object's interreflection depends on the light
+            from ..shading.sky import ground_sky_visibility  # looked up when made (the tests count the calls)
+
             t = time.perf_counter()
             raster = self.raster_source() if self.raster_source is not None else None
             vis = ground_sky_visibility(self.caster, bounce=self._bounce_light(), raster=raster)
