@@ -89,8 +89,9 @@ def test_walls_sky_ground_and_self_shares_against_the_strip_view_factors():
 
 
 def test_self_light_of_the_walls_is_the_reciprocity_mean_of_their_radiosity():
+    from arshadow.renderer.request import Shading
     from arshadow.shading.interreflect import SelfView, face_irradiance, self_light
-    from arshadow.shading.sky import object_sky_visibility
+    from arshadow.shading.sky import SkyShading, object_sky_visibility
 
     caster = _walls()
     centres = caster.vertices[caster.faces].mean(axis=1)
@@ -99,7 +100,8 @@ def test_self_light_of_the_walls_is_the_reciprocity_mean_of_their_radiosity():
     s, g = object_sky_visibility(caster, centres, caster.face_planes[:, :3], method="rays", n_dirs=512)
     view = SelfView(caster, np.c_[s, g])
     A, albedo = 0.7, 0.6
-    got = self_light(view, face_irradiance(view, [], A, (1, 1, 1), (1, 1, 1), (0, 0, 0)), (albedo,) * 3)
+    shading = Shading(ambient=A, sky=SkyShading(bounce=(0.0, 0.0, 0.0)))  # the sky alone, white
+    got = self_light(view, face_irradiance(view, [], shading), (albedo,) * 3)
     want = albedo * A * _closed_mean_ov()
     np.testing.assert_allclose(got, want, rtol=0.03)
 

@@ -70,25 +70,21 @@ def self_view(caster: ShadowCaster, faces_corner: np.ndarray, vis: np.ndarray) -
     return SelfView(caster, v[np.asarray(faces_corner)].mean(axis=1))
 
 
-def face_irradiance(  # noqa: PLR0913 (the mesh and each term of the renderer's shading)
-    view: SelfView,
-    lights: Sequence[tuple[npt.ArrayLike, npt.ArrayLike]],
-    ambient: float,
-    ambient_tint: npt.ArrayLike,
-    direct_tint: npt.ArrayLike,
-    bounce: npt.ArrayLike,
-    point_falloff: bool = True,
+def face_irradiance(
+    view: SelfView, lights: Sequence[tuple[npt.ArrayLike, npt.ArrayLike]], shading: Shading
 ) -> np.ndarray:
     """``(m, 3)``: each face's irradiance in the renderer's units (the paper's is ``ambient + sum weight
-    sin(elevation)``) as the object's shading lights it: the sky ``ambient * ambient_tint V``, the ground
-    ``bounce G`` (the face's own sky visibility and ground view; the light it gets from the object itself is
-    left out: a second bounce) and each light ``(light_h (4,), colour (3,))``, ``colour * direct_tint
-    max(0, n.l)`` (:meth:`SelfView.lit`) times ``|L|^2 / |L - c|^2`` for a point light with ``point_falloff``
-    (the shader's fall-off)."""
+    sin(elevation)``) as the object's ``shading`` (:class:`arshadow.renderer.request.Shading`) lights it: the
+    sky ``ambient * ambient_tint V``, the ground ``bounce G`` (its ``sky``'s ``bounce``; the face's own sky
+    visibility and ground view; the light it gets from the object itself is left out: a second bounce) and
+    each light ``(light_h (4,), colour (3,))``, ``colour * direct_tint max(0, n.l)`` (:meth:`SelfView.lit`)
+    times ``|L|^2 / |L - c|^2`` for a point light with ``point_falloff`` (the shader's fall-off)."""
+    bounce = (0.0, 0.0, 0.0) if shading.sky is None else shading.sky.bounce
+    point_falloff = bool(shading.point_falloff)
     sky, ground = view.vis[:, 0:1], view.vis[:, 1:2]
-    e = float(ambient) * np.asarray(ambient_tint, np.float64).reshape(1, 3) * sky
+    e = float(shading.ambient) * np.asarray(shading.ambient_tint, np.float64).reshape(1, 3) * sky
     e = e + np.asarray(bounce, np.float64).reshape(1, 3) * ground
-    tint = np.asarray(direct_tint, np.float64).reshape(1, 3)
+    tint = np.asarray(shading.direct_tint, np.float64).reshape(1, 3)
     for light_h, colour in lights:
         h = np.asarray(light_h, np.float64).reshape(4)
         k = view.lit(h)
@@ -142,7 +138,7 @@ def frame_self_light(view: SelfView | None, passes: Sequence, shading: Shading) 
     falloff = bool(shading.point_falloff)
     key = np.concatenate([np.r_[h, c] for h, c in lights] + [np.hstack(terms), np.asarray(albedo), [falloff]]).tobytes()
     if view.last is None or view.last[0] != key:  # the same light and shading as the last frame: kept
-        e = face_irradiance(view, lights, terms[0], terms[1], terms[2], terms[3], falloff)
+        e = face_irradiance(view, lights, shading)
         a, b, c = (float(x) for x in self_light(view, e, albedo))
         view.last = (key, (a, b, c))
     return view.last[1]
