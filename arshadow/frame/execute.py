@@ -253,15 +253,18 @@ def execute(
     out, mask_full = _output_buffers(image, outputs)
     if outputs.layers is not None:  # nothing drawn until the numpy path says otherwise
         _no_layers(outputs.layers, (H, W))
-        if not plan.empty and plan.compose != "cpu":
-            plan.decide("compose", "cpu", LAYERS_WHY)
-    if motion is not None and motion.active and not plan.empty and plan.compose != "cpu":
-        plan.decide("compose", "cpu", MOTION_WHY)
     outline = next((d for d in reversed(plan.decisions) if d.name == "outline_aa"), None)
     if outline is not None:
         item.plan["outline_aa"] = outline.reason  # type: ignore[index]  # a dict: _report_plan made it
-        if outline.value and not plan.empty and plan.compose != "cpu":
-            plan.decide("compose", "cpu", OUTLINE_WHY)
+    # what only the numpy path does: the first reason decides the compose path
+    numpy_only = (
+        (outputs.layers is not None, LAYERS_WHY),
+        (motion is not None and motion.active, MOTION_WHY),
+        (outline is not None and bool(outline.value), OUTLINE_WHY),
+    )
+    why = next((w for needed, w in numpy_only if needed), None)
+    if why is not None and not plan.empty and plan.compose != "cpu":
+        plan.decide("compose", "cpu", why)
     if plan.empty:
         return out, mask_full  # nothing of the scene is in view
     cal = context.calibration(W, H)
