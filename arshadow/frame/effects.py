@@ -14,12 +14,17 @@ import dataclasses
 import functools
 import math
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
 
+from ..compose.composite import clip_roi
 from ..errors import EstimateError
 from ..estimate.optics import NoiseEstimate, measure_blur, measure_noise, noise_at
+
+if TYPE_CHECKING:
+    from .motion import MotionBlur
 
 __all__ = [
     "NOISE_FIELD_PX",
@@ -31,6 +36,7 @@ __all__ = [
     "noise_table",
     "noise_window",
     "pad_for",
+    "touched_roi",
 ]
 
 #: the side of the standard normal field (made once per process) whose windows are the object's noise: a
@@ -195,3 +201,18 @@ def blur_kernel(sigma: float) -> np.ndarray | None:
 def pad_for(sigma: float) -> int:
     """Pixels the blur reaches beyond a layer's content (3 sigma, rounded up)."""
     return int(math.ceil(3.0 * sigma)) if sigma > 0 else 0
+
+
+def touched_roi(
+    roi: Sequence[float], camera: CameraEffects | None, motion: MotionBlur | None, width: int, height: int
+) -> tuple[int, int, int, int]:
+    """``roi = (x0, y0, w, h)`` grown by the reach of the blurs the layers go through (the photo's blur,
+    :attr:`CameraEffects.pad`, and a video frame's motion, :attr:`arshadow.frame.motion.MotionBlur.reach`),
+    within the ``width x height`` frame: the pixels a composite may write.
+
+    >>> touched_roi((10, 10, 20, 20), None, None, 64, 48), touched_roi((2, 10, 20, 20), CameraEffects(1.0), None, 64, 48)
+    ((10, 10, 20, 20), (0, 7, 25, 26))
+    """
+    p = (0 if camera is None else camera.pad) + (0 if motion is None else motion.reach)
+    x0, y0, w, h = (int(v) for v in roi)
+    return clip_roi((x0 - p, y0 - p, w + 2 * p, h + 2 * p), width, height)

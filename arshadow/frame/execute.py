@@ -23,13 +23,13 @@ from typing import TYPE_CHECKING, Any, TypedDict
 import numpy as np
 
 from .._check import check_shape
-from ..compose.composite import clip_roi
 from ..compose.layers import layers_from_warped
 from ..compose.look import Look
 from ..errors import UsageError
 from ..plan.planner import MEASURED
 from ..renderer.request import LightPass, RenderRequest, Shading
 from ..transforms import CV_TO_GL
+from .effects import touched_roi
 from .numpy_compose import compose_cpu
 from .report import STAGES, ReportItem, StageTimings
 
@@ -471,11 +471,8 @@ def _run_compose(frame: FrameJob, context: FrameContext) -> None:
 
 def _touched(frame: FrameJob) -> tuple[int, int, int, int]:
     """The photo pixels either compose path may write: the plan's ROI, grown by the blurs' reach."""
-    x0, y0, w, h = (int(v) for v in frame.plan.roi)
-    p = 0 if frame.look.camera is None else frame.look.camera.pad
-    p += 0 if frame.look.motion is None else frame.look.motion.reach
     H, W = frame.image.shape[:2]
-    return clip_roi((x0 - p, y0 - p, w + 2 * p, h + 2 * p), W, H)
+    return touched_roi(frame.plan.roi, frame.look.camera, frame.look.motion, W, H)
 
 
 def _compose_gpu(frame: FrameJob, gpu: GpuCompositor, timings: StageTimings) -> None:

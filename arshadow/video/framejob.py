@@ -27,8 +27,8 @@ from typing import TYPE_CHECKING, Any, TypeAlias, TypedDict, cast
 import cv2
 import numpy as np
 
-from ..compose.composite import clip_roi
 from ..errors import MarkerNotFoundError
+from ..frame.effects import touched_roi
 from ..frame.execute import FrameOutputs
 from ..frame.motion import MotionBlur, frame_motion
 from ..frame.report import ReportItem, StageTimings
@@ -221,10 +221,8 @@ class SessionBackend:
     def grown(self, roi: Sequence[int], motion: MotionBlur) -> tuple[int, int, int, int]:
         """``roi`` grown by the blurs' reach (``motion``'s and the measured camera blur's), within the frame."""
         assert self.cal is not None  # set by start()
-        cam = self.session.camera_effects
-        p = motion.reach + (0 if cam is None else cam.pad)
-        x0, y0, w, h = (int(v) for v in roi)
-        return clip_roi((x0 - p, y0 - p, w + 2 * p, h + 2 * p), self.cal.intrinsics.width, self.cal.intrinsics.height)
+        intr = self.cal.intrinsics
+        return touched_roi(roi, self.session.camera_effects, motion, intr.width, intr.height)
 
     def render(
         self,
