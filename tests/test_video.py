@@ -22,7 +22,7 @@ import cv2
 import numpy as np
 import pytest
 from image_oracle import ShadowOracle, iou
-from video_clips import CvClipWriter, read_frames
+from video_clips import BOX_SCENE, CvClipWriter, read_frames
 
 ROOT = Path(__file__).resolve().parents[1]
 CALIB = ROOT / "calib" / "synth_640x360.yml"
@@ -229,16 +229,7 @@ def test_video_end_to_end_mask_iou_against_oracle(tmp_path, tol, gl_ctx):
     rc = _run_cli(
         "video",
         clip,
-        "--calib",
-        CALIB,
-        "--marker-length",
-        "0.05",
-        "--model",
-        "box:0.04,0.03,0.06",
-        "--place",
-        "0.05,0,0",
-        "--light",
-        "point:-0.1,0.15,0.4",
+        *BOX_SCENE,
         "-o",
         out,
         "--save-mask",

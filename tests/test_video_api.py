@@ -7,7 +7,7 @@ import json
 
 import numpy as np
 import pytest
-from video_clips import ROOT, make_clip, read_frames
+from video_clips import BOX_SCENE, ROOT, make_clip, read_frames
 
 CALIB = ROOT / "calib" / "synth_640x360.yml"
 SCENE = {
@@ -40,16 +40,7 @@ def test_process_video_is_what_the_cli_runs(tmp_path, gl_ctx):
         [
             "video",
             str(clip),
-            "--calib",
-            str(CALIB),
-            "--marker-length",
-            "0.05",
-            "--model",
-            "box:0.04,0.03,0.06",
-            "--place",
-            "0.05,0,0",
-            "--light",
-            "point:-0.1,0.15,0.4",
+            *BOX_SCENE,
             "-o",
             str(cli_out),
             "--format",
