@@ -260,13 +260,16 @@ class Tolerances:
     # object's residual"): own object 0.047, held-out unchanged (0.142 / 0.101 / 0.071); then the ground's
     # light as each face sees it (arshadow.shading.objground): own 0.153 / 0.180 / 0.053, held-out 0.142 /
     # 0.100 / 0.068. Limits + 0.01 where that is tighter (held-out object).
-    ref_own_ground: float = 0.162
-    ref_own_contact: float = 0.188
-    ref_own_object: float = 0.061
+    # Re-measured 2026-11-29 (later) after the light estimate's shadow edges (docs/light.md, "the shadow's edges"):
+    # own 0.148 / 0.172 / 0.048; held-out 0.128 / 0.111 (0.1110) / 0.050. Limits + 0.01 where that is tighter
+    # (the held-out contact limit stays: never loosened).
+    ref_own_ground: float = 0.158
+    ref_own_contact: float = 0.182
+    ref_own_object: float = 0.058
     ref_own_true_ground: float = 0.340
-    ref_heldout_ground: float = 0.152
+    ref_heldout_ground: float = 0.138
     ref_heldout_contact: float = 0.111
-    ref_heldout_object: float = 0.078
+    ref_heldout_object: float = 0.060
     # the object's outline anti-aliased without MSAA (arshadow.compose.outline; tests/test_outline_aa.py)
     outline_exact: float = 1e-6  # a pixel one straight edge crosses: its coverage against the clipped square's area
     outline_area_px2: float = 1.0  # the AA'd alpha's sum against the silhouette polygon's area (a box: 0.4 measured)
@@ -280,6 +283,10 @@ class Tolerances:
     map_layout_max_mm: float = 1.5  # (measured 0.81)
     # light estimate, never confidently wrong (the trust fixes items 2-4)
     light_confident_deg: float = 3.0  # a confident light must be this close (the issue's bar)
+    # the estimate's shadow model (test_shadow_model.py): a blurred edge's coverage against erfc (float32),
+    # a polygon's summed coverage against its area (the blur's corners round it off by ~sigma^2 per corner)
+    shadow_model_coverage: float = 1e-5
+    shadow_model_area: float = 2e-3
     light_hidden_deg: float = 1.0  # a partly hidden shadow's direction (the issue's median bar, one case)
     light_point_distance_rel: float = 0.05  # a point light's position error / distance: the issue's median bar
     # the probe's face shading at the generating light: log residual (measured 0.0006..0.005 on 5 cases)

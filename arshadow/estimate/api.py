@@ -27,12 +27,13 @@ from ..tracking.dictionary import DEFAULT_DICTIONARY
 from ..tracking.tracker import MarkerTracker
 from .exposure import Exposure, ExposureError, measure_exposure
 from .light import FitResult, MakeFine, fit_directional, fit_point, fit_sun
+from .optics import measure_blur
 from .outline import outline_agreement
 from .penumbra import fit_angular_radius
 from .ratio import shadow_ratio
 from .record import LightEstimate
 from .shading import face_shading_residual
-from .shadow import LUMA, Evidence, build_evidence, edge_pairs, shadow_coverage
+from .shadow import LUMA, Evidence, build_evidence, edge_pairs, sample_blur_px, shadow_coverage
 
 __all__ = ["MAX_FRAMES", "VIDEO_EXTENSIONS", "estimate_light"]
 
@@ -131,9 +132,11 @@ def _grids(
     L: float,
     paper: Sequence[float],
     convex: bool,
+    blur_px: float | None = None,
 ) -> tuple[Evidence, FineGrid, float]:
     """The coarse evidence (the whole reach of the shadow), a builder of fine evidence and the size of a
-    pixel on the ground at the probe (metres)."""
+    pixel on the ground at the probe (metres). ``blur_px``: a sharp ground edge's blur as the grids'
+    samples see it (:func:`.shadow.sample_blur_px`), the modelled shadow's edges."""
     lo, hi = verts.min(axis=0), verts.max(axis=0)
     centre = 0.5 * (lo[:2] + hi[:2])
     radius = 0.5 * float(np.linalg.norm(hi[:2] - lo[:2]))
@@ -156,6 +159,7 @@ def _grids(
         convex=convex,
         sigma=sigma,
         supersample=2,
+        blur_px=blur_px,
     )
     fine_step = float(np.clip(1.5 * px, 0.0006, 0.006))
 
@@ -183,9 +187,22 @@ def _grids(
             step=step,
             convex=convex,
             sigma=sigma,
+            blur_px=blur_px,
         )
 
     return coarse, fine, px
+
+
+def _edge_blur(img: np.ndarray, intr: Intrinsics, cam_from_world: np.ndarray, L: float, cells: int) -> float | None:
+    """A sharp ground edge's blur as the evidence's samples see it (pixels): the photo's point spread
+    measured on the marker's outer edges (:func:`.optics.measure_blur`) with the sampling's own; None when
+    no edge gave a measurement."""
+    square = 0.5 * L * np.array([[-1.0, 1.0, 0.0], [1.0, 1.0, 0.0], [1.0, -1.0, 0.0], [-1.0, -1.0, 0.0]])
+    corners = intr.project(square, cam_from_world)
+    try:
+        return sample_blur_px(measure_blur(img, corners, cells=cells).sigma_px)
+    except EstimateError:
+        return None
 
 
 def _edge_consistency(evs: list[Evidence], h: np.ndarray, px: Sequence[float]) -> tuple:
@@ -302,7 +319,8 @@ def estimate_light(
             except ExposureError as exc:  # a shadow over the marker: its brightest cell, flagged
                 exp = measure_exposure(img, intr, T, marker_length, dictionary, pose.marker_ids[0], min_cells=1)
                 notes.append(f"{name}: {exc}; the exposure is from its brightest white cell")
-            c, f, px = _grids(img, intr, T, verts, faces, marker_length, exp.paper_rgb, convex)
+            blur = _edge_blur(img, intr, T, marker_length, tracker.dictionary.markerSize + 2)
+            c, f, px = _grids(img, intr, T, verts, faces, marker_length, exp.paper_rgb, convex, blur)
             coarse.append(c)
             pxs.append(px)
             fines.append(f)

@@ -47,6 +47,8 @@ __all__ = ["FitResult", "direction_of", "fit_directional", "fit_point", "fit_sun
 MIN_DARKENING = 0.05
 #: minimum share of the ground's variance that the shadow must explain
 MIN_EXPLAINED = 0.02
+#: a point light's fit stops this far from the probe's top (metres): its shadow is a directional light's
+MAX_POINT_DISTANCE = 100.0
 #: a fit whose 1-sigma direction uncertainty exceeds this (degrees) leaves the light unconstrained: refused
 UNCONSTRAINED_DEG = 10.0
 #: a second minimum this close (relative explained variance) and > 15 degrees away is ambiguous
@@ -235,9 +237,10 @@ def _distinct_minima(cands: np.ndarray, scores: np.ndarray, sep_deg: float, k: i
 
 
 def _check(
-    evs: list[Evidence], h: np.ndarray, score: float, deltas: list, runner_up_score: float | None
+    evs: list[Evidence], h: np.ndarray, score: float, deltas: list, runner_up: float | None
 ) -> tuple[float, float, float | None]:
-    """Refuse a fit that is not a shadow, not in view, or ambiguous. Returns (explained, visible, runner)."""
+    """Refuse a fit that is not a shadow, not in view, or ambiguous (``runner_up``: :func:`_runner_up`).
+    Returns (explained, visible, runner)."""
     nf = len(evs)
     explained = 1.0 - score / nf
     dark = 1.0 - math.exp(float(np.median(deltas))) if deltas else 0.0
@@ -248,15 +251,12 @@ def _check(
             "shadow is hidden or out of view"
         )
     visible = _visible_share(evs, h)
-    runner = None
-    if runner_up_score is not None and math.isfinite(runner_up_score):
-        runner = (1.0 - runner_up_score / nf) / explained
-        if runner > AMBIGUOUS:
-            raise EstimateError(
-                f"ambiguous fit: a light more than 15 degrees away explains the shadow almost as "
-                f"well ({100 * runner:.0f} %); add frames from other viewpoints or a taller probe"
-            )
-    return explained, visible, runner
+    if runner_up is not None and runner_up > AMBIGUOUS:
+        raise EstimateError(
+            f"ambiguous fit: a light more than 15 degrees away explains the shadow almost as "
+            f"well ({100 * runner_up:.0f} %); add frames from other viewpoints or a taller probe"
+        )
+    return explained, visible, runner_up
 
 
 def _constrained(unc_deg: float, visible: float) -> None:
@@ -315,28 +315,40 @@ def fit_directional(
         raise EstimateError("no light direction casts a shadow of the probe in view")
     fine = make_fine([to_light(cands[i]) for i in keep])
     res, n = _refine(fine, to_light, [cands[i] for i in keep], (2.5, 2.0), 0.02)
+    runner = _runner_up(fine, to_light, cands, keep, res.x, to_dir)
+    # then on the winner's own grids (the runners-up's shadows no longer widen them), with the shadow's soft
+    # edges as the photo's linear blur darkens them in log (log_coverage), its depth now known: without, the
+    # fitted shadow is a fraction of the blur too small on every side, the light too high (docs/light.md,
+    # "the shadow's edges")
+    own = make_fine([to_light(res.x)])
+    dark = [float(x) for x in objective(own, to_light(res.x))[1]]
+    res, n2 = _refine(own, to_light, [res.x], (0.5, 0.5), 0.005, dark)
     p = res.x.copy()
     p[0] %= 360.0
     h = to_light(p)
     assert h is not None  # Nelder-Mead ends no worse than its (finite-scored) start: inside the domain
-    score, deltas, _ = objective(fine, h)
-    runner = _runner_up(fine, to_light, cands, keep, p, to_dir)
-    explained, visible, rr = _check(fine, h, score, deltas, runner)
-    cov = _laplace(fine, to_light, p, np.array([0.3, 0.3]))
+    score, deltas, _ = objective(own, h, dark)
+    explained, visible, rr = _check(own, h, score, deltas, runner)
+    cov = _laplace(own, to_light, p, np.array([0.3, 0.3]), dark)
     unc = math.sqrt(max(cov[1, 1] + cov[0, 0] * math.cos(math.radians(p[1])) ** 2, 0.0))
     _constrained(unc, visible)
-    return FitResult(h, p, score, deltas, unc, None, explained, visible, rr, len(cands) + n, fine)
+    return FitResult(h, p, score, deltas, unc, None, explained, visible, rr, len(cands) + n + n2, own)
 
 
 def _runner_up(
     fine: list[Evidence], to_light: ToLight, cands: np.ndarray, keep: list, p: np.ndarray, to_dir: ToDir
 ) -> float | None:
-    """The best fine score among the coarse minima more than 15 degrees from the optimum ``p``."""
+    """How well the best of the coarse minima more than 15 degrees from the optimum ``p`` explains the fine
+    grids, as a share of what ``p`` explains there (both on ``fine``); None without such a minimum."""
     d = to_dir(p)
     others = [cands[i] for i in keep if math.degrees(math.acos(np.clip(d @ to_dir(cands[i]), -1, 1))) > 15.0]
-    if not others:
+    h = to_light(p)
+    if not others or h is None:
         return None
-    return float(min(objective(fine, to_light(q))[0] for q in others))
+    nf = len(fine)
+    best = 1.0 - float(objective(fine, h)[0]) / nf
+    other = 1.0 - float(min(objective(fine, to_light(q))[0] for q in others)) / nf
+    return other / best if best > 0.0 and math.isfinite(other) else None
 
 
 def fit_sun(coarse: list[Evidence], make_fine: MakeFine, enu: np.ndarray) -> FitResult:
@@ -385,6 +397,8 @@ def fit_point(coarse: list[Evidence], make_fine: MakeFine, anchor: np.ndarray) -
         return anchor + math.exp(q[2]) * direction_of(q[0], q[1])
 
     def to_light(q: np.ndarray) -> np.ndarray | None:
+        if q[2] > math.log(MAX_POINT_DISTANCE):  # as good as directional: the fit's far edge
+            return None
         pos = position(q)
         return None if pos[2] <= top + 0.01 or q[1] >= 89.5 else np.append(pos, 1.0)
 
@@ -430,6 +444,12 @@ def fit_point(coarse: list[Evidence], make_fine: MakeFine, anchor: np.ndarray) -
     starts = sorted(starts, key=lambda q: count(q))[:2]
     res, n = _refine(fine, to_light, starts, (2.0, 2.0, 0.15), 1e-3, dark)
     q = res.x.copy()
+    if q[2] > math.log(MAX_POINT_DISTANCE) - 0.01:
+        raise EstimateError(
+            f"the point light fit went to its far edge ({MAX_POINT_DISTANCE:.0f} m from the probe): the shadow is "
+            "a directional light's, or this view does not fix the distance; fit --kind directional, or add "
+            "photos from other sides"
+        )
     h = to_light(q)
     if h is None:
         raise EstimateError("the point light fit ended below the probe's top: no point light explains the shadow")

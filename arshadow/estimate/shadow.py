@@ -6,7 +6,10 @@ it is inside the image, unsaturated, not seen through the probe (the probe's own
 and not on the marker's pattern. Samples that look like the marker's paper (its chromaticity, bright) form
 a second albedo class. The shadow model of a candidate light is the probe's exact ground shadow (the
 projection of its vertices from the light: their convex hull for a convex probe, the union of its projected
-triangles otherwise), rasterised on the grid with 4 x 4 supersampling (soft coverage at the edges).
+triangles otherwise). A convex probe's is drawn as the grid's samples see it (:func:`hull_coverage`): each
+edge a step blurred by the photo's own point spread (measured on the marker), its pixels and the
+resampling, in metres of ground across that edge (:func:`edge_sigma`); it moves continuously with the light.
+A non-convex probe's is rasterised with 4 x 4 supersampling (soft coverage at the edges, in steps).
 
 The fit (per frame, closed form): ``hp(log Y) = delta * hp(S)`` in least squares, ``Y`` the luminance,
 ``S`` the modelled shadow coverage, ``delta`` the log of the shadow's darkness, and ``hp`` a high-pass: the
@@ -25,18 +28,35 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from scipy.special import erfc
 
 from ..camera.model import Intrinsics
 from ..compose.composite import SRGB_TO_LINEAR
 from ..geometry.exact import ground_shadow_triangles, points_in_triangles
 from ..transforms import transform_points
 
-__all__ = ["LUMA", "Evidence", "build_evidence", "fit_levels", "shadow_coverage"]
+__all__ = [
+    "LUMA",
+    "Evidence",
+    "build_evidence",
+    "edge_sigma",
+    "fit_levels",
+    "ground_jacobian",
+    "hull_coverage",
+    "sample_blur_px",
+    "shadow_coverage",
+]
 
 #: Rec. 709 luminance weights of linear RGB
 LUMA = np.array([0.2126, 0.7152, 0.0722])
 #: supersampling of the shadow raster (per grid cell side)
 SS = 4
+#: :func:`edge_pairs`' edge cells: ``|blurred coverage - 0.5|`` under this (Phi(0.5) - 0.5: half a cell)
+EDGE_BAND = 0.19
+#: the least blur of a shadow's edge on a grid, cells (:func:`edge_sigma`)
+MIN_EDGE_CELLS = 0.3
+#: variance (px^2) a pixel's area adds across an edge, and the bilinear resampling's tent
+PIXEL_VARIANCE, TENT_VARIANCE = 1.0 / 12.0, 1.0 / 6.0
 #: the probe's image is left out with this seam, pixels (its faces bleed into the ground through blur)
 PROBE_SEAM_PX = 4.0
 
@@ -62,6 +82,15 @@ class Evidence:
         The probe in the world frame.
     convex : bool
         The probe is convex (its shadow is the hull of its projected vertices).
+    sigma : float
+        Scale of the high-pass, metres.
+    supersample : int
+        Samples per cell side of a non-convex probe's shadow raster.
+    blur_px : float or None
+        Standard deviation (image pixels) of a sharp edge on the ground as a grid sample sees it: the
+        photo's blur, its pixels' area and the bilinear resampling (:func:`sample_blur_px`); None: unknown.
+    jacobian : (2, 2) float64 or None
+        ``d(u, v) / d(x, y)`` at the probe: image pixels per metre of ground (:func:`ground_jacobian`).
     """
 
     x0: float
@@ -76,6 +105,8 @@ class Evidence:
     convex: bool
     sigma: float = 0.03
     supersample: int = SS
+    blur_px: float | None = None
+    jacobian: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         self._norms: list | None = None
@@ -145,6 +176,7 @@ def build_evidence(
     convex: bool = True,
     sigma: float = 0.03,
     supersample: int = SS,
+    blur_px: float | None = None,
 ) -> Evidence:
     """Sample one photo on a ground grid around the probe.
 
@@ -169,7 +201,10 @@ def build_evidence(
     sigma : float
         Scale of the high-pass (metres): slower variations of the ground are left out of the fit.
     supersample : int
-        Samples per cell side of the shadow's raster.
+        Samples per cell side of a non-convex probe's shadow raster.
+    blur_px : float, optional
+        A sharp ground edge's blur as the samples see it, pixels (:func:`sample_blur_px`); the shadow's
+        modelled edges take it (:func:`hull_coverage`).
     """
     n = round(2 * half / step) + 1
     x0, y0 = float(center[0]) - half, float(center[1]) - half
@@ -224,6 +259,8 @@ def build_evidence(
         bool(convex),
         float(sigma),
         int(supersample),
+        None if blur_px is None else float(blur_px),
+        ground_jacobian(intr, pose, center),
     )
 
 
@@ -253,23 +290,98 @@ def shadow_coverage(ev: Evidence, light_h: np.ndarray) -> np.ndarray | None:
             return None
         t = L[2] / (L[2] - v[:, 2])
         q = L[None, :2] + t[:, None] * (v[:, :2] - L[None, :2])
+    if ev.convex:
+        if not np.all(np.isfinite(q)) or np.abs(q - [ev.x0, ev.y0]).max() > 1e3:
+            return None
+        return hull_coverage(ev, q)
     ny, nx = ev.shape
     ss = ev.supersample
     scale = ss * 16.0 / ev.step  # 4 fractional bits of cv2's fixed point
     img = np.zeros((ny * ss, nx * ss), np.uint8)
     off = np.array([ev.x0, ev.y0]) - 0.5 * ev.step + 0.5 * ev.step / ss
-    if ev.convex:
-        pq = np.round((q - off) * scale).astype(np.int32)
-        if np.abs(pq).max() > 2**30 / 16:
-            return None
-        hull = cv2.convexHull(pq.reshape(-1, 1, 2))
-        cv2.fillConvexPoly(img, hull, 255, cv2.LINE_8, shift=4)
-    else:
-        tris = ground_shadow_triangles(v, ev.faces, h)
-        for t in np.round((tris - off) * scale).astype(np.int32):
-            cv2.fillConvexPoly(img, t, 255, cv2.LINE_8, shift=4)
+    tris = ground_shadow_triangles(v, ev.faces, h)
+    for t in np.round((tris - off) * scale).astype(np.int32):
+        cv2.fillConvexPoly(img, t, 255, cv2.LINE_8, shift=4)
     cov = cv2.resize(img, (nx, ny), interpolation=cv2.INTER_AREA)
     return cov.astype(np.float32) * np.float32(1.0 / 255.0)
+
+
+def edge_sigma(ev: Evidence, directions: np.ndarray) -> np.ndarray:
+    """The blur across ground edges of the given directions, metres: ``(k, 2)`` unit directions -> ``(k,)``.
+
+    A ground edge along ``e`` moves ``|det J| / |J e|`` image pixels per metre across it (``J`` the
+    evidence's :attr:`Evidence.jacobian`), so a blur of ``blur_px`` pixels is ``blur_px |J e| / |det J|``
+    metres of ground: wider along the line of sight, where the ground is foreshortened. At least
+    :data:`MIN_EDGE_CELLS` of a cell, so that the shadow's coverage (and the fit's objective) moves
+    continuously with the light even on a coarse grid; that minimum alone when the blur is unknown.
+    """
+    floor = MIN_EDGE_CELLS * ev.step
+    if ev.blur_px is None or ev.jacobian is None:
+        return np.full(len(directions), floor)
+    J = np.asarray(ev.jacobian, np.float64)
+    det = abs(float(np.linalg.det(J)))
+    if det <= 0.0:
+        return np.full(len(directions), floor)
+    across = ev.blur_px * np.linalg.norm(np.asarray(directions, np.float64) @ J.T, axis=1) / det
+    out: np.ndarray = np.maximum(across, floor)
+    return out
+
+
+def hull_coverage(ev: Evidence, q: np.ndarray) -> np.ndarray:
+    """The convex hull of ground points ``q`` (n, 2) (metres) as the grid's samples see it: ``(ny, nx)
+    float32`` in [0, 1], ``Phi(-d)`` of each cell centre's blur-scaled signed distance ``d`` to the hull
+    (the largest over its edges of the distance outside the edge's line over that edge's
+    :func:`edge_sigma`): a straight edge's exact blurred profile, continuous in the light's parameters."""
+    ny, nx = ev.shape
+    out = np.zeros((ny, nx), np.float32)
+    hull = cv2.convexHull(np.asarray(q, np.float32).reshape(-1, 1, 2)).reshape(-1, 2).astype(np.float64)
+    a, b = hull, np.roll(hull, -1, axis=0)
+    e = b - a
+    length = np.linalg.norm(e, axis=1)
+    keep = length > 1e-12
+    a, e, length = a[keep], e[keep], length[keep]
+    if len(a) < 3:
+        return out
+    e /= length[:, None]
+    ccw = float(np.sum(e[:, 0] * np.roll(e[:, 1], -1) - e[:, 1] * np.roll(e[:, 0], -1))) > 0.0
+    n = np.column_stack([e[:, 1], -e[:, 0]]) if ccw else np.column_stack([-e[:, 1], e[:, 0]])  # outward
+    sig = edge_sigma(ev, e)
+    reach = 5.0 * float(sig.max())
+    lo = np.floor((hull.min(axis=0) - reach - [ev.x0, ev.y0]) / ev.step).astype(int)
+    hi = np.ceil((hull.max(axis=0) + reach - [ev.x0, ev.y0]) / ev.step).astype(int) + 1
+    j0, i0 = max(int(lo[0]), 0), max(int(lo[1]), 0)
+    j1, i1 = min(int(hi[0]), nx), min(int(hi[1]), ny)
+    if j1 <= j0 or i1 <= i0:
+        return out
+    X = ev.x0 + ev.step * np.arange(j0, j1)
+    Y = ev.y0 + ev.step * np.arange(i0, i1)
+    d = np.full((i1 - i0, j1 - j0), -np.inf)
+    for k in range(len(a)):
+        dk = ((X[None, :] - a[k, 0]) * n[k, 0] + (Y[:, None] - a[k, 1]) * n[k, 1]) / sig[k]
+        np.maximum(d, dk, out=d)
+    out[i0:i1, j0:j1] = 0.5 * erfc(d / math.sqrt(2.0))
+    return out
+
+
+def ground_jacobian(intr: Intrinsics, cam_from_world: np.ndarray, xy: Sequence[float] | np.ndarray) -> np.ndarray:
+    """``d(u, v) / d(x, y)`` (2, 2) float64: image pixels per metre of the ground z = 0 at world ``xy``
+    (central differences of the camera's projection, lens distortion included)."""
+    h = 1e-4
+    x, y = float(xy[0]), float(xy[1])
+    pts = np.array([[x + h, y, 0.0], [x - h, y, 0.0], [x, y + h, 0.0], [x, y - h, 0.0]])
+    uv = np.asarray(intr.project(pts, np.asarray(cam_from_world, np.float64)), np.float64)
+    return np.column_stack([(uv[0] - uv[1]) / (2 * h), (uv[2] - uv[3]) / (2 * h)])
+
+
+def sample_blur_px(photo_sigma_px: float) -> float:
+    """The blur (pixels) of a sharp ground edge as a grid sample sees it: the photo's point spread
+    ``photo_sigma_px`` (:func:`arshadow.estimate.optics.measure_blur`), its pixels' area (1/12 px^2) and
+    the bilinear resampling's tent (1/6 px^2, averaged over the sample's phase).
+
+    >>> round(sample_blur_px(0.0), 3)
+    0.5
+    """
+    return math.sqrt(max(float(photo_sigma_px), 0.0) ** 2 + PIXEL_VARIANCE + TENT_VARIANCE)
 
 
 def smooth(ev: Evidence, img: np.ndarray) -> np.ndarray:
@@ -346,7 +458,9 @@ def edge_pairs(ev: Evidence, S: np.ndarray, distance: float, points: bool = Fals
     outside xy (k, 2))`` float64 (metres, the evidence's ground frame)."""
     sb = cv2.GaussianBlur(S.astype(np.float32), (0, 0), 1.0)
     gy, gx = np.gradient(sb)
-    edge = (S > 0.2) & (S < 0.8)
+    # the cells within about half a cell of the edge, however blurred the model's edge is: ``sb`` is the
+    # edge's profile at a standard deviation of about one cell, 0.5 -/+ 0.19 half a cell in and out
+    edge = np.abs(sb - 0.5) < EDGE_BAND
     rr, cc = np.nonzero(edge)
     g = np.stack([gx[rr, cc], gy[rr, cc]], 1)
     norm = np.linalg.norm(g, axis=1)

@@ -4,8 +4,9 @@
 
 Per committed case (tests/data/reference/<set>): the light measured once (``arshadow light`` with the
 case's probe), then ``render --light-from`` with ``ambient_occlusion off`` (the old model: also no object
-sky shading), ``on``, and ``on`` + ``camera_effects on``; prints JSON: per case and configuration the
-residuals (ground, contact band, object) and per set their medians.
+sky shading), ``on``, and ``on`` + ``camera_effects on``; prints JSON: per case the measured light's error
+(``light``: degrees for a sun, % of the distance for a lamp) and per configuration the residuals (ground,
+contact band, object), and per set their medians.
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ def main() -> None:
     ap.add_argument("--pose", default="tracked", choices=("tracked", "true"))
     ap.add_argument("--out")
     args = ap.parse_args()
-    from arshadow.bench.reference import load_cases, measure_light, run_case
+    from arshadow.bench.reference import light_error, load_cases, measure_light, run_case
     from arshadow.errors import EstimateError
 
     result: dict = {"meta": _common.metadata(), "pose": args.pose, "cases": {}, "median": {}}
@@ -43,7 +44,7 @@ def main() -> None:
                 result["cases"][f"{name}/{case.scene.name}"] = {"refused": str(e)}
                 print(case.scene.name, "refused:", e, file=sys.stderr, flush=True)
                 continue
-            entry = {}
+            entry: dict = {"light": {k: round(v, 3) for k, v in light_error(case.scene, est).items()}}
             for cfg, opts in CONFIGS.items():
                 r = run_case(case, "measured", dict(opts), args.pose, est)
                 entry[cfg] = {k: round(float(r[k]), 3) for k in ("ground", "contact", "object") if k in r}
