@@ -259,7 +259,7 @@ def _board_from_args(args: argparse.Namespace) -> Board:
 
 def run_board(args: argparse.Namespace) -> int:
     from ..io import write_bytes
-    from ..synth.markers import INK_BLACK, PAPER_WHITE, _board_markers, board_print
+    from ..synth.markers import INK_BLACK, PAPER_WHITE, board_markers, board_print
 
     _check_positive("--margin-mm", args.margin_mm, allow_zero=True)
     _check_positive("--dpi", args.dpi)
@@ -285,7 +285,7 @@ def run_board(args: argparse.Namespace) -> int:
         for sq in board.black_squares_world:
             (x0, y0), (x1, y1) = sq
             rects.append((1000 * (x0 + m), 1000 * (m - y1), 1000 * (x1 - x0), 1000 * (y1 - y0)))
-        for (xl, yt), side, bits in _board_markers(board):
+        for (xl, yt), side, bits in board_markers(board):
             cell = 1000 * side / bits.shape[0]
             rects += _bits_rects(bits, 1000 * (xl + m), 1000 * (m - yt), cell)
         write_bytes(svg, _svg(1000 * (bw + 2 * m), 1000 * (bh + 2 * m), rects).encode())

@@ -439,6 +439,19 @@ class ShadowCaster:
             self.boundary_edges.size == 0 and self.nonmanifold_edges.size == 0 and self.misoriented_edges.size == 0
         )
 
+    @functools.cached_property
+    def is_convex(self) -> bool:
+        """A closed mesh with every vertex on or behind every face's plane (to ``1e-9 x scale``); computed
+        once (O(faces x vertices) in blocks, stopping at the first vertex in front). Open meshes never are."""
+        if not self.is_closed:
+            return False
+        v = np.c_[self.vertices, np.ones(len(self.vertices))]
+        tol = 1e-9 * max(float(self.scale), 1e-300)
+        block = max(1, 2_000_000 // max(len(v), 1))
+        return not any(
+            np.any(v @ self.face_planes[s : s + block].T > tol) for s in range(0, len(self.face_planes), block)
+        )
+
     @property
     def two_sided(self) -> bool:
         """True for meshes that are not closed: all their faces cast shadows, turned towards the light."""

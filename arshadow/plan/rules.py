@@ -73,21 +73,10 @@ PLANS = ("auto", "general", "zpass", "zfail", "planar")
 PLAN_OFF = ("planar", "zpass", "truncate", "cull", "roi", "reuse")
 
 
-def mesh_is_convex(caster: ShadowCaster, rel_tol: float = 1e-9) -> bool:
-    """Whether a closed mesh is convex: every vertex lies on or behind every face's plane.
-
-    Computed once per mesh (O(faces x vertices), in blocks, stopping at the first vertex in front of a
-    face). Open (two-sided) meshes are never convex here.
-
-    Parameters
-    ----------
-    caster : arshadow.geometry.mesh.ShadowCaster
-    rel_tol : float
-        A vertex up to ``rel_tol * caster.scale`` in front of a plane counts as on it (rounding).
-
-    Returns
-    -------
-    bool
+def mesh_is_convex(caster: ShadowCaster) -> bool:
+    """Whether a closed mesh is convex: every vertex lies on or behind every face's plane
+    (:attr:`arshadow.geometry.caster.ShadowCaster.is_convex`, computed once per mesh). Open (two-sided)
+    meshes are never convex here.
 
     Examples
     --------
@@ -95,16 +84,7 @@ def mesh_is_convex(caster: ShadowCaster, rel_tol: float = 1e-9) -> bool:
     >>> mesh_is_convex(load_occluder("box:1,1,1")), mesh_is_convex(load_occluder("torus:1,0.3"))
     (True, False)
     """
-    if getattr(caster, "two_sided", True):
-        return False
-    planes = np.asarray(caster.face_planes, np.float64)  # (m, 4), unit normals
-    v = np.c_[np.asarray(caster.vertices, np.float64), np.ones(len(caster.vertices))]
-    tol = rel_tol * max(float(caster.scale), 1e-300)
-    block = max(1, 2_000_000 // max(len(v), 1))
-    for s in range(0, len(planes), block):
-        if np.any(v @ planes[s : s + block].T > tol):
-            return False
-    return True
+    return bool(caster.is_convex)
 
 
 def planar_applies(

@@ -550,19 +550,6 @@ def _fill_under(vis: np.ndarray) -> np.ndarray:
     return out
 
 
-def _is_convex(caster: ShadowCaster) -> bool:
-    """A closed mesh with every vertex on the inner side of every face plane (to 1e-9 of its size)."""
-    if not caster.is_closed:
-        return False
-    tol = 1e-9 * caster.scale
-    planes = caster.face_planes
-    v = caster.vertices
-    for s in range(0, len(planes), 4096):
-        if np.any(v @ planes[s : s + 4096, :3].T + planes[s : s + 4096, 3] > tol):
-            return False
-    return True
-
-
 def object_sky_visibility(  # noqa: PLR0913 (the points, and keyword-only options)
     caster: ShadowCaster,
     points: np.ndarray,
@@ -609,7 +596,7 @@ def object_sky_visibility(  # noqa: PLR0913 (the points, and keyword-only option
     p = np.asarray(points, np.float64).reshape(-1, 3)
     nrm = np.asarray(normals, np.float64).reshape(-1, 3)
     nrm = nrm / np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
-    convex = _is_convex(caster)
+    convex = caster.is_convex
     if convex and sky == "uniform":
         # nothing of a convex object hides its own sky: a plane tilted by a from the horizontal sees
         # (1 + cos a) / 2 of the cosine lobe above the horizon and the rest of it on the ground

@@ -36,6 +36,7 @@ from .poses import camera_path, look_at_pose, pan_path, random_pose
 
 __all__ = [
     "SynthPhoto",
+    "board_markers",
     "camera_effects",
     "camera_path",
     "look_at_pose",
@@ -161,8 +162,10 @@ def _marker_texture(dictionary: str, marker_id: int, margin_rel: float) -> tuple
     return tex, mapping
 
 
-def _board_markers(board: Board) -> list:
-    """The board's markers as :func:`_layout_texture` takes them: ``((x_left, y_top), side, bits)``."""
+def board_markers(board: Board) -> list:
+    """The board's markers as a print lays them out: ``[((x_left, y_top), side, bits)]``, the top-left corner
+    in the board's world frame (metres), the side (metres) and the marker's cells ``bits (c, c) bool`` (True
+    white, with the black border) from :func:`arshadow.tracking.dictionary.marker_bits`."""
     d = board.cv_dictionary
     return [
         ((c[0, 0], c[0, 1]), board.marker_length, marker_bits(d, mid)) for mid, c in board.marker_corners_world.items()
@@ -177,7 +180,7 @@ def board_print(board: Board, margin: float, ppm: float) -> tuple[np.ndarray, tu
     paper rectangle ``(xmin, ymin, xmax, ymax)`` in the board's world frame.
     """
     paper = _board_paper(board, margin)
-    tex, mapping = _layout_texture(_board_markers(board), board.black_squares_world, paper, ppm)
+    tex, mapping = _layout_texture(board_markers(board), board.black_squares_world, paper, ppm)
     return tex, mapping, paper
 
 
