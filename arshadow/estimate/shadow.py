@@ -53,6 +53,8 @@ LUMA = np.array([0.2126, 0.7152, 0.0722])
 SS = 4
 #: :func:`edge_pairs`' edge cells: ``|blurred coverage - 0.5|`` under this (Phi(0.5) - 0.5: half a cell)
 EDGE_BAND = 0.19
+#: blur-scaled distances past which a blurred edge's coverage is 0 or 1 (Phi(-6) ~ 1e-9)
+ERF_REACH = 6.0
 #: the least blur of a shadow's edge on a grid, cells (:func:`edge_sigma`)
 MIN_EDGE_CELLS = 0.3
 #: variance (px^2) a pixel's area adds across an edge, and the bilinear resampling's tent
@@ -335,15 +337,15 @@ def hull_coverage(ev: Evidence, q: np.ndarray) -> np.ndarray:
     ny, nx = ev.shape
     out = np.zeros((ny, nx), np.float32)
     hull = cv2.convexHull(np.asarray(q, np.float32).reshape(-1, 1, 2)).reshape(-1, 2).astype(np.float64)
-    a, b = hull, np.roll(hull, -1, axis=0)
-    e = b - a
+    a = hull
+    e = np.concatenate([hull[1:], hull[:1]]) - a
     length = np.linalg.norm(e, axis=1)
     keep = length > 1e-12
     a, e, length = a[keep], e[keep], length[keep]
     if len(a) < 3:
         return out
     e /= length[:, None]
-    ccw = float(np.sum(e[:, 0] * np.roll(e[:, 1], -1) - e[:, 1] * np.roll(e[:, 0], -1))) > 0.0
+    ccw = float(np.sum(e[:-1, 0] * e[1:, 1] - e[:-1, 1] * e[1:, 0])) > 0.0  # turning left at its corners
     n = np.column_stack([e[:, 1], -e[:, 0]]) if ccw else np.column_stack([-e[:, 1], e[:, 0]])  # outward
     sig = edge_sigma(ev, e)
     reach = 5.0 * float(sig.max())
@@ -359,7 +361,10 @@ def hull_coverage(ev: Evidence, q: np.ndarray) -> np.ndarray:
     for k in range(len(a)):
         dk = ((X[None, :] - a[k, 0]) * n[k, 0] + (Y[:, None] - a[k, 1]) * n[k, 1]) / sig[k]
         np.maximum(d, dk, out=d)
-    out[i0:i1, j0:j1] = 0.5 * erfc(d / math.sqrt(2.0))
+    block = (d < 0.0).astype(np.float32)
+    soft = np.abs(d) < ERF_REACH  # beyond, Phi is 0 or 1 to 1e-9
+    block[soft] = 0.5 * erfc(d[soft] / math.sqrt(2.0))
+    out[i0:i1, j0:j1] = block
     return out
 
 
