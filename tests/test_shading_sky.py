@@ -147,6 +147,21 @@ def test_object_convex_box_against_the_horizon():
     assert abs(sky_cie[0] - (math.pi / 6 + 4 / 9) / (7 * math.pi / 9)) <= TOL.sky_object_abs
 
 
+def test_object_convexity_is_tested_on_every_face():
+    # ShadowCaster.is_convex reads the face planes in blocks, stopping at the first with a vertex in front:
+    # the sphere (1 280 faces) is convex and takes the closed form; with a tall box after its faces (the
+    # last planes read) the mesh is not, and the box hides the sky of the side facing it
+    vs, fs = primitive("sphere:0.04")
+    vb, fb = primitive("box:0.02,0.1,0.3")
+    p, n = np.array([[0.04, 0.0, 0.04]]), np.array([[1.0, 0.0, 0.0]])  # the sphere's side facing +x
+    sky_alone, ground_alone = object_sky_visibility(ShadowCaster(vs, fs), p, n)
+    assert (sky_alone[0], ground_alone[0]) == (0.5, 0.5)  # (1 + n_z) / 2: a vertical face of a convex object
+    both = ShadowCaster(np.vstack([vs, vb + [0.07, 0.0, 0.0]]), np.vstack([fs, fb + len(vs)]))
+    assert not both.is_convex
+    sky_both, _ = object_sky_visibility(both, p, n)
+    assert sky_both[0] < 0.1  # the box 3 cm away, 30 cm tall, fills most of that face's sky
+
+
 def test_object_self_occlusion_beside_a_taller_box_matches_lambert():
     # one mesh of two boxes: a low one (5 cm) and, 2 cm beyond it, a tall one (20 cm); a point on the low
     # box's top sees the tall box's facing wall above its own horizon
