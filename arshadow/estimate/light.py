@@ -1,17 +1,18 @@
 """Fit the light to the probe's real shadow by analysis by synthesis.
 
-For a candidate light the probe's exact ground shadow is rasterised on each frame's ground grid
-(:func:`arshadow.estimate.shadow.shadow_coverage`) and the photo explained by it
+For a candidate light the probe's exact ground shadow is drawn on each frame's ground grid as the photo's
+samples see it (:func:`arshadow.estimate.shadow.shadow_coverage`) and the photo explained by it
 (:func:`arshadow.estimate.shadow.fit_levels`); the objective is the sum over frames of ``RSS / RSS0`` (the
 residual left by the shadow model, relative to no shadow at all). The light is fixed in the world, so
 frames of a video add up.
 
 Search, coarse to fine: an exhaustive grid on a coarse ground grid (directional: azimuth x elevation every
 8 x 6 degrees; sun: NORTH every 3 degrees), then Nelder-Mead on the fine grid from the three best distinct
-coarse minima; a point light is fitted as (azimuth, elevation, log distance) from the probe's top (the
-directional fit, the objective's profile over the distance on the coarse grid, a coarse 3-D grid, then
-Nelder-Mead in 3-D), its shadow's soft edges modelled in log (:func:`log_coverage`: a linear-coverage model
-biases a point light's distance away).
+coarse minima, then again on the winner's own fine grid with the shadow's soft edges modelled in log
+(:func:`log_coverage`: a linear-coverage model makes the shadow too small, the light too high); a point
+light is fitted as (azimuth, elevation, log distance) from the probe's top (the directional fit, the
+objective's profile over the distance on the coarse grid, a coarse 3-D grid, then Nelder-Mead in 3-D, in
+log too), up to :data:`MAX_POINT_DISTANCE` (a fit that runs there is a directional light's: refused).
 The uncertainty is the Laplace approximation of the least-squares fit (numerical Hessian of the RSS, the
 noise variance from the residual, inflated by the residual's spatial correlation).
 
