@@ -165,6 +165,7 @@ def test_rendered_layers_are_the_static_ones_blurred_along_the_motion(ctx, tol):
     the static frame's blurred by the trapezoid built here, and its shadow mask the static one's within a
     level; the frame is composited by the numpy path, and the report carries the values."""
     from arshadow.frame.execute import MOTION_WHY, FrameOutputs
+    from arshadow.frame.hooks import EngineFrame
     from arshadow.frame.motion import MotionBlur
     from arshadow.frame.session import Session
     from arshadow.synth.poses import look_at_pose
@@ -174,11 +175,11 @@ def test_rendered_layers_are_the_static_ones_blurred_along_the_motion(ctx, tol):
     motion = MotionBlur(shift_px=(8.0, 0.0), frame_px=(16.0, 0.0), shutter=0.5, source="given")
     with Session(JOB, context=ctx) as s:
         still = s.hooks.render(photo, pose, outputs=FrameOutputs(), layers=True)
-        moved = s.hooks.render(photo, pose, outputs=FrameOutputs(), layers=True, motion=motion)
+        moved = s.hooks.render(photo, pose, outputs=FrameOutputs(), layers=True, frame=EngineFrame(motion=motion))
         # without layers asked for, a frame the shader path would composite (forced) takes the numpy path
         forced = Session({**JOB, "compose": "gpu"}, context=ctx)
         with forced:
-            plain = forced.hooks.render(photo, pose, outputs=FrameOutputs(), motion=motion)
+            plain = forced.hooks.render(photo, pose, outputs=FrameOutputs(), frame=EngineFrame(motion=motion))
     assert plain.item.compose == "cpu" and plain.item.plan["compose"] == MOTION_WHY
     assert np.array_equal(plain.composite, moved.composite)
     rep = moved.item.plan["motion_blur"]

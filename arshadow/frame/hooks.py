@@ -44,9 +44,45 @@ if TYPE_CHECKING:  # annotations only
     from .result import FrameResult
     from .session import Session
 
-__all__ = ["CalibrationState", "EngineHooks", "estimate_pose", "check_image", "default_renderer", "DETECT_NOTES"]
+__all__ = [
+    "CalibrationState",
+    "EngineFrame",
+    "EngineHooks",
+    "PHOTO_FRAME",
+    "estimate_pose",
+    "check_image",
+    "default_renderer",
+    "DETECT_NOTES",
+]
 
 log = logging.getLogger("arshadow.frame.session")
+
+
+@dataclass(frozen=True)
+class EngineFrame:
+    """What a video engine knows of a frame beyond the pose it is rendered at (:meth:`EngineHooks.render`).
+
+    Attributes
+    ----------
+    marker : arshadow.tracking.pose.MarkerPose or None
+        This frame's tracked marker when the pose rendered at is not it (a video's smoothed pose, or a
+        plan): the exposure match reads the paper of its marker id.
+    seen : bool
+        False: the marker is not in this frame (a video frame rendered with a held pose). The exposure
+        match then measures nothing, because the paper is not where the pose says, and keeps the video's
+        last gain.
+    motion : arshadow.frame.motion.MotionBlur or None
+        The frame's motion blur (a video's, from its neighbouring frames' poses:
+        :meth:`arshadow.video.framejob.SessionBackend.motion`); None: none.
+    """
+
+    marker: MarkerPose | None = None
+    seen: bool = True
+    motion: MotionBlur | None = None
+
+
+#: a photo: its own marker, seen, no motion
+PHOTO_FRAME = EngineFrame()
 
 #: the report's ``plan.detect``: where the tracker searched (``MarkerTracker.last_search``)
 DETECT_NOTES = {
@@ -355,9 +391,7 @@ class EngineHooks:
         plan: FramePlan | None = None,
         outputs: FrameOutputs | None = None,
         layers: bool | str = False,
-        marker: MarkerPose | None = None,
-        seen: bool = True,
-        motion: MotionBlur | None = None,
+        frame: EngineFrame = PHOTO_FRAME,
     ) -> FrameResult:
         """:meth:`Session.render` with the engine's buffers and history.
 
@@ -369,15 +403,7 @@ class EngineHooks:
             Buffers (``out`` may be ``image``: composited in place), ``want_mask``, the report item and the
             stage times to add to (e.g. the ``detect`` / ``pose`` of :meth:`Session.track`; ``total`` grows by
             this call's time).
-        marker : arshadow.tracking.pose.MarkerPose, optional
-            This frame's tracked marker when ``pose`` is not it (a video's smoothed pose, or a plan): the
-            exposure match reads the paper of its marker id.
-        seen : bool
-            False: the marker is not in this frame (a video frame rendered with a held pose). The exposure
-            match then measures nothing, because the paper is not where the pose says, and keeps the
-            video's last gain.
-        motion : arshadow.frame.motion.MotionBlur, optional
-            The frame's motion blur (a video's, from its neighbouring frames' poses:
-            :meth:`arshadow.video.framejob.SessionBackend.motion`); None: none (a photo).
+        frame : EngineFrame
+            The frame's tracked marker, whether it is in view, and its motion blur (default: a photo's).
         """
-        return self._render(image, pose, plan, outputs, layers, marker, seen, motion)
+        return self._render(image, pose, plan, outputs, layers, frame)

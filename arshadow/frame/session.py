@@ -63,7 +63,7 @@ from ..tracking.pose import MarkerPose
 from ..transforms import invert_rigid, rvec_tvec_from_matrix
 from .execute import LAYERS_WHY, FrameContext, FrameOutputs, LayerRequest, execute
 from .history import History
-from .hooks import CalibrationState, EngineHooks, check_image, default_renderer, estimate_pose
+from .hooks import PHOTO_FRAME, CalibrationState, EngineFrame, EngineHooks, check_image, default_renderer, estimate_pose
 from .report import ReportItem, StageTimings
 from .result import FrameResult
 
@@ -72,7 +72,6 @@ if TYPE_CHECKING:
     from ..gl.gpu_compose import GpuCompositor
     from ..shading.sky import GroundRaster
     from .effects import CameraEffects
-    from .motion import MotionBlur
 
 __all__ = ["Session", "FrameResult", "render_photo"]
 
@@ -355,12 +354,10 @@ class Session(History):
         plan: FramePlan | None,
         outputs: FrameOutputs | None,
         layers: bool | str = False,
-        marker: MarkerPose | None = None,
-        seen: bool = True,
-        motion: MotionBlur | None = None,
+        frame: EngineFrame = PHOTO_FRAME,
     ) -> FrameResult:
         """:meth:`render` (and :meth:`arshadow.frame.hooks.EngineHooks.render`): ``outputs`` holds the buffers, item
-        and timings (``total`` grows by this call's time); ``marker``, ``seen``, ``motion``: as the hook's."""
+        and timings (``total`` grows by this call's time); ``frame``: as the hook's."""
         if (pose is None) == (plan is None):
             raise UsageError("Session.render needs a pose or a plan (one of them)")
         t0 = time.perf_counter()
@@ -377,7 +374,7 @@ class Session(History):
             )
         tracked = pose if isinstance(pose, MarkerPose) else None
         outputs.layers = _layer_request(layers)
-        res = self._render(image, plan, tracked, outputs, marker, seen, motion)
+        res = self._render(image, plan, tracked, outputs, frame)
         outputs.timings.total += (time.perf_counter() - t0) * 1e3
         outputs.item.timings_ms = outputs.timings.as_dict(3)
         return res
@@ -434,12 +431,10 @@ class Session(History):
         plan: FramePlan,
         pose: MarkerPose | None,
         outputs: FrameOutputs,
-        marker: MarkerPose | None = None,
-        seen: bool = True,
-        motion: MotionBlur | None = None,
+        frame: EngineFrame = PHOTO_FRAME,
     ) -> FrameResult:
         """Execute ``plan`` on ``image`` into ``outputs`` and fill its item (all but ``timings_ms``); ``pose``:
-        the tracked :class:`~arshadow.tracking.pose.MarkerPose` or None; ``marker``, ``seen``, ``motion``: as
+        the tracked :class:`~arshadow.tracking.pose.MarkerPose` or None; ``frame``: as
         :meth:`arshadow.frame.hooks.EngineHooks.render`."""
         H, W = image.shape[:2]
         cal, hooks = self.hooks.calibration(W, H), self.hooks
@@ -451,11 +446,11 @@ class Session(History):
                 image,
                 cal.intrinsics,
                 cfw,
-                pose if marker is None else marker,
+                pose if frame.marker is None else frame.marker,
                 self.geometry,
                 self._marker_from_ground,
                 self.options.exposure_gain,
-                seen,
+                frame.seen,
             )
         if not plan.empty:  # the renderer (and the context) is made only when there is something to draw
             key = hooks.compose_key(W, H, cal.lens is not None)
@@ -472,7 +467,7 @@ class Session(History):
             gpu=self._gpu_compositor,
         )
         camera = self._camera_effects(image, pose)
-        out, mask = execute(plan, image, context, outputs, color_gain=gain, camera=camera, motion=motion)
+        out, mask = execute(plan, image, context, outputs, color_gain=gain, camera=camera, motion=frame.motion)
         lay = None if outputs.layers is None else outputs.layers["layers"]
         return FrameResult(out, mask, pose, np.asarray(cfw, np.float64), outputs.item, outputs.timings, plan, lay)
 

@@ -26,6 +26,7 @@ import numpy as np
 
 from ..errors import ImageError, MarkerNotFoundError
 from ..frame.execute import FrameOutputs
+from ..frame.hooks import EngineFrame
 from ..frame.report import ReportItem, jsonable
 from ..io import read_image, write_bytes
 from ..scene.spec import SCENE_KEYS, scene_from_dict
@@ -264,7 +265,7 @@ class PreviewEngine:
         cfm = draft_pose(s.ground_camera(pose.cam_from_world), motion, mfg)
         item = ReportItem(input=self.media.name)
         outputs = FrameOutputs(want_mask=want_mask, item=item)
-        return s.hooks.render(image, cfm, outputs=outputs, marker=pose, seen=False)
+        return s.hooks.render(image, cfm, outputs=outputs, frame=EngineFrame(marker=pose, seen=False))
 
     def _run(self, job: tuple) -> dict:
         req, t_submit = job

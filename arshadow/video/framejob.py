@@ -30,6 +30,7 @@ import numpy as np
 from ..errors import MarkerNotFoundError
 from ..frame.effects import touched_roi
 from ..frame.execute import FrameOutputs
+from ..frame.hooks import PHOTO_FRAME, EngineFrame
 from ..frame.motion import MotionBlur, frame_motion
 from ..frame.report import ReportItem, StageTimings
 from ..scene.sanity import FlagTally
@@ -231,20 +232,18 @@ class SessionBackend:
         want_mask: bool,
         timings: dict[str, float],
         plan: FramePlan | None = None,
-        marker: MarkerPose | None = None,
-        motion: MotionBlur | None = None,
+        frame: EngineFrame = PHOTO_FRAME,
     ) -> tuple[np.ndarray | None, ReportItem]:
         """Composite into ``bgr`` (modified in place), at the marker pose ``cam_from_marker`` or carrying out
         ``plan``; returns ``(mask or None, the frame's report item)``; ``timings`` gets the render stages.
-        ``marker``: the frame's tracked pose (the exposure match reads its paper), None when the marker is
-        not in the frame (a held pose: the exposure match keeps the last gain). ``motion``: the frame's motion
-        blur (:meth:`motion`), None: none."""
+        ``frame``: the frame's tracked marker (the exposure match reads its paper; none in view: a held pose,
+        the exposure match keeps the last gain) and its motion blur (:meth:`motion`)."""
         outputs = FrameOutputs(want_mask=want_mask, out=bgr)
-        kw: dict[str, Any] = {"outputs": outputs, "layers": self.want_layers, "marker": marker, "motion": motion}
+        kw: dict[str, Any] = {"outputs": outputs, "layers": self.want_layers, "frame": frame}
         if plan is not None:
-            res = self.hooks.render(bgr, plan=plan, seen=marker is not None, **kw)
+            res = self.hooks.render(bgr, plan=plan, **kw)
         else:
-            res = self.hooks.render(bgr, cam_from_marker, seen=marker is not None, **kw)
+            res = self.hooks.render(bgr, cam_from_marker, **kw)
         self.last_layers = res.layers
         for k, v in res.timings.as_dict().items():
             if k != "total":
@@ -467,13 +466,12 @@ class FrameComposer:
         for the video; with a motion blur applied, the ROI grown by the blurs' reach,
         :meth:`SessionBackend.grown`): the compositor reads and writes no pixel outside it, and the result
         goes back into the planes inside it only (:func:`i420_with_roi`)."""
+        frame = EngineFrame(marker, marker is not None, motion)
         if fmt != "yuv420p":
             tc = time.perf_counter()
             bgr = np.array(img)
             timings["convert"] += (time.perf_counter() - tc) * 1e3
-            mask, item = self.backend.render(
-                bgr, cam_from_marker, self.want_mask, timings, marker=marker, motion=motion
-            )
+            mask, item = self.backend.render(bgr, cam_from_marker, self.want_mask, timings, frame=frame)
             if self.layer_sink is not None:
                 self.layer_sink.write(self.backend.last_layers)
             return bgr, mask, item
@@ -491,9 +489,7 @@ class FrameComposer:
         ):
             i420_roi_to_bgr(img, bgr, paper)  # the exposure match reads the marker's paper, often outside the ROI
         timings["convert"] += (time.perf_counter() - tc) * 1e3
-        mask, item = self.backend.render(
-            bgr, cam_from_marker, self.want_mask, timings, plan=plan, marker=marker, motion=motion
-        )
+        mask, item = self.backend.render(bgr, cam_from_marker, self.want_mask, timings, plan=plan, frame=frame)
         if self.layer_sink is not None:
             self.layer_sink.write(self.backend.last_layers)
         tc = time.perf_counter()
