@@ -414,3 +414,57 @@ def test_batch_on_dask_localcluster_equals_local(tmp_path):
             fa, fb = _frames(tmp_path / "local" / name, raw=True), _frames(tmp_path / "dask" / name, raw=True)
             assert len(fa) == len(fb) == 8 and all(np.array_equal(x, y) for x, y in zip(fa, fb, strict=True))
     assert (tmp_path / "local" / "p0.png").read_bytes() == (tmp_path / "dask" / "p0.png").read_bytes()
+
+
+@pytest.mark.gl
+def test_yuv420p_frames_take_back_all_the_camera_blur_writes(tmp_path, gl_ctx, monkeypatch):
+    """With camera effects on and no motion blur, the compositor writes the ROI grown by the camera blur's
+    reach (the object's and its shadow's blurred edges spill past the ROI's 2 px margin). A yuv420p frame
+    must be converted and written back over all of that region: the ROI alone dropped the spill."""
+    from arshadow.frame import execute
+    from arshadow.video import framejob
+
+    touched, written, rois = [], [], []
+    real_touched, real_back = execute._touched, framejob.i420_with_roi
+
+    def spy_touched(frame):
+        rois.append(tuple(frame.plan.roi))
+        touched.append(tuple(real_touched(frame)))
+        return touched[-1]
+
+    def spy_back(img, bgr, roi, out=None):
+        written.append(tuple(int(v) for v in roi))
+        return real_back(img, bgr, roi, out=out)
+
+    monkeypatch.setattr(execute, "_touched", spy_touched)
+    monkeypatch.setattr(framejob, "i420_with_roi", spy_back)
+    clip = make_clip(tmp_path / "c.mp4", _intr(), _poses(4), noise=1.0)  # H.264: yuv420p frames
+    out = tmp_path / "o"
+    argv = ("--format", "mkv", "-q", "--camera-effects", "on", "--motion-blur", "off")
+    assert _cli("video", clip, *SCENE, "-o", out, *argv) == 0
+    assert len(touched) == len(written) == len(rois) == 4
+    for t, w, r in zip(touched, written, rois, strict=True):
+        assert t[0] < r[0] and t[2] > r[2]  # the camera's blur reaches past the ROI
+        assert w[0] <= t[0] and w[1] <= t[1] and w[0] + w[2] >= t[0] + t[2] and w[1] + w[3] >= t[1] + t[3], (w, t)
+
+
+@pytest.mark.gl
+def test_video_camera_effects_are_measured_on_the_whole_frame_and_applied(tmp_path, gl_ctx):
+    """--camera-effects on in a video: the blur and the noise are measured once, on the whole of the first
+    tracked frame, and applied. Before: the video's smoothed pose carried no tracked marker to measure on, so
+    nothing was applied (the frames equalled --camera-effects off), and a yuv420p frame converted inside the
+    ROI only would have shown the measurement a black floor. Truth: make_clip's blur (0.8 px, before H.264)
+    and its floor, a mid grey."""
+    clip = make_clip(tmp_path / "c.mp4", _intr(), _poses(3), noise=2.0)
+    frames, reports = {}, {}
+    for ce in ("off", "on"):
+        rep = tmp_path / f"{ce}.json"
+        argv = ("--format", "mkv", "-q", "--camera-effects", ce, "--motion-blur", "off", "--report", rep)
+        assert _cli("video", clip, *SCENE, "-o", tmp_path / ce, *argv) == 0
+        frames[ce], reports[ce] = _frames(tmp_path / ce / "c.mkv"), json.loads(rep.read_text())
+    effects = [im["plan"]["camera_effects"] for im in reports["on"]["images"]]
+    assert all(e == effects[0] for e in effects)  # measured once
+    assert 0.3 <= effects[0]["blur_sigma_px"] <= 1.2, effects[0]
+    assert effects[0]["noise"] and all(max(n["level"]) > 50 for n in effects[0]["noise"]), effects[0]
+    assert any(not np.array_equal(a, b) for a, b in zip(frames["on"], frames["off"], strict=True))
+    assert all("camera_effects" not in im["plan"] for im in reports["off"]["images"])

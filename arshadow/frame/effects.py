@@ -212,7 +212,11 @@ def touched_roi(
 
     >>> touched_roi((10, 10, 20, 20), None, None, 64, 48), touched_roi((2, 10, 20, 20), CameraEffects(1.0), None, 64, 48)
     ((10, 10, 20, 20), (0, 7, 25, 26))
+    >>> touched_roi((0, 0, 0, 0), CameraEffects(1.0), None, 64, 48)  # an empty ROI: nothing to write
+    (0, 0, 0, 0)
     """
-    p = (0 if camera is None else camera.pad) + (0 if motion is None else motion.reach)
     x0, y0, w, h = (int(v) for v in roi)
+    if w <= 0 or h <= 0:  # nothing drawn: nothing written
+        return clip_roi((x0, y0, w, h), width, height)
+    p = (0 if camera is None else camera.pad) + (0 if motion is None else motion.reach)
     return clip_roi((x0 - p, y0 - p, w + 2 * p, h + 2 * p), width, height)

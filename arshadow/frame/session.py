@@ -466,7 +466,9 @@ class Session(History):
             chooser=hooks.compose_chooser,
             gpu=self._gpu_compositor,
         )
-        camera = self._camera_effects(image, pose)
+        # the photo's optics, measured on the first frame whose marker is tracked (a video renders a smoothed
+        # pose: its tracked marker comes in ``frame``)
+        camera = self.measure_camera_effects(image, pose if pose is not None else frame.marker)
         out, mask = execute(plan, image, context, outputs, color_gain=gain, camera=camera, motion=frame.motion)
         lay = None if outputs.layers is None else outputs.layers["layers"]
         return FrameResult(out, mask, pose, np.asarray(cfw, np.float64), outputs.item, outputs.timings, plan, lay)
@@ -477,9 +479,12 @@ class Session(History):
         marker, or off)."""
         return self._camera
 
-    def _camera_effects(self, image: np.ndarray, pose: MarkerPose | None) -> CameraEffects | None:
+    def measure_camera_effects(self, image: np.ndarray, pose: MarkerPose | None) -> CameraEffects | None:
         """The photo's blur and noise (``--camera-effects on``), measured on the first frame whose marker is
-        detected and kept for the session (:func:`arshadow.frame.effects.measure_camera`); else None."""
+        detected and kept for the session (:func:`arshadow.frame.effects.measure_camera`); else None.
+
+        ``image`` (H, W, 3) uint8 BGR: the whole frame (the marker's edges, its paper and the floor round it
+        are read); ``pose``: its tracked marker (None: nothing measured)."""
         if self.options.camera_effects != "on":
             return None
         cam = self._camera

@@ -219,8 +219,19 @@ class SessionBackend:
         cfw = s.ground_camera(fp.cam_from_marker)
         return frame_motion(self.cal.intrinsics, s.geometry.corners, cfw, near(before), near(after), o.shutter)
 
-    def grown(self, roi: Sequence[int], motion: MotionBlur) -> tuple[int, int, int, int]:
-        """``roi`` grown by the blurs' reach (``motion``'s and the measured camera blur's), within the frame."""
+    def camera_unmeasured(self, marker: MarkerPose | None) -> bool:
+        """Whether this frame (its tracked ``marker``, None: not in view) is the one the camera's blur and
+        noise are to be measured on (``--camera-effects on``, not measured yet)."""
+        s = self.session
+        return marker is not None and s.options.camera_effects == "on" and s.camera_effects is None
+
+    def measure_camera(self, bgr: np.ndarray, marker: MarkerPose) -> None:
+        """Measure the camera's blur and noise on the whole frame ``bgr (H, W, 3) uint8`` (once a video)."""
+        self.session.measure_camera_effects(bgr, marker)
+
+    def grown(self, roi: Sequence[int], motion: MotionBlur | None) -> tuple[int, int, int, int]:
+        """``roi`` grown by the blurs' reach (``motion``'s, if any, and the measured camera blur's), within the
+        frame."""
         assert self.cal is not None  # set by start()
         intr = self.cal.intrinsics
         return touched_roi(roi, self.session.camera_effects, motion, intr.width, intr.height)
@@ -462,10 +473,10 @@ class FrameComposer:
         item of :meth:`arshadow.frame.session.Session.render`. ``marker``: the frame's tracked pose (None: held);
         ``motion``: its motion blur.
 
-        A ``yuv420p`` frame is converted to BGR only inside the plan's ROI (even-aligned; into a buffer kept
-        for the video; with a motion blur applied, the ROI grown by the blurs' reach,
-        :meth:`SessionBackend.grown`): the compositor reads and writes no pixel outside it, and the result
-        goes back into the planes inside it only (:func:`i420_with_roi`)."""
+        A ``yuv420p`` frame is converted to BGR only inside the plan's ROI grown by the blurs' reach (the
+        camera's and an applied motion blur's, :meth:`SessionBackend.grown`; even-aligned; into a buffer kept
+        for the video): the compositor reads and writes no pixel outside it, and the result goes back into
+        the planes inside it only (:func:`i420_with_roi`)."""
         frame = EngineFrame(marker, marker is not None, motion)
         if fmt != "yuv420p":
             tc = time.perf_counter()
@@ -476,12 +487,18 @@ class FrameComposer:
                 self.layer_sink.write(self.backend.last_layers)
             return bgr, mask, item
         plan = self.backend.plan(cam_from_marker, self.W, self.H)
-        region = None if motion is None or not motion.active else self.backend.grown(plan.roi, motion)
         tc = time.perf_counter()
         if self._bgr is None:
             self._bgr = np.zeros((self.H, self.W, 3), np.uint8)
         bgr = self._bgr
-        i420_roi_to_bgr(img, bgr, plan.roi if region is None else region)
+        if self.backend.camera_unmeasured(marker):  # the optics are read on the whole frame, once a video
+            assert marker is not None  # camera_unmeasured: a tracked marker
+            i420_roi_to_bgr(img, bgr, (0, 0, self.W, self.H))
+            self.backend.measure_camera(bgr, marker)
+        # what the compositor may write: the ROI grown by the blurs' reach (the camera's, and the motion's
+        # when it is applied); the ROI alone without them
+        region = self.backend.grown(plan.roi, motion if motion is not None and motion.active else None)
+        i420_roi_to_bgr(img, bgr, region)
         if (
             marker is not None
             and not plan.empty
@@ -493,7 +510,7 @@ class FrameComposer:
         if self.layer_sink is not None:
             self.layer_sink.write(self.backend.last_layers)
         tc = time.perf_counter()
-        img = i420_with_roi(img, bgr, item.roi if region is None else region, out=writable(img))
+        img = i420_with_roi(img, bgr, region, out=writable(img))
         timings["convert"] += (time.perf_counter() - tc) * 1e3
         return img, mask, item
 
