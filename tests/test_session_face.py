@@ -20,7 +20,7 @@ PUBLIC = {
 }  # fmt: skip
 HOOKS = (
     "calibration", "tracker_state", "reset_tracking", "compose_key", "compose_chooser", "exposure",
-    "exposure_region", "observe_exposure", "exposure_gap", "render",
+    "exposure_region", "observe_exposure", "exposure_gap", "render", "camera_effects", "measured_camera",
 )  # fmt: skip
 
 

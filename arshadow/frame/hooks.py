@@ -32,6 +32,7 @@ from ..tracking.edgelock import EdgeSpaceLock
 from ..tracking.pose import MarkerPose
 from ..tracking.reference import ReferenceLock
 from ..tracking.tracker import MarkerTracker
+from .effects import CameraEffects, measure_camera
 from .report import StageTimings
 
 if TYPE_CHECKING:  # annotations only
@@ -269,6 +270,8 @@ class EngineHooks:
         self._session, self._render = session, render
         self._calibs: dict[tuple[int, int], CalibrationState] = {}
         self._lenses: dict[Any, LensWarp] = {}
+        #: the photo's blur and noise (--camera-effects on): measured on the first frame with a marker
+        self.measured_camera: CameraEffects | None = None
         opts, tk = session.options, session.scene.tracker
         self.compose_chooser: PathChooser = PathChooser(force=None if opts.compose == "auto" else opts.compose)
         self.exposure: ExposureMatch | None = (
@@ -321,6 +324,21 @@ class EngineHooks:
         as it would be in a fresh session)."""
         for cal in self._calibs.values():
             cal.reset_trackers()
+
+    def camera_effects(self, image: np.ndarray, pose: MarkerPose | None) -> CameraEffects | None:
+        """The photo's blur and noise (``--camera-effects on``), measured on the first frame whose marker is
+        tracked and kept for the session (:func:`arshadow.frame.effects.measure_camera`, then
+        :attr:`measured_camera`); None when off or not measured yet.
+
+        ``image`` (H, W, 3) uint8 BGR: the whole frame (the marker's edges, its paper and the floor round it
+        are read); ``pose``: its tracked marker (None: nothing measured)."""
+        if self._session.options.camera_effects != "on":
+            return None
+        if self.measured_camera is None and pose is not None and pose.all_corners:
+            corners = pose.all_corners
+            ref = pose.marker_ids[0] if pose.marker_ids else next(iter(corners))
+            self.measured_camera = measure_camera(image, np.asarray(corners.get(ref, next(iter(corners.values())))))
+        return self.measured_camera
 
     def compose_key(self, width: int, height: int, distorted: bool) -> tuple[Any, ...]:
         """The key under which the compose path is measured: (renderer backend, size, anti-aliasing, lens, sky

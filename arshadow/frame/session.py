@@ -140,7 +140,6 @@ class Session(History):
         else:
             self._renderer, self._own_renderer, self._renderer_factory = None, True, renderer
         self._gpu: GpuCompositor | None = None
-        self._camera: CameraEffects | None = None  # measured on the first frame with a marker (camera effects)
         if self.scene.sun_tracks:  # a time-lapse of the spec (SceneSpec.time_lapse)
             self.use_sun_tracks(self.scene.sun_tracks, self.scene.static_lights or ())
         self._work = Workspace()
@@ -468,7 +467,7 @@ class Session(History):
         )
         # the photo's optics, measured on the first frame whose marker is tracked (a video renders a smoothed
         # pose: its tracked marker comes in ``frame``)
-        camera = self.measure_camera_effects(image, pose if pose is not None else frame.marker)
+        camera = hooks.camera_effects(image, pose if pose is not None else frame.marker)
         out, mask = execute(plan, image, context, outputs, color_gain=gain, camera=camera, motion=frame.motion)
         lay = None if outputs.layers is None else outputs.layers["layers"]
         return FrameResult(out, mask, pose, np.asarray(cfw, np.float64), outputs.item, outputs.timings, plan, lay)
@@ -477,24 +476,7 @@ class Session(History):
     def camera_effects(self) -> CameraEffects | None:
         """The photo's measured blur and noise (``--camera-effects on``; None before the first frame with the
         marker, or off)."""
-        return self._camera
-
-    def measure_camera_effects(self, image: np.ndarray, pose: MarkerPose | None) -> CameraEffects | None:
-        """The photo's blur and noise (``--camera-effects on``), measured on the first frame whose marker is
-        detected and kept for the session (:func:`arshadow.frame.effects.measure_camera`); else None.
-
-        ``image`` (H, W, 3) uint8 BGR: the whole frame (the marker's edges, its paper and the floor round it
-        are read); ``pose``: its tracked marker (None: nothing measured)."""
-        if self.options.camera_effects != "on":
-            return None
-        cam = self._camera
-        if cam is None and pose is not None and pose.all_corners:
-            from .effects import measure_camera
-
-            corners = pose.all_corners
-            ref = pose.marker_ids[0] if pose.marker_ids else next(iter(corners))
-            cam = self._camera = measure_camera(image, np.asarray(corners.get(ref, next(iter(corners.values())))))
-        return cam
+        return self.hooks.measured_camera
 
     def _report_frame(self, item: ReportItem, plan: FramePlan, pose: MarkerPose | None, cal: CalibrationState) -> None:
         """The report item's pose, calibration, notes and ground; warnings on a far or inside camera."""

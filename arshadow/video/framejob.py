@@ -227,7 +227,7 @@ class SessionBackend:
 
     def measure_camera(self, bgr: np.ndarray, marker: MarkerPose) -> None:
         """Measure the camera's blur and noise on the whole frame ``bgr (H, W, 3) uint8`` (once a video)."""
-        self.session.measure_camera_effects(bgr, marker)
+        self.hooks.camera_effects(bgr, marker)
 
     def grown(self, roi: Sequence[int], motion: MotionBlur | None) -> tuple[int, int, int, int]:
         """``roi`` grown by the blurs' reach (``motion``'s, if any, and the measured camera blur's), within the
