@@ -372,8 +372,8 @@ class FrameComposer:
                 self.layer_sink.write(None)
         else:
             assert fp.cam_from_marker is not None  # "ok" or "held"
-            motion = self.backend.motion(fp, before, after)
-            img, mask, item = self._render(fp.cam_from_marker, img, fmt, timings, fp.raw, motion)  # the one item
+            frame = EngineFrame(fp.raw, fp.raw is not None, self.backend.motion(fp, before, after))
+            img, mask, item = self._render(fp.cam_from_marker, img, fmt, timings, frame)  # the one item
             item.input, item.status = self.name, fp.status
             self._pose_fields(item, fp)
             if fp.raw is not None:
@@ -466,18 +466,17 @@ class FrameComposer:
         img: np.ndarray,
         fmt: str,
         timings: dict[str, float],
-        marker: MarkerPose | None = None,
-        motion: MotionBlur | None = None,
+        frame: EngineFrame = PHOTO_FRAME,
     ) -> tuple[np.ndarray, np.ndarray | None, ReportItem]:
         """Composite at the (decided) marker pose ``cam_from_marker``; returns the frame in its own format, the mask and the report
-        item of :meth:`arshadow.frame.session.Session.render`. ``marker``: the frame's tracked pose (None: held);
-        ``motion``: its motion blur.
+        item of :meth:`arshadow.frame.session.Session.render`. ``frame``: the frame's tracked pose (None: held)
+        and its motion blur.
 
         A ``yuv420p`` frame is converted to BGR only inside the plan's ROI grown by the blurs' reach (the
         camera's and an applied motion blur's, :meth:`SessionBackend.grown`; even-aligned; into a buffer kept
         for the video): the compositor reads and writes no pixel outside it, and the result goes back into
         the planes inside it only (:func:`i420_with_roi`)."""
-        frame = EngineFrame(marker, marker is not None, motion)
+        marker, motion = frame.marker, frame.motion
         if fmt != "yuv420p":
             tc = time.perf_counter()
             bgr = np.array(img)
