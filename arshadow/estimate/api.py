@@ -23,7 +23,7 @@ from ..geometry.caster import ShadowCaster
 from ..geometry.mesh import load_occluder
 from ..io import read_image, to_bgr8
 from ..lights.spec import parse_light
-from ..tracking.dictionary import DEFAULT_DICTIONARY
+from ..tracking.dictionary import DEFAULT_DICTIONARY, marker_object_points
 from ..tracking.tracker import MarkerTracker
 from .exposure import Exposure, ExposureError, measure_exposure
 from .light import FitResult, MakeFine, fit_directional, fit_point, fit_sun
@@ -197,8 +197,7 @@ def _edge_blur(img: np.ndarray, intr: Intrinsics, cam_from_world: np.ndarray, L:
     """A sharp ground edge's blur as the evidence's samples see it (pixels): the photo's point spread
     measured on the marker's outer edges (:func:`.optics.measure_blur`) with the sampling's own; None when
     no edge gave a measurement."""
-    square = 0.5 * L * np.array([[-1.0, 1.0, 0.0], [1.0, 1.0, 0.0], [1.0, -1.0, 0.0], [-1.0, -1.0, 0.0]])
-    corners = intr.project(square, cam_from_world)
+    corners = intr.project(marker_object_points(L), cam_from_world)
     try:
         return sample_blur_px(measure_blur(img, corners, cells=cells).sigma_px)
     except EstimateError:

@@ -34,6 +34,7 @@ from ..camera.model import Intrinsics
 from ..compose.composite import SRGB_TO_LINEAR
 from ..geometry.exact import ground_shadow_triangles, points_in_triangles
 from ..transforms import transform_points
+from .optics import PIXEL_VARIANCE
 
 __all__ = [
     "LUMA",
@@ -57,8 +58,8 @@ EDGE_BAND = 0.19
 ERF_REACH = 6.0
 #: the least blur of a shadow's edge on a grid, cells (:func:`edge_sigma`)
 MIN_EDGE_CELLS = 0.3
-#: variance (px^2) a pixel's area adds across an edge, and the bilinear resampling's tent
-PIXEL_VARIANCE, TENT_VARIANCE = 1.0 / 12.0, 1.0 / 6.0
+#: variance (px^2) the bilinear resampling's tent adds across an edge (averaged over the sample's phase)
+TENT_VARIANCE = 1.0 / 6.0
 #: the probe's image is left out with this seam, pixels (its faces bleed into the ground through blur)
 PROBE_SEAM_PX = 4.0
 
