@@ -290,11 +290,10 @@ class SceneGeometry:
         #: None or a None result: numpy (:func:`arshadow.shading.sky.ground_raster_cpu`)
         self.raster_source = raster_source
         # the ground's reflected light measured on the first photo (set_ground_light; None until then), the
-        # same per ground point over it (None: not read), the sky-visibility map with its key, the convexity
+        # same per ground point over it (None: not read), the sky-visibility map with its key
         self._ground_light: float | None = None
         self._ground_field: GroundLight | None = None
         self._sky_ground: tuple[Any, GroundOcclusion] | None = None
-        self._convex: bool | None = None
         if lights is not None:
             self.set_lights(lights)
 
@@ -424,13 +423,8 @@ class SceneGeometry:
 
     @property
     def convex(self) -> bool:
-        """:func:`arshadow.plan.rules.mesh_is_convex` of the occluder (computed once per mesh)."""
-        c = self._convex
-        if c is None:
-            from .rules import mesh_is_convex
-
-            c = self._convex = mesh_is_convex(self.caster)
-        return c
+        """The occluder is convex (:attr:`arshadow.geometry.caster.ShadowCaster.is_convex`, cached per mesh)."""
+        return bool(self.caster.is_convex)
 
     @property
     def sky_on(self) -> bool:
