@@ -16,18 +16,12 @@ import sys
 import time
 from pathlib import Path
 
+from video_clips import BOX_JOB
+
 ROOT = Path(__file__).resolve().parents[1]
 CALIB = ROOT / "calib" / "synth_640x360.yml"
-#: the batch's scene (a box beside the marker, one point light)
-JOB = {
-    "calib": str(CALIB),
-    "marker_length": 0.05,
-    "model": "box:0.04,0.03,0.06",
-    "place": [0.05, 0, 0],
-    "lights": ["point:-0.1,0.15,0.4"],
-    "refine": "edge",
-    "compose": "cpu",
-}
+#: the batch's scene: the video tests' box (video_clips.BOX_JOB), edge-refined corners, the numpy compose path
+JOB = {**BOX_JOB, "refine": "edge", "compose": "cpu"}
 #: frame-record keys that must be equal between a cluster run and the one-process run
 KEYS = ("frame", "time_s", "status", "marker_ids", "rvec", "tvec", "raw", "reprojection_error_px", "pose_choice")
 
