@@ -10,7 +10,7 @@ unoccluded horizontal ground's: ``V = (1/E0) * integral over the sky of L(w) vis
 ``E0`` the same integral for ``n = +z`` and ``vis = 1``. Open ground: 1; a vertical face of a convex object
 under a uniform sky: 0.5 (the ground hides the lower half of its hemisphere); the ground right under it: 0.
 
-(About 675 lines, over the project's ~600: the ground map, the object's own visibility and the light
+(About 690 lines, over the project's ~600: the ground map, the object's own visibility and the light
 they exchange share one grid, one set of directions and one rasteriser protocol; split, each half would
 import the other's private pieces.)
 
