@@ -267,9 +267,20 @@ class Tolerances:
     ref_own_contact: float = 0.182
     ref_own_object: float = 0.058
     ref_own_true_ground: float = 0.340
+    # Re-measured 2026-11-29 (third session) after the probe check skipped the probe's own creases
+    # (arshadow.estimate.outline): ho_box_rotated_tiles is no longer refused (its outline agreement 0.39 ->
+    # 0.56), so the held-out medians are over six cases: 0.128 / 0.1295 / 0.043, limits + 0.01 (a set one
+    # case larger: its first limits). The five-case limits above stay, over the same five cases (heldout5).
     ref_heldout_ground: float = 0.138
-    ref_heldout_contact: float = 0.111
-    ref_heldout_object: float = 0.060
+    ref_heldout_contact: float = 0.140
+    ref_heldout_object: float = 0.053
+    ref_heldout5_ground: float = 0.138
+    ref_heldout5_contact: float = 0.111
+    ref_heldout5_object: float = 0.060
+    # the light estimate's probe check on the own path-traced plates at their own camera (test_reference.py):
+    # 0.93-0.99 in place (0.73-0.86 before its own creases were skipped), 0.20-0.32 given 4 cm off along -y
+    outline_in_place: float = 0.9
+    outline_away: float = 0.4
     # the object's outline anti-aliased without MSAA (arshadow.compose.outline; tests/test_outline_aa.py)
     outline_exact: float = 1e-6  # a pixel one straight edge crosses: its coverage against the clipped square's area
     outline_area_px2: float = 1.0  # the AA'd alpha's sum against the silhouette polygon's area (a box: 0.4 measured)

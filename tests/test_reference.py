@@ -98,17 +98,29 @@ def test_reference_scoring_bounds(own):
     assert smooth_regions(np.zeros_like(c.smoothed_truth), c.masks).max() == 0.0
 
 
-def _medians(cases, light):
-    rs = []
+def _residuals(cases, light, refusals=2):
+    """Each case's residuals by the case's name, at most ``refusals`` cases refused by the light estimate."""
+    rs = {}
     for c in cases:
         try:
-            rs.append(run_case(c, light))
-        except (
-            EstimateError
-        ):  # the estimate refuses the case (both own point-light plates, the trust fixes ('s)'s's gate)
+            rs[c.scene.name] = run_case(c, light)
+        except EstimateError:  # the estimate refuses the case
             continue
-    assert len(rs) >= len(cases) - 2, f"the light estimate refused {len(cases) - len(rs)} of {len(cases)} cases"
-    return {k: float(np.median([r[k] for r in rs])) for k in ("ground", "contact", "object")}
+    assert len(rs) >= len(cases) - refusals, f"the light estimate refused {len(cases) - len(rs)} of {len(cases)} cases"
+    return rs
+
+
+def _medians(cases, light, refusals=2, without=None):
+    """The medians of the cases' residuals (ground, contact, object); ``without``: also those over the cases
+    but that one, returned second."""
+    rs = _residuals(cases, light, refusals)
+
+    def med(names):
+        return {k: float(np.median([rs[n][k] for n in names])) for k in ("ground", "contact", "object")}
+
+    if without is None:
+        return med(list(rs))
+    return med(list(rs)), med([n for n in rs if n != without])
 
 
 @pytest.mark.gl
@@ -125,11 +137,16 @@ def test_reference_baseline_own(own, gl_ctx, tol):
 
 @pytest.mark.gl
 def test_reference_baseline_heldout(heldout, gl_ctx, tol):
-    """The held-out scenes (judging; tune nothing on them): no worse than the baseline."""
-    m = _medians(heldout, "measured")
+    """The held-out scenes (judging; tune nothing on them): none refused, no worse than the baseline over
+    all six, and no worse than the five-case baseline over the five it was measured on (ho_box_rotated_tiles
+    was refused then: its probe's crease read as a missing outline)."""
+    m, m5 = _medians(heldout, "measured", refusals=0, without="ho_box_rotated_tiles")
     assert m["ground"] <= tol.ref_heldout_ground, m
     assert m["contact"] <= tol.ref_heldout_contact, m
     assert m["object"] <= tol.ref_heldout_object, m
+    assert m5["ground"] <= tol.ref_heldout5_ground, m5
+    assert m5["contact"] <= tol.ref_heldout5_contact, m5
+    assert m5["object"] <= tol.ref_heldout5_object, m5
 
 
 @pytest.mark.gl
@@ -190,3 +207,24 @@ def test_shadow_ratio_allows_for_the_probes_sky_occlusion(own):
         # ratio comes out nearly grey where the truth is bluish), sphere_sun 0.009 against 0.036
         err, err0 = abs((with_sky - truth) @ LUMA), abs((without - truth) @ LUMA)
         assert err < 0.75 * err0 and err <= 0.06, (sc.name, with_sky, without, truth)
+
+
+def test_probe_outline_is_read_past_its_own_crease(own, tol):
+    """The light estimate's probe check on the path-traced plates, at the scenes' own camera: the box probe's
+    lit and unlit faces meet in a crease, the strongest edge near the unlit side's outline (that side stands
+    against its own shadow), which the check read as "no edge on the outline" (0.73-0.86 on these plates,
+    0.39 on a held-out one, refused as "not where it is given"). Given 4 cm off, still chance."""
+    from arshadow.estimate.outline import outline_agreement
+    from arshadow.geometry.mesh import load_occluder
+
+    for c in own:
+        sc = c.scene
+        intr = intrinsics_of(sc).for_image(c.plate8.shape[1], c.plate8.shape[0])[0]
+
+        def agree(place, sc=sc, intr=intr, c=c):
+            m = load_occluder(sc.probe, place=place)
+            return outline_agreement(c.plate8, intr, pose_of(sc), np.asarray(m.vertices), np.asarray(m.faces))[0]
+
+        x, y, _ = sc.probe_place
+        assert agree(sc.probe_place) >= tol.outline_in_place, sc.name
+        assert agree((x, y - 0.04, 0.0)) < tol.outline_away, sc.name
