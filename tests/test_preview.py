@@ -326,7 +326,9 @@ def test_cli_prints_the_address_and_stops_cleanly_on_ctrl_c(tmp_path):
     cmd = [sys.executable, "-m", "arshadow", "preview", str(PHOTO), "--calib", str(CALIB), "--marker-length", "0.05",
            "--model", "box:0.04,0.04,0.06", "--light", "point:0.1,0.1,0.4", "--no-browser",
            "--scene-out", str(tmp_path / "s.yml")]  # fmt: skip
-    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+    p = subprocess.Popen(
+        cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path, preexec_fn=_ctrl_c_reaches_it
+    )
     try:
         line = p.stdout.readline()
         assert "http://127.0.0.1:" in line and "token=" in line, (line, p.stderr.read() if p.poll() else "")
@@ -365,10 +367,19 @@ def test_no_browser_opened_without_a_display(monkeypatch):
     assert os.environ["DISPLAY"] == ":99"
 
 
+def _ctrl_c_reaches_it():
+    """In the child before ``exec``: SIGINT's default disposition, as a process run from a terminal has it. A
+    test run started in the background by a non-interactive shell (``.ci/run &``) ignores SIGINT, the
+    children inherit that, and Python then installs no KeyboardInterrupt: the server would never stop."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _start_cli(args, cwd):
     """``arshadow preview ARGS --no-browser`` in a subprocess: (process, address)."""
     cmd = [sys.executable, "-m", "arshadow", "preview", *map(str, args), "--no-browser"]
-    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=cwd)
+    p = subprocess.Popen(
+        cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=cwd, preexec_fn=_ctrl_c_reaches_it
+    )
     line = p.stdout.readline()
     if "token=" not in line:
         p.kill()
