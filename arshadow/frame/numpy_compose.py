@@ -204,10 +204,14 @@ def _blurred(
     x0, y0, w, h = wp.roi
     H, W = shape[:2]
     nx0, ny0, nx1, ny1 = max(x0 - p, 0), max(y0 - p, 0), min(x0 + w + p, W), min(y0 + h + p, H)
-    pads = ((y0 - ny0, ny1 - y0 - h), (x0 - nx0, nx1 - x0 - w))
+    top, bottom, left, right = y0 - ny0, ny1 - y0 - h, x0 - nx0, nx1 - x0 - w
 
     def grow(a: np.ndarray | None) -> np.ndarray | None:
-        return None if a is None else np.pad(a, pads + ((0, 0),) * (a.ndim - 2))
+        # cv2's border copy: np.pad's Python cost was 0.58 ms a frame for the four layers (720p bench video)
+        if a is None:
+            return None
+        out: np.ndarray = cv2.copyMakeBorder(a, top, bottom, left, right, cv2.BORDER_CONSTANT, value=0)
+        return out.reshape(out.shape[:2] + a.shape[2:])  # a (h, w, 1) layer comes back (h, w)
 
     ov = wp.overlay
     mask, alpha, color, sky = blur(grow(ov.mask), grow(ov.alpha), grow(ov.color), grow(ov.sky))

@@ -1,6 +1,7 @@
 """A/B benchmark of the video engine: the judged 720p clip through two source trees, runs interleaved.
 
     python tests/benchmarks/ab_video.py --a /path/to/old/tree --b /path/to/new/tree [--rounds 5] [--frames 300]
+                                        [--extra "--ambient-occlusion on --camera-effects on"] [--b-extra ...]
 
 The clip is ``bench_video_engine.py``'s (300 frames at 1280x720, the knot, one point light; cached in
 $ARSHADOW_BENCH_CACHE). Each round runs ``arshadow video`` once per tree, each in a fresh process with
@@ -83,6 +84,7 @@ def main() -> int:
     ap.add_argument("--b", type=Path, required=True, help="the new tree (B)")
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--frames", type=int, default=300)
+    ap.add_argument("--extra", default="", help="more arshadow video options for both trees, space-separated")
     ap.add_argument("--b-extra", default="", help="more arshadow video options for B only, space-separated")
     args = ap.parse_args()
     clip = judged_clip(args.frames)
@@ -92,7 +94,7 @@ def main() -> int:
         loads.append([round(x, 2) for x in os.getloadavg()])
         order = ("a", "b") if r % 2 == 0 else ("b", "a")
         for k in order:
-            scene = list(KNOT_SCENE) + (args.b_extra.split() if k == "b" else [])
+            scene = list(KNOT_SCENE) + args.extra.split() + (args.b_extra.split() if k == "b" else [])
             fps[k].append(run_tree(getattr(args, k).resolve(), clip, Path(CALIB_720).resolve(), scene))
     ratio = np.asarray(fps["a"]) / np.asarray(fps["b"])
 
@@ -110,6 +112,7 @@ def main() -> int:
                 "a": str(args.a),
                 "b": str(args.b),
                 "frames": args.frames,
+                "extra": args.extra,
                 "fps_a": stats(fps["a"]),
                 "fps_b": stats(fps["b"]),
                 "time_ratio_b_over_a": stats(ratio),
