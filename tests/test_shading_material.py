@@ -85,10 +85,15 @@ def test_measured_light_keeps_a_textured_mesh_textured():
     # own texture / colours keeps them, times the exposure gain (it used to come out flat grey)
     from arshadow.frame.execute import frame_shading
     from arshadow.scene.options import RenderOptions
+    from arshadow.shading.decide import PAPER_ALBEDO
 
     opts = RenderOptions(occluder_color=(0.6, 0.6, 0.6), material_gain=(1.2, 1.1, 0.9))
     sh = frame_shading(opts, load_occluder(DATA / "quad.glb"), None)
-    assert sh.color is None and sh.albedo_gain == (1.2, 1.1, 0.9)
+    # the texture is a reflectance; the gain makes a colour of 1 the paper's brightness, the paper's own
+    # reflectance being PAPER_ALBEDO
+    assert sh.color is None and sh.albedo_gain == pytest.approx(
+        (1.2 / PAPER_ALBEDO, 1.1 / PAPER_ALBEDO, 0.9 / PAPER_ALBEDO)
+    )
     plain = frame_shading(opts, load_occluder("box:0.1,0.1,0.1"), None)
     assert plain.color == (0.6, 0.6, 0.6) and plain.albedo_gain == (1.0, 1.0, 1.0)
     # an explicit colour (no material_gain) wins over the texture
@@ -122,3 +127,43 @@ def test_a_coloured_mesh_bleeds_its_own_colour_and_a_grey_one_none():
     assert SceneGeometry(load_occluder("box:0.05,0.05,0.05"), RenderOptions()).object_bleed is None
     grey = RenderOptions(occluder_color=(0.5, 0.5, 0.5))
     assert SceneGeometry(red, grey).object_bleed is None
+
+
+@pytest.mark.gl
+def test_a_material_as_reflective_as_the_paper_renders_as_bright_as_the_paper(gl_ctx, tmp_path, tol):
+    """A mesh's own colour is a reflectance (glTF's base colour, MTL's Kd): a box coloured the paper's
+    reflectance (PAPER_ALBEDO), lit by the light measured on the photo, shows its horizontal top face at the
+    paper's colour as the light estimate measured it on the photo's marker (it came out 0.8 x as bright)."""
+    import trimesh
+
+    from arshadow.bench.common import ROOT
+    from arshadow.camera.model import Intrinsics
+    from arshadow.estimate import estimate_light
+    from arshadow.frame.session import Session
+    from arshadow.io import read_image
+    from arshadow.scene.spec import scene_from_dict
+    from arshadow.shading.decide import PAPER_ALBEDO
+
+    photo = read_image(str(ROOT / "samples" / "probe_shadow.jpg"))
+    calib = ROOT / "calib" / "synth_1280x720.yml"
+    est = estimate_light(
+        photo, calib=calib, marker_length=0.05, probe="box:0.05,0.05,0.1", probe_place=(0.1, 0.02, 0.0)
+    )
+    code = round(255 * (1.055 * PAPER_ALBEDO ** (1 / 2.4) - 0.055))  # the paper's reflectance, sRGB
+    box = trimesh.creation.box((0.03, 0.03, 0.03))
+    box.apply_translation((0.0, 0.0, 0.015))
+    box.visual.vertex_colors = np.tile([code, code, code, 255], (len(box.vertices), 1))
+    ply = tmp_path / "paper_grey.ply"
+    box.export(ply)
+    place = (-0.06, -0.05, 0.0)
+    spec = {"calib": str(calib), "marker_length": 0.05, "model": str(ply), "place": list(place), "light_from": est}
+    with Session(scene_from_dict({**spec, "ambient_occlusion": "off"})) as s:
+        res = s.process(photo, want_mask=False)
+    intr = Intrinsics.from_file(calib)
+    top = [[place[0] + dx, place[1] + dy, 0.03] for dx in (-0.006, 0.0, 0.006) for dy in (-0.006, 0.0, 0.006)]
+    uv = np.rint(intr.project(np.array(top), res.pose.cam_from_world)).astype(int)
+    got = np.median(res.composite[uv[:, 1], uv[:, 0]].astype(float), axis=0)[::-1]  # RGB
+    lin = np.asarray(est.exposure.paper_rgb, float)
+    paper = 255 * np.where(lin <= 0.0031308, 12.92 * lin, 1.055 * lin ** (1 / 2.4) - 0.055)
+    assert np.all(photo[uv[:, 1], uv[:, 0]] != res.composite[uv[:, 1], uv[:, 0]])  # the object is drawn there
+    np.testing.assert_allclose(got, paper, atol=tol.paper_match_codes)

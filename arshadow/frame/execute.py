@@ -28,6 +28,7 @@ from ..compose.look import Look
 from ..errors import UsageError
 from ..plan.planner import MEASURED
 from ..renderer.request import LightPass, RenderRequest, Shading
+from ..shading.decide import PAPER_ALBEDO
 from ..transforms import CV_TO_GL
 from .effects import touched_roi
 from .numpy_compose import compose_cpu
@@ -199,12 +200,17 @@ def render_request(
 
 def frame_shading(opts: RenderOptions, caster: ShadowCaster, sky: SkyShading | None) -> Shading:
     """:meth:`Shading.from_options` with the frame's sky; a mesh with its own colours or texture under a
-    measured light keeps them, times the exposure gain (``material_gain``), instead of the grey default."""
+    measured light keeps them, times the exposure gain (``material_gain``), instead of the grey default.
+
+    The mesh's colours are reflectances (glTF's base colour is the surface's albedo, MTL's ``Kd`` its
+    diffuse reflectance), while the exposure gain makes a colour of 1 as bright as the marker's paper: they
+    are divided by the paper's reflectance, :data:`arshadow.shading.decide.PAPER_ALBEDO`, so a material as
+    reflective as the paper renders as bright as the paper (it rendered 0.8 x as bright before)."""
     sh = Shading.from_options(opts) if sky is None else replace(Shading.from_options(opts), sky=sky)
     if opts.material_gain is not None and (
         getattr(caster, "material", None) is not None or getattr(caster, "colors", None) is not None
     ):
-        g = [float(v) for v in opts.material_gain]
+        g = [float(v) / PAPER_ALBEDO for v in opts.material_gain]
         sh = replace(sh, color=None, albedo_gain=(g[0], g[1], g[2]))
     return sh
 

@@ -503,8 +503,10 @@ class SceneGeometry:
 
     def object_albedo(self) -> np.ndarray:
         """``(3,) float64`` the object's linear colour relative to the paper: ``occluder_color`` over the exposure
-        gain (the option holds the colour times the gain), else the mesh's own mean colour
-        (:attr:`arshadow.geometry.caster.ShadowCaster.mean_albedo`), else the renderer's default grey."""
+        gain (the option holds the colour times the gain), else the mesh's own mean reflectance
+        (:attr:`arshadow.geometry.caster.ShadowCaster.mean_albedo`) over the paper's,
+        :data:`arshadow.shading.decide.PAPER_ALBEDO` (as :func:`arshadow.frame.execute.frame_shading` renders
+        it), else the renderer's default grey; at most ``1 / PAPER_ALBEDO`` (a reflectance of 1)."""
         from ..compose.composite import srgb_to_linear
 
         opts = self.options
@@ -514,8 +516,8 @@ class SceneGeometry:
                 col = col / np.maximum(np.asarray(opts.exposure_gain, np.float64), 1e-6)
         else:
             own = self.caster.mean_albedo
-            col = own if own is not None else srgb_to_linear(np.array([0.8, 0.8, 0.8]))
-        out: np.ndarray = np.clip(np.asarray(col, np.float64), 0.0, 1.0)
+            col = own / PAPER_ALBEDO if own is not None else srgb_to_linear(np.array([0.8, 0.8, 0.8]))
+        out: np.ndarray = np.clip(np.asarray(col, np.float64), 0.0, 1.0 / PAPER_ALBEDO)
         return out
 
     @functools.cached_property
