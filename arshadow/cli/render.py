@@ -143,7 +143,9 @@ def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> No
         "lowest point is at z = 0 (for meshes centred on their origin); --place then adds",
     )
     o.add_argument(
-        "--color", metavar="R,G,B", help="object colour, 8-bit sRGB 0..255 or #rrggbb (default: the mesh's own)"
+        "--color",
+        metavar="R,G,B",
+        help="object colour relative to the marker paper's white, 8-bit sRGB 0..255 or #rrggbb (default: the mesh's own, read as reflectances)",
     )
     s = p.add_argument_group("lights and shadows")
     s.add_argument(

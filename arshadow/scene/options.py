@@ -113,7 +113,9 @@ class RenderOptions:
         The ambient share (``shadow_color``, ``ambient``) comes from a measured light (``light_from``).
     material_gain : (3,) float, optional
         ``light_from`` without ``--color``: the exposure gain (linear RGB) a mesh with its own colours or
-        texture is rendered with instead of ``occluder_color`` (the default grey for meshes without).
+        texture is rendered with instead of ``occluder_color`` (the default grey for meshes without); the
+        renderer divides it by the paper's reflectance (:func:`arshadow.frame.execute.frame_shading`: the
+        mesh's colours are reflectances).
     ratio_at : (2,) float, optional
         With a measured point light (``light_from``): the ground point (ground frame, metres: where the
         object stands) at which ``shadow_color`` is the shadow ratio. A lamp's irradiance falls off across
