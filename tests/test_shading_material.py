@@ -130,10 +130,12 @@ def test_a_coloured_mesh_bleeds_its_own_colour_and_a_grey_one_none():
 
 
 @pytest.mark.gl
-def test_a_material_as_reflective_as_the_paper_renders_as_bright_as_the_paper(gl_ctx, tmp_path, tol):
+@pytest.mark.parametrize("paper_albedo", [None, 0.9])
+def test_a_material_as_reflective_as_the_paper_renders_as_bright_as_the_paper(gl_ctx, tmp_path, tol, paper_albedo):
     """A mesh's own colour is a reflectance (glTF's base colour, MTL's Kd): a box coloured the paper's
-    reflectance (PAPER_ALBEDO), lit by the light measured on the photo, shows its horizontal top face at the
-    paper's colour as the light estimate measured it on the photo's marker (it came out 0.8 x as bright)."""
+    reflectance (PAPER_ALBEDO, or the scene's ``paper_albedo``), lit by the light measured on the photo, shows
+    its horizontal top face at the paper's colour as the light estimate measured it on the photo's marker (it
+    came out 0.8 x as bright)."""
     import trimesh
 
     from arshadow.bench.common import ROOT
@@ -149,7 +151,8 @@ def test_a_material_as_reflective_as_the_paper_renders_as_bright_as_the_paper(gl
     est = estimate_light(
         photo, calib=calib, marker_length=0.05, probe="box:0.05,0.05,0.1", probe_place=(0.1, 0.02, 0.0)
     )
-    code = round(255 * (1.055 * PAPER_ALBEDO ** (1 / 2.4) - 0.055))  # the paper's reflectance, sRGB
+    paper_r = PAPER_ALBEDO if paper_albedo is None else paper_albedo
+    code = round(255 * (1.055 * paper_r ** (1 / 2.4) - 0.055))  # the paper's reflectance, sRGB
     box = trimesh.creation.box((0.03, 0.03, 0.03))
     box.apply_translation((0.0, 0.0, 0.015))
     box.visual.vertex_colors = np.tile([code, code, code, 255], (len(box.vertices), 1))
@@ -157,6 +160,8 @@ def test_a_material_as_reflective_as_the_paper_renders_as_bright_as_the_paper(gl
     box.export(ply)
     place = (-0.06, -0.05, 0.0)
     spec = {"calib": str(calib), "marker_length": 0.05, "model": str(ply), "place": list(place), "light_from": est}
+    if paper_albedo is not None:
+        spec["paper_albedo"] = paper_albedo
     with Session(scene_from_dict({**spec, "ambient_occlusion": "off"})) as s:
         res = s.process(photo, want_mask=False)
     intr = Intrinsics.from_file(calib)
@@ -167,3 +172,17 @@ def test_a_material_as_reflective_as_the_paper_renders_as_bright_as_the_paper(gl
     paper = 255 * np.where(lin <= 0.0031308, 12.92 * lin, 1.055 * lin ** (1 / 2.4) - 0.055)
     assert np.all(photo[uv[:, 1], uv[:, 0]] != res.composite[uv[:, 1], uv[:, 0]])  # the object is drawn there
     np.testing.assert_allclose(got, paper, atol=tol.paper_match_codes)
+
+
+def test_paper_albedo_is_a_reflectance():
+    """``paper_albedo`` (``--paper-albedo``) is a reflectance in (0, 1]: a percentage is refused, naming the
+    probable mistake."""
+    from arshadow.errors import UsageError
+    from arshadow.scene.options import RenderOptions
+
+    assert RenderOptions(paper_albedo=0.9).check().paper_albedo == 0.9
+    with pytest.raises(UsageError, match=r"a percentage\? 0.85"):
+        RenderOptions(paper_albedo=85).check()
+    for bad in (0.0, -0.5, float("nan"), 1.5):
+        with pytest.raises(UsageError, match="--paper-albedo"):
+            RenderOptions(paper_albedo=bad).check()

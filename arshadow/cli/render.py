@@ -180,6 +180,13 @@ def add_scene_options(p: argparse.ArgumentParser, *, require: bool = True) -> No
         help="exposure time / frame interval for --motion-blur, in (0, 1]; default 0.5 (a 180-degree shutter)",
     )
     s.add_argument(
+        "--paper-albedo",
+        type=float,
+        metavar="R",
+        help="the marker paper's reflectance, in (0, 1]; default 0.8 (printer paper: 0.8-0.9): a mesh's own "
+        "colours and the light the object and the ground reflect are scaled to it (docs/shading.md)",
+    )
+    s.add_argument(
         "--no-exposure",
         action="store_true",
         help="keep the object's colour as given: no exposure / white balance match to the marker paper "

@@ -28,7 +28,6 @@ from ..compose.look import Look
 from ..errors import UsageError
 from ..plan.planner import MEASURED
 from ..renderer.request import LightPass, RenderRequest, Shading
-from ..shading.decide import PAPER_ALBEDO
 from ..transforms import CV_TO_GL
 from .effects import touched_roi
 from .numpy_compose import compose_cpu
@@ -204,13 +203,14 @@ def frame_shading(opts: RenderOptions, caster: ShadowCaster, sky: SkyShading | N
 
     The mesh's colours are reflectances (glTF's base colour is the surface's albedo, MTL's ``Kd`` its
     diffuse reflectance), while the exposure gain makes a colour of 1 as bright as the marker's paper: they
-    are divided by the paper's reflectance, :data:`arshadow.shading.decide.PAPER_ALBEDO`, so a material as
-    reflective as the paper renders as bright as the paper (it rendered 0.8 x as bright before)."""
+    are divided by the paper's reflectance (``opts.paper_albedo``, :data:`arshadow.shading.decide.PAPER_ALBEDO`
+    by default), so a material as reflective as the paper renders as bright as the paper (it rendered 0.8 x
+    as bright before)."""
     sh = Shading.from_options(opts) if sky is None else replace(Shading.from_options(opts), sky=sky)
     if opts.material_gain is not None and (
         getattr(caster, "material", None) is not None or getattr(caster, "colors", None) is not None
     ):
-        g = [float(v) / PAPER_ALBEDO for v in opts.material_gain]
+        g = [float(v) / float(opts.paper_albedo) for v in opts.material_gain]
         sh = replace(sh, color=None, albedo_gain=(g[0], g[1], g[2]))
     return sh
 
@@ -307,7 +307,7 @@ def _sky_shading(
     decision is off): the scene's ground occlusion map (made on first use, by the geometry's
     ``raster_source``), the object's sky visibility and the ground bounce
     measured on this photo round the object (with a measured exposure; 0 otherwise)."""
-    from ..shading.decide import PAPER_ALBEDO, decide_ambient_occlusion, ground_bounce, ground_light
+    from ..shading.decide import decide_ambient_occlusion, ground_bounce, ground_light
     from ..shading.sky import SkyShading, ground_grid
 
     opts = geometry.options
@@ -323,7 +323,7 @@ def _sky_shading(
         a = np.linspace(0.0, 2 * np.pi, 32, endpoint=False)
         ring = np.c_[c[0] + r * np.cos(a), c[1] + r * np.sin(a), np.zeros(32)]
         gain = np.asarray(opts.exposure_gain, np.float64) * (1.0 if color_gain is None else np.asarray(color_gain))
-        m = ground_bounce(image, intr.project(ring, plan.cam_from_world), gain)
+        m = ground_bounce(image, intr.project(ring, plan.cam_from_world), gain, float(opts.paper_albedo))
         if m is not None:
             bounce = tuple(float(v) for v in m)
 
@@ -336,7 +336,7 @@ def _sky_shading(
             outputs.item.plan["ground_bounce"] = [round(v, 4) for v in bounce]  # type: ignore[index]
     ground = geometry.sky_ground(outputs.timings)
     bleed = geometry.object_bleed
-    albedo = tuple(float(v) for v in PAPER_ALBEDO * geometry.object_albedo()) if any(bounce) else None
+    albedo = tuple(float(v) for v in float(opts.paper_albedo) * geometry.object_albedo()) if any(bounce) else None
     sky = SkyShading(
         ground=ground,
         object_sky=OBJECT_SKY,

@@ -26,7 +26,7 @@ from scipy.spatial import ConvexHull, QhullError
 
 from ..errors import LightError
 from ..lights.area import sample_area_light
-from ..shading.decide import PAPER_ALBEDO, GroundLight, ground_units
+from ..shading.decide import GroundLight, ground_units
 from ..shading.sky import Interreflection
 from ..transforms import invert_rigid, transform_points
 
@@ -478,7 +478,7 @@ class SceneGeometry:
     def _bounce_light(self) -> Interreflection | None:
         """The object's :class:`arshadow.shading.sky.Interreflection` onto the ground: the strongest light's
         direction from the object, the mean sky share, the object's mean albedo (its colour relative to the
-        marker paper's, without the exposure gain, times :data:`arshadow.shading.decide.PAPER_ALBEDO`), the
+        marker paper's, without the exposure gain, times the paper's reflectance, ``paper_albedo``), the
         ground's reflected light (its albedo times its irradiance, a share of the open ground's:
         :meth:`set_ground_light`, 0 until measured) and as the photo shows it per ground point, and for a
         point light ``(its position, the ground point where the sky share holds)`` (``ratio_at`` with a
@@ -499,25 +499,27 @@ class SceneGeometry:
         ref = np.array([float(at[0]), float(at[1]), 0.0])  # where r holds: the map's unit of light
         ground = float(self._ground_light or 0.0) * ground_units(h, r, ref, opts.ambient)
         lamp = (h[:3] / h[3], ref) if h[3] != 0 else None  # a point light: each face at its own distance
-        return Interreflection(light, r, PAPER_ALBEDO * float(np.mean(col)), ground, lamp, self._ground_field)
+        albedo = float(opts.paper_albedo) * float(np.mean(col))
+        return Interreflection(light, r, albedo, ground, lamp, self._ground_field)
 
     def object_albedo(self) -> np.ndarray:
         """``(3,) float64`` the object's linear colour relative to the paper: ``occluder_color`` over the exposure
         gain (the option holds the colour times the gain), else the mesh's own mean reflectance
-        (:attr:`arshadow.geometry.caster.ShadowCaster.mean_albedo`) over the paper's,
-        :data:`arshadow.shading.decide.PAPER_ALBEDO` (as :func:`arshadow.frame.execute.frame_shading` renders
-        it), else the renderer's default grey; at most ``1 / PAPER_ALBEDO`` (a reflectance of 1)."""
+        (:attr:`arshadow.geometry.caster.ShadowCaster.mean_albedo`) over the paper's, ``paper_albedo`` (as
+        :func:`arshadow.frame.execute.frame_shading` renders it), else the renderer's default grey; at most
+        ``1 / paper_albedo`` (a reflectance of 1)."""
         from ..compose.composite import srgb_to_linear
 
         opts = self.options
+        paper = float(opts.paper_albedo)
         if opts.occluder_color is not None:
             col = srgb_to_linear(np.asarray(opts.occluder_color, np.float64))
             if opts.exposure_gain is not None:
                 col = col / np.maximum(np.asarray(opts.exposure_gain, np.float64), 1e-6)
         else:
             own = self.caster.mean_albedo
-            col = own / PAPER_ALBEDO if own is not None else srgb_to_linear(np.array([0.8, 0.8, 0.8]))
-        out: np.ndarray = np.clip(np.asarray(col, np.float64), 0.0, 1.0 / PAPER_ALBEDO)
+            col = own / paper if own is not None else srgb_to_linear(np.array([0.8, 0.8, 0.8]))
+        out: np.ndarray = np.clip(np.asarray(col, np.float64), 0.0, 1.0 / paper)
         return out
 
     @functools.cached_property

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from ..errors import UsageError
 from ..geometry.ground import parse_ground
 from ..plan.rules import PLAN_OFF, PLANS
+from ..shading.decide import PAPER_ALBEDO
 
 __all__ = ["RenderOptions", "SHADOW_METHODS", "AA_CHOICES", "AMBIENT_OCCLUSION", "DEFAULT_AA"]
 
@@ -109,6 +110,11 @@ class RenderOptions:
         they have no neighbouring frames); ``off``.
     shutter : float
         The exposure time over the frame interval, in (0, 1] (default 0.5: the 180° shutter of most video).
+    paper_albedo : float
+        The marker paper's reflectance, in (0, 1] (default :data:`arshadow.shading.decide.PAPER_ALBEDO`, 0.8:
+        printer paper's 0.8-0.9): the white a measured exposure makes the object's colours relative to. A mesh's
+        own colours (reflectances) are divided by it, and the light the object and the ground reflect is
+        that share times it (docs/shading.md, "Materials").
     ambient_measured : bool
         The ambient share (``shadow_color``, ``ambient``) comes from a measured light (``light_from``).
     material_gain : (3,) float, optional
@@ -153,6 +159,7 @@ class RenderOptions:
     camera_effects: str = "off"
     motion_blur: str = "on"
     shutter: float = 0.5
+    paper_albedo: float = PAPER_ALBEDO
     ambient_measured: bool = False
     material_gain: tuple | None = None
     ratio_at: tuple | None = None
@@ -196,7 +203,11 @@ class RenderOptions:
 
 
 def _check_shading(o: RenderOptions) -> None:
-    """The shading vectors of ``o`` (UsageError naming the field)."""
+    """The paper's reflectance and the shading vectors of ``o`` (UsageError naming the field)."""
+    p = float(o.paper_albedo)
+    if not (math.isfinite(p) and 0.0 < p <= 1.0):
+        hint = f" (a percentage? {p / 100:g})" if 1.0 < p <= 100.0 else ""
+        raise UsageError(f"--paper-albedo {o.paper_albedo}: must be a reflectance in (0, 1]{hint}")
     for name in ("ambient_tint", "direct_tint"):
         t = tuple(getattr(o, name))
         if len(t) != 3 or not all(math.isfinite(float(v)) and float(v) >= 0.0 for v in t):

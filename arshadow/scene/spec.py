@@ -331,6 +331,7 @@ SCENE_KEYS = (
     "camera_effects",
     "motion_blur",
     "shutter",
+    "paper_albedo",
     "light_from",
     "no_exposure",
     "ground",
@@ -554,6 +555,7 @@ def scene_from_dict(d: Mapping[str, Any], base_dir: str | Path | None = None) ->
         ("camera_effects", str),
         ("motion_blur", str),
         ("shutter", float),
+        ("paper_albedo", float),
     ):
         if d.get(key) is not None:
             opts[key] = _value(d, key, conv)

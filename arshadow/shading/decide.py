@@ -68,29 +68,33 @@ def decide_ambient_occlusion(options: RenderOptions) -> tuple[bool, str]:
 PAPER_ALBEDO = 0.8
 
 
-def ground_bounce(image: np.ndarray, pixels: np.ndarray, gain: npt.ArrayLike) -> np.ndarray | None:
+def ground_bounce(
+    image: np.ndarray, pixels: np.ndarray, gain: npt.ArrayLike, paper_albedo: float = PAPER_ALBEDO
+) -> np.ndarray | None:
     """``(3,) float64``: the light the ground round the object reflects (linear RGB, in the renderer's units:
     the open ground's irradiance is the paper's, a white object is as bright as the paper): the ground's
     linear colour round the object (``pixels (k, 2)`` in the photo: a ring of ground points round the
     footprint) over the total exposure gain ``gain (3,)`` (paper linear RGB / the paper's irradiance in
     renderer units) is the ground's albedo relative to the paper's times its irradiance; times
-    :data:`PAPER_ALBEDO` it is the ground's albedo times its irradiance, the light it sends onto a surface
-    that sees it. The 75th percentile per channel (the part of the ring in the object's own shadow is not
-    what lights it). None when no ring point lies in the photo.
+    the paper's reflectance ``paper_albedo`` (:data:`PAPER_ALBEDO` by default) it is the ground's albedo times
+    its irradiance, the light it sends onto a surface that sees it. The 75th percentile per channel (the part
+    of the ring in the object's own shadow is not what lights it). None when no ring point lies in the photo.
 
     >>> img = np.full((4, 4, 3), 188, np.uint8)  # a ground half as bright as the paper (sRGB 188 ~ 0.5)
     >>> b = ground_bounce(img, np.array([[1.0, 1.0], [2.0, 2.0]]), gain=(1.0, 1.0, 1.0))
     >>> [round(float(v), 3) for v in b]  # 0.8 x 0.503
     [0.402, 0.402, 0.402]
     """
-    light, ok = _reflected(image, pixels, gain)
+    light, ok = _reflected(image, pixels, gain, paper_albedo)
     if not ok.any():
         return None
     out: np.ndarray = np.percentile(light, 75, axis=0)
     return out
 
 
-def _reflected(image: np.ndarray, pixels: np.ndarray, gain: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+def _reflected(
+    image: np.ndarray, pixels: np.ndarray, gain: npt.ArrayLike, paper_albedo: float = PAPER_ALBEDO
+) -> tuple[np.ndarray, np.ndarray]:
     """The light the ground reflects at ``pixels (k, 2)`` of the photo ``image (H, W, 3) uint8`` BGR (nearest
     pixel), in the renderer's units (:func:`ground_bounce`): ``(light (n, 3) float64 linear RGB, in the photo
     (k,) bool)``, one row per pixel in the photo."""
@@ -100,7 +104,7 @@ def _reflected(image: np.ndarray, pixels: np.ndarray, gain: npt.ArrayLike) -> tu
     px = np.round(np.where(np.isfinite(px), px, -1.0)).astype(np.int64)
     ok = (px[:, 0] >= 0) & (px[:, 0] < w) & (px[:, 1] >= 0) & (px[:, 1] < h)
     lin = srgb_to_linear(img[px[ok, 1], px[ok, 0]].astype(np.float64) / 255.0)[:, ::-1]  # RGB
-    light: np.ndarray = PAPER_ALBEDO * lin / np.maximum(np.asarray(gain, np.float64).reshape(3), 1e-6)
+    light: np.ndarray = float(paper_albedo) * lin / np.maximum(np.asarray(gain, np.float64).reshape(3), 1e-6)
     return light, ok
 
 
