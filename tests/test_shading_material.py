@@ -186,3 +186,9 @@ def test_paper_albedo_is_a_reflectance():
     for bad in (0.0, -0.5, float("nan"), 1.5):
         with pytest.raises(UsageError, match="--paper-albedo"):
             RenderOptions(paper_albedo=bad).check()
+    # a plausible mistake is warned of, naming it: the floor's or the ink's reflectance given for the paper's
+    from arshadow.scene.sanity import paper_warnings
+
+    assert paper_warnings(0.8) == [] and paper_warnings(0.9) == []
+    assert "not of the floor or the ink" in paper_warnings(0.25)[0]
+    assert "perfect white" in paper_warnings(0.99)[0]

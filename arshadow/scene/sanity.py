@@ -63,12 +63,16 @@ __all__ = [
     "ground_warnings",
     "looks_y_up",
     "light_warnings",
+    "paper_warnings",
     "pose_flag_reasons",
     "scale_warnings",
     "sun_set_warning",
     "unit_guess",
 ]
 
+#: the marker paper's reflectance (``--paper-albedo``) outside this range is warned of: printer and photo
+#: papers reflect 0.75-0.95
+PAPER_ALBEDO_RANGE = (0.6, 0.97)
 #: a printed marker (or board square) longer than this (metres) is taken for a unit mistake
 MAX_MARKER_LENGTH_M = 1.0
 #: ... and shorter than this (metres): no printer makes a usable marker under 3 mm
@@ -563,3 +567,27 @@ class FlagTally:
         kinds = ", ".join(f"{k} ({n})" for k, n in sorted(self.kinds.items(), key=lambda kv: -kv[1]))
         src = "the report's flag_reasons" if where is None else f"flag_reasons in {where}"
         return f"{len(self.keys)} of {total} {what} have a flagged pose ({_ranges(self.keys)}): {kinds}; {src} say why for each"
+
+
+def paper_warnings(paper_albedo: float) -> list[str]:
+    """A marker paper's reflectance (``--paper-albedo``) no printer paper has; one message naming the probable
+    mistake, or none.
+
+    >>> paper_warnings(0.85)
+    []
+    >>> paper_warnings(0.3)[0][:60]
+    '--paper-albedo 0.3: darker than any printer paper (0.75-0.95'
+    """
+    lo, hi = PAPER_ALBEDO_RANGE
+    p = float(paper_albedo)
+    if p < lo:
+        return [
+            f"--paper-albedo {p:g}: darker than any printer paper (0.75-0.95); it is the reflectance of the "
+            "marker's white paper, not of the floor or the ink"
+        ]
+    if p > hi:
+        return [
+            f"--paper-albedo {p:g}: brighter than any printer paper (0.75-0.95; 1 is a perfect white): the "
+            "object's own colours come out that much darker"
+        ]
+    return []

@@ -221,7 +221,7 @@ class SceneSpec:
 
         intr = self.camera if isinstance(self.camera, Intrinsics) else Intrinsics.from_file(self.camera)
         from ..tracking.tracker import MarkerTracker
-        from .sanity import check_scene
+        from .sanity import check_scene, paper_warnings
 
         tracker = self.tracker.kwargs()
         board = MarkerTracker(intr, **tracker).board  # a dictionary conflicting with the board: a usage error
@@ -239,6 +239,8 @@ class SceneSpec:
         elif lights is None:
             lights = [parse_light(s) if isinstance(s, str) else s for s in self.lights]
         opts = self.options.check()
+        for msg in paper_warnings(opts.paper_albedo):
+            log.warning(msg)
         light_list = list(lights)
         for msg in check_scene(
             caster,
