@@ -187,6 +187,21 @@ def test_jobs2_equals_sequential(tmp_path, tol):
 
 
 @pytest.mark.gl
+def test_jobs2_with_camera_effects_is_one_piece_and_equals_sequential(tmp_path):
+    """``--camera-effects on`` measures the blur and noise on the video's first tracked frame: cut into chunks,
+    each chunk measured its own (on its primer's first tracked frame) and the shadow mask video differed from
+    ``--jobs 1``'s. Such a video is processed in one piece, saying so."""
+    clip = _clip(tmp_path / "c.mp4")
+    cam = ("--camera-effects", "on", "--motion-blur", "off")
+    rc1, _ = _run(clip, tmp_path / "seq", *cam)
+    rc2, s2 = _run(clip, tmp_path / "par", "--jobs", "2", *cam)
+    assert rc1 == rc2 == 0
+    assert "chunks" not in s2
+    assert any("not cut into chunks (--camera-effects on" in w for w in s2["warnings"]), s2["warnings"]
+    assert_same_run(tmp_path / "seq", tmp_path / "par", "c", 72)
+
+
+@pytest.mark.gl
 @pytest.mark.slow
 def test_jobs2_equals_sequential_300_frames(tmp_path, tol):
     clip = make_clip(tmp_path / "c.mp4", _intr(), _poses(300), noise=1.0, seed=7, blank=set(range(100, 130)), gop=50)

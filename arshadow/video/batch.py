@@ -354,6 +354,7 @@ def _submit_dask(
                 it.stem,
                 BackendRecipe(spec).key(),
                 it.input,
+                spec.options.camera_effects == "on",
             )
         except ArshadowError:
             prep = None  # the item's own task reports the problem

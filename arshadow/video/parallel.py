@@ -164,14 +164,23 @@ def prepare_chunked(
     stem: str,
     recipe_key: str,
     name: str | None = None,
+    camera_effects: bool = False,
 ) -> tuple[Prepared | None, str | None]:
     """Plan one video into up to ``count`` chunks: a :class:`Prepared`, or ``(None, note)`` when it is
-    processed in one piece (``note``: why, or None for an image sequence)."""
+    processed in one piece (``note``: why, or None for an image sequence). ``camera_effects``: the scene's
+    ``--camera-effects on``, measured on the video's first tracked frame, which a chunk's own frames do not
+    hold: such a video is processed in one piece (cut, each chunk measured its own blur and noise, and the
+    output differed from ``--jobs 1``'s)."""
     p = str(path)
     if "%" in p:
         return None, None
     if opts.layers is not None:
         return None, f"{name or p}: not cut into chunks (--layers are written in one piece)"
+    if camera_effects:
+        return None, (
+            f"{name or p}: not cut into chunks (--camera-effects on: the blur and noise are measured on the "
+            "video's first tracked frame, for every frame)"
+        )
     index = scan_stream(p)
     if index.problem:
         return None, f"{name or p}: not cut into chunks ({index.problem})"
@@ -496,7 +505,8 @@ def process_video_chunked(
     """
     t0 = time.perf_counter()
     opts = opts.check()
-    prep, note = prepare_chunked(path, outputs, opts, pool.jobs, outdir, stem, recipe.key(), name)
+    cam = recipe.spec.options.camera_effects == "on"
+    prep, note = prepare_chunked(path, outputs, opts, pool.jobs, outdir, stem, recipe.key(), name, cam)
     if prep is not None and not opts.encoder_threads:
         prep.opts = dataclasses.replace(opts, encoder_threads=encoder_threads(pool.jobs))
     if prep is None:
