@@ -11,7 +11,6 @@ from arshadow.errors import MarkerNotFoundError
 from arshadow.geometry.mesh import ShadowCaster, load_occluder
 from arshadow.plan.rules import (
     light_shadow_in_view,
-    mesh_is_convex,
     planar_applies,
     reuse_light_geometry,
     same_silhouette,
@@ -38,11 +37,11 @@ def _l_shape():
 def test_convexity_of_known_meshes():
     assert _l_shape().is_closed
     for spec in ("box:0.06,0.05,0.09", "sphere:0.04", "cylinder:0.03,0.1"):
-        assert mesh_is_convex(load_occluder(spec)), spec
-    assert not mesh_is_convex(load_occluder("torus:0.06,0.02"))
-    assert not mesh_is_convex(_l_shape())
+        assert load_occluder(spec).is_convex, spec
+    assert not load_occluder("torus:0.06,0.02").is_convex
+    assert not _l_shape().is_convex
     # an open mesh (one triangle) is never called convex
-    assert not mesh_is_convex(ShadowCaster([[0, 0, 0.01], [1, 0, 0.01], [0, 1, 0.01]], [[0, 1, 2]]))
+    assert not ShadowCaster([[0, 0, 0.01], [1, 0, 0.01], [0, 1, 0.01]], [[0, 1, 2]]).is_convex
 
 
 def test_planar_taken_only_where_exact():
@@ -53,7 +52,7 @@ def test_planar_taken_only_where_exact():
     # non-convex occluder drawn (self-shadowing): never planar, whatever the light
     lsh = _l_shape()
     for light in (L, [0.0, 0.0, 1.0, 0.0], [0.3, -0.4, 2.0, 1.0]):
-        assert not planar_applies(lsh, light, convex=mesh_is_convex(lsh), draw_occluder=True)[0]
+        assert not planar_applies(lsh, light, convex=lsh.is_convex, draw_occluder=True)[0]
     # ... but it is when the occluder is not drawn (only the ground receives)
     assert planar_applies(lsh, L, convex=False, draw_occluder=False)[0]
     # a point light at or below the top of the mesh, a sun at / below the horizon: never

@@ -423,7 +423,7 @@ def _light_passes(
                 weight=ls.weight,
                 volume=vol,
                 mode="zpass" if lp.mode == "none" else lp.mode,
-                direct=lp.mode == "planar" and geometry.convex,
+                direct=lp.mode == "planar" and geometry.caster.is_convex,
             )
         )
     item.silhouette_edges = n_edges

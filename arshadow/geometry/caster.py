@@ -442,7 +442,12 @@ class ShadowCaster:
     @functools.cached_property
     def is_convex(self) -> bool:
         """A closed mesh with every vertex on or behind every face's plane (to ``1e-9 x scale``); computed
-        once (O(faces x vertices) in blocks, stopping at the first vertex in front). Open meshes never are."""
+        once (O(faces x vertices) in blocks, stopping at the first vertex in front). Open meshes never are.
+
+        >>> from arshadow.geometry.mesh import load_occluder
+        >>> load_occluder("box:1,1,1").is_convex, load_occluder("torus:1,0.3").is_convex
+        (True, False)
+        """
         if not self.is_closed:
             return False
         v = np.c_[self.vertices, np.ones(len(self.vertices))]

@@ -341,7 +341,7 @@ def _light_decisions(plan: FramePlan, geometry: SceneGeometry, intr: Any, modes:
         switches,
         geometry.caster,
         [ls.light_h for ls in geometry.lights],
-        convex=geometry.convex if which == "auto" and "planar" not in off else False,
+        convex=geometry.caster.is_convex if which == "auto" and "planar" not in off else False,
         eye_world=eye,
         near=near,
         footprint_rects=rects,

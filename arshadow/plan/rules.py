@@ -53,7 +53,6 @@ if TYPE_CHECKING:
     from ..geometry.volume import ShadowVolume
 
 __all__ = [
-    "mesh_is_convex",
     "planar_applies",
     "zpass_safe",
     "light_shadow_in_view",
@@ -73,20 +72,6 @@ PLANS = ("auto", "general", "zpass", "zfail", "planar")
 PLAN_OFF = ("planar", "zpass", "truncate", "cull", "roi", "reuse")
 
 
-def mesh_is_convex(caster: ShadowCaster) -> bool:
-    """Whether a closed mesh is convex: every vertex lies on or behind every face's plane
-    (:attr:`arshadow.geometry.caster.ShadowCaster.is_convex`, computed once per mesh). Open (two-sided)
-    meshes are never convex here.
-
-    Examples
-    --------
-    >>> from arshadow.geometry.mesh import load_occluder
-    >>> mesh_is_convex(load_occluder("box:1,1,1")), mesh_is_convex(load_occluder("torus:1,0.3"))
-    (True, False)
-    """
-    return bool(caster.is_convex)
-
-
 def planar_applies(
     caster: ShadowCaster, light_h: npt.ArrayLike, *, convex: bool, draw_occluder: bool, margin_rel: float = 1e-6
 ) -> tuple[bool, str]:
@@ -97,7 +82,7 @@ def planar_applies(
     caster : ShadowCaster
     light_h : (4,) float64
     convex : bool
-        :func:`mesh_is_convex` of the caster (computed once).
+        :attr:`arshadow.geometry.caster.ShadowCaster.is_convex` of the caster (computed once).
     draw_occluder : bool
         The occluder is drawn (its self-shadowing matters).
     margin_rel : float
@@ -323,7 +308,7 @@ def decide_lights(
     caster : ShadowCaster
     lights_h : sequence of (4,) float64
     convex : bool
-        :func:`mesh_is_convex` (once per mesh).
+        :attr:`arshadow.geometry.caster.ShadowCaster.is_convex` (once per mesh).
     eye_world : (3,) float64
         Camera centre, world frame.
     near : float

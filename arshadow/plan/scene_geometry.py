@@ -422,11 +422,6 @@ class SceneGeometry:
             ls.sil, ls.volumes, ls.reuse = None, {}, None
 
     @property
-    def convex(self) -> bool:
-        """The occluder is convex (:attr:`arshadow.geometry.caster.ShadowCaster.is_convex`, cached per mesh)."""
-        return bool(self.caster.is_convex)
-
-    @property
     def sky_on(self) -> bool:
         """Sky occlusion is drawn (:func:`arshadow.shading.decide.decide_ambient_occlusion`)."""
         from ..shading.decide import decide_ambient_occlusion
