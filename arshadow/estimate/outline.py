@@ -46,10 +46,11 @@ STEP_PX = 3.0
 CREASE_DEG = 30.0
 
 
-def _edge_table(verts: np.ndarray, faces: np.ndarray, eye: np.ndarray) -> tuple[np.ndarray, ...]:
-    """The mesh's unique edges seen from ``eye`` (3,), world frame: ``(key (e, 2) int, faces per edge (e,),
-    faces turned to the eye per edge (e,), first occurrence (e,) of each edge in the face-edge list (its face
-    is ``first % m``), unit face normals (m, 3) oriented away from the centroid)``."""
+def _visible_edges(
+    verts: np.ndarray, faces: np.ndarray, eye: np.ndarray, min_deg: float = CREASE_DEG
+) -> tuple[np.ndarray, np.ndarray]:
+    """The mesh's edges a photo from ``eye`` (3,) shows, world frame: ``(silhouette, creases)``, each
+    (k, 2, 3) float64 segment ends (:func:`silhouette_edges`, :func:`crease_edges`), from one edge table."""
     v = np.asarray(verts, np.float64)
     f = np.asarray(faces)
     tri = v[f]
@@ -59,15 +60,19 @@ def _edge_table(verts: np.ndarray, faces: np.ndarray, eye: np.ndarray) -> tuple[
     n[out] *= -1.0
     n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
     front = np.sum(n * (np.asarray(eye, np.float64) - tri[:, 0]), axis=1) > 0
-    e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
-    fr = np.concatenate([front, front, front])
-    key = np.sort(e, axis=1)
-    _, inv, cnt = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    face_of = np.tile(np.arange(len(f)), 3)  # the face of each entry of the face-edge list
+    key = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    edges, inv, cnt = np.unique(key, axis=0, return_inverse=True, return_counts=True)
     inv = inv.ravel()
-    n_front = np.bincount(inv, weights=fr.astype(float), minlength=len(cnt))
-    first = np.full(len(cnt), -1)
-    first[inv[::-1]] = np.arange(len(inv))[::-1]
-    return key[first], cnt, n_front, first, inv, n
+    n_front = np.bincount(inv, weights=front[face_of].astype(float), minlength=len(cnt))
+    # an edge of two faces: exactly one turned to the eye; an open edge (one face): that face to the eye
+    sil = (cnt <= 2) & (n_front == 1)
+    # the two faces of each edge: its entries are consecutive once the list is ordered by edge
+    order = np.argsort(inv, kind="stable")
+    start = np.cumsum(cnt) - cnt
+    f0, f1 = face_of[order[start]], face_of[order[np.minimum(start + 1, len(order) - 1)]]
+    crease = (cnt == 2) & (n_front == 2) & (np.sum(n[f0] * n[f1], axis=1) < math.cos(math.radians(min_deg)))
+    return v[edges[sil]], v[edges[crease]]
 
 
 def silhouette_edges(verts: np.ndarray, faces: np.ndarray, eye: np.ndarray) -> np.ndarray:
@@ -79,11 +84,7 @@ def silhouette_edges(verts: np.ndarray, faces: np.ndarray, eye: np.ndarray) -> n
     >>> len(silhouette_edges(np.asarray(m.vertices), np.asarray(m.faces), np.array([5.0, 0.2, 0.5])))
     4
     """
-    key, cnt, n_front, _, _, _ = _edge_table(verts, faces, eye)
-    # an edge of two faces: exactly one turned to the eye; an open edge (one face): that face to the eye
-    sil = ((cnt == 2) & (n_front == 1)) | ((cnt == 1) & (n_front == 1))
-    edges: np.ndarray = np.asarray(verts, np.float64)[key[sil]]
-    return edges
+    return _visible_edges(verts, faces, eye)[0]
 
 
 def crease_edges(verts: np.ndarray, faces: np.ndarray, eye: np.ndarray, min_deg: float = CREASE_DEG) -> np.ndarray:
@@ -98,18 +99,7 @@ def crease_edges(verts: np.ndarray, faces: np.ndarray, eye: np.ndarray, min_deg:
     >>> len(crease_edges(np.asarray(m.vertices), np.asarray(m.faces), np.array([5.0, 4.0, 3.0])))  # three
     3
     """
-    key, cnt, n_front, first, inv, n = _edge_table(verts, faces, eye)
-    m = len(n)
-    both = np.flatnonzero((cnt == 2) & (n_front == 2))
-    # the second face of each edge: its other occurrence in the face-edge list
-    other = np.full(len(cnt), -1)
-    idx = np.arange(len(inv))
-    other[inv[idx != first[inv]]] = idx[idx != first[inv]]
-    f0, f1 = first[both] % m, other[both] % m
-    cos = np.sum(n[f0] * n[f1], axis=1)
-    keep = both[cos < math.cos(math.radians(min_deg))]
-    edges: np.ndarray = np.asarray(verts, np.float64)[key[keep]]
-    return edges
+    return _visible_edges(verts, faces, eye, min_deg)[1]
 
 
 def _samples(intr: Intrinsics, pose: np.ndarray, segs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -158,7 +148,7 @@ def outline_agreement(
     """
     pose = np.asarray(cam_from_world, np.float64)
     eye = transform_points(np.linalg.inv(pose), np.zeros((1, 3)))[0]
-    outline = silhouette_edges(verts, faces, eye)
+    outline, creases = _visible_edges(verts, faces, eye)
     pts, nrm = _samples(intr, pose, outline)
     H, W = image_bgr.shape[:2]
     offs = np.arange(-SPAN_PX, SPAN_PX + 1, dtype=np.float64)
@@ -179,7 +169,7 @@ def outline_agreement(
     sx = cv2.remap(gx, mx, my, cv2.INTER_LINEAR)
     sy = cv2.remap(gy, mx, my, cv2.INTER_LINEAR)
     g = np.abs(sx * nrm[:, None, 0] + sy * nrm[:, None, 1])  # the gradient across the outline
-    own = _own_edges(intr, pose, np.concatenate([outline, crease_edges(verts, faces, eye)]), (H, W))
+    own = _own_edges(intr, pose, np.concatenate([outline, creases]), (H, W))
     g[_on_own_edge(own, q, offs)] = 0.0
     peak = offs[np.argmax(g, axis=1)]
     # the marker's pose error moves the whole outline by a few pixels: the best shift within SHIFT_PX
