@@ -17,7 +17,7 @@ per item; each worker builds its own :class:`arshadow.frame.session.Session` (an
 picklable spec once and reuses it for its later items. Workers write into ``OUT_DIR`` directly, so it must
 be a folder every worker sees (a shared file system); the outputs and records are the same as a local run.
 
-About 605 lines: one batch's resumable bookkeeping (fingerprints, done records, temporary outputs) and
+About 600 lines: one batch's resumable bookkeeping (fingerprints, done records, temporary outputs) and
 its local and Dask drivers, which share it; a photo's work is :func:`arshadow.photos.render_photo_file`'s, a
 video's :func:`arshadow.video.engine.process_video`'s.
 """
@@ -344,24 +344,16 @@ def _submit_dask(
     """One item's tasks: a chunked video is one task per unfinished chunk and a join task depending on
     them; anything else is one task. Returns the future of the item's summary."""
     if it.kind == "video" and chunks > 1:
+        recipe = BackendRecipe(spec)
         try:
             prep, _note = prepare_chunked(
-                it.input,
-                video_outputs(outdir, it.stem, opts),
-                opts.check(),
-                chunks,
-                outdir,
-                it.stem,
-                BackendRecipe(spec).key(),
-                it.input,
-                spec.options.camera_effects == "on",
+                it.input, video_outputs(outdir, it.stem, opts), opts.check(), chunks, outdir, it.stem, recipe, it.input
             )
         except ArshadowError:
             prep = None  # the item's own task reports the problem
         if prep is not None:
             prep.store.open()
             done = {c.k: r for c in prep.chunks if (r := prep.store.done(c)) is not None}
-            recipe = BackendRecipe(spec)
             futs = [
                 client.submit(
                     chunk_task, recipe, prep, c, pure=False, retries=1, key=f"arshadow-{it.stem}-{fp[:12]}-c{c.k}"

@@ -162,21 +162,20 @@ def prepare_chunked(
     count: int,
     outdir: str | os.PathLike[str],
     stem: str,
-    recipe_key: str,
+    recipe: BackendRecipe,
     name: str | None = None,
-    camera_effects: bool = False,
 ) -> tuple[Prepared | None, str | None]:
     """Plan one video into up to ``count`` chunks: a :class:`Prepared`, or ``(None, note)`` when it is
-    processed in one piece (``note``: why, or None for an image sequence). ``camera_effects``: the scene's
-    ``--camera-effects on``, measured on the video's first tracked frame, which a chunk's own frames do not
-    hold: such a video is processed in one piece (cut, each chunk measured its own blur and noise, and the
-    output differed from ``--jobs 1``'s)."""
+    processed in one piece (``note``: why, or None for an image sequence). ``recipe``: the workers' (its key
+    is in the chunks' fingerprint). A scene with ``--camera-effects on`` measures them on the video's first
+    tracked frame, which a chunk's own frames do not hold: such a video is processed in one piece (cut, each
+    chunk measured its own blur and noise, and the output differed from ``--jobs 1``'s)."""
     p = str(path)
     if "%" in p:
         return None, None
     if opts.layers is not None:
         return None, f"{name or p}: not cut into chunks (--layers are written in one piece)"
-    if camera_effects:
+    if recipe.spec.options.camera_effects == "on":
         return None, (
             f"{name or p}: not cut into chunks (--camera-effects on: the blur and noise are measured on the "
             "video's first tracked frame, for every frame)"
@@ -193,7 +192,7 @@ def prepare_chunked(
     if len(chunks) < 2:
         return None, note
     total = probe.frame_count if opts.max_frames is None else min(probe.frame_count or opts.max_frames, opts.max_frames)
-    store = ChunkStore(outdir, stem, fingerprint(p, recipe_key, opts, n), opts)
+    store = ChunkStore(outdir, stem, fingerprint(p, recipe.key(), opts, n), opts)
     return Prepared(
         p,
         name or p,
@@ -505,8 +504,7 @@ def process_video_chunked(
     """
     t0 = time.perf_counter()
     opts = opts.check()
-    cam = recipe.spec.options.camera_effects == "on"
-    prep, note = prepare_chunked(path, outputs, opts, pool.jobs, outdir, stem, recipe.key(), name, cam)
+    prep, note = prepare_chunked(path, outputs, opts, pool.jobs, outdir, stem, recipe, name)
     if prep is not None and not opts.encoder_threads:
         prep.opts = dataclasses.replace(opts, encoder_threads=encoder_threads(pool.jobs))
     if prep is None:
