@@ -14,6 +14,8 @@ A mesh whose every edge is shared by exactly two faces traversing it in opposite
 shadow volume). Any other mesh (boundary edges, non-manifold edges, inconsistent winding, even a single
 triangle) is treated as *two-sided*: every face casts, turned towards the light, so a sheet casts the same
 shadow whichever side the light is on. See ``docs/geometry.md``.
+
+(About 610 lines, at the project's ~600: one class whose cached properties all derive from the welded arrays.)
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ equal when two sources describe the same scene. :meth:`SceneSpec.build` loads it
 (calibration, occluder, parsed lights, tracker arguments); a :class:`arshadow.frame.session.Session` does that
 once and renders photos with it.
 
-(About 630 lines, just over the project's ~600: the spec classes and their one builder, whose key table and
+(About 640 lines, just over the project's ~600: the spec classes and their one builder, whose key table and
 checks are read together; the render options are already apart, :mod:`arshadow.scene.options`.)
 
 One function builds specs from every source, :func:`scene_from_dict`; the command line
