@@ -271,10 +271,13 @@ class Tolerances:
     # (arshadow.estimate.outline): ho_box_rotated_tiles is no longer refused (its outline agreement 0.39 ->
     # 0.56), so the held-out medians are over six cases: 0.128 / 0.1295 / 0.043, limits + 0.01 (a set one
     # case larger: its first limits). The five-case limits above stay, over the same five cases (heldout5).
-    ref_heldout_ground: float = 0.138
+    # Re-measured 2026-11-29 (fourth session) after the sky map's taper kept the object's reflected light
+    # (arshadow.shading.sky.ACTIVE_OCCLUSION): own 0.148 / 0.172 / 0.048; held-out 0.122 / 0.1295 / 0.043,
+    # five cases 0.123 / 0.111 / 0.050. Limits + 0.01 where that is tighter (the held-out grounds).
+    ref_heldout_ground: float = 0.132
     ref_heldout_contact: float = 0.140
     ref_heldout_object: float = 0.053
-    ref_heldout5_ground: float = 0.138
+    ref_heldout5_ground: float = 0.133
     ref_heldout5_contact: float = 0.111
     ref_heldout5_object: float = 0.060
     # a material as reflective as the paper, under the measured light, against the paper's measured colour

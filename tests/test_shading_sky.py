@@ -258,6 +258,25 @@ def test_ground_light_reflected_by_the_object_back_onto_the_ground():
     assert 0.25 < seen < 0.45  # the ground it sees is darker than the open ground (1/2)
 
 
+def test_the_map_reaches_as_far_as_the_light_the_object_reflects():
+    # the taper keeps a texel where the object hides ACTIVE_OCCLUSION[1] of the sky *or* reflects that much of
+    # the sky's light: in front of a brightly lit face under a dim sky the reflected light is 3 x the occlusion
+    # and reaches further (the path tracer's glow in front of lit faces, docs/reference.md). Ground on the
+    # -x face's axis sees that face only: its form factor is the occlusion (Lambert), and the face's
+    # irradiance over the open ground's is (1 - r) n.L / L_z + r / 2 (no ground light given)
+    c = load_occluder(BOX_SPEC)
+    r, albedo = 0.15, 0.5
+    pts = np.array([(-BOX[0] / 2 - d, 0.0) for d in (0.06, 0.08, 0.15)])
+    occ = 1.0 - np.array([box_ground_visibility(np.r_[p, 0.0], *BOX) for p in pts])
+    refl = albedo * ((1.0 - r) + r / 2.0) * occ / r  # over the sky's share
+    t0, t1 = sky.ACTIVE_OCCLUSION
+    assert occ[0] < t1 < refl[0] and occ[1] < t1 < refl[1]  # an occlusion-only taper cuts the first two short
+    assert max(occ[2], refl[2]) < t0  # the third is beyond either
+    got = ground_sky_visibility(c, bounce=(np.array([-1.0, 0.0, 1.0]), r, albedo)).sample(pts)
+    expect = np.r_[1.0 - occ[:2] + refl[:2], 1.0]
+    assert np.abs(got - expect).max() <= TOL.sky_ground_abs, (got - expect).round(4).tolist()
+
+
 def test_faces_see_the_ground_light_beyond_a_line_as_the_strip_view_factor(monkeypatch):
     # the ground's reflected light read per ground point (arshadow.shading.decide.GroundLight: a white paper
     # beside the object) against the view factor from a point of a vertical face to the ground beyond a line

@@ -71,11 +71,12 @@ SKY_MODELS = ("uniform", "cie")
 _SHIFT = 8
 #: sub-texels per texel side (odd: one sits at the texel centre)
 _SUB = 3
-#: occlusion of the sky below the second value tapers linearly to 0 at the first (far from the object:
-#: times the sky's share of the light, 0.35-0.45 outdoors, under 2 % of a pixel's light, what the reference
-#: scorer counts as unseen); the map keeps the texels where it is not 0. (0.03, 0.06) before: the same
-#: residual on the path-traced reference (own ground 0.250 against 0.252) for a 1.5 x bigger region (the
-#: 720p bench photo: 429 x 293 px against 341 x 261, 1.72 x the "off" time against 1.43 x)
+#: the map's change of the ground below the second value tapers linearly to 0 at the first (far from the
+#: object): the larger of the sky's share the object hides and the light it reflects there (over the sky's
+#: share). Occlusion alone decided until 2026-11-29: the reflected light in front of a lit face reaches 2-3 x
+#: further, and cutting it left the path-traced reference's ground too dark there (held-out ground
+#: 0.128 -> 0.122, own 0.149 -> 0.148, the same region on the 720p bench photo; docs/reference.md).
+#: (0.03, 0.06) before: the same residual then, for a 1.5 x bigger region
 ACTIVE_OCCLUSION = (0.05, 0.1)
 
 
@@ -122,7 +123,7 @@ class GroundOcclusion:
 
     ``visibility[i, j]`` (``(h, w) float32``, 0..1) is the value at the ground point
     ``(x0 + (j + 0.5) * texel, y0 + (i + 0.5) * texel)`` (metres, ground frame); outside the grid the
-    object hides less than ``ACTIVE_OCCLUSION[0]`` of the sky and the ground counts as open (1);
+    object hides and reflects less than ``ACTIVE_OCCLUSION[0]`` of the sky and the ground counts as open (1);
     ``edge_occlusion`` is the largest occlusion on the border of the full square computed. ``bounce``
     (``(h, w) float32`` >= 0, or None without interreflection) is the part of ``visibility`` that is the
     light the object reflects onto the ground over the sky's share (``visibility`` = sky visibility +
@@ -345,7 +346,8 @@ def ground_sky_visibility(  # noqa: PLR0913 (the caster, and keyword-only option
         Also the light the object reflects onto the ground (or the :class:`Interreflection`'s fields as a
         tuple: ``(light, sky_share, albedo[, ground[, lamp]])``).
     taper : (t0, t1) or None
-        Occlusion under ``t1`` tapers linearly to 0 at ``t0`` and the map is cropped to where it is not 0
+        Where both the occlusion and the reflected light (over the sky's share) are under ``t1``, the map's
+        change tapers linearly to 0 at ``t0``, and the map is cropped to where it is not 0
         (:data:`ACTIVE_OCCLUSION`: the frame's region stays small); None: the exact visibility everywhere on
         the grid (the light estimate's allowance for its probe).
     raster : GroundRaster, optional
@@ -370,17 +372,20 @@ def ground_sky_visibility(  # noqa: PLR0913 (the caster, and keyword-only option
     vis = _fill_under((acc / weights.sum()).astype(np.float32))
     border = np.concatenate([vis[0], vis[-1], vis[:, 0], vis[:, -1]])
     edge = float(1.0 - border.min())
-    # occlusion below ACTIVE_OCCLUSION[1] tapers to 0 at ACTIVE_OCCLUSION[0] (far from the object), and the
-    # map keeps only the texels where it is not 0 (+ 2 texels): the frame's region shrinks to what changes
+    # where both the occlusion and the reflected light are under ACTIVE_OCCLUSION[1] they taper to 0 at
+    # ACTIVE_OCCLUSION[0] (far from the object), and the map keeps only the texels where they are not 0
+    # (+ 2 texels): the frame's region shrinks to what changes
     occ = 1.0 - vis
-    t0, t1 = taper if taper is not None else (-1.0, 0.0)
-    vis = (1.0 - occ * np.clip((occ - t0) / (t1 - t0), 0.0, 1.0)).astype(np.float32)
-    (rows,) = np.nonzero((vis < 1.0).any(axis=1))
-    (cols,) = np.nonzero((vis < 1.0).any(axis=0))
-    reflected = None
+    refl = None  # the reflected light over the sky's share
     if acc_b is not None and bounce is not None and bounce.sky_share > 0:
-        b = float(bounce.albedo) * acc_b / weights.sum()
-        reflected = (b * np.clip((occ - t0) / (t1 - t0), 0.0, 1.0) / float(bounce.sky_share)).astype(np.float32)
+        refl = float(bounce.albedo) * acc_b / weights.sum() / float(bounce.sky_share)
+    t0, t1 = taper if taper is not None else (-1.0, 0.0)
+    w = np.clip(((occ if refl is None else np.maximum(refl, occ)) - t0) / (t1 - t0), 0.0, 1.0)
+    vis = (1.0 - occ * w).astype(np.float32)
+    (rows,) = np.nonzero((w > 0.0).any(axis=1))
+    (cols,) = np.nonzero((w > 0.0).any(axis=0))
+    reflected = None if refl is None else (refl * w).astype(np.float32)
+    if reflected is not None:
         vis = (vis + reflected).astype(np.float32)
     if rows.size:
         r0, r1 = max(int(rows[0]) - 2, 0), min(int(rows[-1]) + 3, resolution)
