@@ -187,18 +187,43 @@ def test_jobs2_equals_sequential(tmp_path, tol):
 
 
 @pytest.mark.gl
-def test_jobs2_with_camera_effects_is_one_piece_and_equals_sequential(tmp_path):
-    """``--camera-effects on`` measures the blur and noise on the video's first tracked frame: cut into chunks,
-    each chunk measured its own (on its primer's first tracked frame) and the shadow mask video differed from
-    ``--jobs 1``'s. Such a video is processed in one piece, saying so."""
+def test_jobs2_with_camera_effects_is_cut_and_equals_sequential(tmp_path, tol):
+    """``--camera-effects on`` measures the blur and noise on the video's first tracked frame, which the second
+    chunk does not hold: the parent measures them as the whole run does and every chunk applies them. (Each
+    chunk measured its own on its primer's first tracked frame once, and the shadow mask video differed from
+    ``--jobs 1``'s; then such a video was not cut.)"""
     clip = _clip(tmp_path / "c.mp4")
     cam = ("--camera-effects", "on", "--motion-blur", "off")
-    rc1, _ = _run(clip, tmp_path / "seq", *cam)
+    rc1, s1 = _run(clip, tmp_path / "seq", *cam)
     rc2, s2 = _run(clip, tmp_path / "par", "--jobs", "2", *cam)
     assert rc1 == rc2 == 0
-    assert "chunks" not in s2
-    assert any("not cut into chunks (--camera-effects on" in w for w in s2["warnings"]), s2["warnings"]
+    assert "chunks" not in s1 and len(s2["chunks"]) == 2
+    assert not any("not cut into chunks" in w for w in s2["warnings"]), s2["warnings"]
     assert_same_run(tmp_path / "seq", tmp_path / "par", "c", 72)
+    assert_same_items(tmp_path / "seq" / "r.json", tmp_path / "par" / "r.json", tol)
+
+
+@pytest.mark.gl
+def test_each_video_of_a_run_measures_its_own_camera_effects(tmp_path):
+    """Two videos in one run (one session): the second's blur and noise are measured on its own first tracked
+    frame, as when it runs alone (they were the first video's, kept for the session: a video's output then
+    depended on the video before it)."""
+    cam = ("--camera-effects", "on", "--motion-blur", "off")
+    soft = make_clip(tmp_path / "soft.mp4", _intr(), _poses(10), noise=3.0, blur=1.5, seed=1)
+    sharp = make_clip(tmp_path / "sharp.mp4", _intr(), _poses(10), noise=1.0, blur=0.6, seed=2)
+    assert (
+        _cli("video", soft, sharp, *SCENE, "-q", "-o", tmp_path / "both", "--report", tmp_path / "both.json", *cam) == 0
+    )
+    assert _cli("video", sharp, *SCENE, "-q", "-o", tmp_path / "one", "--report", tmp_path / "one.json", *cam) == 0
+
+    def measured(report, stem):
+        items = json.loads(Path(report).read_text())["images"]
+        return [it["plan"]["camera_effects"] for it in items if Path(it["input"]).stem == stem and it.get("plan")]
+
+    alone, in_run = measured(tmp_path / "one.json", "sharp"), measured(tmp_path / "both.json", "sharp")
+    first = measured(tmp_path / "both.json", "soft")
+    assert alone and in_run == alone
+    assert first[0] != alone[0]  # the two videos' optics differ: the test can tell them apart
 
 
 @pytest.mark.gl

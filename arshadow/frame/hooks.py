@@ -328,7 +328,8 @@ class EngineHooks:
     def camera_effects(self, image: np.ndarray, pose: MarkerPose | None) -> CameraEffects | None:
         """The photo's blur and noise (``--camera-effects on``), measured on the first frame whose marker is
         tracked and kept for the session (:func:`arshadow.frame.effects.measure_camera`, then
-        :attr:`measured_camera`); None when off or not measured yet.
+        :attr:`measured_camera`; the video engine forgets it at each new video); None when off or not
+        measured yet.
 
         ``image`` (H, W, 3) uint8 BGR: the whole frame (the marker's edges, its paper and the floor round it
         are read); ``pose``: its tracked marker (None: nothing measured)."""

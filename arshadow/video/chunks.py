@@ -65,6 +65,8 @@ if TYPE_CHECKING:
     import av.packet
     import av.stream
 
+    from ..frame.effects import CameraEffects
+
 #: an audio stream being copied (:func:`_open_audio`): ``(source container, its audio stream, the output's
 #: stream, the source's packets, [the packet read but not yet muxed, or None])``
 _Audio: TypeAlias = tuple[
@@ -237,11 +239,13 @@ def run_chunk(
     name: str,
     final: VideoOutputs,
     total: int | None,
+    camera: CameraEffects | None = None,
 ) -> dict[str, Any]:
     """Process one chunk into the store (outputs first, then the record); returns the record.
 
     ``final``: the video's own outputs (named in the report items); ``total``: the frame count the
-    sequential run would declare (contact-sheet spacing).
+    sequential run would declare (contact-sheet spacing); ``camera``: the video's camera blur and noise
+    (:func:`arshadow.video.engine.first_camera`; None: the chunk measures its own, if on).
     """
     t0, c0 = time.perf_counter(), time.process_time()
     reader = SeekReader(
@@ -249,6 +253,8 @@ def run_chunk(
     )
     outs = store.outputs(chunk.k)
     backend.start(reader.width, reader.height)
+    if camera is not None:
+        backend.use_camera(camera)
     backend.replay_sun(index.times[: chunk.start])
     composer = FrameComposer(
         backend,

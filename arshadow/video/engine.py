@@ -43,13 +43,14 @@ from ..tracking.quality import reprojection_hold
 from .avio import VIDEO_CODECS
 from .decode import FrameReader, decode_into, open_reader
 from .encode import EncodeSink, Progress, SheetThumbs, VideoOutputs, required, write_contact_sheet
-from .framejob import FRAME_STAGES, Frame, FrameComposer, FramePayload, SessionBackend, gray_of
+from .framejob import FRAME_STAGES, Frame, FrameComposer, FramePayload, SessionBackend, frame_bgr, gray_of
 from .hints import other_dictionaries_hint
 from .temporal import PoseStream
 from .threads import END, Worker, put_or_stop
 
 if TYPE_CHECKING:
     from ..errors import MarkerNotFoundError
+    from ..frame.effects import CameraEffects
     from ..frame.report import ReportItem
     from ..tracking.pose import MarkerPose
     from .temporal import FramePose
@@ -59,8 +60,10 @@ __all__ = [
     "EngineOptions",
     "SessionBackend",
     "Span",
+    "first_camera",
     "process_video",
     "run_frames",
+    "track_frame",
     "unique_stems",
     "video_outputs",
     "write_contact_sheet",
@@ -396,7 +399,6 @@ def track_into(
     ``span``: a chunk's, whose :attr:`Span.states` get the tracker's state after the frames
     before its start and its stop."""
     misses = 0  # frames in a row without the marker
-    err: MarkerNotFoundError | str | None
     snap: tuple[int, ...] = () if span is None else (span.start - 1, span.stop - 1)
     while not stop.is_set():
         job = next_item(q_in, (dec_t,), stop)
@@ -405,17 +407,45 @@ def track_into(
             return
         fr, dec_ms = cast(tuple[Frame, float], job)
         timings = dict.fromkeys(FRAME_STAGES, 0.0)
-        pose, err = backend.track(gray_of(fr, height), timings)
-        if pose is None and getattr(fr, "format", "bgr24") == "yuv420p" and retry_due(misses):
-            # the luma is not the colour frame's grey (chroma): on a miss, the photo path's (the real-footage work)
-            pose, err = backend.track(gray_of(fr, height, colour=True), timings)
-        misses = 0 if pose is not None else misses + 1
-        if pose is not None and (why := reprojection_hold(pose)) is not None:
-            pose, err = None, why  # a broken pose (the trust fixes): held like a miss, never rendered as ok
+        pose, err, misses = track_frame(backend, fr, height, misses, timings)
         if span is not None and fr.index in snap:
             span.states[fr.index] = {"tracker": backend.tracker_state(), "colour_misses": misses}
         if not put_or_stop(q_trk, (fr, dec_ms, timings, pose, None if err is None else str(err)), stop):
             return
+
+
+def track_frame(
+    backend: SessionBackend, fr: Frame, height: int, misses: int, timings: dict[str, float]
+) -> tuple[MarkerPose | None, MarkerNotFoundError | str | None, int]:
+    """Track one decoded frame as the tracking thread does: ``(pose or None, why not, misses in a row)``
+    after ``misses`` frames in a row without the marker (:func:`track_into`: the colour retry, the
+    reprojection hold); ``timings`` gets ``detect`` and ``pose``."""
+    err: MarkerNotFoundError | str | None
+    pose, err = backend.track(gray_of(fr, height), timings)
+    if pose is None and getattr(fr, "format", "bgr24") == "yuv420p" and retry_due(misses):
+        # the luma is not the colour frame's grey (chroma): on a miss, the photo path's (the real-footage work)
+        pose, err = backend.track(gray_of(fr, height, colour=True), timings)
+    misses = 0 if pose is not None else misses + 1
+    if pose is not None and (why := reprojection_hold(pose)) is not None:
+        pose, err = None, why  # a broken pose (the trust fixes): held like a miss, never rendered as ok
+    return pose, err, misses
+
+
+def first_camera(backend: SessionBackend, reader: FrameReader) -> CameraEffects | None:
+    """The camera's blur and noise (``--camera-effects on``) as a run of the whole video measures them: on
+    its first tracked frame (tracked from the first frame on, as :func:`track_into` does; the whole frame
+    in BGR, as the compositor converts it). Reads ``reader`` up to that frame; starts ``backend`` on the
+    video (:meth:`SessionBackend.start`). None when no frame is tracked (nothing is composited then).
+    A video cut into chunks gets it from here: a chunk's own frames need not hold the first tracked one."""
+    backend.start(reader.width, reader.height)
+    misses = 0
+    for fr in reader:
+        pose, _, misses = track_frame(backend, fr, reader.height, misses, dict.fromkeys(FRAME_STAGES, 0.0))
+        if pose is not None and backend.camera_unmeasured(pose):
+            backend.measure_camera(frame_bgr(fr), pose)
+            if not backend.camera_unmeasured(pose):
+                return backend.session.camera_effects
+    return None
 
 
 def next_item(q: queue.Queue[object], workers: Iterable[Worker], stop: threading.Event | None = None) -> object:

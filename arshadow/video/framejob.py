@@ -43,6 +43,7 @@ from .i420 import even_box, i420_planes, i420_roi_to_bgr, i420_with_roi
 if TYPE_CHECKING:
     from ..compose.layers import Layers
     from ..export.layervideo import LayerSink
+    from ..frame.effects import CameraEffects
     from ..frame.hooks import CalibrationState
     from ..frame.session import Session
     from ..lights.suntrack import SunTrack
@@ -56,6 +57,7 @@ __all__ = [
     "FrameStats",
     "SessionBackend",
     "even_box",
+    "frame_bgr",
     "gray_of",
     "i420_planes",
     "i420_roi_to_bgr",
@@ -118,6 +120,7 @@ class SessionBackend:
         """A new video of this size (CalibrationError: the calibration does not fit it)."""
         self.cal = self.hooks.calibration(width, height)
         self.hooks.reset_tracking()  # a video's output never depends on the video before it
+        self.hooks.measured_camera = None  # nor its camera effects (measured on its own first tracked frame)
         for tr in self.tracks:
             tr.reset()
         if self.hooks.exposure is not None:  # the exposure match's smoothing starts afresh
@@ -229,6 +232,11 @@ class SessionBackend:
         """Measure the camera's blur and noise on the whole frame ``bgr (H, W, 3) uint8`` (once a video)."""
         self.hooks.camera_effects(bgr, marker)
 
+    def use_camera(self, camera: CameraEffects | None) -> None:
+        """This video's camera blur and noise as measured elsewhere (:func:`arshadow.video.engine.first_camera`:
+        a chunk of a video, whose first tracked frame the chunk need not hold); after :meth:`start`."""
+        self.hooks.measured_camera = camera
+
     def grown(self, roi: Sequence[int], motion: MotionBlur | None) -> tuple[int, int, int, int]:
         """``roi`` grown by the blurs' reach (``motion``'s, if any, and the measured camera blur's), within the
         frame."""
@@ -279,6 +287,19 @@ def gray_of(frame: Frame, height: int, colour: bool = False) -> np.ndarray | Lum
         return LumaFrame(frame.image[:height])
     grey = cv2.cvtColor(frame.image, cv2.COLOR_BGR2GRAY)
     return grey
+
+
+def frame_bgr(frame: Frame) -> np.ndarray:
+    """The whole frame as ``(H, W, 3) uint8`` BGR, as the compositor converts it where it measures the camera
+    (:meth:`FrameComposer.compose`): a ``yuv420p`` frame by :func:`i420_roi_to_bgr` over the whole frame, a
+    BGR frame copied."""
+    img = frame.image
+    if getattr(frame, "format", "bgr24") != "yuv420p":
+        return np.array(img)
+    h, w = img.shape[0] * 2 // 3, img.shape[1]
+    bgr = np.zeros((h, w, 3), np.uint8)
+    i420_roi_to_bgr(img, bgr, (0, 0, w, h))
+    return bgr
 
 
 class FrameStats(TypedDict):

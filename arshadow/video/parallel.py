@@ -54,13 +54,15 @@ from .chunks import (
     run_chunk,
     widened,
 )
+from .decode import open_reader
 from .encode import Progress, SheetThumbs, VideoOutputs, required, write_contact_sheet
-from .engine import EngineOptions
+from .engine import EngineOptions, first_camera
 from .framejob import FRAME_STAGES, SessionBackend
 from .hints import other_dictionaries_hint
 from .scan import StreamIndex, scan_stream
 
 if TYPE_CHECKING:
+    from ..frame.effects import CameraEffects
     from ..lights.spec import Light
     from ..lights.suntrack import SunTrack
     from ..scene.spec import SceneSpec
@@ -137,7 +139,9 @@ def release_backends() -> None:
 
 @dataclass
 class Prepared:
-    """A video planned into chunks (picklable: sent with every chunk task)."""
+    """A video planned into chunks (picklable: sent with every chunk task). ``camera``: the blur and noise
+    every chunk applies (``--camera-effects on``: measured on the video's first tracked frame by
+    :func:`prepare_chunked`; None: off, or no frame tracked)."""
 
     path: str
     name: str
@@ -153,6 +157,7 @@ class Prepared:
     fps_assumed: bool
     frame_count: int | None
     note: str | None = None
+    camera: CameraEffects | None = None
 
 
 def prepare_chunked(
@@ -168,18 +173,14 @@ def prepare_chunked(
     """Plan one video into up to ``count`` chunks: a :class:`Prepared`, or ``(None, note)`` when it is
     processed in one piece (``note``: why, or None for an image sequence). ``recipe``: the workers' (its key
     is in the chunks' fingerprint). A scene with ``--camera-effects on`` measures them on the video's first
-    tracked frame, which a chunk's own frames do not hold: such a video is processed in one piece (cut, each
-    chunk measured its own blur and noise, and the output differed from ``--jobs 1``'s)."""
+    tracked frame, which a chunk's own frames need not hold: they are measured here, as a run of the whole
+    video measures them (:func:`arshadow.video.engine.first_camera`), and every chunk uses them
+    (:attr:`Prepared.camera`)."""
     p = str(path)
     if "%" in p:
         return None, None
     if opts.layers is not None:
         return None, f"{name or p}: not cut into chunks (--layers are written in one piece)"
-    if recipe.spec.options.camera_effects == "on":
-        return None, (
-            f"{name or p}: not cut into chunks (--camera-effects on: the blur and noise are measured on the "
-            "video's first tracked frame, for every frame)"
-        )
     index = scan_stream(p)
     if index.problem:
         return None, f"{name or p}: not cut into chunks ({index.problem})"
@@ -192,6 +193,7 @@ def prepare_chunked(
     if len(chunks) < 2:
         return None, note
     total = probe.frame_count if opts.max_frames is None else min(probe.frame_count or opts.max_frames, opts.max_frames)
+    camera = _first_camera(p, recipe, opts) if recipe.spec.options.camera_effects == "on" else None
     store = ChunkStore(outdir, stem, fingerprint(p, recipe.key(), opts, n), opts)
     return Prepared(
         p,
@@ -208,7 +210,20 @@ def prepare_chunked(
         bool(probe.fps_assumed),
         probe.frame_count,
         note,
+        camera,
     ), None
+
+
+def _first_camera(path: str, recipe: BackendRecipe, opts: EngineOptions) -> CameraEffects | None:
+    """The video's camera effects, measured in this process with a session of its own (no GL context: the
+    chunk workers may still be forked), closed after."""
+    backend = recipe.build()
+    reader, _ = open_reader(path, opts.max_frames)
+    try:
+        return first_camera(backend, reader)
+    finally:
+        reader.close()
+        backend.session.close()
 
 
 def encoder_threads(jobs: int) -> int:
@@ -262,6 +277,7 @@ def chunk_task(recipe: BackendRecipe, prep: Prepared, chunk: Chunk) -> dict[str,
         name=prep.name,
         final=prep.outputs,
         total=prep.total,
+        camera=prep.camera,
     )
     rec["setup_s"] = round(setup, 3)  # the worker's session and GL context (0 once made)
     return rec
