@@ -204,6 +204,27 @@ def test_jobs2_with_camera_effects_is_cut_and_equals_sequential(tmp_path, tol):
 
 
 @pytest.mark.gl
+def test_jobs2_with_camera_effects_reports_a_calibration_that_does_not_fit_as_jobs1(tmp_path):
+    """The parent's measurement (engine.first_camera) meets a calibration that does not fit the video first:
+    the video goes to the one-piece run, which reports it as ``--jobs 1`` does, the phone's rotation hint
+    included (a video stored sideways and shown turned)."""
+    clip = make_clip(tmp_path / "c.mp4", _intr(), _poses(40), noise=1.0, seed=7, gop=20, rotation=90)
+    cal = tmp_path / "c43.yml"  # a 4:3 calibration for a 16:9 video
+    cal.write_text((ROOT / "calib" / "synth_640x360.yml").read_text().replace("image_height: 360", "image_height: 480"))
+    scene = [str(cal) if str(a).endswith("synth_640x360.yml") else a for a in SCENE]
+    errors = []
+    for jobs in ("1", "2"):
+        out = tmp_path / jobs
+        rc = _cli(
+            "video", clip, *scene, "-q", "-o", out, "--report", out / "r.json", "--jobs", jobs, "--camera-effects", "on"
+        )
+        rep = _report(out / "r.json")
+        assert rc == 1 and rep["status"] == "error", rep
+        errors.append(rep["error"])
+    assert errors[0] == errors[1] and "shown turned by 90 degrees" in errors[0], errors
+
+
+@pytest.mark.gl
 def test_each_video_of_a_run_measures_its_own_camera_effects(tmp_path):
     """Two videos in one run (one session): the second's blur and noise are measured on its own first tracked
     frame, as when it runs alone (they were the first video's, kept for the session: a video's output then

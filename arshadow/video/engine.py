@@ -435,16 +435,19 @@ def first_camera(backend: SessionBackend, reader: FrameReader) -> CameraEffects 
     """The camera's blur and noise (``--camera-effects on``) as a run of the whole video measures them: on
     its first tracked frame (tracked from the first frame on, as :func:`track_into` does; the whole frame
     in BGR, as the compositor converts it). Reads ``reader`` up to that frame; starts ``backend`` on the
-    video (:meth:`SessionBackend.start`). None when no frame is tracked (nothing is composited then).
+    video (:meth:`SessionBackend.start`). None when off, or when no frame is tracked (nothing is composited
+    then).
     A video cut into chunks gets it from here: a chunk's own frames need not hold the first tracked one."""
     backend.start(reader.width, reader.height)
+    if backend.session.options.camera_effects != "on":
+        return None
     misses = 0
     for fr in reader:
         pose, _, misses = track_frame(backend, fr, reader.height, misses, dict.fromkeys(FRAME_STAGES, 0.0))
-        if pose is not None and backend.camera_unmeasured(pose):
+        if pose is not None:
             backend.measure_camera(frame_bgr(fr), pose)
-            if not backend.camera_unmeasured(pose):
-                return backend.session.camera_effects
+            if (camera := backend.session.camera_effects) is not None:
+                return camera
     return None
 
 

@@ -36,7 +36,7 @@ from typing import TYPE_CHECKING, Any, TypeAlias
 
 import numpy as np
 
-from ..errors import ImageError, UsageError
+from ..errors import ArshadowError, ImageError, UsageError
 from ..frame.session import Session
 from ..gl.context import contexts_made
 from ..io import make_folder
@@ -193,7 +193,12 @@ def prepare_chunked(
     if len(chunks) < 2:
         return None, note
     total = probe.frame_count if opts.max_frames is None else min(probe.frame_count or opts.max_frames, opts.max_frames)
-    camera = _first_camera(p, recipe, opts) if recipe.spec.options.camera_effects == "on" else None
+    camera = None
+    if recipe.spec.options.camera_effects == "on":
+        try:
+            camera = _first_camera(p, recipe, opts)
+        except ArshadowError as exc:  # e.g. a calibration that does not fit: the one-piece run reports it
+            return None, f"{name or p}: not cut into chunks ({exc})"
     store = ChunkStore(outdir, stem, fingerprint(p, recipe.key(), opts, n), opts)
     return Prepared(
         p,
