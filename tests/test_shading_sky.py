@@ -318,6 +318,17 @@ def test_point_lamp_lights_a_face_at_its_own_distance():
     assert got > 1.5  # a far light from the same direction gives cos 45 / sin 45 = 1
 
 
+def test_ground_light_field_and_ring_share_the_papers_units():
+    # the field is used relative to the ring's value (SceneGeometry.set_ground_light): with --paper-albedo
+    # both must read the same pixel alike (the field kept the default 0.8 while the ring took 0.9)
+    from arshadow.shading.decide import ground_bounce
+
+    img = np.full((100, 100, 3), 188, np.uint8)
+    g = ground_light(img, lambda p: p[:, :2] * 1000.0, (1.0, 1.0, 1.0), (0.0, 0.0, 0.2), res=8, paper_albedo=0.9)
+    ring = ground_bounce(img, np.array([[12.5, 12.5]]), (1.0, 1.0, 1.0), paper_albedo=0.9)
+    assert ring is not None and abs(g(np.array([[0.0125, 0.0125]]))[0] - ring.mean()) < 1e-6
+
+
 def test_ground_light_read_from_the_photo_and_its_units():
     # the paper (code 255) reads PAPER_ALBEDO with a unit gain, a mid grey half of it; off the photo NaN
     img = np.full((100, 100, 3), 255, np.uint8)

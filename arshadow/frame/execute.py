@@ -323,14 +323,16 @@ def _sky_shading(
         a = np.linspace(0.0, 2 * np.pi, 32, endpoint=False)
         ring = np.c_[c[0] + r * np.cos(a), c[1] + r * np.sin(a), np.zeros(32)]
         gain = np.asarray(opts.exposure_gain, np.float64) * (1.0 if color_gain is None else np.asarray(color_gain))
-        m = ground_bounce(image, intr.project(ring, plan.cam_from_world), gain, float(opts.paper_albedo))
+        paper = float(opts.paper_albedo)
+        m = ground_bounce(image, intr.project(ring, plan.cam_from_world), gain, paper)
         if m is not None:
             bounce = tuple(float(v) for v in m)
 
             def field() -> GroundLight:  # the ground round the object as the photo shows it (the paper too)
                 x0, y0, t = ground_grid(geometry.caster, GROUND_LIGHT_RES)
                 cam = plan.cam_from_world
-                return ground_light(image, lambda p: intr.project(p, cam), gain, (x0, y0, GROUND_LIGHT_RES * t))
+                grid = (x0, y0, GROUND_LIGHT_RES * t)
+                return ground_light(image, lambda p: intr.project(p, cam), gain, grid, paper_albedo=paper)
 
             geometry.set_ground_light(m, field)  # lights the object's lower faces, reflected back to the ground
             outputs.item.plan["ground_bounce"] = [round(v, 4) for v in bounce]  # type: ignore[index]

@@ -145,18 +145,19 @@ def ground_light(
     gain: npt.ArrayLike,
     grid: tuple[float, float, float],
     res: int = 64,
+    paper_albedo: float = PAPER_ALBEDO,
 ) -> GroundLight:
     """:class:`GroundLight` of the photo ``image (H, W, 3) uint8`` BGR over ``res x res`` texels of the ground
     square ``grid = (x0, y0, side)`` (metres, ground frame: its corner and side); ``project`` maps ground
-    points ``(k, 3)`` to pixels ``(k, 2)`` (the camera and its lens); ``gain (3,)`` as in
-    :func:`ground_bounce`. Each texel reads the pixel at its centre (nearest): the plate holds no object, so
+    points ``(k, 3)`` to pixels ``(k, 2)`` (the camera and its lens); ``gain (3,)`` and ``paper_albedo`` as in
+    :func:`ground_bounce` (the field is read relative to the ring's value: both in the same units). Each texel reads the pixel at its centre (nearest): the plate holds no object, so
     it is the open ground's light (a real object in the photo reads as its own colour)."""
     x0, y0, side = (float(v) for v in grid)
     texel = side / res
     c = (np.arange(res) + 0.5) * texel
     xx, yy = np.meshgrid(x0 + c, y0 + c)
     pts = np.c_[xx.ravel(), yy.ravel(), np.zeros(xx.size)]
-    light, ok = _reflected(image, np.asarray(project(pts), np.float64), gain)
+    light, ok = _reflected(image, np.asarray(project(pts), np.float64), gain, paper_albedo)
     vals = np.full(len(pts), np.nan, np.float32)
     vals[ok] = light.mean(axis=1)
     return GroundLight(x0, y0, texel, vals.reshape(res, res))
