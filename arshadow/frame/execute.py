@@ -338,7 +338,7 @@ def _sky_shading(
             outputs.item.plan["ground_bounce"] = [round(v, 4) for v in bounce]  # type: ignore[index]
     ground = geometry.sky_ground(outputs.timings)
     bleed = geometry.object_bleed
-    albedo = tuple(float(v) for v in float(opts.paper_albedo) * geometry.object_albedo()) if any(bounce) else None
+    albedo = tuple(float(v) for v in geometry.object_reflectance()) if any(bounce) else None
     sky = SkyShading(
         ground=ground,
         object_sky=OBJECT_SKY,

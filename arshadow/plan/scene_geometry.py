@@ -5,7 +5,7 @@ lights split into hard samples with their silhouettes and shadow volumes (built 
 the history a video depends on, :meth:`SceneGeometry.state`), and the world points that bound the region
 of interest (:func:`scene_hull_points`: the object and its shadow footprints on the ground).
 
-(About 620 lines, just over the project's ~600: :class:`SceneGeometry` is one cache whose parts (the lights'
+(About 625 lines, just over the project's ~600: :class:`SceneGeometry` is one cache whose parts (the lights'
 silhouettes and volumes, the sky-visibility map and the ground light it is made with) are invalidated
 together when the lights change; split, each part would read the others' private keys.)
 """
@@ -472,9 +472,8 @@ class SceneGeometry:
 
     def _bounce_light(self) -> Interreflection | None:
         """The object's :class:`arshadow.shading.sky.Interreflection` onto the ground: the strongest light's
-        direction from the object, the mean sky share, the object's mean albedo (its colour relative to the
-        marker paper's, without the exposure gain, times the paper's reflectance, ``paper_albedo``), the
-        ground's reflected light (its albedo times its irradiance, a share of the open ground's:
+        direction from the object, the mean sky share, the object's mean reflectance (:meth:`object_reflectance`),
+        the ground's reflected light (its albedo times its irradiance, a share of the open ground's:
         :meth:`set_ground_light`, 0 until measured) and as the photo shows it per ground point, and for a
         point light ``(its position, the ground point where the sky share holds)`` (``ratio_at`` with a
         measured light, else under the object's centre); None without a light or a sky share."""
@@ -489,13 +488,19 @@ class SceneGeometry:
         light = h[:3] if h[3] == 0 else h[:3] / h[3] - centre
         if light[2] <= 0:
             return None
-        col = self.object_albedo()
         at = opts.ratio_at if opts.ambient_measured and opts.ratio_at is not None else centre[:2]
         ref = np.array([float(at[0]), float(at[1]), 0.0])  # where r holds: the map's unit of light
         ground = float(self._ground_light or 0.0) * ground_units(h, r, ref, opts.ambient)
         lamp = (h[:3] / h[3], ref) if h[3] != 0 else None  # a point light: each face at its own distance
-        albedo = float(opts.paper_albedo) * float(np.mean(col))
+        albedo = float(np.mean(self.object_reflectance()))
         return Interreflection(light, r, albedo, ground, lamp, self._ground_field)
+
+    def object_reflectance(self) -> np.ndarray:
+        """``(3,) float64`` the object's mean reflectance, linear RGB (absolute: the paper's white is
+        ``paper_albedo``): :meth:`object_albedo` times the paper's reflectance, the share of the light it
+        receives that it sends on (onto the ground, onto its own parts)."""
+        out: np.ndarray = float(self.options.paper_albedo) * self.object_albedo()
+        return out
 
     def object_albedo(self) -> np.ndarray:
         """``(3,) float64`` the object's linear colour relative to the paper: ``occluder_color`` over the exposure
