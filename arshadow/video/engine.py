@@ -445,7 +445,7 @@ def first_camera(backend: SessionBackend, reader: FrameReader) -> CameraEffects 
     for fr in reader:
         pose, _, misses = track_frame(backend, fr, reader.height, misses, dict.fromkeys(FRAME_STAGES, 0.0))
         if pose is not None:
-            backend.measure_camera(frame_bgr(fr), pose)
+            backend.measure_camera(frame_bgr(fr.image, getattr(fr, "format", "bgr24")), pose)
             if (camera := backend.session.camera_effects) is not None:
                 return camera
     return None

@@ -289,12 +289,12 @@ def gray_of(frame: Frame, height: int, colour: bool = False) -> np.ndarray | Lum
     return grey
 
 
-def frame_bgr(frame: Frame) -> np.ndarray:
-    """The whole frame as ``(H, W, 3) uint8`` BGR, as the compositor converts it where it measures the camera
-    (:meth:`FrameComposer.compose`): a ``yuv420p`` frame by :func:`i420_roi_to_bgr` over the whole frame, a
-    BGR frame copied."""
-    img = frame.image
-    if getattr(frame, "format", "bgr24") != "yuv420p":
+def frame_bgr(img: np.ndarray, fmt: str = "bgr24") -> np.ndarray:
+    """The whole frame ``img`` (its pixel format ``fmt``) as ``(H, W, 3) uint8`` BGR, what the camera's blur
+    and noise are measured on (:meth:`SessionBackend.measure_camera`; the compositor and
+    :func:`arshadow.video.engine.first_camera` alike): a ``yuv420p`` frame by :func:`i420_roi_to_bgr` over the
+    whole frame, a BGR frame copied."""
+    if fmt != "yuv420p":
         return np.array(img)
     h, w = img.shape[0] * 2 // 3, img.shape[1]
     bgr = np.zeros((h, w, 3), np.uint8)
@@ -513,8 +513,7 @@ class FrameComposer:
         bgr = self._bgr
         if self.backend.camera_unmeasured(marker):  # the optics are read on the whole frame, once a video
             assert marker is not None  # camera_unmeasured: a tracked marker
-            i420_roi_to_bgr(img, bgr, (0, 0, self.W, self.H))
-            self.backend.measure_camera(bgr, marker)
+            self.backend.measure_camera(frame_bgr(img, fmt), marker)
         # what the compositor may write: the ROI grown by the blurs' reach (the camera's, and the motion's
         # when it is applied); the ROI alone without them
         region = self.backend.grown(plan.roi, motion if motion is not None and motion.active else None)
