@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import functools
 import math
 import os
 import time
@@ -64,13 +63,18 @@ METHODS = {
 
 @contextlib.contextmanager
 def edge_space(space: str) -> Iterator[None]:
-    """The tracker's edge refinement with its crossings in ``space`` (``refine_corners_edges``'s) meanwhile."""
-    saved = tracker_module.refine_corners_edges
-    tracker_module.refine_corners_edges = functools.partial(refine_corners_edges, space=space)
+    """The tracker's edge refinement with its crossings in ``space`` (``refine_edges``'s) meanwhile (the
+    tracker passes its own ``space``: replaced)."""
+    saved = tracker_module.refine_edges
+
+    def in_space(*args: object, **kw: object) -> object:
+        return saved(*args, **{**kw, "space": space})
+
+    tracker_module.refine_edges = in_space
     try:
         yield
     finally:
-        tracker_module.refine_corners_edges = saved
+        tracker_module.refine_edges = saved
 
 
 def estimate(method: str, image: np.ndarray, cam, **kw):
