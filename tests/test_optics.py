@@ -56,6 +56,21 @@ def test_blur_with_corner_error_and_axis_aligned_edges():
     assert abs(measure_blur(img, noisy).sigma_px - 1.2) <= TOL.psf_sigma_px
 
 
+def test_blur_reads_only_the_markers_neighbourhood():
+    # the estimate is the same with the photo beyond the marker's edges (+ the band) replaced by noise, and
+    # with the marker cut by the photo's border (its corners partly outside): measured on what is left
+    img, corners = synth_marker(1.0, 1.0)
+    ref = measure_blur(img, corners)
+    far = np.random.default_rng(3).integers(0, 256, img.shape, dtype=np.uint8)
+    x0, y0 = np.floor(corners.min(axis=0) - 10).astype(int)
+    x1, y1 = np.ceil(corners.max(axis=0) + 10).astype(int)
+    far[y0:y1, x0:x1] = img[y0:y1, x0:x1]
+    assert measure_blur(far, corners) == ref
+    cut = img[:, : int(corners[:, 0].max()) - 20]
+    est = measure_blur(cut, corners)
+    assert abs(est.sigma_px - 1.0) <= TOL.psf_sigma_px
+
+
 def test_blur_refuses_a_flat_image():
     with pytest.raises(EstimateError):
         measure_blur(np.full((100, 100), 128, np.uint8), np.array([[30, 30], [70, 30], [70, 70], [30, 70.0]]))

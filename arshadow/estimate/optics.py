@@ -110,8 +110,14 @@ def measure_blur(image: np.ndarray, corners: np.ndarray, *, cells: int = 6, half
     c = np.asarray(corners, np.float64).reshape(-1, 2)
     if c.shape != (4, 2):
         raise ShapeError("marker corners must be (4, 2)", actual_shape=c.shape, expected_shape="(4, 2)")
-    lin = _linear_grey(image)
-    h, w = lin.shape
+    # only the marker's neighbourhood is read: decode that crop (a whole 720p frame took 0.19 s), its
+    # origin (x0, y0) in the photo
+    img = np.asarray(image)
+    h, w = img.shape[:2]
+    reach = half_width_px + 2.0  # beyond every band below (band + 1 px)
+    x0, y0 = np.maximum(np.floor(c.min(axis=0) - reach).astype(int), 0)
+    x1, y1 = np.minimum(np.ceil(c.max(axis=0) + reach).astype(int) + 1, [w, h])
+    lin = _linear_grey(img[y0:y1, x0:x1])
     centre = c.mean(axis=0)
     sig, rms = [], []
     for k in range(4):
@@ -138,7 +144,7 @@ def measure_blur(image: np.ndarray, corners: np.ndarray, *, cells: int = 6, half
             sig.append(math.nan)
             rms.append(math.nan)
             continue
-        s_eff, r = _fit_edge(across[keep], lin[ys.ravel()[keep], xs.ravel()[keep]])
+        s_eff, r = _fit_edge(across[keep], lin[ys.ravel()[keep] - y0, xs.ravel()[keep] - x0])
         sig.append(math.sqrt(max(s_eff**2 - PIXEL_VARIANCE, 0.0)) if math.isfinite(s_eff) else math.nan)
         rms.append(r)
     good = [s for s in sig if math.isfinite(s)]
