@@ -14,7 +14,7 @@ Mask (CONVENTIONS.md)
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
@@ -142,12 +142,18 @@ def _warp_result(frame: FrameJob, res: RenderResult) -> _Warped | None:
 def _composite_cpu(frame: FrameJob, wp: _Warped) -> None:
     """Composite the warped layers into the frame's buffers (and make its layers when asked for)."""
     look, layer_request = frame.look, frame.outputs.layers
+    blurs: list[Callable[..., list[np.ndarray | None]]] = []
+    reach = 0
     if look.motion is not None and look.motion.kernel is not None:  # the exposure's motion (a video frame)
         kernel = look.motion.kernel
-        wp = _blurred(wp, look.motion.reach, frame.image.shape, lambda *a: motion_blur_layers(kernel, *a))
-    if look.camera is not None and look.camera.blur_px > 0:
+        blurs.append(lambda *a: motion_blur_layers(kernel, *a))
+        reach += look.motion.reach
+    if look.camera is not None and look.camera.blur_px > 0:  # then the photo's point spread
         sigma = look.camera.blur_px
-        wp = _blurred(wp, pad_for(sigma), frame.image.shape, lambda *a: blur_layers(sigma, *a))
+        blurs.append(lambda *a: blur_layers(sigma, *a))
+        reach += pad_for(sigma)
+    if blurs:
+        wp = _blurred(wp, reach, frame.image.shape, blurs)
     if layer_request is not None:  # execute's ``layers``: gets the frame's layers, with the gained colour
         wp = _gained(wp, look, bool(layer_request.get("undistorted")))
         look = replace(look, color_gain=None)  # applied
@@ -195,12 +201,13 @@ def _blurred(
     wp: _Warped,
     p: int,
     shape: tuple[int, ...],
-    blur: Callable[..., list[np.ndarray | None]],
+    blurs: Sequence[Callable[..., list[np.ndarray | None]]],
 ) -> _Warped:
-    """The warped layers grown by the blur's reach ``p`` px (zeros: nothing drawn there; within the photo of
-    ``shape``) and blurred by ``blur(mask, alpha, color, sky)`` (the photo's point-spread width,
-    :func:`arshadow.frame.effects.blur_layers`, or the exposure's motion,
-    :func:`arshadow.frame.motion.motion_blur_layers`)."""
+    """The warped layers grown once by the blurs' reach ``p`` px (zeros: nothing drawn there; within the photo
+    of ``shape``), then blurred by each of ``blurs`` in turn, ``blur(mask, alpha, color, sky)`` (the
+    exposure's motion, :func:`arshadow.frame.motion.motion_blur_layers`, and the photo's point-spread width,
+    :func:`arshadow.frame.effects.blur_layers`; their borders are 0, so one grow by the sum of their reaches
+    gives what growing before each gave)."""
     x0, y0, w, h = wp.roi
     H, W = shape[:2]
     nx0, ny0, nx1, ny1 = max(x0 - p, 0), max(y0 - p, 0), min(x0 + w + p, W), min(y0 + h + p, H)
@@ -214,7 +221,10 @@ def _blurred(
         return out.reshape(out.shape[:2] + a.shape[2:])  # a (h, w, 1) layer comes back (h, w)
 
     ov = wp.overlay
-    mask, alpha, color, sky = blur(grow(ov.mask), grow(ov.alpha), grow(ov.color), grow(ov.sky))
+    layers = [grow(ov.mask), grow(ov.alpha), grow(ov.color), grow(ov.sky)]
+    for blur in blurs:
+        layers = blur(*layers)
+    mask, alpha, color, sky = layers
     return _Warped((nx0, ny0, nx1 - nx0, ny1 - ny0), Overlay(mask, color, alpha, sky, ov.premultiplied), wp.pinhole)
 
 
