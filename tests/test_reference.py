@@ -203,6 +203,37 @@ def test_shadow_ratio_allows_for_the_probes_sky_occlusion(own):
         assert err < 0.75 * err0 and err <= 0.06, (sc.name, with_sky, without, truth)
 
 
+def test_shadow_ratio_texture_check_covers_its_error(own, heldout, tol):
+    """The light estimate's texture check (:func:`arshadow.estimate.ratio.texture_uncertainty`: the shadow's
+    pairs read on the lit floor round it) against each plate's real ratio error: the estimate's luminance
+    ratio over the scene's own ``sky / (sky + E)`` where it was read (a lamp's ``E`` at ``ratio_at``). It covers
+    every plate's error within ``tol.ratio_texture_cover`` of its sigmas, and it flags every plate whose ratio
+    reads more than 10 % off (seven: the "noise" floor's patch under the probe) and none within 2 % (two, on
+    tiles; the tiles' grout lines under one lamp's pairs get it flagged too, 6 % off)."""
+    from arshadow.bench.reference import measure_light
+    from arshadow.estimate.api import RATIO_TEXTURE
+    from arshadow.estimate.shadow import LUMA
+
+    for c in [*own, *heldout]:
+        sc = c.scene
+        est = measure_light(c.plate8, sc)
+        v, sky = np.asarray(sc.light_vec, np.float64), np.asarray(sc.sky, np.float64)
+        if sc.light == "sun":
+            e = np.asarray(sc.direct) * v[2] / np.linalg.norm(v)
+        else:
+            rel = v - np.r_[est.ratio_at, 0.0]
+            e = np.asarray(sc.direct) * rel[2] / np.linalg.norm(rel) ** 3
+        err = float(np.asarray(est.shadow_ratio) @ LUMA) / float((sky / (sky + e)) @ LUMA) - 1.0
+        texture = est.fit["ratio_texture"]
+        assert abs(err) <= tol.ratio_texture_cover * texture, (sc.name, err, texture)
+        flagged = any("moves the shadow ratio" in w for w in est.warnings)
+        assert flagged == (texture > RATIO_TEXTURE), (sc.name, texture, est.warnings)
+        if abs(err) > 0.1:
+            assert flagged, (sc.name, err, texture)
+        if abs(err) < 0.02:
+            assert not flagged, (sc.name, err, texture)
+
+
 def test_probe_outline_is_read_past_its_own_crease(own, tol):
     """The light estimate's probe check on the path-traced plates, at the scenes' own camera: the box probe's
     lit and unlit faces meet in a crease, the strongest edge near the unlit side's outline (that side stands

@@ -30,7 +30,7 @@ from .light import FitResult, MakeFine, fit_directional, fit_point, fit_sun
 from .optics import measure_blur
 from .outline import outline_agreement
 from .penumbra import fit_angular_radius
-from .ratio import shadow_ratio
+from .ratio import shadow_ratio, texture_uncertainty
 from .record import LightEstimate
 from .shading import face_shading_residual
 from .shadow import LUMA, Evidence, build_evidence, edge_pairs, sample_blur_px, shadow_coverage
@@ -60,6 +60,11 @@ SHADING_VIEWS = 3
 #: a face of the probe brighter or darker than the fitted light shades it by more than this (log) is flagged
 #: (tuning seeds: 0.008..0.057 for the right light, 0.10..0.37 for lights fitted to the floor's pattern)
 SHADING_LOG = 0.1
+#: the floor's pattern moving the shadow ratio by more than this (relative, 1 sigma:
+#: :func:`arshadow.estimate.ratio.texture_uncertainty`) is flagged: 2 sigma is then over 10 % of the shadow's
+#: light (the path-traced reference: 0.02-0.03 on its tiles, whose ratios read within 2 %; 0.06-0.11 on its
+#: "noise" floors, whose ratios read 6-22 % off; a plain synthetic floor: under 0.003)
+RATIO_TEXTURE = 0.05
 #: sun: the shadow's own elevation (a free directional fit) this far from the sun's (degrees) is a refusal
 #: (when also beyond 3 sigma of the free fit): the time, its zone or the place is wrong
 SUN_REFUSE_DEG = 3.0
@@ -382,10 +387,12 @@ def _checks(
     faces: np.ndarray,
 ) -> dict:
     """The checks of a fitted light that do not come from its shadow fit: the probe's outline on the photo
-    (pooled over the frames), the share of the fitted shadow's edge darker inside, and the probe's faces
-    against the light's shading (the median over up to :data:`SHADING_VIEWS` frames; NaN when not measured).
+    (pooled over the frames), the share of the fitted shadow's edge darker inside, the probe's faces
+    against the light's shading (the median over up to :data:`SHADING_VIEWS` frames; NaN when not measured)
+    and how far the floor's pattern moves the shadow ratio (:func:`.ratio.texture_uncertainty`).
     ``read``: the shadow ratio and where it was read (:func:`.ratio.shadow_ratio`)."""
     edge_darker, edge_n = _edge_consistency(res.fine, res.light_h, pxs)
+    texture, _ = texture_uncertainty(res.fine, res.light_h, pxs)
     r = float(np.asarray(read[0]) @ LUMA)
     shade = [face_shading_residual(im, it, T, verts, faces, res.light_h, r, read[1])[0] for im, it, T in views]
     shade = [x for x in shade if math.isfinite(x)]
@@ -394,6 +401,7 @@ def _checks(
         "edge_darker": edge_darker,
         "edge_pairs": edge_n,
         "face_shading": float(np.median(shade)) if shade else math.nan,
+        "ratio_texture": texture,
     }
 
 
@@ -411,6 +419,13 @@ def _check_warnings(checks: dict) -> list:
             f"low confidence: the probe's faces are not shaded as this light shades them (a face "
             f"{100 * math.expm1(shade_res):.0f} % off): the shadow fitted may not be the probe's, or the probe "
             "is not matte and of one colour"
+        )
+    texture = checks["ratio_texture"]
+    if math.isfinite(texture) and texture > RATIO_TEXTURE:
+        out.append(
+            f"low confidence: the floor's pattern beside the probe's shadow moves the shadow ratio by about "
+            f"{100 * texture:.0f} % (the same reading where nothing is shadowed): the inserted shadows may be that "
+            "much too dark or too light; the probe's shadow on a plain surface (a sheet of paper) measures it"
         )
     if math.isfinite(edge_darker) and edge_darker < EDGE_DARKER:
         out.append(

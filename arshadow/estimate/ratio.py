@@ -29,7 +29,15 @@ import numpy as np
 from ..shading.sky import ground_sky_visibility
 from .shadow import LUMA, Evidence, edge_pairs, fit_levels, shadow_coverage
 
-__all__ = ["CHROMA_PX", "EDGE_DISTANCES", "MIN_PAIRS", "probe_sky", "shadow_ratio"]
+__all__ = [
+    "CHROMA_PX",
+    "EDGE_DISTANCES",
+    "MIN_PAIRS",
+    "MIN_PLACEBOS",
+    "probe_sky",
+    "shadow_ratio",
+    "texture_uncertainty",
+]
 
 #: distances from a shadow's edge at which its two sides are compared for the ratio's level (metres, at
 #: least 3 pixels)
@@ -40,6 +48,8 @@ EDGE_DISTANCES = (0.003, 0.005, 0.008)
 CHROMA_PX = (8.0, 10.0, 12.0)
 #: pairs needed for a median (fewer: the ratio from the fit; the colour from the near pairs)
 MIN_PAIRS = 30
+#: placements of the shadow's edge on lit floor needed for :func:`texture_uncertainty` (fewer: NaN)
+MIN_PLACEBOS = 3
 
 
 def probe_sky(probe: Any) -> Any:
@@ -126,3 +136,79 @@ def shadow_ratio(
             ratio = float(ratio @ LUMA) * colour / float(colour @ LUMA)
     at = xs.mean(axis=0)
     return tuple(float(v) for v in ratio), (float(at[0]), float(at[1]))
+
+
+def texture_uncertainty(evs: list[Evidence], h: np.ndarray, px: Sequence[float]) -> tuple[float, int]:
+    """How far the floor's pattern alone moves the shadow ratio: the same pairs read where nothing is shadowed.
+
+    A pair compares the floor a few millimetres inside the shadow's edge with the floor as far outside; on a
+    patterned floor the two points' albedos differ, and a patch darker or brighter along the edge reads as a
+    darker or lighter shadow (on the path-traced reference's "noise" floor, 6-22 % of the ratio;
+    docs/light.md, "The shadow ratio's texture check"). Nothing in one photo tells such a patch from the
+    shadow, but the floor round it shows how large the effect is there: the probe's modelled shadow is moved
+    by its own extent plus the pairs' reach to each of the 8 neighbouring placements, where both points of
+    every pair are lit (and of one albedo class, as :func:`.shadow.edge_pairs` keeps them); on a plain floor
+    each placement's median log ratio (luminance) is 0.
+
+    Parameters
+    ----------
+    evs : list of Evidence
+        The frames' fine evidence (ground frame).
+    h : (4,) float
+        The fitted light (homogeneous).
+    px : sequence of float
+        Each frame's metres per pixel at the probe (the pairs' distances, as :func:`shadow_ratio`'s).
+
+    Returns
+    -------
+    (rms, n) : (float, int)
+        The root mean square of the placements' medians (a relative 1-sigma: the ratio reads ``r (1 +- rms)``)
+        over the ``n`` placements (frames x directions) with at least :data:`MIN_PAIRS` pairs; ``(NaN, n)``
+        with fewer than :data:`MIN_PLACEBOS`.
+    """
+    medians = []
+    for ev, p in zip(evs, px, strict=True):
+        S = shadow_coverage(ev, h)
+        if S is None:
+            continue
+        rows, cols = np.nonzero(S > 0.5)
+        if rows.size == 0:
+            continue
+        dists = [max(d, 3.0 * p) for d in EDGE_DISTANCES]
+        reach = int(math.ceil(max(dists) / ev.step)) + 2
+        wx, wy = int(np.ptp(cols)) + 1 + reach, int(np.ptp(rows)) + 1 + reach
+        lit = cv2.erode((S < 0.01).astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
+        for sx, sy in ((-1, -1), (0, -1), (1, -1), (-1, 0), (1, 0), (-1, 1), (0, 1), (1, 1)):
+            moved = _shifted(S, sx * wx, sy * wy)
+            logs = [_lit_pair_logs(ev, moved, d, lit) for d in dists]
+            lq = np.concatenate(logs)
+            if lq.size >= MIN_PAIRS:
+                medians.append(float(np.median(lq)))
+    if len(medians) < MIN_PLACEBOS:
+        return math.nan, len(medians)
+    return float(np.sqrt(np.mean(np.square(medians)))), len(medians)
+
+
+def _shifted(a: np.ndarray, dx: int, dy: int) -> np.ndarray:
+    """``a (h, w)`` moved by ``dx`` columns and ``dy`` rows, 0 where nothing moved in."""
+    out = np.zeros_like(a)
+    h, w = a.shape
+    if abs(dx) < w and abs(dy) < h:
+        out[max(dy, 0) : h + min(dy, 0), max(dx, 0) : w + min(dx, 0)] = a[
+            max(-dy, 0) : h - max(dy, 0), max(-dx, 0) : w - max(dx, 0)
+        ]
+    return out
+
+
+def _lit_pair_logs(ev: Evidence, moved: np.ndarray, d: float, lit: np.ndarray) -> np.ndarray:
+    """``(k,) float64``: log(inside / outside) luminance of the pairs across ``moved``'s edge at ``d`` metres
+    whose both points are in ``lit`` (cells the real shadow leaves lit)."""
+    a, b, xa, xb = edge_pairs(ev, moved, d, points=True)
+    if not len(a):
+        return np.zeros(0)
+    origin = np.array([ev.x0, ev.y0])
+    ia = np.rint((xa - origin) / ev.step).astype(np.intp)
+    ib = np.rint((xb - origin) / ev.step).astype(np.intp)
+    ok = lit[ia[:, 1], ia[:, 0]] & lit[ib[:, 1], ib[:, 0]]
+    out: np.ndarray = np.log(np.maximum(a[ok] @ LUMA, 1e-9) / np.maximum(b[ok] @ LUMA, 1e-9))
+    return out
