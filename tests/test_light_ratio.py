@@ -35,23 +35,26 @@ def _chroma(r) -> np.ndarray:
     return r / float(r @ LUMA)
 
 
-@pytest.fixture(scope="module")
-def blue_sky_jpeg():
-    cam = Intrinsics.from_file(CALIB)
-    pose = look_at_pose((0.05, -0.45, 0.396), (0.08, 0.04, 0.0))  # 0.6 m away: ~1.2 mm per pixel
+def _lit_photo(light, ambient, direct, seed, floor="plain"):
+    """A JPEG (quality 90, noise 1) of the probe lit by ``light`` (a unit vector) from 0.6 m: ~1.2 mm a pixel."""
     return render_lit_photo(
-        cam,
-        pose,
+        Intrinsics.from_file(CALIB),
+        look_at_pose((0.05, -0.45, 0.396), (0.08, 0.04, 0.0)),
         probe=PROBE,
         probe_place=PLACE,
-        light=light_vector(200.0, 40.0),
-        ambient=(0.22, 0.3, 0.5),
-        direct=(1.0, 0.9, 0.72),
+        light=light,
+        ambient=ambient,
+        direct=direct,
         jpeg_quality=90,
         noise_sigma=1.0,
-        seed=5,
-        floor="plain",
+        seed=seed,
+        floor=floor,
     )
+
+
+@pytest.fixture(scope="module")
+def blue_sky_jpeg():
+    return _lit_photo(light_vector(200.0, 40.0), (0.22, 0.3, 0.5), (1.0, 0.9, 0.72), seed=5)
 
 
 def _estimate(photo):
@@ -83,20 +86,7 @@ def test_the_texture_check_measures_the_floors_pattern(floor, tol):
     on a plain floor the shadow's pairs read on lit floor give 0 (the JPEG's noise only) and nothing is
     flagged; on arshadow.synth's patterned floor, where this light's ratio reads 9.6 % off, the check is over
     the flag, warns, and covers the error (measured 2026-11-29: 0.062)."""
-    cam = Intrinsics.from_file(CALIB)
-    photo = render_lit_photo(
-        cam,
-        look_at_pose((0.05, -0.45, 0.396), (0.08, 0.04, 0.0)),
-        probe=PROBE,
-        probe_place=PLACE,
-        light=light_vector(300.0, 35.0),
-        ambient=(0.3, 0.32, 0.36),
-        direct=(1.0, 0.95, 0.9),
-        jpeg_quality=90,
-        noise_sigma=1.0,
-        seed=7,
-        floor=floor,
-    )
+    photo = _lit_photo(light_vector(300.0, 35.0), (0.3, 0.32, 0.36), (1.0, 0.95, 0.9), seed=7, floor=floor)
     est = _estimate(photo)
     err = float(np.asarray(est.shadow_ratio) @ LUMA) / float(photo.shadow_ratio @ LUMA) - 1.0
     texture = est.fit["ratio_texture"]
