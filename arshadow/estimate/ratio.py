@@ -15,6 +15,10 @@ luma stays sharp: within 0.5 % of the linear render's there) and reads the colou
 luminance) on pairs pushed to at least :data:`CHROMA_PX` pixels from the edge. Measured 2026-11-29 and not
 the default (docs/reference.md, "the shadow's colour"): the colour comes out closer to the truth, but with
 the level still darkened by the floor's texture the realism residuals do not improve.
+
+How far the floor's pattern moves the ratio is measured where nothing is shadowed: the same pairs read
+across the shadow's edge moved onto the lit floor round it (:func:`texture_uncertainty`, the estimate's
+``fit.ratio_texture``).
 """
 
 from __future__ import annotations
@@ -144,7 +148,7 @@ def texture_uncertainty(evs: list[Evidence], h: np.ndarray, px: Sequence[float])
     A pair compares the floor a few millimetres inside the shadow's edge with the floor as far outside; on a
     patterned floor the two points' albedos differ, and a patch darker or brighter along the edge reads as a
     darker or lighter shadow (on the path-traced reference's "noise" floor, 6-22 % of the ratio;
-    docs/light.md, "The shadow ratio's texture check"). Nothing in one photo tells such a patch from the
+    docs/light.md, "The floor's pattern and the shadow ratio"). Nothing in one photo tells such a patch from the
     shadow, but the floor round it shows how large the effect is there: the probe's modelled shadow is moved
     by its own extent plus the pairs' reach to each of the 8 neighbouring placements, where both points of
     every pair are lit (and of one albedo class, as :func:`.shadow.edge_pairs` keeps them); on a plain floor
