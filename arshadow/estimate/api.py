@@ -424,8 +424,9 @@ def _check_warnings(checks: dict) -> list:
     if math.isfinite(texture) and texture > RATIO_TEXTURE:
         out.append(
             f"low confidence: the floor's pattern beside the probe's shadow moves the shadow ratio by about "
-            f"{100 * texture:.0f} % (the same reading where nothing is shadowed): the inserted shadows may be that "
-            "much too dark or too light; the probe's shadow on a plain surface (a sheet of paper) measures it"
+            f"+-{100 * texture:.0f} % (one standard deviation, read where nothing is shadowed): the inserted "
+            "shadows may be that much too dark or too light; the probe's shadow on a plain surface (a sheet of "
+            "paper) measures it"
         )
     if math.isfinite(edge_darker) and edge_darker < EDGE_DARKER:
         out.append(
