@@ -54,6 +54,10 @@ CHROMA_PX = (8.0, 10.0, 12.0)
 MIN_PAIRS = 30
 #: placements of the shadow's edge on lit floor needed for :func:`texture_uncertainty` (fewer: NaN)
 MIN_PLACEBOS = 3
+#: a side of the shadow (its edge's direction in 45-degree bins) takes its own lit floor's change
+#: (:func:`_lit_change`) with at least this many lit pairs, else the whole edge's (measured on the own
+#: path-traced plates: docs/reference.md, "The lit floor's change across the shadow's edge")
+MIN_SIDE_PAIRS = 10
 
 
 def probe_sky(probe: Any) -> Any:
@@ -65,11 +69,13 @@ def probe_sky(probe: Any) -> Any:
 
 
 def _pair_ratios(
-    evs: list[Evidence], h: np.ndarray, distances: Sequence[Sequence[float]], grid: Any
+    evs: list[Evidence], h: np.ndarray, distances: Sequence[Sequence[float]], grid: Any, lit_r: float | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Each pair's sky share ``r = q / (V_in + q (1 - V_out))``, (k, 3) float64, and the pairs' ground
     points, (2k, 2) float64 (metres, world frame; the inside points, then the outside ones):
-    ``distances[i]`` are frame ``i``'s (metres)."""
+    ``distances[i]`` are frame ``i``'s (metres). ``lit_r``: the sky's share to allow for in the lit floor's
+    own change (:func:`_lit_change`), each pair's ``q`` divided by its side's; None: the pairs as they
+    read."""
     rs, xin, xout = [np.zeros((0, 3))], [np.zeros((0, 2))], [np.zeros((0, 2))]
     for ev, ds in zip(evs, distances, strict=True):
         S = shadow_coverage(ev, h)
@@ -80,12 +86,55 @@ def _pair_ratios(
             if not len(a):
                 continue
             q = np.maximum(a, 1e-6) / np.maximum(b, 1e-6)
+            if lit_r is not None:
+                lp, ls = _lit_pair_logs(ev, S, d, (h, lit_r, grid), outward=2.0 * d)
+                q *= np.exp(-_lit_change(lp, ls, _sides(xa, xb)))[:, None]
             v_in = grid.sample(xa)[:, None] if grid is not None else np.ones((len(a), 1))
             v_out = grid.sample(xb)[:, None] if grid is not None else np.ones((len(a), 1))
             rs.append(q / np.maximum(v_in + q * (1.0 - v_out), 1e-6))
             xin.append(xa)
             xout.append(xb)
     return np.concatenate(rs), np.concatenate(xin + xout)
+
+
+def _lit_change(lp: np.ndarray, ls: np.ndarray, sides: np.ndarray) -> np.ndarray:
+    """``(k,)`` log: for pairs on ``sides (k,)`` (:func:`_sides`), how much the floor's albedo changes over a
+    pair's span beside the edge, read on the lit side: the median of the lit pairs' ``lp`` (log, the light's
+    own change allowed for: :func:`_lit_pair_logs` moved ``2 d`` outward) on the same side, with at least
+    :data:`MIN_SIDE_PAIRS` of them, else over the whole edge; 0 with fewer than :data:`MIN_PAIRS` in all.
+    A floor getting darker towards the shadow reads, at first order, as much darker inside it: the pairs'
+    ``q`` is divided by ``exp`` of this."""
+    out = np.zeros(len(sides))
+    if len(lp) < MIN_PAIRS:
+        return out
+    out[:] = float(np.median(lp))
+    for k in np.unique(sides):
+        m = ls == k
+        if np.count_nonzero(m) >= MIN_SIDE_PAIRS:
+            out[sides == k] = float(np.median(lp[m]))
+    return out
+
+
+def _sides(xin: np.ndarray, xout: np.ndarray) -> np.ndarray:
+    """``(k,) int``: each pair's side of the shadow, the direction from its outside point ``xout (k, 2)`` to its
+    inside one ``xin (k, 2)`` in 45-degree bins (0-7)."""
+    n = xin - xout
+    out: np.ndarray = np.round(np.degrees(np.arctan2(n[:, 1], n[:, 0])) / 45.0).astype(np.intp) % 8
+    return out
+
+
+def _open_light(x: np.ndarray, h: np.ndarray, r: float, grid: Any) -> np.ndarray:
+    """``(n,)`` the unshadowed ground's light at ground points ``x (n, 2)`` (metres, world), relative:
+    ``(1 - r) g + r V``, ``g`` a lamp's irradiance over its median at the points (1: directional), ``V`` the
+    sky the probe leaves them (``grid``; 1 without)."""
+    v = grid.sample(x) if grid is not None else np.ones(len(x))
+    g = np.ones(len(x))
+    if h[3] != 0.0:
+        rel = h[:3] / h[3] - np.column_stack([x, np.zeros(len(x))])
+        g = np.maximum(rel[:, 2], 0.0) / np.linalg.norm(rel, axis=1) ** 3
+        g = g / max(float(np.median(g)), 1e-300)
+    out: np.ndarray = np.maximum((1.0 - r) * g + r * v, 1e-9)
+    return out
 
 
 def _fit_ratio(evs: list[Evidence], h: np.ndarray) -> tuple[float, ...]:
@@ -109,14 +158,21 @@ def _fit_ratio(evs: list[Evidence], h: np.ndarray) -> tuple[float, ...]:
 
 
 def shadow_ratio(
-    evs: list[Evidence], h: np.ndarray, px: Sequence[float], probe: Any = None, chroma_px: Sequence[float] = ()
+    evs: list[Evidence],
+    h: np.ndarray,
+    px: Sequence[float],
+    probe: Any = None,
+    chroma_px: Sequence[float] = (),
+    lit_gradient: bool = False,
 ) -> tuple[tuple[float, ...], tuple[float, float] | None]:
     """Per-channel shadow / lit of the ground (the sky's share of the open ground's light).
 
     ``evs``: the frames' fine evidence; ``h``: the fitted light (homogeneous, (4,)); ``px``: each frame's
     metres per pixel at the probe; ``probe``: its ShadowCaster (None: no sky occlusion, for
     ``arshadow.synth.lit``'s photos); ``chroma_px``: empty (the default) reads the colour with the level;
-    :data:`CHROMA_PX` reads it beyond the chroma blur (not adopted: the module's docstring).
+    :data:`CHROMA_PX` reads it beyond the chroma blur (not adopted: the module's docstring);
+    ``lit_gradient``: each distance's pairs allow for the floor's albedo changing towards the shadow, read
+    on the lit side (:func:`_lit_change`; the module's docstring); False: the pairs as they read.
 
     The ratio: the per-channel median, over the pairs at :data:`EDGE_DISTANCES` (at least 3 px each), of
     each pair's ``r``. With ``chroma_px``: its luminance (:data:`.shadow.LUMA`) times the per-channel median
@@ -128,13 +184,19 @@ def shadow_ratio(
     near pairs, where the ratio was read (a point light's ratio changes across the floor:
     :func:`arshadow.estimate.record.ratio_at`); None from the fit."""
     grid = probe_sky(probe)
-    near, xs = _pair_ratios(evs, h, [[max(d, 3.0 * p) for d in EDGE_DISTANCES] for p in px], grid)
+    h = np.asarray(h, np.float64)
+    near_d = [[max(d, 3.0 * p) for d in EDGE_DISTANCES] for p in px]
+    near, xs = _pair_ratios(evs, h, near_d, grid)
     if len(near) < MIN_PAIRS:
         return _fit_ratio(evs, h), None
+    lit_r = None
+    if lit_gradient:  # the pairs again, each distance's q allowing for the lit floor's own change
+        lit_r = float(np.clip(np.median(near @ LUMA), 0.0, 0.95))
+        near, xs = _pair_ratios(evs, h, near_d, grid, lit_r)
     ratio = np.median(near, axis=0)
     if len(chroma_px):
         far_d = [[max(d, k * p) for d, k in zip(EDGE_DISTANCES, chroma_px, strict=False)] for p in px]
-        far, _ = _pair_ratios(evs, h, far_d, grid)
+        far, _ = _pair_ratios(evs, h, far_d, grid, lit_r)
         if len(far) >= MIN_PAIRS:
             colour = np.median(far / np.maximum(far @ LUMA, 1e-9)[:, None], axis=0)
             ratio = float(ratio @ LUMA) * colour / float(colour @ LUMA)
@@ -142,17 +204,26 @@ def shadow_ratio(
     return tuple(float(v) for v in ratio), (float(at[0]), float(at[1]))
 
 
-def texture_uncertainty(evs: list[Evidence], h: np.ndarray, px: Sequence[float]) -> tuple[float, int]:
-    """How far the floor's pattern alone moves the shadow ratio: the same pairs read where nothing is shadowed.
+def texture_uncertainty(
+    evs: list[Evidence],
+    h: np.ndarray,
+    px: Sequence[float],
+    probe: Any = None,
+    r: float = 0.0,
+    lit_gradient: bool = False,
+) -> tuple[float, int]:
+    """How far the floor's pattern alone moves the shadow ratio: the same reading where nothing is shadowed.
 
     A pair compares the floor a few millimetres inside the shadow's edge with the floor as far outside; on a
     patterned floor the two points' albedos differ, and a patch darker or brighter along the edge reads as a
     darker or lighter shadow (on the path-traced reference's "noise" floor, 6-22 % of the ratio;
-    docs/light.md, "The floor's pattern and the shadow ratio"). Nothing in one photo tells such a patch from the
-    shadow, but the floor round it shows how large the effect is there: the probe's modelled shadow is moved
-    by its own extent plus the pairs' reach to each of the 8 neighbouring placements, where both points of
-    every pair are lit (and of one albedo class, as :func:`.shadow.edge_pairs` keeps them); on a plain floor
-    each placement's median log ratio (luminance) is 0.
+    docs/light.md, "The floor's pattern and the shadow ratio"). Nothing in one photo tells such a patch from
+    the shadow, but the floor round it shows how large the effect is there: the probe's modelled shadow is
+    moved by its own extent plus the pairs' reach to each of the 8 neighbouring placements, and the ratio is
+    read there as :func:`shadow_ratio` reads it (the pairs across the moved edge, both points lit and of one
+    albedo class, the light's own change between them allowed for, and with ``lit_gradient`` less the lit
+    floor's change beside the moved edge, :func:`_lit_change`). On a plain floor each placement reads 0
+    (log).
 
     Parameters
     ----------
@@ -162,6 +233,12 @@ def texture_uncertainty(evs: list[Evidence], h: np.ndarray, px: Sequence[float])
         The fitted light (homogeneous).
     px : sequence of float
         Each frame's metres per pixel at the probe (the pairs' distances, as :func:`shadow_ratio`'s).
+    probe : ShadowCaster, optional
+        The probe (the sky it hides from the floor round it: :func:`probe_sky`); None: none hidden.
+    r : float
+        The sky's share of the open ground's light (the light's change between two lit points).
+    lit_gradient : bool
+        As :func:`shadow_ratio`'s.
 
     Returns
     -------
@@ -170,6 +247,8 @@ def texture_uncertainty(evs: list[Evidence], h: np.ndarray, px: Sequence[float])
         over the ``n`` placements (frames x directions) with at least :data:`MIN_PAIRS` pairs; ``(NaN, n)``
         with fewer than :data:`MIN_PLACEBOS`.
     """
+    grid = probe_sky(probe)
+    h = np.asarray(h, np.float64)
     medians = []
     for ev, p in zip(evs, px, strict=True):
         S = shadow_coverage(ev, h)
@@ -184,7 +263,12 @@ def texture_uncertainty(evs: list[Evidence], h: np.ndarray, px: Sequence[float])
         lit = cv2.erode((S < 0.01).astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
         for sx, sy in ((-1, -1), (0, -1), (1, -1), (-1, 0), (1, 0), (-1, 1), (0, 1), (1, 1)):
             moved = _shifted(S, sx * wx, sy * wy)
-            logs = [_lit_pair_logs(ev, moved, d, lit) for d in dists]
+            logs = []
+            for d in dists:
+                lq, sq = _lit_pair_logs(ev, moved, d, (h, r, grid), lit=lit)
+                if lit_gradient and len(lq):
+                    lq = lq - _lit_change(*_lit_pair_logs(ev, moved, d, (h, r, grid), 2.0 * d, lit), sq)
+                logs.append(lq)
             lq = np.concatenate(logs)
             if lq.size >= MIN_PAIRS:
                 medians.append(float(np.median(lq)))
@@ -204,15 +288,23 @@ def _shifted(a: np.ndarray, dx: int, dy: int) -> np.ndarray:
     return out
 
 
-def _lit_pair_logs(ev: Evidence, moved: np.ndarray, d: float, lit: np.ndarray) -> np.ndarray:
-    """``(k,) float64``: log(inside / outside) luminance of the pairs across ``moved``'s edge at ``d`` metres
-    whose both points are in ``lit`` (cells the real shadow leaves lit)."""
-    a, b, xa, xb = edge_pairs(ev, moved, d, points=True)
+def _lit_pair_logs(
+    ev: Evidence, S: np.ndarray, d: float, light: tuple, outward: float = 0.0, lit: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """The pairs across ``S``'s edge at ``d`` metres, moved ``outward`` metres out (:func:`.shadow.edge_pairs`;
+    ``lit``: only those whose both points are in it, the cells the real shadow leaves lit): their
+    ``log(inside / outside)`` luminance less the light's own change between the two points (``light = (h,
+    r, grid)``: :func:`_open_light`), ``(k,) float64``, and their sides (:func:`_sides`), ``(k,) int``."""
+    a, b, xa, xb = edge_pairs(ev, S, d, points=True, outward=outward)
+    if len(a) and lit is not None:
+        origin = np.array([ev.x0, ev.y0])
+        ia = np.rint((xa - origin) / ev.step).astype(np.intp)
+        ib = np.rint((xb - origin) / ev.step).astype(np.intp)
+        ok = lit[ia[:, 1], ia[:, 0]] & lit[ib[:, 1], ib[:, 0]]
+        a, b, xa, xb = a[ok], b[ok], xa[ok], xb[ok]
     if not len(a):
-        return np.zeros(0)
-    origin = np.array([ev.x0, ev.y0])
-    ia = np.rint((xa - origin) / ev.step).astype(np.intp)
-    ib = np.rint((xb - origin) / ev.step).astype(np.intp)
-    ok = lit[ia[:, 1], ia[:, 0]] & lit[ib[:, 1], ib[:, 0]]
-    out: np.ndarray = np.log(np.maximum(a[ok] @ LUMA, 1e-9) / np.maximum(b[ok] @ LUMA, 1e-9))
-    return out
+        return np.zeros(0), np.zeros(0, np.intp)
+    e = _open_light(np.concatenate([xa, xb]), *light)
+    k = len(a)
+    logs = np.log(np.maximum(a @ LUMA, 1e-9) / np.maximum(b @ LUMA, 1e-9)) - np.log(e[:k] / e[k:])
+    return logs, _sides(xa, xb)

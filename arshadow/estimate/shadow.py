@@ -456,12 +456,16 @@ def fit_levels(
     return max(rr - rs * rs / ss, 0.0), delta, rr, n
 
 
-def edge_pairs(ev: Evidence, S: np.ndarray, distance: float, points: bool = False) -> tuple[np.ndarray, ...]:
+def edge_pairs(
+    ev: Evidence, S: np.ndarray, distance: float, points: bool = False, outward: float = 0.0
+) -> tuple[np.ndarray, ...]:
     """Pairs of ground cells straddling the modelled shadow's edge: for every edge cell, the points
     ``distance`` (metres) inside and outside along the edge's normal, kept when both are used, of the same
     albedo class, clearly in and out of the shadow. Returns ``(inside rgb (k, 3), outside rgb (k, 3))``
     float64 (linear, bilinear samples); with ``points``, also their ground points ``(inside xy (k, 2),
-    outside xy (k, 2))`` float64 (metres, the evidence's ground frame)."""
+    outside xy (k, 2))`` float64 (metres, the evidence's ground frame). ``outward`` (metres): both points
+    moved that far out along the normal, where both must be clearly lit (the same pair where nothing is
+    shadowed: :func:`arshadow.estimate.ratio.texture_uncertainty`); 0: straddling the edge."""
     sb = cv2.GaussianBlur(S.astype(np.float32), (0, 0), 1.0)
     gy, gx = np.gradient(sb)
     # the cells within about half a cell of the edge, however blurred the model's edge is: ``sb`` is the
@@ -472,9 +476,9 @@ def edge_pairs(ev: Evidence, S: np.ndarray, distance: float, points: bool = Fals
     norm = np.linalg.norm(g, axis=1)
     ok = norm > 1e-6
     rr, cc, g = rr[ok], cc[ok], g[ok] / norm[ok, None]  # g points into the shadow (S increases)
-    k = distance / ev.step
-    pin = np.stack([cc + k * g[:, 0], rr + k * g[:, 1]], 1)
-    pout = np.stack([cc - k * g[:, 0], rr - k * g[:, 1]], 1)
+    k, o = distance / ev.step, outward / ev.step
+    pin = np.stack([cc + (k - o) * g[:, 0], rr + (k - o) * g[:, 1]], 1)
+    pout = np.stack([cc - (k + o) * g[:, 0], rr - (k + o) * g[:, 1]], 1)
     ny, nx = ev.shape
 
     def nearest(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -491,7 +495,7 @@ def edge_pairs(ev: Evidence, S: np.ndarray, distance: float, points: bool = Fals
         & ev.used[qi[:, 1], qi[:, 0]]
         & ev.used[qo[:, 1], qo[:, 0]]
         & (ev.paper[qi[:, 1], qi[:, 0]] == ev.paper[qo[:, 1], qo[:, 0]])
-        & (S[qi[:, 1], qi[:, 0]] > 0.99)
+        & ((S[qi[:, 1], qi[:, 0]] > 0.99) if o == 0 else (S[qi[:, 1], qi[:, 0]] < 0.01))
         & (S[qo[:, 1], qo[:, 0]] < 0.01)
     )
     if not keep.any():

@@ -24,6 +24,7 @@ light, the sRGB response curve, Gaussian noise in 8-bit units, rounding, JPEG.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -225,7 +226,7 @@ def render_lit_photo(
     jpeg_quality: int | None = None,
     seed: int | None = None,
     supersample: int = 3,
-    floor: str = "texture",
+    floor: str | Callable[[np.ndarray, np.ndarray], np.ndarray] = "texture",
     light_radius_deg: float = 0.0,
 ) -> LitPhoto:
     """Render a photo of the marker and a probe lit by ambient + one direct light, with its truth.
@@ -251,6 +252,9 @@ def render_lit_photo(
         As :func:`arshadow.synth.render_marker_photo` (blur applied in linear light).
     supersample : int
         Samples per pixel side around the probe and its shadow.
+    floor : str or callable
+        As :func:`arshadow.synth.render_marker_photo`'s: ``"texture"``, ``"plain"`` or grey codes as a function
+        of the ground point.
     light_radius_deg : float
         Directional light only: the angular radius of a uniformly bright disc (a lamp's or the sun's size):
         the ground's visibility is the mean over 64 directions uniform in solid angle within that cone

@@ -18,6 +18,7 @@ Then exposure, optical blur (Gaussian), sensor noise (Gaussian, 8-bit units), an
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import lru_cache
 
@@ -239,13 +240,15 @@ def render_print_scene(
     marker_id: int = 0,
     marker_length: float | None = None,
     board: Board | None = None,
-    floor: str = "texture",
+    floor: str | Callable[[np.ndarray, np.ndarray], np.ndarray] = "texture",
     paper_margin: float | None = None,
     supersample: int | None = None,
 ) -> dict:
     """The floor and the print seen from ``cam_from_world``, before any camera effect.
 
-    The same scene as :func:`render_marker_photo` (parameters alike), as reflectance: the returned
+    The same scene as :func:`render_marker_photo` (parameters alike; ``floor`` may also be a function of the
+    ground point, ``codes = floor(x, y)``, ``(H, W) float64`` metres in, grey 8-bit sRGB codes out, one
+    sample per pixel), as reflectance: the returned
     ``"image"`` is (H, W, 3) float32 BGR in 8-bit sRGB code units (paper white = :data:`PAPER_WHITE`, ink =
     :data:`INK_BLACK`, the floor's texture), not clipped nor rounded. Also returned: ``"cam_from_world"``
     (4, 4), ``"corners_world"`` {id: (4, 3)}, ``"paper_world"`` (4, 3), ``"dictionary"`` and
@@ -289,8 +292,8 @@ def render_print_scene(
     )
 
     # -- floor over the whole image (float32 is plenty for the floor) --
-    if floor not in ("texture", "plain"):
-        raise UsageError(f"floor must be 'texture' or 'plain', got '{floor}'")
+    if not callable(floor) and floor not in ("texture", "plain"):
+        raise UsageError(f"floor must be 'texture', 'plain' or a function of (x, y), got '{floor}'")
     wrow = hinv[2].astype(np.float32)
     wh = (pts32[:, 0, 0] * wrow[0] + pts32[:, 0, 1] * wrow[1] + wrow[2]).reshape(H, W)
     valid = wh > 1e-9
@@ -301,6 +304,9 @@ def render_print_scene(
         # (BORDER_WRAP folds any coordinate into the periodic texture: no np.mod needed)
         # (OpenCV's stubs do not allow map2=None, which cv2.remap takes with a 2-channel map1)
         img = cv2.remap(ftex, ft, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP)  # type: ignore[call-overload]
+    elif callable(floor):  # grey codes from the ground point (x, y)
+        xy = cv2.perspectiveTransform(pts32, hinv).reshape(H, W, 2).astype(np.float64)
+        img = np.repeat(np.asarray(floor(xy[:, :, 0], xy[:, :, 1]), np.float32)[:, :, None], 3, axis=2)
     else:
         img = np.full((H, W, 3), 128.0, np.float32)
     img[~valid] = (200.0, 196.0, 190.0)  # wall / sky beyond the horizon
@@ -413,7 +419,7 @@ def render_marker_photo(
     jpeg_quality: int | None = None,
     exposure: float = 1.0,
     seed: int | None = None,
-    floor: str = "texture",
+    floor: str | Callable[[np.ndarray, np.ndarray], np.ndarray] = "texture",
     paper_margin: float | None = None,
     supersample: int | None = None,
 ) -> SynthPhoto:
@@ -443,8 +449,9 @@ def render_marker_photo(
         Brightness factor (1 = nominal; paper white = 235).
     seed : int, optional
         Seed of the noise.
-    floor : str
-        ``"texture"`` (procedural, default) or ``"plain"`` (uniform grey).
+    floor : str or callable
+        ``"texture"`` (procedural, default), ``"plain"`` (uniform grey) or a function of the ground point,
+        ``codes = floor(x, y)`` (metres in, grey 8-bit sRGB codes out: :func:`render_print_scene`).
     paper_margin : float, optional
         White paper around the print, metres (default 0.3 x marker length, boards 0.5 x the larger of
         square and marker length).
