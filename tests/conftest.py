@@ -263,9 +263,12 @@ class Tolerances:
     # Re-measured 2026-11-29 (later) after the light estimate's shadow edges (docs/light.md, "the shadow's edges"):
     # own 0.149 / 0.172 / 0.048; held-out 0.128 / 0.111 (0.1110) / 0.050. Limits + 0.01 where that is tighter
     # (the held-out contact limit stays: never loosened).
-    ref_own_ground: float = 0.158
-    ref_own_contact: float = 0.182
-    ref_own_object: float = 0.058
+    # Re-measured 2026-11-29 (fifth session) after the shadow ratio carries the lit floor's change across the
+    # probe shadow's edge, per side (arshadow.estimate.ratio._lit_change): own 0.144 / 0.170 / 0.041; held-out
+    # 0.111 / 0.107 / 0.037, five cases 0.101 / 0.087 / 0.040. Limits + 0.01 where that is tighter.
+    ref_own_ground: float = 0.154
+    ref_own_contact: float = 0.180
+    ref_own_object: float = 0.051
     ref_own_true_ground: float = 0.340
     # Re-measured 2026-11-29 (third session) after the probe check skipped the probe's own creases
     # (arshadow.estimate.outline): ho_box_rotated_tiles is no longer refused (its outline agreement 0.39 ->
@@ -273,20 +276,22 @@ class Tolerances:
     # case larger: its first limits). The five-case limits above stay, over the same five cases (heldout5).
     # Re-measured 2026-11-29 (fourth session) after the sky map's taper kept the object's reflected light
     # (arshadow.shading.sky.ACTIVE_OCCLUSION): own 0.148 / 0.172 / 0.048; held-out 0.122 / 0.1295 / 0.043,
-    # five cases 0.123 / 0.111 / 0.050. Limits + 0.01 where that is tighter (the held-out grounds).
-    ref_heldout_ground: float = 0.132
-    ref_heldout_contact: float = 0.140
-    ref_heldout_object: float = 0.053
-    ref_heldout5_ground: float = 0.133
-    ref_heldout5_contact: float = 0.111
-    ref_heldout5_object: float = 0.060
+    # five cases 0.123 / 0.111 / 0.050. Limits + 0.01 where that is tighter (the held-out grounds). Then the
+    # fifth session's lit floor's change (the own limits' note above): all six limits + 0.01.
+    ref_heldout_ground: float = 0.121
+    ref_heldout_contact: float = 0.117
+    ref_heldout_object: float = 0.047
+    ref_heldout5_ground: float = 0.111
+    ref_heldout5_contact: float = 0.097
+    ref_heldout5_object: float = 0.050
     # a material as reflective as the paper, under the measured light, against the paper's measured colour
     # (8-bit codes; the 8-bit encode and the top face's samples)
     paper_match_codes: float = 2.0
     # the light estimate's probe check on the own path-traced plates at their own camera (test_reference.py):
     # 0.93-0.99 in place (0.73-0.86 before its own creases were skipped), 0.20-0.32 given 4 cm off along -y
     # the shadow ratio's texture check (arshadow.estimate.ratio.texture_uncertainty) covers the ratio's real error
-    # within this many of its sigmas (measured 2026-11-29 on the twelve path-traced plates: at most 2.25)
+    # within this many of its sigmas (measured 2026-11-29 on the twelve path-traced plates: at most 2.25 for the
+    # pairs as they read, 2.10 with the lit floor's change carried across the edge, the default)
     ratio_texture_cover: float = 2.5
     outline_in_place: float = 0.9
     outline_away: float = 0.4

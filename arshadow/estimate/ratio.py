@@ -16,8 +16,16 @@ luminance) on pairs pushed to at least :data:`CHROMA_PX` pixels from the edge. M
 the default (docs/reference.md, "the shadow's colour"): the colour comes out closer to the truth, but with
 the level still darkened by the floor's texture the realism residuals do not improve.
 
-How far the floor's pattern moves the ratio is measured where nothing is shadowed: the same pairs read
-across the shadow's edge moved onto the lit floor round it (:func:`texture_uncertainty`, the estimate's
+A floor that gets darker (or lighter) towards the shadow reads, pair by pair, as a darker (lighter)
+shadow. Its slope is read on the lit side, on the same pairs moved ``2 d`` outward (both points lit, the
+light's own change between them allowed for), per side of the shadow, and carried across the edge
+(:func:`_lit_change`; ``shadow_ratio(..., lit_gradient=False)`` reads the pairs as they are). On the
+path-traced reference's own sun plates the lit floor darkens towards the shadow by 7-11 % over 2 d and
+their ratio read 10-12 % low; with the slope, within 1.2 % (docs/reference.md, "What is left of the
+ground's error", item 5). A step of the albedo at the edge itself cannot be told from the shadow.
+
+How far the floor's pattern moves the ratio is measured where nothing is shadowed: the same reading across
+the shadow's edge moved onto the lit floor round it (:func:`texture_uncertainty`, the estimate's
 ``fit.ratio_texture``).
 """
 
@@ -163,7 +171,7 @@ def shadow_ratio(
     px: Sequence[float],
     probe: Any = None,
     chroma_px: Sequence[float] = (),
-    lit_gradient: bool = False,
+    lit_gradient: bool = True,
 ) -> tuple[tuple[float, ...], tuple[float, float] | None]:
     """Per-channel shadow / lit of the ground (the sky's share of the open ground's light).
 
@@ -171,8 +179,9 @@ def shadow_ratio(
     metres per pixel at the probe; ``probe``: its ShadowCaster (None: no sky occlusion, for
     ``arshadow.synth.lit``'s photos); ``chroma_px``: empty (the default) reads the colour with the level;
     :data:`CHROMA_PX` reads it beyond the chroma blur (not adopted: the module's docstring);
-    ``lit_gradient``: each distance's pairs allow for the floor's albedo changing towards the shadow, read
-    on the lit side (:func:`_lit_change`; the module's docstring); False: the pairs as they read.
+    ``lit_gradient`` (the default): each pair allows for the floor's albedo changing towards the shadow on
+    its side, read on the lit side (:func:`_lit_change`; the module's docstring); False: the pairs as they
+    read.
 
     The ratio: the per-channel median, over the pairs at :data:`EDGE_DISTANCES` (at least 3 px each), of
     each pair's ``r``. With ``chroma_px``: its luminance (:data:`.shadow.LUMA`) times the per-channel median
@@ -210,7 +219,7 @@ def texture_uncertainty(
     px: Sequence[float],
     probe: Any = None,
     r: float = 0.0,
-    lit_gradient: bool = False,
+    lit_gradient: bool = True,
 ) -> tuple[float, int]:
     """How far the floor's pattern alone moves the shadow ratio: the same reading where nothing is shadowed.
 
