@@ -20,8 +20,8 @@ A floor that gets darker (or lighter) towards the shadow reads, pair by pair, as
 shadow. Its slope is read on the lit side, on the same pairs moved ``2 d`` outward (both points lit, the
 light's own change between them allowed for), per side of the shadow, and carried across the edge
 (:func:`_lit_change`; ``shadow_ratio(..., lit_gradient=False)`` reads the pairs as they are). On the
-path-traced reference's own sun plates the lit floor darkens towards the shadow by 7-11 % over 2 d and
-their ratio read 10-12 % low; with the slope, within 1.2 % (docs/reference.md, "What is left of the
+path-traced reference's own sun plates the lit floor darkens towards the shadow by 11-12 % over 2 d and
+their ratio read 11-12 % low; with the slope, within 1.2 % (docs/reference.md, "What is left of the
 ground's error", item 5). A step of the albedo at the edge itself cannot be told from the shadow.
 
 How far the floor's pattern moves the ratio is measured where nothing is shadowed: the same reading across
@@ -64,7 +64,7 @@ MIN_PAIRS = 30
 MIN_PLACEBOS = 3
 #: a side of the shadow (its edge's direction in 45-degree bins) takes its own lit floor's change
 #: (:func:`_lit_change`) with at least this many lit pairs, else the whole edge's (measured on the own
-#: path-traced plates: docs/reference.md, "The lit floor's change across the shadow's edge")
+#: path-traced plates: docs/reference.md, "What is left of the ground's error", item 5)
 MIN_SIDE_PAIRS = 10
 
 
