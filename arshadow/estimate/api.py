@@ -62,9 +62,9 @@ SHADING_VIEWS = 3
 SHADING_LOG = 0.1
 #: the floor's pattern moving the shadow ratio by more than this (relative, 1 sigma:
 #: :func:`arshadow.estimate.ratio.texture_uncertainty`) is flagged: 2 sigma is then over 16 % of the shadow's
-#: light (the path-traced reference: 0.02-0.03 on its tiles, whose ratios read within 2 %; 0.085-0.114 on its
-#: "noise" floors, whose ratios read 6-22 % off, 0.059 on the mildest, 6 % off; a plain synthetic floor:
-#: under 0.003; arshadow.synth's patterned floor at 720p: 0.04-0.12, median 0.07)
+#: light (the path-traced reference, the ratio read with the lit floor's change: 0.025 and 0.048 on two tiles
+#: plates, 2.5 % and 4.4 % off; 0.10-0.12 on the "noise" floors, 0.1-21 % off, 0.049 on the mildest, 3.7 % off;
+#: a plain synthetic floor: under 0.003; arshadow.synth's patterned floor at 720p: median 0.07)
 RATIO_TEXTURE = 0.08
 #: sun: the shadow's own elevation (a free directional fit) this far from the sun's (degrees) is a refusal
 #: (when also beyond 3 sigma of the free fit): the time, its zone or the place is wrong

@@ -464,8 +464,8 @@ def edge_pairs(
     albedo class, clearly in and out of the shadow. Returns ``(inside rgb (k, 3), outside rgb (k, 3))``
     float64 (linear, bilinear samples); with ``points``, also their ground points ``(inside xy (k, 2),
     outside xy (k, 2))`` float64 (metres, the evidence's ground frame). ``outward`` (metres): both points
-    moved that far out along the normal, where both must be clearly lit (the same pair where nothing is
-    shadowed: :func:`arshadow.estimate.ratio.texture_uncertainty`); 0: straddling the edge."""
+    moved that far out along the normal, where both must be clearly lit (the floor's own change beside the
+    edge: :mod:`arshadow.estimate.ratio`'s ``lit_gradient`` and texture check); 0: straddling the edge."""
     sb = cv2.GaussianBlur(S.astype(np.float32), (0, 0), 1.0)
     gy, gx = np.gradient(sb)
     # the cells within about half a cell of the edge, however blurred the model's edge is: ``sb`` is the
