@@ -39,6 +39,7 @@ import cv2
 import numpy as np
 
 from ..shading.sky import ground_sky_visibility
+from .record import lamp_irradiance
 from .shadow import LUMA, Evidence, edge_pairs, fit_levels, shadow_coverage
 
 __all__ = [
@@ -138,8 +139,7 @@ def _open_light(x: np.ndarray, h: np.ndarray, r: float, grid: Any) -> np.ndarray
     v = grid.sample(x) if grid is not None else np.ones(len(x))
     g = np.ones(len(x))
     if h[3] != 0.0:
-        rel = h[:3] / h[3] - np.column_stack([x, np.zeros(len(x))])
-        g = np.maximum(rel[:, 2], 0.0) / np.linalg.norm(rel, axis=1) ** 3
+        g = lamp_irradiance(h[:3] / h[3], x)
         g = g / max(float(np.median(g)), 1e-300)
     out: np.ndarray = np.maximum((1.0 - r) * g + r * v, 1e-9)
     return out

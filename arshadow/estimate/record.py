@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ..errors import UsageError
 from .exposure import Exposure
@@ -21,6 +22,7 @@ __all__ = [
     "load_estimate",
     "measured_ambient",
     "measured_tints",
+    "lamp_irradiance",
     "ratio_at",
     "moved_ratio",
     "scene_overrides",
@@ -184,6 +186,20 @@ def ratio_at(est: LightEstimate, xy: Sequence[float]) -> tuple[float, ...]:
     return tuple(float(v) for v in moved_ratio(est.shadow_ratio, est.position, est.ratio_at, xy))
 
 
+def lamp_irradiance(lamp: Sequence[float], xy: npt.ArrayLike) -> np.ndarray:
+    """A point lamp's irradiance on the ground (z = 0) at the points ``xy (n, 2)`` (world frame, metres):
+    ``max(0, z) / d^3`` for the lamp at ``lamp (3,)`` (its intensity 1), ``(n,) float64``.
+
+    >>> lamp_irradiance((0.0, 0.0, 1.0), [[0.0, 0.0], [1.0, 0.0]]).round(4).tolist()
+    [1.0, 0.3536]
+    """
+    p = np.asarray(lamp, np.float64).reshape(3)
+    q = np.asarray(xy, np.float64).reshape(-1, 2)
+    rel = p[None, :] - np.column_stack([q, np.zeros(len(q))])
+    out: np.ndarray = np.maximum(rel[:, 2], 0.0) / np.linalg.norm(rel, axis=1) ** 3
+    return out
+
+
 def moved_ratio(
     ratio: Sequence[float] | np.ndarray, lamp: Sequence[float], src: Sequence[float], dst: Sequence[float]
 ) -> np.ndarray:
@@ -194,13 +210,9 @@ def moved_ratio(
     >>> [round(float(v), 4) for v in moved_ratio([0.5], (0.0, 0.0, 1.0), (0.0, 0.0), (1.0, 0.0))]
     [0.7388]
     """
-    p = np.asarray(lamp, np.float64)
-
-    def irradiance(q: Sequence[float]) -> float:
-        return float(p[2] / np.linalg.norm(p - np.array([q[0], q[1], 0.0])) ** 3)
-
+    e_src, e_dst = lamp_irradiance(lamp, [src[:2], dst[:2]])
     r = np.clip(np.asarray(ratio, np.float64), 1e-6, 1.0 - 1e-6)
-    sky = r / (1.0 - r) * irradiance(src) / irradiance(dst)
+    sky = r / (1.0 - r) * float(e_src) / float(e_dst)
     out: np.ndarray = sky / (1.0 + sky)
     return out
 
