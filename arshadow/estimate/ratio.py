@@ -304,13 +304,7 @@ def _lit_pair_logs(
     ``lit``: only those whose both points are in it, the cells the real shadow leaves lit): their
     ``log(inside / outside)`` luminance less the light's own change between the two points (``light = (h,
     r, grid)``: :func:`_open_light`), ``(k,) float64``, and their sides (:func:`_sides`), ``(k,) int``."""
-    a, b, xa, xb = edge_pairs(ev, S, d, points=True, outward=outward)
-    if len(a) and lit is not None:
-        origin = np.array([ev.x0, ev.y0])
-        ia = np.rint((xa - origin) / ev.step).astype(np.intp)
-        ib = np.rint((xb - origin) / ev.step).astype(np.intp)
-        ok = lit[ia[:, 1], ia[:, 0]] & lit[ib[:, 1], ib[:, 0]]
-        a, b, xa, xb = a[ok], b[ok], xa[ok], xb[ok]
+    a, b, xa, xb = edge_pairs(ev, S, d, points=True, outward=outward, within=lit)
     if not len(a):
         return np.zeros(0), np.zeros(0, np.intp)
     e = _open_light(np.concatenate([xa, xb]), *light)

@@ -456,8 +456,13 @@ def fit_levels(
     return max(rr - rs * rs / ss, 0.0), delta, rr, n
 
 
-def edge_pairs(
-    ev: Evidence, S: np.ndarray, distance: float, points: bool = False, outward: float = 0.0
+def edge_pairs(  # noqa: PLR0913 (the evidence, its shadow, the distance, and three keyword options)
+    ev: Evidence,
+    S: np.ndarray,
+    distance: float,
+    points: bool = False,
+    outward: float = 0.0,
+    within: np.ndarray | None = None,
 ) -> tuple[np.ndarray, ...]:
     """Pairs of ground cells straddling the modelled shadow's edge: for every edge cell, the points
     ``distance`` (metres) inside and outside along the edge's normal, kept when both are used, of the same
@@ -465,7 +470,8 @@ def edge_pairs(
     float64 (linear, bilinear samples); with ``points``, also their ground points ``(inside xy (k, 2),
     outside xy (k, 2))`` float64 (metres, the evidence's ground frame). ``outward`` (metres): both points
     moved that far out along the normal, where both must be clearly lit (the floor's own change beside the
-    edge: :mod:`arshadow.estimate.ratio`'s ``lit_gradient`` and texture check); 0: straddling the edge."""
+    edge: :mod:`arshadow.estimate.ratio`'s ``lit_gradient`` and texture check); 0: straddling the edge.
+    ``within`` (ny, nx) bool: only pairs whose both points' cells are in it (None: any)."""
     sb = cv2.GaussianBlur(S.astype(np.float32), (0, 0), 1.0)
     gy, gx = np.gradient(sb)
     # the cells within about half a cell of the edge, however blurred the model's edge is: ``sb`` is the
@@ -498,6 +504,8 @@ def edge_pairs(
         & ((S[qi[:, 1], qi[:, 0]] > 0.99) if o == 0 else (S[qi[:, 1], qi[:, 0]] < 0.01))
         & (S[qo[:, 1], qo[:, 0]] < 0.01)
     )
+    if within is not None:
+        keep &= within[qi[:, 1], qi[:, 0]] & within[qo[:, 1], qo[:, 0]]
     if not keep.any():
         return (np.zeros((0, 3)), np.zeros((0, 3))) + ((np.zeros((0, 2)), np.zeros((0, 2))) if points else ())
     rgb = ev.rgb.astype(np.float32)
