@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import cv2
@@ -96,7 +97,7 @@ def _pair_ratios(
                 continue
             q = np.maximum(a, 1e-6) / np.maximum(b, 1e-6)
             if lit_r is not None:
-                lp, ls = _lit_pair_logs(ev, S, d, (h, lit_r, grid), outward=2.0 * d)
+                lp, ls = _lit_pair_logs(ev, S, d, _OpenLight(h, lit_r, grid), outward=2.0 * d)
                 q *= np.exp(-_lit_change(lp, ls, _sides(xa, xb)))[:, None]
             v_in = grid.sample(xa)[:, None] if grid is not None else np.ones((len(a), 1))
             v_out = grid.sample(xb)[:, None] if grid is not None else np.ones((len(a), 1))
@@ -132,17 +133,25 @@ def _sides(xin: np.ndarray, xout: np.ndarray) -> np.ndarray:
     return out
 
 
-def _open_light(x: np.ndarray, h: np.ndarray, r: float, grid: Any) -> np.ndarray:
-    """``(n,)`` the unshadowed ground's light at ground points ``x (n, 2)`` (metres, world), relative:
-    ``(1 - r) g + r V``, ``g`` a lamp's irradiance over its median at the points (1: directional), ``V`` the
-    sky the probe leaves them (``grid``; 1 without)."""
-    v = grid.sample(x) if grid is not None else np.ones(len(x))
-    g = np.ones(len(x))
-    if h[3] != 0.0:
-        g = lamp_irradiance(h[:3] / h[3], x)
-        g = g / max(float(np.median(g)), 1e-300)
-    out: np.ndarray = np.maximum((1.0 - r) * g + r * v, 1e-9)
-    return out
+@dataclass(frozen=True)
+class _OpenLight:
+    """The unshadowed ground's light, relative: ``(1 - r) g + r V``: ``h`` the fitted light (homogeneous,
+    (4,); a lamp's ``g`` its irradiance over the median at the points, else 1), ``r`` the sky's share, ``grid``
+    the sky the probe leaves the ground (:func:`probe_sky`; None: all of it, ``V = 1``)."""
+
+    h: np.ndarray
+    r: float
+    grid: Any = None
+
+    def at(self, x: np.ndarray) -> np.ndarray:
+        """``(n,) float64`` at ground points ``x (n, 2)`` (metres, world)."""
+        v = self.grid.sample(x) if self.grid is not None else np.ones(len(x))
+        g = np.ones(len(x))
+        if self.h[3] != 0.0:
+            g = lamp_irradiance(self.h[:3] / self.h[3], x)
+            g = g / max(float(np.median(g)), 1e-300)
+        out: np.ndarray = np.maximum((1.0 - self.r) * g + self.r * v, 1e-9)
+        return out
 
 
 def _fit_ratio(evs: list[Evidence], h: np.ndarray) -> tuple[float, ...]:
@@ -256,8 +265,8 @@ def texture_uncertainty(
         over the ``n`` placements (frames x directions) with at least :data:`MIN_PAIRS` pairs; ``(NaN, n)``
         with fewer than :data:`MIN_PLACEBOS`.
     """
-    grid = probe_sky(probe)
     h = np.asarray(h, np.float64)
+    light = _OpenLight(h, r, probe_sky(probe))
     medians = []
     for ev, p in zip(evs, px, strict=True):
         S = shadow_coverage(ev, h)
@@ -274,9 +283,9 @@ def texture_uncertainty(
             moved = _shifted(S, sx * wx, sy * wy)
             logs = []
             for d in dists:
-                lq, sq = _lit_pair_logs(ev, moved, d, (h, r, grid), lit=lit)
+                lq, sq = _lit_pair_logs(ev, moved, d, light, lit=lit)
                 if lit_gradient and len(lq):
-                    lq = lq - _lit_change(*_lit_pair_logs(ev, moved, d, (h, r, grid), 2.0 * d, lit), sq)
+                    lq = lq - _lit_change(*_lit_pair_logs(ev, moved, d, light, 2.0 * d, lit), sq)
                 logs.append(lq)
             lq = np.concatenate(logs)
             if lq.size >= MIN_PAIRS:
@@ -298,16 +307,16 @@ def _shifted(a: np.ndarray, dx: int, dy: int) -> np.ndarray:
 
 
 def _lit_pair_logs(
-    ev: Evidence, S: np.ndarray, d: float, light: tuple, outward: float = 0.0, lit: np.ndarray | None = None
+    ev: Evidence, S: np.ndarray, d: float, light: _OpenLight, outward: float = 0.0, lit: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """The pairs across ``S``'s edge at ``d`` metres, moved ``outward`` metres out (:func:`.shadow.edge_pairs`;
     ``lit``: only those whose both points are in it, the cells the real shadow leaves lit): their
-    ``log(inside / outside)`` luminance less the light's own change between the two points (``light = (h,
-    r, grid)``: :func:`_open_light`), ``(k,) float64``, and their sides (:func:`_sides`), ``(k,) int``."""
+    ``log(inside / outside)`` luminance less the light's own change between the two points (``light``),
+    ``(k,) float64``, and their sides (:func:`_sides`), ``(k,) int``."""
     a, b, xa, xb = edge_pairs(ev, S, d, points=True, outward=outward, within=lit)
     if not len(a):
         return np.zeros(0), np.zeros(0, np.intp)
-    e = _open_light(np.concatenate([xa, xb]), *light)
+    e = light.at(np.concatenate([xa, xb]))
     k = len(a)
     logs = np.log(np.maximum(a @ LUMA, 1e-9) / np.maximum(b @ LUMA, 1e-9)) - np.log(e[:k] / e[k:])
     return logs, _sides(xa, xb)
