@@ -433,9 +433,7 @@ class FrameComposer:
             self.backend.exposure_gap()
             return
         if fmt == "yuv420p":
-            if self._bgr is None:
-                self._bgr = np.zeros((self.H, self.W, 3), np.uint8)
-            bgr = self._bgr
+            bgr = self._frame_buffer()
             i420_roi_to_bgr(fr.image, bgr, region)
         else:
             bgr = fr.image
@@ -508,9 +506,7 @@ class FrameComposer:
             return bgr, mask, item
         plan = self.backend.plan(cam_from_marker, self.W, self.H)
         tc = time.perf_counter()
-        if self._bgr is None:
-            self._bgr = np.zeros((self.H, self.W, 3), np.uint8)
-        bgr = self._bgr
+        bgr = self._frame_buffer()
         if self.backend.camera_unmeasured(marker):  # the optics are read on the whole frame, once a video
             assert marker is not None  # camera_unmeasured: a tracked marker
             self.backend.measure_camera(frame_bgr(img, fmt), marker)
@@ -532,6 +528,12 @@ class FrameComposer:
         img = i420_with_roi(img, bgr, region, out=writable(img))
         timings["convert"] += (time.perf_counter() - tc) * 1e3
         return img, mask, item
+
+    def _frame_buffer(self) -> np.ndarray:
+        """The video's ``(H, W, 3) uint8`` BGR buffer a ``yuv420p`` frame's regions are converted into (made once)."""
+        if self._bgr is None:
+            self._bgr = np.zeros((self.H, self.W, 3), np.uint8)
+        return self._bgr
 
     def _finish_timings(self, item: ReportItem, timings: dict[str, float], dec_ms: float) -> None:
         timings["decode"] = dec_ms
