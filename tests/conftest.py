@@ -266,8 +266,12 @@ class Tolerances:
     # Re-measured 2026-11-29 (fifth session) after the shadow ratio carries the lit floor's change across the
     # probe shadow's edge, per side (arshadow.estimate.ratio._lit_change): own 0.144 / 0.170 / 0.041; held-out
     # 0.111 / 0.107 / 0.037, five cases 0.101 / 0.087 / 0.040. Limits + 0.01 where that is tighter.
+    # Re-measured 2026-11-29 (sixth session) after the marker's paper class ends at the sheet's edge (a neutral
+    # floor is not paper: arshadow.estimate.shadow.paper_cells) and the shadow ratio allows for the light the
+    # probe reflects (arshadow.estimate.ratio.probe_ground): own 0.146 / 0.167 / 0.041; held-out 0.0995 / 0.1095 /
+    # 0.037, five cases 0.098 / 0.090 / 0.040. Limits + 0.01 where that is tighter.
     ref_own_ground: float = 0.154
-    ref_own_contact: float = 0.180
+    ref_own_contact: float = 0.177
     ref_own_object: float = 0.051
     ref_own_true_ground: float = 0.340
     # Re-measured 2026-11-29 (third session) after the probe check skipped the probe's own creases
@@ -278,10 +282,10 @@ class Tolerances:
     # (arshadow.shading.sky.ACTIVE_OCCLUSION): own 0.148 / 0.172 / 0.048; held-out 0.122 / 0.1295 / 0.043,
     # five cases 0.123 / 0.111 / 0.050. Limits + 0.01 where that is tighter (the held-out grounds). Then the
     # fifth session's lit floor's change (the own limits' note above): all six limits + 0.01.
-    ref_heldout_ground: float = 0.121
+    ref_heldout_ground: float = 0.110
     ref_heldout_contact: float = 0.117
     ref_heldout_object: float = 0.047
-    ref_heldout5_ground: float = 0.111
+    ref_heldout5_ground: float = 0.108
     ref_heldout5_contact: float = 0.097
     ref_heldout5_object: float = 0.050
     # a material as reflective as the paper, under the measured light, against the paper's measured colour
@@ -293,6 +297,14 @@ class Tolerances:
     # within this many of its sigmas (measured 2026-11-29 on the twelve path-traced plates: at most 2.25 for the
     # pairs as they read, 2.10 with the lit floor's change carried across the edge, the default)
     ratio_texture_cover: float = 2.5
+    # the light estimate on the plain-floor path-traced plates (test_reference.py; measured 2026-11-29: suns
+    # 0.10 / 0.16 deg, lamps 0.3 / 2.0 %; the ratio +0.007 / +0.009 (suns), +0.042 / +0.046 (lamps) of the
+    # scene's own sky share; the probe's and the floor's reflectances within 0.03 of the truth)
+    plain_sun_deg: float = 0.5
+    plain_lamp_rel: float = 0.04
+    plain_ratio_sun: float = 0.03
+    plain_ratio_lamp: float = 0.06
+    plain_albedo: float = 0.04
     outline_in_place: float = 0.9
     outline_away: float = 0.4
     # the object's outline anti-aliased without MSAA (arshadow.compose.outline; tests/test_outline_aa.py)

@@ -391,7 +391,7 @@ def test_face_shading_of_a_point_light_on_the_path_traced_plates(name):
     estimator's) the faces fit the model within the check's limit (it flagged them 40 % off before)."""
     from arshadow.bench.reference import load_cases
     from arshadow.bench.reference_scene import intrinsics_of, pose_of
-    from arshadow.estimate.api import SHADING_LOG
+    from arshadow.estimate.checks import SHADING_LOG
     from arshadow.estimate.shading import face_shading_residual
     from arshadow.estimate.shadow import LUMA
     from arshadow.geometry.mesh import load_occluder

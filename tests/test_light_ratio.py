@@ -19,6 +19,7 @@ import pytest
 import arshadow.estimate.api as api
 from arshadow.camera.model import Intrinsics
 from arshadow.estimate import estimate_light
+from arshadow.estimate.checks import RATIO_TEXTURE
 from arshadow.estimate.ratio import CHROMA_PX, shadow_ratio
 from arshadow.estimate.shadow import LUMA
 from arshadow.geometry.exact import ground_shadow_triangles
@@ -99,7 +100,7 @@ def test_the_texture_check_measures_the_floors_pattern(floor, tol):
     else:
         assert abs(err) > 0.05, err  # the pattern moves this light's ratio: the check has something to see
         assert texture > 0.04 and abs(err) <= tol.ratio_texture_cover * texture, (err, texture)
-        assert bool(flagged) == (texture > api.RATIO_TEXTURE), (texture, est.warnings)
+        assert bool(flagged) == (texture > RATIO_TEXTURE), (texture, est.warnings)
 
 
 @pytest.mark.parametrize("az, el", [(200.0, 40.0), (300.0, 35.0), (120.0, 55.0)])

@@ -36,10 +36,16 @@ def heldout():
     return load_cases(DATA / "heldout")
 
 
-def test_reference_sets_committed(own, heldout):
-    assert len(own) == 6 and len(heldout) == 6
+@pytest.fixture(scope="module")
+def plain():
+    return load_cases(DATA / "plain")
+
+
+def test_reference_sets_committed(own, heldout, plain):
+    assert len(own) == 6 and len(heldout) == 6 and len(plain) == 4
     assert not {c.scene.name for c in own} & {c.scene.name for c in heldout}
-    for c in own + heldout:
+    assert {c.scene.floor for c in plain} == {"plain"}
+    for c in own + heldout + plain:
         assert c.plate8.shape == (c.scene.height, c.scene.width, 3)
         y0, y1, x0, x1 = c.crop
         assert c.smoothed_truth.shape == (y1 - y0, x1 - x0, 3)
@@ -181,26 +187,58 @@ def test_load_cases_names_a_missing_plate(tmp_path):
         load_cases(tmp_path)
 
 
-def test_shadow_ratio_allows_for_the_probes_sky_occlusion(own):
-    """The light estimate's shadow ratio on path-traced plates against the scene's true sky share
-    (sky / (sky + direct sin(elevation)), from the scene's irradiances): the probe hides part of the sky from
-    both sides of its shadow's edge, which read the sky too dark without the allowance (box_sun: 0.33 / 0.32 /
-    0.31 against the true 0.37 / 0.40 / 0.46; with it 0.36 / 0.34 / 0.33)."""
+def _sky_share(sc, at) -> np.ndarray:
+    """The scene's own sky share of the open ground's light, ``sky / (sky + E)``, (3,): a sun's ``E`` from its
+    elevation, a lamp's at the ground point ``at (2,)`` (its ``cos / d^2``)."""
+    v, sky, direct = (np.asarray(a, np.float64) for a in (sc.light_vec, sc.sky, sc.direct))
+    if sc.light == "sun":
+        e = direct * max(v[2] / np.linalg.norm(v), 0.0)
+    else:
+        rel = v - np.array([at[0], at[1], 0.0])
+        e = direct * max(rel[2], 0.0) / np.linalg.norm(rel) ** 3
+    return sky / (sky + e)
+
+
+def test_light_estimate_on_a_plain_floor(plain, tol):
+    """The light estimate on the plain-floor plates (tests/data/reference/plain: four scenes on one neutral grey
+    of reflectance 0.25, no pattern to confound the shadow ratio) against each scene's own light and sky share.
+
+    Every plate is fitted (until the sixth session of 2026-11-29 the marker's paper class took in every neutral
+    cell brighter than a fifth of the paper within 2.5 marker sides, and its edge then ran along the probe's
+    shadow: on twelve such plates 9 were refused as ambiguous, the others 22-65 degrees off;
+    arshadow.estimate.shadow.paper_cells), the light
+    close (measured: suns 0.10 / 0.16 degrees, lamps 0.30 / 1.97 %), and the shadow ratio allows for the sky the
+    probe hides from both sides of its shadow's edge and for the light it reflects onto them (its reflectance
+    read off its top face, 0.481-0.511 against the plates' 0.5 grey seen through the paper's 0.8 / 0.8308,
+    i.e. 0.481): the suns' ratio +0.007 / +0.009 of the truth (sky occlusion only: +0.026 / +0.057; neither:
+    -0.025 / -0.052), the lamps' +0.042 / +0.046 (sky occlusion only: +0.071 / +0.088)."""
     from arshadow.estimate import estimate_light
     from arshadow.estimate.shadow import LUMA
 
-    for c in [c for c in own if c.scene.name in ("box_sun", "sphere_sun")]:
+    for c in plain:
         sc = c.scene
-        v = np.asarray(sc.light_vec, np.float64)
-        direct = np.asarray(sc.direct) * v[2] / np.linalg.norm(v)
-        truth = np.asarray(sc.sky) / (np.asarray(sc.sky) + direct)
         kw = dict(calib=intrinsics_of(sc), marker_length=sc.marker_length, probe=sc.probe, probe_place=sc.probe_place)
-        with_sky = np.asarray(estimate_light(c.plate8, **kw).shadow_ratio)
-        without = np.asarray(estimate_light(c.plate8, sky_occlusion=False, **kw).shadow_ratio)
-        # measured 2026-11-26: box_sun 0.052 against 0.080 without (the green and blue still read low: the
-        # ratio comes out nearly grey where the truth is bluish), sphere_sun 0.009 against 0.036
-        err, err0 = abs((with_sky - truth) @ LUMA), abs((without - truth) @ LUMA)
-        assert err < 0.75 * err0 and err <= 0.06, (sc.name, with_sky, without, truth)
+        kw["kind"] = "point" if sc.light == "point" else "directional"
+        est = estimate_light(c.plate8, **kw)
+        at = est.ratio_at if est.ratio_at is not None else sc.probe_place[:2]
+        err = float(np.asarray(est.shadow_ratio) @ LUMA) / float(_sky_share(sc, at) @ LUMA) - 1.0
+        assert est.fit["probe_albedo"] == pytest.approx(0.5 * 0.8 / 0.8308, abs=tol.plain_albedo), (sc.name, est.fit)
+        assert est.fit["floor_albedo"] == pytest.approx(0.25 * 0.8 / 0.8308, abs=tol.plain_albedo), (sc.name, est.fit)
+        if sc.light == "sun":
+            assert math.degrees(math.acos(min(1.0, _cos(est.direction, sc.light_vec)))) <= tol.plain_sun_deg, sc.name
+            assert abs(err) <= tol.plain_ratio_sun, (sc.name, err)
+            none = estimate_light(c.plate8, sky_occlusion=False, **kw)  # the probe's effect on the ground ignored
+            err0 = float(np.asarray(none.shadow_ratio) @ LUMA) / float(_sky_share(sc, at) @ LUMA) - 1.0
+            assert abs(err) < 0.5 * abs(err0), (sc.name, err, err0)
+        else:
+            off = np.linalg.norm(np.subtract(est.position, sc.light_vec)) / np.linalg.norm(sc.light_vec)
+            assert off <= tol.plain_lamp_rel, (sc.name, est.position)
+            assert abs(err) <= tol.plain_ratio_lamp, (sc.name, err)
+
+
+def _cos(a, b) -> float:
+    """The cosine of the angle between two 3-vectors."""
+    return float(np.dot(a, b) / (np.linalg.norm(a) * np.linalg.norm(b)))
 
 
 def test_shadow_ratio_texture_check_covers_its_error(own, heldout, tol):
@@ -212,7 +250,7 @@ def test_shadow_ratio_texture_check_covers_its_error(own, heldout, tol):
     carried across the edge). An uncertain ratio may still come out right: the own suns read within 1.2 % and
     are flagged."""
     from arshadow.bench.reference import measure_light
-    from arshadow.estimate.api import RATIO_TEXTURE
+    from arshadow.estimate.checks import RATIO_TEXTURE
     from arshadow.estimate.shadow import LUMA
 
     for c in [*own, *heldout]:

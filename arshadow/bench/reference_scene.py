@@ -90,7 +90,8 @@ class ReferenceScene:
     sun_radius_deg : float
         The sun's angular radius (0: a hard directional light).
     floor : str
-        ``"noise"`` or ``"tiles"``; ``floor_seed`` its random seed; ``floor_tint`` (3,) linear multiplier.
+        ``"noise"``, ``"tiles"`` or ``"plain"``; ``floor_seed`` its random seed; ``floor_tint`` (3,) linear
+        multiplier.
     exposure : float
         Camera gain on radiance (camera-linear = exposure * radiance).
     spp, seed, seed2 : int
@@ -203,7 +204,8 @@ def floor_texture(kind: str, seed: int, tint: tuple[float, float, float] = (1.0,
     """(FLOOR_TEXELS, FLOOR_TEXELS, 3) float32 linear RGB reflectance of the floor, periodic.
 
     ``noise``: a warm grey-brown with structure at every scale (like :mod:`arshadow.synth`'s floor);
-    ``tiles``: 8 x 8 cm tiles with grout lines and per-tile variation.
+    ``tiles``: 8 x 8 cm tiles with grout lines and per-tile variation; ``plain``: one neutral grey, sRGB code
+    137 (reflectance 0.25).
     """
     n = FLOOR_TEXELS
     rng = np.random.default_rng(seed)
@@ -224,8 +226,10 @@ def floor_texture(kind: str, seed: int, tint: tuple[float, float, float] = (1.0,
         codes = codes + 8.0 * common[:, :, None]
         grout = ((ii % t) < 3)[:, None] | ((ii % t) < 3)[None, :]
         codes[grout] = (90.0, 88.0, 85.0)
+    elif kind == "plain":
+        codes = np.full((n, n, 3), 137.0)
     else:
-        raise UsageError(f"floor must be 'noise' or 'tiles', got {kind!r}")
+        raise UsageError(f"floor must be 'noise', 'tiles' or 'plain', got {kind!r}")
     codes = np.clip(codes, 0, 255)
     lin = SRGB_TO_LINEAR[np.rint(codes).astype(np.uint8)].astype(np.float32)
     out: np.ndarray = lin * np.asarray(tint, np.float32)

@@ -2,17 +2,20 @@
 
 ``OWN`` is for developing the rendering model (a box, a torus, a sphere, a cylinder under a sun, hard or
 with a disc, plus a uniform sky, or a point light plus ambient); ``HELDOUT`` has other objects, lights,
-floors and cameras and is kept for judging: tune nothing on it. Each entry is a function returning fresh
+floors and cameras and is kept for judging: tune nothing on it. ``PLAIN`` is four of them on a plain
+neutral grey floor, for the light estimate (its shadow ratio with no floor pattern to confound it; a neutral
+floor the marker's paper class must not swallow). Each entry is a function returning fresh
 :class:`arshadow.bench.reference_scene.ReferenceScene` objects (render_scene sets their exposure).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 from .reference_scene import ReferenceScene
 
-__all__ = ["HELDOUT", "OWN", "SETS"]
+__all__ = ["HELDOUT", "OWN", "PLAIN", "SETS"]
 
 #: a point light and the ambient that goes with it (a dim uniform environment)
 _POINT: dict[str, Any] = {
@@ -102,7 +105,17 @@ def heldout() -> list[ReferenceScene]:
     ]
 
 
+def plain() -> list[ReferenceScene]:
+    """Two own and two held-out scenes (a sun and a point light each) on the ``plain`` floor, untinted."""
+    by_name = {sc.name: sc for sc in own() + heldout()}
+    names = ("box_sun", "box_point", "ho_orange_torus_high_sun", "ho_orange_box_point")
+    return [
+        dataclasses.replace(by_name[n], name=f"plain_{n}", floor="plain", floor_tint=(1.0, 1.0, 1.0)) for n in names
+    ]
+
+
 OWN = own
 HELDOUT = heldout
+PLAIN = plain
 #: the sets by name (their folder under tests/data/reference/)
-SETS = {"own": own, "heldout": heldout}
+SETS = {"own": own, "heldout": heldout, "plain": plain}

@@ -23,17 +23,19 @@ from ..geometry.caster import ShadowCaster
 from ..geometry.mesh import load_occluder
 from ..io import read_image, to_bgr8
 from ..lights.spec import parse_light
+from ..shading.decide import PAPER_ALBEDO
 from ..tracking.dictionary import DEFAULT_DICTIONARY, marker_object_points
 from ..tracking.tracker import MarkerTracker
+from .checks import check_outline, check_warnings, light_checks, point_warnings
 from .exposure import Exposure, ExposureError, measure_exposure
 from .light import FitResult, MakeFine, fit_directional, fit_point, fit_sun
 from .optics import measure_blur
 from .outline import outline_agreement
 from .penumbra import fit_angular_radius
-from .ratio import shadow_ratio, texture_uncertainty
+from .ratio import ProbeGround, floor_albedo, probe_ground, shadow_ratio
 from .record import LightEstimate
-from .shading import face_shading_residual
-from .shadow import LUMA, Evidence, build_evidence, edge_pairs, sample_blur_px, shadow_coverage
+from .shading import probe_albedo
+from .shadow import LUMA, Evidence, build_evidence, sample_blur_px, shadow_coverage
 
 __all__ = ["MAX_FRAMES", "VIDEO_EXTENSIONS", "estimate_light"]
 
@@ -46,39 +48,15 @@ MAX_FRAMES = 30
 #: lowest light elevation searched, degrees (sets the ground grid's extent)
 MIN_ELEVATION = 12.0
 CONVEX_PRIMITIVES = ("box:", "cylinder:", "sphere:")
-#: the probe's outline (:func:`arshadow.estimate.outline.outline_agreement`) below this share on the photo's
-#: edges is a refusal: the probe is not there (tuning seeds: 0.11..0.28 on synthetic photos without the
-#: probe or with it given 3..5 cm away; 0.64..1 with it in place, its shadow hidden or not; ~0.2 by chance)
-OUTLINE_REFUSE = 0.4
-#: ... and below this, a warning
-OUTLINE_FLAG = 0.55
-#: a fitted shadow darker than the ground outside on less than this share of its edge is flagged (a real
-#: shadow: 0.97..1 on synthetic photos; a pattern of the floor or a mostly hidden shadow: 0.67..0.93)
-EDGE_DARKER = 0.95
 #: frames whose probe faces are compared with the fitted light's shading (convex probes)
 SHADING_VIEWS = 3
-#: a face of the probe brighter or darker than the fitted light shades it by more than this (log) is flagged
-#: (tuning seeds: 0.008..0.057 for the right light, 0.10..0.37 for lights fitted to the floor's pattern)
-SHADING_LOG = 0.1
-#: the floor's pattern moving the shadow ratio by more than this (relative, 1 sigma:
-#: :func:`arshadow.estimate.ratio.texture_uncertainty`) is flagged: 2 sigma is then over 16 % of the shadow's
-#: light (the path-traced reference, the ratio read with the lit floor's change: 0.025 and 0.048 on two tiles
-#: plates, 2.5 % and 4.4 % off; 0.10-0.12 on the "noise" floors, 0.1-21 % off, 0.049 on the mildest, 3.7 % off;
-#: a plain synthetic floor: under 0.003; arshadow.synth's patterned floor at 720p: median 0.07)
-RATIO_TEXTURE = 0.08
+#: the ``fit`` keys of the probe's and the floor's reflectances read from the photo (:func:`_albedos`)
+ALBEDO_KEYS = ("probe_albedo", "floor_albedo")
 #: sun: the shadow's own elevation (a free directional fit) this far from the sun's (degrees) is a refusal
 #: (when also beyond 3 sigma of the free fit): the time, its zone or the place is wrong
 SUN_REFUSE_DEG = 3.0
 #: ... and this far, a warning (the sun's direction is then at least this far from the shadow's)
 SUN_FLAG_DEG = 1.5
-#: a point light whose 1-sigma position uncertainty exceeds this share of its distance is flagged (a
-#: position 15 % off is then at least a 1.5-sigma event)
-POINT_REL_SIGMA = 0.1
-#: a point light fitted farther than this from the probe (metres) is flagged (the search goes to 3 m)
-POINT_FAR = 2.0
-#: a point light fitted nearer than this to the probe's top (metres) is flagged (the search starts at 0.15 m)
-POINT_NEAR = 0.2
-
 #: lights' homogeneous vectors -> one frame's fine evidence grid covering their shadows (:func:`_grids`)
 FineGrid = Callable[[list], Evidence]
 
@@ -210,22 +188,6 @@ def _edge_blur(img: np.ndarray, intr: Intrinsics, cam_from_world: np.ndarray, L:
         return None
 
 
-def _edge_consistency(evs: list[Evidence], h: np.ndarray, px: Sequence[float]) -> tuple:
-    """How consistently the fitted shadow's edge is a shadow's: the share of pairs of ground points straddling
-    it (:func:`arshadow.estimate.shadow.edge_pairs`, 5 mm or 3 px each side) whose inside is darker than
-    their outside, and the pairs' count. A real shadow is darker all along its edge (about 0.9 and more);
-    a pattern of the floor's texture that a wrong shadow explains is darker on some stretches only."""
-    darker, count = 0, 0
-    for ev, p in zip(evs, px, strict=True):
-        S = shadow_coverage(ev, h)
-        if S is None:
-            continue
-        a, b = edge_pairs(ev, S, max(0.005, 3.0 * p))
-        darker += int(np.count_nonzero(a @ LUMA < b @ LUMA))
-        count += len(a)
-    return (darker / count if count else math.nan), count
-
-
 def _sun_enu(spec: str) -> np.ndarray:
     light = parse_light(spec)  # NORTH 0: world = east-north-up
     if light.sun is None:
@@ -330,28 +292,10 @@ def estimate_light(
             pxs.append(px)
             fines.append(f)
             exposures.append(exp)
-    _check_outline(outline)
+    check_outline(outline)
     return _fit(
         kind_name, kind, enu, coarse, fines, pxs, exposures, (verts, faces, views, sky_occlusion), t0, notes, outline
     )
-
-
-def _pooled(outline: Sequence[tuple[float, int]]) -> float:
-    """The outline's agreement over the frames (weighted by the points read), NaN when none was read."""
-    pts = sum(n for _, n in outline)
-    return sum(a * n for a, n in outline if n) / pts if pts else math.nan
-
-
-def _check_outline(outline: Sequence[tuple[float, int]]) -> None:
-    """Refuse when the probe's projected outline is not on the photo's edges (:func:`outline_agreement`):
-    the probe is not where it is given, or not in the photo."""
-    agree = _pooled(outline)
-    if math.isfinite(agree) and agree < OUTLINE_REFUSE:
-        raise EstimateError(
-            f"the probe is not in the photo where it is given: only {100 * agree:.0f} % of its outline lies on an edge of the "
-            f"photo (chance: ~20 %; a probe in place: over {100 * OUTLINE_FLAG:.0f} %): check --probe-place, "
-            "--probe-rotate and --probe, or that the probe is in the photo"
-        )
 
 
 def _sun_elevation_check(coarse: list[Evidence], make_fine: MakeFine, enu: np.ndarray, kind: str) -> tuple:
@@ -378,91 +322,59 @@ def _sun_elevation_check(coarse: list[Evidence], make_fine: MakeFine, enu: np.nd
     return el, sun_el, (f"low confidence: {text}" if diff > SUN_FLAG_DEG else None)
 
 
-def _checks(
+def _pooled_exposure(exposures: Sequence[Exposure]) -> Exposure:
+    """The frames' exposures as one: the paper's and the ink's medians."""
+    paper = np.median(np.array([e.paper_rgb for e in exposures]), axis=0)
+    ink = np.median(np.array([e.ink_rgb for e in exposures]), axis=0)
+    return Exposure(
+        tuple(map(float, paper)),
+        tuple(map(float, ink)),
+        int(np.median([e.white_cells for e in exposures])),
+        any(e.saturated for e in exposures),
+    )
+
+
+def _albedos(
     res: FitResult,
-    read: tuple[tuple, tuple[float, float] | None],
-    pxs: Sequence[float],
-    outline: Sequence[tuple[float, int]],
+    r: float,
     views: Sequence[tuple[np.ndarray, Intrinsics, np.ndarray]],
-    verts: np.ndarray,
-    faces: np.ndarray,
-    probe: ShadowCaster | None,
-) -> dict:
-    """The checks of a fitted light that do not come from its shadow fit: the probe's outline on the photo
-    (pooled over the frames), the share of the fitted shadow's edge darker inside, the probe's faces
-    against the light's shading (the median over up to :data:`SHADING_VIEWS` frames; NaN when not measured)
-    and how far the floor's pattern moves the shadow ratio (:func:`.ratio.texture_uncertainty`).
-    ``read``: the shadow ratio and where it was read (:func:`.ratio.shadow_ratio`); ``probe``: its caster
-    for the sky it hides (None: sky occlusion off, as for the ratio)."""
-    edge_darker, edge_n = _edge_consistency(res.fine, res.light_h, pxs)
-    r = float(np.asarray(read[0]) @ LUMA)
-    texture, _ = texture_uncertainty(res.fine, res.light_h, pxs, probe, float(np.clip(r, 0.0, 0.95)))
-    shade = [face_shading_residual(im, it, T, verts, faces, res.light_h, r, read[1])[0] for im, it, T in views]
-    shade = [x for x in shade if math.isfinite(x)]
-    return {
-        "outline": _pooled(outline),
-        "edge_darker": edge_darker,
-        "edge_pairs": edge_n,
-        "face_shading": float(np.median(shade)) if shade else math.nan,
-        "ratio_texture": texture,
-    }
+    probe: tuple[np.ndarray, np.ndarray],
+    ground: ProbeGround | None,
+    exp: Exposure,
+) -> tuple[float, float]:
+    """``(probe, floor)``: the probe's reflectance off its top face (:func:`.shading.probe_albedo`) and the
+    floor's round it (:func:`.ratio.floor_albedo`), both against the paper, under the fitted light and the
+    sky's share ``r`` (luminance); NaN where not measured (no view of the top face, a clipped paper, sky
+    occlusion off: ``ground`` None)."""
+    if ground is None or exp.saturated:
+        return math.nan, math.nan
+    paper = float(np.asarray(exp.paper_rgb) @ LUMA)
+    r = float(np.clip(r, 0.0, 0.95))
+    top = probe_albedo(views, probe[0], probe[1], res.light_h, r, paper)
+    return top, floor_albedo(res.fine, res.light_h, r, ground, paper)
 
 
-def _check_warnings(checks: dict) -> list:
-    """The warnings (``confident: false``) of failed :func:`_checks`."""
-    out = []
-    agree, edge_darker, shade_res = checks["outline"], checks["edge_darker"], checks["face_shading"]
-    if math.isfinite(agree) and agree < OUTLINE_FLAG:
-        out.append(
-            f"low confidence: only {100 * agree:.0f} % of the probe's outline lies on an edge of the photo: "
-            "check --probe-place and --probe-rotate"
-        )
-    if math.isfinite(shade_res) and shade_res > SHADING_LOG:
-        out.append(
-            f"low confidence: the probe's faces are not shaded as this light shades them (a face "
-            f"{100 * math.expm1(shade_res):.0f} % off): the shadow fitted may not be the probe's, or the probe "
-            "is not matte and of one colour"
-        )
-    texture = checks["ratio_texture"]
-    if math.isfinite(texture) and texture > RATIO_TEXTURE:
-        out.append(
-            f"low confidence: the floor's pattern beside the probe's shadow moves the shadow ratio by about "
-            f"+-{100 * texture:.0f} % (one standard deviation, read where nothing is shadowed): the inserted "
-            "shadows may be that much too dark or too light; the probe's shadow on a plain surface (a sheet of "
-            "paper) measures it"
-        )
-    if math.isfinite(edge_darker) and edge_darker < EDGE_DARKER:
-        out.append(
-            f"low confidence: the fitted shadow is darker inside its edge on only {100 * edge_darker:.0f} % of it "
-            "(a real shadow: all along it): it may be the floor's pattern, the real shadow hidden or out of view"
-        )
-    return out
-
-
-def _point_warnings(res: FitResult, dist: float) -> list:
-    """A point light's warnings: fitted at the search's far or near edge, or its distance ``dist`` (metres
-    from the probe's top) uncertain; each names the 2-sigma interval of the distance."""
-    lo, hi = res.distance_interval if res.distance_interval is not None else (math.nan, math.nan)
-    span = f"between {lo:.2f} and {hi:.2f} m from the probe's top (2 sigma)"
-    assert res.position_sigma is not None  # a point light's fit
-    rel = res.position_sigma / max(dist, 1e-9)
-    if dist > POINT_FAR:
-        return [
-            f"low confidence: the point light fit went {dist:.1f} m away, {span} (a far light looks "
-            "directional from one probe); fit --kind directional"
-        ]
-    if dist < POINT_NEAR:
-        return [
-            f"low confidence: the point light fit went {100 * dist:.0f} cm from the probe's top, the edge of the "
-            f"search, {span} (a faint shadow is explained as well by a light almost anywhere)"
-        ]
-    if rel > POINT_REL_SIGMA:
-        return [
-            f"low confidence: the point light's distance is uncertain (+/- {100 * rel:.0f} % of it): "
-            f"{dist:.2f} m, {span}; add photos or frames from other sides (arshadow light a.jpg b.jpg ...), "
-            "or fit --kind directional"
-        ]
-    return []
+def _read_ratio(
+    res: FitResult,
+    pxs: Sequence[float],
+    views: Sequence[tuple[np.ndarray, Intrinsics, np.ndarray]],
+    probe: tuple[np.ndarray, np.ndarray],
+    exp: Exposure,
+    sky_occlusion: bool,
+) -> tuple[tuple[float, ...], tuple[float, float] | None, ProbeGround | None, tuple[float, float]]:
+    """The shadow ratio of the fitted light (:func:`.ratio.shadow_ratio`), allowing for what the probe does to
+    the ground beside its shadow: ``(ratio, where it was read, the probe's ProbeGround, (probe, floor)
+    reflectances)``. Read first with the sky the probe hides, then, with both reflectances read and possible
+    (0..1], again with the light it reflects (:func:`.ratio.probe_ground`); ``sky_occlusion`` False: neither
+    (``arshadow.synth.lit``'s photos)."""
+    caster = ShadowCaster(*probe) if sky_occlusion else None
+    ground = probe_ground(caster, res.light_h)
+    ratio, ratio_at = shadow_ratio(res.fine, res.light_h, pxs, ground)
+    albedos = _albedos(res, float(np.asarray(ratio) @ LUMA), views, probe, ground, exp)
+    if caster is not None and all(math.isfinite(a) and 0.0 < a <= 1.0 for a in albedos):
+        ground = probe_ground(caster, res.light_h, albedos, ratio_at)
+        ratio, ratio_at = shadow_ratio(res.fine, res.light_h, pxs, ground)
+    return ratio, ratio_at, ground, albedos
 
 
 def _fit(
@@ -495,31 +407,30 @@ def _fit(
         res = fit_sun(coarse, make_fine, enu)
     else:
         res = fit_point(coarse, make_fine, anchor)
-    caster = ShadowCaster(verts, faces) if sky_occlusion else None
-    ratio, ratio_at = shadow_ratio(res.fine, res.light_h, pxs, caster)
-    checks = _checks(res, (ratio, ratio_at), pxs, outline, views, verts, faces, caster)
-    paper = np.median(np.array([e.paper_rgb for e in exposures]), axis=0)
-    ink = np.median(np.array([e.ink_rgb for e in exposures]), axis=0)
-    exp = Exposure(
-        tuple(map(float, paper)),
-        tuple(map(float, ink)),
-        int(np.median([e.white_cells for e in exposures])),
-        any(e.saturated for e in exposures),
-    )
+    exp = _pooled_exposure(exposures)
+    ratio, ratio_at, ground, albedos = _read_ratio(res, pxs, views, (verts, faces), exp, sky_occlusion)
+    checks = light_checks(res, (ratio, ratio_at), pxs, outline, views, verts, faces, ground)
     warnings = list(notes)
     if exp.saturated:
         warnings.append("the marker's paper is over-exposed (clipped): the exposure match is a lower bound")
     if sun_check is not None and sun_check[2] is not None:
         warnings.append(sun_check[2])
-    warnings += _check_warnings(checks)
+    warnings += check_warnings(checks)
+    if math.isfinite(albedos[0]) and albedos[0] > 1.0:
+        warnings.append(
+            f"the probe's top face reads brighter than any matte surface (reflectance {albedos[0]:.2f}, the "
+            f"paper's taken as {PAPER_ALBEDO:g}): it is glossy, or lit by something the paper is not; the light it "
+            "reflects onto the floor is left out of the shadow ratio"
+        )
     if res.uncertainty_deg > 3.0:
         warnings.append(f"low confidence: uncertainty {res.uncertainty_deg:.1f} degrees")
     if res.position_sigma is not None:
-        warnings += _point_warnings(res, float(np.linalg.norm(res.light_h[:3] - anchor)))
+        warnings += point_warnings(res, float(np.linalg.norm(res.light_h[:3] - anchor)))
     if res.runner_up is not None and res.runner_up > 0.6:
         warnings.append(f"a second light explains {100 * res.runner_up:.0f} % as much: check the result")
     fit = {
         **{k: (None if not math.isfinite(v) else round(v, 3)) for k, v in checks.items()},
+        **{k: (None if not math.isfinite(v) else round(v, 3)) for k, v in zip(ALBEDO_KEYS, albedos, strict=True)},
         "explained": round(res.explained, 4),
         **(
             {}

@@ -14,25 +14,35 @@ hidden shadow, a probe not there) shades the faces in the wrong order or proport
 :func:`face_shading_residual` measures every face group of a convex probe turned to the camera (coplanar
 triangles together), the median linear luminance of its pixels (eroded by 3 px from its outline), and
 returns the largest log residual of the model after fitting its scale.
+
+:func:`probe_albedo` reads the probe's reflectance off its top face, against the marker's paper: both
+horizontal and open to the whole sky, so under a far light both get the open ground's light, and the ratio
+of their brightness is the ratio of their reflectances (a point light: each at its own distance and
+incidence). The shadow ratio then allows for the light the probe reflects onto the ground beside it
+(:mod:`arshadow.estimate.ratio`).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import cv2
 import numpy as np
 
 from ..camera.model import Intrinsics
 from ..compose.composite import SRGB_TO_LINEAR
+from ..shading.decide import PAPER_ALBEDO
 from ..transforms import transform_points
 from .record import moved_ratio
 from .shadow import LUMA
 
-__all__ = ["MIN_FACE_PX", "face_shading_residual"]
+__all__ = ["MIN_FACE_PX", "face_luminances", "face_shading_residual", "probe_albedo"]
 
 #: a face is measured when at least this many of its pixels remain after eroding its outline by 3 px
 MIN_FACE_PX = 40
+#: a face group whose normal's z exceeds this is the probe's top (horizontal within 2.6 degrees)
+TOP_FACE_COS = 0.999
 
 
 def _face_groups(verts: np.ndarray, faces: np.ndarray, eye: np.ndarray) -> list:
@@ -87,7 +97,6 @@ def face_shading_residual(
     v = np.asarray(verts, np.float64)
     pose = np.asarray(cam_from_world, np.float64)
     h = np.asarray(light_h, np.float64)
-    eye = transform_points(np.linalg.inv(pose), np.zeros((1, 3)))[0]
     foot = np.r_[0.5 * (v[:, :2].min(axis=0) + v[:, :2].max(axis=0)), 0.0]
 
     def to_light(p: np.ndarray) -> np.ndarray:
@@ -101,24 +110,110 @@ def face_shading_residual(
         shadow_ratio = float(moved_ratio([shadow_ratio], h[:3] / h[3], ratio_at, foot[:2])[0])
     r = float(np.clip(shadow_ratio, 0.0, 0.95))
     amb = r * max(to_light(foot)[2], 0.0) / (1.0 - r)  # A / E
-    H, W = image_bgr.shape[:2]
-    lum = cv2.LUT(image_bgr, SRGB_TO_LINEAR).astype(np.float32) @ LUMA[::-1].astype(np.float32)
-    uv = intr.project(v, pose)
     measured, model = [], []
-    kernel = np.ones((7, 7), np.uint8)
-    for normal, centre, ks in _face_groups(v, np.asarray(faces), eye):
-        mask: np.ndarray = np.zeros((H, W), np.uint8)
-        for k in ks:
-            t = uv[np.asarray(faces)[k]]
-            if np.all(np.isfinite(t)):
-                cv2.fillConvexPoly(mask, np.round(t * 16).astype(np.int32), 1, cv2.LINE_8, shift=4)
-        mask = cv2.erode(mask, kernel)
-        px = lum[mask > 0]
-        if len(px) < MIN_FACE_PX:
-            continue
-        measured.append(float(np.median(px)))
+    for normal, centre, value in face_luminances(image_bgr, intr, pose, v, np.asarray(faces)):
+        measured.append(value)
         model.append(amb + max(0.0, float(normal @ to_light(centre))) * falloff(centre))
     if len(measured) < 2 or min(measured) <= 0 or min(model) <= 0:
         return math.nan, len(measured)
     res = np.log(measured) - np.log(model)
     return float(np.abs(res - res.mean()).max()), len(measured)
+
+
+def face_luminances(
+    image_bgr: np.ndarray, intr: Intrinsics, cam_from_world: np.ndarray, verts: np.ndarray, faces: np.ndarray
+) -> list[tuple[np.ndarray, np.ndarray, float]]:
+    """Each face group of a convex probe turned to the camera with at least :data:`MIN_FACE_PX` pixels once
+    its outline is eroded by 3 px: ``(unit outward normal (3,), centroid (3,), median linear luminance)``
+    (world frame; luminance in the photo's linear light, 0..1).
+
+    ``image_bgr (H, W, 3) uint8``; ``cam_from_world (4, 4) float64``; ``verts (n, 3) float64`` and ``faces
+    (m, 3) int``: the probe in the world frame."""
+    v = np.asarray(verts, np.float64)
+    f = np.asarray(faces)
+    pose = np.asarray(cam_from_world, np.float64)
+    eye = transform_points(np.linalg.inv(pose), np.zeros((1, 3)))[0]
+    H, W = image_bgr.shape[:2]
+    lum = cv2.LUT(image_bgr, SRGB_TO_LINEAR).astype(np.float32) @ LUMA[::-1].astype(np.float32)
+    uv = intr.project(v, pose)
+    kernel = np.ones((7, 7), np.uint8)
+    out = []
+    for normal, centre, ks in _face_groups(v, f, eye):
+        mask: np.ndarray = np.zeros((H, W), np.uint8)
+        for k in ks:
+            t = uv[f[k]]
+            if np.all(np.isfinite(t)):
+                cv2.fillConvexPoly(mask, np.round(t * 16).astype(np.int32), 1, cv2.LINE_8, shift=4)
+        px = lum[cv2.erode(mask, kernel) > 0]
+        if len(px) >= MIN_FACE_PX:
+            out.append((normal, centre, float(np.median(px))))
+    return out
+
+
+def probe_albedo(  # noqa: PLR0913 (the views, the probe, the light and the paper)
+    views: Sequence[tuple[np.ndarray, Intrinsics, np.ndarray]],
+    verts: np.ndarray,
+    faces: np.ndarray,
+    light_h: np.ndarray,
+    shadow_ratio: float,
+    paper_luminance: float,
+    paper_albedo: float = PAPER_ALBEDO,
+) -> float:
+    """The probe's reflectance (luminance), read off its top face against the marker's paper; NaN when no
+    view shows the top face (:func:`face_luminances`) or the paper is unknown.
+
+    Both are horizontal and see the whole sky, so under a far light both get the open ground's light and
+    ``albedo = paper_albedo * top / paper``. A point light lights each by ``(1 - r) g + r`` (``g`` its
+    ``cos / d^2`` at the top face's centre and at the marker's centre, over at the probe's foot, where
+    ``shadow_ratio`` ``r`` is taken to hold). The median over the views.
+
+    Parameters
+    ----------
+    views : sequence of (image (H, W, 3) uint8, Intrinsics, cam_from_world (4, 4) float64)
+    verts : (n, 3) float64, faces : (m, 3) int
+        A convex probe, world frame.
+    light_h : (4,) float
+        ``(dx, dy, dz, 0)`` towards a directional light or ``(x, y, z, 1)`` a point light, world frame.
+    shadow_ratio : float
+        The sky's share of the open ground's light (luminance).
+    paper_luminance : float
+        The lit paper's linear luminance in the same photos (:class:`arshadow.estimate.exposure.Exposure`).
+    paper_albedo : float
+        The paper's reflectance (:data:`arshadow.shading.decide.PAPER_ALBEDO`).
+
+    Examples
+    --------
+    >>> from arshadow.camera import Intrinsics
+    >>> from arshadow.synth import look_at_pose
+    >>> box = np.array([[x, y, z] for x in (-0.02, 0.02) for y in (-0.02, 0.02) for z in (0.0, 0.05)])
+    >>> tri = np.array([[1, 3, 7], [1, 7, 5]])  # the top face (z = 0.05)
+    >>> cam = Intrinsics(500.0, 500.0, 159.5, 119.5, 320, 240)
+    >>> photo = np.full((240, 320, 3), 128, np.uint8)  # the top face 0.216 in linear light
+    >>> views = [(photo, cam, look_at_pose([0.0, -0.1, 0.3], [0.0, 0.0, 0.05]))]
+    >>> round(probe_albedo(views, box, tri, np.array([0.0, 0.0, 1.0, 0.0]), 0.3, 0.432), 3)
+    0.4
+    """
+    paper = float(paper_luminance)
+    if not (math.isfinite(paper) and paper > 0.0):
+        return math.nan
+    h = np.asarray(light_h, np.float64)
+    v = np.asarray(verts, np.float64)
+    foot = np.r_[0.5 * (v[:, :2].min(axis=0) + v[:, :2].max(axis=0)), 0.0]
+    r = float(np.clip(shadow_ratio, 0.0, 0.95))
+
+    def light_at(p: np.ndarray) -> float:  # a horizontal open surface's light over the open ground's at the foot
+        if h[3] == 0.0:
+            return 1.0
+        lamp = h[:3] / h[3]
+        g = max(float(lamp[2] - p[2]), 0.0) / float(np.linalg.norm(lamp - p)) ** 3
+        g0 = max(float(lamp[2]), 1e-9) / float(np.linalg.norm(lamp - foot)) ** 3
+        return (1.0 - r) * g / g0 + r
+
+    paper_light = light_at(np.zeros(3))
+    found = [
+        paper_albedo * value / paper * paper_light / light_at(centre)
+        for image, intr, pose in views
+        for normal, centre, value in face_luminances(image, intr, pose, v, faces)
+        if normal[2] > TOP_FACE_COS
+    ]
+    return float(np.median(found)) if found else math.nan

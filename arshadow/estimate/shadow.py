@@ -44,6 +44,7 @@ __all__ = [
     "fit_levels",
     "ground_jacobian",
     "hull_coverage",
+    "paper_cells",
     "sample_blur_px",
     "shadow_coverage",
 ]
@@ -58,6 +59,17 @@ EDGE_BAND = 0.19
 ERF_REACH = 6.0
 #: the least blur of a shadow's edge on a grid, cells (:func:`edge_sigma`)
 MIN_EDGE_CELLS = 0.3
+#: :func:`paper_cells`: lit paper is at least this share of the measured paper's luminance (a lamp's fall-off
+#: across the sheet; a grey floor of reflectance 0.25 is 0.3 of a paper's 0.83)
+PAPER_LIT = 0.5
+#: :func:`paper_cells`: the paper looked for within this many marker sides of the marker's centre
+PAPER_REACH = 2.5
+#: :func:`paper_cells`: the sheet's edge is a drop of the luminance below this share of the paper's just inside it
+#: (a printer paper's 0.8 against a floor's 0.1-0.45)
+PAPER_EDGE_DROP = 0.6
+#: :func:`paper_cells`: the quiet zone every printed marker has, as a multiple of its half-side (one cell of
+#: a 6 x 6 marker's 8 is 1.25 x the half-side from the centre)
+PAPER_RING = (1.08, 1.25)
 #: variance (px^2) the bilinear resampling's tent adds across an edge (averaged over the sample's phase)
 TENT_VARIANCE = 1.0 / 6.0
 #: the probe's image is left out with this seam, pixels (its faces bleed into the ground through blur)
@@ -241,12 +253,7 @@ def build_evidence(
     used[vuse[on_probe]] = False
     m = 0.5 * marker_length * 1.08
     used &= ~((np.abs(pts[:, 0]) <= m) & (np.abs(pts[:, 1]) <= m))
-    # the paper class: near the marker, neutral like the paper, brighter than a deep shadow on it
-    p = np.asarray(paper_rgb, np.float64)
-    chroma = rgb / np.maximum(rgb.sum(axis=1, keepdims=True), 1e-9)
-    pc = p / p.sum()
-    near = (np.abs(pts[:, 0]) <= 2.5 * marker_length) & (np.abs(pts[:, 1]) <= 2.5 * marker_length)
-    paper = near & (np.abs(chroma - pc).max(axis=1) < 0.035) & (rgb @ LUMA > 0.2 * (p @ LUMA)) & used
+    paper = paper_cells(pts[:, :2].reshape(n, n, 2), rgb.reshape(n, n, 3), used.reshape(n, n), paper_rgb, marker_length)
     y = rgb @ LUMA
     log_y = np.log(np.maximum(y, 1e-6))
     return Evidence(
@@ -256,7 +263,7 @@ def build_evidence(
         log_y.reshape(n, n),
         rgb.reshape(n, n, 3),
         used.reshape(n, n),
-        paper.reshape(n, n),
+        paper,
         np.asarray(verts, np.float64),
         np.asarray(faces),
         bool(convex),
@@ -265,6 +272,95 @@ def build_evidence(
         None if blur_px is None else float(blur_px),
         ground_jacobian(intr, pose, center),
     )
+
+
+def paper_cells(
+    xy: np.ndarray, rgb: np.ndarray, used: np.ndarray, paper_rgb: np.ndarray | Sequence[float], marker_length: float
+) -> np.ndarray:
+    """The grid's cells on the marker's paper, ``(ny, nx) bool``: the used cells inside the bounding rectangle
+    (in the marker's axes) of the lit paper connected to the marker, grown over a shadowed margin.
+
+    Lit paper is neutral like the measured paper and at least :data:`PAPER_LIT` of its luminance; the
+    8-connected regions of it within :data:`PAPER_REACH` marker sides that reach the marker's quiet zone
+    (:data:`PAPER_RING`; any such region when the grid does not hold the quiet zone) make the sheet. Their
+    bounding rectangle grows, side by side, over rows of paper in a shadow that covers a whole side of the
+    margin, as far as the sheet's edges carry on (:func:`_grow_sheet`), and every used cell in it is paper,
+    shadowed or not. The rectangle, not the lit cells: the paper class must end at the sheet's edge, never at
+    a shadow's (a deep shadow on the paper and a neutral floor look alike, and a class boundary along the
+    probe's shadow removes it from the fit's high-pass: until the sixth session of 2026-11-29 a neutral floor
+    brighter than a fifth of the paper was all "paper" within 2.5 sides and the shadow's lit side the class's
+    edge; docs/light.md).
+
+    Parameters
+    ----------
+    xy : (ny, nx, 2) float64
+        The cells' ground points (world, metres; the marker's centre at the origin, its sides along x and y).
+    rgb : (ny, nx, 3) float64
+        Linear RGB at each cell.
+    used : (ny, nx) bool
+    paper_rgb : (3,) float
+        The lit paper's linear RGB (:func:`arshadow.estimate.exposure.measure_exposure`).
+    marker_length : float
+        The marker's side, metres.
+
+    Examples
+    --------
+    >>> xs = np.arange(-0.1, 0.1001, 0.005)
+    >>> xy = np.stack(np.meshgrid(xs, xs), axis=-1)
+    >>> sheet = (np.abs(xy) <= 0.05).all(axis=-1)  # a 10 cm sheet round a 5 cm marker, on a grey floor
+    >>> rgb = np.where(sheet[..., None], 0.75, 0.25) * np.ones(3)
+    >>> rgb[(xy[..., 0] > 0.03) & (xy[..., 1] > 0.0)] *= 0.3  # a shadow over a corner of the sheet and the floor
+    >>> cells = paper_cells(xy, rgb, np.ones(sheet.shape, bool), (0.75, 0.75, 0.75), 0.05)
+    >>> bool((cells == sheet).all())
+    True
+    >>> rgb[xy[..., 0] > 0.03] *= 0.3  # and over the sheet's whole right-hand margin
+    >>> bool((paper_cells(xy, rgb, np.ones(sheet.shape, bool), (0.75, 0.75, 0.75), 0.05) == sheet).all())
+    True
+    """
+    p = np.asarray(paper_rgb, np.float64).reshape(3)
+    chroma = rgb / np.maximum(rgb.sum(axis=-1, keepdims=True), 1e-9)
+    half = 0.5 * float(marker_length)
+    box = np.abs(xy).max(axis=-1)  # the marker frame's max-norm: squares round the marker
+    near = box <= PAPER_REACH * float(marker_length)
+    lum = rgb @ LUMA
+    lit = used & near & (np.abs(chroma - p / p.sum()).max(axis=-1) < 0.035) & (lum >= PAPER_LIT * float(p @ LUMA))
+    count, labels = cv2.connectedComponents(lit.astype(np.uint8), connectivity=8)
+    ring = lit & (box > PAPER_RING[0] * half) & (box <= PAPER_RING[1] * half)
+    keep = np.unique(labels[ring]) if ring.any() else np.arange(1, count)
+    rows, cols = np.nonzero(np.isin(labels, keep[keep > 0]))
+    if rows.size == 0:
+        return np.zeros(used.shape, bool)
+    rect = _grow_sheet([int(rows.min()), int(rows.max()), int(cols.min()), int(cols.max())], lum, used)
+    out: np.ndarray = np.zeros(used.shape, bool)
+    out[rect[0] : rect[1] + 1, rect[2] : rect[3] + 1] = True
+    out &= used
+    return out
+
+
+def _grow_sheet(rect: list[int], lum: np.ndarray, used: np.ndarray) -> list[int]:
+    """The lit paper's bounding rectangle ``[row0, row1, col0, col1]`` (inclusive, grid cells) grown outward,
+    side by side, over the rows (columns) of the sheet that a shadow covers across a whole side of its margin:
+    a row beyond a side is the sheet's while it carries on the sheet's two perpendicular edges, i.e. at both
+    the rectangle's ``col0`` and ``col1`` (at the one of them seen) the 3 cells outside are under
+    :data:`PAPER_EDGE_DROP` of the 3 inside (median luminance ``lum (ny, nx)`` over the ``used`` cells). A
+    shadow dims paper and floor alike, so the sheet's edges are there in its shadow too; a neutral floor
+    beside the sheet has none (at most a shadow's edge at one end)."""
+    ny, nx = lum.shape
+
+    def steps(k: int, across: bool) -> bool:  # row (column when across) k carries the sheet's edges on
+        a, b = (rect[2], rect[3]) if not across else (rect[0], rect[1])
+        cells = (lum[k], used[k]) if not across else (lum[:, k], used[:, k])
+        seen = []
+        for inside, outside in ((slice(a, a + 3), slice(max(a - 3, 0), a)), (slice(b - 2, b + 1), slice(b + 1, b + 4))):
+            vin, vout = cells[0][inside][cells[1][inside]], cells[0][outside][cells[1][outside]]
+            if vin.size and vout.size:
+                seen.append(float(np.median(vout)) < PAPER_EDGE_DROP * float(np.median(vin)))
+        return bool(seen) and all(seen)
+
+    for side, step, limit in ((0, -1, 0), (1, 1, ny - 1), (2, -1, 0), (3, 1, nx - 1)):
+        while rect[side] != limit and steps(rect[side] + step, side >= 2):
+            rect[side] += step
+    return rect
 
 
 def shadow_coverage(ev: Evidence, light_h: np.ndarray) -> np.ndarray | None:
