@@ -1,6 +1,6 @@
 """Where the ground residual of the path-traced reference comes from (the realism work; docs/reference.md).
 
-    python tests/benchmarks/diagnose_realism.py [--set own|heldout ...] [--png DIR] [--opt KEY=VALUE ...]
+    python tests/benchmarks/diagnose_realism.py [--set own|heldout|plain ...] [--png DIR] [--opt KEY=VALUE ...]
 
 Per committed case, four pipelines (all with the scene's ``--ambient-occlusion on`` unless ``--opt`` says
 otherwise):
@@ -154,7 +154,7 @@ def write_png(path: Path, signed: np.ndarray, region: np.ndarray, shadow: np.nda
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--set", action="append", choices=("own", "heldout"))
+    ap.add_argument("--set", action="append", choices=("own", "heldout", "plain"), help="default: own and heldout")
     ap.add_argument("--pipeline", action="append", choices=("measured", "measured_pose", "true_dir", "oracle"))
     ap.add_argument("--only", action="append", help="case name(s)")
     ap.add_argument("--opt", action="append", default=[], help="scene key=value (JSON value)")

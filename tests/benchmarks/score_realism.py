@@ -1,6 +1,6 @@
 """The realism options scored against the path-traced reference (docs/reference.md, docs/shading.md).
 
-    python tests/benchmarks/score_realism.py [--set own|heldout ...] [--pose tracked|true]
+    python tests/benchmarks/score_realism.py [--set own|heldout|plain ...] [--pose tracked|true]
 
 Per committed case (tests/data/reference/<set>): the light measured once (``arshadow light`` with the
 case's probe), then ``render --light-from`` with ``ambient_occlusion off`` (the old model: also no object
@@ -27,7 +27,7 @@ CONFIGS = {
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--set", action="append", choices=("own", "heldout"))
+    ap.add_argument("--set", action="append", choices=("own", "heldout", "plain"), help="default: own and heldout")
     ap.add_argument("--pose", default="tracked", choices=("tracked", "true"))
     ap.add_argument("--out")
     args = ap.parse_args()
