@@ -18,12 +18,14 @@ import pytest
 
 import arshadow.estimate.api as api
 from arshadow.camera.model import Intrinsics
+from arshadow.compose.composite import SRGB_TO_LINEAR
 from arshadow.estimate import estimate_light
 from arshadow.estimate.checks import RATIO_TEXTURE
 from arshadow.estimate.ratio import CHROMA_PX, shadow_ratio
 from arshadow.estimate.shadow import LUMA
 from arshadow.geometry.exact import ground_shadow_triangles
 from arshadow.geometry.mesh import load_occluder
+from arshadow.shading.decide import PAPER_ALBEDO
 from arshadow.synth.lit import light_vector, render_lit_photo
 from arshadow.synth.markers import look_at_pose
 
@@ -126,3 +128,29 @@ def test_the_lit_floors_change_allows_for_a_floor_darker_under_the_shadow(az, el
     monkeypatch.setattr(api, "shadow_ratio", functools.partial(shadow_ratio, lit_gradient=False))
     plain = _estimate(photo)
     assert float(np.asarray(plain.shadow_ratio) @ LUMA) / truth - 1.0 < -0.035, plain.shadow_ratio
+
+
+@pytest.mark.parametrize("albedo", [0.3, 0.5, 1.2])
+def test_probe_reflectance_is_read_off_its_top_face(albedo, tol):
+    """The probe's reflectance (``fit.probe_albedo``, for the light it reflects onto the floor beside its
+    shadow) is read off its top face against the marker's paper: the truth is the generating reflectance over
+    the printed paper's (sRGB 235, 0.83) times the paper's assumed ``PAPER_ALBEDO``. A top face brighter than
+    any matte surface (an impossible 1.2 here: what a glossy probe, or one lit by something the paper is not,
+    reads) is named in a warning and its reflected light left out of the ratio."""
+    photo = render_lit_photo(
+        Intrinsics.from_file(CALIB),
+        look_at_pose((0.05, -0.45, 0.396), (0.08, 0.04, 0.0)),
+        probe=PROBE,
+        probe_place=PLACE,
+        probe_albedo=(albedo, albedo, albedo),
+        light=light_vector(200.0, 40.0),
+        jpeg_quality=90,
+        noise_sigma=1.0,
+        seed=9,
+        floor="plain",
+    )
+    est = estimate_light(photo.image, calib=CALIB, marker_length=0.05, probe=PROBE, probe_place=PLACE)
+    want = PAPER_ALBEDO * albedo / float(SRGB_TO_LINEAR[235])
+    assert est.fit["probe_albedo"] == pytest.approx(want, rel=tol.probe_albedo_rel), est.fit
+    warned = [w for w in est.warnings if "brighter than any matte surface" in w]
+    assert bool(warned) == (want > 1.0), est.warnings
