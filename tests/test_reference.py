@@ -206,7 +206,7 @@ def test_light_estimate_on_a_plain_floor(plain, tol):
     Every plate is fitted (until the sixth session of 2026-11-29 the marker's paper class took in every neutral
     cell brighter than a fifth of the paper within 2.5 marker sides, and its edge then ran along the probe's
     shadow: on twelve such plates 9 were refused as ambiguous, the others 22-65 degrees off;
-    arshadow.estimate.shadow.paper_cells), the light
+    arshadow.estimate.paper.paper_cells), the light
     close (measured: suns 0.10 / 0.16 degrees, lamps 0.30 / 1.97 %), and the shadow ratio allows for the sky the
     probe hides from both sides of its shadow's edge and for the light it reflects onto them (its reflectance
     read off its top face, 0.481-0.511 against the plates' 0.5 grey seen through the paper's 0.8 / 0.8308,

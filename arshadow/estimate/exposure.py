@@ -25,6 +25,7 @@ from ..errors import ArshadowError
 from ..tracking.dictionary import get_dictionary, marker_bits
 
 __all__ = [
+    "LUMA",
     "Exposure",
     "ExposureError",
     "ExposureSmoother",
@@ -34,6 +35,9 @@ __all__ = [
     "sample_linear",
     "smooth_exposures",
 ]
+
+#: Rec. 709 luminance weights of linear RGB
+LUMA = np.array([0.2126, 0.7152, 0.0722])
 
 
 class ExposureError(ArshadowError, ValueError):
@@ -70,8 +74,7 @@ class Exposure:
     @property
     def contrast(self) -> float:
         """Paper / ink luminance (Rec. 709 weights)."""
-        w = np.array([0.2126, 0.7152, 0.0722])
-        return float(w @ np.asarray(self.paper_rgb) / max(w @ np.asarray(self.ink_rgb), 1e-9))
+        return float(LUMA @ np.asarray(self.paper_rgb) / max(LUMA @ np.asarray(self.ink_rgb), 1e-9))
 
     def to_dict(self) -> dict:
         return {
@@ -229,7 +232,7 @@ def measure_exposure(
     else:
         cell = np.nanmedian(rgb, axis=1) if finite.any() else np.full((len(white), 3), np.nan)
     ok = np.all(np.isfinite(cell), axis=1)
-    lum = cell @ np.array([0.2126, 0.7152, 0.0722])
+    lum = cell @ LUMA
     w_ok = white & ok
     if np.count_nonzero(w_ok) < 3:
         raise ExposureError("the marker's white cells are not in the image: cannot measure its paper")

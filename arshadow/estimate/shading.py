@@ -37,7 +37,7 @@ from ..transforms import transform_points
 from .record import moved_ratio
 from .shadow import LUMA
 
-__all__ = ["MIN_FACE_PX", "face_luminances", "face_shading_residual", "probe_albedo"]
+__all__ = ["MIN_FACE_PX", "TOP_FACE_COS", "face_luminances", "face_shading_residual", "probe_albedo"]
 
 #: a face is measured when at least this many of its pixels remain after eroding its outline by 3 px
 MIN_FACE_PX = 40
