@@ -6,7 +6,7 @@ allowing for the sky the probe hides from both points and the light it reflects 
 (``q = (r V_in + R_in) / (1 - r + r V_out + R_out)``, :class:`ProbeGround`). The reflected light needs the
 probe's and the floor's reflectances, read off the photo against the marker's paper
 (:func:`arshadow.estimate.shading.probe_albedo`, :func:`floor_albedo`). On plain-floor path-traced plates
-(12 scenes) the ratio reads +0.018 of the truth on average (median |error| 0.009) with it, +0.044 (0.030)
+(12 scenes) the ratio reads +0.018 of the truth on average (median |error| 0.010) with it, +0.045 (0.030)
 with the sky occlusion alone: the grey probe lights the shadow beside it (docs/reference.md, "The probe's
 reflected light and the paper's class").
 
