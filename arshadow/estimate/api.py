@@ -34,7 +34,7 @@ from .outline import outline_agreement
 from .penumbra import fit_angular_radius
 from .ratio import ProbeGround, floor_albedo, probe_ground, shadow_ratio
 from .record import LightEstimate
-from .shading import probe_albedo
+from .shading import ProbeViews, probe_albedo
 from .shadow import LUMA, Evidence, build_evidence, sample_blur_px, shadow_coverage
 
 __all__ = ["MAX_FRAMES", "VIDEO_EXTENSIONS", "estimate_light"]
@@ -294,7 +294,17 @@ def estimate_light(
             exposures.append(exp)
     check_outline(outline)
     return _fit(
-        kind_name, kind, enu, coarse, fines, pxs, exposures, (verts, faces, views, sky_occlusion), t0, notes, outline
+        kind_name,
+        kind,
+        enu,
+        coarse,
+        fines,
+        pxs,
+        exposures,
+        ProbeViews(verts, faces, views, sky_occlusion),
+        t0,
+        notes,
+        outline,
     )
 
 
@@ -335,12 +345,7 @@ def _pooled_exposure(exposures: Sequence[Exposure]) -> Exposure:
 
 
 def _albedos(
-    res: FitResult,
-    r: float,
-    views: Sequence[tuple[np.ndarray, Intrinsics, np.ndarray]],
-    probe: tuple[np.ndarray, np.ndarray],
-    ground: ProbeGround | None,
-    exp: Exposure,
+    res: FitResult, r: float, probe: ProbeViews, ground: ProbeGround | None, exp: Exposure
 ) -> tuple[float, float]:
     """``(probe, floor)``: the probe's reflectance off its top face (:func:`.shading.probe_albedo`) and the
     floor's round it (:func:`.ratio.floor_albedo`), both against the paper, under the fitted light and the
@@ -350,29 +355,24 @@ def _albedos(
         return math.nan, math.nan
     paper = float(np.asarray(exp.paper_rgb) @ LUMA)
     r = float(np.clip(r, 0.0, 0.95))
-    top = probe_albedo(views, probe[0], probe[1], res.light_h, r, paper)
+    top = probe_albedo(probe, res.light_h, r, paper)
     return top, floor_albedo(res.fine, res.light_h, r, ground, paper)
 
 
 def _read_ratio(
-    res: FitResult,
-    pxs: Sequence[float],
-    views: Sequence[tuple[np.ndarray, Intrinsics, np.ndarray]],
-    probe: tuple[np.ndarray, np.ndarray],
-    exp: Exposure,
-    sky_occlusion: bool,
+    res: FitResult, pxs: Sequence[float], probe: ProbeViews, exp: Exposure
 ) -> tuple[tuple[float, ...], tuple[float, float] | None, ProbeGround | None, tuple[float, float]]:
     """The shadow ratio of the fitted light (:func:`.ratio.shadow_ratio`), allowing for what the probe does to
     the ground beside its shadow: ``(ratio, where it was read, the probe's ProbeGround, (probe, floor)
     reflectances)``. Read first with the sky the probe hides, then, with both reflectances read and possible
-    (0..1], again with the light it reflects (:func:`.ratio.probe_ground`); ``sky_occlusion`` False: neither
-    (``arshadow.synth.lit``'s photos)."""
-    caster = ShadowCaster(*probe) if sky_occlusion else None
+    (0..1], again with the light it reflects (:func:`.ratio.probe_ground`); neither without
+    ``probe.ground_effects`` (``arshadow.synth.lit``'s photos)."""
+    caster = ShadowCaster(probe.verts, probe.faces) if probe.ground_effects else None
     ground = probe_ground(caster, res.light_h)
     ratio, ratio_at = shadow_ratio(res.fine, res.light_h, pxs, ground)
-    albedos = _albedos(res, float(np.asarray(ratio) @ LUMA), views, probe, ground, exp)
+    albedos = _albedos(res, float(np.asarray(ratio) @ LUMA), probe, ground, exp)
     if caster is not None and all(math.isfinite(a) and 0.0 < a <= 1.0 for a in albedos):
-        ground = probe_ground(caster, res.light_h, albedos, ratio_at)
+        ground = probe_ground(caster, res.light_h, albedos, ratio_at, sky=ground.sky if ground else None)
         ratio, ratio_at = shadow_ratio(res.fine, res.light_h, pxs, ground)
     return ratio, ratio_at, ground, albedos
 
@@ -385,20 +385,17 @@ def _fit(
     fines: list[FineGrid],
     pxs: list[float],
     exposures: list[Exposure],
-    probe: tuple,
+    probe: ProbeViews,
     t0: float,
     notes: list[str],
     outline: list[tuple[float, int]],
 ) -> LightEstimate:
-    verts, faces, views, sky_occlusion = probe
-
     def make_fine(lights_h: list) -> list[Evidence]:
         return [f(lights_h) for f in fines]
 
     sun_check = None
 
-    top = verts[:, 2].max()
-    anchor = np.r_[0.5 * (verts[:, :2].min(axis=0) + verts[:, :2].max(axis=0)), top]
+    anchor = np.r_[probe.foot[:2], probe.verts[:, 2].max()]  # the probe's top
     if kind_name == "directional":
         res = fit_directional(coarse, make_fine)
     elif kind_name == "sun":
@@ -408,8 +405,8 @@ def _fit(
     else:
         res = fit_point(coarse, make_fine, anchor)
     exp = _pooled_exposure(exposures)
-    ratio, ratio_at, ground, albedos = _read_ratio(res, pxs, views, (verts, faces), exp, sky_occlusion)
-    checks = light_checks(res, (ratio, ratio_at), pxs, outline, views, verts, faces, ground)
+    ratio, ratio_at, ground, albedos = _read_ratio(res, pxs, probe, exp)
+    checks = light_checks(res, (ratio, ratio_at), pxs, outline, probe, ground)
     warnings = list(notes)
     if exp.saturated:
         warnings.append("the marker's paper is over-exposed (clipped): the exposure match is a lower bound")

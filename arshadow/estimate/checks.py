@@ -15,11 +15,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..camera.model import Intrinsics
 from ..errors import EstimateError
 from .light import FitResult
 from .ratio import ProbeGround, texture_uncertainty
-from .shading import face_shading_residual
+from .shading import ProbeViews, face_shading_residual
 from .shadow import LUMA, Evidence, edge_pairs, shadow_coverage
 
 __all__ = [
@@ -103,22 +102,23 @@ def light_checks(
     read: tuple[tuple, tuple[float, float] | None],
     pxs: Sequence[float],
     outline: Sequence[tuple[float, int]],
-    views: Sequence[tuple[np.ndarray, Intrinsics, np.ndarray]],
-    verts: np.ndarray,
-    faces: np.ndarray,
-    probe: ProbeGround | None,
+    probe: ProbeViews,
+    ground: ProbeGround | None,
 ) -> dict:
     """The checks of a fitted light that do not come from its shadow fit: the probe's outline on the photo
     (pooled over the frames), the share of the fitted shadow's edge darker inside, the probe's faces
-    against the light's shading (the median over the ``views``; NaN when not measured)
+    against the light's shading (the median over its views; NaN when not measured)
     and how far the floor's pattern moves the shadow ratio (:func:`.ratio.texture_uncertainty`).
-    ``read``: the shadow ratio and where it was read (:func:`.ratio.shadow_ratio`); ``probe``: the sky the
-    probe hides and the light it reflects (:func:`.ratio.probe_ground`; None: sky occlusion off, as for the
+    ``read``: the shadow ratio and where it was read (:func:`.ratio.shadow_ratio`); ``ground``: the sky the
+    probe hides and the light it reflects (:func:`.ratio.probe_ground`; None: not allowed for, as for the
     ratio)."""
     edge_darker, edge_n = _edge_consistency(res.fine, res.light_h, pxs)
     r = float(np.asarray(read[0]) @ LUMA)
-    texture, _ = texture_uncertainty(res.fine, res.light_h, pxs, probe, float(np.clip(r, 0.0, 0.95)))
-    shade = [face_shading_residual(im, it, T, verts, faces, res.light_h, r, read[1])[0] for im, it, T in views]
+    texture, _ = texture_uncertainty(res.fine, res.light_h, pxs, ground, float(np.clip(r, 0.0, 0.95)))
+    shade = [
+        face_shading_residual(im, it, T, probe.verts, probe.faces, res.light_h, r, read[1])[0]
+        for im, it, T in probe.views
+    ]
     shade = [x for x in shade if math.isfinite(x)]
     return {
         "outline": _pooled(outline),

@@ -118,17 +118,22 @@ class ProbeGround:
 
 
 def probe_ground(
-    probe: Any, h: np.ndarray, reflectance: tuple[float, float] | None = None, ref: Sequence[float] | None = None
+    probe: Any,
+    h: np.ndarray,
+    reflectance: tuple[float, float] | None = None,
+    ref: Sequence[float] | None = None,
+    sky: GroundOcclusion | None = None,
 ) -> ProbeGround | None:
     """The probe's :class:`ProbeGround`; None without a probe (``arshadow.synth.lit``'s photos).
 
     ``probe``: its ShadowCaster (world frame, metres); ``h``: the fitted light (homogeneous, (4,));
     ``reflectance``: ``(probe, floor)``, their reflectances (luminance; :func:`.shading.probe_albedo`,
     :func:`floor_albedo`), None: the sky it hides only; ``ref``: a point light's ground point ``(x, y)``
-    where the shares hold (where the ratio is read), default the probe's foot."""
+    where the shares hold (where the ratio is read), default the probe's foot; ``sky``: its sky map when
+    already made (a :class:`ProbeGround`'s ``sky``)."""
     if probe is None:
         return None
-    sky = ground_sky_visibility(probe, n_dirs=128, resolution=128, taper=None)
+    sky = sky if sky is not None else ground_sky_visibility(probe, n_dirs=128, resolution=128, taper=None)
     if reflectance is None:
         return ProbeGround(sky)
     h = np.asarray(h, np.float64)
@@ -156,10 +161,10 @@ def floor_albedo(
 ) -> float:
     """The floor's reflectance round the probe (luminance): the median over the evidence's lit floor cells
     (not the paper's, not in the fitted shadow) of ``paper_albedo * floor / paper``, each allowing for its
-    own light against the paper's (``(1 - r) g + r V``: a point light's ``cos / d^2`` ``g``, the sky the
-    probe hides ``V``); NaN with no such cell or no paper. ``evs``: the frames' fine evidence; ``h``: the
-    fitted light (homogeneous, (4,)); ``r``: the sky's share; ``paper_luminance``: the lit paper's linear
-    luminance (:class:`arshadow.estimate.exposure.Exposure`)."""
+    own light against the paper's (at the marker's centre; :class:`_OpenLight`: a point light's fall-off, the
+    sky the probe hides, ``ground``); NaN with no such cell or no paper. ``evs``: the frames' fine evidence;
+    ``h``: the fitted light (homogeneous, (4,)); ``r``: the sky's share; ``paper_luminance``: the lit paper's
+    linear luminance (:class:`arshadow.estimate.exposure.Exposure`)."""
     paper = float(paper_luminance)
     if not (math.isfinite(paper) and paper > 0.0):
         return math.nan
@@ -172,14 +177,8 @@ def floor_albedo(
         if rows.size == 0:
             continue
         x = np.column_stack([ev.x0 + cols * ev.step, ev.y0 + rows * ev.step])
-        g = np.ones(len(x))
-        g_paper = 1.0
-        if h[3] != 0.0:
-            g = lamp_irradiance(h[:3] / h[3], x)
-            g_paper = float(lamp_irradiance(h[:3] / h[3], np.zeros((1, 2)))[0])
-            g, g_paper = g / max(float(np.median(g)), 1e-300), g_paper / max(float(np.median(g)), 1e-300)
-        v = ground.visibility(x) if ground is not None else np.ones(len(x))
-        light = ((1.0 - r) * g_paper + r) / np.maximum((1.0 - r) * g + r * v, 1e-9)
+        e = _OpenLight(h, r, ground).at(np.vstack([x, np.zeros((1, 2))]))  # the cells', then the paper's
+        light = e[-1] / e[:-1]
         values.append(paper_albedo * (ev.rgb[rows, cols] @ LUMA) / paper * light)
     return float(np.median(np.concatenate(values))) if values else math.nan
 

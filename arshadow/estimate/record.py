@@ -187,15 +187,19 @@ def ratio_at(est: LightEstimate, xy: Sequence[float]) -> tuple[float, ...]:
 
 
 def lamp_irradiance(lamp: Sequence[float], xy: npt.ArrayLike) -> np.ndarray:
-    """A point lamp's irradiance on the ground (z = 0) at the points ``xy (n, 2)`` (world frame, metres):
-    ``max(0, z) / d^3`` for the lamp at ``lamp (3,)`` (its intensity 1), ``(n,) float64``.
+    """A point lamp's irradiance on horizontal surfaces facing up at the points ``xy`` (world frame, metres):
+    ``(n, 2)`` on the ground (z = 0) or ``(n, 3)``; ``max(0, dz) / d^3`` for the lamp at ``lamp (3,)`` (its
+    intensity 1), ``(n,) float64``.
 
     >>> lamp_irradiance((0.0, 0.0, 1.0), [[0.0, 0.0], [1.0, 0.0]]).round(4).tolist()
     [1.0, 0.3536]
+    >>> lamp_irradiance((0.0, 0.0, 1.0), [[0.0, 0.0, 0.5]]).round(4).tolist()  # a surface half-way up
+    [4.0]
     """
     p = np.asarray(lamp, np.float64).reshape(3)
-    q = np.asarray(xy, np.float64).reshape(-1, 2)
-    rel = p[None, :] - np.column_stack([q, np.zeros(len(q))])
+    q = np.asarray(xy, np.float64)
+    q = q.reshape(-1, q.shape[-1])
+    rel = p[None, :] - (q if q.shape[1] == 3 else np.column_stack([q, np.zeros(len(q))]))
     out: np.ndarray = np.maximum(rel[:, 2], 0.0) / np.linalg.norm(rel, axis=1) ** 3
     return out
 

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
@@ -34,15 +35,46 @@ from ..camera.model import Intrinsics
 from ..compose.composite import SRGB_TO_LINEAR
 from ..shading.decide import PAPER_ALBEDO
 from ..transforms import transform_points
-from .record import moved_ratio
+from .record import lamp_irradiance, moved_ratio
 from .shadow import LUMA
 
-__all__ = ["MIN_FACE_PX", "TOP_FACE_COS", "face_luminances", "face_shading_residual", "probe_albedo"]
+__all__ = ["MIN_FACE_PX", "TOP_FACE_COS", "ProbeViews", "face_luminances", "face_shading_residual", "probe_albedo"]
 
 #: a face is measured when at least this many of its pixels remain after eroding its outline by 3 px
 MIN_FACE_PX = 40
 #: a face group whose normal's z exceeds this is the probe's top (horizontal within 2.6 degrees)
 TOP_FACE_COS = 0.999
+
+
+@dataclass(frozen=True, eq=False)
+class ProbeViews:
+    """The probe as the light estimate sees it: its mesh and the photos that show it.
+
+    Attributes
+    ----------
+    verts : (n, 3) float64, faces : (m, 3) int
+        The probe, world frame (metres), standing on the ground.
+    views : tuple of (image (H, W, 3) uint8, Intrinsics, cam_from_world (4, 4) float64)
+        The frames its faces are read in (a convex probe's; empty otherwise).
+    ground_effects : bool
+        Whether its effect on the ground round it is allowed for (the sky it hides, the light it reflects):
+        true of every real photo; False for ``arshadow.synth.lit``'s (``estimate_light(sky_occlusion=)``).
+    foot : (3,) float64
+        The centre of its footprint's bounding box on the ground (derived).
+    """
+
+    verts: np.ndarray
+    faces: np.ndarray
+    views: Sequence[tuple[np.ndarray, Intrinsics, np.ndarray]] = ()
+    ground_effects: bool = True
+    foot: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        v = np.asarray(self.verts, np.float64)
+        object.__setattr__(self, "verts", v)
+        object.__setattr__(self, "faces", np.asarray(self.faces))
+        object.__setattr__(self, "views", tuple(self.views))
+        object.__setattr__(self, "foot", np.r_[0.5 * (v[:, :2].min(axis=0) + v[:, :2].max(axis=0)), 0.0])
 
 
 def _face_groups(verts: np.ndarray, faces: np.ndarray, eye: np.ndarray) -> list:
@@ -150,10 +182,8 @@ def face_luminances(
     return out
 
 
-def probe_albedo(  # noqa: PLR0913 (the views, the probe, the light and the paper)
-    views: Sequence[tuple[np.ndarray, Intrinsics, np.ndarray]],
-    verts: np.ndarray,
-    faces: np.ndarray,
+def probe_albedo(
+    probe: ProbeViews,
     light_h: np.ndarray,
     shadow_ratio: float,
     paper_luminance: float,
@@ -165,13 +195,12 @@ def probe_albedo(  # noqa: PLR0913 (the views, the probe, the light and the pape
     Both are horizontal and see the whole sky, so under a far light both get the open ground's light and
     ``albedo = paper_albedo * top / paper``. A point light lights each by ``(1 - r) g + r`` (``g`` its
     ``cos / d^2`` at the top face's centre and at the marker's centre, over at the probe's foot, where
-    ``shadow_ratio`` ``r`` is taken to hold). The median over the views.
+    ``shadow_ratio`` ``r`` is taken to hold). The median over the probe's views.
 
     Parameters
     ----------
-    views : sequence of (image (H, W, 3) uint8, Intrinsics, cam_from_world (4, 4) float64)
-    verts : (n, 3) float64, faces : (m, 3) int
-        A convex probe, world frame.
+    probe : ProbeViews
+        A convex probe and the photos that show it.
     light_h : (4,) float
         ``(dx, dy, dz, 0)`` towards a directional light or ``(x, y, z, 1)`` a point light, world frame.
     shadow_ratio : float
@@ -189,31 +218,26 @@ def probe_albedo(  # noqa: PLR0913 (the views, the probe, the light and the pape
     >>> tri = np.array([[1, 3, 7], [1, 7, 5]])  # the top face (z = 0.05)
     >>> cam = Intrinsics(500.0, 500.0, 159.5, 119.5, 320, 240)
     >>> photo = np.full((240, 320, 3), 128, np.uint8)  # the top face 0.216 in linear light
-    >>> views = [(photo, cam, look_at_pose([0.0, -0.1, 0.3], [0.0, 0.0, 0.05]))]
-    >>> round(probe_albedo(views, box, tri, np.array([0.0, 0.0, 1.0, 0.0]), 0.3, 0.432), 3)
+    >>> probe = ProbeViews(box, tri, [(photo, cam, look_at_pose([0.0, -0.1, 0.3], [0.0, 0.0, 0.05]))])
+    >>> round(probe_albedo(probe, np.array([0.0, 0.0, 1.0, 0.0]), 0.3, 0.432), 3)
     0.4
     """
     paper = float(paper_luminance)
     if not (math.isfinite(paper) and paper > 0.0):
         return math.nan
     h = np.asarray(light_h, np.float64)
-    v = np.asarray(verts, np.float64)
-    foot = np.r_[0.5 * (v[:, :2].min(axis=0) + v[:, :2].max(axis=0)), 0.0]
     r = float(np.clip(shadow_ratio, 0.0, 0.95))
-
-    def light_at(p: np.ndarray) -> float:  # a horizontal open surface's light over the open ground's at the foot
-        if h[3] == 0.0:
-            return 1.0
-        lamp = h[:3] / h[3]
-        g = max(float(lamp[2] - p[2]), 0.0) / float(np.linalg.norm(lamp - p)) ** 3
-        g0 = max(float(lamp[2]), 1e-9) / float(np.linalg.norm(lamp - foot)) ** 3
-        return (1.0 - r) * g / g0 + r
-
-    paper_light = light_at(np.zeros(3))
     found = [
-        paper_albedo * value / paper * paper_light / light_at(centre)
-        for image, intr, pose in views
-        for normal, centre, value in face_luminances(image, intr, pose, v, faces)
+        (c, paper_albedo * value / paper)
+        for image, intr, pose in probe.views
+        for normal, c, value in face_luminances(image, intr, pose, probe.verts, probe.faces)
         if normal[2] > TOP_FACE_COS
     ]
-    return float(np.median(found)) if found else math.nan
+    if not found:
+        return math.nan
+    centres, albedos = np.array([c for c, _ in found]), np.array([a for _, a in found])
+    if h[3] != 0.0:  # each surface's light over the open ground's at the foot: (1 - r) g + r
+        g = lamp_irradiance(h[:3] / h[3], np.vstack([centres, np.zeros((1, 3)), probe.foot]))
+        light = (1.0 - r) * g[:-1] / g[-1] + r
+        albedos = albedos * light[-1] / light[:-1]  # light[-1]: the paper's, at the marker's centre
+    return float(np.median(albedos))
